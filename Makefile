@@ -1,0 +1,26 @@
+# Fresh machine: `make demo` runs the main job, `make test` runs the test suite.
+# Each target creates .venv and installs graphloc first (scripts/bootstrap.sh).
+VENV ?= .venv
+STAMP := $(VENV)/.graphloc-installed
+OUT ?= out
+
+.PHONY: demo test test-all bench-p3p clean
+
+$(STAMP): pyproject.toml scripts/bootstrap.sh
+	VENV=$(VENV) bash scripts/bootstrap.sh
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/graphloc demo --out $(OUT)/demo
+
+test: $(STAMP)
+	$(VENV)/bin/python -m pytest
+
+test-all: $(STAMP)
+	$(VENV)/bin/python -m pytest -m "slow or not slow"
+
+bench-p3p: $(STAMP)
+	$(VENV)/bin/graphloc p3p-bench --out $(OUT)/bench_p3p
+
+clean:
+	rm -rf $(VENV) $(OUT) build dist *.egg-info

@@ -1,0 +1,1 @@
+"""graphloc.factors (source folder factors/): measurements -> GTSAM factors."""

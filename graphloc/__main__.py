@@ -1,0 +1,3 @@
+from graphloc.cli import main
+
+raise SystemExit(main())

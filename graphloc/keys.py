@@ -1,0 +1,46 @@
+"""The one place GTSAM keys are built: (robot, time index) -> key, so logs, factors and
+outputs agree. Style of gtsam.symbol_shorthand, with the robot folded into the index.
+
+Pose of robot r at step t:  Symbol('x', r * STRIDE + t)   e.g. x3000000012 = robot 3, step 12
+Landmark l:                 Symbol('l', l)
+Discrete mode of observation k (which candidate is genuine): Symbol('m', k)
+"""
+
+from __future__ import annotations
+
+import gtsam
+
+STRIDE = 1_000_000_000
+MAX_ROBOTS = 1_000
+
+
+def pose_key(robot: int, t: int) -> int:
+    """Key of robot `robot`'s pose at time index `t` (both non-negative ints)."""
+    if not (0 <= int(robot) < MAX_ROBOTS):
+        raise ValueError(f"robot index {robot} outside [0, {MAX_ROBOTS})")
+    if not (0 <= int(t) < STRIDE):
+        raise ValueError(f"time index {t} outside [0, {STRIDE})")
+    return gtsam.symbol("x", int(robot) * STRIDE + int(t))
+
+
+def landmark_key(landmark: int) -> int:
+    """Key of landmark `landmark` (non-negative int)."""
+    if int(landmark) < 0:
+        raise ValueError(f"landmark id {landmark} is negative")
+    return gtsam.symbol("l", int(landmark))
+
+
+def mode_key(observation: int) -> int:
+    """Key of the discrete variable choosing among the candidates of observation `observation`."""
+    if int(observation) < 0:
+        raise ValueError(f"observation index {observation} is negative")
+    return gtsam.symbol("m", int(observation))
+
+
+def decode(key: int) -> tuple[str, int, int]:
+    """Inverse of the builders: ('x', robot, t), ('l', id, 0) or ('m', obs, 0)."""
+    sym = gtsam.Symbol(key)
+    kind, index = chr(sym.chr()), sym.index()
+    if kind == "x":
+        return kind, index // STRIDE, index % STRIDE
+    return kind, index, 0
