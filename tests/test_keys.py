@@ -1,0 +1,31 @@
+import numpy as np
+import pytest
+
+from graphloc.candidates import CandidateSet
+from graphloc.keys import decode, landmark_key, mode_key, pose_key
+
+
+def test_pose_keys_are_unique_and_decode():
+    keys = {pose_key(r, t) for r in range(5) for t in range(100)}
+    assert len(keys) == 500
+    assert decode(pose_key(3, 12)) == ("x", 3, 12)
+    assert decode(landmark_key(7)) == ("l", 7, 0)
+    assert decode(mode_key(9)) == ("m", 9, 0)
+    assert len({pose_key(0, 0), landmark_key(0), mode_key(0)}) == 3
+
+
+@pytest.mark.parametrize("robot,t", [(-1, 0), (0, -1), (1000, 0), (0, 10**9)])
+def test_pose_key_rejects_out_of_range(robot, t):
+    with pytest.raises(ValueError):
+        pose_key(robot, t)
+
+
+def test_candidate_set_validates_and_normalizes():
+    R = np.stack([np.eye(3)] * 2)
+    c = CandidateSet(R=R, t=np.zeros((2, 3)), scores=np.array([1.0, 3.0]))
+    assert np.allclose(c.weights(), [0.25, 0.75])
+    assert len(c.poses()) == 2
+    with pytest.raises(ValueError, match="t must be"):
+        CandidateSet(R=R, t=np.zeros((3, 3)), scores=np.ones(2))
+    with pytest.raises(ValueError, match="NaN"):
+        CandidateSet(R=R, t=np.full((2, 3), np.nan), scores=np.ones(2))
