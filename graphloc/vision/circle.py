@@ -1,0 +1,291 @@
+"""Pose of a circle of known radius from its image ellipse (seed 003, section II-A "Robot
+Tracker": 1) ellipse detection and least-squares fit to edge points, 2) position from the
+ellipse via the oblique elliptical cone, eqs. (1)-(4)).
+
+Pipeline (batched over N rims where it matters):
+  rim pixels (M,2) -> undistorted ideal pixels (camera model) -> OpenCV ellipse fit
+  (cv2.fitEllipseDirect, Fitzgibbon's direct least squares, the seed's "least-squares
+  fitting technique [3]"; AMS / plain fitEllipse selectable) -> image conic C (3x3)
+  -> cone Q = K^T C K through the camera centre (seed eq. 1, in normalized coordinates)
+  -> eigen-decomposition Q = V diag(l1, l2, l3) V^T, l1 >= l2 > 0 > l3 (the seed's
+  "rotation R1 by diagonalizing") -> the two circular sections (seed eqs. 2-3; Shiu & Ahmad
+  1989, Safaee-Rad et al. 1992):
+
+    Q - l2 I = (l1 - l3) (n . P)(m . P),  n, m = (+-sqrt(l1-l2), 0, +-sqrt(l2-l3)) / sqrt(l1-l3)
+
+  so on a plane n . P = d the cone is the sphere |P|^2 + (l1-l3) d (m . P) / l2 = 0, whose
+  section by that plane is the circle; its radius fixes d, its centre is the projection of
+  the sphere centre onto the plane (closed form, the seed's eq. 4).
+
+Both solutions (normal sign choices +-sqrt(l1-l2)) are returned, as a CandidateSet of
+circle-frame poses T_cam_circle: origin = circle centre, z axis = the circle's normal turned
+towards the camera (n . centre < 0). Rotation about the normal (yaw) is unobservable for a
+circle; convention: the circle's x axis is the camera x axis projected onto the circle plane
+(camera y axis if x is within 1e-6 of the normal). Both candidates share one score,
+exp(-rms^2 / (2 sigma^2)) of the RMS Sampson distance [px] of the rim points to the fitted
+ellipse -- the ellipse cannot tell the two apart; engines choose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import cv2
+import numpy as np
+
+from graphloc.cameras import PinholeCamera, check_rows, normalize_rows
+from graphloc.candidates import CandidateSet
+
+_FITTERS = {"direct": cv2.fitEllipseDirect, "ams": cv2.fitEllipseAMS, "lsq": cv2.fitEllipse}
+STATUS_OK = "ok"
+STATUS_TOO_FEW = "too_few_points"  # fewer than min_points finite rim points
+STATUS_EDGE_ON = "edge_on"  # collinear rim or ellipse axis ratio < min_axis_ratio
+STATUS_FIT_FAILED = "fit_failed"  # OpenCV returned a non-finite or empty ellipse
+STATUS_NO_CONE = "no_real_cone"  # the ellipse does not back-project to a real elliptic cone
+
+
+@dataclass(frozen=True)
+class CircleConfig:
+    """min_points: rim points needed after dropping non-finite ones (OpenCV needs >= 5).
+    min_axis_ratio: minor/major axis of the fitted ellipse below which the circle counts as
+    seen edge-on (no usable normal). pixel_sigma: rim noise [px] used in the score.
+    fit: 'direct' (cv2.fitEllipseDirect), 'ams' (cv2.fitEllipseAMS) or 'lsq' (cv2.fitEllipse)."""
+
+    min_points: int = 6
+    min_axis_ratio: float = 0.05
+    pixel_sigma: float = 1.0
+    fit: str = "direct"
+
+    def __post_init__(self):
+        if self.fit not in _FITTERS:
+            raise ValueError(f"CircleConfig.fit must be one of {sorted(_FITTERS)}, got {self.fit!r}")
+        if int(self.min_points) < 5:
+            raise ValueError(f"CircleConfig.min_points must be >= 5, got {self.min_points}")
+        if not (0.0 < self.min_axis_ratio < 1.0):
+            raise ValueError(f"CircleConfig.min_axis_ratio must be in (0,1), got {self.min_axis_ratio}")
+        if not self.pixel_sigma > 0:
+            raise ValueError(f"CircleConfig.pixel_sigma must be > 0, got {self.pixel_sigma}")
+
+
+@dataclass(frozen=True)
+class CirclePoses:
+    """Result for N rims. centres, normals: (N,2,3) in the camera frame, NaN where status[n]
+    is not 'ok'; ellipses: (N,5) fitted ellipse in ideal (undistorted) pixels as
+    (u0, v0, full width, full height, angle deg) in OpenCV's RotatedRect convention;
+    rms_px (N,): RMS Sampson distance of the rim to the ellipse; n_points (N,) used,
+    n_skipped (N,) non-finite rim rows dropped; status (N,): one of the STATUS_* codes
+    ('ok', 'too_few_points', 'edge_on', 'fit_failed', 'no_real_cone'); explain(n) gives the
+    numbers behind it."""
+
+    centres: np.ndarray
+    normals: np.ndarray
+    ellipses: np.ndarray
+    rms_px: np.ndarray
+    n_points: np.ndarray
+    n_skipped: np.ndarray
+    status: np.ndarray
+    radius: float
+    pixel_sigma: float
+
+    def __len__(self) -> int:
+        return len(self.status)
+
+    @property
+    def ok(self) -> np.ndarray:
+        return self.status == STATUS_OK
+
+    def explain(self, n: int) -> str:
+        """One line: rim n's status with the numbers behind it."""
+        w, h = self.ellipses[n, 2], self.ellipses[n, 3]
+        ratio = min(w, h) / max(w, h) if np.isfinite([w, h]).all() and max(w, h) > 0 else float("nan")
+        return (f"circle rim {n}: {self.status[n]} ({self.n_points[n]} finite rim points, {self.n_skipped[n]} "
+                f"non-finite skipped, ellipse axis ratio {ratio:.3g})")
+
+    def candidates(self, n: int = 0, time: float = 0.0, observer: str = "", observed: str = "") -> CandidateSet:
+        """The two poses T_cam_circle of rim n (ValueError if rim n failed)."""
+        if self.status[n] != STATUS_OK:
+            raise ValueError(self.explain(n))
+        R = rotations_from_normals(self.normals[n])
+        score = np.exp(-0.5 * (self.rms_px[n] / self.pixel_sigma) ** 2)
+        return CandidateSet(R, self.centres[n], np.full(2, score), time, observer, observed, "circle",
+                            meta={"rms_px": float(self.rms_px[n]), "n_points": int(self.n_points[n]),
+                                  "n_skipped": int(self.n_skipped[n]), "radius": self.radius})
+
+
+def rotations_from_normals(normals: np.ndarray) -> np.ndarray:
+    """(K,3) unit normals -> (K,3,3) rotations with z = normal, x = camera x projected on the
+    plane (camera y when x is parallel to the normal); see the module docstring."""
+    normals = normalize_rows(check_rows(normals, 3, "normals"))
+    ref = np.tile([1.0, 0.0, 0.0], (len(normals), 1))
+    ref[np.abs(normals[:, 0]) > 1.0 - 1e-6] = (0.0, 1.0, 0.0)
+    x = normalize_rows(ref - np.einsum("ij,ij->i", ref, normals)[:, None] * normals)
+    y = np.cross(normals, x)
+    return np.stack([x, y, normals], axis=2)
+
+
+def ellipse_to_conic(ellipses: np.ndarray) -> np.ndarray:
+    """(N,5) ellipses (u0, v0, width, height, angle deg; OpenCV RotatedRect) -> (N,3,3)
+    symmetric conics C with [u v 1] C [u v 1]^T = 0 on the ellipse, < 0 inside."""
+    e = np.asarray(ellipses, dtype=float).reshape(-1, 5)
+    centre, a, b, ang = e[:, :2], e[:, 2] / 2.0, e[:, 3] / 2.0, np.radians(e[:, 4])
+    c, s = np.cos(ang), np.sin(ang)
+    axes = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], axis=2)  # columns: width / height axes
+    with np.errstate(divide="ignore", invalid="ignore"):
+        A = np.einsum("nij,nj,nkj->nik", axes, np.stack([1 / a**2, 1 / b**2], -1), axes)
+    Ac = np.einsum("nij,nj->ni", A, centre)
+    C = np.zeros((len(e), 3, 3))
+    C[:, :2, :2] = A
+    C[:, :2, 2] = C[:, 2, :2] = -Ac
+    C[:, 2, 2] = np.einsum("ni,ni->n", centre, Ac) - 1.0
+    return C
+
+
+def sampson_rms(conic: np.ndarray, points: np.ndarray) -> float:
+    """RMS first-order (Sampson) distance [px] of points (M,2) to the conic (3,3)."""
+    p = np.column_stack([points, np.ones(len(points))])
+    Cp = p @ conic
+    f = np.einsum("ij,ij->i", Cp, p)
+    grad = 2.0 * Cp[:, :2]
+    return float(np.sqrt(np.mean(f**2 / np.einsum("ij,ij->i", grad, grad))))
+
+
+def fit_ellipse(points: np.ndarray, method: str = "direct") -> np.ndarray:
+    """OpenCV ellipse fit of (M,2) points -> (5,) ellipse. OpenCV fits in float32, so the
+    points are centred and scaled to unit RMS radius first and the result mapped back."""
+    mean = points.mean(axis=0)
+    scale = np.sqrt(np.mean(np.sum((points - mean) ** 2, axis=1)))
+    if not scale > 0:
+        raise ValueError("rim points are all identical")
+    (u0, v0), (w, h), ang = _FITTERS[method](((points - mean) / scale).astype(np.float32))
+    return np.array([u0 * scale + mean[0], v0 * scale + mean[1], w * scale, h * scale, ang])
+
+
+def circles_from_cones(cones: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Closed-form circle centres and normals from (N,3,3) cones P^T Q P = 0 (camera frame,
+    normalized coordinates). Returns centres (N,2,3), normals (N,2,3) (towards the camera,
+    centre z > 0) and ok (N,) -- False where Q is not a real elliptic cone (signature != (2,1))."""
+    Q = np.asarray(cones, dtype=float)
+    lam, V = np.linalg.eigh(Q)  # ascending
+    n_pos = (lam > 0).sum(axis=1)
+    flip = n_pos == 1  # make two eigenvalues positive, one negative
+    lam = np.where(flip[:, None], -lam[:, ::-1], lam)
+    V = np.where(flip[:, None, None], V[:, :, ::-1], V)
+    ok = np.isin(n_pos, (1, 2)) & np.isfinite(lam).all(axis=1)
+    l3, l2, l1 = lam[:, 0], lam[:, 1], lam[:, 2]
+    ok &= (l3 < 0) & (l2 > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        span = l1 - l3
+        s = np.sqrt(np.maximum(l1 - l2, 0.0) / span)
+        t = np.sqrt(np.maximum(l2 - l3, 0.0) / span)
+        kappa = span / (2.0 * l2)
+        centres, normals = [], []
+        for sign in (1.0, -1.0):
+            # eigen frame (axes ordered l1, l2, l3): n = (sign s, 0, t), m = (sign s, 0, -t)
+            n_e = np.stack([sign * s, np.zeros_like(s), t], -1)
+            m_e = np.stack([sign * s, np.zeros_like(s), -t], -1)
+            nm = sign * sign * s * s - t * t
+            d = radius / np.sqrt(kappa**2 - (1.0 + kappa * nm) ** 2)
+            c_e = -kappa[:, None] * d[:, None] * m_e + (d * (1.0 + kappa * nm))[:, None] * n_e
+            frame = V[:, :, ::-1]  # columns: eigenvectors of l1, l2, l3
+            c = np.einsum("nij,nj->ni", frame, c_e)
+            n = np.einsum("nij,nj->ni", frame, n_e)
+            c *= np.where(c[:, 2] < 0, -1.0, 1.0)[:, None]  # d -> -d mirrors the solution
+            n *= np.where(np.einsum("ni,ni->n", n, c) > 0, -1.0, 1.0)[:, None]
+            centres.append(c)
+            normals.append(n)
+    centres, normals = np.stack(centres, 1), np.stack(normals, 1)
+    ok &= np.isfinite(centres).all(axis=(1, 2)) & np.isfinite(normals).all(axis=(1, 2))
+    centres[~ok] = np.nan
+    normals[~ok] = np.nan
+    return centres, normals, ok
+
+
+def circle_poses_from_rims(camera: PinholeCamera, rims: Sequence[np.ndarray] | np.ndarray, radius: float,
+                           config: CircleConfig = CircleConfig()) -> CirclePoses:
+    """Circle poses from N rims: rims is a sequence of (M_i,2) raw pixel arrays or an
+    (N,M,2) array. Per-rim problems (too few finite points, edge-on, no real cone) are
+    reported as `status` codes, never raised; wrong shapes and a bad radius are ValueErrors."""
+    radius = float(radius)
+    if not (np.isfinite(radius) and radius > 0):
+        raise ValueError(f"radius must be a positive finite number, got {radius}")
+    if not isinstance(camera, PinholeCamera):
+        raise ValueError(f"camera must be a PinholeCamera (the cone needs a perspective K), "
+                         f"got {type(camera).__name__}")
+    if isinstance(rims, np.ndarray) and rims.ndim == 3:
+        rims = list(rims)
+    rims = [check_rows(r, 2, f"rims[{i}]") for i, r in enumerate(rims)]
+    N = len(rims)
+    ellipses = np.full((N, 5), np.nan)
+    rms = np.full(N, np.nan)
+    status = np.full(N, STATUS_OK, dtype=object)
+    # all rims undistorted in one call: ideal pixels K [x/z, y/z, 1]
+    lengths = np.array([len(r) for r in rims], dtype=int)
+    bearings, valid = camera.pixel_to_bearing(np.concatenate(rims) if N else np.zeros((0, 2)))
+    ideal_all = bearings[:, :2] / bearings[:, 2:3] * (camera.fx, camera.fy) + (camera.cx, camera.cy)
+    splits = np.cumsum(lengths)[:-1]
+    valid_per_rim = np.split(valid, splits)[:N]  # [:N]: np.split of nothing still gives one piece
+    ideal_rims = [ideal[v] for ideal, v in zip(np.split(ideal_all, splits), valid_per_rim)]
+    n_points = np.array([v.sum() for v in valid_per_rim], dtype=int).reshape(N)
+    n_skipped = lengths - n_points
+    for i, ideal in enumerate(ideal_rims):
+        if n_points[i] < config.min_points:
+            status[i] = STATUS_TOO_FEW
+            continue
+        if np.linalg.matrix_rank(ideal - ideal.mean(0), tol=1e-9 * max(1.0, np.abs(ideal).max())) < 2:
+            status[i] = STATUS_EDGE_ON
+            continue
+        ellipses[i] = fit_ellipse(ideal, config.fit)
+        w, h = ellipses[i, 2], ellipses[i, 3]
+        if not (np.isfinite(ellipses[i]).all() and min(w, h) > 0):
+            status[i] = STATUS_FIT_FAILED
+            continue
+        if min(w, h) / max(w, h) < config.min_axis_ratio:
+            status[i] = STATUS_EDGE_ON
+    good = np.flatnonzero(status == STATUS_OK)
+    conics = ellipse_to_conic(ellipses[good])
+    for k, i in enumerate(good):
+        rms[i] = sampson_rms(conics[k], ideal_rims[i])
+    K = camera.K
+    cones = np.einsum("ji,njk,kl->nil", K, conics, K)  # K^T C K
+    centres = np.full((N, 2, 3), np.nan)
+    normals = np.full((N, 2, 3), np.nan)
+    c, n, ok = circles_from_cones(cones, radius)
+    centres[good], normals[good] = c, n
+    status[good[~ok]] = STATUS_NO_CONE
+    return CirclePoses(centres, normals, ellipses, rms, n_points, n_skipped, status.astype(str), radius,
+                       config.pixel_sigma)
+
+
+def circle_pose_from_rim(camera: PinholeCamera, rim: np.ndarray, radius: float,
+                         config: CircleConfig = CircleConfig(), time: float = 0.0, observer: str = "",
+                         observed: str = "") -> tuple[CandidateSet, CirclePoses]:
+    """One rim (M,2) of raw pixels -> (CandidateSet of the 2 poses, CirclePoses of length 1).
+    ValueError (with the reason) when the rim is unusable."""
+    poses = circle_poses_from_rims(camera, [check_rows(rim, 2, "rim")], radius, config)
+    if not poses.ok[0]:
+        raise ValueError(poses.explain(0))
+    return poses.candidates(0, time, observer, observed), poses
+
+
+def rim_points_from_mask(mask: np.ndarray) -> np.ndarray:
+    """Boundary pixels (M,2) (u, v) of the largest blob of a binary mask (seed 003 II-A-1:
+    colour threshold -> median filter -> edges), via cv2.findContours."""
+    mask = np.asarray(mask)
+    if mask.ndim != 2:
+        raise ValueError(f"mask must be a 2-D image, got shape {mask.shape}")
+    contours, _ = cv2.findContours((mask > 0).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if not contours:
+        raise ValueError("mask has no foreground blob")
+    return max(contours, key=cv2.contourArea).reshape(-1, 2).astype(float)
+
+
+def render_circle_rim(camera, centre: np.ndarray, normal: np.ndarray, radius: float,
+                      n_points: int = 100) -> tuple[np.ndarray, np.ndarray]:
+    """Forward model: pixels (n_points,2) and visibility of n_points equally spaced points
+    of the circle (camera frame centre (3,), normal (3,), radius)."""
+    centre = np.asarray(centre, dtype=float).reshape(3)
+    R = rotations_from_normals(np.asarray(normal, dtype=float).reshape(1, 3))[0]
+    phi = np.linspace(0.0, 2.0 * np.pi, int(n_points), endpoint=False)
+    points = centre + radius * (np.outer(np.cos(phi), R[:, 0]) + np.outer(np.sin(phi), R[:, 1]))
+    return camera.project(points)
