@@ -1,0 +1,297 @@
+"""Synthetic camera frames of spherical markers (LEDs or painted balls), for tests and the
+seed-001 reproduction (/work/shared/seeds/001_0f8f8dae37ce6b79.txt, section III: four identical
+spherical markers; section V-A: 752x480 monochrome camera, 90 deg FOV).
+
+A sphere of radius r whose centre c is seen under the cone of half-angle asin(r/|c|) around
+c/|c|; a sub-pixel sample belongs to the marker when its bearing (camera.pixel_to_bearing) lies
+inside that cone. This gives the exact projected size and shape at any distance and for any
+camera model; `supersample` x `supersample` samples per pixel give the coverage. Nearer markers
+hide farther ones, rectangular occluders hide both, clutter blobs lie behind. Then Gaussian
+blur (optics) and Gaussian sensor noise. No per-pixel Python loops: numpy over each marker's
+bounding box, cv2 for clutter drawing and blur.
+
+Ground truth per marker: `centers` = projection of the sphere centre (what pose estimation
+wants) and `centroids` = centroid of the visible, in-image marker area (what a blob detector can
+measure; blur preserves it). They differ by the perspective shift of the sphere's image, up to a
+few tenths of a pixel near the image border at short range.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+CLUTTER_KINDS = ("bar", "large", "speck", "crescent", "disc")
+
+
+@dataclass(frozen=True)
+class RenderConfig:
+    """Radiometry of a rendered frame. Levels are grey values (0-255) or BGR triples.
+
+    Active markers: bright `marker_level` on dark `background`. Passive dark paint: the
+    reverse. Colour markers: BGR triples with `color=True`.
+    """
+
+    background: float | tuple[float, float, float] = 60.0
+    marker_level: float | tuple[float, float, float] = 220.0
+    gradient: float = 20.0  # background brightness change across the image width [grey levels]
+    blur_sigma: float = 0.7  # optics [px]; 0 = none
+    noise_sigma: float = 2.0  # sensor noise [grey levels]
+    supersample: int = 4
+    color: bool = False
+
+    def __post_init__(self):
+        c = 3 if self.color else 1
+        for name in ("background", "marker_level"):
+            level = np.atleast_1d(np.asarray(getattr(self, name), dtype=float))
+            if level.shape != (c,) or not np.isfinite(level).all():
+                raise ValueError(f"RenderConfig.{name} must be {c} finite value(s) for color={self.color}, got {getattr(self, name)}")
+        if self.supersample < 1 or self.blur_sigma < 0 or self.noise_sigma < 0:
+            raise ValueError("RenderConfig needs supersample >= 1, blur_sigma >= 0, noise_sigma >= 0")
+
+    def levels(self, value) -> np.ndarray:
+        return np.atleast_1d(np.asarray(value, dtype=np.float32))
+
+
+@dataclass(frozen=True)
+class Clutter:
+    """A distractor blob drawn behind the markers: ellipse centre (x, y) [px], semi-axes
+    (a, b) [px], angle [deg], grey level or BGR; kind "crescent" has a bite taken out."""
+
+    kind: str
+    center: tuple[float, float]
+    axes: tuple[float, float]
+    angle: float
+    level: float | tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Occluder:
+    """An axis-aligned rectangle (x0, y0, x1, y1) [px, pixel-edge coordinates] in front of all
+    markers, with grey level or BGR `level`."""
+
+    rect: tuple[float, float, float, float]
+    level: float | tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class RenderedFrame:
+    """image: (H,W) or (H,W,3) uint8. Per marker (M rows, NaN when not visible at all):
+    centers (M,2) projected sphere centres, centroids (M,2) centroid of the visible area,
+    radii (M,) angular-radius projected to pixels (fx * tan(asin(r/|c|))), visible (M,) visible
+    fraction of the full marker image (0 = hidden / outside, 1 = fully visible)."""
+
+    image: np.ndarray
+    centers: np.ndarray
+    centroids: np.ndarray
+    radii: np.ndarray
+    visible: np.ndarray
+    clutter: tuple[Clutter, ...] = ()
+    occluders: tuple[Occluder, ...] = ()
+
+
+def image_size(camera) -> tuple[int, int]:
+    """(width, height) of a camera model (PinholeCamera width/height, omni `size`)."""
+    if hasattr(camera, "width"):
+        return int(camera.width), int(camera.height)
+    return int(camera.size), int(camera.size)
+
+
+def _orthonormal_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(axis, helper)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(axis, e1)
+
+
+def _marker_box(camera, axis, half_angle, width, height):
+    """Pixel bounding box (x0, y0, x1, y1) of the cone's image (+2 px), or None if it does not
+    project (e.g. crosses the pinhole plane)."""
+    e1, e2 = _orthonormal_basis(axis)
+    phi = np.linspace(0.0, 2.0 * np.pi, 48, endpoint=False)
+    a = min(half_angle * 1.05 + 1e-4, np.pi / 2)
+    rim = np.cos(a) * axis + np.sin(a) * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
+    px, _ = camera.bearing_to_pixel(np.vstack([rim, axis[None]]))
+    if not np.isfinite(px).all():
+        return None
+    x0, y0 = np.floor(px.min(axis=0)).astype(int) - 2
+    x1, y1 = np.ceil(px.max(axis=0)).astype(int) + 3
+    if x1 <= 0 or y1 <= 0 or x0 >= width or y0 >= height:
+        return None
+    if (x1 - x0) * (y1 - y0) > 16 * width * height:
+        return None
+    return x0, y0, x1, y1
+
+
+def _subpixel_grid(box, s):
+    x0, y0, x1, y1 = box
+    offs = (np.arange(s) + 0.5) / s - 0.5
+    xs = (np.arange(x0, x1)[:, None] + offs[None]).ravel()
+    ys = (np.arange(y0, y1)[:, None] + offs[None]).ravel()
+    gx, gy = np.meshgrid(xs, ys)
+    return gx, gy
+
+
+def _in_rects(gx, gy, rects: np.ndarray) -> np.ndarray:
+    if len(rects) == 0:
+        return np.zeros(gx.shape, bool)
+    r = rects[:, :, None, None]
+    return ((gx >= r[:, 0]) & (gx < r[:, 2]) & (gy >= r[:, 1]) & (gy < r[:, 3])).any(axis=0)
+
+
+def _rect_coverage(rect, width, height) -> np.ndarray:
+    """Exact area fraction of every pixel covered by a rectangle (outer product of overlaps)."""
+    x0, y0, x1, y1 = rect
+    u = np.arange(width, dtype=np.float32)
+    v = np.arange(height, dtype=np.float32)
+    ox = np.clip(np.minimum(u + 0.5, x1) - np.maximum(u - 0.5, x0), 0.0, 1.0)
+    oy = np.clip(np.minimum(v + 0.5, y1) - np.maximum(v - 0.5, y0), 0.0, 1.0)
+    return np.outer(oy, ox)
+
+
+def draw_clutter(img: np.ndarray, clutter: tuple[Clutter, ...], background) -> None:
+    """Draw clutter blobs into the float image in place (cv2 ellipses)."""
+    for c in clutter:
+        level = tuple(float(v) for v in np.atleast_1d(c.level))
+        center = (int(round(c.center[0])), int(round(c.center[1])))
+        if c.kind == "speck":  # a single hot / dead pixel
+            cv2.circle(img, center, 0, level, thickness=-1)
+            continue
+        axes = (max(1, int(round(c.axes[0]))), max(0, int(round(c.axes[1]))))
+        cv2.ellipse(img, center, axes, float(c.angle), 0.0, 360.0, level, thickness=-1)
+        if c.kind == "crescent":
+            bite = (int(round(c.center[0] + 0.35 * c.axes[0])), center[1])
+            bg = tuple(float(v) for v in np.atleast_1d(background))
+            cv2.circle(img, bite, max(1, int(round(0.9 * c.axes[0]))), bg, thickness=-1)
+
+
+def random_clutter(rng: np.random.Generator, width: int, height: int, marker_radius_px: float, level,
+                   n: int = 6, avoid: np.ndarray | None = None, avoid_radius: float = 0.0,
+                   kinds: tuple[str, ...] = ("bar", "large", "speck", "crescent")) -> tuple[Clutter, ...]:
+    """`n` distractors the detector should reject: thin bars (eccentric), large blobs (too big),
+    specks (too small) and crescents (non-convex); kind "disc" is a marker look-alike. Centres
+    keep `avoid_radius` px away from the `avoid` points (the true markers)."""
+    unknown = set(kinds) - set(CLUTTER_KINDS)
+    if unknown:
+        raise ValueError(f"random_clutter: unknown kinds {sorted(unknown)}; known {CLUTTER_KINDS}")
+    r = max(float(marker_radius_px), 1.5)
+    out = []
+    tries = 0
+    while len(out) < n:
+        tries += 1
+        if tries > 1000 * max(n, 1):
+            raise ValueError(f"random_clutter: cannot place {n} blobs {avoid_radius} px away from the markers")
+        kind = kinds[len(out) % len(kinds)]
+        center = (rng.uniform(0, width), rng.uniform(0, height))
+        size = {"bar": (4.0 * r, 0.5 * r), "large": (12.0 * r, 12.0 * r), "speck": (0.5, 0.5),
+                "crescent": (max(2.0 * r, 7.0),) * 2, "disc": (r, r)}[kind]
+        reach = max(size)
+        if not (reach <= center[0] <= width - reach and reach <= center[1] <= height - reach):
+            continue  # wholly inside the image: a cut-off bar could look like a marker
+        if avoid is not None and len(avoid):
+            gap = np.linalg.norm(np.asarray(avoid, float) - center, axis=1).min()
+            if gap < avoid_radius + reach:
+                continue
+        if any(np.hypot(center[0] - c.center[0], center[1] - c.center[1]) < reach + max(c.axes) + 2 for c in out):
+            continue  # distractors do not touch each other
+        out.append(Clutter(kind, center, size, float(rng.uniform(0, 180)), level))
+    return tuple(out)
+
+
+def render_markers(camera, markers_cam: np.ndarray, marker_radius: float, config: RenderConfig = RenderConfig(),
+                   rng: np.random.Generator | None = None, clutter: tuple[Clutter, ...] = (),
+                   occluders: tuple[Occluder, ...] = (), gains: np.ndarray | None = None) -> RenderedFrame:
+    """Render spheres of radius `marker_radius` [m] centred at `markers_cam` (M,3) [m, camera frame].
+
+    gains: (M,) contrast of each marker in [0, 1] (a dim LED: level = background + gain *
+    (marker_level - background)); default all 1.
+
+    Raises ValueError for a wrong shape, NaN, or a sphere that contains the camera centre.
+    """
+    pts = np.asarray(markers_cam, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"render_markers: markers_cam must be (M,3), got {pts.shape}")
+    if not np.isfinite(pts).all():
+        raise ValueError("render_markers: markers_cam contains NaN/inf")
+    if not (np.isfinite(marker_radius) and marker_radius > 0):
+        raise ValueError(f"render_markers: marker_radius must be positive, got {marker_radius}")
+    dist = np.linalg.norm(pts, axis=1)
+    if (dist <= marker_radius).any():
+        raise ValueError(f"render_markers: camera inside marker(s) {np.flatnonzero(dist <= marker_radius).tolist()}")
+    gains = np.ones(len(pts)) if gains is None else np.asarray(gains, dtype=float)
+    if gains.shape != (len(pts),) or not (np.isfinite(gains).all() and (gains >= 0).all() and (gains <= 1).all()):
+        raise ValueError(f"render_markers: gains must be ({len(pts)},) values in [0, 1], got {gains}")
+    rng = np.random.default_rng() if rng is None else rng
+    width, height = image_size(camera)
+    s = config.supersample
+    bg = config.levels(config.background)
+    fg = config.levels(config.marker_level)
+    nch = len(bg)
+
+    # background with a horizontal gradient, then clutter (behind everything)
+    ramp = (np.arange(width, dtype=np.float32) / max(width - 1, 1) - 0.5) * config.gradient
+    img = np.empty((height, width, nch), np.float32)
+    img[:] = bg[None, None, :] + ramp[None, :, None]
+    if clutter:
+        img = np.ascontiguousarray(img[..., 0]) if nch == 1 else img
+        draw_clutter(img, clutter, config.background)
+        img = img.reshape(height, width, nch)
+
+    axes = pts / dist[:, None]
+    half = np.arcsin(marker_radius / dist)
+    cos_half = np.cos(half)
+    order = np.argsort(dist)  # nearest first: they hide the farther ones
+    rects = np.array([o.rect for o in occluders], dtype=float).reshape(-1, 4)
+    M = len(pts)
+    centers, _ = camera.project(pts)
+    centroids = np.full((M, 2), np.nan)
+    visible = np.zeros(M)
+    radii = camera.fx * np.tan(half) if hasattr(camera, "fx") else np.full(M, np.nan)
+    coverage = np.zeros((height, width), np.float32)
+    for rank, i in enumerate(order):  # loop over markers (few), numpy over their pixels
+        box = _marker_box(camera, axes[i], half[i], width, height)
+        if box is None:
+            continue
+        gx, gy = _subpixel_grid(box, s)
+        bear, ok = camera.pixel_to_bearing(np.column_stack([gx.ravel(), gy.ravel()]))
+        bear = np.where(ok[:, None], bear, 0.0)
+        hit = (bear @ axes[i] >= cos_half[i]).reshape(gx.shape)
+        total = hit.sum()
+        if total == 0:
+            continue
+        for j in order[:rank]:
+            hit &= ~((bear @ axes[j] >= cos_half[j]).reshape(gx.shape))
+        hit &= ~_in_rects(gx, gy, rects)
+        hit &= (gx >= -0.5) & (gx < width - 0.5) & (gy >= -0.5) & (gy < height - 0.5)
+        n_vis = hit.sum()
+        visible[i] = n_vis / total
+        if n_vis == 0:
+            continue
+        centroids[i] = gx[hit].mean(), gy[hit].mean()
+        x0, y0, x1, y1 = box
+        cov = hit.reshape(y1 - y0, s, x1 - x0, s).mean(axis=(1, 3))
+        cx0, cy0 = max(x0, 0), max(y0, 0)
+        cx1, cy1 = min(x1, width), min(y1, height)
+        coverage[cy0:cy1, cx0:cx1] += gains[i] * cov[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0]
+
+    if occluders:
+        occ = np.zeros((height, width), np.float32)
+        occ_img = np.zeros((height, width, nch), np.float32)
+        for o in occluders:  # later occluders on top ("over" compositing)
+            c = _rect_coverage(o.rect, width, height)
+            occ_img = occ_img * (1.0 - c[..., None]) + config.levels(o.level)[None, None, :] * c[..., None]
+            occ = occ + c * (1.0 - occ)
+        coverage = np.minimum(coverage, 1.0 - occ)
+        img = img * np.clip(1.0 - coverage - occ, 0.0, 1.0)[..., None] + fg * coverage[..., None] + occ_img
+    else:
+        img = img * (1.0 - coverage)[..., None] + fg * coverage[..., None]
+    if config.blur_sigma > 0:
+        img = cv2.GaussianBlur(img, (0, 0), config.blur_sigma).reshape(height, width, nch)
+    if config.noise_sigma > 0:
+        img += config.noise_sigma * rng.standard_normal(img.shape, dtype=np.float32)
+    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    out = out[..., 0] if nch == 1 else out
+    return RenderedFrame(image=out, centers=np.where(visible[:, None] > 0, centers, np.nan), centroids=centroids,
+                         radii=radii, visible=visible, clutter=tuple(clutter), occluders=tuple(occluders))

@@ -1,0 +1,380 @@
+"""Targets of four identical markers: hypotheses from detected blobs, pose prediction, design.
+
+Seed 001 (/work/shared/seeds/001_0f8f8dae37ce6b79.txt):
+- section IV-C "Pose update": all (n*m)! = 24 marker assignments x up to 4 P3P solutions
+  (<= 96) in one batched `solve_p3p` call; the fourth marker's reprojection removes the wrong
+  ones; a predicted pose restricts the assignments to those whose detections lie near the
+  predicted marker pixels.
+- section IV-A "Pose and marker prediction": linear regression over the last k_R poses (k_R = 2)
+  -- here on SE(3) in the tangent space of the newest pose (gtsam.Pose3 Logmap / Expmap).
+- section III-A "Optimization of target geometries": cost (1), f = w s_min + (1-w) s_avg when
+  D1 <= d <= D2 and h_min >= H, else -G; maximized with Nelder-Mead from random starts.
+
+Pose convention: every pose here is the CAMERA IN THE TARGET FRAME, T_target_camera = [R_TC |
+t_cam,T] as in the seed (X_target = R_TC X_cam + t_cam,T). `CandidateSet` rows are such poses
+(world = target frame); the target in the camera frame is their inverse.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import cv2
+import gtsam
+import numpy as np
+from scipy.optimize import minimize
+
+from graphloc.candidates import CandidateSet
+from graphloc.geometry.p3p import solve_p3p
+
+# ----------------------------------------------------------------------------- targets
+
+
+@dataclass(frozen=True)
+class MarkerTarget:
+    """Marker centres `points` (m,3) [m] in the target frame and the marker diameter b [m]."""
+
+    points: np.ndarray
+    marker_diameter: float
+    name: str = ""
+
+    def __post_init__(self):
+        p = np.asarray(self.points, dtype=float)
+        if p.ndim != 2 or p.shape[1] != 3 or len(p) < 4:
+            raise ValueError(f"MarkerTarget.points must be (m>=4, 3), got {p.shape}")
+        if not np.isfinite(p).all():
+            raise ValueError("MarkerTarget.points contains NaN/inf")
+        if not (np.isfinite(self.marker_diameter) and self.marker_diameter > 0):
+            raise ValueError(f"MarkerTarget.marker_diameter must be positive, got {self.marker_diameter}")
+        object.__setattr__(self, "points", p)
+
+    def scaled(self, factor: float, name: str = "") -> "MarkerTarget":
+        return MarkerTarget(self.points * factor, self.marker_diameter * factor, name or f"{self.name}x{factor:g}")
+
+
+# Seed 001 III-A: the larger target (vertices in cm, marker diameter b = 3 cm).
+LARGE_TARGET = MarkerTarget(
+    np.array([[0.00, -16.51, 23.66], [0.00, 13.04, 18.45], [6.26, -2.21, 5.39], [-8.02, 2.49, 6.21]]) / 100.0,
+    0.03, "seed001-large")
+# Seed 001 III: the e-puck targets have the same proportions at half the size (b = 1.5 cm passive).
+SMALL_TARGET = LARGE_TARGET.scaled(0.5, "seed001-small")
+
+
+# ----------------------------------------------------------------------------- prediction
+
+
+def _as_pose(pose) -> gtsam.Pose3:
+    if isinstance(pose, gtsam.Pose3):
+        return pose
+    R, t = pose
+    return gtsam.Pose3(gtsam.Rot3(np.asarray(R, dtype=float)), np.asarray(t, dtype=float))
+
+
+def predict_pose(history: Sequence, k_R: int = 2, times: Sequence[float] | None = None,
+                 t_next: float | None = None) -> gtsam.Pose3:
+    """Seed 001 IV-A: linear regression over the last `k_R` poses, extrapolated one step.
+
+    history: gtsam.Pose3 or (R, t) of the camera in the target frame, oldest first. times:
+    their timestamps (default 0, 1, 2, ...) and t_next the time to predict (default last + 1).
+    The regression xi(tau) = a + b tau is fitted to xi_i = Logmap(T_last^-1 T_i); prediction
+    T_last Expmap(a + b t_next). k_R = 2 is constant velocity on SE(3).
+    """
+    if k_R < 1:
+        raise ValueError(f"predict_pose: k_R must be >= 1, got {k_R}")
+    poses = [_as_pose(p) for p in history][-k_R:]
+    if not poses:
+        raise ValueError("predict_pose: empty pose history")
+    n_all = len(history)
+    tau = np.arange(n_all, dtype=float) if times is None else np.asarray(times, dtype=float)
+    if tau.shape != (n_all,) or not np.isfinite(tau).all():
+        raise ValueError(f"predict_pose: times must be {n_all} finite values, got shape {tau.shape}")
+    tau = tau[-k_R:]
+    if np.any(np.diff(tau) <= 0):
+        raise ValueError(f"predict_pose: times must increase, got {tau.tolist()}")
+    t_next = tau[-1] + (tau[-1] - tau[-2] if len(tau) > 1 else 1.0) if t_next is None else float(t_next)
+    last = poses[-1]
+    if len(poses) == 1:
+        return last
+    xi = np.array([gtsam.Pose3.Logmap(last.between(p)) for p in poses])  # (k,6), last row 0
+    A = np.column_stack([np.ones(len(tau)), tau - tau[-1]])
+    coef, *_ = np.linalg.lstsq(A, xi, rcond=None)
+    return last.compose(gtsam.Pose3.Expmap(coef[0] + coef[1] * (t_next - tau[-1])))
+
+
+def project_markers(camera, target: MarkerTarget, R_tc: np.ndarray, t_tc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels (..., m, 2) and visible mask (..., m) of the target's markers for camera poses
+    R_tc (...,3,3), t_tc (...,3) in the target frame (seed 001 IV-A, q = K [R^T | -R^T t] p)."""
+    R = np.asarray(R_tc, dtype=float)
+    t = np.asarray(t_tc, dtype=float)
+    batch = R.shape[:-2]
+    X_cam = np.einsum("...ji,...mj->...mi", R, target.points[None] - t[..., None, :]) if batch else \
+        (target.points - t) @ R
+    px, vis = camera.project(X_cam.reshape(-1, 3))
+    m = len(target.points)
+    return px.reshape(*batch, m, 2), vis.reshape(*batch, m)
+
+
+def predicted_marker_pixels(camera, target: MarkerTarget, pose) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted marker pixels (m,2) + visible (m,) for a predicted camera pose (gtsam.Pose3 or (R,t))."""
+    p = _as_pose(pose)
+    return project_markers(camera, target, p.rotation().matrix(), p.translation())
+
+
+# ----------------------------------------------------------------------------- hypotheses
+
+
+@dataclass(frozen=True)
+class TargetHypothesisConfig:
+    """gate_px: the fourth marker must reproject this close to its detection (seed IV-C).
+    pixel_sigma: score = exp(-rms^2 / (2 sigma^2)) with rms over all markers [px].
+    prediction_gate_px: with a prediction, marker j may take detection i only if it lies this
+    close to marker j's predicted pixel (or is the nearest detection to it).
+    refine: polish each surviving hypothesis on all four markers (cv2.solvePnPRefineLM, pinhole
+    cameras with 4 blobs only); False keeps the seed's pure P3P pose."""
+
+    gate_px: float = 3.0
+    pixel_sigma: float = 1.0
+    prediction_gate_px: float = 25.0
+    p3p_method: str = "lambdatwist"
+    refine: bool = True
+
+
+PERMUTATIONS = np.array(list(itertools.permutations(range(4))), dtype=int)  # (24,4)
+# three detections: which marker is unseen x order -> (24,4) with -1 for the unseen marker
+_PARTIAL = np.array([np.insert(p, m, -1) for p in itertools.permutations(range(3)) for m in range(4)], dtype=int)
+# four detections, one of them not a marker: drop each in turn -> (96,4)
+_THREE_OF_FOUR = np.concatenate([np.where(_PARTIAL >= 0, np.delete(np.arange(4), drop)[np.maximum(_PARTIAL, 0)], -1)
+                                 for drop in range(4)])
+
+
+def _check_detections(detections) -> np.ndarray:
+    det = np.asarray(detections, dtype=float)
+    if det.ndim != 2 or det.shape[1] != 2 or len(det) not in (3, 4):
+        raise ValueError(f"target_hypotheses: detections must be (4,2) (or (3,2)), got {det.shape}")
+    if not np.isfinite(det).all():
+        raise ValueError("target_hypotheses: detections contain NaN/inf")
+    if len(np.unique(np.round(det, 6), axis=0)) < len(det):
+        raise ValueError("target_hypotheses: two detections coincide")
+    return det
+
+
+def target_hypotheses(detections: np.ndarray, camera, target: MarkerTarget = LARGE_TARGET,
+                      config: TargetHypothesisConfig = TargetHypothesisConfig(), predicted=None,
+                      time: float = 0.0, observer: str = "", observed: str = "") -> CandidateSet:
+    """All plausible camera poses in the target frame from 4 (or 3) blobs of identical markers.
+
+    detections: (4,2) pixels in any order. predicted: predicted camera pose (gtsam.Pose3 or (R,t))
+    restricting the assignments (seed IV-C); if no assignment is compatible, all are tried.
+    With 4 detections, hypotheses whose fourth marker misses its detection by more than
+    `gate_px` are dropped. With 3 (one marker lost, seed V-A) nothing can be gated: every P3P
+    solution is returned and a prediction is the only restriction. If no 4-blob hypothesis
+    passes the gate (one blob is not a marker, e.g. a partly occluded one), every 3-of-4 subset
+    is tried the same way (meta["fallback"] = "three_of_four"). meta: assignment (K,4) =
+    detection index of each marker (-1 unseen), reprojection_px (K,) rms, gate_error_px (K,),
+    n_assignments, prediction_used, fallback.
+    """
+    det = _check_detections(detections)
+    if len(target.points) != 4:
+        raise ValueError(f"target_hypotheses: needs a 4-marker target, got {len(target.points)} markers")
+    bearings, ok = camera.pixel_to_bearing(det)
+    if not ok.all():
+        raise ValueError(f"target_hypotheses: detections {np.flatnonzero(~ok).tolist()} have no bearing")
+    pred_px = None if predicted is None else predicted_marker_pixels(camera, target, predicted)[0]
+    full = len(det) == 4
+    result = _hypotheses(det, bearings, PERMUTATIONS if full else _PARTIAL, camera, target, config, pred_px, full)
+    fallback = ""
+    if full and len(result[0]) == 0:
+        result = _hypotheses(det, bearings, _THREE_OF_FOUR, camera, target, config, pred_px, False)
+        fallback = "three_of_four"
+    R, t, cand_assign, gate_err, rms, n_assign, prediction_used = result
+    scores = np.exp(-0.5 * (rms / config.pixel_sigma) ** 2)
+    return CandidateSet(R=R, t=t, scores=scores, time=time, observer=observer, observed=observed,
+                        source="seed001/target",
+                        meta={"assignment": cand_assign, "reprojection_px": rms, "gate_error_px": gate_err,
+                              "n_assignments": n_assign, "prediction_used": prediction_used, "fallback": fallback,
+                              "frame": "camera pose in target frame (T_target_camera)"})
+
+
+def _hypotheses(det, bearings, assign, camera, target, config, pred_px, gated):
+    """P3P for every assignment row (marker j <- detection assign[j], -1 unseen) in ONE batched
+    call, fourth-marker gate (if `gated`), optional refinement. Returns R, t, assignment,
+    gate error, rms reprojection, number of assignments tried, whether the prediction was used."""
+    prediction_used = False
+    if pred_px is not None:
+        d = np.linalg.norm(pred_px[:, None] - det[None], axis=2)  # (marker, detection)
+        d = np.where(np.isfinite(d), d, np.inf)
+        allowed = (d <= config.prediction_gate_px) | (d == d.min(axis=1, keepdims=True))
+        rows = np.arange(4)[None].repeat(len(assign), 0)
+        ok_rows = np.where(assign >= 0, allowed[rows, np.maximum(assign, 0)], True).all(axis=1)
+        if ok_rows.any():
+            assign, prediction_used = assign[ok_rows], True
+    seen = np.argsort(assign < 0, axis=1, kind="stable")  # marker indices, seen ones first
+    det_idx = np.take_along_axis(assign, seen[:, :3], axis=1)
+    sol = solve_p3p(bearings[det_idx], target.points[seen[:, :3]], method=config.p3p_method)
+    N = len(assign)
+    valid = sol.valid.reshape(N * 4)
+    R = sol.R_wc.reshape(N * 4, 3, 3)[valid]
+    t = sol.t_wc.reshape(N * 4, 3)[valid]
+    cand_assign = np.repeat(assign, 4, axis=0)[valid]
+    check_marker = np.repeat(seen[:, 3], 4)[valid]  # the fourth marker
+    err = _marker_errors(camera, target, R, t, cand_assign, det)
+    if gated:  # seed IV-C: drop hypotheses whose fourth marker does not fit
+        gate_err = err[np.arange(len(R)), check_marker]
+        keep = gate_err <= config.gate_px
+    else:
+        gate_err = np.zeros(len(R))
+        keep = np.isfinite(err).all(axis=1)
+    R, t, cand_assign, gate_err = R[keep], t[keep], cand_assign[keep], gate_err[keep]
+    if config.refine and gated and len(R) and hasattr(camera, "K"):
+        R, t = _refine(R, t, cand_assign, det, camera, target)
+    err = _marker_errors(camera, target, R, t, cand_assign, det)
+    finite = np.isfinite(err).all(axis=1)
+    R, t, cand_assign, gate_err, err = R[finite], t[finite], cand_assign[finite], gate_err[finite], err[finite]
+    rms = np.sqrt((err ** 2).sum(axis=1) / (cand_assign >= 0).sum(axis=1))
+    return R, t, cand_assign, gate_err, rms, N, prediction_used
+
+
+def _marker_errors(camera, target, R, t, assign, det) -> np.ndarray:
+    """(K,4) reprojection error [px] of every seen marker (0 for the unseen one, inf behind the camera)."""
+    if len(R) == 0:
+        return np.zeros((0, 4))
+    px, _ = project_markers(camera, target, R, t)
+    err = np.linalg.norm(px - det[np.maximum(assign, 0)], axis=2)
+    err = np.where(np.isfinite(err), err, np.inf)
+    return np.where(assign >= 0, err, 0.0)
+
+
+def _refine(R, t, assign, det, camera, target):
+    """Levenberg-Marquardt on all seen markers of each hypothesis (cv2.solvePnPRefineLM);
+    the loop runs over the few survivors of the P3P stage only."""
+    K, dist = camera.K, np.asarray(camera.dist, dtype=float)
+    R_out, t_out = R.copy(), t.copy()
+    for k in range(len(R)):
+        seen = assign[k] >= 0
+        R_ct = R[k].T
+        rvec, _ = cv2.Rodrigues(R_ct)
+        tvec = (-R_ct @ t[k]).reshape(3, 1)
+        rvec, tvec = cv2.solvePnPRefineLM(target.points[seen].reshape(-1, 1, 3), det[assign[k][seen]].reshape(-1, 1, 2),
+                                          K, dist, rvec, tvec)
+        R_new = cv2.Rodrigues(rvec)[0].T
+        t_new = -R_new @ tvec.ravel()
+        if np.isfinite(R_new).all() and np.isfinite(t_new).all():
+            R_out[k], t_out[k] = R_new, t_new
+    return R_out, t_out
+
+
+# ----------------------------------------------------------------------------- design
+
+
+@dataclass(frozen=True)
+class TargetDesignConfig:
+    """Seed 001 III-A eq. (1): n targets x m markers, lengths in metres.
+    weight w, distance bounds D1 <= d <= D2, minimum face height H, penalty G. `tolerance`
+    relaxes the bounds (the published vertices are rounded to 0.1 mm: one distance is 30.01 cm
+    for D2 = 30 cm). h_min is the smallest distance of a marker from the plane of any three
+    others of its target (flat and collinear arrangements both make it small)."""
+
+    n_targets: int = 1
+    n_markers: int = 4
+    weight: float = 2.0 / 3.0
+    d_min: float = 0.15
+    d_max: float = 0.30
+    min_height: float = 0.12
+    penalty: float = 1.0
+    tolerance: float = 5e-4
+    n_starts: int = 20
+    n_samples: int = 20000  # random configurations screened for feasible starts
+    maxiter: int = 1500
+    restarts: int = 1  # Nelder-Mead runs per start, each from the previous optimum
+    seed: int = 0
+
+    def __post_init__(self):
+        if self.n_targets < 1 or self.n_markers < 4:
+            raise ValueError("TargetDesignConfig needs n_targets >= 1 and n_markers >= 4")
+        if not (0 < self.d_min < self.d_max) or self.min_height < 0 or not (0 <= self.weight <= 1):
+            raise ValueError("TargetDesignConfig needs 0 < d_min < d_max, min_height >= 0, 0 <= weight <= 1")
+
+
+def _index_sets(m: int):
+    pairs = np.array(list(itertools.combinations(range(m), 2)))
+    quads = np.array(list(itertools.combinations(range(m), 4)))
+    # every (apex, face) split of every quadruple
+    apex = np.concatenate([quads[:, [k]] for k in range(4)])
+    face = np.concatenate([np.delete(quads, k, axis=1) for k in range(4)])
+    return pairs, apex[:, 0], face
+
+
+def design_cost(points: np.ndarray, config: TargetDesignConfig = TargetDesignConfig()) -> np.ndarray:
+    """Seed 001 eq. (1) for a batch of systems: points (..., n, m, 3) [m] -> f (...,).
+
+    d: all pairwise marker distances inside each target, pooled over the n targets; S = |d_i - d_j|
+    over all pairs of them; f = w min(S) + (1-w) mean(S) if all d in [D1, D2] and h_min >= H,
+    else -G."""
+    P = np.asarray(points, dtype=float)
+    if P.shape[-3:] != (config.n_targets, config.n_markers, 3):
+        raise ValueError(f"design_cost: points must be (..., {config.n_targets}, {config.n_markers}, 3), got {P.shape}")
+    pairs, apex, face = _index_sets(config.n_markers)
+    d = np.linalg.norm(P[..., pairs[:, 0], :] - P[..., pairs[:, 1], :], axis=-1)  # (..., n, pairs)
+    A, B, C = (P[..., face[:, k], :] for k in range(3))
+    normal = np.cross(B - A, C - A)
+    area2 = np.linalg.norm(normal, axis=-1)
+    h = np.abs(np.einsum("...k,...k->...", P[..., apex, :] - A, normal)) / np.maximum(area2, 1e-300)
+    h_min = h.min(axis=(-1, -2))
+    dd = d.reshape(*d.shape[:-2], -1)
+    iu, ju = np.triu_indices(dd.shape[-1], 1)
+    S = np.abs(dd[..., iu] - dd[..., ju])
+    f = config.weight * S.min(axis=-1) + (1 - config.weight) * S.mean(axis=-1)
+    tol = config.tolerance
+    feasible = (dd.min(axis=-1) >= config.d_min - tol) & (dd.max(axis=-1) <= config.d_max + tol) & \
+        (h_min >= config.min_height - tol)
+    return np.where(feasible, f, -config.penalty)
+
+
+@dataclass(frozen=True)
+class TargetDesign:
+    """Best design `points` (n,m,3) [m] with cost `cost`; `start_costs` / `final_costs` per start."""
+
+    points: np.ndarray
+    cost: float
+    start_costs: np.ndarray
+    final_costs: np.ndarray
+    n_feasible_samples: int = 0
+    meta: dict = field(default_factory=dict, compare=False)
+
+
+def design_targets(config: TargetDesignConfig = TargetDesignConfig(), progress: bool = False) -> TargetDesign:
+    """Maximize eq. (1) with scipy Nelder-Mead from `n_starts` random feasible starts (seed III-A).
+
+    Starts: `n_samples` random configurations (markers uniform in a cube of side D2), screened
+    in one vectorized cost evaluation; the best-scoring feasible ones seed Nelder-Mead. The result
+    is centred on its centroid per target."""
+    rng = np.random.default_rng(config.seed)
+    shape = (config.n_targets, config.n_markers, 3)
+    samples = rng.uniform(0.0, config.d_max, size=(config.n_samples, *shape))
+    costs = design_cost(samples, config)
+    feasible = np.flatnonzero(costs > -config.penalty)
+    if len(feasible) == 0:
+        raise ValueError(f"design_targets: no feasible start among {config.n_samples} samples; "
+                         f"relax d_min/d_max/min_height or raise n_samples")
+    rng.shuffle(feasible)
+    starts = feasible[:config.n_starts]
+    best_x, best_f, finals = None, -np.inf, []
+    iterator = starts
+    if progress:
+        from tqdm import tqdm
+        iterator = tqdm(starts, desc="target design (Nelder-Mead)")
+    for s in iterator:
+        x = samples[s].ravel()
+        for _ in range(config.restarts):  # a fresh simplex around the last optimum escapes stalls
+            res = minimize(lambda x: -float(design_cost(x.reshape(shape), config)), x, method="Nelder-Mead",
+                           options={"maxiter": config.maxiter, "xatol": 1e-6, "fatol": 1e-9})
+            x = res.x
+        f = -float(res.fun)
+        finals.append(f)
+        if f > best_f:
+            best_f, best_x = f, res.x.reshape(shape)
+    best_x = best_x - best_x.mean(axis=1, keepdims=True)
+    return TargetDesign(points=best_x, cost=best_f, start_costs=costs[starts], final_costs=np.array(finals),
+                        n_feasible_samples=len(feasible))
