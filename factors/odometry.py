@@ -1,0 +1,182 @@
+"""Odometry and scan-matching between-factors (gtsam.BetweenFactorPose2 / BetweenFactorPose3)
+with the covariance supplied by the odometry model or the scan matcher, and vectorized
+integration of unicycle velocity odometry (v, omega) to keyframes.
+
+Seed 004 (004_fa12d1d18dcbd0db.txt, sec. II.3 "Odometry motion model", Algorithm 1) samples
+odometry with rotational + translational noise inside a particle filter; here the same motion
+uncertainty enters the factor graph as a covariance propagated analytically from a velocity noise
+model. Its ICP map fusion (sec. IV) hands a relative pose to `between_factor` as a 4x4 matrix.
+
+Covariances are in GTSAM's tangent order: Pose2 (x, y, theta) in the frame of the second pose;
+Pose3 (rx, ry, rz, tx, ty, tz).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from graphloc.factors.robust import Kernel, robust_noise
+
+
+def between_factor(key_a: int, key_b: int, relative, covariance: np.ndarray, kernel: Kernel = Kernel()):
+    """Between-factor of relative pose `relative` (gtsam.Pose2/Pose3, or a 3x3 / 4x4 homogeneous
+    matrix, e.g. from ICP) with `covariance` (3x3 or 6x6) from the odometry model or matcher."""
+    if isinstance(relative, np.ndarray):
+        relative = _pose_from_matrix(relative)
+    cov = np.asarray(covariance, dtype=float)
+    dim = 3 if isinstance(relative, gtsam.Pose2) else 6
+    if not isinstance(relative, (gtsam.Pose2, gtsam.Pose3)):
+        raise ValueError(f"between_factor: relative must be Pose2/Pose3 or a 3x3/4x4 matrix, got {type(relative)}")
+    if cov.shape != (dim, dim):
+        raise ValueError(f"between_factor: covariance must be {dim}x{dim} for {type(relative).__name__}, got {cov.shape}")
+    check_covariance(cov, "between_factor covariance")
+    noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(cov), kernel)
+    if dim == 3:
+        return gtsam.BetweenFactorPose2(key_a, key_b, relative, noise)
+    return gtsam.BetweenFactorPose3(key_a, key_b, relative, noise)
+
+
+def check_covariance(cov: np.ndarray, what: str) -> None:
+    """ValueError unless `cov` is finite, symmetric and positive definite."""
+    if not np.isfinite(cov).all():
+        raise ValueError(f"{what}: contains NaN/inf")
+    if not np.allclose(cov, cov.T, atol=1e-12 * max(1.0, np.abs(cov).max())):
+        raise ValueError(f"{what}: not symmetric")
+    if np.linalg.eigvalsh(cov).min() <= 0:
+        raise ValueError(f"{what}: not positive definite")
+
+
+def _pose_from_matrix(T: np.ndarray):
+    if T.shape == (3, 3):
+        return gtsam.Pose2(float(T[0, 2]), float(T[1, 2]), float(np.arctan2(T[1, 0], T[0, 0])))
+    if T.shape == (4, 4):
+        return gtsam.Pose3(T)
+    raise ValueError(f"relative pose matrix must be 3x3 or 4x4, got {T.shape}")
+
+
+# ---- unicycle velocity odometry --------------------------------------------------------------
+@dataclass(frozen=True)
+class VelocityNoise:
+    """Velocity noise model of a unicycle: white noise densities on forward speed
+    (density_v [m/sqrt(s)]) and turn rate (density_w [rad/sqrt(s)]), plus a per-keyframe floor
+    (floor_xy [m], floor_theta [rad]) so that a standing robot still has a proper covariance."""
+
+    density_v: float = 0.05
+    density_w: float = 0.08
+    floor_xy: float = 0.002
+    floor_theta: float = 0.002
+
+    def __post_init__(self):
+        for name in ("density_v", "density_w", "floor_xy", "floor_theta"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"VelocityNoise.{name} must be finite > 0, got {value}")
+
+
+@dataclass(frozen=True)
+class UnicycleIntegration:
+    """poses: (K,3) dead-reckoned (x, y, theta) at the keyframe times, starting at `start`;
+    deltas: (K-1,3) relative poses keyframe k -> k+1 in frame k; covariances: (K-1,3,3)."""
+
+    poses: np.ndarray
+    deltas: np.ndarray
+    covariances: np.ndarray
+
+
+def integrate_unicycle(times: np.ndarray, v: np.ndarray, w: np.ndarray, keyframe_times: np.ndarray,
+                       noise: VelocityNoise = VelocityNoise(), start=(0.0, 0.0, 0.0)) -> UnicycleIntegration:
+    """Integrate velocity samples (zero-order hold: sample i holds from times[i] to times[i+1];
+    before times[0] the robot stands still, the last sample holds to the end) exactly along arcs,
+    to poses at `keyframe_times`, with first-order propagated covariance of each keyframe step.
+
+    Vectorized: headings are a cumulative sum, positions a cumulative sum of rotated arc chords,
+    covariances a segment-wise sum (np.add.reduceat) of G Q G^T with G the 3x2 Jacobian of the
+    end pose w.r.t. each segment's (distance, heading) increments.
+    """
+    times, v, w = (np.asarray(a, dtype=float) for a in (times, v, w))
+    kf = np.asarray(keyframe_times, dtype=float)
+    if times.ndim != 1 or v.shape != times.shape or w.shape != times.shape:
+        raise ValueError(f"integrate_unicycle: times, v, w must be equal-length 1-D arrays, got {times.shape}, {v.shape}, {w.shape}")
+    if kf.ndim != 1 or kf.size < 1:
+        raise ValueError("integrate_unicycle: need at least one keyframe time")
+    for name, arr in (("times", times), ("v", v), ("w", w), ("keyframe_times", kf)):
+        if not np.isfinite(arr).all():
+            raise ValueError(f"integrate_unicycle: {name} contains NaN/inf")
+    if np.any(np.diff(times) < 0) or np.any(np.diff(kf) <= 0):
+        raise ValueError("integrate_unicycle: times must be non-decreasing and keyframe_times increasing")
+
+    # breakpoints: keyframes plus every sample time strictly inside the keyframe span
+    inside = times[(times > kf[0]) & (times < kf[-1])]
+    bp = np.union1d(kf, inside)
+    dt = np.diff(bp)
+    sample = np.searchsorted(times, bp[:-1], side="right") - 1  # sample active on each segment
+    active = sample >= 0
+    seg_v = np.where(active, v[np.maximum(sample, 0)], 0.0)
+    seg_w = np.where(active, w[np.maximum(sample, 0)], 0.0)
+    ds = seg_v * dt
+    dth = seg_w * dt
+    # exact arc chord in the segment's start frame
+    half = 0.5 * dth
+    sinc_half = np.sinc(half / np.pi)  # sin(h)/h
+    chord = ds * sinc_half
+    theta = start[2] + np.concatenate([[0.0], np.cumsum(dth)])
+    mid = theta[:-1] + half
+    x = start[0] + np.concatenate([[0.0], np.cumsum(chord * np.cos(mid))])
+    y = start[1] + np.concatenate([[0.0], np.cumsum(chord * np.sin(mid))])
+
+    kf_idx = np.searchsorted(bp, kf)
+    poses = np.stack([x[kf_idx], y[kf_idx], _wrap(theta[kf_idx])], axis=1)
+    deltas = relative_poses(np.stack([x[kf_idx], y[kf_idx], theta[kf_idx]], axis=1))
+
+    # covariance: each segment j in keyframe interval k perturbs the end pose e=k+1 by
+    # G_j [d_s, d_theta]^T with G_j = [[cos th_j, -(y_e - y_j)], [sin th_j, x_e - x_j], [0, 1]]
+    if kf.size == 1:
+        return UnicycleIntegration(poses, deltas, np.zeros((0, 3, 3)))
+    seg_interval = np.searchsorted(kf_idx, np.arange(dt.size), side="right") - 1
+    end = kf_idx[seg_interval + 1]
+    ex, ey = x[end] - x[:-1], y[end] - y[:-1]
+    var_s = noise.density_v ** 2 * dt
+    var_t = noise.density_w ** 2 * dt
+    c, s = np.cos(mid), np.sin(mid)
+    g = np.zeros((dt.size, 3, 2))
+    g[:, 0, 0], g[:, 1, 0] = c, s
+    g[:, 0, 1], g[:, 1, 1], g[:, 2, 1] = -ey, ex, 1.0
+    contrib = var_s[:, None, None] * g[:, :, 0, None] * g[:, None, :, 0] + var_t[:, None, None] * g[:, :, 1, None] * g[:, None, :, 1]
+    cov_world = np.add.reduceat(contrib, kf_idx[:-1], axis=0)
+    # express in the frame of the end pose (GTSAM Pose2 tangent of BetweenFactor error)
+    th_end = theta[kf_idx[1:]]
+    rot = np.zeros((th_end.size, 3, 3))
+    ce, se = np.cos(th_end), np.sin(th_end)
+    rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = ce, se, -se, ce, 1.0
+    cov = rot @ cov_world @ np.transpose(rot, (0, 2, 1))
+    cov += np.diag([noise.floor_xy ** 2, noise.floor_xy ** 2, noise.floor_theta ** 2])
+    return UnicycleIntegration(poses, deltas, 0.5 * (cov + np.transpose(cov, (0, 2, 1))))
+
+
+def relative_poses(poses: np.ndarray) -> np.ndarray:
+    """(K,3) planar poses -> (K-1,3) relative poses pose_k^-1 * pose_{k+1} (vectorized)."""
+    p = np.asarray(poses, dtype=float)
+    return between_poses(p[:-1], p[1:])
+
+
+def between_poses(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise a_i^-1 * b_i for planar poses (N,3) (vectorized)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, _wrap(b[:, 2] - a[:, 2])], axis=1)
+
+
+def compose_poses(poses: np.ndarray, deltas: np.ndarray) -> np.ndarray:
+    """(N,3) planar poses composed with (N,3) relative poses, row by row (vectorized)."""
+    p, d = np.asarray(poses, dtype=float), np.asarray(deltas, dtype=float)
+    c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
+    return np.stack([p[:, 0] + c * d[:, 0] - s * d[:, 1], p[:, 1] + s * d[:, 0] + c * d[:, 1],
+                     _wrap(p[:, 2] + d[:, 2])], axis=1)
+
+
+def _wrap(a):
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi

@@ -1,0 +1,95 @@
+"""Range-bearing factors to landmarks and between robots, on GTSAM's built-ins:
+
+2D: gtsam.BearingRangeFactor2D (Pose2 -> Point2 landmark), gtsam.BearingRangeFactorPose2
+    (Pose2 -> position of another robot's Pose2);
+3D: gtsam.BearingRangeFactor3D (Pose3 -> Point3, bearing as Unit3), gtsam.BearingRangeFactorPose3.
+
+Robots observing each other (seed 000, 000_05137a0a9c449be3.txt sec. III: ground robots with
+mutual visibility) are the inter-robot factors; MRCLAM supplies range + bearing for both kinds.
+
+Measurements taken by a sensor mounted at `body_P_sensor` are first re-expressed in the body
+frame (`to_body_frame_2d`) because the Python BearingRange factors have no sensor offset.
+Noise: sigmas (bearing [rad], range [m]) in 2D, (bearing 2 DOF [rad], range [m]) in 3D.
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+from graphloc.factors.robust import Kernel, robust_noise
+
+
+def _noise(sigmas, dim: int, kernel: Kernel):
+    sig = np.asarray(sigmas, dtype=float)
+    if sig.shape != (dim,) or not np.isfinite(sig).all() or np.any(sig <= 0):
+        raise ValueError(f"range-bearing sigmas must be {dim} finite positive numbers, got {sigmas}")
+    return robust_noise(gtsam.noiseModel.Diagonal.Sigmas(sig), kernel)
+
+
+def _check(bearing, range_):
+    if not (np.isfinite(bearing).all() and np.isfinite(range_).all()):
+        raise ValueError("range-bearing measurement contains NaN/inf")
+    if np.any(np.asarray(range_) <= 0):
+        raise ValueError("range-bearing measurement has a non-positive range")
+
+
+def landmark_factor_2d(pose_key: int, landmark_key: int, bearing: float, range_: float,
+                       sigmas=(0.05, 0.1), kernel: Kernel = Kernel()) -> gtsam.BearingRangeFactor2D:
+    """Planar robot at `pose_key` sees landmark point `landmark_key` at (bearing, range)."""
+    _check(bearing, range_)
+    return gtsam.BearingRangeFactor2D(pose_key, landmark_key, gtsam.Rot2(float(bearing)), float(range_),
+                                      _noise(sigmas, 2, kernel))
+
+
+def robot_factor_2d(observer_key: int, observed_key: int, bearing: float, range_: float,
+                    sigmas=(0.05, 0.1), kernel: Kernel = Kernel()) -> gtsam.BearingRangeFactorPose2:
+    """Planar robot at `observer_key` sees the origin of robot pose `observed_key` at (bearing, range)."""
+    _check(bearing, range_)
+    return gtsam.BearingRangeFactorPose2(observer_key, observed_key, gtsam.Rot2(float(bearing)), float(range_),
+                                         _noise(sigmas, 2, kernel))
+
+
+def landmark_factor_3d(pose_key: int, landmark_key: int, direction, range_: float,
+                       sigmas=(0.05, 0.05, 0.1), kernel: Kernel = Kernel()) -> gtsam.BearingRangeFactor3D:
+    """Robot pose (Pose3) sees landmark point (Point3) along unit `direction` (body frame) at `range_`."""
+    d = _unit(direction)
+    _check(d, range_)
+    return gtsam.BearingRangeFactor3D(pose_key, landmark_key, gtsam.Unit3(d), float(range_), _noise(sigmas, 3, kernel))
+
+
+def robot_factor_3d(observer_key: int, observed_key: int, direction, range_: float,
+                    sigmas=(0.05, 0.05, 0.1), kernel: Kernel = Kernel()) -> gtsam.BearingRangeFactorPose3:
+    """Robot pose (Pose3) sees the origin of another robot's Pose3 along `direction` at `range_`."""
+    d = _unit(direction)
+    _check(d, range_)
+    return gtsam.BearingRangeFactorPose3(observer_key, observed_key, gtsam.Unit3(d), float(range_),
+                                         _noise(sigmas, 3, kernel))
+
+
+def _unit(direction) -> np.ndarray:
+    d = np.asarray(direction, dtype=float).reshape(-1)
+    n = np.linalg.norm(d) if d.shape == (3,) else 0.0
+    if not np.isfinite(n) or n < 1e-12:
+        raise ValueError(f"bearing direction must be a finite non-zero 3-vector, got {direction}")
+    return d / n
+
+
+def to_body_frame_2d(bearing: np.ndarray, range_: np.ndarray, body_P_sensor=(0.0, 0.0, 0.0)):
+    """Re-express (bearing, range) measured in a sensor frame mounted at body_P_sensor = (x, y, theta)
+    as (bearing, range) from the body origin (vectorized over arrays)."""
+    b, r = np.asarray(bearing, dtype=float), np.asarray(range_, dtype=float)
+    sx, sy, st = (float(a) for a in body_P_sensor)
+    if sx == 0.0 and sy == 0.0 and st == 0.0:
+        return b, r
+    px = sx + r * np.cos(b + st)
+    py = sy + r * np.sin(b + st)
+    return np.arctan2(py, px), np.hypot(px, py)
+
+
+def bearing_range_2d(poses: np.ndarray, points: np.ndarray):
+    """Predicted (bearing, range) from planar poses (N,3) to points (N,2), vectorized."""
+    p, q = np.asarray(poses, dtype=float), np.asarray(points, dtype=float)
+    dx, dy = q[:, 0] - p[:, 0], q[:, 1] - p[:, 1]
+    bearing = (np.arctan2(dy, dx) - p[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    return bearing, np.hypot(dx, dy)

@@ -1,0 +1,125 @@
+"""Trajectory metrics with the `evo` library: ATE (absolute trajectory error, translation, after
+aligning the estimate to ground truth) and RPE (relative pose error over a fixed time step),
+for planar (SE(2)) or 3D (SE(3)) trajectories; TUM trajectory files.
+
+Planar trajectories are aligned in SE(2): evo's Umeyama alignment run on the 2-D positions
+(rotation about z + translation, no scale), then evo's APE / RPE on the aligned trajectory.
+3D trajectories use evo's SE(3) Umeyama alignment.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from evo.core import geometry, metrics, sync
+from evo.core.trajectory import PoseTrajectory3D
+from evo.tools import file_interface
+
+
+@dataclass(frozen=True)
+class TrajectoryMetrics:
+    """ate_* [m] over matched poses; rpe_trans_rmse [m] and rpe_rot_rmse [deg] over `rpe_delta_s`;
+    n_matched: estimate/ground-truth pairs used; aligned: whether an alignment was applied."""
+
+    ate_rmse: float
+    ate_mean: float
+    ate_median: float
+    ate_max: float
+    rpe_trans_rmse: float
+    rpe_rot_rmse: float
+    rpe_delta_s: float
+    n_matched: int
+    aligned: str
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def planar_to_evo(times: np.ndarray, poses: np.ndarray) -> PoseTrajectory3D:
+    """(N,) times and (N,3) planar poses (x, y, theta) -> evo PoseTrajectory3D (z = 0)."""
+    t = np.asarray(times, dtype=float)
+    p = np.asarray(poses, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3 or t.shape != (p.shape[0],):
+        raise ValueError(f"planar trajectory must be (N,) times and (N,3) poses, got {t.shape} and {p.shape}")
+    if not (np.isfinite(t).all() and np.isfinite(p).all()):
+        raise ValueError("planar trajectory contains NaN/inf")
+    zeros = np.zeros(len(p))
+    quat_wxyz = np.column_stack([np.cos(p[:, 2] / 2), zeros, zeros, np.sin(p[:, 2] / 2)])
+    xyz = np.column_stack([p[:, :2], zeros])
+    return PoseTrajectory3D(positions_xyz=xyz, orientations_quat_wxyz=quat_wxyz, timestamps=t)
+
+
+def align_se2(reference: PoseTrajectory3D, estimate: PoseTrajectory3D) -> PoseTrajectory3D:
+    """Copy of `estimate` rigidly aligned to `reference` in the plane (Umeyama on x, y)."""
+    R2, t2, _ = geometry.umeyama_alignment(estimate.positions_xyz[:, :2].T, reference.positions_xyz[:, :2].T,
+                                           with_scale=False)
+    T = np.eye(4)
+    T[:2, :2] = R2
+    T[:2, 3] = t2
+    aligned = PoseTrajectory3D(poses_se3=[p.copy() for p in estimate.poses_se3], timestamps=estimate.timestamps.copy())
+    aligned.transform(T)
+    return aligned
+
+
+def trajectory_metrics(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, align: str = "se2",
+                       rpe_delta_s: float = 1.0, max_time_diff: float = 0.02) -> TrajectoryMetrics:
+    """ATE / RPE of `estimate` against `reference` (time-associated by evo within max_time_diff).
+    align: "se2" (planar), "se3" or "none"."""
+    if align not in ("se2", "se3", "none"):
+        raise ValueError(f"align must be se2, se3 or none, got {align!r}")
+    ref, est = _associate(reference, estimate, max_time_diff)
+    if ref.num_poses < 3:
+        raise ValueError(f"only {ref.num_poses} estimate poses have ground truth within {max_time_diff} s")
+    if align == "se2":
+        est = align_se2(ref, est)
+    elif align == "se3":
+        est = PoseTrajectory3D(poses_se3=[p.copy() for p in est.poses_se3], timestamps=est.timestamps.copy())
+        est.align(ref, correct_scale=False)
+    ape = metrics.APE(metrics.PoseRelation.translation_part)
+    ape.process_data((ref, est))
+    stats = ape.get_all_statistics()
+    period = float(np.median(np.diff(ref.timestamps)))
+    delta = max(1, int(round(rpe_delta_s / period)))
+    rpe_t = metrics.RPE(metrics.PoseRelation.translation_part, delta=delta, delta_unit=metrics.Unit.frames, all_pairs=False)
+    rpe_t.process_data((ref, est))
+    rpe_r = metrics.RPE(metrics.PoseRelation.rotation_angle_deg, delta=delta, delta_unit=metrics.Unit.frames, all_pairs=False)
+    rpe_r.process_data((ref, est))
+    return TrajectoryMetrics(
+        ate_rmse=float(stats["rmse"]), ate_mean=float(stats["mean"]), ate_median=float(stats["median"]),
+        ate_max=float(stats["max"]), rpe_trans_rmse=float(rpe_t.get_statistic(metrics.StatisticsType.rmse)),
+        rpe_rot_rmse=float(rpe_r.get_statistic(metrics.StatisticsType.rmse)), rpe_delta_s=delta * period,
+        n_matched=int(ref.num_poses), aligned=align)
+
+
+def _associate(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, max_time_diff: float):
+    """evo nearest-time association; no common time stamps -> ValueError (not evo's SyncException)."""
+    try:
+        return sync.associate_trajectories(reference, estimate, max_diff=max_time_diff)
+    except sync.SyncException:
+        raise ValueError(f"only 0 estimate poses have ground truth within {max_time_diff} s") from None
+
+
+def ate_over_time(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, align: str = "se2",
+                  max_time_diff: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+    """(times, translation error [m]) of the associated (and aligned) estimate, for plots."""
+    ref, est = _associate(reference, estimate, max_time_diff)
+    if align == "se2":
+        est = align_se2(ref, est)
+    elif align == "se3":
+        est.align(ref)
+    err = np.linalg.norm(est.positions_xyz - ref.positions_xyz, axis=1)
+    return ref.timestamps.copy(), err
+
+
+def write_tum(path: str | Path, times: np.ndarray, poses: np.ndarray) -> Path:
+    """Write a planar trajectory as a TUM file (timestamp tx ty tz qx qy qz qw) via evo."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    file_interface.write_tum_trajectory_file(str(path), planar_to_evo(times, poses))
+    return path
+
+
+def read_tum(path: str | Path) -> PoseTrajectory3D:
+    return file_interface.read_tum_trajectory_file(str(path))

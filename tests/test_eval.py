@@ -1,0 +1,83 @@
+"""graphloc.eval (evo-based ATE / RPE with SE(2) alignment, TUM files) and graphloc.plots."""
+
+import numpy as np
+import pytest
+
+from graphloc.eval import ate_over_time, planar_to_evo, read_tum, trajectory_metrics, write_tum
+from graphloc.plots import Series, plot_series, plot_trajectories
+
+
+def _circle(t):
+    ang = 0.1 * t
+    return np.stack([3 * np.cos(ang), 3 * np.sin(ang), ang + np.pi / 2], axis=1)
+
+
+def _transform(poses, yaw, tx, ty):
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = poses.copy()
+    out[:, 0] = c * poses[:, 0] - s * poses[:, 1] + tx
+    out[:, 1] = s * poses[:, 0] + c * poses[:, 1] + ty
+    out[:, 2] = poses[:, 2] + yaw
+    return out
+
+
+def test_se2_alignment_removes_rigid_offset_only():
+    t = np.arange(0, 60, 0.25)
+    gt = _circle(t)
+    moved = _transform(gt, 0.3, 1.0, -2.0)
+    assert trajectory_metrics(planar_to_evo(t, gt), planar_to_evo(t, moved)).ate_rmse < 1e-9
+    unaligned = trajectory_metrics(planar_to_evo(t, gt), planar_to_evo(t, moved), align="none")
+    assert unaligned.ate_rmse > 1.0
+    # a non-rigid error survives alignment, with the analytic RMSE of a constant radial offset
+    bigger = gt.copy()
+    bigger[:, :2] *= 1.1  # radius 3.3 vs 3.0 over a full circle: error 0.3 everywhere after alignment
+    t_full = np.linspace(0, 2 * np.pi / 0.1, 400, endpoint=False)
+    g, b = _circle(t_full), _circle(t_full)
+    b[:, :2] *= 1.1
+    m = trajectory_metrics(planar_to_evo(t_full, g), planar_to_evo(t_full, b))
+    assert m.ate_rmse == pytest.approx(0.3, abs=1e-6) and m.n_matched == 400
+
+
+def test_rpe_measures_local_drift():
+    t = np.arange(0, 60, 0.25)
+    gt = _circle(t)
+    est = gt.copy()
+    est[:, 0] += 0.01 * t  # 1 cm/s drift along x
+    m = trajectory_metrics(planar_to_evo(t, gt), planar_to_evo(t, est), align="none", rpe_delta_s=1.0)
+    assert m.rpe_delta_s == pytest.approx(1.0)
+    assert m.rpe_trans_rmse == pytest.approx(0.01, rel=0.05)
+
+
+def test_association_and_bad_input():
+    t = np.arange(0, 10, 0.1)
+    gt = _circle(t)
+    est_t = np.arange(0, 10, 0.5) + 0.004  # within the default 0.02 s
+    m = trajectory_metrics(planar_to_evo(t, gt), planar_to_evo(est_t, _circle(est_t)))
+    assert m.n_matched == 20 and m.ate_rmse < 0.01
+    with pytest.raises(ValueError, match="only 0"):
+        trajectory_metrics(planar_to_evo(t, gt), planar_to_evo(t + 100, gt))
+    with pytest.raises(ValueError, match="NaN"):
+        planar_to_evo(t, np.where(t[:, None] > 5, np.nan, gt))
+    with pytest.raises(ValueError, match="align"):
+        trajectory_metrics(planar_to_evo(t, gt), planar_to_evo(t, gt), align="sim3")
+
+
+def test_tum_roundtrip_and_error_curve(tmp_path):
+    t = np.arange(0, 20, 0.25)
+    gt = _circle(t)
+    path = write_tum(tmp_path / "a.tum", t, gt)
+    back = read_tum(path)
+    np.testing.assert_allclose(back.positions_xyz[:, :2], gt[:, :2], atol=1e-9)
+    times, err = ate_over_time(planar_to_evo(t, gt), back)
+    assert times.shape == err.shape == t.shape and err.max() < 1e-6
+
+
+def test_plots_write_pngs(tmp_path):
+    t = np.arange(0, 20, 0.25)
+    gt = _circle(t)
+    p1 = plot_trajectories(tmp_path / "traj.png", [Series("est", gt[:, :2] + 0.05)], [Series("gt", gt[:, :2])],
+                           points=np.array([[0.0, 0.0]]), title="t")
+    p2 = plot_series(tmp_path / "err.png", [Series("err", t, 0.01 + 0 * t)], "t [s]", "m", logy=True)
+    assert p1.stat().st_size > 5000 and p2.stat().st_size > 5000
+    with pytest.raises(ValueError, match="positions"):
+        plot_trajectories(tmp_path / "bad.png", [Series("bad", t)])

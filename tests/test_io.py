@@ -1,0 +1,116 @@
+"""graphloc log format: manifest, typed tables, time-ordered streaming merge, validation errors
+naming file / line / field, counted skips, PlanarRun conversion with sensor extrinsics."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from graphloc.io import (Bearing3D, GroundTruth2D, MarkerPixel, Odometry2D, PoseCandidate, RangeBearing2D, ScanRef,
+                         SkipReport, columns, iter_records, read_manifest, read_planar_run, write_manifest)
+
+
+def _csv(path: Path, table: str, rows: list[str]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(",".join(columns(table)) + "\n" + "".join(r + "\n" for r in rows))
+
+
+def make_log(root: Path, odo_a=None, rb_a=None) -> Path:
+    write_manifest({
+        "name": "tiny", "start_time": 0.0,
+        "robots": [
+            {"name": "ground", "kind": "ground", "initial_pose": [0, 0, 0],
+             "sensors": [{"name": "wheels", "type": "odometry"},
+                         {"name": "cam", "type": "range_bearing", "extrinsics": [0.1, 0.0, 1.5707963267948966]},
+                         {"name": "ceilcam", "type": "camera", "extrinsics": {"xyz": [0, 0, 0.2], "rpy": [0, 0, 0]}},
+                         {"name": "lidar", "type": "scanner"}],
+             "tables": {"odometry": "ground/odometry.csv", "range_bearing": "ground/range_bearing.csv",
+                        "markers": "ground/markers.csv", "candidates": "ground/candidates.csv",
+                        "scans": "ground/scans.csv", "groundtruth": "ground/groundtruth.csv"}},
+            {"name": "climber", "kind": "wall", "initial_pose": [1, 0, 0],
+             "sensors": [{"name": "wheels", "type": "odometry"}, {"name": "eye", "type": "bearing"}],
+             "tables": {"odometry": "climber/odometry.csv", "bearing": "climber/bearing.csv"}},
+        ],
+        "landmarks": {"file": "landmarks.csv"},
+    }, root)
+    (root / "landmarks.csv").write_text("id,x,y,z,sigma_x,sigma_y,sigma_z\n3,2.0,0.0,0,0.01,0.01,0\n")
+    _csv(root / "ground/odometry.csv", "odometry", odo_a or ["0.0,wheels,0.1,0.0", "0.5,wheels,0.1,0.0", "1.0,wheels,0.1,0.0"])
+    _csv(root / "ground/range_bearing.csv", "range_bearing",
+         rb_a or ["0.25,cam,landmark:3,1.0,0.0", "0.75,cam,climber,2.0,-1.0"])
+    _csv(root / "ground/markers.csv", "markers", ["0.3,ceilcam,climber,0,320.5,240.25"])
+    _csv(root / "ground/candidates.csv", "candidates",
+         ["0.3,ceilcam,climber,0,0.9,1,0,0,0,0.5,0,1", "0.3,ceilcam,climber,1,0.1,0,1,0,0,0.4,0,1"])
+    _csv(root / "ground/scans.csv", "scans", ["0.6,lidar,scans/000001.pcd"])
+    _csv(root / "ground/groundtruth.csv", "groundtruth", ["0.0,0,0,0", "1.0,0.1,0,0"])
+    _csv(root / "climber/odometry.csv", "odometry", ["0.1,wheels,0.0,0.0", "0.9,wheels,0.0,0.1"])
+    _csv(root / "climber/bearing.csv", "bearing", ["0.2,eye,ground,0,1,0"])
+    return root
+
+
+def test_streaming_merge_is_time_ordered_and_typed(tmp_path):
+    root = make_log(tmp_path / "log")
+    records = list(iter_records(root))
+    times = [r.time for r in records]
+    assert times == sorted(times) and len(records) == 14
+    kinds = {type(r) for r in records}
+    assert kinds == {Odometry2D, RangeBearing2D, MarkerPixel, PoseCandidate, ScanRef, GroundTruth2D, Bearing3D}
+    only = list(iter_records(root, tables=["odometry"], robots=["climber"]))
+    assert [r.time for r in only] == [0.1, 0.9] and all(r.robot == "climber" for r in only)
+    m = read_manifest(root)
+    np.testing.assert_allclose(m.robot("ground").sensor("ceilcam").body_T_sensor[:3, 3], [0, 0, 0.2])
+
+
+@pytest.mark.parametrize("row, message", [
+    ("0.6,wheels,abc,0.0", r"line 3: field 'v': cannot parse"),
+    ("0.6,wheels,nan,0.0", r"line 3: field 'v': nan is not finite"),
+    ("0.6,wheels,0.1", r"line 3: expected 4 fields"),
+    ("0.1,wheels,0.1,0.0", r"line 3: field 'time': 0.1 goes backwards"),
+    ("0.6,gps,0.1,0.0", r"line 3: field 'sensor': robot 'ground' has no sensor 'gps'"),
+    ("0.6,cam,0.1,0.0", r"line 3: field 'sensor': 'cam' is a range_bearing"),
+])
+def test_bad_rows_raise_with_file_line_field(tmp_path, row, message):
+    root = make_log(tmp_path / "log", odo_a=["0.5,wheels,0.1,0.0", row, "1.0,wheels,0.1,0.0"])
+    with pytest.raises(ValueError, match=r"ground/odometry\.csv: " + message):
+        list(iter_records(root))
+
+
+def test_bad_rows_are_counted_when_skipping(tmp_path):
+    root = make_log(tmp_path / "log", odo_a=["0.5,wheels,0.1,0.0", "0.6,wheels,inf,0", "0.4,wheels,0,0", "1.0,wheels,0.1,0.0"],
+                    rb_a=["0.25,cam,landmark:99,1.0,0.0", "0.3,cam,robot7,1.0,0.0", "0.75,cam,climber,2.0,-1.0"])
+    report = SkipReport()
+    records = list(iter_records(root, on_error="skip", report=report))
+    assert report.counts == {"non_finite": 1, "time_backwards": 1, "unknown_target": 2}
+    assert report.total == 4 and len(records) == 12  # of 14: one odometry and one range-bearing row fewer
+    assert any("landmark:99" in e for e in report.examples)
+
+
+def test_manifest_validation(tmp_path):
+    root = make_log(tmp_path / "log")
+    data = json.loads((root / "manifest.json").read_text())
+    data["robots"][0]["tables"]["weather"] = "x.csv"
+    (root / "manifest.json").write_text(json.dumps(data))
+    with pytest.raises(ValueError, match="unknown table 'weather'"):
+        read_manifest(root)
+    (root / "manifest.json").write_text("{ not json")
+    with pytest.raises(ValueError, match="line 1: invalid JSON"):
+        read_manifest(root)
+    with pytest.raises(FileNotFoundError):
+        read_manifest(tmp_path / "nowhere")
+    root2 = make_log(tmp_path / "log2")
+    (root2 / "ground/odometry.csv").write_text("t,sensor,v,omega\n0,wheels,0,0\n")
+    with pytest.raises(ValueError, match="line 1: header must be time,sensor,v,omega"):
+        list(iter_records(root2))
+
+
+def test_planar_run_applies_sensor_extrinsics(tmp_path):
+    root = make_log(tmp_path / "log")
+    run = read_planar_run(root)
+    assert run.robots == ("ground", "climber") and run.skips.total == 0
+    # cam at (0.1, 0) yawed +90 deg: 1 m along the camera axis is (0.1, 1.0) in the body frame
+    i = np.flatnonzero(run.obs_landmark == 3)[0]
+    np.testing.assert_allclose([run.obs_bearing[i], run.obs_range[i]], [np.arctan2(1.0, 0.1), np.hypot(1.0, 0.1)])
+    j = np.flatnonzero(run.obs_target_robot == 1)[0]
+    assert run.obs_robot[j] == 0
+    np.testing.assert_allclose(run.initial_poses, [[0, 0, 0], [1, 0, 0]])
+    assert run.groundtruth[1] is None and run.groundtruth[0].shape == (2, 4)

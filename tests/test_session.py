@@ -1,0 +1,236 @@
+"""Session engine (batch LM / online iSAM2, save/resume), odometry integration, robust kernels,
+range-bearing factors -- on small synthetic planar problems with known truth."""
+
+import gtsam
+import numpy as np
+import pytest
+
+from graphloc.factors.odometry import (VelocityNoise, between_factor, compose_poses, integrate_unicycle,
+                                       relative_poses)
+from graphloc.factors.range_bearing import (bearing_range_2d, landmark_factor_2d, landmark_factor_3d,
+                                            robot_factor_2d, to_body_frame_2d)
+from graphloc.factors.robust import Kernel, KernelPolicy, downweighted, robust_noise
+from graphloc.keys import landmark_key, pose_key
+from graphloc.session import Session, SessionConfig
+
+RNG_SEED = 7
+
+
+def _problem(n_steps=30, n_outliers=3, seed=RNG_SEED):
+    """Two robots driving circles near 4 known landmarks; returns per-step (factors, values, t)
+    plus the true poses. A few landmark measurements are gross outliers."""
+    rng = np.random.default_rng(seed)
+    landmarks = np.array([[5.0, 0.0], [0.0, 5.0], [-5.0, 0.0], [0.0, -5.0]])
+    t = np.arange(n_steps) * 0.5
+    truth = {}
+    for r, (radius, phase) in enumerate([(3.0, 0.0), (2.0, 1.5)]):
+        ang = phase + 0.2 * t
+        truth[r] = np.stack([radius * np.cos(ang), radius * np.sin(ang), ang + np.pi / 2], axis=1)
+    odo_sig = np.array([0.02, 0.02, 0.01])
+    rb_sig = (0.02, 0.05)
+    kern = KernelPolicy({"landmark": Kernel("cauchy", 2.0), "inter_robot": Kernel("huber", 1.345)})
+    outlier_steps = set(rng.choice(np.arange(2, n_steps), n_outliers, replace=False).tolist())
+    steps, dr = [], {r: truth[r][0].copy() for r in truth}
+    for k in range(n_steps):
+        graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+        for r, poses in truth.items():
+            key = pose_key(r, k)
+            if k == 0:
+                graph.add(gtsam.PriorFactorPose2(key, gtsam.Pose2(*poses[0]), gtsam.noiseModel.Isotropic.Sigma(3, 0.01)))
+                values.insert(key, gtsam.Pose2(*poses[0]))
+            else:
+                delta = relative_poses(poses[k - 1:k + 1])[0] + rng.normal(0, odo_sig)
+                graph.add(between_factor(pose_key(r, k - 1), key, gtsam.Pose2(*delta), np.diag(odo_sig ** 2)))
+                dr[r] = compose_poses(dr[r][None], delta[None])[0]
+                values.insert(key, gtsam.Pose2(*dr[r]))
+            b, rng_ = bearing_range_2d(np.repeat(poses[k:k + 1], 4, 0), landmarks)
+            for j in range(4):
+                meas_r = rng_[j] + rng.normal(0, rb_sig[1])
+                if j == 0 and r == 0 and k in outlier_steps:
+                    meas_r += 4.0  # gross outlier (misread)
+                graph.add(landmark_factor_2d(key, landmark_key(j), b[j] + rng.normal(0, rb_sig[0]), meas_r, rb_sig,
+                                             kern.kernel("landmark")))
+        b, rr = bearing_range_2d(truth[0][k:k + 1], truth[1][k:k + 1, :2])
+        graph.add(robot_factor_2d(pose_key(0, k), pose_key(1, k), b[0], rr[0], rb_sig, kern.kernel("inter_robot")))
+        if k == 0:
+            for j, xy in enumerate(landmarks):
+                graph.add(gtsam.PriorFactorPoint2(landmark_key(j), xy, gtsam.noiseModel.Isotropic.Sigma(2, 1e-3)))
+                values.insert(landmark_key(j), xy + 0.1)
+        steps.append((graph, values, float(t[k])))
+    return steps, truth, len(outlier_steps)
+
+
+def _errors(values, truth):
+    return np.array([np.hypot(*(values.atPose2(pose_key(r, k)).translation() - truth[r][k, :2]))
+                     for r in truth for k in range(len(truth[r]))])
+
+
+def _run(mode, steps, **cfg):
+    s = Session(SessionConfig(mode=mode, **cfg))
+    for g, v, t in steps:
+        s.add(g, v, time=t)
+    return s
+
+
+def test_batch_and_online_agree_and_beat_odometry():
+    steps, truth, n_out = _problem()
+    batch = _run("batch", steps)
+    online = _run("online", steps)
+    eb, eo = _errors(batch.estimate(), truth), _errors(online.estimate(), truth)
+    assert np.sqrt(np.mean(eb ** 2)) < 0.05
+    assert np.sqrt(np.mean(eo ** 2)) < 1.2 * np.sqrt(np.mean(eb ** 2)) + 0.01
+    assert batch.batch_iterations >= 1
+    assert len(online.latencies()) == len(steps) and np.all(online.latencies() > 0)
+    # the outliers are the factors the kernel down-weights
+    report = downweighted(batch.graph, batch.estimate(), threshold=0.1)
+    assert report.n_robust == sum(2 * 4 + 1 for _ in steps)
+    assert report.n_downweighted == n_out
+
+
+def test_marginal_covariance_batch_online():
+    steps, _, _ = _problem(n_steps=10)
+    key = pose_key(0, 9)
+    cb = _run("batch", steps).marginal_covariance(key)
+    co = _run("online", steps, relinearize_skip=1, extra_updates=2).marginal_covariance(key)
+    assert cb.shape == (3, 3) and np.all(np.linalg.eigvalsh(cb) > 0)
+    np.testing.assert_allclose(co, cb, rtol=0.05, atol=1e-7)
+
+
+def test_online_save_resume_identical(tmp_path):
+    steps, _, _ = _problem(n_steps=20)
+    full = _run("online", steps)
+    part = _run("online", steps[:12])
+    path = tmp_path / "session.pkl"
+    part.save(path)
+    resumed = Session.load(path)
+    for g, v, t in steps[12:]:
+        resumed.add(g, v, time=t)
+    a, b = full.estimate(), resumed.estimate()
+    assert a.keys() == b.keys()
+    for k in a.keys():
+        np.testing.assert_allclose(a.atPose2(k).matrix() if gtsam.Symbol(k).chr() == ord("x") else a.atPoint2(k),
+                                   b.atPose2(k).matrix() if gtsam.Symbol(k).chr() == ord("x") else b.atPoint2(k),
+                                   rtol=0, atol=1e-12)
+
+
+def test_batch_save_load_same_graph(tmp_path):
+    steps, _, _ = _problem(n_steps=8)
+    s = _run("batch", steps)
+    s.save(tmp_path / "b.pkl")
+    r = Session.load(tmp_path / "b.pkl")
+    assert r.graph.size() == s.graph.size()
+    assert abs(r.error() - s.error()) < 1e-9
+
+
+def test_session_rejects_bad_input(tmp_path):
+    s = Session(SessionConfig(mode="online"))
+    g = gtsam.NonlinearFactorGraph()
+    g.add(gtsam.PriorFactorPose2(pose_key(0, 0), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 1)))
+    v = gtsam.Values()
+    v.insert(pose_key(0, 0), gtsam.Pose2())
+    s.add(g, v, time=1.0)
+    g2 = gtsam.NonlinearFactorGraph()
+    g2.add(gtsam.BetweenFactorPose2(pose_key(0, 0), pose_key(0, 1), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 1)))
+    with pytest.raises(ValueError, match="without a value"):
+        s.add(g2, gtsam.Values(), time=2.0)
+    v2 = gtsam.Values()
+    v2.insert(pose_key(0, 1), gtsam.Pose2())
+    with pytest.raises(ValueError, match="backwards"):
+        s.add(g2, v2, time=0.5)
+    with pytest.raises(ValueError, match="not finite"):
+        s.add(g2, v2, time=float("nan"))
+    with pytest.raises(ValueError, match="already"):
+        s.add(gtsam.NonlinearFactorGraph(), v, time=3.0)
+    with pytest.raises(ValueError, match="mode"):
+        SessionConfig(mode="fast")
+    (tmp_path / "junk.pkl").write_bytes(b"\x80\x05K\x01.")
+    with pytest.raises(ValueError, match="not a saved"):
+        Session.load(tmp_path / "junk.pkl")
+
+
+def test_integrate_unicycle_exact_circle_and_covariance():
+    # constant v, w: exact circle of radius v/w whatever the sampling
+    t = np.linspace(0, 10, 137)
+    v, w = np.full_like(t, 0.5), np.full_like(t, 0.25)
+    kf = np.linspace(0, 10, 21)
+    out = integrate_unicycle(t, v, w, kf, VelocityNoise())
+    ang = 0.25 * kf
+    np.testing.assert_allclose(out.poses[:, 0], 2.0 * np.sin(ang), atol=1e-12)
+    np.testing.assert_allclose(out.poses[:, 1], 2.0 * (1 - np.cos(ang)), atol=1e-12)
+    np.testing.assert_allclose(out.deltas, relative_poses(out.poses), atol=1e-12)
+    assert out.covariances.shape == (20, 3, 3)
+    assert np.all(np.linalg.eigvalsh(out.covariances) > 0)
+    # covariance matches Monte Carlo of the same white velocity noise (one keyframe step)
+    rng = np.random.default_rng(0)
+    noise = VelocityNoise(density_v=0.1, density_w=0.2, floor_xy=1e-6, floor_theta=1e-6)
+    ts = np.linspace(0, 1, 201)
+    dt = 1 / 200
+    samples = []
+    for _ in range(1500):
+        vv = 0.5 + rng.normal(0, noise.density_v / np.sqrt(dt), ts.size)
+        ww = 0.3 + rng.normal(0, noise.density_w / np.sqrt(dt), ts.size)
+        samples.append(integrate_unicycle(ts, vv, ww, np.array([0.0, 1.0]), noise).deltas[0])
+    nominal = integrate_unicycle(ts, np.full(ts.size, 0.5), np.full(ts.size, 0.3), np.array([0.0, 1.0]), noise)
+    d = np.array(samples) - nominal.deltas[0]
+    # express the spread in the end frame's tangent (rotate by the relative heading)
+    c, s = np.cos(nominal.deltas[0, 2]), np.sin(nominal.deltas[0, 2])
+    body = np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]], 1)
+    mc, model = np.cov(body.T), nominal.covariances[0]
+    scale = np.sqrt(np.outer(np.diag(model), np.diag(model)))  # sampling std of a covariance entry ~ scale/sqrt(N)
+    assert np.all(np.abs(mc - model) < 4 * scale / np.sqrt(len(samples)) + 1e-6)
+
+
+def test_integrate_unicycle_rejects_bad_input():
+    with pytest.raises(ValueError, match="NaN"):
+        integrate_unicycle(np.array([0.0, 1.0]), np.array([0.1, np.nan]), np.zeros(2), np.array([0.0, 1.0]))
+    with pytest.raises(ValueError, match="non-decreasing"):
+        integrate_unicycle(np.array([1.0, 0.0]), np.zeros(2), np.zeros(2), np.array([0.0, 1.0]))
+
+
+def test_between_factor_pose3_matrix_and_bad_covariance():
+    T = np.eye(4)
+    T[:3, 3] = [1, 2, 3]
+    f = between_factor(1, 2, T, np.eye(6) * 0.01)
+    assert isinstance(f, gtsam.BetweenFactorPose3)
+    with pytest.raises(ValueError, match="positive definite"):
+        between_factor(1, 2, gtsam.Pose2(), -np.eye(3))
+    with pytest.raises(ValueError, match="3x3"):
+        between_factor(1, 2, gtsam.Pose2(), np.eye(6))
+
+
+def test_robust_kernels_by_name():
+    base = gtsam.noiseModel.Diagonal.Sigmas([0.1, 0.1])
+    for name in ("huber", "cauchy", "tukey", "gemanmcclure", "dcs", "Geman-McClure"):
+        m = robust_noise(base, Kernel(name, 1.0))
+        assert isinstance(m, gtsam.noiseModel.Robust)
+        assert m.robust().weight(0.1) > m.robust().weight(10.0)
+    assert robust_noise(base, Kernel("none")) is base
+    assert Kernel.parse("cauchy:2.5") == Kernel("cauchy", 2.5)
+    with pytest.raises(ValueError, match="unknown robust kernel"):
+        Kernel("bisquare-ish")
+
+
+def test_range_bearing_3d_and_body_frame():
+    f = landmark_factor_3d(pose_key(0, 0), landmark_key(1), [1.0, 0.0, 0.0], 2.0)
+    v = gtsam.Values()
+    v.insert(pose_key(0, 0), gtsam.Pose3())
+    v.insert(landmark_key(1), np.array([2.0, 0.0, 0.0]))
+    assert f.error(v) < 1e-12
+    with pytest.raises(ValueError):
+        landmark_factor_2d(1, 2, 0.1, -1.0)
+    with pytest.raises(ValueError):
+        robot_factor_2d(1, 2, np.nan, 1.0)
+    # sensor 0.1 m ahead, yawed 90 deg: a point 1 m along sensor x is at (0.1, 1) in the body
+    b, r = to_body_frame_2d(np.array([0.0]), np.array([1.0]), (0.1, 0.0, np.pi / 2))
+    np.testing.assert_allclose([b[0], r[0]], [np.arctan2(1, 0.1), np.hypot(1, 0.1)])
+
+
+def test_underconstrained_online_update_is_a_value_error():
+    s = Session(SessionConfig(mode="online"))
+    g = gtsam.NonlinearFactorGraph()
+    g.add(robot_factor_2d(pose_key(0, 0), pose_key(1, 0), 0.1, 1.0))  # no prior: gauge freedom
+    v = gtsam.Values()
+    v.insert(pose_key(0, 0), gtsam.Pose2())
+    v.insert(pose_key(1, 0), gtsam.Pose2(1, 0, 0))
+    with pytest.raises(ValueError, match="iSAM2 update failed"):
+        s.add(g, v, time=0.0)
