@@ -1,0 +1,361 @@
+"""Scenario `crawler-pair`: two small crawlers on rough ground, rendered (seed 003,
+/work/shared/seeds/003_8db27855ce2d5f68.txt, section III: the tracked robot's 3.8 cm base
+starts 83 cm from the moving robot's camera, the KLT-textured background 260 cm away;
+section II: the robots move and stop in turns).
+
+World frame = the moving robot's camera at frame 0 (OpenCV axes: x right, y down, z forward).
+Ground: the plane y = camera_height; back wall: z = background_distance. Both carry a random
+texture (multi-octave noise plus random shapes, so Shi-Tomasi finds corners). Rough ground
+is the moving robot's attitude jitter (pitch/roll noise and a small bounce) while it crawls.
+
+Each frame is rendered by ray casting at `supersample`^2 rays per pixel: every ray hits the
+wall or the ground (ray-plane intersection), the texture is sampled with cv2.remap, the
+cv2.resize(INTER_AREA) averages the rays; the teammate's base (the back disk of its
+cylinder, radius base_diameter/2, centre one base radius above the ground, normal along its
+heading towards the camera) is blended in with its exact pixel coverage (8x8 rays per pixel
+intersected with the disk plane, `disk_coverage`); Gaussian blur (optics) and sensor noise
+follow.
+
+Between frames exactly one robot moves (`schedule`): "camera" crawls forward along its
+heading with lateral and heading noise; "teammate" crawls away along its axis; its own
+odometry (distance travelled, with relative noise) is recorded.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import cv2
+import numpy as np
+
+from graphloc.cameras import PinholeCamera
+from graphloc.vision.circle import render_circle_rim
+
+MOVERS = ("camera", "teammate")
+
+
+def default_schedule() -> tuple[str, ...]:
+    """Move-and-stop (seed 003 II): camera 8 steps, teammate 3 steps, camera 4 steps."""
+    return ("camera",) * 8 + ("teammate",) * 3 + ("camera",) * 4
+
+
+@dataclass(frozen=True)
+class CrawlerPairConfig:
+    """Geometry [m], motion per step, rendering and noise. schedule: who moves between frames
+    t and t+1 (len = n_frames - 1). pixel_pitch [m/px]: sensor pitch (the seed's image-plane
+    units in eq. 14). base_colour: BGR of the base (the colour signature of II-A-1)."""
+
+    width: int = 640
+    height: int = 480
+    hfov_deg: float = 50.0
+    pixel_pitch: float = 6e-6
+    base_diameter: float = 0.038
+    start_distance: float = 0.83
+    teammate_lateral: float = 0.03
+    teammate_heading_deg: float = 12.0
+    background_distance: float = 2.6
+    camera_height: float = 0.05
+    schedule: tuple[str, ...] = field(default_factory=default_schedule)
+    camera_step: float = 0.012
+    camera_lateral_std: float = 0.003
+    camera_yaw_std_deg: float = 0.8
+    roughness_deg: float = 1.0
+    bounce_std: float = 0.001
+    teammate_step: float = 0.02
+    teammate_heading_std_deg: float = 0.5
+    teammate_odometry_rel_std: float = 0.02
+    base_colour: tuple[float, float, float] = (40.0, 40.0, 200.0)
+    texel: float = 0.002
+    supersample: int = 2
+    blur_sigma: float = 0.6
+    noise_sigma: float = 2.0
+    seed: int = 0
+
+    def __post_init__(self):
+        for name in ("width", "height", "supersample"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"CrawlerPairConfig.{name} must be >= 1, got {getattr(self, name)}")
+        for name in ("pixel_pitch", "base_diameter", "start_distance", "background_distance", "camera_height",
+                     "texel", "hfov_deg"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"CrawlerPairConfig.{name} must be a positive finite number, got {v}")
+        if not self.background_distance > self.start_distance + 0.5:
+            raise ValueError("CrawlerPairConfig: background_distance must exceed start_distance + 0.5 m")
+        if not self.camera_height > self.base_diameter / 2:
+            raise ValueError("CrawlerPairConfig: camera_height must exceed the base radius")
+        bad = [i for i, m in enumerate(self.schedule) if m not in MOVERS]
+        if bad:
+            raise ValueError(f"CrawlerPairConfig.schedule[{bad[0]}] = {self.schedule[bad[0]]!r}; "
+                             f"expected one of {MOVERS}")
+        for name in ("camera_step", "camera_lateral_std", "camera_yaw_std_deg", "roughness_deg", "bounce_std",
+                     "teammate_step", "teammate_heading_std_deg", "teammate_odometry_rel_std", "blur_sigma",
+                     "noise_sigma"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"CrawlerPairConfig.{name} must be finite and >= 0, got {v}")
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.schedule) + 1
+
+    @property
+    def base_radius(self) -> float:
+        return 0.5 * self.base_diameter
+
+    def camera(self) -> PinholeCamera:
+        return PinholeCamera.from_fov(self.width, self.height, np.radians(self.hfov_deg))
+
+
+@dataclass(frozen=True)
+class CrawlerPairSequence:
+    """A rendered run (T frames).
+
+    images (T,H,W,3) uint8 BGR; R_wc (T,3,3), t_wc (T,3): the moving robot's camera in the
+    world; base_centre (T,3), base_normal (T,3): the teammate's base disk in the world (normal
+    towards the back, i.e. towards the camera side); mover (T-1,) who moved between t and t+1;
+    teammate_odometry (T-1,) measured distance the teammate travelled (0 when it stood still),
+    teammate_odometry_std (T-1,) its std. camera, config: what rendered it."""
+
+    images: np.ndarray
+    R_wc: np.ndarray
+    t_wc: np.ndarray
+    base_centre: np.ndarray
+    base_normal: np.ndarray
+    mover: tuple[str, ...]
+    teammate_odometry: np.ndarray
+    teammate_odometry_std: np.ndarray
+    camera: PinholeCamera
+    config: CrawlerPairConfig
+    scene: "TexturedScene"
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+    def frame_flags(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Per frame (T,): camera_moved, teammate_moved (since the previous frame; False at 0),
+        teammate odometry distance and its std (0 where it stood still)."""
+        mover = np.array(("",) + self.mover)
+        pad = lambda a: np.concatenate([[0.0], a])
+        return mover == "camera", mover == "teammate", pad(self.teammate_odometry), pad(self.teammate_odometry_std)
+
+    def base_in_camera(self, t: int) -> tuple[np.ndarray, np.ndarray]:
+        """Base centre (3,) and normal (3,) in camera t's frame."""
+        R = self.R_wc[t]
+        return R.T @ (self.base_centre[t] - self.t_wc[t]), R.T @ self.base_normal[t]
+
+    def surface_points(self, t: int, pixels: np.ndarray) -> np.ndarray:
+        """World points (M,3) of the textured surfaces seen at `pixels` (M,2) of frame t (the
+        ground truth of KLT features; the base is not a surface here)."""
+        rays = self.camera.pixel_to_bearing(pixels)[0] @ self.R_wc[t].T
+        return self.scene.intersect(self.t_wc[t], rays)[0]
+
+
+@dataclass(frozen=True)
+class TexturedScene:
+    """Back wall z = wall_z and ground y = ground_y, each with a BGR texture of `texel` m/px;
+    wall texture covers x in [x0, x0 + W texel], y in [y0, ...]; ground x in [x0, ...],
+    z in [z0, ...]."""
+
+    wall_z: float
+    ground_y: float
+    texel: float
+    wall_texture: np.ndarray
+    wall_origin: tuple[float, float]
+    ground_texture: np.ndarray
+    ground_origin: tuple[float, float]
+
+    def intersect(self, origin: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest hit (M,3) of rays (M,3) from origin (3,) with wall or ground, and on_wall (M,)."""
+        o = np.asarray(origin, float)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_wall = (self.wall_z - o[2]) / rays[:, 2]
+            s_ground = (self.ground_y - o[1]) / rays[:, 1]
+        s_wall = np.where(s_wall > 0, s_wall, np.inf)
+        s_ground = np.where(s_ground > 0, s_ground, np.inf)
+        on_wall = s_wall <= s_ground
+        s = np.where(on_wall, s_wall, s_ground)
+        hits = o + s[:, None] * rays
+        hits[~np.isfinite(s)] = np.nan
+        return hits, on_wall
+
+
+def make_texture(rng: np.random.Generator, height: int, width: int, tint: tuple[float, float, float]) -> np.ndarray:
+    """(height, width, 3) uint8 BGR texture: multi-octave value noise plus random rectangles,
+    ellipses and lines (corners for Shi-Tomasi), tinted by `tint` (low chroma, no red)."""
+    grey = np.zeros((height, width), np.float32)
+    for cell, amp in ((64, 50.0), (16, 35.0), (4, 20.0)):
+        coarse = rng.uniform(-1, 1, (max(height // cell, 2), max(width // cell, 2))).astype(np.float32)
+        grey += amp * cv2.resize(coarse, (width, height), interpolation=cv2.INTER_CUBIC)
+    grey += 120.0
+    n_shapes = max(int(height * width / 4000), 4)
+    for _ in range(n_shapes):
+        level = float(rng.uniform(20, 235))
+        x, y = int(rng.integers(0, width)), int(rng.integers(0, height))
+        size = int(rng.integers(4, 30))
+        kind = rng.integers(0, 3)
+        if kind == 0:
+            cv2.rectangle(grey, (x, y), (x + size, y + int(rng.integers(4, 30))), level, -1)
+        elif kind == 1:
+            cv2.ellipse(grey, (x, y), (size, int(rng.integers(3, 20))), float(rng.uniform(0, 180)), 0, 360, level, -1)
+        else:
+            cv2.line(grey, (x, y), (x + int(rng.integers(-40, 40)), y + int(rng.integers(-40, 40))), level, 2)
+    grey = np.clip(grey, 0, 255)
+    tint = np.asarray(tint, np.float32)
+    return np.clip(grey[..., None] * tint[None, None, :], 0, 255).astype(np.uint8)
+
+
+def _rot_y(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _rot_x(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _rot_z(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def disk_coverage(camera: PinholeCamera, centre: np.ndarray, normal: np.ndarray, radius: float,
+                  subsamples: int = 8) -> np.ndarray:
+    """(H,W) float32 fraction of each pixel covered by the disk (camera-frame centre (3,), unit
+    normal (3,), radius), from subsamples^2 rays per pixel intersected with the disk plane
+    (exact up to the sampling; only the disk's bounding box is sampled)."""
+    cov = np.zeros((camera.height, camera.width), np.float32)
+    rim, visible = render_circle_rim(camera, centre, normal, radius, n_points=64)
+    if not visible.any():
+        return cov
+    rim = rim[np.isfinite(rim).all(axis=1)]
+    x0, y0 = np.maximum(np.floor(rim.min(axis=0)).astype(int) - 2, 0)
+    x1, y1 = np.minimum(np.ceil(rim.max(axis=0)).astype(int) + 3, (camera.width, camera.height))
+    if x1 <= x0 or y1 <= y0:
+        return cov
+    k = int(subsamples)
+    offs = (np.arange(k) + 0.5) / k - 0.5
+    us = ((np.arange(x0, x1)[:, None] + offs).ravel() - camera.cx) / camera.fx
+    vs = ((np.arange(y0, y1)[:, None] + offs).ravel() - camera.cy) / camera.fy
+    gu, gv = np.meshgrid(us, vs)
+    denom = normal[0] * gu + normal[1] * gv + normal[2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        depth = (normal @ centre) / denom  # ray (u, v, 1) meets the plane at this z
+    px, py, pz = depth * gu - centre[0], depth * gv - centre[1], depth - centre[2]
+    inside = (depth > 0) & (px * px + py * py + pz * pz <= radius * radius)
+    cov[y0:y1, x0:x1] = inside.reshape(y1 - y0, k, x1 - x0, k).mean(axis=(1, 3))
+    return cov
+
+
+class CrawlerPairScenario:
+    """Generator of `CrawlerPairSequence`s (see the module docstring).
+
+        seq = CrawlerPairScenario(CrawlerPairConfig(seed=3)).generate()
+    """
+
+    def __init__(self, config: CrawlerPairConfig = CrawlerPairConfig()):
+        self.config = config
+
+    @cached_property
+    def scene(self) -> TexturedScene:
+        cfg = self.config
+        rng = np.random.default_rng([cfg.seed, 7])
+        half_w = cfg.background_distance * np.tan(np.radians(cfg.hfov_deg) / 2) + 0.6  # FOV plus the robot's turns
+        wall_h = 0.6 * half_w + cfg.camera_height
+        wall = make_texture(rng, int(wall_h / cfg.texel), int(2 * half_w / cfg.texel), (0.95, 1.0, 0.9))
+        ground_len = cfg.background_distance + 0.6
+        ground = make_texture(rng, int(ground_len / cfg.texel), int(2 * half_w / cfg.texel), (0.8, 1.0, 0.85))
+        return TexturedScene(cfg.background_distance, cfg.camera_height, cfg.texel, wall,
+                             (-half_w, cfg.camera_height - wall_h), ground, (-half_w, -0.5))
+
+    def trajectories(self, rng: np.random.Generator):
+        """Camera R_wc (T,3,3), t_wc (T,3); base centre (T,3), normal (T,3); teammate
+        odometry (T-1,) and its std (T-1,)."""
+        cfg = self.config
+        T = cfg.n_frames
+        yaw = np.zeros(T)
+        pos = np.zeros((T, 3))
+        heading = np.radians(cfg.teammate_heading_deg)
+        centre = np.zeros((T, 3))
+        normal = np.zeros((T, 3))
+        centre[0] = (cfg.teammate_lateral, cfg.camera_height - cfg.base_radius, cfg.start_distance)
+        theta = np.full(T, heading)  # teammate heading: its forward axis is R_y(theta) z
+        odo = np.zeros(T - 1)
+        odo_std = np.zeros(T - 1)
+        for t, who in enumerate(cfg.schedule):
+            yaw[t + 1], pos[t + 1], theta[t + 1], centre[t + 1] = yaw[t], pos[t], theta[t], centre[t]
+            if who == "camera":
+                yaw[t + 1] = yaw[t] + np.radians(cfg.camera_yaw_std_deg) * rng.normal()
+                fwd = np.array([np.sin(yaw[t]), 0.0, np.cos(yaw[t])])
+                side = np.array([np.cos(yaw[t]), 0.0, -np.sin(yaw[t])])
+                pos[t + 1] = pos[t] + cfg.camera_step * fwd + cfg.camera_lateral_std * rng.normal() * side
+                pos[t + 1, 1] = cfg.bounce_std * rng.normal()
+            else:
+                theta[t + 1] = theta[t] + np.radians(cfg.teammate_heading_std_deg) * rng.normal()
+                step = cfg.teammate_step * (1.0 + 0.1 * rng.normal())
+                mid = 0.5 * (theta[t] + theta[t + 1])
+                centre[t + 1] = centre[t] + step * np.array([np.sin(mid), 0.0, np.cos(mid)])
+                odo_std[t] = max(cfg.teammate_odometry_rel_std * step, 1e-4)
+                odo[t] = step + odo_std[t] * rng.normal()
+        normal[:] = -np.stack([np.sin(theta), np.zeros(T), np.cos(theta)], axis=1)  # back face: towards -forward
+        pitch = np.radians(cfg.roughness_deg) * rng.normal(size=T)
+        roll = np.radians(cfg.roughness_deg) * rng.normal(size=T)
+        pitch[0] = roll[0] = 0.0  # the world frame is camera 0
+        stays = np.array([False] + [m == "teammate" for m in cfg.schedule])
+        for t in range(1, T):  # a robot that did not move keeps its attitude
+            if stays[t]:
+                pitch[t], roll[t] = pitch[t - 1], roll[t - 1]
+        R = np.stack([_rot_y(a) @ _rot_x(p) @ _rot_z(r) for a, p, r in zip(yaw, pitch, roll)])
+        return R, pos, centre, normal, odo, odo_std
+
+    def render(self, R_wc: np.ndarray, t_wc: np.ndarray, centre_w: np.ndarray, normal_w: np.ndarray,
+               rng: np.random.Generator) -> np.ndarray:
+        """One BGR frame (H,W,3) uint8 of the scene and the base disk seen from (R_wc, t_wc)."""
+        cfg = self.config
+        cam = cfg.camera()
+        s = cfg.supersample
+        W, H = cfg.width * s, cfg.height * s
+        u = ((np.arange(W, dtype=np.float32) + 0.5) / s - 0.5 - cam.cx) / cam.fx
+        v = ((np.arange(H, dtype=np.float32) + 0.5) / s - 0.5 - cam.cy) / cam.fy
+        Rf = R_wc.astype(np.float32)
+        # world ray components of pixel (v, u): R[:, 0] u + R[:, 1] v + R[:, 2], as (H,W) arrays
+        ray = [Rf[i, 0] * u[None, :] + Rf[i, 1] * v[:, None] + Rf[i, 2] for i in range(3)]
+        scene = self.scene
+        o = t_wc.astype(np.float32)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_wall = (scene.wall_z - o[2]) / ray[2]
+            s_ground = (scene.ground_y - o[1]) / ray[1]
+        s_wall[~(s_wall > 0)] = np.inf
+        s_ground[~(s_ground > 0)] = np.inf
+        on_wall = s_wall <= s_ground
+        img = np.zeros((H, W, 3), np.float32)
+        for mask, dist, tex, (a0, b0), (ia, ib) in (
+                (on_wall, s_wall, scene.wall_texture, scene.wall_origin, (0, 1)),  # wall texture: (x, y)
+                (~on_wall, s_ground, scene.ground_texture, scene.ground_origin, (0, 2))):  # ground: (x, z)
+            mapx = np.nan_to_num((o[ia] + dist * ray[ia] - a0) / scene.texel, posinf=-1, neginf=-1).astype(np.float32)
+            mapy = np.nan_to_num((o[ib] + dist * ray[ib] - b0) / scene.texel, posinf=-1, neginf=-1).astype(np.float32)
+            sampled = cv2.remap(tex, mapx, mapy,
+                                cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+            np.copyto(img, sampled.astype(np.float32), where=mask[..., None])
+        img = cv2.resize(img, (cfg.width, cfg.height), interpolation=cv2.INTER_AREA)
+        coverage = disk_coverage(cam, R_wc.T @ (centre_w - t_wc), R_wc.T @ normal_w, cfg.base_radius)
+        img = img * (1.0 - coverage[..., None]) + np.float32(cfg.base_colour) * coverage[..., None]
+        if cfg.blur_sigma > 0:
+            img = cv2.GaussianBlur(img, (0, 0), cfg.blur_sigma)
+        if cfg.noise_sigma > 0:
+            img = img + rng.normal(0.0, cfg.noise_sigma, img.shape).astype(np.float32)
+        return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+    def generate(self, progress: bool = False) -> CrawlerPairSequence:
+        cfg = self.config
+        rng = np.random.default_rng(cfg.seed)
+        R, t, centre, normal, odo, odo_std = self.trajectories(rng)
+        frames = range(cfg.n_frames)
+        if progress:
+            from tqdm import tqdm
+            frames = tqdm(frames, desc=f"render crawler-pair seed {cfg.seed}", leave=False)
+        images = np.stack([self.render(R[k], t[k], centre[k], normal[k], rng) for k in frames])
+        return CrawlerPairSequence(images, R, t, centre, normal, tuple(cfg.schedule), odo, odo_std, cfg.camera(),
+                                   cfg, self.scene)

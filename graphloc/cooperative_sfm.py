@@ -1,0 +1,492 @@
+"""Cooperative motion and structure from one camera with a teammate robot as the scale anchor
+(seed 003, /work/shared/seeds/003_8db27855ce2d5f68.txt: section II "robot tracker" gives the
+3D position of the teammate's base centre from its ellipse, II-B the motion estimator tracks
+KLT features; the robots move and stop in turns) as ONE factor graph solved by `Session`
+(batch Levenberg-Marquardt or online iSAM2, same factors):
+
+  x(0,t)  camera pose of the moving robot at frame t (Pose3, world = camera 0, OpenCV axes)
+  x(1,t)  centre of the teammate's base at frame t (Point3), for the frames it is seen
+  l(j)    KLT feature j (Point3)
+
+  PriorFactorPose3 on x(0,0)                 seed III: the robot starts at the origin (zero
+                                             initial covariance of T and omega)
+  BetweenFactorPose3 x(0,t-1) -> x(0,t)      seed eq. 8 with F = identity: constant-position
+                                             motion model with the process noise Q
+  GenericProjectionFactorCal3_S2 x(0,t), l(j)  seed eq. 14: KLT pixels (Huber kernel)
+  BearingRangeFactor3D x(0,t) -> x(1,t)      seed eqs. 1-4: the circle centre in the camera frame
+  BetweenFactorPoint3 x(1,s) -> x(1,t)       the teammate stood still (zero motion)
+  RangeFactor3 x(1,s) -> x(1,t)              the teammate moved (straight) by its odometry distance
+  PriorFactorPoint3 on l(j)                  seed III: KLT points start "all at the same
+                                             position" with a high covariance -- here on their
+                                             first ray at one common depth, std
+                                             feature_prior_sigma (the EKF's initial state)
+
+Every KLT track becomes a landmark at its first observation, so rotation is constrained from
+the first frames on and no landmark is ever undetermined (a point pushed behind a camera by an
+undamped iSAM2 step, where GenericProjectionFactor gives no information, keeps its prior;
+without the prior iSAM2 raised IndeterminantLinearSystem on crawler-pair). Projection factors
+with explicit landmarks rather than SmartProjectionPose3Factor: a smart factor grows with its
+track, and Session (append-only `add`) cannot tell iSAM2 that an added factor changed. Batch
+and online see the same factors, added frame by frame through one `Session`.
+
+The circle front-end (`graphloc.vision.circle`) returns BOTH poses of the base (the ellipse
+cannot tell them apart). They differ mainly in the disk normal (~20 deg apart on crawler-pair);
+their centres are 0.16-0.19 mm apart at 0.8 m, across the line of sight, a Mahalanobis
+separation of 1.6-2.2 under the calibrated centre covariance. An equal-weight mixture of two
+Gaussians at separation <= 2 is unimodal (at ~2 flat-topped), so the candidate mixture
+restricted to the centre (the part that carries scale) enters as its moment-matched Gaussian (`teammate_observation`,
+covariance inflated by the spread) -- no candidate is chosen and none dropped; the separation is
+reported per observation (FrontEndReport.max_candidate_separation) so a bimodal case shows.
+The discrete mixture over the full relative pose (`graphloc.factors.mixture.candidate_mixture`,
+a HybridNonlinearFactor) cannot enter a `Session` graph: Session has no hybrid engine yet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import gtsam
+import numpy as np
+
+from graphloc.cameras import PinholeCamera
+from graphloc.candidates import CandidateSet
+from graphloc.factors.range_bearing import landmark_factor_3d
+from graphloc.factors.robust import Kernel, robust_noise
+from graphloc.keys import landmark_key, pose_key
+from graphloc.session import Session, SessionConfig
+from graphloc.vision.circle import CircleConfig, circle_pose_from_rim
+from graphloc.vision.features import BlobConfig, FeatureConfig, FeatureTracker, FrameFeatures, detect_base_rim
+
+CAMERA_ROBOT, TEAMMATE = 0, 1
+
+
+# ---- front-end: pixels -> per-frame measurements ----------------------------------------------
+@dataclass(frozen=True)
+class TeammateObservation:
+    """The teammate's base centre in the camera frame: centre (3,) [m], covariance (3,3), and
+    its projection `pixel` (2,) (the robot tracker's special feature point of seed II-B)."""
+
+    centre: np.ndarray
+    covariance: np.ndarray
+    pixel: np.ndarray
+    n_candidates: int
+    candidate_spread: float  # max distance of a candidate centre from the mean [m]
+    candidate_separation: float = 0.0  # max Mahalanobis distance between two candidate centres
+
+
+@dataclass(frozen=True)
+class TeammateConfig:
+    """radius [m] of the base disk; blob: its colour signature; circle: ellipse-fit settings;
+    radius_pixel_floor, centre_pixel_floor [px]: lower bounds of the ellipse radius and centre
+    accuracy used for the centre covariance (the fit's rms / sqrt(n) alone is too optimistic).
+    Calibrated on crawler-pair seeds 100-102 (not used by the benchmark, 48 frames at
+    0.73-0.83 m): depth error RMS 0.48 mm (= 0.01 px of ellipse radius), lateral 0.09 mm
+    (= 0.08 px of centre), while rms / sqrt(n) is ~0.004 px."""
+
+    radius: float = 0.019
+    blob: BlobConfig = BlobConfig()
+    circle: CircleConfig = CircleConfig()
+    radius_pixel_floor: float = 0.01
+    centre_pixel_floor: float = 0.08
+
+    def __post_init__(self):
+        if not (np.isfinite(self.radius) and self.radius > 0):
+            raise ValueError(f"TeammateConfig.radius must be > 0, got {self.radius}")
+        if not (self.radius_pixel_floor > 0 and self.centre_pixel_floor > 0):
+            raise ValueError(f"TeammateConfig pixel floors must be > 0, got {self.radius_pixel_floor}, "
+                             f"{self.centre_pixel_floor}")
+
+
+def teammate_observation(candidates: CandidateSet, camera: PinholeCamera,
+                         config: TeammateConfig) -> TeammateObservation:
+    """Moment-matched Gaussian of the circle candidates' centres (camera frame). Per candidate,
+    first-order noise: the ellipse radius r_px is known to sigma_r = max(rms / sqrt(n),
+    radius_pixel_floor) and its centre to sigma_c = max(rms / sqrt(n / 2), centre_pixel_floor),
+    so depth sigma = z sigma_r / r_px and lateral sigma = z sigma_c / f."""
+    if len(candidates) == 0:
+        raise ValueError("teammate_observation: no circle candidates")
+    w = candidates.weights()
+    c = candidates.t
+    mean = w @ c
+    z = float(mean[2])
+    if not z > 0:
+        raise ValueError(f"teammate_observation: base centre behind the camera (z = {z})")
+    rms = float(candidates.meta.get("rms_px", 0.0))
+    n = max(int(candidates.meta.get("n_points", 1)), 1)
+    sigma_r = max(rms / np.sqrt(n), config.radius_pixel_floor)
+    sigma_c = max(rms / np.sqrt(n / 2.0), config.centre_pixel_floor)
+    r_px = camera.fx * config.radius / z
+    f = 0.5 * (camera.fx + camera.fy)
+    direction = mean / np.linalg.norm(mean)
+    along = np.outer(direction, direction)
+    cov_single = (z * sigma_c / f) ** 2 * (np.eye(3) - along) + (z * sigma_r / r_px) ** 2 * along
+    d = c - mean
+    cov = cov_single + np.einsum("k,ki,kj->ij", w, d, d)
+    pairs = (c[:, None, :] - c[None, :, :]).reshape(-1, 3)
+    separation = float(np.sqrt(np.max(np.einsum("ni,ni->n", pairs, np.linalg.solve(cov_single, pairs.T).T))))
+    pixel, _ = camera.project(mean[None])
+    return TeammateObservation(mean, 0.5 * (cov + cov.T), pixel[0], len(candidates),
+                               float(np.linalg.norm(d, axis=1).max()), separation)
+
+
+@dataclass(frozen=True)
+class FrameInput:
+    """Everything the estimators get for one frame (the same for the graph and the EKF).
+    camera_moved / teammate_moved: whether that robot moved since the previous frame (the
+    robots move and stop in turns and know when they move); teammate_odometry [m], std [m]:
+    its own odometry distance since the previous frame (0 when it stood still)."""
+
+    time: float
+    features: FrameFeatures
+    teammate: TeammateObservation | None
+    camera_moved: bool
+    teammate_moved: bool
+    teammate_odometry: float = 0.0
+    teammate_odometry_std: float = 0.0
+
+
+@dataclass(frozen=True)
+class FrontEndReport:
+    """Counts of what the front-end could not use: frames without a base blob, frames whose
+    rim gave no circle (with the reasons), feature tracks lost; the largest distance [m] of a
+    circle candidate's centre from the moment-matched centre, and the largest Mahalanobis
+    separation of two candidate centres (<= 2: the centre mixture is unimodal) over the run."""
+
+    no_blob: int
+    circle_failed: int
+    circle_reasons: tuple[str, ...]
+    tracks_lost: int
+    max_candidate_spread: float = 0.0
+    max_candidate_separation: float = 0.0
+
+
+def measure_frames(images: np.ndarray, camera: PinholeCamera, camera_moved, teammate_moved, teammate_odometry,
+                   teammate_odometry_std, features: FeatureConfig = FeatureConfig(),
+                   teammate: TeammateConfig = TeammateConfig(), times=None,
+                   progress: bool = False) -> tuple[list[FrameInput], FrontEndReport]:
+    """Front-end over a frame sequence: base rim -> circle candidates -> moment-matched centre,
+    KLT tracks outside the base. Motion flags / odometry are per frame (T,), entry 0 unused."""
+    images = np.asarray(images)
+    if images.ndim != 4 or images.shape[3] != 3 or images.dtype != np.uint8:
+        raise ValueError(f"measure_frames: images must be (T,H,W,3) uint8, got {images.dtype} {images.shape}")
+    T = len(images)
+    arrays = {}
+    for name, arr in (("camera_moved", camera_moved), ("teammate_moved", teammate_moved),
+                      ("teammate_odometry", teammate_odometry), ("teammate_odometry_std", teammate_odometry_std),
+                      ("times", np.arange(T, dtype=float) if times is None else times)):
+        a = np.asarray(arr, dtype=float)
+        if a.shape != (T,):
+            raise ValueError(f"measure_frames: {name} must have shape ({T},), got {a.shape}")
+        if not np.isfinite(a).all():
+            raise ValueError(f"measure_frames: {name}[{int(np.flatnonzero(~np.isfinite(a))[0])}] is not finite")
+        arrays[name] = a
+    bad = np.flatnonzero(np.diff(arrays["times"]) <= 0)
+    if bad.size:
+        raise ValueError(f"measure_frames: times[{bad[0] + 1}] = {arrays['times'][bad[0] + 1]} does not increase")
+    tracker = FeatureTracker(features)
+    frames, reasons = [], []
+    no_blob = lost = 0
+    steps = range(T)
+    if progress:
+        from tqdm import tqdm
+        steps = tqdm(steps, desc="front-end", leave=False)
+    for t in steps:
+        blob = detect_base_rim(images[t], teammate.blob)
+        obs = None
+        if blob is None:
+            no_blob += 1
+        else:
+            try:
+                cands, _ = circle_pose_from_rim(camera, blob.rim, teammate.radius, teammate.circle,
+                                                time=arrays["times"][t],
+                                                observer="camera", observed="teammate")
+                obs = teammate_observation(cands, camera, teammate)
+            except ValueError as exc:
+                reasons.append(f"frame {t}: {exc}")
+        feats = tracker.step(images[t], None if blob is None else blob.exclusion)
+        lost += feats.n_lost
+        frames.append(FrameInput(float(arrays["times"][t]), feats, obs, bool(arrays["camera_moved"][t]),
+                                 bool(arrays["teammate_moved"][t]), float(arrays["teammate_odometry"][t]),
+                                 float(arrays["teammate_odometry_std"][t])))
+    seen = [f.teammate for f in frames if f.teammate is not None]
+    spread = max((o.candidate_spread for o in seen), default=0.0)
+    separation = max((o.candidate_separation for o in seen), default=0.0)
+    return frames, FrontEndReport(no_blob, len(reasons), tuple(reasons), lost, spread, separation)
+
+
+# ---- the graph -------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class MotionNoise:
+    """Process noise per frame (seed eq. 8, F = identity): rotation [rad] and translation [m]
+    sigmas when the camera robot moved, and when it stood still. Shared with the EKF."""
+
+    rot: float = 0.03
+    trans: float = 0.02
+    still_rot: float = 1e-3
+    still_trans: float = 1e-3
+
+    def sigmas(self, moved: bool) -> tuple[float, float]:
+        return (self.rot, self.trans) if moved else (self.still_rot, self.still_trans)
+
+
+@dataclass(frozen=True)
+class CooperativeSfmConfig:
+    """pixel_sigma [px]: KLT noise (seed III: variance 1); kernel: robust kernel on the
+    projections; motion: process noise; first_pose_sigma: gauge prior (rad and m);
+    feature_prior_depth [m], feature_prior_sigma [m]: the KLT points' initial position (common
+    depth on the first ray; seed III: background at 260 cm) and its std (the same settings as
+    the seed-003 EKF);
+    teammate_still_sigma [m]: zero-motion between-factor of a teammate that stood still;
+    session: the engine (mode batch / online; online default: two extra iSAM2 iterations per
+    frame, since new landmarks start at the common depth and one Gauss-Newton step is not enough)."""
+
+    pixel_sigma: float = 1.0
+    kernel: Kernel = Kernel("huber", 1.345)
+    motion: MotionNoise = MotionNoise()
+    first_pose_sigma: float = 1e-4
+    feature_prior_depth: float = 2.6
+    feature_prior_sigma: float = 1.0
+    teammate_still_sigma: float = 1e-3
+    session: SessionConfig = field(default_factory=lambda: SessionConfig(relinearize_threshold=0.01, extra_updates=2))
+
+    def __post_init__(self):
+        for name in ("pixel_sigma", "first_pose_sigma", "feature_prior_depth", "feature_prior_sigma",
+                     "teammate_still_sigma"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"CooperativeSfmConfig.{name} must be finite > 0, got {v}")
+
+
+def _pose_noise(rot: float, trans: float):
+    return gtsam.noiseModel.Diagonal.Sigmas(np.array([rot] * 3 + [trans] * 3))
+
+
+class CooperativeSfm:
+    """Frame-by-frame graph builder over one `Session` (see the module docstring).
+
+        sfm = CooperativeSfm(camera, CooperativeSfmConfig(session=SessionConfig(mode="online")))
+        for frame in frames:              # FrameInput
+            pose = sfm.add_frame(frame)   # current camera pose estimate (gtsam.Pose3)
+        values = sfm.session.estimate()
+    """
+
+    def __init__(self, camera: PinholeCamera, config: CooperativeSfmConfig = CooperativeSfmConfig()):
+        if camera.dist:
+            raise ValueError("CooperativeSfm: the camera must be undistorted (Cal3_S2 projection factors)")
+        self.camera = camera
+        self.config = config
+        self.session = Session(config.session)
+        self.calibration = gtsam.Cal3_S2(camera.fx, camera.fy, 0.0, camera.cx, camera.cy)
+        self._pixel_noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, config.pixel_sigma), config.kernel)
+        self.admitted: set[int] = set()
+        self.frame = -1
+        self._last_time = -np.inf
+        self._estimate = gtsam.Values()
+        self._last_mate: int | None = None
+        self._mate_distance = 0.0
+        self._mate_variance = 0.0
+        self._mate_moved = False
+        self.online_positions: list[np.ndarray] = []  # causal estimate of each frame's camera position
+        self.history: list[np.ndarray] = []  # at frame k: (k+1,3) estimated positions of frames 0..k
+        self.skipped_pixels = 0  # non-finite feature pixels (counted, not used)
+
+    # ---- one frame -------------------------------------------------------------------------
+    def add_frame(self, frame: FrameInput) -> gtsam.Pose3:
+        if not isinstance(frame, FrameInput):
+            raise ValueError(f"CooperativeSfm.add_frame: expected FrameInput, got {type(frame).__name__}")
+        if not frame.time > self._last_time:
+            raise ValueError(f"CooperativeSfm.add_frame: time {frame.time} does not follow {self._last_time}")
+        ids = np.asarray(frame.features.ids)
+        pixels = np.asarray(frame.features.pixels, dtype=float)
+        if ids.ndim != 1 or pixels.shape != (len(ids), 2):
+            raise ValueError(f"CooperativeSfm.add_frame: frame {frame.time}: features ids {ids.shape} / pixels "
+                             f"{pixels.shape} must be (M,) / (M,2)")
+        if frame.teammate_moved and not (np.isfinite(frame.teammate_odometry) and frame.teammate_odometry >= 0
+                                         and np.isfinite(frame.teammate_odometry_std)
+                                         and frame.teammate_odometry_std > 0):
+            raise ValueError(f"CooperativeSfm.add_frame: frame {frame.time}: teammate moved with odometry "
+                             f"{frame.teammate_odometry} +- {frame.teammate_odometry_std}; need a finite distance "
+                             f">= 0 and std > 0")
+        if frame.teammate is not None and not (np.isfinite(frame.teammate.centre).all() and
+                                               np.isfinite(frame.teammate.covariance).all()):
+            raise ValueError(f"CooperativeSfm.add_frame: frame {frame.time}: teammate observation has NaN/inf")
+        self._last_time = frame.time
+        self.frame += 1
+        k = self.frame
+        x = pose_key(CAMERA_ROBOT, k)
+        graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+        if k == 0:
+            graph.add(gtsam.PriorFactorPose3(x, gtsam.Pose3(), _pose_noise(self.config.first_pose_sigma,
+                                                                            self.config.first_pose_sigma)))
+            guess = gtsam.Pose3()
+        else:
+            sig = self.config.motion.sigmas(frame.camera_moved)
+            graph.add(gtsam.BetweenFactorPose3(pose_key(CAMERA_ROBOT, k - 1), x, gtsam.Pose3(), _pose_noise(*sig)))
+            guess = self._estimate.atPose3(pose_key(CAMERA_ROBOT, k - 1))
+        values.insert(x, guess)
+        self._add_teammate(frame, k, guess, graph, values)
+        finite = np.isfinite(pixels).all(axis=1)
+        self.skipped_pixels += int((~finite).sum())
+        ids, pixels = ids[finite], pixels[finite]
+        new = np.array([i not in self.admitted for i in ids.tolist()], dtype=bool)
+        if new.any():
+            bearings, _ = self.camera.pixel_to_bearing(pixels[new])
+            points = guess.transformFrom((bearings / bearings[:, 2:3] * self.config.feature_prior_depth).T).T
+            prior = gtsam.noiseModel.Isotropic.Sigma(3, self.config.feature_prior_sigma)
+            for j, point in zip(ids[new].tolist(), points.reshape(-1, 3)):
+                values.insert(landmark_key(j), point)
+                graph.add(gtsam.PriorFactorPoint3(landmark_key(j), point, prior))
+                self.admitted.add(j)
+        for j, uv in zip(ids.tolist(), pixels):
+            graph.add(gtsam.GenericProjectionFactorCal3_S2(gtsam.Point2(*uv), self._pixel_noise, x, landmark_key(j),
+                                                           self.calibration))
+        self.session.add(graph, values, time=frame.time)
+        self._estimate = self.session.estimate()
+        pose = self._estimate.atPose3(x)
+        self.online_positions.append(np.asarray(pose.translation()))
+        self.history.append(np.array([self._estimate.atPose3(pose_key(CAMERA_ROBOT, i)).translation()
+                                      for i in range(k + 1)]))
+        return pose
+
+    def _add_teammate(self, frame: FrameInput, k: int, guess: gtsam.Pose3, graph, values) -> None:
+        if k > 0 and frame.teammate_moved:
+            self._mate_moved = True
+            self._mate_distance += frame.teammate_odometry
+            self._mate_variance += frame.teammate_odometry_std ** 2
+        obs = frame.teammate
+        if obs is None:
+            return
+        m = pose_key(TEAMMATE, k)
+        rng = float(np.linalg.norm(obs.centre))
+        direction = obs.centre / rng
+        # Unit3 bearing noise from the lateral covariance, range noise from the radial part
+        lateral = np.trace(obs.covariance) - direction @ obs.covariance @ direction
+        sigmas = (np.sqrt(max(lateral, 1e-18) / 2.0) / rng,) * 2 + (np.sqrt(direction @ obs.covariance @ direction),)
+        graph.add(landmark_factor_3d(pose_key(CAMERA_ROBOT, k), m, direction, rng, sigmas))
+        values.insert(m, guess.transformFrom(obs.centre))
+        if self._last_mate is not None:
+            prev = pose_key(TEAMMATE, self._last_mate)
+            if self._mate_moved:
+                graph.add(gtsam.RangeFactor3(prev, m, self._mate_distance,
+                                             gtsam.noiseModel.Isotropic.Sigma(1, np.sqrt(self._mate_variance))))
+            else:
+                graph.add(gtsam.BetweenFactorPoint3(prev, m, np.zeros(3), gtsam.noiseModel.Isotropic.Sigma(
+                    3, self.config.teammate_still_sigma)))
+        self._last_mate = k
+        self._mate_distance, self._mate_variance, self._mate_moved = 0.0, 0.0, False
+
+    # ---- results ---------------------------------------------------------------------------
+    def positions(self) -> np.ndarray:
+        """(T,3) camera positions of the current (smoothed) estimate."""
+        est = self.session.estimate()
+        return np.array([est.atPose3(pose_key(CAMERA_ROBOT, k)).translation() for k in range(self.frame + 1)])
+
+    def landmarks(self) -> tuple[np.ndarray, np.ndarray]:
+        """ids (L,) and world points (L,3) of the admitted landmarks (current estimate)."""
+        est = self.session.estimate()
+        ids = np.array(sorted(self.admitted), dtype=np.int64)
+        return ids, np.array([est.atPoint3(landmark_key(j)) for j in ids]).reshape(-1, 3)
+
+
+@dataclass(frozen=True)
+class SfmRun:
+    """Result of `run_cooperative_sfm`: causal (T,3) positions (each frame's estimate when it
+    arrived), final (T,3) positions (smoothed over all frames), history: at frame k the
+    (k+1,3) estimate of frames 0..k, landmark ids/points, the number of factors, skipped
+    (non-finite) pixels, and the per-frame latencies [s]."""
+
+    causal_positions: np.ndarray
+    final_positions: np.ndarray
+    history: tuple[np.ndarray, ...]
+    landmark_ids: np.ndarray
+    landmark_points: np.ndarray
+    n_factors: int
+    skipped_pixels: int
+    latencies: np.ndarray
+
+
+def run_cooperative_sfm(frames: list[FrameInput], camera: PinholeCamera,
+                        config: CooperativeSfmConfig = CooperativeSfmConfig()) -> SfmRun:
+    """Feed every frame through `CooperativeSfm` and collect the estimates."""
+    sfm = CooperativeSfm(camera, config)
+    for frame in frames:
+        sfm.add_frame(frame)
+    ids, points = sfm.landmarks()
+    return SfmRun(np.array(sfm.online_positions), sfm.positions(), tuple(sfm.history), ids, points,
+                  int(sfm.session.graph.size()),
+                  sfm.skipped_pixels, sfm.session.latencies())
+
+
+# ---- evaluation ------------------------------------------------------------------------------
+def axis_errors(estimated: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """(T,3) absolute translation error per axis (the seed's Fig. 6 quantity)."""
+    estimated, truth = np.asarray(estimated, float), np.asarray(truth, float)
+    if estimated.shape != truth.shape or estimated.ndim != 2 or estimated.shape[1] != 3:
+        raise ValueError(f"axis_errors: shapes {estimated.shape} vs {truth.shape}, expected equal (T,3)")
+    return np.abs(estimated - truth)
+
+
+def structure_scale_error(points: np.ndarray, truth: np.ndarray, origin=(0.0, 0.0, 0.0)) -> float:
+    """|median(|p - origin| / |p_true - origin|) - 1| over landmarks (L,3): the metric scale
+    error of the reconstructed structure (NaN without landmarks)."""
+    p, q = np.asarray(points, float).reshape(-1, 3), np.asarray(truth, float).reshape(-1, 3)
+    if p.shape != q.shape:
+        raise ValueError(f"structure_scale_error: shapes {p.shape} vs {q.shape}")
+    ok = np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1)
+    if not ok.any():
+        return float("nan")
+    o = np.asarray(origin, float)
+    return float(abs(np.median(np.linalg.norm(p[ok] - o, axis=1) / np.linalg.norm(q[ok] - o, axis=1)) - 1.0))
+
+
+def trajectory_scale(estimated: np.ndarray, truth: np.ndarray) -> float:
+    """Least-squares scale s of the lengths of the estimated displacements from frame 0 against
+    the true ones, s = sum |p||q| / sum |q|^2 (lengths, so that a direction error is not
+    counted as a scale error; the gauge fixes frame 0); NaN when the camera has not moved."""
+    p = np.asarray(estimated, float) - np.asarray(estimated, float)[0]
+    q = np.asarray(truth, float) - np.asarray(truth, float)[0]
+    if p.shape != q.shape:
+        raise ValueError(f"trajectory_scale: shapes {p.shape} vs {q.shape}")
+    qq = float(np.sum(q * q))
+    return float(np.sum(np.linalg.norm(p, axis=1) * np.linalg.norm(q, axis=1)) / qq) if qq > 0 else float("nan")
+
+
+def scale_errors(history, truth: np.ndarray) -> np.ndarray:
+    """(T,) |s_k - 1| where s_k = trajectory_scale of what was known at frame k (history[k]:
+    (k+1,3) positions of frames 0..k) against truth[:k+1]."""
+    truth = np.asarray(truth, float)
+    return np.array([abs(trajectory_scale(h, truth[:len(h)]) - 1.0) for h in history])
+
+
+# ---- measurements from known geometry (front-end bypass, for tests and ablations) ------------
+def ideal_frames(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarray, points: np.ndarray,
+                 base_centres: np.ndarray, camera_moved, teammate_moved, teammate_odometry, teammate_odometry_std,
+                 pixel_sigma: float = 0.5, centre_sigmas: tuple[float, float] = (2e-4, 1e-3),
+                 rng: np.random.Generator | None = None) -> list[FrameInput]:
+    """FrameInputs computed from geometry instead of pixels: world points (P,3) projected into
+    cameras (T,3,3)/(T,3) with N(0, pixel_sigma) noise (ids = point indices, only visible ones),
+    the base centre (T,3) seen in the camera frame with lateral / depth sigmas `centre_sigmas`
+    [m] (NaN rows: teammate not seen)."""
+    rng = np.random.default_rng(0) if rng is None else rng
+    R_wc, t_wc = np.asarray(R_wc, float), np.asarray(t_wc, float)
+    T = len(R_wc)
+    points = np.asarray(points, float).reshape(-1, 3)
+    base_centres = np.asarray(base_centres, float).reshape(T, 3)
+    frames = []
+    for k in range(T):
+        pc = (points - t_wc[k]) @ R_wc[k]
+        uv, vis = camera.project(pc)
+        ids = np.flatnonzero(vis)
+        pixels = uv[ids] + pixel_sigma * rng.normal(size=(len(ids), 2))
+        obs = None
+        if np.isfinite(base_centres[k]).all():
+            c = R_wc[k].T @ (base_centres[k] - t_wc[k])
+            d = c / np.linalg.norm(c)
+            lat, dep = centre_sigmas
+            cov = lat ** 2 * (np.eye(3) - np.outer(d, d)) + dep ** 2 * np.outer(d, d)
+            noisy = c + np.linalg.cholesky(cov) @ rng.normal(size=3)
+            pixel, _ = camera.project(noisy[None])
+            obs = TeammateObservation(noisy, cov, pixel[0], 1, 0.0)
+        frames.append(FrameInput(float(k), FrameFeatures(ids.astype(np.int64), pixels), obs, bool(camera_moved[k]),
+                                 bool(teammate_moved[k]), float(teammate_odometry[k]), float(teammate_odometry_std[k])))
+    return frames

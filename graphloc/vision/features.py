@@ -1,0 +1,273 @@
+"""Feature detection and tracking for motion and structure (seed 003 section II-B-1, eqs. 5-7:
+KLT -- a window is a feature when min(eig G) > lambda, eq. 5; tracked by minimizing the
+intensity difference, eqs. 6-7), and the colour-signature blob rim of the teammate's base
+(seed 003 section II-A-1: colour threshold -> median filter -> edge points of the ellipse).
+
+OpenCV does the pixel work: cv2.goodFeaturesToTrack (Shi-Tomasi, the min-eigenvalue test of
+eq. 5) and cv2.calcOpticalFlowPyrLK (pyramidal Lucas-Kanade, the Newton iteration of eq. 7),
+run forward and backward; a track survives only if the backward track returns within
+`fb_threshold` px of where it started (Kalal et al. 2010 forward-backward error).
+
+Shapes: pixels are float64 (M,2) (u, v), (0, 0) the centre of the top-left pixel; track ids are
+int64 (M,), unique over a tracker's lifetime.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+
+
+@dataclass(frozen=True)
+class FeatureConfig:
+    """max_features: tracks kept alive (new corners are detected when fewer survive).
+    quality_level, min_distance [px], block_size [px]: cv2.goodFeaturesToTrack (quality_level
+    is the eq. 5 threshold lambda relative to the best corner's min eigenvalue).
+    win_size [px], max_level (pyramid levels), iterations / epsilon: cv2.calcOpticalFlowPyrLK.
+    fb_threshold [px]: forward-backward error above which a track is dropped.
+    border [px]: corners and tracks this close to the image edge are not used."""
+
+    max_features: int = 20
+    quality_level: float = 0.01
+    min_distance: float = 12.0
+    block_size: int = 7
+    win_size: int = 21
+    max_level: int = 3
+    iterations: int = 30
+    epsilon: float = 0.01
+    fb_threshold: float = 0.5
+    border: int = 10
+
+    def __post_init__(self):
+        if int(self.max_features) < 0:
+            raise ValueError(f"FeatureConfig.max_features must be >= 0, got {self.max_features}")
+        if not 0.0 < self.quality_level < 1.0:
+            raise ValueError(f"FeatureConfig.quality_level must be in (0, 1), got {self.quality_level}")
+        if not (self.min_distance >= 0 and self.fb_threshold > 0 and self.epsilon > 0):
+            raise ValueError("FeatureConfig: min_distance >= 0, fb_threshold > 0 and epsilon > 0 required")
+        if self.win_size < 3 or self.max_level < 0 or self.iterations < 1 or self.block_size < 3:
+            raise ValueError("FeatureConfig: win_size >= 3, block_size >= 3, max_level >= 0, iterations >= 1 required")
+
+
+def as_gray(image: np.ndarray, name: str = "image") -> np.ndarray:
+    """uint8 grey image (H,W) from (H,W) grey or (H,W,3) BGR; ValueError on anything else."""
+    image = np.asarray(image)
+    if image.dtype != np.uint8:
+        raise ValueError(f"{name} must be uint8, got {image.dtype}")
+    if image.ndim == 3 and image.shape[2] == 3:
+        return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+    if image.ndim != 2:
+        raise ValueError(f"{name} must be (H,W) or (H,W,3), got shape {image.shape}")
+    return image
+
+
+def _inside(points: np.ndarray, shape: tuple[int, int], border: float) -> np.ndarray:
+    h, w = shape
+    with np.errstate(invalid="ignore"):
+        return (np.isfinite(points).all(axis=1) & (points[:, 0] >= border) & (points[:, 0] <= w - 1 - border)
+                & (points[:, 1] >= border) & (points[:, 1] <= h - 1 - border))
+
+
+def detect_corners(gray: np.ndarray, max_corners: int, config: FeatureConfig = FeatureConfig(),
+                   mask: np.ndarray | None = None) -> np.ndarray:
+    """Up to `max_corners` Shi-Tomasi corners (M,2), strongest first, outside `mask` == 0 areas
+    and `config.border` px from the edge."""
+    gray = as_gray(gray, "gray")
+    if max_corners <= 0:
+        return np.zeros((0, 2))
+    allowed = np.zeros(gray.shape, np.uint8)
+    b = int(config.border)
+    allowed[b:gray.shape[0] - b, b:gray.shape[1] - b] = 255
+    if mask is not None:
+        mask = np.asarray(mask)
+        if mask.shape != gray.shape:
+            raise ValueError(f"detect_corners: mask shape {mask.shape} != image shape {gray.shape}")
+        allowed[mask == 0] = 0
+    corners = cv2.goodFeaturesToTrack(gray, int(max_corners), config.quality_level, config.min_distance,
+                                      mask=allowed, blockSize=config.block_size, useHarrisDetector=False)
+    return np.zeros((0, 2)) if corners is None else corners.reshape(-1, 2).astype(float)
+
+
+def track_forward_backward(prev_gray: np.ndarray, gray: np.ndarray, points: np.ndarray,
+                           config: FeatureConfig = FeatureConfig()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pyramidal KLT of `points` (M,2) from prev_gray to gray and back. Returns new pixels (M,2)
+    (NaN where lost), ok (M,) and the forward-backward error (M,) [px] (inf where LK failed)."""
+    prev_gray, gray = as_gray(prev_gray, "prev_gray"), as_gray(gray, "gray")
+    if prev_gray.shape != gray.shape:
+        raise ValueError(f"track_forward_backward: image shapes differ {prev_gray.shape} vs {gray.shape}")
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    M = len(points)
+    if M == 0:
+        return np.zeros((0, 2)), np.zeros(0, bool), np.zeros(0)
+    lk = dict(winSize=(config.win_size, config.win_size), maxLevel=config.max_level,
+              criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, config.iterations, config.epsilon))
+    p0 = points.astype(np.float32).reshape(-1, 1, 2)
+    p1, st1, _ = cv2.calcOpticalFlowPyrLK(prev_gray, gray, p0, None, **lk)
+    p0b, st2, _ = cv2.calcOpticalFlowPyrLK(gray, prev_gray, p1, None, **lk)
+    p1 = p1.reshape(-1, 2).astype(float)
+    fb = np.linalg.norm(p0b.reshape(-1, 2).astype(float) - points, axis=1)
+    lk_ok = (st1.reshape(-1) == 1) & (st2.reshape(-1) == 1)
+    fb[~lk_ok] = np.inf
+    ok = lk_ok & (fb < config.fb_threshold) & _inside(p1, gray.shape, config.border)
+    p1[~ok] = np.nan
+    return p1, ok, fb
+
+
+@dataclass(frozen=True)
+class FrameFeatures:
+    """Features of one frame: ids (M,) int64 and pixels (M,2); n_lost: tracks dropped at this
+    frame (LK failure, forward-backward error, border, or entering the exclusion mask);
+    n_new: tracks started at this frame."""
+
+    ids: np.ndarray
+    pixels: np.ndarray
+    n_lost: int = 0
+    n_new: int = 0
+
+
+class FeatureTracker:
+    """Keeps up to `config.max_features` KLT tracks alive over a frame stream.
+
+        tracker = FeatureTracker(FeatureConfig(max_features=9))
+        for image, exclude in frames:      # exclude: (H,W) mask, nonzero = no features (e.g. a robot)
+            f = tracker.step(image, exclude)   # FrameFeatures(ids, pixels)
+    """
+
+    def __init__(self, config: FeatureConfig = FeatureConfig()):
+        self.config = config
+        self._prev: np.ndarray | None = None
+        self._ids = np.zeros(0, np.int64)
+        self._pixels = np.zeros((0, 2))
+        self._next_id = 0
+        self.n_frames = 0
+
+    def step(self, image: np.ndarray, exclude: np.ndarray | None = None) -> FrameFeatures:
+        gray = as_gray(image)
+        if self._prev is not None and self._prev.shape != gray.shape:
+            raise ValueError(f"FeatureTracker.step: frame {self.n_frames} has shape {gray.shape}, "
+                             f"previous frames {self._prev.shape}")
+        if exclude is not None:
+            exclude = np.asarray(exclude)
+            if exclude.shape != gray.shape:
+                raise ValueError(f"FeatureTracker.step: exclude mask shape {exclude.shape} != image {gray.shape}")
+        n_lost = 0
+        if self._prev is not None and len(self._ids):
+            pixels, ok, _ = track_forward_backward(self._prev, gray, self._pixels, self.config)
+            if exclude is not None:
+                iu = np.clip(np.rint(np.nan_to_num(pixels)).astype(int), 0, [gray.shape[1] - 1, gray.shape[0] - 1])
+                ok &= exclude[iu[:, 1], iu[:, 0]] == 0
+            n_lost = int((~ok).sum())
+            self._ids, self._pixels = self._ids[ok], pixels[ok]
+        n_new = 0
+        want = int(self.config.max_features) - len(self._ids)
+        if want > 0:
+            allowed = np.full(gray.shape, 255, np.uint8)
+            if exclude is not None:
+                allowed[exclude != 0] = 0
+            for u, v in np.rint(self._pixels).astype(int):  # keep new corners away from live tracks
+                cv2.circle(allowed, (int(u), int(v)), int(max(self.config.min_distance, 1)), 0, -1)
+            corners = detect_corners(gray, want, self.config, allowed)
+            n_new = len(corners)
+            self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + n_new, dtype=np.int64)])
+            self._pixels = np.vstack([self._pixels, corners])
+            self._next_id += n_new
+        self._prev = gray
+        self.n_frames += 1
+        return FrameFeatures(self._ids.copy(), self._pixels.copy(), n_lost, n_new)
+
+
+# ---- the teammate's base: colour-signature blob rim (seed 003 II-A-1) ------------------------
+@dataclass(frozen=True)
+class BlobConfig:
+    """Colour signature of the base: BGR colour `colour`; a pixel is a candidate when its
+    signature score (projection of (pixel - background grey) on the colour direction minus the
+    orthogonal residual) exceeds `min_score`. median_size: cv2.medianBlur kernel (odd).
+    min_area [px]: smaller blobs are no detection. exclusion_dilate [px]: margin of the mask
+    that keeps KLT features off the robot."""
+
+    colour: tuple[float, float, float] = (40.0, 40.0, 200.0)
+    min_score: float = 50.0
+    median_size: int = 3
+    min_area: float = 20.0
+    exclusion_dilate: int = 6
+
+    def __post_init__(self):
+        if self.median_size % 2 != 1 or self.median_size < 1:
+            raise ValueError(f"BlobConfig.median_size must be odd >= 1, got {self.median_size}")
+        if not (self.min_score > 0 and self.min_area > 0 and self.exclusion_dilate >= 0):
+            raise ValueError("BlobConfig: min_score > 0, min_area > 0 and exclusion_dilate >= 0 required")
+
+
+def colour_score(image: np.ndarray, config: BlobConfig = BlobConfig()) -> np.ndarray:
+    """(H,W) float32 colour-signature score of a BGR image: chroma of each pixel (pixel minus its
+    own grey level) projected on the chroma of `config.colour`, minus the off-direction part."""
+    image = np.asarray(image)
+    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
+        raise ValueError(f"colour_score: image must be (H,W,3) uint8 BGR, got {image.dtype} {image.shape}")
+    px = image.astype(np.float32)
+    chroma = px - px.mean(axis=2, keepdims=True)
+    ref = np.asarray(config.colour, np.float32)
+    ref = ref - ref.mean()
+    ref /= max(float(np.linalg.norm(ref)), 1e-6)
+    along = chroma @ ref
+    off = np.linalg.norm(chroma - along[..., None] * ref, axis=2)
+    return along - off
+
+
+@dataclass(frozen=True)
+class BlobRim:
+    """rim (M,2) sub-pixel edge points of the largest blob; mask (H,W) uint8 of the blob
+    (after the median filter); exclusion (H,W) uint8 dilated blob (no KLT features there);
+    area [px]."""
+
+    rim: np.ndarray
+    mask: np.ndarray
+    exclusion: np.ndarray
+    area: float
+
+
+def detect_base_rim(image: np.ndarray, config: BlobConfig = BlobConfig()) -> BlobRim | None:
+    """Largest blob of the base colour -> its sub-pixel rim, or None when no blob of
+    `min_area` px exists. The rim points are the crossings of the iso-level half-way between
+    the blob's interior and its surrounding score, on every horizontal and vertical pixel pair
+    around the blob (linear interpolation, marching-squares style), so the rim is not biased
+    inwards by half a pixel as the integer contour of the mask is."""
+    score = colour_score(image, config)
+    mask = (score > config.min_score).astype(np.uint8) * 255
+    if config.median_size > 1:
+        mask = cv2.medianBlur(mask, config.median_size)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    if n <= 1:
+        return None
+    best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    area = float(stats[best, cv2.CC_STAT_AREA])
+    if area < config.min_area:
+        return None
+    blob = (labels == best).astype(np.uint8) * 255
+    ring = cv2.dilate(blob, np.ones((5, 5), np.uint8)) & ~cv2.dilate(blob, np.ones((3, 3), np.uint8))
+    inner = cv2.erode(blob, np.ones((3, 3), np.uint8))
+    inside_level = float(np.median(score[inner > 0])) if (inner > 0).any() else float(score[blob > 0].max())
+    outside_level = float(np.median(score[ring > 0])) if (ring > 0).any() else 0.0
+    level = 0.5 * (inside_level + outside_level)
+    x, y, bw, bh = (int(v) for v in stats[best, :4])
+    x0, y0 = max(x - 3, 0), max(y - 3, 0)
+    x1, y1 = min(x + bw + 3, score.shape[1]), min(y + bh + 3, score.shape[0])
+    region = cv2.dilate(blob, np.ones((5, 5), np.uint8))[y0:y1, x0:x1] > 0
+    above = score[y0:y1, x0:x1] - level
+    points = []
+    for axis in (1, 0):  # crossings between horizontal, then vertical, pixel neighbours
+        a = above[:, :-1] if axis == 1 else above[:-1, :]
+        b = above[:, 1:] if axis == 1 else above[1:, :]
+        both = region[:, :-1] & region[:, 1:] if axis == 1 else region[:-1, :] & region[1:, :]
+        rows, cols = np.nonzero(both & ((a > 0) != (b > 0)))
+        frac = a[rows, cols] / (a[rows, cols] - b[rows, cols])
+        u = cols + (frac if axis == 1 else 0.0)
+        v = rows + (frac if axis == 0 else 0.0)
+        points.append(np.column_stack([u + x0, v + y0]))
+    rim = np.vstack(points)
+    exclusion = cv2.dilate(blob, np.ones((2 * config.exclusion_dilate + 1,) * 2, np.uint8)) \
+        if config.exclusion_dilate else blob
+    return BlobRim(rim.astype(float), blob, exclusion, area)

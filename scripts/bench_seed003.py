@@ -1,0 +1,233 @@
+"""Benchmark: cooperative motion and structure on the rendered `crawler-pair` scenario
+(seed 003, /work/shared/seeds/003_8db27855ce2d5f68.txt, section III / Fig. 6: absolute
+translation error per axis with N = 1, 2, 10, 20 feature points, N counting the robot
+tracker's point, so N - 1 KLT tracks).
+
+Every trial renders one sequence (a different random scene and motion per trial) and runs the
+same front-end measurements (KLT tracks, circle centre) through
+  - ekf:    the seed's EKF (graphloc.baselines.ekf_seed003, 'proper' tracker covariance),
+  - batch:  graphloc.cooperative_sfm through Session batch LM (final smoothed trajectory),
+  - online: the same factors through Session iSAM2; each frame's estimate when it arrived
+            (causal, like the filter).
+Metrics per method and N: mean absolute translation error per axis over the sequence [mm]
+(mean and std over trials), per-frame error curves, the trajectory scale error at each frame
+(|s - 1|, s = least-squares ratio of the lengths of the camera displacements from frame 0,
+using what was known at that frame) from the teammate's third sighting on, and the wall-clock
+time per frame of the estimators (graph / EKF ratio measured in the same run).
+
+Targets (checked, written to the JSON): graphloc batch and online below the EKF on every axis
+for every N; scale error below 2 % from the teammate's third sighting on.
+
+Writes OUT/bench_seed003.json, OUT/bench_seed003.md, OUT/axis_errors.png,
+OUT/error_curves.png, OUT/scale_error.png.
+
+    .venv/bin/python scripts/bench_seed003.py --trials 2 --out out/bench_seed003_quick
+    .venv/bin/python scripts/bench_seed003.py --out out/bench_seed003          # full: 8 trials
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+from graphloc.baselines.ekf_seed003 import EkfConfig, run_ekf  # noqa: E402
+from graphloc.cooperative_sfm import (CooperativeSfmConfig, TeammateConfig, axis_errors, measure_frames,  # noqa: E402
+                                      run_cooperative_sfm, scale_errors)
+from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario  # noqa: E402
+from graphloc.vision.features import FeatureConfig  # noqa: E402
+
+METHODS = ("ekf", "batch", "online")
+AXES = ("x", "y", "z")
+
+
+def run_trial(seed: int, n_values: list[int], scenario: CrawlerPairConfig) -> dict:
+    """One rendered sequence through every method and N; errors in metres."""
+    seq = CrawlerPairScenario(replace(scenario, seed=seed)).generate()
+    camera_moved, teammate_moved, odo, odo_std = seq.frame_flags()
+    truth = seq.t_wc
+    depth = seq.config.background_distance
+    out = {}
+    for n in n_values:
+        frames, report = measure_frames(seq.images, seq.camera, camera_moved, teammate_moved, odo, odo_std,
+                                        FeatureConfig(max_features=n - 1),
+                                        TeammateConfig(radius=seq.config.base_radius))
+        sightings = np.flatnonzero([f.teammate is not None for f in frames])
+        third = int(sightings[2]) if len(sightings) >= 3 else len(frames)
+        res = {"front_end": {"no_blob": report.no_blob, "circle_failed": report.circle_failed,
+                             "tracks_lost": report.tracks_lost,
+                             "max_candidate_spread_mm": 1000 * report.max_candidate_spread,
+                             "max_candidate_separation": report.max_candidate_separation},
+               "third_sighting": third}
+        t0 = time.perf_counter()
+        ekf = run_ekf(frames, seq.camera, EkfConfig(feature_depth=depth, tracker_setting="proper",
+                                                    pixel_pitch=seq.config.pixel_pitch))
+        t_ekf = time.perf_counter() - t0
+        res["ekf"] = {"positions": ekf, "scale": scale_errors([ekf[:k + 1] for k in range(len(ekf))], truth),
+                      "seconds": t_ekf}
+        for mode in ("batch", "online"):
+            cfg = CooperativeSfmConfig(feature_prior_depth=depth)
+            cfg = replace(cfg, session=replace(cfg.session, mode=mode))
+            t0 = time.perf_counter()
+            run = run_cooperative_sfm(frames, seq.camera, cfg)
+            seconds = time.perf_counter() - t0
+            positions = run.final_positions if mode == "batch" else run.causal_positions
+            res[mode] = {"positions": positions, "scale": scale_errors(run.history, truth), "seconds": seconds}
+        for m in METHODS:
+            res[m]["errors"] = axis_errors(res[m]["positions"], truth)
+        out[n] = res
+    return out
+
+
+def settled_frame(scale: np.ndarray, threshold: float) -> int:
+    """First frame from which the scale error stays below `threshold` (len(scale) if never)."""
+    above = np.flatnonzero(~(np.nan_to_num(scale[1:], nan=np.inf) < threshold)) + 1
+    return int(above[-1] + 1) if above.size else 1
+
+
+def summarize(trials: list[dict], n_values: list[int]) -> dict:
+    summary = {}
+    for n in n_values:
+        per = {}
+        for m in METHODS:
+            mean_axis = np.array([t[n][m]["errors"].mean(axis=0) for t in trials])  # (trials, 3)
+            curves = np.array([t[n][m]["errors"] for t in trials])  # (trials, T, 3)
+            scale_after = np.array([np.nanmax(t[n][m]["scale"][t[n]["third_sighting"]:]) for t in trials])
+            scale_final = np.array([t[n][m]["scale"][-1] for t in trials])
+            settled = [settled_frame(t[n][m]["scale"], 0.02) for t in trials]
+            per[m] = {
+                "mean_abs_error_mm": dict(zip(AXES, (1000 * mean_axis.mean(axis=0)).tolist())),
+                "std_over_trials_mm": dict(zip(AXES, (1000 * mean_axis.std(axis=0)).tolist())),
+                "curve_mm": (1000 * curves.mean(axis=0)).tolist(),
+                "scale_error_max_after_3rd_sighting": {"mean": float(scale_after.mean()),
+                                                       "max": float(scale_after.max())},
+                "scale_error_last_frame": {"mean": float(scale_final.mean()), "max": float(scale_final.max())},
+                "scale_below_2pct_from_frame_worst_trial": int(max(settled)),
+                # frame 0 has no displacement yet: its scale error is NaN in every trial
+                "scale_curve": [None] + np.mean([t[n][m]["scale"][1:] for t in trials], axis=0).tolist(),
+                "seconds_per_sequence": float(np.mean([t[n][m]["seconds"] for t in trials])),
+            }
+        per["front_end"] = {k: int(sum(t[n]["front_end"][k] for t in trials)) for k in ("no_blob", "circle_failed",
+                                                                                         "tracks_lost")}
+        per["front_end"].update({k: float(max(t[n]["front_end"][k] for t in trials))
+                                 for k in ("max_candidate_spread_mm", "max_candidate_separation")})
+        summary[n] = per
+    checks = {}
+    for n in n_values:
+        e = summary[n]
+        for m in ("batch", "online"):
+            checks[f"N={n} {m} below ekf on every axis"] = all(
+                e[m]["mean_abs_error_mm"][a] < e["ekf"]["mean_abs_error_mm"][a] for a in AXES)
+            checks[f"N={n} {m} scale error < 2% from 3rd sighting (mean over trials of the worst frame)"] = \
+                e[m]["scale_error_max_after_3rd_sighting"]["mean"] < 0.02
+            checks[f"N={n} {m} scale error < 2% from 3rd sighting (worst trial)"] = \
+                e[m]["scale_error_max_after_3rd_sighting"]["max"] < 0.02
+    return {"per_n": summary, "checks": checks}
+
+
+def write_plots(summary: dict, n_values: list[int], out: Path) -> None:
+    colours = {"ekf": "tab:red", "batch": "tab:blue", "online": "tab:green"}
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
+    width = 0.25
+    for i, axis in enumerate(AXES):
+        ax = axes[i]
+        for j, m in enumerate(METHODS):
+            vals = [summary[n][m]["mean_abs_error_mm"][axis] for n in n_values]
+            errs = [summary[n][m]["std_over_trials_mm"][axis] for n in n_values]
+            ax.bar(np.arange(len(n_values)) + (j - 1) * width, vals, width, yerr=errs, label=m, color=colours[m])
+        ax.set_xticks(np.arange(len(n_values)), [f"N={n}" for n in n_values])
+        ax.set_yscale("log")
+        ax.set_title(f"mean |T_{axis} error| [mm]")
+    axes[0].legend()
+    fig.tight_layout()
+    fig.savefig(out / "axis_errors.png", dpi=120)
+    plt.close(fig)
+
+    fig, axes = plt.subplots(len(n_values), 3, figsize=(13, 2.6 * len(n_values)), squeeze=False)
+    for r, n in enumerate(n_values):
+        for i, axis in enumerate(AXES):
+            ax = axes[r, i]
+            for m in METHODS:
+                curve = np.array(summary[n][m]["curve_mm"])[:, i]
+                ax.plot(curve, marker=".", label=m, color=colours[m])
+            ax.set_yscale("log")
+            ax.set_title(f"N={n}: |T_{axis} error| [mm] vs frame", fontsize=9)
+    axes[0, 0].legend()
+    fig.tight_layout()
+    fig.savefig(out / "error_curves.png", dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for n in n_values:
+        for m, style in (("batch", "-"), ("online", "--")):
+            curve = np.array(summary[n][m]["scale_curve"][1:], dtype=float)
+            ax.plot(np.arange(1, len(curve) + 1), 100 * curve, style, label=f"{m} N={n}")
+    ax.axhline(2.0, color="k", lw=0.8)
+    ax.set_yscale("log")
+    ax.set_xlabel("frame")
+    ax.set_ylabel("trajectory scale error [%] (mean over trials)")
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(out / "scale_error.png", dpi=120)
+    plt.close(fig)
+
+
+def markdown(result: dict, n_values: list[int]) -> str:
+    lines = ["| N | method | x [mm] | y [mm] | z [mm] | scale err. after 3rd sighting (mean / worst) | "
+             "scale < 2 % from frame (worst trial) | scale err. last frame | s / sequence |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for n in n_values:
+        for m in METHODS:
+            e = result["per_n"][n][m]
+            ax = e["mean_abs_error_mm"]
+            sd = e["std_over_trials_mm"]
+            sc = e["scale_error_max_after_3rd_sighting"]
+            lines.append(f"| {n} | {m} | {ax['x']:.3f} ± {sd['x']:.3f} | {ax['y']:.3f} ± {sd['y']:.3f} | "
+                         f"{ax['z']:.3f} ± {sd['z']:.3f} | {100 * sc['mean']:.2f} % / {100 * sc['max']:.2f} % | "
+                         f"{e['scale_below_2pct_from_frame_worst_trial']} | "
+                         f"{100 * e['scale_error_last_frame']['mean']:.2f} % | {e['seconds_per_sequence']:.3f} |")
+    lines.append("")
+    for k, v in result["checks"].items():
+        lines.append(f"- {'PASS' if v else 'FAIL'}: {k}")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--trials", type=int, default=8, help="rendered sequences (seeds 0..trials-1)")
+    parser.add_argument("--n-features", default="1,2,10,20", help="N values (tracker point + N-1 KLT tracks)")
+    parser.add_argument("--width", type=int, default=640)
+    parser.add_argument("--height", type=int, default=480)
+    parser.add_argument("--out", default="out/bench_seed003")
+    args = parser.parse_args(argv)
+    n_values = [int(v) for v in args.n_features.split(",")]
+    if any(n < 1 for n in n_values) or args.trials < 1:
+        parser.error("--n-features values must be >= 1 and --trials >= 1")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    scenario = CrawlerPairConfig(width=args.width, height=args.height)
+    trials = [run_trial(seed, n_values, scenario) for seed in tqdm(range(args.trials), desc="seed-003 trials")]
+    result = summarize(trials, n_values)
+    ratio = {n: result["per_n"][n]["online"]["seconds_per_sequence"] / result["per_n"][n]["ekf"]["seconds_per_sequence"]
+             for n in n_values}
+    payload = {"trials": args.trials, "n_values": n_values, "scenario": asdict(scenario),
+               "time_ratio_online_over_ekf": ratio, **result}
+    (out / "bench_seed003.json").write_text(json.dumps(payload, indent=1, default=str))
+    (out / "bench_seed003.md").write_text(markdown(result, n_values))
+    write_plots(result["per_n"], n_values, out)
+    print(markdown(result, n_values))
+    print(f"wrote {out}/bench_seed003.json, .md, axis_errors.png, error_curves.png, scale_error.png")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,193 @@
+"""Cooperative motion and structure as one factor graph (seed 003) through Session batch / online."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from graphloc.baselines.ekf_seed003 import run_ekf
+from graphloc.cameras import PinholeCamera
+from graphloc.candidates import CandidateSet
+from graphloc.cooperative_sfm import (CooperativeSfm, CooperativeSfmConfig, FrameInput, TeammateConfig, axis_errors,
+                                      ideal_frames, measure_frames, run_cooperative_sfm, scale_errors,
+                                      teammate_observation, trajectory_scale)
+from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
+from graphloc.keys import pose_key
+from graphloc.session import Session
+from graphloc.vision.features import FeatureConfig, FrameFeatures
+
+CAM = PinholeCamera.from_fov(640, 480, np.radians(50))
+
+
+def rot_y(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def synthetic(T=10, n_points=19, seed=0, teammate_moves=False):
+    """Camera crawling forward 1.2 cm/frame with small turns, KLT points on a wall at 2.6 m,
+    the teammate 0.83 m ahead; optionally the teammate crawls 2 x 2 cm at the end."""
+    rng = np.random.default_rng(seed)
+    yaw = np.cumsum(np.r_[0.0, rng.normal(0, 0.01, T - 1)])
+    R = np.stack([rot_y(a) for a in yaw])
+    t = np.zeros((T, 3))
+    for k in range(1, T):
+        t[k] = t[k - 1] + 0.012 * np.array([np.sin(yaw[k - 1]), 0.0, np.cos(yaw[k - 1])])
+        t[k, 0] += rng.normal(0, 0.002)
+    pts = np.column_stack([rng.uniform(-0.9, 0.9, n_points), rng.uniform(-0.7, 0.1, n_points), np.full(n_points, 2.6)])
+    base = np.tile([0.03, 0.031, 0.83], (T, 1))
+    cm, mm, odo, ostd = np.r_[False, np.ones(T - 1, bool)], np.zeros(T, bool), np.zeros(T), np.zeros(T)
+    if teammate_moves:
+        cm[-2:], mm[-2:] = False, True
+        t[-2:], R[-2:] = t[-3], R[-3]
+        base[-2], base[-1] = base[-3] + [0, 0, 0.02], base[-3] + [0, 0, 0.04]
+        odo[-2:], ostd[-2:] = 0.02, 0.0005
+    return R, t, pts, base, cm, mm, odo, ostd
+
+
+def frames_for(n_klt, seed=0, **kw):
+    R, t, pts, base, cm, mm, odo, ostd = synthetic(n_points=n_klt, seed=seed, **kw)
+    return ideal_frames(CAM, R, t, pts, base, cm, mm, odo, ostd, pixel_sigma=0.5,
+                        rng=np.random.default_rng(seed + 100)), t, pts, base
+
+
+def config(mode):
+    cfg = CooperativeSfmConfig()
+    return CooperativeSfmConfig(session=replace(cfg.session, mode=mode))
+
+
+def test_teammate_observation_moment_matches_the_two_candidates():
+    R = np.stack([np.eye(3), rot_y(0.4)])
+    t = np.array([[0.03, 0.03, 0.83], [0.031, 0.03, 0.832]])
+    cands = CandidateSet(R, t, np.ones(2), meta={"rms_px": 0.1, "n_points": 100})
+    obs = teammate_observation(cands, CAM, TeammateConfig())
+    np.testing.assert_allclose(obs.centre, t.mean(axis=0))
+    d = t - t.mean(axis=0)
+    single = teammate_observation(CandidateSet(R[:1], obs.centre[None], np.ones(1),
+                                               meta={"rms_px": 0.1, "n_points": 100}), CAM, TeammateConfig())
+    np.testing.assert_allclose(obs.covariance - single.covariance, 0.5 * (d.T @ d), atol=1e-12)
+    assert obs.n_candidates == 2 and obs.candidate_spread == pytest.approx(np.linalg.norm(d[0]))
+    diff = t[0] - t[1]
+    assert obs.candidate_separation == pytest.approx(np.sqrt(diff @ np.linalg.solve(single.covariance, diff)))
+    np.testing.assert_allclose(obs.pixel, CAM.project(obs.centre[None])[0][0])
+    with pytest.raises(ValueError, match="behind"):
+        teammate_observation(CandidateSet(R[:1], [[0, 0, -1.0]], np.ones(1)), CAM, TeammateConfig())
+
+
+@pytest.mark.parametrize("mode", ["batch", "online"])
+def test_recovers_metric_trajectory_and_beats_the_ekf(mode):
+    for n in (1, 20):
+        frames, truth, pts, _ = frames_for(n - 1)
+        run = run_cooperative_sfm(frames, CAM, config(mode))
+        est = run.final_positions if mode == "batch" else run.causal_positions
+        graph_err = axis_errors(est, truth).mean(axis=0)
+        ekf_err = axis_errors(run_ekf(frames, CAM), truth).mean(axis=0)
+        if n == 1:  # no KLT: only the range to the teammate, every frame, fixes T_z
+            assert graph_err[2] < 0.2 * ekf_err[2]
+        if n == 20:
+            assert graph_err.sum() < 0.7 * ekf_err.sum() and graph_err.max() < 0.001
+            scale = scale_errors(run.history, truth)
+            assert scale[5:].max() < 0.02 and scale[-1] < 0.01
+            # 11 cm of forward motion against a wall 2.6 m away: little parallax, so depth is loose
+            est_range = np.linalg.norm(run.landmark_points, axis=1)
+            rel = np.abs(est_range / np.linalg.norm(pts[run.landmark_ids], axis=1) - 1)
+            assert np.median(rel) < 0.08 and rel.max() < 0.25
+
+
+def test_online_and_batch_agree_at_the_end():
+    frames, truth, _, _ = frames_for(12, seed=3)
+    batch = run_cooperative_sfm(frames, CAM, config("batch"))
+    online = run_cooperative_sfm(frames, CAM, config("online"))
+    np.testing.assert_allclose(online.final_positions, batch.final_positions, atol=3e-4)
+    assert batch.n_factors == online.n_factors
+
+
+def test_teammate_odometry_enters_as_a_range():
+    frames, truth, _, base = frames_for(12, teammate_moves=True)
+    sfm = CooperativeSfm(CAM, config("batch"))
+    for f in frames:
+        sfm.add_frame(f)
+    types = {type(sfm.session.graph.at(i)).__name__ for i in range(sfm.session.graph.size())}
+    assert {"RangeFactor3", "BetweenFactorPoint3", "BearingRangeFactor3D", "GenericProjectionFactorCal3_S2",
+            "PriorFactorPoint3", "BetweenFactorPose3", "PriorFactorPose3"} <= types
+    est = sfm.session.estimate()
+    T = len(frames)
+    mate_world = est.atPoint3(pose_key(1, T - 1))
+    assert np.linalg.norm(mate_world - base[-1]) < 0.003
+    assert axis_errors(sfm.positions(), truth).max() < 0.003
+
+
+def test_online_session_save_and_resume(tmp_path):
+    frames, _, _, _ = frames_for(8)
+    sfm = CooperativeSfm(CAM, config("online"))
+    for f in frames[:5]:
+        sfm.add_frame(f)
+    path = tmp_path / "sfm.pkl"
+    sfm.session.save(path)
+    resumed = Session.load(path)
+    a, b = sfm.session.estimate(), resumed.estimate()
+    for k in range(5):
+        assert a.atPose3(pose_key(0, k)).equals(b.atPose3(pose_key(0, k)), 1e-9)
+
+
+def test_trajectory_scale():
+    q = np.cumsum(np.tile([[0.0, 0.0, 0.01]], (5, 1)), axis=0)
+    assert trajectory_scale(q, q) == pytest.approx(1.0)
+    assert trajectory_scale(1.05 * q, q) == pytest.approx(1.05)
+    assert np.isnan(trajectory_scale(np.zeros((3, 3)), np.zeros((3, 3))))
+    hist = [q[:k + 1] * 1.1 for k in range(5)]
+    np.testing.assert_allclose(scale_errors(hist, q)[1:], 0.1)
+
+
+def test_bad_input_is_rejected_or_counted():
+    frames, _, _, _ = frames_for(5)
+    sfm = CooperativeSfm(CAM, config("batch"))
+    with pytest.raises(ValueError, match="FrameInput"):
+        sfm.add_frame("frame")
+    sfm.add_frame(frames[0])
+    with pytest.raises(ValueError, match="time"):
+        sfm.add_frame(frames[0])
+    with pytest.raises(ValueError, match="pixels"):
+        sfm.add_frame(FrameInput(1.0, FrameFeatures(np.arange(3), np.zeros((3, 3))), None, True, False))
+    with pytest.raises(ValueError, match="odometry"):
+        sfm.add_frame(FrameInput(2.0, frames[1].features, frames[1].teammate, False, True, float("nan"), 0.01))
+    f = frames[1]
+    px = f.features.pixels.copy()
+    px[0] = np.nan
+    sfm.add_frame(FrameInput(3.0, FrameFeatures(f.features.ids, px), f.teammate, True, False))
+    assert sfm.skipped_pixels == 1
+    with pytest.raises(ValueError, match="undistorted"):
+        CooperativeSfm(PinholeCamera(500, 500, 320, 240, 640, 480, (0.1, 0, 0, 0)))
+    with pytest.raises(ValueError):
+        CooperativeSfmConfig(pixel_sigma=0.0)
+
+
+def test_measure_frames_validates_arrays():
+    imgs = np.zeros((3, 40, 50, 3), np.uint8)
+    z = np.zeros(3)
+    with pytest.raises(ValueError, match="teammate_odometry"):
+        measure_frames(imgs, CAM, z, z, np.zeros(2), z)
+    with pytest.raises(ValueError, match="not finite"):
+        measure_frames(imgs, CAM, z, z, np.array([0, np.nan, 0]), z)
+    with pytest.raises(ValueError, match="does not increase"):
+        measure_frames(imgs, CAM, z, z, z, z, times=[0.0, 2.0, 1.0])
+    with pytest.raises(ValueError, match="uint8"):
+        measure_frames(imgs.astype(float), CAM, z, z, z, z)
+    frames, report = measure_frames(imgs, CAM, z, z, z, z)  # blank frames: no base, no corners
+    assert report.no_blob == 3 and all(f.teammate is None and len(f.features.ids) == 0 for f in frames)
+
+
+def test_rendered_sequence_end_to_end():
+    cfg = CrawlerPairConfig(width=320, height=240, schedule=("camera",) * 5 + ("teammate",) * 2, seed=2)
+    seq = CrawlerPairScenario(cfg).generate()
+    flags = seq.frame_flags()
+    frames, report = measure_frames(seq.images, seq.camera, *flags, FeatureConfig(max_features=15),
+                                    TeammateConfig(radius=cfg.base_radius))
+    assert report.no_blob == 0 and report.circle_failed == 0
+    assert all(len(f.features.ids) >= 10 for f in frames)
+    run = run_cooperative_sfm(frames, seq.camera, config("online"))
+    err = axis_errors(run.causal_positions, seq.t_wc)
+    ekf_err = axis_errors(run_ekf(frames, seq.camera), seq.t_wc)
+    assert err.mean(axis=0)[2] < ekf_err.mean(axis=0)[2]
+    assert err.max() < 0.005
+    assert isinstance(run.latencies, np.ndarray) and len(run.latencies) == len(frames)
