@@ -1,0 +1,291 @@
+"""Seed 000 (Feng, Zhu, Xiao) simulators: three ground robots seen by the camera of a
+climbing robot, the camera pose from P3P (up to four candidates, one genuine).
+
+- Sec. VI-A (three snapshots for the straight-line test) is simulated, vectorized over trials,
+  by `graphloc.baselines.seed000_trials.simulate_straight_line_trials` (one implementation).
+- `FengProbabilisticScenario` -- Sec. VI-B: ground robots at (0.5,0.5,0.3), (0.5,2.5,0.4),
+  (2.5,1.5,0.2); ceiling I level at 3 m or ceiling II sloped 45 deg from 2 m to 5 m over the
+  3 m field; curves y=0.5x, y=sin 2x, y=x^2 from the ceiling centre in ceiling coordinates;
+  0.2 m/s, 10 Hz, first update interval 0.3 s; 15 % Gaussian noise on each of the three
+  odometry dimensions (a_t); run ends at the ceiling boundary.
+
+Camera: perspective 640x480, FOV 2/3 pi (Sec. VI-A), pixel noise N(0, 0.5) px along a
+uniformly random direction (Sec. VI-A). Candidates come from `graphloc.geometry.p3p.solve_p3p`
+on the noisy bearings, one call per run. Camera frame: z = optical axis, x = image right.
+The probabilistic camera is a pan-tilt head looking at the ground robots' centroid with image
+x along the direction of travel; odometry is the noisy relative camera pose between updates
+(`T_{t-1}^-1 T_t`, frame of the previous camera pose).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from graphloc.cameras import PinholeCamera
+from graphloc.candidates import CandidateSet
+from graphloc.geometry.p3p import solve_p3p
+
+CEILINGS = ("level", "sloped")
+CURVES = ("line", "sine", "quadratic", "loop")  # "loop": not in the seed, a closed circle for long runs
+LOOP_RADIUS = 0.6
+FIELD = 3.0  # side of the square field / ceiling [m] (Sec. VI-B)
+GROUND_ROBOTS = ((0.5, 0.5, 0.3), (0.5, 2.5, 0.4), (2.5, 1.5, 0.2))  # Sec. VI-B
+
+
+def seed000_camera() -> PinholeCamera:
+    """Camera C of the climbing robot: 640x480, horizontal FOV 2/3 pi (Sec. VI-A)."""
+    return PinholeCamera.from_fov(640, 480, 2.0 * np.pi / 3.0)
+
+
+def project_world(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarray, points: np.ndarray):
+    """Pixels (T,P,2) of world points (P,3) seen from cameras R_wc (T,3,3), t_wc (T,3), and the
+    (T,P) visibility mask, in one batched camera.project call."""
+    pc = np.einsum("tji,tpj->tpi", R_wc, points[None, :, :] - t_wc[:, None, :])
+    uv, visible = camera.project(pc.reshape(-1, 3))
+    return uv.reshape(pc.shape[:2] + (2,)), visible.reshape(pc.shape[:2])
+
+
+def resection_covariance(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarray, points: np.ndarray,
+                         pixel_sigma: float, floor: tuple[float, float] = (1e-3, 1e-3)) -> np.ndarray:
+    """First-order covariance (N,6,6) of camera poses (N,3,3)/(N,3) recovered from the pixels of
+    three world points (N,3,3) with isotropic pixel noise: sigma^2 (A^T A)^-1, A (6x6) = d pixels
+    / d pose (GTSAM Pose3 tangent (rot, trans), right perturbation T Exp(xi)). P3P is a square
+    problem (6 pixel coordinates, 6 pose DOF), so A is invertible away from the danger cylinder
+    and blows up near it. `floor` = (rad, m) sigmas added on the diagonal."""
+    pc = np.einsum("nji,npj->npi", R_wc, points - t_wc[:, None, :])  # (N,3,3) camera-frame points
+    x, y, z = pc[..., 0], pc[..., 1], pc[..., 2]
+    f = np.array([camera.fx, camera.fy])
+    J = np.zeros(pc.shape[:2] + (2, 3))  # d(uv)/d(pc)
+    J[..., 0, 0], J[..., 0, 2] = f[0] / z, -f[0] * x / z ** 2
+    J[..., 1, 1], J[..., 1, 2] = f[1] / z, -f[1] * y / z ** 2
+    skew = np.zeros(pc.shape[:2] + (3, 3))
+    skew[..., 0, 1], skew[..., 0, 2], skew[..., 1, 2] = -z, y, -x
+    skew[..., 1, 0], skew[..., 2, 0], skew[..., 2, 1] = z, -y, x
+    dpc = np.concatenate([skew, np.broadcast_to(-np.eye(3), skew.shape)], axis=-1)  # (N,3,3,6)
+    A = (J @ dpc).reshape(len(pc), 6, 6)
+    if not (np.isfinite(pixel_sigma) and pixel_sigma >= 0):
+        raise ValueError(f"resection_covariance: pixel_sigma must be finite >= 0, got {pixel_sigma}")
+    cov = pixel_sigma ** 2 * np.linalg.pinv(np.einsum("nki,nkj->nij", A, A), hermitian=True)
+    cov += np.diag(np.repeat(np.square(floor), 3))
+    return 0.5 * (cov + np.transpose(cov, (0, 2, 1)))
+
+
+@dataclass(frozen=True)
+class Plane:
+    """A surface the climbing robot moves on: origin (3,), in-plane unit axes u, v (3,), inward
+    unit normal (3,) (pointing into the room), half extents along u and v [m]."""
+
+    origin: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    normal: np.ndarray
+    half_u: float
+    half_v: float
+
+
+def ceiling_plane(kind: str) -> Plane:
+    """Ceiling I (level, 3 m) or ceiling II (45 deg, from 2 m at x=0 to 5 m at x=3), Sec. VI-B."""
+    if kind == "level":
+        return Plane(np.array([1.5, 1.5, 3.0]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), np.array([0, 0, -1.0]),
+                     FIELD / 2, FIELD / 2)
+    if kind == "sloped":
+        s = 1.0 / np.sqrt(2.0)
+        return Plane(np.array([1.5, 1.5, 3.5]), np.array([s, 0, s]), np.array([0, 1.0, 0]), np.array([s, 0, -s]),
+                     FIELD / 2 / s, FIELD / 2)
+    raise ValueError(f"unknown ceiling {kind!r}; expected one of {CEILINGS}")
+
+
+def curve_points(kind: str, arc_lengths: np.ndarray, half_u: float, half_v: float) -> tuple[np.ndarray, np.ndarray]:
+    """In-plane (u, v) points (N,2) at the given arc lengths along curve `kind` from the origin
+    (x increasing), and the (N,) mask of points still inside the ceiling boundary. "loop" is
+    a circle of radius LOOP_RADIUS through the origin that never reaches the boundary."""
+    if kind == "loop":
+        phi = arc_lengths / LOOP_RADIUS
+        uv = LOOP_RADIUS * np.stack([np.sin(phi), 1.0 - np.cos(phi)], axis=1)
+        return uv, np.ones(len(arc_lengths), dtype=bool)
+    x = np.linspace(0.0, half_u, 20001)
+    if kind == "line":
+        y = 0.5 * x
+    elif kind == "sine":
+        y = np.sin(2.0 * x)
+    elif kind == "quadratic":
+        y = x ** 2
+    else:
+        raise ValueError(f"unknown curve {kind!r}; expected one of {CURVES}")
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
+    inside_curve = np.abs(y) <= half_v
+    s_end = s[np.argmin(inside_curve)] if not inside_curve.all() else s[-1]
+    xs = np.interp(arc_lengths, s, x)
+    ys = np.interp(arc_lengths, s, y)
+    return np.stack([xs, ys], axis=1), arc_lengths < s_end
+
+
+def look_at(positions: np.ndarray, target: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """Rotations R_wc (N,3,3): optical axis z_c at `target`, image x along `heading` (N,3)."""
+    z = target - positions
+    z /= np.linalg.norm(z, axis=1, keepdims=True)
+    x = heading - np.sum(heading * z, axis=1, keepdims=True) * z
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=2)
+
+
+def noisy_pixels(uv: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
+    """Pixel noise N(0, sigma) along a uniformly random direction (Sec. VI-A)."""
+    r = rng.normal(0.0, sigma, uv.shape[:-1])
+    phi = rng.uniform(0.0, 2.0 * np.pi, uv.shape[:-1])
+    return uv + np.stack([r * np.cos(phi), r * np.sin(phi)], axis=-1)
+
+
+def p3p_candidates(camera: PinholeCamera, pixels: np.ndarray, landmarks: np.ndarray, times: np.ndarray,
+                   pixel_sigma: float, t_true: np.ndarray | None = None, observer: str = "ground",
+                   observed: str = "climber") -> list[CandidateSet]:
+    """One CandidateSet per frame from pixels (T,3,2) of the three landmarks (3,3), by one
+    batched solve_p3p call. All real P3P solutions fit three points exactly, so scores are
+    uniform (seed 000 Sec. V-A: belief 1/4 each). meta["covariance"] (K,6,6): first-order pose
+    covariance of each candidate from the pixel noise (`resection_covariance`). With ground
+    truth, meta["genuine"] is the index of the candidate nearest the true camera position and
+    meta["genuine_error"] its distance [m]."""
+    T = pixels.shape[0]
+    bearings, ok = camera.pixel_to_bearing(pixels.reshape(-1, 2))
+    if not ok.all():
+        raise ValueError(f"p3p_candidates: {int((~ok).sum())} non-finite pixels")
+    sol = solve_p3p(bearings.reshape(T, 3, 3), np.broadcast_to(landmarks, (T, 3, 3)))
+    flat = sol.valid.reshape(-1)
+    cov = np.zeros((flat.size, 6, 6))
+    cov[flat] = resection_covariance(camera, sol.R_wc.reshape(-1, 3, 3)[flat], sol.t_wc.reshape(-1, 3)[flat],
+                                     np.broadcast_to(landmarks, (int(flat.sum()), 3, 3)), pixel_sigma)
+    cov = cov.reshape(T, -1, 6, 6)
+    out = []
+    for k in range(T):
+        valid = sol.valid[k]
+        meta = {"covariance": cov[k][valid]}
+        if t_true is not None and valid.any():
+            d = np.linalg.norm(sol.t_wc[k][valid] - t_true[k], axis=1)
+            meta.update(genuine=int(np.argmin(d)), genuine_error=float(d.min()))
+        out.append(sol.candidate_set(k, time=float(times[k]), observer=observer, observed=observed, meta=meta))
+    return out
+
+
+def relative_poses(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Relative poses T_{k}^-1 T_{k+1}: rotations (N-1,3,3), translations (N-1,3) in frame k."""
+    Rrel = np.einsum("kji,kjl->kil", R[:-1], R[1:])
+    trel = np.einsum("kji,kj->ki", R[:-1], t[1:] - t[:-1])
+    return Rrel, trel
+
+
+# ---- Sec. VI-B: probabilistic setup ----------------------------------------------------------
+@dataclass(frozen=True)
+class FengProbabilisticConfig:
+    """Sec. VI-B. odometry_noise: relative sigma on each of the three translation components of
+    a_t (0.15 = 15 %); odometry_rot_sigma: gyro noise per update [rad] (not given in the seed);
+    max_time: cap on the run length [s] (None = until the ceiling boundary)."""
+
+    ceiling: str = "level"
+    curve: str = "line"
+    speed: float = 0.2
+    rate_hz: float = 10.0
+    first_interval: float = 0.3
+    odometry_noise: float = 0.15
+    odometry_rot_sigma: float = 0.002
+    pixel_sigma: float = 0.5
+    max_time: float | None = None
+    seed: int = 0
+
+    def __post_init__(self):
+        if self.ceiling not in CEILINGS:
+            raise ValueError(f"FengProbabilisticConfig.ceiling must be one of {CEILINGS}, got {self.ceiling!r}")
+        if self.curve not in CURVES:
+            raise ValueError(f"FengProbabilisticConfig.curve must be one of {CURVES}, got {self.curve!r}")
+        for name in ("speed", "rate_hz", "first_interval"):
+            if not (np.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ValueError(f"FengProbabilisticConfig.{name} must be finite > 0")
+        for name in ("odometry_noise", "odometry_rot_sigma", "pixel_sigma"):
+            if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise ValueError(f"FengProbabilisticConfig.{name} must be finite >= 0")
+
+
+@dataclass(frozen=True)
+class FengRun:
+    """One simulated run. times (T,); true camera poses R_wc (T,3,3), t_wc (T,3); landmarks (3,3);
+    pixels (T,3,2) noisy; odometry: T-1 noisy relative camera poses (frame of the earlier pose);
+    odometry_true: the same without noise; candidates: T CandidateSets; plane: the surface."""
+
+    times: np.ndarray
+    R_wc: np.ndarray
+    t_wc: np.ndarray
+    landmarks: np.ndarray
+    pixels: np.ndarray
+    odometry: list
+    odometry_true: list
+    candidates: list
+    plane: Plane
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def pose(self, k: int) -> gtsam.Pose3:
+        return gtsam.Pose3(gtsam.Rot3(self.R_wc[k]), self.t_wc[k])
+
+
+def noisy_odometry(Rrel: np.ndarray, trel: np.ndarray, rel_sigma: float, rot_sigma: float,
+                   rng: np.random.Generator) -> list[gtsam.Pose3]:
+    """Odometry a_t: each translation component scaled by (1 + N(0, rel_sigma)) (Sec. VI-B,
+    15 % on all three dimensions), rotation perturbed by Exp(N(0, rot_sigma^2 I))."""
+    tn = trel * (1.0 + rel_sigma * rng.standard_normal(trel.shape))
+    w = rot_sigma * rng.standard_normal(trel.shape)
+    return [gtsam.Pose3(gtsam.Rot3(R).compose(gtsam.Rot3.Expmap(wk)), tk) for R, tk, wk in zip(Rrel, tn, w)]
+
+
+def odometry_covariance(relative: gtsam.Pose3, rel_sigma: float = 0.15, rot_sigma: float = 0.002,
+                        floor: float = 1e-3) -> np.ndarray:
+    """6x6 covariance (GTSAM tangent order) matching `noisy_odometry`: rotation rot_sigma (floor
+    1e-6), translation component i sigma = rel_sigma |a_i| + floor, from the measured a."""
+    a = np.abs(relative.translation())
+    return np.diag(np.concatenate([np.full(3, max(rot_sigma, 1e-6) ** 2), (rel_sigma * a + floor) ** 2]))
+
+
+class FengProbabilisticScenario:
+    """Sec. VI-B scenario generator: `FengProbabilisticScenario.simulate(config) -> FengRun`."""
+
+    @staticmethod
+    def trajectory(config: FengProbabilisticConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray, Plane]:
+        """Update times (first interval 0.3 s, then 1/rate) up to the ceiling boundary, true
+        camera rotations (T,3,3) and positions (T,3), and the ceiling plane."""
+        plane = ceiling_plane(config.ceiling)
+        if config.curve == "loop" and config.max_time is None:
+            raise ValueError("the 'loop' curve never reaches the boundary: set FengProbabilisticConfig.max_time")
+        length = 2.0 * (plane.half_u + plane.half_v) * 3.0
+        t_max = length / config.speed if config.max_time is None else config.max_time
+        times = np.concatenate([[0.0], config.first_interval + np.arange(0.0, t_max, 1.0 / config.rate_hz)])
+        uv, inside = curve_points(config.curve, config.speed * times, plane.half_u, plane.half_v)
+        times, uv = times[inside], uv[inside]
+        if len(times) < 3:
+            raise ValueError(f"trajectory of {config.curve} on {config.ceiling} ceiling has < 3 updates")
+        pos = plane.origin + uv[:, :1] * plane.u + uv[:, 1:] * plane.v
+        # heading: curve tangent (finite differences on a fine step)
+        uv_ahead, _ = curve_points(config.curve, config.speed * times + 1e-3, plane.half_u, plane.half_v)
+        d = uv_ahead - uv
+        heading = d[:, :1] * plane.u + d[:, 1:] * plane.v
+        centroid = np.mean(np.asarray(GROUND_ROBOTS), axis=0)
+        return times, look_at(pos, centroid, heading), pos, plane
+
+    @classmethod
+    def simulate(cls, config: FengProbabilisticConfig = FengProbabilisticConfig()) -> FengRun:
+        rng = np.random.default_rng(config.seed)
+        times, R, t, plane = cls.trajectory(config)
+        landmarks = np.asarray(GROUND_ROBOTS, dtype=float)
+        camera = seed000_camera()
+        uv, inside = project_world(camera, R, t, landmarks)
+        if not inside.all():
+            k = int(np.argmin(inside.all(axis=1)))
+            raise ValueError(f"ground robots leave the image at update {k} (t={times[k]:.2f} s)")
+        pixels = noisy_pixels(uv, config.pixel_sigma, rng)
+        Rrel, trel = relative_poses(R, t)
+        odometry = noisy_odometry(Rrel, trel, config.odometry_noise, config.odometry_rot_sigma, rng)
+        odometry_true = [gtsam.Pose3(gtsam.Rot3(a), b) for a, b in zip(Rrel, trel)]
+        candidates = p3p_candidates(camera, pixels, landmarks, times, config.pixel_sigma, t)
+        return FengRun(times, R, t, landmarks, pixels, odometry, odometry_true, candidates, plane)

@@ -1,0 +1,125 @@
+"""Inter-robot bearing factors between two Pose3 variables, and range / known-baseline factors
+for scale (seed 000 Sec. II-III: robot i's camera sees robot j's marker; mutual bearings fix
+the formation up to scale, Problem 1 fixes the scale by the known distance |^2T_1|).
+
+`bearing_factor`: robot j's marker (at `marker` in j's body frame) seen by robot i's camera
+(`body_T_camera` on i) as a unit bearing in the camera frame; error = Unit3 tangent error
+(2-vector) between the measured and the predicted bearing. GTSAM's built-in BearingFactor3D is
+Pose3 -> Point3 and BearingRangeFactorPose3 carries a range and no extrinsics, so this is a
+Python gtsam.CustomFactor with analytic Jacobians chained from GTSAM's own
+(Pose3.compose / transformFrom / transformTo, Unit3.FromPoint3 / errorVector). Its cost per
+linearization is measured against BearingFactor3D by `bearing_linearize_cost` (see
+tests/test_factors_camera.py and the report).
+
+`range_factor` / `known_baseline_factor`: gtsam.RangeFactorPose3 (distance between the two
+body origins) or gtsam.RangeFactorWithTransformPose3 when the ranging sensor is offset.
+"""
+
+from __future__ import annotations
+
+import time
+
+import gtsam
+import numpy as np
+
+from graphloc.factors.robust import Kernel, robust_noise
+
+
+def _unit(bearing, what: str) -> np.ndarray:
+    b = np.asarray(bearing, dtype=float)
+    if b.shape != (3,) or not np.isfinite(b).all() or np.linalg.norm(b) < 1e-12:
+        raise ValueError(f"{what}: bearing must be a finite non-zero 3-vector, got {bearing!r}")
+    return b / np.linalg.norm(b)
+
+
+def _positive(value: float, what: str) -> float:
+    value = float(value)
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{what} must be finite > 0, got {value}")
+    return value
+
+
+def predicted_bearing(observer: gtsam.Pose3, observed: gtsam.Pose3, body_T_camera: gtsam.Pose3 = gtsam.Pose3(),
+                      marker=np.zeros(3)) -> np.ndarray:
+    """Unit bearing (3,) of `observed`'s marker in the camera of `observer` (no noise)."""
+    p = observer.compose(body_T_camera).transformTo(observed.transformFrom(np.asarray(marker, dtype=float)))
+    return p / np.linalg.norm(p)
+
+
+def bearing_factor(observer_key: int, observed_key: int, bearing, sigma: float,
+                   body_T_camera: gtsam.Pose3 = gtsam.Pose3(), marker=np.zeros(3),
+                   kernel: Kernel = Kernel()) -> gtsam.CustomFactor:
+    """Bearing (camera frame of the observer) to the observed robot's marker; isotropic
+    `sigma` [rad] on the 2-DOF Unit3 error; optional robust kernel."""
+    measured = gtsam.Unit3(_unit(bearing, "bearing_factor"))
+    marker = np.asarray(marker, dtype=float)
+    if marker.shape != (3,) or not np.isfinite(marker).all():
+        raise ValueError(f"bearing_factor: marker must be a finite 3-vector, got {marker!r}")
+    if not isinstance(body_T_camera, gtsam.Pose3):
+        raise ValueError(f"bearing_factor: body_T_camera must be gtsam.Pose3, got {type(body_T_camera).__name__}")
+    if observer_key == observed_key:
+        raise ValueError("bearing_factor: observer and observed keys must differ")
+    noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, _positive(sigma, "bearing_factor sigma")), kernel)
+
+    def error(this: gtsam.CustomFactor, values: gtsam.Values, jacobians):
+        Ti = values.atPose3(this.keys()[0])
+        Tj = values.atPose3(this.keys()[1])
+        if jacobians is None:
+            return measured.errorVector(gtsam.Unit3.FromPoint3(Ti.compose(body_T_camera).transformTo(Tj.transformFrom(marker))))
+        H_cam = np.zeros((6, 6), order="F")
+        H_q = np.zeros((3, 6), order="F")
+        H_pc_cam = np.zeros((3, 6), order="F")
+        H_pc_q = np.zeros((3, 3), order="F")
+        H_u = np.zeros((2, 3), order="F")
+        H_e = np.zeros((2, 2), order="F")
+        cam = Ti.compose(body_T_camera, H_cam, None)
+        q = Tj.transformFrom(marker, H_q, None)
+        pc = cam.transformTo(q, H_pc_cam, H_pc_q)
+        u = gtsam.Unit3.FromPoint3(pc, H_u)
+        e = measured.errorVector(u, None, H_e)
+        H_eu = H_e @ H_u
+        jacobians[0] = H_eu @ H_pc_cam @ H_cam
+        jacobians[1] = H_eu @ H_pc_q @ H_q
+        return e
+
+    return gtsam.CustomFactor(noise, [observer_key, observed_key], error)
+
+
+def range_factor(key_a: int, key_b: int, distance: float, sigma: float, body_T_sensor: gtsam.Pose3 | None = None,
+                 kernel: Kernel = Kernel()):
+    """Measured distance between two robots: RangeFactorPose3 between the body origins, or
+    RangeFactorWithTransformPose3 when the ranging sensor sits at body_T_sensor on robot a."""
+    d = _positive(distance, "range_factor distance")
+    noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(1, _positive(sigma, "range_factor sigma")), kernel)
+    if body_T_sensor is None:
+        return gtsam.RangeFactorPose3(key_a, key_b, d, noise)
+    return gtsam.RangeFactorWithTransformPose3(key_a, key_b, d, noise, body_T_sensor)
+
+
+def known_baseline_factor(key_a: int, key_b: int, baseline: float, sigma: float = 1e-3) -> gtsam.RangeFactorPose3:
+    """Seed 000 Problem 1: the distance |^2T_1| between two robots is known; fixes the scale of
+    a bearing-only formation (tight RangeFactorPose3)."""
+    return range_factor(key_a, key_b, baseline, sigma)
+
+
+def bearing_linearize_cost(repeats: int = 2000) -> dict:
+    """Seconds per linearization of `bearing_factor` (Python CustomFactor, Pose3 -> Pose3) and
+    of GTSAM's C++ BearingFactor3D (Pose3 -> Point3) on the same geometry, and their ratio."""
+    ki, kj = gtsam.symbol("x", 0), gtsam.symbol("x", 1)
+    Ti = gtsam.Pose3(gtsam.Rot3.Ypr(0.1, -0.2, 0.3), np.array([0.0, 0.0, 3.0]))
+    Tj = gtsam.Pose3(gtsam.Rot3.Ypr(0.4, 0.1, -0.1), np.array([1.0, 0.5, 0.2]))
+    custom = bearing_factor(ki, kj, predicted_bearing(Ti, Tj), 0.01)
+    builtin = gtsam.BearingFactor3D(ki, kj, Ti.bearing(Tj.translation()), gtsam.noiseModel.Isotropic.Sigma(2, 0.01))
+    v_custom, v_builtin = gtsam.Values(), gtsam.Values()
+    v_custom.insert(ki, Ti)
+    v_custom.insert(kj, Tj)
+    v_builtin.insert(ki, Ti)
+    v_builtin.insert(kj, Tj.translation())
+    out = {}
+    for name, factor, values in (("custom", custom, v_custom), ("builtin", builtin, v_builtin)):
+        t0 = time.perf_counter()
+        for _ in range(repeats):
+            factor.linearize(values)
+        out[f"{name}_s"] = (time.perf_counter() - t0) / repeats
+    out["ratio"] = out["custom_s"] / out["builtin_s"]
+    return out

@@ -1,0 +1,407 @@
+"""HypothesisTracker: multi-hypothesis inference over per-frame P3P candidate mixtures with a
+bounded bank of Gaussian tracks (seed 000 Sec. V: belief over the up-to-four P3P solutions,
+commit at belief 0.95, relocalize when the committed solution loses support; seed 004
+Sec. II-C: the same question with odometry).
+
+Design (and why). GTSAM's HybridSmoother keeps one discrete mode per frame in a tree that
+grows with every frame; pruning by leaves or marginal thresholds alone either stalls or stops
+relinearizing. Here the discrete history is never kept: each hypothesis is a *track* -- "the
+genuine candidate at this frame is candidate j, reached along this path" -- carrying a Gaussian
+on the camera pose (mean Pose3, 6x6 covariance, GTSAM tangent order) and a log-weight.
+
+Per frame (odometry u with covariance Q, candidates z_j with covariances C_j and weights w_j):
+1. predict every track: x- = x u, P- = Ad(u^-1) P Ad(u^-1)^T + Q;
+2. score every (track h, candidate j) pair with innovation e = Log(x-^-1 z_j), S = P- + C_j:
+       log w_j + f(e^T S^-1 e) - 1/2 log det(I + P- C_j^-1),
+   the likelihood of the raw measurement the candidates were solved from: the pixels y are (to
+   first order) linear in a candidate's pose with C_j = sigma^2 (A^T A)^-1, so p(y | h) =
+   int N(x; x-, P-) p(y | x) dx = sigma^-6 sqrt(det C_j) N(e; 0, S). The Jacobian factor
+   sqrt(det C_j) cancels log det C_j inside N: every P3P candidate reprojects the pixels
+   exactly, so a candidate is not more likely because its pose covariance is tighter (scored in
+   pose space, a pseudo solution with a smaller covariance wins on the log-determinant alone).
+   f(m) = -(nu + 6)/2 [log(1 + m/nu) - log(1 + 6/nu)] is a multivariate Student-t (nu = 6; P3P
+   errors are heavy-tailed near its danger cylinder; nu = inf gives the Gaussian -1/2 (m - 6)),
+   centred at m = 6 = E[chi2_6] so that a consistent association scores ~0 per frame -- the
+   scale of the two other options:
+   a "miss" keeps a track coasting, scored as an average consistent association (f = 0, Occam
+   factor with the frame's mean candidate covariance) times the prior of its solution being
+   absent: near the danger cylinder the genuine solution merges with a pseudo one and both
+   vanish, sometimes for seconds; with J of 4 solutions present each absent one keeps prior 1/4
+   like a present one, with all four present a miss is nearly impossible (miss_probability_full);
+   a "birth" starts a track at z_j with log p_birth + log w_j (relocalization after a kidnap or
+   a lost track). Candidate covariances are capped at max_candidate_std (linearization trust
+   region: near the fold of the P3P map the first-order covariance is meaningless);
+3. children: one per candidate, log-sum-exp over all parents and the birth (the posterior
+   that j is genuine), state from the best parent updated by a 2-pose fixed-lag window in
+   GTSAM: PriorFactorPose3 (parent marginal) + BetweenFactorPose3 (odometry) + the mixture
+   component of z_j (`graphloc.factors.mixture.component_factors`), Gauss-Newton (both poses
+   relinearized every frame), gtsam.Marginals for the new covariance;
+4. prune: every candidate keeps its child (so a birth can always take over), coasting tracks
+   (one per track id) fill the remaining slots up to K; normalize.
+Decided modes are fixed by construction (the past is marginalized into each track's Gaussian;
+`decided_graph` re-solves a run with its committed modes in a batch Session), the number of live
+tracks is <= K and per-frame work is O(K * candidates): latency and memory do not grow with the
+run length.
+
+Commit: a track is the lineage of hypotheses through best parents (its id survives frames in
+which it coasts). When a track's posterior (summed over its live hypotheses: the child on a
+candidate and a coasting copy) passes `commit_threshold` (0.95, seed 000 Sec. VI-B) it is
+committed; when it falls below `release_threshold` the question is re-opened (the
+`relocalized` flag of that frame's Decision).
+
+Inputs shared with the baselines (graphloc.baselines): per frame a CandidateSet (camera poses
+in the world) and, from the second frame on, an `Odometry` (relative camera pose since the
+previous frame, in that frame, with covariance).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from graphloc.candidates import CandidateSet
+from graphloc.factors.mixture import candidate_covariances, component_factors
+from graphloc.factors.odometry import check_covariance
+from graphloc.factors.robust import Kernel
+from graphloc.keys import pose_key
+
+
+
+@dataclass(frozen=True)
+class Odometry:
+    """Relative pose of the tracked frame since the previous update, T_{t-1}^-1 T_t (in the
+    frame of the earlier pose), with its 6x6 covariance (GTSAM Pose3 tangent order)."""
+
+    relative: gtsam.Pose3
+    covariance: np.ndarray
+
+    def __post_init__(self):
+        if not isinstance(self.relative, gtsam.Pose3):
+            raise ValueError(f"Odometry.relative must be gtsam.Pose3, got {type(self.relative).__name__}")
+        m = self.relative.matrix()
+        if not np.isfinite(m).all():
+            raise ValueError("Odometry.relative contains NaN/inf")
+        cov = np.asarray(self.covariance, dtype=float)
+        if cov.shape != (6, 6):
+            raise ValueError(f"Odometry.covariance must be (6,6), got {cov.shape}")
+        check_covariance(cov, "Odometry.covariance")
+        object.__setattr__(self, "covariance", cov)
+
+
+@dataclass(frozen=True)
+class Decision:
+    """Output of one update, shared by the tracker and the baselines.
+
+    probabilities (K,): posterior that candidate k of this frame is the genuine one (may sum
+    to < 1: the rest is on "none of them", e.g. a coasting track). committed: index of the
+    committed candidate in this frame, or -1 (nothing committed, or the committed track has
+    no candidate this frame). locked: a mode is committed. pose: estimate of the committed
+    track, else of the most probable one (None before any candidate). relocalized: this frame
+    released a committed mode."""
+
+    probabilities: np.ndarray
+    committed: int
+    locked: bool
+    pose: gtsam.Pose3 | None
+    relocalized: bool = False
+
+
+def check_frame(candidates, odometry, first: bool, last_time: float | None, who: str) -> None:
+    """Shared input validation of the trackers: types, odometry presence, monotonic time."""
+    if not isinstance(candidates, CandidateSet):
+        raise ValueError(f"{who}: candidates must be a CandidateSet, got {type(candidates).__name__}")
+    if not first and odometry is None:
+        raise ValueError(f"{who}: odometry is required after the first frame (time={candidates.time})")
+    if odometry is not None and not isinstance(odometry, Odometry):
+        raise ValueError(f"{who}: odometry must be an Odometry, got {type(odometry).__name__}")
+    if last_time is not None and not candidates.time > last_time:
+        raise ValueError(f"{who}: time going backwards or repeated: {candidates.time} after {last_time}")
+
+
+def _fit_score(maha: np.ndarray, dof: float, dim: int = 6) -> np.ndarray:
+    """Log-density of the innovation's Mahalanobis^2 under a multivariate Student-t with `dof`
+    degrees of freedom (Gaussian for dof = inf), relative to its value at maha = dim (the mean
+    of chi2_dim): 0 for a typical consistent association, the scale of a coasting track."""
+    if np.isinf(dof):
+        return -0.5 * (maha - dim)
+    return -0.5 * (dof + dim) * (np.log1p(maha / dof) - np.log1p(dim / dof))
+
+
+def cap_covariances(cov: np.ndarray, max_std: float) -> np.ndarray:
+    """(K,n,n) covariances with eigenvalues clipped at max_std^2 (batched eigh)."""
+    if not len(cov):
+        return cov
+    w, V = np.linalg.eigh(cov)
+    return np.einsum("kij,kj,klj->kil", V, np.minimum(w, max_std ** 2), V)
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """max_hypotheses: K live tracks. commit_threshold / release_threshold: posterior to commit
+    a candidate / below which the committed track is released (0.5: another explanation has
+    become more likely than it). full_count: candidates of a complete frame (P3P: 4).
+    A frame with J < full_count candidates lacks full_count - J solutions, each equally likely
+    the genuine one: a coasting track has prior 1/full_count, a present candidate j w_j J /
+    full_count. A complete frame contains the genuine solution (P3P solutions vanish in pairs
+    only when the count drops): coasting prior miss_probability_full. birth_probability: prior of a track starting at a candidate without a parent.
+    max_misses: frames a track may coast. gate: Mahalanobis^2 beyond which a pair is not
+    scored. max_candidate_std: cap on the candidate covariance eigenvalues (sqrt, m or rad).
+    default_sigmas: candidate (rot, trans) sigmas when the CandidateSet carries no covariances.
+    student_dof: degrees of freedom nu of the innovation's Student-t (inf = Gaussian): P3P
+    errors are heavy-tailed (near its danger cylinder), so one bad frame must not decide.
+    gn_iterations: Gauss-Newton iterations of the window update."""
+
+    max_hypotheses: int = 8
+    commit_threshold: float = 0.95
+    release_threshold: float = 0.5
+    full_count: int = 4
+    miss_probability_full: float = 0.02
+    birth_probability: float = 1e-12
+    max_misses: int = 50
+    gate: float = 100.0
+    max_candidate_std: float = 1.0
+    student_dof: float = 6.0
+    default_sigmas: tuple[float, float] = (0.02, 0.05)
+    gn_iterations: int = 3
+
+    def __post_init__(self):
+        if int(self.max_hypotheses) < 1:
+            raise ValueError(f"TrackerConfig.max_hypotheses must be >= 1, got {self.max_hypotheses}")
+        if not 0.5 <= self.commit_threshold < 1.0:
+            raise ValueError(f"TrackerConfig.commit_threshold must be in [0.5, 1), got {self.commit_threshold}")
+        if not 0.0 < self.release_threshold <= self.commit_threshold:
+            raise ValueError("TrackerConfig.release_threshold must be in (0, commit_threshold]")
+        if int(self.full_count) < 1:
+            raise ValueError(f"TrackerConfig.full_count must be >= 1, got {self.full_count}")
+        for name in ("miss_probability_full", "birth_probability"):
+            if not 0.0 < getattr(self, name) < 1.0:
+                raise ValueError(f"TrackerConfig.{name} must be in (0, 1)")
+        if not (self.gate > 0 and self.max_candidate_std > 0 and self.student_dof > 0):
+            raise ValueError("TrackerConfig.gate, max_candidate_std and student_dof must be > 0")
+
+
+@dataclass
+class _Track:
+    mean: gtsam.Pose3
+    cov: np.ndarray
+    logw: float
+    track_id: int
+    candidate: int  # index into the current frame's candidates, -1 when coasting
+    misses: int = 0
+
+
+class HypothesisTracker:
+    """Bounded multi-hypothesis tracker over P3P candidate mixtures (see module docstring).
+
+        tracker = HypothesisTracker(TrackerConfig(max_hypotheses=8))
+        d0 = tracker.update(candidates_0)             # first frame: no odometry
+        d1 = tracker.update(candidates_1, odometry_1)  # Odometry(relative, covariance)
+        d1.probabilities, d1.committed, d1.pose
+    """
+
+    def __init__(self, config: TrackerConfig = TrackerConfig()):
+        self.config = config
+        self._tracks: list[_Track] = []
+        self._next_id = 0
+        self._committed_id: int | None = None
+        self._last_time: float | None = None
+        self._keys = (pose_key(0, 0), pose_key(0, 1))  # the 2-pose window of every track
+        self._gn = gtsam.GaussNewtonParams()
+        self._gn.setMaxIterations(int(config.gn_iterations))
+
+    @property
+    def num_hypotheses(self) -> int:
+        return len(self._tracks)
+
+    @property
+    def committed_track(self) -> int | None:
+        return self._committed_id
+
+    def update(self, candidates: CandidateSet, odometry: Odometry | None = None) -> Decision:
+        first = not self._tracks and self._last_time is None
+        check_frame(candidates, odometry, first, self._last_time, "HypothesisTracker.update")
+        cov = cap_covariances(candidate_covariances(candidates, self.config.default_sigmas), self.config.max_candidate_std)
+        self._last_time = candidates.time
+        logw_c = np.log(np.maximum(candidates.weights(), 1e-300))
+        if not self._tracks:
+            keep = np.argsort(-logw_c, kind="stable")[: self.config.max_hypotheses]
+            poses = candidates.poses()
+            self._tracks = [self._birth(poses[j], cov[j], int(j), float(logw_c[j])) for j in keep]
+        else:
+            if odometry is None:
+                raise ValueError("HypothesisTracker.update: odometry is required once tracks exist")
+            self._step(candidates, cov, logw_c, odometry)
+        self._normalize()
+        return self._decide(len(candidates))
+
+    # ---- one frame ---------------------------------------------------------------------------
+    def _birth(self, pose: gtsam.Pose3, cov: np.ndarray, j: int, logw: float) -> _Track:
+        self._next_id += 1
+        return _Track(pose, cov.copy(), logw, self._next_id, j)
+
+    def _step(self, candidates: CandidateSet, cov: np.ndarray, logw_c: np.ndarray, odometry: Odometry) -> None:
+        cfg = self.config
+        u = odometry.relative
+        ad = u.inverse().AdjointMap()
+        preds = [t.mean.compose(u) for t in self._tracks]
+        P_pred = np.einsum("ij,hjk,lk->hil", ad, np.stack([t.cov for t in self._tracks]), ad) + odometry.covariance
+        logw_h = np.array([t.logw for t in self._tracks])
+        H, J = len(self._tracks), len(candidates)
+        zs = candidates.poses()
+
+        # (h, j) Gaussian log-likelihoods; cheap Euclidean pre-gate, then the Mahalanobis gate
+        log_assoc = np.full((H, J), -np.inf)
+        if J:
+            pos_pred = np.array([p.translation() for p in preds])
+            d2 = np.sum((pos_pred[:, None, :] - candidates.t[None, :, :]) ** 2, axis=2)
+            var_bound = np.trace(P_pred[:, 3:, 3:], axis1=1, axis2=2)[:, None] + np.trace(cov[:, 3:, 3:], axis1=1, axis2=2)[None]
+            hs, js = np.nonzero(d2 <= cfg.gate * var_bound)
+            if hs.size:
+                e = np.array([gtsam.Pose3.Logmap(preds[h].between(zs[j])) for h, j in zip(hs, js)])
+                S = P_pred[hs] + cov[js]
+                maha = np.einsum("ni,ni->n", e, np.linalg.solve(S, e[..., None])[..., 0])
+                logdet = np.linalg.slogdet(S)[1]
+                # log det(I + P- C^-1) = log det S - log det C
+                ll = _fit_score(maha, cfg.student_dof) - 0.5 * (logdet - np.linalg.slogdet(cov[js])[1])
+                ll[maha > cfg.gate] = -np.inf
+                log_assoc[hs, js] = logw_h[hs] + logw_c[js] + ll
+        log_birth = np.log(cfg.birth_probability) + logw_c
+        complete = J >= cfg.full_count
+        log_miss = np.log(cfg.miss_probability_full if complete else 1.0 / cfg.full_count)
+        if J and not complete:
+            log_assoc += np.log(J / cfg.full_count)
+
+        # children: one per candidate (merged over parents + birth), plus one coasting hypothesis
+        # per track (its coasting copies merged); every candidate keeps a child (so that a birth
+        # can always take over: relocalization), coasting tracks fill the remaining slots
+        children = []
+        for j in range(J):
+            col = np.append(log_assoc[:, j], log_birth[j])
+            children.append((float(np.logaddexp.reduce(col)), "child", j, int(np.argmax(col))))
+        # a coasting track pays the Occam factor of an average consistent association,
+        # 1/2 log det(I + P- C_mean^-1), so that a miss is neutral w.r.t. associating
+        c_mean = cov.mean(axis=0) if J else np.diag([cfg.default_sigmas[0] ** 2] * 3 + [cfg.default_sigmas[1] ** 2] * 3)
+        occam = 0.5 * (np.linalg.slogdet(P_pred + c_mean)[1] - np.linalg.slogdet(c_mean)[1])
+        coast: dict[int, tuple[float, int]] = {}  # track id -> (merged log-weight, best hypothesis)
+        for h, t in enumerate(self._tracks):
+            if t.misses >= cfg.max_misses:
+                continue
+            lw = float(logw_h[h] + log_miss - occam[h])
+            if t.track_id in coast:
+                merged, best = coast[t.track_id]
+                coast[t.track_id] = (float(np.logaddexp(merged, lw)), best if logw_h[best] >= logw_h[h] else h)
+            else:
+                coast[t.track_id] = (lw, h)
+        children.sort(key=lambda e: -e[0])
+        kept = children[: cfg.max_hypotheses]
+        coasting = sorted(((lw, "coast", h, h) for lw, h in coast.values()), key=lambda e: -e[0])
+        kept += coasting[: cfg.max_hypotheses - len(kept)]
+
+        k0, k1 = self._keys
+        components = component_factors(candidates, k1, covariances=cov)  # shared by all windows
+        between = gtsam.BetweenFactorPose3(k0, k1, u, gtsam.noiseModel.Gaussian.Covariance(odometry.covariance))
+        new_tracks = []
+        for logw, kind, idx, parent in kept:
+            if kind == "coast":
+                t = self._tracks[idx]
+                new_tracks.append(_Track(preds[idx], P_pred[idx], logw, t.track_id, -1, t.misses + 1))
+            elif parent == H:  # birth
+                new_tracks.append(self._birth(zs[idx], cov[idx], idx, logw))
+            else:
+                mean, P = self._window_update(self._tracks[parent], between, components[idx], preds[parent])
+                new_tracks.append(_Track(mean, P, logw, self._tracks[parent].track_id, idx, 0))
+        self._tracks = new_tracks
+
+    def _window_update(self, parent: _Track, between: gtsam.BetweenFactorPose3, component: gtsam.NoiseModelFactor,
+                       pred: gtsam.Pose3) -> tuple[gtsam.Pose3, np.ndarray]:
+        """Fixed-lag window of two poses: parent marginal prior + odometry between-factor + the
+        mixture component of the chosen candidate; Gauss-Newton from the prediction, then the
+        marginal covariance of the new pose."""
+        k0, k1 = self._keys
+        graph = gtsam.NonlinearFactorGraph()
+        graph.add(gtsam.PriorFactorPose3(k0, parent.mean, gtsam.noiseModel.Gaussian.Covariance(parent.cov)))
+        graph.add(between)
+        graph.add(component)
+        init = gtsam.Values()
+        init.insert(k0, parent.mean)
+        init.insert(k1, pred)
+        result = gtsam.GaussNewtonOptimizer(graph, init, self._gn).optimize()
+        P = gtsam.Marginals(graph, result).marginalCovariance(k1)
+        return result.atPose3(k1), 0.5 * (P + P.T)
+
+    def _normalize(self) -> None:
+        if not self._tracks:
+            return
+        logw = np.array([t.logw for t in self._tracks])
+        shift = float(np.logaddexp.reduce(logw))
+        for t in self._tracks:
+            t.logw -= shift
+
+    def _decide(self, num_candidates: int) -> Decision:
+        cfg = self.config
+        probs = np.zeros(num_candidates)
+        track_prob: dict[int, float] = {}
+        for t in self._tracks:
+            p = float(np.exp(t.logw))
+            if t.candidate >= 0:
+                probs[t.candidate] += p
+            track_prob[t.track_id] = track_prob.get(t.track_id, 0.0) + p
+        relocalized = False
+        if self._committed_id is not None and track_prob.get(self._committed_id, 0.0) < cfg.release_threshold:
+            self._committed_id = None
+            relocalized = True
+        if self._committed_id is None and track_prob:
+            best_id = max(track_prob, key=track_prob.get)
+            if track_prob[best_id] >= cfg.commit_threshold:
+                self._committed_id = best_id
+        if not self._tracks:
+            return Decision(probs, -1, False, None, relocalized)
+        if self._committed_id is not None:
+            mine = [t for t in self._tracks if t.track_id == self._committed_id]
+            best = max(mine, key=lambda t: t.logw)
+            committed = next((t.candidate for t in mine if t.candidate >= 0), -1)
+            return Decision(probs, committed, True, best.mean, relocalized)
+        best = max(self._tracks, key=lambda t: t.logw)
+        return Decision(probs, -1, False, best.mean, relocalized)
+
+
+def decided_graph(candidates: list[CandidateSet], odometry: list, decisions: list[Decision], robot: int = 0,
+                  default_sigmas: tuple[float, float] = (0.02, 0.05), kernel: Kernel = Kernel("cauchy", 1.0)
+                  ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    """A run with its committed modes fixed, as one factor graph for `graphloc.session.Session`
+    (batch LM or iSAM2 smoothing after the tracker has decided): pose_key(robot, k) per frame,
+    BetweenFactorPose3 per odometry step, and the mixture component of the committed candidate
+    (`factors.mixture.component_factors`, robust `kernel`: near the P3P fold a committed
+    candidate can sit far outside its first-order covariance) wherever a candidate was
+    committed. Initial values:
+    the decided poses, chained through the odometry across undecided frames (backwards before
+    the first decision). ValueError if the lists disagree in length or nothing was committed."""
+    if not (len(candidates) == len(odometry) == len(decisions)):
+        raise ValueError(f"decided_graph: {len(candidates)} candidate sets, {len(odometry)} odometry steps and "
+                         f"{len(decisions)} decisions must match")
+    committed = [k for k, d in enumerate(decisions) if d.locked and d.committed >= 0]
+    if not committed:
+        raise ValueError("decided_graph: no frame has a committed candidate")
+    graph = gtsam.NonlinearFactorGraph()
+    for k in range(1, len(candidates)):
+        if not isinstance(odometry[k], Odometry):
+            raise ValueError(f"decided_graph: odometry[{k}] must be an Odometry, got {type(odometry[k]).__name__}")
+        graph.add(gtsam.BetweenFactorPose3(pose_key(robot, k - 1), pose_key(robot, k), odometry[k].relative,
+                                           gtsam.noiseModel.Gaussian.Covariance(odometry[k].covariance)))
+    for k in committed:
+        cov = candidate_covariances(candidates[k], default_sigmas)
+        j = decisions[k].committed
+        graph.add(component_factors(candidates[k], pose_key(robot, k), covariances=cov, kernel=kernel)[j])
+    poses: list[gtsam.Pose3 | None] = [d.pose if d.locked else None for d in decisions]
+    first = committed[0]
+    for k in range(first - 1, -1, -1):  # before the first decision the tracker's poses may be pseudo ones
+        poses[k] = poses[k + 1].compose(odometry[k + 1].relative.inverse())
+    for k in range(first + 1, len(poses)):
+        if poses[k] is None:
+            poses[k] = poses[k - 1].compose(odometry[k].relative)
+    values = gtsam.Values()
+    for k, p in enumerate(poses):
+        values.insert(pose_key(robot, k), p)
+    return graph, values
