@@ -1,0 +1,80 @@
+"""Scenario `breitenmoser-target`: seed 001 (001_0f8f8dae37ce6b79.txt) Sec. V-A experiment 1 --
+a downward-looking 752x480, 90 deg FOV camera over the larger four-marker target (Sec. III-A,
+graphloc.vision.target.LARGE_TARGET), camera-target distance from 0.7 m to 3 m. Thin over
+graphloc.vision.render: every frame is rendered (blur, sensor noise) and saved as a PNG; the
+marker pixels in the log are the centroids of each marker's visible area in the rendering.
+The accuracy experiment itself (detection, hypotheses, errors vs distance) is
+scripts/repro_seed001.py; this writes a run for the log readers and `graphloc` verbs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from graphloc.cameras import PinholeCamera
+from graphloc.datasets.feng import look_at
+from graphloc.vision.render import RenderConfig, render_markers
+from graphloc.vision.target import LARGE_TARGET
+
+
+@dataclass(frozen=True)
+class BreitenmoserConfig:
+    """frames: updates; d_min, d_max [m]: camera-target distance ramp (seed 001 V-A: 0.68-1.74 m
+    by hand, up to 3 m flown); tilt_deg: viewing direction off vertical; rate_hz."""
+
+    frames: int = 50
+    d_min: float = 0.7
+    d_max: float = 3.0
+    tilt_deg: float = 20.0
+    rate_hz: float = 10.0
+    save_images: bool = True
+
+    def __post_init__(self):
+        if self.frames < 1 or not (0 < self.d_min <= self.d_max) or self.rate_hz <= 0:
+            raise ValueError(f"BreitenmoserConfig: frames >= 1, 0 < d_min <= d_max, rate_hz > 0; got {self}")
+
+
+def seed001_camera() -> PinholeCamera:
+    """Seed 001 V-A: Firefly MV, 752x480, 90 deg FOV."""
+    return PinholeCamera.from_fov(752, 480, np.pi / 2)
+
+
+class BreitenmoserTargetScenario:
+    name = "breitenmoser-target"
+    config_class = BreitenmoserConfig
+
+    def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
+        from graphloc.datasets.scenarios import CameraTrackLog, parse_overrides, write_camera_track
+
+        config = replace(BreitenmoserConfig(), **parse_overrides(BreitenmoserConfig, overrides))
+        rng = np.random.default_rng(seed)
+        out = Path(out_dir)
+        centre = LARGE_TARGET.points.mean(axis=0)
+        n = config.frames
+        dist = np.linspace(config.d_min, config.d_max, n)
+        azimuth = rng.uniform(0, 2 * np.pi) + np.linspace(0.0, np.pi, n)
+        tilt = np.deg2rad(config.tilt_deg)
+        eye = centre + dist[:, None] * np.column_stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth),
+                                                        np.full(n, np.cos(tilt))])
+        heading = np.column_stack([-np.sin(azimuth), np.cos(azimuth), np.zeros(n)])
+        R = look_at(eye, centre, heading)
+        camera = seed001_camera()
+        pixels = np.full((n, len(LARGE_TARGET.points), 2), np.nan)
+        for k in range(n):
+            frame = render_markers(camera, (LARGE_TARGET.points - eye[k]) @ R[k], LARGE_TARGET.marker_diameter / 2,
+                                   RenderConfig(), rng)
+            pixels[k] = frame.centroids
+            if config.save_images:
+                (out / "climber" / "images").mkdir(parents=True, exist_ok=True)
+                cv2.imwrite(str(out / "climber" / "images" / f"{k:06d}.png"), frame.image)
+        times = np.arange(n) / config.rate_hz
+        log = CameraTrackLog(name=self.name, times=times, R_wc=R, t_wc=eye, landmarks=LARGE_TARGET.points,
+                             landmark_sigma=0.0, pixels=pixels, camera=camera, pixel_sigma=RenderConfig().blur_sigma,
+                             odometry=[], cand_R=None, cand_t=None, cand_valid=None, observer="climber", target="target",
+                             meta={"seed_paper": "001_0f8f8dae37ce6b79.txt Sec. V-A", "config": asdict(config),
+                                   "images": "climber/images/%06d.png" if config.save_images else None})
+        return write_camera_track(log, out)

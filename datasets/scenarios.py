@@ -1,0 +1,254 @@
+"""Scenario generators behind `graphloc simulate NAME --out DIR [--seed N] [--set KEY=VALUE]`.
+
+A scenario is a registered class (graphloc.datasets._REGISTRY) with `name`, `config_class`
+(a frozen dataclass) and `generate(out_dir, seed, **overrides) -> Path` writing one run in the
+project's log format (docs/log_format.md, graphloc.io) plus 3D ground truth. 3D poses have no
+table in log format version 1, so they go next to it as TUM files (timestamp tx ty tz qx qy
+qz qw, what evo reads) named in manifest["meta"]: "groundtruth_tum" (true camera poses) and
+"odometry_tum" (the noisy odometry integrated from the true first pose).
+
+The seed 000 scenarios are adapters over the one implementation of each simulation:
+`feng-deterministic` (Sec. VI-A, graphloc.baselines.seed000_trials + ground omni cameras as in
+graphloc.tables.ground_triangle) and `feng-probabilistic` (Sec. VI-B,
+graphloc.datasets.feng.FengProbabilisticScenario). `dual-robot-room` writes its own format
+(graphloc.datasets.dual_room.DualRoomScenario.write).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Protocol
+
+import gtsam
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from graphloc.io import columns, write_manifest
+
+
+class Scenario(Protocol):
+    name: str
+    config_class: type
+
+    def generate(self, out_dir, seed: int = 0, **overrides) -> Path: ...
+
+
+def parse_overrides(config_class: type, overrides: dict) -> dict:
+    """KEY=VALUE strings (or values) -> typed fields of `config_class`; unknown keys and
+    unparsable values raise ValueError naming the field."""
+    known = {f.name: f for f in dataclasses.fields(config_class)}
+    out = {}
+    for key, value in overrides.items():
+        if key not in known:
+            raise ValueError(f"{config_class.__name__}: unknown field {key!r}; known: {', '.join(sorted(known))}")
+        default = getattr(config_class(), key)
+        if isinstance(value, str) and not isinstance(default, str):
+            try:
+                value = json.loads(value)
+            except json.JSONDecodeError:
+                raise ValueError(f"{config_class.__name__}.{key}: cannot parse {value!r}") from None
+        if isinstance(default, bool) != isinstance(value, bool) or (
+                isinstance(default, (int, float)) and not isinstance(value, (int, float))):
+            raise ValueError(f"{config_class.__name__}.{key}: expected {type(default).__name__}, got {value!r}")
+        if isinstance(default, int) and not isinstance(default, bool) and value != int(value):
+            raise ValueError(f"{config_class.__name__}.{key}: expected an integer, got {value!r}")
+        out[key] = type(default)(value) if isinstance(default, (int, float)) and not isinstance(default, bool) else value
+    return out
+
+
+def write_tum3(path: Path, times: np.ndarray, R: np.ndarray, t: np.ndarray) -> Path:
+    """TUM trajectory file of 3D poses: times (N,), rotations (N,3,3), positions (N,3)."""
+    q = Rotation.from_matrix(R).as_quat()  # x, y, z, w
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savetxt(path, np.column_stack([times, t, q]), fmt="%.9f", header="timestamp tx ty tz qx qy qz qw")
+    return path
+
+
+def _write_table(path: Path, table: str, rows: list) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w") as fh:
+        fh.write(",".join(columns(table)) + "\n")
+        for row in rows:
+            fh.write(",".join(f"{v:.9g}" if isinstance(v, float) else str(v) for v in row) + "\n")
+
+
+@dataclass(frozen=True)
+class CameraTrackLog:
+    """One camera (robot `observer`) watching the three points of `target` (landmarks (3,3),
+    known to `landmark_sigma` m; 0 = unknown precision). times (T,); true camera poses R_wc
+    (T,3,3), t_wc (T,3); pixels (T,3,2) noisy (NaN = not seen); camera: PinholeCamera;
+    odometry: T-1 noisy relative poses (gtsam.Pose3) or []; P3P candidates cand_R (T,K,3,3),
+    cand_t (T,K,3), cand_valid (T,K) or None; meta: free-form."""
+
+    name: str
+    times: np.ndarray
+    R_wc: np.ndarray
+    t_wc: np.ndarray
+    landmarks: np.ndarray
+    landmark_sigma: float
+    pixels: np.ndarray
+    camera: object
+    pixel_sigma: float
+    odometry: list
+    cand_R: np.ndarray | None
+    cand_t: np.ndarray | None
+    cand_valid: np.ndarray | None
+    observer: str = "climber"
+    target: str = "ground"
+    meta: dict = dataclasses.field(default_factory=dict)
+
+
+def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
+    """Write `log` as a graphloc log directory; returns the manifest path."""
+    out = Path(out_dir)
+    obs = log.observer
+    markers = [(float(tk), "camera", log.target, j, float(u), float(v))
+               for tk, px in zip(log.times, log.pixels) for j, (u, v) in enumerate(px) if np.isfinite([u, v]).all()]
+    _write_table(out / obs / "markers.csv", "markers", markers)
+    tables = {"markers": f"{obs}/markers.csv"}
+    if log.cand_R is not None:
+        rows = []
+        for tk, Rs, ts, ok in zip(log.times, log.cand_R, log.cand_t, log.cand_valid):
+            for k in np.flatnonzero(ok):
+                qx, qy, qz, qw = Rotation.from_matrix(Rs[k]).as_quat()
+                rows.append((float(tk), "camera", log.target, int(k), 1.0, qw, qx, qy, qz, *map(float, ts[k])))
+        _write_table(out / obs / "candidates.csv", "candidates", rows)
+        tables["candidates"] = f"{obs}/candidates.csv"
+    sigma = float(log.landmark_sigma)
+    lm = out / "landmarks.csv"
+    with open(lm, "w") as fh:
+        fh.write("id,x,y,z,sigma_x,sigma_y,sigma_z\n")
+        for j, p in enumerate(log.landmarks):
+            fh.write(f"{j},{p[0]:.9g},{p[1]:.9g},{p[2]:.9g},{sigma},{sigma},{sigma}\n")
+    meta = {"scenario": log.name, "groundtruth_tum": {obs: f"{obs}/groundtruth.tum"}, **log.meta}
+    write_tum3(out / obs / "groundtruth.tum", log.times, log.R_wc, log.t_wc)
+    if log.odometry:
+        pose = gtsam.Pose3(gtsam.Rot3(log.R_wc[0]), log.t_wc[0])
+        poses = [pose]
+        for step in log.odometry:
+            poses.append(poses[-1].compose(step))
+        write_tum3(out / obs / "odometry.tum", log.times, np.stack([p.rotation().matrix() for p in poses]),
+                   np.stack([p.translation() for p in poses]))
+        meta["odometry_tum"] = {obs: f"{obs}/odometry.tum"}
+    cam = log.camera
+    manifest = {
+        "name": log.name,
+        "robots": [
+            {"name": obs, "kind": "ceiling", "sensors": [
+                {"name": "camera", "type": "camera",
+                 "params": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": cam.width,
+                            "height": cam.height, "pixel_sigma": log.pixel_sigma}}],
+             "tables": tables},
+            {"name": log.target, "kind": "ground", "sensors": [], "tables": {}},
+        ],
+        "landmarks": {"file": "landmarks.csv"},
+        "meta": meta,
+    }
+    return write_manifest(manifest, out)
+
+
+# ---- seed 000 adapters -----------------------------------------------------------------------
+class FengDeterministicScenario:
+    """Seed 000 Sec. VI-A, one trial: three tilted omni ground cameras (mutual pixels in
+    meta["mutual_pixels"], 512x512, N(0, 0.5) px) and the climbing camera's three snapshots
+    of them along its straight two-step move. landmarks.csv holds the true ground positions
+    (ground truth; a localizer must estimate C2, C3 from the mutual pixels, e.g. with
+    graphloc.vision.mutual -- meta["mutual_estimate"] is that estimate); the candidates table
+    holds P3P on the true positions."""
+
+    name = "feng-deterministic"
+
+    @property
+    def config_class(self):
+        from graphloc.tables import TableIConfig
+
+        return TableIConfig
+
+    def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
+        from graphloc.baselines.seed000_trials import Seed000Config, simulate_straight_line_trials
+        from graphloc.baselines.straight_line import localize_by_straight_line
+        from graphloc.cameras import PinholeCamera
+        from graphloc.tables import TableIConfig, ground_triangle
+
+        config = replace(TableIConfig(trials=1, seed=seed, workers=1), **parse_overrides(TableIConfig, overrides))
+        trials = simulate_straight_line_trials(1, seed=seed, config=Seed000Config(pixel_sigma=config.pixel_sigma))
+        tri = ground_triangle(trials.ground, config, np.random.default_rng([seed, 1]))
+        K = trials.K
+        camera = PinholeCamera(K[0, 0], K[1, 1], K[0, 2], K[1, 2], 640, 480)
+        choice = localize_by_straight_line(trials.pixels, K, trials.ground)
+        times = np.arange(3, dtype=float)
+        log = CameraTrackLog(
+            name=self.name, times=times, R_wc=np.repeat(trials.R_wc, 3, axis=0), t_wc=trials.positions[0],
+            landmarks=trials.ground[0], landmark_sigma=0.0, pixels=trials.pixels[0], camera=camera,
+            pixel_sigma=config.pixel_sigma, odometry=[],
+            cand_R=choice.candidates.R_wc.reshape(3, -1, 3, 3), cand_t=choice.candidates.t_wc.reshape(3, -1, 3),
+            cand_valid=choice.candidates.valid.reshape(3, -1),
+            meta={"seed_paper": "000_05137a0a9c449be3.txt Sec. VI-A", "config": asdict(config),
+                  "ground_R_wc": tri.R[0].tolist(), "mutual_pixels": tri.pixels[0].tolist(),
+                  "mutual_estimate": tri.estimated[0].tolist(), "mutual_status": str(tri.status[0]),
+                  "omni": {"size": config.omni_size, "max_polar_angle": config.omni_max_polar}})
+        return write_camera_track(log, out_dir)
+
+
+class FengProbabilisticLog:
+    """Seed 000 Sec. VI-B, one run (graphloc.datasets.feng.FengProbabilisticScenario.simulate)."""
+
+    name = "feng-probabilistic"
+
+    @property
+    def config_class(self):
+        from graphloc.datasets.feng import FengProbabilisticConfig
+
+        return FengProbabilisticConfig
+
+    def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
+        from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario, seed000_camera
+
+        config = replace(FengProbabilisticConfig(seed=seed), **parse_overrides(FengProbabilisticConfig, overrides))
+        run = FengProbabilisticScenario.simulate(config)
+        K = max(len(c) for c in run.candidates)
+        cR, ct, cv = np.zeros((len(run), K, 3, 3)), np.zeros((len(run), K, 3)), np.zeros((len(run), K), bool)
+        for i, c in enumerate(run.candidates):
+            cR[i, :len(c)], ct[i, :len(c)], cv[i, :len(c)] = c.R, c.t, True
+        log = CameraTrackLog(name=self.name, times=run.times, R_wc=run.R_wc, t_wc=run.t_wc, landmarks=run.landmarks,
+                             landmark_sigma=0.0, pixels=run.pixels, camera=seed000_camera(),
+                             pixel_sigma=config.pixel_sigma, odometry=run.odometry, cand_R=cR, cand_t=ct, cand_valid=cv,
+                             meta={"seed_paper": "000_05137a0a9c449be3.txt Sec. VI-B", "config": asdict(config)})
+        return write_camera_track(log, out_dir)
+
+
+def _dual_robot_room(out_dir, seed: int, **overrides) -> Path:
+    from graphloc.datasets.dual_room import DualRoomConfig, DualRoomScenario, variant_config
+
+    kw = parse_overrides(DualRoomConfig, overrides)
+    kw.pop("seed", None)
+    out = Path(out_dir)
+    DualRoomScenario.simulate(variant_config(kw.pop("variant", "furnished"), seed, **kw)).write(out)
+    return out
+
+
+# registered names whose class is not itself a Scenario -> the generator that writes them
+ADAPTERS = {"feng-probabilistic": lambda out, seed, **o: FengProbabilisticLog().generate(out, seed, **o),
+            "dual-robot-room": _dual_robot_room}
+
+
+def generate(name: str, out_dir, seed: int = 0, overrides: dict | None = None) -> Path:
+    """Write one run of scenario `name` to out_dir (the `graphloc simulate` pipeline)."""
+    from graphloc.datasets import dataset_class
+
+    cls = dataset_class(name)  # raises for unknown names
+    overrides = dict(overrides or {})
+    if name in ADAPTERS:
+        return ADAPTERS[name](out_dir, seed, **overrides)
+    if not (hasattr(cls, "generate") and hasattr(cls, "config_class")):
+        raise ValueError(f"{name!r} has no log-format generator (not a `graphloc simulate` scenario); scenarios: {', '.join(scenario_names())}")
+    return cls().generate(out_dir, seed, **overrides)
+
+
+def scenario_names() -> list[str]:
+    from graphloc.datasets import _REGISTRY
+
+    return sorted(n for n, (mod, cls) in _REGISTRY.items() if n in ADAPTERS or mod in ("scenarios", "kaushik", "breitenmoser"))
