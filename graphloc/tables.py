@@ -435,7 +435,7 @@ def load_script(name: str):
     """scripts/<name>.py of the source checkout as a module, registered in sys.modules so that
     worker processes can unpickle its functions. Used for scripts/bench_hypotheses.py (its
     `trial`, `summarize`, `make_engine`, `odometry_steps`, CELLS are the one implementation of
-    the Table III trials) and scripts/repro_seed001.py."""
+    the Table III trials)."""
     if name in sys.modules:
         return sys.modules[name]
     path = Path(__file__).resolve().parents[1] / "scripts" / f"{name}.py"
@@ -458,7 +458,8 @@ def seed001_experiment(out_dir: Path, quick: bool = False) -> str:
     import contextlib
     import io
 
-    script = load_script("repro_seed001")
+    from graphloc.experiments import seed001 as script
+
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):  # the script prints its markdown table
         script.main((["--frames1", "60", "--frames2", "40"] if quick else []) + ["--out", str(out_dir)])

@@ -1,0 +1,296 @@
+"""Reproduce seed 001 experiment 1 (/work/shared/seeds/001_0f8f8dae37ce6b79.txt, section V-A)
+in simulation: a downward-looking 752x480, 90 deg FOV monochrome camera over the larger target
+(tetrahedron of section III-A, markers b = 3 cm).
+
+Run 1 ("moved by hand"): camera-target distance 0.68-1.74 m. Run 2 ("flown"): up to 3 m.
+Every frame: render (blur, sensor noise sigma 2, clutter, episodes with one marker hidden)
+-> blob extraction (ROI from the SE(3) linear-regression prediction once tracking, seed
+IV-A/B) -> all target hypotheses (seed IV-C, predicted assignments) -> the best-scoring
+hypothesis (near-ties: the one closest to the prediction). Errors are reported for the seed's
+pure P3P pose ("p3p", refine=False), for the pose polished on all four markers ("refined") and
+for the P3P pose computed with a miscalibrated camera ("p3p_miscal": 1 % focal, 2 px principal
+point by default -- a real calibration is not perfect), next to the paper's 1.5 cm / 1.2 deg
+(run 1) and 2.2 cm / 1.0 deg (run 2 at 3 m).
+
+    .venv/bin/python scripts/repro_seed001.py [--frames1 300 --frames2 200 --out out/seed001]
+    (thin wrapper over this module; also `graphloc reproduce seed001-exp1`)
+
+Writes <out>/repro_seed001.json, <out>/repro_seed001_error_vs_distance.png and prints a
+markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import gtsam
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+from graphloc.cameras import PinholeCamera  # noqa: E402
+from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, marker_area_bounds, roi_from_points  # noqa: E402
+from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers  # noqa: E402
+from graphloc.vision.target import (LARGE_TARGET, TargetHypothesisConfig, predict_pose,  # noqa: E402
+                                    predicted_marker_pixels, target_hypotheses)
+
+PAPER = {"run1": {"pos_mean_cm": 1.5, "pos_std_cm": 0.7, "pos_max_cm": 12.2, "rot_mean_deg": 1.2, "rot_std_deg": 0.4,
+                  "rot_max_deg": 4.5, "distance_m": [0.677, 1.741]},
+         "run2_at_3m": {"pos_mean_cm": 2.2, "rot_mean_deg": 1.0}}
+K_R = 2  # regression samples (seed IV-A)
+# p3p: the seed's pose (P3P + fourth-marker check); refined: polished on all four markers;
+# p3p_miscal: the seed's pose with a slightly wrong calibration (focal / principal point error)
+VARIANTS = ("p3p", "refined", "p3p_miscal")
+MAX_COAST = 5  # frames a track survives without a pose
+AMBIGUOUS_M = 0.05  # near-tied hypotheses farther apart than this are ambiguous
+ROI_MARGIN_PX = 40.0
+
+
+def look_at(eye: np.ndarray, center: np.ndarray, roll: float) -> np.ndarray:
+    """R_tc of a camera at `eye` whose optical axis points at `center` (target frame, z up)."""
+    z = center - eye
+    z /= np.linalg.norm(z)
+    x = np.cross(z, [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z]) @ gtsam.Rot3.Rz(roll).matrix()
+
+
+def smooth_noise(rng: np.random.Generator, n: int, n_waves: int = 4) -> np.ndarray:
+    """(n,) smooth random signal in [-1, 1]: a few random sinusoids."""
+    tau = np.linspace(0.0, 1.0, n)
+    f = rng.uniform(0.5, 3.0, n_waves)
+    phase = rng.uniform(0, 2 * np.pi, n_waves)
+    s = np.sin(2 * np.pi * f[None] * tau[:, None] + phase[None]).sum(axis=1)
+    return s / np.abs(s).max()
+
+
+def trajectory(rng: np.random.Generator, n: int, d_lo: float, d_hi: float, ascending: bool):
+    """Camera poses (R_tc (n,3,3), t (n,3)) over the target: distance from the target centre in
+    [d_lo, d_hi], viewing direction up to ~35 deg off vertical, a few cm of aim jitter, roll."""
+    centre = LARGE_TARGET.points.mean(axis=0)
+    if ascending:  # take-off to d_hi and hover there (run 2)
+        ramp = np.clip(np.linspace(0.0, 1.6, n), 0.0, 1.0)
+        dist = d_lo + (d_hi - d_lo) * ramp + 0.03 * smooth_noise(rng, n) * ramp
+        dist = np.minimum(dist, d_hi)
+    else:
+        dist = 0.5 * (d_lo + d_hi) + 0.5 * (d_hi - d_lo) * smooth_noise(rng, n)
+    tilt = np.deg2rad(20.0 + 15.0 * smooth_noise(rng, n))
+    azimuth = np.pi * smooth_noise(rng, n)
+    roll = np.pi * smooth_noise(rng, n)
+    aim = centre + 0.04 * np.column_stack([smooth_noise(rng, n), smooth_noise(rng, n), np.zeros(n)])
+    direction = np.column_stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)])
+    eye = centre + dist[:, None] * direction
+    R = np.array([look_at(e, a, r) for e, a, r in zip(eye, aim, roll)])
+    return R, eye
+
+
+def camera() -> PinholeCamera:
+    """Seed 001 V-A: Firefly MV, 752x480, 90 deg FOV lens."""
+    return PinholeCamera.from_fov(752, 480, np.pi / 2)
+
+
+def rotation_error_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
+    return float(np.degrees(np.linalg.norm(gtsam.Rot3.Logmap(gtsam.Rot3(Ra.T @ Rb)))))
+
+
+def occlusion_episodes(rng: np.random.Generator, n: int, rate: float) -> np.ndarray:
+    """(n,) index of the marker hidden in each frame (-1 = none): contiguous episodes covering
+    a fraction `rate` of the frames, one random marker per episode (seed 001 V-A: "only two or
+    three of the four markers were visible ... for a certain duration")."""
+    hidden = np.full(n, -1)
+    if rate <= 0:
+        return hidden
+    signal = smooth_noise(rng, n, n_waves=8)
+    on = signal > np.quantile(signal, 1.0 - rate)
+    episode = np.cumsum(np.diff(on.astype(int), prepend=0) == 1)
+    hidden[on] = rng.integers(0, 4, episode.max() + 1)[episode[on]]
+    return hidden
+
+
+def run(name: str, rng: np.random.Generator, n: int, d_lo: float, d_hi: float, ascending: bool, n_clutter: int,
+        miscalibrated: PinholeCamera, occlusion_rate: float):
+    """Track the target through one trajectory; per-frame errors of every pose variant."""
+    cam = camera()
+    radius = LARGE_TARGET.marker_diameter / 2
+    render_cfg = RenderConfig(background=55.0, marker_level=215.0, noise_sigma=2.0, blur_sigma=0.7)
+    min_area, max_area = marker_area_bounds(cam.fx, radius, 0.5, d_hi + 0.4)
+    det_cfg = MarkerDetectorConfig(min_area=min_area, max_area=max_area)
+    variants = {"p3p": (TargetHypothesisConfig(refine=False), cam), "refined": (TargetHypothesisConfig(refine=True), cam),
+                "p3p_miscal": (TargetHypothesisConfig(refine=False), miscalibrated)}
+    R_true, t_true = trajectory(rng, n, d_lo, d_hi, ascending)
+    hidden = occlusion_episodes(rng, n, occlusion_rate)
+    history: list[tuple[int, gtsam.Pose3]] = []  # (frame, pose) of the last localized frames
+    rows = []
+    for k in tqdm(range(n), desc=name):
+        X_cam = (LARGE_TARGET.points - t_true[k]) @ R_true[k]
+        true_px, _ = cam.project(X_cam)
+        r_px = cam.fx * radius / np.linalg.norm(X_cam, axis=1).min()
+        clutter = random_clutter(rng, cam.width, cam.height, r_px, 215.0, n=n_clutter, avoid=true_px[np.isfinite(true_px).all(1)],
+                                 avoid_radius=6 * r_px + 20) if n_clutter else ()
+        occluders = ()
+        if hidden[k] >= 0:  # a dark object in front of one marker
+            u, v = true_px[hidden[k]]
+            h = 3 * r_px + 3  # > the elongated image of an off-axis sphere
+            occluders = (Occluder((u - h, v - h, u + h, v + h), 30.0),)
+        frame = render_markers(cam, X_cam, radius, render_cfg, rng, clutter=clutter, occluders=occluders)
+        if history and k - history[-1][0] > MAX_COAST:
+            history.clear()  # lost for too long: re-initialize from the whole image (seed IV-B)
+        predicted = None
+        if len(history) >= K_R:  # coasts through frames without a pose
+            predicted = predict_pose([p for _, p in history], k_R=K_R, times=[f for f, _ in history], t_next=k)
+        roi, pred_px = None, None
+        if predicted is not None:
+            pred_px, vis = predicted_marker_pixels(cam, LARGE_TARGET, predicted)
+            if vis.all():
+                roi = roi_from_points(pred_px, ROI_MARGIN_PX, frame.image.shape)
+            else:
+                pred_px = None
+        det = detect_markers(frame.image, det_cfg, roi=roi, predicted_px=pred_px)
+        distance = float(np.linalg.norm(t_true[k] - LARGE_TARGET.points.mean(axis=0)))
+        row = {"frame": k, "hidden_marker": int(hidden[k]), "distance_m": distance,
+               "n_blobs": len(det), "status": det.status, "roi": roi is not None, "steps": list(det.steps)}
+        if len(det) < 3:
+            rows.append(row)
+            continue
+        for vname, (vcfg, vcam) in variants.items():
+            cands = target_hypotheses(det.points, vcam, LARGE_TARGET, vcfg, predicted=predicted, time=float(k))
+            if len(cands) == 0:
+                row[vname] = None
+                continue
+            best = pick(cands, predicted)
+            if best is None:  # initialization with ambiguous hypotheses: wait (seed IV-C)
+                row[vname] = None
+                row["ambiguous"] = True
+                continue
+            row[vname] = {"pos_err_cm": 100.0 * float(np.linalg.norm(cands.t[best] - t_true[k])),
+                          "rot_err_deg": rotation_error_deg(cands.R[best], R_true[k]),
+                          "n_hypotheses": len(cands), "n_assignments": int(cands.meta["n_assignments"]),
+                          "reprojection_px": float(cands.meta["reprojection_px"][best]),
+                          "fallback": cands.meta["fallback"]}
+            if vname == "refined":
+                history.append((k, gtsam.Pose3(gtsam.Rot3(cands.R[best]), cands.t[best])))
+                del history[:-K_R]
+        rows.append(row)
+    return rows
+
+
+def pick(cands, predicted: gtsam.Pose3 | None) -> int | None:
+    """The script's choice (engine role): highest score; among near-ties (>= 0.9 x best, e.g.
+    the ungated hypotheses of three blobs) the one closest to the prediction (seed 001 IV-C).
+    Without a prediction, near-ties more than AMBIGUOUS_M apart -> None (not localized)."""
+    best = int(np.argmax(cands.scores))
+    ties = np.flatnonzero(cands.scores >= 0.9 * cands.scores[best])
+    if predicted is None:
+        spread = np.linalg.norm(cands.t[ties] - cands.t[best], axis=1).max()
+        return best if spread <= AMBIGUOUS_M else None
+    return int(ties[np.argmin(np.linalg.norm(cands.t[ties] - predicted.translation(), axis=1))])
+
+
+def summarize(rows, variant: str, min_distance: float = 0.0) -> dict:
+    sel = [r for r in rows if r["distance_m"] >= min_distance]
+    ok = [r[variant] for r in sel if r.get(variant)]
+    pos = np.array([o["pos_err_cm"] for o in ok])
+    rot = np.array([o["rot_err_deg"] for o in ok])
+    out = {"frames": len(sel), "localized": len(ok),
+           "four_blobs": sum(r["n_blobs"] == 4 for r in sel), "three_blobs": sum(r["n_blobs"] == 3 for r in sel),
+           "roi_frames": sum(r["roi"] for r in sel), "ambiguous": sum(bool(r.get("ambiguous")) for r in sel),
+           "three_of_four_fallback": sum(o["fallback"] == "three_of_four" for o in ok),
+           "unique_hypothesis": sum(o["n_hypotheses"] == 1 for o in ok)}
+    if len(ok):
+        out.update(pos_mean_cm=float(pos.mean()), pos_std_cm=float(pos.std()), pos_max_cm=float(pos.max()),
+                   rot_mean_deg=float(rot.mean()), rot_std_deg=float(rot.std()), rot_max_deg=float(rot.max()),
+                   gross_errors=int((pos > 10.0).sum()))
+    return out
+
+
+def plot(runs: dict, path: Path) -> None:
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for (name, rows), colour in zip(runs.items(), ("tab:blue", "tab:orange")):
+        for variant, marker in zip(VARIANTS, ("x", ".", "+")):
+            pts = [(r["distance_m"], r[variant]["pos_err_cm"], r[variant]["rot_err_deg"]) for r in rows if r.get(variant)]
+            if not pts:
+                continue
+            d, p, a = np.array(pts).T
+            axes[0].scatter(d, p, s=8, marker=marker, color=colour, alpha=0.6, label=f"{name} {variant}")
+            axes[1].scatter(d, a, s=8, marker=marker, color=colour, alpha=0.6, label=f"{name} {variant}")
+    axes[0].axhline(PAPER["run1"]["pos_mean_cm"], color="k", ls="--", lw=1, label="paper run 1 mean")
+    axes[0].axhline(PAPER["run2_at_3m"]["pos_mean_cm"], color="gray", ls=":", lw=1, label="paper 3 m mean")
+    axes[1].axhline(PAPER["run1"]["rot_mean_deg"], color="k", ls="--", lw=1)
+    axes[1].axhline(PAPER["run2_at_3m"]["rot_mean_deg"], color="gray", ls=":", lw=1)
+    axes[0].set(xlabel="camera-target distance [m]", ylabel="position error [cm]", yscale="log")
+    axes[1].set(xlabel="camera-target distance [m]", ylabel="orientation error [deg]", yscale="log")
+    axes[0].legend(fontsize=7)
+    fig.suptitle("seed 001 experiment 1 in simulation (752x480, 90 deg FOV, larger target)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames1", type=int, default=300, help="frames of run 1 (0.68-1.74 m)")
+    parser.add_argument("--frames2", type=int, default=200, help="frames of run 2 (up to 3 m)")
+    parser.add_argument("--clutter", type=int, default=3, help="distractor blobs per frame")
+    parser.add_argument("--focal-error", type=float, default=0.01,
+                        help="relative focal-length error of the calibration used by the 'miscal' variant")
+    parser.add_argument("--principal-error", type=float, default=2.0,
+                        help="principal-point error [px] (both axes) of the 'miscal' variant")
+    parser.add_argument("--occlusion-rate", type=float, default=0.05,
+                        help="fraction of frames (in episodes) with one marker hidden")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--out", type=Path, default=Path("out/seed001"))
+    args = parser.parse_args(argv)
+    if args.frames1 < 10 or args.frames2 < 10:
+        parser.error("--frames1 and --frames2 must be >= 10")
+    args.out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(args.seed)
+    start = time.perf_counter()
+    true_cam = camera()
+    miscal = PinholeCamera(true_cam.fx * (1 + args.focal_error), true_cam.fy * (1 + args.focal_error),
+                           true_cam.cx + args.principal_error, true_cam.cy + args.principal_error,
+                           true_cam.width, true_cam.height)
+    runs = {"run1": run("run 1 (0.68-1.74 m)", rng, args.frames1, 0.68, 1.74, False, args.clutter, miscal, args.occlusion_rate),
+            "run2": run("run 2 (up to 3 m)", rng, args.frames2, 1.0, 3.0, True, args.clutter, miscal, args.occlusion_rate)}
+    elapsed = time.perf_counter() - start
+    summary = {"run1": {v: summarize(runs["run1"], v) for v in VARIANTS},
+               "run2_at_3m": {v: summarize(runs["run2"], v, min_distance=2.8) for v in VARIANTS},
+               "run2_all": {v: summarize(runs["run2"], v) for v in VARIANTS}}
+    result = {"paper": PAPER, "summary": summary, "seconds": elapsed,
+              "config": {"frames1": args.frames1, "frames2": args.frames2, "clutter": args.clutter, "seed": args.seed,
+                         "occlusion_rate": args.occlusion_rate,
+                         "camera": "752x480, 90 deg horizontal FOV",
+                         "miscal": {"focal_error": args.focal_error, "principal_error_px": args.principal_error}, "target": LARGE_TARGET.name,
+                         "noise_sigma": 2.0, "blur_sigma": 0.7, "k_R": K_R},
+              "frames": runs}
+    (args.out / "repro_seed001.json").write_text(json.dumps(result, indent=1))
+    plot(runs, args.out / "repro_seed001_error_vs_distance.png")
+
+    def cell(s, key, unit):
+        return f"{s[key]:.2f} {unit}" if key in s else "n/a"
+
+    print("\n| run | pose | frames localized | pos mean | pos std | pos max | rot mean | rot std | rot max |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    p = PAPER["run1"]
+    print(f"| 1 (0.68-1.74 m) | paper | - | {p['pos_mean_cm']} cm | {p['pos_std_cm']} cm | {p['pos_max_cm']} cm | "
+          f"{p['rot_mean_deg']} deg | {p['rot_std_deg']} deg | {p['rot_max_deg']} deg |")
+    for key, label in (("run1", "1 (0.68-1.74 m)"), ("run2_at_3m", "2 (>= 2.8 m)"), ("run2_all", "2 (1-3 m)")):
+        if key == "run2_at_3m":
+            q = PAPER["run2_at_3m"]
+            print(f"| {label} | paper | - | {q['pos_mean_cm']} cm | - | - | {q['rot_mean_deg']} deg | - | - |")
+        for v in VARIANTS:
+            s = summary[key][v]
+            print(f"| {label} | sim {v} | {s['localized']}/{s['frames']} | {cell(s, 'pos_mean_cm', 'cm')} | "
+                  f"{cell(s, 'pos_std_cm', 'cm')} | {cell(s, 'pos_max_cm', 'cm')} | {cell(s, 'rot_mean_deg', 'deg')} | "
+                  f"{cell(s, 'rot_std_deg', 'deg')} | {cell(s, 'rot_max_deg', 'deg')} |")
+    print(f"\n{elapsed:.1f} s; wrote {args.out / 'repro_seed001.json'} and {args.out / 'repro_seed001_error_vs_distance.png'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
