@@ -11,7 +11,15 @@ from __future__ import annotations
 import importlib
 
 # name -> (module inside graphloc.datasets, class name)
-_REGISTRY: dict[str, tuple[str, str]] = {}
+_REGISTRY: dict[str, tuple[str, str]] = {
+    "feng-probabilistic": ("feng", "FengProbabilisticScenario"),
+    "crawler-pair": ("crawler_pair", "CrawlerPairScenario"),
+    "mrclam": ("mrclam", "MRCLAM"),
+    "dual-robot-room": ("dual_room", "DualRoomScenario"),
+    "feng-deterministic": ("scenarios", "FengDeterministicScenario"),
+    "kaushik-p3p-error": ("kaushik", "KaushikP3PErrorScenario"),
+    "breitenmoser-target": ("breitenmoser", "BreitenmoserTargetScenario"),
+}
 
 
 def available() -> list[str]:

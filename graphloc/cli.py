@@ -12,6 +12,11 @@ import sys
 VERBS: dict[str, str] = {
     "demo": "demo",
     "p3p-bench": "p3p_bench",
+    "smooth": "smooth",
+    "online": "online",
+    "fuse-maps": "fuse_maps",
+    "simulate": "simulate",
+    "reproduce": "reproduce",
 }
 
 

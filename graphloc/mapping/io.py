@@ -1,0 +1,139 @@
+"""Files of the mapping pipeline: read a scan (PLY / PCD / XYZ) as an (N,3) array, write a fused
+map whose points carry the robot that saw them (`robot` attribute in PLY and PCD, plus a
+per-robot colour), and SE(3) trajectories as TUM files (via evo)."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+
+SCAN_SUFFIXES = (".ply", ".pcd", ".xyz")
+ROBOT_COLOURS = np.array([[0.85, 0.15, 0.1], [0.1, 0.3, 0.9], [0.1, 0.7, 0.2], [0.6, 0.2, 0.7]])
+
+
+def read_points(path) -> np.ndarray:
+    """(N,3) float64 points of one scan file; ValueError naming the file if unreadable, empty or
+    non-finite (NaN returns are a counted skip only in `read_scan_sequence`)."""
+    path = Path(path)
+    if path.suffix.lower() not in SCAN_SUFFIXES:
+        raise ValueError(f"{path}: unsupported point cloud suffix (use {', '.join(SCAN_SUFFIXES)})")
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: missing")
+    pcd = o3d.t.io.read_point_cloud(str(path))
+    if "positions" not in pcd.point or len(pcd.point.positions) == 0:
+        raise ValueError(f"{path}: no points could be read")
+    pts = pcd.point.positions.numpy().astype(float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"{path}: positions have shape {pts.shape}, expected (N,3)")
+    return pts
+
+
+def read_scan_sequence(folder) -> tuple[list[np.ndarray], list[Path], int]:
+    """All scans of a folder in file-name order. Non-finite points are dropped and counted.
+    Returns (scans, files, n_dropped_nonfinite)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{folder}: not a directory of scans")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in SCAN_SUFFIXES)
+    if len(files) == 0:
+        raise ValueError(f"{folder}: no {'/'.join(SCAN_SUFFIXES)} scans")
+    scans, dropped = [], 0
+    for p in files:
+        pts = read_points(p)
+        ok = np.isfinite(pts).all(axis=1)
+        dropped += int((~ok).sum())
+        if ok.sum() < 10:
+            raise ValueError(f"{p}: fewer than 10 finite points")
+        scans.append(pts[ok])
+    return scans, files, dropped
+
+
+def write_labelled_cloud(path, points: np.ndarray, robot: np.ndarray) -> None:
+    """Write (N,3) points with an integer per-point `robot` label (and colour) to PLY or PCD."""
+    path = Path(path)
+    if path.suffix.lower() not in (".ply", ".pcd"):
+        raise ValueError(f"{path}: fused maps are written as .ply or .pcd")
+    points = np.asarray(points, dtype=np.float32)
+    robot = np.asarray(robot, dtype=np.int32).reshape(-1, 1)
+    if points.ndim != 2 or points.shape[1] != 3 or len(robot) != len(points):
+        raise ValueError(f"write_labelled_cloud: points {points.shape} / labels {robot.shape} mismatch")
+    pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(points))
+    pcd.point.colors = o3d.core.Tensor(ROBOT_COLOURS[robot[:, 0] % len(ROBOT_COLOURS)].astype(np.float32))
+    pcd.point.robot = o3d.core.Tensor(robot)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not o3d.t.io.write_point_cloud(str(path), pcd):
+        raise ValueError(f"{path}: Open3D could not write the point cloud")
+
+
+def read_labelled_cloud(path) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of `write_labelled_cloud`: (N,3) points and (N,) robot labels."""
+    pcd = o3d.t.io.read_point_cloud(str(path))
+    if "robot" not in pcd.point:
+        raise ValueError(f"{path}: no per-point 'robot' attribute")
+    return pcd.point.positions.numpy().astype(float), pcd.point.robot.numpy().reshape(-1).astype(int)
+
+
+def write_tum(path, times: np.ndarray, poses: np.ndarray) -> Path:
+    """(F,) times and (F,4,4) poses as a TUM trajectory (via evo)."""
+    from evo.core.trajectory import PoseTrajectory3D
+    from evo.tools import file_interface
+
+    poses = np.asarray(poses, dtype=float)
+    if poses.ndim != 3 or poses.shape[1:] != (4, 4) or len(poses) != len(times):
+        raise ValueError(f"write_tum: need (F,) times and (F,4,4) poses, got {np.shape(times)} and {poses.shape}")
+    file_interface.write_tum_trajectory_file(str(path), PoseTrajectory3D(poses_se3=list(poses), timestamps=np.asarray(times)))
+    return Path(path)
+
+
+def read_tum(path) -> tuple[np.ndarray, np.ndarray]:
+    """(F,) times and (F,4,4) poses of a TUM file (graphloc.eval.read_tum / evo); ValueError naming
+    the file on malformed rows, non-finite values or time going backwards."""
+    from graphloc.eval import read_tum as evo_read_tum
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: missing")
+    try:
+        traj = evo_read_tum(path)
+    except Exception as exc:  # evo raises its own FileInterfaceException / numpy errors
+        raise ValueError(f"{path}: not a TUM trajectory ({exc})") from None
+    times, poses = np.asarray(traj.timestamps, dtype=float), np.asarray(traj.poses_se3)
+    if len(times) == 0 or not (np.isfinite(times).all() and np.isfinite(poses).all()):
+        raise ValueError(f"{path}: empty or non-finite trajectory")
+    back = np.flatnonzero(np.diff(times) <= 0)
+    if len(back):
+        raise ValueError(f"{path}: time goes backwards or repeats at pose {back[0] + 1} ({times[back[0] + 1]})")
+    return times, poses
+
+
+def read_led_pixels(path, n_frames: int) -> np.ndarray:
+    """LED pixel table `frame,time,led,u,v` (header line first) -> (n_frames,3,2), NaN where an LED
+    was not seen. ValueError naming file:line on malformed rows, unknown frame/LED, non-finite pixels
+    or a repeated (frame, led)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: missing")
+    uv = np.full((int(n_frames), 3, 2), np.nan)
+    with open(path, newline="") as fh:
+        reader = csv.reader(fh)
+        header = next(reader, None)
+        if header is None or [h.strip() for h in header] != ["frame", "time", "led", "u", "v"]:
+            raise ValueError(f"{path}:1: header must be frame,time,led,u,v; got {header}")
+        for line, row in enumerate(reader, start=2):
+            try:
+                f, _, k, u, v = int(row[0]), float(row[1]), int(row[2]), float(row[3]), float(row[4])
+            except (ValueError, IndexError):
+                raise ValueError(f"{path}:{line}: expected frame,time,led,u,v; got {row}") from None
+            if not 0 <= f < n_frames:
+                raise ValueError(f"{path}:{line}: frame {f} outside [0, {n_frames})")
+            if not 0 <= k < 3:
+                raise ValueError(f"{path}:{line}: led {k} outside [0, 3)")
+            if not (np.isfinite(u) and np.isfinite(v)):
+                raise ValueError(f"{path}:{line}: non-finite pixel ({u}, {v})")
+            if np.isfinite(uv[f, k]).all():
+                raise ValueError(f"{path}:{line}: frame {f} led {k} given twice")
+            uv[f, k] = (u, v)
+    return uv

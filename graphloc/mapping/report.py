@@ -1,0 +1,106 @@
+"""Outputs of a map fusion run: fused map (PLY + PCD, per-point robot label), top and side PNG
+renderings with both robots' trajectories (matplotlib scatter, headless), optimized trajectories
+(TUM), and a JSON report (transform, guess, fitness, RMSE, ICP iterations, timings, P3P /
+tracker summary, and errors against ground truth when it is known)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from graphloc.mapping.fusion import CEILING, GROUND, ROBOT_NAMES, FusionResult
+from graphloc.mapping.io import ROBOT_COLOURS, write_labelled_cloud, write_tum
+from graphloc.mapping.registration import pose_errors
+
+MAX_PLOT_POINTS = 60_000
+
+
+def transform_dict(T: np.ndarray) -> dict:
+    return {"matrix": np.asarray(T).tolist(), "translation_m": np.asarray(T)[:3, 3].tolist(),
+            "rpy_deg_xyz": Rotation.from_matrix(np.asarray(T)[:3, :3]).as_euler("xyz", degrees=True).tolist()}
+
+
+def report_dict(result: FusionResult, truth: np.ndarray | None = None) -> dict:
+    reg = result.registration
+    out = {
+        "T_ground0_ceiling0": transform_dict(result.T_g0_c0),
+        "initial_guess": transform_dict(result.guess),
+        "registration": {"fitness": reg.fitness, "inlier_rmse_m": reg.inlier_rmse, "icp_iterations": reg.iterations,
+                         "sigma_from_information": np.sqrt(np.diag(np.linalg.inv(reg.information))).tolist()},
+        "graph": {"error_initial": result.graph_error[0], "error_final": result.graph_error[1],
+                  "p3p_factors": result.n_p3p_factors, "frames": int(len(result.poses[GROUND]))},
+        "map_points": {ROBOT_NAMES[r]: int((result.map_labels == r).sum()) for r in (GROUND, CEILING)},
+        "outliers_removed": result.outliers_removed,
+        "timings_s": result.timings,
+    }
+    if result.guess_info is not None:
+        g = result.guess_info
+        out["p3p"] = {"frames_used": g.frames.tolist(), "candidates_per_frame": g.n_candidates.tolist(),
+                      "frames_skipped": g.skipped_frames, "tracker_locked": g.locked,
+                      "last_frame_candidate_probability": g.probability}
+    if truth is not None:
+        rot, tr = pose_errors(result.T_g0_c0, truth)
+        g_rot, g_tr = pose_errors(result.guess, truth)
+        out["errors_vs_truth"] = {"rot_deg": rot, "trans_m": tr, "guess_rot_deg": g_rot, "guess_trans_m": g_tr}
+    return out
+
+
+def render(result: FusionResult, path: Path, view: str) -> Path:
+    """Scatter of the fused map ('top': x-y, 'side': x-z) with both trajectories."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    axes = {"top": (0, 1), "side": (0, 2)}[view]
+    pts, lab = result.map_points, result.map_labels
+    if len(pts) > MAX_PLOT_POINTS:
+        keep = np.random.default_rng(0).choice(len(pts), MAX_PLOT_POINTS, replace=False)
+        pts, lab = pts[keep], lab[keep]
+    if view == "top":  # draw low points first so furniture tops and walls stay visible
+        order = np.argsort(pts[:, 2])
+        pts, lab = pts[order], lab[order]
+    fig, ax = plt.subplots(figsize=(9, 7))
+    for r in (GROUND, CEILING):
+        sel = lab == r
+        ax.scatter(pts[sel, axes[0]], pts[sel, axes[1]], s=0.3, color=ROBOT_COLOURS[r], alpha=0.5,
+                   label=f"{ROBOT_NAMES[r]} scans ({int(sel.sum())} pts shown)", rasterized=True)
+    for r, marker in ((GROUND, "o"), (CEILING, "s")):
+        xyz = result.poses[r][:, :3, 3]
+        ax.plot(xyz[:, axes[0]], xyz[:, axes[1]], "-" + marker, color="k", mfc=ROBOT_COLOURS[r], ms=5, lw=1.5,
+                label=f"{ROBOT_NAMES[r]} trajectory")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m] (ground robot frame G0)")
+    ax.set_ylabel(("y" if view == "top" else "z") + " [m]")
+    ax.grid(alpha=0.3)
+    legend = ax.legend(fontsize=8, loc="upper right")
+    for handle in legend.legend_handles[:2]:
+        handle.set_sizes([20.0])
+    ax.set_title(f"fused ground + ceiling map, {view} view")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_outputs(result: FusionResult, out_dir, times: np.ndarray, truth: np.ndarray | None = None) -> dict:
+    """Write everything; returns {name: path} plus the report dict under 'report'."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {}
+    if len(result.map_points):
+        for suffix in ("ply", "pcd"):
+            paths[f"map_{suffix}"] = out / f"fused_map.{suffix}"
+            write_labelled_cloud(paths[f"map_{suffix}"], result.map_points, result.map_labels)
+        for view in ("top", "side"):
+            paths[f"png_{view}"] = render(result, out / f"fused_{view}.png", view)
+    for r in (GROUND, CEILING):
+        paths[f"tum_{ROBOT_NAMES[r]}"] = write_tum(out / f"trajectory_{ROBOT_NAMES[r]}.tum", times, result.poses[r])
+    report = report_dict(result, truth)
+    report["files"] = {k: str(v) for k, v in paths.items()}
+    paths["json"] = out / "fusion_report.json"
+    paths["json"].write_text(json.dumps(report, indent=1))
+    return {**paths, "report": report}

@@ -1,0 +1,244 @@
+"""graphloc.mapping: point cloud io, KISS-ICP odometry, Open3D registration, P3P front-end,
+the fusion pipeline end to end and the `fuse-maps` verb."""
+
+from __future__ import annotations
+
+import json
+
+import gtsam
+import numpy as np
+import pytest
+
+from graphloc.cli import main as cli_main
+from graphloc.datasets.dual_room import T_CEILING_CAMERA, CameraConfig, DualRoomScenario, variant_config
+from graphloc.mapping.demo import parse_hint
+from graphloc.mapping.fusion import (
+    CEILING, GROUND, FusionConfig, FusionInput, fuse, input_from_scenario, led_candidates,
+)
+from graphloc.mapping.io import (
+    read_labelled_cloud, read_led_pixels, read_points, read_scan_sequence, write_labelled_cloud,
+)
+from graphloc.mapping.odometry import run_odometry
+from graphloc.mapping.registration import information_right, pose_errors, prepare, refine
+
+
+@pytest.fixture(scope="module")
+def scenario() -> DualRoomScenario:
+    return DualRoomScenario.simulate(variant_config("furnished", 3, frames=4))
+
+
+@pytest.fixture(scope="module")
+def fused(scenario):
+    return fuse(input_from_scenario(scenario))
+
+
+# ----------------------------------------------------------------------------- io
+
+
+@pytest.mark.parametrize("suffix", ["ply", "pcd"])
+def test_labelled_cloud_round_trip(tmp_path, suffix):
+    pts = np.random.default_rng(0).normal(size=(50, 3))
+    labels = np.r_[np.zeros(20, int), np.ones(30, int)]
+    write_labelled_cloud(tmp_path / f"m.{suffix}", pts, labels)
+    back, back_labels = read_labelled_cloud(tmp_path / f"m.{suffix}")
+    np.testing.assert_allclose(back, pts, atol=1e-5)
+    np.testing.assert_array_equal(back_labels, labels)
+
+
+def test_scan_sequence_reads_xyz_and_counts_nonfinite(tmp_path):
+    pts = np.random.default_rng(1).normal(size=(40, 3))
+    np.savetxt(tmp_path / "000.xyz", pts)
+    bad = pts.copy()
+    bad[3] = np.nan
+    np.savetxt(tmp_path / "001.xyz", bad)
+    scans, files, dropped = read_scan_sequence(tmp_path)
+    assert [f.name for f in files] == ["000.xyz", "001.xyz"]
+    assert dropped == 1 and len(scans[1]) == 39
+    np.testing.assert_allclose(scans[0], pts, atol=1e-6)
+    with pytest.raises(ValueError, match="unsupported"):
+        read_points(tmp_path / "scan.txt")
+
+
+def test_led_pixel_table_errors_name_the_line(tmp_path):
+    p = tmp_path / "px.csv"
+    p.write_text("frame,time,led,u,v\n0,0.0,0,1.0,2.0\n0,0.0,0,1.0,2.0\n")
+    with pytest.raises(ValueError, match=r"px.csv:3: frame 0 led 0 given twice"):
+        read_led_pixels(p, 2)
+    p.write_text("frame,time,led,u,v\n5,0.0,0,1.0,2.0\n")
+    with pytest.raises(ValueError, match=r"px.csv:2: frame 5"):
+        read_led_pixels(p, 2)
+
+
+# ----------------------------------------------------------------------------- registration
+
+
+def test_information_conversion_preserves_the_quadratic_form():
+    """Open3D's left perturbation Exp(xi_L) T equals GTSAM's right one T Exp(xi_R) when xi_L = Ad_T xi_R."""
+    rng = np.random.default_rng(2)
+    T = gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3)), rng.normal(size=3))
+    A = rng.normal(size=(6, 6))
+    info_left = A @ A.T + np.eye(6)
+    xi_r = 1e-3 * rng.normal(size=6)
+    xi_l = T.AdjointMap() @ xi_r
+    np.testing.assert_allclose((gtsam.Pose3.Expmap(xi_l) * T).matrix(), (T * gtsam.Pose3.Expmap(xi_r)).matrix(), atol=1e-12)
+    info_right = information_right(info_left, T.matrix())
+    assert xi_r @ info_right @ xi_r == pytest.approx(xi_l @ info_left @ xi_l, rel=1e-10)
+
+
+def test_icp_from_a_rough_guess_converges_but_not_from_identity(scenario):
+    """Seed 004 Sec. V / Fig. 5: the inverted ceiling scan needs an initial guess."""
+    target, source = prepare(scenario.scans["ground"][0]), prepare(scenario.scans["ceiling"][0])
+    truth = scenario.T_ground0_ceiling0
+    rough = truth @ gtsam.Pose3(gtsam.Rot3.Expmap(np.deg2rad([3.0, -2.0, 4.0])), np.array([0.08, -0.05, 0.06])).matrix()
+    r = refine(source, target, rough)
+    rot, tr = pose_errors(r.transformation, truth)
+    assert rot < 0.2 and tr < 0.01
+    assert r.iterations > 0 and 0 < r.fitness <= 1
+    np.testing.assert_allclose(r.information, r.information.T)
+    assert np.linalg.eigvalsh(r.information).min() > 0
+    rot0, _ = pose_errors(refine(source, target, np.eye(4)).transformation, truth)
+    assert rot0 > 90.0
+
+
+def test_prepare_and_refine_reject_bad_input():
+    with pytest.raises(ValueError, match="NaN"):
+        prepare(np.full((100, 3), np.nan))
+    with pytest.raises(ValueError, match=r"\(N,3\)"):
+        prepare(np.zeros((100, 2)))
+    cloud = prepare(np.random.default_rng(0).uniform(size=(500, 3)))
+    with pytest.raises(ValueError, match="4x4"):
+        refine(cloud, cloud, np.eye(3))
+
+
+# ----------------------------------------------------------------------------- odometry
+
+
+def test_kiss_icp_odometry_tracks_the_ground_truth(scenario):
+    for robot in ("ground", "ceiling"):
+        odo = run_odometry(scenario.scans[robot])
+        truth = np.linalg.inv(scenario.poses[robot][0]) @ scenario.poses[robot]
+        np.testing.assert_allclose(odo.poses[0], np.eye(4), atol=1e-12)
+        rot, tr = pose_errors(odo.poses[-1], truth[-1])
+        assert rot < 2.0 and tr < 0.05  # KISS-ICP alone drifts; scan matching refines it in fuse()
+        assert odo.increments().shape == (len(truth) - 1, 4, 4)
+        assert odo.local_map.shape[1] == 3 and len(odo.local_map) > 1000
+    with pytest.raises(ValueError, match="NaN"):
+        run_odometry([np.full((10, 3), np.nan)])
+
+
+# ----------------------------------------------------------------------------- P3P front-end
+
+
+def test_one_p3p_candidate_is_the_true_camera_pose():
+    s = DualRoomScenario.simulate(variant_config("empty", 4, frames=3, camera=CameraConfig(pixel_noise=0.0)))
+    inp = input_from_scenario(s)
+    cands, skipped = led_candidates(inp.leds, inp.times, FusionConfig())
+    assert len(cands) + skipped == 3 and len(cands) >= 2
+    for f, c in cands.items():
+        truth = np.linalg.inv(s.poses["ground"][f]) @ s.poses["ceiling"][f] @ T_CEILING_CAMERA
+        errors = [pose_errors(p.matrix(), truth) for p in c.poses()]
+        assert min(e[0] for e in errors) < 1e-5 and min(e[1] for e in errors) < 1e-6
+        assert c.meta["covariance"].shape == (len(c), 6, 6)
+
+
+# ----------------------------------------------------------------------------- pipeline
+
+
+def test_fusion_recovers_the_inter_robot_transform(scenario, fused):
+    rot, tr = pose_errors(fused.T_g0_c0, scenario.T_ground0_ceiling0)
+    assert rot < 0.2 and tr < 0.01
+    g_rot, _ = pose_errors(fused.guess, scenario.T_ground0_ceiling0)
+    assert g_rot < 15.0  # P3P + tracker put ICP in the right basin (identity is ~180 deg off)
+    assert len(fused.guess_info.frames) == len(scenario.times)  # every frame saw the LEDs and went to the tracker
+    assert fused.n_p3p_factors >= 1
+    assert fused.graph_error[1] <= fused.graph_error[0] + 1e-9
+
+
+def test_optimized_trajectories_follow_the_ground_truth(scenario, fused):
+    G0 = np.linalg.inv(scenario.poses["ground"][0])
+    for r, name in ((GROUND, "ground"), (CEILING, "ceiling")):
+        truth = G0 @ scenario.poses[name]
+        worst = max(pose_errors(p, t)[0] for p, t in zip(fused.poses[r], truth))
+        assert worst < 0.3
+
+
+def test_fused_map_is_labelled_and_contains_both_robots(fused):
+    labels = fused.map_labels
+    assert len(labels) == len(fused.map_points)
+    assert (labels == GROUND).sum() > 1000 and (labels == CEILING).sum() > 1000
+    assert set(np.unique(labels)) == {GROUND, CEILING}
+
+
+def test_fusion_input_validation(scenario):
+    inp = input_from_scenario(scenario)
+    with pytest.raises(ValueError, match="scans for"):
+        FusionInput(inp.times, inp.ground_scans[:-1], inp.ceiling_scans, inp.leds)
+    with pytest.raises(ValueError, match="hint"):
+        FusionInput(inp.times, inp.ground_scans, inp.ceiling_scans)
+    with pytest.raises(ValueError, match="increasing"):
+        FusionInput(inp.times[::-1], inp.ground_scans, inp.ceiling_scans, inp.leds)
+
+
+def test_parse_hint():
+    T = parse_hint("1 2 3 0 0 0 1")
+    np.testing.assert_allclose(T[:3, 3], [1, 2, 3])
+    np.testing.assert_allclose(parse_hint(" ".join(map(str, np.eye(4).ravel()))), np.eye(4))
+    with pytest.raises(ValueError, match="unit"):
+        parse_hint("1 2 3 0 0 0 2")
+    with pytest.raises(ValueError, match="7"):
+        parse_hint("1 2 3")
+
+
+def test_fuse_maps_verb_on_user_directories_with_a_hint(scenario, tmp_path):
+    scenario.write(tmp_path / "scn")
+    T = scenario.T_ground0_ceiling0 @ gtsam.Pose3(gtsam.Rot3.Expmap(np.deg2rad([2.0, 1.0, -3.0])), np.array([0.05, 0.0, -0.04])).matrix()
+    hint = " ".join(f"{v:.9f}" for v in T.ravel())
+    rc = cli_main(["fuse-maps", "--ground", str(tmp_path / "scn/scans/ground"), "--ceiling",
+                   str(tmp_path / "scn/scans/ceiling"), "--hint", hint, "--out", str(tmp_path / "out")])
+    assert rc == 0
+    report = json.loads((tmp_path / "out" / "fusion_report.json").read_text())
+    T_est = np.array(report["T_ground0_ceiling0"]["matrix"])
+    rot, tr = pose_errors(T_est, scenario.T_ground0_ceiling0)
+    assert rot < 0.2 and tr < 0.01
+    for name in ("fused_map.ply", "fused_map.pcd", "fused_top.png", "fused_side.png", "trajectory_ceiling.tum"):
+        assert (tmp_path / "out" / name).stat().st_size > 0
+    assert report["registration"]["icp_iterations"] > 0 and "timings_s" in report
+
+
+def test_fuse_maps_verb_reports_bad_input(tmp_path, capsys):
+    rc = cli_main(["fuse-maps", "--ground", str(tmp_path / "none"), "--ceiling", str(tmp_path), "--hint",
+                   "0 0 0 0 0 0 1", "--out", str(tmp_path / "o")])
+    assert rc == 2 and "not a directory" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("variant", ["empty", "rectangular", "low_overlap"])
+def test_simulate_and_fuse_every_variant(variant, tmp_path):
+    from graphloc.mapping.demo import simulate_and_fuse
+
+    report = simulate_and_fuse(tmp_path, variant, seed=7, frames=5)
+    assert report["errors_vs_truth"]["rot_deg"] < 0.2 and report["errors_vs_truth"]["trans_m"] < 0.01
+    assert (tmp_path / "scenario" / "meta.json").is_file()
+
+
+def test_user_directories_with_p3p_observations(scenario, tmp_path):
+    from graphloc.datasets.dual_room import led_positions
+    from graphloc.mapping.demo import fuse_directories
+
+    scenario.write(tmp_path / "scn")
+    cam = scenario.config.camera
+    setup = {"camera": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": cam.width, "height": cam.height},
+             "leds": led_positions().tolist(), "T_ceiling_camera": T_CEILING_CAMERA.tolist(),
+             "pixels_csv": "scn/led_pixels.csv"}
+    (tmp_path / "p3p.json").write_text(json.dumps(setup))
+    report = fuse_directories(tmp_path / "scn/scans/ground", tmp_path / "scn/scans/ceiling", tmp_path / "out",
+                              p3p=str(tmp_path / "p3p.json"), rate=scenario.config.rate,
+                              config=FusionConfig(scan_matching=False, build_map=False))
+    rot, tr = pose_errors(np.array(report["T_ground0_ceiling0"]["matrix"]), scenario.T_ground0_ceiling0)
+    assert rot < 0.2 and tr < 0.01
+    assert report["p3p"]["frames_used"] == list(range(len(scenario.times)))
+    setup["leds"] = [[0, 0, 0], [1, 1]]
+    (tmp_path / "bad.json").write_text(json.dumps(setup))
+    with pytest.raises(ValueError, match="bad.json"):
+        fuse_directories(tmp_path / "scn/scans/ground", tmp_path / "scn/scans/ceiling", tmp_path / "out2",
+                         p3p=str(tmp_path / "bad.json"))
