@@ -28,23 +28,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=int, default=10)
 
 
-def _summary(report: dict) -> str:
-    t = report["T_ground0_ceiling0"]
-    lines = [f"T_ground0_ceiling0: translation {[round(v, 4) for v in t['translation_m']]} m, "
-             f"rpy {[round(v, 3) for v in t['rpy_deg_xyz']]} deg",
-             f"ICP fitness {report['registration']['fitness']:.3f}, RMSE {report['registration']['inlier_rmse_m']:.4f} m, "
-             f"{report['registration']['icp_iterations']} iterations"]
-    if "errors_vs_truth" in report:
-        e = report["errors_vs_truth"]
-        lines.append(f"error vs truth: {e['rot_deg']:.4f} deg, {100 * e['trans_m']:.3f} cm "
-                     f"(initial guess {e['guess_rot_deg']:.2f} deg, {100 * e['guess_trans_m']:.1f} cm)")
-    lines.append("timings [s]: " + ", ".join(f"{k} {v:.2f}" for k, v in report["timings_s"].items()))
-    lines.append("wrote " + ", ".join(report["files"].values()))
-    return "\n".join(lines)
-
-
 def run(args: argparse.Namespace) -> int:
     from graphloc.mapping.demo import fuse_directories, simulate_and_fuse
+    from graphloc.mapping.report import summary_text
 
     if args.simulate is not None:
         if args.simulate != "dual-robot-room":
@@ -64,5 +50,5 @@ def run(args: argparse.Namespace) -> int:
         if (args.hint is None) == (args.p3p is None):
             raise ValueError("give exactly one of --hint or --p3p for the inter-robot initial guess")
         report = fuse_directories(args.ground, args.ceiling, args.out, hint=args.hint, p3p=args.p3p, rate=args.rate)
-    print(_summary(report))
+    print(summary_text(report))
     return 0

@@ -104,3 +104,19 @@ def write_outputs(result: FusionResult, out_dir, times: np.ndarray, truth: np.nd
     paths["json"] = out / "fusion_report.json"
     paths["json"].write_text(json.dumps(report, indent=1))
     return {**paths, "report": report}
+
+
+def summary_text(report: dict) -> str:
+    """A few lines for the terminal: transform, ICP quality, error vs truth, timings, files."""
+    t = report["T_ground0_ceiling0"]
+    lines = [f"T_ground0_ceiling0: translation {[round(v, 4) for v in t['translation_m']]} m, "
+             f"rpy {[round(v, 3) for v in t['rpy_deg_xyz']]} deg",
+             f"ICP fitness {report['registration']['fitness']:.3f}, RMSE {report['registration']['inlier_rmse_m']:.4f} m, "
+             f"{report['registration']['icp_iterations']} iterations"]
+    if "errors_vs_truth" in report:
+        e = report["errors_vs_truth"]
+        lines.append(f"error vs truth: {e['rot_deg']:.4f} deg, {100 * e['trans_m']:.3f} cm "
+                     f"(initial guess {e['guess_rot_deg']:.2f} deg, {100 * e['guess_trans_m']:.1f} cm)")
+    lines.append("timings [s]: " + ", ".join(f"{k} {v:.2f}" for k, v in report["timings_s"].items()))
+    lines.append("wrote " + ", ".join(report["files"].values()))
+    return "\n".join(lines)
