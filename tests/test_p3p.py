@@ -243,21 +243,6 @@ def _identity_odometry():
     return Odometry(gtsam.Pose3(), np.eye(6) * 1e-4)
 
 
-def test_demo_command_writes_outputs(tmp_path, capsys):
-    import json
-
-    from graphloc.cli import main
-
-    assert main(["demo", "--out", str(tmp_path), "--trials", "40"]) == 0
-    result = json.loads((tmp_path / "demo.json").read_text())
-    assert set(result["by_pixel_noise"]) == {"0px", "0.05px", "0.5px"}
-    assert result["by_pixel_noise"]["0px"]["success_rate"] > 0.8
-    assert len(result["shown_trial"]["snapshots"]) == 3
-    assert (tmp_path / "demo.png").stat().st_size > 10_000
-    assert "smallest line error" in capsys.readouterr().out
-    assert main(["demo", "--out", str(tmp_path), "--trials", "0"]) == 2
-
-
 def test_p3p_bench_command_small(tmp_path):
     from graphloc.cli import main
 
