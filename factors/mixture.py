@@ -11,6 +11,10 @@ normalizer, so the factor's error is the negative log of a properly weighted Gau
 Candidate covariances: `CandidateSet.meta["covariance"]` (K,6,6) when the front-end provides
 it (e.g. `graphloc.datasets.feng.resection_covariance`), else `default_sigmas` (rot [rad],
 trans [m]); GTSAM Pose3 tangent order (rx, ry, rz, tx, ty, tz).
+
+`max_mixture_factor` / `candidate_max_mixture`: the same components as a max-mixture (Olson &
+Agarwal, RSS 2012), an ordinary nonlinear factor (gtsam.CustomFactor) that `Session` (LM /
+iSAM2) can optimize; it reports the active component for given Values.
 """
 
 from __future__ import annotations
@@ -86,3 +90,124 @@ def candidate_mixture(candidates: CandidateSet, observation: int, observed_key: 
         neg_log_w = np.where(w > 0, -np.log(np.maximum(w, 1e-300)), 1e6)
     pairs = [(f, float(nlw + f.noiseModel().negLogConstant())) for f, nlw in zip(factors, neg_log_w)]
     return gtsam.HybridNonlinearFactor((mode_key(observation), len(candidates)), pairs)
+
+
+# ---- max-mixture (Olson & Agarwal, RSS 2012) --------------------------------------------------
+class MaxMixture:
+    """A max-mixture of K components (Olson & Agarwal, "Inference on networks of mixtures for
+    robust robot mapping", RSS 2012, eq. 5): the sum over the mixture is replaced by its largest
+    term, so the negative log likelihood is
+
+        error(x) = min_k [ -log w_k + negLogConstant_k + sum_{f in component k} 0.5 ||r_f(x)||^2 ]
+
+    and the factor is linearized at the active (minimizing) component -- an ordinary
+    nonlinear factor that LM and iSAM2 can use (unlike `HybridNonlinearFactor`, which needs a
+    hybrid solver). `factor` is a `gtsam.CustomFactor` whose residual is the active component's
+    whitened error (its built-in factors' `linearize` gives the Jacobians), zero-padded to a
+    fixed length, plus one row sqrt(2 (c_k - min_j c_j)) for its constant c_k, so that
+    0.5 ||residual||^2 = error(x) - min_j c_j (a constant shift of the error).
+
+    A component is one factor or a group of factors whose errors add (e.g. a centre term plus
+    a normal term); every component must touch the same variables. `active(values)` is the
+    chosen mode at `values`; `component_errors(values)` all K terms.
+
+    iSAM2 caveat: iSAM2 re-evaluates a factor only when it relinearizes one of its variables
+    (delta above `relinearize_threshold`, every `relinearize_skip` updates); until then the
+    linear factor of the previously active component stays in the Bayes tree, so a switch of
+    mode takes effect only at the next relinearization of those variables. Keep the threshold
+    small for the mixture's variables (the seed-003 graph uses 0.01) or read `active` off the
+    final estimate; batch LM re-linearizes every iteration and has no such lag.
+    """
+
+    def __init__(self, components, weights):
+        groups = [tuple(c) if isinstance(c, (list, tuple)) else (c,) for c in components]
+        if not groups:
+            raise ValueError("max_mixture_factor: no components")
+        if any(not g for g in groups):
+            raise ValueError(f"max_mixture_factor: component {[i for i, g in enumerate(groups) if not g][0]} "
+                             f"has no factors")
+        w = np.asarray(weights, dtype=float)
+        if w.shape != (len(groups),):
+            raise ValueError(f"max_mixture_factor: weights must have shape ({len(groups)},), got {w.shape}")
+        bad = np.flatnonzero(~(np.isfinite(w) & (w > 0)))
+        if bad.size:
+            raise ValueError(f"max_mixture_factor: weight[{bad[0]}] = {w[bad[0]]} must be finite and > 0")
+        w = w / w.sum()
+        keys = []
+        for i, group in enumerate(groups):
+            for f in group:
+                if not isinstance(f, gtsam.NoiseModelFactor):
+                    raise ValueError(f"max_mixture_factor: component {i} holds {type(f).__name__}, "
+                                     f"expected a gtsam NoiseModelFactor")
+                if isinstance(f.noiseModel(), gtsam.noiseModel.Robust):
+                    raise ValueError(f"max_mixture_factor: component {i} has a robust noise model; the "
+                                     f"max-mixture is itself the robust model, use Gaussian components")
+            keys.append(sorted({k for f in group for k in f.keys()}))
+        if any(k != keys[0] for k in keys):
+            raise ValueError(f"max_mixture_factor: components touch different variables {keys}")
+        self.components = tuple(groups)
+        self.weights = w
+        self.keys = keys[0]
+        constants = -np.log(w) + np.array([sum(f.noiseModel().negLogConstant() for f in g) for g in groups])
+        self.constants = constants  # (K,) c_k = -log w_k + negLogConstant_k
+        self._offset_rows = np.sqrt(2.0 * (constants - constants.min()))
+        self._dims = [sum(f.dim() for f in g) for g in groups]
+        self.residual_dim = max(self._dims) + 1
+        self._key_dims: list[int] | None = None
+        self.factor = gtsam.CustomFactor(gtsam.noiseModel.Unit.Create(self.residual_dim), self.keys, self._evaluate)
+
+    def __reduce__(self):
+        """Pickle as (components, weights): the built-in factors pickle, the CustomFactor is rebuilt."""
+        return (MaxMixture, (self.components, self.weights))
+
+    def component_errors(self, values: gtsam.Values) -> np.ndarray:
+        """(K,) c_k + sum of the component's factor errors at `values`."""
+        return self.constants + np.array([sum(f.error(values) for f in g) for g in self.components])
+
+    def active(self, values: gtsam.Values) -> int:
+        """Index of the component the factor is linearized at (argmin of `component_errors`)."""
+        return int(np.argmin(self.component_errors(values)))
+
+    def _evaluate(self, _this, values: gtsam.Values, H):
+        k = self.active(values)
+        residual = np.zeros(self.residual_dim)
+        residual[-1] = self._offset_rows[k]
+        if H is None:
+            residual[:self._dims[k]] = np.concatenate([f.whitenedError(values) for f in self.components[k]])
+            return residual
+        if self._key_dims is None:  # once: the tangent dimension of every variable of the factor
+            zero = values.zeroVectors()
+            self._key_dims = [len(zero.at(key)) for key in self.keys]
+        column = dict(zip(self.keys, np.cumsum([0] + self._key_dims[:-1])))
+        J = np.zeros((self.residual_dim, sum(self._key_dims)))
+        row = 0
+        for f in self.components[k]:
+            A, b = f.linearize(values).jacobian()  # whitened: A dx - b, b = -whitened error
+            residual[row:row + len(b)] = -b
+            col = 0
+            for key in f.keys():
+                d = self._key_dims[self.keys.index(key)]
+                J[row:row + len(b), column[key]:column[key] + d] = A[:, col:col + d]
+                col += d
+            row += len(b)
+        for i, key in enumerate(self.keys):
+            H[i] = J[:, column[key]:column[key] + self._key_dims[i]]
+        return residual
+
+
+def max_mixture_factor(components, weights) -> MaxMixture:
+    """Max-mixture (Olson & Agarwal, RSS 2012) of `components` -- each a NoiseModelFactor or a
+    list of them (summed) -- with weights (K,) > 0 (normalized here); see `MaxMixture`. Add
+    `.factor` to the graph; keep the object to read `.active(values)`."""
+    return MaxMixture(list(components), weights)
+
+
+def candidate_max_mixture(candidates: CandidateSet, observed_key: int, observer_key: int | None = None,
+                          covariances: np.ndarray | None = None) -> MaxMixture:
+    """Max-mixture counterpart of `candidate_mixture`: one `component_factors` factor per
+    candidate, weights from the candidate scores."""
+    if len(candidates) == 0:
+        raise ValueError(f"candidate_max_mixture: candidate set (source={candidates.source!r}, "
+                         f"time={candidates.time}) is empty")
+    return max_mixture_factor(component_factors(candidates, observed_key, observer_key, covariances),
+                              candidates.weights())

@@ -5,7 +5,8 @@ KLT features; the robots move and stop in turns) as ONE factor graph solved by `
 (batch Levenberg-Marquardt or online iSAM2, same factors):
 
   x(0,t)  camera pose of the moving robot at frame t (Pose3, world = camera 0, OpenCV axes)
-  x(1,t)  centre of the teammate's base at frame t (Point3), for the frames it is seen
+  x(1,t)  the teammate's base disk at frame t (Pose3: origin = centre, z = disk normal), for
+          the frames it is seen (Point3 centre in the 'moment_matched_centre' baseline)
   l(j)    KLT feature j (Point3)
 
   PriorFactorPose3 on x(0,0)                 seed III: the robot starts at the origin (zero
@@ -13,9 +14,14 @@ KLT features; the robots move and stop in turns) as ONE factor graph solved by `
   BetweenFactorPose3 x(0,t-1) -> x(0,t)      seed eq. 8 with F = identity: constant-position
                                              motion model with the process noise Q
   GenericProjectionFactorCal3_S2 x(0,t), l(j)  seed eq. 14: KLT pixels (Huber kernel)
-  BearingRangeFactor3D x(0,t) -> x(1,t)      seed eqs. 1-4: the circle centre in the camera frame
-  BetweenFactorPoint3 x(1,s) -> x(1,t)       the teammate stood still (zero motion)
-  RangeFactor3 x(1,s) -> x(1,t)              the teammate moved (straight) by its odometry distance
+  max-mixture of BetweenFactorPose3          seed eqs. 1-4: the two circle poses T_cam_base of the
+    x(0,t) -> x(1,t), one per candidate      sighting (centre + normal; yaw about the normal loose),
+                                             Olson & Agarwal max-mixture (factors.mixture), weights
+                                             from the candidate scores
+  AttitudeFactorPose3 on x(1,t)              the teammate stands on the ground: base y axis up
+                                             (one per stance)
+  BetweenFactorPose3 x(1,s) -> x(1,t)        the teammate stood still (zero motion)
+  RangeFactorPose3 x(1,s) -> x(1,t)          the teammate moved (straight) by its odometry distance
   PriorFactorPoint3 on l(j)                  seed III: KLT points start "all at the same
                                              position" with a high covariance -- here on their
                                              first ray at one common depth, std
@@ -30,15 +36,18 @@ track, and Session (append-only `add`) cannot tell iSAM2 that an added factor ch
 and online see the same factors, added frame by frame through one `Session`.
 
 The circle front-end (`graphloc.vision.circle`) returns BOTH poses of the base (the ellipse
-cannot tell them apart). They differ mainly in the disk normal (~20 deg apart on crawler-pair);
-their centres are 0.16-0.19 mm apart at 0.8 m, across the line of sight, a Mahalanobis
-separation of 1.6-2.2 under the calibrated centre covariance. An equal-weight mixture of two
-Gaussians at separation <= 2 is unimodal (at ~2 flat-topped), so the candidate mixture
-restricted to the centre (the part that carries scale) enters as its moment-matched Gaussian (`teammate_observation`,
-covariance inflated by the spread) -- no candidate is chosen and none dropped; the separation is
-reported per observation (FrontEndReport.max_candidate_separation) so a bimodal case shows.
-The discrete mixture over the full relative pose (`graphloc.factors.mixture.candidate_mixture`,
-a HybridNonlinearFactor) cannot enter a `Session` graph: Session has no hybrid engine yet.
+cannot tell them apart). On crawler-pair their centres are 0.04-0.19 mm apart at 0.8 m, but
+their normals ~15-21 deg (the genuine one within ~1 deg of the truth, the false one tilted
+~4.5 deg out of the vertical plane, and drifting as the robots move). Both enter as a
+max-mixture: the genuine candidate is the one consistent with the other sightings (tied by the
+teammate's zero-motion factors) and with its upright attitude, so the graph picks it per frame
+(`CooperativeSfm.active_components`, `SfmRun.active_final` / `active_causal`) and the normal
+constrains the camera attitude too. In online mode the choice is re-evaluated only when iSAM2
+relinearizes x(0,t) or x(1,t) (see `factors.mixture.MaxMixture`); the session default
+relinearize_threshold 0.01 with two extra updates per frame. The moment-matched Gaussian of the
+candidate centres on a Point3 (normals unused) stays as the baseline
+teammate_model='moment_matched_centre'. A Python CustomFactor cannot be pickled by GTSAM, so
+`Session.save` works only for that baseline.
 """
 
 from __future__ import annotations
@@ -50,21 +59,27 @@ import numpy as np
 
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
+from graphloc.factors.mixture import MaxMixture, check_covariances, component_factors, max_mixture_factor
 from graphloc.factors.range_bearing import landmark_factor_3d
 from graphloc.factors.robust import Kernel, robust_noise
 from graphloc.keys import landmark_key, pose_key
 from graphloc.session import Session, SessionConfig
-from graphloc.vision.circle import CircleConfig, circle_pose_from_rim
+from graphloc.vision.circle import CircleConfig, circle_pose_from_rim, render_circle_rim, rotations_from_normals
 from graphloc.vision.features import BlobConfig, FeatureConfig, FeatureTracker, FrameFeatures, detect_base_rim
 
 CAMERA_ROBOT, TEAMMATE = 0, 1
+TEAMMATE_MODELS = ("max_mixture", "moment_matched_centre")
+WORLD_UP = np.array([0.0, -1.0, 0.0])  # OpenCV world (camera 0, level): y points down
 
 
 # ---- front-end: pixels -> per-frame measurements ----------------------------------------------
 @dataclass(frozen=True)
 class TeammateObservation:
-    """The teammate's base centre in the camera frame: centre (3,) [m], covariance (3,3), and
-    its projection `pixel` (2,) (the robot tracker's special feature point of seed II-B)."""
+    """The teammate's base in the camera frame. candidates: the circle poses T_cam_base (both
+    solutions, z = disk normal) with candidate_covariance (3,3) [m^2], the first-order noise
+    of one candidate's centre. centre (3,), covariance (3,3): their moment-matched Gaussian
+    (the 'moment_matched_centre' baseline); pixel (2,): its projection (the robot tracker's
+    special feature point of seed II-B)."""
 
     centre: np.ndarray
     covariance: np.ndarray
@@ -72,6 +87,8 @@ class TeammateObservation:
     n_candidates: int
     candidate_spread: float  # max distance of a candidate centre from the mean [m]
     candidate_separation: float = 0.0  # max Mahalanobis distance between two candidate centres
+    candidates: CandidateSet | None = None
+    candidate_covariance: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -126,7 +143,7 @@ def teammate_observation(candidates: CandidateSet, camera: PinholeCamera,
     separation = float(np.sqrt(np.max(np.einsum("ni,ni->n", pairs, np.linalg.solve(cov_single, pairs.T).T))))
     pixel, _ = camera.project(mean[None])
     return TeammateObservation(mean, 0.5 * (cov + cov.T), pixel[0], len(candidates),
-                               float(np.linalg.norm(d, axis=1).max()), separation)
+                               float(np.linalg.norm(d, axis=1).max()), separation, candidates, cov_single)
 
 
 @dataclass(frozen=True)
@@ -236,7 +253,22 @@ class CooperativeSfmConfig:
     feature_prior_depth [m], feature_prior_sigma [m]: the KLT points' initial position (common
     depth on the first ray; seed III: background at 260 cm) and its std (the same settings as
     the seed-003 EKF);
-    teammate_still_sigma [m]: zero-motion between-factor of a teammate that stood still;
+    teammate_still_sigma [m]: zero-motion between-factor of a teammate that stood still (and
+    [rad] for its attitude in the max-mixture model);
+    teammate_model: 'max_mixture' (default: each sighting's circle candidates as a max-mixture
+    on the relative pose camera -> base) or 'moment_matched_centre' (baseline: the candidates'
+    centres moment-matched into one Gaussian on a Point3, normals unused);
+    normal_sigma [rad]: disk-normal noise of one candidate. On crawler-pair seeds 100-103 (not
+    used by the benchmark) the genuine normal is 0.15-0.97 deg off, with a bias shared by the
+    frames, so 0.015 rad made the camera attitude follow that bias (x error 0.17 vs 0.11 mm at
+    N = 10); 0.03 keeps the gain at N = 1 (x 3.2 vs 6.0 mm) and matches the baseline at N = 10;
+    the false normal, ~20 deg off, stays > 10 sigma away;
+    circle_yaw_sigma [rad]: rotation about the normal, unobservable from a circle (loose);
+    upright_sigma [rad]: the teammate stands on the ground -- its base's y axis (in the disk
+    plane, circle convention of `graphloc.vision.circle`) is vertical, i.e. world -y (world =
+    camera 0, level), up to ground roughness and the normal's bias; one prior per pose the
+    teammate stands in (0.02 pulled the camera pitch: y error 0.16 vs 0.11 mm at N = 10 on
+    seeds 100-103; 0.05 does not);
     session: the engine (mode batch / online; online default: two extra iSAM2 iterations per
     frame, since new landmarks start at the common depth and one Gauss-Newton step is not enough)."""
 
@@ -247,14 +279,21 @@ class CooperativeSfmConfig:
     feature_prior_depth: float = 2.6
     feature_prior_sigma: float = 1.0
     teammate_still_sigma: float = 1e-3
+    teammate_model: str = "max_mixture"
+    normal_sigma: float = 0.03
+    circle_yaw_sigma: float = 1.0
+    upright_sigma: float = 0.05
     session: SessionConfig = field(default_factory=lambda: SessionConfig(relinearize_threshold=0.01, extra_updates=2))
 
     def __post_init__(self):
         for name in ("pixel_sigma", "first_pose_sigma", "feature_prior_depth", "feature_prior_sigma",
-                     "teammate_still_sigma"):
+                     "teammate_still_sigma", "normal_sigma", "circle_yaw_sigma", "upright_sigma"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"CooperativeSfmConfig.{name} must be finite > 0, got {v}")
+        if self.teammate_model not in TEAMMATE_MODELS:
+            raise ValueError(f"CooperativeSfmConfig.teammate_model must be one of {TEAMMATE_MODELS}, "
+                             f"got {self.teammate_model!r}")
 
 
 def _pose_noise(rot: float, trans: float):
@@ -289,6 +328,8 @@ class CooperativeSfm:
         self.online_positions: list[np.ndarray] = []  # causal estimate of each frame's camera position
         self.history: list[np.ndarray] = []  # at frame k: (k+1,3) estimated positions of frames 0..k
         self.skipped_pixels = 0  # non-finite feature pixels (counted, not used)
+        self.mixtures: dict[int, MaxMixture] = {}  # frame -> max-mixture of that sighting's candidates
+        self.causal_active: dict[int, int] = {}  # frame -> active component when the frame arrived
 
     # ---- one frame -------------------------------------------------------------------------
     def add_frame(self, frame: FrameInput) -> gtsam.Pose3:
@@ -310,19 +351,26 @@ class CooperativeSfm:
         if frame.teammate is not None and not (np.isfinite(frame.teammate.centre).all() and
                                                np.isfinite(frame.teammate.covariance).all()):
             raise ValueError(f"CooperativeSfm.add_frame: frame {frame.time}: teammate observation has NaN/inf")
+        if (frame.teammate is not None and self.config.teammate_model == "max_mixture"
+                and (frame.teammate.candidates is None or frame.teammate.candidate_covariance is None)):
+            raise ValueError(f"CooperativeSfm.add_frame: frame {frame.time}: teammate_model 'max_mixture' needs "
+                             f"the circle candidates and their centre covariance in the TeammateObservation")
+        if frame.teammate is not None and frame.teammate.candidate_covariance is not None:
+            check_covariances(np.asarray(frame.teammate.candidate_covariance, float).reshape(1, 3, 3),
+                              f"CooperativeSfm.add_frame: frame {frame.time}: teammate candidate_covariance")
         self._last_time = frame.time
         self.frame += 1
         k = self.frame
         x = pose_key(CAMERA_ROBOT, k)
-        graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+        graph, values = [], gtsam.Values()  # factors (and max-mixtures, kept whole so Session.save works)
         if k == 0:
-            graph.add(gtsam.PriorFactorPose3(x, gtsam.Pose3(), _pose_noise(self.config.first_pose_sigma,
+            graph.append(gtsam.PriorFactorPose3(x, gtsam.Pose3(), _pose_noise(self.config.first_pose_sigma,
                                                                             self.config.first_pose_sigma)))
             guess = gtsam.Pose3()
         else:
             sig = self.config.motion.sigmas(frame.camera_moved)
-            graph.add(gtsam.BetweenFactorPose3(pose_key(CAMERA_ROBOT, k - 1), x, gtsam.Pose3(), _pose_noise(*sig)))
-            guess = self._estimate.atPose3(pose_key(CAMERA_ROBOT, k - 1))
+            graph.append(gtsam.BetweenFactorPose3(pose_key(CAMERA_ROBOT, k - 1), x, gtsam.Pose3(), _pose_noise(*sig)))
+            guess = self._camera_guess(frame, self._estimate.atPose3(pose_key(CAMERA_ROBOT, k - 1)))
         values.insert(x, guess)
         self._add_teammate(frame, k, guess, graph, values)
         finite = np.isfinite(pixels).all(axis=1)
@@ -335,13 +383,15 @@ class CooperativeSfm:
             prior = gtsam.noiseModel.Isotropic.Sigma(3, self.config.feature_prior_sigma)
             for j, point in zip(ids[new].tolist(), points.reshape(-1, 3)):
                 values.insert(landmark_key(j), point)
-                graph.add(gtsam.PriorFactorPoint3(landmark_key(j), point, prior))
+                graph.append(gtsam.PriorFactorPoint3(landmark_key(j), point, prior))
                 self.admitted.add(j)
         for j, uv in zip(ids.tolist(), pixels):
-            graph.add(gtsam.GenericProjectionFactorCal3_S2(gtsam.Point2(*uv), self._pixel_noise, x, landmark_key(j),
+            graph.append(gtsam.GenericProjectionFactorCal3_S2(gtsam.Point2(*uv), self._pixel_noise, x, landmark_key(j),
                                                            self.calibration))
         self.session.add(graph, values, time=frame.time)
         self._estimate = self.session.estimate()
+        if k in self.mixtures:
+            self.causal_active[k] = self.mixtures[k].active(self._estimate)
         pose = self._estimate.atPose3(x)
         self.online_positions.append(np.asarray(pose.translation()))
         self.history.append(np.array([self._estimate.atPose3(pose_key(CAMERA_ROBOT, i)).translation()
@@ -357,23 +407,96 @@ class CooperativeSfm:
         if obs is None:
             return
         m = pose_key(TEAMMATE, k)
+        prev = None if self._last_mate is None else pose_key(TEAMMATE, self._last_mate)
+        if self.config.teammate_model == "max_mixture":
+            self._add_teammate_mixture(obs, k, m, prev, guess, graph, values)
+        else:
+            self._add_teammate_centre(obs, k, m, prev, guess, graph, values)
+        self._last_mate = k
+        self._mate_distance, self._mate_variance, self._mate_moved = 0.0, 0.0, False
+
+    def _add_teammate_centre(self, obs, k, m, prev, guess, graph, values) -> None:
+        """Baseline 'moment_matched_centre': x(1,k) is a Point3 seen by BearingRangeFactor3D."""
         rng = float(np.linalg.norm(obs.centre))
         direction = obs.centre / rng
         # Unit3 bearing noise from the lateral covariance, range noise from the radial part
         lateral = np.trace(obs.covariance) - direction @ obs.covariance @ direction
         sigmas = (np.sqrt(max(lateral, 1e-18) / 2.0) / rng,) * 2 + (np.sqrt(direction @ obs.covariance @ direction),)
-        graph.add(landmark_factor_3d(pose_key(CAMERA_ROBOT, k), m, direction, rng, sigmas))
+        graph.append(landmark_factor_3d(pose_key(CAMERA_ROBOT, k), m, direction, rng, sigmas))
         values.insert(m, guess.transformFrom(obs.centre))
-        if self._last_mate is not None:
-            prev = pose_key(TEAMMATE, self._last_mate)
+        if prev is not None:
             if self._mate_moved:
-                graph.add(gtsam.RangeFactor3(prev, m, self._mate_distance,
+                graph.append(gtsam.RangeFactor3(prev, m, self._mate_distance,
                                              gtsam.noiseModel.Isotropic.Sigma(1, np.sqrt(self._mate_variance))))
             else:
-                graph.add(gtsam.BetweenFactorPoint3(prev, m, np.zeros(3), gtsam.noiseModel.Isotropic.Sigma(
+                graph.append(gtsam.BetweenFactorPoint3(prev, m, np.zeros(3), gtsam.noiseModel.Isotropic.Sigma(
                     3, self.config.teammate_still_sigma)))
-        self._last_mate = k
-        self._mate_distance, self._mate_variance, self._mate_moved = 0.0, 0.0, False
+
+    def _add_teammate_mixture(self, obs, k, m, prev, guess, graph, values) -> None:
+        """'max_mixture': x(1,k) is the base's Pose3 (z = disk normal); the K circle candidates
+        T_cam_base enter as a max-mixture (`factors.mixture.max_mixture_factor`) of
+        BetweenFactorPose3(x(0,k), x(1,k), T_k), weights from the candidate scores, each with
+        the centre covariance (rotated into the candidate frame) and normal_sigma on the
+        normal, circle_yaw_sigma about it; AttitudeFactorPose3 keeps the base upright."""
+        cands = obs.candidates
+        if len(cands) == 0:
+            raise ValueError(f"CooperativeSfm: frame {k}: teammate observation with no circle candidates")
+        cfg = self.config
+        cov = np.zeros((len(cands), 6, 6))
+        cov[:, :3, :3] = np.diag([cfg.normal_sigma ** 2, cfg.normal_sigma ** 2, cfg.circle_yaw_sigma ** 2])
+        cov[:, 3:, 3:] = np.einsum("kji,jl,klm->kim", cands.R, obs.candidate_covariance, cands.R)
+        components = component_factors(cands, m, pose_key(CAMERA_ROBOT, k), cov)
+        if len(components) == 1:
+            graph.append(components[0])
+        else:
+            mixture = max_mixture_factor(components, cands.weights())
+            graph.append(mixture)
+            self.mixtures[k] = mixture
+        # initial guess (engine-side knowledge, never a choice the factor is bound to): a teammate
+        # that stood still is where it was; after a move, the candidate whose normal is closest to
+        # its previous normal (it crawls straight); at the first sighting the most upright one
+        R_cam = guess.rotation().matrix()
+        if prev is not None and not self._mate_moved:
+            values.insert(m, self._estimate.atPose3(prev))
+        else:
+            if prev is None:
+                score = np.einsum("ij,kj->ki", R_cam, cands.R[:, :, 1]) @ WORLD_UP
+            else:
+                previous_normal = self._estimate.atPose3(prev).rotation().matrix()[:, 2]
+                score = np.einsum("ij,kj->ki", R_cam, cands.R[:, :, 2]) @ previous_normal
+            values.insert(m, guess.compose(cands.poses()[int(np.argmax(score))]))
+        if prev is None or self._mate_moved:  # a new stance on the ground
+            graph.append(gtsam.AttitudeFactorPose3(m, gtsam.Unit3(WORLD_UP),
+                                                gtsam.noiseModel.Isotropic.Sigma(2, cfg.upright_sigma),
+                                                gtsam.Unit3(np.array([0.0, 1.0, 0.0]))))
+        if prev is not None:
+            if self._mate_moved:
+                graph.append(gtsam.RangeFactorPose3(prev, m, self._mate_distance,
+                                                 gtsam.noiseModel.Isotropic.Sigma(1, np.sqrt(self._mate_variance))))
+            else:
+                graph.append(gtsam.BetweenFactorPose3(prev, m, gtsam.Pose3(), _pose_noise(cfg.teammate_still_sigma,
+                                                                                        cfg.teammate_still_sigma)))
+
+    def _camera_guess(self, frame: FrameInput, previous: gtsam.Pose3) -> gtsam.Pose3:
+        """Initial camera pose: the previous one, or -- max-mixture model, teammate seen before
+        and standing still since -- resected from the teammate's estimated pose through the
+        candidate whose normal (via the previous camera attitude) is closest to the teammate's
+        normal. Without KLT the previous pose is centimetres off, and LM started there can
+        settle in the false candidate's basin (camera orbited ~20 deg about the teammate)."""
+        obs = frame.teammate
+        if (self.config.teammate_model != "max_mixture" or obs is None or self._last_mate is None
+                or self._mate_moved or frame.teammate_moved):
+            return previous
+        mate = self._estimate.atPose3(pose_key(TEAMMATE, self._last_mate))
+        normals_w = np.einsum("ij,kj->ki", previous.rotation().matrix(), obs.candidates.R[:, :, 2])
+        best = int(np.argmax(normals_w @ mate.rotation().matrix()[:, 2]))
+        return mate.compose(obs.candidates.poses()[best].inverse())
+
+    def active_components(self, values: gtsam.Values | None = None) -> dict[int, int]:
+        """frame -> index of the circle candidate the max-mixture is linearized at, at `values`
+        (default: the current estimate)."""
+        est = self.session.estimate() if values is None else values
+        return {k: mix.active(est) for k, mix in self.mixtures.items()}
 
     # ---- results ---------------------------------------------------------------------------
     def positions(self) -> np.ndarray:
@@ -393,7 +516,9 @@ class SfmRun:
     """Result of `run_cooperative_sfm`: causal (T,3) positions (each frame's estimate when it
     arrived), final (T,3) positions (smoothed over all frames), history: at frame k the
     (k+1,3) estimate of frames 0..k, landmark ids/points, the number of factors, skipped
-    (non-finite) pixels, and the per-frame latencies [s]."""
+    (non-finite) pixels, and the per-frame latencies [s]; active_causal / active_final (T,):
+    the circle candidate the max-mixture was linearized at when the frame arrived / at the
+    end (-1: no mixture that frame)."""
 
     causal_positions: np.ndarray
     final_positions: np.ndarray
@@ -403,6 +528,8 @@ class SfmRun:
     n_factors: int
     skipped_pixels: int
     latencies: np.ndarray
+    active_causal: np.ndarray
+    active_final: np.ndarray
 
 
 def run_cooperative_sfm(frames: list[FrameInput], camera: PinholeCamera,
@@ -412,9 +539,13 @@ def run_cooperative_sfm(frames: list[FrameInput], camera: PinholeCamera,
     for frame in frames:
         sfm.add_frame(frame)
     ids, points = sfm.landmarks()
+    causal, final = np.full(len(frames), -1), np.full(len(frames), -1)
+    for k, c in sfm.causal_active.items():
+        causal[k] = c
+    for k, c in sfm.active_components().items():
+        final[k] = c
     return SfmRun(np.array(sfm.online_positions), sfm.positions(), tuple(sfm.history), ids, points,
-                  int(sfm.session.graph.size()),
-                  sfm.skipped_pixels, sfm.session.latencies())
+                  int(sfm.session.graph.size()), sfm.skipped_pixels, sfm.session.latencies(), causal, final)
 
 
 # ---- evaluation ------------------------------------------------------------------------------
@@ -451,6 +582,19 @@ def trajectory_scale(estimated: np.ndarray, truth: np.ndarray) -> float:
     return float(np.sum(np.linalg.norm(p, axis=1) * np.linalg.norm(q, axis=1)) / qq) if qq > 0 else float("nan")
 
 
+def genuine_candidates(frames: list[FrameInput], true_normals: np.ndarray) -> np.ndarray:
+    """(T,) index of the circle candidate whose normal is closest to the true disk normal
+    (T,3, camera frame) -- the genuine one -- and -1 where the teammate was not seen."""
+    true_normals = np.asarray(true_normals, float)
+    if true_normals.shape != (len(frames), 3):
+        raise ValueError(f"genuine_candidates: true_normals must be ({len(frames)},3), got {true_normals.shape}")
+    out = np.full(len(frames), -1)
+    for k, f in enumerate(frames):
+        if f.teammate is not None and f.teammate.candidates is not None:
+            out[k] = int(np.argmax(f.teammate.candidates.R[:, :, 2] @ true_normals[k]))
+    return out
+
+
 def scale_errors(history, truth: np.ndarray) -> np.ndarray:
     """(T,) |s_k - 1| where s_k = trajectory_scale of what was known at frame k (history[k]:
     (k+1,3) positions of frames 0..k) against truth[:k+1]."""
@@ -462,16 +606,23 @@ def scale_errors(history, truth: np.ndarray) -> np.ndarray:
 def ideal_frames(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarray, points: np.ndarray,
                  base_centres: np.ndarray, camera_moved, teammate_moved, teammate_odometry, teammate_odometry_std,
                  pixel_sigma: float = 0.5, centre_sigmas: tuple[float, float] = (2e-4, 1e-3),
-                 rng: np.random.Generator | None = None) -> list[FrameInput]:
+                 rng: np.random.Generator | None = None, base_normals: np.ndarray | None = None,
+                 base_radius: float = 0.019, normal_sigma: float = 0.01) -> list[FrameInput]:
     """FrameInputs computed from geometry instead of pixels: world points (P,3) projected into
     cameras (T,3,3)/(T,3) with N(0, pixel_sigma) noise (ids = point indices, only visible ones),
     the base centre (T,3) seen in the camera frame with lateral / depth sigmas `centre_sigmas`
-    [m] (NaN rows: teammate not seen)."""
+    [m] (NaN rows: teammate not seen). The circle candidates come from the exact rim of the
+    base disk (world normals base_normals (T,3), default facing camera 0: -z; radius
+    base_radius) through `circle_pose_from_rim` -- the genuine and the mirrored solution --
+    then both get the same centre noise and each its own normal noise (normal_sigma [rad])."""
     rng = np.random.default_rng(0) if rng is None else rng
     R_wc, t_wc = np.asarray(R_wc, float), np.asarray(t_wc, float)
     T = len(R_wc)
     points = np.asarray(points, float).reshape(-1, 3)
     base_centres = np.asarray(base_centres, float).reshape(T, 3)
+    normals_w = (np.tile([0.0, 0.0, -1.0], (T, 1)) if base_normals is None
+                 else np.asarray(base_normals, float).reshape(T, 3))
+    normal_rng = np.random.default_rng(rng.bit_generator.seed_seq.spawn(1)[0])  # leaves rng's stream as is
     frames = []
     for k in range(T):
         pc = (points - t_wc[k]) @ R_wc[k]
@@ -484,9 +635,17 @@ def ideal_frames(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarray, poin
             d = c / np.linalg.norm(c)
             lat, dep = centre_sigmas
             cov = lat ** 2 * (np.eye(3) - np.outer(d, d)) + dep ** 2 * np.outer(d, d)
-            noisy = c + np.linalg.cholesky(cov) @ rng.normal(size=3)
+            rim, _ = render_circle_rim(camera, c, R_wc[k].T @ normals_w[k], base_radius, n_points=64)
+            exact, _ = circle_pose_from_rim(camera, rim, base_radius)
+            noise = np.linalg.cholesky(cov) @ rng.normal(size=3)
+            tilt = normal_rng.normal(0.0, normal_sigma, size=(len(exact), 2))  # about the candidate's x, y axes
+            normals = exact.R[:, :, 2] + np.einsum("kij,kj->ki", exact.R[:, :, :2], tilt)
+            R_c = rotations_from_normals(normals / np.linalg.norm(normals, axis=1, keepdims=True))
+            cands = CandidateSet(R_c, exact.t + noise, exact.scores, float(k), "camera", "teammate", "circle",
+                                 meta=exact.meta)
+            noisy = cands.t.mean(axis=0)
             pixel, _ = camera.project(noisy[None])
-            obs = TeammateObservation(noisy, cov, pixel[0], 1, 0.0)
+            obs = TeammateObservation(noisy, cov, pixel[0], len(cands), 0.0, 0.0, cands, cov)
         frames.append(FrameInput(float(k), FrameFeatures(ids.astype(np.int64), pixels), obs, bool(camera_moved[k]),
                                  bool(teammate_moved[k]), float(teammate_odometry[k]), float(teammate_odometry_std[k])))
     return frames

@@ -8,7 +8,8 @@
 - "online": gtsam.ISAM2, one incremental `update` per `add` (wall-clock latency recorded).
 
 State is serializable: `save(path)` pickles the config and the list of `add` steps (GTSAM 4.3
-NonlinearFactorGraph / Values pickle); `Session.load(path)` rebuilds the graph and, in online
+factors and Values pickle; Python-side factor providers such as `MaxMixture` pickle as the
+built-in factors and weights that rebuild them); `Session.load(path)` rebuilds the graph and, in online
 mode, replays the steps into a fresh iSAM2 with the same parameters, which reproduces the
 estimates exactly (iSAM2 is deterministic given the same update sequence).
 
@@ -35,7 +36,7 @@ import numpy as np
 
 MODES = ("batch", "online")
 _SAVE_FORMAT = "graphloc-session"
-_SAVE_VERSION = 1
+_SAVE_VERSION = 2  # 2: steps hold the added items (factors and factor providers)
 
 
 @dataclass(frozen=True)
@@ -90,17 +91,25 @@ class _Record:
     """What `save` keeps of one step so that `load` can replay it."""
 
     time: float
-    factors: gtsam.NonlinearFactorGraph
+    items: list  # what `add` was given: gtsam factors and factor providers (e.g. MaxMixture)
     values: gtsam.Values
     latency_s: float = field(default=0.0)
 
 
-def _as_graph(factors) -> gtsam.NonlinearFactorGraph:
+def _as_items(factors) -> list:
+    """The factors of one `add` call as a list. A *factor provider* -- an object with a `factor`
+    attribute holding a gtsam factor, such as `graphloc.factors.mixture.MaxMixture` -- is kept as
+    itself so that `save` can pickle what rebuilds it (GTSAM cannot serialize a Python
+    CustomFactor)."""
     if isinstance(factors, gtsam.NonlinearFactorGraph):
-        return factors
+        return [factors.at(i) for i in range(factors.size()) if factors.exists(i)]
+    return list(factors)
+
+
+def _as_graph(items: list) -> gtsam.NonlinearFactorGraph:
     graph = gtsam.NonlinearFactorGraph()
-    for f in factors:
-        graph.add(f)
+    for item in items:
+        graph.add(getattr(item, "factor", item))
     return graph
 
 
@@ -138,7 +147,8 @@ class Session:
         Every key a factor touches must be known already or be in `initial_values`; keys in
         `initial_values` must be new. A system GTSAM cannot solve (e.g. an unconstrained variable)
         raises ValueError."""
-        graph = _as_graph(factors)
+        items = _as_items(factors)
+        graph = _as_graph(items)
         t = (max(self._last_time, 0.0) if time is None else float(time))
         if not np.isfinite(t):
             raise ValueError(f"Session.add: time {time!r} is not finite")
@@ -170,7 +180,7 @@ class Session:
         self._last_time = t
         step = Step(time=t, n_factors=int(graph.size()), n_new_values=len(new_keys), latency_s=latency)
         self.steps.append(step)
-        self._records.append(_Record(t, graph, initial_values, latency))
+        self._records.append(_Record(t, items, initial_values, latency))
         return step
 
     def estimate(self, keys: Iterable[int] | None = None) -> gtsam.Values:
@@ -223,12 +233,19 @@ class Session:
 
     # ---- persistence ---------------------------------------------------------------------
     def save(self, path: str | Path) -> None:
-        """Pickle config + every step (factors, initial values, time) to `path`."""
+        """Pickle config + every step (factors, initial values, time) to `path`. A bare
+        gtsam.CustomFactor cannot be serialized: add the provider that builds it (e.g. a
+        `MaxMixture` object rather than its `.factor`) if the session is to be saved."""
+        for i, record in enumerate(self._records):
+            bare = [type(it).__name__ for it in record.items if isinstance(it, gtsam.CustomFactor)]
+            if bare:
+                raise ValueError(f"Session.save: step {i} (time {record.time}) holds a bare gtsam.CustomFactor, which "
+                                 f"GTSAM cannot serialize; add its provider object (e.g. MaxMixture) instead")
         payload = {
             "format": _SAVE_FORMAT,
             "version": _SAVE_VERSION,
             "config": asdict(self.config),
-            "steps": [(r.time, r.factors, r.values, r.latency_s) for r in self._records],
+            "steps": [(r.time, r.items, r.values, r.latency_s) for r in self._records],
         }
         with open(path, "wb") as fh:
             pickle.dump(payload, fh, protocol=pickle.HIGHEST_PROTOCOL)

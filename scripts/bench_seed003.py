@@ -4,16 +4,23 @@ translation error per axis with N = 1, 2, 10, 20 feature points, N counting the 
 tracker's point, so N - 1 KLT tracks).
 
 Every trial renders one sequence (a different random scene and motion per trial) and runs the
-same front-end measurements (KLT tracks, circle centre) through
+same front-end measurements (KLT tracks, circle candidates) through
   - ekf:    the seed's EKF (graphloc.baselines.ekf_seed003, 'proper' tracker covariance),
-  - batch:  graphloc.cooperative_sfm through Session batch LM (final smoothed trajectory),
+  - batch:  graphloc.cooperative_sfm through Session batch LM (final smoothed trajectory), the
+            two circle candidates of each sighting as a max-mixture on the relative pose
+            (factors.mixture.max_mixture_factor; centre and normal),
   - online: the same factors through Session iSAM2; each frame's estimate when it arrived
-            (causal, like the filter).
+            (causal, like the filter),
+  - batch_centre: baseline teammate_model 'moment_matched_centre' (batch; the candidates'
+            centres merged into one Gaussian, normals unused) -- does the mixture help?
 Metrics per method and N: mean absolute translation error per axis over the sequence [mm]
 (mean and std over trials), per-frame error curves, the trajectory scale error at each frame
 (|s - 1|, s = least-squares ratio of the lengths of the camera displacements from frame 0,
 using what was known at that frame) from the teammate's third sighting on, and the wall-clock
-time per frame of the estimators (graph / EKF ratio measured in the same run).
+time per frame of the estimators (graph / EKF ratio measured in the same run); per sighting,
+the circle candidate the max-mixture is linearized at (batch: final estimate; online: when the
+frame arrived) against the genuine one (closest normal to the true disk normal), and the cost
+of one max-mixture linearization against one BetweenFactorPose3 (same run).
 
 Targets (checked, written to the JSON): graphloc batch and online below the EKF on every axis
 for every N; scale error below 2 % from the teammate's third sighting on.
@@ -37,16 +44,21 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import gtsam  # noqa: E402
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from graphloc.baselines.ekf_seed003 import EkfConfig, run_ekf  # noqa: E402
-from graphloc.cooperative_sfm import (CooperativeSfmConfig, TeammateConfig, axis_errors, measure_frames,  # noqa: E402
-                                      run_cooperative_sfm, scale_errors)
+from graphloc.cooperative_sfm import (CooperativeSfmConfig, TeammateConfig, axis_errors,  # noqa: E402
+                                      genuine_candidates, measure_frames, run_cooperative_sfm, scale_errors)
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario  # noqa: E402
+from graphloc.factors.mixture import max_mixture_factor  # noqa: E402
+from graphloc.keys import pose_key  # noqa: E402
 from graphloc.vision.features import FeatureConfig  # noqa: E402
 
-METHODS = ("ekf", "batch", "online")
+METHODS = ("ekf", "batch", "online", "batch_centre")
+GRAPH_RUNS = {"batch": ("batch", "max_mixture"), "online": ("online", "max_mixture"),
+              "batch_centre": ("batch", "moment_matched_centre")}
 AXES = ("x", "y", "z")
 
 
@@ -74,14 +86,26 @@ def run_trial(seed: int, n_values: list[int], scenario: CrawlerPairConfig) -> di
         t_ekf = time.perf_counter() - t0
         res["ekf"] = {"positions": ekf, "scale": scale_errors([ekf[:k + 1] for k in range(len(ekf))], truth),
                       "seconds": t_ekf}
-        for mode in ("batch", "online"):
-            cfg = CooperativeSfmConfig(feature_prior_depth=depth)
+        genuine = genuine_candidates(frames, np.einsum("kji,kj->ki", seq.R_wc, seq.base_normal))
+        res["genuine"] = genuine
+        # first-order scale floor at the 3rd sighting: two centre depths (sigma along the line of
+        # sight, from the calibrated per-candidate covariance) over the true camera displacement
+        depth_sd = [np.sqrt(f.teammate.centre @ f.teammate.candidate_covariance @ f.teammate.centre)
+                    / np.linalg.norm(f.teammate.centre) for f in frames if f.teammate is not None]
+        moved = float(np.linalg.norm(truth[third] - truth[0])) if third < len(frames) else float("nan")
+        res["third_sighting_displacement_m"] = moved
+        res["scale_floor_3rd"] = float(np.hypot(depth_sd[0], depth_sd[2]) / moved) if len(depth_sd) >= 3 else \
+            float("nan")
+        for method, (mode, model) in GRAPH_RUNS.items():
+            cfg = CooperativeSfmConfig(feature_prior_depth=depth, teammate_model=model)
             cfg = replace(cfg, session=replace(cfg.session, mode=mode))
             t0 = time.perf_counter()
             run = run_cooperative_sfm(frames, seq.camera, cfg)
             seconds = time.perf_counter() - t0
             positions = run.final_positions if mode == "batch" else run.causal_positions
-            res[mode] = {"positions": positions, "scale": scale_errors(run.history, truth), "seconds": seconds}
+            active = run.active_final if mode == "batch" else run.active_causal
+            res[method] = {"positions": positions, "scale": scale_errors(run.history, truth), "seconds": seconds,
+                           "active": active}
         for m in METHODS:
             res[m]["errors"] = axis_errors(res[m]["positions"], truth)
         out[n] = res
@@ -116,6 +140,18 @@ def summarize(trials: list[dict], n_values: list[int]) -> dict:
                 "scale_curve": [None] + np.mean([t[n][m]["scale"][1:] for t in trials], axis=0).tolist(),
                 "seconds_per_sequence": float(np.mean([t[n][m]["seconds"] for t in trials])),
             }
+        per["scale_evidence"] = {
+            "camera_displacement_at_3rd_sighting_mm": 1000 * float(np.mean([t[n]["third_sighting_displacement_m"]
+                                                                           for t in trials])),
+            "first_order_scale_floor_at_3rd_sighting": float(np.mean([t[n]["scale_floor_3rd"] for t in trials]))}
+        for m in ("batch", "online"):
+            seen = [t[n]["genuine"] >= 0 for t in trials]
+            hits = sum(int(np.sum((t[n][m]["active"] == t[n]["genuine"])[s])) for t, s in zip(trials, seen))
+            total = sum(int(s.sum()) for s in seen)
+            per[m]["mixture"] = {"sightings": total, "genuine_active": hits,
+                                 "fraction_genuine": hits / total if total else float("nan"),
+                                 "active_per_trial": [t[n][m]["active"].tolist() for t in trials],
+                                 "genuine_per_trial": [t[n]["genuine"].tolist() for t in trials]}
         per["front_end"] = {k: int(sum(t[n]["front_end"][k] for t in trials)) for k in ("no_blob", "circle_failed",
                                                                                          "tracks_lost")}
         per["front_end"].update({k: float(max(t[n]["front_end"][k] for t in trials))
@@ -135,15 +171,16 @@ def summarize(trials: list[dict], n_values: list[int]) -> dict:
 
 
 def write_plots(summary: dict, n_values: list[int], out: Path) -> None:
-    colours = {"ekf": "tab:red", "batch": "tab:blue", "online": "tab:green"}
+    colours = {"ekf": "tab:red", "batch": "tab:blue", "online": "tab:green", "batch_centre": "tab:gray"}
     fig, axes = plt.subplots(1, 3, figsize=(13, 4))
-    width = 0.25
+    width = 0.8 / len(METHODS)
     for i, axis in enumerate(AXES):
         ax = axes[i]
         for j, m in enumerate(METHODS):
             vals = [summary[n][m]["mean_abs_error_mm"][axis] for n in n_values]
             errs = [summary[n][m]["std_over_trials_mm"][axis] for n in n_values]
-            ax.bar(np.arange(len(n_values)) + (j - 1) * width, vals, width, yerr=errs, label=m, color=colours[m])
+            offset = (j - (len(METHODS) - 1) / 2) * width
+            ax.bar(np.arange(len(n_values)) + offset, vals, width, yerr=errs, label=m, color=colours[m])
         ax.set_xticks(np.arange(len(n_values)), [f"N={n}" for n in n_values])
         ax.set_yscale("log")
         ax.set_title(f"mean |T_{axis} error| [mm]")
@@ -168,7 +205,7 @@ def write_plots(summary: dict, n_values: list[int], out: Path) -> None:
 
     fig, ax = plt.subplots(figsize=(7, 4))
     for n in n_values:
-        for m, style in (("batch", "-"), ("online", "--")):
+        for m, style in (("batch", "-"), ("online", "--"), ("batch_centre", ":")):
             curve = np.array(summary[n][m]["scale_curve"][1:], dtype=float)
             ax.plot(np.arange(1, len(curve) + 1), 100 * curve, style, label=f"{m} N={n}")
     ax.axhline(2.0, color="k", lw=0.8)
@@ -196,9 +233,41 @@ def markdown(result: dict, n_values: list[int]) -> str:
                          f"{e['scale_below_2pct_from_frame_worst_trial']} | "
                          f"{100 * e['scale_error_last_frame']['mean']:.2f} % | {e['seconds_per_sequence']:.3f} |")
     lines.append("")
+    lines.append("| N | max-mixture: genuine candidate active (batch final) | (online, when the frame arrived) | "
+                 "camera moved at 3rd sighting | first-order scale floor there |")
+    lines.append("|---|---|---|---|---|")
+    for n in n_values:
+        e = result["per_n"][n]
+        b, o, ev = e["batch"]["mixture"], e["online"]["mixture"], e["scale_evidence"]
+        lines.append(f"| {n} | {b['genuine_active']} / {b['sightings']} | {o['genuine_active']} / {o['sightings']} | "
+                     f"{ev['camera_displacement_at_3rd_sighting_mm']:.1f} mm | "
+                     f"{100 * ev['first_order_scale_floor_at_3rd_sighting']:.2f} % |")
+    lines.append("")
     for k, v in result["checks"].items():
         lines.append(f"- {'PASS' if v else 'FAIL'}: {k}")
     return "\n".join(lines) + "\n"
+
+
+def linearize_cost(repeats: int = 3000) -> dict:
+    """Seconds per linearization of a 2-component max-mixture of BetweenFactorPose3 (a Python
+    CustomFactor) and of one BetweenFactorPose3 (C++), measured in the same run."""
+    noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([0.015, 0.015, 1.0, 2e-4, 2e-4, 5e-4]))
+    a, b = pose_key(0, 0), pose_key(1, 0)
+    poses = [gtsam.Pose3(gtsam.Rot3.Ry(s), [0.03, 0.03, 0.83]) for s in (0.2, -0.15)]
+    between = gtsam.BetweenFactorPose3(a, b, poses[0], noise)
+    mixture = max_mixture_factor([gtsam.BetweenFactorPose3(a, b, p, noise) for p in poses], [0.5, 0.5]).factor
+    values = gtsam.Values()
+    values.insert(a, gtsam.Pose3())
+    values.insert(b, gtsam.Pose3(gtsam.Rot3.Ry(0.19), [0.031, 0.03, 0.829]))
+    out = {}
+    for name, factor in (("between_pose3", between), ("max_mixture_2", mixture)):
+        factor.linearize(values)
+        t0 = time.perf_counter()
+        for _ in range(repeats):
+            factor.linearize(values)
+        out[f"{name}_us"] = 1e6 * (time.perf_counter() - t0) / repeats
+    out["ratio_max_mixture_over_between"] = out["max_mixture_2_us"] / out["between_pose3_us"]
+    return out
 
 
 def main(argv=None) -> int:
@@ -219,12 +288,15 @@ def main(argv=None) -> int:
     result = summarize(trials, n_values)
     ratio = {n: result["per_n"][n]["online"]["seconds_per_sequence"] / result["per_n"][n]["ekf"]["seconds_per_sequence"]
              for n in n_values}
+    cost = linearize_cost()
     payload = {"trials": args.trials, "n_values": n_values, "scenario": asdict(scenario),
-               "time_ratio_online_over_ekf": ratio, **result}
+               "time_ratio_online_over_ekf": ratio, "linearize_cost": cost, **result}
     (out / "bench_seed003.json").write_text(json.dumps(payload, indent=1, default=str))
     (out / "bench_seed003.md").write_text(markdown(result, n_values))
     write_plots(result["per_n"], n_values, out)
     print(markdown(result, n_values))
+    print(f"linearization: BetweenFactorPose3 {cost['between_pose3_us']:.1f} us, max-mixture (2 components) "
+          f"{cost['max_mixture_2_us']:.1f} us, ratio {cost['ratio_max_mixture_over_between']:.1f}")
     print(f"wrote {out}/bench_seed003.json, .md, axis_errors.png, error_curves.png, scale_error.png")
     return 0
 

@@ -8,7 +8,8 @@ import pytest
 from graphloc.baselines.ekf_seed003 import run_ekf
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
-from graphloc.cooperative_sfm import (CooperativeSfm, CooperativeSfmConfig, FrameInput, TeammateConfig, axis_errors,
+from graphloc.cooperative_sfm import (TEAMMATE_MODELS, CooperativeSfm, CooperativeSfmConfig, FrameInput,
+                                      TeammateConfig, TeammateObservation, axis_errors, genuine_candidates,
                                       ideal_frames, measure_frames, run_cooperative_sfm, scale_errors,
                                       teammate_observation, trajectory_scale)
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
@@ -102,24 +103,34 @@ def test_online_and_batch_agree_at_the_end():
     assert batch.n_factors == online.n_factors
 
 
-def test_teammate_odometry_enters_as_a_range():
+@pytest.mark.parametrize("model", TEAMMATE_MODELS)
+def test_teammate_odometry_enters_as_a_range(model):
     frames, truth, _, base = frames_for(12, teammate_moves=True)
-    sfm = CooperativeSfm(CAM, config("batch"))
+    sfm = CooperativeSfm(CAM, replace(config("batch"), teammate_model=model))
     for f in frames:
         sfm.add_frame(f)
     types = {type(sfm.session.graph.at(i)).__name__ for i in range(sfm.session.graph.size())}
-    assert {"RangeFactor3", "BetweenFactorPoint3", "BearingRangeFactor3D", "GenericProjectionFactorCal3_S2",
-            "PriorFactorPoint3", "BetweenFactorPose3", "PriorFactorPose3"} <= types
+    common = {"GenericProjectionFactorCal3_S2", "PriorFactorPoint3", "BetweenFactorPose3", "PriorFactorPose3"}
     est = sfm.session.estimate()
     T = len(frames)
-    mate_world = est.atPoint3(pose_key(1, T - 1))
+    if model == "max_mixture":
+        assert common | {"RangeFactorPose3", "CustomFactor", "AttitudeFactorPose3"} <= types
+        mate_world = est.atPose3(pose_key(1, T - 1)).translation()
+        assert len(sfm.mixtures) == T
+    else:
+        assert common | {"RangeFactor3", "BetweenFactorPoint3", "BearingRangeFactor3D"} <= types
+        assert "CustomFactor" not in types and not sfm.mixtures
+        mate_world = est.atPoint3(pose_key(1, T - 1))
     assert np.linalg.norm(mate_world - base[-1]) < 0.003
     assert axis_errors(sfm.positions(), truth).max() < 0.003
 
 
-def test_online_session_save_and_resume(tmp_path):
+@pytest.mark.parametrize("model", ["max_mixture", "moment_matched_centre"])
+def test_online_session_save_and_resume(tmp_path, model):
+    """An online session with the max-mixtures (Python CustomFactors, rebuilt from their pickled
+    components) saves and resumes with identical estimates; so does the moment-matched baseline."""
     frames, _, _, _ = frames_for(8)
-    sfm = CooperativeSfm(CAM, config("online"))
+    sfm = CooperativeSfm(CAM, replace(config("online"), teammate_model=model))
     for f in frames[:5]:
         sfm.add_frame(f)
     path = tmp_path / "sfm.pkl"
@@ -128,6 +139,8 @@ def test_online_session_save_and_resume(tmp_path):
     a, b = sfm.session.estimate(), resumed.estimate()
     for k in range(5):
         assert a.atPose3(pose_key(0, k)).equals(b.atPose3(pose_key(0, k)), 1e-9)
+    if model == "max_mixture":
+        assert sfm.mixtures, "the scenario must exercise the mixture"
 
 
 def test_trajectory_scale():
@@ -191,3 +204,48 @@ def test_rendered_sequence_end_to_end():
     assert err.mean(axis=0)[2] < ekf_err.mean(axis=0)[2]
     assert err.max() < 0.005
     assert isinstance(run.latencies, np.ndarray) and len(run.latencies) == len(frames)
+
+
+def tilted_frames(seed=0, heading_deg=12.0, favour_false=False):
+    """Ideal frames whose teammate base faces 12 deg off camera 0's axis (as in crawler-pair):
+    the two circle candidates differ in the normal; optionally scores favour the false one 4:1."""
+    R, t, pts, base, cm, mm, odo, ostd = synthetic(n_points=19, seed=seed)
+    h = np.radians(heading_deg)
+    normals = np.tile(-np.array([np.sin(h), 0.0, np.cos(h)]), (len(R), 1))
+    frames = ideal_frames(CAM, R, t, pts, base, cm, mm, odo, ostd, rng=np.random.default_rng(seed + 100),
+                          base_normals=normals)
+    genuine = genuine_candidates(frames, np.einsum("kji,kj->ki", R, normals))
+    if favour_false:
+        frames = [replace(f, teammate=replace(f.teammate, candidates=CandidateSet(
+            f.teammate.candidates.R, f.teammate.candidates.t, np.where(np.arange(2) == g, 0.2, 0.8),
+            meta=f.teammate.candidates.meta))) for f, g in zip(frames, genuine)]
+    return frames, t, genuine
+
+
+@pytest.mark.parametrize("mode", ["batch", "online"])
+@pytest.mark.parametrize("favour_false", [False, True])
+def test_max_mixture_picks_the_genuine_circle_candidate_and_recovers_scale(mode, favour_false):
+    frames, truth, genuine = tilted_frames(favour_false=favour_false)
+    cands = frames[0].teammate.candidates
+    assert len(cands) == 2 and np.degrees(np.arccos(cands.R[0, :, 2] @ cands.R[1, :, 2])) > 5
+    run = run_cooperative_sfm(frames, CAM, config(mode))
+    np.testing.assert_array_equal(run.active_final, genuine)
+    np.testing.assert_array_equal(run.active_causal, genuine)
+    scale = scale_errors(run.history, truth)
+    assert scale[5:].max() < 0.02 and scale[-1] < 0.01
+    assert axis_errors(run.final_positions, truth).max() < 0.003
+
+
+def test_genuine_candidates_and_missing_candidates_are_checked():
+    frames, _, _ = tilted_frames()
+    with pytest.raises(ValueError, match="true_normals"):
+        genuine_candidates(frames, np.zeros((2, 3)))
+    f = frames[0]
+    bare = replace(f, teammate=TeammateObservation(f.teammate.centre, f.teammate.covariance, f.teammate.pixel, 1, 0.0))
+    with pytest.raises(ValueError, match="max_mixture"):
+        CooperativeSfm(CAM, config("batch")).add_frame(bare)
+    with pytest.raises(ValueError, match="teammate_model"):
+        CooperativeSfmConfig(teammate_model="gaussian")
+    nan_cov = replace(f, teammate=replace(f.teammate, candidate_covariance=np.full((3, 3), np.nan)))
+    with pytest.raises(ValueError, match="candidate_covariance: contains NaN"):
+        CooperativeSfm(CAM, config("batch")).add_frame(nan_cov)

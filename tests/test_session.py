@@ -234,3 +234,17 @@ def test_underconstrained_online_update_is_a_value_error():
     v.insert(pose_key(1, 0), gtsam.Pose2(1, 0, 0))
     with pytest.raises(ValueError, match="iSAM2 update failed"):
         s.add(g, v, time=0.0)
+
+
+def test_save_rejects_a_bare_custom_factor_with_a_clear_error(tmp_path):
+    def unit_error(_this, values, H):
+        if H is not None:
+            H[0] = np.eye(6)
+        return gtsam.Pose3.Logmap(values.atPose3(1))
+
+    session = Session(SessionConfig(mode="online"))
+    values = gtsam.Values()
+    values.insert(1, gtsam.Pose3())
+    session.add([gtsam.CustomFactor(gtsam.noiseModel.Unit.Create(6), [1], unit_error)], values, time=0.0)
+    with pytest.raises(ValueError, match="bare gtsam.CustomFactor"):
+        session.save(tmp_path / "s.pkl")
