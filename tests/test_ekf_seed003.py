@@ -5,49 +5,10 @@ import pytest
 
 from graphloc.baselines.ekf_seed003 import (N_MOTION, TRACKER_ID, EkfConfig, Seed003Ekf, incremental_rotation,
                                             run_ekf)
-from graphloc.cameras import PinholeCamera
-from graphloc.cooperative_sfm import FrameInput, axis_errors, ideal_frames
+from graphloc.cooperative_sfm import FrameInput, axis_errors
 from graphloc.vision.features import FrameFeatures
 
-CAM = PinholeCamera.from_fov(640, 480, np.radians(50))
-
-
-def rot_y(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-
-
-def synthetic(T=10, n_points=19, seed=0, teammate_moves=False):
-    """Camera crawling forward 1.2 cm/frame with small turns; KLT points on a wall at 2.6 m;
-    the teammate's base centre 0.83 m ahead (seed 003 section III)."""
-    rng = np.random.default_rng(seed)
-    yaw = np.cumsum(np.r_[0.0, rng.normal(0, 0.01, T - 1)])
-    R = np.stack([rot_y(a) for a in yaw])
-    t = np.zeros((T, 3))
-    for k in range(1, T):
-        t[k] = t[k - 1] + 0.012 * np.array([np.sin(yaw[k - 1]), 0.0, np.cos(yaw[k - 1])])
-        t[k, 0] += rng.normal(0, 0.002)
-    pts = np.column_stack([rng.uniform(-0.9, 0.9, n_points), rng.uniform(-0.7, 0.1, n_points), np.full(n_points, 2.6)])
-    base = np.tile([0.03, 0.031, 0.83], (T, 1))
-    cam_moved = np.r_[False, np.ones(T - 1, bool)]
-    mate_moved = np.zeros(T, bool)
-    odo = np.zeros(T)
-    odo_std = np.zeros(T)
-    if teammate_moves:  # the last two steps: camera stops, teammate crawls 2 cm away
-        cam_moved[-2:] = False
-        t[-2:] = t[-3]
-        R[-2:] = R[-3]
-        mate_moved[-2:] = True
-        base[-2] = base[-3] + [0, 0, 0.02]
-        base[-1] = base[-2] + [0, 0, 0.02]
-        odo[-2:], odo_std[-2:] = 0.02, 0.0005
-    return R, t, pts, base, cam_moved, mate_moved, odo, odo_std
-
-
-def frames_for(n_points, seed=0, **kw):
-    R, t, pts, base, cm, mm, odo, ostd = synthetic(n_points=n_points, seed=seed, **kw)
-    return ideal_frames(CAM, R, t, pts, base, cm, mm, odo, ostd, pixel_sigma=0.5,
-                        rng=np.random.default_rng(seed + 100)), t
+from seed003_synthetic import CAM, frames_for, rot_y  # noqa: E402
 
 
 def h_reference(ekf: Seed003Ekf, x: np.ndarray, which: np.ndarray) -> np.ndarray:
@@ -63,7 +24,7 @@ def h_reference(ekf: Seed003Ekf, x: np.ndarray, which: np.ndarray) -> np.ndarray
 
 
 def test_jacobian_matches_finite_differences():
-    frames, _ = frames_for(6)
+    frames, _, _, _ = frames_for(6)
     ekf = Seed003Ekf(CAM)
     for f in frames[:3]:
         ekf.step(f)
@@ -83,7 +44,7 @@ def test_jacobian_matches_finite_differences():
 
 
 def test_initial_state_follows_seed_section_iii():
-    frames, _ = frames_for(5)
+    frames, _, _, _ = frames_for(5)
     ekf = Seed003Ekf(CAM, EkfConfig(tracker_setting="proper"))
     ekf.step(frames[0])
     assert ekf.ids[0] == TRACKER_ID and len(ekf.ids) == 6
@@ -103,14 +64,14 @@ def test_more_features_improve_depth_translation():
     """Seed Fig. 6: with N = 1 (tracker point only) T_z is poorly estimated, many features fix it."""
     errs = {}
     for n in (1, 20):
-        frames, truth = frames_for(n - 1)
+        frames, truth, _, _ = frames_for(n - 1)
         errs[n] = axis_errors(run_ekf(frames, CAM), truth).mean(axis=0)
     assert errs[20][2] < 0.25 * errs[1][2]
     assert errs[20].max() < 0.01
 
 
 def test_teammate_move_reinitializes_tracker_point():
-    frames, truth = frames_for(15, teammate_moves=True)
+    frames, truth, _, _ = frames_for(15, teammate_moves=True)
     ekf = Seed003Ekf(CAM)
     for f in frames:
         ekf.step(f)
@@ -121,7 +82,7 @@ def test_teammate_move_reinitializes_tracker_point():
 
 
 def test_bad_input():
-    frames, _ = frames_for(4)
+    frames, _, _, _ = frames_for(4)
     ekf = Seed003Ekf(CAM)
     no_mate = FrameInput(0.0, frames[0].features, None, False, False)
     with pytest.raises(ValueError, match="teammate"):
@@ -140,7 +101,7 @@ def test_bad_input():
 
 
 def test_points_behind_the_camera_are_counted_not_used():
-    frames, _ = frames_for(5)
+    frames, _, _, _ = frames_for(5)
     ekf = Seed003Ekf(CAM)
     ekf.step(frames[0])
     ekf.x[N_MOTION + 3 * 1 + 2] = -1.0  # push the first KLT point behind the camera
