@@ -194,3 +194,50 @@ def test_decided_modes_resolved_in_batch_session_improve_accuracy():
         decided_graph(run.candidates, odo[:-1], decisions)
     with pytest.raises(ValueError, match="no frame"):
         decided_graph(run.candidates[:1], odo[:1], decisions[:1])
+
+
+# (ceiling, curve, seed) of runs whose first commit was on a pseudo candidate with the plain 0.95
+# rule: the benchmark's (3049, 5097: a genuine P3P solution 10-16 Mahalanobis^2 off on frame 0)
+# and from the disjoint validation seeds (a pseudo solution that follows the odometry for the
+# first 2-4 updates of a sloped-ceiling run)
+EARLY_WRONG_COMMITS = [("sloped", "sine", 3049), ("sloped", "quadratic", 5097), ("sloped", "line", 51032),
+                       ("sloped", "line", 51181), ("sloped", "sine", 53260), ("sloped", "quadratic", 55021)]
+
+
+def _first_commit(run, odo, config):
+    tracker = HypothesisTracker(config)
+    for k, (c, o) in enumerate(zip(run.candidates, odo)):
+        d = tracker.update(c, o)
+        if d.locked:
+            return k, d.committed == c.meta["genuine"]
+    return None, False
+
+
+def test_early_large_genuine_error_does_not_commit_a_pseudo_candidate():
+    """Frame 0-2 evidence driven by one frame's P3P error (heavy-tailed near the danger cylinder)
+    or by a pseudo solution that mimics the motion for a few updates must not commit: with the
+    held-out-update rule and the Student-t posterior every run's first commit is the genuine
+    candidate; the plain rule (commit as soon as the posterior passes 0.95) commits wrongly."""
+    plain = TrackerConfig(robust_commit=False, student_scale=False)
+    plain_wrong = 0
+    for ceiling, curve, seed in EARLY_WRONG_COMMITS:
+        run, odo = simulate(ceiling=ceiling, curve=curve, seed=seed)
+        k, ok = _first_commit(run, odo, TrackerConfig())
+        assert k is not None and ok, (ceiling, curve, seed, k)
+        assert k <= 20
+        k_plain, ok_plain = _first_commit(run, odo, plain)
+        plain_wrong += int(not ok_plain)
+    assert plain_wrong >= 4
+
+
+def test_commit_needs_more_than_one_update_of_evidence():
+    """A single update that moves a track from the uniform prior to > 0.95 does not commit it;
+    the next consistent update does (the held-out update gain is subtracted)."""
+    frames, odo = _two_track_stream(n=6, scale_b=1.0)
+    # the copy jumps 0.3 m sideways from update 1 on: one decisive update for the genuine track
+    frames = [dataclasses.replace(c, t=c.t + np.array([[0, 0, 0], [0, 0.3 * (k > 0) + 0.01 * k, 0]]))
+              for k, c in enumerate(frames)]
+    tracker = HypothesisTracker(TrackerConfig(full_count=2))
+    decisions = [tracker.update(c, o) for c, o in zip(frames, odo)]
+    assert decisions[1].probabilities[0] > 0.95 and not decisions[1].locked
+    assert any(d.locked and d.committed == 0 for d in decisions[2:])
