@@ -7,16 +7,14 @@ scripts/repro_seed000.py, scripts/repro_seed004.py, scripts/make_results.py and
 - Seed 000 (000_05137a0a9c449be3.txt) Sec. VI-A Table I: ground triangle from
   graphloc.vision.mutual on noisy 512x512 omni pixels (C1 is the reference), camera C from P3P
   + the straight-line test (seed, Sec. IV) vs one GTSAM graph over all six cameras.
-  Table II: running times measured here. Table III: scripts/bench_hypotheses.py's trials.
+  Table II: running times measured here. Table III: graphloc.experiments.hypotheses's trials.
 - Seed 004 (004_fa12d1d18dcbd0db.txt) Sec. III Table 1: RMS position error (Eq. 4) of raw P3P
   vs a GTSAM batch smoother over a short track (odometry + per-frame P3P pose factors).
 """
 
 from __future__ import annotations
 
-import importlib.util
 import multiprocessing as mp
-import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
@@ -411,11 +409,11 @@ def table_i(config: TableIConfig = TableIConfig(), progress: bool = True) -> dic
     }
 
 
-# ---- seed 000 Table III / Fig. 6 (trials of scripts/bench_hypotheses.py) ---------------------
+# ---- seed 000 Table III / Fig. 6 (trials of graphloc.experiments.hypotheses) ---------------------
 @dataclass(frozen=True)
 class TableIIIConfig:
     """Seed 000 Sec. VI-B: `runs` runs per (ceiling, curve) cell (paper: 100). The remaining
-    fields are scripts/bench_hypotheses.py's options (same defaults): tracker K, belief Def. 2
+    fields are graphloc.experiments.hypotheses's options (same defaults): tracker K, belief Def. 2
     lambda, straight-line snapshot spacing / commit threshold, pixel noise [px]."""
 
     runs: int = 100
@@ -431,25 +429,12 @@ class TableIIIConfig:
             raise ValueError(f"TableIIIConfig: runs and workers must be >= 1, got {self.runs}, {self.workers}")
 
 
-def load_script(name: str):
-    """scripts/<name>.py of the source checkout as a module, registered in sys.modules so that
-    worker processes can unpickle its functions. Used for scripts/bench_hypotheses.py (its
-    `trial`, `summarize`, `make_engine`, `odometry_steps`, CELLS are the one implementation of
-    the Table III trials)."""
-    if name in sys.modules:
-        return sys.modules[name]
-    path = Path(__file__).resolve().parents[1] / "scripts" / f"{name}.py"
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: needed to reproduce the seed tables (run from a source checkout)")
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 def bench_hypotheses():
-    return load_script("bench_hypotheses")
+    """The Table III trials (graphloc.experiments.hypotheses: `trial`, `summarize`,
+    `make_engine`, `odometry_steps`, CELLS -- one implementation for the script and the tables)."""
+    from graphloc.experiments import hypotheses
+
+    return hypotheses
 
 
 def seed001_experiment(out_dir: Path, quick: bool = False) -> str:
@@ -771,7 +756,7 @@ def markdown_table_iii(r: dict) -> str:
         lines.append(f"| {name} | {c['paper_table_iii']} | {correct('belief_def1')} | {correct('belief_def2')} | "
                      f"{correct('particle_filter')} | {correct('tracker')} | "
                      f"{'yes' if r['graphloc_fewer_updates_to_correct_lock_than_paper_and_belief'][name] else 'no'} |")
-    lines += ["", "Runs, engines and convergence rule: scripts/bench_hypotheses.py (update 1 = first odometry step). "
+    lines += ["", "Runs, engines and convergence rule: graphloc.experiments.hypotheses (update 1 = first odometry step). "
                   "Wrong first locks count commits on a non-genuine candidate: a method that converges fast but wrongly is not better."]
     return "\n".join(lines) + "\n"
 

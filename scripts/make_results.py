@@ -29,7 +29,8 @@ def main(argv=None) -> int:
     parser.add_argument("--skip-seed001", action="store_true", help="skip the rendered seed 001 experiment")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
-    seed000, seed004 = tables.load_script("repro_seed000"), tables.load_script("repro_seed004")
+    from graphloc.experiments import seed000, seed004
+
     r0 = seed000.run(args.out / "seed000", 100 if args.quick else 1000, 5 if args.quick else 100, args.workers)
     r4 = seed004.run(args.out / "seed004", 50 if args.quick else 1000, 10, args.workers)
     parts = [r0["markdown"], r4["markdown"]]
