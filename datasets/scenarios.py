@@ -8,7 +8,7 @@ qz qw, what evo reads) named in manifest["meta"]: "groundtruth_tum" (true camera
 "odometry_tum" (the noisy odometry integrated from the true first pose).
 
 The seed 000 scenarios are adapters over the one implementation of each simulation:
-`feng-deterministic` (Sec. VI-A, graphloc.baselines.seed000_trials + ground omni cameras as in
+`feng-deterministic` (Sec. VI-A, graphloc.datasets.feng_deterministic + ground omni cameras as in
 graphloc.tables.ground_triangle) and `feng-probabilistic` (Sec. VI-B,
 graphloc.datasets.feng.FengProbabilisticScenario). `dual-robot-room` writes its own format
 (graphloc.datasets.dual_room.DualRoomScenario.write).
@@ -168,7 +168,7 @@ class FengDeterministicScenario:
         return TableIConfig
 
     def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
-        from graphloc.baselines.seed000_trials import Seed000Config, simulate_straight_line_trials
+        from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straight_line_trials
         from graphloc.baselines.straight_line import localize_by_straight_line
         from graphloc.cameras import PinholeCamera
         from graphloc.tables import TableIConfig, ground_triangle

@@ -9,7 +9,7 @@ T_k)` when the observer is the world (ground robots localized beforehand, seed 0
 normalizer, so the factor's error is the negative log of a properly weighted Gaussian mixture.
 
 Candidate covariances: `CandidateSet.meta["covariance"]` (K,6,6) when the front-end provides
-it (e.g. `graphloc.datasets.feng.resection_covariance`), else `default_sigmas` (rot [rad],
+it (e.g. `graphloc.geometry.resection.resection_covariance`), else `default_sigmas` (rot [rad],
 trans [m]); GTSAM Pose3 tangent order (rx, ry, rz, tx, ty, tz).
 
 `max_mixture_factor` / `candidate_max_mixture`: the same components as a max-mixture (Olson &

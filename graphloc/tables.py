@@ -24,7 +24,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
-from graphloc.baselines.seed000_trials import Seed000Config, StraightLineTrials, simulate_straight_line_trials
+from graphloc.datasets.feng_deterministic import Seed000Config, StraightLineTrials, simulate_straight_line_trials
 from graphloc.baselines.straight_line import bearings_from_pixels, localize_by_straight_line
 from graphloc.cameras import ParaboloidOmniCamera
 from graphloc.geometry.p3p import MAX_CANDIDATES
@@ -324,7 +324,7 @@ def table_i(config: TableIConfig = TableIConfig(), progress: bool = True) -> dic
     t_start = time.perf_counter()
     sim = Seed000Config(pixel_sigma=config.pixel_sigma)
     # formations where some robot stays outside another's omni field of view whatever the
-    # orientation are redrawn (as seed000_trials redraws trials where C cannot see them)
+    # orientation are redrawn (as datasets/feng_deterministic.py redraws trials where C cannot see them)
     pool = simulate_straight_line_trials(int(1.1 * config.trials) + 10, seed=config.seed, config=sim)
     tri = ground_triangle(pool.ground, config, np.random.default_rng([config.seed, 1]))
     rows = np.flatnonzero(tri.visible)[: config.trials]
@@ -613,7 +613,7 @@ def _error_stats(err: np.ndarray) -> dict:
 def seed004_cell(config, workers: int = 1) -> dict:
     """One cell of seed 004 Table 1: raw P3P (genuine candidate) vs the smoothed track, same
     runs. `config` is a graphloc.datasets.kaushik.KaushikConfig."""
-    from graphloc.datasets.feng import resection_covariance
+    from graphloc.geometry.resection import resection_covariance
     from graphloc.datasets.kaushik import simulate
 
     runs = simulate(config)

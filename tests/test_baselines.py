@@ -7,7 +7,7 @@ import pytest
 
 from graphloc.baselines.belief_vector import BeliefVector, BeliefVectorConfig, likelihood
 from graphloc.baselines.particle_filter import ParticleFilter, ParticleFilterConfig, plane_basis, sample_motion
-from graphloc.baselines.seed000_trials import Seed000Config, simulate_straight_line_trials
+from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straight_line_trials
 from graphloc.baselines.straight_line import StraightLineBaseline, StraightLineConfig, localize_by_straight_line
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance

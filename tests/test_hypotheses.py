@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from graphloc.candidates import CandidateSet
-from graphloc.datasets.feng import (FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance,
-                                    resection_covariance, seed000_camera)
+from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance, seed000_camera
+from graphloc.geometry.resection import resection_covariance
 from graphloc.hypotheses import HypothesisTracker, Odometry, TrackerConfig, decided_graph
 from graphloc.keys import pose_key
 from graphloc.session import Session, SessionConfig

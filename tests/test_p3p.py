@@ -190,7 +190,7 @@ def test_empty_batch():
 
 # ----------------------------------------------------------------------------- straight-line test + demo
 
-from graphloc.baselines.seed000_trials import Seed000Config, simulate_straight_line_trials  # noqa: E402
+from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straight_line_trials  # noqa: E402
 from graphloc.baselines.straight_line import (StraightLineBaseline, StraightLineConfig,  # noqa: E402
                                               localize_by_straight_line, straight_line_errors)
 

@@ -23,7 +23,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from graphloc import tables  # noqa: E402
-from graphloc.datasets.feng import resection_covariance  # noqa: E402
+from graphloc.geometry.resection import resection_covariance  # noqa: E402
 from graphloc.datasets.kaushik import KaushikConfig, simulate  # noqa: E402
 
 

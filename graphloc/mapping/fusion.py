@@ -147,7 +147,7 @@ class FusionResult:
 def led_candidates(leds: LedObservations, times: np.ndarray, cfg: FusionConfig):
     """P3P candidate sets of every camera frame with all three LEDs (camera poses in G_k) and
     their first-order covariances. Returns ({frame: CandidateSet}, skipped frame count)."""
-    from graphloc.datasets.feng import resection_covariance
+    from graphloc.geometry.resection import resection_covariance
 
     F = len(leds.pixels)
     bearings, ok = leds.camera.pixel_to_bearing(leds.pixels.reshape(-1, 2))

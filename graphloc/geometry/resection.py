@@ -1,0 +1,34 @@
+"""First-order covariance of a camera pose recovered by P3P / resection from pixel noise
+(the candidate covariance every P3P front-end hands to the engines: seed 000 Sec. V, seed 004
+Sec. II-C -- the P3P candidates' uncertainty that the belief vector and particle filter ignore)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from graphloc.cameras import PinholeCamera
+
+
+def resection_covariance(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarray, points: np.ndarray,
+                         pixel_sigma: float, floor: tuple[float, float] = (1e-3, 1e-3)) -> np.ndarray:
+    """First-order covariance (N,6,6) of camera poses (N,3,3)/(N,3) recovered from the pixels of
+    three world points (N,3,3) with isotropic pixel noise: sigma^2 (A^T A)^-1, A (6x6) = d pixels
+    / d pose (GTSAM Pose3 tangent (rot, trans), right perturbation T Exp(xi)). P3P is a square
+    problem (6 pixel coordinates, 6 pose DOF), so A is invertible away from the danger cylinder
+    and blows up near it. `floor` = (rad, m) sigmas added on the diagonal."""
+    pc = np.einsum("nji,npj->npi", R_wc, points - t_wc[:, None, :])  # (N,3,3) camera-frame points
+    x, y, z = pc[..., 0], pc[..., 1], pc[..., 2]
+    f = np.array([camera.fx, camera.fy])
+    J = np.zeros(pc.shape[:2] + (2, 3))  # d(uv)/d(pc)
+    J[..., 0, 0], J[..., 0, 2] = f[0] / z, -f[0] * x / z ** 2
+    J[..., 1, 1], J[..., 1, 2] = f[1] / z, -f[1] * y / z ** 2
+    skew = np.zeros(pc.shape[:2] + (3, 3))
+    skew[..., 0, 1], skew[..., 0, 2], skew[..., 1, 2] = -z, y, -x
+    skew[..., 1, 0], skew[..., 2, 0], skew[..., 2, 1] = z, -y, x
+    dpc = np.concatenate([skew, np.broadcast_to(-np.eye(3), skew.shape)], axis=-1)  # (N,3,3,6)
+    A = (J @ dpc).reshape(len(pc), 6, 6)
+    if not (np.isfinite(pixel_sigma) and pixel_sigma >= 0):
+        raise ValueError(f"resection_covariance: pixel_sigma must be finite >= 0, got {pixel_sigma}")
+    cov = pixel_sigma ** 2 * np.linalg.pinv(np.einsum("nki,nkj->nij", A, A), hermitian=True)
+    cov += np.diag(np.repeat(np.square(floor), 3))
+    return 0.5 * (cov + np.transpose(cov, (0, 2, 1)))
