@@ -281,8 +281,11 @@ class ParaboloidOmniCamera:
             return (cos_polar <= math.cos(self.min_polar_angle)) & (cos_polar >= math.cos(self.max_polar_angle))
 
     def pixel_to_bearing(self, pixels) -> tuple[np.ndarray, np.ndarray]:
-        """Pixels (M,2) -> unit bearings (M,3) (closed-form lifting); valid = finite and
-        within [min_polar_angle, max_polar_angle]."""
+        """Pixels (M,2) -> unit bearings (M,3) (closed-form lifting); valid = finite input (the
+        lifting is defined for every pixel, as the pinhole's is within its distortion model).
+        The FOV limits [min_polar_angle, max_polar_angle] are a property of projection
+        (`bearing_to_pixel`'s `visible`): a measured pixel that noise pushed just past the mirror
+        rim still lifts to the bearing it measures."""
         pixels = check_rows(pixels, 2, "pixels")
         xi = self.xi
         xy = (pixels - (self.cx, self.cy)) / self.focal
@@ -291,7 +294,7 @@ class ParaboloidOmniCamera:
         bearings = np.column_stack([s * xy[:, 0], s * xy[:, 1], s - xi])
         finite = np.isfinite(bearings).all(axis=1)
         bearings[~finite] = np.nan
-        return bearings, finite & self._in_fov(bearings)
+        return bearings, finite
 
     def bearing_to_pixel(self, bearings) -> tuple[np.ndarray, np.ndarray]:
         """Bearings (M,3) (any positive length) -> pixels (M,2); NaN where d_z <= -xi

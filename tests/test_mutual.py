@@ -153,8 +153,8 @@ def test_nan_pixel_and_mislabelled_robots():
     wrong[2, 0, 2] += 40.0
     assert localize_three(wrong, OMNI, 2.0).status[2] == STATUS_INCONSISTENT
     outside = pixels.copy()
-    outside[2, 0, 1] = [0.0, 0.0]  # image corner: beyond max_polar_angle
-    assert localize_three(outside, OMNI, 2.0).status[2] == STATUS_NO_BEARING
+    outside[2, 0, 1] = [0.0, 0.0]  # image corner, beyond the mirror rim: lifts, but to a bearing that does not close
+    assert localize_three(outside, OMNI, 2.0).status[2] == STATUS_INCONSISTENT
 
 
 def test_relative_poses_compose_and_gtsam():

@@ -45,7 +45,7 @@ import numpy as np
 from graphloc.cameras import normalize_rows
 
 STATUS_OK = "ok"
-STATUS_NO_BEARING = "no_bearing"  # a pixel is NaN or outside the observer's field of view
+STATUS_NO_BEARING = "no_bearing"  # a pixel is NaN (no detection) or cannot be lifted by the camera model
 STATUS_DEGENERATE = "degenerate_triangle"  # smallest interior angle < min_angle (collinear robots)
 STATUS_INCONSISTENT = "inconsistent_bearings"  # closure, misfit or relative tilt beyond the config limits
 
