@@ -229,8 +229,23 @@ class HypothesisTracker:
         self._max_gain: dict[int, float] = {}  # track id -> largest log-odds gain of one update
         self._last_time: float | None = None
         self._keys = (pose_key(0, 0), pose_key(0, 1))  # the 2-pose window of every track
-        self._gn = gtsam.GaussNewtonParams()
-        self._gn.setMaxIterations(int(config.gn_iterations))
+        self._gn = self._make_gn_params(config)
+
+    @staticmethod
+    def _make_gn_params(config: TrackerConfig) -> gtsam.GaussNewtonParams:
+        params = gtsam.GaussNewtonParams()
+        params.setMaxIterations(int(config.gn_iterations))
+        return params
+
+    def __getstate__(self) -> dict:
+        """Picklable state (save / resume an online tracker): GaussNewtonParams is rebuilt."""
+        state = self.__dict__.copy()
+        del state["_gn"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._gn = self._make_gn_params(self.config)
 
     @property
     def num_hypotheses(self) -> int:

@@ -241,3 +241,22 @@ def test_commit_needs_more_than_one_update_of_evidence():
     decisions = [tracker.update(c, o) for c, o in zip(frames, odo)]
     assert decisions[1].probabilities[0] > 0.95 and not decisions[1].locked
     assert any(d.locked and d.committed == 0 for d in decisions[2:])
+
+
+def test_tracker_state_saves_and_resumes_with_identical_decisions(tmp_path):
+    """An online tracker pickled mid-run and resumed gives the same decisions as one that ran on."""
+    import pickle
+
+    run, odo = simulate(ceiling="sloped", curve="sine", seed=6)
+    straight = HypothesisTracker()
+    expected = feed(straight, run, odo)
+    tracker = HypothesisTracker()
+    feed(tracker, run, odo, 0, 20)
+    path = tmp_path / "tracker.pkl"
+    path.write_bytes(pickle.dumps(tracker))
+    resumed = pickle.loads(path.read_bytes())
+    got = feed(resumed, run, odo, 20)
+    for a, b in zip(expected[20:], got):
+        assert a.committed == b.committed and a.locked == b.locked
+        np.testing.assert_array_equal(a.probabilities, b.probabilities)
+        assert a.pose.equals(b.pose, 0.0)
