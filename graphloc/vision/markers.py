@@ -398,21 +398,21 @@ def _detect_in_region(gray, region, config, predicted_px, steps, counts):
     f2 = min(254.0, mu + config.f2_sigmas * sigma)
     otsu, _ = cv2.threshold(sub, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
     f1 = max(float(otsu), f2)  # Otsu on a marker-free window would split the noise
-    weight_all = np.clip(gray.astype(np.float32) - mu, 0.0, None)
+    weight = np.clip(sub.astype(np.float32) - mu, 0.0, None)  # region only: an ROI restricts all work
 
     h, w = gray.shape
-    blobs1, labels1 = _label_stats(sub > f1, weight_all[y0:y1, x0:x1], (x0, y0))
+    blobs1, labels1 = _label_stats(sub > f1, weight, (x0, y0))
     blobs1 = _reject(blobs1, labels1, (x0, y0), config, counts, exclude=_cut(blobs1.box, region, w, h, counts))
     if len(blobs1):
         m = config.window_margin
         wx0, wy0 = max(x0, int(blobs1.box[:, 0].min()) - m), max(y0, int(blobs1.box[:, 1].min()) - m)
         wx1, wy1 = min(x1, int(blobs1.box[:, 2].max()) + m), min(y1, int(blobs1.box[:, 3].max()) + m)
         mask2 = gray[wy0:wy1, wx0:wx1] > f2
-        blobs, labels2 = _label_stats(mask2, weight_all[wy0:wy1, wx0:wx1], (wx0, wy0))
+        blobs, labels2 = _label_stats(mask2, weight[wy0 - y0:wy1 - y0, wx0 - x0:wx1 - x0], (wx0, wy0))
         window = (wx0, wy0, wx1, wy1)
         blobs = _reject(blobs, labels2, (wx0, wy0), config, counts, exclude=_cut(blobs.box, window, w, h, counts))
     else:
-        mask2, blobs, (wx0, wy0) = None, _Blobs.empty(), (x0, y0)
+        mask2, blobs, window = None, _Blobs.empty(), region
 
     if len(blobs) < config.expected and mask2 is not None and config.erosion_iterations > 0:
         # erosion by a Euclidean disc of growing radius (distance transform), splits touching markers
@@ -421,9 +421,10 @@ def _detect_in_region(gray, region, config, predicted_px, steps, counts):
         n_erode = max(config.erosion_iterations, int(np.ceil(config.erosion_radius_fraction * r_big)))
         for it in range(1, n_erode + 1):
             eroded = depth > it
-            h2, w2 = mask2.shape
-            eb, el = _label_stats(eroded, weight_all[wy0:wy0 + h2, wx0:wx0 + w2], (wx0, wy0))
-            eb = _reject(eb, el, (wx0, wy0), config, {})
+            eb, el = _label_stats(eroded, weight[wy0 - y0:wy1 - y0, wx0 - x0:wx1 - x0], (wx0, wy0))
+            # the same window-cut rule as the F2 pass: distanceTransform treats pixels beyond the
+            # crop as foreground, so a fragment cut by the window does not shrink from that side
+            eb = _reject(eb, el, (wx0, wy0), config, {}, exclude=_cut(eb.box, window, w, h, {}))
             if len(eb) > len(blobs):
                 blobs = eb
                 steps.append("erosion")
