@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import gtsam
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from graphloc.candidates import CandidateSet
 
@@ -79,8 +80,7 @@ class P3PCandidates:
 
     def poses(self, i: int) -> list[gtsam.Pose3]:
         """Valid candidates of instance i as gtsam.Pose3 (camera in world)."""
-        keep = self.valid[i]
-        return [gtsam.Pose3(gtsam.Rot3(R), t) for R, t in zip(self.R_wc[i][keep], self.t_wc[i][keep])]
+        return self.candidate_set(i).poses()
 
     def candidate_set(self, i: int, bearing_sigma_rad: float = 1e-3, **context) -> CandidateSet:
         """Instance i as a CandidateSet, score = exp(-residual^2 / (2 sigma^2)). A minimal problem
@@ -240,9 +240,11 @@ def _geometry(F, P):
 # ----------------------------------------------------------------------------- polynomial roots
 
 
-def _real_cubic_roots(b, c, d):
-    """Real roots of x^3 + b x^2 + c x + d for (N,1) coefficients -> (N,3), NaN where not real.
-    Trigonometric form for three real roots, Cardano for one; Newton steps."""
+def _real_cubic_roots(b, c, d, newton_steps: int = 1):
+    """Real roots of x^3 + b x^2 + c x + d, coefficients of any (broadcastable) shape S ->
+    (*S, 3), largest first, NaN where not real. Trigonometric form for three real roots,
+    Cardano for one; then Newton steps."""
+    b, c, d = (np.asarray(v, dtype=float)[..., None] for v in (b, c, d))
     p = c - b * b / 3.0
     q = 2.0 * b**3 / 27.0 - b * c / 3.0 + d
     disc = (q / 2.0) ** 2 + (p / 3.0) ** 3
@@ -251,12 +253,12 @@ def _real_cubic_roots(b, c, d):
     m = 2.0 * np.sqrt(np.maximum(-p / 3.0, 0.0))
     phi = np.arccos(np.clip(np.where(three, 3.0 * q / (p * m), 0.0), -1.0, 1.0)) / 3.0
     cphi, sphi = np.cos(phi), np.sin(phi) * (np.sqrt(3.0) / 2.0)
-    # cos(phi - 2 pi k / 3) for k = 0, 1, 2
-    trig = m * np.concatenate([cphi, -0.5 * cphi + sphi, -0.5 * cphi - sphi], axis=1) + shift
+    # cos(phi - 2 pi k / 3) for k = 0, 1, 2 (k = 0 is the largest)
+    trig = m * np.concatenate([cphi, -0.5 * cphi + sphi, -0.5 * cphi - sphi], axis=-1) + shift
     sq = np.sqrt(np.maximum(disc, 0.0))
     single = np.cbrt(-q / 2.0 + sq) + np.cbrt(-q / 2.0 - sq) + shift
     x = np.where(three, trig, np.where(np.arange(3) == 0, single, np.nan))
-    for _ in range(1):
+    for _ in range(newton_steps):
         fx = ((x + b) * x + c) * x + d
         dfx = (3.0 * x + 2.0 * b) * x + c
         x = x - np.where(dfx != 0, fx / dfx, 0.0)
@@ -264,21 +266,8 @@ def _real_cubic_roots(b, c, d):
 
 
 def _largest_real_cubic_root(b, c, d):
-    """Largest real root of x^3 + b x^2 + c x + d (batched): trigonometric form when there are
-    three real roots, Cardano for one; two Newton steps."""
-    p = c - b * b / 3.0
-    q = 2.0 * b**3 / 27.0 - b * c / 3.0 + d
-    disc = (q / 2.0) ** 2 + (p / 3.0) ** 3
-    three = disc < 0
-    m = 2.0 * np.sqrt(np.maximum(-p / 3.0, 0.0))
-    trig = m * np.cos(np.arccos(np.clip(3.0 * q / (p * m), -1.0, 1.0)) / 3.0)
-    sq = np.sqrt(np.maximum(disc, 0.0))
-    x = np.where(three, trig, np.cbrt(-q / 2.0 + sq) + np.cbrt(-q / 2.0 - sq)) - b / 3.0
-    for _ in range(2):
-        fx = ((x + b) * x + c) * x + d
-        dfx = (3.0 * x + 2.0 * b) * x + c
-        x = x - np.where(dfx != 0, fx / dfx, 0.0)
-    return x
+    """Largest real root (shape of the coefficients) of x^3 + b x^2 + c x + d; two Newton steps."""
+    return _real_cubic_roots(b, c, d, newton_steps=2)[..., 0]
 
 
 def _real_quartic_roots(coeffs):
@@ -455,7 +444,7 @@ def _finsterwalder_depths(geo):
     H = b2 * (b2 - a2) * sg2 + c2 * (c2 + 2.0 * a2) * sb2 + 2.0 * b2 * c2 * (-1.0 + ca * cb * cg)
     I = b2 * (b2 - c2) * sa2 + a2 * (a2 + 2.0 * c2) * sb2 + 2.0 * a2 * b2 * (-1.0 + ca * cb * cg)
     J = a2 * (a2 * sb2 - b2 * sa2)
-    lam0 = _real_cubic_roots(H / G, I / G, J / G)  # (N,3)
+    lam0 = _real_cubic_roots(H / G, I / G, J / G).reshape(-1, 3)  # (N,3)
     B = -ca
     A = 1.0 + lam0
     C = (b2 - a2 - lam0 * c2) / b2
@@ -670,7 +659,7 @@ def _polish_pose(F, P, R, t, iters):
         except np.linalg.LinAlgError:  # some singular Jacobian in the batch: least squares for all
             step = (np.linalg.pinv(J) @ -np.nan_to_num(r)[..., None])[..., 0]
         step = np.where(np.isfinite(step).all(axis=1, keepdims=True), step, 0.0)
-        dR = _rodrigues(step[:, :3])
+        dR = Rotation.from_rotvec(step[:, :3]).as_matrix()
         Rcw = dR @ Rcw
         tcw = np.einsum("mij,mj->mi", dR, tcw) + step[:, 3:]
     return _soa_pose(np.swapaxes(Rcw, -1, -2), -np.einsum("mji,mj->mi", Rcw, tcw))
@@ -680,20 +669,4 @@ def _soa_pose(Ra, ta):
     """(...,3,3), (...,3) arrays -> R as rows of 3-tuples, t as a 3-tuple."""
     return (tuple(tuple(Ra[..., i, j] for j in range(3)) for i in range(3)),
             tuple(ta[..., i] for i in range(3)))
-
-
-def _skew(v):
-    z = np.zeros(v.shape[:-1])
-    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1),
-                     np.stack([v[..., 2], z, -v[..., 0]], -1),
-                     np.stack([-v[..., 1], v[..., 0], z], -1)], axis=-2)
-
-
-def _rodrigues(w):
-    th = np.linalg.norm(w, axis=-1)[..., None, None]
-    K = _skew(w)
-    small = th < 1e-12
-    a = np.where(small, 1.0, np.sin(th) / np.where(small, 1.0, th))
-    b = np.where(small, 0.5, (1.0 - np.cos(th)) / np.where(small, 1.0, th * th))
-    return np.eye(3) + a * K + b * (K @ K)
 

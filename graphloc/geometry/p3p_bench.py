@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from graphloc.geometry.p3p import MAX_CANDIDATES, METHODS, solve_p3p
 
@@ -44,14 +45,8 @@ class InstanceConfig:
 
 
 def random_rotations(n: int, rng: np.random.Generator) -> np.ndarray:
-    """(n,3,3) uniformly random rotations (normalized Gaussian quaternions)."""
-    q = rng.normal(size=(n, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], axis=1)
+    """(n,3,3) uniformly random rotations."""
+    return Rotation.random(n, random_state=rng).as_matrix()
 
 
 def random_p3p_instances(n: int, seed: int = 0, config: InstanceConfig = InstanceConfig()) -> P3PInstances:

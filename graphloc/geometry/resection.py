@@ -16,6 +16,14 @@ def resection_covariance(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarr
     / d pose (GTSAM Pose3 tangent (rot, trans), right perturbation T Exp(xi)). P3P is a square
     problem (6 pixel coordinates, 6 pose DOF), so A is invertible away from the danger cylinder
     and blows up near it. `floor` = (rad, m) sigmas added on the diagonal."""
+    if any(camera.dist):
+        raise ValueError("resection_covariance: the camera has lens distortion; this first-order model uses the "
+                         "pinhole Jacobian only (undistort the pixels and pass an undistorted camera)")
+    R_wc, t_wc, points = (np.asarray(a, dtype=float) for a in (R_wc, t_wc, points))
+    n = len(R_wc)
+    if R_wc.shape != (n, 3, 3) or t_wc.shape != (n, 3) or points.shape != (n, 3, 3):
+        raise ValueError(f"resection_covariance: expected R_wc (N,3,3), t_wc (N,3), points (N,3,3); got "
+                         f"{R_wc.shape}, {t_wc.shape}, {points.shape}")
     pc = np.einsum("nji,npj->npi", R_wc, points - t_wc[:, None, :])  # (N,3,3) camera-frame points
     x, y, z = pc[..., 0], pc[..., 1], pc[..., 2]
     f = np.array([camera.fx, camera.fy])

@@ -109,8 +109,7 @@ def project_markers(camera, target: MarkerTarget, R_tc: np.ndarray, t_tc: np.nda
     R = np.asarray(R_tc, dtype=float)
     t = np.asarray(t_tc, dtype=float)
     batch = R.shape[:-2]
-    X_cam = np.einsum("...ji,...mj->...mi", R, target.points[None] - t[..., None, :]) if batch else \
-        (target.points - t) @ R
+    X_cam = np.einsum("...ji,...mj->...mi", R, target.points - t[..., None, :])
     px, vis = camera.project(X_cam.reshape(-1, 3))
     m = len(target.points)
     return px.reshape(*batch, m, 2), vis.reshape(*batch, m)
@@ -348,7 +347,8 @@ def design_targets(config: TargetDesignConfig = TargetDesignConfig(), progress: 
     """Maximize eq. (1) with scipy Nelder-Mead from `n_starts` random feasible starts (seed III-A).
 
     Starts: `n_samples` random configurations (markers uniform in a cube of side D2), screened
-    in one vectorized cost evaluation; the best-scoring feasible ones seed Nelder-Mead. The result
+    in one vectorized cost evaluation; `n_starts` of the feasible ones, drawn at random, seed
+    Nelder-Mead. The result
     is centred on its centroid per target."""
     rng = np.random.default_rng(config.seed)
     shape = (config.n_targets, config.n_markers, 3)
