@@ -414,7 +414,7 @@ def table_i(config: TableIConfig = TableIConfig(), progress: bool = True) -> dic
 class TableIIIConfig:
     """Seed 000 Sec. VI-B: `runs` runs per (ceiling, curve) cell (paper: 100). The remaining
     fields are graphloc.experiments.hypotheses's options (same defaults): tracker K, belief Def. 2
-    lambda, straight-line snapshot spacing / commit threshold, pixel noise [px]."""
+    lambda, straight-line snapshot spacing / commit threshold, pixel noise [px], seed offset."""
 
     runs: int = 100
     workers: int = 2
@@ -423,6 +423,7 @@ class TableIIIConfig:
     line_spacing: int = 10
     line_max_error: float = 0.05
     pixel_sigma: float = 0.5
+    seed_offset: int = 0
 
     def __post_init__(self):
         if self.runs < 1 or self.workers < 1:
@@ -438,17 +439,12 @@ def bench_hypotheses():
 
 
 def seed001_experiment(out_dir: Path, quick: bool = False) -> str:
-    """Seed 001 experiment 1 by scripts/repro_seed001.py (rendered frames; it writes its JSON
+    """Seed 001 experiment 1 (graphloc.experiments.seed001, rendered frames; writes its JSON
     and PNG to out_dir); returns its markdown table."""
-    import contextlib
-    import io
+    from graphloc.experiments import seed001
 
-    from graphloc.experiments import seed001 as script
-
-    printed = io.StringIO()
-    with contextlib.redirect_stdout(printed):  # the script prints its markdown table
-        script.main((["--frames1", "60", "--frames2", "40"] if quick else []) + ["--out", str(out_dir)])
-    table = "\n".join(line for line in printed.getvalue().splitlines() if line.startswith("|"))
+    frames = {"frames1": 60, "frames2": 40} if quick else {}
+    table = seed001.markdown(seed001.reproduce(out_dir, **frames)["summary"])
     return ("### Seed 001 experiment 1: pose error vs the paper (scripts/repro_seed001.py, rendered frames)\n\n"
             + table + f"\n\nPlot: {Path(out_dir).name}/repro_seed001_error_vs_distance.png.\n")
 

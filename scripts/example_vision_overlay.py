@@ -25,19 +25,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera  # noqa: E402
+from graphloc.experiments.seed001 import look_at  # noqa: E402
 from graphloc.vision.circle import circle_pose_from_rim, render_circle_rim, rim_points_from_mask  # noqa: E402
 from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, marker_area_bounds  # noqa: E402
 from graphloc.vision.mutual import localize_three, render_mutual_pixels  # noqa: E402
 from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers  # noqa: E402
 from graphloc.vision.target import LARGE_TARGET, project_markers, target_hypotheses  # noqa: E402
-
-
-def look_at(eye, center, roll):
-    z = center - eye
-    z /= np.linalg.norm(z)
-    x = np.cross(z, [0.0, 1.0, 0.0])
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(z, x), z]) @ gtsam.Rot3.Rz(roll).matrix()
 
 
 def panel_markers(ax, rng):

@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import gtsam
@@ -35,6 +36,7 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from graphloc.cameras import PinholeCamera  # noqa: E402
+from graphloc.datasets.breitenmoser import seed001_camera  # noqa: E402
 from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, marker_area_bounds, roi_from_points  # noqa: E402
 from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers  # noqa: E402
 from graphloc.vision.target import (LARGE_TARGET, TargetHypothesisConfig, predict_pose,  # noqa: E402
@@ -50,6 +52,7 @@ VARIANTS = ("p3p", "refined", "p3p_miscal")
 MAX_COAST = 5  # frames a track survives without a pose
 AMBIGUOUS_M = 0.05  # near-tied hypotheses farther apart than this are ambiguous
 ROI_MARGIN_PX = 40.0
+RENDER = RenderConfig(background=55.0, marker_level=215.0, noise_sigma=2.0, blur_sigma=0.7)  # sensor sigma 2 (IV-B)
 
 
 def look_at(eye: np.ndarray, center: np.ndarray, roll: float) -> np.ndarray:
@@ -90,9 +93,6 @@ def trajectory(rng: np.random.Generator, n: int, d_lo: float, d_hi: float, ascen
     return R, eye
 
 
-def camera() -> PinholeCamera:
-    """Seed 001 V-A: Firefly MV, 752x480, 90 deg FOV lens."""
-    return PinholeCamera.from_fov(752, 480, np.pi / 2)
 
 
 def rotation_error_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
@@ -116,9 +116,8 @@ def occlusion_episodes(rng: np.random.Generator, n: int, rate: float) -> np.ndar
 def run(name: str, rng: np.random.Generator, n: int, d_lo: float, d_hi: float, ascending: bool, n_clutter: int,
         miscalibrated: PinholeCamera, occlusion_rate: float):
     """Track the target through one trajectory; per-frame errors of every pose variant."""
-    cam = camera()
+    cam = seed001_camera()
     radius = LARGE_TARGET.marker_diameter / 2
-    render_cfg = RenderConfig(background=55.0, marker_level=215.0, noise_sigma=2.0, blur_sigma=0.7)
     min_area, max_area = marker_area_bounds(cam.fx, radius, 0.5, d_hi + 0.4)
     det_cfg = MarkerDetectorConfig(min_area=min_area, max_area=max_area)
     variants = {"p3p": (TargetHypothesisConfig(refine=False), cam), "refined": (TargetHypothesisConfig(refine=True), cam),
@@ -131,14 +130,14 @@ def run(name: str, rng: np.random.Generator, n: int, d_lo: float, d_hi: float, a
         X_cam = (LARGE_TARGET.points - t_true[k]) @ R_true[k]
         true_px, _ = cam.project(X_cam)
         r_px = cam.fx * radius / np.linalg.norm(X_cam, axis=1).min()
-        clutter = random_clutter(rng, cam.width, cam.height, r_px, 215.0, n=n_clutter, avoid=true_px[np.isfinite(true_px).all(1)],
+        clutter = random_clutter(rng, cam.width, cam.height, r_px, RENDER.marker_level, n=n_clutter, avoid=true_px[np.isfinite(true_px).all(1)],
                                  avoid_radius=6 * r_px + 20) if n_clutter else ()
         occluders = ()
         if hidden[k] >= 0:  # a dark object in front of one marker
             u, v = true_px[hidden[k]]
             h = 3 * r_px + 3  # > the elongated image of an off-axis sphere
             occluders = (Occluder((u - h, v - h, u + h, v + h), 30.0),)
-        frame = render_markers(cam, X_cam, radius, render_cfg, rng, clutter=clutter, occluders=occluders)
+        frame = render_markers(cam, X_cam, radius, RENDER, rng, clutter=clutter, occluders=occluders)
         if history and k - history[-1][0] > MAX_COAST:
             history.clear()  # lost for too long: re-initialize from the whole image (seed IV-B)
         predicted = None
@@ -232,6 +231,59 @@ def plot(runs: dict, path: Path) -> None:
     plt.close(fig)
 
 
+def markdown(summary: dict) -> str:
+    """The error table (paper rows next to the simulated variants) of a `summary` from `main`."""
+
+    def cell(s, key, unit):
+        return f"{s[key]:.2f} {unit}" if key in s else "n/a"
+
+    p = PAPER["run1"]
+    lines = ["| run | pose | frames localized | pos mean | pos std | pos max | rot mean | rot std | rot max |",
+             "|---|---|---|---|---|---|---|---|---|",
+             f"| 1 (0.68-1.74 m) | paper | - | {p['pos_mean_cm']} cm | {p['pos_std_cm']} cm | {p['pos_max_cm']} cm | "
+             f"{p['rot_mean_deg']} deg | {p['rot_std_deg']} deg | {p['rot_max_deg']} deg |"]
+    for key, label in (("run1", "1 (0.68-1.74 m)"), ("run2_at_3m", "2 (>= 2.8 m)"), ("run2_all", "2 (1-3 m)")):
+        if key == "run2_at_3m":
+            q = PAPER["run2_at_3m"]
+            lines.append(f"| {label} | paper | - | {q['pos_mean_cm']} cm | - | - | {q['rot_mean_deg']} deg | - | - |")
+        for v in VARIANTS:
+            s = summary[key][v]
+            lines.append(f"| {label} | sim {v} | {s['localized']}/{s['frames']} | {cell(s, 'pos_mean_cm', 'cm')} | "
+                         f"{cell(s, 'pos_std_cm', 'cm')} | {cell(s, 'pos_max_cm', 'cm')} | {cell(s, 'rot_mean_deg', 'deg')} | "
+                         f"{cell(s, 'rot_std_deg', 'deg')} | {cell(s, 'rot_max_deg', 'deg')} |")
+    return "\n".join(lines)
+
+
+def reproduce(out: Path, frames1: int = 300, frames2: int = 200, clutter: int = 3, focal_error: float = 0.01,
+              principal_error: float = 2.0, occlusion_rate: float = 0.05, seed: int = 1) -> dict:
+    """Both runs of experiment 1; writes <out>/repro_seed001.json and the error-vs-distance PNG;
+    returns the JSON content (summary per run and variant, per-frame rows)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    start = time.perf_counter()
+    true_cam = seed001_camera()
+    miscal = PinholeCamera(true_cam.fx * (1 + focal_error), true_cam.fy * (1 + focal_error),
+                           true_cam.cx + principal_error, true_cam.cy + principal_error,
+                           true_cam.width, true_cam.height)
+    runs = {"run1": run("run 1 (0.68-1.74 m)", rng, frames1, 0.68, 1.74, False, clutter, miscal, occlusion_rate),
+            "run2": run("run 2 (up to 3 m)", rng, frames2, 1.0, 3.0, True, clutter, miscal, occlusion_rate)}
+    elapsed = time.perf_counter() - start
+    summary = {"run1": {v: summarize(runs["run1"], v) for v in VARIANTS},
+               "run2_at_3m": {v: summarize(runs["run2"], v, min_distance=2.8) for v in VARIANTS},
+               "run2_all": {v: summarize(runs["run2"], v) for v in VARIANTS}}
+    result = {"paper": PAPER, "summary": summary, "seconds": elapsed,
+              "config": {"frames1": frames1, "frames2": frames2, "clutter": clutter, "seed": seed,
+                         "occlusion_rate": occlusion_rate,
+                         "camera": "752x480, 90 deg horizontal FOV",
+                         "miscal": {"focal_error": focal_error, "principal_error_px": principal_error}, "target": LARGE_TARGET.name,
+                         "render": asdict(RENDER), "k_R": K_R},
+              "frames": runs}
+    (out / "repro_seed001.json").write_text(json.dumps(result, indent=1))
+    plot(runs, out / "repro_seed001_error_vs_distance.png")
+    return result
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames1", type=int, default=300, help="frames of run 1 (0.68-1.74 m)")
@@ -248,47 +300,11 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.frames1 < 10 or args.frames2 < 10:
         parser.error("--frames1 and --frames2 must be >= 10")
-    args.out.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(args.seed)
-    start = time.perf_counter()
-    true_cam = camera()
-    miscal = PinholeCamera(true_cam.fx * (1 + args.focal_error), true_cam.fy * (1 + args.focal_error),
-                           true_cam.cx + args.principal_error, true_cam.cy + args.principal_error,
-                           true_cam.width, true_cam.height)
-    runs = {"run1": run("run 1 (0.68-1.74 m)", rng, args.frames1, 0.68, 1.74, False, args.clutter, miscal, args.occlusion_rate),
-            "run2": run("run 2 (up to 3 m)", rng, args.frames2, 1.0, 3.0, True, args.clutter, miscal, args.occlusion_rate)}
-    elapsed = time.perf_counter() - start
-    summary = {"run1": {v: summarize(runs["run1"], v) for v in VARIANTS},
-               "run2_at_3m": {v: summarize(runs["run2"], v, min_distance=2.8) for v in VARIANTS},
-               "run2_all": {v: summarize(runs["run2"], v) for v in VARIANTS}}
-    result = {"paper": PAPER, "summary": summary, "seconds": elapsed,
-              "config": {"frames1": args.frames1, "frames2": args.frames2, "clutter": args.clutter, "seed": args.seed,
-                         "occlusion_rate": args.occlusion_rate,
-                         "camera": "752x480, 90 deg horizontal FOV",
-                         "miscal": {"focal_error": args.focal_error, "principal_error_px": args.principal_error}, "target": LARGE_TARGET.name,
-                         "noise_sigma": 2.0, "blur_sigma": 0.7, "k_R": K_R},
-              "frames": runs}
-    (args.out / "repro_seed001.json").write_text(json.dumps(result, indent=1))
-    plot(runs, args.out / "repro_seed001_error_vs_distance.png")
-
-    def cell(s, key, unit):
-        return f"{s[key]:.2f} {unit}" if key in s else "n/a"
-
-    print("\n| run | pose | frames localized | pos mean | pos std | pos max | rot mean | rot std | rot max |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    p = PAPER["run1"]
-    print(f"| 1 (0.68-1.74 m) | paper | - | {p['pos_mean_cm']} cm | {p['pos_std_cm']} cm | {p['pos_max_cm']} cm | "
-          f"{p['rot_mean_deg']} deg | {p['rot_std_deg']} deg | {p['rot_max_deg']} deg |")
-    for key, label in (("run1", "1 (0.68-1.74 m)"), ("run2_at_3m", "2 (>= 2.8 m)"), ("run2_all", "2 (1-3 m)")):
-        if key == "run2_at_3m":
-            q = PAPER["run2_at_3m"]
-            print(f"| {label} | paper | - | {q['pos_mean_cm']} cm | - | - | {q['rot_mean_deg']} deg | - | - |")
-        for v in VARIANTS:
-            s = summary[key][v]
-            print(f"| {label} | sim {v} | {s['localized']}/{s['frames']} | {cell(s, 'pos_mean_cm', 'cm')} | "
-                  f"{cell(s, 'pos_std_cm', 'cm')} | {cell(s, 'pos_max_cm', 'cm')} | {cell(s, 'rot_mean_deg', 'deg')} | "
-                  f"{cell(s, 'rot_std_deg', 'deg')} | {cell(s, 'rot_max_deg', 'deg')} |")
-    print(f"\n{elapsed:.1f} s; wrote {args.out / 'repro_seed001.json'} and {args.out / 'repro_seed001_error_vs_distance.png'}")
+    result = reproduce(args.out, args.frames1, args.frames2, args.clutter, args.focal_error, args.principal_error,
+                       args.occlusion_rate, args.seed)
+    print(markdown(result["summary"]))
+    print(f"\n{result['seconds']:.1f} s; wrote {args.out / 'repro_seed001.json'} and "
+          f"{args.out / 'repro_seed001_error_vs_distance.png'}")
     return 0
 
 
