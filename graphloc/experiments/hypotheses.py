@@ -154,7 +154,7 @@ def _rmse(errors) -> float:
 
 def trial(job) -> dict:
     ceiling, curve, run_index, args = job
-    seed = 1000 * CELLS.index((ceiling, curve)) + run_index
+    seed = args.seed_offset + 1000 * CELLS.index((ceiling, curve)) + run_index
     sim = FengProbabilisticConfig(ceiling=ceiling, curve=curve, seed=seed, pixel_sigma=args.pixel_sigma)
     run = FengProbabilisticScenario.simulate(sim)
     odometry = odometry_steps(run, sim)
@@ -300,7 +300,7 @@ def markdown(summary: dict, longrun: dict | None, args) -> str:
     head = "| cell | paper | P3P err med [m] | " + " | ".join(METHODS) + " |"
     rule = "|---" * (3 + len(METHODS)) + "|"
     lines = ["# HypothesisTracker vs seed baselines (seed 000 Sec. VI-B setup)", "",
-             f"{args.runs} runs per cell, pixel noise {args.pixel_sigma} px. Paper = seed 000 Table III (belief vector, mean updates to converge). "
+             f"{args.runs} runs per cell (seed offset {args.seed_offset}), pixel noise {args.pixel_sigma} px. Paper = seed 000 Table III (belief vector, mean updates to converge). "
              "P3P err med = median distance of the genuine P3P candidate from the truth.", "",
              "Definitions. An *update* is one odometry step (update 1 = the first, after the 0.3 s first interval). "
              "A *commit* is the first update at which a method declares a candidate (belief / posterior >= 0.95; "
@@ -422,6 +422,8 @@ def main(argv=None) -> int:
     parser.add_argument("--line-max-error", type=float, default=0.05, help="straight-line test: commit below [m]")
     parser.add_argument("--latency-frames", type=int, default=10000)
     parser.add_argument("--pixel-sigma", type=float, default=0.5, help="image noise [px] (seed 000: 0.5)")
+    parser.add_argument("--seed-offset", type=int, default=0,
+                        help="simulation seeds start here (held-out validation: e.g. 50000, disjoint from the default runs)")
     parser.add_argument("--skip-long-run", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("out/bench_hypotheses"))
     args = parser.parse_args(argv)
