@@ -20,6 +20,10 @@ from graphloc.datasets.feng import look_at
 from graphloc.vision.render import RenderConfig, render_markers
 from graphloc.vision.target import LARGE_TARGET
 
+# centroid noise of the logged marker pixels: rendered centroids at sensor sigma 2 are within
+# 0.10 px of the truth (tests/test_render_markers.py), so 0.1 px, not the optics blur width
+CENTROID_SIGMA_PX = 0.1
+
 
 @dataclass(frozen=True)
 class BreitenmoserConfig:
@@ -73,7 +77,7 @@ class BreitenmoserTargetScenario:
                 cv2.imwrite(str(out / "climber" / "images" / f"{k:06d}.png"), frame.image)
         times = np.arange(n) / config.rate_hz
         log = CameraTrackLog(name=self.name, times=times, R_wc=R, t_wc=eye, landmarks=LARGE_TARGET.points,
-                             landmark_sigma=0.0, pixels=pixels, camera=camera, pixel_sigma=RenderConfig().blur_sigma,
+                             landmark_sigma=0.0, pixels=pixels, camera=camera, pixel_sigma=CENTROID_SIGMA_PX,
                              odometry=[], cand_R=None, cand_t=None, cand_valid=None, observer="climber", target="target",
                              meta={"seed_paper": "001_0f8f8dae37ce6b79.txt Sec. V-A", "config": asdict(config),
                                    "images": "climber/images/%06d.png" if config.save_images else None})

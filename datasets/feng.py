@@ -188,7 +188,7 @@ class FengProbabilisticConfig:
 class FengRun:
     """One simulated run. times (T,); true camera poses R_wc (T,3,3), t_wc (T,3); landmarks (3,3);
     pixels (T,3,2) noisy; odometry: T-1 noisy relative camera poses (frame of the earlier pose);
-    odometry_true: the same without noise; candidates: T CandidateSets; plane: the surface."""
+    candidates: T CandidateSets; plane: the surface."""
 
     times: np.ndarray
     R_wc: np.ndarray
@@ -196,15 +196,11 @@ class FengRun:
     landmarks: np.ndarray
     pixels: np.ndarray
     odometry: list
-    odometry_true: list
     candidates: list
     plane: Plane
 
     def __len__(self) -> int:
         return len(self.times)
-
-    def pose(self, k: int) -> gtsam.Pose3:
-        return gtsam.Pose3(gtsam.Rot3(self.R_wc[k]), self.t_wc[k])
 
 
 def noisy_odometry(Rrel: np.ndarray, trel: np.ndarray, rel_sigma: float, rot_sigma: float,
@@ -262,6 +258,5 @@ class FengProbabilisticScenario:
         pixels = noisy_pixels(uv, config.pixel_sigma, rng)
         Rrel, trel = relative_poses(R, t)
         odometry = noisy_odometry(Rrel, trel, config.odometry_noise, config.odometry_rot_sigma, rng)
-        odometry_true = [gtsam.Pose3(gtsam.Rot3(a), b) for a, b in zip(Rrel, trel)]
         candidates = p3p_candidates(camera, pixels, landmarks, times, config.pixel_sigma, t)
-        return FengRun(times, R, t, landmarks, pixels, odometry, odometry_true, candidates, plane)
+        return FengRun(times, R, t, landmarks, pixels, odometry, candidates, plane)

@@ -18,6 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
+
+from graphloc.cameras import PinholeCamera
 
 
 GROUND_BOXES = np.array([[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]],
@@ -38,9 +41,12 @@ class Seed000Config:
     min_step: float = 0.05
     lateral_sigma: float = 0.001  # position noise perpendicular to the motion [m]
 
+    def camera(self) -> PinholeCamera:
+        """The climbing robot's camera C (the same model as graphloc.datasets.feng.seed000_camera)."""
+        return PinholeCamera.from_fov(self.width, self.height, self.fov_rad)
+
     def camera_matrix(self) -> np.ndarray:
-        f = 0.5 * self.width / np.tan(0.5 * self.fov_rad)
-        return np.array([[f, 0.0, 0.5 * self.width], [0.0, f, 0.5 * self.height], [0.0, 0.0, 1.0]])
+        return self.camera().K
 
 
 @dataclass(frozen=True)
@@ -60,12 +66,7 @@ class StraightLineTrials:
 
 def _rot_xyz(tilt, pitch, yaw):
     """(T,3,3) = Rz(yaw) Ry(pitch) Rx(tilt)."""
-    cx, sx, cy, sy, cz, sz = np.cos(tilt), np.sin(tilt), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
-    one, zero = np.ones_like(tilt), np.zeros_like(tilt)
-    Rx = np.stack([np.stack([one, zero, zero], -1), np.stack([zero, cx, -sx], -1), np.stack([zero, sx, cx], -1)], -2)
-    Ry = np.stack([np.stack([cy, zero, sy], -1), np.stack([zero, one, zero], -1), np.stack([-sy, zero, cy], -1)], -2)
-    Rz = np.stack([np.stack([cz, -sz, zero], -1), np.stack([sz, cz, zero], -1), np.stack([zero, zero, one], -1)], -2)
-    return Rz @ Ry @ Rx
+    return Rotation.from_euler("xyz", np.stack([tilt, pitch, yaw], axis=-1)).as_matrix()
 
 
 # camera looking straight down: optical axis (camera z) = world -z, camera x = world x

@@ -265,9 +265,7 @@ class HypothesisTracker:
             keep = np.argsort(-logw_c, kind="stable")[: self.config.max_hypotheses]
             poses = candidates.poses()
             self._tracks = [self._birth(poses[j], cov[j], int(j), float(logw_c[j])) for j in keep]
-        else:
-            if odometry is None:
-                raise ValueError("HypothesisTracker.update: odometry is required once tracks exist")
+        else:  # check_frame has required odometry for every frame after the first
             self._step(candidates, cov, logw_c, odometry)
         self._normalize()
         return self._decide(len(candidates))

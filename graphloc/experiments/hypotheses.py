@@ -105,13 +105,15 @@ def evaluate(engine, run, odometry, smooth: bool = False) -> dict:
         if converged is None:
             converged, wrong = k, not ok
     rmse_batch = rmse_online = None
+    resolved_frames = 0
     if smooth and any(d.locked and d.committed >= 0 for d in decisions):
         batch, online = resolve_decided(run, odometry, decisions)
         frames = sorted(online)
+        resolved_frames = len(frames)
         rmse_batch = _rmse([batch[k].translation() - run.t_wc[k] for k in frames])
         rmse_online = _rmse([online[k].translation() - run.t_wc[k] for k in frames])
     return {"converged": converged, "wrong": bool(wrong), "correct_lock": correct_lock, "rmse_locked_batch": rmse_batch,
-            "rmse_locked_online": rmse_online,
+            "rmse_locked_online": rmse_online, "resolved_frames": resolved_frames,
             "relocalizations": relocalizations, "locked_frames": locked, "wrong_locked_frames": wrong_frames,
             "rmse_locked": float(np.sqrt(np.mean(sq_err))) if sq_err else None,
             "median_error_locked": float(np.sqrt(np.median(sq_err))) if sq_err else None,
@@ -179,7 +181,6 @@ def summarize(trials: list[dict]) -> dict:
                 continue
             conv = [r["converged"] for r in res if r["converged"] is not None]
             correct = [r["correct_lock"] for r in res if r["correct_lock"] is not None]
-            sq = [r["rmse_locked"] ** 2 * r["locked_frames"] for r in res if r["rmse_locked"] is not None]
             med = [r["median_error_locked"] for r in res if r["median_error_locked"] is not None]
             locked = sum(r["locked_frames"] for r in res)
             cell[method] = {
@@ -193,10 +194,10 @@ def summarize(trials: list[dict]) -> dict:
                     [r["frames"] - 1 if r["correct_lock"] is None else r["correct_lock"] for r in res])),
                 "wrong_locked_frame_fraction": sum(r["wrong_locked_frames"] for r in res) / locked if locked else None,
                 "relocalizations": sum(r["relocalizations"] for r in res),
-                "rmse_locked_frames_m": float(np.sqrt(np.sum(sq) / locked)) if locked else None,
+                "rmse_locked_frames_m": _pooled_rmse([(r["rmse_locked"], r["locked_frames"]) for r in res]),
                 "median_error_locked_frames_m": float(np.median(med)) if med else None,
-                "rmse_locked_frames_batch_m": _pooled_rmse([(r["rmse_locked_batch"], r["locked_frames"]) for r in res]),
-                "rmse_locked_frames_online_m": _pooled_rmse([(r.get("rmse_locked_online"), r["locked_frames"]) for r in res]),
+                "rmse_locked_frames_batch_m": _pooled_rmse([(r["rmse_locked_batch"], r["resolved_frames"]) for r in res]),
+                "rmse_locked_frames_online_m": _pooled_rmse([(r["rmse_locked_online"], r["resolved_frames"]) for r in res]),
                 "mean_latency_ms": float(np.mean([r["mean_latency_ms"] for r in res])),
             }
         table[f"{ceiling}/{curve}"] = cell

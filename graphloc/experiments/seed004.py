@@ -51,10 +51,14 @@ def plot_fig3(path: Path, seed: int = 3, frames: int = 20) -> None:
     run = simulate(cfg)
     valid = run.candidates.valid
     g = run.genuine[0]
-    idx = np.arange(frames)
-    R, t = run.candidates.R_wc[idx, g], run.candidates.t_wc[idx, g]
-    cov = resection_covariance(cfg.camera(), R, t, np.broadcast_to(run.leds, (frames, 3, 3)), np.sqrt(cfg.noise_variance))
-    smoothed = tables.smooth_track(R, t, cov, g >= 0, run.odometry[0], cfg.odometry_noise, cfg.odometry_rot_sigma)
+    have = g >= 0  # frames where P3P returned the genuine solution (else no candidate is plotted or used)
+    R, t = np.tile(np.eye(3), (frames, 1, 1)), np.full((frames, 3), np.nan)
+    cov = np.tile(np.eye(6), (frames, 1, 1))
+    R[have], t[have] = run.candidates.R_wc[have, g[have]], run.candidates.t_wc[have, g[have]]
+    cov[have] = resection_covariance(cfg.camera(), R[have], t[have], np.broadcast_to(run.leds, (int(have.sum()), 3, 3)),
+                                     np.sqrt(cfg.noise_variance))
+    smoothed = tables.smooth_track(R, np.nan_to_num(t), cov, have, run.odometry[0], cfg.odometry_noise,
+                                   cfg.odometry_rot_sigma)
     fig, ax = plt.subplots(figsize=(6.5, 5.5))
     others = run.candidates.t_wc[valid & (np.arange(valid.shape[1])[None, :] != g[:, None])]
     ax.plot(others[:, 0], others[:, 1], "gx", ms=5, label="invalid P3P solutions")
