@@ -354,7 +354,9 @@ class DualRoomScenario:
             (out / "scans" / robot).mkdir(parents=True, exist_ok=True)
             for f, pts in enumerate(self.scans[robot]):
                 pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts.astype(np.float32)))
-                o3d.t.io.write_point_cloud(str(out / "scans" / robot / f"{f:06d}.ply"), pcd)
+                path = out / "scans" / robot / f"{f:06d}.ply"
+                if not o3d.t.io.write_point_cloud(str(path), pcd):
+                    raise OSError(f"could not write {path}")
             write_tum(out / f"poses_{robot}.tum", self.times, self.poses[robot])
         with open(out / "led_pixels.csv", "w", newline="") as fh:
             w = csv.writer(fh)
@@ -386,7 +388,7 @@ class DualRoomScenario:
         try:
             meta = json.loads(meta_path.read_text())
             config = DualRoomConfig.from_dict(meta["config"])
-        except (json.JSONDecodeError, KeyError, TypeError) as exc:
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{meta_path}: malformed ({exc})") from None
         poses, scans, times = {}, {}, None
         for robot in ROBOTS:

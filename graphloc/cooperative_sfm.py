@@ -557,19 +557,6 @@ def axis_errors(estimated: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return np.abs(estimated - truth)
 
 
-def structure_scale_error(points: np.ndarray, truth: np.ndarray, origin=(0.0, 0.0, 0.0)) -> float:
-    """|median(|p - origin| / |p_true - origin|) - 1| over landmarks (L,3): the metric scale
-    error of the reconstructed structure (NaN without landmarks)."""
-    p, q = np.asarray(points, float).reshape(-1, 3), np.asarray(truth, float).reshape(-1, 3)
-    if p.shape != q.shape:
-        raise ValueError(f"structure_scale_error: shapes {p.shape} vs {q.shape}")
-    ok = np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1)
-    if not ok.any():
-        return float("nan")
-    o = np.asarray(origin, float)
-    return float(abs(np.median(np.linalg.norm(p[ok] - o, axis=1) / np.linalg.norm(q[ok] - o, axis=1)) - 1.0))
-
-
 def trajectory_scale(estimated: np.ndarray, truth: np.ndarray) -> float:
     """Least-squares scale s of the lengths of the estimated displacements from frame 0 against
     the true ones, s = sum |p||q| / sum |q|^2 (lengths, so that a direction error is not

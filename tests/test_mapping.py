@@ -108,6 +108,10 @@ def test_prepare_and_refine_reject_bad_input():
     cloud = prepare(np.random.default_rng(0).uniform(size=(500, 3)))
     with pytest.raises(ValueError, match="4x4"):
         refine(cloud, cloud, np.eye(3))
+    far = np.eye(4)
+    far[:3, 3] = [20.0, 0.0, 0.0]  # a wrong hint: no correspondences at all
+    with pytest.raises(ValueError, match="correspondences"):
+        refine(cloud, cloud, far)
 
 
 # ----------------------------------------------------------------------------- odometry

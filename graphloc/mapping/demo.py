@@ -91,6 +91,8 @@ def fuse_directories(ground_dir, ceiling_dir, out_dir, hint: str | None = None, 
                      rate: float = 10.0, config: FusionConfig = FusionConfig()) -> dict:
     """A user's two scan sequences (PCD/PLY/XYZ, file-name order, frame k of both taken together at
     k / rate seconds) + a relative pose hint or P3P observations -> outputs in out_dir."""
+    if not (np.isfinite(rate) and rate > 0):
+        raise ValueError(f"rate must be a positive frame rate [Hz], got {rate}")
     ground, _, dropped_g = read_scan_sequence(ground_dir)
     ceiling, _, dropped_c = read_scan_sequence(ceiling_dir)
     if len(ground) != len(ceiling):

@@ -21,7 +21,7 @@ Frames: G_k / C_k are the ground / ceiling LiDAR at frame k; everything is expre
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import gtsam
 import numpy as np
@@ -83,7 +83,7 @@ class LedObservations:
 @dataclass(frozen=True)
 class FusionInput:
     """Synchronized scan sequences (frame k of both robots at times[k]) in each LiDAR's frame,
-    plus LED observations and/or a hint T_G0_C0 (4,4) for the inter-robot transform."""
+    plus LED observations or a hint T_G0_C0 (4,4) for the inter-robot transform (one of the two)."""
 
     times: np.ndarray
     ground_scans: list
@@ -102,8 +102,9 @@ class FusionInput:
                 raise ValueError(f"FusionInput.{name}: {len(getattr(self, name))} scans for {len(t)} times")
         if self.leds is not None and len(self.leds.pixels) != len(t):
             raise ValueError(f"FusionInput.leds: {len(self.leds.pixels)} camera frames for {len(t)} times")
-        if self.leds is None and self.hint is None:
-            raise ValueError("FusionInput: need LED observations or a relative pose hint for the inter-robot guess")
+        if (self.leds is None) == (self.hint is None):
+            raise ValueError("FusionInput: give LED observations or a relative pose hint for the inter-robot guess "
+                             "(exactly one of them)")
         if self.hint is not None and (np.shape(self.hint) != (4, 4) or not np.isfinite(self.hint).all()):
             raise ValueError("FusionInput.hint must be a finite 4x4 transform")
         object.__setattr__(self, "times", t)
@@ -312,7 +313,7 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
     pts, labels, outliers = [np.zeros((0, 3))], [np.zeros(0, dtype=int)], {}
     for r, scans in ((GROUND, inp.ground_scans), (CEILING, inp.ceiling_scans)) if cfg.build_map else ():
         cloud = np.concatenate([s @ P[:3, :3].T + P[:3, 3] for s, P in zip(scans, poses[r])])
-        pcd, outliers[ROBOT_NAMES[r]] = denoise(cloud, RegistrationConfig(voxel=cfg.map_voxel))
+        pcd, outliers[ROBOT_NAMES[r]] = denoise(cloud, replace(cfg.registration, voxel=cfg.map_voxel))
         p = pcd.point.positions.numpy().astype(float)
         pts.append(p)
         labels.append(np.full(len(p), r))

@@ -136,6 +136,9 @@ def refine(source: PreparedCloud, target: PreparedCloud, init: np.ndarray,
     dist = cfg.max_correspondence[-1]
     info = reg_l.get_information_matrix_from_point_clouds(source.legacy, target.legacy, dist, T)
     info = information_right(np.asarray(info), T) / cfg.range_sigma ** 2
+    if result.fitness <= 0 or np.linalg.eigvalsh(0.5 * (info + info.T))[0] <= 0:
+        raise ValueError(f"refine: ICP found too few correspondences within {dist} m of the initial guess "
+                         f"(fitness {float(result.fitness):.3f}): a wrong pose hint, or scans that do not overlap")
     seconds = time.perf_counter() - start
     return Registration(T, float(result.fitness), float(result.inlier_rmse), iterations, info, seconds)
 
