@@ -76,18 +76,25 @@ def component_factors(candidates: CandidateSet, observed_key: int, observer_key:
     return out
 
 
+MIN_WEIGHT = 1e-300  # a score that underflowed to 0: -log w = 690, never chosen while any other fits
+
+
+def mixture_weights(candidates: CandidateSet) -> np.ndarray:
+    """Component weights (K,) of a candidate set: its normalized scores, with scores that
+    underflowed to exactly 0 (e.g. exp(-r^2/2 sigma^2) of a bad candidate) floored at MIN_WEIGHT so
+    every candidate keeps its component and index (one rule for both mixture kinds)."""
+    return np.maximum(candidates.weights(), MIN_WEIGHT)
+
+
 def candidate_mixture(candidates: CandidateSet, observation: int, observed_key: int,
                       observer_key: int | None = None, covariances: np.ndarray | None = None
                       ) -> gtsam.HybridNonlinearFactor:
     """HybridNonlinearFactor over mode_key(observation) with one component per candidate and
-    component weights w = candidates.weights() (from the scores). Zero-weight candidates get a
-    large finite penalty (GTSAM needs finite scalars)."""
+    component weights `mixture_weights(candidates)` (from the scores)."""
     if len(candidates) == 0:
         raise ValueError(f"candidate_mixture: observation {observation} has no candidates")
     factors = component_factors(candidates, observed_key, observer_key, covariances)
-    w = candidates.weights()
-    with np.errstate(divide="ignore"):
-        neg_log_w = np.where(w > 0, -np.log(np.maximum(w, 1e-300)), 1e6)
+    neg_log_w = -np.log(mixture_weights(candidates))
     pairs = [(f, float(nlw + f.noiseModel().negLogConstant())) for f, nlw in zip(factors, neg_log_w)]
     return gtsam.HybridNonlinearFactor((mode_key(observation), len(candidates)), pairs)
 
@@ -210,4 +217,4 @@ def candidate_max_mixture(candidates: CandidateSet, observed_key: int, observer_
         raise ValueError(f"candidate_max_mixture: candidate set (source={candidates.source!r}, "
                          f"time={candidates.time}) is empty")
     return max_mixture_factor(component_factors(candidates, observed_key, observer_key, covariances),
-                              candidates.weights())
+                              mixture_weights(candidates))

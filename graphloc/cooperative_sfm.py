@@ -59,7 +59,7 @@ import numpy as np
 
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
-from graphloc.factors.mixture import MaxMixture, check_covariances, component_factors, max_mixture_factor
+from graphloc.factors.mixture import MaxMixture, check_covariances, component_factors, max_mixture_factor, mixture_weights
 from graphloc.factors.range_bearing import landmark_factor_3d
 from graphloc.factors.robust import Kernel, robust_noise
 from graphloc.keys import landmark_key, pose_key
@@ -449,7 +449,7 @@ class CooperativeSfm:
         if len(components) == 1:
             graph.append(components[0])
         else:
-            mixture = max_mixture_factor(components, cands.weights())
+            mixture = max_mixture_factor(components, mixture_weights(cands))
             graph.append(mixture)
             self.mixtures[k] = mixture
         # initial guess (engine-side knowledge, never a choice the factor is bound to): a teammate

@@ -278,6 +278,11 @@ def read_manifest(root: str | Path) -> Manifest:
         data = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: line {exc.lineno}: invalid JSON ({exc.msg})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: the manifest must be a JSON object, got {type(data).__name__}")
+    for key, kind in (("robots", list), ("landmarks", dict), ("meta", dict)):
+        if data.get(key) is not None and not isinstance(data[key], kind):
+            raise ValueError(f"{path}: field '{key}' must be a JSON {kind.__name__.replace('dict', 'object')}")
     if data.get("format") != FORMAT:
         raise ValueError(f"{path}: field 'format' must be {FORMAT!r}, got {data.get('format')!r}")
     if data.get("version") != VERSION:
@@ -289,7 +294,7 @@ def read_manifest(root: str | Path) -> Manifest:
             raise ValueError(f"{where}: field 'name' missing")
         sensors = []
         for j, s in enumerate(r.get("sensors") or []):
-            if not s.get("name") or not s.get("type"):
+            if not isinstance(s, dict) or not s.get("name") or not s.get("type"):
                 raise ValueError(f"{where}.sensors[{j}]: fields 'name' and 'type' required")
             sensors.append(Sensor(s["name"], s["type"], _extrinsics(s.get("extrinsics"), f"{where}.sensors[{j}]"),
                                   dict(s.get("params") or {})))
@@ -299,7 +304,10 @@ def read_manifest(root: str | Path) -> Manifest:
                 raise ValueError(f"{where}: field 'tables' names unknown table {t!r}; known: {', '.join(TABLES)}")
         init = r.get("initial_pose")
         if init is not None:
-            init = tuple(float(a) for a in init)
+            try:
+                init = tuple(float(a) for a in init)
+            except (TypeError, ValueError):
+                init = ()
             if len(init) != 3 or not all(math.isfinite(a) for a in init):
                 raise ValueError(f"{where}: field 'initial_pose' must be 3 finite numbers [x, y, theta]")
         robots.append(Robot(r["name"], r.get("kind", "ground"), tuple(sensors), tables, init, dict(r.get("meta") or {})))
@@ -449,7 +457,8 @@ def iter_records(root: str | Path, tables=None, robots=None, on_error: str = "ra
     robots and tables (heapq.merge; ties keep robot-then-table order). Streaming: one row per file
     in memory."""
     manifest = read_manifest(root)
-    landmark_ids = set(read_landmarks(manifest)[0].tolist())
+    # without a landmarks file (SLAM: positions unknown) every landmark id is acceptable
+    landmark_ids = None if manifest.landmarks_file is None else set(read_landmarks(manifest)[0].tolist())
     wanted_tables = list(TABLES) if tables is None else list(tables)
     for t in wanted_tables:
         if t not in TABLES:

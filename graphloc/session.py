@@ -124,6 +124,7 @@ class Session:
         self._records: list[_Record] = []
         self._last_time = -np.inf
         self._batch_estimate: gtsam.Values | None = None
+        self._batch_marginals: gtsam.Marginals | None = None
         self._batch_iterations = 0
         self._isam = self._make_isam() if config.mode == "online" else None
 
@@ -149,7 +150,10 @@ class Session:
         raises ValueError."""
         items = _as_items(factors)
         graph = _as_graph(items)
-        t = (max(self._last_time, 0.0) if time is None else float(time))
+        if time is None:  # same time as the previous step (0 for the first)
+            t = self._last_time if self.steps else 0.0
+        else:
+            t = float(time)
         if not np.isfinite(t):
             raise ValueError(f"Session.add: time {time!r} is not finite")
         if t < self._last_time:
@@ -176,7 +180,7 @@ class Session:
 
         self.graph.push_back(graph)
         self.initial.insert(initial_values)
-        self._batch_estimate = None
+        self._batch_estimate = self._batch_marginals = None
         self._last_time = t
         step = Step(time=t, n_factors=int(graph.size()), n_new_values=len(new_keys), latency_s=latency)
         self.steps.append(step)
@@ -186,10 +190,13 @@ class Session:
     def estimate(self, keys: Iterable[int] | None = None) -> gtsam.Values:
         """Current estimate of all variables (or only `keys`). Batch: LM from the initial guess over
         the whole graph (cached until the next `add`). Online: iSAM2's current estimate."""
+        if keys is not None:
+            keys = list(keys)
+            self._check_known(keys, "estimate")
         if self._isam is not None:
             if keys is None:
                 return self._isam.calculateEstimate()
-            return self._isam.calculateEstimate(list(keys))
+            return self._isam.calculateEstimate(keys)
         if self._batch_estimate is None:
             self._batch_estimate = self._optimize_batch()
         if keys is None:
@@ -198,10 +205,17 @@ class Session:
 
     def marginal_covariance(self, key: int) -> np.ndarray:
         """Marginal covariance of one variable at the current estimate (tangent-space, GTSAM order)."""
+        self._check_known([key], "marginal_covariance")
         if self._isam is not None:
             return np.asarray(self._isam.marginalCovariance(key))
-        marginals = gtsam.Marginals(self.graph, self.estimate())
-        return np.asarray(marginals.marginalCovariance(key))
+        if self._batch_marginals is None:  # one factorization per estimate, not per query
+            self._batch_marginals = gtsam.Marginals(self.graph, self.estimate())
+        return np.asarray(self._batch_marginals.marginalCovariance(key))
+
+    def _check_known(self, keys: list, what: str) -> None:
+        unknown = [gtsam.DefaultKeyFormatter(k) for k in keys if not self.initial.exists(k)]
+        if unknown:
+            raise ValueError(f"Session.{what}: no variable {unknown[:5]} in this session")
 
     # ---- diagnostics ---------------------------------------------------------------------
     @property

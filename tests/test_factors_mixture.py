@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from graphloc.candidates import CandidateSet
-from graphloc.factors.mixture import candidate_max_mixture, component_factors, max_mixture_factor
+from graphloc.factors.mixture import candidate_max_mixture, candidate_mixture, component_factors, max_mixture_factor
 from graphloc.keys import pose_key
 from graphloc.session import Session, SessionConfig
 
@@ -131,3 +131,14 @@ def test_bad_inputs_raise_value_error():
     bad_cov[1, 0, 0] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         candidate_max_mixture(CandidateSet(cands.R, cands.t, cands.scores, meta={"covariance": bad_cov}), B, A)
+
+
+def test_candidate_with_underflowed_score_keeps_its_component():
+    """A score of exactly 0 (exp(-r^2/2s^2) underflow) must not make the mixture builders raise;
+    the candidate keeps its index and is never chosen over a fitting one."""
+    cands = two_candidates()
+    zero = CandidateSet(cands.R, cands.t, np.array([1.0, 0.0]))
+    mix = candidate_max_mixture(zero, B, A)
+    assert len(mix.components) == 2
+    hybrid = candidate_mixture(zero, 0, B, A)
+    assert hybrid is not None

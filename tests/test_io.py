@@ -114,3 +114,31 @@ def test_planar_run_applies_sensor_extrinsics(tmp_path):
     assert run.obs_robot[j] == 0
     np.testing.assert_allclose(run.initial_poses, [[0, 0, 0], [1, 0, 0]])
     assert run.groundtruth[1] is None and run.groundtruth[0].shape == (2, 4)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: [], "must be a JSON object"),
+    (lambda d: {**d, "robots": {"ground": 1}}, "field 'robots' must be a JSON list"),
+    (lambda d: {**d, "robots": [{**d["robots"][0], "initial_pose": 5}]}, "initial_pose"),
+    (lambda d: {**d, "robots": [{**d["robots"][0], "sensors": ["cam"]}]}, r"sensors\[0\]: fields 'name' and 'type'"),
+])
+def test_malformed_manifest_types_are_clear_errors(tmp_path, edit, message):
+    root = make_log(tmp_path / "log")
+    data = json.loads((root / "manifest.json").read_text())
+    (root / "manifest.json").write_text(json.dumps(edit(data)))
+    with pytest.raises(ValueError, match=message):
+        read_manifest(root)
+
+
+def test_log_without_landmarks_file_keeps_landmark_observations(tmp_path):
+    """SLAM logs (landmark positions unknown) have no landmarks.csv: their landmark measurements
+    must still be read, not skipped as unknown targets."""
+    root = make_log(tmp_path / "log")
+    data = json.loads((root / "manifest.json").read_text())
+    del data["landmarks"]
+    (root / "manifest.json").write_text(json.dumps(data))
+    (root / "landmarks.csv").unlink()
+    report = SkipReport()
+    records = list(iter_records(root, tables=["range_bearing"], on_error="skip", report=report))
+    assert any(getattr(r, "target", "") == "landmark:3" for r in records)
+    assert report.total == 0

@@ -248,3 +248,22 @@ def test_save_rejects_a_bare_custom_factor_with_a_clear_error(tmp_path):
     session.add([gtsam.CustomFactor(gtsam.noiseModel.Unit.Create(6), [1], unit_error)], values, time=0.0)
     with pytest.raises(ValueError, match="bare gtsam.CustomFactor"):
         session.save(tmp_path / "s.pkl")
+
+
+@pytest.mark.parametrize("mode", ["batch", "online"])
+def test_unknown_keys_are_clear_errors(mode):
+    session = Session(SessionConfig(mode=mode))
+    values = gtsam.Values()
+    values.insert(pose_key(0, 0), gtsam.Pose2())
+    session.add([gtsam.PriorFactorPose2(pose_key(0, 0), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 0.1))],
+                values, time=1.0)
+    with pytest.raises(ValueError, match="no variable"):
+        session.estimate([pose_key(0, 1)])
+    with pytest.raises(ValueError, match="no variable"):
+        session.marginal_covariance(pose_key(0, 1))
+    assert session.marginal_covariance(pose_key(0, 0)).shape == (3, 3)
+    values = gtsam.Values()
+    values.insert(pose_key(0, 1), gtsam.Pose2())
+    session.add([gtsam.BetweenFactorPose2(pose_key(0, 0), pose_key(0, 1), gtsam.Pose2(),
+                                          gtsam.noiseModel.Isotropic.Sigma(3, 0.1))], values)  # time None: same as before
+    assert session.steps[-1].time == 1.0
