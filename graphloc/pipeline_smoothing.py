@@ -348,13 +348,16 @@ def evaluate(result: SmoothingResult, run: PlanarRun) -> dict:
             entry["dead_reckoning"]["ate_rmse"] / max(entry[result.mode]["ate_rmse"], 1e-12))
         per_robot[name] = entry
     lat = result.latencies
+    # per-frame latency exists only online (iSAM2 update per frame); batch solves once (solve_wall_s)
+    latency = ({"mean": float(lat.mean() * 1e3), "p50": float(np.percentile(lat, 50) * 1e3),
+                "p95": float(np.percentile(lat, 95) * 1e3), "max": float(lat.max() * 1e3)}
+               if result.mode == "online" else None)
     return {
         "run": run.name, "mode": result.mode, "robots": list(run.robots),
         "duration_s": float(result.frame_times[-1] - result.frame_times[0]),
         "frames": int(len(result.frame_times)), "solve_wall_s": result.wall_s,
         "realtime_factor": result.realtime_factor,
-        "latency_ms": {"mean": float(lat.mean() * 1e3), "p50": float(np.percentile(lat, 50) * 1e3),
-                       "p95": float(np.percentile(lat, 95) * 1e3), "max": float(lat.max() * 1e3)},
+        "latency_ms": latency,
         "per_robot": per_robot, "downweighted": result.downweighted, "counts": result.counts,
         "skipped": result.skips.as_dict(),
     }
@@ -391,9 +394,10 @@ def write_outputs(result: SmoothingResult, run: PlanarRun, metrics: dict, out_di
     if err_series:
         written.append(plot_series(out / "error_over_time.png", err_series, "time since start [s]",
                                    "position error after SE(2) alignment [m]", f"{run.name}: error over time", logy=True))
-    written.append(plot_series(out / "latency.png", [Series("update latency", result.frame_times - run.start_time,
-                                                             result.latencies * 1e3)],
-                               "time since start [s]", "latency per frame [ms]", f"{run.name}: {result.mode} latency"))
+    if result.mode == "online":
+        written.append(plot_series(out / "latency.png", [Series("update latency", result.frame_times - run.start_time,
+                                                                 result.latencies * 1e3)],
+                                   "time since start [s]", "latency per frame [ms]", f"{run.name}: online latency"))
     return written
 
 
