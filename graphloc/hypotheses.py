@@ -228,7 +228,6 @@ class HypothesisTracker:
         self._logit: dict[int, float] = {}  # track id -> posterior log-odds after the last update
         self._max_gain: dict[int, float] = {}  # track id -> largest log-odds gain of one update
         self._last_time: float | None = None
-        self._keys = (pose_key(0, 0), pose_key(0, 1))  # the 2-pose window of every track
         self._gn = self._make_gn_params(config)
 
     @staticmethod
@@ -357,12 +356,12 @@ class HypothesisTracker:
     def _window_updates(self, updates: list[tuple[int, int]], candidates: CandidateSet, cov: np.ndarray,
                         odometry: Odometry, preds: list[gtsam.Pose3]) -> dict[int, tuple[gtsam.Pose3, np.ndarray]]:
         """Fixed-lag windows of two poses, one per (candidate j, parent h) in `updates`: parent
-        marginal prior + odometry between-factor + the mixture component of candidate j
-        (`factors.mixture.component_factors`), all in ONE graph (disjoint keys pose_key(0, 2i),
+        marginal prior + odometry between-factor + the mixture component of candidate j (its pose
+        as a Gaussian PriorFactorPose3, as `factors.mixture.component_factors`), all in ONE graph (disjoint keys pose_key(0, 2i),
         pose_key(0, 2i + 1) for window i) solved by one Gauss-Newton from the predictions; the
         marginal covariance of each new pose is the Schur complement of its window's block of
         the Hessian at the solution (batched numpy). Returns {j: (pose, covariance)}."""
-        components = component_factors(candidates, self._keys[1], covariances=cov)
+        poses = candidates.poses()
         odo_noise = gtsam.noiseModel.Gaussian.Covariance(odometry.covariance)
         graph, init, order = gtsam.NonlinearFactorGraph(), gtsam.Values(), []
         for i, (j, h) in enumerate(updates):
@@ -370,7 +369,7 @@ class HypothesisTracker:
             k0, k1 = pose_key(0, 2 * i), pose_key(0, 2 * i + 1)
             graph.add(gtsam.PriorFactorPose3(k0, parent.mean, gtsam.noiseModel.Gaussian.Covariance(parent.cov)))
             graph.add(gtsam.BetweenFactorPose3(k0, k1, odometry.relative, odo_noise))
-            graph.add(gtsam.PriorFactorPose3(k1, components[j].prior(), components[j].noiseModel()))
+            graph.add(gtsam.PriorFactorPose3(k1, poses[j], gtsam.noiseModel.Gaussian.Covariance(cov[j])))
             init.insert(k0, parent.mean)
             init.insert(k1, preds[h])
             order += [k0, k1]
