@@ -30,12 +30,10 @@ def simulate_and_fuse(out_dir, variant: str = "furnished", seed: int = 0, frames
     out = Path(out_dir)
     scenario.write(out / "scenario")
     result = fuse(input_from_scenario(scenario), config)
-    written = write_outputs(result, out, scenario.times, truth=scenario.T_ground0_ceiling0)
-    report = written["report"]
-    report["scenario"] = {"name": "dual-robot-room", "variant": variant, "seed": seed, "frames": frames,
-                          "dir": str(out / "scenario"), "counts": scenario.counts}
-    (out / "fusion_report.json").write_text(json.dumps(report, indent=1))
-    return report
+    scenario_info = {"name": "dual-robot-room", "variant": variant, "seed": seed, "frames": frames,
+                     "dir": str(out / "scenario"), "counts": scenario.counts}
+    return write_outputs(result, out, scenario.times, truth=scenario.T_ground0_ceiling0,
+                         extra={"scenario": scenario_info})["report"]
 
 
 def run_demo(out_dir, seed: int = 0) -> dict:
@@ -101,9 +99,6 @@ def fuse_directories(ground_dir, ceiling_dir, out_dir, hint: str | None = None, 
     times = np.arange(len(ground)) / float(rate)
     leds = read_p3p_setup(p3p, len(ground)) if p3p else None
     inp = FusionInput(times, ground, ceiling, leds, parse_hint(hint) if hint else None)
-    written = write_outputs(fuse(inp, config), out_dir, times)
-    report = written["report"]
-    report["input"] = {"ground": str(ground_dir), "ceiling": str(ceiling_dir), "frames": len(ground),
-                       "nonfinite_points_skipped": {"ground": dropped_g, "ceiling": dropped_c}}
-    Path(written["json"]).write_text(json.dumps(report, indent=1))
-    return report
+    provenance = {"ground": str(ground_dir), "ceiling": str(ceiling_dir), "frames": len(ground),
+                  "nonfinite_points_skipped": {"ground": dropped_g, "ceiling": dropped_c}}
+    return write_outputs(fuse(inp, config), out_dir, times, extra={"input": provenance})["report"]

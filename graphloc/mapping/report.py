@@ -86,8 +86,10 @@ def render(result: FusionResult, path: Path, view: str) -> Path:
     return path
 
 
-def write_outputs(result: FusionResult, out_dir, times: np.ndarray, truth: np.ndarray | None = None) -> dict:
-    """Write everything; returns {name: path} plus the report dict under 'report'."""
+def write_outputs(result: FusionResult, out_dir, times: np.ndarray, truth: np.ndarray | None = None,
+                  extra: dict | None = None) -> dict:
+    """Write everything (`extra` entries are merged into the JSON report, e.g. the input's
+    provenance); returns {name: path} plus the report dict under 'report'."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {}
@@ -101,6 +103,7 @@ def write_outputs(result: FusionResult, out_dir, times: np.ndarray, truth: np.nd
         paths[f"tum_{ROBOT_NAMES[r]}"] = write_tum(out / f"trajectory_{ROBOT_NAMES[r]}.tum", times, result.poses[r])
     report = report_dict(result, truth)
     report["files"] = {k: str(v) for k, v in paths.items()}
+    report.update(extra or {})
     paths["json"] = out / "fusion_report.json"
     paths["json"].write_text(json.dumps(report, indent=1))
     return {**paths, "report": report}
