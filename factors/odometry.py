@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
+from graphloc.factors.mixture import check_covariances
 from graphloc.factors.robust import Kernel, robust_noise
 
 
@@ -40,13 +41,9 @@ def between_factor(key_a: int, key_b: int, relative, covariance: np.ndarray, ker
 
 
 def check_covariance(cov: np.ndarray, what: str) -> None:
-    """ValueError unless `cov` is finite, symmetric and positive definite."""
-    if not np.isfinite(cov).all():
-        raise ValueError(f"{what}: contains NaN/inf")
-    if not np.allclose(cov, cov.T, atol=1e-12 * max(1.0, np.abs(cov).max())):
-        raise ValueError(f"{what}: not symmetric")
-    if np.linalg.eigvalsh(cov).min() <= 0:
-        raise ValueError(f"{what}: not positive definite")
+    """ValueError unless `cov` is finite, symmetric and positive definite (one matrix of
+    `factors.mixture.check_covariances`)."""
+    check_covariances(np.asarray(cov, dtype=float)[None], what)
 
 
 def _pose_from_matrix(T: np.ndarray):

@@ -574,6 +574,7 @@ def read_planar_run(root: str | Path, on_error: str = "skip") -> PlanarRun:
     tables are ignored by the planar pipeline). Bad rows raise or are counted (`on_error`)."""
     manifest = read_manifest(root)
     report = SkipReport()
+    sink = _Sink(on_error, report)
     ids, xyz, sig = read_landmarks(manifest)
     names = tuple(r.name for r in manifest.robots)
     index = {n: i for i, n in enumerate(names)}
@@ -587,18 +588,14 @@ def read_planar_run(root: str | Path, on_error: str = "skip") -> PlanarRun:
             gt[rec.robot].append((rec.time, rec.x, rec.y, rec.theta))
         else:
             if rec.range <= 0:
-                report.add("non_positive_range", f"{manifest.root / manifest.robot(rec.robot).tables['range_bearing']}: "
-                                                 f"time {rec.time}: field 'range': {rec.range} <= 0")
-                if on_error == "raise":
-                    raise ValueError(report.examples[-1])
+                sink.bad("non_positive_range", f"{manifest.root / manifest.robot(rec.robot).tables['range_bearing']}: "
+                                               f"time {rec.time}: field 'range': {rec.range} <= 0")
                 continue
             T = manifest.robot(rec.robot).sensor(rec.sensor).body_T_sensor
             mount = (T[0, 3], T[1, 3], math.atan2(T[1, 0], T[0, 0]))
             if rec.target in index:
                 if rec.target == rec.robot:
-                    report.add("self_observation", f"robot {rec.robot} observes itself at time {rec.time}")
-                    if on_error == "raise":
-                        raise ValueError(report.examples[-1])
+                    sink.bad("self_observation", f"robot {rec.robot} observes itself at time {rec.time}")
                     continue
                 obs.append((rec.time, index[rec.robot], index[rec.target], -1, rec.range, rec.bearing, *mount))
             else:
