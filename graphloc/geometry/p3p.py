@@ -240,11 +240,14 @@ def _geometry(F, P):
 # ----------------------------------------------------------------------------- polynomial roots
 
 
-def _real_cubic_roots(b, c, d, newton_steps: int = 1):
+def _real_cubic_roots(b, c, d, newton_steps: int = 1, largest_only: bool = False):
     """Real roots of x^3 + b x^2 + c x + d, coefficients of any (broadcastable) shape S ->
-    (*S, 3), largest first, NaN where not real. Trigonometric form for three real roots,
-    Cardano for one; then Newton steps."""
-    b, c, d = (np.asarray(v, dtype=float)[..., None] for v in (b, c, d))
+    (*S, 3), largest first, NaN where not real (largest_only: (*S,) the largest root alone,
+    which is all lambdatwist and Ferrari need -- the hot path). Trigonometric form for three
+    real roots, Cardano for one; then Newton steps."""
+    b, c, d = (np.asarray(v, dtype=float) for v in (b, c, d))
+    if not largest_only:
+        b, c, d = b[..., None], c[..., None], d[..., None]
     p = c - b * b / 3.0
     q = 2.0 * b**3 / 27.0 - b * c / 3.0 + d
     disc = (q / 2.0) ** 2 + (p / 3.0) ** 3
@@ -252,12 +255,15 @@ def _real_cubic_roots(b, c, d, newton_steps: int = 1):
     three = disc < 0
     m = 2.0 * np.sqrt(np.maximum(-p / 3.0, 0.0))
     phi = np.arccos(np.clip(np.where(three, 3.0 * q / (p * m), 0.0), -1.0, 1.0)) / 3.0
-    cphi, sphi = np.cos(phi), np.sin(phi) * (np.sqrt(3.0) / 2.0)
-    # cos(phi - 2 pi k / 3) for k = 0, 1, 2 (k = 0 is the largest)
-    trig = m * np.concatenate([cphi, -0.5 * cphi + sphi, -0.5 * cphi - sphi], axis=-1) + shift
     sq = np.sqrt(np.maximum(disc, 0.0))
     single = np.cbrt(-q / 2.0 + sq) + np.cbrt(-q / 2.0 - sq) + shift
-    x = np.where(three, trig, np.where(np.arange(3) == 0, single, np.nan))
+    if largest_only:
+        x = np.where(three, m * np.cos(phi) + shift, single)
+    else:
+        cphi, sphi = np.cos(phi), np.sin(phi) * (np.sqrt(3.0) / 2.0)
+        # cos(phi - 2 pi k / 3) for k = 0, 1, 2 (k = 0 is the largest)
+        trig = m * np.concatenate([cphi, -0.5 * cphi + sphi, -0.5 * cphi - sphi], axis=-1) + shift
+        x = np.where(three, trig, np.where(np.arange(3) == 0, single, np.nan))
     for _ in range(newton_steps):
         fx = ((x + b) * x + c) * x + d
         dfx = (3.0 * x + 2.0 * b) * x + c
@@ -267,7 +273,7 @@ def _real_cubic_roots(b, c, d, newton_steps: int = 1):
 
 def _largest_real_cubic_root(b, c, d):
     """Largest real root (shape of the coefficients) of x^3 + b x^2 + c x + d; two Newton steps."""
-    return _real_cubic_roots(b, c, d, newton_steps=2)[..., 0]
+    return _real_cubic_roots(b, c, d, newton_steps=2, largest_only=True)
 
 
 def _real_quartic_roots(coeffs):
