@@ -28,6 +28,7 @@ from graphloc.datasets.feng_deterministic import Seed000Config, StraightLineTria
 from graphloc.baselines.straight_line import bearings_from_pixels, localize_by_straight_line
 from graphloc.cameras import ParaboloidOmniCamera
 from graphloc.geometry.p3p import MAX_CANDIDATES
+from graphloc.geometry.so3 import skew
 from graphloc.keys import pose_key
 from graphloc.datasets.feng import noisy_pixels
 from graphloc.vision.mutual import localize_three, render_mutual_pixels
@@ -148,9 +149,7 @@ def shared_rotation_initials(pixels: np.ndarray, K: np.ndarray, ground: np.ndarr
     Returns the `keep` best rotations (T,keep,3,3), centres (T,keep,3,3) and their mean squared
     angular residuals (T,keep) [rad^2] over the 9 bearings (inf: fewer valid candidates)."""
     f = bearings_from_pixels(pixels, K)  # (T,3,3,3) [trial, snapshot, robot, xyz]
-    fx = np.zeros(f.shape + (3,))
-    fx[..., 0, 1], fx[..., 0, 2], fx[..., 1, 2] = -f[..., 2], f[..., 1], -f[..., 0]
-    fx[..., 1, 0], fx[..., 2, 0], fx[..., 2, 1] = f[..., 2], -f[..., 1], f[..., 0]
+    fx = skew(f)
     Rt = np.swapaxes(R_cand, -1, -2)  # (T,M,3,3)
     A = np.einsum("tsjab,tmbc->tmsjac", fx, Rt)  # (T,M,S,J,3,3)
     b = np.einsum("tmsjab,tjb->tmsja", A, ground)

@@ -41,6 +41,7 @@ import numpy as np
 
 from graphloc.cameras import PinholeCamera
 from graphloc.cooperative_sfm import FrameInput, MotionNoise
+from graphloc.geometry.so3 import skew
 
 TRACKER_SETTINGS = ("proper", "ideal", "noisy")
 
@@ -80,14 +81,6 @@ class EkfConfig:
 
 N_MOTION = 7  # T (3), w (3), beta
 TRACKER_ID = -1  # id of the robot tracker's point among the state's points
-
-
-def _skew(a: np.ndarray) -> np.ndarray:
-    """(n,3) -> (n,3,3) cross-product matrices."""
-    S = np.zeros(a.shape[:-1] + (3, 3))
-    S[..., 0, 1], S[..., 0, 2], S[..., 1, 2] = -a[..., 2], a[..., 1], -a[..., 0]
-    S[..., 1, 0], S[..., 2, 0], S[..., 2, 1] = a[..., 2], -a[..., 1], a[..., 0]
-    return S
 
 
 def incremental_rotation(w: np.ndarray) -> np.ndarray:
@@ -186,7 +179,7 @@ class Seed003Ekf:
             raise ValueError("Seed003Ekf: a point is behind the camera (1 + Z_c beta <= 0)")
         m = len(which)
         H = np.zeros((2 * m, len(x)))
-        dadw = -_skew(a)  # d(R(dq) a)/dw at w = 0 is [w]x a = -[a]x w
+        dadw = -skew(a)  # d(R(dq) a)/dw at w = 0 is [w]x a = -[a]x w
         rows_u, rows_v = 2 * np.arange(m), 2 * np.arange(m) + 1
         for rows, C, k in ((rows_u, Xc, 0), (rows_v, Yc, 1)):
             H[rows, k] = 1.0 / D

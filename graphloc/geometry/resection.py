@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
+from graphloc.geometry.so3 import skew
 
 
 def resection_covariance(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarray, points: np.ndarray,
@@ -30,10 +31,8 @@ def resection_covariance(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarr
     J = np.zeros(pc.shape[:2] + (2, 3))  # d(uv)/d(pc)
     J[..., 0, 0], J[..., 0, 2] = f[0] / z, -f[0] * x / z ** 2
     J[..., 1, 1], J[..., 1, 2] = f[1] / z, -f[1] * y / z ** 2
-    skew = np.zeros(pc.shape[:2] + (3, 3))
-    skew[..., 0, 1], skew[..., 0, 2], skew[..., 1, 2] = -z, y, -x
-    skew[..., 1, 0], skew[..., 2, 0], skew[..., 2, 1] = z, -y, x
-    dpc = np.concatenate([skew, np.broadcast_to(-np.eye(3), skew.shape)], axis=-1)  # (N,3,3,6)
+    hat = skew(pc)  # d(pc)/d(rotation) for the right perturbation
+    dpc = np.concatenate([hat, np.broadcast_to(-np.eye(3), hat.shape)], axis=-1)  # (N,3,3,6)
     A = (J @ dpc).reshape(len(pc), 6, 6)
     if not (np.isfinite(pixel_sigma) and pixel_sigma >= 0):
         raise ValueError(f"resection_covariance: pixel_sigma must be finite >= 0, got {pixel_sigma}")
