@@ -334,8 +334,9 @@ class CrawlerPairScenario:
         for mask, dist, tex, (a0, b0), (ia, ib) in (
                 (on_wall, s_wall, scene.wall_texture, scene.wall_origin, (0, 1)),  # wall texture: (x, y)
                 (~on_wall, s_ground, scene.ground_texture, scene.ground_origin, (0, 2))):  # ground: (x, z)
-            mapx = np.nan_to_num((o[ia] + dist * ray[ia] - a0) / scene.texel, posinf=-1, neginf=-1).astype(np.float32)
-            mapy = np.nan_to_num((o[ib] + dist * ray[ib] - b0) / scene.texel, posinf=-1, neginf=-1).astype(np.float32)
+            with np.errstate(invalid="ignore"):  # rays that miss this surface: inf * 0 = NaN, mapped off-texture
+                mapx = np.nan_to_num((o[ia] + dist * ray[ia] - a0) / scene.texel, posinf=-1, neginf=-1).astype(np.float32)
+                mapy = np.nan_to_num((o[ib] + dist * ray[ib] - b0) / scene.texel, posinf=-1, neginf=-1).astype(np.float32)
             sampled = cv2.remap(tex, mapx, mapy,
                                 cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
             np.copyto(img, sampled.astype(np.float32), where=mask[..., None])

@@ -37,8 +37,9 @@ and online see the same factors, added frame by frame through one `Session`.
 
 The circle front-end (`graphloc.vision.circle`) returns BOTH poses of the base (the ellipse
 cannot tell them apart). On crawler-pair their centres are 0.04-0.19 mm apart at 0.8 m, but
-their normals ~15-21 deg (the genuine one within ~1 deg of the truth, the false one tilted
-~4.5 deg out of the vertical plane, and drifting as the robots move). Both enter as a
+their normals ~15-21 deg (the genuine one within 0.6 deg of the truth with the refined rim --
+0.2 deg median, scripts/bench_seed003.py -- the false one tilted ~4.5 deg out of the vertical
+plane, and drifting as the robots move). Both enter as a
 max-mixture: the genuine candidate is the one consistent with the other sightings (tied by the
 teammate's zero-motion factors) and with its upright attitude, so the graph picks it per frame
 (`CooperativeSfm.active_components`, `SfmRun.active_final` / `active_causal`) and the normal
@@ -52,7 +53,7 @@ teammate_model='moment_matched_centre'. A Python CustomFactor cannot be pickled 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import gtsam
 import numpy as np
@@ -95,16 +96,23 @@ class TeammateObservation:
 class TeammateConfig:
     """radius [m] of the base disk; blob: its colour signature; circle: ellipse-fit settings;
     radius_pixel_floor, centre_pixel_floor [px]: lower bounds of the ellipse radius and centre
-    accuracy used for the centre covariance (the fit's rms / sqrt(n) alone is too optimistic).
-    Calibrated on crawler-pair seeds 100-102 (not used by the benchmark, 48 frames at
-    0.73-0.83 m): depth error RMS 0.48 mm (= 0.01 px of ellipse radius), lateral 0.09 mm
-    (= 0.08 px of centre), while rms / sqrt(n) is ~0.004 px."""
+    accuracy used for the centre covariance (the edge fit's own sigmas, ~0.0047 / 0.0036 px,
+    are slightly optimistic). Calibrated on crawler-pair seeds 100-102 (not used by the
+    benchmark, 48 frames at 0.73-0.83 m) with the refined rim (BlobConfig.refine_edges):
+    depth error RMS 0.34 mm (= 0.007 px of ellipse radius), lateral 0.006 mm (= 0.004 px of
+    centre per axis). The centre floor is nevertheless 0.03 px: the two candidates' centres
+    differ by ~0.1 px, and at 0.006 px that difference (~20 sigma) outweighed the normals'
+    ~20 deg in the max-mixture's choice whenever the camera pose was a fraction of a millimetre
+    off -- online, after the teammate moved, iSAM2 then kept the false candidate (seed 4 of
+    scripts/bench_seed003.py: 17 wrong choices, none at 0.03). With the edge crossings alone
+    (refine_edges=False) the errors were 0.48 mm (0.01 px) and 0.09 mm (0.08 px): set the
+    floors to those for that front-end."""
 
     radius: float = 0.019
     blob: BlobConfig = BlobConfig()
     circle: CircleConfig = CircleConfig()
-    radius_pixel_floor: float = 0.01
-    centre_pixel_floor: float = 0.08
+    radius_pixel_floor: float = 0.007
+    centre_pixel_floor: float = 0.03
 
     def __post_init__(self):
         if not (np.isfinite(self.radius) and self.radius > 0):
@@ -117,9 +125,11 @@ class TeammateConfig:
 def teammate_observation(candidates: CandidateSet, camera: PinholeCamera,
                          config: TeammateConfig) -> TeammateObservation:
     """Moment-matched Gaussian of the circle candidates' centres (camera frame). Per candidate,
-    first-order noise: the ellipse radius r_px is known to sigma_r = max(rms / sqrt(n),
-    radius_pixel_floor) and its centre to sigma_c = max(rms / sqrt(n / 2), centre_pixel_floor),
-    so depth sigma = z sigma_r / r_px and lateral sigma = z sigma_c / f."""
+    first-order noise: the ellipse radius r_px is known to sigma_r = max(s_r, radius_pixel_floor)
+    and its centre to sigma_c = max(s_c, centre_pixel_floor), where s_r, s_c are the edge fit's
+    sigmas when candidates.meta has them ('radius_sigma_px', 'centre_sigma_px', set by
+    `measure_frames` from a refined rim) and rms / sqrt(n), rms / sqrt(n / 2) of the rim points
+    otherwise; depth sigma = z sigma_r / r_px and lateral sigma = z sigma_c / f."""
     if len(candidates) == 0:
         raise ValueError("teammate_observation: no circle candidates")
     w = candidates.weights()
@@ -130,8 +140,8 @@ def teammate_observation(candidates: CandidateSet, camera: PinholeCamera,
         raise ValueError(f"teammate_observation: base centre behind the camera (z = {z})")
     rms = float(candidates.meta.get("rms_px", 0.0))
     n = max(int(candidates.meta.get("n_points", 1)), 1)
-    sigma_r = max(rms / np.sqrt(n), config.radius_pixel_floor)
-    sigma_c = max(rms / np.sqrt(n / 2.0), config.centre_pixel_floor)
+    sigma_r = max(float(candidates.meta.get("radius_sigma_px", rms / np.sqrt(n))), config.radius_pixel_floor)
+    sigma_c = max(float(candidates.meta.get("centre_sigma_px", rms / np.sqrt(n / 2.0))), config.centre_pixel_floor)
     r_px = camera.fx * config.radius / z
     f = 0.5 * (camera.fx + camera.fy)
     direction = mean / np.linalg.norm(mean)
@@ -208,18 +218,25 @@ def measure_frames(images: np.ndarray, camera: PinholeCamera, camera_moved, team
         from tqdm import tqdm
         steps = tqdm(steps, desc="front-end", leave=False)
     for t in steps:
-        blob = detect_base_rim(images[t], teammate.blob)
         obs = None
-        if blob is None:
-            no_blob += 1
-        else:
-            try:
+        blob = detect_base_rim(images[t], teammate.blob)
+        try:
+            if blob is None:
+                no_blob += 1
+            elif blob.refine_error:
+                reasons.append(f"frame {t}: {blob.refine_error}")
+            else:
                 cands, _ = circle_pose_from_rim(camera, blob.rim, teammate.radius, teammate.circle,
                                                 time=arrays["times"][t],
                                                 observer="camera", observed="teammate")
+                if blob.refinement is not None:
+                    fit = blob.refinement
+                    cands = replace(cands, meta={**cands.meta, "radius_sigma_px": float(fit.semi_axis_sigma.max()),
+                                                 "centre_sigma_px": float(fit.centre_sigma.max()),
+                                                 "edge_blur_px": fit.blur})
                 obs = teammate_observation(cands, camera, teammate)
-            except ValueError as exc:
-                reasons.append(f"frame {t}: {exc}")
+        except ValueError as exc:
+            reasons.append(f"frame {t}: {exc}")
         feats = tracker.step(images[t], None if blob is None else blob.exclusion)
         lost += feats.n_lost
         frames.append(FrameInput(float(arrays["times"][t]), feats, obs, bool(arrays["camera_moved"][t]),
@@ -259,10 +276,13 @@ class CooperativeSfmConfig:
     on the relative pose camera -> base) or 'moment_matched_centre' (baseline: the candidates'
     centres moment-matched into one Gaussian on a Point3, normals unused);
     normal_sigma [rad]: disk-normal noise of one candidate. On crawler-pair seeds 100-103 (not
-    used by the benchmark) the genuine normal is 0.15-0.97 deg off, with a bias shared by the
-    frames, so 0.015 rad made the camera attitude follow that bias (x error 0.17 vs 0.11 mm at
-    N = 10); 0.03 keeps the gain at N = 1 (x 3.2 vs 6.0 mm) and matches the baseline at N = 10;
-    the false normal, ~20 deg off, stays > 10 sigma away;
+    used by the benchmark) the genuine normal from the edge crossings was 0.15-0.97 deg off,
+    with a bias shared by the frames, so 0.015 rad made the camera attitude follow that bias
+    (x error 0.17 vs 0.11 mm at N = 10); 0.03 keeps the gain at N = 1 (x 3.2 vs 6.0 mm) and
+    matches the baseline at N = 10. With the refined rim (0.2 deg median error) 0.015 and
+    0.008 still raised the N = 10 x error (0.12, 0.23 vs 0.10 mm on seeds 100-107) and left
+    the scale error as it was, so 0.03 stays; the false normal, ~20 deg off, stays > 10 sigma
+    away;
     circle_yaw_sigma [rad]: rotation about the normal, unobservable from a circle (loose);
     upright_sigma [rad]: the teammate stands on the ground -- its base's y axis (in the disk
     plane, circle convention of `graphloc.vision.circle`) is vertical, i.e. world -y (world =
@@ -270,7 +290,10 @@ class CooperativeSfmConfig:
     teammate stands in (0.02 pulled the camera pitch: y error 0.16 vs 0.11 mm at N = 10 on
     seeds 100-103; 0.05 does not);
     session: the engine (mode batch / online; online default: two extra iSAM2 iterations per
-    frame, since new landmarks start at the common depth and one Gauss-Newton step is not enough)."""
+    frame, since new landmarks start at the common depth and one step is not enough, with the
+    dog-leg step: with the refined rim's tight depth noise the undamped Gauss-Newton step
+    oscillated with period 2 on crawler-pair seed 9, N = 20 -- causal error alternating 0.1 /
+    1.7 mm frame to frame, 1.5 mm mean over seeds 0, 4, 9, 12 vs 0.64 mm with dog-leg)."""
 
     pixel_sigma: float = 1.0
     kernel: Kernel = Kernel("huber", 1.345)
@@ -283,7 +306,8 @@ class CooperativeSfmConfig:
     normal_sigma: float = 0.03
     circle_yaw_sigma: float = 1.0
     upright_sigma: float = 0.05
-    session: SessionConfig = field(default_factory=lambda: SessionConfig(relinearize_threshold=0.01, extra_updates=2))
+    session: SessionConfig = field(default_factory=lambda: SessionConfig(relinearize_threshold=0.01, extra_updates=2,
+                                                                          isam2_optimizer="dogleg"))
 
     def __post_init__(self):
         for name in ("pixel_sigma", "first_pose_sigma", "feature_prior_depth", "feature_prior_sigma",

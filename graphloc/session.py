@@ -48,7 +48,10 @@ class SessionConfig:
     every N updates), extra_updates (additional `update()` calls after each add, to converge
     further), factorization ("CHOLESKY" or "QR"), wildfire_threshold (back-substitution stops
     where the solution changes less than this), partial_relinearization_check (only check the
-    variables of re-eliminated cliques for relinearization).
+    variables of re-eliminated cliques for relinearization), isam2_optimizer: "gauss_newton"
+    (iSAM2's default step) or "dogleg" (Powell's dog leg with an adaptive trust region: a
+    step that would raise the error is shortened, which stops the period-2 oscillation an
+    undamped step can fall into on stiff graphs).
     """
 
     mode: str = "batch"
@@ -61,10 +64,14 @@ class SessionConfig:
     factorization: str = "CHOLESKY"
     wildfire_threshold: float = 0.001
     partial_relinearization_check: bool = False
+    isam2_optimizer: str = "gauss_newton"
 
     def __post_init__(self):
         if self.mode not in MODES:
             raise ValueError(f"SessionConfig.mode must be one of {MODES}, got {self.mode!r}")
+        if self.isam2_optimizer not in ("gauss_newton", "dogleg"):
+            raise ValueError(f"SessionConfig.isam2_optimizer must be gauss_newton or dogleg, got "
+                             f"{self.isam2_optimizer!r}")
         if self.factorization not in ("CHOLESKY", "QR"):
             raise ValueError(f"SessionConfig.factorization must be CHOLESKY or QR, got {self.factorization!r}")
         if self.lm_max_iterations < 1 or self.relinearize_skip < 1 or self.extra_updates < 0:
@@ -135,9 +142,12 @@ class Session:
         params.relinearizeSkip = self.config.relinearize_skip
         params.setFactorization(self.config.factorization)
         params.enablePartialRelinearizationCheck = self.config.partial_relinearization_check
-        gauss_newton = gtsam.ISAM2GaussNewtonParams()
-        gauss_newton.setWildfireThreshold(self.config.wildfire_threshold)
-        params.setOptimizationParams(gauss_newton)
+        if self.config.isam2_optimizer == "dogleg":
+            step = gtsam.ISAM2DoglegParams()
+        else:
+            step = gtsam.ISAM2GaussNewtonParams()
+        step.setWildfireThreshold(self.config.wildfire_threshold)
+        params.setOptimizationParams(step)
         return gtsam.ISAM2(params)
 
     # ---- the front door ------------------------------------------------------------------

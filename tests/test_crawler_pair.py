@@ -83,13 +83,14 @@ def test_config_validation():
 
 
 def test_circle_candidates_share_their_centre(seq):
-    """The design premise of graphloc.cooperative_sfm: the two circle solutions differ in the
-    normal; their centres are about 2 sigma apart or less (2 = the unimodality limit of an
-    equal-weight two-Gaussian mixture), so a moment-matched Gaussian represents it."""
+    """The two circle solutions differ in the normal (the max-mixture of graphloc.cooperative_sfm
+    tells them apart); their centres agree to well under a millimetre. With the refined rim the
+    centre noise is ~0.03 mm laterally at this resolution, so the two centres are several sigma
+    apart: the moment-matched centre baseline widens its Gaussian by their spread."""
     from graphloc.cooperative_sfm import TeammateConfig, measure_frames
 
     _, report = measure_frames(seq.images, seq.camera, *seq.frame_flags(),
                                teammate=TeammateConfig(radius=seq.config.base_radius))
     assert report.no_blob == 0 and report.circle_failed == 0
     assert 0.0 < report.max_candidate_spread < 0.001
-    assert 0.0 < report.max_candidate_separation <= 2.5
+    assert report.max_candidate_separation > 2.0

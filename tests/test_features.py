@@ -128,3 +128,94 @@ def test_base_rim_absent_and_bad_image():
         detect_base_rim(np.zeros((60, 80), np.uint8))
     with pytest.raises(ValueError):
         BlobConfig(median_size=4)
+
+
+def textured_disk(seed, tilt_deg=20.0, depth=0.8, noise=2.0, blur=0.6):
+    """The base disk (BGR (40,40,200)) over a grey texture of random brightness with a slight
+    green tint -- the case where a threshold on a colour score moves with the texture."""
+    cam = PinholeCamera.from_fov(640, 480, np.radians(50))
+    rng = np.random.default_rng(seed)
+    c = np.array([0.01 + 0.002 * rng.normal(), 0.02, depth])
+    a = np.radians(tilt_deg)
+    n = np.array([np.sin(a), 0.0, -np.cos(a)])
+    cov = disk_coverage(cam, c, n, 0.019)
+    grey = cv2.resize(rng.uniform(30, 220, (60, 80)).astype(np.float32), (640, 480), interpolation=cv2.INTER_NEAREST)
+    background = grey[..., None] * np.float32([0.95, 1.0, 0.9])
+    img = background * (1 - cov[..., None]) + np.float32([40, 40, 200]) * cov[..., None]
+    img = cv2.GaussianBlur(img, (0, 0), blur) + rng.normal(0, noise, img.shape)
+    return cam, c, n, cov, np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def _axes_and_centre(points):
+    (u, v), (w, h), _ = cv2.fitEllipse(points.astype(np.float32))
+    return np.array([u, v]), np.sort([w, h])
+
+
+def test_coverage_map_ignores_the_background_brightness():
+    from graphloc.vision.features import coverage_map
+
+    _, _, _, cov, img = textured_disk(seed=1, noise=0.0, blur=1e-3)
+    blob = detect_base_rim(img, BlobConfig(refine_edges=False))
+    alpha, (x0, y0) = coverage_map(img, blob.mask)
+    truth = cov[y0:y0 + alpha.shape[0], x0:x0 + alpha.shape[1]]
+    assert np.abs(alpha - truth).max() < 0.03  # vs up to ~0.15 for a score threshold on this texture
+    grey = np.full((60, 80, 3), 120, np.uint8)
+    grey[20:40, 30:50] = 200  # a "blob" with the background's own hue
+    with pytest.raises(ValueError, match="parallel"):
+        coverage_map(grey, (grey[..., 0] == 200).astype(np.uint8))
+
+
+def test_refined_rim_beats_the_edge_crossings_on_texture():
+    """Over 12 textured frames the refined ellipse's axes are within ~0.02 px of the truth
+    (rms), about three times closer than the ellipse of the interpolated edge crossings."""
+    from graphloc.vision.circle import render_circle_rim
+
+    err_refined, err_crossings, blurs = [], [], []
+    for seed in range(12):
+        cam, c, n, _, img = textured_disk(seed)
+        truth, _ = render_circle_rim(cam, c, n, 0.019, n_points=720)
+        centre, axes = _axes_and_centre(truth)
+        blob = detect_base_rim(img)
+        assert blob.refinement is not None and not blob.refine_error
+        blurs.append(blob.refinement.blur)
+        for pts, out in ((blob.rim, err_refined), (blob.crossings, err_crossings)):
+            c1, a1 = _axes_and_centre(pts)
+            out.append(np.abs(a1 - axes).max())
+        assert np.linalg.norm(_axes_and_centre(blob.rim)[0] - centre) < 0.02
+    rms = lambda e: float(np.sqrt(np.mean(np.square(e))))
+    assert rms(err_refined) < 0.025
+    assert rms(err_refined) < 0.6 * rms(err_crossings)
+    assert 0.45 < np.median(blurs) < 0.75  # the Gaussian blur of 0.6 px (plus the disk's own edge)
+    # its own 1-sigma is of the size of the scatter it shows
+    assert 0.001 < blob.refinement.semi_axis_sigma.max() < 0.02
+
+
+def test_refine_ellipse_errors_are_clear():
+    from graphloc.vision.circle import refine_ellipse
+
+    with pytest.raises(ValueError, match="pixels within"):
+        refine_ellipse(np.zeros((5, 5)), (0, 0), np.array([100.0, 100.0, 30.0, 30.0, 0.0]))
+    with pytest.raises(ValueError, match="no edge"):
+        refine_ellipse(np.zeros((60, 60)), (0, 0), np.array([30.0, 30.0, 30.0, 28.0, 0.0]))
+    with pytest.raises(ValueError, match="finite"):
+        refine_ellipse(np.zeros((60, 60)), (0, 0), np.array([30.0, np.nan, 30.0, 28.0, 0.0]))
+
+
+def test_failed_refinement_is_reported_not_raised(monkeypatch):
+    import graphloc.vision.features as features
+
+    def fail(*args, **kwargs):
+        raise ValueError("the edge fit diverged (test)")
+
+    monkeypatch.setattr(features, "refine_ellipse", fail)
+    _, _, _, _, img = textured_disk(seed=0)
+    blob = detect_base_rim(img)
+    assert blob.refinement is None and "diverged (test)" in blob.refine_error
+    assert blob.exclusion.sum() > 0 and len(blob.crossings) > 40
+
+    from graphloc.cooperative_sfm import TeammateConfig, measure_frames
+    images = np.stack([img, img])
+    frames, report = measure_frames(images, PinholeCamera.from_fov(640, 480, np.radians(50)), [0, 1], [0, 0],
+                                    [0, 0], [0, 0], teammate=TeammateConfig())
+    assert report.circle_failed == 2 and all(f.teammate is None for f in frames)
+    assert "frame 1: edge refinement failed" in report.circle_reasons[1]

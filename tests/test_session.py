@@ -72,10 +72,11 @@ def _run(mode, steps, **cfg):
     return s
 
 
-def test_batch_and_online_agree_and_beat_odometry():
+@pytest.mark.parametrize("optimizer", ["gauss_newton", "dogleg"])
+def test_batch_and_online_agree_and_beat_odometry(optimizer):
     steps, truth, n_out = _problem()
     batch = _run("batch", steps)
-    online = _run("online", steps)
+    online = _run("online", steps, isam2_optimizer=optimizer)
     eb, eo = _errors(batch.estimate(), truth), _errors(online.estimate(), truth)
     assert np.sqrt(np.mean(eb ** 2)) < 0.05
     assert np.sqrt(np.mean(eo ** 2)) < 1.2 * np.sqrt(np.mean(eb ** 2)) + 0.01
@@ -143,6 +144,8 @@ def test_session_rejects_bad_input(tmp_path):
         s.add(gtsam.NonlinearFactorGraph(), v, time=3.0)
     with pytest.raises(ValueError, match="mode"):
         SessionConfig(mode="fast")
+    with pytest.raises(ValueError, match="isam2_optimizer"):
+        SessionConfig(isam2_optimizer="newton")
     (tmp_path / "junk.pkl").write_bytes(b"\x80\x05K\x01.")
     with pytest.raises(ValueError, match="not a saved"):
         Session.load(tmp_path / "junk.pkl")

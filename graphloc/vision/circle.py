@@ -33,6 +33,8 @@ from typing import Sequence
 
 import cv2
 import numpy as np
+from scipy.optimize import least_squares
+from scipy.special import erfc
 
 from graphloc.cameras import PinholeCamera, check_rows, normalize_rows
 from graphloc.candidates import CandidateSet
@@ -159,6 +161,101 @@ def fit_ellipse(points: np.ndarray, method: str = "direct") -> np.ndarray:
         raise ValueError("rim points are all identical")
     (u0, v0), (w, h), ang = _FITTERS[method](((points - mean) / scale).astype(np.float32))
     return np.array([u0 * scale + mean[0], v0 * scale + mean[1], w * scale, h * scale, ang])
+
+
+def ellipse_points(ellipse: np.ndarray, n: int = 90) -> np.ndarray:
+    """(n,2) points equally spaced in angle on an ellipse (5,) (OpenCV RotatedRect convention)."""
+    u0, v0, w, h, ang = np.asarray(ellipse, dtype=float).reshape(5)
+    phi = np.linspace(0.0, 2.0 * np.pi, int(n), endpoint=False)
+    c, s = np.cos(np.radians(ang)), np.sin(np.radians(ang))
+    x, y = 0.5 * w * np.cos(phi), 0.5 * h * np.sin(phi)
+    return np.column_stack([u0 + c * x - s * y, v0 + s * x + c * y])
+
+
+@dataclass(frozen=True)
+class EllipseRefinement:
+    """Result of `refine_ellipse`: ellipse (5,) (OpenCV RotatedRect convention, pixel
+    coordinates of the coverage map's image), blur [px] (Gaussian sigma of the edge, optics
+    and sensor), level_in / level_out (fitted coverage inside / outside), rms residual of the
+    coverage, n_pixels in the edge band, and the 1-sigma [px] of the centre (2,) and of the
+    two semi-axes (2,) from the fit's Gauss-Newton covariance."""
+
+    ellipse: np.ndarray
+    blur: float
+    level_in: float
+    level_out: float
+    rms: float
+    n_pixels: int
+    centre_sigma: np.ndarray
+    semi_axis_sigma: np.ndarray
+
+
+def _edge_model(p: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Coverage of pixels (u, v) by a blurred filled ellipse p = (u0, v0, log a, log b, angle,
+    log sigma, level_in, level_out): level_out + (level_in - level_out) Phi(-(d + sigma^2 k/2)
+    / s), d the first-order (Sampson) signed distance to the ellipse, s^2 = sigma^2 + 1/12 (the
+    pixel's box), k = 1/sqrt(ab) the mean curvature (a blurred convex edge's half level lies
+    sigma^2 k / 2 inside it)."""
+    u0, v0, la, lb, th, ls, lin, lout = p
+    a, b, sigma = np.exp(la), np.exp(lb), np.exp(ls)
+    c, s = np.cos(th), np.sin(th)
+    x, y = u - u0, v - v0
+    xr, yr = c * x + s * y, -s * x + c * y
+    q = (xr / a) ** 2 + (yr / b) ** 2
+    grad = 2.0 * np.sqrt((xr / a**2) ** 2 + (yr / b**2) ** 2) + 1e-12
+    d = (q - 1.0) / grad + 0.5 * sigma**2 / np.sqrt(a * b)
+    return lout + (lin - lout) * 0.5 * erfc(d / np.sqrt(2.0 * (sigma**2 + 1.0 / 12.0)))
+
+
+def refine_ellipse(coverage: np.ndarray, origin: tuple[int, int], ellipse0: np.ndarray, band: float = 4.0,
+                   blur0: float = 0.7, min_contrast: float = 0.5) -> EllipseRefinement:
+    """Sub-pixel ellipse from a coverage map (seed 003 II-A-1 refined: the seed fits edge
+    points; here the edge itself is the measurement). coverage (h,w): the fraction of each
+    pixel covered by the disk (e.g. `vision.features.coverage_map`), its pixel (0,0) at image
+    pixel `origin` (x0, y0); ellipse0 (5,): the starting ellipse (cv2 fit of edge points).
+    Fits every pixel within `band` px of ellipse0 with `_edge_model` by Levenberg-Marquardt
+    (scipy.optimize.least_squares). Edge points interpolated between pixel centres lock onto
+    the pixel grid (their ellipse size wobbles as the image moves); the edge model does not.
+    ValueError when the band is too small, the fit diverges or finds no edge (fitted inside
+    minus outside coverage <= min_contrast)."""
+    coverage = np.asarray(coverage, dtype=float)
+    u0, v0, w, h, ang = np.asarray(ellipse0, dtype=float).reshape(5)
+    if coverage.ndim != 2 or not (np.isfinite([u0, v0, w, h, ang]).all() and min(w, h) > 0):
+        raise ValueError(f"refine_ellipse: need a 2-D coverage map and a finite start ellipse, got "
+                         f"{coverage.shape}, {ellipse0}")
+    v, u = np.mgrid[0:coverage.shape[0], 0:coverage.shape[1]]
+    u, v = (u + origin[0]).ravel(), (v + origin[1]).ravel()
+    values = coverage.ravel()
+    p0 = np.array([u0, v0, np.log(w / 2), np.log(h / 2), np.radians(ang), np.log(blur0), 1.0, 0.0])
+    c, s = np.cos(p0[4]), np.sin(p0[4])
+    xr, yr = c * (u - u0) + s * (v - v0), -s * (u - u0) + c * (v - v0)
+    q = (xr / (w / 2)) ** 2 + (yr / (h / 2)) ** 2
+    dist = (q - 1.0) / (2.0 * np.sqrt((xr / (w / 2) ** 2) ** 2 + (yr / (h / 2) ** 2) ** 2) + 1e-12)
+    near = (np.abs(dist) <= band) & np.isfinite(values)
+    if near.sum() < 20:
+        raise ValueError(f"refine_ellipse: only {int(near.sum())} pixels within {band} px of the start ellipse")
+    u, v, values = u[near], v[near], values[near]
+    fit = least_squares(lambda p: _edge_model(p, u, v) - values, p0, method="lm")
+    p = fit.x
+    a, b = np.exp(p[2]), np.exp(p[3])
+    if not (fit.success and np.isfinite(p).all() and 0.5 < a / (w / 2) < 2.0 and 0.5 < b / (h / 2) < 2.0
+            and np.hypot(p[0] - u0, p[1] - v0) < band):
+        raise ValueError(f"refine_ellipse: the edge fit diverged (start {np.round(ellipse0, 3)}, "
+                         f"end {np.round(p, 3)}, status {fit.status})")
+    if not p[6] - p[7] > min_contrast:
+        raise ValueError(f"refine_ellipse: no edge -- fitted coverage inside {p[6]:.3f} vs outside {p[7]:.3f} "
+                         f"(need a difference > {min_contrast})")
+    dof = max(len(values) - len(p), 1)
+    rms = float(np.sqrt(2.0 * fit.cost / dof))
+    J = fit.jac
+    try:
+        cov = np.linalg.inv(J.T @ J) * rms**2
+    except np.linalg.LinAlgError as exc:
+        raise ValueError(f"refine_ellipse: singular edge fit ({exc})") from None
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    ellipse = np.array([p[0], p[1], 2 * a, 2 * b, np.degrees(p[4]) % 180.0])
+    return EllipseRefinement(ellipse, float(np.exp(p[5])), float(p[6]), float(p[7]), rms, int(len(values)),
+                             sd[:2], np.array([a * sd[2], b * sd[3]]))
 
 
 def circles_from_cones(cones: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

