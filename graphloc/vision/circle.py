@@ -190,6 +190,16 @@ class EllipseRefinement:
     semi_axis_sigma: np.ndarray
 
 
+def _ellipse_distance(u0, v0, a, b, angle, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """First-order (Sampson) signed distance [px] of pixels (u, v) to the ellipse with centre
+    (u0, v0), semi-axes a, b and angle [rad]; negative inside."""
+    c, s = np.cos(angle), np.sin(angle)
+    x, y = u - u0, v - v0
+    xr, yr = c * x + s * y, -s * x + c * y
+    q = (xr / a) ** 2 + (yr / b) ** 2
+    return (q - 1.0) / (2.0 * np.sqrt((xr / a**2) ** 2 + (yr / b**2) ** 2) + 1e-12)
+
+
 def _edge_model(p: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Coverage of pixels (u, v) by a blurred filled ellipse p = (u0, v0, log a, log b, angle,
     log sigma, level_in, level_out): level_out + (level_in - level_out) Phi(-(d + sigma^2 k/2)
@@ -198,12 +208,7 @@ def _edge_model(p: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     sigma^2 k / 2 inside it)."""
     u0, v0, la, lb, th, ls, lin, lout = p
     a, b, sigma = np.exp(la), np.exp(lb), np.exp(ls)
-    c, s = np.cos(th), np.sin(th)
-    x, y = u - u0, v - v0
-    xr, yr = c * x + s * y, -s * x + c * y
-    q = (xr / a) ** 2 + (yr / b) ** 2
-    grad = 2.0 * np.sqrt((xr / a**2) ** 2 + (yr / b**2) ** 2) + 1e-12
-    d = (q - 1.0) / grad + 0.5 * sigma**2 / np.sqrt(a * b)
+    d = _ellipse_distance(u0, v0, a, b, th, u, v) + 0.5 * sigma**2 / np.sqrt(a * b)
     return lout + (lin - lout) * 0.5 * erfc(d / np.sqrt(2.0 * (sigma**2 + 1.0 / 12.0)))
 
 
@@ -227,11 +232,7 @@ def refine_ellipse(coverage: np.ndarray, origin: tuple[int, int], ellipse0: np.n
     u, v = (u + origin[0]).ravel(), (v + origin[1]).ravel()
     values = coverage.ravel()
     p0 = np.array([u0, v0, np.log(w / 2), np.log(h / 2), np.radians(ang), np.log(blur0), 1.0, 0.0])
-    c, s = np.cos(p0[4]), np.sin(p0[4])
-    xr, yr = c * (u - u0) + s * (v - v0), -s * (u - u0) + c * (v - v0)
-    q = (xr / (w / 2)) ** 2 + (yr / (h / 2)) ** 2
-    dist = (q - 1.0) / (2.0 * np.sqrt((xr / (w / 2) ** 2) ** 2 + (yr / (h / 2) ** 2) ** 2) + 1e-12)
-    near = (np.abs(dist) <= band) & np.isfinite(values)
+    near = (np.abs(_ellipse_distance(u0, v0, w / 2, h / 2, p0[4], u, v)) <= band) & np.isfinite(values)
     if near.sum() < 20:
         raise ValueError(f"refine_ellipse: only {int(near.sum())} pixels within {band} px of the start ellipse")
     u, v, values = u[near], v[near], values[near]
