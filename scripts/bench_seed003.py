@@ -13,6 +13,11 @@ same front-end measurements (KLT tracks, circle candidates) through
             (causal, like the filter),
   - batch_centre: baseline teammate_model 'moment_matched_centre' (batch; the candidates'
             centres merged into one Gaussian, normals unused) -- does the mixture help?
+  - batch_crossings: batch with the seed's rim, the interpolated edge crossings
+            (BlobConfig.refine_edges=False, their calibrated floors) -- does the edge fit help?
+Front-end, per trial (no graph): the genuine circle candidate's centre error against the
+truth along the line of sight (depth) and across it, its frame-to-frame change while only the
+camera moves (what the scale sees), and the genuine normal's angle error, for both rims.
 Metrics per method and N: mean absolute translation error per axis over the sequence [mm]
 (mean and std over trials), per-frame error curves, the trajectory scale error at each frame
 (|s - 1|, s = least-squares ratio of the lengths of the camera displacements from frame 0,
@@ -29,13 +34,15 @@ Writes OUT/bench_seed003.json, OUT/bench_seed003.md, OUT/axis_errors.png,
 OUT/error_curves.png, OUT/scale_error.png.
 
     .venv/bin/python scripts/bench_seed003.py --trials 2 --out out/bench_seed003_quick
-    .venv/bin/python scripts/bench_seed003.py --out out/bench_seed003          # full: 8 trials
+    .venv/bin/python scripts/bench_seed003.py --out out/bench_seed003          # full: 16 trials
+    .venv/bin/python scripts/bench_seed003.py --seed-offset 1000 --out out/bench_seed003_heldout
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -54,11 +61,54 @@ from graphloc.cooperative_sfm import (CooperativeSfmConfig, TeammateConfig, axis
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario  # noqa: E402
 from graphloc.factors.mixture import max_mixture_factor  # noqa: E402
 from graphloc.keys import pose_key  # noqa: E402
-from graphloc.vision.features import FeatureConfig  # noqa: E402
+from graphloc.vision.circle import circle_pose_from_rim  # noqa: E402
+from graphloc.vision.features import BlobConfig, FeatureConfig, detect_base_rim  # noqa: E402
 
-METHODS = ("ekf", "batch", "online", "batch_centre")
-GRAPH_RUNS = {"batch": ("batch", "max_mixture"), "online": ("online", "max_mixture"),
-              "batch_centre": ("batch", "moment_matched_centre")}
+METHODS = ("ekf", "batch", "online", "batch_centre", "batch_crossings")
+GRAPH_RUNS = {"batch": ("batch", "max_mixture", "refined"), "online": ("online", "max_mixture", "refined"),
+              "batch_centre": ("batch", "moment_matched_centre", "refined"),
+              "batch_crossings": ("batch", "max_mixture", "crossings")}
+FRONT_ENDS = ("refined", "crossings")
+METHOD_NOTE = ("ekf = the seed's EKF (eq. 13 state, proper covariance settings); batch / online = graphloc "
+               "(Session LM / iSAM2, circle candidates as a max-mixture, refined rim); batch_centre = the "
+               "candidates' centres moment-matched into one Gaussian; batch_crossings = batch on the seed's "
+               "edge-crossing rim. Errors are mean absolute per axis over the sequence (mean ± std over trials); "
+               "the scale error at frame k is |s - 1|, s the least-squares ratio of the estimated to the true "
+               "camera displacement lengths from frame 0, using only frames 0..k.")
+
+
+def teammate_config(front_end: str, radius: float) -> TeammateConfig:
+    """The teammate front-end: 'refined' (default edge fit) or 'crossings' (the seed's edge
+    points, with the floors calibrated for them; see TeammateConfig)."""
+    if front_end == "refined":
+        return TeammateConfig(radius=radius)
+    return TeammateConfig(radius=radius, blob=BlobConfig(refine_edges=False), radius_pixel_floor=0.01,
+                          centre_pixel_floor=0.08)
+
+
+def front_end_errors(seq, front_end: str) -> dict:
+    """Per frame: the genuine circle candidate's depth error (along the line of sight) and
+    lateral error [m], its normal error [deg]; and the frame-to-frame depth-error changes
+    over the frames where only the camera moved."""
+    cfg = teammate_config(front_end, seq.config.base_radius)
+    depth, lateral, normal = [], [], []
+    for k in range(len(seq)):
+        blob = detect_base_rim(seq.images[k], cfg.blob)
+        if blob is None or blob.refine_error:
+            depth.append(np.nan), lateral.append(np.nan), normal.append(np.nan)
+            continue
+        cands, _ = circle_pose_from_rim(seq.camera, blob.rim, cfg.radius, cfg.circle)
+        centre, true_normal = seq.base_in_camera(k)
+        g = int(np.argmax(cands.R[:, :, 2] @ true_normal))
+        err = cands.t[g] - centre
+        los = centre / np.linalg.norm(centre)
+        depth.append(float(err @ los))
+        lateral.append(float(np.linalg.norm(err - (err @ los) * los)))
+        normal.append(float(np.degrees(np.arccos(np.clip(cands.R[g, :, 2] @ true_normal, -1.0, 1.0)))))
+    camera_moved, teammate_moved, _, _ = seq.frame_flags()
+    only_camera = camera_moved[1:] & ~teammate_moved[1:]
+    return {"depth": np.array(depth), "lateral": np.array(lateral), "normal_deg": np.array(normal),
+            "depth_change": np.diff(np.array(depth))[only_camera]}
 AXES = ("x", "y", "z")
 
 
@@ -68,11 +118,12 @@ def run_trial(seed: int, n_values: list[int], scenario: CrawlerPairConfig) -> di
     camera_moved, teammate_moved, odo, odo_std = seq.frame_flags()
     truth = seq.t_wc
     depth = seq.config.background_distance
-    out = {}
+    out = {"front_end": {fe: front_end_errors(seq, fe) for fe in FRONT_ENDS}}
     for n in n_values:
-        frames, report = measure_frames(seq.images, seq.camera, camera_moved, teammate_moved, odo, odo_std,
-                                        FeatureConfig(max_features=n - 1),
-                                        TeammateConfig(radius=seq.config.base_radius))
+        measured = {fe: measure_frames(seq.images, seq.camera, camera_moved, teammate_moved, odo, odo_std,
+                                       FeatureConfig(max_features=n - 1),
+                                       teammate_config(fe, seq.config.base_radius)) for fe in FRONT_ENDS}
+        frames, report = measured["refined"]
         sightings = np.flatnonzero([f.teammate is not None for f in frames])
         third = int(sightings[2]) if len(sightings) >= 3 else len(frames)
         res = {"front_end": {"no_blob": report.no_blob, "circle_failed": report.circle_failed,
@@ -96,11 +147,11 @@ def run_trial(seed: int, n_values: list[int], scenario: CrawlerPairConfig) -> di
         res["third_sighting_displacement_m"] = moved
         res["scale_floor_3rd"] = float(np.hypot(depth_sd[0], depth_sd[2]) / moved) if len(depth_sd) >= 3 else \
             float("nan")
-        for method, (mode, model) in GRAPH_RUNS.items():
+        for method, (mode, model, fe) in GRAPH_RUNS.items():
             cfg = CooperativeSfmConfig(feature_prior_depth=depth, teammate_model=model)
             cfg = replace(cfg, session=replace(cfg.session, mode=mode))
             t0 = time.perf_counter()
-            run = run_cooperative_sfm(frames, seq.camera, cfg)
+            run = run_cooperative_sfm(measured[fe][0], seq.camera, cfg)
             seconds = time.perf_counter() - t0
             positions = run.final_positions if mode == "batch" else run.causal_positions
             active = run.active_final if mode == "batch" else run.active_causal
@@ -133,7 +184,9 @@ def summarize(trials: list[dict], n_values: list[int]) -> dict:
                 "std_over_trials_mm": dict(zip(AXES, (1000 * mean_axis.std(axis=0)).tolist())),
                 "curve_mm": (1000 * curves.mean(axis=0)).tolist(),
                 "scale_error_max_after_3rd_sighting": {"mean": float(scale_after.mean()),
-                                                       "max": float(scale_after.max())},
+                                                       "max": float(scale_after.max()),
+                                                       "per_trial": scale_after.tolist(),
+                                                       "trials_above_2pct": int(np.sum(scale_after >= 0.02))},
                 "scale_error_last_frame": {"mean": float(scale_final.mean()), "max": float(scale_final.max())},
                 "scale_below_2pct_from_frame_worst_trial": int(max(settled)),
                 # frame 0 has no displacement yet: its scale error is NaN in every trial
@@ -167,11 +220,23 @@ def summarize(trials: list[dict], n_values: list[int]) -> dict:
                 e[m]["scale_error_max_after_3rd_sighting"]["mean"] < 0.02
             checks[f"N={n} {m} scale error < 2% from 3rd sighting (worst trial)"] = \
                 e[m]["scale_error_max_after_3rd_sighting"]["max"] < 0.02
-    return {"per_n": summary, "checks": checks}
+    front = {}
+    for fe in FRONT_ENDS:
+        cat = {k: np.concatenate([t["front_end"][fe][k] for t in trials]) for k in ("depth", "lateral", "normal_deg",
+                                                                                 "depth_change")}
+        front[fe] = {"frames": int(cat["depth"].size), "failed": int(np.isnan(cat["depth"]).sum()),
+                     "depth_error_rms_mm": 1000 * float(np.sqrt(np.nanmean(cat["depth"] ** 2))),
+                     "depth_error_mean_mm": 1000 * float(np.nanmean(cat["depth"])),
+                     "depth_change_sd_mm": 1000 * float(np.nanstd(cat["depth_change"])),
+                     "lateral_error_rms_mm": 1000 * float(np.sqrt(np.nanmean(cat["lateral"] ** 2))),
+                     "normal_error_median_deg": float(np.nanmedian(cat["normal_deg"])),
+                     "normal_error_max_deg": float(np.nanmax(cat["normal_deg"]))}
+    return {"per_n": summary, "checks": checks, "front_end": front}
 
 
 def write_plots(summary: dict, n_values: list[int], out: Path) -> None:
-    colours = {"ekf": "tab:red", "batch": "tab:blue", "online": "tab:green", "batch_centre": "tab:gray"}
+    colours = {"ekf": "tab:red", "batch": "tab:blue", "online": "tab:green", "batch_centre": "tab:gray",
+               "batch_crossings": "tab:orange"}
     fig, axes = plt.subplots(1, 3, figsize=(13, 4))
     width = 0.8 / len(METHODS)
     for i, axis in enumerate(AXES):
@@ -205,7 +270,7 @@ def write_plots(summary: dict, n_values: list[int], out: Path) -> None:
 
     fig, ax = plt.subplots(figsize=(7, 4))
     for n in n_values:
-        for m, style in (("batch", "-"), ("online", "--"), ("batch_centre", ":")):
+        for m, style in (("batch", "-"), ("online", "--"), ("batch_crossings", ":")):
             curve = np.array(summary[n][m]["scale_curve"][1:], dtype=float)
             ax.plot(np.arange(1, len(curve) + 1), 100 * curve, style, label=f"{m} N={n}")
     ax.axhline(2.0, color="k", lw=0.8)
@@ -220,8 +285,9 @@ def write_plots(summary: dict, n_values: list[int], out: Path) -> None:
 
 def markdown(result: dict, n_values: list[int]) -> str:
     lines = ["| N | method | x [mm] | y [mm] | z [mm] | scale err. after 3rd sighting (mean / worst) | "
+             "trials with scale err. >= 2 % after 3rd sighting | "
              "scale < 2 % from frame (worst trial) | scale err. last frame | s / sequence |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for n in n_values:
         for m in METHODS:
             e = result["per_n"][n][m]
@@ -230,6 +296,7 @@ def markdown(result: dict, n_values: list[int]) -> str:
             sc = e["scale_error_max_after_3rd_sighting"]
             lines.append(f"| {n} | {m} | {ax['x']:.3f} ± {sd['x']:.3f} | {ax['y']:.3f} ± {sd['y']:.3f} | "
                          f"{ax['z']:.3f} ± {sd['z']:.3f} | {100 * sc['mean']:.2f} % / {100 * sc['max']:.2f} % | "
+                         f"{sc['trials_above_2pct']} / {len(sc['per_trial'])} | "
                          f"{e['scale_below_2pct_from_frame_worst_trial']} | "
                          f"{100 * e['scale_error_last_frame']['mean']:.2f} % | {e['seconds_per_sequence']:.3f} |")
     lines.append("")
@@ -242,6 +309,14 @@ def markdown(result: dict, n_values: list[int]) -> str:
         lines.append(f"| {n} | {b['genuine_active']} / {b['sightings']} | {o['genuine_active']} / {o['sightings']} | "
                      f"{ev['camera_displacement_at_3rd_sighting_mm']:.1f} mm | "
                      f"{100 * ev['first_order_scale_floor_at_3rd_sighting']:.2f} % |")
+    lines.append("")
+    lines.append("| teammate rim | frames (failed) | depth error rms / mean [mm] | frame-to-frame depth change sd "
+                 "(camera moving) [mm] | lateral error rms [mm] | genuine normal error median / max [deg] |")
+    lines.append("|---|---|---|---|---|---|")
+    for fe, e in result["front_end"].items():
+        lines.append(f"| {fe} | {e['frames']} ({e['failed']}) | {e['depth_error_rms_mm']:.3f} / "
+                     f"{e['depth_error_mean_mm']:+.3f} | {e['depth_change_sd_mm']:.3f} | {e['lateral_error_rms_mm']:.4f} | "
+                     f"{e['normal_error_median_deg']:.2f} / {e['normal_error_max_deg']:.2f} |")
     lines.append("")
     for k, v in result["checks"].items():
         lines.append(f"- {'PASS' if v else 'FAIL'}: {k}")
@@ -272,11 +347,15 @@ def linearize_cost(repeats: int = 3000) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--trials", type=int, default=8, help="rendered sequences (seeds 0..trials-1)")
+    parser.add_argument("--trials", type=int, default=16, help="rendered sequences (seeds offset..offset+trials-1)")
+    parser.add_argument("--seed-offset", type=int, default=0, help="first scenario seed (held-out runs: e.g. 1000)")
     parser.add_argument("--n-features", default="1,2,10,20", help="N values (tracker point + N-1 KLT tracks)")
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=480)
     parser.add_argument("--out", default="out/bench_seed003")
+    parser.add_argument("--doc", default=None,
+                        help="also write the tables, headed by the command that made them, to this markdown file "
+                             "(docs/results_seed003.md)")
     args = parser.parse_args(argv)
     n_values = [int(v) for v in args.n_features.split(",")]
     if any(n < 1 for n in n_values) or args.trials < 1:
@@ -284,16 +363,23 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     scenario = CrawlerPairConfig(width=args.width, height=args.height)
-    trials = [run_trial(seed, n_values, scenario) for seed in tqdm(range(args.trials), desc="seed-003 trials")]
+    seeds = range(args.seed_offset, args.seed_offset + args.trials)
+    trials = [run_trial(seed, n_values, scenario) for seed in tqdm(seeds, desc="seed-003 trials")]
     result = summarize(trials, n_values)
     ratio = {n: result["per_n"][n]["online"]["seconds_per_sequence"] / result["per_n"][n]["ekf"]["seconds_per_sequence"]
              for n in n_values}
     cost = linearize_cost()
-    payload = {"trials": args.trials, "n_values": n_values, "scenario": asdict(scenario),
+    payload = {"trials": args.trials, "seeds": list(seeds), "n_values": n_values, "scenario": asdict(scenario),
                "time_ratio_online_over_ekf": ratio, "linearize_cost": cost, **result}
     (out / "bench_seed003.json").write_text(json.dumps(payload, indent=1, default=str))
     (out / "bench_seed003.md").write_text(markdown(result, n_values))
     write_plots(result["per_n"], n_values, out)
+    if args.doc:
+        command = "scripts/bench_seed003.py " + " ".join(argv if argv is not None else sys.argv[1:])
+        header = (f"# Seed 003 on crawler-pair: EKF vs graphloc\n\nGenerated by `.venv/bin/python {command.strip()}` "
+                  f"(seeds {seeds.start}-{seeds.stop - 1}, {time.strftime('%Y-%m-%d')}); the JSON and PNG plots go to "
+                  f"`{out}/`. Columns: {METHOD_NOTE}\n\n")
+        Path(args.doc).write_text(header + markdown(result, n_values))
     print(markdown(result, n_values))
     print(f"linearization: BetweenFactorPose3 {cost['between_pose3_us']:.1f} us, max-mixture (2 components) "
           f"{cost['max_mixture_2_us']:.1f} us, ratio {cost['ratio_max_mixture_over_between']:.1f}")
