@@ -103,8 +103,9 @@ class TeammateConfig:
     centre per axis). The centre floor is nevertheless 0.03 px: the two candidates' centres
     differ by ~0.1 px, and at 0.006 px that difference (~20 sigma) outweighed the normals'
     ~20 deg in the max-mixture's choice whenever the camera pose was a fraction of a millimetre
-    off -- online, after the teammate moved, iSAM2 then kept the false candidate (seed 4 of
-    scripts/bench_seed003.py: 17 wrong choices, none at 0.03). With the edge crossings alone
+    off -- online, after the teammate moved, iSAM2 then kept the false candidate (seeds 3-4 of
+    scripts/bench_seed003.py, N = 2, 10, 20: 17 wrong choices; none at 0.03, and none in the
+    bench's 16 x 4 x 16 online sightings). With the edge crossings alone
     (refine_edges=False) the errors were 0.48 mm (0.01 px) and 0.09 mm (0.08 px): set the
     floors to those for that front-end."""
 
@@ -293,7 +294,8 @@ class CooperativeSfmConfig:
     frame, since new landmarks start at the common depth and one step is not enough, with the
     dog-leg step: with the refined rim's tight depth noise the undamped Gauss-Newton step
     oscillated with period 2 on crawler-pair seed 9, N = 20 -- causal error alternating 0.1 /
-    1.7 mm frame to frame, 1.5 mm mean over seeds 0, 4, 9, 12 vs 0.64 mm with dog-leg)."""
+    1.7 mm frame to frame, mean 1.5 mm vs 0.63 mm with dog-leg; over seeds 0, 4, 9, 12 the mean
+    causal error was 0.74 vs 0.52 mm)."""
 
     pixel_sigma: float = 1.0
     kernel: Kernel = Kernel("huber", 1.345)

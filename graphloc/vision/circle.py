@@ -221,6 +221,8 @@ def refine_ellipse(coverage: np.ndarray, origin: tuple[int, int], ellipse0: np.n
     Fits every pixel within `band` px of ellipse0 with `_edge_model` by Levenberg-Marquardt
     (scipy.optimize.least_squares). Edge points interpolated between pixel centres lock onto
     the pixel grid (their ellipse size wobbles as the image moves); the edge model does not.
+    The fit is in raw pixels: under lens distortion the rim is an ellipse only to first order
+    across the blob (points on it are undistorted afterwards by `circle_poses_from_rims`).
     ValueError when the band is too small, the fit diverges or finds no edge (fitted inside
     minus outside coverage <= min_contrast)."""
     coverage = np.asarray(coverage, dtype=float)
