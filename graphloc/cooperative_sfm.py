@@ -80,7 +80,11 @@ class TeammateObservation:
     solutions, z = disk normal) with candidate_covariance (3,3) [m^2], the first-order noise
     of one candidate's centre. centre (3,), covariance (3,3): their moment-matched Gaussian
     (the 'moment_matched_centre' baseline); pixel (2,): its projection (the robot tracker's
-    special feature point of seed II-B)."""
+    special feature point of seed II-B). disk_covariance (5,5), optional: the full covariance
+    of (centre x, y, z [m] in the camera frame; normal tilt a, b [rad] towards the disk's x and
+    y axes, n + a x + b y) when it is known (e.g. a Cramér-Rao bound,
+    `CrawlerPairScenario.disk_information`); it then replaces candidate_covariance and
+    CooperativeSfmConfig.normal_sigma in the max-mixture, correlations included."""
 
     centre: np.ndarray
     covariance: np.ndarray
@@ -90,6 +94,7 @@ class TeammateObservation:
     candidate_separation: float = 0.0  # max Mahalanobis distance between two candidate centres
     candidates: CandidateSet | None = None
     candidate_covariance: np.ndarray | None = None
+    disk_covariance: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -322,6 +327,21 @@ class CooperativeSfmConfig:
                              f"got {self.teammate_model!r}")
 
 
+def disk_pose_covariance(R: np.ndarray, disk_covariance: np.ndarray, yaw_sigma: float) -> np.ndarray:
+    """(K,6,6) covariances of circle poses T_cam_base (rotations R (K,3,3), z = normal) in
+    GTSAM's Pose3 tangent (omega, v; base frame) from a (5,5) disk covariance over (centre in
+    the camera frame, normal tilt a, b towards the disk's x, y axes), yaw_sigma [rad] about the
+    normal: T Exp(omega, v) moves the centre by R v and the normal by omega_y x - omega_x y, so
+    omega_x = -b, omega_y = a, v = R^T dc."""
+    R = np.asarray(R, float).reshape(-1, 3, 3)
+    J = np.zeros((len(R), 6, 5))
+    J[:, 0, 4], J[:, 1, 3] = -1.0, 1.0
+    J[:, 3:, :3] = np.transpose(R, (0, 2, 1))
+    cov = np.einsum("kij,jl,kml->kim", J, np.asarray(disk_covariance, float).reshape(5, 5), J)
+    cov[:, 2, 2] = yaw_sigma ** 2
+    return cov
+
+
 def _pose_noise(rot: float, trans: float):
     return gtsam.noiseModel.Diagonal.Sigmas(np.array([rot] * 3 + [trans] * 3))
 
@@ -384,6 +404,12 @@ class CooperativeSfm:
         if frame.teammate is not None and frame.teammate.candidate_covariance is not None:
             check_covariances(np.asarray(frame.teammate.candidate_covariance, float).reshape(1, 3, 3),
                               f"CooperativeSfm.add_frame: frame {frame.time}: teammate candidate_covariance")
+        if frame.teammate is not None and frame.teammate.disk_covariance is not None:
+            if np.shape(frame.teammate.disk_covariance) != (5, 5):
+                raise ValueError(f"CooperativeSfm.add_frame: frame {frame.time}: teammate disk_covariance must be "
+                                 f"(5,5), got {np.shape(frame.teammate.disk_covariance)}")
+            check_covariances(np.asarray(frame.teammate.disk_covariance, float).reshape(1, 5, 5),
+                              f"CooperativeSfm.add_frame: frame {frame.time}: teammate disk_covariance")
         self._last_time = frame.time
         self.frame += 1
         k = self.frame
@@ -463,14 +489,18 @@ class CooperativeSfm:
         T_cam_base enter as a max-mixture (`factors.mixture.max_mixture_factor`) of
         BetweenFactorPose3(x(0,k), x(1,k), T_k), weights from the candidate scores, each with
         the centre covariance (rotated into the candidate frame) and normal_sigma on the
-        normal, circle_yaw_sigma about it; AttitudeFactorPose3 keeps the base upright."""
+        normal -- or the observation's full disk_covariance --, circle_yaw_sigma about it;
+        AttitudeFactorPose3 keeps the base upright."""
         cands = obs.candidates
         if len(cands) == 0:
             raise ValueError(f"CooperativeSfm: frame {k}: teammate observation with no circle candidates")
         cfg = self.config
         cov = np.zeros((len(cands), 6, 6))
-        cov[:, :3, :3] = np.diag([cfg.normal_sigma ** 2, cfg.normal_sigma ** 2, cfg.circle_yaw_sigma ** 2])
-        cov[:, 3:, 3:] = np.einsum("kji,jl,klm->kim", cands.R, obs.candidate_covariance, cands.R)
+        if obs.disk_covariance is None:
+            cov[:, :3, :3] = np.diag([cfg.normal_sigma ** 2, cfg.normal_sigma ** 2, cfg.circle_yaw_sigma ** 2])
+            cov[:, 3:, 3:] = np.einsum("kji,jl,klm->kim", cands.R, obs.candidate_covariance, cands.R)
+        else:
+            cov = disk_pose_covariance(cands.R, obs.disk_covariance, cfg.circle_yaw_sigma)
         components = component_factors(cands, m, pose_key(CAMERA_ROBOT, k), cov)
         if len(components) == 1:
             graph.append(components[0])
@@ -662,3 +692,54 @@ def ideal_frames(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarray, poin
         frames.append(FrameInput(float(k), FrameFeatures(ids.astype(np.int64), pixels), obs, bool(camera_moved[k]),
                                  bool(teammate_moved[k]), float(teammate_odometry[k]), float(teammate_odometry_std[k])))
     return frames
+
+
+def with_teammate_from_geometry(frames: list[FrameInput], camera: PinholeCamera, centres: np.ndarray,
+                                normals: np.ndarray, config: TeammateConfig = TeammateConfig(),
+                                disk_covariances: np.ndarray | None = None,
+                                rng: np.random.Generator | None = None) -> list[FrameInput]:
+    """The same frames with every sighting's circle candidates replaced by those of the rim of
+    the base disk from known geometry (camera-frame centres (T,3), unit normals (T,3), radius
+    config.radius); everything else (KLT tracks, motion flags, odometry) unchanged. An
+    ablation for scripts/bench_seed003.py (seed 003 II-A: a circle gives its centre and normal,
+    never the rotation about the normal):
+      - disk_covariances None: the EXACT disk (a perfect circle front-end), with the calibrated
+        covariance of `teammate_observation`;
+      - disk_covariances (T,5,5) (parametrization of TeammateObservation.disk_covariance): the
+        disk is first moved by a draw from N(0, disk_covariances[k]) (rng), and the observation
+        carries that covariance -- a front-end whose errors are exactly those, e.g. at the
+        Cramér-Rao bound of the image."""
+    centres, normals = np.asarray(centres, float), np.asarray(normals, float)
+    for name, a in (("centres", centres), ("normals", normals)):
+        if a.shape != (len(frames), 3):
+            raise ValueError(f"with_teammate_from_geometry: {name} must be ({len(frames)},3), got {a.shape}")
+    if disk_covariances is not None:
+        disk_covariances = np.asarray(disk_covariances, float)
+        if disk_covariances.shape != (len(frames), 5, 5):
+            raise ValueError(f"with_teammate_from_geometry: disk_covariances must be ({len(frames)},5,5), "
+                             f"got {disk_covariances.shape}")
+        rng = np.random.default_rng(0) if rng is None else rng
+    out = []
+    for k, f in enumerate(frames):
+        if f.teammate is None:
+            out.append(f)
+            continue
+        if not (np.isfinite(centres[k]).all() and np.isfinite(normals[k]).all() and centres[k, 2] > 0):
+            raise ValueError(f"with_teammate_from_geometry: frame {k} was a sighting but its true centre "
+                             f"{centres[k]} / normal {normals[k]} is not a finite disk in front of the camera")
+        centre, normal = centres[k], normals[k] / np.linalg.norm(normals[k])
+        if disk_covariances is not None:
+            check_covariances(disk_covariances[k:k + 1], f"with_teammate_from_geometry: disk_covariances[{k}]")
+            draw = np.linalg.cholesky(disk_covariances[k]) @ rng.normal(size=5)
+            centre = centre + draw[:3]
+            normal = normal + rotations_from_normals(normal[None])[0][:, :2] @ draw[3:]
+            normal = normal / np.linalg.norm(normal)
+        rim, visible = render_circle_rim(camera, centre, normal, config.radius, n_points=256)
+        cands, _ = circle_pose_from_rim(camera, rim[visible], config.radius, config.circle, time=f.time,
+                                        observer="camera", observed="teammate")
+        obs = teammate_observation(cands, camera, config)
+        if disk_covariances is not None:
+            obs = replace(obs, candidate_covariance=disk_covariances[k][:3, :3].copy(),
+                          disk_covariance=disk_covariances[k].copy())
+        out.append(replace(f, teammate=obs))
+    return out

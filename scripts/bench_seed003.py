@@ -15,9 +15,21 @@ same front-end measurements (KLT tracks, circle candidates) through
             centres merged into one Gaussian, normals unused) -- does the mixture help?
   - batch_crossings: batch with the seed's rim, the interpolated edge crossings
             (BlobConfig.refine_edges=False, their calibrated floors) -- does the edge fit help?
+  - batch_crlb_circle: batch with circle candidates from a disk drawn at the Cramer-Rao bound
+            of each image (`CrawlerPairScenario.disk_information`, known background: no
+            front-end on these pixels can do better) and told that covariance, correlations
+            included (`with_teammate_from_geometry`; same KLT tracks) -- the best any circle
+            front-end could give this graph;
+  - batch_exact_circle: the same with the exact disk, told it is exact (1 um, 1e-5 rad) --
+            what is left is what the geometry does not observe (the rotation about the normal).
 Front-end, per trial (no graph): the genuine circle candidate's centre error against the
 truth along the line of sight (depth) and across it, its frame-to-frame change while only the
-camera moves (what the scale sees), and the genuine normal's angle error, for both rims.
+camera moves (what the scale sees), and the genuine normal's angle error, for both rims, and
+the Cramer-Rao bound of the same quantities.
+Geometry, per trial: at the 3rd sighting, the camera's true rotation about the disk-normal axis
+through the base centre since frame 0 (a circle cannot see it: the image of a circle is the
+same after it) times the camera's distance from that axis -- the camera displacement that only
+KLT tracks and the motion prior can tell.
 Metrics per method and N: mean absolute translation error per axis over the sequence [mm]
 (mean and std over trials), per-frame error curves, the trajectory scale error at each frame
 (|s - 1|, s = least-squares ratio of the lengths of the camera displacements from frame 0,
@@ -57,22 +69,28 @@ from tqdm import tqdm  # noqa: E402
 
 from graphloc.baselines.ekf_seed003 import EkfConfig, run_ekf  # noqa: E402
 from graphloc.cooperative_sfm import (CooperativeSfmConfig, TeammateConfig, axis_errors,  # noqa: E402
-                                      genuine_candidates, measure_frames, run_cooperative_sfm, scale_errors)
+                                      genuine_candidates, measure_frames, run_cooperative_sfm, scale_errors,
+                                      with_teammate_from_geometry)
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario  # noqa: E402
 from graphloc.factors.mixture import max_mixture_factor  # noqa: E402
 from graphloc.keys import pose_key  # noqa: E402
 from graphloc.vision.circle import circle_pose_from_rim  # noqa: E402
 from graphloc.vision.features import BlobConfig, FeatureConfig, detect_base_rim  # noqa: E402
 
-METHODS = ("ekf", "batch", "online", "batch_centre", "batch_crossings")
+METHODS = ("ekf", "batch", "online", "batch_centre", "batch_crossings", "batch_crlb_circle", "batch_exact_circle")
 GRAPH_RUNS = {"batch": ("batch", "max_mixture", "refined"), "online": ("online", "max_mixture", "refined"),
               "batch_centre": ("batch", "moment_matched_centre", "refined"),
-              "batch_crossings": ("batch", "max_mixture", "crossings")}
+              "batch_crossings": ("batch", "max_mixture", "crossings"),
+              "batch_crlb_circle": ("batch", "max_mixture", "crlb"),
+              "batch_exact_circle": ("batch", "max_mixture", "exact")}
+EXACT_DISK_SIGMAS = np.array([1e-6, 1e-6, 1e-6, 1e-5, 1e-5])  # 'exact' disk: centre [m], normal tilt [rad]
 FRONT_ENDS = ("refined", "crossings")
 METHOD_NOTE = ("ekf = the seed's EKF (eq. 13 state, proper covariance settings); batch / online = graphloc "
                "(Session LM / iSAM2, circle candidates as a max-mixture, refined rim); batch_centre = the "
                "candidates' centres moment-matched into one Gaussian; batch_crossings = batch on the seed's "
-               "edge-crossing rim. Errors are mean absolute per axis over the sequence (mean ± std over trials); "
+               "edge-crossing rim; batch_crlb_circle = batch with the circle drawn at the Cramér-Rao bound of each image "
+               "(known background), told that covariance: the best any circle front-end could do; "
+               "batch_exact_circle = batch with the exact circle, told it is exact. Errors are mean absolute per axis over the sequence (mean ± std over trials); "
                "the scale error at frame k is |s - 1|, s the least-squares ratio of the estimated to the true "
                "camera displacement lengths from frame 0, using only frames 0..k.")
 
@@ -109,21 +127,57 @@ def front_end_errors(seq, front_end: str) -> dict:
     only_camera = camera_moved[1:] & ~teammate_moved[1:]
     return {"depth": np.array(depth), "lateral": np.array(lateral), "normal_deg": np.array(normal),
             "depth_change": np.diff(np.array(depth))[only_camera]}
+
+
+def crlb_errors(seq, centres: np.ndarray, disk_cov: np.ndarray) -> dict:
+    """The Cramer-Rao bound of the front_end_errors quantities, per frame: depth and lateral
+    sigmas [m], normal angle rms [deg], and the frame-to-frame depth-change sigma over the
+    frames where only the camera moved."""
+    los = centres / np.linalg.norm(centres, axis=1, keepdims=True)
+    depth_var = np.einsum("ki,kij,kj->k", los, disk_cov[:, :3, :3], los)
+    camera_moved, teammate_moved, _, _ = seq.frame_flags()
+    only_camera = camera_moved[1:] & ~teammate_moved[1:]
+    return {"depth_sd": np.sqrt(depth_var),
+            "lateral_sd": np.sqrt(np.trace(disk_cov[:, :3, :3], axis1=1, axis2=2) - depth_var),
+            "normal_rms_deg": np.degrees(np.sqrt(disk_cov[:, 3, 3] + disk_cov[:, 4, 4])),
+            "depth_change_sd": np.sqrt(depth_var[1:] + depth_var[:-1])[only_camera]}
+
+
 AXES = ("x", "y", "z")
+
+
+def unseen_displacement(seq, k: int) -> float:
+    """Camera displacement [m] at frame k that no circle measurement can show: the camera's
+    true rotation since frame 0 about the disk-normal axis through the base centre (the image
+    of a circle does not change under it) times the camera's distance from that axis."""
+    normal = seq.base_normal[k] / np.linalg.norm(seq.base_normal[k])
+    angle = float(gtsam.Rot3.Logmap(gtsam.Rot3(seq.R_wc[k] @ seq.R_wc[0].T)) @ normal)
+    arm = seq.t_wc[k] - seq.base_centre[k]
+    return abs(angle) * float(np.linalg.norm(arm - (arm @ normal) * normal))
 
 
 def run_trial(seed: int, n_values: list[int], scenario: CrawlerPairConfig) -> dict:
     """One rendered sequence through every method and N; errors in metres."""
-    seq = CrawlerPairScenario(replace(scenario, seed=seed)).generate()
+    generator = CrawlerPairScenario(replace(scenario, seed=seed))
+    seq = generator.generate()
     camera_moved, teammate_moved, odo, odo_std = seq.frame_flags()
     truth = seq.t_wc
     depth = seq.config.background_distance
+    radius = seq.config.base_radius
+    centres_cam, normals_cam = (np.array(a) for a in zip(*(seq.base_in_camera(k) for k in range(len(seq)))))
+    disk_cov = np.array([np.linalg.inv(generator.disk_information(seq, k, subsamples=16)) for k in range(len(seq))])
+    exact_cov = np.tile(np.diag(EXACT_DISK_SIGMAS ** 2), (len(seq), 1, 1))
     out = {"front_end": {fe: front_end_errors(seq, fe) for fe in FRONT_ENDS}}
+    out["front_end"]["crlb"] = crlb_errors(seq, centres_cam, disk_cov)
     for n in n_values:
         measured = {fe: measure_frames(seq.images, seq.camera, camera_moved, teammate_moved, odo, odo_std,
                                        FeatureConfig(max_features=n - 1),
                                        teammate_config(fe, seq.config.base_radius)) for fe in FRONT_ENDS}
         frames, report = measured["refined"]
+        for name, cov in (("crlb", disk_cov), ("exact", exact_cov)):  # the same draws for every N
+            measured[name] = (with_teammate_from_geometry(frames, seq.camera, centres_cam, normals_cam,
+                                                          teammate_config("refined", radius), cov,
+                                                          np.random.default_rng([seed, 3])), report)
         sightings = np.flatnonzero([f.teammate is not None for f in frames])
         third = int(sightings[2]) if len(sightings) >= 3 else len(frames)
         res = {"front_end": {"no_blob": report.no_blob, "circle_failed": report.circle_failed,
@@ -147,6 +201,7 @@ def run_trial(seed: int, n_values: list[int], scenario: CrawlerPairConfig) -> di
         res["third_sighting_displacement_m"] = moved
         res["scale_floor_3rd"] = float(np.hypot(depth_sd[0], depth_sd[2]) / moved) if len(depth_sd) >= 3 else \
             float("nan")
+        res["unseen_displacement_3rd_m"] = unseen_displacement(seq, third) if third < len(frames) else float("nan")
         for method, (mode, model, fe) in GRAPH_RUNS.items():
             cfg = CooperativeSfmConfig(feature_prior_depth=depth, teammate_model=model)
             cfg = replace(cfg, session=replace(cfg.session, mode=mode))
@@ -196,7 +251,10 @@ def summarize(trials: list[dict], n_values: list[int]) -> dict:
         per["scale_evidence"] = {
             "camera_displacement_at_3rd_sighting_mm": 1000 * float(np.mean([t[n]["third_sighting_displacement_m"]
                                                                            for t in trials])),
-            "first_order_scale_floor_at_3rd_sighting": float(np.mean([t[n]["scale_floor_3rd"] for t in trials]))}
+            "first_order_scale_floor_at_3rd_sighting": float(np.mean([t[n]["scale_floor_3rd"] for t in trials])),
+            "unseen_displacement_at_3rd_sighting_mm": {
+                "mean": 1000 * float(np.mean([t[n]["unseen_displacement_3rd_m"] for t in trials])),
+                "max": 1000 * float(np.max([t[n]["unseen_displacement_3rd_m"] for t in trials]))}}
         for m in ("batch", "online"):
             seen = [t[n]["genuine"] >= 0 for t in trials]
             hits = sum(int(np.sum((t[n][m]["active"] == t[n]["genuine"])[s])) for t, s in zip(trials, seen))
@@ -230,13 +288,18 @@ def summarize(trials: list[dict], n_values: list[int]) -> dict:
                      "depth_change_sd_mm": 1000 * float(np.nanstd(cat["depth_change"])),
                      "lateral_error_rms_mm": 1000 * float(np.sqrt(np.nanmean(cat["lateral"] ** 2))),
                      "normal_error_median_deg": float(np.nanmedian(cat["normal_deg"])),
-                     "normal_error_max_deg": float(np.nanmax(cat["normal_deg"]))}
+                     "normal_error_max_deg": float(np.nanmax(cat["normal_deg"])),
+                     "normal_error_rms_deg": float(np.sqrt(np.nanmean(cat["normal_deg"] ** 2)))}
+    rms = lambda k: float(np.sqrt(np.mean(np.concatenate([t["front_end"]["crlb"][k] for t in trials]) ** 2)))
+    front["crlb"] = {"frames": int(sum(len(t["front_end"]["crlb"]["depth_sd"]) for t in trials)),
+                     "depth_sd_rms_mm": 1000 * rms("depth_sd"), "depth_change_sd_mm": 1000 * rms("depth_change_sd"),
+                     "lateral_sd_rms_mm": 1000 * rms("lateral_sd"), "normal_rms_deg": rms("normal_rms_deg")}
     return {"per_n": summary, "checks": checks, "front_end": front}
 
 
 def write_plots(summary: dict, n_values: list[int], out: Path) -> None:
     colours = {"ekf": "tab:red", "batch": "tab:blue", "online": "tab:green", "batch_centre": "tab:gray",
-               "batch_crossings": "tab:orange"}
+               "batch_crossings": "tab:orange", "batch_crlb_circle": "tab:brown", "batch_exact_circle": "tab:purple"}
     fig, axes = plt.subplots(1, 3, figsize=(13, 4))
     width = 0.8 / len(METHODS)
     for i, axis in enumerate(AXES):
@@ -270,7 +333,7 @@ def write_plots(summary: dict, n_values: list[int], out: Path) -> None:
 
     fig, ax = plt.subplots(figsize=(7, 4))
     for n in n_values:
-        for m, style in (("batch", "-"), ("online", "--"), ("batch_crossings", ":")):
+        for m, style in (("batch", "-"), ("online", "--"), ("batch_crossings", ":"), ("batch_crlb_circle", "-.")):
             curve = np.array(summary[n][m]["scale_curve"][1:], dtype=float)
             ax.plot(np.arange(1, len(curve) + 1), 100 * curve, style, label=f"{m} N={n}")
     ax.axhline(2.0, color="k", lw=0.8)
@@ -301,22 +364,31 @@ def markdown(result: dict, n_values: list[int]) -> str:
                          f"{100 * e['scale_error_last_frame']['mean']:.2f} % | {e['seconds_per_sequence']:.3f} |")
     lines.append("")
     lines.append("| N | max-mixture: genuine candidate active (batch final) | (online, when the frame arrived) | "
-                 "camera moved at 3rd sighting | first-order scale floor there |")
-    lines.append("|---|---|---|---|---|")
+                 "camera moved at 3rd sighting | first-order scale floor there | "
+                 "camera displacement a circle cannot see there (mean / max) |")
+    lines.append("|---|---|---|---|---|---|")
     for n in n_values:
         e = result["per_n"][n]
         b, o, ev = e["batch"]["mixture"], e["online"]["mixture"], e["scale_evidence"]
         lines.append(f"| {n} | {b['genuine_active']} / {b['sightings']} | {o['genuine_active']} / {o['sightings']} | "
                      f"{ev['camera_displacement_at_3rd_sighting_mm']:.1f} mm | "
-                     f"{100 * ev['first_order_scale_floor_at_3rd_sighting']:.2f} % |")
+                     f"{100 * ev['first_order_scale_floor_at_3rd_sighting']:.2f} % | "
+                     f"{ev['unseen_displacement_at_3rd_sighting_mm']['mean']:.2f} / "
+                     f"{ev['unseen_displacement_at_3rd_sighting_mm']['max']:.2f} mm |")
     lines.append("")
     lines.append("| teammate rim | frames (failed) | depth error rms / mean [mm] | frame-to-frame depth change sd "
-                 "(camera moving) [mm] | lateral error rms [mm] | genuine normal error median / max [deg] |")
-    lines.append("|---|---|---|---|---|---|")
-    for fe, e in result["front_end"].items():
+                 "(camera moving) [mm] | lateral error rms [mm] | genuine normal error median / max [deg] | "
+                 "normal error rms [deg] |")
+    lines.append("|---|---|---|---|---|---|---|")
+    for fe in FRONT_ENDS:
+        e = result["front_end"][fe]
         lines.append(f"| {fe} | {e['frames']} ({e['failed']}) | {e['depth_error_rms_mm']:.3f} / "
                      f"{e['depth_error_mean_mm']:+.3f} | {e['depth_change_sd_mm']:.3f} | {e['lateral_error_rms_mm']:.4f} | "
-                     f"{e['normal_error_median_deg']:.2f} / {e['normal_error_max_deg']:.2f} |")
+                     f"{e['normal_error_median_deg']:.2f} / {e['normal_error_max_deg']:.2f} | "
+                     f"{e['normal_error_rms_deg']:.2f} |")
+    e = result["front_end"]["crlb"]
+    lines.append(f"| Cramér-Rao bound (known background) | {e['frames']} | {e['depth_sd_rms_mm']:.3f} (sigma) | "
+                 f"{e['depth_change_sd_mm']:.3f} | {e['lateral_sd_rms_mm']:.4f} | - | {e['normal_rms_deg']:.2f} |")
     lines.append("")
     for k, v in result["checks"].items():
         lines.append(f"- {'PASS' if v else 'FAIL'}: {k}")

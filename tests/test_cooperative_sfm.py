@@ -2,6 +2,7 @@
 
 from dataclasses import replace
 
+import gtsam
 import numpy as np
 import pytest
 
@@ -11,10 +12,12 @@ from graphloc.candidates import CandidateSet
 from graphloc.cooperative_sfm import (TEAMMATE_MODELS, CooperativeSfm, CooperativeSfmConfig, FrameInput,
                                       TeammateConfig, TeammateObservation, axis_errors, genuine_candidates,
                                       ideal_frames, measure_frames, run_cooperative_sfm, scale_errors,
-                                      teammate_observation, trajectory_scale)
+                                      disk_pose_covariance, teammate_observation, trajectory_scale,
+                                      with_teammate_from_geometry)
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
 from graphloc.keys import pose_key
 from graphloc.session import Session
+from graphloc.vision.circle import rotations_from_normals
 from graphloc.vision.features import FeatureConfig, FrameFeatures
 
 from seed003_synthetic import CAM, frames_for, rot_y, synthetic  # noqa: E402
@@ -232,3 +235,76 @@ def test_genuine_candidates_and_missing_candidates_are_checked():
     nan_cov = replace(f, teammate=replace(f.teammate, candidate_covariance=np.full((3, 3), np.nan)))
     with pytest.raises(ValueError, match="candidate_covariance: contains NaN"):
         CooperativeSfm(CAM, config("batch")).add_frame(nan_cov)
+
+
+def test_exact_teammate_replaces_only_the_circle_measurement():
+    frames, truth, genuine = tilted_frames()
+    R, t, pts, base, *_ = synthetic(n_points=19, seed=0)
+    h = np.radians(12.0)
+    normals_w = np.tile(-np.array([np.sin(h), 0.0, np.cos(h)]), (len(R), 1))
+    centres = np.einsum("kji,kj->ki", R, base - t)
+    normals = np.einsum("kji,kj->ki", R, normals_w)
+    frames[3] = replace(frames[3], teammate=None)  # not seen: stays unseen
+    exact = with_teammate_from_geometry(frames, CAM, centres, normals)
+    assert exact[3].teammate is None
+    for k, (f, e) in enumerate(zip(frames, exact)):
+        assert e.features is f.features and e.camera_moved == f.camera_moved
+        if k == 3:
+            continue
+        c = e.teammate.candidates
+        g = genuine[k]
+        assert np.linalg.norm(c.t[g] - centres[k]) < 1e-7  # the noisy frames were ~1e-4 off
+        assert np.degrees(np.arccos(min(c.R[g, :, 2] @ normals[k], 1.0))) < 1e-4
+        assert np.linalg.norm(f.teammate.candidates.t[g] - centres[k]) > 1e-6
+    with pytest.raises(ValueError, match="centres must be"):
+        with_teammate_from_geometry(frames, CAM, centres[:2], normals)
+    behind = centres.copy()
+    behind[0, 2] = -1.0
+    with pytest.raises(ValueError, match="frame 0 was a sighting"):
+        with_teammate_from_geometry(frames, CAM, behind, normals)
+
+
+def test_disk_pose_covariance_maps_the_disk_parameters_into_the_pose3_tangent():
+    """T Exp(xi) of a circle pose moves (centre, normal tilt a, b) by M xi; the covariance map
+    J must be its inverse on the observed five parameters (the yaw about the normal is free)."""
+    R = rotations_from_normals(np.array([[0.2, -0.1, -0.97]]))[0]
+    T = gtsam.Pose3(gtsam.Rot3(R), np.array([0.03, 0.02, 0.83]))
+    M = np.zeros((5, 6))
+    for i in range(6):
+        xi = np.zeros(6)
+        xi[i] = 1e-6
+        Tp = T.compose(gtsam.Pose3.Expmap(xi))
+        dn = Tp.rotation().matrix()[:, 2] - R[:, 2]
+        M[:3, i] = (Tp.translation() - T.translation()) / 1e-6
+        M[3:, i] = (dn @ R[:, 0], dn @ R[:, 1])
+        M[3:, i] /= 1e-6
+    A = np.random.default_rng(1).normal(size=(5, 5))
+    disk = A @ A.T + np.eye(5)
+    cov = disk_pose_covariance(R[None], disk, yaw_sigma=0.7)[0]
+    np.testing.assert_allclose(M @ cov @ M.T, disk, rtol=1e-4, atol=1e-6)
+    assert cov[2, 2] == pytest.approx(0.49) and np.allclose(cov[2, [0, 1, 3, 4, 5]], 0.0)
+
+
+def test_teammate_from_geometry_draws_from_the_disk_covariance_and_the_graph_uses_it():
+    frames, truth, genuine = tilted_frames()
+    R, t, pts, base, *_ = synthetic(n_points=19, seed=0)
+    h = np.radians(12.0)
+    normals = np.einsum("kji,kj->ki", R, np.tile(-np.array([np.sin(h), 0.0, np.cos(h)]), (len(R), 1)))
+    centres = np.einsum("kji,kj->ki", R, base - t)
+    disk = np.tile(np.diag([3e-6, 3e-6, 2e-4, 2e-3, 2e-3]) ** 2, (len(R), 1, 1))
+    drawn = with_teammate_from_geometry(frames, CAM, centres, normals, disk_covariances=disk,
+                                        rng=np.random.default_rng(7))
+    rng = np.random.default_rng(7)
+    for k, f in enumerate(drawn):
+        draw = np.linalg.cholesky(disk[k]) @ rng.normal(size=5)
+        c = f.teammate.candidates
+        np.testing.assert_allclose(c.t[genuine[k]], centres[k] + draw[:3], atol=1e-7)
+        np.testing.assert_allclose(f.teammate.disk_covariance, disk[k])
+    run = run_cooperative_sfm(drawn, CAM, config("batch"))
+    np.testing.assert_array_equal(run.active_final, genuine)
+    assert axis_errors(run.final_positions, truth).max() < 0.003
+    with pytest.raises(ValueError, match="disk_covariances must be"):
+        with_teammate_from_geometry(frames, CAM, centres, normals, disk_covariances=disk[:, :3, :3])
+    bad = replace(drawn[0], teammate=replace(drawn[0].teammate, disk_covariance=np.eye(3)))
+    with pytest.raises(ValueError, match="disk_covariance must be"):
+        CooperativeSfm(CAM, config("batch")).add_frame(bad)

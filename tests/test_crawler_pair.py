@@ -1,5 +1,7 @@
 """Scenario `crawler-pair` (seed 003 section III): rendered frames agree with the geometry."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -94,3 +96,23 @@ def test_circle_candidates_share_their_centre(seq):
     assert report.no_blob == 0 and report.circle_failed == 0
     assert 0.0 < report.max_candidate_spread < 0.001
     assert report.max_candidate_separation > 2.0
+
+
+def test_disk_information_is_the_bound_of_this_renderer(seq):
+    """Fisher information of the base disk (Cramér-Rao bound of the image): positive
+    definite; depth much worse than lateral; it scales with 1/(noise^2 + 1/12) exactly (the same
+    background); the finite differences have converged in the ray sampling."""
+    gen = CrawlerPairScenario(seq.config)
+    info = gen.disk_information(seq, 1, subsamples=16)
+    assert info.shape == (5, 5) and np.allclose(info, info.T)
+    cov = np.linalg.inv(info)
+    assert np.linalg.eigvalsh(info)[0] > 0
+    centre, _ = seq.base_in_camera(1)
+    los = centre / np.linalg.norm(centre)
+    depth = np.sqrt(los @ cov[:3, :3] @ los)
+    lateral = np.sqrt((np.trace(cov[:3, :3]) - los @ cov[:3, :3] @ los) / 2)
+    assert 10 * lateral < depth < 2e-3 and np.degrees(np.sqrt(cov[3, 3])) < 2.0
+    noisier = CrawlerPairScenario(replace(seq.config, noise_sigma=4.0)).disk_information(seq, 1, subsamples=16)
+    np.testing.assert_allclose(info / noisier, (16 + 1 / 12) / (4 + 1 / 12), rtol=1e-6)
+    finer = np.linalg.inv(gen.disk_information(seq, 1, subsamples=32))
+    assert abs(np.sqrt(los @ finer[:3, :3] @ los) / depth - 1) < 0.1
