@@ -718,6 +718,7 @@ def with_teammate_from_geometry(frames: list[FrameInput], camera: PinholeCamera,
         if disk_covariances.shape != (len(frames), 5, 5):
             raise ValueError(f"with_teammate_from_geometry: disk_covariances must be ({len(frames)},5,5), "
                              f"got {disk_covariances.shape}")
+        check_covariances(disk_covariances, "with_teammate_from_geometry: disk_covariances")
         rng = np.random.default_rng(0) if rng is None else rng
     out = []
     for k, f in enumerate(frames):
@@ -729,7 +730,6 @@ def with_teammate_from_geometry(frames: list[FrameInput], camera: PinholeCamera,
                              f"{centres[k]} / normal {normals[k]} is not a finite disk in front of the camera")
         centre, normal = centres[k], normals[k] / np.linalg.norm(normals[k])
         if disk_covariances is not None:
-            check_covariances(disk_covariances[k:k + 1], f"with_teammate_from_geometry: disk_covariances[{k}]")
             draw = np.linalg.cholesky(disk_covariances[k]) @ rng.normal(size=5)
             centre = centre + draw[:3]
             normal = normal + rotations_from_normals(normal[None])[0][:, :2] @ draw[3:]

@@ -18,8 +18,10 @@ same front-end measurements (KLT tracks, circle candidates) through
   - batch_crlb_circle: batch with circle candidates from a disk drawn at the Cramer-Rao bound
             of each image (`CrawlerPairScenario.disk_information`, known background: no
             front-end on these pixels can do better) and told that covariance, correlations
-            included (`with_teammate_from_geometry`; same KLT tracks) -- the best any circle
-            front-end could give this graph;
+            included (`with_teammate_from_geometry`; same KLT tracks) -- what a circle front-end
+            at the bound would give this graph (at N >= 10 the normals, told their true accuracy,
+            then outweigh the KLT tracks, which keep the seed's 1 px: x / y get worse there, so
+            read this column for the scale at N = 1, 2);
   - batch_exact_circle: the same with the exact disk, told it is exact (1 um, 1e-5 rad) --
             what is left is what the geometry does not observe (the rotation about the normal).
 Front-end, per trial (no graph): the genuine circle candidate's centre error against the
@@ -88,9 +90,10 @@ FRONT_ENDS = ("refined", "crossings")
 METHOD_NOTE = ("ekf = the seed's EKF (eq. 13 state, proper covariance settings); batch / online = graphloc "
                "(Session LM / iSAM2, circle candidates as a max-mixture, refined rim); batch_centre = the "
                "candidates' centres moment-matched into one Gaussian; batch_crossings = batch on the seed's "
-               "edge-crossing rim; batch_crlb_circle = batch with the circle drawn at the Cramér-Rao bound of each image "
-               "(known background), told that covariance: the best any circle front-end could do; "
-               "batch_exact_circle = batch with the exact circle, told it is exact. Errors are mean absolute per axis over the sequence (mean ± std over trials); "
+               "edge-crossing rim; batch_crlb_circle = batch with the circle drawn at the Cramér-Rao bound of each "
+               "image (known background) and told that covariance: what a circle front-end at the bound would give; "
+               "batch_exact_circle = batch with the exact circle, told it is exact. Errors are mean absolute per axis "
+               "over the sequence (mean ± std over trials); "
                "the scale error at frame k is |s - 1|, s the least-squares ratio of the estimated to the true "
                "camera displacement lengths from frame 0, using only frames 0..k.")
 
