@@ -28,6 +28,8 @@ Front-end, per trial (no graph): the genuine circle candidate's centre error aga
 truth along the line of sight (depth) and across it, its frame-to-frame change while only the
 camera moves (what the scale sees), and the genuine normal's angle error, for both rims, and
 the Cramer-Rao bound of the same quantities.
+KLT, per trial (largest N): each track's pixel error against the true projection of the
+surface point at its first pixel, by track age (drift; the graph weights tracks at 1 px).
 Geometry, per trial: at the 3rd sighting, the camera's true rotation about the disk-normal axis
 through the base centre since frame 0 (a circle cannot see it: the image of a circle is the
 same after it) times the camera's distance from that axis -- the camera displacement that only
@@ -85,6 +87,7 @@ GRAPH_RUNS = {"batch": ("batch", "max_mixture", "refined"), "online": ("online",
               "batch_crossings": ("batch", "max_mixture", "crossings"),
               "batch_crlb_circle": ("batch", "max_mixture", "crlb"),
               "batch_exact_circle": ("batch", "max_mixture", "exact")}
+TRACK_AGES = ((1, 3), (4, 7), (8, 11), (12, 15))  # frames since a KLT track started
 EXACT_DISK_SIGMAS = np.array([1e-6, 1e-6, 1e-6, 1e-5, 1e-5])  # 'exact' disk: centre [m], normal tilt [rad]
 FRONT_ENDS = ("refined", "crossings")
 METHOD_NOTE = ("ekf = the seed's EKF (eq. 13 state, proper covariance settings); batch / online = graphloc "
@@ -146,6 +149,25 @@ def crlb_errors(seq, centres: np.ndarray, disk_cov: np.ndarray) -> dict:
             "depth_change_sd": np.sqrt(depth_var[1:] + depth_var[:-1])[only_camera]}
 
 
+def track_errors(seq, frames) -> tuple[np.ndarray, np.ndarray]:
+    """KLT pixel error against the truth by track age: every observation of a track, the
+    distance [px] to the true projection of the surface point seen at the track's first pixel,
+    and its age [frames] -- (ages (M,), errors (M,)); grows with age where the track drifts."""
+    first, ages, errors = {}, [], []
+    for k, f in enumerate(frames):
+        ids, pixels = np.asarray(f.features.ids), np.asarray(f.features.pixels, float)
+        new = np.array([i not in first for i in ids.tolist()], dtype=bool)
+        if new.any():
+            for i, point in zip(ids[new].tolist(), seq.surface_points(k, pixels[new])):
+                first[i] = (k, point)
+        if (~new).any():
+            k0, points = zip(*(first[i] for i in ids[~new].tolist()))
+            uv, _ = seq.camera.project((np.array(points) - seq.t_wc[k]) @ seq.R_wc[k])
+            ages.extend(k - np.array(k0))
+            errors.extend(np.linalg.norm(uv - pixels[~new], axis=1))
+    return np.array(ages, dtype=int), np.array(errors)
+
+
 AXES = ("x", "y", "z")
 
 
@@ -187,7 +209,7 @@ def run_trial(seed: int, n_values: list[int], scenario: CrawlerPairConfig) -> di
                              "tracks_lost": report.tracks_lost,
                              "max_candidate_spread_mm": 1000 * report.max_candidate_spread,
                              "max_candidate_separation": report.max_candidate_separation},
-               "third_sighting": third}
+               "third_sighting": third, "track_error": track_errors(seq, frames)}
         t0 = time.perf_counter()
         ekf = run_ekf(frames, seq.camera, EkfConfig(feature_depth=depth, tracker_setting="proper",
                                                     pixel_pitch=seq.config.pixel_pitch))
@@ -297,7 +319,16 @@ def summarize(trials: list[dict], n_values: list[int]) -> dict:
     front["crlb"] = {"frames": int(sum(len(t["front_end"]["crlb"]["depth_sd"]) for t in trials)),
                      "depth_sd_rms_mm": 1000 * rms("depth_sd"), "depth_change_sd_mm": 1000 * rms("depth_change_sd"),
                      "lateral_sd_rms_mm": 1000 * rms("lateral_sd"), "normal_rms_deg": rms("normal_rms_deg")}
-    return {"per_n": summary, "checks": checks, "front_end": front}
+    n_max = max(n_values)
+    ages = np.concatenate([t[n_max]["track_error"][0] for t in trials])
+    errors = np.concatenate([t[n_max]["track_error"][1] for t in trials])
+    tracks = {"n": n_max, "per_age": []}
+    for lo, hi in TRACK_AGES:
+        e = errors[(ages >= lo) & (ages <= hi)]
+        tracks["per_age"].append({"ages": [lo, hi], "observations": int(e.size),
+                                  "median_px": float(np.median(e)) if e.size else float("nan"),
+                                  "p90_px": float(np.percentile(e, 90)) if e.size else float("nan")})
+    return {"per_n": summary, "checks": checks, "front_end": front, "klt_track_error": tracks}
 
 
 def write_plots(summary: dict, n_values: list[int], out: Path) -> None:
@@ -392,6 +423,14 @@ def markdown(result: dict, n_values: list[int]) -> str:
     e = result["front_end"]["crlb"]
     lines.append(f"| Cramér-Rao bound (known background) | {e['frames']} | {e['depth_sd_rms_mm']:.3f} (sigma) | "
                  f"{e['depth_change_sd_mm']:.3f} | {e['lateral_sd_rms_mm']:.4f} | - | {e['normal_rms_deg']:.2f} |")
+    lines.append("")
+    t = result["klt_track_error"]
+    lines.append(f"| KLT track age [frames] (N = {t['n']}) | observations | error vs the true projection of the "
+                 "track's first point, median / p90 [px] |")
+    lines.append("|---|---|---|")
+    for row in t["per_age"]:
+        lines.append(f"| {row['ages'][0]}-{row['ages'][1]} | {row['observations']} | {row['median_px']:.3f} / "
+                     f"{row['p90_px']:.3f} |")
     lines.append("")
     for k, v in result["checks"].items():
         lines.append(f"- {'PASS' if v else 'FAIL'}: {k}")
