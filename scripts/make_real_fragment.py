@@ -1,0 +1,86 @@
+"""Build tests/data/real_room/tum_fr3_office.ply: a real indoor scan fragment for map fusion.
+
+Input: one TUM RGB-D depth image (Sturm et al., IROS 2012, CC BY 4.0; the Freiburg 3 office
+desk frame that Open3D ships as TestData/RGBD/other_formats/TUM_depth.png). Steps, all Open3D
+built-ins: back-projection with the Freiburg 3 intrinsics (fx 535.4, fy 539.2, cx 320.1, cy
+247.6, depth scale 5000, depth cut at --max-depth), voxel downsampling, RANSAC plane fit of the
+floor (the plane whose normal is closest to the camera's -y axis among the --planes largest),
+then a rigid transform putting the floor at z = 0 with z up (gravity) and the camera above the
+origin, and a seeded random subsample to at most --points points, stored as float32 PLY.
+
+    .venv/bin/python scripts/make_real_fragment.py TUM_depth.png --out tests/data/real_room
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+
+FR3 = (640, 480, 535.4, 539.2, 320.1, 247.6)  # width, height, fx, fy, cx, cy (TUM Freiburg 3)
+
+
+def floor_alignment(pcd: o3d.geometry.PointCloud, planes: int, seed: int) -> np.ndarray:
+    """4x4 transform camera -> gravity frame: floor plane z = 0, normal +z, camera over the origin."""
+    o3d.utility.random.seed(seed)
+    rest, best = pcd, None
+    for _ in range(planes):
+        (a, b, c, d), inliers = rest.segment_plane(0.02, 3, 2000)
+        n = np.array([a, b, c])
+        if n[1] > 0:  # orient the normal toward the camera's up (-y in the camera frame)
+            n, d = -n, -d
+        score = -n[1]
+        if best is None or score > best[0]:
+            best = (score, n, d)
+        rest = rest.select_by_index(inliers, invert=True)
+    _, n, d = best
+    if best[0] < 0.8:
+        raise ValueError("no floor plane within 37 deg of the camera's vertical")
+    # rotation taking n to +z, keeping the camera's optical axis (z) as the new +x direction
+    x = np.array([0.0, 0.0, 1.0]) - n[2] * n
+    x /= np.linalg.norm(x)
+    R = np.stack([x, np.cross(n, x), n])  # rows: new axes in camera coordinates
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[2, 3] = d  # signed height of the camera above the floor plane n.p + d = 0
+    return T
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("depth", help="TUM depth PNG (uint16, 5000 per metre)")
+    p.add_argument("--out", default="tests/data/real_room")
+    p.add_argument("--max-depth", type=float, default=6.0)
+    p.add_argument("--voxel", type=float, default=0.02)
+    p.add_argument("--points", type=int, default=30_000)
+    p.add_argument("--planes", type=int, default=3)
+    p.add_argument("--seed", type=int, default=0)
+    args = p.parse_args(argv)
+    depth = o3d.io.read_image(args.depth)
+    if np.asarray(depth).dtype != np.uint16:
+        raise ValueError(f"{args.depth}: expected a uint16 depth PNG")
+    intr = o3d.camera.PinholeCameraIntrinsic(*FR3)
+    pcd = o3d.geometry.PointCloud.create_from_depth_image(depth, intr, depth_scale=5000.0,
+                                                          depth_trunc=args.max_depth)
+    n_raw = len(pcd.points)
+    pcd = pcd.voxel_down_sample(args.voxel)
+    T = floor_alignment(pcd, args.planes, args.seed)
+    pts = np.asarray(pcd.points) @ T[:3, :3].T + T[:3, 3]
+    rng = np.random.default_rng(args.seed)
+    if len(pts) > args.points:
+        pts = pts[np.sort(rng.choice(len(pts), args.points, replace=False))]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts.astype(np.float32)))
+    path = out / "tum_fr3_office.ply"
+    o3d.t.io.write_point_cloud(str(path), cloud)
+    ext = pts.max(0) - pts.min(0)
+    print(f"{n_raw} depth points -> {len(pts)} in {path}; extent {np.round(ext, 2)} m, "
+          f"camera height {T[2, 3]:.2f} m")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
