@@ -5,8 +5,8 @@ desk frame that Open3D ships as TestData/RGBD/other_formats/TUM_depth.png). Step
 built-ins: back-projection with the Freiburg 3 intrinsics (fx 535.4, fy 539.2, cx 320.1, cy
 247.6, depth scale 5000, depth cut at --max-depth), voxel downsampling, RANSAC plane fit of the
 floor (the plane whose normal is closest to the camera's -y axis among the --planes largest),
-then a rigid transform putting the floor at z = 0 with z up (gravity) and the camera above the
-origin, and a seeded random subsample to at most --points points, stored as float32 PLY.
+then a rotation making the floor normal +z (gravity up) with the optical axis in the x-z plane;
+the origin stays at the sensor (the floor is at z = -camera height), and a seeded random subsample to at most --points points, stored as float32 PLY.
 
     .venv/bin/python scripts/make_real_fragment.py TUM_depth.png --out tests/data/real_room
 """
@@ -22,8 +22,9 @@ import open3d as o3d
 FR3 = (640, 480, 535.4, 539.2, 320.1, 247.6)  # width, height, fx, fy, cx, cy (TUM Freiburg 3)
 
 
-def floor_alignment(pcd: o3d.geometry.PointCloud, planes: int, seed: int) -> np.ndarray:
-    """4x4 transform camera -> gravity frame: floor plane z = 0, normal +z, camera over the origin."""
+def floor_alignment(pcd: o3d.geometry.PointCloud, planes: int,
+                    seed: int) -> tuple[np.ndarray, float]:
+    """(3x3 rotation camera -> gravity frame with the floor normal as +z, camera height [m])."""
     o3d.utility.random.seed(seed)
     rest, best = pcd, None
     for _ in range(planes):
@@ -42,10 +43,7 @@ def floor_alignment(pcd: o3d.geometry.PointCloud, planes: int, seed: int) -> np.
     x = np.array([0.0, 0.0, 1.0]) - n[2] * n
     x /= np.linalg.norm(x)
     R = np.stack([x, np.cross(n, x), n])  # rows: new axes in camera coordinates
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[2, 3] = d  # signed height of the camera above the floor plane n.p + d = 0
-    return T
+    return R, float(d)  # d: signed height of the camera above the floor plane n.p + d = 0
 
 
 def main(argv=None) -> int:
@@ -66,8 +64,8 @@ def main(argv=None) -> int:
                                                           depth_trunc=args.max_depth)
     n_raw = len(pcd.points)
     pcd = pcd.voxel_down_sample(args.voxel)
-    T = floor_alignment(pcd, args.planes, args.seed)
-    pts = np.asarray(pcd.points) @ T[:3, :3].T + T[:3, 3]
+    R, height = floor_alignment(pcd, args.planes, args.seed)
+    pts = np.asarray(pcd.points) @ R.T
     rng = np.random.default_rng(args.seed)
     if len(pts) > args.points:
         pts = pts[np.sort(rng.choice(len(pts), args.points, replace=False))]
@@ -78,7 +76,7 @@ def main(argv=None) -> int:
     o3d.t.io.write_point_cloud(str(path), cloud)
     ext = pts.max(0) - pts.min(0)
     print(f"{n_raw} depth points -> {len(pts)} in {path}; extent {np.round(ext, 2)} m, "
-          f"camera height {T[2, 3]:.2f} m")
+          f"camera height {height:.2f} m")
     return 0
 
 
