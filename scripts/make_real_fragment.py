@@ -6,7 +6,8 @@ built-ins: back-projection with the Freiburg 3 intrinsics (fx 535.4, fy 539.2, c
 247.6, depth scale 5000, depth cut at --max-depth), voxel downsampling, RANSAC plane fit of the
 floor (the plane whose normal is closest to the camera's -y axis among the --planes largest),
 then a rotation making the floor normal +z (gravity up) with the optical axis in the x-z plane;
-the origin stays at the sensor (the floor is at z = -camera height), and a seeded random subsample to at most --points points, stored as float32 PLY.
+the origin stays at the sensor (the floor is at z = -camera height); then a seeded random
+subsample to at most --points points, stored as float32 PLY.
 
     .venv/bin/python scripts/make_real_fragment.py TUM_depth.png --out tests/data/real_room
 """
