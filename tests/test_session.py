@@ -101,17 +101,17 @@ def test_online_save_resume_identical(tmp_path):
     steps, _, _ = _problem(n_steps=20)
     full = _run("online", steps)
     part = _run("online", steps[:12])
-    path = tmp_path / "session.pkl"
+    path = tmp_path / "session.json"
     part.save(path)
     resumed = Session.load(path)
     for g, v, t in steps[12:]:
         resumed.add(g, v, time=t)
     a, b = full.estimate(), resumed.estimate()
     assert a.keys() == b.keys()
-    for k in a.keys():
-        np.testing.assert_allclose(a.atPose2(k).matrix() if gtsam.Symbol(k).chr() == ord("x") else a.atPoint2(k),
-                                   b.atPose2(k).matrix() if gtsam.Symbol(k).chr() == ord("x") else b.atPoint2(k),
-                                   rtol=0, atol=1e-12)
+    for k in a.keys():  # bit for bit
+        pose = gtsam.Symbol(k).chr() == ord("x")
+        np.testing.assert_array_equal(a.atPose2(k).matrix() if pose else a.atPoint2(k),
+                                      b.atPose2(k).matrix() if pose else b.atPoint2(k))
 
 
 def test_batch_save_load_same_graph(tmp_path):
@@ -147,7 +147,7 @@ def test_session_rejects_bad_input(tmp_path):
     with pytest.raises(ValueError, match="isam2_optimizer"):
         SessionConfig(isam2_optimizer="newton")
     (tmp_path / "junk.pkl").write_bytes(b"\x80\x05K\x01.")
-    with pytest.raises(ValueError, match="not a saved"):
+    with pytest.raises(ValueError, match=r"junk\.pkl: not a saved graphloc session: a Python"):
         Session.load(tmp_path / "junk.pkl")
 
 
@@ -270,3 +270,247 @@ def test_unknown_keys_are_clear_errors(mode):
     session.add([gtsam.BetweenFactorPose2(pose_key(0, 0), pose_key(0, 1), gtsam.Pose2(),
                                           gtsam.noiseModel.Isotropic.Sigma(3, 0.1))], values)  # time None: same as before
     assert session.steps[-1].time == 1.0
+
+
+def _every_saved_type() -> tuple[list, gtsam.Values]:
+    """One factor of every type the session file stores (each noise model and robust kernel
+    once), a max-mixture provider, and values of every stored kind."""
+    from graphloc.factors.mixture import max_mixture_factor
+
+    nm = gtsam.noiseModel
+    est = nm.mEstimator
+    rng = np.random.default_rng(3)
+    P3 = [gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3)), rng.normal(size=3)) for _ in range(3)]
+    P2 = [gtsam.Pose2(*rng.normal(size=3)).compose(gtsam.Pose2(*rng.normal(size=3)))
+          for _ in range(2)]
+    x0, x1, x2 = (pose_key(0, i) for i in range(3))
+    y0, y1 = pose_key(1, 0), pose_key(1, 1)
+    l2, l3, m3 = landmark_key(0), landmark_key(1), landmark_key(2)
+    r3, r2 = pose_key(2, 0), pose_key(2, 1)
+    v = gtsam.Values()
+    for key, value in ((x0, P3[0]), (x1, P3[1]), (x2, P3[2]), (y0, P2[0]), (y1, P2[1]),
+                       (l2, rng.normal(size=2)), (l3, rng.normal(size=3) + [0, 0, 5]),
+                       (m3, rng.normal(size=3)), (r3, gtsam.Rot3.Expmap(rng.normal(size=3))),
+                       (r2, gtsam.Rot2(0.3))):
+        v.insert(key, value)
+    huber, cauchy = est.Huber.Create(1.345), est.Cauchy.Create(2.5)
+    tukey, gm = est.Tukey.Create(4.685), est.GemanMcClure.Create(1.1)
+    dcs = est.DCS.Create(0.9, est.Base.ReweightScheme.Scalar)
+    iso = nm.Isotropic.Sigma
+    u = gtsam.Unit3(rng.normal(size=3))
+    up, north = gtsam.Unit3(np.array([0.0, 0.0, 1.0])), gtsam.Unit3(np.array([0.0, 1.0, 0.0]))
+    cal = gtsam.Cal3_S2(500.0, 510.0, 0.0, 320.0, 240.0)
+    factors = [
+        gtsam.PriorFactorPose3(x0, P3[0], nm.Gaussian.Covariance(np.cov(rng.normal(size=(6, 40))))),
+        gtsam.BetweenFactorPose3(x0, x1, P3[0].between(P3[1]),
+                                 nm.Robust.Create(huber, nm.Unit.Create(6))),
+        gtsam.PriorFactorPose2(y0, P2[0], nm.Diagonal.Sigmas([0.1, 0.2, 0.05])),
+        gtsam.BetweenFactorPose2(y0, y1, P2[0].between(P2[1]),
+                                 nm.Robust.Create(cauchy, iso(3, 0.1))),
+        gtsam.PriorFactorPoint2(l2, np.array([0.5, 0.25]), iso(2, 0.3)),
+        gtsam.PriorFactorPoint3(l3, np.array([0.0, 0.5, 5.0]), iso(3, 0.3)),
+        gtsam.BetweenFactorPoint3(l3, m3, np.array([1.0, 2.0, 3.0]), iso(3, 0.3)),
+        gtsam.PriorFactorRot3(r3, gtsam.Rot3.Expmap(rng.normal(size=3)), iso(3, 0.1)),
+        gtsam.PriorFactorRot2(r2, gtsam.Rot2(0.2), iso(1, 0.1)),
+        gtsam.RangeFactor3(l3, m3, 4.0, nm.Robust.Create(tukey, iso(1, 0.1))),
+        gtsam.RangeFactorPose3(x0, x1, 2.0, iso(1, 0.1)),
+        gtsam.RangeFactorWithTransformPose3(x1, x2, 2.0, iso(1, 0.1), P3[2]),
+        gtsam.BearingRangeFactor2D(y0, l2, gtsam.Rot2(0.4), 1.5,
+                                   nm.Robust.Create(gm, nm.Diagonal.Sigmas([0.01, 0.1]))),
+        gtsam.BearingRangeFactorPose2(y0, y1, gtsam.Rot2(-0.4), 1.5,
+                                      nm.Diagonal.Sigmas([0.01, 0.1])),
+        gtsam.BearingRangeFactor3D(x0, l3, u, 3.0, nm.Robust.Create(dcs, iso(3, 0.1))),
+        gtsam.BearingRangeFactorPose3(x0, x2, u, 3.0, iso(3, 0.1)),
+        gtsam.BearingFactor3D(x1, l3, u, iso(2, 0.01)),
+        gtsam.AttitudeFactorPose3(x2, up, iso(2, 0.1), north),
+        gtsam.GenericProjectionFactorCal3_S2(np.array([320.5, 240.25]), iso(2, 1.0), x0, l3, cal),
+        max_mixture_factor([gtsam.PriorFactorPose3(x2, P3[2], iso(6, 0.1)),
+                            [gtsam.PriorFactorPose3(x2, P3[1], iso(6, 0.2)),
+                             gtsam.PriorFactorPose3(x2, P3[0], iso(6, 0.3))]], [0.7, 0.3]),
+    ]
+    return factors, v
+
+
+def _value(values, key):
+    for get in (values.atPose3, values.atPose2, values.atRot3, values.atRot2, values.atVector):
+        try:
+            value = get(key)
+        except RuntimeError:
+            continue
+        return np.asarray(value.matrix() if hasattr(value, "matrix") else value)
+    raise AssertionError(f"no readable value at {key}")
+
+
+def test_every_saved_factor_type_round_trips(tmp_path):
+    """Every stored factor type, noise model, robust kernel and value kind comes back as the same
+    factor: the same GTSAM archive (bit for bit) or, for 3-D bearings (Unit3 re-normalized on
+    load), the same error to 1e-12."""
+    from graphloc.factors.mixture import MaxMixture
+
+    factors, values = _every_saved_type()
+    session = Session(SessionConfig(mode="batch"))
+    session.add(factors, values, time=0.0)
+    session.save(tmp_path / "all.json")
+    loaded = Session.load(tmp_path / "all.json")
+    (record,) = loaded._records
+    assert [type(f).__name__ for f in record.items] == [type(f).__name__ for f in factors]
+    for key in values.keys():
+        np.testing.assert_array_equal(_value(values, key), _value(record.values, key))
+    for f, g in zip(factors, record.items):
+        if isinstance(f, MaxMixture):
+            assert isinstance(g, MaxMixture) and np.array_equal(f.weights, g.weights)
+            assert [len(c) for c in f.components] == [len(c) for c in g.components]
+            np.testing.assert_array_equal(f.component_errors(values), g.component_errors(values))
+        elif type(f).__name__.startswith(("Bearing", "Attitude")):
+            e = f.error(values)
+            assert abs(e - g.error(values)) <= 1e-12 * (1 + e), type(f).__name__
+        else:
+            assert f.serialize() == g.serialize(), type(f).__name__
+    assert loaded.error() == pytest.approx(session.error(), rel=1e-12)
+
+
+def _small_session() -> Session:
+    s = Session(SessionConfig(mode="online"))
+    v = gtsam.Values()
+    v.insert(pose_key(0, 0), gtsam.Pose2(1, 2, 0.3))
+    prior = gtsam.PriorFactorPose2(pose_key(0, 0), gtsam.Pose2(1, 2, 0.3),
+                                   gtsam.noiseModel.Isotropic.Sigma(3, 0.1))
+    s.add([prior], v, time=0.0)
+    return s
+
+
+def _rewrite(path, edit):
+    """Apply `edit` to the JSON body of a saved session and write it back with a valid header,
+    as a crafted file would."""
+    import hashlib
+    import json
+
+    head, body = path.read_bytes().split(b"\n", 1)
+    body = json.dumps(edit(json.loads(body))).encode()
+    header = json.loads(head)
+    header.update(body_bytes=len(body), body_sha256=hashlib.sha256(body).hexdigest())
+    path.write_bytes(json.dumps(header).encode() + b"\n" + body)
+
+
+ITEM = ("steps", 0, "items", 0)
+I0 = "step 0, item 0: "
+ROBUST_IN_ROBUST = {"robust": "Huber", "scheme": 1, "k": 1,
+                    "base": {"robust": "Huber", "scheme": 1, "k": 1, "base": {"unit": 3}}}
+MALFORMED_BODIES = [  # (where in the body, the value written there, the reason load must give)
+    (ITEM + ("type",), "PythonObject", I0 + "unknown factor type 'PythonObject'"),
+    (ITEM + ("keys",), [1, 2], I0 + r"PriorFactorPose2 needs 1 keys.*got \[1, 2\]"),
+    (ITEM + ("keys",), [-1], I0 + r"PriorFactorPose2 needs 1 keys"),
+    (ITEM + ("keys",), [1],
+     r"step 0: Session.add: factors reference keys without a value: \['1'\]"),
+    (ITEM + ("measured",), [1, 2, 3], I0 + "a pose2 measurement needs 4 numbers, got 3"),
+    (ITEM + ("measured",), [1, 2, 2.0, 0.0], I0 + r"rotation \(cos, sin\) = \(2.0, 0.0\) is not a"),
+    (ITEM + ("measured",), [1, 2, "1", 0], I0 + "measured: expected a list of finite numbers"),
+    (ITEM + ("noise",), {"isotropic": 3, "sigma": -1}, I0 + "isotropic sigma must be > 0"),
+    (ITEM + ("noise",), {"isotropic": 2, "sigma": 1},
+     I0 + r"GTSAM rejected the PriorFactorPose2 \(noiseModel::validOrDefault: mis-matched model"),
+    (ITEM + ("noise",), {"sigmas": [0.1, 0.0, 0.1]}, I0 + "need 1 to 64 sigmas > 0"),
+    (ITEM + ("noise",), {"sqrt_information": [[1, 0, 0], [1, 1, 0], [0, 0, 1]]},
+     I0 + "sqrt_information must be upper triangular"),
+    (ITEM + ("noise",), {"robust": "os.system", "scheme": 1, "k": 1, "base": {"unit": 3}},
+     I0 + "robust kernel must be one of"),
+    (ITEM + ("noise",), ROBUST_IN_ROBUST, I0 + "noise model must be an object"),
+    (ITEM, {"provider": "pickle"}, I0 + "unknown factor provider 'pickle'"),
+    (ITEM, {"provider": "max_mixture", "components": [], "weights": []},
+     I0 + "max_mixture_factor: no components"),
+    (("steps", 0, "values", 0, 1), "module", r"step 0: a value must be \[key, kind, numbers\]"),
+    (("steps", 0, "values", 0, 2), [1e308, 1e308, 1.0, 0.0],
+     "step 0: Session.add at time 0.0: iSAM2 update failed"),
+    (("steps", 0, "time"), "now", "step 0: time must be a finite number"),
+    (("config", "mode"), 3, "config.mode: expected str, got 3"),
+    (("config", "lm_max_iterations"), True, "config.lm_max_iterations: expected int, got True"),
+    (("config", "__class__"), "x", r"config: unknown fields \['__class__'\]"),
+    (("steps",), {}, "'steps' must be a list"),
+]
+
+
+@pytest.mark.parametrize("where, value, reason", MALFORMED_BODIES)
+def test_malformed_session_files_give_the_exact_reason(tmp_path, where, value, reason):
+    path = tmp_path / "s.json"
+    _small_session().save(path)
+
+    def edit(payload):
+        obj = payload
+        for part in where[:-1]:
+            obj = obj[part]
+        obj[where[-1]] = value
+        return payload
+
+    _rewrite(path, edit)
+    with pytest.raises(ValueError, match=str(path).replace(".", r"\.") + ": " + reason):
+        Session.load(path)
+
+
+def test_a_crafted_pickle_runs_no_code_and_damaged_files_are_value_errors(tmp_path):
+    import os
+    import pickle
+
+    marker = tmp_path / "ran"
+
+    class Exploit:
+        def __reduce__(self):
+            return os.system, (f"touch {marker}",)
+
+    evil = pickle.dumps({"format": "graphloc-session", "version": 2, "x": Exploit()})
+    (tmp_path / "evil.pkl").write_bytes(evil)
+    with pytest.raises(ValueError, match=r"evil\.pkl: not a saved graphloc session: a Python"):
+        Session.load(tmp_path / "evil.pkl")
+    assert not marker.exists()
+
+    path = tmp_path / "s.json"
+    _small_session().save(path)
+    good = path.read_bytes()
+    cases = {
+        b"": r"not a saved graphloc session \(no graphloc-session header line\)",
+        good[:len(good) // 2]: r"truncated or altered: body has \d+ bytes",
+        good[:-3] + b"9}]": "altered or corrupted: the SHA-256",
+        good.replace(b'"version": 3', b'"version": 4'): "session format version 4 unsupported",
+        b"\xff\xfe garbage": "not a saved graphloc session",
+    }
+    for data, reason in cases.items():
+        path.write_bytes(data)
+        with pytest.raises(ValueError, match=r"s\.json: " + reason):
+            Session.load(path)
+    with pytest.raises(ValueError, match=r"missing\.json: cannot read the session file"):
+        Session.load(tmp_path / "missing.json")
+
+
+def test_save_is_atomic(tmp_path, monkeypatch):
+    """A save that fails midway (here: fsync raises) leaves the previous file intact and no
+    temporary file behind."""
+    import os
+
+    path = tmp_path / "s.json"
+    _small_session().save(path)
+    before = path.read_bytes()
+    bigger = _small_session()
+    v = gtsam.Values()
+    v.insert(pose_key(0, 1), gtsam.Pose2())
+    bigger.add([gtsam.BetweenFactorPose2(pose_key(0, 0), pose_key(0, 1), gtsam.Pose2(),
+                                         gtsam.noiseModel.Isotropic.Sigma(3, 0.1))], v, time=1.0)
+
+    def failing_fsync(fd):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", failing_fsync)
+    with pytest.raises(OSError, match="No space left"):
+        bigger.save(path)
+    monkeypatch.undo()
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json"]
+    bigger.save(path)
+    assert Session.load(path).graph.size() == 2
+
+
+def test_save_names_what_it_cannot_write(tmp_path):
+    session = Session(SessionConfig(mode="batch"))
+    v = gtsam.Values()
+    v.insert(1, 2.5)
+    session.add([gtsam.PriorFactorDouble(1, 2.0, gtsam.noiseModel.Constrained.All(1))], v, time=0.0)
+    with pytest.raises(ValueError, match=r"step 0 \(time 0.0\), item 0: a Constrained noise model"):
+        session.save(tmp_path / "c.json")
+    assert not (tmp_path / "c.json").exists()
