@@ -71,7 +71,7 @@ previous frame, in that frame, with covariance).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, fields
 
 import gtsam
 import numpy as np
@@ -245,6 +245,105 @@ class HypothesisTracker:
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         self._gn = self._make_gn_params(self.config)
+
+    # ---- save / resume as data (no pickle: a loaded file never runs code) ----------------------
+    _SAVE_FORMAT = "graphloc-hypothesis-tracker"
+    _SAVE_VERSION = 1
+
+    def save(self, path) -> None:
+        """Write the tracker's whole state (config, tracks, commit, log-odds) to `path` as a
+        versioned JSON file, atomically (`graphloc.session.write_data_file`); `load` resumes it
+        with identical decisions."""
+        from graphloc.session import write_data_file
+
+        tracks = [{"mean": np.asarray(t.mean.matrix()).ravel().tolist(),
+                   "cov": t.cov.ravel().tolist(), "logw": t.logw, "id": t.track_id,
+                   "candidate": t.candidate, "misses": t.misses} for t in self._tracks]
+        config = asdict(self.config)
+        config["default_sigmas"] = list(config["default_sigmas"])
+        payload = {"config": config, "tracks": tracks, "next_id": self._next_id,
+                   "committed_id": self._committed_id, "last_time": self._last_time,
+                   "logit": [[i, v] for i, v in self._logit.items()],
+                   "max_gain": [[i, v] for i, v in self._max_gain.items()]}
+        write_data_file(path, self._SAVE_FORMAT, self._SAVE_VERSION, payload, allow_nan=True)
+
+    @classmethod
+    def load(cls, path) -> "HypothesisTracker":
+        """A tracker `save` wrote. ValueError naming the file and the field on anything else."""
+        from graphloc.session import read_data_file
+
+        raw = read_data_file(path, cls._SAVE_FORMAT, cls._SAVE_VERSION, "hypothesis tracker",
+                             allow_nan=True)
+        try:
+            return cls._from_saved(raw)
+        except KeyError as exc:
+            raise ValueError(f"{path}: missing field {exc}") from None
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{path}: {exc}") from None
+
+    @classmethod
+    def _from_saved(cls, raw: dict) -> "HypothesisTracker":
+        def number(x, field, finite=True):
+            ok = isinstance(x, (int, float)) and not isinstance(x, bool) and not np.isnan(x)
+            if not ok or (finite and not np.isfinite(x)):
+                kind = "finite number" if finite else "number"
+                raise ValueError(f"{field}: expected a {kind}, got {x!r}")
+            return float(x)
+
+        def items(x, field, kind=list):
+            if not isinstance(x, kind):
+                raise ValueError(f"{field}: expected a {kind.__name__}, got {str(x)[:60]}")
+            return x
+
+        def integer(x, field):
+            if isinstance(x, bool) or not isinstance(x, int):
+                raise ValueError(f"{field}: expected an integer, got {x!r}")
+            return x
+
+        config = dict(items(raw["config"], "config", dict))
+        if set(config) != {f.name for f in fields(TrackerConfig)}:
+            raise ValueError(f"config: expected the fields of TrackerConfig, got {sorted(config)}")
+        sigmas = items(config["default_sigmas"], "config.default_sigmas")
+        config["default_sigmas"] = tuple(number(v, "config.default_sigmas") for v in sigmas)
+        for f in fields(TrackerConfig):
+            value, default = config[f.name], f.default
+            if isinstance(default, bool) != isinstance(value, bool) or (
+                    isinstance(default, (int, float)) and not isinstance(value, (int, float))):
+                raise ValueError(f"config.{f.name}: expected {type(default).__name__}, "
+                                 f"got {value!r}")
+        tracker = cls(TrackerConfig(**config))
+        tracks = []
+        for k, t in enumerate(items(raw["tracks"], "tracks")):
+            where = f"tracks[{k}]"
+            items(t, where, dict)
+            mean = np.array([number(v, f"{where}.mean") for v in items(t["mean"], f"{where}.mean")])
+            cov = np.array([number(v, f"{where}.cov") for v in items(t["cov"], f"{where}.cov")])
+            if mean.size != 16 or cov.size != 36:
+                raise ValueError(f"{where}: mean needs 16 numbers and cov 36, got {mean.size}, "
+                                 f"{cov.size}")
+            T, cov = mean.reshape(4, 4), cov.reshape(6, 6)
+            R = T[:3, :3]
+            if not (np.abs(R @ R.T - np.eye(3)).max() < 1e-9 and np.linalg.det(R) > 0):
+                raise ValueError(f"{where}.mean: not a rigid transform")
+            check_covariance(cov, f"{where}.cov")
+            pose = gtsam.Pose3(gtsam.Rot3(R), T[:3, 3])
+            tracks.append(_Track(pose, cov, number(t["logw"], f"{where}.logw", False),
+                                 integer(t["id"], f"{where}.id"),
+                                 integer(t["candidate"], f"{where}.candidate"),
+                                 integer(t["misses"], f"{where}.misses")))
+        tracker._tracks = tracks
+        tracker._next_id = integer(raw["next_id"], "next_id")
+        committed = raw["committed_id"]
+        tracker._committed_id = None if committed is None else integer(committed, "committed_id")
+        last = raw["last_time"]
+        tracker._last_time = None if last is None else number(last, "last_time")
+        for name in ("logit", "max_gain"):
+            pairs = items(raw[name], name)
+            if not all(isinstance(p, list) and len(p) == 2 for p in pairs):
+                raise ValueError(f"{name}: expected [track id, value] pairs")
+            setattr(tracker, f"_{name}", {integer(i, f"{name} track id"): number(v, name, False)
+                                          for i, v in pairs})
+        return tracker
 
     @property
     def num_hypotheses(self) -> int:

@@ -284,24 +284,16 @@ class Session:
                      for j, item in enumerate(record.items)]
             steps.append({"time": record.time, "latency_s": record.latency_s, "items": items,
                           "values": _encode_values(record.values, where)})
-        body = json.dumps({"config": asdict(self.config), "steps": steps}, allow_nan=False,
-                          separators=(",", ":")).encode()
-        header = {"format": _SAVE_FORMAT, "version": _SAVE_VERSION, "body_bytes": len(body),
-                  "body_sha256": hashlib.sha256(body).hexdigest()}
-        _write_atomically(Path(path), json.dumps(header).encode() + b"\n" + body)
+        write_data_file(path, _SAVE_FORMAT, _SAVE_VERSION, {"config": asdict(self.config),
+                                                             "steps": steps})
 
     @classmethod
     def load(cls, path: str | Path) -> "Session":
         """Rebuild a saved session; online sessions replay every step into a fresh iSAM2. Any
         problem with the file (unreadable, not a session, truncated, altered, an unknown factor
         type, a step the session rejects) is a ValueError naming the file."""
-        path = Path(path)
+        payload = read_data_file(path, _SAVE_FORMAT, _SAVE_VERSION, "session")
         try:
-            data = path.read_bytes()
-        except OSError as exc:
-            raise ValueError(f"{path}: cannot read the session file ({exc.strerror})") from None
-        try:
-            payload = _parse_session_file(data)
             session = cls(_config_from(payload.get("config")))
             steps = payload.get("steps")
             if not isinstance(steps, list):
@@ -321,7 +313,35 @@ class _Bad(Exception):
     """A malformed session file (turned into ValueError naming the file by `Session.load`)."""
 
 
-def _write_atomically(path: Path, data: bytes) -> None:
+# ---- versioned data files (also used by graphloc.hypotheses) ----------------------------------
+def write_data_file(path: str | Path, fmt: str, version: int, payload: dict,
+                    allow_nan: bool = False) -> None:
+    """Write `payload` as a graphloc data file: one JSON header line (format, version, body size
+    and SHA-256) and a JSON body, atomically. allow_nan: write inf/NaN as JSON constants
+    (Infinity, NaN) instead of raising ValueError."""
+    body = json.dumps(payload, allow_nan=allow_nan, separators=(",", ":")).encode()
+    header = {"format": fmt, "version": version, "body_bytes": len(body),
+              "body_sha256": hashlib.sha256(body).hexdigest()}
+    write_atomically(Path(path), json.dumps(header).encode() + b"\n" + body)
+
+
+def read_data_file(path: str | Path, fmt: str, version: int, what: str,
+                   allow_nan: bool = False) -> dict:
+    """The JSON body of a file `write_data_file` wrote, after checking format, version, size
+    and SHA-256. ValueError naming the file (and saying what is wrong) on anything else: an
+    unreadable file, a pickle, another format or version, a truncated or altered body."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read the {what} file ({exc.strerror})") from None
+    try:
+        return _parse_data_file(data, fmt, version, what, allow_nan)
+    except _Bad as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def write_atomically(path: Path, data: bytes) -> None:
     """Write `data` to a temporary file beside `path`, fsync it, rename it over `path` and fsync
     the directory: `path` holds either the old or the new content, never a partial one."""
     directory = path.parent if str(path.parent) else Path(".")
@@ -345,27 +365,28 @@ def _write_atomically(path: Path, data: bytes) -> None:
         os.close(dir_fd)
 
 
-def _parse_session_file(data: bytes) -> dict:
+def _parse_data_file(data: bytes, fmt: str, version: int, what: str, allow_nan: bool) -> dict:
     if data[:1] == b"\x80":
-        raise _Bad("not a saved graphloc session: a Python pickle (graphloc session format 2 or "
-                    "foreign), which is not loaded because unpickling can run code; re-save it")
+        raise _Bad(f"not a saved graphloc {what}: a Python pickle (an older graphloc format or "
+                   f"foreign), which is not loaded because unpickling can run code; re-save it")
     head, sep, body = data.partition(b"\n")
     try:
         header = json.loads(head.decode("utf-8"))
     except (UnicodeDecodeError, ValueError):
         header = None
-    if not sep or not isinstance(header, dict) or header.get("format") != _SAVE_FORMAT:
-        raise _Bad("not a saved graphloc session (no graphloc-session header line)")
-    if header.get("version") != _SAVE_VERSION:
-        raise _Bad(f"session format version {header.get('version')!r} unsupported (this graphloc "
-                   f"reads version {_SAVE_VERSION})")
+    if not sep or not isinstance(header, dict) or header.get("format") != fmt:
+        raise _Bad(f"not a saved graphloc {what} (no {fmt} header line)")
+    if header.get("version") != version:
+        raise _Bad(f"{what} format version {header.get('version')!r} unsupported (this graphloc "
+                   f"reads version {version})")
     if header.get("body_bytes") != len(body):
         raise _Bad(f"truncated or altered: body has {len(body)} bytes, header says "
                    f"{header.get('body_bytes')!r}")
     if header.get("body_sha256") != hashlib.sha256(body).hexdigest():
         raise _Bad("altered or corrupted: the SHA-256 of the body does not match the header")
     try:
-        payload = json.loads(body.decode("utf-8"), parse_constant=_reject_constant)
+        constant = None if allow_nan else _reject_constant
+        payload = json.loads(body.decode("utf-8"), parse_constant=constant)
     except (UnicodeDecodeError, ValueError) as exc:
         raise _Bad(f"body is not valid JSON ({exc})") from None
     if not isinstance(payload, dict):

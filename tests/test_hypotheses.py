@@ -244,19 +244,73 @@ def test_commit_needs_more_than_one_update_of_evidence():
 
 
 def test_tracker_state_saves_and_resumes_with_identical_decisions(tmp_path):
-    """An online tracker pickled mid-run and resumed gives the same decisions as one that ran on."""
-    import pickle
-
+    """An online tracker saved mid-run (JSON, no pickle) and resumed gives the same decisions as
+    one that ran on."""
     run, odo = simulate(ceiling="sloped", curve="sine", seed=6)
     straight = HypothesisTracker()
     expected = feed(straight, run, odo)
     tracker = HypothesisTracker()
     feed(tracker, run, odo, 0, 20)
-    path = tmp_path / "tracker.pkl"
-    path.write_bytes(pickle.dumps(tracker))
-    resumed = pickle.loads(path.read_bytes())
+    assert tracker.num_hypotheses > 1 and tracker._logit
+    path = tmp_path / "tracker.json"
+    tracker.save(path)
+    resumed = HypothesisTracker.load(path)
     got = feed(resumed, run, odo, 20)
     for a, b in zip(expected[20:], got):
         assert a.committed == b.committed and a.locked == b.locked
         np.testing.assert_array_equal(a.probabilities, b.probabilities)
         assert a.pose.equals(b.pose, 0.0)
+
+
+def test_tracker_file_round_trips_infinities_and_rejects_damage(tmp_path):
+    """A Gaussian tracker (student_dof = inf) keeps its config through the file; a damaged or
+    crafted file is a ValueError naming the file and the field, and a pickle is never loaded."""
+    import hashlib
+    import json
+    import pickle
+
+    run, odo = simulate(ceiling="level", curve="sine", seed=2)
+    tracker = HypothesisTracker(TrackerConfig(student_dof=float("inf"), full_count=1))
+    feed(tracker, run, odo, 0, 8)
+    path = tmp_path / "t.json"
+    tracker.save(path)
+    resumed = HypothesisTracker.load(path)
+    assert resumed.config == tracker.config and resumed.config.student_dof == float("inf")
+    assert resumed._logit == tracker._logit and resumed._max_gain == tracker._max_gain
+    assert [t.mean.equals(u.mean, 0.0) for t, u in zip(tracker._tracks, resumed._tracks)] == \
+        [True] * tracker.num_hypotheses
+
+    head, body = path.read_bytes().split(b"\n", 1)
+
+    def crafted(edit):
+        payload = json.loads(body)
+        edit(payload)
+        new = json.dumps(payload).encode()
+        header = dict(json.loads(head), body_bytes=len(new),
+                      body_sha256=hashlib.sha256(new).hexdigest())
+        path.write_bytes(json.dumps(header).encode() + b"\n" + new)
+
+    def track0(**change):
+        return lambda p: p["tracks"][0].update(**change)
+
+    cases = [
+        (track0(mean=[0.0] * 16), r"tracks\[0\]\.mean: not a rigid transform"),
+        (track0(cov=[1.0] * 36), r"tracks\[0\]\.cov\[0\]: not positive definite"),
+        (track0(id="1"), r"tracks\[0\]\.id: expected an integer, got '1'"),
+        (track0(logw=float("nan")), r"tracks\[0\]\.logw: expected a number"),
+        (lambda p: p.pop("next_id"), r"missing field 'next_id'"),
+        (lambda p: p["config"].update(commit_threshold=2.0),
+         r"TrackerConfig.commit_threshold must be in \[0.5, 1\)"),
+        (lambda p: p["config"].update(robust_commit=1), r"config.robust_commit: expected bool"),
+        (lambda p: p.update(tracks={}), r"tracks: expected a list"),
+    ]
+    for edit, reason in cases:
+        crafted(edit)
+        with pytest.raises(ValueError, match=r"t\.json: " + reason):
+            HypothesisTracker.load(path)
+    path.write_bytes(pickle.dumps(tracker))
+    with pytest.raises(ValueError, match=r"t\.json: not a saved graphloc hypothesis tracker: a"):
+        HypothesisTracker.load(path)
+    path.write_bytes(head + b"\n" + body[:-10])
+    with pytest.raises(ValueError, match=r"t\.json: truncated or altered"):
+        HypothesisTracker.load(path)
