@@ -22,6 +22,29 @@ _REGISTRY: dict[str, tuple[str, str]] = {
 }
 
 
+def open_run(path, duration: float | None = None, noise: dict | None = None):
+    """The loader factory: a graphloc log directory (manifest.json, format version 1 or 2) or
+    an MRCLAM dataset directory -> `graphloc.run.TeamRun`, optionally cut to the first
+    `duration` seconds. `noise`: sensor noise (bearing_sigma, range_sigma, range_sigma_per_m,
+    pixel_sigma) replacing what the log states (a config file or CLI flags)."""
+    from pathlib import Path
+
+    from graphloc.io import MANIFEST
+    from graphloc.run import read_team_run, team_run_from_planar, truncate
+
+    path = Path(path)
+    if (path / MANIFEST).is_file():
+        run = read_team_run(path, overrides=noise)
+    else:
+        from graphloc.datasets.mrclam import MRCLAM, is_mrclam_dir
+
+        if not is_mrclam_dir(path):
+            raise FileNotFoundError(f"{path}: neither a graphloc log (no {MANIFEST}) nor an MRCLAM directory "
+                                    f"(no Barcodes.dat)")
+        run = team_run_from_planar(MRCLAM(path, duration=duration).load(), noise)
+    return run if duration is None else truncate(run, duration)
+
+
 def available() -> list[str]:
     return sorted(_REGISTRY)
 

@@ -76,9 +76,9 @@ class BreitenmoserTargetScenario:
                 (out / "climber" / "images").mkdir(parents=True, exist_ok=True)
                 cv2.imwrite(str(out / "climber" / "images" / f"{k:06d}.png"), frame.image)
         times = np.arange(n) / config.rate_hz
-        log = CameraTrackLog(name=self.name, times=times, R_wc=R, t_wc=eye, landmarks=LARGE_TARGET.points,
-                             landmark_sigma=0.0, pixels=pixels, camera=camera, pixel_sigma=CENTROID_SIGMA_PX,
-                             odometry=[], cand_R=None, cand_t=None, cand_valid=None, observer="climber", target="target",
+        log = CameraTrackLog(name=self.name, times=times, R_wc=R, t_wc=eye, layout=LARGE_TARGET.points,
+                             pixels=pixels, camera=camera, pixel_sigma=CENTROID_SIGMA_PX, odometry=[], odometry_cov=[],
+                             observer="climber", target="target", identical_markers=True,
                              meta={"seed_paper": "001_0f8f8dae37ce6b79.txt Sec. V-A", "config": asdict(config),
                                    "images": "climber/images/%06d.png" if config.save_images else None})
         return write_camera_track(log, out)

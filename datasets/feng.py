@@ -10,7 +10,7 @@ climbing robot, the camera pose from P3P (up to four candidates, one genuine).
   odometry dimensions (a_t); run ends at the ceiling boundary.
 
 Camera: perspective 640x480, FOV 2/3 pi (Sec. VI-A), pixel noise N(0, 0.5) px along a
-uniformly random direction (Sec. VI-A). Candidates come from `graphloc.geometry.p3p.solve_p3p`
+uniformly random direction (Sec. VI-A). Candidates come from `graphloc.vision.marker_poses.p3p_candidate_sets`
 on the noisy bearings, one call per run. Camera frame: z = optical axis, x = image right.
 The probabilistic camera is a pan-tilt head looking at the ground robots' centroid with image
 x along the direction of travel; odometry is the noisy relative camera pose between updates
@@ -25,9 +25,7 @@ import gtsam
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
-from graphloc.geometry.resection import resection_covariance
-from graphloc.candidates import CandidateSet
-from graphloc.geometry.p3p import solve_p3p
+from graphloc.vision.marker_poses import p3p_candidate_sets
 
 CEILINGS = ("level", "sloped")
 CURVES = ("line", "sine", "quadratic", "loop")  # "loop": not in the seed, a closed circle for long runs
@@ -114,36 +112,6 @@ def noisy_pixels(uv: np.ndarray, sigma: float, rng: np.random.Generator) -> np.n
     r = rng.normal(0.0, sigma, uv.shape[:-1])
     phi = rng.uniform(0.0, 2.0 * np.pi, uv.shape[:-1])
     return uv + np.stack([r * np.cos(phi), r * np.sin(phi)], axis=-1)
-
-
-def p3p_candidates(camera: PinholeCamera, pixels: np.ndarray, landmarks: np.ndarray, times: np.ndarray,
-                   pixel_sigma: float, t_true: np.ndarray | None = None, observer: str = "ground",
-                   observed: str = "climber") -> list[CandidateSet]:
-    """One CandidateSet per frame from pixels (T,3,2) of the three landmarks (3,3), by one
-    batched solve_p3p call. All real P3P solutions fit three points exactly, so scores are
-    uniform (seed 000 Sec. V-A: belief 1/4 each). meta["covariance"] (K,6,6): first-order pose
-    covariance of each candidate from the pixel noise (`resection_covariance`). With ground
-    truth, meta["genuine"] is the index of the candidate nearest the true camera position and
-    meta["genuine_error"] its distance [m]."""
-    T = pixels.shape[0]
-    bearings, ok = camera.pixel_to_bearing(pixels.reshape(-1, 2))
-    if not ok.all():
-        raise ValueError(f"p3p_candidates: {int((~ok).sum())} non-finite pixels")
-    sol = solve_p3p(bearings.reshape(T, 3, 3), np.broadcast_to(landmarks, (T, 3, 3)))
-    flat = sol.valid.reshape(-1)
-    cov = np.zeros((flat.size, 6, 6))
-    cov[flat] = resection_covariance(camera, sol.R_wc.reshape(-1, 3, 3)[flat], sol.t_wc.reshape(-1, 3)[flat],
-                                     np.broadcast_to(landmarks, (int(flat.sum()), 3, 3)), pixel_sigma)
-    cov = cov.reshape(T, -1, 6, 6)
-    out = []
-    for k in range(T):
-        valid = sol.valid[k]
-        meta = {"covariance": cov[k][valid]}
-        if t_true is not None and valid.any():
-            d = np.linalg.norm(sol.t_wc[k][valid] - t_true[k], axis=1)
-            meta.update(genuine=int(np.argmin(d)), genuine_error=float(d.min()))
-        out.append(sol.candidate_set(k, time=float(times[k]), observer=observer, observed=observed, meta=meta))
-    return out
 
 
 def relative_poses(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -258,5 +226,6 @@ class FengProbabilisticScenario:
         pixels = noisy_pixels(uv, config.pixel_sigma, rng)
         Rrel, trel = relative_poses(R, t)
         odometry = noisy_odometry(Rrel, trel, config.odometry_noise, config.odometry_rot_sigma, rng)
-        candidates = p3p_candidates(camera, pixels, landmarks, times, config.pixel_sigma, t)
+        candidates = p3p_candidate_sets(camera, list(pixels), [np.arange(3)] * len(times), landmarks, times,
+                                        config.pixel_sigma, truth_t=t, observer="ground", observed="climber")
         return FengRun(times, R, t, landmarks, pixels, odometry, candidates, plane)

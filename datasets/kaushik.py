@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
-from graphloc.datasets.feng import look_at, noisy_odometry, project_world, relative_poses
+from graphloc.datasets.feng import look_at, noisy_odometry, odometry_covariance, project_world, relative_poses
 from graphloc.geometry.p3p import MAX_CANDIDATES, P3PCandidates, solve_p3p
 
 SIDE = 0.3048  # LED triangle side [m] (seed 004 Sec. II-A)
@@ -156,12 +156,11 @@ class KaushikP3PErrorScenario:
 
         config = replace(KaushikConfig(runs=1, seed=seed), **parse_overrides(KaushikConfig, overrides))
         run = simulate(replace(config, runs=1))
-        R_wc = run.candidates.R_wc.reshape(1, run.R_wc.shape[1], MAX_CANDIDATES, 3, 3)[0]
-        t_wc = run.candidates.t_wc.reshape(1, run.R_wc.shape[1], MAX_CANDIDATES, 3)[0]
-        valid = run.candidates.valid.reshape(1, -1, MAX_CANDIDATES)[0]
-        log = CameraTrackLog(name=self.name, times=run.times, R_wc=run.R_wc[0], t_wc=run.t_wc[0],
-                             landmarks=run.leds, landmark_sigma=0.0, pixels=run.pixels[0], camera=config.camera(),
+        cov = [odometry_covariance(o, config.odometry_noise, config.odometry_rot_sigma) for o in run.odometry[0]]
+        log = CameraTrackLog(name=self.name, times=run.times, R_wc=run.R_wc[0], t_wc=run.t_wc[0], layout=run.leds,
+                             pixels=run.pixels[0], camera=config.camera(),
                              pixel_sigma=float(np.sqrt(config.noise_variance)), odometry=run.odometry[0],
-                             cand_R=R_wc, cand_t=t_wc, cand_valid=valid, observer="climber", target="ground",
+                             odometry_cov=cov, observer="climber", target="ground",
+                             surface=(np.array([0.0, 0.0, config.height]), np.array([0.0, 0.0, -1.0])),
                              meta={"seed_paper": "004_fa12d1d18dcbd0db.txt Sec. III", "config": asdict(config)})
         return write_camera_track(log, out_dir)

@@ -77,80 +77,75 @@ def _write_table(path: Path, table: str, rows: list) -> None:
 
 @dataclass(frozen=True)
 class CameraTrackLog:
-    """One camera (robot `observer`) watching the three points of `target` (landmarks (3,3),
-    known to `landmark_sigma` m; 0 = unknown precision). times (T,); true camera poses R_wc
-    (T,3,3), t_wc (T,3); pixels (T,3,2) noisy (NaN = not seen); camera: PinholeCamera;
-    odometry: T-1 noisy relative poses (gtsam.Pose3) or []; P3P candidates cand_R (T,K,3,3),
-    cand_t (T,K,3), cand_valid (T,K) or None; meta: free-form."""
+    """One camera (robot `observer`, body frame = camera frame) watching the markers of a static
+    `target` (layout (m,3) in the target's frame, the target at the world origin).
+    times (T,); true camera poses R_wc (T,3,3), t_wc (T,3); pixels (T,m,2) noisy (NaN = not
+    seen); camera: PinholeCamera; odometry: T-1 noisy relative poses (gtsam.Pose3) with their
+    diagonal 6x6 covariances odometry_cov, or []; surface: (point, normal) of the plane the
+    camera moves on, or None; identical_markers: the markers cannot be told apart (seed 001);
+    meta: free-form."""
 
     name: str
     times: np.ndarray
     R_wc: np.ndarray
     t_wc: np.ndarray
-    landmarks: np.ndarray
-    landmark_sigma: float
+    layout: np.ndarray
     pixels: np.ndarray
     camera: object
     pixel_sigma: float
     odometry: list
-    cand_R: np.ndarray | None
-    cand_t: np.ndarray | None
-    cand_valid: np.ndarray | None
+    odometry_cov: list
     observer: str = "climber"
     target: str = "ground"
+    surface: tuple | None = None
+    identical_markers: bool = False
     meta: dict = dataclasses.field(default_factory=dict)
 
 
 def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
-    """Write `log` as a graphloc log directory; returns the manifest path."""
+    """Write `log` as a graphloc log directory (format version 2: markers, relative_pose3,
+    groundtruth TUM); returns the manifest path."""
     out = Path(out_dir)
     obs = log.observer
     markers = [(float(tk), "camera", log.target, j, float(u), float(v))
                for tk, px in zip(log.times, log.pixels) for j, (u, v) in enumerate(px) if np.isfinite([u, v]).all()]
     _write_table(out / obs / "markers.csv", "markers", markers)
-    tables = {"markers": f"{obs}/markers.csv"}
-    if log.cand_R is not None:
-        rows = []
-        for tk, Rs, ts, ok in zip(log.times, log.cand_R, log.cand_t, log.cand_valid):
-            for k in np.flatnonzero(ok):
-                qx, qy, qz, qw = Rotation.from_matrix(Rs[k]).as_quat()
-                rows.append((float(tk), "camera", log.target, int(k), 1.0, qw, qx, qy, qz, *map(float, ts[k])))
-        _write_table(out / obs / "candidates.csv", "candidates", rows)
-        tables["candidates"] = f"{obs}/candidates.csv"
-    sigma = float(log.landmark_sigma)
-    lm = out / "landmarks.csv"
-    with open(lm, "w") as fh:
-        fh.write("id,x,y,z,sigma_x,sigma_y,sigma_z\n")
-        for j, p in enumerate(log.landmarks):
-            fh.write(f"{j},{p[0]:.9g},{p[1]:.9g},{p[2]:.9g},{sigma},{sigma},{sigma}\n")
-    meta = {"scenario": log.name, "groundtruth_tum": {obs: f"{obs}/groundtruth.tum"}, **log.meta}
+    tables = {"markers": f"{obs}/markers.csv", "groundtruth": f"{obs}/groundtruth.tum"}
     write_tum3(out / obs / "groundtruth.tum", log.times, log.R_wc, log.t_wc)
+    sensors = []
     if log.odometry:
-        pose = gtsam.Pose3(gtsam.Rot3(log.R_wc[0]), log.t_wc[0])
-        poses = [pose]
-        for step in log.odometry:
-            poses.append(poses[-1].compose(step))
-        write_tum3(out / obs / "odometry.tum", log.times, np.stack([p.rotation().matrix() for p in poses]),
-                   np.stack([p.translation() for p in poses]))
-        meta["odometry_tum"] = {obs: f"{obs}/odometry.tum"}
+        rows = []
+        for t0, t1, step, cov in zip(log.times[:-1], log.times[1:], log.odometry, log.odometry_cov):
+            qx, qy, qz, qw = Rotation.from_matrix(step.rotation().matrix()).as_quat()
+            rows.append((float(t1), "odometry", float(t0), *map(float, step.translation()), qx, qy, qz, qw,
+                         *map(float, np.sqrt(np.diag(cov)))))
+        _write_table(out / obs / "relative_pose3.csv", "relative_pose3", rows)
+        tables["relative_pose3"] = f"{obs}/relative_pose3.csv"
+        sensors.append({"name": "odometry", "type": "odometry"})
     cam = log.camera
+    sensors.append({"name": "camera", "type": "camera",
+                    "params": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": cam.width,
+                               "height": cam.height, "pixel_sigma": log.pixel_sigma}})
+    climber = {"name": obs, "kind": "ceiling", "planar": False, "sensors": sensors, "tables": tables}
+    if log.surface is not None:
+        climber["surface"] = {"point": [float(a) for a in log.surface[0]],
+                              "normal": [float(a) for a in log.surface[1]]}
     manifest = {
         "name": log.name,
         "robots": [
-            {"name": obs, "kind": "ceiling", "sensors": [
-                {"name": "camera", "type": "camera",
-                 "params": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": cam.width,
-                            "height": cam.height, "pixel_sigma": log.pixel_sigma}}],
-             "tables": tables},
-            {"name": log.target, "kind": "ground", "sensors": [], "tables": {}},
+            climber,
+            {"name": log.target, "kind": "ground", "static": True, "initial_pose": [0, 0, 0, 0, 0, 0, 1],
+             "markers": np.asarray(log.layout, dtype=float).tolist(), "identical_markers": log.identical_markers,
+             "sensors": [], "tables": {}},
         ],
-        "landmarks": {"file": "landmarks.csv"},
-        "meta": meta,
+        "meta": {"scenario": log.name, **log.meta},
     }
     return write_manifest(manifest, out)
 
 
 # ---- seed 000 adapters -----------------------------------------------------------------------
+STRAIGHT_ROT_SIGMA = 0.01  # [rad] heading change allowed by "moves straight" (seed 000 Sec. IV)
+
 class FengDeterministicScenario:
     """Seed 000 Sec. VI-A, one trial: three tilted omni ground cameras (mutual pixels in
     meta["mutual_pixels"], 512x512, N(0, 0.5) px) and the climbing camera's three snapshots
@@ -169,7 +164,6 @@ class FengDeterministicScenario:
 
     def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
         from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straight_line_trials
-        from graphloc.baselines.straight_line import localize_by_straight_line
         from graphloc.cameras import PinholeCamera
         from graphloc.tables import TableIConfig, ground_triangle
 
@@ -178,14 +172,16 @@ class FengDeterministicScenario:
         tri = ground_triangle(trials.ground, config, np.random.default_rng([seed, 1]))
         K = trials.K
         camera = PinholeCamera(K[0, 0], K[1, 1], K[0, 2], K[1, 2], 640, 480)
-        choice = localize_by_straight_line(trials.pixels, K, trials.ground)
         times = np.arange(3, dtype=float)
+        # the seed's motion assumption as odometry: the climber moves straight without turning
+        # (rotation known to STRAIGHT_ROT_SIGMA), by an unknown step (translation sigma = 3 x the
+        # mean step); the straight-line baseline uses the collinearity of the same motion instead
+        steps = [gtsam.Pose3()] * 2
+        cov = [np.diag([STRAIGHT_ROT_SIGMA ** 2] * 3 + [(3 * Seed000Config().step_mean) ** 2] * 3)] * 2
         log = CameraTrackLog(
             name=self.name, times=times, R_wc=np.repeat(trials.R_wc, 3, axis=0), t_wc=trials.positions[0],
-            landmarks=trials.ground[0], landmark_sigma=0.0, pixels=trials.pixels[0], camera=camera,
-            pixel_sigma=config.pixel_sigma, odometry=[],
-            cand_R=choice.candidates.R_wc.reshape(3, -1, 3, 3), cand_t=choice.candidates.t_wc.reshape(3, -1, 3),
-            cand_valid=choice.candidates.valid.reshape(3, -1),
+            layout=trials.ground[0], pixels=trials.pixels[0], camera=camera, pixel_sigma=config.pixel_sigma,
+            odometry=steps, odometry_cov=cov,
             meta={"seed_paper": "000_05137a0a9c449be3.txt Sec. VI-A", "config": asdict(config),
                   "ground_R_wc": tri.R[0].tolist(), "mutual_pixels": tri.pixels[0].tolist(),
                   "mutual_estimate": tri.estimated[0].tolist(), "mutual_status": str(tri.status[0]),
@@ -205,17 +201,16 @@ class FengProbabilisticLog:
         return FengProbabilisticConfig
 
     def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
-        from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario, seed000_camera
+        from graphloc.datasets.feng import (FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance,
+                                            seed000_camera)
 
         config = replace(FengProbabilisticConfig(seed=seed), **parse_overrides(FengProbabilisticConfig, overrides))
         run = FengProbabilisticScenario.simulate(config)
-        K = max(len(c) for c in run.candidates)
-        cR, ct, cv = np.zeros((len(run), K, 3, 3)), np.zeros((len(run), K, 3)), np.zeros((len(run), K), bool)
-        for i, c in enumerate(run.candidates):
-            cR[i, :len(c)], ct[i, :len(c)], cv[i, :len(c)] = c.R, c.t, True
-        log = CameraTrackLog(name=self.name, times=run.times, R_wc=run.R_wc, t_wc=run.t_wc, landmarks=run.landmarks,
-                             landmark_sigma=0.0, pixels=run.pixels, camera=seed000_camera(),
-                             pixel_sigma=config.pixel_sigma, odometry=run.odometry, cand_R=cR, cand_t=ct, cand_valid=cv,
+        cov = [odometry_covariance(o, config.odometry_noise, config.odometry_rot_sigma) for o in run.odometry]
+        log = CameraTrackLog(name=self.name, times=run.times, R_wc=run.R_wc, t_wc=run.t_wc, layout=run.landmarks,
+                             pixels=run.pixels, camera=seed000_camera(), pixel_sigma=config.pixel_sigma,
+                             odometry=run.odometry, odometry_cov=cov,
+                             surface=(run.plane.origin, run.plane.normal),
                              meta={"seed_paper": "000_05137a0a9c449be3.txt Sec. VI-B", "config": asdict(config)})
         return write_camera_track(log, out_dir)
 

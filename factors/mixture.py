@@ -30,7 +30,7 @@ from graphloc.keys import mode_key
 def candidate_covariances(candidates: CandidateSet, default_sigmas=(0.02, 0.05)) -> np.ndarray:
     """(K,6,6) covariance of every candidate: meta["covariance"] if present, else diagonal."""
     k = len(candidates)
-    cov = candidates.meta.get("covariance")
+    cov = candidates.covariance if candidates.covariance is not None else candidates.meta.get("covariance")
     if cov is None:
         rot, trans = (float(s) for s in default_sigmas)
         if not (rot > 0 and trans > 0):

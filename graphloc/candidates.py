@@ -17,6 +17,9 @@ class CandidateSet:
     in the reference frame (for P3P: camera in world, `R_wc`, `t_wc`).
     scores: (K,) non-negative quality (higher is better; e.g. exp(-reprojection^2/2 sigma^2)).
     time: timestamp [s]; observer / observed: robot names; source: which front-end made it.
+    covariance: (K,6,6) first-order covariance of each pose (GTSAM Pose3 tangent order, right
+    perturbation), e.g. `graphloc.geometry.resection.resection_covariance`; None = unknown
+    (the engines then use their default sigmas).
     """
 
     R: np.ndarray
@@ -27,6 +30,7 @@ class CandidateSet:
     observed: str = ""
     source: str = ""
     meta: dict = field(default_factory=dict, compare=False)
+    covariance: np.ndarray | None = field(default=None, compare=False)
 
     def __post_init__(self):
         R = np.asarray(self.R, dtype=float)
@@ -43,6 +47,11 @@ class CandidateSet:
         object.__setattr__(self, "R", R)
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "scores", s)
+        if self.covariance is not None:
+            cov = np.asarray(self.covariance, dtype=float)
+            if cov.shape != (R.shape[0], 6, 6):
+                raise ValueError(f"CandidateSet.covariance must be ({R.shape[0]},6,6), got {cov.shape}")
+            object.__setattr__(self, "covariance", cov)
 
     def __len__(self) -> int:
         return self.R.shape[0]

@@ -12,6 +12,7 @@ import sys
 VERBS: dict[str, str] = {
     "demo": "demo",
     "p3p-bench": "p3p_bench",
+    "validate": "validate",
     "smooth": "smooth",
     "online": "online",
     "fuse-maps": "fuse_maps",

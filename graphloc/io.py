@@ -25,7 +25,8 @@ import numpy as np
 from graphloc.factors.range_bearing import to_body_frame_2d
 
 FORMAT = "graphloc-log"
-VERSION = 1
+VERSION = 2  # what the writers produce
+VERSIONS = (1, 2)  # what the reader accepts (docs/log_format.md)
 MANIFEST = "manifest.json"
 LANDMARK_PREFIX = "landmark:"
 
@@ -99,6 +100,42 @@ class RelativePose2D:
     sigma_x: float
     sigma_y: float
     sigma_theta: float
+
+
+@dataclass(frozen=True)
+class RelativePose3D:
+    """SE(3) increment from `time0` to `time` in the body frame at time0 (wheel / IMU odometry or
+    scan matching): translation (tx, ty, tz), unit quaternion (qx, qy, qz, qw) as in TUM, and
+    sigmas of GTSAM's Pose3 tangent (rotation rx, ry, rz [rad], translation tx, ty, tz [m])."""
+
+    time: float
+    robot: str
+    sensor: str
+    time0: float
+    tx: float
+    ty: float
+    tz: float
+    qx: float
+    qy: float
+    qz: float
+    qw: float
+    sigma_rx: float
+    sigma_ry: float
+    sigma_rz: float
+    sigma_tx: float
+    sigma_ty: float
+    sigma_tz: float
+
+
+@dataclass(frozen=True)
+class Range:
+    """Distance [m] from the sensor to `target` (a robot's body origin or 'landmark:<id>')."""
+
+    time: float
+    robot: str
+    sensor: str
+    target: str
+    range: float
 
 
 @dataclass(frozen=True)
@@ -183,6 +220,8 @@ class GroundTruth2D:
 TABLES: dict[str, type] = {
     "odometry": Odometry2D,
     "relative_pose": RelativePose2D,
+    "relative_pose3": RelativePose3D,
+    "range": Range,
     "range_bearing": RangeBearing2D,
     "bearing": Bearing3D,
     "markers": MarkerPixel,
@@ -192,7 +231,8 @@ TABLES: dict[str, type] = {
 }
 # sensor type each table's `sensor` column must have
 SENSOR_TYPES = {
-    "odometry": "odometry", "relative_pose": "odometry", "range_bearing": "range_bearing", "bearing": "bearing",
+    "odometry": "odometry", "relative_pose": "odometry", "relative_pose3": "odometry", "range": "range",
+    "range_bearing": "range_bearing", "bearing": "bearing",
     "markers": "camera", "candidates": "camera", "scans": "scanner",
 }
 
@@ -220,8 +260,15 @@ class Robot:
     kind: str
     sensors: tuple[Sensor, ...]
     tables: dict = field(compare=False, default_factory=dict)  # table name -> relative csv path
-    initial_pose: tuple | None = None  # planar (x, y, theta) if known
+    initial_pose: tuple | None = None  # (x, y, theta) or (x, y, z, qx, qy, qz, qw) if known
     meta: dict = field(default_factory=dict, compare=False)
+    # version 2 (docs/log_format.md): state space, anchoring, surface, markers
+    planar: bool = True  # moves in the floor plane (SE(2) motion embedded in SE(3))
+    static: bool = False  # never moves: one pose for the whole run
+    initial_sigma: tuple | None = None  # (rotation [rad], translation [m]) of the initial-pose prior
+    surface: dict | None = None  # {"point": [..], "normal": [..]} plane the robot climbs on
+    markers: tuple | None = None  # ((x, y, z), ...) marker layout in the body frame
+    identical_markers: bool = False  # markers cannot be told apart (seed 001: 24 x 4 hypotheses)
 
     def sensor(self, name: str) -> Sensor | None:
         return next((s for s in self.sensors if s.name == name), None)
@@ -285,8 +332,9 @@ def read_manifest(root: str | Path) -> Manifest:
             raise ValueError(f"{path}: field '{key}' must be a JSON {kind.__name__.replace('dict', 'object')}")
     if data.get("format") != FORMAT:
         raise ValueError(f"{path}: field 'format' must be {FORMAT!r}, got {data.get('format')!r}")
-    if data.get("version") != VERSION:
-        raise ValueError(f"{path}: field 'version' {data.get('version')!r} unsupported (this reader: {VERSION})")
+    version = data.get("version")
+    if version not in VERSIONS:
+        raise ValueError(f"{path}: field 'version' {version!r} unsupported (this reader: {VERSIONS})")
     robots = []
     for i, r in enumerate(data.get("robots") or []):
         where = f"{path}: robots[{i}]"
@@ -302,15 +350,37 @@ def read_manifest(root: str | Path) -> Manifest:
         for t in tables:
             if t not in TABLES:
                 raise ValueError(f"{where}: field 'tables' names unknown table {t!r}; known: {', '.join(TABLES)}")
-        init = r.get("initial_pose")
-        if init is not None:
-            try:
-                init = tuple(float(a) for a in init)
-            except (TypeError, ValueError):
-                init = ()
-            if len(init) != 3 or not all(math.isfinite(a) for a in init):
-                raise ValueError(f"{where}: field 'initial_pose' must be 3 finite numbers [x, y, theta]")
-        robots.append(Robot(r["name"], r.get("kind", "ground"), tuple(sensors), tables, init, dict(r.get("meta") or {})))
+        if not isinstance(r.get("tables") or {}, dict):
+            raise ValueError(f"{where}: field 'tables' must be a JSON object (table name -> path)")
+        sizes = (3,) if version == 1 else (3, 7)
+        init = _numbers(r.get("initial_pose"), sizes, f"{where}: field 'initial_pose'")
+        if init is not None and len(init) == 7 and not 0.5 < math.hypot(*init[3:]) < 2.0:
+            raise ValueError(f"{where}: field 'initial_pose': quaternion (qx, qy, qz, qw) is not unit")
+        kind = r.get("kind", "ground")
+        extra = {}
+        if version >= 2:
+            extra["planar"] = _flag(r, "planar", kind == "ground", where)
+            extra["static"] = _flag(r, "static", False, where)
+            extra["identical_markers"] = _flag(r, "identical_markers", False, where)
+            extra["initial_sigma"] = _numbers(r.get("initial_sigma"), (2,), f"{where}: field 'initial_sigma'",
+                                              positive=True)
+            surface = r.get("surface")
+            if surface is not None:
+                if not isinstance(surface, dict):
+                    raise ValueError(f"{where}: field 'surface' must be {{\"point\": [x, y, z], \"normal\": [..]}}")
+                for key in ("point", "normal"):
+                    _numbers(surface.get(key), (3,), f"{where}: field 'surface.{key}'", required=True)
+                if math.hypot(*surface["normal"]) < 1e-9:
+                    raise ValueError(f"{where}: field 'surface.normal' must be non-zero")
+                extra["surface"] = {"point": [float(a) for a in surface["point"]],
+                                    "normal": [float(a) for a in surface["normal"]]}
+            markers = r.get("markers")
+            if markers is not None:
+                if not isinstance(markers, list) or len(markers) < 3:
+                    raise ValueError(f"{where}: field 'markers' must list at least 3 points [x, y, z]")
+                extra["markers"] = tuple(_numbers(m, (3,), f"{where}: field 'markers[{j}]'", required=True)
+                                         for j, m in enumerate(markers))
+        robots.append(Robot(r["name"], kind, tuple(sensors), tables, init, dict(r.get("meta") or {}), **extra))
     names = [r.name for r in robots]
     if not robots or len(set(names)) != len(names):
         raise ValueError(f"{path}: field 'robots' must list at least one robot with unique names, got {names}")
@@ -319,6 +389,28 @@ def read_manifest(root: str | Path) -> Manifest:
     if start is not None and not (isinstance(start, (int, float)) and math.isfinite(start)):
         raise ValueError(f"{path}: field 'start_time' must be a finite number, got {start!r}")
     return Manifest(root, data.get("name", root.name), tuple(robots), lm, start, dict(data.get("meta") or {}))
+
+
+def _numbers(value, sizes: tuple, where: str, positive: bool = False, required: bool = False):
+    """A JSON list of finite numbers of one of the lengths `sizes` -> tuple (None if absent)."""
+    if value is None and not required:
+        return None
+    try:
+        out = tuple(float(a) for a in value)
+    except (TypeError, ValueError):
+        out = ()
+    if len(out) not in sizes or not all(math.isfinite(a) and abs(a) < 1e9 for a in out):
+        raise ValueError(f"{where} must be {' or '.join(map(str, sizes))} finite numbers, got {value!r}")
+    if positive and not all(a > 0 for a in out):
+        raise ValueError(f"{where} must be > 0, got {value!r}")
+    return out
+
+
+def _flag(robot: dict, name: str, default: bool, where: str) -> bool:
+    value = robot.get(name, default)
+    if not isinstance(value, bool):
+        raise ValueError(f"{where}: field '{name}' must be true or false, got {value!r}")
+    return value
 
 
 def write_manifest(manifest_dict: dict, root: str | Path) -> Path:
@@ -451,6 +543,11 @@ def read_landmarks(manifest: Manifest) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return np.array(ids, dtype=int), np.array(xyz, dtype=float).reshape(-1, 3), np.array(sig, dtype=float).reshape(-1, 3)
 
 
+def is_tum(path: str) -> bool:
+    """3D ground truth is a TUM file (graphloc.run.read_tum_poses), not a CSV table."""
+    return str(path).endswith(".tum")
+
+
 def iter_records(root: str | Path, tables=None, robots=None, on_error: str = "raise",
                  report: SkipReport | None = None) -> Iterator:
     """All records of the log (optionally only `tables` / `robots`), merged in time order across
@@ -469,7 +566,7 @@ def iter_records(root: str | Path, tables=None, robots=None, on_error: str = "ra
             raise ValueError(f"{manifest.root / MANIFEST}: unknown robot {name!r}; robots: {sorted(known)}")
     streams = [iter_table(manifest, r, t, on_error, report, landmark_ids)
                for r in manifest.robots if robots is None or r.name in robots
-               for t in wanted_tables if t in r.tables]
+               for t in wanted_tables if t in r.tables and not is_tum(r.tables[t])]
     return heapq.merge(*streams, key=lambda rec: rec.time)
 
 
@@ -606,7 +703,8 @@ def read_planar_run(root: str | Path, on_error: str = "skip") -> PlanarRun:
             raise ValueError(f"{manifest.root}: robot {n!r} has fewer than 2 valid odometry rows")
     odometry = tuple(np.array(odo[n], dtype=float) for n in names)
     start = manifest.start_time if manifest.start_time is not None else max(od[0, 0] for od in odometry)
-    init = np.array([r.initial_pose if r.initial_pose is not None else (np.nan,) * 3 for r in manifest.robots], dtype=float)
+    init = np.array([r.initial_pose if r.initial_pose is not None and len(r.initial_pose) == 3 else (np.nan,) * 3
+                     for r in manifest.robots], dtype=float)
     o = np.array(obs, dtype=float).reshape(-1, 9)
     for mount in np.unique(o[:, 6:9], axis=0):  # sensor extrinsics -> body frame, one batch per mounting
         sel = np.all(o[:, 6:9] == mount, axis=1)

@@ -91,8 +91,7 @@ def test_range_factor_with_sensor_offset():
 def candidate_set(poses, scores=None, cov=None):
     R = np.stack([p.rotation().matrix() for p in poses])
     t = np.stack([p.translation() for p in poses])
-    meta = {} if cov is None else {"covariance": cov}
-    return CandidateSet(R, t, np.ones(len(poses)) if scores is None else np.asarray(scores, float), meta=meta)
+    return CandidateSet(R, t, np.ones(len(poses)) if scores is None else np.asarray(scores, float), covariance=cov)
 
 
 def test_mixture_components_and_weights():

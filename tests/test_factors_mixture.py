@@ -130,7 +130,7 @@ def test_bad_inputs_raise_value_error():
     bad_cov = np.broadcast_to(np.eye(6), (2, 6, 6)).copy()
     bad_cov[1, 0, 0] = np.nan
     with pytest.raises(ValueError, match="NaN"):
-        candidate_max_mixture(CandidateSet(cands.R, cands.t, cands.scores, meta={"covariance": bad_cov}), B, A)
+        candidate_max_mixture(CandidateSet(cands.R, cands.t, cands.scores, covariance=bad_cov), B, A)
 
 
 def test_candidate_with_underflowed_score_keeps_its_component():

@@ -81,7 +81,7 @@ def _two_track_stream(n=25, scale_b=4.0):
         pose_b = offset.compose(pose_a)
         R = np.stack([pose_a.rotation().matrix(), pose_b.rotation().matrix()])
         t = np.stack([pose_a.translation(), pose_b.translation()])
-        frames.append(CandidateSet(R, t, np.ones(2), time=0.1 * k, meta={"covariance": np.stack([cov_a, scale_b * cov_a])}))
+        frames.append(CandidateSet(R, t, np.ones(2), time=0.1 * k, covariance=np.stack([cov_a, scale_b * cov_a])))
         if k:
             odo.append(Odometry(step, np.diag([1e-6] * 3 + [1e-6] * 3)))
         pose_a = pose_a.compose(step)
@@ -130,7 +130,7 @@ def test_bad_input_is_rejected():
     with pytest.raises(ValueError, match="CandidateSet"):
         tracker.update("not candidates", odo[1])
     with pytest.raises(ValueError, match="covariance"):
-        tracker.update(dataclasses.replace(run.candidates[1], meta={"covariance": np.eye(6)}), odo[1])
+        tracker.update(dataclasses.replace(run.candidates[1], covariance=np.eye(6)), odo[1])
     with pytest.raises(ValueError, match="NaN"):
         Odometry(gtsam.Pose3(gtsam.Rot3(), np.array([np.nan, 0, 0])), np.eye(6))
     with pytest.raises(ValueError, match="positive definite"):

@@ -21,7 +21,8 @@ def test_generate_writes_readable_log_with_groundtruth(tmp_path, name):
     assert records, name
     markers = [r for r in records if type(r).__name__ == "MarkerPixel"]
     assert markers and all(np.isfinite([m.u, m.v]).all() for m in markers)
-    gt = np.loadtxt(path.parent / manifest.meta["groundtruth_tum"]["climber"])
+    assert manifest.robot("climber").tables["groundtruth"].endswith(".tum")
+    gt = np.loadtxt(path.parent / manifest.robot("climber").tables["groundtruth"])
     assert gt.shape[1] == 8 and np.allclose(np.linalg.norm(gt[:, 4:], axis=1), 1.0)
     assert len(np.unique([m.time for m in markers])) == len(gt)
 

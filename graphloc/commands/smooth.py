@@ -1,57 +1,129 @@
 """`graphloc smooth RUN --out DIR`: batch smoothing (Levenberg-Marquardt over the whole factor
-graph) of a planar multi-robot run -- a graphloc log directory or an MRCLAM dataset directory.
-Writes per-robot TUM trajectories, metrics.json (ATE/RPE vs ground truth for dead reckoning and
-the estimate, skips, down-weighted measurements) and PNG plots."""
+graph) of a team's run -- a graphloc log directory (every table: odometry, relative poses,
+bearings, ranges, range-bearing, markers -> P3P candidate sets, surfaces) or an MRCLAM dataset
+directory (`graphloc.datasets.open_run`, `graphloc.pipelines.team_graph`). Writes per-robot
+TUM trajectories, metrics.json, decisions.csv and PNG plots (docs/outputs.md).
+
+Options come from the command line and from `--config FILE` (TOML, the same names as the
+options with '_' for '-'); the command line wins. Sensor noise options replace what the log's
+sensor params state; left unset, the log's values (or graphloc's defaults) hold."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import tomllib
+from pathlib import Path
 
-HELP = "batch factor-graph smoothing of a multi-robot run (log dir or MRCLAM dir): TUM, metrics JSON, PNGs"
+HELP = "batch factor-graph smoothing of a team's run (log dir or MRCLAM dir): TUM, metrics JSON, PNGs"
 MODE = "batch"
+# option -> (type, default, help); every one can also be set in the --config file
+OPTIONS = {
+    "duration": (float, None, "use only the first N seconds"),
+    "keyframe_dt": (float, 0.25, "pose grid of wheel-odometry robots [s]"),
+    "sync_tolerance": (float, 0.02, "largest time offset between a measurement and its pose [s] "
+                                    "(robots without wheel odometry)"),
+    "no_landmarks": (bool, False, "ignore landmark measurements"),
+    "no_inter_robot": (bool, False, "ignore robot-to-robot measurements"),
+    "unknown_landmarks": (bool, False, "cooperative SLAM: estimate landmark positions instead of using the map"),
+    "kernel": (str, "cauchy:2.0", "robust kernel NAME[:k] of landmark and inter-robot factors "
+                                  "(huber, cauchy, tukey, gemanmcclure, dcs, none)"),
+    "odometry_kernel": (str, "none", "robust kernel NAME[:k] of odometry factors"),
+    "candidate_kernel": (str, "cauchy:1.0", "robust kernel NAME[:k] of committed P3P candidates"),
+    "bearing_sigma": (float, None, "bearing noise [rad] of every sensor (default: the log's, else 0.02)"),
+    "range_sigma": (float, None, "range noise at 0 m [m] (default: the log's, else 0.05)"),
+    "range_sigma_per_m": (float, None, "range noise growth [m per m] (default: the log's, else 0.035)"),
+    "pixel_sigma": (float, None, "marker pixel noise [px] (default: the log's, else 1.0)"),
+}
+NOISE = ("bearing_sigma", "range_sigma", "range_sigma_per_m", "pixel_sigma")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options shared by `smooth` and `online`."""
     parser.add_argument("run", help="graphloc log directory (manifest.json) or MRCLAM dataset directory")
-    parser.add_argument("--out", required=True, help="output directory")
-    parser.add_argument("--duration", type=float, default=None, help="use only the first N seconds")
-    parser.add_argument("--keyframe-dt", type=float, default=0.25, help="frame period [s] (default 0.25)")
-    parser.add_argument("--no-landmarks", action="store_true", help="cooperative only: ignore landmark measurements")
-    parser.add_argument("--no-inter-robot", action="store_true", help="ignore robot-to-robot measurements")
-    parser.add_argument("--unknown-landmarks", action="store_true",
-                        help="cooperative SLAM: estimate landmark positions instead of using the known map")
-    parser.add_argument("--kernel", default="cauchy:2.0",
-                        help="robust kernel NAME[:k] for measurement factors (huber, cauchy, tukey, gemanmcclure, dcs, none)")
-    parser.add_argument("--odometry-kernel", default="none", help="robust kernel NAME[:k] for odometry factors")
-    parser.add_argument("--bearing-sigma", type=float, default=0.02, help="bearing noise [rad]")
-    parser.add_argument("--range-sigma", type=float, default=0.05, help="range noise at 0 m [m]")
-    parser.add_argument("--range-sigma-per-m", type=float, default=0.035, help="range noise growth [m per m]")
-    parser.add_argument("--no-progress", action="store_true", help="no tqdm progress bars")
+    parser.add_argument("--out", required=True, type=Path, help="output directory")
+    parser.add_argument("--config", type=Path, help="TOML file with any of the options below")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    for name, (kind, default, text) in OPTIONS.items():
+        flag = "--" + name.replace("_", "-")
+        if kind is bool:
+            parser.add_argument(flag, action="store_true", default=None, help=text)
+        else:
+            parser.add_argument(flag, type=kind, default=None, help=f"{text} (default {default})")
 
 
-def config_from_args(args: argparse.Namespace):
+def options(args: argparse.Namespace) -> dict:
+    """Effective option values: defaults < --config file < command line."""
+    values = {name: spec[1] for name, spec in OPTIONS.items()}
+    if args.config is not None:
+        try:
+            data = tomllib.loads(args.config.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+            raise ValueError(f"{args.config}: cannot read config: {exc}") from None
+        for key, value in data.items():
+            name = key.replace("-", "_")
+            if name not in OPTIONS:
+                raise ValueError(f"{args.config}: unknown option {key!r}; known: {', '.join(OPTIONS)}")
+            kind = OPTIONS[name][0]
+            ok = isinstance(value, bool) if kind is bool else (
+                isinstance(value, (int, float)) and not isinstance(value, bool) if kind is float
+                else isinstance(value, str))
+            if not ok:
+                raise ValueError(f"{args.config}: option {key!r} must be a {kind.__name__}, got {value!r}")
+            values[name] = float(value) if kind is float else value
+    for name in OPTIONS:
+        given = getattr(args, name, None)
+        if given is not None:
+            values[name] = given
+    return values
+
+
+def graph_config(values: dict):
     from graphloc.factors.robust import Kernel, KernelPolicy
-    from graphloc.pipeline_smoothing import SmoothingConfig
+    from graphloc.pipelines.team_graph import GraphConfig
 
-    kernel = Kernel.parse(args.kernel)
-    kernels = KernelPolicy({"landmark": kernel, "inter_robot": kernel}, default=Kernel.parse(args.odometry_kernel))
-    return SmoothingConfig(keyframe_dt=args.keyframe_dt, use_landmarks=not args.no_landmarks,
-                           use_inter_robot=not args.no_inter_robot, landmark_priors=not args.unknown_landmarks,
-                           kernels=kernels, bearing_sigma=args.bearing_sigma,
-                           range_sigma=args.range_sigma, range_sigma_per_m=args.range_sigma_per_m)
+    try:
+        kernel = Kernel.parse(values["kernel"])
+        kernels = KernelPolicy({"landmark": kernel, "inter_robot": kernel,
+                                "candidate": Kernel.parse(values["candidate_kernel"])},
+                               default=Kernel.parse(values["odometry_kernel"]))
+    except ValueError as exc:
+        raise ValueError(f"option kernel: {exc}") from None
+    if values["no_landmarks"] and values["no_inter_robot"]:
+        raise ValueError("--no-landmarks with --no-inter-robot leaves only odometry")
+    return GraphConfig(keyframe_dt=values["keyframe_dt"], sync_tolerance=values["sync_tolerance"],
+                       use_landmarks=not values["no_landmarks"], use_inter_robot=not values["no_inter_robot"],
+                       landmark_priors=not values["unknown_landmarks"], kernels=kernels)
+
+
+def check_out(out: Path) -> None:
+    """--out must be a directory graphloc can create or write, checked before any computation."""
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a directory")
+    parent = next((p for p in [out, *out.parents] if p.exists()), Path("."))
+    if not parent.is_dir():
+        raise ValueError(f"--out {out}: {parent} is not a directory")
+    import os
+
+    if not os.access(parent, os.W_OK):
+        raise ValueError(f"--out {out}: {parent} is not writable")
 
 
 def run_verb(args: argparse.Namespace, mode: str) -> int:
-    from graphloc.pipeline_smoothing import run_and_report
+    from graphloc.datasets import open_run
+    from graphloc.pipelines.report import run_and_report
 
-    metrics = run_and_report(args.run, args.out, mode, config_from_args(args), duration=args.duration,
-                             progress=not args.no_progress)
-    summary = {name: {k: round(v["ate_rmse"], 4) for k, v in entry.items() if isinstance(v, dict)}
-               for name, entry in metrics["per_robot"].items()}
-    print(json.dumps({"mode": mode, "ate_rmse_m": summary, "realtime_factor": round(metrics["realtime_factor"], 1),
-                      "downweighted": metrics["downweighted"], "skipped": metrics["skipped"]["counts"]}, indent=1))
+    check_out(args.out)
+    values = options(args)
+    config = graph_config(values)
+    noise = {k: values[k] for k in NOISE if values[k] is not None}
+    run = open_run(args.run, duration=values["duration"], noise=noise)
+    metrics = run_and_report(run, args.out, mode, config, progress=not args.no_progress, effective=values)
+    summary = {name: round(v[mode]["ate_rmse"], 4) for name, v in metrics["per_robot"].items()
+               if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]}
+    print(json.dumps({"mode": mode, "ate_rmse_m": summary, "decisions": metrics["decisions"],
+                      "realtime_factor": round(metrics["realtime_factor"], 1),
+                      "skipped": metrics["skipped"]["counts"]}, indent=1))
     print(f"outputs in {args.out}")
     return 0
 

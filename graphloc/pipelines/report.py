@@ -1,0 +1,210 @@
+"""Outputs of `graphloc smooth` / `graphloc online` (every field documented in docs/outputs.md):
+per-robot TUM trajectories (estimate, dead reckoning, ground truth), metrics.json (per-robot
+ATE / RPE via evo with the alignment stated, candidate-set decisions, what every table
+contributed, skips, the effective configuration), decisions.csv and PNG plots."""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+from evo.core.trajectory import PoseTrajectory3D
+from evo.tools import file_interface
+
+from graphloc.eval import ate_over_time, trajectory_metrics
+from graphloc.pipelines.team_graph import GraphConfig, TeamResult, build_graph, solve
+from graphloc.plots import Series, plot_series, plot_trajectories
+from graphloc.run import TeamRun
+
+CORRECT_DISTANCE = 0.25  # [m] a committed candidate this close to the truth is the genuine one
+
+
+def _trajectory(times: np.ndarray, rows: np.ndarray) -> PoseTrajectory3D:
+    """(N,) times and (N,7) x y z qx qy qz qw rows -> evo trajectory (evo's quaternions are w first)."""
+    ok = np.isfinite(rows).all(axis=1)
+    q = rows[ok, 3:7]
+    return PoseTrajectory3D(positions_xyz=rows[ok, :3], orientations_quat_wxyz=np.column_stack([q[:, 3], q[:, :3]]),
+                            timestamps=np.asarray(times, dtype=float)[ok])
+
+
+def groundtruth_rows(run: TeamRun, r: int) -> tuple[np.ndarray, np.ndarray] | None:
+    gt = run.groundtruth[r]
+    if gt is None or len(gt[0]) < 3:
+        return None
+    rows = np.array([np.r_[p.translation(), _quat(p)] for p in gt[1]])
+    return np.asarray(gt[0]), rows
+
+
+def _quat(p) -> np.ndarray:
+    q = p.rotation().toQuaternion()
+    return np.array([q.x(), q.y(), q.z(), q.w()])
+
+
+def alignment(run: TeamRun, r: int) -> str:
+    """How a robot's estimate is compared with its ground truth: planar robots of a run without
+    absolute anchors other than their own start are SE(2)-aligned (as MRCLAM results are
+    reported); every other robot is compared in the world frame the run defines ("none")."""
+    return "se2" if run.robots[r].planar else "none"
+
+
+def evaluate(result: TeamResult, run: TeamRun) -> dict:
+    """Per-robot ATE/RPE of dead reckoning (the initial guess), the estimate and (online) the
+    causal estimate; decisions; counts; latency; skips."""
+    per_robot = {}
+    for r, robot in enumerate(run.robots):
+        ref = groundtruth_rows(run, r)
+        times = result.node_times[r]
+        if ref is None or not np.isfinite(result.estimate[r]).all(axis=1).any():
+            per_robot[robot.name] = {"groundtruth": ref is not None, "poses": int(len(times))}
+            continue
+        reference = _trajectory(*ref)
+        align = alignment(run, r)
+        entry = {"groundtruth": True, "poses": int(len(times)), "alignment": align}
+        tracks = {"dead_reckoning": result.dead_reckoning[r], result.mode: result.estimate[r]}
+        if result.mode == "online":
+            tracks["online_causal"] = result.causal[r]
+        for label, rows in tracks.items():
+            if np.isfinite(rows).all(axis=1).sum() < 3:
+                continue
+            try:
+                entry[label] = trajectory_metrics(reference, _trajectory(times, rows), align=align).as_dict()
+            except ValueError as exc:  # too few poses near ground-truth stamps
+                entry[label] = {"error": str(exc)}
+        per_robot[robot.name] = entry
+    decisions = result.graph.decisions
+    genuine = genuine_candidates(run, decisions)
+    judged = [(d, g) for d, g in zip(decisions, genuine) if d.committed >= 0 and g >= 0]
+    lat = result.latencies
+    latency = ({"mean": float(lat.mean() * 1e3), "p50": float(np.percentile(lat, 50) * 1e3),
+                "p95": float(np.percentile(lat, 95) * 1e3), "max": float(lat.max() * 1e3)}
+               if result.mode == "online" and len(lat) else None)
+    first = next((d.time for d in decisions if d.committed >= 0), None)
+    duration = float(max((t[-1] for t in result.node_times if len(t)), default=run.start_time) - run.start_time)
+    return {
+        "run": run.name, "mode": result.mode, "robots": [r.name for r in run.robots], "duration_s": duration,
+        "solve_wall_s": result.wall_s, "realtime_factor": duration / max(result.wall_s, 1e-12),
+        "latency_ms": latency, "per_robot": per_robot,
+        "decisions": {"candidate_sets": len(decisions), "committed": sum(d.committed >= 0 for d in decisions),
+                      "first_commit_time": first, "with_genuine_known": len(judged),
+                      "wrong": sum(d.committed != g for d, g in judged)},
+        "downweighted": result.downweighted, "counts": result.graph.counts, "tables": run.contributions,
+        "skipped": result.graph.skips.as_dict(),
+    }
+
+
+def write_tum(path: Path, times: np.ndarray, rows: np.ndarray) -> Path:
+    file_interface.write_tum_trajectory_file(str(path), _trajectory(times, rows))
+    return path
+
+
+def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) -> list[Path]:
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for r, robot in enumerate(run.robots):
+        times = result.node_times[r]
+        for label, rows in ((result.mode, result.estimate[r]), ("dead_reckoning", result.dead_reckoning[r])):
+            if np.isfinite(rows).all(axis=1).any():
+                written.append(write_tum(out / f"{robot.name}_{label}.tum", times, rows))
+        ref = groundtruth_rows(run, r)
+        if ref is not None:
+            written.append(write_tum(out / f"{robot.name}_groundtruth.tum", *ref))
+    path = out / "decisions.csv"
+    decisions = result.graph.decisions
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["time", "robot", "target", "candidates", "committed", "probability", "genuine", "correct",
+                    "x", "y", "z", "qx", "qy", "qz", "qw"])
+        for d, g in zip(decisions, genuine_candidates(run, decisions)):
+            correct = "" if d.committed < 0 or g < 0 else int(d.committed == g)
+            w.writerow([f"{d.time:.6f}", run.robots[d.robot].name, run.robots[d.target].name,
+                        len(d.candidates_xyz), d.committed, f"{d.probability:.6g}", g, correct,
+                        *(f"{v:.9g}" for v in d.pose)])
+    written.append(path)
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=str) + "\n")
+    written.append(out / "metrics.json")
+    written += _plots(result, run, out)
+    return written
+
+
+def _plots(result: TeamResult, run: TeamRun, out: Path) -> list[Path]:
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab10"]
+    est, ref, err = [], [], []
+    for r, robot in enumerate(run.robots):
+        rows = result.estimate[r]
+        if robot.static or not np.isfinite(rows).all(axis=1).any():
+            continue
+        est.append(Series(f"{robot.name} {result.mode}", rows[:, :2], color=cmap(r % 10)))
+        g = groundtruth_rows(run, r)
+        if g is not None:
+            ref.append(Series("ground truth" if not ref else "_nolegend_", g[1][:, :2], style="--", color="0.4"))
+            try:
+                t, e = ate_over_time(_trajectory(*g), _trajectory(result.node_times[r], rows), align=alignment(run, r))
+                err.append(Series(f"{robot.name} {result.mode}", t - run.start_time, e, color=cmap(r % 10)))
+            except ValueError:
+                pass
+    chosen = np.array([d.pose[:2] for d in result.graph.decisions if d.committed >= 0]).reshape(-1, 2)
+    if len(chosen):
+        est.append(Series("committed candidates", chosen, style=".", color="tab:green"))
+    rejected = _rejected_candidates(run, result)
+    if len(rejected):
+        est.append(Series("rejected candidates", rejected, style="x", color="tab:red"))
+    statics = [r for r in run.robots if r.static and r.initial_pose is not None]
+    points = np.array([r.initial_pose.transformFrom(m)[:2] for r in statics for m in (r.markers if r.markers is not
+                                                                                    None else [np.zeros(3)])])
+    if run.landmarks_known and len(run.landmark_xyz):
+        points = np.vstack([points.reshape(-1, 2), run.landmark_xyz[:, :2]])
+    written = [plot_trajectories(out / "trajectories.png", est, ref, points if len(points) else None,
+                                 title=f"{run.name}: {result.mode} (top view)", point_label="landmarks / markers")]
+    if err:
+        written.append(plot_series(out / "error_over_time.png", err, "time since start [s]", "position error [m]",
+                                   f"{run.name}: error over time", logy=True))
+    if result.mode == "online" and len(result.latencies):
+        written.append(plot_series(out / "latency.png", [Series("update latency", np.arange(len(result.latencies)),
+                                                               result.latencies * 1e3)],
+                                   "step", "latency per step [ms]", f"{run.name}: online latency"))
+    return written
+
+
+def _rejected_candidates(run: TeamRun, result: TeamResult) -> np.ndarray:
+    """World xy of every candidate the tracker did not commit (body position of the observer)."""
+    out = [xyz[:2] for d in result.graph.decisions for j, xyz in enumerate(d.candidates_xyz) if j != d.committed]
+    return np.array(out).reshape(-1, 2)
+
+
+def genuine_candidates(run: TeamRun, decisions: list, max_time_diff: float = 0.02) -> list[int]:
+    """Per decision, the genuine candidate: the one nearest the observer's true position (ground
+    truth within max_time_diff of the set's time), or -1 where the run has no ground truth there.
+    Near the P3P fold two candidates nearly coincide, so a committed candidate within
+    CORRECT_DISTANCE of the truth counts as genuine too (the rule of the seed 000 Table III
+    benchmark, `graphloc.experiments.hypotheses.WRONG_DISTANCE`)."""
+    out = []
+    for d in decisions:
+        gt = run.groundtruth[d.robot]
+        if gt is None or not len(gt[0]):
+            out.append(-1)
+            continue
+        i = int(np.argmin(np.abs(gt[0] - d.time)))
+        if abs(gt[0][i] - d.time) > max_time_diff or not len(d.candidates_xyz):
+            out.append(-1)
+            continue
+        dist = np.linalg.norm(d.candidates_xyz - gt[1][i].translation(), axis=1)
+        near = d.committed >= 0 and dist[d.committed] < CORRECT_DISTANCE
+        out.append(d.committed if near else int(np.argmin(dist)))
+    return out
+
+
+def run_and_report(run: TeamRun, out: Path, mode: str, config: GraphConfig, progress: bool = True,
+                   effective: dict | None = None) -> dict:
+    """Build the graph, solve it (batch or online), evaluate, write outputs; returns the metrics."""
+    result = solve(build_graph(run, config, progress=progress), mode=mode, progress=progress)
+    metrics = evaluate(result, run)
+    metrics["config"] = json.loads(json.dumps(asdict(config), default=str))
+    if effective:
+        metrics["options"] = effective
+    write_outputs(result, run, metrics, Path(out))
+    return metrics
