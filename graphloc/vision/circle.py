@@ -38,6 +38,7 @@ from scipy.special import erfc
 
 from graphloc.cameras import PinholeCamera, check_rows, normalize_rows
 from graphloc.candidates import CandidateSet
+from graphloc.vision.images import check_points, opencv_errors
 
 _FITTERS = {"direct": cv2.fitEllipseDirect, "ams": cv2.fitEllipseAMS, "lsq": cv2.fitEllipse}
 STATUS_OK = "ok"
@@ -154,12 +155,17 @@ def sampson_rms(conic: np.ndarray, points: np.ndarray) -> float:
 
 def fit_ellipse(points: np.ndarray, method: str = "direct") -> np.ndarray:
     """OpenCV ellipse fit of (M,2) points -> (5,) ellipse. OpenCV fits in float32, so the
-    points are centred and scaled to unit RMS radius first and the result mapped back."""
+    points are centred and scaled to unit RMS radius first and the result mapped back.
+    ValueError on fewer than 5 points, NaN/inf, or an unknown method."""
+    if method not in _FITTERS:
+        raise ValueError(f"fit_ellipse: method must be one of {sorted(_FITTERS)}, got {method!r}")
+    points = check_points(points, "fit_ellipse: points", min_rows=5)
     mean = points.mean(axis=0)
     scale = np.sqrt(np.mean(np.sum((points - mean) ** 2, axis=1)))
     if not scale > 0:
         raise ValueError("rim points are all identical")
-    (u0, v0), (w, h), ang = _FITTERS[method](((points - mean) / scale).astype(np.float32))
+    with opencv_errors(f"fit_ellipse ({method}) of {len(points)} points"):
+        (u0, v0), (w, h), ang = _FITTERS[method](((points - mean) / scale).astype(np.float32))
     return np.array([u0 * scale + mean[0], v0 * scale + mean[1], w * scale, h * scale, ang])
 
 
@@ -227,6 +233,11 @@ def refine_ellipse(coverage: np.ndarray, origin: tuple[int, int], ellipse0: np.n
     minus outside coverage <= min_contrast)."""
     coverage = np.asarray(coverage, dtype=float)
     u0, v0, w, h, ang = np.asarray(ellipse0, dtype=float).reshape(5)
+    origin = np.asarray(origin, dtype=float).reshape(-1)
+    if origin.shape != (2,) or not np.isfinite(origin).all() or not (np.isfinite(band)
+                                                                      and band > 0):
+        raise ValueError(f"refine_ellipse: origin must be 2 finite numbers and band > 0, got "
+                         f"{origin}, {band}")
     if coverage.ndim != 2 or not (np.isfinite([u0, v0, w, h, ang]).all() and min(w, h) > 0):
         raise ValueError(f"refine_ellipse: need a 2-D coverage map and a finite start ellipse, got "
                          f"{coverage.shape}, {ellipse0}")
@@ -374,7 +385,13 @@ def rim_points_from_mask(mask: np.ndarray) -> np.ndarray:
     mask = np.asarray(mask)
     if mask.ndim != 2:
         raise ValueError(f"mask must be a 2-D image, got shape {mask.shape}")
-    contours, _ = cv2.findContours((mask > 0).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if mask.dtype.kind not in "biuf":
+        raise ValueError(f"mask must be a numeric or boolean image, got dtype {mask.dtype}")
+    if mask.size == 0:
+        raise ValueError(f"mask is empty (shape {mask.shape})")
+    with opencv_errors(f"rim_points_from_mask on a {mask.shape[1]}x{mask.shape[0]} mask"):
+        contours, _ = cv2.findContours((mask > 0).astype(np.uint8), cv2.RETR_EXTERNAL,
+                                       cv2.CHAIN_APPROX_NONE)
     if not contours:
         raise ValueError("mask has no foreground blob")
     return max(contours, key=cv2.contourArea).reshape(-1, 2).astype(float)

@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 from graphloc.vision.circle import EllipseRefinement, ellipse_points, fit_ellipse, refine_ellipse
+from graphloc.vision.images import check_image, check_points, opencv_errors
 
 
 @dataclass(frozen=True)
@@ -54,14 +55,12 @@ class FeatureConfig:
 
 
 def as_gray(image: np.ndarray, name: str = "image") -> np.ndarray:
-    """uint8 grey image (H,W) from (H,W) grey or (H,W,3) BGR; ValueError on anything else."""
-    image = np.asarray(image)
-    if image.dtype != np.uint8:
-        raise ValueError(f"{name} must be uint8, got {image.dtype}")
-    if image.ndim == 3 and image.shape[2] == 3:
-        return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
-    if image.ndim != 2:
-        raise ValueError(f"{name} must be (H,W) or (H,W,3), got shape {image.shape}")
+    """uint8 grey image (H,W) from a non-empty (H,W) grey or (H,W,3) BGR uint8 image; ValueError
+    naming `name` on anything else (`vision.images.check_image`)."""
+    image = check_image(image, name)
+    if image.ndim == 3:
+        with opencv_errors(f"{name}: BGR to grey"):
+            return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
     return image
 
 
@@ -87,8 +86,10 @@ def detect_corners(gray: np.ndarray, max_corners: int, config: FeatureConfig = F
         if mask.shape != gray.shape:
             raise ValueError(f"detect_corners: mask shape {mask.shape} != image shape {gray.shape}")
         allowed[mask == 0] = 0
-    corners = cv2.goodFeaturesToTrack(gray, int(max_corners), config.quality_level, config.min_distance,
-                                      mask=allowed, blockSize=config.block_size, useHarrisDetector=False)
+    with opencv_errors(f"detect_corners on a {gray.shape[1]}x{gray.shape[0]} image"):
+        corners = cv2.goodFeaturesToTrack(gray, int(max_corners), config.quality_level,
+                                          config.min_distance, mask=allowed,
+                                          blockSize=config.block_size, useHarrisDetector=False)
     return np.zeros((0, 2)) if corners is None else corners.reshape(-1, 2).astype(float)
 
 
@@ -99,15 +100,16 @@ def track_forward_backward(prev_gray: np.ndarray, gray: np.ndarray, points: np.n
     prev_gray, gray = as_gray(prev_gray, "prev_gray"), as_gray(gray, "gray")
     if prev_gray.shape != gray.shape:
         raise ValueError(f"track_forward_backward: image shapes differ {prev_gray.shape} vs {gray.shape}")
-    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    points = check_points(points, "track_forward_backward: points", flat_ok=True)
     M = len(points)
     if M == 0:
         return np.zeros((0, 2)), np.zeros(0, bool), np.zeros(0)
     lk = dict(winSize=(config.win_size, config.win_size), maxLevel=config.max_level,
               criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, config.iterations, config.epsilon))
     p0 = points.astype(np.float32).reshape(-1, 1, 2)
-    p1, st1, _ = cv2.calcOpticalFlowPyrLK(prev_gray, gray, p0, None, **lk)
-    p0b, st2, _ = cv2.calcOpticalFlowPyrLK(gray, prev_gray, p1, None, **lk)
+    with opencv_errors(f"track_forward_backward on {gray.shape[1]}x{gray.shape[0]} images"):
+        p1, st1, _ = cv2.calcOpticalFlowPyrLK(prev_gray, gray, p0, None, **lk)
+        p0b, st2, _ = cv2.calcOpticalFlowPyrLK(gray, prev_gray, p1, None, **lk)
     p1 = p1.reshape(-1, 2).astype(float)
     fb = np.linalg.norm(p0b.reshape(-1, 2).astype(float) - points, axis=1)
     lk_ok = (st1.reshape(-1) == 1) & (st2.reshape(-1) == 1)
@@ -215,9 +217,7 @@ class BlobConfig:
 def colour_score(image: np.ndarray, config: BlobConfig = BlobConfig()) -> np.ndarray:
     """(H,W) float32 colour-signature score of a BGR image: chroma of each pixel (pixel minus its
     own grey level) projected on the chroma of `config.colour`, minus the off-direction part."""
-    image = np.asarray(image)
-    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
-        raise ValueError(f"colour_score: image must be (H,W,3) uint8 BGR, got {image.dtype} {image.shape}")
+    image = check_image(image, "colour_score: image (BGR)", channels=(3,))
     px = image.astype(np.float32)
     chroma = px - px.mean(axis=2, keepdims=True)
     ref = np.asarray(config.colour, np.float32)
@@ -255,9 +255,15 @@ def coverage_map(image: np.ndarray, mask: np.ndarray, sectors: int = 16,
     per pixel by linear least squares. The background's texture changes its brightness, not
     its hue, so unlike a threshold on a colour score the edge does not move with the texture
     behind it. Returns alpha (h,w) over the blob's box padded by `pad` px and that box's
-    top-left pixel (x0, y0). ValueError when the base and background colours are parallel."""
-    px = np.asarray(image, dtype=np.float64)
-    mask = np.asarray(mask) > 0
+    top-left pixel (x0, y0). ValueError when the base and background colours are parallel, or
+    image is not a non-empty uint8 BGR image with a mask of its size."""
+    px = check_image(image, "coverage_map: image (BGR)", channels=(3,)).astype(np.float64)
+    mask = np.asarray(mask)
+    if mask.shape != px.shape[:2]:
+        raise ValueError(f"coverage_map: mask shape {mask.shape} != image shape {px.shape[:2]}")
+    mask = mask > 0
+    if isinstance(sectors, bool) or not isinstance(sectors, (int, np.integer)) or sectors < 1:
+        raise ValueError(f"coverage_map: sectors must be an integer >= 1, got {sectors!r}")
     ys, xs = np.nonzero(mask)
     if ys.size == 0:
         raise ValueError("coverage_map: empty blob mask")
@@ -307,6 +313,12 @@ def detect_base_rim(image: np.ndarray, config: BlobConfig = BlobConfig()) -> Blo
     refinement is reported in BlobRim.refine_error, never raised (the mask still keeps KLT
     features off the robot)."""
     score = colour_score(image, config)
+    h, w = score.shape
+    with opencv_errors(f"detect_base_rim on a {w}x{h} image"):
+        return _base_rim(image, score, config)
+
+
+def _base_rim(image: np.ndarray, score: np.ndarray, config: BlobConfig) -> BlobRim | None:
     mask = (score > config.min_score).astype(np.uint8) * 255
     if config.median_size > 1:
         mask = cv2.medianBlur(mask, config.median_size)

@@ -23,6 +23,8 @@ import cv2
 import numpy as np
 from scipy.optimize import OptimizeWarning, curve_fit
 
+from graphloc.vision.images import check_image, check_points, opencv_errors
+
 POLARITIES = ("bright", "dark", "color")
 
 
@@ -103,25 +105,22 @@ class MarkerDetections:
 
 
 def marker_likeness(image: np.ndarray, config: MarkerDetectorConfig) -> np.ndarray:
-    """uint8 image in which markers are bright: grey as-is, inverted grey, or YUV chroma likeness."""
-    img = np.asarray(image)
-    if img.dtype != np.uint8:
-        raise ValueError(f"marker image must be uint8, got {img.dtype}")
+    """uint8 image in which markers are bright: grey as-is, inverted grey, or YUV chroma likeness.
+    ValueError (via `vision.images.check_image`) unless image is a non-empty uint8 (H,W) or
+    (H,W,3) BGR array ((H,W,3) only for polarity 'color')."""
     if config.polarity == "color":
-        if img.ndim != 3 or img.shape[2] != 3:
-            raise ValueError(f"polarity 'color' needs an (H,W,3) BGR image, got shape {img.shape}")
-        yuv = cv2.cvtColor(img, cv2.COLOR_BGR2YUV).astype(np.float32)
+        img = check_image(image, "marker image (polarity 'color', BGR)", channels=(3,))
+        with opencv_errors("marker_likeness"):
+            yuv = cv2.cvtColor(img, cv2.COLOR_BGR2YUV).astype(np.float32)
         _, u0, v0 = config.marker_yuv
         dist = np.hypot(yuv[..., 1] - u0, yuv[..., 2] - v0)
         like = np.clip(255.0 - config.uv_scale * dist, 0.0, 255.0)
         like[yuv[..., 0] < config.min_luma] = 0.0
         return like.astype(np.uint8)
+    img = check_image(image, "marker image")
     if img.ndim == 3:
-        if img.shape[2] != 3:
-            raise ValueError(f"colour image must be (H,W,3), got shape {img.shape}")
-        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-    elif img.ndim != 2:
-        raise ValueError(f"marker image must be (H,W) or (H,W,3), got shape {img.shape}")
+        with opencv_errors("marker_likeness"):
+            img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
     return img if config.polarity == "bright" else (255 - img)
 
 
@@ -454,11 +453,17 @@ def detect_markers(image: np.ndarray, config: MarkerDetectorConfig = MarkerDetec
     h, w = gray.shape
     full = (0, 0, w, h)
     if predicted_px is not None:
-        predicted_px = np.asarray(predicted_px, dtype=float).reshape(-1, 2)
-        if not np.isfinite(predicted_px).all():
-            raise ValueError("detect_markers: predicted_px contains NaN/inf")
+        pred = check_points(predicted_px, "detect_markers: predicted_px", flat_ok=True)
+        predicted_px = pred
     if roi is not None:
-        x0, y0, x1, y1 = (int(v) for v in roi)
+        try:
+            box = np.asarray(roi, dtype=float).reshape(4)
+        except (TypeError, ValueError):
+            raise ValueError(f"detect_markers: roi must be 4 numbers (x0, y0, x1, y1), "
+                             f"got {roi!r}") from None
+        if not np.isfinite(box).all():
+            raise ValueError(f"detect_markers: roi {roi} is not finite")
+        x0, y0, x1, y1 = (int(v) for v in np.clip(box, -1, max(w, h) + 1))
         x0, y0, x1, y1 = max(0, x0), max(0, y0), min(w, x1), min(h, y1)
         if x1 - x0 < 2 or y1 - y0 < 2:
             raise ValueError(f"detect_markers: roi {roi} is empty inside the {w}x{h} image")
@@ -467,10 +472,13 @@ def detect_markers(image: np.ndarray, config: MarkerDetectorConfig = MarkerDetec
         region = full
     steps: list[str] = []
     counts: dict = {}
-    blobs, thr = _detect_in_region(gray, region, config, predicted_px, steps, counts)
+    with opencv_errors(f"detect_markers on a {w}x{h} image"):
+        blobs, thr = _detect_in_region(gray, region, config, predicted_px, steps, counts)
     if len(blobs) < config.expected and region != full and config.full_image_fallback:
         steps.append("full_image")
-        blobs_full, thr_full = _detect_in_region(gray, full, config, predicted_px, steps, counts)
+        with opencv_errors(f"detect_markers on a {w}x{h} image"):
+            blobs_full, thr_full = _detect_in_region(gray, full, config, predicted_px, steps,
+                                                     counts)
         if len(blobs_full) > len(blobs):
             blobs, thr = blobs_full, thr_full
     return MarkerDetections(points=blobs.centroids(), scores=blobs.scores(), radii=blobs.radii(), areas=blobs.n.copy(),
