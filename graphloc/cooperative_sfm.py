@@ -64,6 +64,7 @@ from graphloc.factors.mixture import MaxMixture, check_covariances, component_fa
 from graphloc.factors.range_bearing import landmark_factor_3d
 from graphloc.factors.robust import Kernel, robust_noise
 from graphloc.keys import landmark_key, pose_key
+from graphloc.seams import FrameInput, MotionNoise, TeammateObservation
 from graphloc.session import Session, SessionConfig
 from graphloc.vision.circle import CircleConfig, circle_pose_from_rim, render_circle_rim, rotations_from_normals
 from graphloc.vision.features import BlobConfig, FeatureConfig, FeatureTracker, FrameFeatures, detect_base_rim
@@ -74,29 +75,6 @@ WORLD_UP = np.array([0.0, -1.0, 0.0])  # OpenCV world (camera 0, level): y point
 
 
 # ---- front-end: pixels -> per-frame measurements ----------------------------------------------
-@dataclass(frozen=True)
-class TeammateObservation:
-    """The teammate's base in the camera frame. candidates: the circle poses T_cam_base (both
-    solutions, z = disk normal) with candidate_covariance (3,3) [m^2], the first-order noise
-    of one candidate's centre. centre (3,), covariance (3,3): their moment-matched Gaussian
-    (the 'moment_matched_centre' baseline); pixel (2,): its projection (the robot tracker's
-    special feature point of seed II-B). disk_covariance (5,5), optional: the full covariance
-    of (centre x, y, z [m] in the camera frame; normal tilt a, b [rad] towards the disk's x and
-    y axes, n + a x + b y) when it is known (e.g. a Cramér-Rao bound,
-    `CrawlerPairScenario.disk_information`); it then replaces candidate_covariance and
-    CooperativeSfmConfig.normal_sigma in the max-mixture, correlations included."""
-
-    centre: np.ndarray
-    covariance: np.ndarray
-    pixel: np.ndarray
-    n_candidates: int
-    candidate_spread: float  # max distance of a candidate centre from the mean [m]
-    candidate_separation: float = 0.0  # max Mahalanobis distance between two candidate centres
-    candidates: CandidateSet | None = None
-    candidate_covariance: np.ndarray | None = None
-    disk_covariance: np.ndarray | None = None
-
-
 @dataclass(frozen=True)
 class TeammateConfig:
     """radius [m] of the base disk; blob: its colour signature; circle: ellipse-fit settings;
@@ -160,22 +138,6 @@ def teammate_observation(candidates: CandidateSet, camera: PinholeCamera,
     pixel, _ = camera.project(mean[None])
     return TeammateObservation(mean, 0.5 * (cov + cov.T), pixel[0], len(candidates),
                                float(np.linalg.norm(d, axis=1).max()), separation, candidates, cov_single)
-
-
-@dataclass(frozen=True)
-class FrameInput:
-    """Everything the estimators get for one frame (the same for the graph and the EKF).
-    camera_moved / teammate_moved: whether that robot moved since the previous frame (the
-    robots move and stop in turns and know when they move); teammate_odometry [m], std [m]:
-    its own odometry distance since the previous frame (0 when it stood still)."""
-
-    time: float
-    features: FrameFeatures
-    teammate: TeammateObservation | None
-    camera_moved: bool
-    teammate_moved: bool
-    teammate_odometry: float = 0.0
-    teammate_odometry_std: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -255,20 +217,6 @@ def measure_frames(images: np.ndarray, camera: PinholeCamera, camera_moved, team
 
 
 # ---- the graph -------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class MotionNoise:
-    """Process noise per frame (seed eq. 8, F = identity): rotation [rad] and translation [m]
-    sigmas when the camera robot moved, and when it stood still. Shared with the EKF."""
-
-    rot: float = 0.03
-    trans: float = 0.02
-    still_rot: float = 1e-3
-    still_trans: float = 1e-3
-
-    def sigmas(self, moved: bool) -> tuple[float, float]:
-        return (self.rot, self.trans) if moved else (self.still_rot, self.still_trans)
-
-
 @dataclass(frozen=True)
 class CooperativeSfmConfig:
     """pixel_sigma [px]: KLT noise (seed III: variance 1); kernel: robust kernel on the

@@ -81,58 +81,8 @@ from graphloc.factors.mixture import candidate_covariances, component_factors
 from graphloc.factors.odometry import check_covariance
 from graphloc.factors.robust import Kernel
 from graphloc.keys import pose_key
+from graphloc.seams import Decision, Odometry, check_frame
 
-
-
-@dataclass(frozen=True)
-class Odometry:
-    """Relative pose of the tracked frame since the previous update, T_{t-1}^-1 T_t (in the
-    frame of the earlier pose), with its 6x6 covariance (GTSAM Pose3 tangent order)."""
-
-    relative: gtsam.Pose3
-    covariance: np.ndarray
-
-    def __post_init__(self):
-        if not isinstance(self.relative, gtsam.Pose3):
-            raise ValueError(f"Odometry.relative must be gtsam.Pose3, got {type(self.relative).__name__}")
-        m = self.relative.matrix()
-        if not np.isfinite(m).all():
-            raise ValueError("Odometry.relative contains NaN/inf")
-        cov = np.asarray(self.covariance, dtype=float)
-        if cov.shape != (6, 6):
-            raise ValueError(f"Odometry.covariance must be (6,6), got {cov.shape}")
-        check_covariance(cov, "Odometry.covariance")
-        object.__setattr__(self, "covariance", cov)
-
-
-@dataclass(frozen=True)
-class Decision:
-    """Output of one update, shared by the tracker and the baselines.
-
-    probabilities (K,): posterior that candidate k of this frame is the genuine one (may sum
-    to < 1: the rest is on "none of them", e.g. a coasting track). committed: index of the
-    committed candidate in this frame, or -1 (nothing committed, or the committed track has
-    no candidate this frame). locked: a mode is committed. pose: estimate of the committed
-    track, else of the most probable one (None before any candidate). relocalized: this frame
-    released a committed mode."""
-
-    probabilities: np.ndarray
-    committed: int
-    locked: bool
-    pose: gtsam.Pose3 | None
-    relocalized: bool = False
-
-
-def check_frame(candidates, odometry, first: bool, last_time: float | None, who: str) -> None:
-    """Shared input validation of the trackers: types, odometry presence, monotonic time."""
-    if not isinstance(candidates, CandidateSet):
-        raise ValueError(f"{who}: candidates must be a CandidateSet, got {type(candidates).__name__}")
-    if not first and odometry is None:
-        raise ValueError(f"{who}: odometry is required after the first frame (time={candidates.time})")
-    if odometry is not None and not isinstance(odometry, Odometry):
-        raise ValueError(f"{who}: odometry must be an Odometry, got {type(odometry).__name__}")
-    if last_time is not None and not candidates.time > last_time:
-        raise ValueError(f"{who}: time going backwards or repeated: {candidates.time} after {last_time}")
 
 
 def _fit_score(maha: np.ndarray, dof: float, dim: int = 6) -> np.ndarray:

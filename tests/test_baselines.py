@@ -11,7 +11,7 @@ from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straigh
 from graphloc.baselines.straight_line import StraightLineBaseline, StraightLineConfig, localize_by_straight_line
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance
-from graphloc.hypotheses import Odometry
+from graphloc.seams import Odometry
 
 
 def simulate(**kw):

@@ -9,8 +9,9 @@ import pytest
 from graphloc.baselines.ekf_seed003 import run_ekf
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
-from graphloc.cooperative_sfm import (TEAMMATE_MODELS, CooperativeSfm, CooperativeSfmConfig, FrameInput,
-                                      TeammateConfig, TeammateObservation, axis_errors, genuine_candidates,
+from graphloc.seams import FrameInput, TeammateObservation
+from graphloc.cooperative_sfm import (TEAMMATE_MODELS, CooperativeSfm, CooperativeSfmConfig,
+                                      TeammateConfig, axis_errors, genuine_candidates,
                                       ideal_frames, measure_frames, run_cooperative_sfm, scale_errors,
                                       disk_pose_covariance, teammate_observation, trajectory_scale,
                                       with_teammate_from_geometry)

@@ -10,7 +10,8 @@ import pytest
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance, seed000_camera
 from graphloc.geometry.resection import resection_covariance
-from graphloc.hypotheses import HypothesisTracker, Odometry, TrackerConfig, decided_graph
+from graphloc.hypotheses import HypothesisTracker, TrackerConfig, decided_graph
+from graphloc.seams import Odometry
 from graphloc.keys import pose_key
 from graphloc.session import Session, SessionConfig
 

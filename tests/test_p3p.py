@@ -238,7 +238,7 @@ def test_straight_line_baseline_commits_on_a_line():
 
 
 def _identity_odometry():
-    from graphloc.hypotheses import Odometry
+    from graphloc.seams import Odometry
 
     return Odometry(gtsam.Pose3(), np.eye(6) * 1e-4)
 

@@ -29,7 +29,7 @@ import gtsam
 import numpy as np
 
 from graphloc.candidates import CandidateSet
-from graphloc.hypotheses import Decision, Odometry, check_frame
+from graphloc.seams import Decision, Odometry, check_frame
 
 LIKELIHOODS = ("inner_product", "distance_angle")
 

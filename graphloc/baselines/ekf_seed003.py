@@ -40,7 +40,7 @@ import gtsam
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
-from graphloc.cooperative_sfm import FrameInput, MotionNoise
+from graphloc.seams import FrameInput, MotionNoise
 from graphloc.geometry.so3 import skew
 
 TRACKER_SETTINGS = ("proper", "ideal", "noisy")

@@ -14,6 +14,7 @@ import numpy as np
 
 from graphloc.candidates import CandidateSet
 from graphloc.geometry.p3p import MAX_CANDIDATES, P3PCandidates, solve_p3p
+from graphloc.seams import Decision, check_frame
 
 
 @dataclass(frozen=True)
@@ -129,8 +130,6 @@ class StraightLineBaseline:
         self._locked = False
 
     def update(self, candidates: CandidateSet, odometry=None):
-        from graphloc.hypotheses import Decision, check_frame  # noqa: PLC0415  (baselines <- engines seam)
-
         check_frame(candidates, odometry, self._last_time is None, self._last_time, "StraightLineBaseline.update")
         self._last_time = candidates.time
         s = int(self.config.spacing)

@@ -48,7 +48,8 @@ from graphloc.baselines.straight_line import StraightLineBaseline, StraightLineC
 from graphloc.datasets.feng import (CEILINGS, FengProbabilisticConfig, FengProbabilisticScenario, ceiling_plane,
                                     odometry_covariance)
 from graphloc.factors.bearing import bearing_linearize_cost
-from graphloc.hypotheses import HypothesisTracker, Odometry, TrackerConfig, decided_graph
+from graphloc.hypotheses import HypothesisTracker, TrackerConfig, decided_graph
+from graphloc.seams import Odometry
 from graphloc.keys import decode, pose_key
 from graphloc.session import Session, SessionConfig
 

@@ -43,10 +43,11 @@ from graphloc.factors.odometry import VelocityNoise, integrate_unicycle
 from graphloc.factors.range_bearing import landmark_factor_3d, robot_factor_3d
 from graphloc.factors.robust import Kernel, KernelPolicy, robust_noise
 from graphloc.factors.surface import surface_factors
-from graphloc.hypotheses import HypothesisTracker, Odometry, TrackerConfig
+from graphloc.hypotheses import HypothesisTracker, TrackerConfig
 from graphloc.io import SkipReport
 from graphloc.keys import decode, landmark_key, pose_key
 from graphloc.run import TeamRun, planar_covariance, pose_from_planar
+from graphloc.seams import Odometry
 from graphloc.session import Session, SessionConfig
 
 ANCHOR_BASE = 100_000_000  # landmark_key(ANCHOR_BASE + j): j-th per-observation anchor of a known landmark
