@@ -81,7 +81,7 @@ def trajectory_metrics(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, 
     ape.process_data((ref, est))
     stats = ape.get_all_statistics()
     period = float(np.median(np.diff(ref.timestamps)))
-    delta = max(1, int(round(rpe_delta_s / period)))
+    delta = max(1, min(int(round(rpe_delta_s / period)), ref.num_poses - 1))  # short runs: the longest pair
     rpe_t = metrics.RPE(metrics.PoseRelation.translation_part, delta=delta, delta_unit=metrics.Unit.frames, all_pairs=False)
     rpe_t.process_data((ref, est))
     rpe_r = metrics.RPE(metrics.PoseRelation.rotation_angle_deg, delta=delta, delta_unit=metrics.Unit.frames, all_pairs=False)

@@ -76,7 +76,14 @@ class _Sink:
 
 # ---- records (one dataclass per table; CSV header = field names after time) -------------------
 @dataclass(frozen=True)
-class Odometry2D:
+class _Row:
+    """What every record carries besides its columns: the file line it was read from."""
+
+    line: int = field(default=0, kw_only=True, compare=False)
+
+
+@dataclass(frozen=True)
+class Odometry2D(_Row):
     """Unicycle velocity odometry: forward speed v [m/s], turn rate omega [rad/s]; holds until the next row."""
 
     time: float
@@ -87,7 +94,7 @@ class Odometry2D:
 
 
 @dataclass(frozen=True)
-class RelativePose2D:
+class RelativePose2D(_Row):
     """Odometry / scan-matching increment from time `time0` to `time` (frame at time0), with diagonal sigmas."""
 
     time: float
@@ -103,7 +110,7 @@ class RelativePose2D:
 
 
 @dataclass(frozen=True)
-class RelativePose3D:
+class RelativePose3D(_Row):
     """SE(3) increment from `time0` to `time` in the body frame at time0 (wheel / IMU odometry or
     scan matching): translation (tx, ty, tz), unit quaternion (qx, qy, qz, qw) as in TUM, and
     sigmas of GTSAM's Pose3 tangent (rotation rx, ry, rz [rad], translation tx, ty, tz [m])."""
@@ -128,7 +135,7 @@ class RelativePose3D:
 
 
 @dataclass(frozen=True)
-class Range:
+class Range(_Row):
     """Distance [m] from the sensor to `target` (a robot's body origin or 'landmark:<id>')."""
 
     time: float
@@ -139,7 +146,7 @@ class Range:
 
 
 @dataclass(frozen=True)
-class RangeBearing2D:
+class RangeBearing2D(_Row):
     """Range [m] and bearing [rad] in the sensor frame to `target` (a robot name or 'landmark:<id>')."""
 
     time: float
@@ -151,7 +158,7 @@ class RangeBearing2D:
 
 
 @dataclass(frozen=True)
-class Bearing3D:
+class Bearing3D(_Row):
     """Unit direction (x, y, z) in the sensor frame towards `target`."""
 
     time: float
@@ -164,7 +171,7 @@ class Bearing3D:
 
 
 @dataclass(frozen=True)
-class MarkerPixel:
+class MarkerPixel(_Row):
     """Pixel (u, v) of marker `marker` on `target`, seen by camera `sensor`."""
 
     time: float
@@ -177,7 +184,7 @@ class MarkerPixel:
 
 
 @dataclass(frozen=True)
-class PoseCandidate:
+class PoseCandidate(_Row):
     """Candidate k of a P3P (or other) hypothesis set: pose of `target` in the sensor frame (quaternion
     qw qx qy qz, translation tx ty tz) with a score >= 0. Rows sharing (time, sensor, target) form one set."""
 
@@ -197,7 +204,7 @@ class PoseCandidate:
 
 
 @dataclass(frozen=True)
-class ScanRef:
+class ScanRef(_Row):
     """A scan file (path relative to the log directory) captured by `sensor`."""
 
     time: float
@@ -207,7 +214,7 @@ class ScanRef:
 
 
 @dataclass(frozen=True)
-class GroundTruth2D:
+class GroundTruth2D(_Row):
     """Ground-truth planar pose."""
 
     time: float
@@ -239,7 +246,7 @@ SENSOR_TYPES = {
 
 def columns(table: str) -> list[str]:
     """CSV header of `table`: every record field except `robot` (the robot is the file's owner)."""
-    return [f.name for f in fields(TABLES[table]) if f.name != "robot"]
+    return [f.name for f in fields(TABLES[table]) if f.name not in ("robot", "line")]
 
 
 # ---- manifest --------------------------------------------------------------------------------
@@ -489,7 +496,7 @@ def iter_table(manifest: Manifest, robot: Robot, table: str, on_error: str = "ra
                 sink.bad("unknown_target", f"{where}: field 'target': {values['target']!r} is neither a robot nor a known landmark")
                 continue
             last_time = values["time"]
-            yield cls(robot=robot.name, **values)
+            yield cls(robot=robot.name, line=line, **values)
 
 
 def _known_target(target: str, robots: set, landmark_ids: set | None) -> bool:

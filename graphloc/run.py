@@ -240,7 +240,7 @@ def read_team_run(root: str | Path, on_error: str = "skip", defaults: dict | Non
             gt[r.name] = read_tum_poses(manifest.root / path)
             used["groundtruth"] += len(gt[r.name][0])
     for rec in iter_records(root, tables=GRAPH_TABLES, on_error=on_error, report=report):
-        where = f"{manifest.root / manifest.robot(rec.robot).tables[_table_of(rec)]}: time {rec.time}"
+        where = f"{manifest.root / manifest.robot(rec.robot).tables[_table_of(rec)]}: line {rec.line}"
         ri = index[rec.robot]
         robot = robots[ri]
         if isinstance(rec, GroundTruth2D):
@@ -344,7 +344,8 @@ def _marker_observations(groups: dict, robots: tuple, manifest, d: dict, sink: _
     by_setup: dict = {}
     for (time, ri, sensor, ti), rows in groups.items():
         robot, target = robots[ri], robots[ti]
-        where = f"{manifest.root / manifest.robots[ri].tables['markers']}: time {time}"
+        lines = sorted(r.line for r in rows)
+        where = f"{manifest.root / manifest.robots[ri].tables['markers']}: lines {lines[0]}-{lines[-1]}"
         if target.markers is None:
             raise ValueError(f"{where}: field 'target': robot {target.name!r} has no 'markers' layout in the "
                              f"manifest")
@@ -359,7 +360,7 @@ def _marker_observations(groups: dict, robots: tuple, manifest, d: dict, sink: _
         if len(rows) < 3:
             sink.bad("too_few_markers", f"{where}: {len(rows)} markers seen, P3P needs 3")
             continue
-        by_setup.setdefault((ri, sensor, ti), []).append((time, marks, np.array([[r.u, r.v] for r in rows])))
+        by_setup.setdefault((ri, sensor, ti), []).append((time, marks, np.array([[r.u, r.v] for r in rows]), where))
     for (ri, sensor, ti), frames in by_setup.items():
         T_bs, params = robots[ri].sensors[sensor]
         where = f"{manifest.root / MANIFEST}: robot {robots[ri].name!r} sensor {sensor!r}"
@@ -369,9 +370,9 @@ def _marker_observations(groups: dict, robots: tuple, manifest, d: dict, sink: _
         sets = p3p_candidate_sets(camera, [f[2] for f in frames], [f[1] for f in frames], target.markers,
                                   [f[0] for f in frames], sigma, identical=target.identical_markers,
                                   observer=robots[ri].name, observed=target.name)
-        for (time, _, _), cs in zip(frames, sets):
+        for (time, _, _, lines), cs in zip(frames, sets):
             if cs is None or len(cs) == 0:
-                sink.bad("no_p3p_solution", f"{where}: time {time}: no pose fits the marker pixels")
+                sink.bad("no_p3p_solution", f"{lines}: fields 'u, v': no pose fits the marker pixels")
                 continue
             out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs))
     return out

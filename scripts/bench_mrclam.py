@@ -8,7 +8,10 @@ per-configuration outputs (TUM, metrics.json, PNGs) and ate_per_robot.png, and c
 - online ATE within 20 % of batch ATE (every robot, landmarks + inter-robot);
 - online >= 50x faster than real time (run duration / online solve wall time, this run).
 
-    .venv/bin/python scripts/bench_mrclam.py --data /work/shared/data/mrclam/MRCLAM_Dataset6 --out out/bench_mrclam
+    .venv/bin/python scripts/bench_mrclam.py --data ../shared/data/mrclam/MRCLAM_Dataset6 --out out/bench_mrclam
+
+Everything goes through the path `graphloc smooth` / `online` take: `graphloc.datasets.open_run`
+and `graphloc.pipelines.team_graph` (SE(3) poses, planar robots held to the floor plane).
 """
 
 from __future__ import annotations
@@ -23,34 +26,36 @@ from pathlib import Path
 
 import numpy as np
 
-from graphloc.pipeline_smoothing import (SmoothingConfig, build_problem, evaluate, load_planar_run, solve,
-                                         write_outputs)
+from graphloc.datasets import open_run
+from graphloc.pipelines.report import evaluate, write_outputs
+from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.plots import Series, plot_series
 
 CONFIGS = {
-    "landmarks+inter_robot": (SmoothingConfig(), ("batch", "online")),
-    "inter_robot_only": (SmoothingConfig(use_landmarks=False), ("batch", "online")),
-    "cooperative_slam": (SmoothingConfig(landmark_priors=False), ("batch",)),
+    "landmarks+inter_robot": (GraphConfig(), ("batch", "online")),
+    "inter_robot_only": (GraphConfig(use_landmarks=False), ("batch", "online")),
+    "cooperative_slam": (GraphConfig(landmark_priors=False), ("batch",)),
 }
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--data", default="/work/shared/data/mrclam/MRCLAM_Dataset6", help="MRCLAM dir or graphloc log")
+    parser.add_argument("--data", default="../shared/data/mrclam/MRCLAM_Dataset6", help="MRCLAM dir or graphloc log")
     parser.add_argument("--out", default="out/bench_mrclam", help="output directory")
     parser.add_argument("--duration", type=float, default=None, help="first N seconds only (for quick iteration)")
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
-    run = load_planar_run(args.data, args.duration)
-    report = {"data": str(args.data), "run": run.name, "robots": list(run.robots), "duration_s": run.duration(),
+    run = open_run(args.data, args.duration)
+    names = [r.name for r in run.robots]
+    report = {"data": str(args.data), "run": run.name, "robots": names, "duration_s": run.end_time - run.start_time,
               "python": sys.version.split()[0], "machine": platform.machine(), "cpu_count": os.cpu_count(),
               "load_average_at_start": os.getloadavg(), "configs": {}}
     results = {}
     for name, (config, modes) in CONFIGS.items():
         t0 = time.perf_counter()
-        problem = build_problem(run, config, progress=True)
+        problem = build_graph(run, config, progress=True)
         build_s = time.perf_counter() - t0
         for mode in modes:
             cpu0 = time.process_time()
@@ -74,7 +79,7 @@ def main(argv=None) -> int:
                   "ATE " + " ".join(f"{r}:{e[mode]['ate_rmse']:.3f}/{e['dead_reckoning']['ate_rmse']:.3f}"
                                     for r, e in metrics["per_robot"].items() if e.get("groundtruth")), flush=True)
 
-    robots = [r for r in run.robots if results[("landmarks+inter_robot", "batch")]["per_robot"][r].get("groundtruth")]
+    robots = [r for r in names if results[("landmarks+inter_robot", "batch")]["per_robot"][r].get("groundtruth")]
 
     def ate(cfg, mode, robot, track=None):
         return results[(cfg, mode)]["per_robot"][robot][track or mode]["ate_rmse"]

@@ -162,9 +162,21 @@ def _node_times(run: TeamRun, config: GraphConfig) -> list:
     return out
 
 
+def velocity_noise(run: TeamRun, r: int, config: GraphConfig) -> VelocityNoise:
+    """Wheel-odometry noise densities of robot r: its odometry sensor's params (density_v
+    [m/sqrt(s)], density_w [rad/sqrt(s)], `factors.odometry.VelocityNoise`) where given, else
+    the config's."""
+    base = config.velocity_noise
+    for _, params in run.robots[r].sensors.values():
+        if "density_v" in params or "density_w" in params:
+            return VelocityNoise(density_v=float(params.get("density_v", base.density_v)),
+                                 density_w=float(params.get("density_w", base.density_w)))
+    return base
+
+
 def _velocity_steps(run: TeamRun, r: int, times: np.ndarray, config: GraphConfig) -> list:
     od = run.velocity[r]
-    integ = integrate_unicycle(od[:, 0], od[:, 1], od[:, 2], times, config.velocity_noise)
+    integ = integrate_unicycle(od[:, 0], od[:, 1], od[:, 2], times, velocity_noise(run, r, config))
     return [None] + [(pose_from_planar(*d), planar_covariance(c)) for d, c in zip(integ.deltas, integ.covariances)]
 
 
@@ -227,10 +239,11 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
     landmark_guess: dict = {}
     n_anchor = 0
     corrected = _corrected_range_bearings(run, node_times, config)
+    excluded = 0  # measurements the options leave out (not a data problem: counted, not skipped)
     for i, m in enumerate(run.points):
         is_lm = m.target < 0
         if (is_lm and not config.use_landmarks) or (not is_lm and not config.use_inter_robot):
-            skips.add("excluded_by_option", f"{m.kind} measurement excluded by option")
+            excluded += 1
             continue
         k = nearest(m.robot, m.time)
         kt = -1 if is_lm else nearest(m.target, m.time)
@@ -368,7 +381,7 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
         steps.append((float(t), group))
     counts = {"robots": R, "poses": len([k for k in initial if decode(k)[0] == "x"]),
               "candidate_sets": len(run.observations), "committed_sets": sum(d.committed >= 0 for d in decisions),
-              "landmark_anchors": n_anchor, "steps": len(steps),
+              "landmark_anchors": n_anchor, "steps": len(steps), "excluded_by_option": excluded,
               **{f"factors_{name}": types.count(name) for name in sorted(set(types))}}
     return TeamGraph(run, config, node_times, initial, steps, types, decisions, anchored_from, step_rel, counts, skips)
 
@@ -436,7 +449,7 @@ def _corrected_range_bearings(run: TeamRun, node_times: list, config: GraphConfi
         t = np.array([run.points[i].time for i in idx])
         frame = np.clip(np.rint((t - times[0]) / config.keyframe_dt).astype(int), 0, len(times) - 1)
         stamps = np.union1d(times, t)
-        poses = integrate_unicycle(od[:, 0], od[:, 1], od[:, 2], stamps, config.velocity_noise).poses
+        poses = integrate_unicycle(od[:, 0], od[:, 1], od[:, 2], stamps, velocity_noise(run, r, config)).poses
         at_meas = poses[np.searchsorted(stamps, t)]
         at_frame = poses[np.searchsorted(stamps, times[frame])]
         pts = np.array([run.points[i].body_T_sensor.transformFrom(run.points[i].direction * run.points[i].range)

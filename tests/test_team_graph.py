@@ -1,0 +1,163 @@
+"""One run, one graph: every scenario `graphloc simulate` writes runs through `graphloc smooth`
+and `graphloc online`; every table of a version-2 log becomes factors (or a counted skip, or an
+error naming file and field); noise comes from the manifest unless options override it."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from graphloc.cli import main
+from graphloc.datasets import open_run
+from graphloc.io import columns, write_manifest
+from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.run import read_team_run
+
+SMALL = {"feng-probabilistic": ["max_time=4.0"], "kaushik-p3p-error": ["frames=10"],
+         "breitenmoser-target": ["frames=6", "save_images=false"]}
+# ATE bars [m] for these short runs (P3P noise: seed 000 0.5 px at ~3 m, seed 004 sqrt(3) px at
+# 2.5 m with a 16 mm lens, seed 001 0.1 px centroids at 0.7-3 m)
+BARS = {"feng-probabilistic": 0.05, "kaushik-p3p-error": 0.25, "breitenmoser-target": 0.02}
+
+
+@pytest.mark.parametrize("name", sorted(SMALL))
+def test_every_scenario_through_smooth_and_online(tmp_path, name, capsys):
+    run = tmp_path / "run"
+    sets = [a for kv in SMALL[name] for a in ("--set", kv)]
+    assert main(["simulate", name, "--out", str(run), "--seed", "0", *sets]) == 0
+    for mode in ("smooth", "online"):
+        out = tmp_path / mode
+        assert main([mode, str(run), "--out", str(out), "--no-progress"]) == 0, capsys.readouterr().err
+        m = json.loads((out / "metrics.json").read_text())
+        label = "batch" if mode == "smooth" else "online"
+        climber = m["per_robot"]["climber"]
+        assert climber["alignment"] == "none"
+        assert climber[label]["ate_rmse"] < BARS[name], (mode, climber[label])
+        assert m["decisions"]["committed"] > 0 and m["decisions"]["wrong"] == 0
+        assert m["decisions"]["with_genuine_known"] == m["decisions"]["committed"]
+        assert m["tables"]["markers"] > 0 and m["skipped"]["total"] == 0
+        for f in (f"climber_{label}.tum", "climber_groundtruth.tum", "decisions.csv", "trajectories.png"):
+            assert (out / f).is_file(), f
+        rows = (out / "decisions.csv").read_text().splitlines()
+        assert rows[0].startswith("time,robot,target,candidates,committed,probability,genuine,correct")
+        assert len(rows) - 1 == m["decisions"]["candidate_sets"]
+        if mode == "online":
+            assert m["latency_ms"]["p95"] > 0 and climber["online_causal"]["ate_rmse"] < 2 * BARS[name]
+
+
+def _csv(path: Path, table: str, rows: list) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(",".join(columns(table)) + "\n" + "".join(",".join(map(str, r)) + "\n" for r in rows))
+
+
+LANDMARKS = np.array([[2.0, 2.0, 0.0], [5.0, -2.0, 0.0], [8.0, 2.0, 0.0], [4.0, 3.0, 1.0]])
+
+
+def bearing_log(root: Path, params: dict | None = None, tables: dict | None = None) -> Path:
+    """A ground robot driving straight along x at 0.2 m/s for 10 s whose wheel odometry reads
+    25 % fast, with unit bearings (sensor frame = body frame) to four known landmarks."""
+    times = np.arange(0.0, 10.01, 0.5)
+    _csv(root / "a/odometry.csv", "odometry", [(t, "wheels", 0.25, 0.0) for t in times])
+    rows = []
+    for t in times[1:]:
+        pos = np.array([0.2 * t, 0.0, 0.0])
+        for j, p in enumerate(LANDMARKS):
+            d = (p - pos) / np.linalg.norm(p - pos)
+            rows.append((t, "eye", f"landmark:{j}", *np.round(d, 9)))
+    _csv(root / "a/bearing.csv", "bearing", rows)
+    _csv(root / "a/groundtruth.csv", "groundtruth", [(t, 0.2 * t, 0.0, 0.0) for t in times])
+    (root / "landmarks.csv").write_text("id,x,y,z,sigma_x,sigma_y,sigma_z\n" + "".join(
+        f"{j},{p[0]},{p[1]},{p[2]},0.01,0.01,0.01\n" for j, p in enumerate(LANDMARKS)))
+    write_manifest({"name": "bearings", "start_time": 0.0, "landmarks": {"file": "landmarks.csv"}, "robots": [
+        {"name": "a", "kind": "ground", "initial_pose": [0, 0, 0],
+         "sensors": [{"name": "wheels", "type": "odometry", "params": {"density_v": 0.1}},
+                     {"name": "eye", "type": "bearing", "params": params or {"bearing_sigma": 0.005}}],
+         "tables": tables or {"odometry": "a/odometry.csv", "bearing": "a/bearing.csv",
+                              "groundtruth": "a/groundtruth.csv"}}]}, root)
+    return root
+
+
+def test_bearing_table_becomes_factors_not_dead_reckoning(tmp_path):
+    root = bearing_log(tmp_path / "log")
+    assert main(["smooth", str(root), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    a = m["per_robot"]["a"]
+    assert m["tables"]["bearing"] == 80 and m["counts"]["factors_landmark"] == 80
+    assert a["batch"]["ate_rmse"] < 0.1 * a["dead_reckoning"]["ate_rmse"], a
+    assert a["batch"]["ate_rmse"] < 0.01
+
+
+def test_manifest_noise_is_used_and_options_override_it(tmp_path):
+    root = bearing_log(tmp_path / "log", params={"bearing_sigma": 0.004})
+    assert {p.bearing_sigma for p in read_team_run(root).points} == {0.004}
+    assert {p.bearing_sigma for p in open_run(root, noise={"bearing_sigma": 0.03}).points} == {0.03}
+    config = tmp_path / "c.toml"
+    config.write_text("bearing_sigma = 0.03\nkeyframe_dt = 0.5\n")
+    assert main(["smooth", str(root), "--out", str(tmp_path / "o"), "--config", str(config),
+                 "--keyframe-dt", "0.25", "--no-progress"]) == 0
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["options"]["bearing_sigma"] == 0.03 and m["options"]["keyframe_dt"] == 0.25
+    assert m["config"]["keyframe_dt"] == 0.25
+    config.write_text("bearing_sigmaa = 0.03\n")
+    assert main(["smooth", str(root), "--out", str(tmp_path / "o2"), "--config", str(config)]) == 2
+
+
+def test_unknown_or_unsupported_tables_are_errors(tmp_path, capsys):
+    root = bearing_log(tmp_path / "log", tables={"odometry": "a/odometry.csv", "sonar": "a/sonar.csv"})
+    assert main(["smooth", str(root), "--out", str(tmp_path / "o")]) == 2
+    assert "unknown table 'sonar'" in capsys.readouterr().err
+    root = bearing_log(tmp_path / "log2", tables={"odometry": "a/odometry.csv", "scans": "a/scans.csv"})
+    assert main(["validate", str(root)]) == 2
+    assert "'scans' is not part of the factor graph" in capsys.readouterr().err
+
+
+def test_bad_rows_are_counted_with_their_reason(tmp_path):
+    root = bearing_log(tmp_path / "log")
+    with open(root / "a/bearing.csv", "a") as fh:
+        fh.write("10.5,eye,landmark:0,3,0,0\n10.5,eye,landmark:9,1,0,0\n")
+    run = read_team_run(root)
+    assert run.skips.counts == {"not_unit": 1, "unknown_target": 1}
+    with pytest.raises(ValueError, match=r"bearing.csv: line 82: fields 'x, y, z'"):
+        read_team_run(root, on_error="raise")
+
+
+def test_relative_pose3_chain_and_surface(tmp_path):
+    """A climbing robot with SE(3) odometry on a ceiling (surface plane in the manifest) and
+    ranges to two static beacons: the graph keeps it on the ceiling and fixes its drift."""
+    root = tmp_path / "log"
+    times = np.arange(0.0, 5.01, 0.5)
+    true = np.column_stack([0.3 * times, 0.1 * times, np.full_like(times, 3.0)])
+    rows = [(t1, "odo", t0, 0.33 * (t1 - t0), 0.1 * (t1 - t0), 0.02, 0, 0, 0, 1, 0.01, 0.01, 0.01, 0.05, 0.05, 0.05)
+            for t0, t1 in zip(times[:-1], times[1:])]
+    _csv(root / "c/relative_pose3.csv", "relative_pose3", rows)
+    beacons = {"b1": np.array([0.0, 2.0, 0.0]), "b2": np.array([2.0, -1.0, 0.0])}
+    rng = [(t, "uwb", b, round(float(np.linalg.norm(p - x)), 6)) for t, x in zip(times, true)
+           for b, p in beacons.items()]
+    _csv(root / "c/range.csv", "range", rng)
+    (root / "c/gt.tum").write_text("".join(f"{t} {x[0]} {x[1]} {x[2]} 0 0 0 1\n" for t, x in zip(times, true)))
+    write_manifest({"name": "ceiling", "robots": [
+        {"name": "c", "kind": "ceiling", "initial_pose": [0, 0, 3, 0, 0, 0, 1], "initial_sigma": [0.01, 0.01],
+         "surface": {"point": [0, 0, 3], "normal": [0, 0, -1]},
+         "sensors": [{"name": "odo", "type": "odometry"}, {"name": "uwb", "type": "range",
+                                                           "params": {"range_sigma": 0.01, "range_sigma_per_m": 0}}],
+         "tables": {"relative_pose3": "c/relative_pose3.csv", "range": "c/range.csv", "groundtruth": "c/gt.tum"}},
+        *({"name": b, "kind": "beacon", "static": True, "initial_pose": [*p, 0, 0, 0, 1], "sensors": []}
+          for b, p in beacons.items())]}, root)
+    run = open_run(root)
+    assert run.contributions == {"relative_pose3": 10, "range": 22, "groundtruth": 11}
+    graph = build_graph(run, GraphConfig())
+    assert graph.counts["factors_surface"] == 11 and graph.counts["factors_inter_robot"] == 22
+    result = solve(graph, "batch")
+    est = result.estimate[run.index("c")]
+    assert np.abs(est[:, 2] - 3.0).max() < 0.02
+    assert np.linalg.norm(est[:, :3] - true, axis=1).max() < 0.05
+    dead = result.dead_reckoning[run.index("c")]
+    assert np.linalg.norm(dead[-1, :3] - true[-1]) > 0.1  # the odometry alone drifts
+
+
+def test_validate_reports_contributions(tmp_path, capsys):
+    root = bearing_log(tmp_path / "log")
+    assert main(["validate", str(root)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["rows_used"]["bearing"] == 80 and report["graph"]["factors_landmark"] == 80
