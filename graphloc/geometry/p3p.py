@@ -54,6 +54,21 @@ class P3PConfig:
     # (lambdatwist 1: its depths are accurate to ~1e-10 before; grunert, finsterwalder 2)
     polish_iters: int = 2  # Gauss-Newton steps on the pose when polish=True
 
+    def __post_init__(self):
+        for name in ("min_bearing_sine", "min_triangle_ratio", "duplicate_tol"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
+                raise ValueError(f"P3PConfig.{name} must be finite and >= 0, got {value!r}")
+        r = self.max_residual_rad
+        if not (isinstance(r, (int, float)) and np.isfinite(r) and r > 0):
+            raise ValueError(f"P3PConfig.max_residual_rad must be finite and > 0, got {r!r}")
+        for name in ("depth_refine_iters", "polish_iters"):
+            value = getattr(self, name)
+            if value is None and name == "depth_refine_iters":
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+                raise ValueError(f"P3PConfig.{name} must be an integer >= 0, got {value!r}")
+
 
 @dataclass(frozen=True)
 class P3PCandidates:
@@ -158,6 +173,10 @@ _SAFE_F = (_SAFE_X - [0.2, 0.3, -3.0]) / np.linalg.norm(_SAFE_X - [0.2, 0.3, -3.
 
 
 def _check_shapes(bearings, points) -> tuple[np.ndarray, np.ndarray]:
+    for name, arr in (("bearings", bearings), ("points", points)):
+        if np.iscomplexobj(arr):
+            raise ValueError(f"solve_p3p: {name} must be real numbers, got dtype "
+                             f"{np.asarray(arr).dtype}")
     try:
         f = np.asarray(bearings, dtype=float)
         X = np.asarray(points, dtype=float)
