@@ -20,7 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from graphloc.cameras import PinholeCamera
+from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera, angular_sigma
+from graphloc.datasets.feng import noisy_pixels
+from graphloc.vision.mutual import localize_three, render_mutual_pixels
 
 
 GROUND_BOXES = np.array([[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]],
@@ -112,3 +114,90 @@ def simulate_straight_line_trials(n: int, seed: int = 0, config: Seed000Config =
         have += take.size
     ground, R_wc, positions, pix = (np.concatenate(p) for p in zip(*parts))
     return StraightLineTrials(ground=ground, R_wc=R_wc, positions=positions, pixels=pix, K=K, redrawn=redrawn)
+
+
+@dataclass(frozen=True)
+class TableIConfig:
+    """Seed 000 Sec. VI-A, the Table I scenario. scale: the workspace size that turns errors
+    into the paper's "relative error" ("within a relative error of 1e-3 meters out of a scale
+    of three meters"); success_tol [m]: also counted: trials whose three estimated positions of
+    C are all within this of the truth; omni_max_polar [rad]: field of view of the ground
+    robots' paraboloid cameras from the mirror axis; max_redraws: ground-camera orientations
+    redrawn while a robot is outside another's field of view (counted); initial_rotations:
+    graphloc starts Levenberg-Marquardt from this many best P3P rotations
+    (graphloc.pipelines.seed000_joint.shared_rotation_initials) and keeps the lowest graph
+    error; workers: processes of the reproduction (graphloc.experiments.seed000)."""
+
+    trials: int = 1000
+    seed: int = 0
+    pixel_sigma: float = 0.5
+    omni_size: int = 512
+    omni_max_polar: float = 2.0 * np.pi / 3.0
+    scale: float = 3.0
+    success_tol: float = 0.1
+    max_redraws: int = 50
+    initial_rotations: int = 2
+    workers: int = 2
+
+    def __post_init__(self):
+        if self.trials < 1 or self.workers < 1:
+            raise ValueError(f"TableIConfig: trials and workers must be >= 1, "
+                             f"got {self.trials}, {self.workers}")
+        for name in ("pixel_sigma", "scale", "success_tol"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"TableIConfig.{name} must be finite and >= 0, got {value}")
+
+
+@dataclass(frozen=True)
+class GroundTriangle:
+    """Ground robots C1..C3 for T trials. R (T,3,3,3): camera-to-world rotations; estimated
+    (T,3,3): positions from mutual bearings (C1 known: the reference), NaN where the mutual
+    solver rejected the formation; R_estimated (T,3,3,3) the estimated rotations; status (T,)
+    the solver's status; pixels (T,3,3,2) noisy [observer i, robot j]; bearings (T,3,3,3) their
+    lifted unit bearings and bearing_sigma (T,3,3) [rad] (diagonal NaN); visible (T,): every
+    robot inside the others' field of view; redrawn: orientation redraws because a robot left
+    another's field of view."""
+
+    R: np.ndarray
+    estimated: np.ndarray
+    R_estimated: np.ndarray
+    status: np.ndarray
+    pixels: np.ndarray
+    bearings: np.ndarray
+    bearing_sigma: np.ndarray
+    visible: np.ndarray
+    redrawn: int
+
+
+def ground_triangle(ground: np.ndarray, config: TableIConfig,
+                    rng: np.random.Generator) -> GroundTriangle:
+    """Seed 000 Sec. VI-A steps 1-2 for the ground robots: orientations with pitch, tilt, yaw
+    each U(0, pi/6), mutual pixels in 512x512 paraboloid omni images (Sec. II) with N(0, 0.5)
+    px noise in a random direction, then the three-robot algorithm (Sec. III-A,
+    graphloc.vision.mutual) with |T_12| known; C1's pose is the reference."""
+    T = len(ground)
+    omni = ParaboloidOmniCamera.from_fov(config.omni_size, config.omni_max_polar)
+    off = ~np.eye(3, dtype=bool)
+    R = np.empty((T, 3, 3, 3))
+    todo = np.arange(T)
+    redrawn = 0
+    for attempt in range(config.max_redraws + 1):
+        angles = rng.uniform(0.0, np.pi / 6, (todo.size * 3, 3))
+        R[todo] = Rotation.from_euler("xyz", angles).as_matrix().reshape(-1, 3, 3, 3)
+        _, visible = render_mutual_pixels(R[todo], ground[todo], omni)
+        todo = todo[~visible[:, off].all(axis=1)]
+        if todo.size == 0 or attempt == config.max_redraws:
+            break
+        redrawn += todo.size
+    clean, seen = render_mutual_pixels(R, ground, omni)
+    pixels = noisy_pixels(clean, config.pixel_sigma, rng)
+    baseline = np.linalg.norm(ground[:, 1] - ground[:, 0], axis=1)
+    res = localize_three(pixels, omni, baseline)
+    estimated = ground[:, 0, None, :] + np.einsum("nij,nkj->nki", R[:, 0], res.t)
+    R_estimated = np.einsum("nab,njbc->njac", R[:, 0], res.R)
+    with np.errstate(invalid="ignore"):
+        bearings = omni.pixel_to_bearing(pixels.reshape(-1, 2))[0].reshape(T, 3, 3, 3)
+        sigma = angular_sigma(omni, pixels, config.pixel_sigma)
+    return GroundTriangle(R, estimated, R_estimated, res.status, pixels, bearings, sigma,
+                          seen[:, off].all(axis=1), redrawn)

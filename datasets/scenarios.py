@@ -9,7 +9,7 @@ qz qw, what evo reads) named in manifest["meta"]: "groundtruth_tum" (true camera
 
 The seed 000 scenarios are adapters over the one implementation of each simulation:
 `feng-deterministic` (Sec. VI-A, graphloc.datasets.feng_deterministic + ground omni cameras as in
-graphloc.tables.ground_triangle) and `feng-probabilistic` (Sec. VI-B,
+graphloc.datasets.feng_deterministic.ground_triangle) and `feng-probabilistic` (Sec. VI-B,
 graphloc.datasets.feng.FengProbabilisticScenario). `dual-robot-room` writes its own format
 (graphloc.datasets.dual_room.DualRoomScenario.write).
 """
@@ -26,6 +26,9 @@ import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from graphloc.cameras import PinholeCamera
+from graphloc.datasets.feng_deterministic import (Seed000Config, TableIConfig, ground_triangle,
+                                                  simulate_straight_line_trials)
 from graphloc.io import columns, write_manifest
 
 
@@ -156,17 +159,9 @@ class FengDeterministicScenario:
 
     name = "feng-deterministic"
 
-    @property
-    def config_class(self):
-        from graphloc.tables import TableIConfig
-
-        return TableIConfig
+    config_class = TableIConfig
 
     def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
-        from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straight_line_trials
-        from graphloc.cameras import PinholeCamera
-        from graphloc.tables import TableIConfig, ground_triangle
-
         config = replace(TableIConfig(trials=1, seed=seed, workers=1), **parse_overrides(TableIConfig, overrides))
         trials = simulate_straight_line_trials(1, seed=seed, config=Seed000Config(pixel_sigma=config.pixel_sigma))
         tri = ground_triangle(trials.ground, config, np.random.default_rng([seed, 1]))

@@ -311,3 +311,17 @@ class ParaboloidOmniCamera:
     def project(self, points_cam) -> tuple[np.ndarray, np.ndarray]:
         """3D points in the camera frame (M,3) (origin = the mirror focus) -> pixels, visible."""
         return self.bearing_to_pixel(check_rows(points_cam, 3, "points_cam"))
+
+
+def angular_sigma(camera, pixels: np.ndarray, pixel_sigma: float, floor: float = 1e-5) -> np.ndarray:
+    """Per-axis bearing sigma [rad] (...,) of pixels (...,2) with seed 000's pixel noise (Sec.
+    VI-A: N(0, sigma) px along a random direction, per-axis std sigma / sqrt 2), times the
+    camera's local angle per pixel (finite differences of pixel_to_bearing: works for the
+    pinhole and the omni)."""
+    flat = np.asarray(pixels, dtype=float).reshape(-1, 2)
+    b0, _ = camera.pixel_to_bearing(flat)
+    bu, _ = camera.pixel_to_bearing(flat + (1.0, 0.0))
+    bv, _ = camera.pixel_to_bearing(flat + (0.0, 1.0))
+    per_px = 0.5 * (np.arccos(np.clip(np.sum(b0 * bu, axis=1), -1, 1))
+                    + np.arccos(np.clip(np.sum(b0 * bv, axis=1), -1, 1)))
+    return np.maximum(pixel_sigma / np.sqrt(2.0) * per_px, floor).reshape(np.shape(pixels)[:-1])

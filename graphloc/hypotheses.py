@@ -45,9 +45,9 @@ Per frame (odometry u with covariance Q, candidates z_j with covariances C_j and
 4. prune: every candidate keeps its child (so a birth can always take over), coasting tracks
    (one per track id) fill the remaining slots up to K; normalize.
 Decided modes are fixed by construction (the past is marginalized into each track's Gaussian;
-`decided_graph` re-solves a run with its committed modes in a batch Session), the number of live
-tracks is <= K and per-frame work is O(K * candidates): latency and memory do not grow with the
-run length.
+`graphloc.pipelines.track_smoothing.track_graph` re-solves a run with its committed modes in a
+batch Session), the number of live tracks is <= K and per-frame work is O(K * candidates):
+latency and memory do not grow with the run length.
 
 Commit: a track is the lineage of hypotheses through best parents (its id survives frames in
 which it coasts). When a track's posterior (summed over its live hypotheses: the child on a
@@ -79,7 +79,6 @@ import numpy as np
 from graphloc.candidates import CandidateSet
 from graphloc.factors.mixture import candidate_covariances, component_factors
 from graphloc.factors.odometry import check_covariance
-from graphloc.factors.robust import Kernel
 from graphloc.keys import pose_key
 from graphloc.seams import Decision, Odometry, check_frame
 
@@ -472,43 +471,3 @@ class HypothesisTracker:
             return Decision(probs, committed, True, best.mean, relocalized)
         best = max(self._tracks, key=lambda t: t.logw)
         return Decision(probs, -1, False, best.mean, relocalized)
-
-
-def decided_graph(candidates: list[CandidateSet], odometry: list, decisions: list[Decision], robot: int = 0,
-                  default_sigmas: tuple[float, float] = (0.02, 0.05), kernel: Kernel = Kernel("cauchy", 1.0)
-                  ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
-    """A run with its committed modes fixed, as one factor graph for `graphloc.session.Session`
-    (batch LM or iSAM2 smoothing after the tracker has decided): pose_key(robot, k) per frame,
-    BetweenFactorPose3 per odometry step, and the mixture component of the committed candidate
-    (`factors.mixture.component_factors`, robust `kernel`: near the P3P fold a committed
-    candidate can sit far outside its first-order covariance) wherever a candidate was
-    committed. Initial values:
-    the decided poses, chained through the odometry across undecided frames (backwards before
-    the first decision). ValueError if the lists disagree in length or nothing was committed."""
-    if not (len(candidates) == len(odometry) == len(decisions)):
-        raise ValueError(f"decided_graph: {len(candidates)} candidate sets, {len(odometry)} odometry steps and "
-                         f"{len(decisions)} decisions must match")
-    committed = [k for k, d in enumerate(decisions) if d.locked and d.committed >= 0]
-    if not committed:
-        raise ValueError("decided_graph: no frame has a committed candidate")
-    graph = gtsam.NonlinearFactorGraph()
-    for k in range(1, len(candidates)):
-        if not isinstance(odometry[k], Odometry):
-            raise ValueError(f"decided_graph: odometry[{k}] must be an Odometry, got {type(odometry[k]).__name__}")
-        graph.add(gtsam.BetweenFactorPose3(pose_key(robot, k - 1), pose_key(robot, k), odometry[k].relative,
-                                           gtsam.noiseModel.Gaussian.Covariance(odometry[k].covariance)))
-    for k in committed:
-        cov = candidate_covariances(candidates[k], default_sigmas)
-        j = decisions[k].committed
-        graph.add(component_factors(candidates[k], pose_key(robot, k), covariances=cov, kernel=kernel)[j])
-    poses: list[gtsam.Pose3 | None] = [d.pose if d.locked else None for d in decisions]
-    first = committed[0]
-    for k in range(first - 1, -1, -1):  # before the first decision the tracker's poses may be pseudo ones
-        poses[k] = poses[k + 1].compose(odometry[k + 1].relative.inverse())
-    for k in range(first + 1, len(poses)):
-        if poses[k] is None:
-            poses[k] = poses[k - 1].compose(odometry[k].relative)
-    values = gtsam.Values()
-    for k, p in enumerate(poses):
-        values.insert(pose_key(robot, k), p)
-    return graph, values

@@ -10,7 +10,8 @@ import pytest
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance, seed000_camera
 from graphloc.geometry.resection import resection_covariance
-from graphloc.hypotheses import HypothesisTracker, TrackerConfig, decided_graph
+from graphloc.hypotheses import HypothesisTracker, TrackerConfig
+from graphloc.pipelines.track_smoothing import decided, track_graph
 from graphloc.seams import Odometry
 from graphloc.keys import pose_key
 from graphloc.session import Session, SessionConfig
@@ -183,7 +184,7 @@ def test_resection_covariance_matches_monte_carlo():
 def test_decided_modes_resolved_in_batch_session_improve_accuracy():
     run, odo = simulate(ceiling="level", curve="sine", seed=10)
     decisions = feed(HypothesisTracker(), run, odo)
-    graph, values = decided_graph(run.candidates, odo, decisions)
+    graph, values = track_graph(run.candidates, odo, *decided(decisions))
     session = Session(SessionConfig(mode="batch"))
     session.add(graph, values)
     est = session.estimate()
@@ -192,9 +193,9 @@ def test_decided_modes_resolved_in_batch_session_improve_accuracy():
     batch = np.sqrt(np.mean([np.sum((est.atPose3(pose_key(0, k)).translation() - run.t_wc[k]) ** 2) for k in frames]))
     assert batch < online
     with pytest.raises(ValueError, match="must match"):
-        decided_graph(run.candidates, odo[:-1], decisions)
+        track_graph(run.candidates, odo[:-1], *decided(decisions))
     with pytest.raises(ValueError, match="no frame"):
-        decided_graph(run.candidates[:1], odo[:1], decisions[:1])
+        track_graph(run.candidates[:1], odo[:1], *decided(decisions[:1]))
 
 
 # (ceiling, curve, seed) of runs whose first commit was on a pseudo candidate with the plain 0.95

@@ -30,12 +30,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing as mp
 import os
 import resource
 import time
 import tracemalloc
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import gtsam
@@ -48,9 +47,13 @@ from graphloc.baselines.straight_line import StraightLineBaseline, StraightLineC
 from graphloc.datasets.feng import (CEILINGS, FengProbabilisticConfig, FengProbabilisticScenario, ceiling_plane,
                                     odometry_covariance)
 from graphloc.factors.bearing import bearing_linearize_cost
-from graphloc.hypotheses import HypothesisTracker, TrackerConfig, decided_graph
-from graphloc.seams import Odometry
+from graphloc.experiments.pool import worker_pool
+from graphloc.experiments.sizes import run_sizes
+from graphloc.hypotheses import HypothesisTracker, TrackerConfig
 from graphloc.keys import decode, pose_key
+from graphloc.pipelines.track_smoothing import decided, track_graph
+from graphloc.plots import plt
+from graphloc.seams import Odometry
 from graphloc.session import Session, SessionConfig
 
 CELLS = [(ceiling, curve) for curve in ("line", "sine", "quadratic") for ceiling in CEILINGS]
@@ -60,7 +63,28 @@ METHODS = ("belief_def1", "belief_def2", "particle_filter", "straight_line", "tr
 WRONG_DISTANCE = 0.25  # [m] committed pose this far from the truth without a candidate = wrong
 
 
-def make_engine(method: str, ceiling: str, args, seed: int):
+@dataclass(frozen=True)
+class TableIIIConfig:
+    """The trials' options (seed 000 Sec. VI-B): `runs` runs per (ceiling, curve) cell (paper:
+    100) over `workers` processes; tracker K (max_hypotheses), belief Def. 2 lambda (lam),
+    straight-line snapshot spacing / commit threshold [m], pixel noise [px], seed offset."""
+
+    runs: int = 100
+    workers: int = 2
+    max_hypotheses: int = 8
+    lam: float = 5.0
+    line_spacing: int = 10
+    line_max_error: float = 0.05
+    pixel_sigma: float = 0.5
+    seed_offset: int = 0
+
+    def __post_init__(self):
+        if self.runs < 1 or self.workers < 1:
+            raise ValueError(f"TableIIIConfig: runs and workers must be >= 1, "
+                             f"got {self.runs}, {self.workers}")
+
+
+def make_engine(method: str, ceiling: str, args: TableIIIConfig, seed: int):
     if method == "belief_def1":
         return BeliefVector(BeliefVectorConfig(likelihood="inner_product"))
     if method == "belief_def2":
@@ -122,13 +146,14 @@ def evaluate(engine, run, odometry, smooth: bool = False) -> dict:
 
 
 def resolve_decided(run, odometry, decisions) -> tuple[dict, dict]:
-    """The tracker's committed modes re-solved as one factor graph (`hypotheses.decided_graph`)
+    """The tracker's committed modes re-solved as one factor graph (`track_graph`)
     two ways through `graphloc.session.Session`: batch (LM over all poses, smoothed) and online
     (iSAM2, the graph added frame by frame from the first committed frame: every factor whose
     newest pose is frame k in step k; the estimate of frame k read right after step k, i.e.
     causal like the tracker). Returns ({frame: Pose3} batch, {frame: Pose3} online) over the
     locked frames from the first commit on."""
-    graph, values = decided_graph(run.candidates, odometry, decisions)
+    chosen, initial = decided(decisions)
+    graph, values = track_graph(run.candidates, odometry, chosen, initial)
     first = next(k for k, d in enumerate(decisions) if d.locked and d.committed >= 0)
     frames = [k for k, d in enumerate(decisions) if d.locked and k >= first]
     batch_session = Session(SessionConfig(mode="batch"))
@@ -330,7 +355,7 @@ def markdown(summary: dict, longrun: dict | None, args) -> str:
     baselines = [m for m in METHODS if m != "tracker"]
     lines += ["", "## Position RMSE after convergence [m] over each method's committed frames (median of per-run medians)", "",
               "Tracker: its own online filter; *batch* = its committed modes re-solved by LM over all poses "
-              "(`hypotheses.decided_graph` in a `graphloc.session.Session`, smoothed); *online* = the same graph added frame "
+              "(`pipelines.track_smoothing.track_graph` in a `graphloc.session.Session`, smoothed); *online* = the same graph added frame "
               "by frame to an iSAM2 Session, pose k read right after frame k (causal). Batch and online are over the "
               "tracker's committed frames.", "",
               "| cell | tracker filter | batch (LM) | online (iSAM2) | " + " | ".join(baselines) + " |",
@@ -364,11 +389,6 @@ def markdown(summary: dict, longrun: dict | None, args) -> str:
 
 
 def plots(summary: dict, longrun: dict | None, out: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     names = list(summary)
     fig, (ax, ax2) = plt.subplots(2, 1, figsize=(11, 7.5), sharex=True)
     series = [("paper Table III", [summary[n]["paper_table_iii"] for n in names], [np.nan] * len(names))]
@@ -415,29 +435,34 @@ def plots(summary: dict, longrun: dict | None, out: Path) -> None:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=100)
-    parser.add_argument("--quick", action="store_true", help="10 runs per cell, 2000-update long run")
+    parser.add_argument("--runs", type=int, help="runs per cell (default: graphloc.experiments.sizes)")
+    parser.add_argument("--quick", action="store_true", help="CI size (graphloc.experiments.sizes)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--max-hypotheses", type=int, default=8)
     parser.add_argument("--lam", type=float, default=5.0, help="lambda of belief Def. 2")
     parser.add_argument("--line-spacing", type=int, default=10, help="straight-line test: updates between snapshots")
     parser.add_argument("--line-max-error", type=float, default=0.05, help="straight-line test: commit below [m]")
-    parser.add_argument("--latency-frames", type=int, default=10000)
+    parser.add_argument("--latency-frames", type=int, help="long-run updates (default: sizes)")
     parser.add_argument("--pixel-sigma", type=float, default=0.5, help="image noise [px] (seed 000: 0.5)")
     parser.add_argument("--seed-offset", type=int, default=0,
                         help="simulation seeds start here (held-out validation: e.g. 50000, disjoint from the default runs)")
     parser.add_argument("--skip-long-run", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("out/bench_hypotheses"))
     args = parser.parse_args(argv)
-    if args.quick:
-        args.runs, args.latency_frames = 10, min(args.latency_frames, 2000)
+    sizes = run_sizes(args.quick)
+    args.runs = args.runs or sizes.hypotheses_runs
+    args.latency_frames = args.latency_frames or sizes.latency_frames
     if args.runs < 1 or args.latency_frames < 2000:
         raise SystemExit("--runs must be >= 1 and --latency-frames >= 2000")
     args.out.mkdir(parents=True, exist_ok=True)
 
-    jobs = [(ceiling, curve, i, args) for ceiling, curve in CELLS for i in range(args.runs)]
+    config = TableIIIConfig(runs=args.runs, workers=args.workers, max_hypotheses=args.max_hypotheses,
+                            lam=args.lam, line_spacing=args.line_spacing,
+                            line_max_error=args.line_max_error, pixel_sigma=args.pixel_sigma,
+                            seed_offset=args.seed_offset)
+    jobs = [(ceiling, curve, i, config) for ceiling, curve in CELLS for i in range(args.runs)]
     t0 = time.time()
-    with mp.Pool(args.workers) as pool:
+    with worker_pool(args.workers) as pool:
         trials = list(tqdm(pool.imap_unordered(trial, jobs), total=len(jobs), desc="trials"))
     summary = summarize(trials)
     longrun = None if args.skip_long_run else long_run(args)

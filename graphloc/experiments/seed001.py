@@ -1,4 +1,4 @@
-"""Reproduce seed 001 experiment 1 (/work/shared/seeds/001_0f8f8dae37ce6b79.txt, section V-A)
+"""Reproduce seed 001 experiment 1 (001_0f8f8dae37ce6b79.txt, section V-A)
 in simulation: a downward-looking 752x480, 90 deg FOV monochrome camera over the larger target
 (tetrahedron of section III-A, markers b = 3 cm).
 
@@ -28,18 +28,16 @@ from dataclasses import asdict
 from pathlib import Path
 
 import gtsam
-import matplotlib
+import numpy as np
+from tqdm import tqdm
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
-
-from graphloc.cameras import PinholeCamera  # noqa: E402
-from graphloc.datasets.breitenmoser import seed001_camera  # noqa: E402
-from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, marker_area_bounds, roi_from_points  # noqa: E402
-from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers  # noqa: E402
-from graphloc.vision.target import (LARGE_TARGET, TargetHypothesisConfig, predict_pose,  # noqa: E402
+from graphloc.cameras import PinholeCamera
+from graphloc.datasets.breitenmoser import seed001_camera
+from graphloc.experiments.sizes import run_sizes
+from graphloc.plots import plt
+from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, marker_area_bounds, roi_from_points
+from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers
+from graphloc.vision.target import (LARGE_TARGET, TargetHypothesisConfig, predict_pose,
                                     predicted_marker_pixels, target_hypotheses)
 
 PAPER = {"run1": {"pos_mean_cm": 1.5, "pos_std_cm": 0.7, "pos_max_cm": 12.2, "rot_mean_deg": 1.2, "rot_std_deg": 0.4,
@@ -286,8 +284,9 @@ def reproduce(out: Path, frames1: int = 300, frames2: int = 200, clutter: int = 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--frames1", type=int, default=300, help="frames of run 1 (0.68-1.74 m)")
-    parser.add_argument("--frames2", type=int, default=200, help="frames of run 2 (up to 3 m)")
+    parser.add_argument("--quick", action="store_true", help="CI size (graphloc.experiments.sizes)")
+    parser.add_argument("--frames1", type=int, help="frames of run 1 (0.68-1.74 m)")
+    parser.add_argument("--frames2", type=int, help="frames of run 2 (up to 3 m)")
     parser.add_argument("--clutter", type=int, default=3, help="distractor blobs per frame")
     parser.add_argument("--focal-error", type=float, default=0.01,
                         help="relative focal-length error of the calibration used by the 'miscal' variant")
@@ -298,6 +297,9 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path("out/seed001"))
     args = parser.parse_args(argv)
+    sizes = run_sizes(args.quick)
+    args.frames1 = args.frames1 or sizes.seed001_frames1
+    args.frames2 = args.frames2 or sizes.seed001_frames2
     if args.frames1 < 10 or args.frames2 < 10:
         parser.error("--frames1 and --frames2 must be >= 10")
     result = reproduce(args.out, args.frames1, args.frames2, args.clutter, args.focal_error, args.principal_error,
