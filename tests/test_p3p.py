@@ -8,7 +8,7 @@ import pytest
 
 from graphloc.candidates import CandidateSet
 from graphloc.geometry.p3p import METHODS, P3PCandidates, solve_p3p, solve_p3p_poses
-from graphloc.geometry.p3p_bench import (InstanceConfig, opencv_p3p_loop, poselib_p3p_loop,
+from graphloc.experiments.p3p_bench import (InstanceConfig, opencv_p3p_loop, poselib_p3p_loop,
                                          random_p3p_instances, recovered)
 
 N_RANDOM = 10_000

@@ -15,7 +15,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from graphloc.geometry.p3p_bench import markdown_table, run_p3p_benchmark
+    # imported here, not at the top: the benchmark loads matplotlib, which `graphloc --help`
+    # does not need
+    from graphloc.experiments.p3p_bench import markdown_table, run_p3p_benchmark
 
     if args.n < 1:
         raise ValueError(f"--n must be positive, got {args.n}")

@@ -10,10 +10,13 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
+from tqdm import tqdm
 
 from graphloc.geometry.p3p import MAX_CANDIDATES, METHODS, solve_p3p
+from graphloc.plots import plt
 
 RECOVERY_TOL = 1e-6  # rotation (Frobenius of R - R_true) and translation [m] errors
 
@@ -90,8 +93,6 @@ def opencv_p3p_loop(bearings: np.ndarray, points: np.ndarray, flag: int):
     """Per-instance Python loop over cv2.solveP3P with an identity camera; bearings become
     normalized image points f/f_z (points must be in front of the camera). Returns R_wc, t_wc,
     valid like solve_p3p."""
-    import cv2
-
     n = bearings.shape[0]
     R_out = np.zeros((n, MAX_CANDIDATES, 3, 3))
     t_out = np.zeros((n, MAX_CANDIDATES, 3))
@@ -111,7 +112,7 @@ def opencv_p3p_loop(bearings: np.ndarray, points: np.ndarray, flag: int):
 def poselib_p3p_loop(bearings: np.ndarray, points: np.ndarray):
     """Per-instance Python loop over poselib.p3p(x: bearings (3,3), X: points (3,3)) -> list of
     CameraPose (world-to-camera R, t). Returns R_wc, t_wc, valid like solve_p3p."""
-    import poselib
+    import poselib  # the optional `test` extra: only this loop needs it
 
     n = bearings.shape[0]
     R_out = np.zeros((n, MAX_CANDIDATES, 3, 3))
@@ -145,9 +146,6 @@ def run_p3p_benchmark(out_dir: str | Path, n: int = 100_000, seed: int = 0, roun
     The machine is shared, so the instances are split into `rounds` slices and every solver
     runs on slice r before any runs on slice r+1 (interleaved): a load spike hits all solvers
     alike. Each solver's time is the sum over the slices; each gets one untimed warm-up."""
-    import cv2
-    from tqdm import tqdm
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     inst = random_p3p_instances(n, seed)
@@ -225,11 +223,6 @@ def markdown_table(result: dict) -> str:
 
 
 def plot_benchmark(result: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     rows = result["rows"]
     names = [r["solver"] for r in rows]
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
