@@ -8,8 +8,20 @@
     RobotN_Groundtruth.dat     time, x, y, orientation   (optional)
 
 Subjects 1..R are the robots (R = number of RobotN_Odometry.dat files), the others landmarks.
-Every malformed line, NaN/inf, time going backwards, unknown barcode and self-observation is a
-counted skip in the run's SkipReport (or a ValueError naming file and line with on_error="raise").
+Files are UTF-8 (an optional byte-order mark is dropped); a byte that is not UTF-8 is a
+ValueError naming file, line and column. Every row that is not used is counted by reason in the
+run's SkipReport, with file and line (on_error="raise": the first one is a ValueError instead):
+malformed lines ("field_count", "parse"), NaN/inf ("non_finite"), values outside the plausible
+ranges of `LIMITS` ("implausible", e.g. a speed of 1e308 m/s), time going backwards
+("time_backwards"), ranges <= 0 ("non_positive_range"), unknown barcodes, self-observations,
+and rows outside the run's time window: measurements before the common start
+("before_start"), after the earliest end of any robot's odometry ("after_end") or after the
+requested `duration` ("after_duration"); odometry rows past the end ("odometry_after_end",
+"odometry_after_duration"); ground truth outside the window ("groundtruth_outside_window").
+`run.meta["window"]` says which file (or the duration) set each end of the window.
+Barcodes.dat and Landmark_Groundtruth.dat define the ids and the map, so any bad row in them,
+a missing or empty landmark file or a landmark listed twice is always a ValueError. Missing,
+unreadable, looping (symlink) or non-regular files are errors, never "no data".
 
     run = MRCLAM("/data/MRCLAM_Dataset6", duration=60.0).load()    # graphloc.io.PlanarRun
     MRCLAM("/data/MRCLAM_Dataset6").to_log("out/ds6_log")           # graphloc log format
@@ -18,7 +30,9 @@ counted skip in the run's SkipReport (or a ValueError naming file and line with 
 from __future__ import annotations
 
 import math
+import os
 import re
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -27,51 +41,122 @@ from graphloc.io import PlanarRun, SkipReport, write_planar_run
 
 _ROBOT_FILE = re.compile(r"^Robot(\d+)_Odometry\.dat$")
 
+# plausible ranges of every column, generous for lab robots (MRCLAM Dataset6: |v| <= 0.09 m/s,
+# |omega| <= 0.6 rad/s, ranges 0.9-8.7 m, |bearing| <= 0.6 rad, positions within 6 m)
+MAX_TIME = 1e11  # s (Unix time until the year 5138; relative times start near 0)
+MAX_SPEED = 10.0  # m/s
+MAX_TURN_RATE = 4 * math.pi  # rad/s
+MAX_RANGE = 100.0  # m
+MAX_COORDINATE = 1e4  # m, |x|, |y| of ground truth and landmarks
+MAX_HEADING = 1e4  # rad (headings may be unwrapped)
+MAX_SIGMA = 1e3  # m
+MAX_ID = 1e6  # subject and barcode numbers
+_TIME = ("time", -MAX_TIME, MAX_TIME)
+LIMITS = {  # file kind -> (column name, low, high) per column
+    "barcodes": (("subject", 1, MAX_ID), ("barcode", 0, MAX_ID)),
+    "landmarks": (("subject", 1, MAX_ID), ("x", -MAX_COORDINATE, MAX_COORDINATE),
+                  ("y", -MAX_COORDINATE, MAX_COORDINATE), ("x_sigma", 0.0, MAX_SIGMA),
+                  ("y_sigma", 0.0, MAX_SIGMA)),
+    "odometry": (_TIME, ("v", -MAX_SPEED, MAX_SPEED), ("omega", -MAX_TURN_RATE, MAX_TURN_RATE)),
+    "measurement": (_TIME, ("barcode", 0, MAX_ID), ("range", -math.inf, MAX_RANGE),
+                    ("bearing", -2 * math.pi, 2 * math.pi)),
+    "groundtruth": (_TIME, ("x", -MAX_COORDINATE, MAX_COORDINATE),
+                    ("y", -MAX_COORDINATE, MAX_COORDINATE), ("theta", -MAX_HEADING, MAX_HEADING)),
+}
+_INT_COLUMNS = {"barcodes": (0, 1), "landmarks": (0,), "measurement": (1,)}
+
 
 def is_mrclam_dir(path: str | Path) -> bool:
     p = Path(path)
     return (p / "Barcodes.dat").is_file() and any(_ROBOT_FILE.match(f.name) for f in p.glob("Robot*_Odometry.dat"))
 
 
-def read_table(path: Path, n_cols: int, report: SkipReport, on_error: str = "skip", monotonic: bool = True,
-               int_cols=()) -> np.ndarray:
-    """Whitespace table with '#' comments -> (n, n_cols) float array. Malformed rows (wrong field
-    count, unparsable or non-finite numbers, non-integer ids, time < previous time when
-    `monotonic`) raise ValueError or are skipped and counted by reason."""
+def check_file(path: Path, required: bool = True) -> bool:
+    """True when `path` is a readable regular file. A missing file is FileNotFoundError when
+    `required` (else False); a broken or looping symlink, a directory, a device or FIFO, or a
+    file that cannot be read is always a ValueError naming the file."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        if path.is_symlink():
+            raise ValueError(f"{path}: broken symbolic link (to {os.readlink(path)!r})") from None
+        if required:
+            raise FileNotFoundError(f"{path}: required MRCLAM file missing") from None
+        return False
+    except OSError as exc:  # ELOOP (symlink loop), EACCES on the directory, ...
+        raise ValueError(f"{path}: cannot be read ({exc.strerror})") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ValueError(f"{path}: not a regular file")
+    if not os.access(path, os.R_OK):
+        raise ValueError(f"{path}: cannot be read (permission denied)")
+    return True
+
+
+def _lines(path: Path):
+    """(line number, text) of a UTF-8 file with an optional byte-order mark; ValueError naming
+    file, line and column at the first byte that is not UTF-8."""
+    data = path.read_bytes()
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    for line_no, raw in enumerate(data.splitlines(), start=1):
+        try:
+            yield line_no, raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"{path}: line {line_no}: not UTF-8 text (byte "
+                             f"0x{raw[exc.start]:02x} at column {exc.start + 1})") from None
+
+
+def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip") -> np.ndarray:
+    """Whitespace table of one MRCLAM file `kind` (a key of LIMITS) with '#' comments -> (n,
+    n_cols) float array. Malformed rows (wrong field count, unparsable or non-finite numbers,
+    non-integer ids, values outside LIMITS, ranges <= 0, time < previous time in timed files)
+    raise ValueError or are skipped and counted by reason, with file, line and field."""
+    limits = LIMITS[kind]
+    n_cols, int_cols = len(limits), _INT_COLUMNS.get(kind, ())
+    monotonic = limits[0][0] == "time"
     rows = []
     last = -math.inf
-    with open(path) as fh:
-        for line_no, line in enumerate(fh, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            parts = text.split()
-            reason = message = None
-            if len(parts) != n_cols:
-                reason, message = "field_count", f"expected {n_cols} fields, got {len(parts)}"
-            else:
-                try:
-                    vals = [float(p) for p in parts]
-                except ValueError:
-                    reason, message = "parse", f"cannot parse {text!r} as numbers"
-                else:
-                    bad = next((i for i, v in enumerate(vals) if not math.isfinite(v)), None)
-                    if bad is not None:
-                        reason, message = "non_finite", f"field {bad + 1} ({parts[bad]}) is not finite"
-                    elif any(vals[i] != int(vals[i]) for i in int_cols):
-                        reason, message = "parse", f"id field is not an integer: {text!r}"
-                    elif monotonic and vals[0] < last:
-                        reason, message = "time_backwards", f"time {parts[0]} goes backwards (previous {last:.3f})"
-            if reason is not None:
-                full = f"{path}: line {line_no}: {message}"
-                if on_error == "raise":
-                    raise ValueError(full)
-                report.add(reason, full)
-                continue
-            if monotonic:
-                last = vals[0]
-            rows.append(vals)
+    for line_no, line in _lines(path):
+        text = line.strip()
+        if not text or text.startswith("#"):
+            continue
+        reason, message = _check_row(text, limits, int_cols, kind, last if monotonic else None)
+        if reason is not None:
+            full = f"{path}: line {line_no}: {message}"
+            if on_error == "raise":
+                raise ValueError(full)
+            report.add(reason, full)
+            continue
+        vals = [float(p) for p in text.split()]
+        if monotonic:
+            last = vals[0]
+        rows.append(vals)
     return np.array(rows, dtype=float).reshape(-1, n_cols)
+
+
+def _check_row(text: str, limits, int_cols, kind: str, last: float | None):
+    """(reason, message) of the first problem of one row, or (None, None)."""
+    parts = text.split()
+    if len(parts) != len(limits):
+        return "field_count", f"expected {len(limits)} fields, got {len(parts)}"
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        shown = text if len(text) <= 80 else text[:77] + "..."
+        return "parse", f"cannot parse {shown!r} as numbers"
+    for i, (v, (name, lo, hi)) in enumerate(zip(vals, limits)):
+        field = f"field {i + 1} ({name})"
+        if not math.isfinite(v):
+            return "non_finite", f"{field} = {parts[i]} is not finite"
+        if i in int_cols and v != int(v):
+            return "parse", f"{field} = {parts[i]} is not an integer"
+        if name == "range" and v <= 0:
+            return "non_positive_range", f"{field} = {parts[i]} is not > 0"
+        if not lo <= v <= hi:
+            return "implausible", f"{field} = {parts[i]} is outside the plausible [{lo:g}, {hi:g}]"
+    if last is not None and vals[0] < last:
+        return "time_backwards", f"time {parts[0]} goes backwards (previous {last:.3f})"
+    return None, None
 
 
 def interpolate_pose(gt: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -106,9 +191,16 @@ class MRCLAM:
     def load(self) -> PlanarRun:
         report = SkipReport()
         ids = self.robot_ids()
-        barcodes = read_table(self._file("Barcodes.dat"), 2, report, self.on_error, monotonic=False, int_cols=(0, 1))
-        landmarks = read_table(self._file("Landmark_Groundtruth.dat"), 5, report, self.on_error, monotonic=False,
-                               int_cols=(0,))
+        barcodes = read_table(self._file("Barcodes.dat"), "barcodes", report, "raise")
+        lm_path = self._file("Landmark_Groundtruth.dat")
+        landmarks = read_table(lm_path, "landmarks", report, "raise")
+        if len(landmarks) == 0:
+            raise ValueError(f"{lm_path}: no landmark rows (only comments or blank lines): an "
+                             f"MRCLAM run needs its landmark map")
+        subjects, n_rows = np.unique(landmarks[:, 0].astype(int), return_counts=True)
+        if (n_rows > 1).any():
+            twice = subjects[n_rows > 1].tolist()
+            raise ValueError(f"{lm_path}: landmark subject(s) {twice} listed more than once")
         barcode_to_subject = {}
         for subject, code in barcodes.astype(int):
             if code in barcode_to_subject:
@@ -118,21 +210,39 @@ class MRCLAM:
 
         odometry, groundtruth, meas = [], [], []
         for rid in ids:
-            odo = read_table(self._file(f"Robot{rid}_Odometry.dat"), 3, report, self.on_error)
+            odo = read_table(self._file(f"Robot{rid}_Odometry.dat"), "odometry", report,
+                             self.on_error)
             if len(odo) < 2:
                 raise ValueError(f"{self.root / f'Robot{rid}_Odometry.dat'}: fewer than 2 valid odometry rows")
             odometry.append(odo)
             gt_path = self.root / f"Robot{rid}_Groundtruth.dat"
-            groundtruth.append(read_table(gt_path, 4, report, self.on_error) if gt_path.is_file() else None)
-            mpath = self.root / f"Robot{rid}_Measurement.dat"
-            meas.append(read_table(mpath, 4, report, self.on_error, int_cols=(1,)) if mpath.is_file() else np.zeros((0, 4)))
+            has_gt = check_file(gt_path, required=False)
+            groundtruth.append(read_table(gt_path, "groundtruth", report, self.on_error)
+                               if has_gt else None)
+            meas.append(read_table(self._file(f"Robot{rid}_Measurement.dat"), "measurement", report,
+                                   self.on_error))
 
-        start = max(od[0, 0] for od in odometry)
-        end = min(od[-1, 0] for od in odometry)
-        if self.duration is not None:
-            end = min(end, start + self.duration)
+        first_row = [od[0, 0] for od in odometry]
+        last_row = [od[-1, 0] for od in odometry]
+        start, end = max(first_row), min(last_row)
+        window = {"start": float(start), "end": float(end),
+                  "start_set_by": f"Robot{ids[int(np.argmax(first_row))]}_Odometry.dat "
+                                  f"(latest first row)",
+                  "end_set_by": f"Robot{ids[int(np.argmin(last_row))]}_Odometry.dat "
+                                f"(earliest last row)"}
+        odo_end = end
+        if self.duration is not None and start + self.duration < end:
+            end = start + self.duration
+            window.update(end=float(end), end_set_by=f"duration {self.duration} s")
         if end <= start:
-            raise ValueError(f"{self.root}: robots' odometry does not overlap in time (start {start}, end {end})")
+            raise ValueError(f"{self.root}: robots' odometry does not overlap in time (start "
+                             f"{start} from {window['start_set_by']}, end {end} from "
+                             f"{window['end_set_by']})")
+        for rid, od, m in zip(ids, odometry, meas):
+            self._count_outside(report, f"Robot{rid}_Measurement.dat", "", m[:, 0], start, end,
+                                odo_end)
+            self._count_outside(report, f"Robot{rid}_Odometry.dat", "odometry_", od[:, 0],
+                                -math.inf, end, odo_end)
 
         obs = []
         for i, (rid, m) in enumerate(zip(ids, meas)):
@@ -147,11 +257,7 @@ class MRCLAM:
             if own.any():
                 self._skip(report, "self_observation", f"Robot{rid}_Measurement.dat",
                            f"{int(own.sum())} measurements of the robot's own barcode", int(own.sum()))
-            nonpos = (m[:, 2] <= 0) & ~unknown & ~own
-            if nonpos.any():
-                self._skip(report, "non_positive_range", f"Robot{rid}_Measurement.dat",
-                           f"{int(nonpos.sum())} measurements with range <= 0", int(nonpos.sum()))
-            keep = ~unknown & ~own & ~nonpos
+            keep = ~unknown & ~own
             target_robot = np.array([robot_index.get(s, -1) for s in subject[keep]], dtype=int)
             landmark = np.where(target_robot < 0, subject[keep], -1)
             obs.append(np.stack([m[keep, 0], np.full(keep.sum(), i), target_robot, landmark,
@@ -166,7 +272,14 @@ class MRCLAM:
                 if not (gt[0, 0] <= start <= gt[-1, 0]):
                     raise ValueError(f"{self.root / f'Robot{ids[i]}_Groundtruth.dat'}: does not cover start time {start}")
                 init[i] = interpolate_pose(gt, np.array([start]))[0]
-                groundtruth[i] = gt[(gt[:, 0] >= start) & (gt[:, 0] <= end)]
+                inside = (gt[:, 0] >= start) & (gt[:, 0] <= end)
+                if not inside.all():
+                    n_out = int((~inside).sum())
+                    self._skip(report, "groundtruth_outside_window",
+                               f"Robot{ids[i]}_Groundtruth.dat", f"{n_out} ground-truth rows "
+                               f"outside the run window [{start:.3f}, {end:.3f}]", n_out,
+                               strict=False)
+                groundtruth[i] = gt[inside]
         lm_is_robot = np.isin(landmarks[:, 0].astype(int), ids)
         if lm_is_robot.any():
             raise ValueError(f"{self.root / 'Landmark_Groundtruth.dat'}: subjects {landmarks[lm_is_robot, 0]} are robots")
@@ -176,8 +289,24 @@ class MRCLAM:
             obs_time=o[:, 0], obs_robot=o[:, 1].astype(int), obs_target_robot=o[:, 2].astype(int),
             obs_landmark=o[:, 3].astype(int), obs_range=o[:, 4], obs_bearing=o[:, 5],
             landmark_ids=landmarks[:, 0].astype(int), landmark_xy=landmarks[:, 1:3], landmark_sigma=landmarks[:, 3:5],
-            skips=report, meta={"source": "MRCLAM", "directory": str(self.root)},
+            skips=report, meta={"source": "MRCLAM", "directory": str(self.root), "window": window},
         )
+
+    def _count_outside(self, report: SkipReport, file: str, prefix: str, t: np.ndarray,
+                       start: float, end: float, odo_end: float) -> None:
+        """Count rows of `file` with times `t` outside [start, end] as prefix + before_start,
+        after_end (past the earliest end of any robot's odometry) or after_duration (cut by
+        `duration`)."""
+        for reason, mask, where in (
+                ("before_start", t < start, f"before the common start {start:.3f}"),
+                ("after_duration", (t > end) & (t <= odo_end),
+                 f"after start + duration = {end:.3f}"),
+                ("after_end", t > odo_end,
+                 f"after the end of the shortest odometry {odo_end:.3f}")):
+            n = int(mask.sum())
+            if n:
+                self._skip(report, prefix + reason, file, f"{n} rows {where} (first at time "
+                           f"{t[mask][0]:.3f})", n, strict=False)
 
     def to_log(self, out_dir: str | Path) -> Path:
         """Convert to the graphloc log format (docs/log_format.md)."""
@@ -185,12 +314,14 @@ class MRCLAM:
 
     def _file(self, name: str) -> Path:
         path = self.root / name
-        if not path.is_file():
-            raise FileNotFoundError(f"{path}: required MRCLAM file missing")
+        check_file(path)
         return path
 
-    def _skip(self, report: SkipReport, reason: str, file: str, message: str, n: int) -> None:
+    def _skip(self, report: SkipReport, reason: str, file: str, message: str, n: int,
+              strict: bool = True) -> None:
+        """Count n skipped rows; with on_error="raise" a ValueError instead, unless `strict` is
+        False (rows outside the run window are a property of the run, not an input error)."""
         full = f"{self.root / file}: {message}"
-        if self.on_error == "raise":
+        if strict and self.on_error == "raise":
             raise ValueError(full)
         report.add(reason, full, n)

@@ -154,7 +154,7 @@ def test_commands_on_mrclam_and_log(synthetic, tmp_path, verb):
         assert main([verb, str(src), "--out", str(out), "--duration", "30", "--no-progress"]) == 0
         metrics = json.loads((out / "metrics.json").read_text())
         mode = "batch" if verb == "smooth" else "online"
-        assert metrics["mode"] == mode and metrics["frames"] == 121
+        assert metrics["mode"] == mode and metrics["counts"]["steps"] == 121
         for name in ("robot1", "robot2", "robot3"):
             assert (out / f"{name}_{mode}.tum").is_file()
             assert metrics["per_robot"][name][mode]["ate_rmse"] < metrics["per_robot"][name]["dead_reckoning"]["ate_rmse"]
