@@ -1,5 +1,5 @@
 """Benchmark: cooperative motion and structure on the rendered `crawler-pair` scenario
-(seed 003, /work/shared/seeds/003_8db27855ce2d5f68.txt, section III / Fig. 6: absolute
+(seed 003, 003_8db27855ce2d5f68.txt, section III / Fig. 6: absolute
 translation error per axis with N = 1, 2, 10, 20 feature points, N counting the robot
 tracker's point, so N - 1 KLT tracks).
 
@@ -52,6 +52,8 @@ OUT/error_curves.png, OUT/scale_error.png.
     .venv/bin/python scripts/bench_seed003.py --trials 2 --out out/bench_seed003_quick
     .venv/bin/python scripts/bench_seed003.py --out out/bench_seed003          # full: 16 trials
     .venv/bin/python scripts/bench_seed003.py --seed-offset 1000 --out out/bench_seed003_heldout
+
+(scripts/bench_seed003.py is a thin wrapper over this module.)
 """
 
 from __future__ import annotations
@@ -63,23 +65,20 @@ import time
 from dataclasses import asdict, replace
 from pathlib import Path
 
-import matplotlib
+import gtsam
+import numpy as np
+from tqdm import tqdm
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import gtsam  # noqa: E402
-import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
-
-from graphloc.baselines.ekf_seed003 import EkfConfig, run_ekf  # noqa: E402
-from graphloc.cooperative_sfm import (CooperativeSfmConfig, TeammateConfig, axis_errors,  # noqa: E402
+from graphloc.baselines.ekf_seed003 import EkfConfig, run_ekf
+from graphloc.cooperative_sfm import (CooperativeSfmConfig, TeammateConfig, axis_errors,
                                       genuine_candidates, measure_frames, run_cooperative_sfm, scale_errors,
                                       with_teammate_from_geometry)
-from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario  # noqa: E402
-from graphloc.factors.mixture import max_mixture_factor  # noqa: E402
-from graphloc.keys import pose_key  # noqa: E402
-from graphloc.vision.circle import circle_pose_from_rim  # noqa: E402
-from graphloc.vision.features import BlobConfig, FeatureConfig, detect_base_rim  # noqa: E402
+from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
+from graphloc.factors.mixture import max_mixture_factor
+from graphloc.keys import pose_key
+from graphloc.plots import plt
+from graphloc.vision.circle import circle_pose_from_rim
+from graphloc.vision.features import BlobConfig, FeatureConfig, detect_base_rim
 
 METHODS = ("ekf", "batch", "online", "batch_centre", "batch_crossings", "batch_crlb_circle", "batch_exact_circle")
 GRAPH_RUNS = {"batch": ("batch", "max_mixture", "refined"), "online": ("online", "max_mixture", "refined"),
