@@ -17,6 +17,7 @@ import numpy as np
 
 from graphloc.cameras import PinholeCamera
 from graphloc.datasets.feng import look_at
+from graphloc.datasets.scenarios import CameraTrackLog, parse_overrides, write_camera_track
 from graphloc.vision.render import RenderConfig, render_markers
 from graphloc.vision.target import LARGE_TARGET
 
@@ -52,8 +53,6 @@ class BreitenmoserTargetScenario:
     config_class = BreitenmoserConfig
 
     def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
-        from graphloc.datasets.scenarios import CameraTrackLog, parse_overrides, write_camera_track
-
         config = replace(BreitenmoserConfig(), **parse_overrides(BreitenmoserConfig, overrides))
         rng = np.random.default_rng(seed)
         out = Path(out_dir)

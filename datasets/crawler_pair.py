@@ -1,5 +1,5 @@
 """Scenario `crawler-pair`: two small crawlers on rough ground, rendered (seed 003,
-/work/shared/seeds/003_8db27855ce2d5f68.txt, section III: the tracked robot's 3.8 cm base
+003_8db27855ce2d5f68.txt, section III: the tracked robot's 3.8 cm base
 starts 83 cm from the moving robot's camera, the KLT-textured background 260 cm away;
 section II: the robots move and stop in turns).
 

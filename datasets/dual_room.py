@@ -28,7 +28,8 @@ import numpy as np
 import open3d as o3d
 
 from graphloc.cameras import PinholeCamera
-from graphloc.mapping.io import read_led_pixels, read_points, read_tum, write_tum
+from graphloc.eval import write_tum
+from graphloc.mapping.io import read_led_pixels, read_points, read_tum
 
 VARIANTS = ("furnished", "empty", "rectangular", "low_overlap")
 LED_SIDE = 0.3048  # seed 004 Sec. II.A

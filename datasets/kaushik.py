@@ -26,6 +26,7 @@ import numpy as np
 
 from graphloc.cameras import PinholeCamera
 from graphloc.datasets.feng import look_at, noisy_odometry, odometry_covariance, project_world, relative_poses
+from graphloc.datasets.scenarios import CameraTrackLog, parse_overrides, write_camera_track
 from graphloc.geometry.p3p import MAX_CANDIDATES, P3PCandidates, solve_p3p
 
 SIDE = 0.3048  # LED triangle side [m] (seed 004 Sec. II-A)
@@ -152,8 +153,6 @@ class KaushikP3PErrorScenario:
     config_class = KaushikConfig
 
     def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
-        from graphloc.datasets.scenarios import CameraTrackLog, parse_overrides, write_camera_track
-
         config = replace(KaushikConfig(runs=1, seed=seed), **parse_overrides(KaushikConfig, overrides))
         run = simulate(replace(config, runs=1))
         cov = [odometry_covariance(o, config.odometry_noise, config.odometry_rot_sigma) for o in run.odometry[0]]

@@ -27,8 +27,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
+from graphloc.datasets import _REGISTRY, dataset_class
+from graphloc.datasets.feng import (FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance,
+                                    seed000_camera)
 from graphloc.datasets.feng_deterministic import (Seed000Config, TableIConfig, ground_triangle,
                                                   simulate_straight_line_trials)
+from graphloc.eval import write_tum
 from graphloc.io import columns, write_manifest
 
 
@@ -60,14 +64,6 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
             raise ValueError(f"{config_class.__name__}.{key}: expected an integer, got {value!r}")
         out[key] = type(default)(value) if isinstance(default, (int, float)) and not isinstance(default, bool) else value
     return out
-
-
-def write_tum3(path: Path, times: np.ndarray, R: np.ndarray, t: np.ndarray) -> Path:
-    """TUM trajectory file of 3D poses: times (N,), rotations (N,3,3), positions (N,3)."""
-    q = Rotation.from_matrix(R).as_quat()  # x, y, z, w
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savetxt(path, np.column_stack([times, t, q]), fmt="%.9f", header="timestamp tx ty tz qx qy qz qw")
-    return path
 
 
 def _write_table(path: Path, table: str, rows: list) -> None:
@@ -114,7 +110,9 @@ def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
                for tk, px in zip(log.times, log.pixels) for j, (u, v) in enumerate(px) if np.isfinite([u, v]).all()]
     _write_table(out / obs / "markers.csv", "markers", markers)
     tables = {"markers": f"{obs}/markers.csv", "groundtruth": f"{obs}/groundtruth.tum"}
-    write_tum3(out / obs / "groundtruth.tum", log.times, log.R_wc, log.t_wc)
+    poses = np.broadcast_to(np.eye(4), (len(log.times), 4, 4)).copy()
+    poses[:, :3, :3], poses[:, :3, 3] = log.R_wc, log.t_wc
+    write_tum(out / obs / "groundtruth.tum", log.times, poses)
     sensors = []
     if log.odometry:
         rows = []
@@ -189,16 +187,9 @@ class FengProbabilisticLog:
 
     name = "feng-probabilistic"
 
-    @property
-    def config_class(self):
-        from graphloc.datasets.feng import FengProbabilisticConfig
-
-        return FengProbabilisticConfig
+    config_class = FengProbabilisticConfig
 
     def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
-        from graphloc.datasets.feng import (FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance,
-                                            seed000_camera)
-
         config = replace(FengProbabilisticConfig(seed=seed), **parse_overrides(FengProbabilisticConfig, overrides))
         run = FengProbabilisticScenario.simulate(config)
         cov = [odometry_covariance(o, config.odometry_noise, config.odometry_rot_sigma) for o in run.odometry]
@@ -211,6 +202,8 @@ class FengProbabilisticLog:
 
 
 def _dual_robot_room(out_dir, seed: int, **overrides) -> Path:
+    # imported here, not at the top: the room's ray-casting loads Open3D, which the seed 000 /
+    # 004 / 001 scenarios (and `graphloc --help`) do not need
     from graphloc.datasets.dual_room import DualRoomConfig, DualRoomScenario, variant_config
 
     kw = parse_overrides(DualRoomConfig, overrides)
@@ -227,8 +220,6 @@ ADAPTERS = {"feng-probabilistic": lambda out, seed, **o: FengProbabilisticLog().
 
 def generate(name: str, out_dir, seed: int = 0, overrides: dict | None = None) -> Path:
     """Write one run of scenario `name` to out_dir (the `graphloc simulate` pipeline)."""
-    from graphloc.datasets import dataset_class
-
     cls = dataset_class(name)  # raises for unknown names
     overrides = dict(overrides or {})
     if name in ADAPTERS:
@@ -239,6 +230,4 @@ def generate(name: str, out_dir, seed: int = 0, overrides: dict | None = None) -
 
 
 def scenario_names() -> list[str]:
-    from graphloc.datasets import _REGISTRY
-
     return sorted(n for n, (mod, cls) in _REGISTRY.items() if n in ADAPTERS or mod in ("scenarios", "kaushik", "breitenmoser"))

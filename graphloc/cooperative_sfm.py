@@ -1,5 +1,5 @@
 """Cooperative motion and structure from one camera with a teammate robot as the scale anchor
-(seed 003, /work/shared/seeds/003_8db27855ce2d5f68.txt: section II "robot tracker" gives the
+(seed 003, 003_8db27855ce2d5f68.txt: section II "robot tracker" gives the
 3D position of the teammate's base centre from its ellipse, II-B the motion estimator tracks
 KLT features; the robots move and stop in turns) as ONE factor graph solved by `Session`
 (batch Levenberg-Marquardt or online iSAM2, same factors):

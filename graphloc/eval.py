@@ -114,10 +114,21 @@ def ate_over_time(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, align
 
 
 def write_tum(path: str | Path, times: np.ndarray, poses: np.ndarray) -> Path:
-    """Write a planar trajectory as a TUM file (timestamp tx ty tz qx qy qz qw) via evo."""
+    """The one TUM writer (timestamp tx ty tz qx qy qz qw, via evo) for estimates, ground truth
+    and scenarios: times (F,) and poses either planar (F,3) [x, y, theta] or homogeneous
+    (F,4,4) 3D poses."""
     path = Path(path)
+    poses = np.asarray(poses, dtype=float)
+    times = np.asarray(times, dtype=float)
+    if poses.ndim == 3 and poses.shape[1:] == (4, 4) and len(poses) == len(times):
+        trajectory = PoseTrajectory3D(poses_se3=list(poses), timestamps=times)
+    elif poses.ndim == 2 and poses.shape[1] == 3 and len(poses) == len(times):
+        trajectory = planar_to_evo(times, poses)
+    else:
+        raise ValueError(f"write_tum: need (F,) times and (F,3) planar or (F,4,4) poses, "
+                         f"got {times.shape} and {poses.shape}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    file_interface.write_tum_trajectory_file(str(path), planar_to_evo(times, poses))
+    file_interface.write_tum_trajectory_file(str(path), trajectory)
     return path
 
 

@@ -81,6 +81,7 @@ from graphloc.factors.mixture import candidate_covariances, component_factors
 from graphloc.factors.odometry import check_covariance
 from graphloc.keys import pose_key
 from graphloc.seams import Decision, Odometry, check_frame
+from graphloc.session import read_data_file, write_data_file
 
 
 
@@ -203,8 +204,6 @@ class HypothesisTracker:
         """Write the tracker's whole state (config, tracks, commit, log-odds) to `path` as a
         versioned JSON file, atomically (`graphloc.session.write_data_file`); `load` resumes it
         with identical decisions."""
-        from graphloc.session import write_data_file
-
         tracks = [{"mean": np.asarray(t.mean.matrix()).ravel().tolist(),
                    "cov": t.cov.ravel().tolist(), "logw": t.logw, "id": t.track_id,
                    "candidate": t.candidate, "misses": t.misses} for t in self._tracks]
@@ -219,8 +218,6 @@ class HypothesisTracker:
     @classmethod
     def load(cls, path) -> "HypothesisTracker":
         """A tracker `save` wrote. ValueError naming the file and the field on anything else."""
-        from graphloc.session import read_data_file
-
         raw = read_data_file(path, cls._SAVE_FORMAT, cls._SAVE_VERSION, "hypothesis tracker",
                              allow_nan=True)
         try:

@@ -1,6 +1,6 @@
 """Example (issue 3): one PNG with the vision front-ends' detections and candidate poses.
 
-Panel 1 -- seed 001 (/work/shared/seeds/001_0f8f8dae37ce6b79.txt, IV-B/IV-C): a rendered
+Panel 1 -- seed 001 (001_0f8f8dae37ce6b79.txt, IV-B/IV-C): a rendered
 752x480 frame of the larger four-marker target with clutter and a partial occlusion; detected
 blobs, the true blob centroids, and every target hypothesis reprojected (markers + target axes).
 Panel 2 -- seed 003 (graphloc.vision.circle): a rendered disc, its rim, the fitted ellipse and
@@ -18,19 +18,16 @@ from pathlib import Path
 
 import cv2
 import gtsam
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera  # noqa: E402
-from graphloc.experiments.seed001 import look_at  # noqa: E402
-from graphloc.vision.circle import circle_pose_from_rim, render_circle_rim, rim_points_from_mask  # noqa: E402
-from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, marker_area_bounds  # noqa: E402
-from graphloc.vision.mutual import localize_three, render_mutual_pixels  # noqa: E402
-from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers  # noqa: E402
-from graphloc.vision.target import LARGE_TARGET, project_markers, target_hypotheses  # noqa: E402
+from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera
+from graphloc.experiments.seed001 import look_at
+from graphloc.plots import plt
+from graphloc.vision.circle import circle_pose_from_rim, render_circle_rim, rim_points_from_mask
+from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, marker_area_bounds
+from graphloc.vision.mutual import localize_three, render_mutual_pixels
+from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers
+from graphloc.vision.target import LARGE_TARGET, project_markers, target_hypotheses
 
 
 def panel_markers(ax, rng):

@@ -1,4 +1,4 @@
-"""Seed 003's motion estimator (/work/shared/seeds/003_8db27855ce2d5f68.txt, section II-B-2,
+"""Seed 003's motion estimator (003_8db27855ce2d5f68.txt, section II-B-2,
 eqs. 8-14, and the settings of section III): an Extended Kalman Filter in the
 Azarbayejani-Pentland form [1] with the state of eq. 13
 

@@ -17,6 +17,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    # imported here, not at the top: the simulators load rendering code and Open3D, which
+    # `graphloc --help` does not need
     from graphloc.datasets.scenarios import generate
 
     overrides = {}

@@ -1,5 +1,5 @@
 """Synthetic camera frames of spherical markers (LEDs or painted balls), for tests and the
-seed-001 reproduction (/work/shared/seeds/001_0f8f8dae37ce6b79.txt, section III: four identical
+seed-001 reproduction (001_0f8f8dae37ce6b79.txt, section III: four identical
 spherical markers; section V-A: 752x480 monochrome camera, 90 deg FOV).
 
 A sphere of radius r whose centre c is seen under the cone of half-angle asin(r/|c|) around

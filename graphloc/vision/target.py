@@ -1,6 +1,6 @@
 """Targets of four identical markers: hypotheses from detected blobs, pose prediction, design.
 
-Seed 001 (/work/shared/seeds/001_0f8f8dae37ce6b79.txt):
+Seed 001 (001_0f8f8dae37ce6b79.txt):
 - section IV-C "Pose update": all (n*m)! = 24 marker assignments x up to 4 P3P solutions
   (<= 96) in one batched `solve_p3p` call; the fourth marker's reprojection removes the wrong
   ones; a predicted pose restricts the assignments to those whose detections lie near the
