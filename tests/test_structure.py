@@ -1,0 +1,145 @@
+"""The package's shape (issue 13): every module imports in a fresh interpreter; the package
+dependency graph (graphloc's subpackages and top-level modules, every import counted,
+function-level ones included) has no cycle; only graphloc/plots.py sets the matplotlib
+backend; no source line holds an absolute machine path."""
+
+import ast
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+# source folder -> the package it is installed as (pyproject.toml's package-dir)
+SOURCES = {"graphloc": ROOT / "graphloc", "graphloc.factors": ROOT / "factors",
+           "graphloc.datasets": ROOT / "datasets"}
+# cycles whose breaking needs files that other work owns right now: each entry names why; the
+# test fails when one is gone, so that the entry goes too
+KNOWN_CYCLES = {
+    # graphloc.mapping.{demo,fusion} import the dual_room scenario, and datasets/dual_room.py
+    # reads its scans with graphloc.mapping.io: the fusion pipeline must take a run instead
+    frozenset({"graphloc.datasets", "graphloc.mapping"}),
+}
+# files that still set the backend or hold a machine path, owned by other work right now
+BACKEND_PENDING = {"graphloc/mapping/report.py", "scripts/bench_fusion.py"}
+PATH_PENDING = {"graphloc/vision/markers.py", "tests/test_mrclam.py"}
+
+
+def modules() -> dict[str, Path]:
+    """Every module of the installed package -> its source file."""
+    out = {}
+    for package, folder in SOURCES.items():
+        for path in sorted(folder.rglob("*.py")):
+            parts = list(path.relative_to(folder).with_suffix("").parts)
+            duplicate = package == "graphloc" and parts[0] in ("factors", "datasets")
+            if duplicate or parts[-1] == "__main__":  # __main__ runs the CLI
+                continue
+            out[".".join([package] + [p for p in parts if p != "__init__"])] = path
+    return out
+
+
+def unit(module: str) -> str:
+    """The node of the package graph a module belongs to: graphloc.<first component>."""
+    parts = module.split(".")
+    return ".".join(parts[:2])
+
+
+def imported(module: str, path: Path) -> set[str]:
+    """Every graphloc module or name `module` imports, at any depth of the file."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:  # relative: from the module's package, level - 1 packages up
+                package = module.split(".")
+                package = package if path.name == "__init__.py" else package[:-1]
+                package = package[: len(package) - (node.level - 1)]
+                base = ".".join(package + ([base] if base else []))
+            out.add(base)
+            out.update(f"{base}.{a.name}" for a in node.names)
+    return {m for m in out if m.startswith("graphloc.")}
+
+
+def package_graph() -> dict[str, set[str]]:
+    graph: dict[str, set[str]] = {}
+    for module, path in modules().items():
+        source = unit(module)
+        for target in imported(module, path):
+            if unit(target) not in (source, "graphloc") and target.count(".") >= 1:
+                graph.setdefault(source, set()).add(unit(target))
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[frozenset]:
+    """Strongly connected components with more than one node (Tarjan)."""
+    index, low, stack, on, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = set()
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                component.add(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(frozenset(component))
+
+    for v in sorted(set(graph) | {w for ws in graph.values() for w in ws}):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_every_module_imports_in_a_fresh_interpreter():
+    names = sorted(modules())
+    code = ("import importlib, sys\n"
+            f"for name in {names!r}:\n"
+            "    importlib.import_module(name)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert done.returncode == 0, done.stderr[-3000:]
+
+
+def test_package_dependency_graph_is_acyclic():
+    found = set(cycles(package_graph()))
+    assert found <= KNOWN_CYCLES, f"import cycles between packages: {found - KNOWN_CYCLES}"
+    assert KNOWN_CYCLES <= found, f"cycles fixed, remove from KNOWN_CYCLES: {KNOWN_CYCLES - found}"
+
+
+def test_the_graph_sees_function_level_imports():
+    graph = package_graph()
+    # graphloc.commands.reproduce imports the experiments inside `run` (not for --help)
+    assert "graphloc.experiments" in graph["graphloc.commands"]
+
+
+def _sources():
+    for folder in ("graphloc", "factors", "datasets", "scripts", "tests"):
+        yield from sorted((ROOT / folder).rglob("*.py"))
+
+
+def test_only_plots_sets_the_matplotlib_backend():
+    setters = {p.relative_to(ROOT).as_posix() for p in _sources()
+               if re.search(r"matplotlib\.use\(", p.read_text(encoding="utf-8"))
+               and p.name != "test_structure.py"}
+    assert setters - BACKEND_PENDING == {"graphloc/plots.py"}
+    assert BACKEND_PENDING <= setters, f"fixed, remove: {BACKEND_PENDING - setters}"
+
+
+def test_no_absolute_machine_paths_in_the_code():
+    machine = re.compile("/" + "(work|root)/")
+    holders = {p.relative_to(ROOT).as_posix() for p in _sources()
+               if machine.search(p.read_text(encoding="utf-8"))}
+    assert holders <= PATH_PENDING, f"absolute machine paths in {sorted(holders - PATH_PENDING)}"
+    assert PATH_PENDING <= holders, f"fixed, remove: {PATH_PENDING - holders}"
