@@ -95,15 +95,17 @@ def test_base_rim_and_colour_score_return_or_raise_value_error(img):
 
 
 @FAST
-@given(a=images(), b=images(),
+@given(a=images(), data=st.data(),
        points=hnp.arrays(np.float64, st.tuples(st.integers(0, 4), st.just(2)),
                          elements=st.floats(-1e6, 1e6)))
-def test_klt_entry_points_return_or_raise_value_error(a, b, points):
+def test_klt_entry_points_return_or_raise_value_error(a, data, points):
+    b = data.draw(st.one_of(st.just(a[::-1].copy()), images()), label="b")  # often the same shape
     try:
         tracked, ok, fb = track_forward_backward(a, b, points)
     except ValueError:
         assert not (_valid_image(a) and _valid_image(b) and a.shape[:2] == b.shape[:2])
     else:
+        assert _valid_image(a) and _valid_image(b)
         assert tracked.shape == points.shape and ok.shape == fb.shape == (len(points),)
     tracker = FeatureTracker(FeatureConfig(max_features=4, border=1))
     for img in (a, b):
@@ -111,13 +113,13 @@ def test_klt_entry_points_return_or_raise_value_error(a, b, points):
             frame = tracker.step(img)
         except ValueError:
             continue
-        assert frame.pixels.shape == (len(frame.ids), 2)
+        assert _valid_image(img) and frame.pixels.shape == (len(frame.ids), 2)
     try:
         corners = detect_corners(a, 3)
     except ValueError:
         assert not _valid_image(a)
     else:
-        assert corners.shape[1] == 2 and len(corners) <= 3
+        assert _valid_image(a) and corners.shape[1] == 2 and len(corners) <= 3
 
 
 @FAST
