@@ -343,17 +343,23 @@ def read_data_file(path: str | Path, fmt: str, version: int, what: str,
 
 def write_atomically(path: Path, data: bytes) -> None:
     """Write `data` to a temporary file beside `path`, fsync it, rename it over `path` and fsync
-    the directory: `path` holds either the old or the new content, never a partial one."""
-    directory = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    the directory: `path` holds either the old or the new content, never a partial one. An
+    OSError (missing directory, disk full, `path` a directory) names `path`."""
+    directory = path.parent
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:
+        raise type(exc)(exc.errno, f"{path}: cannot write ({exc.strerror})") from None
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise type(exc)(exc.errno, f"{path}: cannot write ({exc.strerror})") from None
         raise
     try:
         dir_fd = os.open(directory, os.O_RDONLY)

@@ -141,6 +141,35 @@ def test_circle_entry_points_return_or_raise_value_error(mask, points):
         assert ellipse.shape == (5,)
 
 
+PIXELS = st.one_of(st.floats(-1e4, 1e4),
+                   st.sampled_from([0.0, 1e300, -1e300, np.nan, np.inf, 320.0, 240.0]))
+
+
+@FAST
+@given(det=hnp.arrays(np.float64, st.tuples(st.integers(0, 5), st.integers(1, 3)), elements=PIXELS),
+       px=hnp.arrays(np.float64, st.tuples(st.integers(0, 2), st.just(3), st.just(3), st.just(2)),
+                     elements=PIXELS),
+       baseline=st.one_of(st.floats(allow_nan=True), st.just(1.0)))
+def test_target_and_mutual_pixels_return_or_raise_value_error(det, px, baseline):
+    """The pixel-level front-ends (seed 001 target, seed 000 mutual observation) on arbitrary
+    arrays: a CandidateSet / ThreeRobotPoses of finite poses, or a ValueError."""
+    from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera
+    from graphloc.vision.mutual import localize_three
+    from graphloc.vision.target import target_hypotheses
+
+    try:
+        cands = target_hypotheses(det, PinholeCamera(500.0, 500.0, 320.0, 240.0, 640, 480))
+    except ValueError:
+        pass  # what must not happen is any other exception (finite input may still be refused)
+    else:
+        assert np.isfinite(cands.R).all() and np.isfinite(cands.t).all()
+    try:
+        poses = localize_three(px, ParaboloidOmniCamera(200.0, 640), baseline)
+    except ValueError:
+        return
+    assert len(poses.R) == len(px)
+
+
 VISION_CORPUS = [  # (call, the exact reason)
     (lambda: detect_markers(np.zeros((0, 0), np.uint8)),
      r"marker image is 0x0 px \(width x height\); at least 1x1 px needed"),

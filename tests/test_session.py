@@ -497,13 +497,18 @@ def test_save_is_atomic(tmp_path, monkeypatch):
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(os, "fsync", failing_fsync)
-    with pytest.raises(OSError, match="No space left"):
+    with pytest.raises(OSError, match=r"s\.json: cannot write \(No space left on device\)"):
         bigger.save(path)
     monkeypatch.undo()
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json"]
     bigger.save(path)
     assert Session.load(path).graph.size() == 2
+    with pytest.raises(FileNotFoundError, match=r"nodir/s\.json: cannot write \(No such file"):
+        bigger.save(tmp_path / "nodir" / "s.json")
+    with pytest.raises(IsADirectoryError, match=r"cannot write \(Is a directory\)"):
+        bigger.save(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json"]
 
 
 def test_save_names_what_it_cannot_write(tmp_path):
