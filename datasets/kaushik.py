@@ -27,7 +27,7 @@ import numpy as np
 from graphloc.cameras import PinholeCamera
 from graphloc.datasets.feng import look_at, noisy_odometry, odometry_covariance, project_world, relative_poses
 from graphloc.datasets.scenarios import CameraTrackLog, parse_overrides, write_camera_track
-from graphloc.geometry.p3p import MAX_CANDIDATES, P3PCandidates, solve_p3p
+from graphloc.geometry.p3p import P3PCandidates, solve_p3p
 
 SIDE = 0.3048  # LED triangle side [m] (seed 004 Sec. II-A)
 FOCALS_MM = (16.0, 26.0, 36.0)

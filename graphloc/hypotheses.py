@@ -77,7 +77,7 @@ import gtsam
 import numpy as np
 
 from graphloc.candidates import CandidateSet
-from graphloc.factors.mixture import candidate_covariances, component_factors
+from graphloc.factors.mixture import candidate_covariances
 from graphloc.factors.odometry import check_covariance
 from graphloc.keys import pose_key
 from graphloc.seams import Decision, Odometry, check_frame

@@ -7,7 +7,8 @@ inputs and return the same decisions, so both import them from here and neither 
   frame's P3P candidates.
 - `TeammateObservation`, `FrameInput`, `MotionNoise`: one frame of seed 003 (section II-B:
   KLT features, the teammate's base circle, who moved; eq. 8 process noise), shared by the
-  graph (`graphloc.cooperative_sfm`) and the seed's EKF (`graphloc.baselines.ekf_seed003`).
+  graph (`graphloc.pipelines.cooperative_sfm`) and the seed's EKF
+  (`graphloc.baselines.ekf_seed003`).
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ import numpy as np
 
 from graphloc.candidates import CandidateSet
 from graphloc.factors.odometry import check_covariance
-from graphloc.vision.features import FrameFeatures
 
 
 @dataclass(frozen=True)
@@ -33,7 +33,8 @@ class Odometry:
     def __post_init__(self):
         if not isinstance(self.relative, gtsam.Pose3):
             raise ValueError(
-                f"Odometry.relative must be gtsam.Pose3, got {type(self.relative).__name__}")
+                f"Odometry.relative must be gtsam.Pose3, got {type(self.relative).__name__}"
+            )
         m = self.relative.matrix()
         if not np.isfinite(m).all():
             raise ValueError("Odometry.relative contains NaN/inf")
@@ -66,15 +67,18 @@ def check_frame(candidates, odometry, first: bool, last_time: float | None, who:
     """Shared input validation of the trackers: types, odometry presence, monotonic time."""
     if not isinstance(candidates, CandidateSet):
         raise ValueError(
-            f"{who}: candidates must be a CandidateSet, got {type(candidates).__name__}")
+            f"{who}: candidates must be a CandidateSet, got {type(candidates).__name__}"
+        )
     if not first and odometry is None:
         raise ValueError(
-            f"{who}: odometry is required after the first frame (time={candidates.time})")
+            f"{who}: odometry is required after the first frame (time={candidates.time})"
+        )
     if odometry is not None and not isinstance(odometry, Odometry):
         raise ValueError(f"{who}: odometry must be an Odometry, got {type(odometry).__name__}")
     if last_time is not None and not candidates.time > last_time:
         raise ValueError(
-            f"{who}: time going backwards or repeated: {candidates.time} after {last_time}")
+            f"{who}: time going backwards or repeated: {candidates.time} after {last_time}"
+        )
 
 
 @dataclass(frozen=True)
@@ -103,12 +107,15 @@ class TeammateObservation:
 @dataclass(frozen=True)
 class FrameInput:
     """Everything the estimators get for one frame (the same for the graph and the EKF).
-    camera_moved / teammate_moved: whether that robot moved since the previous frame (the
-    robots move and stop in turns and know when they move); teammate_odometry [m], std [m]:
-    its own odometry distance since the previous frame (0 when it stood still)."""
+    features: the frame's KLT tracks, `graphloc.vision.features.FrameFeatures` (ids (N,),
+    pixels (N,2); the front-end's type, named here without importing it: the front-ends
+    import this module); camera_moved / teammate_moved: whether that robot moved since the
+    previous frame (the robots move and stop in turns and know when they move);
+    teammate_odometry [m], std [m]: its own odometry distance since the previous frame (0 when
+    it stood still)."""
 
     time: float
-    features: FrameFeatures
+    features: "FrameFeatures"  # noqa: F821  (graphloc.vision.features)
     teammate: TeammateObservation | None
     camera_moved: bool
     teammate_moved: bool

@@ -9,13 +9,13 @@ import pytest
 from graphloc.baselines.ekf_seed003 import run_ekf
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
-from graphloc.seams import FrameInput, TeammateObservation
-from graphloc.cooperative_sfm import (TEAMMATE_MODELS, CooperativeSfm, CooperativeSfmConfig,
-                                      TeammateConfig, axis_errors, genuine_candidates,
-                                      ideal_frames, measure_frames, run_cooperative_sfm, scale_errors,
-                                      disk_pose_covariance, teammate_observation, trajectory_scale,
-                                      with_teammate_from_geometry)
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
+from graphloc.datasets.seed003_geometry import genuine_candidates, ideal_frames, with_teammate_from_geometry
+from graphloc.eval import axis_errors, scale_errors, trajectory_scale
+from graphloc.pipelines.cooperative_sfm import (TEAMMATE_MODELS, CooperativeSfm, CooperativeSfmConfig,
+                                                disk_pose_covariance, run_cooperative_sfm)
+from graphloc.seams import FrameInput, TeammateObservation
+from graphloc.vision.teammate import TeammateConfig, measure_frames, teammate_observation
 from graphloc.keys import pose_key
 from graphloc.session import Session
 from graphloc.vision.circle import rotations_from_normals

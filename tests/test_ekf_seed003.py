@@ -5,7 +5,7 @@ import pytest
 
 from graphloc.baselines.ekf_seed003 import (N_MOTION, TRACKER_ID, EkfConfig, Seed003Ekf, incremental_rotation,
                                             run_ekf)
-from graphloc.cooperative_sfm import axis_errors
+from graphloc.eval import axis_errors
 from graphloc.seams import FrameInput
 from graphloc.vision.features import FrameFeatures
 

@@ -213,7 +213,7 @@ def test_failed_refinement_is_reported_not_raised(monkeypatch):
     assert blob.refinement is None and "diverged (test)" in blob.refine_error
     assert blob.exclusion.sum() > 0 and len(blob.crossings) > 40
 
-    from graphloc.cooperative_sfm import TeammateConfig, measure_frames
+    from graphloc.vision.teammate import TeammateConfig, measure_frames
     images = np.stack([img, img])
     frames, report = measure_frames(images, PinholeCamera.from_fov(640, 480, np.radians(50)), [0, 1], [0, 0],
                                     [0, 0], [0, 0], teammate=TeammateConfig())

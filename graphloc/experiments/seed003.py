@@ -6,7 +6,7 @@ tracker's point, so N - 1 KLT tracks).
 Every trial renders one sequence (a different random scene and motion per trial) and runs the
 same front-end measurements (KLT tracks, circle candidates) through
   - ekf:    the seed's EKF (graphloc.baselines.ekf_seed003, 'proper' tracker covariance),
-  - batch:  graphloc.cooperative_sfm through Session batch LM (final smoothed trajectory), the
+  - batch:  graphloc.pipelines.cooperative_sfm through Session batch LM (final smoothed trajectory), the
             two circle candidates of each sighting as a max-mixture on the relative pose
             (factors.mixture.max_mixture_factor; centre and normal),
   - online: the same factors through Session iSAM2; each frame's estimate when it arrived
@@ -70,15 +70,16 @@ import numpy as np
 from tqdm import tqdm
 
 from graphloc.baselines.ekf_seed003 import EkfConfig, run_ekf
-from graphloc.cooperative_sfm import (CooperativeSfmConfig, TeammateConfig, axis_errors,
-                                      genuine_candidates, measure_frames, run_cooperative_sfm, scale_errors,
-                                      with_teammate_from_geometry)
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
+from graphloc.datasets.seed003_geometry import genuine_candidates, with_teammate_from_geometry
+from graphloc.eval import axis_errors, scale_errors
 from graphloc.factors.mixture import max_mixture_factor
 from graphloc.keys import pose_key
+from graphloc.pipelines.cooperative_sfm import CooperativeSfmConfig, run_cooperative_sfm
 from graphloc.plots import plt
 from graphloc.vision.circle import circle_pose_from_rim
 from graphloc.vision.features import BlobConfig, FeatureConfig, detect_base_rim
+from graphloc.vision.teammate import TeammateConfig, measure_frames
 
 METHODS = ("ekf", "batch", "online", "batch_centre", "batch_crossings", "batch_crlb_circle", "batch_exact_circle")
 GRAPH_RUNS = {"batch": ("batch", "max_mixture", "refined"), "online": ("online", "max_mixture", "refined"),
