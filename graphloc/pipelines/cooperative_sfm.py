@@ -36,12 +36,11 @@ track, and Session (append-only `add`) cannot tell iSAM2 that an added factor ch
 and online see the same factors, added frame by frame through one `Session`.
 
 The circle front-end (`graphloc.vision.circle`) returns BOTH poses of the base (the ellipse
-cannot tell them apart). On crawler-pair their centres are 0.04-0.19 mm apart at 0.8 m, but
-their normals ~15-21 deg (the genuine one within 0.6 deg of the truth with the refined rim --
-0.2 deg median, scripts/bench_seed003.py -- the false one tilted ~4.5 deg out of the vertical
-plane, and drifting as the robots move). Both enter as a
-max-mixture: the genuine candidate is the one consistent with the other sightings (tied by the
-teammate's zero-motion factors) and with its upright attitude, so the graph picks it per frame
+cannot tell them apart). Their centres nearly coincide but their normals differ widely (the
+front-end table of docs/results_seed003.md measures both; the false normal also tilts out of
+the vertical plane and drifts as the robots move). Both enter as a max-mixture: the genuine
+candidate is the one consistent with the other sightings (tied by the teammate's zero-motion
+factors) and with its upright attitude, so the graph picks it per frame
 (`CooperativeSfm.active_components`, `SfmRun.active_final` / `active_causal`) and the normal
 constrains the camera attitude too. In online mode the choice is re-evaluated only when iSAM2
 relinearizes x(0,t) or x(1,t) (see `factors.mixture.MaxMixture`); the session default
@@ -89,26 +88,19 @@ class CooperativeSfmConfig:
     teammate_model: 'max_mixture' (default: each sighting's circle candidates as a max-mixture
     on the relative pose camera -> base) or 'moment_matched_centre' (baseline: the candidates'
     centres moment-matched into one Gaussian on a Point3, normals unused);
-    normal_sigma [rad]: disk-normal noise of one candidate. On crawler-pair seeds 100-103 (not
-    used by the benchmark) the genuine normal from the edge crossings was 0.15-0.97 deg off,
-    with a bias shared by the frames, so 0.015 rad made the camera attitude follow that bias
-    (x error 0.17 vs 0.11 mm at N = 10); 0.03 keeps the gain at N = 1 (x 3.2 vs 6.0 mm) and
-    matches the baseline at N = 10. With the refined rim (0.2 deg median error) 0.015 and
-    0.008 still raised the N = 10 x error (0.12, 0.23 vs 0.10 mm on seeds 100-107) and left
-    the scale error as it was, so 0.03 stays; the false normal, ~20 deg off, stays > 10 sigma
-    away;
+    normal_sigma [rad]: disk-normal noise of one candidate, tuned on crawler-pair seeds
+    100-107 (not used by the benchmark): the genuine normal carries a bias shared by the
+    frames, and a tighter sigma made the camera attitude follow it (larger x error at
+    N = 10) without improving the scale; the false normal stays many sigmas away;
     circle_yaw_sigma [rad]: rotation about the normal, unobservable from a circle (loose);
     upright_sigma [rad]: the teammate stands on the ground -- its base's y axis (in the disk
     plane, circle convention of `graphloc.vision.circle`) is vertical, i.e. world -y (world =
     camera 0, level), up to ground roughness and the normal's bias; one prior per pose the
-    teammate stands in (0.02 pulled the camera pitch: y error 0.16 vs 0.11 mm at N = 10 on
-    seeds 100-103; 0.05 does not);
+    teammate stands in (tuned on seeds 100-103: a tighter prior pulls the camera pitch);
     session: the engine (mode batch / online; online default: two extra iSAM2 iterations per
     frame, since new landmarks start at the common depth and one step is not enough, with the
     dog-leg step: with the refined rim's tight depth noise the undamped Gauss-Newton step
-    oscillated with period 2 on crawler-pair seed 9, N = 20 -- causal error alternating 0.1 /
-    1.7 mm frame to frame, mean 1.5 mm vs 0.63 mm with dog-leg; over seeds 0, 4, 9, 12 the mean
-    causal error was 0.74 vs 0.52 mm)."""
+    oscillated with period 2 on crawler-pair seed 9, N = 20, which the dog-leg step does not)."""
 
     pixel_sigma: float = 1.0
     kernel: Kernel = Kernel("huber", 1.345)

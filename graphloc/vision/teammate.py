@@ -24,18 +24,15 @@ from graphloc.vision.features import BlobConfig, FeatureConfig, FeatureTracker, 
 class TeammateConfig:
     """radius [m] of the base disk; blob: its colour signature; circle: ellipse-fit settings;
     radius_pixel_floor, centre_pixel_floor [px]: lower bounds of the ellipse radius and centre
-    accuracy used for the centre covariance (the edge fit's own sigmas, ~0.0047 / 0.0036 px,
-    are slightly optimistic). Calibrated on crawler-pair seeds 100-102 (not used by the
-    benchmark, 48 frames at 0.73-0.83 m) with the refined rim (BlobConfig.refine_edges):
-    depth error RMS 0.34 mm (= 0.007 px of ellipse radius), lateral 0.006 mm (= 0.004 px of
-    centre per axis). The centre floor is nevertheless 0.03 px: the two candidates' centres
-    differ by ~0.1 px, and at 0.006 px that difference (~20 sigma) outweighed the normals'
-    ~20 deg in the max-mixture's choice whenever the camera pose was a fraction of a millimetre
-    off -- online, after the teammate moved, iSAM2 then kept the false candidate (seeds 3-4 of
-    scripts/bench_seed003.py, N = 2, 10, 20: 17 wrong choices; none at 0.03, and none in the
-    bench's 16 x 4 x 16 online sightings). With the edge crossings alone
-    (refine_edges=False) the errors were 0.48 mm (0.01 px) and 0.09 mm (0.08 px): set the
-    floors to those for that front-end."""
+    accuracy used for the centre covariance (the edge fit's own sigmas are slightly
+    optimistic). The radius floor is the refined rim's (BlobConfig.refine_edges) depth accuracy
+    calibrated on crawler-pair seeds 100-102 (not used by the benchmark). The centre floor is
+    set above that calibration on purpose: the two candidates' centres differ by a fraction of
+    a pixel, and with the calibrated floor that difference outweighed the normals in the
+    max-mixture's choice whenever the camera pose was slightly off, so that online iSAM2 kept
+    the false candidate after the teammate moved (seeds 3-4 of graphloc.experiments.seed003).
+    With the edge crossings alone (refine_edges=False) calibrate both floors for that
+    front-end (graphloc.experiments.seed003.teammate_config)."""
 
     radius: float = 0.019
     blob: BlobConfig = BlobConfig()
