@@ -28,6 +28,7 @@ from functools import cached_property
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from graphloc.cameras import PinholeCamera
 from graphloc.vision.circle import render_circle_rim, rotations_from_normals
@@ -392,7 +393,6 @@ class CrawlerPairScenario:
         R, t, centre, normal, odo, odo_std = self.trajectories(rng)
         frames = range(cfg.n_frames)
         if progress:
-            from tqdm import tqdm
             frames = tqdm(frames, desc=f"render crawler-pair seed {cfg.seed}", leave=False)
         images = np.stack([self.render(R[k], t[k], centre[k], normal[k], rng) for k in frames])
         return CrawlerPairSequence(images, R, t, centre, normal, tuple(cfg.schedule), odo, odo_std, cfg.camera(),

@@ -25,6 +25,7 @@ import cv2
 import gtsam
 import numpy as np
 from scipy.optimize import minimize
+from tqdm import tqdm
 
 from graphloc.candidates import CandidateSet
 from graphloc.geometry.p3p import solve_p3p
@@ -363,7 +364,6 @@ def design_targets(config: TargetDesignConfig = TargetDesignConfig(), progress: 
     best_x, best_f, finals = None, -np.inf, []
     iterator = starts
     if progress:
-        from tqdm import tqdm
         iterator = tqdm(starts, desc="target design (Nelder-Mead)")
     for s in iterator:
         x = samples[s].ravel()
