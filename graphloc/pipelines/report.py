@@ -19,8 +19,6 @@ from graphloc.pipelines.team_graph import GraphConfig, TeamResult, build_graph, 
 from graphloc.plots import Series, plot_series, plot_trajectories
 from graphloc.run import TeamRun
 
-CORRECT_DISTANCE = 0.25  # [m] a committed candidate this close to the truth is the genuine one
-
 
 def _trajectory(times: np.ndarray, rows: np.ndarray) -> PoseTrajectory3D:
     """(N,) times and (N,7) x y z qx qy qz qw rows -> evo trajectory (evo's quaternions are w first)."""
@@ -89,7 +87,8 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
         "latency_ms": latency, "per_robot": per_robot,
         "decisions": {"candidate_sets": len(decisions), "committed": sum(d.committed >= 0 for d in decisions),
                       "first_commit_time": first, "with_genuine_known": len(judged),
-                      "wrong": sum(d.committed != g for d, g in judged)},
+                      "wrong": sum(g not in d.same_pose for d, g in judged),
+                      "genuine_merged": sum(g != d.committed and g in d.same_pose for d, g in judged)},
         "downweighted": result.downweighted, "counts": result.graph.counts, "tables": run.contributions,
         "skipped": result.graph.skips.as_dict(),
     }
@@ -118,7 +117,7 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
         w.writerow(["time", "robot", "target", "candidates", "committed", "probability", "genuine", "correct",
                     "x", "y", "z", "qx", "qy", "qz", "qw"])
         for d, g in zip(decisions, genuine_candidates(run, decisions)):
-            correct = "" if d.committed < 0 or g < 0 else int(d.committed == g)
+            correct = "" if d.committed < 0 or g < 0 else int(g in d.same_pose)
             w.writerow([f"{d.time:.6f}", run.robots[d.robot].name, run.robots[d.target].name,
                         len(d.candidates_xyz), d.committed, f"{d.probability:.6g}", g, correct,
                         *(f"{v:.9g}" for v in d.pose)])
@@ -178,10 +177,7 @@ def _rejected_candidates(run: TeamRun, result: TeamResult) -> np.ndarray:
 
 def genuine_candidates(run: TeamRun, decisions: list, max_time_diff: float = 0.02) -> list[int]:
     """Per decision, the genuine candidate: the one nearest the observer's true position (ground
-    truth within max_time_diff of the set's time), or -1 where the run has no ground truth there.
-    Near the P3P fold two candidates nearly coincide, so a committed candidate within
-    CORRECT_DISTANCE of the truth counts as genuine too (the rule of the seed 000 Table III
-    benchmark, `graphloc.experiments.hypotheses.WRONG_DISTANCE`)."""
+    truth within max_time_diff of the set's time), or -1 where the run has no ground truth there."""
     out = []
     for d in decisions:
         gt = run.groundtruth[d.robot]
@@ -192,9 +188,7 @@ def genuine_candidates(run: TeamRun, decisions: list, max_time_diff: float = 0.0
         if abs(gt[0][i] - d.time) > max_time_diff or not len(d.candidates_xyz):
             out.append(-1)
             continue
-        dist = np.linalg.norm(d.candidates_xyz - gt[1][i].translation(), axis=1)
-        near = d.committed >= 0 and dist[d.committed] < CORRECT_DISTANCE
-        out.append(d.committed if near else int(np.argmin(dist)))
+        out.append(int(np.argmin(np.linalg.norm(d.candidates_xyz - gt[1][i].translation(), axis=1))))
     return out
 
 

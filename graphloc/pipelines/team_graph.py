@@ -50,6 +50,8 @@ from graphloc.run import TeamRun, planar_covariance, pose_from_planar
 from graphloc.seams import Odometry
 from graphloc.session import Session, SessionConfig
 
+COARSE_PRECISION = 0.1  # [m, rad] scale of a run without pose measurements (wheels, range-bearing)
+FINE_PRECISION = 0.002  # the finest precision iSAM2's thresholds follow
 ANCHOR_BASE = 100_000_000  # landmark_key(ANCHOR_BASE + j): j-th per-observation anchor of a known landmark
 
 
@@ -61,7 +63,11 @@ class GraphConfig:
     [rad], trans [m]) of initial-pose priors a robot does not state; static_sigma of static
     robots' poses; surface_sigma [m]: distance of a climbing robot from its surface;
     landmark_prior_floor [m]; unknown_motion_sigma (rot, trans) between frames of a robot with
-    no odometry; tracker: the HypothesisTracker deciding candidate sets; session settings."""
+    no odometry; tracker: the HypothesisTracker deciding candidate sets; decision_threshold: a
+    set is decided -- its candidate enters the graph -- when the tracker has committed to a
+    track and that track's candidate in the set, with the candidates that are the same pose
+    within their covariances (`_same_pose`), has at least this posterior; session settings
+    (iSAM2 thresholds None: set from the run's precision, `run_precision`)."""
 
     keyframe_dt: float = 0.25
     sync_tolerance: float = 0.02
@@ -78,13 +84,17 @@ class GraphConfig:
     landmark_prior_floor: float = 0.01
     unknown_motion_sigma: tuple = (3.0, 100.0)
     tracker: TrackerConfig = TrackerConfig()
+    decision_threshold: float = 0.8  # see the docstring
     downweight_threshold: float = 0.1
-    relinearize_threshold: float = 0.05
+    relinearize_threshold: float | None = None
     relinearize_skip: int = 10
-    wildfire_threshold: float = 0.01
+    wildfire_threshold: float | None = None
+    extra_updates: int | None = None
     lm_max_iterations: int = 100
 
     def __post_init__(self):
+        if not 0.5 <= self.decision_threshold < 1.0:
+            raise ValueError(f"GraphConfig.decision_threshold must be in [0.5, 1), got {self.decision_threshold}")
         for name in ("keyframe_dt", "sync_tolerance", "surface_sigma", "landmark_prior_floor"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -94,10 +104,18 @@ class GraphConfig:
             if len(v) != 2 or not all(np.isfinite(s) and s > 0 for s in v):
                 raise ValueError(f"GraphConfig.{name} must be 2 numbers > 0 (rot, trans), got {v}")
 
-    def session_config(self, mode: str) -> SessionConfig:
-        return SessionConfig(mode=mode, lm_max_iterations=self.lm_max_iterations,
-                             relinearize_threshold=self.relinearize_threshold, relinearize_skip=self.relinearize_skip,
-                             wildfire_threshold=self.wildfire_threshold, partial_relinearization_check=True)
+    def session_config(self, mode: str, precision: float = COARSE_PRECISION) -> SessionConfig:
+        """Session settings; iSAM2's settings, unless set, follow the run's `precision` (see
+        `run_precision`): relinearize when a variable's update exceeds half of it, stop the
+        back-substitution where the solution changes by less than a tenth of it, and on
+        camera-precise runs two extra iSAM2 iterations per step (robust candidate factors need
+        iterations to reweight; such runs have few steps)."""
+        relin = self.relinearize_threshold if self.relinearize_threshold is not None else 0.5 * precision
+        wildfire = self.wildfire_threshold if self.wildfire_threshold is not None else 0.1 * precision
+        extra = self.extra_updates if self.extra_updates is not None else (2 if precision < COARSE_PRECISION else 0)
+        return SessionConfig(mode=mode, lm_max_iterations=self.lm_max_iterations, relinearize_threshold=relin,
+                             relinearize_skip=self.relinearize_skip, wildfire_threshold=wildfire,
+                             extra_updates=extra, partial_relinearization_check=True)
 
 
 def _cov(sig: tuple) -> np.ndarray:
@@ -113,7 +131,8 @@ def _adjoint_cov(T: gtsam.Pose3, cov: np.ndarray) -> np.ndarray:
 class Decision:
     """What happened to one candidate set: where each candidate puts the observer's body
     (K,3 world), the committed candidate (-1: none), its posterior (else the largest one) and
-    the committed body pose (x, y, z, qx, qy, qz, qw; NaN if none)."""
+    the committed body pose (x, y, z, qx, qy, qz, qw; NaN if none); same_pose: the candidates
+    that are the committed one's pose within their covariances (`_same_pose`), it included."""
 
     time: float
     robot: int
@@ -122,6 +141,7 @@ class Decision:
     committed: int
     probability: float
     pose: np.ndarray
+    same_pose: list
 
 
 @dataclass
@@ -140,6 +160,7 @@ class TeamGraph:
     step_rel: list  # per robot (relative Pose3 from node k-1, covariance) for k >= 1 (None: unknown)
     counts: dict = field(default_factory=dict)
     skips: SkipReport = field(default_factory=SkipReport)
+    precision: float = COARSE_PRECISION  # run_precision(run)
 
 
 def _node_times(run: TeamRun, config: GraphConfig) -> list:
@@ -260,7 +281,7 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
             p = E.transformFrom(direction * rng)
             direction, rng = p / np.linalg.norm(p), float(np.linalg.norm(p))
         if is_lm:
-            lkey, prior = _landmark_key(m.landmark, lm_prior, config, n_anchor, landmark_guess)
+            lkey, prior = _landmark_key(m.landmark, lm_prior, config, n_anchor)
             if lkey is None:
                 skips.add("unknown_landmark", f"landmark {m.landmark} is not in the landmark table")
                 continue
@@ -313,7 +334,9 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
             d = tracker.update(cs, odo)
             prev = k
             pose = np.full(7, np.nan)
-            if d.locked and d.committed >= 0:
+            cluster = _same_pose(world, cs.covariance, d.committed) if d.locked and d.committed >= 0 else []
+            decided = bool(cluster) and d.probabilities[cluster].sum() >= config.decision_threshold
+            if decided:
                 j = d.committed
                 cam = world[j]
                 body = cam.compose(E.inverse())
@@ -325,7 +348,8 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
                 pose = np.r_[body.translation(), q.x(), q.y(), q.z(), q.w()]
             prob = float(d.probabilities[d.committed]) if d.committed >= 0 else float(np.max(d.probabilities, initial=0))
             xyz = np.array([p.compose(E.inverse()).translation() for p in world])
-            decisions.append(Decision(o.time, r, ti, xyz, int(d.committed) if d.locked else -1, prob, pose))
+            decisions.append(Decision(o.time, r, ti, xyz, int(d.committed) if decided else -1, prob, pose,
+                                      cluster if decided else []))
 
     # --- initial values: known poses + odometry, decided poses + odometry ---
     initial, anchored_from = {}, {}
@@ -383,10 +407,34 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
               "candidate_sets": len(run.observations), "committed_sets": sum(d.committed >= 0 for d in decisions),
               "landmark_anchors": n_anchor, "steps": len(steps), "excluded_by_option": excluded,
               **{f"factors_{name}": types.count(name) for name in sorted(set(types))}}
-    return TeamGraph(run, config, node_times, initial, steps, types, decisions, anchored_from, step_rel, counts, skips)
+    return TeamGraph(run, config, node_times, initial, steps, types, decisions, anchored_from, step_rel, counts, skips,
+                     run_precision(run))
 
 
-def _landmark_key(lid: int, lm_prior: dict, config: GraphConfig, n_anchor: int, seen: dict):
+def run_precision(run: TeamRun) -> float:
+    """The scale [m, rad] of the run's estimates, for iSAM2's thresholds: FINE_PRECISION when
+    the run holds candidate sets (camera poses from pixels: the fused estimate is mm-precise even
+    where one P3P candidate is cm-precise along its depth), else COARSE_PRECISION (wheel odometry
+    and range-bearing, decimetre-level)."""
+    return FINE_PRECISION if run.observations else COARSE_PRECISION
+
+
+SAME_POSE_GATE = 12.59  # chi2(6) at 95 %: two candidates this close are one pose for the decision
+
+
+def _same_pose(poses: list, cov: np.ndarray, j: int) -> list[int]:
+    """Candidate j and the candidates that are the same pose within their covariances
+    (Mahalanobis^2 of the difference below SAME_POSE_GATE): near the P3P fold two solutions
+    nearly coincide and share the posterior, and either one is the answer."""
+    out = []
+    for i, p in enumerate(poses):
+        e = gtsam.Pose3.Logmap(poses[j].between(p))
+        if i == j or e @ np.linalg.solve(cov[i] + cov[j], e) < SAME_POSE_GATE:
+            out.append(i)
+    return out
+
+
+def _landmark_key(lid: int, lm_prior: dict, config: GraphConfig, n_anchor: int):
     prior = lm_prior.get(lid)
     if prior is not None and config.anchor_known_landmarks:
         return landmark_key(ANCHOR_BASE + n_anchor), prior
@@ -493,7 +541,7 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False) -> Team
 
     cfg = graph.config
     run = graph.run
-    session = Session(cfg.session_config(mode))
+    session = Session(cfg.session_config(mode, graph.precision))
     causal = [np.full((len(t), 7), np.nan) for t in graph.node_times]
     start = _time.perf_counter()
     added: set = set()

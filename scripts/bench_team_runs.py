@@ -1,0 +1,30 @@
+"""Every scenario through the front door (`graphloc simulate` -> `smooth` / `online`), 20 seeds
+per cell, beside today's experiment code: JSON, markdown and PNG (graphloc.experiments.team_runs).
+
+    .venv/bin/python scripts/bench_team_runs.py --out out/bench_team_runs --doc docs/results_team.md
+"""
+
+import argparse
+import sys
+from pathlib import Path
+
+from graphloc.experiments import team_runs
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=Path("out/bench_team_runs"))
+    parser.add_argument("--doc", type=Path, default=None, help="also write the markdown tables here")
+    parser.add_argument("--size", choices=sorted(team_runs.SIZES), default="full")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--seed-offset", type=int, default=0)
+    args = parser.parse_args(argv)
+    command = "scripts/bench_team_runs.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    rows = team_runs.run(args.size, args.workers, args.seed_offset)
+    team_runs.write(rows, args.out, args.doc, command)
+    print(f"wrote {args.out / 'team_runs.json'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
