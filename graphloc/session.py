@@ -86,6 +86,10 @@ class SessionConfig:
                              f"{self.isam2_optimizer!r}")
         if self.factorization not in ("CHOLESKY", "QR"):
             raise ValueError(f"SessionConfig.factorization must be CHOLESKY or QR, got {self.factorization!r}")
+        counts = (self.lm_max_iterations, self.relinearize_skip, self.extra_updates)
+        if max(counts) >= 2 ** 31:
+            raise ValueError(f"SessionConfig: lm_max_iterations, relinearize_skip and extra_updates "
+                             f"must be < 2^31, got {counts}")
         if self.lm_max_iterations < 1 or self.relinearize_skip < 1 or self.extra_updates < 0:
             raise ValueError("SessionConfig: lm_max_iterations and relinearize_skip must be >= 1, extra_updates >= 0")
         if not (self.wildfire_threshold >= 0 and np.isfinite(self.wildfire_threshold)):
@@ -181,12 +185,12 @@ class Session:
         if t < self._last_time:
             raise ValueError(f"Session.add: time goes backwards ({t} < previous {self._last_time})")
         new_keys = set(initial_values.keys())
-        clash = [gtsam.DefaultKeyFormatter(k) for k in new_keys if self.initial.exists(k)]
+        clash = [_key_name(k) for k in new_keys if self.initial.exists(k)]
         if clash:
             raise ValueError(f"Session.add: initial values for keys already in the session: {clash[:5]}")
         missing = sorted({k for k in graph.keyVector() if not self.initial.exists(k) and k not in new_keys})
         if missing:
-            names = [gtsam.DefaultKeyFormatter(k) for k in missing[:5]]
+            names = [_key_name(k) for k in missing[:5]]
             raise ValueError(f"Session.add: factors reference keys without a value: {names}")
 
         start = _time.perf_counter()
@@ -216,9 +220,12 @@ class Session:
             keys = list(keys)
             self._check_known(keys, "estimate")
         if self._isam is not None:
-            if keys is None:
-                return self._isam.calculateEstimate()
-            return self._isam.calculateEstimate(keys)
+            try:
+                return self._isam.calculateEstimate() if keys is None else \
+                    self._isam.calculateEstimate(keys)
+            except RuntimeError as exc:  # e.g. an indeterminate system after a bad update
+                raise ValueError(f"Session.estimate: iSAM2 cannot solve the graph "
+                                 f"({_first_line(exc)})") from None
         if self._batch_estimate is None:
             self._batch_estimate = self._optimize_batch()
         if keys is None:
@@ -228,14 +235,18 @@ class Session:
     def marginal_covariance(self, key: int) -> np.ndarray:
         """Marginal covariance of one variable at the current estimate (tangent-space, GTSAM order)."""
         self._check_known([key], "marginal_covariance")
-        if self._isam is not None:
-            return np.asarray(self._isam.marginalCovariance(key))
-        if self._batch_marginals is None:  # one factorization per estimate, not per query
-            self._batch_marginals = gtsam.Marginals(self.graph, self.estimate())
-        return np.asarray(self._batch_marginals.marginalCovariance(key))
+        try:
+            if self._isam is not None:
+                return np.asarray(self._isam.marginalCovariance(key))
+            if self._batch_marginals is None:  # one factorization per estimate, not per query
+                self._batch_marginals = gtsam.Marginals(self.graph, self.estimate())
+            return np.asarray(self._batch_marginals.marginalCovariance(key))
+        except RuntimeError as exc:
+            raise ValueError(f"Session.marginal_covariance({_key_name(key)}): "
+                             f"GTSAM cannot compute it ({_first_line(exc)})") from None
 
     def _check_known(self, keys: list, what: str) -> None:
-        unknown = [gtsam.DefaultKeyFormatter(k) for k in keys if not self.initial.exists(k)]
+        unknown = [_key_name(k) for k in keys if not self.initial.exists(k)]
         if unknown:
             raise ValueError(f"Session.{what}: no variable {unknown[:5]} in this session")
 
@@ -503,13 +514,17 @@ def _rot2(c: float, s: float, where: str) -> gtsam.Rot2:
 
 
 def _rot3(R: np.ndarray, where: str) -> gtsam.Rot3:
-    if not (np.abs(R @ R.T - np.eye(3)).max() < 1e-9 and np.linalg.det(R) > 0):
+    with np.errstate(all="ignore"):  # entries of 1e300 overflow: not a rotation either way
+        ok = np.abs(R @ R.T - np.eye(3)).max() < 1e-9 and np.linalg.det(R) > 0
+    if not ok:
         raise _Bad(f"{where}: 3x3 matrix is not a rotation")
     return gtsam.Rot3(R)
 
 
 def _unit3(v, where: str) -> gtsam.Unit3:
-    if abs(float(np.linalg.norm(v)) - 1.0) > 1e-9:
+    with np.errstate(all="ignore"):
+        norm = float(np.linalg.norm(v))
+    if not abs(norm - 1.0) <= 1e-9:
         raise _Bad(f"{where}: direction {v} is not a unit vector")
     return gtsam.Unit3(np.array(v, dtype=float))
 
@@ -745,11 +760,11 @@ def _encode_values(values: gtsam.Values, where: str) -> list:
                 continue
             numbers = _encode_measurement(kind, value)
             if not all(math.isfinite(x) for x in numbers):
-                raise ValueError(f"{where}: value {gtsam.DefaultKeyFormatter(key)} is not finite")
+                raise ValueError(f"{where}: value {_key_name(key)} is not finite")
             out.append([int(key), kind, numbers])
             break
         else:
-            raise ValueError(f"{where}: value {gtsam.DefaultKeyFormatter(key)} has a type that "
+            raise ValueError(f"{where}: value {_key_name(key)} has a type that "
                              f"cannot be saved (saved: Pose2, Pose3, Rot2, Rot3, vectors, points)")
     return out
 
@@ -763,7 +778,7 @@ def _decode_values(raw, where: str) -> gtsam.Values:
                 and entry[1] in ("pose3", "pose2", "rot3", "rot2", "vector")):
             raise _Bad(f"{where}: a value must be [key, kind, numbers], got {str(entry)[:80]}")
         key, kind, numbers = entry
-        label = f"{where}, value {gtsam.DefaultKeyFormatter(key)}"
+        label = f"{where}, value {_key_name(key)}"
         if values.exists(key):
             raise _Bad(f"{label}: key given twice")
         values.insert(key, _decode_measurement(kind, _numbers(numbers, label), label))
@@ -803,10 +818,24 @@ def _dim(raw, where: str) -> int:
     return raw
 
 
+def _key_name(key: int) -> str:
+    """GTSAM's name of a key (x0, l3, ...), or the number when GTSAM cannot format it (a
+    symbol character that is not text raises UnicodeDecodeError in DefaultKeyFormatter)."""
+    try:
+        return gtsam.DefaultKeyFormatter(key)
+    except UnicodeDecodeError:
+        return str(key)
+
+
+def _first_line(exc: Exception) -> str:
+    """The first non-empty line of a GTSAM exception's message (they run to a page)."""
+    return next((line.strip() for line in str(exc).splitlines() if line.strip()), type(exc).__name__)
+
+
 def _subset(values: gtsam.Values, keys: Iterable[int]) -> gtsam.Values:
     """The entries of `values` at `keys` (unknown keys raise ValueError)."""
     wanted = set(keys)
-    missing = [gtsam.DefaultKeyFormatter(k) for k in wanted if not values.exists(k)]
+    missing = [_key_name(k) for k in wanted if not values.exists(k)]
     if missing:
         raise ValueError(f"no estimate for keys {missing[:5]}")
     out = gtsam.Values(values)

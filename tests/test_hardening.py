@@ -480,3 +480,61 @@ def test_mrclam_files_that_are_missing_looping_or_empty_are_errors(tmp_path):
     np.testing.assert_array_equal(run.odometry[0], reference.odometry[0])
     np.testing.assert_array_equal(run.obs_range, reference.obs_range)
     assert run.skips.counts == reference.skips.counts == {}
+
+
+# ---- session files ------------------------------------------------------------------------------
+JSON_LEAVES = st.one_of(
+    st.sampled_from([0, 1, -1, 2, 3, 6, 2 ** 64 - 1, 2 ** 63, True, None, "x", "Huber", [], {},
+                     [1.0], [[1.0]], "PriorFactorPose3", "max_mixture", "pose3"]),
+    st.floats(allow_nan=False, allow_infinity=False))
+
+
+def _json_paths(obj, prefix=()):
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            yield from _json_paths(v, prefix + (k,))
+    elif isinstance(obj, list):
+        for i, v in enumerate(obj):
+            yield from _json_paths(v, prefix + (i,))
+    if prefix:
+        yield prefix
+
+
+@settings(FAST, max_examples=EXAMPLES or 25)
+@given(data=st.data(), mode=st.sampled_from(["batch", "online"]))
+def test_crafted_session_files_load_or_raise_value_error(tmp_path_factory, data, mode):
+    """A session file with valid checksums but any leaf of its JSON replaced (as a crafted file
+    would be): load and estimate give a session or a ValueError naming the file -- never
+    another exception or a crash inside GTSAM."""
+    import json
+
+    from graphloc.session import Session, SessionConfig
+    from test_session import _every_saved_type, _rewrite
+
+    factors, values = _every_saved_type()
+    session = Session(SessionConfig(mode=mode))
+    session.add(factors, values, time=0.0)
+    path = tmp_path_factory.mktemp("s") / "s.json"
+    session.save(path)
+    payload = json.loads(path.read_bytes().split(b"\n", 1)[1])
+    paths = sorted(_json_paths(payload), key=str)
+    edits = data.draw(st.lists(st.tuples(st.sampled_from(paths), JSON_LEAVES), min_size=1,
+                               max_size=3))
+
+    def edit(doc):
+        for where, value in edits:
+            obj = doc
+            try:
+                for key in where[:-1]:
+                    obj = obj[key]
+                obj[where[-1]] = value
+            except (KeyError, IndexError, TypeError):  # an earlier edit changed the structure
+                pass
+        return doc
+
+    _rewrite(path, edit)
+    try:
+        loaded = Session.load(path)
+        loaded.estimate()
+    except ValueError as exc:
+        assert str(path) in str(exc) or str(exc).startswith("Session.")

@@ -402,6 +402,8 @@ MALFORMED_BODIES = [  # (where in the body, the value written there, the reason 
     (ITEM + ("keys",), [-1], I0 + r"PriorFactorPose2 needs 1 keys"),
     (ITEM + ("keys",), [1],
      r"step 0: Session.add: factors reference keys without a value: \['1'\]"),
+    (ITEM + ("keys",), [2 ** 64 - 1],  # a symbol GTSAM cannot print: the number instead
+     r"step 0: Session.add: factors reference keys without a value: \['18446744073709551615'\]"),
     (ITEM + ("measured",), [1, 2, 3], I0 + "a pose2 measurement needs 4 numbers, got 3"),
     (ITEM + ("measured",), [1, 2, 2.0, 0.0], I0 + r"rotation \(cos, sin\) = \(2.0, 0.0\) is not a"),
     (ITEM + ("measured",), [1, 2, "1", 0], I0 + "measured: expected a list of finite numbers"),
@@ -519,3 +521,24 @@ def test_save_names_what_it_cannot_write(tmp_path):
     with pytest.raises(ValueError, match=r"step 0 \(time 0.0\), item 0: a Constrained noise model"):
         session.save(tmp_path / "c.json")
     assert not (tmp_path / "c.json").exists()
+
+
+def test_a_loaded_session_gtsam_cannot_solve_is_a_value_error(tmp_path):
+    """Finite but absurd numbers (a Point3 offset of 1e308 m) load, and the failure to solve
+    them is a ValueError, not GTSAM's RuntimeError."""
+    factors, values = _every_saved_type()
+    session = Session(SessionConfig(mode="online"))
+    session.add(factors, values, time=0.0)
+    path = tmp_path / "s.json"
+    session.save(path)
+    assert type(factors[6]).__name__ == "BetweenFactorPoint3"
+
+    def edit(payload):
+        payload["steps"][0]["items"][6]["measured"][0] = 1e308
+        return payload
+
+    _rewrite(path, edit)
+    loaded = Session.load(path)
+    with pytest.raises(ValueError, match="Session.estimate: iSAM2 cannot solve the graph "
+                                         r"\(Indeterminate linear system"):
+        loaded.estimate()
