@@ -88,8 +88,8 @@ class SessionConfig:
             raise ValueError(f"SessionConfig.factorization must be CHOLESKY or QR, got {self.factorization!r}")
         counts = (self.lm_max_iterations, self.relinearize_skip, self.extra_updates)
         if max(counts) >= 2 ** 31:
-            raise ValueError(f"SessionConfig: lm_max_iterations, relinearize_skip and extra_updates "
-                             f"must be < 2^31, got {counts}")
+            raise ValueError(f"SessionConfig: lm_max_iterations, relinearize_skip and "
+                             f"extra_updates must be < 2^31, got {counts}")
         if self.lm_max_iterations < 1 or self.relinearize_skip < 1 or self.extra_updates < 0:
             raise ValueError("SessionConfig: lm_max_iterations and relinearize_skip must be >= 1, extra_updates >= 0")
         if not (self.wildfire_threshold >= 0 and np.isfinite(self.wildfire_threshold)):
@@ -829,7 +829,8 @@ def _key_name(key: int) -> str:
 
 def _first_line(exc: Exception) -> str:
     """The first non-empty line of a GTSAM exception's message (they run to a page)."""
-    return next((line.strip() for line in str(exc).splitlines() if line.strip()), type(exc).__name__)
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    return lines[0] if lines else type(exc).__name__
 
 
 def _subset(values: gtsam.Values, keys: Iterable[int]) -> gtsam.Values:
