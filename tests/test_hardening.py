@@ -21,7 +21,7 @@ from hypothesis.extra import numpy as hnp
 from graphloc.vision.circle import fit_ellipse, rim_points_from_mask
 from graphloc.vision.features import (FeatureConfig, FeatureTracker, colour_score, detect_base_rim,
                                       detect_corners, track_forward_backward)
-from graphloc.vision.markers import MarkerDetectorConfig, detect_markers
+from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, roi_from_points
 
 # bounded for the default run; GRAPHLOC_FUZZ_EXAMPLES=2000 (random seeds) for a deeper search
 EXAMPLES = int(os.environ.get("GRAPHLOC_FUZZ_EXAMPLES", "0"))
@@ -192,6 +192,8 @@ VISION_CORPUS = [  # (call, the exact reason)
      r"detect_markers: roi \(9, 9, 20, 20\) is empty inside the 8x8 image"),
     (lambda: detect_markers(np.zeros((8, 8), np.uint8), predicted_px=[1.0, 2.0, np.inf, 0.0]),
      r"detect_markers: predicted_px\[1\] = \[inf  0.\] is not finite"),
+    (lambda: roi_from_points([[1.0, 2.0]], np.nan, (8, 8)),
+     r"roi_from_points: margin must be finite and >= 0, got nan"),
     (lambda: track_forward_backward(np.zeros((0, 5), np.uint8), np.zeros((0, 5), np.uint8),
                                     np.zeros((1, 2))), r"prev_gray is 5x0 px"),
     (lambda: track_forward_backward(np.zeros((5, 5), np.uint8), np.zeros((5, 5), np.uint8),

@@ -289,6 +289,8 @@ def roi_from_points(points_px: np.ndarray, margin: float, shape: tuple[int, int]
     p = np.asarray(points_px, dtype=float).reshape(-1, 2)
     if len(p) == 0 or not np.isfinite(p).all():
         raise ValueError(f"roi_from_points: predicted pixels must be finite (M,2), got {p.shape}")
+    if not (np.isfinite(margin) and margin >= 0):
+        raise ValueError(f"roi_from_points: margin must be finite and >= 0, got {margin}")
     h, w = shape[:2]
     x0 = int(np.clip(np.floor(p[:, 0].min() - margin), 0, w))
     y0 = int(np.clip(np.floor(p[:, 1].min() - margin), 0, h))
