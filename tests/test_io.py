@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from graphloc.io import (Bearing3D, GroundTruth2D, MarkerPixel, Odometry2D, PoseCandidate, RangeBearing2D, ScanRef,
-                         SkipReport, columns, iter_records, read_manifest, read_planar_run, write_manifest)
+                         SkipReport, columns, iter_records, read_manifest, write_manifest)
+from graphloc.run import read_team_run
 
 
 def _csv(path: Path, table: str, rows: list[str]) -> None:
@@ -103,17 +104,21 @@ def test_manifest_validation(tmp_path):
         list(iter_records(root2))
 
 
-def test_planar_run_applies_sensor_extrinsics(tmp_path):
+def test_team_run_keeps_sensor_extrinsics_and_planar_poses(tmp_path):
     root = make_log(tmp_path / "log")
-    run = read_planar_run(root)
-    assert run.robots == ("ground", "climber") and run.skips.total == 0
+    data = json.loads((root / "manifest.json").read_text())
+    for robot in data["robots"]:  # the graph's tables only (markers need a layout, scans go to fuse-maps)
+        robot["tables"] = {k: v for k, v in robot["tables"].items() if k not in ("markers", "candidates", "scans")}
+    (root / "manifest.json").write_text(json.dumps(data))
+    run = read_team_run(root)
+    assert [r.name for r in run.robots] == ["ground", "climber"] and run.skips.total == 0
+    assert [r.planar for r in run.robots] == [True, False]  # version 2 default: kind ground is planar
     # cam at (0.1, 0) yawed +90 deg: 1 m along the camera axis is (0.1, 1.0) in the body frame
-    i = np.flatnonzero(run.obs_landmark == 3)[0]
-    np.testing.assert_allclose([run.obs_bearing[i], run.obs_range[i]], [np.arctan2(1.0, 0.1), np.hypot(1.0, 0.1)])
-    j = np.flatnonzero(run.obs_target_robot == 1)[0]
-    assert run.obs_robot[j] == 0
-    np.testing.assert_allclose(run.initial_poses, [[0, 0, 0], [1, 0, 0]])
-    assert run.groundtruth[1] is None and run.groundtruth[0].shape == (2, 4)
+    m = next(p for p in run.points if p.landmark == 3)
+    np.testing.assert_allclose(m.body_T_sensor.transformFrom(m.direction * m.range), [0.1, 1.0, 0.0], atol=1e-12)
+    assert next(p for p in run.points if p.kind == "range_bearing" and p.target >= 0).target == 1
+    np.testing.assert_allclose(run.robots[1].initial_pose.translation(), [1, 0, 0])
+    assert run.groundtruth[1] is None and len(run.groundtruth[0][0]) == 2
 
 
 @pytest.mark.parametrize("edit, message", [
