@@ -52,7 +52,9 @@ def random_rotations(n: int, rng: np.random.Generator) -> np.ndarray:
     return Rotation.random(n, random_state=rng).as_matrix()
 
 
-def random_p3p_instances(n: int, seed: int = 0, config: InstanceConfig = InstanceConfig()) -> P3PInstances:
+def random_p3p_instances(
+    n: int, seed: int = 0, config: InstanceConfig = InstanceConfig()
+) -> P3PInstances:
     """n random well-conditioned P3P instances (all points in front of the camera)."""
     rng = np.random.default_rng(seed)
     out = []
@@ -69,11 +71,16 @@ def random_p3p_instances(n: int, seed: int = 0, config: InstanceConfig = Instanc
         X = np.einsum("nij,npj->npi", R, depth[..., None] * f) + t[:, None, :]
         keep = np.ones(m, bool)
         for i, j in ((0, 1), (0, 2), (1, 2)):
-            keep &= np.arccos(np.clip(np.einsum("ni,ni->n", f[:, i], f[:, j]), -1, 1)) > config.min_bearing_angle
+            keep &= (
+                np.arccos(np.clip(np.einsum("ni,ni->n", f[:, i], f[:, j]), -1, 1))
+                > config.min_bearing_angle
+            )
         for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
             u = X[:, j] - X[:, i]
             v = X[:, k] - X[:, i]
-            cosang = np.einsum("ni,ni->n", u, v) / (np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1))
+            cosang = np.einsum("ni,ni->n", u, v) / (
+                np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1)
+            )
             keep &= np.arccos(np.clip(cosang, -1, 1)) > config.min_angle
         out.append((f[keep], X[keep], R[keep], t[keep], depth[keep]))
         have += int(keep.sum())
@@ -81,8 +88,14 @@ def random_p3p_instances(n: int, seed: int = 0, config: InstanceConfig = Instanc
     return P3PInstances(bearings=f, points=X, R_wc=R, t_wc=t, depths=d)
 
 
-def recovered(R_cand: np.ndarray, t_cand: np.ndarray, valid: np.ndarray, R_true: np.ndarray,
-              t_true: np.ndarray, tol: float = RECOVERY_TOL) -> np.ndarray:
+def recovered(
+    R_cand: np.ndarray,
+    t_cand: np.ndarray,
+    valid: np.ndarray,
+    R_true: np.ndarray,
+    t_true: np.ndarray,
+    tol: float = RECOVERY_TOL,
+) -> np.ndarray:
     """(N,) True where some valid candidate (R_cand (N,K,3,3), t_cand (N,K,3)) matches the truth."""
     rot_err = np.linalg.norm(R_cand - R_true[:, None], axis=(2, 3))
     trans_err = np.linalg.norm(t_cand - t_true[:, None], axis=2)
@@ -139,7 +152,9 @@ class BenchRow:
     recovery_rate: float
 
 
-def run_p3p_benchmark(out_dir: str | Path, n: int = 100_000, seed: int = 0, rounds: int = 10) -> dict:
+def run_p3p_benchmark(
+    out_dir: str | Path, n: int = 100_000, seed: int = 0, rounds: int = 10
+) -> dict:
     """Time every solver on the same n instances; write p3p_bench.json, p3p_bench.md and
     p3p_bench.png to out_dir; return the JSON dict.
 
@@ -154,13 +169,18 @@ def run_p3p_benchmark(out_dir: str | Path, n: int = 100_000, seed: int = 0, roun
         def solve(f, X):
             c = solve_p3p(f, X, method=method, polish=polish)
             return c.R_wc, c.t_wc, c.valid
+
         return solve
 
     solvers = [(f"graphloc.{m}", True, batched(m, False)) for m in METHODS]
     solvers.append(("graphloc.lambdatwist+polish", True, batched("lambdatwist", True)))
-    solvers += [(name, False, lambda f, X, flag=flag: opencv_p3p_loop(f, X, flag))
-                for name, flag in (("cv2.solveP3P[P3P] loop", cv2.SOLVEPNP_P3P),
-                                   ("cv2.solveP3P[AP3P] loop", cv2.SOLVEPNP_AP3P))]
+    solvers += [
+        (name, False, lambda f, X, flag=flag: opencv_p3p_loop(f, X, flag))
+        for name, flag in (
+            ("cv2.solveP3P[P3P] loop", cv2.SOLVEPNP_P3P),
+            ("cv2.solveP3P[AP3P] loop", cv2.SOLVEPNP_AP3P),
+        )
+    ]
     solvers.append(("poselib.p3p loop", False, poselib_p3p_loop))
     warm = min(n, 2000)
     for _, _, solve in solvers:
@@ -182,7 +202,9 @@ def run_p3p_benchmark(out_dir: str | Path, n: int = 100_000, seed: int = 0, roun
         ok = recovered(R, t, valid, inst.R_wc, inst.t_wc)
         ncand = int(valid.sum())
         sec = seconds[name]
-        rows.append(BenchRow(name, is_batched, sec, n / sec, ncand / sec, ncand / n, float(ok.mean())))
+        rows.append(
+            BenchRow(name, is_batched, sec, n / sec, ncand / sec, ncand / n, float(ok.mean()))
+        )
 
     by_name = {r.solver: r for r in rows}
     default = by_name["graphloc.lambdatwist"]
@@ -194,13 +216,18 @@ def run_p3p_benchmark(out_dir: str | Path, n: int = 100_000, seed: int = 0, roun
     targets = {
         "speed_vs_cv2_p3p_loop_ge_10x": ratios["default_vs_cv2_p3p_loop"] >= 10.0,
         "speed_vs_poselib_loop_ge_3x": ratios["default_vs_poselib_loop"] >= 3.0,
-        "recovery_not_lower_than_peers": default.recovery_rate >= max(
-            r.recovery_rate for r in rows if not r.batched),
+        "recovery_not_lower_than_peers": default.recovery_rate
+        >= max(r.recovery_rate for r in rows if not r.batched),
     }
     result = {
-        "n_instances": n, "seed": seed, "rounds": rounds, "recovery_tol": RECOVERY_TOL,
+        "n_instances": n,
+        "seed": seed,
+        "rounds": rounds,
+        "recovery_tol": RECOVERY_TOL,
         "instance_config": {k: float(v) for k, v in asdict(InstanceConfig()).items()},
-        "rows": [asdict(r) for r in rows], "ratios": ratios, "targets_met": targets,
+        "rows": [asdict(r) for r in rows],
+        "ratios": ratios,
+        "targets_met": targets,
     }
     (out_dir / "p3p_bench.json").write_text(json.dumps(result, indent=2))
     (out_dir / "p3p_bench.md").write_text(markdown_table(result))
@@ -209,16 +236,25 @@ def run_p3p_benchmark(out_dir: str | Path, n: int = 100_000, seed: int = 0, roun
 
 
 def markdown_table(result: dict) -> str:
-    lines = [f"P3P benchmark: {result['n_instances']} instances (seed {result['seed']}), "
-             f"recovery = some candidate within {result['recovery_tol']:g} of the truth (R and t)", "",
-             "| solver | batched | instances/s | candidates/s | mean candidates | recovery rate |",
-             "|---|---|---:|---:|---:|---:|"]
+    lines = [
+        f"P3P benchmark: {result['n_instances']} instances (seed {result['seed']}), "
+        f"recovery = some candidate within {result['recovery_tol']:g} of the truth (R and t)",
+        "",
+        "| solver | batched | instances/s | candidates/s | mean candidates | recovery rate |",
+        "|---|---|---:|---:|---:|---:|",
+    ]
     for r in result["rows"]:
-        lines.append(f"| {r['solver']} | {'yes' if r['batched'] else 'no (Python loop)'} | "
-                     f"{r['instances_per_s']:,.0f} | {r['candidates_per_s']:,.0f} | "
-                     f"{r['mean_candidates']:.3f} | {100 * r['recovery_rate']:.3f}% |")
-    lines += ["", *(f"- {k}: {v:.2f}x" for k, v in result["ratios"].items()),
-              *(f"- target {k}: {'met' if v else 'NOT met'}" for k, v in result["targets_met"].items()), ""]
+        lines.append(
+            f"| {r['solver']} | {'yes' if r['batched'] else 'no (Python loop)'} | "
+            f"{r['instances_per_s']:,.0f} | {r['candidates_per_s']:,.0f} | "
+            f"{r['mean_candidates']:.3f} | {100 * r['recovery_rate']:.3f}% |"
+        )
+    lines += [
+        "",
+        *(f"- {k}: {v:.2f}x" for k, v in result["ratios"].items()),
+        *(f"- target {k}: {'met' if v else 'NOT met'}" for k, v in result["targets_met"].items()),
+        "",
+    ]
     return "\n".join(lines)
 
 
@@ -239,7 +275,9 @@ def plot_benchmark(result: dict, path: Path) -> None:
     ax2.set_xlabel(f"% instances not recovered (tol {result['recovery_tol']:g})")
     ax2.set_yticklabels([])
     ax2.invert_yaxis()
-    fig.suptitle(f"P3P on {result['n_instances']} instances (blue: batched numpy, gray: per-instance loop)")
+    fig.suptitle(
+        f"P3P on {result['n_instances']} instances (blue: batched numpy, gray: per-instance loop)"
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
