@@ -65,150 +65,34 @@ import time
 from dataclasses import asdict, replace
 from pathlib import Path
 
-import gtsam
 import numpy as np
 from tqdm import tqdm
 
 from graphloc.baselines.ekf_seed003 import EkfConfig, run_ekf
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
-from graphloc.datasets.seed003_geometry import genuine_candidates, with_teammate_from_geometry
+from graphloc.datasets.seed003_geometry import (
+    genuine_candidates,
+    with_teammate_from_geometry,
+)
 from graphloc.eval import axis_errors, scale_errors
-from graphloc.factors.mixture import max_mixture_factor
-from graphloc.keys import pose_key
+from graphloc.experiments.seed003_measures import (
+    AXES,
+    EXACT_DISK_SIGMAS,
+    FRONT_ENDS,
+    GRAPH_RUNS,
+    METHODS,
+    TRACK_AGES,
+    crlb_errors,
+    front_end_errors,
+    linearize_cost,
+    teammate_config,
+    track_errors,
+    unseen_displacement,
+)
+from graphloc.experiments.seed003_report import METHOD_NOTE, markdown, write_plots
 from graphloc.pipelines.cooperative_sfm import CooperativeSfmConfig, run_cooperative_sfm
-from graphloc.plots import plt
-from graphloc.vision.circle import circle_pose_from_rim
-from graphloc.vision.features import BlobConfig, FeatureConfig, detect_base_rim
-from graphloc.vision.teammate import TeammateConfig, measure_frames
-
-METHODS = (
-    "ekf",
-    "batch",
-    "online",
-    "batch_centre",
-    "batch_crossings",
-    "batch_crlb_circle",
-    "batch_exact_circle",
-)
-GRAPH_RUNS = {
-    "batch": ("batch", "max_mixture", "refined"),
-    "online": ("online", "max_mixture", "refined"),
-    "batch_centre": ("batch", "moment_matched_centre", "refined"),
-    "batch_crossings": ("batch", "max_mixture", "crossings"),
-    "batch_crlb_circle": ("batch", "max_mixture", "crlb"),
-    "batch_exact_circle": ("batch", "max_mixture", "exact"),
-}
-TRACK_AGES = ((1, 3), (4, 7), (8, 11), (12, 15))  # frames since a KLT track started
-EXACT_DISK_SIGMAS = np.array(
-    [1e-6, 1e-6, 1e-6, 1e-5, 1e-5]
-)  # 'exact' disk: centre [m], normal tilt [rad]
-FRONT_ENDS = ("refined", "crossings")
-METHOD_NOTE = (
-    "ekf = the seed's EKF (eq. 13 state, proper covariance settings); batch / online = graphloc "
-    "(Session LM / iSAM2, circle candidates as a max-mixture, refined rim); batch_centre = the "
-    "candidates' centres moment-matched into one Gaussian; batch_crossings = batch on the seed's "
-    "edge-crossing rim; batch_crlb_circle = batch with the circle drawn at the Cramér-Rao bound "
-    "of each "
-    "image (known background) and told that covariance: what a circle front-end at the bound "
-    "would give; "
-    "batch_exact_circle = batch with the exact circle, told it is exact. Errors are mean absolute "
-    "per axis "
-    "over the sequence (mean ± std over trials); "
-    "the scale error at frame k is |s - 1|, s the least-squares ratio of the estimated to the true "
-    "camera displacement lengths from frame 0, using only frames 0..k."
-)
-
-
-def teammate_config(front_end: str, radius: float) -> TeammateConfig:
-    """The teammate front-end: 'refined' (default edge fit) or 'crossings' (the seed's edge
-    points, with the floors calibrated for them; see TeammateConfig)."""
-    if front_end == "refined":
-        return TeammateConfig(radius=radius)
-    return TeammateConfig(
-        radius=radius,
-        blob=BlobConfig(refine_edges=False),
-        radius_pixel_floor=0.01,
-        centre_pixel_floor=0.08,
-    )
-
-
-def front_end_errors(seq, front_end: str) -> dict:
-    """Per frame: the genuine circle candidate's depth error (along the line of sight) and
-    lateral error [m], its normal error [deg]; and the frame-to-frame depth-error changes
-    over the frames where only the camera moved."""
-    cfg = teammate_config(front_end, seq.config.base_radius)
-    depth, lateral, normal = [], [], []
-    for k in range(len(seq)):
-        blob = detect_base_rim(seq.images[k], cfg.blob)
-        if blob is None or blob.refine_error:
-            depth.append(np.nan), lateral.append(np.nan), normal.append(np.nan)
-            continue
-        cands, _ = circle_pose_from_rim(seq.camera, blob.rim, cfg.radius, cfg.circle)
-        centre, true_normal = seq.base_in_camera(k)
-        g = int(np.argmax(cands.R[:, :, 2] @ true_normal))
-        err = cands.t[g] - centre
-        los = centre / np.linalg.norm(centre)
-        depth.append(float(err @ los))
-        lateral.append(float(np.linalg.norm(err - (err @ los) * los)))
-        normal.append(
-            float(np.degrees(np.arccos(np.clip(cands.R[g, :, 2] @ true_normal, -1.0, 1.0))))
-        )
-    camera_moved, teammate_moved, _, _ = seq.frame_flags()
-    only_camera = camera_moved[1:] & ~teammate_moved[1:]
-    return {
-        "depth": np.array(depth),
-        "lateral": np.array(lateral),
-        "normal_deg": np.array(normal),
-        "depth_change": np.diff(np.array(depth))[only_camera],
-    }
-
-
-def crlb_errors(seq, centres: np.ndarray, disk_cov: np.ndarray) -> dict:
-    """The Cramer-Rao bound of the front_end_errors quantities, per frame: depth and lateral
-    sigmas [m], normal angle rms [deg], and the frame-to-frame depth-change sigma over the
-    frames where only the camera moved."""
-    los = centres / np.linalg.norm(centres, axis=1, keepdims=True)
-    depth_var = np.einsum("ki,kij,kj->k", los, disk_cov[:, :3, :3], los)
-    camera_moved, teammate_moved, _, _ = seq.frame_flags()
-    only_camera = camera_moved[1:] & ~teammate_moved[1:]
-    return {
-        "depth_sd": np.sqrt(depth_var),
-        "lateral_sd": np.sqrt(np.trace(disk_cov[:, :3, :3], axis1=1, axis2=2) - depth_var),
-        "normal_rms_deg": np.degrees(np.sqrt(disk_cov[:, 3, 3] + disk_cov[:, 4, 4])),
-        "depth_change_sd": np.sqrt(depth_var[1:] + depth_var[:-1])[only_camera],
-    }
-
-
-def track_errors(seq, frames) -> tuple[np.ndarray, np.ndarray]:
-    """KLT pixel error against the truth by track age: every observation of a track, the
-    distance [px] to the true projection of the surface point seen at the track's first pixel,
-    and its age [frames] -- (ages (M,), errors (M,)); grows with age where the track drifts."""
-    first, ages, errors = {}, [], []
-    for k, f in enumerate(frames):
-        ids, pixels = np.asarray(f.features.ids), np.asarray(f.features.pixels, float)
-        new = np.array([i not in first for i in ids.tolist()], dtype=bool)
-        if new.any():
-            for i, point in zip(ids[new].tolist(), seq.surface_points(k, pixels[new])):
-                first[i] = (k, point)
-        if (~new).any():
-            k0, points = zip(*(first[i] for i in ids[~new].tolist()))
-            uv, _ = seq.camera.project((np.array(points) - seq.t_wc[k]) @ seq.R_wc[k])
-            ages.extend(k - np.array(k0))
-            errors.extend(np.linalg.norm(uv - pixels[~new], axis=1))
-    return np.array(ages, dtype=int), np.array(errors)
-
-
-AXES = ("x", "y", "z")
-
-
-def unseen_displacement(seq, k: int) -> float:
-    """Camera displacement [m] at frame k that no circle measurement can show: the camera's
-    true rotation since frame 0 about the disk-normal axis through the base centre (the image
-    of a circle does not change under it) times the camera's distance from that axis."""
-    normal = seq.base_normal[k] / np.linalg.norm(seq.base_normal[k])
-    angle = float(gtsam.Rot3.Logmap(gtsam.Rot3(seq.R_wc[k] @ seq.R_wc[0].T)) @ normal)
-    arm = seq.t_wc[k] - seq.base_centre[k]
-    return abs(angle) * float(np.linalg.norm(arm - (arm @ normal) * normal))
+from graphloc.vision.features import FeatureConfig
+from graphloc.vision.teammate import measure_frames
 
 
 def run_trial(seed: int, n_values: list[int], scenario: CrawlerPairConfig) -> dict:
@@ -454,178 +338,6 @@ def summarize(trials: list[dict], n_values: list[int]) -> dict:
             }
         )
     return {"per_n": summary, "checks": checks, "front_end": front, "klt_track_error": tracks}
-
-
-def write_plots(summary: dict, n_values: list[int], out: Path) -> None:
-    colours = {
-        "ekf": "tab:red",
-        "batch": "tab:blue",
-        "online": "tab:green",
-        "batch_centre": "tab:gray",
-        "batch_crossings": "tab:orange",
-        "batch_crlb_circle": "tab:brown",
-        "batch_exact_circle": "tab:purple",
-    }
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
-    width = 0.8 / len(METHODS)
-    for i, axis in enumerate(AXES):
-        ax = axes[i]
-        for j, m in enumerate(METHODS):
-            vals = [summary[n][m]["mean_abs_error_mm"][axis] for n in n_values]
-            errs = [summary[n][m]["std_over_trials_mm"][axis] for n in n_values]
-            offset = (j - (len(METHODS) - 1) / 2) * width
-            ax.bar(
-                np.arange(len(n_values)) + offset, vals, width, yerr=errs, label=m, color=colours[m]
-            )
-        ax.set_xticks(np.arange(len(n_values)), [f"N={n}" for n in n_values])
-        ax.set_yscale("log")
-        ax.set_title(f"mean |T_{axis} error| [mm]")
-    axes[0].legend()
-    fig.tight_layout()
-    fig.savefig(out / "axis_errors.png", dpi=120)
-    plt.close(fig)
-
-    fig, axes = plt.subplots(len(n_values), 3, figsize=(13, 2.6 * len(n_values)), squeeze=False)
-    for r, n in enumerate(n_values):
-        for i, axis in enumerate(AXES):
-            ax = axes[r, i]
-            for m in METHODS:
-                curve = np.array(summary[n][m]["curve_mm"])[:, i]
-                ax.plot(curve, marker=".", label=m, color=colours[m])
-            ax.set_yscale("log")
-            ax.set_title(f"N={n}: |T_{axis} error| [mm] vs frame", fontsize=9)
-    axes[0, 0].legend()
-    fig.tight_layout()
-    fig.savefig(out / "error_curves.png", dpi=110)
-    plt.close(fig)
-
-    fig, ax = plt.subplots(figsize=(7, 4))
-    for n in n_values:
-        for m, style in (
-            ("batch", "-"),
-            ("online", "--"),
-            ("batch_crossings", ":"),
-            ("batch_crlb_circle", "-."),
-        ):
-            curve = np.array(summary[n][m]["scale_curve"][1:], dtype=float)
-            ax.plot(np.arange(1, len(curve) + 1), 100 * curve, style, label=f"{m} N={n}")
-    ax.axhline(2.0, color="k", lw=0.8)
-    ax.set_yscale("log")
-    ax.set_xlabel("frame")
-    ax.set_ylabel("trajectory scale error [%] (mean over trials)")
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    fig.savefig(out / "scale_error.png", dpi=120)
-    plt.close(fig)
-
-
-def markdown(result: dict, n_values: list[int]) -> str:
-    lines = [
-        "| N | method | x [mm] | y [mm] | z [mm] | scale err. after 3rd sighting (mean / worst) | "
-        "trials with scale err. >= 2 % after 3rd sighting | "
-        "scale < 2 % from frame (worst trial) | scale err. last frame | s / sequence |",
-        "|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for n in n_values:
-        for m in METHODS:
-            e = result["per_n"][n][m]
-            ax = e["mean_abs_error_mm"]
-            sd = e["std_over_trials_mm"]
-            sc = e["scale_error_max_after_3rd_sighting"]
-            lines.append(
-                f"| {n} | {m} | {ax['x']:.3f} ± {sd['x']:.3f} | {ax['y']:.3f} ± {sd['y']:.3f} | "
-                f"{ax['z']:.3f} ± {sd['z']:.3f} | {100 * sc['mean']:.2f} % / "
-                f"{100 * sc['max']:.2f} % | "
-                f"{sc['trials_above_2pct']} / {len(sc['per_trial'])} | "
-                f"{e['scale_below_2pct_from_frame_worst_trial']} | "
-                f"{100 * e['scale_error_last_frame']['mean']:.2f} % | "
-                f"{e['seconds_per_sequence']:.3f} |"
-            )
-    lines.append("")
-    lines.append(
-        "| N | max-mixture: genuine candidate active (batch final) | (online, when the frame "
-        "arrived) | "
-        "camera moved at 3rd sighting | first-order scale floor there | "
-        "camera displacement a circle cannot see there (mean / max) |"
-    )
-    lines.append("|---|---|---|---|---|---|")
-    for n in n_values:
-        e = result["per_n"][n]
-        b, o, ev = e["batch"]["mixture"], e["online"]["mixture"], e["scale_evidence"]
-        lines.append(
-            f"| {n} | {b['genuine_active']} / {b['sightings']} | {o['genuine_active']} / "
-            f"{o['sightings']} | "
-            f"{ev['camera_displacement_at_3rd_sighting_mm']:.1f} mm | "
-            f"{100 * ev['first_order_scale_floor_at_3rd_sighting']:.2f} % | "
-            f"{ev['unseen_displacement_at_3rd_sighting_mm']['mean']:.2f} / "
-            f"{ev['unseen_displacement_at_3rd_sighting_mm']['max']:.2f} mm |"
-        )
-    lines.append("")
-    lines.append(
-        "| teammate rim | frames (failed) | depth error rms / mean [mm] | frame-to-frame depth "
-        "change sd "
-        "(camera moving) [mm] | lateral error rms [mm] | genuine normal error median / max [deg] | "
-        "normal error rms [deg] |"
-    )
-    lines.append("|---|---|---|---|---|---|---|")
-    for fe in FRONT_ENDS:
-        e = result["front_end"][fe]
-        lines.append(
-            f"| {fe} | {e['frames']} ({e['failed']}) | {e['depth_error_rms_mm']:.3f} / "
-            f"{e['depth_error_mean_mm']:+.3f} | {e['depth_change_sd_mm']:.3f} | "
-            f"{e['lateral_error_rms_mm']:.4f} | "
-            f"{e['normal_error_median_deg']:.2f} / {e['normal_error_max_deg']:.2f} | "
-            f"{e['normal_error_rms_deg']:.2f} |"
-        )
-    e = result["front_end"]["crlb"]
-    lines.append(
-        f"| Cramér-Rao bound (known background) | {e['frames']} | {e['depth_sd_rms_mm']:.3f} "
-        "(sigma) | "
-        f"{e['depth_change_sd_mm']:.3f} | {e['lateral_sd_rms_mm']:.4f} | - | "
-        f"{e['normal_rms_deg']:.2f} |"
-    )
-    lines.append("")
-    t = result["klt_track_error"]
-    lines.append(
-        f"| KLT track age [frames] (N = {t['n']}) | observations | error vs the true projection "
-        "of the "
-        "track's first point, median / p90 [px] |"
-    )
-    lines.append("|---|---|---|")
-    for row in t["per_age"]:
-        lines.append(
-            f"| {row['ages'][0]}-{row['ages'][1]} | {row['observations']} | "
-            f"{row['median_px']:.3f} / "
-            f"{row['p90_px']:.3f} |"
-        )
-    lines.append("")
-    for k, v in result["checks"].items():
-        lines.append(f"- {'PASS' if v else 'FAIL'}: {k}")
-    return "\n".join(lines) + "\n"
-
-
-def linearize_cost(repeats: int = 3000) -> dict:
-    """Seconds per linearization of a 2-component max-mixture of BetweenFactorPose3 (a Python
-    CustomFactor) and of one BetweenFactorPose3 (C++), measured in the same run."""
-    noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([0.015, 0.015, 1.0, 2e-4, 2e-4, 5e-4]))
-    a, b = pose_key(0, 0), pose_key(1, 0)
-    poses = [gtsam.Pose3(gtsam.Rot3.Ry(s), [0.03, 0.03, 0.83]) for s in (0.2, -0.15)]
-    between = gtsam.BetweenFactorPose3(a, b, poses[0], noise)
-    mixture = max_mixture_factor(
-        [gtsam.BetweenFactorPose3(a, b, p, noise) for p in poses], [0.5, 0.5]
-    ).factor
-    values = gtsam.Values()
-    values.insert(a, gtsam.Pose3())
-    values.insert(b, gtsam.Pose3(gtsam.Rot3.Ry(0.19), [0.031, 0.03, 0.829]))
-    out = {}
-    for name, factor in (("between_pose3", between), ("max_mixture_2", mixture)):
-        factor.linearize(values)
-        t0 = time.perf_counter()
-        for _ in range(repeats):
-            factor.linearize(values)
-        out[f"{name}_us"] = 1e6 * (time.perf_counter() - t0) / repeats
-    out["ratio_max_mixture_over_between"] = out["max_mixture_2_us"] / out["between_pose3_us"]
-    return out
 
 
 def main(argv=None) -> int:
