@@ -6,8 +6,9 @@
   table (heapq.merge over per-file iterators); every row is validated and a bad row either
   raises ValueError naming file, line and field (on_error="raise") or is counted in a
   `SkipReport` (on_error="skip") -- nothing is dropped silently.
-- `PlanarRun` is the in-memory, numpy form of a planar multi-robot run (what the smoothing
-  pipeline consumes); `read_planar_run(dir)` / `write_planar_run(run, dir)` convert.
+- `PlanarRun` is the numpy form of a planar multi-robot run (the MRCLAM loader's);
+  `write_planar_run(run, dir)` writes it as a log. Logs are read into the one run type of the
+  pipelines by `graphloc.run.read_team_run` (`graphloc.datasets.open_run`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,6 @@ from typing import Iterator
 
 import numpy as np
 
-from graphloc.factors.range_bearing import to_body_frame_2d
 
 FORMAT = "graphloc-log"
 VERSION = 2  # what the writers produce
@@ -580,7 +580,8 @@ def iter_records(root: str | Path, tables=None, robots=None, on_error: str = "ra
 # ---- planar multi-robot run (numpy form) -----------------------------------------------------
 @dataclass(frozen=True)
 class PlanarRun:
-    """A planar multi-robot run in arrays (what graphloc.pipeline_smoothing consumes).
+    """A planar multi-robot run in arrays (the MRCLAM loader's form; `graphloc.run.team_run_from_planar`
+    turns it into the TeamRun every pipeline takes).
 
     robots: R names; initial_poses: (R,3) (x, y, theta) at start_time (NaN row = unknown);
     odometry[r]: (N_r,3) time, v, omega; groundtruth[r]: (G_r,4) time, x, y, theta or None;
@@ -671,56 +672,3 @@ def _write_csv(path: Path, header: list[str], rows) -> None:
         w = csv.writer(fh)
         w.writerow(header)
         w.writerows(rows)
-
-
-def read_planar_run(root: str | Path, on_error: str = "skip") -> PlanarRun:
-    """Read a log directory into a PlanarRun (odometry, range_bearing, groundtruth tables; other
-    tables are ignored by the planar pipeline). Bad rows raise or are counted (`on_error`)."""
-    manifest = read_manifest(root)
-    report = SkipReport()
-    sink = _Sink(on_error, report)
-    ids, xyz, sig = read_landmarks(manifest)
-    names = tuple(r.name for r in manifest.robots)
-    index = {n: i for i, n in enumerate(names)}
-    odo = {n: [] for n in names}
-    gt = {n: [] for n in names}
-    obs = []
-    for rec in iter_records(root, tables=("odometry", "range_bearing", "groundtruth"), on_error=on_error, report=report):
-        if isinstance(rec, Odometry2D):
-            odo[rec.robot].append((rec.time, rec.v, rec.omega))
-        elif isinstance(rec, GroundTruth2D):
-            gt[rec.robot].append((rec.time, rec.x, rec.y, rec.theta))
-        else:
-            if rec.range <= 0:
-                sink.bad("non_positive_range", f"{manifest.root / manifest.robot(rec.robot).tables['range_bearing']}: "
-                                               f"time {rec.time}: field 'range': {rec.range} <= 0")
-                continue
-            T = manifest.robot(rec.robot).sensor(rec.sensor).body_T_sensor
-            mount = (T[0, 3], T[1, 3], math.atan2(T[1, 0], T[0, 0]))
-            if rec.target in index:
-                if rec.target == rec.robot:
-                    sink.bad("self_observation", f"robot {rec.robot} observes itself at time {rec.time}")
-                    continue
-                obs.append((rec.time, index[rec.robot], index[rec.target], -1, rec.range, rec.bearing, *mount))
-            else:
-                obs.append((rec.time, index[rec.robot], -1, int(rec.target[len(LANDMARK_PREFIX):]), rec.range,
-                            rec.bearing, *mount))
-    for n in names:
-        if len(odo[n]) < 2:
-            raise ValueError(f"{manifest.root}: robot {n!r} has fewer than 2 valid odometry rows")
-    odometry = tuple(np.array(odo[n], dtype=float) for n in names)
-    start = manifest.start_time if manifest.start_time is not None else max(od[0, 0] for od in odometry)
-    init = np.array([r.initial_pose if r.initial_pose is not None and len(r.initial_pose) == 3 else (np.nan,) * 3
-                     for r in manifest.robots], dtype=float)
-    o = np.array(obs, dtype=float).reshape(-1, 9)
-    for mount in np.unique(o[:, 6:9], axis=0):  # sensor extrinsics -> body frame, one batch per mounting
-        sel = np.all(o[:, 6:9] == mount, axis=1)
-        o[sel, 5], o[sel, 4] = to_body_frame_2d(o[sel, 5], o[sel, 4], mount)
-    return PlanarRun(
-        name=manifest.name, robots=names, start_time=float(start), initial_poses=init, odometry=odometry,
-        groundtruth=tuple(np.array(gt[n], dtype=float).reshape(-1, 4) if gt[n] else None for n in names),
-        obs_time=o[:, 0], obs_robot=o[:, 1].astype(int), obs_target_robot=o[:, 2].astype(int),
-        obs_landmark=o[:, 3].astype(int), obs_range=o[:, 4], obs_bearing=o[:, 5],
-        landmark_ids=ids, landmark_xy=xyz[:, :2], landmark_sigma=sig[:, :2], skips=report,
-        meta=dict(manifest.meta),
-    )

@@ -343,7 +343,7 @@ def _marker_observations(groups: dict, robots: tuple, manifest, d: dict, sink: _
     out = []
     by_setup: dict = {}
     for (time, ri, sensor, ti), rows in groups.items():
-        robot, target = robots[ri], robots[ti]
+        target = robots[ti]
         lines = sorted(r.line for r in rows)
         where = f"{manifest.root / manifest.robots[ri].tables['markers']}: lines {lines[0]}-{lines[-1]}"
         if target.markers is None:

@@ -13,10 +13,11 @@ from graphloc.datasets import dataset_class
 from graphloc.datasets.mrclam import MRCLAM, interpolate_pose, is_mrclam_dir
 from graphloc.factors.odometry import integrate_unicycle
 from graphloc.factors.range_bearing import bearing_range_2d
-from graphloc.io import read_planar_run
-from graphloc.pipeline_smoothing import SmoothingConfig, build_problem, evaluate, load_planar_run, solve
+from graphloc.datasets import open_run
+from graphloc.pipelines.report import evaluate
+from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 
-DATASET6 = Path("/work/shared/data/mrclam/MRCLAM_Dataset6")
+DATASET6 = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
 HEADER = "# synthetic MRCLAM-format file\n# Time [s] ...\n"
 LANDMARKS = {6: (3.0, 3.0), 7: (-3.0, 3.0), 8: (-3.0, -3.0), 9: (3.0, -3.0)}
 BARCODES = {1: 5, 2: 14, 3: 41, 6: 63, 7: 81, 8: 7, 9: 70}
@@ -113,25 +114,25 @@ def test_loader_rejects_missing_files(tmp_path):
 
 def test_log_conversion_roundtrip(synthetic, tmp_path):
     root, _ = synthetic
-    run = MRCLAM(root).load()
+    run = open_run(root)
     MRCLAM(root).to_log(tmp_path / "log")
-    back = read_planar_run(tmp_path / "log")
-    assert back.robots == run.robots and back.skips.total == 0
+    back = open_run(tmp_path / "log")
+    assert [r.name for r in back.robots] == [r.name for r in run.robots] and back.skips.total == 0
     np.testing.assert_allclose(back.start_time, run.start_time)
-    for a, b in zip(run.odometry, back.odometry):
+    for a, b in zip(run.velocity, back.velocity):
         np.testing.assert_allclose(a, b, atol=1e-5)
-    np.testing.assert_allclose(back.obs_range, run.obs_range, atol=1e-5)
-    np.testing.assert_array_equal(back.obs_target_robot, run.obs_target_robot)
-    np.testing.assert_array_equal(back.obs_landmark, run.obs_landmark)
-    np.testing.assert_allclose(back.initial_poses, run.initial_poses, atol=1e-9)
+    np.testing.assert_allclose([p.range for p in back.points], [p.range for p in run.points], atol=1e-5)
+    assert [(p.target, p.landmark) for p in back.points] == [(p.target, p.landmark) for p in run.points]
+    for a, b in zip(run.robots, back.robots):
+        np.testing.assert_allclose(a.initial_pose.matrix(), b.initial_pose.matrix(), atol=1e-9)
 
 
 @pytest.mark.parametrize("mode", ["batch", "online"])
 def test_smoothing_beats_dead_reckoning_synthetic(synthetic, mode):
     root, _ = synthetic
-    run = MRCLAM(root).load()
-    for cfg in (SmoothingConfig(), SmoothingConfig(use_landmarks=False), SmoothingConfig(landmark_priors=False)):
-        result = solve(build_problem(run, cfg), mode)
+    run = open_run(root)
+    for cfg in (GraphConfig(), GraphConfig(use_landmarks=False), GraphConfig(landmark_priors=False)):
+        result = solve(build_graph(run, cfg), mode)
         m = evaluate(result, run)
         for name, entry in m["per_robot"].items():
             assert entry[mode]["ate_rmse"] < entry["dead_reckoning"]["ate_rmse"], (name, cfg)
@@ -141,7 +142,7 @@ def test_smoothing_beats_dead_reckoning_synthetic(synthetic, mode):
             assert result.downweighted["landmark"]["downweighted"] == N_OUTLIERS
             assert result.downweighted["inter_robot"]["downweighted"] == 0
         if not cfg.landmark_priors:
-            est = np.array([result.landmarks[i] for i in sorted(LANDMARKS)])
+            est = np.array([result.landmarks[i][:2] for i in sorted(LANDMARKS)])
             truth = np.array([LANDMARKS[i] for i in sorted(LANDMARKS)])
             assert np.abs(est - truth).max() < 0.2
 
@@ -178,11 +179,11 @@ def test_commands_no_landmarks_option(synthetic, tmp_path):
 
 @pytest.mark.skipif(not DATASET6.is_dir(), reason="MRCLAM Dataset6 not available")
 def test_dataset6_first_two_minutes():
-    run = load_planar_run(DATASET6, duration=120.0)
+    run = open_run(DATASET6, duration=120.0)
     assert len(run.robots) == 5
-    problem = build_problem(run, SmoothingConfig())
+    problem = build_graph(run, GraphConfig())
     batch, online = evaluate(solve(problem, "batch"), run), evaluate(solve(problem, "online"), run)
-    for name in run.robots:
+    for name in (r.name for r in run.robots):
         b, o = batch["per_robot"][name], online["per_robot"][name]
         assert b["batch"]["ate_rmse"] < b["dead_reckoning"]["ate_rmse"]
         assert o["online"]["ate_rmse"] < 1.2 * b["batch"]["ate_rmse"] + 0.01
@@ -191,12 +192,12 @@ def test_dataset6_first_two_minutes():
 @pytest.mark.slow
 @pytest.mark.skipif(not DATASET6.is_dir(), reason="MRCLAM Dataset6 not available")
 def test_dataset6_whole_run_bar():
-    run = load_planar_run(DATASET6)
-    full = build_problem(run, SmoothingConfig())
-    coop = build_problem(run, SmoothingConfig(use_landmarks=False))
+    run = open_run(DATASET6)
+    full = build_graph(run, GraphConfig())
+    coop = build_graph(run, GraphConfig(use_landmarks=False))
     batch, online = evaluate(solve(full, "batch"), run), evaluate(solve(full, "online"), run)
     coop_batch = evaluate(solve(coop, "batch"), run)
-    for name in run.robots:
+    for name in (r.name for r in run.robots):
         b = batch["per_robot"][name]
         assert b["dead_reckoning"]["ate_rmse"] >= 5 * b["batch"]["ate_rmse"]
         assert online["per_robot"][name]["online"]["ate_rmse"] <= 1.2 * b["batch"]["ate_rmse"]

@@ -38,7 +38,7 @@ from tqdm import tqdm
 
 from graphloc.candidates import CandidateSet
 from graphloc.factors.bearing import bearing_factor, range_factor
-from graphloc.factors.mixture import candidate_covariances, component_factors
+from graphloc.factors.mixture import candidate_covariances
 from graphloc.factors.odometry import VelocityNoise, integrate_unicycle
 from graphloc.factors.range_bearing import landmark_factor_3d, robot_factor_3d
 from graphloc.factors.robust import Kernel, KernelPolicy, robust_noise
@@ -527,6 +527,7 @@ class TeamResult:
     wall_s: float
     graph: TeamGraph
     downweighted: dict
+    landmarks: dict  # landmark id -> estimated position (3,) of landmarks that are one variable (SLAM)
 
 
 def _pose_row(p: gtsam.Pose3) -> np.ndarray:
@@ -540,7 +541,6 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False) -> Team
     from graphloc.factors.robust import downweighted
 
     cfg = graph.config
-    run = graph.run
     session = Session(cfg.session_config(mode, graph.precision))
     causal = [np.full((len(t), 7), np.nan) for t in graph.node_times]
     start = _time.perf_counter()
@@ -602,7 +602,10 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False) -> Team
                            indices=np.flatnonzero(types == ftype))
         down[ftype] = {"robust_factors": rep.n_robust, "downweighted": rep.n_downweighted,
                        "threshold": cfg.downweight_threshold}
-    return TeamResult(mode, graph.node_times, estimate, causal, dead, session.latencies(), wall, graph, down)
+    landmarks = {decode(k)[1]: np.asarray(final.atPoint3(k)) for k in final.keys()
+                 if decode(k)[0] == "l" and decode(k)[1] < ANCHOR_BASE}
+    return TeamResult(mode, graph.node_times, estimate, causal, dead, session.latencies(), wall, graph, down,
+                      landmarks)
 
 
 def _held(graph: TeamGraph, key: int, t: float) -> bool:
