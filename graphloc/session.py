@@ -45,6 +45,7 @@ from typing import Iterable
 
 import gtsam
 import numpy as np
+from tqdm import tqdm
 
 MODES = ("batch", "online")
 _SAVE_FORMAT = "graphloc-session"
@@ -139,8 +140,9 @@ def _as_graph(items: list) -> gtsam.NonlinearFactorGraph:
 class Session:
     """Batch (LM) or online (iSAM2) smoothing over one growing factor graph."""
 
-    def __init__(self, config: SessionConfig = SessionConfig()):
+    def __init__(self, config: SessionConfig = SessionConfig(), progress: bool = False):
         self.config = config
+        self.progress = progress  # a progress bar (iteration, error) during a batch solve
         self.graph = gtsam.NonlinearFactorGraph()  # every factor ever added, in order
         self.initial = gtsam.Values()  # initial guess of every variable ever added
         self.steps: list[Step] = []
@@ -271,12 +273,27 @@ class Session:
         params.setRelativeErrorTol(self.config.lm_relative_error_tol)
         params.setAbsoluteErrorTol(self.config.lm_absolute_error_tol)
         optimizer = gtsam.LevenbergMarquardtOptimizer(self.graph, self.initial, params)
+        # GTSAM's own optimize() loop (NonlinearOptimizer::defaultOptimize), iteration by
+        # iteration so that long solves show their progress
+        bar = tqdm(total=params.getMaxIterations(), desc="Levenberg-Marquardt", unit="it",
+                   disable=not self.progress)
         try:
-            result = optimizer.optimize()
+            error = optimizer.error()
+            while error > params.getErrorTol() and optimizer.iterations() < params.getMaxIterations():
+                optimizer.iterate()
+                new_error = optimizer.error()
+                bar.update(1)
+                bar.set_postfix(error=f"{new_error:.6g}")
+                done = gtsam.checkConvergence(params, error, new_error) or not np.isfinite(new_error)
+                error = new_error
+                if done:
+                    break
         except RuntimeError as exc:
             raise ValueError(f"Session: batch optimization failed ({exc})") from None
+        finally:
+            bar.close()
         self._batch_iterations = int(optimizer.iterations())
-        return result
+        return optimizer.values()
 
     # ---- persistence ---------------------------------------------------------------------
     def save(self, path: str | Path) -> None:

@@ -541,7 +541,7 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False) -> Team
     from graphloc.factors.robust import downweighted
 
     cfg = graph.config
-    session = Session(cfg.session_config(mode, graph.precision))
+    session = Session(cfg.session_config(mode, graph.precision), progress=progress and mode == "batch")
     causal = [np.full((len(t), 7), np.nan) for t in graph.node_times]
     start = _time.perf_counter()
     added: set = set()
