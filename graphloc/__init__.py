@@ -2,7 +2,48 @@
 
 Seeds (in ../shared/seeds/): 000 Feng et al. (mutual bearings + P3P for a climbing robot),
 001 Breitenmoser et al. (four-marker targets), 003 (circle pose + EKF), 004 Kaushik et al.
-(ground + ceiling laser map fusion). See docs/architecture.md for the data flow.
+(ground + ceiling laser map fusion). See docs/architecture.md for the data flow and docs/api.md
+for a quick start.
+
+The names below are the public API; they load on first use, so `import graphloc` (and the
+command line's `--help`) does not pay for GTSAM, OpenCV or Open3D.
 """
 
+import importlib
+
 __version__ = "0.1.0"
+
+# public name -> module that defines it
+_API = {
+    "open_run": "graphloc.datasets",
+    "TeamRun": "graphloc.run",
+    "GraphConfig": "graphloc.pipelines.team_graph",
+    "build_graph": "graphloc.pipelines.team_graph",
+    "solve": "graphloc.pipelines.team_graph",
+    "run_and_report": "graphloc.pipelines.report",
+    "CandidateSet": "graphloc.candidates",
+    "p3p_candidate_sets": "graphloc.vision.marker_poses",
+    "solve_p3p": "graphloc.geometry.p3p",
+    "resection_covariance": "graphloc.geometry.resection",
+    "PinholeCamera": "graphloc.cameras",
+    "HypothesisTracker": "graphloc.hypotheses",
+    "TrackerConfig": "graphloc.hypotheses",
+    "Odometry": "graphloc.seams",
+    "Decision": "graphloc.seams",
+    "Session": "graphloc.session",
+    "SessionConfig": "graphloc.session",
+    "pose_key": "graphloc.keys",
+    "landmark_key": "graphloc.keys",
+    "component_factors": "graphloc.factors.mixture",
+}
+__all__ = ["__version__", *_API]
+
+
+def __getattr__(name: str):
+    if name in _API:
+        return getattr(importlib.import_module(_API[name]), name)
+    raise AttributeError(f"module 'graphloc' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

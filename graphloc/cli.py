@@ -26,6 +26,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog="graphloc",
         description="Factor-graph localization of ground + climbing robot teams (GTSAM).",
     )
+    from graphloc import __version__
+
+    parser.add_argument("--version", action="version", version=f"graphloc {__version__}")
     sub = parser.add_subparsers(dest="verb", metavar="VERB")
     sub.required = True
     for verb, module_name in VERBS.items():
