@@ -8,6 +8,8 @@ import argparse
 import importlib
 import sys
 
+from graphloc import __version__
+
 # verb -> module in graphloc.commands (keep sorted by the order a user meets them)
 VERBS: dict[str, str] = {
     "demo": "demo",
@@ -26,8 +28,6 @@ def build_parser() -> argparse.ArgumentParser:
         prog="graphloc",
         description="Factor-graph localization of ground + climbing robot teams (GTSAM).",
     )
-    from graphloc import __version__
-
     parser.add_argument("--version", action="version", version=f"graphloc {__version__}")
     sub = parser.add_subparsers(dest="verb", metavar="VERB")
     sub.required = True
