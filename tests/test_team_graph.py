@@ -161,3 +161,63 @@ def test_validate_reports_contributions(tmp_path, capsys):
     assert main(["validate", str(root)]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["rows_used"]["bearing"] == 80 and report["graph"]["factors_landmark"] == 80
+
+
+def test_climber_placed_by_markers_on_a_moving_ground_robot(tmp_path):
+    """Seed 004's setup as a log: a ceiling robot (no initial pose, drifting SE(3) odometry) sees
+    the three LEDs of a moving ground robot (wheel odometry, known start): the candidate sets
+    are decided through the ground robot's pose and enter as between factors."""
+    import gtsam
+    from scipy.spatial.transform import Rotation
+
+    from graphloc.datasets.feng import look_at
+
+    rng = np.random.default_rng(4)
+    root = tmp_path / "log"
+    times = np.round(np.arange(0.0, 8.0, 0.1), 6)
+    g_xy = np.column_stack([0.15 * times, np.zeros_like(times)])
+    leds = np.array([[0.0, 0.0, 0.3], [0.6, 0.0, 0.3], [0.2, 0.45, 0.3]])
+    centre = np.column_stack([g_xy, np.full_like(times, 0.3)]) + [0.27, 0.15, 0.0]
+    # the climber moves on the ceiling 1-1.3 m beside the ground robot, camera on the LEDs
+    c_pos = centre + np.column_stack([1.0 + 0.3 * np.sin(0.6 * times), 0.4 * np.cos(0.6 * times),
+                                      np.full_like(times, 2.2)])
+    R_wc = np.stack([look_at(c[None], m, np.array([[0.0, 1.0, 0.0]]))[0] for c, m in zip(c_pos, centre)])
+    fx, cx, cy = 600.0, 320.0, 240.0
+    rows = []
+    for t, g, c, R in zip(times, g_xy, c_pos, R_wc):
+        pc = (leds + [g[0], g[1], 0.0] - c) @ R
+        uv = fx * pc[:, :2] / pc[:, 2:] + [cx, cy] + rng.normal(0, 0.5, (3, 2))
+        rows += [(t, "cam", "g", j, round(u, 4), round(v, 4)) for j, (u, v) in enumerate(uv)]
+    _csv(root / "c/markers.csv", "markers", rows)
+    poses = [gtsam.Pose3(gtsam.Rot3(R), c) for R, c in zip(R_wc, c_pos)]
+    steps = []
+    for t0, t1, a, b in zip(times[:-1], times[1:], poses[:-1], poses[1:]):
+        d = a.between(b)
+        q = Rotation.from_matrix(d.rotation().matrix()).as_quat()
+        steps.append((t1, "odo", t0, *np.round(1.15 * d.translation(), 7), *np.round(q, 9),
+                      0.003, 0.003, 0.003, 0.01, 0.01, 0.01))
+    _csv(root / "c/relative_pose3.csv", "relative_pose3", steps)
+    quat = Rotation.from_matrix(R_wc).as_quat()
+    (root / "c/gt.tum").write_text("".join(f"{t} {p[0]} {p[1]} {p[2]} {q[0]} {q[1]} {q[2]} {q[3]}\n"
+                                           for t, p, q in zip(times, c_pos, quat)))
+    _csv(root / "g/odometry.csv", "odometry", [(t, "wheels", 0.15, 0.0) for t in times])
+    _csv(root / "g/groundtruth.csv", "groundtruth", [(t, x, y, 0.0) for t, (x, y) in zip(times, g_xy)])
+    write_manifest({"name": "moving-target", "start_time": 0.0, "robots": [
+        {"name": "c", "kind": "ceiling",
+         "sensors": [{"name": "odo", "type": "odometry"},
+                     {"name": "cam", "type": "camera", "params": {"fx": fx, "fy": fx, "cx": cx, "cy": cy,
+                                                                   "width": 640, "height": 480,
+                                                                   "pixel_sigma": 0.5}}],
+         "tables": {"relative_pose3": "c/relative_pose3.csv", "markers": "c/markers.csv",
+                    "groundtruth": "c/gt.tum"}},
+        {"name": "g", "kind": "ground", "initial_pose": [0, 0, 0], "markers": leds.tolist(),
+         "sensors": [{"name": "wheels", "type": "odometry"}],
+         "tables": {"odometry": "g/odometry.csv", "groundtruth": "g/groundtruth.csv"}}]}, root)
+    for mode in ("smooth", "online"):
+        assert main([mode, str(root), "--out", str(tmp_path / mode), "--no-progress"]) == 0
+        m = json.loads((tmp_path / mode / "metrics.json").read_text())
+        label = "batch" if mode == "smooth" else "online"
+        assert m["decisions"]["committed"] > 40 and m["decisions"]["wrong"] == 0, m["decisions"]
+        c = m["per_robot"]["c"]
+        assert c[label]["ate_rmse"] < 0.05 and c[label]["ate_rmse"] < 0.5 * c["dead_reckoning"]["ate_rmse"], c
+        assert m["counts"]["factors_candidate"] == m["decisions"]["committed"]

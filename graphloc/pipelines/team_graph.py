@@ -304,16 +304,18 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
             factors.append((t_new, _robot_factor(m, key, pose_key(m.target, kt), direction, rng, kernel, E),
                             "inter_robot"))
 
-    # --- candidate sets: one tracker per (observer, static target) stream ---
+    # --- candidate sets: one tracker per (observer, target) stream ---
     decisions, decided_pose = [], {}
     streams: dict = {}
     for o in run.observations:
         streams.setdefault((o.robot, o.target), []).append(o)
     for (r, ti), obs in tqdm(streams.items(), desc="deciding candidate sets", disable=not progress, unit="stream"):
         target = run.robots[ti]
-        if not target.static:
-            raise ValueError(f"{run.name}: robot {run.robots[r].name!r} has candidate sets on moving robot "
-                             f"{target.name!r}; candidate sets are supported on static targets (known pose)")
+        if target.initial_pose is None:
+            skips.add("target_unplaced", f"robot {run.robots[r].name}: {len(obs)} candidate sets on robot "
+                                         f"{target.name}, which has no initial pose", len(obs))
+            continue
+        target_track = _dead_reckoning(target, step_rel[ti], config)
         tracker = HypothesisTracker(config.tracker)
         prev = None
         for o in obs:
@@ -322,11 +324,21 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
                 skips.add("no_pose_at_time", f"robot {run.robots[r].name}: candidate set at {o.time} has no "
                                              f"(new) pose within the sync tolerance")
                 continue
+            kt = nearest(ti, o.time)
+            if kt < 0:
+                skips.add("no_pose_at_time", f"robot {target.name}: seen at {o.time} with no pose within the sync "
+                                             f"tolerance")
+                continue
             E = o.body_T_sensor
-            world = [target.initial_pose.compose(p) for p in o.candidates.poses()]
+            X_t, P_t = target_track[kt]
+            # the candidates (target_T_sensor) in the world through the target's pose, its uncertainty added
+            seen = o.candidates.poses()  # target_T_sensor
+            world = [X_t.compose(p) for p in seen]
+            cand_cov = candidate_covariances(o.candidates, config.tracker.default_sigmas)
+            cov = cand_cov + np.stack([_adjoint_cov(p.inverse(), P_t) for p in seen])
             cs = CandidateSet(np.stack([p.rotation().matrix() for p in world]), np.stack([p.translation() for p in world]),
                               o.candidates.scores, o.time, run.robots[r].name, target.name, o.candidates.source,
-                              o.candidates.meta, candidate_covariances(o.candidates, config.tracker.default_sigmas))
+                              o.candidates.meta, cov)
             odo = None
             if prev is not None:
                 rel, cov = _compose_steps(step_rel[r], prev, k, config)
@@ -338,11 +350,17 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
             decided = bool(cluster) and d.probabilities[cluster].sum() >= config.decision_threshold
             if decided:
                 j = d.committed
-                cam = world[j]
-                body = cam.compose(E.inverse())
-                cov_body = _adjoint_cov(E, cs.covariance[j])
-                noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(cov_body), config.kernels.kernel("candidate"))
-                factors.append((node_times[r][k], gtsam.PriorFactorPose3(pose_key(r, k), body, noise), "candidate"))
+                body = world[j].compose(E.inverse())
+                kernel = config.kernels.kernel("candidate")
+                if target.static:  # the target's pose is known: a prior on the observer
+                    noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(_adjoint_cov(E, cs.covariance[j])), kernel)
+                    factor = gtsam.PriorFactorPose3(pose_key(r, k), body, noise)
+                else:  # observer_T_target = E target_T_sensor^-1, covariance moved to the target's side
+                    noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(_adjoint_cov(seen[j], cand_cov[j])),
+                                         kernel)
+                    factor = gtsam.BetweenFactorPose3(pose_key(r, k), pose_key(ti, kt), E.compose(seen[j].inverse()),
+                                                      noise)
+                factors.append((max(node_times[r][k], node_times[ti][kt]), factor, "candidate"))
                 decided_pose.setdefault(r, {})[k] = body
                 q = gtsam.Rot3(body.rotation().matrix()).toQuaternion()
                 pose = np.r_[body.translation(), q.x(), q.y(), q.z(), q.w()]
@@ -439,6 +457,18 @@ def _landmark_key(lid: int, lm_prior: dict, config: GraphConfig, n_anchor: int):
     if prior is not None and config.anchor_known_landmarks:
         return landmark_key(ANCHOR_BASE + n_anchor), prior
     return landmark_key(lid), prior
+
+
+def _dead_reckoning(robot, steps: list, config: GraphConfig) -> list:
+    """(pose, 6x6 covariance) of each of a robot's poses: its initial pose (and prior) chained
+    through its odometry steps, covariances propagated to first order (right perturbations)."""
+    sig = config.static_sigma if robot.static else (robot.initial_sigma or config.initial_sigma)
+    out = [(robot.initial_pose, _cov(sig))]
+    for k in range(1, len(steps)):
+        step, c = _step(steps, k, config)
+        pose, cov = out[-1]
+        out.append((pose.compose(step), _adjoint_cov(step.inverse(), cov) + c))
+    return out
 
 
 def _between(r: int, k0: int, k1: int, rel: gtsam.Pose3, cov: np.ndarray, config: GraphConfig):
