@@ -18,13 +18,15 @@ BearingRangeFactorPose3), bearing (`factors.bearing.bearing_factor` with the sen
 BearingFactor3D to landmarks), range (`factors.bearing.range_factor`, RangeFactor3D); known
 landmarks as one prior-pinned anchor per observation (each iSAM2 update stays local).
 
-Candidate sets (P3P, seed 000 / 001 / 004) enter through one route: per (observer, static
-target) stream a `graphloc.hypotheses.HypothesisTracker` (seed 000 Sec. V's belief over the
-candidates, seed 004's particle filter) decides causally, frame by frame, with the observer's
-odometry between frames; a committed candidate becomes its mixture component
-(`factors.mixture.component_factors`, robust) in the graph. Decisions are causal, so batch and
-online solve the same factors. A robot with no known initial pose enters the online graph at
-its first committed candidate (before that nothing anchors it).
+Candidate sets (P3P, seed 000 / 001 / 004) enter through one route: per (observer, target)
+stream a `graphloc.hypotheses.HypothesisTracker` (seed 000 Sec. V's belief over the candidates,
+seed 004's particle filter) decides causally, frame by frame, with the observer's odometry
+between frames, each set seen in the world through the target's pose (static: known; moving:
+its odometry from its initial pose, that uncertainty added to the candidates'). A decided
+candidate becomes a robust factor: a prior on the observer (static target) or a between factor
+observer -> target. Decisions are causal, so batch and online solve the same factors. A robot
+with no known initial pose enters the online graph at its first decided set (before that
+nothing anchors it).
 """
 
 from __future__ import annotations
