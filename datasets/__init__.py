@@ -1,9 +1,10 @@
-"""graphloc.datasets (source folder datasets/): named loaders and scenario generators, one
-class each, in the style of KISS-ICP's dataset registry. Entries are imported lazily so that
-`graphloc --help` does not pay for Open3D or rendering code.
+"""graphloc.datasets (source folder datasets/): run loaders behind one protocol
+(`loaders.open_run`, the factory that picks the loader from the path) and scenario generators,
+one class each, in the style of KISS-ICP's datasets. Entries are imported lazily so that
+`graphloc --help` does not pay for GTSAM, Open3D or rendering code.
 
-    from graphloc.datasets import dataset_class, available
-    cls = dataset_class("mrclam")
+    from graphloc.datasets import open_run, dataset_class
+    run = open_run("../shared/data/mrclam/MRCLAM_Dataset6")
 """
 
 from __future__ import annotations
@@ -23,26 +24,11 @@ _REGISTRY: dict[str, tuple[str, str]] = {
 
 
 def open_run(path, duration: float | None = None, noise: dict | None = None):
-    """The loader factory: a graphloc log directory (manifest.json, format version 1 or 2) or
-    an MRCLAM dataset directory -> `graphloc.run.TeamRun`, optionally cut to the first
-    `duration` seconds. `noise`: sensor noise (bearing_sigma, range_sigma, range_sigma_per_m,
-    pixel_sigma) replacing what the log states (a config file or CLI flags)."""
-    from pathlib import Path
+    """The loader factory (`graphloc.datasets.loaders.open_run`): a graphloc log or an MRCLAM
+    directory -> `graphloc.run.TeamRun`."""
+    from graphloc.datasets.loaders import open_run as _open_run
 
-    from graphloc.io import MANIFEST
-    from graphloc.run import read_team_run, team_run_from_planar, truncate
-
-    path = Path(path)
-    if (path / MANIFEST).is_file():
-        run = read_team_run(path, overrides=noise)
-    else:
-        from graphloc.datasets.mrclam import MRCLAM, is_mrclam_dir
-
-        if not is_mrclam_dir(path):
-            raise FileNotFoundError(f"{path}: neither a graphloc log (no {MANIFEST}) nor an MRCLAM directory "
-                                    f"(no Barcodes.dat)")
-        run = team_run_from_planar(MRCLAM(path, duration=duration).load(), noise)
-    return run if duration is None else truncate(run, duration)
+    return _open_run(path, duration, noise)
 
 
 def available() -> list[str]:
