@@ -14,9 +14,24 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
-from graphloc.mapping.fusion import FusionConfig, FusionInput, LedObservations, fuse, input_from_scenario
+from graphloc.mapping.fusion import (
+    FusionConfig, FusionInput, FusionRejected, LedObservations, fuse, input_from_scenario,
+)
 from graphloc.mapping.io import read_led_pixels, read_scan_sequence
-from graphloc.mapping.report import write_outputs
+from graphloc.mapping.report import write_outputs, write_rejection
+
+
+def fuse_and_write(
+    inp: FusionInput, out_dir, config: FusionConfig, times, truth=None, extra=None
+) -> dict:
+    """fuse -> write_outputs; on FusionRejected write the "not fused" report (no map), attach
+    it to the exception as `.report` and re-raise."""
+    try:
+        result = fuse(inp, config)
+    except FusionRejected as exc:
+        exc.report = write_rejection(exc, out_dir, truth=truth, extra=extra)
+        raise
+    return write_outputs(result, out_dir, times, truth=truth, extra=extra)["report"]
 
 
 def simulate_and_fuse(out_dir, variant: str = "furnished", seed: int = 0, frames: int = 10,
@@ -29,11 +44,10 @@ def simulate_and_fuse(out_dir, variant: str = "furnished", seed: int = 0, frames
     scenario = scenario_cls.simulate(variant_config(variant, seed, frames=frames))
     out = Path(out_dir)
     scenario.write(out / "scenario")
-    result = fuse(input_from_scenario(scenario), config)
     scenario_info = {"name": "dual-robot-room", "variant": variant, "seed": seed, "frames": frames,
                      "dir": str(out / "scenario"), "counts": scenario.counts}
-    return write_outputs(result, out, scenario.times, truth=scenario.T_ground0_ceiling0,
-                         extra={"scenario": scenario_info})["report"]
+    return fuse_and_write(input_from_scenario(scenario), out, config, scenario.times,
+                          truth=scenario.T_ground0_ceiling0, extra={"scenario": scenario_info})
 
 
 def run_demo(out_dir, seed: int = 0) -> dict:
@@ -85,10 +99,23 @@ def read_p3p_setup(path, n_frames: int) -> LedObservations:
     return LedObservations(cam, leds, T, read_led_pixels(csv_path, n_frames))
 
 
+def parse_hint_sigma(text: str) -> tuple[float, float]:
+    """`DEG M` (1-sigma rotation [deg] and translation [m] of the hint) -> (rad, m)."""
+    try:
+        vals = [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise ValueError(f"hint-sigma: non-numeric value in {text!r}") from None
+    if len(vals) != 2 or not all(np.isfinite(v) and v > 0 for v in vals):
+        raise ValueError(f"hint-sigma: expected two positive numbers 'DEG M', got {text!r}")
+    return float(np.deg2rad(vals[0])), vals[1]
+
+
 def fuse_directories(ground_dir, ceiling_dir, out_dir, hint: str | None = None, p3p: str | None = None,
-                     rate: float = 10.0, config: FusionConfig = FusionConfig()) -> dict:
+                     rate: float = 10.0, config: FusionConfig = FusionConfig(),
+                     hint_sigma: str | None = None) -> dict:
     """A user's two scan sequences (PCD/PLY/XYZ, file-name order, frame k of both taken together at
-    k / rate seconds) + a relative pose hint or P3P observations -> outputs in out_dir."""
+    k / rate seconds) + a relative pose hint (with its 1-sigma 'DEG M') or P3P observations ->
+    outputs in out_dir. Raises FusionRejected (after writing the "not fused" report)."""
     if not (np.isfinite(rate) and rate > 0):
         raise ValueError(f"rate must be a positive frame rate [Hz], got {rate}")
     ground, _, dropped_g = read_scan_sequence(ground_dir)
@@ -98,7 +125,8 @@ def fuse_directories(ground_dir, ceiling_dir, out_dir, hint: str | None = None, 
                          "the pipeline needs synchronized sequences")
     times = np.arange(len(ground)) / float(rate)
     leds = read_p3p_setup(p3p, len(ground)) if p3p else None
-    inp = FusionInput(times, ground, ceiling, leds, parse_hint(hint) if hint else None)
+    inp = FusionInput(times, ground, ceiling, leds, parse_hint(hint) if hint else None,
+                      parse_hint_sigma(hint_sigma) if hint_sigma else None)
     provenance = {"ground": str(ground_dir), "ceiling": str(ceiling_dir), "frames": len(ground),
                   "nonfinite_points_skipped": {"ground": dropped_g, "ceiling": dropped_c}}
-    return write_outputs(fuse(inp, config), out_dir, times, extra={"input": provenance})["report"]
+    return fuse_and_write(inp, out_dir, config, times, extra={"input": provenance})

@@ -7,7 +7,10 @@
    `HypothesisTracker` (the role of seed 004 Sec. II-C's particle filter, Algorithm 2);
    or a user-supplied relative pose hint;
 3. denoise + point-to-plane ICP of the first ceiling scan onto the first ground scan from that
-   guess (seed 004 Sec. IV), information matrix from the registration;
+   guess (seed 004 Sec. IV): `robust_register` starts from the guess and its sigma points, keeps
+   the candidate with the lowest truncated point-to-plane cost and accepts it only if its checks
+   pass (overlap, residual consistency, conditioning, agreement with the guess, the ceiling robot
+   above the ground robot); otherwise `fuse` raises `FusionRejected` ("not fused", with why);
 4. one graph: prior on the ground robot's first pose, scan-matching between-factors for both
    robots (point-to-plane ICP of consecutive scans from the KISS-ICP increment, covariance from
    the registration's information matrix), the ICP inter-robot factor, and a P3P between-factor per camera frame (the candidate that
@@ -33,7 +36,16 @@ from graphloc.geometry.p3p import solve_p3p
 from graphloc.hypotheses import HypothesisTracker, Odometry, TrackerConfig
 from graphloc.keys import pose_key
 from graphloc.mapping.odometry import OdometryConfig, OdometryResult, run_odometry
-from graphloc.mapping.registration import Registration, RegistrationConfig, denoise, prepare, refine
+from graphloc.mapping.registration import (
+    AcceptanceConfig,
+    Registration,
+    RegistrationConfig,
+    RegistrationDecision,
+    denoise,
+    prepare,
+    refine,
+    robust_register,
+)
 from graphloc.session import Session, SessionConfig
 
 GROUND, CEILING = 0, 1
@@ -43,10 +55,14 @@ ROBOT_NAMES = {GROUND: "ground", CEILING: "ceiling"}
 @dataclass(frozen=True)
 class FusionConfig:
     """odometry_sigmas: per-frame KISS-ICP increment sigmas (rot [rad], trans [m]); pixel_sigma:
-    LED pixel noise [px] for the P3P covariances; p3p_gate: Mahalanobis^2 gate for the P3P factors."""
+    LED pixel noise [px] for the P3P covariances; p3p_gate: Mahalanobis^2 gate for the P3P factors;
+    guess_sigma: 1-sigma (rot [rad], trans [m]) of the inter-robot guess (LED tracker or hint) when
+    the input gives none; robust: the inter-robot registration is `robust_register` with the
+    `acceptance` checks (False: the multi-scale `refine` from the guess, no checks)."""
 
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
     registration: RegistrationConfig = field(default_factory=RegistrationConfig)
+    acceptance: AcceptanceConfig = field(default_factory=AcceptanceConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     session: SessionConfig = field(default_factory=SessionConfig)
     odometry_sigmas: tuple[float, float] = (np.deg2rad(0.3), 0.01)
@@ -57,6 +73,8 @@ class FusionConfig:
     anchor_sigma: float = 1e-4
     build_map: bool = True  # False: skip step 5 (benchmarks of the transform only)
     scan_matching: bool = True  # False: between-factors straight from KISS-ICP with odometry_sigmas
+    guess_sigma: tuple[float, float] = (np.deg2rad(5.0), 0.1)
+    robust: bool = True
 
 
 @dataclass(frozen=True)
@@ -83,13 +101,15 @@ class LedObservations:
 @dataclass(frozen=True)
 class FusionInput:
     """Synchronized scan sequences (frame k of both robots at times[k]) in each LiDAR's frame,
-    plus LED observations or a hint T_G0_C0 (4,4) for the inter-robot transform (one of the two)."""
+    plus LED observations or a hint T_G0_C0 (4,4) for the inter-robot transform (one of the two);
+    hint_sigma: optional 1-sigma (rot [rad], trans [m]) of the hint."""
 
     times: np.ndarray
     ground_scans: list
     ceiling_scans: list
     leds: LedObservations | None = None
     hint: np.ndarray | None = None
+    hint_sigma: tuple[float, float] | None = None
 
     def __post_init__(self):
         t = np.asarray(self.times, dtype=float)
@@ -107,6 +127,10 @@ class FusionInput:
                              "(exactly one of them)")
         if self.hint is not None and (np.shape(self.hint) != (4, 4) or not np.isfinite(self.hint).all()):
             raise ValueError("FusionInput.hint must be a finite 4x4 transform")
+        if self.hint_sigma is not None and (np.shape(self.hint_sigma) != (2,)
+                                            or not (np.asarray(self.hint_sigma) > 0).all()):
+            raise ValueError("FusionInput.hint_sigma must be (rot [rad], trans [m]) > 0, "
+                             f"got {self.hint_sigma}")
         object.__setattr__(self, "times", t)
 
 
@@ -140,6 +164,16 @@ class FusionResult:
     timings: dict
     graph_error: tuple[float, float]  # (initial, final)
     outliers_removed: dict = field(default_factory=dict)
+    decision: RegistrationDecision | None = None  # robust_register's candidates and checks
+
+
+class FusionRejected(Exception):
+    """The inter-robot registration failed its acceptance checks: "not fused". Carries the
+    decision (every candidate, every check) and the initial guess."""
+
+    def __init__(self, decision: RegistrationDecision, guess: np.ndarray, guess_info=None):
+        super().__init__("not fused: " + "; ".join(decision.reasons))
+        self.decision, self.guess, self.guess_info = decision, guess, guess_info
 
 
 # ----------------------------------------------------------------------------- P3P front-end
@@ -274,7 +308,17 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
     prepared = {GROUND: [prepare(s, cfg.registration) for s in inp.ground_scans[:n_prep]],
                 CEILING: [prepare(s, cfg.registration) for s in inp.ceiling_scans[:n_prep]]}
     timings["denoise_s"] = time.perf_counter() - t0
-    reg = refine(prepared[CEILING][0], prepared[GROUND][0], guess, cfg.registration)
+    decision = None
+    if cfg.robust:
+        s_rot, s_tr = inp.hint_sigma if inp.hint_sigma is not None else cfg.guess_sigma
+        sigma = np.r_[np.full(3, s_rot), np.full(3, s_tr)]
+        decision = robust_register(prepared[CEILING][0], prepared[GROUND][0], guess, sigma,
+                                   cfg.registration, cfg.acceptance)
+        if not decision.accepted:
+            raise FusionRejected(decision, guess, guess_info)
+        reg = decision.registration
+    else:
+        reg = refine(prepared[CEILING][0], prepared[GROUND][0], guess, cfg.registration)
     timings["icp_s"] = reg.seconds
     steps = {r: _between_steps(odo[r], prepared[r], cfg) for r in (GROUND, CEILING)}
     timings["scan_matching_s"] = sum(st[2] for r in steps for st in steps[r])
@@ -320,7 +364,7 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
     timings["map_s"] = time.perf_counter() - t0
     T = np.linalg.inv(poses[GROUND][0]) @ poses[CEILING][0]
     return FusionResult(poses, odo, T, guess, guess_info, reg, n_p3p, np.concatenate(pts), np.concatenate(labels),
-                        timings, errors, outliers)
+                        timings, errors, outliers, decision)
 
 
 def input_from_scenario(scenario) -> FusionInput:

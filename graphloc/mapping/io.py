@@ -52,7 +52,8 @@ def read_scan_sequence(folder) -> tuple[list[np.ndarray], list[Path], int]:
 
 
 def write_labelled_cloud(path, points: np.ndarray, robot: np.ndarray) -> None:
-    """Write (N,3) points with an integer per-point `robot` label (and colour) to PLY or PCD."""
+    """Write (N,3) points with an integer per-point `robot` label and a uint8 RGB colour per robot
+    to PLY or PCD."""
     path = Path(path)
     if path.suffix.lower() not in (".ply", ".pcd"):
         raise ValueError(f"{path}: fused maps are written as .ply or .pcd")
@@ -61,7 +62,8 @@ def write_labelled_cloud(path, points: np.ndarray, robot: np.ndarray) -> None:
     if points.ndim != 2 or points.shape[1] != 3 or len(robot) != len(points):
         raise ValueError(f"write_labelled_cloud: points {points.shape} / labels {robot.shape} mismatch")
     pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(points))
-    pcd.point.colors = o3d.core.Tensor(ROBOT_COLOURS[robot[:, 0] % len(ROBOT_COLOURS)].astype(np.float32))
+    rgb = np.round(255.0 * ROBOT_COLOURS[robot[:, 0] % len(ROBOT_COLOURS)]).astype(np.uint8)
+    pcd.point.colors = o3d.core.Tensor(rgb)  # uint8: PLY viewers expect 0-255 (uchar r/g/b)
     pcd.point.robot = o3d.core.Tensor(robot)
     path.parent.mkdir(parents=True, exist_ok=True)
     if not o3d.t.io.write_point_cloud(str(path), pcd):

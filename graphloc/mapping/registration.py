@@ -47,6 +47,13 @@ class RegistrationConfig:
     ransac_iterations: int = 100_000
     ransac_confidence: float = 0.999
     range_sigma: float = 0.01
+    # robust_register: coarse correspondences within coarse_voxels coarse voxels, Tukey kernel
+    # width coarse_tukey voxels (0: least squares), cluster size [m] of the sandwich covariance,
+    # stop at the first start whose candidate passes its checks
+    coarse_voxels: float = 2.0
+    coarse_tukey: float = 0.5
+    covariance_block: float = 0.5
+    stop_at_first_valid: bool = True
 
     def __post_init__(self):
         if not (self.voxel > 0 and self.normal_radius > 0 and self.range_sigma > 0):
@@ -173,3 +180,413 @@ def pose_errors(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:
     E = np.linalg.inv(T_true) @ T_est
     cos = np.clip((np.trace(E[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)
     return float(np.degrees(np.arccos(cos))), float(np.linalg.norm(T_est[:3, 3] - T_true[:3, 3]))
+
+
+# ----------------------------------------------------------------------------- robust registration
+# Issue 16: an inter-robot registration that does not slide on partial overlap, and that says
+# "not fused" instead of returning a confident wrong answer.
+
+
+@dataclass(frozen=True)
+class AcceptanceConfig:
+    """Checks a registration must pass before it is fused (see `robust_register`).
+
+    min_overlap: inlier fraction of the source (point-to-plane |r| < c, c = residual_sigma);
+    min_inlier_ratio: inliers among the source points that have a target point within the fine
+    correspondence distance (a slid alignment puts points near surfaces, not on them);
+    min_conditioning: smallest / largest eigenvalue of the point-to-plane Hessian with rotations
+    scaled by the median source range (a plane or a corridor leaves a direction unconstrained);
+    hint_gate: Mahalanobis^2 of the result against the hint under the hint's covariance,
+    chi-square with 6 degrees of freedom at 99.9%; ceiling_above: the robot kinds' geometry --
+    the ceiling sensor is above the ground sensor (z_G > 0) and upside down (its z axis within
+    max_ceiling_tilt_deg of -z_G); hint_basin_margin: how much lower (per source point) another
+    candidate's truncated cost must be to win over the hint's own candidate."""
+
+    residual_sigma: float = 0.01
+    min_overlap: float = 0.1
+    min_inlier_ratio: float = 0.65
+    min_conditioning: float = 1e-4
+    hint_gate: float = 22.458  # scipy.stats.chi2.ppf(0.999, 6)
+    ceiling_above: bool = True
+    max_ceiling_tilt_deg: float = 45.0
+    hint_basin_margin: float = 0.05
+    distinct_deg: float = 0.5
+    distinct_m: float = 0.02
+
+    def __post_init__(self):
+        if not (self.residual_sigma > 0 and self.hint_gate > 0 and self.hint_basin_margin >= 0):
+            raise ValueError(
+                "AcceptanceConfig: residual_sigma and hint_gate must be > 0, hint_basin_margin >= 0"
+            )
+        if not (0 <= self.min_overlap <= 1 and 0 <= self.min_inlier_ratio <= 1):
+            raise ValueError("AcceptanceConfig: min_overlap and min_inlier_ratio lie in [0, 1]")
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One start of the multi-start registration after coarse + fine ICP: T_target_source,
+    truncated point-to-plane cost per source point (eq. in `truncated_cost`), overlap (inlier
+    fraction), inlier ratio among near points, and Mahalanobis^2 to the hint."""
+
+    start: int
+    transformation: np.ndarray
+    cost: float
+    overlap: float
+    inlier_ratio: float
+    hint_d2: float
+
+    def as_dict(self) -> dict:
+        return {
+            "start": self.start,
+            "cost": self.cost,
+            "overlap": self.overlap,
+            "inlier_ratio": self.inlier_ratio,
+            "hint_mahalanobis2": self.hint_d2,
+            "translation_m": self.transformation[:3, 3].tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class RegistrationDecision:
+    """Outcome of `robust_register`: the chosen candidate (`registration`, its
+    information from the residual-scaled point-to-plane Hessian), whether every check passed,
+    the failed checks' reasons, every check's (value, threshold, passed), all candidates with
+    why each lost, and wall time [s]."""
+
+    registration: Registration
+    accepted: bool
+    reasons: tuple
+    checks: dict
+    candidates: tuple
+    best: int
+    lost: dict
+    covariance: np.ndarray
+    seconds: float
+
+    def as_dict(self) -> dict:
+        return {
+            "accepted": self.accepted,
+            "reasons": list(self.reasons),
+            "checks": {
+                k: {"value": v[0], "threshold": v[1], "passed": v[2]}
+                for k, v in self.checks.items()
+            },
+            "best_candidate": self.best,
+            "candidates": [dict(c.as_dict(), lost=self.lost.get(c.start)) for c in self.candidates],
+            "merged_starts": {
+                k: v for k, v in self.lost.items() if k not in {c.start for c in self.candidates}
+            },
+            "sigma_rot_deg": np.degrees(np.sqrt(np.diag(self.covariance)[:3])).tolist(),
+            "sigma_trans_m": np.sqrt(np.diag(self.covariance)[3:]).tolist(),
+            "seconds": self.seconds,
+        }
+
+
+def hint_starts(hint: np.ndarray, sigma: np.ndarray) -> list[np.ndarray]:
+    """The hint and its 12 sigma points hint Exp(+-sigma_i e_i) (right perturbation, GTSAM
+    tangent order rot, trans): the starts that cover the hint's uncertainty."""
+    starts = [np.asarray(hint, dtype=float)]
+    for i in range(6):
+        for sign in (1.0, -1.0):
+            xi = np.zeros(6)
+            xi[i] = sign * sigma[i]
+            starts.append(starts[0] @ gtsam.Pose3.Expmap(xi).matrix())
+    return starts
+
+
+def point_to_plane(source: PreparedCloud, target: PreparedCloud, T: np.ndarray, nns=None):
+    """Per source point (transformed by T): point-to-plane residual to its nearest target point
+    along that point's normal, the distance to it, and the Jacobian rows [(p x n)^T, n^T] of the
+    residual for a left perturbation Exp(xi) T (rot, trans). Nearest neighbours: Open3D NNS
+    (`nns`: a prebuilt knn index of target.points, else built here)."""
+    p = source.points @ T[:3, :3].T + T[:3, 3]
+    q_all = target.points
+    if nns is None:
+        nns = target_index(target)
+    idx, d2 = nns.knn_search(o3d.core.Tensor(p), 1)
+    idx = idx.numpy()[:, 0]
+    n = target.cloud.point.normals.numpy().astype(float)[idx]
+    r = np.einsum("ij,ij->i", p - q_all[idx], n)
+    J = np.hstack([np.cross(p, n), n])
+    return r, np.sqrt(d2.numpy()[:, 0].astype(float)), J
+
+
+def target_index(target: PreparedCloud):
+    """Open3D knn index of the target's points (for `point_to_plane`)."""
+    nns = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(target.points))
+    nns.knn_index()
+    return nns
+
+
+def truncated_cost(r: np.ndarray, d: np.ndarray, c: float, max_dist: float) -> float:
+    """Truncated least squares per source point: mean of min(r^2, c^2) / c^2, a point with no
+    target point within max_dist counting 1 (an unexplained point)."""
+    near = d < max_dist
+    return float(np.mean(np.where(near, np.minimum(r * r, c * c) / (c * c), 1.0)))
+
+
+def _coarse_clouds(source: PreparedCloud, target: PreparedCloud, cfg: RegistrationConfig):
+    """Both clouds on the coarse grid: twice the larger of cfg.voxel and the source's median
+    nearest-neighbour spacing (the scans' density), normals re-estimated (cfg.normal_radius)."""
+    spacing = float(np.median(np.asarray(source.legacy.compute_nearest_neighbor_distance())))
+    voxel = 2.0 * max(cfg.voxel, spacing)
+    out = []
+    for c in (source.legacy, target.legacy):
+        down = c.voxel_down_sample(voxel)
+        down.estimate_normals(
+            o3d.geometry.KDTreeSearchParamHybrid(radius=cfg.normal_radius, max_nn=cfg.max_nn)
+        )
+        out.append(down)
+    return out[0], out[1], voxel
+
+
+def robust_register(
+    source: PreparedCloud,
+    target: PreparedCloud,
+    hint: np.ndarray,
+    hint_sigma: np.ndarray,
+    cfg: RegistrationConfig = RegistrationConfig(),
+    acc: AcceptanceConfig = AcceptanceConfig(),
+) -> RegistrationDecision:
+    """Multi-start registration of source onto target around a pose hint, with acceptance checks.
+
+    1. Starts: the hint and its sigma points (`hint_starts`; hint_sigma is the 1-sigma, rot [rad]
+       x3 then trans [m] x3).
+    2. Per start: point-to-plane ICP on the coarse grid (`_coarse_clouds`; correspondences within
+       cfg.coarse_voxels coarse voxels, Tukey kernel of cfg.coarse_tukey voxels, so the parts
+       that do not overlap are not pulled in); starts whose coarse results lie within one fine
+       basin of each other (cfg.max_correspondence[-1], and the rotation moving the median
+       source point that far) merge; then Open3D tensor ICP on the prepared clouds within that
+       distance (cfg.max_iterations[-1]); candidates closer than acc.distinct_deg / distinct_m
+       merge. With cfg.stop_at_first_valid the starts stop at the first candidate that passes
+       its checks (the hint comes first, so an easy case costs one start).
+    3. Each candidate's `truncated_cost` (c = acc.residual_sigma) and checks (overlap, inlier
+       ratio, hint gate, robot geometry: `_candidate_checks`). Among those that pass, the lowest
+       cost wins, except that the hint's own candidate (start 0) is kept when it passes and its
+       cost is within acc.hint_basin_margin of that best (the data must clearly beat the
+       hint's basin).
+    4. The winner's conditioning; accepted only if every check passes.
+    5. Covariance: the point-to-plane Hessian H over the inliers in a cluster-robust sandwich
+       (`cluster_covariance`), converted to GTSAM's right perturbation (`information_right`);
+       `inlier_rmse` is the inliers' residual standard deviation (n - 6 dof)."""
+    start_t = time.perf_counter()
+    hint = np.asarray(hint, dtype=float)
+    sigma = np.asarray(hint_sigma, dtype=float)
+    if hint.shape != (4, 4) or not np.isfinite(hint).all():
+        raise ValueError(f"robust_register: hint must be a finite 4x4 transform, got {hint.shape}")
+    if sigma.shape != (6,) or not (sigma > 0).all():
+        raise ValueError(f"robust_register: hint_sigma must be 6 positive values, got {sigma}")
+    src_c, tgt_c, voxel_c = _coarse_clouds(source, target, cfg)
+    fine = cfg.max_correspondence[-1]
+    kernel = reg_l.TukeyLoss(cfg.coarse_tukey * voxel_c) if cfg.coarse_tukey > 0 else reg_l.L2Loss()
+    est = reg_l.TransformationEstimationPointToPlane(kernel)
+    crit_c = reg_l.ICPConvergenceCriteria(1e-6, 1e-6, cfg.max_iterations[0])
+    crit_f = reg_t.ICPConvergenceCriteria(
+        cfg.relative_fitness, cfg.relative_rmse, cfg.max_iterations[-1]
+    )
+    hint_info = np.diag(1.0 / sigma**2)
+    hint_pose = gtsam.Pose3(hint)
+    c = acc.residual_sigma
+    nns = target_index(target)
+    r_med = float(np.median(np.linalg.norm(source.points, axis=1)))
+    basin_deg = float(np.degrees(fine / r_med))  # a rotation moving the median point by `fine`
+    merged, coarse, cands, iterations = {}, [], [], 0
+    for k, T0 in enumerate(hint_starts(hint, sigma)):
+        T = T0
+        if cfg.coarse_voxels > 0:
+            T = np.asarray(
+                reg_l.registration_icp(
+                    src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0, est, crit_c
+                ).transformation
+            )
+        same = [j for j, Tj in coarse if _within(T, Tj, basin_deg, fine)]
+        if same:
+            merged[k] = f"coarse stage converged within the fine basin of start {same[0]}"
+            continue
+        coarse.append((k, T))
+        try:
+            res = reg_t.icp(
+                source.cloud,
+                target.cloud,
+                fine,
+                o3d.core.Tensor(T),
+                reg_t.TransformationEstimationPointToPlane(),
+                crit_f,
+            )
+        except RuntimeError:  # Open3D: singular 6x6 system, too few correspondences from this start
+            merged[k] = f"no correspondences within {fine} m"
+            continue
+        T, iterations = res.transformation.numpy(), iterations + int(res.num_iterations)
+        same = [o.start for o in cands if not _distinct(T, o.transformation, acc)]
+        if same:
+            merged[k] = f"converged to the pose of start {same[0]}"
+            continue
+        r, d, _ = point_to_plane(source, target, T, nns)
+        near = d < fine
+        inl = near & (np.abs(r) < c)
+        e = hint_pose.localCoordinates(gtsam.Pose3(T))
+        cands.append(
+            Candidate(
+                k,
+                T,
+                truncated_cost(r, d, c, fine),
+                float(inl.mean()),
+                float(inl.sum() / max(near.sum(), 1)),
+                float(e @ hint_info @ e),
+            )
+        )
+        if cfg.stop_at_first_valid and all(
+            v[2] for v in _candidate_checks(cands[-1], acc).values()
+        ):
+            break
+    if not cands:
+        raise ValueError(
+            f"robust_register: no start found correspondences within {fine} m: a wrong "
+            "pose hint, or scans that do not overlap"
+        )
+    checks_of = {o.start: _candidate_checks(o, acc) for o in cands}
+    valid = sorted(
+        (o for o in cands if all(v[2] for v in checks_of[o.start].values())), key=lambda x: x.cost
+    )
+    lost = dict(merged)
+    if valid:
+        best = valid[0]
+        hint_own = [o for o in valid if o.start == 0]
+        if (
+            hint_own
+            and hint_own[0] is not best
+            and hint_own[0].cost - best.cost <= acc.hint_basin_margin
+        ):
+            lost[best.start] = (
+                f"truncated cost {best.cost:.4f} beats the hint's own candidate by less "
+                f"than the hint-basin margin {acc.hint_basin_margin}"
+            )
+            best = hint_own[0]
+    else:
+        best = min(cands, key=lambda x: x.cost)
+    for o in cands:
+        if o.start == best.start or o.start in lost:
+            continue
+        failed = [k for k, v in checks_of[o.start].items() if not v[2]]
+        lost[o.start] = (
+            f"failed {', '.join(failed)}"
+            if failed
+            else f"truncated cost {o.cost:.4f} > {best.cost:.4f} of start {best.start}"
+        )
+    T = best.transformation
+    r, d, J = point_to_plane(source, target, T, nns)
+    inl = (d < fine) & (np.abs(r) < c)
+    n_in = int(inl.sum())
+    H = J[inl].T @ J[inl]
+    s2 = float(r[inl] @ r[inl]) / max(n_in - 6, 1)
+    D = np.diag([r_med**-1] * 3 + [1.0] * 3)
+    eig = np.linalg.eigvalsh(D @ H @ D) if n_in >= 6 else np.zeros(6)
+    conditioning = float(eig[0] / eig[-1]) if eig[-1] > 0 else 0.0
+    if n_in >= 6 and conditioning >= acc.min_conditioning:  # else no covariance (not accepted)
+        pts_in = (source.points @ T[:3, :3].T + T[:3, 3])[inl]
+        cov_left = cluster_covariance(J[inl], r[inl], pts_in, H, cfg.covariance_block)
+        info = information_right(np.linalg.inv(cov_left), T)
+    else:
+        info = np.eye(6) * 1e-12
+    cov = np.linalg.inv(info)
+    checks = dict(checks_of[best.start])
+    checks["conditioning"] = (
+        conditioning,
+        acc.min_conditioning,
+        conditioning >= acc.min_conditioning,
+    )
+    why = {
+        "overlap": "too little overlap",
+        "inlier_ratio": "residuals inconsistent with a fit",
+        "conditioning": "degenerate geometry (a direction is unconstrained)",
+        "hint_mahalanobis2": "disagrees with the pose hint beyond its covariance",
+        "ceiling_height_m": "ceiling robot below the ground robot",
+        "ceiling_z_down_cos": "ceiling robot not upside down",
+    }
+    reasons = tuple(
+        f"{why[k]} ({k} {v[0]:.4g} vs {v[1]:.4g})" for k, v in checks.items() if not v[2]
+    )
+    reg = Registration(
+        T, best.overlap, float(np.sqrt(s2)), iterations, info, time.perf_counter() - start_t
+    )
+    return RegistrationDecision(
+        reg,
+        not reasons,
+        reasons,
+        checks,
+        tuple(cands),
+        best.start,
+        lost,
+        cov,
+        time.perf_counter() - start_t,
+    )
+
+
+def _candidate_checks(o: Candidate, acc: AcceptanceConfig) -> dict:
+    """name -> (value, threshold, passed) of the checks one candidate can fail on its own."""
+    checks = {
+        "overlap": (o.overlap, acc.min_overlap, o.overlap >= acc.min_overlap),
+        "inlier_ratio": (
+            o.inlier_ratio,
+            acc.min_inlier_ratio,
+            o.inlier_ratio >= acc.min_inlier_ratio,
+        ),
+        "hint_mahalanobis2": (o.hint_d2, acc.hint_gate, o.hint_d2 <= acc.hint_gate),
+    }
+    if acc.ceiling_above:
+        T = o.transformation
+        height, down = float(T[2, 3]), float(-T[2, 2])
+        min_down = float(np.cos(np.deg2rad(acc.max_ceiling_tilt_deg)))
+        checks["ceiling_height_m"] = (height, 0.0, height > 0.0)
+        checks["ceiling_z_down_cos"] = (down, min_down, down >= min_down)
+    return checks
+
+
+def cluster_covariance(
+    J: np.ndarray, r: np.ndarray, points: np.ndarray, H: np.ndarray, block: float
+) -> np.ndarray:
+    """Cluster-robust (sandwich) covariance of the least-squares pose, H^-1 M H^-1 with
+    M = B / (B - 1) sum_b g_b g_b^T, g_b = sum_{i in b} J_i^T r_i over cubic blocks of side
+    `block` (Liang & Zeger 1986; White 1980 with B clusters): residuals of points that share
+    normals, voxels and sensor error are correlated, so they are summed before squaring."""
+    cells = np.floor(points / block).astype(np.int64)
+    _, label = np.unique(cells, axis=0, return_inverse=True)
+    label = label.reshape(-1)
+    B = int(label.max()) + 1
+    G = np.zeros((B, 6))
+    np.add.at(G, label, J * r[:, None])
+    M = G.T @ G * (B / max(B - 1, 1))
+    Hinv = np.linalg.inv(H)
+    cov = Hinv @ M @ Hinv
+    return 0.5 * (cov + cov.T)
+
+
+def _within(A: np.ndarray, B: np.ndarray, rot_deg: float, trans_m: float) -> bool:
+    rot, tr = pose_errors(A, B)
+    return rot <= rot_deg and tr <= trans_m
+
+
+def _distinct(A: np.ndarray, B: np.ndarray, acc: AcceptanceConfig) -> bool:
+    rot, tr = pose_errors(A, B)
+    return rot > acc.distinct_deg or tr > acc.distinct_m
+
+
+def icp_from_hint(
+    source: PreparedCloud,
+    target: PreparedCloud,
+    hint: np.ndarray,
+    distance: float,
+    max_iterations: int = 60,
+) -> tuple[np.ndarray, float]:
+    """Open3D point-to-plane ICP (legacy registration_icp, one scale) from a hint: the benchmark's
+    plain-ICP peer. Returns (T_target_source, seconds)."""
+    start = time.perf_counter()
+    r = reg_l.registration_icp(
+        source.legacy,
+        target.legacy,
+        distance,
+        np.asarray(hint, dtype=float),
+        reg_l.TransformationEstimationPointToPlane(),
+        reg_l.ICPConvergenceCriteria(1e-7, 1e-7, max_iterations),
+    )
+    return np.asarray(r.transformation), time.perf_counter() - start

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from graphloc.mapping.fusion import CEILING, GROUND, ROBOT_NAMES, FusionResult
+from graphloc.mapping.fusion import CEILING, GROUND, ROBOT_NAMES, FusionRejected, FusionResult
 from graphloc.mapping.io import ROBOT_COLOURS, write_labelled_cloud, write_tum
 from graphloc.mapping.registration import pose_errors
 
@@ -26,6 +26,7 @@ def transform_dict(T: np.ndarray) -> dict:
 def report_dict(result: FusionResult, truth: np.ndarray | None = None) -> dict:
     reg = result.registration
     out = {
+        "status": "fused",
         "T_ground0_ceiling0": transform_dict(result.T_g0_c0),
         "initial_guess": transform_dict(result.guess),
         "registration": {"fitness": reg.fitness, "inlier_rmse_m": reg.inlier_rmse, "icp_iterations": reg.iterations,
@@ -36,6 +37,8 @@ def report_dict(result: FusionResult, truth: np.ndarray | None = None) -> dict:
         "outliers_removed": result.outliers_removed,
         "timings_s": result.timings,
     }
+    if result.decision is not None:
+        out["registration_decision"] = result.decision.as_dict()
     if result.guess_info is not None:
         g = result.guess_info
         out["p3p"] = {"frames_used": g.frames.tolist(), "candidates_per_frame": g.n_candidates.tolist(),
@@ -48,8 +51,31 @@ def report_dict(result: FusionResult, truth: np.ndarray | None = None) -> dict:
     return out
 
 
+def gravity_rotation(points: np.ndarray, labels: np.ndarray, max_tilt_deg: float = 30.0,
+                     seed: int = 0) -> tuple[np.ndarray, bool]:
+    """Rotation R (3,3) that makes the floor horizontal: RANSAC plane (Open3D segment_plane,
+    seeded) through the ground robot's points below its first pose; if its normal is within
+    max_tilt_deg of G0's z axis and it holds at least 10% of them, R is the smallest rotation
+    taking that normal to +z (scipy align_vectors). Otherwise (no floor seen) the identity and
+    False: the ground robot's frame is taken as gravity-aligned."""
+    import open3d as o3d
+
+    low = points[(labels == GROUND) & (points[:, 2] < 0.0)]
+    if len(low) < 100:
+        return np.eye(3), False
+    o3d.utility.random.seed(seed)
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(low))
+    (a, b, c, _), inliers = cloud.segment_plane(0.03, 3, 1000)
+    n = np.array([a, b, c]) * np.sign(c or 1.0)
+    if len(inliers) < 0.1 * len(low) or n[2] < np.cos(np.deg2rad(max_tilt_deg)):
+        return np.eye(3), False
+    rot, _ = Rotation.align_vectors([[0.0, 0.0, 1.0]], [n])
+    return rot.as_matrix(), True
+
+
 def render(result: FusionResult, path: Path, view: str) -> Path:
-    """Scatter of the fused map ('top': x-y, 'side': x-z) with both trajectories."""
+    """Scatter of the fused map ('top': x-y, 'side': x-z) with both trajectories, in a
+    gravity-aligned frame (`gravity_rotation`: G0 turned so the floor is horizontal)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -57,6 +83,8 @@ def render(result: FusionResult, path: Path, view: str) -> Path:
 
     axes = {"top": (0, 1), "side": (0, 2)}[view]
     pts, lab = result.map_points, result.map_labels
+    R, floor = gravity_rotation(pts, lab)
+    pts = pts @ R.T
     if len(pts) > MAX_PLOT_POINTS:
         keep = np.random.default_rng(0).choice(len(pts), MAX_PLOT_POINTS, replace=False)
         pts, lab = pts[keep], lab[keep]
@@ -69,11 +97,12 @@ def render(result: FusionResult, path: Path, view: str) -> Path:
         ax.scatter(pts[sel, axes[0]], pts[sel, axes[1]], s=0.3, color=ROBOT_COLOURS[r], alpha=0.5,
                    label=f"{ROBOT_NAMES[r]} scans ({int(sel.sum())} pts shown)", rasterized=True)
     for r, marker in ((GROUND, "o"), (CEILING, "s")):
-        xyz = result.poses[r][:, :3, 3]
+        xyz = result.poses[r][:, :3, 3] @ R.T
         ax.plot(xyz[:, axes[0]], xyz[:, axes[1]], "-" + marker, color="k", mfc=ROBOT_COLOURS[r], ms=5, lw=1.5,
                 label=f"{ROBOT_NAMES[r]} trajectory")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x [m] (ground robot frame G0)")
+    frame = "G0 levelled on the floor plane" if floor else "ground robot frame G0, taken as level"
+    ax.set_xlabel(f"x [m] ({frame}, z up)")
     ax.set_ylabel(("y" if view == "top" else "z") + " [m]")
     ax.grid(alpha=0.3)
     legend = ax.legend(fontsize=8, loc="upper right")
@@ -109,8 +138,40 @@ def write_outputs(result: FusionResult, out_dir, times: np.ndarray, truth: np.nd
     return {**paths, "report": report}
 
 
+def write_rejection(exc: FusionRejected, out_dir, truth: np.ndarray | None = None,
+                    extra: dict | None = None) -> dict:
+    """"Not fused": fusion_report.json with status, reasons, the guess and every candidate with
+    its checks (and, when the truth is known, the best candidate's error); no map, no PNGs."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    report = {"status": "not_fused", "reasons": list(exc.decision.reasons),
+              "initial_guess": transform_dict(exc.guess),
+              "registration_decision": exc.decision.as_dict()}
+    if exc.guess_info is not None:
+        g = exc.guess_info
+        report["p3p"] = {"frames_used": g.frames.tolist(), "tracker_locked": g.locked,
+                         "last_frame_candidate_probability": g.probability}
+    if truth is not None:
+        rot, tr = pose_errors(exc.decision.registration.transformation, truth)
+        g_rot, g_tr = pose_errors(exc.guess, truth)
+        report["errors_vs_truth"] = {"rejected_rot_deg": rot, "rejected_trans_m": tr,
+                                     "guess_rot_deg": g_rot, "guess_trans_m": g_tr}
+    report.update(extra or {})
+    path = out / "fusion_report.json"
+    report["files"] = {"json": str(path)}
+    path.write_text(json.dumps(report, indent=1))
+    return report
+
+
 def summary_text(report: dict) -> str:
-    """A few lines for the terminal: transform, ICP quality, error vs truth, timings, files."""
+    """A few lines for the terminal: transform, ICP quality, error vs truth, timings, files (or,
+    for a rejected fusion, "not fused" and why)."""
+    if report.get("status") == "not_fused":
+        n = len(report["registration_decision"]["candidates"])
+        lines = ["not fused: " + "; ".join(report["reasons"]),
+                 f"{n} distinct candidate(s) tried; no fused map written",
+                 "wrote " + ", ".join(report["files"].values())]
+        return "\n".join(lines)
     t = report["T_ground0_ceiling0"]
     lines = [f"T_ground0_ceiling0: translation {[round(v, 4) for v in t['translation_m']]} m, "
              f"rpy {[round(v, 3) for v in t['rpy_deg_xyz']]} deg",
