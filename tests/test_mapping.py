@@ -209,6 +209,20 @@ def test_fuse_maps_verb_on_user_directories_with_a_hint(scenario, tmp_path):
     assert report["registration"]["icp_iterations"] > 0 and "timings_s" in report
 
 
+def test_a_wrong_hint_on_the_simulated_room_is_not_fused(scenario, tmp_path, capsys):
+    """Issue 16: the identity as hint put the ceiling robot below the floor with sigma 6e-5 and
+    exit 0; now it is "not fused", exit 3, a report and no map."""
+    scenario.write(tmp_path / "scn")
+    rc = cli_main(["fuse-maps", "--ground", str(tmp_path / "scn/scans/ground"), "--ceiling",
+                   str(tmp_path / "scn/scans/ceiling"), "--hint", "0 0 0 0 0 0 1",
+                   "--out", str(tmp_path / "out")])
+    assert rc == 3 and "not fused" in capsys.readouterr().out
+    report = json.loads((tmp_path / "out" / "fusion_report.json").read_text())
+    assert report["status"] == "not_fused" and report["reasons"]
+    assert report["registration_decision"]["candidates"]
+    assert not (tmp_path / "out" / "fused_map.ply").exists()
+
+
 def test_fuse_maps_verb_reports_bad_input(tmp_path, capsys):
     rc = cli_main(["fuse-maps", "--ground", str(tmp_path / "none"), "--ceiling", str(tmp_path), "--hint",
                    "0 0 0 0 0 0 1", "--out", str(tmp_path / "o")])

@@ -1,0 +1,213 @@
+"""Issue 16: map fusion on real geometry -- the real fragment in tests/data/real_room, its
+ground / flipped-ceiling view pairs, robust registration with acceptance checks, "not fused"
+(exit 3) instead of a confident wrong answer, `fuse-maps --config`, uint8 PLY colours and the
+gravity-aligned plots."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+from graphloc.cli import main as cli_main
+from graphloc.mapping.fusion import FusionConfig, FusionInput, FusionRejected, fuse
+from graphloc.mapping.real_views import load_fragment, make_view_pair, perturb
+from graphloc.mapping.registration import (
+    AcceptanceConfig,
+    Candidate,
+    RegistrationConfig,
+    _candidate_checks,
+    pose_errors,
+    prepare,
+    robust_register,
+)
+
+ROT_OK, TRANS_OK = 1.0, 0.05
+
+
+@pytest.fixture(scope="module")
+def fragment() -> np.ndarray:
+    return load_fragment()
+
+
+def _pair(fragment, overlap, seed):
+    rng = np.random.default_rng(seed)
+    return make_view_pair(fragment, overlap, rng), rng
+
+
+def _fuse(pair, hint, sigma):
+    inp = FusionInput(np.zeros(1), [pair.ground], [pair.ceiling], hint=hint,
+                      hint_sigma=(np.deg2rad(sigma[0]), sigma[1]))
+    return fuse(inp, FusionConfig(build_map=False, scan_matching=False))
+
+
+def _write_pair(tmp_path, pair):
+    for name, pts in (("ground", pair.ground), ("ceiling", pair.ceiling)):
+        (tmp_path / name).mkdir()
+        o3d.t.io.write_point_cloud(str(tmp_path / name / "000.ply"),
+                                   o3d.t.geometry.PointCloud(o3d.core.Tensor(pts.astype(np.float32))))
+
+
+def _hint_text(T):
+    return " ".join(f"{v:.9f}" for v in T.ravel())
+
+
+# ----------------------------------------------------------------------------- data and protocol
+
+
+def test_real_fragment_is_a_gravity_aligned_room(fragment):
+    assert fragment.shape == (29_702, 3)
+    floor = np.percentile(fragment[:, 2], 2)
+    assert -1.8 < floor < -1.65  # the Kinect was 1.73 m above the floor (README)
+    extent = fragment.max(axis=0) - fragment.min(axis=0)
+    assert (extent[:2] > 2.5).all() and extent[2] > 1.4
+
+
+def test_view_pair_has_the_asked_overlap_and_a_flipped_ceiling_view(fragment):
+    for overlap in (0.6, 0.3):
+        pair, _ = _pair(fragment, overlap, 5)
+        assert abs(pair.overlap - overlap) < 0.05
+        T = pair.T_ground_ceiling
+        assert T[2, 3] == pytest.approx(2.5) and T[2, 2] == pytest.approx(-1.0)
+        back = pair.ceiling @ T[:3, :3].T + T[:3, 3]  # ceiling view in G is the fragment's other side
+        assert back[:, 1].mean() > pair.ground[:, 1].mean()
+        assert (pair.ceiling[:, 2] > 0).all()  # everything is below an upside-down sensor
+    hint = perturb(np.eye(4), 3.0, 0.05, np.random.default_rng(0))
+    assert pose_errors(hint, np.eye(4)) == pytest.approx((3.0, 0.05))
+    with pytest.raises(ValueError, match="overlap"):
+        make_view_pair(fragment, 1.2, np.random.default_rng(0))
+
+
+# ----------------------------------------------------------------------------- robust fusion
+
+
+@pytest.mark.parametrize("overlap,rot_deg,trans_m", [(0.6, 3.0, 0.05), (0.3, 10.0, 0.20)])
+def test_fuse_registers_the_real_fragment(fragment, overlap, rot_deg, trans_m):
+    pair, rng = _pair(fragment, overlap, 11)
+    hint = perturb(pair.T_ground_ceiling, rot_deg, trans_m, rng)
+    res = _fuse(pair, hint, (rot_deg, trans_m))
+    rot, tr = pose_errors(res.T_g0_c0, pair.T_ground_ceiling)
+    assert rot < ROT_OK and tr < TRANS_OK, (rot, tr)
+    d = res.decision
+    assert d.accepted and all(v[2] for v in d.checks.values())
+    assert np.all(np.linalg.eigvalsh(d.covariance) > 0)
+
+
+def test_a_wrong_hint_is_not_fused(fragment):
+    """A hint 25 deg / 0.6 m off that claims 3 deg / 5 cm: no candidate may be accepted."""
+    pair, rng = _pair(fragment, 0.6, 12)
+    hint = perturb(pair.T_ground_ceiling, 25.0, 0.6, rng)
+    with pytest.raises(FusionRejected, match="not fused") as info:
+        _fuse(pair, hint, (3.0, 0.05))
+    d = info.value.decision
+    assert not d.accepted and d.reasons
+    assert len(d.as_dict()["candidates"]) == len(d.candidates) >= 1
+
+
+def test_degenerate_geometry_fails_the_conditioning_check():
+    """A floor seen by both robots leaves x, y and the yaw free: not accepted."""
+    rng = np.random.default_rng(3)
+    plane = np.c_[rng.uniform(-2, 2, (4000, 2)), rng.normal(0, 0.003, 4000)]
+    cfg = RegistrationConfig()
+    src, tgt = prepare(plane, cfg), prepare(plane + [0, 0, 0.0], cfg)
+    d = robust_register(src, tgt, np.eye(4), np.r_[[np.deg2rad(2)] * 3, [0.05] * 3], cfg,
+                        AcceptanceConfig(ceiling_above=False))
+    assert not d.accepted
+    assert not d.checks["conditioning"][2]
+    assert any("degenerate" in r for r in d.reasons)
+
+
+def test_robot_geometry_check_wants_the_ceiling_robot_above_and_upside_down():
+    acc = AcceptanceConfig()
+
+    def checks(R, z):
+        T = np.eye(4)
+        T[:3, :3], T[2, 3] = R, z
+        out = _candidate_checks(Candidate(0, T, 0.1, 0.5, 0.9, 1.0), acc)
+        return out["ceiling_height_m"][2], out["ceiling_z_down_cos"][2]
+
+    flipped = np.diag([1.0, -1.0, -1.0])
+    assert checks(flipped, 2.0) == (True, True)
+    assert checks(flipped, -0.5) == (False, True)  # below the ground robot
+    assert checks(np.eye(3), 2.0) == (True, False)  # above, but upright
+
+
+# ----------------------------------------------------------------------------- the verb
+
+
+def test_fuse_maps_on_real_scans_fuses_or_says_not_fused(fragment, tmp_path):
+    pair, rng = _pair(fragment, 0.6, 13)
+    _write_pair(tmp_path, pair)
+    base = ["fuse-maps", "--ground", str(tmp_path / "ground"), "--ceiling", str(tmp_path / "ceiling")]
+    good = perturb(pair.T_ground_ceiling, 3.0, 0.05, rng)
+    rc = cli_main(base + ["--hint", _hint_text(good), "--hint-sigma", "3 0.05", "--out",
+                          str(tmp_path / "ok")])
+    assert rc == 0
+    report = json.loads((tmp_path / "ok" / "fusion_report.json").read_text())
+    assert report["status"] == "fused" and report["registration_decision"]["accepted"]
+    rot, tr = pose_errors(np.array(report["T_ground0_ceiling0"]["matrix"]), pair.T_ground_ceiling)
+    assert rot < ROT_OK and tr < TRANS_OK
+    assert b"property uchar red" in (tmp_path / "ok" / "fused_map.ply").read_bytes()[:400]
+
+    bad = perturb(pair.T_ground_ceiling, 30.0, 0.8, rng)
+    rc = cli_main(base + ["--hint", _hint_text(bad), "--hint-sigma", "3 0.05", "--out",
+                          str(tmp_path / "bad")])
+    assert rc == 3
+    report = json.loads((tmp_path / "bad" / "fusion_report.json").read_text())
+    assert report["status"] == "not_fused" and report["reasons"]
+    assert not (tmp_path / "bad" / "fused_map.ply").exists()
+
+
+def test_fuse_maps_config_file(tmp_path, capsys):
+    from graphloc.mapping.config import load_fusion_config
+
+    p = tmp_path / "fusion.toml"
+    p.write_text("[registration]\nvoxel = 0.04\nscales = [0.16, 0.04]\n"
+                 "max_correspondence = [0.5, 0.06]\nmax_iterations = [20, 20]\n"
+                 "[acceptance]\nmin_inlier_ratio = 0.7\n[fusion]\nguess_sigma = [0.1, 0.2]\n")
+    cfg = load_fusion_config(p)
+    assert cfg.registration.voxel == 0.04 and cfg.registration.scales == (0.16, 0.04)
+    assert cfg.acceptance.min_inlier_ratio == 0.7 and cfg.guess_sigma == (0.1, 0.2)
+    p.write_text("[registration]\nvoxels = 0.04\n")
+    with pytest.raises(ValueError, match=r"fusion.toml.*unknown key\(s\) voxels"):
+        load_fusion_config(p)
+    p.write_text("[registration]\nvoxel = -1.0\n")
+    with pytest.raises(ValueError, match="fusion.toml"):
+        load_fusion_config(p)
+    p.write_text("[registration\n")
+    rc = cli_main(["fuse-maps", "--simulate", "dual-robot-room", "--config", str(p), "--out",
+                   str(tmp_path / "o")])
+    assert rc == 2 and "fusion.toml: not valid TOML" in capsys.readouterr().err
+
+
+def test_gravity_rotation_levels_a_tilted_floor():
+    from scipy.spatial.transform import Rotation
+
+    from graphloc.mapping.report import gravity_rotation
+
+    rng = np.random.default_rng(4)
+    floor = np.c_[rng.uniform(-3, 3, (3000, 2)), np.full(3000, -1.0)]
+    tilt = Rotation.from_euler("x", 8.0, degrees=True).as_matrix()
+    pts = floor @ tilt.T
+    R, found = gravity_rotation(pts, np.zeros(len(pts), dtype=int))
+    assert found
+    levelled = pts @ R.T
+    assert np.ptp(levelled[:, 2]) < 0.02
+
+
+@pytest.mark.slow
+def test_real_fragment_sweep_has_no_false_accepts(fragment):
+    """Five view pairs per cell of issue 16's protocol: nothing wrong is ever accepted."""
+    for overlap in (0.6, 0.3):
+        for seed in range(5):
+            pair, rng = _pair(fragment, overlap, 100 + seed)
+            for rot_deg, trans_m in ((3.0, 0.05), (10.0, 0.20)):
+                hint = perturb(pair.T_ground_ceiling, rot_deg, trans_m, rng)
+                try:
+                    res = _fuse(pair, hint, (rot_deg, trans_m))
+                except FusionRejected:
+                    continue
+                rot, tr = pose_errors(res.T_g0_c0, pair.T_ground_ceiling)
+                assert rot < ROT_OK and tr < TRANS_OK, (overlap, seed, rot_deg, rot, tr)
