@@ -25,15 +25,45 @@ from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
 from graphloc.factors.surface import SurfacePlane
 from graphloc.vision.marker_poses import p3p_candidate_sets
-from graphloc.io import (LANDMARK_PREFIX, MANIFEST, Bearing3D, GroundTruth2D, MarkerPixel, Odometry2D,
-                         PoseCandidate, Range, RangeBearing2D, RelativePose2D, RelativePose3D, SkipReport, _Sink,
-                         is_tum, iter_records, read_landmarks, read_manifest)
+from graphloc.io import (
+    LANDMARK_PREFIX,
+    MANIFEST,
+    Bearing3D,
+    GroundTruth2D,
+    MarkerPixel,
+    Odometry2D,
+    PoseCandidate,
+    Range,
+    RangeBearing2D,
+    RelativePose2D,
+    RelativePose3D,
+    SkipReport,
+    _Sink,
+    is_tum,
+    iter_records,
+    read_landmarks,
+    read_manifest,
+)
 
 # tables the graph uses; "scans" and the seed-003 tables are read by their own pipelines
-GRAPH_TABLES = ("odometry", "relative_pose", "relative_pose3", "range", "bearing", "range_bearing", "markers",
-                "candidates", "groundtruth")
-NOISE_DEFAULTS = {"bearing_sigma": 0.02, "range_sigma": 0.05, "range_sigma_per_m": 0.035, "pixel_sigma": 1.0,
-                  "candidate_sigmas": (0.02, 0.05)}  # where neither the log nor the user states a sensor's noise
+GRAPH_TABLES = (
+    "odometry",
+    "relative_pose",
+    "relative_pose3",
+    "range",
+    "bearing",
+    "range_bearing",
+    "markers",
+    "candidates",
+    "groundtruth",
+)
+NOISE_DEFAULTS = {
+    "bearing_sigma": 0.02,
+    "range_sigma": 0.05,
+    "range_sigma_per_m": 0.035,
+    "pixel_sigma": 1.0,
+    "candidate_sigmas": (0.02, 0.05),
+}  # where neither the log nor the user states a sensor's noise
 PLANAR_SIGMA = 1e-3  # out-of-plane sigma [rad, m] of a planar robot's odometry step
 
 
@@ -126,14 +156,20 @@ class TeamRun:
     @property
     def end_time(self) -> float:
         stamps = [od[-1, 0] for od in self.velocity if len(od)]
-        stamps += [m.t1 for m in self.motions] + [p.time for p in self.points] + [o.time for o in self.observations]
+        stamps += (
+            [m.t1 for m in self.motions]
+            + [p.time for p in self.points]
+            + [o.time for o in self.observations]
+        )
         return float(max(stamps)) if stamps else self.start_time
 
 
 def pose_from_xyz_quat(v) -> gtsam.Pose3:
     """(x, y, z, qx, qy, qz, qw) -> Pose3 (quaternion normalized)."""
     v = np.asarray(v, dtype=float)
-    return gtsam.Pose3(gtsam.Rot3(Rotation.from_quat(v[3:7] / np.linalg.norm(v[3:7])).as_matrix()), v[:3])
+    return gtsam.Pose3(
+        gtsam.Rot3(Rotation.from_quat(v[3:7] / np.linalg.norm(v[3:7])).as_matrix()), v[:3]
+    )
 
 
 def pose_from_planar(x: float, y: float, theta: float, z: float = 0.0) -> gtsam.Pose3:
@@ -143,7 +179,7 @@ def pose_from_planar(x: float, y: float, theta: float, z: float = 0.0) -> gtsam.
 def planar_covariance(cov3: np.ndarray) -> np.ndarray:
     """SE(2) covariance (x, y, theta) -> SE(3) tangent (rx, ry, rz, tx, ty, tz) with the
     out-of-plane directions held to PLANAR_SIGMA."""
-    cov = np.diag([PLANAR_SIGMA ** 2] * 6)
+    cov = np.diag([PLANAR_SIGMA**2] * 6)
     idx = [3, 4, 2]
     cov[np.ix_(idx, idx)] = cov3
     return cov
@@ -163,7 +199,9 @@ def read_tum_poses(path: Path) -> tuple[np.ndarray, list]:
         except ValueError:
             raise ValueError(f"{path}: line {n}: cannot parse {text!r} as 8 numbers") from None
         if vals.size != 8 or not np.isfinite(vals).all():
-            raise ValueError(f"{path}: line {n}: expected 8 finite numbers (timestamp tx ty tz qx qy qz qw)")
+            raise ValueError(
+                f"{path}: line {n}: expected 8 finite numbers (timestamp tx ty tz qx qy qz qw)"
+            )
         if not 0.5 < np.linalg.norm(vals[4:]) < 2.0:
             raise ValueError(f"{path}: line {n}: field 'q': quaternion is not unit")
         if times and vals[0] < times[-1]:
@@ -175,23 +213,50 @@ def read_tum_poses(path: Path) -> tuple[np.ndarray, list]:
 
 def _camera(params: dict, where: str) -> PinholeCamera:
     try:
-        return PinholeCamera(float(params["fx"]), float(params["fy"]), float(params["cx"]), float(params["cy"]),
-                             int(params["width"]), int(params["height"]), tuple(params.get("dist", ())))
+        return PinholeCamera(
+            float(params["fx"]),
+            float(params["fy"]),
+            float(params["cx"]),
+            float(params["cy"]),
+            int(params["width"]),
+            int(params["height"]),
+            tuple(params.get("dist", ())),
+        )
     except KeyError as exc:
-        raise ValueError(f"{where}: camera params need fx, fy, cx, cy, width, height; missing {exc}") from None
+        raise ValueError(
+            f"{where}: camera params need fx, fy, cx, cy, width, height; missing {exc}"
+        ) from None
 
 
 def _robot(r, where: str) -> TeamRobot:
     init = None
     if r.initial_pose is not None:
-        init = (pose_from_planar(*r.initial_pose) if len(r.initial_pose) == 3 else pose_from_xyz_quat(r.initial_pose))
-    surface = None if r.surface is None else SurfacePlane(np.array(r.surface["point"]), np.array(r.surface["normal"]))
+        init = (
+            pose_from_planar(*r.initial_pose)
+            if len(r.initial_pose) == 3
+            else pose_from_xyz_quat(r.initial_pose)
+        )
+    surface = (
+        None
+        if r.surface is None
+        else SurfacePlane(np.array(r.surface["point"]), np.array(r.surface["normal"]))
+    )
     markers = None if r.markers is None else np.array(r.markers, dtype=float)
     if r.static and init is None:
         raise ValueError(f"{where}: robot {r.name!r} is static but has no 'initial_pose'")
     sensors = {s.name: (s.body_T_sensor, dict(s.params)) for s in r.sensors}
-    return TeamRobot(r.name, r.kind, bool(r.planar), bool(r.static), init, r.initial_sigma, surface, markers,
-                     bool(r.identical_markers), sensors)
+    return TeamRobot(
+        r.name,
+        r.kind,
+        bool(r.planar),
+        bool(r.static),
+        init,
+        r.initial_sigma,
+        surface,
+        markers,
+        bool(r.identical_markers),
+        sensors,
+    )
 
 
 def _param(params: dict, name: str, default: float, where: str) -> float:
@@ -199,14 +264,20 @@ def _param(params: dict, name: str, default: float, where: str) -> float:
     try:
         value = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{where}: params field '{name}' must be a number, got {value!r}") from None
+        raise ValueError(
+            f"{where}: params field '{name}' must be a number, got {value!r}"
+        ) from None
     if not (np.isfinite(value) and value >= 0):
         raise ValueError(f"{where}: params field '{name}' must be finite >= 0, got {value}")
     return value
 
 
-def read_team_run(root: str | Path, on_error: str = "skip", defaults: dict | None = None,
-                  overrides: dict | None = None) -> TeamRun:
+def read_team_run(
+    root: str | Path,
+    on_error: str = "skip",
+    defaults: dict | None = None,
+    overrides: dict | None = None,
+) -> TeamRun:
     """A graphloc log directory -> TeamRun. Every row of every table is used, counted as a skip
     with its reason (`on_error="skip"`), or raises naming file, line and field. `defaults`:
     sensor noise used where a sensor's params give none (bearing_sigma [rad], range_sigma [m],
@@ -221,8 +292,10 @@ def read_team_run(root: str | Path, on_error: str = "skip", defaults: dict | Non
             s.params.update(forced)
         for table in r.tables:
             if table in ("scans",):
-                raise ValueError(f"{mpath}: robot {r.name!r}: table {table!r} is not part of the factor graph "
-                                 f"(scans go through `graphloc fuse-maps`)")
+                raise ValueError(
+                    f"{mpath}: robot {r.name!r}: table {table!r} is not part of the factor graph "
+                    f"(scans go through `graphloc fuse-maps`)"
+                )
     report = SkipReport()
     sink = _Sink(on_error, report)
     robots = tuple(_robot(r, f"{mpath}: robots[{i}]") for i, r in enumerate(manifest.robots))
@@ -240,7 +313,9 @@ def read_team_run(root: str | Path, on_error: str = "skip", defaults: dict | Non
             gt[r.name] = read_tum_poses(manifest.root / path)
             used["groundtruth"] += len(gt[r.name][0])
     for rec in iter_records(root, tables=GRAPH_TABLES, on_error=on_error, report=report):
-        where = f"{manifest.root / manifest.robot(rec.robot).tables[_table_of(rec)]}: line {rec.line}"
+        where = (
+            f"{manifest.root / manifest.robot(rec.robot).tables[_table_of(rec)]}: line {rec.line}"
+        )
         ri = index[rec.robot]
         robot = robots[ri]
         if isinstance(rec, GroundTruth2D):
@@ -254,26 +329,53 @@ def read_team_run(root: str | Path, on_error: str = "skip", defaults: dict | Non
         elif isinstance(rec, RelativePose2D):
             sig3 = np.array([rec.sigma_x, rec.sigma_y, rec.sigma_theta])
             if not (sig3 > 0).all() or not rec.time > rec.time0:
-                sink.bad("bad_relative_pose", f"{where}: fields 'sigma_*' must be > 0 and time0 < time")
+                sink.bad(
+                    "bad_relative_pose", f"{where}: fields 'sigma_*' must be > 0 and time0 < time"
+                )
                 continue
-            motions.append(Motion(ri, rec.time0, rec.time, pose_from_planar(rec.dx, rec.dy, rec.dtheta),
-                                  planar_covariance(np.diag(sig3 ** 2))))
+            motions.append(
+                Motion(
+                    ri,
+                    rec.time0,
+                    rec.time,
+                    pose_from_planar(rec.dx, rec.dy, rec.dtheta),
+                    planar_covariance(np.diag(sig3**2)),
+                )
+            )
         elif isinstance(rec, RelativePose3D):
-            sig6 = np.array([rec.sigma_rx, rec.sigma_ry, rec.sigma_rz, rec.sigma_tx, rec.sigma_ty, rec.sigma_tz])
+            sig6 = np.array(
+                [rec.sigma_rx, rec.sigma_ry, rec.sigma_rz, rec.sigma_tx, rec.sigma_ty, rec.sigma_tz]
+            )
             q = np.array([rec.qx, rec.qy, rec.qz, rec.qw])
-            if not (sig6 > 0).all() or not rec.time > rec.time0 or not 0.5 < np.linalg.norm(q) < 2.0:
-                sink.bad("bad_relative_pose", f"{where}: fields 'sigma_*' must be > 0, time0 < time and the "
-                                              f"quaternion unit")
+            if (
+                not (sig6 > 0).all()
+                or not rec.time > rec.time0
+                or not 0.5 < np.linalg.norm(q) < 2.0
+            ):
+                sink.bad(
+                    "bad_relative_pose",
+                    f"{where}: fields 'sigma_*' must be > 0, time0 < time and the quaternion unit",
+                )
                 continue
-            motions.append(Motion(ri, rec.time0, rec.time, pose_from_xyz_quat([rec.tx, rec.ty, rec.tz, *q]),
-                                  np.diag(sig6 ** 2)))
+            motions.append(
+                Motion(
+                    ri,
+                    rec.time0,
+                    rec.time,
+                    pose_from_xyz_quat([rec.tx, rec.ty, rec.tz, *q]),
+                    np.diag(sig6**2),
+                )
+            )
         elif isinstance(rec, (Bearing3D, Range, RangeBearing2D)):
             target = rec.target
             if target == rec.robot:
-                sink.bad("self_observation", f"{where}: field 'target': robot {rec.robot} observes itself")
+                sink.bad(
+                    "self_observation",
+                    f"{where}: field 'target': robot {rec.robot} observes itself",
+                )
                 continue
             t_idx = index.get(target, -1)
-            lid = -1 if t_idx >= 0 else int(target[len(LANDMARK_PREFIX):])
+            lid = -1 if t_idx >= 0 else int(target[len(LANDMARK_PREFIX) :])
             bs = _param(params, "bearing_sigma", d["bearing_sigma"], where)
             rs0 = _param(params, "range_sigma", d["range_sigma"], where)
             rs1 = _param(params, "range_sigma_per_m", d["range_sigma_per_m"], where)
@@ -281,30 +383,57 @@ def read_team_run(root: str | Path, on_error: str = "skip", defaults: dict | Non
                 v = np.array([rec.x, rec.y, rec.z])
                 n = np.linalg.norm(v)
                 if not 0.5 < n < 2.0:
-                    sink.bad("not_unit", f"{where}: fields 'x, y, z': |direction| = {n:.3g} is not a unit vector")
+                    sink.bad(
+                        "not_unit",
+                        f"{where}: fields 'x, y, z': |direction| = {n:.3g} is not a unit vector",
+                    )
                     continue
-                points.append(PointMeasurement("bearing", rec.time, ri, E, t_idx, lid, v / n, np.nan, bs, np.nan))
+                points.append(
+                    PointMeasurement(
+                        "bearing", rec.time, ri, E, t_idx, lid, v / n, np.nan, bs, np.nan
+                    )
+                )
             else:
                 if not rec.range > 0:
                     sink.bad("non_positive_range", f"{where}: field 'range': {rec.range} <= 0")
                     continue
                 rsig = float(np.hypot(rs0, rs1 * rec.range))
                 if isinstance(rec, Range):
-                    points.append(PointMeasurement("range", rec.time, ri, E, t_idx, lid, np.full(3, np.nan),
-                                                   rec.range, np.nan, rsig))
+                    points.append(
+                        PointMeasurement(
+                            "range",
+                            rec.time,
+                            ri,
+                            E,
+                            t_idx,
+                            lid,
+                            np.full(3, np.nan),
+                            rec.range,
+                            np.nan,
+                            rsig,
+                        )
+                    )
                 else:
                     v = np.array([np.cos(rec.bearing), np.sin(rec.bearing), 0.0])
-                    points.append(PointMeasurement("range_bearing", rec.time, ri, E, t_idx, lid, v, rec.range, bs,
-                                                   rsig))
+                    points.append(
+                        PointMeasurement(
+                            "range_bearing", rec.time, ri, E, t_idx, lid, v, rec.range, bs, rsig
+                        )
+                    )
         elif isinstance(rec, MarkerPixel):
             if rec.target not in index:
-                sink.bad("unknown_target", f"{where}: field 'target': {rec.target!r} is not a robot (markers are "
-                                           f"on robots with a 'markers' layout)")
+                sink.bad(
+                    "unknown_target",
+                    f"{where}: field 'target': {rec.target!r} is not a robot (markers are "
+                    f"on robots with a 'markers' layout)",
+                )
                 continue
             marker_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
         elif isinstance(rec, PoseCandidate):
             if rec.target not in index:
-                sink.bad("unknown_target", f"{where}: field 'target': {rec.target!r} is not a robot")
+                sink.bad(
+                    "unknown_target", f"{where}: field 'target': {rec.target!r} is not a robot"
+                )
                 continue
             cand_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
         used[_table_of(rec)] += 1
@@ -324,20 +453,42 @@ def read_team_run(root: str | Path, on_error: str = "skip", defaults: dict | Non
         if not firsts:
             raise ValueError(f"{mpath}: the run has no odometry, relative poses or measurements")
         start = max(v[0, 0] for v in vel if len(v)) if any(len(v) for v in vel) else min(firsts)
-    return TeamRun(name=manifest.name, robots=robots, start_time=float(start), velocity=vel,
-                   motions=tuple(motions), points=tuple(points), observations=tuple(observations),
-                   groundtruth=tuple(gt[r.name] for r in robots), landmark_ids=ids, landmark_xyz=xyz,
-                   landmark_sigma=sig, landmarks_known=manifest.landmarks_file is not None, skips=report,
-                   contributions={k: v for k, v in used.items() if v}, meta=dict(manifest.meta))
+    return TeamRun(
+        name=manifest.name,
+        robots=robots,
+        start_time=float(start),
+        velocity=vel,
+        motions=tuple(motions),
+        points=tuple(points),
+        observations=tuple(observations),
+        groundtruth=tuple(gt[r.name] for r in robots),
+        landmark_ids=ids,
+        landmark_xyz=xyz,
+        landmark_sigma=sig,
+        landmarks_known=manifest.landmarks_file is not None,
+        skips=report,
+        contributions={k: v for k, v in used.items() if v},
+        meta=dict(manifest.meta),
+    )
 
 
 def _table_of(rec) -> str:
-    return {Odometry2D: "odometry", RelativePose2D: "relative_pose", RelativePose3D: "relative_pose3",
-            Range: "range", Bearing3D: "bearing", RangeBearing2D: "range_bearing", MarkerPixel: "markers",
-            PoseCandidate: "candidates", GroundTruth2D: "groundtruth"}[type(rec)]
+    return {
+        Odometry2D: "odometry",
+        RelativePose2D: "relative_pose",
+        RelativePose3D: "relative_pose3",
+        Range: "range",
+        Bearing3D: "bearing",
+        RangeBearing2D: "range_bearing",
+        MarkerPixel: "markers",
+        PoseCandidate: "candidates",
+        GroundTruth2D: "groundtruth",
+    }[type(rec)]
 
 
-def _marker_observations(groups: dict, robots: tuple, manifest, d: dict, sink: _Sink, used: dict) -> list:
+def _marker_observations(
+    groups: dict, robots: tuple, manifest, d: dict, sink: _Sink, used: dict
+) -> list:
     """Marker pixels grouped by (time, observer, sensor, target) -> P3P candidate sets, all
     three-marker instances of the run in one batched solve."""
     out = []
@@ -345,34 +496,55 @@ def _marker_observations(groups: dict, robots: tuple, manifest, d: dict, sink: _
     for (time, ri, sensor, ti), rows in groups.items():
         target = robots[ti]
         lines = sorted(r.line for r in rows)
-        where = f"{manifest.root / manifest.robots[ri].tables['markers']}: lines {lines[0]}-{lines[-1]}"
+        where = (
+            f"{manifest.root / manifest.robots[ri].tables['markers']}: lines {lines[0]}-{lines[-1]}"
+        )
         if target.markers is None:
-            raise ValueError(f"{where}: field 'target': robot {target.name!r} has no 'markers' layout in the "
-                             f"manifest")
+            raise ValueError(
+                f"{where}: field 'target': robot {target.name!r} has no 'markers' layout in the "
+                f"manifest"
+            )
         marks = np.array([r.marker for r in rows])
         if (marks < 0).any() or (marks >= len(target.markers)).any():
-            sink.bad("unknown_marker", f"{where}: field 'marker': {marks.tolist()} outside the layout of "
-                                       f"{len(target.markers)} markers")
+            sink.bad(
+                "unknown_marker",
+                f"{where}: field 'marker': {marks.tolist()} outside the layout of "
+                f"{len(target.markers)} markers",
+            )
             continue
         if len(np.unique(marks)) != len(marks) and not target.identical_markers:
-            sink.bad("duplicate_marker", f"{where}: field 'marker': a marker appears twice in one image")
+            sink.bad(
+                "duplicate_marker", f"{where}: field 'marker': a marker appears twice in one image"
+            )
             continue
         if len(rows) < 3:
             sink.bad("too_few_markers", f"{where}: {len(rows)} markers seen, P3P needs 3")
             continue
-        by_setup.setdefault((ri, sensor, ti), []).append((time, marks, np.array([[r.u, r.v] for r in rows]), where))
+        by_setup.setdefault((ri, sensor, ti), []).append(
+            (time, marks, np.array([[r.u, r.v] for r in rows]), where)
+        )
     for (ri, sensor, ti), frames in by_setup.items():
         T_bs, params = robots[ri].sensors[sensor]
         where = f"{manifest.root / MANIFEST}: robot {robots[ri].name!r} sensor {sensor!r}"
         camera = _camera(params, where)
         sigma = _param(params, "pixel_sigma", d["pixel_sigma"], where)
         target = robots[ti]
-        sets = p3p_candidate_sets(camera, [f[2] for f in frames], [f[1] for f in frames], target.markers,
-                                  [f[0] for f in frames], sigma, identical=target.identical_markers,
-                                  observer=robots[ri].name, observed=target.name)
+        sets = p3p_candidate_sets(
+            camera,
+            [f[2] for f in frames],
+            [f[1] for f in frames],
+            target.markers,
+            [f[0] for f in frames],
+            sigma,
+            identical=target.identical_markers,
+            observer=robots[ri].name,
+            observed=target.name,
+        )
         for (time, _, _, lines), cs in zip(frames, sets):
             if cs is None or len(cs) == 0:
-                sink.bad("no_p3p_solution", f"{lines}: fields 'u, v': no pose fits the marker pixels")
+                sink.bad(
+                    "no_p3p_solution", f"{lines}: fields 'u, v': no pose fits the marker pixels"
+                )
                 continue
             out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs))
     return out
@@ -387,9 +559,19 @@ def _candidate_observations(groups: dict, robots: tuple, d: dict, manifest) -> l
         q = np.array([[r.qx, r.qy, r.qz, r.qw] for r in rows])
         R = Rotation.from_quat(q / np.linalg.norm(q, axis=1, keepdims=True)).as_matrix()
         t = np.array([[r.tx, r.ty, r.tz] for r in rows])
-        cov = np.broadcast_to(np.diag([sig[0] ** 2] * 3 + [sig[1] ** 2] * 3), (len(rows), 6, 6)).copy()
-        cs = CandidateSet(R, t, np.array([r.score for r in rows]), time=time, observer=robots[ri].name,
-                          observed=robots[ti].name, source="candidates-table", covariance=cov)
+        cov = np.broadcast_to(
+            np.diag([sig[0] ** 2] * 3 + [sig[1] ** 2] * 3), (len(rows), 6, 6)
+        ).copy()
+        cs = CandidateSet(
+            R,
+            t,
+            np.array([r.score for r in rows]),
+            time=time,
+            observer=robots[ri].name,
+            observed=robots[ti].name,
+            source="candidates-table",
+            covariance=cov,
+        )
         out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs))
     return out
 
@@ -402,26 +584,71 @@ def team_run_from_planar(run, defaults: dict | None = None) -> TeamRun:
     robots = []
     for r, name in enumerate(run.robots):
         init = run.initial_poses[r]
-        robots.append(TeamRobot(name, "ground", True, False,
-                                pose_from_planar(*init) if np.isfinite(init).all() else None, None, None, None, False,
-                                {"camera": (np.eye(4), {})}))
+        robots.append(
+            TeamRobot(
+                name,
+                "ground",
+                True,
+                False,
+                pose_from_planar(*init) if np.isfinite(init).all() else None,
+                None,
+                None,
+                None,
+                False,
+                {"camera": (np.eye(4), {})},
+            )
+        )
     identity = gtsam.Pose3()
     rsig = np.hypot(d["range_sigma"], d["range_sigma_per_m"] * run.obs_range)
     points = tuple(
-        PointMeasurement("range_bearing", float(t), int(r), identity, int(tr), int(lm),
-                         np.array([np.cos(b), np.sin(b), 0.0]), float(rg), d["bearing_sigma"], float(rs))
-        for t, r, tr, lm, rg, b, rs in zip(run.obs_time, run.obs_robot, run.obs_target_robot, run.obs_landmark,
-                                           run.obs_range, run.obs_bearing, rsig))
-    gt = tuple(None if g is None else (g[:, 0], [pose_from_planar(x, y, th) for x, y, th in g[:, 1:4]])
-               for g in run.groundtruth)
+        PointMeasurement(
+            "range_bearing",
+            float(t),
+            int(r),
+            identity,
+            int(tr),
+            int(lm),
+            np.array([np.cos(b), np.sin(b), 0.0]),
+            float(rg),
+            d["bearing_sigma"],
+            float(rs),
+        )
+        for t, r, tr, lm, rg, b, rs in zip(
+            run.obs_time,
+            run.obs_robot,
+            run.obs_target_robot,
+            run.obs_landmark,
+            run.obs_range,
+            run.obs_bearing,
+            rsig,
+        )
+    )
+    gt = tuple(
+        None if g is None else (g[:, 0], [pose_from_planar(x, y, th) for x, y, th in g[:, 1:4]])
+        for g in run.groundtruth
+    )
     sig = np.column_stack([run.landmark_sigma, np.zeros(len(run.landmark_ids))])
     xyz = np.column_stack([run.landmark_xy, np.zeros(len(run.landmark_ids))])
-    return TeamRun(name=run.name, robots=tuple(robots), start_time=run.start_time, velocity=tuple(run.odometry),
-                   motions=(), points=points, observations=(), groundtruth=gt, landmark_ids=run.landmark_ids,
-                   landmark_xyz=xyz, landmark_sigma=sig, landmarks_known=len(run.landmark_ids) > 0,
-                   skips=run.skips, contributions={"odometry": int(sum(len(o) for o in run.odometry)),
-                                                   "range_bearing": len(points)},
-                   meta=dict(run.meta))
+    return TeamRun(
+        name=run.name,
+        robots=tuple(robots),
+        start_time=run.start_time,
+        velocity=tuple(run.odometry),
+        motions=(),
+        points=points,
+        observations=(),
+        groundtruth=gt,
+        landmark_ids=run.landmark_ids,
+        landmark_xyz=xyz,
+        landmark_sigma=sig,
+        landmarks_known=len(run.landmark_ids) > 0,
+        skips=run.skips,
+        contributions={
+            "odometry": int(sum(len(o) for o in run.odometry)),
+            "range_bearing": len(points),
+        },
+        meta=dict(run.meta),
+    )
 
 
 def truncate(run: TeamRun, duration: float) -> TeamRun:
@@ -430,11 +657,22 @@ def truncate(run: TeamRun, duration: float) -> TeamRun:
         raise ValueError(f"duration must be finite > 0, got {duration}")
     end = run.start_time + duration
     return TeamRun(
-        name=run.name, robots=run.robots, start_time=run.start_time,
+        name=run.name,
+        robots=run.robots,
+        start_time=run.start_time,
         velocity=tuple(v[v[:, 0] <= end] for v in run.velocity),
-        motions=tuple(m for m in run.motions if m.t1 <= end), points=tuple(p for p in run.points if p.time <= end),
+        motions=tuple(m for m in run.motions if m.t1 <= end),
+        points=tuple(p for p in run.points if p.time <= end),
         observations=tuple(o for o in run.observations if o.time <= end),
-        groundtruth=tuple(None if g is None else (g[0][g[0] <= end], g[1][:int((g[0] <= end).sum())])
-                          for g in run.groundtruth),
-        landmark_ids=run.landmark_ids, landmark_xyz=run.landmark_xyz, landmark_sigma=run.landmark_sigma,
-        landmarks_known=run.landmarks_known, skips=run.skips, contributions=run.contributions, meta=run.meta)
+        groundtruth=tuple(
+            None if g is None else (g[0][g[0] <= end], g[1][: int((g[0] <= end).sum())])
+            for g in run.groundtruth
+        ),
+        landmark_ids=run.landmark_ids,
+        landmark_xyz=run.landmark_xyz,
+        landmark_sigma=run.landmark_sigma,
+        landmarks_known=run.landmarks_known,
+        skips=run.skips,
+        contributions=run.contributions,
+        meta=run.meta,
+    )

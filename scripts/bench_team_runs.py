@@ -14,7 +14,9 @@ from graphloc.experiments import team_runs
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=Path("out/bench_team_runs"))
-    parser.add_argument("--doc", type=Path, default=None, help="also write the markdown tables here")
+    parser.add_argument(
+        "--doc", type=Path, default=None, help="also write the markdown tables here"
+    )
     parser.add_argument("--size", choices=sorted(team_runs.SIZES), default="full")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed-offset", type=int, default=0)

@@ -14,8 +14,11 @@ from graphloc.io import columns, write_manifest
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.run import read_team_run
 
-SMALL = {"feng-probabilistic": ["max_time=4.0"], "kaushik-p3p-error": ["frames=10"],
-         "breitenmoser-target": ["frames=6", "save_images=false"]}
+SMALL = {
+    "feng-probabilistic": ["max_time=4.0"],
+    "kaushik-p3p-error": ["frames=10"],
+    "breitenmoser-target": ["frames=6", "save_images=false"],
+}
 # ATE bars [m] for these short runs (P3P noise: seed 000 0.5 px at ~3 m, seed 004 sqrt(3) px at
 # 2.5 m with a 16 mm lens, seed 001 0.1 px centroids at 0.7-3 m)
 BARS = {"feng-probabilistic": 0.05, "kaushik-p3p-error": 0.25, "breitenmoser-target": 0.02}
@@ -28,7 +31,9 @@ def test_every_scenario_through_smooth_and_online(tmp_path, name, capsys):
     assert main(["simulate", name, "--out", str(run), "--seed", "0", *sets]) == 0
     for mode in ("smooth", "online"):
         out = tmp_path / mode
-        assert main([mode, str(run), "--out", str(out), "--no-progress"]) == 0, capsys.readouterr().err
+        assert main([mode, str(run), "--out", str(out), "--no-progress"]) == 0, (
+            capsys.readouterr().err
+        )
         m = json.loads((out / "metrics.json").read_text())
         label = "batch" if mode == "smooth" else "online"
         climber = m["per_robot"]["climber"]
@@ -37,18 +42,29 @@ def test_every_scenario_through_smooth_and_online(tmp_path, name, capsys):
         assert m["decisions"]["committed"] > 0 and m["decisions"]["wrong"] == 0
         assert m["decisions"]["with_genuine_known"] == m["decisions"]["committed"]
         assert m["tables"]["markers"] > 0 and m["skipped"]["total"] == 0
-        for f in (f"climber_{label}.tum", "climber_groundtruth.tum", "decisions.csv", "trajectories.png"):
+        for f in (
+            f"climber_{label}.tum",
+            "climber_groundtruth.tum",
+            "decisions.csv",
+            "trajectories.png",
+        ):
             assert (out / f).is_file(), f
         rows = (out / "decisions.csv").read_text().splitlines()
-        assert rows[0].startswith("time,robot,target,candidates,committed,probability,genuine,correct")
+        assert rows[0].startswith(
+            "time,robot,target,candidates,committed,probability,genuine,correct"
+        )
         assert len(rows) - 1 == m["decisions"]["candidate_sets"]
         if mode == "online":
-            assert m["latency_ms"]["p95"] > 0 and climber["online_causal"]["ate_rmse"] < 2 * BARS[name]
+            assert (
+                m["latency_ms"]["p95"] > 0 and climber["online_causal"]["ate_rmse"] < 2 * BARS[name]
+            )
 
 
 def _csv(path: Path, table: str, rows: list) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(",".join(columns(table)) + "\n" + "".join(",".join(map(str, r)) + "\n" for r in rows))
+    path.write_text(
+        ",".join(columns(table)) + "\n" + "".join(",".join(map(str, r)) + "\n" for r in rows)
+    )
 
 
 LANDMARKS = np.array([[2.0, 2.0, 0.0], [5.0, -2.0, 0.0], [8.0, 2.0, 0.0], [4.0, 3.0, 1.0]])
@@ -67,14 +83,39 @@ def bearing_log(root: Path, params: dict | None = None, tables: dict | None = No
             rows.append((t, "eye", f"landmark:{j}", *np.round(d, 9)))
     _csv(root / "a/bearing.csv", "bearing", rows)
     _csv(root / "a/groundtruth.csv", "groundtruth", [(t, 0.2 * t, 0.0, 0.0) for t in times])
-    (root / "landmarks.csv").write_text("id,x,y,z,sigma_x,sigma_y,sigma_z\n" + "".join(
-        f"{j},{p[0]},{p[1]},{p[2]},0.01,0.01,0.01\n" for j, p in enumerate(LANDMARKS)))
-    write_manifest({"name": "bearings", "start_time": 0.0, "landmarks": {"file": "landmarks.csv"}, "robots": [
-        {"name": "a", "kind": "ground", "initial_pose": [0, 0, 0],
-         "sensors": [{"name": "wheels", "type": "odometry", "params": {"density_v": 0.1}},
-                     {"name": "eye", "type": "bearing", "params": params or {"bearing_sigma": 0.005}}],
-         "tables": tables or {"odometry": "a/odometry.csv", "bearing": "a/bearing.csv",
-                              "groundtruth": "a/groundtruth.csv"}}]}, root)
+    (root / "landmarks.csv").write_text(
+        "id,x,y,z,sigma_x,sigma_y,sigma_z\n"
+        + "".join(f"{j},{p[0]},{p[1]},{p[2]},0.01,0.01,0.01\n" for j, p in enumerate(LANDMARKS))
+    )
+    write_manifest(
+        {
+            "name": "bearings",
+            "start_time": 0.0,
+            "landmarks": {"file": "landmarks.csv"},
+            "robots": [
+                {
+                    "name": "a",
+                    "kind": "ground",
+                    "initial_pose": [0, 0, 0],
+                    "sensors": [
+                        {"name": "wheels", "type": "odometry", "params": {"density_v": 0.1}},
+                        {
+                            "name": "eye",
+                            "type": "bearing",
+                            "params": params or {"bearing_sigma": 0.005},
+                        },
+                    ],
+                    "tables": tables
+                    or {
+                        "odometry": "a/odometry.csv",
+                        "bearing": "a/bearing.csv",
+                        "groundtruth": "a/groundtruth.csv",
+                    },
+                }
+            ],
+        },
+        root,
+    )
     return root
 
 
@@ -94,8 +135,22 @@ def test_manifest_noise_is_used_and_options_override_it(tmp_path):
     assert {p.bearing_sigma for p in open_run(root, noise={"bearing_sigma": 0.03}).points} == {0.03}
     config = tmp_path / "c.toml"
     config.write_text("bearing_sigma = 0.03\nkeyframe_dt = 0.5\n")
-    assert main(["smooth", str(root), "--out", str(tmp_path / "o"), "--config", str(config),
-                 "--keyframe-dt", "0.25", "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "smooth",
+                str(root),
+                "--out",
+                str(tmp_path / "o"),
+                "--config",
+                str(config),
+                "--keyframe-dt",
+                "0.25",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     m = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert m["options"]["bearing_sigma"] == 0.03 and m["options"]["keyframe_dt"] == 0.25
     assert m["config"]["keyframe_dt"] == 0.25
@@ -104,10 +159,14 @@ def test_manifest_noise_is_used_and_options_override_it(tmp_path):
 
 
 def test_unknown_or_unsupported_tables_are_errors(tmp_path, capsys):
-    root = bearing_log(tmp_path / "log", tables={"odometry": "a/odometry.csv", "sonar": "a/sonar.csv"})
+    root = bearing_log(
+        tmp_path / "log", tables={"odometry": "a/odometry.csv", "sonar": "a/sonar.csv"}
+    )
     assert main(["smooth", str(root), "--out", str(tmp_path / "o")]) == 2
     assert "unknown table 'sonar'" in capsys.readouterr().err
-    root = bearing_log(tmp_path / "log2", tables={"odometry": "a/odometry.csv", "scans": "a/scans.csv"})
+    root = bearing_log(
+        tmp_path / "log2", tables={"odometry": "a/odometry.csv", "scans": "a/scans.csv"}
+    )
     assert main(["validate", str(root)]) == 2
     assert "'scans' is not part of the factor graph" in capsys.readouterr().err
 
@@ -128,22 +187,76 @@ def test_relative_pose3_chain_and_surface(tmp_path):
     root = tmp_path / "log"
     times = np.arange(0.0, 5.01, 0.5)
     true = np.column_stack([0.3 * times, 0.1 * times, np.full_like(times, 3.0)])
-    rows = [(t1, "odo", t0, 0.33 * (t1 - t0), 0.1 * (t1 - t0), 0.02, 0, 0, 0, 1, 0.01, 0.01, 0.01, 0.05, 0.05, 0.05)
-            for t0, t1 in zip(times[:-1], times[1:])]
+    rows = [
+        (
+            t1,
+            "odo",
+            t0,
+            0.33 * (t1 - t0),
+            0.1 * (t1 - t0),
+            0.02,
+            0,
+            0,
+            0,
+            1,
+            0.01,
+            0.01,
+            0.01,
+            0.05,
+            0.05,
+            0.05,
+        )
+        for t0, t1 in zip(times[:-1], times[1:])
+    ]
     _csv(root / "c/relative_pose3.csv", "relative_pose3", rows)
     beacons = {"b1": np.array([0.0, 2.0, 0.0]), "b2": np.array([2.0, -1.0, 0.0])}
-    rng = [(t, "uwb", b, round(float(np.linalg.norm(p - x)), 6)) for t, x in zip(times, true)
-           for b, p in beacons.items()]
+    rng = [
+        (t, "uwb", b, round(float(np.linalg.norm(p - x)), 6))
+        for t, x in zip(times, true)
+        for b, p in beacons.items()
+    ]
     _csv(root / "c/range.csv", "range", rng)
-    (root / "c/gt.tum").write_text("".join(f"{t} {x[0]} {x[1]} {x[2]} 0 0 0 1\n" for t, x in zip(times, true)))
-    write_manifest({"name": "ceiling", "robots": [
-        {"name": "c", "kind": "ceiling", "initial_pose": [0, 0, 3, 0, 0, 0, 1], "initial_sigma": [0.01, 0.01],
-         "surface": {"point": [0, 0, 3], "normal": [0, 0, -1]},
-         "sensors": [{"name": "odo", "type": "odometry"}, {"name": "uwb", "type": "range",
-                                                           "params": {"range_sigma": 0.01, "range_sigma_per_m": 0}}],
-         "tables": {"relative_pose3": "c/relative_pose3.csv", "range": "c/range.csv", "groundtruth": "c/gt.tum"}},
-        *({"name": b, "kind": "beacon", "static": True, "initial_pose": [*p, 0, 0, 0, 1], "sensors": []}
-          for b, p in beacons.items())]}, root)
+    (root / "c/gt.tum").write_text(
+        "".join(f"{t} {x[0]} {x[1]} {x[2]} 0 0 0 1\n" for t, x in zip(times, true))
+    )
+    write_manifest(
+        {
+            "name": "ceiling",
+            "robots": [
+                {
+                    "name": "c",
+                    "kind": "ceiling",
+                    "initial_pose": [0, 0, 3, 0, 0, 0, 1],
+                    "initial_sigma": [0.01, 0.01],
+                    "surface": {"point": [0, 0, 3], "normal": [0, 0, -1]},
+                    "sensors": [
+                        {"name": "odo", "type": "odometry"},
+                        {
+                            "name": "uwb",
+                            "type": "range",
+                            "params": {"range_sigma": 0.01, "range_sigma_per_m": 0},
+                        },
+                    ],
+                    "tables": {
+                        "relative_pose3": "c/relative_pose3.csv",
+                        "range": "c/range.csv",
+                        "groundtruth": "c/gt.tum",
+                    },
+                },
+                *(
+                    {
+                        "name": b,
+                        "kind": "beacon",
+                        "static": True,
+                        "initial_pose": [*p, 0, 0, 0, 1],
+                        "sensors": [],
+                    }
+                    for b, p in beacons.items()
+                ),
+            ],
+        },
+        root,
+    )
     run = open_run(root)
     assert run.contributions == {"relative_pose3": 10, "range": 22, "groundtruth": 11}
     graph = build_graph(run, GraphConfig())
@@ -179,9 +292,12 @@ def test_climber_placed_by_markers_on_a_moving_ground_robot(tmp_path):
     leds = np.array([[0.0, 0.0, 0.3], [0.6, 0.0, 0.3], [0.2, 0.45, 0.3]])
     centre = np.column_stack([g_xy, np.full_like(times, 0.3)]) + [0.27, 0.15, 0.0]
     # the climber moves on the ceiling 1-1.3 m beside the ground robot, camera on the LEDs
-    c_pos = centre + np.column_stack([1.0 + 0.3 * np.sin(0.6 * times), 0.4 * np.cos(0.6 * times),
-                                      np.full_like(times, 2.2)])
-    R_wc = np.stack([look_at(c[None], m, np.array([[0.0, 1.0, 0.0]]))[0] for c, m in zip(c_pos, centre)])
+    c_pos = centre + np.column_stack(
+        [1.0 + 0.3 * np.sin(0.6 * times), 0.4 * np.cos(0.6 * times), np.full_like(times, 2.2)]
+    )
+    R_wc = np.stack(
+        [look_at(c[None], m, np.array([[0.0, 1.0, 0.0]]))[0] for c, m in zip(c_pos, centre)]
+    )
     fx, cx, cy = 600.0, 320.0, 240.0
     rows = []
     for t, g, c, R in zip(times, g_xy, c_pos, R_wc):
@@ -194,30 +310,85 @@ def test_climber_placed_by_markers_on_a_moving_ground_robot(tmp_path):
     for t0, t1, a, b in zip(times[:-1], times[1:], poses[:-1], poses[1:]):
         d = a.between(b)
         q = Rotation.from_matrix(d.rotation().matrix()).as_quat()
-        steps.append((t1, "odo", t0, *np.round(1.15 * d.translation(), 7), *np.round(q, 9),
-                      0.003, 0.003, 0.003, 0.01, 0.01, 0.01))
+        steps.append(
+            (
+                t1,
+                "odo",
+                t0,
+                *np.round(1.15 * d.translation(), 7),
+                *np.round(q, 9),
+                0.003,
+                0.003,
+                0.003,
+                0.01,
+                0.01,
+                0.01,
+            )
+        )
     _csv(root / "c/relative_pose3.csv", "relative_pose3", steps)
     quat = Rotation.from_matrix(R_wc).as_quat()
-    (root / "c/gt.tum").write_text("".join(f"{t} {p[0]} {p[1]} {p[2]} {q[0]} {q[1]} {q[2]} {q[3]}\n"
-                                           for t, p, q in zip(times, c_pos, quat)))
+    (root / "c/gt.tum").write_text(
+        "".join(
+            f"{t} {p[0]} {p[1]} {p[2]} {q[0]} {q[1]} {q[2]} {q[3]}\n"
+            for t, p, q in zip(times, c_pos, quat)
+        )
+    )
     _csv(root / "g/odometry.csv", "odometry", [(t, "wheels", 0.15, 0.0) for t in times])
-    _csv(root / "g/groundtruth.csv", "groundtruth", [(t, x, y, 0.0) for t, (x, y) in zip(times, g_xy)])
-    write_manifest({"name": "moving-target", "start_time": 0.0, "robots": [
-        {"name": "c", "kind": "ceiling",
-         "sensors": [{"name": "odo", "type": "odometry"},
-                     {"name": "cam", "type": "camera", "params": {"fx": fx, "fy": fx, "cx": cx, "cy": cy,
-                                                                   "width": 640, "height": 480,
-                                                                   "pixel_sigma": 0.5}}],
-         "tables": {"relative_pose3": "c/relative_pose3.csv", "markers": "c/markers.csv",
-                    "groundtruth": "c/gt.tum"}},
-        {"name": "g", "kind": "ground", "initial_pose": [0, 0, 0], "markers": leds.tolist(),
-         "sensors": [{"name": "wheels", "type": "odometry"}],
-         "tables": {"odometry": "g/odometry.csv", "groundtruth": "g/groundtruth.csv"}}]}, root)
+    _csv(
+        root / "g/groundtruth.csv",
+        "groundtruth",
+        [(t, x, y, 0.0) for t, (x, y) in zip(times, g_xy)],
+    )
+    write_manifest(
+        {
+            "name": "moving-target",
+            "start_time": 0.0,
+            "robots": [
+                {
+                    "name": "c",
+                    "kind": "ceiling",
+                    "sensors": [
+                        {"name": "odo", "type": "odometry"},
+                        {
+                            "name": "cam",
+                            "type": "camera",
+                            "params": {
+                                "fx": fx,
+                                "fy": fx,
+                                "cx": cx,
+                                "cy": cy,
+                                "width": 640,
+                                "height": 480,
+                                "pixel_sigma": 0.5,
+                            },
+                        },
+                    ],
+                    "tables": {
+                        "relative_pose3": "c/relative_pose3.csv",
+                        "markers": "c/markers.csv",
+                        "groundtruth": "c/gt.tum",
+                    },
+                },
+                {
+                    "name": "g",
+                    "kind": "ground",
+                    "initial_pose": [0, 0, 0],
+                    "markers": leds.tolist(),
+                    "sensors": [{"name": "wheels", "type": "odometry"}],
+                    "tables": {"odometry": "g/odometry.csv", "groundtruth": "g/groundtruth.csv"},
+                },
+            ],
+        },
+        root,
+    )
     for mode in ("smooth", "online"):
         assert main([mode, str(root), "--out", str(tmp_path / mode), "--no-progress"]) == 0
         m = json.loads((tmp_path / mode / "metrics.json").read_text())
         label = "batch" if mode == "smooth" else "online"
         assert m["decisions"]["committed"] > 40 and m["decisions"]["wrong"] == 0, m["decisions"]
         c = m["per_robot"]["c"]
-        assert c[label]["ate_rmse"] < 0.05 and c[label]["ate_rmse"] < 0.5 * c["dead_reckoning"]["ate_rmse"], c
+        assert (
+            c[label]["ate_rmse"] < 0.05
+            and c[label]["ate_rmse"] < 0.5 * c["dead_reckoning"]["ate_rmse"]
+        ), c
         assert m["counts"]["factors_candidate"] == m["decisions"]["committed"]

@@ -7,11 +7,13 @@ from __future__ import annotations
 import argparse
 import json
 
-HELP = "check a run (log dir or MRCLAM dir): what every table contributes to the graph, what is skipped"
+HELP = "check a run (log or MRCLAM dir): what every table contributes to the graph, what is skipped"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", help="graphloc log directory (manifest.json) or MRCLAM dataset directory")
+    parser.add_argument(
+        "run", help="graphloc log directory (manifest.json) or MRCLAM dataset directory"
+    )
     parser.add_argument("--duration", type=float, default=None, help="use only the first N seconds")
 
 
@@ -23,10 +25,27 @@ def run(args: argparse.Namespace) -> int:
     graph = build_graph(team)
     robots = {}
     for r, robot in enumerate(team.robots):
-        robots[robot.name] = {"kind": robot.kind, "planar": robot.planar, "static": robot.static,
-                              "initial_pose": robot.initial_pose is not None, "surface": robot.surface is not None,
-                              "markers": 0 if robot.markers is None else len(robot.markers),
-                              "poses": int(len(graph.node_times[r])), "groundtruth": team.groundtruth[r] is not None}
-    print(json.dumps({"run": team.name, "robots": robots, "rows_used": team.contributions,
-                      "graph": graph.counts, "skipped": graph.skips.as_dict()}, indent=1, default=str))
+        robots[robot.name] = {
+            "kind": robot.kind,
+            "planar": robot.planar,
+            "static": robot.static,
+            "initial_pose": robot.initial_pose is not None,
+            "surface": robot.surface is not None,
+            "markers": 0 if robot.markers is None else len(robot.markers),
+            "poses": int(len(graph.node_times[r])),
+            "groundtruth": team.groundtruth[r] is not None,
+        }
+    print(
+        json.dumps(
+            {
+                "run": team.name,
+                "robots": robots,
+                "rows_used": team.contributions,
+                "graph": graph.counts,
+                "skipped": graph.skips.as_dict(),
+            },
+            indent=1,
+            default=str,
+        )
+    )
     return 0

@@ -23,9 +23,18 @@ from graphloc.geometry.resection import resection_covariance
 from graphloc.vision.target import MarkerTarget, TargetHypothesisConfig, target_hypotheses
 
 
-def p3p_candidate_sets(camera, pixels: list, marker_ids: list, layout: np.ndarray, times, pixel_sigma: float,
-                       identical: bool = False, observer: str = "", observed: str = "",
-                       truth_t: np.ndarray | None = None) -> list:
+def p3p_candidate_sets(
+    camera,
+    pixels: list,
+    marker_ids: list,
+    layout: np.ndarray,
+    times,
+    pixel_sigma: float,
+    identical: bool = False,
+    observer: str = "",
+    observed: str = "",
+    truth_t: np.ndarray | None = None,
+) -> list:
     """One CandidateSet per frame i (empty when no pose fits, None when a pixel has no bearing
     or too few markers were seen): pixels[i] (n_i,2) of markers
     marker_ids[i] (n_i,) of `layout` (m,3); n_i >= 3 (4 for identical markers). With
@@ -45,8 +54,15 @@ def p3p_candidate_sets(camera, pixels: list, marker_ids: list, layout: np.ndarra
             px = np.asarray(pixels[i], dtype=float)
             if len(px) not in (3, 4) or len(layout) != 4:
                 continue
-            cs = target_hypotheses(px, camera, target, config, time=float(times[i]), observer=observer,
-                                   observed=observed)
+            cs = target_hypotheses(
+                px,
+                camera,
+                target,
+                config,
+                time=float(times[i]),
+                observer=observer,
+                observed=observed,
+            )
             if len(cs):
                 assign = cs.meta["assignment"]
                 used = np.argsort(assign < 0, axis=1, kind="stable")[:, :3]
@@ -62,24 +78,38 @@ def p3p_candidate_sets(camera, pixels: list, marker_ids: list, layout: np.ndarra
     px3 = np.array([p[o[:3]] for p, o in zip(px_all, order)])  # (n,3,2)
     bearings, ok = camera.pixel_to_bearing(px3.reshape(-1, 2))
     ok = ok.reshape(n, 3).all(axis=1)
-    sol = solve_p3p(np.where(ok[:, None, None], bearings.reshape(n, 3, 3), [[1, 0, 0], [0, 1, 0], [0, 0, 1]]),
-                    layout[first3])
+    sol = solve_p3p(
+        np.where(ok[:, None, None], bearings.reshape(n, 3, 3), [[1, 0, 0], [0, 1, 0], [0, 0, 1]]),
+        layout[first3],
+    )
     for i in np.flatnonzero(ok):
         keep = sol.valid[i]
         R, t = sol.R_wc[i][keep], sol.t_wc[i][keep]
         extra = order[i][3:]
         if extra.size and len(R):  # markers beyond three score the candidates
             pts = layout[ids_all[i][extra]]
-            proj, front = camera.project(np.einsum("kji,kpj->kpi", R, pts[None] - t[:, None]).reshape(-1, 3))
+            proj, front = camera.project(
+                np.einsum("kji,kpj->kpi", R, pts[None] - t[:, None]).reshape(-1, 3)
+            )
             err = np.linalg.norm(proj.reshape(len(R), -1, 2) - px_all[i][extra][None], axis=2)
             err = np.where(front.reshape(len(R), -1), err, np.inf)
-            rms = np.sqrt(np.mean(err ** 2, axis=1))
+            rms = np.sqrt(np.mean(err**2, axis=1))
             scores = np.exp(-0.5 * (rms / max(pixel_sigma, 1e-6)) ** 2)
         else:
             scores = np.exp(-0.5 * (sol.residual[i][keep] / 1e-3) ** 2)
-        cov = resection_covariance(camera, R, t, np.broadcast_to(layout[first3[i]], (len(R), 3, 3)), pixel_sigma)
-        cs = CandidateSet(R, t, scores, time=float(times[i]), observer=observer, observed=observed,
-                          source=f"p3p/{sol.method}", meta={"markers": first3[i].tolist()})
+        cov = resection_covariance(
+            camera, R, t, np.broadcast_to(layout[first3[i]], (len(R), 3, 3)), pixel_sigma
+        )
+        cs = CandidateSet(
+            R,
+            t,
+            scores,
+            time=float(times[i]),
+            observer=observer,
+            observed=observed,
+            source=f"p3p/{sol.method}",
+            meta={"markers": first3[i].tolist()},
+        )
         out[i] = _with(cs, cov, truth_t, i)
     return out
 
@@ -89,4 +119,6 @@ def _with(cs: CandidateSet, cov: np.ndarray, truth_t, i: int) -> CandidateSet:
     if truth_t is not None and len(cs):
         d = np.linalg.norm(cs.t - truth_t[i], axis=1)
         meta.update(genuine=int(np.argmin(d)), genuine_error=float(d.min()))
-    return CandidateSet(cs.R, cs.t, cs.scores, cs.time, cs.observer, cs.observed, cs.source, meta, cov)
+    return CandidateSet(
+        cs.R, cs.t, cs.scores, cs.time, cs.observer, cs.observed, cs.source, meta, cov
+    )
