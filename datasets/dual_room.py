@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import open3d as o3d
+from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
 from graphloc.eval import write_tum
@@ -121,6 +122,18 @@ def _rot_z(yaw: np.ndarray) -> np.ndarray:
 
 
 FLIP_X = np.diag([1.0, -1.0, -1.0])  # 180 deg about x: the ceiling robot is upside down
+
+
+def _write_rows(path: Path, header: list, rows: list) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(rows)
+
+
+def _quat_xyzw(R: np.ndarray) -> list:
+    return [float(a) for a in Rotation.from_matrix(R).as_quat()]
 
 
 def led_positions() -> np.ndarray:
@@ -377,7 +390,51 @@ class DualRoomScenario:
         )
         (out / "meta.json").write_text(json.dumps(meta, indent=1))
         o3d.io.write_triangle_mesh(str(out / "room.ply"), self.room.mesh())
+        self.write_log(out)
         return out
+
+    def write_log(self, out: Path) -> Path:
+        """The same run as a graphloc log (docs/log_format.md) beside the files above, so that
+        `graphloc smooth` / `online` take it: each robot's scans (KISS-ICP odometry at load
+        time), the ceiling camera's LED pixels on the ground robot (markers), ground truth
+        (TUM). The ground robot's first pose anchors the world; the ceiling robot is placed by
+        the LEDs and moves on the ceiling plane (its LiDAR centre `ceiling_gap` below it)."""
+        tables = {}
+        for robot in ROBOTS:
+            rows = [(f"{t:.6f}", "lidar", f"scans/{robot}/{f:06d}.ply") for f, t in enumerate(self.times)]
+            _write_rows(out / robot / "scans.csv", ["time", "sensor", "path"], rows)
+            tables[robot] = {"scans": f"{robot}/scans.csv", "groundtruth": f"poses_{robot}.tum"}
+        rows = [(f"{self.times[f]:.6f}", "camera", "ground", k, f"{self.led_pixels[f, k, 0]:.4f}",
+                 f"{self.led_pixels[f, k, 1]:.4f}")
+                for f in range(len(self.times)) for k in range(3) if self.led_visible[f, k]]
+        _write_rows(out / "ceiling" / "markers.csv", ["time", "sensor", "target", "marker", "u", "v"], rows)
+        tables["ceiling"]["markers"] = "ceiling/markers.csv"
+        cam = self.config.camera
+        T0 = self.poses["ground"][0]
+        q = _quat_xyzw(T0[:3, :3])
+        height = self.room.size[2] - self.config.ceiling_gap
+        manifest = {
+            "format": "graphloc-log", "version": 2, "name": "dual-robot-room",
+            "start_time": float(self.times[0]),
+            "robots": [
+                {"name": "ground", "kind": "ground", "planar": False,
+                 "initial_pose": [*map(float, T0[:3, 3]), *q], "initial_sigma": [1e-3, 1e-3],
+                 "markers": led_positions().tolist(),
+                 "sensors": [{"name": "lidar", "type": "scanner"}], "tables": tables["ground"]},
+                {"name": "ceiling", "kind": "ceiling", "planar": False,
+                 "surface": {"point": [0.0, 0.0, float(height)], "normal": [0.0, 0.0, -1.0]},
+                 "sensors": [{"name": "lidar", "type": "scanner"},
+                             {"name": "camera", "type": "camera", "extrinsics": T_CEILING_CAMERA.tolist(),
+                              "params": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
+                                         "width": cam.width, "height": cam.height,
+                                         "pixel_sigma": cam.pixel_noise}}],
+                 "tables": tables["ceiling"]},
+            ],
+            "meta": {"scenario": "dual-robot-room", "variant": self.config.variant},
+        }
+        path = out / "manifest.json"
+        path.write_text(json.dumps(manifest, indent=1) + "\n")
+        return path
 
     @staticmethod
     def load(in_dir) -> "DualRoomScenario":

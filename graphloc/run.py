@@ -37,6 +37,7 @@ from graphloc.io import (
     RangeBearing2D,
     RelativePose2D,
     RelativePose3D,
+    ScanRef,
     SkipReport,
     _Sink,
     is_tum,
@@ -45,8 +46,9 @@ from graphloc.io import (
     read_manifest,
 )
 
-# tables the graph uses; "scans" and the seed-003 tables are read by their own pipelines
+# tables the graph uses (every table of docs/log_format.md)
 GRAPH_TABLES = (
+    "scans",
     "odometry",
     "relative_pose",
     "relative_pose3",
@@ -290,12 +292,6 @@ def read_team_run(
     for r in manifest.robots:
         for s in r.sensors:
             s.params.update(forced)
-        for table in r.tables:
-            if table in ("scans",):
-                raise ValueError(
-                    f"{mpath}: robot {r.name!r}: table {table!r} is not part of the factor graph "
-                    f"(scans go through `graphloc fuse-maps`)"
-                )
     report = SkipReport()
     sink = _Sink(on_error, report)
     robots = tuple(_robot(r, f"{mpath}: robots[{i}]") for i, r in enumerate(manifest.robots))
@@ -306,6 +302,7 @@ def read_team_run(
     gt2d = {r.name: [] for r in robots}
     marker_rows: dict = {}
     cand_rows: dict = {}
+    scan_rows: dict = {}
     used = {t: 0 for t in GRAPH_TABLES}
     for r in manifest.robots:  # 3D ground truth in TUM files
         path = r.tables.get("groundtruth")
@@ -429,6 +426,8 @@ def read_team_run(
                 )
                 continue
             marker_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
+        elif isinstance(rec, ScanRef):
+            scan_rows.setdefault((ri, rec.sensor), []).append(rec)
         elif isinstance(rec, PoseCandidate):
             if rec.target not in index:
                 sink.bad(
@@ -437,6 +436,7 @@ def read_team_run(
                 continue
             cand_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
         used[_table_of(rec)] += 1
+    motions += _scan_odometry(scan_rows, robots, manifest)
     observations = _marker_observations(marker_rows, robots, manifest, d, sink, used)
     observations += _candidate_observations(cand_rows, robots, d, manifest)
     observations.sort(key=lambda o: (o.time, o.robot))
@@ -483,6 +483,7 @@ def _table_of(rec) -> str:
         MarkerPixel: "markers",
         PoseCandidate: "candidates",
         GroundTruth2D: "groundtruth",
+        ScanRef: "scans",
     }[type(rec)]
 
 
@@ -547,6 +548,40 @@ def _marker_observations(
                 )
                 continue
             out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs))
+    return out
+
+
+SCAN_SIGMAS = (0.002, 0.01)  # [rad, m] per KISS-ICP step where the scanner's params give none
+
+
+def _scan_odometry(groups: dict, robots: tuple, manifest) -> list:
+    """Each robot's scans (rows of its `scans` table, per scanner) -> KISS-ICP odometry
+    (`graphloc.mapping.odometry`) -> one relative-pose step per consecutive pair of scans, in
+    the body frame (through the scanner's extrinsics), covariance from the scanner's
+    `icp_sigmas` [rot rad, trans m]."""
+    if not groups:
+        return []
+    # Open3D and KISS-ICP load only for runs that have scans
+    from graphloc.mapping.io import read_points
+    from graphloc.mapping.odometry import run_odometry
+
+    out = []
+    for (ri, sensor), rows in groups.items():
+        T_bs, params = robots[ri].sensors[sensor]
+        E = gtsam.Pose3(T_bs)
+        scans = []
+        for row in rows:
+            try:
+                scans.append(read_points(manifest.root / row.path))
+            except (OSError, ValueError) as exc:
+                table = manifest.root / manifest.robots[ri].tables["scans"]
+                raise ValueError(f"{table}: line {row.line}: field 'path': {exc}") from None
+        sig = params.get("icp_sigmas", SCAN_SIGMAS)
+        cov = np.diag([float(sig[0]) ** 2] * 3 + [float(sig[1]) ** 2] * 3)
+        A = E.AdjointMap()
+        for a, b, step in zip(rows[:-1], rows[1:], run_odometry(scans).increments()):
+            rel = E.compose(gtsam.Pose3(step)).compose(E.inverse())
+            out.append(Motion(ri, a.time, b.time, rel, A @ cov @ A.T))
     return out
 
 

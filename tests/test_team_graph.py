@@ -167,8 +167,12 @@ def test_unknown_or_unsupported_tables_are_errors(tmp_path, capsys):
     root = bearing_log(
         tmp_path / "log2", tables={"odometry": "a/odometry.csv", "scans": "a/scans.csv"}
     )
-    assert main(["validate", str(root)]) == 2
-    assert "'scans' is not part of the factor graph" in capsys.readouterr().err
+    data = json.loads((root / "manifest.json").read_text())
+    data["robots"][0]["sensors"].append({"name": "lidar", "type": "scanner"})
+    (root / "manifest.json").write_text(json.dumps(data))
+    (root / "a/scans.csv").write_text("time,sensor,path\n0.0,lidar,scans/missing.ply\n")
+    assert main(["validate", str(root)]) == 2  # a missing scan names table, line and field
+    assert "scans.csv: line 2: field 'path'" in capsys.readouterr().err
 
 
 def test_bad_rows_are_counted_with_their_reason(tmp_path):
@@ -392,3 +396,15 @@ def test_climber_placed_by_markers_on_a_moving_ground_robot(tmp_path):
             and c[label]["ate_rmse"] < 0.5 * c["dead_reckoning"]["ate_rmse"]
         ), c
         assert m["counts"]["factors_candidate"] == m["decisions"]["committed"]
+
+
+@pytest.mark.slow
+def test_dual_robot_room_scans_through_smooth(tmp_path):
+    """dual-robot-room's log: each robot's scans become KISS-ICP odometry steps in the graph and
+    the ceiling camera's LED pixels candidate sets on the ground robot."""
+    assert main(["simulate", "dual-robot-room", "--out", str(tmp_path / "run")]) == 0
+    assert main(["smooth", str(tmp_path / "run"), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["tables"]["scans"] == 16 and m["tables"]["markers"] > 0
+    assert m["counts"]["factors_odometry"] >= 7 and m["decisions"]["candidate_sets"] > 0
+    assert m["per_robot"]["ground"]["batch"]["ate_rmse"] < 0.05
