@@ -54,6 +54,7 @@ class RegistrationConfig:
     coarse_tukey: float = 0.5
     covariance_block: float = 0.5
     stop_at_first_valid: bool = True
+    global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
 
     def __post_init__(self):
         if not (self.voxel > 0 and self.normal_radius > 0 and self.range_sigma > 0):
@@ -359,7 +360,9 @@ def robust_register(
        source point that far) merge; then Open3D tensor ICP on the prepared clouds within that
        distance (cfg.max_iterations[-1]); candidates closer than acc.distinct_deg / distinct_m
        merge. With cfg.stop_at_first_valid the starts stop at the first candidate that passes
-       its checks (the hint comes first, so an easy case costs one start).
+       its checks (the hint comes first, so an easy case costs one start). If none passes and
+       cfg.global_fallback, `global_fpfh_ransac` (seed 0) gives one more start (index 13),
+       still subject to every check, the hint gate included.
     3. Each candidate's `truncated_cost` (c = acc.residual_sigma) and checks (overlap, inlier
        ratio, hint gate, robot geometry: `_candidate_checks`). Among those that pass, the lowest
        cost wins, except that the hint's own candidate (start 0) is kept when it passes and its
@@ -391,54 +394,47 @@ def robust_register(
     r_med = float(np.median(np.linalg.norm(source.points, axis=1)))
     basin_deg = float(np.degrees(fine / r_med))  # a rotation moving the median point by `fine`
     merged, coarse, cands, iterations = {}, [], [], 0
-    for k, T0 in enumerate(hint_starts(hint, sigma)):
+
+    def try_start(k: int, T0: np.ndarray) -> bool:
+        """Coarse + fine ICP from one start; True if its candidate passes its own checks."""
+        nonlocal iterations
         T = T0
         if cfg.coarse_voxels > 0:
-            T = np.asarray(
-                reg_l.registration_icp(
-                    src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0, est, crit_c
-                ).transformation
-            )
+            T = np.asarray(reg_l.registration_icp(src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0,
+                                                  est, crit_c).transformation)
         same = [j for j, Tj in coarse if _within(T, Tj, basin_deg, fine)]
         if same:
             merged[k] = f"coarse stage converged within the fine basin of start {same[0]}"
-            continue
+            return False
         coarse.append((k, T))
         try:
-            res = reg_t.icp(
-                source.cloud,
-                target.cloud,
-                fine,
-                o3d.core.Tensor(T),
-                reg_t.TransformationEstimationPointToPlane(),
-                crit_f,
-            )
+            res = reg_t.icp(source.cloud, target.cloud, fine, o3d.core.Tensor(T),
+                            reg_t.TransformationEstimationPointToPlane(), crit_f)
         except RuntimeError:  # Open3D: singular 6x6 system, too few correspondences from this start
             merged[k] = f"no correspondences within {fine} m"
-            continue
+            return False
         T, iterations = res.transformation.numpy(), iterations + int(res.num_iterations)
         same = [o.start for o in cands if not _distinct(T, o.transformation, acc)]
         if same:
             merged[k] = f"converged to the pose of start {same[0]}"
-            continue
+            return False
         r, d, _ = point_to_plane(source, target, T, nns)
         near = d < fine
         inl = near & (np.abs(r) < c)
         e = hint_pose.localCoordinates(gtsam.Pose3(T))
-        cands.append(
-            Candidate(
-                k,
-                T,
-                truncated_cost(r, d, c, fine),
-                float(inl.mean()),
-                float(inl.sum() / max(near.sum(), 1)),
-                float(e @ hint_info @ e),
-            )
-        )
-        if cfg.stop_at_first_valid and all(
-            v[2] for v in _candidate_checks(cands[-1], acc).values()
-        ):
+        cands.append(Candidate(k, T, truncated_cost(r, d, c, fine), float(inl.mean()),
+                               float(inl.sum() / max(near.sum(), 1)), float(e @ hint_info @ e)))
+        return all(v[2] for v in _candidate_checks(cands[-1], acc).values())
+
+    starts = hint_starts(hint, sigma)
+    found = False
+    for k, T0 in enumerate(starts):
+        found = try_start(k, T0) or found
+        if found and cfg.stop_at_first_valid:
             break
+    if not found and cfg.global_fallback:  # the hint's neighbourhood failed: one global guess
+        T_glob, _ = global_fpfh_ransac(source, target, cfg, seed=0)
+        try_start(len(starts), T_glob)
     if not cands:
         raise ValueError(
             f"robust_register: no start found correspondences within {fine} m: a wrong "
