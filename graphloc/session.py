@@ -65,6 +65,19 @@ class SessionConfig:
     (iSAM2's default step) or "dogleg" (Powell's dog leg with an adaptive trust region: a
     step that would raise the error is shortened, which stops the period-2 oscillation an
     undamped step can fall into on stiff graphs).
+    lag [s]: online only; 0 keeps every variable (full smoothing); > 0 runs GTSAM's
+    IncrementalFixedLagSmoother (iSAM2 that marginalizes, with `ISAM2::marginalizeLeaves`, every
+    variable added more than `lag` seconds (of the add times) before the newest): the Bayes
+    tree and the per-step cost stay bounded; a marginalized variable keeps its last estimate,
+    and a factor on one is refused (`Session.add` raises ValueError; `Session.marginalized`
+    tells first). A variable's stamp is its add time and is not renewed when later factors
+    touch it (re-stamping a live key makes GTSAM 4.3's smoother fail in marginalizeLeaves
+    with "remove variables ... that are not unused"), so long-lived variables (a static
+    robot's pose, a SLAM landmark) leave the window too. lag_batches: stamp variables with
+    their add time rounded down to a multiple of `lag`, so that old variables leave in one
+    batch per `lag` seconds (the window then spans `lag` to 2 `lag`): the smoother re-eliminates
+    the path from the marginalized cliques to the root whenever it marginalizes, once per lag
+    instead of at every step.
     """
 
     mode: str = "batch"
@@ -78,8 +91,12 @@ class SessionConfig:
     wildfire_threshold: float = 0.001
     partial_relinearization_check: bool = False
     isam2_optimizer: str = "gauss_newton"
+    lag: float = 0.0
+    lag_batches: bool = True
 
     def __post_init__(self):
+        if not (np.isfinite(self.lag) and self.lag >= 0):
+            raise ValueError(f"SessionConfig.lag must be finite >= 0, got {self.lag}")
         if self.mode not in MODES:
             raise ValueError(f"SessionConfig.mode must be one of {MODES}, got {self.mode!r}")
         if self.isam2_optimizer not in ("gauss_newton", "dogleg"):
@@ -108,6 +125,7 @@ class Step:
     n_factors: int
     n_new_values: int
     latency_s: float
+    cpu_s: float = 0.0  # CPU time of this thread over the same span
 
 
 @dataclass
@@ -140,9 +158,12 @@ def _as_graph(items: list) -> gtsam.NonlinearFactorGraph:
 class Session:
     """Batch (LM) or online (iSAM2) smoothing over one growing factor graph."""
 
-    def __init__(self, config: SessionConfig = SessionConfig(), progress: bool = False):
+    def __init__(self, config: SessionConfig = SessionConfig(), progress: bool = False,
+                 stop=None):
         self.config = config
         self.progress = progress  # a progress bar (iteration, error) during a batch solve
+        self.stop = stop  # stop(): checked between LM iterations; True ends the solve there
+        self.stopped = False  # the last batch solve was ended by `stop`
         self.graph = gtsam.NonlinearFactorGraph()  # every factor ever added, in order
         self.initial = gtsam.Values()  # initial guess of every variable ever added
         self.steps: list[Step] = []
@@ -152,9 +173,12 @@ class Session:
         self._batch_marginals: gtsam.Marginals | None = None
         self._batch_iterations = 0
         self._isam = self._make_isam() if config.mode == "online" else None
+        # fixed lag: the add time of each live variable; marginalized variables' last estimates
+        self._touched: dict[int, float] = {}
+        self._frozen = gtsam.Values()
 
     # ---- construction --------------------------------------------------------------------
-    def _make_isam(self) -> gtsam.ISAM2:
+    def _make_isam(self):
         params = gtsam.ISAM2Params()
         params.setRelinearizeThreshold(self.config.relinearize_threshold)
         params.relinearizeSkip = self.config.relinearize_skip
@@ -166,7 +190,39 @@ class Session:
             step = gtsam.ISAM2GaussNewtonParams()
         step.setWildfireThreshold(self.config.wildfire_threshold)
         params.setOptimizationParams(step)
+        if self.config.lag > 0:
+            return gtsam.IncrementalFixedLagSmoother(self.config.lag, params)
         return gtsam.ISAM2(params)
+
+    @property
+    def fixed_lag(self) -> bool:
+        return self._isam is not None and self.config.lag > 0
+
+    def marginalized(self, key: int) -> bool:
+        """Whether `key` was marginalized by the fixed-lag smoother (its value is frozen)."""
+        return self._frozen.exists(key)
+
+    def _update_fixed_lag(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
+                          t: float) -> None:
+        """One fixed-lag update: the new keys get time t; the keys the smoother marginalizes
+        keep their estimate from before this update."""
+        quantum = self.config.lag if self.config.lag_batches else 0.0
+        now = math.floor(t / quantum) * quantum if quantum else t  # add times never go back
+        stamps = {int(k): now for k in values.keys()}
+        self._touched.update(stamps)
+        # IncrementalFixedLagSmoother marginalizes the keys stamped before (newest - lag)
+        old = [k for k, s in self._touched.items() if s < now - self.config.lag + 1e-9]
+        before = self._isam.calculateEstimate() if old else None
+        self._isam.update(graph, values, stamps)
+        for _ in range(self.config.extra_updates):
+            self._isam.update()
+        if not old:
+            return
+        alive = self._isam.timestamps()
+        for k in old:
+            if k not in alive:
+                del self._touched[k]
+                self._frozen.insert(k, _value(before, k))
 
     # ---- the front door ------------------------------------------------------------------
     def add(self, factors: gtsam.NonlinearFactorGraph | Iterable, initial_values: gtsam.Values,
@@ -195,8 +251,18 @@ class Session:
             names = [_key_name(k) for k in missing[:5]]
             raise ValueError(f"Session.add: factors reference keys without a value: {names}")
 
-        start = _time.perf_counter()
-        if self._isam is not None:
+        gone = [_key_name(k) for k in graph.keyVector() if self._frozen.exists(k)]
+        if gone:
+            raise ValueError(f"Session.add: factors reference marginalized keys (older than the "
+                             f"lag): {gone[:5]}")
+        start, cpu_start = _time.perf_counter(), _time.thread_time()
+        if self.fixed_lag:
+            try:
+                self._update_fixed_lag(graph, initial_values, t)
+            except RuntimeError as exc:
+                raise ValueError(f"Session.add at time {t}: fixed-lag update failed "
+                                 f"({_first_line(exc)})") from None
+        elif self._isam is not None:
             try:
                 self._isam.update(graph, initial_values)
                 for _ in range(self.config.extra_updates):
@@ -204,13 +270,14 @@ class Session:
             except RuntimeError as exc:
                 raise ValueError(f"Session.add at time {t}: iSAM2 update failed ({exc}); the online session "
                                  f"is unusable after this, reload a saved state") from None
-        latency = _time.perf_counter() - start
+        latency, cpu = _time.perf_counter() - start, _time.thread_time() - cpu_start
 
         self.graph.push_back(graph)
         self.initial.insert(initial_values)
         self._batch_estimate = self._batch_marginals = None
         self._last_time = t
-        step = Step(time=t, n_factors=int(graph.size()), n_new_values=len(new_keys), latency_s=latency)
+        step = Step(time=t, n_factors=int(graph.size()), n_new_values=len(new_keys),
+                    latency_s=latency, cpu_s=cpu)
         self.steps.append(step)
         self._records.append(_Record(t, items, initial_values, latency))
         return step
@@ -221,6 +288,20 @@ class Session:
         if keys is not None:
             keys = list(keys)
             self._check_known(keys, "estimate")
+        if self.fixed_lag:
+            try:
+                live = self._isam.calculateEstimate()
+            except RuntimeError as exc:
+                raise ValueError(f"Session.estimate: the fixed-lag smoother cannot solve the "
+                                 f"graph ({_first_line(exc)})") from None
+            if keys is None:
+                out = gtsam.Values(self._frozen)
+                out.insert(live)
+                return out
+            out = gtsam.Values()
+            for k in keys:
+                out.insert(k, _value(self._frozen if self._frozen.exists(k) else live, k))
+            return out
         if self._isam is not None:
             try:
                 return self._isam.calculateEstimate() if keys is None else \
@@ -238,6 +319,9 @@ class Session:
         """Marginal covariance of one variable at the current estimate (tangent-space, GTSAM order)."""
         self._check_known([key], "marginal_covariance")
         try:
+            if self.marginalized(key):
+                raise ValueError(f"Session.marginal_covariance({_key_name(key)}): the "
+                                 f"variable was marginalized (older than the lag)")
             if self._isam is not None:
                 return np.asarray(self._isam.marginalCovariance(key))
             if self._batch_marginals is None:  # one factorization per estimate, not per query
@@ -261,6 +345,10 @@ class Session:
         """(n_steps,) wall-clock seconds of each `add` (the iSAM2 update in online mode)."""
         return np.array([s.latency_s for s in self.steps], dtype=float)
 
+    def live_variables(self) -> int:
+        """Variables the solver holds: all of them, or (fixed lag) those inside the lag."""
+        return len(self._touched) if self.fixed_lag else int(self.initial.size())
+
     def error(self, values: gtsam.Values | None = None) -> float:
         """Total graph error (0.5 * sum of whitened, robustified squared residuals)."""
         return float(self.graph.error(self.estimate() if values is None else values))
@@ -280,6 +368,9 @@ class Session:
         try:
             error = optimizer.error()
             while error > params.getErrorTol() and optimizer.iterations() < params.getMaxIterations():
+                if self.stop is not None and self.stop():
+                    self.stopped = True
+                    break
                 optimizer.iterate()
                 new_error = optimizer.error()
                 bar.update(1)
@@ -842,6 +933,16 @@ def _key_name(key: int) -> str:
         return gtsam.DefaultKeyFormatter(key)
     except UnicodeDecodeError:
         return str(key)
+
+
+def _value(values: gtsam.Values, key: int):
+    """The entry of `values` at `key` as its own type (Pose3, Pose2, Point3 / vector)."""
+    for get in (values.atPose3, values.atPose2, values.atPoint3, values.atVector):
+        try:
+            return get(key)
+        except RuntimeError:
+            continue
+    raise ValueError(f"no estimate for key {_key_name(key)}")
 
 
 def _first_line(exc: Exception) -> str:

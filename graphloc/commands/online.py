@@ -1,19 +1,104 @@
 """`graphloc online RUN --out DIR`: online smoothing with iSAM2, one incremental update per
-frame, per-frame latency recorded; same factors, options and outputs as `graphloc smooth`, plus
-the causal (as-it-happened) estimate's metrics and latency plot."""
+frame, per-frame latency recorded (latency.csv); same factors, options and outputs as
+`graphloc smooth`, plus the causal (as-it-happened) estimate's metrics and latency plot. With a
+fixed lag (`--lag`, the default where the run allows it) the per-step cost stays bounded.
+
+Checkpoint and resume: `--checkpoint FILE` writes, every `--checkpoint-every` steps and when a
+SIGINT / SIGTERM stops the run, a graphloc data file (format "graphloc-online-checkpoint",
+JSON with a SHA-256, written atomically: `graphloc.session.write_data_file`; loading parses
+numbers only, never code). It holds the position in the run (steps done), a fingerprint of the
+graph (run, effective configuration, step times and sizes) and the per-step log so far. GTSAM's
+Bayes tree cannot be written as data (only as a Boost archive, which is unsafe to load from an
+untrusted file) and the bearing factors are Python CustomFactors, so `--resume FILE` rebuilds
+the graph from the log, checks the fingerprint, replays the iSAM2 updates of the steps done
+(the same deterministic sequence, so the estimates are identical to an uninterrupted run) and
+continues; the replay costs the solver time of those steps (latency.csv then shows the
+replay's times for them)."""
 
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
+from dataclasses import asdict
+from pathlib import Path
 
 from graphloc.commands import smooth
 
-HELP = "online iSAM2 smoothing of a multi-robot run frame by frame (latency, TUM, metrics JSON, PNGs)"
+HELP = ("online iSAM2 smoothing of a multi-robot run frame by frame (latency, TUM, metrics JSON, "
+        "PNGs)")
+CHECKPOINT_FORMAT = "graphloc-online-checkpoint"
+CHECKPOINT_VERSION = 1
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     smooth.add_arguments(parser)
+    parser.add_argument("--checkpoint", type=Path, help="write a checkpoint to this file")
+    parser.add_argument("--checkpoint-every", type=int, default=500,
+                        help="steps between checkpoints (default 500)")
+    parser.add_argument("--resume", type=Path, help="continue from this checkpoint")
+
+
+def fingerprint(graph) -> str:
+    """SHA-256 of what makes two graphs the same sequence of updates: the run's name, the
+    effective configuration, every step's time and factor count."""
+    body = json.dumps({"run": graph.run.name, "config": asdict(graph.config),
+                       "steps": [[t, len(group)] for t, group in graph.steps]},
+                      default=str, sort_keys=True)
+    return hashlib.sha256(body.encode()).hexdigest()
+
+
+def write_checkpoint(path: Path, graph, steps_done: int) -> None:
+    from graphloc.session import write_data_file
+
+    write_data_file(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION,
+                    {"run": graph.run.name, "fingerprint": fingerprint(graph),
+                     "steps_done": int(steps_done), "steps_total": len(graph.steps)})
+
+
+def read_checkpoint(path: Path, graph) -> dict:
+    """The checkpoint's payload after checking it belongs to `graph` (ValueError otherwise)."""
+    from graphloc.session import read_data_file
+
+    data = read_data_file(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "online checkpoint")
+    done = data.get("steps_done")
+    if data.get("fingerprint") != fingerprint(graph):
+        raise ValueError(f"{path}: the checkpoint is of another run or configuration (run "
+                         f"{data.get('run')!r}); resume with the same RUN and options")
+    if not (isinstance(done, int) and 0 <= done <= len(graph.steps)):
+        raise ValueError(f"{path}: steps_done must be an integer in [0, {len(graph.steps)}], "
+                         f"got {done!r}")
+    return data
+
+
+def hooks(args: argparse.Namespace):
+    """The checkpoint / resume callbacks `smooth.run_verb` hands to `solve`."""
+    if args.checkpoint_every < 1:
+        raise ValueError(f"--checkpoint-every must be >= 1, got {args.checkpoint_every}")
+    if args.checkpoint is None and args.resume is None:
+        return None
+
+    def make(graph, values):
+        done_before = read_checkpoint(args.resume, graph)["steps_done"] if args.resume else 0
+        if args.resume is not None:
+            print(f"resuming {args.resume}: replaying {done_before} of {len(graph.steps)} steps",
+                  flush=True)
+        if args.checkpoint is None:
+            return {}
+
+        def on_step(i):
+            done = i + 1
+            if done > done_before and done % args.checkpoint_every == 0:
+                write_checkpoint(args.checkpoint, graph, done)
+
+        def on_stop(done):
+            write_checkpoint(args.checkpoint, graph, done)
+
+        return {"on_step": on_step, "on_stop": on_stop}
+
+    return make
 
 
 def run(args: argparse.Namespace) -> int:
-    return smooth.run_verb(args, "online")
+    make = hooks(args)
+    return smooth.run_verb(args, "online", checkpoint=make)

@@ -12,11 +12,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
+import sys
+import threading
 import tomllib
 from pathlib import Path
 
 HELP = "batch factor-graph smoothing of a team's run (log dir or MRCLAM dir): TUM, metrics JSON, PNGs"
 MODE = "batch"
+DEFAULT_LAG = 10.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
+EXIT_STOPPED = 3  # SIGINT / SIGTERM: the outputs so far were written, metrics marked partial
 # option -> (type, default, help); every one can also be set in the --config file
 OPTIONS = {
     "duration": (float, None, "use only the first N seconds"),
@@ -34,6 +39,9 @@ OPTIONS = {
     "range_sigma": (float, None, "range noise at 0 m [m] (default: the log's, else 0.05)"),
     "range_sigma_per_m": (float, None, "range noise growth [m per m] (default: the log's, else 0.035)"),
     "pixel_sigma": (float, None, "marker pixel noise [px] (default: the log's, else 1.0)"),
+    "lag": (float, None, ("online: fixed-lag window [s], 0 = full smoothing (default: "
+                          f"{DEFAULT_LAG:g} s where no variable must outlive it, else 0; see "
+                          "docs/outputs.md)")),
 }
 NOISE = ("bearing_sigma", "range_sigma", "range_sigma_per_m", "pixel_sigma")
 
@@ -109,23 +117,85 @@ def check_out(out: Path) -> None:
         raise ValueError(f"--out {out}: {parent} is not writable")
 
 
-def run_verb(args: argparse.Namespace, mode: str) -> int:
+def auto_lag(run, config) -> float:
+    """The online lag when --lag is not given: DEFAULT_LAG when every variable is only needed
+    near its own time -- no static robot (its one pose is observed all run long) and no
+    landmark estimated as one variable (SLAM) -- else 0 (full smoothing): the fixed-lag
+    smoother stamps a variable once (`graphloc.session.SessionConfig`), so a long-lived one
+    would leave the window and every later factor on it would be dropped."""
+    static = any(r.static for r in run.robots)
+    slam = config.use_landmarks and not (config.landmark_priors and run.landmarks_known
+                                         and config.anchor_known_landmarks)
+    return 0.0 if static or slam else DEFAULT_LAG
+
+
+class StopFlag:
+    """SIGINT / SIGTERM set the flag (the solve finishes its step and stops); a second SIGINT
+    interrupts at once. Installed for the duration of a `with` block."""
+
+    def __init__(self):
+        self.signal: int | None = None
+        self._old: dict = {}
+
+    def __call__(self) -> bool:
+        return self.signal is not None
+
+    def _handle(self, signum, frame):
+        if self.signal is not None and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        self.signal = signum
+        print(f"\n{signal.Signals(signum).name}: finishing the current step, then writing the "
+              f"outputs so far (exit code {EXIT_STOPPED})", file=sys.stderr, flush=True)
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+        return False
+
+
+def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
+    """The whole verb: outputs checked, run read, graph built, solved (stoppable, with an
+    online checkpoint / resume hook from `graphloc.commands.online`), evaluated, written."""
+    from dataclasses import asdict, replace
+
     from graphloc.datasets import open_run
-    from graphloc.pipelines.report import run_and_report
+    from graphloc.pipelines.report import evaluate, write_outputs
+    from graphloc.pipelines.team_graph import build_graph, solve
 
     check_out(args.out)
     values = options(args)
     config = graph_config(values)
-    noise = {k: values[k] for k in NOISE if values[k] is not None}
-    run = open_run(args.run, duration=values["duration"], noise=noise)
-    metrics = run_and_report(run, args.out, mode, config, progress=not args.no_progress, effective=values)
+    progress = not args.no_progress
+    with StopFlag() as stop:
+        noise = {k: values[k] for k in NOISE if values[k] is not None}
+        run = open_run(args.run, duration=values["duration"], noise=noise)
+        lag = values["lag"] if values["lag"] is not None else auto_lag(run, config)
+        if not (lag >= 0 and lag < float("inf")):
+            raise ValueError(f"--lag must be finite >= 0, got {lag}")
+        config = replace(config, lag=float(lag))
+        graph = build_graph(run, config, progress=progress)
+        hooks = checkpoint(graph, values) if checkpoint is not None else {}
+        result = solve(graph, mode=mode, progress=progress, stop=stop, **hooks)
+        metrics = evaluate(result, run)
+        metrics["config"] = json.loads(json.dumps(asdict(config), default=str))
+        metrics["options"] = values
+        if stop.signal is not None:
+            metrics["stopped_by"] = signal.Signals(stop.signal).name
+        write_outputs(result, run, metrics, Path(args.out))
     summary = {name: round(v[mode]["ate_rmse"], 4) for name, v in metrics["per_robot"].items()
                if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]}
-    print(json.dumps({"mode": mode, "ate_rmse_m": summary, "decisions": metrics["decisions"],
+    print(json.dumps({"mode": mode, "partial": metrics["partial"], "ate_rmse_m": summary,
+                      "decisions": metrics["decisions"],
                       "realtime_factor": round(metrics["realtime_factor"], 1),
                       "skipped": metrics["skipped"]["counts"]}, indent=1))
     print(f"outputs in {args.out}")
-    return 0
+    return EXIT_STOPPED if metrics["partial"] else 0
 
 
 def run(args: argparse.Namespace) -> int:

@@ -15,7 +15,13 @@ from evo.core.trajectory import PoseTrajectory3D
 from evo.tools import file_interface
 
 from graphloc.eval import ate_over_time, trajectory_metrics
-from graphloc.pipelines.team_graph import GraphConfig, TeamResult, build_graph, solve
+from graphloc.pipelines.team_graph import (
+    STEP_LOG_COLUMNS,
+    GraphConfig,
+    TeamResult,
+    build_graph,
+    solve,
+)
 from graphloc.plots import Series, plot_series, plot_trajectories
 from graphloc.run import TeamRun
 
@@ -91,7 +97,29 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
                       "genuine_merged": sum(g != d.committed and g in d.same_pose for d, g in judged)},
         "downweighted": result.downweighted, "counts": result.graph.counts, "tables": run.contributions,
         "skipped": result.graph.skips.as_dict(),
+        "partial": bool(result.partial), "steps_done": int(result.steps_done),
+        "steps_total": len(result.graph.steps), "lag_s": result.lag,
+        "dropped_across_lag": dict(result.dropped), "latency_trend": latency_trend(result),
     }
+
+
+def latency_trend(result: TeamResult) -> dict | None:
+    """Online: p95 of the per-step latency and CPU time [ms] over the first and the last tenth
+    of the steps, their ratio, the slowest step's CPU time, and the variables the solver holds
+    at the end (bounded with a fixed lag)."""
+    log = result.step_log
+    if result.mode != "online" or len(log) < 10:
+        return None
+    n = len(log) // 10
+    out = {}
+    for name, col in (("latency", 2), ("cpu", 3)):
+        first, last = (float(np.percentile(x, 95) * 1e3) for x in (log[:n, col], log[-n:, col]))
+        out[f"{name}_p95_first10_ms"], out[f"{name}_p95_last10_ms"] = first, last
+        out[f"{name}_p95_last_over_first"] = last / max(first, 1e-12)
+    out["cpu_max_ms"] = float(log[:, 3].max() * 1e3)
+    out["variables_end"] = int(log[-1, 5])
+    out["variables_max"] = int(log[:, 5].max())
+    return out
 
 
 def write_tum(path: Path, times: np.ndarray, rows: np.ndarray) -> Path:
@@ -122,6 +150,15 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
                         len(d.candidates_xyz), d.committed, f"{d.probability:.6g}", g, correct,
                         *(f"{v:.9g}" for v in d.pose)])
     written.append(path)
+    if result.mode == "online":
+        path = out / "latency.csv"
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(STEP_LOG_COLUMNS)
+            for row in result.step_log:
+                w.writerow([int(row[0]), f"{row[1]:.6f}", f"{row[2]:.9f}", f"{row[3]:.9f}",
+                            int(row[4]), int(row[5])])
+        written.append(path)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=str) + "\n")
     written.append(out / "metrics.json")
     written += _plots(result, run, out)
@@ -162,10 +199,16 @@ def _plots(result: TeamResult, run: TeamRun, out: Path) -> list[Path]:
     if err:
         written.append(plot_series(out / "error_over_time.png", err, "time since start [s]", "position error [m]",
                                    f"{run.name}: error over time", logy=True))
-    if result.mode == "online" and len(result.latencies):
-        written.append(plot_series(out / "latency.png", [Series("update latency", np.arange(len(result.latencies)),
-                                                               result.latencies * 1e3)],
-                                   "step", "latency per step [ms]", f"{run.name}: online latency"))
+    csv_path = out / "latency.csv"
+    if result.mode == "online" and csv_path.exists():
+        table = np.genfromtxt(csv_path, delimiter=",", names=True).reshape(-1)
+        if len(table):
+            lag = f"lag {result.lag:g} s" if result.lag else "full smoothing"
+            series = [Series("wall", table["step"], table["latency_s"] * 1e3),
+                      Series("CPU", table["step"], table["cpu_s"] * 1e3, style=".")]
+            title = f"{run.name}: online latency ({lag}, latency.csv)"
+            written.append(plot_series(out / "latency.png", series, "step",
+                                       "latency per step [ms]", title, logy=True))
     return written
 
 

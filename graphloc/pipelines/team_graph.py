@@ -93,8 +93,11 @@ class GraphConfig:
     wildfire_threshold: float | None = None
     extra_updates: int | None = None
     lm_max_iterations: int = 100
+    lag: float | None = None  # online: fixed-lag window [s] (None / 0: full smoothing)
 
     def __post_init__(self):
+        if self.lag is not None and not (np.isfinite(self.lag) and self.lag >= 0):
+            raise ValueError(f"GraphConfig.lag must be None or finite >= 0, got {self.lag}")
         if not 0.5 <= self.decision_threshold < 1.0:
             raise ValueError(f"GraphConfig.decision_threshold must be in [0.5, 1), got {self.decision_threshold}")
         for name in ("keyframe_dt", "sync_tolerance", "surface_sigma", "landmark_prior_floor"):
@@ -548,7 +551,11 @@ def _corrected_range_bearings(run: TeamRun, node_times: list, config: GraphConfi
 @dataclass(frozen=True)
 class TeamResult:
     """estimate[r]: (K_r,7) x y z qx qy qz qw per pose (NaN where left out); causal[r]: the
-    online estimate of each pose right after its own step (NaN in batch); latencies (steps,)."""
+    online estimate of each pose right after its own step (NaN in batch); latencies (steps,);
+    step_log: one row per session step (step index in graph.steps, time, latency [s], CPU [s],
+    factors added, variables the solver holds); dropped: factors not added because they touch
+    a variable the fixed lag has marginalized, by type; partial: the solve stopped early
+    (`stop`) after `steps_done` of the graph's steps."""
 
     mode: str
     node_times: list
@@ -560,6 +567,14 @@ class TeamResult:
     graph: TeamGraph
     downweighted: dict
     landmarks: dict  # landmark id -> estimated position (3,) of landmarks that are one variable (SLAM)
+    step_log: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    dropped: dict = field(default_factory=dict)
+    partial: bool = False
+    steps_done: int = 0
+    lag: float | None = None
+
+
+STEP_LOG_COLUMNS = ("step", "time", "latency_s", "cpu_s", "factors", "variables")
 
 
 def _pose_row(p: gtsam.Pose3) -> np.ndarray:
@@ -567,20 +582,42 @@ def _pose_row(p: gtsam.Pose3) -> np.ndarray:
     return np.r_[p.translation(), q.x(), q.y(), q.z(), q.w()]
 
 
-def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False) -> TeamResult:
-    """Batch: every step added, one LM solve. Online: one iSAM2 update per step; a new pose is
-    predicted from its robot's latest estimate and odometry; robots enter at their first anchor."""
+def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False, stop=None,
+          on_step=None, on_stop=None) -> TeamResult:
+    """Batch: every step added, one LM solve. Online: one iSAM2 update per step (with
+    `config.lag` > 0 a fixed-lag smoother, `Session`); a new pose is predicted from its robot's
+    latest estimate and odometry; robots enter at their first anchor; a factor touching a
+    marginalized variable is left out and counted (`TeamResult.dropped`). stop(): checked
+    before every online step and between LM iterations, True ends the solve there (the result
+    is marked partial: online, the estimate after the last finished step; batch, the LM
+    iterate).
+    on_step(i): called after graph step i was consumed; on_stop(steps_done): when stop()
+    ended the online loop."""
+    from dataclasses import replace
+
     from graphloc.factors.robust import downweighted
 
     cfg = graph.config
-    session = Session(cfg.session_config(mode, graph.precision), progress=progress and mode == "batch")
+    lag = float(cfg.lag or 0.0) if mode == "online" else 0.0
+    session = Session(replace(cfg.session_config(mode, graph.precision), lag=lag),
+                      progress=progress and mode == "batch", stop=stop)
     causal = [np.full((len(t), 7), np.nan) for t in graph.node_times]
     start = _time.perf_counter()
     added: set = set()
     held: list = []  # online: factors on robots not yet anchored
     latest: dict = {}
     types: list = []  # factor types in the order the session holds them
-    for t, group in tqdm(graph.steps, desc=f"{mode} steps", disable=not progress, unit="step"):
+    dropped: dict = {}
+    log: list = []
+    partial, done = False, 0
+    for i, (t, group) in enumerate(tqdm(graph.steps, desc=f"{mode} steps", disable=not progress,
+                                        unit="step")):
+        if mode == "online" and stop is not None and stop():
+            partial = True
+            if on_stop is not None:
+                on_stop(done)
+            break
+        done = i + 1
         values = gtsam.Values()
         factors = []
         waiting, held = held + group, []
@@ -589,16 +626,19 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False) -> Team
             if mode == "online" and any(_held(graph, key, t) for key in keys):
                 held.append((f, kind))
                 continue
+            if lag and any(session.marginalized(key) for key in keys):
+                dropped[kind] = dropped.get(kind, 0) + 1
+                continue
             for key in keys:
                 if key not in added:
                     values.insert(key, _predict(graph, key, latest))
                     added.add(key)
             factors.append(f)
             types.append(kind)
-        if not factors:
-            continue
-        session.add(factors, values, time=t)
-        if mode == "online":
+        if factors:
+            step = session.add(factors, values, time=t)
+            log.append((i, t, step.latency_s, step.cpu_s, len(factors), session.live_variables()))
+        if factors and mode == "online":
             new_poses = [k for k in values.keys() if decode(k)[0] == "x"]
             est = session.estimate(new_poses)
             for key in new_poses:
@@ -607,7 +647,10 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False) -> Team
                 causal[r][k] = _pose_row(p)
                 if k >= latest.get(r, (-1, None))[0]:
                     latest[r] = (k, p)
+        if on_step is not None:
+            on_step(i)
     final = session.estimate()
+    partial = partial or session.stopped
     wall = _time.perf_counter() - start
     estimate = []
     for r, times in enumerate(graph.node_times):
@@ -636,8 +679,10 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False) -> Team
                        "threshold": cfg.downweight_threshold}
     landmarks = {decode(k)[1]: np.asarray(final.atPoint3(k)) for k in final.keys()
                  if decode(k)[0] == "l" and decode(k)[1] < ANCHOR_BASE}
-    return TeamResult(mode, graph.node_times, estimate, causal, dead, session.latencies(), wall, graph, down,
-                      landmarks)
+    step_log = np.array(log, dtype=float).reshape(-1, len(STEP_LOG_COLUMNS))
+    return TeamResult(mode, graph.node_times, estimate, causal, dead, session.latencies(), wall,
+                      graph, down, landmarks, step_log, dropped, partial, done,
+                      lag if mode == "online" else None)
 
 
 def _held(graph: TeamGraph, key: int, t: float) -> bool:

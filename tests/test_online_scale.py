@@ -1,0 +1,164 @@
+"""Online at scale (issue 15): the fixed-lag session (bounded variables, marginalized values
+kept, factors on them refused), the team graph's lag (dropped factors counted, the whole
+trajectory written), latency.csv, a clean stop (partial outputs, exit code 3) and checkpoint /
+resume to the same estimates as an uninterrupted run."""
+
+import json
+import signal
+from pathlib import Path
+
+import gtsam
+import numpy as np
+import pytest
+from test_mrclam import write_synthetic_mrclam
+
+from graphloc.cli import main
+from graphloc.commands import smooth
+from graphloc.datasets import open_run
+from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.session import Session, SessionConfig
+
+NOISE = gtsam.noiseModel.Isotropic.Sigma(6, 0.1)
+
+
+def _chain(session: Session, n: int, dt: float = 0.25) -> None:
+    """A pose chain with a prior on every pose (what keeps a fixed-lag window well posed)."""
+    for k in range(n):
+        v = gtsam.Values()
+        v.insert(k, gtsam.Pose3(gtsam.Rot3(), [k + 0.1, 0, 0]))
+        factors = [gtsam.PriorFactorPose3(k, gtsam.Pose3(gtsam.Rot3(), [k, 0, 0]), NOISE)]
+        if k:
+            step = gtsam.Pose3(gtsam.Rot3(), [1, 0, 0])
+            factors.append(gtsam.BetweenFactorPose3(k - 1, k, step, NOISE))
+        session.add(factors, v, time=k * dt)
+
+
+def test_fixed_lag_session_bounds_variables_and_keeps_old_estimates():
+    s = Session(SessionConfig(mode="online", lag=2.0))
+    _chain(s, 60)
+    assert s.fixed_lag and s.live_variables() <= 2 * 2.0 / 0.25 + 2  # lag to 2 lag (lag_batches)
+    assert s.marginalized(0) and not s.marginalized(59)
+    est = s.estimate()
+    assert est.size() == 60  # marginalized poses keep their last estimate
+    assert np.allclose([est.atPose3(k).x() for k in range(60)], np.arange(60), atol=0.2)
+    assert s.estimate([0, 59]).size() == 2
+    with pytest.raises(ValueError, match="marginalized"):
+        s.add([gtsam.BetweenFactorPose3(0, 59, gtsam.Pose3(), NOISE)], gtsam.Values(), time=20.0)
+    with pytest.raises(ValueError, match="marginalized"):
+        s.marginal_covariance(0)
+    full = Session(SessionConfig(mode="online"))
+    _chain(full, 60)
+    assert not full.fixed_lag and full.live_variables() == 60
+    with pytest.raises(ValueError, match="lag"):
+        SessionConfig(mode="online", lag=-1.0)
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory):
+    root = tmp_path_factory.mktemp("scale") / "MRCLAM_Synthetic"
+    write_synthetic_mrclam(root, duration=24.0)
+    return root
+
+
+def test_team_graph_lag_writes_whole_trajectory(synthetic):
+    run = open_run(synthetic)
+    graph = build_graph(run, GraphConfig(lag=3.0))
+    lagged = solve(graph, "online")
+    full = solve(build_graph(run, GraphConfig()), "online")
+    for r in range(len(run.robots)):
+        assert np.isfinite(lagged.estimate[r]).all()
+        err = np.linalg.norm(lagged.estimate[r][:, :3] - full.estimate[r][:, :3], axis=1)
+        assert np.median(err) < 0.1
+    log = lagged.step_log
+    assert log.shape[1] == 6 and (np.diff(log[:, 0]) > 0).all()
+    # the window holds ~lag / dt poses per robot plus landmark anchors, not the whole run
+    assert log[-1, 5] < 0.5 * full.step_log[-1, 5]
+    assert lagged.lag == 3.0 and full.lag == 0.0 and not lagged.partial
+
+
+def test_factor_across_the_lag_is_dropped_and_counted(synthetic):
+    run = open_run(synthetic)
+    graph = build_graph(run, GraphConfig(lag=1.0))
+    t, group = graph.steps[-1]
+    first = next(f for f, kind in graph.steps[1][1] if kind == "odometry")
+    old = first.keys()[0]
+    late = gtsam.BetweenFactorPose3(old, group[0][0].keys()[0], gtsam.Pose3(),
+                                    gtsam.noiseModel.Isotropic.Sigma(6, 1.0))
+    graph.steps[-1] = (t, group + [(late, "odometry")])
+    result = solve(graph, "online")
+    assert result.dropped == {"odometry": 1}
+
+
+def test_cli_latency_csv_and_auto_lag(synthetic, tmp_path):
+    out = tmp_path / "on"
+    assert main(["online", str(synthetic), "--out", str(out), "--no-progress"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["lag_s"] == smooth.DEFAULT_LAG and m["partial"] is False
+    assert m["steps_done"] == m["steps_total"]
+    rows = (out / "latency.csv").read_text().splitlines()
+    assert rows[0] == "step,time,latency_s,cpu_s,factors,variables"
+    assert len(rows) - 1 == m["counts"]["steps"] > 90 and (out / "latency.png").is_file()
+    trend = m["latency_trend"]
+    assert trend["variables_end"] <= trend["variables_max"]
+
+
+def _stop_after(monkeypatch, n: int) -> None:
+    """SIGTERM delivered to this process when the solve checks its stop flag the n-th time."""
+    calls = {"n": 0}
+    original = smooth.StopFlag.__call__
+
+    def call(self):
+        calls["n"] += 1
+        if calls["n"] == n:
+            signal.raise_signal(signal.SIGTERM)
+        return original(self)
+
+    monkeypatch.setattr(smooth.StopFlag, "__call__", call)
+
+
+def test_clean_stop_writes_partial_outputs(synthetic, tmp_path, monkeypatch):
+    _stop_after(monkeypatch, 30)
+    for verb in ("online", "smooth"):
+        out = tmp_path / verb
+        code = main([verb, str(synthetic), "--out", str(out), "--no-progress"])
+        assert code == smooth.EXIT_STOPPED
+        m = json.loads((out / "metrics.json").read_text())
+        assert m["partial"] is True and m["stopped_by"] == "SIGTERM"
+        assert (out / "robot1_dead_reckoning.tum").is_file()
+        monkeypatch.undo()
+        _stop_after(monkeypatch, 2)  # batch: the stop flag is checked between LM iterations
+    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+
+
+def _tum(out: Path) -> dict:
+    return {p.name: p.read_text() for p in sorted(out.glob("*_online.tum"))}
+
+
+def _resume_once(synthetic, tmp_path, monkeypatch, whole: Path, stop_at: int) -> None:
+    tmp_path.mkdir(exist_ok=True)
+    ck = tmp_path / "run.ckpt"
+    _stop_after(monkeypatch, stop_at)
+    args = ["online", str(synthetic), "--no-progress", "--checkpoint", str(ck),
+            "--checkpoint-every", "20"]
+    assert main([*args, "--out", str(tmp_path / "stopped")]) == smooth.EXIT_STOPPED
+    monkeypatch.undo()
+    assert ck.read_bytes().startswith(b'{"format": "graphloc-online-checkpoint"')
+    assert main([*args, "--out", str(tmp_path / "resumed"), "--resume", str(ck)]) == 0
+    assert _tum(tmp_path / "resumed") == _tum(whole) and _tum(whole)
+
+
+def test_resume_matches_uninterrupted_run(synthetic, tmp_path, monkeypatch):
+    whole = tmp_path / "whole"
+    assert main(["online", str(synthetic), "--out", str(whole), "--no-progress"]) == 0
+    _resume_once(synthetic, tmp_path, monkeypatch, whole, 45)
+    # another configuration is refused
+    assert main(["online", str(synthetic), "--out", str(tmp_path / "x"), "--no-progress",
+                 "--lag", "2", "--resume", str(tmp_path / "run.ckpt")]) == 2
+
+
+@pytest.mark.slow
+def test_resume_after_ten_random_stops(synthetic, tmp_path, monkeypatch):
+    whole = tmp_path / "whole"
+    assert main(["online", str(synthetic), "--out", str(whole), "--no-progress"]) == 0
+    for i, stop_at in enumerate(np.random.default_rng(15).integers(2, 90, 10)):
+        _resume_once(synthetic, tmp_path / str(i), monkeypatch, whole, int(stop_at))
