@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Protocol
 
 from graphloc.datasets.mrclam import MRCLAM, is_mrclam_dir
+from graphloc.datasets.rosbag import RosBag
 from graphloc.io import MANIFEST
 from graphloc.run import TeamRun, read_team_run, team_run_from_planar, truncate
 
@@ -49,7 +50,7 @@ class MRCLAMDirectory:
         return team_run_from_planar(MRCLAM(path, duration=duration).load(), noise)
 
 
-LOADERS: tuple[RunLoader, ...] = (GraphlocLog(), MRCLAMDirectory())
+LOADERS: tuple[RunLoader, ...] = (GraphlocLog(), MRCLAMDirectory(), RosBag())
 
 
 def open_run(path, duration: float | None = None, noise: dict | None = None) -> TeamRun:

@@ -19,6 +19,7 @@ VERBS: dict[str, str] = {
     "online": "online",
     "fuse-maps": "fuse_maps",
     "simulate": "simulate",
+    "import": "import_bag",
     "reproduce": "reproduce",
 }
 

@@ -1,0 +1,35 @@
+"""`graphloc import BAG --topics topics.yaml --out RUN`: a ROS 1 `.bag`, ROS 2 sqlite3 bag
+directory or MCAP file -> a graphloc log directory (format version 2, docs/log_format.md),
+through `graphloc.datasets.rosbag.import_bag` (issue 18; the topics file: docs/rosbag.md).
+`graphloc smooth RUN` / `online RUN` / `validate RUN` then take the directory. Prints rows per
+table, the counted skips (also kept in the manifest's meta.import.skips) and the bag's topics
+the topics file does not map."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+HELP = "ROS 1 / ROS 2 / MCAP bag + topics file -> graphloc log directory (smooth / online input)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("bag", type=Path, help=".bag file, .mcap file or ROS 2 bag directory")
+    parser.add_argument("--topics", type=Path, default=None,
+                        help="topics file (YAML, docs/rosbag.md); default: topics.yaml inside "
+                             "or beside the bag")
+    parser.add_argument("--out", required=True, type=Path, help="log directory to write")
+
+
+def run(args: argparse.Namespace) -> int:
+    from graphloc.datasets.rosbag import find_topics_file, import_bag
+
+    topics = args.topics if args.topics is not None else find_topics_file(args.bag)
+    if (args.out / "manifest.json").exists():
+        raise ValueError(f"{args.out}: holds a log already (manifest.json); choose another --out")
+    result = import_bag(args.bag, topics, args.out)
+    print(json.dumps({"log": str(result.root), "rows": result.rows,
+                      "skipped": result.skips.as_dict(), "unmapped_topics": result.unmapped},
+                     indent=1))
+    return 0

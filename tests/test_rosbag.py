@@ -1,0 +1,406 @@
+"""ROS bags in (issue 18, bag-loader half; datasets/rosbag.py, docs/rosbag.md): a simulated
+run (SE(3) odometry + UWB ranges to static beacons, ground truth) written once as a native log
+directory and once as ROS 1, ROS 2 sqlite3 and MCAP bags with rosbags' writers; `graphloc
+import` + `graphloc smooth` must give the native log's estimates; bad messages are counted
+skips naming topic and message index; topics-file errors name the file and the field."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gtsam
+import numpy as np
+import pytest
+import yaml
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Writer2
+from rosbags.typesys import Stores, get_typestore
+
+from graphloc.cli import main
+from graphloc.datasets import open_run
+from graphloc.datasets.rosbag import import_bag, read_topics
+from graphloc.io import columns, write_manifest
+
+T0, DT, N = 1700000000.0, 0.5, 30
+SIGMAS = np.array([0.004, 0.004, 0.01, 0.02, 0.02, 0.01])  # GTSAM tangent order
+BEACONS = {"b1": (4.0, 0.0, 2.0), "b2": (-3.0, 3.0, 2.5), "b3": (0.0, -4.0, 0.5)}
+UWB_OFFSET = (0.1, 0.0, 0.3)
+ROBOTS = [
+    {"name": "rover", "kind": "ground", "planar": False,
+     "initial_pose": [2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+     "sensors": [{"name": "odom", "type": "odometry"},
+                 {"name": "uwb", "type": "range", "extrinsics": {"xyz": list(UWB_OFFSET)},
+                  "params": {"range_sigma": 0.03, "range_sigma_per_m": 0.0}}]},
+    *[{"name": b, "kind": "beacon", "static": True, "initial_pose": [*xyz, 0, 0, 0, 1]}
+      for b, xyz in BEACONS.items()],
+]
+
+
+def stamp(k: int) -> tuple[int, int, float]:
+    """(sec, nanosec, the float the bag reader makes of them) of step k."""
+    t = T0 + DT * k
+    sec = int(t)
+    ns = round((t - sec) * 1e9)
+    return sec, ns, sec + ns * 1e-9
+
+
+def simulate(seed: int = 0) -> dict:
+    """Ground truth, dead-reckoned odometry poses (their increments noisy by SIGMAS) and ranges
+    (float32, as sensor_msgs/Range holds them) from the UWB antenna to each beacon."""
+    rng = np.random.default_rng(seed)
+    truth = []
+    for k in range(N):
+        a = 0.12 * k
+        rot = gtsam.Rot3.Ypr(a, 0.02 * np.sin(a), 0.03 * np.sin(a))  # identity at k = 0
+        truth.append(gtsam.Pose3(rot, gtsam.Point3(2 * np.cos(a), 2 * np.sin(a), 0.05 * k)))
+    odo, steps = [truth[0]], []
+    for k in range(1, N):
+        step = truth[k - 1].between(truth[k]).compose(
+            gtsam.Pose3.Expmap(SIGMAS * rng.standard_normal(6)))
+        steps.append(step)
+        odo.append(odo[-1].compose(step))
+    ranges = {b: [] for b in BEACONS}
+    for k in range(N):
+        antenna = truth[k].transformFrom(gtsam.Point3(*UWB_OFFSET))
+        for b, xyz in BEACONS.items():
+            r = np.linalg.norm(antenna - np.array(xyz)) + 0.03 * rng.standard_normal()
+            ranges[b].append(float(np.float32(r)))
+    return {"truth": truth, "odo": odo, "steps": steps, "ranges": ranges}
+
+
+def tum_row(t, pose: gtsam.Pose3) -> str:
+    q = pose.rotation().toQuaternion()
+    return " ".join(repr(float(v)) for v in (t, *pose.translation(), q.x(), q.y(), q.z(), q.w()))
+
+
+def write_native(sim: dict, root: Path) -> Path:
+    """The run written directly as a log directory (docs/log_format.md)."""
+    (root / "rover").mkdir(parents=True)
+    rows = []
+    for k in range(1, N):
+        s = sim["steps"][k - 1]
+        q = s.rotation().toQuaternion()
+        rows.append([stamp(k)[2], "odom", stamp(k - 1)[2], *s.translation(),
+                     q.x(), q.y(), q.z(), q.w(), *SIGMAS])
+    text = [",".join(columns("relative_pose3"))]
+    text += [",".join(v if isinstance(v, str) else repr(float(v)) for v in r) for r in rows]
+    (root / "rover/relative_pose3.csv").write_text("\n".join(text) + "\n")
+    text = [",".join(columns("range"))]
+    text += [f"{stamp(k)[2]!r},uwb,{b},{sim['ranges'][b][k]!r}"
+             for k in range(N) for b in BEACONS]
+    (root / "rover/range.csv").write_text("\n".join(text) + "\n")
+    (root / "rover/groundtruth.tum").write_text(
+        "".join(tum_row(stamp(k)[2], p) + "\n" for k, p in enumerate(sim["truth"])))
+    tables = {"relative_pose3": "rover/relative_pose3.csv", "range": "rover/range.csv",
+              "groundtruth": "rover/groundtruth.tum"}
+    robots = [{**ROBOTS[0], "tables": tables}, *ROBOTS[1:]]
+    write_manifest({"name": "uwb", "robots": robots}, root)
+    return root
+
+
+TOPICS = {
+    "name": "uwb",
+    "robots": ROBOTS,
+    "topics": {
+        "/rover/odom": {"robot": "rover", "table": "relative_pose3", "sensor": "odom"},
+        "/rover/truth": {"robot": "rover", "table": "groundtruth"},
+        **{f"/rover/uwb/{b}": {"robot": "rover", "table": "range", "sensor": "uwb", "target": b}
+           for b in BEACONS},
+    },
+}
+
+
+def _msg(ts, name, **kw):
+    return ts.types[name](**kw)
+
+
+def _header(ts, k, ros1, frame="map"):
+    sec, ns, _ = stamp(k)
+    time = _msg(ts, "builtin_interfaces/msg/Time", sec=sec, nanosec=ns)
+    extra = {"seq": k} if ros1 else {}
+    return _msg(ts, "std_msgs/msg/Header", stamp=time, frame_id=frame, **extra)
+
+
+def _pose_msg(ts, pose: gtsam.Pose3):
+    q = pose.rotation().toQuaternion()
+    t = pose.translation()
+    return _msg(ts, "geometry_msgs/msg/Pose",
+                position=_msg(ts, "geometry_msgs/msg/Point", x=t[0], y=t[1], z=t[2]),
+                orientation=_msg(ts, "geometry_msgs/msg/Quaternion",
+                                 x=q.x(), y=q.y(), z=q.z(), w=q.w()))
+
+
+def _range_msg(ts, k, ros1, r, lo=0.1, hi=50.0):
+    return _msg(ts, "sensor_msgs/msg/Range", header=_header(ts, k, ros1, "uwb"),
+                radiation_type=2, field_of_view=0.0, min_range=lo, max_range=hi, range=r)
+
+
+def bag_messages(sim: dict, ts, ros1: bool, bad: bool = False):
+    """(topic, msgtype, receive time [ns], message or raw bytes) of the run; receive times
+    jitter by up to 0.8 s, so bag order differs from header-stamp order."""
+    rng = np.random.default_rng(1)
+    cov = np.zeros((6, 6))
+    cov[np.diag_indices(6)] = (SIGMAS**2)[[3, 4, 5, 0, 1, 2]]  # ROS order x y z rx ry rz
+    zero_twist = _msg(ts, "geometry_msgs/msg/TwistWithCovariance",
+                      twist=_msg(ts, "geometry_msgs/msg/Twist",
+                                 linear=_msg(ts, "geometry_msgs/msg/Vector3", x=0.0, y=0.0, z=0.0),
+                                 angular=_msg(ts, "geometry_msgs/msg/Vector3", x=0.0, y=0.0,
+                                              z=0.0)),
+                      covariance=np.zeros(36))
+    out = []
+
+    def add(topic, msgtype, k, msg):
+        out.append((topic, msgtype, int((stamp(k)[2] + rng.uniform(0, 0.8)) * 1e9), msg))
+
+    for k in range(N):
+        pose = _msg(ts, "geometry_msgs/msg/PoseWithCovariance", pose=_pose_msg(ts, sim["odo"][k]),
+                    covariance=cov.ravel().copy())
+        add("/rover/odom", "nav_msgs/msg/Odometry", k,
+            _msg(ts, "nav_msgs/msg/Odometry", header=_header(ts, k, ros1, "odom"),
+                 child_frame_id="base_link", pose=pose, twist=zero_twist))
+        add("/rover/truth", "geometry_msgs/msg/PoseStamped", k,
+            _msg(ts, "geometry_msgs/msg/PoseStamped", header=_header(ts, k, ros1),
+                 pose=_pose_msg(ts, sim["truth"][k])))
+        for b in BEACONS:
+            add(f"/rover/uwb/{b}", "sensor_msgs/msg/Range", k,
+                _range_msg(ts, k, ros1, sim["ranges"][b][k]))
+    if bad:  # each one a counted skip
+        add("/rover/uwb/b1", "sensor_msgs/msg/Range", 3, _range_msg(ts, 3, ros1, float("nan")))
+        add("/rover/uwb/b2", "sensor_msgs/msg/Range", 4, _range_msg(ts, 4, ros1, 80.0))
+        add("/rover/bearing", "sensor_msgs/msg/Range", 5, _range_msg(ts, 5, ros1, 2.0))
+        zero = _msg(ts, "geometry_msgs/msg/Vector3", x=0.0, y=0.0, z=0.0)
+        add("/rover/look", "geometry_msgs/msg/Vector3Stamped", 6,
+            _msg(ts, "geometry_msgs/msg/Vector3Stamped", header=_header(ts, 6, ros1), vector=zero))
+        add("/rover/look", "geometry_msgs/msg/Vector3Stamped", 7, b"\x00\x01\x00")
+        add("/chatter", "std_msgs/msg/String", 8, _msg(ts, "std_msgs/msg/String", data="hi"))
+    return out
+
+
+def write_bag(sim: dict, path: Path, kind: str, bad: bool = False) -> Path:
+    """`kind`: ros1 (.bag), sqlite3 or mcap (ROS 2 directories)."""
+    ros1 = kind == "ros1"
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    msgs = bag_messages(sim, ts, ros1, bad)
+    if ros1:
+        writer = Writer1(path)
+    else:
+        plugin = StoragePlugin.MCAP if kind == "mcap" else StoragePlugin.SQLITE3
+        writer = Writer2(path, version=9, storage_plugin=plugin)
+    with writer:
+        conns = {}
+        for topic, msgtype, _, _ in msgs:
+            if topic not in conns:
+                conns[topic] = writer.add_connection(topic, msgtype, typestore=ts)
+        for topic, msgtype, t, msg in sorted(msgs, key=lambda m: m[2]):
+            if not isinstance(msg, bytes):
+                msg = ts.serialize_ros1(msg, msgtype) if ros1 else ts.serialize_cdr(msg, msgtype)
+            writer.write(conns[topic], t, msg)
+    return path
+
+
+def estimates(out: Path) -> dict:
+    """Every TUM estimate smooth wrote: file name -> (F, 8) array."""
+    return {p.name: np.loadtxt(p, ndmin=2) for p in sorted(out.rglob("*.tum"))}
+
+
+@pytest.fixture(scope="module")
+def native(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("native")
+    sim = simulate()
+    log = write_native(sim, tmp / "log")
+    assert main(["smooth", str(log), "--out", str(tmp / "out"), "--no-progress"]) == 0
+    metrics = json.loads((tmp / "out/metrics.json").read_text())
+    return sim, estimates(tmp / "out"), metrics
+
+
+@pytest.mark.parametrize("kind", ["ros1", "sqlite3", "mcap"])
+def test_import_then_smooth_gives_the_native_estimates(kind, native, tmp_path):
+    sim, want, metrics = native
+    bag = write_bag(sim, tmp_path / ("run.bag" if kind == "ros1" else "run"), kind)
+    (tmp_path / "topics.yaml").write_text(yaml.safe_dump(TOPICS))
+    run = tmp_path / "imported"
+    assert main(["import", str(bag), "--topics", str(tmp_path / "topics.yaml"),
+                 "--out", str(run)]) == 0
+    assert main(["smooth", str(run), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
+    got = estimates(tmp_path / "out")
+    assert want and got.keys() == want.keys()
+    for name in want:
+        assert np.abs(got[name] - want[name]).max() < 1e-9, name
+    m = json.loads((tmp_path / "out/metrics.json").read_text())
+    assert m["tables"] == metrics["tables"] and m["counts"] == metrics["counts"]
+    rover, native_rover = m["per_robot"]["rover"], metrics["per_robot"]["rover"]
+    assert abs(rover["batch"]["ate_rmse"] - native_rover["batch"]["ate_rmse"]) < 1e-9
+    assert rover["batch"]["ate_rmse"] < 0.5 * rover["dead_reckoning"]["ate_rmse"]
+
+
+def test_open_run_finds_topics_beside_the_bag_and_mcap_file(native, tmp_path):
+    sim, want, _ = native
+    bag = write_bag(sim, tmp_path / "run", "mcap")
+    (tmp_path / "topics.yaml").write_text(yaml.safe_dump(TOPICS))
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([bag]) as reader:  # the bag order is not the header-stamp order
+        conns = [c for c in reader.connections if c.topic == "/rover/odom"]
+        stamps = [reader.deserialize(raw, c.msgtype).header.stamp.sec * 1e9
+                  + reader.deserialize(raw, c.msgtype).header.stamp.nanosec
+                  for c, _, raw in reader.messages(connections=conns)]
+    assert stamps != sorted(stamps)
+    team = open_run(bag)
+    assert team.contributions["range"] == N * len(BEACONS)
+    assert team.contributions["relative_pose3"] == N - 1 and team.skips.total == 0
+    mcap = next(bag.glob("*.mcap"))  # a bare MCAP file: topics.yaml is looked for beside it
+    (bag / "topics.yaml").write_text(yaml.safe_dump(TOPICS))
+    assert open_run(mcap, duration=5.0).contributions["range"] == N * len(BEACONS)
+    # `graphloc smooth BAG` through open_run
+    assert main(["smooth", str(bag), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
+    got = estimates(tmp_path / "out")
+    assert all(np.abs(got[n] - want[n]).max() < 1e-9 for n in want)
+
+
+@pytest.mark.parametrize("kind", ["ros1", "sqlite3"])
+def test_bad_messages_are_counted_skips_naming_topic_and_index(kind, native, tmp_path):
+    sim = native[0]
+    bag = write_bag(sim, tmp_path / ("run.bag" if kind == "ros1" else "run"), kind, bad=True)
+    topics = json.loads(json.dumps(TOPICS))
+    topics["robots"][0]["sensors"].append({"name": "cam", "type": "bearing"})
+    topics["topics"]["/rover/bearing"] = {"robot": "rover", "table": "bearing", "sensor": "cam",
+                                          "target": "b1"}
+    topics["topics"]["/rover/look"] = {"robot": "rover", "table": "bearing", "sensor": "cam",
+                                       "target": "b2"}
+    topics["topics"]["/rover/absent"] = {"robot": "rover", "table": "bearing", "sensor": "cam",
+                                         "target": "b3"}
+    (tmp_path / "topics.yaml").write_text(yaml.safe_dump(topics))
+    result = import_bag(bag, tmp_path / "topics.yaml", tmp_path / "log")
+    counts = result.skips.counts
+    assert counts == {"not_finite": 1, "out_of_range": 1, "wrong_type": 1, "bad_direction": 1,
+                      "undecodable": 1, "missing_topic": 1}, result.skips.as_dict()
+    assert result.unmapped == ["/chatter"]
+    text = "\n".join(result.skips.examples)
+    assert "topic '/rover/bearing' message 0" in text and "topic '/rover/look' message" in text
+    assert result.rows["range"] == N * len(BEACONS)  # the good rows are all there
+    team = open_run(tmp_path / "log")
+    assert team.contributions["range"] == N * len(BEACONS)
+    manifest = json.loads((tmp_path / "log/manifest.json").read_text())
+    assert manifest["meta"]["import"]["skips"]["total"] == 6
+    # the loader carries the import's skips into TeamRun.skips
+    assert open_run(bag).skips.counts["wrong_type"] == 1
+
+
+def test_topics_file_errors_name_file_and_field(tmp_path, capsys):
+    def check(topics, *needles):
+        path = tmp_path / "t.yaml"
+        path.write_text(yaml.safe_dump(topics))
+        with pytest.raises(ValueError) as err:
+            read_topics(path)
+        assert str(path) in str(err.value), err.value
+        for needle in needles:
+            assert needle in str(err.value), err.value
+
+    bad = json.loads(json.dumps(TOPICS))
+    bad["topics"]["/rover/odom"]["robot"] = "rovr"
+    check(bad, "topics['/rover/odom']", "field 'robot'", "'rovr'")
+    bad = json.loads(json.dumps(TOPICS))
+    bad["topics"]["/rover/odom"]["table"] = "odometry3"
+    check(bad, "field 'table'", "'odometry3'")
+    bad = json.loads(json.dumps(TOPICS))
+    bad["topics"]["/rover/uwb/b1"]["sensor"] = "odom"
+    check(bad, "field 'sensor'", "'range'")
+    bad = json.loads(json.dumps(TOPICS))
+    bad["topics"]["/rover/uwb/b1"]["target"] = "b9"
+    check(bad, "field 'target'", "'b9'")
+    bad = json.loads(json.dumps(TOPICS))
+    bad["robots"][1]["initial_pose"] = [1, 2]
+    check(bad, "robots[1]", "field 'initial_pose'")
+    # through the verb: exit 2 and one line naming file and field
+    bad = json.loads(json.dumps(TOPICS))
+    bad["topics"]["/rover/odom"]["robot"] = "rovr"
+    (tmp_path / "t.yaml").write_text(yaml.safe_dump(bad))
+    bag = write_bag(simulate(), tmp_path / "b.bag", "ros1")
+    assert main(["import", str(bag), "--topics", str(tmp_path / "t.yaml"),
+                 "--out", str(tmp_path / "o")]) == 2
+    assert "t.yaml: topics['/rover/odom']: field 'robot'" in capsys.readouterr().err
+    # no topics file beside the bag: open_run says where it looked and what to do
+    with pytest.raises(FileNotFoundError, match="graphloc import"):
+        open_run(bag)
+
+
+VISION_MSGS = {  # vision_msgs 4 (ROS 2 Humble), not in rosbags' stores: the bag carries them
+    "vision_msgs/msg/Point2D": "float64 x\nfloat64 y\n",
+    "vision_msgs/msg/Pose2D": "vision_msgs/Point2D position\nfloat64 theta\n",
+    "vision_msgs/msg/BoundingBox2D": "vision_msgs/Pose2D center\nfloat64 size_x\nfloat64 size_y\n",
+    "vision_msgs/msg/ObjectHypothesis": "string class_id\nfloat64 score\n",
+    "vision_msgs/msg/ObjectHypothesisWithPose":
+        "vision_msgs/ObjectHypothesis hypothesis\ngeometry_msgs/PoseWithCovariance pose\n",
+    "vision_msgs/msg/Detection2D": "std_msgs/Header header\n"
+        "vision_msgs/ObjectHypothesisWithPose[] results\n"
+        "vision_msgs/BoundingBox2D bbox\nstring id\n",
+    "vision_msgs/msg/Detection2DArray": "std_msgs/Header header\n"
+                                        "vision_msgs/Detection2D[] detections\n",
+}
+
+
+def test_detection2d_array_becomes_marker_rows(tmp_path):
+    from rosbags.typesys import get_types_from_msg
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    types = {}
+    for name, text in VISION_MSGS.items():
+        types.update(get_types_from_msg(text, name))
+    ts.register(types)
+    zero = np.zeros(36)
+    pose = _msg(ts, "geometry_msgs/msg/PoseWithCovariance",
+                pose=_pose_msg(ts, gtsam.Pose3()), covariance=zero)
+
+    def detection(k, cid, u, v):
+        hyp = _msg(ts, "vision_msgs/msg/ObjectHypothesisWithPose", pose=pose,
+                   hypothesis=_msg(ts, "vision_msgs/msg/ObjectHypothesis", class_id=cid,
+                                   score=0.9))
+        centre = _msg(ts, "vision_msgs/msg/Pose2D", theta=0.0,
+                      position=_msg(ts, "vision_msgs/msg/Point2D", x=u, y=v))
+        box = _msg(ts, "vision_msgs/msg/BoundingBox2D", center=centre, size_x=4.0, size_y=4.0)
+        return _msg(ts, "vision_msgs/msg/Detection2D", header=_header(ts, k, False), id="",
+                    results=[hyp], bbox=box)
+
+    name = "vision_msgs/msg/Detection2DArray"
+    bag = tmp_path / "cam.mcap.d"
+    with Writer2(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection("/cam/leds", name, typestore=ts)
+        for k in (1, 0):  # recorded out of stamp order
+            dets = [detection(k, f"led{i}", 100.0 + 10 * i + k, 200.0 - i) for i in range(3)]
+            dets.append(detection(k, "led9", 1.0, 1.0))  # a class the topics file does not map
+            msg = _msg(ts, name, header=_header(ts, k, False), detections=dets)
+            writer.write(conn, int(stamp(k)[2] * 1e9), ts.serialize_cdr(msg, name))
+    camera = {"fx": 500.0, "fy": 500.0, "cx": 320.0, "cy": 240.0, "width": 640, "height": 480}
+    topics = {
+        "robots": [
+            {"name": "climber", "kind": "ceiling", "planar": False,
+             "initial_pose": [0, 0, 3, 1, 0, 0, 0],
+             "sensors": [{"name": "camera", "type": "camera", "params": camera}]},
+            {"name": "ground", "kind": "ground", "static": True, "initial_pose": [0, 0, 0],
+             "markers": [[0.2, 0, 0.3], [-0.1, 0.2, 0.3], [-0.1, -0.2, 0.3]]},
+        ],
+        "topics": {"/cam/leds": {"robot": "climber", "table": "markers", "sensor": "camera",
+                                 "classes": {f"led{i}": ["ground", i] for i in range(3)}}},
+    }
+    (tmp_path / "topics.yaml").write_text(yaml.safe_dump(topics))
+    result = import_bag(bag, tmp_path / "topics.yaml", tmp_path / "log")
+    assert result.rows == {"markers": 6} and result.skips.counts == {"bad_detection": 2}
+    assert "class id 'led9'" in result.skips.examples[0]
+    lines = (tmp_path / "log/climber/markers.csv").read_text().splitlines()
+    assert lines[0] == "time,sensor,target,marker,u,v"
+    assert lines[1] == f"{stamp(0)[2]!r},camera,ground,0,100.0,200.0"
+    assert lines[6] == f"{stamp(1)[2]!r},camera,ground,2,121.0,198.0"
+
+
+@pytest.mark.parametrize("kind", ["ros1", "sqlite3", "mcap"])
+def test_truncated_bag_is_a_clear_error(kind, tmp_path, capsys):
+    bag = write_bag(simulate(), tmp_path / ("run.bag" if kind == "ros1" else "run"), kind)
+    storage = bag if kind == "ros1" else next(p for p in bag.iterdir() if p.suffix != ".yaml")
+    data = storage.read_bytes()
+    storage.write_bytes(data[: len(data) // 2])
+    (tmp_path / "topics.yaml").write_text(yaml.safe_dump(TOPICS))
+    assert main(["import", str(bag), "--out", str(tmp_path / "log")]) == 2
+    err = capsys.readouterr().err
+    assert f"graphloc import: error: {bag}: cannot read bag:" in err, err
