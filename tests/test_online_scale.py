@@ -10,11 +10,11 @@ from pathlib import Path
 import gtsam
 import numpy as np
 import pytest
+from graphloc.datasets import open_run
 from test_mrclam import write_synthetic_mrclam
 
 from graphloc.cli import main
 from graphloc.commands import smooth
-from graphloc.datasets import open_run
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.session import Session, SessionConfig
 
@@ -162,3 +162,24 @@ def test_resume_after_ten_random_stops(synthetic, tmp_path, monkeypatch):
     assert main(["online", str(synthetic), "--out", str(whole), "--no-progress"]) == 0
     for i, stop_at in enumerate(np.random.default_rng(15).integers(2, 90, 10)):
         _resume_once(synthetic, tmp_path / str(i), monkeypatch, whole, int(stop_at))
+
+
+def test_replayed_run_and_gtsam_only_batch(synthetic):
+    from graphloc.experiments.scale import (
+        gtsam_only_batch,
+        online_profile,
+        replay_graph,
+    )
+
+    graph = build_graph(open_run(synthetic), GraphConfig())
+    long = replay_graph(graph, 3)
+    assert len(long.steps) == 3 * len(graph.steps) and len(long.initial) == 3 * len(graph.initial)
+    result, cpu, samples = online_profile(long, 3.0, rss_every=50)
+    assert not result.dropped and cpu > 0 and len(samples) >= 3
+    for r, rows in enumerate(result.estimate):  # every copy retraces the first one
+        n = len(graph.node_times[r])
+        assert np.allclose(rows[2 * n:, :3], rows[:n, :3], atol=0.1)
+    alone = gtsam_only_batch(graph)
+    batch = solve(graph, "batch")
+    assert alone["variables"] == len(graph.initial) and alone["iterations"] >= 1
+    assert np.isfinite(alone["error"]) and batch.wall_s > 0

@@ -1,0 +1,149 @@
+"""Online and batch at scale (issue 15), measured on one run through the path `graphloc smooth`
+/ `online` take (`open_run` -> `build_graph` -> `solve`):
+
+- batch: graphloc's solve (`Session`'s LM loop, iteration by iteration, plus the Python
+  bookkeeping of the steps) against GTSAM alone (`LevenbergMarquardtOptimizer.optimize()` on
+  the same factors, initial values and parameters), both timed in the same process;
+- online: full iSAM2 and fixed lags; per-step latency and CPU time over the first and last
+  tenth of the steps (`graphloc.pipelines.report.latency_trend`), the slowest step, real-time
+  factor, ATE per robot against batch, resident memory sampled along the run;
+- long run: the run replayed `copies` times with the clock shifted by its duration (every
+  factor re-keyed onto new poses and anchors, `replay_graph`), solved online with the lag.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import replace
+
+import gtsam
+import numpy as np
+
+from graphloc.keys import decode, landmark_key, pose_key
+from graphloc.pipelines.report import evaluate
+from graphloc.pipelines.team_graph import ANCHOR_BASE, TeamGraph, solve
+
+
+def rss_mb() -> float:
+    """Resident set size of this process [MB] (Linux /proc)."""
+    with open("/proc/self/statm") as fh:
+        pages = int(fh.read().split()[1])
+    return pages * os.sysconf("SC_PAGE_SIZE") / 1e6
+
+
+def gtsam_only_batch(graph: TeamGraph) -> dict:
+    """GTSAM alone on the batch problem graphloc solves: the graph's factors in step order, the
+    graph's initial values, the LM parameters `Session` uses; wall and CPU time of
+    `optimize()` (graph assembly not counted)."""
+    cfg = graph.config.session_config("batch", graph.precision)
+    factors = gtsam.NonlinearFactorGraph()
+    values = gtsam.Values()
+    for _, group in graph.steps:
+        for f, _ in group:
+            factors.add(f)
+            for key in f.keys():
+                if not values.exists(key):
+                    values.insert(key, _as_value(graph.initial[key]))
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(cfg.lm_max_iterations)
+    params.setRelativeErrorTol(cfg.lm_relative_error_tol)
+    params.setAbsoluteErrorTol(cfg.lm_absolute_error_tol)
+    t0, c0 = time.perf_counter(), time.process_time()
+    optimizer = gtsam.LevenbergMarquardtOptimizer(factors, values, params)
+    result = optimizer.optimize()
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return {"wall_s": wall, "cpu_s": cpu, "iterations": int(optimizer.iterations()),
+            "error": float(factors.error(result)), "factors": int(factors.size()),
+            "variables": int(values.size())}
+
+
+def _as_value(v):
+    return v if isinstance(v, gtsam.Pose3) else np.asarray(v, dtype=float)
+
+
+def replay_graph(graph: TeamGraph, copies: int) -> TeamGraph:
+    """The run `copies` times in a row: copy c's clock shifted by c times the run's span (a
+    whole number of keyframe steps), its poses and landmark anchors re-keyed onto new indices;
+    every robot restarts at its initial pose (its prior is part of each copy)."""
+    starts = [t[0] for t in graph.node_times if len(t)]
+    ends = [t[-1] for t in graph.node_times if len(t)]
+    dt = graph.config.keyframe_dt
+    span = np.ceil((max(ends) - min(starts)) / dt + 1) * dt
+    sizes = [len(t) for t in graph.node_times]
+    anchors = max([decode(k)[1] - ANCHOR_BASE + 1 for k in graph.initial
+                   if decode(k)[0] == "l" and decode(k)[1] >= ANCHOR_BASE], default=0)
+
+    def shift(key: int, c: int) -> int:
+        kind, r, k = decode(key)
+        if kind == "x":
+            return pose_key(r, k + c * sizes[r])
+        if kind == "l" and r >= ANCHOR_BASE:
+            return landmark_key(r + c * anchors)
+        return key
+
+    steps, initial = [], {}
+    for c in range(copies):
+        for t, group in graph.steps:
+            steps.append((t + c * span, [(f if c == 0 else f.rekey([shift(k, c) for k in f.keys()]),
+                                          kind) for f, kind in group]))
+        for key, value in graph.initial.items():
+            initial[shift(key, c)] = value
+    node_times = [np.concatenate([t + c * span for c in range(copies)]) for t in graph.node_times]
+    step_rel = [list(s) * copies for s in graph.step_rel]
+    for r, s in enumerate(step_rel):
+        for c in range(1, copies):
+            if sizes[r]:
+                s[c * sizes[r]] = None  # no odometry across the replay's seam
+    return replace(graph, node_times=node_times, initial=initial, steps=steps, step_rel=step_rel,
+                   factor_types=list(graph.factor_types) * copies, decisions=[],
+                   counts={**graph.counts, "steps": len(steps), "copies": copies})
+
+
+def online_profile(graph: TeamGraph, lag: float | None, rss_every: int = 250) -> tuple:
+    """Solve online with `lag`; resident memory [MB] sampled every `rss_every` steps.
+    Returns (TeamResult, CPU seconds of the solve, (steps, MB) samples)."""
+    samples = []
+
+    def on_step(i):
+        if i % rss_every == 0:
+            samples.append((i, rss_mb()))
+
+    c0 = time.process_time()
+    result = solve(replace(graph, config=replace(graph.config, lag=lag)), "online", on_step=on_step)
+    return result, time.process_time() - c0, np.array(samples, dtype=float).reshape(-1, 2)
+
+
+def memory_slope(samples: np.ndarray) -> float | None:
+    """Least-squares slope of resident memory over the second half of the run [MB per 1,000
+    steps] (the first half includes the allocator's warm-up)."""
+    half = samples[len(samples) // 2:]
+    if len(half) < 3:
+        return None
+    return float(np.polyfit(half[:, 0], half[:, 1], 1)[0] * 1000)
+
+
+def online_summary(result, cpu_s: float, samples: np.ndarray, run, batch_ate: dict | None) -> dict:
+    """Latency trend, real-time factors, memory, ATE (and ATE over batch ATE) per robot."""
+    metrics = evaluate(result, run) if batch_ate is not None else None
+    log = result.step_log
+    duration = float(log[-1, 1] - log[0, 1]) if len(log) else 0.0
+    out = {"lag_s": result.lag, "steps": int(len(log)), "wall_s": result.wall_s, "cpu_s": cpu_s,
+           "realtime_factor": duration / max(result.wall_s, 1e-12),
+           "realtime_factor_cpu": duration / max(cpu_s, 1e-12),
+           "latency_ms": {"mean": float(log[:, 2].mean() * 1e3),
+                          "p95": float(np.percentile(log[:, 2], 95) * 1e3),
+                          "max": float(log[:, 2].max() * 1e3)},
+           "dropped_across_lag": result.dropped,
+           "memory_mb_per_1000_steps": memory_slope(samples),
+           "rss_mb_end": float(samples[-1, 1]) if len(samples) else None}
+    from graphloc.pipelines.report import latency_trend
+
+    out["trend"] = latency_trend(result)
+    if metrics is not None:
+        ate = {name: e["online"]["ate_rmse"] for name, e in metrics["per_robot"].items()
+               if isinstance(e.get("online"), dict) and "ate_rmse" in e["online"]}
+        out["ate_rmse_m"] = ate
+        out["ate_over_batch"] = {name: a / batch_ate[name] for name, a in ate.items()
+                                 if name in batch_ate}
+    return out
