@@ -23,6 +23,7 @@ hint's 1-sigma given to graphloc is that perturbation). Methods on the same prep
   graphloc_before fuse with robust=False: the coarse-to-fine refine of before issue 16
   o3d_icp         Open3D point-to-plane ICP from the hint (one scale; correspondences within
                   sigma_t + sigma_rot * median range, at least the fine distance)
+  o3d_icp_fine    the same within the fine distance (RegistrationConfig.max_correspondence[-1])
   fpfh_ransac     Open3D FPFH + RANSAC (no hint), then point-to-plane ICP at the fine distance
 Success: rotation error < 1 deg and translation < 5 cm and, for graphloc, accepted. A false
 accept is a result returned as fused with a larger error (the Open3D paths accept everything).
@@ -162,7 +163,7 @@ def plot(rows: list[dict], path: Path) -> None:
 
 REAL_OVERLAPS = (0.6, 0.3)
 REAL_HINTS = ((3.0, 0.05), (10.0, 0.20))
-REAL_METHODS = ("graphloc", "graphloc_before", "o3d_icp", "fpfh_ransac")
+REAL_METHODS = ("graphloc", "graphloc_before", "o3d_icp", "o3d_icp_fine", "fpfh_ransac")
 REAL_ROT_OK_DEG = 1.0
 
 
@@ -247,6 +248,9 @@ def run_real_trial(job: tuple[float, int]) -> list[dict]:
             accepted=True,
             distance_m=dist,
         )
+        T_icp, icp_s = icp_from_hint(source, target, hint, fine)
+        row["o3d_icp_fine"] = dict(zip(("rot_deg", "trans_m"), pose_errors(T_icp, truth)),
+                                   seconds=icp_s, accepted=True, distance_m=fine)
         rows.append(row)
     return rows
 

@@ -8,6 +8,9 @@
   result from `get_information_matrix_from_point_clouds`, converted to GTSAM's Pose3 tangent
   (right perturbation) so it can weight a BetweenFactorPose3.
 - `global_fpfh_ransac`: Open3D's FPFH features + RANSAC, the peer initial guess of the benchmark.
+- `robust_register` (issue 16): the inter-robot registration -- multi-start around the pose
+  hint, truncated point-to-plane cost, `AcceptanceConfig` checks that turn a wrong answer into
+  "not fused", and a cluster-robust covariance (`cluster_covariance`).
 """
 
 from __future__ import annotations
