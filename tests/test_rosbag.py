@@ -257,6 +257,7 @@ def test_open_run_finds_topics_beside_the_bag_and_mcap_file(native, tmp_path):
     assert main(["smooth", str(bag), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
     got = estimates(tmp_path / "out")
     assert all(np.abs(got[n] - want[n]).max() < 1e-9 for n in want)
+    assert main(["online", str(bag), "--out", str(tmp_path / "online"), "--no-progress"]) == 0
 
 
 @pytest.mark.parametrize("kind", ["ros1", "sqlite3"])
