@@ -560,9 +560,8 @@ class RosBag:
              topics=None) -> TeamRun:
         topics = topics if topics is not None else find_topics_file(path)
         with tempfile.TemporaryDirectory(prefix="graphloc-bag-") as tmp:
-            imported = import_bag(path, topics, tmp)
+            import_bag(path, topics, tmp)
             run = read_team_run(tmp, overrides=noise)
         # the temporary tables are gone: their rows' messages name the bag's import instead
         run.skips.examples[:] = [m.replace(tmp, f"{path} (imported)") for m in run.skips.examples]
-        run.skips.merge(imported.skips)
         return run if duration is None else truncate(run, duration)

@@ -453,6 +453,7 @@ def read_team_run(
         if not firsts:
             raise ValueError(f"{mpath}: the run has no odometry, relative poses or measurements")
         start = max(v[0, 0] for v in vel if len(v)) if any(len(v) for v in vel) else min(firsts)
+    _merge_import_skips(report, manifest.meta.get("import"), mpath)
     return TeamRun(
         name=manifest.name,
         robots=robots,
@@ -470,6 +471,21 @@ def read_team_run(
         contributions={k: v for k, v in used.items() if v},
         meta=dict(manifest.meta),
     )
+
+
+def _merge_import_skips(report: SkipReport, imported, where: Path) -> None:
+    """Rows a converter (`graphloc import` of a bag) skipped before the log was written, kept in
+    the manifest's meta.import.skips: reported with the log's own skips."""
+    if not imported:
+        return
+    skips = imported.get("skips") if isinstance(imported, dict) else None
+    counts = skips.get("counts") if isinstance(skips, dict) else None
+    if not isinstance(counts, dict) or not all(
+        isinstance(k, str) and isinstance(n, int) and n >= 0 for k, n in counts.items()
+    ):
+        raise ValueError(f"{where}: field 'meta.import.skips' must hold counts by reason")
+    earlier = SkipReport(dict(counts), [str(m) for m in skips.get("examples", [])][: report.max_examples])
+    report.merge(earlier)
 
 
 def _table_of(rec) -> str:
