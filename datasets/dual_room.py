@@ -30,6 +30,7 @@ from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
 from graphloc.eval import write_tum
+from graphloc.mapping.fusion import FusionInput, LedObservations
 from graphloc.mapping.io import read_led_pixels, read_points, read_tum
 
 VARIANTS = ("furnished", "empty", "rectangular", "low_overlap")
@@ -360,6 +361,12 @@ class DualRoomScenario:
                                 {"ground": scans_g, "ceiling": scans_c}, uv, vis, counts)
 
     # ------------------------------------------------------------------ files
+    def fusion_input(self):
+        """The run as map-fusion input (`graphloc.mapping.fusion.FusionInput`, no ground truth):
+        both robots' scans and the ceiling camera's LED pixels."""
+        leds = LedObservations(self.config.camera.pinhole(), led_positions(), T_CEILING_CAMERA, self.led_pixels)
+        return FusionInput(self.times, self.scans["ground"], self.scans["ceiling"], leds)
+
     def write(self, out_dir) -> Path:
         """scans/<robot>/<frame:06d>.ply, poses_<robot>.tum (ground truth, TUM), led_pixels.csv,
         meta.json (config, intrinsics, LED layout, extrinsic, ground truth transform, counts), room.ply."""

@@ -56,7 +56,7 @@ ROT_OK_DEG, TRANS_OK_M = 2.0, 0.05
 def run_trial(job: tuple[str, int, int]) -> dict:
     """One placement: simulate, then the three methods on the same clouds."""
     from graphloc.datasets.dual_room import DualRoomScenario, variant_config
-    from graphloc.mapping.fusion import FusionConfig, fuse, input_from_scenario
+    from graphloc.mapping.fusion import FusionConfig, fuse
     from graphloc.mapping.odometry import OdometryConfig
     from graphloc.mapping.registration import RegistrationConfig, global_fpfh_ransac, pose_errors, prepare, refine
 
@@ -83,7 +83,7 @@ def run_trial(job: tuple[str, int, int]) -> dict:
                               guess_rot_deg=g_rot, guess_trans_m=g_tr)
 
     cfg = FusionConfig(odometry=OdometryConfig(threads=1), registration=reg_cfg, build_map=False, scan_matching=False)
-    res = fuse(input_from_scenario(scenario), cfg)
+    res = fuse(scenario.fusion_input(), cfg)
     g_rot, g_tr = pose_errors(res.guess, truth)
     secs = res.timings["p3p_tracker_s"] + res.timings["icp_s"] + res.timings["graph_s"]
     out["graphloc"] = dict(zip(("rot_deg", "trans_m"), pose_errors(res.T_g0_c0, truth)),
@@ -128,10 +128,7 @@ def summarize(rows: list[dict]) -> dict:
 
 
 def plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from graphloc.plots import plt  # the one place that sets the backend
 
     variants = sorted({r["variant"] for r in rows})
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
@@ -310,10 +307,7 @@ def summarize_real(rows: list[dict]) -> dict:
 
 
 def plot_real(rows: list[dict], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from graphloc.plots import plt  # the one place that sets the backend
 
     cells = _cells(rows)
     fig, axes = plt.subplots(

@@ -11,9 +11,9 @@ import pytest
 
 from graphloc.cli import main as cli_main
 from graphloc.datasets.dual_room import T_CEILING_CAMERA, CameraConfig, DualRoomScenario, variant_config
-from graphloc.mapping.demo import parse_hint
+from graphloc.mapping.pipeline import parse_hint
 from graphloc.mapping.fusion import (
-    CEILING, GROUND, FusionConfig, FusionInput, fuse, input_from_scenario, led_candidates,
+    CEILING, GROUND, FusionConfig, FusionInput, fuse, led_candidates,
 )
 from graphloc.mapping.io import (
     read_labelled_cloud, read_led_pixels, read_points, read_scan_sequence, write_labelled_cloud,
@@ -29,7 +29,7 @@ def scenario() -> DualRoomScenario:
 
 @pytest.fixture(scope="module")
 def fused(scenario):
-    return fuse(input_from_scenario(scenario))
+    return fuse(scenario.fusion_input())
 
 
 # ----------------------------------------------------------------------------- io
@@ -135,7 +135,7 @@ def test_kiss_icp_odometry_tracks_the_ground_truth(scenario):
 
 def test_one_p3p_candidate_is_the_true_camera_pose():
     s = DualRoomScenario.simulate(variant_config("empty", 4, frames=3, camera=CameraConfig(pixel_noise=0.0)))
-    inp = input_from_scenario(s)
+    inp = s.fusion_input()
     cands, skipped = led_candidates(inp.leds, inp.times, FusionConfig())
     assert len(cands) + skipped == 3 and len(cands) >= 2
     for f, c in cands.items():
@@ -174,7 +174,7 @@ def test_fused_map_is_labelled_and_contains_both_robots(fused):
 
 
 def test_fusion_input_validation(scenario):
-    inp = input_from_scenario(scenario)
+    inp = scenario.fusion_input()
     with pytest.raises(ValueError, match="scans for"):
         FusionInput(inp.times, inp.ground_scans[:-1], inp.ceiling_scans, inp.leds)
     with pytest.raises(ValueError, match="hint"):
@@ -232,7 +232,7 @@ def test_fuse_maps_verb_reports_bad_input(tmp_path, capsys):
 @pytest.mark.slow
 @pytest.mark.parametrize("variant", ["empty", "rectangular", "low_overlap"])
 def test_simulate_and_fuse_every_variant(variant, tmp_path):
-    from graphloc.mapping.demo import simulate_and_fuse
+    from graphloc.experiments.fusion_demo import simulate_and_fuse
 
     report = simulate_and_fuse(tmp_path, variant, seed=7, frames=5)
     assert report["errors_vs_truth"]["rot_deg"] < 0.2 and report["errors_vs_truth"]["trans_m"] < 0.01
@@ -241,7 +241,7 @@ def test_simulate_and_fuse_every_variant(variant, tmp_path):
 
 def test_user_directories_with_p3p_observations(scenario, tmp_path):
     from graphloc.datasets.dual_room import led_positions
-    from graphloc.mapping.demo import fuse_directories
+    from graphloc.mapping.pipeline import fuse_directories
 
     scenario.write(tmp_path / "scn")
     cam = scenario.config.camera

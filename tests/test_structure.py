@@ -13,19 +13,6 @@ ROOT = Path(__file__).resolve().parents[1]
 # source folder -> the package it is installed as (pyproject.toml's package-dir)
 SOURCES = {"graphloc": ROOT / "graphloc", "graphloc.factors": ROOT / "factors",
            "graphloc.datasets": ROOT / "datasets"}
-# cycles whose breaking needs files that other work owns right now, each with the reason (drop
-# an entry once its cycle is gone)
-KNOWN_CYCLES = {
-    # graphloc.mapping.{demo,fusion} import the dual_room scenario, while datasets/dual_room.py
-    # reads its scans with graphloc.mapping.io and graphloc.run (which the loaders return) runs
-    # KISS-ICP through graphloc.mapping.odometry: once the fusion pipeline takes a run instead of
-    # importing a dataset, mapping no longer points back at datasets and the cycle is gone
-    frozenset({"graphloc.datasets", "graphloc.mapping", "graphloc.run"}),
-}
-# files that may still set the backend or hold a machine path: owned by other work right now
-# (drop an entry once its file is fixed)
-BACKEND_PENDING = {"graphloc/mapping/report.py", "scripts/bench_fusion.py"}
-PATH_PENDING = {"graphloc/vision/markers.py"}
 
 
 def modules() -> dict[str, Path]:
@@ -117,7 +104,7 @@ def test_every_module_imports_in_a_fresh_interpreter():
 
 def test_package_dependency_graph_is_acyclic():
     found = set(cycles(package_graph()))
-    assert found <= KNOWN_CYCLES, f"import cycles between packages: {found - KNOWN_CYCLES}"
+    assert not found, f"import cycles between packages: {found}"
 
 
 def test_the_graph_sees_function_level_imports():
@@ -135,11 +122,11 @@ def test_only_plots_sets_the_matplotlib_backend():
     setters = {p.relative_to(ROOT).as_posix() for p in _sources()
                if re.search(r"matplotlib\.use\(", p.read_text(encoding="utf-8"))
                and p.name != "test_structure.py"}
-    assert setters - BACKEND_PENDING == {"graphloc/plots.py"}
+    assert setters == {"graphloc/plots.py"}
 
 
 def test_no_absolute_machine_paths_in_the_code():
     machine = re.compile("/" + "(work|root)/")
     holders = {p.relative_to(ROOT).as_posix() for p in _sources()
                if machine.search(p.read_text(encoding="utf-8"))}
-    assert holders <= PATH_PENDING, f"absolute machine paths in {sorted(holders - PATH_PENDING)}"
+    assert not holders, f"absolute machine paths in {sorted(holders)}"

@@ -18,7 +18,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from graphloc.mapping.report import summary_text
-    from graphloc.mapping.demo import run_demo
+    from graphloc.experiments.fusion_demo import run_demo
 
     report = run_demo(args.out, args.seed)
     print(summary_text(report))

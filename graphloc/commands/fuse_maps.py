@@ -49,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--p3p",
         metavar="JSON",
-        help="camera + LED setup with an LED pixel CSV (see graphloc.mapping.demo)",
+        help="camera + LED setup with an LED pixel CSV (see graphloc.mapping.pipeline)",
     )
     parser.add_argument(
         "--config",
@@ -71,7 +71,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from graphloc.mapping.config import load_fusion_config
-    from graphloc.mapping.demo import fuse_and_write, fuse_directories, simulate_and_fuse
+    from graphloc.experiments.fusion_demo import simulate_and_fuse
+    from graphloc.mapping.pipeline import fuse_and_write, fuse_directories
     from graphloc.mapping.fusion import FusionConfig, FusionRejected
     from graphloc.mapping.report import summary_text
 
@@ -90,11 +91,10 @@ def run(args: argparse.Namespace) -> int:
             )
         elif args.scenario is not None:
             from graphloc.datasets.dual_room import DualRoomScenario
-            from graphloc.mapping.fusion import input_from_scenario
 
             scenario = DualRoomScenario.load(args.scenario)
             report = fuse_and_write(
-                input_from_scenario(scenario),
+                scenario.fusion_input(),
                 args.out,
                 config,
                 scenario.times,

@@ -365,11 +365,3 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
     T = np.linalg.inv(poses[GROUND][0]) @ poses[CEILING][0]
     return FusionResult(poses, odo, T, guess, guess_info, reg, n_p3p, np.concatenate(pts), np.concatenate(labels),
                         timings, errors, outliers, decision)
-
-
-def input_from_scenario(scenario) -> FusionInput:
-    """A `dual-robot-room` scenario (graphloc.datasets.dual_room) as pipeline input (no ground truth)."""
-    from graphloc.datasets.dual_room import T_CEILING_CAMERA, led_positions
-
-    leds = LedObservations(scenario.config.camera.pinhole(), led_positions(), T_CEILING_CAMERA, scenario.led_pixels)
-    return FusionInput(scenario.times, scenario.scans["ground"], scenario.scans["ceiling"], leds)

@@ -76,10 +76,7 @@ def gravity_rotation(points: np.ndarray, labels: np.ndarray, max_tilt_deg: float
 def render(result: FusionResult, path: Path, view: str) -> Path:
     """Scatter of the fused map ('top': x-y, 'side': x-z) with both trajectories, in a
     gravity-aligned frame (`gravity_rotation`: G0 turned so the floor is horizontal)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from graphloc.plots import plt  # the one place that sets the backend
 
     axes = {"top": (0, 1), "side": (0, 2)}[view]
     pts, lab = result.map_points, result.map_labels

@@ -1,6 +1,6 @@
 """Blob extraction for identical spherical markers (active LEDs or passive paint).
 
-Seed 001 (/work/shared/seeds/001_0f8f8dae37ce6b79.txt), section IV-B "Blob extraction":
+Seed 001 (seeds/001_0f8f8dae37ce6b79.txt), section IV-B "Blob extraction":
 Otsu threshold F1 locates blobs; first outlier rejection (size, non-convexity, eccentricity);
 the looser threshold F2 (a Gaussian fitted to the grey-level histogram, F2 at a multiple of its
 standard deviation) refines the blobs inside the window enclosing the survivors; second

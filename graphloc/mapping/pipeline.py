@@ -1,8 +1,9 @@
-"""Entry points of the map fusion pipeline for the CLI and the README demo:
+"""Entry points of the map fusion pipeline (`graphloc fuse-maps`):
 
-    run_demo(out_dir, seed)                      furnished `dual-robot-room`, end to end
-    simulate_and_fuse(out_dir, variant, seed)    any variant: simulate -> write scenario -> fuse -> outputs
+    fuse_and_write(inp, out_dir, config, times)                      fuse -> outputs or "not fused"
     fuse_directories(ground, ceiling, out_dir, hint=..., p3p=...)   a user's own scan sequences
+
+Simulated rooms (the README demo) are `graphloc.experiments.fusion_demo`.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
 from graphloc.mapping.fusion import (
-    FusionConfig, FusionInput, FusionRejected, LedObservations, fuse, input_from_scenario,
+    FusionConfig, FusionInput, FusionRejected, LedObservations, fuse,
 )
 from graphloc.mapping.io import read_led_pixels, read_scan_sequence
 from graphloc.mapping.report import write_outputs, write_rejection
@@ -32,28 +33,6 @@ def fuse_and_write(
         exc.report = write_rejection(exc, out_dir, truth=truth, extra=extra)
         raise
     return write_outputs(result, out_dir, times, truth=truth, extra=extra)["report"]
-
-
-def simulate_and_fuse(out_dir, variant: str = "furnished", seed: int = 0, frames: int = 10,
-                      config: FusionConfig = FusionConfig()) -> dict:
-    """Simulate `dual-robot-room` (written to out_dir/scenario), fuse, write outputs; returns the report."""
-    from graphloc.datasets import dataset_class
-    from graphloc.datasets.dual_room import variant_config
-
-    scenario_cls = dataset_class("dual-robot-room")
-    scenario = scenario_cls.simulate(variant_config(variant, seed, frames=frames))
-    out = Path(out_dir)
-    scenario.write(out / "scenario")
-    scenario_info = {"name": "dual-robot-room", "variant": variant, "seed": seed, "frames": frames,
-                     "dir": str(out / "scenario"), "counts": scenario.counts}
-    return fuse_and_write(input_from_scenario(scenario), out, config, scenario.times,
-                          truth=scenario.T_ground0_ceiling0, extra={"scenario": scenario_info})
-
-
-def run_demo(out_dir, seed: int = 0) -> dict:
-    """The README demo: furnished room, simulate -> LED pixels -> P3P -> hypothesis tracking -> ICP ->
-    graph smoothing -> fused map, pictures and report in out_dir."""
-    return simulate_and_fuse(out_dir, "furnished", seed)
 
 
 def parse_hint(text: str) -> np.ndarray:
