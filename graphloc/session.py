@@ -175,6 +175,7 @@ class Session:
         self._isam = self._make_isam() if config.mode == "online" else None
         # fixed lag: the add time of each live variable; marginalized variables' last estimates
         self._touched: dict[int, float] = {}
+        self._newest = -np.inf
         self._frozen = gtsam.Values()
 
     # ---- construction --------------------------------------------------------------------
@@ -202,6 +203,18 @@ class Session:
         """Whether `key` was marginalized by the fixed-lag smoother (its value is frozen)."""
         return self._frozen.exists(key)
 
+    def _frozen_or_live(self, key: int):
+        if self._frozen.exists(key):
+            return _value(self._frozen, key)
+        for get in (self._isam.calculateEstimatePose3, self._isam.calculateEstimatePose2,
+                    self._isam.calculateEstimatePoint3, self._isam.calculateEstimateVector):
+            try:
+                return get(key)
+            except RuntimeError:
+                continue
+        raise RuntimeError(f"no estimate of type Pose3, Pose2, Point3 or vector for "
+                           f"{_key_name(key)}")
+
     def _update_fixed_lag(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
                           t: float) -> None:
         """One fixed-lag update: the new keys get time t; the keys the smoother marginalizes
@@ -210,8 +223,12 @@ class Session:
         now = math.floor(t / quantum) * quantum if quantum else t  # add times never go back
         stamps = {int(k): now for k in values.keys()}
         self._touched.update(stamps)
-        # IncrementalFixedLagSmoother marginalizes the keys stamped before (newest - lag)
-        old = [k for k, s in self._touched.items() if s < now - self.config.lag + 1e-9]
+        # IncrementalFixedLagSmoother marginalizes the keys stamped before (newest - lag); new
+        # keys get the newest stamp, so only a newer stamp can make keys old
+        old = []
+        if now > self._newest:
+            old = [k for k, s in self._touched.items() if s < now - self.config.lag + 1e-9]
+            self._newest = now
         before = self._isam.calculateEstimate() if old else None
         self._isam.update(graph, values, stamps)
         for _ in range(self.config.extra_updates):
@@ -290,18 +307,17 @@ class Session:
             self._check_known(keys, "estimate")
         if self.fixed_lag:
             try:
-                live = self._isam.calculateEstimate()
+                if keys is None:
+                    out = gtsam.Values(self._frozen)
+                    out.insert(self._isam.calculateEstimate())
+                    return out
+                out = gtsam.Values()
+                for k in keys:  # one variable at a time: no estimate of the whole window
+                    out.insert(k, self._frozen_or_live(k))
+                return out
             except RuntimeError as exc:
                 raise ValueError(f"Session.estimate: the fixed-lag smoother cannot solve the "
                                  f"graph ({_first_line(exc)})") from None
-            if keys is None:
-                out = gtsam.Values(self._frozen)
-                out.insert(live)
-                return out
-            out = gtsam.Values()
-            for k in keys:
-                out.insert(k, _value(self._frozen if self._frozen.exists(k) else live, k))
-            return out
         if self._isam is not None:
             try:
                 return self._isam.calculateEstimate() if keys is None else \

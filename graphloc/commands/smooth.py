@@ -20,7 +20,7 @@ from pathlib import Path
 
 HELP = "batch factor-graph smoothing of a team's run (log dir or MRCLAM dir): TUM, metrics JSON, PNGs"
 MODE = "batch"
-DEFAULT_LAG = 10.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
+DEFAULT_LAG = 20.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
 EXIT_STOPPED = 3  # SIGINT / SIGTERM: the outputs so far were written, metrics marked partial
 # option -> (type, default, help); every one can also be set in the --config file
 OPTIONS = {

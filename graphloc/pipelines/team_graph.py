@@ -579,7 +579,8 @@ STEP_LOG_COLUMNS = ("step", "time", "latency_s", "cpu_s", "factors", "variables"
 
 def _pose_row(p: gtsam.Pose3) -> np.ndarray:
     q = p.rotation().toQuaternion()
-    return np.r_[p.translation(), q.x(), q.y(), q.z(), q.w()]
+    t = p.translation()
+    return np.array([t[0], t[1], t[2], q.x(), q.y(), q.z(), q.w()])
 
 
 def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False, stop=None,
@@ -610,6 +611,10 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False, stop=No
     dropped: dict = {}
     log: list = []
     partial, done = False, 0
+    # online: until the last robot is anchored, factors on robots not yet anchored wait
+    hold_until = max(graph.anchored_from.values(), default=-np.inf)
+    if mode != "online":
+        hold_until = -np.inf
     for i, (t, group) in enumerate(tqdm(graph.steps, desc=f"{mode} steps", disable=not progress,
                                         unit="step")):
         if mode == "online" and stop is not None and stop():
@@ -623,7 +628,7 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False, stop=No
         waiting, held = held + group, []
         for f, kind in waiting:
             keys = f.keys()
-            if mode == "online" and any(_held(graph, key, t) for key in keys):
+            if t < hold_until and any(_held(graph, key, t) for key in keys):
                 held.append((f, kind))
                 continue
             if lag and any(session.marginalized(key) for key in keys):
