@@ -183,3 +183,14 @@ def test_replayed_run_and_gtsam_only_batch(synthetic):
     batch = solve(graph, "batch")
     assert alone["variables"] == len(graph.initial) and alone["iterations"] >= 1
     assert np.isfinite(alone["error"]) and batch.wall_s > 0
+
+
+def test_fixed_lag_session_save_load_replays_exactly(tmp_path):
+    s = Session(SessionConfig(mode="online", lag=1.0))
+    _chain(s, 30)
+    s.save(tmp_path / "s.json")
+    loaded = Session.load(tmp_path / "s.json")
+    assert loaded.config.lag == 1.0 and loaded.marginalized(0)
+    a, b = s.estimate(), loaded.estimate()
+    assert a.size() == b.size() == 30
+    assert all(np.array_equal(a.atPose3(k).matrix(), b.atPose3(k).matrix()) for k in range(30))
