@@ -71,9 +71,10 @@ class SessionConfig:
     tree and the per-step cost stay bounded; a marginalized variable keeps its last estimate,
     and a factor on one is refused (`Session.add` raises ValueError; `Session.marginalized`
     tells first). A variable's stamp is its add time and is not renewed when later factors
-    touch it (re-stamping a live key makes GTSAM 4.3's smoother fail in marginalizeLeaves
-    with "remove variables ... that are not unused"), so long-lived variables (a static
-    robot's pose, a SLAM landmark) leave the window too. lag_batches: stamp variables with
+    touch it (with re-stamped keys GTSAM 4.3's smoother failed in marginalizeLeaves on the
+    MRCLAM team graph, "remove variables ... that are not unused"; a plain pose chain does not
+    show it), so long-lived variables (a static robot's pose, a SLAM landmark) leave the
+    window too. lag_batches: stamp variables with
     their add time rounded down to a multiple of `lag`, so that old variables leave in one
     batch per `lag` seconds (the window then spans `lag` to 2 `lag`): the smoother re-eliminates
     the path from the marginalized cliques to the root whenever it marginalizes, once per lag
