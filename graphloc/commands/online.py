@@ -92,7 +92,8 @@ def hooks(args: argparse.Namespace):
                 write_checkpoint(args.checkpoint, graph, done)
 
         def on_stop(done):
-            write_checkpoint(args.checkpoint, graph, done)
+            if done >= done_before:  # stopped while replaying: the resumed file is further on
+                write_checkpoint(args.checkpoint, graph, done)
 
         return {"on_step": on_step, "on_stop": on_stop}
 
