@@ -78,18 +78,6 @@ def read_labelled_cloud(path) -> tuple[np.ndarray, np.ndarray]:
     return pcd.point.positions.numpy().astype(float), pcd.point.robot.numpy().reshape(-1).astype(int)
 
 
-def write_tum(path, times: np.ndarray, poses: np.ndarray) -> Path:
-    """(F,) times and (F,4,4) poses as a TUM trajectory (via evo)."""
-    from evo.core.trajectory import PoseTrajectory3D
-    from evo.tools import file_interface
-
-    poses = np.asarray(poses, dtype=float)
-    if poses.ndim != 3 or poses.shape[1:] != (4, 4) or len(poses) != len(times):
-        raise ValueError(f"write_tum: need (F,) times and (F,4,4) poses, got {np.shape(times)} and {poses.shape}")
-    file_interface.write_tum_trajectory_file(str(path), PoseTrajectory3D(poses_se3=list(poses), timestamps=np.asarray(times)))
-    return Path(path)
-
-
 def read_tum(path) -> tuple[np.ndarray, np.ndarray]:
     """(F,) times and (F,4,4) poses of a TUM file (graphloc.eval.read_tum / evo); ValueError naming
     the file on malformed rows, non-finite values or time going backwards."""

@@ -12,7 +12,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.mapping.fusion import CEILING, GROUND, ROBOT_NAMES, FusionRejected, FusionResult
-from graphloc.mapping.io import ROBOT_COLOURS, write_labelled_cloud, write_tum
+from graphloc.eval import write_tum
+from graphloc.mapping.io import ROBOT_COLOURS, write_labelled_cloud
 from graphloc.mapping.registration import pose_errors
 
 MAX_PLOT_POINTS = 60_000

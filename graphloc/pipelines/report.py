@@ -12,9 +12,8 @@ from pathlib import Path
 
 import numpy as np
 from evo.core.trajectory import PoseTrajectory3D
-from evo.tools import file_interface
 
-from graphloc.eval import ate_over_time, trajectory_metrics
+from graphloc.eval import ate_over_time, trajectory_metrics, write_tum
 from graphloc.pipelines.team_graph import (
     STEP_LOG_COLUMNS,
     GraphConfig,
@@ -122,9 +121,10 @@ def latency_trend(result: TeamResult) -> dict | None:
     return out
 
 
-def write_tum(path: Path, times: np.ndarray, rows: np.ndarray) -> Path:
-    file_interface.write_tum_trajectory_file(str(path), _trajectory(times, rows))
-    return path
+def _write_rows(path: Path, times: np.ndarray, rows: np.ndarray) -> Path:
+    """(N,) times and (N,7) x y z qx qy qz qw rows (NaN rows skipped) through the one TUM writer."""
+    trajectory = _trajectory(times, rows)
+    return write_tum(path, trajectory.timestamps, np.array(trajectory.poses_se3))
 
 
 def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) -> list[Path]:
@@ -134,10 +134,10 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
         times = result.node_times[r]
         for label, rows in ((result.mode, result.estimate[r]), ("dead_reckoning", result.dead_reckoning[r])):
             if np.isfinite(rows).all(axis=1).any():
-                written.append(write_tum(out / f"{robot.name}_{label}.tum", times, rows))
+                written.append(_write_rows(out / f"{robot.name}_{label}.tum", times, rows))
         ref = groundtruth_rows(run, r)
         if ref is not None:
-            written.append(write_tum(out / f"{robot.name}_groundtruth.tum", *ref))
+            written.append(_write_rows(out / f"{robot.name}_groundtruth.tum", *ref))
     path = out / "decisions.csv"
     decisions = result.graph.decisions
     with open(path, "w", newline="") as fh:
