@@ -11,7 +11,8 @@ from typing import Protocol
 from graphloc.datasets.mrclam import MRCLAM, is_mrclam_dir
 from graphloc.datasets.rosbag import RosBag
 from graphloc.io import MANIFEST
-from graphloc.run import TeamRun, read_team_run, team_run_from_planar, truncate
+from graphloc.datasets.graphloc_log import read_team_run
+from graphloc.run import TeamRun, team_run_from_planar, truncate
 
 
 class RunLoader(Protocol):

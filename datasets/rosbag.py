@@ -16,7 +16,7 @@ and extrinsics) and maps each topic to one robot and one table of the log format
   `TransformStamped`.
 
 `import_bag(bag, topics, out)` writes a version-2 log directory (`graphloc.io` tables, the one
-reader being `graphloc.run.read_team_run`); the `RosBag` loader of `graphloc.datasets.open_run`
+reader being `graphloc.datasets.graphloc_log.read_team_run`); the `RosBag` loader of `graphloc.datasets.open_run`
 imports into a temporary directory and reads that. The clock is the messages' header stamps;
 each topic is sorted by stamp (bag order, i.e. receive time, may differ). A message that cannot
 be decoded, has the wrong type for its table, or holds a bad value is a counted skip naming the
@@ -45,7 +45,8 @@ from graphloc.io import (
     read_manifest,
     write_manifest,
 )
-from graphloc.run import TeamRun, read_team_run, truncate
+from graphloc.datasets.graphloc_log import read_team_run
+from graphloc.run import TeamRun, truncate
 
 TOPICS_FILE = "topics.yaml"  # what open_run(BAG) looks for beside (or inside) the bag
 ODOMETRY = "nav_msgs/msg/Odometry"
@@ -548,7 +549,7 @@ def _write_table(path: Path, table: str, rows: list) -> None:
 # ---- the loader (graphloc.datasets.loaders protocol) -----------------------------------------
 class RosBag:
     """A ROS 1 / ROS 2 / MCAP bag with a `topics.yaml` beside it (docs/rosbag.md): imported
-    into a temporary log directory and read by `graphloc.run.read_team_run`."""
+    into a temporary log directory and read by `graphloc.datasets.graphloc_log.read_team_run`."""
 
     name = "rosbag"
     expects = f"a .bag / .mcap file or a metadata.yaml directory, with {TOPICS_FILE}"

@@ -8,7 +8,7 @@
   `SkipReport` (on_error="skip") -- nothing is dropped silently.
 - `PlanarRun` is the numpy form of a planar multi-robot run (the MRCLAM loader's);
   `write_planar_run(run, dir)` writes it as a log. Logs are read into the one run type of the
-  pipelines by `graphloc.run.read_team_run` (`graphloc.datasets.open_run`).
+  pipelines by `graphloc.datasets.graphloc_log.read_team_run` (`graphloc.datasets.open_run`).
 """
 
 from __future__ import annotations
@@ -551,7 +551,7 @@ def read_landmarks(manifest: Manifest) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def is_tum(path: str) -> bool:
-    """3D ground truth is a TUM file (graphloc.run.read_tum_poses), not a CSV table."""
+    """3D ground truth is a TUM file (graphloc.datasets.graphloc_log.read_tum_poses), not a CSV table."""
     return str(path).endswith(".tum")
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from graphloc.io import (Bearing3D, GroundTruth2D, MarkerPixel, Odometry2D, PoseCandidate, RangeBearing2D, ScanRef,
                          SkipReport, columns, iter_records, read_manifest, write_manifest)
-from graphloc.run import read_team_run
+from graphloc.datasets.graphloc_log import read_team_run
 
 
 def _csv(path: Path, table: str, rows: list[str]) -> None:

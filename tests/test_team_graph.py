@@ -12,7 +12,7 @@ from graphloc.cli import main
 from graphloc.datasets import open_run
 from graphloc.io import columns, write_manifest
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
-from graphloc.run import read_team_run
+from graphloc.datasets.graphloc_log import read_team_run
 
 SMALL = {
     "feng-probabilistic": ["max_time=4.0"],

@@ -1,0 +1,508 @@
+"""Reader of a graphloc log directory (docs/log_format.md, versions 1 and 2) into the one run
+type, `graphloc.run.TeamRun`: every row of every table used, counted as a skip with its reason,
+or rejected with file, line and field. Front-end work that needs no estimate happens here,
+once: marker pixels become P3P candidate sets (`graphloc.vision.marker_poses`, seed 000 Sec.
+III-B / seed 004 Sec. II-C: three distinct markers, up to 4 candidates; seed 001 Sec. IV-C:
+four identical markers, 24 x 4 hypotheses gated by the fourth marker) and a robot's scans
+become KISS-ICP odometry steps (`graphloc.mapping.odometry`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gtsam
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from graphloc.cameras import PinholeCamera
+from graphloc.candidates import CandidateSet
+from graphloc.factors.surface import SurfacePlane
+from graphloc.io import (
+    LANDMARK_PREFIX,
+    MANIFEST,
+    Bearing3D,
+    GroundTruth2D,
+    MarkerPixel,
+    Odometry2D,
+    PoseCandidate,
+    Range,
+    RangeBearing2D,
+    RelativePose2D,
+    RelativePose3D,
+    ScanRef,
+    SkipReport,
+    _Sink,
+    is_tum,
+    iter_records,
+    read_landmarks,
+    read_manifest,
+)
+from graphloc.run import (
+    NOISE_DEFAULTS,
+    CandidateObservation,
+    Motion,
+    PointMeasurement,
+    TeamRobot,
+    TeamRun,
+    planar_covariance,
+    pose_from_planar,
+    pose_from_xyz_quat,
+)
+from graphloc.vision.marker_poses import p3p_candidate_sets
+
+# tables the graph uses (every table of docs/log_format.md)
+GRAPH_TABLES = (
+    "scans",
+    "odometry",
+    "relative_pose",
+    "relative_pose3",
+    "range",
+    "bearing",
+    "range_bearing",
+    "markers",
+    "candidates",
+    "groundtruth",
+)
+
+
+def read_tum_poses(path: Path) -> tuple[np.ndarray, list]:
+    """TUM file (timestamp tx ty tz qx qy qz qw; '#' comments) -> times, Pose3 list. ValueError
+    naming file and line on a malformed row."""
+    times, poses = [], []
+    for n, line in enumerate(path.read_text(encoding="utf-8-sig").splitlines(), start=1):
+        text = line.strip()
+        if not text or text.startswith("#"):
+            continue
+        parts = text.split()
+        try:
+            vals = np.array([float(p) for p in parts])
+        except ValueError:
+            raise ValueError(f"{path}: line {n}: cannot parse {text!r} as 8 numbers") from None
+        if vals.size != 8 or not np.isfinite(vals).all():
+            raise ValueError(
+                f"{path}: line {n}: expected 8 finite numbers (timestamp tx ty tz qx qy qz qw)"
+            )
+        if not 0.5 < np.linalg.norm(vals[4:]) < 2.0:
+            raise ValueError(f"{path}: line {n}: field 'q': quaternion is not unit")
+        if times and vals[0] < times[-1]:
+            raise ValueError(f"{path}: line {n}: field 'timestamp': {vals[0]} goes backwards")
+        times.append(vals[0])
+        poses.append(pose_from_xyz_quat(vals[1:]))
+    return np.array(times), poses
+
+
+def _camera(params: dict, where: str) -> PinholeCamera:
+    try:
+        return PinholeCamera(
+            float(params["fx"]),
+            float(params["fy"]),
+            float(params["cx"]),
+            float(params["cy"]),
+            int(params["width"]),
+            int(params["height"]),
+            tuple(params.get("dist", ())),
+        )
+    except KeyError as exc:
+        raise ValueError(
+            f"{where}: camera params need fx, fy, cx, cy, width, height; missing {exc}"
+        ) from None
+
+
+def _robot(r, where: str) -> TeamRobot:
+    init = None
+    if r.initial_pose is not None:
+        init = (
+            pose_from_planar(*r.initial_pose)
+            if len(r.initial_pose) == 3
+            else pose_from_xyz_quat(r.initial_pose)
+        )
+    surface = (
+        None
+        if r.surface is None
+        else SurfacePlane(np.array(r.surface["point"]), np.array(r.surface["normal"]))
+    )
+    markers = None if r.markers is None else np.array(r.markers, dtype=float)
+    if r.static and init is None:
+        raise ValueError(f"{where}: robot {r.name!r} is static but has no 'initial_pose'")
+    sensors = {s.name: (s.body_T_sensor, dict(s.params)) for s in r.sensors}
+    return TeamRobot(
+        r.name,
+        r.kind,
+        bool(r.planar),
+        bool(r.static),
+        init,
+        r.initial_sigma,
+        surface,
+        markers,
+        bool(r.identical_markers),
+        sensors,
+    )
+
+
+def _param(params: dict, name: str, default: float, where: str) -> float:
+    value = params.get(name, default)
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{where}: params field '{name}' must be a number, got {value!r}"
+        ) from None
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(f"{where}: params field '{name}' must be finite >= 0, got {value}")
+    return value
+
+
+def read_team_run(
+    root: str | Path,
+    on_error: str = "skip",
+    defaults: dict | None = None,
+    overrides: dict | None = None,
+) -> TeamRun:
+    """A graphloc log directory -> TeamRun. Every row of every table is used, counted as a skip
+    with its reason (`on_error="skip"`), or raises naming file, line and field. `defaults`:
+    sensor noise used where a sensor's params give none (bearing_sigma [rad], range_sigma [m],
+    range_sigma_per_m, pixel_sigma [px], candidate_sigmas (rot, trans)); `overrides`: the same
+    names, replacing what every sensor's params say (a config file or CLI flags)."""
+    d = {**NOISE_DEFAULTS, **(defaults or {})}
+    forced = dict(overrides or {})
+    manifest = read_manifest(root)
+    mpath = manifest.root / MANIFEST
+    for r in manifest.robots:
+        for s in r.sensors:
+            s.params.update(forced)
+    report = SkipReport()
+    sink = _Sink(on_error, report)
+    robots = tuple(_robot(r, f"{mpath}: robots[{i}]") for i, r in enumerate(manifest.robots))
+    index = {r.name: i for i, r in enumerate(robots)}
+    ids, xyz, sig = read_landmarks(manifest)
+    velocity = {r.name: [] for r in robots}
+    motions, points, gt = [], [], {r.name: None for r in robots}
+    gt2d = {r.name: [] for r in robots}
+    marker_rows: dict = {}
+    cand_rows: dict = {}
+    scan_rows: dict = {}
+    used = {t: 0 for t in GRAPH_TABLES}
+    for r in manifest.robots:  # 3D ground truth in TUM files
+        path = r.tables.get("groundtruth")
+        if path and is_tum(path):
+            gt[r.name] = read_tum_poses(manifest.root / path)
+            used["groundtruth"] += len(gt[r.name][0])
+    for rec in iter_records(root, tables=GRAPH_TABLES, on_error=on_error, report=report):
+        where = (
+            f"{manifest.root / manifest.robot(rec.robot).tables[_table_of(rec)]}: line {rec.line}"
+        )
+        ri = index[rec.robot]
+        robot = robots[ri]
+        if isinstance(rec, GroundTruth2D):
+            gt2d[rec.robot].append((rec.time, rec.x, rec.y, rec.theta))
+            used["groundtruth"] += 1
+            continue
+        T_bs, params = robot.sensors[rec.sensor]
+        E = gtsam.Pose3(T_bs)
+        if isinstance(rec, Odometry2D):
+            velocity[rec.robot].append((rec.time, rec.v, rec.omega))
+        elif isinstance(rec, RelativePose2D):
+            sig3 = np.array([rec.sigma_x, rec.sigma_y, rec.sigma_theta])
+            if not (sig3 > 0).all() or not rec.time > rec.time0:
+                sink.bad(
+                    "bad_relative_pose", f"{where}: fields 'sigma_*' must be > 0 and time0 < time"
+                )
+                continue
+            motions.append(
+                Motion(
+                    ri,
+                    rec.time0,
+                    rec.time,
+                    pose_from_planar(rec.dx, rec.dy, rec.dtheta),
+                    planar_covariance(np.diag(sig3**2)),
+                )
+            )
+        elif isinstance(rec, RelativePose3D):
+            sig6 = np.array(
+                [rec.sigma_rx, rec.sigma_ry, rec.sigma_rz, rec.sigma_tx, rec.sigma_ty, rec.sigma_tz]
+            )
+            q = np.array([rec.qx, rec.qy, rec.qz, rec.qw])
+            if (
+                not (sig6 > 0).all()
+                or not rec.time > rec.time0
+                or not 0.5 < np.linalg.norm(q) < 2.0
+            ):
+                sink.bad(
+                    "bad_relative_pose",
+                    f"{where}: fields 'sigma_*' must be > 0, time0 < time and the quaternion unit",
+                )
+                continue
+            motions.append(
+                Motion(
+                    ri,
+                    rec.time0,
+                    rec.time,
+                    pose_from_xyz_quat([rec.tx, rec.ty, rec.tz, *q]),
+                    np.diag(sig6**2),
+                )
+            )
+        elif isinstance(rec, (Bearing3D, Range, RangeBearing2D)):
+            target = rec.target
+            if target == rec.robot:
+                sink.bad(
+                    "self_observation",
+                    f"{where}: field 'target': robot {rec.robot} observes itself",
+                )
+                continue
+            t_idx = index.get(target, -1)
+            lid = -1 if t_idx >= 0 else int(target[len(LANDMARK_PREFIX) :])
+            bs = _param(params, "bearing_sigma", d["bearing_sigma"], where)
+            rs0 = _param(params, "range_sigma", d["range_sigma"], where)
+            rs1 = _param(params, "range_sigma_per_m", d["range_sigma_per_m"], where)
+            if isinstance(rec, Bearing3D):
+                v = np.array([rec.x, rec.y, rec.z])
+                n = np.linalg.norm(v)
+                if not 0.5 < n < 2.0:
+                    sink.bad(
+                        "not_unit",
+                        f"{where}: fields 'x, y, z': |direction| = {n:.3g} is not a unit vector",
+                    )
+                    continue
+                points.append(
+                    PointMeasurement(
+                        "bearing", rec.time, ri, E, t_idx, lid, v / n, np.nan, bs, np.nan
+                    )
+                )
+            else:
+                if not rec.range > 0:
+                    sink.bad("non_positive_range", f"{where}: field 'range': {rec.range} <= 0")
+                    continue
+                rsig = float(np.hypot(rs0, rs1 * rec.range))
+                if isinstance(rec, Range):
+                    points.append(
+                        PointMeasurement(
+                            "range",
+                            rec.time,
+                            ri,
+                            E,
+                            t_idx,
+                            lid,
+                            np.full(3, np.nan),
+                            rec.range,
+                            np.nan,
+                            rsig,
+                        )
+                    )
+                else:
+                    v = np.array([np.cos(rec.bearing), np.sin(rec.bearing), 0.0])
+                    points.append(
+                        PointMeasurement(
+                            "range_bearing", rec.time, ri, E, t_idx, lid, v, rec.range, bs, rsig
+                        )
+                    )
+        elif isinstance(rec, MarkerPixel):
+            if rec.target not in index:
+                sink.bad(
+                    "unknown_target",
+                    f"{where}: field 'target': {rec.target!r} is not a robot (markers are "
+                    f"on robots with a 'markers' layout)",
+                )
+                continue
+            marker_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
+        elif isinstance(rec, ScanRef):
+            scan_rows.setdefault((ri, rec.sensor), []).append(rec)
+        elif isinstance(rec, PoseCandidate):
+            if rec.target not in index:
+                sink.bad(
+                    "unknown_target", f"{where}: field 'target': {rec.target!r} is not a robot"
+                )
+                continue
+            cand_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
+        used[_table_of(rec)] += 1
+    motions += _scan_odometry(scan_rows, robots, manifest)
+    observations = _marker_observations(marker_rows, robots, manifest, d, sink, used)
+    observations += _candidate_observations(cand_rows, robots, d, manifest)
+    observations.sort(key=lambda o: (o.time, o.robot))
+    for name, rows in gt2d.items():
+        if rows:
+            arr = np.array(rows)
+            gt[name] = (arr[:, 0], [pose_from_planar(x, y, th) for _, x, y, th in arr])
+    start = manifest.start_time
+    vel = tuple(np.array(velocity[r.name], dtype=float).reshape(-1, 3) for r in robots)
+    if start is None:
+        firsts = [v[0, 0] for v in vel if len(v)] or [m.t0 for m in motions]
+        if not firsts:
+            firsts = [p.time for p in points] + [o.time for o in observations]
+        if not firsts:
+            raise ValueError(f"{mpath}: the run has no odometry, relative poses or measurements")
+        start = max(v[0, 0] for v in vel if len(v)) if any(len(v) for v in vel) else min(firsts)
+    _merge_import_skips(report, manifest.meta.get("import"), mpath)
+    return TeamRun(
+        name=manifest.name,
+        robots=robots,
+        start_time=float(start),
+        velocity=vel,
+        motions=tuple(motions),
+        points=tuple(points),
+        observations=tuple(observations),
+        groundtruth=tuple(gt[r.name] for r in robots),
+        landmark_ids=ids,
+        landmark_xyz=xyz,
+        landmark_sigma=sig,
+        landmarks_known=manifest.landmarks_file is not None,
+        skips=report,
+        contributions={k: v for k, v in used.items() if v},
+        meta=dict(manifest.meta),
+    )
+
+
+def _merge_import_skips(report: SkipReport, imported, where: Path) -> None:
+    """Rows a converter (`graphloc import` of a bag) skipped before the log was written, kept in
+    the manifest's meta.import.skips: reported with the log's own skips."""
+    if not imported:
+        return
+    skips = imported.get("skips") if isinstance(imported, dict) else None
+    counts = skips.get("counts") if isinstance(skips, dict) else None
+    if not isinstance(counts, dict) or not all(
+        isinstance(k, str) and isinstance(n, int) and n >= 0 for k, n in counts.items()
+    ):
+        raise ValueError(f"{where}: field 'meta.import.skips' must hold counts by reason")
+    earlier = SkipReport(
+        dict(counts), [str(m) for m in skips.get("examples", [])][: report.max_examples]
+    )
+    report.merge(earlier)
+
+
+def _table_of(rec) -> str:
+    return {
+        Odometry2D: "odometry",
+        RelativePose2D: "relative_pose",
+        RelativePose3D: "relative_pose3",
+        Range: "range",
+        Bearing3D: "bearing",
+        RangeBearing2D: "range_bearing",
+        MarkerPixel: "markers",
+        PoseCandidate: "candidates",
+        GroundTruth2D: "groundtruth",
+        ScanRef: "scans",
+    }[type(rec)]
+
+
+def _marker_observations(
+    groups: dict, robots: tuple, manifest, d: dict, sink: _Sink, used: dict
+) -> list:
+    """Marker pixels grouped by (time, observer, sensor, target) -> P3P candidate sets, all
+    three-marker instances of the run in one batched solve."""
+    out = []
+    by_setup: dict = {}
+    for (time, ri, sensor, ti), rows in groups.items():
+        target = robots[ti]
+        lines = sorted(r.line for r in rows)
+        where = (
+            f"{manifest.root / manifest.robots[ri].tables['markers']}: lines {lines[0]}-{lines[-1]}"
+        )
+        if target.markers is None:
+            raise ValueError(
+                f"{where}: field 'target': robot {target.name!r} has no 'markers' layout in the "
+                f"manifest"
+            )
+        marks = np.array([r.marker for r in rows])
+        if (marks < 0).any() or (marks >= len(target.markers)).any():
+            sink.bad(
+                "unknown_marker",
+                f"{where}: field 'marker': {marks.tolist()} outside the layout of "
+                f"{len(target.markers)} markers",
+            )
+            continue
+        if len(np.unique(marks)) != len(marks) and not target.identical_markers:
+            sink.bad(
+                "duplicate_marker", f"{where}: field 'marker': a marker appears twice in one image"
+            )
+            continue
+        if len(rows) < 3:
+            sink.bad("too_few_markers", f"{where}: {len(rows)} markers seen, P3P needs 3")
+            continue
+        by_setup.setdefault((ri, sensor, ti), []).append(
+            (time, marks, np.array([[r.u, r.v] for r in rows]), where)
+        )
+    for (ri, sensor, ti), frames in by_setup.items():
+        T_bs, params = robots[ri].sensors[sensor]
+        where = f"{manifest.root / MANIFEST}: robot {robots[ri].name!r} sensor {sensor!r}"
+        camera = _camera(params, where)
+        sigma = _param(params, "pixel_sigma", d["pixel_sigma"], where)
+        target = robots[ti]
+        sets = p3p_candidate_sets(
+            camera,
+            [f[2] for f in frames],
+            [f[1] for f in frames],
+            target.markers,
+            [f[0] for f in frames],
+            sigma,
+            identical=target.identical_markers,
+            observer=robots[ri].name,
+            observed=target.name,
+        )
+        for (time, _, _, lines), cs in zip(frames, sets):
+            if cs is None or len(cs) == 0:
+                sink.bad(
+                    "no_p3p_solution", f"{lines}: fields 'u, v': no pose fits the marker pixels"
+                )
+                continue
+            out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs))
+    return out
+
+
+SCAN_SIGMAS = (0.002, 0.01)  # [rad, m] per KISS-ICP step where the scanner's params give none
+
+
+def _scan_odometry(groups: dict, robots: tuple, manifest) -> list:
+    """Each robot's scans (rows of its `scans` table, per scanner) -> KISS-ICP odometry
+    (`graphloc.mapping.odometry`) -> one relative-pose step per consecutive pair of scans, in
+    the body frame (through the scanner's extrinsics), covariance from the scanner's
+    `icp_sigmas` [rot rad, trans m]."""
+    if not groups:
+        return []
+    # Open3D and KISS-ICP load only for runs that have scans
+    from graphloc.mapping.io import read_points
+    from graphloc.mapping.odometry import run_odometry
+
+    out = []
+    for (ri, sensor), rows in groups.items():
+        T_bs, params = robots[ri].sensors[sensor]
+        E = gtsam.Pose3(T_bs)
+        scans = []
+        for row in rows:
+            try:
+                scans.append(read_points(manifest.root / row.path))
+            except (OSError, ValueError) as exc:
+                table = manifest.root / manifest.robots[ri].tables["scans"]
+                raise ValueError(f"{table}: line {row.line}: field 'path': {exc}") from None
+        sig = params.get("icp_sigmas", SCAN_SIGMAS)
+        cov = np.diag([float(sig[0]) ** 2] * 3 + [float(sig[1]) ** 2] * 3)
+        A = E.AdjointMap()
+        for a, b, step in zip(rows[:-1], rows[1:], run_odometry(scans).increments()):
+            rel = E.compose(gtsam.Pose3(step)).compose(E.inverse())
+            out.append(Motion(ri, a.time, b.time, rel, A @ cov @ A.T))
+    return out
+
+
+def _candidate_observations(groups: dict, robots: tuple, d: dict, manifest) -> list:
+    out = []
+    for (time, ri, sensor, ti), rows in groups.items():
+        T_bs, params = robots[ri].sensors[sensor]
+        sig = params.get("candidate_sigmas", d["candidate_sigmas"])
+        rows = sorted(rows, key=lambda r: r.k)
+        q = np.array([[r.qx, r.qy, r.qz, r.qw] for r in rows])
+        R = Rotation.from_quat(q / np.linalg.norm(q, axis=1, keepdims=True)).as_matrix()
+        t = np.array([[r.tx, r.ty, r.tz] for r in rows])
+        cov = np.broadcast_to(
+            np.diag([sig[0] ** 2] * 3 + [sig[1] ** 2] * 3), (len(rows), 6, 6)
+        ).copy()
+        cs = CandidateSet(
+            R,
+            t,
+            np.array([r.score for r in rows]),
+            time=time,
+            observer=robots[ri].name,
+            observed=robots[ti].name,
+            source="candidates-table",
+            covariance=cov,
+        )
+        out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs))
+    return out
