@@ -40,6 +40,8 @@ def dataset_class(name: str):
     try:
         module_name, class_name = _REGISTRY[name]
     except KeyError:
-        raise ValueError(f"unknown dataset or scenario {name!r}; available: {', '.join(available())}") from None
+        raise ValueError(
+            f"unknown dataset or scenario {name!r}; available: {', '.join(available())}"
+        ) from None
     module = importlib.import_module(f"graphloc.datasets.{module_name}")
     return getattr(module, class_name)

@@ -40,7 +40,9 @@ class BreitenmoserConfig:
 
     def __post_init__(self):
         if self.frames < 1 or not (0 < self.d_min <= self.d_max) or self.rate_hz <= 0:
-            raise ValueError(f"BreitenmoserConfig: frames >= 1, 0 < d_min <= d_max, rate_hz > 0; got {self}")
+            raise ValueError(
+                f"BreitenmoserConfig: frames >= 1, 0 < d_min <= d_max, rate_hz > 0; got {self}"
+            )
 
 
 def seed001_camera() -> PinholeCamera:
@@ -61,23 +63,48 @@ class BreitenmoserTargetScenario:
         dist = np.linspace(config.d_min, config.d_max, n)
         azimuth = rng.uniform(0, 2 * np.pi) + np.linspace(0.0, np.pi, n)
         tilt = np.deg2rad(config.tilt_deg)
-        eye = centre + dist[:, None] * np.column_stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth),
-                                                        np.full(n, np.cos(tilt))])
+        eye = centre + dist[:, None] * np.column_stack(
+            [
+                np.sin(tilt) * np.cos(azimuth),
+                np.sin(tilt) * np.sin(azimuth),
+                np.full(n, np.cos(tilt)),
+            ]
+        )
         heading = np.column_stack([-np.sin(azimuth), np.cos(azimuth), np.zeros(n)])
         R = look_at(eye, centre, heading)
         camera = seed001_camera()
         pixels = np.full((n, len(LARGE_TARGET.points), 2), np.nan)
         for k in range(n):
-            frame = render_markers(camera, (LARGE_TARGET.points - eye[k]) @ R[k], LARGE_TARGET.marker_diameter / 2,
-                                   RenderConfig(), rng)
+            frame = render_markers(
+                camera,
+                (LARGE_TARGET.points - eye[k]) @ R[k],
+                LARGE_TARGET.marker_diameter / 2,
+                RenderConfig(),
+                rng,
+            )
             pixels[k] = frame.centroids
             if config.save_images:
                 (out / "climber" / "images").mkdir(parents=True, exist_ok=True)
                 cv2.imwrite(str(out / "climber" / "images" / f"{k:06d}.png"), frame.image)
         times = np.arange(n) / config.rate_hz
-        log = CameraTrackLog(name=self.name, times=times, R_wc=R, t_wc=eye, layout=LARGE_TARGET.points,
-                             pixels=pixels, camera=camera, pixel_sigma=CENTROID_SIGMA_PX, odometry=[], odometry_cov=[],
-                             observer="climber", target="target", identical_markers=True,
-                             meta={"seed_paper": "001_0f8f8dae37ce6b79.txt Sec. V-A", "config": asdict(config),
-                                   "images": "climber/images/%06d.png" if config.save_images else None})
+        log = CameraTrackLog(
+            name=self.name,
+            times=times,
+            R_wc=R,
+            t_wc=eye,
+            layout=LARGE_TARGET.points,
+            pixels=pixels,
+            camera=camera,
+            pixel_sigma=CENTROID_SIGMA_PX,
+            odometry=[],
+            odometry_cov=[],
+            observer="climber",
+            target="target",
+            identical_markers=True,
+            meta={
+                "seed_paper": "001_0f8f8dae37ce6b79.txt Sec. V-A",
+                "config": asdict(config),
+                "images": "climber/images/%06d.png" if config.save_images else None,
+            },
+        )
         return write_camera_track(log, out)

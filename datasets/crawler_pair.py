@@ -76,23 +76,47 @@ class CrawlerPairConfig:
     def __post_init__(self):
         for name in ("width", "height", "supersample"):
             if int(getattr(self, name)) < 1:
-                raise ValueError(f"CrawlerPairConfig.{name} must be >= 1, got {getattr(self, name)}")
-        for name in ("pixel_pitch", "base_diameter", "start_distance", "background_distance", "camera_height",
-                     "texel", "hfov_deg"):
+                raise ValueError(
+                    f"CrawlerPairConfig.{name} must be >= 1, got {getattr(self, name)}"
+                )
+        for name in (
+            "pixel_pitch",
+            "base_diameter",
+            "start_distance",
+            "background_distance",
+            "camera_height",
+            "texel",
+            "hfov_deg",
+        ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"CrawlerPairConfig.{name} must be a positive finite number, got {v}")
+                raise ValueError(
+                    f"CrawlerPairConfig.{name} must be a positive finite number, got {v}"
+                )
         if not self.background_distance > self.start_distance + 0.5:
-            raise ValueError("CrawlerPairConfig: background_distance must exceed start_distance + 0.5 m")
+            raise ValueError(
+                "CrawlerPairConfig: background_distance must exceed start_distance + 0.5 m"
+            )
         if not self.camera_height > self.base_diameter / 2:
             raise ValueError("CrawlerPairConfig: camera_height must exceed the base radius")
         bad = [i for i, m in enumerate(self.schedule) if m not in MOVERS]
         if bad:
-            raise ValueError(f"CrawlerPairConfig.schedule[{bad[0]}] = {self.schedule[bad[0]]!r}; "
-                             f"expected one of {MOVERS}")
-        for name in ("camera_step", "camera_lateral_std", "camera_yaw_std_deg", "roughness_deg", "bounce_std",
-                     "teammate_step", "teammate_heading_std_deg", "teammate_odometry_rel_std", "blur_sigma",
-                     "noise_sigma"):
+            raise ValueError(
+                f"CrawlerPairConfig.schedule[{bad[0]}] = {self.schedule[bad[0]]!r}; "
+                f"expected one of {MOVERS}"
+            )
+        for name in (
+            "camera_step",
+            "camera_lateral_std",
+            "camera_yaw_std_deg",
+            "roughness_deg",
+            "bounce_std",
+            "teammate_step",
+            "teammate_heading_std_deg",
+            "teammate_odometry_rel_std",
+            "blur_sigma",
+            "noise_sigma",
+        ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"CrawlerPairConfig.{name} must be finite and >= 0, got {v}")
@@ -139,7 +163,12 @@ class CrawlerPairSequence:
         teammate odometry distance and its std (0 where it stood still)."""
         mover = np.array(("",) + self.mover)
         pad = lambda a: np.concatenate([[0.0], a])
-        return mover == "camera", mover == "teammate", pad(self.teammate_odometry), pad(self.teammate_odometry_std)
+        return (
+            mover == "camera",
+            mover == "teammate",
+            pad(self.teammate_odometry),
+            pad(self.teammate_odometry_std),
+        )
 
     def base_in_camera(self, t: int) -> tuple[np.ndarray, np.ndarray]:
         """Base centre (3,) and normal (3,) in camera t's frame."""
@@ -182,12 +211,16 @@ class TexturedScene:
         return hits, on_wall
 
 
-def make_texture(rng: np.random.Generator, height: int, width: int, tint: tuple[float, float, float]) -> np.ndarray:
+def make_texture(
+    rng: np.random.Generator, height: int, width: int, tint: tuple[float, float, float]
+) -> np.ndarray:
     """(height, width, 3) uint8 BGR texture: multi-octave value noise plus random rectangles,
     ellipses and lines (corners for Shi-Tomasi), tinted by `tint` (low chroma, no red)."""
     grey = np.zeros((height, width), np.float32)
     for cell, amp in ((64, 50.0), (16, 35.0), (4, 20.0)):
-        coarse = rng.uniform(-1, 1, (max(height // cell, 2), max(width // cell, 2))).astype(np.float32)
+        coarse = rng.uniform(-1, 1, (max(height // cell, 2), max(width // cell, 2))).astype(
+            np.float32
+        )
         grey += amp * cv2.resize(coarse, (width, height), interpolation=cv2.INTER_CUBIC)
     grey += 120.0
     n_shapes = max(int(height * width / 4000), 4)
@@ -199,9 +232,24 @@ def make_texture(rng: np.random.Generator, height: int, width: int, tint: tuple[
         if kind == 0:
             cv2.rectangle(grey, (x, y), (x + size, y + int(rng.integers(4, 30))), level, -1)
         elif kind == 1:
-            cv2.ellipse(grey, (x, y), (size, int(rng.integers(3, 20))), float(rng.uniform(0, 180)), 0, 360, level, -1)
+            cv2.ellipse(
+                grey,
+                (x, y),
+                (size, int(rng.integers(3, 20))),
+                float(rng.uniform(0, 180)),
+                0,
+                360,
+                level,
+                -1,
+            )
         else:
-            cv2.line(grey, (x, y), (x + int(rng.integers(-40, 40)), y + int(rng.integers(-40, 40))), level, 2)
+            cv2.line(
+                grey,
+                (x, y),
+                (x + int(rng.integers(-40, 40)), y + int(rng.integers(-40, 40))),
+                level,
+                2,
+            )
     grey = np.clip(grey, 0, 255)
     tint = np.asarray(tint, np.float32)
     return np.clip(grey[..., None] * tint[None, None, :], 0, 255).astype(np.uint8)
@@ -222,8 +270,13 @@ def _rot_z(a):
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
-def disk_coverage(camera: PinholeCamera, centre: np.ndarray, normal: np.ndarray, radius: float,
-                  subsamples: int = 8) -> np.ndarray:
+def disk_coverage(
+    camera: PinholeCamera,
+    centre: np.ndarray,
+    normal: np.ndarray,
+    radius: float,
+    subsamples: int = 8,
+) -> np.ndarray:
     """(H,W) float32 fraction of each pixel covered by the disk (camera-frame centre (3,), unit
     normal (3,), radius), from subsamples^2 rays per pixel intersected with the disk plane
     (exact up to the sampling; only the disk's bounding box is sampled)."""
@@ -253,7 +306,7 @@ def disk_coverage(camera: PinholeCamera, centre: np.ndarray, normal: np.ndarray,
 class CrawlerPairScenario:
     """Generator of `CrawlerPairSequence`s (see the module docstring).
 
-        seq = CrawlerPairScenario(CrawlerPairConfig(seed=3)).generate()
+    seq = CrawlerPairScenario(CrawlerPairConfig(seed=3)).generate()
     """
 
     def __init__(self, config: CrawlerPairConfig = CrawlerPairConfig()):
@@ -263,13 +316,26 @@ class CrawlerPairScenario:
     def scene(self) -> TexturedScene:
         cfg = self.config
         rng = np.random.default_rng([cfg.seed, 7])
-        half_w = cfg.background_distance * np.tan(np.radians(cfg.hfov_deg) / 2) + 0.6  # FOV plus the robot's turns
+        half_w = (
+            cfg.background_distance * np.tan(np.radians(cfg.hfov_deg) / 2) + 0.6
+        )  # FOV plus the robot's turns
         wall_h = 0.6 * half_w + cfg.camera_height
-        wall = make_texture(rng, int(wall_h / cfg.texel), int(2 * half_w / cfg.texel), (0.95, 1.0, 0.9))
+        wall = make_texture(
+            rng, int(wall_h / cfg.texel), int(2 * half_w / cfg.texel), (0.95, 1.0, 0.9)
+        )
         ground_len = cfg.background_distance + 0.6
-        ground = make_texture(rng, int(ground_len / cfg.texel), int(2 * half_w / cfg.texel), (0.8, 1.0, 0.85))
-        return TexturedScene(cfg.background_distance, cfg.camera_height, cfg.texel, wall,
-                             (-half_w, cfg.camera_height - wall_h), ground, (-half_w, -0.5))
+        ground = make_texture(
+            rng, int(ground_len / cfg.texel), int(2 * half_w / cfg.texel), (0.8, 1.0, 0.85)
+        )
+        return TexturedScene(
+            cfg.background_distance,
+            cfg.camera_height,
+            cfg.texel,
+            wall,
+            (-half_w, cfg.camera_height - wall_h),
+            ground,
+            (-half_w, -0.5),
+        )
 
     def trajectories(self, rng: np.random.Generator):
         """Camera R_wc (T,3,3), t_wc (T,3); base centre (T,3), normal (T,3); teammate
@@ -286,12 +352,19 @@ class CrawlerPairScenario:
         odo = np.zeros(T - 1)
         odo_std = np.zeros(T - 1)
         for t, who in enumerate(cfg.schedule):
-            yaw[t + 1], pos[t + 1], theta[t + 1], centre[t + 1] = yaw[t], pos[t], theta[t], centre[t]
+            yaw[t + 1], pos[t + 1], theta[t + 1], centre[t + 1] = (
+                yaw[t],
+                pos[t],
+                theta[t],
+                centre[t],
+            )
             if who == "camera":
                 yaw[t + 1] = yaw[t] + np.radians(cfg.camera_yaw_std_deg) * rng.normal()
                 fwd = np.array([np.sin(yaw[t]), 0.0, np.cos(yaw[t])])
                 side = np.array([np.cos(yaw[t]), 0.0, -np.sin(yaw[t])])
-                pos[t + 1] = pos[t] + cfg.camera_step * fwd + cfg.camera_lateral_std * rng.normal() * side
+                pos[t + 1] = (
+                    pos[t] + cfg.camera_step * fwd + cfg.camera_lateral_std * rng.normal() * side
+                )
                 pos[t + 1, 1] = cfg.bounce_std * rng.normal()
             else:
                 theta[t + 1] = theta[t] + np.radians(cfg.teammate_heading_std_deg) * rng.normal()
@@ -300,7 +373,9 @@ class CrawlerPairScenario:
                 centre[t + 1] = centre[t] + step * np.array([np.sin(mid), 0.0, np.cos(mid)])
                 odo_std[t] = max(cfg.teammate_odometry_rel_std * step, 1e-4)
                 odo[t] = step + odo_std[t] * rng.normal()
-        normal[:] = -np.stack([np.sin(theta), np.zeros(T), np.cos(theta)], axis=1)  # back face: towards -forward
+        normal[:] = -np.stack(
+            [np.sin(theta), np.zeros(T), np.cos(theta)], axis=1
+        )  # back face: towards -forward
         pitch = np.radians(cfg.roughness_deg) * rng.normal(size=T)
         roll = np.radians(cfg.roughness_deg) * rng.normal(size=T)
         pitch[0] = roll[0] = 0.0  # the world frame is camera 0
@@ -311,12 +386,20 @@ class CrawlerPairScenario:
         R = np.stack([_rot_y(a) @ _rot_x(p) @ _rot_z(r) for a, p, r in zip(yaw, pitch, roll)])
         return R, pos, centre, normal, odo, odo_std
 
-    def render(self, R_wc: np.ndarray, t_wc: np.ndarray, centre_w: np.ndarray, normal_w: np.ndarray,
-               rng: np.random.Generator) -> np.ndarray:
+    def render(
+        self,
+        R_wc: np.ndarray,
+        t_wc: np.ndarray,
+        centre_w: np.ndarray,
+        normal_w: np.ndarray,
+        rng: np.random.Generator,
+    ) -> np.ndarray:
         """One BGR frame (H,W,3) uint8 of the scene and the base disk seen from (R_wc, t_wc)."""
         cfg = self.config
         img = self.background(R_wc, t_wc)
-        coverage = disk_coverage(cfg.camera(), R_wc.T @ (centre_w - t_wc), R_wc.T @ normal_w, cfg.base_radius)
+        coverage = disk_coverage(
+            cfg.camera(), R_wc.T @ (centre_w - t_wc), R_wc.T @ normal_w, cfg.base_radius
+        )
         img = img * (1.0 - coverage[..., None]) + np.float32(cfg.base_colour) * coverage[..., None]
         if cfg.blur_sigma > 0:
             img = cv2.GaussianBlur(img, (0, 0), cfg.blur_sigma)
@@ -346,17 +429,31 @@ class CrawlerPairScenario:
         on_wall = s_wall <= s_ground
         img = np.zeros((H, W, 3), np.float32)
         for mask, dist, tex, (a0, b0), (ia, ib) in (
-                (on_wall, s_wall, scene.wall_texture, scene.wall_origin, (0, 1)),  # wall texture: (x, y)
-                (~on_wall, s_ground, scene.ground_texture, scene.ground_origin, (0, 2))):  # ground: (x, z)
-            with np.errstate(invalid="ignore"):  # rays that miss this surface: inf * 0 = NaN, mapped off-texture
-                mapx = np.nan_to_num((o[ia] + dist * ray[ia] - a0) / scene.texel, posinf=-1, neginf=-1).astype(np.float32)
-                mapy = np.nan_to_num((o[ib] + dist * ray[ib] - b0) / scene.texel, posinf=-1, neginf=-1).astype(np.float32)
-            sampled = cv2.remap(tex, mapx, mapy,
-                                cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+            (
+                on_wall,
+                s_wall,
+                scene.wall_texture,
+                scene.wall_origin,
+                (0, 1),
+            ),  # wall texture: (x, y)
+            (~on_wall, s_ground, scene.ground_texture, scene.ground_origin, (0, 2)),
+        ):  # ground: (x, z)
+            with np.errstate(
+                invalid="ignore"
+            ):  # rays that miss this surface: inf * 0 = NaN, mapped off-texture
+                mapx = np.nan_to_num(
+                    (o[ia] + dist * ray[ia] - a0) / scene.texel, posinf=-1, neginf=-1
+                ).astype(np.float32)
+                mapy = np.nan_to_num(
+                    (o[ib] + dist * ray[ib] - b0) / scene.texel, posinf=-1, neginf=-1
+                ).astype(np.float32)
+            sampled = cv2.remap(tex, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
             np.copyto(img, sampled.astype(np.float32), where=mask[..., None])
         return cv2.resize(img, (cfg.width, cfg.height), interpolation=cv2.INTER_AREA)
 
-    def disk_information(self, seq: "CrawlerPairSequence", k: int, subsamples: int = 32) -> np.ndarray:
+    def disk_information(
+        self, seq: "CrawlerPairSequence", k: int, subsamples: int = 32
+    ) -> np.ndarray:
         """(5,5) Fisher information of frame k's pixels about the base disk in camera k:
         (centre x, y, z [m]; normal tilt towards the disk's x and y axes [rad], n + a x + b y, axes
         of `rotations_from_normals`), for this renderer's image model -- coverage blend of the base
@@ -381,11 +478,13 @@ class CrawlerPairScenario:
                     c[i] += sign * h
                 else:
                     n = n + sign * h * R[:, i - 3]
-                pair.append(disk_coverage(cam, c, n / np.linalg.norm(n), cfg.base_radius, subsamples))
+                pair.append(
+                    disk_coverage(cam, c, n / np.linalg.norm(n), cfg.base_radius, subsamples)
+                )
             d = (pair[0] - pair[1])[..., None] / (2.0 * h) * colour
             grads.append(cv2.GaussianBlur(d, (0, 0), cfg.blur_sigma) if cfg.blur_sigma > 0 else d)
         J = np.stack([g.reshape(-1) for g in grads], axis=1).astype(np.float64)  # (pixels * 3, 5)
-        return J.T @ J / (cfg.noise_sigma ** 2 + 1.0 / 12.0)
+        return J.T @ J / (cfg.noise_sigma**2 + 1.0 / 12.0)
 
     def generate(self, progress: bool = False) -> CrawlerPairSequence:
         cfg = self.config
@@ -395,5 +494,16 @@ class CrawlerPairScenario:
         if progress:
             frames = tqdm(frames, desc=f"render crawler-pair seed {cfg.seed}", leave=False)
         images = np.stack([self.render(R[k], t[k], centre[k], normal[k], rng) for k in frames])
-        return CrawlerPairSequence(images, R, t, centre, normal, tuple(cfg.schedule), odo, odo_std, cfg.camera(),
-                                   cfg, self.scene)
+        return CrawlerPairSequence(
+            images,
+            R,
+            t,
+            centre,
+            normal,
+            tuple(cfg.schedule),
+            odo,
+            odo_std,
+            cfg.camera(),
+            cfg,
+            self.scene,
+        )

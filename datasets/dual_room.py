@@ -81,7 +81,9 @@ class DualRoomConfig:
     ceiling_gap: float = 0.08  # ceiling LiDAR centre below the ceiling plane
     ground_speed: float = 0.25  # [m/s]
     ceiling_speed: float = 0.3  # [m/s]
-    min_offset: float = 0.6  # horizontal distance ceiling robot <-> ground robot at start: an oblique
+    min_offset: float = (
+        0.6  # horizontal distance ceiling robot <-> ground robot at start: an oblique
+    )
     max_offset: float = 1.2  # view keeps P3P away from its near-degenerate overhead case
     lidar: LidarConfig = field(default_factory=LidarConfig)
     camera: CameraConfig = field(default_factory=CameraConfig)
@@ -92,7 +94,9 @@ class DualRoomConfig:
         if self.frames < 2:
             raise ValueError(f"DualRoomConfig.frames must be >= 2 (got {self.frames})")
         if not 0 <= self.min_offset <= self.max_offset:
-            raise ValueError(f"DualRoomConfig needs 0 <= min_offset <= max_offset (got {self.min_offset}, {self.max_offset})")
+            raise ValueError(
+                f"DualRoomConfig needs 0 <= min_offset <= max_offset (got {self.min_offset}, {self.max_offset})"
+            )
         if not self.rate > 0:
             raise ValueError(f"DualRoomConfig.rate must be > 0 (got {self.rate})")
 
@@ -145,7 +149,9 @@ def led_positions() -> np.ndarray:
     return np.stack([r * np.cos(ang), r * np.sin(ang), np.full(3, 0.12)], axis=1)
 
 
-T_CEILING_CAMERA = _poses(np.eye(3)[None], np.array([[0.10, 0.0, 0.04]]))[0]  # camera in ceiling-LiDAR frame (axes parallel)
+T_CEILING_CAMERA = _poses(np.eye(3)[None], np.array([[0.10, 0.0, 0.04]]))[
+    0
+]  # camera in ceiling-LiDAR frame (axes parallel)
 
 
 @dataclass(frozen=True)
@@ -261,7 +267,12 @@ def scan_frames(scene, poses: np.ndarray, cfg: LidarConfig, rng: np.random.Gener
     r[spur] = rng.uniform(cfg.min_range, np.maximum(r[spur], cfg.min_range))
     keep = hit & ~drop
     scans = [d[f, keep[f]] * r[f, keep[f], None] for f in range(F)]
-    counts = dict(rays=int(F * N), no_return=int((~hit).sum()), dropout=int(drop.sum()), spurious=int(spur.sum()))
+    counts = dict(
+        rays=int(F * N),
+        no_return=int((~hit).sum()),
+        dropout=int(drop.sum()),
+        spurious=int(spur.sum()),
+    )
     return scans, counts
 
 
@@ -291,7 +302,11 @@ def trajectories(room: Room, cfg: DualRoomConfig, rng: np.random.Generator):
     yaw_g = yaw_g0 + turn * t
     step = cfg.ground_speed / cfg.rate
     heading = np.concatenate([[yaw_g0], yaw_g[:-1]])
-    g_xy = g0 + np.cumsum(np.stack([np.cos(heading), np.sin(heading)], 1) * step, 0) - [np.cos(yaw_g0) * step, np.sin(yaw_g0) * step]
+    g_xy = (
+        g0
+        + np.cumsum(np.stack([np.cos(heading), np.sin(heading)], 1) * step, 0)
+        - [np.cos(yaw_g0) * step, np.sin(yaw_g0) * step]
+    )
     # ceiling: forward along yaw_c0 with a sideways sinusoid and a heading that follows it
     s = cfg.ceiling_speed * t
     lateral = 0.25 * np.sin(2 * np.pi * s / 1.0)
@@ -300,11 +315,15 @@ def trajectories(room: Room, cfg: DualRoomConfig, rng: np.random.Generator):
     c_xy = c0 + s[:, None] * fwd + lateral[:, None] * left
     yaw_c = yaw_c0 + 0.4 * np.sin(2 * np.pi * s / 1.5)
     Tg = _poses(_rot_z(yaw_g), np.column_stack([g_xy, np.full(F, cfg.ground_lidar_height)]))
-    Tc = _poses(_rot_z(yaw_c) @ FLIP_X, np.column_stack([c_xy, np.full(F, room.size[2] - cfg.ceiling_gap)]))
+    Tc = _poses(
+        _rot_z(yaw_c) @ FLIP_X, np.column_stack([c_xy, np.full(F, room.size[2] - cfg.ceiling_gap)])
+    )
     return t, Tg, Tc
 
 
-def observe_leds(scene, Tg: np.ndarray, Tc: np.ndarray, cam: CameraConfig, rng: np.random.Generator):
+def observe_leds(
+    scene, Tg: np.ndarray, Tc: np.ndarray, cam: CameraConfig, rng: np.random.Generator
+):
     """LED pixels seen by the ceiling camera: (F,3,2) pixels (NaN where not seen) and (F,3) visibility
     (in front, inside the image, not occluded -- checked by ray casting camera -> LED)."""
     leds_w = np.einsum("fij,nj->fni", Tg[:, :3, :3], led_positions()) + Tg[:, None, :3, 3]
@@ -312,12 +331,16 @@ def observe_leds(scene, Tg: np.ndarray, Tc: np.ndarray, cam: CameraConfig, rng: 
     T_camw = np.linalg.inv(T_wcam)
     p_cam = np.einsum("fij,fnj->fni", T_camw[:, :3, :3], leds_w) + T_camw[:, None, :3, 3]
     uv, visible = cam.pinhole().project(p_cam.reshape(-1, 3))
-    uv = uv.reshape(p_cam.shape[:2] + (2,)) + rng.normal(0.0, cam.pixel_noise, p_cam.shape[:2] + (2,))
+    uv = uv.reshape(p_cam.shape[:2] + (2,)) + rng.normal(
+        0.0, cam.pixel_noise, p_cam.shape[:2] + (2,)
+    )
     visible = visible.reshape(p_cam.shape[:2])
     origin = np.broadcast_to(T_wcam[:, None, :3, 3], leds_w.shape)
     delta = leds_w - origin
     dist = np.linalg.norm(delta, axis=-1)
-    hit = _raycast(scene, origin.reshape(-1, 3), (delta / dist[..., None]).reshape(-1, 3)).reshape(dist.shape)
+    hit = _raycast(scene, origin.reshape(-1, 3), (delta / dist[..., None]).reshape(-1, 3)).reshape(
+        dist.shape
+    )
     visible &= ~(hit < dist - 0.02)
     uv[~visible] = np.nan
     return uv, visible
@@ -353,18 +376,35 @@ class DualRoomScenario:
             if vis.all(1).sum() >= 2:
                 break
         else:
-            raise ValueError(f"dual-robot-room {config.variant} seed {config.seed}: LEDs never seen twice in 100 placements")
+            raise ValueError(
+                f"dual-robot-room {config.variant} seed {config.seed}: LEDs never seen twice in 100 placements"
+            )
         scans_g, counts_g = scan_frames(scene, Tg, config.lidar, rng)
         scans_c, counts_c = scan_frames(scene, Tc, config.lidar, rng)
-        counts = {"placement_attempts": attempt + 1, "ground": counts_g, "ceiling": counts_c, "led_frames_all_visible": int(vis.all(1).sum())}
-        return DualRoomScenario(config, room, times, {"ground": Tg, "ceiling": Tc},
-                                {"ground": scans_g, "ceiling": scans_c}, uv, vis, counts)
+        counts = {
+            "placement_attempts": attempt + 1,
+            "ground": counts_g,
+            "ceiling": counts_c,
+            "led_frames_all_visible": int(vis.all(1).sum()),
+        }
+        return DualRoomScenario(
+            config,
+            room,
+            times,
+            {"ground": Tg, "ceiling": Tc},
+            {"ground": scans_g, "ceiling": scans_c},
+            uv,
+            vis,
+            counts,
+        )
 
     # ------------------------------------------------------------------ files
     def fusion_input(self):
         """The run as map-fusion input (`graphloc.mapping.fusion.FusionInput`, no ground truth):
         both robots' scans and the ceiling camera's LED pixels."""
-        leds = LedObservations(self.config.camera.pinhole(), led_positions(), T_CEILING_CAMERA, self.led_pixels)
+        leds = LedObservations(
+            self.config.camera.pinhole(), led_positions(), T_CEILING_CAMERA, self.led_pixels
+        )
         return FusionInput(self.times, self.scans["ground"], self.scans["ceiling"], leds)
 
     def write(self, out_dir) -> Path:
@@ -385,7 +425,15 @@ class DualRoomScenario:
             for f in range(len(self.times)):
                 for k in range(3):
                     if self.led_visible[f, k]:
-                        w.writerow([f, f"{self.times[f]:.6f}", k, f"{self.led_pixels[f, k, 0]:.4f}", f"{self.led_pixels[f, k, 1]:.4f}"])
+                        w.writerow(
+                            [
+                                f,
+                                f"{self.times[f]:.6f}",
+                                k,
+                                f"{self.led_pixels[f, k, 0]:.4f}",
+                                f"{self.led_pixels[f, k, 1]:.4f}",
+                            ]
+                        )
         meta = dict(
             scenario="dual-robot-room",
             config=asdict(self.config),
@@ -408,34 +456,73 @@ class DualRoomScenario:
         the LEDs and moves on the ceiling plane (its LiDAR centre `ceiling_gap` below it)."""
         tables = {}
         for robot in ROBOTS:
-            rows = [(f"{t:.6f}", "lidar", f"scans/{robot}/{f:06d}.ply") for f, t in enumerate(self.times)]
+            rows = [
+                (f"{t:.6f}", "lidar", f"scans/{robot}/{f:06d}.ply")
+                for f, t in enumerate(self.times)
+            ]
             _write_rows(out / robot / "scans.csv", ["time", "sensor", "path"], rows)
             tables[robot] = {"scans": f"{robot}/scans.csv", "groundtruth": f"poses_{robot}.tum"}
-        rows = [(f"{self.times[f]:.6f}", "camera", "ground", k, f"{self.led_pixels[f, k, 0]:.4f}",
-                 f"{self.led_pixels[f, k, 1]:.4f}")
-                for f in range(len(self.times)) for k in range(3) if self.led_visible[f, k]]
-        _write_rows(out / "ceiling" / "markers.csv", ["time", "sensor", "target", "marker", "u", "v"], rows)
+        rows = [
+            (
+                f"{self.times[f]:.6f}",
+                "camera",
+                "ground",
+                k,
+                f"{self.led_pixels[f, k, 0]:.4f}",
+                f"{self.led_pixels[f, k, 1]:.4f}",
+            )
+            for f in range(len(self.times))
+            for k in range(3)
+            if self.led_visible[f, k]
+        ]
+        _write_rows(
+            out / "ceiling" / "markers.csv", ["time", "sensor", "target", "marker", "u", "v"], rows
+        )
         tables["ceiling"]["markers"] = "ceiling/markers.csv"
         cam = self.config.camera
         T0 = self.poses["ground"][0]
         q = _quat_xyzw(T0[:3, :3])
         height = self.room.size[2] - self.config.ceiling_gap
         manifest = {
-            "format": "graphloc-log", "version": 2, "name": "dual-robot-room",
+            "format": "graphloc-log",
+            "version": 2,
+            "name": "dual-robot-room",
             "start_time": float(self.times[0]),
             "robots": [
-                {"name": "ground", "kind": "ground", "planar": False,
-                 "initial_pose": [*map(float, T0[:3, 3]), *q], "initial_sigma": [1e-3, 1e-3],
-                 "markers": led_positions().tolist(),
-                 "sensors": [{"name": "lidar", "type": "scanner"}], "tables": tables["ground"]},
-                {"name": "ceiling", "kind": "ceiling", "planar": False,
-                 "surface": {"point": [0.0, 0.0, float(height)], "normal": [0.0, 0.0, -1.0]},
-                 "sensors": [{"name": "lidar", "type": "scanner"},
-                             {"name": "camera", "type": "camera", "extrinsics": T_CEILING_CAMERA.tolist(),
-                              "params": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
-                                         "width": cam.width, "height": cam.height,
-                                         "pixel_sigma": cam.pixel_noise}}],
-                 "tables": tables["ceiling"]},
+                {
+                    "name": "ground",
+                    "kind": "ground",
+                    "planar": False,
+                    "initial_pose": [*map(float, T0[:3, 3]), *q],
+                    "initial_sigma": [1e-3, 1e-3],
+                    "markers": led_positions().tolist(),
+                    "sensors": [{"name": "lidar", "type": "scanner"}],
+                    "tables": tables["ground"],
+                },
+                {
+                    "name": "ceiling",
+                    "kind": "ceiling",
+                    "planar": False,
+                    "surface": {"point": [0.0, 0.0, float(height)], "normal": [0.0, 0.0, -1.0]},
+                    "sensors": [
+                        {"name": "lidar", "type": "scanner"},
+                        {
+                            "name": "camera",
+                            "type": "camera",
+                            "extrinsics": T_CEILING_CAMERA.tolist(),
+                            "params": {
+                                "fx": cam.fx,
+                                "fy": cam.fy,
+                                "cx": cam.cx,
+                                "cy": cam.cy,
+                                "width": cam.width,
+                                "height": cam.height,
+                                "pixel_sigma": cam.pixel_noise,
+                            },
+                        },
+                    ],
+                    "tables": tables["ceiling"],
+                },
             ],
             "meta": {"scenario": "dual-robot-room", "variant": self.config.variant},
         }
@@ -460,11 +547,17 @@ class DualRoomScenario:
             times_r, poses[robot] = read_tum(src / f"poses_{robot}.tum")
             times = times_r if times is None else times
             if len(times_r) != len(times) or not np.allclose(times_r, times):
-                raise ValueError(f"{src / f'poses_{robot}.tum'}: timestamps differ from poses_ground.tum")
+                raise ValueError(
+                    f"{src / f'poses_{robot}.tum'}: timestamps differ from poses_ground.tum"
+                )
             files = sorted((src / "scans" / robot).glob("*.ply"))
             if len(files) != len(times):
-                raise ValueError(f"{src / 'scans' / robot}: {len(files)} scans for {len(times)} poses")
+                raise ValueError(
+                    f"{src / 'scans' / robot}: {len(files)} scans for {len(times)} poses"
+                )
             scans[robot] = [read_points(p) for p in files]
         uv = read_led_pixels(src / "led_pixels.csv", len(times))
         vis = np.isfinite(uv).all(-1)
-        return DualRoomScenario(config, make_room(config.variant), times, poses, scans, uv, vis, meta.get("counts", {}))
+        return DualRoomScenario(
+            config, make_room(config.variant), times, poses, scans, uv, vis, meta.get("counts", {})
+        )

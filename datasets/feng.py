@@ -28,7 +28,12 @@ from graphloc.cameras import PinholeCamera
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
 CEILINGS = ("level", "sloped")
-CURVES = ("line", "sine", "quadratic", "loop")  # "loop": not in the seed, a closed circle for long runs
+CURVES = (
+    "line",
+    "sine",
+    "quadratic",
+    "loop",
+)  # "loop": not in the seed, a closed circle for long runs
 LOOP_RADIUS = 0.6
 FIELD = 3.0  # side of the square field / ceiling [m] (Sec. VI-B)
 GROUND_ROBOTS = ((0.5, 0.5, 0.3), (0.5, 2.5, 0.4), (2.5, 1.5, 0.2))  # Sec. VI-B
@@ -63,16 +68,30 @@ class Plane:
 def ceiling_plane(kind: str) -> Plane:
     """Ceiling I (level, 3 m) or ceiling II (45 deg, from 2 m at x=0 to 5 m at x=3), Sec. VI-B."""
     if kind == "level":
-        return Plane(np.array([1.5, 1.5, 3.0]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), np.array([0, 0, -1.0]),
-                     FIELD / 2, FIELD / 2)
+        return Plane(
+            np.array([1.5, 1.5, 3.0]),
+            np.array([1.0, 0, 0]),
+            np.array([0, 1.0, 0]),
+            np.array([0, 0, -1.0]),
+            FIELD / 2,
+            FIELD / 2,
+        )
     if kind == "sloped":
         s = 1.0 / np.sqrt(2.0)
-        return Plane(np.array([1.5, 1.5, 3.5]), np.array([s, 0, s]), np.array([0, 1.0, 0]), np.array([s, 0, -s]),
-                     FIELD / 2 / s, FIELD / 2)
+        return Plane(
+            np.array([1.5, 1.5, 3.5]),
+            np.array([s, 0, s]),
+            np.array([0, 1.0, 0]),
+            np.array([s, 0, -s]),
+            FIELD / 2 / s,
+            FIELD / 2,
+        )
     raise ValueError(f"unknown ceiling {kind!r}; expected one of {CEILINGS}")
 
 
-def curve_points(kind: str, arc_lengths: np.ndarray, half_u: float, half_v: float) -> tuple[np.ndarray, np.ndarray]:
+def curve_points(
+    kind: str, arc_lengths: np.ndarray, half_u: float, half_v: float
+) -> tuple[np.ndarray, np.ndarray]:
     """In-plane (u, v) points (N,2) at the given arc lengths along curve `kind` from the origin
     (x increasing), and the (N,) mask of points still inside the ceiling boundary. "loop" is
     a circle of radius LOOP_RADIUS through the origin that never reaches the boundary."""
@@ -86,7 +105,7 @@ def curve_points(kind: str, arc_lengths: np.ndarray, half_u: float, half_v: floa
     elif kind == "sine":
         y = np.sin(2.0 * x)
     elif kind == "quadratic":
-        y = x ** 2
+        y = x**2
     else:
         raise ValueError(f"unknown curve {kind!r}; expected one of {CURVES}")
     s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
@@ -141,9 +160,13 @@ class FengProbabilisticConfig:
 
     def __post_init__(self):
         if self.ceiling not in CEILINGS:
-            raise ValueError(f"FengProbabilisticConfig.ceiling must be one of {CEILINGS}, got {self.ceiling!r}")
+            raise ValueError(
+                f"FengProbabilisticConfig.ceiling must be one of {CEILINGS}, got {self.ceiling!r}"
+            )
         if self.curve not in CURVES:
-            raise ValueError(f"FengProbabilisticConfig.curve must be one of {CURVES}, got {self.curve!r}")
+            raise ValueError(
+                f"FengProbabilisticConfig.curve must be one of {CURVES}, got {self.curve!r}"
+            )
         for name in ("speed", "rate_hz", "first_interval"):
             if not (np.isfinite(getattr(self, name)) and getattr(self, name) > 0):
                 raise ValueError(f"FengProbabilisticConfig.{name} must be finite > 0")
@@ -171,43 +194,60 @@ class FengRun:
         return len(self.times)
 
 
-def noisy_odometry(Rrel: np.ndarray, trel: np.ndarray, rel_sigma: float, rot_sigma: float,
-                   rng: np.random.Generator) -> list[gtsam.Pose3]:
+def noisy_odometry(
+    Rrel: np.ndarray, trel: np.ndarray, rel_sigma: float, rot_sigma: float, rng: np.random.Generator
+) -> list[gtsam.Pose3]:
     """Odometry a_t: each translation component scaled by (1 + N(0, rel_sigma)) (Sec. VI-B,
     15 % on all three dimensions), rotation perturbed by Exp(N(0, rot_sigma^2 I))."""
     tn = trel * (1.0 + rel_sigma * rng.standard_normal(trel.shape))
     w = rot_sigma * rng.standard_normal(trel.shape)
-    return [gtsam.Pose3(gtsam.Rot3(R).compose(gtsam.Rot3.Expmap(wk)), tk) for R, tk, wk in zip(Rrel, tn, w)]
+    return [
+        gtsam.Pose3(gtsam.Rot3(R).compose(gtsam.Rot3.Expmap(wk)), tk)
+        for R, tk, wk in zip(Rrel, tn, w)
+    ]
 
 
-def odometry_covariance(relative: gtsam.Pose3, rel_sigma: float = 0.15, rot_sigma: float = 0.002,
-                        floor: float = 1e-3) -> np.ndarray:
+def odometry_covariance(
+    relative: gtsam.Pose3, rel_sigma: float = 0.15, rot_sigma: float = 0.002, floor: float = 1e-3
+) -> np.ndarray:
     """6x6 covariance (GTSAM tangent order) matching `noisy_odometry`: rotation rot_sigma (floor
     1e-6), translation component i sigma = rel_sigma |a_i| + floor, from the measured a."""
     a = np.abs(relative.translation())
-    return np.diag(np.concatenate([np.full(3, max(rot_sigma, 1e-6) ** 2), (rel_sigma * a + floor) ** 2]))
+    return np.diag(
+        np.concatenate([np.full(3, max(rot_sigma, 1e-6) ** 2), (rel_sigma * a + floor) ** 2])
+    )
 
 
 class FengProbabilisticScenario:
     """Sec. VI-B scenario generator: `FengProbabilisticScenario.simulate(config) -> FengRun`."""
 
     @staticmethod
-    def trajectory(config: FengProbabilisticConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray, Plane]:
+    def trajectory(
+        config: FengProbabilisticConfig,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Plane]:
         """Update times (first interval 0.3 s, then 1/rate) up to the ceiling boundary, true
         camera rotations (T,3,3) and positions (T,3), and the ceiling plane."""
         plane = ceiling_plane(config.ceiling)
         if config.curve == "loop" and config.max_time is None:
-            raise ValueError("the 'loop' curve never reaches the boundary: set FengProbabilisticConfig.max_time")
+            raise ValueError(
+                "the 'loop' curve never reaches the boundary: set FengProbabilisticConfig.max_time"
+            )
         length = 2.0 * (plane.half_u + plane.half_v) * 3.0
         t_max = length / config.speed if config.max_time is None else config.max_time
-        times = np.concatenate([[0.0], config.first_interval + np.arange(0.0, t_max, 1.0 / config.rate_hz)])
+        times = np.concatenate(
+            [[0.0], config.first_interval + np.arange(0.0, t_max, 1.0 / config.rate_hz)]
+        )
         uv, inside = curve_points(config.curve, config.speed * times, plane.half_u, plane.half_v)
         times, uv = times[inside], uv[inside]
         if len(times) < 3:
-            raise ValueError(f"trajectory of {config.curve} on {config.ceiling} ceiling has < 3 updates")
+            raise ValueError(
+                f"trajectory of {config.curve} on {config.ceiling} ceiling has < 3 updates"
+            )
         pos = plane.origin + uv[:, :1] * plane.u + uv[:, 1:] * plane.v
         # heading: curve tangent (finite differences on a fine step)
-        uv_ahead, _ = curve_points(config.curve, config.speed * times + 1e-3, plane.half_u, plane.half_v)
+        uv_ahead, _ = curve_points(
+            config.curve, config.speed * times + 1e-3, plane.half_u, plane.half_v
+        )
         d = uv_ahead - uv
         heading = d[:, :1] * plane.u + d[:, 1:] * plane.v
         centroid = np.mean(np.asarray(GROUND_ROBOTS), axis=0)
@@ -226,6 +266,15 @@ class FengProbabilisticScenario:
         pixels = noisy_pixels(uv, config.pixel_sigma, rng)
         Rrel, trel = relative_poses(R, t)
         odometry = noisy_odometry(Rrel, trel, config.odometry_noise, config.odometry_rot_sigma, rng)
-        candidates = p3p_candidate_sets(camera, list(pixels), [np.arange(3)] * len(times), landmarks, times,
-                                        config.pixel_sigma, truth_t=t, observer="ground", observed="climber")
+        candidates = p3p_candidate_sets(
+            camera,
+            list(pixels),
+            [np.arange(3)] * len(times),
+            landmarks,
+            times,
+            config.pixel_sigma,
+            truth_t=t,
+            observer="ground",
+            observed="climber",
+        )
         return FengRun(times, R, t, landmarks, pixels, odometry, candidates, plane)

@@ -25,9 +25,13 @@ from graphloc.datasets.feng import noisy_pixels
 from graphloc.vision.mutual import localize_three, render_mutual_pixels
 
 
-GROUND_BOXES = np.array([[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]],
-                         [[0.0, 2.0, 0.0], [1.0, 3.0, 1.0]],
-                         [[2.0, 1.0, 0.0], [3.0, 2.0, 1.0]]])
+GROUND_BOXES = np.array(
+    [
+        [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]],
+        [[0.0, 2.0, 0.0], [1.0, 3.0, 1.0]],
+        [[2.0, 1.0, 0.0], [3.0, 2.0, 1.0]],
+    ]
+)
 CAMERA_BOX = np.array([[1.0, 1.0, 2.0], [2.0, 2.0, 3.0]])
 
 
@@ -75,7 +79,9 @@ def _rot_xyz(tilt, pitch, yaw):
 LOOK_DOWN = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
 
 
-def simulate_straight_line_trials(n: int, seed: int = 0, config: Seed000Config = Seed000Config()) -> StraightLineTrials:
+def simulate_straight_line_trials(
+    n: int, seed: int = 0, config: Seed000Config = Seed000Config()
+) -> StraightLineTrials:
     """n trials of the seed 000 section VI-A setup (vectorized; invisible trials redrawn)."""
     if n < 1:
         raise ValueError(f"simulate_straight_line_trials: n must be positive, got {n}")
@@ -90,7 +96,9 @@ def simulate_straight_line_trials(n: int, seed: int = 0, config: Seed000Config =
         R_wc = _rot_xyz(a[:, 0], a[:, 1], a[:, 2]) @ LOOK_DOWN
         start = CAMERA_BOX[0] + (CAMERA_BOX[1] - CAMERA_BOX[0]) * rng.uniform(size=(m, 3))
         tilt, pitch = rng.uniform(0.0, config.max_angle_rad, size=(2, m))
-        direction = np.stack([np.cos(tilt) * np.cos(pitch), np.cos(tilt) * np.sin(pitch), np.sin(tilt)], -1)
+        direction = np.stack(
+            [np.cos(tilt) * np.cos(pitch), np.cos(tilt) * np.sin(pitch), np.sin(tilt)], -1
+        )
         steps = rng.normal(config.step_mean, config.step_sigma, size=(m, 2))
         while (bad := steps < config.min_step).any():
             steps[bad] = rng.normal(config.step_mean, config.step_sigma, size=int(bad.sum()))
@@ -106,14 +114,21 @@ def simulate_straight_line_trials(n: int, seed: int = 0, config: Seed000Config =
         ang = rng.uniform(0.0, 2.0 * np.pi, size=pix.shape[:-1])
         r = rng.normal(0.0, config.pixel_sigma, size=pix.shape[:-1])
         pix = pix + np.stack([r * np.cos(ang), r * np.sin(ang)], -1)
-        visible = ((Xc[..., 2] > 0) & (pix[..., 0] >= 0) & (pix[..., 0] < config.width)
-                   & (pix[..., 1] >= 0) & (pix[..., 1] < config.height)).all(axis=(1, 2))
+        visible = (
+            (Xc[..., 2] > 0)
+            & (pix[..., 0] >= 0)
+            & (pix[..., 0] < config.width)
+            & (pix[..., 1] >= 0)
+            & (pix[..., 1] < config.height)
+        ).all(axis=(1, 2))
         take = np.nonzero(visible)[0][: n - have]
         redrawn += int((~visible[: take[-1] + 1]).sum()) if take.size else m
         parts.append((ground[take], R_wc[take], positions[take], pix[take]))
         have += take.size
     ground, R_wc, positions, pix = (np.concatenate(p) for p in zip(*parts))
-    return StraightLineTrials(ground=ground, R_wc=R_wc, positions=positions, pixels=pix, K=K, redrawn=redrawn)
+    return StraightLineTrials(
+        ground=ground, R_wc=R_wc, positions=positions, pixels=pix, K=K, redrawn=redrawn
+    )
 
 
 @dataclass(frozen=True)
@@ -141,8 +156,9 @@ class TableIConfig:
 
     def __post_init__(self):
         if self.trials < 1 or self.workers < 1:
-            raise ValueError(f"TableIConfig: trials and workers must be >= 1, "
-                             f"got {self.trials}, {self.workers}")
+            raise ValueError(
+                f"TableIConfig: trials and workers must be >= 1, got {self.trials}, {self.workers}"
+            )
         for name in ("pixel_sigma", "scale", "success_tol"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
@@ -170,8 +186,9 @@ class GroundTriangle:
     redrawn: int
 
 
-def ground_triangle(ground: np.ndarray, config: TableIConfig,
-                    rng: np.random.Generator) -> GroundTriangle:
+def ground_triangle(
+    ground: np.ndarray, config: TableIConfig, rng: np.random.Generator
+) -> GroundTriangle:
     """Seed 000 Sec. VI-A steps 1-2 for the ground robots: orientations with pitch, tilt, yaw
     each U(0, pi/6), mutual pixels in 512x512 paraboloid omni images (Sec. II) with N(0, 0.5)
     px noise in a random direction, then the three-robot algorithm (Sec. III-A,
@@ -199,5 +216,14 @@ def ground_triangle(ground: np.ndarray, config: TableIConfig,
     with np.errstate(invalid="ignore"):
         bearings = omni.pixel_to_bearing(pixels.reshape(-1, 2))[0].reshape(T, 3, 3, 3)
         sigma = angular_sigma(omni, pixels, config.pixel_sigma)
-    return GroundTriangle(R, estimated, R_estimated, res.status, pixels, bearings, sigma,
-                          seen[:, off].all(axis=1), redrawn)
+    return GroundTriangle(
+        R,
+        estimated,
+        R_estimated,
+        res.status,
+        pixels,
+        bearings,
+        sigma,
+        seen[:, off].all(axis=1),
+        redrawn,
+    )

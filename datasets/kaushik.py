@@ -25,7 +25,13 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
-from graphloc.datasets.feng import look_at, noisy_odometry, odometry_covariance, project_world, relative_poses
+from graphloc.datasets.feng import (
+    look_at,
+    noisy_odometry,
+    odometry_covariance,
+    project_world,
+    relative_poses,
+)
 from graphloc.datasets.scenarios import CameraTrackLog, parse_overrides, write_camera_track
 from graphloc.geometry.p3p import P3PCandidates, solve_p3p
 
@@ -63,11 +69,28 @@ class KaushikConfig:
             value = getattr(self, f.name)
             if not np.isfinite(value):
                 raise ValueError(f"KaushikConfig.{f.name} must be finite, got {value}")
-        positive = ("focal_mm", "runs", "frames", "step", "speed", "height", "pixel_pitch_um", "width", "height_px", "wavelength")
+        positive = (
+            "focal_mm",
+            "runs",
+            "frames",
+            "step",
+            "speed",
+            "height",
+            "pixel_pitch_um",
+            "width",
+            "height_px",
+            "wavelength",
+        )
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ValueError(f"KaushikConfig.{name} must be > 0, got {getattr(self, name)}")
-        for name in ("noise_variance", "amplitude", "start_radius", "odometry_noise", "odometry_rot_sigma"):
+        for name in (
+            "noise_variance",
+            "amplitude",
+            "start_radius",
+            "odometry_noise",
+            "odometry_rot_sigma",
+        ):
             if getattr(self, name) < 0:
                 raise ValueError(f"KaushikConfig.{name} must be >= 0, got {getattr(self, name)}")
         if self.frames < 2:
@@ -78,8 +101,14 @@ class KaushikConfig:
         return 1e3 * self.focal_mm / self.pixel_pitch_um
 
     def camera(self) -> PinholeCamera:
-        return PinholeCamera(self.focal_px, self.focal_px, (self.width - 1) / 2.0, (self.height_px - 1) / 2.0,
-                             self.width, self.height_px)
+        return PinholeCamera(
+            self.focal_px,
+            self.focal_px,
+            (self.width - 1) / 2.0,
+            (self.height_px - 1) / 2.0,
+            self.width,
+            self.height_px,
+        )
 
 
 @dataclass(frozen=True)
@@ -113,9 +142,15 @@ def tracks(config: KaushikConfig, rng: np.random.Generator) -> tuple[np.ndarray,
     along = np.stack([np.cos(phi[1]), np.sin(phi[1])], axis=1)  # (N,2)
     across = np.stack([-along[:, 1], along[:, 0]], axis=1)
     lateral = config.amplitude * np.sin(2.0 * np.pi * s / config.wavelength)
-    xy = start[:, None, :] + s[None, :, None] * along[:, None, :] + lateral[None, :, None] * across[:, None, :]
+    xy = (
+        start[:, None, :]
+        + s[None, :, None] * along[:, None, :]
+        + lateral[None, :, None] * across[:, None, :]
+    )
     pos = np.concatenate([xy, np.full((N, F, 1), config.height)], axis=2)
-    heading = np.concatenate([np.broadcast_to(along[:, None, :], (N, F, 2)), np.zeros((N, F, 1))], axis=2)
+    heading = np.concatenate(
+        [np.broadcast_to(along[:, None, :], (N, F, 2)), np.zeros((N, F, 1))], axis=2
+    )
     R = look_at(pos.reshape(-1, 3), centroid, heading.reshape(-1, 3).copy()).reshape(N, F, 3, 3)
     return R, pos
 
@@ -129,21 +164,37 @@ def simulate(config: KaushikConfig = KaushikConfig()) -> KaushikRuns:
     camera = config.camera()
     uv, visible = project_world(camera, R.reshape(-1, 3, 3), t.reshape(-1, 3), leds)
     if not visible.all():
-        raise ValueError(f"kaushik-p3p-error: {int((~visible.all(axis=1)).sum())} frames lose an LED "
-                         f"(focal {config.focal_mm} mm, height {config.height} m)")
+        raise ValueError(
+            f"kaushik-p3p-error: {int((~visible.all(axis=1)).sum())} frames lose an LED "
+            f"(focal {config.focal_mm} mm, height {config.height} m)"
+        )
     pixels = uv + rng.normal(0.0, np.sqrt(config.noise_variance), uv.shape)
     bearings, ok = camera.pixel_to_bearing(pixels.reshape(-1, 2))
     if not ok.all():
-        raise ValueError(f"kaushik-p3p-error: {int((~ok).sum())} noisy pixels do not lift to bearings")
+        raise ValueError(
+            f"kaushik-p3p-error: {int((~ok).sum())} noisy pixels do not lift to bearings"
+        )
     cands = solve_p3p(bearings.reshape(-1, 3, 3), np.broadcast_to(leds, (N * F, 3, 3)))
     d = np.where(cands.valid, np.linalg.norm(cands.t_wc - t.reshape(-1, 1, 3), axis=2), np.inf)
     genuine = np.where(cands.valid.any(axis=1), d.argmin(axis=1), -1).reshape(N, F)
     odometry = []
     for n in range(N):
         Rrel, trel = relative_poses(R[n], t[n])
-        odometry.append(noisy_odometry(Rrel, trel, config.odometry_noise, config.odometry_rot_sigma, rng))
-    return KaushikRuns(config, config.step / config.speed * np.arange(F), R, t, leds, pixels.reshape(N, F, 3, 2),
-                       odometry, cands, genuine, d.min(axis=1).reshape(N, F))
+        odometry.append(
+            noisy_odometry(Rrel, trel, config.odometry_noise, config.odometry_rot_sigma, rng)
+        )
+    return KaushikRuns(
+        config,
+        config.step / config.speed * np.arange(F),
+        R,
+        t,
+        leds,
+        pixels.reshape(N, F, 3, 2),
+        odometry,
+        cands,
+        genuine,
+        d.min(axis=1).reshape(N, F),
+    )
 
 
 class KaushikP3PErrorScenario:
@@ -153,13 +204,28 @@ class KaushikP3PErrorScenario:
     config_class = KaushikConfig
 
     def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
-        config = replace(KaushikConfig(runs=1, seed=seed), **parse_overrides(KaushikConfig, overrides))
+        config = replace(
+            KaushikConfig(runs=1, seed=seed), **parse_overrides(KaushikConfig, overrides)
+        )
         run = simulate(replace(config, runs=1))
-        cov = [odometry_covariance(o, config.odometry_noise, config.odometry_rot_sigma) for o in run.odometry[0]]
-        log = CameraTrackLog(name=self.name, times=run.times, R_wc=run.R_wc[0], t_wc=run.t_wc[0], layout=run.leds,
-                             pixels=run.pixels[0], camera=config.camera(),
-                             pixel_sigma=float(np.sqrt(config.noise_variance)), odometry=run.odometry[0],
-                             odometry_cov=cov, observer="climber", target="ground",
-                             surface=(np.array([0.0, 0.0, config.height]), np.array([0.0, 0.0, -1.0])),
-                             meta={"seed_paper": "004_fa12d1d18dcbd0db.txt Sec. III", "config": asdict(config)})
+        cov = [
+            odometry_covariance(o, config.odometry_noise, config.odometry_rot_sigma)
+            for o in run.odometry[0]
+        ]
+        log = CameraTrackLog(
+            name=self.name,
+            times=run.times,
+            R_wc=run.R_wc[0],
+            t_wc=run.t_wc[0],
+            layout=run.leds,
+            pixels=run.pixels[0],
+            camera=config.camera(),
+            pixel_sigma=float(np.sqrt(config.noise_variance)),
+            odometry=run.odometry[0],
+            odometry_cov=cov,
+            observer="climber",
+            target="ground",
+            surface=(np.array([0.0, 0.0, config.height]), np.array([0.0, 0.0, -1.0])),
+            meta={"seed_paper": "004_fa12d1d18dcbd0db.txt Sec. III", "config": asdict(config)},
+        )
         return write_camera_track(log, out_dir)

@@ -54,21 +54,35 @@ MAX_ID = 1e6  # subject and barcode numbers
 _TIME = ("time", -MAX_TIME, MAX_TIME)
 LIMITS = {  # file kind -> (column name, low, high) per column
     "barcodes": (("subject", 1, MAX_ID), ("barcode", 0, MAX_ID)),
-    "landmarks": (("subject", 1, MAX_ID), ("x", -MAX_COORDINATE, MAX_COORDINATE),
-                  ("y", -MAX_COORDINATE, MAX_COORDINATE), ("x_sigma", 0.0, MAX_SIGMA),
-                  ("y_sigma", 0.0, MAX_SIGMA)),
+    "landmarks": (
+        ("subject", 1, MAX_ID),
+        ("x", -MAX_COORDINATE, MAX_COORDINATE),
+        ("y", -MAX_COORDINATE, MAX_COORDINATE),
+        ("x_sigma", 0.0, MAX_SIGMA),
+        ("y_sigma", 0.0, MAX_SIGMA),
+    ),
     "odometry": (_TIME, ("v", -MAX_SPEED, MAX_SPEED), ("omega", -MAX_TURN_RATE, MAX_TURN_RATE)),
-    "measurement": (_TIME, ("barcode", 0, MAX_ID), ("range", -math.inf, MAX_RANGE),
-                    ("bearing", -2 * math.pi, 2 * math.pi)),
-    "groundtruth": (_TIME, ("x", -MAX_COORDINATE, MAX_COORDINATE),
-                    ("y", -MAX_COORDINATE, MAX_COORDINATE), ("theta", -MAX_HEADING, MAX_HEADING)),
+    "measurement": (
+        _TIME,
+        ("barcode", 0, MAX_ID),
+        ("range", -math.inf, MAX_RANGE),
+        ("bearing", -2 * math.pi, 2 * math.pi),
+    ),
+    "groundtruth": (
+        _TIME,
+        ("x", -MAX_COORDINATE, MAX_COORDINATE),
+        ("y", -MAX_COORDINATE, MAX_COORDINATE),
+        ("theta", -MAX_HEADING, MAX_HEADING),
+    ),
 }
 _INT_COLUMNS = {"barcodes": (0, 1), "landmarks": (0,), "measurement": (1,)}
 
 
 def is_mrclam_dir(path: str | Path) -> bool:
     p = Path(path)
-    return (p / "Barcodes.dat").is_file() and any(_ROBOT_FILE.match(f.name) for f in p.glob("Robot*_Odometry.dat"))
+    return (p / "Barcodes.dat").is_file() and any(
+        _ROBOT_FILE.match(f.name) for f in p.glob("Robot*_Odometry.dat")
+    )
 
 
 def check_file(path: Path, required: bool = True) -> bool:
@@ -102,8 +116,10 @@ def _lines(path: Path):
         try:
             yield line_no, raw.decode("utf-8")
         except UnicodeDecodeError as exc:
-            raise ValueError(f"{path}: line {line_no}: not UTF-8 text (byte "
-                             f"0x{raw[exc.start]:02x} at column {exc.start + 1})") from None
+            raise ValueError(
+                f"{path}: line {line_no}: not UTF-8 text (byte "
+                f"0x{raw[exc.start]:02x} at column {exc.start + 1})"
+            ) from None
 
 
 def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip") -> np.ndarray:
@@ -162,8 +178,14 @@ def _check_row(text: str, limits, int_cols, kind: str, last: float | None):
 def interpolate_pose(gt: np.ndarray, times: np.ndarray) -> np.ndarray:
     """Ground truth (G,4) time, x, y, theta linearly interpolated (heading unwrapped) at `times` -> (n,3)."""
     th = np.unwrap(gt[:, 3])
-    out = np.stack([np.interp(times, gt[:, 0], gt[:, 1]), np.interp(times, gt[:, 0], gt[:, 2]),
-                    np.interp(times, gt[:, 0], th)], axis=1)
+    out = np.stack(
+        [
+            np.interp(times, gt[:, 0], gt[:, 1]),
+            np.interp(times, gt[:, 0], gt[:, 2]),
+            np.interp(times, gt[:, 0], th),
+        ],
+        axis=1,
+    )
     out[:, 2] = (out[:, 2] + np.pi) % (2 * np.pi) - np.pi
     return out
 
@@ -183,9 +205,13 @@ class MRCLAM:
         self.on_error = on_error
 
     def robot_ids(self) -> list[int]:
-        ids = sorted(int(m.group(1)) for f in self.root.iterdir() if (m := _ROBOT_FILE.match(f.name)))
+        ids = sorted(
+            int(m.group(1)) for f in self.root.iterdir() if (m := _ROBOT_FILE.match(f.name))
+        )
         if not ids:
-            raise ValueError(f"{self.root}: no RobotN_Odometry.dat files (not an MRCLAM directory?)")
+            raise ValueError(
+                f"{self.root}: no RobotN_Odometry.dat files (not an MRCLAM directory?)"
+            )
         return ids
 
     def load(self) -> PlanarRun:
@@ -195,8 +221,10 @@ class MRCLAM:
         lm_path = self._file("Landmark_Groundtruth.dat")
         landmarks = read_table(lm_path, "landmarks", report, "raise")
         if len(landmarks) == 0:
-            raise ValueError(f"{lm_path}: no landmark rows (only comments or blank lines): an "
-                             f"MRCLAM run needs its landmark map")
+            raise ValueError(
+                f"{lm_path}: no landmark rows (only comments or blank lines): an "
+                f"MRCLAM run needs its landmark map"
+            )
         subjects, n_rows = np.unique(landmarks[:, 0].astype(int), return_counts=True)
         if (n_rows > 1).any():
             twice = subjects[n_rows > 1].tolist()
@@ -204,45 +232,60 @@ class MRCLAM:
         barcode_to_subject = {}
         for subject, code in barcodes.astype(int):
             if code in barcode_to_subject:
-                raise ValueError(f"{self.root / 'Barcodes.dat'}: barcode {code} assigned to two subjects")
+                raise ValueError(
+                    f"{self.root / 'Barcodes.dat'}: barcode {code} assigned to two subjects"
+                )
             barcode_to_subject[code] = subject
         robot_index = {rid: i for i, rid in enumerate(ids)}
 
         odometry, groundtruth, meas = [], [], []
         for rid in ids:
-            odo = read_table(self._file(f"Robot{rid}_Odometry.dat"), "odometry", report,
-                             self.on_error)
+            odo = read_table(
+                self._file(f"Robot{rid}_Odometry.dat"), "odometry", report, self.on_error
+            )
             if len(odo) < 2:
-                raise ValueError(f"{self.root / f'Robot{rid}_Odometry.dat'}: fewer than 2 valid odometry rows")
+                raise ValueError(
+                    f"{self.root / f'Robot{rid}_Odometry.dat'}: fewer than 2 valid odometry rows"
+                )
             odometry.append(odo)
             gt_path = self.root / f"Robot{rid}_Groundtruth.dat"
             has_gt = check_file(gt_path, required=False)
-            groundtruth.append(read_table(gt_path, "groundtruth", report, self.on_error)
-                               if has_gt else None)
-            meas.append(read_table(self._file(f"Robot{rid}_Measurement.dat"), "measurement", report,
-                                   self.on_error))
+            groundtruth.append(
+                read_table(gt_path, "groundtruth", report, self.on_error) if has_gt else None
+            )
+            meas.append(
+                read_table(
+                    self._file(f"Robot{rid}_Measurement.dat"), "measurement", report, self.on_error
+                )
+            )
 
         first_row = [od[0, 0] for od in odometry]
         last_row = [od[-1, 0] for od in odometry]
         start, end = max(first_row), min(last_row)
-        window = {"start": float(start), "end": float(end),
-                  "start_set_by": f"Robot{ids[int(np.argmax(first_row))]}_Odometry.dat "
-                                  f"(latest first row)",
-                  "end_set_by": f"Robot{ids[int(np.argmin(last_row))]}_Odometry.dat "
-                                f"(earliest last row)"}
+        window = {
+            "start": float(start),
+            "end": float(end),
+            "start_set_by": f"Robot{ids[int(np.argmax(first_row))]}_Odometry.dat "
+            f"(latest first row)",
+            "end_set_by": f"Robot{ids[int(np.argmin(last_row))]}_Odometry.dat (earliest last row)",
+        }
         odo_end = end
         if self.duration is not None and start + self.duration < end:
             end = start + self.duration
             window.update(end=float(end), end_set_by=f"duration {self.duration} s")
         if end <= start:
-            raise ValueError(f"{self.root}: robots' odometry does not overlap in time (start "
-                             f"{start} from {window['start_set_by']}, end {end} from "
-                             f"{window['end_set_by']})")
+            raise ValueError(
+                f"{self.root}: robots' odometry does not overlap in time (start "
+                f"{start} from {window['start_set_by']}, end {end} from "
+                f"{window['end_set_by']})"
+            )
         for rid, od, m in zip(ids, odometry, meas):
-            self._count_outside(report, f"Robot{rid}_Measurement.dat", "", m[:, 0], start, end,
-                                odo_end)
-            self._count_outside(report, f"Robot{rid}_Odometry.dat", "odometry_", od[:, 0],
-                                -math.inf, end, odo_end)
+            self._count_outside(
+                report, f"Robot{rid}_Measurement.dat", "", m[:, 0], start, end, odo_end
+            )
+            self._count_outside(
+                report, f"Robot{rid}_Odometry.dat", "odometry_", od[:, 0], -math.inf, end, odo_end
+            )
 
         obs = []
         for i, (rid, m) in enumerate(zip(ids, meas)):
@@ -250,18 +293,39 @@ class MRCLAM:
             subject = np.array([barcode_to_subject.get(int(c), -1) for c in m[:, 1]], dtype=int)
             unknown = subject < 0
             if unknown.any():
-                self._skip(report, "unknown_barcode", f"Robot{rid}_Measurement.dat",
-                           f"{int(unknown.sum())} measurements of barcodes not in Barcodes.dat "
-                           f"(e.g. {sorted(set(m[unknown, 1].astype(int).tolist()))[:5]})", int(unknown.sum()))
+                self._skip(
+                    report,
+                    "unknown_barcode",
+                    f"Robot{rid}_Measurement.dat",
+                    f"{int(unknown.sum())} measurements of barcodes not in Barcodes.dat "
+                    f"(e.g. {sorted(set(m[unknown, 1].astype(int).tolist()))[:5]})",
+                    int(unknown.sum()),
+                )
             own = subject == rid
             if own.any():
-                self._skip(report, "self_observation", f"Robot{rid}_Measurement.dat",
-                           f"{int(own.sum())} measurements of the robot's own barcode", int(own.sum()))
+                self._skip(
+                    report,
+                    "self_observation",
+                    f"Robot{rid}_Measurement.dat",
+                    f"{int(own.sum())} measurements of the robot's own barcode",
+                    int(own.sum()),
+                )
             keep = ~unknown & ~own
             target_robot = np.array([robot_index.get(s, -1) for s in subject[keep]], dtype=int)
             landmark = np.where(target_robot < 0, subject[keep], -1)
-            obs.append(np.stack([m[keep, 0], np.full(keep.sum(), i), target_robot, landmark,
-                                 m[keep, 2], m[keep, 3]], axis=1))
+            obs.append(
+                np.stack(
+                    [
+                        m[keep, 0],
+                        np.full(keep.sum(), i),
+                        target_robot,
+                        landmark,
+                        m[keep, 2],
+                        m[keep, 3],
+                    ],
+                    axis=1,
+                )
+            )
         o = np.concatenate(obs, axis=0)
         o = o[np.argsort(o[:, 0], kind="stable")]
 
@@ -270,43 +334,76 @@ class MRCLAM:
         for i, gt in enumerate(groundtruth):
             if gt is not None and len(gt) >= 2:
                 if not (gt[0, 0] <= start <= gt[-1, 0]):
-                    raise ValueError(f"{self.root / f'Robot{ids[i]}_Groundtruth.dat'}: does not cover start time {start}")
+                    raise ValueError(
+                        f"{self.root / f'Robot{ids[i]}_Groundtruth.dat'}: does not cover start time {start}"
+                    )
                 init[i] = interpolate_pose(gt, np.array([start]))[0]
                 inside = (gt[:, 0] >= start) & (gt[:, 0] <= end)
                 if not inside.all():
                     n_out = int((~inside).sum())
-                    self._skip(report, "groundtruth_outside_window",
-                               f"Robot{ids[i]}_Groundtruth.dat", f"{n_out} ground-truth rows "
-                               f"outside the run window [{start:.3f}, {end:.3f}]", n_out,
-                               strict=False)
+                    self._skip(
+                        report,
+                        "groundtruth_outside_window",
+                        f"Robot{ids[i]}_Groundtruth.dat",
+                        f"{n_out} ground-truth rows "
+                        f"outside the run window [{start:.3f}, {end:.3f}]",
+                        n_out,
+                        strict=False,
+                    )
                 groundtruth[i] = gt[inside]
         lm_is_robot = np.isin(landmarks[:, 0].astype(int), ids)
         if lm_is_robot.any():
-            raise ValueError(f"{self.root / 'Landmark_Groundtruth.dat'}: subjects {landmarks[lm_is_robot, 0]} are robots")
+            raise ValueError(
+                f"{self.root / 'Landmark_Groundtruth.dat'}: subjects {landmarks[lm_is_robot, 0]} are robots"
+            )
         return PlanarRun(
-            name=self.root.name, robots=tuple(f"robot{rid}" for rid in ids), start_time=float(start),
-            initial_poses=init, odometry=tuple(odometry), groundtruth=tuple(groundtruth),
-            obs_time=o[:, 0], obs_robot=o[:, 1].astype(int), obs_target_robot=o[:, 2].astype(int),
-            obs_landmark=o[:, 3].astype(int), obs_range=o[:, 4], obs_bearing=o[:, 5],
-            landmark_ids=landmarks[:, 0].astype(int), landmark_xy=landmarks[:, 1:3], landmark_sigma=landmarks[:, 3:5],
-            skips=report, meta={"source": "MRCLAM", "directory": str(self.root), "window": window},
+            name=self.root.name,
+            robots=tuple(f"robot{rid}" for rid in ids),
+            start_time=float(start),
+            initial_poses=init,
+            odometry=tuple(odometry),
+            groundtruth=tuple(groundtruth),
+            obs_time=o[:, 0],
+            obs_robot=o[:, 1].astype(int),
+            obs_target_robot=o[:, 2].astype(int),
+            obs_landmark=o[:, 3].astype(int),
+            obs_range=o[:, 4],
+            obs_bearing=o[:, 5],
+            landmark_ids=landmarks[:, 0].astype(int),
+            landmark_xy=landmarks[:, 1:3],
+            landmark_sigma=landmarks[:, 3:5],
+            skips=report,
+            meta={"source": "MRCLAM", "directory": str(self.root), "window": window},
         )
 
-    def _count_outside(self, report: SkipReport, file: str, prefix: str, t: np.ndarray,
-                       start: float, end: float, odo_end: float) -> None:
+    def _count_outside(
+        self,
+        report: SkipReport,
+        file: str,
+        prefix: str,
+        t: np.ndarray,
+        start: float,
+        end: float,
+        odo_end: float,
+    ) -> None:
         """Count rows of `file` with times `t` outside [start, end] as prefix + before_start,
         after_end (past the earliest end of any robot's odometry) or after_duration (cut by
         `duration`)."""
         for reason, mask, where in (
-                ("before_start", t < start, f"before the common start {start:.3f}"),
-                ("after_duration", (t > end) & (t <= odo_end),
-                 f"after start + duration = {end:.3f}"),
-                ("after_end", t > odo_end,
-                 f"after the end of the shortest odometry {odo_end:.3f}")):
+            ("before_start", t < start, f"before the common start {start:.3f}"),
+            ("after_duration", (t > end) & (t <= odo_end), f"after start + duration = {end:.3f}"),
+            ("after_end", t > odo_end, f"after the end of the shortest odometry {odo_end:.3f}"),
+        ):
             n = int(mask.sum())
             if n:
-                self._skip(report, prefix + reason, file, f"{n} rows {where} (first at time "
-                           f"{t[mask][0]:.3f})", n, strict=False)
+                self._skip(
+                    report,
+                    prefix + reason,
+                    file,
+                    f"{n} rows {where} (first at time {t[mask][0]:.3f})",
+                    n,
+                    strict=False,
+                )
 
     def to_log(self, out_dir: str | Path) -> Path:
         """Convert to the graphloc log format (docs/log_format.md)."""
@@ -317,8 +414,9 @@ class MRCLAM:
         check_file(path)
         return path
 
-    def _skip(self, report: SkipReport, reason: str, file: str, message: str, n: int,
-              strict: bool = True) -> None:
+    def _skip(
+        self, report: SkipReport, reason: str, file: str, message: str, n: int, strict: bool = True
+    ) -> None:
         """Count n skipped rows; with on_error="raise" a ValueError instead, unless `strict` is
         False (rows outside the run window are a property of the run, not an input error)."""
         full = f"{self.root / file}: {message}"

@@ -176,35 +176,43 @@ def _topic_map(path, topic, entry, manifest, names, landmark_ids) -> TopicMap:
     if not isinstance(entry, dict):
         raise ValueError(f"{where}: must be a mapping {{robot, table, ...}}")
     if unknown := set(entry) - TOPIC_KEYS:
-        raise ValueError(f"{where}: unknown field(s) {sorted(unknown)}; "
-                         f"known: {sorted(TOPIC_KEYS)}")
+        raise ValueError(
+            f"{where}: unknown field(s) {sorted(unknown)}; known: {sorted(TOPIC_KEYS)}"
+        )
     table = entry.get("table")
     for key, tables in TABLE_KEYS.items():
         if key in entry and table in MESSAGE_TYPES and table not in tables:
-            raise ValueError(f"{where}: field '{key}' is for table(s) {', '.join(tables)}, "
-                             f"not {table!r}")
+            raise ValueError(
+                f"{where}: field '{key}' is for table(s) {', '.join(tables)}, not {table!r}"
+            )
     robot = entry.get("robot")
     if robot not in names:
-        raise ValueError(f"{where}: field 'robot': {robot!r} is not a robot of field 'robots' "
-                         f"({', '.join(sorted(names))})")
+        raise ValueError(
+            f"{where}: field 'robot': {robot!r} is not a robot of field 'robots' "
+            f"({', '.join(sorted(names))})"
+        )
     if table not in MESSAGE_TYPES:
-        raise ValueError(f"{where}: field 'table': {table!r} unknown; a bag topic fills one of "
-                         f"{', '.join(MESSAGE_TYPES)}")
+        raise ValueError(
+            f"{where}: field 'table': {table!r} unknown; a bag topic fills one of "
+            f"{', '.join(MESSAGE_TYPES)}"
+        )
     sensor = entry.get("sensor")
     if table != "groundtruth":
         r = manifest.robot(robot)
         s = r.sensor(sensor) if isinstance(sensor, str) else None
         if s is None or s.type != SENSOR_TYPES[table]:
             have = [f"{x.name} ({x.type})" for x in r.sensors]
-            raise ValueError(f"{where}: field 'sensor': {sensor!r} is not a sensor of type "
-                             f"{SENSOR_TYPES[table]!r} of robot {robot!r} (it has: {have})")
+            raise ValueError(
+                f"{where}: field 'sensor': {sensor!r} is not a sensor of type "
+                f"{SENSOR_TYPES[table]!r} of robot {robot!r} (it has: {have})"
+            )
 
     def target_ok(t):
         if not isinstance(t, str):
             return False
         if t.startswith(LANDMARK_PREFIX):
             try:
-                return int(t[len(LANDMARK_PREFIX):]) in landmark_ids or not landmark_ids
+                return int(t[len(LANDMARK_PREFIX) :]) in landmark_ids or not landmark_ids
             except ValueError:
                 return False
         return t in names and t != robot
@@ -214,12 +222,16 @@ def _topic_map(path, topic, entry, manifest, names, landmark_ids) -> TopicMap:
         if not isinstance(targets, dict):
             raise ValueError(f"{where}: field 'targets' must map header.frame_id -> target")
         if (target is None) == (not targets):
-            raise ValueError(f"{where}: give field 'target' (one target) or 'targets' "
-                             "(header.frame_id -> target), not both or neither")
+            raise ValueError(
+                f"{where}: give field 'target' (one target) or 'targets' "
+                "(header.frame_id -> target), not both or neither"
+            )
         for key, t in [("target", target)] if target is not None else targets.items():
             if not target_ok(t):
-                raise ValueError(f"{where}: field '{'target' if key == 'target' else 'targets'}'"
-                                 f": {t!r} is not another robot or a landmark:<id>")
+                raise ValueError(
+                    f"{where}: field '{'target' if key == 'target' else 'targets'}'"
+                    f": {t!r} is not another robot or a landmark:<id>"
+                )
     covariance = entry.get("covariance", "step")
     if covariance not in COVARIANCE_MODES:
         raise ValueError(f"{where}: field 'covariance' must be one of {COVARIANCE_MODES}")
@@ -227,8 +239,10 @@ def _topic_map(path, topic, entry, manifest, names, landmark_ids) -> TopicMap:
     if sigmas is not None:
         ok = isinstance(sigmas, list) and len(sigmas) == 6
         if not ok or not all(isinstance(a, (int, float)) and a > 0 for a in sigmas):
-            raise ValueError(f"{where}: field 'sigmas' must be 6 numbers > 0 "
-                             "(rot x, y, z [rad], trans x, y, z [m])")
+            raise ValueError(
+                f"{where}: field 'sigmas' must be 6 numbers > 0 "
+                "(rot x, y, z [rad], trans x, y, z [m])"
+            )
         sigmas = tuple(float(a) for a in sigmas)
     classes = {}
     if table == "markers":
@@ -241,11 +255,12 @@ def _topic_map(path, topic, entry, manifest, names, landmark_ids) -> TopicMap:
                 raise ValueError(f"{where}: field 'classes[{cid}]' must be [robot, marker index]")
             layout = manifest.robot(val[0]).markers or ()
             if not 0 <= val[1] < len(layout):
-                raise ValueError(f"{where}: field 'classes[{cid}]': robot {val[0]!r} has no "
-                                 f"marker {val[1]} (its field 'markers' lists {len(layout)})")
+                raise ValueError(
+                    f"{where}: field 'classes[{cid}]': robot {val[0]!r} has no "
+                    f"marker {val[1]} (its field 'markers' lists {len(layout)})"
+                )
             classes[str(cid)] = (val[0], val[1])
-    return TopicMap(topic, robot, table, sensor, target, dict(targets), covariance, sigmas,
-                    classes)
+    return TopicMap(topic, robot, table, sensor, target, dict(targets), covariance, sigmas, classes)
 
 
 def find_topics_file(bag) -> Path:
@@ -255,9 +270,11 @@ def find_topics_file(bag) -> Path:
     for p in places:
         if p.is_file():
             return p
-    raise FileNotFoundError(f"{bag}: a bag needs a topics file (docs/rosbag.md); none at "
-                            f"{' or '.join(map(str, places))}; or run `graphloc import {bag} "
-                            "--topics FILE --out RUN` and then `graphloc smooth RUN`")
+    raise FileNotFoundError(
+        f"{bag}: a bag needs a topics file (docs/rosbag.md); none at "
+        f"{' or '.join(map(str, places))}; or run `graphloc import {bag} "
+        "--topics FILE --out RUN` and then `graphloc smooth RUN`"
+    )
 
 
 def is_bag(path) -> bool:
@@ -396,14 +413,20 @@ def _read_messages(bag: Path, topics: TopicsFile, skips: SkipReport):
                 try:
                     msg = reader.deserialize(raw, conn.msgtype)
                 except Exception as exc:  # noqa: BLE001 -- rosbags raises many types for bad bytes
-                    skips.add("undecodable", f"{bag}: topic '{conn.topic}' message {i}: "
-                                             f"cannot decode {conn.msgtype}: {exc}")
+                    skips.add(
+                        "undecodable",
+                        f"{bag}: topic '{conn.topic}' message {i}: "
+                        f"cannot decode {conn.msgtype}: {exc}",
+                    )
                     continue
                 per_topic[conn.topic].append((i, conn.msgtype, msg))
         except Exception as exc:  # noqa: BLE001 -- a truncated bag ends the messages early
             topic = max(index, key=index.get) if index else "?"
-            skips.add("truncated", f"{bag}: reading stopped after {sum(index.values())} "
-                                   f"mapped messages (last topic '{topic}'): {exc}")
+            skips.add(
+                "truncated",
+                f"{bag}: reading stopped after {sum(index.values())} "
+                f"mapped messages (last topic '{topic}'): {exc}",
+            )
     finally:
         reader.close()
     return per_topic, unmapped
@@ -415,8 +438,9 @@ def import_bag(bag, topics, out) -> BagImport:
     bag, out = Path(bag), Path(out)
     tf = topics if isinstance(topics, TopicsFile) else read_topics(topics)
     if not is_bag(bag):
-        raise FileNotFoundError(f"{bag}: not a ROS bag (a .bag or .mcap file, or a directory "
-                                "with metadata.yaml)")
+        raise FileNotFoundError(
+            f"{bag}: not a ROS bag (a .bag or .mcap file, or a directory with metadata.yaml)"
+        )
     skips = SkipReport()
     per_topic, unmapped = _read_messages(bag, tf, skips)
     rows: dict = {}  # (robot, table) -> [row tuple starting with time]
@@ -444,16 +468,27 @@ def import_bag(bag, topics, out) -> BagImport:
             tables[table] = rel
             written[table] = written.get(table, 0) + len(rs)
         robots.append({**r, "tables": tables})
-    body = {"name": tf.name, "start_time": tf.start_time, "robots": robots,
-            "meta": {**tf.meta, "import": {"source": str(bag), "topics": str(tf.path),
-                                           "skips": skips.as_dict()}}}
+    body = {
+        "name": tf.name,
+        "start_time": tf.start_time,
+        "robots": robots,
+        "meta": {
+            **tf.meta,
+            "import": {"source": str(bag), "topics": str(tf.path), "skips": skips.as_dict()},
+        },
+    }
     if tf.landmarks:
         with open(out / "landmarks.csv", "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"])
             for lm in tf.landmarks:
-                w.writerow([lm["id"], *map(repr, map(float, lm["xyz"])),
-                            *map(repr, map(float, lm.get("sigma", [0, 0, 0])))])
+                w.writerow(
+                    [
+                        lm["id"],
+                        *map(repr, map(float, lm["xyz"])),
+                        *map(repr, map(float, lm.get("sigma", [0, 0, 0]))),
+                    ]
+                )
         body["landmarks"] = {"file": "landmarks.csv"}
     write_manifest(body, out)
     return BagImport(out, written, skips, unmapped, missing)
@@ -465,8 +500,11 @@ def _topic_rows(bag: Path, m: TopicMap, msgs: list, skips: SkipReport) -> list:
     for i, msgtype, msg in msgs:
         where = f"{bag}: topic '{m.topic}' message {i}"
         if msgtype not in MESSAGE_TYPES[m.table]:
-            skips.add("wrong_type", f"{where}: {msgtype} cannot fill table '{m.table}' "
-                                    f"(takes {', '.join(MESSAGE_TYPES[m.table])})")
+            skips.add(
+                "wrong_type",
+                f"{where}: {msgtype} cannot fill table '{m.table}' "
+                f"(takes {', '.join(MESSAGE_TYPES[m.table])})",
+            )
             continue
         try:
             stamped.append((_stamp(msg), i, msgtype, msg))
@@ -492,8 +530,9 @@ def _topic_rows(bag: Path, m: TopicMap, msgs: list, skips: SkipReport) -> list:
                 _finite(r)
                 lo, hi = float(msg.min_range), float(msg.max_range)
                 if r <= 0 or r < lo or (hi > lo and r > hi):
-                    raise _Bad("out_of_range", f"range {r:g} m outside [{lo:g}, {hi:g}] "
-                                               "(or not > 0)")
+                    raise _Bad(
+                        "out_of_range", f"range {r:g} m outside [{lo:g}, {hi:g}] (or not > 0)"
+                    )
                 out.append((t, m.sensor, _target(m, msg), r))
             elif m.table == "bearing":
                 out.append((t, m.sensor, _target(m, msg), *_direction(msgtype, msg)))
@@ -526,8 +565,11 @@ def _increment(m: TopicMap, prev, cur, msgtype: str):
         var = np.diag(cov) - (np.diag(cov0) if m.covariance == "difference" else 0.0)
         sig = np.sqrt(np.clip(var, 0.0, None))[list(_ROS_TO_GTSAM)]
         if not (np.isfinite(sig).all() and (sig > 0).all()):
-            raise _Bad("no_covariance", f"covariance diagonal gives sigmas {sig.tolist()} "
-                                        f"({m.covariance}); give field 'sigmas'")
+            raise _Bad(
+                "no_covariance",
+                f"covariance diagonal gives sigmas {sig.tolist()} "
+                f"({m.covariance}); give field 'sigmas'",
+            )
     rel = _pose3(xyz0, q0).between(_pose3(xyz, q))
     qw, qx, qy, qz = rel.rotation().toQuaternion().coeffs()[[3, 0, 1, 2]]
     return (t, m.sensor, t0, *rel.translation(), qx, qy, qz, qw, *sig)
@@ -557,8 +599,7 @@ class RosBag:
     def matches(self, path: Path) -> bool:
         return is_bag(path)
 
-    def load(self, path: Path, duration: float | None, noise: dict | None,
-             topics=None) -> TeamRun:
+    def load(self, path: Path, duration: float | None, noise: dict | None, topics=None) -> TeamRun:
         topics = topics if topics is not None else find_topics_file(path)
         with tempfile.TemporaryDirectory(prefix="graphloc-bag-") as tmp:
             import_bag(path, topics, tmp)

@@ -28,10 +28,18 @@ from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
 from graphloc.datasets import _REGISTRY, dataset_class
-from graphloc.datasets.feng import (FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance,
-                                    seed000_camera)
-from graphloc.datasets.feng_deterministic import (Seed000Config, TableIConfig, ground_triangle,
-                                                  simulate_straight_line_trials)
+from graphloc.datasets.feng import (
+    FengProbabilisticConfig,
+    FengProbabilisticScenario,
+    odometry_covariance,
+    seed000_camera,
+)
+from graphloc.datasets.feng_deterministic import (
+    Seed000Config,
+    TableIConfig,
+    ground_triangle,
+    simulate_straight_line_trials,
+)
 from graphloc.eval import write_tum
 from graphloc.io import columns, write_manifest
 
@@ -50,7 +58,9 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
     out = {}
     for key, value in overrides.items():
         if key not in known:
-            raise ValueError(f"{config_class.__name__}: unknown field {key!r}; known: {', '.join(sorted(known))}")
+            raise ValueError(
+                f"{config_class.__name__}: unknown field {key!r}; known: {', '.join(sorted(known))}"
+            )
         default = getattr(config_class(), key)
         if isinstance(value, str) and not isinstance(default, str):
             try:
@@ -58,11 +68,18 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
             except json.JSONDecodeError:
                 raise ValueError(f"{config_class.__name__}.{key}: cannot parse {value!r}") from None
         if isinstance(default, bool) != isinstance(value, bool) or (
-                isinstance(default, (int, float)) and not isinstance(value, (int, float))):
-            raise ValueError(f"{config_class.__name__}.{key}: expected {type(default).__name__}, got {value!r}")
+            isinstance(default, (int, float)) and not isinstance(value, (int, float))
+        ):
+            raise ValueError(
+                f"{config_class.__name__}.{key}: expected {type(default).__name__}, got {value!r}"
+            )
         if isinstance(default, int) and not isinstance(default, bool) and value != int(value):
             raise ValueError(f"{config_class.__name__}.{key}: expected an integer, got {value!r}")
-        out[key] = type(default)(value) if isinstance(default, (int, float)) and not isinstance(default, bool) else value
+        out[key] = (
+            type(default)(value)
+            if isinstance(default, (int, float)) and not isinstance(default, bool)
+            else value
+        )
     return out
 
 
@@ -106,8 +123,12 @@ def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
     groundtruth TUM); returns the manifest path."""
     out = Path(out_dir)
     obs = log.observer
-    markers = [(float(tk), "camera", log.target, j, float(u), float(v))
-               for tk, px in zip(log.times, log.pixels) for j, (u, v) in enumerate(px) if np.isfinite([u, v]).all()]
+    markers = [
+        (float(tk), "camera", log.target, j, float(u), float(v))
+        for tk, px in zip(log.times, log.pixels)
+        for j, (u, v) in enumerate(px)
+        if np.isfinite([u, v]).all()
+    ]
     _write_table(out / obs / "markers.csv", "markers", markers)
     tables = {"markers": f"{obs}/markers.csv", "groundtruth": f"{obs}/groundtruth.tum"}
     poses = np.broadcast_to(np.eye(4), (len(log.times), 4, 4)).copy()
@@ -118,26 +139,64 @@ def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
         rows = []
         for t0, t1, step, cov in zip(log.times[:-1], log.times[1:], log.odometry, log.odometry_cov):
             qx, qy, qz, qw = Rotation.from_matrix(step.rotation().matrix()).as_quat()
-            rows.append((float(t1), "odometry", float(t0), *map(float, step.translation()), qx, qy, qz, qw,
-                         *map(float, np.sqrt(np.diag(cov)))))
+            rows.append(
+                (
+                    float(t1),
+                    "odometry",
+                    float(t0),
+                    *map(float, step.translation()),
+                    qx,
+                    qy,
+                    qz,
+                    qw,
+                    *map(float, np.sqrt(np.diag(cov))),
+                )
+            )
         _write_table(out / obs / "relative_pose3.csv", "relative_pose3", rows)
         tables["relative_pose3"] = f"{obs}/relative_pose3.csv"
         sensors.append({"name": "odometry", "type": "odometry"})
     cam = log.camera
-    sensors.append({"name": "camera", "type": "camera",
-                    "params": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": cam.width,
-                               "height": cam.height, "pixel_sigma": log.pixel_sigma}})
-    climber = {"name": obs, "kind": "ceiling", "planar": False, "sensors": sensors, "tables": tables}
+    sensors.append(
+        {
+            "name": "camera",
+            "type": "camera",
+            "params": {
+                "fx": cam.fx,
+                "fy": cam.fy,
+                "cx": cam.cx,
+                "cy": cam.cy,
+                "width": cam.width,
+                "height": cam.height,
+                "pixel_sigma": log.pixel_sigma,
+            },
+        }
+    )
+    climber = {
+        "name": obs,
+        "kind": "ceiling",
+        "planar": False,
+        "sensors": sensors,
+        "tables": tables,
+    }
     if log.surface is not None:
-        climber["surface"] = {"point": [float(a) for a in log.surface[0]],
-                              "normal": [float(a) for a in log.surface[1]]}
+        climber["surface"] = {
+            "point": [float(a) for a in log.surface[0]],
+            "normal": [float(a) for a in log.surface[1]],
+        }
     manifest = {
         "name": log.name,
         "robots": [
             climber,
-            {"name": log.target, "kind": "ground", "static": True, "initial_pose": [0, 0, 0, 0, 0, 0, 1],
-             "markers": np.asarray(log.layout, dtype=float).tolist(), "identical_markers": log.identical_markers,
-             "sensors": [], "tables": {}},
+            {
+                "name": log.target,
+                "kind": "ground",
+                "static": True,
+                "initial_pose": [0, 0, 0, 0, 0, 0, 1],
+                "markers": np.asarray(log.layout, dtype=float).tolist(),
+                "identical_markers": log.identical_markers,
+                "sensors": [],
+                "tables": {},
+            },
         ],
         "meta": {"scenario": log.name, **log.meta},
     }
@@ -146,6 +205,7 @@ def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
 
 # ---- seed 000 adapters -----------------------------------------------------------------------
 STRAIGHT_ROT_SIGMA = 0.01  # [rad] heading change allowed by "moves straight" (seed 000 Sec. IV)
+
 
 class FengDeterministicScenario:
     """Seed 000 Sec. VI-A, one trial: three tilted omni ground cameras (mutual pixels in
@@ -160,8 +220,12 @@ class FengDeterministicScenario:
     config_class = TableIConfig
 
     def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
-        config = replace(TableIConfig(trials=1, seed=seed, workers=1), **parse_overrides(TableIConfig, overrides))
-        trials = simulate_straight_line_trials(1, seed=seed, config=Seed000Config(pixel_sigma=config.pixel_sigma))
+        config = replace(
+            TableIConfig(trials=1, seed=seed, workers=1), **parse_overrides(TableIConfig, overrides)
+        )
+        trials = simulate_straight_line_trials(
+            1, seed=seed, config=Seed000Config(pixel_sigma=config.pixel_sigma)
+        )
         tri = ground_triangle(trials.ground, config, np.random.default_rng([seed, 1]))
         K = trials.K
         camera = PinholeCamera(K[0, 0], K[1, 1], K[0, 2], K[1, 2], 640, 480)
@@ -170,15 +234,30 @@ class FengDeterministicScenario:
         # (rotation known to STRAIGHT_ROT_SIGMA), by an unknown step (translation sigma = 3 x the
         # mean step); the straight-line baseline uses the collinearity of the same motion instead
         steps = [gtsam.Pose3()] * 2
-        cov = [np.diag([STRAIGHT_ROT_SIGMA ** 2] * 3 + [(3 * Seed000Config().step_mean) ** 2] * 3)] * 2
+        cov = [
+            np.diag([STRAIGHT_ROT_SIGMA**2] * 3 + [(3 * Seed000Config().step_mean) ** 2] * 3)
+        ] * 2
         log = CameraTrackLog(
-            name=self.name, times=times, R_wc=np.repeat(trials.R_wc, 3, axis=0), t_wc=trials.positions[0],
-            layout=trials.ground[0], pixels=trials.pixels[0], camera=camera, pixel_sigma=config.pixel_sigma,
-            odometry=steps, odometry_cov=cov,
-            meta={"seed_paper": "000_05137a0a9c449be3.txt Sec. VI-A", "config": asdict(config),
-                  "ground_R_wc": tri.R[0].tolist(), "mutual_pixels": tri.pixels[0].tolist(),
-                  "mutual_estimate": tri.estimated[0].tolist(), "mutual_status": str(tri.status[0]),
-                  "omni": {"size": config.omni_size, "max_polar_angle": config.omni_max_polar}})
+            name=self.name,
+            times=times,
+            R_wc=np.repeat(trials.R_wc, 3, axis=0),
+            t_wc=trials.positions[0],
+            layout=trials.ground[0],
+            pixels=trials.pixels[0],
+            camera=camera,
+            pixel_sigma=config.pixel_sigma,
+            odometry=steps,
+            odometry_cov=cov,
+            meta={
+                "seed_paper": "000_05137a0a9c449be3.txt Sec. VI-A",
+                "config": asdict(config),
+                "ground_R_wc": tri.R[0].tolist(),
+                "mutual_pixels": tri.pixels[0].tolist(),
+                "mutual_estimate": tri.estimated[0].tolist(),
+                "mutual_status": str(tri.status[0]),
+                "omni": {"size": config.omni_size, "max_polar_angle": config.omni_max_polar},
+            },
+        )
         return write_camera_track(log, out_dir)
 
 
@@ -190,14 +269,29 @@ class FengProbabilisticLog:
     config_class = FengProbabilisticConfig
 
     def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
-        config = replace(FengProbabilisticConfig(seed=seed), **parse_overrides(FengProbabilisticConfig, overrides))
+        config = replace(
+            FengProbabilisticConfig(seed=seed),
+            **parse_overrides(FengProbabilisticConfig, overrides),
+        )
         run = FengProbabilisticScenario.simulate(config)
-        cov = [odometry_covariance(o, config.odometry_noise, config.odometry_rot_sigma) for o in run.odometry]
-        log = CameraTrackLog(name=self.name, times=run.times, R_wc=run.R_wc, t_wc=run.t_wc, layout=run.landmarks,
-                             pixels=run.pixels, camera=seed000_camera(), pixel_sigma=config.pixel_sigma,
-                             odometry=run.odometry, odometry_cov=cov,
-                             surface=(run.plane.origin, run.plane.normal),
-                             meta={"seed_paper": "000_05137a0a9c449be3.txt Sec. VI-B", "config": asdict(config)})
+        cov = [
+            odometry_covariance(o, config.odometry_noise, config.odometry_rot_sigma)
+            for o in run.odometry
+        ]
+        log = CameraTrackLog(
+            name=self.name,
+            times=run.times,
+            R_wc=run.R_wc,
+            t_wc=run.t_wc,
+            layout=run.landmarks,
+            pixels=run.pixels,
+            camera=seed000_camera(),
+            pixel_sigma=config.pixel_sigma,
+            odometry=run.odometry,
+            odometry_cov=cov,
+            surface=(run.plane.origin, run.plane.normal),
+            meta={"seed_paper": "000_05137a0a9c449be3.txt Sec. VI-B", "config": asdict(config)},
+        )
         return write_camera_track(log, out_dir)
 
 
@@ -214,8 +308,10 @@ def _dual_robot_room(out_dir, seed: int, **overrides) -> Path:
 
 
 # registered names whose class is not itself a Scenario -> the generator that writes them
-ADAPTERS = {"feng-probabilistic": lambda out, seed, **o: FengProbabilisticLog().generate(out, seed, **o),
-            "dual-robot-room": _dual_robot_room}
+ADAPTERS = {
+    "feng-probabilistic": lambda out, seed, **o: FengProbabilisticLog().generate(out, seed, **o),
+    "dual-robot-room": _dual_robot_room,
+}
 
 
 def generate(name: str, out_dir, seed: int = 0, overrides: dict | None = None) -> Path:
@@ -225,9 +321,15 @@ def generate(name: str, out_dir, seed: int = 0, overrides: dict | None = None) -
     if name in ADAPTERS:
         return ADAPTERS[name](out_dir, seed, **overrides)
     if not (hasattr(cls, "generate") and hasattr(cls, "config_class")):
-        raise ValueError(f"{name!r} has no log-format generator (not a `graphloc simulate` scenario); scenarios: {', '.join(scenario_names())}")
+        raise ValueError(
+            f"{name!r} has no log-format generator (not a `graphloc simulate` scenario); scenarios: {', '.join(scenario_names())}"
+        )
     return cls().generate(out_dir, seed, **overrides)
 
 
 def scenario_names() -> list[str]:
-    return sorted(n for n, (mod, cls) in _REGISTRY.items() if n in ADAPTERS or mod in ("scenarios", "kaushik", "breitenmoser"))
+    return sorted(
+        n
+        for n, (mod, cls) in _REGISTRY.items()
+        if n in ADAPTERS or mod in ("scenarios", "kaushik", "breitenmoser")
+    )

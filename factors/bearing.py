@@ -39,16 +39,28 @@ def _positive(value: float, what: str) -> float:
     return value
 
 
-def predicted_bearing(observer: gtsam.Pose3, observed: gtsam.Pose3, body_T_camera: gtsam.Pose3 = gtsam.Pose3(),
-                      marker=np.zeros(3)) -> np.ndarray:
+def predicted_bearing(
+    observer: gtsam.Pose3,
+    observed: gtsam.Pose3,
+    body_T_camera: gtsam.Pose3 = gtsam.Pose3(),
+    marker=np.zeros(3),
+) -> np.ndarray:
     """Unit bearing (3,) of `observed`'s marker in the camera of `observer` (no noise)."""
-    p = observer.compose(body_T_camera).transformTo(observed.transformFrom(np.asarray(marker, dtype=float)))
+    p = observer.compose(body_T_camera).transformTo(
+        observed.transformFrom(np.asarray(marker, dtype=float))
+    )
     return p / np.linalg.norm(p)
 
 
-def bearing_factor(observer_key: int, observed_key: int, bearing, sigma: float,
-                   body_T_camera: gtsam.Pose3 = gtsam.Pose3(), marker=np.zeros(3),
-                   kernel: Kernel = Kernel()) -> gtsam.CustomFactor:
+def bearing_factor(
+    observer_key: int,
+    observed_key: int,
+    bearing,
+    sigma: float,
+    body_T_camera: gtsam.Pose3 = gtsam.Pose3(),
+    marker=np.zeros(3),
+    kernel: Kernel = Kernel(),
+) -> gtsam.CustomFactor:
     """Bearing (camera frame of the observer) to the observed robot's marker; isotropic
     `sigma` [rad] on the 2-DOF Unit3 error; optional robust kernel."""
     measured = gtsam.Unit3(_unit(bearing, "bearing_factor"))
@@ -56,16 +68,24 @@ def bearing_factor(observer_key: int, observed_key: int, bearing, sigma: float,
     if marker.shape != (3,) or not np.isfinite(marker).all():
         raise ValueError(f"bearing_factor: marker must be a finite 3-vector, got {marker!r}")
     if not isinstance(body_T_camera, gtsam.Pose3):
-        raise ValueError(f"bearing_factor: body_T_camera must be gtsam.Pose3, got {type(body_T_camera).__name__}")
+        raise ValueError(
+            f"bearing_factor: body_T_camera must be gtsam.Pose3, got {type(body_T_camera).__name__}"
+        )
     if observer_key == observed_key:
         raise ValueError("bearing_factor: observer and observed keys must differ")
-    noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, _positive(sigma, "bearing_factor sigma")), kernel)
+    noise = robust_noise(
+        gtsam.noiseModel.Isotropic.Sigma(2, _positive(sigma, "bearing_factor sigma")), kernel
+    )
 
     def error(this: gtsam.CustomFactor, values: gtsam.Values, jacobians):
         Ti = values.atPose3(this.keys()[0])
         Tj = values.atPose3(this.keys()[1])
         if jacobians is None:
-            return measured.errorVector(gtsam.Unit3.FromPoint3(Ti.compose(body_T_camera).transformTo(Tj.transformFrom(marker))))
+            return measured.errorVector(
+                gtsam.Unit3.FromPoint3(
+                    Ti.compose(body_T_camera).transformTo(Tj.transformFrom(marker))
+                )
+            )
         H_cam = np.zeros((6, 6), order="F")
         H_q = np.zeros((3, 6), order="F")
         H_pc_cam = np.zeros((3, 6), order="F")
@@ -85,18 +105,28 @@ def bearing_factor(observer_key: int, observed_key: int, bearing, sigma: float,
     return gtsam.CustomFactor(noise, [observer_key, observed_key], error)
 
 
-def range_factor(key_a: int, key_b: int, distance: float, sigma: float, body_T_sensor: gtsam.Pose3 | None = None,
-                 kernel: Kernel = Kernel()):
+def range_factor(
+    key_a: int,
+    key_b: int,
+    distance: float,
+    sigma: float,
+    body_T_sensor: gtsam.Pose3 | None = None,
+    kernel: Kernel = Kernel(),
+):
     """Measured distance between two robots: RangeFactorPose3 between the body origins, or
     RangeFactorWithTransformPose3 when the ranging sensor sits at body_T_sensor on robot a."""
     d = _positive(distance, "range_factor distance")
-    noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(1, _positive(sigma, "range_factor sigma")), kernel)
+    noise = robust_noise(
+        gtsam.noiseModel.Isotropic.Sigma(1, _positive(sigma, "range_factor sigma")), kernel
+    )
     if body_T_sensor is None:
         return gtsam.RangeFactorPose3(key_a, key_b, d, noise)
     return gtsam.RangeFactorWithTransformPose3(key_a, key_b, d, noise, body_T_sensor)
 
 
-def known_baseline_factor(key_a: int, key_b: int, baseline: float, sigma: float = 1e-3) -> gtsam.RangeFactorPose3:
+def known_baseline_factor(
+    key_a: int, key_b: int, baseline: float, sigma: float = 1e-3
+) -> gtsam.RangeFactorPose3:
     """Seed 000 Problem 1: the distance |^2T_1| between two robots is known; fixes the scale of
     a bearing-only formation (tight RangeFactorPose3)."""
     return range_factor(key_a, key_b, baseline, sigma)
@@ -109,7 +139,9 @@ def bearing_linearize_cost(repeats: int = 2000) -> dict:
     Ti = gtsam.Pose3(gtsam.Rot3.Ypr(0.1, -0.2, 0.3), np.array([0.0, 0.0, 3.0]))
     Tj = gtsam.Pose3(gtsam.Rot3.Ypr(0.4, 0.1, -0.1), np.array([1.0, 0.5, 0.2]))
     custom = bearing_factor(ki, kj, predicted_bearing(Ti, Tj), 0.01)
-    builtin = gtsam.BearingFactor3D(ki, kj, Ti.bearing(Tj.translation()), gtsam.noiseModel.Isotropic.Sigma(2, 0.01))
+    builtin = gtsam.BearingFactor3D(
+        ki, kj, Ti.bearing(Tj.translation()), gtsam.noiseModel.Isotropic.Sigma(2, 0.01)
+    )
     v_custom, v_builtin = gtsam.Values(), gtsam.Values()
     v_custom.insert(ki, Ti)
     v_custom.insert(kj, Tj)

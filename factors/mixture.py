@@ -30,17 +30,28 @@ from graphloc.keys import mode_key
 def candidate_covariances(candidates: CandidateSet, default_sigmas=(0.02, 0.05)) -> np.ndarray:
     """(K,6,6) covariance of every candidate: meta["covariance"] if present, else diagonal."""
     k = len(candidates)
-    cov = candidates.covariance if candidates.covariance is not None else candidates.meta.get("covariance")
+    cov = (
+        candidates.covariance
+        if candidates.covariance is not None
+        else candidates.meta.get("covariance")
+    )
     if cov is None:
         rot, trans = (float(s) for s in default_sigmas)
         if not (rot > 0 and trans > 0):
-            raise ValueError(f"candidate_covariances: default sigmas must be > 0, got {default_sigmas}")
-        return np.broadcast_to(np.diag([rot ** 2] * 3 + [trans ** 2] * 3), (k, 6, 6)).copy()
+            raise ValueError(
+                f"candidate_covariances: default sigmas must be > 0, got {default_sigmas}"
+            )
+        return np.broadcast_to(np.diag([rot**2] * 3 + [trans**2] * 3), (k, 6, 6)).copy()
     cov = np.asarray(cov, dtype=float)
     if cov.shape != (k, 6, 6):
-        raise ValueError(f"CandidateSet.meta['covariance'] must be ({k},6,6), got {cov.shape} "
-                         f"(source={candidates.source!r}, time={candidates.time})")
-    check_covariances(cov, f"CandidateSet.meta['covariance'] (source={candidates.source!r}, time={candidates.time})")
+        raise ValueError(
+            f"CandidateSet.meta['covariance'] must be ({k},6,6), got {cov.shape} "
+            f"(source={candidates.source!r}, time={candidates.time})"
+        )
+    check_covariances(
+        cov,
+        f"CandidateSet.meta['covariance'] (source={candidates.source!r}, time={candidates.time})",
+    )
     return cov
 
 
@@ -58,14 +69,25 @@ def check_covariances(cov: np.ndarray, what: str) -> None:
         raise ValueError(f"{what}[{bad[0]}]: not positive definite")
 
 
-def component_factors(candidates: CandidateSet, observed_key: int, observer_key: int | None = None,
-                      covariances: np.ndarray | None = None, kernel: Kernel = Kernel()) -> list[gtsam.NoiseModelFactor]:
+def component_factors(
+    candidates: CandidateSet,
+    observed_key: int,
+    observer_key: int | None = None,
+    covariances: np.ndarray | None = None,
+    kernel: Kernel = Kernel(),
+) -> list[gtsam.NoiseModelFactor]:
     """One factor per candidate: BetweenFactorPose3(observer, observed, T_k) or, with
     observer_key None, PriorFactorPose3(observed, T_k); Gaussian noise from `covariances`,
     optionally robust (`factors.robust.Kernel`)."""
-    cov = candidate_covariances(candidates) if covariances is None else np.asarray(covariances, dtype=float)
+    cov = (
+        candidate_covariances(candidates)
+        if covariances is None
+        else np.asarray(covariances, dtype=float)
+    )
     if cov.shape != (len(candidates), 6, 6):
-        raise ValueError(f"component_factors: covariances must be ({len(candidates)},6,6), got {cov.shape}")
+        raise ValueError(
+            f"component_factors: covariances must be ({len(candidates)},6,6), got {cov.shape}"
+        )
     out = []
     for pose, c in zip(candidates.poses(), cov):
         noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(c), kernel)
@@ -76,7 +98,9 @@ def component_factors(candidates: CandidateSet, observed_key: int, observer_key:
     return out
 
 
-MIN_WEIGHT = 1e-300  # a score that underflowed to 0: -log w = 690, never chosen while any other fits
+MIN_WEIGHT = (
+    1e-300  # a score that underflowed to 0: -log w = 690, never chosen while any other fits
+)
 
 
 def mixture_weights(candidates: CandidateSet) -> np.ndarray:
@@ -86,16 +110,22 @@ def mixture_weights(candidates: CandidateSet) -> np.ndarray:
     return np.maximum(candidates.weights(), MIN_WEIGHT)
 
 
-def candidate_mixture(candidates: CandidateSet, observation: int, observed_key: int,
-                      observer_key: int | None = None, covariances: np.ndarray | None = None
-                      ) -> gtsam.HybridNonlinearFactor:
+def candidate_mixture(
+    candidates: CandidateSet,
+    observation: int,
+    observed_key: int,
+    observer_key: int | None = None,
+    covariances: np.ndarray | None = None,
+) -> gtsam.HybridNonlinearFactor:
     """HybridNonlinearFactor over mode_key(observation) with one component per candidate and
     component weights `mixture_weights(candidates)` (from the scores)."""
     if len(candidates) == 0:
         raise ValueError(f"candidate_mixture: observation {observation} has no candidates")
     factors = component_factors(candidates, observed_key, observer_key, covariances)
     neg_log_w = -np.log(mixture_weights(candidates))
-    pairs = [(f, float(nlw + f.noiseModel().negLogConstant())) for f, nlw in zip(factors, neg_log_w)]
+    pairs = [
+        (f, float(nlw + f.noiseModel().negLogConstant())) for f, nlw in zip(factors, neg_log_w)
+    ]
     return gtsam.HybridNonlinearFactor((mode_key(observation), len(candidates)), pairs)
 
 
@@ -131,37 +161,51 @@ class MaxMixture:
         if not groups:
             raise ValueError("max_mixture_factor: no components")
         if any(not g for g in groups):
-            raise ValueError(f"max_mixture_factor: component {[i for i, g in enumerate(groups) if not g][0]} "
-                             f"has no factors")
+            raise ValueError(
+                f"max_mixture_factor: component {[i for i, g in enumerate(groups) if not g][0]} "
+                f"has no factors"
+            )
         w = np.asarray(weights, dtype=float)
         if w.shape != (len(groups),):
-            raise ValueError(f"max_mixture_factor: weights must have shape ({len(groups)},), got {w.shape}")
+            raise ValueError(
+                f"max_mixture_factor: weights must have shape ({len(groups)},), got {w.shape}"
+            )
         bad = np.flatnonzero(~(np.isfinite(w) & (w > 0)))
         if bad.size:
-            raise ValueError(f"max_mixture_factor: weight[{bad[0]}] = {w[bad[0]]} must be finite and > 0")
+            raise ValueError(
+                f"max_mixture_factor: weight[{bad[0]}] = {w[bad[0]]} must be finite and > 0"
+            )
         w = w / w.sum()
         keys = []
         for i, group in enumerate(groups):
             for f in group:
                 if not isinstance(f, gtsam.NoiseModelFactor):
-                    raise ValueError(f"max_mixture_factor: component {i} holds {type(f).__name__}, "
-                                     f"expected a gtsam NoiseModelFactor")
+                    raise ValueError(
+                        f"max_mixture_factor: component {i} holds {type(f).__name__}, "
+                        f"expected a gtsam NoiseModelFactor"
+                    )
                 if isinstance(f.noiseModel(), gtsam.noiseModel.Robust):
-                    raise ValueError(f"max_mixture_factor: component {i} has a robust noise model; the "
-                                     f"max-mixture is itself the robust model, use Gaussian components")
+                    raise ValueError(
+                        f"max_mixture_factor: component {i} has a robust noise model; the "
+                        f"max-mixture is itself the robust model, use Gaussian components"
+                    )
             keys.append(sorted({k for f in group for k in f.keys()}))
         if any(k != keys[0] for k in keys):
             raise ValueError(f"max_mixture_factor: components touch different variables {keys}")
         self.components = tuple(groups)
         self.weights = w
         self.keys = keys[0]
-        constants = -np.log(w) + np.array([sum(f.noiseModel().negLogConstant() for f in g) for g in groups])
+        constants = -np.log(w) + np.array(
+            [sum(f.noiseModel().negLogConstant() for f in g) for g in groups]
+        )
         self.constants = constants  # (K,) c_k = -log w_k + negLogConstant_k
         self._offset_rows = np.sqrt(2.0 * (constants - constants.min()))
         self._dims = [sum(f.dim() for f in g) for g in groups]
         self.residual_dim = max(self._dims) + 1
         self._key_dims: list[int] | None = None
-        self.factor = gtsam.CustomFactor(gtsam.noiseModel.Unit.Create(self.residual_dim), self.keys, self._evaluate)
+        self.factor = gtsam.CustomFactor(
+            gtsam.noiseModel.Unit.Create(self.residual_dim), self.keys, self._evaluate
+        )
 
     def __reduce__(self):
         """Pickle as (components, weights): the built-in factors pickle, the CustomFactor is rebuilt."""
@@ -171,7 +215,11 @@ class MaxMixture:
         """What rebuilds this max-mixture (`graphloc.session.Session.save` writes it as data):
         kind "max_mixture", components (tuple of tuples of built-in factors) and the normalized
         weights (K,). The CustomFactor itself is not saved; `from_state` rebuilds it."""
-        return {"kind": "max_mixture", "components": self.components, "weights": self.weights.copy()}
+        return {
+            "kind": "max_mixture",
+            "components": self.components,
+            "weights": self.weights.copy(),
+        }
 
     @classmethod
     def from_state(cls, components, weights) -> "MaxMixture":
@@ -192,7 +240,9 @@ class MaxMixture:
         residual = np.zeros(self.residual_dim)
         residual[-1] = self._offset_rows[k]
         if H is None:
-            residual[:self._dims[k]] = np.concatenate([f.whitenedError(values) for f in self.components[k]])
+            residual[: self._dims[k]] = np.concatenate(
+                [f.whitenedError(values) for f in self.components[k]]
+            )
             return residual
         if self._key_dims is None:  # once: the tangent dimension of every variable of the factor
             zero = values.zeroVectors()
@@ -202,15 +252,15 @@ class MaxMixture:
         row = 0
         for f in self.components[k]:
             A, b = f.linearize(values).jacobian()  # whitened: A dx - b, b = -whitened error
-            residual[row:row + len(b)] = -b
+            residual[row : row + len(b)] = -b
             col = 0
             for key in f.keys():
                 d = self._key_dims[self.keys.index(key)]
-                J[row:row + len(b), column[key]:column[key] + d] = A[:, col:col + d]
+                J[row : row + len(b), column[key] : column[key] + d] = A[:, col : col + d]
                 col += d
             row += len(b)
         for i, key in enumerate(self.keys):
-            H[i] = J[:, column[key]:column[key] + self._key_dims[i]]
+            H[i] = J[:, column[key] : column[key] + self._key_dims[i]]
         return residual
 
 
@@ -221,12 +271,20 @@ def max_mixture_factor(components, weights) -> MaxMixture:
     return MaxMixture(list(components), weights)
 
 
-def candidate_max_mixture(candidates: CandidateSet, observed_key: int, observer_key: int | None = None,
-                          covariances: np.ndarray | None = None) -> MaxMixture:
+def candidate_max_mixture(
+    candidates: CandidateSet,
+    observed_key: int,
+    observer_key: int | None = None,
+    covariances: np.ndarray | None = None,
+) -> MaxMixture:
     """Max-mixture counterpart of `candidate_mixture`: one `component_factors` factor per
     candidate, weights from the candidate scores."""
     if len(candidates) == 0:
-        raise ValueError(f"candidate_max_mixture: candidate set (source={candidates.source!r}, "
-                         f"time={candidates.time}) is empty")
-    return max_mixture_factor(component_factors(candidates, observed_key, observer_key, covariances),
-                              mixture_weights(candidates))
+        raise ValueError(
+            f"candidate_max_mixture: candidate set (source={candidates.source!r}, "
+            f"time={candidates.time}) is empty"
+        )
+    return max_mixture_factor(
+        component_factors(candidates, observed_key, observer_key, covariances),
+        mixture_weights(candidates),
+    )

@@ -22,7 +22,9 @@ from graphloc.factors.mixture import check_covariances
 from graphloc.factors.robust import Kernel, robust_noise
 
 
-def between_factor(key_a: int, key_b: int, relative, covariance: np.ndarray, kernel: Kernel = Kernel()):
+def between_factor(
+    key_a: int, key_b: int, relative, covariance: np.ndarray, kernel: Kernel = Kernel()
+):
     """Between-factor of relative pose `relative` (gtsam.Pose2/Pose3, or a 3x3 / 4x4 homogeneous
     matrix, e.g. from ICP) with `covariance` (3x3 or 6x6) from the odometry model or matcher."""
     if isinstance(relative, np.ndarray):
@@ -30,9 +32,13 @@ def between_factor(key_a: int, key_b: int, relative, covariance: np.ndarray, ker
     cov = np.asarray(covariance, dtype=float)
     dim = 3 if isinstance(relative, gtsam.Pose2) else 6
     if not isinstance(relative, (gtsam.Pose2, gtsam.Pose3)):
-        raise ValueError(f"between_factor: relative must be Pose2/Pose3 or a 3x3/4x4 matrix, got {type(relative)}")
+        raise ValueError(
+            f"between_factor: relative must be Pose2/Pose3 or a 3x3/4x4 matrix, got {type(relative)}"
+        )
     if cov.shape != (dim, dim):
-        raise ValueError(f"between_factor: covariance must be {dim}x{dim} for {type(relative).__name__}, got {cov.shape}")
+        raise ValueError(
+            f"between_factor: covariance must be {dim}x{dim} for {type(relative).__name__}, got {cov.shape}"
+        )
     check_covariance(cov, "between_factor covariance")
     noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(cov), kernel)
     if dim == 3:
@@ -83,8 +89,14 @@ class UnicycleIntegration:
     covariances: np.ndarray
 
 
-def integrate_unicycle(times: np.ndarray, v: np.ndarray, w: np.ndarray, keyframe_times: np.ndarray,
-                       noise: VelocityNoise = VelocityNoise(), start=(0.0, 0.0, 0.0)) -> UnicycleIntegration:
+def integrate_unicycle(
+    times: np.ndarray,
+    v: np.ndarray,
+    w: np.ndarray,
+    keyframe_times: np.ndarray,
+    noise: VelocityNoise = VelocityNoise(),
+    start=(0.0, 0.0, 0.0),
+) -> UnicycleIntegration:
     """Integrate velocity samples (zero-order hold: sample i holds from times[i] to times[i+1];
     before times[0] the robot stands still, the last sample holds to the end) exactly along arcs,
     to poses at `keyframe_times`, with first-order propagated covariance of each keyframe step.
@@ -96,14 +108,18 @@ def integrate_unicycle(times: np.ndarray, v: np.ndarray, w: np.ndarray, keyframe
     times, v, w = (np.asarray(a, dtype=float) for a in (times, v, w))
     kf = np.asarray(keyframe_times, dtype=float)
     if times.ndim != 1 or v.shape != times.shape or w.shape != times.shape:
-        raise ValueError(f"integrate_unicycle: times, v, w must be equal-length 1-D arrays, got {times.shape}, {v.shape}, {w.shape}")
+        raise ValueError(
+            f"integrate_unicycle: times, v, w must be equal-length 1-D arrays, got {times.shape}, {v.shape}, {w.shape}"
+        )
     if kf.ndim != 1 or kf.size < 1:
         raise ValueError("integrate_unicycle: need at least one keyframe time")
     for name, arr in (("times", times), ("v", v), ("w", w), ("keyframe_times", kf)):
         if not np.isfinite(arr).all():
             raise ValueError(f"integrate_unicycle: {name} contains NaN/inf")
     if np.any(np.diff(times) < 0) or np.any(np.diff(kf) <= 0):
-        raise ValueError("integrate_unicycle: times must be non-decreasing and keyframe_times increasing")
+        raise ValueError(
+            "integrate_unicycle: times must be non-decreasing and keyframe_times increasing"
+        )
 
     # breakpoints: keyframes plus every sample time strictly inside the keyframe span
     inside = times[(times > kf[0]) & (times < kf[-1])]
@@ -135,13 +151,16 @@ def integrate_unicycle(times: np.ndarray, v: np.ndarray, w: np.ndarray, keyframe
     seg_interval = np.searchsorted(kf_idx, np.arange(dt.size), side="right") - 1
     end = kf_idx[seg_interval + 1]
     ex, ey = x[end] - x[:-1], y[end] - y[:-1]
-    var_s = noise.density_v ** 2 * dt
-    var_t = noise.density_w ** 2 * dt
+    var_s = noise.density_v**2 * dt
+    var_t = noise.density_w**2 * dt
     c, s = np.cos(mid), np.sin(mid)
     g = np.zeros((dt.size, 3, 2))
     g[:, 0, 0], g[:, 1, 0] = c, s
     g[:, 0, 1], g[:, 1, 1], g[:, 2, 1] = -ey, ex, 1.0
-    contrib = var_s[:, None, None] * g[:, :, 0, None] * g[:, None, :, 0] + var_t[:, None, None] * g[:, :, 1, None] * g[:, None, :, 1]
+    contrib = (
+        var_s[:, None, None] * g[:, :, 0, None] * g[:, None, :, 0]
+        + var_t[:, None, None] * g[:, :, 1, None] * g[:, None, :, 1]
+    )
     cov_world = np.add.reduceat(contrib, kf_idx[:-1], axis=0)
     # express in the frame of the end pose (GTSAM Pose2 tangent of BetweenFactor error)
     th_end = theta[kf_idx[1:]]
@@ -149,7 +168,7 @@ def integrate_unicycle(times: np.ndarray, v: np.ndarray, w: np.ndarray, keyframe
     ce, se = np.cos(th_end), np.sin(th_end)
     rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = ce, se, -se, ce, 1.0
     cov = rot @ cov_world @ np.transpose(rot, (0, 2, 1))
-    cov += np.diag([noise.floor_xy ** 2, noise.floor_xy ** 2, noise.floor_theta ** 2])
+    cov += np.diag([noise.floor_xy**2, noise.floor_xy**2, noise.floor_theta**2])
     return UnicycleIntegration(poses, deltas, 0.5 * (cov + np.transpose(cov, (0, 2, 1))))
 
 
@@ -171,8 +190,14 @@ def compose_poses(poses: np.ndarray, deltas: np.ndarray) -> np.ndarray:
     """(N,3) planar poses composed with (N,3) relative poses, row by row (vectorized)."""
     p, d = np.asarray(poses, dtype=float), np.asarray(deltas, dtype=float)
     c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
-    return np.stack([p[:, 0] + c * d[:, 0] - s * d[:, 1], p[:, 1] + s * d[:, 0] + c * d[:, 1],
-                     _wrap(p[:, 2] + d[:, 2])], axis=1)
+    return np.stack(
+        [
+            p[:, 0] + c * d[:, 0] - s * d[:, 1],
+            p[:, 1] + s * d[:, 0] + c * d[:, 1],
+            _wrap(p[:, 2] + d[:, 2]),
+        ],
+        axis=1,
+    )
 
 
 def _wrap(a):

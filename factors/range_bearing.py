@@ -23,7 +23,9 @@ from graphloc.factors.robust import Kernel, robust_noise
 def _noise(sigmas, dim: int, kernel: Kernel):
     sig = np.asarray(sigmas, dtype=float)
     if sig.shape != (dim,) or not np.isfinite(sig).all() or np.any(sig <= 0):
-        raise ValueError(f"range-bearing sigmas must be {dim} finite positive numbers, got {sigmas}")
+        raise ValueError(
+            f"range-bearing sigmas must be {dim} finite positive numbers, got {sigmas}"
+        )
     return robust_noise(gtsam.noiseModel.Diagonal.Sigmas(sig), kernel)
 
 
@@ -34,37 +36,70 @@ def _check(bearing, range_):
         raise ValueError("range-bearing measurement has a non-positive range")
 
 
-def landmark_factor_2d(pose_key: int, landmark_key: int, bearing: float, range_: float,
-                       sigmas=(0.05, 0.1), kernel: Kernel = Kernel()) -> gtsam.BearingRangeFactor2D:
+def landmark_factor_2d(
+    pose_key: int,
+    landmark_key: int,
+    bearing: float,
+    range_: float,
+    sigmas=(0.05, 0.1),
+    kernel: Kernel = Kernel(),
+) -> gtsam.BearingRangeFactor2D:
     """Planar robot at `pose_key` sees landmark point `landmark_key` at (bearing, range)."""
     _check(bearing, range_)
-    return gtsam.BearingRangeFactor2D(pose_key, landmark_key, gtsam.Rot2(float(bearing)), float(range_),
-                                      _noise(sigmas, 2, kernel))
+    return gtsam.BearingRangeFactor2D(
+        pose_key, landmark_key, gtsam.Rot2(float(bearing)), float(range_), _noise(sigmas, 2, kernel)
+    )
 
 
-def robot_factor_2d(observer_key: int, observed_key: int, bearing: float, range_: float,
-                    sigmas=(0.05, 0.1), kernel: Kernel = Kernel()) -> gtsam.BearingRangeFactorPose2:
+def robot_factor_2d(
+    observer_key: int,
+    observed_key: int,
+    bearing: float,
+    range_: float,
+    sigmas=(0.05, 0.1),
+    kernel: Kernel = Kernel(),
+) -> gtsam.BearingRangeFactorPose2:
     """Planar robot at `observer_key` sees the origin of robot pose `observed_key` at (bearing, range)."""
     _check(bearing, range_)
-    return gtsam.BearingRangeFactorPose2(observer_key, observed_key, gtsam.Rot2(float(bearing)), float(range_),
-                                         _noise(sigmas, 2, kernel))
+    return gtsam.BearingRangeFactorPose2(
+        observer_key,
+        observed_key,
+        gtsam.Rot2(float(bearing)),
+        float(range_),
+        _noise(sigmas, 2, kernel),
+    )
 
 
-def landmark_factor_3d(pose_key: int, landmark_key: int, direction, range_: float,
-                       sigmas=(0.05, 0.05, 0.1), kernel: Kernel = Kernel()) -> gtsam.BearingRangeFactor3D:
+def landmark_factor_3d(
+    pose_key: int,
+    landmark_key: int,
+    direction,
+    range_: float,
+    sigmas=(0.05, 0.05, 0.1),
+    kernel: Kernel = Kernel(),
+) -> gtsam.BearingRangeFactor3D:
     """Robot pose (Pose3) sees landmark point (Point3) along unit `direction` (body frame) at `range_`."""
     d = _unit(direction)
     _check(d, range_)
-    return gtsam.BearingRangeFactor3D(pose_key, landmark_key, gtsam.Unit3(d), float(range_), _noise(sigmas, 3, kernel))
+    return gtsam.BearingRangeFactor3D(
+        pose_key, landmark_key, gtsam.Unit3(d), float(range_), _noise(sigmas, 3, kernel)
+    )
 
 
-def robot_factor_3d(observer_key: int, observed_key: int, direction, range_: float,
-                    sigmas=(0.05, 0.05, 0.1), kernel: Kernel = Kernel()) -> gtsam.BearingRangeFactorPose3:
+def robot_factor_3d(
+    observer_key: int,
+    observed_key: int,
+    direction,
+    range_: float,
+    sigmas=(0.05, 0.05, 0.1),
+    kernel: Kernel = Kernel(),
+) -> gtsam.BearingRangeFactorPose3:
     """Robot pose (Pose3) sees the origin of another robot's Pose3 along `direction` at `range_`."""
     d = _unit(direction)
     _check(d, range_)
-    return gtsam.BearingRangeFactorPose3(observer_key, observed_key, gtsam.Unit3(d), float(range_),
-                                         _noise(sigmas, 3, kernel))
+    return gtsam.BearingRangeFactorPose3(
+        observer_key, observed_key, gtsam.Unit3(d), float(range_), _noise(sigmas, 3, kernel)
+    )
 
 
 def _unit(direction) -> np.ndarray:

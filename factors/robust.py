@@ -35,14 +35,16 @@ class Kernel:
     def __post_init__(self):
         name = self.name.lower().replace("-", "").replace("_", "")
         if name != "none" and name not in KERNELS:
-            raise ValueError(f"unknown robust kernel {self.name!r}; choose from none, {', '.join(KERNELS)}")
+            raise ValueError(
+                f"unknown robust kernel {self.name!r}; choose from none, {', '.join(KERNELS)}"
+            )
         if not (np.isfinite(self.k) and self.k > 0):
             raise ValueError(f"robust kernel constant must be finite > 0, got {self.k}")
         object.__setattr__(self, "name", name)
 
     @classmethod
     def parse(cls, text: str) -> "Kernel":
-        """"cauchy" or "cauchy:1.0" -> Kernel (for command lines)."""
+        """ "cauchy" or "cauchy:1.0" -> Kernel (for command lines)."""
         name, _, k = text.partition(":")
         return cls(name, float(k)) if k else cls(name)
 
@@ -88,8 +90,9 @@ class DownweightReport:
         return self.indices[self.weights < self.threshold]
 
 
-def downweighted(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, threshold: float = 0.5,
-                 indices=None) -> DownweightReport:
+def downweighted(
+    graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, threshold: float = 0.5, indices=None
+) -> DownweightReport:
     """Kernel weight w(||whitened residual||) of every robust factor of `graph` (or of the
     factors at `indices`) at `values`; factors with w < threshold count as down-weighted."""
     if not 0 < threshold <= 1:
@@ -106,4 +109,6 @@ def downweighted(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, thresh
         whitened = model.noise().whiten(np.asarray(factor.unwhitenedError(values), dtype=float))
         out_idx.append(int(i))
         out_w.append(model.robust().weight(float(np.linalg.norm(whitened))))
-    return DownweightReport(np.asarray(out_idx, dtype=int), np.asarray(out_w, dtype=float), float(threshold))
+    return DownweightReport(
+        np.asarray(out_idx, dtype=int), np.asarray(out_w, dtype=float), float(threshold)
+    )

@@ -29,8 +29,14 @@ class SurfacePlane:
     def __post_init__(self):
         p = np.asarray(self.point, dtype=float)
         n = np.asarray(self.normal, dtype=float)
-        if p.shape != (3,) or n.shape != (3,) or not (np.isfinite(p).all() and np.isfinite(n).all()):
-            raise ValueError(f"SurfacePlane: point and normal must be finite 3-vectors, got {self.point!r}, {self.normal!r}")
+        if (
+            p.shape != (3,)
+            or n.shape != (3,)
+            or not (np.isfinite(p).all() and np.isfinite(n).all())
+        ):
+            raise ValueError(
+                f"SurfacePlane: point and normal must be finite 3-vectors, got {self.point!r}, {self.normal!r}"
+            )
         norm = np.linalg.norm(n)
         if norm < 1e-12:
             raise ValueError("SurfacePlane: normal must be non-zero")
@@ -56,30 +62,47 @@ class SurfacePlane:
         return cls(np.zeros(3), np.array([0.0, 0.0, 1.0]))
 
 
-def plane_distance_factor(key: int, plane: SurfacePlane, sigma: float) -> gtsam.PoseTranslationPrior3D:
+def plane_distance_factor(
+    key: int, plane: SurfacePlane, sigma: float
+) -> gtsam.PoseTranslationPrior3D:
     """The pose's translation stays within `sigma` [m] of the plane (free along it)."""
     sigma = float(sigma)
     if not (np.isfinite(sigma) and sigma > 0):
         raise ValueError(f"plane_distance_factor: sigma must be finite > 0, got {sigma}")
     R = np.zeros((3, 3))
     R[0] = plane.normal / sigma
-    return gtsam.PoseTranslationPrior3D(key, plane.point, gtsam.noiseModel.Gaussian.SqrtInformation(R))
+    return gtsam.PoseTranslationPrior3D(
+        key, plane.point, gtsam.noiseModel.Gaussian.SqrtInformation(R)
+    )
 
 
-def plane_attitude_factor(key: int, plane: SurfacePlane, sigma: float, body_normal=(0.0, 0.0, 1.0)) -> gtsam.AttitudeFactorPose3:
+def plane_attitude_factor(
+    key: int, plane: SurfacePlane, sigma: float, body_normal=(0.0, 0.0, 1.0)
+) -> gtsam.AttitudeFactorPose3:
     """The body axis `body_normal` stays along the plane normal within `sigma` [rad]."""
     sigma = float(sigma)
     if not (np.isfinite(sigma) and sigma > 0):
         raise ValueError(f"plane_attitude_factor: sigma must be finite > 0, got {sigma}")
     b = np.asarray(body_normal, dtype=float)
     if b.shape != (3,) or not np.isfinite(b).all() or np.linalg.norm(b) < 1e-12:
-        raise ValueError(f"plane_attitude_factor: body_normal must be a non-zero 3-vector, got {body_normal!r}")
-    return gtsam.AttitudeFactorPose3(key, gtsam.Unit3(plane.normal), gtsam.noiseModel.Isotropic.Sigma(2, sigma),
-                                     gtsam.Unit3(b / np.linalg.norm(b)))
+        raise ValueError(
+            f"plane_attitude_factor: body_normal must be a non-zero 3-vector, got {body_normal!r}"
+        )
+    return gtsam.AttitudeFactorPose3(
+        key,
+        gtsam.Unit3(plane.normal),
+        gtsam.noiseModel.Isotropic.Sigma(2, sigma),
+        gtsam.Unit3(b / np.linalg.norm(b)),
+    )
 
 
-def surface_factors(key: int, plane: SurfacePlane, thickness_sigma: float = 0.005,
-                    attitude_sigma: float | None = 0.02, body_normal=(0.0, 0.0, 1.0)) -> list:
+def surface_factors(
+    key: int,
+    plane: SurfacePlane,
+    thickness_sigma: float = 0.005,
+    attitude_sigma: float | None = 0.02,
+    body_normal=(0.0, 0.0, 1.0),
+) -> list:
     """Both constraints for one pose (attitude omitted when attitude_sigma is None)."""
     out = [plane_distance_factor(key, plane, thickness_sigma)]
     if attitude_sigma is not None:

@@ -110,14 +110,22 @@ class PinholeCamera:
             object.__setattr__(self, name, int(value))
         dist = tuple(float(k) for k in self.dist)
         if len(dist) not in _DIST_LENGTHS:
-            raise ValueError(f"PinholeCamera.dist must have one of {_DIST_LENGTHS} coefficients, got {len(dist)}")
+            raise ValueError(
+                f"PinholeCamera.dist must have one of {_DIST_LENGTHS} coefficients, got {len(dist)}"
+            )
         if not all(math.isfinite(k) for k in dist):
             raise ValueError(f"PinholeCamera.dist must be finite, got {dist}")
         object.__setattr__(self, "dist", dist)
 
     @classmethod
-    def from_fov(cls, width: int, height: int, fov: float, axis: str = "horizontal",
-                 dist: tuple[float, ...] = ()) -> "PinholeCamera":
+    def from_fov(
+        cls,
+        width: int,
+        height: int,
+        fov: float,
+        axis: str = "horizontal",
+        dist: tuple[float, ...] = (),
+    ) -> "PinholeCamera":
         """Square pixels, principal point at the image centre, `fov` [rad] across `axis`
         ('horizontal', 'vertical' or 'diagonal'). Seed 000: (640, 480, 2*pi/3); seed 001:
         (752, 480, pi/2)."""
@@ -149,8 +157,11 @@ class PinholeCamera:
         k1, k2, k3, k4, k5, k6 = k[0], k[1], k[4], k[5], k[6], k[7]
         if not any((k1, k2, k3, k4, k5, k6)):
             return math.inf
-        corner = max(math.hypot(u, v) for u in ((0 - self.cx) / self.fx, (self.width - 1 - self.cx) / self.fx)
-                     for v in ((0 - self.cy) / self.fy, (self.height - 1 - self.cy) / self.fy))
+        corner = max(
+            math.hypot(u, v)
+            for u in ((0 - self.cx) / self.fx, (self.width - 1 - self.cx) / self.fx)
+            for v in ((0 - self.cy) / self.fy, (self.height - 1 - self.cy) / self.fy)
+        )
         r = np.linspace(0.0, 3.0 * corner, 30001)
         r2 = r * r
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -167,20 +178,30 @@ class PinholeCamera:
         k = np.zeros(8)
         k[: len(self.dist)] = self.dist
         r2 = r * r
-        return float(r * (1 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]))) / (1 + r2 * (k[5] + r2 * (k[6] + r2 * k[7]))))
+        return float(
+            r
+            * (1 + r2 * (k[0] + r2 * (k[1] + r2 * k[4])))
+            / (1 + r2 * (k[5] + r2 * (k[6] + r2 * k[7])))
+        )
 
     def pixel_to_bearing(self, pixels) -> tuple[np.ndarray, np.ndarray]:
         """Observed (distorted) pixels (M,2) -> unit bearings (M,3) via cv2.undistortPoints;
         valid = finite input within the monotonic part of the distortion (max_distorted_radius)."""
         pixels = check_rows(pixels, 2, "pixels")
         with np.errstate(invalid="ignore"):
-            distorted_r = np.hypot((pixels[:, 0] - self.cx) / self.fx, (pixels[:, 1] - self.cy) / self.fy)
+            distorted_r = np.hypot(
+                (pixels[:, 0] - self.cx) / self.fx, (pixels[:, 1] - self.cy) / self.fy
+            )
             valid = np.isfinite(pixels).all(axis=1) & (distorted_r <= self.max_distorted_radius)
         bearings = np.full((len(pixels), 3), np.nan)
         if valid.any():
             if self.dist:
-                xy = cv2.undistortPoints(pixels[valid].reshape(-1, 1, 2), self.K, self._dist_array(),
-                                         criteria=_UNDISTORT_CRITERIA).reshape(-1, 2)
+                xy = cv2.undistortPoints(
+                    pixels[valid].reshape(-1, 1, 2),
+                    self.K,
+                    self._dist_array(),
+                    criteria=_UNDISTORT_CRITERIA,
+                ).reshape(-1, 2)
             else:  # closed form; identical to undistortPoints without distortion
                 xy = (pixels[valid] - (self.cx, self.cy)) / (self.fx, self.fy)
             bearings[valid] = normalize_rows(np.column_stack([xy, np.ones(len(xy))]))
@@ -197,8 +218,13 @@ class PinholeCamera:
         pixels = np.full((len(bearings), 2), np.nan)
         if front.any():
             if self.dist:
-                pixels[front] = cv2.projectPoints(bearings[front].reshape(-1, 1, 3), np.zeros(3), np.zeros(3),
-                                                  self.K, self._dist_array())[0].reshape(-1, 2)
+                pixels[front] = cv2.projectPoints(
+                    bearings[front].reshape(-1, 1, 3),
+                    np.zeros(3),
+                    np.zeros(3),
+                    self.K,
+                    self._dist_array(),
+                )[0].reshape(-1, 2)
             else:
                 xy = bearings[front, :2] / bearings[front, 2:3]
                 pixels[front] = xy * (self.fx, self.fy) + (self.cx, self.cy)
@@ -235,15 +261,21 @@ class ParaboloidOmniCamera:
     def __post_init__(self):
         object.__setattr__(self, "focal", _positive(self.focal, "ParaboloidOmniCamera.focal"))
         if int(self.size) != self.size or int(self.size) <= 0:
-            raise ValueError(f"ParaboloidOmniCamera.size must be a positive integer, got {self.size}")
+            raise ValueError(
+                f"ParaboloidOmniCamera.size must be a positive integer, got {self.size}"
+            )
         object.__setattr__(self, "size", int(self.size))
         k = float(self.conic_constant)
         if not (math.isfinite(k) and k <= -1.0):
-            raise ValueError(f"ParaboloidOmniCamera.conic_constant must be <= -1 (paraboloid -1, "
-                             f"hyperboloid < -1), got {k}")
+            raise ValueError(
+                f"ParaboloidOmniCamera.conic_constant must be <= -1 (paraboloid -1, "
+                f"hyperboloid < -1), got {k}"
+            )
         object.__setattr__(self, "conic_constant", k)
         for name in ("cx", "cy"):
-            value = (self.size - 1) / 2.0 if getattr(self, name) is None else float(getattr(self, name))
+            value = (
+                (self.size - 1) / 2.0 if getattr(self, name) is None else float(getattr(self, name))
+            )
             if not math.isfinite(value):
                 raise ValueError(f"ParaboloidOmniCamera.{name} must be finite, got {value}")
             object.__setattr__(self, name, value)
@@ -251,14 +283,21 @@ class ParaboloidOmniCamera:
         # directions with d_z <= -xi have no image; keep the FOV strictly inside
         limit = math.pi - math.acos(min(self.xi, 1.0)) if self.xi < 1.0 else math.pi
         if not (0.0 <= lo < hi < limit):
-            raise ValueError(f"ParaboloidOmniCamera needs 0 <= min_polar_angle < max_polar_angle < {limit:.6f}, "
-                             f"got {lo}, {hi}")
+            raise ValueError(
+                f"ParaboloidOmniCamera needs 0 <= min_polar_angle < max_polar_angle < {limit:.6f}, "
+                f"got {lo}, {hi}"
+            )
         object.__setattr__(self, "min_polar_angle", lo)
         object.__setattr__(self, "max_polar_angle", hi)
 
     @classmethod
-    def from_fov(cls, size: int, max_polar_angle: float = 2.0 * math.pi / 3.0,
-                 conic_constant: float = -1.0, min_polar_angle: float = 0.0) -> "ParaboloidOmniCamera":
+    def from_fov(
+        cls,
+        size: int,
+        max_polar_angle: float = 2.0 * math.pi / 3.0,
+        conic_constant: float = -1.0,
+        min_polar_angle: float = 0.0,
+    ) -> "ParaboloidOmniCamera":
         """Focal length such that the FOV limit `max_polar_angle` touches the edge of the
         size x size image (radius size/2)."""
         if not conic_constant <= -1.0:
@@ -278,7 +317,9 @@ class ParaboloidOmniCamera:
     def _in_fov(self, bearings: np.ndarray) -> np.ndarray:
         with np.errstate(invalid="ignore"):
             cos_polar = np.clip(bearings[:, 2], -1.0, 1.0)
-            return (cos_polar <= math.cos(self.min_polar_angle)) & (cos_polar >= math.cos(self.max_polar_angle))
+            return (cos_polar <= math.cos(self.min_polar_angle)) & (
+                cos_polar >= math.cos(self.max_polar_angle)
+            )
 
     def pixel_to_bearing(self, pixels) -> tuple[np.ndarray, np.ndarray]:
         """Pixels (M,2) -> unit bearings (M,3) (closed-form lifting); valid = finite input (the
@@ -313,7 +354,9 @@ class ParaboloidOmniCamera:
         return self.bearing_to_pixel(check_rows(points_cam, 3, "points_cam"))
 
 
-def angular_sigma(camera, pixels: np.ndarray, pixel_sigma: float, floor: float = 1e-5) -> np.ndarray:
+def angular_sigma(
+    camera, pixels: np.ndarray, pixel_sigma: float, floor: float = 1e-5
+) -> np.ndarray:
     """Per-axis bearing sigma [rad] (...,) of pixels (...,2) with seed 000's pixel noise (Sec.
     VI-A: N(0, sigma) px along a random direction, per-axis std sigma / sqrt 2), times the
     camera's local angle per pixel (finite differences of pixel_to_bearing: works for the
@@ -322,6 +365,8 @@ def angular_sigma(camera, pixels: np.ndarray, pixel_sigma: float, floor: float =
     b0, _ = camera.pixel_to_bearing(flat)
     bu, _ = camera.pixel_to_bearing(flat + (1.0, 0.0))
     bv, _ = camera.pixel_to_bearing(flat + (0.0, 1.0))
-    per_px = 0.5 * (np.arccos(np.clip(np.sum(b0 * bu, axis=1), -1, 1))
-                    + np.arccos(np.clip(np.sum(b0 * bv, axis=1), -1, 1)))
+    per_px = 0.5 * (
+        np.arccos(np.clip(np.sum(b0 * bu, axis=1), -1, 1))
+        + np.arccos(np.clip(np.sum(b0 * bv, axis=1), -1, 1))
+    )
     return np.maximum(pixel_sigma / np.sqrt(2.0) * per_px, floor).reshape(np.shape(pixels)[:-1])

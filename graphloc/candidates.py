@@ -50,7 +50,9 @@ class CandidateSet:
         if self.covariance is not None:
             cov = np.asarray(self.covariance, dtype=float)
             if cov.shape != (R.shape[0], 6, 6):
-                raise ValueError(f"CandidateSet.covariance must be ({R.shape[0]},6,6), got {cov.shape}")
+                raise ValueError(
+                    f"CandidateSet.covariance must be ({R.shape[0]},6,6), got {cov.shape}"
+                )
             object.__setattr__(self, "covariance", cov)
 
     def __len__(self) -> int:

@@ -42,7 +42,9 @@ def planar_to_evo(times: np.ndarray, poses: np.ndarray) -> PoseTrajectory3D:
     t = np.asarray(times, dtype=float)
     p = np.asarray(poses, dtype=float)
     if p.ndim != 2 or p.shape[1] != 3 or t.shape != (p.shape[0],):
-        raise ValueError(f"planar trajectory must be (N,) times and (N,3) poses, got {t.shape} and {p.shape}")
+        raise ValueError(
+            f"planar trajectory must be (N,) times and (N,3) poses, got {t.shape} and {p.shape}"
+        )
     if not (np.isfinite(t).all() and np.isfinite(p).all()):
         raise ValueError("planar trajectory contains NaN/inf")
     zeros = np.zeros(len(p))
@@ -53,44 +55,74 @@ def planar_to_evo(times: np.ndarray, poses: np.ndarray) -> PoseTrajectory3D:
 
 def align_se2(reference: PoseTrajectory3D, estimate: PoseTrajectory3D) -> PoseTrajectory3D:
     """Copy of `estimate` rigidly aligned to `reference` in the plane (Umeyama on x, y)."""
-    R2, t2, _ = geometry.umeyama_alignment(estimate.positions_xyz[:, :2].T, reference.positions_xyz[:, :2].T,
-                                           with_scale=False)
+    R2, t2, _ = geometry.umeyama_alignment(
+        estimate.positions_xyz[:, :2].T, reference.positions_xyz[:, :2].T, with_scale=False
+    )
     T = np.eye(4)
     T[:2, :2] = R2
     T[:2, 3] = t2
-    aligned = PoseTrajectory3D(poses_se3=[p.copy() for p in estimate.poses_se3], timestamps=estimate.timestamps.copy())
+    aligned = PoseTrajectory3D(
+        poses_se3=[p.copy() for p in estimate.poses_se3], timestamps=estimate.timestamps.copy()
+    )
     aligned.transform(T)
     return aligned
 
 
-def trajectory_metrics(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, align: str = "se2",
-                       rpe_delta_s: float = 1.0, max_time_diff: float = 0.02) -> TrajectoryMetrics:
+def trajectory_metrics(
+    reference: PoseTrajectory3D,
+    estimate: PoseTrajectory3D,
+    align: str = "se2",
+    rpe_delta_s: float = 1.0,
+    max_time_diff: float = 0.02,
+) -> TrajectoryMetrics:
     """ATE / RPE of `estimate` against `reference` (time-associated by evo within max_time_diff).
     align: "se2" (planar), "se3" or "none"."""
     if align not in ("se2", "se3", "none"):
         raise ValueError(f"align must be se2, se3 or none, got {align!r}")
     ref, est = _associate(reference, estimate, max_time_diff)
     if ref.num_poses < 3:
-        raise ValueError(f"only {ref.num_poses} estimate poses have ground truth within {max_time_diff} s")
+        raise ValueError(
+            f"only {ref.num_poses} estimate poses have ground truth within {max_time_diff} s"
+        )
     if align == "se2":
         est = align_se2(ref, est)
     elif align == "se3":
-        est = PoseTrajectory3D(poses_se3=[p.copy() for p in est.poses_se3], timestamps=est.timestamps.copy())
+        est = PoseTrajectory3D(
+            poses_se3=[p.copy() for p in est.poses_se3], timestamps=est.timestamps.copy()
+        )
         est.align(ref, correct_scale=False)
     ape = metrics.APE(metrics.PoseRelation.translation_part)
     ape.process_data((ref, est))
     stats = ape.get_all_statistics()
     period = float(np.median(np.diff(ref.timestamps)))
-    delta = max(1, min(int(round(rpe_delta_s / period)), ref.num_poses - 1))  # short runs: the longest pair
-    rpe_t = metrics.RPE(metrics.PoseRelation.translation_part, delta=delta, delta_unit=metrics.Unit.frames, all_pairs=False)
+    delta = max(
+        1, min(int(round(rpe_delta_s / period)), ref.num_poses - 1)
+    )  # short runs: the longest pair
+    rpe_t = metrics.RPE(
+        metrics.PoseRelation.translation_part,
+        delta=delta,
+        delta_unit=metrics.Unit.frames,
+        all_pairs=False,
+    )
     rpe_t.process_data((ref, est))
-    rpe_r = metrics.RPE(metrics.PoseRelation.rotation_angle_deg, delta=delta, delta_unit=metrics.Unit.frames, all_pairs=False)
+    rpe_r = metrics.RPE(
+        metrics.PoseRelation.rotation_angle_deg,
+        delta=delta,
+        delta_unit=metrics.Unit.frames,
+        all_pairs=False,
+    )
     rpe_r.process_data((ref, est))
     return TrajectoryMetrics(
-        ate_rmse=float(stats["rmse"]), ate_mean=float(stats["mean"]), ate_median=float(stats["median"]),
-        ate_max=float(stats["max"]), rpe_trans_rmse=float(rpe_t.get_statistic(metrics.StatisticsType.rmse)),
-        rpe_rot_rmse=float(rpe_r.get_statistic(metrics.StatisticsType.rmse)), rpe_delta_s=delta * period,
-        n_matched=int(ref.num_poses), aligned=align)
+        ate_rmse=float(stats["rmse"]),
+        ate_mean=float(stats["mean"]),
+        ate_median=float(stats["median"]),
+        ate_max=float(stats["max"]),
+        rpe_trans_rmse=float(rpe_t.get_statistic(metrics.StatisticsType.rmse)),
+        rpe_rot_rmse=float(rpe_r.get_statistic(metrics.StatisticsType.rmse)),
+        rpe_delta_s=delta * period,
+        n_matched=int(ref.num_poses),
+        aligned=align,
+    )
 
 
 def _associate(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, max_time_diff: float):
@@ -98,11 +130,17 @@ def _associate(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, max_time
     try:
         return sync.associate_trajectories(reference, estimate, max_diff=max_time_diff)
     except sync.SyncException:
-        raise ValueError(f"only 0 estimate poses have ground truth within {max_time_diff} s") from None
+        raise ValueError(
+            f"only 0 estimate poses have ground truth within {max_time_diff} s"
+        ) from None
 
 
-def ate_over_time(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, align: str = "se2",
-                  max_time_diff: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+def ate_over_time(
+    reference: PoseTrajectory3D,
+    estimate: PoseTrajectory3D,
+    align: str = "se2",
+    max_time_diff: float = 0.02,
+) -> tuple[np.ndarray, np.ndarray]:
     """(times, translation error [m]) of the associated (and aligned) estimate, for plots."""
     ref, est = _associate(reference, estimate, max_time_diff)
     if align == "se2":
@@ -125,8 +163,10 @@ def write_tum(path: str | Path, times: np.ndarray, poses: np.ndarray) -> Path:
     elif poses.ndim == 2 and poses.shape[1] == 3 and len(poses) == len(times):
         trajectory = planar_to_evo(times, poses)
     else:
-        raise ValueError(f"write_tum: need (F,) times and (F,3) planar or (F,4,4) poses, "
-                         f"got {times.shape} and {poses.shape}")
+        raise ValueError(
+            f"write_tum: need (F,) times and (F,3) planar or (F,4,4) poses, "
+            f"got {times.shape} and {poses.shape}"
+        )
     path.parent.mkdir(parents=True, exist_ok=True)
     file_interface.write_tum_trajectory_file(str(path), trajectory)
     return path
@@ -141,7 +181,9 @@ def axis_errors(estimated: np.ndarray, truth: np.ndarray) -> np.ndarray:
     """(T,3) absolute translation error per axis (the seed's Fig. 6 quantity)."""
     estimated, truth = np.asarray(estimated, float), np.asarray(truth, float)
     if estimated.shape != truth.shape or estimated.ndim != 2 or estimated.shape[1] != 3:
-        raise ValueError(f"axis_errors: shapes {estimated.shape} vs {truth.shape}, expected equal (T,3)")
+        raise ValueError(
+            f"axis_errors: shapes {estimated.shape} vs {truth.shape}, expected equal (T,3)"
+        )
     return np.abs(estimated - truth)
 
 
@@ -154,11 +196,15 @@ def trajectory_scale(estimated: np.ndarray, truth: np.ndarray) -> float:
     if p.shape != q.shape:
         raise ValueError(f"trajectory_scale: shapes {p.shape} vs {q.shape}")
     qq = float(np.sum(q * q))
-    return float(np.sum(np.linalg.norm(p, axis=1) * np.linalg.norm(q, axis=1)) / qq) if qq > 0 else float("nan")
+    return (
+        float(np.sum(np.linalg.norm(p, axis=1) * np.linalg.norm(q, axis=1)) / qq)
+        if qq > 0
+        else float("nan")
+    )
 
 
 def scale_errors(history, truth: np.ndarray) -> np.ndarray:
     """(T,) |s_k - 1| where s_k = trajectory_scale of what was known at frame k (history[k]:
     (k+1,3) positions of frames 0..k) against truth[:k+1]."""
     truth = np.asarray(truth, float)
-    return np.array([abs(trajectory_scale(h, truth[:len(h)]) - 1.0) for h in history])
+    return np.array([abs(trajectory_scale(h, truth[: len(h)]) - 1.0) for h in history])

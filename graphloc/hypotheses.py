@@ -84,7 +84,6 @@ from graphloc.seams import Decision, Odometry, check_frame
 from graphloc.session import read_data_file, write_data_file
 
 
-
 def _fit_score(maha: np.ndarray, dof: float, dim: int = 6) -> np.ndarray:
     """Log-density of the innovation's Mahalanobis^2 under a multivariate Student-t with `dof`
     degrees of freedom (Gaussian for dof = inf), relative to its value at maha = dim (the mean
@@ -99,7 +98,7 @@ def cap_covariances(cov: np.ndarray, max_std: float) -> np.ndarray:
     if not len(cov):
         return cov
     w, V = np.linalg.eigh(cov)
-    return np.einsum("kij,kj,klj->kil", V, np.minimum(w, max_std ** 2), V)
+    return np.einsum("kij,kj,klj->kil", V, np.minimum(w, max_std**2), V)
 
 
 @dataclass(frozen=True)
@@ -137,9 +136,13 @@ class TrackerConfig:
 
     def __post_init__(self):
         if int(self.max_hypotheses) < 1:
-            raise ValueError(f"TrackerConfig.max_hypotheses must be >= 1, got {self.max_hypotheses}")
+            raise ValueError(
+                f"TrackerConfig.max_hypotheses must be >= 1, got {self.max_hypotheses}"
+            )
         if not 0.5 <= self.commit_threshold < 1.0:
-            raise ValueError(f"TrackerConfig.commit_threshold must be in [0.5, 1), got {self.commit_threshold}")
+            raise ValueError(
+                f"TrackerConfig.commit_threshold must be in [0.5, 1), got {self.commit_threshold}"
+            )
         if not 0.0 < self.release_threshold <= self.commit_threshold:
             raise ValueError("TrackerConfig.release_threshold must be in (0, commit_threshold]")
         if int(self.full_count) < 1:
@@ -164,10 +167,10 @@ class _Track:
 class HypothesisTracker:
     """Bounded multi-hypothesis tracker over P3P candidate mixtures (see module docstring).
 
-        tracker = HypothesisTracker(TrackerConfig(max_hypotheses=8))
-        d0 = tracker.update(candidates_0)             # first frame: no odometry
-        d1 = tracker.update(candidates_1, odometry_1)  # Odometry(relative, covariance)
-        d1.probabilities, d1.committed, d1.pose
+    tracker = HypothesisTracker(TrackerConfig(max_hypotheses=8))
+    d0 = tracker.update(candidates_0)             # first frame: no odometry
+    d1 = tracker.update(candidates_1, odometry_1)  # Odometry(relative, covariance)
+    d1.probabilities, d1.committed, d1.pose
     """
 
     def __init__(self, config: TrackerConfig = TrackerConfig()):
@@ -204,22 +207,36 @@ class HypothesisTracker:
         """Write the tracker's whole state (config, tracks, commit, log-odds) to `path` as a
         versioned JSON file, atomically (`graphloc.session.write_data_file`); `load` resumes it
         with identical decisions."""
-        tracks = [{"mean": np.asarray(t.mean.matrix()).ravel().tolist(),
-                   "cov": t.cov.ravel().tolist(), "logw": t.logw, "id": t.track_id,
-                   "candidate": t.candidate, "misses": t.misses} for t in self._tracks]
+        tracks = [
+            {
+                "mean": np.asarray(t.mean.matrix()).ravel().tolist(),
+                "cov": t.cov.ravel().tolist(),
+                "logw": t.logw,
+                "id": t.track_id,
+                "candidate": t.candidate,
+                "misses": t.misses,
+            }
+            for t in self._tracks
+        ]
         config = asdict(self.config)
         config["default_sigmas"] = list(config["default_sigmas"])
-        payload = {"config": config, "tracks": tracks, "next_id": self._next_id,
-                   "committed_id": self._committed_id, "last_time": self._last_time,
-                   "logit": [[i, v] for i, v in self._logit.items()],
-                   "max_gain": [[i, v] for i, v in self._max_gain.items()]}
+        payload = {
+            "config": config,
+            "tracks": tracks,
+            "next_id": self._next_id,
+            "committed_id": self._committed_id,
+            "last_time": self._last_time,
+            "logit": [[i, v] for i, v in self._logit.items()],
+            "max_gain": [[i, v] for i, v in self._max_gain.items()],
+        }
         write_data_file(path, self._SAVE_FORMAT, self._SAVE_VERSION, payload, allow_nan=True)
 
     @classmethod
     def load(cls, path) -> "HypothesisTracker":
         """A tracker `save` wrote. ValueError naming the file and the field on anything else."""
-        raw = read_data_file(path, cls._SAVE_FORMAT, cls._SAVE_VERSION, "hypothesis tracker",
-                             allow_nan=True)
+        raw = read_data_file(
+            path, cls._SAVE_FORMAT, cls._SAVE_VERSION, "hypothesis tracker", allow_nan=True
+        )
         try:
             return cls._from_saved(raw)
         except KeyError as exc:
@@ -254,9 +271,11 @@ class HypothesisTracker:
         for f in fields(TrackerConfig):
             value, default = config[f.name], f.default
             if isinstance(default, bool) != isinstance(value, bool) or (
-                    isinstance(default, (int, float)) and not isinstance(value, (int, float))):
-                raise ValueError(f"config.{f.name}: expected {type(default).__name__}, "
-                                 f"got {value!r}")
+                isinstance(default, (int, float)) and not isinstance(value, (int, float))
+            ):
+                raise ValueError(
+                    f"config.{f.name}: expected {type(default).__name__}, got {value!r}"
+                )
         tracker = cls(TrackerConfig(**config))
         tracks = []
         for k, t in enumerate(items(raw["tracks"], "tracks")):
@@ -265,18 +284,25 @@ class HypothesisTracker:
             mean = np.array([number(v, f"{where}.mean") for v in items(t["mean"], f"{where}.mean")])
             cov = np.array([number(v, f"{where}.cov") for v in items(t["cov"], f"{where}.cov")])
             if mean.size != 16 or cov.size != 36:
-                raise ValueError(f"{where}: mean needs 16 numbers and cov 36, got {mean.size}, "
-                                 f"{cov.size}")
+                raise ValueError(
+                    f"{where}: mean needs 16 numbers and cov 36, got {mean.size}, {cov.size}"
+                )
             T, cov = mean.reshape(4, 4), cov.reshape(6, 6)
             R = T[:3, :3]
             if not (np.abs(R @ R.T - np.eye(3)).max() < 1e-9 and np.linalg.det(R) > 0):
                 raise ValueError(f"{where}.mean: not a rigid transform")
             check_covariance(cov, f"{where}.cov")
             pose = gtsam.Pose3(gtsam.Rot3(R), T[:3, 3])
-            tracks.append(_Track(pose, cov, number(t["logw"], f"{where}.logw", False),
-                                 integer(t["id"], f"{where}.id"),
-                                 integer(t["candidate"], f"{where}.candidate"),
-                                 integer(t["misses"], f"{where}.misses")))
+            tracks.append(
+                _Track(
+                    pose,
+                    cov,
+                    number(t["logw"], f"{where}.logw", False),
+                    integer(t["id"], f"{where}.id"),
+                    integer(t["candidate"], f"{where}.candidate"),
+                    integer(t["misses"], f"{where}.misses"),
+                )
+            )
         tracker._tracks = tracks
         tracker._next_id = integer(raw["next_id"], "next_id")
         committed = raw["committed_id"]
@@ -287,8 +313,11 @@ class HypothesisTracker:
             pairs = items(raw[name], name)
             if not all(isinstance(p, list) and len(p) == 2 for p in pairs):
                 raise ValueError(f"{name}: expected [track id, value] pairs")
-            setattr(tracker, f"_{name}", {integer(i, f"{name} track id"): number(v, name, False)
-                                          for i, v in pairs})
+            setattr(
+                tracker,
+                f"_{name}",
+                {integer(i, f"{name} track id"): number(v, name, False) for i, v in pairs},
+            )
         return tracker
 
     @property
@@ -302,7 +331,10 @@ class HypothesisTracker:
     def update(self, candidates: CandidateSet, odometry: Odometry | None = None) -> Decision:
         first = not self._tracks and self._last_time is None
         check_frame(candidates, odometry, first, self._last_time, "HypothesisTracker.update")
-        cov = cap_covariances(candidate_covariances(candidates, self.config.default_sigmas), self.config.max_candidate_std)
+        cov = cap_covariances(
+            candidate_covariances(candidates, self.config.default_sigmas),
+            self.config.max_candidate_std,
+        )
         self._last_time = candidates.time
         logw_c = np.log(np.maximum(candidates.weights(), 1e-300))
         if not self._tracks:
@@ -319,12 +351,17 @@ class HypothesisTracker:
         self._next_id += 1
         return _Track(pose, cov.copy(), logw, self._next_id, j)
 
-    def _step(self, candidates: CandidateSet, cov: np.ndarray, logw_c: np.ndarray, odometry: Odometry) -> None:
+    def _step(
+        self, candidates: CandidateSet, cov: np.ndarray, logw_c: np.ndarray, odometry: Odometry
+    ) -> None:
         cfg = self.config
         u = odometry.relative
         ad = u.inverse().AdjointMap()
         preds = [t.mean.compose(u) for t in self._tracks]
-        P_pred = np.einsum("ij,hjk,lk->hil", ad, np.stack([t.cov for t in self._tracks]), ad) + odometry.covariance
+        P_pred = (
+            np.einsum("ij,hjk,lk->hil", ad, np.stack([t.cov for t in self._tracks]), ad)
+            + odometry.covariance
+        )
         logw_h = np.array([t.logw for t in self._tracks])
         H, J = len(self._tracks), len(candidates)
         zs = candidates.poses()
@@ -334,13 +371,20 @@ class HypothesisTracker:
         maha_hj = np.full((H, J), np.inf)
         # log-determinants of the candidates, of P- + C_mean (Occam factor of a coasting track,
         # below) and of C_mean, in one batched call
-        c_mean = cov.mean(axis=0) if J else np.diag([cfg.default_sigmas[0] ** 2] * 3 + [cfg.default_sigmas[1] ** 2] * 3)
+        c_mean = (
+            cov.mean(axis=0)
+            if J
+            else np.diag([cfg.default_sigmas[0] ** 2] * 3 + [cfg.default_sigmas[1] ** 2] * 3)
+        )
         logdets = np.linalg.slogdet(np.concatenate([cov, P_pred + c_mean, c_mean[None]]))[1]
-        logdet_c, logdet_pc, logdet_cm = logdets[:J], logdets[J:J + H], logdets[-1]
+        logdet_c, logdet_pc, logdet_cm = logdets[:J], logdets[J : J + H], logdets[-1]
         if J:
             pos_pred = np.array([p.translation() for p in preds])
             d2 = np.sum((pos_pred[:, None, :] - candidates.t[None, :, :]) ** 2, axis=2)
-            var_bound = np.trace(P_pred[:, 3:, 3:], axis1=1, axis2=2)[:, None] + np.trace(cov[:, 3:, 3:], axis1=1, axis2=2)[None]
+            var_bound = (
+                np.trace(P_pred[:, 3:, 3:], axis1=1, axis2=2)[:, None]
+                + np.trace(cov[:, 3:, 3:], axis1=1, axis2=2)[None]
+            )
             hs, js = np.nonzero(d2 <= cfg.gate * var_bound)
             if hs.size:
                 e = np.array([gtsam.Pose3.Logmap(preds[h].between(zs[j])) for h, j in zip(hs, js)])
@@ -362,8 +406,12 @@ class HypothesisTracker:
         # per track (its coasting copies merged); every candidate keeps a child (so that a birth
         # can always take over: relocalization), coasting tracks fill the remaining slots
         cols = np.vstack([log_assoc, log_birth[None, :]])  # (H+1, J): parents, then the birth
-        children = [(float(lw), "child", j, int(p)) for j, (lw, p) in
-                    enumerate(zip(np.logaddexp.reduce(cols, axis=0), np.argmax(cols, axis=0)))]
+        children = [
+            (float(lw), "child", j, int(p))
+            for j, (lw, p) in enumerate(
+                zip(np.logaddexp.reduce(cols, axis=0), np.argmax(cols, axis=0))
+            )
+        ]
         # a coasting track pays the Occam factor of an average consistent association,
         # 1/2 log det(I + P- C_mean^-1), so that a miss is neutral w.r.t. associating
         occam = 0.5 * (logdet_pc - logdet_cm)
@@ -374,7 +422,10 @@ class HypothesisTracker:
             lw = float(logw_h[h] + log_miss - occam[h])
             if t.track_id in coast:
                 merged, best = coast[t.track_id]
-                coast[t.track_id] = (float(np.logaddexp(merged, lw)), best if logw_h[best] >= logw_h[h] else h)
+                coast[t.track_id] = (
+                    float(np.logaddexp(merged, lw)),
+                    best if logw_h[best] >= logw_h[h] else h,
+                )
             else:
                 coast[t.track_id] = (lw, h)
         children.sort(key=lambda e: -e[0])
@@ -382,13 +433,19 @@ class HypothesisTracker:
         coasting = sorted(((lw, "coast", h, h) for lw, h in coast.values()), key=lambda e: -e[0])
         kept += coasting[: cfg.max_hypotheses - len(kept)]
 
-        updates = [(idx, parent) for logw, kind, idx, parent in kept if kind == "child" and parent != H]
-        posterior = self._window_updates(updates, candidates, cov, odometry, preds) if updates else {}
+        updates = [
+            (idx, parent) for logw, kind, idx, parent in kept if kind == "child" and parent != H
+        ]
+        posterior = (
+            self._window_updates(updates, candidates, cov, odometry, preds) if updates else {}
+        )
         new_tracks = []
         for logw, kind, idx, parent in kept:
             if kind == "coast":
                 t = self._tracks[idx]
-                new_tracks.append(_Track(preds[idx], P_pred[idx], logw, t.track_id, -1, t.misses + 1))
+                new_tracks.append(
+                    _Track(preds[idx], P_pred[idx], logw, t.track_id, -1, t.misses + 1)
+                )
             elif parent == H:  # birth
                 new_tracks.append(self._birth(zs[idx], cov[idx], idx, logw))
             else:
@@ -398,8 +455,14 @@ class HypothesisTracker:
                 new_tracks.append(_Track(mean, P, logw, self._tracks[parent].track_id, idx, 0))
         self._tracks = new_tracks
 
-    def _window_updates(self, updates: list[tuple[int, int]], candidates: CandidateSet, cov: np.ndarray,
-                        odometry: Odometry, preds: list[gtsam.Pose3]) -> dict[int, tuple[gtsam.Pose3, np.ndarray]]:
+    def _window_updates(
+        self,
+        updates: list[tuple[int, int]],
+        candidates: CandidateSet,
+        cov: np.ndarray,
+        odometry: Odometry,
+        preds: list[gtsam.Pose3],
+    ) -> dict[int, tuple[gtsam.Pose3, np.ndarray]]:
         """Fixed-lag windows of two poses, one per (candidate j, parent h) in `updates`: parent
         marginal prior + odometry between-factor + the mixture component of candidate j (its pose
         as a Gaussian PriorFactorPose3, as `factors.mixture.component_factors`), all in ONE graph (disjoint keys pose_key(0, 2i),
@@ -412,19 +475,29 @@ class HypothesisTracker:
         for i, (j, h) in enumerate(updates):
             parent = self._tracks[h]
             k0, k1 = pose_key(0, 2 * i), pose_key(0, 2 * i + 1)
-            graph.add(gtsam.PriorFactorPose3(k0, parent.mean, gtsam.noiseModel.Gaussian.Covariance(parent.cov)))
+            graph.add(
+                gtsam.PriorFactorPose3(
+                    k0, parent.mean, gtsam.noiseModel.Gaussian.Covariance(parent.cov)
+                )
+            )
             graph.add(gtsam.BetweenFactorPose3(k0, k1, odometry.relative, odo_noise))
-            graph.add(gtsam.PriorFactorPose3(k1, poses[j], gtsam.noiseModel.Gaussian.Covariance(cov[j])))
+            graph.add(
+                gtsam.PriorFactorPose3(k1, poses[j], gtsam.noiseModel.Gaussian.Covariance(cov[j]))
+            )
             init.insert(k0, parent.mean)
             init.insert(k1, preds[h])
             order += [k0, k1]
         result = gtsam.GaussNewtonOptimizer(graph, init, self._gn).optimize()
         hessian = graph.linearize(result).hessian(gtsam.Ordering(order))[0]
         n = len(updates)
-        blocks = hessian.reshape(n, 12, n, 12)[np.arange(n), :, np.arange(n), :]  # (n,12,12) diagonal blocks
+        blocks = hessian.reshape(n, 12, n, 12)[
+            np.arange(n), :, np.arange(n), :
+        ]  # (n,12,12) diagonal blocks
         P = np.linalg.inv(blocks)[:, 6:, 6:]
         P = 0.5 * (P + np.swapaxes(P, 1, 2))
-        return {j: (result.atPose3(pose_key(0, 2 * i + 1)), P[i]) for i, (j, _) in enumerate(updates)}
+        return {
+            j: (result.atPose3(pose_key(0, 2 * i + 1)), P[i]) for i, (j, _) in enumerate(updates)
+        }
 
     def _normalize(self) -> None:
         if not self._tracks:
@@ -446,12 +519,20 @@ class HypothesisTracker:
         # log-odds floored at the uninformed 1/full_count: a relocalization birth's tiny prior is
         # not evidence against it to be made up after its decisive update is held out
         floor = -np.log(cfg.full_count - 1.0) if cfg.full_count > 1 else -np.inf
-        logit = {i: max(floor, float(np.log(p) - np.log1p(-min(p, 1.0 - 1e-15)))) for i, p in track_prob.items()}
-        gain = {i: max(self._max_gain.get(i, 0.0), l - self._logit[i]) if i in self._logit else 0.0
-                for i, l in logit.items()}
+        logit = {
+            i: max(floor, float(np.log(p) - np.log1p(-min(p, 1.0 - 1e-15))))
+            for i, p in track_prob.items()
+        }
+        gain = {
+            i: max(self._max_gain.get(i, 0.0), l - self._logit[i]) if i in self._logit else 0.0
+            for i, l in logit.items()
+        }
         self._logit, self._max_gain = logit, gain
         relocalized = False
-        if self._committed_id is not None and track_prob.get(self._committed_id, 0.0) < cfg.release_threshold:
+        if (
+            self._committed_id is not None
+            and track_prob.get(self._committed_id, 0.0) < cfg.release_threshold
+        ):
             self._committed_id = None
             relocalized = True
         if self._committed_id is None and track_prob:

@@ -56,7 +56,11 @@ class SkipReport:
         self.examples.extend(other.examples[: max(0, self.max_examples - len(self.examples))])
 
     def as_dict(self) -> dict:
-        return {"total": self.total, "counts": dict(sorted(self.counts.items())), "examples": list(self.examples)}
+        return {
+            "total": self.total,
+            "counts": dict(sorted(self.counts.items())),
+            "examples": list(self.examples),
+        }
 
 
 class _Sink:
@@ -238,9 +242,15 @@ TABLES: dict[str, type] = {
 }
 # sensor type each table's `sensor` column must have
 SENSOR_TYPES = {
-    "odometry": "odometry", "relative_pose": "odometry", "relative_pose3": "odometry", "range": "range",
-    "range_bearing": "range_bearing", "bearing": "bearing",
-    "markers": "camera", "candidates": "camera", "scans": "scanner",
+    "odometry": "odometry",
+    "relative_pose": "odometry",
+    "relative_pose3": "odometry",
+    "range": "range",
+    "range_bearing": "range_bearing",
+    "bearing": "bearing",
+    "markers": "camera",
+    "candidates": "camera",
+    "scans": "scanner",
 }
 
 
@@ -272,7 +282,9 @@ class Robot:
     # version 2 (docs/log_format.md): state space, anchoring, surface, markers
     planar: bool = True  # moves in the floor plane (SE(2) motion embedded in SE(3))
     static: bool = False  # never moves: one pose for the whole run
-    initial_sigma: tuple | None = None  # (rotation [rad], translation [m]) of the initial-pose prior
+    initial_sigma: tuple | None = (
+        None  # (rotation [rad], translation [m]) of the initial-pose prior
+    )
     surface: dict | None = None  # {"point": [..], "normal": [..]} plane the robot climbs on
     markers: tuple | None = None  # ((x, y, z), ...) marker layout in the body frame
     identical_markers: bool = False  # markers cannot be told apart (seed 001: 24 x 4 hypotheses)
@@ -317,7 +329,9 @@ def _extrinsics(value, where: str) -> np.ndarray:
         elif arr.shape == (4, 4):
             T = arr
         else:
-            raise ValueError(f"{where}: extrinsics must be [x, y, theta], {{xyz, rpy}} or 4x4, got shape {arr.shape}")
+            raise ValueError(
+                f"{where}: extrinsics must be [x, y, theta], {{xyz, rpy}} or 4x4, got shape {arr.shape}"
+            )
     if not np.isfinite(T).all():
         raise ValueError(f"{where}: extrinsics contain NaN/inf")
     return T
@@ -336,12 +350,16 @@ def read_manifest(root: str | Path) -> Manifest:
         raise ValueError(f"{path}: the manifest must be a JSON object, got {type(data).__name__}")
     for key, kind in (("robots", list), ("landmarks", dict), ("meta", dict)):
         if data.get(key) is not None and not isinstance(data[key], kind):
-            raise ValueError(f"{path}: field '{key}' must be a JSON {kind.__name__.replace('dict', 'object')}")
+            raise ValueError(
+                f"{path}: field '{key}' must be a JSON {kind.__name__.replace('dict', 'object')}"
+            )
     if data.get("format") != FORMAT:
         raise ValueError(f"{path}: field 'format' must be {FORMAT!r}, got {data.get('format')!r}")
     version = data.get("version")
     if version not in VERSIONS:
-        raise ValueError(f"{path}: field 'version' {version!r} unsupported (this reader: {VERSIONS})")
+        raise ValueError(
+            f"{path}: field 'version' {version!r} unsupported (this reader: {VERSIONS})"
+        )
     robots = []
     for i, r in enumerate(data.get("robots") or []):
         where = f"{path}: robots[{i}]"
@@ -351,51 +369,78 @@ def read_manifest(root: str | Path) -> Manifest:
         for j, s in enumerate(r.get("sensors") or []):
             if not isinstance(s, dict) or not s.get("name") or not s.get("type"):
                 raise ValueError(f"{where}.sensors[{j}]: fields 'name' and 'type' required")
-            sensors.append(Sensor(s["name"], s["type"], _extrinsics(s.get("extrinsics"), f"{where}.sensors[{j}]"),
-                                  dict(s.get("params") or {})))
+            sensors.append(
+                Sensor(
+                    s["name"],
+                    s["type"],
+                    _extrinsics(s.get("extrinsics"), f"{where}.sensors[{j}]"),
+                    dict(s.get("params") or {}),
+                )
+            )
         tables = dict(r.get("tables") or {})
         for t in tables:
             if t not in TABLES:
-                raise ValueError(f"{where}: field 'tables' names unknown table {t!r}; known: {', '.join(TABLES)}")
+                raise ValueError(
+                    f"{where}: field 'tables' names unknown table {t!r}; known: {', '.join(TABLES)}"
+                )
         if not isinstance(r.get("tables") or {}, dict):
             raise ValueError(f"{where}: field 'tables' must be a JSON object (table name -> path)")
         sizes = (3,) if version == 1 else (3, 7)
         init = _numbers(r.get("initial_pose"), sizes, f"{where}: field 'initial_pose'")
         if init is not None and len(init) == 7 and not 0.5 < math.hypot(*init[3:]) < 2.0:
-            raise ValueError(f"{where}: field 'initial_pose': quaternion (qx, qy, qz, qw) is not unit")
+            raise ValueError(
+                f"{where}: field 'initial_pose': quaternion (qx, qy, qz, qw) is not unit"
+            )
         kind = r.get("kind", "ground")
         extra = {}
         if version >= 2:
             extra["planar"] = _flag(r, "planar", kind == "ground", where)
             extra["static"] = _flag(r, "static", False, where)
             extra["identical_markers"] = _flag(r, "identical_markers", False, where)
-            extra["initial_sigma"] = _numbers(r.get("initial_sigma"), (2,), f"{where}: field 'initial_sigma'",
-                                              positive=True)
+            extra["initial_sigma"] = _numbers(
+                r.get("initial_sigma"), (2,), f"{where}: field 'initial_sigma'", positive=True
+            )
             surface = r.get("surface")
             if surface is not None:
                 if not isinstance(surface, dict):
-                    raise ValueError(f"{where}: field 'surface' must be {{\"point\": [x, y, z], \"normal\": [..]}}")
+                    raise ValueError(
+                        f'{where}: field \'surface\' must be {{"point": [x, y, z], "normal": [..]}}'
+                    )
                 for key in ("point", "normal"):
-                    _numbers(surface.get(key), (3,), f"{where}: field 'surface.{key}'", required=True)
+                    _numbers(
+                        surface.get(key), (3,), f"{where}: field 'surface.{key}'", required=True
+                    )
                 if math.hypot(*surface["normal"]) < 1e-9:
                     raise ValueError(f"{where}: field 'surface.normal' must be non-zero")
-                extra["surface"] = {"point": [float(a) for a in surface["point"]],
-                                    "normal": [float(a) for a in surface["normal"]]}
+                extra["surface"] = {
+                    "point": [float(a) for a in surface["point"]],
+                    "normal": [float(a) for a in surface["normal"]],
+                }
             markers = r.get("markers")
             if markers is not None:
                 if not isinstance(markers, list) or len(markers) < 3:
-                    raise ValueError(f"{where}: field 'markers' must list at least 3 points [x, y, z]")
-                extra["markers"] = tuple(_numbers(m, (3,), f"{where}: field 'markers[{j}]'", required=True)
-                                         for j, m in enumerate(markers))
-        robots.append(Robot(r["name"], kind, tuple(sensors), tables, init, dict(r.get("meta") or {}), **extra))
+                    raise ValueError(
+                        f"{where}: field 'markers' must list at least 3 points [x, y, z]"
+                    )
+                extra["markers"] = tuple(
+                    _numbers(m, (3,), f"{where}: field 'markers[{j}]'", required=True)
+                    for j, m in enumerate(markers)
+                )
+        robots.append(
+            Robot(r["name"], kind, tuple(sensors), tables, init, dict(r.get("meta") or {}), **extra)
+        )
     names = [r.name for r in robots]
     if not robots or len(set(names)) != len(names):
-        raise ValueError(f"{path}: field 'robots' must list at least one robot with unique names, got {names}")
+        raise ValueError(
+            f"{path}: field 'robots' must list at least one robot with unique names, got {names}"
+        )
     lm = (data.get("landmarks") or {}).get("file")
     start = data.get("start_time")
     if start is not None and not (isinstance(start, (int, float)) and math.isfinite(start)):
         raise ValueError(f"{path}: field 'start_time' must be a finite number, got {start!r}")
-    return Manifest(root, data.get("name", root.name), tuple(robots), lm, start, dict(data.get("meta") or {}))
+    return Manifest(
+        root, data.get("name", root.name), tuple(robots), lm, start, dict(data.get("meta") or {})
+    )
 
 
 def _numbers(value, sizes: tuple, where: str, positive: bool = False, required: bool = False):
@@ -407,7 +452,9 @@ def _numbers(value, sizes: tuple, where: str, positive: bool = False, required: 
     except (TypeError, ValueError):
         out = ()
     if len(out) not in sizes or not all(math.isfinite(a) and abs(a) < 1e9 for a in out):
-        raise ValueError(f"{where} must be {' or '.join(map(str, sizes))} finite numbers, got {value!r}")
+        raise ValueError(
+            f"{where} must be {' or '.join(map(str, sizes))} finite numbers, got {value!r}"
+        )
     if positive and not all(a > 0 for a in out):
         raise ValueError(f"{where} must be > 0, got {value!r}")
     return out
@@ -437,8 +484,14 @@ def _converter(tp):
     return str
 
 
-def iter_table(manifest: Manifest, robot: Robot, table: str, on_error: str = "raise",
-               report: SkipReport | None = None, landmark_ids: set | None = None) -> Iterator:
+def iter_table(
+    manifest: Manifest,
+    robot: Robot,
+    table: str,
+    on_error: str = "raise",
+    report: SkipReport | None = None,
+    landmark_ids: set | None = None,
+) -> Iterator:
     """Validated records of one robot's table, in file order. Checks: header, field count, number
     parsing, NaN/inf, time non-decreasing, known sensor (of the right type), known target."""
     sink = _Sink(on_error, report)
@@ -448,7 +501,9 @@ def iter_table(manifest: Manifest, robot: Robot, table: str, on_error: str = "ra
     path = manifest.root / robot.tables[table]
     robots = {r.name for r in manifest.robots}
     if not path.is_file():
-        raise FileNotFoundError(f"{path}: table {table!r} of robot {robot.name!r} listed in manifest but missing")
+        raise FileNotFoundError(
+            f"{path}: table {table!r} of robot {robot.name!r} listed in manifest but missing"
+        )
     last_time = -math.inf
     with open(path, newline="") as fh:
         reader = csv.reader(fh)
@@ -470,7 +525,10 @@ def iter_table(manifest: Manifest, robot: Robot, table: str, on_error: str = "ra
                 try:
                     value = conv(text.strip())
                 except ValueError:
-                    sink.bad("parse", f"{where}: field '{name}': cannot parse {text.strip()!r} as {conv.__name__}")
+                    sink.bad(
+                        "parse",
+                        f"{where}: field '{name}': cannot parse {text.strip()!r} as {conv.__name__}",
+                    )
                     ok = False
                     break
                 if conv is float and not math.isfinite(value):
@@ -481,19 +539,31 @@ def iter_table(manifest: Manifest, robot: Robot, table: str, on_error: str = "ra
             if not ok:
                 continue
             if values["time"] < last_time:
-                sink.bad("time_backwards", f"{where}: field 'time': {values['time']} goes backwards (previous {last_time})")
+                sink.bad(
+                    "time_backwards",
+                    f"{where}: field 'time': {values['time']} goes backwards (previous {last_time})",
+                )
                 continue
             if "sensor" in values:
                 sensor = robot.sensor(values["sensor"])
                 if sensor is None:
-                    sink.bad("unknown_sensor", f"{where}: field 'sensor': robot {robot.name!r} has no sensor {values['sensor']!r}")
+                    sink.bad(
+                        "unknown_sensor",
+                        f"{where}: field 'sensor': robot {robot.name!r} has no sensor {values['sensor']!r}",
+                    )
                     continue
                 if sensor.type != SENSOR_TYPES[table]:
-                    sink.bad("sensor_type", f"{where}: field 'sensor': {values['sensor']!r} is a {sensor.type}, "
-                                            f"table {table} needs a {SENSOR_TYPES[table]}")
+                    sink.bad(
+                        "sensor_type",
+                        f"{where}: field 'sensor': {values['sensor']!r} is a {sensor.type}, "
+                        f"table {table} needs a {SENSOR_TYPES[table]}",
+                    )
                     continue
             if "target" in values and not _known_target(values["target"], robots, landmark_ids):
-                sink.bad("unknown_target", f"{where}: field 'target': {values['target']!r} is neither a robot nor a known landmark")
+                sink.bad(
+                    "unknown_target",
+                    f"{where}: field 'target': {values['target']!r} is neither a robot nor a known landmark",
+                )
                 continue
             last_time = values["time"]
             yield cls(robot=robot.name, line=line, **values)
@@ -504,7 +574,7 @@ def _known_target(target: str, robots: set, landmark_ids: set | None) -> bool:
         return True
     if target.startswith(LANDMARK_PREFIX):
         try:
-            lid = int(target[len(LANDMARK_PREFIX):])
+            lid = int(target[len(LANDMARK_PREFIX) :])
         except ValueError:
             return False
         return landmark_ids is None or lid in landmark_ids
@@ -540,14 +610,20 @@ def read_landmarks(manifest: Manifest) -> tuple[np.ndarray, np.ndarray, np.ndarr
                 except ValueError:
                     raise ValueError(f"{where}: field '{name}': cannot parse {text!r}") from None
                 if not math.isfinite(val) or (name.startswith("sigma") and val < 0):
-                    raise ValueError(f"{where}: field '{name}': {text} must be finite (sigmas >= 0)")
+                    raise ValueError(
+                        f"{where}: field '{name}': {text} must be finite (sigmas >= 0)"
+                    )
                 nums.append(val)
             if lid in ids:
                 raise ValueError(f"{where}: field 'id': landmark {lid} listed twice")
             ids.append(lid)
             xyz.append(nums[:3])
             sig.append(nums[3:])
-    return np.array(ids, dtype=int), np.array(xyz, dtype=float).reshape(-1, 3), np.array(sig, dtype=float).reshape(-1, 3)
+    return (
+        np.array(ids, dtype=int),
+        np.array(xyz, dtype=float).reshape(-1, 3),
+        np.array(sig, dtype=float).reshape(-1, 3),
+    )
 
 
 def is_tum(path: str) -> bool:
@@ -555,14 +631,21 @@ def is_tum(path: str) -> bool:
     return str(path).endswith(".tum")
 
 
-def iter_records(root: str | Path, tables=None, robots=None, on_error: str = "raise",
-                 report: SkipReport | None = None) -> Iterator:
+def iter_records(
+    root: str | Path,
+    tables=None,
+    robots=None,
+    on_error: str = "raise",
+    report: SkipReport | None = None,
+) -> Iterator:
     """All records of the log (optionally only `tables` / `robots`), merged in time order across
     robots and tables (heapq.merge; ties keep robot-then-table order). Streaming: one row per file
     in memory."""
     manifest = read_manifest(root)
     # without a landmarks file (SLAM: positions unknown) every landmark id is acceptable
-    landmark_ids = None if manifest.landmarks_file is None else set(read_landmarks(manifest)[0].tolist())
+    landmark_ids = (
+        None if manifest.landmarks_file is None else set(read_landmarks(manifest)[0].tolist())
+    )
     wanted_tables = list(TABLES) if tables is None else list(tables)
     for t in wanted_tables:
         if t not in TABLES:
@@ -570,10 +653,16 @@ def iter_records(root: str | Path, tables=None, robots=None, on_error: str = "ra
     known = {r.name for r in manifest.robots}
     for name in robots or []:
         if name not in known:
-            raise ValueError(f"{manifest.root / MANIFEST}: unknown robot {name!r}; robots: {sorted(known)}")
-    streams = [iter_table(manifest, r, t, on_error, report, landmark_ids)
-               for r in manifest.robots if robots is None or r.name in robots
-               for t in wanted_tables if t in r.tables and not is_tum(r.tables[t])]
+            raise ValueError(
+                f"{manifest.root / MANIFEST}: unknown robot {name!r}; robots: {sorted(known)}"
+            )
+    streams = [
+        iter_table(manifest, r, t, on_error, report, landmark_ids)
+        for r in manifest.robots
+        if robots is None or r.name in robots
+        for t in wanted_tables
+        if t in r.tables and not is_tum(r.tables[t])
+    ]
     return heapq.merge(*streams, key=lambda rec: rec.time)
 
 
@@ -610,15 +699,25 @@ class PlanarRun:
 
     def __post_init__(self):
         R = len(self.robots)
-        if self.initial_poses.shape != (R, 3) or len(self.odometry) != R or len(self.groundtruth) != R:
-            raise ValueError(f"PlanarRun: initial_poses must be ({R},3) and odometry/groundtruth have {R} entries")
+        if (
+            self.initial_poses.shape != (R, 3)
+            or len(self.odometry) != R
+            or len(self.groundtruth) != R
+        ):
+            raise ValueError(
+                f"PlanarRun: initial_poses must be ({R},3) and odometry/groundtruth have {R} entries"
+            )
         m = self.obs_time.shape
         for name in ("obs_robot", "obs_target_robot", "obs_landmark", "obs_range", "obs_bearing"):
             if getattr(self, name).shape != m:
-                raise ValueError(f"PlanarRun: {name} must have shape {m}, got {getattr(self, name).shape}")
+                raise ValueError(
+                    f"PlanarRun: {name} must have shape {m}, got {getattr(self, name).shape}"
+                )
         for r, od in enumerate(self.odometry):
             if od.ndim != 2 or od.shape[1] != 3:
-                raise ValueError(f"PlanarRun: odometry of {self.robots[r]} must be (N,3), got {od.shape}")
+                raise ValueError(
+                    f"PlanarRun: odometry of {self.robots[r]} must be (N,3), got {od.shape}"
+                )
 
     @property
     def end_time(self) -> float:
@@ -637,33 +736,75 @@ def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Pa
         (root / name).mkdir(exist_ok=True)
         tables = {"odometry": f"{name}/odometry.csv", "range_bearing": f"{name}/range_bearing.csv"}
         od = run.odometry[r]
-        _write_csv(root / tables["odometry"], columns("odometry"),
-                   [(f"{t:.6f}", "wheels", f"{v:.6g}", f"{w:.6g}") for t, v, w in od])
+        _write_csv(
+            root / tables["odometry"],
+            columns("odometry"),
+            [(f"{t:.6f}", "wheels", f"{v:.6g}", f"{w:.6g}") for t, v, w in od],
+        )
         sel = np.flatnonzero(run.obs_robot == r)
         rows = []
         for i in sel:
-            target = (run.robots[run.obs_target_robot[i]] if run.obs_target_robot[i] >= 0
-                      else f"{LANDMARK_PREFIX}{run.obs_landmark[i]}")
-            rows.append((f"{run.obs_time[i]:.6f}", "camera", target, f"{run.obs_range[i]:.6g}", f"{run.obs_bearing[i]:.6g}"))
+            target = (
+                run.robots[run.obs_target_robot[i]]
+                if run.obs_target_robot[i] >= 0
+                else f"{LANDMARK_PREFIX}{run.obs_landmark[i]}"
+            )
+            rows.append(
+                (
+                    f"{run.obs_time[i]:.6f}",
+                    "camera",
+                    target,
+                    f"{run.obs_range[i]:.6g}",
+                    f"{run.obs_bearing[i]:.6g}",
+                )
+            )
         _write_csv(root / tables["range_bearing"], columns("range_bearing"), rows)
         if run.groundtruth[r] is not None:
             tables["groundtruth"] = f"{name}/groundtruth.csv"
-            _write_csv(root / tables["groundtruth"], columns("groundtruth"),
-                       [(f"{t:.6f}", f"{x:.8g}", f"{y:.8g}", f"{th:.8g}") for t, x, y, th in run.groundtruth[r]])
+            _write_csv(
+                root / tables["groundtruth"],
+                columns("groundtruth"),
+                [
+                    (f"{t:.6f}", f"{x:.8g}", f"{y:.8g}", f"{th:.8g}")
+                    for t, x, y, th in run.groundtruth[r]
+                ],
+            )
         init = run.initial_poses[r]
-        robots.append({
-            "name": name, "kind": "ground",
-            "initial_pose": None if not np.isfinite(init).all() else [float(a) for a in init],
-            "sensors": [{"name": "wheels", "type": "odometry"},
-                        {"name": "camera", "type": "range_bearing", "extrinsics": [0.0, 0.0, 0.0],
-                         "params": dict(sensor_sigmas or {})}],
-            "tables": tables,
-        })
-    _write_csv(root / "landmarks.csv", ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"],
-               [(int(i), f"{p[0]:.8g}", f"{p[1]:.8g}", "0", f"{s[0]:.3g}", f"{s[1]:.3g}", "0")
-                for i, p, s in zip(run.landmark_ids, run.landmark_xy, run.landmark_sigma)])
-    write_manifest({"name": run.name, "start_time": run.start_time, "robots": robots,
-                    "landmarks": {"file": "landmarks.csv"}, "meta": run.meta}, root)
+        robots.append(
+            {
+                "name": name,
+                "kind": "ground",
+                "initial_pose": None if not np.isfinite(init).all() else [float(a) for a in init],
+                "sensors": [
+                    {"name": "wheels", "type": "odometry"},
+                    {
+                        "name": "camera",
+                        "type": "range_bearing",
+                        "extrinsics": [0.0, 0.0, 0.0],
+                        "params": dict(sensor_sigmas or {}),
+                    },
+                ],
+                "tables": tables,
+            }
+        )
+    _write_csv(
+        root / "landmarks.csv",
+        ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"],
+        [
+            (int(i), f"{p[0]:.8g}", f"{p[1]:.8g}", "0", f"{s[0]:.3g}", f"{s[1]:.3g}", "0")
+            for i, p, s in zip(run.landmark_ids, run.landmark_xy, run.landmark_sigma)
+        ],
+    )
+    write_manifest(
+        {
+            "name": run.name,
+            "start_time": run.start_time,
+            "robots": robots,
+            "landmarks": {"file": "landmarks.csv"},
+            "meta": run.meta,
+        },
+        root,
+    )
     return root
 
 

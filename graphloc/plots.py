@@ -1,7 +1,7 @@
 """Generic result plots (matplotlib, Agg backend, PNG files) anyone can reuse:
 
-    plot_trajectories(path, [Series("batch", xy), ...], reference=[Series("ground truth", xy)], points=landmarks)
-    plot_series(path, [Series("batch robot1", t, err), ...], xlabel="time [s]", ylabel="ATE [m]")
+plot_trajectories(path, [Series("batch", xy), ...], reference=[Series("ground truth", xy)], points=landmarks)
+plot_series(path, [Series("batch robot1", t, err), ...], xlabel="time [s]", ylabel="ATE [m]")
 """
 
 from __future__ import annotations
@@ -39,13 +39,21 @@ def _xy(s: Series) -> tuple[np.ndarray, np.ndarray]:
     return x, y
 
 
-def plot_trajectories(path: str | Path, series: list[Series], reference: list[Series] = (), points=None,
-                      title: str = "", point_label: str = "landmarks") -> Path:
+def plot_trajectories(
+    path: str | Path,
+    series: list[Series],
+    reference: list[Series] = (),
+    points=None,
+    title: str = "",
+    point_label: str = "landmarks",
+) -> Path:
     """Top view: estimated trajectories (solid), references (dashed black unless colored), optional points."""
     fig, ax = plt.subplots(figsize=(7, 7))
     for s in reference:
         x, y = _xy(s)
-        ax.plot(x, y, s.style if s.style != "-" else "--", color=s.color or "k", lw=1.0, label=s.label)
+        ax.plot(
+            x, y, s.style if s.style != "-" else "--", color=s.color or "k", lw=1.0, label=s.label
+        )
     for s in series:
         x, y = _xy(s)
         ax.plot(x, y, s.style, lw=1.0, label=s.label, **_color(s))
@@ -61,8 +69,14 @@ def plot_trajectories(path: str | Path, series: list[Series], reference: list[Se
     return _save(fig, path)
 
 
-def plot_series(path: str | Path, series: list[Series], xlabel: str = "", ylabel: str = "", title: str = "",
-                logy: bool = False) -> Path:
+def plot_series(
+    path: str | Path,
+    series: list[Series],
+    xlabel: str = "",
+    ylabel: str = "",
+    title: str = "",
+    logy: bool = False,
+) -> Path:
     """Curves y(x) on one axis (e.g. error over time, latency per frame)."""
     fig, ax = plt.subplots(figsize=(9, 4.5))
     for s in series:

@@ -101,20 +101,32 @@ class SessionConfig:
         if self.mode not in MODES:
             raise ValueError(f"SessionConfig.mode must be one of {MODES}, got {self.mode!r}")
         if self.isam2_optimizer not in ("gauss_newton", "dogleg"):
-            raise ValueError(f"SessionConfig.isam2_optimizer must be gauss_newton or dogleg, got "
-                             f"{self.isam2_optimizer!r}")
+            raise ValueError(
+                f"SessionConfig.isam2_optimizer must be gauss_newton or dogleg, got "
+                f"{self.isam2_optimizer!r}"
+            )
         if self.factorization not in ("CHOLESKY", "QR"):
-            raise ValueError(f"SessionConfig.factorization must be CHOLESKY or QR, got {self.factorization!r}")
+            raise ValueError(
+                f"SessionConfig.factorization must be CHOLESKY or QR, got {self.factorization!r}"
+            )
         counts = (self.lm_max_iterations, self.relinearize_skip, self.extra_updates)
-        if max(counts) >= 2 ** 31:
-            raise ValueError(f"SessionConfig: lm_max_iterations, relinearize_skip and "
-                             f"extra_updates must be < 2^31, got {counts}")
+        if max(counts) >= 2**31:
+            raise ValueError(
+                f"SessionConfig: lm_max_iterations, relinearize_skip and "
+                f"extra_updates must be < 2^31, got {counts}"
+            )
         if self.lm_max_iterations < 1 or self.relinearize_skip < 1 or self.extra_updates < 0:
-            raise ValueError("SessionConfig: lm_max_iterations and relinearize_skip must be >= 1, extra_updates >= 0")
+            raise ValueError(
+                "SessionConfig: lm_max_iterations and relinearize_skip must be >= 1, extra_updates >= 0"
+            )
         if not (self.wildfire_threshold >= 0 and np.isfinite(self.wildfire_threshold)):
-            raise ValueError(f"SessionConfig.wildfire_threshold must be finite >= 0, got {self.wildfire_threshold}")
+            raise ValueError(
+                f"SessionConfig.wildfire_threshold must be finite >= 0, got {self.wildfire_threshold}"
+            )
         if not (self.relinearize_threshold >= 0 and np.isfinite(self.relinearize_threshold)):
-            raise ValueError(f"SessionConfig.relinearize_threshold must be finite >= 0, got {self.relinearize_threshold}")
+            raise ValueError(
+                f"SessionConfig.relinearize_threshold must be finite >= 0, got {self.relinearize_threshold}"
+            )
 
 
 @dataclass(frozen=True)
@@ -159,8 +171,7 @@ def _as_graph(items: list) -> gtsam.NonlinearFactorGraph:
 class Session:
     """Batch (LM) or online (iSAM2) smoothing over one growing factor graph."""
 
-    def __init__(self, config: SessionConfig = SessionConfig(), progress: bool = False,
-                 stop=None):
+    def __init__(self, config: SessionConfig = SessionConfig(), progress: bool = False, stop=None):
         self.config = config
         self.progress = progress  # a progress bar (iteration, error) during a batch solve
         self.stop = stop  # stop(): checked between LM iterations; True ends the solve there
@@ -207,17 +218,23 @@ class Session:
     def _frozen_or_live(self, key: int):
         if self._frozen.exists(key):
             return _value(self._frozen, key)
-        for get in (self._isam.calculateEstimatePose3, self._isam.calculateEstimatePose2,
-                    self._isam.calculateEstimatePoint3, self._isam.calculateEstimateVector):
+        for get in (
+            self._isam.calculateEstimatePose3,
+            self._isam.calculateEstimatePose2,
+            self._isam.calculateEstimatePoint3,
+            self._isam.calculateEstimateVector,
+        ):
             try:
                 return get(key)
             except RuntimeError:
                 continue
-        raise RuntimeError(f"no estimate of type Pose3, Pose2, Point3 or vector for "
-                           f"{_key_name(key)}")
+        raise RuntimeError(
+            f"no estimate of type Pose3, Pose2, Point3 or vector for {_key_name(key)}"
+        )
 
-    def _update_fixed_lag(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
-                          t: float) -> None:
+    def _update_fixed_lag(
+        self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, t: float
+    ) -> None:
         """One fixed-lag update: the new keys get time t; the keys the smoother marginalizes
         keep their estimate from before this update."""
         quantum = self.config.lag if self.config.lag_batches else 0.0
@@ -243,8 +260,12 @@ class Session:
                 self._frozen.insert(k, _value(before, k))
 
     # ---- the front door ------------------------------------------------------------------
-    def add(self, factors: gtsam.NonlinearFactorGraph | Iterable, initial_values: gtsam.Values,
-            time: float | None = None) -> Step:
+    def add(
+        self,
+        factors: gtsam.NonlinearFactorGraph | Iterable,
+        initial_values: gtsam.Values,
+        time: float | None = None,
+    ) -> Step:
         """Append `factors` (a NonlinearFactorGraph or iterable of factors) and the initial guess of
         the variables they introduce. `time` must not go backwards (None: same as the previous step).
         Every key a factor touches must be known already or be in `initial_values`; keys in
@@ -263,39 +284,52 @@ class Session:
         new_keys = set(initial_values.keys())
         clash = [_key_name(k) for k in new_keys if self.initial.exists(k)]
         if clash:
-            raise ValueError(f"Session.add: initial values for keys already in the session: {clash[:5]}")
-        missing = sorted({k for k in graph.keyVector() if not self.initial.exists(k) and k not in new_keys})
+            raise ValueError(
+                f"Session.add: initial values for keys already in the session: {clash[:5]}"
+            )
+        missing = sorted(
+            {k for k in graph.keyVector() if not self.initial.exists(k) and k not in new_keys}
+        )
         if missing:
             names = [_key_name(k) for k in missing[:5]]
             raise ValueError(f"Session.add: factors reference keys without a value: {names}")
 
         gone = [_key_name(k) for k in graph.keyVector() if self._frozen.exists(k)]
         if gone:
-            raise ValueError(f"Session.add: factors reference marginalized keys (older than the "
-                             f"lag): {gone[:5]}")
+            raise ValueError(
+                f"Session.add: factors reference marginalized keys (older than the lag): {gone[:5]}"
+            )
         start, cpu_start = _time.perf_counter(), _time.thread_time()
         if self.fixed_lag:
             try:
                 self._update_fixed_lag(graph, initial_values, t)
             except RuntimeError as exc:
-                raise ValueError(f"Session.add at time {t}: fixed-lag update failed "
-                                 f"({_first_line(exc)})") from None
+                raise ValueError(
+                    f"Session.add at time {t}: fixed-lag update failed ({_first_line(exc)})"
+                ) from None
         elif self._isam is not None:
             try:
                 self._isam.update(graph, initial_values)
                 for _ in range(self.config.extra_updates):
                     self._isam.update()
             except RuntimeError as exc:
-                raise ValueError(f"Session.add at time {t}: iSAM2 update failed ({exc}); the online session "
-                                 f"is unusable after this, reload a saved state") from None
+                raise ValueError(
+                    f"Session.add at time {t}: iSAM2 update failed ({exc}); the online session "
+                    f"is unusable after this, reload a saved state"
+                ) from None
         latency, cpu = _time.perf_counter() - start, _time.thread_time() - cpu_start
 
         self.graph.push_back(graph)
         self.initial.insert(initial_values)
         self._batch_estimate = self._batch_marginals = None
         self._last_time = t
-        step = Step(time=t, n_factors=int(graph.size()), n_new_values=len(new_keys),
-                    latency_s=latency, cpu_s=cpu)
+        step = Step(
+            time=t,
+            n_factors=int(graph.size()),
+            n_new_values=len(new_keys),
+            latency_s=latency,
+            cpu_s=cpu,
+        )
         self.steps.append(step)
         self._records.append(_Record(t, items, initial_values, latency))
         return step
@@ -317,15 +351,21 @@ class Session:
                     out.insert(k, self._frozen_or_live(k))
                 return out
             except RuntimeError as exc:
-                raise ValueError(f"Session.estimate: the fixed-lag smoother cannot solve the "
-                                 f"graph ({_first_line(exc)})") from None
+                raise ValueError(
+                    f"Session.estimate: the fixed-lag smoother cannot solve the "
+                    f"graph ({_first_line(exc)})"
+                ) from None
         if self._isam is not None:
             try:
-                return self._isam.calculateEstimate() if keys is None else \
-                    self._isam.calculateEstimate(keys)
+                return (
+                    self._isam.calculateEstimate()
+                    if keys is None
+                    else self._isam.calculateEstimate(keys)
+                )
             except RuntimeError as exc:  # e.g. an indeterminate system after a bad update
-                raise ValueError(f"Session.estimate: iSAM2 cannot solve the graph "
-                                 f"({_first_line(exc)})") from None
+                raise ValueError(
+                    f"Session.estimate: iSAM2 cannot solve the graph ({_first_line(exc)})"
+                ) from None
         if self._batch_estimate is None:
             self._batch_estimate = self._optimize_batch()
         if keys is None:
@@ -337,16 +377,20 @@ class Session:
         self._check_known([key], "marginal_covariance")
         try:
             if self.marginalized(key):
-                raise ValueError(f"Session.marginal_covariance({_key_name(key)}): the "
-                                 f"variable was marginalized (older than the lag)")
+                raise ValueError(
+                    f"Session.marginal_covariance({_key_name(key)}): the "
+                    f"variable was marginalized (older than the lag)"
+                )
             if self._isam is not None:
                 return np.asarray(self._isam.marginalCovariance(key))
             if self._batch_marginals is None:  # one factorization per estimate, not per query
                 self._batch_marginals = gtsam.Marginals(self.graph, self.estimate())
             return np.asarray(self._batch_marginals.marginalCovariance(key))
         except RuntimeError as exc:
-            raise ValueError(f"Session.marginal_covariance({_key_name(key)}): "
-                             f"GTSAM cannot compute it ({_first_line(exc)})") from None
+            raise ValueError(
+                f"Session.marginal_covariance({_key_name(key)}): "
+                f"GTSAM cannot compute it ({_first_line(exc)})"
+            ) from None
 
     def _check_known(self, keys: list, what: str) -> None:
         unknown = [_key_name(k) for k in keys if not self.initial.exists(k)]
@@ -380,11 +424,17 @@ class Session:
         optimizer = gtsam.LevenbergMarquardtOptimizer(self.graph, self.initial, params)
         # GTSAM's own optimize() loop (NonlinearOptimizer::defaultOptimize), iteration by
         # iteration so that long solves show their progress
-        bar = tqdm(total=params.getMaxIterations(), desc="Levenberg-Marquardt", unit="it",
-                   disable=not self.progress)
+        bar = tqdm(
+            total=params.getMaxIterations(),
+            desc="Levenberg-Marquardt",
+            unit="it",
+            disable=not self.progress,
+        )
         try:
             error = optimizer.error()
-            while error > params.getErrorTol() and optimizer.iterations() < params.getMaxIterations():
+            while (
+                error > params.getErrorTol() and optimizer.iterations() < params.getMaxIterations()
+            ):
                 if self.stop is not None and self.stop():
                     self.stopped = True
                     break
@@ -392,7 +442,9 @@ class Session:
                 new_error = optimizer.error()
                 bar.update(1)
                 bar.set_postfix(error=f"{new_error:.6g}")
-                done = gtsam.checkConvergence(params, error, new_error) or not np.isfinite(new_error)
+                done = gtsam.checkConvergence(params, error, new_error) or not np.isfinite(
+                    new_error
+                )
                 error = new_error
                 if done:
                     break
@@ -414,14 +466,24 @@ class Session:
             where = f"Session.save: step {i} (time {record.time})"
             bare = [type(it).__name__ for it in record.items if isinstance(it, gtsam.CustomFactor)]
             if bare:
-                raise ValueError(f"{where} holds a bare gtsam.CustomFactor, which cannot be "
-                                 f"saved; add its provider object (e.g. MaxMixture) instead")
-            items = [_encode_item(item, f"{where}, item {j}")
-                     for j, item in enumerate(record.items)]
-            steps.append({"time": record.time, "latency_s": record.latency_s, "items": items,
-                          "values": _encode_values(record.values, where)})
-        write_data_file(path, _SAVE_FORMAT, _SAVE_VERSION, {"config": asdict(self.config),
-                                                             "steps": steps})
+                raise ValueError(
+                    f"{where} holds a bare gtsam.CustomFactor, which cannot be "
+                    f"saved; add its provider object (e.g. MaxMixture) instead"
+                )
+            items = [
+                _encode_item(item, f"{where}, item {j}") for j, item in enumerate(record.items)
+            ]
+            steps.append(
+                {
+                    "time": record.time,
+                    "latency_s": record.latency_s,
+                    "items": items,
+                    "values": _encode_values(record.values, where),
+                }
+            )
+        write_data_file(
+            path, _SAVE_FORMAT, _SAVE_VERSION, {"config": asdict(self.config), "steps": steps}
+        )
 
     @classmethod
     def load(cls, path: str | Path) -> "Session":
@@ -450,19 +512,25 @@ class _Bad(Exception):
 
 
 # ---- versioned data files (also used by graphloc.hypotheses) ----------------------------------
-def write_data_file(path: str | Path, fmt: str, version: int, payload: dict,
-                    allow_nan: bool = False) -> None:
+def write_data_file(
+    path: str | Path, fmt: str, version: int, payload: dict, allow_nan: bool = False
+) -> None:
     """Write `payload` as a graphloc data file: one JSON header line (format, version, body size
     and SHA-256) and a JSON body, atomically. allow_nan: write inf/NaN as JSON constants
     (Infinity, NaN) instead of raising ValueError."""
     body = json.dumps(payload, allow_nan=allow_nan, separators=(",", ":")).encode()
-    header = {"format": fmt, "version": version, "body_bytes": len(body),
-              "body_sha256": hashlib.sha256(body).hexdigest()}
+    header = {
+        "format": fmt,
+        "version": version,
+        "body_bytes": len(body),
+        "body_sha256": hashlib.sha256(body).hexdigest(),
+    }
     write_atomically(Path(path), json.dumps(header).encode() + b"\n" + body)
 
 
-def read_data_file(path: str | Path, fmt: str, version: int, what: str,
-                   allow_nan: bool = False) -> dict:
+def read_data_file(
+    path: str | Path, fmt: str, version: int, what: str, allow_nan: bool = False
+) -> dict:
     """The JSON body of a file `write_data_file` wrote, after checking format, version, size
     and SHA-256. ValueError naming the file (and saying what is wrong) on anything else: an
     unreadable file, a pickle, another format or version, a truncated or altered body."""
@@ -509,8 +577,10 @@ def write_atomically(path: Path, data: bytes) -> None:
 
 def _parse_data_file(data: bytes, fmt: str, version: int, what: str, allow_nan: bool) -> dict:
     if data[:1] == b"\x80":
-        raise _Bad(f"not a saved graphloc {what}: a Python pickle (an older graphloc format or "
-                   f"foreign), which is not loaded because unpickling can run code; re-save it")
+        raise _Bad(
+            f"not a saved graphloc {what}: a Python pickle (an older graphloc format or "
+            f"foreign), which is not loaded because unpickling can run code; re-save it"
+        )
     head, sep, body = data.partition(b"\n")
     try:
         header = json.loads(head.decode("utf-8"))
@@ -519,11 +589,15 @@ def _parse_data_file(data: bytes, fmt: str, version: int, what: str, allow_nan: 
     if not sep or not isinstance(header, dict) or header.get("format") != fmt:
         raise _Bad(f"not a saved graphloc {what} (no {fmt} header line)")
     if header.get("version") != version:
-        raise _Bad(f"{what} format version {header.get('version')!r} unsupported (this graphloc "
-                   f"reads version {version})")
+        raise _Bad(
+            f"{what} format version {header.get('version')!r} unsupported (this graphloc "
+            f"reads version {version})"
+        )
     if header.get("body_bytes") != len(body):
-        raise _Bad(f"truncated or altered: body has {len(body)} bytes, header says "
-                   f"{header.get('body_bytes')!r}")
+        raise _Bad(
+            f"truncated or altered: body has {len(body)} bytes, header says "
+            f"{header.get('body_bytes')!r}"
+        )
     if header.get("body_sha256") != hashlib.sha256(body).hexdigest():
         raise _Bad("altered or corrupted: the SHA-256 of the body does not match the header")
     try:
@@ -564,16 +638,38 @@ def _config_from(raw) -> SessionConfig:
 # ---- the codec: built-in factors, noise models and values as JSON numbers ----------------------
 # measurement kinds: how a factor's measurement is written and rebuilt
 _FACTOR_TYPES = {
-    **{f"PriorFactor{t}": ("prior", k, 1) for t, k in (
-        ("Pose2", "pose2"), ("Pose3", "pose3"), ("Rot2", "rot2"), ("Rot3", "rot3"),
-        ("Point2", "vector"), ("Point3", "vector"), ("Unit3", "unit3"), ("Double", "double"))},
-    **{f"BetweenFactor{t}": ("measured", k, 2) for t, k in (
-        ("Pose2", "pose2"), ("Pose3", "pose3"), ("Rot2", "rot2"), ("Rot3", "rot3"),
-        ("Point2", "vector"), ("Point3", "vector"), ("Double", "double"))},
-    **{f"RangeFactor{t}": ("measured", "double", 2)
-       for t in ("2", "2D", "3", "3D", "Pose2", "Pose3")},
+    **{
+        f"PriorFactor{t}": ("prior", k, 1)
+        for t, k in (
+            ("Pose2", "pose2"),
+            ("Pose3", "pose3"),
+            ("Rot2", "rot2"),
+            ("Rot3", "rot3"),
+            ("Point2", "vector"),
+            ("Point3", "vector"),
+            ("Unit3", "unit3"),
+            ("Double", "double"),
+        )
+    },
+    **{
+        f"BetweenFactor{t}": ("measured", k, 2)
+        for t, k in (
+            ("Pose2", "pose2"),
+            ("Pose3", "pose3"),
+            ("Rot2", "rot2"),
+            ("Rot3", "rot3"),
+            ("Point2", "vector"),
+            ("Point3", "vector"),
+            ("Double", "double"),
+        )
+    },
+    **{
+        f"RangeFactor{t}": ("measured", "double", 2)
+        for t in ("2", "2D", "3", "3D", "Pose2", "Pose3")
+    },
     "RangeFactorWithTransformPose3": ("measured", "double", 2),  # + body_T_sensor
-    "BearingFactor2D": ("measured", "rot2", 2), "BearingFactorPose2": ("measured", "rot2", 2),
+    "BearingFactor2D": ("measured", "rot2", 2),
+    "BearingFactorPose2": ("measured", "rot2", 2),
     "BearingFactor3D": ("measured", "unit3", 2),
     "BearingRangeFactor2D": ("measured", "bearing_range_2d", 2),
     "BearingRangeFactorPose2": ("measured", "bearing_range_2d", 2),
@@ -604,8 +700,16 @@ def _encode_measurement(kind: str, m) -> list:
     return np.asarray(m, dtype=float).ravel().tolist()  # vector
 
 
-_MEASUREMENT_SIZES = {"pose2": 4, "rot2": 2, "pose3": 16, "rot3": 9, "unit3": 3, "double": 1,
-                      "bearing_range_2d": 3, "bearing_range_3d": 4}
+_MEASUREMENT_SIZES = {
+    "pose2": 4,
+    "rot2": 2,
+    "pose3": 16,
+    "rot3": 9,
+    "unit3": 3,
+    "double": 1,
+    "bearing_range_2d": 3,
+    "bearing_range_3d": 4,
+}
 
 
 def _decode_measurement(kind: str, v: list, where: str):
@@ -666,8 +770,9 @@ def _kernel_parameters(robust, where: str) -> tuple[str, int, float]:
     checked by rebuilding the estimator and comparing the two archives."""
     name = type(robust).__name__
     if name not in _KERNELS:
-        raise ValueError(f"{where}: robust kernel {name} cannot be saved "
-                         f"(saved kernels: {_KERNELS})")
+        raise ValueError(
+            f"{where}: robust kernel {name} cannot be saved (saved kernels: {_KERNELS})"
+        )
     archive = robust.serialize()
     tokens = archive.split()
     try:
@@ -676,8 +781,9 @@ def _kernel_parameters(robust, where: str) -> tuple[str, int, float]:
     except (IndexError, ValueError, RuntimeError):
         rebuilt = None
     if rebuilt != archive:
-        raise ValueError(f"{where}: cannot read the parameter of robust kernel {name} "
-                         f"from its archive")
+        raise ValueError(
+            f"{where}: cannot read the parameter of robust kernel {name} from its archive"
+        )
     return name, scheme, param
 
 
@@ -691,8 +797,12 @@ def _encode_noise(model, where: str) -> dict:
     nm = gtsam.noiseModel
     if isinstance(model, nm.Robust):
         name, scheme, param = _kernel_parameters(model.robust(), where)
-        return {"robust": name, "scheme": scheme, "k": param,
-                "base": _encode_noise(model.noise(), where)}
+        return {
+            "robust": name,
+            "scheme": scheme,
+            "k": param,
+            "base": _encode_noise(model.noise(), where),
+        }
     if isinstance(model, nm.Constrained):
         raise ValueError(f"{where}: a Constrained noise model cannot be saved")
     if isinstance(model, nm.Unit):
@@ -713,8 +823,10 @@ def _decode_noise(raw, where: str, depth: int = 0):
     if "robust" in raw:
         name, scheme, k = raw.get("robust"), raw.get("scheme"), raw.get("k")
         if name not in _KERNELS or scheme not in (0, 1) or not (_is_number(k) and k > 0):
-            raise _Bad(f"{where}: robust kernel must be one of {_KERNELS} with scheme 0/1 and "
-                       f"k > 0, got {name!r}, {scheme!r}, {k!r}")
+            raise _Bad(
+                f"{where}: robust kernel must be one of {_KERNELS} with scheme 0/1 and "
+                f"k > 0, got {name!r}, {scheme!r}, {k!r}"
+            )
         base = _decode_noise(raw.get("base"), where, 1)
         return nm.Robust.Create(_make_kernel(name, scheme, float(k)), base)
     if "unit" in raw:
@@ -738,8 +850,9 @@ def _decode_noise(raw, where: str, depth: int = 0):
             raise _Bad(f"{where}: sqrt_information must be square")
         R = R.astype(float)
         if np.abs(np.tril(R, -1)).max(initial=0.0) != 0 or not (np.diag(R) > 0).all():
-            raise _Bad(f"{where}: sqrt_information must be upper triangular with a positive "
-                       f"diagonal")
+            raise _Bad(
+                f"{where}: sqrt_information must be upper triangular with a positive diagonal"
+            )
         return nm.Gaussian.SqrtInformation(R, False)
     raise _Bad(f"{where}: unknown noise model {sorted(raw)}")
 
@@ -748,12 +861,17 @@ def _encode_factor(f, where: str) -> dict:
     name = type(f).__name__
     spec = _FACTOR_TYPES.get(name)
     if spec is None:
-        raise ValueError(f"{where}: factor type {name} cannot be saved (saved types: built-in "
-                         f"{', '.join(sorted(_FACTOR_TYPES))}, and factor providers {_PROVIDERS})")
+        raise ValueError(
+            f"{where}: factor type {name} cannot be saved (saved types: built-in "
+            f"{', '.join(sorted(_FACTOR_TYPES))}, and factor providers {_PROVIDERS})"
+        )
     getter, kind, n_keys = spec
-    out = {"type": name, "keys": [int(k) for k in f.keys()],
-           "measured": _encode_measurement(kind, getattr(f, getter)()),
-           "noise": _encode_noise(f.noiseModel(), where)}
+    out = {
+        "type": name,
+        "keys": [int(k) for k in f.keys()],
+        "measured": _encode_measurement(kind, getattr(f, getter)()),
+        "noise": _encode_noise(f.noiseModel(), where),
+    }
     if name == "AttitudeFactorPose3":
         out["b_measured"] = _encode_measurement("unit3", f.bMeasured())
     if name == "GenericProjectionFactorCal3_S2":
@@ -781,8 +899,13 @@ def _encode_factor(f, where: str) -> dict:
 def _make_factor(name: str, keys: list, measured, noise, extra=None):
     cls = getattr(gtsam, name)
     if name == "GenericProjectionFactorCal3_S2":
-        return cls(np.asarray(measured), noise, *keys, gtsam.Cal3_S2(*extra["calibration"]),
-                   *extra["cheirality"])
+        return cls(
+            np.asarray(measured),
+            noise,
+            *keys,
+            gtsam.Cal3_S2(*extra["calibration"]),
+            *extra["cheirality"],
+        )
     if name == "RangeFactorWithTransformPose3":
         T = np.asarray(extra)
         return cls(*keys, measured, noise, gtsam.Pose3(gtsam.Rot3(T[:3, :3]), T[:3, 3]))
@@ -814,10 +937,14 @@ def _decode_factor(raw, where: str):
             cal = _numbers(raw.get("calibration"), f"{where}: calibration")
             flags = raw.get("cheirality")
             if len(cal) != 5 or not (cal[0] > 0 and cal[1] > 0):
-                raise _Bad(f"{where}: calibration must be fx, fy, s, u0, v0 with fx, fy > 0, "
-                           f"got {cal}")
-            if not (isinstance(flags, list) and len(flags) == 2
-                    and all(isinstance(b, bool) for b in flags)):
+                raise _Bad(
+                    f"{where}: calibration must be fx, fy, s, u0, v0 with fx, fy > 0, got {cal}"
+                )
+            if not (
+                isinstance(flags, list)
+                and len(flags) == 2
+                and all(isinstance(b, bool) for b in flags)
+            ):
                 raise _Bad(f"{where}: cheirality must be two booleans, got {flags!r}")
             extra = {"calibration": cal, "cheirality": flags}
             factor = _make_factor(name, keys, measured, noise, extra)
@@ -832,11 +959,20 @@ def _decode_factor(raw, where: str):
             factor = _make_factor(name, keys, measured, noise)
     except (RuntimeError, TypeError) as exc:  # e.g. a noise dimension the factor does not have
         raise _Bad(f"{where}: GTSAM rejected the {name} ({exc})") from None
-    want = {"pose2": 3, "pose3": 6, "rot2": 1, "rot3": 3, "unit3": 2, "double": 1,
-            "bearing_range_2d": 2, "bearing_range_3d": 3}.get(kind, len(raw["measured"]))
+    want = {
+        "pose2": 3,
+        "pose3": 6,
+        "rot2": 1,
+        "rot3": 3,
+        "unit3": 2,
+        "double": 1,
+        "bearing_range_2d": 2,
+        "bearing_range_3d": 3,
+    }.get(kind, len(raw["measured"]))
     if noise.dim() != want:  # a mismatch GTSAM would not notice could corrupt memory
-        raise _Bad(f"{where}: {name} has an error of dimension {want}, its noise model "
-                   f"{noise.dim()}")
+        raise _Bad(
+            f"{where}: {name} has an error of dimension {want}, its noise model {noise.dim()}"
+        )
     return factor
 
 
@@ -844,27 +980,35 @@ def _encode_item(item, where: str) -> dict:
     """One added item: a built-in factor, or a factor provider (an object with `save_state`)."""
     if hasattr(item, "save_state"):
         state = item.save_state()
-        return {"provider": state["kind"], "weights": [float(w) for w in state["weights"]],
-                "components": [[_encode_factor(f, f"{where}, component {c}") for f in group]
-                               for c, group in enumerate(state["components"])]}
+        return {
+            "provider": state["kind"],
+            "weights": [float(w) for w in state["weights"]],
+            "components": [
+                [_encode_factor(f, f"{where}, component {c}") for f in group]
+                for c, group in enumerate(state["components"])
+            ],
+        }
     if hasattr(item, "factor") and not isinstance(item, gtsam.NonlinearFactor):
-        raise ValueError(f"{where}: factor provider {type(item).__name__} has no save_state(), "
-                         f"cannot be saved")
+        raise ValueError(
+            f"{where}: factor provider {type(item).__name__} has no save_state(), cannot be saved"
+        )
     return _encode_factor(item, where)
 
 
 def _decode_item(raw, where: str):
     if isinstance(raw, dict) and "provider" in raw:
         if raw["provider"] != "max_mixture":
-            raise _Bad(f"{where}: unknown factor provider {raw['provider']!r} "
-                       f"(known: {_PROVIDERS})")
+            raise _Bad(
+                f"{where}: unknown factor provider {raw['provider']!r} (known: {_PROVIDERS})"
+            )
         from graphloc.factors.mixture import MaxMixture
 
         groups = raw.get("components")
         if not isinstance(groups, list) or not all(isinstance(g, list) for g in groups):
             raise _Bad(f"{where}: max_mixture components must be a list of lists of factors")
-        components = [[_decode_factor(f, f"{where}, component {c}") for f in g]
-                      for c, g in enumerate(groups)]
+        components = [
+            [_decode_factor(f, f"{where}, component {c}") for f in g] for c, g in enumerate(groups)
+        ]
         weights = _numbers(raw.get("weights"), f"{where}: weights")
         try:
             return MaxMixture.from_state(components, weights)
@@ -876,9 +1020,13 @@ def _decode_item(raw, where: str):
 def _encode_values(values: gtsam.Values, where: str) -> list:
     out = []
     for key in values.keys():
-        for kind, get in (("pose3", values.atPose3), ("pose2", values.atPose2),
-                          ("rot3", values.atRot3), ("rot2", values.atRot2),
-                          ("vector", values.atVector)):
+        for kind, get in (
+            ("pose3", values.atPose3),
+            ("pose2", values.atPose2),
+            ("rot3", values.atRot3),
+            ("rot2", values.atRot2),
+            ("vector", values.atVector),
+        ):
             try:
                 value = get(key)
             except RuntimeError:
@@ -889,8 +1037,10 @@ def _encode_values(values: gtsam.Values, where: str) -> list:
             out.append([int(key), kind, numbers])
             break
         else:
-            raise ValueError(f"{where}: value {_key_name(key)} has a type that "
-                             f"cannot be saved (saved: Pose2, Pose3, Rot2, Rot3, vectors, points)")
+            raise ValueError(
+                f"{where}: value {_key_name(key)} has a type that "
+                f"cannot be saved (saved: Pose2, Pose3, Rot2, Rot3, vectors, points)"
+            )
     return out
 
 
@@ -899,8 +1049,12 @@ def _decode_values(raw, where: str) -> gtsam.Values:
         raise _Bad(f"{where}: values must be a list")
     values = gtsam.Values()
     for entry in raw:
-        if not (isinstance(entry, list) and len(entry) == 3 and _is_key(entry[0])
-                and entry[1] in ("pose3", "pose2", "rot3", "rot2", "vector")):
+        if not (
+            isinstance(entry, list)
+            and len(entry) == 3
+            and _is_key(entry[0])
+            and entry[1] in ("pose3", "pose2", "rot3", "rot2", "vector")
+        ):
             raise _Bad(f"{where}: a value must be [key, kind, numbers], got {str(entry)[:80]}")
         key, kind, numbers = entry
         label = f"{where}, value {_key_name(key)}"
@@ -924,7 +1078,7 @@ def _decode_step(raw, where: str) -> tuple[float, list, gtsam.Values]:
 
 
 def _is_key(x) -> bool:
-    return isinstance(x, int) and not isinstance(x, bool) and 0 <= x < 2 ** 64
+    return isinstance(x, int) and not isinstance(x, bool) and 0 <= x < 2**64
 
 
 def _is_number(x) -> bool:

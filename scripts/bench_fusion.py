@@ -58,7 +58,13 @@ def run_trial(job: tuple[str, int, int]) -> dict:
     from graphloc.datasets.dual_room import DualRoomScenario, variant_config
     from graphloc.mapping.fusion import FusionConfig, fuse
     from graphloc.mapping.odometry import OdometryConfig
-    from graphloc.mapping.registration import RegistrationConfig, global_fpfh_ransac, pose_errors, prepare, refine
+    from graphloc.mapping.registration import (
+        RegistrationConfig,
+        global_fpfh_ransac,
+        pose_errors,
+        prepare,
+        refine,
+    )
 
     variant, seed, frames = job
     scenario = DualRoomScenario.simulate(variant_config(variant, seed, frames=frames))
@@ -68,29 +74,54 @@ def run_trial(job: tuple[str, int, int]) -> dict:
     target = prepare(scenario.scans["ground"][0], reg_cfg)
     source = prepare(scenario.scans["ceiling"][0], reg_cfg)
     prep_s = time.perf_counter() - t0
-    out = {"variant": variant, "seed": seed, "denoise_s": prep_s,
-           "overlap_points": [len(source.points), len(target.points)]}
+    out = {
+        "variant": variant,
+        "seed": seed,
+        "denoise_s": prep_s,
+        "overlap_points": [len(source.points), len(target.points)],
+    }
 
     r = refine(source, target, np.eye(4), reg_cfg)
-    out["icp_no_guess"] = dict(zip(("rot_deg", "trans_m"), pose_errors(r.transformation, truth)),
-                               iterations=r.iterations, seconds=r.seconds, fitness=r.fitness)
+    out["icp_no_guess"] = dict(
+        zip(("rot_deg", "trans_m"), pose_errors(r.transformation, truth)),
+        iterations=r.iterations,
+        seconds=r.seconds,
+        fitness=r.fitness,
+    )
 
     T_glob, glob_s = global_fpfh_ransac(source, target, reg_cfg, seed=seed)
     g_rot, g_tr = pose_errors(T_glob, truth)
     r = refine(source, target, T_glob, reg_cfg)
-    out["fpfh_ransac"] = dict(zip(("rot_deg", "trans_m"), pose_errors(r.transformation, truth)),
-                              iterations=r.iterations, seconds=glob_s + r.seconds, fitness=r.fitness,
-                              guess_rot_deg=g_rot, guess_trans_m=g_tr)
+    out["fpfh_ransac"] = dict(
+        zip(("rot_deg", "trans_m"), pose_errors(r.transformation, truth)),
+        iterations=r.iterations,
+        seconds=glob_s + r.seconds,
+        fitness=r.fitness,
+        guess_rot_deg=g_rot,
+        guess_trans_m=g_tr,
+    )
 
-    cfg = FusionConfig(odometry=OdometryConfig(threads=1), registration=reg_cfg, build_map=False, scan_matching=False)
+    cfg = FusionConfig(
+        odometry=OdometryConfig(threads=1),
+        registration=reg_cfg,
+        build_map=False,
+        scan_matching=False,
+    )
     res = fuse(scenario.fusion_input(), cfg)
     g_rot, g_tr = pose_errors(res.guess, truth)
     secs = res.timings["p3p_tracker_s"] + res.timings["icp_s"] + res.timings["graph_s"]
-    out["graphloc"] = dict(zip(("rot_deg", "trans_m"), pose_errors(res.T_g0_c0, truth)),
-                           iterations=res.registration.iterations, seconds=secs, fitness=res.registration.fitness,
-                           guess_rot_deg=g_rot, guess_trans_m=g_tr, locked=res.guess_info.locked,
-                           p3p_frames=int(len(res.guess_info.frames)), p3p_factors=res.n_p3p_factors,
-                           icp_only_rot_deg=pose_errors(res.registration.transformation, truth)[0])
+    out["graphloc"] = dict(
+        zip(("rot_deg", "trans_m"), pose_errors(res.T_g0_c0, truth)),
+        iterations=res.registration.iterations,
+        seconds=secs,
+        fitness=res.registration.fitness,
+        guess_rot_deg=g_rot,
+        guess_trans_m=g_tr,
+        locked=res.guess_info.locked,
+        p3p_frames=int(len(res.guess_info.frames)),
+        p3p_factors=res.n_p3p_factors,
+        icp_only_rot_deg=pose_errors(res.registration.transformation, truth)[0],
+    )
     out["odometry_s"] = res.timings["odometry_s"]
     return out
 
@@ -99,16 +130,21 @@ def summarize(rows: list[dict]) -> dict:
     summary = {}
     for variant in sorted({r["variant"] for r in rows}):
         vr = [r for r in rows if r["variant"] == variant]
-        summary[variant] = {"trials": len(vr), "odometry_s_median": float(np.median([r["odometry_s"] for r in vr])),
-                            "denoise_s_median": float(np.median([r["denoise_s"] for r in vr]))}
+        summary[variant] = {
+            "trials": len(vr),
+            "odometry_s_median": float(np.median([r["odometry_s"] for r in vr])),
+            "denoise_s_median": float(np.median([r["denoise_s"] for r in vr])),
+        }
         for m in METHODS:
             rot = np.array([r[m]["rot_deg"] for r in vr])
             tr = np.array([r[m]["trans_m"] for r in vr])
             ok = (rot < ROT_OK_DEG) & (tr < TRANS_OK_M)
             summary[variant][m] = {
                 "success_rate": float(ok.mean()),
-                "rot_deg_median": float(np.median(rot)), "rot_deg_max": float(rot.max()),
-                "trans_m_median": float(np.median(tr)), "trans_m_max": float(tr.max()),
+                "rot_deg_median": float(np.median(rot)),
+                "rot_deg_max": float(rot.max()),
+                "trans_m_median": float(np.median(tr)),
+                "trans_m_max": float(tr.max()),
                 "rot_deg_median_successes": float(np.median(rot[ok])) if ok.any() else None,
                 "trans_m_median_successes": float(np.median(tr[ok])) if ok.any() else None,
                 "icp_iterations_median": float(np.median([r[m]["iterations"] for r in vr])),
@@ -132,14 +168,27 @@ def plot(rows: list[dict], path: Path) -> None:
 
     variants = sorted({r["variant"] for r in rows})
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
-    for ax, (key, label, floor) in zip(axes, (("rot_deg", "rotation error [deg]", 1e-3),
-                                              ("trans_m", "translation error [m]", 1e-4),
-                                              ("seconds", "wall time [s]", 1e-3))):
+    for ax, (key, label, floor) in zip(
+        axes,
+        (
+            ("rot_deg", "rotation error [deg]", 1e-3),
+            ("trans_m", "translation error [m]", 1e-4),
+            ("seconds", "wall time [s]", 1e-3),
+        ),
+    ):
         for i, m in enumerate(METHODS):
-            data = [np.maximum([r[m][key] for r in rows if r["variant"] == v], floor) for v in variants]
+            data = [
+                np.maximum([r[m][key] for r in rows if r["variant"] == v], floor) for v in variants
+            ]
             pos = np.arange(len(variants)) * 4 + i
-            ax.boxplot(data, positions=pos, widths=0.8, patch_artist=True,
-                       boxprops=dict(facecolor=f"C{i}", alpha=0.6), medianprops=dict(color="k"))
+            ax.boxplot(
+                data,
+                positions=pos,
+                widths=0.8,
+                patch_artist=True,
+                boxprops=dict(facecolor=f"C{i}", alpha=0.6),
+                medianprops=dict(color="k"),
+            )
             ax.plot([], [], color=f"C{i}", lw=8, alpha=0.6, label=m)
         ax.set_yscale("log")
         ax.set_xticks(np.arange(len(variants)) * 4 + 1, variants)
@@ -249,8 +298,12 @@ def run_real_trial(job: tuple[float, int]) -> list[dict]:
             distance_m=dist,
         )
         T_icp, icp_s = icp_from_hint(source, target, hint, fine)
-        row["o3d_icp_fine"] = dict(zip(("rot_deg", "trans_m"), pose_errors(T_icp, truth)),
-                                   seconds=icp_s, accepted=True, distance_m=fine)
+        row["o3d_icp_fine"] = dict(
+            zip(("rot_deg", "trans_m"), pose_errors(T_icp, truth)),
+            seconds=icp_s,
+            accepted=True,
+            distance_m=fine,
+        )
         rows.append(row)
     return rows
 
@@ -292,8 +345,9 @@ def summarize_real(rows: list[dict]) -> dict:
                 "trans_m_median_successes": float(np.median(tr[ok])) if ok.any() else None,
                 "seconds_median": float(np.nanmedian(secs)) if np.isfinite(secs).any() else None,
             }
-            signed = np.array([r[m]["signed_error"] for r, k in zip(cell, ok)
-                               if k and "signed_error" in r[m]])
+            signed = np.array(
+                [r[m]["signed_error"] for r, k in zip(cell, ok) if k and "signed_error" in r[m]]
+            )
             if len(signed) > 1:  # rotation vector [deg], translation [m] of T_est T_true^-1 in G
                 s["signed_error_mean"] = signed.mean(axis=0).tolist()
                 s["signed_error_std"] = signed.std(axis=0, ddof=1).tolist()
@@ -405,19 +459,24 @@ def markdown_real(report: dict, command: str) -> str:
                 f"| {name} | {c['nees_mean']:.1f} | {lo:.2f}-{hi:.2f} | "
                 f"{'yes' if c['nees_in_band'] else 'no'} |"
             )
-    lines += ["", "graphloc's signed error over its successes, mean +- standard deviation "
-              "(rotation "
-              "vector of T_est T_true^-1 in G [deg]; translation [mm]); a mean several standard "
-              "errors from zero is a bias no covariance can absorb:", "",
-              "| cell | rot x | rot y | rot z | trans x | trans y | trans z |",
-              "|---|---|---|---|---|---|---|"]
+    lines += [
+        "",
+        "graphloc's signed error over its successes, mean +- standard deviation "
+        "(rotation "
+        "vector of T_est T_true^-1 in G [deg]; translation [mm]); a mean several standard "
+        "errors from zero is a bias no covariance can absorb:",
+        "",
+        "| cell | rot x | rot y | rot z | trans x | trans y | trans z |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for name, s in summ.items():
         c = s["graphloc"]
         if "signed_error_mean" in c:
             scale = [1.0] * 3 + [1000.0] * 3
-            cells = [f"{mu * k:+.3f} +- {sd * k:.3f}" if k == 1.0
-                     else f"{mu * k:+.2f} +- {sd * k:.2f}"
-                     for mu, sd, k in zip(c["signed_error_mean"], c["signed_error_std"], scale)]
+            cells = [
+                f"{mu * k:+.3f} +- {sd * k:.3f}" if k == 1.0 else f"{mu * k:+.2f} +- {sd * k:.2f}"
+                for mu, sd, k in zip(c["signed_error_mean"], c["signed_error_std"], scale)
+            ]
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
     lines += ["", f"Scatter of every trial: `{report['png']}`.", ""]
     return "\n".join(lines)
@@ -474,8 +533,9 @@ def main(argv=None) -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--seed", type=int, default=0, help="first scenario seed")
     p.add_argument("--quick", action="store_true", help="CI size: 3 placements per variant")
-    p.add_argument("--out", default=None,
-                   help="default out/bench_fusion (out/bench_fusion_real with --real)")
+    p.add_argument(
+        "--out", default=None, help="default out/bench_fusion (out/bench_fusion_real with --real)"
+    )
     p.add_argument("--real", action="store_true", help="issue 16's protocol on the real fragment")
     p.add_argument("--doc", default=None, help="with --real: also write the markdown table here")
     args = p.parse_args(argv)
@@ -496,16 +556,29 @@ def main(argv=None) -> int:
         rows = list(tqdm(pool.imap_unordered(run_trial, jobs), total=len(jobs), desc="placements"))
     rows.sort(key=lambda r: (r["variant"], r["seed"]))
     summary = summarize(rows)
-    report = {"benchmark": "fusion", "trials_per_variant": trials, "frames": args.frames, "workers": args.workers,
-              "success": {"rot_deg": ROT_OK_DEG, "trans_m": TRANS_OK_M}, "wall_time_s": time.perf_counter() - start,
-              "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
-                          "load_avg_1m_at_end": os.getloadavg()[0]},
-              "summary": summary, "trials": rows}
+    report = {
+        "benchmark": "fusion",
+        "trials_per_variant": trials,
+        "frames": args.frames,
+        "workers": args.workers,
+        "success": {"rot_deg": ROT_OK_DEG, "trans_m": TRANS_OK_M},
+        "wall_time_s": time.perf_counter() - start,
+        "machine": {
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+            "load_avg_1m_at_end": os.getloadavg()[0],
+        },
+        "summary": summary,
+        "trials": rows,
+    }
     (out / "bench_fusion.json").write_text(json.dumps(report, indent=1))
     plot(rows, out / "bench_fusion.png")
     for v, s in summary.items():
-        line = " | ".join(f"{m}: {100 * s[m]['success_rate']:.0f}% rot {s[m]['rot_deg_median']:.3f} deg "
-                          f"trans {100 * s[m]['trans_m_median']:.2f} cm {s[m]['seconds_median']:.2f} s" for m in METHODS)
+        line = " | ".join(
+            f"{m}: {100 * s[m]['success_rate']:.0f}% rot {s[m]['rot_deg_median']:.3f} deg "
+            f"trans {100 * s[m]['trans_m_median']:.2f} cm {s[m]['seconds_median']:.2f} s"
+            for m in METHODS
+        )
         print(f"{v:12s} {line}")
     print(f"wrote {out / 'bench_fusion.json'} and {out / 'bench_fusion.png'}")
     return 0

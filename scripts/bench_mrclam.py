@@ -40,18 +40,30 @@ CONFIGS = {
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--data", default="../shared/data/mrclam/MRCLAM_Dataset6", help="MRCLAM dir or graphloc log")
+    parser.add_argument(
+        "--data", default="../shared/data/mrclam/MRCLAM_Dataset6", help="MRCLAM dir or graphloc log"
+    )
     parser.add_argument("--out", default="out/bench_mrclam", help="output directory")
-    parser.add_argument("--duration", type=float, default=None, help="first N seconds only (for quick iteration)")
+    parser.add_argument(
+        "--duration", type=float, default=None, help="first N seconds only (for quick iteration)"
+    )
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
     run = open_run(args.data, args.duration)
     names = [r.name for r in run.robots]
-    report = {"data": str(args.data), "run": run.name, "robots": names, "duration_s": run.end_time - run.start_time,
-              "python": sys.version.split()[0], "machine": platform.machine(), "cpu_count": os.cpu_count(),
-              "load_average_at_start": os.getloadavg(), "configs": {}}
+    report = {
+        "data": str(args.data),
+        "run": run.name,
+        "robots": names,
+        "duration_s": run.end_time - run.start_time,
+        "python": sys.version.split()[0],
+        "machine": platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "load_average_at_start": os.getloadavg(),
+        "configs": {},
+    }
     results = {}
     for name, (config, modes) in CONFIGS.items():
         t0 = time.perf_counter()
@@ -68,27 +80,63 @@ def main(argv=None) -> int:
             write_outputs(result, run, metrics, out / name / mode)
             results[(name, mode)] = metrics
             report["configs"].setdefault(name, {})[mode] = {
-                k: metrics[k] for k in ("solve_wall_s", "solve_cpu_s", "build_s", "realtime_factor",
-                                        "realtime_factor_cpu", "latency_ms", "downweighted", "counts", "skipped")}
+                k: metrics[k]
+                for k in (
+                    "solve_wall_s",
+                    "solve_cpu_s",
+                    "build_s",
+                    "realtime_factor",
+                    "realtime_factor_cpu",
+                    "latency_ms",
+                    "downweighted",
+                    "counts",
+                    "skipped",
+                )
+            }
             report["configs"][name][mode]["ate_rmse_m"] = {
                 r: {track: e[track]["ate_rmse"] for track in e if isinstance(e[track], dict)}
-                for r, e in metrics["per_robot"].items() if e.get("groundtruth")}
+                for r, e in metrics["per_robot"].items()
+                if e.get("groundtruth")
+            }
             report["configs"][name][mode]["rpe_trans_rmse_m"] = {
-                r: e[mode]["rpe_trans_rmse"] for r, e in metrics["per_robot"].items() if e.get("groundtruth")}
-            print(f"{name:24s} {mode:6s} wall {metrics['solve_wall_s']:7.2f} s  real-time x{metrics['realtime_factor']:7.1f}  "
-                  "ATE " + " ".join(f"{r}:{e[mode]['ate_rmse']:.3f}/{e['dead_reckoning']['ate_rmse']:.3f}"
-                                    for r, e in metrics["per_robot"].items() if e.get("groundtruth")), flush=True)
+                r: e[mode]["rpe_trans_rmse"]
+                for r, e in metrics["per_robot"].items()
+                if e.get("groundtruth")
+            }
+            print(
+                f"{name:24s} {mode:6s} wall {metrics['solve_wall_s']:7.2f} s  real-time x{metrics['realtime_factor']:7.1f}  "
+                "ATE "
+                + " ".join(
+                    f"{r}:{e[mode]['ate_rmse']:.3f}/{e['dead_reckoning']['ate_rmse']:.3f}"
+                    for r, e in metrics["per_robot"].items()
+                    if e.get("groundtruth")
+                ),
+                flush=True,
+            )
 
-    robots = [r for r in names if results[("landmarks+inter_robot", "batch")]["per_robot"][r].get("groundtruth")]
+    robots = [
+        r
+        for r in names
+        if results[("landmarks+inter_robot", "batch")]["per_robot"][r].get("groundtruth")
+    ]
 
     def ate(cfg, mode, robot, track=None):
         return results[(cfg, mode)]["per_robot"][robot][track or mode]["ate_rmse"]
 
-    full_ratio = {r: ate("landmarks+inter_robot", "batch", r, "dead_reckoning") / ate("landmarks+inter_robot", "batch", r)
-                  for r in robots}
-    coop_ratio = {r: ate("inter_robot_only", "batch", r, "dead_reckoning") / ate("inter_robot_only", "batch", r)
-                  for r in robots}
-    online_rel = {r: ate("landmarks+inter_robot", "online", r) / ate("landmarks+inter_robot", "batch", r) for r in robots}
+    full_ratio = {
+        r: ate("landmarks+inter_robot", "batch", r, "dead_reckoning")
+        / ate("landmarks+inter_robot", "batch", r)
+        for r in robots
+    }
+    coop_ratio = {
+        r: ate("inter_robot_only", "batch", r, "dead_reckoning")
+        / ate("inter_robot_only", "batch", r)
+        for r in robots
+    }
+    online_rel = {
+        r: ate("landmarks+inter_robot", "online", r) / ate("landmarks+inter_robot", "batch", r)
+        for r in robots
+    }
     rt = results[("landmarks+inter_robot", "online")]["realtime_factor"]
     bar = {
         "dead_reckoning_over_batch_ate_ratio": full_ratio,
@@ -99,7 +147,9 @@ def main(argv=None) -> int:
         "online_over_batch_ate": online_rel,
         "pass_online_within_20pct_of_batch": bool(max(online_rel.values()) <= 1.2),
         "online_realtime_factor": rt,
-        "online_realtime_factor_cpu": results[("landmarks+inter_robot", "online")]["realtime_factor_cpu"],
+        "online_realtime_factor_cpu": results[("landmarks+inter_robot", "online")][
+            "realtime_factor_cpu"
+        ],
         "pass_online_50x_realtime": bool(rt >= 50.0),
     }
     bar["pass_all"] = all(v for k, v in bar.items() if k.startswith("pass_"))
@@ -110,12 +160,30 @@ def main(argv=None) -> int:
     series = []
     x = np.arange(len(robots), dtype=float)
     for (cfg, mode), metrics in results.items():
-        series.append(Series(f"{cfg} {mode}", x, np.array([metrics["per_robot"][r][mode]["ate_rmse"] for r in robots]),
-                             style="o-"))
-    series.append(Series("dead reckoning", x, np.array([ate("landmarks+inter_robot", "batch", r, "dead_reckoning")
-                                                         for r in robots]), style="ks--"))
-    plot_series(out / "ate_per_robot.png", series, "robot index (" + ", ".join(robots) + ")", "ATE RMSE [m] (SE(2)-aligned)",
-                f"{run.name}: ATE per robot", logy=True)
+        series.append(
+            Series(
+                f"{cfg} {mode}",
+                x,
+                np.array([metrics["per_robot"][r][mode]["ate_rmse"] for r in robots]),
+                style="o-",
+            )
+        )
+    series.append(
+        Series(
+            "dead reckoning",
+            x,
+            np.array([ate("landmarks+inter_robot", "batch", r, "dead_reckoning") for r in robots]),
+            style="ks--",
+        )
+    )
+    plot_series(
+        out / "ate_per_robot.png",
+        series,
+        "robot index (" + ", ".join(robots) + ")",
+        "ATE RMSE [m] (SE(2)-aligned)",
+        f"{run.name}: ATE per robot",
+        logy=True,
+    )
     print(json.dumps(bar, indent=1))
     print(f"wrote {out / 'bench_mrclam.json'}")
     return 0 if bar["pass_all"] else 1

@@ -39,12 +39,15 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="out/bench_scale")
     parser.add_argument("--duration", type=float, default=None, help="first N seconds only")
     lags = ",".join(f"{x:g}" for x in sorted({0, 5, 10, 20, DEFAULT_LAG}))
-    parser.add_argument("--lags", default=lags,
-                        help="online lags [s] to measure, 0 = full iSAM2")
+    parser.add_argument("--lags", default=lags, help="online lags [s] to measure, 0 = full iSAM2")
     parser.add_argument("--copies", type=int, default=10, help="replays in the long run")
     parser.add_argument("--markdown", type=Path, default=None, help="write the results table")
-    parser.add_argument("--from-json", type=Path, default=None,
-                        help="only write --markdown from this bench_scale.json")
+    parser.add_argument(
+        "--from-json",
+        type=Path,
+        default=None,
+        help="only write --markdown from this bench_scale.json",
+    )
     args = parser.parse_args(argv)
     if args.from_json is not None:
         args.markdown.write_text(markdown(json.loads(args.from_json.read_text())))
@@ -55,11 +58,18 @@ def main(argv=None) -> int:
     run = open_run(args.data, args.duration)
     t0 = time.perf_counter()
     graph = build_graph(run, GraphConfig())
-    report = {"data": str(args.data), "run": run.name, "duration_s": run.end_time - run.start_time,
-              "python": sys.version.split()[0], "machine": platform.machine(),
-              "cpu_count": os.cpu_count(), "load_average_at_start": os.getloadavg(),
-              "build_s": time.perf_counter() - t0, "counts": graph.counts,
-              "default_lag_s": DEFAULT_LAG}
+    report = {
+        "data": str(args.data),
+        "run": run.name,
+        "duration_s": run.end_time - run.start_time,
+        "python": sys.version.split()[0],
+        "machine": platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "load_average_at_start": os.getloadavg(),
+        "build_s": time.perf_counter() - t0,
+        "counts": graph.counts,
+        "default_lag_s": DEFAULT_LAG,
+    }
 
     # the long run first: its memory slope is then not hidden by pages earlier solves freed
     long = None
@@ -75,13 +85,21 @@ def main(argv=None) -> int:
     batch = solve(graph, "batch")
     batch_cpu = time.process_time() - c0
     metrics = evaluate(batch, run)
-    batch_ate = {n: e["batch"]["ate_rmse"] for n, e in metrics["per_robot"].items()
-                 if isinstance(e.get("batch"), dict) and "ate_rmse" in e["batch"]}
+    batch_ate = {
+        n: e["batch"]["ate_rmse"]
+        for n, e in metrics["per_robot"].items()
+        if isinstance(e.get("batch"), dict) and "ate_rmse" in e["batch"]
+    }
     alone = gtsam_only_batch(graph)
-    report["batch"] = {"graphloc_wall_s": batch.wall_s, "graphloc_cpu_s": batch_cpu,
-                       "gtsam_only": alone, "ratio_wall": batch.wall_s / alone["wall_s"],
-                       "ratio_cpu": batch_cpu / alone["cpu_s"], "ate_rmse_m": batch_ate,
-                       "realtime_factor": metrics["realtime_factor"]}
+    report["batch"] = {
+        "graphloc_wall_s": batch.wall_s,
+        "graphloc_cpu_s": batch_cpu,
+        "gtsam_only": alone,
+        "ratio_wall": batch.wall_s / alone["wall_s"],
+        "ratio_cpu": batch_cpu / alone["cpu_s"],
+        "ate_rmse_m": batch_ate,
+        "realtime_factor": metrics["realtime_factor"],
+    }
     print("batch", json.dumps(report["batch"]), flush=True)
 
     report["online"] = {}
@@ -94,8 +112,9 @@ def main(argv=None) -> int:
     base = report["online"].get(f"{DEFAULT_LAG:g}")
     if long is not None and base:
         long["p95_latency_over_single_run"] = long["latency_ms"]["p95"] / base["latency_ms"]["p95"]
-        long["p95_cpu_over_single_run"] = long["trend"]["cpu_p95_last10_ms"] / \
-            base["trend"]["cpu_p95_last10_ms"]
+        long["p95_cpu_over_single_run"] = (
+            long["trend"]["cpu_p95_last10_ms"] / base["trend"]["cpu_p95_last10_ms"]
+        )
         report["long_run"] = long
 
     report["rss_mb_end"] = rss_mb()
@@ -153,34 +172,54 @@ def markdown(r: dict) -> str:
             f"{t['cpu_p95_last10_ms']:.2f} | {t['cpu_p95_last_over_first']:.2f} | "
             f"{t['cpu_max_ms']:.1f} | {o['latency_ms']['p95']:.2f} | {t['variables_end']} | "
             f"{o['realtime_factor']:.0f} / {o['realtime_factor_cpu']:.0f} | {worst:.3f} | "
-            f"{sum(o['dropped_across_lag'].values())} |")
-    lines += ["", "ATE RMSE per robot [m] (SE(2)-aligned):", "",
-              "| robot | batch | " + " | ".join(f"online lag {k}" for k in r["online"]) + " |",
-              "|---|---|" + "---|" * len(r["online"])]
+            f"{sum(o['dropped_across_lag'].values())} |"
+        )
+    lines += [
+        "",
+        "ATE RMSE per robot [m] (SE(2)-aligned):",
+        "",
+        "| robot | batch | " + " | ".join(f"online lag {k}" for k in r["online"]) + " |",
+        "|---|---|" + "---|" * len(r["online"]),
+    ]
     for name, a in b["ate_rmse_m"].items():
-        lines.append(f"| {name} | {a:.4f} | " + " | ".join(
-            f"{o['ate_rmse_m'].get(name, float('nan')):.4f}" for o in r["online"].values()) + " |")
+        lines.append(
+            f"| {name} | {a:.4f} | "
+            + " | ".join(
+                f"{o['ate_rmse_m'].get(name, float('nan')):.4f}" for o in r["online"].values()
+            )
+            + " |"
+        )
     if "long_run" in r:
         o = r["long_run"]
         t = o["trend"]
         mem = _num(o["memory_mb_per_1000_steps"])
         lines += [
             "",
-            (f"## Long run: the run replayed {o['copies']} times (shifted clock), "
-             f"lag {o['lag_s']:g} s"),
+            (
+                f"## Long run: the run replayed {o['copies']} times (shifted clock), "
+                f"lag {o['lag_s']:g} s"
+            ),
             "",
-            (f"- steps: {o['steps']}; p95 CPU first / last 10 %: {t['cpu_p95_first10_ms']:.2f} / "
-             f"{t['cpu_p95_last10_ms']:.2f} ms (ratio {t['cpu_p95_last_over_first']:.2f}); "
-             f"slowest step CPU {t['cpu_max_ms']:.1f} ms;"),
-            (f"- p95 wall latency {o['latency_ms']['p95']:.2f} ms, "
-             f"{_num(o.get('p95_latency_over_single_run'))}x the single run's; last-10 % p95 CPU "
-             f"{_num(o.get('p95_cpu_over_single_run'))}x the single run's;"),
+            (
+                f"- steps: {o['steps']}; p95 CPU first / last 10 %: {t['cpu_p95_first10_ms']:.2f} / "
+                f"{t['cpu_p95_last10_ms']:.2f} ms (ratio {t['cpu_p95_last_over_first']:.2f}); "
+                f"slowest step CPU {t['cpu_max_ms']:.1f} ms;"
+            ),
+            (
+                f"- p95 wall latency {o['latency_ms']['p95']:.2f} ms, "
+                f"{_num(o.get('p95_latency_over_single_run'))}x the single run's; last-10 % p95 CPU "
+                f"{_num(o.get('p95_cpu_over_single_run'))}x the single run's;"
+            ),
             f"- variables held at the end: {t['variables_end']} (max {t['variables_max']});",
-            (f"- resident memory slope: {mem} MB per 1,000 steps (the session keeps every factor "
-             f"and value it was given, for `save` and the final trajectory), "
-             f"{o['rss_mb_end']:.0f} MB at the end;"),
-            (f"- real time x{o['realtime_factor']:.0f} (wall), "
-             f"x{o['realtime_factor_cpu']:.0f} (CPU)."),
+            (
+                f"- resident memory slope: {mem} MB per 1,000 steps (the session keeps every factor "
+                f"and value it was given, for `save` and the final trajectory), "
+                f"{o['rss_mb_end']:.0f} MB at the end;"
+            ),
+            (
+                f"- real time x{o['realtime_factor']:.0f} (wall), "
+                f"x{o['realtime_factor_cpu']:.0f} (CPU)."
+            ),
         ]
     lines += ["", "## How", "", *NOTES]
     lines.append("")
@@ -194,7 +233,7 @@ NOTES = [
     "  from the marginalized cliques to the root, and doing it at every step (unrounded stamps)",
     "  cost about 4x more CPU over the run in a 300 s trial. With variables re-stamped when a",
     "  later factor touches them, GTSAM 4.3's smoother failed in `marginalizeLeaves` on this",
-    "  graph (\"remove variables ... that are not unused\"; a plain pose chain does not show",
+    '  graph ("remove variables ... that are not unused"; a plain pose chain does not show',
     "  it), so variables are not re-stamped and long-lived ones (static robots, SLAM",
     "  landmarks) would leave the window: such runs default to full smoothing",
     "  (`graphloc.commands.smooth.auto_lag`).",

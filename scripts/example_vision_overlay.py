@@ -39,16 +39,40 @@ def panel_markers(ax, rng):
     radius = LARGE_TARGET.marker_diameter / 2
     true_px, _ = cam.project(X_cam)
     r_px = cam.fx * radius / np.linalg.norm(X_cam, axis=1).min()
-    clutter = random_clutter(rng, 752, 480, r_px, 215.0, n=8, avoid=true_px, avoid_radius=6 * r_px + 20)
-    occluder = Occluder((true_px[1, 0] + 0.3 * r_px, true_px[1, 1] - 3 * r_px, true_px[1, 0] + 4 * r_px,
-                         true_px[1, 1] + 3 * r_px), 25.0)
-    frame = render_markers(cam, X_cam, radius, RenderConfig(background=55.0, marker_level=215.0), rng,
-                           clutter=clutter, occluders=(occluder,))
+    clutter = random_clutter(
+        rng, 752, 480, r_px, 215.0, n=8, avoid=true_px, avoid_radius=6 * r_px + 20
+    )
+    occluder = Occluder(
+        (
+            true_px[1, 0] + 0.3 * r_px,
+            true_px[1, 1] - 3 * r_px,
+            true_px[1, 0] + 4 * r_px,
+            true_px[1, 1] + 3 * r_px,
+        ),
+        25.0,
+    )
+    frame = render_markers(
+        cam,
+        X_cam,
+        radius,
+        RenderConfig(background=55.0, marker_level=215.0),
+        rng,
+        clutter=clutter,
+        occluders=(occluder,),
+    )
     min_area, max_area = marker_area_bounds(cam.fx, radius, 0.5, 2.0)
     det = detect_markers(frame.image, MarkerDetectorConfig(min_area=min_area, max_area=max_area))
     ax.imshow(frame.image, cmap="gray", vmin=0, vmax=255)
-    ax.scatter(*frame.centroids.T, s=60, facecolors="none", edgecolors="lime", label="true blob centroid")
-    ax.scatter(*det.points.T, s=20, marker="+", color="red", label=f"detected ({det.status}, steps {list(det.steps)})")
+    ax.scatter(
+        *frame.centroids.T, s=60, facecolors="none", edgecolors="lime", label="true blob centroid"
+    )
+    ax.scatter(
+        *det.points.T,
+        s=20,
+        marker="+",
+        color="red",
+        label=f"detected ({det.status}, steps {list(det.steps)})",
+    )
     title = f"seed 001 (one marker partly occluded): {len(det)} blobs"
     if len(det) >= 3:
         cands = target_hypotheses(det.points, cam, LARGE_TARGET)
@@ -86,7 +110,12 @@ def panel_circle(ax, rng):
     for k, colour in zip(range(len(cands)), ("red", "cyan")):
         c, n = cands.t[k], cands.R[k][:, 2]
         pts, _ = cam.project(np.vstack([c, c + 0.15 * n]))
-        ax.plot(*pts.T, color=colour, lw=2, label=f"candidate {k}: centre err {100 * np.linalg.norm(c - centre):.2f} cm")
+        ax.plot(
+            *pts.T,
+            color=colour,
+            lw=2,
+            label=f"candidate {k}: centre err {100 * np.linalg.norm(c - centre):.2f} cm",
+        )
     ax.set_title("seed 003: circle pose from its ellipse (2 candidates)", fontsize=9)
     ax.legend(fontsize=7, loc="lower left")
     ax.axis("off")
@@ -100,14 +129,23 @@ def panel_mutual(ax, rng):
     pixels, _ = render_mutual_pixels(R_world[None], t_world[None], cams)
     noisy = pixels + rng.normal(0, 0.5, pixels.shape)
     est = localize_three(noisy, cams, np.linalg.norm(t_world[1] - t_world[0]))
-    true_rel = [(R_world[0].T @ R_world[j], R_world[0].T @ (t_world[j] - t_world[0])) for j in range(3)]
+    true_rel = [
+        (R_world[0].T @ R_world[j], R_world[0].T @ (t_world[j] - t_world[0])) for j in range(3)
+    ]
     for j in range(3):
         Rt, tt = true_rel[j]
         ax.plot(tt[0], tt[1], "o", color="green", ms=9, label="truth" if j == 0 else None)
         ax.arrow(tt[0], tt[1], 0.25 * Rt[0, 0], 0.25 * Rt[1, 0], color="green", width=0.005)
         if est.ok[0]:
             Re, te = est.relative(0, 1, j + 1)
-            ax.plot(te[0], te[1], "x", color="red", ms=9, label="estimate (0.5 px noise)" if j == 0 else None)
+            ax.plot(
+                te[0],
+                te[1],
+                "x",
+                color="red",
+                ms=9,
+                label="estimate (0.5 px noise)" if j == 0 else None,
+            )
             ax.arrow(te[0], te[1], 0.25 * Re[0, 0], 0.25 * Re[1, 0], color="red", width=0.003)
     ax.set_aspect("equal")
     ax.set_title(f"seed 000: three robots from mutual bearings ({est.status[0]})", fontsize=9)

@@ -23,8 +23,9 @@ import open3d as o3d
 FR3 = (640, 480, 535.4, 539.2, 320.1, 247.6)  # width, height, fx, fy, cx, cy (TUM Freiburg 3)
 
 
-def floor_alignment(pcd: o3d.geometry.PointCloud, planes: int,
-                    seed: int) -> tuple[np.ndarray, float]:
+def floor_alignment(
+    pcd: o3d.geometry.PointCloud, planes: int, seed: int
+) -> tuple[np.ndarray, float]:
     """(3x3 rotation camera -> gravity frame with the floor normal as +z, camera height [m])."""
     o3d.utility.random.seed(seed)
     rest, best = pcd, None
@@ -61,8 +62,9 @@ def main(argv=None) -> int:
     if np.asarray(depth).dtype != np.uint16:
         raise ValueError(f"{args.depth}: expected a uint16 depth PNG")
     intr = o3d.camera.PinholeCameraIntrinsic(*FR3)
-    pcd = o3d.geometry.PointCloud.create_from_depth_image(depth, intr, depth_scale=5000.0,
-                                                          depth_trunc=args.max_depth)
+    pcd = o3d.geometry.PointCloud.create_from_depth_image(
+        depth, intr, depth_scale=5000.0, depth_trunc=args.max_depth
+    )
     n_raw = len(pcd.points)
     pcd = pcd.voxel_down_sample(args.voxel)
     R, height = floor_alignment(pcd, args.planes, args.seed)
@@ -76,8 +78,10 @@ def main(argv=None) -> int:
     path = out / "tum_fr3_office.ply"
     o3d.t.io.write_point_cloud(str(path), cloud)
     ext = pts.max(0) - pts.min(0)
-    print(f"{n_raw} depth points -> {len(pts)} in {path}; extent {np.round(ext, 2)} m, "
-          f"camera height {height:.2f} m")
+    print(
+        f"{n_raw} depth points -> {len(pts)} in {path}; extent {np.round(ext, 2)} m, "
+        f"camera height {height:.2f} m"
+    )
     return 0
 
 

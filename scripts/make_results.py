@@ -23,8 +23,9 @@ def main(argv=None) -> int:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/results"))
     parser.add_argument("--results", type=Path, default=HERE.parent / "docs" / "results.md")
-    parser.add_argument("--skip-seed001", action="store_true",
-                        help="skip the rendered seed 001 experiment")
+    parser.add_argument(
+        "--skip-seed001", action="store_true", help="skip the rendered seed 001 experiment"
+    )
     args = parser.parse_args(argv)
     seconds = make_results(args.out, args.results, args.quick, args.workers, args.skip_seed001)
     print(f"wrote {args.results} ({seconds:.0f} s)")

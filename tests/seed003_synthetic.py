@@ -25,7 +25,9 @@ def synthetic(T=10, n_points=19, seed=0, teammate_moves=False):
     for k in range(1, T):
         t[k] = t[k - 1] + 0.012 * np.array([np.sin(yaw[k - 1]), 0.0, np.cos(yaw[k - 1])])
         t[k, 0] += rng.normal(0, 0.002)
-    pts = np.column_stack([rng.uniform(-0.9, 0.9, n_points), rng.uniform(-0.7, 0.1, n_points), np.full(n_points, 2.6)])
+    pts = np.column_stack(
+        [rng.uniform(-0.9, 0.9, n_points), rng.uniform(-0.7, 0.1, n_points), np.full(n_points, 2.6)]
+    )
     base = np.tile([0.03, 0.031, 0.83], (T, 1))
     cam_moved = np.r_[False, np.ones(T - 1, bool)]
     mate_moved = np.zeros(T, bool)
@@ -45,5 +47,21 @@ def synthetic(T=10, n_points=19, seed=0, teammate_moves=False):
 def frames_for(n_points, seed=0, **kw):
     """Ideal measurement frames (0.5 px pixel noise) for `synthetic(...)`; returns frames, t, pts, base."""
     R, t, pts, base, cm, mm, odo, ostd = synthetic(n_points=n_points, seed=seed, **kw)
-    return ideal_frames(CAM, R, t, pts, base, cm, mm, odo, ostd, pixel_sigma=0.5,
-                        rng=np.random.default_rng(seed + 100)), t, pts, base
+    return (
+        ideal_frames(
+            CAM,
+            R,
+            t,
+            pts,
+            base,
+            cm,
+            mm,
+            odo,
+            ostd,
+            pixel_sigma=0.5,
+            rng=np.random.default_rng(seed + 100),
+        ),
+        t,
+        pts,
+        base,
+    )

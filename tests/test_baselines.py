@@ -6,18 +6,34 @@ import numpy as np
 import pytest
 
 from graphloc.baselines.belief_vector import BeliefVector, BeliefVectorConfig, likelihood
-from graphloc.baselines.particle_filter import ParticleFilter, ParticleFilterConfig, plane_basis, sample_motion
+from graphloc.baselines.particle_filter import (
+    ParticleFilter,
+    ParticleFilterConfig,
+    plane_basis,
+    sample_motion,
+)
 from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straight_line_trials
-from graphloc.baselines.straight_line import StraightLineBaseline, StraightLineConfig, localize_by_straight_line
+from graphloc.baselines.straight_line import (
+    StraightLineBaseline,
+    StraightLineConfig,
+    localize_by_straight_line,
+)
 from graphloc.candidates import CandidateSet
-from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance
+from graphloc.datasets.feng import (
+    FengProbabilisticConfig,
+    FengProbabilisticScenario,
+    odometry_covariance,
+)
 from graphloc.seams import Odometry
 
 
 def simulate(**kw):
     cfg = FengProbabilisticConfig(**kw)
     run = FengProbabilisticScenario.simulate(cfg)
-    odo = [None] + [Odometry(o, odometry_covariance(o, cfg.odometry_noise, cfg.odometry_rot_sigma)) for o in run.odometry]
+    odo = [None] + [
+        Odometry(o, odometry_covariance(o, cfg.odometry_noise, cfg.odometry_rot_sigma))
+        for o in run.odometry
+    ]
     return run, odo
 
 
@@ -28,13 +44,19 @@ def test_straight_line_baseline_agrees_with_the_batch_test():
     for t in range(20):
         engine = StraightLineBaseline(StraightLineConfig(spacing=1, max_error=10.0))
         for s in range(3):
-            d = engine.update(choice.candidates.candidate_set(3 * t + s, time=float(s)),
-                              None if s == 0 else Odometry(gtsam.Pose3(), np.eye(6)))
+            d = engine.update(
+                choice.candidates.candidate_set(3 * t + s, time=float(s)),
+                None if s == 0 else Odometry(gtsam.Pose3(), np.eye(6)),
+            )
         if choice.found[t]:
             agree += int(d.committed == choice.chosen[t, 2])
             pos = choice.candidates.t_wc[3 * t + 2]
             valid = choice.candidates.valid[3 * t + 2]
-            nearest = int(np.argmin(np.where(valid, np.linalg.norm(pos - trials.positions[t, 2], axis=1), np.inf)))
+            nearest = int(
+                np.argmin(
+                    np.where(valid, np.linalg.norm(pos - trials.positions[t, 2], axis=1), np.inf)
+                )
+            )
             genuine += int(d.committed == nearest)
     assert agree == int(choice.found.sum())
     assert genuine >= 0.95 * choice.found.sum()  # noise-free: the genuine combination is on a line
@@ -79,11 +101,15 @@ def test_belief_vector_drops_untraced_solutions_and_restarts():
     engine = BeliefVector()
     engine.update(CandidateSet(R, np.array([[0.0, 0, 0], [1.0, 0, 0]]), np.ones(2), time=0.0))
     # solution 1 jumps 0.5 m (beyond the 0.05 m gate): only solution 0 keeps a track
-    d = engine.update(CandidateSet(R, np.array([[0.02, 0, 0], [1.5, 0, 0]]), np.ones(2), time=0.1), step)
+    d = engine.update(
+        CandidateSet(R, np.array([[0.02, 0, 0], [1.5, 0, 0]]), np.ones(2), time=0.1), step
+    )
     np.testing.assert_allclose(d.probabilities, [1.0, 0.0])
     assert d.locked and d.committed == 0
     # every track lost: uniform restart over the new solutions, the commit is released
-    d = engine.update(CandidateSet(R, np.array([[3.0, 0, 0], [4.0, 0, 0]]), np.ones(2), time=0.2), step)
+    d = engine.update(
+        CandidateSet(R, np.array([[3.0, 0, 0], [4.0, 0, 0]]), np.ones(2), time=0.2), step
+    )
     np.testing.assert_allclose(d.probabilities, [0.5, 0.5])
     assert d.relocalized and not d.locked
 
@@ -109,11 +135,18 @@ def test_particle_filter_weights_merge_additively():
     for k in range(1, 6):
         # particle 0's prediction matches a new solution exactly; particle 1's nearest new
         # solution is 0.5 m off its prediction (RBF weight ~ 0)
-        c = CandidateSet(R, np.array([[0.02 * k, 0, 0], [1.0 + 0.02 * k, 1.0 + 0.5 * k, 0]]), np.ones(2), time=0.1 * k)
+        c = CandidateSet(
+            R,
+            np.array([[0.02 * k, 0, 0], [1.0 + 0.02 * k, 1.0 + 0.5 * k, 0]]),
+            np.ones(2),
+            time=0.1 * k,
+        )
         probs.append(pf.update(c, step).probabilities[0])
     # w0 <- (w0 + 1) / (1 + sum w): 0.5 -> 0.75 -> 0.875 ... (Algorithm 2 lines 5-6)
     np.testing.assert_allclose(probs, 1.0 - 0.5 ** np.arange(2, 7), atol=1e-9)
-    assert pf.update(CandidateSet(R, np.array([[0.12, 0, 0], [1.12, 4.0, 0]]), np.ones(2), time=0.6), step).locked
+    assert pf.update(
+        CandidateSet(R, np.array([[0.12, 0, 0], [1.12, 4.0, 0]]), np.ones(2), time=0.6), step
+    ).locked
 
 
 @pytest.mark.parametrize("engine", [BeliefVector(), ParticleFilter(), StraightLineBaseline()])

@@ -19,6 +19,7 @@ def random_bearings(n, max_polar, min_polar=0.0, rng=RNG):
 
 # ---------------------------------------------------------------- pinhole
 
+
 @pytest.mark.parametrize("dist", [(), (-0.05, 0.01, 0.001, -0.001), (0.1, -0.02, 5e-4, 3e-4, 1e-3)])
 def test_pinhole_pixel_bearing_round_trip(dist):
     cam = PinholeCamera.from_fov(640, 480, 2 * math.pi / 3, dist=dist)  # seed 000 camera C
@@ -56,7 +57,9 @@ def test_pinhole_from_fov_seed_settings():
 
 def test_pinhole_visibility_mask():
     cam = PinholeCamera.from_fov(640, 480, math.pi / 2)
-    points = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [5.0, 0.0, 1.0], [np.nan, 0.0, 1.0], [0.0, 0.0, 0.0]])
+    points = np.array(
+        [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [5.0, 0.0, 1.0], [np.nan, 0.0, 1.0], [0.0, 0.0, 0.0]]
+    )
     pixels, visible = cam.project(points)
     assert visible.tolist() == [True, False, False, False, False]
     assert np.isnan(pixels[[1, 3, 4]]).all() and np.isfinite(pixels[[0, 2]]).all()
@@ -68,7 +71,9 @@ def test_pinhole_distortion_fold_is_not_visible():
     cam = PinholeCamera.from_fov(640, 480, 2 * math.pi / 3, dist=(0.1, -0.02, 0.0, 0.0))
     assert cam.max_radius == pytest.approx(math.sqrt(5.0), rel=1e-3)
     folded = np.array([[3.0, 0.0, 1.0], [1.5, 0.0, 1.0]])
-    raw = cv2.projectPoints(folded, np.zeros(3), np.zeros(3), cam.K, np.array(cam.dist))[0].reshape(-1, 2)
+    raw = cv2.projectPoints(folded, np.zeros(3), np.zeros(3), cam.K, np.array(cam.dist))[0].reshape(
+        -1, 2
+    )
     assert 0 <= raw[0, 0] < cam.width  # what OpenCV alone would claim
     pixels, visible = cam.project(folded)
     assert visible.tolist() == [False, True] and np.isnan(pixels[0]).all()
@@ -87,10 +92,16 @@ def test_pinhole_nan_rows_masked_not_crashing():
     assert empty.shape == (0, 3) and valid.shape == (0,)
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(fx=-1.0), "fx"), (dict(width=0), "width"), (dict(dist=(0.1, 0.2, 0.3)), "dist"),
-    (dict(cy=float("nan")), "cy"), (dict(dist=(0.1, np.nan, 0.0, 0.0)), "dist"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(fx=-1.0), "fx"),
+        (dict(width=0), "width"),
+        (dict(dist=(0.1, 0.2, 0.3)), "dist"),
+        (dict(cy=float("nan")), "cy"),
+        (dict(dist=(0.1, np.nan, 0.0, 0.0)), "dist"),
+    ],
+)
 def test_pinhole_bad_parameters(kwargs, match):
     params = dict(fx=500.0, fy=500.0, cx=320.0, cy=240.0, width=640, height=480)
     params.update(kwargs)
@@ -118,9 +129,12 @@ def test_wrong_shapes_name_the_argument():
 
 # ---------------------------------------------------------------- paraboloid omni (seed 000 section II)
 
+
 @pytest.mark.parametrize("conic_constant", [-1.0, -1.5, -3.0])
 def test_omni_bearing_pixel_bearing_round_trip(conic_constant):
-    cam = ParaboloidOmniCamera.from_fov(512, max_polar_angle=math.radians(115), conic_constant=conic_constant)
+    cam = ParaboloidOmniCamera.from_fov(
+        512, max_polar_angle=math.radians(115), conic_constant=conic_constant
+    )
     bearings = random_bearings(5000, cam.max_polar_angle)
     pixels, visible = cam.bearing_to_pixel(bearings)
     assert visible.all()
@@ -150,7 +164,9 @@ def test_omni_paraboloid_is_para_catadioptric():
     d = random_bearings(200, cam.max_polar_angle)
     lam = h / (1.0 + d[:, 2])  # distance from the focus to the mirror along d
     mirror = lam[:, None] * d
-    np.testing.assert_allclose(mirror[:, 2], (h**2 - mirror[:, 0] ** 2 - mirror[:, 1] ** 2) / (2 * h), atol=1e-15)
+    np.testing.assert_allclose(
+        mirror[:, 2], (h**2 - mirror[:, 0] ** 2 - mirror[:, 1] ** 2) / (2 * h), atol=1e-15
+    )
     pixels, _ = cam.bearing_to_pixel(d)
     np.testing.assert_allclose(pixels - (cam.cx, cam.cy), m * mirror[:, :2], atol=1e-9)
     assert cam.xi == 1.0
@@ -160,13 +176,19 @@ def test_omni_paraboloid_is_para_catadioptric():
 
 
 def test_omni_fov_and_nan_masks():
-    cam = ParaboloidOmniCamera.from_fov(512, max_polar_angle=math.radians(100), min_polar_angle=math.radians(10))
-    d = np.array([[0.0, 0.0, 1.0],        # inside the central blind spot
-                  [1.0, 0.0, 0.0],        # horizon: visible
-                  [1.0, 0.0, -1.0],       # 135 deg: outside the FOV
-                  [0.0, 0.0, -1.0],       # straight down: no image at all
-                  [np.nan, 0.0, 1.0],
-                  [0.0, 0.0, 0.0]])
+    cam = ParaboloidOmniCamera.from_fov(
+        512, max_polar_angle=math.radians(100), min_polar_angle=math.radians(10)
+    )
+    d = np.array(
+        [
+            [0.0, 0.0, 1.0],  # inside the central blind spot
+            [1.0, 0.0, 0.0],  # horizon: visible
+            [1.0, 0.0, -1.0],  # 135 deg: outside the FOV
+            [0.0, 0.0, -1.0],  # straight down: no image at all
+            [np.nan, 0.0, 1.0],
+            [0.0, 0.0, 0.0],
+        ]
+    )
     pixels, visible = cam.bearing_to_pixel(d)
     assert visible.tolist() == [False, True, False, False, False, False]
     assert np.isfinite(pixels[:3]).all() and np.isnan(pixels[3:]).all()
@@ -174,10 +196,16 @@ def test_omni_fov_and_nan_masks():
     assert valid.tolist() == [False, True] and np.isnan(bearings[0]).all()
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(focal=0.0), "focal"), (dict(size=-5), "size"), (dict(conic_constant=-0.5), "conic_constant"),
-    (dict(max_polar_angle=4.0), "max_polar_angle"), (dict(min_polar_angle=2.0, max_polar_angle=1.0), "polar"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(focal=0.0), "focal"),
+        (dict(size=-5), "size"),
+        (dict(conic_constant=-0.5), "conic_constant"),
+        (dict(max_polar_angle=4.0), "max_polar_angle"),
+        (dict(min_polar_angle=2.0, max_polar_angle=1.0), "polar"),
+    ],
+)
 def test_omni_bad_parameters(kwargs, match):
     params = dict(focal=150.0, size=512)
     params.update(kwargs)

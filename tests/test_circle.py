@@ -6,8 +6,15 @@ import pytest
 
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
-from graphloc.vision.circle import (CircleConfig, circle_pose_from_rim, circle_poses_from_rims, ellipse_to_conic,
-                                    render_circle_rim, rim_points_from_mask, rotations_from_normals)
+from graphloc.vision.circle import (
+    CircleConfig,
+    circle_pose_from_rim,
+    circle_poses_from_rims,
+    ellipse_to_conic,
+    render_circle_rim,
+    rim_points_from_mask,
+    rotations_from_normals,
+)
 
 RADIUS = 0.019  # seed 003: 1.9 cm circle, about 0.83 m from the camera
 DISTANCE = 0.83
@@ -21,7 +28,9 @@ def random_circle(rng, max_tilt_deg=60.0):
     tilt, azim = math.radians(rng.uniform(10.0, max_tilt_deg)), rng.uniform(-math.pi, math.pi)
     toward = -centre / np.linalg.norm(centre)
     R = rotations_from_normals(toward[None])[0]
-    normal = R @ np.array([math.sin(tilt) * math.cos(azim), math.sin(tilt) * math.sin(azim), math.cos(tilt)])
+    normal = R @ np.array(
+        [math.sin(tilt) * math.cos(azim), math.sin(tilt) * math.sin(azim), math.cos(tilt)]
+    )
     return centre, normal
 
 
@@ -39,7 +48,9 @@ def test_noise_free_one_candidate_exact():
         centre, normal = random_circle(rng)
         rim, visible = render_circle_rim(CAMERA, centre, normal, RADIUS, 120)
         assert visible.all()
-        candidates, poses = circle_pose_from_rim(CAMERA, rim, RADIUS, observer="cam", observed="robot")
+        candidates, poses = circle_pose_from_rim(
+            CAMERA, rim, RADIUS, observer="cam", observed="robot"
+        )
         assert isinstance(candidates, CandidateSet) and len(candidates) == 2
         dc, dn = best_error(poses, centre, normal)
         assert dc < 1e-6 and dn < 1e-3
@@ -48,8 +59,11 @@ def test_noise_free_one_candidate_exact():
         assert (candidates.t[:, 2] > 0).all()
         assert (np.einsum("ki,ki->k", poses.normals[0], poses.centres[0]) < 0).all()
         np.testing.assert_allclose(candidates.R[:, :, 2], poses.normals[0], atol=1e-12)
-        np.testing.assert_allclose(np.einsum("kji,kjl->kil", candidates.R, candidates.R), np.tile(np.eye(3), (2, 1, 1)),
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            np.einsum("kji,kjl->kil", candidates.R, candidates.R),
+            np.tile(np.eye(3), (2, 1, 1)),
+            atol=1e-12,
+        )
         np.testing.assert_allclose(np.linalg.det(candidates.R), 1.0, atol=1e-12)
         assert candidates.scores[0] == candidates.scores[1] > 0.99
         assert candidates.source == "circle" and candidates.observed == "robot"
@@ -61,7 +75,9 @@ def test_frontal_circle_both_solutions_coincide():
     candidates, poses = circle_pose_from_rim(CAMERA, rim, RADIUS)
     np.testing.assert_allclose(poses.centres[0], np.tile(centre, (2, 1)), atol=1e-7)
     np.testing.assert_allclose(poses.normals[0], np.tile([0.0, 0.0, -1.0], (2, 1)), atol=1e-4)
-    np.testing.assert_allclose(candidates.R[0][:, 0], [1.0, 0.0, 0.0], atol=1e-4)  # x = camera x (yaw convention)
+    np.testing.assert_allclose(
+        candidates.R[0][:, 0], [1.0, 0.0, 0.0], atol=1e-4
+    )  # x = camera x (yaw convention)
 
 
 def test_the_two_solutions_are_distinct_for_a_tilted_circle():
@@ -99,7 +115,10 @@ def test_pixel_noise_reasonable_error():
 def test_rim_from_rendered_mask():
     """Full image path: fill the projected circle into a mask, take its contour, fit."""
     cam = PinholeCamera.from_fov(640, 480, math.radians(40))
-    centre, normal = np.array([0.02, -0.01, 0.4]), np.array([0.3, 0.2, -1.0]) / np.linalg.norm([0.3, 0.2, -1.0])
+    centre, normal = (
+        np.array([0.02, -0.01, 0.4]),
+        np.array([0.3, 0.2, -1.0]) / np.linalg.norm([0.3, 0.2, -1.0]),
+    )
     rim, _ = render_circle_rim(cam, centre, normal, RADIUS, 720)
     mask = np.zeros((cam.height, cam.width), np.uint8)
     cv2.fillPoly(mask, [np.round(rim * 16).astype(np.int32)], 255, lineType=cv2.LINE_8, shift=4)
@@ -172,7 +191,12 @@ def test_ellipse_to_conic_matches_points():
     C = ellipse_to_conic(ellipse)[0]
     t = np.linspace(0, 2 * np.pi, 20)
     ang = math.radians(30.0)
-    pts = np.column_stack([100 + 20 * np.cos(t) * math.cos(ang) - 10 * np.sin(t) * math.sin(ang),
-                           50 + 20 * np.cos(t) * math.sin(ang) + 10 * np.sin(t) * math.cos(ang), np.ones(20)])
+    pts = np.column_stack(
+        [
+            100 + 20 * np.cos(t) * math.cos(ang) - 10 * np.sin(t) * math.sin(ang),
+            50 + 20 * np.cos(t) * math.sin(ang) + 10 * np.sin(t) * math.cos(ang),
+            np.ones(20),
+        ]
+    )
     np.testing.assert_allclose(np.einsum("ij,jk,ik->i", pts, C, pts), 0.0, atol=1e-12)
     assert np.array([100.0, 50.0, 1.0]) @ C @ np.array([100.0, 50.0, 1.0]) < 0

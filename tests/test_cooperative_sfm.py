@@ -10,10 +10,19 @@ from graphloc.baselines.ekf_seed003 import run_ekf
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
-from graphloc.datasets.seed003_geometry import genuine_candidates, ideal_frames, with_teammate_from_geometry
+from graphloc.datasets.seed003_geometry import (
+    genuine_candidates,
+    ideal_frames,
+    with_teammate_from_geometry,
+)
 from graphloc.eval import axis_errors, scale_errors, trajectory_scale
-from graphloc.pipelines.cooperative_sfm import (TEAMMATE_MODELS, CooperativeSfm, CooperativeSfmConfig,
-                                                disk_pose_covariance, run_cooperative_sfm)
+from graphloc.pipelines.cooperative_sfm import (
+    TEAMMATE_MODELS,
+    CooperativeSfm,
+    CooperativeSfmConfig,
+    disk_pose_covariance,
+    run_cooperative_sfm,
+)
 from graphloc.seams import FrameInput, TeammateObservation
 from graphloc.vision.teammate import TeammateConfig, measure_frames, teammate_observation
 from graphloc.keys import pose_key
@@ -36,12 +45,17 @@ def test_teammate_observation_moment_matches_the_two_candidates():
     obs = teammate_observation(cands, CAM, TeammateConfig())
     np.testing.assert_allclose(obs.centre, t.mean(axis=0))
     d = t - t.mean(axis=0)
-    single = teammate_observation(CandidateSet(R[:1], obs.centre[None], np.ones(1),
-                                               meta={"rms_px": 0.1, "n_points": 100}), CAM, TeammateConfig())
+    single = teammate_observation(
+        CandidateSet(R[:1], obs.centre[None], np.ones(1), meta={"rms_px": 0.1, "n_points": 100}),
+        CAM,
+        TeammateConfig(),
+    )
     np.testing.assert_allclose(obs.covariance - single.covariance, 0.5 * (d.T @ d), atol=1e-12)
     assert obs.n_candidates == 2 and obs.candidate_spread == pytest.approx(np.linalg.norm(d[0]))
     diff = t[0] - t[1]
-    assert obs.candidate_separation == pytest.approx(np.sqrt(diff @ np.linalg.solve(single.covariance, diff)))
+    assert obs.candidate_separation == pytest.approx(
+        np.sqrt(diff @ np.linalg.solve(single.covariance, diff))
+    )
     np.testing.assert_allclose(obs.pixel, CAM.project(obs.centre[None])[0][0])
     with pytest.raises(ValueError, match="behind"):
         teammate_observation(CandidateSet(R[:1], [[0, 0, -1.0]], np.ones(1)), CAM, TeammateConfig())
@@ -82,7 +96,12 @@ def test_teammate_odometry_enters_as_a_range(model):
     for f in frames:
         sfm.add_frame(f)
     types = {type(sfm.session.graph.at(i)).__name__ for i in range(sfm.session.graph.size())}
-    common = {"GenericProjectionFactorCal3_S2", "PriorFactorPoint3", "BetweenFactorPose3", "PriorFactorPose3"}
+    common = {
+        "GenericProjectionFactorCal3_S2",
+        "PriorFactorPoint3",
+        "BetweenFactorPose3",
+        "PriorFactorPose3",
+    }
     est = sfm.session.estimate()
     T = len(frames)
     if model == "max_mixture":
@@ -120,7 +139,7 @@ def test_trajectory_scale():
     assert trajectory_scale(q, q) == pytest.approx(1.0)
     assert trajectory_scale(1.05 * q, q) == pytest.approx(1.05)
     assert np.isnan(trajectory_scale(np.zeros((3, 3)), np.zeros((3, 3))))
-    hist = [q[:k + 1] * 1.1 for k in range(5)]
+    hist = [q[: k + 1] * 1.1 for k in range(5)]
     np.testing.assert_allclose(scale_errors(hist, q)[1:], 0.1)
 
 
@@ -133,9 +152,13 @@ def test_bad_input_is_rejected_or_counted():
     with pytest.raises(ValueError, match="time"):
         sfm.add_frame(frames[0])
     with pytest.raises(ValueError, match="pixels"):
-        sfm.add_frame(FrameInput(1.0, FrameFeatures(np.arange(3), np.zeros((3, 3))), None, True, False))
+        sfm.add_frame(
+            FrameInput(1.0, FrameFeatures(np.arange(3), np.zeros((3, 3))), None, True, False)
+        )
     with pytest.raises(ValueError, match="odometry"):
-        sfm.add_frame(FrameInput(2.0, frames[1].features, frames[1].teammate, False, True, float("nan"), 0.01))
+        sfm.add_frame(
+            FrameInput(2.0, frames[1].features, frames[1].teammate, False, True, float("nan"), 0.01)
+        )
     f = frames[1]
     px = f.features.pixels.copy()
     px[0] = np.nan
@@ -159,15 +182,24 @@ def test_measure_frames_validates_arrays():
     with pytest.raises(ValueError, match="uint8"):
         measure_frames(imgs.astype(float), CAM, z, z, z, z)
     frames, report = measure_frames(imgs, CAM, z, z, z, z)  # blank frames: no base, no corners
-    assert report.no_blob == 3 and all(f.teammate is None and len(f.features.ids) == 0 for f in frames)
+    assert report.no_blob == 3 and all(
+        f.teammate is None and len(f.features.ids) == 0 for f in frames
+    )
 
 
 def test_rendered_sequence_end_to_end():
-    cfg = CrawlerPairConfig(width=320, height=240, schedule=("camera",) * 5 + ("teammate",) * 2, seed=2)
+    cfg = CrawlerPairConfig(
+        width=320, height=240, schedule=("camera",) * 5 + ("teammate",) * 2, seed=2
+    )
     seq = CrawlerPairScenario(cfg).generate()
     flags = seq.frame_flags()
-    frames, report = measure_frames(seq.images, seq.camera, *flags, FeatureConfig(max_features=15),
-                                    TeammateConfig(radius=cfg.base_radius))
+    frames, report = measure_frames(
+        seq.images,
+        seq.camera,
+        *flags,
+        FeatureConfig(max_features=15),
+        TeammateConfig(radius=cfg.base_radius),
+    )
     assert report.no_blob == 0 and report.circle_failed == 0
     assert all(len(f.features.ids) >= 10 for f in frames)
     run = run_cooperative_sfm(frames, seq.camera, config("online"))
@@ -183,8 +215,13 @@ def test_online_does_not_oscillate_on_a_stiff_rendered_run():
     undamped Gauss-Newton iSAM2 step alternated between two states frame to frame (causal
     error 0.1 / 1.7 mm, scale error 2.7 %); the default dog-leg step settles (~0.6 mm)."""
     seq = CrawlerPairScenario(CrawlerPairConfig(seed=9)).generate()
-    frames, report = measure_frames(seq.images, seq.camera, *seq.frame_flags(), FeatureConfig(max_features=19),
-                                    TeammateConfig(radius=seq.config.base_radius))
+    frames, report = measure_frames(
+        seq.images,
+        seq.camera,
+        *seq.frame_flags(),
+        FeatureConfig(max_features=19),
+        TeammateConfig(radius=seq.config.base_radius),
+    )
     assert report.circle_failed == 0
     run = run_cooperative_sfm(frames, seq.camera, config("online"))
     causal = np.linalg.norm(run.causal_positions - seq.t_wc, axis=1)
@@ -199,13 +236,36 @@ def tilted_frames(seed=0, heading_deg=12.0, favour_false=False):
     R, t, pts, base, cm, mm, odo, ostd = synthetic(n_points=19, seed=seed)
     h = np.radians(heading_deg)
     normals = np.tile(-np.array([np.sin(h), 0.0, np.cos(h)]), (len(R), 1))
-    frames = ideal_frames(CAM, R, t, pts, base, cm, mm, odo, ostd, rng=np.random.default_rng(seed + 100),
-                          base_normals=normals)
+    frames = ideal_frames(
+        CAM,
+        R,
+        t,
+        pts,
+        base,
+        cm,
+        mm,
+        odo,
+        ostd,
+        rng=np.random.default_rng(seed + 100),
+        base_normals=normals,
+    )
     genuine = genuine_candidates(frames, np.einsum("kji,kj->ki", R, normals))
     if favour_false:
-        frames = [replace(f, teammate=replace(f.teammate, candidates=CandidateSet(
-            f.teammate.candidates.R, f.teammate.candidates.t, np.where(np.arange(2) == g, 0.2, 0.8),
-            meta=f.teammate.candidates.meta))) for f, g in zip(frames, genuine)]
+        frames = [
+            replace(
+                f,
+                teammate=replace(
+                    f.teammate,
+                    candidates=CandidateSet(
+                        f.teammate.candidates.R,
+                        f.teammate.candidates.t,
+                        np.where(np.arange(2) == g, 0.2, 0.8),
+                        meta=f.teammate.candidates.meta,
+                    ),
+                ),
+            )
+            for f, g in zip(frames, genuine)
+        ]
     return frames, t, genuine
 
 
@@ -228,7 +288,12 @@ def test_genuine_candidates_and_missing_candidates_are_checked():
     with pytest.raises(ValueError, match="true_normals"):
         genuine_candidates(frames, np.zeros((2, 3)))
     f = frames[0]
-    bare = replace(f, teammate=TeammateObservation(f.teammate.centre, f.teammate.covariance, f.teammate.pixel, 1, 0.0))
+    bare = replace(
+        f,
+        teammate=TeammateObservation(
+            f.teammate.centre, f.teammate.covariance, f.teammate.pixel, 1, 0.0
+        ),
+    )
     with pytest.raises(ValueError, match="max_mixture"):
         CooperativeSfm(CAM, config("batch")).add_frame(bare)
     with pytest.raises(ValueError, match="teammate_model"):
@@ -290,11 +355,14 @@ def test_teammate_from_geometry_draws_from_the_disk_covariance_and_the_graph_use
     frames, truth, genuine = tilted_frames()
     R, t, pts, base, *_ = synthetic(n_points=19, seed=0)
     h = np.radians(12.0)
-    normals = np.einsum("kji,kj->ki", R, np.tile(-np.array([np.sin(h), 0.0, np.cos(h)]), (len(R), 1)))
+    normals = np.einsum(
+        "kji,kj->ki", R, np.tile(-np.array([np.sin(h), 0.0, np.cos(h)]), (len(R), 1))
+    )
     centres = np.einsum("kji,kj->ki", R, base - t)
     disk = np.tile(np.diag([3e-6, 3e-6, 2e-4, 2e-3, 2e-3]) ** 2, (len(R), 1, 1))
-    drawn = with_teammate_from_geometry(frames, CAM, centres, normals, disk_covariances=disk,
-                                        rng=np.random.default_rng(7))
+    drawn = with_teammate_from_geometry(
+        frames, CAM, centres, normals, disk_covariances=disk, rng=np.random.default_rng(7)
+    )
     rng = np.random.default_rng(7)
     for k, f in enumerate(drawn):
         draw = np.linalg.cholesky(disk[k]) @ rng.normal(size=5)

@@ -13,7 +13,9 @@ from graphloc.vision.features import detect_base_rim
 
 @pytest.fixture(scope="module")
 def seq():
-    cfg = CrawlerPairConfig(width=320, height=240, schedule=("camera",) * 3 + ("teammate",) * 2, seed=4)
+    cfg = CrawlerPairConfig(
+        width=320, height=240, schedule=("camera",) * 3 + ("teammate",) * 2, seed=4
+    )
     return CrawlerPairScenario(cfg).generate()
 
 
@@ -24,12 +26,19 @@ def test_registered_and_shapes(seq):
     assert seq.R_wc.shape == (T, 3, 3) and seq.t_wc.shape == (T, 3)
     np.testing.assert_allclose(seq.R_wc[0], np.eye(3))
     np.testing.assert_allclose(seq.t_wc[0], 0.0)
-    np.testing.assert_allclose(np.einsum("tij,tkj->tik", seq.R_wc, seq.R_wc), np.broadcast_to(np.eye(3), (T, 3, 3)),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        np.einsum("tij,tkj->tik", seq.R_wc, seq.R_wc),
+        np.broadcast_to(np.eye(3), (T, 3, 3)),
+        atol=1e-12,
+    )
     cam_moved, mate_moved, odo, odo_std = seq.frame_flags()
     assert cam_moved.tolist() == [False, True, True, True, False, False]
     assert mate_moved.tolist() == [False, False, False, False, True, True]
-    assert (odo[mate_moved] > 0).all() and (odo[~mate_moved] == 0).all() and (odo_std[mate_moved] > 0).all()
+    assert (
+        (odo[mate_moved] > 0).all()
+        and (odo[~mate_moved] == 0).all()
+        and (odo_std[mate_moved] > 0).all()
+    )
 
 
 def test_seed_geometry(seq):
@@ -70,8 +79,9 @@ def test_render_is_deterministic_per_seed():
     a = CrawlerPairScenario(cfg).generate()
     b = CrawlerPairScenario(cfg).generate()
     np.testing.assert_array_equal(a.images, b.images)
-    c = CrawlerPairScenario(CrawlerPairConfig(width=160, height=120, schedule=("camera",), seed=12,
-                                              supersample=1)).generate()
+    c = CrawlerPairScenario(
+        CrawlerPairConfig(width=160, height=120, schedule=("camera",), seed=12, supersample=1)
+    ).generate()
     assert not np.array_equal(a.images, c.images)
 
 
@@ -91,8 +101,12 @@ def test_circle_candidates_share_their_centre(seq):
     apart: the moment-matched centre baseline widens its Gaussian by their spread."""
     from graphloc.vision.teammate import TeammateConfig, measure_frames
 
-    _, report = measure_frames(seq.images, seq.camera, *seq.frame_flags(),
-                               teammate=TeammateConfig(radius=seq.config.base_radius))
+    _, report = measure_frames(
+        seq.images,
+        seq.camera,
+        *seq.frame_flags(),
+        teammate=TeammateConfig(radius=seq.config.base_radius),
+    )
     assert report.no_blob == 0 and report.circle_failed == 0
     assert 0.0 < report.max_candidate_spread < 0.001
     assert report.max_candidate_separation > 2.0
@@ -112,7 +126,9 @@ def test_disk_information_is_the_bound_of_this_renderer(seq):
     depth = np.sqrt(los @ cov[:3, :3] @ los)
     lateral = np.sqrt((np.trace(cov[:3, :3]) - los @ cov[:3, :3] @ los) / 2)
     assert 10 * lateral < depth < 2e-3 and np.degrees(np.sqrt(cov[3, 3])) < 2.0
-    noisier = CrawlerPairScenario(replace(seq.config, noise_sigma=4.0)).disk_information(seq, 1, subsamples=16)
+    noisier = CrawlerPairScenario(replace(seq.config, noise_sigma=4.0)).disk_information(
+        seq, 1, subsamples=16
+    )
     np.testing.assert_allclose(info / noisier, (16 + 1 / 12) / (4 + 1 / 12), rtol=1e-6)
     finer = np.linalg.inv(gen.disk_information(seq, 1, subsamples=32))
     assert abs(np.sqrt(los @ finer[:3, :3] @ los) / depth - 1) < 0.1

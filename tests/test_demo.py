@@ -12,7 +12,13 @@ def test_demo_runs_the_whole_fusion_pipeline(tmp_path, capsys):
     err = report["errors_vs_truth"]
     # seed 004 reports 1-2 deg; the bar is <= 0.1 deg and <= 1 cm (median over placements)
     assert err["rot_deg"] < 0.1 and err["trans_m"] < 0.01, err
-    for name in ("fused_map.ply", "fused_map.pcd", "fused_top.png", "fused_side.png",
-                 "trajectory_ground.tum", "trajectory_ceiling.tum"):
+    for name in (
+        "fused_map.ply",
+        "fused_map.pcd",
+        "fused_top.png",
+        "fused_side.png",
+        "trajectory_ground.tum",
+        "trajectory_ceiling.tum",
+    ):
         assert (tmp_path / name).stat().st_size > 0, name
     assert "error vs truth" in capsys.readouterr().out

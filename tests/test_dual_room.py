@@ -8,8 +8,16 @@ import pytest
 
 from graphloc.datasets import dataset_class
 from graphloc.datasets.dual_room import (
-    LED_SIDE, VARIANTS, T_CEILING_CAMERA, CameraConfig, DualRoomConfig, DualRoomScenario, LidarConfig, led_positions,
-    make_room, variant_config,
+    LED_SIDE,
+    VARIANTS,
+    T_CEILING_CAMERA,
+    CameraConfig,
+    DualRoomConfig,
+    DualRoomScenario,
+    LidarConfig,
+    led_positions,
+    make_room,
+    variant_config,
 )
 
 SMALL_LIDAR = LidarConfig(beams=24, azimuths=180)
@@ -80,24 +88,37 @@ def test_led_pixels_are_noisy_projections_of_the_true_leds():
     s = DualRoomScenario.simulate(cfg)
     cam = cfg.camera.pinhole()
     for f in range(len(s.times)):
-        T_cam_ground = np.linalg.inv(s.poses["ceiling"][f] @ T_CEILING_CAMERA) @ s.poses["ground"][f]
+        T_cam_ground = (
+            np.linalg.inv(s.poses["ceiling"][f] @ T_CEILING_CAMERA) @ s.poses["ground"][f]
+        )
         uv, vis = cam.project(led_positions() @ T_cam_ground[:3, :3].T + T_cam_ground[:3, 3])
         seen = s.led_visible[f]
         np.testing.assert_allclose(s.led_pixels[f][seen], uv[seen], atol=1e-9)
         assert np.isnan(s.led_pixels[f][~seen]).all()
-    assert s.led_visible.all(axis=1).sum() >= 2  # placements are redrawn until the LEDs are seen twice
+    assert (
+        s.led_visible.all(axis=1).sum() >= 2
+    )  # placements are redrawn until the LEDs are seen twice
 
 
 def test_furniture_tops_are_seen_only_from_the_ceiling():
-    s = DualRoomScenario.simulate(small("furnished", seed=2, lidar=LidarConfig(beams=32, azimuths=240), frames=2))
+    s = DualRoomScenario.simulate(
+        small("furnished", seed=2, lidar=LidarConfig(beams=32, azimuths=240), frames=2)
+    )
     top = 0.75  # first table of the furnished room: x 1.0..2.4, y 0.6..1.4, top at 0.75 m
 
     def on_top(robot):
         n = 0
         for pose, pts in zip(s.poses[robot], s.scans[robot]):
             w = pts @ pose[:3, :3].T + pose[:3, 3]
-            n += int(((np.abs(w[:, 2] - top) < 0.01) & (w[:, 0] > 1.1) & (w[:, 0] < 2.3)
-                      & (w[:, 1] > 0.7) & (w[:, 1] < 1.3)).sum())
+            n += int(
+                (
+                    (np.abs(w[:, 2] - top) < 0.01)
+                    & (w[:, 0] > 1.1)
+                    & (w[:, 0] < 2.3)
+                    & (w[:, 1] > 0.7)
+                    & (w[:, 1] < 1.3)
+                ).sum()
+            )
         return n
 
     assert on_top("ground") <= 2  # at most a spurious return
@@ -116,7 +137,10 @@ def test_rectangular_variant_is_symmetric_under_half_turn():
 def test_variants_differ_and_low_overlap_has_short_range():
     rooms = {v: make_room(v) for v in VARIANTS}
     assert len(rooms["furnished"].furniture) > len(rooms["empty"].furniture) > 0
-    assert variant_config("low_overlap", 0).lidar.max_range < variant_config("furnished", 0).lidar.max_range
+    assert (
+        variant_config("low_overlap", 0).lidar.max_range
+        < variant_config("furnished", 0).lidar.max_range
+    )
 
 
 def test_same_seed_same_data_other_seed_other_placement():

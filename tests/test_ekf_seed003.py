@@ -3,8 +3,14 @@
 import numpy as np
 import pytest
 
-from graphloc.baselines.ekf_seed003 import (N_MOTION, TRACKER_ID, EkfConfig, Seed003Ekf, incremental_rotation,
-                                            run_ekf)
+from graphloc.baselines.ekf_seed003 import (
+    N_MOTION,
+    TRACKER_ID,
+    EkfConfig,
+    Seed003Ekf,
+    incremental_rotation,
+    run_ekf,
+)
 from graphloc.eval import axis_errors
 from graphloc.seams import FrameInput
 from graphloc.vision.features import FrameFeatures
@@ -17,7 +23,7 @@ def h_reference(ekf: Seed003Ekf, x: np.ndarray, which: np.ndarray) -> np.ndarray
     R = incremental_rotation(x[3:6]) @ ekf.R_global
     out = []
     for i in which:
-        X = x[N_MOTION + 3 * i: N_MOTION + 3 * i + 3]
+        X = x[N_MOTION + 3 * i : N_MOTION + 3 * i + 3]
         a = R @ X
         Xc, Yc, Zcb = x[0] + a[0], x[1] + a[1], x[2] + x[6] * a[2]
         out += [Xc / (1 + Zcb), Yc / (1 + Zcb)]
@@ -49,16 +55,21 @@ def test_initial_state_follows_seed_section_iii():
     ekf = Seed003Ekf(CAM, EkfConfig(tracker_setting="proper"))
     ekf.step(frames[0])
     assert ekf.ids[0] == TRACKER_ID and len(ekf.ids) == 6
-    np.testing.assert_allclose(ekf.camera_pose()[1], 0.0, atol=1e-9)  # T = (0, 0, -1/beta): camera at the origin
+    np.testing.assert_allclose(
+        ekf.camera_pose()[1], 0.0, atol=1e-9
+    )  # T = (0, 0, -1/beta): camera at the origin
     beta0 = 1.0 / (CAM.fx * EkfConfig().pixel_pitch)
     assert ekf.beta == pytest.approx(beta0, rel=0.05)
     ideal = Seed003Ekf(CAM, EkfConfig(tracker_setting="ideal"))
     ideal.step(frames[0])
-    np.testing.assert_allclose(ideal.P[N_MOTION:N_MOTION + 3, N_MOTION:N_MOTION + 3], 0.0)  # ideal tracker
+    np.testing.assert_allclose(
+        ideal.P[N_MOTION : N_MOTION + 3, N_MOTION : N_MOTION + 3], 0.0
+    )  # ideal tracker
     noisy = Seed003Ekf(CAM, EkfConfig(tracker_setting="noisy"))
     noisy.step(frames[0])
-    assert np.trace(noisy.P[N_MOTION:N_MOTION + 3, N_MOTION:N_MOTION + 3]) > np.trace(
-        ekf.P[N_MOTION:N_MOTION + 3, N_MOTION:N_MOTION + 3])
+    assert np.trace(noisy.P[N_MOTION : N_MOTION + 3, N_MOTION : N_MOTION + 3]) > np.trace(
+        ekf.P[N_MOTION : N_MOTION + 3, N_MOTION : N_MOTION + 3]
+    )
 
 
 def test_more_features_improve_depth_translation():
@@ -77,7 +88,7 @@ def test_teammate_move_reinitializes_tracker_point():
     for f in frames:
         ekf.step(f)
     k = int(np.flatnonzero(ekf.ids == TRACKER_ID)[0])
-    point = ekf.x[N_MOTION + 3 * k: N_MOTION + 3 * k + 3]
+    point = ekf.x[N_MOTION + 3 * k : N_MOTION + 3 * k + 3]
     assert np.linalg.norm(point - [0.03, 0.031, 0.87]) < 0.01  # moved 4 cm away
     assert axis_errors(np.array(ekf.positions), truth).max() < 0.02
 
@@ -95,8 +106,13 @@ def test_bad_input():
         ekf.step(FrameInput(5.0, FrameFeatures(np.arange(3), np.zeros((2, 2))), None, True, False))
     with pytest.raises(ValueError, match="tracker_setting"):
         EkfConfig(tracker_setting="perfect")
-    nan_frame = FrameInput(6.0, FrameFeatures(np.array([0, 1]), np.array([[np.nan, 1.0], [300.0, 200.0]])),
-                           frames[2].teammate, True, False)
+    nan_frame = FrameInput(
+        6.0,
+        FrameFeatures(np.array([0, 1]), np.array([[np.nan, 1.0], [300.0, 200.0]])),
+        frames[2].teammate,
+        True,
+        False,
+    )
     ekf.step(nan_frame)
     assert ekf.skipped_pixels == 1
 

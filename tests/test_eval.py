@@ -30,7 +30,9 @@ def test_se2_alignment_removes_rigid_offset_only():
     assert unaligned.ate_rmse > 1.0
     # a non-rigid error survives alignment, with the analytic RMSE of a constant radial offset
     bigger = gt.copy()
-    bigger[:, :2] *= 1.1  # radius 3.3 vs 3.0 over a full circle: error 0.3 everywhere after alignment
+    bigger[:, :2] *= (
+        1.1  # radius 3.3 vs 3.0 over a full circle: error 0.3 everywhere after alignment
+    )
     t_full = np.linspace(0, 2 * np.pi / 0.1, 400, endpoint=False)
     g, b = _circle(t_full), _circle(t_full)
     b[:, :2] *= 1.1
@@ -43,7 +45,9 @@ def test_rpe_measures_local_drift():
     gt = _circle(t)
     est = gt.copy()
     est[:, 0] += 0.01 * t  # 1 cm/s drift along x
-    m = trajectory_metrics(planar_to_evo(t, gt), planar_to_evo(t, est), align="none", rpe_delta_s=1.0)
+    m = trajectory_metrics(
+        planar_to_evo(t, gt), planar_to_evo(t, est), align="none", rpe_delta_s=1.0
+    )
     assert m.rpe_delta_s == pytest.approx(1.0)
     assert m.rpe_trans_rmse == pytest.approx(0.01, rel=0.05)
 
@@ -75,9 +79,16 @@ def test_tum_roundtrip_and_error_curve(tmp_path):
 def test_plots_write_pngs(tmp_path):
     t = np.arange(0, 20, 0.25)
     gt = _circle(t)
-    p1 = plot_trajectories(tmp_path / "traj.png", [Series("est", gt[:, :2] + 0.05)], [Series("gt", gt[:, :2])],
-                           points=np.array([[0.0, 0.0]]), title="t")
-    p2 = plot_series(tmp_path / "err.png", [Series("err", t, 0.01 + 0 * t)], "t [s]", "m", logy=True)
+    p1 = plot_trajectories(
+        tmp_path / "traj.png",
+        [Series("est", gt[:, :2] + 0.05)],
+        [Series("gt", gt[:, :2])],
+        points=np.array([[0.0, 0.0]]),
+        title="t",
+    )
+    p2 = plot_series(
+        tmp_path / "err.png", [Series("err", t, 0.01 + 0 * t)], "t [s]", "m", logy=True
+    )
     assert p1.stat().st_size > 5000 and p2.stat().st_size > 5000
     with pytest.raises(ValueError, match="positions"):
         plot_trajectories(tmp_path / "bad.png", [Series("bad", t)])

@@ -6,9 +6,19 @@ import numpy as np
 import pytest
 
 from graphloc.candidates import CandidateSet
-from graphloc.factors.bearing import bearing_factor, known_baseline_factor, predicted_bearing, range_factor
+from graphloc.factors.bearing import (
+    bearing_factor,
+    known_baseline_factor,
+    predicted_bearing,
+    range_factor,
+)
 from graphloc.factors.mixture import candidate_covariances, candidate_mixture, component_factors
-from graphloc.factors.surface import SurfacePlane, plane_attitude_factor, plane_distance_factor, surface_factors
+from graphloc.factors.surface import (
+    SurfacePlane,
+    plane_attitude_factor,
+    plane_distance_factor,
+    surface_factors,
+)
 from graphloc.keys import mode_key, pose_key
 
 
@@ -46,7 +56,11 @@ def test_bearing_factor_zero_at_truth_and_jacobians_match_numeric():
 
 def test_mutual_bearings_with_known_baseline_recover_formation():
     """Seed 000 Sec. III-A / Problem 1: three robots see each other; one known distance fixes scale."""
-    truth = [pose((0.0, 0, 0), (0.5, 0.5, 0.3)), pose((1.5, 0, 0), (0.5, 2.5, 0.4)), pose((-2.0, 0, 0), (2.5, 1.5, 0.2))]
+    truth = [
+        pose((0.0, 0, 0), (0.5, 0.5, 0.3)),
+        pose((1.5, 0, 0), (0.5, 2.5, 0.4)),
+        pose((-2.0, 0, 0), (2.5, 1.5, 0.2)),
+    ]
     keys = [pose_key(r, 0) for r in range(3)]
     g = gtsam.NonlinearFactorGraph()
     g.add(gtsam.PriorFactorPose3(keys[0], truth[0], gtsam.noiseModel.Isotropic.Sigma(6, 1e-4)))
@@ -54,7 +68,11 @@ def test_mutual_bearings_with_known_baseline_recover_formation():
         for j in range(3):
             if i != j:
                 g.add(bearing_factor(keys[i], keys[j], predicted_bearing(truth[i], truth[j]), 1e-3))
-    g.add(known_baseline_factor(keys[0], keys[1], np.linalg.norm(truth[0].translation() - truth[1].translation())))
+    g.add(
+        known_baseline_factor(
+            keys[0], keys[1], np.linalg.norm(truth[0].translation() - truth[1].translation())
+        )
+    )
     init = gtsam.Values()
     rng = np.random.default_rng(0)
     for k, p in zip(keys, truth):
@@ -91,7 +109,9 @@ def test_range_factor_with_sensor_offset():
 def candidate_set(poses, scores=None, cov=None):
     R = np.stack([p.rotation().matrix() for p in poses])
     t = np.stack([p.translation() for p in poses])
-    return CandidateSet(R, t, np.ones(len(poses)) if scores is None else np.asarray(scores, float), covariance=cov)
+    return CandidateSet(
+        R, t, np.ones(len(poses)) if scores is None else np.asarray(scores, float), covariance=cov
+    )
 
 
 def test_mixture_components_and_weights():
@@ -139,7 +159,10 @@ def test_surface_distance_is_free_along_the_plane():
     along = np.array([1.0, 0.0, 1.0]) / np.sqrt(2)
     for offset, expected in ((0.0, 0.0), (0.7, 0.0), (-1.3, 0.0)):
         v = gtsam.Values()
-        v.insert(key, pose((0.3, 0.2, 0.1), on_plane + offset * along + 0.5 * offset * np.array([0, 1, 0])))
+        v.insert(
+            key,
+            pose((0.3, 0.2, 0.1), on_plane + offset * along + 0.5 * offset * np.array([0, 1, 0])),
+        )
         assert f.error(v) == pytest.approx(expected, abs=1e-12)
     v = gtsam.Values()
     v.insert(key, pose((0, 0, 0), on_plane + 0.02 * plane.normal))
@@ -156,7 +179,12 @@ def test_surface_factors_pull_a_pose_onto_the_sloped_ceiling():
     g.add(gtsam.PriorFactorPose3(key, start, gtsam.noiseModel.Isotropic.Sigma(6, 10.0)))
     init = gtsam.Values()
     # body z initialized near the plane normal (AttitudeFactor's Unit3 error also vanishes at the antipode)
-    init.insert(key, gtsam.Pose3(gtsam.Rot3.AxisAngle(np.array([0.0, 1.0, 0.0]), np.pi * 0.7), start.translation()))
+    init.insert(
+        key,
+        gtsam.Pose3(
+            gtsam.Rot3.AxisAngle(np.array([0.0, 1.0, 0.0]), np.pi * 0.7), start.translation()
+        ),
+    )
     r = gtsam.LevenbergMarquardtOptimizer(g, init).optimize().atPose3(key)
     assert abs(plane.distance(r.translation()[None])[0]) < 1e-4
     np.testing.assert_allclose(r.rotation().matrix()[:, 2], plane.normal, atol=1e-3)

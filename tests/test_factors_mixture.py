@@ -5,7 +5,12 @@ import numpy as np
 import pytest
 
 from graphloc.candidates import CandidateSet
-from graphloc.factors.mixture import candidate_max_mixture, candidate_mixture, component_factors, max_mixture_factor
+from graphloc.factors.mixture import (
+    candidate_max_mixture,
+    candidate_mixture,
+    component_factors,
+    max_mixture_factor,
+)
 from graphloc.keys import pose_key
 from graphloc.session import Session, SessionConfig
 
@@ -31,12 +36,23 @@ def test_error_is_the_min_over_components_up_to_a_constant():
     mix = candidate_max_mixture(cands, B, A)
     comps = component_factors(cands, B, A)
     w = cands.weights()
-    for pose in (cands.poses()[0], cands.poses()[1], gtsam.Pose3(gtsam.Rot3.Ry(0.05), [0.12, 0.01, 0.79])):
+    for pose in (
+        cands.poses()[0],
+        cands.poses()[1],
+        gtsam.Pose3(gtsam.Rot3.Ry(0.05), [0.12, 0.01, 0.79]),
+    ):
         v = values_at(pose)
-        terms = np.array([-np.log(w[k]) + f.noiseModel().negLogConstant() + f.error(v) for k, f in enumerate(comps)])
+        terms = np.array(
+            [
+                -np.log(w[k]) + f.noiseModel().negLogConstant() + f.error(v)
+                for k, f in enumerate(comps)
+            ]
+        )
         np.testing.assert_allclose(mix.component_errors(v), terms)
         assert mix.active(v) == int(np.argmin(terms))
-        assert mix.factor.error(v) == pytest.approx(terms.min() - mix.constants.min(), rel=1e-9, abs=1e-9)
+        assert mix.factor.error(v) == pytest.approx(
+            terms.min() - mix.constants.min(), rel=1e-9, abs=1e-9
+        )
 
 
 def test_jacobians_match_numerical_differentiation():
@@ -73,8 +89,11 @@ def test_picks_the_component_consistent_with_other_evidence(mode):
     graph = gtsam.NonlinearFactorGraph()
     graph.add(gtsam.PriorFactorPose3(A, gtsam.Pose3(), gtsam.noiseModel.Isotropic.Sigma(6, 1e-4)))
     graph.add(mix.factor)
-    graph.add(gtsam.PriorFactorPose3(B, cands.poses()[0], gtsam.noiseModel.Diagonal.Sigmas(
-        np.array([0.01] * 3 + [0.01] * 3))))
+    graph.add(
+        gtsam.PriorFactorPose3(
+            B, cands.poses()[0], gtsam.noiseModel.Diagonal.Sigmas(np.array([0.01] * 3 + [0.01] * 3))
+        )
+    )
     init = values_at(cands.poses()[1])
     session = Session(SessionConfig(mode=mode, relinearize_threshold=0.001, extra_updates=5))
     session.add(graph, init, time=0.0)
@@ -85,16 +104,21 @@ def test_picks_the_component_consistent_with_other_evidence(mode):
 
 def test_component_groups_add_their_errors():
     n3 = gtsam.noiseModel.Isotropic.Sigma(3, 0.1)
-    groups = [[gtsam.PriorFactorPoint3(1, gtsam.Point3(0, 0, 0), n3),
-               gtsam.PriorFactorPoint3(1, gtsam.Point3(0, 0, 1), n3)],
-              [gtsam.PriorFactorPoint3(1, gtsam.Point3(5, 0, 0), n3)]]
+    groups = [
+        [
+            gtsam.PriorFactorPoint3(1, gtsam.Point3(0, 0, 0), n3),
+            gtsam.PriorFactorPoint3(1, gtsam.Point3(0, 0, 1), n3),
+        ],
+        [gtsam.PriorFactorPoint3(1, gtsam.Point3(5, 0, 0), n3)],
+    ]
     mix = max_mixture_factor(groups, [1.0, 1.0])
     assert mix.residual_dim == 7
     v = gtsam.Values()
     v.insert(1, gtsam.Point3(0, 0, 0.5))
     assert mix.active(v) == 0
-    np.testing.assert_allclose(mix.component_errors(v)[0] - mix.constants[0],
-                               sum(f.error(v) for f in groups[0]))
+    np.testing.assert_allclose(
+        mix.component_errors(v)[0] - mix.constants[0], sum(f.error(v) for f in groups[0])
+    )
     graph = gtsam.NonlinearFactorGraph()
     graph.add(mix.factor)
     est = gtsam.LevenbergMarquardtOptimizer(graph, v).optimize()
@@ -115,22 +139,31 @@ def test_bad_inputs_raise_value_error():
     with pytest.raises(ValueError, match="shape"):
         max_mixture_factor(comps, [1.0])
     with pytest.raises(ValueError, match="different variables"):
-        max_mixture_factor([comps[0], gtsam.PriorFactorPose3(B, gtsam.Pose3(), gtsam.noiseModel.Unit.Create(6))],
-                           [1.0, 1.0])
-    robust = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(1.0),
-                                            gtsam.noiseModel.Unit.Create(6))
+        max_mixture_factor(
+            [comps[0], gtsam.PriorFactorPose3(B, gtsam.Pose3(), gtsam.noiseModel.Unit.Create(6))],
+            [1.0, 1.0],
+        )
+    robust = gtsam.noiseModel.Robust.Create(
+        gtsam.noiseModel.mEstimator.Huber.Create(1.0), gtsam.noiseModel.Unit.Create(6)
+    )
     with pytest.raises(ValueError, match="robust"):
-        max_mixture_factor([comps[0], gtsam.BetweenFactorPose3(A, B, gtsam.Pose3(), robust)], [1.0, 1.0])
+        max_mixture_factor(
+            [comps[0], gtsam.BetweenFactorPose3(A, B, gtsam.Pose3(), robust)], [1.0, 1.0]
+        )
     with pytest.raises(ValueError, match="NoiseModelFactor"):
         max_mixture_factor([comps[0], "factor"], [1.0, 1.0])
     with pytest.raises(ValueError, match="empty"):
-        candidate_max_mixture(CandidateSet(np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0)), B, A)
+        candidate_max_mixture(
+            CandidateSet(np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0)), B, A
+        )
     with pytest.raises(ValueError, match="NaN"):
         CandidateSet(np.stack([np.eye(3)] * 2), [[0, 0, np.nan], [0, 0, 1]], np.ones(2))
     bad_cov = np.broadcast_to(np.eye(6), (2, 6, 6)).copy()
     bad_cov[1, 0, 0] = np.nan
     with pytest.raises(ValueError, match="NaN"):
-        candidate_max_mixture(CandidateSet(cands.R, cands.t, cands.scores, covariance=bad_cov), B, A)
+        candidate_max_mixture(
+            CandidateSet(cands.R, cands.t, cands.scores, covariance=bad_cov), B, A
+        )
 
 
 def test_candidate_with_underflowed_score_keeps_its_component():

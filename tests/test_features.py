@@ -7,23 +7,40 @@ import pytest
 
 from graphloc.cameras import PinholeCamera
 from graphloc.datasets.crawler_pair import disk_coverage
-from graphloc.vision.features import (BlobConfig, FeatureConfig, FeatureTracker, detect_base_rim, detect_corners,
-                                      track_forward_backward)
+from graphloc.vision.features import (
+    BlobConfig,
+    FeatureConfig,
+    FeatureTracker,
+    detect_base_rim,
+    detect_corners,
+    track_forward_backward,
+)
 
 
 def textured(h=240, w=320, seed=0):
     rng = np.random.default_rng(seed)
-    img = cv2.resize(rng.uniform(0, 255, (h // 8, w // 8)).astype(np.float32), (w, h), interpolation=cv2.INTER_CUBIC)
+    img = cv2.resize(
+        rng.uniform(0, 255, (h // 8, w // 8)).astype(np.float32),
+        (w, h),
+        interpolation=cv2.INTER_CUBIC,
+    )
     for _ in range(40):
         x, y = int(rng.integers(0, w)), int(rng.integers(0, h))
-        cv2.rectangle(img, (x, y), (x + int(rng.integers(5, 25)), y + int(rng.integers(5, 25))),
-                      float(rng.uniform(0, 255)), -1)
+        cv2.rectangle(
+            img,
+            (x, y),
+            (x + int(rng.integers(5, 25)), y + int(rng.integers(5, 25))),
+            float(rng.uniform(0, 255)),
+            -1,
+        )
     return np.clip(img, 0, 255).astype(np.uint8)
 
 
 def shifted(img, du, dv):
     M = np.float32([[1, 0, du], [0, 1, dv]])
-    return cv2.warpAffine(img, M, (img.shape[1], img.shape[0]), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    return cv2.warpAffine(
+        img, M, (img.shape[1], img.shape[0]), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT
+    )
 
 
 def test_detect_corners_respects_count_mask_and_border():
@@ -35,7 +52,11 @@ def test_detect_corners_respects_count_mask_and_border():
     mask[:, 160:] = 255
     right = detect_corners(img, 15, cfg, mask)
     assert len(right) > 0 and (right[:, 0] >= 160).all()
-    assert (corners >= 10).all() and (corners[:, 0] <= 320 - 11).all() and (corners[:, 1] <= 240 - 11).all()
+    assert (
+        (corners >= 10).all()
+        and (corners[:, 0] <= 320 - 11).all()
+        and (corners[:, 1] <= 240 - 11).all()
+    )
     assert detect_corners(img, 0, cfg).shape == (0, 2)
 
 
@@ -54,7 +75,9 @@ def test_forward_backward_check_drops_changed_region():
     img = textured(seed=1)
     moved = shifted(img, 1.0, 0.0)
     rng = np.random.default_rng(5)
-    moved[:, :120] = rng.uniform(0, 255, moved[:, :120].shape).astype(np.uint8)  # scene changed on the left
+    moved[:, :120] = rng.uniform(0, 255, moved[:, :120].shape).astype(
+        np.uint8
+    )  # scene changed on the left
     pts = detect_corners(img, 60, FeatureConfig(min_distance=8))
     _, ok, _ = track_forward_backward(img, moved, pts, FeatureConfig(fb_threshold=0.5))
     left = pts[:, 0] < 100
@@ -69,7 +92,12 @@ def test_tracker_keeps_ids_replenishes_and_honours_exclusion():
     exclude[100:140, 140:180] = 255
     f0 = tracker.step(img, exclude)
     assert len(f0.ids) == 12 and f0.n_new == 12
-    inside = (f0.pixels[:, 0] >= 140) & (f0.pixels[:, 0] < 180) & (f0.pixels[:, 1] >= 100) & (f0.pixels[:, 1] < 140)
+    inside = (
+        (f0.pixels[:, 0] >= 140)
+        & (f0.pixels[:, 0] < 180)
+        & (f0.pixels[:, 1] >= 100)
+        & (f0.pixels[:, 1] < 140)
+    )
     assert not inside.any()
     f1 = tracker.step(shifted(img, 1.5, 0.5), exclude)
     common = np.intersect1d(f0.ids, f1.ids)
@@ -103,7 +131,9 @@ def render_disk(radius_m=0.019, depth=0.8, tilt_deg=25.0, noise=2.0, seed=0):
     cov = disk_coverage(cam, c, n, radius_m)
     img = np.full((240, 320, 3), 110.0, np.float32)
     img = img * (1 - cov[..., None]) + np.float32([40, 40, 200]) * cov[..., None]
-    img = cv2.GaussianBlur(img, (0, 0), 0.6) + np.random.default_rng(seed).normal(0, noise, img.shape)
+    img = cv2.GaussianBlur(img, (0, 0), 0.6) + np.random.default_rng(seed).normal(
+        0, noise, img.shape
+    )
     return cam, c, n, np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
 
@@ -113,6 +143,7 @@ def test_base_rim_is_subpixel_accurate():
     assert blob is not None and len(blob.rim) > 40
     # the rim points lie on the true projected circle: compare with the ideal ellipse fit
     from graphloc.vision.circle import render_circle_rim
+
     truth, _ = render_circle_rim(cam, c, n, 0.019, n_points=720)
     (u0, v0), (w, h), ang = cv2.fitEllipse(truth.astype(np.float32))
     (u1, v1), (w1, h1), ang1 = cv2.fitEllipse(blob.rim.astype(np.float32))
@@ -139,7 +170,11 @@ def textured_disk(seed, tilt_deg=20.0, depth=0.8, noise=2.0, blur=0.6):
     a = np.radians(tilt_deg)
     n = np.array([np.sin(a), 0.0, -np.cos(a)])
     cov = disk_coverage(cam, c, n, 0.019)
-    grey = cv2.resize(rng.uniform(30, 220, (60, 80)).astype(np.float32), (640, 480), interpolation=cv2.INTER_NEAREST)
+    grey = cv2.resize(
+        rng.uniform(30, 220, (60, 80)).astype(np.float32),
+        (640, 480),
+        interpolation=cv2.INTER_NEAREST,
+    )
     background = grey[..., None] * np.float32([0.95, 1.0, 0.9])
     img = background * (1 - cov[..., None]) + np.float32([40, 40, 200]) * cov[..., None]
     img = cv2.GaussianBlur(img, (0, 0), blur) + rng.normal(0, noise, img.shape)
@@ -157,8 +192,10 @@ def test_coverage_map_ignores_the_background_brightness():
     _, _, _, cov, img = textured_disk(seed=1, noise=0.0, blur=1e-3)
     blob = detect_base_rim(img, BlobConfig(refine_edges=False))
     alpha, (x0, y0) = coverage_map(img, blob.mask)
-    truth = cov[y0:y0 + alpha.shape[0], x0:x0 + alpha.shape[1]]
-    assert np.abs(alpha - truth).max() < 0.03  # vs up to ~0.15 for a score threshold on this texture
+    truth = cov[y0 : y0 + alpha.shape[0], x0 : x0 + alpha.shape[1]]
+    assert (
+        np.abs(alpha - truth).max() < 0.03
+    )  # vs up to ~0.15 for a score threshold on this texture
     grey = np.full((60, 80, 3), 120, np.uint8)
     grey[20:40, 30:50] = 200  # a "blob" with the background's own hue
     with pytest.raises(ValueError, match="parallel"):
@@ -214,8 +251,16 @@ def test_failed_refinement_is_reported_not_raised(monkeypatch):
     assert blob.exclusion.sum() > 0 and len(blob.crossings) > 40
 
     from graphloc.vision.teammate import TeammateConfig, measure_frames
+
     images = np.stack([img, img])
-    frames, report = measure_frames(images, PinholeCamera.from_fov(640, 480, np.radians(50)), [0, 1], [0, 0],
-                                    [0, 0], [0, 0], teammate=TeammateConfig())
+    frames, report = measure_frames(
+        images,
+        PinholeCamera.from_fov(640, 480, np.radians(50)),
+        [0, 1],
+        [0, 0],
+        [0, 0],
+        [0, 0],
+        teammate=TeammateConfig(),
+    )
     assert report.circle_failed == 2 and all(f.teammate is None for f in frames)
     assert "frame 1: edge refinement failed" in report.circle_reasons[1]

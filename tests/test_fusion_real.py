@@ -38,16 +38,23 @@ def _pair(fragment, overlap, seed):
 
 
 def _fuse(pair, hint, sigma):
-    inp = FusionInput(np.zeros(1), [pair.ground], [pair.ceiling], hint=hint,
-                      hint_sigma=(np.deg2rad(sigma[0]), sigma[1]))
+    inp = FusionInput(
+        np.zeros(1),
+        [pair.ground],
+        [pair.ceiling],
+        hint=hint,
+        hint_sigma=(np.deg2rad(sigma[0]), sigma[1]),
+    )
     return fuse(inp, FusionConfig(build_map=False, scan_matching=False))
 
 
 def _write_pair(tmp_path, pair):
     for name, pts in (("ground", pair.ground), ("ceiling", pair.ceiling)):
         (tmp_path / name).mkdir()
-        o3d.t.io.write_point_cloud(str(tmp_path / name / "000.ply"),
-                                   o3d.t.geometry.PointCloud(o3d.core.Tensor(pts.astype(np.float32))))
+        o3d.t.io.write_point_cloud(
+            str(tmp_path / name / "000.ply"),
+            o3d.t.geometry.PointCloud(o3d.core.Tensor(pts.astype(np.float32))),
+        )
 
 
 def _hint_text(T):
@@ -71,7 +78,9 @@ def test_view_pair_has_the_asked_overlap_and_a_flipped_ceiling_view(fragment):
         assert abs(pair.overlap - overlap) < 0.05
         T = pair.T_ground_ceiling
         assert T[2, 3] == pytest.approx(2.5) and T[2, 2] == pytest.approx(-1.0)
-        back = pair.ceiling @ T[:3, :3].T + T[:3, 3]  # ceiling view in G is the fragment's other side
+        back = (
+            pair.ceiling @ T[:3, :3].T + T[:3, 3]
+        )  # ceiling view in G is the fragment's other side
         assert back[:, 1].mean() > pair.ground[:, 1].mean()
         assert (pair.ceiling[:, 2] > 0).all()  # everything is below an upside-down sensor
     hint = perturb(np.eye(4), 3.0, 0.05, np.random.default_rng(0))
@@ -112,8 +121,14 @@ def test_degenerate_geometry_fails_the_conditioning_check():
     plane = np.c_[rng.uniform(-2, 2, (4000, 2)), rng.normal(0, 0.003, 4000)]
     cfg = RegistrationConfig()
     src, tgt = prepare(plane, cfg), prepare(plane + [0, 0, 0.0], cfg)
-    d = robust_register(src, tgt, np.eye(4), np.r_[[np.deg2rad(2)] * 3, [0.05] * 3], cfg,
-                        AcceptanceConfig(ceiling_above=False))
+    d = robust_register(
+        src,
+        tgt,
+        np.eye(4),
+        np.r_[[np.deg2rad(2)] * 3, [0.05] * 3],
+        cfg,
+        AcceptanceConfig(ceiling_above=False),
+    )
     assert not d.accepted
     assert not d.checks["conditioning"][2]
     assert any("degenerate" in r for r in d.reasons)
@@ -140,10 +155,17 @@ def test_robot_geometry_check_wants_the_ceiling_robot_above_and_upside_down():
 def test_fuse_maps_on_real_scans_fuses_or_says_not_fused(fragment, tmp_path):
     pair, rng = _pair(fragment, 0.6, 13)
     _write_pair(tmp_path, pair)
-    base = ["fuse-maps", "--ground", str(tmp_path / "ground"), "--ceiling", str(tmp_path / "ceiling")]
+    base = [
+        "fuse-maps",
+        "--ground",
+        str(tmp_path / "ground"),
+        "--ceiling",
+        str(tmp_path / "ceiling"),
+    ]
     good = perturb(pair.T_ground_ceiling, 3.0, 0.05, rng)
-    rc = cli_main(base + ["--hint", _hint_text(good), "--hint-sigma", "3 0.05", "--out",
-                          str(tmp_path / "ok")])
+    rc = cli_main(
+        base + ["--hint", _hint_text(good), "--hint-sigma", "3 0.05", "--out", str(tmp_path / "ok")]
+    )
     assert rc == 0
     report = json.loads((tmp_path / "ok" / "fusion_report.json").read_text())
     assert report["status"] == "fused" and report["registration_decision"]["accepted"]
@@ -152,8 +174,9 @@ def test_fuse_maps_on_real_scans_fuses_or_says_not_fused(fragment, tmp_path):
     assert b"property uchar red" in (tmp_path / "ok" / "fused_map.ply").read_bytes()[:400]
 
     bad = perturb(pair.T_ground_ceiling, 30.0, 0.8, rng)
-    rc = cli_main(base + ["--hint", _hint_text(bad), "--hint-sigma", "3 0.05", "--out",
-                          str(tmp_path / "bad")])
+    rc = cli_main(
+        base + ["--hint", _hint_text(bad), "--hint-sigma", "3 0.05", "--out", str(tmp_path / "bad")]
+    )
     assert rc == 3
     report = json.loads((tmp_path / "bad" / "fusion_report.json").read_text())
     assert report["status"] == "not_fused" and report["reasons"]
@@ -164,9 +187,11 @@ def test_fuse_maps_config_file(tmp_path, capsys):
     from graphloc.mapping.config import load_fusion_config
 
     p = tmp_path / "fusion.toml"
-    p.write_text("[registration]\nvoxel = 0.04\nscales = [0.16, 0.04]\n"
-                 "max_correspondence = [0.5, 0.06]\nmax_iterations = [20, 20]\n"
-                 "[acceptance]\nmin_inlier_ratio = 0.7\n[fusion]\nguess_sigma = [0.1, 0.2]\n")
+    p.write_text(
+        "[registration]\nvoxel = 0.04\nscales = [0.16, 0.04]\n"
+        "max_correspondence = [0.5, 0.06]\nmax_iterations = [20, 20]\n"
+        "[acceptance]\nmin_inlier_ratio = 0.7\n[fusion]\nguess_sigma = [0.1, 0.2]\n"
+    )
     cfg = load_fusion_config(p)
     assert cfg.registration.voxel == 0.04 and cfg.registration.scales == (0.16, 0.04)
     assert cfg.acceptance.min_inlier_ratio == 0.7 and cfg.guess_sigma == (0.1, 0.2)
@@ -177,8 +202,17 @@ def test_fuse_maps_config_file(tmp_path, capsys):
     with pytest.raises(ValueError, match="fusion.toml"):
         load_fusion_config(p)
     p.write_text("[registration\n")
-    rc = cli_main(["fuse-maps", "--simulate", "dual-robot-room", "--config", str(p), "--out",
-                   str(tmp_path / "o")])
+    rc = cli_main(
+        [
+            "fuse-maps",
+            "--simulate",
+            "dual-robot-room",
+            "--config",
+            str(p),
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
     assert rc == 2 and "fusion.toml: not valid TOML" in capsys.readouterr().err
 
 

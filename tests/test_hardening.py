@@ -19,22 +19,34 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from graphloc.vision.circle import fit_ellipse, rim_points_from_mask
-from graphloc.vision.features import (FeatureConfig, FeatureTracker, colour_score, detect_base_rim,
-                                      detect_corners, track_forward_backward)
+from graphloc.vision.features import (
+    FeatureConfig,
+    FeatureTracker,
+    colour_score,
+    detect_base_rim,
+    detect_corners,
+    track_forward_backward,
+)
 from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, roi_from_points
 
 # bounded for the default run; GRAPHLOC_FUZZ_EXAMPLES=2000 (random seeds) for a deeper search
 EXAMPLES = int(os.environ.get("GRAPHLOC_FUZZ_EXAMPLES", "0"))
-FAST = settings(max_examples=EXAMPLES or 40, deadline=None, derandomize=not EXAMPLES,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+FAST = settings(
+    max_examples=EXAMPLES or 40,
+    deadline=None,
+    derandomize=not EXAMPLES,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
+)
 
 # ---- vision -------------------------------------------------------------------------------------
 
 SIDES = st.integers(0, 24)
-IMAGE_SHAPES = st.one_of(st.tuples(SIDES, SIDES),
-                         st.tuples(SIDES, SIDES, st.sampled_from([1, 2, 3, 4])),
-                         st.tuples(st.integers(0, 3)),
-                         st.tuples(SIDES, SIDES, st.just(3), st.just(1)))
+IMAGE_SHAPES = st.one_of(
+    st.tuples(SIDES, SIDES),
+    st.tuples(SIDES, SIDES, st.sampled_from([1, 2, 3, 4])),
+    st.tuples(st.integers(0, 3)),
+    st.tuples(SIDES, SIDES, st.just(3), st.just(1)),
+)
 DTYPES = st.sampled_from([np.uint8, np.uint8, np.uint8, np.float32, np.float64, np.int16, bool])
 
 
@@ -48,21 +60,30 @@ def images(draw, shapes=IMAGE_SHAPES, dtypes=DTYPES):
     if dtype is np.uint8 and img.ndim >= 2 and img.size:
         for _ in range(draw(st.integers(0, 3))):
             y, x = draw(st.integers(0, img.shape[0] - 1)), draw(st.integers(0, img.shape[1] - 1))
-            img[y:y + 4, x:x + 4] = 255
+            img[y : y + 4, x : x + 4] = 255
     if draw(st.booleans()) and img.ndim >= 2:
         img = img[::-1]  # negative strides: OpenCV needs a contiguous buffer
     return img
 
 
 def _valid_image(img, channels=(1, 3)) -> bool:
-    return (img.dtype == np.uint8 and min(img.shape[:2] or (0,)) >= 1
-            and ((img.ndim == 2 and 1 in channels) or (img.ndim == 3 and img.shape[2] in channels
-                                                        and img.shape[2] != 1)))
+    return (
+        img.dtype == np.uint8
+        and min(img.shape[:2] or (0,)) >= 1
+        and (
+            (img.ndim == 2 and 1 in channels)
+            or (img.ndim == 3 and img.shape[2] in channels and img.shape[2] != 1)
+        )
+    )
 
 
 @FAST
-@given(img=images(), polarity=st.sampled_from(["bright", "dark", "color"]), use_roi=st.booleans(),
-       roi=st.tuples(*[st.one_of(st.floats(-50, 80), st.just(np.nan))] * 4))
+@given(
+    img=images(),
+    polarity=st.sampled_from(["bright", "dark", "color"]),
+    use_roi=st.booleans(),
+    roi=st.tuples(*[st.one_of(st.floats(-50, 80), st.just(np.nan))] * 4),
+)
 def test_detect_markers_returns_or_raises_value_error(img, polarity, use_roi, roi):
     config = MarkerDetectorConfig(polarity=polarity, expected=2)
     try:
@@ -95,9 +116,13 @@ def test_base_rim_and_colour_score_return_or_raise_value_error(img):
 
 
 @FAST
-@given(a=images(), data=st.data(),
-       points=hnp.arrays(np.float64, st.tuples(st.integers(0, 4), st.just(2)),
-                         elements=st.floats(-1e6, 1e6)))
+@given(
+    a=images(),
+    data=st.data(),
+    points=hnp.arrays(
+        np.float64, st.tuples(st.integers(0, 4), st.just(2)), elements=st.floats(-1e6, 1e6)
+    ),
+)
 def test_klt_entry_points_return_or_raise_value_error(a, data, points):
     b = data.draw(st.one_of(st.just(a[::-1].copy()), images()), label="b")  # often the same shape
     try:
@@ -123,9 +148,14 @@ def test_klt_entry_points_return_or_raise_value_error(a, data, points):
 
 
 @FAST
-@given(mask=images(dtypes=st.sampled_from([np.uint8, bool, np.float64, np.complex64])),
-       points=hnp.arrays(np.float64, st.tuples(st.integers(0, 8), st.integers(1, 3)),
-                         elements=st.floats(allow_nan=True, allow_infinity=True)))
+@given(
+    mask=images(dtypes=st.sampled_from([np.uint8, bool, np.float64, np.complex64])),
+    points=hnp.arrays(
+        np.float64,
+        st.tuples(st.integers(0, 8), st.integers(1, 3)),
+        elements=st.floats(allow_nan=True, allow_infinity=True),
+    ),
+)
 def test_circle_entry_points_return_or_raise_value_error(mask, points):
     try:
         rim = rim_points_from_mask(mask)
@@ -141,15 +171,21 @@ def test_circle_entry_points_return_or_raise_value_error(mask, points):
         assert ellipse.shape == (5,)
 
 
-PIXELS = st.one_of(st.floats(-1e4, 1e4),
-                   st.sampled_from([0.0, 1e300, -1e300, np.nan, np.inf, 320.0, 240.0]))
+PIXELS = st.one_of(
+    st.floats(-1e4, 1e4), st.sampled_from([0.0, 1e300, -1e300, np.nan, np.inf, 320.0, 240.0])
+)
 
 
 @FAST
-@given(det=hnp.arrays(np.float64, st.tuples(st.integers(0, 5), st.integers(1, 3)), elements=PIXELS),
-       px=hnp.arrays(np.float64, st.tuples(st.integers(0, 2), st.just(3), st.just(3), st.just(2)),
-                     elements=PIXELS),
-       baseline=st.one_of(st.floats(allow_nan=True), st.just(1.0)))
+@given(
+    det=hnp.arrays(np.float64, st.tuples(st.integers(0, 5), st.integers(1, 3)), elements=PIXELS),
+    px=hnp.arrays(
+        np.float64,
+        st.tuples(st.integers(0, 2), st.just(3), st.just(3), st.just(2)),
+        elements=PIXELS,
+    ),
+    baseline=st.one_of(st.floats(allow_nan=True), st.just(1.0)),
+)
 def test_target_and_mutual_pixels_return_or_raise_value_error(det, px, baseline):
     """The pixel-level front-ends (seed 001 target, seed 000 mutual observation) on arbitrary
     arrays: a CandidateSet / ThreeRobotPoses of finite poses, or a ValueError."""
@@ -171,42 +207,73 @@ def test_target_and_mutual_pixels_return_or_raise_value_error(det, px, baseline)
 
 
 VISION_CORPUS = [  # (call, the exact reason)
-    (lambda: detect_markers(np.zeros((0, 0), np.uint8)),
-     r"marker image is 0x0 px \(width x height\); at least 1x1 px needed"),
+    (
+        lambda: detect_markers(np.zeros((0, 0), np.uint8)),
+        r"marker image is 0x0 px \(width x height\); at least 1x1 px needed",
+    ),
     (lambda: detect_markers(np.zeros((0, 5), np.uint8)), r"marker image is 5x0 px"),
     (lambda: detect_markers(np.zeros((5, 0), np.uint8)), r"marker image is 0x5 px"),
     (lambda: detect_markers(np.zeros((0, 0, 3), np.uint8)), r"marker image is 0x0 px"),
-    (lambda: detect_base_rim(np.zeros((0, 0, 3), np.uint8)),
-     r"colour_score: image \(BGR\) is 0x0 px"),
-    (lambda: detect_markers(np.zeros((8, 8), np.float32)),
-     r"marker image must be an 8-bit image \(dtype uint8\), got dtype float32"),
-    (lambda: detect_markers(np.zeros((8, 8, 4), np.uint8)),
-     r"marker image must have shape \(H,W\) or \(H,W,3\), got \(8, 8, 4\)"),
-    (lambda: detect_markers(np.zeros((8, 8), np.uint8), MarkerDetectorConfig(polarity="color")),
-     r"marker image \(polarity 'color', BGR\) must have shape \(H,W,3\), got \(8, 8\)"),
-    (lambda: detect_markers(np.zeros((8, 8), np.uint8), roi=(0, 0, np.nan, 5)),
-     r"detect_markers: roi \(0, 0, nan, 5\) is not finite"),
-    (lambda: detect_markers(np.zeros((8, 8), np.uint8), roi="all"),
-     r"detect_markers: roi must be 4 numbers"),
-    (lambda: detect_markers(np.zeros((8, 8), np.uint8), roi=(9, 9, 20, 20)),
-     r"detect_markers: roi \(9, 9, 20, 20\) is empty inside the 8x8 image"),
-    (lambda: detect_markers(np.zeros((8, 8), np.uint8), predicted_px=[1.0, 2.0, np.inf, 0.0]),
-     r"detect_markers: predicted_px\[1\] = \[inf  0.\] is not finite"),
-    (lambda: roi_from_points([[1.0, 2.0]], np.nan, (8, 8)),
-     r"roi_from_points: margin must be finite and >= 0, got nan"),
-    (lambda: track_forward_backward(np.zeros((0, 5), np.uint8), np.zeros((0, 5), np.uint8),
-                                    np.zeros((1, 2))), r"prev_gray is 5x0 px"),
-    (lambda: track_forward_backward(np.zeros((5, 5), np.uint8), np.zeros((5, 5), np.uint8),
-                                    [[np.nan, 1.0]]),
-     r"track_forward_backward: points\[0\] = \[nan  1.\] is not finite"),
+    (
+        lambda: detect_base_rim(np.zeros((0, 0, 3), np.uint8)),
+        r"colour_score: image \(BGR\) is 0x0 px",
+    ),
+    (
+        lambda: detect_markers(np.zeros((8, 8), np.float32)),
+        r"marker image must be an 8-bit image \(dtype uint8\), got dtype float32",
+    ),
+    (
+        lambda: detect_markers(np.zeros((8, 8, 4), np.uint8)),
+        r"marker image must have shape \(H,W\) or \(H,W,3\), got \(8, 8, 4\)",
+    ),
+    (
+        lambda: detect_markers(np.zeros((8, 8), np.uint8), MarkerDetectorConfig(polarity="color")),
+        r"marker image \(polarity 'color', BGR\) must have shape \(H,W,3\), got \(8, 8\)",
+    ),
+    (
+        lambda: detect_markers(np.zeros((8, 8), np.uint8), roi=(0, 0, np.nan, 5)),
+        r"detect_markers: roi \(0, 0, nan, 5\) is not finite",
+    ),
+    (
+        lambda: detect_markers(np.zeros((8, 8), np.uint8), roi="all"),
+        r"detect_markers: roi must be 4 numbers",
+    ),
+    (
+        lambda: detect_markers(np.zeros((8, 8), np.uint8), roi=(9, 9, 20, 20)),
+        r"detect_markers: roi \(9, 9, 20, 20\) is empty inside the 8x8 image",
+    ),
+    (
+        lambda: detect_markers(np.zeros((8, 8), np.uint8), predicted_px=[1.0, 2.0, np.inf, 0.0]),
+        r"detect_markers: predicted_px\[1\] = \[inf  0.\] is not finite",
+    ),
+    (
+        lambda: roi_from_points([[1.0, 2.0]], np.nan, (8, 8)),
+        r"roi_from_points: margin must be finite and >= 0, got nan",
+    ),
+    (
+        lambda: track_forward_backward(
+            np.zeros((0, 5), np.uint8), np.zeros((0, 5), np.uint8), np.zeros((1, 2))
+        ),
+        r"prev_gray is 5x0 px",
+    ),
+    (
+        lambda: track_forward_backward(
+            np.zeros((5, 5), np.uint8), np.zeros((5, 5), np.uint8), [[np.nan, 1.0]]
+        ),
+        r"track_forward_backward: points\[0\] = \[nan  1.\] is not finite",
+    ),
     (lambda: FeatureTracker().step(np.zeros((4, 0, 3), np.uint8)), r"image is 0x4 px"),
-    (lambda: colour_score(np.zeros((4, 4), np.uint8)),
-     r"colour_score: image \(BGR\) must have shape \(H,W,3\), got \(4, 4\)"),
+    (
+        lambda: colour_score(np.zeros((4, 4), np.uint8)),
+        r"colour_score: image \(BGR\) must have shape \(H,W,3\), got \(4, 4\)",
+    ),
     (lambda: fit_ellipse(np.zeros((4, 2))), r"fit_ellipse: points has 4 points, at least 5"),
     (lambda: fit_ellipse(np.zeros((6, 2)), "hough"), r"fit_ellipse: method must be one of"),
     (lambda: rim_points_from_mask(np.zeros((0, 4))), r"mask is empty \(shape \(0, 4\)\)"),
-    (lambda: rim_points_from_mask(np.zeros((4, 4), object)),
-     r"mask must be a numeric or boolean image, got dtype object"),
+    (
+        lambda: rim_points_from_mask(np.zeros((4, 4), object)),
+        r"mask must be a numeric or boolean image, got dtype object",
+    ),
 ]
 
 
@@ -219,16 +286,28 @@ def test_vision_corpus_gives_the_exact_reason(call, reason):
 # ---- geometry.p3p.solve_p3p ---------------------------------------------------------------------
 from graphloc.geometry.p3p import METHODS, P3PConfig, solve_p3p  # noqa: E402
 
-FLOATS = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(-10, 10),
-                   st.sampled_from([0.0, 1e-300, 1e300, -1e300]))
+FLOATS = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.floats(-10, 10),
+    st.sampled_from([0.0, 1e-300, 1e300, -1e300]),
+)
 
 
 @FAST
-@given(f=hnp.arrays(np.float64, st.tuples(st.integers(0, 3), st.integers(2, 4), st.integers(2, 4)),
-                    elements=FLOATS),
-       X=hnp.arrays(np.float64, st.tuples(st.integers(0, 3), st.integers(2, 4), st.integers(2, 4)),
-                    elements=FLOATS),
-       method=st.sampled_from(METHODS), polish=st.booleans())
+@given(
+    f=hnp.arrays(
+        np.float64,
+        st.tuples(st.integers(0, 3), st.integers(2, 4), st.integers(2, 4)),
+        elements=FLOATS,
+    ),
+    X=hnp.arrays(
+        np.float64,
+        st.tuples(st.integers(0, 3), st.integers(2, 4), st.integers(2, 4)),
+        elements=FLOATS,
+    ),
+    method=st.sampled_from(METHODS),
+    polish=st.booleans(),
+)
 def test_solve_p3p_returns_masked_rows_or_raises_value_error(f, X, method, polish):
     try:
         out = solve_p3p(f, X, method=method, polish=polish)
@@ -243,8 +322,10 @@ def test_solve_p3p_returns_masked_rows_or_raises_value_error(f, X, method, polis
 
 
 @FAST
-@given(f=hnp.arrays(np.float64, (2, 3, 3), elements=st.floats(-1, 1)),
-       X=hnp.arrays(np.float64, (2, 3, 3), elements=st.floats(-5, 5)))
+@given(
+    f=hnp.arrays(np.float64, (2, 3, 3), elements=st.floats(-1, 1)),
+    X=hnp.arrays(np.float64, (2, 3, 3), elements=st.floats(-5, 5)),
+)
 def test_solve_p3p_candidates_reproject(f, X):
     """Whatever the geometry, every candidate returned is genuine: positive depths and the
     bearings reproduce within max_residual_rad (the contract the engines rely on)."""
@@ -257,22 +338,38 @@ def test_solve_p3p_candidates_reproject(f, X):
 
 
 P3P_CORPUS = [
-    (lambda: solve_p3p(np.zeros((1, 3, 3)), np.zeros((1, 3, 3)), method="ransac"),
-     r"solve_p3p: unknown method 'ransac'"),
-    (lambda: solve_p3p(np.zeros((3, 3)), np.zeros((3, 3))),
-     r"solve_p3p: bearings must have shape \(N,3,3\), got \(3, 3\)"),
-    (lambda: solve_p3p(np.zeros((2, 3, 3)), np.zeros((1, 3, 3))),
-     r"solve_p3p: points must have shape \(2, 3, 3\) like bearings, got \(1, 3, 3\)"),
-    (lambda: solve_p3p([[["a"] * 3] * 3], np.zeros((1, 3, 3))),
-     r"solve_p3p: bearings/points are not numeric arrays"),
-    (lambda: solve_p3p(np.zeros((1, 3, 3), complex), np.zeros((1, 3, 3))),
-     r"solve_p3p: bearings must be real numbers, got dtype complex128"),
-    (lambda: solve_p3p(np.zeros((1, 3, 3)), np.zeros((1, 3, 3)),
-                       config=P3PConfig(max_residual_rad=-1.0)),
-     r"P3PConfig.max_residual_rad must be finite and > 0, got -1.0"),
-    (lambda: solve_p3p(np.zeros((1, 3, 3)), np.zeros((1, 3, 3)),
-                       config=P3PConfig(polish_iters=-2)),
-     r"P3PConfig.polish_iters must be an integer >= 0, got -2"),
+    (
+        lambda: solve_p3p(np.zeros((1, 3, 3)), np.zeros((1, 3, 3)), method="ransac"),
+        r"solve_p3p: unknown method 'ransac'",
+    ),
+    (
+        lambda: solve_p3p(np.zeros((3, 3)), np.zeros((3, 3))),
+        r"solve_p3p: bearings must have shape \(N,3,3\), got \(3, 3\)",
+    ),
+    (
+        lambda: solve_p3p(np.zeros((2, 3, 3)), np.zeros((1, 3, 3))),
+        r"solve_p3p: points must have shape \(2, 3, 3\) like bearings, got \(1, 3, 3\)",
+    ),
+    (
+        lambda: solve_p3p([[["a"] * 3] * 3], np.zeros((1, 3, 3))),
+        r"solve_p3p: bearings/points are not numeric arrays",
+    ),
+    (
+        lambda: solve_p3p(np.zeros((1, 3, 3), complex), np.zeros((1, 3, 3))),
+        r"solve_p3p: bearings must be real numbers, got dtype complex128",
+    ),
+    (
+        lambda: solve_p3p(
+            np.zeros((1, 3, 3)), np.zeros((1, 3, 3)), config=P3PConfig(max_residual_rad=-1.0)
+        ),
+        r"P3PConfig.max_residual_rad must be finite and > 0, got -1.0",
+    ),
+    (
+        lambda: solve_p3p(
+            np.zeros((1, 3, 3)), np.zeros((1, 3, 3)), config=P3PConfig(polish_iters=-2)
+        ),
+        r"P3PConfig.polish_iters must be an integer >= 0, got -2",
+    ),
 ]
 
 
@@ -293,38 +390,74 @@ def write_tiny_mrclam(root, seconds=(6.0, 6.0), offsets=(0.0, 0.0)) -> dict:
     one measurement of each landmark every 0.5 s from T0 + 0.25 s to T0 + 5.75 s. Robot r's
     odometry spans [T0 + offsets[r], T0 + seconds[r]]. Returns {file name: list of lines}."""
     root.mkdir(parents=True, exist_ok=True)
-    files = {"Barcodes.dat": ["# subject barcode", "1 5", "2 14", "6 63", "7 81"],
-             "Landmark_Groundtruth.dat": ["# subject x y sx sy", "6 2.0 0.0 0.01 0.01",
-                                          "7 0.0 2.0 0.01 0.02"]}
+    files = {
+        "Barcodes.dat": ["# subject barcode", "1 5", "2 14", "6 63", "7 81"],
+        "Landmark_Groundtruth.dat": [
+            "# subject x y sx sy",
+            "6 2.0 0.0 0.01 0.01",
+            "7 0.0 2.0 0.01 0.02",
+        ],
+    }
     for r in range(2):
         t = T0 + np.arange(round(offsets[r] * 10), round(seconds[r] * 10) + 1) / 10
         files[f"Robot{r + 1}_Odometry.dat"] = ["# t v w"] + [f"{x:.3f} 0.1 0.05" for x in t]
         files[f"Robot{r + 1}_Groundtruth.dat"] = ["# t x y th"] + [
-            f"{x:.3f} {0.1 * (x - T0):.4f} {r:.1f} {0.05 * (x - T0):.4f}" for x in t]
+            f"{x:.3f} {0.1 * (x - T0):.4f} {r:.1f} {0.05 * (x - T0):.4f}" for x in t
+        ]
         tm = T0 + 0.25 + 0.5 * np.arange(12)
         files[f"Robot{r + 1}_Measurement.dat"] = ["# t barcode range bearing"] + [
             f"{x:.3f} {code} {2.0 + 0.01 * k:.3f} 0.1"
-            for k, x in enumerate(tm) for code in (63, 81)]
+            for k, x in enumerate(tm)
+            for code in (63, 81)
+        ]
     for name, lines in files.items():
         (root / name).write_text("\n".join(lines) + "\n")
     return files
 
 
 def _data_rows(files: dict) -> int:
-    return sum(1 for name, lines in files.items() if name.startswith("Robot")
-               for line in lines if line.strip() and not line.startswith("#"))
+    return sum(
+        1
+        for name, lines in files.items()
+        if name.startswith("Robot")
+        for line in lines
+        if line.strip() and not line.startswith("#")
+    )
 
 
 def _rows_kept(run) -> int:
-    return (len(run.obs_time) + sum(len(o) for o in run.odometry)
-            + sum(len(g) for g in run.groundtruth if g is not None))
+    return (
+        len(run.obs_time)
+        + sum(len(o) for o in run.odometry)
+        + sum(len(g) for g in run.groundtruth if g is not None)
+    )
 
 
 REPLACEMENTS = st.one_of(
     st.text(max_size=30).filter(lambda s: "\n" not in s and "\r" not in s),
-    st.lists(st.sampled_from(["nan", "inf", "-inf", "1e308", "-1", "0", "1000.5", "999", "63",
-                              "3.2", "7", "x", "1e-320"]), min_size=0, max_size=5).map(" ".join),
-    st.binary(min_size=1, max_size=6))
+    st.lists(
+        st.sampled_from(
+            [
+                "nan",
+                "inf",
+                "-inf",
+                "1e308",
+                "-1",
+                "0",
+                "1000.5",
+                "999",
+                "63",
+                "3.2",
+                "7",
+                "x",
+                "1e-320",
+            ]
+        ),
+        min_size=0,
+        max_size=5,
+    ).map(" ".join),
+    st.binary(min_size=1, max_size=6),
+)
 
 
 @settings(FAST, max_examples=EXAMPLES or 30)
@@ -344,8 +477,10 @@ def test_mrclam_rows_are_used_or_counted(tmp_path_factory, data):
         raw[name][i] = new if isinstance(new, bytes) else new.encode()
     for name in names:
         (root / name).write_bytes(b"\n".join(raw[name]))
-    files = {n: [ln.decode("utf-8", "replace") for ln in (root / n).read_bytes().splitlines()]
-             for n in names}
+    files = {
+        n: [ln.decode("utf-8", "replace") for ln in (root / n).read_bytes().splitlines()]
+        for n in names
+    }
     try:
         run = MRCLAM(root).load()
     except ValueError as exc:
@@ -387,37 +522,96 @@ def _edit(root, name, line_no, text):
 
 
 MRCLAM_CORPUS = [  # (file, line, new text, reason or skip count)
-    ("Robot1_Odometry.dat", 5, "1000.300 0.1 1e308",
-     ("implausible", r"Robot1_Odometry\.dat: line 5: field 3 \(omega\) = 1e308 is outside the "
-                     r"plausible \[-12.5664, 12.5664\]")),
-    ("Robot2_Odometry.dat", 3, "1000.100 1e308 0.05",
-     ("implausible", r"Robot2_Odometry\.dat: line 3: field 2 \(v\) = 1e308 is outside")),
-    ("Robot1_Measurement.dat", 2, "1000.250 63 0 0.1",
-     ("non_positive_range", r"line 2: field 3 \(range\) = 0 is not > 0")),
-    ("Robot1_Measurement.dat", 2, "1000.250 63 1e6 0.1",
-     ("implausible", r"line 2: field 3 \(range\) = 1e6 is outside the plausible \[-inf, 100\]")),
-    ("Robot1_Measurement.dat", 2, "1000.250 63 2.0 7",
-     ("implausible", r"line 2: field 4 \(bearing\) = 7 is outside")),
-    ("Robot1_Measurement.dat", 2, "1000.250 63.5 2.0 0.1",
-     ("parse", r"line 2: field 2 \(barcode\) = 63.5 is not an integer")),
-    ("Robot1_Groundtruth.dat", 4, "1000.200 1e308 0 0",
-     ("implausible", r"Robot1_Groundtruth\.dat: line 4: field 2 \(x\) = 1e308")),
-    ("Robot1_Odometry.dat", 5, "1000.300 " + "9" * 200_000 + " 0.1",
-     ("non_finite", r"line 5: field 2 \(v\) = 9{200000} is not finite")),
-    ("Robot1_Odometry.dat", 5, "1000.300 0.1 " + "x" * 200_000,
-     ("parse", r"line 5: cannot parse '1000.300 0.1 x{64}\.\.\.' as numbers")),
-    ("Landmark_Groundtruth.dat", 2, "6 2.0 0.0 -1 0.01",
-     r"Landmark_Groundtruth\.dat: line 2: field 4 \(x_sigma\) = -1 is outside the plausible "
-     r"\[0, 1000\]"),
-    ("Landmark_Groundtruth.dat", 3, "7 1e308 2.0 0.01 0.02",
-     r"Landmark_Groundtruth\.dat: line 3: field 2 \(x\) = 1e308 is outside"),
-    ("Landmark_Groundtruth.dat", 3, "6 0.0 2.0 0.01 0.02",
-     r"Landmark_Groundtruth\.dat: landmark subject\(s\) \[6\] listed more than once"),
-    ("Landmark_Groundtruth.dat", 2, "6 2.0 0.0 0.01",
-     r"Landmark_Groundtruth\.dat: line 2: expected 5 fields, got 4"),
+    (
+        "Robot1_Odometry.dat",
+        5,
+        "1000.300 0.1 1e308",
+        (
+            "implausible",
+            r"Robot1_Odometry\.dat: line 5: field 3 \(omega\) = 1e308 is outside the "
+            r"plausible \[-12.5664, 12.5664\]",
+        ),
+    ),
+    (
+        "Robot2_Odometry.dat",
+        3,
+        "1000.100 1e308 0.05",
+        ("implausible", r"Robot2_Odometry\.dat: line 3: field 2 \(v\) = 1e308 is outside"),
+    ),
+    (
+        "Robot1_Measurement.dat",
+        2,
+        "1000.250 63 0 0.1",
+        ("non_positive_range", r"line 2: field 3 \(range\) = 0 is not > 0"),
+    ),
+    (
+        "Robot1_Measurement.dat",
+        2,
+        "1000.250 63 1e6 0.1",
+        ("implausible", r"line 2: field 3 \(range\) = 1e6 is outside the plausible \[-inf, 100\]"),
+    ),
+    (
+        "Robot1_Measurement.dat",
+        2,
+        "1000.250 63 2.0 7",
+        ("implausible", r"line 2: field 4 \(bearing\) = 7 is outside"),
+    ),
+    (
+        "Robot1_Measurement.dat",
+        2,
+        "1000.250 63.5 2.0 0.1",
+        ("parse", r"line 2: field 2 \(barcode\) = 63.5 is not an integer"),
+    ),
+    (
+        "Robot1_Groundtruth.dat",
+        4,
+        "1000.200 1e308 0 0",
+        ("implausible", r"Robot1_Groundtruth\.dat: line 4: field 2 \(x\) = 1e308"),
+    ),
+    (
+        "Robot1_Odometry.dat",
+        5,
+        "1000.300 " + "9" * 200_000 + " 0.1",
+        ("non_finite", r"line 5: field 2 \(v\) = 9{200000} is not finite"),
+    ),
+    (
+        "Robot1_Odometry.dat",
+        5,
+        "1000.300 0.1 " + "x" * 200_000,
+        ("parse", r"line 5: cannot parse '1000.300 0.1 x{64}\.\.\.' as numbers"),
+    ),
+    (
+        "Landmark_Groundtruth.dat",
+        2,
+        "6 2.0 0.0 -1 0.01",
+        r"Landmark_Groundtruth\.dat: line 2: field 4 \(x_sigma\) = -1 is outside the plausible "
+        r"\[0, 1000\]",
+    ),
+    (
+        "Landmark_Groundtruth.dat",
+        3,
+        "7 1e308 2.0 0.01 0.02",
+        r"Landmark_Groundtruth\.dat: line 3: field 2 \(x\) = 1e308 is outside",
+    ),
+    (
+        "Landmark_Groundtruth.dat",
+        3,
+        "6 0.0 2.0 0.01 0.02",
+        r"Landmark_Groundtruth\.dat: landmark subject\(s\) \[6\] listed more than once",
+    ),
+    (
+        "Landmark_Groundtruth.dat",
+        2,
+        "6 2.0 0.0 0.01",
+        r"Landmark_Groundtruth\.dat: line 2: expected 5 fields, got 4",
+    ),
     ("Barcodes.dat", 2, "1 5 9", r"Barcodes\.dat: line 2: expected 2 fields, got 3"),
-    ("Robot2_Measurement.dat", 3, b"\xe4\xf6 63 2.0 0.1",
-     r"Robot2_Measurement\.dat: line 3: not UTF-8 text \(byte 0xe4 at column 1\)"),
+    (
+        "Robot2_Measurement.dat",
+        3,
+        b"\xe4\xf6 63 2.0 0.1",
+        r"Robot2_Measurement\.dat: line 3: not UTF-8 text \(byte 0xe4 at column 1\)",
+    ),
 ]
 
 
@@ -486,9 +680,31 @@ def test_mrclam_files_that_are_missing_looping_or_empty_are_errors(tmp_path):
 
 # ---- session files ------------------------------------------------------------------------------
 JSON_LEAVES = st.one_of(
-    st.sampled_from([0, 1, -1, 2, 3, 6, 2 ** 64 - 1, 2 ** 63, True, None, "x", "Huber", [], {},
-                     [1.0], [[1.0]], "PriorFactorPose3", "max_mixture", "pose3"]),
-    st.floats(allow_nan=False, allow_infinity=False))
+    st.sampled_from(
+        [
+            0,
+            1,
+            -1,
+            2,
+            3,
+            6,
+            2**64 - 1,
+            2**63,
+            True,
+            None,
+            "x",
+            "Huber",
+            [],
+            {},
+            [1.0],
+            [[1.0]],
+            "PriorFactorPose3",
+            "max_mixture",
+            "pose3",
+        ]
+    ),
+    st.floats(allow_nan=False, allow_infinity=False),
+)
 
 
 def _json_paths(obj, prefix=()):
@@ -520,8 +736,9 @@ def test_crafted_session_files_load_or_raise_value_error(tmp_path_factory, data,
     session.save(path)
     payload = json.loads(path.read_bytes().split(b"\n", 1)[1])
     paths = sorted(_json_paths(payload), key=str)
-    edits = data.draw(st.lists(st.tuples(st.sampled_from(paths), JSON_LEAVES), min_size=1,
-                               max_size=3))
+    edits = data.draw(
+        st.lists(st.tuples(st.sampled_from(paths), JSON_LEAVES), min_size=1, max_size=3)
+    )
 
     def edit(doc):
         for where, value in edits:

@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 
 from graphloc.candidates import CandidateSet
-from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario, odometry_covariance, seed000_camera
+from graphloc.datasets.feng import (
+    FengProbabilisticConfig,
+    FengProbabilisticScenario,
+    odometry_covariance,
+    seed000_camera,
+)
 from graphloc.geometry.resection import resection_covariance
 from graphloc.hypotheses import HypothesisTracker, TrackerConfig
 from graphloc.pipelines.track_smoothing import decided, track_graph
@@ -20,7 +25,10 @@ from graphloc.session import Session, SessionConfig
 def simulate(**kw):
     cfg = FengProbabilisticConfig(**kw)
     run = FengProbabilisticScenario.simulate(cfg)
-    odo = [None] + [Odometry(o, odometry_covariance(o, cfg.odometry_noise, cfg.odometry_rot_sigma)) for o in run.odometry]
+    odo = [None] + [
+        Odometry(o, odometry_covariance(o, cfg.odometry_noise, cfg.odometry_rot_sigma))
+        for o in run.odometry
+    ]
     return run, odo
 
 
@@ -28,15 +36,25 @@ def feed(tracker, run, odo, start=0, stop=None):
     return [tracker.update(c, o) for c, o in zip(run.candidates[start:stop], odo[start:stop])]
 
 
-@pytest.mark.parametrize("ceiling,curve,seed", [("level", "line", 0), ("sloped", "quadratic", 1), ("level", "sine", 2)])
+@pytest.mark.parametrize(
+    "ceiling,curve,seed", [("level", "line", 0), ("sloped", "quadratic", 1), ("level", "sine", 2)]
+)
 def test_tracker_locks_on_the_genuine_candidate_and_stays(ceiling, curve, seed):
     run, odo = simulate(ceiling=ceiling, curve=curve, seed=seed)
     decisions = feed(HypothesisTracker(), run, odo)
     first = next(k for k, d in enumerate(decisions) if d.locked)
     assert first <= 15
     assert decisions[first].committed == run.candidates[first].meta["genuine"]
-    err = np.array([np.linalg.norm(d.pose.translation() - run.t_wc[k]) for k, d in enumerate(decisions) if d.locked])
-    assert np.sqrt(np.mean(err ** 2)) < 0.1  # the filtered track beats the raw P3P candidates (several cm)
+    err = np.array(
+        [
+            np.linalg.norm(d.pose.translation() - run.t_wc[k])
+            for k, d in enumerate(decisions)
+            if d.locked
+        ]
+    )
+    assert (
+        np.sqrt(np.mean(err**2)) < 0.1
+    )  # the filtered track beats the raw P3P candidates (several cm)
     assert np.mean(err > 0.25) < 0.02
 
 
@@ -83,7 +101,11 @@ def _two_track_stream(n=25, scale_b=4.0):
         pose_b = offset.compose(pose_a)
         R = np.stack([pose_a.rotation().matrix(), pose_b.rotation().matrix()])
         t = np.stack([pose_a.translation(), pose_b.translation()])
-        frames.append(CandidateSet(R, t, np.ones(2), time=0.1 * k, covariance=np.stack([cov_a, scale_b * cov_a])))
+        frames.append(
+            CandidateSet(
+                R, t, np.ones(2), time=0.1 * k, covariance=np.stack([cov_a, scale_b * cov_a])
+            )
+        )
         if k:
             odo.append(Odometry(step, np.diag([1e-6] * 3 + [1e-6] * 3)))
         pose_a = pose_a.compose(step)
@@ -105,7 +127,10 @@ def test_tight_covariance_alone_does_not_win():
 def test_inconsistent_track_loses():
     frames, odo = _two_track_stream()
     # the copy now drifts sideways 1 cm per frame: inconsistent with the odometry
-    frames = [dataclasses.replace(c, t=c.t + np.array([[0, 0, 0], [0, 0.01 * k, 0]])) for k, c in enumerate(frames)]
+    frames = [
+        dataclasses.replace(c, t=c.t + np.array([[0, 0, 0], [0, 0.01 * k, 0]]))
+        for k, c in enumerate(frames)
+    ]
     tracker = HypothesisTracker(TrackerConfig(full_count=2))
     decisions = [tracker.update(c, o) for c, o in zip(frames, odo)]
     assert decisions[-1].locked and decisions[-1].committed == 0
@@ -115,7 +140,9 @@ def test_empty_frames_coast():
     run, odo = simulate(seed=6)
     tracker = HypothesisTracker()
     feed(tracker, run, odo, 0, 20)
-    empty = CandidateSet(np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0), time=run.candidates[20].time)
+    empty = CandidateSet(
+        np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0), time=run.candidates[20].time
+    )
     d = tracker.update(empty, odo[20])
     assert d.probabilities.shape == (0,) and d.pose is not None
     assert np.linalg.norm(d.pose.translation() - run.t_wc[20]) < 0.1
@@ -175,7 +202,11 @@ def test_resection_covariance_matches_monte_carlo():
     for i in range(2000):
         d = np.linalg.norm(sol.t_wc[i] - t, axis=1) + np.where(sol.valid[i], 0, np.inf)
         j = int(np.argmin(d))
-        errs.append(gtsam.Pose3.Logmap(truth.between(gtsam.Pose3(gtsam.Rot3(sol.R_wc[i, j]), sol.t_wc[i, j]))))
+        errs.append(
+            gtsam.Pose3.Logmap(
+                truth.between(gtsam.Pose3(gtsam.Rot3(sol.R_wc[i, j]), sol.t_wc[i, j]))
+            )
+        )
     mc = np.cov(np.array(errs).T)
     lin = resection_covariance(camera, R[None], t[None], L[None], 0.1, floor=(0.0, 0.0))[0]
     np.testing.assert_allclose(np.sqrt(np.diag(mc)), np.sqrt(np.diag(lin)), rtol=0.25)
@@ -189,8 +220,14 @@ def test_decided_modes_resolved_in_batch_session_improve_accuracy():
     session.add(graph, values)
     est = session.estimate()
     frames = [k for k, d in enumerate(decisions) if d.locked]
-    online = np.sqrt(np.mean([np.sum((decisions[k].pose.translation() - run.t_wc[k]) ** 2) for k in frames]))
-    batch = np.sqrt(np.mean([np.sum((est.atPose3(pose_key(0, k)).translation() - run.t_wc[k]) ** 2) for k in frames]))
+    online = np.sqrt(
+        np.mean([np.sum((decisions[k].pose.translation() - run.t_wc[k]) ** 2) for k in frames])
+    )
+    batch = np.sqrt(
+        np.mean(
+            [np.sum((est.atPose3(pose_key(0, k)).translation() - run.t_wc[k]) ** 2) for k in frames]
+        )
+    )
     assert batch < online
     with pytest.raises(ValueError, match="must match"):
         track_graph(run.candidates, odo[:-1], *decided(decisions))
@@ -202,8 +239,14 @@ def test_decided_modes_resolved_in_batch_session_improve_accuracy():
 # rule: the benchmark's (3049, 5097: a genuine P3P solution 10-16 Mahalanobis^2 off on frame 0)
 # and from the disjoint validation seeds (a pseudo solution that follows the odometry for the
 # first 2-4 updates of a sloped-ceiling run)
-EARLY_WRONG_COMMITS = [("sloped", "sine", 3049), ("sloped", "quadratic", 5097), ("sloped", "line", 51032),
-                       ("sloped", "line", 51181), ("sloped", "sine", 53260), ("sloped", "quadratic", 55021)]
+EARLY_WRONG_COMMITS = [
+    ("sloped", "sine", 3049),
+    ("sloped", "quadratic", 5097),
+    ("sloped", "line", 51032),
+    ("sloped", "line", 51181),
+    ("sloped", "sine", 53260),
+    ("sloped", "quadratic", 55021),
+]
 
 
 def _first_commit(run, odo, config):
@@ -237,8 +280,10 @@ def test_commit_needs_more_than_one_update_of_evidence():
     the next consistent update does (the held-out update gain is subtracted)."""
     frames, odo = _two_track_stream(n=6, scale_b=1.0)
     # the copy jumps 0.3 m sideways from update 1 on: one decisive update for the genuine track
-    frames = [dataclasses.replace(c, t=c.t + np.array([[0, 0, 0], [0, 0.3 * (k > 0) + 0.01 * k, 0]]))
-              for k, c in enumerate(frames)]
+    frames = [
+        dataclasses.replace(c, t=c.t + np.array([[0, 0, 0], [0, 0.3 * (k > 0) + 0.01 * k, 0]]))
+        for k, c in enumerate(frames)
+    ]
     tracker = HypothesisTracker(TrackerConfig(full_count=2))
     decisions = [tracker.update(c, o) for c, o in zip(frames, odo)]
     assert decisions[1].probabilities[0] > 0.95 and not decisions[1].locked
@@ -279,8 +324,9 @@ def test_tracker_file_round_trips_infinities_and_rejects_damage(tmp_path):
     resumed = HypothesisTracker.load(path)
     assert resumed.config == tracker.config and resumed.config.student_dof == float("inf")
     assert resumed._logit == tracker._logit and resumed._max_gain == tracker._max_gain
-    assert [t.mean.equals(u.mean, 0.0) for t, u in zip(tracker._tracks, resumed._tracks)] == \
-        [True] * tracker.num_hypotheses
+    assert [t.mean.equals(u.mean, 0.0) for t, u in zip(tracker._tracks, resumed._tracks)] == [
+        True
+    ] * tracker.num_hypotheses
 
     head, body = path.read_bytes().split(b"\n", 1)
 
@@ -288,8 +334,9 @@ def test_tracker_file_round_trips_infinities_and_rejects_damage(tmp_path):
         payload = json.loads(body)
         edit(payload)
         new = json.dumps(payload).encode()
-        header = dict(json.loads(head), body_bytes=len(new),
-                      body_sha256=hashlib.sha256(new).hexdigest())
+        header = dict(
+            json.loads(head), body_bytes=len(new), body_sha256=hashlib.sha256(new).hexdigest()
+        )
         path.write_bytes(json.dumps(header).encode() + b"\n" + new)
 
     def track0(**change):
@@ -301,8 +348,10 @@ def test_tracker_file_round_trips_infinities_and_rejects_damage(tmp_path):
         (track0(id="1"), r"tracks\[0\]\.id: expected an integer, got '1'"),
         (track0(logw=float("nan")), r"tracks\[0\]\.logw: expected a number"),
         (lambda p: p.pop("next_id"), r"missing field 'next_id'"),
-        (lambda p: p["config"].update(commit_threshold=2.0),
-         r"TrackerConfig.commit_threshold must be in \[0.5, 1\)"),
+        (
+            lambda p: p["config"].update(commit_threshold=2.0),
+            r"TrackerConfig.commit_threshold must be in \[0.5, 1\)",
+        ),
         (lambda p: p["config"].update(robust_commit=1), r"config.robust_commit: expected bool"),
         (lambda p: p.update(tracks={}), r"tracks: expected a list"),
     ]

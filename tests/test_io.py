@@ -7,8 +7,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from graphloc.io import (Bearing3D, GroundTruth2D, MarkerPixel, Odometry2D, PoseCandidate, RangeBearing2D, ScanRef,
-                         SkipReport, columns, iter_records, read_manifest, write_manifest)
+from graphloc.io import (
+    Bearing3D,
+    GroundTruth2D,
+    MarkerPixel,
+    Odometry2D,
+    PoseCandidate,
+    RangeBearing2D,
+    ScanRef,
+    SkipReport,
+    columns,
+    iter_records,
+    read_manifest,
+    write_manifest,
+)
 from graphloc.datasets.graphloc_log import read_team_run
 
 
@@ -18,30 +30,75 @@ def _csv(path: Path, table: str, rows: list[str]) -> None:
 
 
 def make_log(root: Path, odo_a=None, rb_a=None) -> Path:
-    write_manifest({
-        "name": "tiny", "start_time": 0.0,
-        "robots": [
-            {"name": "ground", "kind": "ground", "initial_pose": [0, 0, 0],
-             "sensors": [{"name": "wheels", "type": "odometry"},
-                         {"name": "cam", "type": "range_bearing", "extrinsics": [0.1, 0.0, 1.5707963267948966]},
-                         {"name": "ceilcam", "type": "camera", "extrinsics": {"xyz": [0, 0, 0.2], "rpy": [0, 0, 0]}},
-                         {"name": "lidar", "type": "scanner"}],
-             "tables": {"odometry": "ground/odometry.csv", "range_bearing": "ground/range_bearing.csv",
-                        "markers": "ground/markers.csv", "candidates": "ground/candidates.csv",
-                        "scans": "ground/scans.csv", "groundtruth": "ground/groundtruth.csv"}},
-            {"name": "climber", "kind": "wall", "initial_pose": [1, 0, 0],
-             "sensors": [{"name": "wheels", "type": "odometry"}, {"name": "eye", "type": "bearing"}],
-             "tables": {"odometry": "climber/odometry.csv", "bearing": "climber/bearing.csv"}},
-        ],
-        "landmarks": {"file": "landmarks.csv"},
-    }, root)
-    (root / "landmarks.csv").write_text("id,x,y,z,sigma_x,sigma_y,sigma_z\n3,2.0,0.0,0,0.01,0.01,0\n")
-    _csv(root / "ground/odometry.csv", "odometry", odo_a or ["0.0,wheels,0.1,0.0", "0.5,wheels,0.1,0.0", "1.0,wheels,0.1,0.0"])
-    _csv(root / "ground/range_bearing.csv", "range_bearing",
-         rb_a or ["0.25,cam,landmark:3,1.0,0.0", "0.75,cam,climber,2.0,-1.0"])
+    write_manifest(
+        {
+            "name": "tiny",
+            "start_time": 0.0,
+            "robots": [
+                {
+                    "name": "ground",
+                    "kind": "ground",
+                    "initial_pose": [0, 0, 0],
+                    "sensors": [
+                        {"name": "wheels", "type": "odometry"},
+                        {
+                            "name": "cam",
+                            "type": "range_bearing",
+                            "extrinsics": [0.1, 0.0, 1.5707963267948966],
+                        },
+                        {
+                            "name": "ceilcam",
+                            "type": "camera",
+                            "extrinsics": {"xyz": [0, 0, 0.2], "rpy": [0, 0, 0]},
+                        },
+                        {"name": "lidar", "type": "scanner"},
+                    ],
+                    "tables": {
+                        "odometry": "ground/odometry.csv",
+                        "range_bearing": "ground/range_bearing.csv",
+                        "markers": "ground/markers.csv",
+                        "candidates": "ground/candidates.csv",
+                        "scans": "ground/scans.csv",
+                        "groundtruth": "ground/groundtruth.csv",
+                    },
+                },
+                {
+                    "name": "climber",
+                    "kind": "wall",
+                    "initial_pose": [1, 0, 0],
+                    "sensors": [
+                        {"name": "wheels", "type": "odometry"},
+                        {"name": "eye", "type": "bearing"},
+                    ],
+                    "tables": {
+                        "odometry": "climber/odometry.csv",
+                        "bearing": "climber/bearing.csv",
+                    },
+                },
+            ],
+            "landmarks": {"file": "landmarks.csv"},
+        },
+        root,
+    )
+    (root / "landmarks.csv").write_text(
+        "id,x,y,z,sigma_x,sigma_y,sigma_z\n3,2.0,0.0,0,0.01,0.01,0\n"
+    )
+    _csv(
+        root / "ground/odometry.csv",
+        "odometry",
+        odo_a or ["0.0,wheels,0.1,0.0", "0.5,wheels,0.1,0.0", "1.0,wheels,0.1,0.0"],
+    )
+    _csv(
+        root / "ground/range_bearing.csv",
+        "range_bearing",
+        rb_a or ["0.25,cam,landmark:3,1.0,0.0", "0.75,cam,climber,2.0,-1.0"],
+    )
     _csv(root / "ground/markers.csv", "markers", ["0.3,ceilcam,climber,0,320.5,240.25"])
-    _csv(root / "ground/candidates.csv", "candidates",
-         ["0.3,ceilcam,climber,0,0.9,1,0,0,0,0.5,0,1", "0.3,ceilcam,climber,1,0.1,0,1,0,0,0.4,0,1"])
+    _csv(
+        root / "ground/candidates.csv",
+        "candidates",
+        ["0.3,ceilcam,climber,0,0.9,1,0,0,0,0.5,0,1", "0.3,ceilcam,climber,1,0.1,0,1,0,0,0.4,0,1"],
+    )
     _csv(root / "ground/scans.csv", "scans", ["0.6,lidar,scans/000001.pcd"])
     _csv(root / "ground/groundtruth.csv", "groundtruth", ["0.0,0,0,0", "1.0,0.1,0,0"])
     _csv(root / "climber/odometry.csv", "odometry", ["0.1,wheels,0.0,0.0", "0.9,wheels,0.0,0.1"])
@@ -55,21 +112,34 @@ def test_streaming_merge_is_time_ordered_and_typed(tmp_path):
     times = [r.time for r in records]
     assert times == sorted(times) and len(records) == 14
     kinds = {type(r) for r in records}
-    assert kinds == {Odometry2D, RangeBearing2D, MarkerPixel, PoseCandidate, ScanRef, GroundTruth2D, Bearing3D}
+    assert kinds == {
+        Odometry2D,
+        RangeBearing2D,
+        MarkerPixel,
+        PoseCandidate,
+        ScanRef,
+        GroundTruth2D,
+        Bearing3D,
+    }
     only = list(iter_records(root, tables=["odometry"], robots=["climber"]))
     assert [r.time for r in only] == [0.1, 0.9] and all(r.robot == "climber" for r in only)
     m = read_manifest(root)
-    np.testing.assert_allclose(m.robot("ground").sensor("ceilcam").body_T_sensor[:3, 3], [0, 0, 0.2])
+    np.testing.assert_allclose(
+        m.robot("ground").sensor("ceilcam").body_T_sensor[:3, 3], [0, 0, 0.2]
+    )
 
 
-@pytest.mark.parametrize("row, message", [
-    ("0.6,wheels,abc,0.0", r"line 3: field 'v': cannot parse"),
-    ("0.6,wheels,nan,0.0", r"line 3: field 'v': nan is not finite"),
-    ("0.6,wheels,0.1", r"line 3: expected 4 fields"),
-    ("0.1,wheels,0.1,0.0", r"line 3: field 'time': 0.1 goes backwards"),
-    ("0.6,gps,0.1,0.0", r"line 3: field 'sensor': robot 'ground' has no sensor 'gps'"),
-    ("0.6,cam,0.1,0.0", r"line 3: field 'sensor': 'cam' is a range_bearing"),
-])
+@pytest.mark.parametrize(
+    "row, message",
+    [
+        ("0.6,wheels,abc,0.0", r"line 3: field 'v': cannot parse"),
+        ("0.6,wheels,nan,0.0", r"line 3: field 'v': nan is not finite"),
+        ("0.6,wheels,0.1", r"line 3: expected 4 fields"),
+        ("0.1,wheels,0.1,0.0", r"line 3: field 'time': 0.1 goes backwards"),
+        ("0.6,gps,0.1,0.0", r"line 3: field 'sensor': robot 'ground' has no sensor 'gps'"),
+        ("0.6,cam,0.1,0.0", r"line 3: field 'sensor': 'cam' is a range_bearing"),
+    ],
+)
 def test_bad_rows_raise_with_file_line_field(tmp_path, row, message):
     root = make_log(tmp_path / "log", odo_a=["0.5,wheels,0.1,0.0", row, "1.0,wheels,0.1,0.0"])
     with pytest.raises(ValueError, match=r"ground/odometry\.csv: " + message):
@@ -77,12 +147,21 @@ def test_bad_rows_raise_with_file_line_field(tmp_path, row, message):
 
 
 def test_bad_rows_are_counted_when_skipping(tmp_path):
-    root = make_log(tmp_path / "log", odo_a=["0.5,wheels,0.1,0.0", "0.6,wheels,inf,0", "0.4,wheels,0,0", "1.0,wheels,0.1,0.0"],
-                    rb_a=["0.25,cam,landmark:99,1.0,0.0", "0.3,cam,robot7,1.0,0.0", "0.75,cam,climber,2.0,-1.0"])
+    root = make_log(
+        tmp_path / "log",
+        odo_a=["0.5,wheels,0.1,0.0", "0.6,wheels,inf,0", "0.4,wheels,0,0", "1.0,wheels,0.1,0.0"],
+        rb_a=[
+            "0.25,cam,landmark:99,1.0,0.0",
+            "0.3,cam,robot7,1.0,0.0",
+            "0.75,cam,climber,2.0,-1.0",
+        ],
+    )
     report = SkipReport()
     records = list(iter_records(root, on_error="skip", report=report))
     assert report.counts == {"non_finite": 1, "time_backwards": 1, "unknown_target": 2}
-    assert report.total == 4 and len(records) == 12  # of 14: one odometry and one range-bearing row fewer
+    assert (
+        report.total == 4 and len(records) == 12
+    )  # of 14: one odometry and one range-bearing row fewer
     assert any("landmark:99" in e for e in report.examples)
 
 
@@ -107,26 +186,41 @@ def test_manifest_validation(tmp_path):
 def test_team_run_keeps_sensor_extrinsics_and_planar_poses(tmp_path):
     root = make_log(tmp_path / "log")
     data = json.loads((root / "manifest.json").read_text())
-    for robot in data["robots"]:  # the graph's tables only (markers need a layout, scans go to fuse-maps)
-        robot["tables"] = {k: v for k, v in robot["tables"].items() if k not in ("markers", "candidates", "scans")}
+    for robot in data[
+        "robots"
+    ]:  # the graph's tables only (markers need a layout, scans go to fuse-maps)
+        robot["tables"] = {
+            k: v for k, v in robot["tables"].items() if k not in ("markers", "candidates", "scans")
+        }
     (root / "manifest.json").write_text(json.dumps(data))
     run = read_team_run(root)
     assert [r.name for r in run.robots] == ["ground", "climber"] and run.skips.total == 0
-    assert [r.planar for r in run.robots] == [True, False]  # version 2 default: kind ground is planar
+    assert [r.planar for r in run.robots] == [
+        True,
+        False,
+    ]  # version 2 default: kind ground is planar
     # cam at (0.1, 0) yawed +90 deg: 1 m along the camera axis is (0.1, 1.0) in the body frame
     m = next(p for p in run.points if p.landmark == 3)
-    np.testing.assert_allclose(m.body_T_sensor.transformFrom(m.direction * m.range), [0.1, 1.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(
+        m.body_T_sensor.transformFrom(m.direction * m.range), [0.1, 1.0, 0.0], atol=1e-12
+    )
     assert next(p for p in run.points if p.kind == "range_bearing" and p.target >= 0).target == 1
     np.testing.assert_allclose(run.robots[1].initial_pose.translation(), [1, 0, 0])
     assert run.groundtruth[1] is None and len(run.groundtruth[0][0]) == 2
 
 
-@pytest.mark.parametrize("edit, message", [
-    (lambda d: [], "must be a JSON object"),
-    (lambda d: {**d, "robots": {"ground": 1}}, "field 'robots' must be a JSON list"),
-    (lambda d: {**d, "robots": [{**d["robots"][0], "initial_pose": 5}]}, "initial_pose"),
-    (lambda d: {**d, "robots": [{**d["robots"][0], "sensors": ["cam"]}]}, r"sensors\[0\]: fields 'name' and 'type'"),
-])
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda d: [], "must be a JSON object"),
+        (lambda d: {**d, "robots": {"ground": 1}}, "field 'robots' must be a JSON list"),
+        (lambda d: {**d, "robots": [{**d["robots"][0], "initial_pose": 5}]}, "initial_pose"),
+        (
+            lambda d: {**d, "robots": [{**d["robots"][0], "sensors": ["cam"]}]},
+            r"sensors\[0\]: fields 'name' and 'type'",
+        ),
+    ],
+)
 def test_malformed_manifest_types_are_clear_errors(tmp_path, edit, message):
     root = make_log(tmp_path / "log")
     data = json.loads((root / "manifest.json").read_text())

@@ -10,13 +10,27 @@ import numpy as np
 import pytest
 
 from graphloc.cli import main as cli_main
-from graphloc.datasets.dual_room import T_CEILING_CAMERA, CameraConfig, DualRoomScenario, variant_config
+from graphloc.datasets.dual_room import (
+    T_CEILING_CAMERA,
+    CameraConfig,
+    DualRoomScenario,
+    variant_config,
+)
 from graphloc.mapping.pipeline import parse_hint
 from graphloc.mapping.fusion import (
-    CEILING, GROUND, FusionConfig, FusionInput, fuse, led_candidates,
+    CEILING,
+    GROUND,
+    FusionConfig,
+    FusionInput,
+    fuse,
+    led_candidates,
 )
 from graphloc.mapping.io import (
-    read_labelled_cloud, read_led_pixels, read_points, read_scan_sequence, write_labelled_cloud,
+    read_labelled_cloud,
+    read_led_pixels,
+    read_points,
+    read_scan_sequence,
+    write_labelled_cloud,
 )
 from graphloc.mapping.odometry import run_odometry
 from graphloc.mapping.registration import information_right, pose_errors, prepare, refine
@@ -80,7 +94,9 @@ def test_information_conversion_preserves_the_quadratic_form():
     info_left = A @ A.T + np.eye(6)
     xi_r = 1e-3 * rng.normal(size=6)
     xi_l = T.AdjointMap() @ xi_r
-    np.testing.assert_allclose((gtsam.Pose3.Expmap(xi_l) * T).matrix(), (T * gtsam.Pose3.Expmap(xi_r)).matrix(), atol=1e-12)
+    np.testing.assert_allclose(
+        (gtsam.Pose3.Expmap(xi_l) * T).matrix(), (T * gtsam.Pose3.Expmap(xi_r)).matrix(), atol=1e-12
+    )
     info_right = information_right(info_left, T.matrix())
     assert xi_r @ info_right @ xi_r == pytest.approx(xi_l @ info_left @ xi_l, rel=1e-10)
 
@@ -89,7 +105,12 @@ def test_icp_from_a_rough_guess_converges_but_not_from_identity(scenario):
     """Seed 004 Sec. V / Fig. 5: the inverted ceiling scan needs an initial guess."""
     target, source = prepare(scenario.scans["ground"][0]), prepare(scenario.scans["ceiling"][0])
     truth = scenario.T_ground0_ceiling0
-    rough = truth @ gtsam.Pose3(gtsam.Rot3.Expmap(np.deg2rad([3.0, -2.0, 4.0])), np.array([0.08, -0.05, 0.06])).matrix()
+    rough = (
+        truth
+        @ gtsam.Pose3(
+            gtsam.Rot3.Expmap(np.deg2rad([3.0, -2.0, 4.0])), np.array([0.08, -0.05, 0.06])
+        ).matrix()
+    )
     r = refine(source, target, rough)
     rot, tr = pose_errors(r.transformation, truth)
     assert rot < 0.2 and tr < 0.01
@@ -134,7 +155,9 @@ def test_kiss_icp_odometry_tracks_the_ground_truth(scenario):
 
 
 def test_one_p3p_candidate_is_the_true_camera_pose():
-    s = DualRoomScenario.simulate(variant_config("empty", 4, frames=3, camera=CameraConfig(pixel_noise=0.0)))
+    s = DualRoomScenario.simulate(
+        variant_config("empty", 4, frames=3, camera=CameraConfig(pixel_noise=0.0))
+    )
     inp = s.fusion_input()
     cands, skipped = led_candidates(inp.leds, inp.times, FusionConfig())
     assert len(cands) + skipped == 3 and len(cands) >= 2
@@ -153,7 +176,9 @@ def test_fusion_recovers_the_inter_robot_transform(scenario, fused):
     assert rot < 0.2 and tr < 0.01
     g_rot, _ = pose_errors(fused.guess, scenario.T_ground0_ceiling0)
     assert g_rot < 15.0  # P3P + tracker put ICP in the right basin (identity is ~180 deg off)
-    assert len(fused.guess_info.frames) == len(scenario.times)  # every frame saw the LEDs and went to the tracker
+    assert len(fused.guess_info.frames) == len(
+        scenario.times
+    )  # every frame saw the LEDs and went to the tracker
     assert fused.n_p3p_factors >= 1
     assert fused.graph_error[1] <= fused.graph_error[0] + 1e-9
 
@@ -195,16 +220,38 @@ def test_parse_hint():
 
 def test_fuse_maps_verb_on_user_directories_with_a_hint(scenario, tmp_path):
     scenario.write(tmp_path / "scn")
-    T = scenario.T_ground0_ceiling0 @ gtsam.Pose3(gtsam.Rot3.Expmap(np.deg2rad([2.0, 1.0, -3.0])), np.array([0.05, 0.0, -0.04])).matrix()
+    T = (
+        scenario.T_ground0_ceiling0
+        @ gtsam.Pose3(
+            gtsam.Rot3.Expmap(np.deg2rad([2.0, 1.0, -3.0])), np.array([0.05, 0.0, -0.04])
+        ).matrix()
+    )
     hint = " ".join(f"{v:.9f}" for v in T.ravel())
-    rc = cli_main(["fuse-maps", "--ground", str(tmp_path / "scn/scans/ground"), "--ceiling",
-                   str(tmp_path / "scn/scans/ceiling"), "--hint", hint, "--out", str(tmp_path / "out")])
+    rc = cli_main(
+        [
+            "fuse-maps",
+            "--ground",
+            str(tmp_path / "scn/scans/ground"),
+            "--ceiling",
+            str(tmp_path / "scn/scans/ceiling"),
+            "--hint",
+            hint,
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
     assert rc == 0
     report = json.loads((tmp_path / "out" / "fusion_report.json").read_text())
     T_est = np.array(report["T_ground0_ceiling0"]["matrix"])
     rot, tr = pose_errors(T_est, scenario.T_ground0_ceiling0)
     assert rot < 0.2 and tr < 0.01
-    for name in ("fused_map.ply", "fused_map.pcd", "fused_top.png", "fused_side.png", "trajectory_ceiling.tum"):
+    for name in (
+        "fused_map.ply",
+        "fused_map.pcd",
+        "fused_top.png",
+        "fused_side.png",
+        "trajectory_ceiling.tum",
+    ):
         assert (tmp_path / "out" / name).stat().st_size > 0
     assert report["registration"]["icp_iterations"] > 0 and "timings_s" in report
 
@@ -213,9 +260,19 @@ def test_a_wrong_hint_on_the_simulated_room_is_not_fused(scenario, tmp_path, cap
     """Issue 16: the identity as hint put the ceiling robot below the floor with sigma 6e-5 and
     exit 0; now it is "not fused", exit 3, a report and no map."""
     scenario.write(tmp_path / "scn")
-    rc = cli_main(["fuse-maps", "--ground", str(tmp_path / "scn/scans/ground"), "--ceiling",
-                   str(tmp_path / "scn/scans/ceiling"), "--hint", "0 0 0 0 0 0 1",
-                   "--out", str(tmp_path / "out")])
+    rc = cli_main(
+        [
+            "fuse-maps",
+            "--ground",
+            str(tmp_path / "scn/scans/ground"),
+            "--ceiling",
+            str(tmp_path / "scn/scans/ceiling"),
+            "--hint",
+            "0 0 0 0 0 0 1",
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
     assert rc == 3 and "not fused" in capsys.readouterr().out
     report = json.loads((tmp_path / "out" / "fusion_report.json").read_text())
     assert report["status"] == "not_fused" and report["reasons"]
@@ -224,8 +281,19 @@ def test_a_wrong_hint_on_the_simulated_room_is_not_fused(scenario, tmp_path, cap
 
 
 def test_fuse_maps_verb_reports_bad_input(tmp_path, capsys):
-    rc = cli_main(["fuse-maps", "--ground", str(tmp_path / "none"), "--ceiling", str(tmp_path), "--hint",
-                   "0 0 0 0 0 0 1", "--out", str(tmp_path / "o")])
+    rc = cli_main(
+        [
+            "fuse-maps",
+            "--ground",
+            str(tmp_path / "none"),
+            "--ceiling",
+            str(tmp_path),
+            "--hint",
+            "0 0 0 0 0 0 1",
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
     assert rc == 2 and "not a directory" in capsys.readouterr().err
 
 
@@ -235,7 +303,9 @@ def test_simulate_and_fuse_every_variant(variant, tmp_path):
     from graphloc.experiments.fusion_demo import simulate_and_fuse
 
     report = simulate_and_fuse(tmp_path, variant, seed=7, frames=5)
-    assert report["errors_vs_truth"]["rot_deg"] < 0.2 and report["errors_vs_truth"]["trans_m"] < 0.01
+    assert (
+        report["errors_vs_truth"]["rot_deg"] < 0.2 and report["errors_vs_truth"]["trans_m"] < 0.01
+    )
     assert (tmp_path / "scenario" / "meta.json").is_file()
 
 
@@ -245,18 +315,39 @@ def test_user_directories_with_p3p_observations(scenario, tmp_path):
 
     scenario.write(tmp_path / "scn")
     cam = scenario.config.camera
-    setup = {"camera": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": cam.width, "height": cam.height},
-             "leds": led_positions().tolist(), "T_ceiling_camera": T_CEILING_CAMERA.tolist(),
-             "pixels_csv": "scn/led_pixels.csv"}
+    setup = {
+        "camera": {
+            "fx": cam.fx,
+            "fy": cam.fy,
+            "cx": cam.cx,
+            "cy": cam.cy,
+            "width": cam.width,
+            "height": cam.height,
+        },
+        "leds": led_positions().tolist(),
+        "T_ceiling_camera": T_CEILING_CAMERA.tolist(),
+        "pixels_csv": "scn/led_pixels.csv",
+    }
     (tmp_path / "p3p.json").write_text(json.dumps(setup))
-    report = fuse_directories(tmp_path / "scn/scans/ground", tmp_path / "scn/scans/ceiling", tmp_path / "out",
-                              p3p=str(tmp_path / "p3p.json"), rate=scenario.config.rate,
-                              config=FusionConfig(scan_matching=False, build_map=False))
-    rot, tr = pose_errors(np.array(report["T_ground0_ceiling0"]["matrix"]), scenario.T_ground0_ceiling0)
+    report = fuse_directories(
+        tmp_path / "scn/scans/ground",
+        tmp_path / "scn/scans/ceiling",
+        tmp_path / "out",
+        p3p=str(tmp_path / "p3p.json"),
+        rate=scenario.config.rate,
+        config=FusionConfig(scan_matching=False, build_map=False),
+    )
+    rot, tr = pose_errors(
+        np.array(report["T_ground0_ceiling0"]["matrix"]), scenario.T_ground0_ceiling0
+    )
     assert rot < 0.2 and tr < 0.01
     assert report["p3p"]["frames_used"] == list(range(len(scenario.times)))
     setup["leds"] = [[0, 0, 0], [1, 1]]
     (tmp_path / "bad.json").write_text(json.dumps(setup))
     with pytest.raises(ValueError, match="bad.json"):
-        fuse_directories(tmp_path / "scn/scans/ground", tmp_path / "scn/scans/ceiling", tmp_path / "out2",
-                         p3p=str(tmp_path / "bad.json"))
+        fuse_directories(
+            tmp_path / "scn/scans/ground",
+            tmp_path / "scn/scans/ceiling",
+            tmp_path / "out2",
+            p3p=str(tmp_path / "bad.json"),
+        )

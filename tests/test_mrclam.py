@@ -33,7 +33,8 @@ def write_synthetic_mrclam(root: Path, duration=60.0, seed=0) -> dict:
     bad = {"parse": 0, "non_finite": 0, "time_backwards": 0, "field_count": 0, "unknown_barcode": 0}
     (root / "Barcodes.dat").write_text(HEADER + "".join(f"{s}\t{b}\n" for s, b in BARCODES.items()))
     (root / "Landmark_Groundtruth.dat").write_text(
-        HEADER + "".join(f"{i}\t{x}\t{y}\t0.0001\t0.0001\n" for i, (x, y) in LANDMARKS.items()))
+        HEADER + "".join(f"{i}\t{x}\t{y}\t0.0001\t0.0001\n" for i, (x, y) in LANDMARKS.items())
+    )
     t_odo = t0 + np.arange(0, duration, 0.02)
     starts = [(0.0, -1.0, 0.3), (-1.0, 1.0, -0.5), (1.0, 1.0, 2.5)]
     gts = []
@@ -42,7 +43,9 @@ def write_synthetic_mrclam(root: Path, duration=60.0, seed=0) -> dict:
         w = 0.25 * np.sin(0.07 * (t_odo - t0) + 2 * r)
         gt = integrate_unicycle(t_odo, v, w, t_odo, start=start).poses
         gts.append(gt)
-        odo = np.column_stack([t_odo, 1.05 * v + rng.normal(0, 0.005, v.size), w + 0.02 + rng.normal(0, 0.02, w.size)])
+        odo = np.column_stack(
+            [t_odo, 1.05 * v + rng.normal(0, 0.005, v.size), w + 0.02 + rng.normal(0, 0.02, w.size)]
+        )
         lines = [f"{t:.3f}\t{a:.4f}\t{b:.4f}\n" for t, a, b in odo]
         lines.insert(100, "1000.5 0.1\n")
         bad["field_count"] += 1
@@ -54,7 +57,9 @@ def write_synthetic_mrclam(root: Path, duration=60.0, seed=0) -> dict:
         bad["time_backwards"] += 1
         (root / f"Robot{r + 1}_Odometry.dat").write_text(HEADER + "".join(lines))
         (root / f"Robot{r + 1}_Groundtruth.dat").write_text(
-            HEADER + "".join(f"{t:.3f}\t{x:.6f}\t{y:.6f}\t{th:.6f}\n" for t, (x, y, th) in zip(t_odo, gt)))
+            HEADER
+            + "".join(f"{t:.3f}\t{x:.6f}\t{y:.6f}\t{th:.6f}\n" for t, (x, y, th) in zip(t_odo, gt))
+        )
     t_meas = t0 + 1.0 + np.arange(0, duration - 2.0, 0.25)
     idx = np.searchsorted(t_odo, t_meas)
     for r in range(3):
@@ -68,8 +73,12 @@ def write_synthetic_mrclam(root: Path, duration=60.0, seed=0) -> dict:
             d = d + rng.normal(0, 0.03, d.size)
             rows += [(t, code, dd, bb) for t, dd, bb in zip(t_meas, d, b)]
         rows.sort(key=lambda row: row[0])
-        if r == 0:  # gross range outliers on landmark measurements (what the robust kernel must mute)
-            for i in [i for i, row in enumerate(rows) if row[1] == BARCODES[6]][10:10 + N_OUTLIERS]:
+        if (
+            r == 0
+        ):  # gross range outliers on landmark measurements (what the robust kernel must mute)
+            for i in [i for i, row in enumerate(rows) if row[1] == BARCODES[6]][
+                10 : 10 + N_OUTLIERS
+            ]:
                 rows[i] = (rows[i][0], rows[i][1], rows[i][2] + 3.0, rows[i][3])
         lines = [f"{t:.3f}\t{c}\t{d:.3f}\t{b:.3f}\n" for t, c, d, b in rows]
         lines.insert(50, f"{rows[50][0]:.3f}\t99\t2.0\t0.1\n")  # misread barcode
@@ -95,7 +104,9 @@ def test_loader_counts_every_skip(synthetic):
     assert all(str(root) in e for e in run.skips.examples)
     assert set(np.unique(run.obs_landmark[run.obs_landmark >= 0])) == set(LANDMARKS)
     assert (run.obs_target_robot >= 0).sum() > 0
-    np.testing.assert_allclose(run.initial_poses[0], interpolate_pose(run.groundtruth[0], np.array([run.start_time]))[0])
+    np.testing.assert_allclose(
+        run.initial_poses[0], interpolate_pose(run.groundtruth[0], np.array([run.start_time]))[0]
+    )
 
 
 def test_loader_strict_names_file_and_line(synthetic):
@@ -121,8 +132,12 @@ def test_log_conversion_roundtrip(synthetic, tmp_path):
     np.testing.assert_allclose(back.start_time, run.start_time)
     for a, b in zip(run.velocity, back.velocity):
         np.testing.assert_allclose(a, b, atol=1e-5)
-    np.testing.assert_allclose([p.range for p in back.points], [p.range for p in run.points], atol=1e-5)
-    assert [(p.target, p.landmark) for p in back.points] == [(p.target, p.landmark) for p in run.points]
+    np.testing.assert_allclose(
+        [p.range for p in back.points], [p.range for p in run.points], atol=1e-5
+    )
+    assert [(p.target, p.landmark) for p in back.points] == [
+        (p.target, p.landmark) for p in run.points
+    ]
     for a, b in zip(run.robots, back.robots):
         np.testing.assert_allclose(a.initial_pose.matrix(), b.initial_pose.matrix(), atol=1e-9)
 
@@ -131,7 +146,11 @@ def test_log_conversion_roundtrip(synthetic, tmp_path):
 def test_smoothing_beats_dead_reckoning_synthetic(synthetic, mode):
     root, _ = synthetic
     run = open_run(root)
-    for cfg in (GraphConfig(), GraphConfig(use_landmarks=False), GraphConfig(landmark_priors=False)):
+    for cfg in (
+        GraphConfig(),
+        GraphConfig(use_landmarks=False),
+        GraphConfig(landmark_priors=False),
+    ):
         result = solve(build_graph(run, cfg), mode)
         m = evaluate(result, run)
         for name, entry in m["per_robot"].items():
@@ -158,7 +177,10 @@ def test_commands_on_mrclam_and_log(synthetic, tmp_path, verb):
         assert metrics["mode"] == mode and metrics["counts"]["steps"] == 121
         for name in ("robot1", "robot2", "robot3"):
             assert (out / f"{name}_{mode}.tum").is_file()
-            assert metrics["per_robot"][name][mode]["ate_rmse"] < metrics["per_robot"][name]["dead_reckoning"]["ate_rmse"]
+            assert (
+                metrics["per_robot"][name][mode]["ate_rmse"]
+                < metrics["per_robot"][name]["dead_reckoning"]["ate_rmse"]
+            )
         for png in ("trajectories.png", "error_over_time.png"):
             assert (out / png).stat().st_size > 1000
         # per-frame latency is an online quantity: plotted and reported online, absent in batch
@@ -171,8 +193,21 @@ def test_commands_on_mrclam_and_log(synthetic, tmp_path, verb):
 
 def test_commands_no_landmarks_option(synthetic, tmp_path):
     root, _ = synthetic
-    assert main(["smooth", str(root), "--out", str(tmp_path / "o"), "--no-landmarks", "--duration", "20",
-                 "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "smooth",
+                str(root),
+                "--out",
+                str(tmp_path / "o"),
+                "--no-landmarks",
+                "--duration",
+                "20",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     m = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert m["counts"].get("factors_landmark", 0) == 0 and m["counts"]["excluded_by_option"] > 0
 

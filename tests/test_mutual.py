@@ -6,8 +6,15 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera
-from graphloc.vision.mutual import (STATUS_DEGENERATE, STATUS_INCONSISTENT, STATUS_NO_BEARING, STATUS_OK,
-                                    MutualConfig, localize_three, render_mutual_pixels)
+from graphloc.vision.mutual import (
+    STATUS_DEGENERATE,
+    STATUS_INCONSISTENT,
+    STATUS_NO_BEARING,
+    STATUS_OK,
+    MutualConfig,
+    localize_three,
+    render_mutual_pixels,
+)
 
 # seed 000 section VI: 512 x 512 panoramic cameras; FOV to 35 deg below the horizon so that
 # cameras tilted by up to pi/6 still see each other
@@ -26,7 +33,9 @@ def random_formations(n, rng, max_tilt=0.0, min_angle_deg=15.0):
         area = 0.5 * np.linalg.norm(np.cross(a, b), axis=1)
         # smallest angle via the law of sines: sin(angle) = 2 area / (product of adjacent sides)
         sin_min = 2 * area[:, None] / (sides * np.roll(sides, -1, axis=1))
-        keep = (sides.min(axis=1) > 0.5) & (np.arcsin(np.clip(sin_min, 0, 1)).min(axis=1) > math.radians(min_angle_deg))
+        keep = (sides.min(axis=1) > 0.5) & (
+            np.arcsin(np.clip(sin_min, 0, 1)).min(axis=1) > math.radians(min_angle_deg)
+        )
         t = np.concatenate([t, cand[keep]])[:n]
     tilt_axis = rng.normal(size=(3 * n, 3)) * (1, 1, 0)
     tilt_axis /= np.linalg.norm(tilt_axis, axis=1, keepdims=True)
@@ -44,7 +53,9 @@ def truth_in_frame_1(R, t):
 def seed_noise(shape, rng, sigma=0.5):
     """Seed 000 VI: N(0, 0.5) px displacement in a uniformly random direction."""
     angle = rng.uniform(-math.pi, math.pi, shape[:-1])
-    return rng.normal(0.0, sigma, shape[:-1])[..., None] * np.stack([np.cos(angle), np.sin(angle)], -1)
+    return rng.normal(0.0, sigma, shape[:-1])[..., None] * np.stack(
+        [np.cos(angle), np.sin(angle)], -1
+    )
 
 
 def rotation_errors_deg(R_est, R_true):
@@ -85,13 +96,17 @@ def test_planar_exact_when_cameras_at_equal_height():
     R, t = random_formations(100, rng)
     t[..., 2] = 0.3
     pixels, _ = render_mutual_pixels(R, t, OMNI)
-    result = localize_three(pixels, OMNI, np.linalg.norm(t[:, 1] - t[:, 0], axis=1), MutualConfig(planar=True))
+    result = localize_three(
+        pixels, OMNI, np.linalg.norm(t[:, 1] - t[:, 0], axis=1), MutualConfig(planar=True)
+    )
     R_true, t_true = truth_in_frame_1(R, t)
     assert result.ok.all()
     assert np.abs(result.t - t_true).max() < 1e-9 and np.abs(result.R - R_true).max() < 1e-9
 
 
-@pytest.mark.parametrize("max_tilt, planar, t_tol, R_tol", [(0.0, True, 0.005, 0.25), (math.pi / 6, False, 0.008, 0.8)])
+@pytest.mark.parametrize(
+    "max_tilt, planar, t_tol, R_tol", [(0.0, True, 0.005, 0.25), (math.pi / 6, False, 0.008, 0.8)]
+)
 def test_half_pixel_noise_small_error(max_tilt, planar, t_tol, R_tol):
     """0.5 px noise (seed 000 VI). Median errors, relative to the 0.5-6 m baselines; measured
     ~0.23 %/0.11 deg (planar, upright) and ~0.31 %/0.38 deg (3D, tilted up to pi/6)."""
@@ -99,7 +114,9 @@ def test_half_pixel_noise_small_error(max_tilt, planar, t_tol, R_tol):
     R, t = random_formations(400, rng, max_tilt)
     pixels, _ = render_mutual_pixels(R, t, OMNI)
     baseline = np.linalg.norm(t[:, 1] - t[:, 0], axis=1)
-    result = localize_three(pixels + seed_noise(pixels.shape, rng), OMNI, baseline, MutualConfig(planar=planar))
+    result = localize_three(
+        pixels + seed_noise(pixels.shape, rng), OMNI, baseline, MutualConfig(planar=planar)
+    )
     ok = result.ok
     assert ok.mean() > 0.97
     R_true, t_true = truth_in_frame_1(R, t)
@@ -110,8 +127,12 @@ def test_half_pixel_noise_small_error(max_tilt, planar, t_tol, R_tol):
     assert np.median(rel_t) < t_tol and np.median(ang) < R_tol
     assert np.abs(result.closure[ok]).max() < math.radians(5.0)
     assert 0 < np.median(result.misfit[ok]) < 0.01  # noise shows in the alignment residual ...
-    strict = localize_three(pixels + seed_noise(pixels.shape, rng), OMNI, baseline,
-                            MutualConfig(planar=planar, max_misfit=1e-6))
+    strict = localize_three(
+        pixels + seed_noise(pixels.shape, rng),
+        OMNI,
+        baseline,
+        MutualConfig(planar=planar, max_misfit=1e-6),
+    )
     assert (strict.status == STATUS_INCONSISTENT).all()  # ... and a limit below it rejects
     # the condition number predicts the error: ill-conditioned triangles err more
     cond = result.condition[ok]
@@ -127,7 +148,11 @@ def test_collinear_and_nearly_collinear_reported():
     pixels, _ = render_mutual_pixels(R, t, OMNI)
     result = localize_three(pixels, OMNI, 1.0)
     assert result.status.tolist() == [STATUS_DEGENERATE, STATUS_DEGENERATE, STATUS_OK]
-    assert np.isnan(result.R[:2]).all() and np.isnan(result.t[:2]).all() and np.isfinite(result.t[2]).all()
+    assert (
+        np.isnan(result.R[:2]).all()
+        and np.isnan(result.t[:2]).all()
+        and np.isfinite(result.t[2]).all()
+    )
     assert result.condition[0] > 1e6 and result.condition[2] < 10
     with pytest.raises(ValueError, match="degenerate_triangle"):
         result.relative(0, 1, 2)
@@ -153,14 +178,21 @@ def test_nan_pixel_and_mislabelled_robots():
     wrong[2, 0, 2] += 40.0
     assert localize_three(wrong, OMNI, 2.0).status[2] == STATUS_INCONSISTENT
     outside = pixels.copy()
-    outside[2, 0, 1] = [0.0, 0.0]  # image corner, beyond the mirror rim: lifts, but to a bearing that does not close
+    outside[2, 0, 1] = [
+        0.0,
+        0.0,
+    ]  # image corner, beyond the mirror rim: lifts, but to a bearing that does not close
     assert localize_three(outside, OMNI, 2.0).status[2] == STATUS_INCONSISTENT
 
 
 def test_relative_poses_compose_and_gtsam():
     rng = np.random.default_rng(16)
     R, t = random_formations(5, rng, max_tilt=0.3)
-    cams = [OMNI, OMNI, ParaboloidOmniCamera.from_fov(480, math.radians(130))]  # robot 3 has its own camera
+    cams = [
+        OMNI,
+        OMNI,
+        ParaboloidOmniCamera.from_fov(480, math.radians(130)),
+    ]  # robot 3 has its own camera
     pixels, _ = render_mutual_pixels(R, t, cams)
     result = localize_three(pixels, cams, np.linalg.norm(t[:, 1] - t[:, 0], axis=1))
     assert result.ok.all()
@@ -171,8 +203,15 @@ def test_relative_poses_compose_and_gtsam():
     pose = result.pose3(2, 3, 1)
     assert isinstance(pose, gtsam.Pose3)
     np.testing.assert_allclose(pose.translation(), R_w3.T @ (t[2, 0] - t[2, 2]), atol=1e-9)
-    np.testing.assert_allclose(result.sides[2], [np.linalg.norm(t[2, 2] - t[2, 1]), np.linalg.norm(t[2, 2] - t[2, 0]),
-                                                 np.linalg.norm(t[2, 1] - t[2, 0])], rtol=1e-9)
+    np.testing.assert_allclose(
+        result.sides[2],
+        [
+            np.linalg.norm(t[2, 2] - t[2, 1]),
+            np.linalg.norm(t[2, 2] - t[2, 0]),
+            np.linalg.norm(t[2, 1] - t[2, 0]),
+        ],
+        rtol=1e-9,
+    )
 
 
 def test_bad_input_is_a_clear_value_error():
@@ -220,7 +259,11 @@ def test_pinhole_cameras_work_when_they_see_each_other():
     assert visible[0][~np.eye(3, dtype=bool)].all()
     result = localize_three(pixels, cam, 2.0, MutualConfig(up=(0.0, -1.0, 0.0)))
     R_true, t_true = truth_in_frame_1(R, t)
-    assert result.ok.all() and np.abs(result.t - t_true).max() < 1e-9 and np.abs(result.R - R_true).max() < 1e-9
+    assert (
+        result.ok.all()
+        and np.abs(result.t - t_true).max() < 1e-9
+        and np.abs(result.R - R_true).max() < 1e-9
+    )
     planar = localize_three(pixels, cam, 2.0, MutualConfig(up=(0.0, -1.0, 0.0), planar=True))
     assert planar.ok.all() and np.abs(planar.t - t_true).max() < 1e-9
     # with the wrong `up` the cameras (facing each other) look upside-down relative to C1

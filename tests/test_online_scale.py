@@ -82,8 +82,9 @@ def test_factor_across_the_lag_is_dropped_and_counted(synthetic):
     t, group = graph.steps[-1]
     first = next(f for f, kind in graph.steps[1][1] if kind == "odometry")
     old = first.keys()[0]
-    late = gtsam.BetweenFactorPose3(old, group[0][0].keys()[0], gtsam.Pose3(),
-                                    gtsam.noiseModel.Isotropic.Sigma(6, 1.0))
+    late = gtsam.BetweenFactorPose3(
+        old, group[0][0].keys()[0], gtsam.Pose3(), gtsam.noiseModel.Isotropic.Sigma(6, 1.0)
+    )
     graph.steps[-1] = (t, group + [(late, "odometry")])
     result = solve(graph, "online")
     assert result.dropped == {"odometry": 1}
@@ -138,8 +139,15 @@ def _resume_once(synthetic, tmp_path, monkeypatch, whole: Path, stop_at: int) ->
     tmp_path.mkdir(exist_ok=True)
     ck = tmp_path / "run.ckpt"
     _stop_after(monkeypatch, stop_at)
-    args = ["online", str(synthetic), "--no-progress", "--checkpoint", str(ck),
-            "--checkpoint-every", "20"]
+    args = [
+        "online",
+        str(synthetic),
+        "--no-progress",
+        "--checkpoint",
+        str(ck),
+        "--checkpoint-every",
+        "20",
+    ]
     assert main([*args, "--out", str(tmp_path / "stopped")]) == smooth.EXIT_STOPPED
     monkeypatch.undo()
     assert ck.read_bytes().startswith(b'{"format": "graphloc-online-checkpoint"')
@@ -152,8 +160,22 @@ def test_resume_matches_uninterrupted_run(synthetic, tmp_path, monkeypatch):
     assert main(["online", str(synthetic), "--out", str(whole), "--no-progress"]) == 0
     _resume_once(synthetic, tmp_path, monkeypatch, whole, 45)
     # another configuration is refused
-    assert main(["online", str(synthetic), "--out", str(tmp_path / "x"), "--no-progress",
-                 "--lag", "2", "--resume", str(tmp_path / "run.ckpt")]) == 2
+    assert (
+        main(
+            [
+                "online",
+                str(synthetic),
+                "--out",
+                str(tmp_path / "x"),
+                "--no-progress",
+                "--lag",
+                "2",
+                "--resume",
+                str(tmp_path / "run.ckpt"),
+            ]
+        )
+        == 2
+    )
 
 
 @pytest.mark.slow
@@ -178,7 +200,7 @@ def test_replayed_run_and_gtsam_only_batch(synthetic):
     assert not result.dropped and cpu > 0 and len(samples) >= 3
     for r, rows in enumerate(result.estimate):  # every copy retraces the first one
         n = len(graph.node_times[r])
-        assert np.allclose(rows[2 * n:, :3], rows[:n, :3], atol=0.1)
+        assert np.allclose(rows[2 * n :, :3], rows[:n, :3], atol=0.1)
     alone = gtsam_only_batch(graph)
     batch = solve(graph, "batch")
     assert alone["variables"] == len(graph.initial) and alone["iterations"] >= 1

@@ -8,8 +8,13 @@ import pytest
 
 from graphloc.candidates import CandidateSet
 from graphloc.geometry.p3p import METHODS, P3PCandidates, solve_p3p, solve_p3p_poses
-from graphloc.experiments.p3p_bench import (InstanceConfig, opencv_p3p_loop, poselib_p3p_loop,
-                                         random_p3p_instances, recovered)
+from graphloc.experiments.p3p_bench import (
+    InstanceConfig,
+    opencv_p3p_loop,
+    poselib_p3p_loop,
+    random_p3p_instances,
+    recovered,
+)
 
 N_RANDOM = 10_000
 N_PEER = 1_000
@@ -30,7 +35,9 @@ def _check_candidates_consistent(c: P3PCandidates, inst):
     R, t, v = c.R_wc[c.valid], c.t_wc[c.valid], c.valid
     owner = np.nonzero(v)[0]
     Xc = np.einsum("mji,mpj->mpi", R, inst.points[owner] - t[:, None, :])
-    cosang = np.einsum("mpi,mpi->mp", Xc / np.linalg.norm(Xc, axis=2, keepdims=True), inst.bearings[owner])
+    cosang = np.einsum(
+        "mpi,mpi->mp", Xc / np.linalg.norm(Xc, axis=2, keepdims=True), inst.bearings[owner]
+    )
     assert (cosang > 1 - 1e-10).all()
     assert np.allclose(np.linalg.det(R), 1.0, atol=1e-9)
     assert np.allclose(R @ np.swapaxes(R, 1, 2), np.eye(3), atol=1e-9)
@@ -55,7 +62,9 @@ def test_methods_agree_with_each_other(instances):
     ref = solve_p3p(instances.bearings, instances.points, method="lambdatwist")
     for method in METHODS[1:]:
         other = solve_p3p(instances.bearings, instances.points, method=method)
-        same = _same_sets(ref.R_wc, ref.t_wc, ref.valid, other.R_wc, other.t_wc, other.valid, tol=1e-6)
+        same = _same_sets(
+            ref.R_wc, ref.t_wc, ref.valid, other.R_wc, other.t_wc, other.valid, tol=1e-6
+        )
         assert same.mean() >= 0.999, f"{method} vs lambdatwist: {same.mean():.5f}"
 
 
@@ -67,7 +76,9 @@ def _matched(Ra, ta, va, Rb, tb, vb, tol):
 
 
 def _same_sets(Ra, ta, va, Rb, tb, vb, tol):
-    return _matched(Ra, ta, va, Rb, tb, vb, tol).all(axis=1) & _matched(Rb, tb, vb, Ra, ta, va, tol).all(axis=1)
+    return _matched(Ra, ta, va, Rb, tb, vb, tol).all(axis=1) & _matched(
+        Rb, tb, vb, Ra, ta, va, tol
+    ).all(axis=1)
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -89,12 +100,15 @@ def test_polish_keeps_exact_solutions_and_fixes_perturbed_ones(instances):
     assert np.abs(polished.t_wc - plain.t_wc).max() < 1e-8
     # polish on its own: start from a perturbed truth, Gauss-Newton converges back
     from graphloc.geometry.p3p import _polish_pose, _soa, _soa_pose  # noqa: PLC0415
+
     rng = np.random.default_rng(3)
     n = 500
     f, X = instances.bearings[:n], instances.points[:n]
     angle = rng.normal(scale=2e-4, size=(n, 3))
     dR = np.stack([gtsam.Rot3.Expmap(a).matrix() for a in angle])
-    R0, t0 = _soa_pose(dR @ instances.R_wc[:n], instances.t_wc[:n] + rng.normal(scale=1e-3, size=(n, 3)))
+    R0, t0 = _soa_pose(
+        dR @ instances.R_wc[:n], instances.t_wc[:n] + rng.normal(scale=1e-3, size=(n, 3))
+    )
     flat = lambda V: tuple(tuple(x[:, 0] for x in v) for v in V)  # noqa: E731
     R1, t1 = _polish_pose(flat(_soa(f)), flat(_soa(X)), R0, t0, iters=4)
     assert np.abs(np.stack(t1, -1) - instances.t_wc[:n]).max() < 1e-8
@@ -110,7 +124,9 @@ def test_near_degenerate_instances():
     """Slivers: a 1 degree field of view, bearings down to 0.005 degrees apart, triangle angles
     down to 0.02 degrees. Either the truth is recovered or the row is honestly empty -- every
     candidate passed as valid reprojects the points."""
-    cfg = InstanceConfig(half_fov=np.deg2rad(0.5), min_bearing_angle=np.deg2rad(0.005), min_angle=np.deg2rad(0.02))
+    cfg = InstanceConfig(
+        half_fov=np.deg2rad(0.5), min_bearing_angle=np.deg2rad(0.005), min_angle=np.deg2rad(0.02)
+    )
     inst = random_p3p_instances(5000, seed=5, config=cfg)
     for method in METHODS:
         for polish in (False, True):
@@ -147,17 +163,22 @@ def test_points_behind_camera_are_not_returned():
     c = solve_p3p(-inst.bearings, inst.points)
     owner = np.nonzero(c.valid)[0]
     R, t = c.R_wc[c.valid], c.t_wc[c.valid]
-    depth = np.einsum("mji,mpj,mpi->mp", R, inst.points[owner] - t[:, None, :], -inst.bearings[owner])
+    depth = np.einsum(
+        "mji,mpj,mpi->mp", R, inst.points[owner] - t[:, None, :], -inst.bearings[owner]
+    )
     assert (depth > 0).all()
 
 
-@pytest.mark.parametrize("bad", [
-    (np.zeros((3, 3)), np.zeros((3, 3))),  # missing batch axis
-    (np.zeros((5, 3, 3)), np.zeros((4, 3, 3))),  # mismatched N
-    (np.zeros((5, 3, 2)), np.zeros((5, 3, 2))),  # 2D points
-    (np.zeros((5, 4, 3)), np.zeros((5, 4, 3))),  # four points
-    ([["a"] * 3] * 3, np.zeros((3, 3))),  # not numeric
-])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        (np.zeros((3, 3)), np.zeros((3, 3))),  # missing batch axis
+        (np.zeros((5, 3, 3)), np.zeros((4, 3, 3))),  # mismatched N
+        (np.zeros((5, 3, 2)), np.zeros((5, 3, 2))),  # 2D points
+        (np.zeros((5, 4, 3)), np.zeros((5, 4, 3))),  # four points
+        ([["a"] * 3] * 3, np.zeros((3, 3))),  # not numeric
+    ],
+)
 def test_malformed_shapes_raise_value_error(bad):
     with pytest.raises(ValueError, match="solve_p3p"):
         solve_p3p(*bad)
@@ -191,8 +212,12 @@ def test_empty_batch():
 # ----------------------------------------------------------------------------- straight-line test + demo
 
 from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straight_line_trials  # noqa: E402
-from graphloc.baselines.straight_line import (StraightLineBaseline, StraightLineConfig,  # noqa: E402
-                                              localize_by_straight_line, straight_line_errors)
+from graphloc.baselines.straight_line import (
+    StraightLineBaseline,
+    StraightLineConfig,  # noqa: E402
+    localize_by_straight_line,
+    straight_line_errors,
+)
 
 
 def test_straight_line_errors_by_hand():

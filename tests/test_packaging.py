@@ -42,8 +42,12 @@ def test_installed_subpackages_resolve_to_source_folders():
 def test_cli_help_lists_only_registered_verbs():
     from graphloc.cli import VERBS
 
-    res = subprocess.run([sys.executable, "-m", "graphloc", "--help"], capture_output=True, text=True, check=True)
+    res = subprocess.run(
+        [sys.executable, "-m", "graphloc", "--help"], capture_output=True, text=True, check=True
+    )
     for verb in VERBS:
         assert verb in res.stdout
-    bad = subprocess.run([sys.executable, "-m", "graphloc", "no-such-verb"], capture_output=True, text=True)
+    bad = subprocess.run(
+        [sys.executable, "-m", "graphloc", "no-such-verb"], capture_output=True, text=True
+    )
     assert bad.returncode != 0 and "invalid choice" in bad.stderr

@@ -5,7 +5,12 @@ import numpy as np
 import pytest
 
 from graphloc.cameras import PinholeCamera
-from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, marker_area_bounds, roi_from_points
+from graphloc.vision.markers import (
+    MarkerDetectorConfig,
+    detect_markers,
+    marker_area_bounds,
+    roi_from_points,
+)
 from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers
 
 CAM = PinholeCamera.from_fov(752, 480, np.pi / 2)
@@ -37,7 +42,9 @@ def test_projected_size_and_centroid_match_geometry():
     """On the optical axis the disc has radius f*tan(asin(r/d)); off axis the visible-area
     centroid is the centre of the sphere's image ellipse, f*(tan(a+b)+tan(a-b))/2."""
     d = 1.0
-    cfg = RenderConfig(noise_sigma=0.0, blur_sigma=0.0, gradient=0.0, background=0.0, marker_level=200.0)
+    cfg = RenderConfig(
+        noise_sigma=0.0, blur_sigma=0.0, gradient=0.0, background=0.0, marker_level=200.0
+    )
     frame = render_markers(CAM, np.array([[0.0, 0.0, d]]), RADIUS, cfg)
     r_px = CAM.fx * np.tan(np.arcsin(RADIUS / d))
     area = frame.image.astype(float).sum() / 200.0
@@ -75,13 +82,24 @@ def test_colour_markers_yuv():
     rng = np.random.default_rng(4)
     marker_bgr = (40.0, 60.0, 200.0)  # red paint
     yuv = cv2.cvtColor(np.uint8([[marker_bgr]]), cv2.COLOR_BGR2YUV)[0, 0].astype(float)
-    cfg = RenderConfig(color=True, background=(120.0, 140.0, 130.0), marker_level=marker_bgr, noise_sigma=2.0)
+    cfg = RenderConfig(
+        color=True, background=(120.0, 140.0, 130.0), marker_level=marker_bgr, noise_sigma=2.0
+    )
     det_cfg = MarkerDetectorConfig(polarity="color", marker_yuv=tuple(yuv))
     for _ in range(10):
         px, depth = random_layout(rng)
         # a bright grey blob of marker size: as bright as the markers, wrong colour
-        clutter = random_clutter(rng, 752, 480, 6.0, (230.0, 230.0, 230.0), n=2, avoid=px, avoid_radius=30,
-                                 kinds=("disc",))
+        clutter = random_clutter(
+            rng,
+            752,
+            480,
+            6.0,
+            (230.0, 230.0, 230.0),
+            n=2,
+            avoid=px,
+            avoid_radius=30,
+            kinds=("disc",),
+        )
         frame = render_markers(CAM, markers_at(px, depth), RADIUS, cfg, rng, clutter=clutter)
         det = detect_markers(frame.image, det_cfg)
         assert det.status == "ok"
@@ -99,9 +117,13 @@ def test_clutter_is_rejected():
         depth = z + rng.uniform(-0.15, 0.15, 4)
         min_area, max_area = marker_area_bounds(CAM.fx, RADIUS, depth.min(), depth.max())
         r_px = CAM.fx * RADIUS / depth.max()
-        clutter = random_clutter(rng, 752, 480, r_px, 220.0, n=8, avoid=px, avoid_radius=4 * r_px + 10)
+        clutter = random_clutter(
+            rng, 752, 480, r_px, 220.0, n=8, avoid=px, avoid_radius=4 * r_px + 10
+        )
         frame = render_markers(CAM, markers_at(px, depth), RADIUS, cfg, rng, clutter=clutter)
-        det = detect_markers(frame.image, MarkerDetectorConfig(min_area=min_area, max_area=max_area))
+        det = detect_markers(
+            frame.image, MarkerDetectorConfig(min_area=min_area, max_area=max_area)
+        )
         assert det.status == "ok", det
         assert match_errors(det.points, frame.centroids).max() < 0.3
         rejected += sum(det.rejected.values())
@@ -124,7 +146,9 @@ def test_partial_occlusion_and_shortfall():
     pts = markers_at(px, np.full(4, 0.8))
     r = CAM.fx * RADIUS / 0.8
     # a dark bar hides the left 40 % of marker 0 (a cut disc is still convex)
-    half = Occluder((px[0, 0] - 2 * r, px[0, 1] - 2 * r, px[0, 0] - 0.2 * r, px[0, 1] + 2 * r), 20.0)
+    half = Occluder(
+        (px[0, 0] - 2 * r, px[0, 1] - 2 * r, px[0, 0] - 0.2 * r, px[0, 1] + 2 * r), 20.0
+    )
     frame = render_markers(CAM, pts, RADIUS, RenderConfig(), rng, occluders=(half,))
     assert 0.5 < frame.visible[0] < 0.8
     det = detect_markers(frame.image)
@@ -134,7 +158,9 @@ def test_partial_occlusion_and_shortfall():
     full = Occluder((px[3, 0] - 2 * r, px[3, 1] - 2 * r, px[3, 0] + 2 * r, px[3, 1] + 2 * r), 20.0)
     frame = render_markers(CAM, pts, RADIUS, RenderConfig(), rng, occluders=(half, full))
     det = detect_markers(frame.image)
-    assert frame.visible[3] == 0 and det.status == "shortfall" and det.shortfall == 1 and len(det) == 3
+    assert (
+        frame.visible[3] == 0 and det.status == "shortfall" and det.shortfall == 1 and len(det) == 3
+    )
     assert match_errors(det.points, frame.centroids[:3]).max() < 0.3
 
 
@@ -142,7 +168,9 @@ def test_touching_markers_are_split_by_erosion():
     rng = np.random.default_rng(8)
     r = CAM.fx * RADIUS / 0.7
     px = np.array([[300.0, 200.0], [300.0 + 2 * r + 1.0, 200.0], [450.0, 320.0], [200.0, 350.0]])
-    frame = render_markers(CAM, markers_at(px, np.full(4, 0.7)), RADIUS, RenderConfig(blur_sigma=1.2), rng)
+    frame = render_markers(
+        CAM, markers_at(px, np.full(4, 0.7)), RADIUS, RenderConfig(blur_sigma=1.2), rng
+    )
     det = detect_markers(frame.image)
     assert det.status == "ok" and "erosion" in det.steps
     assert match_errors(det.points, frame.centroids).max() < 1.0
@@ -152,8 +180,14 @@ def test_dim_marker_outside_the_otsu_window_is_recovered_by_hough():
     """Otsu (F1) keeps the three bright LEDs; the dim one lies outside their F2 window."""
     rng = np.random.default_rng(11)
     px = np.array([[200.0, 150.0], [260.0, 170.0], [230.0, 230.0], [600.0, 380.0]])
-    frame = render_markers(CAM, markers_at(px, np.full(4, 0.8)), RADIUS, RenderConfig(gradient=0.0), rng,
-                           gains=np.array([1.0, 1.0, 1.0, 0.25]))
+    frame = render_markers(
+        CAM,
+        markers_at(px, np.full(4, 0.8)),
+        RADIUS,
+        RenderConfig(gradient=0.0),
+        rng,
+        gains=np.array([1.0, 1.0, 1.0, 0.25]),
+    )
     det = detect_markers(frame.image)
     assert det.status == "ok" and "hough" in det.steps
     assert match_errors(det.points, frame.centroids).max() < 0.3
@@ -170,7 +204,9 @@ def test_roi_and_full_image_fallback():
     roi = roi_from_points(px, 30, frame.image.shape)
     det = detect_markers(frame.image, roi=roi)
     assert det.status == "ok" and "full_image" not in det.steps and det.roi == roi
-    small = roi_from_points(px[:3], 30, frame.image.shape)  # misses marker 3: retry on the whole image
+    small = roi_from_points(
+        px[:3], 30, frame.image.shape
+    )  # misses marker 3: retry on the whole image
     det = detect_markers(frame.image, roi=small)
     assert det.status == "ok" and "full_image" in det.steps
     det = detect_markers(frame.image, MarkerDetectorConfig(full_image_fallback=False), roi=small)

@@ -28,13 +28,25 @@ SIGMAS = np.array([0.004, 0.004, 0.01, 0.02, 0.02, 0.01])  # GTSAM tangent order
 BEACONS = {"b1": (4.0, 0.0, 2.0), "b2": (-3.0, 3.0, 2.5), "b3": (0.0, -4.0, 0.5)}
 UWB_OFFSET = (0.1, 0.0, 0.3)
 ROBOTS = [
-    {"name": "rover", "kind": "ground", "planar": False,
-     "initial_pose": [2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
-     "sensors": [{"name": "odom", "type": "odometry"},
-                 {"name": "uwb", "type": "range", "extrinsics": {"xyz": list(UWB_OFFSET)},
-                  "params": {"range_sigma": 0.03, "range_sigma_per_m": 0.0}}]},
-    *[{"name": b, "kind": "beacon", "static": True, "initial_pose": [*xyz, 0, 0, 0, 1]}
-      for b, xyz in BEACONS.items()],
+    {
+        "name": "rover",
+        "kind": "ground",
+        "planar": False,
+        "initial_pose": [2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+        "sensors": [
+            {"name": "odom", "type": "odometry"},
+            {
+                "name": "uwb",
+                "type": "range",
+                "extrinsics": {"xyz": list(UWB_OFFSET)},
+                "params": {"range_sigma": 0.03, "range_sigma_per_m": 0.0},
+            },
+        ],
+    },
+    *[
+        {"name": b, "kind": "beacon", "static": True, "initial_pose": [*xyz, 0, 0, 0, 1]}
+        for b, xyz in BEACONS.items()
+    ],
 ]
 
 
@@ -57,8 +69,11 @@ def simulate(seed: int = 0) -> dict:
         truth.append(gtsam.Pose3(rot, gtsam.Point3(2 * np.cos(a), 2 * np.sin(a), 0.05 * k)))
     odo, steps = [truth[0]], []
     for k in range(1, N):
-        step = truth[k - 1].between(truth[k]).compose(
-            gtsam.Pose3.Expmap(SIGMAS * rng.standard_normal(6)))
+        step = (
+            truth[k - 1]
+            .between(truth[k])
+            .compose(gtsam.Pose3.Expmap(SIGMAS * rng.standard_normal(6)))
+        )
         steps.append(step)
         odo.append(odo[-1].compose(step))
     ranges = {b: [] for b in BEACONS}
@@ -82,19 +97,33 @@ def write_native(sim: dict, root: Path) -> Path:
     for k in range(1, N):
         s = sim["steps"][k - 1]
         q = s.rotation().toQuaternion()
-        rows.append([stamp(k)[2], "odom", stamp(k - 1)[2], *s.translation(),
-                     q.x(), q.y(), q.z(), q.w(), *SIGMAS])
+        rows.append(
+            [
+                stamp(k)[2],
+                "odom",
+                stamp(k - 1)[2],
+                *s.translation(),
+                q.x(),
+                q.y(),
+                q.z(),
+                q.w(),
+                *SIGMAS,
+            ]
+        )
     text = [",".join(columns("relative_pose3"))]
     text += [",".join(v if isinstance(v, str) else repr(float(v)) for v in r) for r in rows]
     (root / "rover/relative_pose3.csv").write_text("\n".join(text) + "\n")
     text = [",".join(columns("range"))]
-    text += [f"{stamp(k)[2]!r},uwb,{b},{sim['ranges'][b][k]!r}"
-             for k in range(N) for b in BEACONS]
+    text += [f"{stamp(k)[2]!r},uwb,{b},{sim['ranges'][b][k]!r}" for k in range(N) for b in BEACONS]
     (root / "rover/range.csv").write_text("\n".join(text) + "\n")
     (root / "rover/groundtruth.tum").write_text(
-        "".join(tum_row(stamp(k)[2], p) + "\n" for k, p in enumerate(sim["truth"])))
-    tables = {"relative_pose3": "rover/relative_pose3.csv", "range": "rover/range.csv",
-              "groundtruth": "rover/groundtruth.tum"}
+        "".join(tum_row(stamp(k)[2], p) + "\n" for k, p in enumerate(sim["truth"]))
+    )
+    tables = {
+        "relative_pose3": "rover/relative_pose3.csv",
+        "range": "rover/range.csv",
+        "groundtruth": "rover/groundtruth.tum",
+    }
     robots = [{**ROBOTS[0], "tables": tables}, *ROBOTS[1:]]
     write_manifest({"name": "uwb", "robots": robots}, root)
     return root
@@ -106,8 +135,10 @@ TOPICS = {
     "topics": {
         "/rover/odom": {"robot": "rover", "table": "relative_pose3", "sensor": "odom"},
         "/rover/truth": {"robot": "rover", "table": "groundtruth"},
-        **{f"/rover/uwb/{b}": {"robot": "rover", "table": "range", "sensor": "uwb", "target": b}
-           for b in BEACONS},
+        **{
+            f"/rover/uwb/{b}": {"robot": "rover", "table": "range", "sensor": "uwb", "target": b}
+            for b in BEACONS
+        },
     },
 }
 
@@ -126,15 +157,25 @@ def _header(ts, k, ros1, frame="map"):
 def _pose_msg(ts, pose: gtsam.Pose3):
     q = pose.rotation().toQuaternion()
     t = pose.translation()
-    return _msg(ts, "geometry_msgs/msg/Pose",
-                position=_msg(ts, "geometry_msgs/msg/Point", x=t[0], y=t[1], z=t[2]),
-                orientation=_msg(ts, "geometry_msgs/msg/Quaternion",
-                                 x=q.x(), y=q.y(), z=q.z(), w=q.w()))
+    return _msg(
+        ts,
+        "geometry_msgs/msg/Pose",
+        position=_msg(ts, "geometry_msgs/msg/Point", x=t[0], y=t[1], z=t[2]),
+        orientation=_msg(ts, "geometry_msgs/msg/Quaternion", x=q.x(), y=q.y(), z=q.z(), w=q.w()),
+    )
 
 
 def _range_msg(ts, k, ros1, r, lo=0.1, hi=50.0):
-    return _msg(ts, "sensor_msgs/msg/Range", header=_header(ts, k, ros1, "uwb"),
-                radiation_type=2, field_of_view=0.0, min_range=lo, max_range=hi, range=r)
+    return _msg(
+        ts,
+        "sensor_msgs/msg/Range",
+        header=_header(ts, k, ros1, "uwb"),
+        radiation_type=2,
+        field_of_view=0.0,
+        min_range=lo,
+        max_range=hi,
+        range=r,
+    )
 
 
 def bag_messages(sim: dict, ts, ros1: bool, bad: bool = False):
@@ -143,36 +184,71 @@ def bag_messages(sim: dict, ts, ros1: bool, bad: bool = False):
     rng = np.random.default_rng(1)
     cov = np.zeros((6, 6))
     cov[np.diag_indices(6)] = (SIGMAS**2)[[3, 4, 5, 0, 1, 2]]  # ROS order x y z rx ry rz
-    zero_twist = _msg(ts, "geometry_msgs/msg/TwistWithCovariance",
-                      twist=_msg(ts, "geometry_msgs/msg/Twist",
-                                 linear=_msg(ts, "geometry_msgs/msg/Vector3", x=0.0, y=0.0, z=0.0),
-                                 angular=_msg(ts, "geometry_msgs/msg/Vector3", x=0.0, y=0.0,
-                                              z=0.0)),
-                      covariance=np.zeros(36))
+    zero_twist = _msg(
+        ts,
+        "geometry_msgs/msg/TwistWithCovariance",
+        twist=_msg(
+            ts,
+            "geometry_msgs/msg/Twist",
+            linear=_msg(ts, "geometry_msgs/msg/Vector3", x=0.0, y=0.0, z=0.0),
+            angular=_msg(ts, "geometry_msgs/msg/Vector3", x=0.0, y=0.0, z=0.0),
+        ),
+        covariance=np.zeros(36),
+    )
     out = []
 
     def add(topic, msgtype, k, msg):
         out.append((topic, msgtype, int((stamp(k)[2] + rng.uniform(0, 0.8)) * 1e9), msg))
 
     for k in range(N):
-        pose = _msg(ts, "geometry_msgs/msg/PoseWithCovariance", pose=_pose_msg(ts, sim["odo"][k]),
-                    covariance=cov.ravel().copy())
-        add("/rover/odom", "nav_msgs/msg/Odometry", k,
-            _msg(ts, "nav_msgs/msg/Odometry", header=_header(ts, k, ros1, "odom"),
-                 child_frame_id="base_link", pose=pose, twist=zero_twist))
-        add("/rover/truth", "geometry_msgs/msg/PoseStamped", k,
-            _msg(ts, "geometry_msgs/msg/PoseStamped", header=_header(ts, k, ros1),
-                 pose=_pose_msg(ts, sim["truth"][k])))
+        pose = _msg(
+            ts,
+            "geometry_msgs/msg/PoseWithCovariance",
+            pose=_pose_msg(ts, sim["odo"][k]),
+            covariance=cov.ravel().copy(),
+        )
+        add(
+            "/rover/odom",
+            "nav_msgs/msg/Odometry",
+            k,
+            _msg(
+                ts,
+                "nav_msgs/msg/Odometry",
+                header=_header(ts, k, ros1, "odom"),
+                child_frame_id="base_link",
+                pose=pose,
+                twist=zero_twist,
+            ),
+        )
+        add(
+            "/rover/truth",
+            "geometry_msgs/msg/PoseStamped",
+            k,
+            _msg(
+                ts,
+                "geometry_msgs/msg/PoseStamped",
+                header=_header(ts, k, ros1),
+                pose=_pose_msg(ts, sim["truth"][k]),
+            ),
+        )
         for b in BEACONS:
-            add(f"/rover/uwb/{b}", "sensor_msgs/msg/Range", k,
-                _range_msg(ts, k, ros1, sim["ranges"][b][k]))
+            add(
+                f"/rover/uwb/{b}",
+                "sensor_msgs/msg/Range",
+                k,
+                _range_msg(ts, k, ros1, sim["ranges"][b][k]),
+            )
     if bad:  # each one a counted skip
         add("/rover/uwb/b1", "sensor_msgs/msg/Range", 3, _range_msg(ts, 3, ros1, float("nan")))
         add("/rover/uwb/b2", "sensor_msgs/msg/Range", 4, _range_msg(ts, 4, ros1, 80.0))
         add("/rover/bearing", "sensor_msgs/msg/Range", 5, _range_msg(ts, 5, ros1, 2.0))
         zero = _msg(ts, "geometry_msgs/msg/Vector3", x=0.0, y=0.0, z=0.0)
-        add("/rover/look", "geometry_msgs/msg/Vector3Stamped", 6,
-            _msg(ts, "geometry_msgs/msg/Vector3Stamped", header=_header(ts, 6, ros1), vector=zero))
+        add(
+            "/rover/look",
+            "geometry_msgs/msg/Vector3Stamped",
+            6,
+            _msg(ts, "geometry_msgs/msg/Vector3Stamped", header=_header(ts, 6, ros1), vector=zero),
+        )
         add("/rover/look", "geometry_msgs/msg/Vector3Stamped", 7, b"\x00\x01\x00")
         add("/chatter", "std_msgs/msg/String", 8, _msg(ts, "std_msgs/msg/String", data="hi"))
     return out
@@ -221,8 +297,10 @@ def test_import_then_smooth_gives_the_native_estimates(kind, native, tmp_path):
     bag = write_bag(sim, tmp_path / ("run.bag" if kind == "ros1" else "run"), kind)
     (tmp_path / "topics.yaml").write_text(yaml.safe_dump(TOPICS))
     run = tmp_path / "imported"
-    assert main(["import", str(bag), "--topics", str(tmp_path / "topics.yaml"),
-                 "--out", str(run)]) == 0
+    assert (
+        main(["import", str(bag), "--topics", str(tmp_path / "topics.yaml"), "--out", str(run)])
+        == 0
+    )
     assert main(["smooth", str(run), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
     got = estimates(tmp_path / "out")
     assert want and got.keys() == want.keys()
@@ -243,9 +321,11 @@ def test_open_run_finds_topics_beside_the_bag_and_mcap_file(native, tmp_path):
 
     with AnyReader([bag]) as reader:  # the bag order is not the header-stamp order
         conns = [c for c in reader.connections if c.topic == "/rover/odom"]
-        stamps = [reader.deserialize(raw, c.msgtype).header.stamp.sec * 1e9
-                  + reader.deserialize(raw, c.msgtype).header.stamp.nanosec
-                  for c, _, raw in reader.messages(connections=conns)]
+        stamps = [
+            reader.deserialize(raw, c.msgtype).header.stamp.sec * 1e9
+            + reader.deserialize(raw, c.msgtype).header.stamp.nanosec
+            for c, _, raw in reader.messages(connections=conns)
+        ]
     assert stamps != sorted(stamps)
     team = open_run(bag)
     assert team.contributions["range"] == N * len(BEACONS)
@@ -266,17 +346,35 @@ def test_bad_messages_are_counted_skips_naming_topic_and_index(kind, native, tmp
     bag = write_bag(sim, tmp_path / ("run.bag" if kind == "ros1" else "run"), kind, bad=True)
     topics = json.loads(json.dumps(TOPICS))
     topics["robots"][0]["sensors"].append({"name": "cam", "type": "bearing"})
-    topics["topics"]["/rover/bearing"] = {"robot": "rover", "table": "bearing", "sensor": "cam",
-                                          "target": "b1"}
-    topics["topics"]["/rover/look"] = {"robot": "rover", "table": "bearing", "sensor": "cam",
-                                       "target": "b2"}
-    topics["topics"]["/rover/absent"] = {"robot": "rover", "table": "bearing", "sensor": "cam",
-                                         "target": "b3"}
+    topics["topics"]["/rover/bearing"] = {
+        "robot": "rover",
+        "table": "bearing",
+        "sensor": "cam",
+        "target": "b1",
+    }
+    topics["topics"]["/rover/look"] = {
+        "robot": "rover",
+        "table": "bearing",
+        "sensor": "cam",
+        "target": "b2",
+    }
+    topics["topics"]["/rover/absent"] = {
+        "robot": "rover",
+        "table": "bearing",
+        "sensor": "cam",
+        "target": "b3",
+    }
     (tmp_path / "topics.yaml").write_text(yaml.safe_dump(topics))
     result = import_bag(bag, tmp_path / "topics.yaml", tmp_path / "log")
     counts = result.skips.counts
-    assert counts == {"not_finite": 1, "out_of_range": 1, "wrong_type": 1, "bad_direction": 1,
-                      "undecodable": 1, "missing_topic": 1}, result.skips.as_dict()
+    assert counts == {
+        "not_finite": 1,
+        "out_of_range": 1,
+        "wrong_type": 1,
+        "bad_direction": 1,
+        "undecodable": 1,
+        "missing_topic": 1,
+    }, result.skips.as_dict()
     assert result.unmapped == ["/chatter"]
     text = "\n".join(result.skips.examples)
     assert "topic '/rover/bearing' message 0" in text and "topic '/rover/look' message" in text
@@ -319,8 +417,12 @@ def test_topics_file_errors_name_file_and_field(tmp_path, capsys):
     bad["topics"]["/rover/odom"]["robot"] = "rovr"
     (tmp_path / "t.yaml").write_text(yaml.safe_dump(bad))
     bag = write_bag(simulate(), tmp_path / "b.bag", "ros1")
-    assert main(["import", str(bag), "--topics", str(tmp_path / "t.yaml"),
-                 "--out", str(tmp_path / "o")]) == 2
+    assert (
+        main(
+            ["import", str(bag), "--topics", str(tmp_path / "t.yaml"), "--out", str(tmp_path / "o")]
+        )
+        == 2
+    )
     assert "t.yaml: topics['/rover/odom']: field 'robot'" in capsys.readouterr().err
     # no topics file beside the bag: open_run says where it looked and what to do
     with pytest.raises(FileNotFoundError, match="graphloc import"):
@@ -332,13 +434,12 @@ VISION_MSGS = {  # vision_msgs 4 (ROS 2 Humble), not in rosbags' stores: the bag
     "vision_msgs/msg/Pose2D": "vision_msgs/Point2D position\nfloat64 theta\n",
     "vision_msgs/msg/BoundingBox2D": "vision_msgs/Pose2D center\nfloat64 size_x\nfloat64 size_y\n",
     "vision_msgs/msg/ObjectHypothesis": "string class_id\nfloat64 score\n",
-    "vision_msgs/msg/ObjectHypothesisWithPose":
-        "vision_msgs/ObjectHypothesis hypothesis\ngeometry_msgs/PoseWithCovariance pose\n",
+    "vision_msgs/msg/ObjectHypothesisWithPose": "vision_msgs/ObjectHypothesis hypothesis\ngeometry_msgs/PoseWithCovariance pose\n",
     "vision_msgs/msg/Detection2D": "std_msgs/Header header\n"
-        "vision_msgs/ObjectHypothesisWithPose[] results\n"
-        "vision_msgs/BoundingBox2D bbox\nstring id\n",
+    "vision_msgs/ObjectHypothesisWithPose[] results\n"
+    "vision_msgs/BoundingBox2D bbox\nstring id\n",
     "vision_msgs/msg/Detection2DArray": "std_msgs/Header header\n"
-                                        "vision_msgs/Detection2D[] detections\n",
+    "vision_msgs/Detection2D[] detections\n",
 }
 
 
@@ -351,18 +452,35 @@ def test_detection2d_array_becomes_marker_rows(tmp_path):
         types.update(get_types_from_msg(text, name))
     ts.register(types)
     zero = np.zeros(36)
-    pose = _msg(ts, "geometry_msgs/msg/PoseWithCovariance",
-                pose=_pose_msg(ts, gtsam.Pose3()), covariance=zero)
+    pose = _msg(
+        ts,
+        "geometry_msgs/msg/PoseWithCovariance",
+        pose=_pose_msg(ts, gtsam.Pose3()),
+        covariance=zero,
+    )
 
     def detection(k, cid, u, v):
-        hyp = _msg(ts, "vision_msgs/msg/ObjectHypothesisWithPose", pose=pose,
-                   hypothesis=_msg(ts, "vision_msgs/msg/ObjectHypothesis", class_id=cid,
-                                   score=0.9))
-        centre = _msg(ts, "vision_msgs/msg/Pose2D", theta=0.0,
-                      position=_msg(ts, "vision_msgs/msg/Point2D", x=u, y=v))
+        hyp = _msg(
+            ts,
+            "vision_msgs/msg/ObjectHypothesisWithPose",
+            pose=pose,
+            hypothesis=_msg(ts, "vision_msgs/msg/ObjectHypothesis", class_id=cid, score=0.9),
+        )
+        centre = _msg(
+            ts,
+            "vision_msgs/msg/Pose2D",
+            theta=0.0,
+            position=_msg(ts, "vision_msgs/msg/Point2D", x=u, y=v),
+        )
         box = _msg(ts, "vision_msgs/msg/BoundingBox2D", center=centre, size_x=4.0, size_y=4.0)
-        return _msg(ts, "vision_msgs/msg/Detection2D", header=_header(ts, k, False), id="",
-                    results=[hyp], bbox=box)
+        return _msg(
+            ts,
+            "vision_msgs/msg/Detection2D",
+            header=_header(ts, k, False),
+            id="",
+            results=[hyp],
+            bbox=box,
+        )
 
     name = "vision_msgs/msg/Detection2DArray"
     bag = tmp_path / "cam.mcap.d"
@@ -376,14 +494,29 @@ def test_detection2d_array_becomes_marker_rows(tmp_path):
     camera = {"fx": 500.0, "fy": 500.0, "cx": 320.0, "cy": 240.0, "width": 640, "height": 480}
     topics = {
         "robots": [
-            {"name": "climber", "kind": "ceiling", "planar": False,
-             "initial_pose": [0, 0, 3, 1, 0, 0, 0],
-             "sensors": [{"name": "camera", "type": "camera", "params": camera}]},
-            {"name": "ground", "kind": "ground", "static": True, "initial_pose": [0, 0, 0],
-             "markers": [[0.2, 0, 0.3], [-0.1, 0.2, 0.3], [-0.1, -0.2, 0.3]]},
+            {
+                "name": "climber",
+                "kind": "ceiling",
+                "planar": False,
+                "initial_pose": [0, 0, 3, 1, 0, 0, 0],
+                "sensors": [{"name": "camera", "type": "camera", "params": camera}],
+            },
+            {
+                "name": "ground",
+                "kind": "ground",
+                "static": True,
+                "initial_pose": [0, 0, 0],
+                "markers": [[0.2, 0, 0.3], [-0.1, 0.2, 0.3], [-0.1, -0.2, 0.3]],
+            },
         ],
-        "topics": {"/cam/leds": {"robot": "climber", "table": "markers", "sensor": "camera",
-                                 "classes": {f"led{i}": ["ground", i] for i in range(3)}}},
+        "topics": {
+            "/cam/leds": {
+                "robot": "climber",
+                "table": "markers",
+                "sensor": "camera",
+                "classes": {f"led{i}": ["ground", i] for i in range(3)},
+            }
+        },
     }
     (tmp_path / "topics.yaml").write_text(yaml.safe_dump(topics))
     result = import_bag(bag, tmp_path / "topics.yaml", tmp_path / "log")

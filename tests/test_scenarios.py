@@ -9,8 +9,12 @@ from graphloc.datasets.kaushik import SIDE, KaushikConfig, led_triangle, simulat
 from graphloc.datasets.scenarios import generate, parse_overrides
 from graphloc.io import iter_records, read_manifest
 
-SMALL = {"feng-deterministic": {}, "feng-probabilistic": {"max_time": "1.0"},
-         "kaushik-p3p-error": {"frames": "4"}, "breitenmoser-target": {"frames": "3"}}
+SMALL = {
+    "feng-deterministic": {},
+    "feng-probabilistic": {"max_time": "1.0"},
+    "kaushik-p3p-error": {"frames": "4"},
+    "breitenmoser-target": {"frames": "3"},
+}
 
 
 @pytest.mark.parametrize("name", sorted(SMALL))
@@ -28,23 +32,41 @@ def test_generate_writes_readable_log_with_groundtruth(tmp_path, name):
 
 
 def test_registry_names_map_to_classes():
-    for name in ("feng-deterministic", "feng-probabilistic", "kaushik-p3p-error", "breitenmoser-target", "dual-robot-room"):
+    for name in (
+        "feng-deterministic",
+        "feng-probabilistic",
+        "kaushik-p3p-error",
+        "breitenmoser-target",
+        "dual-robot-room",
+    ):
         assert dataset_class(name) is not None
 
 
 def test_simulate_verb_and_bad_input(tmp_path, capsys):
-    assert main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "k"), "--set", "frames=3"]) == 0
+    assert (
+        main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "k"), "--set", "frames=3"])
+        == 0
+    )
     assert (tmp_path / "k" / "manifest.json").is_file()
     assert main(["simulate", "no-such-scenario", "--out", str(tmp_path / "x")]) == 2
     assert main(["simulate", "mrclam", "--out", str(tmp_path / "x")]) == 2
-    assert main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "x"), "--set", "bogus=1"]) == 2
-    assert main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "x"), "--set", "focal_mm"]) == 2
+    assert (
+        main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "x"), "--set", "bogus=1"])
+        == 2
+    )
+    assert (
+        main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "x"), "--set", "focal_mm"])
+        == 2
+    )
     err = capsys.readouterr().err
     assert "no-such-scenario" in err and "bogus" in err and "KEY=VALUE" in err
 
 
 def test_parse_overrides_types():
-    assert parse_overrides(KaushikConfig, {"focal_mm": "26", "runs": "5"}) == {"focal_mm": 26.0, "runs": 5}
+    assert parse_overrides(KaushikConfig, {"focal_mm": "26", "runs": "5"}) == {
+        "focal_mm": 26.0,
+        "runs": 5,
+    }
     with pytest.raises(ValueError, match="noise_variance"):
         parse_overrides(KaushikConfig, {"noise_variance": "[1]"})
     with pytest.raises(ValueError, match="integer"):
@@ -67,5 +89,8 @@ def test_kaushik_geometry_and_genuine_candidate():
 
 @pytest.mark.slow
 def test_dual_robot_room_through_simulate(tmp_path):
-    assert main(["simulate", "dual-robot-room", "--out", str(tmp_path / "d"), "--set", "frames=2"]) == 0
+    assert (
+        main(["simulate", "dual-robot-room", "--out", str(tmp_path / "d"), "--set", "frames=2"])
+        == 0
+    )
     assert any((tmp_path / "d").iterdir())

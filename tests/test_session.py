@@ -5,10 +5,20 @@ import gtsam
 import numpy as np
 import pytest
 
-from graphloc.factors.odometry import (VelocityNoise, between_factor, compose_poses, integrate_unicycle,
-                                       relative_poses)
-from graphloc.factors.range_bearing import (bearing_range_2d, landmark_factor_2d, landmark_factor_3d,
-                                            robot_factor_2d, to_body_frame_2d)
+from graphloc.factors.odometry import (
+    VelocityNoise,
+    between_factor,
+    compose_poses,
+    integrate_unicycle,
+    relative_poses,
+)
+from graphloc.factors.range_bearing import (
+    bearing_range_2d,
+    landmark_factor_2d,
+    landmark_factor_3d,
+    robot_factor_2d,
+    to_body_frame_2d,
+)
 from graphloc.factors.robust import Kernel, KernelPolicy, downweighted, robust_noise
 from graphloc.keys import landmark_key, pose_key
 from graphloc.session import Session, SessionConfig
@@ -36,33 +46,62 @@ def _problem(n_steps=30, n_outliers=3, seed=RNG_SEED):
         for r, poses in truth.items():
             key = pose_key(r, k)
             if k == 0:
-                graph.add(gtsam.PriorFactorPose2(key, gtsam.Pose2(*poses[0]), gtsam.noiseModel.Isotropic.Sigma(3, 0.01)))
+                graph.add(
+                    gtsam.PriorFactorPose2(
+                        key, gtsam.Pose2(*poses[0]), gtsam.noiseModel.Isotropic.Sigma(3, 0.01)
+                    )
+                )
                 values.insert(key, gtsam.Pose2(*poses[0]))
             else:
-                delta = relative_poses(poses[k - 1:k + 1])[0] + rng.normal(0, odo_sig)
-                graph.add(between_factor(pose_key(r, k - 1), key, gtsam.Pose2(*delta), np.diag(odo_sig ** 2)))
+                delta = relative_poses(poses[k - 1 : k + 1])[0] + rng.normal(0, odo_sig)
+                graph.add(
+                    between_factor(
+                        pose_key(r, k - 1), key, gtsam.Pose2(*delta), np.diag(odo_sig**2)
+                    )
+                )
                 dr[r] = compose_poses(dr[r][None], delta[None])[0]
                 values.insert(key, gtsam.Pose2(*dr[r]))
-            b, rng_ = bearing_range_2d(np.repeat(poses[k:k + 1], 4, 0), landmarks)
+            b, rng_ = bearing_range_2d(np.repeat(poses[k : k + 1], 4, 0), landmarks)
             for j in range(4):
                 meas_r = rng_[j] + rng.normal(0, rb_sig[1])
                 if j == 0 and r == 0 and k in outlier_steps:
                     meas_r += 4.0  # gross outlier (misread)
-                graph.add(landmark_factor_2d(key, landmark_key(j), b[j] + rng.normal(0, rb_sig[0]), meas_r, rb_sig,
-                                             kern.kernel("landmark")))
-        b, rr = bearing_range_2d(truth[0][k:k + 1], truth[1][k:k + 1, :2])
-        graph.add(robot_factor_2d(pose_key(0, k), pose_key(1, k), b[0], rr[0], rb_sig, kern.kernel("inter_robot")))
+                graph.add(
+                    landmark_factor_2d(
+                        key,
+                        landmark_key(j),
+                        b[j] + rng.normal(0, rb_sig[0]),
+                        meas_r,
+                        rb_sig,
+                        kern.kernel("landmark"),
+                    )
+                )
+        b, rr = bearing_range_2d(truth[0][k : k + 1], truth[1][k : k + 1, :2])
+        graph.add(
+            robot_factor_2d(
+                pose_key(0, k), pose_key(1, k), b[0], rr[0], rb_sig, kern.kernel("inter_robot")
+            )
+        )
         if k == 0:
             for j, xy in enumerate(landmarks):
-                graph.add(gtsam.PriorFactorPoint2(landmark_key(j), xy, gtsam.noiseModel.Isotropic.Sigma(2, 1e-3)))
+                graph.add(
+                    gtsam.PriorFactorPoint2(
+                        landmark_key(j), xy, gtsam.noiseModel.Isotropic.Sigma(2, 1e-3)
+                    )
+                )
                 values.insert(landmark_key(j), xy + 0.1)
         steps.append((graph, values, float(t[k])))
     return steps, truth, len(outlier_steps)
 
 
 def _errors(values, truth):
-    return np.array([np.hypot(*(values.atPose2(pose_key(r, k)).translation() - truth[r][k, :2]))
-                     for r in truth for k in range(len(truth[r]))])
+    return np.array(
+        [
+            np.hypot(*(values.atPose2(pose_key(r, k)).translation() - truth[r][k, :2]))
+            for r in truth
+            for k in range(len(truth[r]))
+        ]
+    )
 
 
 def _run(mode, steps, **cfg):
@@ -78,8 +117,8 @@ def test_batch_and_online_agree_and_beat_odometry(optimizer):
     batch = _run("batch", steps)
     online = _run("online", steps, isam2_optimizer=optimizer)
     eb, eo = _errors(batch.estimate(), truth), _errors(online.estimate(), truth)
-    assert np.sqrt(np.mean(eb ** 2)) < 0.05
-    assert np.sqrt(np.mean(eo ** 2)) < 1.2 * np.sqrt(np.mean(eb ** 2)) + 0.01
+    assert np.sqrt(np.mean(eb**2)) < 0.05
+    assert np.sqrt(np.mean(eo**2)) < 1.2 * np.sqrt(np.mean(eb**2)) + 0.01
     assert batch.batch_iterations >= 1
     assert len(online.latencies()) == len(steps) and np.all(online.latencies() > 0)
     # the outliers are the factors the kernel down-weights
@@ -110,8 +149,10 @@ def test_online_save_resume_identical(tmp_path):
     assert a.keys() == b.keys()
     for k in a.keys():  # bit for bit
         pose = gtsam.Symbol(k).chr() == ord("x")
-        np.testing.assert_array_equal(a.atPose2(k).matrix() if pose else a.atPoint2(k),
-                                      b.atPose2(k).matrix() if pose else b.atPoint2(k))
+        np.testing.assert_array_equal(
+            a.atPose2(k).matrix() if pose else a.atPoint2(k),
+            b.atPose2(k).matrix() if pose else b.atPoint2(k),
+        )
 
 
 def test_batch_save_load_same_graph(tmp_path):
@@ -126,12 +167,20 @@ def test_batch_save_load_same_graph(tmp_path):
 def test_session_rejects_bad_input(tmp_path):
     s = Session(SessionConfig(mode="online"))
     g = gtsam.NonlinearFactorGraph()
-    g.add(gtsam.PriorFactorPose2(pose_key(0, 0), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 1)))
+    g.add(
+        gtsam.PriorFactorPose2(
+            pose_key(0, 0), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 1)
+        )
+    )
     v = gtsam.Values()
     v.insert(pose_key(0, 0), gtsam.Pose2())
     s.add(g, v, time=1.0)
     g2 = gtsam.NonlinearFactorGraph()
-    g2.add(gtsam.BetweenFactorPose2(pose_key(0, 0), pose_key(0, 1), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 1)))
+    g2.add(
+        gtsam.BetweenFactorPose2(
+            pose_key(0, 0), pose_key(0, 1), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 1)
+        )
+    )
     with pytest.raises(ValueError, match="without a value"):
         s.add(g2, gtsam.Values(), time=2.0)
     v2 = gtsam.Values()
@@ -173,19 +222,25 @@ def test_integrate_unicycle_exact_circle_and_covariance():
         vv = 0.5 + rng.normal(0, noise.density_v / np.sqrt(dt), ts.size)
         ww = 0.3 + rng.normal(0, noise.density_w / np.sqrt(dt), ts.size)
         samples.append(integrate_unicycle(ts, vv, ww, np.array([0.0, 1.0]), noise).deltas[0])
-    nominal = integrate_unicycle(ts, np.full(ts.size, 0.5), np.full(ts.size, 0.3), np.array([0.0, 1.0]), noise)
+    nominal = integrate_unicycle(
+        ts, np.full(ts.size, 0.5), np.full(ts.size, 0.3), np.array([0.0, 1.0]), noise
+    )
     d = np.array(samples) - nominal.deltas[0]
     # express the spread in the end frame's tangent (rotate by the relative heading)
     c, s = np.cos(nominal.deltas[0, 2]), np.sin(nominal.deltas[0, 2])
     body = np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]], 1)
     mc, model = np.cov(body.T), nominal.covariances[0]
-    scale = np.sqrt(np.outer(np.diag(model), np.diag(model)))  # sampling std of a covariance entry ~ scale/sqrt(N)
+    scale = np.sqrt(
+        np.outer(np.diag(model), np.diag(model))
+    )  # sampling std of a covariance entry ~ scale/sqrt(N)
     assert np.all(np.abs(mc - model) < 4 * scale / np.sqrt(len(samples)) + 1e-6)
 
 
 def test_integrate_unicycle_rejects_bad_input():
     with pytest.raises(ValueError, match="NaN"):
-        integrate_unicycle(np.array([0.0, 1.0]), np.array([0.1, np.nan]), np.zeros(2), np.array([0.0, 1.0]))
+        integrate_unicycle(
+            np.array([0.0, 1.0]), np.array([0.1, np.nan]), np.zeros(2), np.array([0.0, 1.0])
+        )
     with pytest.raises(ValueError, match="non-decreasing"):
         integrate_unicycle(np.array([1.0, 0.0]), np.zeros(2), np.zeros(2), np.array([0.0, 1.0]))
 
@@ -248,7 +303,9 @@ def test_save_rejects_a_bare_custom_factor_with_a_clear_error(tmp_path):
     session = Session(SessionConfig(mode="online"))
     values = gtsam.Values()
     values.insert(1, gtsam.Pose3())
-    session.add([gtsam.CustomFactor(gtsam.noiseModel.Unit.Create(6), [1], unit_error)], values, time=0.0)
+    session.add(
+        [gtsam.CustomFactor(gtsam.noiseModel.Unit.Create(6), [1], unit_error)], values, time=0.0
+    )
     with pytest.raises(ValueError, match="bare gtsam.CustomFactor"):
         session.save(tmp_path / "s.pkl")
 
@@ -258,8 +315,15 @@ def test_unknown_keys_are_clear_errors(mode):
     session = Session(SessionConfig(mode=mode))
     values = gtsam.Values()
     values.insert(pose_key(0, 0), gtsam.Pose2())
-    session.add([gtsam.PriorFactorPose2(pose_key(0, 0), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 0.1))],
-                values, time=1.0)
+    session.add(
+        [
+            gtsam.PriorFactorPose2(
+                pose_key(0, 0), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)
+            )
+        ],
+        values,
+        time=1.0,
+    )
     with pytest.raises(ValueError, match="no variable"):
         session.estimate([pose_key(0, 1)])
     with pytest.raises(ValueError, match="no variable"):
@@ -267,8 +331,17 @@ def test_unknown_keys_are_clear_errors(mode):
     assert session.marginal_covariance(pose_key(0, 0)).shape == (3, 3)
     values = gtsam.Values()
     values.insert(pose_key(0, 1), gtsam.Pose2())
-    session.add([gtsam.BetweenFactorPose2(pose_key(0, 0), pose_key(0, 1), gtsam.Pose2(),
-                                          gtsam.noiseModel.Isotropic.Sigma(3, 0.1))], values)  # time None: same as before
+    session.add(
+        [
+            gtsam.BetweenFactorPose2(
+                pose_key(0, 0),
+                pose_key(0, 1),
+                gtsam.Pose2(),
+                gtsam.noiseModel.Isotropic.Sigma(3, 0.1),
+            )
+        ],
+        values,
+    )  # time None: same as before
     assert session.steps[-1].time == 1.0
 
 
@@ -281,17 +354,26 @@ def _every_saved_type() -> tuple[list, gtsam.Values]:
     est = nm.mEstimator
     rng = np.random.default_rng(3)
     P3 = [gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3)), rng.normal(size=3)) for _ in range(3)]
-    P2 = [gtsam.Pose2(*rng.normal(size=3)).compose(gtsam.Pose2(*rng.normal(size=3)))
-          for _ in range(2)]
+    P2 = [
+        gtsam.Pose2(*rng.normal(size=3)).compose(gtsam.Pose2(*rng.normal(size=3))) for _ in range(2)
+    ]
     x0, x1, x2 = (pose_key(0, i) for i in range(3))
     y0, y1 = pose_key(1, 0), pose_key(1, 1)
     l2, l3, m3 = landmark_key(0), landmark_key(1), landmark_key(2)
     r3, r2 = pose_key(2, 0), pose_key(2, 1)
     v = gtsam.Values()
-    for key, value in ((x0, P3[0]), (x1, P3[1]), (x2, P3[2]), (y0, P2[0]), (y1, P2[1]),
-                       (l2, rng.normal(size=2)), (l3, rng.normal(size=3) + [0, 0, 5]),
-                       (m3, rng.normal(size=3)), (r3, gtsam.Rot3.Expmap(rng.normal(size=3))),
-                       (r2, gtsam.Rot2(0.3))):
+    for key, value in (
+        (x0, P3[0]),
+        (x1, P3[1]),
+        (x2, P3[2]),
+        (y0, P2[0]),
+        (y1, P2[1]),
+        (l2, rng.normal(size=2)),
+        (l3, rng.normal(size=3) + [0, 0, 5]),
+        (m3, rng.normal(size=3)),
+        (r3, gtsam.Rot3.Expmap(rng.normal(size=3))),
+        (r2, gtsam.Rot2(0.3)),
+    ):
         v.insert(key, value)
     huber, cauchy = est.Huber.Create(1.345), est.Cauchy.Create(2.5)
     tukey, gm = est.Tukey.Create(4.685), est.GemanMcClure.Create(1.1)
@@ -302,11 +384,13 @@ def _every_saved_type() -> tuple[list, gtsam.Values]:
     cal = gtsam.Cal3_S2(500.0, 510.0, 0.0, 320.0, 240.0)
     factors = [
         gtsam.PriorFactorPose3(x0, P3[0], nm.Gaussian.Covariance(np.cov(rng.normal(size=(6, 40))))),
-        gtsam.BetweenFactorPose3(x0, x1, P3[0].between(P3[1]),
-                                 nm.Robust.Create(huber, nm.Unit.Create(6))),
+        gtsam.BetweenFactorPose3(
+            x0, x1, P3[0].between(P3[1]), nm.Robust.Create(huber, nm.Unit.Create(6))
+        ),
         gtsam.PriorFactorPose2(y0, P2[0], nm.Diagonal.Sigmas([0.1, 0.2, 0.05])),
-        gtsam.BetweenFactorPose2(y0, y1, P2[0].between(P2[1]),
-                                 nm.Robust.Create(cauchy, iso(3, 0.1))),
+        gtsam.BetweenFactorPose2(
+            y0, y1, P2[0].between(P2[1]), nm.Robust.Create(cauchy, iso(3, 0.1))
+        ),
         gtsam.PriorFactorPoint2(l2, np.array([0.5, 0.25]), iso(2, 0.3)),
         gtsam.PriorFactorPoint3(l3, np.array([0.0, 0.5, 5.0]), iso(3, 0.3)),
         gtsam.BetweenFactorPoint3(l3, m3, np.array([1.0, 2.0, 3.0]), iso(3, 0.3)),
@@ -315,18 +399,27 @@ def _every_saved_type() -> tuple[list, gtsam.Values]:
         gtsam.RangeFactor3(l3, m3, 4.0, nm.Robust.Create(tukey, iso(1, 0.1))),
         gtsam.RangeFactorPose3(x0, x1, 2.0, iso(1, 0.1)),
         gtsam.RangeFactorWithTransformPose3(x1, x2, 2.0, iso(1, 0.1), P3[2]),
-        gtsam.BearingRangeFactor2D(y0, l2, gtsam.Rot2(0.4), 1.5,
-                                   nm.Robust.Create(gm, nm.Diagonal.Sigmas([0.01, 0.1]))),
-        gtsam.BearingRangeFactorPose2(y0, y1, gtsam.Rot2(-0.4), 1.5,
-                                      nm.Diagonal.Sigmas([0.01, 0.1])),
+        gtsam.BearingRangeFactor2D(
+            y0, l2, gtsam.Rot2(0.4), 1.5, nm.Robust.Create(gm, nm.Diagonal.Sigmas([0.01, 0.1]))
+        ),
+        gtsam.BearingRangeFactorPose2(
+            y0, y1, gtsam.Rot2(-0.4), 1.5, nm.Diagonal.Sigmas([0.01, 0.1])
+        ),
         gtsam.BearingRangeFactor3D(x0, l3, u, 3.0, nm.Robust.Create(dcs, iso(3, 0.1))),
         gtsam.BearingRangeFactorPose3(x0, x2, u, 3.0, iso(3, 0.1)),
         gtsam.BearingFactor3D(x1, l3, u, iso(2, 0.01)),
         gtsam.AttitudeFactorPose3(x2, up, iso(2, 0.1), north),
         gtsam.GenericProjectionFactorCal3_S2(np.array([320.5, 240.25]), iso(2, 1.0), x0, l3, cal),
-        max_mixture_factor([gtsam.PriorFactorPose3(x2, P3[2], iso(6, 0.1)),
-                            [gtsam.PriorFactorPose3(x2, P3[1], iso(6, 0.2)),
-                             gtsam.PriorFactorPose3(x2, P3[0], iso(6, 0.3))]], [0.7, 0.3]),
+        max_mixture_factor(
+            [
+                gtsam.PriorFactorPose3(x2, P3[2], iso(6, 0.1)),
+                [
+                    gtsam.PriorFactorPose3(x2, P3[1], iso(6, 0.2)),
+                    gtsam.PriorFactorPose3(x2, P3[0], iso(6, 0.3)),
+                ],
+            ],
+            [0.7, 0.3],
+        ),
     ]
     return factors, v
 
@@ -373,8 +466,9 @@ def _small_session() -> Session:
     s = Session(SessionConfig(mode="online"))
     v = gtsam.Values()
     v.insert(pose_key(0, 0), gtsam.Pose2(1, 2, 0.3))
-    prior = gtsam.PriorFactorPose2(pose_key(0, 0), gtsam.Pose2(1, 2, 0.3),
-                                   gtsam.noiseModel.Isotropic.Sigma(3, 0.1))
+    prior = gtsam.PriorFactorPose2(
+        pose_key(0, 0), gtsam.Pose2(1, 2, 0.3), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)
+    )
     s.add([prior], v, time=0.0)
     return s
 
@@ -394,34 +488,59 @@ def _rewrite(path, edit):
 
 ITEM = ("steps", 0, "items", 0)
 I0 = "step 0, item 0: "
-ROBUST_IN_ROBUST = {"robust": "Huber", "scheme": 1, "k": 1,
-                    "base": {"robust": "Huber", "scheme": 1, "k": 1, "base": {"unit": 3}}}
+ROBUST_IN_ROBUST = {
+    "robust": "Huber",
+    "scheme": 1,
+    "k": 1,
+    "base": {"robust": "Huber", "scheme": 1, "k": 1, "base": {"unit": 3}},
+}
 MALFORMED_BODIES = [  # (where in the body, the value written there, the reason load must give)
     (ITEM + ("type",), "PythonObject", I0 + "unknown factor type 'PythonObject'"),
     (ITEM + ("keys",), [1, 2], I0 + r"PriorFactorPose2 needs 1 keys.*got \[1, 2\]"),
     (ITEM + ("keys",), [-1], I0 + r"PriorFactorPose2 needs 1 keys"),
-    (ITEM + ("keys",), [1],
-     r"step 0: Session.add: factors reference keys without a value: \['1'\]"),
-    (ITEM + ("keys",), [2 ** 64 - 1],  # a symbol GTSAM cannot print: the number instead
-     r"step 0: Session.add: factors reference keys without a value: \['18446744073709551615'\]"),
+    (
+        ITEM + ("keys",),
+        [1],
+        r"step 0: Session.add: factors reference keys without a value: \['1'\]",
+    ),
+    (
+        ITEM + ("keys",),
+        [2**64 - 1],  # a symbol GTSAM cannot print: the number instead
+        r"step 0: Session.add: factors reference keys without a value: \['18446744073709551615'\]",
+    ),
     (ITEM + ("measured",), [1, 2, 3], I0 + "a pose2 measurement needs 4 numbers, got 3"),
     (ITEM + ("measured",), [1, 2, 2.0, 0.0], I0 + r"rotation \(cos, sin\) = \(2.0, 0.0\) is not a"),
     (ITEM + ("measured",), [1, 2, "1", 0], I0 + "measured: expected a list of finite numbers"),
     (ITEM + ("noise",), {"isotropic": 3, "sigma": -1}, I0 + "isotropic sigma must be > 0"),
-    (ITEM + ("noise",), {"isotropic": 2, "sigma": 1},
-     I0 + r"GTSAM rejected the PriorFactorPose2 \(noiseModel::validOrDefault: mis-matched model"),
+    (
+        ITEM + ("noise",),
+        {"isotropic": 2, "sigma": 1},
+        I0 + r"GTSAM rejected the PriorFactorPose2 \(noiseModel::validOrDefault: mis-matched model",
+    ),
     (ITEM + ("noise",), {"sigmas": [0.1, 0.0, 0.1]}, I0 + "need 1 to 64 sigmas > 0"),
-    (ITEM + ("noise",), {"sqrt_information": [[1, 0, 0], [1, 1, 0], [0, 0, 1]]},
-     I0 + "sqrt_information must be upper triangular"),
-    (ITEM + ("noise",), {"robust": "os.system", "scheme": 1, "k": 1, "base": {"unit": 3}},
-     I0 + "robust kernel must be one of"),
+    (
+        ITEM + ("noise",),
+        {"sqrt_information": [[1, 0, 0], [1, 1, 0], [0, 0, 1]]},
+        I0 + "sqrt_information must be upper triangular",
+    ),
+    (
+        ITEM + ("noise",),
+        {"robust": "os.system", "scheme": 1, "k": 1, "base": {"unit": 3}},
+        I0 + "robust kernel must be one of",
+    ),
     (ITEM + ("noise",), ROBUST_IN_ROBUST, I0 + "noise model must be an object"),
     (ITEM, {"provider": "pickle"}, I0 + "unknown factor provider 'pickle'"),
-    (ITEM, {"provider": "max_mixture", "components": [], "weights": []},
-     I0 + "max_mixture_factor: no components"),
+    (
+        ITEM,
+        {"provider": "max_mixture", "components": [], "weights": []},
+        I0 + "max_mixture_factor: no components",
+    ),
     (("steps", 0, "values", 0, 1), "module", r"step 0: a value must be \[key, kind, numbers\]"),
-    (("steps", 0, "values", 0, 2), [1e308, 1e308, 1.0, 0.0],
-     "step 0: Session.add at time 0.0: iSAM2 update failed"),
+    (
+        ("steps", 0, "values", 0, 2),
+        [1e308, 1e308, 1.0, 0.0],
+        "step 0: Session.add at time 0.0: iSAM2 update failed",
+    ),
     (("steps", 0, "time"), "now", "step 0: time must be a finite number"),
     (("config", "mode"), 3, "config.mode: expected str, got 3"),
     (("config", "lm_max_iterations"), True, "config.lm_max_iterations: expected int, got True"),
@@ -468,7 +587,7 @@ def test_a_crafted_pickle_runs_no_code_and_damaged_files_are_value_errors(tmp_pa
     good = path.read_bytes()
     cases = {
         b"": r"not a saved graphloc session \(no graphloc-session header line\)",
-        good[:len(good) // 2]: r"truncated or altered: body has \d+ bytes",
+        good[: len(good) // 2]: r"truncated or altered: body has \d+ bytes",
         good[:-3] + b"9}]": "altered or corrupted: the SHA-256",
         good.replace(b'"version": 3', b'"version": 4'): "session format version 4 unsupported",
         b"\xff\xfe garbage": "not a saved graphloc session",
@@ -492,8 +611,18 @@ def test_save_is_atomic(tmp_path, monkeypatch):
     bigger = _small_session()
     v = gtsam.Values()
     v.insert(pose_key(0, 1), gtsam.Pose2())
-    bigger.add([gtsam.BetweenFactorPose2(pose_key(0, 0), pose_key(0, 1), gtsam.Pose2(),
-                                         gtsam.noiseModel.Isotropic.Sigma(3, 0.1))], v, time=1.0)
+    bigger.add(
+        [
+            gtsam.BetweenFactorPose2(
+                pose_key(0, 0),
+                pose_key(0, 1),
+                gtsam.Pose2(),
+                gtsam.noiseModel.Isotropic.Sigma(3, 0.1),
+            )
+        ],
+        v,
+        time=1.0,
+    )
 
     def failing_fsync(fd):
         raise OSError(28, "No space left on device")
@@ -539,6 +668,9 @@ def test_a_loaded_session_gtsam_cannot_solve_is_a_value_error(tmp_path):
 
     _rewrite(path, edit)
     loaded = Session.load(path)
-    with pytest.raises(ValueError, match="Session.estimate: iSAM2 cannot solve the graph "
-                                         r"\(Indeterminate linear system"):
+    with pytest.raises(
+        ValueError,
+        match="Session.estimate: iSAM2 cannot solve the graph "
+        r"\(Indeterminate linear system",
+    ):
         loaded.estimate()

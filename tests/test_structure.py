@@ -11,8 +11,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 # source folder -> the package it is installed as (pyproject.toml's package-dir)
-SOURCES = {"graphloc": ROOT / "graphloc", "graphloc.factors": ROOT / "factors",
-           "graphloc.datasets": ROOT / "datasets"}
+SOURCES = {
+    "graphloc": ROOT / "graphloc",
+    "graphloc.factors": ROOT / "factors",
+    "graphloc.datasets": ROOT / "datasets",
+}
 
 
 def modules() -> dict[str, Path]:
@@ -95,9 +98,7 @@ def cycles(graph: dict[str, set[str]]) -> list[frozenset]:
 
 def test_every_module_imports_in_a_fresh_interpreter():
     names = sorted(modules())
-    code = ("import importlib, sys\n"
-            f"for name in {names!r}:\n"
-            "    importlib.import_module(name)\n")
+    code = f"import importlib, sys\nfor name in {names!r}:\n    importlib.import_module(name)\n"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert done.returncode == 0, done.stderr[-3000:]
 
@@ -119,14 +120,20 @@ def _sources():
 
 
 def test_only_plots_sets_the_matplotlib_backend():
-    setters = {p.relative_to(ROOT).as_posix() for p in _sources()
-               if re.search(r"matplotlib\.use\(", p.read_text(encoding="utf-8"))
-               and p.name != "test_structure.py"}
+    setters = {
+        p.relative_to(ROOT).as_posix()
+        for p in _sources()
+        if re.search(r"matplotlib\.use\(", p.read_text(encoding="utf-8"))
+        and p.name != "test_structure.py"
+    }
     assert setters == {"graphloc/plots.py"}
 
 
 def test_no_absolute_machine_paths_in_the_code():
     machine = re.compile("/" + "(work|root)/")
-    holders = {p.relative_to(ROOT).as_posix() for p in _sources()
-               if machine.search(p.read_text(encoding="utf-8"))}
+    holders = {
+        p.relative_to(ROOT).as_posix()
+        for p in _sources()
+        if machine.search(p.read_text(encoding="utf-8"))
+    }
     assert not holders, f"absolute machine paths in {sorted(holders)}"

@@ -76,8 +76,9 @@ def test_table_iii_quick():
         assert {"belief_def1", "tracker", "paper_table_iii"} <= set(cell)
     assert "| level/line |" in markdown.table_iii(r)
     series = seed000.fig6_series(updates=5)
-    assert all(len(s["tracker"]) == 5 and np.all(np.asarray(s["tracker"]) <= 1.0)
-               for s in series.values())
+    assert all(
+        len(s["tracker"]) == 5 and np.all(np.asarray(s["tracker"]) <= 1.0) for s in series.values()
+    )
 
 
 def test_run_sizes_are_defined_once():
@@ -102,12 +103,33 @@ def test_make_results_quick_writes_every_table(tmp_path):
     CI')."""
     script = Path(__file__).resolve().parents[1] / "scripts" / "make_results.py"
     results = tmp_path / "results.md"
-    subprocess.run([sys.executable, str(script), "--quick", "--workers", "1",
-                    "--out", str(tmp_path / "out"), "--results", str(results)], check=True)
+    subprocess.run(
+        [
+            sys.executable,
+            str(script),
+            "--quick",
+            "--workers",
+            "1",
+            "--out",
+            str(tmp_path / "out"),
+            "--results",
+            str(results),
+        ],
+        check=True,
+    )
     text = results.read_text()
-    for heading in ("Seed 000 Table I", "Seed 000 Table II", "Seed 000 Table III",
-                    "Seed 004 Table 1", "Seed 001 experiment 1"):
+    for heading in (
+        "Seed 000 Table I",
+        "Seed 000 Table II",
+        "Seed 000 Table III",
+        "Seed 004 Table 1",
+        "Seed 001 experiment 1",
+    ):
         assert heading in text
-    for png in ("seed000/fig6_posterior.png", "seed000/table1_errors.png",
-                "seed004/fig3_track.png", "seed004/table1_rms.png"):
+    for png in (
+        "seed000/fig6_posterior.png",
+        "seed000/table1_errors.png",
+        "seed004/fig3_track.png",
+        "seed004/table1_rms.png",
+    ):
         assert (tmp_path / "out" / png).stat().st_size > 0

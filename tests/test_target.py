@@ -10,9 +10,17 @@ import graphloc.vision.target as target_mod
 from graphloc.cameras import PinholeCamera
 from graphloc.vision.markers import detect_markers
 from graphloc.vision.render import RenderConfig, render_markers
-from graphloc.vision.target import (LARGE_TARGET, SMALL_TARGET, TargetDesignConfig, TargetHypothesisConfig,
-                                    design_cost, design_targets, predict_pose, predicted_marker_pixels,
-                                    target_hypotheses)
+from graphloc.vision.target import (
+    LARGE_TARGET,
+    SMALL_TARGET,
+    TargetDesignConfig,
+    TargetHypothesisConfig,
+    design_cost,
+    design_targets,
+    predict_pose,
+    predicted_marker_pixels,
+    target_hypotheses,
+)
 
 CAM = PinholeCamera.from_fov(752, 480, np.pi / 2)
 
@@ -34,7 +42,11 @@ def random_view(rng, dmin=0.7, dmax=1.7):
         direction = rng.normal(size=3)
         direction[2] = abs(direction[2]) + 0.8  # from above, like the seed's quadrotor
         direction /= np.linalg.norm(direction)
-        R, t = look_at(c + rng.uniform(dmin, dmax) * direction, c + rng.normal(0, 0.05, 3), rng.uniform(-np.pi, np.pi))
+        R, t = look_at(
+            c + rng.uniform(dmin, dmax) * direction,
+            c + rng.normal(0, 0.05, 3),
+            rng.uniform(-np.pi, np.pi),
+        )
         px, vis = predicted_marker_pixels(CAM, LARGE_TARGET, (R, t))
         gaps = np.linalg.norm(px[:, None] - px[None], axis=2) + 1e9 * np.eye(4)
         if vis.all() and gaps.min() > 15:
@@ -72,7 +84,9 @@ def test_nelder_mead_design_is_feasible_and_competitive():
     assert design.cost > design.start_costs.max()  # the optimizer improved on every start
     published = float(design_cost(LARGE_TARGET.points[None], cfg))
     assert design.cost > 0.8 * published
-    two = design_targets(TargetDesignConfig(n_targets=2, n_starts=2, n_samples=20000, maxiter=600, seed=2))
+    two = design_targets(
+        TargetDesignConfig(n_targets=2, n_starts=2, n_samples=20000, maxiter=600, seed=2)
+    )
     assert two.points.shape == (2, 4, 3) and two.cost > 0
 
 
@@ -103,7 +117,9 @@ def test_exact_pixels_give_the_true_pose_among_24_assignments(monkeypatch):
         best = int(np.argmax(cands.scores))
         assert pos_err[best] < 1e-6 and rotation_error_deg(cands.R[best], R) < 1e-5
         assign = cands.meta["assignment"][best]
-        np.testing.assert_array_equal(order[assign], np.arange(4))  # marker j <- detection assign[j]
+        np.testing.assert_array_equal(
+            order[assign], np.arange(4)
+        )  # marker j <- detection assign[j]
     assert calls == [(24, 3, 3)] * 10  # ONE batched P3P call per frame
 
 
@@ -115,8 +131,12 @@ def test_noisy_pixels_and_prediction_restricts_assignments():
         noisy = px + rng.normal(0, 0.3, px.shape)
         cands = target_hypotheses(noisy, CAM, LARGE_TARGET, cfg)
         best = int(np.argmax(cands.scores))
-        assert np.linalg.norm(cands.t[best] - t) < 0.04 and rotation_error_deg(cands.R[best], R) < 3.0
-        near = gtsam.Pose3(gtsam.Rot3(R), t).compose(gtsam.Pose3(gtsam.Rot3.Rz(0.02), [0.01, -0.01, 0.01]))
+        assert (
+            np.linalg.norm(cands.t[best] - t) < 0.04 and rotation_error_deg(cands.R[best], R) < 3.0
+        )
+        near = gtsam.Pose3(gtsam.Rot3(R), t).compose(
+            gtsam.Pose3(gtsam.Rot3.Rz(0.02), [0.01, -0.01, 0.01])
+        )
         pred = target_hypotheses(noisy, CAM, LARGE_TARGET, cfg, predicted=near)
         assert pred.meta["prediction_used"] and pred.meta["n_assignments"] < 24
         assert np.linalg.norm(pred.t - t, axis=1).min() < 0.04
@@ -152,7 +172,13 @@ def test_rendered_frame_end_to_end():
     pos, rot = [], []
     for _ in range(8):
         R, t, _ = random_view(rng)
-        frame = render_markers(CAM, (LARGE_TARGET.points - t) @ R, LARGE_TARGET.marker_diameter / 2, RenderConfig(), rng)
+        frame = render_markers(
+            CAM,
+            (LARGE_TARGET.points - t) @ R,
+            LARGE_TARGET.marker_diameter / 2,
+            RenderConfig(),
+            rng,
+        )
         det = detect_markers(frame.image)
         if det.status != "ok":
             continue

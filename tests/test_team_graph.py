@@ -403,7 +403,9 @@ def test_dual_robot_room_scans_through_smooth(tmp_path):
     """dual-robot-room's log: each robot's scans become KISS-ICP odometry steps in the graph and
     the ceiling camera's LED pixels candidate sets on the ground robot."""
     assert main(["simulate", "dual-robot-room", "--out", str(tmp_path / "run")]) == 0
-    assert main(["smooth", str(tmp_path / "run"), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    assert (
+        main(["smooth", str(tmp_path / "run"), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    )
     m = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert m["tables"]["scans"] == 16 and m["tables"]["markers"] > 0
     assert m["counts"]["factors_odometry"] >= 7 and m["decisions"]["candidate_sets"] > 0

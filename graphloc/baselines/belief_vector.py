@@ -46,9 +46,18 @@ class BeliefVectorConfig:
 
     def __post_init__(self):
         if self.likelihood not in LIKELIHOODS:
-            raise ValueError(f"BeliefVectorConfig.likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}")
-        if not (self.gate_distance > 0 and self.gate_interval > 0 and self.lam >= 0 and 0 < self.threshold < 1):
-            raise ValueError("BeliefVectorConfig: gate_distance, gate_interval > 0, lam >= 0, threshold in (0,1)")
+            raise ValueError(
+                f"BeliefVectorConfig.likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}"
+            )
+        if not (
+            self.gate_distance > 0
+            and self.gate_interval > 0
+            and self.lam >= 0
+            and 0 < self.threshold < 1
+        ):
+            raise ValueError(
+                "BeliefVectorConfig: gate_distance, gate_interval > 0, lam >= 0, threshold in (0,1)"
+            )
 
 
 def likelihood(a: np.ndarray, om: np.ndarray, config: BeliefVectorConfig) -> np.ndarray:
@@ -56,12 +65,19 @@ def likelihood(a: np.ndarray, om: np.ndarray, config: BeliefVectorConfig) -> np.
     na, no = np.linalg.norm(a, axis=1), np.linalg.norm(om, axis=1)
     ok = np.isfinite(no)
     with np.errstate(invalid="ignore", divide="ignore"):
-        cos = np.clip(np.einsum("ij,ij->i", a, np.where(ok[:, None], om, 0.0)) / (na * no), -1.0, 1.0)
+        cos = np.clip(
+            np.einsum("ij,ij->i", a, np.where(ok[:, None], om, 0.0)) / (na * no), -1.0, 1.0
+        )
     cos = np.where(np.isfinite(cos), cos, 0.0)
     if config.likelihood == "inner_product":
         f = np.maximum(cos, config.floor)
     else:
-        f = np.exp(-(np.linalg.norm(a - np.where(ok[:, None], om, 0.0), axis=1) + config.lam * np.arccos(cos)))
+        f = np.exp(
+            -(
+                np.linalg.norm(a - np.where(ok[:, None], om, 0.0), axis=1)
+                + config.lam * np.arccos(cos)
+            )
+        )
     return np.where(ok, f, 0.0)
 
 
@@ -73,13 +89,17 @@ class BeliefVector:
         self._R = np.zeros((0, 3, 3))  # tracked solutions of the previous frame
         self._t = np.zeros((0, 3))
         self._belief = np.zeros(0)
-        self._assigned = np.zeros(0, dtype=int)  # candidate index (this frame) of each tracked solution
+        self._assigned = np.zeros(
+            0, dtype=int
+        )  # candidate index (this frame) of each tracked solution
         self._committed: int | None = None  # index into the tracked solutions
         self._last_time: float | None = None
 
     def update(self, candidates: CandidateSet, odometry: Odometry | None = None) -> Decision:
         cfg = self.config
-        check_frame(candidates, odometry, self._last_time is None, self._last_time, "BeliefVector.update")
+        check_frame(
+            candidates, odometry, self._last_time is None, self._last_time, "BeliefVector.update"
+        )
         dt = None if self._last_time is None else candidates.time - self._last_time
         self._last_time = candidates.time
         relocalized = False

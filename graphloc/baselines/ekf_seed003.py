@@ -68,15 +68,25 @@ class EkfConfig:
 
     def __post_init__(self):
         if self.tracker_setting not in TRACKER_SETTINGS:
-            raise ValueError(f"EkfConfig.tracker_setting must be one of {TRACKER_SETTINGS}, "
-                             f"got {self.tracker_setting!r}")
-        for name in ("pixel_pitch", "feature_depth", "feature_sigma", "klt_variance", "tracker_variance",
-                     "noisy_factor"):
+            raise ValueError(
+                f"EkfConfig.tracker_setting must be one of {TRACKER_SETTINGS}, "
+                f"got {self.tracker_setting!r}"
+            )
+        for name in (
+            "pixel_pitch",
+            "feature_depth",
+            "feature_sigma",
+            "klt_variance",
+            "tracker_variance",
+            "noisy_factor",
+        ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"EkfConfig.{name} must be finite > 0, got {v}")
         if not (np.isfinite(self.beta_rel_sigma) and self.beta_rel_sigma >= 0):
-            raise ValueError(f"EkfConfig.beta_rel_sigma must be finite >= 0, got {self.beta_rel_sigma}")
+            raise ValueError(
+                f"EkfConfig.beta_rel_sigma must be finite >= 0, got {self.beta_rel_sigma}"
+            )
 
 
 N_MOTION = 7  # T (3), w (3), beta
@@ -94,9 +104,9 @@ def incremental_rotation(w: np.ndarray) -> np.ndarray:
 class Seed003Ekf:
     """The seed's EKF over `FrameInput`s (the graph's inputs).
 
-        ekf = Seed003Ekf(camera, EkfConfig())
-        for frame in frames:
-            position = ekf.step(frame)     # camera centre in the world (3,)
+    ekf = Seed003Ekf(camera, EkfConfig())
+    for frame in frames:
+        position = ekf.step(frame)     # camera centre in the world (3,)
     """
 
     def __init__(self, camera: PinholeCamera, config: EkfConfig = EkfConfig()):
@@ -109,13 +119,17 @@ class Seed003Ekf:
         self.x = np.zeros(0)
         self.P = np.zeros((0, 0))
         self.R_global = np.eye(3)  # world -> camera rotation (outside the state, [1])
-        self.ids = np.zeros(0, np.int64)  # point ids in state order (TRACKER_ID for the tracker's point)
+        self.ids = np.zeros(
+            0, np.int64
+        )  # point ids in state order (TRACKER_ID for the tracker's point)
         self._last_time = -np.inf
         self.n_frames = 0
         self.positions: list[np.ndarray] = []
         self._tracker_stale = False  # the teammate moved and has not been seen since
         self.skipped_pixels = 0  # non-finite pixels (counted, not used)
-        self.skipped_behind = 0  # measurements of points the state puts behind the camera (counted, not used)
+        self.skipped_behind = (
+            0  # measurements of points the state puts behind the camera (counted, not used)
+        )
 
     # ---- geometry ------------------------------------------------------------------------------
     @property
@@ -142,7 +156,9 @@ class Seed003Ekf:
     def _tracker_world(self, obs) -> tuple[np.ndarray, np.ndarray]:
         R_wc, centre = self.camera_pose()
         cov = obs.covariance
-        scale = {"proper": 1.0, "ideal": 0.0, "noisy": self.config.noisy_factor}[self.config.tracker_setting]
+        scale = {"proper": 1.0, "ideal": 0.0, "noisy": self.config.noisy_factor}[
+            self.config.tracker_setting
+        ]
         return R_wc @ obs.centre + centre, scale * (R_wc @ cov @ R_wc.T)
 
     def _append_points(self, ids: np.ndarray, points: np.ndarray, cov: np.ndarray) -> None:
@@ -166,6 +182,7 @@ class Seed003Ekf:
         """(m,) 1 + Z_c beta > 0 for state points `which` (in front of the centre of projection)."""
         pts = self.x[N_MOTION:].reshape(-1, 3)[which]
         return 1.0 + self.x[2] + self.x[6] * (pts @ self.R_global[2]) > 0
+
     def predict_measurements(self, which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """h (2m,) sensor coordinates of state points `which` (m,) and H (2m, n_state)."""
         x = self.x
@@ -183,11 +200,13 @@ class Seed003Ekf:
         rows_u, rows_v = 2 * np.arange(m), 2 * np.arange(m) + 1
         for rows, C, k in ((rows_u, Xc, 0), (rows_v, Yc, 1)):
             H[rows, k] = 1.0 / D
-            H[rows, 2] = -C / D ** 2
-            H[rows, 3:6] = dadw[:, k, :] / D[:, None] - (C * beta / D ** 2)[:, None] * dadw[:, 2, :]
-            H[rows, 6] = -C * a[:, 2] / D ** 2
+            H[rows, 2] = -C / D**2
+            H[rows, 3:6] = dadw[:, k, :] / D[:, None] - (C * beta / D**2)[:, None] * dadw[:, 2, :]
+            H[rows, 6] = -C * a[:, 2] / D**2
             cols = N_MOTION + 3 * which[:, None] + np.arange(3)
-            H[rows[:, None], cols] = R[k][None, :] / D[:, None] - (C * beta / D ** 2)[:, None] * R[2][None, :]
+            H[rows[:, None], cols] = (
+                R[k][None, :] / D[:, None] - (C * beta / D**2)[:, None] * R[2][None, :]
+            )
         h = np.column_stack([Xc / D, Yc / D]).reshape(-1)
         return h, H
 
@@ -198,20 +217,26 @@ class Seed003Ekf:
         if not isinstance(frame, FrameInput):
             raise ValueError(f"Seed003Ekf.step: expected FrameInput, got {type(frame).__name__}")
         if not frame.time > self._last_time:
-            raise ValueError(f"Seed003Ekf.step: time {frame.time} does not follow {self._last_time}")
+            raise ValueError(
+                f"Seed003Ekf.step: time {frame.time} does not follow {self._last_time}"
+            )
         cfg = self.config
         ids = np.asarray(frame.features.ids, dtype=np.int64)
         pixels = np.asarray(frame.features.pixels, dtype=float)
         if ids.ndim != 1 or pixels.shape != (len(ids), 2):
-            raise ValueError(f"Seed003Ekf.step: frame {frame.time}: ids {ids.shape} / pixels {pixels.shape}")
+            raise ValueError(
+                f"Seed003Ekf.step: frame {frame.time}: ids {ids.shape} / pixels {pixels.shape}"
+            )
         self._last_time = frame.time
         finite = np.isfinite(pixels).all(axis=1)
         self.skipped_pixels += int((~finite).sum())
         ids, pixels = ids[finite], pixels[finite]
         if self.n_frames == 0:
             if frame.teammate is None:
-                raise ValueError("Seed003Ekf: the first frame must see the teammate (the tracker's point "
-                                 "initializes the scale, seed III)")
+                raise ValueError(
+                    "Seed003Ekf: the first frame must see the teammate (the tracker's point "
+                    "initializes the scale, seed III)"
+                )
             beta0 = 1.0 / (self.camera.fx * cfg.pixel_pitch)
             self.x = np.array([0.0, 0.0, -1.0, 0.0, 0.0, 0.0, beta0])
             self.P = np.zeros((N_MOTION, N_MOTION))
@@ -220,11 +245,13 @@ class Seed003Ekf:
             self._append_points(np.array([TRACKER_ID]), point[None], cov)
         else:
             rot, trans = cfg.motion.sigmas(frame.camera_moved)
-            self.P[0:2, 0:2] += np.eye(2) * trans ** 2
+            self.P[0:2, 0:2] += np.eye(2) * trans**2
             self.P[2, 2] += (trans * self.beta) ** 2
-            self.P[3:6, 3:6] += np.eye(3) * rot ** 2
+            self.P[3:6, 3:6] += np.eye(3) * rot**2
             self._tracker_stale |= frame.teammate_moved
-            if self._tracker_stale and frame.teammate is not None:  # the tracker's point moved: re-initialize
+            if (
+                self._tracker_stale and frame.teammate is not None
+            ):  # the tracker's point moved: re-initialize
                 self._drop_points(self.ids != TRACKER_ID)
                 point, cov = self._tracker_world(frame.teammate)
                 self._append_points(np.array([TRACKER_ID]), point[None], cov)
@@ -237,22 +264,32 @@ class Seed003Ekf:
         new = ~np.isin(ids, self.ids)
         if new.any():
             pts = self._points_on_rays(pixels[new], cfg.feature_depth)
-            self._append_points(ids[new], pts, np.eye(3 * int(new.sum())) * cfg.feature_sigma ** 2)
+            self._append_points(ids[new], pts, np.eye(3 * int(new.sum())) * cfg.feature_sigma**2)
         # measurement update
         order = {int(i): k for k, i in enumerate(self.ids)}
         which = [order[int(i)] for i in ids]
         z = [self._sensor(pixels)]
         var = [np.full(2 * len(ids), cfg.klt_variance)]
-        if frame.teammate is not None and np.isfinite(frame.teammate.pixel).all() and not self._tracker_stale:
+        if (
+            frame.teammate is not None
+            and np.isfinite(frame.teammate.pixel).all()
+            and not self._tracker_stale
+        ):
             which.append(order[TRACKER_ID])
             z.append(self._sensor(frame.teammate.pixel[None]))
             var.append(np.full(2, cfg.tracker_variance))
         if which:
-            which, z, var = np.array(which), np.concatenate(z).reshape(-1, 2), np.concatenate(var).reshape(-1, 2)
+            which, z, var = (
+                np.array(which),
+                np.concatenate(z).reshape(-1, 2),
+                np.concatenate(var).reshape(-1, 2),
+            )
             front = self._in_front(which)
             self.skipped_behind += int((~front).sum())
             if front.any():
-                self._update(which[front], z[front].reshape(-1), var[front].reshape(-1) * cfg.pixel_pitch ** 2)
+                self._update(
+                    which[front], z[front].reshape(-1), var[front].reshape(-1) * cfg.pixel_pitch**2
+                )
         self.n_frames += 1
         position = self.camera_pose()[1]
         self.positions.append(position)
@@ -278,7 +315,9 @@ class Seed003Ekf:
         return self.ids[mask], self.x[N_MOTION:].reshape(-1, 3)[mask]
 
 
-def run_ekf(frames: list[FrameInput], camera: PinholeCamera, config: EkfConfig = EkfConfig()) -> np.ndarray:
+def run_ekf(
+    frames: list[FrameInput], camera: PinholeCamera, config: EkfConfig = EkfConfig()
+) -> np.ndarray:
     """(T,3) camera centres of the EKF over `frames` (causal, as the filter runs)."""
     ekf = Seed003Ekf(camera, config)
     for frame in frames:

@@ -41,9 +41,15 @@ class ParticleFilterConfig:
     def __post_init__(self):
         n = np.asarray(self.plane_normal, dtype=float)
         if n.shape != (3,) or not np.isfinite(n).all() or np.linalg.norm(n) < 1e-9:
-            raise ValueError(f"ParticleFilterConfig.plane_normal must be a non-zero 3-vector, got {self.plane_normal}")
-        if not (self.alpha1 >= 0 and self.alpha2 >= 0 and self.sigma > 0 and 0 < self.threshold < 1):
-            raise ValueError("ParticleFilterConfig: alpha1, alpha2 >= 0, sigma > 0, threshold in (0,1)")
+            raise ValueError(
+                f"ParticleFilterConfig.plane_normal must be a non-zero 3-vector, got {self.plane_normal}"
+            )
+        if not (
+            self.alpha1 >= 0 and self.alpha2 >= 0 and self.sigma > 0 and 0 < self.threshold < 1
+        ):
+            raise ValueError(
+                "ParticleFilterConfig: alpha1, alpha2 >= 0, sigma > 0, threshold in (0,1)"
+            )
 
 
 def plane_basis(normal) -> np.ndarray:
@@ -56,8 +62,14 @@ def plane_basis(normal) -> np.ndarray:
     return np.stack([e1, np.cross(n, e1), n])
 
 
-def sample_motion(positions: np.ndarray, steps_world: np.ndarray, basis: np.ndarray, alpha1: float,
-                  alpha2: float, rng: np.random.Generator) -> np.ndarray:
+def sample_motion(
+    positions: np.ndarray,
+    steps_world: np.ndarray,
+    basis: np.ndarray,
+    alpha1: float,
+    alpha2: float,
+    rng: np.random.Generator,
+) -> np.ndarray:
     """Algorithm 1 of seed 004 for M particles at once: positions (M,3), odometry steps in the
     world (M,3) -> sampled new positions (M,3)."""
     local = steps_world @ basis.T  # (M,3): in-plane (dx, dy), normal component
@@ -66,7 +78,11 @@ def sample_motion(positions: np.ndarray, steps_world: np.ndarray, basis: np.ndar
     std = alpha1 * np.abs(theta) + alpha2 * length
     theta_s = theta + std * rng.standard_normal(len(theta))
     length_s = length + std * rng.standard_normal(len(theta))
-    return positions + (length_s * np.cos(theta_s))[:, None] * basis[0] + (length_s * np.sin(theta_s))[:, None] * basis[1]
+    return (
+        positions
+        + (length_s * np.cos(theta_s))[:, None] * basis[0]
+        + (length_s * np.sin(theta_s))[:, None] * basis[1]
+    )
 
 
 class ParticleFilter:
@@ -85,15 +101,19 @@ class ParticleFilter:
 
     def update(self, candidates: CandidateSet, odometry: Odometry | None = None) -> Decision:
         cfg = self.config
-        check_frame(candidates, odometry, self._last_time is None, self._last_time, "ParticleFilter.update")
+        check_frame(
+            candidates, odometry, self._last_time is None, self._last_time, "ParticleFilter.update"
+        )
         self._last_time = candidates.time
         relocalized = False
         if len(self._w) and len(candidates) and odometry is not None:
             steps = self._R @ odometry.relative.translation()
-            predicted = sample_motion(self._t, steps, self._basis, cfg.alpha1, cfg.alpha2, self._rng)
+            predicted = sample_motion(
+                self._t, steps, self._basis, cfg.alpha1, cfg.alpha2, self._rng
+            )
             d2 = np.sum((predicted[:, None, :] - candidates.t[None, :, :]) ** 2, axis=2)
             nn = np.argmin(d2, axis=1)
-            w_bar = np.exp(-d2[np.arange(len(nn)), nn] / (2.0 * cfg.sigma ** 2))
+            w_bar = np.exp(-d2[np.arange(len(nn)), nn] / (2.0 * cfg.sigma**2))
             w = self._w + w_bar  # Algorithm 2 line 5 (merge), line 6 (normalize)
             self._w = w / w.sum()
             self._R, self._t, self._assigned = candidates.R[nn], candidates.t[nn], nn

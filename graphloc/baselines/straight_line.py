@@ -46,9 +46,13 @@ def straight_line_errors(positions: np.ndarray, valid: np.ndarray) -> np.ndarray
     positions = np.asarray(positions, dtype=float)
     valid = np.asarray(valid, dtype=bool)
     if positions.ndim != 4 or positions.shape[1] != 3 or positions.shape[3] != 3:
-        raise ValueError(f"straight_line_errors: positions must be (T,3,K,3), got {positions.shape}")
+        raise ValueError(
+            f"straight_line_errors: positions must be (T,3,K,3), got {positions.shape}"
+        )
     if valid.shape != positions.shape[:3]:
-        raise ValueError(f"straight_line_errors: valid must be {positions.shape[:3]}, got {valid.shape}")
+        raise ValueError(
+            f"straight_line_errors: valid must be {positions.shape[:3]}, got {valid.shape}"
+        )
     p0 = positions[:, 0, :, None, None, :]  # i
     p1 = positions[:, 1, None, :, None, :]  # j
     p2 = positions[:, 2, None, None, :, :]  # k
@@ -56,7 +60,12 @@ def straight_line_errors(positions: np.ndarray, valid: np.ndarray) -> np.ndarray
     length = np.linalg.norm(axis, axis=-1)
     with np.errstate(all="ignore"):
         dist = np.linalg.norm(np.cross(p1 - p0, axis), axis=-1) / length
-    ok = valid[:, 0, :, None, None] & valid[:, 1, None, :, None] & valid[:, 2, None, None, :] & (length > 1e-12)
+    ok = (
+        valid[:, 0, :, None, None]
+        & valid[:, 1, None, :, None]
+        & valid[:, 2, None, None, :]
+        & (length > 1e-12)
+    )
     return np.where(ok & np.isfinite(dist), dist, np.inf)
 
 
@@ -82,8 +91,9 @@ def bearings_from_pixels(pixels: np.ndarray, K: np.ndarray) -> np.ndarray:
     return rays.reshape(np.shape(pixels)[:-1] + (3,))
 
 
-def localize_by_straight_line(pixels: np.ndarray, K: np.ndarray, ground: np.ndarray,
-                              method: str = "lambdatwist") -> StraightLineChoice:
+def localize_by_straight_line(
+    pixels: np.ndarray, K: np.ndarray, ground: np.ndarray, method: str = "lambdatwist"
+) -> StraightLineChoice:
     """pixels (T,3,3,2) [trial, snapshot, robot], K (3,3), ground (T,3,3) robot positions ->
     P3P per snapshot (batched over all T*3) and the straight-line choice."""
     pixels = np.asarray(pixels, dtype=float)
@@ -91,7 +101,9 @@ def localize_by_straight_line(pixels: np.ndarray, K: np.ndarray, ground: np.ndar
     if pixels.ndim != 4 or pixels.shape[1:] != (3, 3, 2):
         raise ValueError(f"localize_by_straight_line: pixels must be (T,3,3,2), got {pixels.shape}")
     if ground.shape != (pixels.shape[0], 3, 3):
-        raise ValueError(f"localize_by_straight_line: ground must be ({pixels.shape[0]},3,3), got {ground.shape}")
+        raise ValueError(
+            f"localize_by_straight_line: ground must be ({pixels.shape[0]},3,3), got {ground.shape}"
+        )
     T = pixels.shape[0]
     bearings = bearings_from_pixels(pixels, K).reshape(T * 3, 3, 3)
     points = np.repeat(ground, 3, axis=0)
@@ -99,8 +111,14 @@ def localize_by_straight_line(pixels: np.ndarray, K: np.ndarray, ground: np.ndar
     pos = cands.t_wc.reshape(T, 3, MAX_CANDIDATES, 3)
     valid = cands.valid.reshape(T, 3, MAX_CANDIDATES)
     chosen, error, second, errors = pick_straight_line(pos, valid)
-    return StraightLineChoice(errors=errors, chosen=chosen, error=error, second_error=second,
-                              found=np.isfinite(error), candidates=cands)
+    return StraightLineChoice(
+        errors=errors,
+        chosen=chosen,
+        error=error,
+        second_error=second,
+        found=np.isfinite(error),
+        candidates=cands,
+    )
 
 
 @dataclass(frozen=True)
@@ -113,7 +131,9 @@ class StraightLineConfig:
 
     def __post_init__(self):
         if not (int(self.spacing) >= 1 and self.max_error > 0):
-            raise ValueError(f"StraightLineConfig: spacing >= 1 and max_error > 0, got {self.spacing}, {self.max_error}")
+            raise ValueError(
+                f"StraightLineConfig: spacing >= 1 and max_error > 0, got {self.spacing}, {self.max_error}"
+            )
 
 
 class StraightLineBaseline:
@@ -130,10 +150,16 @@ class StraightLineBaseline:
         self._locked = False
 
     def update(self, candidates: CandidateSet, odometry=None):
-        check_frame(candidates, odometry, self._last_time is None, self._last_time, "StraightLineBaseline.update")
+        check_frame(
+            candidates,
+            odometry,
+            self._last_time is None,
+            self._last_time,
+            "StraightLineBaseline.update",
+        )
         self._last_time = candidates.time
         s = int(self.config.spacing)
-        self._history = (self._history + [candidates])[-(2 * s + 1):]
+        self._history = (self._history + [candidates])[-(2 * s + 1) :]
         K = len(candidates)
         probs = np.full(K, 1.0 / K) if K else np.zeros(0)
         was_locked, self._locked = self._locked, False
@@ -145,13 +171,18 @@ class StraightLineBaseline:
         pos = np.zeros((1, 3, kmax, 3))
         valid = np.zeros((1, 3, kmax), bool)
         for i, f in enumerate(frames):
-            pos[0, i, :len(f)] = f.t
-            valid[0, i, :len(f)] = True
+            pos[0, i, : len(f)] = f.t
+            valid[0, i, : len(f)] = True
         chosen, error, _, _ = pick_straight_line(pos, valid)
         best = int(chosen[0, 2]) if np.isfinite(error[0]) else 0
         self._locked = bool(error[0] < self.config.max_error)
         probs = np.zeros(K)
         probs[best] = 1.0
         pose = candidates.poses()[best]
-        return Decision(probs, best if self._locked else -1, self._locked, pose,
-                        relocalized=was_locked and not self._locked)
+        return Decision(
+            probs,
+            best if self._locked else -1,
+            self._locked,
+            pose,
+            relocalized=was_locked and not self._locked,
+        )

@@ -16,9 +16,12 @@ HELP = "ROS 1 / ROS 2 / MCAP bag + topics file -> graphloc log directory (smooth
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("bag", type=Path, help=".bag file, .mcap file or ROS 2 bag directory")
-    parser.add_argument("--topics", type=Path, default=None,
-                        help="topics file (YAML, docs/rosbag.md); default: topics.yaml inside "
-                             "or beside the bag")
+    parser.add_argument(
+        "--topics",
+        type=Path,
+        default=None,
+        help="topics file (YAML, docs/rosbag.md); default: topics.yaml inside or beside the bag",
+    )
     parser.add_argument("--out", required=True, type=Path, help="log directory to write")
 
 
@@ -29,7 +32,15 @@ def run(args: argparse.Namespace) -> int:
     if (args.out / "manifest.json").exists():
         raise ValueError(f"{args.out}: holds a log already (manifest.json); choose another --out")
     result = import_bag(args.bag, topics, args.out)
-    print(json.dumps({"log": str(result.root), "rows": result.rows,
-                      "skipped": result.skips.as_dict(), "unmapped_topics": result.unmapped},
-                     indent=1))
+    print(
+        json.dumps(
+            {
+                "log": str(result.root),
+                "rows": result.rows,
+                "skipped": result.skips.as_dict(),
+                "unmapped_topics": result.unmapped,
+            },
+            indent=1,
+        )
+    )
     return 0

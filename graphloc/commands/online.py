@@ -25,8 +25,9 @@ from pathlib import Path
 
 from graphloc.commands import smooth
 
-HELP = ("online iSAM2 smoothing of a multi-robot run frame by frame (latency, TUM, metrics JSON, "
-        "PNGs)")
+HELP = (
+    "online iSAM2 smoothing of a multi-robot run frame by frame (latency, TUM, metrics JSON, PNGs)"
+)
 CHECKPOINT_FORMAT = "graphloc-online-checkpoint"
 CHECKPOINT_VERSION = 1
 
@@ -34,26 +35,41 @@ CHECKPOINT_VERSION = 1
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     smooth.add_arguments(parser)
     parser.add_argument("--checkpoint", type=Path, help="write a checkpoint to this file")
-    parser.add_argument("--checkpoint-every", type=int, default=500,
-                        help="steps between checkpoints (default 500)")
+    parser.add_argument(
+        "--checkpoint-every", type=int, default=500, help="steps between checkpoints (default 500)"
+    )
     parser.add_argument("--resume", type=Path, help="continue from this checkpoint")
 
 
 def fingerprint(graph) -> str:
     """SHA-256 of what makes two graphs the same sequence of updates: the run's name, the
     effective configuration, every step's time and factor count."""
-    body = json.dumps({"run": graph.run.name, "config": asdict(graph.config),
-                       "steps": [[t, len(group)] for t, group in graph.steps]},
-                      default=str, sort_keys=True)
+    body = json.dumps(
+        {
+            "run": graph.run.name,
+            "config": asdict(graph.config),
+            "steps": [[t, len(group)] for t, group in graph.steps],
+        },
+        default=str,
+        sort_keys=True,
+    )
     return hashlib.sha256(body.encode()).hexdigest()
 
 
 def write_checkpoint(path: Path, graph, steps_done: int) -> None:
     from graphloc.session import write_data_file
 
-    write_data_file(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION,
-                    {"run": graph.run.name, "fingerprint": fingerprint(graph),
-                     "steps_done": int(steps_done), "steps_total": len(graph.steps)})
+    write_data_file(
+        path,
+        CHECKPOINT_FORMAT,
+        CHECKPOINT_VERSION,
+        {
+            "run": graph.run.name,
+            "fingerprint": fingerprint(graph),
+            "steps_done": int(steps_done),
+            "steps_total": len(graph.steps),
+        },
+    )
 
 
 def read_checkpoint(path: Path, graph) -> dict:
@@ -63,11 +79,14 @@ def read_checkpoint(path: Path, graph) -> dict:
     data = read_data_file(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "online checkpoint")
     done = data.get("steps_done")
     if data.get("fingerprint") != fingerprint(graph):
-        raise ValueError(f"{path}: the checkpoint is of another run or configuration (run "
-                         f"{data.get('run')!r}); resume with the same RUN and options")
+        raise ValueError(
+            f"{path}: the checkpoint is of another run or configuration (run "
+            f"{data.get('run')!r}); resume with the same RUN and options"
+        )
     if not (isinstance(done, int) and 0 <= done <= len(graph.steps)):
-        raise ValueError(f"{path}: steps_done must be an integer in [0, {len(graph.steps)}], "
-                         f"got {done!r}")
+        raise ValueError(
+            f"{path}: steps_done must be an integer in [0, {len(graph.steps)}], got {done!r}"
+        )
     return data
 
 
@@ -81,8 +100,10 @@ def hooks(args: argparse.Namespace):
     def make(graph, values):
         done_before = read_checkpoint(args.resume, graph)["steps_done"] if args.resume else 0
         if args.resume is not None:
-            print(f"resuming {args.resume}: replaying {done_before} of {len(graph.steps)} steps",
-                  flush=True)
+            print(
+                f"resuming {args.resume}: replaying {done_before} of {len(graph.steps)} steps",
+                flush=True,
+            )
         if args.checkpoint is None:
             return {}
 

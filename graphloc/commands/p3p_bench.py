@@ -10,7 +10,9 @@ HELP = "benchmark the batched P3P solvers against cv2.solveP3P / poselib.p3p loo
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, help="output directory")
-    parser.add_argument("--n", type=int, default=100_000, help="number of random instances (default 100000)")
+    parser.add_argument(
+        "--n", type=int, default=100_000, help="number of random instances (default 100000)"
+    )
     parser.add_argument("--seed", type=int, default=0, help="random seed of the instances")
 
 

@@ -15,8 +15,9 @@ HELP = "reproduce a seed table: seed000-table1/2/3, seed004-table1, seed001-exp1
 
 def add_arguments(parser) -> None:
     parser.add_argument("table", choices=TABLES)
-    parser.add_argument("--quick", action="store_true",
-                        help="CI size (graphloc.experiments.sizes.QUICK)")
+    parser.add_argument(
+        "--quick", action="store_true", help="CI size (graphloc.experiments.sizes.QUICK)"
+    )
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/reproduce"))
 

@@ -12,8 +12,14 @@ def add_arguments(parser) -> None:
     parser.add_argument("name", help="scenario name (graphloc.datasets registry)")
     parser.add_argument("--out", type=Path, required=True, help="output run directory")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a field of the scenario's config dataclass (repeatable)")
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a field of the scenario's config dataclass (repeatable)",
+    )
 
 
 def run(args) -> int:

@@ -18,7 +18,9 @@ import threading
 import tomllib
 from pathlib import Path
 
-HELP = "batch factor-graph smoothing of a team's run (log dir or MRCLAM dir): TUM, metrics JSON, PNGs"
+HELP = (
+    "batch factor-graph smoothing of a team's run (log dir or MRCLAM dir): TUM, metrics JSON, PNGs"
+)
 MODE = "batch"
 DEFAULT_LAG = 20.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
 EXIT_STOPPED = 3  # SIGINT / SIGTERM: the outputs so far were written, metrics marked partial
@@ -26,29 +28,57 @@ EXIT_STOPPED = 3  # SIGINT / SIGTERM: the outputs so far were written, metrics m
 OPTIONS = {
     "duration": (float, None, "use only the first N seconds"),
     "keyframe_dt": (float, 0.25, "pose grid of wheel-odometry robots [s]"),
-    "sync_tolerance": (float, 0.02, "largest time offset between a measurement and its pose [s] "
-                                    "(robots without wheel odometry)"),
+    "sync_tolerance": (
+        float,
+        0.02,
+        "largest time offset between a measurement and its pose [s] "
+        "(robots without wheel odometry)",
+    ),
     "no_landmarks": (bool, False, "ignore landmark measurements"),
     "no_inter_robot": (bool, False, "ignore robot-to-robot measurements"),
-    "unknown_landmarks": (bool, False, "cooperative SLAM: estimate landmark positions instead of using the map"),
-    "kernel": (str, "cauchy:2.0", "robust kernel NAME[:k] of landmark and inter-robot factors "
-                                  "(huber, cauchy, tukey, gemanmcclure, dcs, none)"),
+    "unknown_landmarks": (
+        bool,
+        False,
+        "cooperative SLAM: estimate landmark positions instead of using the map",
+    ),
+    "kernel": (
+        str,
+        "cauchy:2.0",
+        "robust kernel NAME[:k] of landmark and inter-robot factors "
+        "(huber, cauchy, tukey, gemanmcclure, dcs, none)",
+    ),
     "odometry_kernel": (str, "none", "robust kernel NAME[:k] of odometry factors"),
     "candidate_kernel": (str, "cauchy:1.0", "robust kernel NAME[:k] of committed P3P candidates"),
-    "bearing_sigma": (float, None, "bearing noise [rad] of every sensor (default: the log's, else 0.02)"),
+    "bearing_sigma": (
+        float,
+        None,
+        "bearing noise [rad] of every sensor (default: the log's, else 0.02)",
+    ),
     "range_sigma": (float, None, "range noise at 0 m [m] (default: the log's, else 0.05)"),
-    "range_sigma_per_m": (float, None, "range noise growth [m per m] (default: the log's, else 0.035)"),
+    "range_sigma_per_m": (
+        float,
+        None,
+        "range noise growth [m per m] (default: the log's, else 0.035)",
+    ),
     "pixel_sigma": (float, None, "marker pixel noise [px] (default: the log's, else 1.0)"),
-    "lag": (float, None, ("online: fixed-lag window [s], 0 = full smoothing (default: "
-                          f"{DEFAULT_LAG:g} s where no variable must outlive it, else 0; see "
-                          "docs/outputs.md)")),
+    "lag": (
+        float,
+        None,
+        (
+            "online: fixed-lag window [s], 0 = full smoothing (default: "
+            f"{DEFAULT_LAG:g} s where no variable must outlive it, else 0; see "
+            "docs/outputs.md)"
+        ),
+    ),
 }
 NOISE = ("bearing_sigma", "range_sigma", "range_sigma_per_m", "pixel_sigma")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options shared by `smooth` and `online`."""
-    parser.add_argument("run", help="graphloc log directory (manifest.json) or MRCLAM dataset directory")
+    parser.add_argument(
+        "run", help="graphloc log directory (manifest.json) or MRCLAM dataset directory"
+    )
     parser.add_argument("--out", required=True, type=Path, help="output directory")
     parser.add_argument("--config", type=Path, help="TOML file with any of the options below")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -71,13 +101,23 @@ def options(args: argparse.Namespace) -> dict:
         for key, value in data.items():
             name = key.replace("-", "_")
             if name not in OPTIONS:
-                raise ValueError(f"{args.config}: unknown option {key!r}; known: {', '.join(OPTIONS)}")
+                raise ValueError(
+                    f"{args.config}: unknown option {key!r}; known: {', '.join(OPTIONS)}"
+                )
             kind = OPTIONS[name][0]
-            ok = isinstance(value, bool) if kind is bool else (
-                isinstance(value, (int, float)) and not isinstance(value, bool) if kind is float
-                else isinstance(value, str))
+            ok = (
+                isinstance(value, bool)
+                if kind is bool
+                else (
+                    isinstance(value, (int, float)) and not isinstance(value, bool)
+                    if kind is float
+                    else isinstance(value, str)
+                )
+            )
             if not ok:
-                raise ValueError(f"{args.config}: option {key!r} must be a {kind.__name__}, got {value!r}")
+                raise ValueError(
+                    f"{args.config}: option {key!r} must be a {kind.__name__}, got {value!r}"
+                )
             values[name] = float(value) if kind is float else value
     for name in OPTIONS:
         given = getattr(args, name, None)
@@ -92,16 +132,26 @@ def graph_config(values: dict):
 
     try:
         kernel = Kernel.parse(values["kernel"])
-        kernels = KernelPolicy({"landmark": kernel, "inter_robot": kernel,
-                                "candidate": Kernel.parse(values["candidate_kernel"])},
-                               default=Kernel.parse(values["odometry_kernel"]))
+        kernels = KernelPolicy(
+            {
+                "landmark": kernel,
+                "inter_robot": kernel,
+                "candidate": Kernel.parse(values["candidate_kernel"]),
+            },
+            default=Kernel.parse(values["odometry_kernel"]),
+        )
     except ValueError as exc:
         raise ValueError(f"option kernel: {exc}") from None
     if values["no_landmarks"] and values["no_inter_robot"]:
         raise ValueError("--no-landmarks with --no-inter-robot leaves only odometry")
-    return GraphConfig(keyframe_dt=values["keyframe_dt"], sync_tolerance=values["sync_tolerance"],
-                       use_landmarks=not values["no_landmarks"], use_inter_robot=not values["no_inter_robot"],
-                       landmark_priors=not values["unknown_landmarks"], kernels=kernels)
+    return GraphConfig(
+        keyframe_dt=values["keyframe_dt"],
+        sync_tolerance=values["sync_tolerance"],
+        use_landmarks=not values["no_landmarks"],
+        use_inter_robot=not values["no_inter_robot"],
+        landmark_priors=not values["unknown_landmarks"],
+        kernels=kernels,
+    )
 
 
 def check_out(out: Path) -> None:
@@ -124,8 +174,9 @@ def auto_lag(run, config) -> float:
     smoother stamps a variable once (`graphloc.session.SessionConfig`), so a long-lived one
     would leave the window and every later factor on it would be dropped."""
     static = any(r.static for r in run.robots)
-    slam = config.use_landmarks and not (config.landmark_priors and run.landmarks_known
-                                         and config.anchor_known_landmarks)
+    slam = config.use_landmarks and not (
+        config.landmark_priors and run.landmarks_known and config.anchor_known_landmarks
+    )
     return 0.0 if static or slam else DEFAULT_LAG
 
 
@@ -144,8 +195,12 @@ class StopFlag:
         if self.signal is not None and signum == signal.SIGINT:
             raise KeyboardInterrupt
         self.signal = signum
-        print(f"\n{signal.Signals(signum).name}: finishing the current step, then writing the "
-              f"outputs so far (exit code {EXIT_STOPPED})", file=sys.stderr, flush=True)
+        print(
+            f"\n{signal.Signals(signum).name}: finishing the current step, then writing the "
+            f"outputs so far (exit code {EXIT_STOPPED})",
+            file=sys.stderr,
+            flush=True,
+        )
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
@@ -188,12 +243,24 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
         if stop.signal is not None:
             metrics["stopped_by"] = signal.Signals(stop.signal).name
         write_outputs(result, run, metrics, Path(args.out))
-    summary = {name: round(v[mode]["ate_rmse"], 4) for name, v in metrics["per_robot"].items()
-               if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]}
-    print(json.dumps({"mode": mode, "partial": metrics["partial"], "ate_rmse_m": summary,
-                      "decisions": metrics["decisions"],
-                      "realtime_factor": round(metrics["realtime_factor"], 1),
-                      "skipped": metrics["skipped"]["counts"]}, indent=1))
+    summary = {
+        name: round(v[mode]["ate_rmse"], 4)
+        for name, v in metrics["per_robot"].items()
+        if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]
+    }
+    print(
+        json.dumps(
+            {
+                "mode": mode,
+                "partial": metrics["partial"],
+                "ate_rmse_m": summary,
+                "decisions": metrics["decisions"],
+                "realtime_factor": round(metrics["realtime_factor"], 1),
+                "skipped": metrics["skipped"]["counts"],
+            },
+            indent=1,
+        )
+    )
     print(f"outputs in {args.out}")
     return EXIT_STOPPED if metrics["partial"] else 0
 

@@ -223,9 +223,14 @@ def markdown(summary: dict, longrun: dict | None, args) -> str:
         head,
         rule,
     ]
+
     def wrong_percent(x):
-        return fmt(None if x["wrong_locked_frame_fraction"] is None
-                   else 100 * x["wrong_locked_frame_fraction"], ".1f")
+        return fmt(
+            None
+            if x["wrong_locked_frame_fraction"] is None
+            else 100 * x["wrong_locked_frame_fraction"],
+            ".1f",
+        )
 
     for name, cell in summary.items():
         parts = [

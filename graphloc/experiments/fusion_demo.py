@@ -11,17 +11,34 @@ from graphloc.mapping.fusion import FusionConfig
 from graphloc.mapping.pipeline import fuse_and_write
 
 
-def simulate_and_fuse(out_dir, variant: str = "furnished", seed: int = 0, frames: int = 10,
-                      config: FusionConfig = FusionConfig()) -> dict:
+def simulate_and_fuse(
+    out_dir,
+    variant: str = "furnished",
+    seed: int = 0,
+    frames: int = 10,
+    config: FusionConfig = FusionConfig(),
+) -> dict:
     """Simulate `dual-robot-room` (written to out_dir/scenario), fuse, write outputs; returns
     the report."""
     scenario = DualRoomScenario.simulate(variant_config(variant, seed, frames=frames))
     out = Path(out_dir)
     scenario.write(out / "scenario")
-    scenario_info = {"name": "dual-robot-room", "variant": variant, "seed": seed, "frames": frames,
-                     "dir": str(out / "scenario"), "counts": scenario.counts}
-    return fuse_and_write(scenario.fusion_input(), out, config, scenario.times,
-                          truth=scenario.T_ground0_ceiling0, extra={"scenario": scenario_info})
+    scenario_info = {
+        "name": "dual-robot-room",
+        "variant": variant,
+        "seed": seed,
+        "frames": frames,
+        "dir": str(out / "scenario"),
+        "counts": scenario.counts,
+    }
+    return fuse_and_write(
+        scenario.fusion_input(),
+        out,
+        config,
+        scenario.times,
+        truth=scenario.T_ground0_ceiling0,
+        extra={"scenario": scenario_info},
+    )
 
 
 def run_demo(out_dir, seed: int = 0) -> dict:

@@ -218,8 +218,10 @@ def summarize(trials: list[dict]) -> dict:
     worker processes returned them in (so that pooled sums are bit-reproducible)."""
     table = {}
     for ceiling, curve in CELLS:
-        rows = sorted((t for t in trials if t["ceiling"] == ceiling and t["curve"] == curve),
-                      key=lambda t: t["run"])
+        rows = sorted(
+            (t for t in trials if t["ceiling"] == ceiling and t["curve"] == curve),
+            key=lambda t: t["run"],
+        )
         cell = {
             "runs": len(rows),
             "paper_table_iii": PAPER_TABLE_III[(ceiling, curve)],

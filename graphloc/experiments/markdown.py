@@ -15,141 +15,192 @@ def table_i(r: dict) -> str:
     p, s, g = r["paper"], r["seed_baseline"], r["graphloc"]
     gf, fl = r["graphloc_failures"], r["failures"]
     n, cfg = r["trials"], r["config"]
-    lines = [f"### Seed 000 Table I: relative position error ({n} trials, "
-             f"error / {cfg['scale']:g} m)", "",
-             "| quantity | paper | seed baseline (ours: P3P + straight-line test) "
-             "| graphloc (joint GTSAM, shared rotation) |",
-             "|---|---|---|---|",
-             f"| success (closer to the truth than any pseudo solution) | "
-             f"{p['success']}/{p['trials']} | {s['success']}/{n} | {g['success']}/{n} |",
-             f"| all three positions within {cfg['success_tol']:g} m | -- | {s['within_tol']} | "
-             f"{g['within_tol']} |"]
+    lines = [
+        f"### Seed 000 Table I: relative position error ({n} trials, error / {cfg['scale']:g} m)",
+        "",
+        "| quantity | paper | seed baseline (ours: P3P + straight-line test) "
+        "| graphloc (joint GTSAM, shared rotation) |",
+        "|---|---|---|---|",
+        f"| success (closer to the truth than any pseudo solution) | "
+        f"{p['success']}/{p['trials']} | {s['success']}/{n} | {g['success']}/{n} |",
+        f"| all three positions within {cfg['success_tol']:g} m | -- | {s['within_tol']} | "
+        f"{g['within_tol']} |",
+    ]
     for cam in ("C2", "C3", "C"):
-        lines.append(f"| {cam} mean (std), own successes | {p[cam][0]:.1e} ({p[cam][1]:.1e}) | "
-                     f"{_f(s[cam]['mean'])} ({_f(s[cam]['std'])}) | "
-                     f"{_f(g[cam]['mean'])} ({_f(g[cam]['std'])}) |")
+        lines.append(
+            f"| {cam} mean (std), own successes | {p[cam][0]:.1e} ({p[cam][1]:.1e}) | "
+            f"{_f(s[cam]['mean'])} ({_f(s[cam]['std'])}) | "
+            f"{_f(g[cam]['mean'])} ({_f(g[cam]['std'])}) |"
+        )
     sc, gc = s["common_trials"], g["common_trials"]
     for cam in ("C2", "C3", "C"):
-        lines.append(f"| {cam} mean (std), the {r['common_successes']} trials both got right "
-                     f"| -- | {_f(sc[cam]['mean'])} ({_f(sc[cam]['std'])}) | "
-                     f"{_f(gc[cam]['mean'])} ({_f(gc[cam]['std'])}) |")
+        lines.append(
+            f"| {cam} mean (std), the {r['common_successes']} trials both got right "
+            f"| -- | {_f(sc[cam]['mean'])} ({_f(sc[cam]['std'])}) | "
+            f"{_f(gc[cam]['mean'])} ({_f(gc[cam]['std'])}) |"
+        )
     e = r["evidence"]
     median = e["genuine_p3p_error_true_ground_median_m"]
     p90 = e["genuine_p3p_error_true_ground_p90_m"]
-    lines += ["", " ".join([
-        "C1 is the reference (error 0). Seed: C2, C3 from the three-robot algorithm",
-        "(graphloc.vision.mutual) on the noisy omni pixels, then P3P + straight-line test (no",
-        "threshold: the seed's 0.003 m would only reject more). graphloc: one GTSAM graph over",
-        "all six cameras (mutual and climber bearings, known |T_12|, the climbing robot's",
-        "rotation held over its straight move), started from the same front-end. Why the",
-        "paper's accuracy is not reached: with the *true* ground positions the genuine P3P",
-        f"candidate alone is already {median:.3f} m off (median; p90 {p90:.3f} m) at 0.5 px on a",
-        f"640 px / 120 deg camera, i.e. {median / cfg['scale']:.1e} relative -- the paper's",
-        "5.7e-4 is below this noise floor. The seed's straight-line test is weak here: median",
-        f"line error of the chosen combination {s['line_error_median_m']:.3f} m vs",
-        f"{s['second_line_error_median_m']:.3f} m for the runner-up. graphloc's failures:",
-        f"{gf['ground_triangle_rejected']} ground triangles rejected by graphloc.vision.mutual",
-        "(e.g. noise pushed a pixel past the omni field of view),",
-        f"{gf['consistent_fit_ill_conditioned']} fits as consistent as the successes' (graph",
-        f"error <= their 99th percentile {gf['success_graph_error_p99']:.1f}: ill-conditioned,",
-        "the P3P singularity the seed blames for its 3 failures),",
-        f"{gf['poor_fit_wrong_basin']} poor fits, {gf['optimizer_failed']} optimizer failures.",
-        f"Simulation: {fl['camera_trials_redrawn']} camera placements and",
-        f"{fl['formations_redrawn_not_mutually_visible']} ground formations (a robot outside",
-        "another's 120 deg omni field of view) redrawn,",
-        f"{fl['ground_orientation_redraws']} ground orientations redrawn."])]
+    lines += [
+        "",
+        " ".join(
+            [
+                "C1 is the reference (error 0). Seed: C2, C3 from the three-robot algorithm",
+                "(graphloc.vision.mutual) on the noisy omni pixels, then P3P + straight-line test (no",
+                "threshold: the seed's 0.003 m would only reject more). graphloc: one GTSAM graph over",
+                "all six cameras (mutual and climber bearings, known |T_12|, the climbing robot's",
+                "rotation held over its straight move), started from the same front-end. Why the",
+                "paper's accuracy is not reached: with the *true* ground positions the genuine P3P",
+                f"candidate alone is already {median:.3f} m off (median; p90 {p90:.3f} m) at 0.5 px on a",
+                f"640 px / 120 deg camera, i.e. {median / cfg['scale']:.1e} relative -- the paper's",
+                "5.7e-4 is below this noise floor. The seed's straight-line test is weak here: median",
+                f"line error of the chosen combination {s['line_error_median_m']:.3f} m vs",
+                f"{s['second_line_error_median_m']:.3f} m for the runner-up. graphloc's failures:",
+                f"{gf['ground_triangle_rejected']} ground triangles rejected by graphloc.vision.mutual",
+                "(e.g. noise pushed a pixel past the omni field of view),",
+                f"{gf['consistent_fit_ill_conditioned']} fits as consistent as the successes' (graph",
+                f"error <= their 99th percentile {gf['success_graph_error_p99']:.1f}: ill-conditioned,",
+                "the P3P singularity the seed blames for its 3 failures),",
+                f"{gf['poor_fit_wrong_basin']} poor fits, {gf['optimizer_failed']} optimizer failures.",
+                f"Simulation: {fl['camera_trials_redrawn']} camera placements and",
+                f"{fl['formations_redrawn_not_mutually_visible']} ground formations (a robot outside",
+                "another's 120 deg omni field of view) redrawn,",
+                f"{fl['ground_orientation_redraws']} ground orientations redrawn.",
+            ]
+        ),
+    ]
     return "\n".join(lines) + "\n"
 
 
 def table_ii(r: dict) -> str:
     """Seed 000 Table II (running times on this machine)."""
     d = r["deterministic_ms"]
-    lines = ["### Seed 000 Table II: running time (this machine, median per trial / mean per "
-             "update)", "",
-             "| algorithm | paper | seed baseline (ours) | graphloc |", "|---|---|---|---|",
-             "| deterministic (3 x P3P + straight-line test; graphloc + joint GTSAM) | "
-             f"{r['paper_ms']['deterministic']} ms | {d['seed_baseline']:.2f} ms | "
-             f"{d['graphloc']:.2f} ms |"]
+    lines = [
+        "### Seed 000 Table II: running time (this machine, median per trial / mean per update)",
+        "",
+        "| algorithm | paper | seed baseline (ours) | graphloc |",
+        "|---|---|---|---|",
+        "| deterministic (3 x P3P + straight-line test; graphloc + joint GTSAM) | "
+        f"{r['paper_ms']['deterministic']} ms | {d['seed_baseline']:.2f} ms | "
+        f"{d['graphloc']:.2f} ms |",
+    ]
     if "deterministic_batched_ms" in r:
         b = r["deterministic_batched_ms"]
-        lines.append("| the same, all Table I trials batched (per trial; graphloc across workers) "
-                     f"| -- | {b['seed_baseline']:.3f} ms | {b['graphloc']:.2f} ms |")
+        lines.append(
+            "| the same, all Table I trials batched (per trial; graphloc across workers) "
+            f"| -- | {b['seed_baseline']:.3f} ms | {b['graphloc']:.2f} ms |"
+        )
     if "update_ms" in r:
         u = r["update_ms"]
-        lines.append(f"| one update (belief vector Def. 1 / HypothesisTracker) | "
-                     f"{r['paper_ms']['update']} ms | {u['belief_def1']:.3f} ms | "
-                     f"{u['tracker']:.3f} ms |")
-        lines += ["", f"Particle filter (seed 004) {u['particle_filter']:.3f} ms, belief Def. 2 "
-                      f"{u['belief_def2']:.3f} ms per update."]
+        lines.append(
+            f"| one update (belief vector Def. 1 / HypothesisTracker) | "
+            f"{r['paper_ms']['update']} ms | {u['belief_def1']:.3f} ms | "
+            f"{u['tracker']:.3f} ms |"
+        )
+        lines += [
+            "",
+            f"Particle filter (seed 004) {u['particle_filter']:.3f} ms, belief Def. 2 "
+            f"{u['belief_def2']:.3f} ms per update.",
+        ]
     c = r["bearing_custom_factor_linearize"]
-    lines += ["", "The paper's times are Matlab on a 2011 PC, including the simulation; ours "
-                  "exclude it. graphloc's joint graph uses the Python CustomFactor bearing_factor "
-                  f"(Pose3 -> Pose3, no built-in fits): {1e6 * c['custom_s']:.0f} us per "
-                  f"linearization vs {1e6 * c['builtin_s']:.0f} us for the built-in "
-                  f"BearingFactor3D ({c['ratio']:.1f}x)."]
+    lines += [
+        "",
+        "The paper's times are Matlab on a 2011 PC, including the simulation; ours "
+        "exclude it. graphloc's joint graph uses the Python CustomFactor bearing_factor "
+        f"(Pose3 -> Pose3, no built-in fits): {1e6 * c['custom_s']:.0f} us per "
+        f"linearization vs {1e6 * c['builtin_s']:.0f} us for the built-in "
+        f"BearingFactor3D ({c['ratio']:.1f}x).",
+    ]
     return "\n".join(lines) + "\n"
 
 
 def table_iii(r: dict) -> str:
     """Seed 000 Table III (Sec. VI-B)."""
-    lines = [f"### Seed 000 Table III: mean updates to converge ({r['config']['runs']} runs per "
-             "cell; wrong first locks / never converged)", "",
-             "| cell | paper | seed baseline (ours): belief Def. 1 | belief Def. 2 | particle "
-             "filter (seed 004) | graphloc HypothesisTracker | graphloc fewer than paper and "
-             "belief |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [
+        f"### Seed 000 Table III: mean updates to converge ({r['config']['runs']} runs per "
+        "cell; wrong first locks / never converged)",
+        "",
+        "| cell | paper | seed baseline (ours): belief Def. 1 | belief Def. 2 | particle "
+        "filter (seed 004) | graphloc HypothesisTracker | graphloc fewer than paper and "
+        "belief |",
+        "|---|---|---|---|---|---|---|",
+    ]
     fewer = r["graphloc_fewer_updates_than_paper_and_belief"]
     for name, c in r["cells"].items():
+
         def cell(m):
             x = c[m]
-            mean = _f(x['mean_updates_to_converge'], '.2f')
+            mean = _f(x["mean_updates_to_converge"], ".2f")
             return f"{mean} ({x['wrong_locks']}/{x['never_converged']})"
-        lines.append(f"| {name} | {c['paper_table_iii']} | {cell('belief_def1')} | "
-                     f"{cell('belief_def2')} | {cell('particle_filter')} | {cell('tracker')} | "
-                     f"{'yes' if fewer[name] else 'no'} |")
-    lines += ["", "Mean updates to the first *correct* lock (runs never correctly locked):", "",
-              "| cell | paper | belief Def. 1 | belief Def. 2 | particle filter | graphloc "
-              "HypothesisTracker | graphloc fewer than paper and belief |",
-              "|---|---|---|---|---|---|---|"]
+
+        lines.append(
+            f"| {name} | {c['paper_table_iii']} | {cell('belief_def1')} | "
+            f"{cell('belief_def2')} | {cell('particle_filter')} | {cell('tracker')} | "
+            f"{'yes' if fewer[name] else 'no'} |"
+        )
+    lines += [
+        "",
+        "Mean updates to the first *correct* lock (runs never correctly locked):",
+        "",
+        "| cell | paper | belief Def. 1 | belief Def. 2 | particle filter | graphloc "
+        "HypothesisTracker | graphloc fewer than paper and belief |",
+        "|---|---|---|---|---|---|---|",
+    ]
     fewer = r["graphloc_fewer_updates_to_correct_lock_than_paper_and_belief"]
     for name, c in r["cells"].items():
+
         def correct(m):
             x = c[m]
             return f"{_f(x['mean_updates_to_correct_lock'], '.2f')} ({x['never_correct']})"
-        lines.append(f"| {name} | {c['paper_table_iii']} | {correct('belief_def1')} | "
-                     f"{correct('belief_def2')} | {correct('particle_filter')} | "
-                     f"{correct('tracker')} | {'yes' if fewer[name] else 'no'} |")
-    lines += ["", "Runs, engines and convergence rule: graphloc.experiments.hypotheses (update 1 = "
-                  "first odometry step). Wrong first locks count commits on a non-genuine "
-                  "candidate: a method that converges fast but wrongly is not better."]
+
+        lines.append(
+            f"| {name} | {c['paper_table_iii']} | {correct('belief_def1')} | "
+            f"{correct('belief_def2')} | {correct('particle_filter')} | "
+            f"{correct('tracker')} | {'yes' if fewer[name] else 'no'} |"
+        )
+    lines += [
+        "",
+        "Runs, engines and convergence rule: graphloc.experiments.hypotheses (update 1 = "
+        "first odometry step). Wrong first locks count commits on a non-genuine "
+        "candidate: a method that converges fast but wrongly is not better.",
+    ]
     return "\n".join(lines) + "\n"
 
 
 def seed004(r: dict) -> str:
     """Seed 004 Table 1 (Sec. III)."""
-    lines = [f"### Seed 004 Table 1: P3P position error [m] ({r['runs']} tracks x {r['frames']} "
-             "frames per cell)", "",
-             "| focal | noise var [px^2] | paper mean (std) | seed baseline raw P3P: RMS / mean "
-             "(std) | graphloc smoothed: RMS / mean (std) |",
-             "|---|---|---|---|---|"]
+    lines = [
+        f"### Seed 004 Table 1: P3P position error [m] ({r['runs']} tracks x {r['frames']} "
+        "frames per cell)",
+        "",
+        "| focal | noise var [px^2] | paper mean (std) | seed baseline raw P3P: RMS / mean "
+        "(std) | graphloc smoothed: RMS / mean (std) |",
+        "|---|---|---|---|---|",
+    ]
     for c in r["cells"]:
         p, s, g = c["paper"], c["seed_baseline_raw_p3p"], c["graphloc_smoothed"]
-        lines.append(f"| {c['focal_mm']:g} mm | {c['noise_variance']:g} | {p['mean']:.4f} "
-                     f"({p['std']:.4f}) | {s['rms']:.4f} / {s['mean']:.4f} ({s['std']:.4f}) | "
-                     f"{g['rms']:.4f} / {g['mean']:.4f} ({g['std']:.4f}) |")
+        lines.append(
+            f"| {c['focal_mm']:g} mm | {c['noise_variance']:g} | {p['mean']:.4f} "
+            f"({p['std']:.4f}) | {s['rms']:.4f} / {s['mean']:.4f} ({s['std']:.4f}) | "
+            f"{g['rms']:.4f} / {g['mean']:.4f} ({g['std']:.4f}) |"
+        )
     st, first = r["setup"], r["cells"][0]
-    lines += ["", f"Setup where the seed is silent: camera {st['height']} m above the LEDs, pixel "
-                  f"pitch {st['pixel_pitch_um']} um ({st['width']}x{st['height_px']}), track step "
-                  f"{st['step']} m, odometry {100 * st['odometry_noise']:.0f} % / "
-                  f"{st['odometry_rot_sigma']} rad. The absolute errors depend on these (not "
-                  "given in the seed), so the paper's numbers are not matched; both columns use "
-                  "the genuine P3P candidate of the same frames. A narrow lens looking down on a "
-                  "0.3 m triangle from this range sees it nearly fronto-parallel, where its tilt "
-                  "is observable only at second order (cos t ~ 1 - t^2/2), so the tilt -- and "
-                  "with it the camera's lateral position -- is ill-conditioned; the raw error "
-                  "stays large away from the danger cylinder too "
-                  f"({first['raw_p3p_rms_far_from_danger_cylinder']:.3f} m RMS vs "
-                  f"{first['raw_p3p_rms_near_danger_cylinder']:.3f} m near it in the first cell). "
-                  "Graph-smoothed RMS below raw P3P in all nine cells: "
-                  f"{'yes' if r['target_smoothed_below_raw_in_all_cells'] else 'NO'}."]
+    lines += [
+        "",
+        f"Setup where the seed is silent: camera {st['height']} m above the LEDs, pixel "
+        f"pitch {st['pixel_pitch_um']} um ({st['width']}x{st['height_px']}), track step "
+        f"{st['step']} m, odometry {100 * st['odometry_noise']:.0f} % / "
+        f"{st['odometry_rot_sigma']} rad. The absolute errors depend on these (not "
+        "given in the seed), so the paper's numbers are not matched; both columns use "
+        "the genuine P3P candidate of the same frames. A narrow lens looking down on a "
+        "0.3 m triangle from this range sees it nearly fronto-parallel, where its tilt "
+        "is observable only at second order (cos t ~ 1 - t^2/2), so the tilt -- and "
+        "with it the camera's lateral position -- is ill-conditioned; the raw error "
+        "stays large away from the danger cylinder too "
+        f"({first['raw_p3p_rms_far_from_danger_cylinder']:.3f} m RMS vs "
+        f"{first['raw_p3p_rms_near_danger_cylinder']:.3f} m near it in the first cell). "
+        "Graph-smoothed RMS below raw P3P in all nine cells: "
+        f"{'yes' if r['target_smoothed_below_raw_in_all_cells'] else 'NO'}.",
+    ]
     return "\n".join(lines) + "\n"

@@ -53,9 +53,14 @@ def gtsam_only_batch(graph: TeamGraph) -> dict:
     optimizer = gtsam.LevenbergMarquardtOptimizer(factors, values, params)
     result = optimizer.optimize()
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    return {"wall_s": wall, "cpu_s": cpu, "iterations": int(optimizer.iterations()),
-            "error": float(factors.error(result)), "factors": int(factors.size()),
-            "variables": int(values.size())}
+    return {
+        "wall_s": wall,
+        "cpu_s": cpu,
+        "iterations": int(optimizer.iterations()),
+        "error": float(factors.error(result)),
+        "factors": int(factors.size()),
+        "variables": int(values.size()),
+    }
 
 
 def _as_value(v):
@@ -71,8 +76,14 @@ def replay_graph(graph: TeamGraph, copies: int) -> TeamGraph:
     dt = graph.config.keyframe_dt
     span = np.ceil((max(ends) - min(starts)) / dt + 1) * dt
     sizes = [len(t) for t in graph.node_times]
-    anchors = max([decode(k)[1] - ANCHOR_BASE + 1 for k in graph.initial
-                   if decode(k)[0] == "l" and decode(k)[1] >= ANCHOR_BASE], default=0)
+    anchors = max(
+        [
+            decode(k)[1] - ANCHOR_BASE + 1
+            for k in graph.initial
+            if decode(k)[0] == "l" and decode(k)[1] >= ANCHOR_BASE
+        ],
+        default=0,
+    )
 
     def shift(key: int, c: int) -> int:
         kind, r, k = decode(key)
@@ -85,8 +96,15 @@ def replay_graph(graph: TeamGraph, copies: int) -> TeamGraph:
     steps, initial = [], {}
     for c in range(copies):
         for t, group in graph.steps:
-            steps.append((t + c * span, [(f if c == 0 else f.rekey([shift(k, c) for k in f.keys()]),
-                                          kind) for f, kind in group]))
+            steps.append(
+                (
+                    t + c * span,
+                    [
+                        (f if c == 0 else f.rekey([shift(k, c) for k in f.keys()]), kind)
+                        for f, kind in group
+                    ],
+                )
+            )
         for key, value in graph.initial.items():
             initial[shift(key, c)] = value
     node_times = [np.concatenate([t + c * span for c in range(copies)]) for t in graph.node_times]
@@ -95,9 +113,16 @@ def replay_graph(graph: TeamGraph, copies: int) -> TeamGraph:
         for c in range(1, copies):
             if sizes[r]:
                 s[c * sizes[r]] = None  # no odometry across the replay's seam
-    return replace(graph, node_times=node_times, initial=initial, steps=steps, step_rel=step_rel,
-                   factor_types=list(graph.factor_types) * copies, decisions=[],
-                   counts={**graph.counts, "steps": len(steps), "copies": copies})
+    return replace(
+        graph,
+        node_times=node_times,
+        initial=initial,
+        steps=steps,
+        step_rel=step_rel,
+        factor_types=list(graph.factor_types) * copies,
+        decisions=[],
+        counts={**graph.counts, "steps": len(steps), "copies": copies},
+    )
 
 
 def online_profile(graph: TeamGraph, lag: float | None, rss_every: int = 250) -> tuple:
@@ -117,7 +142,7 @@ def online_profile(graph: TeamGraph, lag: float | None, rss_every: int = 250) ->
 def memory_slope(samples: np.ndarray) -> float | None:
     """Least-squares slope of resident memory over the second half of the run [MB per 1,000
     steps] (the first half includes the allocator's warm-up)."""
-    half = samples[len(samples) // 2:]
+    half = samples[len(samples) // 2 :]
     if len(half) < 3:
         return None
     return float(np.polyfit(half[:, 0], half[:, 1], 1)[0] * 1000)
@@ -128,22 +153,33 @@ def online_summary(result, cpu_s: float, samples: np.ndarray, run, batch_ate: di
     metrics = evaluate(result, run) if batch_ate is not None else None
     log = result.step_log
     duration = float(log[-1, 1] - log[0, 1]) if len(log) else 0.0
-    out = {"lag_s": result.lag, "steps": int(len(log)), "wall_s": result.wall_s, "cpu_s": cpu_s,
-           "realtime_factor": duration / max(result.wall_s, 1e-12),
-           "realtime_factor_cpu": duration / max(cpu_s, 1e-12),
-           "latency_ms": {"mean": float(log[:, 2].mean() * 1e3),
-                          "p95": float(np.percentile(log[:, 2], 95) * 1e3),
-                          "max": float(log[:, 2].max() * 1e3)},
-           "dropped_across_lag": result.dropped,
-           "memory_mb_per_1000_steps": memory_slope(samples),
-           "rss_mb_end": float(samples[-1, 1]) if len(samples) else None}
+    out = {
+        "lag_s": result.lag,
+        "steps": int(len(log)),
+        "wall_s": result.wall_s,
+        "cpu_s": cpu_s,
+        "realtime_factor": duration / max(result.wall_s, 1e-12),
+        "realtime_factor_cpu": duration / max(cpu_s, 1e-12),
+        "latency_ms": {
+            "mean": float(log[:, 2].mean() * 1e3),
+            "p95": float(np.percentile(log[:, 2], 95) * 1e3),
+            "max": float(log[:, 2].max() * 1e3),
+        },
+        "dropped_across_lag": result.dropped,
+        "memory_mb_per_1000_steps": memory_slope(samples),
+        "rss_mb_end": float(samples[-1, 1]) if len(samples) else None,
+    }
     from graphloc.pipelines.report import latency_trend
 
     out["trend"] = latency_trend(result)
     if metrics is not None:
-        ate = {name: e["online"]["ate_rmse"] for name, e in metrics["per_robot"].items()
-               if isinstance(e.get("online"), dict) and "ate_rmse" in e["online"]}
+        ate = {
+            name: e["online"]["ate_rmse"]
+            for name, e in metrics["per_robot"].items()
+            if isinstance(e.get("online"), dict) and "ate_rmse" in e["online"]
+        }
         out["ate_rmse_m"] = ate
-        out["ate_over_batch"] = {name: a / batch_ate[name] for name, a in ate.items()
-                                 if name in batch_ate}
+        out["ate_over_batch"] = {
+            name: a / batch_ate[name] for name, a in ate.items() if name in batch_ate
+        }
     return out

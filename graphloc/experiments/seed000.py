@@ -28,8 +28,12 @@ from tqdm import tqdm
 from graphloc.baselines.straight_line import localize_by_straight_line
 from graphloc.cameras import ParaboloidOmniCamera
 from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario
-from graphloc.datasets.feng_deterministic import (TableIConfig, ground_triangle,
-                                                  simulate_straight_line_trials, Seed000Config)
+from graphloc.datasets.feng_deterministic import (
+    TableIConfig,
+    ground_triangle,
+    simulate_straight_line_trials,
+    Seed000Config,
+)
 from graphloc.experiments import hypotheses, markdown
 from graphloc.experiments.hypotheses import TableIIIConfig
 from graphloc.experiments.pool import worker_pool
@@ -40,8 +44,13 @@ from graphloc.pipelines.seed000_joint import best_joint, formations, shared_rota
 from graphloc.plots import plt
 from graphloc.vision.mutual import localize_three
 
-PAPER_TABLE_I = {"success": 997, "trials": 1000, "C2": (1.7e-4, 6.1e-5), "C3": (1.6e-4, 5.1e-5),
-                 "C": (5.7e-4, 1.3e-4)}
+PAPER_TABLE_I = {
+    "success": 997,
+    "trials": 1000,
+    "C2": (1.7e-4, 6.1e-5),
+    "C3": (1.6e-4, 5.1e-5),
+    "C": (5.7e-4, 1.3e-4),
+}
 PAPER_TABLE_II_MS = {"deterministic": 1.7, "update": 0.35}
 
 
@@ -52,19 +61,21 @@ def _take(record, rows: np.ndarray):
 
     def per_trial(name: str) -> bool:
         value = getattr(record, name)
-        return (isinstance(value, np.ndarray) and len(value) == n and value.ndim >= 1
-                and name != "K")
+        return isinstance(value, np.ndarray) and len(value) == n and value.ndim >= 1 and name != "K"
 
-    return replace(record, **{f.name: getattr(record, f.name)[rows] for f in fields(record)
-                              if per_trial(f.name)})
+    return replace(
+        record,
+        **{f.name: getattr(record, f.name)[rows] for f in fields(record) if per_trial(f.name)},
+    )
 
 
 def _joint_chunk(job) -> list:
     return [best_joint(*args) for args in zip(*job)]
 
 
-def run_joint(trials, tri, R_cand: np.ndarray, valid: np.ndarray, config: TableIConfig,
-              progress: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def run_joint(
+    trials, tri, R_cand: np.ndarray, valid: np.ndarray, config: TableIConfig, progress: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """graphloc.pipelines.seed000_joint for every trial with an accepted ground triangle
     (others stay NaN), across `config.workers` processes in chunks. Returns climber centres
     (T,3,3), ground positions (T,3,3), graph errors (T,)."""
@@ -75,15 +86,27 @@ def run_joint(trials, tri, R_cand: np.ndarray, valid: np.ndarray, config: TableI
     rows = np.array([i for i, f in enumerate(forms) if f is not None], dtype=int)
     if rows.size == 0:
         return positions, ground, errors
-    R0, c0, residual = shared_rotation_initials(trials.pixels[rows], trials.K, tri.estimated[rows],
-                                                R_cand[rows], valid[rows],
-                                                keep=config.initial_rotations)
+    R0, c0, residual = shared_rotation_initials(
+        trials.pixels[rows],
+        trials.K,
+        tri.estimated[rows],
+        R_cand[rows],
+        valid[rows],
+        keep=config.initial_rotations,
+    )
     n_chunks = max(1, min(rows.size, 8 * config.workers))
     chunks = [c for c in np.array_split(np.arange(rows.size), n_chunks) if c.size]
     jobs = [([forms[rows[k]] for k in c], R0[c], c0[c], residual[c]) for c in chunks]
     with worker_pool(config.workers) as pool:
-        results = list(tqdm(pool.imap(_joint_chunk, jobs), total=len(jobs),
-                            desc="Table I joint (GTSAM)", disable=not progress, leave=False))
+        results = list(
+            tqdm(
+                pool.imap(_joint_chunk, jobs),
+                total=len(jobs),
+                desc="Table I joint (GTSAM)",
+                disable=not progress,
+                leave=False,
+            )
+        )
     for c, out in zip(chunks, results):
         for k, (pos, g, err) in zip(c, out):
             positions[rows[k]], ground[rows[k]], errors[rows[k]] = pos, g, err
@@ -96,20 +119,26 @@ def _classify_failures(ok: np.ndarray, ground_ok: np.ndarray, graph_error: np.nd
     singularity the seed blames for its 3 failures); or a poor fit (a wrong basin)."""
     fail = ground_ok & ~ok
     p99 = np.percentile(graph_error[ok], 99) if ok.any() else np.inf
-    return {"ground_triangle_rejected": int((~ground_ok).sum()),
-            "consistent_fit_ill_conditioned": int((fail & (graph_error <= p99)).sum()),
-            "poor_fit_wrong_basin": int(
-                (fail & np.isfinite(graph_error) & (graph_error > p99)).sum()),
-            "optimizer_failed": int((fail & ~np.isfinite(graph_error)).sum()),
-            "success_graph_error_p99": float(p99)}
+    return {
+        "ground_triangle_rejected": int((~ground_ok).sum()),
+        "consistent_fit_ill_conditioned": int((fail & (graph_error <= p99)).sum()),
+        "poor_fit_wrong_basin": int((fail & np.isfinite(graph_error) & (graph_error > p99)).sum()),
+        "optimizer_failed": int((fail & ~np.isfinite(graph_error)).sum()),
+        "success_graph_error_p99": float(p99),
+    }
 
 
 def _rel_stats(errors: np.ndarray, scale: float) -> dict:
     e = errors[np.isfinite(errors)]
     if e.size == 0:
         return {"mean": None, "std": None, "abs_mean_m": None, "abs_median_m": None, "n": 0}
-    return {"mean": float(e.mean() / scale), "std": float(e.std() / scale),
-            "abs_mean_m": float(e.mean()), "abs_median_m": float(np.median(e)), "n": int(e.size)}
+    return {
+        "mean": float(e.mean() / scale),
+        "std": float(e.std() / scale),
+        "abs_mean_m": float(e.mean()),
+        "abs_median_m": float(np.median(e)),
+        "n": int(e.size),
+    }
 
 
 def table_i(config: TableIConfig = TableIConfig(), progress: bool = True) -> dict:
@@ -120,13 +149,16 @@ def table_i(config: TableIConfig = TableIConfig(), progress: bool = True) -> dic
     sim = Seed000Config(pixel_sigma=config.pixel_sigma)
     # formations where some robot stays outside another's omni field of view whatever the
     # orientation are redrawn (as feng_deterministic redraws trials where C cannot see them)
-    pool = simulate_straight_line_trials(int(1.1 * config.trials) + 10, seed=config.seed,
-                                         config=sim)
+    pool = simulate_straight_line_trials(
+        int(1.1 * config.trials) + 10, seed=config.seed, config=sim
+    )
     tri = ground_triangle(pool.ground, config, np.random.default_rng([config.seed, 1]))
     rows = np.flatnonzero(tri.visible)[: config.trials]
     if rows.size < config.trials:
-        raise ValueError(f"seed000 Table I: only {rows.size} of {len(pool.ground)} formations "
-                         f"are mutually visible with omni_max_polar={config.omni_max_polar:.3f}")
+        raise ValueError(
+            f"seed000 Table I: only {rows.size} of {len(pool.ground)} formations "
+            f"are mutually visible with omni_max_polar={config.omni_max_polar:.3f}"
+        )
     unobservable = int((~tri.visible[: rows[-1] + 1]).sum())
     trials, tri = _take(pool, rows), _take(tri, rows)
     ground_ok = np.isfinite(tri.estimated).all(axis=(1, 2))
@@ -151,12 +183,14 @@ def table_i(config: TableIConfig = TableIConfig(), progress: bool = True) -> dic
     # graphloc: joint GTSAM estimate with the shared rotation, from the best P3P rotations
     valid = cand_valid.reshape(-1, 3 * MAX_CANDIDATES)
     t0 = time.perf_counter()
-    joint_pos, joint_ground, joint_graph_error = run_joint(trials, tri, R_cand, valid, config,
-                                                           progress)
+    joint_pos, joint_ground, joint_graph_error = run_joint(
+        trials, tri, R_cand, valid, config, progress
+    )
     joint_time = time.perf_counter() - t0
 
     truth_to_candidates = np.where(
-        cand_valid, np.linalg.norm(cand_t - trials.positions[:, :, None, :], axis=3), np.inf)
+        cand_valid, np.linalg.norm(cand_t - trials.positions[:, :, None, :], axis=3), np.inf
+    )
     nearest_pseudo = np.sort(truth_to_candidates, axis=2)[:, :, 1]  # (T,3) closest wrong solution
 
     def success(pos: np.ndarray) -> np.ndarray:
@@ -167,19 +201,26 @@ def table_i(config: TableIConfig = TableIConfig(), progress: bool = True) -> dic
         err = np.linalg.norm(pos - trials.positions, axis=2)
         return ground_ok & (np.nan_to_num(err, nan=np.inf) < nearest_pseudo).all(axis=1)
 
-    def outcome(pos: np.ndarray, ground_est: np.ndarray, ok: np.ndarray,
-                common: np.ndarray) -> dict:
+    def outcome(
+        pos: np.ndarray, ground_est: np.ndarray, ok: np.ndarray, common: np.ndarray
+    ) -> dict:
         err_ground = np.linalg.norm(ground_est - trials.ground, axis=2)
         err = np.linalg.norm(pos - trials.positions, axis=2)
         within = ground_ok & (np.nan_to_num(err, nan=np.inf).max(axis=1) < config.success_tol)
 
         def stats(mask):
-            return {"C2": _rel_stats(err_ground[mask, 1], config.scale),
-                    "C3": _rel_stats(err_ground[mask, 2], config.scale),
-                    "C": _rel_stats(err[mask].ravel(), config.scale)}
+            return {
+                "C2": _rel_stats(err_ground[mask, 1], config.scale),
+                "C3": _rel_stats(err_ground[mask, 2], config.scale),
+                "C": _rel_stats(err[mask].ravel(), config.scale),
+            }
 
-        return {"success": int(ok.sum()), "within_tol": int(within.sum()), **stats(ok),
-                "common_trials": stats(common)}
+        return {
+            "success": int(ok.sum()),
+            "within_tol": int(within.sum()),
+            **stats(ok),
+            "common_trials": stats(common),
+        }
 
     seed_ok, joint_ok = success(seed_pos), success(joint_pos)
     common = seed_ok & joint_ok
@@ -187,34 +228,52 @@ def table_i(config: TableIConfig = TableIConfig(), progress: bool = True) -> dic
     # the genuine P3P candidate with the *true* ground positions: the front-end's noise floor
     floor = localize_by_straight_line(trials.pixels, trials.K, trials.ground)
     floor_t = floor.candidates.t_wc.reshape(-1, 3, MAX_CANDIDATES, 3)
-    floor_d = np.where(floor.candidates.valid.reshape(-1, 3, MAX_CANDIDATES),
-                       np.linalg.norm(floor_t - trials.positions[:, :, None, :], axis=3),
-                       np.inf).min(axis=2)
+    floor_d = np.where(
+        floor.candidates.valid.reshape(-1, 3, MAX_CANDIDATES),
+        np.linalg.norm(floor_t - trials.positions[:, :, None, :], axis=3),
+        np.inf,
+    ).min(axis=2)
 
     def finite_median(x: np.ndarray) -> float:
         return float(np.nanmedian(np.where(np.isfinite(x), x, np.nan)))
 
     return {
-        "table": "seed000-table1", "config": asdict(config), "trials": config.trials,
-        "paper": PAPER_TABLE_I, "common_successes": int(common.sum()),
+        "table": "seed000-table1",
+        "config": asdict(config),
+        "trials": config.trials,
+        "paper": PAPER_TABLE_I,
+        "common_successes": int(common.sum()),
         "graphloc_failures": _classify_failures(joint_ok, ground_ok, joint_graph_error),
-        "seed_baseline": {**outcome(seed_pos, tri.estimated, seed_ok, common),
-                          "line_error_median_m": finite_median(choice.error),
-                          "second_line_error_median_m": finite_median(choice.second_error)},
-        "graphloc": {**outcome(joint_pos, joint_ground, joint_ok, common),
-                     "graph_error_median": float(np.median(
-                         joint_graph_error[np.isfinite(joint_graph_error)]))},
-        "failures": {"ground_triangle_rejected": int((~ground_ok).sum()),
-                     "ground_status": {str(s): int(n)
-                                       for s, n in zip(*np.unique(tri.status, return_counts=True))},
-                     "ground_orientation_redraws": tri.redrawn,
-                     "formations_redrawn_not_mutually_visible": unobservable,
-                     "camera_trials_redrawn": trials.redrawn},
-        "evidence": {"genuine_p3p_error_true_ground_median_m": float(np.median(floor_d)),
-                     "genuine_p3p_error_true_ground_p90_m": float(np.percentile(floor_d, 90)),
-                     "ground_error_median_m": float(np.nanmedian(err_ground[:, 1:]))},
-        "timing": {"seed_batched_s": seed_time, "graphloc_s": joint_time,
-                   "total_s": time.perf_counter() - t_start},
+        "seed_baseline": {
+            **outcome(seed_pos, tri.estimated, seed_ok, common),
+            "line_error_median_m": finite_median(choice.error),
+            "second_line_error_median_m": finite_median(choice.second_error),
+        },
+        "graphloc": {
+            **outcome(joint_pos, joint_ground, joint_ok, common),
+            "graph_error_median": float(
+                np.median(joint_graph_error[np.isfinite(joint_graph_error)])
+            ),
+        },
+        "failures": {
+            "ground_triangle_rejected": int((~ground_ok).sum()),
+            "ground_status": {
+                str(s): int(n) for s, n in zip(*np.unique(tri.status, return_counts=True))
+            },
+            "ground_orientation_redraws": tri.redrawn,
+            "formations_redrawn_not_mutually_visible": unobservable,
+            "camera_trials_redrawn": trials.redrawn,
+        },
+        "evidence": {
+            "genuine_p3p_error_true_ground_median_m": float(np.median(floor_d)),
+            "genuine_p3p_error_true_ground_p90_m": float(np.percentile(floor_d, 90)),
+            "ground_error_median_m": float(np.nanmedian(err_ground[:, 1:])),
+        },
+        "timing": {
+            "seed_batched_s": seed_time,
+            "graphloc_s": joint_time,
+            "total_s": time.perf_counter() - t_start,
+        },
     }
 
 
@@ -223,24 +282,40 @@ def table_iii(config: TableIIIConfig = TableIIIConfig(), progress: bool = True) 
     """Seed 000 Table III: mean updates to converge per cell for every method of
     graphloc.experiments.hypotheses (same simulated runs for all), plus the per-update
     latencies used by Table II."""
-    jobs = [(ceiling, curve, i, config) for ceiling, curve in hypotheses.CELLS
-            for i in range(config.runs)]
+    jobs = [
+        (ceiling, curve, i, config)
+        for ceiling, curve in hypotheses.CELLS
+        for i in range(config.runs)
+    ]
     t0 = time.perf_counter()
     with worker_pool(config.workers) as pool:
         imap = pool.imap_unordered if config.workers > 1 else pool.imap
-        trials = list(tqdm(imap(hypotheses.trial, jobs), total=len(jobs), desc="Table III runs",
-                           disable=not progress, leave=False))
+        trials = list(
+            tqdm(
+                imap(hypotheses.trial, jobs),
+                total=len(jobs),
+                desc="Table III runs",
+                disable=not progress,
+                leave=False,
+            )
+        )
     cells = hypotheses.summarize(trials)
-    beaten = {name: _fewer_updates(cell, "mean_updates_to_converge")
-              for name, cell in cells.items()}
-    beaten_correct = {name: _fewer_updates(cell, "mean_updates_to_correct_lock")
-                      for name, cell in cells.items()}
-    return {"table": "seed000-table3", "config": asdict(config), "cells": cells,
-            "graphloc_fewer_updates_than_paper_and_belief": beaten,
-            "graphloc_fewer_updates_to_correct_lock_than_paper_and_belief": beaten_correct,
-            "target_met": all(beaten.values()),
-            "target_met_correct_lock": all(beaten_correct.values()),
-            "wall_time_s": time.perf_counter() - t0}
+    beaten = {
+        name: _fewer_updates(cell, "mean_updates_to_converge") for name, cell in cells.items()
+    }
+    beaten_correct = {
+        name: _fewer_updates(cell, "mean_updates_to_correct_lock") for name, cell in cells.items()
+    }
+    return {
+        "table": "seed000-table3",
+        "config": asdict(config),
+        "cells": cells,
+        "graphloc_fewer_updates_than_paper_and_belief": beaten,
+        "graphloc_fewer_updates_to_correct_lock_than_paper_and_belief": beaten_correct,
+        "target_met": all(beaten.values()),
+        "target_met_correct_lock": all(beaten_correct.values()),
+        "wall_time_s": time.perf_counter() - t0,
+    }
 
 
 def _fewer_updates(cell: dict, key: str) -> bool:
@@ -251,16 +326,18 @@ def _fewer_updates(cell: dict, key: str) -> bool:
     return mine is not None and all(o is None or mine < o for o in others)
 
 
-def fig6_series(updates: int = 40, seed_offset: int = 0,
-                config: TableIIIConfig = TableIIIConfig()) -> dict:
+def fig6_series(
+    updates: int = 40, seed_offset: int = 0, config: TableIIIConfig = TableIIIConfig()
+) -> dict:
     """Seed 000 Fig. 6 style: probability of the genuine candidate vs update for one run of
     each cell, belief vector (Def. 1, seed Sec. V-B) vs graphloc's HypothesisTracker, on the
     same run (graphloc.experiments.hypotheses' simulation and engines)."""
     out = {}
     for cell_index, (ceiling, curve) in enumerate(hypotheses.CELLS):
         seed = 1000 * cell_index + seed_offset
-        sim = FengProbabilisticConfig(ceiling=ceiling, curve=curve, seed=seed,
-                                      pixel_sigma=config.pixel_sigma)
+        sim = FengProbabilisticConfig(
+            ceiling=ceiling, curve=curve, seed=seed, pixel_sigma=config.pixel_sigma
+        )
         run = FengProbabilisticScenario.simulate(sim)
         odometry = hypotheses.odometry_steps(run, sim)
         series = {}
@@ -278,8 +355,9 @@ def fig6_series(updates: int = 40, seed_offset: int = 0,
 
 
 # ---- Table II ---------------------------------------------------------------------------------
-def table_ii(table3: dict | None = None, samples: int = 100, seed: int = 0,
-             table1: dict | None = None) -> dict:
+def table_ii(
+    table3: dict | None = None, samples: int = 100, seed: int = 0, table1: dict | None = None
+) -> dict:
     """Seed 000 Table II on this machine: the deterministic algorithm per trial, one trial per
     call (seed: mutual triangle + P3P on three snapshots + straight-line test; graphloc: the
     same front-end + the joint GTSAM estimate), and one probabilistic update (mean latency of
@@ -300,26 +378,40 @@ def table_ii(table3: dict | None = None, samples: int = 100, seed: int = 0,
         ground = trials.ground[sl, 0, None, :] + np.einsum("nij,nkj->nki", tri.R[sl, 0], res.t)
         choice = localize_by_straight_line(trials.pixels[sl], trials.K, ground)
         t1 = time.perf_counter()
-        R0, c0, r = shared_rotation_initials(trials.pixels[sl], trials.K, ground,
-                                             choice.candidates.R_wc.reshape(1, -1, 3, 3),
-                                             choice.candidates.valid.reshape(1, -1))
+        R0, c0, r = shared_rotation_initials(
+            trials.pixels[sl],
+            trials.K,
+            ground,
+            choice.candidates.R_wc.reshape(1, -1, 3, 3),
+            choice.candidates.valid.reshape(1, -1),
+        )
         best_joint(forms[i], R0[0], c0[0], r[0])
         t2 = time.perf_counter()
         seed_ms.append(1e3 * (t1 - t0))
         joint_ms.append(1e3 * (t2 - t0))
-    out = {"table": "seed000-table2", "paper_ms": PAPER_TABLE_II_MS, "samples": len(seed_ms),
-           "deterministic_ms": {"seed_baseline": float(np.median(seed_ms)),
-                                "graphloc": float(np.median(joint_ms))},
-           "bearing_custom_factor_linearize": bearing_linearize_cost(500)}
+    out = {
+        "table": "seed000-table2",
+        "paper_ms": PAPER_TABLE_II_MS,
+        "samples": len(seed_ms),
+        "deterministic_ms": {
+            "seed_baseline": float(np.median(seed_ms)),
+            "graphloc": float(np.median(joint_ms)),
+        },
+        "bearing_custom_factor_linearize": bearing_linearize_cost(500),
+    }
     if table1 is not None:  # vectorized over all Table I trials, per trial
         n = table1["trials"]
         timing = table1["timing"]
-        out["deterministic_batched_ms"] = {"seed_baseline": 1e3 * timing["seed_batched_s"] / n,
-                                           "graphloc": 1e3 * timing["graphloc_s"] / n}
+        out["deterministic_batched_ms"] = {
+            "seed_baseline": 1e3 * timing["seed_batched_s"] / n,
+            "graphloc": 1e3 * timing["graphloc_s"] / n,
+        }
     if table3 is not None:
         cells = table3["cells"].values()
-        out["update_ms"] = {m: float(np.mean([c[m]["mean_latency_ms"] for c in cells]))
-                            for m in ("belief_def1", "belief_def2", "particle_filter", "tracker")}
+        out["update_ms"] = {
+            m: float(np.mean([c[m]["mean_latency_ms"] for c in cells]))
+            for m in ("belief_def1", "belief_def2", "particle_filter", "tracker")
+        }
     return out
 
 
@@ -328,16 +420,24 @@ def plot_table_i(r: dict, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(6.5, 4))
     labels = ["C2", "C3", "C"]
     x = np.arange(3)
-    for i, (key, name) in enumerate((("seed_baseline", "seed baseline (ours)"),
-                                     ("graphloc", "graphloc"))):
-        ax.bar(x + (i - 0.5) * 0.27, [r[key][c]["mean"] or np.nan for c in labels], 0.27,
-               label=name, yerr=[r[key][c]["std"] or 0 for c in labels])
+    for i, (key, name) in enumerate(
+        (("seed_baseline", "seed baseline (ours)"), ("graphloc", "graphloc"))
+    ):
+        ax.bar(
+            x + (i - 0.5) * 0.27,
+            [r[key][c]["mean"] or np.nan for c in labels],
+            0.27,
+            label=name,
+            yerr=[r[key][c]["std"] or 0 for c in labels],
+        )
     ax.bar(x + 0.27 * 1.5, [r["paper"][c][0] for c in labels], 0.27, label="paper")
     ax.set_xticks(x, labels)
     ax.set_yscale("log")
     ax.set_ylabel("relative position error")
-    ax.set_title(f"Seed 000 Table I: success {r['seed_baseline']['success']} vs "
-                 f"{r['graphloc']['success']} / {r['trials']}")
+    ax.set_title(
+        f"Seed 000 Table I: success {r['seed_baseline']['success']} vs "
+        f"{r['graphloc']['success']} / {r['trials']}"
+    )
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -387,11 +487,22 @@ def run(out: Path, sizes: RunSizes, workers: int, progress: bool = True) -> dict
     t3 = table_iii(TableIIIConfig(runs=sizes.table3_runs, workers=workers), progress)
     t2 = table_ii(t3, samples=min(sizes.table2_samples, sizes.table1_trials), table1=t1)
     f6 = fig6_series()
-    result = {"table_i": t1, "table_ii": t2, "table_iii": t3, "fig6": f6,
-              "wall_time_s": time.perf_counter() - t0}
-    md = "\n".join([markdown.table_i(t1), markdown.table_ii(t2), markdown.table_iii(t3),
-                    "Fig. 6 style plot: fig6_posterior.png; Table I errors: table1_errors.png; "
-                    "Table III: table3_convergence.png.\n"])
+    result = {
+        "table_i": t1,
+        "table_ii": t2,
+        "table_iii": t3,
+        "fig6": f6,
+        "wall_time_s": time.perf_counter() - t0,
+    }
+    md = "\n".join(
+        [
+            markdown.table_i(t1),
+            markdown.table_ii(t2),
+            markdown.table_iii(t3),
+            "Fig. 6 style plot: fig6_posterior.png; Table I errors: table1_errors.png; "
+            "Table III: table3_convergence.png.\n",
+        ]
+    )
     (out / "seed000.json").write_text(json.dumps(result, indent=2, default=float))
     (out / "seed000.md").write_text(md)
     plot_table_i(t1, out / "table1_errors.png")
@@ -410,7 +521,10 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=Path("out/seed000"))
     args = parser.parse_args(argv)
     sizes = run_sizes(args.quick)
-    sizes = replace(sizes, table1_trials=args.trials or sizes.table1_trials,
-                    table3_runs=args.runs or sizes.table3_runs)
+    sizes = replace(
+        sizes,
+        table1_trials=args.trials or sizes.table1_trials,
+        table3_runs=args.runs or sizes.table3_runs,
+    )
     print(run(args.out, sizes, args.workers)["markdown"])
     return 0

@@ -35,14 +35,33 @@ from graphloc.cameras import PinholeCamera
 from graphloc.datasets.breitenmoser import seed001_camera
 from graphloc.experiments.sizes import run_sizes
 from graphloc.plots import plt
-from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, marker_area_bounds, roi_from_points
+from graphloc.vision.markers import (
+    MarkerDetectorConfig,
+    detect_markers,
+    marker_area_bounds,
+    roi_from_points,
+)
 from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers
-from graphloc.vision.target import (LARGE_TARGET, TargetHypothesisConfig, predict_pose,
-                                    predicted_marker_pixels, target_hypotheses)
+from graphloc.vision.target import (
+    LARGE_TARGET,
+    TargetHypothesisConfig,
+    predict_pose,
+    predicted_marker_pixels,
+    target_hypotheses,
+)
 
-PAPER = {"run1": {"pos_mean_cm": 1.5, "pos_std_cm": 0.7, "pos_max_cm": 12.2, "rot_mean_deg": 1.2, "rot_std_deg": 0.4,
-                  "rot_max_deg": 4.5, "distance_m": [0.677, 1.741]},
-         "run2_at_3m": {"pos_mean_cm": 2.2, "rot_mean_deg": 1.0}}
+PAPER = {
+    "run1": {
+        "pos_mean_cm": 1.5,
+        "pos_std_cm": 0.7,
+        "pos_max_cm": 12.2,
+        "rot_mean_deg": 1.2,
+        "rot_std_deg": 0.4,
+        "rot_max_deg": 4.5,
+        "distance_m": [0.677, 1.741],
+    },
+    "run2_at_3m": {"pos_mean_cm": 2.2, "rot_mean_deg": 1.0},
+}
 K_R = 2  # regression samples (seed IV-A)
 # p3p: the seed's pose (P3P + fourth-marker check); refined: polished on all four markers;
 # p3p_miscal: the seed's pose with a slightly wrong calibration (focal / principal point error)
@@ -50,7 +69,9 @@ VARIANTS = ("p3p", "refined", "p3p_miscal")
 MAX_COAST = 5  # frames a track survives without a pose
 AMBIGUOUS_M = 0.05  # near-tied hypotheses farther apart than this are ambiguous
 ROI_MARGIN_PX = 40.0
-RENDER = RenderConfig(background=55.0, marker_level=215.0, noise_sigma=2.0, blur_sigma=0.7)  # sensor sigma 2 (IV-B)
+RENDER = RenderConfig(
+    background=55.0, marker_level=215.0, noise_sigma=2.0, blur_sigma=0.7
+)  # sensor sigma 2 (IV-B)
 
 
 def look_at(eye: np.ndarray, center: np.ndarray, roll: float) -> np.ndarray:
@@ -85,12 +106,12 @@ def trajectory(rng: np.random.Generator, n: int, d_lo: float, d_hi: float, ascen
     azimuth = np.pi * smooth_noise(rng, n)
     roll = np.pi * smooth_noise(rng, n)
     aim = centre + 0.04 * np.column_stack([smooth_noise(rng, n), smooth_noise(rng, n), np.zeros(n)])
-    direction = np.column_stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)])
+    direction = np.column_stack(
+        [np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)]
+    )
     eye = centre + dist[:, None] * direction
     R = np.array([look_at(e, a, r) for e, a, r in zip(eye, aim, roll)])
     return R, eye
-
-
 
 
 def rotation_error_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
@@ -111,15 +132,27 @@ def occlusion_episodes(rng: np.random.Generator, n: int, rate: float) -> np.ndar
     return hidden
 
 
-def run(name: str, rng: np.random.Generator, n: int, d_lo: float, d_hi: float, ascending: bool, n_clutter: int,
-        miscalibrated: PinholeCamera, occlusion_rate: float):
+def run(
+    name: str,
+    rng: np.random.Generator,
+    n: int,
+    d_lo: float,
+    d_hi: float,
+    ascending: bool,
+    n_clutter: int,
+    miscalibrated: PinholeCamera,
+    occlusion_rate: float,
+):
     """Track the target through one trajectory; per-frame errors of every pose variant."""
     cam = seed001_camera()
     radius = LARGE_TARGET.marker_diameter / 2
     min_area, max_area = marker_area_bounds(cam.fx, radius, 0.5, d_hi + 0.4)
     det_cfg = MarkerDetectorConfig(min_area=min_area, max_area=max_area)
-    variants = {"p3p": (TargetHypothesisConfig(refine=False), cam), "refined": (TargetHypothesisConfig(refine=True), cam),
-                "p3p_miscal": (TargetHypothesisConfig(refine=False), miscalibrated)}
+    variants = {
+        "p3p": (TargetHypothesisConfig(refine=False), cam),
+        "refined": (TargetHypothesisConfig(refine=True), cam),
+        "p3p_miscal": (TargetHypothesisConfig(refine=False), miscalibrated),
+    }
     R_true, t_true = trajectory(rng, n, d_lo, d_hi, ascending)
     hidden = occlusion_episodes(rng, n, occlusion_rate)
     history: list[tuple[int, gtsam.Pose3]] = []  # (frame, pose) of the last localized frames
@@ -128,19 +161,35 @@ def run(name: str, rng: np.random.Generator, n: int, d_lo: float, d_hi: float, a
         X_cam = (LARGE_TARGET.points - t_true[k]) @ R_true[k]
         true_px, _ = cam.project(X_cam)
         r_px = cam.fx * radius / np.linalg.norm(X_cam, axis=1).min()
-        clutter = random_clutter(rng, cam.width, cam.height, r_px, RENDER.marker_level, n=n_clutter, avoid=true_px[np.isfinite(true_px).all(1)],
-                                 avoid_radius=6 * r_px + 20) if n_clutter else ()
+        clutter = (
+            random_clutter(
+                rng,
+                cam.width,
+                cam.height,
+                r_px,
+                RENDER.marker_level,
+                n=n_clutter,
+                avoid=true_px[np.isfinite(true_px).all(1)],
+                avoid_radius=6 * r_px + 20,
+            )
+            if n_clutter
+            else ()
+        )
         occluders = ()
         if hidden[k] >= 0:  # a dark object in front of one marker
             u, v = true_px[hidden[k]]
             h = 3 * r_px + 3  # > the elongated image of an off-axis sphere
             occluders = (Occluder((u - h, v - h, u + h, v + h), 30.0),)
-        frame = render_markers(cam, X_cam, radius, RENDER, rng, clutter=clutter, occluders=occluders)
+        frame = render_markers(
+            cam, X_cam, radius, RENDER, rng, clutter=clutter, occluders=occluders
+        )
         if history and k - history[-1][0] > MAX_COAST:
             history.clear()  # lost for too long: re-initialize from the whole image (seed IV-B)
         predicted = None
         if len(history) >= K_R:  # coasts through frames without a pose
-            predicted = predict_pose([p for _, p in history], k_R=K_R, times=[f for f, _ in history], t_next=k)
+            predicted = predict_pose(
+                [p for _, p in history], k_R=K_R, times=[f for f, _ in history], t_next=k
+            )
         roi, pred_px = None, None
         if predicted is not None:
             pred_px, vis = predicted_marker_pixels(cam, LARGE_TARGET, predicted)
@@ -150,13 +199,22 @@ def run(name: str, rng: np.random.Generator, n: int, d_lo: float, d_hi: float, a
                 pred_px = None
         det = detect_markers(frame.image, det_cfg, roi=roi, predicted_px=pred_px)
         distance = float(np.linalg.norm(t_true[k] - LARGE_TARGET.points.mean(axis=0)))
-        row = {"frame": k, "hidden_marker": int(hidden[k]), "distance_m": distance,
-               "n_blobs": len(det), "status": det.status, "roi": roi is not None, "steps": list(det.steps)}
+        row = {
+            "frame": k,
+            "hidden_marker": int(hidden[k]),
+            "distance_m": distance,
+            "n_blobs": len(det),
+            "status": det.status,
+            "roi": roi is not None,
+            "steps": list(det.steps),
+        }
         if len(det) < 3:
             rows.append(row)
             continue
         for vname, (vcfg, vcam) in variants.items():
-            cands = target_hypotheses(det.points, vcam, LARGE_TARGET, vcfg, predicted=predicted, time=float(k))
+            cands = target_hypotheses(
+                det.points, vcam, LARGE_TARGET, vcfg, predicted=predicted, time=float(k)
+            )
             if len(cands) == 0:
                 row[vname] = None
                 continue
@@ -165,11 +223,14 @@ def run(name: str, rng: np.random.Generator, n: int, d_lo: float, d_hi: float, a
                 row[vname] = None
                 row["ambiguous"] = True
                 continue
-            row[vname] = {"pos_err_cm": 100.0 * float(np.linalg.norm(cands.t[best] - t_true[k])),
-                          "rot_err_deg": rotation_error_deg(cands.R[best], R_true[k]),
-                          "n_hypotheses": len(cands), "n_assignments": int(cands.meta["n_assignments"]),
-                          "reprojection_px": float(cands.meta["reprojection_px"][best]),
-                          "fallback": cands.meta["fallback"]}
+            row[vname] = {
+                "pos_err_cm": 100.0 * float(np.linalg.norm(cands.t[best] - t_true[k])),
+                "rot_err_deg": rotation_error_deg(cands.R[best], R_true[k]),
+                "n_hypotheses": len(cands),
+                "n_assignments": int(cands.meta["n_assignments"]),
+                "reprojection_px": float(cands.meta["reprojection_px"][best]),
+                "fallback": cands.meta["fallback"],
+            }
             if vname == "refined":
                 history.append((k, gtsam.Pose3(gtsam.Rot3(cands.R[best]), cands.t[best])))
                 del history[:-K_R]
@@ -194,15 +255,26 @@ def summarize(rows, variant: str, min_distance: float = 0.0) -> dict:
     ok = [r[variant] for r in sel if r.get(variant)]
     pos = np.array([o["pos_err_cm"] for o in ok])
     rot = np.array([o["rot_err_deg"] for o in ok])
-    out = {"frames": len(sel), "localized": len(ok),
-           "four_blobs": sum(r["n_blobs"] == 4 for r in sel), "three_blobs": sum(r["n_blobs"] == 3 for r in sel),
-           "roi_frames": sum(r["roi"] for r in sel), "ambiguous": sum(bool(r.get("ambiguous")) for r in sel),
-           "three_of_four_fallback": sum(o["fallback"] == "three_of_four" for o in ok),
-           "unique_hypothesis": sum(o["n_hypotheses"] == 1 for o in ok)}
+    out = {
+        "frames": len(sel),
+        "localized": len(ok),
+        "four_blobs": sum(r["n_blobs"] == 4 for r in sel),
+        "three_blobs": sum(r["n_blobs"] == 3 for r in sel),
+        "roi_frames": sum(r["roi"] for r in sel),
+        "ambiguous": sum(bool(r.get("ambiguous")) for r in sel),
+        "three_of_four_fallback": sum(o["fallback"] == "three_of_four" for o in ok),
+        "unique_hypothesis": sum(o["n_hypotheses"] == 1 for o in ok),
+    }
     if len(ok):
-        out.update(pos_mean_cm=float(pos.mean()), pos_std_cm=float(pos.std()), pos_max_cm=float(pos.max()),
-                   rot_mean_deg=float(rot.mean()), rot_std_deg=float(rot.std()), rot_max_deg=float(rot.max()),
-                   gross_errors=int((pos > 10.0).sum()))
+        out.update(
+            pos_mean_cm=float(pos.mean()),
+            pos_std_cm=float(pos.std()),
+            pos_max_cm=float(pos.max()),
+            rot_mean_deg=float(rot.mean()),
+            rot_std_deg=float(rot.std()),
+            rot_max_deg=float(rot.max()),
+            gross_errors=int((pos > 10.0).sum()),
+        )
     return out
 
 
@@ -210,14 +282,26 @@ def plot(runs: dict, path: Path) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for (name, rows), colour in zip(runs.items(), ("tab:blue", "tab:orange")):
         for variant, marker in zip(VARIANTS, ("x", ".", "+")):
-            pts = [(r["distance_m"], r[variant]["pos_err_cm"], r[variant]["rot_err_deg"]) for r in rows if r.get(variant)]
+            pts = [
+                (r["distance_m"], r[variant]["pos_err_cm"], r[variant]["rot_err_deg"])
+                for r in rows
+                if r.get(variant)
+            ]
             if not pts:
                 continue
             d, p, a = np.array(pts).T
-            axes[0].scatter(d, p, s=8, marker=marker, color=colour, alpha=0.6, label=f"{name} {variant}")
-            axes[1].scatter(d, a, s=8, marker=marker, color=colour, alpha=0.6, label=f"{name} {variant}")
-    axes[0].axhline(PAPER["run1"]["pos_mean_cm"], color="k", ls="--", lw=1, label="paper run 1 mean")
-    axes[0].axhline(PAPER["run2_at_3m"]["pos_mean_cm"], color="gray", ls=":", lw=1, label="paper 3 m mean")
+            axes[0].scatter(
+                d, p, s=8, marker=marker, color=colour, alpha=0.6, label=f"{name} {variant}"
+            )
+            axes[1].scatter(
+                d, a, s=8, marker=marker, color=colour, alpha=0.6, label=f"{name} {variant}"
+            )
+    axes[0].axhline(
+        PAPER["run1"]["pos_mean_cm"], color="k", ls="--", lw=1, label="paper run 1 mean"
+    )
+    axes[0].axhline(
+        PAPER["run2_at_3m"]["pos_mean_cm"], color="gray", ls=":", lw=1, label="paper 3 m mean"
+    )
     axes[1].axhline(PAPER["run1"]["rot_mean_deg"], color="k", ls="--", lw=1)
     axes[1].axhline(PAPER["run2_at_3m"]["rot_mean_deg"], color="gray", ls=":", lw=1)
     axes[0].set(xlabel="camera-target distance [m]", ylabel="position error [cm]", yscale="log")
@@ -236,24 +320,42 @@ def markdown(summary: dict) -> str:
         return f"{s[key]:.2f} {unit}" if key in s else "n/a"
 
     p = PAPER["run1"]
-    lines = ["| run | pose | frames localized | pos mean | pos std | pos max | rot mean | rot std | rot max |",
-             "|---|---|---|---|---|---|---|---|---|",
-             f"| 1 (0.68-1.74 m) | paper | - | {p['pos_mean_cm']} cm | {p['pos_std_cm']} cm | {p['pos_max_cm']} cm | "
-             f"{p['rot_mean_deg']} deg | {p['rot_std_deg']} deg | {p['rot_max_deg']} deg |"]
-    for key, label in (("run1", "1 (0.68-1.74 m)"), ("run2_at_3m", "2 (>= 2.8 m)"), ("run2_all", "2 (1-3 m)")):
+    lines = [
+        "| run | pose | frames localized | pos mean | pos std | pos max | rot mean | rot std | rot max |",
+        "|---|---|---|---|---|---|---|---|---|",
+        f"| 1 (0.68-1.74 m) | paper | - | {p['pos_mean_cm']} cm | {p['pos_std_cm']} cm | {p['pos_max_cm']} cm | "
+        f"{p['rot_mean_deg']} deg | {p['rot_std_deg']} deg | {p['rot_max_deg']} deg |",
+    ]
+    for key, label in (
+        ("run1", "1 (0.68-1.74 m)"),
+        ("run2_at_3m", "2 (>= 2.8 m)"),
+        ("run2_all", "2 (1-3 m)"),
+    ):
         if key == "run2_at_3m":
             q = PAPER["run2_at_3m"]
-            lines.append(f"| {label} | paper | - | {q['pos_mean_cm']} cm | - | - | {q['rot_mean_deg']} deg | - | - |")
+            lines.append(
+                f"| {label} | paper | - | {q['pos_mean_cm']} cm | - | - | {q['rot_mean_deg']} deg | - | - |"
+            )
         for v in VARIANTS:
             s = summary[key][v]
-            lines.append(f"| {label} | sim {v} | {s['localized']}/{s['frames']} | {cell(s, 'pos_mean_cm', 'cm')} | "
-                         f"{cell(s, 'pos_std_cm', 'cm')} | {cell(s, 'pos_max_cm', 'cm')} | {cell(s, 'rot_mean_deg', 'deg')} | "
-                         f"{cell(s, 'rot_std_deg', 'deg')} | {cell(s, 'rot_max_deg', 'deg')} |")
+            lines.append(
+                f"| {label} | sim {v} | {s['localized']}/{s['frames']} | {cell(s, 'pos_mean_cm', 'cm')} | "
+                f"{cell(s, 'pos_std_cm', 'cm')} | {cell(s, 'pos_max_cm', 'cm')} | {cell(s, 'rot_mean_deg', 'deg')} | "
+                f"{cell(s, 'rot_std_deg', 'deg')} | {cell(s, 'rot_max_deg', 'deg')} |"
+            )
     return "\n".join(lines)
 
 
-def reproduce(out: Path, frames1: int = 300, frames2: int = 200, clutter: int = 3, focal_error: float = 0.01,
-              principal_error: float = 2.0, occlusion_rate: float = 0.05, seed: int = 1) -> dict:
+def reproduce(
+    out: Path,
+    frames1: int = 300,
+    frames2: int = 200,
+    clutter: int = 3,
+    focal_error: float = 0.01,
+    principal_error: float = 2.0,
+    occlusion_rate: float = 0.05,
+    seed: int = 1,
+) -> dict:
     """Both runs of experiment 1; writes <out>/repro_seed001.json and the error-vs-distance PNG;
     returns the JSON content (summary per run and variant, per-frame rows)."""
     out = Path(out)
@@ -261,22 +363,46 @@ def reproduce(out: Path, frames1: int = 300, frames2: int = 200, clutter: int = 
     rng = np.random.default_rng(seed)
     start = time.perf_counter()
     true_cam = seed001_camera()
-    miscal = PinholeCamera(true_cam.fx * (1 + focal_error), true_cam.fy * (1 + focal_error),
-                           true_cam.cx + principal_error, true_cam.cy + principal_error,
-                           true_cam.width, true_cam.height)
-    runs = {"run1": run("run 1 (0.68-1.74 m)", rng, frames1, 0.68, 1.74, False, clutter, miscal, occlusion_rate),
-            "run2": run("run 2 (up to 3 m)", rng, frames2, 1.0, 3.0, True, clutter, miscal, occlusion_rate)}
+    miscal = PinholeCamera(
+        true_cam.fx * (1 + focal_error),
+        true_cam.fy * (1 + focal_error),
+        true_cam.cx + principal_error,
+        true_cam.cy + principal_error,
+        true_cam.width,
+        true_cam.height,
+    )
+    runs = {
+        "run1": run(
+            "run 1 (0.68-1.74 m)", rng, frames1, 0.68, 1.74, False, clutter, miscal, occlusion_rate
+        ),
+        "run2": run(
+            "run 2 (up to 3 m)", rng, frames2, 1.0, 3.0, True, clutter, miscal, occlusion_rate
+        ),
+    }
     elapsed = time.perf_counter() - start
-    summary = {"run1": {v: summarize(runs["run1"], v) for v in VARIANTS},
-               "run2_at_3m": {v: summarize(runs["run2"], v, min_distance=2.8) for v in VARIANTS},
-               "run2_all": {v: summarize(runs["run2"], v) for v in VARIANTS}}
-    result = {"paper": PAPER, "summary": summary, "seconds": elapsed,
-              "config": {"frames1": frames1, "frames2": frames2, "clutter": clutter, "seed": seed,
-                         "occlusion_rate": occlusion_rate,
-                         "camera": "752x480, 90 deg horizontal FOV",
-                         "miscal": {"focal_error": focal_error, "principal_error_px": principal_error}, "target": LARGE_TARGET.name,
-                         "render": asdict(RENDER), "k_R": K_R},
-              "frames": runs}
+    summary = {
+        "run1": {v: summarize(runs["run1"], v) for v in VARIANTS},
+        "run2_at_3m": {v: summarize(runs["run2"], v, min_distance=2.8) for v in VARIANTS},
+        "run2_all": {v: summarize(runs["run2"], v) for v in VARIANTS},
+    }
+    result = {
+        "paper": PAPER,
+        "summary": summary,
+        "seconds": elapsed,
+        "config": {
+            "frames1": frames1,
+            "frames2": frames2,
+            "clutter": clutter,
+            "seed": seed,
+            "occlusion_rate": occlusion_rate,
+            "camera": "752x480, 90 deg horizontal FOV",
+            "miscal": {"focal_error": focal_error, "principal_error_px": principal_error},
+            "target": LARGE_TARGET.name,
+            "render": asdict(RENDER),
+            "k_R": K_R,
+        },
+        "frames": runs,
+    }
     (out / "repro_seed001.json").write_text(json.dumps(result, indent=1))
     plot(runs, out / "repro_seed001_error_vs_distance.png")
     return result
@@ -288,12 +414,24 @@ def main(argv=None) -> int:
     parser.add_argument("--frames1", type=int, help="frames of run 1 (0.68-1.74 m)")
     parser.add_argument("--frames2", type=int, help="frames of run 2 (up to 3 m)")
     parser.add_argument("--clutter", type=int, default=3, help="distractor blobs per frame")
-    parser.add_argument("--focal-error", type=float, default=0.01,
-                        help="relative focal-length error of the calibration used by the 'miscal' variant")
-    parser.add_argument("--principal-error", type=float, default=2.0,
-                        help="principal-point error [px] (both axes) of the 'miscal' variant")
-    parser.add_argument("--occlusion-rate", type=float, default=0.05,
-                        help="fraction of frames (in episodes) with one marker hidden")
+    parser.add_argument(
+        "--focal-error",
+        type=float,
+        default=0.01,
+        help="relative focal-length error of the calibration used by the 'miscal' variant",
+    )
+    parser.add_argument(
+        "--principal-error",
+        type=float,
+        default=2.0,
+        help="principal-point error [px] (both axes) of the 'miscal' variant",
+    )
+    parser.add_argument(
+        "--occlusion-rate",
+        type=float,
+        default=0.05,
+        help="fraction of frames (in episodes) with one marker hidden",
+    )
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path("out/seed001"))
     args = parser.parse_args(argv)
@@ -302,11 +440,21 @@ def main(argv=None) -> int:
     args.frames2 = args.frames2 or sizes.seed001_frames2
     if args.frames1 < 10 or args.frames2 < 10:
         parser.error("--frames1 and --frames2 must be >= 10")
-    result = reproduce(args.out, args.frames1, args.frames2, args.clutter, args.focal_error, args.principal_error,
-                       args.occlusion_rate, args.seed)
+    result = reproduce(
+        args.out,
+        args.frames1,
+        args.frames2,
+        args.clutter,
+        args.focal_error,
+        args.principal_error,
+        args.occlusion_rate,
+        args.seed,
+    )
     print(markdown(result["summary"]))
-    print(f"\n{result['seconds']:.1f} s; wrote {args.out / 'repro_seed001.json'} and "
-          f"{args.out / 'repro_seed001_error_vs_distance.png'}")
+    print(
+        f"\n{result['seconds']:.1f} s; wrote {args.out / 'repro_seed001.json'} and "
+        f"{args.out / 'repro_seed001_error_vs_distance.png'}"
+    )
     return 0
 
 

@@ -27,12 +27,28 @@ class RunSizes:
     latency_frames: int
 
 
-FULL = RunSizes(table1_trials=1000, table2_samples=100, table3_runs=100, seed004_runs=1000,
-                seed004_frames=10, seed001_frames1=300, seed001_frames2=200, hypotheses_runs=100,
-                latency_frames=10000)
-QUICK = RunSizes(table1_trials=100, table2_samples=100, table3_runs=5, seed004_runs=50,
-                 seed004_frames=10, seed001_frames1=60, seed001_frames2=40, hypotheses_runs=10,
-                 latency_frames=2000)
+FULL = RunSizes(
+    table1_trials=1000,
+    table2_samples=100,
+    table3_runs=100,
+    seed004_runs=1000,
+    seed004_frames=10,
+    seed001_frames1=300,
+    seed001_frames2=200,
+    hypotheses_runs=100,
+    latency_frames=10000,
+)
+QUICK = RunSizes(
+    table1_trials=100,
+    table2_samples=100,
+    table3_runs=5,
+    seed004_runs=50,
+    seed004_frames=10,
+    seed001_frames1=60,
+    seed001_frames2=40,
+    hypotheses_runs=10,
+    latency_frames=2000,
+)
 
 
 def run_sizes(quick: bool) -> RunSizes:

@@ -103,15 +103,25 @@ class P3PCandidates:
         `context` is passed to CandidateSet (time, observer, observed, meta)."""
         keep = self.valid[i]
         scores = np.exp(-0.5 * (self.residual[i][keep] / bearing_sigma_rad) ** 2)
-        return CandidateSet(R=self.R_wc[i][keep], t=self.t_wc[i][keep], scores=scores,
-                            source=f"p3p/{self.method}", **context)
+        return CandidateSet(
+            R=self.R_wc[i][keep],
+            t=self.t_wc[i][keep],
+            scores=scores,
+            source=f"p3p/{self.method}",
+            **context,
+        )
 
 
 # ----------------------------------------------------------------------------- public API
 
 
-def solve_p3p(bearings, points, method: str = "lambdatwist", polish: bool = False,
-              config: P3PConfig = P3PConfig()) -> P3PCandidates:
+def solve_p3p(
+    bearings,
+    points,
+    method: str = "lambdatwist",
+    polish: bool = False,
+    config: P3PConfig = P3PConfig(),
+) -> P3PCandidates:
     """All P3P candidates of N instances; bearings, points (N,3,3). See the module docstring."""
     if method not in METHODS:
         raise ValueError(f"solve_p3p: unknown method {method!r}; choose one of {METHODS}")
@@ -119,10 +129,17 @@ def solve_p3p(bearings, points, method: str = "lambdatwist", polish: bool = Fals
     if f.shape[0] <= BLOCK:
         return _solve_block(f, X, method, polish, config)
     # blocks that fit the CPU cache are ~2x faster than one pass over 100k instances
-    parts = [_solve_block(f[s:s + BLOCK], X[s:s + BLOCK], method, polish, config)
-             for s in range(0, f.shape[0], BLOCK)]
-    return P3PCandidates(**{name: np.concatenate([getattr(p, name) for p in parts])
-                            for name in ("R_wc", "t_wc", "valid", "residual", "degenerate")}, method=method)
+    parts = [
+        _solve_block(f[s : s + BLOCK], X[s : s + BLOCK], method, polish, config)
+        for s in range(0, f.shape[0], BLOCK)
+    ]
+    return P3PCandidates(
+        **{
+            name: np.concatenate([getattr(p, name) for p in parts])
+            for name in ("R_wc", "t_wc", "valid", "residual", "degenerate")
+        },
+        method=method,
+    )
 
 
 def _solve_block(f, X, method, polish, config) -> P3PCandidates:
@@ -134,8 +151,11 @@ def _solve_block(f, X, method, polish, config) -> P3PCandidates:
             F, P = _gather(F, inst), _gather(P, inst)
             ok_m = np.ones(inst.size, bool)
         else:
-            solver = {"lambdatwist": _lambdatwist_depths, "grunert": _grunert_depths,
-                      "finsterwalder": _finsterwalder_depths}[method]
+            solver = {
+                "lambdatwist": _lambdatwist_depths,
+                "grunert": _grunert_depths,
+                "finsterwalder": _finsterwalder_depths,
+            }[method]
             geo = _geometry(F, P)
             FP = _triangle_frame(*P)  # world triangle frame, per instance
             lam, ok = solver(geo)
@@ -145,7 +165,9 @@ def _solve_block(f, X, method, polish, config) -> P3PCandidates:
             F, P = _gather(F, inst), _gather(P, inst)
             geo = tuple(x[inst, 0] for x in geo)
             iters = config.depth_refine_iters
-            lam = _refine_depths(geo, lam, (1 if method == "lambdatwist" else 2) if iters is None else iters)
+            lam = _refine_depths(
+                geo, lam, (1 if method == "lambdatwist" else 2) if iters is None else iters
+            )
             ok_m = (lam[0] > 0) & (lam[1] > 0) & (lam[2] > 0)
             R, t = _pose_from_depths(F, _gather(FP, inst), lam)
         if polish:
@@ -156,12 +178,16 @@ def _solve_block(f, X, method, polish, config) -> P3PCandidates:
         return _assemble(R, t, residual, ok_m, inst, origin, degenerate, method, lim2)
 
 
-def solve_p3p_poses(bearings, points, method: str = "lambdatwist", polish: bool = False) -> list[gtsam.Pose3]:
+def solve_p3p_poses(
+    bearings, points, method: str = "lambdatwist", polish: bool = False
+) -> list[gtsam.Pose3]:
     """Convenience for one instance: bearings, points (3,3) -> valid candidates as gtsam.Pose3."""
     b = np.asarray(bearings, dtype=float)
     p = np.asarray(points, dtype=float)
     if b.shape != (3, 3) or p.shape != (3, 3):
-        raise ValueError(f"solve_p3p_poses: bearings and points must be (3,3), got {b.shape} and {p.shape}")
+        raise ValueError(
+            f"solve_p3p_poses: bearings and points must be (3,3), got {b.shape} and {p.shape}"
+        )
     return solve_p3p(b[None], p[None], method=method, polish=polish).poses(0)
 
 
@@ -169,14 +195,17 @@ def solve_p3p_poses(bearings, points, method: str = "lambdatwist", polish: bool 
 
 # A well-conditioned stand-in for degenerate rows, so no NaN reaches the solvers (rows masked after).
 _SAFE_X = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-_SAFE_F = (_SAFE_X - [0.2, 0.3, -3.0]) / np.linalg.norm(_SAFE_X - [0.2, 0.3, -3.0], axis=1, keepdims=True)
+_SAFE_F = (_SAFE_X - [0.2, 0.3, -3.0]) / np.linalg.norm(
+    _SAFE_X - [0.2, 0.3, -3.0], axis=1, keepdims=True
+)
 
 
 def _check_shapes(bearings, points) -> tuple[np.ndarray, np.ndarray]:
     for name, arr in (("bearings", bearings), ("points", points)):
         if np.iscomplexobj(arr):
-            raise ValueError(f"solve_p3p: {name} must be real numbers, got dtype "
-                             f"{np.asarray(arr).dtype}")
+            raise ValueError(
+                f"solve_p3p: {name} must be real numbers, got dtype {np.asarray(arr).dtype}"
+            )
     try:
         f = np.asarray(bearings, dtype=float)
         X = np.asarray(points, dtype=float)
@@ -185,7 +214,9 @@ def _check_shapes(bearings, points) -> tuple[np.ndarray, np.ndarray]:
     if f.ndim != 3 or f.shape[1:] != (3, 3):
         raise ValueError(f"solve_p3p: bearings must have shape (N,3,3), got {f.shape}")
     if X.shape != f.shape:
-        raise ValueError(f"solve_p3p: points must have shape {f.shape} like bearings, got {X.shape}")
+        raise ValueError(
+            f"solve_p3p: points must have shape {f.shape} like bearings, got {X.shape}"
+        )
     return f, X
 
 
@@ -214,7 +245,9 @@ def _prepare(f, X, config: P3PConfig):
     origin = np.concatenate(origin, axis=1)
     if bad.any():  # rare path: redo with the stand-in rows
         keep = ~bad[:, None, None]
-        F2, P2, origin2, _, longest2b = _prepare(np.where(keep, f, _SAFE_F), np.where(keep, X, _SAFE_X), config)
+        F2, P2, origin2, _, longest2b = _prepare(
+            np.where(keep, f, _SAFE_F), np.where(keep, X, _SAFE_X), config
+        )
         return F2, P2, np.where(bad[:, None], 0.0, origin2), bad, longest2b
     return F, P, origin, bad, longest2
 
@@ -252,8 +285,14 @@ def _vunit(a):
 def _geometry(F, P):
     """Cosines between bearings and squared side lengths c12, c13, c23, a12, a13, a23 ((N,1) each)."""
     d12, d13, d23 = _vsub(P[0], P[1]), _vsub(P[0], P[2]), _vsub(P[1], P[2])
-    return (_vdot(F[0], F[1]), _vdot(F[0], F[2]), _vdot(F[1], F[2]),
-            _vdot(d12, d12), _vdot(d13, d13), _vdot(d23, d23))
+    return (
+        _vdot(F[0], F[1]),
+        _vdot(F[0], F[2]),
+        _vdot(F[1], F[2]),
+        _vdot(d12, d12),
+        _vdot(d13, d13),
+        _vdot(d23, d23),
+    )
 
 
 # ----------------------------------------------------------------------------- polynomial roots
@@ -350,11 +389,15 @@ def _lambdatwist_depths(geo):
     D1 = (a23, -c12 * a23, z, a23 - a12, c23 * a12, -a12)
     D2 = (a23, z, -c13 * a23, -a13, c23 * a13, a23 - a13)
     det2 = _sym_det(D2)
-    g = _largest_real_cubic_root(_sym_trace_adj(D2, D1) / det2, _sym_trace_adj(D1, D2) / det2, _sym_det(D1) / det2)
+    g = _largest_real_cubic_root(
+        _sym_trace_adj(D2, D1) / det2, _sym_trace_adj(D1, D2) / det2, _sym_det(D1) / det2
+    )
     D0 = tuple(e1 + g * e2 for e1, e2 in zip(D1, D2))
     tr = D0[0] + D0[3] + D0[5]
     pm = _sym_principal_minors(D0)  # = sigma1 * sigma2 (third eigenvalue is 0)
-    s1 = 0.5 * (tr + np.copysign(np.sqrt(np.maximum(tr * tr - 4.0 * pm, 0.0)), tr))  # larger |sigma|
+    s1 = 0.5 * (
+        tr + np.copysign(np.sqrt(np.maximum(tr * tr - 4.0 * pm, 0.0)), tr)
+    )  # larger |sigma|
     s2 = pm / s1
     e0 = _sym_null_vector(D0)
     e1 = _rank1_direction(D0, s2, e0)
@@ -382,7 +425,9 @@ def _lambdatwist_depths(geo):
             lam = _vscale(d, s)
             lams.append(lam)
             oks.append(indefinite & (disc >= 0) & (lam[0] > 0) & (lam[1] > 0) & (lam[2] > 0))
-    return tuple(np.concatenate([lam[i] for lam in lams], axis=1) for i in range(3)), np.concatenate(oks, axis=1)
+    return tuple(
+        np.concatenate([lam[i] for lam in lams], axis=1) for i in range(3)
+    ), np.concatenate(oks, axis=1)
 
 
 def _sym_det(A):
@@ -412,7 +457,9 @@ def _sym_null_vector(A):
     n01, n02, n12 = _vdot(x01, x01), _vdot(x02, x02), _vdot(x12, x12)
     use01 = (n01 >= n02) & (n01 >= n12)
     use02 = ~use01 & (n02 >= n12)
-    return _vunit(tuple(np.where(use01, p, np.where(use02, q, r)) for p, q, r in zip(x01, x02, x12)))
+    return _vunit(
+        tuple(np.where(use01, p, np.where(use02, q, r)) for p, q, r in zip(x01, x02, x12))
+    )
 
 
 def _rank1_direction(A, s2, e0):
@@ -424,14 +471,21 @@ def _rank1_direction(A, s2, e0):
     d0, d1, d2 = np.abs(m00), np.abs(m11), np.abs(m22)
     use0 = (d0 >= d1) & (d0 >= d2)
     use1 = ~use0 & (d1 >= d2)
-    col = tuple(np.where(use0, x, np.where(use1, y, w)) for x, y, w in ((m00, m01, m02), (m01, m11, m12), (m02, m12, m22)))
+    col = tuple(
+        np.where(use0, x, np.where(use1, y, w))
+        for x, y, w in ((m00, m01, m02), (m01, m11, m12), (m02, m12, m22))
+    )
     return _vunit(col)
 
 
 def _sym_apply(A, v):
     """A @ v for symmetric A (6-entry form)."""
     a, b, c, d, e, f = A
-    return (a * v[0] + b * v[1] + c * v[2], b * v[0] + d * v[1] + e * v[2], c * v[0] + e * v[1] + f * v[2])
+    return (
+        a * v[0] + b * v[1] + c * v[2],
+        b * v[0] + d * v[1] + e * v[2],
+        c * v[0] + e * v[1] + f * v[2],
+    )
 
 
 # ----------------------------------------------------------------------------- Grunert / Haralick
@@ -444,8 +498,14 @@ def _grunert_depths(geo):
     amc, apc = (a2 - c2) / b2, (a2 + c2) / b2
     A4 = (amc - 1.0) ** 2 - 4.0 * c2 / b2 * ca * ca
     A3 = 4.0 * (amc * (1.0 - amc) * cb - (1.0 - apc) * ca * cg + 2.0 * c2 / b2 * ca * ca * cb)
-    A2 = 2.0 * (amc**2 - 1.0 + 2.0 * amc**2 * cb * cb + 2.0 * (b2 - c2) / b2 * ca * ca
-                - 4.0 * apc * ca * cb * cg + 2.0 * (b2 - a2) / b2 * cg * cg)
+    A2 = 2.0 * (
+        amc**2
+        - 1.0
+        + 2.0 * amc**2 * cb * cb
+        + 2.0 * (b2 - c2) / b2 * ca * ca
+        - 4.0 * apc * ca * cb * cg
+        + 2.0 * (b2 - a2) / b2 * cg * cg
+    )
     A1 = 4.0 * (-amc * (1.0 + amc) * cb + 2.0 * a2 / b2 * cg * cg * cb - (1.0 - apc) * ca * cg)
     A0 = (1.0 + amc) ** 2 - 4.0 * a2 / b2 * cg * cg
     v = _real_quartic_roots(np.concatenate([A4, A3, A2, A1, A0], axis=1))  # (N,4)
@@ -497,10 +557,19 @@ def _finsterwalder_depths(geo):
             v = m * u + n
             s1 = np.sqrt(b2 / (1.0 + v * v - 2.0 * v * cb))
             lam = (s1, u * s1, v * s1)
-            ok = (disc >= 0) & (p2 >= 0) & (q2 >= 0) & np.isfinite(u) & np.isfinite(v) & np.isfinite(s1)
+            ok = (
+                (disc >= 0)
+                & (p2 >= 0)
+                & (q2 >= 0)
+                & np.isfinite(u)
+                & np.isfinite(v)
+                & np.isfinite(s1)
+            )
             lams.append(tuple(np.nan_to_num(x) for x in lam))
             oks.append(ok & (s1 > 0) & (u > 0) & (v > 0))
-    return tuple(np.concatenate([lam[i] for lam in lams], axis=1) for i in range(3)), np.concatenate(oks, axis=1)
+    return tuple(
+        np.concatenate([lam[i] for lam in lams], axis=1) for i in range(3)
+    ), np.concatenate(oks, axis=1)
 
 
 # ----------------------------------------------------------------------------- Kneip
@@ -515,8 +584,14 @@ def _kneip(F, P):
     P1, P2, P3 = P
     # the paper assumes f3 on the negative-z side of the tau frame: swap 1 <-> 2 otherwise
     swap = _vdot(_vcross(f1, f2), f3) > 0
-    f1, f2 = (tuple(np.where(swap, b, a) for a, b in zip(f1, f2)), tuple(np.where(swap, a, b) for a, b in zip(f1, f2)))
-    P1, P2 = (tuple(np.where(swap, b, a) for a, b in zip(P1, P2)), tuple(np.where(swap, a, b) for a, b in zip(P1, P2)))
+    f1, f2 = (
+        tuple(np.where(swap, b, a) for a, b in zip(f1, f2)),
+        tuple(np.where(swap, a, b) for a, b in zip(f1, f2)),
+    )
+    P1, P2 = (
+        tuple(np.where(swap, b, a) for a, b in zip(P1, P2)),
+        tuple(np.where(swap, a, b) for a, b in zip(P1, P2)),
+    )
     tx = f1
     tz = _vunit(_vcross(f1, f2))
     ty = _vcross(tz, tx)
@@ -531,35 +606,75 @@ def _kneip(F, P):
     b = np.copysign(np.sqrt(1.0 / (1.0 - cos_beta**2) - 1.0), cos_beta)  # cot(beta)
     q1, q2 = f3t[0] / f3t[2], f3t[1] / f3t[2]  # phi1, phi2
     dd = d12
-    a4 = -q2**2 * p2**4 - q1**2 * p2**4 - p2**4
+    a4 = -(q2**2) * p2**4 - q1**2 * p2**4 - p2**4
     a3 = 2 * p2**3 * dd * b + 2 * q2**2 * p2**3 * dd * b - 2 * q1 * q2 * p2**3 * dd
-    a2 = (-q2**2 * p1**2 * p2**2 - q2**2 * p2**2 * dd**2 * b**2 - q2**2 * p2**2 * dd**2
-          + q2**2 * p2**4 + q1**2 * p2**4 + 2 * p1 * p2**2 * dd + 2 * q1 * q2 * p1 * p2**2 * dd * b
-          - q1**2 * p1**2 * p2**2 + 2 * q2**2 * p1 * p2**2 * dd - p2**2 * dd**2 * b**2 - 2 * p1**2 * p2**2)
-    a1 = (2 * p1**2 * p2 * dd * b + 2 * q1 * q2 * p2**3 * dd - 2 * q2**2 * p2**3 * dd * b
-          - 2 * p1 * p2 * dd**2 * b)
-    a0 = (-2 * q1 * q2 * p1 * p2**2 * dd * b + q2**2 * p2**2 * dd**2 + 2 * p1**3 * dd - p1**2 * dd**2
-          + q2**2 * p1**2 * p2**2 - p1**4 - 2 * q2**2 * p1 * p2**2 * dd + q1**2 * p1**2 * p2**2
-          + q2**2 * p2**2 * dd**2 * b**2)
+    a2 = (
+        -(q2**2) * p1**2 * p2**2
+        - q2**2 * p2**2 * dd**2 * b**2
+        - q2**2 * p2**2 * dd**2
+        + q2**2 * p2**4
+        + q1**2 * p2**4
+        + 2 * p1 * p2**2 * dd
+        + 2 * q1 * q2 * p1 * p2**2 * dd * b
+        - q1**2 * p1**2 * p2**2
+        + 2 * q2**2 * p1 * p2**2 * dd
+        - p2**2 * dd**2 * b**2
+        - 2 * p1**2 * p2**2
+    )
+    a1 = (
+        2 * p1**2 * p2 * dd * b
+        + 2 * q1 * q2 * p2**3 * dd
+        - 2 * q2**2 * p2**3 * dd * b
+        - 2 * p1 * p2 * dd**2 * b
+    )
+    a0 = (
+        -2 * q1 * q2 * p1 * p2**2 * dd * b
+        + q2**2 * p2**2 * dd**2
+        + 2 * p1**3 * dd
+        - p1**2 * dd**2
+        + q2**2 * p1**2 * p2**2
+        - p1**4
+        - 2 * q2**2 * p1 * p2**2 * dd
+        + q1**2 * p1**2 * p2**2
+        + q2**2 * p2**2 * dd**2 * b**2
+    )
     cos_t = _real_quartic_roots(np.concatenate([a4, a3, a2, a1, a0], axis=1))  # (N,4)
     inst, slot = np.nonzero(np.isfinite(cos_t) & (np.abs(cos_t) <= 1.0 + 1e-9))
     cos_t = np.clip(cos_t[inst, slot], -1.0, 1.0)
     q1, q2, p1, p2, dd, b = (x[inst, 0] for x in (q1, q2, p1, p2, dd, b))
-    Nrows, Trows, P1 = _gather((nx, ny, nz), inst), _gather((tx, ty, tz), inst), _gather((P1,), inst)[0]
+    Nrows, Trows, P1 = (
+        _gather((nx, ny, nz), inst),
+        _gather((tx, ty, tz), inst),
+        _gather((P1,), inst)[0],
+    )
     sin_t = np.sqrt(1.0 - cos_t**2)
     cot_a = (-q1 * p1 / q2 - cos_t * p2 + dd * b) / (-q1 * cos_t * p2 / q2 + p1 - dd)
     sin_a = np.sqrt(1.0 / (cot_a**2 + 1.0))
     cos_a = np.copysign(np.sqrt(1.0 - sin_a**2), cot_a)
     w = dd * sin_a * (sin_a * b + cos_a)
     C_eta = (dd * cos_a * (sin_a * b + cos_a), cos_t * w, sin_t * w)
-    t = tuple(P1[i] + Nrows[0][i] * C_eta[0] + Nrows[1][i] * C_eta[1] + Nrows[2][i] * C_eta[2] for i in range(3))
-    Q = ((-cos_a, -sin_a * cos_t, -sin_a * sin_t), (sin_a, -cos_a * cos_t, -cos_a * sin_t),
-         (0.0, -sin_t, cos_t))
+    t = tuple(
+        P1[i] + Nrows[0][i] * C_eta[0] + Nrows[1][i] * C_eta[1] + Nrows[2][i] * C_eta[2]
+        for i in range(3)
+    )
+    Q = (
+        (-cos_a, -sin_a * cos_t, -sin_a * sin_t),
+        (sin_a, -cos_a * cos_t, -cos_a * sin_t),
+        (0.0, -sin_t, cos_t),
+    )
     # A = N^T Q^T: A[i][l] = sum_k N[k][i] Q[l][k]; R = A T
-    A = tuple(tuple(Nrows[0][i] * Q[l][0] + Nrows[1][i] * Q[l][1] + Nrows[2][i] * Q[l][2] for l in range(3))
-              for i in range(3))
-    R = tuple(tuple(A[i][0] * Trows[0][j] + A[i][1] * Trows[1][j] + A[i][2] * Trows[2][j] for j in range(3))
-              for i in range(3))
+    A = tuple(
+        tuple(
+            Nrows[0][i] * Q[l][0] + Nrows[1][i] * Q[l][1] + Nrows[2][i] * Q[l][2] for l in range(3)
+        )
+        for i in range(3)
+    )
+    R = tuple(
+        tuple(
+            A[i][0] * Trows[0][j] + A[i][1] * Trows[1][j] + A[i][2] * Trows[2][j] for j in range(3)
+        )
+        for i in range(3)
+    )
     return R, t, inst
 
 
@@ -607,10 +722,14 @@ def _pose_from_depths(F, FP, lam):
     the world triangle, given), t = -R mean(Y). R as rows of 3-tuples."""
     Y = [_vscale(F[i], lam[i]) for i in range(3)]
     FY = _triangle_frame(*Y)
-    R = tuple(tuple(FP[0][i] * FY[0][j] + FP[1][i] * FY[1][j] + FP[2][i] * FY[2][j] for j in range(3))
-              for i in range(3))
+    R = tuple(
+        tuple(FP[0][i] * FY[0][j] + FP[1][i] * FY[1][j] + FP[2][i] * FY[2][j] for j in range(3))
+        for i in range(3)
+    )
     ybar = tuple(Y[0][k] + Y[1][k] + Y[2][k] for k in range(3))
-    t = tuple((R[i][0] * ybar[0] + R[i][1] * ybar[1] + R[i][2] * ybar[2]) * (-1.0 / 3.0) for i in range(3))
+    t = tuple(
+        (R[i][0] * ybar[0] + R[i][1] * ybar[1] + R[i][2] * ybar[2]) * (-1.0 / 3.0) for i in range(3)
+    )
     return R, t
 
 
@@ -638,7 +757,11 @@ def _assemble(R, t, residual, ok_m, inst, origin, degenerate, method, lim2) -> P
     keep = ok_m.copy()
     for lag in range(1, MAX_CANDIDATES):
         same = inst[lag:] == inst[:-lag]
-        d2 = (t[0][lag:] - t[0][:-lag]) ** 2 + (t[1][lag:] - t[1][:-lag]) ** 2 + (t[2][lag:] - t[2][:-lag]) ** 2
+        d2 = (
+            (t[0][lag:] - t[0][:-lag]) ** 2
+            + (t[1][lag:] - t[1][:-lag]) ** 2
+            + (t[2][lag:] - t[2][:-lag]) ** 2
+        )
         keep[lag:] &= ~(same & ok_m[:-lag] & (d2 < lim2[lag:]))
     owner = inst[keep]
     count = np.bincount(owner, minlength=N)
@@ -648,13 +771,20 @@ def _assemble(R, t, residual, ok_m, inst, origin, degenerate, method, lim2) -> P
     t_out = np.zeros((N * MAX_CANDIDATES, 3))
     res_out = np.full(N * MAX_CANDIDATES, np.inf)
     every = bool(keep.all())  # the common case: skip the boolean gathers
-    R_out[row] = np.stack([R[i][j] if every else R[i][j][keep] for i in range(3) for j in range(3)], axis=-1)
+    R_out[row] = np.stack(
+        [R[i][j] if every else R[i][j][keep] for i in range(3) for j in range(3)], axis=-1
+    )
     t_out[row] = np.stack([x if every else x[keep] for x in t], axis=-1) + origin[owner]
     res_out[row] = residual if every else residual[keep]
     valid = np.arange(MAX_CANDIDATES) < count[:, None]
-    return P3PCandidates(R_wc=R_out.reshape(N, MAX_CANDIDATES, 3, 3), t_wc=t_out.reshape(N, MAX_CANDIDATES, 3),
-                         valid=valid, residual=res_out.reshape(N, MAX_CANDIDATES),
-                         degenerate=degenerate, method=method)
+    return P3PCandidates(
+        R_wc=R_out.reshape(N, MAX_CANDIDATES, 3, 3),
+        t_wc=t_out.reshape(N, MAX_CANDIDATES, 3),
+        valid=valid,
+        residual=res_out.reshape(N, MAX_CANDIDATES),
+        degenerate=degenerate,
+        method=method,
+    )
 
 
 def _polish_pose(F, P, R, t, iters):
@@ -692,6 +822,7 @@ def _polish_pose(F, P, R, t, iters):
 
 def _soa_pose(Ra, ta):
     """(...,3,3), (...,3) arrays -> R as rows of 3-tuples, t as a 3-tuple."""
-    return (tuple(tuple(Ra[..., i, j] for j in range(3)) for i in range(3)),
-            tuple(ta[..., i] for i in range(3)))
-
+    return (
+        tuple(tuple(Ra[..., i, j] for j in range(3)) for i in range(3)),
+        tuple(ta[..., i] for i in range(3)),
+    )

@@ -10,32 +10,44 @@ from graphloc.cameras import PinholeCamera
 from graphloc.geometry.so3 import skew
 
 
-def resection_covariance(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarray, points: np.ndarray,
-                         pixel_sigma: float, floor: tuple[float, float] = (1e-3, 1e-3)) -> np.ndarray:
+def resection_covariance(
+    camera: PinholeCamera,
+    R_wc: np.ndarray,
+    t_wc: np.ndarray,
+    points: np.ndarray,
+    pixel_sigma: float,
+    floor: tuple[float, float] = (1e-3, 1e-3),
+) -> np.ndarray:
     """First-order covariance (N,6,6) of camera poses (N,3,3)/(N,3) recovered from the pixels of
     three world points (N,3,3) with isotropic pixel noise: sigma^2 (A^T A)^-1, A (6x6) = d pixels
     / d pose (GTSAM Pose3 tangent (rot, trans), right perturbation T Exp(xi)). P3P is a square
     problem (6 pixel coordinates, 6 pose DOF), so A is invertible away from the danger cylinder
     and blows up near it. `floor` = (rad, m) sigmas added on the diagonal."""
     if any(camera.dist):
-        raise ValueError("resection_covariance: the camera has lens distortion; this first-order model uses the "
-                         "pinhole Jacobian only (undistort the pixels and pass an undistorted camera)")
+        raise ValueError(
+            "resection_covariance: the camera has lens distortion; this first-order model uses the "
+            "pinhole Jacobian only (undistort the pixels and pass an undistorted camera)"
+        )
     R_wc, t_wc, points = (np.asarray(a, dtype=float) for a in (R_wc, t_wc, points))
     n = len(R_wc)
     if R_wc.shape != (n, 3, 3) or t_wc.shape != (n, 3) or points.shape != (n, 3, 3):
-        raise ValueError(f"resection_covariance: expected R_wc (N,3,3), t_wc (N,3), points (N,3,3); got "
-                         f"{R_wc.shape}, {t_wc.shape}, {points.shape}")
+        raise ValueError(
+            f"resection_covariance: expected R_wc (N,3,3), t_wc (N,3), points (N,3,3); got "
+            f"{R_wc.shape}, {t_wc.shape}, {points.shape}"
+        )
     pc = np.einsum("nji,npj->npi", R_wc, points - t_wc[:, None, :])  # (N,3,3) camera-frame points
     x, y, z = pc[..., 0], pc[..., 1], pc[..., 2]
     f = np.array([camera.fx, camera.fy])
     J = np.zeros(pc.shape[:2] + (2, 3))  # d(uv)/d(pc)
-    J[..., 0, 0], J[..., 0, 2] = f[0] / z, -f[0] * x / z ** 2
-    J[..., 1, 1], J[..., 1, 2] = f[1] / z, -f[1] * y / z ** 2
+    J[..., 0, 0], J[..., 0, 2] = f[0] / z, -f[0] * x / z**2
+    J[..., 1, 1], J[..., 1, 2] = f[1] / z, -f[1] * y / z**2
     hat = skew(pc)  # d(pc)/d(rotation) for the right perturbation
     dpc = np.concatenate([hat, np.broadcast_to(-np.eye(3), hat.shape)], axis=-1)  # (N,3,3,6)
     A = (J @ dpc).reshape(len(pc), 6, 6)
     if not (np.isfinite(pixel_sigma) and pixel_sigma >= 0):
-        raise ValueError(f"resection_covariance: pixel_sigma must be finite >= 0, got {pixel_sigma}")
-    cov = pixel_sigma ** 2 * np.linalg.pinv(np.einsum("nki,nkj->nij", A, A), hermitian=True)
+        raise ValueError(
+            f"resection_covariance: pixel_sigma must be finite >= 0, got {pixel_sigma}"
+        )
+    cov = pixel_sigma**2 * np.linalg.pinv(np.einsum("nki,nkj->nij", A, A), hermitian=True)
     cov += np.diag(np.repeat(np.square(floor), 3))
     return 0.5 * (cov + np.transpose(cov, (0, 2, 1)))

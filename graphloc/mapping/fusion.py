@@ -92,7 +92,9 @@ class LedObservations:
         if px.ndim != 3 or px.shape[1:] != (3, 2):
             raise ValueError(f"LedObservations.pixels must be (F,3,2), got {px.shape}")
         if np.asarray(self.leds).shape != (3, 3):
-            raise ValueError(f"LedObservations.leds must be (3,3), got {np.asarray(self.leds).shape}")
+            raise ValueError(
+                f"LedObservations.leds must be (3,3), got {np.asarray(self.leds).shape}"
+            )
         if np.asarray(self.T_ceiling_camera).shape != (4, 4):
             raise ValueError("LedObservations.T_ceiling_camera must be 4x4")
         object.__setattr__(self, "pixels", px)
@@ -114,23 +116,35 @@ class FusionInput:
     def __post_init__(self):
         t = np.asarray(self.times, dtype=float)
         if t.ndim != 1 or len(t) == 0:
-            raise ValueError(f"FusionInput.times must be a non-empty (F,) array, got shape {t.shape}")
+            raise ValueError(
+                f"FusionInput.times must be a non-empty (F,) array, got shape {t.shape}"
+            )
         if not np.isfinite(t).all() or np.any(np.diff(t) <= 0):
             raise ValueError("FusionInput.times must be finite and strictly increasing")
         for name in ("ground_scans", "ceiling_scans"):
             if len(getattr(self, name)) != len(t):
-                raise ValueError(f"FusionInput.{name}: {len(getattr(self, name))} scans for {len(t)} times")
+                raise ValueError(
+                    f"FusionInput.{name}: {len(getattr(self, name))} scans for {len(t)} times"
+                )
         if self.leds is not None and len(self.leds.pixels) != len(t):
-            raise ValueError(f"FusionInput.leds: {len(self.leds.pixels)} camera frames for {len(t)} times")
+            raise ValueError(
+                f"FusionInput.leds: {len(self.leds.pixels)} camera frames for {len(t)} times"
+            )
         if (self.leds is None) == (self.hint is None):
-            raise ValueError("FusionInput: give LED observations or a relative pose hint for the inter-robot guess "
-                             "(exactly one of them)")
-        if self.hint is not None and (np.shape(self.hint) != (4, 4) or not np.isfinite(self.hint).all()):
+            raise ValueError(
+                "FusionInput: give LED observations or a relative pose hint for the inter-robot guess "
+                "(exactly one of them)"
+            )
+        if self.hint is not None and (
+            np.shape(self.hint) != (4, 4) or not np.isfinite(self.hint).all()
+        ):
             raise ValueError("FusionInput.hint must be a finite 4x4 transform")
-        if self.hint_sigma is not None and (np.shape(self.hint_sigma) != (2,)
-                                            or not (np.asarray(self.hint_sigma) > 0).all()):
-            raise ValueError("FusionInput.hint_sigma must be (rot [rad], trans [m]) > 0, "
-                             f"got {self.hint_sigma}")
+        if self.hint_sigma is not None and (
+            np.shape(self.hint_sigma) != (2,) or not (np.asarray(self.hint_sigma) > 0).all()
+        ):
+            raise ValueError(
+                f"FusionInput.hint_sigma must be (rot [rad], trans [m]) > 0, got {self.hint_sigma}"
+            )
         object.__setattr__(self, "times", t)
 
 
@@ -198,10 +212,23 @@ def led_candidates(leds: LedObservations, times: np.ndarray, cfg: FusionConfig):
         if not keep.any():
             continue
         cand = sol.candidate_set(i, time=float(times[f]), observer="ceiling", observed="ground")
-        cov = resection_covariance(leds.camera, sol.R_wc[i][keep], sol.t_wc[i][keep],
-                                   np.broadcast_to(points[i], (int(keep.sum()), 3, 3)), cfg.pixel_sigma)
-        out[int(f)] = CandidateSet(cand.R, cand.t, cand.scores, cand.time, cand.observer, cand.observed,
-                                   cand.source, {"covariance": cov})
+        cov = resection_covariance(
+            leds.camera,
+            sol.R_wc[i][keep],
+            sol.t_wc[i][keep],
+            np.broadcast_to(points[i], (int(keep.sum()), 3, 3)),
+            cfg.pixel_sigma,
+        )
+        out[int(f)] = CandidateSet(
+            cand.R,
+            cand.t,
+            cand.scores,
+            cand.time,
+            cand.observer,
+            cand.observed,
+            cand.source,
+            {"covariance": cov},
+        )
     return out, F - len(out)
 
 
@@ -209,11 +236,18 @@ def _in_first_frame(cands: CandidateSet, T_g0_gk: np.ndarray) -> CandidateSet:
     """Candidates (camera in G_k) re-expressed in G_0 (right-perturbation covariances unchanged)."""
     R = np.einsum("ij,kjl->kil", T_g0_gk[:3, :3], cands.R)
     t = cands.t @ T_g0_gk[:3, :3].T + T_g0_gk[:3, 3]
-    return CandidateSet(R, t, cands.scores, cands.time, cands.observer, cands.observed, cands.source, cands.meta)
+    return CandidateSet(
+        R, t, cands.scores, cands.time, cands.observer, cands.observed, cands.source, cands.meta
+    )
 
 
-def led_initial_guess(leds: LedObservations, times: np.ndarray, odo_g: OdometryResult, odo_c: OdometryResult,
-                      cfg: FusionConfig) -> GuessResult:
+def led_initial_guess(
+    leds: LedObservations,
+    times: np.ndarray,
+    odo_g: OdometryResult,
+    odo_c: OdometryResult,
+    cfg: FusionConfig,
+) -> GuessResult:
     """Seed 004 Sec. II-C with the HypothesisTracker: every frame's P3P candidates (camera in G_0 via
     the ground odometry) and the ceiling camera's odometry between observed frames; the committed
     (else most probable) track at the last frame, carried back to C_0 by the ceiling odometry."""
@@ -233,20 +267,34 @@ def led_initial_guess(leds: LedObservations, times: np.ndarray, odo_g: OdometryR
         else:
             rel = np.linalg.inv(cam_in_c0[prev]) @ cam_in_c0[f]
             n = f - prev
-            cov = np.diag(np.r_[np.full(3, s_rot ** 2), np.full(3, s_tr ** 2)]) * n
+            cov = np.diag(np.r_[np.full(3, s_rot**2), np.full(3, s_tr**2)]) * n
             decision = tracker.update(c0, Odometry(gtsam.Pose3(rel), cov))
         prev = f
     if decision is None or decision.pose is None:
         raise ValueError("LED observations: the hypothesis tracker kept no hypothesis")
     T_g0_camK = decision.pose.matrix()
     T_g0_c0 = T_g0_camK @ np.linalg.inv(cam_in_c0[prev])
-    p = float(decision.probabilities[decision.committed]) if decision.committed >= 0 else float(decision.probabilities.max(initial=0.0))
+    p = (
+        float(decision.probabilities[decision.committed])
+        if decision.committed >= 0
+        else float(decision.probabilities.max(initial=0.0))
+    )
     frames = np.array(sorted(cands))
-    return GuessResult(T_g0_c0, frames, np.array([len(cands[f]) for f in frames]), bool(decision.locked), p,
-                       cands, time.perf_counter() - start, skipped)
+    return GuessResult(
+        T_g0_c0,
+        frames,
+        np.array([len(cands[f]) for f in frames]),
+        bool(decision.locked),
+        p,
+        cands,
+        time.perf_counter() - start,
+        skipped,
+    )
 
 
-def p3p_factors(guess: GuessResult, T_cc: np.ndarray, poses_g: np.ndarray, poses_c: np.ndarray, gate: float):
+def p3p_factors(
+    guess: GuessResult, T_cc: np.ndarray, poses_g: np.ndarray, poses_c: np.ndarray, gate: float
+):
     """One BetweenFactorPose3 x(ground,k) -> x(ceiling,k) per camera frame: the P3P candidate
     closest (Mahalanobis) to the current estimate, if within `gate`; covariance carried through the
     camera->LiDAR extrinsic (T Exp(xi) M = T M Exp(Ad(M^-1) xi))."""
@@ -264,19 +312,23 @@ def p3p_factors(guess: GuessResult, T_cc: np.ndarray, poses_g: np.ndarray, poses
         if d2[j] > gate:
             continue
         rel = cands.poses()[j].matrix() @ T_cam_c
-        factors.append(between_factor(pose_key(GROUND, f), pose_key(CEILING, f), rel, ad @ cov[j] @ ad.T))
+        factors.append(
+            between_factor(pose_key(GROUND, f), pose_key(CEILING, f), rel, ad @ cov[j] @ ad.T)
+        )
     return factors
 
 
 # ----------------------------------------------------------------------------- pipeline
 
 
-def _between_steps(odo: OdometryResult, prepared: list, cfg: FusionConfig) -> list[tuple[np.ndarray, np.ndarray, float]]:
+def _between_steps(
+    odo: OdometryResult, prepared: list, cfg: FusionConfig
+) -> list[tuple[np.ndarray, np.ndarray, float]]:
     """(relative T_{k-1,k}, 6x6 covariance, seconds) per step of one robot: point-to-plane ICP of
     scan k onto scan k-1 from the KISS-ICP increment with its information matrix
     (cfg.scan_matching), else the KISS-ICP increment with cfg.odometry_sigmas."""
     s_rot, s_tr = cfg.odometry_sigmas
-    fixed = np.diag(np.r_[np.full(3, s_rot ** 2), np.full(3, s_tr ** 2)])
+    fixed = np.diag(np.r_[np.full(3, s_rot**2), np.full(3, s_tr**2)])
     steps = []
     for k, inc in enumerate(odo.increments(), start=1):
         if not cfg.scan_matching:
@@ -287,12 +339,14 @@ def _between_steps(odo: OdometryResult, prepared: list, cfg: FusionConfig) -> li
     return steps
 
 
-
 def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
     """The whole pipeline of the module docstring."""
     timings = {}
     t0 = time.perf_counter()
-    odo = {GROUND: run_odometry(inp.ground_scans, cfg.odometry), CEILING: run_odometry(inp.ceiling_scans, cfg.odometry)}
+    odo = {
+        GROUND: run_odometry(inp.ground_scans, cfg.odometry),
+        CEILING: run_odometry(inp.ceiling_scans, cfg.odometry),
+    }
     timings["odometry_s"] = time.perf_counter() - t0
 
     guess_info = None
@@ -305,15 +359,23 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
 
     t0 = time.perf_counter()
     n_prep = len(inp.times) if cfg.scan_matching else 1
-    prepared = {GROUND: [prepare(s, cfg.registration) for s in inp.ground_scans[:n_prep]],
-                CEILING: [prepare(s, cfg.registration) for s in inp.ceiling_scans[:n_prep]]}
+    prepared = {
+        GROUND: [prepare(s, cfg.registration) for s in inp.ground_scans[:n_prep]],
+        CEILING: [prepare(s, cfg.registration) for s in inp.ceiling_scans[:n_prep]],
+    }
     timings["denoise_s"] = time.perf_counter() - t0
     decision = None
     if cfg.robust:
         s_rot, s_tr = inp.hint_sigma if inp.hint_sigma is not None else cfg.guess_sigma
         sigma = np.r_[np.full(3, s_rot), np.full(3, s_tr)]
-        decision = robust_register(prepared[CEILING][0], prepared[GROUND][0], guess, sigma,
-                                   cfg.registration, cfg.acceptance)
+        decision = robust_register(
+            prepared[CEILING][0],
+            prepared[GROUND][0],
+            guess,
+            sigma,
+            cfg.registration,
+            cfg.acceptance,
+        )
         if not decision.accepted:
             raise FusionRejected(decision, guess, guess_info)
         reg = decision.registration
@@ -327,7 +389,13 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
     t0 = time.perf_counter()
     F = len(inp.times)
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-    graph.add(gtsam.PriorFactorPose3(pose_key(GROUND, 0), gtsam.Pose3(), gtsam.noiseModel.Isotropic.Sigma(6, cfg.anchor_sigma)))
+    graph.add(
+        gtsam.PriorFactorPose3(
+            pose_key(GROUND, 0),
+            gtsam.Pose3(),
+            gtsam.noiseModel.Isotropic.Sigma(6, cfg.anchor_sigma),
+        )
+    )
     init_poses = {}
     for r in (GROUND, CEILING):
         chain = [np.eye(4)]
@@ -337,31 +405,63 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
         init_poses[r] = (np.eye(4) if r == GROUND else reg.transformation) @ np.asarray(chain)
         for k in range(F):
             values.insert(pose_key(r, k), gtsam.Pose3(init_poses[r][k]))
-    graph.add(between_factor(pose_key(GROUND, 0), pose_key(CEILING, 0), reg.transformation, np.linalg.inv(reg.information)))
+    graph.add(
+        between_factor(
+            pose_key(GROUND, 0),
+            pose_key(CEILING, 0),
+            reg.transformation,
+            np.linalg.inv(reg.information),
+        )
+    )
     n_p3p = 0
     if guess_info is not None:
-        extra = p3p_factors(guess_info, np.asarray(inp.leds.T_ceiling_camera, dtype=float),
-                            init_poses[GROUND], init_poses[CEILING], cfg.p3p_gate)
+        extra = p3p_factors(
+            guess_info,
+            np.asarray(inp.leds.T_ceiling_camera, dtype=float),
+            init_poses[GROUND],
+            init_poses[CEILING],
+            cfg.p3p_gate,
+        )
         for fac in extra:
             graph.add(fac)
         n_p3p = len(extra)
     session = Session(cfg.session)
     session.add(graph, values, time=float(inp.times[0]))
     est = session.estimate()
-    poses = {r: np.array([est.atPose3(pose_key(r, k)).matrix() for k in range(F)]) for r in (GROUND, CEILING)}
+    poses = {
+        r: np.array([est.atPose3(pose_key(r, k)).matrix() for k in range(F)])
+        for r in (GROUND, CEILING)
+    }
     errors = (float(graph.error(values)), float(graph.error(est)))
     timings["graph_s"] = time.perf_counter() - t0
 
     # ---- fused map
     t0 = time.perf_counter()
     pts, labels, outliers = [np.zeros((0, 3))], [np.zeros(0, dtype=int)], {}
-    for r, scans in ((GROUND, inp.ground_scans), (CEILING, inp.ceiling_scans)) if cfg.build_map else ():
+    for r, scans in (
+        ((GROUND, inp.ground_scans), (CEILING, inp.ceiling_scans)) if cfg.build_map else ()
+    ):
         cloud = np.concatenate([s @ P[:3, :3].T + P[:3, 3] for s, P in zip(scans, poses[r])])
-        pcd, outliers[ROBOT_NAMES[r]] = denoise(cloud, replace(cfg.registration, voxel=cfg.map_voxel))
+        pcd, outliers[ROBOT_NAMES[r]] = denoise(
+            cloud, replace(cfg.registration, voxel=cfg.map_voxel)
+        )
         p = pcd.point.positions.numpy().astype(float)
         pts.append(p)
         labels.append(np.full(len(p), r))
     timings["map_s"] = time.perf_counter() - t0
     T = np.linalg.inv(poses[GROUND][0]) @ poses[CEILING][0]
-    return FusionResult(poses, odo, T, guess, guess_info, reg, n_p3p, np.concatenate(pts), np.concatenate(labels),
-                        timings, errors, outliers, decision)
+    return FusionResult(
+        poses,
+        odo,
+        T,
+        guess,
+        guess_info,
+        reg,
+        n_p3p,
+        np.concatenate(pts),
+        np.concatenate(labels),
+        timings,
+        errors,
+        outliers,
+        decision,
+    )

@@ -60,7 +60,9 @@ def write_labelled_cloud(path, points: np.ndarray, robot: np.ndarray) -> None:
     points = np.asarray(points, dtype=np.float32)
     robot = np.asarray(robot, dtype=np.int32).reshape(-1, 1)
     if points.ndim != 2 or points.shape[1] != 3 or len(robot) != len(points):
-        raise ValueError(f"write_labelled_cloud: points {points.shape} / labels {robot.shape} mismatch")
+        raise ValueError(
+            f"write_labelled_cloud: points {points.shape} / labels {robot.shape} mismatch"
+        )
     pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(points))
     rgb = np.round(255.0 * ROBOT_COLOURS[robot[:, 0] % len(ROBOT_COLOURS)]).astype(np.uint8)
     pcd.point.colors = o3d.core.Tensor(rgb)  # uint8: PLY viewers expect 0-255 (uchar r/g/b)
@@ -75,7 +77,9 @@ def read_labelled_cloud(path) -> tuple[np.ndarray, np.ndarray]:
     pcd = o3d.t.io.read_point_cloud(str(path))
     if "robot" not in pcd.point:
         raise ValueError(f"{path}: no per-point 'robot' attribute")
-    return pcd.point.positions.numpy().astype(float), pcd.point.robot.numpy().reshape(-1).astype(int)
+    return pcd.point.positions.numpy().astype(float), pcd.point.robot.numpy().reshape(-1).astype(
+        int
+    )
 
 
 def read_tum(path) -> tuple[np.ndarray, np.ndarray]:
@@ -95,7 +99,9 @@ def read_tum(path) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"{path}: empty or non-finite trajectory")
     back = np.flatnonzero(np.diff(times) <= 0)
     if len(back):
-        raise ValueError(f"{path}: time goes backwards or repeats at pose {back[0] + 1} ({times[back[0] + 1]})")
+        raise ValueError(
+            f"{path}: time goes backwards or repeats at pose {back[0] + 1} ({times[back[0] + 1]})"
+        )
     return times, poses
 
 
@@ -114,7 +120,13 @@ def read_led_pixels(path, n_frames: int) -> np.ndarray:
             raise ValueError(f"{path}:1: header must be frame,time,led,u,v; got {header}")
         for line, row in enumerate(reader, start=2):
             try:
-                f, _, k, u, v = int(row[0]), float(row[1]), int(row[2]), float(row[3]), float(row[4])
+                f, _, k, u, v = (
+                    int(row[0]),
+                    float(row[1]),
+                    int(row[2]),
+                    float(row[3]),
+                    float(row[4]),
+                )
             except (ValueError, IndexError):
                 raise ValueError(f"{path}:{line}: expected frame,time,led,u,v; got {row}") from None
             if not 0 <= f < n_frames:

@@ -21,7 +21,9 @@ class OdometryConfig:
     max_range: float = 8.0
     min_range: float = 0.19
     voxel_size: float = 0.08
-    deskew: bool = False  # simulated scans are motion-free; True for real spinning LiDARs (needs timestamps)
+    deskew: bool = (
+        False  # simulated scans are motion-free; True for real spinning LiDARs (needs timestamps)
+    )
     map_voxel: float = 0.03  # voxel of the accumulated local map
     threads: int = 1
 
@@ -48,7 +50,9 @@ def kiss_config(cfg: OdometryConfig) -> KISSConfig:
     )
 
 
-def run_odometry(scans: list[np.ndarray], cfg: OdometryConfig = OdometryConfig(), timestamps=None) -> OdometryResult:
+def run_odometry(
+    scans: list[np.ndarray], cfg: OdometryConfig = OdometryConfig(), timestamps=None
+) -> OdometryResult:
     """KISS-ICP over a scan sequence. `timestamps`: optional per-scan (N_f,) per-point times in
     [0,1] for deskewing; zeros otherwise."""
     if len(scans) == 0:
@@ -62,7 +66,11 @@ def run_odometry(scans: list[np.ndarray], cfg: OdometryConfig = OdometryConfig()
             raise ValueError(f"run_odometry: scan {f} has shape {pts.shape}, expected (N,3)")
         if not np.isfinite(pts).all():
             raise ValueError(f"run_odometry: scan {f} contains NaN/inf points")
-        ts = np.zeros(len(pts)) if timestamps is None else np.asarray(timestamps[f], dtype=np.float64)
+        ts = (
+            np.zeros(len(pts))
+            if timestamps is None
+            else np.asarray(timestamps[f], dtype=np.float64)
+        )
         frame, _ = odom.register_frame(pts, ts)
         poses.append(odom.last_pose.copy())
         clouds.append(frame @ odom.last_pose[:3, :3].T + odom.last_pose[:3, 3])

@@ -16,7 +16,11 @@ from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
 from graphloc.mapping.fusion import (
-    FusionConfig, FusionInput, FusionRejected, LedObservations, fuse,
+    FusionConfig,
+    FusionInput,
+    FusionRejected,
+    LedObservations,
+    fuse,
 )
 from graphloc.mapping.io import read_led_pixels, read_scan_sequence
 from graphloc.mapping.report import write_outputs, write_rejection
@@ -53,7 +57,11 @@ def parse_hint(text: str) -> np.ndarray:
     if len(vals) == 16:
         T = vals.reshape(4, 4)
         R = T[:3, :3]
-        if not (np.allclose(R @ R.T, np.eye(3), atol=1e-4) and np.allclose(T[3], [0, 0, 0, 1]) and np.linalg.det(R) > 0):
+        if not (
+            np.allclose(R @ R.T, np.eye(3), atol=1e-4)
+            and np.allclose(T[3], [0, 0, 0, 1])
+            and np.linalg.det(R) > 0
+        ):
             raise ValueError("hint: 4x4 matrix is not a rigid transform")
         return T
     raise ValueError(f"hint: expected 7 (x y z qx qy qz qw) or 16 numbers, got {len(vals)}")
@@ -89,9 +97,16 @@ def parse_hint_sigma(text: str) -> tuple[float, float]:
     return float(np.deg2rad(vals[0])), vals[1]
 
 
-def fuse_directories(ground_dir, ceiling_dir, out_dir, hint: str | None = None, p3p: str | None = None,
-                     rate: float = 10.0, config: FusionConfig = FusionConfig(),
-                     hint_sigma: str | None = None) -> dict:
+def fuse_directories(
+    ground_dir,
+    ceiling_dir,
+    out_dir,
+    hint: str | None = None,
+    p3p: str | None = None,
+    rate: float = 10.0,
+    config: FusionConfig = FusionConfig(),
+    hint_sigma: str | None = None,
+) -> dict:
     """A user's two scan sequences (PCD/PLY/XYZ, file-name order, frame k of both taken together at
     k / rate seconds) + a relative pose hint (with its 1-sigma 'DEG M') or P3P observations ->
     outputs in out_dir. Raises FusionRejected (after writing the "not fused" report)."""
@@ -100,12 +115,24 @@ def fuse_directories(ground_dir, ceiling_dir, out_dir, hint: str | None = None, 
     ground, _, dropped_g = read_scan_sequence(ground_dir)
     ceiling, _, dropped_c = read_scan_sequence(ceiling_dir)
     if len(ground) != len(ceiling):
-        raise ValueError(f"{ground_dir} has {len(ground)} scans but {ceiling_dir} has {len(ceiling)}: "
-                         "the pipeline needs synchronized sequences")
+        raise ValueError(
+            f"{ground_dir} has {len(ground)} scans but {ceiling_dir} has {len(ceiling)}: "
+            "the pipeline needs synchronized sequences"
+        )
     times = np.arange(len(ground)) / float(rate)
     leds = read_p3p_setup(p3p, len(ground)) if p3p else None
-    inp = FusionInput(times, ground, ceiling, leds, parse_hint(hint) if hint else None,
-                      parse_hint_sigma(hint_sigma) if hint_sigma else None)
-    provenance = {"ground": str(ground_dir), "ceiling": str(ceiling_dir), "frames": len(ground),
-                  "nonfinite_points_skipped": {"ground": dropped_g, "ceiling": dropped_c}}
+    inp = FusionInput(
+        times,
+        ground,
+        ceiling,
+        leds,
+        parse_hint(hint) if hint else None,
+        parse_hint_sigma(hint_sigma) if hint_sigma else None,
+    )
+    provenance = {
+        "ground": str(ground_dir),
+        "ceiling": str(ceiling_dir),
+        "frames": len(ground),
+        "nonfinite_points_skipped": {"ground": dropped_g, "ceiling": dropped_c},
+    }
     return fuse_and_write(inp, out_dir, config, times, extra={"input": provenance})

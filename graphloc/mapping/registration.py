@@ -64,9 +64,17 @@ class RegistrationConfig:
             raise ValueError("RegistrationConfig: voxel, normal_radius and range_sigma must be > 0")
         n = len(self.scales)
         if n == 0 or len(self.max_correspondence) != n or len(self.max_iterations) != n:
-            raise ValueError("RegistrationConfig: scales, max_correspondence and max_iterations need one entry per stage")
-        if min(self.scales) <= 0 or min(self.max_correspondence) <= 0 or min(self.max_iterations) < 1:
-            raise ValueError("RegistrationConfig: scales, max_correspondence, max_iterations must be positive")
+            raise ValueError(
+                "RegistrationConfig: scales, max_correspondence and max_iterations need one entry per stage"
+            )
+        if (
+            min(self.scales) <= 0
+            or min(self.max_correspondence) <= 0
+            or min(self.max_iterations) < 1
+        ):
+            raise ValueError(
+                "RegistrationConfig: scales, max_correspondence, max_iterations must be positive"
+            )
 
 
 @dataclass(frozen=True)
@@ -97,7 +105,9 @@ class Registration:
     seconds: float
 
 
-def denoise(points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig()) -> tuple[o3d.t.geometry.PointCloud, int]:
+def denoise(
+    points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig()
+) -> tuple[o3d.t.geometry.PointCloud, int]:
     """Voxel downsampling, then statistical outlier removal (seed 004 Sec. IV.A: a point far from its
     nearest neighbours is noise); returns the cloud and the number of (voxel) outliers removed."""
     pts = np.asarray(points, dtype=np.float64)
@@ -112,11 +122,15 @@ def denoise(points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig()) 
     return pcd, int(len(keep) - keep.numpy().sum())
 
 
-def prepare(points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0)) -> PreparedCloud:
+def prepare(
+    points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0)
+) -> PreparedCloud:
     """`denoise`, then normals oriented toward `viewpoint` (the sensor, for FPFH's signed angles)."""
     pcd, n_out = denoise(points, cfg)
     pcd.estimate_normals(cfg.max_nn, cfg.normal_radius)
-    pcd.orient_normals_towards_camera_location(o3d.core.Tensor(np.asarray(viewpoint, dtype=np.float64)))
+    pcd.orient_normals_towards_camera_location(
+        o3d.core.Tensor(np.asarray(viewpoint, dtype=np.float64))
+    )
     if len(pcd.point.positions) < 10:
         raise ValueError("prepare: fewer than 10 points left after denoising and downsampling")
     return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out)
@@ -130,32 +144,53 @@ def information_right(info_left: np.ndarray, T: np.ndarray) -> np.ndarray:
     return 0.5 * (out + out.T)
 
 
-def refine(source: PreparedCloud, target: PreparedCloud, init: np.ndarray,
-           cfg: RegistrationConfig = RegistrationConfig()) -> Registration:
+def refine(
+    source: PreparedCloud,
+    target: PreparedCloud,
+    init: np.ndarray,
+    cfg: RegistrationConfig = RegistrationConfig(),
+) -> Registration:
     """Coarse-to-fine ICP of source onto target from `init` (Open3D multi_scale_icp: one stage per
     entry of cfg.scales / max_correspondence / max_iterations)."""
     init = np.asarray(init, dtype=np.float64)
     if init.shape != (4, 4) or not np.isfinite(init).all():
         raise ValueError(f"refine: init must be a finite 4x4 transform, got shape {init.shape}")
     start = time.perf_counter()
-    criteria = [reg_t.ICPConvergenceCriteria(cfg.relative_fitness, cfg.relative_rmse, n) for n in cfg.max_iterations]
-    result = reg_t.multi_scale_icp(source.cloud, target.cloud, o3d.utility.DoubleVector(cfg.scales), criteria,
-                                   o3d.utility.DoubleVector(cfg.max_correspondence), o3d.core.Tensor(init),
-                                   reg_t.TransformationEstimationPointToPlane())
+    criteria = [
+        reg_t.ICPConvergenceCriteria(cfg.relative_fitness, cfg.relative_rmse, n)
+        for n in cfg.max_iterations
+    ]
+    result = reg_t.multi_scale_icp(
+        source.cloud,
+        target.cloud,
+        o3d.utility.DoubleVector(cfg.scales),
+        criteria,
+        o3d.utility.DoubleVector(cfg.max_correspondence),
+        o3d.core.Tensor(init),
+        reg_t.TransformationEstimationPointToPlane(),
+    )
     T = result.transformation.numpy()
     iterations = int(result.num_iterations)
     dist = cfg.max_correspondence[-1]
     info = reg_l.get_information_matrix_from_point_clouds(source.legacy, target.legacy, dist, T)
-    info = information_right(np.asarray(info), T) / cfg.range_sigma ** 2
+    info = information_right(np.asarray(info), T) / cfg.range_sigma**2
     if result.fitness <= 0 or np.linalg.eigvalsh(0.5 * (info + info.T))[0] <= 0:
-        raise ValueError(f"refine: ICP found too few correspondences within {dist} m of the initial guess "
-                         f"(fitness {float(result.fitness):.3f}): a wrong pose hint, or scans that do not overlap")
+        raise ValueError(
+            f"refine: ICP found too few correspondences within {dist} m of the initial guess "
+            f"(fitness {float(result.fitness):.3f}): a wrong pose hint, or scans that do not overlap"
+        )
     seconds = time.perf_counter() - start
-    return Registration(T, float(result.fitness), float(result.inlier_rmse), iterations, info, seconds)
+    return Registration(
+        T, float(result.fitness), float(result.inlier_rmse), iterations, info, seconds
+    )
 
 
-def global_fpfh_ransac(source: PreparedCloud, target: PreparedCloud,
-                       cfg: RegistrationConfig = RegistrationConfig(), seed: int = 0) -> tuple[np.ndarray, float]:
+def global_fpfh_ransac(
+    source: PreparedCloud,
+    target: PreparedCloud,
+    cfg: RegistrationConfig = RegistrationConfig(),
+    seed: int = 0,
+) -> tuple[np.ndarray, float]:
     """FPFH + RANSAC global registration (Open3D) on clouds downsampled to cfg.fpfh_voxel (normals
     re-estimated at 2 voxels); returns (T_target_source, seconds including downsampling and features)."""
     start = time.perf_counter()
@@ -163,19 +198,31 @@ def global_fpfh_ransac(source: PreparedCloud, target: PreparedCloud,
     coarse = []
     for cloud in (source.legacy, target.legacy):
         c = cloud.voxel_down_sample(cfg.fpfh_voxel)
-        c.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=2 * cfg.fpfh_voxel, max_nn=30))
+        c.estimate_normals(
+            o3d.geometry.KDTreeSearchParamHybrid(radius=2 * cfg.fpfh_voxel, max_nn=30)
+        )
         c.orient_normals_towards_camera_location(np.zeros(3))
         coarse.append(c)
     src, tgt = coarse
     param = o3d.geometry.KDTreeSearchParamHybrid(radius=cfg.fpfh_radius, max_nn=cfg.fpfh_max_nn)
     f_src = reg_l.compute_fpfh_feature(src, param)
     f_tgt = reg_l.compute_fpfh_feature(tgt, param)
-    checkers = [reg_l.CorrespondenceCheckerBasedOnEdgeLength(0.9),
-                reg_l.CorrespondenceCheckerBasedOnDistance(cfg.ransac_distance)]
+    checkers = [
+        reg_l.CorrespondenceCheckerBasedOnEdgeLength(0.9),
+        reg_l.CorrespondenceCheckerBasedOnDistance(cfg.ransac_distance),
+    ]
     result = reg_l.registration_ransac_based_on_feature_matching(
-        src, tgt, f_src, f_tgt, True, cfg.ransac_distance,
-        reg_l.TransformationEstimationPointToPoint(False), 3, checkers,
-        reg_l.RANSACConvergenceCriteria(cfg.ransac_iterations, cfg.ransac_confidence))
+        src,
+        tgt,
+        f_src,
+        f_tgt,
+        True,
+        cfg.ransac_distance,
+        reg_l.TransformationEstimationPointToPoint(False),
+        3,
+        checkers,
+        reg_l.RANSACConvergenceCriteria(cfg.ransac_iterations, cfg.ransac_confidence),
+    )
     return np.asarray(result.transformation), time.perf_counter() - start
 
 
@@ -403,16 +450,25 @@ def robust_register(
         nonlocal iterations
         T = T0
         if cfg.coarse_voxels > 0:
-            T = np.asarray(reg_l.registration_icp(src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0,
-                                                  est, crit_c).transformation)
+            T = np.asarray(
+                reg_l.registration_icp(
+                    src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0, est, crit_c
+                ).transformation
+            )
         same = [j for j, Tj in coarse if _within(T, Tj, basin_deg, fine)]
         if same:
             merged[k] = f"coarse stage converged within the fine basin of start {same[0]}"
             return False
         coarse.append((k, T))
         try:
-            res = reg_t.icp(source.cloud, target.cloud, fine, o3d.core.Tensor(T),
-                            reg_t.TransformationEstimationPointToPlane(), crit_f)
+            res = reg_t.icp(
+                source.cloud,
+                target.cloud,
+                fine,
+                o3d.core.Tensor(T),
+                reg_t.TransformationEstimationPointToPlane(),
+                crit_f,
+            )
         except RuntimeError:  # Open3D: singular 6x6 system, too few correspondences from this start
             merged[k] = f"no correspondences within {fine} m"
             return False
@@ -425,8 +481,16 @@ def robust_register(
         near = d < fine
         inl = near & (np.abs(r) < c)
         e = hint_pose.localCoordinates(gtsam.Pose3(T))
-        cands.append(Candidate(k, T, truncated_cost(r, d, c, fine), float(inl.mean()),
-                               float(inl.sum() / max(near.sum(), 1)), float(e @ hint_info @ e)))
+        cands.append(
+            Candidate(
+                k,
+                T,
+                truncated_cost(r, d, c, fine),
+                float(inl.mean()),
+                float(inl.sum() / max(near.sum(), 1)),
+                float(e @ hint_info @ e),
+            )
+        )
         return all(v[2] for v in _candidate_checks(cands[-1], acc).values())
 
     starts = hint_starts(hint, sigma)

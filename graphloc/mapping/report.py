@@ -20,8 +20,13 @@ MAX_PLOT_POINTS = 60_000
 
 
 def transform_dict(T: np.ndarray) -> dict:
-    return {"matrix": np.asarray(T).tolist(), "translation_m": np.asarray(T)[:3, 3].tolist(),
-            "rpy_deg_xyz": Rotation.from_matrix(np.asarray(T)[:3, :3]).as_euler("xyz", degrees=True).tolist()}
+    return {
+        "matrix": np.asarray(T).tolist(),
+        "translation_m": np.asarray(T)[:3, 3].tolist(),
+        "rpy_deg_xyz": Rotation.from_matrix(np.asarray(T)[:3, :3])
+        .as_euler("xyz", degrees=True)
+        .tolist(),
+    }
 
 
 def report_dict(result: FusionResult, truth: np.ndarray | None = None) -> dict:
@@ -30,11 +35,21 @@ def report_dict(result: FusionResult, truth: np.ndarray | None = None) -> dict:
         "status": "fused",
         "T_ground0_ceiling0": transform_dict(result.T_g0_c0),
         "initial_guess": transform_dict(result.guess),
-        "registration": {"fitness": reg.fitness, "inlier_rmse_m": reg.inlier_rmse, "icp_iterations": reg.iterations,
-                         "sigma_from_information": np.sqrt(np.diag(np.linalg.inv(reg.information))).tolist()},
-        "graph": {"error_initial": result.graph_error[0], "error_final": result.graph_error[1],
-                  "p3p_factors": result.n_p3p_factors, "frames": int(len(result.poses[GROUND]))},
-        "map_points": {ROBOT_NAMES[r]: int((result.map_labels == r).sum()) for r in (GROUND, CEILING)},
+        "registration": {
+            "fitness": reg.fitness,
+            "inlier_rmse_m": reg.inlier_rmse,
+            "icp_iterations": reg.iterations,
+            "sigma_from_information": np.sqrt(np.diag(np.linalg.inv(reg.information))).tolist(),
+        },
+        "graph": {
+            "error_initial": result.graph_error[0],
+            "error_final": result.graph_error[1],
+            "p3p_factors": result.n_p3p_factors,
+            "frames": int(len(result.poses[GROUND])),
+        },
+        "map_points": {
+            ROBOT_NAMES[r]: int((result.map_labels == r).sum()) for r in (GROUND, CEILING)
+        },
         "outliers_removed": result.outliers_removed,
         "timings_s": result.timings,
     }
@@ -42,18 +57,28 @@ def report_dict(result: FusionResult, truth: np.ndarray | None = None) -> dict:
         out["registration_decision"] = result.decision.as_dict()
     if result.guess_info is not None:
         g = result.guess_info
-        out["p3p"] = {"frames_used": g.frames.tolist(), "candidates_per_frame": g.n_candidates.tolist(),
-                      "frames_skipped": g.skipped_frames, "tracker_locked": g.locked,
-                      "last_frame_candidate_probability": g.probability}
+        out["p3p"] = {
+            "frames_used": g.frames.tolist(),
+            "candidates_per_frame": g.n_candidates.tolist(),
+            "frames_skipped": g.skipped_frames,
+            "tracker_locked": g.locked,
+            "last_frame_candidate_probability": g.probability,
+        }
     if truth is not None:
         rot, tr = pose_errors(result.T_g0_c0, truth)
         g_rot, g_tr = pose_errors(result.guess, truth)
-        out["errors_vs_truth"] = {"rot_deg": rot, "trans_m": tr, "guess_rot_deg": g_rot, "guess_trans_m": g_tr}
+        out["errors_vs_truth"] = {
+            "rot_deg": rot,
+            "trans_m": tr,
+            "guess_rot_deg": g_rot,
+            "guess_trans_m": g_tr,
+        }
     return out
 
 
-def gravity_rotation(points: np.ndarray, labels: np.ndarray, max_tilt_deg: float = 30.0,
-                     seed: int = 0) -> tuple[np.ndarray, bool]:
+def gravity_rotation(
+    points: np.ndarray, labels: np.ndarray, max_tilt_deg: float = 30.0, seed: int = 0
+) -> tuple[np.ndarray, bool]:
     """Rotation R (3,3) that makes the floor horizontal: RANSAC plane (Open3D segment_plane,
     seeded) through the ground robot's points below its first pose; if its normal is within
     max_tilt_deg of G0's z axis and it holds at least 10% of them, R is the smallest rotation
@@ -92,12 +117,27 @@ def render(result: FusionResult, path: Path, view: str) -> Path:
     fig, ax = plt.subplots(figsize=(9, 7))
     for r in (GROUND, CEILING):
         sel = lab == r
-        ax.scatter(pts[sel, axes[0]], pts[sel, axes[1]], s=0.3, color=ROBOT_COLOURS[r], alpha=0.5,
-                   label=f"{ROBOT_NAMES[r]} scans ({int(sel.sum())} pts shown)", rasterized=True)
+        ax.scatter(
+            pts[sel, axes[0]],
+            pts[sel, axes[1]],
+            s=0.3,
+            color=ROBOT_COLOURS[r],
+            alpha=0.5,
+            label=f"{ROBOT_NAMES[r]} scans ({int(sel.sum())} pts shown)",
+            rasterized=True,
+        )
     for r, marker in ((GROUND, "o"), (CEILING, "s")):
         xyz = result.poses[r][:, :3, 3] @ R.T
-        ax.plot(xyz[:, axes[0]], xyz[:, axes[1]], "-" + marker, color="k", mfc=ROBOT_COLOURS[r], ms=5, lw=1.5,
-                label=f"{ROBOT_NAMES[r]} trajectory")
+        ax.plot(
+            xyz[:, axes[0]],
+            xyz[:, axes[1]],
+            "-" + marker,
+            color="k",
+            mfc=ROBOT_COLOURS[r],
+            ms=5,
+            lw=1.5,
+            label=f"{ROBOT_NAMES[r]} trajectory",
+        )
     ax.set_aspect("equal", adjustable="datalim")
     frame = "G0 levelled on the floor plane" if floor else "ground robot frame G0, taken as level"
     ax.set_xlabel(f"x [m] ({frame}, z up)")
@@ -113,8 +153,13 @@ def render(result: FusionResult, path: Path, view: str) -> Path:
     return path
 
 
-def write_outputs(result: FusionResult, out_dir, times: np.ndarray, truth: np.ndarray | None = None,
-                  extra: dict | None = None) -> dict:
+def write_outputs(
+    result: FusionResult,
+    out_dir,
+    times: np.ndarray,
+    truth: np.ndarray | None = None,
+    extra: dict | None = None,
+) -> dict:
     """Write everything (`extra` entries are merged into the JSON report, e.g. the input's
     provenance); returns {name: path} plus the report dict under 'report'."""
     out = Path(out_dir)
@@ -127,7 +172,9 @@ def write_outputs(result: FusionResult, out_dir, times: np.ndarray, truth: np.nd
         for view in ("top", "side"):
             paths[f"png_{view}"] = render(result, out / f"fused_{view}.png", view)
     for r in (GROUND, CEILING):
-        paths[f"tum_{ROBOT_NAMES[r]}"] = write_tum(out / f"trajectory_{ROBOT_NAMES[r]}.tum", times, result.poses[r])
+        paths[f"tum_{ROBOT_NAMES[r]}"] = write_tum(
+            out / f"trajectory_{ROBOT_NAMES[r]}.tum", times, result.poses[r]
+        )
     report = report_dict(result, truth)
     report["files"] = {k: str(v) for k, v in paths.items()}
     report.update(extra or {})
@@ -136,24 +183,35 @@ def write_outputs(result: FusionResult, out_dir, times: np.ndarray, truth: np.nd
     return {**paths, "report": report}
 
 
-def write_rejection(exc: FusionRejected, out_dir, truth: np.ndarray | None = None,
-                    extra: dict | None = None) -> dict:
-    """"Not fused": fusion_report.json with status, reasons, the guess and every candidate with
+def write_rejection(
+    exc: FusionRejected, out_dir, truth: np.ndarray | None = None, extra: dict | None = None
+) -> dict:
+    """ "Not fused": fusion_report.json with status, reasons, the guess and every candidate with
     its checks (and, when the truth is known, the best candidate's error); no map, no PNGs."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    report = {"status": "not_fused", "reasons": list(exc.decision.reasons),
-              "initial_guess": transform_dict(exc.guess),
-              "registration_decision": exc.decision.as_dict()}
+    report = {
+        "status": "not_fused",
+        "reasons": list(exc.decision.reasons),
+        "initial_guess": transform_dict(exc.guess),
+        "registration_decision": exc.decision.as_dict(),
+    }
     if exc.guess_info is not None:
         g = exc.guess_info
-        report["p3p"] = {"frames_used": g.frames.tolist(), "tracker_locked": g.locked,
-                         "last_frame_candidate_probability": g.probability}
+        report["p3p"] = {
+            "frames_used": g.frames.tolist(),
+            "tracker_locked": g.locked,
+            "last_frame_candidate_probability": g.probability,
+        }
     if truth is not None:
         rot, tr = pose_errors(exc.decision.registration.transformation, truth)
         g_rot, g_tr = pose_errors(exc.guess, truth)
-        report["errors_vs_truth"] = {"rejected_rot_deg": rot, "rejected_trans_m": tr,
-                                     "guess_rot_deg": g_rot, "guess_trans_m": g_tr}
+        report["errors_vs_truth"] = {
+            "rejected_rot_deg": rot,
+            "rejected_trans_m": tr,
+            "guess_rot_deg": g_rot,
+            "guess_trans_m": g_tr,
+        }
     report.update(extra or {})
     path = out / "fusion_report.json"
     report["files"] = {"json": str(path)}
@@ -166,19 +224,27 @@ def summary_text(report: dict) -> str:
     for a rejected fusion, "not fused" and why)."""
     if report.get("status") == "not_fused":
         n = len(report["registration_decision"]["candidates"])
-        lines = ["not fused: " + "; ".join(report["reasons"]),
-                 f"{n} distinct candidate(s) tried; no fused map written",
-                 "wrote " + ", ".join(report["files"].values())]
+        lines = [
+            "not fused: " + "; ".join(report["reasons"]),
+            f"{n} distinct candidate(s) tried; no fused map written",
+            "wrote " + ", ".join(report["files"].values()),
+        ]
         return "\n".join(lines)
     t = report["T_ground0_ceiling0"]
-    lines = [f"T_ground0_ceiling0: translation {[round(v, 4) for v in t['translation_m']]} m, "
-             f"rpy {[round(v, 3) for v in t['rpy_deg_xyz']]} deg",
-             f"ICP fitness {report['registration']['fitness']:.3f}, RMSE {report['registration']['inlier_rmse_m']:.4f} m, "
-             f"{report['registration']['icp_iterations']} iterations"]
+    lines = [
+        f"T_ground0_ceiling0: translation {[round(v, 4) for v in t['translation_m']]} m, "
+        f"rpy {[round(v, 3) for v in t['rpy_deg_xyz']]} deg",
+        f"ICP fitness {report['registration']['fitness']:.3f}, RMSE {report['registration']['inlier_rmse_m']:.4f} m, "
+        f"{report['registration']['icp_iterations']} iterations",
+    ]
     if "errors_vs_truth" in report:
         e = report["errors_vs_truth"]
-        lines.append(f"error vs truth: {e['rot_deg']:.4f} deg, {100 * e['trans_m']:.3f} cm "
-                     f"(initial guess {e['guess_rot_deg']:.2f} deg, {100 * e['guess_trans_m']:.1f} cm)")
-    lines.append("timings [s]: " + ", ".join(f"{k} {v:.2f}" for k, v in report["timings_s"].items()))
+        lines.append(
+            f"error vs truth: {e['rot_deg']:.4f} deg, {100 * e['trans_m']:.3f} cm "
+            f"(initial guess {e['guess_rot_deg']:.2f} deg, {100 * e['guess_trans_m']:.1f} cm)"
+        )
+    lines.append(
+        "timings [s]: " + ", ".join(f"{k} {v:.2f}" for k, v in report["timings_s"].items())
+    )
     lines.append("wrote " + ", ".join(report["files"].values()))
     return "\n".join(lines)

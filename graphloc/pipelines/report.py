@@ -29,8 +29,11 @@ def _trajectory(times: np.ndarray, rows: np.ndarray) -> PoseTrajectory3D:
     """(N,) times and (N,7) x y z qx qy qz qw rows -> evo trajectory (evo's quaternions are w first)."""
     ok = np.isfinite(rows).all(axis=1)
     q = rows[ok, 3:7]
-    return PoseTrajectory3D(positions_xyz=rows[ok, :3], orientations_quat_wxyz=np.column_stack([q[:, 3], q[:, :3]]),
-                            timestamps=np.asarray(times, dtype=float)[ok])
+    return PoseTrajectory3D(
+        positions_xyz=rows[ok, :3],
+        orientations_quat_wxyz=np.column_stack([q[:, 3], q[:, :3]]),
+        timestamps=np.asarray(times, dtype=float)[ok],
+    )
 
 
 def groundtruth_rows(run: TeamRun, r: int) -> tuple[np.ndarray, np.ndarray] | None:
@@ -73,7 +76,9 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
             if np.isfinite(rows).all(axis=1).sum() < 3:
                 continue
             try:
-                entry[label] = trajectory_metrics(reference, _trajectory(times, rows), align=align).as_dict()
+                entry[label] = trajectory_metrics(
+                    reference, _trajectory(times, rows), align=align
+                ).as_dict()
             except ValueError as exc:  # too few poses near ground-truth stamps
                 entry[label] = {"error": str(exc)}
         per_robot[robot.name] = entry
@@ -81,24 +86,47 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
     genuine = genuine_candidates(run, decisions)
     judged = [(d, g) for d, g in zip(decisions, genuine) if d.committed >= 0 and g >= 0]
     lat = result.latencies
-    latency = ({"mean": float(lat.mean() * 1e3), "p50": float(np.percentile(lat, 50) * 1e3),
-                "p95": float(np.percentile(lat, 95) * 1e3), "max": float(lat.max() * 1e3)}
-               if result.mode == "online" and len(lat) else None)
+    latency = (
+        {
+            "mean": float(lat.mean() * 1e3),
+            "p50": float(np.percentile(lat, 50) * 1e3),
+            "p95": float(np.percentile(lat, 95) * 1e3),
+            "max": float(lat.max() * 1e3),
+        }
+        if result.mode == "online" and len(lat)
+        else None
+    )
     first = next((d.time for d in decisions if d.committed >= 0), None)
-    duration = float(max((t[-1] for t in result.node_times if len(t)), default=run.start_time) - run.start_time)
+    duration = float(
+        max((t[-1] for t in result.node_times if len(t)), default=run.start_time) - run.start_time
+    )
     return {
-        "run": run.name, "mode": result.mode, "robots": [r.name for r in run.robots], "duration_s": duration,
-        "solve_wall_s": result.wall_s, "realtime_factor": duration / max(result.wall_s, 1e-12),
-        "latency_ms": latency, "per_robot": per_robot,
-        "decisions": {"candidate_sets": len(decisions), "committed": sum(d.committed >= 0 for d in decisions),
-                      "first_commit_time": first, "with_genuine_known": len(judged),
-                      "wrong": sum(g not in d.same_pose for d, g in judged),
-                      "genuine_merged": sum(g != d.committed and g in d.same_pose for d, g in judged)},
-        "downweighted": result.downweighted, "counts": result.graph.counts, "tables": run.contributions,
+        "run": run.name,
+        "mode": result.mode,
+        "robots": [r.name for r in run.robots],
+        "duration_s": duration,
+        "solve_wall_s": result.wall_s,
+        "realtime_factor": duration / max(result.wall_s, 1e-12),
+        "latency_ms": latency,
+        "per_robot": per_robot,
+        "decisions": {
+            "candidate_sets": len(decisions),
+            "committed": sum(d.committed >= 0 for d in decisions),
+            "first_commit_time": first,
+            "with_genuine_known": len(judged),
+            "wrong": sum(g not in d.same_pose for d, g in judged),
+            "genuine_merged": sum(g != d.committed and g in d.same_pose for d, g in judged),
+        },
+        "downweighted": result.downweighted,
+        "counts": result.graph.counts,
+        "tables": run.contributions,
         "skipped": result.graph.skips.as_dict(),
-        "partial": bool(result.partial), "steps_done": int(result.steps_done),
-        "steps_total": len(result.graph.steps), "lag_s": result.lag,
-        "dropped_across_lag": dict(result.dropped), "latency_trend": latency_trend(result),
+        "partial": bool(result.partial),
+        "steps_done": int(result.steps_done),
+        "steps_total": len(result.graph.steps),
+        "lag_s": result.lag,
+        "dropped_across_lag": dict(result.dropped),
+        "latency_trend": latency_trend(result),
     }
 
 
@@ -132,7 +160,10 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
     written = []
     for r, robot in enumerate(run.robots):
         times = result.node_times[r]
-        for label, rows in ((result.mode, result.estimate[r]), ("dead_reckoning", result.dead_reckoning[r])):
+        for label, rows in (
+            (result.mode, result.estimate[r]),
+            ("dead_reckoning", result.dead_reckoning[r]),
+        ):
             if np.isfinite(rows).all(axis=1).any():
                 written.append(_write_rows(out / f"{robot.name}_{label}.tum", times, rows))
         ref = groundtruth_rows(run, r)
@@ -142,13 +173,40 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
     decisions = result.graph.decisions
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["time", "robot", "target", "candidates", "committed", "probability", "genuine", "correct",
-                    "x", "y", "z", "qx", "qy", "qz", "qw"])
+        w.writerow(
+            [
+                "time",
+                "robot",
+                "target",
+                "candidates",
+                "committed",
+                "probability",
+                "genuine",
+                "correct",
+                "x",
+                "y",
+                "z",
+                "qx",
+                "qy",
+                "qz",
+                "qw",
+            ]
+        )
         for d, g in zip(decisions, genuine_candidates(run, decisions)):
             correct = "" if d.committed < 0 or g < 0 else int(g in d.same_pose)
-            w.writerow([f"{d.time:.6f}", run.robots[d.robot].name, run.robots[d.target].name,
-                        len(d.candidates_xyz), d.committed, f"{d.probability:.6g}", g, correct,
-                        *(f"{v:.9g}" for v in d.pose)])
+            w.writerow(
+                [
+                    f"{d.time:.6f}",
+                    run.robots[d.robot].name,
+                    run.robots[d.target].name,
+                    len(d.candidates_xyz),
+                    d.committed,
+                    f"{d.probability:.6g}",
+                    g,
+                    correct,
+                    *(f"{v:.9g}" for v in d.pose),
+                ]
+            )
     written.append(path)
     if result.mode == "online":
         path = out / "latency.csv"
@@ -156,8 +214,16 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
             w = csv.writer(fh)
             w.writerow(STEP_LOG_COLUMNS)
             for row in result.step_log:
-                w.writerow([int(row[0]), f"{row[1]:.6f}", f"{row[2]:.9f}", f"{row[3]:.9f}",
-                            int(row[4]), int(row[5])])
+                w.writerow(
+                    [
+                        int(row[0]),
+                        f"{row[1]:.6f}",
+                        f"{row[2]:.9f}",
+                        f"{row[3]:.9f}",
+                        int(row[4]),
+                        int(row[5]),
+                    ]
+                )
         written.append(path)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=str) + "\n")
     written.append(out / "metrics.json")
@@ -177,44 +243,90 @@ def _plots(result: TeamResult, run: TeamRun, out: Path) -> list[Path]:
         est.append(Series(f"{robot.name} {result.mode}", rows[:, :2], color=cmap(r % 10)))
         g = groundtruth_rows(run, r)
         if g is not None:
-            ref.append(Series("ground truth" if not ref else "_nolegend_", g[1][:, :2], style="--", color="0.4"))
+            ref.append(
+                Series(
+                    "ground truth" if not ref else "_nolegend_",
+                    g[1][:, :2],
+                    style="--",
+                    color="0.4",
+                )
+            )
             try:
-                t, e = ate_over_time(_trajectory(*g), _trajectory(result.node_times[r], rows), align=alignment(run, r))
-                err.append(Series(f"{robot.name} {result.mode}", t - run.start_time, e, color=cmap(r % 10)))
+                t, e = ate_over_time(
+                    _trajectory(*g),
+                    _trajectory(result.node_times[r], rows),
+                    align=alignment(run, r),
+                )
+                err.append(
+                    Series(f"{robot.name} {result.mode}", t - run.start_time, e, color=cmap(r % 10))
+                )
             except ValueError:
                 pass
-    chosen = np.array([d.pose[:2] for d in result.graph.decisions if d.committed >= 0]).reshape(-1, 2)
+    chosen = np.array([d.pose[:2] for d in result.graph.decisions if d.committed >= 0]).reshape(
+        -1, 2
+    )
     if len(chosen):
         est.append(Series("committed candidates", chosen, style=".", color="tab:green"))
     rejected = _rejected_candidates(run, result)
     if len(rejected):
         est.append(Series("rejected candidates", rejected, style="x", color="tab:red"))
     statics = [r for r in run.robots if r.static and r.initial_pose is not None]
-    points = np.array([r.initial_pose.transformFrom(m)[:2] for r in statics for m in (r.markers if r.markers is not
-                                                                                    None else [np.zeros(3)])])
+    points = np.array(
+        [
+            r.initial_pose.transformFrom(m)[:2]
+            for r in statics
+            for m in (r.markers if r.markers is not None else [np.zeros(3)])
+        ]
+    )
     if run.landmarks_known and len(run.landmark_xyz):
         points = np.vstack([points.reshape(-1, 2), run.landmark_xyz[:, :2]])
-    written = [plot_trajectories(out / "trajectories.png", est, ref, points if len(points) else None,
-                                 title=f"{run.name}: {result.mode} (top view)", point_label="landmarks / markers")]
+    written = [
+        plot_trajectories(
+            out / "trajectories.png",
+            est,
+            ref,
+            points if len(points) else None,
+            title=f"{run.name}: {result.mode} (top view)",
+            point_label="landmarks / markers",
+        )
+    ]
     if err:
-        written.append(plot_series(out / "error_over_time.png", err, "time since start [s]", "position error [m]",
-                                   f"{run.name}: error over time", logy=True))
+        written.append(
+            plot_series(
+                out / "error_over_time.png",
+                err,
+                "time since start [s]",
+                "position error [m]",
+                f"{run.name}: error over time",
+                logy=True,
+            )
+        )
     csv_path = out / "latency.csv"
     if result.mode == "online" and csv_path.exists():
         table = np.genfromtxt(csv_path, delimiter=",", names=True).reshape(-1)
         if len(table):
             lag = f"lag {result.lag:g} s" if result.lag else "full smoothing"
-            series = [Series("wall", table["step"], table["latency_s"] * 1e3),
-                      Series("CPU", table["step"], table["cpu_s"] * 1e3, style=".")]
+            series = [
+                Series("wall", table["step"], table["latency_s"] * 1e3),
+                Series("CPU", table["step"], table["cpu_s"] * 1e3, style="."),
+            ]
             title = f"{run.name}: online latency ({lag}, latency.csv)"
-            written.append(plot_series(out / "latency.png", series, "step",
-                                       "latency per step [ms]", title, logy=True))
+            written.append(
+                plot_series(
+                    out / "latency.png", series, "step", "latency per step [ms]", title, logy=True
+                )
+            )
     return written
 
 
 def _rejected_candidates(run: TeamRun, result: TeamResult) -> np.ndarray:
     """World xy of every candidate the tracker did not commit (body position of the observer)."""
-    out = [xyz[:2] for d in result.graph.decisions for j, xyz in enumerate(d.candidates_xyz) if j != d.committed]
+    out = [
+        xyz[:2]
+        for d in result.graph.decisions
+        for j, xyz in enumerate(d.candidates_xyz)
+        if j != d.committed
+    ]
     return np.array(out).reshape(-1, 2)
 
 
@@ -231,12 +343,20 @@ def genuine_candidates(run: TeamRun, decisions: list, max_time_diff: float = 0.0
         if abs(gt[0][i] - d.time) > max_time_diff or not len(d.candidates_xyz):
             out.append(-1)
             continue
-        out.append(int(np.argmin(np.linalg.norm(d.candidates_xyz - gt[1][i].translation(), axis=1))))
+        out.append(
+            int(np.argmin(np.linalg.norm(d.candidates_xyz - gt[1][i].translation(), axis=1)))
+        )
     return out
 
 
-def run_and_report(run: TeamRun, out: Path, mode: str, config: GraphConfig, progress: bool = True,
-                   effective: dict | None = None) -> dict:
+def run_and_report(
+    run: TeamRun,
+    out: Path,
+    mode: str,
+    config: GraphConfig,
+    progress: bool = True,
+    effective: dict | None = None,
+) -> dict:
     """Build the graph, solve it (batch or online), evaluate, write outputs; returns the metrics."""
     result = solve(build_graph(run, config, progress=progress), mode=mode, progress=progress)
     metrics = evaluate(result, run)

@@ -53,14 +53,28 @@ def formations(trials, triangle, pixel_sigma: float) -> list[Formation | None]:
             out.append(None)
             continue
         baseline = float(np.linalg.norm(trials.ground[i, 1] - trials.ground[i, 0]))
-        out.append(Formation(triangle.R_estimated[i], triangle.estimated[i], triangle.bearings[i],
-                             triangle.bearing_sigma[i], baseline, climber[i], climber_sigma[i]))
+        out.append(
+            Formation(
+                triangle.R_estimated[i],
+                triangle.estimated[i],
+                triangle.bearings[i],
+                triangle.bearing_sigma[i],
+                baseline,
+                climber[i],
+                climber_sigma[i],
+            )
+        )
     return out
 
 
-def shared_rotation_initials(pixels: np.ndarray, K: np.ndarray, ground: np.ndarray,
-                             R_cand: np.ndarray, valid: np.ndarray, keep: int = 2
-                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def shared_rotation_initials(
+    pixels: np.ndarray,
+    K: np.ndarray,
+    ground: np.ndarray,
+    R_cand: np.ndarray,
+    valid: np.ndarray,
+    keep: int = 2,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Initial values for the joint estimate (vectorized over trials and candidate rotations).
     pixels (T,3,3,2) [trial, snapshot, robot]; ground (T,3,3); R_cand (T,M,3,3) candidate
     camera rotations from P3P of any snapshot, valid (T,M). With the rotation fixed, each
@@ -85,8 +99,13 @@ def shared_rotation_initials(pixels: np.ndarray, K: np.ndarray, ground: np.ndarr
     return R_cand[idx, best], c[idx, best], residual[idx, best]
 
 
-def joint_estimate(f: Formation, R0: np.ndarray, c0: np.ndarray, rotation_sigma: float = 1e-4,
-                   reference_sigma: float = 1e-6) -> tuple[np.ndarray, np.ndarray, float]:
+def joint_estimate(
+    f: Formation,
+    R0: np.ndarray,
+    c0: np.ndarray,
+    rotation_sigma: float = 1e-4,
+    reference_sigma: float = 1e-6,
+) -> tuple[np.ndarray, np.ndarray, float]:
     """graphloc's estimate of one trial, one GTSAM graph over all six cameras (keys: ground
     robot j = pose_key(j + 1, 0), climbing-camera snapshot s = pose_key(0, s)):
     - C1: PriorFactorPose3 (the reference, seed 000 Sec. VI-A Table I "C1 (Ref)");
@@ -105,29 +124,41 @@ def joint_estimate(f: Formation, R0: np.ndarray, c0: np.ndarray, rotation_sigma:
         values.insert(pose_key(j + 1, 0), gtsam.Pose3(gtsam.Rot3(f.ground_R[j]), f.ground_t[j]))
         for i in range(3):
             if i != j:
-                graph.add(bearing_factor(pose_key(i + 1, 0), pose_key(j + 1, 0), f.mutual[i, j],
-                                         f.mutual_sigma[i, j]))
+                graph.add(
+                    bearing_factor(
+                        pose_key(i + 1, 0), pose_key(j + 1, 0), f.mutual[i, j], f.mutual_sigma[i, j]
+                    )
+                )
     reference = gtsam.Pose3(gtsam.Rot3(f.ground_R[0]), f.ground_t[0])
-    graph.add(gtsam.PriorFactorPose3(pose_key(1, 0), reference,
-                                     gtsam.noiseModel.Isotropic.Sigma(6, reference_sigma)))
+    graph.add(
+        gtsam.PriorFactorPose3(
+            pose_key(1, 0), reference, gtsam.noiseModel.Isotropic.Sigma(6, reference_sigma)
+        )
+    )
     graph.add(known_baseline_factor(pose_key(1, 0), pose_key(2, 0), f.baseline, reference_sigma))
     hold = gtsam.noiseModel.Diagonal.Sigmas(np.array([rotation_sigma] * 3 + [1e3] * 3))
     for s in range(3):
         values.insert(pose_key(0, s), gtsam.Pose3(gtsam.Rot3(R0), c0[s]))
         for j in range(3):
-            graph.add(bearing_factor(pose_key(0, s), pose_key(j + 1, 0), f.climber[s, j],
-                                     f.climber_sigma[s, j]))
+            graph.add(
+                bearing_factor(
+                    pose_key(0, s), pose_key(j + 1, 0), f.climber[s, j], f.climber_sigma[s, j]
+                )
+            )
         if s:
-            graph.add(gtsam.BetweenFactorPose3(pose_key(0, s - 1), pose_key(0, s), gtsam.Pose3(),
-                                               hold))
+            graph.add(
+                gtsam.BetweenFactorPose3(pose_key(0, s - 1), pose_key(0, s), gtsam.Pose3(), hold)
+            )
     params = gtsam.LevenbergMarquardtParams()
     try:
         result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
     except RuntimeError:  # e.g. an indeterminant system from a degenerate start: a failed trial
         return np.full((3, 3), np.nan), np.full((3, 3), np.nan), np.inf
-    return (np.stack([result.atPose3(pose_key(0, s)).translation() for s in range(3)]),
-            np.stack([result.atPose3(pose_key(j + 1, 0)).translation() for j in range(3)]),
-            graph.error(result))
+    return (
+        np.stack([result.atPose3(pose_key(0, s)).translation() for s in range(3)]),
+        np.stack([result.atPose3(pose_key(j + 1, 0)).translation() for j in range(3)]),
+        graph.error(result),
+    )
 
 
 def best_joint(f: Formation, R0s, c0s, residuals) -> tuple[np.ndarray, np.ndarray, float]:

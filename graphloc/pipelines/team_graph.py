@@ -54,7 +54,9 @@ from graphloc.session import Session, SessionConfig
 
 COARSE_PRECISION = 0.1  # [m, rad] scale of a run without pose measurements (wheels, range-bearing)
 FINE_PRECISION = 0.002  # the finest precision iSAM2's thresholds follow
-ANCHOR_BASE = 100_000_000  # landmark_key(ANCHOR_BASE + j): j-th per-observation anchor of a known landmark
+ANCHOR_BASE = (
+    100_000_000  # landmark_key(ANCHOR_BASE + j): j-th per-observation anchor of a known landmark
+)
 
 
 @dataclass(frozen=True)
@@ -77,8 +79,13 @@ class GraphConfig:
     use_inter_robot: bool = True
     landmark_priors: bool = True
     anchor_known_landmarks: bool = True
-    kernels: KernelPolicy = KernelPolicy({"landmark": Kernel("cauchy", 2.0), "inter_robot": Kernel("cauchy", 2.0),
-                                          "candidate": Kernel("cauchy", 1.0)})
+    kernels: KernelPolicy = KernelPolicy(
+        {
+            "landmark": Kernel("cauchy", 2.0),
+            "inter_robot": Kernel("cauchy", 2.0),
+            "candidate": Kernel("cauchy", 1.0),
+        }
+    )
     velocity_noise: VelocityNoise = VelocityNoise(density_v=0.01, density_w=0.05)
     initial_sigma: tuple = (0.02, 0.05)
     static_sigma: tuple = (1e-4, 1e-4)
@@ -99,7 +106,9 @@ class GraphConfig:
         if self.lag is not None and not (np.isfinite(self.lag) and self.lag >= 0):
             raise ValueError(f"GraphConfig.lag must be None or finite >= 0, got {self.lag}")
         if not 0.5 <= self.decision_threshold < 1.0:
-            raise ValueError(f"GraphConfig.decision_threshold must be in [0.5, 1), got {self.decision_threshold}")
+            raise ValueError(
+                f"GraphConfig.decision_threshold must be in [0.5, 1), got {self.decision_threshold}"
+            )
         for name in ("keyframe_dt", "sync_tolerance", "surface_sigma", "landmark_prior_floor"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -115,12 +124,28 @@ class GraphConfig:
         back-substitution where the solution changes by less than a tenth of it, and on
         camera-precise runs two extra iSAM2 iterations per step (robust candidate factors need
         iterations to reweight; such runs have few steps)."""
-        relin = self.relinearize_threshold if self.relinearize_threshold is not None else 0.5 * precision
-        wildfire = self.wildfire_threshold if self.wildfire_threshold is not None else 0.1 * precision
-        extra = self.extra_updates if self.extra_updates is not None else (2 if precision < COARSE_PRECISION else 0)
-        return SessionConfig(mode=mode, lm_max_iterations=self.lm_max_iterations, relinearize_threshold=relin,
-                             relinearize_skip=self.relinearize_skip, wildfire_threshold=wildfire,
-                             extra_updates=extra, partial_relinearization_check=True)
+        relin = (
+            self.relinearize_threshold
+            if self.relinearize_threshold is not None
+            else 0.5 * precision
+        )
+        wildfire = (
+            self.wildfire_threshold if self.wildfire_threshold is not None else 0.1 * precision
+        )
+        extra = (
+            self.extra_updates
+            if self.extra_updates is not None
+            else (2 if precision < COARSE_PRECISION else 0)
+        )
+        return SessionConfig(
+            mode=mode,
+            lm_max_iterations=self.lm_max_iterations,
+            relinearize_threshold=relin,
+            relinearize_skip=self.relinearize_skip,
+            wildfire_threshold=wildfire,
+            extra_updates=extra,
+            partial_relinearization_check=True,
+        )
 
 
 def _cov(sig: tuple) -> np.ndarray:
@@ -162,7 +187,9 @@ class TeamGraph:
     factor_types: list
     decisions: list
     anchored_from: dict  # robot -> first node time the online graph may hold it
-    step_rel: list  # per robot (relative Pose3 from node k-1, covariance) for k >= 1 (None: unknown)
+    step_rel: (
+        list  # per robot (relative Pose3 from node k-1, covariance) for k >= 1 (None: unknown)
+    )
     counts: dict = field(default_factory=dict)
     skips: SkipReport = field(default_factory=SkipReport)
     precision: float = COARSE_PRECISION  # run_precision(run)
@@ -195,18 +222,25 @@ def velocity_noise(run: TeamRun, r: int, config: GraphConfig) -> VelocityNoise:
     base = config.velocity_noise
     for _, params in run.robots[r].sensors.values():
         if "density_v" in params or "density_w" in params:
-            return VelocityNoise(density_v=float(params.get("density_v", base.density_v)),
-                                 density_w=float(params.get("density_w", base.density_w)))
+            return VelocityNoise(
+                density_v=float(params.get("density_v", base.density_v)),
+                density_w=float(params.get("density_w", base.density_w)),
+            )
     return base
 
 
 def _velocity_steps(run: TeamRun, r: int, times: np.ndarray, config: GraphConfig) -> list:
     od = run.velocity[r]
     integ = integrate_unicycle(od[:, 0], od[:, 1], od[:, 2], times, velocity_noise(run, r, config))
-    return [None] + [(pose_from_planar(*d), planar_covariance(c)) for d, c in zip(integ.deltas, integ.covariances)]
+    return [None] + [
+        (pose_from_planar(*d), planar_covariance(c))
+        for d, c in zip(integ.deltas, integ.covariances)
+    ]
 
 
-def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: bool = False) -> TeamGraph:
+def build_graph(
+    run: TeamRun, config: GraphConfig = GraphConfig(), progress: bool = False
+) -> TeamGraph:
     """Every usable row of `run` as a factor, grouped in time steps; candidate sets decided by
     one HypothesisTracker per (observer, static target) stream."""
     skips = SkipReport()
@@ -239,9 +273,18 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
         for m in (m for m in run.motions if m.robot == r):
             k0, k1 = nearest(r, m.t0), nearest(r, m.t1)
             if k0 < 0 or k1 < 0 or k0 == k1:
-                skips.add("no_pose_at_time", f"robot {robot.name}: relative pose {m.t0}->{m.t1} has no poses")
+                skips.add(
+                    "no_pose_at_time",
+                    f"robot {robot.name}: relative pose {m.t0}->{m.t1} has no poses",
+                )
                 continue
-            factors.append((times[max(k0, k1)], _between(r, k0, k1, m.relative, m.covariance, config), "odometry"))
+            factors.append(
+                (
+                    times[max(k0, k1)],
+                    _between(r, k0, k1, m.relative, m.covariance, config),
+                    "odometry",
+                )
+            )
             if k1 == k0 + 1 and steps[k1] is None:
                 steps[k1] = (m.relative, m.covariance)
         step_rel.append(steps)
@@ -249,19 +292,36 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
     # --- anchors: priors and surfaces ---
     for r, robot in enumerate(run.robots):
         if robot.initial_pose is not None and len(node_times[r]):
-            sig = config.static_sigma if robot.static else (robot.initial_sigma or config.initial_sigma)
-            factors.append((node_times[r][0], gtsam.PriorFactorPose3(
-                pose_key(r, 0), robot.initial_pose, gtsam.noiseModel.Gaussian.Covariance(_cov(sig))), "prior"))
+            sig = (
+                config.static_sigma
+                if robot.static
+                else (robot.initial_sigma or config.initial_sigma)
+            )
+            factors.append(
+                (
+                    node_times[r][0],
+                    gtsam.PriorFactorPose3(
+                        pose_key(r, 0),
+                        robot.initial_pose,
+                        gtsam.noiseModel.Gaussian.Covariance(_cov(sig)),
+                    ),
+                    "prior",
+                )
+            )
         if robot.surface is not None:
             for k, t in enumerate(node_times[r]):
-                for f in surface_factors(pose_key(r, k), robot.surface, config.surface_sigma, attitude_sigma=None):
+                for f in surface_factors(
+                    pose_key(r, k), robot.surface, config.surface_sigma, attitude_sigma=None
+                ):
                     factors.append((t, f, "surface"))
 
     # --- point measurements ---
     lm_prior = {}
     if config.landmark_priors and run.landmarks_known:
-        lm_prior = {int(i): (p, np.maximum(s, config.landmark_prior_floor))
-                    for i, p, s in zip(run.landmark_ids, run.landmark_xyz, run.landmark_sigma)}
+        lm_prior = {
+            int(i): (p, np.maximum(s, config.landmark_prior_floor))
+            for i, p, s in zip(run.landmark_ids, run.landmark_xyz, run.landmark_sigma)
+        }
     landmark_guess: dict = {}
     n_anchor = 0
     corrected = _corrected_range_bearings(run, node_times, config)
@@ -274,8 +334,11 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
         k = nearest(m.robot, m.time)
         kt = -1 if is_lm else nearest(m.target, m.time)
         if k < 0 or (not is_lm and kt < 0):
-            skips.add("no_pose_at_time", f"robot {run.robots[m.robot].name}: {m.kind} at {m.time} has no pose "
-                                         f"within the sync tolerance")
+            skips.add(
+                "no_pose_at_time",
+                f"robot {run.robots[m.robot].name}: {m.kind} at {m.time} has no pose "
+                f"within the sync tolerance",
+            )
             continue
         key = pose_key(m.robot, k)
         direction, rng = corrected.get(i, (m.direction, m.range))
@@ -295,30 +358,54 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
                 if guess is None and np.isfinite(rng):
                     guess = ("from", m.robot, k, direction, rng)
                 if guess is None:
-                    skips.add("landmark_without_position", f"landmark {m.landmark}: first seen by a bearing only")
+                    skips.add(
+                        "landmark_without_position",
+                        f"landmark {m.landmark}: first seen by a bearing only",
+                    )
                     continue
                 landmark_guess[lkey] = guess
                 if prior is not None:
-                    factors.append((t_new, gtsam.PriorFactorPoint3(lkey, np.asarray(prior[0], float),
-                                                                    gtsam.noiseModel.Diagonal.Sigmas(prior[1])),
-                                    "landmark_prior"))
+                    factors.append(
+                        (
+                            t_new,
+                            gtsam.PriorFactorPoint3(
+                                lkey,
+                                np.asarray(prior[0], float),
+                                gtsam.noiseModel.Diagonal.Sigmas(prior[1]),
+                            ),
+                            "landmark_prior",
+                        )
+                    )
             if lkey != landmark_key(m.landmark):
                 n_anchor += 1
-            factors.append((t_new, _point_factor(m, key, lkey, direction, rng, kernel, E), "landmark"))
+            factors.append(
+                (t_new, _point_factor(m, key, lkey, direction, rng, kernel, E), "landmark")
+            )
         else:
-            factors.append((t_new, _robot_factor(m, key, pose_key(m.target, kt), direction, rng, kernel, E),
-                            "inter_robot"))
+            factors.append(
+                (
+                    t_new,
+                    _robot_factor(m, key, pose_key(m.target, kt), direction, rng, kernel, E),
+                    "inter_robot",
+                )
+            )
 
     # --- candidate sets: one tracker per (observer, target) stream ---
     decisions, decided_pose = [], {}
     streams: dict = {}
     for o in run.observations:
         streams.setdefault((o.robot, o.target), []).append(o)
-    for (r, ti), obs in tqdm(streams.items(), desc="deciding candidate sets", disable=not progress, unit="stream"):
+    for (r, ti), obs in tqdm(
+        streams.items(), desc="deciding candidate sets", disable=not progress, unit="stream"
+    ):
         target = run.robots[ti]
         if target.initial_pose is None:
-            skips.add("target_unplaced", f"robot {run.robots[r].name}: {len(obs)} candidate sets on robot "
-                                         f"{target.name}, which has no initial pose", len(obs))
+            skips.add(
+                "target_unplaced",
+                f"robot {run.robots[r].name}: {len(obs)} candidate sets on robot "
+                f"{target.name}, which has no initial pose",
+                len(obs),
+            )
             continue
         target_track = _dead_reckoning(target, step_rel[ti], config)
         tracker = HypothesisTracker(config.tracker)
@@ -326,13 +413,18 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
         for o in obs:
             k = nearest(r, o.time)
             if k < 0 or (prev is not None and k == prev):
-                skips.add("no_pose_at_time", f"robot {run.robots[r].name}: candidate set at {o.time} has no "
-                                             f"(new) pose within the sync tolerance")
+                skips.add(
+                    "no_pose_at_time",
+                    f"robot {run.robots[r].name}: candidate set at {o.time} has no "
+                    f"(new) pose within the sync tolerance",
+                )
                 continue
             kt = nearest(ti, o.time)
             if kt < 0:
-                skips.add("no_pose_at_time", f"robot {target.name}: seen at {o.time} with no pose within the sync "
-                                             f"tolerance")
+                skips.add(
+                    "no_pose_at_time",
+                    f"robot {target.name}: seen at {o.time} with no pose within the sync tolerance",
+                )
                 continue
             E = o.body_T_sensor
             X_t, P_t = target_track[kt]
@@ -341,9 +433,17 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
             world = [X_t.compose(p) for p in seen]
             cand_cov = candidate_covariances(o.candidates, config.tracker.default_sigmas)
             cov = cand_cov + np.stack([_adjoint_cov(p.inverse(), P_t) for p in seen])
-            cs = CandidateSet(np.stack([p.rotation().matrix() for p in world]), np.stack([p.translation() for p in world]),
-                              o.candidates.scores, o.time, run.robots[r].name, target.name, o.candidates.source,
-                              o.candidates.meta, cov)
+            cs = CandidateSet(
+                np.stack([p.rotation().matrix() for p in world]),
+                np.stack([p.translation() for p in world]),
+                o.candidates.scores,
+                o.time,
+                run.robots[r].name,
+                target.name,
+                o.candidates.source,
+                o.candidates.meta,
+                cov,
+            )
             odo = None
             if prev is not None:
                 rel, cov = _compose_steps(step_rel[r], prev, k, config)
@@ -351,28 +451,52 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
             d = tracker.update(cs, odo)
             prev = k
             pose = np.full(7, np.nan)
-            cluster = _same_pose(world, cs.covariance, d.committed) if d.locked and d.committed >= 0 else []
+            cluster = (
+                _same_pose(world, cs.covariance, d.committed)
+                if d.locked and d.committed >= 0
+                else []
+            )
             decided = bool(cluster) and d.probabilities[cluster].sum() >= config.decision_threshold
             if decided:
                 j = d.committed
                 body = world[j].compose(E.inverse())
                 kernel = config.kernels.kernel("candidate")
                 if target.static:  # the target's pose is known: a prior on the observer
-                    noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(_adjoint_cov(E, cs.covariance[j])), kernel)
+                    noise = robust_noise(
+                        gtsam.noiseModel.Gaussian.Covariance(_adjoint_cov(E, cs.covariance[j])),
+                        kernel,
+                    )
                     factor = gtsam.PriorFactorPose3(pose_key(r, k), body, noise)
                 else:  # observer_T_target = E target_T_sensor^-1, covariance moved to the target's side
-                    noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(_adjoint_cov(seen[j], cand_cov[j])),
-                                         kernel)
-                    factor = gtsam.BetweenFactorPose3(pose_key(r, k), pose_key(ti, kt), E.compose(seen[j].inverse()),
-                                                      noise)
+                    noise = robust_noise(
+                        gtsam.noiseModel.Gaussian.Covariance(_adjoint_cov(seen[j], cand_cov[j])),
+                        kernel,
+                    )
+                    factor = gtsam.BetweenFactorPose3(
+                        pose_key(r, k), pose_key(ti, kt), E.compose(seen[j].inverse()), noise
+                    )
                 factors.append((max(node_times[r][k], node_times[ti][kt]), factor, "candidate"))
                 decided_pose.setdefault(r, {})[k] = body
                 q = gtsam.Rot3(body.rotation().matrix()).toQuaternion()
                 pose = np.r_[body.translation(), q.x(), q.y(), q.z(), q.w()]
-            prob = float(d.probabilities[d.committed]) if d.committed >= 0 else float(np.max(d.probabilities, initial=0))
+            prob = (
+                float(d.probabilities[d.committed])
+                if d.committed >= 0
+                else float(np.max(d.probabilities, initial=0))
+            )
             xyz = np.array([p.compose(E.inverse()).translation() for p in world])
-            decisions.append(Decision(o.time, r, ti, xyz, int(d.committed) if decided else -1, prob, pose,
-                                      cluster if decided else []))
+            decisions.append(
+                Decision(
+                    o.time,
+                    r,
+                    ti,
+                    xyz,
+                    int(d.committed) if decided else -1,
+                    prob,
+                    pose,
+                    cluster if decided else [],
+                )
+            )
 
     # --- initial values: known poses + odometry, decided poses + odometry ---
     initial, anchored_from = {}, {}
@@ -387,8 +511,12 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
         seeds = [k for k, p in enumerate(poses) if p is not None]
         if not seeds:
             if len(times):
-                skips.add("unanchored_robot", f"robot {robot.name}: no initial pose and no decided candidate set; "
-                                              f"its {len(times)} poses are left out", len(times))
+                skips.add(
+                    "unanchored_robot",
+                    f"robot {robot.name}: no initial pose and no decided candidate set; "
+                    f"its {len(times)} poses are left out",
+                    len(times),
+                )
             continue
         anchored_from[r] = times[seeds[0]]
         for k in range(seeds[0] + 1, len(times)):
@@ -417,7 +545,11 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
         else:
             dropped += 1
     if dropped:
-        skips.add("unanchored_robot", f"{dropped} factors touch poses of robots that nothing places", dropped)
+        skips.add(
+            "unanchored_robot",
+            f"{dropped} factors touch poses of robots that nothing places",
+            dropped,
+        )
     step_times = np.unique([k[0] for k in kept]) if kept else np.zeros(0)
     steps, j = [], 0
     for t in step_times:
@@ -426,12 +558,30 @@ def build_graph(run: TeamRun, config: GraphConfig = GraphConfig(), progress: boo
             group.append(kept[j][1:])
             j += 1
         steps.append((float(t), group))
-    counts = {"robots": R, "poses": len([k for k in initial if decode(k)[0] == "x"]),
-              "candidate_sets": len(run.observations), "committed_sets": sum(d.committed >= 0 for d in decisions),
-              "landmark_anchors": n_anchor, "steps": len(steps), "excluded_by_option": excluded,
-              **{f"factors_{name}": types.count(name) for name in sorted(set(types))}}
-    return TeamGraph(run, config, node_times, initial, steps, types, decisions, anchored_from, step_rel, counts, skips,
-                     run_precision(run))
+    counts = {
+        "robots": R,
+        "poses": len([k for k in initial if decode(k)[0] == "x"]),
+        "candidate_sets": len(run.observations),
+        "committed_sets": sum(d.committed >= 0 for d in decisions),
+        "landmark_anchors": n_anchor,
+        "steps": len(steps),
+        "excluded_by_option": excluded,
+        **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
+    }
+    return TeamGraph(
+        run,
+        config,
+        node_times,
+        initial,
+        steps,
+        types,
+        decisions,
+        anchored_from,
+        step_rel,
+        counts,
+        skips,
+        run_precision(run),
+    )
 
 
 def run_precision(run: TeamRun) -> float:
@@ -477,7 +627,9 @@ def _dead_reckoning(robot, steps: list, config: GraphConfig) -> list:
 
 
 def _between(r: int, k0: int, k1: int, rel: gtsam.Pose3, cov: np.ndarray, config: GraphConfig):
-    noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(cov), config.kernels.kernel("odometry"))
+    noise = robust_noise(
+        gtsam.noiseModel.Gaussian.Covariance(cov), config.kernels.kernel("odometry")
+    )
     return gtsam.BetweenFactorPose3(pose_key(r, k0), pose_key(r, k1), rel, noise)
 
 
@@ -497,10 +649,14 @@ def _compose_steps(steps: list, k0: int, k1: int, config: GraphConfig) -> tuple:
 
 def _point_factor(m, key, lkey, direction, rng, kernel, E):
     if m.kind == "range_bearing":
-        return landmark_factor_3d(key, lkey, direction, rng, (m.bearing_sigma, m.bearing_sigma, m.range_sigma), kernel)
+        return landmark_factor_3d(
+            key, lkey, direction, rng, (m.bearing_sigma, m.bearing_sigma, m.range_sigma), kernel
+        )
     if np.linalg.norm(E.translation()) > 1e-9:
-        raise ValueError(f"{m.kind} to landmark {m.landmark}: a sensor offset from the body origin is supported for "
-                         f"range-bearing and robot targets only")
+        raise ValueError(
+            f"{m.kind} to landmark {m.landmark}: a sensor offset from the body origin is supported for "
+            f"range-bearing and robot targets only"
+        )
     if m.kind == "bearing":
         d = E.rotation().rotate(direction)
         noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, m.bearing_sigma), kernel)
@@ -511,7 +667,9 @@ def _point_factor(m, key, lkey, direction, rng, kernel, E):
 
 def _robot_factor(m, key, tkey, direction, rng, kernel, E):
     if m.kind == "range_bearing":
-        return robot_factor_3d(key, tkey, direction, rng, (m.bearing_sigma, m.bearing_sigma, m.range_sigma), kernel)
+        return robot_factor_3d(
+            key, tkey, direction, rng, (m.bearing_sigma, m.bearing_sigma, m.range_sigma), kernel
+        )
     if m.kind == "bearing":
         return bearing_factor(key, tkey, direction, m.bearing_sigma, body_T_camera=E, kernel=kernel)
     identity = np.allclose(E.matrix(), np.eye(4))
@@ -532,13 +690,23 @@ def _corrected_range_bearings(run: TeamRun, node_times: list, config: GraphConfi
         t = np.array([run.points[i].time for i in idx])
         frame = np.clip(np.rint((t - times[0]) / config.keyframe_dt).astype(int), 0, len(times) - 1)
         stamps = np.union1d(times, t)
-        poses = integrate_unicycle(od[:, 0], od[:, 1], od[:, 2], stamps, velocity_noise(run, r, config)).poses
+        poses = integrate_unicycle(
+            od[:, 0], od[:, 1], od[:, 2], stamps, velocity_noise(run, r, config)
+        ).poses
         at_meas = poses[np.searchsorted(stamps, t)]
         at_frame = poses[np.searchsorted(stamps, times[frame])]
-        pts = np.array([run.points[i].body_T_sensor.transformFrom(run.points[i].direction * run.points[i].range)
-                        for i in idx])
+        pts = np.array(
+            [
+                run.points[i].body_T_sensor.transformFrom(
+                    run.points[i].direction * run.points[i].range
+                )
+                for i in idx
+            ]
+        )
         c, s = np.cos(at_meas[:, 2]), np.sin(at_meas[:, 2])
-        world = at_meas[:, :2] + np.column_stack([c * pts[:, 0] - s * pts[:, 1], s * pts[:, 0] + c * pts[:, 1]])
+        world = at_meas[:, :2] + np.column_stack(
+            [c * pts[:, 0] - s * pts[:, 1], s * pts[:, 0] + c * pts[:, 1]]
+        )
         d = world - at_frame[:, :2]
         c, s = np.cos(at_frame[:, 2]), np.sin(at_frame[:, 2])
         local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], pts[:, 2]])
@@ -566,7 +734,9 @@ class TeamResult:
     wall_s: float
     graph: TeamGraph
     downweighted: dict
-    landmarks: dict  # landmark id -> estimated position (3,) of landmarks that are one variable (SLAM)
+    landmarks: (
+        dict  # landmark id -> estimated position (3,) of landmarks that are one variable (SLAM)
+    )
     step_log: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     dropped: dict = field(default_factory=dict)
     partial: bool = False
@@ -583,8 +753,14 @@ def _pose_row(p: gtsam.Pose3) -> np.ndarray:
     return np.array([t[0], t[1], t[2], q.x(), q.y(), q.z(), q.w()])
 
 
-def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False, stop=None,
-          on_step=None, on_stop=None) -> TeamResult:
+def solve(
+    graph: TeamGraph,
+    mode: str = "batch",
+    progress: bool = False,
+    stop=None,
+    on_step=None,
+    on_stop=None,
+) -> TeamResult:
     """Batch: every step added, one LM solve. Online: one iSAM2 update per step (with
     `config.lag` > 0 a fixed-lag smoother, `Session`); a new pose is predicted from its robot's
     latest estimate and odometry; robots enter at their first anchor; a factor touching a
@@ -600,8 +776,11 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False, stop=No
 
     cfg = graph.config
     lag = float(cfg.lag or 0.0) if mode == "online" else 0.0
-    session = Session(replace(cfg.session_config(mode, graph.precision), lag=lag),
-                      progress=progress and mode == "batch", stop=stop)
+    session = Session(
+        replace(cfg.session_config(mode, graph.precision), lag=lag),
+        progress=progress and mode == "batch",
+        stop=stop,
+    )
     causal = [np.full((len(t), 7), np.nan) for t in graph.node_times]
     start = _time.perf_counter()
     added: set = set()
@@ -615,8 +794,9 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False, stop=No
     hold_until = max(graph.anchored_from.values(), default=-np.inf)
     if mode != "online":
         hold_until = -np.inf
-    for i, (t, group) in enumerate(tqdm(graph.steps, desc=f"{mode} steps", disable=not progress,
-                                        unit="step")):
+    for i, (t, group) in enumerate(
+        tqdm(graph.steps, desc=f"{mode} steps", disable=not progress, unit="step")
+    ):
         if mode == "online" and stop is not None and stop():
             partial = True
             if on_stop is not None:
@@ -678,16 +858,37 @@ def solve(graph: TeamGraph, mode: str = "batch", progress: bool = False, stop=No
     for ftype in ("odometry", "landmark", "inter_robot", "candidate"):
         if cfg.kernels.kernel(ftype).name == "none" or not (types == ftype).any():
             continue
-        rep = downweighted(session.graph, final, cfg.downweight_threshold,
-                           indices=np.flatnonzero(types == ftype))
-        down[ftype] = {"robust_factors": rep.n_robust, "downweighted": rep.n_downweighted,
-                       "threshold": cfg.downweight_threshold}
-    landmarks = {decode(k)[1]: np.asarray(final.atPoint3(k)) for k in final.keys()
-                 if decode(k)[0] == "l" and decode(k)[1] < ANCHOR_BASE}
+        rep = downweighted(
+            session.graph, final, cfg.downweight_threshold, indices=np.flatnonzero(types == ftype)
+        )
+        down[ftype] = {
+            "robust_factors": rep.n_robust,
+            "downweighted": rep.n_downweighted,
+            "threshold": cfg.downweight_threshold,
+        }
+    landmarks = {
+        decode(k)[1]: np.asarray(final.atPoint3(k))
+        for k in final.keys()
+        if decode(k)[0] == "l" and decode(k)[1] < ANCHOR_BASE
+    }
     step_log = np.array(log, dtype=float).reshape(-1, len(STEP_LOG_COLUMNS))
-    return TeamResult(mode, graph.node_times, estimate, causal, dead, session.latencies(), wall,
-                      graph, down, landmarks, step_log, dropped, partial, done,
-                      lag if mode == "online" else None)
+    return TeamResult(
+        mode,
+        graph.node_times,
+        estimate,
+        causal,
+        dead,
+        session.latencies(),
+        wall,
+        graph,
+        down,
+        landmarks,
+        step_log,
+        dropped,
+        partial,
+        done,
+        lag if mode == "online" else None,
+    )
 
 
 def _held(graph: TeamGraph, key: int, t: float) -> bool:
@@ -704,6 +905,6 @@ def _predict(graph: TeamGraph, key: int, latest: dict):
     if r in latest and latest[r][0] < k:
         k0, pose = latest[r]
         rel, _ = _compose_steps(graph.step_rel[r], k0, k, graph.config)
-        if all(s is not None for s in graph.step_rel[r][k0 + 1:k + 1]):
+        if all(s is not None for s in graph.step_rel[r][k0 + 1 : k + 1]):
             return pose.compose(rel)
     return graph.initial[key]

@@ -20,11 +20,15 @@ from graphloc.seams import Decision, Odometry
 from graphloc.session import Session, SessionConfig
 
 
-def track_graph(candidates: list[CandidateSet | None], odometry: list[Odometry | None],
-                chosen: list[int], initial: list[gtsam.Pose3 | None] | None = None, robot: int = 0,
-                default_sigmas: tuple[float, float] = (0.02, 0.05),
-                kernel: Kernel = Kernel("cauchy", 1.0)
-                ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+def track_graph(
+    candidates: list[CandidateSet | None],
+    odometry: list[Odometry | None],
+    chosen: list[int],
+    initial: list[gtsam.Pose3 | None] | None = None,
+    robot: int = 0,
+    default_sigmas: tuple[float, float] = (0.02, 0.05),
+    kernel: Kernel = Kernel("cauchy", 1.0),
+) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
     """A track with its candidates chosen, as one factor graph for `graphloc.session.Session`.
     candidates[k]: frame k's CandidateSet (None: no observation); odometry[k]: the step from
     frame k-1 to k (odometry[0] unused); chosen[k]: index of frame k's chosen candidate, -1 for
@@ -37,25 +41,32 @@ def track_graph(candidates: list[CandidateSet | None], odometry: list[Odometry |
     frames without one. ValueError if the lists disagree in length or nothing is chosen."""
     n = len(candidates)
     if not (n == len(odometry) == len(chosen)) or (initial is not None and len(initial) != n):
-        raise ValueError(f"track_graph: {n} candidate sets, {len(odometry)} odometry steps, "
-                         f"{len(chosen)} choices"
-                         + ("" if initial is None else f" and {len(initial)} initial poses")
-                         + " must match")
+        raise ValueError(
+            f"track_graph: {n} candidate sets, {len(odometry)} odometry steps, "
+            f"{len(chosen)} choices"
+            + ("" if initial is None else f" and {len(initial)} initial poses")
+            + " must match"
+        )
     frames = [k for k in range(n) if chosen[k] >= 0]
     if not frames:
         raise ValueError("track_graph: no frame has a chosen candidate")
     graph = gtsam.NonlinearFactorGraph()
     for k in range(1, n):
         if not isinstance(odometry[k], Odometry):
-            raise ValueError(f"track_graph: odometry[{k}] must be an Odometry, "
-                             f"got {type(odometry[k]).__name__}")
+            raise ValueError(
+                f"track_graph: odometry[{k}] must be an Odometry, got {type(odometry[k]).__name__}"
+            )
         noise = gtsam.noiseModel.Gaussian.Covariance(odometry[k].covariance)
-        graph.add(gtsam.BetweenFactorPose3(pose_key(robot, k - 1), pose_key(robot, k),
-                                           odometry[k].relative, noise))
+        graph.add(
+            gtsam.BetweenFactorPose3(
+                pose_key(robot, k - 1), pose_key(robot, k), odometry[k].relative, noise
+            )
+        )
     for k in frames:
         cov = candidate_covariances(candidates[k], default_sigmas)
-        factors = component_factors(candidates[k], pose_key(robot, k), covariances=cov,
-                                    kernel=kernel)
+        factors = component_factors(
+            candidates[k], pose_key(robot, k), covariances=cov, kernel=kernel
+        )
         graph.add(factors[chosen[k]])
     poses = [None] * n if initial is None else list(initial)
     first = frames[0]
@@ -79,8 +90,13 @@ def decided(decisions: list[Decision]) -> tuple[list[int], list[gtsam.Pose3 | No
     return chosen, [d.pose if d.locked else None for d in decisions]
 
 
-def smooth_track(candidates: list[CandidateSet | None], odometry: list[Odometry | None],
-                 chosen: list[int], robot: int = 0, kernel: Kernel = Kernel()) -> np.ndarray:
+def smooth_track(
+    candidates: list[CandidateSet | None],
+    odometry: list[Odometry | None],
+    chosen: list[int],
+    robot: int = 0,
+    kernel: Kernel = Kernel(),
+) -> np.ndarray:
     """`track_graph` solved by a batch Session (seed 004 Table 1's graphloc column: plain
     Gaussian priors from the resection covariance by default). Returns the smoothed camera
     centres (F,3)."""

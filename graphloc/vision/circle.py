@@ -62,11 +62,15 @@ class CircleConfig:
 
     def __post_init__(self):
         if self.fit not in _FITTERS:
-            raise ValueError(f"CircleConfig.fit must be one of {sorted(_FITTERS)}, got {self.fit!r}")
+            raise ValueError(
+                f"CircleConfig.fit must be one of {sorted(_FITTERS)}, got {self.fit!r}"
+            )
         if int(self.min_points) < 5:
             raise ValueError(f"CircleConfig.min_points must be >= 5, got {self.min_points}")
         if not (0.0 < self.min_axis_ratio < 1.0):
-            raise ValueError(f"CircleConfig.min_axis_ratio must be in (0,1), got {self.min_axis_ratio}")
+            raise ValueError(
+                f"CircleConfig.min_axis_ratio must be in (0,1), got {self.min_axis_ratio}"
+            )
         if not self.pixel_sigma > 0:
             raise ValueError(f"CircleConfig.pixel_sigma must be > 0, got {self.pixel_sigma}")
 
@@ -101,19 +105,37 @@ class CirclePoses:
     def explain(self, n: int) -> str:
         """One line: rim n's status with the numbers behind it."""
         w, h = self.ellipses[n, 2], self.ellipses[n, 3]
-        ratio = min(w, h) / max(w, h) if np.isfinite([w, h]).all() and max(w, h) > 0 else float("nan")
-        return (f"circle rim {n}: {self.status[n]} ({self.n_points[n]} finite rim points, {self.n_skipped[n]} "
-                f"non-finite skipped, ellipse axis ratio {ratio:.3g})")
+        ratio = (
+            min(w, h) / max(w, h) if np.isfinite([w, h]).all() and max(w, h) > 0 else float("nan")
+        )
+        return (
+            f"circle rim {n}: {self.status[n]} ({self.n_points[n]} finite rim points, {self.n_skipped[n]} "
+            f"non-finite skipped, ellipse axis ratio {ratio:.3g})"
+        )
 
-    def candidates(self, n: int = 0, time: float = 0.0, observer: str = "", observed: str = "") -> CandidateSet:
+    def candidates(
+        self, n: int = 0, time: float = 0.0, observer: str = "", observed: str = ""
+    ) -> CandidateSet:
         """The two poses T_cam_circle of rim n (ValueError if rim n failed)."""
         if self.status[n] != STATUS_OK:
             raise ValueError(self.explain(n))
         R = rotations_from_normals(self.normals[n])
         score = np.exp(-0.5 * (self.rms_px[n] / self.pixel_sigma) ** 2)
-        return CandidateSet(R, self.centres[n], np.full(2, score), time, observer, observed, "circle",
-                            meta={"rms_px": float(self.rms_px[n]), "n_points": int(self.n_points[n]),
-                                  "n_skipped": int(self.n_skipped[n]), "radius": self.radius})
+        return CandidateSet(
+            R,
+            self.centres[n],
+            np.full(2, score),
+            time,
+            observer,
+            observed,
+            "circle",
+            meta={
+                "rms_px": float(self.rms_px[n]),
+                "n_points": int(self.n_points[n]),
+                "n_skipped": int(self.n_skipped[n]),
+                "radius": self.radius,
+            },
+        )
 
 
 def rotations_from_normals(normals: np.ndarray) -> np.ndarray:
@@ -133,7 +155,9 @@ def ellipse_to_conic(ellipses: np.ndarray) -> np.ndarray:
     e = np.asarray(ellipses, dtype=float).reshape(-1, 5)
     centre, a, b, ang = e[:, :2], e[:, 2] / 2.0, e[:, 3] / 2.0, np.radians(e[:, 4])
     c, s = np.cos(ang), np.sin(ang)
-    axes = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], axis=2)  # columns: width / height axes
+    axes = np.stack(
+        [np.stack([c, s], -1), np.stack([-s, c], -1)], axis=2
+    )  # columns: width / height axes
     with np.errstate(divide="ignore", invalid="ignore"):
         A = np.einsum("nij,nj,nkj->nik", axes, np.stack([1 / a**2, 1 / b**2], -1), axes)
     Ac = np.einsum("nij,nj->ni", A, centre)
@@ -218,8 +242,14 @@ def _edge_model(p: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return lout + (lin - lout) * 0.5 * erfc(d / np.sqrt(2.0 * (sigma**2 + 1.0 / 12.0)))
 
 
-def refine_ellipse(coverage: np.ndarray, origin: tuple[int, int], ellipse0: np.ndarray, band: float = 4.0,
-                   blur0: float = 0.7, min_contrast: float = 0.5) -> EllipseRefinement:
+def refine_ellipse(
+    coverage: np.ndarray,
+    origin: tuple[int, int],
+    ellipse0: np.ndarray,
+    band: float = 4.0,
+    blur0: float = 0.7,
+    min_contrast: float = 0.5,
+) -> EllipseRefinement:
     """Sub-pixel ellipse from a coverage map (seed 003 II-A-1 refined: the seed fits edge
     points; here the edge itself is the measurement). coverage (h,w): the fraction of each
     pixel covered by the disk (e.g. `vision.features.coverage_map`), its pixel (0,0) at image
@@ -234,31 +264,50 @@ def refine_ellipse(coverage: np.ndarray, origin: tuple[int, int], ellipse0: np.n
     coverage = np.asarray(coverage, dtype=float)
     u0, v0, w, h, ang = np.asarray(ellipse0, dtype=float).reshape(5)
     origin = np.asarray(origin, dtype=float).reshape(-1)
-    if origin.shape != (2,) or not np.isfinite(origin).all() or not (np.isfinite(band)
-                                                                      and band > 0):
-        raise ValueError(f"refine_ellipse: origin must be 2 finite numbers and band > 0, got "
-                         f"{origin}, {band}")
+    if (
+        origin.shape != (2,)
+        or not np.isfinite(origin).all()
+        or not (np.isfinite(band) and band > 0)
+    ):
+        raise ValueError(
+            f"refine_ellipse: origin must be 2 finite numbers and band > 0, got {origin}, {band}"
+        )
     if coverage.ndim != 2 or not (np.isfinite([u0, v0, w, h, ang]).all() and min(w, h) > 0):
-        raise ValueError(f"refine_ellipse: need a 2-D coverage map and a finite start ellipse, got "
-                         f"{coverage.shape}, {ellipse0}")
-    v, u = np.mgrid[0:coverage.shape[0], 0:coverage.shape[1]]
+        raise ValueError(
+            f"refine_ellipse: need a 2-D coverage map and a finite start ellipse, got "
+            f"{coverage.shape}, {ellipse0}"
+        )
+    v, u = np.mgrid[0 : coverage.shape[0], 0 : coverage.shape[1]]
     u, v = (u + origin[0]).ravel(), (v + origin[1]).ravel()
     values = coverage.ravel()
     p0 = np.array([u0, v0, np.log(w / 2), np.log(h / 2), np.radians(ang), np.log(blur0), 1.0, 0.0])
-    near = (np.abs(_ellipse_distance(u0, v0, w / 2, h / 2, p0[4], u, v)) <= band) & np.isfinite(values)
+    near = (np.abs(_ellipse_distance(u0, v0, w / 2, h / 2, p0[4], u, v)) <= band) & np.isfinite(
+        values
+    )
     if near.sum() < 20:
-        raise ValueError(f"refine_ellipse: only {int(near.sum())} pixels within {band} px of the start ellipse")
+        raise ValueError(
+            f"refine_ellipse: only {int(near.sum())} pixels within {band} px of the start ellipse"
+        )
     u, v, values = u[near], v[near], values[near]
     fit = least_squares(lambda p: _edge_model(p, u, v) - values, p0, method="lm")
     p = fit.x
     a, b = np.exp(p[2]), np.exp(p[3])
-    if not (fit.success and np.isfinite(p).all() and 0.5 < a / (w / 2) < 2.0 and 0.5 < b / (h / 2) < 2.0
-            and np.hypot(p[0] - u0, p[1] - v0) < band):
-        raise ValueError(f"refine_ellipse: the edge fit diverged (start {np.round(ellipse0, 3)}, "
-                         f"end {np.round(p, 3)}, status {fit.status})")
+    if not (
+        fit.success
+        and np.isfinite(p).all()
+        and 0.5 < a / (w / 2) < 2.0
+        and 0.5 < b / (h / 2) < 2.0
+        and np.hypot(p[0] - u0, p[1] - v0) < band
+    ):
+        raise ValueError(
+            f"refine_ellipse: the edge fit diverged (start {np.round(ellipse0, 3)}, "
+            f"end {np.round(p, 3)}, status {fit.status})"
+        )
     if not p[6] - p[7] > min_contrast:
-        raise ValueError(f"refine_ellipse: no edge -- fitted coverage inside {p[6]:.3f} vs outside {p[7]:.3f} "
-                         f"(need a difference > {min_contrast})")
+        raise ValueError(
+            f"refine_ellipse: no edge -- fitted coverage inside {p[6]:.3f} vs outside {p[7]:.3f} "
+            f"(need a difference > {min_contrast})"
+        )
     dof = max(len(values) - len(p), 1)
     rms = float(np.sqrt(2.0 * fit.cost / dof))
     J = fit.jac
@@ -268,11 +317,21 @@ def refine_ellipse(coverage: np.ndarray, origin: tuple[int, int], ellipse0: np.n
         raise ValueError(f"refine_ellipse: singular edge fit ({exc})") from None
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     ellipse = np.array([p[0], p[1], 2 * a, 2 * b, np.degrees(p[4]) % 180.0])
-    return EllipseRefinement(ellipse, float(np.exp(p[5])), float(p[6]), float(p[7]), rms, int(len(values)),
-                             sd[:2], np.array([a * sd[2], b * sd[3]]))
+    return EllipseRefinement(
+        ellipse,
+        float(np.exp(p[5])),
+        float(p[6]),
+        float(p[7]),
+        rms,
+        int(len(values)),
+        sd[:2],
+        np.array([a * sd[2], b * sd[3]]),
+    )
 
 
-def circles_from_cones(cones: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def circles_from_cones(
+    cones: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Closed-form circle centres and normals from (N,3,3) cones P^T Q P = 0 (camera frame,
     normalized coordinates). Returns centres (N,2,3), normals (N,2,3) (towards the camera,
     centre z > 0) and ok (N,) -- False where Q is not a real elliptic cone (signature != (2,1))."""
@@ -312,8 +371,12 @@ def circles_from_cones(cones: np.ndarray, radius: float) -> tuple[np.ndarray, np
     return centres, normals, ok
 
 
-def circle_poses_from_rims(camera: PinholeCamera, rims: Sequence[np.ndarray] | np.ndarray, radius: float,
-                           config: CircleConfig = CircleConfig()) -> CirclePoses:
+def circle_poses_from_rims(
+    camera: PinholeCamera,
+    rims: Sequence[np.ndarray] | np.ndarray,
+    radius: float,
+    config: CircleConfig = CircleConfig(),
+) -> CirclePoses:
     """Circle poses from N rims: rims is a sequence of (M_i,2) raw pixel arrays or an
     (N,M,2) array. Per-rim problems (too few finite points, edge-on, no real cone) are
     reported as `status` codes, never raised; wrong shapes and a bad radius are ValueErrors."""
@@ -321,8 +384,10 @@ def circle_poses_from_rims(camera: PinholeCamera, rims: Sequence[np.ndarray] | n
     if not (np.isfinite(radius) and radius > 0):
         raise ValueError(f"radius must be a positive finite number, got {radius}")
     if not isinstance(camera, PinholeCamera):
-        raise ValueError(f"camera must be a PinholeCamera (the cone needs a perspective K), "
-                         f"got {type(camera).__name__}")
+        raise ValueError(
+            f"camera must be a PinholeCamera (the cone needs a perspective K), "
+            f"got {type(camera).__name__}"
+        )
     if isinstance(rims, np.ndarray) and rims.ndim == 3:
         rims = list(rims)
     rims = [check_rows(r, 2, f"rims[{i}]") for i, r in enumerate(rims)]
@@ -343,7 +408,10 @@ def circle_poses_from_rims(camera: PinholeCamera, rims: Sequence[np.ndarray] | n
         if n_points[i] < config.min_points:
             status[i] = STATUS_TOO_FEW
             continue
-        if np.linalg.matrix_rank(ideal - ideal.mean(0), tol=1e-9 * max(1.0, np.abs(ideal).max())) < 2:
+        if (
+            np.linalg.matrix_rank(ideal - ideal.mean(0), tol=1e-9 * max(1.0, np.abs(ideal).max()))
+            < 2
+        ):
             status[i] = STATUS_EDGE_ON
             continue
         ellipses[i] = fit_ellipse(ideal, config.fit)
@@ -364,13 +432,28 @@ def circle_poses_from_rims(camera: PinholeCamera, rims: Sequence[np.ndarray] | n
     c, n, ok = circles_from_cones(cones, radius)
     centres[good], normals[good] = c, n
     status[good[~ok]] = STATUS_NO_CONE
-    return CirclePoses(centres, normals, ellipses, rms, n_points, n_skipped, status.astype(str), radius,
-                       config.pixel_sigma)
+    return CirclePoses(
+        centres,
+        normals,
+        ellipses,
+        rms,
+        n_points,
+        n_skipped,
+        status.astype(str),
+        radius,
+        config.pixel_sigma,
+    )
 
 
-def circle_pose_from_rim(camera: PinholeCamera, rim: np.ndarray, radius: float,
-                         config: CircleConfig = CircleConfig(), time: float = 0.0, observer: str = "",
-                         observed: str = "") -> tuple[CandidateSet, CirclePoses]:
+def circle_pose_from_rim(
+    camera: PinholeCamera,
+    rim: np.ndarray,
+    radius: float,
+    config: CircleConfig = CircleConfig(),
+    time: float = 0.0,
+    observer: str = "",
+    observed: str = "",
+) -> tuple[CandidateSet, CirclePoses]:
     """One rim (M,2) of raw pixels -> (CandidateSet of the 2 poses, CirclePoses of length 1).
     ValueError (with the reason) when the rim is unusable."""
     poses = circle_poses_from_rims(camera, [check_rows(rim, 2, "rim")], radius, config)
@@ -390,15 +473,17 @@ def rim_points_from_mask(mask: np.ndarray) -> np.ndarray:
     if mask.size == 0:
         raise ValueError(f"mask is empty (shape {mask.shape})")
     with opencv_errors(f"rim_points_from_mask on a {mask.shape[1]}x{mask.shape[0]} mask"):
-        contours, _ = cv2.findContours((mask > 0).astype(np.uint8), cv2.RETR_EXTERNAL,
-                                       cv2.CHAIN_APPROX_NONE)
+        contours, _ = cv2.findContours(
+            (mask > 0).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
+        )
     if not contours:
         raise ValueError("mask has no foreground blob")
     return max(contours, key=cv2.contourArea).reshape(-1, 2).astype(float)
 
 
-def render_circle_rim(camera, centre: np.ndarray, normal: np.ndarray, radius: float,
-                      n_points: int = 100) -> tuple[np.ndarray, np.ndarray]:
+def render_circle_rim(
+    camera, centre: np.ndarray, normal: np.ndarray, radius: float, n_points: int = 100
+) -> tuple[np.ndarray, np.ndarray]:
     """Forward model: pixels (n_points,2) and visibility of n_points equally spaced points
     of the circle (camera frame centre (3,), normal (3,), radius)."""
     centre = np.asarray(centre, dtype=float).reshape(3)

@@ -47,11 +47,17 @@ class FeatureConfig:
         if int(self.max_features) < 0:
             raise ValueError(f"FeatureConfig.max_features must be >= 0, got {self.max_features}")
         if not 0.0 < self.quality_level < 1.0:
-            raise ValueError(f"FeatureConfig.quality_level must be in (0, 1), got {self.quality_level}")
+            raise ValueError(
+                f"FeatureConfig.quality_level must be in (0, 1), got {self.quality_level}"
+            )
         if not (self.min_distance >= 0 and self.fb_threshold > 0 and self.epsilon > 0):
-            raise ValueError("FeatureConfig: min_distance >= 0, fb_threshold > 0 and epsilon > 0 required")
+            raise ValueError(
+                "FeatureConfig: min_distance >= 0, fb_threshold > 0 and epsilon > 0 required"
+            )
         if self.win_size < 3 or self.max_level < 0 or self.iterations < 1 or self.block_size < 3:
-            raise ValueError("FeatureConfig: win_size >= 3, block_size >= 3, max_level >= 0, iterations >= 1 required")
+            raise ValueError(
+                "FeatureConfig: win_size >= 3, block_size >= 3, max_level >= 0, iterations >= 1 required"
+            )
 
 
 def as_gray(image: np.ndarray, name: str = "image") -> np.ndarray:
@@ -67,12 +73,21 @@ def as_gray(image: np.ndarray, name: str = "image") -> np.ndarray:
 def _inside(points: np.ndarray, shape: tuple[int, int], border: float) -> np.ndarray:
     h, w = shape
     with np.errstate(invalid="ignore"):
-        return (np.isfinite(points).all(axis=1) & (points[:, 0] >= border) & (points[:, 0] <= w - 1 - border)
-                & (points[:, 1] >= border) & (points[:, 1] <= h - 1 - border))
+        return (
+            np.isfinite(points).all(axis=1)
+            & (points[:, 0] >= border)
+            & (points[:, 0] <= w - 1 - border)
+            & (points[:, 1] >= border)
+            & (points[:, 1] <= h - 1 - border)
+        )
 
 
-def detect_corners(gray: np.ndarray, max_corners: int, config: FeatureConfig = FeatureConfig(),
-                   mask: np.ndarray | None = None) -> np.ndarray:
+def detect_corners(
+    gray: np.ndarray,
+    max_corners: int,
+    config: FeatureConfig = FeatureConfig(),
+    mask: np.ndarray | None = None,
+) -> np.ndarray:
     """Up to `max_corners` Shi-Tomasi corners (M,2), strongest first, outside `mask` == 0 areas
     and `config.border` px from the edge."""
     gray = as_gray(gray, "gray")
@@ -80,32 +95,51 @@ def detect_corners(gray: np.ndarray, max_corners: int, config: FeatureConfig = F
         return np.zeros((0, 2))
     allowed = np.zeros(gray.shape, np.uint8)
     b = int(config.border)
-    allowed[b:gray.shape[0] - b, b:gray.shape[1] - b] = 255
+    allowed[b : gray.shape[0] - b, b : gray.shape[1] - b] = 255
     if mask is not None:
         mask = np.asarray(mask)
         if mask.shape != gray.shape:
             raise ValueError(f"detect_corners: mask shape {mask.shape} != image shape {gray.shape}")
         allowed[mask == 0] = 0
     with opencv_errors(f"detect_corners on a {gray.shape[1]}x{gray.shape[0]} image"):
-        corners = cv2.goodFeaturesToTrack(gray, int(max_corners), config.quality_level,
-                                          config.min_distance, mask=allowed,
-                                          blockSize=config.block_size, useHarrisDetector=False)
+        corners = cv2.goodFeaturesToTrack(
+            gray,
+            int(max_corners),
+            config.quality_level,
+            config.min_distance,
+            mask=allowed,
+            blockSize=config.block_size,
+            useHarrisDetector=False,
+        )
     return np.zeros((0, 2)) if corners is None else corners.reshape(-1, 2).astype(float)
 
 
-def track_forward_backward(prev_gray: np.ndarray, gray: np.ndarray, points: np.ndarray,
-                           config: FeatureConfig = FeatureConfig()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def track_forward_backward(
+    prev_gray: np.ndarray,
+    gray: np.ndarray,
+    points: np.ndarray,
+    config: FeatureConfig = FeatureConfig(),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pyramidal KLT of `points` (M,2) from prev_gray to gray and back. Returns new pixels (M,2)
     (NaN where lost), ok (M,) and the forward-backward error (M,) [px] (inf where LK failed)."""
     prev_gray, gray = as_gray(prev_gray, "prev_gray"), as_gray(gray, "gray")
     if prev_gray.shape != gray.shape:
-        raise ValueError(f"track_forward_backward: image shapes differ {prev_gray.shape} vs {gray.shape}")
+        raise ValueError(
+            f"track_forward_backward: image shapes differ {prev_gray.shape} vs {gray.shape}"
+        )
     points = check_points(points, "track_forward_backward: points", flat_ok=True)
     M = len(points)
     if M == 0:
         return np.zeros((0, 2)), np.zeros(0, bool), np.zeros(0)
-    lk = dict(winSize=(config.win_size, config.win_size), maxLevel=config.max_level,
-              criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, config.iterations, config.epsilon))
+    lk = dict(
+        winSize=(config.win_size, config.win_size),
+        maxLevel=config.max_level,
+        criteria=(
+            cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS,
+            config.iterations,
+            config.epsilon,
+        ),
+    )
     p0 = points.astype(np.float32).reshape(-1, 1, 2)
     with opencv_errors(f"track_forward_backward on {gray.shape[1]}x{gray.shape[0]} images"):
         p1, st1, _ = cv2.calcOpticalFlowPyrLK(prev_gray, gray, p0, None, **lk)
@@ -134,9 +168,9 @@ class FrameFeatures:
 class FeatureTracker:
     """Keeps up to `config.max_features` KLT tracks alive over a frame stream.
 
-        tracker = FeatureTracker(FeatureConfig(max_features=9))
-        for image, exclude in frames:      # exclude: (H,W) mask, nonzero = no features (e.g. a robot)
-            f = tracker.step(image, exclude)   # FrameFeatures(ids, pixels)
+    tracker = FeatureTracker(FeatureConfig(max_features=9))
+    for image, exclude in frames:      # exclude: (H,W) mask, nonzero = no features (e.g. a robot)
+        f = tracker.step(image, exclude)   # FrameFeatures(ids, pixels)
     """
 
     def __init__(self, config: FeatureConfig = FeatureConfig()):
@@ -150,17 +184,25 @@ class FeatureTracker:
     def step(self, image: np.ndarray, exclude: np.ndarray | None = None) -> FrameFeatures:
         gray = as_gray(image)
         if self._prev is not None and self._prev.shape != gray.shape:
-            raise ValueError(f"FeatureTracker.step: frame {self.n_frames} has shape {gray.shape}, "
-                             f"previous frames {self._prev.shape}")
+            raise ValueError(
+                f"FeatureTracker.step: frame {self.n_frames} has shape {gray.shape}, "
+                f"previous frames {self._prev.shape}"
+            )
         if exclude is not None:
             exclude = np.asarray(exclude)
             if exclude.shape != gray.shape:
-                raise ValueError(f"FeatureTracker.step: exclude mask shape {exclude.shape} != image {gray.shape}")
+                raise ValueError(
+                    f"FeatureTracker.step: exclude mask shape {exclude.shape} != image {gray.shape}"
+                )
         n_lost = 0
         if self._prev is not None and len(self._ids):
             pixels, ok, _ = track_forward_backward(self._prev, gray, self._pixels, self.config)
             if exclude is not None:
-                iu = np.clip(np.rint(np.nan_to_num(pixels)).astype(int), 0, [gray.shape[1] - 1, gray.shape[0] - 1])
+                iu = np.clip(
+                    np.rint(np.nan_to_num(pixels)).astype(int),
+                    0,
+                    [gray.shape[1] - 1, gray.shape[0] - 1],
+                )
                 ok &= exclude[iu[:, 1], iu[:, 0]] == 0
             n_lost = int((~ok).sum())
             self._ids, self._pixels = self._ids[ok], pixels[ok]
@@ -174,7 +216,9 @@ class FeatureTracker:
                 cv2.circle(allowed, (int(u), int(v)), int(max(self.config.min_distance, 1)), 0, -1)
             corners = detect_corners(gray, want, self.config, allowed)
             n_new = len(corners)
-            self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + n_new, dtype=np.int64)])
+            self._ids = np.concatenate(
+                [self._ids, np.arange(self._next_id, self._next_id + n_new, dtype=np.int64)]
+            )
             self._pixels = np.vstack([self._pixels, corners])
             self._next_id += n_new
         self._prev = gray
@@ -208,10 +252,14 @@ class BlobConfig:
         if self.median_size % 2 != 1 or self.median_size < 1:
             raise ValueError(f"BlobConfig.median_size must be odd >= 1, got {self.median_size}")
         if not (self.min_score > 0 and self.min_area > 0 and self.exclusion_dilate >= 0):
-            raise ValueError("BlobConfig: min_score > 0, min_area > 0 and exclusion_dilate >= 0 required")
+            raise ValueError(
+                "BlobConfig: min_score > 0, min_area > 0 and exclusion_dilate >= 0 required"
+            )
         if not (self.edge_band >= 1.5 and int(self.sectors) >= 1):
-            raise ValueError(f"BlobConfig: edge_band >= 1.5 px and sectors >= 1 required, got {self.edge_band}, "
-                             f"{self.sectors}")
+            raise ValueError(
+                f"BlobConfig: edge_band >= 1.5 px and sectors >= 1 required, got {self.edge_band}, "
+                f"{self.sectors}"
+            )
 
 
 def colour_score(image: np.ndarray, config: BlobConfig = BlobConfig()) -> np.ndarray:
@@ -246,8 +294,9 @@ class BlobRim:
     refine_error: str = ""
 
 
-def coverage_map(image: np.ndarray, mask: np.ndarray, sectors: int = 16,
-                 pad: int = 7) -> tuple[np.ndarray, tuple[int, int]]:
+def coverage_map(
+    image: np.ndarray, mask: np.ndarray, sectors: int = 16, pad: int = 7
+) -> tuple[np.ndarray, tuple[int, int]]:
     """Fraction of each pixel covered by the base (alpha matting with two colours): every pixel
     near the blob is modelled as p = alpha B + g tau, B the base colour (median of the blob's
     interior), tau the background's colour direction (mean colour of a ring 3-6 px outside
@@ -270,19 +319,30 @@ def coverage_map(image: np.ndarray, mask: np.ndarray, sectors: int = 16,
     m8 = mask.astype(np.uint8)
     inner = cv2.erode(m8, np.ones((5, 5), np.uint8)) > 0
     base = np.median(px[inner if inner.any() else mask], axis=0)
-    ring = (cv2.dilate(m8, np.ones((13, 13), np.uint8)) > 0) & ~(cv2.dilate(m8, np.ones((7, 7), np.uint8)) > 0)
+    ring = (cv2.dilate(m8, np.ones((13, 13), np.uint8)) > 0) & ~(
+        cv2.dilate(m8, np.ones((7, 7), np.uint8)) > 0
+    )
     if not ring.any():
         raise ValueError("coverage_map: no background pixels around the blob")
     x0, y0 = max(int(xs.min()) - pad, 0), max(int(ys.min()) - pad, 0)
-    x1, y1 = min(int(xs.max()) + pad + 1, mask.shape[1]), min(int(ys.max()) + pad + 1, mask.shape[0])
+    x1, y1 = (
+        min(int(xs.max()) + pad + 1, mask.shape[1]),
+        min(int(ys.max()) + pad + 1, mask.shape[0]),
+    )
     box = px[y0:y1, x0:x1]
     cy, cx = ys.mean(), xs.mean()
     ry, rx = np.nonzero(ring)
     ring_px = px[ry, rx]
-    sector_of = ((np.arctan2(ry - cy, rx - cx) + np.pi) / (2 * np.pi) * sectors).astype(int) % sectors
+    sector_of = ((np.arctan2(ry - cy, rx - cx) + np.pi) / (2 * np.pi) * sectors).astype(
+        int
+    ) % sectors
     counts = np.bincount(sector_of, minlength=sectors)
-    sums = np.stack([np.bincount(sector_of, ring_px[:, i], minlength=sectors) for i in range(3)], axis=1)
-    taus = np.where(counts[:, None] > 0, sums / np.maximum(counts, 1)[:, None], ring_px.mean(axis=0))
+    sums = np.stack(
+        [np.bincount(sector_of, ring_px[:, i], minlength=sectors) for i in range(3)], axis=1
+    )
+    taus = np.where(
+        counts[:, None] > 0, sums / np.maximum(counts, 1)[:, None], ring_px.mean(axis=0)
+    )
     taus /= np.maximum(np.linalg.norm(taus, axis=1, keepdims=True), 1e-9)
     gy, gx = np.mgrid[y0:y1, x0:x1]
     f = (np.arctan2(gy - cy, gx - cx) + np.pi) / (2 * np.pi) * sectors - 0.5
@@ -294,8 +354,10 @@ def coverage_map(image: np.ndarray, mask: np.ndarray, sectors: int = 16,
     tt = np.einsum("ijk,ijk->ij", tau, tau)
     det = bb * tt - bt * bt
     if not np.all(det > 1e-3 * bb * tt):
-        raise ValueError(f"coverage_map: the base colour {np.round(base, 1)} is parallel to the background's "
-                         f"(cannot separate them)")
+        raise ValueError(
+            f"coverage_map: the base colour {np.round(base, 1)} is parallel to the background's "
+            f"(cannot separate them)"
+        )
     alpha = (tt * (box @ base) - bt * np.einsum("ijk,ijk->ij", box, tau)) / det
     return alpha, (x0, y0)
 
@@ -330,9 +392,13 @@ def _base_rim(image: np.ndarray, score: np.ndarray, config: BlobConfig) -> BlobR
     if area < config.min_area:
         return None
     blob = (labels == best).astype(np.uint8) * 255
-    ring = cv2.dilate(blob, np.ones((5, 5), np.uint8)) & ~cv2.dilate(blob, np.ones((3, 3), np.uint8))
+    ring = cv2.dilate(blob, np.ones((5, 5), np.uint8)) & ~cv2.dilate(
+        blob, np.ones((3, 3), np.uint8)
+    )
     inner = cv2.erode(blob, np.ones((3, 3), np.uint8))
-    inside_level = float(np.median(score[inner > 0])) if (inner > 0).any() else float(score[blob > 0].max())
+    inside_level = (
+        float(np.median(score[inner > 0])) if (inner > 0).any() else float(score[blob > 0].max())
+    )
     outside_level = float(np.median(score[ring > 0])) if (ring > 0).any() else 0.0
     level = 0.5 * (inside_level + outside_level)
     x, y, bw, bh = (int(v) for v in stats[best, :4])
@@ -351,8 +417,11 @@ def _base_rim(image: np.ndarray, score: np.ndarray, config: BlobConfig) -> BlobR
         v = rows + (frac if axis == 0 else 0.0)
         points.append(np.column_stack([u + x0, v + y0]))
     rim = np.vstack(points)
-    exclusion = cv2.dilate(blob, np.ones((2 * config.exclusion_dilate + 1,) * 2, np.uint8)) \
-        if config.exclusion_dilate else blob
+    exclusion = (
+        cv2.dilate(blob, np.ones((2 * config.exclusion_dilate + 1,) * 2, np.uint8))
+        if config.exclusion_dilate
+        else blob
+    )
     rim = rim.astype(float)
     if not config.refine_edges:
         return BlobRim(rim, rim, blob, exclusion, area)

@@ -15,8 +15,9 @@ import cv2
 import numpy as np
 
 
-def check_image(image, name: str = "image", channels: tuple[int, ...] = (1, 3),
-                min_size: int = 1) -> np.ndarray:
+def check_image(
+    image, name: str = "image", channels: tuple[int, ...] = (1, 3), min_size: int = 1
+) -> np.ndarray:
     """`image` as a C-contiguous uint8 array of shape (H,W) (allowed when 1 is in `channels`)
     or (H,W,C) with C in `channels` other than 1, H and W >= min_size. ValueError naming
     `name` and what is wrong (type, dtype, shape, size) otherwise."""
@@ -32,8 +33,9 @@ def check_image(image, name: str = "image", channels: tuple[int, ...] = (1, 3),
         raise ValueError(f"{name} must have shape {' or '.join(allowed)}, got {img.shape}")
     h, w = img.shape[:2]
     if h < min_size or w < min_size:
-        raise ValueError(f"{name} is {w}x{h} px (width x height); at least {min_size}x{min_size} "
-                         f"px needed")
+        raise ValueError(
+            f"{name} is {w}x{h} px (width x height); at least {min_size}x{min_size} px needed"
+        )
     return np.ascontiguousarray(img)
 
 
@@ -46,8 +48,9 @@ def opencv_errors(what: str):
     except cv2.error as exc:
         reason = (getattr(exc, "err", "") or str(exc)).strip()
         func = getattr(exc, "func", "")
-        raise ValueError(f"{what}: OpenCV rejected the input ({reason}"
-                         f"{' in ' + func if func else ''})") from None
+        raise ValueError(
+            f"{what}: OpenCV rejected the input ({reason}{' in ' + func if func else ''})"
+        ) from None
 
 
 def check_points(points, name: str, min_rows: int = 0, flat_ok: bool = False) -> np.ndarray:

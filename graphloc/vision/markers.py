@@ -58,13 +58,19 @@ class MarkerDetectorConfig:
 
     def __post_init__(self):
         if self.polarity not in POLARITIES:
-            raise ValueError(f"MarkerDetectorConfig.polarity must be one of {POLARITIES}, got {self.polarity!r}")
+            raise ValueError(
+                f"MarkerDetectorConfig.polarity must be one of {POLARITIES}, got {self.polarity!r}"
+            )
         if self.expected < 1:
             raise ValueError(f"MarkerDetectorConfig.expected must be >= 1, got {self.expected}")
         if not (0 < self.min_area <= self.max_area):
-            raise ValueError(f"MarkerDetectorConfig needs 0 < min_area <= max_area, got {self.min_area}, {self.max_area}")
+            raise ValueError(
+                f"MarkerDetectorConfig needs 0 < min_area <= max_area, got {self.min_area}, {self.max_area}"
+            )
         if not (0.0 <= self.min_axis_ratio <= 1.0 and 0.0 <= self.min_solidity <= 1.0):
-            raise ValueError("MarkerDetectorConfig.min_axis_ratio and min_solidity must lie in [0, 1]")
+            raise ValueError(
+                "MarkerDetectorConfig.min_axis_ratio and min_solidity must lie in [0, 1]"
+            )
 
 
 @dataclass(frozen=True)
@@ -144,7 +150,9 @@ def background_gaussian(gray: np.ndarray) -> tuple[float, float]:
     try:
         with warnings.catch_warnings():  # a one-bin histogram (noise-free frame) has no covariance
             warnings.simplefilter("ignore", OptimizeWarning)
-            (_, mu, sigma), _ = curve_fit(_gaussian, x[sel], hist[sel], p0=(hist.max(), mode, sigma0), maxfev=200)
+            (_, mu, sigma), _ = curve_fit(
+                _gaussian, x[sel], hist[sel], p0=(hist.max(), mode, sigma0), maxfev=200
+            )
     except RuntimeError:
         return mode, sigma0
     if not (np.isfinite(mu) and np.isfinite(sigma)) or abs(mu - mode) > 4.0 * sigma0 + 1.0:
@@ -171,15 +179,35 @@ class _Blobs:
 
     @staticmethod
     def empty() -> "_Blobs":
-        return _Blobs(np.zeros(0), np.zeros((0, 5)), np.zeros((0, 3)), np.zeros((0, 4), int), np.zeros(0), np.zeros(0, bool))
+        return _Blobs(
+            np.zeros(0),
+            np.zeros((0, 5)),
+            np.zeros((0, 3)),
+            np.zeros((0, 4), int),
+            np.zeros(0),
+            np.zeros(0, bool),
+        )
 
     def take(self, idx) -> "_Blobs":
-        return _Blobs(self.n[idx], self.s[idx], self.w[idx], self.box[idx], self.solidity[idx], self.hough[idx])
+        return _Blobs(
+            self.n[idx],
+            self.s[idx],
+            self.w[idx],
+            self.box[idx],
+            self.solidity[idx],
+            self.hough[idx],
+        )
 
     def concat(self, other: "_Blobs") -> "_Blobs":
-        return _Blobs(*(np.concatenate([a, b]) for a, b in zip(
-            (self.n, self.s, self.w, self.box, self.solidity, self.hough),
-            (other.n, other.s, other.w, other.box, other.solidity, other.hough))))
+        return _Blobs(
+            *(
+                np.concatenate([a, b])
+                for a, b in zip(
+                    (self.n, self.s, self.w, self.box, self.solidity, self.hough),
+                    (other.n, other.s, other.w, other.box, other.solidity, other.hough),
+                )
+            )
+        )
 
     def centroids(self) -> np.ndarray:
         """Intensity-weighted centroids; binary centroid where the weights vanish."""
@@ -208,16 +236,30 @@ class _Blobs:
 
     def merge(self, i: int, j: int) -> "_Blobs":
         keep = [k for k in range(len(self)) if k not in (i, j)]
-        box = np.concatenate([np.minimum(self.box[i, :2], self.box[j, :2]), np.maximum(self.box[i, 2:], self.box[j, 2:])])
+        box = np.concatenate(
+            [
+                np.minimum(self.box[i, :2], self.box[j, :2]),
+                np.maximum(self.box[i, 2:], self.box[j, 2:]),
+            ]
+        )
         merged = _Blobs(
-            np.array([self.n[i] + self.n[j]]), (self.s[i] + self.s[j])[None], (self.w[i] + self.w[j])[None],
-            box[None], np.array([min(self.solidity[i], self.solidity[j])]), np.array([self.hough[i] or self.hough[j]]))
+            np.array([self.n[i] + self.n[j]]),
+            (self.s[i] + self.s[j])[None],
+            (self.w[i] + self.w[j])[None],
+            box[None],
+            np.array([min(self.solidity[i], self.solidity[j])]),
+            np.array([self.hough[i] or self.hough[j]]),
+        )
         return self.take(keep).concat(merged)
 
 
-def _label_stats(mask: np.ndarray, weight: np.ndarray, origin: tuple[int, int]) -> tuple[_Blobs, np.ndarray]:
+def _label_stats(
+    mask: np.ndarray, weight: np.ndarray, origin: tuple[int, int]
+) -> tuple[_Blobs, np.ndarray]:
     """Connected components of `mask` (a window at `origin`=(x0,y0)) -> moments of every blob (vectorized)."""
-    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(
+        mask.astype(np.uint8), connectivity=8
+    )
     return _stats_from_labels(labels, n_lab, stats[:, :4], weight, origin), labels
 
 
@@ -231,10 +273,14 @@ def _stats_from_labels(labels, n_lab, bbox_xywh, weight, origin) -> _Blobs:
     w = weight[fg].astype(float)
     B = n_lab - 1
     cnt = np.bincount(lab, minlength=B).astype(float)
-    s = np.stack([np.bincount(lab, v, minlength=B) for v in (xs, ys, xs * xs, ys * ys, xs * ys)], axis=1)
+    s = np.stack(
+        [np.bincount(lab, v, minlength=B) for v in (xs, ys, xs * xs, ys * ys, xs * ys)], axis=1
+    )
     ws = np.stack([np.bincount(lab, v, minlength=B) for v in (w, w * xs, w * ys)], axis=1)
     bb = np.asarray(bbox_xywh[1:], dtype=int).reshape(B, 4)
-    box = np.stack([bb[:, 0] + x0, bb[:, 1] + y0, bb[:, 0] + bb[:, 2] + x0, bb[:, 1] + bb[:, 3] + y0], axis=1)
+    box = np.stack(
+        [bb[:, 0] + x0, bb[:, 1] + y0, bb[:, 0] + bb[:, 2] + x0, bb[:, 1] + bb[:, 3] + y0], axis=1
+    )
     return _Blobs(cnt, s.reshape(B, 5), ws.reshape(B, 3), box, np.ones(B), np.zeros(B, bool))
 
 
@@ -250,8 +296,14 @@ def _solidity(labels: np.ndarray, label: int, box_local: np.ndarray) -> float:
     return float(cv2.contourArea(contour) / hull_area)
 
 
-def _reject(blobs: _Blobs, labels: np.ndarray, origin, config: MarkerDetectorConfig, counts: dict,
-            exclude: np.ndarray | None = None) -> _Blobs:
+def _reject(
+    blobs: _Blobs,
+    labels: np.ndarray,
+    origin,
+    config: MarkerDetectorConfig,
+    counts: dict,
+    exclude: np.ndarray | None = None,
+) -> _Blobs:
     """Outlier rejection of seed 001 IV-B: too small / too large, eccentric, non-convex
     (blobs flagged in `exclude` are dropped first)."""
     excluded = np.zeros(len(blobs), bool) if exclude is None else exclude
@@ -262,7 +314,9 @@ def _reject(blobs: _Blobs, labels: np.ndarray, origin, config: MarkerDetectorCon
     counts["eccentric"] = counts.get("eccentric", 0) + int((size_ok & ~shape_ok).sum())
     idx = np.flatnonzero(size_ok & shape_ok)
     x0, y0 = origin
-    sol = np.array([_solidity(labels, i + 1, blobs.box[i] - [x0, y0, x0, y0]) for i in idx], dtype=float)
+    sol = np.array(
+        [_solidity(labels, i + 1, blobs.box[i] - [x0, y0, x0, y0]) for i in idx], dtype=float
+    )
     blobs.solidity[idx] = sol
     convex = sol >= config.min_solidity
     counts["non_convex"] = counts.get("non_convex", 0) + int((~convex).sum())
@@ -272,19 +326,26 @@ def _reject(blobs: _Blobs, labels: np.ndarray, origin, config: MarkerDetectorCon
 # ----------------------------------------------------------------------------- pipeline
 
 
-def marker_area_bounds(focal_px: float, marker_radius: float, min_range: float, max_range: float,
-                       slack: float = 2.0) -> tuple[int, int]:
+def marker_area_bounds(
+    focal_px: float, marker_radius: float, min_range: float, max_range: float, slack: float = 2.0
+) -> tuple[int, int]:
     """(min_area, max_area) [px] of a sphere of radius `marker_radius` seen from `min_range` to
     `max_range` [m] with focal length `focal_px`, widened by `slack` in radius (blur, threshold)."""
     if not (0 < marker_radius < min_range <= max_range) or focal_px <= 0 or slack < 1:
-        raise ValueError(f"marker_area_bounds: need 0 < marker_radius < min_range <= max_range, focal > 0, "
-                         f"slack >= 1; got {marker_radius}, {min_range}, {max_range}, {focal_px}, {slack}")
+        raise ValueError(
+            f"marker_area_bounds: need 0 < marker_radius < min_range <= max_range, focal > 0, "
+            f"slack >= 1; got {marker_radius}, {min_range}, {max_range}, {focal_px}, {slack}"
+        )
     r_far = focal_px * np.tan(np.arcsin(marker_radius / max_range))
     r_near = focal_px * np.tan(np.arcsin(marker_radius / min_range))
-    return max(1, int(np.floor(np.pi * (r_far / slack) ** 2))), int(np.ceil(np.pi * (r_near * slack) ** 2))
+    return max(1, int(np.floor(np.pi * (r_far / slack) ** 2))), int(
+        np.ceil(np.pi * (r_near * slack) ** 2)
+    )
 
 
-def roi_from_points(points_px: np.ndarray, margin: float, shape: tuple[int, int]) -> tuple[int, int, int, int]:
+def roi_from_points(
+    points_px: np.ndarray, margin: float, shape: tuple[int, int]
+) -> tuple[int, int, int, int]:
     """(x0, y0, x1, y1) window around predicted marker pixels, `margin` px wide, clipped to the image."""
     p = np.asarray(points_px, dtype=float).reshape(-1, 2)
     if len(p) == 0 or not np.isfinite(p).all():
@@ -303,13 +364,19 @@ def _cut(box: np.ndarray, window, width: int, height: int, counts: dict) -> np.n
     """Blobs touching an edge of the search window that is not an image edge continue outside
     it: fragments (of clutter or of a marker), never accepted as markers."""
     x0, y0, x1, y1 = window
-    cut = ((box[:, 0] <= x0) & (x0 > 0)) | ((box[:, 1] <= y0) & (y0 > 0)) | \
-        ((box[:, 2] >= x1) & (x1 < width)) | ((box[:, 3] >= y1) & (y1 < height))
+    cut = (
+        ((box[:, 0] <= x0) & (x0 > 0))
+        | ((box[:, 1] <= y0) & (y0 > 0))
+        | ((box[:, 2] >= x1) & (x1 < width))
+        | ((box[:, 3] >= y1) & (y1 < height))
+    )
     counts["window_cut"] = counts.get("window_cut", 0) + int(cut.sum())
     return cut
 
 
-def _reduce(blobs: _Blobs, expected: int, config: MarkerDetectorConfig, predicted_px, steps: list) -> _Blobs:
+def _reduce(
+    blobs: _Blobs, expected: int, config: MarkerDetectorConfig, predicted_px, steps: list
+) -> _Blobs:
     """Too many blobs (seed 001 IV-B): merge the two closest if they touch (fragments of one
     marker), else remove the blob with the largest summed distance to all the others. With
     predicted marker pixels (the seed's alternative), the blob farthest from every prediction is
@@ -353,9 +420,16 @@ def _hough_blobs(gray, region, known: _Blobs, mu, sigma, config, counts) -> _Blo
         rmax = min(config.hough_max_radius, int(np.ceil(2.0 * rk.max())) + 1)
     else:
         rmin, rmax = config.hough_min_radius, config.hough_max_radius
-    circles = cv2.HoughCircles(sub, cv2.HOUGH_GRADIENT_ALT, dp=1.5, minDist=max(2.0, 2.0 * rmin),
-                               param1=max(10.0, 6.0 * sigma), param2=config.hough_perfectness,
-                               minRadius=rmin, maxRadius=max(rmax, rmin + 1))
+    circles = cv2.HoughCircles(
+        sub,
+        cv2.HOUGH_GRADIENT_ALT,
+        dp=1.5,
+        minDist=max(2.0, 2.0 * rmin),
+        param1=max(10.0, 6.0 * sigma),
+        param2=config.hough_perfectness,
+        minRadius=rmin,
+        maxRadius=max(rmax, rmin + 1),
+    )
     if circles is None:
         return _Blobs.empty()
     circ = circles.reshape(-1, circles.shape[-1])[:, :3].astype(float)
@@ -378,14 +452,22 @@ def _hough_blobs(gray, region, known: _Blobs, mu, sigma, config, counts) -> _Blo
         yy, xx = np.mgrid[by0:by1, bx0:bx1]
         rr = (xx + x0 - cx) ** 2 + (yy + y0 - cy) ** 2
         disc = rr <= r * r
-        if not disc.any() or gray[y0 + by0:y0 + by1, x0 + bx0:x0 + bx1][disc].mean() - mu < 0.5 * f2_margin:
+        if (
+            not disc.any()
+            or gray[y0 + by0 : y0 + by1, x0 + bx0 : x0 + bx1][disc].mean() - mu < 0.5 * f2_margin
+        ):
             counts["hough_low_contrast"] = counts.get("hough_low_contrast", 0) + 1
             continue  # a circle in the noise, not a dim marker
-        inside = (rr <= reach ** 2) & fg[by0:by1, bx0:bx1] & (labels[by0:by1, bx0:bx1] == 0)
+        inside = (rr <= reach**2) & fg[by0:by1, bx0:bx1] & (labels[by0:by1, bx0:bx1] == 0)
         labels[by0:by1, bx0:bx1][inside] = k
         ys, xs = np.nonzero(inside)
         if len(xs):
-            bbox[k] = (xs.min() + bx0, ys.min() + by0, xs.max() - xs.min() + 1, ys.max() - ys.min() + 1)
+            bbox[k] = (
+                xs.min() + bx0,
+                ys.min() + by0,
+                xs.max() - xs.min() + 1,
+                ys.max() - ys.min() + 1,
+            )
     weight = np.clip(gray[y0:y1, x0:x1].astype(float) - mu, 0.0, None)
     blobs = _stats_from_labels(labels, len(circ) + 1, bbox, weight, (x0, y0))
     blobs.hough[:] = True
@@ -399,19 +481,38 @@ def _detect_in_region(gray, region, config, predicted_px, steps, counts):
     f2 = min(254.0, mu + config.f2_sigmas * sigma)
     otsu, _ = cv2.threshold(sub, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
     f1 = max(float(otsu), f2)  # Otsu on a marker-free window would split the noise
-    weight = np.clip(sub.astype(np.float32) - mu, 0.0, None)  # region only: an ROI restricts all work
+    weight = np.clip(
+        sub.astype(np.float32) - mu, 0.0, None
+    )  # region only: an ROI restricts all work
 
     h, w = gray.shape
     blobs1, labels1 = _label_stats(sub > f1, weight, (x0, y0))
-    blobs1 = _reject(blobs1, labels1, (x0, y0), config, counts, exclude=_cut(blobs1.box, region, w, h, counts))
+    blobs1 = _reject(
+        blobs1, labels1, (x0, y0), config, counts, exclude=_cut(blobs1.box, region, w, h, counts)
+    )
     if len(blobs1):
         m = config.window_margin
-        wx0, wy0 = max(x0, int(blobs1.box[:, 0].min()) - m), max(y0, int(blobs1.box[:, 1].min()) - m)
-        wx1, wy1 = min(x1, int(blobs1.box[:, 2].max()) + m), min(y1, int(blobs1.box[:, 3].max()) + m)
+        wx0, wy0 = (
+            max(x0, int(blobs1.box[:, 0].min()) - m),
+            max(y0, int(blobs1.box[:, 1].min()) - m),
+        )
+        wx1, wy1 = (
+            min(x1, int(blobs1.box[:, 2].max()) + m),
+            min(y1, int(blobs1.box[:, 3].max()) + m),
+        )
         mask2 = gray[wy0:wy1, wx0:wx1] > f2
-        blobs, labels2 = _label_stats(mask2, weight[wy0 - y0:wy1 - y0, wx0 - x0:wx1 - x0], (wx0, wy0))
+        blobs, labels2 = _label_stats(
+            mask2, weight[wy0 - y0 : wy1 - y0, wx0 - x0 : wx1 - x0], (wx0, wy0)
+        )
         window = (wx0, wy0, wx1, wy1)
-        blobs = _reject(blobs, labels2, (wx0, wy0), config, counts, exclude=_cut(blobs.box, window, w, h, counts))
+        blobs = _reject(
+            blobs,
+            labels2,
+            (wx0, wy0),
+            config,
+            counts,
+            exclude=_cut(blobs.box, window, w, h, counts),
+        )
     else:
         mask2, blobs, window = None, _Blobs.empty(), region
 
@@ -419,10 +520,14 @@ def _detect_in_region(gray, region, config, predicted_px, steps, counts):
         # erosion by a Euclidean disc of growing radius (distance transform), splits touching markers
         depth = cv2.distanceTransform(mask2.astype(np.uint8), cv2.DIST_L2, 5)
         r_big = blobs.radii().max() if len(blobs) else 0.0
-        n_erode = max(config.erosion_iterations, int(np.ceil(config.erosion_radius_fraction * r_big)))
+        n_erode = max(
+            config.erosion_iterations, int(np.ceil(config.erosion_radius_fraction * r_big))
+        )
         for it in range(1, n_erode + 1):
             eroded = depth > it
-            eb, el = _label_stats(eroded, weight[wy0 - y0:wy1 - y0, wx0 - x0:wx1 - x0], (wx0, wy0))
+            eb, el = _label_stats(
+                eroded, weight[wy0 - y0 : wy1 - y0, wx0 - x0 : wx1 - x0], (wx0, wy0)
+            )
             # the same window-cut rule as the F2 pass: distanceTransform treats pixels beyond the
             # crop as foreground, so a fragment cut by the window does not shrink from that side
             eb = _reject(eb, el, (wx0, wy0), config, {}, exclude=_cut(eb.box, window, w, h, {}))
@@ -441,9 +546,12 @@ def _detect_in_region(gray, region, config, predicted_px, steps, counts):
     return blobs, (f1, f2)
 
 
-def detect_markers(image: np.ndarray, config: MarkerDetectorConfig = MarkerDetectorConfig(),
-                   roi: tuple[int, int, int, int] | None = None,
-                   predicted_px: np.ndarray | None = None) -> MarkerDetections:
+def detect_markers(
+    image: np.ndarray,
+    config: MarkerDetectorConfig = MarkerDetectorConfig(),
+    roi: tuple[int, int, int, int] | None = None,
+    predicted_px: np.ndarray | None = None,
+) -> MarkerDetections:
     """Detect `config.expected` identical marker blobs (seed 001 IV-B).
 
     image: (H,W) uint8 grey or (H,W,3) uint8 BGR. roi: (x0, y0, x1, y1) to search first (e.g.
@@ -461,8 +569,9 @@ def detect_markers(image: np.ndarray, config: MarkerDetectorConfig = MarkerDetec
         try:
             box = np.asarray(roi, dtype=float).reshape(4)
         except (TypeError, ValueError):
-            raise ValueError(f"detect_markers: roi must be 4 numbers (x0, y0, x1, y1), "
-                             f"got {roi!r}") from None
+            raise ValueError(
+                f"detect_markers: roi must be 4 numbers (x0, y0, x1, y1), got {roi!r}"
+            ) from None
         if not np.isfinite(box).all():
             raise ValueError(f"detect_markers: roi {roi} is not finite")
         x0, y0, x1, y1 = (int(v) for v in np.clip(box, -1, max(w, h) + 1))
@@ -479,10 +588,19 @@ def detect_markers(image: np.ndarray, config: MarkerDetectorConfig = MarkerDetec
     if len(blobs) < config.expected and region != full and config.full_image_fallback:
         steps.append("full_image")
         with opencv_errors(f"detect_markers on a {w}x{h} image"):
-            blobs_full, thr_full = _detect_in_region(gray, full, config, predicted_px, steps,
-                                                     counts)
+            blobs_full, thr_full = _detect_in_region(
+                gray, full, config, predicted_px, steps, counts
+            )
         if len(blobs_full) > len(blobs):
             blobs, thr = blobs_full, thr_full
-    return MarkerDetections(points=blobs.centroids(), scores=blobs.scores(), radii=blobs.radii(), areas=blobs.n.copy(),
-                            expected=config.expected, thresholds=(float(thr[0]), float(thr[1])), steps=tuple(steps),
-                            roi=None if region == full else region, rejected=counts)
+    return MarkerDetections(
+        points=blobs.centroids(),
+        scores=blobs.scores(),
+        radii=blobs.radii(),
+        areas=blobs.n.copy(),
+        expected=config.expected,
+        thresholds=(float(thr[0]), float(thr[1])),
+        steps=tuple(steps),
+        roi=None if region == full else region,
+        rejected=counts,
+    )

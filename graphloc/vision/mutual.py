@@ -45,9 +45,13 @@ import numpy as np
 from graphloc.cameras import normalize_rows
 
 STATUS_OK = "ok"
-STATUS_NO_BEARING = "no_bearing"  # a pixel is NaN (no detection) or cannot be lifted by the camera model
+STATUS_NO_BEARING = (
+    "no_bearing"  # a pixel is NaN (no detection) or cannot be lifted by the camera model
+)
 STATUS_DEGENERATE = "degenerate_triangle"  # smallest interior angle < min_angle (collinear robots)
-STATUS_INCONSISTENT = "inconsistent_bearings"  # closure, misfit or relative tilt beyond the config limits
+STATUS_INCONSISTENT = (
+    "inconsistent_bearings"  # closure, misfit or relative tilt beyond the config limits
+)
 
 
 @dataclass(frozen=True)
@@ -74,7 +78,9 @@ class MutualConfig:
         if not self.max_closure > 0:
             raise ValueError(f"MutualConfig.max_closure must be > 0, got {self.max_closure}")
         if not (0.0 < self.max_relative_tilt <= math.pi):
-            raise ValueError(f"MutualConfig.max_relative_tilt must be in (0, pi], got {self.max_relative_tilt}")
+            raise ValueError(
+                f"MutualConfig.max_relative_tilt must be in (0, pi], got {self.max_relative_tilt}"
+            )
         up = np.asarray(self.up, dtype=float)
         if up.shape != (3,) or not np.isfinite(up).all() or np.linalg.norm(up) == 0:
             raise ValueError(f"MutualConfig.up must be a non-zero 3-vector, got {self.up}")
@@ -114,9 +120,11 @@ class ThreeRobotPoses:
     def explain(self, n: int) -> str:
         """One line: formation n's status with the numbers behind it."""
         angles = ", ".join(f"{math.degrees(a):.3g}" for a in self.angles[n])
-        return (f"formation {n}: {self.status[n]} (interior angles [{angles}] deg, closure "
-                f"{math.degrees(self.closure[n]):+.3g} deg, misfit {self.misfit[n]:.3g}, "
-                f"condition {self.condition[n]:.3g})")
+        return (
+            f"formation {n}: {self.status[n]} (interior angles [{angles}] deg, closure "
+            f"{math.degrees(self.closure[n]):+.3g} deg, misfit {self.misfit[n]:.3g}, "
+            f"condition {self.condition[n]:.3g})"
+        )
 
     def relative(self, n: int, i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
         """(^iR_j, ^iT_j): pose of camera C_j in C_i's frame, robots numbered 1..3."""
@@ -137,15 +145,19 @@ def _cameras3(cameras) -> tuple:
         return (cameras,) * 3
     cameras = tuple(cameras)
     if len(cameras) != 3 or not all(hasattr(c, "pixel_to_bearing") for c in cameras):
-        raise ValueError(f"cameras must be one camera model or a sequence of 3, got {len(cameras)} items")
+        raise ValueError(
+            f"cameras must be one camera model or a sequence of 3, got {len(cameras)} items"
+        )
     return cameras
 
 
 def _check_pixels(pixels) -> np.ndarray:
     pixels = np.asarray(pixels, dtype=float)
     if pixels.ndim != 4 or pixels.shape[1:] != (3, 3, 2):
-        raise ValueError(f"pixels must have shape (N,3,3,2) (pixels[n,i,j] = robot j in robot i's image), "
-                         f"got {pixels.shape}")
+        raise ValueError(
+            f"pixels must have shape (N,3,3,2) (pixels[n,i,j] = robot j in robot i's image), "
+            f"got {pixels.shape}"
+        )
     return pixels
 
 
@@ -163,7 +175,9 @@ def _rigid_align(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np
     return R, ct - np.einsum("nij,nj->ni", R, cs)
 
 
-def localize_three(pixels, cameras, baseline_12, config: MutualConfig = MutualConfig()) -> ThreeRobotPoses:
+def localize_three(
+    pixels, cameras, baseline_12, config: MutualConfig = MutualConfig()
+) -> ThreeRobotPoses:
     """Relative poses of three mutually observing robots (module docstring, seed 000 III-A).
 
     pixels (N,3,3,2): pixels[n, i, j] = pixel of robot j in robot i's image (diagonal
@@ -174,13 +188,18 @@ def localize_three(pixels, cameras, baseline_12, config: MutualConfig = MutualCo
     pixels = _check_pixels(pixels)
     cams = _cameras3(cameras)
     N = len(pixels)
-    baseline = np.broadcast_to(np.asarray(baseline_12, dtype=float), (N,)) if np.ndim(baseline_12) == 0 \
+    baseline = (
+        np.broadcast_to(np.asarray(baseline_12, dtype=float), (N,))
+        if np.ndim(baseline_12) == 0
         else np.asarray(baseline_12, dtype=float)
+    )
     if baseline.shape != (N,):
         raise ValueError(f"baseline_12 must be a scalar or shape ({N},), got {baseline.shape}")
     bad = np.flatnonzero(~(np.isfinite(baseline) & (baseline > 0)))
     if len(bad):
-        raise ValueError(f"baseline_12 must be positive and finite; bad at formation(s) {bad[:5].tolist()}")
+        raise ValueError(
+            f"baseline_12 must be positive and finite; bad at formation(s) {bad[:5].tolist()}"
+        )
 
     # 1. bearings u[n, i, j] in frame i
     u = np.full((N, 3, 3, 3), np.nan)
@@ -224,7 +243,9 @@ def localize_three(pixels, cameras, baseline_12, config: MutualConfig = MutualCo
                 dist[:, i, j] = sides[:, 3 - i - j]
 
     # 4. triangle in each robot's frame, aligned to robot 1's
-    vertices = dist[..., None] * np.nan_to_num(u)  # vertices[n, i, j] = robot j in frame i (0 for j == i)
+    vertices = dist[..., None] * np.nan_to_num(
+        u
+    )  # vertices[n, i, j] = robot j in frame i (0 for j == i)
     R = np.full((N, 3, 3, 3), np.nan)
     t = np.full((N, 3, 3), np.nan)
     misfit = np.full(N, np.nan)
@@ -244,23 +265,31 @@ def localize_three(pixels, cameras, baseline_12, config: MutualConfig = MutualCo
         R[bad], t[bad] = np.nan, np.nan
         ok = status == STATUS_OK
     sides[~ok] = np.nan
-    return ThreeRobotPoses(R, t, baseline.copy(), sides, angles, closure, misfit, condition, status.astype(str))
+    return ThreeRobotPoses(
+        R, t, baseline.copy(), sides, angles, closure, misfit, condition, status.astype(str)
+    )
 
 
-def render_mutual_pixels(R_world: np.ndarray, t_world: np.ndarray, cameras) -> tuple[np.ndarray, np.ndarray]:
+def render_mutual_pixels(
+    R_world: np.ndarray, t_world: np.ndarray, cameras
+) -> tuple[np.ndarray, np.ndarray]:
     """Forward model: pixels (N,3,3,2) of each camera centre in the other cameras' images
     and visibility (N,3,3) (diagonal: NaN / False). R_world (N,3,3,3), t_world (N,3,3):
     camera-to-world rotations and camera centres of the 3 robots."""
     R_world, t_world = np.asarray(R_world, dtype=float), np.asarray(t_world, dtype=float)
     N = len(R_world)
     if R_world.shape != (N, 3, 3, 3) or t_world.shape != (N, 3, 3):
-        raise ValueError(f"R_world must be (N,3,3,3) and t_world (N,3,3), got {R_world.shape}, {t_world.shape}")
+        raise ValueError(
+            f"R_world must be (N,3,3,3) and t_world (N,3,3), got {R_world.shape}, {t_world.shape}"
+        )
     cams = _cameras3(cameras)
     pixels = np.full((N, 3, 3, 2), np.nan)
     visible = np.zeros((N, 3, 3), dtype=bool)
     for i in range(3):
         others = [j for j in range(3) if j != i]
-        rel = np.einsum("nji,nkj->nki", R_world[:, i], t_world[:, others] - t_world[:, i, None])  # R_i^T (t_j - t_i)
+        rel = np.einsum(
+            "nji,nkj->nki", R_world[:, i], t_world[:, others] - t_world[:, i, None]
+        )  # R_i^T (t_j - t_i)
         p, v = cams[i].project(rel.reshape(-1, 3))
         pixels[:, i, others] = p.reshape(N, 2, 2)
         visible[:, i, others] = v.reshape(N, 2)

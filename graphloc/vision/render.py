@@ -47,9 +47,13 @@ class RenderConfig:
         for name in ("background", "marker_level"):
             level = np.atleast_1d(np.asarray(getattr(self, name), dtype=float))
             if level.shape != (c,) or not np.isfinite(level).all():
-                raise ValueError(f"RenderConfig.{name} must be {c} finite value(s) for color={self.color}, got {getattr(self, name)}")
+                raise ValueError(
+                    f"RenderConfig.{name} must be {c} finite value(s) for color={self.color}, got {getattr(self, name)}"
+                )
         if self.supersample < 1 or self.blur_sigma < 0 or self.noise_sigma < 0:
-            raise ValueError("RenderConfig needs supersample >= 1, blur_sigma >= 0, noise_sigma >= 0")
+            raise ValueError(
+                "RenderConfig needs supersample >= 1, blur_sigma >= 0, noise_sigma >= 0"
+            )
 
     def levels(self, value) -> np.ndarray:
         return np.atleast_1d(np.asarray(value, dtype=np.float32))
@@ -167,9 +171,17 @@ def draw_clutter(img: np.ndarray, clutter: tuple[Clutter, ...], background) -> N
             cv2.circle(img, bite, max(1, int(round(0.9 * c.axes[0]))), bg, thickness=-1)
 
 
-def random_clutter(rng: np.random.Generator, width: int, height: int, marker_radius_px: float, level,
-                   n: int = 6, avoid: np.ndarray | None = None, avoid_radius: float = 0.0,
-                   kinds: tuple[str, ...] = ("bar", "large", "speck", "crescent")) -> tuple[Clutter, ...]:
+def random_clutter(
+    rng: np.random.Generator,
+    width: int,
+    height: int,
+    marker_radius_px: float,
+    level,
+    n: int = 6,
+    avoid: np.ndarray | None = None,
+    avoid_radius: float = 0.0,
+    kinds: tuple[str, ...] = ("bar", "large", "speck", "crescent"),
+) -> tuple[Clutter, ...]:
     """`n` distractors the detector should reject: thin bars (eccentric), large blobs (too big),
     specks (too small) and crescents (non-convex); kind "disc" is a marker look-alike. Centres
     keep `avoid_radius` px away from the `avoid` points (the true markers)."""
@@ -182,11 +194,18 @@ def random_clutter(rng: np.random.Generator, width: int, height: int, marker_rad
     while len(out) < n:
         tries += 1
         if tries > 1000 * max(n, 1):
-            raise ValueError(f"random_clutter: cannot place {n} blobs {avoid_radius} px away from the markers")
+            raise ValueError(
+                f"random_clutter: cannot place {n} blobs {avoid_radius} px away from the markers"
+            )
         kind = kinds[len(out) % len(kinds)]
         center = (rng.uniform(0, width), rng.uniform(0, height))
-        size = {"bar": (4.0 * r, 0.5 * r), "large": (12.0 * r, 12.0 * r), "speck": (0.5, 0.5),
-                "crescent": (max(2.0 * r, 7.0),) * 2, "disc": (r, r)}[kind]
+        size = {
+            "bar": (4.0 * r, 0.5 * r),
+            "large": (12.0 * r, 12.0 * r),
+            "speck": (0.5, 0.5),
+            "crescent": (max(2.0 * r, 7.0),) * 2,
+            "disc": (r, r),
+        }[kind]
         reach = max(size)
         if not (reach <= center[0] <= width - reach and reach <= center[1] <= height - reach):
             continue  # wholly inside the image: a cut-off bar could look like a marker
@@ -194,15 +213,25 @@ def random_clutter(rng: np.random.Generator, width: int, height: int, marker_rad
             gap = np.linalg.norm(np.asarray(avoid, float) - center, axis=1).min()
             if gap < avoid_radius + reach:
                 continue
-        if any(np.hypot(center[0] - c.center[0], center[1] - c.center[1]) < reach + max(c.axes) + 2 for c in out):
+        if any(
+            np.hypot(center[0] - c.center[0], center[1] - c.center[1]) < reach + max(c.axes) + 2
+            for c in out
+        ):
             continue  # distractors do not touch each other
         out.append(Clutter(kind, center, size, float(rng.uniform(0, 180)), level))
     return tuple(out)
 
 
-def render_markers(camera, markers_cam: np.ndarray, marker_radius: float, config: RenderConfig = RenderConfig(),
-                   rng: np.random.Generator | None = None, clutter: tuple[Clutter, ...] = (),
-                   occluders: tuple[Occluder, ...] = (), gains: np.ndarray | None = None) -> RenderedFrame:
+def render_markers(
+    camera,
+    markers_cam: np.ndarray,
+    marker_radius: float,
+    config: RenderConfig = RenderConfig(),
+    rng: np.random.Generator | None = None,
+    clutter: tuple[Clutter, ...] = (),
+    occluders: tuple[Occluder, ...] = (),
+    gains: np.ndarray | None = None,
+) -> RenderedFrame:
     """Render spheres of radius `marker_radius` [m] centred at `markers_cam` (M,3) [m, camera frame].
 
     gains: (M,) contrast of each marker in [0, 1] (a dim LED: level = background + gain *
@@ -219,10 +248,16 @@ def render_markers(camera, markers_cam: np.ndarray, marker_radius: float, config
         raise ValueError(f"render_markers: marker_radius must be positive, got {marker_radius}")
     dist = np.linalg.norm(pts, axis=1)
     if (dist <= marker_radius).any():
-        raise ValueError(f"render_markers: camera inside marker(s) {np.flatnonzero(dist <= marker_radius).tolist()}")
+        raise ValueError(
+            f"render_markers: camera inside marker(s) {np.flatnonzero(dist <= marker_radius).tolist()}"
+        )
     gains = np.ones(len(pts)) if gains is None else np.asarray(gains, dtype=float)
-    if gains.shape != (len(pts),) or not (np.isfinite(gains).all() and (gains >= 0).all() and (gains <= 1).all()):
-        raise ValueError(f"render_markers: gains must be ({len(pts)},) values in [0, 1], got {gains}")
+    if gains.shape != (len(pts),) or not (
+        np.isfinite(gains).all() and (gains >= 0).all() and (gains <= 1).all()
+    ):
+        raise ValueError(
+            f"render_markers: gains must be ({len(pts)},) values in [0, 1], got {gains}"
+        )
     rng = np.random.default_rng() if rng is None else rng
     width, height = image_size(camera)
     s = config.supersample
@@ -274,17 +309,24 @@ def render_markers(camera, markers_cam: np.ndarray, marker_radius: float, config
         cov = hit.reshape(y1 - y0, s, x1 - x0, s).mean(axis=(1, 3))
         cx0, cy0 = max(x0, 0), max(y0, 0)
         cx1, cy1 = min(x1, width), min(y1, height)
-        coverage[cy0:cy1, cx0:cx1] += gains[i] * cov[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0]
+        coverage[cy0:cy1, cx0:cx1] += gains[i] * cov[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0]
 
     if occluders:
         occ = np.zeros((height, width), np.float32)
         occ_img = np.zeros((height, width, nch), np.float32)
         for o in occluders:  # later occluders on top ("over" compositing)
             c = _rect_coverage(o.rect, width, height)
-            occ_img = occ_img * (1.0 - c[..., None]) + config.levels(o.level)[None, None, :] * c[..., None]
+            occ_img = (
+                occ_img * (1.0 - c[..., None])
+                + config.levels(o.level)[None, None, :] * c[..., None]
+            )
             occ = occ + c * (1.0 - occ)
         coverage = np.minimum(coverage, 1.0 - occ)
-        img = img * np.clip(1.0 - coverage - occ, 0.0, 1.0)[..., None] + fg * coverage[..., None] + occ_img
+        img = (
+            img * np.clip(1.0 - coverage - occ, 0.0, 1.0)[..., None]
+            + fg * coverage[..., None]
+            + occ_img
+        )
     else:
         img = img * (1.0 - coverage)[..., None] + fg * coverage[..., None]
     if config.blur_sigma > 0:
@@ -293,5 +335,12 @@ def render_markers(camera, markers_cam: np.ndarray, marker_radius: float, config
         img += config.noise_sigma * rng.standard_normal(img.shape, dtype=np.float32)
     out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
     out = out[..., 0] if nch == 1 else out
-    return RenderedFrame(image=out, centers=np.where(visible[:, None] > 0, centers, np.nan), centroids=centroids,
-                         radii=radii, visible=visible, clutter=tuple(clutter), occluders=tuple(occluders))
+    return RenderedFrame(
+        image=out,
+        centers=np.where(visible[:, None] > 0, centers, np.nan),
+        centroids=centroids,
+        radii=radii,
+        visible=visible,
+        clutter=tuple(clutter),
+        occluders=tuple(occluders),
+    )

@@ -48,17 +48,26 @@ class MarkerTarget:
         if not np.isfinite(p).all():
             raise ValueError("MarkerTarget.points contains NaN/inf")
         if not (np.isfinite(self.marker_diameter) and self.marker_diameter > 0):
-            raise ValueError(f"MarkerTarget.marker_diameter must be positive, got {self.marker_diameter}")
+            raise ValueError(
+                f"MarkerTarget.marker_diameter must be positive, got {self.marker_diameter}"
+            )
         object.__setattr__(self, "points", p)
 
     def scaled(self, factor: float, name: str = "") -> "MarkerTarget":
-        return MarkerTarget(self.points * factor, self.marker_diameter * factor, name or f"{self.name}x{factor:g}")
+        return MarkerTarget(
+            self.points * factor, self.marker_diameter * factor, name or f"{self.name}x{factor:g}"
+        )
 
 
 # Seed 001 III-A: the larger target (vertices in cm, marker diameter b = 3 cm).
 LARGE_TARGET = MarkerTarget(
-    np.array([[0.00, -16.51, 23.66], [0.00, 13.04, 18.45], [6.26, -2.21, 5.39], [-8.02, 2.49, 6.21]]) / 100.0,
-    0.03, "seed001-large")
+    np.array(
+        [[0.00, -16.51, 23.66], [0.00, 13.04, 18.45], [6.26, -2.21, 5.39], [-8.02, 2.49, 6.21]]
+    )
+    / 100.0,
+    0.03,
+    "seed001-large",
+)
 # Seed 001 III: the e-puck targets have the same proportions at half the size (b = 1.5 cm passive).
 SMALL_TARGET = LARGE_TARGET.scaled(0.5, "seed001-small")
 
@@ -73,8 +82,12 @@ def _as_pose(pose) -> gtsam.Pose3:
     return gtsam.Pose3(gtsam.Rot3(np.asarray(R, dtype=float)), np.asarray(t, dtype=float))
 
 
-def predict_pose(history: Sequence, k_R: int = 2, times: Sequence[float] | None = None,
-                 t_next: float | None = None) -> gtsam.Pose3:
+def predict_pose(
+    history: Sequence,
+    k_R: int = 2,
+    times: Sequence[float] | None = None,
+    t_next: float | None = None,
+) -> gtsam.Pose3:
     """Seed 001 IV-A: linear regression over the last `k_R` poses, extrapolated one step.
 
     history: gtsam.Pose3 or (R, t) of the camera in the target frame, oldest first. times:
@@ -90,11 +103,15 @@ def predict_pose(history: Sequence, k_R: int = 2, times: Sequence[float] | None 
     n_all = len(history)
     tau = np.arange(n_all, dtype=float) if times is None else np.asarray(times, dtype=float)
     if tau.shape != (n_all,) or not np.isfinite(tau).all():
-        raise ValueError(f"predict_pose: times must be {n_all} finite values, got shape {tau.shape}")
+        raise ValueError(
+            f"predict_pose: times must be {n_all} finite values, got shape {tau.shape}"
+        )
     tau = tau[-k_R:]
     if np.any(np.diff(tau) <= 0):
         raise ValueError(f"predict_pose: times must increase, got {tau.tolist()}")
-    t_next = tau[-1] + (tau[-1] - tau[-2] if len(tau) > 1 else 1.0) if t_next is None else float(t_next)
+    t_next = (
+        tau[-1] + (tau[-1] - tau[-2] if len(tau) > 1 else 1.0) if t_next is None else float(t_next)
+    )
     last = poses[-1]
     if len(poses) == 1:
         return last
@@ -104,7 +121,9 @@ def predict_pose(history: Sequence, k_R: int = 2, times: Sequence[float] | None 
     return last.compose(gtsam.Pose3.Expmap(coef[0] + coef[1] * (t_next - tau[-1])))
 
 
-def project_markers(camera, target: MarkerTarget, R_tc: np.ndarray, t_tc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def project_markers(
+    camera, target: MarkerTarget, R_tc: np.ndarray, t_tc: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Pixels (..., m, 2) and visible mask (..., m) of the target's markers for camera poses
     R_tc (...,3,3), t_tc (...,3) in the target frame (seed 001 IV-A, q = K [R^T | -R^T t] p)."""
     R = np.asarray(R_tc, dtype=float)
@@ -143,10 +162,16 @@ class TargetHypothesisConfig:
 
 PERMUTATIONS = np.array(list(itertools.permutations(range(4))), dtype=int)  # (24,4)
 # three detections: which marker is unseen x order -> (24,4) with -1 for the unseen marker
-_PARTIAL = np.array([np.insert(p, m, -1) for p in itertools.permutations(range(3)) for m in range(4)], dtype=int)
+_PARTIAL = np.array(
+    [np.insert(p, m, -1) for p in itertools.permutations(range(3)) for m in range(4)], dtype=int
+)
 # four detections, one of them not a marker: drop each in turn -> (96,4)
-_THREE_OF_FOUR = np.concatenate([np.where(_PARTIAL >= 0, np.delete(np.arange(4), drop)[np.maximum(_PARTIAL, 0)], -1)
-                                 for drop in range(4)])
+_THREE_OF_FOUR = np.concatenate(
+    [
+        np.where(_PARTIAL >= 0, np.delete(np.arange(4), drop)[np.maximum(_PARTIAL, 0)], -1)
+        for drop in range(4)
+    ]
+)
 
 
 def _check_detections(detections) -> np.ndarray:
@@ -160,9 +185,16 @@ def _check_detections(detections) -> np.ndarray:
     return det
 
 
-def target_hypotheses(detections: np.ndarray, camera, target: MarkerTarget = LARGE_TARGET,
-                      config: TargetHypothesisConfig = TargetHypothesisConfig(), predicted=None,
-                      time: float = 0.0, observer: str = "", observed: str = "") -> CandidateSet:
+def target_hypotheses(
+    detections: np.ndarray,
+    camera,
+    target: MarkerTarget = LARGE_TARGET,
+    config: TargetHypothesisConfig = TargetHypothesisConfig(),
+    predicted=None,
+    time: float = 0.0,
+    observer: str = "",
+    observed: str = "",
+) -> CandidateSet:
     """All plausible camera poses in the target frame from 4 (or 3) blobs of identical markers.
 
     detections: (4,2) pixels in any order. predicted: predicted camera pose (gtsam.Pose3 or (R,t))
@@ -177,24 +209,43 @@ def target_hypotheses(detections: np.ndarray, camera, target: MarkerTarget = LAR
     """
     det = _check_detections(detections)
     if len(target.points) != 4:
-        raise ValueError(f"target_hypotheses: needs a 4-marker target, got {len(target.points)} markers")
+        raise ValueError(
+            f"target_hypotheses: needs a 4-marker target, got {len(target.points)} markers"
+        )
     bearings, ok = camera.pixel_to_bearing(det)
     if not ok.all():
-        raise ValueError(f"target_hypotheses: detections {np.flatnonzero(~ok).tolist()} have no bearing")
+        raise ValueError(
+            f"target_hypotheses: detections {np.flatnonzero(~ok).tolist()} have no bearing"
+        )
     pred_px = None if predicted is None else predicted_marker_pixels(camera, target, predicted)[0]
     full = len(det) == 4
-    result = _hypotheses(det, bearings, PERMUTATIONS if full else _PARTIAL, camera, target, config, pred_px, full)
+    result = _hypotheses(
+        det, bearings, PERMUTATIONS if full else _PARTIAL, camera, target, config, pred_px, full
+    )
     fallback = ""
     if full and len(result[0]) == 0:
         result = _hypotheses(det, bearings, _THREE_OF_FOUR, camera, target, config, pred_px, False)
         fallback = "three_of_four"
     R, t, cand_assign, gate_err, rms, n_assign, prediction_used = result
     scores = np.exp(-0.5 * (rms / config.pixel_sigma) ** 2)
-    return CandidateSet(R=R, t=t, scores=scores, time=time, observer=observer, observed=observed,
-                        source="seed001/target",
-                        meta={"assignment": cand_assign, "reprojection_px": rms, "gate_error_px": gate_err,
-                              "n_assignments": n_assign, "prediction_used": prediction_used, "fallback": fallback,
-                              "frame": "camera pose in target frame (T_target_camera)"})
+    return CandidateSet(
+        R=R,
+        t=t,
+        scores=scores,
+        time=time,
+        observer=observer,
+        observed=observed,
+        source="seed001/target",
+        meta={
+            "assignment": cand_assign,
+            "reprojection_px": rms,
+            "gate_error_px": gate_err,
+            "n_assignments": n_assign,
+            "prediction_used": prediction_used,
+            "fallback": fallback,
+            "frame": "camera pose in target frame (T_target_camera)",
+        },
+    )
 
 
 def _hypotheses(det, bearings, assign, camera, target, config, pred_px, gated):
@@ -231,8 +282,14 @@ def _hypotheses(det, bearings, assign, camera, target, config, pred_px, gated):
         R, t = _refine(R, t, cand_assign, det, camera, target)
     err = _marker_errors(camera, target, R, t, cand_assign, det)
     finite = np.isfinite(err).all(axis=1)
-    R, t, cand_assign, gate_err, err = R[finite], t[finite], cand_assign[finite], gate_err[finite], err[finite]
-    rms = np.sqrt((err ** 2).sum(axis=1) / (cand_assign >= 0).sum(axis=1))
+    R, t, cand_assign, gate_err, err = (
+        R[finite],
+        t[finite],
+        cand_assign[finite],
+        gate_err[finite],
+        err[finite],
+    )
+    rms = np.sqrt((err**2).sum(axis=1) / (cand_assign >= 0).sum(axis=1))
     return R, t, cand_assign, gate_err, rms, N, prediction_used
 
 
@@ -256,8 +313,14 @@ def _refine(R, t, assign, det, camera, target):
         R_ct = R[k].T
         rvec, _ = cv2.Rodrigues(R_ct)
         tvec = (-R_ct @ t[k]).reshape(3, 1)
-        rvec, tvec = cv2.solvePnPRefineLM(target.points[seen].reshape(-1, 1, 3), det[assign[k][seen]].reshape(-1, 1, 2),
-                                          K, dist, rvec, tvec)
+        rvec, tvec = cv2.solvePnPRefineLM(
+            target.points[seen].reshape(-1, 1, 3),
+            det[assign[k][seen]].reshape(-1, 1, 2),
+            K,
+            dist,
+            rvec,
+            tvec,
+        )
         R_new = cv2.Rodrigues(rvec)[0].T
         t_new = -R_new @ tvec.ravel()
         if np.isfinite(R_new).all() and np.isfinite(t_new).all():
@@ -294,7 +357,9 @@ class TargetDesignConfig:
         if self.n_targets < 1 or self.n_markers < 4:
             raise ValueError("TargetDesignConfig needs n_targets >= 1 and n_markers >= 4")
         if not (0 < self.d_min < self.d_max) or self.min_height < 0 or not (0 <= self.weight <= 1):
-            raise ValueError("TargetDesignConfig needs 0 < d_min < d_max, min_height >= 0, 0 <= weight <= 1")
+            raise ValueError(
+                "TargetDesignConfig needs 0 < d_min < d_max, min_height >= 0, 0 <= weight <= 1"
+            )
 
 
 def _index_sets(m: int):
@@ -306,7 +371,9 @@ def _index_sets(m: int):
     return pairs, apex[:, 0], face
 
 
-def design_cost(points: np.ndarray, config: TargetDesignConfig = TargetDesignConfig()) -> np.ndarray:
+def design_cost(
+    points: np.ndarray, config: TargetDesignConfig = TargetDesignConfig()
+) -> np.ndarray:
     """Seed 001 eq. (1) for a batch of systems: points (..., n, m, 3) [m] -> f (...,).
 
     d: all pairwise marker distances inside each target, pooled over the n targets; S = |d_i - d_j|
@@ -314,7 +381,9 @@ def design_cost(points: np.ndarray, config: TargetDesignConfig = TargetDesignCon
     else -G."""
     P = np.asarray(points, dtype=float)
     if P.shape[-3:] != (config.n_targets, config.n_markers, 3):
-        raise ValueError(f"design_cost: points must be (..., {config.n_targets}, {config.n_markers}, 3), got {P.shape}")
+        raise ValueError(
+            f"design_cost: points must be (..., {config.n_targets}, {config.n_markers}, 3), got {P.shape}"
+        )
     pairs, apex, face = _index_sets(config.n_markers)
     d = np.linalg.norm(P[..., pairs[:, 0], :] - P[..., pairs[:, 1], :], axis=-1)  # (..., n, pairs)
     A, B, C = (P[..., face[:, k], :] for k in range(3))
@@ -327,8 +396,11 @@ def design_cost(points: np.ndarray, config: TargetDesignConfig = TargetDesignCon
     S = np.abs(dd[..., iu] - dd[..., ju])
     f = config.weight * S.min(axis=-1) + (1 - config.weight) * S.mean(axis=-1)
     tol = config.tolerance
-    feasible = (dd.min(axis=-1) >= config.d_min - tol) & (dd.max(axis=-1) <= config.d_max + tol) & \
-        (h_min >= config.min_height - tol)
+    feasible = (
+        (dd.min(axis=-1) >= config.d_min - tol)
+        & (dd.max(axis=-1) <= config.d_max + tol)
+        & (h_min >= config.min_height - tol)
+    )
     return np.where(feasible, f, -config.penalty)
 
 
@@ -344,7 +416,9 @@ class TargetDesign:
     meta: dict = field(default_factory=dict, compare=False)
 
 
-def design_targets(config: TargetDesignConfig = TargetDesignConfig(), progress: bool = False) -> TargetDesign:
+def design_targets(
+    config: TargetDesignConfig = TargetDesignConfig(), progress: bool = False
+) -> TargetDesign:
     """Maximize eq. (1) with scipy Nelder-Mead from `n_starts` random feasible starts (seed III-A).
 
     Starts: `n_samples` random configurations (markers uniform in a cube of side D2), screened
@@ -357,10 +431,12 @@ def design_targets(config: TargetDesignConfig = TargetDesignConfig(), progress: 
     costs = design_cost(samples, config)
     feasible = np.flatnonzero(costs > -config.penalty)
     if len(feasible) == 0:
-        raise ValueError(f"design_targets: no feasible start among {config.n_samples} samples; "
-                         f"relax d_min/d_max/min_height or raise n_samples")
+        raise ValueError(
+            f"design_targets: no feasible start among {config.n_samples} samples; "
+            f"relax d_min/d_max/min_height or raise n_samples"
+        )
     rng.shuffle(feasible)
-    starts = feasible[:config.n_starts]
+    starts = feasible[: config.n_starts]
     best_x, best_f, finals = None, -np.inf, []
     iterator = starts
     if progress:
@@ -368,13 +444,22 @@ def design_targets(config: TargetDesignConfig = TargetDesignConfig(), progress: 
     for s in iterator:
         x = samples[s].ravel()
         for _ in range(config.restarts):  # a fresh simplex around the last optimum escapes stalls
-            res = minimize(lambda x: -float(design_cost(x.reshape(shape), config)), x, method="Nelder-Mead",
-                           options={"maxiter": config.maxiter, "xatol": 1e-6, "fatol": 1e-9})
+            res = minimize(
+                lambda x: -float(design_cost(x.reshape(shape), config)),
+                x,
+                method="Nelder-Mead",
+                options={"maxiter": config.maxiter, "xatol": 1e-6, "fatol": 1e-9},
+            )
             x = res.x
         f = -float(res.fun)
         finals.append(f)
         if f > best_f:
             best_f, best_x = f, res.x.reshape(shape)
     best_x = best_x - best_x.mean(axis=1, keepdims=True)
-    return TargetDesign(points=best_x, cost=best_f, start_costs=costs[starts], final_costs=np.array(finals),
-                        n_feasible_samples=len(feasible))
+    return TargetDesign(
+        points=best_x,
+        cost=best_f,
+        start_costs=costs[starts],
+        final_costs=np.array(finals),
+        n_feasible_samples=len(feasible),
+    )
