@@ -45,7 +45,8 @@ def synthetic(T=10, n_points=19, seed=0, teammate_moves=False):
 
 
 def frames_for(n_points, seed=0, **kw):
-    """Ideal measurement frames (0.5 px pixel noise) for `synthetic(...)`; returns frames, t, pts, base."""
+    """Ideal measurement frames (0.5 px pixel noise) for `synthetic(...)`; returns frames, t, pts,
+    base."""
     R, t, pts, base, cm, mm, odo, ostd = synthetic(n_points=n_points, seed=seed, **kw)
     return (
         ideal_frames(

@@ -127,7 +127,7 @@ def test_wrong_shapes_name_the_argument():
         check_rows([["a", "b"]], 2, "points")
 
 
-# ---------------------------------------------------------------- paraboloid omni (seed 000 section II)
+# ------------------------------------------------------- paraboloid omni (seed 000 section II)
 
 
 @pytest.mark.parametrize("conic_constant", [-1.0, -1.5, -3.0])

@@ -55,7 +55,8 @@ def test_noise_free_one_candidate_exact():
         dc, dn = best_error(poses, centre, normal)
         assert dc < 1e-6 and dn < 1e-3
         assert poses.rms_px[0] < 1e-4
-        # both candidates: in front, normal towards the camera, orthonormal rotations with z = normal
+        # both candidates: in front, normal towards the camera, orthonormal rotations with
+        # z = normal
         assert (candidates.t[:, 2] > 0).all()
         assert (np.einsum("ki,ki->k", poses.normals[0], poses.centres[0]) < 0).all()
         np.testing.assert_allclose(candidates.R[:, :, 2], poses.normals[0], atol=1e-12)

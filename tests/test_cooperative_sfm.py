@@ -1,4 +1,5 @@
-"""Cooperative motion and structure as one factor graph (seed 003) through Session batch / online."""
+"""Cooperative motion and structure as one factor graph (seed 003) through Session batch /
+online."""
 
 from dataclasses import replace
 

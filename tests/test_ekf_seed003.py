@@ -73,7 +73,8 @@ def test_initial_state_follows_seed_section_iii():
 
 
 def test_more_features_improve_depth_translation():
-    """Seed Fig. 6: with N = 1 (tracker point only) T_z is poorly estimated, many features fix it."""
+    """Seed Fig. 6: with N = 1 (tracker point only) T_z is poorly estimated, many features fix
+    it."""
     errs = {}
     for n in (1, 20):
         frames, truth, _, _ = frames_for(n - 1)

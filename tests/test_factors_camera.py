@@ -55,7 +55,8 @@ def test_bearing_factor_zero_at_truth_and_jacobians_match_numeric():
 
 
 def test_mutual_bearings_with_known_baseline_recover_formation():
-    """Seed 000 Sec. III-A / Problem 1: three robots see each other; one known distance fixes scale."""
+    """Seed 000 Sec. III-A / Problem 1: three robots see each other; one known distance fixes
+    scale."""
     truth = [
         pose((0.0, 0, 0), (0.5, 0.5, 0.3)),
         pose((1.5, 0, 0), (0.5, 2.5, 0.4)),
@@ -178,7 +179,8 @@ def test_surface_factors_pull_a_pose_onto_the_sloped_ceiling():
     start = pose((0.0, 0.0, 0.0), (1.0, 1.0, 2.5))
     g.add(gtsam.PriorFactorPose3(key, start, gtsam.noiseModel.Isotropic.Sigma(6, 10.0)))
     init = gtsam.Values()
-    # body z initialized near the plane normal (AttitudeFactor's Unit3 error also vanishes at the antipode)
+    # body z initialized near the plane normal (AttitudeFactor's Unit3 error also vanishes at the
+    # antipode)
     init.insert(
         key,
         gtsam.Pose3(

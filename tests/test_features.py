@@ -219,7 +219,10 @@ def test_refined_rim_beats_the_edge_crossings_on_texture():
             c1, a1 = _axes_and_centre(pts)
             out.append(np.abs(a1 - axes).max())
         assert np.linalg.norm(_axes_and_centre(blob.rim)[0] - centre) < 0.02
-    rms = lambda e: float(np.sqrt(np.mean(np.square(e))))
+
+    def rms(e):
+        return float(np.sqrt(np.mean(np.square(e))))
+
     assert rms(err_refined) < 0.025
     assert rms(err_refined) < 0.6 * rms(err_crossings)
     assert 0.45 < np.median(blurs) < 0.75  # the Gaussian blur of 0.6 px (plus the disk's own edge)

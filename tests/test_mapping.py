@@ -87,7 +87,8 @@ def test_led_pixel_table_errors_name_the_line(tmp_path):
 
 
 def test_information_conversion_preserves_the_quadratic_form():
-    """Open3D's left perturbation Exp(xi_L) T equals GTSAM's right one T Exp(xi_R) when xi_L = Ad_T xi_R."""
+    """Open3D's left perturbation Exp(xi_L) T equals GTSAM's right one T Exp(xi_R) when
+    xi_L = Ad_T xi_R."""
     rng = np.random.default_rng(2)
     T = gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3)), rng.normal(size=3))
     A = rng.normal(size=(6, 6))

@@ -15,6 +15,13 @@ from graphloc.experiments.p3p_bench import (
     random_p3p_instances,
     recovered,
 )
+from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straight_line_trials
+from graphloc.baselines.straight_line import (
+    StraightLineBaseline,
+    StraightLineConfig,
+    localize_by_straight_line,
+    straight_line_errors,
+)
 
 N_RANDOM = 10_000
 N_PEER = 1_000
@@ -209,15 +216,7 @@ def test_empty_batch():
     assert c.R_wc.shape == (0, 4, 3, 3) and c.valid.shape == (0, 4)
 
 
-# ----------------------------------------------------------------------------- straight-line test + demo
-
-from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straight_line_trials  # noqa: E402
-from graphloc.baselines.straight_line import (
-    StraightLineBaseline,
-    StraightLineConfig,  # noqa: E402
-    localize_by_straight_line,
-    straight_line_errors,
-)
+# ------------------------------------------------------------------------ straight-line test + demo
 
 
 def test_straight_line_errors_by_hand():

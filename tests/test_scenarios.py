@@ -1,4 +1,5 @@
-"""Scenario registry and `graphloc simulate`: every scenario writes a valid log with ground truth."""
+"""Scenario registry and `graphloc simulate`: every scenario writes a valid log with ground
+truth."""
 
 import numpy as np
 import pytest

@@ -159,7 +159,8 @@ def _solve_block(f, X, method, polish, config) -> P3PCandidates:
             geo = _geometry(F, P)
             FP = _triangle_frame(*P)  # world triangle frame, per instance
             lam, ok = solver(geo)
-            # from here on only the candidates that exist: flat arrays of length M, sorted by instance
+            # from here on only the candidates that exist: flat arrays of length M, sorted by
+            # instance
             inst, slot = np.nonzero(ok)
             lam = tuple(x[inst, slot] for x in lam)
             F, P = _gather(F, inst), _gather(P, inst)
@@ -193,7 +194,8 @@ def solve_p3p_poses(
 
 # ----------------------------------------------------------------------------- input checks
 
-# A well-conditioned stand-in for degenerate rows, so no NaN reaches the solvers (rows masked after).
+# A well-conditioned stand-in for degenerate rows, so no NaN reaches the solvers (rows masked
+# after).
 _SAFE_X = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 _SAFE_F = (_SAFE_X - [0.2, 0.3, -3.0]) / np.linalg.norm(
     _SAFE_X - [0.2, 0.3, -3.0], axis=1, keepdims=True
@@ -283,7 +285,8 @@ def _vunit(a):
 
 
 def _geometry(F, P):
-    """Cosines between bearings and squared side lengths c12, c13, c23, a12, a13, a23 ((N,1) each)."""
+    """Cosines between bearings and squared side lengths c12, c13, c23, a12, a13, a23 ((N,1)
+    each)."""
     d12, d13, d23 = _vsub(P[0], P[1]), _vsub(P[0], P[2]), _vsub(P[1], P[2])
     return (
         _vdot(F[0], F[1]),
@@ -527,9 +530,9 @@ def _finsterwalder_depths(geo):
     sa2, sb2, sg2 = 1.0 - ca * ca, 1.0 - cb * cb, 1.0 - cg * cg
     G = c2 * (c2 * sb2 - b2 * sg2)
     H = b2 * (b2 - a2) * sg2 + c2 * (c2 + 2.0 * a2) * sb2 + 2.0 * b2 * c2 * (-1.0 + ca * cb * cg)
-    I = b2 * (b2 - c2) * sa2 + a2 * (a2 + 2.0 * c2) * sb2 + 2.0 * a2 * b2 * (-1.0 + ca * cb * cg)
+    I_ = b2 * (b2 - c2) * sa2 + a2 * (a2 + 2.0 * c2) * sb2 + 2.0 * a2 * b2 * (-1.0 + ca * cb * cg)
     J = a2 * (a2 * sb2 - b2 * sa2)
-    lam0 = _real_cubic_roots(H / G, I / G, J / G).reshape(-1, 3)  # (N,3)
+    lam0 = _real_cubic_roots(H / G, I_ / G, J / G).reshape(-1, 3)  # (N,3)
     B = -ca
     A = 1.0 + lam0
     C = (b2 - a2 - lam0 * c2) / b2
@@ -662,10 +665,10 @@ def _kneip(F, P):
         (sin_a, -cos_a * cos_t, -cos_a * sin_t),
         (0.0, -sin_t, cos_t),
     )
-    # A = N^T Q^T: A[i][l] = sum_k N[k][i] Q[l][k]; R = A T
+    # A = N^T Q^T: A[i][j] = sum_k N[k][i] Q[j][k]; R = A T
     A = tuple(
         tuple(
-            Nrows[0][i] * Q[l][0] + Nrows[1][i] * Q[l][1] + Nrows[2][i] * Q[l][2] for l in range(3)
+            Nrows[0][i] * Q[j][0] + Nrows[1][i] * Q[j][1] + Nrows[2][i] * Q[j][2] for j in range(3)
         )
         for i in range(3)
     )

@@ -109,8 +109,8 @@ class CirclePoses:
             min(w, h) / max(w, h) if np.isfinite([w, h]).all() and max(w, h) > 0 else float("nan")
         )
         return (
-            f"circle rim {n}: {self.status[n]} ({self.n_points[n]} finite rim points, {self.n_skipped[n]} "
-            f"non-finite skipped, ellipse axis ratio {ratio:.3g})"
+            f"circle rim {n}: {self.status[n]} ({self.n_points[n]} finite rim points, "
+            f"{self.n_skipped[n]} non-finite skipped, ellipse axis ratio {ratio:.3g})"
         )
 
     def candidates(

@@ -56,7 +56,8 @@ class FeatureConfig:
             )
         if self.win_size < 3 or self.max_level < 0 or self.iterations < 1 or self.block_size < 3:
             raise ValueError(
-                "FeatureConfig: win_size >= 3, block_size >= 3, max_level >= 0, iterations >= 1 required"
+                "FeatureConfig: win_size >= 3, block_size >= 3, max_level >= 0, "
+                "iterations >= 1 required"
             )
 
 

@@ -65,7 +65,8 @@ class MarkerDetectorConfig:
             raise ValueError(f"MarkerDetectorConfig.expected must be >= 1, got {self.expected}")
         if not (0 < self.min_area <= self.max_area):
             raise ValueError(
-                f"MarkerDetectorConfig needs 0 < min_area <= max_area, got {self.min_area}, {self.max_area}"
+                "MarkerDetectorConfig needs 0 < min_area <= max_area, "
+                f"got {self.min_area}, {self.max_area}"
             )
         if not (0.0 <= self.min_axis_ratio <= 1.0 and 0.0 <= self.min_solidity <= 1.0):
             raise ValueError(
@@ -217,7 +218,8 @@ class _Blobs:
         return np.where(wsum > 0, weighted, binary)
 
     def axis_ratio(self) -> np.ndarray:
-        """sqrt(minor/major eigenvalue) of the binary second central moments (+1/12 pixel extent)."""
+        """sqrt(minor/major eigenvalue) of the binary second central moments (+1/12 pixel
+        extent)."""
         n = np.maximum(self.n, 1)
         mx, my = self.s[:, 0] / n, self.s[:, 1] / n
         cxx = self.s[:, 2] / n - mx * mx + 1.0 / 12
@@ -256,7 +258,8 @@ class _Blobs:
 def _label_stats(
     mask: np.ndarray, weight: np.ndarray, origin: tuple[int, int]
 ) -> tuple[_Blobs, np.ndarray]:
-    """Connected components of `mask` (a window at `origin`=(x0,y0)) -> moments of every blob (vectorized)."""
+    """Connected components of `mask` (a window at `origin`=(x0,y0)) -> moments of every blob
+    (vectorized)."""
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(
         mask.astype(np.uint8), connectivity=8
     )
@@ -346,7 +349,8 @@ def marker_area_bounds(
 def roi_from_points(
     points_px: np.ndarray, margin: float, shape: tuple[int, int]
 ) -> tuple[int, int, int, int]:
-    """(x0, y0, x1, y1) window around predicted marker pixels, `margin` px wide, clipped to the image."""
+    """(x0, y0, x1, y1) window around predicted marker pixels, `margin` px wide, clipped to the
+    image."""
     p = np.asarray(points_px, dtype=float).reshape(-1, 2)
     if len(p) == 0 or not np.isfinite(p).all():
         raise ValueError(f"roi_from_points: predicted pixels must be finite (M,2), got {p.shape}")
@@ -517,7 +521,8 @@ def _detect_in_region(gray, region, config, predicted_px, steps, counts):
         mask2, blobs, window = None, _Blobs.empty(), region
 
     if len(blobs) < config.expected and mask2 is not None and config.erosion_iterations > 0:
-        # erosion by a Euclidean disc of growing radius (distance transform), splits touching markers
+        # erosion by a Euclidean disc of growing radius (distance transform), splits touching
+        # markers
         depth = cv2.distanceTransform(mask2.astype(np.uint8), cv2.DIST_L2, 5)
         r_big = blobs.radii().max() if len(blobs) else 0.0
         n_erode = max(

@@ -48,7 +48,8 @@ class RenderConfig:
             level = np.atleast_1d(np.asarray(getattr(self, name), dtype=float))
             if level.shape != (c,) or not np.isfinite(level).all():
                 raise ValueError(
-                    f"RenderConfig.{name} must be {c} finite value(s) for color={self.color}, got {getattr(self, name)}"
+                    f"RenderConfig.{name} must be {c} finite value(s) for color={self.color}, "
+                    f"got {getattr(self, name)}"
                 )
         if self.supersample < 1 or self.blur_sigma < 0 or self.noise_sigma < 0:
             raise ValueError(
@@ -232,7 +233,8 @@ def render_markers(
     occluders: tuple[Occluder, ...] = (),
     gains: np.ndarray | None = None,
 ) -> RenderedFrame:
-    """Render spheres of radius `marker_radius` [m] centred at `markers_cam` (M,3) [m, camera frame].
+    """Render spheres of radius `marker_radius` [m] centred at `markers_cam` (M,3) [m, camera
+    frame].
 
     gains: (M,) contrast of each marker in [0, 1] (a dim LED: level = background + gain *
     (marker_level - background)); default all 1.
@@ -249,7 +251,8 @@ def render_markers(
     dist = np.linalg.norm(pts, axis=1)
     if (dist <= marker_radius).any():
         raise ValueError(
-            f"render_markers: camera inside marker(s) {np.flatnonzero(dist <= marker_radius).tolist()}"
+            "render_markers: camera inside marker(s) "
+            f"{np.flatnonzero(dist <= marker_radius).tolist()}"
         )
     gains = np.ones(len(pts)) if gains is None else np.asarray(gains, dtype=float)
     if gains.shape != (len(pts),) or not (

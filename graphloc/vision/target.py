@@ -136,7 +136,8 @@ def project_markers(
 
 
 def predicted_marker_pixels(camera, target: MarkerTarget, pose) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted marker pixels (m,2) + visible (m,) for a predicted camera pose (gtsam.Pose3 or (R,t))."""
+    """Predicted marker pixels (m,2) + visible (m,) for a predicted camera pose (gtsam.Pose3 or
+    (R,t))."""
     p = _as_pose(pose)
     return project_markers(camera, target, p.rotation().matrix(), p.translation())
 
@@ -294,7 +295,8 @@ def _hypotheses(det, bearings, assign, camera, target, config, pred_px, gated):
 
 
 def _marker_errors(camera, target, R, t, assign, det) -> np.ndarray:
-    """(K,4) reprojection error [px] of every seen marker (0 for the unseen one, inf behind the camera)."""
+    """(K,4) reprojection error [px] of every seen marker (0 for the unseen one, inf behind the
+    camera)."""
     if len(R) == 0:
         return np.zeros((0, 4))
     px, _ = project_markers(camera, target, R, t)
@@ -382,7 +384,8 @@ def design_cost(
     P = np.asarray(points, dtype=float)
     if P.shape[-3:] != (config.n_targets, config.n_markers, 3):
         raise ValueError(
-            f"design_cost: points must be (..., {config.n_targets}, {config.n_markers}, 3), got {P.shape}"
+            f"design_cost: points must be (..., {config.n_targets}, {config.n_markers}, 3), "
+            f"got {P.shape}"
         )
     pairs, apex, face = _index_sets(config.n_markers)
     d = np.linalg.norm(P[..., pairs[:, 0], :] - P[..., pairs[:, 1], :], axis=-1)  # (..., n, pairs)
@@ -406,7 +409,8 @@ def design_cost(
 
 @dataclass(frozen=True)
 class TargetDesign:
-    """Best design `points` (n,m,3) [m] with cost `cost`; `start_costs` / `final_costs` per start."""
+    """Best design `points` (n,m,3) [m] with cost `cost`; `start_costs` / `final_costs` per
+    start."""
 
     points: np.ndarray
     cost: float
