@@ -126,7 +126,8 @@ def trajectory_metrics(
 
 
 def _associate(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, max_time_diff: float):
-    """evo nearest-time association; no common time stamps -> ValueError (not evo's SyncException)."""
+    """evo nearest-time association; no common time stamps -> ValueError (not evo's
+    SyncException)."""
     try:
         return sync.associate_trajectories(reference, estimate, max_diff=max_time_diff)
     except sync.SyncException:

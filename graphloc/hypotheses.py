@@ -109,7 +109,8 @@ class TrackerConfig:
     A frame with J < full_count candidates lacks full_count - J solutions, each equally likely
     the genuine one: a coasting track has prior 1/full_count, a present candidate j w_j J /
     full_count. A complete frame contains the genuine solution (P3P solutions vanish in pairs
-    only when the count drops): coasting prior miss_probability_full. birth_probability: prior of a track starting at a candidate without a parent.
+    only when the count drops): coasting prior miss_probability_full. birth_probability: prior
+    of a track starting at a candidate without a parent.
     max_misses: frames a track may coast. gate: Mahalanobis^2 beyond which a pair is not
     scored. max_candidate_std: cap on the candidate covariance eigenvalues (sqrt, m or rad).
     default_sigmas: candidate (rot, trans) sigmas when the CandidateSet carries no covariances.
@@ -465,10 +466,11 @@ class HypothesisTracker:
     ) -> dict[int, tuple[gtsam.Pose3, np.ndarray]]:
         """Fixed-lag windows of two poses, one per (candidate j, parent h) in `updates`: parent
         marginal prior + odometry between-factor + the mixture component of candidate j (its pose
-        as a Gaussian PriorFactorPose3, as `factors.mixture.component_factors`), all in ONE graph (disjoint keys pose_key(0, 2i),
-        pose_key(0, 2i + 1) for window i) solved by one Gauss-Newton from the predictions; the
-        marginal covariance of each new pose is the Schur complement of its window's block of
-        the Hessian at the solution (batched numpy). Returns {j: (pose, covariance)}."""
+        as a Gaussian PriorFactorPose3, as `factors.mixture.component_factors`), all in ONE graph
+        (disjoint keys pose_key(0, 2i), pose_key(0, 2i + 1) for window i) solved by one
+        Gauss-Newton from the predictions; the marginal covariance of each new pose is the Schur
+        complement of its window's block of the Hessian at the solution (batched numpy).
+        Returns {j: (pose, covariance)}."""
         poses = candidates.poses()
         odo_noise = gtsam.noiseModel.Gaussian.Covariance(odometry.covariance)
         graph, init, order = gtsam.NonlinearFactorGraph(), gtsam.Values(), []
@@ -524,8 +526,8 @@ class HypothesisTracker:
             for i, p in track_prob.items()
         }
         gain = {
-            i: max(self._max_gain.get(i, 0.0), l - self._logit[i]) if i in self._logit else 0.0
-            for i, l in logit.items()
+            i: max(self._max_gain.get(i, 0.0), lg - self._logit[i]) if i in self._logit else 0.0
+            for i, lg in logit.items()
         }
         self._logit, self._max_gain = logit, gain
         relocalized = False

@@ -88,7 +88,8 @@ class _Row:
 
 @dataclass(frozen=True)
 class Odometry2D(_Row):
-    """Unicycle velocity odometry: forward speed v [m/s], turn rate omega [rad/s]; holds until the next row."""
+    """Unicycle velocity odometry: forward speed v [m/s], turn rate omega [rad/s]; holds until the
+    next row."""
 
     time: float
     robot: str
@@ -99,7 +100,8 @@ class Odometry2D(_Row):
 
 @dataclass(frozen=True)
 class RelativePose2D(_Row):
-    """Odometry / scan-matching increment from time `time0` to `time` (frame at time0), with diagonal sigmas."""
+    """Odometry / scan-matching increment from time `time0` to `time` (frame at time0), with
+    diagonal sigmas."""
 
     time: float
     robot: str
@@ -151,7 +153,8 @@ class Range(_Row):
 
 @dataclass(frozen=True)
 class RangeBearing2D(_Row):
-    """Range [m] and bearing [rad] in the sensor frame to `target` (a robot name or 'landmark:<id>')."""
+    """Range [m] and bearing [rad] in the sensor frame to `target` (a robot name or
+    'landmark:<id>')."""
 
     time: float
     robot: str
@@ -189,8 +192,9 @@ class MarkerPixel(_Row):
 
 @dataclass(frozen=True)
 class PoseCandidate(_Row):
-    """Candidate k of a P3P (or other) hypothesis set: pose of `target` in the sensor frame (quaternion
-    qw qx qy qz, translation tx ty tz) with a score >= 0. Rows sharing (time, sensor, target) form one set."""
+    """Candidate k of a P3P (or other) hypothesis set: pose of `target` in the sensor frame
+    (quaternion qw qx qy qz, translation tx ty tz) with a score >= 0. Rows sharing (time, sensor,
+    target) form one set."""
 
     time: float
     robot: str
@@ -262,8 +266,8 @@ def columns(table: str) -> list[str]:
 # ---- manifest --------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Sensor:
-    """name, type (odometry | range_bearing | bearing | camera | scanner), extrinsics body_T_sensor as a
-    4x4 matrix, and free-form `params` (noise sigmas, intrinsics, ...)."""
+    """name, type (odometry | range_bearing | bearing | camera | scanner), extrinsics body_T_sensor
+    as a 4x4 matrix, and free-form `params` (noise sigmas, intrinsics, ...)."""
 
     name: str
     type: str
@@ -330,7 +334,8 @@ def _extrinsics(value, where: str) -> np.ndarray:
             T = arr
         else:
             raise ValueError(
-                f"{where}: extrinsics must be [x, y, theta], {{xyz, rpy}} or 4x4, got shape {arr.shape}"
+                f"{where}: extrinsics must be [x, y, theta], {{xyz, rpy}} or 4x4, "
+                f"got shape {arr.shape}"
             )
     if not np.isfinite(T).all():
         raise ValueError(f"{where}: extrinsics contain NaN/inf")
@@ -527,7 +532,8 @@ def iter_table(
                 except ValueError:
                     sink.bad(
                         "parse",
-                        f"{where}: field '{name}': cannot parse {text.strip()!r} as {conv.__name__}",
+                        f"{where}: field '{name}': cannot parse {text.strip()!r} "
+                        f"as {conv.__name__}",
                     )
                     ok = False
                     break
@@ -541,7 +547,8 @@ def iter_table(
             if values["time"] < last_time:
                 sink.bad(
                     "time_backwards",
-                    f"{where}: field 'time': {values['time']} goes backwards (previous {last_time})",
+                    f"{where}: field 'time': {values['time']} goes backwards "
+                    f"(previous {last_time})",
                 )
                 continue
             if "sensor" in values:
@@ -549,7 +556,8 @@ def iter_table(
                 if sensor is None:
                     sink.bad(
                         "unknown_sensor",
-                        f"{where}: field 'sensor': robot {robot.name!r} has no sensor {values['sensor']!r}",
+                        f"{where}: field 'sensor': robot {robot.name!r} "
+                        f"has no sensor {values['sensor']!r}",
                     )
                     continue
                 if sensor.type != SENSOR_TYPES[table]:
@@ -562,7 +570,8 @@ def iter_table(
             if "target" in values and not _known_target(values["target"], robots, landmark_ids):
                 sink.bad(
                     "unknown_target",
-                    f"{where}: field 'target': {values['target']!r} is neither a robot nor a known landmark",
+                    f"{where}: field 'target': {values['target']!r} "
+                    "is neither a robot nor a known landmark",
                 )
                 continue
             last_time = values["time"]
@@ -627,7 +636,8 @@ def read_landmarks(manifest: Manifest) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def is_tum(path: str) -> bool:
-    """3D ground truth is a TUM file (graphloc.datasets.graphloc_log.read_tum_poses), not a CSV table."""
+    """3D ground truth is a TUM file (graphloc.datasets.graphloc_log.read_tum_poses), not a CSV
+    table."""
     return str(path).endswith(".tum")
 
 
@@ -669,13 +679,14 @@ def iter_records(
 # ---- planar multi-robot run (numpy form) -----------------------------------------------------
 @dataclass(frozen=True)
 class PlanarRun:
-    """A planar multi-robot run in arrays (the MRCLAM loader's form; `graphloc.run.team_run_from_planar`
-    turns it into the TeamRun every pipeline takes).
+    """A planar multi-robot run in arrays (the MRCLAM loader's form;
+    `graphloc.run.team_run_from_planar` turns it into the TeamRun every pipeline takes).
 
     robots: R names; initial_poses: (R,3) (x, y, theta) at start_time (NaN row = unknown);
     odometry[r]: (N_r,3) time, v, omega; groundtruth[r]: (G_r,4) time, x, y, theta or None;
-    observations (M rows, time-sorted): obs_time, obs_robot (observer index), obs_target_robot (index
-    or -1), obs_landmark (landmark id or -1), obs_range [m], obs_bearing [rad] (robot body frame);
+    observations (M rows, time-sorted): obs_time, obs_robot (observer index), obs_target_robot
+    (index or -1), obs_landmark (landmark id or -1), obs_range [m], obs_bearing [rad] (robot body
+    frame);
     landmark_ids (L,), landmark_xy (L,2), landmark_sigma (L,2); skips: what the loader skipped.
     """
 
@@ -705,7 +716,8 @@ class PlanarRun:
             or len(self.groundtruth) != R
         ):
             raise ValueError(
-                f"PlanarRun: initial_poses must be ({R},3) and odometry/groundtruth have {R} entries"
+                f"PlanarRun: initial_poses must be ({R},3) and odometry/groundtruth "
+                f"have {R} entries"
             )
         m = self.obs_time.shape
         for name in ("obs_robot", "obs_target_robot", "obs_landmark", "obs_range", "obs_bearing"):

@@ -1,6 +1,7 @@
 """Generic result plots (matplotlib, Agg backend, PNG files) anyone can reuse:
 
-plot_trajectories(path, [Series("batch", xy), ...], reference=[Series("ground truth", xy)], points=landmarks)
+plot_trajectories(path, [Series("batch", xy), ...], reference=[Series("ground truth", xy)],
+                  points=landmarks)
 plot_series(path, [Series("batch robot1", t, err), ...], xlabel="time [s]", ylabel="ATE [m]")
 """
 
@@ -18,7 +19,8 @@ import numpy as np  # noqa: E402
 
 @dataclass(frozen=True)
 class Series:
-    """A labelled curve: x (N,) and y (N,) -- or for trajectories x = (N,2) positions and y = None."""
+    """A labelled curve: x (N,) and y (N,) -- or for trajectories x = (N,2) positions and
+    y = None."""
 
     label: str
     x: np.ndarray
@@ -47,7 +49,8 @@ def plot_trajectories(
     title: str = "",
     point_label: str = "landmarks",
 ) -> Path:
-    """Top view: estimated trajectories (solid), references (dashed black unless colored), optional points."""
+    """Top view: estimated trajectories (solid), references (dashed black unless colored),
+    optional points."""
     fig, ax = plt.subplots(figsize=(7, 7))
     for s in reference:
         x, y = _xy(s)

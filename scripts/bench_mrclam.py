@@ -8,7 +8,8 @@ per-configuration outputs (TUM, metrics.json, PNGs) and ate_per_robot.png, and c
 - online ATE within 20 % of batch ATE (every robot, landmarks + inter-robot);
 - online >= 50x faster than real time (run duration / online solve wall time, this run).
 
-    .venv/bin/python scripts/bench_mrclam.py --data ../shared/data/mrclam/MRCLAM_Dataset6 --out out/bench_mrclam
+    .venv/bin/python scripts/bench_mrclam.py --data ../shared/data/mrclam/MRCLAM_Dataset6 \\
+        --out out/bench_mrclam
 
 Everything goes through the path `graphloc smooth` / `online` take: `graphloc.datasets.open_run`
 and `graphloc.pipelines.team_graph` (SE(3) poses, planar robots held to the floor plane).
@@ -104,7 +105,8 @@ def main(argv=None) -> int:
                 if e.get("groundtruth")
             }
             print(
-                f"{name:24s} {mode:6s} wall {metrics['solve_wall_s']:7.2f} s  real-time x{metrics['realtime_factor']:7.1f}  "
+                f"{name:24s} {mode:6s} wall {metrics['solve_wall_s']:7.2f} s  "
+                f"real-time x{metrics['realtime_factor']:7.1f}  "
                 "ATE "
                 + " ".join(
                     f"{r}:{e[mode]['ate_rmse']:.3f}/{e['dead_reckoning']['ate_rmse']:.3f}"

@@ -201,19 +201,22 @@ def markdown(r: dict) -> str:
             ),
             "",
             (
-                f"- steps: {o['steps']}; p95 CPU first / last 10 %: {t['cpu_p95_first10_ms']:.2f} / "
+                f"- steps: {o['steps']}; p95 CPU first / last 10 %: "
+                f"{t['cpu_p95_first10_ms']:.2f} / "
                 f"{t['cpu_p95_last10_ms']:.2f} ms (ratio {t['cpu_p95_last_over_first']:.2f}); "
                 f"slowest step CPU {t['cpu_max_ms']:.1f} ms;"
             ),
             (
                 f"- p95 wall latency {o['latency_ms']['p95']:.2f} ms, "
-                f"{_num(o.get('p95_latency_over_single_run'))}x the single run's; last-10 % p95 CPU "
+                f"{_num(o.get('p95_latency_over_single_run'))}x the single run's; "
+                "last-10 % p95 CPU "
                 f"{_num(o.get('p95_cpu_over_single_run'))}x the single run's;"
             ),
             f"- variables held at the end: {t['variables_end']} (max {t['variables_max']});",
             (
-                f"- resident memory slope: {mem} MB per 1,000 steps (the session keeps every factor "
-                f"and value it was given, for `save` and the final trajectory), "
+                f"- resident memory slope: {mem} MB per 1,000 steps "
+                "(the session keeps every factor "
+                "and value it was given, for `save` and the final trajectory), "
                 f"{o['rss_mb_end']:.0f} MB at the end;"
             ),
             (

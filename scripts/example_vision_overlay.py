@@ -89,7 +89,10 @@ def panel_markers(ax, rng):
                 ax.plot([ap[0, 0], e[0]], [ap[0, 1], e[1]], color=c, lw=1.5)
         best = int(np.argmax(cands.scores))
         err = 100 * np.linalg.norm(cands.t[best] - t)
-        title += f", {len(cands)} hypotheses, best score {cands.scores[best]:.2f}, position error {err:.2f} cm"
+        title += (
+            f", {len(cands)} hypotheses, best score {cands.scores[best]:.2f}, "
+            f"position error {err:.2f} cm"
+        )
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=7, loc="lower left")
     ax.axis("off")

@@ -47,7 +47,8 @@ class BeliefVectorConfig:
     def __post_init__(self):
         if self.likelihood not in LIKELIHOODS:
             raise ValueError(
-                f"BeliefVectorConfig.likelihood must be one of {LIKELIHOODS}, got {self.likelihood!r}"
+                f"BeliefVectorConfig.likelihood must be one of {LIKELIHOODS}, "
+                f"got {self.likelihood!r}"
             )
         if not (
             self.gate_distance > 0

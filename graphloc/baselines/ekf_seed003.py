@@ -94,7 +94,8 @@ TRACKER_ID = -1  # id of the robot tracker's point among the state's points
 
 
 def incremental_rotation(w: np.ndarray) -> np.ndarray:
-    """Rotation matrix of dq = (sqrt(1 - eps), w_x/2, w_y/2, w_z/2), eps = |w|^2 / 4 (eqs. 11-12)."""
+    """Rotation matrix of dq = (sqrt(1 - eps), w_x/2, w_y/2, w_z/2), eps = |w|^2 / 4
+    (eqs. 11-12)."""
     eps = float(w @ w) / 4.0
     if eps >= 1.0:
         raise ValueError(f"incremental rotation too large: |w| = {np.sqrt(4 * eps):.3f} >= 2")

@@ -42,7 +42,8 @@ class ParticleFilterConfig:
         n = np.asarray(self.plane_normal, dtype=float)
         if n.shape != (3,) or not np.isfinite(n).all() or np.linalg.norm(n) < 1e-9:
             raise ValueError(
-                f"ParticleFilterConfig.plane_normal must be a non-zero 3-vector, got {self.plane_normal}"
+                "ParticleFilterConfig.plane_normal must be a non-zero 3-vector, "
+                f"got {self.plane_normal}"
             )
         if not (
             self.alpha1 >= 0 and self.alpha2 >= 0 and self.sigma > 0 and 0 < self.threshold < 1

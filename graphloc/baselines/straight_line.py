@@ -83,7 +83,8 @@ def pick_straight_line(positions: np.ndarray, valid: np.ndarray):
 
 
 def bearings_from_pixels(pixels: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """(...,2) pixels of an undistorted pinhole camera -> (...,3) unit bearings (cv2.undistortPoints)."""
+    """(...,2) pixels of an undistorted pinhole camera -> (...,3) unit bearings
+    (cv2.undistortPoints)."""
     pts = np.ascontiguousarray(np.asarray(pixels, dtype=float).reshape(-1, 1, 2))
     norm = cv2.undistortPoints(pts, np.asarray(K, dtype=float), None).reshape(-1, 2)
     rays = np.concatenate([norm, np.ones((norm.shape[0], 1))], axis=1)
@@ -132,7 +133,8 @@ class StraightLineConfig:
     def __post_init__(self):
         if not (int(self.spacing) >= 1 and self.max_error > 0):
             raise ValueError(
-                f"StraightLineConfig: spacing >= 1 and max_error > 0, got {self.spacing}, {self.max_error}"
+                "StraightLineConfig: spacing >= 1 and max_error > 0, "
+                f"got {self.spacing}, {self.max_error}"
             )
 
 

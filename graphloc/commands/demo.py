@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "main job: simulate dual-robot-room and fuse the ground + ceiling maps end to end (report, map, PNGs)"
+HELP = (
+    "main job: simulate dual-robot-room and fuse the ground + ceiling maps end to end "
+    "(report, map, PNGs)"
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

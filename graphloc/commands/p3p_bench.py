@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "benchmark the batched P3P solvers against cv2.solveP3P / poselib.p3p loops (JSON, markdown, PNG)"
+HELP = (
+    "benchmark the batched P3P solvers against cv2.solveP3P / poselib.p3p loops "
+    "(JSON, markdown, PNG)"
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

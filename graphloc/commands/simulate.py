@@ -5,7 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-HELP = "simulate a registered scenario into a log directory (feng-deterministic, feng-probabilistic, ...)"
+HELP = (
+    "simulate a registered scenario into a log directory "
+    "(feng-deterministic, feng-probabilistic, ...)"
+)
 
 
 def add_arguments(parser) -> None:

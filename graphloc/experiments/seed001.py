@@ -321,9 +321,11 @@ def markdown(summary: dict) -> str:
 
     p = PAPER["run1"]
     lines = [
-        "| run | pose | frames localized | pos mean | pos std | pos max | rot mean | rot std | rot max |",
+        "| run | pose | frames localized | pos mean | pos std | pos max "
+        "| rot mean | rot std | rot max |",
         "|---|---|---|---|---|---|---|---|---|",
-        f"| 1 (0.68-1.74 m) | paper | - | {p['pos_mean_cm']} cm | {p['pos_std_cm']} cm | {p['pos_max_cm']} cm | "
+        f"| 1 (0.68-1.74 m) | paper | - | {p['pos_mean_cm']} cm | {p['pos_std_cm']} cm | "
+        f"{p['pos_max_cm']} cm | "
         f"{p['rot_mean_deg']} deg | {p['rot_std_deg']} deg | {p['rot_max_deg']} deg |",
     ]
     for key, label in (
@@ -334,13 +336,16 @@ def markdown(summary: dict) -> str:
         if key == "run2_at_3m":
             q = PAPER["run2_at_3m"]
             lines.append(
-                f"| {label} | paper | - | {q['pos_mean_cm']} cm | - | - | {q['rot_mean_deg']} deg | - | - |"
+                f"| {label} | paper | - | {q['pos_mean_cm']} cm | - | - | "
+                f"{q['rot_mean_deg']} deg | - | - |"
             )
         for v in VARIANTS:
             s = summary[key][v]
             lines.append(
-                f"| {label} | sim {v} | {s['localized']}/{s['frames']} | {cell(s, 'pos_mean_cm', 'cm')} | "
-                f"{cell(s, 'pos_std_cm', 'cm')} | {cell(s, 'pos_max_cm', 'cm')} | {cell(s, 'rot_mean_deg', 'deg')} | "
+                f"| {label} | sim {v} | {s['localized']}/{s['frames']} | "
+                f"{cell(s, 'pos_mean_cm', 'cm')} | "
+                f"{cell(s, 'pos_std_cm', 'cm')} | {cell(s, 'pos_max_cm', 'cm')} | "
+                f"{cell(s, 'rot_mean_deg', 'deg')} | "
                 f"{cell(s, 'rot_std_deg', 'deg')} | {cell(s, 'rot_max_deg', 'deg')} |"
             )
     return "\n".join(lines)

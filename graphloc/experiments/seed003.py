@@ -313,9 +313,12 @@ def summarize(trials: list[dict], n_values: list[int]) -> dict:
             "normal_error_max_deg": float(np.nanmax(cat["normal_deg"])),
             "normal_error_rms_deg": float(np.sqrt(np.nanmean(cat["normal_deg"] ** 2))),
         }
-    rms = lambda k: float(
-        np.sqrt(np.mean(np.concatenate([t["front_end"]["crlb"][k] for t in trials]) ** 2))
-    )
+
+    def rms(k):
+        return float(
+            np.sqrt(np.mean(np.concatenate([t["front_end"]["crlb"][k] for t in trials]) ** 2))
+        )
+
     front["crlb"] = {
         "frames": int(sum(len(t["front_end"]["crlb"]["depth_sd"]) for t in trials)),
         "depth_sd_rms_mm": 1000 * rms("depth_sd"),
