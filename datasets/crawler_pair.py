@@ -162,7 +162,10 @@ class CrawlerPairSequence:
         """Per frame (T,): camera_moved, teammate_moved (since the previous frame; False at 0),
         teammate odometry distance and its std (0 where it stood still)."""
         mover = np.array(("",) + self.mover)
-        pad = lambda a: np.concatenate([[0.0], a])
+
+        def pad(a):
+            return np.concatenate([[0.0], a])
+
         return (
             mover == "camera",
             mover == "teammate",
@@ -197,7 +200,8 @@ class TexturedScene:
     ground_origin: tuple[float, float]
 
     def intersect(self, origin: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Nearest hit (M,3) of rays (M,3) from origin (3,) with wall or ground, and on_wall (M,)."""
+        """Nearest hit (M,3) of rays (M,3) from origin (3,) with wall or ground, and on_wall
+        (M,)."""
         o = np.asarray(origin, float)
         with np.errstate(divide="ignore", invalid="ignore"):
             s_wall = (self.wall_z - o[2]) / rays[:, 2]

@@ -71,7 +71,8 @@ class CameraConfig:
 
 @dataclass(frozen=True)
 class DualRoomConfig:
-    """One scenario: room variant, random placement/headings from `seed`, `frames` steps at `rate` Hz."""
+    """One scenario: room variant, random placement/headings from `seed`, `frames` steps at
+    `rate` Hz."""
 
     variant: str = "furnished"
     seed: int = 0
@@ -95,7 +96,8 @@ class DualRoomConfig:
             raise ValueError(f"DualRoomConfig.frames must be >= 2 (got {self.frames})")
         if not 0 <= self.min_offset <= self.max_offset:
             raise ValueError(
-                f"DualRoomConfig needs 0 <= min_offset <= max_offset (got {self.min_offset}, {self.max_offset})"
+                "DualRoomConfig needs 0 <= min_offset <= max_offset "
+                f"(got {self.min_offset}, {self.max_offset})"
             )
         if not self.rate > 0:
             raise ValueError(f"DualRoomConfig.rate must be > 0 (got {self.rate})")
@@ -142,8 +144,8 @@ def _quat_xyzw(R: np.ndarray) -> list:
 
 
 def led_positions() -> np.ndarray:
-    """(3,3) LED centres P1..P3 in the ground LiDAR frame: equilateral, side 0.3048 m (seed 004 Fig. 1B),
-    on a plate 0.12 m above the LiDAR centre."""
+    """(3,3) LED centres P1..P3 in the ground LiDAR frame: equilateral, side 0.3048 m
+    (seed 004 Fig. 1B), on a plate 0.12 m above the LiDAR centre."""
     r = LED_SIDE / np.sqrt(3.0)
     ang = np.deg2rad([0.0, 120.0, 240.0])
     return np.stack([r * np.cos(ang), r * np.sin(ang), np.full(3, 0.12)], axis=1)
@@ -172,7 +174,8 @@ class Room:
         return mesh
 
     def free(self, xy: np.ndarray, margin: float) -> np.ndarray:
-        """(N,2) -> (N,) True where a disc of radius `margin` touches no wall or furniture footprint."""
+        """(N,2) -> (N,) True where a disc of radius `margin` touches no wall or furniture
+        footprint."""
         xy = np.atleast_2d(xy)
         ok = (xy[:, 0] > margin) & (xy[:, 0] < self.size[0] - margin)
         ok &= (xy[:, 1] > margin) & (xy[:, 1] < self.size[1] - margin)
@@ -224,7 +227,8 @@ def make_room(variant: str) -> Room:
 
 
 def variant_config(variant: str, seed: int, **overrides) -> DualRoomConfig:
-    """Default config of a variant (low_overlap: 4 m LiDAR range as in seed 004 Sec. IV.A, robots apart)."""
+    """Default config of a variant (low_overlap: 4 m LiDAR range as in seed 004 Sec. IV.A, robots
+    apart)."""
     kw: dict = dict(variant=variant, seed=seed)
     if variant == "low_overlap":
         kw.update(lidar=LidarConfig(max_range=4.0), max_offset=1.6)
@@ -324,8 +328,9 @@ def trajectories(room: Room, cfg: DualRoomConfig, rng: np.random.Generator):
 def observe_leds(
     scene, Tg: np.ndarray, Tc: np.ndarray, cam: CameraConfig, rng: np.random.Generator
 ):
-    """LED pixels seen by the ceiling camera: (F,3,2) pixels (NaN where not seen) and (F,3) visibility
-    (in front, inside the image, not occluded -- checked by ray casting camera -> LED)."""
+    """LED pixels seen by the ceiling camera: (F,3,2) pixels (NaN where not seen) and (F,3)
+    visibility (in front, inside the image, not occluded -- checked by ray casting camera ->
+    LED)."""
     leds_w = np.einsum("fij,nj->fni", Tg[:, :3, :3], led_positions()) + Tg[:, None, :3, 3]
     T_wcam = Tc @ T_CEILING_CAMERA
     T_camw = np.linalg.inv(T_wcam)
@@ -361,7 +366,8 @@ class DualRoomScenario:
 
     @property
     def T_ground0_ceiling0(self) -> np.ndarray:
-        """Ground truth inter-robot transform: ceiling first-frame LiDAR pose in the ground first frame."""
+        """Ground truth inter-robot transform: ceiling first-frame LiDAR pose in the ground first
+        frame."""
         return np.linalg.inv(self.poses["ground"][0]) @ self.poses["ceiling"][0]
 
     @staticmethod
@@ -377,7 +383,8 @@ class DualRoomScenario:
                 break
         else:
             raise ValueError(
-                f"dual-robot-room {config.variant} seed {config.seed}: LEDs never seen twice in 100 placements"
+                f"dual-robot-room {config.variant} seed {config.seed}: "
+                "LEDs never seen twice in 100 placements"
             )
         scans_g, counts_g = scan_frames(scene, Tg, config.lidar, rng)
         scans_c, counts_c = scan_frames(scene, Tc, config.lidar, rng)
@@ -409,7 +416,8 @@ class DualRoomScenario:
 
     def write(self, out_dir) -> Path:
         """scans/<robot>/<frame:06d>.ply, poses_<robot>.tum (ground truth, TUM), led_pixels.csv,
-        meta.json (config, intrinsics, LED layout, extrinsic, ground truth transform, counts), room.ply."""
+        meta.json (config, intrinsics, LED layout, extrinsic, ground truth transform, counts),
+        room.ply."""
         out = Path(out_dir)
         for robot in ROBOTS:
             (out / "scans" / robot).mkdir(parents=True, exist_ok=True)
@@ -532,7 +540,8 @@ class DualRoomScenario:
 
     @staticmethod
     def load(in_dir) -> "DualRoomScenario":
-        """Read a directory written by `write` (ValueError naming the file on anything malformed)."""
+        """Read a directory written by `write` (ValueError naming the file on anything
+        malformed)."""
         src = Path(in_dir)
         meta_path = src / "meta.json"
         if not meta_path.is_file():

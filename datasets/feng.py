@@ -10,8 +10,9 @@ climbing robot, the camera pose from P3P (up to four candidates, one genuine).
   odometry dimensions (a_t); run ends at the ceiling boundary.
 
 Camera: perspective 640x480, FOV 2/3 pi (Sec. VI-A), pixel noise N(0, 0.5) px along a
-uniformly random direction (Sec. VI-A). Candidates come from `graphloc.vision.marker_poses.p3p_candidate_sets`
-on the noisy bearings, one call per run. Camera frame: z = optical axis, x = image right.
+uniformly random direction (Sec. VI-A). Candidates come from
+`graphloc.vision.marker_poses.p3p_candidate_sets` on the noisy bearings, one call per run.
+Camera frame: z = optical axis, x = image right.
 The probabilistic camera is a pan-tilt head looking at the ground robots' centroid with image
 x along the direction of travel; odometry is the noisy relative camera pose between updates
 (`T_{t-1}^-1 T_t`, frame of the previous camera pose).

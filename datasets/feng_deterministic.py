@@ -48,7 +48,8 @@ class Seed000Config:
     lateral_sigma: float = 0.001  # position noise perpendicular to the motion [m]
 
     def camera(self) -> PinholeCamera:
-        """The climbing robot's camera C (the same model as graphloc.datasets.feng.seed000_camera)."""
+        """The climbing robot's camera C (the same model as
+        graphloc.datasets.feng.seed000_camera)."""
         return PinholeCamera.from_fov(self.width, self.height, self.fov_rad)
 
     def camera_matrix(self) -> np.ndarray:

@@ -9,12 +9,13 @@ pitch 13.75 um: C-mount 16-36 mm lenses), the camera 2.5 m above the LED plane (
 over a 0.5 m ground robot) -- with a smaller sensor or a lower ceiling the 36 mm lens cannot
 see the whole 0.3048 m triangle. Each run is a
 short track (Fig. 3: the climbing robot follows a sinusoid on the ceiling): `frames` updates
-`step` m apart (at `speed` m/s) along y = A sin(2 pi x / wavelength), starting within `start_radius` of the
-point above the LED centroid, the camera pan-tilted at the centroid (it must stay in a 36 mm
-lens' 10 deg field of view). Odometry between updates is the noisy relative camera pose
-(graphloc.datasets.feng.noisy_odometry; seed 004 Algorithm 1's alpha_1, alpha_2 are not
-given: `odometry_noise` relative translation, `odometry_rot_sigma` rad). Frame: the LED frame
-(P1 at the origin, X1-Y1 in the LED plane, z up), as the seed's X1-Y1-Z1.
+`step` m apart (at `speed` m/s) along y = A sin(2 pi x / wavelength), starting within
+`start_radius` of the point above the LED centroid, the camera pan-tilted at the centroid (it
+must stay in a 36 mm lens' 10 deg field of view). Odometry between updates is the noisy
+relative camera pose (graphloc.datasets.feng.noisy_odometry; seed 004 Algorithm 1's alpha_1,
+alpha_2 are not given: `odometry_noise` relative translation, `odometry_rot_sigma` rad).
+Frame: the LED frame (P1 at the origin, X1-Y1 in the LED plane, z up), as the seed's
+X1-Y1-Z1.
 """
 
 from __future__ import annotations

@@ -176,7 +176,8 @@ def _check_row(text: str, limits, int_cols, kind: str, last: float | None):
 
 
 def interpolate_pose(gt: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """Ground truth (G,4) time, x, y, theta linearly interpolated (heading unwrapped) at `times` -> (n,3)."""
+    """Ground truth (G,4) time, x, y, theta linearly interpolated (heading unwrapped) at `times`
+    -> (n,3)."""
     th = np.unwrap(gt[:, 3])
     out = np.stack(
         [
@@ -335,7 +336,8 @@ class MRCLAM:
             if gt is not None and len(gt) >= 2:
                 if not (gt[0, 0] <= start <= gt[-1, 0]):
                     raise ValueError(
-                        f"{self.root / f'Robot{ids[i]}_Groundtruth.dat'}: does not cover start time {start}"
+                        f"{self.root / f'Robot{ids[i]}_Groundtruth.dat'}: "
+                        f"does not cover start time {start}"
                     )
                 init[i] = interpolate_pose(gt, np.array([start]))[0]
                 inside = (gt[:, 0] >= start) & (gt[:, 0] <= end)
@@ -354,7 +356,8 @@ class MRCLAM:
         lm_is_robot = np.isin(landmarks[:, 0].astype(int), ids)
         if lm_is_robot.any():
             raise ValueError(
-                f"{self.root / 'Landmark_Groundtruth.dat'}: subjects {landmarks[lm_is_robot, 0]} are robots"
+                f"{self.root / 'Landmark_Groundtruth.dat'}: "
+                f"subjects {landmarks[lm_is_robot, 0]} are robots"
             )
         return PlanarRun(
             name=self.root.name,

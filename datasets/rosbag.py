@@ -16,12 +16,13 @@ and extrinsics) and maps each topic to one robot and one table of the log format
   `TransformStamped`.
 
 `import_bag(bag, topics, out)` writes a version-2 log directory (`graphloc.io` tables, the one
-reader being `graphloc.datasets.graphloc_log.read_team_run`); the `RosBag` loader of `graphloc.datasets.open_run`
-imports into a temporary directory and reads that. The clock is the messages' header stamps;
-each topic is sorted by stamp (bag order, i.e. receive time, may differ). A message that cannot
-be decoded, has the wrong type for its table, or holds a bad value is a counted skip naming the
-bag, topic and message index (`graphloc.io.SkipReport`), never a crash; the import's skips are
-kept in the manifest's `meta.import.skips` and merged into `TeamRun.skips` by the loader.
+reader being `graphloc.datasets.graphloc_log.read_team_run`); the `RosBag` loader of
+`graphloc.datasets.open_run` imports into a temporary directory and reads that. The clock is
+the messages' header stamps; each topic is sorted by stamp (bag order, i.e. receive time, may
+differ). A message that cannot be decoded, has the wrong type for its table, or holds a bad
+value is a counted skip naming the bag, topic and message index (`graphloc.io.SkipReport`),
+never a crash; the import's skips are kept in the manifest's `meta.import.skips` and merged
+into `TeamRun.skips` by the loader.
 """
 
 from __future__ import annotations

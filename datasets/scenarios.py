@@ -322,7 +322,8 @@ def generate(name: str, out_dir, seed: int = 0, overrides: dict | None = None) -
         return ADAPTERS[name](out_dir, seed, **overrides)
     if not (hasattr(cls, "generate") and hasattr(cls, "config_class")):
         raise ValueError(
-            f"{name!r} has no log-format generator (not a `graphloc simulate` scenario); scenarios: {', '.join(scenario_names())}"
+            f"{name!r} has no log-format generator (not a `graphloc simulate` scenario); "
+            f"scenarios: {', '.join(scenario_names())}"
         )
     return cls().generate(out_dir, seed, **overrides)
 

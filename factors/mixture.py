@@ -208,7 +208,8 @@ class MaxMixture:
         )
 
     def __reduce__(self):
-        """Pickle as (components, weights): the built-in factors pickle, the CustomFactor is rebuilt."""
+        """Pickle as (components, weights): the built-in factors pickle, the CustomFactor is
+        rebuilt."""
         return (MaxMixture, (self.components, self.weights))
 
     def save_state(self) -> dict:

@@ -33,11 +33,13 @@ def between_factor(
     dim = 3 if isinstance(relative, gtsam.Pose2) else 6
     if not isinstance(relative, (gtsam.Pose2, gtsam.Pose3)):
         raise ValueError(
-            f"between_factor: relative must be Pose2/Pose3 or a 3x3/4x4 matrix, got {type(relative)}"
+            "between_factor: relative must be Pose2/Pose3 or a 3x3/4x4 matrix, "
+            f"got {type(relative)}"
         )
     if cov.shape != (dim, dim):
         raise ValueError(
-            f"between_factor: covariance must be {dim}x{dim} for {type(relative).__name__}, got {cov.shape}"
+            f"between_factor: covariance must be {dim}x{dim} for {type(relative).__name__}, "
+            f"got {cov.shape}"
         )
     check_covariance(cov, "between_factor covariance")
     noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(cov), kernel)
@@ -109,7 +111,8 @@ def integrate_unicycle(
     kf = np.asarray(keyframe_times, dtype=float)
     if times.ndim != 1 or v.shape != times.shape or w.shape != times.shape:
         raise ValueError(
-            f"integrate_unicycle: times, v, w must be equal-length 1-D arrays, got {times.shape}, {v.shape}, {w.shape}"
+            "integrate_unicycle: times, v, w must be equal-length 1-D arrays, "
+            f"got {times.shape}, {v.shape}, {w.shape}"
         )
     if kf.ndim != 1 or kf.size < 1:
         raise ValueError("integrate_unicycle: need at least one keyframe time")

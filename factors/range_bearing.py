@@ -59,7 +59,8 @@ def robot_factor_2d(
     sigmas=(0.05, 0.1),
     kernel: Kernel = Kernel(),
 ) -> gtsam.BearingRangeFactorPose2:
-    """Planar robot at `observer_key` sees the origin of robot pose `observed_key` at (bearing, range)."""
+    """Planar robot at `observer_key` sees the origin of robot pose `observed_key` at
+    (bearing, range)."""
     _check(bearing, range_)
     return gtsam.BearingRangeFactorPose2(
         observer_key,
@@ -78,7 +79,8 @@ def landmark_factor_3d(
     sigmas=(0.05, 0.05, 0.1),
     kernel: Kernel = Kernel(),
 ) -> gtsam.BearingRangeFactor3D:
-    """Robot pose (Pose3) sees landmark point (Point3) along unit `direction` (body frame) at `range_`."""
+    """Robot pose (Pose3) sees landmark point (Point3) along unit `direction` (body frame) at
+    `range_`."""
     d = _unit(direction)
     _check(d, range_)
     return gtsam.BearingRangeFactor3D(
@@ -111,8 +113,9 @@ def _unit(direction) -> np.ndarray:
 
 
 def to_body_frame_2d(bearing: np.ndarray, range_: np.ndarray, body_P_sensor=(0.0, 0.0, 0.0)):
-    """Re-express (bearing, range) measured in a sensor frame mounted at body_P_sensor = (x, y, theta)
-    as (bearing, range) from the body origin (vectorized over arrays)."""
+    """Re-express (bearing, range) measured in a sensor frame mounted at
+    body_P_sensor = (x, y, theta) as (bearing, range) from the body origin (vectorized over
+    arrays)."""
     b, r = np.asarray(bearing, dtype=float), np.asarray(range_, dtype=float)
     sx, sy, st = (float(a) for a in body_P_sensor)
     if sx == 0.0 and sy == 0.0 and st == 0.0:

@@ -35,7 +35,8 @@ class SurfacePlane:
             or not (np.isfinite(p).all() and np.isfinite(n).all())
         ):
             raise ValueError(
-                f"SurfacePlane: point and normal must be finite 3-vectors, got {self.point!r}, {self.normal!r}"
+                "SurfacePlane: point and normal must be finite 3-vectors, "
+                f"got {self.point!r}, {self.normal!r}"
             )
         norm = np.linalg.norm(n)
         if norm < 1e-12:

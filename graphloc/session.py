@@ -25,7 +25,8 @@ Example (GTSAM-example style: explicit keys, one graph, one optimizer):
 
     from graphloc.keys import pose_key
     s = Session(SessionConfig(mode="online"))
-    g = gtsam.NonlinearFactorGraph(); g.add(gtsam.PriorFactorPose2(pose_key(0, 0), gtsam.Pose2(), noise))
+    g = gtsam.NonlinearFactorGraph()
+    g.add(gtsam.PriorFactorPose2(pose_key(0, 0), gtsam.Pose2(), noise))
     v = gtsam.Values(); v.insert(pose_key(0, 0), gtsam.Pose2())
     s.add(g, v, time=0.0)
     s.estimate().atPose2(pose_key(0, 0))
@@ -117,15 +118,18 @@ class SessionConfig:
             )
         if self.lm_max_iterations < 1 or self.relinearize_skip < 1 or self.extra_updates < 0:
             raise ValueError(
-                "SessionConfig: lm_max_iterations and relinearize_skip must be >= 1, extra_updates >= 0"
+                "SessionConfig: lm_max_iterations and relinearize_skip must be >= 1, "
+                "extra_updates >= 0"
             )
         if not (self.wildfire_threshold >= 0 and np.isfinite(self.wildfire_threshold)):
             raise ValueError(
-                f"SessionConfig.wildfire_threshold must be finite >= 0, got {self.wildfire_threshold}"
+                "SessionConfig.wildfire_threshold must be finite >= 0, "
+                f"got {self.wildfire_threshold}"
             )
         if not (self.relinearize_threshold >= 0 and np.isfinite(self.relinearize_threshold)):
             raise ValueError(
-                f"SessionConfig.relinearize_threshold must be finite >= 0, got {self.relinearize_threshold}"
+                "SessionConfig.relinearize_threshold must be finite >= 0, "
+                f"got {self.relinearize_threshold}"
             )
 
 
@@ -267,8 +271,8 @@ class Session:
         time: float | None = None,
     ) -> Step:
         """Append `factors` (a NonlinearFactorGraph or iterable of factors) and the initial guess of
-        the variables they introduce. `time` must not go backwards (None: same as the previous step).
-        Every key a factor touches must be known already or be in `initial_values`; keys in
+        the variables they introduce. `time` must not go backwards (None: same as the previous
+        step). Every key a factor touches must be known already or be in `initial_values`; keys in
         `initial_values` must be new. A system GTSAM cannot solve (e.g. an unconstrained variable)
         raises ValueError."""
         items = _as_items(factors)
@@ -373,7 +377,8 @@ class Session:
         return _subset(self._batch_estimate, keys)
 
     def marginal_covariance(self, key: int) -> np.ndarray:
-        """Marginal covariance of one variable at the current estimate (tangent-space, GTSAM order)."""
+        """Marginal covariance of one variable at the current estimate (tangent-space, GTSAM
+        order)."""
         self._check_known([key], "marginal_covariance")
         try:
             if self.marginalized(key):

@@ -13,8 +13,9 @@
    above the ground robot); otherwise `fuse` raises `FusionRejected` ("not fused", with why);
 4. one graph: prior on the ground robot's first pose, scan-matching between-factors for both
    robots (point-to-plane ICP of consecutive scans from the KISS-ICP increment, covariance from
-   the registration's information matrix), the ICP inter-robot factor, and a P3P between-factor per camera frame (the candidate that
-   agrees with the registered estimate); batch Levenberg-Marquardt (`graphloc.session.Session`);
+   the registration's information matrix), the ICP inter-robot factor, and a P3P between-factor
+   per camera frame (the candidate that agrees with the registered estimate); batch
+   Levenberg-Marquardt (`graphloc.session.Session`);
 5. fused map: every scan placed with the optimized poses, denoised, each point labelled with
    its robot.
 
@@ -132,8 +133,8 @@ class FusionInput:
             )
         if (self.leds is None) == (self.hint is None):
             raise ValueError(
-                "FusionInput: give LED observations or a relative pose hint for the inter-robot guess "
-                "(exactly one of them)"
+                "FusionInput: give LED observations or a relative pose hint for the inter-robot "
+                "guess (exactly one of them)"
             )
         if self.hint is not None and (
             np.shape(self.hint) != (4, 4) or not np.isfinite(self.hint).all()
@@ -248,9 +249,10 @@ def led_initial_guess(
     odo_c: OdometryResult,
     cfg: FusionConfig,
 ) -> GuessResult:
-    """Seed 004 Sec. II-C with the HypothesisTracker: every frame's P3P candidates (camera in G_0 via
-    the ground odometry) and the ceiling camera's odometry between observed frames; the committed
-    (else most probable) track at the last frame, carried back to C_0 by the ceiling odometry."""
+    """Seed 004 Sec. II-C with the HypothesisTracker: every frame's P3P candidates (camera in G_0
+    via the ground odometry) and the ceiling camera's odometry between observed frames; the
+    committed (else most probable) track at the last frame, carried back to C_0 by the ceiling
+    odometry."""
     start = time.perf_counter()
     cands, skipped = led_candidates(leds, times, cfg)
     if not cands:

@@ -107,8 +107,8 @@ def read_tum(path) -> tuple[np.ndarray, np.ndarray]:
 
 def read_led_pixels(path, n_frames: int) -> np.ndarray:
     """LED pixel table `frame,time,led,u,v` (header line first) -> (n_frames,3,2), NaN where an LED
-    was not seen. ValueError naming file:line on malformed rows, unknown frame/LED, non-finite pixels
-    or a repeated (frame, led)."""
+    was not seen. ValueError naming file:line on malformed rows, unknown frame/LED, non-finite
+    pixels or a repeated (frame, led)."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: missing")

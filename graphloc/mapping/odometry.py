@@ -31,7 +31,8 @@ class OdometryConfig:
 @dataclass(frozen=True)
 class OdometryResult:
     """poses: (F,4,4) LiDAR pose of each frame in the robot's first frame (poses[0] = I).
-    local_map: (M,3) all frames' points in the first frame, voxel-downsampled. seconds: wall time."""
+    local_map: (M,3) all frames' points in the first frame, voxel-downsampled. seconds: wall
+    time."""
 
     poses: np.ndarray
     local_map: np.ndarray

@@ -28,10 +28,11 @@ reg_l = o3d.pipelines.registration
 
 @dataclass(frozen=True)
 class RegistrationConfig:
-    """Denoising (nb_neighbors, std_ratio), downsampling (voxel [m]), normals (normal_radius, max_nn),
-    point-to-plane ICP (scales [m], max_correspondence [m], max_iterations per stage, relative tolerances),
-    FPFH + RANSAC (fpfh_radius, ransac_distance, ransac_iterations, ransac_confidence), and the
-    range noise used to scale the information matrix (range_sigma [m])."""
+    """Denoising (nb_neighbors, std_ratio), downsampling (voxel [m]), normals (normal_radius,
+    max_nn), point-to-plane ICP (scales [m], max_correspondence [m], max_iterations per stage,
+    relative tolerances), FPFH + RANSAC (fpfh_radius, ransac_distance, ransac_iterations,
+    ransac_confidence), and the range noise used to scale the information matrix (range_sigma
+    [m])."""
 
     nb_neighbors: int = 20
     std_ratio: float = 2.0
@@ -65,7 +66,8 @@ class RegistrationConfig:
         n = len(self.scales)
         if n == 0 or len(self.max_correspondence) != n or len(self.max_iterations) != n:
             raise ValueError(
-                "RegistrationConfig: scales, max_correspondence and max_iterations need one entry per stage"
+                "RegistrationConfig: scales, max_correspondence and max_iterations need one entry "
+                "per stage"
             )
         if (
             min(self.scales) <= 0
@@ -108,8 +110,9 @@ class Registration:
 def denoise(
     points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig()
 ) -> tuple[o3d.t.geometry.PointCloud, int]:
-    """Voxel downsampling, then statistical outlier removal (seed 004 Sec. IV.A: a point far from its
-    nearest neighbours is noise); returns the cloud and the number of (voxel) outliers removed."""
+    """Voxel downsampling, then statistical outlier removal (seed 004 Sec. IV.A: a point far from
+    its nearest neighbours is noise); returns the cloud and the number of (voxel) outliers
+    removed."""
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"denoise: points must be (N,3), got {pts.shape}")
@@ -125,7 +128,8 @@ def denoise(
 def prepare(
     points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0)
 ) -> PreparedCloud:
-    """`denoise`, then normals oriented toward `viewpoint` (the sensor, for FPFH's signed angles)."""
+    """`denoise`, then normals oriented toward `viewpoint` (the sensor, for FPFH's signed
+    angles)."""
     pcd, n_out = denoise(points, cfg)
     pcd.estimate_normals(cfg.max_nn, cfg.normal_radius)
     pcd.orient_normals_towards_camera_location(
@@ -177,7 +181,8 @@ def refine(
     if result.fitness <= 0 or np.linalg.eigvalsh(0.5 * (info + info.T))[0] <= 0:
         raise ValueError(
             f"refine: ICP found too few correspondences within {dist} m of the initial guess "
-            f"(fitness {float(result.fitness):.3f}): a wrong pose hint, or scans that do not overlap"
+            f"(fitness {float(result.fitness):.3f}): a wrong pose hint, "
+            "or scans that do not overlap"
         )
     seconds = time.perf_counter() - start
     return Registration(
@@ -192,7 +197,8 @@ def global_fpfh_ransac(
     seed: int = 0,
 ) -> tuple[np.ndarray, float]:
     """FPFH + RANSAC global registration (Open3D) on clouds downsampled to cfg.fpfh_voxel (normals
-    re-estimated at 2 voxels); returns (T_target_source, seconds including downsampling and features)."""
+    re-estimated at 2 voxels); returns (T_target_source, seconds including downsampling and
+    features)."""
     start = time.perf_counter()
     o3d.utility.random.seed(int(seed))
     coarse = []

@@ -234,7 +234,8 @@ def summary_text(report: dict) -> str:
     lines = [
         f"T_ground0_ceiling0: translation {[round(v, 4) for v in t['translation_m']]} m, "
         f"rpy {[round(v, 3) for v in t['rpy_deg_xyz']]} deg",
-        f"ICP fitness {report['registration']['fitness']:.3f}, RMSE {report['registration']['inlier_rmse_m']:.4f} m, "
+        f"ICP fitness {report['registration']['fitness']:.3f}, "
+        f"RMSE {report['registration']['inlier_rmse_m']:.4f} m, "
         f"{report['registration']['icp_iterations']} iterations",
     ]
     if "errors_vs_truth" in report:

@@ -26,7 +26,8 @@ from graphloc.run import TeamRun
 
 
 def _trajectory(times: np.ndarray, rows: np.ndarray) -> PoseTrajectory3D:
-    """(N,) times and (N,7) x y z qx qy qz qw rows -> evo trajectory (evo's quaternions are w first)."""
+    """(N,) times and (N,7) x y z qx qy qz qw rows -> evo trajectory (evo's quaternions are w
+    first)."""
     ok = np.isfinite(rows).all(axis=1)
     q = rows[ok, 3:7]
     return PoseTrajectory3D(

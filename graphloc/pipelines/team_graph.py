@@ -428,7 +428,8 @@ def build_graph(
                 continue
             E = o.body_T_sensor
             X_t, P_t = target_track[kt]
-            # the candidates (target_T_sensor) in the world through the target's pose, its uncertainty added
+            # the candidates (target_T_sensor) in the world through the target's pose, its
+            # uncertainty added
             seen = o.candidates.poses()  # target_T_sensor
             world = [X_t.compose(p) for p in seen]
             cand_cov = candidate_covariances(o.candidates, config.tracker.default_sigmas)
@@ -467,7 +468,9 @@ def build_graph(
                         kernel,
                     )
                     factor = gtsam.PriorFactorPose3(pose_key(r, k), body, noise)
-                else:  # observer_T_target = E target_T_sensor^-1, covariance moved to the target's side
+                else:
+                    # observer_T_target = E target_T_sensor^-1, covariance moved to the target's
+                    # side
                     noise = robust_noise(
                         gtsam.noiseModel.Gaussian.Covariance(_adjoint_cov(seen[j], cand_cov[j])),
                         kernel,
@@ -654,8 +657,8 @@ def _point_factor(m, key, lkey, direction, rng, kernel, E):
         )
     if np.linalg.norm(E.translation()) > 1e-9:
         raise ValueError(
-            f"{m.kind} to landmark {m.landmark}: a sensor offset from the body origin is supported for "
-            f"range-bearing and robot targets only"
+            f"{m.kind} to landmark {m.landmark}: a sensor offset from the body origin is "
+            "supported for range-bearing and robot targets only"
         )
     if m.kind == "bearing":
         d = E.rotation().rotate(direction)
