@@ -137,3 +137,13 @@ def test_no_absolute_machine_paths_in_the_code():
         if machine.search(p.read_text(encoding="utf-8"))
     }
     assert not holders, f"absolute machine paths in {sorted(holders)}"
+
+
+def test_ruff_check_and_format_are_clean():
+    """Lines at most 100 columns, pyflakes / pycodestyle clean and ruff's formatting, as
+    configured in pyproject.toml ([tool.ruff]); ruff comes with the `test` extra."""
+    for args in (["check", "."], ["format", "--check", "."]):
+        done = subprocess.run(
+            [sys.executable, "-m", "ruff", *args], cwd=ROOT, capture_output=True, text=True
+        )
+        assert done.returncode == 0, f"ruff {' '.join(args)}:\n{done.stdout}{done.stderr}"
