@@ -30,6 +30,7 @@ from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
 from graphloc.eval import write_tum
+from graphloc.io import write_table
 from graphloc.mapping.fusion import FusionInput, LedObservations
 from graphloc.mapping.io import read_led_pixels, read_points, read_tum
 
@@ -129,14 +130,6 @@ def _rot_z(yaw: np.ndarray) -> np.ndarray:
 
 
 FLIP_X = np.diag([1.0, -1.0, -1.0])  # 180 deg about x: the ceiling robot is upside down
-
-
-def _write_rows(path: Path, header: list, rows: list) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(header)
-        w.writerows(rows)
 
 
 def _quat_xyzw(R: np.ndarray) -> list:
@@ -468,7 +461,7 @@ class DualRoomScenario:
                 (f"{t:.6f}", "lidar", f"scans/{robot}/{f:06d}.ply")
                 for f, t in enumerate(self.times)
             ]
-            _write_rows(out / robot / "scans.csv", ["time", "sensor", "path"], rows)
+            write_table(out / robot / "scans.csv", "scans", rows)
             tables[robot] = {"scans": f"{robot}/scans.csv", "groundtruth": f"poses_{robot}.tum"}
         rows = [
             (
@@ -483,9 +476,7 @@ class DualRoomScenario:
             for k in range(3)
             if self.led_visible[f, k]
         ]
-        _write_rows(
-            out / "ceiling" / "markers.csv", ["time", "sensor", "target", "marker", "u", "v"], rows
-        )
+        write_table(out / "ceiling" / "markers.csv", "markers", rows)
         tables["ceiling"]["markers"] = "ceiling/markers.csv"
         cam = self.config.camera
         T0 = self.poses["ground"][0]
@@ -518,15 +509,7 @@ class DualRoomScenario:
                             "name": "camera",
                             "type": "camera",
                             "extrinsics": T_CEILING_CAMERA.tolist(),
-                            "params": {
-                                "fx": cam.fx,
-                                "fy": cam.fy,
-                                "cx": cam.cx,
-                                "cy": cam.cy,
-                                "width": cam.width,
-                                "height": cam.height,
-                                "pixel_sigma": cam.pixel_noise,
-                            },
+                            "params": {**cam.pinhole().params(), "pixel_sigma": cam.pixel_noise},
                         },
                     ],
                     "tables": tables["ceiling"],

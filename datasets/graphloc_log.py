@@ -107,6 +107,8 @@ def _camera(params: dict, where: str) -> PinholeCamera:
         raise ValueError(
             f"{where}: camera params need fx, fy, cx, cy, width, height; missing {exc}"
         ) from None
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: camera params: {exc}") from None
 
 
 def _robot(r, where: str) -> TeamRobot:

@@ -36,15 +36,17 @@ from pathlib import Path
 
 import gtsam
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from graphloc.eval import write_tum
 from graphloc.io import (
     LANDMARK_PREFIX,
     MANIFEST,
     SENSOR_TYPES,
     SkipReport,
-    columns,
     read_manifest,
     write_manifest,
+    write_table,
 )
 from graphloc.datasets.graphloc_log import read_team_run
 from graphloc.run import TeamRun, truncate
@@ -577,16 +579,14 @@ def _increment(m: TopicMap, prev, cur, msgtype: str):
 
 
 def _write_table(path: Path, table: str, rows: list) -> None:
-    def text(v):
-        return repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)
-
-    with open(path, "w", newline="") as fh:
-        if table == "groundtruth":  # TUM: timestamp tx ty tz qx qy qz qw
-            fh.writelines(" ".join(text(v) for v in row) + "\n" for row in rows)
-            return
-        w = csv.writer(fh)
-        w.writerow(columns(table))
-        w.writerows([text(v) for v in row] for row in rows)
+    if table != "groundtruth":
+        write_table(path, table, rows)
+        return
+    a = np.asarray(rows, dtype=float)  # timestamp tx ty tz qx qy qz qw -> the one TUM writer
+    poses = np.tile(np.eye(4), (len(a), 1, 1))
+    poses[:, :3, :3] = Rotation.from_quat(a[:, 4:8]).as_matrix()
+    poses[:, :3, 3] = a[:, 1:4]
+    write_tum(path, a[:, 0], poses)
 
 
 # ---- the loader (graphloc.datasets.loaders protocol) -----------------------------------------

@@ -41,7 +41,7 @@ from graphloc.datasets.feng_deterministic import (
     simulate_straight_line_trials,
 )
 from graphloc.eval import write_tum
-from graphloc.io import columns, write_manifest
+from graphloc.io import write_manifest, write_table
 
 
 class Scenario(Protocol):
@@ -83,14 +83,6 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
     return out
 
 
-def _write_table(path: Path, table: str, rows: list) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w") as fh:
-        fh.write(",".join(columns(table)) + "\n")
-        for row in rows:
-            fh.write(",".join(f"{v:.9g}" if isinstance(v, float) else str(v) for v in row) + "\n")
-
-
 @dataclass(frozen=True)
 class CameraTrackLog:
     """One camera (robot `observer`, body frame = camera frame) watching the markers of a static
@@ -129,7 +121,7 @@ def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
         for j, (u, v) in enumerate(px)
         if np.isfinite([u, v]).all()
     ]
-    _write_table(out / obs / "markers.csv", "markers", markers)
+    write_table(out / obs / "markers.csv", "markers", markers)
     tables = {"markers": f"{obs}/markers.csv", "groundtruth": f"{obs}/groundtruth.tum"}
     poses = np.broadcast_to(np.eye(4), (len(log.times), 4, 4)).copy()
     poses[:, :3, :3], poses[:, :3, 3] = log.R_wc, log.t_wc
@@ -152,7 +144,7 @@ def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
                     *map(float, np.sqrt(np.diag(cov))),
                 )
             )
-        _write_table(out / obs / "relative_pose3.csv", "relative_pose3", rows)
+        write_table(out / obs / "relative_pose3.csv", "relative_pose3", rows)
         tables["relative_pose3"] = f"{obs}/relative_pose3.csv"
         sensors.append({"name": "odometry", "type": "odometry"})
     cam = log.camera
@@ -160,15 +152,7 @@ def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
         {
             "name": "camera",
             "type": "camera",
-            "params": {
-                "fx": cam.fx,
-                "fy": cam.fy,
-                "cx": cam.cx,
-                "cy": cam.cy,
-                "width": cam.width,
-                "height": cam.height,
-                "pixel_sigma": log.pixel_sigma,
-            },
+            "params": {**cam.params(), "pixel_sigma": log.pixel_sigma},
         }
     )
     climber = {

@@ -117,6 +117,18 @@ class PinholeCamera:
             raise ValueError(f"PinholeCamera.dist must be finite, got {dist}")
         object.__setattr__(self, "dist", dist)
 
+    def params(self) -> dict:
+        """The intrinsics as a log's camera `params` (docs/log_format.md)."""
+        out = {
+            "fx": self.fx,
+            "fy": self.fy,
+            "cx": self.cx,
+            "cy": self.cy,
+            "width": self.width,
+            "height": self.height,
+        }
+        return {**out, "dist": list(self.dist)} if self.dist else out
+
     @classmethod
     def from_fov(
         cls,

@@ -820,8 +820,20 @@ def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Pa
     return root
 
 
+def write_table(path: str | Path, table: str, rows) -> Path:
+    """One table of a log: header `columns(table)`, then `rows` (floats written losslessly, so
+    large time stamps keep their digits); parent folders created."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _write_csv(path, columns(table), rows)
+    return path
+
+
 def _write_csv(path: Path, header: list[str], rows) -> None:
+    def text(v):
+        return repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)
+
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
-        w.writerows(rows)
+        w.writerows([text(v) for v in row] for row in rows)

@@ -11,7 +11,7 @@ layout returns); covariances are 6x6 in GTSAM's Pose3 tangent order (rx, ry, rz,
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import gtsam
 import numpy as np
@@ -225,27 +225,25 @@ def team_run_from_planar(run, defaults: dict | None = None) -> TeamRun:
 
 
 def truncate(run: TeamRun, duration: float) -> TeamRun:
-    """The first `duration` seconds of `run` (after its start time)."""
+    """The first `duration` seconds of `run` (after its start time); the rows left out are
+    counted in the run's skips (reason "after_duration")."""
     if not (np.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be finite > 0, got {duration}")
     end = run.start_time + duration
-    return TeamRun(
-        name=run.name,
-        robots=run.robots,
-        start_time=run.start_time,
-        velocity=tuple(v[v[:, 0] <= end] for v in run.velocity),
-        motions=tuple(m for m in run.motions if m.t1 <= end),
-        points=tuple(p for p in run.points if p.time <= end),
-        observations=tuple(o for o in run.observations if o.time <= end),
-        groundtruth=tuple(
-            None if g is None else (g[0][g[0] <= end], g[1][: int((g[0] <= end).sum())])
-            for g in run.groundtruth
-        ),
-        landmark_ids=run.landmark_ids,
-        landmark_xyz=run.landmark_xyz,
-        landmark_sigma=run.landmark_sigma,
-        landmarks_known=run.landmarks_known,
-        skips=run.skips,
-        contributions=run.contributions,
-        meta=run.meta,
+    kept = {
+        "velocity": tuple(v[v[:, 0] <= end] for v in run.velocity),
+        "motions": tuple(m for m in run.motions if m.t1 <= end),
+        "points": tuple(p for p in run.points if p.time <= end),
+        "observations": tuple(o for o in run.observations if o.time <= end),
+    }
+    cut = sum(len(v) for v in run.velocity) - sum(len(v) for v in kept["velocity"])
+    cut += sum(len(getattr(run, k)) - len(kept[k]) for k in ("motions", "points", "observations"))
+    skips = SkipReport()
+    skips.merge(run.skips)
+    if cut:
+        skips.add("after_duration", f"{run.name}: {cut} rows after the first {duration} s", cut)
+    groundtruth = tuple(
+        None if g is None else (g[0][g[0] <= end], g[1][: int((g[0] <= end).sum())])
+        for g in run.groundtruth
     )
+    return replace(run, groundtruth=groundtruth, skips=skips, **kept)
