@@ -21,7 +21,7 @@ from pathlib import Path
 
 from graphloc.datasets import open_run
 
-from graphloc.commands.smooth import DEFAULT_LAG
+from graphloc.pipelines.team_graph import DEFAULT_LAG
 from graphloc.experiments.scale import (
     gtsam_only_batch,
     online_profile,
@@ -239,7 +239,7 @@ NOTES = [
     '  graph ("remove variables ... that are not unused"; a plain pose chain does not show',
     "  it), so variables are not re-stamped and long-lived ones (static robots, SLAM",
     "  landmarks) would leave the window: such runs default to full smoothing",
-    "  (`graphloc.commands.smooth.auto_lag`).",
+    "  (`graphloc.pipelines.team_graph.default_lag`).",
     "- Memory is measured on the long run only, which runs first in the process (later solves",
     "  reuse pages earlier ones freed, which hides their growth).",
     "- The first tenth of a fixed-lag run includes the window filling up, so its p95 is lower",

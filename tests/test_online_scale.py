@@ -15,6 +15,7 @@ from test_mrclam import write_synthetic_mrclam
 
 from graphloc.cli import main
 from graphloc.commands import smooth
+from graphloc.pipelines.team_graph import DEFAULT_LAG
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.session import Session, SessionConfig
 
@@ -94,7 +95,7 @@ def test_cli_latency_csv_and_auto_lag(synthetic, tmp_path):
     out = tmp_path / "on"
     assert main(["online", str(synthetic), "--out", str(out), "--no-progress"]) == 0
     m = json.loads((out / "metrics.json").read_text())
-    assert m["lag_s"] == smooth.DEFAULT_LAG and m["partial"] is False
+    assert m["lag_s"] == DEFAULT_LAG and m["partial"] is False
     assert m["steps_done"] == m["steps_total"]
     rows = (out / "latency.csv").read_text().splitlines()
     assert rows[0] == "step,time,latency_s,cpu_s,factors,variables"

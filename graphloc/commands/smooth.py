@@ -18,11 +18,12 @@ import threading
 import tomllib
 from pathlib import Path
 
+from graphloc.pipelines.team_graph import DEFAULT_LAG
+
 HELP = (
     "batch factor-graph smoothing of a team's run (log dir or MRCLAM dir): TUM, metrics JSON, PNGs"
 )
 MODE = "batch"
-DEFAULT_LAG = 20.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
 EXIT_STOPPED = 3  # SIGINT / SIGTERM: the outputs so far were written, metrics marked partial
 # option -> (type, default, help); every one can also be set in the --config file
 OPTIONS = {
@@ -167,19 +168,6 @@ def check_out(out: Path) -> None:
         raise ValueError(f"--out {out}: {parent} is not writable")
 
 
-def auto_lag(run, config) -> float:
-    """The online lag when --lag is not given: DEFAULT_LAG when every variable is only needed
-    near its own time -- no static robot (its one pose is observed all run long) and no
-    landmark estimated as one variable (SLAM) -- else 0 (full smoothing): the fixed-lag
-    smoother stamps a variable once (`graphloc.session.SessionConfig`), so a long-lived one
-    would leave the window and every later factor on it would be dropped."""
-    static = any(r.static for r in run.robots)
-    slam = config.use_landmarks and not (
-        config.landmark_priors and run.landmarks_known and config.anchor_known_landmarks
-    )
-    return 0.0 if static or slam else DEFAULT_LAG
-
-
 class StopFlag:
     """SIGINT / SIGTERM set the flag (the solve finishes its step and stops); a second SIGINT
     interrupts at once. Installed for the duration of a `with` block."""
@@ -221,7 +209,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
 
     from graphloc.datasets import open_run
     from graphloc.pipelines.report import evaluate, write_outputs
-    from graphloc.pipelines.team_graph import build_graph, solve
+    from graphloc.pipelines.team_graph import build_graph, default_lag, solve
 
     check_out(args.out)
     values = options(args)
@@ -230,7 +218,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
     with StopFlag() as stop:
         noise = {k: values[k] for k in NOISE if values[k] is not None}
         run = open_run(args.run, duration=values["duration"], noise=noise)
-        lag = values["lag"] if values["lag"] is not None else auto_lag(run, config)
+        lag = values["lag"] if values["lag"] is not None else default_lag(run, config)
         if not (lag >= 0 and lag < float("inf")):
             raise ValueError(f"--lag must be finite >= 0, got {lag}")
         config = replace(config, lag=float(lag))

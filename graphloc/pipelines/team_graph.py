@@ -59,6 +59,9 @@ ANCHOR_BASE = (
 )
 
 
+DEFAULT_LAG = 20.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
+
+
 @dataclass(frozen=True)
 class GraphConfig:
     """keyframe_dt [s]: pose grid of wheel-odometry robots; sync_tolerance [s]: how far from a
@@ -911,3 +914,16 @@ def _predict(graph: TeamGraph, key: int, latest: dict):
         if all(s is not None for s in graph.step_rel[r][k0 + 1 : k + 1]):
             return pose.compose(rel)
     return graph.initial[key]
+
+
+def default_lag(run, config: GraphConfig) -> float:
+    """The online lag when none is given: DEFAULT_LAG when every variable is only needed
+    near its own time -- no static robot (its one pose is observed all run long) and no
+    landmark estimated as one variable (SLAM) -- else 0 (full smoothing): the fixed-lag
+    smoother stamps a variable once (`graphloc.session.SessionConfig`), so a long-lived one
+    would leave the window and every later factor on it would be dropped."""
+    static = any(r.static for r in run.robots)
+    slam = config.use_landmarks and not (
+        config.landmark_priors and run.landmarks_known and config.anchor_known_landmarks
+    )
+    return 0.0 if static or slam else DEFAULT_LAG
