@@ -17,7 +17,8 @@ import numpy as np
 
 from graphloc.cameras import PinholeCamera
 from graphloc.datasets.feng import look_at
-from graphloc.datasets.scenarios import CameraTrackLog, parse_overrides, write_camera_track
+from graphloc.config import parse_overrides
+from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
 from graphloc.vision.render import RenderConfig, render_markers
 from graphloc.vision.target import LARGE_TARGET
 
@@ -54,7 +55,8 @@ class BreitenmoserTargetScenario:
     name = "breitenmoser-target"
     config_class = BreitenmoserConfig
 
-    def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
+    @classmethod
+    def generate(cls, out_dir, seed: int = 0, **overrides) -> Path:
         config = replace(BreitenmoserConfig(), **parse_overrides(BreitenmoserConfig, overrides))
         rng = np.random.default_rng(seed)
         out = Path(out_dir)
@@ -88,7 +90,7 @@ class BreitenmoserTargetScenario:
                 cv2.imwrite(str(out / "climber" / "images" / f"{k:06d}.png"), frame.image)
         times = np.arange(n) / config.rate_hz
         log = CameraTrackLog(
-            name=self.name,
+            name=cls.name,
             times=times,
             R_wc=R,
             t_wc=eye,

@@ -20,12 +20,15 @@ x along the direction of travel; odometry is the noisy relative camera pose betw
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 
 import gtsam
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
+from graphloc.config import parse_overrides
+from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
 CEILINGS = ("level", "sloped")
@@ -220,7 +223,40 @@ def odometry_covariance(
 
 
 class FengProbabilisticScenario:
-    """Sec. VI-B scenario generator: `FengProbabilisticScenario.simulate(config) -> FengRun`."""
+    """Sec. VI-B scenario generator: `FengProbabilisticScenario.simulate(config) -> FengRun` in
+    memory; `generate(out_dir, seed, **overrides)` writes one run as a log directory
+    (`graphloc simulate feng-probabilistic`, the `graphloc.datasets.scenarios.Scenario`
+    protocol)."""
+
+    name = "feng-probabilistic"
+    config_class = FengProbabilisticConfig
+
+    @classmethod
+    def generate(cls, out_dir, seed: int = 0, **overrides) -> Path:
+        config = replace(
+            FengProbabilisticConfig(seed=seed),
+            **parse_overrides(FengProbabilisticConfig, overrides),
+        )
+        run = cls.simulate(config)
+        cov = [
+            odometry_covariance(o, config.odometry_noise, config.odometry_rot_sigma)
+            for o in run.odometry
+        ]
+        log = CameraTrackLog(
+            name=cls.name,
+            times=run.times,
+            R_wc=run.R_wc,
+            t_wc=run.t_wc,
+            layout=run.landmarks,
+            pixels=run.pixels,
+            camera=seed000_camera(),
+            pixel_sigma=config.pixel_sigma,
+            odometry=run.odometry,
+            odometry_cov=cov,
+            surface=(run.plane.origin, run.plane.normal),
+            meta={"seed_paper": "000_05137a0a9c449be3.txt Sec. VI-B", "config": asdict(config)},
+        )
+        return write_camera_track(log, out_dir)
 
     @staticmethod
     def trajectory(

@@ -33,7 +33,8 @@ from graphloc.datasets.feng import (
     project_world,
     relative_poses,
 )
-from graphloc.datasets.scenarios import CameraTrackLog, parse_overrides, write_camera_track
+from graphloc.config import parse_overrides
+from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
 from graphloc.geometry.p3p import P3PCandidates, solve_p3p
 
 SIDE = 0.3048  # LED triangle side [m] (seed 004 Sec. II-A)
@@ -204,7 +205,8 @@ class KaushikP3PErrorScenario:
     name = "kaushik-p3p-error"
     config_class = KaushikConfig
 
-    def generate(self, out_dir, seed: int = 0, **overrides) -> Path:
+    @classmethod
+    def generate(cls, out_dir, seed: int = 0, **overrides) -> Path:
         config = replace(
             KaushikConfig(runs=1, seed=seed), **parse_overrides(KaushikConfig, overrides)
         )
@@ -214,7 +216,7 @@ class KaushikP3PErrorScenario:
             for o in run.odometry[0]
         ]
         log = CameraTrackLog(
-            name=self.name,
+            name=cls.name,
             times=run.times,
             R_wc=run.R_wc[0],
             t_wc=run.t_wc[0],

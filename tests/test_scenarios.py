@@ -1,13 +1,14 @@
-"""Scenario registry and `graphloc simulate`: every scenario writes a valid log with ground
-truth."""
+"""The simulator protocol and `graphloc simulate`: every scenario class implements
+`Scenario` and writes a valid log with ground truth; options derive from its config."""
 
 import numpy as np
 import pytest
 
 from graphloc.cli import main
+from graphloc.config import parse_overrides
 from graphloc.datasets import dataset_class
 from graphloc.datasets.kaushik import SIDE, KaushikConfig, led_triangle, simulate
-from graphloc.datasets.scenarios import generate, parse_overrides
+from graphloc.datasets.scenarios import generate, is_scenario, scenario_names
 from graphloc.io import iter_records, read_manifest
 
 SMALL = {
@@ -32,35 +33,58 @@ def test_generate_writes_readable_log_with_groundtruth(tmp_path, name):
     assert len(np.unique([m.time for m in markers])) == len(gt)
 
 
-def test_registry_names_map_to_classes():
-    for name in (
-        "feng-deterministic",
-        "feng-probabilistic",
-        "kaushik-p3p-error",
-        "breitenmoser-target",
-        "dual-robot-room",
-    ):
-        assert dataset_class(name) is not None
+# the lead's simulators conform to the protocol in their own modules (issue 13); strict: once
+# they do, the marker must go (and scenarios._NOT_YET_CONFORMING with it)
+PENDING = pytest.mark.xfail(strict=True, reason="implements Scenario.generate (issue 13)")
+SCENARIOS = [
+    "feng-deterministic",
+    "feng-probabilistic",
+    "kaushik-p3p-error",
+    "breitenmoser-target",
+    pytest.param("dual-robot-room", marks=PENDING),
+    pytest.param("crawler-pair", marks=PENDING),
+]
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_every_scenario_class_implements_the_protocol(name):
+    cls = dataset_class(name)
+    assert is_scenario(cls) and cls.name == name
+
+
+def test_loaders_are_not_scenarios():
+    assert not is_scenario(dataset_class("mrclam"))
+    assert "mrclam" not in scenario_names()
 
 
 def test_simulate_verb_and_bad_input(tmp_path, capsys):
     assert (
-        main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "k"), "--set", "frames=3"])
-        == 0
+        main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "k"), "--frames", "3"]) == 0
     )
     assert (tmp_path / "k" / "manifest.json").is_file()
     assert main(["simulate", "no-such-scenario", "--out", str(tmp_path / "x")]) == 2
     assert main(["simulate", "mrclam", "--out", str(tmp_path / "x")]) == 2
     assert (
-        main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "x"), "--set", "bogus=1"])
-        == 2
+        main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "x"), "--bogus", "1"]) == 2
     )
     assert (
-        main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "x"), "--set", "focal_mm"])
+        main(["simulate", "kaushik-p3p-error", "--out", str(tmp_path / "x"), "--focal-mm", "x"])
         == 2
     )
+    assert main(["simulate", "kaushik-p3p-error", "--frames", "3"]) == 2
     err = capsys.readouterr().err
-    assert "no-such-scenario" in err and "bogus" in err and "KEY=VALUE" in err
+    assert "no-such-scenario" in err and "--bogus" in err and "KaushikConfig.focal_mm" in err
+    assert "--out DIR is required" in err
+    assert not (tmp_path / "x").exists()
+
+
+def test_simulate_options_are_the_config_fields(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["simulate", "breitenmoser-target", "--help"])
+    assert done.value.code == 0
+    out = capsys.readouterr().out
+    for flag in ("--frames INT", "--d-min FLOAT", "--save-images, --no-save-images"):
+        assert flag in out
 
 
 def test_parse_overrides_types():
@@ -90,8 +114,5 @@ def test_kaushik_geometry_and_genuine_candidate():
 
 @pytest.mark.slow
 def test_dual_robot_room_through_simulate(tmp_path):
-    assert (
-        main(["simulate", "dual-robot-room", "--out", str(tmp_path / "d"), "--set", "frames=2"])
-        == 0
-    )
+    assert main(["simulate", "dual-robot-room", "--out", str(tmp_path / "d"), "--frames", "2"]) == 0
     assert any((tmp_path / "d").iterdir())

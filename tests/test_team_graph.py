@@ -15,9 +15,9 @@ from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.datasets.graphloc_log import read_team_run
 
 SMALL = {
-    "feng-probabilistic": ["max_time=4.0"],
-    "kaushik-p3p-error": ["frames=10"],
-    "breitenmoser-target": ["frames=6", "save_images=false"],
+    "feng-probabilistic": ["--max-time", "4.0"],
+    "kaushik-p3p-error": ["--frames", "10"],
+    "breitenmoser-target": ["--frames", "6", "--no-save-images"],
 }
 # ATE bars [m] for these short runs (P3P noise: seed 000 0.5 px at ~3 m, seed 004 sqrt(3) px at
 # 2.5 m with a 16 mm lens, seed 001 0.1 px centroids at 0.7-3 m)
@@ -27,8 +27,7 @@ BARS = {"feng-probabilistic": 0.05, "kaushik-p3p-error": 0.25, "breitenmoser-tar
 @pytest.mark.parametrize("name", sorted(SMALL))
 def test_every_scenario_through_smooth_and_online(tmp_path, name, capsys):
     run = tmp_path / "run"
-    sets = [a for kv in SMALL[name] for a in ("--set", kv)]
-    assert main(["simulate", name, "--out", str(run), "--seed", "0", *sets]) == 0
+    assert main(["simulate", name, "--out", str(run), "--seed", "0", *SMALL[name]]) == 0
     for mode in ("smooth", "online"):
         out = tmp_path / mode
         assert main([mode, str(run), "--out", str(out), "--no-progress"]) == 0, (

@@ -1,41 +1,67 @@
-"""`graphloc simulate NAME --out DIR [--seed N] [--set KEY=VALUE ...]`: write one simulated run
-(log format + 3D ground truth, graphloc.datasets.scenarios)."""
+"""`graphloc simulate NAME --out DIR [--seed N] [--FIELD VALUE ...]`: write one simulated run
+(log format + 3D ground truth) through the simulator protocol (graphloc.datasets.scenarios).
+The options after NAME are the fields of the scenario's config dataclass, derived from it
+(graphloc.config.add_config_arguments): `graphloc simulate NAME --help` lists them."""
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
+
+from graphloc.config import add_config_arguments, option_fields
 
 HELP = (
     "simulate a registered scenario into a log directory "
-    "(feng-deterministic, feng-probabilistic, ...)"
+    "(feng-deterministic, feng-probabilistic, ...; NAME --help lists its options)"
 )
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("name", help="scenario name (graphloc.datasets registry)")
-    parser.add_argument("--out", type=Path, required=True, help="output run directory")
-    parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a field of the scenario's config dataclass (repeatable)",
+        "options",
+        nargs=argparse.REMAINDER,
+        metavar="--out DIR [--seed N] [--FIELD VALUE ...]",
+        help="output run directory, seed and the scenario config's fields (NAME --help)",
     )
 
 
-def run(args) -> int:
+def scenario_parser(name: str, config_class: type) -> argparse.ArgumentParser:
+    """The options of `graphloc simulate NAME`: --out, --seed and one per config field."""
+    parser = argparse.ArgumentParser(
+        prog=f"graphloc simulate {name}",
+        description=f"write one {name} run ({config_class.__name__} fields as options)",
+        exit_on_error=False,
+    )
+    parser.add_argument("--out", type=Path, help="output run directory (required)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed of the run")
+    add_config_arguments(parser, config_class, exclude=("seed",))
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
     # imported here, not at the top: the simulators load rendering code and Open3D, which
     # `graphloc --help` does not need
-    from graphloc.datasets.scenarios import generate
+    from graphloc.datasets.scenarios import generate, scenario_config_class
 
-    overrides = {}
-    for item in args.overrides:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise ValueError(f"--set expects KEY=VALUE, got {item!r}")
-        overrides[key.strip()] = value.strip()
-    path = generate(args.name, args.out, args.seed, overrides)
-    print(f"wrote {args.name} (seed {args.seed}) to {path}")
+    config_class = scenario_config_class(args.name)  # ValueError for unknown names
+    parser = scenario_parser(args.name, config_class)
+    try:
+        opts, rest = parser.parse_known_args(args.options)  # --help prints the fields, exits
+    except argparse.ArgumentError as exc:
+        raise ValueError(str(exc)) from None
+    if rest:
+        raise ValueError(
+            f"{args.name}: unknown option(s) {' '.join(rest)}; {config_class.__name__} fields: "
+            f"{', '.join(option_fields(config_class, exclude=('seed',)))}"
+        )
+    overrides = {
+        name: getattr(opts, name)
+        for name in option_fields(config_class, exclude=("seed",))
+        if hasattr(opts, name)
+    }
+    if opts.out is None:
+        raise ValueError(f"{args.name}: --out DIR is required")
+    path = generate(args.name, opts.out, opts.seed, overrides)
+    print(f"wrote {args.name} (seed {opts.seed}) to {path.parent}")
     return 0
