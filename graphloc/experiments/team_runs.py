@@ -264,7 +264,7 @@ INTRO = (
 FENG_NOTES = (
     "Wrong = the decided candidate is neither the genuine one (nearest the truth) nor the same "
     "pose as it within their covariances; merged = the decided candidate is not the nearest but "
-    "the same pose as it (near the P3P fold, `team_graph._same_pose`). RMSE from each run's first "
+    "the same pose as it (near the P3P fold, `team_graph.candidates.same_pose`). RMSE from each run's first "
     "decision on.\n\nToday's experiment code: `graphloc.experiments.hypotheses.evaluate` "
     "(HypothesisTracker, its committed candidates re-solved as one graph; no surface factor) on "
     "the same simulated runs."

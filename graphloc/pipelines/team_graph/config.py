@@ -1,0 +1,143 @@
+"""Settings of the team graph (`GraphConfig`), the run's precision that iSAM2's thresholds
+follow, and the online lag policy."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from graphloc.factors.odometry import VelocityNoise
+from graphloc.factors.robust import Kernel, KernelPolicy
+from graphloc.hypotheses import TrackerConfig
+from graphloc.run import TeamRun
+from graphloc.session import SessionConfig
+
+COARSE_PRECISION = 0.1  # [m, rad] scale of a run without pose measurements (wheels, range-bearing)
+FINE_PRECISION = 0.002  # the finest precision iSAM2's thresholds follow
+ANCHOR_BASE = (
+    100_000_000  # landmark_key(ANCHOR_BASE + j): j-th per-observation anchor of a known landmark
+)
+
+
+DEFAULT_LAG = 20.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
+
+
+@dataclass(frozen=True)
+class GraphConfig:
+    """keyframe_dt [s]: pose grid of wheel-odometry robots; sync_tolerance [s]: how far from a
+    pose a measurement of an event-clocked robot may be; which measurements to use; robust
+    kernels by factor type (odometry, landmark, inter_robot, candidate); initial_sigma (rot
+    [rad], trans [m]) of initial-pose priors a robot does not state; static_sigma of static
+    robots' poses; surface_sigma [m]: distance of a climbing robot from its surface;
+    landmark_prior_floor [m]; unknown_motion_sigma (rot, trans) between frames of a robot with
+    no odometry; tracker: the HypothesisTracker deciding candidate sets; decision_threshold: a
+    set is decided -- its candidate enters the graph -- when the tracker has committed to a
+    track and that track's candidate in the set, with the candidates that are the same pose
+    within their covariances (`_same_pose`), has at least this posterior; session settings
+    (iSAM2 thresholds None: set from the run's precision, `run_precision`)."""
+
+    keyframe_dt: float = 0.25
+    sync_tolerance: float = 0.02
+    use_landmarks: bool = True
+    use_inter_robot: bool = True
+    landmark_priors: bool = True
+    anchor_known_landmarks: bool = True
+    kernels: KernelPolicy = KernelPolicy(
+        {
+            "landmark": Kernel("cauchy", 2.0),
+            "inter_robot": Kernel("cauchy", 2.0),
+            "candidate": Kernel("cauchy", 1.0),
+        }
+    )
+    velocity_noise: VelocityNoise = VelocityNoise(density_v=0.01, density_w=0.05)
+    initial_sigma: tuple = (0.02, 0.05)
+    static_sigma: tuple = (1e-4, 1e-4)
+    surface_sigma: float = 0.005
+    landmark_prior_floor: float = 0.01
+    unknown_motion_sigma: tuple = (3.0, 100.0)
+    tracker: TrackerConfig = TrackerConfig()
+    decision_threshold: float = 0.8  # see the docstring
+    downweight_threshold: float = 0.1
+    relinearize_threshold: float | None = None
+    relinearize_skip: int = 10
+    wildfire_threshold: float | None = None
+    extra_updates: int | None = None
+    lm_max_iterations: int = 100
+    lag: float | None = None  # online: fixed-lag window [s] (None / 0: full smoothing)
+
+    def __post_init__(self):
+        if self.lag is not None and not (np.isfinite(self.lag) and self.lag >= 0):
+            raise ValueError(f"GraphConfig.lag must be None or finite >= 0, got {self.lag}")
+        if not 0.5 <= self.decision_threshold < 1.0:
+            raise ValueError(
+                f"GraphConfig.decision_threshold must be in [0.5, 1), got {self.decision_threshold}"
+            )
+        for name in ("keyframe_dt", "sync_tolerance", "surface_sigma", "landmark_prior_floor"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"GraphConfig.{name} must be finite > 0, got {v}")
+        for name in ("initial_sigma", "static_sigma", "unknown_motion_sigma"):
+            v = getattr(self, name)
+            if len(v) != 2 or not all(np.isfinite(s) and s > 0 for s in v):
+                raise ValueError(f"GraphConfig.{name} must be 2 numbers > 0 (rot, trans), got {v}")
+
+    def session_config(self, mode: str, precision: float = COARSE_PRECISION) -> SessionConfig:
+        """Session settings; iSAM2's settings, unless set, follow the run's `precision` (see
+        `run_precision`): relinearize when a variable's update exceeds half of it, stop the
+        back-substitution where the solution changes by less than a tenth of it, and on
+        camera-precise runs two extra iSAM2 iterations per step (robust candidate factors need
+        iterations to reweight; such runs have few steps)."""
+        relin = (
+            self.relinearize_threshold
+            if self.relinearize_threshold is not None
+            else 0.5 * precision
+        )
+        wildfire = (
+            self.wildfire_threshold if self.wildfire_threshold is not None else 0.1 * precision
+        )
+        extra = (
+            self.extra_updates
+            if self.extra_updates is not None
+            else (2 if precision < COARSE_PRECISION else 0)
+        )
+        return SessionConfig(
+            mode=mode,
+            lm_max_iterations=self.lm_max_iterations,
+            relinearize_threshold=relin,
+            relinearize_skip=self.relinearize_skip,
+            wildfire_threshold=wildfire,
+            extra_updates=extra,
+            partial_relinearization_check=True,
+        )
+
+
+def cov6(sig: tuple) -> np.ndarray:
+    return np.diag([sig[0] ** 2] * 3 + [sig[1] ** 2] * 3)
+
+
+def adjoint_cov(T: gtsam.Pose3, cov: np.ndarray) -> np.ndarray:
+    A = T.AdjointMap()
+    return A @ cov @ A.T
+
+
+def run_precision(run: TeamRun) -> float:
+    """The scale [m, rad] of the run's estimates, for iSAM2's thresholds: FINE_PRECISION when
+    the run holds candidate sets (camera poses from pixels: the fused estimate is mm-precise even
+    where one P3P candidate is cm-precise along its depth), else COARSE_PRECISION (wheel odometry
+    and range-bearing, decimetre-level)."""
+    return FINE_PRECISION if run.observations else COARSE_PRECISION
+
+
+def default_lag(run, config: GraphConfig) -> float:
+    """The online lag when none is given: DEFAULT_LAG when every variable is only needed
+    near its own time -- no static robot (its one pose is observed all run long) and no
+    landmark estimated as one variable (SLAM) -- else 0 (full smoothing): the fixed-lag
+    smoother stamps a variable once (`graphloc.session.SessionConfig`), so a long-lived one
+    would leave the window and every later factor on it would be dropped."""
+    static = any(r.static for r in run.robots)
+    slam = config.use_landmarks and not (
+        config.landmark_priors and run.landmarks_known and config.anchor_known_landmarks
+    )
+    return 0.0 if static or slam else DEFAULT_LAG

@@ -1,0 +1,148 @@
+"""`build_graph`: a `TeamRun` -> `TeamGraph`, every factor grouped in time steps with initial
+values (the sections: `motion`, `points`, `candidates`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from graphloc.io import SkipReport
+from graphloc.keys import decode, pose_key
+from graphloc.pipelines.team_graph.candidates import candidate_factors
+from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig, run_precision
+from graphloc.pipelines.team_graph.motion import (
+    Timeline,
+    anchor_factors,
+    motion_factors,
+    step_or_unknown,
+)
+from graphloc.pipelines.team_graph.points import point_factors
+from graphloc.run import TeamRun
+
+
+@dataclass
+class TeamGraph:
+    """The run as one graph, step by step: steps[i] = (time, [(factor, type), ...]); node
+    times per robot; dead-reckoning / decided initial values; factor type counts."""
+
+    run: TeamRun
+    config: GraphConfig
+    node_times: list
+    initial: dict  # key -> Pose3 (initial guess)
+    steps: list
+    factor_types: list
+    decisions: list
+    anchored_from: dict  # robot -> first node time the online graph may hold it
+    step_rel: (
+        list  # per robot (relative Pose3 from node k-1, covariance) for k >= 1 (None: unknown)
+    )
+    counts: dict = field(default_factory=dict)
+    skips: SkipReport = field(default_factory=SkipReport)
+    precision: float = COARSE_PRECISION  # run_precision(run)
+
+
+def build_graph(
+    run: TeamRun, config: GraphConfig = GraphConfig(), progress: bool = False
+) -> TeamGraph:
+    """Every usable row of `run` as a factor, grouped in time steps; candidate sets decided by
+    one HypothesisTracker per (observer, target) stream."""
+    skips = SkipReport()
+    skips.merge(run.skips)
+    R = len(run.robots)
+    timeline = Timeline(run, config)
+    node_times = timeline.node_times
+    factors: list = []  # (time of newest node, factor, type)
+    step_rel = motion_factors(run, config, timeline, factors, skips)
+    anchor_factors(run, config, node_times, factors)
+    landmark_guess, n_anchor, excluded = point_factors(run, config, timeline, factors, skips)
+    decisions, decided_pose = candidate_factors(
+        run, config, timeline, step_rel, factors, skips, progress
+    )
+
+    # --- initial values: known poses + odometry, decided poses + odometry ---
+    initial, anchored_from = {}, {}
+    for r, robot in enumerate(run.robots):
+        times = node_times[r]
+        poses: list = [None] * len(times)
+        if robot.initial_pose is not None and len(times):
+            poses[0] = robot.initial_pose
+        for k, p in decided_pose.get(r, {}).items():
+            if poses[k] is None:
+                poses[k] = p
+        seeds = [k for k, p in enumerate(poses) if p is not None]
+        if not seeds:
+            if len(times):
+                skips.add(
+                    "unanchored_robot",
+                    f"robot {robot.name}: no initial pose and no decided candidate set; "
+                    f"its {len(times)} poses are left out",
+                    len(times),
+                )
+            continue
+        anchored_from[r] = times[seeds[0]]
+        for k in range(seeds[0] + 1, len(times)):
+            if poses[k] is None:
+                poses[k] = poses[k - 1].compose(step_or_unknown(step_rel[r], k, config)[0])
+        for k in range(seeds[0] - 1, -1, -1):
+            poses[k] = poses[k + 1].compose(
+                step_or_unknown(step_rel[r], k + 1, config)[0].inverse()
+            )
+        for k, p in enumerate(poses):
+            initial[pose_key(r, k)] = p
+    for lkey, guess in landmark_guess.items():
+        if isinstance(guess, tuple) and guess and guess[0] == "from":
+            _, r, k, direction, rng = guess
+            if pose_key(r, k) in initial:
+                initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
+        else:
+            initial[lkey] = np.asarray(guess, dtype=float)
+
+    # --- steps: factors grouped by the time of their newest pose; unanchored robots dropped ---
+    factors.sort(key=lambda f: f[0])
+    kept, types = [], []
+    dropped = 0
+    for t, f, kind in factors:
+        if all(key in initial for key in f.keys()):
+            kept.append((t, f, kind))
+            types.append(kind)
+        else:
+            dropped += 1
+    if dropped:
+        skips.add(
+            "unanchored_robot",
+            f"{dropped} factors touch poses of robots that nothing places",
+            dropped,
+        )
+    step_times = np.unique([k[0] for k in kept]) if kept else np.zeros(0)
+    steps, j = [], 0
+    for t in step_times:
+        group = []
+        while j < len(kept) and kept[j][0] == t:
+            group.append(kept[j][1:])
+            j += 1
+        steps.append((float(t), group))
+    counts = {
+        "robots": R,
+        "poses": len([k for k in initial if decode(k)[0] == "x"]),
+        "candidate_sets": len(run.observations),
+        "committed_sets": sum(d.committed >= 0 for d in decisions),
+        "landmark_anchors": n_anchor,
+        "steps": len(steps),
+        "excluded_by_option": excluded,
+        **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
+    }
+    return TeamGraph(
+        run,
+        config,
+        node_times,
+        initial,
+        steps,
+        types,
+        decisions,
+        anchored_from,
+        step_rel,
+        counts,
+        skips,
+        run_precision(run),
+    )

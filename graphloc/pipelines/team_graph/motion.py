@@ -1,0 +1,182 @@
+"""Each robot's pose times and motion: wheel-odometry grids integrated along arcs, relative-pose
+tables, dead reckoning; the between factors, initial-pose priors and surface factors."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+from graphloc.factors.odometry import VelocityNoise, integrate_unicycle
+from graphloc.factors.robust import robust_noise
+from graphloc.factors.surface import surface_factors
+from graphloc.io import SkipReport
+from graphloc.keys import pose_key
+from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov, cov6
+from graphloc.run import TeamRun, planar_covariance, pose_from_planar
+
+
+class Timeline:
+    """Each robot's pose times and the pose a measurement at time t joins."""
+
+    def __init__(self, run: TeamRun, config: GraphConfig):
+        self.run, self.config = run, config
+        self.node_times = node_times(run, config)
+
+    def nearest(self, r: int, t: float) -> int:
+        """Index of robot r's pose nearest t, -1 if none within dt/2 (wheel-odometry grid) or
+        sync_tolerance (event-clocked robots)."""
+        run, config = self.run, self.config
+        times = self.node_times[r]
+        if run.robots[r].static:
+            return 0
+        if not len(times):
+            return -1
+        i = int(np.clip(np.searchsorted(times, t), 1, len(times) - 1)) if len(times) > 1 else 0
+        if i > 0 and abs(times[i - 1] - t) <= abs(times[i] - t):
+            i -= 1
+        tol = config.keyframe_dt / 2 + 1e-9 if len(run.velocity[r]) else config.sync_tolerance
+        return i if abs(times[i] - t) <= tol else -1
+
+
+def node_times(run: TeamRun, config: GraphConfig) -> list:
+    out = []
+    for r, robot in enumerate(run.robots):
+        vel = run.velocity[r]
+        if robot.static:
+            times = np.array([run.start_time])
+        elif len(vel):
+            end = vel[-1, 0]
+            n = int(np.floor((end - run.start_time) / config.keyframe_dt + 1e-9)) + 1
+            times = run.start_time + config.keyframe_dt * np.arange(max(n, 1))
+        else:
+            stamps = [t for m in run.motions if m.robot == r for t in (m.t0, m.t1)]
+            if not stamps:
+                stamps = [p.time for p in run.points if r in (p.robot, p.target)]
+                stamps += [o.time for o in run.observations if r in (o.robot, o.target)]
+            times = np.unique(np.round(np.array(stamps, dtype=float), 9))
+        out.append(times)
+    return out
+
+
+def velocity_noise(run: TeamRun, r: int, config: GraphConfig) -> VelocityNoise:
+    """Wheel-odometry noise densities of robot r: its odometry sensor's params (density_v
+    [m/sqrt(s)], density_w [rad/sqrt(s)], `factors.odometry.VelocityNoise`) where given, else
+    the config's."""
+    base = config.velocity_noise
+    for _, params in run.robots[r].sensors.values():
+        if "density_v" in params or "density_w" in params:
+            return VelocityNoise(
+                density_v=float(params.get("density_v", base.density_v)),
+                density_w=float(params.get("density_w", base.density_w)),
+            )
+    return base
+
+
+def _velocity_steps(run: TeamRun, r: int, times: np.ndarray, config: GraphConfig) -> list:
+    od = run.velocity[r]
+    integ = integrate_unicycle(od[:, 0], od[:, 1], od[:, 2], times, velocity_noise(run, r, config))
+    return [None] + [
+        (pose_from_planar(*d), planar_covariance(c))
+        for d, c in zip(integ.deltas, integ.covariances)
+    ]
+
+
+def dead_reckoning(robot, steps: list, config: GraphConfig) -> list:
+    """(pose, 6x6 covariance) of each of a robot's poses: its initial pose (and prior) chained
+    through its odometry steps, covariances propagated to first order (right perturbations)."""
+    sig = config.static_sigma if robot.static else (robot.initial_sigma or config.initial_sigma)
+    out = [(robot.initial_pose, cov6(sig))]
+    for k in range(1, len(steps)):
+        step, c = step_or_unknown(steps, k, config)
+        pose, cov = out[-1]
+        out.append((pose.compose(step), adjoint_cov(step.inverse(), cov) + c))
+    return out
+
+
+def between_factor(
+    r: int, k0: int, k1: int, rel: gtsam.Pose3, cov: np.ndarray, config: GraphConfig
+):
+    noise = robust_noise(
+        gtsam.noiseModel.Gaussian.Covariance(cov), config.kernels.kernel("odometry")
+    )
+    return gtsam.BetweenFactorPose3(pose_key(r, k0), pose_key(r, k1), rel, noise)
+
+
+def step_or_unknown(steps: list, k: int, config: GraphConfig) -> tuple:
+    return steps[k] if steps[k] is not None else (gtsam.Pose3(), cov6(config.unknown_motion_sigma))
+
+
+def compose_steps(steps: list, k0: int, k1: int, config: GraphConfig) -> tuple:
+    """Relative pose from node k0 to k1 and its first-order covariance (right perturbations)."""
+    rel, cov = gtsam.Pose3(), np.zeros((6, 6))
+    for k in range(k0 + 1, k1 + 1):
+        step, c = step_or_unknown(steps, k, config)
+        cov = adjoint_cov(step.inverse(), cov) + c
+        rel = rel.compose(step)
+    return rel, cov
+
+
+def motion_factors(
+    run: TeamRun, config: GraphConfig, timeline: Timeline, factors: list, skips: SkipReport
+) -> list:
+    """Between factors of every odometry / relative-pose step (appended to `factors` as
+    (time, factor, type)); returns per robot the step from node k-1 to k (relative Pose3,
+    covariance) for k >= 1, None where no measurement gives it."""
+    node_times, nearest = timeline.node_times, timeline.nearest
+    step_rel = []
+    for r, robot in enumerate(run.robots):
+        times = node_times[r]
+        steps = [None] * len(times)
+        if len(run.velocity[r]) and not robot.static:
+            steps = _velocity_steps(run, r, times, config)
+            for k in range(1, len(times)):
+                factors.append(
+                    (times[k], between_factor(r, k - 1, k, *steps[k], config), "odometry")
+                )
+        for m in (m for m in run.motions if m.robot == r):
+            k0, k1 = nearest(r, m.t0), nearest(r, m.t1)
+            if k0 < 0 or k1 < 0 or k0 == k1:
+                skips.add(
+                    "no_pose_at_time",
+                    f"robot {robot.name}: relative pose {m.t0}->{m.t1} has no poses",
+                )
+                continue
+            factors.append(
+                (
+                    times[max(k0, k1)],
+                    between_factor(r, k0, k1, m.relative, m.covariance, config),
+                    "odometry",
+                )
+            )
+            if k1 == k0 + 1 and steps[k1] is None:
+                steps[k1] = (m.relative, m.covariance)
+        step_rel.append(steps)
+    return step_rel
+
+
+def anchor_factors(run: TeamRun, config: GraphConfig, node_times: list, factors: list) -> None:
+    """Priors on the robots' known initial poses and surface factors of climbing robots."""
+    for r, robot in enumerate(run.robots):
+        if robot.initial_pose is not None and len(node_times[r]):
+            sig = (
+                config.static_sigma
+                if robot.static
+                else (robot.initial_sigma or config.initial_sigma)
+            )
+            factors.append(
+                (
+                    node_times[r][0],
+                    gtsam.PriorFactorPose3(
+                        pose_key(r, 0),
+                        robot.initial_pose,
+                        gtsam.noiseModel.Gaussian.Covariance(cov6(sig)),
+                    ),
+                    "prior",
+                )
+            )
+        if robot.surface is not None:
+            for k, t in enumerate(node_times[r]):
+                for f in surface_factors(
+                    pose_key(r, k), robot.surface, config.surface_sigma, attitude_sigma=None
+                ):
+                    factors.append((t, f, "surface"))

@@ -1,0 +1,176 @@
+"""Point measurements -- range, bearing and range-bearing to landmarks and to teammates --
+as factors; known landmarks as prior-pinned anchors."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+from graphloc.factors.bearing import bearing_factor, range_factor
+from graphloc.factors.odometry import integrate_unicycle
+from graphloc.factors.range_bearing import landmark_factor_3d, robot_factor_3d
+from graphloc.factors.robust import robust_noise
+from graphloc.io import SkipReport
+from graphloc.keys import landmark_key, pose_key
+from graphloc.pipelines.team_graph.config import ANCHOR_BASE, GraphConfig
+from graphloc.pipelines.team_graph.motion import Timeline, velocity_noise
+from graphloc.run import TeamRun
+
+
+def _landmark_key(lid: int, lm_prior: dict, config: GraphConfig, n_anchor: int):
+    prior = lm_prior.get(lid)
+    if prior is not None and config.anchor_known_landmarks:
+        return landmark_key(ANCHOR_BASE + n_anchor), prior
+    return landmark_key(lid), prior
+
+
+def _point_factor(m, key, lkey, direction, rng, kernel, E):
+    if m.kind == "range_bearing":
+        return landmark_factor_3d(
+            key, lkey, direction, rng, (m.bearing_sigma, m.bearing_sigma, m.range_sigma), kernel
+        )
+    if np.linalg.norm(E.translation()) > 1e-9:
+        raise ValueError(
+            f"{m.kind} to landmark {m.landmark}: a sensor offset from the body origin is "
+            "supported for range-bearing and robot targets only"
+        )
+    if m.kind == "bearing":
+        d = E.rotation().rotate(direction)
+        noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, m.bearing_sigma), kernel)
+        return gtsam.BearingFactor3D(key, lkey, gtsam.Unit3(d), noise)
+    noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(1, m.range_sigma), kernel)
+    return gtsam.RangeFactor3D(key, lkey, float(rng), noise)
+
+
+def _robot_factor(m, key, tkey, direction, rng, kernel, E):
+    if m.kind == "range_bearing":
+        return robot_factor_3d(
+            key, tkey, direction, rng, (m.bearing_sigma, m.bearing_sigma, m.range_sigma), kernel
+        )
+    if m.kind == "bearing":
+        return bearing_factor(key, tkey, direction, m.bearing_sigma, body_T_camera=E, kernel=kernel)
+    identity = np.allclose(E.matrix(), np.eye(4))
+    return range_factor(key, tkey, rng, m.range_sigma, None if identity else E, kernel)
+
+
+def _corrected_range_bearings(run: TeamRun, node_times: list, config: GraphConfig) -> dict:
+    """Range-bearing rows of wheel-odometry robots re-expressed in the body frame at the grid
+    time they join (the observer's own motion over <= dt/2 integrated from its odometry):
+    index -> (direction (3,), range) in the body frame."""
+    out = {}
+    for r in range(len(run.robots)):
+        od = run.velocity[r]
+        idx = [i for i, m in enumerate(run.points) if m.robot == r and m.kind == "range_bearing"]
+        if not len(od) or not idx:
+            continue
+        times = node_times[r]
+        t = np.array([run.points[i].time for i in idx])
+        frame = np.clip(np.rint((t - times[0]) / config.keyframe_dt).astype(int), 0, len(times) - 1)
+        stamps = np.union1d(times, t)
+        poses = integrate_unicycle(
+            od[:, 0], od[:, 1], od[:, 2], stamps, velocity_noise(run, r, config)
+        ).poses
+        at_meas = poses[np.searchsorted(stamps, t)]
+        at_frame = poses[np.searchsorted(stamps, times[frame])]
+        pts = np.array(
+            [
+                run.points[i].body_T_sensor.transformFrom(
+                    run.points[i].direction * run.points[i].range
+                )
+                for i in idx
+            ]
+        )
+        c, s = np.cos(at_meas[:, 2]), np.sin(at_meas[:, 2])
+        world = at_meas[:, :2] + np.column_stack(
+            [c * pts[:, 0] - s * pts[:, 1], s * pts[:, 0] + c * pts[:, 1]]
+        )
+        d = world - at_frame[:, :2]
+        c, s = np.cos(at_frame[:, 2]), np.sin(at_frame[:, 2])
+        local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], pts[:, 2]])
+        rng = np.linalg.norm(local, axis=1)
+        for j, i in enumerate(idx):
+            out[i] = (local[j] / rng[j], float(rng[j]))
+    return out
+
+
+def point_factors(
+    run: TeamRun, config: GraphConfig, timeline: Timeline, factors: list, skips: SkipReport
+) -> tuple[dict, int, int]:
+    """Every usable point measurement as a factor (appended to `factors`); returns the
+    landmarks' initial guesses (key -> position or ('from', robot, k, direction, range)), the
+    number of landmark anchors and the number of measurements the options leave out."""
+    node_times, nearest = timeline.node_times, timeline.nearest
+    lm_prior = {}
+    if config.landmark_priors and run.landmarks_known:
+        lm_prior = {
+            int(i): (p, np.maximum(s, config.landmark_prior_floor))
+            for i, p, s in zip(run.landmark_ids, run.landmark_xyz, run.landmark_sigma)
+        }
+    landmark_guess: dict = {}
+    n_anchor = 0
+    corrected = _corrected_range_bearings(run, node_times, config)
+    excluded = 0  # measurements the options leave out (not a data problem: counted, not skipped)
+    for i, m in enumerate(run.points):
+        is_lm = m.target < 0
+        if (is_lm and not config.use_landmarks) or (not is_lm and not config.use_inter_robot):
+            excluded += 1
+            continue
+        k = nearest(m.robot, m.time)
+        kt = -1 if is_lm else nearest(m.target, m.time)
+        if k < 0 or (not is_lm and kt < 0):
+            skips.add(
+                "no_pose_at_time",
+                f"robot {run.robots[m.robot].name}: {m.kind} at {m.time} has no pose "
+                f"within the sync tolerance",
+            )
+            continue
+        key = pose_key(m.robot, k)
+        direction, rng = corrected.get(i, (m.direction, m.range))
+        E = m.body_T_sensor
+        t_new = max(node_times[m.robot][k], -np.inf if is_lm else node_times[m.target][kt])
+        kernel = config.kernels.kernel("landmark" if is_lm else "inter_robot")
+        if m.kind == "range_bearing" and i not in corrected:
+            p = E.transformFrom(direction * rng)
+            direction, rng = p / np.linalg.norm(p), float(np.linalg.norm(p))
+        if is_lm:
+            lkey, prior = _landmark_key(m.landmark, lm_prior, config, n_anchor)
+            if lkey is None:
+                skips.add("unknown_landmark", f"landmark {m.landmark} is not in the landmark table")
+                continue
+            if lkey not in landmark_guess:
+                guess = prior[0] if prior is not None else None
+                if guess is None and np.isfinite(rng):
+                    guess = ("from", m.robot, k, direction, rng)
+                if guess is None:
+                    skips.add(
+                        "landmark_without_position",
+                        f"landmark {m.landmark}: first seen by a bearing only",
+                    )
+                    continue
+                landmark_guess[lkey] = guess
+                if prior is not None:
+                    factors.append(
+                        (
+                            t_new,
+                            gtsam.PriorFactorPoint3(
+                                lkey,
+                                np.asarray(prior[0], float),
+                                gtsam.noiseModel.Diagonal.Sigmas(prior[1]),
+                            ),
+                            "landmark_prior",
+                        )
+                    )
+            if lkey != landmark_key(m.landmark):
+                n_anchor += 1
+            factors.append(
+                (t_new, _point_factor(m, key, lkey, direction, rng, kernel, E), "landmark")
+            )
+        else:
+            factors.append(
+                (
+                    t_new,
+                    _robot_factor(m, key, pose_key(m.target, kt), direction, rng, kernel, E),
+                    "inter_robot",
+                )
+            )
+    return landmark_guess, n_anchor, excluded

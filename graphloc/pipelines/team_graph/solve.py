@@ -1,0 +1,208 @@
+"""`solve`: a `TeamGraph` through one `Session` -- batch Levenberg-Marquardt or online iSAM2
+(fixed lag when `GraphConfig.lag` > 0), stoppable, with per-step latency logs."""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field, replace
+
+import gtsam
+import numpy as np
+from tqdm import tqdm
+
+from graphloc.factors.robust import downweighted
+from graphloc.keys import decode, pose_key
+from graphloc.pipelines.team_graph.config import ANCHOR_BASE
+from graphloc.pipelines.team_graph.graph import TeamGraph
+from graphloc.pipelines.team_graph.motion import compose_steps
+from graphloc.session import Session
+
+
+@dataclass(frozen=True)
+class TeamResult:
+    """estimate[r]: (K_r,7) x y z qx qy qz qw per pose (NaN where left out); causal[r]: the
+    online estimate of each pose right after its own step (NaN in batch); latencies (steps,);
+    step_log: one row per session step (step index in graph.steps, time, latency [s], CPU [s],
+    factors added, variables the solver holds); dropped: factors not added because they touch
+    a variable the fixed lag has marginalized, by type; partial: the solve stopped early
+    (`stop`) after `steps_done` of the graph's steps."""
+
+    mode: str
+    node_times: list
+    estimate: list
+    causal: list
+    dead_reckoning: list
+    latencies: np.ndarray
+    wall_s: float
+    graph: TeamGraph
+    downweighted: dict
+    landmarks: (
+        dict  # landmark id -> estimated position (3,) of landmarks that are one variable (SLAM)
+    )
+    step_log: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    dropped: dict = field(default_factory=dict)
+    partial: bool = False
+    steps_done: int = 0
+    lag: float | None = None
+
+
+STEP_LOG_COLUMNS = ("step", "time", "latency_s", "cpu_s", "factors", "variables")
+
+
+def _pose_row(p: gtsam.Pose3) -> np.ndarray:
+    q = p.rotation().toQuaternion()
+    t = p.translation()
+    return np.array([t[0], t[1], t[2], q.x(), q.y(), q.z(), q.w()])
+
+
+def solve(
+    graph: TeamGraph,
+    mode: str = "batch",
+    progress: bool = False,
+    stop=None,
+    on_step=None,
+    on_stop=None,
+) -> TeamResult:
+    """Batch: every step added, one LM solve. Online: one iSAM2 update per step (with
+    `config.lag` > 0 a fixed-lag smoother, `Session`); a new pose is predicted from its robot's
+    latest estimate and odometry; robots enter at their first anchor; a factor touching a
+    marginalized variable is left out and counted (`TeamResult.dropped`). stop(): checked
+    before every online step and between LM iterations, True ends the solve there (the result
+    is marked partial: online, the estimate after the last finished step; batch, the LM
+    iterate).
+    on_step(i): called after graph step i was consumed; on_stop(steps_done): when stop()
+    ended the online loop."""
+    cfg = graph.config
+    lag = float(cfg.lag or 0.0) if mode == "online" else 0.0
+    session = Session(
+        replace(cfg.session_config(mode, graph.precision), lag=lag),
+        progress=progress and mode == "batch",
+        stop=stop,
+    )
+    causal = [np.full((len(t), 7), np.nan) for t in graph.node_times]
+    start = _time.perf_counter()
+    added: set = set()
+    held: list = []  # online: factors on robots not yet anchored
+    latest: dict = {}
+    types: list = []  # factor types in the order the session holds them
+    dropped: dict = {}
+    log: list = []
+    partial, done = False, 0
+    # online: until the last robot is anchored, factors on robots not yet anchored wait
+    hold_until = max(graph.anchored_from.values(), default=-np.inf)
+    if mode != "online":
+        hold_until = -np.inf
+    for i, (t, group) in enumerate(
+        tqdm(graph.steps, desc=f"{mode} steps", disable=not progress, unit="step")
+    ):
+        if mode == "online" and stop is not None and stop():
+            partial = True
+            if on_stop is not None:
+                on_stop(done)
+            break
+        done = i + 1
+        values = gtsam.Values()
+        factors = []
+        waiting, held = held + group, []
+        for f, kind in waiting:
+            keys = f.keys()
+            if t < hold_until and any(_held(graph, key, t) for key in keys):
+                held.append((f, kind))
+                continue
+            if lag and any(session.marginalized(key) for key in keys):
+                dropped[kind] = dropped.get(kind, 0) + 1
+                continue
+            for key in keys:
+                if key not in added:
+                    values.insert(key, _predict(graph, key, latest))
+                    added.add(key)
+            factors.append(f)
+            types.append(kind)
+        if factors:
+            step = session.add(factors, values, time=t)
+            log.append((i, t, step.latency_s, step.cpu_s, len(factors), session.live_variables()))
+        if factors and mode == "online":
+            new_poses = [k for k in values.keys() if decode(k)[0] == "x"]
+            est = session.estimate(new_poses)
+            for key in new_poses:
+                _, r, k = decode(key)
+                p = est.atPose3(key)
+                causal[r][k] = _pose_row(p)
+                if k >= latest.get(r, (-1, None))[0]:
+                    latest[r] = (k, p)
+        if on_step is not None:
+            on_step(i)
+    final = session.estimate()
+    partial = partial or session.stopped
+    wall = _time.perf_counter() - start
+    estimate = []
+    for r, times in enumerate(graph.node_times):
+        rows = np.full((len(times), 7), np.nan)
+        for k in range(len(times)):
+            key = pose_key(r, k)
+            if final.exists(key):
+                rows[k] = _pose_row(final.atPose3(key))
+        estimate.append(rows)
+    dead = []
+    for r, times in enumerate(graph.node_times):
+        rows = np.full((len(times), 7), np.nan)
+        for k in range(len(times)):
+            key = pose_key(r, k)
+            if key in graph.initial:
+                rows[k] = _pose_row(graph.initial[key])
+        dead.append(rows)
+    down = {}
+    types = np.array(types)
+    for ftype in ("odometry", "landmark", "inter_robot", "candidate"):
+        if cfg.kernels.kernel(ftype).name == "none" or not (types == ftype).any():
+            continue
+        rep = downweighted(
+            session.graph, final, cfg.downweight_threshold, indices=np.flatnonzero(types == ftype)
+        )
+        down[ftype] = {
+            "robust_factors": rep.n_robust,
+            "downweighted": rep.n_downweighted,
+            "threshold": cfg.downweight_threshold,
+        }
+    landmarks = {
+        decode(k)[1]: np.asarray(final.atPoint3(k))
+        for k in final.keys()
+        if decode(k)[0] == "l" and decode(k)[1] < ANCHOR_BASE
+    }
+    step_log = np.array(log, dtype=float).reshape(-1, len(STEP_LOG_COLUMNS))
+    return TeamResult(
+        mode,
+        graph.node_times,
+        estimate,
+        causal,
+        dead,
+        session.latencies(),
+        wall,
+        graph,
+        down,
+        landmarks,
+        step_log,
+        dropped,
+        partial,
+        done,
+        lag if mode == "online" else None,
+    )
+
+
+def _held(graph: TeamGraph, key: int, t: float) -> bool:
+    kind, r, _ = decode(key)
+    return kind == "x" and graph.anchored_from.get(r, np.inf) > t
+
+
+def _predict(graph: TeamGraph, key: int, latest: dict):
+    """Initial value of a new variable: a landmark's guess; a pose from its robot's latest
+    estimate composed with the odometry since, else the graph's initial guess."""
+    kind, r, k = decode(key)
+    if kind != "x":
+        return graph.initial[key]
+    if r in latest and latest[r][0] < k:
+        k0, pose = latest[r]
+        rel, _ = compose_steps(graph.step_rel[r], k0, k, graph.config)
+        if all(s is not None for s in graph.step_rel[r][k0 + 1 : k + 1]):
+            return pose.compose(rel)
+    return graph.initial[key]
