@@ -8,10 +8,11 @@
 - "online": gtsam.ISAM2, one incremental `update` per `add` (wall-clock latency recorded).
 
 State is saved as data, never as code: `save(path)` writes the config and the list of `add`
-steps as JSON (format "graphloc-session", version 3): every factor as its GTSAM type name,
-keys, measurement and noise model (`_FACTOR_TYPES`, the built-in factors graphloc uses), every
-Values entry as numbers, and Python-side factor providers such as `MaxMixture` as the
-components and weights that rebuild them (`save_state` / `from_state`). Loading parses JSON and
+steps as JSON (format "graphloc-session", version 3; the codec is `graphloc.session_codec`,
+the file format `graphloc.datafile`): every factor as its GTSAM type name, keys, measurement
+and noise model (the built-in factors graphloc uses), every Values entry as numbers, and
+Python-side factor providers such as `MaxMixture` as the components and weights that rebuild
+them (`save_state` / `from_state`). Loading parses JSON and
 calls GTSAM constructors on checked numbers only: no pickle, and no Boost archive either (GTSAM's
 `deserialize` crashes the interpreter on a corrupted archive). The file is written atomically
 (temporary file, fsync, rename) with a SHA-256 of its body, so a failure midway leaves the
@@ -34,11 +35,7 @@ Example (GTSAM-example style: explicit keys, one graph, one optimizer):
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
-import os
-import tempfile
 import time as _time
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -47,6 +44,11 @@ from typing import Iterable
 import gtsam
 import numpy as np
 from tqdm import tqdm
+
+from graphloc.datafile import BadData, read_data_file, write_data_file
+from graphloc.session_codec import decode_step, encode_item, encode_values, key_name
+
+__all__ = ["MODES", "Session", "SessionConfig", "Step", "read_data_file", "write_data_file"]
 
 MODES = ("batch", "online")
 _SAVE_FORMAT = "graphloc-session"
@@ -233,7 +235,7 @@ class Session:
             except RuntimeError:
                 continue
         raise RuntimeError(
-            f"no estimate of type Pose3, Pose2, Point3 or vector for {_key_name(key)}"
+            f"no estimate of type Pose3, Pose2, Point3 or vector for {key_name(key)}"
         )
 
     def _update_fixed_lag(
@@ -286,7 +288,7 @@ class Session:
         if t < self._last_time:
             raise ValueError(f"Session.add: time goes backwards ({t} < previous {self._last_time})")
         new_keys = set(initial_values.keys())
-        clash = [_key_name(k) for k in new_keys if self.initial.exists(k)]
+        clash = [key_name(k) for k in new_keys if self.initial.exists(k)]
         if clash:
             raise ValueError(
                 f"Session.add: initial values for keys already in the session: {clash[:5]}"
@@ -295,10 +297,10 @@ class Session:
             {k for k in graph.keyVector() if not self.initial.exists(k) and k not in new_keys}
         )
         if missing:
-            names = [_key_name(k) for k in missing[:5]]
+            names = [key_name(k) for k in missing[:5]]
             raise ValueError(f"Session.add: factors reference keys without a value: {names}")
 
-        gone = [_key_name(k) for k in graph.keyVector() if self._frozen.exists(k)]
+        gone = [key_name(k) for k in graph.keyVector() if self._frozen.exists(k)]
         if gone:
             raise ValueError(
                 f"Session.add: factors reference marginalized keys (older than the lag): {gone[:5]}"
@@ -383,7 +385,7 @@ class Session:
         try:
             if self.marginalized(key):
                 raise ValueError(
-                    f"Session.marginal_covariance({_key_name(key)}): the "
+                    f"Session.marginal_covariance({key_name(key)}): the "
                     f"variable was marginalized (older than the lag)"
                 )
             if self._isam is not None:
@@ -393,12 +395,12 @@ class Session:
             return np.asarray(self._batch_marginals.marginalCovariance(key))
         except RuntimeError as exc:
             raise ValueError(
-                f"Session.marginal_covariance({_key_name(key)}): "
+                f"Session.marginal_covariance({key_name(key)}): "
                 f"GTSAM cannot compute it ({_first_line(exc)})"
             ) from None
 
     def _check_known(self, keys: list, what: str) -> None:
-        unknown = [_key_name(k) for k in keys if not self.initial.exists(k)]
+        unknown = [key_name(k) for k in keys if not self.initial.exists(k)]
         if unknown:
             raise ValueError(f"Session.{what}: no variable {unknown[:5]} in this session")
 
@@ -475,15 +477,13 @@ class Session:
                     f"{where} holds a bare gtsam.CustomFactor, which cannot be "
                     f"saved; add its provider object (e.g. MaxMixture) instead"
                 )
-            items = [
-                _encode_item(item, f"{where}, item {j}") for j, item in enumerate(record.items)
-            ]
+            items = [encode_item(item, f"{where}, item {j}") for j, item in enumerate(record.items)]
             steps.append(
                 {
                     "time": record.time,
                     "latency_s": record.latency_s,
                     "items": items,
-                    "values": _encode_values(record.values, where),
+                    "values": encode_values(record.values, where),
                 }
             )
         write_data_file(
@@ -500,615 +500,37 @@ class Session:
             session = cls(_config_from(payload.get("config")))
             steps = payload.get("steps")
             if not isinstance(steps, list):
-                raise _Bad("'steps' must be a list")
+                raise BadData("'steps' must be a list")
             for i, step in enumerate(steps):
-                t, items, values = _decode_step(step, f"step {i}")
+                t, items, values = decode_step(step, f"step {i}")
                 try:
                     session.add(items, values, time=t)
                 except ValueError as exc:
-                    raise _Bad(f"step {i}: {exc}") from None
-        except _Bad as exc:
+                    raise BadData(f"step {i}: {exc}") from None
+        except BadData as exc:
             raise ValueError(f"{path}: {exc}") from None
         return session
-
-
-class _Bad(Exception):
-    """A malformed session file (turned into ValueError naming the file by `Session.load`)."""
-
-
-# ---- versioned data files (also used by graphloc.hypotheses) ----------------------------------
-def write_data_file(
-    path: str | Path, fmt: str, version: int, payload: dict, allow_nan: bool = False
-) -> None:
-    """Write `payload` as a graphloc data file: one JSON header line (format, version, body size
-    and SHA-256) and a JSON body, atomically. allow_nan: write inf/NaN as JSON constants
-    (Infinity, NaN) instead of raising ValueError."""
-    body = json.dumps(payload, allow_nan=allow_nan, separators=(",", ":")).encode()
-    header = {
-        "format": fmt,
-        "version": version,
-        "body_bytes": len(body),
-        "body_sha256": hashlib.sha256(body).hexdigest(),
-    }
-    write_atomically(Path(path), json.dumps(header).encode() + b"\n" + body)
-
-
-def read_data_file(
-    path: str | Path, fmt: str, version: int, what: str, allow_nan: bool = False
-) -> dict:
-    """The JSON body of a file `write_data_file` wrote, after checking format, version, size
-    and SHA-256. ValueError naming the file (and saying what is wrong) on anything else: an
-    unreadable file, a pickle, another format or version, a truncated or altered body."""
-    path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise ValueError(f"{path}: cannot read the {what} file ({exc.strerror})") from None
-    try:
-        return _parse_data_file(data, fmt, version, what, allow_nan)
-    except _Bad as exc:
-        raise ValueError(f"{path}: {exc}") from None
-
-
-def write_atomically(path: Path, data: bytes) -> None:
-    """Write `data` to a temporary file beside `path`, fsync it, rename it over `path` and fsync
-    the directory: `path` holds either the old or the new content, never a partial one. An
-    OSError (missing directory, disk full, `path` a directory) names `path`."""
-    directory = path.parent
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    except OSError as exc:
-        raise type(exc)(exc.errno, f"{path}: cannot write ({exc.strerror})") from None
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException as exc:
-        Path(tmp).unlink(missing_ok=True)
-        if isinstance(exc, OSError):
-            raise type(exc)(exc.errno, f"{path}: cannot write ({exc.strerror})") from None
-        raise
-    try:
-        dir_fd = os.open(directory, os.O_RDONLY)
-    except OSError:  # a directory that cannot be opened (some platforms): the rename is done
-        return
-    try:
-        os.fsync(dir_fd)
-    finally:
-        os.close(dir_fd)
-
-
-def _parse_data_file(data: bytes, fmt: str, version: int, what: str, allow_nan: bool) -> dict:
-    if data[:1] == b"\x80":
-        raise _Bad(
-            f"not a saved graphloc {what}: a Python pickle (an older graphloc format or "
-            f"foreign), which is not loaded because unpickling can run code; re-save it"
-        )
-    head, sep, body = data.partition(b"\n")
-    try:
-        header = json.loads(head.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError):
-        header = None
-    if not sep or not isinstance(header, dict) or header.get("format") != fmt:
-        raise _Bad(f"not a saved graphloc {what} (no {fmt} header line)")
-    if header.get("version") != version:
-        raise _Bad(
-            f"{what} format version {header.get('version')!r} unsupported (this graphloc "
-            f"reads version {version})"
-        )
-    if header.get("body_bytes") != len(body):
-        raise _Bad(
-            f"truncated or altered: body has {len(body)} bytes, header says "
-            f"{header.get('body_bytes')!r}"
-        )
-    if header.get("body_sha256") != hashlib.sha256(body).hexdigest():
-        raise _Bad("altered or corrupted: the SHA-256 of the body does not match the header")
-    try:
-        constant = None if allow_nan else _reject_constant
-        payload = json.loads(body.decode("utf-8"), parse_constant=constant)
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise _Bad(f"body is not valid JSON ({exc})") from None
-    if not isinstance(payload, dict):
-        raise _Bad("body must be a JSON object")
-    return payload
-
-
-def _reject_constant(name: str):
-    raise ValueError(f"{name} is not a finite number")
 
 
 def _config_from(raw) -> SessionConfig:
     """SessionConfig from its saved dict: every field present, of the default's type."""
     if not isinstance(raw, dict):
-        raise _Bad("'config' must be an object")
+        raise BadData("'config' must be an object")
     known = {f.name: type(f.default) for f in fields(SessionConfig)}
     unknown = sorted(set(raw) - set(known))
     if unknown:
-        raise _Bad(f"config: unknown fields {unknown}")
+        raise BadData(f"config: unknown fields {unknown}")
     for name, value in raw.items():
         kind = known[name]
         ok = isinstance(value, kind) and not (kind is not bool and isinstance(value, bool))
         if kind is float:
             ok = isinstance(value, (int, float)) and not isinstance(value, bool)
         if not ok:
-            raise _Bad(f"config.{name}: expected {kind.__name__}, got {value!r}")
+            raise BadData(f"config.{name}: expected {kind.__name__}, got {value!r}")
     try:
         return SessionConfig(**raw)
     except ValueError as exc:
-        raise _Bad(f"config: {exc}") from None
-
-
-# ---- the codec: built-in factors, noise models and values as JSON numbers ----------------------
-# measurement kinds: how a factor's measurement is written and rebuilt
-_FACTOR_TYPES = {
-    **{
-        f"PriorFactor{t}": ("prior", k, 1)
-        for t, k in (
-            ("Pose2", "pose2"),
-            ("Pose3", "pose3"),
-            ("Rot2", "rot2"),
-            ("Rot3", "rot3"),
-            ("Point2", "vector"),
-            ("Point3", "vector"),
-            ("Unit3", "unit3"),
-            ("Double", "double"),
-        )
-    },
-    **{
-        f"BetweenFactor{t}": ("measured", k, 2)
-        for t, k in (
-            ("Pose2", "pose2"),
-            ("Pose3", "pose3"),
-            ("Rot2", "rot2"),
-            ("Rot3", "rot3"),
-            ("Point2", "vector"),
-            ("Point3", "vector"),
-            ("Double", "double"),
-        )
-    },
-    **{
-        f"RangeFactor{t}": ("measured", "double", 2)
-        for t in ("2", "2D", "3", "3D", "Pose2", "Pose3")
-    },
-    "RangeFactorWithTransformPose3": ("measured", "double", 2),  # + body_T_sensor
-    "BearingFactor2D": ("measured", "rot2", 2),
-    "BearingFactorPose2": ("measured", "rot2", 2),
-    "BearingFactor3D": ("measured", "unit3", 2),
-    "BearingRangeFactor2D": ("measured", "bearing_range_2d", 2),
-    "BearingRangeFactorPose2": ("measured", "bearing_range_2d", 2),
-    "BearingRangeFactor3D": ("measured", "bearing_range_3d", 2),
-    "BearingRangeFactorPose3": ("measured", "bearing_range_3d", 2),
-    "AttitudeFactorPose3": ("nRef", "unit3", 1),  # + bMeasured
-    "GenericProjectionFactorCal3_S2": ("measured", "vector", 2),  # + calibration, cheirality flags
-}
-_KERNELS = ("Huber", "Cauchy", "Tukey", "GemanMcClure", "DCS", "Welsch", "Fair")
-_PROVIDERS = ("max_mixture",)
-
-
-def _encode_measurement(kind: str, m) -> list:
-    if kind == "pose2":
-        return [m.x(), m.y(), m.rotation().c(), m.rotation().s()]
-    if kind == "rot2":
-        return [m.c(), m.s()]
-    if kind in ("pose3", "rot3"):
-        return np.asarray(m.matrix(), dtype=float).ravel().tolist()
-    if kind == "unit3":
-        return np.asarray(m.point3(), dtype=float).tolist()
-    if kind == "double":
-        return [float(m)]
-    if kind == "bearing_range_2d":
-        return [m.bearing().c(), m.bearing().s(), float(m.range())]
-    if kind == "bearing_range_3d":
-        return np.asarray(m.bearing().point3(), dtype=float).tolist() + [float(m.range())]
-    return np.asarray(m, dtype=float).ravel().tolist()  # vector
-
-
-_MEASUREMENT_SIZES = {
-    "pose2": 4,
-    "rot2": 2,
-    "pose3": 16,
-    "rot3": 9,
-    "unit3": 3,
-    "double": 1,
-    "bearing_range_2d": 3,
-    "bearing_range_3d": 4,
-}
-
-
-def _decode_measurement(kind: str, v: list, where: str):
-    want = _MEASUREMENT_SIZES.get(kind)
-    if (want is not None and len(v) != want) or (want is None and not v):
-        raise _Bad(f"{where}: a {kind} measurement needs {want or '>= 1'} numbers, got {len(v)}")
-    if kind == "pose2":
-        return gtsam.Pose2(_rot2(v[2], v[3], where), np.array(v[:2]))
-    if kind == "rot2":
-        return _rot2(v[0], v[1], where)
-    if kind == "pose3":
-        T = np.array(v).reshape(4, 4)
-        return gtsam.Pose3(_rot3(T[:3, :3], where), T[:3, 3])
-    if kind == "rot3":
-        return _rot3(np.array(v).reshape(3, 3), where)
-    if kind == "unit3":
-        return _unit3(v, where)
-    if kind == "double":
-        return v[0]
-    if kind == "bearing_range_2d":
-        return _rot2(v[0], v[1], where), _range(v[2], where)
-    if kind == "bearing_range_3d":
-        return _unit3(v[:3], where), _range(v[3], where)
-    return np.array(v)
-
-
-def _rot2(c: float, s: float, where: str) -> gtsam.Rot2:
-    if abs(math.hypot(c, s) - 1.0) > 1e-9:
-        raise _Bad(f"{where}: rotation (cos, sin) = ({c}, {s}) is not a unit vector")
-    return gtsam.Rot2.fromCosSin(c, s)
-
-
-def _rot3(R: np.ndarray, where: str) -> gtsam.Rot3:
-    with np.errstate(all="ignore"):  # entries of 1e300 overflow: not a rotation either way
-        ok = np.abs(R @ R.T - np.eye(3)).max() < 1e-9 and np.linalg.det(R) > 0
-    if not ok:
-        raise _Bad(f"{where}: 3x3 matrix is not a rotation")
-    return gtsam.Rot3(R)
-
-
-def _unit3(v, where: str) -> gtsam.Unit3:
-    with np.errstate(all="ignore"):
-        norm = float(np.linalg.norm(v))
-    if not abs(norm - 1.0) <= 1e-9:
-        raise _Bad(f"{where}: direction {v} is not a unit vector")
-    return gtsam.Unit3(np.array(v, dtype=float))
-
-
-def _range(r: float, where: str) -> float:
-    if not r >= 0:
-        raise _Bad(f"{where}: range {r} is negative")
-    return r
-
-
-def _kernel_parameters(robust, where: str) -> tuple[str, int, float]:
-    """(name, reweight scheme, parameter) of an mEstimator. GTSAM's Python API has no getter for
-    the parameter, so it is read from the estimator's own archive of this in-memory object and
-    checked by rebuilding the estimator and comparing the two archives."""
-    name = type(robust).__name__
-    if name not in _KERNELS:
-        raise ValueError(
-            f"{where}: robust kernel {name} cannot be saved (saved kernels: {_KERNELS})"
-        )
-    archive = robust.serialize()
-    tokens = archive.split()
-    try:
-        scheme, param = int(tokens[8]), float(tokens[9])
-        rebuilt = _make_kernel(name, scheme, param).serialize()
-    except (IndexError, ValueError, RuntimeError):
-        rebuilt = None
-    if rebuilt != archive:
-        raise ValueError(
-            f"{where}: cannot read the parameter of robust kernel {name} from its archive"
-        )
-    return name, scheme, param
-
-
-def _make_kernel(name: str, scheme: int, param: float):
-    schemes = gtsam.noiseModel.mEstimator.Base.ReweightScheme
-    scheme = schemes.Block if scheme else schemes.Scalar
-    return getattr(gtsam.noiseModel.mEstimator, name).Create(param, scheme)
-
-
-def _encode_noise(model, where: str) -> dict:
-    nm = gtsam.noiseModel
-    if isinstance(model, nm.Robust):
-        name, scheme, param = _kernel_parameters(model.robust(), where)
-        return {
-            "robust": name,
-            "scheme": scheme,
-            "k": param,
-            "base": _encode_noise(model.noise(), where),
-        }
-    if isinstance(model, nm.Constrained):
-        raise ValueError(f"{where}: a Constrained noise model cannot be saved")
-    if isinstance(model, nm.Unit):
-        return {"unit": model.dim()}
-    if isinstance(model, nm.Isotropic):
-        return {"isotropic": model.dim(), "sigma": float(model.sigma())}
-    if isinstance(model, nm.Diagonal):
-        return {"sigmas": np.asarray(model.sigmas(), dtype=float).tolist()}
-    if isinstance(model, nm.Gaussian):
-        return {"sqrt_information": np.asarray(model.R(), dtype=float).tolist()}
-    raise ValueError(f"{where}: noise model {type(model).__name__} cannot be saved")
-
-
-def _decode_noise(raw, where: str, depth: int = 0):
-    nm = gtsam.noiseModel
-    if not isinstance(raw, dict) or (depth and "robust" in raw):
-        raise _Bad(f"{where}: noise model must be an object (robust over a Gaussian model)")
-    if "robust" in raw:
-        name, scheme, k = raw.get("robust"), raw.get("scheme"), raw.get("k")
-        if name not in _KERNELS or scheme not in (0, 1) or not (_is_number(k) and k > 0):
-            raise _Bad(
-                f"{where}: robust kernel must be one of {_KERNELS} with scheme 0/1 and "
-                f"k > 0, got {name!r}, {scheme!r}, {k!r}"
-            )
-        base = _decode_noise(raw.get("base"), where, 1)
-        return nm.Robust.Create(_make_kernel(name, scheme, float(k)), base)
-    if "unit" in raw:
-        return nm.Unit.Create(_dim(raw["unit"], where))
-    if "isotropic" in raw:
-        sigma = raw.get("sigma")
-        if not (_is_number(sigma) and sigma > 0):
-            raise _Bad(f"{where}: isotropic sigma must be > 0, got {sigma!r}")
-        return nm.Isotropic.Sigma(_dim(raw["isotropic"], where), float(sigma))
-    if "sigmas" in raw:
-        sigmas = _numbers(raw["sigmas"], f"{where}: sigmas")
-        if not (1 <= len(sigmas) <= 64 and min(sigmas) > 0):
-            raise _Bad(f"{where}: need 1 to 64 sigmas > 0, got {sigmas}")
-        return nm.Diagonal.Sigmas(np.array(sigmas), False)
-    if "sqrt_information" in raw:
-        rows = raw["sqrt_information"]
-        if not isinstance(rows, list) or not 1 <= len(rows) <= 64:
-            raise _Bad(f"{where}: sqrt_information must be a list of 1 to 64 rows")
-        R = np.array([_numbers(r, f"{where}: sqrt_information") for r in rows], dtype=object)
-        if R.ndim != 2 or R.shape[0] != R.shape[1]:
-            raise _Bad(f"{where}: sqrt_information must be square")
-        R = R.astype(float)
-        if np.abs(np.tril(R, -1)).max(initial=0.0) != 0 or not (np.diag(R) > 0).all():
-            raise _Bad(
-                f"{where}: sqrt_information must be upper triangular with a positive diagonal"
-            )
-        return nm.Gaussian.SqrtInformation(R, False)
-    raise _Bad(f"{where}: unknown noise model {sorted(raw)}")
-
-
-def _encode_factor(f, where: str) -> dict:
-    name = type(f).__name__
-    spec = _FACTOR_TYPES.get(name)
-    if spec is None:
-        raise ValueError(
-            f"{where}: factor type {name} cannot be saved (saved types: built-in "
-            f"{', '.join(sorted(_FACTOR_TYPES))}, and factor providers {_PROVIDERS})"
-        )
-    getter, kind, n_keys = spec
-    out = {
-        "type": name,
-        "keys": [int(k) for k in f.keys()],
-        "measured": _encode_measurement(kind, getattr(f, getter)()),
-        "noise": _encode_noise(f.noiseModel(), where),
-    }
-    if name == "AttitudeFactorPose3":
-        out["b_measured"] = _encode_measurement("unit3", f.bMeasured())
-    if name == "GenericProjectionFactorCal3_S2":
-        out["calibration"] = np.asarray(f.calibration().vector(), dtype=float).tolist()
-        out["cheirality"] = [bool(f.throwCheirality()), bool(f.verboseCheirality())]
-        rebuilt = _make_factor(name, out["keys"], f.measured(), f.noiseModel(), out).serialize()
-        if rebuilt != f.serialize():  # e.g. a body_P_sensor, which has no getter
-            raise ValueError(f"{where}: {name} with a body_P_sensor cannot be saved")
-    if name == "RangeFactorWithTransformPose3":  # body_T_sensor has no getter: from the archive
-        archive = f.serialize()
-        tokens = archive.split()
-        try:
-            body = np.array([float(x) for x in tokens[-14:-5] + tokens[-3:]])
-            T = np.eye(4)
-            T[:3, :3], T[:3, 3] = body[:9].reshape(3, 3), body[9:]
-            rebuilt = _make_factor(name, out["keys"], f.measured(), f.noiseModel(), T).serialize()
-        except (ValueError, RuntimeError):
-            rebuilt = None
-        if rebuilt != archive:
-            raise ValueError(f"{where}: cannot read body_T_sensor of {name} from its archive")
-        out["body_T_sensor"] = T.ravel().tolist()
-    return out
-
-
-def _make_factor(name: str, keys: list, measured, noise, extra=None):
-    cls = getattr(gtsam, name)
-    if name == "GenericProjectionFactorCal3_S2":
-        return cls(
-            np.asarray(measured),
-            noise,
-            *keys,
-            gtsam.Cal3_S2(*extra["calibration"]),
-            *extra["cheirality"],
-        )
-    if name == "RangeFactorWithTransformPose3":
-        T = np.asarray(extra)
-        return cls(*keys, measured, noise, gtsam.Pose3(gtsam.Rot3(T[:3, :3]), T[:3, 3]))
-    if isinstance(measured, tuple):  # bearing, range
-        return cls(*keys, *measured, noise)
-    return cls(*keys, measured, noise)
-
-
-def _decode_factor(raw, where: str):
-    if not isinstance(raw, dict):
-        raise _Bad(f"{where}: a factor must be an object")
-    name = raw.get("type")
-    spec = _FACTOR_TYPES.get(name) if isinstance(name, str) else None
-    if spec is None or not hasattr(gtsam, name):
-        raise _Bad(f"{where}: unknown factor type {name!r}")
-    _, kind, n_keys = spec
-    keys = raw.get("keys")
-    if not (isinstance(keys, list) and len(keys) == n_keys and all(_is_key(k) for k in keys)):
-        raise _Bad(f"{where}: {name} needs {n_keys} keys (integers in [0, 2^64)), got {keys!r}")
-    measured = _decode_measurement(kind, _numbers(raw.get("measured"), f"{where}: measured"), where)
-    noise = _decode_noise(raw.get("noise"), where)
-    try:
-        if name == "AttitudeFactorPose3":
-            b = _unit3(_numbers(raw.get("b_measured"), f"{where}: b_measured"), where)
-            factor = gtsam.AttitudeFactorPose3(keys[0], measured, noise, b)
-        elif name == "GenericProjectionFactorCal3_S2":
-            if len(measured) != 2:
-                raise _Bad(f"{where}: {name} needs a 2-vector pixel, got {len(measured)} numbers")
-            cal = _numbers(raw.get("calibration"), f"{where}: calibration")
-            flags = raw.get("cheirality")
-            if len(cal) != 5 or not (cal[0] > 0 and cal[1] > 0):
-                raise _Bad(
-                    f"{where}: calibration must be fx, fy, s, u0, v0 with fx, fy > 0, got {cal}"
-                )
-            if not (
-                isinstance(flags, list)
-                and len(flags) == 2
-                and all(isinstance(b, bool) for b in flags)
-            ):
-                raise _Bad(f"{where}: cheirality must be two booleans, got {flags!r}")
-            extra = {"calibration": cal, "cheirality": flags}
-            factor = _make_factor(name, keys, measured, noise, extra)
-        elif name == "RangeFactorWithTransformPose3":
-            T = np.array(_numbers(raw.get("body_T_sensor"), f"{where}: body_T_sensor"))
-            if T.size != 16:
-                raise _Bad(f"{where}: body_T_sensor needs 16 numbers, got {T.size}")
-            T = T.reshape(4, 4)
-            _rot3(T[:3, :3], f"{where}: body_T_sensor")
-            factor = _make_factor(name, keys, measured, noise, T)
-        else:
-            factor = _make_factor(name, keys, measured, noise)
-    except (RuntimeError, TypeError) as exc:  # e.g. a noise dimension the factor does not have
-        raise _Bad(f"{where}: GTSAM rejected the {name} ({exc})") from None
-    want = {
-        "pose2": 3,
-        "pose3": 6,
-        "rot2": 1,
-        "rot3": 3,
-        "unit3": 2,
-        "double": 1,
-        "bearing_range_2d": 2,
-        "bearing_range_3d": 3,
-    }.get(kind, len(raw["measured"]))
-    if noise.dim() != want:  # a mismatch GTSAM would not notice could corrupt memory
-        raise _Bad(
-            f"{where}: {name} has an error of dimension {want}, its noise model {noise.dim()}"
-        )
-    return factor
-
-
-def _encode_item(item, where: str) -> dict:
-    """One added item: a built-in factor, or a factor provider (an object with `save_state`)."""
-    if hasattr(item, "save_state"):
-        state = item.save_state()
-        return {
-            "provider": state["kind"],
-            "weights": [float(w) for w in state["weights"]],
-            "components": [
-                [_encode_factor(f, f"{where}, component {c}") for f in group]
-                for c, group in enumerate(state["components"])
-            ],
-        }
-    if hasattr(item, "factor") and not isinstance(item, gtsam.NonlinearFactor):
-        raise ValueError(
-            f"{where}: factor provider {type(item).__name__} has no save_state(), cannot be saved"
-        )
-    return _encode_factor(item, where)
-
-
-def _decode_item(raw, where: str):
-    if isinstance(raw, dict) and "provider" in raw:
-        if raw["provider"] != "max_mixture":
-            raise _Bad(
-                f"{where}: unknown factor provider {raw['provider']!r} (known: {_PROVIDERS})"
-            )
-        from graphloc.factors.mixture import MaxMixture
-
-        groups = raw.get("components")
-        if not isinstance(groups, list) or not all(isinstance(g, list) for g in groups):
-            raise _Bad(f"{where}: max_mixture components must be a list of lists of factors")
-        components = [
-            [_decode_factor(f, f"{where}, component {c}") for f in g] for c, g in enumerate(groups)
-        ]
-        weights = _numbers(raw.get("weights"), f"{where}: weights")
-        try:
-            return MaxMixture.from_state(components, weights)
-        except ValueError as exc:
-            raise _Bad(f"{where}: {exc}") from None
-    return _decode_factor(raw, where)
-
-
-def _encode_values(values: gtsam.Values, where: str) -> list:
-    out = []
-    for key in values.keys():
-        for kind, get in (
-            ("pose3", values.atPose3),
-            ("pose2", values.atPose2),
-            ("rot3", values.atRot3),
-            ("rot2", values.atRot2),
-            ("vector", values.atVector),
-        ):
-            try:
-                value = get(key)
-            except RuntimeError:
-                continue
-            numbers = _encode_measurement(kind, value)
-            if not all(math.isfinite(x) for x in numbers):
-                raise ValueError(f"{where}: value {_key_name(key)} is not finite")
-            out.append([int(key), kind, numbers])
-            break
-        else:
-            raise ValueError(
-                f"{where}: value {_key_name(key)} has a type that "
-                f"cannot be saved (saved: Pose2, Pose3, Rot2, Rot3, vectors, points)"
-            )
-    return out
-
-
-def _decode_values(raw, where: str) -> gtsam.Values:
-    if not isinstance(raw, list):
-        raise _Bad(f"{where}: values must be a list")
-    values = gtsam.Values()
-    for entry in raw:
-        if not (
-            isinstance(entry, list)
-            and len(entry) == 3
-            and _is_key(entry[0])
-            and entry[1] in ("pose3", "pose2", "rot3", "rot2", "vector")
-        ):
-            raise _Bad(f"{where}: a value must be [key, kind, numbers], got {str(entry)[:80]}")
-        key, kind, numbers = entry
-        label = f"{where}, value {_key_name(key)}"
-        if values.exists(key):
-            raise _Bad(f"{label}: key given twice")
-        values.insert(key, _decode_measurement(kind, _numbers(numbers, label), label))
-    return values
-
-
-def _decode_step(raw, where: str) -> tuple[float, list, gtsam.Values]:
-    if not isinstance(raw, dict):
-        raise _Bad(f"{where}: must be an object")
-    t = raw.get("time")
-    if not _is_number(t):
-        raise _Bad(f"{where}: time must be a finite number, got {t!r}")
-    items = raw.get("items")
-    if not isinstance(items, list):
-        raise _Bad(f"{where}: items must be a list")
-    decoded = [_decode_item(item, f"{where}, item {j}") for j, item in enumerate(items)]
-    return float(t), decoded, _decode_values(raw.get("values"), where)
-
-
-def _is_key(x) -> bool:
-    return isinstance(x, int) and not isinstance(x, bool) and 0 <= x < 2**64
-
-
-def _is_number(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-
-
-def _numbers(raw, where: str) -> list:
-    if not isinstance(raw, list) or not all(_is_number(x) for x in raw) or len(raw) > 4096:
-        raise _Bad(f"{where}: expected a list of finite numbers, got {str(raw)[:80]}")
-    return [float(x) for x in raw]
-
-
-def _dim(raw, where: str) -> int:
-    if not (isinstance(raw, int) and not isinstance(raw, bool) and 1 <= raw <= 64):
-        raise _Bad(f"{where}: noise dimension must be an integer in [1, 64], got {raw!r}")
-    return raw
-
-
-def _key_name(key: int) -> str:
-    """GTSAM's name of a key (x0, l3, ...), or the number when GTSAM cannot format it (a
-    symbol character that is not text raises UnicodeDecodeError in DefaultKeyFormatter)."""
-    try:
-        return gtsam.DefaultKeyFormatter(key)
-    except UnicodeDecodeError:
-        return str(key)
+        raise BadData(f"config: {exc}") from None
 
 
 def _value(values: gtsam.Values, key: int):
@@ -1118,7 +540,7 @@ def _value(values: gtsam.Values, key: int):
             return get(key)
         except RuntimeError:
             continue
-    raise ValueError(f"no estimate for key {_key_name(key)}")
+    raise ValueError(f"no estimate for key {key_name(key)}")
 
 
 def _first_line(exc: Exception) -> str:
@@ -1130,7 +552,7 @@ def _first_line(exc: Exception) -> str:
 def _subset(values: gtsam.Values, keys: Iterable[int]) -> gtsam.Values:
     """The entries of `values` at `keys` (unknown keys raise ValueError)."""
     wanted = set(keys)
-    missing = [_key_name(k) for k in wanted if not values.exists(k)]
+    missing = [key_name(k) for k in wanted if not values.exists(k)]
     if missing:
         raise ValueError(f"no estimate for keys {missing[:5]}")
     out = gtsam.Values(values)
