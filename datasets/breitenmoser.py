@@ -1,7 +1,7 @@
 """Scenario `breitenmoser-target`: seed 001 (001_0f8f8dae37ce6b79.txt) Sec. V-A experiment 1 --
 a downward-looking 752x480, 90 deg FOV camera over the larger four-marker target (Sec. III-A,
 graphloc.vision.target.LARGE_TARGET), camera-target distance from 0.7 m to 3 m. Thin over
-graphloc.vision.render: every frame is rendered (blur, sensor noise) and saved as a PNG; the
+graphloc.datasets.render: every frame is rendered (blur, sensor noise) and saved as a PNG; the
 marker pixels in the log are the centroids of each marker's visible area in the rendering.
 The accuracy experiment itself (detection, hypotheses, errors vs distance) is
 scripts/repro_seed001.py; this writes a run for the log readers and `graphloc` verbs.
@@ -19,7 +19,7 @@ from graphloc.cameras import PinholeCamera
 from graphloc.datasets.feng import look_at
 from graphloc.config import parse_overrides
 from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
-from graphloc.vision.render import RenderConfig, render_markers
+from graphloc.datasets.render import RenderConfig, render_markers
 from graphloc.vision.target import LARGE_TARGET
 
 # centroid noise of the logged marker pixels: rendered centroids at sensor sigma 2 are within

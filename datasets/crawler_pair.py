@@ -31,7 +31,8 @@ import numpy as np
 from tqdm import tqdm
 
 from graphloc.cameras import PinholeCamera
-from graphloc.vision.circle import render_circle_rim, rotations_from_normals
+from graphloc.datasets.render import render_circle_rim
+from graphloc.vision.circle import rotations_from_normals
 
 MOVERS = ("camera", "teammate")
 

@@ -22,7 +22,8 @@ from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera, angular_sigma
 from graphloc.datasets.feng import noisy_pixels
-from graphloc.vision.mutual import localize_three, render_mutual_pixels
+from graphloc.datasets.render import render_mutual_pixels
+from graphloc.vision.mutual import localize_three
 
 
 GROUND_BOXES = np.array(

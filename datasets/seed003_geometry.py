@@ -16,7 +16,8 @@ from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
 from graphloc.factors.mixture import check_covariances
 from graphloc.seams import FrameInput, TeammateObservation
-from graphloc.vision.circle import circle_pose_from_rim, render_circle_rim, rotations_from_normals
+from graphloc.datasets.render import render_circle_rim
+from graphloc.vision.circle import circle_pose_from_rim, rotations_from_normals
 from graphloc.vision.features import FrameFeatures
 from graphloc.vision.teammate import TeammateConfig, teammate_observation
 

@@ -23,10 +23,17 @@ import numpy as np
 from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera
 from graphloc.experiments.seed001 import look_at
 from graphloc.plots import plt
-from graphloc.vision.circle import circle_pose_from_rim, render_circle_rim, rim_points_from_mask
+from graphloc.vision.circle import circle_pose_from_rim, rim_points_from_mask
 from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, marker_area_bounds
-from graphloc.vision.mutual import localize_three, render_mutual_pixels
-from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers
+from graphloc.vision.mutual import localize_three
+from graphloc.datasets.render import (
+    Occluder,
+    RenderConfig,
+    random_clutter,
+    render_circle_rim,
+    render_markers,
+    render_mutual_pixels,
+)
 from graphloc.vision.target import LARGE_TARGET, project_markers, target_hypotheses
 
 

@@ -11,10 +11,11 @@ from graphloc.vision.circle import (
     circle_pose_from_rim,
     circle_poses_from_rims,
     ellipse_to_conic,
-    render_circle_rim,
     rim_points_from_mask,
     rotations_from_normals,
 )
+
+from graphloc.datasets.render import render_circle_rim
 
 RADIUS = 0.019  # seed 003: 1.9 cm circle, about 0.83 m from the camera
 DISTANCE = 0.83

@@ -142,7 +142,7 @@ def test_base_rim_is_subpixel_accurate():
     blob = detect_base_rim(img)
     assert blob is not None and len(blob.rim) > 40
     # the rim points lie on the true projected circle: compare with the ideal ellipse fit
-    from graphloc.vision.circle import render_circle_rim
+    from graphloc.datasets.render import render_circle_rim
 
     truth, _ = render_circle_rim(cam, c, n, 0.019, n_points=720)
     (u0, v0), (w, h), ang = cv2.fitEllipse(truth.astype(np.float32))
@@ -205,7 +205,7 @@ def test_coverage_map_ignores_the_background_brightness():
 def test_refined_rim_beats_the_edge_crossings_on_texture():
     """Over 12 textured frames the refined ellipse's axes are within ~0.02 px of the truth
     (rms), about three times closer than the ellipse of the interpolated edge crossings."""
-    from graphloc.vision.circle import render_circle_rim
+    from graphloc.datasets.render import render_circle_rim
 
     err_refined, err_crossings, blurs = [], [], []
     for seed in range(12):

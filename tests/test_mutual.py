@@ -13,8 +13,8 @@ from graphloc.vision.mutual import (
     STATUS_OK,
     MutualConfig,
     localize_three,
-    render_mutual_pixels,
 )
+from graphloc.datasets.render import render_mutual_pixels
 
 # seed 000 section VI: 512 x 512 panoramic cameras; FOV to 35 deg below the horizon so that
 # cameras tilted by up to pi/6 still see each other

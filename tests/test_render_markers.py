@@ -11,7 +11,7 @@ from graphloc.vision.markers import (
     marker_area_bounds,
     roi_from_points,
 )
-from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers
+from graphloc.datasets.render import Occluder, RenderConfig, random_clutter, render_markers
 
 CAM = PinholeCamera.from_fov(752, 480, np.pi / 2)
 RADIUS = 0.015  # seed 001 larger target: b = 3 cm

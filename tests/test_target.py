@@ -9,7 +9,7 @@ import pytest
 import graphloc.vision.target as target_mod
 from graphloc.cameras import PinholeCamera
 from graphloc.vision.markers import detect_markers
-from graphloc.vision.render import RenderConfig, render_markers
+from graphloc.datasets.render import RenderConfig, render_markers
 from graphloc.vision.target import (
     LARGE_TARGET,
     SMALL_TARGET,

@@ -41,7 +41,7 @@ from graphloc.vision.markers import (
     marker_area_bounds,
     roi_from_points,
 )
-from graphloc.vision.render import Occluder, RenderConfig, random_clutter, render_markers
+from graphloc.datasets.render import Occluder, RenderConfig, random_clutter, render_markers
 from graphloc.vision.target import (
     LARGE_TARGET,
     TargetHypothesisConfig,

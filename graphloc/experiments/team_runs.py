@@ -264,10 +264,10 @@ INTRO = (
 FENG_NOTES = (
     "Wrong = the decided candidate is neither the genuine one (nearest the truth) nor the same "
     "pose as it within their covariances; merged = the decided candidate is not the nearest but "
-    "the same pose as it (near the P3P fold, `team_graph.candidates.same_pose`). RMSE from each run's first "
-    "decision on.\n\nToday's experiment code: `graphloc.experiments.hypotheses.evaluate` "
-    "(HypothesisTracker, its committed candidates re-solved as one graph; no surface factor) on "
-    "the same simulated runs."
+    "the same pose as it (near the P3P fold, `team_graph.candidates.same_pose`). RMSE from each "
+    "run's first decision on.\n\nToday's experiment code: "
+    "`graphloc.experiments.hypotheses.evaluate` (HypothesisTracker, its committed candidates "
+    "re-solved as one graph; no surface factor) on the same simulated runs."
 )
 KAUSHIK_NOTES = (
     "Oracle = the same pipeline on the same logs with every candidate set reduced to its genuine "

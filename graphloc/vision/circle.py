@@ -479,15 +479,3 @@ def rim_points_from_mask(mask: np.ndarray) -> np.ndarray:
     if not contours:
         raise ValueError("mask has no foreground blob")
     return max(contours, key=cv2.contourArea).reshape(-1, 2).astype(float)
-
-
-def render_circle_rim(
-    camera, centre: np.ndarray, normal: np.ndarray, radius: float, n_points: int = 100
-) -> tuple[np.ndarray, np.ndarray]:
-    """Forward model: pixels (n_points,2) and visibility of n_points equally spaced points
-    of the circle (camera frame centre (3,), normal (3,), radius)."""
-    centre = np.asarray(centre, dtype=float).reshape(3)
-    R = rotations_from_normals(np.asarray(normal, dtype=float).reshape(1, 3))[0]
-    phi = np.linspace(0.0, 2.0 * np.pi, int(n_points), endpoint=False)
-    points = centre + radius * (np.outer(np.cos(phi), R[:, 0]) + np.outer(np.sin(phi), R[:, 1]))
-    return camera.project(points)

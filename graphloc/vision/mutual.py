@@ -140,7 +140,7 @@ class ThreeRobotPoses:
         return gtsam.Pose3(gtsam.Rot3(R), t)
 
 
-def _cameras3(cameras) -> tuple:
+def three_cameras(cameras) -> tuple:
     if hasattr(cameras, "pixel_to_bearing"):
         return (cameras,) * 3
     cameras = tuple(cameras)
@@ -186,7 +186,7 @@ def localize_three(
     baseline_12: |T_12| [m], a scalar or (N,) array, positive and finite.
     """
     pixels = _check_pixels(pixels)
-    cams = _cameras3(cameras)
+    cams = three_cameras(cameras)
     N = len(pixels)
     baseline = (
         np.broadcast_to(np.asarray(baseline_12, dtype=float), (N,))
@@ -268,29 +268,3 @@ def localize_three(
     return ThreeRobotPoses(
         R, t, baseline.copy(), sides, angles, closure, misfit, condition, status.astype(str)
     )
-
-
-def render_mutual_pixels(
-    R_world: np.ndarray, t_world: np.ndarray, cameras
-) -> tuple[np.ndarray, np.ndarray]:
-    """Forward model: pixels (N,3,3,2) of each camera centre in the other cameras' images
-    and visibility (N,3,3) (diagonal: NaN / False). R_world (N,3,3,3), t_world (N,3,3):
-    camera-to-world rotations and camera centres of the 3 robots."""
-    R_world, t_world = np.asarray(R_world, dtype=float), np.asarray(t_world, dtype=float)
-    N = len(R_world)
-    if R_world.shape != (N, 3, 3, 3) or t_world.shape != (N, 3, 3):
-        raise ValueError(
-            f"R_world must be (N,3,3,3) and t_world (N,3,3), got {R_world.shape}, {t_world.shape}"
-        )
-    cams = _cameras3(cameras)
-    pixels = np.full((N, 3, 3, 2), np.nan)
-    visible = np.zeros((N, 3, 3), dtype=bool)
-    for i in range(3):
-        others = [j for j in range(3) if j != i]
-        rel = np.einsum(
-            "nji,nkj->nki", R_world[:, i], t_world[:, others] - t_world[:, i, None]
-        )  # R_i^T (t_j - t_i)
-        p, v = cams[i].project(rel.reshape(-1, 3))
-        pixels[:, i, others] = p.reshape(N, 2, 2)
-        visible[:, i, others] = v.reshape(N, 2)
-    return pixels, visible

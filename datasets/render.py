@@ -1,6 +1,11 @@
-"""Synthetic camera frames of spherical markers (LEDs or painted balls), for tests and the
-seed-001 reproduction (001_0f8f8dae37ce6b79.txt, section III: four identical
-spherical markers; section V-A: 752x480 monochrome camera, 90 deg FOV).
+"""Forward models of the simulators (graphloc.datasets' scenarios, the reproductions in
+graphloc.experiments, tests): the pixels a camera sees, never used by a front-end.
+
+- `render_mutual_pixels`: seed 000's three ground robots' omni cameras seeing each other;
+- `render_circle_rim`: seed 003's teammate base rim as points;
+- `render_markers`: synthetic camera frames of spherical markers (LEDs or painted balls), for
+  the seed-001 scenario and reproduction (001_0f8f8dae37ce6b79.txt, section III: four
+  identical spherical markers; section V-A: 752x480 monochrome camera, 90 deg FOV).
 
 A sphere of radius r whose centre c is seen under the cone of half-angle asin(r/|c|) around
 c/|c|; a sub-pixel sample belongs to the marker when its bearing (camera.pixel_to_bearing) lies
@@ -22,6 +27,9 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+
+from graphloc.vision.circle import rotations_from_normals
+from graphloc.vision.mutual import three_cameras
 
 CLUTTER_KINDS = ("bar", "large", "speck", "crescent", "disc")
 
@@ -347,3 +355,41 @@ def render_markers(
         clutter=tuple(clutter),
         occluders=tuple(occluders),
     )
+
+
+def render_mutual_pixels(
+    R_world: np.ndarray, t_world: np.ndarray, cameras
+) -> tuple[np.ndarray, np.ndarray]:
+    """Forward model: pixels (N,3,3,2) of each camera centre in the other cameras' images
+    and visibility (N,3,3) (diagonal: NaN / False). R_world (N,3,3,3), t_world (N,3,3):
+    camera-to-world rotations and camera centres of the 3 robots."""
+    R_world, t_world = np.asarray(R_world, dtype=float), np.asarray(t_world, dtype=float)
+    N = len(R_world)
+    if R_world.shape != (N, 3, 3, 3) or t_world.shape != (N, 3, 3):
+        raise ValueError(
+            f"R_world must be (N,3,3,3) and t_world (N,3,3), got {R_world.shape}, {t_world.shape}"
+        )
+    cams = three_cameras(cameras)
+    pixels = np.full((N, 3, 3, 2), np.nan)
+    visible = np.zeros((N, 3, 3), dtype=bool)
+    for i in range(3):
+        others = [j for j in range(3) if j != i]
+        rel = np.einsum(
+            "nji,nkj->nki", R_world[:, i], t_world[:, others] - t_world[:, i, None]
+        )  # R_i^T (t_j - t_i)
+        p, v = cams[i].project(rel.reshape(-1, 3))
+        pixels[:, i, others] = p.reshape(N, 2, 2)
+        visible[:, i, others] = v.reshape(N, 2)
+    return pixels, visible
+
+
+def render_circle_rim(
+    camera, centre: np.ndarray, normal: np.ndarray, radius: float, n_points: int = 100
+) -> tuple[np.ndarray, np.ndarray]:
+    """Forward model: pixels (n_points,2) and visibility of n_points equally spaced points
+    of the circle (camera frame centre (3,), normal (3,), radius)."""
+    centre = np.asarray(centre, dtype=float).reshape(3)
+    R = rotations_from_normals(np.asarray(normal, dtype=float).reshape(1, 3))[0]
+    phi = np.linspace(0.0, 2.0 * np.pi, int(n_points), endpoint=False)
+    points = centre + radius * (np.outer(np.cos(phi), R[:, 0]) + np.outer(np.sin(phi), R[:, 1]))
+    return camera.project(points)
