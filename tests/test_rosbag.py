@@ -143,8 +143,8 @@ TOPICS = {
 }
 
 
-def _msg(ts, name, **kw):
-    return ts.types[name](**kw)
+def _msg(ts, msgtype, **kw):
+    return ts.types[msgtype](**kw)
 
 
 def _header(ts, k, ros1, frame="map"):
@@ -539,3 +539,222 @@ def test_truncated_bag_is_a_clear_error(kind, tmp_path, capsys):
     assert main(["import", str(bag), "--out", str(tmp_path / "log")]) == 2
     err = capsys.readouterr().err
     assert f"graphloc import: error: {bag}: cannot read bag:" in err, err
+
+
+# ---- scans, images + CameraInfo, tf_static (datasets/rosbag_messages.py) ---------------------
+LEDS = np.array([[100.0, 120.0], [300.5, 110.25], [210.0, 330.0], [420.75, 260.5]])
+LIDAR_T = gtsam.Pose3(gtsam.Rot3.Ypr(0.3, 0.0, 0.0), gtsam.Point3(0.1, 0.0, 0.2))
+MOUNT_T = gtsam.Pose3(gtsam.Rot3(), gtsam.Point3(0.0, 0.05, 0.1))
+OPTICAL_T = gtsam.Pose3(gtsam.Rot3.Ypr(-np.pi / 2, 0.0, -np.pi / 2), gtsam.Point3(0, 0, 0))
+
+
+def _transform_msg(ts, parent, child, pose: gtsam.Pose3):
+    q, t = pose.rotation().toQuaternion(), pose.translation()
+    return _msg(
+        ts,
+        "geometry_msgs/msg/TransformStamped",
+        header=_header(ts, 0, False, parent),
+        child_frame_id=child,
+        transform=_msg(
+            ts,
+            "geometry_msgs/msg/Transform",
+            translation=_msg(ts, "geometry_msgs/msg/Vector3", x=t[0], y=t[1], z=t[2]),
+            rotation=_msg(ts, "geometry_msgs/msg/Quaternion", x=q.x(), y=q.y(), z=q.z(), w=q.w()),
+        ),
+    )
+
+
+def _cloud_msg(ts, k, pts):
+    fields = [
+        _msg(ts, "sensor_msgs/msg/PointField", name=n, offset=4 * i, datatype=7, count=1)
+        for i, n in enumerate("xyz")
+    ]
+    data = np.frombuffer(np.asarray(pts, dtype="<f4").tobytes(), dtype=np.uint8)
+    return _msg(
+        ts,
+        "sensor_msgs/msg/PointCloud2",
+        header=_header(ts, k, False, "lidar_link"),
+        height=1,
+        width=len(pts),
+        fields=fields,
+        is_bigendian=False,
+        point_step=12,
+        row_step=12 * len(pts),
+        data=data,
+        is_dense=False,
+    )
+
+
+def _image_msg(ts, k):
+    import cv2
+
+    img = np.full((480, 640), 12, np.uint8)
+    for u, v in LEDS:  # anti-aliased disks at sub-pixel centres (4 fractional bits)
+        cv2.circle(img, (int(round(u * 16)), int(round(v * 16))), 6 * 16, 250, -1, cv2.LINE_AA, 4)
+    return _msg(
+        ts,
+        "sensor_msgs/msg/Image",
+        header=_header(ts, k, False, "cam_optical"),
+        height=480,
+        width=640,
+        encoding="mono8",
+        is_bigendian=0,
+        step=640,
+        data=img.ravel(),
+    )
+
+
+def _camera_info_msg(ts, k):
+    roi = _msg(
+        ts,
+        "sensor_msgs/msg/RegionOfInterest",
+        x_offset=0,
+        y_offset=0,
+        height=0,
+        width=0,
+        do_rectify=False,
+    )
+    return _msg(
+        ts,
+        "sensor_msgs/msg/CameraInfo",
+        header=_header(ts, k, False, "cam_optical"),
+        height=480,
+        width=640,
+        distortion_model="plumb_bob",
+        d=np.zeros(5),
+        k=np.array([500.0, 0, 320.0, 0, 505.0, 240.0, 0, 0, 1]),
+        r=np.eye(3).ravel(),
+        p=np.zeros(12),
+        binning_x=0,
+        binning_y=0,
+        roi=roi,
+    )
+
+
+SENSOR_TOPICS = {
+    "robots": [
+        {
+            "name": "climber",
+            "kind": "ceiling",
+            "planar": False,
+            "initial_pose": [0, 0, 3, 1, 0, 0, 0],
+            "sensors": [
+                {"name": "lidar", "type": "scanner"},
+                {"name": "camera", "type": "camera", "params": {"pixel_sigma": 0.5}},
+            ],
+        },
+        {
+            "name": "ground",
+            "kind": "ground",
+            "static": True,
+            "initial_pose": [0, 0, 0],
+            "identical_markers": True,
+            "markers": [[0.2, 0, 0.3], [-0.1, 0.2, 0.3], [-0.1, -0.2, 0.3], [0.0, 0.0, 0.5]],
+        },
+    ],
+    "frames": {"climber": {"body": "base_link", "sensors": {"lidar": "lidar_link"}}},
+    "topics": {
+        "/lidar/points": {"robot": "climber", "table": "scans", "sensor": "lidar"},
+        "/cam/image": {
+            "robot": "climber",
+            "table": "markers",
+            "sensor": "camera",
+            "target": "ground",
+            "camera_info": "/cam/info",
+        },
+    },
+}
+
+
+def write_sensor_bag(path: Path, clouds: list) -> Path:
+    """A ROS 2 MCAP bag: tf_static (base_link -> lidar_link, base_link -> cam_mount ->
+    cam_optical), PointCloud2 scans, mono8 images of four LEDs and their CameraInfo."""
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    tf = "tf2_msgs/msg/TFMessage"
+    statics = [
+        _transform_msg(ts, "base_link", "lidar_link", LIDAR_T),
+        _transform_msg(ts, "base_link", "cam_mount", MOUNT_T),
+        _transform_msg(ts, "cam_mount", "cam_optical", OPTICAL_T),
+    ]
+    with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        c_tf = writer.add_connection("/tf_static", tf, typestore=ts)
+        c_pc = writer.add_connection("/lidar/points", "sensor_msgs/msg/PointCloud2", typestore=ts)
+        c_im = writer.add_connection("/cam/image", "sensor_msgs/msg/Image", typestore=ts)
+        c_ci = writer.add_connection("/cam/info", "sensor_msgs/msg/CameraInfo", typestore=ts)
+        t0 = int(stamp(0)[2] * 1e9)
+        writer.write(c_tf, t0, ts.serialize_cdr(_msg(ts, tf, transforms=statics), tf))
+        for k, pts in enumerate(clouds):
+            t = int(stamp(k)[2] * 1e9) + 1000
+            msg = _cloud_msg(ts, k, pts)
+            writer.write(c_pc, t, ts.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2"))
+            writer.write(c_im, t, ts.serialize_cdr(_image_msg(ts, k), "sensor_msgs/msg/Image"))
+            info = _camera_info_msg(ts, k)
+            writer.write(c_ci, t, ts.serialize_cdr(info, "sensor_msgs/msg/CameraInfo"))
+    return path
+
+
+def test_scans_images_camera_info_and_tf_static(tmp_path):
+    from graphloc.mapping.io import read_points
+
+    rng = np.random.default_rng(3)
+    clouds = [rng.uniform(-5, 5, (200, 3)).astype(np.float32) for _ in range(3)]
+    clouds[1][7] = np.nan  # a NaN return: dropped and counted
+    bag = write_sensor_bag(tmp_path / "sensors", clouds)
+    topics = json.loads(json.dumps(SENSOR_TOPICS))
+    topics["frames"]["climber"]["sensors"]["camera"] = "cam_optical"
+    (tmp_path / "topics.yaml").write_text(yaml.safe_dump(topics))
+    result = import_bag(bag, tmp_path / "topics.yaml", tmp_path / "log")
+    assert result.rows == {"scans": 3, "markers": 12}, result.skips.as_dict()
+    assert result.skips.counts == {"nonfinite_points": 1}
+    assert result.unmapped == []
+    manifest = json.loads((tmp_path / "log/manifest.json").read_text())
+    sensors = {s["name"]: s for s in manifest["robots"][0]["sensors"]}
+    assert np.allclose(sensors["lidar"]["extrinsics"], LIDAR_T.matrix(), atol=1e-12)
+    optical = MOUNT_T.compose(OPTICAL_T).matrix()
+    assert np.allclose(sensors["camera"]["extrinsics"], optical, atol=1e-12)
+    cam = sensors["camera"]["params"]
+    assert (cam["fx"], cam["fy"], cam["cx"], cam["cy"], cam["pixel_sigma"]) == (
+        500.0,
+        505.0,
+        320.0,
+        240.0,
+        0.5,
+    )
+    lines = (tmp_path / "log/climber/scans.csv").read_text().splitlines()
+    assert lines[0] == "time,sensor,path" and len(lines) == 4
+    for k, line in enumerate(lines[1:]):
+        pts = read_points(tmp_path / "log" / line.split(",")[2])
+        want = clouds[k][np.isfinite(clouds[k]).all(axis=1)]
+        assert pts.shape == want.shape and np.abs(pts - want).max() < 1e-6
+    marks = np.loadtxt(
+        tmp_path / "log/climber/markers.csv", delimiter=",", skiprows=1, usecols=(0, 3, 4, 5)
+    )
+    assert len(marks) == 12
+    for k in range(3):
+        frame = marks[marks[:, 0] == stamp(k)[2]]
+        assert sorted(frame[:, 1]) == [0, 1, 2, 3]
+        got = frame[np.lexsort(frame[:, 2:4].T[::-1])][:, 2:4]
+        want = LEDS[np.lexsort(LEDS.T[::-1])]
+        assert np.abs(got - want).max() < 0.3, got
+
+
+def test_missing_camera_info_and_unconnected_frames_are_errors(tmp_path, capsys):
+    clouds = [np.random.default_rng(4).uniform(-5, 5, (50, 3)) for _ in range(2)]
+    bag = write_sensor_bag(tmp_path / "sensors", clouds)
+    topics = json.loads(json.dumps(SENSOR_TOPICS))
+    topics["topics"]["/cam/image"]["camera_info"] = "/cam/camera_info"
+    (tmp_path / "topics.yaml").write_text(yaml.safe_dump(topics))
+    with pytest.raises(ValueError, match="topic '/cam/image' message 0: no sensor_msgs/msg/Camera"):
+        import_bag(bag, tmp_path / "topics.yaml", tmp_path / "log")
+    topics = json.loads(json.dumps(SENSOR_TOPICS))
+    topics["frames"]["climber"]["sensors"]["lidar"] = "velodyne"
+    (tmp_path / "topics.yaml").write_text(yaml.safe_dump(topics))
+    assert main(["import", str(bag), "--out", str(tmp_path / "log2")]) == 2
+    err = capsys.readouterr().err
+    assert "frames['climber'].sensors['lidar']" in err and "'velodyne'" in err, err
+    # the topics file's own errors: an image target without identical markers
+    topics = json.loads(json.dumps(SENSOR_TOPICS))
+    topics["robots"][1]["identical_markers"] = False
+    (tmp_path / "topics.yaml").write_text(yaml.safe_dump(topics))
+    with pytest.raises(ValueError, match=r"topics\['/cam/image'\]: field 'target'"):
+        read_topics(tmp_path / "topics.yaml")
