@@ -15,7 +15,6 @@ import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
 from graphloc.factors.surface import SurfacePlane
 from graphloc.io import (
@@ -32,7 +31,7 @@ from graphloc.io import (
     RelativePose3D,
     ScanRef,
     SkipReport,
-    _Sink,
+    Sink,
     is_tum,
     iter_records,
     read_landmarks,
@@ -49,6 +48,13 @@ from graphloc.run import (
     pose_from_planar,
     pose_from_xyz_quat,
 )
+from graphloc.datasets.camera_tables import (
+    camera_from_params,
+    ellipse_observations,
+    feature_observations,
+    positive_param,
+)
+from graphloc.records import EllipseObservation, FeaturePixel
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
 # tables the graph uses (every table of docs/log_format.md)
@@ -61,6 +67,8 @@ GRAPH_TABLES = (
     "bearing",
     "range_bearing",
     "markers",
+    "features",
+    "ellipses",
     "candidates",
     "groundtruth",
 )
@@ -92,25 +100,6 @@ def read_tum_poses(path: Path) -> tuple[np.ndarray, list]:
     return np.array(times), poses
 
 
-def _camera(params: dict, where: str) -> PinholeCamera:
-    try:
-        return PinholeCamera(
-            float(params["fx"]),
-            float(params["fy"]),
-            float(params["cx"]),
-            float(params["cy"]),
-            int(params["width"]),
-            int(params["height"]),
-            tuple(params.get("dist", ())),
-        )
-    except KeyError as exc:
-        raise ValueError(
-            f"{where}: camera params need fx, fy, cx, cy, width, height; missing {exc}"
-        ) from None
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{where}: camera params: {exc}") from None
-
-
 def _robot(r, where: str) -> TeamRobot:
     init = None
     if r.initial_pose is not None:
@@ -139,20 +128,11 @@ def _robot(r, where: str) -> TeamRobot:
         markers,
         bool(r.identical_markers),
         sensors,
+        surface_sigma=None if r.surface is None else r.surface.get("distance_sigma"),
+        attitude_sigma=None if r.surface is None else r.surface.get("attitude_sigma"),
+        body_axis=tuple((r.surface or {}).get("body_axis", (0.0, 0.0, 1.0))),
+        base_radius=r.base_radius,
     )
-
-
-def _param(params: dict, name: str, default: float, where: str) -> float:
-    value = params.get(name, default)
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"{where}: params field '{name}' must be a number, got {value!r}"
-        ) from None
-    if not (np.isfinite(value) and value >= 0):
-        raise ValueError(f"{where}: params field '{name}' must be finite >= 0, got {value}")
-    return value
 
 
 def read_team_run(
@@ -174,7 +154,7 @@ def read_team_run(
         for s in r.sensors:
             s.params.update(forced)
     report = SkipReport()
-    sink = _Sink(on_error, report)
+    sink = Sink(on_error, report)
     robots = tuple(_robot(r, f"{mpath}: robots[{i}]") for i, r in enumerate(manifest.robots))
     index = {r.name: i for i, r in enumerate(robots)}
     ids, xyz, sig = read_landmarks(manifest)
@@ -184,6 +164,8 @@ def read_team_run(
     marker_rows: dict = {}
     cand_rows: dict = {}
     scan_rows: dict = {}
+    feature_rows: list = []
+    ellipse_rows: list = []
     used = {t: 0 for t in GRAPH_TABLES}
     for r in manifest.robots:  # 3D ground truth in TUM files
         path = r.tables.get("groundtruth")
@@ -254,9 +236,9 @@ def read_team_run(
                 continue
             t_idx = index.get(target, -1)
             lid = -1 if t_idx >= 0 else int(target[len(LANDMARK_PREFIX) :])
-            bs = _param(params, "bearing_sigma", d["bearing_sigma"], where)
-            rs0 = _param(params, "range_sigma", d["range_sigma"], where)
-            rs1 = _param(params, "range_sigma_per_m", d["range_sigma_per_m"], where)
+            bs = positive_param(params, "bearing_sigma", d["bearing_sigma"], where)
+            rs0 = positive_param(params, "range_sigma", d["range_sigma"], where)
+            rs1 = positive_param(params, "range_sigma_per_m", d["range_sigma_per_m"], where)
             if isinstance(rec, Bearing3D):
                 v = np.array([rec.x, rec.y, rec.z])
                 n = np.linalg.norm(v)
@@ -309,6 +291,16 @@ def read_team_run(
             marker_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
         elif isinstance(rec, ScanRef):
             scan_rows.setdefault((ri, rec.sensor), []).append(rec)
+        elif isinstance(rec, FeaturePixel):
+            feature_rows.append((ri, rec))
+        elif isinstance(rec, EllipseObservation):
+            if rec.target not in index or rec.target == rec.robot:
+                sink.bad(
+                    "unknown_target",
+                    f"{where}: field 'target': {rec.target!r} is not another robot",
+                )
+                continue
+            ellipse_rows.append((ri, index[rec.target], rec, where))
         elif isinstance(rec, PoseCandidate):
             if rec.target not in index:
                 sink.bad(
@@ -320,6 +312,8 @@ def read_team_run(
     motions += _scan_odometry(scan_rows, robots, manifest)
     observations = _marker_observations(marker_rows, robots, manifest, d, sink, used)
     observations += _candidate_observations(cand_rows, robots, d, manifest)
+    observations += ellipse_observations(ellipse_rows, robots, manifest, sink)
+    features = feature_observations(feature_rows, robots, manifest, d)
     observations.sort(key=lambda o: (o.time, o.robot))
     for name, rows in gt2d.items():
         if rows:
@@ -331,6 +325,7 @@ def read_team_run(
         firsts = [v[0, 0] for v in vel if len(v)] or [m.t0 for m in motions]
         if not firsts:
             firsts = [p.time for p in points] + [o.time for o in observations]
+            firsts += [f.time for f in features]
         if not firsts:
             raise ValueError(f"{mpath}: the run has no odometry, relative poses or measurements")
         start = max(v[0, 0] for v in vel if len(v)) if any(len(v) for v in vel) else min(firsts)
@@ -351,6 +346,7 @@ def read_team_run(
         skips=report,
         contributions={k: v for k, v in used.items() if v},
         meta=dict(manifest.meta),
+        features=tuple(features),
     )
 
 
@@ -387,7 +383,7 @@ def _table_of(rec) -> str:
 
 
 def _marker_observations(
-    groups: dict, robots: tuple, manifest, d: dict, sink: _Sink, used: dict
+    groups: dict, robots: tuple, manifest, d: dict, sink: Sink, used: dict
 ) -> list:
     """Marker pixels grouped by (time, observer, sensor, target) -> P3P candidate sets, all
     three-marker instances of the run in one batched solve."""
@@ -426,8 +422,8 @@ def _marker_observations(
     for (ri, sensor, ti), frames in by_setup.items():
         T_bs, params = robots[ri].sensors[sensor]
         where = f"{manifest.root / MANIFEST}: robot {robots[ri].name!r} sensor {sensor!r}"
-        camera = _camera(params, where)
-        sigma = _param(params, "pixel_sigma", d["pixel_sigma"], where)
+        camera = camera_from_params(params, where)
+        sigma = positive_param(params, "pixel_sigma", d["pixel_sigma"], where)
         target = robots[ti]
         sets = p3p_candidate_sets(
             camera,

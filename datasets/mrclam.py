@@ -30,14 +30,13 @@ unreadable, looping (symlink) or non-regular files are errors, never "no data".
 from __future__ import annotations
 
 import math
-import os
 import re
-import stat
 from pathlib import Path
 
 import numpy as np
 
 from graphloc.io import PlanarRun, SkipReport, write_planar_run
+from graphloc.textio import check_file, text_lines
 
 _ROBOT_FILE = re.compile(r"^Robot(\d+)_Odometry\.dat$")
 
@@ -85,43 +84,6 @@ def is_mrclam_dir(path: str | Path) -> bool:
     )
 
 
-def check_file(path: Path, required: bool = True) -> bool:
-    """True when `path` is a readable regular file. A missing file is FileNotFoundError when
-    `required` (else False); a broken or looping symlink, a directory, a device or FIFO, or a
-    file that cannot be read is always a ValueError naming the file."""
-    try:
-        st = path.stat()
-    except FileNotFoundError:
-        if path.is_symlink():
-            raise ValueError(f"{path}: broken symbolic link (to {os.readlink(path)!r})") from None
-        if required:
-            raise FileNotFoundError(f"{path}: required MRCLAM file missing") from None
-        return False
-    except OSError as exc:  # ELOOP (symlink loop), EACCES on the directory, ...
-        raise ValueError(f"{path}: cannot be read ({exc.strerror})") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise ValueError(f"{path}: not a regular file")
-    if not os.access(path, os.R_OK):
-        raise ValueError(f"{path}: cannot be read (permission denied)")
-    return True
-
-
-def _lines(path: Path):
-    """(line number, text) of a UTF-8 file with an optional byte-order mark; ValueError naming
-    file, line and column at the first byte that is not UTF-8."""
-    data = path.read_bytes()
-    if data.startswith(b"\xef\xbb\xbf"):
-        data = data[3:]
-    for line_no, raw in enumerate(data.splitlines(), start=1):
-        try:
-            yield line_no, raw.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            raise ValueError(
-                f"{path}: line {line_no}: not UTF-8 text (byte "
-                f"0x{raw[exc.start]:02x} at column {exc.start + 1})"
-            ) from None
-
-
 def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip") -> np.ndarray:
     """Whitespace table of one MRCLAM file `kind` (a key of LIMITS) with '#' comments -> (n,
     n_cols) float array. Malformed rows (wrong field count, unparsable or non-finite numbers,
@@ -132,7 +94,7 @@ def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip"
     monotonic = limits[0][0] == "time"
     rows = []
     last = -math.inf
-    for line_no, line in _lines(path):
+    for line_no, line in text_lines(path):
         text = line.strip()
         if not text or text.startswith("#"):
             continue
@@ -250,7 +212,7 @@ class MRCLAM:
                 )
             odometry.append(odo)
             gt_path = self.root / f"Robot{rid}_Groundtruth.dat"
-            has_gt = check_file(gt_path, required=False)
+            has_gt = check_file(gt_path, required=False, what="MRCLAM file")
             groundtruth.append(
                 read_table(gt_path, "groundtruth", report, self.on_error) if has_gt else None
             )
@@ -414,7 +376,7 @@ class MRCLAM:
 
     def _file(self, name: str) -> Path:
         path = self.root / name
-        check_file(path)
+        check_file(path, what="MRCLAM file")
         return path
 
     def _skip(

@@ -1,11 +1,13 @@
 """The graphloc log format: one directory, a `manifest.json` and per-robot CSV tables
 (documented in docs/log_format.md). Reader, writer and validation.
 
-- `read_manifest(dir)` -> Manifest (robots, sensors with extrinsics, tables, landmarks).
+- `read_manifest(dir)` -> Manifest (robots, sensors with extrinsics, tables, landmarks;
+  `graphloc.manifest`); the records of each table are in `graphloc.records`.
 - `iter_records(dir, tables=...)` streams typed records time-ordered across every robot and
   table (heapq.merge over per-file iterators); every row is validated and a bad row either
   raises ValueError naming file, line and field (on_error="raise") or is counted in a
-  `SkipReport` (on_error="skip") -- nothing is dropped silently.
+  `SkipReport` (on_error="skip") -- nothing is dropped silently. Files are UTF-8 with an
+  optional byte-order mark (`graphloc.textio`).
 - `PlanarRun` is the numpy form of a planar multi-robot run (the MRCLAM loader's);
   `write_planar_run(run, dir)` writes it as a log. Logs are read into the one run type of the
   pipelines by `graphloc.datasets.graphloc_log.read_team_run` (`graphloc.datasets.open_run`).
@@ -15,7 +17,6 @@ from __future__ import annotations
 
 import csv
 import heapq
-import json
 import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -23,461 +24,79 @@ from typing import Iterator
 
 import numpy as np
 
-
-FORMAT = "graphloc-log"
-VERSION = 2  # what the writers produce
-VERSIONS = (1, 2)  # what the reader accepts (docs/log_format.md)
-MANIFEST = "manifest.json"
-LANDMARK_PREFIX = "landmark:"
-
-
-# ---- skip accounting -------------------------------------------------------------------------
-@dataclass
-class SkipReport:
-    """Counts of skipped input items by reason, plus the first `max_examples` messages
-    (each naming file, line and field)."""
-
-    counts: dict = field(default_factory=dict)
-    examples: list = field(default_factory=list)
-    max_examples: int = 20
-
-    def add(self, reason: str, message: str, n: int = 1) -> None:
-        self.counts[reason] = self.counts.get(reason, 0) + n
-        if len(self.examples) < self.max_examples:
-            self.examples.append(message)
-
-    @property
-    def total(self) -> int:
-        return int(sum(self.counts.values()))
-
-    def merge(self, other: "SkipReport") -> None:
-        for reason, n in other.counts.items():
-            self.counts[reason] = self.counts.get(reason, 0) + n
-        self.examples.extend(other.examples[: max(0, self.max_examples - len(self.examples))])
-
-    def as_dict(self) -> dict:
-        return {
-            "total": self.total,
-            "counts": dict(sorted(self.counts.items())),
-            "examples": list(self.examples),
-        }
-
-
-class _Sink:
-    """Raise or count: the one place a bad row is handled."""
-
-    def __init__(self, on_error: str, report: SkipReport | None):
-        if on_error not in ("raise", "skip"):
-            raise ValueError(f"on_error must be 'raise' or 'skip', got {on_error!r}")
-        self.on_error = on_error
-        self.report = report if report is not None else SkipReport()
-
-    def bad(self, reason: str, message: str) -> None:
-        if self.on_error == "raise":
-            raise ValueError(message)
-        self.report.add(reason, message)
-
-
-# ---- records (one dataclass per table; CSV header = field names after time) -------------------
-@dataclass(frozen=True)
-class _Row:
-    """What every record carries besides its columns: the file line it was read from."""
-
-    line: int = field(default=0, kw_only=True, compare=False)
-
-
-@dataclass(frozen=True)
-class Odometry2D(_Row):
-    """Unicycle velocity odometry: forward speed v [m/s], turn rate omega [rad/s]; holds until the
-    next row."""
-
-    time: float
-    robot: str
-    sensor: str
-    v: float
-    omega: float
-
-
-@dataclass(frozen=True)
-class RelativePose2D(_Row):
-    """Odometry / scan-matching increment from time `time0` to `time` (frame at time0), with
-    diagonal sigmas."""
-
-    time: float
-    robot: str
-    sensor: str
-    time0: float
-    dx: float
-    dy: float
-    dtheta: float
-    sigma_x: float
-    sigma_y: float
-    sigma_theta: float
-
-
-@dataclass(frozen=True)
-class RelativePose3D(_Row):
-    """SE(3) increment from `time0` to `time` in the body frame at time0 (wheel / IMU odometry or
-    scan matching): translation (tx, ty, tz), unit quaternion (qx, qy, qz, qw) as in TUM, and
-    sigmas of GTSAM's Pose3 tangent (rotation rx, ry, rz [rad], translation tx, ty, tz [m])."""
-
-    time: float
-    robot: str
-    sensor: str
-    time0: float
-    tx: float
-    ty: float
-    tz: float
-    qx: float
-    qy: float
-    qz: float
-    qw: float
-    sigma_rx: float
-    sigma_ry: float
-    sigma_rz: float
-    sigma_tx: float
-    sigma_ty: float
-    sigma_tz: float
-
-
-@dataclass(frozen=True)
-class Range(_Row):
-    """Distance [m] from the sensor to `target` (a robot's body origin or 'landmark:<id>')."""
-
-    time: float
-    robot: str
-    sensor: str
-    target: str
-    range: float
-
-
-@dataclass(frozen=True)
-class RangeBearing2D(_Row):
-    """Range [m] and bearing [rad] in the sensor frame to `target` (a robot name or
-    'landmark:<id>')."""
-
-    time: float
-    robot: str
-    sensor: str
-    target: str
-    range: float
-    bearing: float
-
-
-@dataclass(frozen=True)
-class Bearing3D(_Row):
-    """Unit direction (x, y, z) in the sensor frame towards `target`."""
-
-    time: float
-    robot: str
-    sensor: str
-    target: str
-    x: float
-    y: float
-    z: float
-
-
-@dataclass(frozen=True)
-class MarkerPixel(_Row):
-    """Pixel (u, v) of marker `marker` on `target`, seen by camera `sensor`."""
-
-    time: float
-    robot: str
-    sensor: str
-    target: str
-    marker: int
-    u: float
-    v: float
-
-
-@dataclass(frozen=True)
-class PoseCandidate(_Row):
-    """Candidate k of a P3P (or other) hypothesis set: pose of `target` in the sensor frame
-    (quaternion qw qx qy qz, translation tx ty tz) with a score >= 0. Rows sharing (time, sensor,
-    target) form one set."""
-
-    time: float
-    robot: str
-    sensor: str
-    target: str
-    k: int
-    score: float
-    qw: float
-    qx: float
-    qy: float
-    qz: float
-    tx: float
-    ty: float
-    tz: float
-
-
-@dataclass(frozen=True)
-class ScanRef(_Row):
-    """A scan file (path relative to the log directory) captured by `sensor`."""
-
-    time: float
-    robot: str
-    sensor: str
-    path: str
-
-
-@dataclass(frozen=True)
-class GroundTruth2D(_Row):
-    """Ground-truth planar pose."""
-
-    time: float
-    robot: str
-    x: float
-    y: float
-    theta: float
-
-
-TABLES: dict[str, type] = {
-    "odometry": Odometry2D,
-    "relative_pose": RelativePose2D,
-    "relative_pose3": RelativePose3D,
-    "range": Range,
-    "range_bearing": RangeBearing2D,
-    "bearing": Bearing3D,
-    "markers": MarkerPixel,
-    "candidates": PoseCandidate,
-    "scans": ScanRef,
-    "groundtruth": GroundTruth2D,
-}
-# sensor type each table's `sensor` column must have
-SENSOR_TYPES = {
-    "odometry": "odometry",
-    "relative_pose": "odometry",
-    "relative_pose3": "odometry",
-    "range": "range",
-    "range_bearing": "range_bearing",
-    "bearing": "bearing",
-    "markers": "camera",
-    "candidates": "camera",
-    "scans": "scanner",
-}
-
-
-def columns(table: str) -> list[str]:
-    """CSV header of `table`: every record field except `robot` (the robot is the file's owner)."""
-    return [f.name for f in fields(TABLES[table]) if f.name not in ("robot", "line")]
-
-
-# ---- manifest --------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Sensor:
-    """name, type (odometry | range_bearing | bearing | camera | scanner), extrinsics body_T_sensor
-    as a 4x4 matrix, and free-form `params` (noise sigmas, intrinsics, ...)."""
-
-    name: str
-    type: str
-    body_T_sensor: np.ndarray
-    params: dict = field(default_factory=dict, compare=False)
-
-
-@dataclass(frozen=True)
-class Robot:
-    name: str
-    kind: str
-    sensors: tuple[Sensor, ...]
-    tables: dict = field(compare=False, default_factory=dict)  # table name -> relative csv path
-    initial_pose: tuple | None = None  # (x, y, theta) or (x, y, z, qx, qy, qz, qw) if known
-    meta: dict = field(default_factory=dict, compare=False)
-    # version 2 (docs/log_format.md): state space, anchoring, surface, markers
-    planar: bool = True  # moves in the floor plane (SE(2) motion embedded in SE(3))
-    static: bool = False  # never moves: one pose for the whole run
-    initial_sigma: tuple | None = (
-        None  # (rotation [rad], translation [m]) of the initial-pose prior
-    )
-    surface: dict | None = None  # {"point": [..], "normal": [..]} plane the robot climbs on
-    markers: tuple | None = None  # ((x, y, z), ...) marker layout in the body frame
-    identical_markers: bool = False  # markers cannot be told apart (seed 001: 24 x 4 hypotheses)
-
-    def sensor(self, name: str) -> Sensor | None:
-        return next((s for s in self.sensors if s.name == name), None)
-
-
-@dataclass(frozen=True)
-class Manifest:
-    root: Path
-    name: str
-    robots: tuple[Robot, ...]
-    landmarks_file: str | None
-    start_time: float | None = None
-    meta: dict = field(default_factory=dict, compare=False)
-
-    def robot(self, name: str) -> Robot | None:
-        return next((r for r in self.robots if r.name == name), None)
-
-
-def _extrinsics(value, where: str) -> np.ndarray:
-    """[x, y, theta] (planar) or {"xyz": [...], "rpy": [...]} or a 4x4 list -> 4x4 matrix."""
-    if value is None:
-        return np.eye(4)
-    T = np.eye(4)
-    if isinstance(value, dict):
-        xyz = np.asarray(value.get("xyz", [0, 0, 0]), dtype=float)
-        rpy = np.asarray(value.get("rpy", [0, 0, 0]), dtype=float)
-        if xyz.shape != (3,) or rpy.shape != (3,):
-            raise ValueError(f"{where}: extrinsics xyz and rpy must have 3 numbers")
-        from scipy.spatial.transform import Rotation
-
-        T[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()
-        T[:3, 3] = xyz
-    else:
-        arr = np.asarray(value, dtype=float)
-        if arr.shape == (3,):
-            c, s = math.cos(arr[2]), math.sin(arr[2])
-            T[:2, :2] = [[c, -s], [s, c]]
-            T[:2, 3] = arr[:2]
-        elif arr.shape == (4, 4):
-            T = arr
-        else:
-            raise ValueError(
-                f"{where}: extrinsics must be [x, y, theta], {{xyz, rpy}} or 4x4, "
-                f"got shape {arr.shape}"
-            )
-    if not np.isfinite(T).all():
-        raise ValueError(f"{where}: extrinsics contain NaN/inf")
-    return T
-
-
-def read_manifest(root: str | Path) -> Manifest:
-    root = Path(root)
-    path = root / MANIFEST
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no log manifest (is {root} a graphloc log directory?)")
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: line {exc.lineno}: invalid JSON ({exc.msg})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: the manifest must be a JSON object, got {type(data).__name__}")
-    for key, kind in (("robots", list), ("landmarks", dict), ("meta", dict)):
-        if data.get(key) is not None and not isinstance(data[key], kind):
-            raise ValueError(
-                f"{path}: field '{key}' must be a JSON {kind.__name__.replace('dict', 'object')}"
-            )
-    if data.get("format") != FORMAT:
-        raise ValueError(f"{path}: field 'format' must be {FORMAT!r}, got {data.get('format')!r}")
-    version = data.get("version")
-    if version not in VERSIONS:
-        raise ValueError(
-            f"{path}: field 'version' {version!r} unsupported (this reader: {VERSIONS})"
-        )
-    robots = []
-    for i, r in enumerate(data.get("robots") or []):
-        where = f"{path}: robots[{i}]"
-        if not isinstance(r, dict) or not r.get("name"):
-            raise ValueError(f"{where}: field 'name' missing")
-        sensors = []
-        for j, s in enumerate(r.get("sensors") or []):
-            if not isinstance(s, dict) or not s.get("name") or not s.get("type"):
-                raise ValueError(f"{where}.sensors[{j}]: fields 'name' and 'type' required")
-            sensors.append(
-                Sensor(
-                    s["name"],
-                    s["type"],
-                    _extrinsics(s.get("extrinsics"), f"{where}.sensors[{j}]"),
-                    dict(s.get("params") or {}),
-                )
-            )
-        tables = dict(r.get("tables") or {})
-        for t in tables:
-            if t not in TABLES:
-                raise ValueError(
-                    f"{where}: field 'tables' names unknown table {t!r}; known: {', '.join(TABLES)}"
-                )
-        if not isinstance(r.get("tables") or {}, dict):
-            raise ValueError(f"{where}: field 'tables' must be a JSON object (table name -> path)")
-        sizes = (3,) if version == 1 else (3, 7)
-        init = _numbers(r.get("initial_pose"), sizes, f"{where}: field 'initial_pose'")
-        if init is not None and len(init) == 7 and not 0.5 < math.hypot(*init[3:]) < 2.0:
-            raise ValueError(
-                f"{where}: field 'initial_pose': quaternion (qx, qy, qz, qw) is not unit"
-            )
-        kind = r.get("kind", "ground")
-        extra = {}
-        if version >= 2:
-            extra["planar"] = _flag(r, "planar", kind == "ground", where)
-            extra["static"] = _flag(r, "static", False, where)
-            extra["identical_markers"] = _flag(r, "identical_markers", False, where)
-            extra["initial_sigma"] = _numbers(
-                r.get("initial_sigma"), (2,), f"{where}: field 'initial_sigma'", positive=True
-            )
-            surface = r.get("surface")
-            if surface is not None:
-                if not isinstance(surface, dict):
-                    raise ValueError(
-                        f'{where}: field \'surface\' must be {{"point": [x, y, z], "normal": [..]}}'
-                    )
-                for key in ("point", "normal"):
-                    _numbers(
-                        surface.get(key), (3,), f"{where}: field 'surface.{key}'", required=True
-                    )
-                if math.hypot(*surface["normal"]) < 1e-9:
-                    raise ValueError(f"{where}: field 'surface.normal' must be non-zero")
-                extra["surface"] = {
-                    "point": [float(a) for a in surface["point"]],
-                    "normal": [float(a) for a in surface["normal"]],
-                }
-            markers = r.get("markers")
-            if markers is not None:
-                if not isinstance(markers, list) or len(markers) < 3:
-                    raise ValueError(
-                        f"{where}: field 'markers' must list at least 3 points [x, y, z]"
-                    )
-                extra["markers"] = tuple(
-                    _numbers(m, (3,), f"{where}: field 'markers[{j}]'", required=True)
-                    for j, m in enumerate(markers)
-                )
-        robots.append(
-            Robot(r["name"], kind, tuple(sensors), tables, init, dict(r.get("meta") or {}), **extra)
-        )
-    names = [r.name for r in robots]
-    if not robots or len(set(names)) != len(names):
-        raise ValueError(
-            f"{path}: field 'robots' must list at least one robot with unique names, got {names}"
-        )
-    lm = (data.get("landmarks") or {}).get("file")
-    start = data.get("start_time")
-    if start is not None and not (isinstance(start, (int, float)) and math.isfinite(start)):
-        raise ValueError(f"{path}: field 'start_time' must be a finite number, got {start!r}")
-    return Manifest(
-        root, data.get("name", root.name), tuple(robots), lm, start, dict(data.get("meta") or {})
-    )
-
-
-def _numbers(value, sizes: tuple, where: str, positive: bool = False, required: bool = False):
-    """A JSON list of finite numbers of one of the lengths `sizes` -> tuple (None if absent)."""
-    if value is None and not required:
-        return None
-    try:
-        out = tuple(float(a) for a in value)
-    except (TypeError, ValueError):
-        out = ()
-    if len(out) not in sizes or not all(math.isfinite(a) and abs(a) < 1e9 for a in out):
-        raise ValueError(
-            f"{where} must be {' or '.join(map(str, sizes))} finite numbers, got {value!r}"
-        )
-    if positive and not all(a > 0 for a in out):
-        raise ValueError(f"{where} must be > 0, got {value!r}")
-    return out
-
-
-def _flag(robot: dict, name: str, default: bool, where: str) -> bool:
-    value = robot.get(name, default)
-    if not isinstance(value, bool):
-        raise ValueError(f"{where}: field '{name}' must be true or false, got {value!r}")
-    return value
-
-
-def write_manifest(manifest_dict: dict, root: str | Path) -> Path:
-    root = Path(root)
-    root.mkdir(parents=True, exist_ok=True)
-    body = {"format": FORMAT, "version": VERSION, **manifest_dict}
-    (root / MANIFEST).write_text(json.dumps(body, indent=2) + "\n")
-    return root / MANIFEST
+from graphloc.manifest import (
+    FORMAT,
+    MANIFEST,
+    VERSION,
+    VERSIONS,
+    Manifest,
+    Robot,
+    Sensor,
+    read_manifest,
+    write_manifest,
+)
+from graphloc.records import (
+    LANDMARK_PREFIX,
+    SENSOR_TYPES,
+    TABLES,
+    Bearing3D,
+    GroundTruth2D,
+    MarkerPixel,
+    Odometry2D,
+    PoseCandidate,
+    Range,
+    RangeBearing2D,
+    RelativePose2D,
+    RelativePose3D,
+    ScanRef,
+    columns,
+    plausible,
+)
+from graphloc.textio import (
+    Sink,
+    SkipReport,
+    check_file,
+    confined,
+    csv_fields,
+    cut,
+    shown,
+    text_lines,
+)
+
+__all__ = [
+    "FORMAT",
+    "LANDMARK_PREFIX",
+    "MANIFEST",
+    "SENSOR_TYPES",
+    "TABLES",
+    "VERSION",
+    "VERSIONS",
+    "Bearing3D",
+    "GroundTruth2D",
+    "Manifest",
+    "MarkerPixel",
+    "Odometry2D",
+    "PlanarRun",
+    "PoseCandidate",
+    "Range",
+    "RangeBearing2D",
+    "RelativePose2D",
+    "RelativePose3D",
+    "Robot",
+    "ScanRef",
+    "Sensor",
+    "Sink",
+    "SkipReport",
+    "columns",
+    "is_tum",
+    "iter_records",
+    "iter_table",
+    "read_landmarks",
+    "read_manifest",
+    "write_manifest",
+    "write_planar_run",
+    "write_table",
+]
 
 
 # ---- streaming, validated reading ------------------------------------------------------------
@@ -499,83 +118,111 @@ def iter_table(
 ) -> Iterator:
     """Validated records of one robot's table, in file order. Checks: header, field count, number
     parsing, NaN/inf, time non-decreasing, known sensor (of the right type), known target."""
-    sink = _Sink(on_error, report)
+    sink = Sink(on_error, report)
     cls = TABLES[table]
     cols = columns(table)
     convs = {f.name: _converter(f.type) for f in fields(cls)}
     path = manifest.root / robot.tables[table]
     robots = {r.name for r in manifest.robots}
-    if not path.is_file():
+    if not check_file(path, required=False):
         raise FileNotFoundError(
             f"{path}: table {table!r} of robot {robot.name!r} listed in manifest but missing"
         )
     last_time = -math.inf
-    with open(path, newline="") as fh:
-        reader = csv.reader(fh)
-        header = next(reader, None)
-        if header is None or [h.strip() for h in header] != cols:
-            raise ValueError(f"{path}: line 1: header must be {','.join(cols)}, got {header}")
-        for row in reader:
-            line = reader.line_num
-            where = f"{path}: line {line}"
-            if not row or (len(row) == 1 and not row[0].strip()) or row[0].lstrip().startswith("#"):
-                continue
-            if len(row) != len(cols):
-                sink.bad("field_count", f"{where}: expected {len(cols)} fields, got {len(row)}")
-                continue
-            values = {}
-            ok = True
-            for name, text in zip(cols, row):
-                conv = convs[name]
-                try:
-                    value = conv(text.strip())
-                except ValueError:
-                    sink.bad(
-                        "parse",
-                        f"{where}: field '{name}': cannot parse {text.strip()!r} "
-                        f"as {conv.__name__}",
-                    )
-                    ok = False
-                    break
-                if conv is float and not math.isfinite(value):
-                    sink.bad("non_finite", f"{where}: field '{name}': {text.strip()} is not finite")
-                    ok = False
-                    break
-                values[name] = value
-            if not ok:
-                continue
-            if values["time"] < last_time:
+    lines = text_lines(path)
+    _, first = next(lines, (1, ""))
+    header = _header(path, first, cols)
+    if header != cols:
+        raise ValueError(f"{path}: line 1: header must be {','.join(cols)}, got {header}")
+    for line, text in lines:
+        where = f"{path}: line {line}"
+        if not text.strip() or text.lstrip().startswith("#"):
+            continue
+        try:
+            row = csv_fields(text, cols)
+        except ValueError as exc:
+            sink.bad("field_too_long", f"{where}: {exc}")
+            continue
+        if len(row) != len(cols):
+            sink.bad("field_count", f"{where}: expected {len(cols)} fields, got {len(row)}")
+            continue
+        values, problem = _values(row, cols, convs, plausible(table))
+        if problem is not None:
+            sink.bad(problem[0], f"{where}: {problem[1]}")
+            continue
+        if values["time"] < last_time:
+            sink.bad(
+                "time_backwards",
+                f"{where}: field 'time': {values['time']} goes backwards (previous {last_time})",
+            )
+            continue
+        if "sensor" in values:
+            sensor = robot.sensor(values["sensor"])
+            if sensor is None:
                 sink.bad(
-                    "time_backwards",
-                    f"{where}: field 'time': {values['time']} goes backwards "
-                    f"(previous {last_time})",
+                    "unknown_sensor",
+                    f"{where}: field 'sensor': robot {robot.name!r} "
+                    f"has no sensor {values['sensor']!r}",
                 )
                 continue
-            if "sensor" in values:
-                sensor = robot.sensor(values["sensor"])
-                if sensor is None:
-                    sink.bad(
-                        "unknown_sensor",
-                        f"{where}: field 'sensor': robot {robot.name!r} "
-                        f"has no sensor {values['sensor']!r}",
-                    )
-                    continue
-                if sensor.type != SENSOR_TYPES[table]:
-                    sink.bad(
-                        "sensor_type",
-                        f"{where}: field 'sensor': {values['sensor']!r} is a {sensor.type}, "
-                        f"table {table} needs a {SENSOR_TYPES[table]}",
-                    )
-                    continue
-            if "target" in values and not _known_target(values["target"], robots, landmark_ids):
+            if sensor.type != SENSOR_TYPES[table]:
                 sink.bad(
-                    "unknown_target",
-                    f"{where}: field 'target': {values['target']!r} "
-                    "is neither a robot nor a known landmark",
+                    "sensor_type",
+                    f"{where}: field 'sensor': {values['sensor']!r} is a {sensor.type}, "
+                    f"table {table} needs a {SENSOR_TYPES[table]}",
                 )
                 continue
-            last_time = values["time"]
-            yield cls(robot=robot.name, line=line, **values)
+        if "target" in values and not _known_target(values["target"], robots, landmark_ids):
+            sink.bad(
+                "unknown_target",
+                f"{where}: field 'target': {values['target']!r} "
+                "is neither a robot nor a known landmark",
+            )
+            continue
+        if table == "scans":
+            try:
+                confined(manifest.root, values["path"], f"{where}: field 'path'")
+            except ValueError as exc:
+                sink.bad("path_outside_run", str(exc))
+                continue
+        last_time = values["time"]
+        yield cls(robot=robot.name, line=line, **values)
+
+
+def _header(path: Path, text: str, cols: list[str]) -> list[str]:
+    try:
+        return [h.strip() for h in csv_fields(text)]
+    except ValueError as exc:
+        raise ValueError(f"{path}: line 1: header: {exc}") from None
+
+
+def _values(
+    row: list[str], cols: list[str], convs: dict, limits: dict
+) -> tuple[dict, tuple | None]:
+    """Typed values of one row by column, or the (reason, message) of its first problem: a value
+    that does not parse, is not finite or lies outside the plausible range of its column
+    (`limits`: `graphloc.records.plausible`)."""
+    values = {}
+    for name, raw in zip(cols, row):
+        text = raw.strip()
+        conv = convs[name]
+        try:
+            value = conv(text)
+        except ValueError:
+            return values, (
+                "parse",
+                f"field '{name}': cannot parse {shown(text)} as {conv.__name__}",
+            )
+        if conv is float and not math.isfinite(value):
+            return values, ("non_finite", f"field '{name}': {cut(text)} is not finite")
+        lo, hi = limits.get(name, (-math.inf, math.inf))
+        if conv is not str and not lo <= value <= hi:
+            return values, (
+                "implausible",
+                f"field '{name}': {cut(text)} is outside the plausible [{lo:g}, {hi:g}]",
+            )
+        values[name] = value
+    return values, None
 
 
 def _known_target(target: str, robots: set, landmark_ids: set | None) -> bool:
@@ -590,49 +237,49 @@ def _known_target(target: str, robots: set, landmark_ids: set | None) -> bool:
     return False
 
 
+LANDMARK_COLUMNS = ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"]
+
+
 def read_landmarks(manifest: Manifest) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """ids (L,), positions (L,3), sigmas (L,3) from the landmark table (empty arrays if none)."""
+    """ids (L,), positions (L,3), sigmas (L,3) from the landmark table (empty arrays if the
+    manifest names none). The table defines the map, so any bad row, a landmark listed twice or
+    a table without rows is a ValueError naming file, line and field."""
     if manifest.landmarks_file is None:
         return np.zeros(0, int), np.zeros((0, 3)), np.zeros((0, 3))
     path = manifest.root / manifest.landmarks_file
-    ids, xyz, sig = [], [], []
-    with open(path, newline="") as fh:
-        reader = csv.reader(fh)
-        header = next(reader, None)
-        expect = ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"]
-        if header is None or [h.strip() for h in header] != expect:
-            raise ValueError(f"{path}: line 1: header must be {','.join(expect)}, got {header}")
-        for row in reader:
-            where = f"{path}: line {reader.line_num}"
-            if not row:
-                continue
-            if len(row) != 7:
-                raise ValueError(f"{where}: expected 7 fields, got {len(row)}")
-            try:
-                lid = int(row[0])
-            except ValueError:
-                raise ValueError(f"{where}: field 'id': cannot parse {row[0]!r} as int") from None
-            nums = []
-            for name, text in zip(expect[1:], row[1:]):
-                try:
-                    val = float(text)
-                except ValueError:
-                    raise ValueError(f"{where}: field '{name}': cannot parse {text!r}") from None
-                if not math.isfinite(val) or (name.startswith("sigma") and val < 0):
-                    raise ValueError(
-                        f"{where}: field '{name}': {text} must be finite (sigmas >= 0)"
-                    )
-                nums.append(val)
-            if lid in ids:
-                raise ValueError(f"{where}: field 'id': landmark {lid} listed twice")
-            ids.append(lid)
-            xyz.append(nums[:3])
-            sig.append(nums[3:])
-    return (
-        np.array(ids, dtype=int),
-        np.array(xyz, dtype=float).reshape(-1, 3),
-        np.array(sig, dtype=float).reshape(-1, 3),
-    )
+    check_file(path, what="landmark table (manifest field 'landmarks.file')")
+    convs = {name: int if name == "id" else float for name in LANDMARK_COLUMNS}
+    rows: dict = {}
+    lines = text_lines(path)
+    _, first = next(lines, (1, ""))
+    header = _header(path, first, LANDMARK_COLUMNS)
+    if header != LANDMARK_COLUMNS:
+        raise ValueError(
+            f"{path}: line 1: header must be {','.join(LANDMARK_COLUMNS)}, got {header}"
+        )
+    for line, text in lines:
+        where = f"{path}: line {line}"
+        if not text.strip() or text.lstrip().startswith("#"):
+            continue
+        try:
+            row = csv_fields(text, LANDMARK_COLUMNS)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
+        if len(row) != len(LANDMARK_COLUMNS):
+            raise ValueError(f"{where}: expected {len(LANDMARK_COLUMNS)} fields, got {len(row)}")
+        values, problem = _values(row, LANDMARK_COLUMNS, convs, plausible("landmarks"))
+        if problem is not None:
+            raise ValueError(f"{where}: {problem[1]}")
+        if values["id"] in rows:
+            raise ValueError(f"{where}: field 'id': landmark {values['id']} listed twice")
+        rows[values["id"]] = [values[c] for c in LANDMARK_COLUMNS[1:]]
+    if not rows:
+        raise ValueError(
+            f"{path}: no landmark rows; a run without a landmark map names no landmark file "
+            f"(its landmarks are then estimated: SLAM)"
+        )
+    table = np.array(list(rows.values()), dtype=float).reshape(-1, 6)
+    return np.array(list(rows), dtype=int), table[:, :3], table[:, 3:]
 
 
 def is_tum(path: str) -> bool:

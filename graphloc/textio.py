@@ -1,0 +1,173 @@
+"""Reading input files safely: the one place where a reader checks that a file is a readable
+regular file, decodes UTF-8 (optional byte-order mark) naming file, line and column on a bad
+byte, splits CSV lines (a field longer than the csv module's limit is a reported problem of
+that line and field, not a `_csv.Error`), keeps paths named by a manifest inside the run
+directory, and counts what it does not use (`SkipReport`). Used by the log reader
+(`graphloc.io`), the MRCLAM reader and the point-cloud reader.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import stat
+from dataclasses import dataclass, field
+from pathlib import Path, PurePosixPath, PureWindowsPath
+from typing import Iterator
+
+BOM = b"\xef\xbb\xbf"
+SHOWN = 80  # characters of a bad value quoted in a message
+
+
+# ---- skip accounting -------------------------------------------------------------------------
+@dataclass
+class SkipReport:
+    """Counts of skipped input items by reason, plus the first `max_examples` messages
+    (each naming file, line and field)."""
+
+    counts: dict = field(default_factory=dict)
+    examples: list = field(default_factory=list)
+    max_examples: int = 20
+
+    def add(self, reason: str, message: str, n: int = 1) -> None:
+        self.counts[reason] = self.counts.get(reason, 0) + n
+        if len(self.examples) < self.max_examples:
+            self.examples.append(message)
+
+    @property
+    def total(self) -> int:
+        return int(sum(self.counts.values()))
+
+    def merge(self, other: "SkipReport") -> None:
+        for reason, n in other.counts.items():
+            self.counts[reason] = self.counts.get(reason, 0) + n
+        self.examples.extend(other.examples[: max(0, self.max_examples - len(self.examples))])
+
+    def as_dict(self) -> dict:
+        return {
+            "total": self.total,
+            "counts": dict(sorted(self.counts.items())),
+            "examples": list(self.examples),
+        }
+
+
+class Sink:
+    """Raise or count: the one place a bad row is handled."""
+
+    def __init__(self, on_error: str, report: SkipReport | None):
+        if on_error not in ("raise", "skip"):
+            raise ValueError(f"on_error must be 'raise' or 'skip', got {on_error!r}")
+        self.on_error = on_error
+        self.report = report if report is not None else SkipReport()
+
+    def bad(self, reason: str, message: str) -> None:
+        if self.on_error == "raise":
+            raise ValueError(message)
+        self.report.add(reason, message)
+
+
+# ---- files -----------------------------------------------------------------------------------
+def cut(text: str) -> str:
+    """`text` cut to SHOWN characters for a message."""
+    return text if len(text) <= SHOWN else text[: SHOWN - 3] + "..."
+
+
+def shown(text: str) -> str:
+    """`text` quoted for a message, cut to SHOWN characters."""
+    return repr(cut(text))
+
+
+def check_file(path: Path, required: bool = True, what: str = "file") -> bool:
+    """True when `path` is a readable regular file. A missing file is FileNotFoundError when
+    `required` (else False); a broken or looping symlink, a directory, a device or FIFO, or a
+    file that cannot be read is always a ValueError naming the file."""
+    path = Path(path)
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        if path.is_symlink():
+            raise ValueError(f"{path}: broken symbolic link (to {os.readlink(path)!r})") from None
+        if required:
+            raise FileNotFoundError(f"{path}: required {what} missing") from None
+        return False
+    except OSError as exc:  # ELOOP (symlink loop), EACCES on the directory, ...
+        raise ValueError(f"{path}: cannot be read ({exc.strerror})") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ValueError(f"{path}: not a regular file")
+    if not os.access(path, os.R_OK):
+        raise ValueError(f"{path}: cannot be read (permission denied)")
+    return True
+
+
+def text_lines(path: Path) -> Iterator[tuple[int, str]]:
+    """(line number, text without the line end) of a UTF-8 file with an optional byte-order
+    mark, streamed; ValueError naming file, line and column at the first byte that is not
+    UTF-8, and naming the file when it cannot be read."""
+    try:
+        fh = open(path, "rb")
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot be read ({exc.strerror})") from None
+    line_no = 0
+    with fh:
+        for chunk in fh:  # split at b"\n"; a lone b"\r" ends a line too (bytes.splitlines)
+            if line_no == 0 and chunk.startswith(BOM):
+                chunk = chunk[len(BOM) :]
+            for raw in chunk.splitlines() or [b""]:
+                line_no += 1
+                try:
+                    yield line_no, raw.decode("utf-8")
+                except UnicodeDecodeError as exc:
+                    raise ValueError(
+                        f"{path}: line {line_no}: not UTF-8 text (byte "
+                        f"0x{raw[exc.start]:02x} at column {exc.start + 1})"
+                    ) from None
+
+
+def read_text(path: Path) -> str:
+    """The whole of a UTF-8 file (optional byte-order mark) as text, with `text_lines`' errors."""
+    check_file(path)
+    return "\n".join(text for _, text in text_lines(path))
+
+
+def csv_fields(text: str, names: list[str] | None = None) -> list[str]:
+    """One CSV line -> its fields. A field longer than the csv module's limit (or any other
+    csv error) is a ValueError naming the field (by `names`, else by its 1-based position)."""
+    try:
+        return next(csv.reader([text]), [])
+    except csv.Error as exc:
+        limit = csv.field_size_limit()
+        sizes = [len(part) for part in text.split(",")]
+        i = next((k for k, n in enumerate(sizes) if n > limit), None)
+        if i is None:
+            raise ValueError(f"not a CSV line ({exc})") from None
+        name = names[i] if names is not None and i < len(names) else f"{i + 1}"
+        raise ValueError(
+            f"field '{name}': {sizes[i]} characters, longer than the CSV field limit ({limit})"
+        ) from None
+
+
+# ---- paths named by a manifest ---------------------------------------------------------------
+def confined(root: Path, rel, where: str) -> str:
+    """`rel`, a path a manifest (or a table row) names, after checking that it stays inside the
+    run directory `root`: a non-empty relative path, no '..' component, and (symbolic links
+    resolved) inside `root`. ValueError naming `where` (manifest and field) otherwise; the
+    file itself is never opened here, so nothing of a foreign file reaches a message."""
+    if not isinstance(rel, str) or not rel.strip():
+        raise ValueError(f"{where} must be a path relative to the run directory, got {rel!r}")
+    if PurePosixPath(rel).is_absolute() or PureWindowsPath(rel).is_absolute() or ":" in rel[:2]:
+        raise ValueError(
+            f"{where}: {rel!r} is an absolute path; paths are relative to the run directory"
+        )
+    if ".." in PurePosixPath(rel.replace("\\", "/")).parts:
+        raise ValueError(f"{where}: {rel!r} leaves the run directory ('..')")
+    base = Path(root).resolve()
+    try:
+        target = (base / rel).resolve()
+    except (OSError, RuntimeError) as exc:  # a symbolic-link loop
+        raise ValueError(f"{where}: {rel!r} cannot be resolved ({exc})") from None
+    if not target.is_relative_to(base):
+        raise ValueError(
+            f"{where}: {rel!r} is a symbolic link to outside the run directory; copy the file "
+            f"into the run"
+        )
+    return rel
