@@ -41,13 +41,13 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # one process per core; set befor
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import multiprocessing as mp  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
+
+from graphloc.executor import Executor  # noqa: E402
 
 METHODS = ("icp_no_guess", "fpfh_ransac", "graphloc")
 ROT_OK_DEG, TRANS_OK_M = 2.0, 0.05
@@ -488,14 +488,8 @@ def main_real(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    with mp.get_context("spawn").Pool(args.workers) as pool:
-        rows = [
-            r
-            for rs in tqdm(
-                pool.imap_unordered(run_real_trial, jobs), total=len(jobs), desc="view pairs"
-            )
-            for r in rs
-        ]
+    with Executor(args.workers, start_method="spawn") as ex:
+        rows = [r for rs in ex.imap(run_real_trial, jobs, desc="view pairs") for r in rs]
     rows.sort(key=lambda r: (-r["overlap_target"], r["hint_rot_deg"], r["seed"]))
     report = {
         "benchmark": "fusion_real",
@@ -552,8 +546,8 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    with mp.get_context("spawn").Pool(args.workers) as pool:
-        rows = list(tqdm(pool.imap_unordered(run_trial, jobs), total=len(jobs), desc="placements"))
+    with Executor(args.workers, start_method="spawn") as ex:
+        rows = list(ex.imap(run_trial, jobs, desc="placements"))
     rows.sort(key=lambda r: (r["variant"], r["seed"]))
     summary = summarize(rows)
     report = {

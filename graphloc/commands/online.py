@@ -23,6 +23,7 @@ import json
 from dataclasses import asdict
 from pathlib import Path
 
+from graphloc import many_runs
 from graphloc.commands import smooth
 
 HELP = (
@@ -123,4 +124,4 @@ def hooks(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     make = hooks(args)
-    return smooth.run_verb(args, "online", checkpoint=make)
+    return many_runs.dispatch(args, "online", smooth.run_verb, checkpoint=make)

@@ -18,6 +18,7 @@ import threading
 import tomllib
 from pathlib import Path
 
+from graphloc import many_runs
 from graphloc.pipelines.team_graph import DEFAULT_LAG
 
 HELP = (
@@ -71,6 +72,8 @@ OPTIONS = {
             "docs/outputs.md)"
         ),
     ),
+    "mcap": (str, None, "also write the results as an MCAP file of ROS 2 messages (Foxglove)"),
+    "rerun": (str, None, "also write a Rerun recording (.rrd; needs graphloc[viz])"),
 }
 NOISE = ("bearing_sigma", "range_sigma", "range_sigma_per_m", "pixel_sigma")
 
@@ -78,8 +81,12 @@ NOISE = ("bearing_sigma", "range_sigma", "range_sigma_per_m", "pixel_sigma")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options shared by `smooth` and `online`."""
     parser.add_argument(
-        "run", help="graphloc log directory (manifest.json) or MRCLAM dataset directory"
+        "run",
+        nargs="*",
+        help="graphloc log directory (manifest.json) or MRCLAM dataset directory; several "
+        "runs or a quoted glob: each is one task of graphloc.many_runs (DIR/<run>/, runs.csv)",
     )
+    many_runs.add_arguments(parser)
     parser.add_argument("--out", required=True, type=Path, help="output directory")
     parser.add_argument("--config", type=Path, help="TOML file with any of the options below")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -208,6 +215,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
     from dataclasses import asdict, replace
 
     from graphloc.datasets import open_run
+    from graphloc.pipelines.recording import team_recording, write_recordings
     from graphloc.pipelines.report import evaluate, write_outputs
     from graphloc.pipelines.team_graph import build_graph, default_lag, solve
 
@@ -231,6 +239,8 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
         if stop.signal is not None:
             metrics["stopped_by"] = signal.Signals(stop.signal).name
         write_outputs(result, run, metrics, Path(args.out))
+        if values["mcap"] or values["rerun"]:
+            write_recordings(team_recording(result, run), values["mcap"], values["rerun"])
     summary = {
         name: round(v[mode]["ate_rmse"], 4)
         for name, v in metrics["per_robot"].items()
@@ -254,4 +264,4 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    return run_verb(args, MODE)
+    return many_runs.dispatch(args, MODE, run_verb)

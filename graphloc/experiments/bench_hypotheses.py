@@ -38,7 +38,7 @@ from graphloc.datasets.feng import (
     odometry_covariance,
 )
 from graphloc.factors.bearing import bearing_linearize_cost
-from graphloc.experiments.pool import worker_pool
+from graphloc.executor import Executor
 from graphloc.experiments.sizes import run_sizes
 from graphloc.hypotheses import HypothesisTracker, TrackerConfig
 from graphloc.plots import plt
@@ -433,8 +433,8 @@ def main(argv=None) -> int:
     )
     jobs = [(ceiling, curve, i, config) for ceiling, curve in CELLS for i in range(args.runs)]
     t0 = time.time()
-    with worker_pool(args.workers) as pool:
-        trials = list(tqdm(pool.imap_unordered(trial, jobs), total=len(jobs), desc="trials"))
+    with Executor(args.workers) as ex:
+        trials = list(ex.imap(trial, jobs, desc="trials"))
     summary = summarize(trials)
     longrun = None if args.skip_long_run else long_run(args)
     result = {

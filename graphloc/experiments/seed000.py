@@ -23,7 +23,6 @@ from dataclasses import asdict, fields, replace
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from graphloc.baselines.straight_line import localize_by_straight_line
 from graphloc.cameras import ParaboloidOmniCamera
@@ -34,9 +33,9 @@ from graphloc.datasets.feng_deterministic import (
     simulate_straight_line_trials,
     Seed000Config,
 )
+from graphloc.executor import Executor
 from graphloc.experiments import hypotheses, markdown
 from graphloc.experiments.hypotheses import TableIIIConfig
-from graphloc.experiments.pool import worker_pool
 from graphloc.experiments.sizes import RunSizes, run_sizes
 from graphloc.factors.bearing import bearing_linearize_cost
 from graphloc.geometry.p3p import MAX_CANDIDATES
@@ -97,16 +96,8 @@ def run_joint(
     n_chunks = max(1, min(rows.size, 8 * config.workers))
     chunks = [c for c in np.array_split(np.arange(rows.size), n_chunks) if c.size]
     jobs = [([forms[rows[k]] for k in c], R0[c], c0[c], residual[c]) for c in chunks]
-    with worker_pool(config.workers) as pool:
-        results = list(
-            tqdm(
-                pool.imap(_joint_chunk, jobs),
-                total=len(jobs),
-                desc="Table I joint (GTSAM)",
-                disable=not progress,
-                leave=False,
-            )
-        )
+    with Executor(config.workers, progress=progress) as ex:
+        results = list(ex.imap(_joint_chunk, jobs, desc="Table I joint (GTSAM)"))
     for c, out in zip(chunks, results):
         for k, (pos, g, err) in zip(c, out):
             positions[rows[k]], ground[rows[k]], errors[rows[k]] = pos, g, err
@@ -288,17 +279,8 @@ def table_iii(config: TableIIIConfig = TableIIIConfig(), progress: bool = True) 
         for i in range(config.runs)
     ]
     t0 = time.perf_counter()
-    with worker_pool(config.workers) as pool:
-        imap = pool.imap_unordered if config.workers > 1 else pool.imap
-        trials = list(
-            tqdm(
-                imap(hypotheses.trial, jobs),
-                total=len(jobs),
-                desc="Table III runs",
-                disable=not progress,
-                leave=False,
-            )
-        )
+    with Executor(config.workers, progress=progress) as ex:
+        trials = list(ex.imap(hypotheses.trial, jobs, desc="Table III runs"))
     cells = hypotheses.summarize(trials)
     beaten = {
         name: _fewer_updates(cell, "mean_updates_to_converge") for name, cell in cells.items()

@@ -23,8 +23,8 @@ from tqdm import tqdm
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.feng import odometry_covariance
 from graphloc.datasets.kaushik import FOCALS_MM, NOISE_VARIANCES, KaushikConfig, simulate
+from graphloc.executor import Executor
 from graphloc.experiments import markdown
-from graphloc.experiments.pool import worker_pool
 from graphloc.experiments.sizes import RunSizes, run_sizes
 from graphloc.geometry.resection import resection_covariance
 from graphloc.pipelines.track_smoothing import smooth_track
@@ -120,8 +120,8 @@ def seed004_cell(config: KaushikConfig, workers: int = 1) -> dict:
         for c in chunks
     ]
     smoothed = np.full((N, F, 3), np.nan)
-    with worker_pool(workers) as pool:
-        for c, out in zip(chunks, pool.imap(_smooth_chunk, jobs)):
+    with Executor(workers, progress=False) as ex:
+        for c, out in zip(chunks, ex.imap(_smooth_chunk, jobs)):
             if len(out):
                 smoothed[c[usable[c]]] = out
     raw_err = np.where(have, runs.genuine_error, np.nan)

@@ -1,0 +1,356 @@
+"""The one executor layer: every job of many runs or trials (`graphloc smooth` / `online` over
+several runs, `graphloc reproduce`, the experiments and benchmark scripts) hands its tasks to an
+`Executor`, which runs them on one of two backends:
+
+- ``local`` (the default, no dependency beyond the standard library): a `multiprocessing.Pool`
+  of `workers` processes, or, for one worker, the calling process itself (no start-up cost);
+- ``ray``: Ray tasks (`pip install graphloc[ray]`), on a local Ray instance with `workers` CPUs
+  or on an existing cluster (`address="auto"` or ``"HOST:PORT"``).
+
+Contract, identical on both backends:
+
+- a task is ``fn(item)`` (or ``fn(item, shared)``); `fn` is a module-level function and `item`
+  carries everything that decides the result, its random seed included (`task_seed`), so the
+  result depends on the item only, never on the worker, the backend or the completion order;
+  results come back in item order;
+- a task that raises is an `Outcome` with its error (`Executor.map`) while the others finish;
+  `Executor.imap` (trials, where a failure is a bug) raises `TaskFailed` naming the item;
+- `shared` is one large input (point clouds, long logs) sent once per worker, not once per
+  task: Ray's object store (`ray.put`, read zero-copy by the workers) or the pool's initializer
+  (inherited by forked workers);
+- with a `ResultCache` and a content hash per item (`content_hash` of the inputs, the
+  configuration and `code_version()`), finished tasks are read back instead of recomputed;
+- progress is one bar counting tasks done / failed / cached.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import importlib.util
+import json
+import multiprocessing as mp
+import os
+import time
+import traceback
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from graphloc import __version__
+
+BACKENDS = ("local", "ray")
+_SHARED: dict[str, Any] = {}  # the local pool's shared input, installed once per worker
+# the backend an Executor created without one uses (`default_backend` sets it for a block)
+_DEFAULT = {"backend": "local", "address": None}
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One task's end: `value` (None on failure), `error` ("Type: message", None on success),
+    `cached` (read from the ResultCache, not computed), `seconds` (the task's own wall time;
+    0 when cached)."""
+
+    key: str
+    value: Any
+    error: str | None
+    cached: bool
+    seconds: float
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+
+class TaskFailed(RuntimeError):
+    """A task of `Executor.imap` raised; the message names the task and its error."""
+
+
+def task_seed(base: int, *key: int | str) -> int:
+    """A deterministic 63-bit seed for the task `key` of a job seeded with `base`: the same
+    on every backend and worker (SHA-256 of the JSON of (base, key), not Python's hash)."""
+    digest = hashlib.sha256(json.dumps([base, *key]).encode()).digest()
+    return int.from_bytes(digest[:8], "little") >> 1
+
+
+@lru_cache(maxsize=1)
+def code_version() -> str:
+    """graphloc's version plus a SHA-256 of its installed sources (graphloc, graphloc.factors,
+    graphloc.datasets), so that a cached result never outlives a change of the code."""
+    h = hashlib.sha256(__version__.encode())
+    for package in ("graphloc", "graphloc.factors", "graphloc.datasets"):
+        root = Path(importlib.util.find_spec(package).origin).parent
+        for path in sorted(root.rglob("*.py")):
+            h.update(str(path.relative_to(root)).encode())
+            h.update(path.read_bytes())
+    return f"{__version__}+{h.hexdigest()[:16]}"
+
+
+def _hash_path(h, path: Path) -> None:
+    """Names and bytes of a file, or of every file under a directory (sorted)."""
+    if path.is_dir():
+        files = sorted(p for p in path.rglob("*") if p.is_file())
+    elif path.is_file():
+        files = [path]
+    else:
+        raise FileNotFoundError(f"{path}: no such file or directory")
+    for f in files:
+        h.update(str(f.relative_to(path) if f != path else f.name).encode())
+        with open(f, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+
+
+def content_hash(inputs: Iterable[Path] = (), config: Any = None) -> str:
+    """SHA-256 of the input files' contents (directories recursively), the configuration (any
+    JSON-able value) and `code_version()`: the key of a task's cached result."""
+    h = hashlib.sha256(code_version().encode())
+    for path in inputs:
+        _hash_path(h, Path(path))
+    h.update(json.dumps(config, sort_keys=True, default=str).encode())
+    return h.hexdigest()
+
+
+class ResultCache:
+    """JSON results under `directory`, one file per content hash, written atomically."""
+
+    def __init__(self, directory: Path):
+        self.directory = Path(directory)
+
+    def _path(self, digest: str) -> Path:
+        return self.directory / f"{digest}.json"
+
+    def get(self, digest: str):
+        """The cached value, or None (absent or unreadable: then it is recomputed)."""
+        try:
+            return json.loads(self._path(digest).read_text(encoding="utf-8"))["value"]
+        except (OSError, ValueError, KeyError):
+            return None
+
+    def discard(self, digest: str) -> None:
+        self._path(digest).unlink(missing_ok=True)
+
+    def put(self, digest: str, value) -> None:
+        self.directory.mkdir(parents=True, exist_ok=True)
+        tmp = self._path(digest).with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(json.dumps({"version": code_version(), "value": value}, default=float))
+        tmp.replace(self._path(digest))
+
+
+def _install_shared(token: str, shared) -> None:
+    _SHARED[token] = shared
+
+
+def _call(fn: Callable, item, shared, token: str | None):
+    """Run one task and return ("ok", value, seconds) or ("error", message, seconds)."""
+    t0 = time.perf_counter()
+    try:
+        if token is not None:
+            shared = _SHARED[token]
+        value = fn(item) if token is None and shared is None else fn(item, shared)
+        return "ok", value, time.perf_counter() - t0
+    except Exception as exc:  # reported per task; the other tasks go on
+        where = traceback.extract_tb(exc.__traceback__)[-1]
+        message = f"{type(exc).__name__}: {exc} ({Path(where.filename).name}:{where.lineno})"
+        return "error", message, time.perf_counter() - t0
+
+
+def _call_packed(args):
+    return _call(*args)
+
+
+@contextlib.contextmanager
+def default_backend(backend: str = "local", address: str | None = None, workers: int = 1):
+    """Within the block, an `Executor` created without a backend (the experiments') uses this
+    one; a Ray instance is started once for the whole block (`workers` CPUs, or the cluster
+    at `address`) and shut down at its end."""
+    with Executor(workers, backend, address, progress=False):
+        old = dict(_DEFAULT)
+        _DEFAULT.update(backend=backend, address=address)
+        try:
+            yield
+        finally:
+            _DEFAULT.update(old)
+
+
+class Executor:
+    """Runs tasks on the local pool or Ray (see the module docstring). Use as a context
+    manager: the pool / the local Ray instance lives for the `with` block; a Ray instance that
+    was already initialised (by the caller or an earlier block) is reused and left running.
+
+    workers: processes (local) or concurrent tasks (ray; the CPUs of a local Ray instance);
+    backend: "local", "ray", or None (the one `default_backend` set, else "local");
+    address: None (local Ray instance) or "auto" / "HOST:PORT" (an existing cluster);
+    start_method: multiprocessing start method of the local pool (None: the platform's)."""
+
+    def __init__(
+        self,
+        workers: int = 1,
+        backend: str | None = None,
+        address: str | None = None,
+        progress: bool = True,
+        start_method: str | None = None,
+    ):
+        if backend is None:
+            backend, address = _DEFAULT["backend"], address or _DEFAULT["address"]
+        if backend not in BACKENDS:
+            raise ValueError(f"--backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+        if not (isinstance(workers, int) and workers >= 1):
+            raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
+        if address is not None and backend != "ray":
+            raise ValueError("--address needs --backend ray")
+        self.workers, self.backend, self.address = workers, backend, address
+        self.progress, self.start_method = progress, start_method
+        self._ray = None
+        self._started_ray = False
+
+    def __enter__(self) -> Executor:
+        if self.backend == "ray":
+            self._ray, self._started_ray = _start_ray(self.workers, self.address)
+        return self
+
+    def __exit__(self, *exc) -> bool:
+        if self._started_ray:
+            self._ray.shutdown()
+        self._ray, self._started_ray = None, False
+        return False
+
+    # ---- the two ways to run tasks ----------------------------------------------------------
+    def map(
+        self,
+        fn: Callable,
+        items: list,
+        *,
+        keys: list[str] | None = None,
+        shared=None,
+        cache: ResultCache | None = None,
+        hashes: list[str] | None = None,
+        desc: str = "tasks",
+    ) -> list[Outcome]:
+        """Every item's Outcome, in item order. With `cache` and `hashes` (one content hash per
+        item), cached items are not run and successful results are stored (JSON values)."""
+        items = list(items)
+        keys = [str(i) for i in range(len(items))] if keys is None else [str(k) for k in keys]
+        if len(keys) != len(items) or (hashes is not None and len(hashes) != len(items)):
+            raise ValueError("Executor.map: keys / hashes must have one entry per item")
+        if cache is not None and hashes is None:
+            raise ValueError("Executor.map: a cache needs a content hash per item")
+        outcomes: list[Outcome | None] = [None] * len(items)
+        todo = []
+        for i in range(len(items)):
+            hit = cache.get(hashes[i]) if cache is not None else None
+            if hit is not None:
+                outcomes[i] = Outcome(keys[i], hit, None, True, 0.0)
+            else:
+                todo.append(i)
+        counts = {"done": 0, "failed": 0, "cached": len(items) - len(todo)}
+        bar = tqdm(total=len(items), desc=desc, disable=not self.progress, leave=False)
+        bar.update(counts["cached"])
+        bar.set_postfix(counts)
+        for i, (status, value, seconds) in self._run(fn, [items[i] for i in todo], shared, todo):
+            ok = status == "ok"
+            if ok and cache is not None:  # computed and cached results look the same
+                value = json.loads(json.dumps(value, default=float))
+            outcomes[i] = Outcome(
+                keys[i], value if ok else None, None if ok else value, False, seconds
+            )
+            if ok and cache is not None:
+                cache.put(hashes[i], value)
+            counts["done" if ok else "failed"] += 1
+            bar.update(1)
+            bar.set_postfix(counts)
+        bar.close()
+        return outcomes
+
+    def imap(self, fn: Callable, items: Iterable, *, shared=None, desc: str = "tasks") -> Iterator:
+        """The values of fn over items, in item order, as they become available in that order;
+        a failed task raises TaskFailed (trials of an experiment: a failure is a bug)."""
+        items = list(items)
+        bar = tqdm(total=len(items), desc=desc, disable=not self.progress, leave=False)
+        ready: dict[int, tuple] = {}
+        nxt = 0
+        for i, result in self._run(fn, items, shared, list(range(len(items)))):
+            ready[i] = result
+            bar.update(1)
+            while nxt in ready:
+                status, value, _ = ready.pop(nxt)
+                if status != "ok":
+                    bar.close()
+                    raise TaskFailed(f"{desc}: task {nxt} ({_short(items[nxt])}) failed: {value}")
+                yield value
+                nxt += 1
+        bar.close()
+
+    # ---- backends ---------------------------------------------------------------------------
+    def _run(self, fn, items: list, shared, index: list[int]) -> Iterator[tuple[int, tuple]]:
+        """(index, (status, value, seconds)) per item, in completion order."""
+        if not items:
+            return
+        if self.backend == "ray":
+            yield from self._run_ray(fn, items, shared, index)
+        elif self.workers == 1 or len(items) == 1:
+            for i, item in zip(index, items):
+                yield i, _call(fn, item, shared, None)
+        else:
+            token = None if shared is None else f"{os.getpid()}-{id(shared)}"
+            ctx = mp.get_context(self.start_method)
+            init = (_install_shared, (token, shared)) if token else (None, ())
+            with ctx.Pool(min(self.workers, len(items)), *init) as pool:
+                jobs = [(fn, item, None, token) for item in items]
+                for pos, result in pool.imap_unordered(_indexed, enumerate(jobs)):
+                    yield index[pos], result
+
+    def _run_ray(self, fn, items: list, shared, index: list[int]):
+        ray = self._ray
+        if ray is None:
+            raise RuntimeError("Executor(backend='ray') must be used in a `with` block")
+        remote = ray.remote(num_cpus=1, max_retries=0)(_call)
+        ref = None if shared is None else ray.put(shared)
+        # a local instance runs `workers` tasks at once; on a cluster keep `workers` in flight
+        limit = len(items) if self.address is None else self.workers
+        pending: dict = {}
+        nxt = 0
+        while nxt < len(items) or pending:
+            while nxt < len(items) and len(pending) < limit:
+                # a shared ObjectRef passed as a top-level argument is resolved by Ray in the
+                # worker (zero-copy for numpy arrays), not sent with each task
+                pending[remote.remote(fn, items[nxt], ref, None)] = index[nxt]
+                nxt += 1
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for obj in done:
+                yield pending.pop(obj), ray.get(obj)
+
+
+def _indexed(job):
+    pos, args = job
+    return pos, _call_packed(args)
+
+
+def _short(item) -> str:
+    text = repr(item)
+    return text if len(text) <= 120 else text[:117] + "..."
+
+
+def _start_ray(workers: int, address: str | None):
+    """(the ray module, whether this call started the instance)."""
+    try:
+        import ray
+    except ImportError:
+        raise ValueError(
+            "--backend ray needs Ray: pip install 'graphloc[ray]' (or pip install ray)"
+        ) from None
+    if ray.is_initialized():
+        return ray, False
+    kwargs = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
+    if address is None:
+        ray.init(num_cpus=workers, **kwargs)
+    else:
+        try:
+            ray.init(address=address, **kwargs)
+        except ConnectionError as exc:
+            raise ValueError(f"--address {address}: cannot connect to a Ray cluster: {exc}")
+    return ray, True
