@@ -9,7 +9,7 @@ scripts/repro_seed001.py; this writes a run for the log readers and `graphloc` v
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import cv2
@@ -17,7 +17,7 @@ import numpy as np
 
 from graphloc.cameras import PinholeCamera
 from graphloc.datasets.feng import look_at
-from graphloc.config import parse_overrides
+from graphloc.config import check, parse_overrides
 from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
 from graphloc.datasets.render import RenderConfig, render_markers
 from graphloc.vision.target import LARGE_TARGET
@@ -32,18 +32,20 @@ class BreitenmoserConfig:
     """frames: updates; d_min, d_max [m]: camera-target distance ramp (seed 001 V-A: 0.68-1.74 m
     by hand, up to 3 m flown); tilt_deg: viewing direction off vertical; rate_hz."""
 
-    frames: int = 50
-    d_min: float = 0.7
-    d_max: float = 3.0
-    tilt_deg: float = 20.0
-    rate_hz: float = 10.0
-    save_images: bool = True
+    frames: int = field(default=50, metadata={"help": "camera updates"})
+    d_min: float = field(default=0.7, metadata={"help": "first camera-target distance [m]"})
+    d_max: float = field(default=3.0, metadata={"help": "last camera-target distance [m]"})
+    tilt_deg: float = field(default=20.0, metadata={"help": "view off vertical [deg]"})
+    rate_hz: float = field(default=10.0, metadata={"help": "update rate [Hz]"})
+    save_images: bool = field(default=True, metadata={"help": "write the rendered PNGs"})
 
     def __post_init__(self):
-        if self.frames < 1 or not (0 < self.d_min <= self.d_max) or self.rate_hz <= 0:
-            raise ValueError(
-                f"BreitenmoserConfig: frames >= 1, 0 < d_min <= d_max, rate_hz > 0; got {self}"
-            )
+        check(
+            self,
+            integer={"frames": 1},
+            interval={"d_min": (0.0, "d_max", "(]"), "tilt_deg": (0.0, 90.0, "[)")},
+            positive=("d_max", "rate_hz"),
+        )
 
 
 def seed001_camera() -> PinholeCamera:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from graphloc.config import check
 from graphloc.vision.circle import rotations_from_normals
 from graphloc.vision.mutual import three_cameras
 
@@ -59,10 +60,9 @@ class RenderConfig:
                     f"RenderConfig.{name} must be {c} finite value(s) for color={self.color}, "
                     f"got {getattr(self, name)}"
                 )
-        if self.supersample < 1 or self.blur_sigma < 0 or self.noise_sigma < 0:
-            raise ValueError(
-                "RenderConfig needs supersample >= 1, blur_sigma >= 0, noise_sigma >= 0"
-            )
+        check(
+            self, integer={"supersample": 1}, nonnegative=("blur_sigma", "noise_sigma", "gradient")
+        )
 
     def levels(self, value) -> np.ndarray:
         return np.atleast_1d(np.asarray(value, dtype=np.float32))

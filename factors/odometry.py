@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
+from graphloc.config import check
 from graphloc.factors.mixture import check_covariances
 from graphloc.factors.robust import Kernel, robust_noise
 
@@ -75,10 +76,7 @@ class VelocityNoise:
     floor_theta: float = 0.002
 
     def __post_init__(self):
-        for name in ("density_v", "density_w", "floor_xy", "floor_theta"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"VelocityNoise.{name} must be finite > 0, got {value}")
+        check(self, positive=("density_v", "density_w", "floor_xy", "floor_theta"))
 
 
 @dataclass(frozen=True)

@@ -71,13 +71,13 @@ def check(
     for f in positive:
         if f not in skip:
             v = getattr(obj, f)
-            if not (math.isfinite(_number(obj, f, v, "finite > 0")) and v > 0):
-                raise _fail(obj, f, "finite > 0", v)
+            if not (math.isfinite(_number(obj, f, v, "finite and > 0")) and v > 0):
+                raise _fail(obj, f, "finite and > 0", v)
     for f in nonnegative:
         if f not in skip:
             v = getattr(obj, f)
-            if not (math.isfinite(_number(obj, f, v, "finite >= 0")) and v >= 0):
-                raise _fail(obj, f, "finite >= 0", v)
+            if not (math.isfinite(_number(obj, f, v, "finite and >= 0")) and v >= 0):
+                raise _fail(obj, f, "finite and >= 0", v)
     for f, low in integer.items():
         if f not in skip:
             v = getattr(obj, f)

@@ -77,6 +77,7 @@ import gtsam
 import numpy as np
 
 from graphloc.candidates import CandidateSet
+from graphloc.config import check
 from graphloc.factors.mixture import candidate_covariances
 from graphloc.factors.odometry import check_covariance
 from graphloc.keys import pose_key
@@ -136,23 +137,19 @@ class TrackerConfig:
     student_scale: bool = True
 
     def __post_init__(self):
-        if int(self.max_hypotheses) < 1:
-            raise ValueError(
-                f"TrackerConfig.max_hypotheses must be >= 1, got {self.max_hypotheses}"
-            )
-        if not 0.5 <= self.commit_threshold < 1.0:
-            raise ValueError(
-                f"TrackerConfig.commit_threshold must be in [0.5, 1), got {self.commit_threshold}"
-            )
-        if not 0.0 < self.release_threshold <= self.commit_threshold:
-            raise ValueError("TrackerConfig.release_threshold must be in (0, commit_threshold]")
-        if int(self.full_count) < 1:
-            raise ValueError(f"TrackerConfig.full_count must be >= 1, got {self.full_count}")
-        for name in ("miss_probability_full", "birth_probability"):
-            if not 0.0 < getattr(self, name) < 1.0:
-                raise ValueError(f"TrackerConfig.{name} must be in (0, 1)")
-        if not (self.gate > 0 and self.max_candidate_std > 0 and self.student_dof > 0):
-            raise ValueError("TrackerConfig.gate, max_candidate_std and student_dof must be > 0")
+        check(
+            self,
+            integer={"max_hypotheses": 1, "full_count": 1, "max_misses": 0, "gn_iterations": 0},
+            interval={
+                "commit_threshold": (0.5, 1.0, "[)"),
+                "release_threshold": (0.0, "commit_threshold", "(]"),
+                "miss_probability_full": (0.0, 1.0, "()"),
+                "birth_probability": (0.0, 1.0, "()"),
+                "gate": (0.0, np.inf, "(]"),
+                "max_candidate_std": (0.0, np.inf, "(]"),
+                "student_dof": (0.0, np.inf, "(]"),
+            },
+        )
 
 
 @dataclass

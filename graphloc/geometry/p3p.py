@@ -36,6 +36,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.candidates import CandidateSet
+from graphloc.config import check
 
 METHODS = ("lambdatwist", "grunert", "finsterwalder", "kneip")
 MAX_CANDIDATES = 4
@@ -55,19 +56,13 @@ class P3PConfig:
     polish_iters: int = 2  # Gauss-Newton steps on the pose when polish=True
 
     def __post_init__(self):
-        for name in ("min_bearing_sine", "min_triangle_ratio", "duplicate_tol"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
-                raise ValueError(f"P3PConfig.{name} must be finite and >= 0, got {value!r}")
-        r = self.max_residual_rad
-        if not (isinstance(r, (int, float)) and np.isfinite(r) and r > 0):
-            raise ValueError(f"P3PConfig.max_residual_rad must be finite and > 0, got {r!r}")
-        for name in ("depth_refine_iters", "polish_iters"):
-            value = getattr(self, name)
-            if value is None and name == "depth_refine_iters":
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-                raise ValueError(f"P3PConfig.{name} must be an integer >= 0, got {value!r}")
+        check(
+            self,
+            nonnegative=("min_bearing_sine", "min_triangle_ratio", "duplicate_tol"),
+            positive=("max_residual_rad",),
+            integer={"depth_refine_iters": 0, "polish_iters": 0},
+            optional=("depth_refine_iters",),
+        )
 
 
 @dataclass(frozen=True)

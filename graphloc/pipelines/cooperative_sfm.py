@@ -58,6 +58,7 @@ import gtsam
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
+from graphloc.config import check
 from graphloc.factors.mixture import (
     MaxMixture,
     check_covariances,
@@ -120,24 +121,20 @@ class CooperativeSfmConfig:
     )
 
     def __post_init__(self):
-        for name in (
-            "pixel_sigma",
-            "first_pose_sigma",
-            "feature_prior_depth",
-            "feature_prior_sigma",
-            "teammate_still_sigma",
-            "normal_sigma",
-            "circle_yaw_sigma",
-            "upright_sigma",
-        ):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"CooperativeSfmConfig.{name} must be finite > 0, got {v}")
-        if self.teammate_model not in TEAMMATE_MODELS:
-            raise ValueError(
-                f"CooperativeSfmConfig.teammate_model must be one of {TEAMMATE_MODELS}, "
-                f"got {self.teammate_model!r}"
-            )
+        check(
+            self,
+            positive=(
+                "pixel_sigma",
+                "first_pose_sigma",
+                "feature_prior_depth",
+                "feature_prior_sigma",
+                "teammate_still_sigma",
+                "normal_sigma",
+                "circle_yaw_sigma",
+                "upright_sigma",
+            ),
+            choices={"teammate_model": TEAMMATE_MODELS},
+        )
 
 
 def disk_pose_covariance(

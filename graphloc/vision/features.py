@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from graphloc.config import check
 from graphloc.vision.circle import EllipseRefinement, ellipse_points, fit_ellipse, refine_ellipse
 from graphloc.vision.images import check_image, check_points, opencv_errors
 
@@ -44,21 +45,20 @@ class FeatureConfig:
     border: int = 10
 
     def __post_init__(self):
-        if int(self.max_features) < 0:
-            raise ValueError(f"FeatureConfig.max_features must be >= 0, got {self.max_features}")
-        if not 0.0 < self.quality_level < 1.0:
-            raise ValueError(
-                f"FeatureConfig.quality_level must be in (0, 1), got {self.quality_level}"
-            )
-        if not (self.min_distance >= 0 and self.fb_threshold > 0 and self.epsilon > 0):
-            raise ValueError(
-                "FeatureConfig: min_distance >= 0, fb_threshold > 0 and epsilon > 0 required"
-            )
-        if self.win_size < 3 or self.max_level < 0 or self.iterations < 1 or self.block_size < 3:
-            raise ValueError(
-                "FeatureConfig: win_size >= 3, block_size >= 3, max_level >= 0, "
-                "iterations >= 1 required"
-            )
+        check(
+            self,
+            integer={
+                "max_features": 0,
+                "block_size": 3,
+                "win_size": 3,
+                "max_level": 0,
+                "iterations": 1,
+                "border": 0,
+            },
+            interval={"quality_level": (0.0, 1.0, "()")},
+            nonnegative=("min_distance",),
+            positive=("fb_threshold", "epsilon"),
+        )
 
 
 def as_gray(image: np.ndarray, name: str = "image") -> np.ndarray:
@@ -250,17 +250,14 @@ class BlobConfig:
     sectors: int = 16
 
     def __post_init__(self):
-        if self.median_size % 2 != 1 or self.median_size < 1:
-            raise ValueError(f"BlobConfig.median_size must be odd >= 1, got {self.median_size}")
-        if not (self.min_score > 0 and self.min_area > 0 and self.exclusion_dilate >= 0):
-            raise ValueError(
-                "BlobConfig: min_score > 0, min_area > 0 and exclusion_dilate >= 0 required"
-            )
-        if not (self.edge_band >= 1.5 and int(self.sectors) >= 1):
-            raise ValueError(
-                f"BlobConfig: edge_band >= 1.5 px and sectors >= 1 required, got {self.edge_band}, "
-                f"{self.sectors}"
-            )
+        check(
+            self,
+            integer={"median_size": 1, "exclusion_dilate": 0, "sectors": 1},
+            positive=("min_score", "min_area"),
+            interval={"edge_band": (1.5, np.inf, "[)")},
+        )
+        if self.median_size % 2 != 1:
+            raise ValueError(f"BlobConfig.median_size must be odd, got {self.median_size!r}")
 
 
 def colour_score(image: np.ndarray, config: BlobConfig = BlobConfig()) -> np.ndarray:

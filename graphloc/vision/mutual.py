@@ -43,6 +43,7 @@ import gtsam
 import numpy as np
 
 from graphloc.cameras import normalize_rows
+from graphloc.config import check
 
 STATUS_OK = "ok"
 STATUS_NO_BEARING = (
@@ -73,20 +74,19 @@ class MutualConfig:
     planar: bool = False
 
     def __post_init__(self):
-        if not (0.0 < self.min_angle < math.pi / 3):
-            raise ValueError(f"MutualConfig.min_angle must be in (0, pi/3), got {self.min_angle}")
-        if not self.max_closure > 0:
-            raise ValueError(f"MutualConfig.max_closure must be > 0, got {self.max_closure}")
-        if not (0.0 < self.max_relative_tilt <= math.pi):
-            raise ValueError(
-                f"MutualConfig.max_relative_tilt must be in (0, pi], got {self.max_relative_tilt}"
-            )
+        check(
+            self,
+            interval={
+                "min_angle": (0.0, math.pi / 3, "()"),
+                "max_closure": (0.0, math.inf, "(]"),
+                "max_relative_tilt": (0.0, math.pi, "(]"),
+                "max_misfit": (0.0, math.inf, "(]"),
+            },
+        )
         up = np.asarray(self.up, dtype=float)
         if up.shape != (3,) or not np.isfinite(up).all() or np.linalg.norm(up) == 0:
             raise ValueError(f"MutualConfig.up must be a non-zero 3-vector, got {self.up}")
         object.__setattr__(self, "up", tuple(up / np.linalg.norm(up)))
-        if not self.max_misfit > 0:
-            raise ValueError(f"MutualConfig.max_misfit must be > 0, got {self.max_misfit}")
 
 
 @dataclass(frozen=True)

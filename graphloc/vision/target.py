@@ -28,6 +28,7 @@ from scipy.optimize import minimize
 from tqdm import tqdm
 
 from graphloc.candidates import CandidateSet
+from graphloc.config import check
 from graphloc.geometry.p3p import solve_p3p
 
 # ----------------------------------------------------------------------------- targets
@@ -356,12 +357,15 @@ class TargetDesignConfig:
     seed: int = 0
 
     def __post_init__(self):
-        if self.n_targets < 1 or self.n_markers < 4:
-            raise ValueError("TargetDesignConfig needs n_targets >= 1 and n_markers >= 4")
-        if not (0 < self.d_min < self.d_max) or self.min_height < 0 or not (0 <= self.weight <= 1):
-            raise ValueError(
-                "TargetDesignConfig needs 0 < d_min < d_max, min_height >= 0, 0 <= weight <= 1"
-            )
+        check(
+            self,
+            integer={"n_targets": 1, "n_markers": 4, "n_starts": 1, "n_samples": 1, "maxiter": 1},
+            interval={
+                "d_min": (0.0, "d_max", "()"),
+                "weight": (0.0, 1.0, "[]"),
+            },
+            nonnegative=("min_height", "tolerance", "penalty"),
+        )
 
 
 def _index_sets(m: int):

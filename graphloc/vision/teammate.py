@@ -15,6 +15,7 @@ from tqdm import tqdm
 
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
+from graphloc.config import check
 from graphloc.seams import FrameInput, TeammateObservation
 from graphloc.vision.circle import CircleConfig, circle_pose_from_rim
 from graphloc.vision.features import BlobConfig, FeatureConfig, FeatureTracker, detect_base_rim
@@ -41,13 +42,7 @@ class TeammateConfig:
     centre_pixel_floor: float = 0.03
 
     def __post_init__(self):
-        if not (np.isfinite(self.radius) and self.radius > 0):
-            raise ValueError(f"TeammateConfig.radius must be > 0, got {self.radius}")
-        if not (self.radius_pixel_floor > 0 and self.centre_pixel_floor > 0):
-            raise ValueError(
-                f"TeammateConfig pixel floors must be > 0, got {self.radius_pixel_floor}, "
-                f"{self.centre_pixel_floor}"
-            )
+        check(self, positive=("radius", "radius_pixel_floor", "centre_pixel_floor"))
 
 
 def teammate_observation(
