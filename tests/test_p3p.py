@@ -106,7 +106,8 @@ def test_polish_keeps_exact_solutions_and_fixes_perturbed_ones(instances):
     assert (polished.valid == plain.valid).all()
     assert np.abs(polished.t_wc - plain.t_wc).max() < 1e-8
     # polish on its own: start from a perturbed truth, Gauss-Newton converges back
-    from graphloc.geometry.p3p import _polish_pose, _soa, _soa_pose  # noqa: PLC0415
+    from graphloc.geometry.p3p import _polish_pose, _soa_pose  # noqa: PLC0415
+    from graphloc.geometry.p3p_soa import soa  # noqa: PLC0415
 
     rng = np.random.default_rng(3)
     n = 500
@@ -117,7 +118,7 @@ def test_polish_keeps_exact_solutions_and_fixes_perturbed_ones(instances):
         dR @ instances.R_wc[:n], instances.t_wc[:n] + rng.normal(scale=1e-3, size=(n, 3))
     )
     flat = lambda V: tuple(tuple(x[:, 0] for x in v) for v in V)  # noqa: E731
-    R1, t1 = _polish_pose(flat(_soa(f)), flat(_soa(X)), R0, t0, iters=4)
+    R1, t1 = _polish_pose(flat(soa(f)), flat(soa(X)), R0, t0, iters=4)
     assert np.abs(np.stack(t1, -1) - instances.t_wc[:n]).max() < 1e-8
 
 
