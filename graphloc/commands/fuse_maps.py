@@ -66,6 +66,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="dual-robot-room variant (furnished, empty, rectangular, low_overlap)",
     )
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--mcap", help="also write the fused map and trajectories as an MCAP file (Foxglove)"
+    )
+    parser.add_argument("--rerun", help="also write them as a Rerun recording (.rrd)")
     parser.add_argument("--frames", type=int, default=10)
 
 
@@ -75,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
     from graphloc.mapping.pipeline import fuse_and_write, fuse_directories
     from graphloc.mapping.fusion import FusionConfig, FusionRejected
     from graphloc.mapping.report import summary_text
+    from graphloc.pipelines.recording import fusion_recording, write_recordings
 
     config = load_fusion_config(args.config) if args.config else FusionConfig()
     if args.hint_sigma is not None and args.hint is None:
@@ -121,4 +126,6 @@ def run(args: argparse.Namespace) -> int:
         print(summary_text(exc.report))
         return EXIT_NOT_FUSED
     print(summary_text(report))
+    if args.mcap or args.rerun:
+        write_recordings(fusion_recording(args.out), args.mcap, args.rerun)
     return 0

@@ -72,6 +72,8 @@ OPTIONS = {
             "docs/outputs.md)"
         ),
     ),
+    "mcap": (str, None, "also write the results as an MCAP file of ROS 2 messages (Foxglove)"),
+    "rerun": (str, None, "also write a Rerun recording (.rrd; needs graphloc[viz])"),
 }
 NOISE = ("bearing_sigma", "range_sigma", "range_sigma_per_m", "pixel_sigma")
 
@@ -213,6 +215,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
     from dataclasses import asdict, replace
 
     from graphloc.datasets import open_run
+    from graphloc.pipelines.recording import team_recording, write_recordings
     from graphloc.pipelines.report import evaluate, write_outputs
     from graphloc.pipelines.team_graph import build_graph, default_lag, solve
 
@@ -236,6 +239,8 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
         if stop.signal is not None:
             metrics["stopped_by"] = signal.Signals(stop.signal).name
         write_outputs(result, run, metrics, Path(args.out))
+        if values["mcap"] or values["rerun"]:
+            write_recordings(team_recording(result, run), values["mcap"], values["rerun"])
     summary = {
         name: round(v[mode]["ate_rmse"], 4)
         for name, v in metrics["per_robot"].items()

@@ -1,0 +1,121 @@
+"""Results out for viewers (issue 18; graphloc/pipelines/recording.py): `smooth --mcap FILE
+--rerun FILE` on a simulated run with P3P candidate sets; the MCAP file is read back with the
+`mcap` reader (topics, schemas, message counts against the TUM files and decisions.csv written
+beside it), the `.rrd` with Rerun's own reader (every entity); a fuse-maps output directory's
+fused map and trajectories through `fusion_recording`."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from rosbags.typesys import Stores, get_typestore
+
+from graphloc.cli import main
+from graphloc.eval import write_tum
+from graphloc.mapping.io import write_labelled_cloud
+from graphloc.pipelines.recording import fusion_recording, write_mcap, write_rerun
+
+
+def mcap_counts(path: Path) -> tuple[dict, dict]:
+    """topic -> message count and topic -> schema name, from the file's summary."""
+    with open(path, "rb") as fh:
+        summary = make_reader(fh).get_summary()
+    counts = {
+        summary.channels[c].topic: n for c, n in summary.statistics.channel_message_counts.items()
+    }
+    schemas = {ch.topic: summary.schemas[ch.schema_id].name for ch in summary.channels.values()}
+    return counts, schemas
+
+
+def mcap_messages(path: Path, topic: str) -> list:
+    """The topic's messages decoded (CDR) with rosbags' typestore."""
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    out = []
+    with open(path, "rb") as fh:
+        for schema, channel, message in make_reader(fh).iter_messages(topics=[topic]):
+            out.append(ts.deserialize_cdr(message.data, schema.name))
+    return out
+
+
+def rrd_entities(path: Path) -> set:
+    from rerun.chunk import RrdReader
+
+    store = RrdReader(path).stream().collect()
+    return {e.lstrip("/") for e in store.schema().entity_paths()}
+
+
+@pytest.fixture(scope="module")
+def smoothed(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("rec")
+    assert main(["simulate", "feng-probabilistic", "--out", str(tmp / "run")]) == 0
+    args = ["smooth", str(tmp / "run"), "--out", str(tmp / "out"), "--no-progress"]
+    args += ["--mcap", str(tmp / "out/run.mcap"), "--rerun", str(tmp / "out/run.rrd")]
+    assert main(args) == 0
+    return tmp / "out"
+
+
+def test_smooth_mcap_has_every_topic_and_count(smoothed):
+    counts, schemas = mcap_counts(smoothed / "run.mcap")
+    with open(smoothed / "decisions.csv") as fh:
+        decisions = list(csv.DictReader(fh))
+    assert decisions
+    robots = sorted({p.name.rsplit("_", 1)[0] for p in smoothed.glob("*_batch.tum")})
+    want = {}
+    for robot in robots:
+        poses = np.loadtxt(smoothed / f"{robot}_batch.tum", ndmin=2)
+        want[f"/graphloc/{robot}/pose"] = len(poses)
+        want[f"/graphloc/{robot}/path"] = 1
+        want[f"/graphloc/{robot}/dead_reckoning"] = 1
+        if (smoothed / f"{robot}_groundtruth.tum").exists():
+            want[f"/graphloc/{robot}/groundtruth"] = 1
+        mine = [d for d in decisions if d["robot"] == robot]
+        if mine:
+            want[f"/graphloc/{robot}/candidates"] = len(mine)
+            want[f"/graphloc/{robot}/committed"] = sum(int(d["committed"]) >= 0 for d in mine)
+    assert counts == want
+    assert schemas["/graphloc/climber/path"] == "nav_msgs/msg/Path"
+    assert schemas["/graphloc/climber/candidates"] == "sensor_msgs/msg/PointCloud2"
+    # the path holds the estimate written to TUM; each candidate cloud the set's candidates
+    (path,) = mcap_messages(smoothed / "run.mcap", "/graphloc/climber/path")
+    tum = np.loadtxt(smoothed / "climber_batch.tum", ndmin=2)
+    xyz = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in path.poses])
+    assert np.abs(xyz - tum[:, 1:4]).max() < 1e-9
+    clouds = mcap_messages(smoothed / "run.mcap", "/graphloc/climber/candidates")
+    first = next(d for d in decisions if d["robot"] == "climber")
+    assert clouds[0].width == int(first["candidates"])
+    fields = np.frombuffer(clouds[0].data.tobytes(), "<f4").reshape(clouds[0].width, 4)
+    assert fields[:, 3].sum() == (int(first["committed"]) >= 0)
+
+
+def test_smooth_rerun_recording_holds_every_entity(smoothed):
+    entities = rrd_entities(smoothed / "run.rrd")
+    for label in ("batch", "dead_reckoning", "groundtruth"):
+        assert f"world/climber/{label}" in entities and f"world/climber/{label}/path" in entities
+    assert {"world/climber/candidates", "world/climber/committed", "world/ground/batch"} <= entities
+
+
+def test_fused_map_recording(tmp_path):
+    rng = np.random.default_rng(0)
+    points = rng.uniform(-3, 3, (500, 3))
+    robot = (np.arange(500) >= 300).astype(int)
+    write_labelled_cloud(tmp_path / "fused_map.ply", points, robot)
+    times = np.arange(5) * 0.1
+    poses = np.tile(np.eye(4), (5, 1, 1))
+    poses[:, 0, 3] = times
+    write_tum(tmp_path / "trajectory_ground.tum", times, poses)
+    write_tum(tmp_path / "trajectory_ceiling.tum", times, poses)
+    rec = fusion_recording(tmp_path)
+    counts = write_mcap(rec, tmp_path / "map.mcap")
+    assert counts == mcap_counts(tmp_path / "map.mcap")[0]
+    assert counts["/graphloc/map/fused_map"] == 1 and counts["/graphloc/ground/pose"] == 5
+    (cloud,) = mcap_messages(tmp_path / "map.mcap", "/graphloc/map/fused_map")
+    data = np.frombuffer(cloud.data.tobytes(), "<f4").reshape(cloud.width, 4)
+    assert np.abs(data[:, :3] - points).max() < 1e-5 and (data[:, 3] == robot).all()
+    assert "world/map/fused_map" in write_rerun(rec, tmp_path / "m.rrd")
+    assert "world/map/fused_map" in rrd_entities(tmp_path / "m.rrd")
+    with pytest.raises(ValueError, match="must end in .mcap"):
+        write_mcap(rec, tmp_path / "map.bag")
