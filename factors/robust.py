@@ -33,20 +33,40 @@ class Kernel:
     k: float = 1.345
 
     def __post_init__(self):
+        if not isinstance(self.name, str):
+            raise ValueError(f"robust kernel name must be a string, got {self.name!r}")
         name = self.name.lower().replace("-", "").replace("_", "")
         if name != "none" and name not in KERNELS:
             raise ValueError(
                 f"unknown robust kernel {self.name!r}; choose from none, {', '.join(KERNELS)}"
             )
-        if not (np.isfinite(self.k) and self.k > 0):
-            raise ValueError(f"robust kernel constant must be finite > 0, got {self.k}")
+        try:
+            k = float(self.k)
+        except (TypeError, ValueError):
+            k = float("nan")
+        if not (np.isfinite(k) and k > 0):
+            raise ValueError(f"robust kernel constant k must be finite > 0, got {self.k!r}")
         object.__setattr__(self, "name", name)
+        object.__setattr__(self, "k", k)
 
     @classmethod
     def parse(cls, text: str) -> "Kernel":
-        """ "cauchy" or "cauchy:1.0" -> Kernel (for command lines)."""
-        name, _, k = text.partition(":")
-        return cls(name, float(k)) if k else cls(name)
+        """ "cauchy" or "cauchy:1.0" -> Kernel (for command lines and config files); a
+        ValueError quoting `text` otherwise."""
+        if not isinstance(text, str):
+            raise ValueError(f"robust kernel must be NAME[:k] (e.g. cauchy:2.0), got {text!r}")
+        name, sep, k = text.strip().partition(":")
+        try:
+            constant = float(k) if sep else None
+        except ValueError:
+            raise ValueError(
+                f"robust kernel {text!r}: constant {k!r} is not a number (NAME[:k], e.g. "
+                f"cauchy:2.0)"
+            ) from None
+        try:
+            return cls(name, constant) if sep else cls(name)
+        except ValueError as exc:
+            raise ValueError(f"robust kernel {text!r}: {exc}") from None
 
 
 @dataclass(frozen=True)

@@ -1,14 +1,23 @@
 """`graphloc VERB ...`: a thin command line. Each verb is a module in graphloc.commands with
 HELP (one line), add_arguments(parser) and run(args) -> exit code; the verb parses, calls one
-pipeline function and writes outputs. Only verbs that work end to end are listed here."""
+pipeline function and writes outputs. Only verbs that work end to end are listed here.
+
+`main` is the one place where failures become exit codes (`graphloc.exitcodes`, documented in
+docs/outputs.md): a verb's `--out` is checked before any computation; bad input (ValueError,
+a missing file) is one `error:` line and BAD_INPUT; an OS error, an Open3D or GTSAM runtime
+error is one `error:` line and FAILED; Ctrl-C outside a stoppable solve is INTERRUPTED. No
+expected failure ends in a traceback."""
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+from pathlib import Path
 
 from graphloc import __version__
+from graphloc.exitcodes import BAD_INPUT, FAILED, INTERRUPTED, OK
 
 # verb -> module in graphloc.commands (keep sorted by the order a user meets them)
 VERBS: dict[str, str] = {
@@ -40,14 +49,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def check_out(out: Path) -> None:
+    """--out must be a directory graphloc can create or write, checked before any computation
+    (ValueError naming the option otherwise)."""
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a directory")
+    parent = next((p for p in [out, *out.parents] if p.exists()), Path("."))
+    if not parent.is_dir():
+        raise ValueError(f"--out {out}: {parent} is not a directory")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"--out {out}: {parent} is not writable")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+
+    def error(text: str, code: int) -> int:
+        print(f"graphloc {args.verb}: error: {text}", file=sys.stderr)
+        return code
+
     try:
-        return int(args._run(args) or 0)
+        if getattr(args, "out", None) is not None:
+            check_out(Path(args.out))
+        return int(args._run(args) or OK)
     except (ValueError, FileNotFoundError) as exc:
         # Bad input: one clear line naming what is wrong, not a traceback from deep inside.
-        print(f"graphloc {args.verb}: error: {exc}", file=sys.stderr)
-        return 2
+        return error(str(exc), BAD_INPUT)
+    except KeyboardInterrupt:
+        return error("interrupted (Ctrl-C); outputs may be incomplete", INTERRUPTED)
+    except OSError as exc:  # disk full, permissions, a path that is not a directory, ...
+        return error(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), FAILED)
+    except RuntimeError as exc:  # Open3D and GTSAM report their failures as RuntimeError
+        return error(f"{type(exc).__name__}: {exc}", FAILED)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,24 @@
+"""The exit codes of every `graphloc` verb, defined once (documented in docs/outputs.md, "Exit
+codes"). `graphloc.cli.main` maps exceptions to them; verbs return OK or INCOMPLETE."""
+
+from __future__ import annotations
+
+OK = 0  # done: every output written
+FAILED = 1  # the input was fine but the work failed: an OS error (disk full, permissions), a
+#            solver or Open3D runtime error; one `error:` line names what failed
+BAD_INPUT = 2  # bad input or usage (argparse's code too): one `error:` line naming file, line
+#               and field, or the option
+INCOMPLETE = 3  # no trustworthy full answer, said so: smooth / online stopped by SIGINT /
+#                SIGTERM (partial outputs, metrics.json "partial": true), fuse-maps not fused
+#                (a report of every candidate and why it lost, no map)
+RUNS_FAILED = 4  # smooth / online over many runs: at least one run failed (runs.csv says why)
+INTERRUPTED = 130  # a second Ctrl-C, or Ctrl-C in a verb that cannot stop cleanly (128 + SIGINT)
+
+CODES = {
+    OK: "ok",
+    FAILED: "failed",
+    BAD_INPUT: "bad input or usage",
+    INCOMPLETE: "stopped or not fused",
+    RUNS_FAILED: "some runs failed",
+    INTERRUPTED: "interrupted",
+}
