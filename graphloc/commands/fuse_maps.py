@@ -6,20 +6,22 @@ per-point robot label), top/side PNGs with trajectories, TUM trajectories, fusio
     graphloc fuse-maps --ground G/ --ceiling C/ (--hint "x y z qx qy qz qw" [--hint-sigma "DEG M"]
                        | --p3p setup.json) [--config fusion.toml] --out OUT
 
-Exit codes: 0 fused; 2 bad input (one `error:` line); 3 (EXIT_NOT_FUSED) the registration
-failed its acceptance checks -- "not fused" and why are printed, fusion_report.json lists every
-candidate and check, and no fused map is written.
+Exit codes (graphloc.exitcodes, docs/outputs.md): 0 fused; 2 bad input (one `error:` line);
+3 (INCOMPLETE) the registration failed its acceptance checks -- "not fused" and why are
+printed, fusion_report.json lists every candidate and check, and no fused map is written.
 """
 
 from __future__ import annotations
 
 import argparse
 
+from graphloc.exitcodes import INCOMPLETE, OK
+
 HELP = (
     "fuse ground + ceiling robot LiDAR maps "
     "(KISS-ICP, P3P + hypothesis tracking, ICP, factor graph)"
 )
-EXIT_NOT_FUSED = 3
+EXIT_NOT_FUSED = INCOMPLETE
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -128,4 +130,4 @@ def run(args: argparse.Namespace) -> int:
     print(summary_text(report))
     if args.mcap or args.rerun:
         write_recordings(fusion_recording(args.out), args.mcap, args.rerun)
-    return 0
+    return OK
