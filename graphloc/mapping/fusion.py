@@ -34,7 +34,7 @@ from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
 from graphloc.factors.odometry import between_factor
 from graphloc.geometry.p3p import solve_p3p
-from graphloc.hypotheses import HypothesisTracker, Odometry, TrackerConfig
+from graphloc.hypotheses import HypothesisTracker, TrackerConfig
 from graphloc.keys import pose_key
 from graphloc.mapping.odometry import OdometryConfig, OdometryResult, run_odometry
 from graphloc.mapping.registration import (
@@ -47,6 +47,7 @@ from graphloc.mapping.registration import (
     refine,
     robust_register,
 )
+from graphloc.seams import Odometry
 from graphloc.session import Session, SessionConfig
 
 GROUND, CEILING = 0, 1

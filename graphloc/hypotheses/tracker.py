@@ -71,95 +71,15 @@ previous frame, in that frame, with covariance).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
-
 import gtsam
 import numpy as np
 
 from graphloc.candidates import CandidateSet
-from graphloc.config import check
 from graphloc.factors.mixture import candidate_covariances
-from graphloc.factors.odometry import check_covariance
+from graphloc.hypotheses.config import Track, TrackerConfig, cap_covariances, fit_score
+from graphloc.hypotheses.state import STATE_FIELDS, load_state, save_state
 from graphloc.keys import pose_key
 from graphloc.seams import Decision, Odometry, check_frame
-from graphloc.session import read_data_file, write_data_file
-
-
-def _fit_score(maha: np.ndarray, dof: float, dim: int = 6) -> np.ndarray:
-    """Log-density of the innovation's Mahalanobis^2 under a multivariate Student-t with `dof`
-    degrees of freedom (Gaussian for dof = inf), relative to its value at maha = dim (the mean
-    of chi2_dim): 0 for a typical consistent association, the scale of a coasting track."""
-    if np.isinf(dof):
-        return -0.5 * (maha - dim)
-    return -0.5 * (dof + dim) * (np.log1p(maha / dof) - np.log1p(dim / dof))
-
-
-def cap_covariances(cov: np.ndarray, max_std: float) -> np.ndarray:
-    """(K,n,n) covariances with eigenvalues clipped at max_std^2 (batched eigh)."""
-    if not len(cov):
-        return cov
-    w, V = np.linalg.eigh(cov)
-    return np.einsum("kij,kj,klj->kil", V, np.minimum(w, max_std**2), V)
-
-
-@dataclass(frozen=True)
-class TrackerConfig:
-    """max_hypotheses: K live tracks. commit_threshold / release_threshold: posterior to commit
-    a candidate / below which the committed track is released (0.5: another explanation has
-    become more likely than it). full_count: candidates of a complete frame (P3P: 4).
-    A frame with J < full_count candidates lacks full_count - J solutions, each equally likely
-    the genuine one: a coasting track has prior 1/full_count, a present candidate j w_j J /
-    full_count. A complete frame contains the genuine solution (P3P solutions vanish in pairs
-    only when the count drops): coasting prior miss_probability_full. birth_probability: prior
-    of a track starting at a candidate without a parent.
-    max_misses: frames a track may coast. gate: Mahalanobis^2 beyond which a pair is not
-    scored. max_candidate_std: cap on the candidate covariance eigenvalues (sqrt, m or rad).
-    default_sigmas: candidate (rot, trans) sigmas when the CandidateSet carries no covariances.
-    student_dof: degrees of freedom nu of the innovation's Student-t (inf = Gaussian): P3P
-    errors are heavy-tailed (near its danger cylinder), so one bad frame must not decide.
-    gn_iterations: Gauss-Newton iterations of the window update. robust_commit: commit only if
-    the posterior passes commit_threshold without the track's largest one-update log-odds gain.
-    student_scale: Student-t posterior scale (nu + m) / (nu + 6) after an association."""
-
-    max_hypotheses: int = 8
-    commit_threshold: float = 0.95
-    release_threshold: float = 0.5
-    full_count: int = 4
-    miss_probability_full: float = 0.02
-    birth_probability: float = 1e-12
-    max_misses: int = 50
-    gate: float = 100.0
-    max_candidate_std: float = 1.0
-    student_dof: float = 6.0
-    default_sigmas: tuple[float, float] = (0.02, 0.05)
-    gn_iterations: int = 3
-    robust_commit: bool = True
-    student_scale: bool = True
-
-    def __post_init__(self):
-        check(
-            self,
-            integer={"max_hypotheses": 1, "full_count": 1, "max_misses": 0, "gn_iterations": 0},
-            interval={
-                "commit_threshold": (0.5, 1.0, "[)"),
-                "release_threshold": (0.0, "commit_threshold", "(]"),
-                "miss_probability_full": (0.0, 1.0, "()"),
-                "birth_probability": (0.0, 1.0, "()"),
-                "gate": (0.0, np.inf, "(]"),
-                "max_candidate_std": (0.0, np.inf, "(]"),
-                "student_dof": (0.0, np.inf, "(]"),
-            },
-        )
-
-
-@dataclass
-class _Track:
-    mean: gtsam.Pose3
-    cov: np.ndarray
-    logw: float
-    track_id: int
-    candidate: int  # index into the current frame's candidates, -1 when coasting
-    misses: int = 0
 
 
 class HypothesisTracker:
@@ -173,7 +93,7 @@ class HypothesisTracker:
 
     def __init__(self, config: TrackerConfig = TrackerConfig()):
         self.config = config
-        self._tracks: list[_Track] = []
+        self._tracks: list[Track] = []
         self._next_id = 0
         self._committed_id: int | None = None
         self._logit: dict[int, float] = {}  # track id -> posterior log-odds after the last update
@@ -198,125 +118,23 @@ class HypothesisTracker:
         self._gn = self._make_gn_params(self.config)
 
     # ---- save / resume as data (no pickle: a loaded file never runs code) ----------------------
-    _SAVE_FORMAT = "graphloc-hypothesis-tracker"
-    _SAVE_VERSION = 1
-
     def save(self, path) -> None:
         """Write the tracker's whole state (config, tracks, commit, log-odds) to `path` as a
-        versioned JSON file, atomically (`graphloc.session.write_data_file`); `load` resumes it
-        with identical decisions."""
-        tracks = [
-            {
-                "mean": np.asarray(t.mean.matrix()).ravel().tolist(),
-                "cov": t.cov.ravel().tolist(),
-                "logw": t.logw,
-                "id": t.track_id,
-                "candidate": t.candidate,
-                "misses": t.misses,
-            }
-            for t in self._tracks
-        ]
-        config = asdict(self.config)
-        config["default_sigmas"] = list(config["default_sigmas"])
-        payload = {
-            "config": config,
-            "tracks": tracks,
-            "next_id": self._next_id,
-            "committed_id": self._committed_id,
-            "last_time": self._last_time,
-            "logit": [[i, v] for i, v in self._logit.items()],
-            "max_gain": [[i, v] for i, v in self._max_gain.items()],
-        }
-        write_data_file(path, self._SAVE_FORMAT, self._SAVE_VERSION, payload, allow_nan=True)
+        versioned JSON file, atomically (`graphloc.hypotheses.state`); `load` resumes it with
+        identical decisions."""
+        save_state(path, self.config, self._state())
 
     @classmethod
     def load(cls, path) -> "HypothesisTracker":
         """A tracker `save` wrote. ValueError naming the file and the field on anything else."""
-        raw = read_data_file(
-            path, cls._SAVE_FORMAT, cls._SAVE_VERSION, "hypothesis tracker", allow_nan=True
-        )
-        try:
-            return cls._from_saved(raw)
-        except KeyError as exc:
-            raise ValueError(f"{path}: missing field {exc}") from None
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"{path}: {exc}") from None
-
-    @classmethod
-    def _from_saved(cls, raw: dict) -> "HypothesisTracker":
-        def number(x, field, finite=True):
-            ok = isinstance(x, (int, float)) and not isinstance(x, bool) and not np.isnan(x)
-            if not ok or (finite and not np.isfinite(x)):
-                kind = "finite number" if finite else "number"
-                raise ValueError(f"{field}: expected a {kind}, got {x!r}")
-            return float(x)
-
-        def items(x, field, kind=list):
-            if not isinstance(x, kind):
-                raise ValueError(f"{field}: expected a {kind.__name__}, got {str(x)[:60]}")
-            return x
-
-        def integer(x, field):
-            if isinstance(x, bool) or not isinstance(x, int):
-                raise ValueError(f"{field}: expected an integer, got {x!r}")
-            return x
-
-        config = dict(items(raw["config"], "config", dict))
-        if set(config) != {f.name for f in fields(TrackerConfig)}:
-            raise ValueError(f"config: expected the fields of TrackerConfig, got {sorted(config)}")
-        sigmas = items(config["default_sigmas"], "config.default_sigmas")
-        config["default_sigmas"] = tuple(number(v, "config.default_sigmas") for v in sigmas)
-        for f in fields(TrackerConfig):
-            value, default = config[f.name], f.default
-            if isinstance(default, bool) != isinstance(value, bool) or (
-                isinstance(default, (int, float)) and not isinstance(value, (int, float))
-            ):
-                raise ValueError(
-                    f"config.{f.name}: expected {type(default).__name__}, got {value!r}"
-                )
-        tracker = cls(TrackerConfig(**config))
-        tracks = []
-        for k, t in enumerate(items(raw["tracks"], "tracks")):
-            where = f"tracks[{k}]"
-            items(t, where, dict)
-            mean = np.array([number(v, f"{where}.mean") for v in items(t["mean"], f"{where}.mean")])
-            cov = np.array([number(v, f"{where}.cov") for v in items(t["cov"], f"{where}.cov")])
-            if mean.size != 16 or cov.size != 36:
-                raise ValueError(
-                    f"{where}: mean needs 16 numbers and cov 36, got {mean.size}, {cov.size}"
-                )
-            T, cov = mean.reshape(4, 4), cov.reshape(6, 6)
-            R = T[:3, :3]
-            if not (np.abs(R @ R.T - np.eye(3)).max() < 1e-9 and np.linalg.det(R) > 0):
-                raise ValueError(f"{where}.mean: not a rigid transform")
-            check_covariance(cov, f"{where}.cov")
-            pose = gtsam.Pose3(gtsam.Rot3(R), T[:3, 3])
-            tracks.append(
-                _Track(
-                    pose,
-                    cov,
-                    number(t["logw"], f"{where}.logw", False),
-                    integer(t["id"], f"{where}.id"),
-                    integer(t["candidate"], f"{where}.candidate"),
-                    integer(t["misses"], f"{where}.misses"),
-                )
-            )
-        tracker._tracks = tracks
-        tracker._next_id = integer(raw["next_id"], "next_id")
-        committed = raw["committed_id"]
-        tracker._committed_id = None if committed is None else integer(committed, "committed_id")
-        last = raw["last_time"]
-        tracker._last_time = None if last is None else number(last, "last_time")
-        for name in ("logit", "max_gain"):
-            pairs = items(raw[name], name)
-            if not all(isinstance(p, list) and len(p) == 2 for p in pairs):
-                raise ValueError(f"{name}: expected [track id, value] pairs")
-            setattr(
-                tracker,
-                f"_{name}",
-                {integer(i, f"{name} track id"): number(v, name, False) for i, v in pairs},
-            )
+        config, state = load_state(path)
+        tracker = cls(config)
+        for name, value in state.items():
+            setattr(tracker, f"_{name}", value)
         return tracker
+
+    def _state(self) -> dict:
+        return {name: getattr(self, f"_{name}") for name in STATE_FIELDS}
 
     @property
     def num_hypotheses(self) -> int:
@@ -345,9 +163,9 @@ class HypothesisTracker:
         return self._decide(len(candidates))
 
     # ---- one frame ---------------------------------------------------------------------------
-    def _birth(self, pose: gtsam.Pose3, cov: np.ndarray, j: int, logw: float) -> _Track:
+    def _birth(self, pose: gtsam.Pose3, cov: np.ndarray, j: int, logw: float) -> Track:
         self._next_id += 1
-        return _Track(pose, cov.copy(), logw, self._next_id, j)
+        return Track(pose, cov.copy(), logw, self._next_id, j)
 
     def _step(
         self, candidates: CandidateSet, cov: np.ndarray, logw_c: np.ndarray, odometry: Odometry
@@ -390,7 +208,7 @@ class HypothesisTracker:
                 maha = np.einsum("ni,ni->n", e, np.linalg.solve(S, e[..., None])[..., 0])
                 logdet = np.linalg.slogdet(S)[1]
                 # log det(I + P- C^-1) = log det S - log det C
-                ll = _fit_score(maha, cfg.student_dof) - 0.5 * (logdet - logdet_c[js])
+                ll = fit_score(maha, cfg.student_dof) - 0.5 * (logdet - logdet_c[js])
                 ll[maha > cfg.gate] = -np.inf
                 log_assoc[hs, js] = logw_h[hs] + logw_c[js] + ll
                 maha_hj[hs, js] = maha
@@ -442,7 +260,7 @@ class HypothesisTracker:
             if kind == "coast":
                 t = self._tracks[idx]
                 new_tracks.append(
-                    _Track(preds[idx], P_pred[idx], logw, t.track_id, -1, t.misses + 1)
+                    Track(preds[idx], P_pred[idx], logw, t.track_id, -1, t.misses + 1)
                 )
             elif parent == H:  # birth
                 new_tracks.append(self._birth(zs[idx], cov[idx], idx, logw))
@@ -450,7 +268,7 @@ class HypothesisTracker:
                 mean, P = posterior[idx]
                 if cfg.student_scale and np.isfinite(cfg.student_dof):
                     P = P * (cfg.student_dof + maha_hj[parent, idx]) / (cfg.student_dof + 6.0)
-                new_tracks.append(_Track(mean, P, logw, self._tracks[parent].track_id, idx, 0))
+                new_tracks.append(Track(mean, P, logw, self._tracks[parent].track_id, idx, 0))
         self._tracks = new_tracks
 
     def _window_updates(
