@@ -41,6 +41,7 @@ CURVES = (
 LOOP_RADIUS = 0.6
 FIELD = 3.0  # side of the square field / ceiling [m] (Sec. VI-B)
 GROUND_ROBOTS = ((0.5, 0.5, 0.3), (0.5, 2.5, 0.4), (2.5, 1.5, 0.2))  # Sec. VI-B
+ODOMETRY_MODELS = ("per_axis", "isotropic")  # readings of "15% on all three dimensions"
 
 
 def seed000_camera() -> PinholeCamera:
@@ -149,7 +150,8 @@ def relative_poses(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray
 class FengProbabilisticConfig:
     """Sec. VI-B. odometry_noise: relative sigma on each of the three translation components of
     a_t (0.15 = 15 %); odometry_rot_sigma: gyro noise per update [rad] (not given in the seed);
-    max_time: cap on the run length [s] (None = until the ceiling boundary)."""
+    odometry_model: how the 15 % apply (ODOMETRY_MODELS, `noisy_odometry`); max_time: cap on
+    the run length [s] (None = until the ceiling boundary)."""
 
     ceiling: str = "level"
     curve: str = "line"
@@ -158,6 +160,7 @@ class FengProbabilisticConfig:
     first_interval: float = 0.3
     odometry_noise: float = 0.15
     odometry_rot_sigma: float = 0.002
+    odometry_model: str = "per_axis"
     pixel_sigma: float = 0.5
     max_time: float | None = None
     seed: int = 0
@@ -170,6 +173,11 @@ class FengProbabilisticConfig:
         if self.curve not in CURVES:
             raise ValueError(
                 f"FengProbabilisticConfig.curve must be one of {CURVES}, got {self.curve!r}"
+            )
+        if self.odometry_model not in ODOMETRY_MODELS:
+            raise ValueError(
+                f"FengProbabilisticConfig.odometry_model must be one of {ODOMETRY_MODELS}, "
+                f"got {self.odometry_model!r}"
             )
         for name in ("speed", "rate_hz", "first_interval"):
             if not (np.isfinite(getattr(self, name)) and getattr(self, name) > 0):
@@ -199,11 +207,24 @@ class FengRun:
 
 
 def noisy_odometry(
-    Rrel: np.ndarray, trel: np.ndarray, rel_sigma: float, rot_sigma: float, rng: np.random.Generator
+    Rrel: np.ndarray,
+    trel: np.ndarray,
+    rel_sigma: float,
+    rot_sigma: float,
+    rng: np.random.Generator,
+    model: str = "per_axis",
 ) -> list[gtsam.Pose3]:
-    """Odometry a_t: each translation component scaled by (1 + N(0, rel_sigma)) (Sec. VI-B,
-    15 % on all three dimensions), rotation perturbed by Exp(N(0, rot_sigma^2 I))."""
-    tn = trel * (1.0 + rel_sigma * rng.standard_normal(trel.shape))
+    """Odometry a_t (Sec. VI-B: "a Gaussian noise of a standard deviation 15% on all three
+    dimensions"), two readings: "per_axis" scales each translation component by
+    (1 + N(0, rel_sigma)); "isotropic" adds N(0, (rel_sigma |a|)^2 I) (15 % of the step length
+    on every axis). Rotation perturbed by Exp(N(0, rot_sigma^2 I))."""
+    noise = rng.standard_normal(trel.shape)
+    if model == "per_axis":
+        tn = trel * (1.0 + rel_sigma * noise)
+    elif model == "isotropic":
+        tn = trel + rel_sigma * np.linalg.norm(trel, axis=-1, keepdims=True) * noise
+    else:
+        raise ValueError(f"noisy_odometry: model must be one of {ODOMETRY_MODELS}, got {model!r}")
     w = rot_sigma * rng.standard_normal(trel.shape)
     return [
         gtsam.Pose3(gtsam.Rot3(R).compose(gtsam.Rot3.Expmap(wk)), tk)
@@ -212,11 +233,22 @@ def noisy_odometry(
 
 
 def odometry_covariance(
-    relative: gtsam.Pose3, rel_sigma: float = 0.15, rot_sigma: float = 0.002, floor: float = 1e-3
+    relative: gtsam.Pose3,
+    rel_sigma: float = 0.15,
+    rot_sigma: float = 0.002,
+    floor: float = 1e-3,
+    model: str = "per_axis",
 ) -> np.ndarray:
     """6x6 covariance (GTSAM tangent order) matching `noisy_odometry`: rotation rot_sigma (floor
-    1e-6), translation component i sigma = rel_sigma |a_i| + floor, from the measured a."""
+    1e-6), translation component i sigma = rel_sigma |a_i| + floor ("per_axis") or
+    rel_sigma |a| + floor on every axis ("isotropic"), from the measured a."""
     a = np.abs(relative.translation())
+    if model == "isotropic":
+        a = np.full(3, np.linalg.norm(a))
+    elif model != "per_axis":
+        raise ValueError(
+            f"odometry_covariance: model must be one of {ODOMETRY_MODELS}, got {model!r}"
+        )
     return np.diag(
         np.concatenate([np.full(3, max(rot_sigma, 1e-6) ** 2), (rel_sigma * a + floor) ** 2])
     )
@@ -302,7 +334,14 @@ class FengProbabilisticScenario:
             raise ValueError(f"ground robots leave the image at update {k} (t={times[k]:.2f} s)")
         pixels = noisy_pixels(uv, config.pixel_sigma, rng)
         Rrel, trel = relative_poses(R, t)
-        odometry = noisy_odometry(Rrel, trel, config.odometry_noise, config.odometry_rot_sigma, rng)
+        odometry = noisy_odometry(
+            Rrel,
+            trel,
+            config.odometry_noise,
+            config.odometry_rot_sigma,
+            rng,
+            config.odometry_model,
+        )
         candidates = p3p_candidate_sets(
             camera,
             list(pixels),

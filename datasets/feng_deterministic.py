@@ -6,7 +6,8 @@ and pitch U(0, pi/6) (steps 3-4), each position perturbed by N(0, 0.001) m perpe
 motion; a 640x480 pinhole with a 2pi/3 horizontal field of view sees the three robots with pixel
 noise of N(0, 0.5) px in a uniformly random direction.
 
-Interpretation where the seed is silent: the camera keeps its orientation while moving; the
+Interpretation where the seed is silent: the camera keeps its orientation while moving
+(Seed000Config.orientation; "redrawn" draws step 2's orientation anew per snapshot); the
 motion direction is (cos(tilt) cos(pitch), cos(tilt) sin(pitch), sin(tilt)) in the world frame
 (tilt = elevation, pitch = heading); step lengths below 0.05 m are redrawn; trials where a robot
 leaves the image are redrawn and counted. The ground robots' positions are known exactly.
@@ -34,6 +35,7 @@ GROUND_BOXES = np.array(
     ]
 )
 CAMERA_BOX = np.array([[1.0, 1.0, 2.0], [2.0, 2.0, 3.0]])
+ORIENTATIONS = ("kept", "redrawn")
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,15 @@ class Seed000Config:
     step_sigma: float = 0.2
     min_step: float = 0.05
     lateral_sigma: float = 0.001  # position noise perpendicular to the motion [m]
+    # C's orientation over the three snapshots: "kept" (drawn once, the robot only translates)
+    # or "redrawn" (step 2's pitch/tilt/yaw drawn anew for every snapshot); the seed says neither
+    orientation: str = "kept"
+
+    def __post_init__(self):
+        if self.orientation not in ORIENTATIONS:
+            raise ValueError(
+                f"Seed000Config.orientation must be one of {ORIENTATIONS}, got {self.orientation!r}"
+            )
 
     def camera(self) -> PinholeCamera:
         """The climbing robot's camera C (the same model as
@@ -60,7 +71,8 @@ class Seed000Config:
 @dataclass(frozen=True)
 class StraightLineTrials:
     """T trials of three snapshots. ground (T,3,3): robot positions (world); R_wc (T,3,3) camera
-    orientation (fixed over the snapshots); positions (T,3,3): true camera centre at snapshots
+    orientation at the first snapshot; R_snapshots (T,3,3,3) at each snapshot (all R_wc unless
+    Seed000Config.orientation is "redrawn"); positions (T,3,3): true camera centre at snapshots
     0,1,2; pixels (T,3,3,2): pixel of robot j in snapshot s at [t, s, j]; K (3,3); redrawn:
     trials discarded because a robot left the image or was behind the camera."""
 
@@ -70,6 +82,7 @@ class StraightLineTrials:
     pixels: np.ndarray
     K: np.ndarray
     redrawn: int
+    R_snapshots: np.ndarray
 
 
 def _rot_xyz(tilt, pitch, yaw):
@@ -96,6 +109,10 @@ def simulate_straight_line_trials(
         ground = lo + (hi - lo) * rng.uniform(size=(m, 3, 3))
         a = rng.uniform(0.0, config.max_angle_rad, size=(m, 3))
         R_wc = _rot_xyz(a[:, 0], a[:, 1], a[:, 2]) @ LOOK_DOWN
+        R_snap = np.repeat(R_wc[:, None], 3, axis=1)
+        if config.orientation == "redrawn":
+            b = rng.uniform(0.0, config.max_angle_rad, size=(m, 2, 3))
+            R_snap[:, 1:] = _rot_xyz(b[..., 0], b[..., 1], b[..., 2]) @ LOOK_DOWN
         start = CAMERA_BOX[0] + (CAMERA_BOX[1] - CAMERA_BOX[0]) * rng.uniform(size=(m, 3))
         tilt, pitch = rng.uniform(0.0, config.max_angle_rad, size=(2, m))
         direction = np.stack(
@@ -110,7 +127,7 @@ def simulate_straight_line_trials(
         lateral -= np.einsum("msi,mi->ms", lateral, direction)[..., None] * direction[:, None, :]
         positions = positions + lateral
         # project: X_c = R_wc^T (X - c)
-        Xc = np.einsum("mji,msnj->msni", R_wc, ground[:, None, :, :] - positions[:, :, None, :])
+        Xc = np.einsum("msji,msnj->msni", R_snap, ground[:, None, :, :] - positions[:, :, None, :])
         uvw = np.einsum("ij,msnj->msni", K, Xc)
         pix = uvw[..., :2] / uvw[..., 2:3]
         ang = rng.uniform(0.0, 2.0 * np.pi, size=pix.shape[:-1])
@@ -125,11 +142,17 @@ def simulate_straight_line_trials(
         ).all(axis=(1, 2))
         take = np.nonzero(visible)[0][: n - have]
         redrawn += int((~visible[: take[-1] + 1]).sum()) if take.size else m
-        parts.append((ground[take], R_wc[take], positions[take], pix[take]))
+        parts.append((ground[take], R_wc[take], positions[take], pix[take], R_snap[take]))
         have += take.size
-    ground, R_wc, positions, pix = (np.concatenate(p) for p in zip(*parts))
+    ground, R_wc, positions, pix, R_snap = (np.concatenate(p) for p in zip(*parts))
     return StraightLineTrials(
-        ground=ground, R_wc=R_wc, positions=positions, pixels=pix, K=K, redrawn=redrawn
+        ground=ground,
+        R_wc=R_wc,
+        positions=positions,
+        pixels=pix,
+        K=K,
+        redrawn=redrawn,
+        R_snapshots=R_snap,
     )
 
 
@@ -143,7 +166,10 @@ class TableIConfig:
     redrawn while a robot is outside another's field of view (counted); initial_rotations:
     graphloc starts Levenberg-Marquardt from this many best P3P rotations
     (graphloc.pipelines.seed000_joint.shared_rotation_initials) and keeps the lowest graph
-    error; workers: processes of the reproduction (graphloc.experiments.seed000)."""
+    error; workers: processes of the reproduction (graphloc.experiments.seed000);
+    lateral_sigma [m], orientation: Seed000Config's (the climbing robot's position noise
+    perpendicular to its motion; its orientation kept or redrawn per snapshot), swept by
+    graphloc.experiments.seed_baselines."""
 
     trials: int = 1000
     seed: int = 0
@@ -155,13 +181,15 @@ class TableIConfig:
     max_redraws: int = 50
     initial_rotations: int = 2
     workers: int = 2
+    lateral_sigma: float = 0.001
+    orientation: str = "kept"
 
     def __post_init__(self):
         if self.trials < 1 or self.workers < 1:
             raise ValueError(
                 f"TableIConfig: trials and workers must be >= 1, got {self.trials}, {self.workers}"
             )
-        for name in ("pixel_sigma", "scale", "success_tol"):
+        for name in ("pixel_sigma", "scale", "success_tol", "lateral_sigma"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"TableIConfig.{name} must be finite and >= 0, got {value}")

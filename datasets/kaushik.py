@@ -15,7 +15,9 @@ must stay in a 36 mm lens' 10 deg field of view). Odometry between updates is th
 relative camera pose (graphloc.datasets.feng.noisy_odometry; seed 004 Algorithm 1's alpha_1,
 alpha_2 are not given: `odometry_noise` relative translation, `odometry_rot_sigma` rad).
 Frame: the LED frame (P1 at the origin, X1-Y1 in the LED plane, z up), as the seed's
-X1-Y1-Z1.
+X1-Y1-Z1. Readings swept by graphloc.experiments.seed_baselines (issue 20): `offset` moves the
+track's start that far (horizontally) from the point above the LED centroid (0: overhead, the
+default); `noise_reading` reads Table 1's "sigma^2 = v" as a variance (default) or as a std.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from graphloc.geometry.p3p import P3PCandidates, solve_p3p
 SIDE = 0.3048  # LED triangle side [m] (seed 004 Sec. II-A)
 FOCALS_MM = (16.0, 26.0, 36.0)
 NOISE_VARIANCES = (3.0, 5.0, 10.0)
+NOISE_READINGS = ("variance", "std")
 
 
 def led_triangle() -> np.ndarray:
@@ -58,6 +61,8 @@ class KaushikConfig:
     amplitude: float = 0.1
     wavelength: float = 0.5
     start_radius: float = 0.3
+    offset: float = 0.0
+    noise_reading: str = "variance"
     height: float = 2.5
     pixel_pitch_um: float = 13.75
     width: int = 640
@@ -67,7 +72,14 @@ class KaushikConfig:
     seed: int = 0
 
     def __post_init__(self):
+        if self.noise_reading not in NOISE_READINGS:
+            raise ValueError(
+                f"KaushikConfig.noise_reading must be one of {NOISE_READINGS}, "
+                f"got {self.noise_reading!r}"
+            )
         for f in fields(self):
+            if f.name == "noise_reading":
+                continue
             value = getattr(self, f.name)
             if not np.isfinite(value):
                 raise ValueError(f"KaushikConfig.{f.name} must be finite, got {value}")
@@ -90,6 +102,7 @@ class KaushikConfig:
             "noise_variance",
             "amplitude",
             "start_radius",
+            "offset",
             "odometry_noise",
             "odometry_rot_sigma",
         ):
@@ -97,6 +110,13 @@ class KaushikConfig:
                 raise ValueError(f"KaushikConfig.{name} must be >= 0, got {getattr(self, name)}")
         if self.frames < 2:
             raise ValueError(f"KaushikConfig.frames must be >= 2 (a track), got {self.frames}")
+
+    @property
+    def pixel_sigma(self) -> float:
+        """Per-coordinate pixel noise std: Table 1's "Gaussian noise with sigma^2 = v" read as a
+        variance (sqrt v, the default) or as a standard deviation (v)."""
+        v = float(self.noise_variance)
+        return float(np.sqrt(v)) if self.noise_reading == "variance" else v
 
     @property
     def focal_px(self) -> float:
@@ -137,7 +157,7 @@ def tracks(config: KaushikConfig, rng: np.random.Generator) -> tuple[np.ndarray,
     plane with a random start and heading, optical axis at the LED centroid."""
     N, F = config.runs, config.frames
     centroid = led_triangle().mean(axis=0)
-    r = config.start_radius * np.sqrt(rng.uniform(size=N))
+    r = config.offset + config.start_radius * np.sqrt(rng.uniform(size=N))
     phi = rng.uniform(0.0, 2.0 * np.pi, size=(2, N))
     start = centroid[:2] + np.stack([r * np.cos(phi[0]), r * np.sin(phi[0])], axis=1)
     s = config.step * np.arange(F)
@@ -170,7 +190,7 @@ def simulate(config: KaushikConfig = KaushikConfig()) -> KaushikRuns:
             f"kaushik-p3p-error: {int((~visible.all(axis=1)).sum())} frames lose an LED "
             f"(focal {config.focal_mm} mm, height {config.height} m)"
         )
-    pixels = uv + rng.normal(0.0, np.sqrt(config.noise_variance), uv.shape)
+    pixels = uv + rng.normal(0.0, config.pixel_sigma, uv.shape)
     bearings, ok = camera.pixel_to_bearing(pixels.reshape(-1, 2))
     if not ok.all():
         raise ValueError(
@@ -223,7 +243,7 @@ class KaushikP3PErrorScenario:
             layout=run.leds,
             pixels=run.pixels[0],
             camera=config.camera(),
-            pixel_sigma=float(np.sqrt(config.noise_variance)),
+            pixel_sigma=config.pixel_sigma,
             odometry=run.odometry[0],
             odometry_cov=cov,
             observer="climber",

@@ -22,6 +22,7 @@ from graphloc.candidates import CandidateSet
 from graphloc.datasets.feng import (
     FengProbabilisticConfig,
     FengProbabilisticScenario,
+    noisy_odometry,
     odometry_covariance,
 )
 from graphloc.seams import Odometry
@@ -162,3 +163,62 @@ def test_engines_share_the_interface_and_reject_bad_input(engine):
         engine.update(run.candidates[2])
     with pytest.raises(ValueError, match="CandidateSet"):
         engine.update(np.zeros((4, 3)), odo[2])
+
+
+def test_belief_likelihood_readings_of_issue_20():
+    """The readings swept by graphloc.experiments.seed_baselines: Def. 1 as (1 + cos) / 2,
+    Def. 2's distance as 1 / (1 + d)."""
+    a = np.array([[0.02, 0.0, 0.0], [0.02, 0.0, 0.0], [0.02, 0.0, 0.0]])
+    om = np.array([[0.02, 0.0, 0.0], [-0.02, 0.0, 0.0], [0.0, 0.02, 0.0]])
+    shifted = likelihood(a, om, BeliefVectorConfig(likelihood="inner_product_shifted"))
+    np.testing.assert_allclose(shifted, [1.0, 0.0, 0.5], atol=1e-12)
+    inverse = likelihood(a, om, BeliefVectorConfig(likelihood="distance_angle_inverse", lam=2.0))
+    d = np.array([0.0, 0.04 + 2.0 * np.pi, 0.02 * np.sqrt(2) + 2.0 * np.pi / 2])
+    np.testing.assert_allclose(inverse, 1.0 / (1.0 + d))
+
+
+def test_odometry_noise_readings():
+    """Sec. VI-B "15% on all three dimensions": per axis (a zero component stays zero) or
+    isotropic (15 % of the step on every axis); unknown models are refused."""
+    n = 4000
+    trel = np.tile([0.02, 0.0, 0.0], (n, 1))
+    Rrel = np.repeat(np.eye(3)[None], n, axis=0)
+    per_axis = np.array(
+        [p.translation() for p in noisy_odometry(Rrel, trel, 0.15, 0.0, np.random.default_rng(0))]
+    )
+    assert np.all(per_axis[:, 1:] == 0.0)
+    np.testing.assert_allclose(per_axis[:, 0].std(), 0.15 * 0.02, rtol=0.05)
+    iso = np.array(
+        [
+            p.translation()
+            for p in noisy_odometry(
+                Rrel, trel, 0.15, 0.0, np.random.default_rng(0), model="isotropic"
+            )
+        ]
+    )
+    np.testing.assert_allclose(iso.std(axis=0), [0.003] * 3, rtol=0.05)
+    cov = odometry_covariance(gtsam.Pose3(gtsam.Rot3(), [0.02, 0, 0]), 0.15, model="isotropic")
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)[3:]), [0.003 + 1e-3] * 3)
+    with pytest.raises(ValueError, match="model"):
+        noisy_odometry(Rrel[:1], trel[:1], 0.15, 0.0, np.random.default_rng(0), model="polar")
+    with pytest.raises(ValueError, match="odometry_model"):
+        FengProbabilisticConfig(odometry_model="polar")
+
+
+def test_straight_line_orientation_readings():
+    """Seed000Config.orientation: "kept" holds C's rotation over the three snapshots (the
+    default; unchanged random stream), "redrawn" draws it anew for snapshots 2 and 3."""
+    kept = simulate_straight_line_trials(30, seed=2, config=Seed000Config())
+    assert np.array_equal(kept.R_snapshots, np.repeat(kept.R_wc[:, None], 3, axis=1))
+    redrawn = simulate_straight_line_trials(30, seed=2, config=Seed000Config(orientation="redrawn"))
+    np.testing.assert_array_equal(redrawn.R_snapshots[:, 0], redrawn.R_wc)
+    assert np.abs(redrawn.R_snapshots[:, 1] - redrawn.R_wc).max() > 0.05
+    # noise-free, the straight-line test still picks the genuine combination of the new images
+    clean = simulate_straight_line_trials(
+        30, seed=2, config=Seed000Config(orientation="redrawn", pixel_sigma=0.0)
+    )
+    choice = localize_by_straight_line(clean.pixels, clean.K, clean.ground)
+    err = np.linalg.norm(choice.chosen_positions() - clean.positions, axis=2)
+    assert (err.max(axis=1) < 1e-6).mean() >= 0.9
+    with pytest.raises(ValueError, match="orientation"):
+        Seed000Config(orientation="spinning")

@@ -10,9 +10,12 @@ relocate when the committed belief falls back to the threshold (Sec. V-A, last s
 Likelihoods (Sec. V-B):
 - Def. 1 ("inner_product"): the normalized inner product a.om / (|a||om|), floored at `floor`
   (a negative cosine would zero the belief for good).
+- Def. 1 read as a similarity in [0, 1] ("inner_product_shifted"): (1 + a.om / (|a||om|)) / 2.
 - Def. 2 ("distance_angle"): d = |a - om| + lambda arccos(a.om / (|a||om|)), eq. (13). Eq. (13)
   is a distance (0 for identical vectors); the belief update needs a similarity, so the
   likelihood is exp(-d) (d in metres + lambda * radians; "relatively large lambda").
+- Def. 2 read as an inverse distance ("distance_angle_inverse"): 1 / (1 + d).
+The seed names neither mapping; graphloc.experiments.seed_baselines sweeps them.
 
 a_i is the action of solution i: the odometry translation (camera frame of the previous pose)
 rotated into the world by that solution's rotation -- the superscript (i) of a_{t-1}^{(i)} in
@@ -31,7 +34,12 @@ import numpy as np
 from graphloc.candidates import CandidateSet
 from graphloc.seams import Decision, Odometry, check_frame
 
-LIKELIHOODS = ("inner_product", "distance_angle")
+LIKELIHOODS = (
+    "inner_product",
+    "inner_product_shifted",
+    "distance_angle",
+    "distance_angle_inverse",
+)
 
 
 @dataclass(frozen=True)
@@ -72,13 +80,11 @@ def likelihood(a: np.ndarray, om: np.ndarray, config: BeliefVectorConfig) -> np.
     cos = np.where(np.isfinite(cos), cos, 0.0)
     if config.likelihood == "inner_product":
         f = np.maximum(cos, config.floor)
+    elif config.likelihood == "inner_product_shifted":
+        f = 0.5 * (1.0 + cos)
     else:
-        f = np.exp(
-            -(
-                np.linalg.norm(a - np.where(ok[:, None], om, 0.0), axis=1)
-                + config.lam * np.arccos(cos)
-            )
-        )
+        d = np.linalg.norm(a - np.where(ok[:, None], om, 0.0), axis=1) + config.lam * np.arccos(cos)
+        f = np.exp(-d) if config.likelihood == "distance_angle" else 1.0 / (1.0 + d)
     return np.where(ok, f, 0.0)
 
 

@@ -55,7 +55,10 @@ WRONG_DISTANCE = 0.25  # [m] committed pose this far from the truth without a ca
 class TableIIIConfig:
     """The trials' options (seed 000 Sec. VI-B): `runs` runs per (ceiling, curve) cell (paper:
     100) over `workers` processes; tracker K (max_hypotheses), belief Def. 2 lambda (lam),
-    straight-line snapshot spacing / commit threshold [m], pixel noise [px], seed offset."""
+    straight-line snapshot spacing / commit threshold [m], pixel noise [px], seed offset; the
+    readings of the seed's setup (graphloc.experiments.seed_baselines): the belief vector's
+    Def. 1 / Def. 2 likelihood mappings (graphloc.baselines.belief_vector.LIKELIHOODS) and the
+    odometry noise model (graphloc.datasets.feng.ODOMETRY_MODELS)."""
 
     runs: int = 100
     workers: int = 2
@@ -65,6 +68,9 @@ class TableIIIConfig:
     line_max_error: float = 0.05
     pixel_sigma: float = 0.5
     seed_offset: int = 0
+    def1_likelihood: str = "inner_product"
+    def2_likelihood: str = "distance_angle"
+    odometry_model: str = "per_axis"
 
     def __post_init__(self):
         if self.runs < 1 or self.workers < 1:
@@ -75,9 +81,9 @@ class TableIIIConfig:
 
 def make_engine(method: str, ceiling: str, args: TableIIIConfig, seed: int):
     if method == "belief_def1":
-        return BeliefVector(BeliefVectorConfig(likelihood="inner_product"))
+        return BeliefVector(BeliefVectorConfig(likelihood=args.def1_likelihood))
     if method == "belief_def2":
-        return BeliefVector(BeliefVectorConfig(likelihood="distance_angle", lam=args.lam))
+        return BeliefVector(BeliefVectorConfig(likelihood=args.def2_likelihood, lam=args.lam))
     if method == "particle_filter":
         # the motion plane is the ceiling (seed 004 Algorithm 1 line 7)
         return ParticleFilter(
@@ -94,7 +100,12 @@ def make_engine(method: str, ceiling: str, args: TableIIIConfig, seed: int):
 
 def odometry_steps(run, sim: FengProbabilisticConfig) -> list:
     return [None] + [
-        Odometry(o, odometry_covariance(o, sim.odometry_noise, sim.odometry_rot_sigma))
+        Odometry(
+            o,
+            odometry_covariance(
+                o, sim.odometry_noise, sim.odometry_rot_sigma, model=sim.odometry_model
+            ),
+        )
         for o in run.odometry
     ]
 
@@ -191,7 +202,11 @@ def trial(job) -> dict:
     ceiling, curve, run_index, args = job
     seed = args.seed_offset + 1000 * CELLS.index((ceiling, curve)) + run_index
     sim = FengProbabilisticConfig(
-        ceiling=ceiling, curve=curve, seed=seed, pixel_sigma=args.pixel_sigma
+        ceiling=ceiling,
+        curve=curve,
+        seed=seed,
+        pixel_sigma=args.pixel_sigma,
+        odometry_model=args.odometry_model,
     )
     run = FengProbabilisticScenario.simulate(sim)
     odometry = odometry_steps(run, sim)

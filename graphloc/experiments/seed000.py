@@ -137,7 +137,11 @@ def table_i(config: TableIConfig = TableIConfig(), progress: bool = True) -> dic
     counts and relative errors (mean, std over successful trials) of C2, C3 and C for the seed
     baseline and graphloc, the paper's numbers, timings and the failure breakdown."""
     t_start = time.perf_counter()
-    sim = Seed000Config(pixel_sigma=config.pixel_sigma)
+    sim = Seed000Config(
+        pixel_sigma=config.pixel_sigma,
+        lateral_sigma=config.lateral_sigma,
+        orientation=config.orientation,
+    )
     # formations where some robot stays outside another's omni field of view whatever the
     # orientation are redrawn (as feng_deterministic redraws trials where C cannot see them)
     pool = simulate_straight_line_trials(
