@@ -21,11 +21,15 @@ from graphloc.pipelines.cooperative_sfm import (
     TEAMMATE_MODELS,
     CooperativeSfm,
     CooperativeSfmConfig,
-    disk_pose_covariance,
     run_cooperative_sfm,
 )
 from graphloc.seams import FrameInput, TeammateObservation
-from graphloc.vision.teammate import TeammateConfig, measure_frames, teammate_observation
+from graphloc.vision.teammate import (
+    TeammateConfig,
+    disk_pose_covariance,
+    measure_frames,
+    teammate_observation,
+)
 from graphloc.keys import pose_key
 from graphloc.session import Session
 from graphloc.vision.circle import rotations_from_normals
@@ -192,7 +196,7 @@ def test_rendered_sequence_end_to_end():
     cfg = CrawlerPairConfig(
         width=320, height=240, schedule=("camera",) * 5 + ("teammate",) * 2, seed=2
     )
-    seq = CrawlerPairScenario(cfg).generate()
+    seq = CrawlerPairScenario(cfg).render_sequence()
     flags = seq.frame_flags()
     frames, report = measure_frames(
         seq.images,
@@ -215,7 +219,7 @@ def test_online_does_not_oscillate_on_a_stiff_rendered_run():
     """crawler-pair seed 9 at full size, N = 20: with the refined rim's tight depth noise the
     undamped Gauss-Newton iSAM2 step alternated between two states frame to frame (causal
     error 0.1 / 1.7 mm, scale error 2.7 %); the default dog-leg step settles (~0.6 mm)."""
-    seq = CrawlerPairScenario(CrawlerPairConfig(seed=9)).generate()
+    seq = CrawlerPairScenario(CrawlerPairConfig(seed=9)).render_sequence()
     frames, report = measure_frames(
         seq.images,
         seq.camera,
