@@ -8,7 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from graphloc.experiments import team_runs
+from graphloc.experiments import team_runs, team_runs_report
 
 
 def main(argv=None) -> int:
@@ -23,7 +23,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     command = "scripts/bench_team_runs.py " + " ".join(argv if argv is not None else sys.argv[1:])
     rows = team_runs.run(args.size, args.workers, args.seed_offset)
-    team_runs.write(rows, args.out, args.doc, command)
+    team_runs_report.write(rows, args.out, args.doc, command)
     print(f"wrote {args.out / 'team_runs.json'}")
     return 0
 
