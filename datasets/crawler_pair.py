@@ -23,16 +23,22 @@ odometry (distance travelled, with relative noise) is recorded.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from functools import cached_property
+
+from pathlib import Path
 
 import cv2
 import numpy as np
 from tqdm import tqdm
 
 from graphloc.cameras import PinholeCamera
+from graphloc.config import parse_overrides
+from graphloc.datasets.crawler_pair_log import write_crawler_pair_log
 from graphloc.datasets.render import render_circle_rim
 from graphloc.vision.circle import rotations_from_normals
+from graphloc.vision.features import FeatureConfig
+from graphloc.vision.teammate import TeammateConfig, measure_frames
 
 MOVERS = ("camera", "teammate")
 
@@ -72,10 +78,11 @@ class CrawlerPairConfig:
     supersample: int = 2
     blur_sigma: float = 0.6
     noise_sigma: float = 2.0
+    n_features: int = 10  # N of seed III: KLT tracks + the robot tracker's point (log writer)
     seed: int = 0
 
     def __post_init__(self):
-        for name in ("width", "height", "supersample"):
+        for name in ("width", "height", "supersample", "n_features"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(
                     f"CrawlerPairConfig.{name} must be >= 1, got {getattr(self, name)}"
@@ -311,8 +318,12 @@ def disk_coverage(
 class CrawlerPairScenario:
     """Generator of `CrawlerPairSequence`s (see the module docstring).
 
-    seq = CrawlerPairScenario(CrawlerPairConfig(seed=3)).generate()
-    """
+    seq = CrawlerPairScenario(CrawlerPairConfig(seed=3)).render_sequence()
+
+    `generate` (the scenario protocol, `graphloc simulate crawler-pair`) writes a log."""
+
+    name = "crawler-pair"
+    config_class = CrawlerPairConfig
 
     def __init__(self, config: CrawlerPairConfig = CrawlerPairConfig()):
         self.config = config
@@ -491,7 +502,35 @@ class CrawlerPairScenario:
         J = np.stack([g.reshape(-1) for g in grads], axis=1).astype(np.float64)  # (pixels * 3, 5)
         return J.T @ J / (cfg.noise_sigma**2 + 1.0 / 12.0)
 
-    def generate(self, progress: bool = False) -> CrawlerPairSequence:
+    @classmethod
+    def generate(cls, out_dir, seed: int = 0, **overrides) -> Path:
+        """`graphloc simulate crawler-pair`: render a sequence, run seed 003's front-end on it
+        (`measure_frames`: n_features - 1 KLT tracks plus the teammate's base, as the seed counts
+        N) and write the measurements as a log (`datasets.crawler_pair_log`); returns the
+        manifest path."""
+        config = replace(
+            CrawlerPairConfig(seed=seed), **parse_overrides(CrawlerPairConfig, overrides)
+        )
+        seq = cls(config).render_sequence()
+        camera_moved, teammate_moved, odo, odo_std = seq.frame_flags()
+        frames, report = measure_frames(
+            seq.images,
+            seq.camera,
+            camera_moved,
+            teammate_moved,
+            odo,
+            odo_std,
+            FeatureConfig(max_features=config.n_features - 1),
+            TeammateConfig(radius=config.base_radius),
+        )
+        meta = {
+            "seed_paper": "003_8db27855ce2d5f68.txt Sec. III",
+            "config": asdict(config),
+            "front_end": asdict(report),
+        }
+        return write_crawler_pair_log(seq, frames, out_dir, meta=meta)
+
+    def render_sequence(self, progress: bool = False) -> CrawlerPairSequence:
         cfg = self.config
         rng = np.random.default_rng(cfg.seed)
         R, t, centre, normal, odo, odo_std = self.trajectories(rng)

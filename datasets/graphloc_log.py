@@ -30,6 +30,7 @@ from graphloc.io import (
     RelativePose2D,
     RelativePose3D,
     ScanRef,
+    TABLES,
     SkipReport,
     Sink,
     is_tum,
@@ -329,6 +330,11 @@ def read_team_run(
         if not firsts:
             raise ValueError(f"{mpath}: the run has no odometry, relative poses or measurements")
         start = max(v[0, 0] for v in vel if len(v)) if any(len(v) for v in vel) else min(firsts)
+    else:
+        stamps = [t for v in vel if len(v) for t in (v[0, 0], v[-1, 0])]
+        stamps += [t for m in motions for t in (m.t0, m.t1)]
+        stamps += [p.time for p in points] + [o.time for o in observations]
+        check_start_time(start, stamps, mpath)
     _merge_import_skips(report, manifest.meta.get("import"), mpath)
     return TeamRun(
         name=manifest.name,
@@ -350,6 +356,20 @@ def read_team_run(
     )
 
 
+def check_start_time(start: float, stamps: list, where) -> None:
+    """The manifest's start_time must lie in the time span [first, last] of the run's rows (or
+    before it by at most that span, at least 1 s): a clock of another run or a shifted start
+    would otherwise build poses for hours nothing measured, or none at all."""
+    if not stamps:
+        return
+    first, last = float(min(stamps)), float(max(stamps))
+    if not first - max(1.0, last - first) <= start <= last:
+        raise ValueError(
+            f"{where}: field 'start_time' = {start} lies outside the run's rows, which span "
+            f"[{first}, {last}] s"
+        )
+
+
 def _merge_import_skips(report: SkipReport, imported, where: Path) -> None:
     """Rows a converter (`graphloc import` of a bag) skipped before the log was written, kept in
     the manifest's meta.import.skips: reported with the log's own skips."""
@@ -368,18 +388,7 @@ def _merge_import_skips(report: SkipReport, imported, where: Path) -> None:
 
 
 def _table_of(rec) -> str:
-    return {
-        Odometry2D: "odometry",
-        RelativePose2D: "relative_pose",
-        RelativePose3D: "relative_pose3",
-        Range: "range",
-        Bearing3D: "bearing",
-        RangeBearing2D: "range_bearing",
-        MarkerPixel: "markers",
-        PoseCandidate: "candidates",
-        GroundTruth2D: "groundtruth",
-        ScanRef: "scans",
-    }[type(rec)]
+    return next(name for name, cls in TABLES.items() if type(rec) is cls)
 
 
 def _marker_observations(

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from graphloc.records import MAX_COORDINATE, MAX_TIME, TABLES
+from graphloc.records import MAX_COORDINATE, MAX_SIGMA, MAX_TIME, TABLES
 from graphloc.textio import check_file, confined, read_text
 
 FORMAT = "graphloc-log"
@@ -114,6 +114,39 @@ def _extrinsics(value, where: str) -> np.ndarray:
     return T
 
 
+# sensor params that are noise: name -> (count, smallest allowed); every value <= MAX_SIGMA
+NOISE_PARAMS = {
+    "bearing_sigma": (1, "positive"),  # rad
+    "range_sigma": (1, "positive"),  # m
+    "range_sigma_per_m": (1, "non-negative"),  # m per m
+    "pixel_sigma": (1, "positive"),  # px
+    "candidate_sigmas": (2, "positive"),  # rad, m
+    "icp_sigmas": (2, "positive"),  # rad, m
+}
+
+
+def check_noise_params(params: dict, where: str) -> None:
+    """ValueError naming `where` and the field unless every noise param in `params` (see
+    NOISE_PARAMS) is a plausible standard deviation: finite, > 0 (>= 0 for the per-metre growth)
+    and at most MAX_SIGMA, so that no covariance built from it is NaN/inf or singular."""
+    for name, (count, kind) in NOISE_PARAMS.items():
+        value = params.get(name)
+        if value is None:
+            continue
+        items = value if count > 1 else [value]
+        try:
+            ok = isinstance(items, (list, tuple)) and len(items) == count
+            nums = [float(a) for a in items if not isinstance(a, (bool, str))] if ok else []
+        except (TypeError, ValueError):
+            nums = []
+        low_ok = all(a > 0 if kind == "positive" else a >= 0 for a in nums)
+        if len(nums) != count or not low_ok or not all(a <= MAX_SIGMA for a in nums):
+            what = "a number" if count == 1 else f"a list of {count} numbers"
+            raise ValueError(
+                f"{where} '{name}' must be {what}, {kind} and at most {MAX_SIGMA:g}, got {value!r}"
+            )
+
+
 def read_manifest(root: str | Path) -> Manifest:
     root = Path(root)
     path = root / MANIFEST
@@ -146,6 +179,9 @@ def read_manifest(root: str | Path) -> Manifest:
         for j, s in enumerate(r.get("sensors") or []):
             if not isinstance(s, dict) or not s.get("name") or not s.get("type"):
                 raise ValueError(f"{where}.sensors[{j}]: fields 'name' and 'type' required")
+            if not isinstance(s.get("params") or {}, dict):
+                raise ValueError(f"{where}.sensors[{j}]: field 'params' must be a JSON object")
+            check_noise_params(s.get("params") or {}, f"{where}.sensors[{j}]: params field")
             sensors.append(
                 Sensor(
                     s["name"],
@@ -194,11 +230,14 @@ def read_manifest(root: str | Path) -> Manifest:
                     "point": [float(a) for a in surface["point"]],
                     "normal": [float(a) for a in surface["normal"]],
                 }
-                for key in ("distance_sigma", "attitude_sigma"):
+                for key in ("distance_sigma", "attitude_sigma"):  # distance_sigma 0: none
                     if surface.get(key) is not None:
-                        extra["surface"][key] = _numbers(
-                            [surface[key]], (1,), f"{where}: field 'surface.{key}'", positive=True
-                        )[0]
+                        value = _numbers([surface[key]], (1,), f"{where}: field 'surface.{key}'")[0]
+                        if not (value > 0 or (value == 0 and key == "distance_sigma")):
+                            raise ValueError(
+                                f"{where}: field 'surface.{key}' must be > 0, got {value}"
+                            )
+                        extra["surface"][key] = value
                 if surface.get("body_axis") is not None:
                     axis = _numbers(
                         surface["body_axis"], (3,), f"{where}: field 'surface.body_axis'"

@@ -48,6 +48,10 @@ class TeamRobot:
     markers: np.ndarray | None
     identical_markers: bool
     sensors: dict  # name -> (body_T_sensor 4x4, params dict)
+    surface_sigma: float | None = None  # plane distance [m] (None: GraphConfig.surface_sigma)
+    attitude_sigma: float | None = None  # body_axis along the surface normal [rad] (None: free)
+    body_axis: tuple = (0.0, 0.0, 1.0)
+    base_radius: float | None = None  # [m] circular base (seed 003: seen as an ellipse)
 
 
 @dataclass(frozen=True)
@@ -77,6 +81,22 @@ class PointMeasurement:
     range: float
     bearing_sigma: float
     range_sigma: float
+
+
+@dataclass(frozen=True)
+class FeatureObservation:
+    """One pixel of a feature track (seed 003 II-B, KLT): robot `robot`'s camera (body_T_sensor,
+    intrinsics `camera`) sees scene point `track` at `pixel` (2,) with `pixel_sigma` [px]; the
+    camera's prior on a new track's point (`feature_depth`, `feature_depth_sigma` params)."""
+
+    time: float
+    robot: int
+    body_T_sensor: gtsam.Pose3
+    camera: object  # graphloc.cameras.PinholeCamera
+    track: int
+    pixel: np.ndarray
+    pixel_sigma: float
+    depth_prior: tuple | None = None  # (depth, sigma) [m] of a new track's point (None: config)
 
 
 @dataclass(frozen=True)
@@ -113,6 +133,7 @@ class TeamRun:
     skips: SkipReport = field(default_factory=SkipReport, compare=False)
     contributions: dict = field(default_factory=dict, compare=False)  # table -> rows used
     meta: dict = field(default_factory=dict, compare=False)
+    features: tuple = ()  # FeatureObservation, sorted by time
 
     def index(self, name: str) -> int:
         return next(i for i, r in enumerate(self.robots) if r.name == name)
@@ -124,6 +145,7 @@ class TeamRun:
             [m.t1 for m in self.motions]
             + [p.time for p in self.points]
             + [o.time for o in self.observations]
+            + [f.time for f in self.features]
         )
         return float(max(stamps)) if stamps else self.start_time
 
@@ -235,9 +257,13 @@ def truncate(run: TeamRun, duration: float) -> TeamRun:
         "motions": tuple(m for m in run.motions if m.t1 <= end),
         "points": tuple(p for p in run.points if p.time <= end),
         "observations": tuple(o for o in run.observations if o.time <= end),
+        "features": tuple(f for f in run.features if f.time <= end),
     }
     cut = sum(len(v) for v in run.velocity) - sum(len(v) for v in kept["velocity"])
-    cut += sum(len(getattr(run, k)) - len(kept[k]) for k in ("motions", "points", "observations"))
+    cut += sum(
+        len(getattr(run, k)) - len(kept[k])
+        for k in ("motions", "points", "observations", "features")
+    )
     skips = SkipReport()
     skips.merge(run.skips)
     if cut:

@@ -16,7 +16,7 @@ def seq():
     cfg = CrawlerPairConfig(
         width=320, height=240, schedule=("camera",) * 3 + ("teammate",) * 2, seed=4
     )
-    return CrawlerPairScenario(cfg).generate()
+    return CrawlerPairScenario(cfg).render_sequence()
 
 
 def test_registered_and_shapes(seq):
@@ -76,12 +76,12 @@ def test_rendered_base_gives_the_true_circle(seq):
 
 def test_render_is_deterministic_per_seed():
     cfg = CrawlerPairConfig(width=160, height=120, schedule=("camera",), seed=11, supersample=1)
-    a = CrawlerPairScenario(cfg).generate()
-    b = CrawlerPairScenario(cfg).generate()
+    a = CrawlerPairScenario(cfg).render_sequence()
+    b = CrawlerPairScenario(cfg).render_sequence()
     np.testing.assert_array_equal(a.images, b.images)
     c = CrawlerPairScenario(
         CrawlerPairConfig(width=160, height=120, schedule=("camera",), seed=12, supersample=1)
-    ).generate()
+    ).render_sequence()
     assert not np.array_equal(a.images, c.images)
 
 

@@ -42,7 +42,7 @@ SCENARIOS = [
     "kaushik-p3p-error",
     "breitenmoser-target",
     pytest.param("dual-robot-room", marks=PENDING),
-    pytest.param("crawler-pair", marks=PENDING),
+    "crawler-pair",
 ]
 
 

@@ -98,7 +98,7 @@ from graphloc.vision.teammate import measure_frames
 def run_trial(seed: int, n_values: list[int], scenario: CrawlerPairConfig) -> dict:
     """One rendered sequence through every method and N; errors in metres."""
     generator = CrawlerPairScenario(replace(scenario, seed=seed))
-    seq = generator.generate()
+    seq = generator.render_sequence()
     camera_moved, teammate_moved, odo, odo_std = seq.frame_flags()
     truth = seq.t_wc
     depth = seq.config.background_distance

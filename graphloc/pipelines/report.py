@@ -10,6 +10,7 @@ import json
 from dataclasses import asdict
 from pathlib import Path
 
+import gtsam
 import numpy as np
 from evo.core.trajectory import PoseTrajectory3D
 
@@ -83,7 +84,7 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
             except ValueError as exc:  # too few poses near ground-truth stamps
                 entry[label] = {"error": str(exc)}
         per_robot[robot.name] = entry
-    decisions = result.graph.decisions
+    decisions = result.decisions
     genuine = genuine_candidates(run, decisions)
     judged = [(d, g) for d, g in zip(decisions, genuine) if d.committed >= 0 and g >= 0]
     lat = result.latencies
@@ -171,7 +172,7 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
         if ref is not None:
             written.append(_write_rows(out / f"{robot.name}_groundtruth.tum", *ref))
     path = out / "decisions.csv"
-    decisions = result.graph.decisions
+    decisions = result.decisions
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(
@@ -263,9 +264,7 @@ def _plots(result: TeamResult, run: TeamRun, out: Path) -> list[Path]:
                 )
             except ValueError:
                 pass
-    chosen = np.array([d.pose[:2] for d in result.graph.decisions if d.committed >= 0]).reshape(
-        -1, 2
-    )
+    chosen = np.array([d.pose[:2] for d in result.decisions if d.committed >= 0]).reshape(-1, 2)
     if len(chosen):
         est.append(Series("committed candidates", chosen, style=".", color="tab:green"))
     rejected = _rejected_candidates(run, result)
@@ -324,7 +323,7 @@ def _rejected_candidates(run: TeamRun, result: TeamResult) -> np.ndarray:
     """World xy of every candidate the tracker did not commit (body position of the observer)."""
     out = [
         xyz[:2]
-        for d in result.graph.decisions
+        for d in result.decisions
         for j, xyz in enumerate(d.candidates_xyz)
         if j != d.committed
     ]
@@ -340,6 +339,11 @@ def genuine_candidates(run: TeamRun, decisions: list, max_time_diff: float = 0.0
         if gt is None or not len(gt[0]):
             out.append(-1)
             continue
+        if (
+            d.relative is not None
+        ):  # max-mixture route: the candidate nearest the true relative pose
+            out.append(_genuine_relative(run, d, max_time_diff))
+            continue
         i = int(np.argmin(np.abs(gt[0] - d.time)))
         if abs(gt[0][i] - d.time) > max_time_diff or not len(d.candidates_xyz):
             out.append(-1)
@@ -348,6 +352,26 @@ def genuine_candidates(run: TeamRun, decisions: list, max_time_diff: float = 0.0
             int(np.argmin(np.linalg.norm(d.candidates_xyz - gt[1][i].translation(), axis=1)))
         )
     return out
+
+
+def _genuine_relative(run: TeamRun, d, max_time_diff: float) -> int:
+    """The candidate (observer body_T_target, `Decision.relative`) nearest the true relative
+    pose (rotation angle [rad] plus translation [m] over 0.1 m), -1 without ground truth."""
+    rel = []
+    for r in (d.robot, d.target):
+        gt = run.groundtruth[r]
+        if gt is None or not len(gt[0]):
+            return -1
+        i = int(np.argmin(np.abs(gt[0] - d.time)))
+        if abs(gt[0][i] - d.time) > max_time_diff:
+            return -1
+        rel.append(gt[1][i])
+    truth = rel[0].between(rel[1])
+    cost = []
+    for T in d.relative:
+        e = gtsam.Pose3.Logmap(truth.between(gtsam.Pose3(T)))
+        cost.append(np.linalg.norm(e[:3]) + np.linalg.norm(e[3:]) / 0.1)
+    return int(np.argmin(cost))
 
 
 def run_and_report(

@@ -62,6 +62,22 @@ def disk_pose_covariance(
     return cov
 
 
+def pixel_sigmas(candidates: CandidateSet, config: TeammateConfig) -> tuple[float, float]:
+    """(centre, radius) accuracy [px] of the ellipse behind `candidates`: the edge fit's sigmas
+    when candidates.meta has them ('centre_sigma_px', 'radius_sigma_px'), else rms / sqrt(n / 2)
+    and rms / sqrt(n) of the rim points, floored at the config's pixel floors."""
+    rms = float(candidates.meta.get("rms_px", 0.0))
+    n = max(int(candidates.meta.get("n_points", 1)), 1)
+    sigma_r = max(
+        float(candidates.meta.get("radius_sigma_px", rms / np.sqrt(n))), config.radius_pixel_floor
+    )
+    sigma_c = max(
+        float(candidates.meta.get("centre_sigma_px", rms / np.sqrt(n / 2.0))),
+        config.centre_pixel_floor,
+    )
+    return sigma_c, sigma_r
+
+
 def teammate_observation(
     candidates: CandidateSet, camera: PinholeCamera, config: TeammateConfig
 ) -> TeammateObservation:
@@ -79,15 +95,7 @@ def teammate_observation(
     z = float(mean[2])
     if not z > 0:
         raise ValueError(f"teammate_observation: base centre behind the camera (z = {z})")
-    rms = float(candidates.meta.get("rms_px", 0.0))
-    n = max(int(candidates.meta.get("n_points", 1)), 1)
-    sigma_r = max(
-        float(candidates.meta.get("radius_sigma_px", rms / np.sqrt(n))), config.radius_pixel_floor
-    )
-    sigma_c = max(
-        float(candidates.meta.get("centre_sigma_px", rms / np.sqrt(n / 2.0))),
-        config.centre_pixel_floor,
-    )
+    sigma_c, sigma_r = pixel_sigmas(candidates, config)
     r_px = camera.fx * config.radius / z
     f = 0.5 * (camera.fx + camera.fy)
     direction = mean / np.linalg.norm(mean)
@@ -183,7 +191,7 @@ def measure_frames(
             elif blob.refine_error:
                 reasons.append(f"frame {t}: {blob.refine_error}")
             else:
-                cands, _ = circle_pose_from_rim(
+                cands, poses = circle_pose_from_rim(
                     camera,
                     blob.rim,
                     teammate.radius,
@@ -192,6 +200,7 @@ def measure_frames(
                     observer="camera",
                     observed="teammate",
                 )
+                cands = replace(cands, meta={**cands.meta, "ellipse": poses.ellipses[0].tolist()})
                 if blob.refinement is not None:
                     fit = blob.refinement
                     cands = replace(

@@ -10,7 +10,7 @@ import numpy as np
 from tqdm import tqdm
 
 from graphloc.candidates import CandidateSet
-from graphloc.factors.mixture import candidate_covariances
+from graphloc.factors.mixture import candidate_covariances, max_mixture_factor, mixture_weights
 from graphloc.factors.robust import robust_noise
 from graphloc.hypotheses import HypothesisTracker
 from graphloc.io import SkipReport
@@ -26,7 +26,9 @@ class Decision:
     """What happened to one candidate set: where each candidate puts the observer's body
     (K,3 world), the committed candidate (-1: none), its posterior (else the largest one) and
     the committed body pose (x, y, z, qx, qy, qz, qw; NaN if none); same_pose: the candidates
-    that are the committed one's pose within their covariances (`_same_pose`), it included."""
+    that are the committed one's pose within their covariances (`same_pose`), it included.
+    Sets of the max-mixture route (`mixture_stream`) are chosen by the solve: `committed`
+    / `probability` are filled from the estimate (`solve.choose_mixtures`)."""
 
     time: float
     robot: int
@@ -36,6 +38,8 @@ class Decision:
     probability: float
     pose: np.ndarray
     same_pose: list
+    mixture: object = None  # max-mixture route: the MaxMixture (chosen at the estimate)
+    relative: np.ndarray | None = None  # max-mixture route: (K,4,4) observer body_T_target
 
 
 SAME_POSE_GATE = 12.59  # chi2(6) at 95 %: two candidates this close are one pose for the decision
@@ -62,11 +66,16 @@ def candidate_factors(
     skips: SkipReport,
     progress: bool = False,
 ) -> tuple[list, dict]:
-    """Decide every candidate set (one tracker per (observer, target) stream) and append the
-    decided ones as factors; returns the decisions and the decided observer poses
-    (robot -> {node: Pose3})."""
+    """Every candidate set as factors, by one rule per (observer, target) stream:
+    - the target is placed (known initial pose): the observer is placed through it; one
+      HypothesisTracker decides causally and a decided candidate becomes one robust factor;
+    - the target is not placed but the observer is (e.g. seed 003: a camera sees a teammate's
+      base, two circle candidates): the target is placed through the observer and each set
+      enters as a max-mixture of its candidates (`mixture_stream`), chosen by the solve.
+    Returns the decisions, the decided observer poses (robot -> {node: Pose3}) and the targets
+    placed through an observer (robot -> {node: (observer, node, body_T_target)})."""
     node_times, nearest = timeline.node_times, timeline.nearest
-    decisions, decided_pose = [], {}
+    decisions, decided_pose, placed_via = [], {}, {}
     streams: dict = {}
     for o in run.observations:
         streams.setdefault((o.robot, o.target), []).append(o)
@@ -74,6 +83,11 @@ def candidate_factors(
         streams.items(), desc="deciding candidate sets", disable=not progress, unit="stream"
     ):
         target = run.robots[ti]
+        if target.initial_pose is None and run.robots[r].initial_pose is not None:
+            decisions += mixture_stream(
+                run, config, timeline, step_rel, r, ti, obs, factors, skips, placed_via
+            )
+            continue
         if target.initial_pose is None:
             skips.add(
                 "target_unplaced",
@@ -175,4 +189,85 @@ def candidate_factors(
                     cluster if decided else [],
                 )
             )
-    return decisions, decided_pose
+    return decisions, decided_pose, placed_via
+
+
+def mixture_stream(
+    run: TeamRun,
+    config: GraphConfig,
+    timeline: Timeline,
+    step_rel: list,
+    r: int,
+    ti: int,
+    obs: list,
+    factors: list,
+    skips: SkipReport,
+    placed_via: dict,
+) -> list:
+    """A stream whose observer is placed and whose target is not: each set becomes a max-mixture
+    (Olson & Agarwal; `factors.mixture.max_mixture_factor`) of BetweenFactorPose3 observer ->
+    target, one component per candidate with its covariance, weights from the scores. The
+    target's first sighting places it (the candidate whose `body_axis` is nearest its surface
+    normal, else the best-scored one); its own motion steps place the rest."""
+    node_times, nearest = timeline.node_times, timeline.nearest
+    observer, target = run.robots[r], run.robots[ti]
+    track = dead_reckoning(observer, step_rel[r], config)
+    out = []
+    for o in obs:
+        k, kt = nearest(r, o.time), nearest(ti, o.time)
+        if k < 0 or kt < 0:
+            skips.add(
+                "no_pose_at_time",
+                f"robot {observer.name}: candidate set on {target.name} at {o.time} has no pose "
+                f"within the sync tolerance",
+            )
+            continue
+        E = o.body_T_sensor
+        seen = o.candidates.poses()  # target_T_sensor
+        rel = [E.compose(p.inverse()) for p in seen]  # observer body_T_target
+        cand_cov = candidate_covariances(o.candidates, config.tracker.default_sigmas)
+        components = [
+            gtsam.BetweenFactorPose3(
+                pose_key(r, k),
+                pose_key(ti, kt),
+                rj,
+                gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(p, c)),
+            )
+            for rj, p, c in zip(rel, seen, cand_cov)
+        ]
+        mixture = (
+            max_mixture_factor(components, mixture_weights(o.candidates))
+            if len(components) > 1
+            else None
+        )
+        t = max(node_times[r][k], node_times[ti][kt])
+        factors.append((t, mixture if mixture is not None else components[0], "candidate"))
+        X = track[k][0]
+        if ti not in placed_via:
+            placed_via[ti] = {kt: (r, k, rel[_upright(target, X, rel, o.candidates)])}
+        out.append(
+            Decision(
+                o.time,
+                r,
+                ti,
+                np.array([X.compose(rj).translation() for rj in rel]),
+                0 if mixture is None else -1,
+                1.0 if mixture is None else float("nan"),
+                np.full(7, np.nan),
+                [0] if mixture is None else [],
+                mixture,
+                np.stack([rj.matrix() for rj in rel]),
+            )
+        )
+    return out
+
+
+def _upright(target, X: gtsam.Pose3, rel: list, candidates) -> int:
+    """Index of the candidate that places the target best: with a surface attitude, the one
+    whose body axis is nearest the surface normal (seen from the observer's pose X), else the
+    best-scored one."""
+    if target.surface is None or target.attitude_sigma is None:
+        return int(np.argmax(candidates.scores))
+    axis = np.asarray(target.body_axis, float)
+    up = [X.compose(rj).rotation().matrix() @ axis for rj in rel]
+    return int(np.argmax([u @ target.surface.normal for u in up]))

@@ -21,6 +21,7 @@ ANCHOR_BASE = (
 )
 
 
+FEATURE_BASE = 200_000_000  # landmark_key(FEATURE_BASE + j): the point of the j-th feature track
 DEFAULT_LAG = 20.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
 
 
@@ -49,6 +50,7 @@ class GraphConfig:
             "landmark": Kernel("cauchy", 2.0),
             "inter_robot": Kernel("cauchy", 2.0),
             "candidate": Kernel("cauchy", 1.0),
+            "projection": Kernel("huber", 1.345),
         }
     )
     velocity_noise: VelocityNoise = VelocityNoise(density_v=0.01, density_w=0.05)
@@ -65,6 +67,8 @@ class GraphConfig:
     wildfire_threshold: float | None = None
     extra_updates: int | None = None
     lm_max_iterations: int = 100
+    feature_depth: float = 2.6  # [m] seed 003 III: KLT points start at the background (260 cm)
+    feature_depth_sigma: float = 1.0  # [m] and its std (where the camera's params give none)
     lag: float | None = None  # online: fixed-lag window [s] (None / 0: full smoothing)
 
     def __post_init__(self):
@@ -74,7 +78,14 @@ class GraphConfig:
             raise ValueError(
                 f"GraphConfig.decision_threshold must be in [0.5, 1), got {self.decision_threshold}"
             )
-        for name in ("keyframe_dt", "sync_tolerance", "surface_sigma", "landmark_prior_floor"):
+        for name in (
+            "keyframe_dt",
+            "sync_tolerance",
+            "surface_sigma",
+            "landmark_prior_floor",
+            "feature_depth",
+            "feature_depth_sigma",
+        ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"GraphConfig.{name} must be finite > 0, got {v}")

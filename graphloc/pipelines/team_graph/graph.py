@@ -5,10 +5,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import gtsam
 import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.keys import decode, pose_key
+from graphloc.factors.mixture import MaxMixture
+from graphloc.pipelines.team_graph.camera import feature_factors
 from graphloc.pipelines.team_graph.candidates import candidate_factors
 from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig, run_precision
 from graphloc.pipelines.team_graph.motion import (
@@ -45,8 +48,8 @@ class TeamGraph:
 def build_graph(
     run: TeamRun, config: GraphConfig = GraphConfig(), progress: bool = False
 ) -> TeamGraph:
-    """Every usable row of `run` as a factor, grouped in time steps; candidate sets decided by
-    one HypothesisTracker per (observer, target) stream."""
+    """Every usable row of `run` as a factor, grouped in time steps (`motion`, `points`,
+    `camera`, `candidates`), with initial values."""
     skips = SkipReport()
     skips.merge(run.skips)
     R = len(run.robots)
@@ -56,13 +59,18 @@ def build_graph(
     step_rel = motion_factors(run, config, timeline, factors, skips)
     anchor_factors(run, config, node_times, factors)
     landmark_guess, n_anchor, excluded = point_factors(run, config, timeline, factors, skips)
-    decisions, decided_pose = candidate_factors(
+    point_priors: list = []  # (landmark key, sigma, time): priors placed at the initial guess
+    n_tracks = feature_factors(run, config, timeline, factors, skips, landmark_guess, point_priors)
+    decisions, decided_pose, placed_via = candidate_factors(
         run, config, timeline, step_rel, factors, skips, progress
     )
 
-    # --- initial values: known poses + odometry, decided poses + odometry ---
+    # --- initial values: known poses + odometry, decided poses + odometry; then robots placed
+    # through an observer (max-mixture route) ---
     initial, anchored_from = {}, {}
-    for r, robot in enumerate(run.robots):
+    order = [r for r in range(R) if r not in placed_via] + [r for r in placed_via]
+    for r in order:
+        robot = run.robots[r]
         times = node_times[r]
         poses: list = [None] * len(times)
         if robot.initial_pose is not None and len(times):
@@ -70,6 +78,9 @@ def build_graph(
         for k, p in decided_pose.get(r, {}).items():
             if poses[k] is None:
                 poses[k] = p
+        for k, (o, ko, rel) in placed_via.get(r, {}).items():
+            if poses[k] is None and pose_key(o, ko) in initial:
+                poses[k] = initial[pose_key(o, ko)].compose(rel)
         seeds = [k for k, p in enumerate(poses) if p is not None]
         if not seeds:
             if len(times):
@@ -97,13 +108,19 @@ def build_graph(
                 initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
         else:
             initial[lkey] = np.asarray(guess, dtype=float)
+    for lkey, sigma, t in point_priors:
+        if lkey in initial:
+            noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
+            factors.append(
+                (t, gtsam.PriorFactorPoint3(lkey, initial[lkey], noise), "feature_prior")
+            )
 
     # --- steps: factors grouped by the time of their newest pose; unanchored robots dropped ---
     factors.sort(key=lambda f: f[0])
     kept, types = [], []
     dropped = 0
     for t, f, kind in factors:
-        if all(key in initial for key in f.keys()):
+        if all(key in initial for key in factor_keys(f)):
             kept.append((t, f, kind))
             types.append(kind)
         else:
@@ -128,6 +145,7 @@ def build_graph(
         "candidate_sets": len(run.observations),
         "committed_sets": sum(d.committed >= 0 for d in decisions),
         "landmark_anchors": n_anchor,
+        "feature_tracks": n_tracks,
         "steps": len(steps),
         "excluded_by_option": excluded,
         **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
@@ -146,3 +164,8 @@ def build_graph(
         skips,
         run_precision(run),
     )
+
+
+def factor_keys(factor) -> list:
+    """The variables of a graph item: a gtsam factor or a factor provider (`MaxMixture`)."""
+    return list(factor.keys) if isinstance(factor, MaxMixture) else list(factor.keys())

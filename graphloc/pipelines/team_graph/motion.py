@@ -8,7 +8,7 @@ import numpy as np
 
 from graphloc.factors.odometry import VelocityNoise, integrate_unicycle
 from graphloc.factors.robust import robust_noise
-from graphloc.factors.surface import surface_factors
+from graphloc.factors.surface import plane_attitude_factor, plane_distance_factor
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov, cov6
@@ -53,6 +53,7 @@ def node_times(run: TeamRun, config: GraphConfig) -> list:
             if not stamps:
                 stamps = [p.time for p in run.points if r in (p.robot, p.target)]
                 stamps += [o.time for o in run.observations if r in (o.robot, o.target)]
+                stamps += [f.time for f in run.features if f.robot == r]
             times = np.unique(np.round(np.array(stamps, dtype=float), 9))
         out.append(times)
     return out
@@ -175,8 +176,14 @@ def anchor_factors(run: TeamRun, config: GraphConfig, node_times: list, factors:
                 )
             )
         if robot.surface is not None:
+            sigma = config.surface_sigma if robot.surface_sigma is None else robot.surface_sigma
             for k, t in enumerate(node_times[r]):
-                for f in surface_factors(
-                    pose_key(r, k), robot.surface, config.surface_sigma, attitude_sigma=None
-                ):
+                if sigma > 0:  # 0: attitude only
+                    factors.append(
+                        (t, plane_distance_factor(pose_key(r, k), robot.surface, sigma), "surface")
+                    )
+                if robot.attitude_sigma is not None:
+                    f = plane_attitude_factor(
+                        pose_key(r, k), robot.surface, robot.attitude_sigma, robot.body_axis
+                    )
                     factors.append((t, f, "surface"))

@@ -13,7 +13,7 @@ from tqdm import tqdm
 from graphloc.factors.robust import downweighted
 from graphloc.keys import decode, pose_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE
-from graphloc.pipelines.team_graph.graph import TeamGraph
+from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.pipelines.team_graph.motion import compose_steps
 from graphloc.session import Session
 
@@ -25,7 +25,8 @@ class TeamResult:
     step_log: one row per session step (step index in graph.steps, time, latency [s], CPU [s],
     factors added, variables the solver holds); dropped: factors not added because they touch
     a variable the fixed lag has marginalized, by type; partial: the solve stopped early
-    (`stop`) after `steps_done` of the graph's steps."""
+    (`stop`) after `steps_done` of the graph's steps; decisions: the graph's, with the sets of
+    the max-mixture route chosen at the final estimate (`choose_mixtures`)."""
 
     mode: str
     node_times: list
@@ -44,6 +45,7 @@ class TeamResult:
     partial: bool = False
     steps_done: int = 0
     lag: float | None = None
+    decisions: list = field(default_factory=list)  # graph.decisions, max-mixtures chosen
 
 
 STEP_LOG_COLUMNS = ("step", "time", "latency_s", "cpu_s", "factors", "variables")
@@ -105,7 +107,7 @@ def solve(
         factors = []
         waiting, held = held + group, []
         for f, kind in waiting:
-            keys = f.keys()
+            keys = factor_keys(f)
             if t < hold_until and any(_held(graph, key, t) for key in keys):
                 held.append((f, kind))
                 continue
@@ -133,6 +135,7 @@ def solve(
         if on_step is not None:
             on_step(i)
     final = session.estimate()
+    decisions = choose_mixtures(graph.decisions, final)
     partial = partial or session.stopped
     wall = _time.perf_counter() - start
     estimate = []
@@ -186,6 +189,7 @@ def solve(
         partial,
         done,
         lag if mode == "online" else None,
+        decisions,
     )
 
 
@@ -206,3 +210,29 @@ def _predict(graph: TeamGraph, key: int, latest: dict):
         if all(s is not None for s in graph.step_rel[r][k0 + 1 : k + 1]):
             return pose.compose(rel)
     return graph.initial[key]
+
+
+def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:
+    """The decisions with every max-mixture set chosen at `estimate`: the component the factor
+    is linearized at (`MaxMixture.active`), its posterior among the components
+    (exp(-component error) normalized) and the observer's estimated pose."""
+    out = []
+    for d in decisions:
+        if d.mixture is None or not all(estimate.exists(k) for k in d.mixture.keys):
+            out.append(d)
+            continue
+        errors = d.mixture.component_errors(estimate)
+        p = np.exp(-(errors - errors.min()))
+        p /= p.sum()
+        j = int(np.argmin(errors))
+        observer = d.mixture.components[j][0].keys()[0]
+        out.append(
+            replace(
+                d,
+                committed=j,
+                probability=float(p[j]),
+                pose=_pose_row(estimate.atPose3(observer)),
+                same_pose=[j],
+            )
+        )
+    return out
