@@ -310,8 +310,8 @@ class Executor:
             raise RuntimeError("Executor(backend='ray') must be used in a `with` block")
         remote = ray.remote(num_cpus=1, max_retries=0)(_call)
         ref = None if shared is None else ray.put(shared)
-        # a local instance runs `workers` tasks at once; on a cluster keep `workers` in flight
-        limit = len(items) if self.address is None else self.workers
+        # `workers` tasks in flight (a local instance started here has that many CPUs too)
+        limit = self.workers
         pending: dict = {}
         nxt = 0
         while nxt < len(items) or pending:
