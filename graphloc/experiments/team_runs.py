@@ -15,17 +15,16 @@ same simulated runs:
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import tempfile
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from graphloc.candidates import CandidateSet
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
+from graphloc.executor import Executor
 from graphloc.pipelines.report import genuine_candidates
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 
@@ -176,7 +175,5 @@ def jobs(size: str, seed_offset: int = 0) -> list:
 
 def run(size: str = "full", workers: int = 2, seed_offset: int = 0, progress: bool = True) -> list:
     todo = jobs(size, seed_offset)
-    with mp.Pool(workers) as pool:
-        return list(
-            tqdm(pool.imap(_job, todo), total=len(todo), desc="scenario runs", disable=not progress)
-        )
+    with Executor(workers, progress=progress) as ex:
+        return list(ex.imap(_job, todo, desc="scenario runs"))
