@@ -52,7 +52,7 @@ class Bad(Exception):
 def stamp(msg) -> float:
     st = msg.header.stamp
     t = st.sec + st.nanosec * 1e-9
-    if not math.isfinite(t) or t <= 0:
+    if not math.isfinite(t) or t < 0:  # 0 is a time: simulators' clocks start there
         raise Bad("bad_stamp", f"header stamp {st.sec}.{st.nanosec:09d} is not a time")
     return t
 
