@@ -430,29 +430,10 @@ def test_topics_file_errors_name_file_and_field(tmp_path, capsys):
         open_run(bag)
 
 
-VISION_MSGS = {  # vision_msgs 4 (ROS 2 Humble), not in rosbags' stores: the bag carries them
-    "vision_msgs/msg/Point2D": "float64 x\nfloat64 y\n",
-    "vision_msgs/msg/Pose2D": "vision_msgs/Point2D position\nfloat64 theta\n",
-    "vision_msgs/msg/BoundingBox2D": "vision_msgs/Pose2D center\nfloat64 size_x\nfloat64 size_y\n",
-    "vision_msgs/msg/ObjectHypothesis": "string class_id\nfloat64 score\n",
-    "vision_msgs/msg/ObjectHypothesisWithPose": "vision_msgs/ObjectHypothesis hypothesis\n"
-    "geometry_msgs/PoseWithCovariance pose\n",
-    "vision_msgs/msg/Detection2D": "std_msgs/Header header\n"
-    "vision_msgs/ObjectHypothesisWithPose[] results\n"
-    "vision_msgs/BoundingBox2D bbox\nstring id\n",
-    "vision_msgs/msg/Detection2DArray": "std_msgs/Header header\n"
-    "vision_msgs/Detection2D[] detections\n",
-}
-
-
 def test_detection2d_array_becomes_marker_rows(tmp_path):
-    from rosbags.typesys import get_types_from_msg
+    from graphloc.datasets.rosbag_export import typestore
 
-    ts = get_typestore(Stores.ROS2_HUMBLE)
-    types = {}
-    for name, text in VISION_MSGS.items():
-        types.update(get_types_from_msg(text, name))
-    ts.register(types)
+    ts = typestore("mcap")  # Humble + vision_msgs 4, which the bag then carries
     zero = np.zeros(36)
     pose = _msg(
         ts,
