@@ -20,6 +20,7 @@ from pathlib import Path
 
 from graphloc import many_runs
 from graphloc.exitcodes import INCOMPLETE, OK
+from graphloc.manifest import check_noise_params
 from graphloc.pipelines.team_graph import DEFAULT_LAG
 
 HELP = (
@@ -132,6 +133,11 @@ def options(args: argparse.Namespace) -> dict:
         given = getattr(args, name, None)
         if given is not None:
             values[name] = given
+    duration = values["duration"]
+    if duration is not None and not (0 < duration < float("inf")):
+        raise ValueError(
+            f"option --duration (or 'duration' in --config) must be > 0, got {duration}"
+        )
     return values
 
 
@@ -215,6 +221,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
     progress = not args.no_progress
     with StopFlag() as stop:
         noise = {k: values[k] for k in NOISE if values[k] is not None}
+        check_noise_params(noise, "option (command line or --config)")
         run = open_run(args.run, duration=values["duration"], noise=noise)
         lag = values["lag"] if values["lag"] is not None else default_lag(run, config)
         if not (lag >= 0 and lag < float("inf")):

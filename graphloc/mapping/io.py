@@ -10,29 +10,63 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 
+from graphloc.textio import check_file
+
 SCAN_SUFFIXES = (".ply", ".pcd", ".xyz")
+MAX_COORDINATE = 1e6  # m: beyond, a point cloud is not in metres (or overflowed)
+MIN_POINTS = 10  # finite points per scan
+SCAN_RANGE_M = (0.05, 500.0)  # plausible median range of one LiDAR / depth scan [m]
 ROBOT_COLOURS = np.array([[0.85, 0.15, 0.1], [0.1, 0.3, 0.9], [0.1, 0.7, 0.2], [0.6, 0.2, 0.7]])
 
 
 def read_points(path) -> np.ndarray:
-    """(N,3) float64 points of one scan file; ValueError naming the file if unreadable, empty or
-    non-finite (NaN returns are a counted skip only in `read_scan_sequence`)."""
+    """(N,3) float64 points of one scan file; ValueError naming the file if it is not a readable
+    regular file, holds no points (Open3D's failed parse of a garbage file included) or points
+    beyond +-MAX_COORDINATE (NaN returns are a counted skip only in `read_scan_sequence`)."""
     path = Path(path)
     if path.suffix.lower() not in SCAN_SUFFIXES:
         raise ValueError(f"{path}: unsupported point cloud suffix (use {', '.join(SCAN_SUFFIXES)})")
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: missing")
+    check_file(path, what="point cloud")
     pcd = o3d.t.io.read_point_cloud(str(path))
     if "positions" not in pcd.point or len(pcd.point.positions) == 0:
-        raise ValueError(f"{path}: no points could be read")
+        raise ValueError(f"{path}: no points could be read (not a {path.suffix} point cloud?)")
     pts = pcd.point.positions.numpy().astype(float)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"{path}: positions have shape {pts.shape}, expected (N,3)")
+    declared = _ply_vertex_count(path) if path.suffix.lower() == ".ply" else None
+    if declared is not None and declared != len(pts):
+        raise ValueError(
+            f"{path}: truncated or corrupt: the PLY header declares {declared} vertices, "
+            f"{len(pts)} could be read"
+        )
+    finite = pts[np.isfinite(pts).all(axis=1)]
+    if len(finite) and np.abs(finite).max() > MAX_COORDINATE:
+        raise ValueError(
+            f"{path}: coordinates up to {np.abs(finite).max():.3g}, beyond +-{MAX_COORDINATE:g} m: "
+            f"not a scan in metres"
+        )
     return pts
+
+
+def _ply_vertex_count(path: Path) -> int | None:
+    """The vertex count a PLY header declares (None if the header cannot be read)."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    for line in head.split(b"\n"):
+        parts = line.split()
+        if parts[:2] == [b"element", b"vertex"] and len(parts) == 3 and parts[2].isdigit():
+            return int(parts[2])
+        if line.strip() == b"end_header":
+            break
+    return None
 
 
 def read_scan_sequence(folder) -> tuple[list[np.ndarray], list[Path], int]:
     """All scans of a folder in file-name order. Non-finite points are dropped and counted.
+    Each scan must be in metres in its sensor's frame: at least MIN_POINTS finite points, not all
+    within 1 mm of each other, and a median range (distance from the sensor) within
+    SCAN_RANGE_M -- a scan in millimetres (a room's median range in the thousands) or
+    kilometres is a ValueError naming the file, caught before registration.
     Returns (scans, files, n_dropped_nonfinite)."""
     folder = Path(folder)
     if not folder.is_dir():
@@ -45,9 +79,20 @@ def read_scan_sequence(folder) -> tuple[list[np.ndarray], list[Path], int]:
         pts = read_points(p)
         ok = np.isfinite(pts).all(axis=1)
         dropped += int((~ok).sum())
-        if ok.sum() < 10:
-            raise ValueError(f"{p}: fewer than 10 finite points")
-        scans.append(pts[ok])
+        pts = pts[ok]
+        if len(pts) < MIN_POINTS:
+            raise ValueError(f"{p}: {len(pts)} finite points, at least {MIN_POINTS} needed")
+        if np.ptp(pts, axis=0).max() < 1e-3:
+            raise ValueError(f"{p}: all {len(pts)} points lie within 1 mm of each other")
+        median = float(np.median(np.linalg.norm(pts, axis=1)))
+        lo, hi = SCAN_RANGE_M
+        if not lo <= median <= hi:
+            unit = "millimetres" if median > hi else "kilometres"
+            raise ValueError(
+                f"{p}: median range {median:.4g} is outside the plausible [{lo:g}, {hi:g}] m of a "
+                f"scan in metres (in {unit}?); convert the scans to metres"
+            )
+        scans.append(pts)
     return scans, files, dropped
 
 
