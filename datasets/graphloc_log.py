@@ -55,7 +55,8 @@ from graphloc.datasets.camera_tables import (
     feature_observations,
     positive_param,
 )
-from graphloc.records import EllipseObservation, FeaturePixel
+from graphloc.textio import check_file, shown, text_lines
+from graphloc.records import MAX_COORDINATE, MAX_TIME, EllipseObservation, FeaturePixel
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
 # tables the graph uses (every table of docs/log_format.md)
@@ -79,7 +80,8 @@ def read_tum_poses(path: Path) -> tuple[np.ndarray, list]:
     """TUM file (timestamp tx ty tz qx qy qz qw; '#' comments) -> times, Pose3 list. ValueError
     naming file and line on a malformed row."""
     times, poses = [], []
-    for n, line in enumerate(path.read_text(encoding="utf-8-sig").splitlines(), start=1):
+    check_file(path, what="ground-truth TUM file")
+    for n, line in text_lines(path):
         text = line.strip()
         if not text or text.startswith("#"):
             continue
@@ -87,10 +89,15 @@ def read_tum_poses(path: Path) -> tuple[np.ndarray, list]:
         try:
             vals = np.array([float(p) for p in parts])
         except ValueError:
-            raise ValueError(f"{path}: line {n}: cannot parse {text!r} as 8 numbers") from None
+            raise ValueError(f"{path}: line {n}: cannot parse {shown(text)} as 8 numbers") from None
         if vals.size != 8 or not np.isfinite(vals).all():
             raise ValueError(
                 f"{path}: line {n}: expected 8 finite numbers (timestamp tx ty tz qx qy qz qw)"
+            )
+        if abs(vals[0]) > MAX_TIME or np.abs(vals[1:4]).max() > MAX_COORDINATE:
+            raise ValueError(
+                f"{path}: line {n}: field 'timestamp' or 'tx, ty, tz' outside the plausible "
+                f"+-{MAX_TIME:g} s / +-{MAX_COORDINATE:g} m"
             )
         if not 0.5 < np.linalg.norm(vals[4:]) < 2.0:
             raise ValueError(f"{path}: line {n}: field 'q': quaternion is not unit")
