@@ -77,11 +77,12 @@ class SessionConfig:
     touch it (with re-stamped keys GTSAM 4.3's smoother failed in marginalizeLeaves on the
     MRCLAM team graph, "remove variables ... that are not unused"; a plain pose chain does not
     show it), so long-lived variables (a static robot's pose, a SLAM landmark) leave the
-    window too. lag_batches: stamp variables with
-    their add time rounded down to a multiple of `lag`, so that old variables leave in one
-    batch per `lag` seconds (the window then spans `lag` to 2 `lag`): the smoother re-eliminates
-    the path from the marginalized cliques to the root whenever it marginalizes, once per lag
-    instead of at every step.
+    window too. marginalize_every [s] (0: `lag`): variables are stamped with their add time
+    rounded down to a multiple of it, so that old variables leave in one batch every
+    `marginalize_every` seconds (the window spans `lag` to `lag + marginalize_every`): the
+    smoother re-eliminates the path from the marginalized cliques to the root -- about the
+    whole window -- whenever it marginalizes, so batches trade the cost of that step (grows
+    with the window) against how often it comes.
     """
 
     mode: str = "batch"
@@ -96,11 +97,15 @@ class SessionConfig:
     partial_relinearization_check: bool = False
     isam2_optimizer: str = "gauss_newton"
     lag: float = 0.0
-    lag_batches: bool = True
+    marginalize_every: float = 0.0
 
     def __post_init__(self):
         if not (np.isfinite(self.lag) and self.lag >= 0):
             raise ValueError(f"SessionConfig.lag must be finite >= 0, got {self.lag}")
+        if not (np.isfinite(self.marginalize_every) and self.marginalize_every >= 0):
+            raise ValueError(
+                f"SessionConfig.marginalize_every must be finite >= 0, got {self.marginalize_every}"
+            )
         if self.mode not in MODES:
             raise ValueError(f"SessionConfig.mode must be one of {MODES}, got {self.mode!r}")
         if self.isam2_optimizer not in ("gauss_newton", "dogleg"):
@@ -243,8 +248,8 @@ class Session:
     ) -> None:
         """One fixed-lag update: the new keys get time t; the keys the smoother marginalizes
         keep their estimate from before this update."""
-        quantum = self.config.lag if self.config.lag_batches else 0.0
-        now = math.floor(t / quantum) * quantum if quantum else t  # add times never go back
+        quantum = self.config.marginalize_every or self.config.lag
+        now = math.floor(t / quantum) * quantum  # add times never go back
         stamps = {int(k): now for k in values.keys()}
         self._touched.update(stamps)
         # IncrementalFixedLagSmoother marginalizes the keys stamped before (newest - lag); new
@@ -260,10 +265,17 @@ class Session:
         if not old:
             return
         alive = self._isam.timestamps()
+        gone = set()
         for k in old:
             if k not in alive:
                 del self._touched[k]
-                self._frozen.insert(k, _value(before, k))
+                gone.add(k)
+        # the estimates of the marginalized keys, copied in C++ (one typed lookup per key in
+        # Python costs more than the update itself on a 20 s window)
+        for k in before.keys():
+            if k not in gone:
+                before.erase(k)
+        self._frozen.insert(before)
 
     # ---- the front door ------------------------------------------------------------------
     def add(

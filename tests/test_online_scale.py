@@ -25,19 +25,23 @@ NOISE = gtsam.noiseModel.Isotropic.Sigma(6, 0.1)
 def _chain(session: Session, n: int, dt: float = 0.25) -> None:
     """A pose chain with a prior on every pose (what keeps a fixed-lag window well posed)."""
     for k in range(n):
-        v = gtsam.Values()
-        v.insert(k, gtsam.Pose3(gtsam.Rot3(), [k + 0.1, 0, 0]))
-        factors = [gtsam.PriorFactorPose3(k, gtsam.Pose3(gtsam.Rot3(), [k, 0, 0]), NOISE)]
-        if k:
-            step = gtsam.Pose3(gtsam.Rot3(), [1, 0, 0])
-            factors.append(gtsam.BetweenFactorPose3(k - 1, k, step, NOISE))
-        session.add(factors, v, time=k * dt)
+        _chain_step(session, k, dt)
+
+
+def _chain_step(session: Session, k: int, dt: float = 0.25) -> None:
+    v = gtsam.Values()
+    v.insert(k, gtsam.Pose3(gtsam.Rot3(), [k + 0.1, 0, 0]))
+    factors = [gtsam.PriorFactorPose3(k, gtsam.Pose3(gtsam.Rot3(), [k, 0, 0]), NOISE)]
+    if k:
+        step = gtsam.Pose3(gtsam.Rot3(), [1, 0, 0])
+        factors.append(gtsam.BetweenFactorPose3(k - 1, k, step, NOISE))
+    session.add(factors, v, time=k * dt)
 
 
 def test_fixed_lag_session_bounds_variables_and_keeps_old_estimates():
     s = Session(SessionConfig(mode="online", lag=2.0))
     _chain(s, 60)
-    assert s.fixed_lag and s.live_variables() <= 2 * 2.0 / 0.25 + 2  # lag to 2 lag (lag_batches)
+    assert s.fixed_lag and s.live_variables() <= 2 * 2.0 / 0.25 + 2  # lag to 2 lag (batches)
     assert s.marginalized(0) and not s.marginalized(59)
     est = s.estimate()
     assert est.size() == 60  # marginalized poses keep their last estimate
@@ -52,6 +56,26 @@ def test_fixed_lag_session_bounds_variables_and_keeps_old_estimates():
     assert not full.fixed_lag and full.live_variables() == 60
     with pytest.raises(ValueError, match="lag"):
         SessionConfig(mode="online", lag=-1.0)
+    with pytest.raises(ValueError, match="marginalize_every"):
+        SessionConfig(mode="online", lag=2.0, marginalize_every=float("nan"))
+
+
+def test_marginalize_every_bounds_the_window_and_keeps_the_same_old_estimates():
+    """Smaller batches: the window spans lag to lag + marginalize_every; every marginalized
+    variable keeps the estimate it had right before it left (its own type, bit for bit)."""
+    s = Session(SessionConfig(mode="online", lag=2.0, marginalize_every=0.5))
+    live = []
+    for k in range(60):
+        _chain_step(s, k)
+        live.append(s.live_variables())
+        if k == 29:  # the last step before pose 20 (stamped 5.0 s) leaves: now - lag > 5.0
+            before = s.estimate([20]).atPose3(20)
+            assert not s.marginalized(20)
+    assert max(live[20:]) <= (2.0 + 0.5) / 0.25 + 1 and min(live[20:]) >= 2.0 / 0.25
+    assert s.marginalized(20) and not s.marginalized(52)
+    frozen = s.estimate([20]).atPose3(20)
+    assert s.estimate().atPose3(20).equals(frozen, 0.0)
+    assert frozen.equals(before, 0.0)
 
 
 @pytest.fixture(scope="module")
