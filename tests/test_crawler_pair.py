@@ -8,7 +8,7 @@ import pytest
 from graphloc.datasets import dataset_class
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
 from graphloc.vision.circle import circle_pose_from_rim
-from graphloc.vision.features import detect_base_rim
+from graphloc.vision.base_rim import detect_base_rim
 
 
 @pytest.fixture(scope="module")

@@ -7,11 +7,10 @@ import pytest
 
 from graphloc.cameras import PinholeCamera
 from graphloc.datasets.crawler_pair import disk_coverage
+from graphloc.vision.base_rim import BlobConfig, detect_base_rim
 from graphloc.vision.features import (
-    BlobConfig,
     FeatureConfig,
     FeatureTracker,
-    detect_base_rim,
     detect_corners,
     track_forward_backward,
 )
@@ -187,7 +186,7 @@ def _axes_and_centre(points):
 
 
 def test_coverage_map_ignores_the_background_brightness():
-    from graphloc.vision.features import coverage_map
+    from graphloc.vision.base_rim import coverage_map
 
     _, _, _, cov, img = textured_disk(seed=1, noise=0.0, blur=1e-3)
     blob = detect_base_rim(img, BlobConfig(refine_edges=False))
@@ -242,12 +241,12 @@ def test_refine_ellipse_errors_are_clear():
 
 
 def test_failed_refinement_is_reported_not_raised(monkeypatch):
-    import graphloc.vision.features as features
+    import graphloc.vision.base_rim as base_rim
 
     def fail(*args, **kwargs):
         raise ValueError("the edge fit diverged (test)")
 
-    monkeypatch.setattr(features, "refine_ellipse", fail)
+    monkeypatch.setattr(base_rim, "refine_ellipse", fail)
     _, _, _, _, img = textured_disk(seed=0)
     blob = detect_base_rim(img)
     assert blob.refinement is None and "diverged (test)" in blob.refine_error

@@ -19,11 +19,10 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from graphloc.vision.circle import fit_ellipse, rim_points_from_mask
+from graphloc.vision.base_rim import colour_score, detect_base_rim
 from graphloc.vision.features import (
     FeatureConfig,
     FeatureTracker,
-    colour_score,
-    detect_base_rim,
     detect_corners,
     track_forward_backward,
 )

@@ -13,14 +13,12 @@ from graphloc.datasets.render import RenderConfig, render_markers
 from graphloc.vision.target import (
     LARGE_TARGET,
     SMALL_TARGET,
-    TargetDesignConfig,
     TargetHypothesisConfig,
-    design_cost,
-    design_targets,
     predict_pose,
     predicted_marker_pixels,
     target_hypotheses,
 )
+from graphloc.vision.target_design import TargetDesignConfig, design_cost, design_targets
 
 CAM = PinholeCamera.from_fov(752, 480, np.pi / 2)
 

@@ -14,7 +14,7 @@ import numpy as np
 from graphloc.factors.mixture import max_mixture_factor
 from graphloc.keys import pose_key
 from graphloc.vision.circle import circle_pose_from_rim
-from graphloc.vision.features import BlobConfig, detect_base_rim
+from graphloc.vision.base_rim import BlobConfig, detect_base_rim
 from graphloc.vision.teammate import TeammateConfig
 
 METHODS = (

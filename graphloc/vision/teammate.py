@@ -18,7 +18,8 @@ from graphloc.candidates import CandidateSet
 from graphloc.config import check
 from graphloc.seams import FrameInput, TeammateObservation
 from graphloc.vision.circle import CircleConfig, circle_pose_from_rim
-from graphloc.vision.features import BlobConfig, FeatureConfig, FeatureTracker, detect_base_rim
+from graphloc.vision.base_rim import BlobConfig, detect_base_rim
+from graphloc.vision.features import FeatureConfig, FeatureTracker
 
 
 @dataclass(frozen=True)
