@@ -1,7 +1,8 @@
 """The package's shape (issue 13): every module imports in a fresh interpreter; the package
 dependency graph (graphloc's subpackages and top-level modules, every import counted,
 function-level ones included) has no cycle; only graphloc/plots.py sets the matplotlib
-backend; no source line holds an absolute machine path."""
+backend; no source line holds an absolute machine path; no module grows past about 400 lines
+unless it is listed with its reason."""
 
 import ast
 import re
@@ -147,3 +148,33 @@ def test_ruff_check_and_format_are_clean():
             [sys.executable, "-m", "ruff", *args], cwd=ROOT, capture_output=True, text=True
         )
         assert done.returncode == 0, f"ruff {' '.join(args)}:\n{done.stdout}{done.stderr}"
+
+
+MAX_LINES = 420  # "no module over about 400 lines unless one algorithm needs it" (issue 13)
+# modules still over it, each with the reason; a module that shrinks below must leave the list
+OVER_SIZE = {
+    "graphloc/mapping/registration.py": "pending split (issue 13)",
+    "graphloc/vision/markers.py": "pending split (issue 13)",
+    "graphloc/session.py": "pending split (issue 13)",
+    "datasets/dual_room.py": "pending split (issue 13)",
+    "datasets/crawler_pair.py": "pending split (issue 13)",
+    "graphloc/experiments/seed000.py": "pending split (issue 13)",
+    "datasets/graphloc_log.py": "pending split (issue 13)",
+    "graphloc/mapping/fusion.py": "pending split (issue 13)",
+    "graphloc/experiments/bench_hypotheses.py": "pending split (issue 13)",
+    "graphloc/io.py": "pending split (issue 13)",
+    "graphloc/session_codec.py": "pending split (issue 13)",
+    "graphloc/vision/circle.py": "pending split (issue 13)",
+    "graphloc/experiments/markdown.py": "pending split (issue 13)",
+}
+
+
+def test_modules_stay_under_about_400_lines():
+    sizes = {
+        p.relative_to(ROOT).as_posix(): len(p.read_text(encoding="utf-8").splitlines())
+        for p in modules().values()
+    }
+    over = {path for path, n in sizes.items() if n > MAX_LINES}
+    assert over <= set(OVER_SIZE), {p: sizes[p] for p in sorted(over - set(OVER_SIZE))}
+    stale = {p for p in OVER_SIZE if sizes.get(p, 0) <= MAX_LINES}
+    assert not stale, f"under {MAX_LINES} lines now, remove from OVER_SIZE: {sorted(stale)}"

@@ -252,7 +252,7 @@ def refine_ellipse(
 ) -> EllipseRefinement:
     """Sub-pixel ellipse from a coverage map (seed 003 II-A-1 refined: the seed fits edge
     points; here the edge itself is the measurement). coverage (h,w): the fraction of each
-    pixel covered by the disk (e.g. `vision.features.coverage_map`), its pixel (0,0) at image
+    pixel covered by the disk (e.g. `vision.base_rim.coverage_map`), its pixel (0,0) at image
     pixel `origin` (x0, y0); ellipse0 (5,): the starting ellipse (cv2 fit of edge points).
     Fits every pixel within `band` px of ellipse0 with `_edge_model` by Levenberg-Marquardt
     (scipy.optimize.least_squares). Edge points interpolated between pixel centres lock onto
