@@ -119,3 +119,67 @@ def test_fused_map_recording(tmp_path):
     assert "world/map/fused_map" in rrd_entities(tmp_path / "m.rrd")
     with pytest.raises(ValueError, match="must end in .mcap"):
         write_mcap(rec, tmp_path / "map.bag")
+
+
+def test_scans_are_placed_by_the_estimate(tmp_path):
+    """A rover's four scans of a box room (a scanner 0.3 m above the body, KISS-ICP odometry):
+    the recording's scan cloud is the scans placed by the estimate written to TUM through the
+    scanner's extrinsics (voxel centroids: most voxels hold one point)."""
+    import open3d as o3d
+    from scipy.spatial import cKDTree
+    from scipy.spatial.transform import Rotation
+
+    from graphloc.io import write_manifest, write_table
+
+    rng = np.random.default_rng(1)
+    room = np.vstack(  # walls at x, y = +-4, floor 0, ceiling 3
+        [
+            np.column_stack(
+                [np.full(1000, s * 4.0), rng.uniform(-4, 4, 1000), rng.uniform(0, 3, 1000)]
+            )
+            for s in (-1, 1)
+        ]
+        + [
+            np.column_stack(
+                [rng.uniform(-4, 4, 1000), np.full(1000, s * 4.0), rng.uniform(0, 3, 1000)]
+            )
+            for s in (-1, 1)
+        ]
+        + [np.column_stack([rng.uniform(-4, 4, (1500, 2)), np.full(1500, z)]) for z in (0.0, 3.0)]
+    )
+    (tmp_path / "log/rover").mkdir(parents=True)
+    rows = []
+    for k in range(4):
+        sensor_at = np.array([0.2 * k, 0.1 * k, 0.3])  # the body moves along (0.2, 0.1, 0)
+        cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(room - sensor_at))
+        o3d.t.io.write_point_cloud(str(tmp_path / f"log/rover/{k}.ply"), cloud)
+        rows.append((0.5 * k, "lidar", f"rover/{k}.ply"))
+    write_table(tmp_path / "log/rover/scans.csv", "scans", rows)
+    robot = {
+        "name": "rover",
+        "kind": "ground",
+        "planar": False,
+        "initial_pose": [0, 0, 0, 0, 0, 0, 1],
+        "sensors": [{"name": "lidar", "type": "scanner", "extrinsics": {"xyz": [0, 0, 0.3]}}],
+        "tables": {"scans": "rover/scans.csv"},
+    }
+    write_manifest({"name": "box", "robots": [robot]}, tmp_path / "log")
+    args = ["smooth", str(tmp_path / "log"), "--out", str(tmp_path / "out"), "--no-progress"]
+    assert main(args + ["--mcap", str(tmp_path / "box.mcap")]) == 0
+    (cloud,) = mcap_messages(tmp_path / "box.mcap", "/graphloc/map/scans_rover")
+    pts = np.frombuffer(cloud.data.tobytes(), "<f4").reshape(cloud.width, 4)[:, :3]
+    est = np.loadtxt(tmp_path / "out/rover_batch.tum", ndmin=2)
+    assert len(est) == 4
+    placed = []
+    for k, row in enumerate(est):
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_quat(row[4:8]).as_matrix()
+        T[:3, 3] = row[1:4]
+        T = T @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0.3], [0, 0, 0, 1]])
+        scan = np.asarray(
+            o3d.t.io.read_point_cloud(str(tmp_path / f"log/rover/{k}.ply")).point.positions.numpy(),
+            float,
+        )
+        placed.append(scan @ T[:3, :3].T + T[:3, 3])
+    d = cKDTree(np.vstack(placed)).query(pts)[0]
+    assert len(pts) > 1000 and np.median(d) < 1e-4 and np.percentile(d, 95) < 0.09

@@ -237,7 +237,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
             metrics["stopped_by"] = signal.Signals(stop.signal).name
         write_outputs(result, run, metrics, Path(args.out))
         if values["mcap"] or values["rerun"]:
-            write_recordings(team_recording(result, run), values["mcap"], values["rerun"])
+            write_recordings(team_recording(result, run, args.run), values["mcap"], values["rerun"])
     summary = {
         name: round(v[mode]["ate_rmse"], 4)
         for name, v in metrics["per_robot"].items()

@@ -4,9 +4,9 @@
 One `Recording` holds what both show: every robot's trajectories over time (the estimate,
 dead reckoning, ground truth when known), each P3P candidate set the HypothesisTracker decided
 (where every candidate puts the observer, the committed candidate's posterior and pose) and
-point clouds (scans, the fused map with the robot that saw each point). `team_recording`
-builds it from `graphloc smooth` / `online`'s result, `fusion_recording` from a `fuse-maps`
-output directory. Writers:
+point clouds (a log's scans placed by the estimate, the fused map with the robot that saw each
+point). `team_recording` builds it from `graphloc smooth` / `online`'s result (and the log
+directory's scans), `fusion_recording` from a `fuse-maps` output directory. Writers:
 
 - `write_mcap(recording, path)`: rosbags' ROS 2 writer (MCAP storage, CDR messages with their
   schemas). Topics per robot: `/graphloc/ROBOT/pose` (geometry_msgs/PoseStamped, one per
@@ -23,6 +23,7 @@ output directory. Writers:
 
 from __future__ import annotations
 
+import csv
 import shutil
 import tempfile
 from dataclasses import dataclass, field
@@ -31,7 +32,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from graphloc.mapping.io import read_labelled_cloud, read_tum
+from graphloc.io import MANIFEST, read_manifest
+from graphloc.mapping.io import read_labelled_cloud, read_points, read_tum
 from graphloc.pipelines.report import groundtruth_rows
 from graphloc.pipelines.team_graph import TeamResult
 from graphloc.run import TeamRun
@@ -95,9 +97,12 @@ def _finite_track(robot: str, label: str, times, rows) -> Track | None:
     return Track(robot, label, np.asarray(times, dtype=float)[ok], rows[ok])
 
 
-def team_recording(result: TeamResult, run: TeamRun) -> Recording:
-    """The recording of a `graphloc smooth` / `online` result (`team_graph.solve`)."""
+def team_recording(result: TeamResult, run: TeamRun, source=None) -> Recording:
+    """The recording of a `graphloc smooth` / `online` result (`team_graph.solve`); with the
+    run's log directory `source`, its robots' scans too (`scan_clouds`)."""
     rec = Recording(run.name)
+    if source is not None and (Path(source) / MANIFEST).is_file():
+        rec.clouds += scan_clouds(source, result, run)
     for r, robot in enumerate(run.robots):
         times = result.node_times[r]
         for label, rows in (
@@ -125,6 +130,41 @@ def team_recording(result: TeamResult, run: TeamRun) -> Recording:
             )
         )
     return rec
+
+
+def scan_clouds(root, result: TeamResult, run: TeamRun, voxel: float = 0.05) -> list:
+    """Each robot's scans (its `scans` table in the log directory `root`) placed by the
+    estimate of the pose nearest in time (through the scanner's extrinsics), one cloud per
+    robot, voxel-downsampled (Open3D) to `voxel` metres. A scan without an estimated pose
+    within `voxel` seconds of it is left out."""
+    import open3d as o3d
+
+    manifest = read_manifest(root)
+    clouds = []
+    for robot in manifest.robots:
+        if "scans" not in robot.tables:
+            continue
+        r = run.index(robot.name)
+        times, est = np.asarray(result.node_times[r], dtype=float), result.estimate[r]
+        if not len(times):
+            continue
+        parts = []
+        with open(Path(root) / robot.tables["scans"], newline="") as fh:
+            for row in csv.DictReader(fh):
+                k = int(np.argmin(np.abs(times - float(row["time"]))))
+                if abs(times[k] - float(row["time"])) > voxel or not np.isfinite(est[k]).all():
+                    continue
+                T = np.eye(4)
+                T[:3, :3] = Rotation.from_quat(est[k, 3:7]).as_matrix()
+                T[:3, 3] = est[k, :3]
+                T = T @ robot.sensor(row["sensor"]).body_T_sensor
+                pts = read_points(Path(root) / row["path"])
+                parts.append(pts @ T[:3, :3].T + T[:3, 3])
+        if parts:
+            cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.vstack(parts)))
+            pts = cloud.voxel_down_sample(voxel).point.positions.numpy().astype(float)
+            clouds.append(Cloud(f"scans_{robot.name}", pts, np.full(len(pts), r), times[-1]))
+    return clouds
 
 
 def fusion_recording(out_dir) -> Recording:
