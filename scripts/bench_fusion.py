@@ -31,6 +31,13 @@ NEES of graphloc's accepted results against the chi-square 95% band of their mea
 
     .venv/bin/python scripts/bench_fusion.py --real --trials 20 --out out/bench_fusion_real \
         --doc docs/results_fusion_real.md
+
+`--real --calibrate` fits the calibration of graphloc's registration covariance (scale and
+floor, `graphloc.mapping.registration.calibrated_covariance`) by maximum likelihood on view
+pairs of other seeds than the benchmark's, and writes docs/results_fusion_calibration.json
+(RegistrationConfig's defaults are that fit; tests/test_fusion_real.py checks they agree):
+
+    .venv/bin/python scripts/bench_fusion.py --real --calibrate --trials 20 --seed 1000
 """
 
 from __future__ import annotations
@@ -213,8 +220,12 @@ REAL_METHODS = ("graphloc", "graphloc_before", "o3d_icp", "o3d_icp_fine", "fpfh_
 REAL_ROT_OK_DEG = 1.0
 
 
-def run_real_trial(job: tuple[float, int]) -> list[dict]:
-    """One view pair of the real fragment, both hint levels, every method (module docstring)."""
+def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
+    """One view pair of the real fragment, both hint levels, every method (module docstring).
+    With job[2] (calibration): graphloc only, with the uncalibrated covariance (scale 1, no
+    floor), its tangent error and covariance kept for `fit_calibration`."""
+    from dataclasses import replace
+
     import gtsam
     from scipy.spatial.transform import Rotation
 
@@ -228,21 +239,24 @@ def run_real_trial(job: tuple[float, int]) -> list[dict]:
         prepare,
     )
 
-    overlap, seed = job
+    overlap, seed, calibrate = job
     rng = np.random.default_rng([seed, int(round(1000 * overlap))])
     pair = make_view_pair(load_fragment(), overlap, rng)
     truth = pair.T_ground_ceiling
     cfg = RegistrationConfig()
+    if calibrate:
+        cfg = replace(cfg, covariance_scale=1.0, covariance_floor=(0.0, 0.0))
     source, target = prepare(pair.ceiling, cfg), prepare(pair.ground, cfg)
     fine = cfg.max_correspondence[-1]
     r_med = float(np.median(np.linalg.norm(source.points, axis=1)))
-    T_glob, glob_s = global_fpfh_ransac(source, target, cfg, seed=seed)
-    T_fpfh, icp_s = icp_from_hint(source, target, T_glob, fine)
-    fpfh = dict(
-        zip(("rot_deg", "trans_m"), pose_errors(T_fpfh, truth)),
-        seconds=glob_s + icp_s,
-        accepted=True,
-    )
+    if not calibrate:
+        T_glob, glob_s = global_fpfh_ransac(source, target, cfg, seed=seed)
+        T_fpfh, icp_s = icp_from_hint(source, target, T_glob, fine)
+        fpfh = dict(
+            zip(("rot_deg", "trans_m"), pose_errors(T_fpfh, truth)),
+            seconds=glob_s + icp_s,
+            accepted=True,
+        )
     rows = []
     for rot_deg, trans_m in REAL_HINTS:
         hint = perturb(truth, rot_deg, trans_m, rng)
@@ -254,10 +268,12 @@ def run_real_trial(job: tuple[float, int]) -> list[dict]:
             "hint_rot_deg": rot_deg,
             "hint_trans_m": trans_m,
             "points": [len(source.points), len(target.points)],
-            "fpfh_ransac": fpfh,
         }
         inp = FusionInput(np.zeros(1), [pair.ground], [pair.ceiling], hint=hint, hint_sigma=sigma)
-        for name, robust in (("graphloc", True), ("graphloc_before", False)):
+        variants = (
+            (("graphloc", True),) if calibrate else (("graphloc", True), ("graphloc_before", False))
+        )
+        for name, robust in variants:
             fcfg = FusionConfig(
                 registration=cfg, build_map=False, scan_matching=False, robust=robust
             )
@@ -288,7 +304,13 @@ def run_real_trial(job: tuple[float, int]) -> list[dict]:
                 out["nees"] = float(e @ np.linalg.solve(cov, e))
                 out["sigma_rot_deg"] = np.degrees(np.sqrt(np.diag(cov)[:3])).tolist()
                 out["sigma_trans_m"] = np.sqrt(np.diag(cov)[3:]).tolist()
+                if calibrate:
+                    out["error_tangent"], out["covariance"] = e.tolist(), cov.tolist()
             row[name] = out
+        if calibrate:
+            rows.append(row)
+            continue
+        row["fpfh_ransac"] = fpfh
         dist = max(fine, trans_m + np.deg2rad(rot_deg) * r_med)
         T_icp, icp_s = icp_from_hint(source, target, hint, dist)
         row["o3d_icp"] = dict(
@@ -478,13 +500,124 @@ def markdown_real(report: dict, command: str) -> str:
                 for mu, sd, k in zip(c["signed_error_mean"], c["signed_error_std"], scale)
             ]
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    cal_path = Path(__file__).resolve().parents[1] / "docs" / "results_fusion_calibration.json"
+    if cal_path.is_file():
+        cal = json.loads(cal_path.read_text())
+        fit = cal["fit"]
+        lines += [
+            "",
+            "The covariance is the cluster-robust sandwich scaled by "
+            f"{fit['covariance_scale']:.3g} and floored by "
+            f"{np.degrees(fit['floor_rot_rad']):.3g} deg / {1000 * fit['floor_trans_m']:.3g} mm "
+            "(`calibrated_covariance`), fitted by maximum likelihood on "
+            f"{cal['accepted_used']} accepted trials of seeds {cal['seeds'][0]}-{cal['seeds'][1]} "
+            f"(`{cal['command']}`, docs/results_fusion_calibration.json); the NEES above is on "
+            "this run's seeds, which the fit did not see.",
+        ]
     lines += ["", f"Scatter of every trial: `{report['png']}`.", ""]
     return "\n".join(lines)
 
 
+def fit_calibration(errors: np.ndarray, covs: np.ndarray) -> dict:
+    """Maximum likelihood of e_i ~ N(0, s P_i + diag(f_r^2 I3, f_t^2 I3)) over accepted trials
+    (`graphloc.mapping.registration.calibrated_covariance`): Nelder-Mead on log(s, f_r, f_t)."""
+    from scipy.optimize import minimize
+
+    eye_r, eye_t = np.diag([1.0] * 3 + [0.0] * 3), np.diag([0.0] * 3 + [1.0] * 3)
+
+    def model(x):
+        s, fr, ft = np.exp(x)
+        return s * covs + fr**2 * eye_r + ft**2 * eye_t
+
+    def nll(x):
+        P = model(x)
+        _, logdet = np.linalg.slogdet(P)
+        return float(
+            np.sum(logdet)
+            + np.einsum("ni,ni->", errors, np.linalg.solve(P, errors[..., None])[..., 0])
+        )
+
+    x0 = np.log([10.0, np.deg2rad(0.05), 0.002])
+    res = minimize(
+        nll, x0, method="Nelder-Mead", options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-8}
+    )
+    s, fr, ft = np.exp(res.x)
+    return {
+        "covariance_scale": float(s),
+        "floor_rot_rad": float(fr),
+        "floor_trans_m": float(ft),
+        "nll": float(res.fun),
+        "converged": bool(res.success),
+    }
+
+
+def main_calibrate(args) -> int:
+    """`--real --calibrate`: fit the registration covariance's calibration (`fit_calibration`) on
+    view pairs of seeds args.seed.. (keep them apart from the benchmark's), write the JSON and
+    a PNG of the NEES per trial before / after."""
+    from scipy.stats import chi2
+
+    from graphloc.plots import plt  # the one place that sets the backend
+
+    jobs = [(ov, args.seed + i, True) for ov in REAL_OVERLAPS for i in range(args.trials)]
+    start = time.perf_counter()
+    with Executor(args.workers, start_method="spawn") as ex:
+        rows = [r for rs in ex.imap(run_real_trial, jobs, desc="calibration pairs") for r in rs]
+    used = [r for r in rows if r["graphloc"]["accepted"] and "covariance" in r["graphloc"]]
+    errors = np.array([r["graphloc"]["error_tangent"] for r in used])
+    covs = np.array([r["graphloc"]["covariance"] for r in used])
+    fit = fit_calibration(errors, covs)
+    P = fit["covariance_scale"] * covs + np.diag(
+        [fit["floor_rot_rad"] ** 2] * 3 + [fit["floor_trans_m"] ** 2] * 3
+    )
+    before = np.einsum("ni,ni->n", errors, np.linalg.solve(covs, errors[..., None])[..., 0])
+    after = np.einsum("ni,ni->n", errors, np.linalg.solve(P, errors[..., None])[..., 0])
+    cells = {}
+    for (ov, rd, tm), cell in _cells(used):
+        idx = [used.index(r) for r in cell]
+        lo, hi = chi2.ppf([0.025, 0.975], 6 * len(idx)) / len(idx)
+        cells[f"overlap {ov:.0%}, hint {rd:g} deg / {100 * tm:g} cm"] = {
+            "trials": len(idx),
+            "nees_mean_uncalibrated": float(before[idx].mean()),
+            "nees_mean_calibrated": float(after[idx].mean()),
+            "nees_band_95": [float(lo), float(hi)],
+        }
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    png = out / "bench_fusion_calibration.png"
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    bins = np.logspace(-1, np.log10(max(before.max(), after.max()) * 1.1), 40)
+    ax.hist(before, bins=bins, alpha=0.6, label="sandwich covariance (uncalibrated)")
+    ax.hist(after, bins=bins, alpha=0.6, label="calibrated (fitted scale + floor)")
+    ax.axvline(6.0, color="k", ls="--", lw=1, label="dimension (6)")
+    ax.set_xscale("log")
+    ax.set_xlabel("NEES per accepted calibration trial")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    report = {
+        "benchmark": "fusion_covariance_calibration",
+        "command": f"python scripts/bench_fusion.py --real --calibrate --trials {args.trials} "
+        f"--seed {args.seed}",
+        "seeds": [args.seed, args.seed + args.trials - 1],
+        "trials_per_overlap": args.trials,
+        "accepted_used": len(used),
+        "fit": fit,
+        "cells": cells,
+        "wall_time_s": time.perf_counter() - start,
+        "png": str(png),
+    }
+    path = Path(args.calibration_json)
+    path.write_text(json.dumps(report, indent=1) + "\n")
+    print(json.dumps({k: report[k] for k in ("fit", "cells")}, indent=1))
+    print(f"wrote {path} and {png}")
+    return 0
+
+
 def main_real(args) -> int:
     trials = 3 if args.quick else args.trials
-    jobs = [(ov, args.seed + i) for ov in REAL_OVERLAPS for i in range(trials)]
+    jobs = [(ov, args.seed + i, False) for ov in REAL_OVERLAPS for i in range(trials)]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
@@ -532,13 +665,23 @@ def main(argv=None) -> int:
     )
     p.add_argument("--real", action="store_true", help="issue 16's protocol on the real fragment")
     p.add_argument("--doc", default=None, help="with --real: also write the markdown table here")
+    p.add_argument(
+        "--calibrate",
+        action="store_true",
+        help="with --real: fit the registration covariance's calibration (use other seeds)",
+    )
+    p.add_argument(
+        "--calibration-json",
+        default="docs/results_fusion_calibration.json",
+        help="with --calibrate: where the fit goes",
+    )
     args = p.parse_args(argv)
     if args.out is None:
         args.out = "out/bench_fusion_real" if args.real else "out/bench_fusion"
     if args.real:
         if args.trials < 1 or args.workers < 1:
             raise SystemExit("--trials >= 1, --workers >= 1")
-        return main_real(args)
+        return main_calibrate(args) if args.calibrate else main_real(args)
     trials = 3 if args.quick else args.trials
     if trials < 1 or args.frames < 2 or args.workers < 1:
         raise SystemExit("--trials >= 1, --frames >= 2, --workers >= 1")

@@ -6,7 +6,9 @@ gravity-aligned plots."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
+import gtsam
 import numpy as np
 import open3d as o3d
 import pytest
@@ -19,12 +21,16 @@ from graphloc.mapping.registration import (
     Candidate,
     RegistrationConfig,
     _candidate_checks,
+    calibrated_covariance,
+    hint_covariance,
+    hint_starts,
     pose_errors,
     prepare,
     robust_register,
 )
 
 ROT_OK, TRANS_OK = 1.0, 0.05
+DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
 @pytest.fixture(scope="module")
@@ -125,13 +131,49 @@ def test_degenerate_geometry_fails_the_conditioning_check():
         src,
         tgt,
         np.eye(4),
-        np.r_[[np.deg2rad(2)] * 3, [0.05] * 3],
+        hint_covariance(np.deg2rad(2), 0.05),
         cfg,
         AcceptanceConfig(ceiling_above=False),
     )
     assert not d.accepted
     assert not d.checks["conditioning"][2]
     assert any("degenerate" in r for r in d.reasons)
+
+
+def test_hint_starts_are_the_sigma_points_of_a_full_covariance():
+    """13 starts: the hint, then +- one sigma along each eigenvector of its covariance (a
+    correlated P3P covariance included), each at Mahalanobis distance exactly 1."""
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(6, 6))
+    cov = A @ A.T * 1e-3 + np.eye(6) * 1e-5
+    hint = perturb(np.eye(4), 20.0, 1.0, rng)
+    starts = hint_starts(hint, cov)
+    assert len(starts) == 13 and np.allclose(starts[0], hint)
+    h = gtsam.Pose3(hint)
+    d2 = [
+        (lambda e: e @ np.linalg.solve(cov, e))(h.localCoordinates(gtsam.Pose3(T))) for T in starts
+    ]
+    assert d2[0] == pytest.approx(0.0, abs=1e-12)
+    assert np.allclose(d2[1:], 1.0, rtol=1e-6)
+
+
+def test_calibrated_covariance_and_the_fit_it_comes_from():
+    """RegistrationConfig's calibration is the fit in docs/results_fusion_calibration.json, and
+    calibrated_covariance is s P + diag(f_r^2, f_t^2)."""
+    fit = json.loads((DOCS / "results_fusion_calibration.json").read_text())["fit"]
+    cfg = RegistrationConfig()
+    assert cfg.covariance_scale == pytest.approx(fit["covariance_scale"], rel=5e-3)
+    assert cfg.covariance_floor == pytest.approx(
+        (fit["floor_rot_rad"], fit["floor_trans_m"]), rel=5e-3
+    )
+    P = np.diag([1e-8] * 3 + [1e-6] * 3)
+    out = calibrated_covariance(P, cfg)
+    fr, ft = cfg.covariance_floor
+    assert np.allclose(
+        np.diag(out), cfg.covariance_scale * np.diag(P) + np.r_[[fr**2] * 3, [ft**2] * 3]
+    )
+    with pytest.raises(ValueError, match="covariance_scale"):
+        RegistrationConfig(covariance_scale=0.0)
 
 
 def test_robot_geometry_check_wants_the_ceiling_robot_above_and_upside_down():

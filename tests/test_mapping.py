@@ -184,6 +184,21 @@ def test_fusion_recovers_the_inter_robot_transform(scenario, fused):
     assert fused.graph_error[1] <= fused.graph_error[0] + 1e-9
 
 
+def test_the_p3p_covariance_is_the_registration_prior(scenario, fused):
+    """The LED guess carries the chosen P3P candidate's covariance to T_G0_C0: positive
+    definite, the guess's true error inside its 99.9% ellipsoid, and it is what robust_register
+    gated the registered pose with."""
+    cov = fused.guess_info.covariance
+    assert cov.shape == (6, 6) and np.linalg.eigvalsh(cov)[0] > 0
+    e = gtsam.Pose3(fused.guess).localCoordinates(gtsam.Pose3(scenario.T_ground0_ceiling0))
+    assert e @ np.linalg.solve(cov, e) < 22.458  # chi-square 6 dof, 99.9%
+    reg = fused.decision.registration.transformation
+    d = gtsam.Pose3(fused.guess).localCoordinates(gtsam.Pose3(reg))
+    assert fused.decision.checks["hint_mahalanobis2"][0] == pytest.approx(
+        d @ np.linalg.solve(cov, d), rel=1e-6
+    )
+
+
 def test_optimized_trajectories_follow_the_ground_truth(scenario, fused):
     G0 = np.linalg.inv(scenario.poses["ground"][0])
     for r, name in ((GROUND, "ground"), (CEILING, "ceiling")):

@@ -7,7 +7,8 @@
    `HypothesisTracker` (the role of seed 004 Sec. II-C's particle filter, Algorithm 2);
    or a user-supplied relative pose hint;
 3. denoise + point-to-plane ICP of the first ceiling scan onto the first ground scan from that
-   guess (seed 004 Sec. IV): `robust_register` starts from the guess and its sigma points, keeps
+   guess (seed 004 Sec. IV): `robust_register` starts from the guess and the sigma points of its
+   covariance (the P3P candidate's, `guess_covariance`, or the hint's sigmas), keeps
    the candidate with the lowest truncated point-to-plane cost and accepts it only if its checks
    pass (overlap, residual consistency, conditioning, agreement with the guess, the ceiling robot
    above the ground robot); otherwise `fuse` raises `FusionRejected` ("not fused", with why);
@@ -45,6 +46,7 @@ from graphloc.mapping.registration import (
     denoise,
     prepare,
     refine,
+    hint_covariance,
     robust_register,
 )
 from graphloc.seams import Odometry
@@ -58,8 +60,9 @@ ROBOT_NAMES = {GROUND: "ground", CEILING: "ceiling"}
 class FusionConfig:
     """odometry_sigmas: per-frame KISS-ICP increment sigmas (rot [rad], trans [m]); pixel_sigma:
     LED pixel noise [px] for the P3P covariances; p3p_gate: Mahalanobis^2 gate for the P3P factors;
-    guess_sigma: 1-sigma (rot [rad], trans [m]) of the inter-robot guess (LED tracker or hint) when
-    the input gives none; robust: the inter-robot registration is `robust_register` with the
+    guess_sigma: 1-sigma (rot [rad], trans [m]) of a hint given without its own (the LED
+    tracker's guess carries the P3P covariance, `led_initial_guess`);
+    robust: the inter-robot registration is `robust_register` with the
     `acceptance` checks (False: the multi-scale `refine` from the guess, no checks)."""
 
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
@@ -154,7 +157,9 @@ class FusionInput:
 class GuessResult:
     """Inter-robot initial guess T_G0_C0 from the LEDs: frames used, candidates per frame, whether
     the tracker committed (locked), the posterior of the chosen candidate at the last frame, and
-    per-frame candidate sets (camera poses in G_k, with covariances) kept for the P3P factors."""
+    per-frame candidate sets (camera poses in G_k, with covariances) kept for the P3P factors;
+    covariance: 6x6 (right perturbation of T_G0_C0) from the chosen P3P candidate's first-order
+    covariance and the odometry between C_0 / G_0 and that frame (`guess_covariance`)."""
 
     T_g0_c0: np.ndarray
     frames: np.ndarray
@@ -164,6 +169,7 @@ class GuessResult:
     candidates: dict
     seconds: float
     skipped_frames: int
+    covariance: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -243,6 +249,35 @@ def _in_first_frame(cands: CandidateSet, T_g0_gk: np.ndarray) -> CandidateSet:
     )
 
 
+def guess_covariance(
+    cands: CandidateSet,
+    T_g0_camK: np.ndarray,
+    T_g0_gk: np.ndarray,
+    cam_in_c0: np.ndarray,
+    frames: int,
+    cfg: FusionConfig,
+) -> np.ndarray:
+    """Right-perturbation covariance of T_G0_C0 = T_G0_Gk Y X^-1 (Y: the camera in G_k, one P3P
+    candidate; X: the camera in C_0 by the ceiling odometry): the candidate nearest to the tracker's
+    estimate T_G0_camK (Mahalanobis) brings its first-order covariance C_Y, the ground and ceiling
+    odometry over `frames` steps bring Q each (cfg.odometry_sigmas^2 per step). With
+    T Exp(d) M = T M Exp(Ad(M^-1) d): Sigma = Ad_X (Ad_Y^-1 Q Ad_Y^-T + C_Y + Q) Ad_X^T."""
+    cov = cands.meta["covariance"]
+    predicted = gtsam.Pose3(np.linalg.inv(T_g0_gk) @ T_g0_camK)
+    d2 = [
+        float(e @ np.linalg.solve(c, e))
+        for e, c in ((predicted.localCoordinates(pose), c) for pose, c in zip(cands.poses(), cov))
+    ]
+    j = int(np.argmin(d2))
+    Y = cands.poses()[j]
+    s_rot, s_tr = cfg.odometry_sigmas
+    Q = np.diag(np.r_[np.full(3, s_rot**2), np.full(3, s_tr**2)]) * max(frames, 1)
+    ad_y_inv = Y.inverse().AdjointMap()
+    ad_x = gtsam.Pose3(cam_in_c0).AdjointMap()
+    out = ad_x @ (ad_y_inv @ Q @ ad_y_inv.T + cov[j] + Q) @ ad_x.T
+    return 0.5 * (out + out.T)
+
+
 def led_initial_guess(
     leds: LedObservations,
     times: np.ndarray,
@@ -283,6 +318,7 @@ def led_initial_guess(
         else float(decision.probabilities.max(initial=0.0))
     )
     frames = np.array(sorted(cands))
+    cov = guess_covariance(cands[prev], T_g0_camK, odo_g.poses[prev], cam_in_c0[prev], prev, cfg)
     return GuessResult(
         T_g0_c0,
         frames,
@@ -292,6 +328,7 @@ def led_initial_guess(
         cands,
         time.perf_counter() - start,
         skipped,
+        cov,
     )
 
 
@@ -369,13 +406,15 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
     timings["denoise_s"] = time.perf_counter() - t0
     decision = None
     if cfg.robust:
-        s_rot, s_tr = inp.hint_sigma if inp.hint_sigma is not None else cfg.guess_sigma
-        sigma = np.r_[np.full(3, s_rot), np.full(3, s_tr)]
+        if guess_info is not None:
+            hint_cov = guess_info.covariance
+        else:
+            hint_cov = hint_covariance(*(inp.hint_sigma or cfg.guess_sigma))
         decision = robust_register(
             prepared[CEILING][0],
             prepared[GROUND][0],
             guess,
-            sigma,
+            hint_cov,
             cfg.registration,
             cfg.acceptance,
         )

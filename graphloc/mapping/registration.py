@@ -10,7 +10,9 @@
 - `global_fpfh_ransac`: Open3D's FPFH features + RANSAC, the peer initial guess of the benchmark.
 - `robust_register` (issue 16): the inter-robot registration -- multi-start around the pose
   hint, truncated point-to-plane cost, `AcceptanceConfig` checks that turn a wrong answer into
-  "not fused", and a cluster-robust covariance (`cluster_covariance`).
+  "not fused", and a calibrated covariance (`calibrated_covariance`: the cluster-robust
+  sandwich of `cluster_covariance`, scaled and floored by the model that
+  `scripts/bench_fusion.py --real --calibrate` fits by maximum likelihood on calibration trials).
 """
 
 from __future__ import annotations
@@ -32,7 +34,9 @@ class RegistrationConfig:
     max_nn), point-to-plane ICP (scales [m], max_correspondence [m], max_iterations per stage,
     relative tolerances), FPFH + RANSAC (fpfh_radius, ransac_distance, ransac_iterations,
     ransac_confidence), and the range noise used to scale the information matrix (range_sigma
-    [m])."""
+    [m]). covariance_scale and covariance_floor (rot [rad], trans [m]) calibrate
+    robust_register's covariance (`calibrated_covariance`); the defaults are the fit of
+    `scripts/bench_fusion.py --real --calibrate` (docs/results_fusion_calibration.json)."""
 
     nb_neighbors: int = 20
     std_ratio: float = 2.0
@@ -59,10 +63,21 @@ class RegistrationConfig:
     covariance_block: float = 0.5
     stop_at_first_valid: bool = True
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
+    covariance_scale: float = 25.3  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_floor: tuple[float, float] = (5.74e-4, 2.98e-4)
 
     def __post_init__(self):
         if not (self.voxel > 0 and self.normal_radius > 0 and self.range_sigma > 0):
             raise ValueError("RegistrationConfig: voxel, normal_radius and range_sigma must be > 0")
+        if not (
+            self.covariance_scale > 0
+            and len(self.covariance_floor) == 2
+            and min(self.covariance_floor) >= 0
+        ):
+            raise ValueError(
+                "RegistrationConfig: covariance_scale must be > 0 and covariance_floor two values "
+                ">= 0 (rot [rad], trans [m])"
+            )
         n = len(self.scales)
         if n == 0 or len(self.max_correspondence) != n or len(self.max_iterations) != n:
             raise ValueError(
@@ -339,16 +354,22 @@ class RegistrationDecision:
         }
 
 
-def hint_starts(hint: np.ndarray, sigma: np.ndarray) -> list[np.ndarray]:
-    """The hint and its 12 sigma points hint Exp(+-sigma_i e_i) (right perturbation, GTSAM
-    tangent order rot, trans): the starts that cover the hint's uncertainty."""
+def hint_starts(hint: np.ndarray, cov: np.ndarray) -> list[np.ndarray]:
+    """The hint and its 12 sigma points hint Exp(+-sqrt(lambda_i) v_i) along the eigenvectors of
+    its 6x6 covariance (right perturbation, GTSAM tangent order rot, trans): the starts that
+    cover the hint's uncertainty, a P3P covariance's long axis included."""
+    lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
     starts = [np.asarray(hint, dtype=float)]
-    for i in range(6):
+    for i in range(5, -1, -1):  # the most uncertain direction first
         for sign in (1.0, -1.0):
-            xi = np.zeros(6)
-            xi[i] = sign * sigma[i]
+            xi = sign * np.sqrt(max(lam[i], 0.0)) * V[:, i]
             starts.append(starts[0] @ gtsam.Pose3.Expmap(xi).matrix())
     return starts
+
+
+def hint_covariance(sigma_rot: float, sigma_trans: float) -> np.ndarray:
+    """6x6 diagonal covariance (rot [rad], trans [m]) of a hint given by two 1-sigmas."""
+    return np.diag(np.r_[np.full(3, sigma_rot**2), np.full(3, sigma_trans**2)])
 
 
 def point_to_plane(source: PreparedCloud, target: PreparedCloud, T: np.ndarray, nns=None):
@@ -401,14 +422,15 @@ def robust_register(
     source: PreparedCloud,
     target: PreparedCloud,
     hint: np.ndarray,
-    hint_sigma: np.ndarray,
+    hint_cov: np.ndarray,
     cfg: RegistrationConfig = RegistrationConfig(),
     acc: AcceptanceConfig = AcceptanceConfig(),
 ) -> RegistrationDecision:
     """Multi-start registration of source onto target around a pose hint, with acceptance checks.
 
-    1. Starts: the hint and its sigma points (`hint_starts`; hint_sigma is the 1-sigma, rot [rad]
-       x3 then trans [m] x3).
+    1. Starts: the hint and its sigma points (`hint_starts`; hint_cov is the hint's 6x6
+       covariance, rot [rad] then trans [m], right perturbation: `hint_covariance` of two
+       sigmas, or a P3P candidate's first-order covariance carried to the LiDAR frames).
     2. Per start: point-to-plane ICP on the coarse grid (`_coarse_clouds`; correspondences within
        cfg.coarse_voxels coarse voxels, Tukey kernel of cfg.coarse_tukey voxels, so the parts
        that do not overlap are not pulled in); starts whose coarse results lie within one fine
@@ -426,15 +448,23 @@ def robust_register(
        hint's basin).
     4. The winner's conditioning; accepted only if every check passes.
     5. Covariance: the point-to-plane Hessian H over the inliers in a cluster-robust sandwich
-       (`cluster_covariance`), converted to GTSAM's right perturbation (`information_right`);
-       `inlier_rmse` is the inliers' residual standard deviation (n - 6 dof)."""
+       (`cluster_covariance`), converted to GTSAM's right perturbation (`information_right`),
+       calibrated (`calibrated_covariance`); `inlier_rmse` is the inliers' residual standard
+       deviation (n - 6 dof)."""
     start_t = time.perf_counter()
     hint = np.asarray(hint, dtype=float)
-    sigma = np.asarray(hint_sigma, dtype=float)
+    hint_cov = np.asarray(hint_cov, dtype=float)
     if hint.shape != (4, 4) or not np.isfinite(hint).all():
         raise ValueError(f"robust_register: hint must be a finite 4x4 transform, got {hint.shape}")
-    if sigma.shape != (6,) or not (sigma > 0).all():
-        raise ValueError(f"robust_register: hint_sigma must be 6 positive values, got {sigma}")
+    if (
+        hint_cov.shape != (6, 6)
+        or not np.isfinite(hint_cov).all()
+        or np.linalg.eigvalsh(0.5 * (hint_cov + hint_cov.T))[0] <= 0
+    ):
+        raise ValueError(
+            "robust_register: hint_cov must be a finite 6x6 positive definite covariance, got "
+            f"shape {hint_cov.shape}"
+        )
     src_c, tgt_c, voxel_c = _coarse_clouds(source, target, cfg)
     fine = cfg.max_correspondence[-1]
     kernel = reg_l.TukeyLoss(cfg.coarse_tukey * voxel_c) if cfg.coarse_tukey > 0 else reg_l.L2Loss()
@@ -443,7 +473,7 @@ def robust_register(
     crit_f = reg_t.ICPConvergenceCriteria(
         cfg.relative_fitness, cfg.relative_rmse, cfg.max_iterations[-1]
     )
-    hint_info = np.diag(1.0 / sigma**2)
+    hint_info = np.linalg.inv(0.5 * (hint_cov + hint_cov.T))
     hint_pose = gtsam.Pose3(hint)
     c = acc.residual_sigma
     nns = target_index(target)
@@ -499,7 +529,7 @@ def robust_register(
         )
         return all(v[2] for v in _candidate_checks(cands[-1], acc).values())
 
-    starts = hint_starts(hint, sigma)
+    starts = hint_starts(hint, hint_cov)
     found = False
     for k, T0 in enumerate(starts):
         found = try_start(k, T0) or found
@@ -554,10 +584,12 @@ def robust_register(
     if n_in >= 6 and conditioning >= acc.min_conditioning:  # else no covariance (not accepted)
         pts_in = (source.points @ T[:3, :3].T + T[:3, 3])[inl]
         cov_left = cluster_covariance(J[inl], r[inl], pts_in, H, cfg.covariance_block)
-        info = information_right(np.linalg.inv(cov_left), T)
+        sandwich = np.linalg.inv(information_right(np.linalg.inv(cov_left), T))
+        cov = calibrated_covariance(sandwich, cfg)
+        info = np.linalg.inv(cov)
     else:
         info = np.eye(6) * 1e-12
-    cov = np.linalg.inv(info)
+        cov = np.linalg.inv(info)
     checks = dict(checks_of[best.start])
     checks["conditioning"] = (
         conditioning,
@@ -628,6 +660,20 @@ def cluster_covariance(
     Hinv = np.linalg.inv(H)
     cov = Hinv @ M @ Hinv
     return 0.5 * (cov + cov.T)
+
+
+def calibrated_covariance(cov: np.ndarray, cfg: RegistrationConfig) -> np.ndarray:
+    """s P + diag(f_r^2 I3, f_t^2 I3) for the sandwich covariance P (right perturbation), with
+    s = cfg.covariance_scale and (f_r, f_t) = cfg.covariance_floor. P sees the residual noise
+    and its correlation within a cluster; it cannot see what the fit absorbs -- surfaces sampled
+    differently in the two scans, normals smoothed over the normal radius, correspondences
+    re-chosen as the pose moves -- which shows as errors larger than P in every direction (the
+    scale s) and as an error that does not average down with more points (the floor). Both are
+    fitted by maximum likelihood, e_i ~ N(0, s P_i + F), on calibration trials by
+    `scripts/bench_fusion.py --real --calibrate`; the benchmark checks the NEES on other trials."""
+    fr, ft = cfg.covariance_floor
+    out = cfg.covariance_scale * np.asarray(cov, dtype=float) + np.diag([fr**2] * 3 + [ft**2] * 3)
+    return 0.5 * (out + out.T)
 
 
 def _within(A: np.ndarray, B: np.ndarray, rot_deg: float, trans_m: float) -> bool:
