@@ -94,17 +94,24 @@ class GraphConfig:
             if len(v) != 2 or not all(np.isfinite(s) and s > 0 for s in v):
                 raise ValueError(f"GraphConfig.{name} must be 2 numbers > 0 (rot, trans), got {v}")
 
-    def session_config(self, mode: str, precision: float = COARSE_PRECISION) -> SessionConfig:
+    def session_config(
+        self, mode: str, precision: float = COARSE_PRECISION, camera_graph: bool = False
+    ) -> SessionConfig:
         """Session settings; iSAM2's settings, unless set, follow the run's `precision` (see
         `run_precision`): relinearize when a variable's update exceeds half of it, stop the
         back-substitution where the solution changes by less than a tenth of it, and on
         camera-precise runs two extra iSAM2 iterations per step (robust candidate factors need
-        iterations to reweight; such runs have few steps)."""
+        iterations to reweight; such runs have few steps). A graph with feature tracks or
+        max-mixtures (`camera_graph`) relinearizes at every update (a new track's point starts
+        at the depth prior, far from its estimate, and a max-mixture is re-chosen only when its
+        variables are relinearized) with the dog-leg step (the undamped Gauss-Newton step
+        can oscillate with period 2 on such stiff camera graphs)."""
         relin = (
             self.relinearize_threshold
             if self.relinearize_threshold is not None
             else 0.5 * precision
         )
+        skip = 1 if camera_graph else self.relinearize_skip
         wildfire = (
             self.wildfire_threshold if self.wildfire_threshold is not None else 0.1 * precision
         )
@@ -117,10 +124,11 @@ class GraphConfig:
             mode=mode,
             lm_max_iterations=self.lm_max_iterations,
             relinearize_threshold=relin,
-            relinearize_skip=self.relinearize_skip,
+            relinearize_skip=skip,
             wildfire_threshold=wildfire,
             extra_updates=extra,
             partial_relinearization_check=True,
+            isam2_optimizer="dogleg" if camera_graph else "gauss_newton",
         )
 
 

@@ -43,6 +43,7 @@ class TeamGraph:
     counts: dict = field(default_factory=dict)
     skips: SkipReport = field(default_factory=SkipReport)
     precision: float = COARSE_PRECISION  # run_precision(run)
+    links: dict = field(default_factory=dict)  # observer pose key -> (target key, (K,4,4))
 
 
 def build_graph(
@@ -163,6 +164,14 @@ def build_graph(
         counts,
         skips,
         run_precision(run),
+        {
+            d.mixture.components[0][0].keys()[0]: (
+                d.mixture.components[0][0].keys()[1],
+                d.relative,
+            )
+            for d in decisions
+            if d.mixture is not None
+        },
     )
 
 

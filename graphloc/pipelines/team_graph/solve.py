@@ -46,6 +46,7 @@ class TeamResult:
     steps_done: int = 0
     lag: float | None = None
     decisions: list = field(default_factory=list)  # graph.decisions, max-mixtures chosen
+    values: object = None  # gtsam.Values: the final estimate of every variable
 
 
 STEP_LOG_COLUMNS = ("step", "time", "latency_s", "cpu_s", "factors", "variables")
@@ -73,11 +74,21 @@ def solve(
     is marked partial: online, the estimate after the last finished step; batch, the LM
     iterate).
     on_step(i): called after graph step i was consumed; on_stop(steps_done): when stop()
-    ended the online loop."""
+    ended the online loop.
+    A batch solve of a graph with max-mixtures starts LM from a causal incremental pass (full
+    smoothing, `warm_start`): a max-mixture is chosen at its linearization point, and from the
+    graph's dead-reckoning guess a camera without odometry can sit in the false candidate's
+    basin; the incremental pass chooses each set near its own frame, as the online solve does."""
+    initial = None
+    if mode == "batch" and any(d.mixture is not None for d in graph.decisions):
+        initial = warm_start(graph, stop)
     cfg = graph.config
     lag = float(cfg.lag or 0.0) if mode == "online" else 0.0
     session = Session(
-        replace(cfg.session_config(mode, graph.precision), lag=lag),
+        replace(
+            cfg.session_config(mode, graph.precision, camera_graph(graph)),
+            lag=lag,
+        ),
         progress=progress and mode == "batch",
         stop=stop,
     )
@@ -116,7 +127,7 @@ def solve(
                 continue
             for key in keys:
                 if key not in added:
-                    values.insert(key, _predict(graph, key, latest))
+                    values.insert(key, _predict(graph, key, latest, initial))
                     added.add(key)
             factors.append(f)
             types.append(kind)
@@ -190,6 +201,7 @@ def solve(
         done,
         lag if mode == "online" else None,
         decisions,
+        final,
     )
 
 
@@ -198,18 +210,66 @@ def _held(graph: TeamGraph, key: int, t: float) -> bool:
     return kind == "x" and graph.anchored_from.get(r, np.inf) > t
 
 
-def _predict(graph: TeamGraph, key: int, latest: dict):
+def camera_graph(graph: TeamGraph) -> bool:
+    """The graph holds feature tracks or max-mixtures (`GraphConfig.session_config`)."""
+    return graph.counts.get("feature_tracks", 0) > 0 or any(
+        d.mixture is not None for d in graph.decisions
+    )
+
+
+def warm_start(graph: TeamGraph, stop=None) -> dict:
+    """Initial values from an online pass over `graph` (iSAM2, full smoothing): key -> Pose3 /
+    Point3 of every variable it estimated, the graph's guess for the rest."""
+    online = replace(graph, config=replace(graph.config, lag=0.0))
+    values = solve(online, mode="online", stop=stop).values
+    out = dict(graph.initial)
+    for key in graph.initial:
+        if values.exists(key):
+            out[key] = values.atPose3(key) if decode(key)[0] == "x" else values.atPoint3(key)
+    return out
+
+
+def _predict(graph: TeamGraph, key: int, latest: dict, initial: dict | None = None):
     """Initial value of a new variable: a landmark's guess; a pose from its robot's latest
-    estimate composed with the odometry since, else the graph's initial guess."""
+    estimate composed with the odometry since -- or, where it sees a target of the
+    max-mixture route that its own odometry predicts worse than the target's does, resected
+    from the target (`_resected`) --, else the graph's initial guess."""
     kind, r, k = decode(key)
     if kind != "x":
-        return graph.initial[key]
+        return (graph.initial if initial is None else initial)[key]
     if r in latest and latest[r][0] < k:
         k0, pose = latest[r]
-        rel, _ = compose_steps(graph.step_rel[r], k0, k, graph.config)
+        rel, cov = compose_steps(graph.step_rel[r], k0, k, graph.config)
         if all(s is not None for s in graph.step_rel[r][k0 + 1 : k + 1]):
-            return pose.compose(rel)
-    return graph.initial[key]
+            predicted = pose.compose(rel)
+            return _resected(graph, key, latest, predicted, np.trace(cov[3:, 3:])) or predicted
+    return (graph.initial if initial is None else initial)[key]
+
+
+def _resected(graph: TeamGraph, key: int, latest: dict, predicted, spread: float):
+    """The observer pose `key` from its target's predicted pose through the candidate whose
+    rotation is nearest the observer's own prediction (seed 003: a camera without odometry
+    re-found from a teammate that stood still; from its previous pose alone, centimetres off,
+    the solve can settle in the false candidate's basin), when the target's prediction is
+    tighter than the observer's (`spread`: trace of its translation covariance); else None."""
+    link = graph.links.get(key)
+    if link is None:
+        return None
+    tkey, relative = link
+    _, ti, kt = decode(tkey)
+    if ti not in latest or latest[ti][0] > kt:
+        return None
+    k0, target = latest[ti]
+    if k0 < kt:
+        step, cov = compose_steps(graph.step_rel[ti], k0, kt, graph.config)
+        if np.trace(cov[3:, 3:]) >= spread:
+            return None
+        target = target.compose(step)
+    poses = [target.compose(gtsam.Pose3(T).inverse()) for T in relative]
+    angles = [
+        np.linalg.norm(gtsam.Rot3.Logmap(predicted.rotation().between(p.rotation()))) for p in poses
+    ]
+    return poses[int(np.argmin(angles))]
 
 
 def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:
