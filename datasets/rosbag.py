@@ -36,9 +36,10 @@ from graphloc.datasets.graphloc_log import read_team_run
 from graphloc.datasets.rosbag_messages import (
     Bad,
     camera_params,
+    message_rows,
+    pose_rows,
     tf_edges,
     tf_extrinsics,
-    topic_rows,
 )
 from graphloc.datasets.rosbag_topics import (
     CAMERA_INFO,
@@ -82,9 +83,11 @@ def _default_typestore(bag: Path):
     return get_typestore(Stores.ROS1_NOETIC if bag.suffix == ".bag" else Stores.ROS2_HUMBLE)
 
 
-def _read_messages(bag: Path, wanted: set, skips: SkipReport):
-    """Decoded messages of the `wanted` topics: topic -> [(bag index, msgtype, msg)], bag
-    order; plus the bag's other topics. Undecodable messages are counted skips."""
+def _read_messages(bag: Path, wanted: set, skips: SkipReport, consume):
+    """Decoded messages of the `wanted` topics that `consume(topic, index, msgtype, msg)` does
+    not take (returns False): topic -> [(bag index, msgtype, msg)], bag order; the number of
+    messages per wanted topic; the bag's other topics. Undecodable messages are counted
+    skips."""
     from rosbags.highlevel import AnyReader, AnyReaderError
 
     default = _default_typestore(bag)
@@ -114,7 +117,8 @@ def _read_messages(bag: Path, wanted: set, skips: SkipReport):
                         f"cannot decode {conn.msgtype}: {exc}",
                     )
                     continue
-                per_topic[conn.topic].append((i, conn.msgtype, msg))
+                if not consume(conn.topic, i, conn.msgtype, msg):
+                    per_topic[conn.topic].append((i, conn.msgtype, msg))
         except Exception as exc:  # noqa: BLE001 -- a truncated bag ends the messages early
             topic = max(index, key=index.get) if index else "?"
             skips.add(
@@ -124,7 +128,7 @@ def _read_messages(bag: Path, wanted: set, skips: SkipReport):
             )
     finally:
         reader.close()
-    return per_topic, unmapped
+    return per_topic, index, unmapped
 
 
 def _camera_intrinsics(bag: Path, tf: TopicsFile, per_topic: dict) -> dict:
@@ -192,20 +196,34 @@ def import_bag(bag, topics, out) -> BagImport:
     skips = SkipReport()
     aux = {m.camera_info for m in tf.topics.values() if m.camera_info}
     aux |= set(TF_TOPICS) if tf.frames else set()
-    per_topic, unmapped = _read_messages(bag, set(tf.topics) | aux, skips)
+    out.mkdir(parents=True, exist_ok=True)
+    streamed: dict = {t: [] for t in tf.topics}  # topic -> [(stamp, bag index, k, row)]
+
+    def consume(topic, i, msgtype, msg) -> bool:  # every table but relative_pose3, as it comes
+        m = tf.topics.get(topic)
+        if m is None or m.table == "relative_pose3":
+            return False
+        got = message_rows(f"{bag}: topic '{topic}'", m, i, msgtype, msg, skips)
+        if m.table == "scans":
+            got = [(t, s, _write_scan(out, m.robot, s, i, pts)) for t, s, pts in got]
+        streamed[topic] += [(row[0], i, k, row) for k, row in enumerate(got)]
+        return True
+
+    per_topic, counts, unmapped = _read_messages(bag, set(tf.topics) | aux, skips, consume)
     intrinsics = _camera_intrinsics(bag, tf, per_topic)
     extrinsics = _extrinsics(bag, tf, per_topic)
     rows: dict = {}  # (robot, table) -> [row tuple starting with time]
     missing = []
     for topic, m in tf.topics.items():
-        msgs = per_topic[topic]
-        if not msgs:
+        if not counts[topic]:
             missing.append(topic)
             skips.add("missing_topic", f"{bag}: topic '{topic}' ({tf.path}) has no messages")
             continue
-        got = topic_rows(f"{bag}: topic '{topic}'", m, msgs, skips)
+        if m.table == "relative_pose3":
+            got = pose_rows(f"{bag}: topic '{topic}'", m, per_topic[topic], skips)
+        else:  # in header-stamp order, bag order breaking ties
+            got = [row for *_, row in sorted(streamed[topic], key=lambda s: s[:3])]
         rows.setdefault((m.robot, m.table), []).extend(got)
-    out.mkdir(parents=True, exist_ok=True)
     written = {}
     robots = []
     for r in copy.deepcopy(tf.robots):
@@ -221,8 +239,6 @@ def import_bag(bag, topics, out) -> BagImport:
                 continue
             rs.sort(key=lambda row: row[0])
             rel = f"{name}/{'groundtruth.tum' if table == 'groundtruth' else table + '.csv'}"
-            if table == "scans":
-                rs = _write_scans(out, name, rs)
             _write_table(out / rel, table, rs)
             tables[table] = rel
             written[table] = written.get(table, 0) + len(rs)
@@ -253,21 +269,17 @@ def import_bag(bag, topics, out) -> BagImport:
     return BagImport(out, written, skips, unmapped, missing)
 
 
-def _write_scans(out: Path, robot: str, rows: list) -> list:
-    """(time, sensor, (N,3) points) rows -> one PLY per cloud under ROBOT/scans/ and
-    (time, sensor, relative path) rows of the `scans` table."""
+def _write_scan(out: Path, robot: str, sensor: str, index: int, pts: np.ndarray) -> str:
+    """One cloud as ROBOT/scans/SENSOR_INDEX.ply (float64; INDEX: the message's index in its
+    topic); returns the path relative to `out`, as the `scans` table holds it."""
     import open3d as o3d
 
-    folder = out / robot / "scans"
-    folder.mkdir(parents=True, exist_ok=True)
-    table = []
-    for k, (t, sensor, pts) in enumerate(rows):
-        rel = f"{robot}/scans/{sensor}_{k:06d}.ply"
-        cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.asarray(pts, dtype=np.float64)))
-        if not o3d.t.io.write_point_cloud(str(out / rel), cloud):
-            raise OSError(f"{out / rel}: cannot write the scan")
-        table.append((t, sensor, rel))
-    return table
+    rel = f"{robot}/scans/{sensor}_{index:06d}.ply"
+    (out / rel).parent.mkdir(parents=True, exist_ok=True)
+    cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.asarray(pts, dtype=np.float64)))
+    if not o3d.t.io.write_point_cloud(str(out / rel), cloud):
+        raise OSError(f"{out / rel}: cannot write the scan")
+    return rel
 
 
 def _write_table(path: Path, table: str, rows: list) -> None:

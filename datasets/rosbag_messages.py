@@ -239,65 +239,86 @@ def tf_edges(messages) -> dict:
     return edges
 
 
-def topic_rows(where0: str, m: TopicMap, msgs: list, skips: SkipReport) -> list:
-    """Rows of one topic's messages [(bag index, msgtype, msg)], sorted by header stamp
-    (stable: bag order breaks ties); scans rows carry the (N,3) points in place of a path."""
+def _stamped(where: str, m: TopicMap, msgtype: str, msg, skips: SkipReport) -> float | None:
+    """The message's header stamp if its type fits the table, else a counted skip (None)."""
+    if msgtype not in MESSAGE_TYPES[m.table]:
+        skips.add(
+            "wrong_type",
+            f"{where}: {msgtype} cannot fill table '{m.table}' "
+            f"(takes {', '.join(MESSAGE_TYPES[m.table])})",
+        )
+        return None
+    try:
+        return stamp(msg)
+    except (Bad, AttributeError) as exc:
+        skips.add(getattr(exc, "reason", "malformed"), f"{where}: {exc}")
+        return None
+
+
+def detector_config(m: TopicMap) -> MarkerDetectorConfig:
+    """The marker detector of an image topic (its `detector` fields; four markers)."""
+    return MarkerDetectorConfig(**{**m.detector, "expected": 4})
+
+
+def message_rows(where0: str, m: TopicMap, i: int, msgtype: str, msg, skips: SkipReport) -> list:
+    """Rows of message `i` of a topic whose rows stand alone (every table but relative_pose3),
+    so a bag is converted as it streams (images and clouds are not kept); scans rows carry the
+    (N,3) points in place of a path. The importer sorts the rows by (stamp, bag index)."""
+    t = _stamped(f"{where0} message {i}", m, msgtype, msg, skips)
+    if t is None:
+        return []
+    where = f"{where0} message {i} (stamp {t:.9f})"
+    try:
+        if m.table == "groundtruth":
+            xyz, q, _ = pose(msgtype, msg)
+            return [(t, *xyz, *q)]
+        if m.table == "range":
+            r = float(msg.range)
+            _finite(r)
+            lo, hi = float(msg.min_range), float(msg.max_range)
+            if r <= 0 or r < lo or (hi > lo and r > hi):
+                raise Bad("out_of_range", f"range {r:g} m outside [{lo:g}, {hi:g}] (or not > 0)")
+            return [(t, m.sensor, _target(m, msg), r)]
+        if m.table == "bearing":
+            return [(t, m.sensor, _target(m, msg), *_direction(msgtype, msg))]
+        if msgtype == CLOUD:
+            pts, dropped = cloud_points(msg)
+            if dropped:
+                skips.add("nonfinite_points", f"{where}: {dropped} NaN / inf points", dropped)
+            return [(t, m.sensor, pts)]
+        if msgtype in (IMAGE, COMPRESSED):
+            det = detect_markers(image_array(msgtype, msg), detector_config(m))
+            if det.status != "ok":
+                raise Bad("marker_shortfall", f"{det.shortfall} of 4 markers not found")
+            return [(t, m.sensor, m.target, k, *det.points[k]) for k in range(4)]
+        dets, bad = _detections(m, msg)  # Detection2DArray
+        for text in bad:
+            skips.add("bad_detection", f"{where}: {text}")
+        return [(t, m.sensor, tgt, k, u, v) for tgt, k, u, v in dets]
+    except Bad as exc:
+        skips.add(exc.reason, f"{where}: {exc}")
+    except (AttributeError, TypeError, ValueError) as exc:
+        skips.add("malformed", f"{where}: {exc}")
+    return []
+
+
+def pose_rows(where0: str, m: TopicMap, msgs: list, skips: SkipReport) -> list:
+    """relative_pose3 rows of one topic's messages [(bag index, msgtype, msg)]: increments
+    between consecutive poses in header-stamp order (stable: bag order breaks ties)."""
     stamped = []
     for i, msgtype, msg in msgs:
-        where = f"{where0} message {i}"
-        if msgtype not in MESSAGE_TYPES[m.table]:
-            skips.add(
-                "wrong_type",
-                f"{where}: {msgtype} cannot fill table '{m.table}' "
-                f"(takes {', '.join(MESSAGE_TYPES[m.table])})",
-            )
-            continue
-        try:
-            stamped.append((stamp(msg), i, msgtype, msg))
-        except (Bad, AttributeError) as exc:
-            skips.add(getattr(exc, "reason", "malformed"), f"{where}: {exc}")
+        t = _stamped(f"{where0} message {i}", m, msgtype, msg, skips)
+        if t is not None:
+            stamped.append((t, i, msgtype, msg))
     stamped.sort(key=lambda s: (s[0], s[1]))
-    detector = MarkerDetectorConfig(**{**m.detector, "expected": 4})
     out, prev = [], None
     for t, i, msgtype, msg in stamped:
         where = f"{where0} message {i} (stamp {t:.9f})"
         try:
-            if m.table in ("relative_pose3", "groundtruth"):
-                xyz, q, cov = pose(msgtype, msg)
-                if m.table == "groundtruth":
-                    out.append((t, *xyz, *q))
-                    continue
-                if prev is not None:
-                    row = _increment(m, prev, (t, xyz, q, cov), msgtype)
-                    if row is not None:
-                        out.append(row)
-                prev = (t, xyz, q, cov)
-            elif m.table == "range":
-                r = float(msg.range)
-                _finite(r)
-                lo, hi = float(msg.min_range), float(msg.max_range)
-                if r <= 0 or r < lo or (hi > lo and r > hi):
-                    raise Bad(
-                        "out_of_range", f"range {r:g} m outside [{lo:g}, {hi:g}] (or not > 0)"
-                    )
-                out.append((t, m.sensor, _target(m, msg), r))
-            elif m.table == "bearing":
-                out.append((t, m.sensor, _target(m, msg), *_direction(msgtype, msg)))
-            elif msgtype == CLOUD:
-                pts, dropped = cloud_points(msg)
-                if dropped:
-                    skips.add("nonfinite_points", f"{where}: {dropped} NaN / inf points", dropped)
-                out.append((t, m.sensor, pts))
-            elif msgtype in (IMAGE, COMPRESSED):
-                det = detect_markers(image_array(msgtype, msg), detector)
-                if det.status != "ok":
-                    raise Bad("marker_shortfall", f"{det.shortfall} of 4 markers not found")
-                out.extend((t, m.sensor, m.target, k, *det.points[k]) for k in range(4))
-            else:  # Detection2DArray
-                dets, bad = _detections(m, msg)
-                for text in bad:
-                    skips.add("bad_detection", f"{where}: {text}")
-                out.extend((t, m.sensor, tgt, k, u, v) for tgt, k, u, v in dets)
+            xyz, q, cov = pose(msgtype, msg)
+            if prev is not None:
+                out.append(_increment(m, prev, (t, xyz, q, cov), msgtype))
+            prev = (t, xyz, q, cov)
         except Bad as exc:
             skips.add(exc.reason, f"{where}: {exc}")
         except (AttributeError, TypeError, ValueError) as exc:
