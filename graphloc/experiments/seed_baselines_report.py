@@ -1,0 +1,191 @@
+"""Issue 20's job (scripts/bench_seed_baselines.py): the sweeps of
+graphloc.experiments.seed_baselines, then each table's graphloc run at the reading the sweep
+chose (the reproducing setting) and at the setting the paper states, side by side with the
+seed baseline; JSON, a PNG of the sweeps and docs/results_seed_baselines.md.
+
+    .venv/bin/python scripts/bench_seed_baselines.py [--quick] [--workers 2] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+
+import numpy as np
+
+from graphloc.datasets.feng_deterministic import TableIConfig
+from graphloc.datasets.kaushik import KaushikConfig
+from graphloc.experiments import markdown, seed000, seed004
+from graphloc.experiments import seed_baselines as sb
+from graphloc.experiments.hypotheses import TableIIIConfig
+from graphloc.experiments.sizes import run_sizes
+from graphloc.plots import plt
+
+SWEEP_SIZES = {
+    False: {"t1_trials": 1000, "t3_runs": 12, "s4_runs": 150, "s4_frames": 4},
+    True: {"t1_trials": 200, "t3_runs": 3, "s4_runs": 30, "s4_frames": 3},
+}
+DOC = Path(__file__).resolve().parents[2] / "docs" / "results_seed_baselines.md"
+
+
+def graphloc_runs(sweeps: dict, quick: bool, workers: int, progress: bool = True) -> dict:
+    """Each table's full reproduction (seed baseline + graphloc, graphloc.experiments.seed000
+    / seed004) at the stated setting and at the chosen reading."""
+    # Table III: 50 runs per cell (the paper: 100) keeps the job under ~15 min on 2 cores
+    sizes = replace(run_sizes(quick), table3_runs=min(run_sizes(quick).table3_runs, 50))
+    b1 = sweeps["table1"]["choice"]["best"]
+    b3 = sweeps["table3"]["choice"]["best"]
+    b4 = sweeps["seed004"]["choice"]["best"]
+    out = {}
+    for name, t1cfg, t3cfg, s4base in (
+        (
+            "stated",
+            TableIConfig(trials=sizes.table1_trials, workers=workers),
+            TableIIIConfig(runs=sizes.table3_runs, workers=workers),
+            KaushikConfig(),
+        ),
+        (
+            "reproducing",
+            sb.table1_config(b1, sizes.table1_trials, workers),
+            sb.table3_config(b3, sizes.table3_runs, workers),
+            sb.seed004_config(b4),
+        ),
+    ):
+        out[name] = {
+            "table1": seed000.table_i(t1cfg, progress),
+            "table3": seed000.table_iii(t3cfg, progress),
+            "seed004": seed004.seed004_table_1(
+                runs=sizes.seed004_runs,
+                frames=sizes.seed004_frames,
+                workers=workers,
+                progress=progress,
+                base=s4base,
+            ),
+            "configs": {
+                "table1": asdict(t1cfg),
+                "table3": asdict(t3cfg),
+                "seed004": asdict(s4base),
+            },
+        }
+    return out
+
+
+def plot(r: dict, path: Path) -> None:
+    """Three panels: each sweep's largest deviation from the paper per reading."""
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    ax = axes[0]
+    rows = r["sweeps"]["table1"]["rows"]
+    for lat in sb.T1_LATERAL_SIGMAS:
+        for orient, style in zip(sb.T1_ORIENTATIONS, ("-", ":")):
+            sel = sorted(
+                (x for x in rows if x["lateral_sigma"] == lat and x["orientation"] == orient),
+                key=lambda x: x["pixel_sigma"],
+            )
+            ax.plot(
+                [x["pixel_sigma"] for x in sel],
+                [min(x["max_deviation"], 1e3) for x in sel],
+                style,
+                marker="o",
+                ms=3,
+                label=f"lateral {lat:g} m, {orient}",
+            )
+    ax.set(xscale="log", yscale="log", xlabel="image noise std [px]")
+    ax.set_ylabel("largest |ours / paper - 1|")
+    ax.set_title("Seed 000 Table I (seed baseline)", fontsize=10)
+    ax.legend(fontsize=6)
+    ax = axes[1]
+    rows = r["sweeps"]["table3"]["rows"]
+    for lik in sb.T3_LIKELIHOODS:
+        for model, style in zip(sb.T3_ODOMETRY, ("-", ":")):
+            sel = sorted(
+                (x for x in rows if x["likelihood"] == lik and x["odometry_model"] == model),
+                key=lambda x: x["pixel_sigma"],
+            )
+            ax.plot(
+                [x["pixel_sigma"] for x in sel],
+                [min(x["max_deviation"], 1e3) for x in sel],
+                style,
+                marker="o",
+                ms=3,
+                label=f"{lik}, {model}",
+            )
+    ax.set(xscale="log", yscale="log", xlabel="image noise std [px]")
+    ax.set_title("Seed 000 Table III (belief vector)", fontsize=10)
+    ax.legend(fontsize=6)
+    ax = axes[2]
+    rows = [x for x in r["sweeps"]["seed004"]["rows"] if x["cells"] is not None]
+    for noise, marker in zip(sb.S4_NOISE_READINGS, ("o", "x")):
+        for off in sb.S4_OFFSETS:
+            sel = [x for x in rows if x["noise_reading"] == noise and x["offset"] == off]
+            ax.scatter(
+                [x["height"] ** 2 * x["pitch_um"] for x in sel],
+                [x["max_deviation"] for x in sel],
+                s=12,
+                marker=marker,
+                label=f"offset {off:g} m, sigma^2 read as {noise}",
+            )
+    ax.axhline(sb.REPRODUCE_TOL, color="k", lw=0.8, ls="--")
+    ax.set(yscale="log", xlabel="height^2 x pixel pitch [m^2 um]")
+    ax.set_title("Seed 004 Table 1 (raw P3P)", fontsize=10)
+    ax.legend(fontsize=5, ncol=2)
+    for a, ticks in zip(axes[:2], (sb.T1_PIXEL_SIGMAS, sb.T3_PIXEL_SIGMAS)):
+        a.axhline(sb.REPRODUCE_TOL, color="k", lw=0.8, ls="--")
+        a.set_xticks(sorted(ticks), [f"{t:g}" for t in sorted(ticks)], minor=False, fontsize=7)
+        a.minorticks_off()
+    fig.suptitle("Readings of the seeds' setups: largest deviation from the paper (dashed: 10 %)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run(out: Path, quick: bool, workers: int, docs: bool = True, progress: bool = True) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    sweeps = sb.sweep_all(SWEEP_SIZES[quick], workers, progress)
+    result = {"quick": quick, "workers": workers, "sweeps": sweeps}
+    result["runs"] = graphloc_runs(sweeps, quick, workers, progress)
+    result["wall_time_s"] = time.perf_counter() - t0
+    (out / "seed_baselines.json").write_text(json.dumps(result, indent=1, default=_json))
+    return render(result, out, docs)
+
+
+def render(result: dict, out: Path, docs: bool = True) -> dict:
+    """Plot and markdown of a result (also from its saved JSON: --render)."""
+    out.mkdir(parents=True, exist_ok=True)
+    plot(result, out / "results_seed_baselines.png")
+    md = markdown.seed_baselines(result, "results_seed_baselines.png")
+    (out / "seed_baselines.md").write_text(md)
+    if docs:
+        plot(result, DOC.with_suffix(".png"))
+        DOC.write_text(md)
+    result["markdown"] = md
+    return result
+
+
+def _json(x):
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return str(x)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="CI size")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--out", type=Path, default=Path("out/seed_baselines"))
+    parser.add_argument("--no-docs", action="store_true", help="do not write docs/")
+    parser.add_argument(
+        "--render", type=Path, help="only redraw plot and markdown from this run's JSON"
+    )
+    args = parser.parse_args(argv)
+    if args.render:
+        r = render(json.loads(args.render.read_text()), args.out, docs=not args.no_docs)
+    else:
+        r = run(args.out, args.quick, args.workers, docs=not args.no_docs)
+    print(r["markdown"])
+    return 0
