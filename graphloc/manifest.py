@@ -173,12 +173,22 @@ def read_manifest(root: str | Path) -> Manifest:
     robots = []
     for i, r in enumerate(data.get("robots") or []):
         where = f"{path}: robots[{i}]"
-        if not isinstance(r, dict) or not r.get("name"):
-            raise ValueError(f"{where}: field 'name' missing")
+        if not isinstance(r, dict) or not _name(r.get("name")):
+            raise ValueError(f"{where}: field 'name' must be a non-empty string")
+        if not isinstance(r.get("kind", "ground"), str):
+            raise ValueError(f"{where}: field 'kind' must be a string")
+        for key, kind in (("sensors", list), ("meta", dict)):
+            if r.get(key) is not None and not isinstance(r[key], kind):
+                raise ValueError(
+                    f"{where}: field '{key}' must be a JSON "
+                    f"{kind.__name__.replace('dict', 'object')}"
+                )
         sensors = []
         for j, s in enumerate(r.get("sensors") or []):
-            if not isinstance(s, dict) or not s.get("name") or not s.get("type"):
-                raise ValueError(f"{where}.sensors[{j}]: fields 'name' and 'type' required")
+            if not isinstance(s, dict) or not _name(s.get("name")) or not _name(s.get("type")):
+                raise ValueError(
+                    f"{where}.sensors[{j}]: fields 'name' and 'type' must be non-empty strings"
+                )
             if not isinstance(s.get("params") or {}, dict):
                 raise ValueError(f"{where}.sensors[{j}]: field 'params' must be a JSON object")
             check_noise_params(s.get("params") or {}, f"{where}.sensors[{j}]: params field")
@@ -263,11 +273,18 @@ def read_manifest(root: str | Path) -> Manifest:
             Robot(r["name"], kind, tuple(sensors), tables, init, dict(r.get("meta") or {}), **extra)
         )
     names = [r.name for r in robots]
+    for i, r in enumerate(robots):
+        sensor_names = [s.name for s in r.sensors]
+        if len(set(sensor_names)) != len(sensor_names):
+            raise ValueError(f"{path}: robots[{i}]: sensor names must be unique: {sensor_names}")
     if not robots or len(set(names)) != len(names):
         raise ValueError(
             f"{path}: field 'robots' must list at least one robot with unique names, got {names}"
         )
     lm = (data.get("landmarks") or {}).get("file")
+    name = data.get("name", root.name)
+    if not _name(name):
+        raise ValueError(f"{path}: field 'name' must be a non-empty string, got {name!r}")
     if lm is not None:
         confined(root, lm, f"{path}: field 'landmarks.file'")
     start = data.get("start_time")
@@ -277,9 +294,12 @@ def read_manifest(root: str | Path) -> Manifest:
         raise ValueError(
             f"{path}: field 'start_time' must be a number within +-{MAX_TIME:g} s, got {start!r}"
         )
-    return Manifest(
-        root, data.get("name", root.name), tuple(robots), lm, start, dict(data.get("meta") or {})
-    )
+    return Manifest(root, name, tuple(robots), lm, start, dict(data.get("meta") or {}))
+
+
+def _name(value) -> bool:
+    """A usable name: a non-empty string without line breaks or NUL."""
+    return isinstance(value, str) and bool(value.strip()) and not set(value) & {"\n", "\r", "\0"}
 
 
 def _numbers(value, sizes: tuple, where: str, positive: bool = False, required: bool = False):

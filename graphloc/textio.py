@@ -152,7 +152,7 @@ def confined(root: Path, rel, where: str) -> str:
     run directory `root`: a non-empty relative path, no '..' component, and (symbolic links
     resolved) inside `root`. ValueError naming `where` (manifest and field) otherwise; the
     file itself is never opened here, so nothing of a foreign file reaches a message."""
-    if not isinstance(rel, str) or not rel.strip():
+    if not isinstance(rel, str) or not rel.strip() or "\0" in rel:
         raise ValueError(f"{where} must be a path relative to the run directory, got {rel!r}")
     if PurePosixPath(rel).is_absolute() or PureWindowsPath(rel).is_absolute() or ":" in rel[:2]:
         raise ValueError(
