@@ -322,7 +322,11 @@ class Executor:
                 nxt += 1
             done, _ = ray.wait(list(pending), num_returns=1)
             for obj in done:
-                yield pending.pop(obj), ray.get(obj)
+                try:
+                    result = ray.get(obj)
+                except Exception as exc:  # the worker died (a crash in native code, OOM kill)
+                    result = ("error", f"{type(exc).__name__}: {exc}", 0.0)
+                yield pending.pop(obj), result
 
 
 def _indexed(job):

@@ -169,6 +169,14 @@ def test_ray_and_local_backends_give_identical_numbers(tmp_path):
                     r, md, cached = reproduce(table, True, 2, tmp_path / f"rep_{backend}", False)
                     assert not cached
                     results[backend, table] = (strip(r), md.count("|"))
+        # the verb: `graphloc reproduce --backend ray`, then the same table from its cache
+        rep = tmp_path / "rep_verb"
+        verb = ["reproduce", "seed004-table1", "--quick", "--out", str(rep), "--backend", "ray"]
+        assert main(verb) == 0 and main(verb) == 0
+        assert (rep / ".cache").is_dir()
+        table = json.loads((rep / "seed004-table1.json").read_text())
+        local = json.loads(json.dumps(results["local", "seed004-table1"][0], default=float))
+        assert strip(table) == local
         assert ray.is_initialized()  # the executor reused the test's instance, left it running
     finally:
         ray.shutdown()
