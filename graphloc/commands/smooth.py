@@ -172,6 +172,18 @@ def graph_config(values: dict):
     )
 
 
+def landmark_map(run, config) -> str:
+    """Where the landmark positions come from, said explicitly (metrics.json, printed): a run
+    with landmark measurements but no landmark file is solved as SLAM, never silently."""
+    if not config.use_landmarks or not any(p.landmark >= 0 for p in run.points):
+        return "none: no landmark measurements used"
+    if not run.landmarks_known:
+        return "estimated (SLAM): the run has no landmark file"
+    if not config.landmark_priors:
+        return "estimated (SLAM): --unknown-landmarks"
+    return f"known: {len(run.landmark_ids)} landmarks from the run's landmark file"
+
+
 class StopFlag:
     """SIGINT / SIGTERM set the flag (the solve finishes its step and stops); a second SIGINT
     interrupts at once. Installed for the duration of a `with` block."""
@@ -233,6 +245,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
         metrics = evaluate(result, run)
         metrics["config"] = json.loads(json.dumps(asdict(config), default=str))
         metrics["options"] = values
+        metrics["landmark_map"] = landmark_map(run, config)
         if stop.signal is not None:
             metrics["stopped_by"] = signal.Signals(stop.signal).name
         write_outputs(result, run, metrics, Path(args.out))
@@ -252,6 +265,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
                 "decisions": metrics["decisions"],
                 "realtime_factor": round(metrics["realtime_factor"], 1),
                 "skipped": metrics["skipped"]["counts"],
+                "landmark_map": metrics["landmark_map"],
             },
             indent=1,
         )

@@ -10,6 +10,7 @@ import argparse
 import json
 from pathlib import Path
 
+from graphloc.commands.smooth import landmark_map
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph import GraphConfig
 
@@ -63,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
                 "rows_used": team.contributions,
                 "graph": graph.counts,
                 "skipped": graph.skips.as_dict(),
+                "landmark_map": landmark_map(team, config),
             },
             indent=1,
             default=str,
