@@ -263,6 +263,22 @@ def test_bad_options_name_the_option(tmp_path, capsys, options, message):
     assert not (tmp_path / "o" / "metrics.json").exists()
 
 
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        (["--checkpoint", os.devnull + "/x"], r"--checkpoint \S+: must be a file in a writable"),
+        (["--checkpoint", "."], r"--checkpoint \.: must be a file in a writable directory"),
+        (["--resume", "no-such.json"], r"--resume no-such\.json: no such checkpoint file"),
+        (["--checkpoint-every", "0"], r"--checkpoint-every must be >= 1, got 0"),
+    ],
+)
+def test_bad_online_options_name_the_option(tmp_path, capsys, options, message):
+    root = planar_log(tmp_path)
+    code, _, err = run_cli(["online", root, "--out", tmp_path / "o", *options], capsys)
+    assert code == exitcodes.BAD_INPUT and re.search(message, err), err
+    assert not (tmp_path / "o" / "metrics.json").exists()
+
+
 @pytest.mark.parametrize("verb", ["smooth", "online", "p3p-bench", "fuse-maps"])
 @pytest.mark.parametrize("where", ["devnull", "file", "under-file"])
 def test_out_is_checked_before_any_computation(tmp_path, capsys, verb, where):

@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import os
 from dataclasses import asdict
 from pathlib import Path
 
@@ -97,6 +98,16 @@ def hooks(args: argparse.Namespace):
         raise ValueError(f"--checkpoint-every must be >= 1, got {args.checkpoint_every}")
     if args.checkpoint is None and args.resume is None:
         return None
+    if args.resume is not None and not args.resume.is_file():
+        raise ValueError(f"--resume {args.resume}: no such checkpoint file")
+    folder = None if args.checkpoint is None else args.checkpoint.parent
+    if folder is not None and (
+        args.checkpoint.is_dir() or not folder.is_dir() or not os.access(folder, os.W_OK)
+    ):
+        raise ValueError(
+            f"--checkpoint {args.checkpoint}: must be a file in a writable directory (checked "
+            f"before the run is solved)"
+        )
 
     def make(graph, values):
         done_before = read_checkpoint(args.resume, graph)["steps_done"] if args.resume else 0
