@@ -23,12 +23,14 @@ import csv
 import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import open3d as o3d
 from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
+from graphloc.config import parse_overrides
 from graphloc.eval import write_tum
 from graphloc.io import write_table
 from graphloc.mapping.fusion import FusionInput, LedObservations
@@ -356,6 +358,19 @@ class DualRoomScenario:
     led_pixels: np.ndarray  # (F,3,2) ceiling-camera pixels of P1..P3, NaN if not seen
     led_visible: np.ndarray  # (F,3) bool
     counts: dict = field(default_factory=dict)
+
+    name: ClassVar[str] = "dual-robot-room"
+    config_class: ClassVar[type] = DualRoomConfig
+
+    @classmethod
+    def generate(cls, out_dir, seed: int = 0, **overrides) -> Path:
+        """`graphloc simulate dual-robot-room` (the scenario protocol): simulate the variant's
+        default config (`variant_config`) with `overrides`, write it; the manifest path."""
+        kw = parse_overrides(DualRoomConfig, overrides)
+        kw.pop("seed", None)
+        out = Path(out_dir)
+        cls.simulate(variant_config(kw.pop("variant", "furnished"), seed, **kw)).write(out)
+        return out / "manifest.json"
 
     @property
     def T_ground0_ceiling0(self) -> np.ndarray:

@@ -43,6 +43,7 @@ from graphloc.run import (
     CandidateObservation,
     Motion,
     PointMeasurement,
+    ScanObservation,
     TeamRobot,
     TeamRun,
     planar_covariance,
@@ -317,7 +318,8 @@ def read_team_run(
                 continue
             cand_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
         used[_table_of(rec)] += 1
-    motions += _scan_odometry(scan_rows, robots, manifest)
+    scan_motions, scans = _scan_odometry(scan_rows, robots, manifest)
+    motions += scan_motions
     observations = _marker_observations(marker_rows, robots, manifest, d, sink, used)
     observations += _candidate_observations(cand_rows, robots, d, manifest)
     observations += ellipse_observations(ellipse_rows, robots, manifest, sink)
@@ -360,6 +362,7 @@ def read_team_run(
         contributions={k: v for k, v in used.items() if v},
         meta=dict(manifest.meta),
         features=tuple(features),
+        scans=tuple(sorted(scans, key=lambda o: (o.time, o.robot))),
     )
 
 
@@ -465,21 +468,23 @@ def _marker_observations(
 SCAN_SIGMAS = (0.002, 0.01)  # [rad, m] per KISS-ICP step where the scanner's params give none
 
 
-def _scan_odometry(groups: dict, robots: tuple, manifest) -> list:
+def _scan_odometry(groups: dict, robots: tuple, manifest) -> tuple[list, list]:
     """Each robot's scans (rows of its `scans` table, per scanner) -> KISS-ICP odometry
     (`graphloc.mapping.odometry`) -> one relative-pose step per consecutive pair of scans, in
     the body frame (through the scanner's extrinsics), covariance from the scanner's
-    `icp_sigmas` [rot rad, trans m]."""
+    `icp_sigmas` [rot rad, trans m]; and the scans themselves (`ScanObservation`, by path) for
+    the inter-robot registration of the team graph."""
     if not groups:
-        return []
+        return [], []
     # Open3D and KISS-ICP load only for runs that have scans
     from graphloc.mapping.io import read_points
     from graphloc.mapping.odometry import run_odometry
 
-    out = []
+    out, observed = [], []
     for (ri, sensor), rows in groups.items():
         T_bs, params = robots[ri].sensors[sensor]
         E = gtsam.Pose3(T_bs)
+        observed += [ScanObservation(r.time, ri, E, manifest.root / r.path) for r in rows]
         scans = []
         for row in rows:
             try:
@@ -493,7 +498,7 @@ def _scan_odometry(groups: dict, robots: tuple, manifest) -> list:
         for a, b, step in zip(rows[:-1], rows[1:], run_odometry(scans).increments()):
             rel = E.compose(gtsam.Pose3(step)).compose(E.inverse())
             out.append(Motion(ri, a.time, b.time, rel, A @ cov @ A.T))
-    return out
+    return out, observed
 
 
 def _candidate_observations(groups: dict, robots: tuple, d: dict, manifest) -> list:

@@ -76,44 +76,17 @@ def scenario_class(name: str) -> type:
 
 def scenario_config_class(name: str) -> type:
     """The config dataclass of scenario `name` (its fields are `generate`'s overrides)."""
-    if name in _NOT_YET_CONFORMING:
-        return _NOT_YET_CONFORMING[name][0]()
     return scenario_class(name).config_class
 
 
 def generate(name: str, out_dir, seed: int = 0, overrides: dict | None = None) -> Path:
     """Write one run of scenario `name` to out_dir; returns the manifest's path."""
-    if name in _NOT_YET_CONFORMING:
-        return _NOT_YET_CONFORMING[name][1](out_dir, seed, **dict(overrides or {}))
     return scenario_class(name).generate(out_dir, seed, **dict(overrides or {}))
 
 
 def scenario_names() -> list[str]:
     """Registered names whose class implements `Scenario`."""
-    return sorted(n for n in _REGISTRY if n in _NOT_YET_CONFORMING or is_scenario(dataset_class(n)))
-
-
-# imported inside the two functions below, not at the top: the room's ray-casting loads
-# Open3D, which the other scenarios (and `graphloc --help`) do not need
-def _dual_room_config() -> type:
-    from graphloc.datasets.dual_room import DualRoomConfig
-
-    return DualRoomConfig
-
-
-def _dual_robot_room(out_dir, seed: int, **overrides) -> Path:
-    from graphloc.datasets.dual_room import DualRoomConfig, DualRoomScenario, variant_config
-
-    kw = parse_overrides(DualRoomConfig, overrides)
-    kw.pop("seed", None)
-    out = Path(out_dir)
-    DualRoomScenario.simulate(variant_config(kw.pop("variant", "furnished"), seed, **kw)).write(out)
-    return out / "manifest.json"
-
-
-# Transitional (issue 13): DualRoomScenario does not implement `Scenario` yet; once it has the
-# classmethod `generate`, this entry goes (tests/test_scenarios.py flags it then).
-_NOT_YET_CONFORMING = {"dual-robot-room": (_dual_room_config, _dual_robot_room)}
+    return sorted(n for n in _REGISTRY if is_scenario(dataset_class(n)))
 
 
 # ---- seed 000 Sec. VI-A ------------------------------------------------------------------------

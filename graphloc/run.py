@@ -12,6 +12,7 @@ layout returns); covariances are 6x6 in GTSAM's Pose3 tangent order (rx, ry, rz,
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import gtsam
 import numpy as np
@@ -100,6 +101,17 @@ class FeatureObservation:
 
 
 @dataclass(frozen=True)
+class ScanObservation:
+    """One scan of robot `robot`'s scanner (body_T_sensor), a point-cloud file (`path`, read
+    by `graphloc.mapping.io.read_points` when the scan is registered)."""
+
+    time: float
+    robot: int
+    body_T_sensor: gtsam.Pose3
+    path: Path
+
+
+@dataclass(frozen=True)
 class CandidateObservation:
     """One hypothesis set: robot `robot`'s sensor (body_T_sensor) sees robot `target`;
     candidates are target_T_sensor poses with covariances (CandidateSet.covariance)."""
@@ -134,6 +146,7 @@ class TeamRun:
     contributions: dict = field(default_factory=dict, compare=False)  # table -> rows used
     meta: dict = field(default_factory=dict, compare=False)
     features: tuple = ()  # FeatureObservation, sorted by time
+    scans: tuple = ()  # ScanObservation, sorted by time
 
     def index(self, name: str) -> int:
         return next(i for i, r in enumerate(self.robots) if r.name == name)
@@ -258,6 +271,7 @@ def truncate(run: TeamRun, duration: float) -> TeamRun:
         "points": tuple(p for p in run.points if p.time <= end),
         "observations": tuple(o for o in run.observations if o.time <= end),
         "features": tuple(f for f in run.features if f.time <= end),
+        "scans": tuple(s for s in run.scans if s.time <= end),
     }
     cut = sum(len(v) for v in run.velocity) - sum(len(v) for v in kept["velocity"])
     cut += sum(

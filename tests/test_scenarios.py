@@ -35,13 +35,12 @@ def test_generate_writes_readable_log_with_groundtruth(tmp_path, name):
 
 # the lead's simulators conform to the protocol in their own modules (issue 13); strict: once
 # they do, the marker must go (and scenarios._NOT_YET_CONFORMING with it)
-PENDING = pytest.mark.xfail(strict=True, reason="implements Scenario.generate (issue 13)")
 SCENARIOS = [
     "feng-deterministic",
     "feng-probabilistic",
     "kaushik-p3p-error",
     "breitenmoser-target",
-    pytest.param("dual-robot-room", marks=PENDING),
+    "dual-robot-room",
     "crawler-pair",
 ]
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from graphloc.cli import main
 from graphloc.datasets import open_run
@@ -409,3 +410,25 @@ def test_dual_robot_room_scans_through_smooth(tmp_path):
     assert m["tables"]["scans"] == 16 and m["tables"]["markers"] > 0
     assert m["counts"]["factors_odometry"] >= 7 and m["decisions"]["candidate_sets"] > 0
     assert m["per_robot"]["ground"]["batch"]["ate_rmse"] < 0.05
+    # the ceiling robot is placed by the inter-robot scan registration (team_graph.scans), the
+    # P3P candidates' best guess as its hint: the ground -> ceiling transform at frame 0
+    assert m["counts"]["factors_scan_match"] >= 1 and m["skipped"]["total"] == 0
+    rot, trans = relative_error(tmp_path / "o", "ground", "ceiling", "batch", 0)
+    assert rot < 0.1 and trans < 0.01, (rot, trans)
+
+
+def relative_error(out: Path, a: str, b: str, label: str, k: int) -> tuple[float, float]:
+    """Error [deg, m] of the estimated a -> b transform at pose k (TUM outputs vs ground truth)."""
+
+    def pose(name: str) -> np.ndarray:
+        row = np.loadtxt(out / name)[k]
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = Rotation.from_quat(row[4:8]).as_matrix(), row[1:4]
+        return T
+
+    est = np.linalg.inv(pose(f"{a}_{label}.tum")) @ pose(f"{b}_{label}.tum")
+    true = np.linalg.inv(pose(f"{a}_groundtruth.tum")) @ pose(f"{b}_groundtruth.tum")
+    D = np.linalg.inv(true) @ est
+    return float(np.degrees(Rotation.from_matrix(D[:3, :3]).magnitude())), float(
+        np.linalg.norm(D[:3, 3])
+    )

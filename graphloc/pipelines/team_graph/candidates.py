@@ -72,10 +72,12 @@ def candidate_factors(
     - the target is not placed but the observer is (e.g. seed 003: a camera sees a teammate's
       base, two circle candidates): the target is placed through the observer and each set
       enters as a max-mixture of its candidates (`mixture_stream`), chosen by the solve.
-    Returns the decisions, the decided observer poses (robot -> {node: Pose3}) and the targets
-    placed through an observer (robot -> {node: (observer, node, body_T_target)})."""
+    Returns the decisions, the decided observer poses (robot -> {node: Pose3}), the targets
+    placed through an observer (robot -> {node: (observer, node, body_T_target)}) and each
+    tracked observer's latest best guess, decided or not (robot -> (node, time, body pose,
+    6x6 covariance); the hint of the inter-robot scan registration, `team_graph.scans`)."""
     node_times, nearest = timeline.node_times, timeline.nearest
-    decisions, decided_pose, placed_via = [], {}, {}
+    decisions, decided_pose, placed_via, tentative = [], {}, {}, {}
     streams: dict = {}
     for o in run.observations:
         streams.setdefault((o.robot, o.target), []).append(o)
@@ -140,6 +142,14 @@ def candidate_factors(
                 odo = Odometry(E.inverse().compose(rel).compose(E), adjoint_cov(E.inverse(), cov))
             d = tracker.update(cs, odo)
             prev = k
+            if d.pose is not None:  # the tracker's best guess so far (committed or not)
+                j = int(np.argmax(d.probabilities)) if len(d.probabilities) else 0
+                tentative[r] = (
+                    k,
+                    o.time,
+                    d.pose.compose(E.inverse()),
+                    adjoint_cov(E, cs.covariance[j]),
+                )
             pose = np.full(7, np.nan)
             cluster = (
                 same_pose(world, cs.covariance, d.committed)
@@ -189,7 +199,7 @@ def candidate_factors(
                     cluster if decided else [],
                 )
             )
-    return decisions, decided_pose, placed_via
+    return decisions, decided_pose, placed_via, tentative
 
 
 def mixture_stream(

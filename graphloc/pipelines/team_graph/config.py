@@ -69,6 +69,12 @@ class GraphConfig:
     lm_max_iterations: int = 100
     feature_depth: float = 2.6  # [m] seed 003 III: KLT points start at the background (260 cm)
     feature_depth_sigma: float = 1.0  # [m] and its std (where the camera's params give none)
+    # inter-robot scan registration (`team_graph.scans`): graphloc.mapping.registration's
+    # RegistrationConfig / AcceptanceConfig, None = their defaults
+    registration: object = None
+    acceptance: object = None
+    scan_hint_sigma: tuple = (0.05, 0.1)  # (rot [rad], trans [m]) of registrations between
+    # placed robots, started from their current initial poses
     lag: float | None = None  # online: fixed-lag window [s] (None / 0: full smoothing)
 
     def __post_init__(self):

@@ -18,9 +18,10 @@ from graphloc.pipelines.team_graph.motion import (
     Timeline,
     anchor_factors,
     motion_factors,
-    step_or_unknown,
+    place_robot,
 )
 from graphloc.pipelines.team_graph.points import point_factors
+from graphloc.pipelines.team_graph.scans import scan_match_factors
 from graphloc.run import TeamRun
 
 
@@ -62,45 +63,34 @@ def build_graph(
     landmark_guess, n_anchor, excluded = point_factors(run, config, timeline, factors, skips)
     point_priors: list = []  # (landmark key, sigma, time): priors placed at the initial guess
     n_tracks = feature_factors(run, config, timeline, factors, skips, landmark_guess, point_priors)
-    decisions, decided_pose, placed_via = candidate_factors(
+    decisions, decided_pose, placed_via, tentative = candidate_factors(
         run, config, timeline, step_rel, factors, skips, progress
     )
 
     # --- initial values: known poses + odometry, decided poses + odometry; then robots placed
-    # through an observer (max-mixture route) ---
-    initial, anchored_from = {}, {}
+    # through an observer (max-mixture route); then robots placed by scan registration ---
+    poses: dict = {}  # robot -> initial Pose3 per node
     order = [r for r in range(R) if r not in placed_via] + [r for r in placed_via]
     for r in order:
-        robot = run.robots[r]
-        times = node_times[r]
-        poses: list = [None] * len(times)
-        if robot.initial_pose is not None and len(times):
-            poses[0] = robot.initial_pose
-        for k, p in decided_pose.get(r, {}).items():
-            if poses[k] is None:
-                poses[k] = p
-        for k, (o, ko, rel) in placed_via.get(r, {}).items():
-            if poses[k] is None and pose_key(o, ko) in initial:
-                poses[k] = initial[pose_key(o, ko)].compose(rel)
-        seeds = [k for k, p in enumerate(poses) if p is not None]
-        if not seeds:
-            if len(times):
+        placed = place_robot(run, r, node_times, step_rel, config, decided_pose, placed_via, poses)
+        if placed is not None:
+            poses[r] = placed
+    by_scans = scan_match_factors(run, config, timeline, step_rel, poses, tentative, factors, skips)
+    for r in by_scans:
+        poses[r] = place_robot(run, r, node_times, step_rel, config, {}, by_scans, poses)
+    initial, anchored_from = {}, {}
+    for r, robot in enumerate(run.robots):
+        if r not in poses:
+            if len(node_times[r]):
                 skips.add(
                     "unanchored_robot",
-                    f"robot {robot.name}: no initial pose and no decided candidate set; "
-                    f"its {len(times)} poses are left out",
-                    len(times),
+                    f"robot {robot.name}: no initial pose, no decided candidate set and no "
+                    f"accepted scan registration; its {len(node_times[r])} poses are left out",
+                    len(node_times[r]),
                 )
             continue
-        anchored_from[r] = times[seeds[0]]
-        for k in range(seeds[0] + 1, len(times)):
-            if poses[k] is None:
-                poses[k] = poses[k - 1].compose(step_or_unknown(step_rel[r], k, config)[0])
-        for k in range(seeds[0] - 1, -1, -1):
-            poses[k] = poses[k + 1].compose(
-                step_or_unknown(step_rel[r], k + 1, config)[0].inverse()
-            )
-        for k, p in enumerate(poses):
+        anchored_from[r] = node_times[r][poses[r][1]]
+        for k, p in enumerate(poses[r][0]):
             initial[pose_key(r, k)] = p
     for lkey, guess in landmark_guess.items():
         if isinstance(guess, tuple) and guess and guess[0] == "from":

@@ -187,3 +187,28 @@ def anchor_factors(run: TeamRun, config: GraphConfig, node_times: list, factors:
                         pose_key(r, k), robot.surface, robot.attitude_sigma, robot.body_axis
                     )
                     factors.append((t, f, "surface"))
+
+
+def place_robot(run, r, node_times, step_rel, config, decided_pose, placed_via, poses):
+    """Robot r's initial poses ([Pose3 per node], first seeded node) from its known initial
+    pose, its decided poses or a placed robot's pose (`placed_via`), carried along its own
+    steps; None if nothing places it."""
+    times = node_times[r]
+    out: list = [None] * len(times)
+    if run.robots[r].initial_pose is not None and len(times):
+        out[0] = run.robots[r].initial_pose
+    for k, p in decided_pose.get(r, {}).items():
+        if out[k] is None:
+            out[k] = p
+    for k, (o, ko, rel) in placed_via.get(r, {}).items():
+        if out[k] is None and o in poses:
+            out[k] = poses[o][0][ko].compose(rel)
+    seeds = [k for k, p in enumerate(out) if p is not None]
+    if not seeds:
+        return None
+    for k in range(seeds[0] + 1, len(times)):
+        if out[k] is None:
+            out[k] = out[k - 1].compose(step_or_unknown(step_rel[r], k, config)[0])
+    for k in range(seeds[0] - 1, -1, -1):
+        out[k] = out[k + 1].compose(step_or_unknown(step_rel[r], k + 1, config)[0].inverse())
+    return out, seeds[0]

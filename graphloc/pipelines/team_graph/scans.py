@@ -1,0 +1,140 @@
+"""Inter-robot scan registration (seed 004 Sec. II-C / III: P3P initializes ICP, which fuses the
+ground and ceiling robots' maps) as a scan-matching factor of the team graph.
+
+For each pair of robots that both scan, one placed and one not: the unplaced robot's pose
+hint is the candidate tracker's latest best guess of it (committed or not: P3P's up to four
+candidates over a few frames may not commit, and the scans can tell them apart), carried by its
+odometry to its scan nearest that guess; `graphloc.mapping.registration.robust_register` aligns
+that scan onto the placed robot's scan taken at the same time, starting from the hint and its
+covariance, with the acceptance checks (overlap, inliers, hint gate, geometry). An accepted
+registration becomes a BetweenFactorPose3 between the two robots' poses with the registration's
+calibrated covariance, and places the unplaced robot; a rejected one is counted (reason
+`scan_match_rejected`, with the failed checks), never guessed."""
+
+from __future__ import annotations
+
+import gtsam
+
+from graphloc.io import SkipReport
+from graphloc.keys import pose_key
+from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov, cov6
+from graphloc.pipelines.team_graph.motion import Timeline, compose_steps, place_robot
+from graphloc.run import TeamRun
+
+
+def scan_match_factors(
+    run: TeamRun,
+    config: GraphConfig,
+    timeline: Timeline,
+    step_rel: list,
+    poses: dict,
+    tentative: dict,
+    factors: list,
+    skips: SkipReport,
+) -> dict:
+    """Register every unplaced scanning robot with a tentative pose onto a placed scanning
+    robot (`poses`: robot -> ([initial Pose3 per node], first seeded node) of the placed
+    robots); appends accepted
+    registrations to `factors` (type 'scan_match') and returns the robots they place
+    (robot -> {node: (placed robot, its node, body_T_body)})."""
+    placed_via: dict = {}
+    scanning = sorted({s.robot for s in run.scans})
+    if len(scanning) < 2 or not any(b in poses or b in tentative for b in scanning):
+        return placed_via
+    used = set()
+    for b in scanning:
+        if b in poses or b not in tentative:
+            continue
+        for a in (a for a in scanning if a in poses):
+            link = _register_pair(run, config, timeline, step_rel, poses, tentative[b], a, b, skips)
+            if link is not None:
+                t, factor, via, stamps = link
+                factors.append((t, factor, "scan_match"))
+                placed_via[b] = via
+                used.add(stamps)
+                poses[b] = place_robot(
+                    run, b, timeline.node_times, step_rel, config, {}, {b: via}, poses
+                )
+                break
+    # every further common scan time of two placed robots, from the current initial poses
+    placed = [r for r in scanning if r in poses]
+    for i, a in enumerate(placed):
+        for b in placed[i + 1 :]:
+            for scan_b in (s for s in run.scans if s.robot == b):
+                kb = timeline.nearest(b, scan_b.time)
+                if kb < 0:
+                    continue
+                guess = (kb, scan_b.time, poses[b][0][kb], cov6(config.scan_hint_sigma))
+                link = _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips)
+                if link is not None and link[3] not in used:
+                    used.add(link[3])
+                    factors.append((link[0], link[1], "scan_match"))
+    for r in placed_via:
+        del poses[r]  # placed again by the caller, through its own steps
+    return placed_via
+
+
+def _scan_near(run: TeamRun, r: int, t: float):
+    scans = [s for s in run.scans if s.robot == r]
+    return min(scans, key=lambda s: abs(s.time - t)) if scans else None
+
+
+def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips):
+    """Robot b's scan nearest its guess (node, time, body pose, 6x6 covariance) registered onto
+    robot a's scan at the same time: (factor time, factor, {b's node: (a, a's node, rel)},
+    (scan times)) or None (counted)."""
+    nearest, node_times = timeline.nearest, timeline.node_times
+    k_tent, t_tent, X_tent, cov_tent = guess
+    scan_b = _scan_near(run, b, t_tent)
+    scan_a = _scan_near(run, a, scan_b.time)
+    name = f"robots {run.robots[a].name} / {run.robots[b].name}"
+    if abs(scan_a.time - scan_b.time) > max(config.sync_tolerance, config.keyframe_dt / 2):
+        skips.add("scan_match_rejected", f"{name}: no scans at a common time near {t_tent}")
+        return None
+    ka, kb = nearest(a, scan_a.time), nearest(b, scan_b.time)
+    if ka < 0 or kb < 0:
+        skips.add("no_pose_at_time", f"{name}: scans at {scan_b.time} have no poses")
+        return None
+    if kb >= k_tent:
+        step, step_cov = compose_steps(step_rel[b], k_tent, kb, config)
+    else:
+        back, step_cov = compose_steps(step_rel[b], kb, k_tent, config)
+        step = back.inverse()
+    X_b = X_tent.compose(step)
+    cov_b = adjoint_cov(step.inverse(), cov_tent) + step_cov
+    E_a, E_b = scan_a.body_T_sensor, scan_b.body_T_sensor
+    hint = poses[a][0][ka].compose(E_a).inverse().compose(X_b.compose(E_b))  # T_sa_sb
+    hint_cov = adjoint_cov(E_b.inverse(), cov_b)
+    # Open3D loads only for runs that register scans (`graphloc smooth` of other runs skips it)
+    from graphloc.mapping.io import read_points
+    from graphloc.mapping.registration import (
+        AcceptanceConfig,
+        RegistrationConfig,
+        prepare,
+        robust_register,
+    )
+
+    cfg = config.registration or RegistrationConfig()
+    acceptance = config.acceptance or AcceptanceConfig()
+    try:
+        source = prepare(read_points(scan_b.path), cfg)
+        target = prepare(read_points(scan_a.path), cfg)
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{name}: scan registration: {exc}") from None
+    decision = robust_register(
+        source, target, hint.matrix(), 0.5 * (hint_cov + hint_cov.T), cfg, acceptance
+    )
+    if not decision.accepted:
+        skips.add(
+            "scan_match_rejected",
+            f"{name}: scans at {scan_b.time}: registration not accepted "
+            f"({'; '.join(decision.reasons)})",
+        )
+        return None
+    T = gtsam.Pose3(decision.registration.transformation)  # T_sa_sb
+    rel = E_a.compose(T).compose(E_b.inverse())  # body_a_T_body_b
+    cov = adjoint_cov(E_b, decision.covariance)
+    noise = gtsam.noiseModel.Gaussian.Covariance(0.5 * (cov + cov.T))
+    factor = gtsam.BetweenFactorPose3(pose_key(a, ka), pose_key(b, kb), rel, noise)
+    t = max(node_times[a][ka], node_times[b][kb], t_tent)
+    return t, factor, {kb: (a, ka, rel)}, (scan_a.time, scan_b.time)
