@@ -4,13 +4,12 @@ per-robot colour), and SE(3) trajectories as TUM files (via evo)."""
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
 import open3d as o3d
 
-from graphloc.textio import check_file
+from graphloc.textio import check_file, csv_fields, shown, text_lines
 
 SCAN_SUFFIXES = (".ply", ".pcd", ".xyz")
 MAX_COORDINATE = 1e6  # m: beyond, a point cloud is not in metres (or overflowed)
@@ -158,29 +157,30 @@ def read_led_pixels(path, n_frames: int) -> np.ndarray:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: missing")
     uv = np.full((int(n_frames), 3, 2), np.nan)
-    with open(path, newline="") as fh:
-        reader = csv.reader(fh)
-        header = next(reader, None)
-        if header is None or [h.strip() for h in header] != ["frame", "time", "led", "u", "v"]:
-            raise ValueError(f"{path}:1: header must be frame,time,led,u,v; got {header}")
-        for line, row in enumerate(reader, start=2):
-            try:
-                f, _, k, u, v = (
-                    int(row[0]),
-                    float(row[1]),
-                    int(row[2]),
-                    float(row[3]),
-                    float(row[4]),
-                )
-            except (ValueError, IndexError):
-                raise ValueError(f"{path}:{line}: expected frame,time,led,u,v; got {row}") from None
-            if not 0 <= f < n_frames:
-                raise ValueError(f"{path}:{line}: frame {f} outside [0, {n_frames})")
-            if not 0 <= k < 3:
-                raise ValueError(f"{path}:{line}: led {k} outside [0, 3)")
-            if not (np.isfinite(u) and np.isfinite(v)):
-                raise ValueError(f"{path}:{line}: non-finite pixel ({u}, {v})")
-            if np.isfinite(uv[f, k]).all():
-                raise ValueError(f"{path}:{line}: frame {f} led {k} given twice")
-            uv[f, k] = (u, v)
+    columns = ["frame", "time", "led", "u", "v"]
+    lines = text_lines(path)
+    _, first = next(lines, (1, ""))
+    if [h.strip() for h in first.split(",")] != columns:
+        raise ValueError(f"{path}:1: header must be frame,time,led,u,v; got {shown(first)}")
+    for line, text in lines:
+        if not text.strip():
+            continue
+        try:
+            row = csv_fields(text, columns)
+            if len(row) != len(columns):
+                raise ValueError(f"{len(row)} fields")
+            f, _, k, u, v = int(row[0]), float(row[1]), int(row[2]), float(row[3]), float(row[4])
+        except (ValueError, IndexError) as exc:
+            raise ValueError(
+                f"{path}:{line}: expected frame,time,led,u,v; got {shown(text)} ({exc})"
+            ) from None
+        if not 0 <= f < n_frames:
+            raise ValueError(f"{path}:{line}: frame {f} outside [0, {n_frames})")
+        if not 0 <= k < 3:
+            raise ValueError(f"{path}:{line}: led {k} outside [0, 3)")
+        if not (np.isfinite(u) and np.isfinite(v)):
+            raise ValueError(f"{path}:{line}: non-finite pixel ({u}, {v})")
+        if np.isfinite(uv[f, k]).all():
+            raise ValueError(f"{path}:{line}: frame {f} led {k} given twice")
+        uv[f, k] = (u, v)
     return uv
