@@ -271,7 +271,9 @@ class FengProbabilisticScenario:
         )
         run = cls.simulate(config)
         cov = [
-            odometry_covariance(o, config.odometry_noise, config.odometry_rot_sigma)
+            odometry_covariance(
+                o, config.odometry_noise, config.odometry_rot_sigma, model=config.odometry_model
+            )
             for o in run.odometry
         ]
         log = CameraTrackLog(

@@ -115,3 +115,19 @@ def test_kaushik_geometry_and_genuine_candidate():
 def test_dual_robot_room_through_simulate(tmp_path):
     assert main(["simulate", "dual-robot-room", "--out", str(tmp_path / "d"), "--frames", "2"]) == 0
     assert any((tmp_path / "d").iterdir())
+
+
+def test_feng_probabilistic_logs_the_covariance_of_its_odometry_model(tmp_path):
+    sigmas = {}
+    for model in ("per_axis", "isotropic"):
+        path = generate(
+            "feng-probabilistic",
+            tmp_path / model,
+            seed=1,
+            overrides={"max_time": "1.0", "odometry_model": model},
+        )
+        rows = [r for r in iter_records(path.parent) if type(r).__name__ == "RelativePose3D"]
+        sigmas[model] = np.array([[r.sigma_tx, r.sigma_ty, r.sigma_tz] for r in rows])
+    # isotropic: 15 % of the step length on every axis; per axis: of each component
+    iso = sigmas["isotropic"]
+    assert np.allclose(iso, iso[:, :1]) and not np.allclose(sigmas["per_axis"], iso)
