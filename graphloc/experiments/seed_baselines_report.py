@@ -31,46 +31,69 @@ SWEEP_SIZES = {
 DOC = Path(__file__).resolve().parents[2] / "docs" / "results_seed_baselines.md"
 
 
+def _sizes(quick: bool):
+    # Table III: 50 runs per cell (the paper: 100) keeps the job under ~15 min on 2 cores
+    return replace(run_sizes(quick), table3_runs=min(run_sizes(quick).table3_runs, 50))
+
+
+def _configs(sweeps: dict, setting: str, quick: bool, workers: int) -> dict:
+    """The three tables' configs at the stated setting or at the sweeps' chosen readings."""
+    sizes = _sizes(quick)
+    if setting == "stated":
+        return {
+            "table1": TableIConfig(trials=sizes.table1_trials, workers=workers),
+            "table3": TableIIIConfig(runs=sizes.table3_runs, workers=workers),
+            "seed004": KaushikConfig(),
+        }
+    best = {k: sweeps[k]["choice"]["best"] for k in ("table1", "table3", "seed004")}
+    return {
+        "table1": sb.table1_config(best["table1"], sizes.table1_trials, workers),
+        "table3": sb.table3_config(best["table3"], sizes.table3_runs, workers),
+        "seed004": sb.seed004_config(best["seed004"]),
+    }
+
+
+def _table_run(table: str, config, quick: bool, workers: int, progress: bool) -> dict:
+    if table == "table1":
+        return seed000.table_i(config, progress)
+    if table == "table3":
+        return seed000.table_iii(config, progress)
+    sizes = _sizes(quick)
+    return seed004.seed004_table_1(
+        runs=sizes.seed004_runs,
+        frames=sizes.seed004_frames,
+        workers=workers,
+        progress=progress,
+        base=config,
+    )
+
+
 def graphloc_runs(sweeps: dict, quick: bool, workers: int, progress: bool = True) -> dict:
     """Each table's full reproduction (seed baseline + graphloc, graphloc.experiments.seed000
     / seed004) at the stated setting and at the chosen reading."""
-    # Table III: 50 runs per cell (the paper: 100) keeps the job under ~15 min on 2 cores
-    sizes = replace(run_sizes(quick), table3_runs=min(run_sizes(quick).table3_runs, 50))
-    b1 = sweeps["table1"]["choice"]["best"]
-    b3 = sweeps["table3"]["choice"]["best"]
-    b4 = sweeps["seed004"]["choice"]["best"]
     out = {}
-    for name, t1cfg, t3cfg, s4base in (
-        (
-            "stated",
-            TableIConfig(trials=sizes.table1_trials, workers=workers),
-            TableIIIConfig(runs=sizes.table3_runs, workers=workers),
-            KaushikConfig(),
-        ),
-        (
-            "reproducing",
-            sb.table1_config(b1, sizes.table1_trials, workers),
-            sb.table3_config(b3, sizes.table3_runs, workers),
-            sb.seed004_config(b4),
-        ),
-    ):
-        out[name] = {
-            "table1": seed000.table_i(t1cfg, progress),
-            "table3": seed000.table_iii(t3cfg, progress),
-            "seed004": seed004.seed004_table_1(
-                runs=sizes.seed004_runs,
-                frames=sizes.seed004_frames,
-                workers=workers,
-                progress=progress,
-                base=s4base,
-            ),
-            "configs": {
-                "table1": asdict(t1cfg),
-                "table3": asdict(t3cfg),
-                "seed004": asdict(s4base),
-            },
-        }
+    for setting in ("stated", "reproducing"):
+        configs = _configs(sweeps, setting, quick, workers)
+        out[setting] = {t: _table_run(t, c, quick, workers, progress) for t, c in configs.items()}
+        out[setting]["configs"] = {t: asdict(c) for t, c in configs.items()}
     return out
+
+
+def refresh(result: dict, workers: int, progress: bool = True) -> list:
+    """A saved result re-chosen by today's `choose` (same sweep rows): the tables whose chosen
+    reading changed get their reproducing run again. Returns their names."""
+    changed = []
+    for table in ("table1", "table3", "seed004"):
+        choice = asdict(sb.choose(result["sweeps"][table]["rows"]))
+        if choice != result["sweeps"][table]["choice"]:
+            result["sweeps"][table]["choice"] = choice
+            changed.append(table)
+    for table in changed:
+        config = _configs(result["sweeps"], "reproducing", result["quick"], workers)[table]
+        rep = result["runs"]["reproducing"]
+        rep[table] = _table_run(table, config, result["quick"], workers, progress)
+        rep["configs"][table] = asdict(config)
+    return changed
 
 
 def plot(r: dict, path: Path) -> None:
@@ -180,11 +203,17 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=Path("out/seed_baselines"))
     parser.add_argument("--no-docs", action="store_true", help="do not write docs/")
     parser.add_argument(
-        "--render", type=Path, help="only redraw plot and markdown from this run's JSON"
+        "--render",
+        type=Path,
+        help="redraw plot and markdown from this run's JSON (re-running a table only when "
+        "its chosen reading changed)",
     )
     args = parser.parse_args(argv)
     if args.render:
-        r = render(json.loads(args.render.read_text()), args.out, docs=not args.no_docs)
+        r = json.loads(args.render.read_text())
+        if refresh(r, args.workers):
+            (args.out / "seed_baselines.json").write_text(json.dumps(r, indent=1, default=_json))
+        r = render(r, args.out, docs=not args.no_docs)
     else:
         r = run(args.out, args.quick, args.workers, docs=not args.no_docs)
     print(r["markdown"])
