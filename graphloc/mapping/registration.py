@@ -63,8 +63,8 @@ class RegistrationConfig:
     covariance_block: float = 0.5
     stop_at_first_valid: bool = True
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
-    covariance_scale: float = 25.3  # fit of docs/results_fusion_calibration.json (3 digits)
-    covariance_floor: tuple[float, float] = (5.74e-4, 2.98e-4)
+    covariance_scale: float = 17.1  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_floor: tuple[float, float] = (6.70e-4, 4.41e-4)
 
     def __post_init__(self):
         if not (self.voxel > 0 and self.normal_radius > 0 and self.range_sigma > 0):
@@ -360,7 +360,7 @@ def hint_starts(hint: np.ndarray, cov: np.ndarray) -> list[np.ndarray]:
     cover the hint's uncertainty, a P3P covariance's long axis included."""
     lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
     starts = [np.asarray(hint, dtype=float)]
-    for i in range(5, -1, -1):  # the most uncertain direction first
+    for i in range(6):
         for sign in (1.0, -1.0):
             xi = sign * np.sqrt(max(lam[i], 0.0)) * V[:, i]
             starts.append(starts[0] @ gtsam.Pose3.Expmap(xi).matrix())
@@ -418,6 +418,19 @@ def _coarse_clouds(source: PreparedCloud, target: PreparedCloud, cfg: Registrati
     return out[0], out[1], voxel
 
 
+def _wide_clouds(src_c, tgt_c, voxel: float, cfg: RegistrationConfig):
+    """The coarse clouds on a wider grid (`voxel`), normals over at least two of its voxels."""
+    out = []
+    for c in (src_c, tgt_c):
+        down = c.voxel_down_sample(voxel)
+        radius = max(cfg.normal_radius, 2.0 * voxel)
+        down.estimate_normals(
+            o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=cfg.max_nn)
+        )
+        out.append(down)
+    return out
+
+
 def robust_register(
     source: PreparedCloud,
     target: PreparedCloud,
@@ -431,16 +444,19 @@ def robust_register(
     1. Starts: the hint and its sigma points (`hint_starts`; hint_cov is the hint's 6x6
        covariance, rot [rad] then trans [m], right perturbation: `hint_covariance` of two
        sigmas, or a P3P candidate's first-order covariance carried to the LiDAR frames).
-    2. Per start: point-to-plane ICP on the coarse grid (`_coarse_clouds`; correspondences within
-       cfg.coarse_voxels coarse voxels, Tukey kernel of cfg.coarse_tukey voxels, so the parts
-       that do not overlap are not pulled in); starts whose coarse results lie within one fine
-       basin of each other (cfg.max_correspondence[-1], and the rotation moving the median
-       source point that far) merge; then Open3D tensor ICP on the prepared clouds within that
-       distance (cfg.max_iterations[-1]); candidates closer than acc.distinct_deg / distinct_m
-       merge. With cfg.stop_at_first_valid the starts stop at the first candidate that passes
-       its checks (the hint comes first, so an easy case costs one start). If none passes and
-       cfg.global_fallback, `global_fpfh_ransac` (seed 0) gives one more start (index 13),
-       still subject to every check, the hint gate included.
+    2. Per start: when the hint's reach (1-sigma rotation times the median source range plus 1-sigma
+       translation) exceeds the coarse correspondence distance, a wide level first: ICP on clouds
+       gridded at reach / cfg.coarse_voxels with correspondences within the reach and a Tukey kernel
+       of cfg.coarse_tukey of its voxels (the basin of a poor P3P guess); then point-to-plane ICP on
+       the coarse grid (`_coarse_clouds`; correspondences within cfg.coarse_voxels coarse voxels,
+       Tukey kernel of cfg.coarse_tukey voxels, so the parts that do not overlap are not pulled in);
+       starts whose coarse results lie within one fine basin of each other
+       (cfg.max_correspondence[-1], and the rotation moving the median source point that far) merge;
+       then Open3D tensor ICP on the prepared clouds within that distance (cfg.max_iterations[-1]);
+       candidates closer than acc.distinct_deg / distinct_m merge. With cfg.stop_at_first_valid the
+       starts stop at the first candidate that passes its checks (the hint comes first, so an easy
+       case costs one start). If none passes and cfg.global_fallback, `global_fpfh_ransac` (seed 0)
+       gives one more start (index 13), still subject to every check, the hint gate included.
     3. Each candidate's `truncated_cost` (c = acc.residual_sigma) and checks (overlap, inlier
        ratio, hint gate, robot geometry: `_candidate_checks`). Among those that pass, the lowest
        cost wins, except that the hint's own candidate (start 0) is kept when it passes and its
@@ -481,16 +497,27 @@ def robust_register(
     basin_deg = float(np.degrees(fine / r_med))  # a rotation moving the median point by `fine`
     merged, coarse, cands, iterations = {}, [], [], 0
 
-    def try_start(k: int, T0: np.ndarray) -> bool:
-        """Coarse + fine ICP from one start; True if its candidate passes its own checks."""
+    lam = np.linalg.eigvalsh(hint_cov[:3, :3])[-1], np.linalg.eigvalsh(hint_cov[3:, 3:])[-1]
+    reach = float(np.sqrt(lam[0]) * r_med + np.sqrt(lam[1]))  # 1-sigma move of the median point
+    wide = None
+    if cfg.coarse_voxels > 0 and reach > cfg.coarse_voxels * voxel_c:
+        wide = _wide_clouds(src_c, tgt_c, reach / cfg.coarse_voxels, cfg)
+        est_w = reg_l.TransformationEstimationPointToPlane(
+            reg_l.TukeyLoss(cfg.coarse_tukey * reach / cfg.coarse_voxels)
+        )
+
+    def coarse_stage(T0: np.ndarray) -> np.ndarray:
+        """The wide level (if the hint's reach exceeds the coarse one), then the coarse ICP."""
+        if cfg.coarse_voxels <= 0:
+            return T0
+        if wide is not None:
+            T0 = reg_l.registration_icp(wide[0], wide[1], reach, T0, est_w, crit_c).transformation
+        res = reg_l.registration_icp(src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0, est, crit_c)
+        return np.asarray(res.transformation)
+
+    def try_start(k: int, T: np.ndarray) -> bool:
+        """Fine ICP from one start's coarse pose; True if its candidate passes its own checks."""
         nonlocal iterations
-        T = T0
-        if cfg.coarse_voxels > 0:
-            T = np.asarray(
-                reg_l.registration_icp(
-                    src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0, est, crit_c
-                ).transformation
-            )
         same = [j for j, Tj in coarse if _within(T, Tj, basin_deg, fine)]
         if same:
             merged[k] = f"coarse stage converged within the fine basin of start {same[0]}"
@@ -532,12 +559,12 @@ def robust_register(
     starts = hint_starts(hint, hint_cov)
     found = False
     for k, T0 in enumerate(starts):
-        found = try_start(k, T0) or found
+        found = try_start(k, coarse_stage(T0)) or found
         if found and cfg.stop_at_first_valid:
             break
     if not found and cfg.global_fallback:  # the hint's neighbourhood failed: one global guess
         T_glob, _ = global_fpfh_ransac(source, target, cfg, seed=0)
-        try_start(len(starts), T_glob)
+        try_start(len(starts), coarse_stage(T_glob))
     if not cands:
         raise ValueError(
             f"robust_register: no start found correspondences within {fine} m: a wrong "
