@@ -12,7 +12,7 @@ from graphloc.io import SkipReport
 from graphloc.keys import decode, pose_key
 from graphloc.factors.mixture import MaxMixture
 from graphloc.pipelines.team_graph.camera import feature_factors
-from graphloc.pipelines.team_graph.candidates import candidate_factors
+from graphloc.pipelines.team_graph.candidates import candidate_factors, undecided_mixtures
 from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig, run_precision
 from graphloc.pipelines.team_graph.motion import (
     Timeline,
@@ -63,7 +63,7 @@ def build_graph(
     landmark_guess, n_anchor, excluded = point_factors(run, config, timeline, factors, skips)
     point_priors: list = []  # (landmark key, sigma, time): priors placed at the initial guess
     n_tracks = feature_factors(run, config, timeline, factors, skips, landmark_guess, point_priors)
-    decisions, decided_pose, placed_via, tentative = candidate_factors(
+    decisions, decided_pose, placed_via, tentative, undecided = candidate_factors(
         run, config, timeline, step_rel, factors, skips, progress
     )
 
@@ -78,6 +78,15 @@ def build_graph(
     by_scans = scan_match_factors(run, config, timeline, step_rel, poses, tentative, factors, skips)
     for r in by_scans:
         poses[r] = place_robot(run, r, node_times, step_rel, config, {}, by_scans, poses)
+    # an observer still unplaced whose candidate sets were never decided: the sets as
+    # max-mixtures (the solve chooses), the tracker's best guess as its initial pose
+    for r, sets in undecided.items():
+        if r not in poses and r in tentative:
+            undecided_mixtures(sets, decisions, factors)
+            k, _, X, _ = tentative[r]
+            placed, _ = place_robot(run, r, node_times, step_rel, config, {r: {k: X}}, {}, poses)
+            # online, the robot enters at its first set (its poses held until then)
+            poses[r] = (placed, timeline.nearest(r, decisions[sets[0][3]].time))
     initial, anchored_from = {}, {}
     for r, robot in enumerate(run.robots):
         if r not in poses:
@@ -160,7 +169,7 @@ def build_graph(
                 d.relative,
             )
             for d in decisions
-            if d.mixture is not None
+            if d.mixture is not None and d.relative is not None
         },
     )
 

@@ -291,6 +291,7 @@ def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:
                 d,
                 committed=j,
                 probability=float(p[j]),
+                probabilities=p,
                 pose=_pose_row(estimate.atPose3(observer)),
                 same_pose=[j],
             )
