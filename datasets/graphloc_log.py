@@ -318,7 +318,7 @@ def read_team_run(
                 continue
             cand_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
         used[_table_of(rec)] += 1
-    scan_motions, scans = _scan_odometry(scan_rows, robots, manifest)
+    scan_motions, scans = _scan_odometry(scan_rows, robots, manifest, report)
     motions += scan_motions
     observations = _marker_observations(marker_rows, robots, manifest, d, sink, used)
     observations += _candidate_observations(cand_rows, robots, d, manifest)
@@ -468,7 +468,7 @@ def _marker_observations(
 SCAN_SIGMAS = (0.002, 0.01)  # [rad, m] per KISS-ICP step where the scanner's params give none
 
 
-def _scan_odometry(groups: dict, robots: tuple, manifest) -> tuple[list, list]:
+def _scan_odometry(groups: dict, robots: tuple, manifest, report) -> tuple[list, list]:
     """Each robot's scans (rows of its `scans` table, per scanner) -> KISS-ICP odometry
     (`graphloc.mapping.odometry`) -> one relative-pose step per consecutive pair of scans, in
     the body frame (through the scanner's extrinsics), covariance from the scanner's
@@ -477,7 +477,7 @@ def _scan_odometry(groups: dict, robots: tuple, manifest) -> tuple[list, list]:
     if not groups:
         return [], []
     # Open3D and KISS-ICP load only for runs that have scans
-    from graphloc.mapping.io import read_points
+    from graphloc.mapping.io import read_scan
     from graphloc.mapping.odometry import run_odometry
 
     out, observed = [], []
@@ -487,11 +487,17 @@ def _scan_odometry(groups: dict, robots: tuple, manifest) -> tuple[list, list]:
         observed += [ScanObservation(r.time, ri, E, manifest.root / r.path) for r in rows]
         scans = []
         for row in rows:
+            table = manifest.root / manifest.robots[ri].tables["scans"]
             try:
-                scans.append(read_points(manifest.root / row.path))
+                points, dropped = read_scan(manifest.root / row.path)
             except (OSError, ValueError) as exc:
-                table = manifest.root / manifest.robots[ri].tables["scans"]
                 raise ValueError(f"{table}: line {row.line}: field 'path': {exc}") from None
+            scans.append(points)
+            if dropped:
+                where = f"{table}: line {row.line}: field 'path'"
+                report.add(
+                    "scan_points_nonfinite", f"{where}: {dropped} non-finite points", dropped
+                )
         sig = params.get("icp_sigmas", SCAN_SIGMAS)
         cov = np.diag([float(sig[0]) ** 2] * 3 + [float(sig[1]) ** 2] * 3)
         A = E.AdjointMap()

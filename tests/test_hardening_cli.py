@@ -59,6 +59,12 @@ def scan_table(root: Path, path: str) -> None:
     (root / "robot1" / "scans.csv").write_text(f"time,sensor,path\n1000.5,lidar,{path}\n")
 
 
+def scan_in_millimetres(root: Path) -> None:
+    rng = np.random.default_rng(1)
+    write_cloud(root / "scans" / "0.ply", rng.uniform(-3000, 3000, (200, 3)))
+    scan_table(root, "scans/0.ply")
+
+
 def odometry_row(text: bytes | str):
     return lambda root: edit_line(root / "robot1" / "odometry.csv", 3, text)
 
@@ -108,6 +114,14 @@ LOG_CASES = [
         exitcodes.OK,
         "out",
         r"robot1/scans\.csv: line 2: field 'path': '\.\./\.\./etc/passwd\.pcd' leaves the run",
+    ),
+    (
+        "log-scan-in-millimetres",
+        scan_in_millimetres,
+        exitcodes.BAD_INPUT,
+        "err",
+        r"robot1/scans\.csv: line 2: field 'path': \S+/scans/0\.ply: median range \S+ is outside "
+        r"the plausible \[0\.05, 500\] m of a scan in metres \(in millimetres\?\)",
     ),
     (
         "tables-as-list",

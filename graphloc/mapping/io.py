@@ -61,12 +61,8 @@ def _ply_vertex_count(path: Path) -> int | None:
 
 
 def read_scan_sequence(folder) -> tuple[list[np.ndarray], list[Path], int]:
-    """All scans of a folder in file-name order. Non-finite points are dropped and counted.
-    Each scan must be in metres in its sensor's frame: at least MIN_POINTS finite points, not all
-    within 1 mm of each other, and a median range (distance from the sensor) within
-    SCAN_RANGE_M -- a scan in millimetres (a room's median range in the thousands) or
-    kilometres is a ValueError naming the file, caught before registration.
-    Returns (scans, files, n_dropped_nonfinite)."""
+    """All scans of a folder in file-name order, each checked by `read_scan` (non-finite points
+    dropped and counted). Returns (scans, files, n_dropped_nonfinite)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: not a directory of scans")
@@ -75,24 +71,34 @@ def read_scan_sequence(folder) -> tuple[list[np.ndarray], list[Path], int]:
         raise ValueError(f"{folder}: no {'/'.join(SCAN_SUFFIXES)} scans")
     scans, dropped = [], 0
     for p in files:
-        pts = read_points(p)
-        ok = np.isfinite(pts).all(axis=1)
-        dropped += int((~ok).sum())
-        pts = pts[ok]
-        if len(pts) < MIN_POINTS:
-            raise ValueError(f"{p}: {len(pts)} finite points, at least {MIN_POINTS} needed")
-        if np.ptp(pts, axis=0).max() < 1e-3:
-            raise ValueError(f"{p}: all {len(pts)} points lie within 1 mm of each other")
-        median = float(np.median(np.linalg.norm(pts, axis=1)))
-        lo, hi = SCAN_RANGE_M
-        if not lo <= median <= hi:
-            unit = "millimetres" if median > hi else "kilometres"
-            raise ValueError(
-                f"{p}: median range {median:.4g} is outside the plausible [{lo:g}, {hi:g}] m of a "
-                f"scan in metres (in {unit}?); convert the scans to metres"
-            )
+        pts, n = read_scan(p)
         scans.append(pts)
+        dropped += n
     return scans, files, dropped
+
+
+def read_scan(path) -> tuple[np.ndarray, int]:
+    """One scan in metres in its sensor's frame (`read_points`): its finite points and how many
+    non-finite ones (no return) were dropped. ValueError naming the file unless it has at least
+    MIN_POINTS finite points, not all within 1 mm of each other, with a median range (distance
+    from the sensor) within SCAN_RANGE_M -- a scan in millimetres (a room's median range in the
+    thousands) or kilometres is caught here, before any registration."""
+    pts = read_points(path)
+    ok = np.isfinite(pts).all(axis=1)
+    pts = pts[ok]
+    if len(pts) < MIN_POINTS:
+        raise ValueError(f"{path}: {len(pts)} finite points, at least {MIN_POINTS} needed")
+    if np.ptp(pts, axis=0).max() < 1e-3:
+        raise ValueError(f"{path}: all {len(pts)} points lie within 1 mm of each other")
+    median = float(np.median(np.linalg.norm(pts, axis=1)))
+    lo, hi = SCAN_RANGE_M
+    if not lo <= median <= hi:
+        unit = "millimetres" if median > hi else "kilometres"
+        raise ValueError(
+            f"{path}: median range {median:.4g} is outside the plausible [{lo:g}, {hi:g}] m of a "
+            f"scan in metres (in {unit}?); convert the scans to metres"
+        )
+    return pts, int((~ok).sum())
 
 
 def write_labelled_cloud(path, points: np.ndarray, robot: np.ndarray) -> None:
