@@ -259,13 +259,13 @@ def test_malformed_log_gives_its_exit_code_and_names_the_place(
 
 
 # ---- options and --out ---------------------------------------------------------------------------
-OPTION_CASES = [
-    (["--kernel", "bogus:x"], r"option --kernel \(or 'kernel' in --config\): robust kernel "),
-    (["--candidate-kernel", "cauchy:-1"], r"option --candidate-kernel .*'cauchy:-1'.*> 0"),
-    (["--odometry-kernel", "welsh"], r"option --odometry-kernel .*unknown robust kernel 'welsh'"),
-    (["--bearing-sigma", "nan"], r"option \(command line or --config\) 'bearing_sigma'"),
-    (["--duration", "-1"], r"option --duration \(or 'duration' in --config\) must be > 0"),
-    (["--lag", "inf"], r"--lag must be finite >= 0"),
+OPTION_CASES = [  # the message names the option (as --flag, config key or field) and the value
+    (["--kernel", "bogus:x"], r"\bkernel\b.*'bogus:x'"),
+    (["--candidate-kernel", "cauchy:-1"], r"candidate.kernel\b.*'cauchy:-1'"),
+    (["--odometry-kernel", "welsh"], r"odometry.kernel\b.*'welsh'"),
+    (["--bearing-sigma", "nan"], r"bearing.sigma\b.*\bnan\b"),
+    (["--duration", "-1"], r"\bduration\b.*-1"),
+    (["--lag", "inf"], r"\blag\b.*\binf\b"),
 ]
 
 
