@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 
+from graphloc.exitcodes import OK
+
 HELP = (
     "main job: simulate dual-robot-room and fuse the ground + ceiling maps end to end "
     "(report, map, PNGs)"
@@ -25,4 +27,4 @@ def run(args: argparse.Namespace) -> int:
 
     report = run_demo(args.out, args.seed)
     print(summary_text(report))
-    return 0
+    return OK

@@ -11,6 +11,8 @@ import argparse
 import json
 from pathlib import Path
 
+from graphloc.exitcodes import OK
+
 HELP = "ROS 1 / ROS 2 / MCAP bag + topics file -> graphloc log directory (smooth / online input)"
 
 
@@ -43,4 +45,4 @@ def run(args: argparse.Namespace) -> int:
             indent=1,
         )
     )
-    return 0
+    return OK

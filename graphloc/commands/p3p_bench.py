@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import argparse
 
+from graphloc.exitcodes import OK
+
 HELP = (
     "benchmark the batched P3P solvers against cv2.solveP3P / poselib.p3p loops "
     "(JSON, markdown, PNG)"
@@ -29,4 +31,4 @@ def run(args: argparse.Namespace) -> int:
     result = run_p3p_benchmark(args.out, n=args.n, seed=args.seed)
     print(markdown_table(result))
     print(f"wrote {args.out}/p3p_bench.json, p3p_bench.md, p3p_bench.png")
-    return 0
+    return OK

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from graphloc.executor import BACKENDS
 from graphloc.experiments import TABLES
+from graphloc.exitcodes import OK
 
 HELP = "reproduce a seed table: seed000-table1/2/3, seed004-table1, seed001-exp1"
 
@@ -47,4 +48,4 @@ def run(args) -> int:
     if result is not None:
         (args.out / f"{args.table}.json").write_text(json.dumps(result, indent=2, default=float))
     print(md)
-    return 0
+    return OK

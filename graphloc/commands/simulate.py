@@ -9,6 +9,7 @@ import argparse
 from pathlib import Path
 
 from graphloc.config import add_config_arguments, option_fields
+from graphloc.exitcodes import OK
 
 HELP = (
     "simulate a registered scenario into a log directory "
@@ -64,4 +65,4 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{args.name}: --out DIR is required")
     path = generate(args.name, opts.out, opts.seed, overrides)
     print(f"wrote {args.name} (seed {opts.seed}) to {path.parent}")
-    return 0
+    return OK
