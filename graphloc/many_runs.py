@@ -139,6 +139,8 @@ def _solve_one(item: tuple) -> dict:
 def run_many(args: argparse.Namespace, mode: str, verb, runs: list[Path]) -> int:
     """Every run as one executor task; the aggregate report; the exit code."""
     out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a directory")
     names = _names(runs)
     fields = {k: v for k, v in vars(args).items() if not callable(v)}
     config = {k: v for k, v in sorted(fields.items()) if k not in _NOT_CONFIG}
