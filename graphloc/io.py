@@ -134,7 +134,9 @@ def iter_table(
     _, first = next(lines, (1, ""))
     header = _header(path, first, cols)
     if header != cols:
-        raise ValueError(f"{path}: line 1: header must be {','.join(cols)}, got {header}")
+        raise ValueError(
+            f"{path}: line 1: header must be {','.join(cols)}, got {shown(','.join(header))}"
+        )
     for line, text in lines:
         where = f"{path}: line {line}"
         if not text.strip() or text.lstrip().startswith("#"):
@@ -256,7 +258,8 @@ def read_landmarks(manifest: Manifest) -> tuple[np.ndarray, np.ndarray, np.ndarr
     header = _header(path, first, LANDMARK_COLUMNS)
     if header != LANDMARK_COLUMNS:
         raise ValueError(
-            f"{path}: line 1: header must be {','.join(LANDMARK_COLUMNS)}, got {header}"
+            f"{path}: line 1: header must be {','.join(LANDMARK_COLUMNS)}, "
+            f"got {shown(','.join(header))}"
         )
     for line, text in lines:
         where = f"{path}: line {line}"
