@@ -113,6 +113,7 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
     read as JSON (numbers, true / false, lists)."""
     known = {f.name: f for f in dataclasses.fields(config_class)}
     defaults = config_class()
+    hints = typing.get_type_hints(config_class)
     out = {}
     for key, value in overrides.items():
         if key not in known:
@@ -120,6 +121,12 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
                 f"{config_class.__name__}: unknown field {key!r}; known: {', '.join(sorted(known))}"
             )
         default = getattr(defaults, key)
+        kind = _scalar_type(hints.get(key))
+        if default is None and kind is not None:  # an optional field: its declared type
+            if kind is str and isinstance(value, str):
+                out[key] = value
+                continue
+            default = kind()
         if isinstance(value, str) and not isinstance(default, str):
             try:
                 value = json.loads(value)

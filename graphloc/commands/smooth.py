@@ -4,9 +4,10 @@ bearings, ranges, range-bearing, markers -> P3P candidate sets, surfaces) or an 
 directory (`graphloc.datasets.open_run`, `graphloc.pipelines.team_graph`). Writes per-robot
 TUM trajectories, metrics.json, decisions.csv and PNG plots (docs/outputs.md).
 
-Options come from the command line and from `--config FILE` (TOML, the same names as the
-options with '_' for '-'); the command line wins. Sensor noise options replace what the log's
-sensor params state; left unset, the log's values (or graphloc's defaults) hold."""
+Options are the fields of `graphloc.pipelines.team_graph.options.RunOptions`, from the command
+line and from `--config FILE` (TOML, the field names); the command line wins. Sensor noise
+options replace what the log's sensor params state; left unset, the log's values (or graphloc's
+defaults) hold."""
 
 from __future__ import annotations
 
@@ -15,69 +16,19 @@ import json
 import signal
 import sys
 import threading
-import tomllib
 from pathlib import Path
 
 from graphloc import many_runs
 from graphloc.exitcodes import INCOMPLETE, OK
 from graphloc.manifest import check_noise_params
-from graphloc.pipelines.team_graph import DEFAULT_LAG
+from graphloc.config import add_config_arguments, config_from_args
+from graphloc.pipelines.team_graph.options import RunOptions
 
 HELP = (
     "batch factor-graph smoothing of a team's run (log dir or MRCLAM dir): TUM, metrics JSON, PNGs"
 )
 MODE = "batch"
 EXIT_STOPPED = INCOMPLETE  # SIGINT / SIGTERM: the outputs so far were written, metrics partial
-# option -> (type, default, help); every one can also be set in the --config file
-OPTIONS = {
-    "duration": (float, None, "use only the first N seconds"),
-    "keyframe_dt": (float, 0.25, "pose grid of wheel-odometry robots [s]"),
-    "sync_tolerance": (
-        float,
-        0.02,
-        "largest time offset between a measurement and its pose [s] "
-        "(robots without wheel odometry)",
-    ),
-    "no_landmarks": (bool, False, "ignore landmark measurements"),
-    "no_inter_robot": (bool, False, "ignore robot-to-robot measurements"),
-    "unknown_landmarks": (
-        bool,
-        False,
-        "cooperative SLAM: estimate landmark positions instead of using the map",
-    ),
-    "kernel": (
-        str,
-        "cauchy:2.0",
-        "robust kernel NAME[:k] of landmark and inter-robot factors "
-        "(huber, cauchy, tukey, gemanmcclure, dcs, none)",
-    ),
-    "odometry_kernel": (str, "none", "robust kernel NAME[:k] of odometry factors"),
-    "candidate_kernel": (str, "cauchy:1.0", "robust kernel NAME[:k] of committed P3P candidates"),
-    "bearing_sigma": (
-        float,
-        None,
-        "bearing noise [rad] of every sensor (default: the log's, else 0.02)",
-    ),
-    "range_sigma": (float, None, "range noise at 0 m [m] (default: the log's, else 0.05)"),
-    "range_sigma_per_m": (
-        float,
-        None,
-        "range noise growth [m per m] (default: the log's, else 0.035)",
-    ),
-    "pixel_sigma": (float, None, "marker pixel noise [px] (default: the log's, else 1.0)"),
-    "lag": (
-        float,
-        None,
-        (
-            "online: fixed-lag window [s], 0 = full smoothing (default: "
-            f"{DEFAULT_LAG:g} s where no variable must outlive it, else 0; see "
-            "docs/outputs.md)"
-        ),
-    ),
-    "mcap": (str, None, "also write the results as an MCAP file of ROS 2 messages (Foxglove)"),
-    "rerun": (str, None, "also write a Rerun recording (.rrd; needs graphloc[viz])"),
-}
-NOISE = ("bearing_sigma", "range_sigma", "range_sigma_per_m", "pixel_sigma")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -92,84 +43,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, type=Path, help="output directory")
     parser.add_argument("--config", type=Path, help="TOML file with any of the options below")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
-    for name, (kind, default, text) in OPTIONS.items():
-        flag = "--" + name.replace("_", "-")
-        if kind is bool:
-            parser.add_argument(flag, action="store_true", default=None, help=text)
-        else:
-            parser.add_argument(flag, type=kind, default=None, help=f"{text} (default {default})")
+    add_config_arguments(parser, RunOptions)
 
 
-def options(args: argparse.Namespace) -> dict:
-    """Effective option values: defaults < --config file < command line."""
-    values = {name: spec[1] for name, spec in OPTIONS.items()}
-    if args.config is not None:
-        try:
-            data = tomllib.loads(args.config.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-            raise ValueError(f"{args.config}: cannot read config: {exc}") from None
-        for key, value in data.items():
-            name = key.replace("-", "_")
-            if name not in OPTIONS:
-                raise ValueError(
-                    f"{args.config}: unknown option {key!r}; known: {', '.join(OPTIONS)}"
-                )
-            kind = OPTIONS[name][0]
-            ok = (
-                isinstance(value, bool)
-                if kind is bool
-                else (
-                    isinstance(value, (int, float)) and not isinstance(value, bool)
-                    if kind is float
-                    else isinstance(value, str)
-                )
-            )
-            if not ok:
-                raise ValueError(
-                    f"{args.config}: option {key!r} must be a {kind.__name__}, got {value!r}"
-                )
-            values[name] = float(value) if kind is float else value
-    for name in OPTIONS:
-        given = getattr(args, name, None)
-        if given is not None:
-            values[name] = given
-    duration = values["duration"]
-    if duration is not None and not (0 < duration < float("inf")):
-        raise ValueError(
-            f"option --duration (or 'duration' in --config) must be > 0, got {duration}"
-        )
-    return values
-
-
-def graph_config(values: dict):
-    from graphloc.factors.robust import Kernel, KernelPolicy
-    from graphloc.pipelines.team_graph import GraphConfig
-
-    parsed = {}
-    for name in ("kernel", "candidate_kernel", "odometry_kernel"):
-        try:
-            parsed[name] = Kernel.parse(values[name])
-        except ValueError as exc:
-            flag = "--" + name.replace("_", "-")
-            raise ValueError(f"option {flag} (or {name!r} in --config): {exc}") from None
-    kernels = KernelPolicy(
-        {
-            "landmark": parsed["kernel"],
-            "inter_robot": parsed["kernel"],
-            "candidate": parsed["candidate_kernel"],
-        },
-        default=parsed["odometry_kernel"],
-    )
-    if values["no_landmarks"] and values["no_inter_robot"]:
-        raise ValueError("--no-landmarks with --no-inter-robot leaves only odometry")
-    return GraphConfig(
-        keyframe_dt=values["keyframe_dt"],
-        sync_tolerance=values["sync_tolerance"],
-        use_landmarks=not values["no_landmarks"],
-        use_inter_robot=not values["no_inter_robot"],
-        landmark_priors=not values["unknown_landmarks"],
-        kernels=kernels,
-    )
+def options(args: argparse.Namespace) -> RunOptions:
+    """Effective options: defaults < --config file < command line (`RunOptions`)."""
+    return config_from_args(RunOptions, args)
 
 
 def landmark_map(run, config) -> str:
@@ -228,16 +107,15 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
     from graphloc.pipelines.report import evaluate, write_outputs
     from graphloc.pipelines.team_graph import build_graph, default_lag, solve
 
-    values = options(args)
-    config = graph_config(values)
+    opts = options(args)
+    values = asdict(opts)
+    config = opts.graph_config()
     progress = not args.no_progress
     with StopFlag() as stop:
-        noise = {k: values[k] for k in NOISE if values[k] is not None}
+        noise = opts.noise()
         check_noise_params(noise, "option (command line or --config)")
-        run = open_run(args.run, duration=values["duration"], noise=noise)
-        lag = values["lag"] if values["lag"] is not None else default_lag(run, config)
-        if not (lag >= 0 and lag < float("inf")):
-            raise ValueError(f"--lag must be finite >= 0, got {lag}")
+        run = open_run(args.run, duration=opts.duration, noise=noise)
+        lag = opts.lag if opts.lag is not None else default_lag(run, config)
         config = replace(config, lag=float(lag))
         graph = build_graph(run, config, progress=progress)
         hooks = checkpoint(graph, values) if checkpoint is not None else {}
@@ -249,8 +127,8 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
         if stop.signal is not None:
             metrics["stopped_by"] = signal.Signals(stop.signal).name
         write_outputs(result, run, metrics, Path(args.out))
-        if values["mcap"] or values["rerun"]:
-            write_recordings(team_recording(result, run, args.run), values["mcap"], values["rerun"])
+        if opts.mcap or opts.rerun:
+            write_recordings(team_recording(result, run, args.run), opts.mcap, opts.rerun)
     summary = {
         name: round(v[mode]["ate_rmse"], 4)
         for name, v in metrics["per_robot"].items()

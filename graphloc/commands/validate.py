@@ -1,8 +1,8 @@
 """`graphloc validate RUN`: read a run the way `smooth` / `online` do and print what each table
 contributes -- rows read, factors built, candidate sets decided, rows skipped and why -- without
-solving. Exit 0 when the run is usable, 2 (with the reason) when it is rejected. The graph
-options are `GraphConfig`'s fields (graphloc.config.add_config_arguments), also from
-`--config FILE.toml`; the solver's settings are left out (nothing is solved)."""
+solving. Exit 0 when the run is usable, 2 (with the reason) when it is rejected. The options
+are those of `smooth` / `online` (`RunOptions`), also from `--config FILE.toml`, without the
+solver's and the outputs' (nothing is solved)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from pathlib import Path
 
 from graphloc.commands.smooth import landmark_map
 from graphloc.config import add_config_arguments, config_from_args
-from graphloc.pipelines.team_graph import GraphConfig
+from graphloc.pipelines.team_graph.options import OUTPUTS, SOLVER, RunOptions
 
 HELP = "check a run (log or MRCLAM dir): what every table contributes to the graph, what is skipped"
 
@@ -21,28 +21,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "run", help="graphloc log directory (manifest.json) or MRCLAM dataset directory"
     )
-    parser.add_argument("--duration", type=float, default=None, help="use only the first N seconds")
-    parser.add_argument("--config", type=Path, help="TOML file with any of the GraphConfig options")
-    add_config_arguments(parser, GraphConfig, exclude=SOLVER)
+    parser.add_argument("--config", type=Path, help="TOML file with any of the options below")
+    add_config_arguments(parser, RunOptions, exclude=SKIPPED)
 
 
-# GraphConfig fields that only the solve uses
-SOLVER = (
-    "relinearize_threshold",
-    "relinearize_skip",
-    "wildfire_threshold",
-    "extra_updates",
-    "lm_max_iterations",
-    "lag",
-)
+# the options of `smooth` / `online` that only the solve and its outputs use
+SKIPPED = SOLVER + OUTPUTS
 
 
 def run(args: argparse.Namespace) -> int:
     from graphloc.datasets import open_run
     from graphloc.pipelines.team_graph import build_graph
 
-    config = config_from_args(GraphConfig, args, exclude=SOLVER)
-    team = open_run(args.run, duration=args.duration)
+    opts = config_from_args(RunOptions, args, exclude=SKIPPED)
+    config = opts.graph_config()
+    team = open_run(args.run, duration=opts.duration, noise=opts.noise())
     graph = build_graph(team, config)
     robots = {}
     for r, robot in enumerate(team.robots):

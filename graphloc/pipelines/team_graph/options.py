@@ -1,0 +1,126 @@
+"""`RunOptions`: the one option tree of `graphloc smooth`, `online` and `validate` -- the
+command-line options, the `--config FILE.toml` keys and the `metrics.json` "options" are its
+fields (`graphloc.config.add_config_arguments` / `config_from_args`). What it turns into: the
+loader's `duration` and sensor-noise overrides (`noise`), the `GraphConfig` (`graph_config`),
+the online lag and the extra outputs."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from graphloc.config import check
+from graphloc.factors.robust import Kernel, KernelPolicy
+from graphloc.pipelines.team_graph.config import DEFAULT_LAG, GraphConfig
+
+NOISE = ("bearing_sigma", "range_sigma", "range_sigma_per_m", "pixel_sigma")
+KERNELS = ("kernel", "odometry_kernel", "candidate_kernel")
+OUTPUTS = ("mcap", "rerun")  # not graph options: `validate` leaves them out
+SOLVER = ("lag",)
+
+
+def _help(text: str) -> dict:
+    return {"help": text}
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    duration: float | None = field(
+        default=None, metadata=_help("use only the first N seconds; unset: all")
+    )
+    keyframe_dt: float = field(
+        default=0.25, metadata=_help("pose grid of wheel-odometry robots [s]")
+    )
+    sync_tolerance: float = field(
+        default=0.02,
+        metadata=_help(
+            "largest time offset between a measurement and its pose [s] (robots without wheel "
+            "odometry)"
+        ),
+    )
+    landmarks: bool = field(default=True, metadata=_help("use landmark measurements"))
+    inter_robot: bool = field(default=True, metadata=_help("use robot-to-robot measurements"))
+    unknown_landmarks: bool = field(
+        default=False,
+        metadata=_help("cooperative SLAM: estimate landmark positions instead of using the map"),
+    )
+    kernel: str = field(
+        default="cauchy:2.0",
+        metadata=_help(
+            "robust kernel NAME[:k] of landmark and inter-robot factors (huber, cauchy, tukey, "
+            "gemanmcclure, dcs, none)"
+        ),
+    )
+    odometry_kernel: str = field(
+        default="none", metadata=_help("robust kernel NAME[:k] of odometry factors")
+    )
+    candidate_kernel: str = field(
+        default="cauchy:1.0", metadata=_help("robust kernel NAME[:k] of decided candidate sets")
+    )
+    bearing_sigma: float | None = field(
+        default=None, metadata=_help("bearing noise [rad] of every sensor; unset: the log's")
+    )
+    range_sigma: float | None = field(
+        default=None, metadata=_help("range noise at 0 m [m]; unset: the log's")
+    )
+    range_sigma_per_m: float | None = field(
+        default=None, metadata=_help("range noise growth [m per m]; unset: the log's")
+    )
+    pixel_sigma: float | None = field(
+        default=None, metadata=_help("pixel noise [px] of every camera; unset: the log's")
+    )
+    lag: float | None = field(
+        default=None,
+        metadata=_help(
+            f"online: fixed-lag window [s], 0 = full smoothing; unset: {DEFAULT_LAG:g} s where "
+            "no variable must outlive it, else 0 (docs/outputs.md)"
+        ),
+    )
+    mcap: str | None = field(
+        default=None, metadata=_help("also write the results as an MCAP file (Foxglove, RViz)")
+    )
+    rerun: str | None = field(
+        default=None, metadata=_help("also write a Rerun recording (.rrd; graphloc[viz])")
+    )
+
+    def __post_init__(self):
+        check(
+            self,
+            positive=("keyframe_dt", "sync_tolerance", "bearing_sigma", "range_sigma")
+            + ("pixel_sigma",),
+            nonnegative=("range_sigma_per_m", "lag"),
+            optional=("duration", "bearing_sigma", "range_sigma", "range_sigma_per_m")
+            + ("pixel_sigma", "lag"),
+        )
+        if self.duration is not None and not 0 < self.duration < float("inf"):
+            raise ValueError(f"RunOptions.duration must be > 0, got {self.duration}")
+        for name in KERNELS:
+            try:
+                Kernel.parse(getattr(self, name))
+            except ValueError as exc:
+                raise ValueError(f"RunOptions.{name} (--{name.replace('_', '-')}): {exc}") from None
+        if not (self.landmarks or self.inter_robot):
+            raise ValueError("--no-landmarks with --no-inter-robot leaves only odometry")
+
+    def noise(self) -> dict:
+        """Sensor noise that replaces what the log's sensor params say."""
+        return {k: getattr(self, k) for k in NOISE if getattr(self, k) is not None}
+
+    def graph_config(self) -> GraphConfig:
+        kernel = Kernel.parse(self.kernel)
+        kernels = KernelPolicy(
+            {
+                **GraphConfig().kernels.by_type,
+                "landmark": kernel,
+                "inter_robot": kernel,
+                "candidate": Kernel.parse(self.candidate_kernel),
+            },
+            default=Kernel.parse(self.odometry_kernel),
+        )
+        return GraphConfig(
+            keyframe_dt=self.keyframe_dt,
+            sync_tolerance=self.sync_tolerance,
+            use_landmarks=self.landmarks,
+            use_inter_robot=self.inter_robot,
+            landmark_priors=not self.unknown_landmarks,
+            kernels=kernels,
+        )
