@@ -8,8 +8,8 @@ status, error, ATE per robot, decisions, wall time), runs.json and runs_summary.
 Each run's result is cached under DIR/.cache (or `--cache DIR`) by the content hash of the
 run's files, the effective options (and the --config file's bytes) and graphloc's code version,
 so a re-run skips the runs already solved with the same inputs. A run that fails (bad input, a
-solver error) is reported with its error; the others finish. Exit code: 0, or 3 when a run was
-stopped early (partial), or 4 when a run failed.
+solver error) is reported with its error; the others finish. Exit code (graphloc.exitcodes):
+RUNS_FAILED when a run failed, else INCOMPLETE when a run was stopped early (partial), else OK.
 
 The verb itself (`graphloc.commands.smooth.run_verb`) is handed in by the caller, so this
 module does not import the commands."""
@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.executor import BACKENDS, Executor, ResultCache, content_hash
+from graphloc.exitcodes import INCOMPLETE, OK, RUNS_FAILED
 
-EXIT_STOPPED, EXIT_FAILED = 3, 4
 # namespace fields that choose where / how runs execute, not what they compute
 _NOT_CONFIG = {"run", "out", "config", "no_progress", "runs", "backend", "workers", "address"}
 _NOT_CONFIG |= {"cache", "checkpoint", "checkpoint_every", "resume", "_run", "verb"}
@@ -127,7 +127,7 @@ def _solve_one(item: tuple) -> dict:
         if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]
     }
     return {
-        "status": "partial" if code == EXIT_STOPPED else "ok",
+        "status": "partial" if code == INCOMPLETE else "ok",
         "robots": len(metrics["per_robot"]),
         "ate_rmse_m": ate,
         "committed": metrics["decisions"]["committed"],
@@ -180,8 +180,8 @@ def run_many(args: argparse.Namespace, mode: str, verb, runs: list[Path]) -> int
     print(json.dumps({"mode": mode, "backend": backend, "runs": len(rows), **counts}))
     print(f"outputs in {out} (runs.csv, runs.md, runs_summary.png)")
     if counts["failed"]:
-        return EXIT_FAILED
-    return EXIT_STOPPED if counts["partial"] else 0
+        return RUNS_FAILED
+    return INCOMPLETE if counts["partial"] else OK
 
 
 def _cells(row: dict) -> list:
