@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
+from graphloc.config import check
 from graphloc.factors.odometry import VelocityNoise
 from graphloc.factors.robust import Kernel, KernelPolicy
 from graphloc.hypotheses import TrackerConfig
@@ -76,26 +77,27 @@ class GraphConfig:
     scan_hint_sigma: tuple = (0.05, 0.1)  # (rot [rad], trans [m]) of registrations between
     # placed robots, started from their current initial poses
     lag: float | None = None  # online: fixed-lag window [s] (None / 0: full smoothing)
+    marginalize_every: float = 1.0  # [s] fixed lag: old variables leave in batches this long
 
     def __post_init__(self):
-        if self.lag is not None and not (np.isfinite(self.lag) and self.lag >= 0):
-            raise ValueError(f"GraphConfig.lag must be None or finite >= 0, got {self.lag}")
-        if not 0.5 <= self.decision_threshold < 1.0:
-            raise ValueError(
-                f"GraphConfig.decision_threshold must be in [0.5, 1), got {self.decision_threshold}"
-            )
-        for name in (
-            "keyframe_dt",
-            "sync_tolerance",
-            "surface_sigma",
-            "landmark_prior_floor",
-            "feature_depth",
-            "feature_depth_sigma",
-        ):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"GraphConfig.{name} must be finite > 0, got {v}")
-        for name in ("initial_sigma", "static_sigma", "unknown_motion_sigma"):
+        check(
+            self,
+            positive=(
+                "keyframe_dt",
+                "sync_tolerance",
+                "surface_sigma",
+                "landmark_prior_floor",
+                "feature_depth",
+                "feature_depth_sigma",
+                "relinearize_threshold",
+                "wildfire_threshold",
+            ),
+            nonnegative=("lag", "downweight_threshold"),
+            integer={"relinearize_skip": 1, "lm_max_iterations": 1, "extra_updates": 0},
+            interval={"decision_threshold": (0.5, 1.0, "[)")},
+            optional=("lag", "relinearize_threshold", "wildfire_threshold", "extra_updates"),
+        )
+        for name in ("initial_sigma", "static_sigma", "unknown_motion_sigma", "scan_hint_sigma"):
             v = getattr(self, name)
             if len(v) != 2 or not all(np.isfinite(s) and s > 0 for s in v):
                 raise ValueError(f"GraphConfig.{name} must be 2 numbers > 0 (rot, trans), got {v}")
@@ -135,6 +137,7 @@ class GraphConfig:
             extra_updates=extra,
             partial_relinearization_check=True,
             isam2_optimizer="dogleg" if camera_graph else "gauss_newton",
+            marginalize_every=self.marginalize_every,
         )
 
 
