@@ -8,6 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from graphloc.executor import BACKENDS, default_backend
 from graphloc.experiments import team_runs, team_runs_report
 
 
@@ -19,10 +20,13 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--size", choices=sorted(team_runs.SIZES), default="full")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--backend", choices=BACKENDS, default="local", help="runs on")
+    parser.add_argument("--address", help="--backend ray: 'auto' or HOST:PORT of a cluster")
     parser.add_argument("--seed-offset", type=int, default=0)
     args = parser.parse_args(argv)
     command = "scripts/bench_team_runs.py " + " ".join(argv if argv is not None else sys.argv[1:])
-    rows = team_runs.run(args.size, args.workers, args.seed_offset)
+    with default_backend(args.backend, args.address, args.workers):
+        rows = team_runs.run(args.size, args.workers, args.seed_offset)
     team_runs_report.write(rows, args.out, args.doc, command)
     print(f"wrote {args.out / 'team_runs.json'}")
     return 0

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from graphloc.executor import BACKENDS
 from graphloc.experiments.reproduce import make_results
 
 HERE = Path(__file__).resolve().parent
@@ -21,13 +22,23 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--backend", choices=BACKENDS, default="local", help="trials on")
+    parser.add_argument("--address", help="--backend ray: 'auto' or HOST:PORT of a cluster")
     parser.add_argument("--out", type=Path, default=Path("out/results"))
     parser.add_argument("--results", type=Path, default=HERE.parent / "docs" / "results.md")
     parser.add_argument(
         "--skip-seed001", action="store_true", help="skip the rendered seed 001 experiment"
     )
     args = parser.parse_args(argv)
-    seconds = make_results(args.out, args.results, args.quick, args.workers, args.skip_seed001)
+    seconds = make_results(
+        args.out,
+        args.results,
+        args.quick,
+        args.workers,
+        args.skip_seed001,
+        backend=args.backend,
+        address=args.address,
+    )
     print(f"wrote {args.results} ({seconds:.0f} s)")
     return 0
 
