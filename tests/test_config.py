@@ -124,8 +124,8 @@ def test_options_derive_from_the_fields(tmp_path):
 def test_verbs_take_options_from_the_config_fields(tmp_path, capsys):
     run = tmp_path / "run"
     assert main(["simulate", "kaushik-p3p-error", "--out", str(run), "--frames", "3"]) == 0
-    assert main(["validate", str(run), "--no-use-landmarks", "--keyframe-dt", "0.5"]) == 0
+    assert main(["validate", str(run), "--no-landmarks", "--keyframe-dt", "0.5"]) == 0
     assert '"graph"' in capsys.readouterr().out
-    assert main(["validate", str(run), "--decision-threshold", "0.3"]) == 2
+    assert main(["validate", str(run), "--keyframe-dt", "0"]) == 2
     err = capsys.readouterr().err
-    assert "GraphConfig.decision_threshold must be in [0.5, 1), got 0.3" in err
+    assert "RunOptions.keyframe_dt must be finite and > 0, got 0" in err
