@@ -121,6 +121,31 @@ def test_a_wrong_hint_is_not_fused(fragment):
     assert len(d.as_dict()["candidates"]) == len(d.candidates) >= 1
 
 
+def test_a_candidate_that_barely_passes_lets_the_other_starts_compete(fragment):
+    """A 10 deg / 20 cm hint whose own candidate passes its checks 2 cm off the truth, with an
+    inlier ratio below stop_inlier_ratio (the view pair of the benchmark's seed 5 at 60%): the
+    sigma points are tried too and the lower truncated cost -- the right basin -- wins."""
+    rng = np.random.default_rng([5, 600])
+    pair = make_view_pair(fragment, 0.6, rng)
+    perturb(pair.T_ground_ceiling, 3.0, 0.05, rng)
+    hint = perturb(pair.T_ground_ceiling, 10.0, 0.20, rng)
+    cfg = RegistrationConfig()
+    d = robust_register(
+        prepare(pair.ceiling, cfg),
+        prepare(pair.ground, cfg),
+        hint,
+        hint_covariance(np.deg2rad(10.0), 0.20),
+        cfg,
+    )
+    own = next(c for c in d.candidates if c.start == 0)
+    assert all(v[2] for v in _candidate_checks(own, AcceptanceConfig()).values())
+    assert own.inlier_ratio < cfg.stop_inlier_ratio
+    assert pose_errors(own.transformation, pair.T_ground_ceiling)[1] > 0.01
+    assert d.accepted and d.best != 0
+    rot, tr = pose_errors(d.registration.transformation, pair.T_ground_ceiling)
+    assert rot < 0.3 and tr < 0.01, (rot, tr)
+
+
 def test_degenerate_geometry_fails_the_conditioning_check():
     """A floor seen by both robots leaves x, y and the yaw free: not accepted."""
     rng = np.random.default_rng(3)

@@ -57,14 +57,16 @@ class RegistrationConfig:
     range_sigma: float = 0.01
     # robust_register: coarse correspondences within coarse_voxels coarse voxels, Tukey kernel
     # width coarse_tukey voxels (0: least squares), cluster size [m] of the sandwich covariance,
-    # stop at the first start whose candidate passes its checks
+    # stop at the first start whose candidate passes its checks with an inlier ratio of at least
+    # stop_inlier_ratio (a candidate that barely passes may sit in a basin next to the right one)
     coarse_voxels: float = 2.0
     coarse_tukey: float = 0.5
     covariance_block: float = 0.5
     stop_at_first_valid: bool = True
+    stop_inlier_ratio: float = 0.72
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
     covariance_scale: float = 17.1  # fit of docs/results_fusion_calibration.json (3 digits)
-    covariance_floor: tuple[float, float] = (6.70e-4, 4.41e-4)
+    covariance_floor: tuple[float, float] = (6.69e-4, 4.40e-4)
 
     def __post_init__(self):
         if not (self.voxel > 0 and self.normal_radius > 0 and self.range_sigma > 0):
@@ -454,9 +456,11 @@ def robust_register(
        (cfg.max_correspondence[-1], and the rotation moving the median source point that far) merge;
        then Open3D tensor ICP on the prepared clouds within that distance (cfg.max_iterations[-1]);
        candidates closer than acc.distinct_deg / distinct_m merge. With cfg.stop_at_first_valid the
-       starts stop at the first candidate that passes its checks (the hint comes first, so an easy
-       case costs one start). If none passes and cfg.global_fallback, `global_fpfh_ransac` (seed 0)
-       gives one more start (index 13), still subject to every check, the hint gate included.
+       starts stop at the first candidate that passes its checks with an inlier ratio of at least
+       cfg.stop_inlier_ratio (the hint comes first, so an easy case costs one start; one that barely
+       passes lets the other starts compete on cost). If none passes and cfg.global_fallback,
+       `global_fpfh_ransac` (seed 0) gives one more start (index 13), still subject to every check,
+       the hint gate included.
     3. Each candidate's `truncated_cost` (c = acc.residual_sigma) and checks (overlap, inlier
        ratio, hint gate, robot geometry: `_candidate_checks`). Among those that pass, the lowest
        cost wins, except that the hint's own candidate (start 0) is kept when it passes and its
@@ -559,8 +563,9 @@ def robust_register(
     starts = hint_starts(hint, hint_cov)
     found = False
     for k, T0 in enumerate(starts):
-        found = try_start(k, coarse_stage(T0)) or found
-        if found and cfg.stop_at_first_valid:
+        ok = try_start(k, coarse_stage(T0))
+        found = ok or found
+        if ok and cfg.stop_at_first_valid and cands[-1].inlier_ratio >= cfg.stop_inlier_ratio:
             break
     if not found and cfg.global_fallback:  # the hint's neighbourhood failed: one global guess
         T_glob, _ = global_fpfh_ransac(source, target, cfg, seed=0)
