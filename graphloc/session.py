@@ -35,6 +35,7 @@ Example (GTSAM-example style: explicit keys, one graph, one optimizer):
 
 from __future__ import annotations
 
+import collections
 import math
 import time as _time
 from dataclasses import asdict, dataclass, field, fields
@@ -68,21 +69,18 @@ class SessionConfig:
     (iSAM2's default step) or "dogleg" (Powell's dog leg with an adaptive trust region: a
     step that would raise the error is shortened, which stops the period-2 oscillation an
     undamped step can fall into on stiff graphs).
-    lag [s]: online only; 0 keeps every variable (full smoothing); > 0 runs GTSAM's
-    IncrementalFixedLagSmoother (iSAM2 that marginalizes, with `ISAM2::marginalizeLeaves`, every
-    variable added more than `lag` seconds (of the add times) before the newest): the Bayes
-    tree and the per-step cost stay bounded; a marginalized variable keeps its last estimate,
-    and a factor on one is refused (`Session.add` raises ValueError; `Session.marginalized`
-    tells first). A variable's stamp is its add time and is not renewed when later factors
-    touch it (with re-stamped keys GTSAM 4.3's smoother failed in marginalizeLeaves on the
-    MRCLAM team graph, "remove variables ... that are not unused"; a plain pose chain does not
-    show it), so long-lived variables (a static robot's pose, a SLAM landmark) leave the
-    window too. marginalize_every [s] (0: `lag`): variables are stamped with their add time
-    rounded down to a multiple of it, so that old variables leave in one batch every
-    `marginalize_every` seconds (the window spans `lag` to `lag + marginalize_every`): the
-    smoother re-eliminates the path from the marginalized cliques to the root -- about the
-    whole window -- whenever it marginalizes, so batches trade the cost of that step (grows
-    with the window) against how often it comes.
+    lag [s]: online only; 0 keeps every variable (full smoothing); > 0 is a fixed lag: iSAM2
+    that marginalizes, with `ISAM2::marginalizeLeaves`, every variable added more than `lag`
+    seconds (of the add times) before the newest (`_update_fixed_lag`: a constrained ordering
+    by add time keeps those variables leaves of the Bayes tree, so no re-elimination is
+    needed): the tree and the per-step cost stay bounded; a marginalized variable keeps its
+    last estimate, and a factor on one is refused (`Session.add` raises ValueError;
+    `Session.marginalized` tells first). A variable's stamp is its add time and is not renewed
+    when later factors touch it, so long-lived variables (a static robot's pose, a SLAM
+    landmark) leave the window too. marginalize_every [s] (0: `lag`): stamps are add times
+    rounded down to a multiple of it; old variables leave in one batch every
+    `marginalize_every` seconds (the window spans `lag` to `lag + marginalize_every`), and
+    every update orders one group per live stamp.
     """
 
     mode: str = "batch"
@@ -200,6 +198,16 @@ class Session:
         self._touched: dict[int, float] = {}
         self._newest = -np.inf
         self._frozen = gtsam.Values()
+        self._groups = gtsam.KeyGroupMap()  # live key -> the rank of its stamp
+        self._ranks: dict[float, int] = {}  # live stamp -> its rank (ordering group)
+        self._by_stamp: dict[float, list] = {}  # live stamp -> its keys, oldest stamp first
+        # the most recent keys, always re-eliminated: more than the groups there can be
+        stamps = 2 + (
+            math.ceil(config.lag / (config.marginalize_every or config.lag)) if config.lag else 0
+        )
+        n = stamps + 2
+        self._in_newest = 0  # live keys with the newest stamp
+        self._recent: collections.deque = collections.deque(maxlen=n)
 
     # ---- construction --------------------------------------------------------------------
     def _make_isam(self):
@@ -214,8 +222,6 @@ class Session:
             step = gtsam.ISAM2GaussNewtonParams()
         step.setWildfireThreshold(self.config.wildfire_threshold)
         params.setOptimizationParams(step)
-        if self.config.lag > 0:
-            return gtsam.IncrementalFixedLagSmoother(self.config.lag, params)
         return gtsam.ISAM2(params)
 
     @property
@@ -246,36 +252,66 @@ class Session:
     def _update_fixed_lag(
         self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, t: float
     ) -> None:
-        """One fixed-lag update: the new keys get time t; the keys the smoother marginalizes
-        keep their estimate from before this update."""
+        """One fixed-lag update (iSAM2 with `ISAM2::marginalizeLeaves`). New keys are stamped
+        with t rounded down to a multiple of `marginalize_every`. Every update passes iSAM2 a
+        constrained ordering with one group per live stamp, oldest first, so that every
+        (re-)elimination eliminates older stamps first: a key's subtree then holds only keys of
+        its own stamp or older ones, and the keys stamped more than `lag` before the newest
+        stamp are leaves, marginalized by `marginalizeLeaves` alone, without re-eliminating the
+        window (GTSAM's IncrementalFixedLagSmoother re-orders and re-eliminates the path from
+        the marginalized cliques to the root whenever it marginalizes). They keep their
+        estimate from before the marginalization. CCOLAMD takes group numbers below the number
+        of variables it orders, so the groups are the ranks of the live stamps and the most
+        recent keys (at least one more than there are stamps) are always re-eliminated too
+        (they are at the top of the tree, re-eliminated by most updates anyway)."""
         quantum = self.config.marginalize_every or self.config.lag
         now = math.floor(t / quantum) * quantum  # add times never go back
-        stamps = {int(k): now for k in values.keys()}
-        self._touched.update(stamps)
-        # IncrementalFixedLagSmoother marginalizes the keys stamped before (newest - lag); new
-        # keys get the newest stamp, so only a newer stamp can make keys old
         old = []
-        if now > self._newest:
-            old = [k for k, s in self._touched.items() if s < now - self.config.lag + 1e-9]
+        if now > self._newest:  # a new stamp: the next rank; only it can make keys old
             self._newest = now
-        before = self._isam.calculateEstimate() if old else None
-        self._isam.update(graph, values, stamps)
+            self._ranks[now] = len(self._ranks)
+            self._in_newest = 0
+            self._by_stamp[now] = []
+            limit = now - self.config.lag - 1e-9 * quantum
+            while next(iter(self._by_stamp)) < limit:  # stamps in time order
+                old += self._by_stamp.pop(next(iter(self._by_stamp)))
+        rank = self._ranks[now]
+        extra = _key_list(self._recent) if self._recent else None
+        for k in values.keys():
+            self._touched[k] = now
+            self._by_stamp[now].append(k)
+            self._groups.insert2(k, rank)
+            self._recent.append(k)
+        self._in_newest += values.size()
+        # this update only: the keys of the new factors that have the newest stamp go last
+        # (iSAM2's own default constrains the new factors' keys last), one group above the
+        # newest stamp's (used only when that stamp has other keys)
+        top = [k for k in set(graph.keyVector()) if self._touched[k] == now]
+        bump = 0 < len(top) < self._in_newest
+        for k in top if bump else ():
+            self._groups.insert2(k, rank + 1)
+        self._isam.update(graph, values, [], self._groups, None, extra)
+        for k in top if bump else ():
+            self._groups.insert2(k, rank)
         for _ in range(self.config.extra_updates):
-            self._isam.update()
+            extra = _key_list(self._recent)
+            empty = gtsam.NonlinearFactorGraph()
+            self._isam.update(empty, gtsam.Values(), [], self._groups, None, extra)
         if not old:
             return
-        alive = self._isam.timestamps()
-        gone = set()
+        # the marginalized keys keep their estimate; the live stamps are renumbered from 0
+        self._frozen.insert(self._isam.calculateEstimate(old))
+        self._isam.marginalizeLeaves(_key_list(old))
         for k in old:
-            if k not in alive:
-                del self._touched[k]
-                gone.add(k)
-        # the estimates of the marginalized keys, copied in C++ (one typed lookup per key in
-        # Python costs more than the update itself on a 20 s window)
-        for k in before.keys():
-            if k not in gone:
-                before.erase(k)
-        self._frozen.insert(before)
+            del self._touched[k]
+        self._ranks = {stamp: r for r, stamp in enumerate(self._by_stamp)}
+        self._groups = gtsam.KeyGroupMap()
+        for stamp, keys in self._by_stamp.items():
+            for k in keys:
+                self._groups.insert2(k, self._ranks[stamp])
+        self._recent = collections.deque(
+            (k for k in self._recent if k in self._touched), maxlen=self._recent.maxlen
+        )
 
     # ---- the front door ------------------------------------------------------------------
     def add(
@@ -543,6 +579,13 @@ def _config_from(raw) -> SessionConfig:
         return SessionConfig(**raw)
     except ValueError as exc:
         raise BadData(f"config: {exc}") from None
+
+
+def _key_list(keys: Iterable[int]) -> gtsam.KeyList:
+    out = gtsam.KeyList()
+    for k in keys:
+        out.push_back(k)
+    return out
 
 
 def _value(values: gtsam.Values, key: int):
