@@ -232,6 +232,17 @@ def noisy_odometry(
     ]
 
 
+def world_odometry(
+    t_wc: np.ndarray, rel_sigma: float, rng: np.random.Generator, model: str = "per_axis"
+) -> list[gtsam.Pose3]:
+    """a_t read as a world-frame motion sensor (graphloc.baselines.belief_vector action_frame
+    "world"): the true displacements t_{k+1} - t_k with `noisy_odometry`'s translation noise,
+    as identity-rotation Pose3 steps."""
+    steps = np.diff(t_wc, axis=0)
+    eye = np.broadcast_to(np.eye(3), (len(steps), 3, 3))
+    return noisy_odometry(eye, steps, rel_sigma, 0.0, rng, model)
+
+
 def odometry_covariance(
     relative: gtsam.Pose3,
     rel_sigma: float = 0.15,

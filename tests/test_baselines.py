@@ -222,3 +222,21 @@ def test_straight_line_orientation_readings():
     assert (err.max(axis=1) < 1e-6).mean() >= 0.9
     with pytest.raises(ValueError, match="orientation"):
         Seed000Config(orientation="spinning")
+
+
+def test_belief_action_frame_readings():
+    """a_t rotated by each solution's rotation ("solution", the default) separates two
+    solutions that moved alike but face differently; one world-frame reading ("world") cannot."""
+    R = np.stack([np.eye(3), gtsam.Rot3.Rz(np.pi / 2).matrix()])
+    step = Odometry(gtsam.Pose3(gtsam.Rot3(), np.array([0.02, 0.0, 0.0])), np.eye(6) * 1e-4)
+    first = CandidateSet(R, np.array([[0.0, 0, 0], [1.0, 0, 0]]), np.ones(2), time=0.0)
+    moved = CandidateSet(R, np.array([[0.02, 0, 0], [1.02, 0, 0]]), np.ones(2), time=0.1)
+    probs = {}
+    for frame in ("solution", "world"):
+        engine = BeliefVector(BeliefVectorConfig(action_frame=frame))
+        engine.update(first)
+        probs[frame] = engine.update(moved, step).probabilities
+    assert probs["solution"][0] > 0.99
+    np.testing.assert_allclose(probs["world"], [0.5, 0.5])
+    with pytest.raises(ValueError, match="action_frame"):
+        BeliefVectorConfig(action_frame="camera")

@@ -161,7 +161,12 @@ def test_the_reproduction_runs_at_the_chosen_readings(monkeypatch):
     monkeypatch.setattr(seed000, "table_iii", lambda cfg, progress: seen.append(cfg) or {})
     monkeypatch.setattr(seed004, "seed004_table_1", lambda **kw: seen.append(kw["base"]) or {})
     b1 = {"pixel_sigma": 0.02, "lateral_sigma": 0.0, "orientation": "redrawn"}
-    b3 = {"pixel_sigma": 0.1, "odometry_model": "isotropic", "likelihood": "distance_angle_inverse"}
+    b3 = {
+        "pixel_sigma": 0.1,
+        "odometry_model": "isotropic",
+        "likelihood": "distance_angle_inverse",
+        "action_frame": "world",
+    }
     b4 = {"height": 2.0, "pitch_um": 7.4, "offset": 1.5, "noise_reading": "variance"}
     sweeps = {
         k: {"choice": {"best": b}} for k, b in (("table1", b1), ("table3", b3), ("seed004", b4))
@@ -171,7 +176,7 @@ def test_the_reproduction_runs_at_the_chosen_readings(monkeypatch):
     assert (t1s.pixel_sigma, t1s.lateral_sigma, t1s.orientation) == (0.5, 0.001, "kept")
     assert (t1.pixel_sigma, t1.lateral_sigma, t1.orientation) == (0.02, 0.0, "redrawn")
     assert t3s == TableIIIConfig(runs=t3s.runs, workers=1)
-    assert (t3.pixel_sigma, t3.odometry_model) == (0.1, "isotropic")
+    assert (t3.pixel_sigma, t3.odometry_model, t3.action_frame) == (0.1, "isotropic", "world")
     assert (t3.def1_likelihood, t3.def2_likelihood) == ("inner_product", "distance_angle_inverse")
     assert s4s == KaushikConfig()
     assert (s4.height, s4.pixel_pitch_um, s4.offset, s4.noise_reading) == (
@@ -202,7 +207,7 @@ def test_table_iii_belief_locks_early_and_wrong_only_at_the_stated_noise():
 
     def cell(sigma):
         jobs = [(sigma, "per_axis", "level", "line", i, 77) for i in range(6)]
-        res = [sb._t3_job(j)["inner_product"] for j in jobs]
+        res = [sb._t3_job(j)[("inner_product", "solution")] for j in jobs]
         conv = [r["converged"] for r in res if r["converged"] is not None]
         return np.mean(conv), sum(r["wrong"] for r in res)
 

@@ -16,6 +16,9 @@ Likelihoods (Sec. V-B):
   likelihood is exp(-d) (d in metres + lambda * radians; "relatively large lambda").
 - Def. 2 read as an inverse distance ("distance_angle_inverse"): 1 / (1 + d).
 The seed names neither mapping; graphloc.experiments.seed_baselines sweeps them.
+`action_frame` "world" reads a_t as a world-frame motion reading, the same vector for every
+solution (the odometry handed in is then a world displacement), instead of rotating it by each
+solution's rotation.
 
 a_i is the action of solution i: the odometry translation (camera frame of the previous pose)
 rotated into the world by that solution's rotation -- the superscript (i) of a_{t-1}^{(i)} in
@@ -34,6 +37,7 @@ import numpy as np
 from graphloc.candidates import CandidateSet
 from graphloc.seams import Decision, Odometry, check_frame
 
+ACTION_FRAMES = ("solution", "world")
 LIKELIHOODS = (
     "inner_product",
     "inner_product_shifted",
@@ -51,8 +55,14 @@ class BeliefVectorConfig:
     gate_interval: float = 0.1
     min_normal_dot: float = 0.85
     threshold: float = 0.95
+    action_frame: str = "solution"
 
     def __post_init__(self):
+        if self.action_frame not in ACTION_FRAMES:
+            raise ValueError(
+                f"BeliefVectorConfig.action_frame must be one of {ACTION_FRAMES}, "
+                f"got {self.action_frame!r}"
+            )
         if self.likelihood not in LIKELIHOODS:
             raise ValueError(
                 f"BeliefVectorConfig.likelihood must be one of {LIKELIHOODS}, "
@@ -119,7 +129,12 @@ class BeliefVector:
             gate = cfg.gate_distance * max(dt / cfg.gate_interval, 1.0)
             traced = (d[rows, nn] < gate) & (normal_dot >= cfg.min_normal_dot)
             om = np.where(traced[:, None], candidates.t[nn] - self._t, np.inf)
-            a = self._R @ odometry.relative.translation()
+            step = odometry.relative.translation()
+            a = (
+                self._R @ step
+                if cfg.action_frame == "solution"
+                else np.broadcast_to(step, self._t.shape)
+            )
             belief = self._belief * likelihood(a, om, cfg)
             keep = traced & (belief > 0)
             if keep.any():

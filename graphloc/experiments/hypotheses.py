@@ -31,6 +31,7 @@ from graphloc.datasets.feng import (
     FengProbabilisticScenario,
     ceiling_plane,
     odometry_covariance,
+    world_odometry,
 )
 from graphloc.hypotheses import HypothesisTracker, TrackerConfig
 from graphloc.keys import decode, pose_key
@@ -58,7 +59,9 @@ class TableIIIConfig:
     straight-line snapshot spacing / commit threshold [m], pixel noise [px], seed offset; the
     readings of the seed's setup (graphloc.experiments.seed_baselines): the belief vector's
     Def. 1 / Def. 2 likelihood mappings (graphloc.baselines.belief_vector.LIKELIHOODS) and the
-    odometry noise model (graphloc.datasets.feng.ODOMETRY_MODELS)."""
+    odometry noise model (graphloc.datasets.feng.ODOMETRY_MODELS), and the belief vector's
+    action frame (graphloc.baselines.belief_vector.ACTION_FRAMES; "world": the belief engines
+    get world-frame motion readings, graphloc.datasets.feng.world_odometry)."""
 
     runs: int = 100
     workers: int = 2
@@ -71,6 +74,7 @@ class TableIIIConfig:
     def1_likelihood: str = "inner_product"
     def2_likelihood: str = "distance_angle"
     odometry_model: str = "per_axis"
+    action_frame: str = "solution"
 
     def __post_init__(self):
         if self.runs < 1 or self.workers < 1:
@@ -81,9 +85,15 @@ class TableIIIConfig:
 
 def make_engine(method: str, ceiling: str, args: TableIIIConfig, seed: int):
     if method == "belief_def1":
-        return BeliefVector(BeliefVectorConfig(likelihood=args.def1_likelihood))
+        return BeliefVector(
+            BeliefVectorConfig(likelihood=args.def1_likelihood, action_frame=args.action_frame)
+        )
     if method == "belief_def2":
-        return BeliefVector(BeliefVectorConfig(likelihood=args.def2_likelihood, lam=args.lam))
+        return BeliefVector(
+            BeliefVectorConfig(
+                likelihood=args.def2_likelihood, lam=args.lam, action_frame=args.action_frame
+            )
+        )
     if method == "particle_filter":
         # the motion plane is the ceiling (seed 004 Algorithm 1 line 7)
         return ParticleFilter(
@@ -108,6 +118,14 @@ def odometry_steps(run, sim: FengProbabilisticConfig) -> list:
         )
         for o in run.odometry
     ]
+
+
+def world_odometry_steps(run, sim: FengProbabilisticConfig) -> list:
+    """The belief vector's world-frame motion readings (action_frame "world") of one run, seeded
+    from the run's seed."""
+    rng = np.random.default_rng([sim.seed, 7])
+    steps = world_odometry(run.t_wc, sim.odometry_noise, rng, sim.odometry_model)
+    return [None] + [Odometry(o, np.eye(6)) for o in steps]
 
 
 def evaluate(engine, run, odometry, smooth: bool = False) -> dict:
@@ -219,11 +237,13 @@ def trial(job) -> dict:
             np.median([c.meta.get("genuine_error", np.nan) for c in run.candidates])
         ),
     }
+    world = world_odometry_steps(run, sim) if args.action_frame == "world" else None
     for method in METHODS:
         if method == "straight_line" and curve != "line":
             continue
+        steps = world if world is not None and method.startswith("belief") else odometry
         out[method] = evaluate(
-            make_engine(method, ceiling, args, seed), run, odometry, smooth=method == "tracker"
+            make_engine(method, ceiling, args, seed), run, steps, smooth=method == "tracker"
         )
     return out
 

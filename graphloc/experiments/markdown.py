@@ -336,24 +336,26 @@ def _sb_table3(r: dict) -> list:
         "Left open by the text: the image noise (as above), the likelihood -- Def. 1's "
         "normalized inner product floored at 1e-3 or shifted to (1 + cos) / 2, Def. 2's "
         'distance (13) as exp(-d) or 1 / (1 + d) -- and the odometry noise "15% on all three '
-        'dimensions" (per axis, or isotropic at 15 % of the step). Cells: mean updates to '
+        'dimensions" (per axis, or isotropic at 15 % of the step), and the frame of the action '
+        "a_t (rotated into the world by each solution's rotation, or one world-frame motion "
+        "reading for all solutions). Cells: mean updates to "
         "converge (wrong first locks); last columns: largest deviation, wrong locks and runs "
         "whose committed belief fell to the threshold again (the paper: never), over all "
         f"cells, {best['cells'][names[0]]['runs']} runs per cell.",
         "",
-        "| image std [px] | odometry | likelihood | "
+        "| image std [px] | odometry | likelihood | action frame | "
         + " | ".join(names)
         + " | largest dev. | wrong | relocalized |",
-        "|---|---|---|" + "---|" * len(names) + "---|---|---|",
-        "| paper | | | "
+        "|---|---|---|---|" + "---|" * len(names) + "---|---|---|",
+        "| paper | | | | "
         + " | ".join(f"{best['cells'][n]['paper']:g}" for n in names)
         + " | | | 0 |",
     ]
     for x in _top(
         sw["rows"],
         lambda x: (
-            (x["pixel_sigma"], x["odometry_model"], x["likelihood"])
-            == (0.5, "per_axis", "inner_product")
+            (x["pixel_sigma"], x["odometry_model"], x["likelihood"], x.get("action_frame"))
+            == (0.5, "per_axis", "inner_product", "solution")
         ),
     ):
         cells = " | ".join(
@@ -362,7 +364,8 @@ def _sb_table3(r: dict) -> list:
             for n in names
         )
         lines.append(
-            f"| {x['pixel_sigma']:g} | {x['odometry_model']} | {x['likelihood']} | {cells} | "
+            f"| {x['pixel_sigma']:g} | {x['odometry_model']} | {x['likelihood']} | "
+            f"{x.get('action_frame', 'solution')} | {cells} | "
             f"{_dev(x['max_deviation'])} | {x['wrong_locks']} | "
             f"{x['runs_with_relocalization']} |"
         )
@@ -375,7 +378,8 @@ def _sb_table3(r: dict) -> list:
         )
         + f" ({ch['reproducing_readings']} of {len(sw['rows'])} readings do). Chosen: image "
         f"std {best['pixel_sigma']:g} px, odometry {best['odometry_model']}, likelihood "
-        f"{best['likelihood']} (largest deviation {_dev(best['max_deviation'])}).",
+        f"{best['likelihood']}, action frame {best.get('action_frame', 'solution')} (largest "
+        f"deviation {_dev(best['max_deviation'])}).",
         "",
         _t3_evidence(sw["rows"]),
         "",

@@ -40,7 +40,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from graphloc.baselines.belief_vector import BeliefVector, BeliefVectorConfig
+from graphloc.baselines.belief_vector import ACTION_FRAMES, BeliefVector, BeliefVectorConfig
 from graphloc.baselines.straight_line import localize_by_straight_line
 from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario
 from graphloc.datasets.feng_deterministic import (
@@ -75,6 +75,7 @@ T3_LIKELIHOODS = (
     "distance_angle_inverse",
 )
 T3_ODOMETRY = ("per_axis", "isotropic")
+T3_ACTION_FRAMES = ACTION_FRAMES
 S4_HEIGHTS = (1.5, 2.0, 2.5, 3.0)
 S4_PITCHES_UM = (5.6, 7.4, 9.9, 13.75)
 S4_OFFSETS = (0.0, 0.5, 1.0, 1.5, 2.0)
@@ -181,11 +182,17 @@ def _t3_job(job) -> dict:
         ceiling=ceiling, curve=curve, seed=seed, pixel_sigma=sigma, odometry_model=odometry_model
     )
     run = FengProbabilisticScenario.simulate(sim)
-    odometry = hypotheses.odometry_steps(run, sim)
+    steps = {
+        "solution": hypotheses.odometry_steps(run, sim),
+        "world": hypotheses.world_odometry_steps(run, sim),
+    }
     out = {"key": (sigma, odometry_model, ceiling, curve)}
-    for lik in T3_LIKELIHOODS:
-        r = hypotheses.evaluate(BeliefVector(BeliefVectorConfig(likelihood=lik)), run, odometry)
-        out[lik] = {k: r[k] for k in ("converged", "wrong", "relocalizations", "correct_lock")}
+    for lik, frame in itertools.product(T3_LIKELIHOODS, T3_ACTION_FRAMES):
+        engine = BeliefVector(BeliefVectorConfig(likelihood=lik, action_frame=frame))
+        r = hypotheses.evaluate(engine, run, steps[frame])
+        out[(lik, frame)] = {
+            k: r[k] for k in ("converged", "wrong", "relocalizations", "correct_lock")
+        }
     return out
 
 
@@ -201,10 +208,12 @@ def table3_sweep(runs: int, workers: int, seed_offset: int = 0, progress: bool =
     with Executor(workers, progress=progress) as ex:
         results = list(ex.imap(_t3_job, jobs, desc="Table III sweep"))
     rows = []
-    for s, m, lik in itertools.product(T3_PIXEL_SIGMAS, T3_ODOMETRY, T3_LIKELIHOODS):
+    for s, m, lik, frame in itertools.product(
+        T3_PIXEL_SIGMAS, T3_ODOMETRY, T3_LIKELIHOODS, T3_ACTION_FRAMES
+    ):
         cells = {}
         for ceiling, curve in CELLS:
-            res = [r[lik] for r in results if r["key"] == (s, m, ceiling, curve)]
+            res = [r[(lik, frame)] for r in results if r["key"] == (s, m, ceiling, curve)]
             conv = [r["converged"] for r in res if r["converged"] is not None]
             mean = float(np.mean(conv)) if conv else None
             cells[f"{ceiling}/{curve}"] = {
@@ -221,6 +230,7 @@ def table3_sweep(runs: int, workers: int, seed_offset: int = 0, progress: bool =
                 "pixel_sigma": s,
                 "odometry_model": m,
                 "likelihood": lik,
+                "action_frame": frame,
                 "cells": cells,
                 "max_deviation": max(c["deviation"] for c in cells.values()),
                 "wrong_locks": sum(c["wrong_locks"] for c in cells.values()),
@@ -324,6 +334,7 @@ def table3_config(best: dict, runs: int, workers: int) -> TableIIIConfig:
         workers=workers,
         pixel_sigma=best["pixel_sigma"],
         odometry_model=best["odometry_model"],
+        action_frame=best.get("action_frame", "solution"),
         **{slot: best["likelihood"]},
     )
 

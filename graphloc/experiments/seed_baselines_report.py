@@ -9,6 +9,7 @@ seed baseline; JSON, a PNG of the sweeps and docs/results_seed_baselines.md.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import time
 from dataclasses import asdict, replace
@@ -121,19 +122,26 @@ def plot(r: dict, path: Path) -> None:
     ax.legend(fontsize=6)
     ax = axes[1]
     rows = r["sweeps"]["table3"]["rows"]
-    for lik in sb.T3_LIKELIHOODS:
+    for lik, frame in itertools.product(sb.T3_LIKELIHOODS, sb.T3_ACTION_FRAMES):
         for model, style in zip(sb.T3_ODOMETRY, ("-", ":")):
             sel = sorted(
-                (x for x in rows if x["likelihood"] == lik and x["odometry_model"] == model),
+                (
+                    x
+                    for x in rows
+                    if (x["likelihood"], x.get("action_frame", "solution"), x["odometry_model"])
+                    == (lik, frame, model)
+                ),
                 key=lambda x: x["pixel_sigma"],
             )
+            if not sel:
+                continue
             ax.plot(
                 [x["pixel_sigma"] for x in sel],
                 [min(x["max_deviation"], 1e3) for x in sel],
                 style,
                 marker="o",
                 ms=3,
-                label=f"{lik}, {model}",
+                label=f"{lik}, {frame}, {model}",
             )
     ax.set(xscale="log", yscale="log", xlabel="image noise std [px]")
     ax.set_title("Seed 000 Table III (belief vector)", fontsize=10)
@@ -208,10 +216,16 @@ def main(argv=None) -> int:
         help="redraw plot and markdown from this run's JSON (re-running a table only when "
         "its chosen reading changed)",
     )
+    parser.add_argument(
+        "--resweep", choices=["table3"], help="with --render: redo the Table III sweep only"
+    )
     args = parser.parse_args(argv)
     if args.render:
         r = json.loads(args.render.read_text())
-        if refresh(r, args.workers):
+        if args.resweep == "table3":  # only this sweep's rows recomputed
+            rows = sb.table3_sweep(SWEEP_SIZES[r["quick"]]["t3_runs"], args.workers)
+            r["sweeps"]["table3"]["rows"] = rows
+        if refresh(r, args.workers) or args.resweep:
             (args.out / "seed_baselines.json").write_text(json.dumps(r, indent=1, default=_json))
         r = render(r, args.out, docs=not args.no_docs)
     else:
