@@ -31,6 +31,7 @@ import importlib.util
 import json
 import multiprocessing as mp
 import os
+import socket
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator
@@ -353,8 +354,21 @@ def _start_ray(workers: int, address: str | None):
     if address is None:
         ray.init(num_cpus=workers, **kwargs)
     else:
+        if address != "auto":
+            _probe(address)
         try:
             ray.init(address=address, **kwargs)
         except ConnectionError as exc:
             raise ValueError(f"--address {address}: cannot connect to a Ray cluster: {exc}")
     return ray, True
+
+
+def _probe(address: str, timeout: float = 5.0) -> None:
+    """HOST:PORT answers a TCP connection within `timeout` s (Ray itself retries for minutes)."""
+    host, _, port = address.rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"--address {address!r}: expected 'auto' or HOST:PORT")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise ValueError(f"--address {address}: no Ray cluster answers there ({exc})") from None

@@ -18,6 +18,7 @@ from graphloc.executor import (
     Executor,
     ResultCache,
     TaskFailed,
+    _probe,
     content_hash,
     default_backend,
     task_seed,
@@ -86,6 +87,11 @@ def test_seeds_hashes_and_options_are_checked(tmp_path):
         Executor(0)
     with pytest.raises(ValueError, match="--address needs --backend ray"):
         Executor(1, "local", address="auto")
+    # a cluster address that does not answer is an error at once (Ray would retry for minutes)
+    with pytest.raises(ValueError, match="127.0.0.1:1: no Ray cluster answers there"):
+        _probe("127.0.0.1:1", timeout=2.0)
+    with pytest.raises(ValueError, match="expected 'auto' or HOST:PORT"):
+        _probe("head-node")
 
 
 def _simulate(root: Path, seeds) -> list[str]:
