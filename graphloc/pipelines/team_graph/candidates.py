@@ -41,6 +41,7 @@ class Decision:
     probabilities: np.ndarray | None = None  # (K,) every candidate's posterior (tracker)
     mixture: object = None  # max-mixture route: the MaxMixture (chosen at the estimate)
     relative: np.ndarray | None = None  # max-mixture route: (K,4,4) observer body_T_target
+    pose_clusters: list | None = None  # max-mixture route: same_pose(j) of every candidate j
 
 
 SAME_POSE_GATE = 12.59  # chi2(6) at 95 %: two candidates this close are one pose for the decision
@@ -78,7 +79,7 @@ def candidate_factors(
     tracked observer's latest best guess, decided or not (robot -> (node, time, body pose,
     6x6 covariance; the hint of the inter-robot scan registration, `team_graph.scans`), and
     the streams of observers without an initial pose that the tracker never decided (robot ->
-    [(time, components, weights, decision index)]; `undecided_mixtures`)."""
+    [(time, components, weights, decision index, same-pose clusters)]; `undecided_mixtures`)."""
     node_times, nearest = timeline.node_times, timeline.nearest
     decisions, decided_pose, placed_via, tentative, undecided = [], {}, {}, {}, {}
     streams: dict = {}
@@ -197,6 +198,7 @@ def candidate_factors(
                     _components(r, k, ti, kt, target.static, E, world, seen, cs, cand_cov),
                     mixture_weights(o.candidates),
                     len(decisions),
+                    [same_pose(world, cs.covariance, j) for j in range(len(world))],
                 )
             )
             decisions.append(
@@ -213,7 +215,7 @@ def candidate_factors(
                 )
             )
         if run.robots[r].initial_pose is None and not any(
-            decisions[i].committed >= 0 for *_, i in pending
+            decisions[p[3]].committed >= 0 for p in pending
         ):
             undecided.setdefault(r, []).extend(pending)
     return decisions, decided_pose, placed_via, tentative, undecided
@@ -246,7 +248,7 @@ def undecided_mixtures(undecided: list, decisions: list, factors: list) -> None:
     """The sets of a stream the tracker never decided, for an observer nothing else places:
     each a max-mixture of its candidates (chosen by the solve; its Decision then carries the
     mixture, `solve.choose_mixtures`)."""
-    for t, components, weights, i in undecided:
+    for t, components, weights, i, clusters in undecided:
         mixture = max_mixture_factor(components, weights) if len(components) > 1 else None
         factors.append((t, mixture if mixture is not None else components[0], "candidate"))
         decisions[i] = replace(
@@ -254,6 +256,7 @@ def undecided_mixtures(undecided: list, decisions: list, factors: list) -> None:
             mixture=mixture,
             committed=0 if mixture is None else -1,
             same_pose=[0] if mixture is None else [],
+            pose_clusters=clusters,
         )
 
 
