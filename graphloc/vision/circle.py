@@ -36,6 +36,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.special import erfc
 
+from graphloc.config import check
 from graphloc.cameras import PinholeCamera, check_rows, normalize_rows
 from graphloc.candidates import CandidateSet
 from graphloc.vision.images import check_points, opencv_errors
@@ -61,18 +62,13 @@ class CircleConfig:
     fit: str = "direct"
 
     def __post_init__(self):
-        if self.fit not in _FITTERS:
-            raise ValueError(
-                f"CircleConfig.fit must be one of {sorted(_FITTERS)}, got {self.fit!r}"
-            )
-        if int(self.min_points) < 5:
-            raise ValueError(f"CircleConfig.min_points must be >= 5, got {self.min_points}")
-        if not (0.0 < self.min_axis_ratio < 1.0):
-            raise ValueError(
-                f"CircleConfig.min_axis_ratio must be in (0,1), got {self.min_axis_ratio}"
-            )
-        if not self.pixel_sigma > 0:
-            raise ValueError(f"CircleConfig.pixel_sigma must be > 0, got {self.pixel_sigma}")
+        check(
+            self,
+            choices={"fit": tuple(sorted(_FITTERS))},
+            integer={"min_points": 5},
+            interval={"min_axis_ratio": (0.0, 1.0, "()")},
+            positive=("pixel_sigma",),
+        )
 
 
 @dataclass(frozen=True)

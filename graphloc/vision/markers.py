@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 from scipy.optimize import OptimizeWarning, curve_fit
 
+from graphloc.config import check
 from graphloc.vision.images import check_image, check_points, opencv_errors
 
 POLARITIES = ("bright", "dark", "color")
@@ -57,21 +58,16 @@ class MarkerDetectorConfig:
     full_image_fallback: bool = True  # ROI failed -> search the whole image (seed IV-B)
 
     def __post_init__(self):
-        if self.polarity not in POLARITIES:
-            raise ValueError(
-                f"MarkerDetectorConfig.polarity must be one of {POLARITIES}, got {self.polarity!r}"
-            )
-        if self.expected < 1:
-            raise ValueError(f"MarkerDetectorConfig.expected must be >= 1, got {self.expected}")
-        if not (0 < self.min_area <= self.max_area):
-            raise ValueError(
-                "MarkerDetectorConfig needs 0 < min_area <= max_area, "
-                f"got {self.min_area}, {self.max_area}"
-            )
-        if not (0.0 <= self.min_axis_ratio <= 1.0 and 0.0 <= self.min_solidity <= 1.0):
-            raise ValueError(
-                "MarkerDetectorConfig.min_axis_ratio and min_solidity must lie in [0, 1]"
-            )
+        check(
+            self,
+            choices={"polarity": POLARITIES},
+            integer={"expected": 1},
+            interval={
+                "min_area": (0.0, "max_area", "(]"),
+                "min_axis_ratio": (0.0, 1.0, "[]"),
+                "min_solidity": (0.0, 1.0, "[]"),
+            },
+        )
 
 
 @dataclass(frozen=True)
