@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from graphloc.config import check
 from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera, angular_sigma
 from graphloc.datasets.feng import noisy_pixels
 from graphloc.datasets.render import render_mutual_pixels
@@ -54,10 +55,7 @@ class Seed000Config:
     orientation: str = "kept"
 
     def __post_init__(self):
-        if self.orientation not in ORIENTATIONS:
-            raise ValueError(
-                f"Seed000Config.orientation must be one of {ORIENTATIONS}, got {self.orientation!r}"
-            )
+        check(self, choices={"orientation": ORIENTATIONS})
 
     def camera(self) -> PinholeCamera:
         """The climbing robot's camera C (the same model as
@@ -185,14 +183,11 @@ class TableIConfig:
     orientation: str = "kept"
 
     def __post_init__(self):
-        if self.trials < 1 or self.workers < 1:
-            raise ValueError(
-                f"TableIConfig: trials and workers must be >= 1, got {self.trials}, {self.workers}"
-            )
-        for name in ("pixel_sigma", "scale", "success_tol", "lateral_sigma"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"TableIConfig.{name} must be finite and >= 0, got {value}")
+        check(
+            self,
+            integer={"trials": 1, "workers": 1},
+            nonnegative=("pixel_sigma", "scale", "success_tol", "lateral_sigma"),
+        )
 
 
 @dataclass(frozen=True)

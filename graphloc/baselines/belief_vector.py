@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
+from graphloc.config import check
 from graphloc.candidates import CandidateSet
 from graphloc.seams import Decision, Odometry, check_frame
 
@@ -58,25 +59,13 @@ class BeliefVectorConfig:
     action_frame: str = "solution"
 
     def __post_init__(self):
-        if self.action_frame not in ACTION_FRAMES:
-            raise ValueError(
-                f"BeliefVectorConfig.action_frame must be one of {ACTION_FRAMES}, "
-                f"got {self.action_frame!r}"
-            )
-        if self.likelihood not in LIKELIHOODS:
-            raise ValueError(
-                f"BeliefVectorConfig.likelihood must be one of {LIKELIHOODS}, "
-                f"got {self.likelihood!r}"
-            )
-        if not (
-            self.gate_distance > 0
-            and self.gate_interval > 0
-            and self.lam >= 0
-            and 0 < self.threshold < 1
-        ):
-            raise ValueError(
-                "BeliefVectorConfig: gate_distance, gate_interval > 0, lam >= 0, threshold in (0,1)"
-            )
+        check(
+            self,
+            choices={"action_frame": ACTION_FRAMES, "likelihood": LIKELIHOODS},
+            positive=("gate_distance", "gate_interval"),
+            nonnegative=("lam",),
+            interval={"threshold": (0.0, 1.0, "()")},
+        )
 
 
 def likelihood(a: np.ndarray, om: np.ndarray, config: BeliefVectorConfig) -> np.ndarray:

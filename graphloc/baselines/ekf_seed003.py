@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
+from graphloc.config import check
 from graphloc.cameras import PinholeCamera
 from graphloc.seams import FrameInput, MotionNoise
 from graphloc.geometry.so3 import skew
@@ -67,26 +68,19 @@ class EkfConfig:
     motion: MotionNoise = MotionNoise()
 
     def __post_init__(self):
-        if self.tracker_setting not in TRACKER_SETTINGS:
-            raise ValueError(
-                f"EkfConfig.tracker_setting must be one of {TRACKER_SETTINGS}, "
-                f"got {self.tracker_setting!r}"
-            )
-        for name in (
-            "pixel_pitch",
-            "feature_depth",
-            "feature_sigma",
-            "klt_variance",
-            "tracker_variance",
-            "noisy_factor",
-        ):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"EkfConfig.{name} must be finite > 0, got {v}")
-        if not (np.isfinite(self.beta_rel_sigma) and self.beta_rel_sigma >= 0):
-            raise ValueError(
-                f"EkfConfig.beta_rel_sigma must be finite >= 0, got {self.beta_rel_sigma}"
-            )
+        check(
+            self,
+            choices={"tracker_setting": TRACKER_SETTINGS},
+            positive=(
+                "pixel_pitch",
+                "feature_depth",
+                "feature_sigma",
+                "klt_variance",
+                "tracker_variance",
+                "noisy_factor",
+            ),
+            nonnegative=("beta_rel_sigma",),
+        )
 
 
 N_MOTION = 7  # T (3), w (3), beta

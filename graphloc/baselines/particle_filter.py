@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
+from graphloc.config import check
 from graphloc.candidates import CandidateSet
 from graphloc.seams import Decision, Odometry, check_frame
 
@@ -45,12 +46,12 @@ class ParticleFilterConfig:
                 "ParticleFilterConfig.plane_normal must be a non-zero 3-vector, "
                 f"got {self.plane_normal}"
             )
-        if not (
-            self.alpha1 >= 0 and self.alpha2 >= 0 and self.sigma > 0 and 0 < self.threshold < 1
-        ):
-            raise ValueError(
-                "ParticleFilterConfig: alpha1, alpha2 >= 0, sigma > 0, threshold in (0,1)"
-            )
+        check(
+            self,
+            nonnegative=("alpha1", "alpha2"),
+            positive=("sigma",),
+            interval={"threshold": (0.0, 1.0, "()")},
+        )
 
 
 def plane_basis(normal) -> np.ndarray:

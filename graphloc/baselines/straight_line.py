@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from graphloc.config import check
 from graphloc.candidates import CandidateSet
 from graphloc.geometry.p3p import MAX_CANDIDATES, P3PCandidates, solve_p3p
 from graphloc.seams import Decision, check_frame
@@ -131,11 +132,7 @@ class StraightLineConfig:
     max_error: float = 0.003
 
     def __post_init__(self):
-        if not (int(self.spacing) >= 1 and self.max_error > 0):
-            raise ValueError(
-                "StraightLineConfig: spacing >= 1 and max_error > 0, "
-                f"got {self.spacing}, {self.max_error}"
-            )
+        check(self, integer={"spacing": 1}, positive=("max_error",))
 
 
 class StraightLineBaseline:

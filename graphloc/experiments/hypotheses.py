@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
+from graphloc.config import check
 from graphloc.baselines.belief_vector import BeliefVector, BeliefVectorConfig
 from graphloc.baselines.particle_filter import ParticleFilter, ParticleFilterConfig
 from graphloc.baselines.straight_line import StraightLineBaseline, StraightLineConfig
@@ -77,10 +78,7 @@ class TableIIIConfig:
     action_frame: str = "solution"
 
     def __post_init__(self):
-        if self.runs < 1 or self.workers < 1:
-            raise ValueError(
-                f"TableIIIConfig: runs and workers must be >= 1, got {self.runs}, {self.workers}"
-            )
+        check(self, integer={"runs": 1, "workers": 1})
 
 
 def make_engine(method: str, ceiling: str, args: TableIIIConfig, seed: int):
