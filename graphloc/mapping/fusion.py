@@ -35,7 +35,7 @@ from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
 from graphloc.factors.odometry import between_factor
 from graphloc.geometry.p3p import solve_p3p
-from graphloc.hypotheses import HypothesisTracker, TrackerConfig
+from graphloc.hypotheses import HypothesisTracker, TrackerConfig, cap_covariances
 from graphloc.keys import pose_key
 from graphloc.mapping.odometry import OdometryConfig, OdometryResult, run_odometry
 from graphloc.mapping.registration import (
@@ -260,7 +260,8 @@ def guess_covariance(
     """Right-perturbation covariance of T_G0_C0 = T_G0_Gk Y X^-1 (Y: the camera in G_k, one P3P
     candidate; X: the camera in C_0 by the ceiling odometry): the candidate nearest to the tracker's
     estimate T_G0_camK (Mahalanobis) brings its first-order covariance C_Y, the ground and ceiling
-    odometry over `frames` steps bring Q each (cfg.odometry_sigmas^2 per step). With
+    odometry over `frames` steps bring Q each; C_Y capped at cfg.tracker.max_candidate_std (the
+    tracker's linearization trust region) (cfg.odometry_sigmas^2 per step). With
     T Exp(d) M = T M Exp(Ad(M^-1) d): Sigma = Ad_X (Ad_Y^-1 Q Ad_Y^-T + C_Y + Q) Ad_X^T."""
     cov = cands.meta["covariance"]
     predicted = gtsam.Pose3(np.linalg.inv(T_g0_gk) @ T_g0_camK)
@@ -274,7 +275,8 @@ def guess_covariance(
     Q = np.diag(np.r_[np.full(3, s_rot**2), np.full(3, s_tr**2)]) * max(frames, 1)
     ad_y_inv = Y.inverse().AdjointMap()
     ad_x = gtsam.Pose3(cam_in_c0).AdjointMap()
-    out = ad_x @ (ad_y_inv @ Q @ ad_y_inv.T + cov[j] + Q) @ ad_x.T
+    C_y = cap_covariances(cov[j][None], cfg.tracker.max_candidate_std)[0]  # as the tracker does
+    out = ad_x @ (ad_y_inv @ Q @ ad_y_inv.T + C_y + Q) @ ad_x.T
     return 0.5 * (out + out.T)
 
 

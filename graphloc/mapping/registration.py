@@ -64,6 +64,9 @@ class RegistrationConfig:
     covariance_block: float = 0.5
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
+    # the wide level's reach is capped at max_reach [m]: beyond it a first-order covariance is no
+    # basin a local method covers (the sigma points and the global fallback take over)
+    max_reach: float = 1.0
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
     covariance_scale: float = 17.1  # fit of docs/results_fusion_calibration.json (3 digits)
     covariance_floor: tuple[float, float] = (6.69e-4, 4.40e-4)
@@ -447,20 +450,20 @@ def robust_register(
        covariance, rot [rad] then trans [m], right perturbation: `hint_covariance` of two
        sigmas, or a P3P candidate's first-order covariance carried to the LiDAR frames).
     2. Per start: when the hint's reach (1-sigma rotation times the median source range plus 1-sigma
-       translation) exceeds the coarse correspondence distance, a wide level first: ICP on clouds
-       gridded at reach / cfg.coarse_voxels with correspondences within the reach and a Tukey kernel
-       of cfg.coarse_tukey of its voxels (the basin of a poor P3P guess); then point-to-plane ICP on
-       the coarse grid (`_coarse_clouds`; correspondences within cfg.coarse_voxels coarse voxels,
-       Tukey kernel of cfg.coarse_tukey voxels, so the parts that do not overlap are not pulled in);
-       starts whose coarse results lie within one fine basin of each other
-       (cfg.max_correspondence[-1], and the rotation moving the median source point that far) merge;
-       then Open3D tensor ICP on the prepared clouds within that distance (cfg.max_iterations[-1]);
-       candidates closer than acc.distinct_deg / distinct_m merge. With cfg.stop_at_first_valid the
-       starts stop at the first candidate that passes its checks with an inlier ratio of at least
-       cfg.stop_inlier_ratio (the hint comes first, so an easy case costs one start; one that barely
-       passes lets the other starts compete on cost). If none passes and cfg.global_fallback,
-       `global_fpfh_ransac` (seed 0) gives one more start (index 13), still subject to every check,
-       the hint gate included.
+       translation, at most cfg.max_reach) exceeds the coarse correspondence distance, a wide level
+       first: ICP on clouds gridded at reach / cfg.coarse_voxels with correspondences within the
+       reach and a Tukey kernel of cfg.coarse_tukey of its voxels (the basin of a poor P3P guess);
+       then point-to-plane ICP on the coarse grid (`_coarse_clouds`; correspondences within
+       cfg.coarse_voxels coarse voxels, Tukey kernel of cfg.coarse_tukey voxels, so the parts that
+       do not overlap are not pulled in); starts whose coarse results lie within one fine basin of
+       each other (cfg.max_correspondence[-1], and the rotation moving the median source point that
+       far) merge; then Open3D tensor ICP on the prepared clouds within that distance
+       (cfg.max_iterations[-1]); candidates closer than acc.distinct_deg / distinct_m merge. With
+       cfg.stop_at_first_valid the starts stop at the first candidate that passes its checks with an
+       inlier ratio of at least cfg.stop_inlier_ratio (the hint comes first, so an easy case costs
+       one start; one that barely passes lets the other starts compete on cost). If none passes and
+       cfg.global_fallback, `global_fpfh_ransac` (seed 0) gives one more start (index 13), still
+       subject to every check, the hint gate included.
     3. Each candidate's `truncated_cost` (c = acc.residual_sigma) and checks (overlap, inlier
        ratio, hint gate, robot geometry: `_candidate_checks`). Among those that pass, the lowest
        cost wins, except that the hint's own candidate (start 0) is kept when it passes and its
@@ -502,7 +505,7 @@ def robust_register(
     merged, coarse, cands, iterations = {}, [], [], 0
 
     lam = np.linalg.eigvalsh(hint_cov[:3, :3])[-1], np.linalg.eigvalsh(hint_cov[3:, 3:])[-1]
-    reach = float(np.sqrt(lam[0]) * r_med + np.sqrt(lam[1]))  # 1-sigma move of the median point
+    reach = min(float(np.sqrt(lam[0]) * r_med + np.sqrt(lam[1])), cfg.max_reach)
     wide = None
     if cfg.coarse_voxels > 0 and reach > cfg.coarse_voxels * voxel_c:
         wide = _wide_clouds(src_c, tgt_c, reach / cfg.coarse_voxels, cfg)
