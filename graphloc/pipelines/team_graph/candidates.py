@@ -147,14 +147,17 @@ def candidate_factors(
                 odo = Odometry(E.inverse().compose(rel).compose(E), adjoint_cov(E.inverse(), cov))
             d = tracker.update(cs, odo)
             prev = k
-            if d.pose is not None:  # the tracker's best guess so far (committed or not)
-                j = int(np.argmax(d.probabilities)) if len(d.probabilities) else 0
-                tentative[r] = (
-                    k,
-                    o.time,
-                    d.pose.compose(E.inverse()),
-                    adjoint_cov(E, cs.covariance[j]),
-                )
+            if d.pose is not None:  # the tracker's best guess so far (committed or not), then
+                # every candidate of this set by its posterior: hypotheses for the scans
+                order = np.argsort(-np.asarray(d.probabilities, dtype=float), kind="stable")
+                j = int(order[0]) if len(order) else 0
+                tentative[r] = [
+                    (k, o.time, d.pose.compose(E.inverse()), adjoint_cov(E, cs.covariance[j]))
+                ]
+                tentative[r] += [
+                    (k, o.time, world[i].compose(E.inverse()), adjoint_cov(E, cs.covariance[i]))
+                    for i in order
+                ]
             pose = np.full(7, np.nan)
             cluster = (
                 same_pose(world, cs.covariance, d.committed)

@@ -75,15 +75,18 @@ def build_graph(
         placed = place_robot(run, r, node_times, step_rel, config, decided_pose, placed_via, poses)
         if placed is not None:
             poses[r] = placed
-    by_scans = scan_match_factors(run, config, timeline, step_rel, poses, tentative, factors, skips)
+    by_scans, rejected = scan_match_factors(
+        run, config, timeline, step_rel, poses, tentative, factors, skips
+    )
     for r in by_scans:
         poses[r] = place_robot(run, r, node_times, step_rel, config, {}, by_scans, poses)
     # an observer still unplaced whose candidate sets were never decided: the sets as
-    # max-mixtures (the solve chooses), the tracker's best guess as its initial pose
+    # max-mixtures (the solve chooses), the tracker's best guess as its initial pose -- unless
+    # its scans rejected every hypothesis (then it stays unplaced, counted)
     for r, sets in undecided.items():
-        if r not in poses and r in tentative:
+        if r not in poses and r in tentative and r not in rejected:
             undecided_mixtures(sets, decisions, factors)
-            k, _, X, _ = tentative[r]
+            k, _, X, _ = tentative[r][0]
             placed, _ = place_robot(run, r, node_times, step_rel, config, {r: {k: X}}, {}, poses)
             # online, the robot enters at its first set (its poses held until then)
             poses[r] = (placed, timeline.nearest(r, decisions[sets[0][3]].time))

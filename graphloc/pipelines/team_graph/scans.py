@@ -34,19 +34,27 @@ def scan_match_factors(
 ) -> dict:
     """Register every unplaced scanning robot with a tentative pose onto a placed scanning
     robot (`poses`: robot -> ([initial Pose3 per node], first seeded node) of the placed
-    robots); appends accepted
-    registrations to `factors` (type 'scan_match') and returns the robots they place
-    (robot -> {node: (placed robot, its node, body_T_body)})."""
+    robots), from each of its hypotheses in turn (`tentative`: the tracker's guess, then the
+    last set's candidates) until one is accepted; appends accepted registrations to `factors`
+    (type 'scan_match') and returns the robots they place (robot -> {node: (placed robot, its
+    node, body_T_body)}) and the robots whose every registration was rejected."""
     placed_via: dict = {}
+    rejected: set = set()
     scanning = sorted({s.robot for s in run.scans})
     if len(scanning) < 2 or not any(b in poses or b in tentative for b in scanning):
-        return placed_via
+        return placed_via, rejected
     used = set()
     for b in scanning:
         if b in poses or b not in tentative:
             continue
+        reasons = []
         for a in (a for a in scanning if a in poses):
-            link = _register_pair(run, config, timeline, step_rel, poses, tentative[b], a, b, skips)
+            for guess in tentative[b]:  # the tracker's guess, then each candidate
+                link = _register_pair(
+                    run, config, timeline, step_rel, poses, guess, a, b, skips, reasons
+                )
+                if link is not None:
+                    break
             if link is not None:
                 t, factor, via, stamps = link
                 factors.append((t, factor, "scan_match"))
@@ -56,6 +64,13 @@ def scan_match_factors(
                     run, b, timeline.node_times, step_rel, config, {}, {b: via}, poses
                 )
                 break
+        if b not in placed_via and reasons:
+            rejected.add(b)
+            skips.add(
+                "scan_match_rejected",
+                f"robot {run.robots[b].name}: no registration from its {len(tentative[b])} "
+                f"hypotheses was accepted ({reasons[0]}); left unplaced",
+            )
     # every further common scan time of two placed robots, from the current initial poses
     placed = [r for r in scanning if r in poses]
     for i, a in enumerate(placed):
@@ -65,13 +80,18 @@ def scan_match_factors(
                 if kb < 0:
                     continue
                 guess = (kb, scan_b.time, poses[b][0][kb], cov6(config.scan_hint_sigma))
-                link = _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips)
+                reasons = []
+                link = _register_pair(
+                    run, config, timeline, step_rel, poses, guess, a, b, skips, reasons
+                )
+                if link is None and reasons:
+                    skips.add("scan_match_rejected", reasons[0])
                 if link is not None and link[3] not in used:
                     used.add(link[3])
                     factors.append((link[0], link[1], "scan_match"))
     for r in placed_via:
         del poses[r]  # placed again by the caller, through its own steps
-    return placed_via
+    return placed_via, rejected
 
 
 def _scan_near(run: TeamRun, r: int, t: float):
@@ -79,7 +99,7 @@ def _scan_near(run: TeamRun, r: int, t: float):
     return min(scans, key=lambda s: abs(s.time - t)) if scans else None
 
 
-def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips):
+def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips, reasons):
     """Robot b's scan nearest its guess (node, time, body pose, 6x6 covariance) registered onto
     robot a's scan at the same time: (factor time, factor, {b's node: (a, a's node, rel)},
     (scan times)) or None (counted)."""
@@ -125,10 +145,9 @@ def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips):
         source, target, hint.matrix(), 0.5 * (hint_cov + hint_cov.T), cfg, acceptance
     )
     if not decision.accepted:
-        skips.add(
-            "scan_match_rejected",
+        reasons.append(
             f"{name}: scans at {scan_b.time}: registration not accepted "
-            f"({'; '.join(decision.reasons)})",
+            f"({'; '.join(decision.reasons)})"
         )
         return None
     T = gtsam.Pose3(decision.registration.transformation)  # T_sa_sb
