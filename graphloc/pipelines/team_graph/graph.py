@@ -76,7 +76,7 @@ def build_graph(
         if placed is not None:
             poses[r] = placed
     by_scans, rejected = scan_match_factors(
-        run, config, timeline, step_rel, poses, tentative, factors, skips
+        run, config, timeline, step_rel, poses, tentative, factors, skips, progress
     )
     for r in by_scans:
         poses[r] = place_robot(run, r, node_times, step_rel, config, {}, by_scans, poses)

@@ -14,6 +14,7 @@ calibrated covariance, and places the unplaced robot; a rejected one is counted 
 from __future__ import annotations
 
 import gtsam
+from tqdm import tqdm
 
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
@@ -31,7 +32,8 @@ def scan_match_factors(
     tentative: dict,
     factors: list,
     skips: SkipReport,
-) -> dict:
+    progress: bool = False,
+) -> tuple[dict, set]:
     """Register every unplaced scanning robot with a tentative pose onto a placed scanning
     robot (`poses`: robot -> ([initial Pose3 per node], first seeded node) of the placed
     robots), from each of its hypotheses in turn (`tentative`: the tracker's guess, then the
@@ -75,7 +77,9 @@ def scan_match_factors(
     placed = [r for r in scanning if r in poses]
     for i, a in enumerate(placed):
         for b in placed[i + 1 :]:
-            for scan_b in (s for s in run.scans if s.robot == b):
+            scans_b = [s for s in run.scans if s.robot == b]
+            desc = f"registering {run.robots[b].name} onto {run.robots[a].name}"
+            for scan_b in tqdm(scans_b, desc=desc, disable=not progress, unit="scan"):
                 kb = timeline.nearest(b, scan_b.time)
                 if kb < 0:
                     continue
