@@ -432,20 +432,3 @@ def relative_error(out: Path, a: str, b: str, label: str, k: int) -> tuple[float
     return float(np.degrees(Rotation.from_matrix(D[:3, :3]).magnitude())), float(
         np.linalg.norm(D[:3, 3])
     )
-
-
-def test_undecided_sets_enter_as_max_mixtures(tmp_path):
-    """Four frames are too few for the tracker to commit (seed 004's noise); the climber, which
-    nothing else places, is placed by its sets as max-mixtures that the solve chooses."""
-    run_dir = tmp_path / "run"
-    assert main(["simulate", "kaushik-p3p-error", "--out", str(run_dir), "--frames", "4"]) == 0
-    run = open_run(run_dir)
-    graph = build_graph(run, GraphConfig())
-    assert graph.counts["committed_sets"] == 0  # the tracker decided none
-    assert all(d.mixture is not None for d in graph.decisions)
-    result = solve(graph, "batch")
-    c = run.index("climber")
-    assert np.isfinite(result.estimate[c]).all()
-    assert all(d.committed >= 0 and 0 < d.probability <= 1 for d in result.decisions)
-    assert all(d.committed in d.same_pose for d in result.decisions)
-    assert graph.skips.as_dict()["total"] == 0

@@ -80,7 +80,8 @@ def through_front_door(
             )
         run = replace(run, observations=tuple(obs))
     graph = build_graph(run, config)
-    decisions = graph.decisions
+    results = {mode: solve(graph, mode) for mode in ("batch", "online")}
+    decisions = results["batch"].decisions  # max-mixture sets chosen at the estimate
     genuine = genuine_candidates(run, decisions)
     committed = [d for d in decisions if d.committed >= 0]
     first = next((d.time for d in committed), None)
@@ -101,8 +102,7 @@ def through_front_door(
         return out
     times = graph.node_times[r]
     after = times >= first - 1e-9
-    for mode in ("batch", "online"):
-        res = solve(graph, mode)
+    for mode, res in results.items():
         err = _errors(run, res, r, res.estimate[r])
         out[f"{mode}_sq_after_commit"] = float(np.nansum(err[after] ** 2))
         out[f"{mode}_sq_all"] = float(np.nansum(err**2))

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -41,7 +41,6 @@ class Decision:
     probabilities: np.ndarray | None = None  # (K,) every candidate's posterior (tracker)
     mixture: object = None  # max-mixture route: the MaxMixture (chosen at the estimate)
     relative: np.ndarray | None = None  # max-mixture route: (K,4,4) observer body_T_target
-    pose_clusters: list | None = None  # max-mixture route: same_pose(j) of every candidate j
 
 
 SAME_POSE_GATE = 12.59  # chi2(6) at 95 %: two candidates this close are one pose for the decision
@@ -77,11 +76,9 @@ def candidate_factors(
     Returns the decisions, the decided observer poses (robot -> {node: Pose3}), the targets
     placed through an observer (robot -> {node: (observer, node, body_T_target)}) and each
     tracked observer's latest best guess, decided or not (robot -> (node, time, body pose,
-    6x6 covariance; the hint of the inter-robot scan registration, `team_graph.scans`), and
-    the streams of observers without an initial pose that the tracker never decided (robot ->
-    [(time, components, weights, decision index, same-pose clusters)]; `undecided_mixtures`)."""
+    6x6 covariance; the hint of the inter-robot scan registration, `team_graph.scans`)."""
     node_times, nearest = timeline.node_times, timeline.nearest
-    decisions, decided_pose, placed_via, tentative, undecided = [], {}, {}, {}, {}
+    decisions, decided_pose, placed_via, tentative = [], {}, {}, {}
     streams: dict = {}
     for o in run.observations:
         streams.setdefault((o.robot, o.target), []).append(o)
@@ -105,7 +102,6 @@ def candidate_factors(
         target_track = dead_reckoning(target, step_rel[ti], config)
         tracker = HypothesisTracker(config.tracker)
         prev = None
-        pending = []  # per set: (time, components, weights, decision index)
         for o in obs:
             k = nearest(r, o.time)
             if k < 0 or (prev is not None and k == prev):
@@ -195,15 +191,6 @@ def candidate_factors(
                 else float(np.max(d.probabilities, initial=0))
             )
             xyz = np.array([p.compose(E.inverse()).translation() for p in world])
-            pending.append(
-                (
-                    max(node_times[r][k], node_times[ti][kt]),
-                    _components(r, k, ti, kt, target.static, E, world, seen, cs, cand_cov),
-                    mixture_weights(o.candidates),
-                    len(decisions),
-                    [same_pose(world, cs.covariance, j) for j in range(len(world))],
-                )
-            )
             decisions.append(
                 Decision(
                     o.time,
@@ -217,50 +204,7 @@ def candidate_factors(
                     np.array(d.probabilities, dtype=float),
                 )
             )
-        if run.robots[r].initial_pose is None and not any(
-            decisions[p[3]].committed >= 0 for p in pending
-        ):
-            undecided.setdefault(r, []).extend(pending)
-    return decisions, decided_pose, placed_via, tentative, undecided
-
-
-def _components(r, k, ti, kt, static, E, world, seen, cs, cand_cov) -> list:
-    """One Gaussian factor per candidate of a set: a prior on the observer's body (static
-    target) or a between factor observer -> target."""
-    if static:
-        return [
-            gtsam.PriorFactorPose3(
-                pose_key(r, k),
-                w.compose(E.inverse()),
-                gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(E, c)),
-            )
-            for w, c in zip(world, cs.covariance)
-        ]
-    return [
-        gtsam.BetweenFactorPose3(
-            pose_key(r, k),
-            pose_key(ti, kt),
-            E.compose(p.inverse()),
-            gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(p, c)),
-        )
-        for p, c in zip(seen, cand_cov)
-    ]
-
-
-def undecided_mixtures(undecided: list, decisions: list, factors: list) -> None:
-    """The sets of a stream the tracker never decided, for an observer nothing else places:
-    each a max-mixture of its candidates (chosen by the solve; its Decision then carries the
-    mixture, `solve.choose_mixtures`)."""
-    for t, components, weights, i, clusters in undecided:
-        mixture = max_mixture_factor(components, weights) if len(components) > 1 else None
-        factors.append((t, mixture if mixture is not None else components[0], "candidate"))
-        decisions[i] = replace(
-            decisions[i],
-            mixture=mixture,
-            committed=0 if mixture is None else -1,
-            same_pose=[0] if mixture is None else [],
-            pose_clusters=clusters,
-        )
+    return decisions, decided_pose, placed_via, tentative
 
 
 def mixture_stream(

@@ -12,7 +12,7 @@ from graphloc.io import SkipReport
 from graphloc.keys import decode, pose_key
 from graphloc.factors.mixture import MaxMixture
 from graphloc.pipelines.team_graph.camera import feature_factors
-from graphloc.pipelines.team_graph.candidates import candidate_factors, undecided_mixtures
+from graphloc.pipelines.team_graph.candidates import candidate_factors
 from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig, run_precision
 from graphloc.pipelines.team_graph.motion import (
     Timeline,
@@ -63,7 +63,7 @@ def build_graph(
     landmark_guess, n_anchor, excluded = point_factors(run, config, timeline, factors, skips)
     point_priors: list = []  # (landmark key, sigma, time): priors placed at the initial guess
     n_tracks = feature_factors(run, config, timeline, factors, skips, landmark_guess, point_priors)
-    decisions, decided_pose, placed_via, tentative, undecided = candidate_factors(
+    decisions, decided_pose, placed_via, tentative = candidate_factors(
         run, config, timeline, step_rel, factors, skips, progress
     )
 
@@ -75,21 +75,11 @@ def build_graph(
         placed = place_robot(run, r, node_times, step_rel, config, decided_pose, placed_via, poses)
         if placed is not None:
             poses[r] = placed
-    by_scans, rejected = scan_match_factors(
+    by_scans = scan_match_factors(
         run, config, timeline, step_rel, poses, tentative, factors, skips, progress
     )
     for r in by_scans:
         poses[r] = place_robot(run, r, node_times, step_rel, config, {}, by_scans, poses)
-    # an observer still unplaced whose candidate sets were never decided: the sets as
-    # max-mixtures (the solve chooses), the tracker's best guess as its initial pose -- unless
-    # its scans rejected every hypothesis (then it stays unplaced, counted)
-    for r, sets in undecided.items():
-        if r not in poses and r in tentative and r not in rejected:
-            undecided_mixtures(sets, decisions, factors)
-            k, _, X, _ = tentative[r][0]
-            placed, _ = place_robot(run, r, node_times, step_rel, config, {r: {k: X}}, {}, poses)
-            # online, the robot enters at its first set (its poses held until then)
-            poses[r] = (placed, timeline.nearest(r, decisions[sets[0][3]].time))
     initial, anchored_from = {}, {}
     for r, robot in enumerate(run.robots):
         if r not in poses:

@@ -33,18 +33,17 @@ def scan_match_factors(
     factors: list,
     skips: SkipReport,
     progress: bool = False,
-) -> tuple[dict, set]:
+) -> dict:
     """Register every unplaced scanning robot with a tentative pose onto a placed scanning
     robot (`poses`: robot -> ([initial Pose3 per node], first seeded node) of the placed
     robots), from each of its hypotheses in turn (`tentative`: the tracker's guess, then the
     last set's candidates) until one is accepted; appends accepted registrations to `factors`
     (type 'scan_match') and returns the robots they place (robot -> {node: (placed robot, its
-    node, body_T_body)}) and the robots whose every registration was rejected."""
+    node, body_T_body)}); a robot whose every registration is rejected stays unplaced (counted)."""
     placed_via: dict = {}
-    rejected: set = set()
     scanning = sorted({s.robot for s in run.scans})
     if len(scanning) < 2 or not any(b in poses or b in tentative for b in scanning):
-        return placed_via, rejected
+        return placed_via
     used = set()
     for b in scanning:
         if b in poses or b not in tentative:
@@ -67,7 +66,6 @@ def scan_match_factors(
                 )
                 break
         if b not in placed_via and reasons:
-            rejected.add(b)
             skips.add(
                 "scan_match_rejected",
                 f"robot {run.robots[b].name}: no registration from its {len(tentative[b])} "
@@ -95,7 +93,7 @@ def scan_match_factors(
                     factors.append((link[0], link[1], "scan_match"))
     for r in placed_via:
         del poses[r]  # placed again by the caller, through its own steps
-    return placed_via, rejected
+    return placed_via
 
 
 def _scan_near(run: TeamRun, r: int, t: float):

@@ -293,7 +293,7 @@ def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:
                 probability=float(p[j]),
                 probabilities=p,
                 pose=_pose_row(estimate.atPose3(observer)),
-                same_pose=d.pose_clusters[j] if d.pose_clusters is not None else [j],
+                same_pose=[j],
             )
         )
     return out
