@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from graphloc.cameras import PinholeCamera
-from graphloc.datasets.crawler_pair import disk_coverage
+from graphloc.datasets.textured_scene import disk_coverage
 from graphloc.vision.base_rim import BlobConfig, detect_base_rim
 from graphloc.vision.features import (
     FeatureConfig,
@@ -230,7 +230,7 @@ def test_refined_rim_beats_the_edge_crossings_on_texture():
 
 
 def test_refine_ellipse_errors_are_clear():
-    from graphloc.vision.circle import refine_ellipse
+    from graphloc.vision.ellipse import refine_ellipse
 
     with pytest.raises(ValueError, match="pixels within"):
         refine_ellipse(np.zeros((5, 5)), (0, 0), np.array([100.0, 100.0, 30.0, 30.0, 0.0]))

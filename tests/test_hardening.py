@@ -18,7 +18,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from graphloc.vision.circle import fit_ellipse, rim_points_from_mask
+from graphloc.vision.circle import rim_points_from_mask
+from graphloc.vision.ellipse import fit_ellipse
 from graphloc.vision.base_rim import colour_score, detect_base_rim
 from graphloc.vision.features import (
     FeatureConfig,

@@ -1,6 +1,6 @@
 """The colour-signature blob rim of the teammate's base (seed 003, 003_8db27855ce2d5f68.txt,
 section II-A-1: colour threshold -> median filter -> edge points of the ellipse), optionally
-refined by an edge-model fit to the base's coverage map (`graphloc.vision.circle.refine_ellipse`).
+refined by an edge-model fit to the base's coverage map (`graphloc.vision.ellipse.refine_ellipse`).
 Pixels are float64 (M,2) (u, v), (0, 0) the centre of the top-left pixel."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 
 from graphloc.config import check
-from graphloc.vision.circle import EllipseRefinement, ellipse_points, fit_ellipse, refine_ellipse
+from graphloc.vision.ellipse import EllipseRefinement, ellipse_points, fit_ellipse, refine_ellipse
 from graphloc.vision.images import check_image, opencv_errors
 
 
@@ -22,7 +22,7 @@ class BlobConfig:
     orthogonal residual) exceeds `min_score`. median_size: cv2.medianBlur kernel (odd).
     min_area [px]: smaller blobs are no detection. exclusion_dilate [px]: margin of the mask
     that keeps KLT features off the robot. refine_edges: fit the ellipse to the base's
-    coverage map (`coverage_map` + `vision.circle.refine_ellipse`) and return points on it;
+    coverage map (`coverage_map` + `vision.ellipse.refine_ellipse`) and return points on it;
     False keeps the interpolated edge crossings (the seed's edge points). edge_band [px]: half
     width of the band of pixels the edge fit uses. sectors: angular sectors of the background
     ring, each with its own background colour in the coverage map."""

@@ -17,7 +17,8 @@ import numpy as np
 
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
-from graphloc.vision.circle import circles_from_cones, ellipse_to_conic, rotations_from_normals
+from graphloc.vision.circle import circles_from_cones, rotations_from_normals
+from graphloc.vision.ellipse import ellipse_to_conic
 
 
 def centre_covariance(
