@@ -27,7 +27,7 @@ import gtsam
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
-from graphloc.config import parse_overrides
+from graphloc.config import check, parse_overrides
 from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
@@ -166,25 +166,12 @@ class FengProbabilisticConfig:
     seed: int = 0
 
     def __post_init__(self):
-        if self.ceiling not in CEILINGS:
-            raise ValueError(
-                f"FengProbabilisticConfig.ceiling must be one of {CEILINGS}, got {self.ceiling!r}"
-            )
-        if self.curve not in CURVES:
-            raise ValueError(
-                f"FengProbabilisticConfig.curve must be one of {CURVES}, got {self.curve!r}"
-            )
-        if self.odometry_model not in ODOMETRY_MODELS:
-            raise ValueError(
-                f"FengProbabilisticConfig.odometry_model must be one of {ODOMETRY_MODELS}, "
-                f"got {self.odometry_model!r}"
-            )
-        for name in ("speed", "rate_hz", "first_interval"):
-            if not (np.isfinite(getattr(self, name)) and getattr(self, name) > 0):
-                raise ValueError(f"FengProbabilisticConfig.{name} must be finite > 0")
-        for name in ("odometry_noise", "odometry_rot_sigma", "pixel_sigma"):
-            if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
-                raise ValueError(f"FengProbabilisticConfig.{name} must be finite >= 0")
+        check(
+            self,
+            choices={"ceiling": CEILINGS, "curve": CURVES, "odometry_model": ODOMETRY_MODELS},
+            positive=("speed", "rate_hz", "first_interval"),
+            nonnegative=("odometry_noise", "odometry_rot_sigma", "pixel_sigma"),
+        )
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ default); `noise_reading` reads Table 1's "sigma^2 = v" as a variance (default) 
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +35,7 @@ from graphloc.datasets.feng import (
     project_world,
     relative_poses,
 )
-from graphloc.config import parse_overrides
+from graphloc.config import check, parse_overrides
 from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
 from graphloc.geometry.p3p import P3PCandidates, solve_p3p
 
@@ -72,44 +72,20 @@ class KaushikConfig:
     seed: int = 0
 
     def __post_init__(self):
-        if self.noise_reading not in NOISE_READINGS:
-            raise ValueError(
-                f"KaushikConfig.noise_reading must be one of {NOISE_READINGS}, "
-                f"got {self.noise_reading!r}"
-            )
-        for f in fields(self):
-            if f.name == "noise_reading":
-                continue
-            value = getattr(self, f.name)
-            if not np.isfinite(value):
-                raise ValueError(f"KaushikConfig.{f.name} must be finite, got {value}")
-        positive = (
-            "focal_mm",
-            "runs",
-            "frames",
-            "step",
-            "speed",
-            "height",
-            "pixel_pitch_um",
-            "width",
-            "height_px",
-            "wavelength",
+        check(
+            self,
+            choices={"noise_reading": NOISE_READINGS},
+            integer={"runs": 1, "frames": 2, "width": 1, "height_px": 1},
+            positive=("focal_mm", "step", "speed", "height", "pixel_pitch_um", "wavelength"),
+            nonnegative=(
+                "noise_variance",
+                "amplitude",
+                "start_radius",
+                "offset",
+                "odometry_noise",
+                "odometry_rot_sigma",
+            ),
         )
-        for name in positive:
-            if getattr(self, name) <= 0:
-                raise ValueError(f"KaushikConfig.{name} must be > 0, got {getattr(self, name)}")
-        for name in (
-            "noise_variance",
-            "amplitude",
-            "start_radius",
-            "offset",
-            "odometry_noise",
-            "odometry_rot_sigma",
-        ):
-            if getattr(self, name) < 0:
-                raise ValueError(f"KaushikConfig.{name} must be >= 0, got {getattr(self, name)}")
-        if self.frames < 2:
-            raise ValueError(f"KaushikConfig.frames must be >= 2 (a track), got {self.frames}")
 
     @property
     def pixel_sigma(self) -> float:

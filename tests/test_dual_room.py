@@ -7,17 +7,15 @@ import open3d as o3d
 import pytest
 
 from graphloc.datasets import dataset_class
-from graphloc.datasets.dual_room import (
+from graphloc.datasets.dual_room import DualRoomConfig, DualRoomScenario, variant_config
+from graphloc.datasets.room_scene import (
     LED_SIDE,
-    VARIANTS,
     T_CEILING_CAMERA,
+    VARIANTS,
     CameraConfig,
-    DualRoomConfig,
-    DualRoomScenario,
     LidarConfig,
     led_positions,
     make_room,
-    variant_config,
 )
 
 SMALL_LIDAR = LidarConfig(beams=24, azimuths=180)
