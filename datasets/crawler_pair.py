@@ -14,7 +14,7 @@ cv2.resize(INTER_AREA) averages the rays; the teammate's base (the back disk of 
 cylinder, radius base_diameter/2, centre one base radius above the ground, normal along its
 heading towards the camera) is blended in with its exact pixel coverage (8x8 rays per pixel
 intersected with the disk plane, `disk_coverage`); Gaussian blur (optics) and sensor noise
-follow.
+follow. The scene and the disk coverage are `graphloc.datasets.textured_scene`.
 
 Between frames exactly one robot moves (`schedule`): "camera" crawls forward along its
 heading with lateral and heading noise; "teammate" crawls away along its axis; its own
@@ -33,9 +33,9 @@ import numpy as np
 from tqdm import tqdm
 
 from graphloc.cameras import PinholeCamera
-from graphloc.config import parse_overrides
+from graphloc.config import check, parse_overrides
 from graphloc.datasets.crawler_pair_log import write_crawler_pair_log
-from graphloc.datasets.render import render_circle_rim
+from graphloc.datasets.textured_scene import TexturedScene, disk_coverage, make_texture
 from graphloc.vision.circle import rotations_from_normals
 from graphloc.vision.features import FeatureConfig
 from graphloc.vision.teammate import TeammateConfig, measure_frames
@@ -82,52 +82,47 @@ class CrawlerPairConfig:
     seed: int = 0
 
     def __post_init__(self):
-        for name in ("width", "height", "supersample", "n_features"):
-            if int(getattr(self, name)) < 1:
-                raise ValueError(
-                    f"CrawlerPairConfig.{name} must be >= 1, got {getattr(self, name)}"
-                )
-        for name in (
-            "pixel_pitch",
-            "base_diameter",
-            "start_distance",
-            "background_distance",
-            "camera_height",
-            "texel",
-            "hfov_deg",
-        ):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(
-                    f"CrawlerPairConfig.{name} must be a positive finite number, got {v}"
-                )
+        check(
+            self,
+            integer=dict.fromkeys(("width", "height", "supersample", "n_features"), 1),
+            positive=(
+                "pixel_pitch",
+                "base_diameter",
+                "start_distance",
+                "background_distance",
+                "camera_height",
+                "texel",
+                "hfov_deg",
+            ),
+            nonnegative=(
+                "camera_step",
+                "camera_lateral_std",
+                "camera_yaw_std_deg",
+                "roughness_deg",
+                "bounce_std",
+                "teammate_step",
+                "teammate_heading_std_deg",
+                "teammate_odometry_rel_std",
+                "blur_sigma",
+                "noise_sigma",
+            ),
+        )
         if not self.background_distance > self.start_distance + 0.5:
             raise ValueError(
-                "CrawlerPairConfig: background_distance must exceed start_distance + 0.5 m"
+                "CrawlerPairConfig.background_distance must exceed start_distance + 0.5 m, "
+                f"got {self.background_distance!r}"
             )
         if not self.camera_height > self.base_diameter / 2:
-            raise ValueError("CrawlerPairConfig: camera_height must exceed the base radius")
+            raise ValueError(
+                "CrawlerPairConfig.camera_height must exceed the base radius "
+                f"{self.base_diameter / 2:g}, got {self.camera_height!r}"
+            )
         bad = [i for i, m in enumerate(self.schedule) if m not in MOVERS]
         if bad:
             raise ValueError(
-                f"CrawlerPairConfig.schedule[{bad[0]}] = {self.schedule[bad[0]]!r}; "
-                f"expected one of {MOVERS}"
+                f"CrawlerPairConfig.schedule[{bad[0]}] must be one of {MOVERS}, "
+                f"got {self.schedule[bad[0]]!r}"
             )
-        for name in (
-            "camera_step",
-            "camera_lateral_std",
-            "camera_yaw_std_deg",
-            "roughness_deg",
-            "bounce_std",
-            "teammate_step",
-            "teammate_heading_std_deg",
-            "teammate_odometry_rel_std",
-            "blur_sigma",
-            "noise_sigma",
-        ):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"CrawlerPairConfig.{name} must be finite and >= 0, got {v}")
 
     @property
     def n_frames(self) -> int:
@@ -161,7 +156,7 @@ class CrawlerPairSequence:
     teammate_odometry_std: np.ndarray
     camera: PinholeCamera
     config: CrawlerPairConfig
-    scene: "TexturedScene"
+    scene: TexturedScene
 
     def __len__(self) -> int:
         return len(self.images)
@@ -193,80 +188,6 @@ class CrawlerPairSequence:
         return self.scene.intersect(self.t_wc[t], rays)[0]
 
 
-@dataclass(frozen=True)
-class TexturedScene:
-    """Back wall z = wall_z and ground y = ground_y, each with a BGR texture of `texel` m/px;
-    wall texture covers x in [x0, x0 + W texel], y in [y0, ...]; ground x in [x0, ...],
-    z in [z0, ...]."""
-
-    wall_z: float
-    ground_y: float
-    texel: float
-    wall_texture: np.ndarray
-    wall_origin: tuple[float, float]
-    ground_texture: np.ndarray
-    ground_origin: tuple[float, float]
-
-    def intersect(self, origin: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Nearest hit (M,3) of rays (M,3) from origin (3,) with wall or ground, and on_wall
-        (M,)."""
-        o = np.asarray(origin, float)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s_wall = (self.wall_z - o[2]) / rays[:, 2]
-            s_ground = (self.ground_y - o[1]) / rays[:, 1]
-        s_wall = np.where(s_wall > 0, s_wall, np.inf)
-        s_ground = np.where(s_ground > 0, s_ground, np.inf)
-        on_wall = s_wall <= s_ground
-        s = np.where(on_wall, s_wall, s_ground)
-        hits = o + s[:, None] * rays
-        hits[~np.isfinite(s)] = np.nan
-        return hits, on_wall
-
-
-def make_texture(
-    rng: np.random.Generator, height: int, width: int, tint: tuple[float, float, float]
-) -> np.ndarray:
-    """(height, width, 3) uint8 BGR texture: multi-octave value noise plus random rectangles,
-    ellipses and lines (corners for Shi-Tomasi), tinted by `tint` (low chroma, no red)."""
-    grey = np.zeros((height, width), np.float32)
-    for cell, amp in ((64, 50.0), (16, 35.0), (4, 20.0)):
-        coarse = rng.uniform(-1, 1, (max(height // cell, 2), max(width // cell, 2))).astype(
-            np.float32
-        )
-        grey += amp * cv2.resize(coarse, (width, height), interpolation=cv2.INTER_CUBIC)
-    grey += 120.0
-    n_shapes = max(int(height * width / 4000), 4)
-    for _ in range(n_shapes):
-        level = float(rng.uniform(20, 235))
-        x, y = int(rng.integers(0, width)), int(rng.integers(0, height))
-        size = int(rng.integers(4, 30))
-        kind = rng.integers(0, 3)
-        if kind == 0:
-            cv2.rectangle(grey, (x, y), (x + size, y + int(rng.integers(4, 30))), level, -1)
-        elif kind == 1:
-            cv2.ellipse(
-                grey,
-                (x, y),
-                (size, int(rng.integers(3, 20))),
-                float(rng.uniform(0, 180)),
-                0,
-                360,
-                level,
-                -1,
-            )
-        else:
-            cv2.line(
-                grey,
-                (x, y),
-                (x + int(rng.integers(-40, 40)), y + int(rng.integers(-40, 40))),
-                level,
-                2,
-            )
-    grey = np.clip(grey, 0, 255)
-    tint = np.asarray(tint, np.float32)
-    return np.clip(grey[..., None] * tint[None, None, :], 0, 255).astype(np.uint8)
-
-
 def _rot_y(a):
     c, s = np.cos(a), np.sin(a)
     return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
@@ -280,39 +201,6 @@ def _rot_x(a):
 def _rot_z(a):
     c, s = np.cos(a), np.sin(a)
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
-
-
-def disk_coverage(
-    camera: PinholeCamera,
-    centre: np.ndarray,
-    normal: np.ndarray,
-    radius: float,
-    subsamples: int = 8,
-) -> np.ndarray:
-    """(H,W) float32 fraction of each pixel covered by the disk (camera-frame centre (3,), unit
-    normal (3,), radius), from subsamples^2 rays per pixel intersected with the disk plane
-    (exact up to the sampling; only the disk's bounding box is sampled)."""
-    cov = np.zeros((camera.height, camera.width), np.float32)
-    rim, visible = render_circle_rim(camera, centre, normal, radius, n_points=64)
-    if not visible.any():
-        return cov
-    rim = rim[np.isfinite(rim).all(axis=1)]
-    x0, y0 = np.maximum(np.floor(rim.min(axis=0)).astype(int) - 2, 0)
-    x1, y1 = np.minimum(np.ceil(rim.max(axis=0)).astype(int) + 3, (camera.width, camera.height))
-    if x1 <= x0 or y1 <= y0:
-        return cov
-    k = int(subsamples)
-    offs = (np.arange(k) + 0.5) / k - 0.5
-    us = ((np.arange(x0, x1)[:, None] + offs).ravel() - camera.cx) / camera.fx
-    vs = ((np.arange(y0, y1)[:, None] + offs).ravel() - camera.cy) / camera.fy
-    gu, gv = np.meshgrid(us, vs)
-    denom = normal[0] * gu + normal[1] * gv + normal[2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        depth = (normal @ centre) / denom  # ray (u, v, 1) meets the plane at this z
-    px, py, pz = depth * gu - centre[0], depth * gv - centre[1], depth - centre[2]
-    inside = (depth > 0) & (px * px + py * py + pz * pz <= radius * radius)
-    cov[y0:y1, x0:x1] = inside.reshape(y1 - y0, k, x1 - x0, k).mean(axis=(1, 3))
-    return cov
 
 
 class CrawlerPairScenario:
@@ -426,46 +314,7 @@ class CrawlerPairScenario:
     def background(self, R_wc: np.ndarray, t_wc: np.ndarray) -> np.ndarray:
         """(H,W,3) float32 BGR of the textured wall and ground seen from (R_wc, t_wc), before the
         base disk, blur and sensor noise."""
-        cfg = self.config
-        cam = cfg.camera()
-        s = cfg.supersample
-        W, H = cfg.width * s, cfg.height * s
-        u = ((np.arange(W, dtype=np.float32) + 0.5) / s - 0.5 - cam.cx) / cam.fx
-        v = ((np.arange(H, dtype=np.float32) + 0.5) / s - 0.5 - cam.cy) / cam.fy
-        Rf = R_wc.astype(np.float32)
-        # world ray components of pixel (v, u): R[:, 0] u + R[:, 1] v + R[:, 2], as (H,W) arrays
-        ray = [Rf[i, 0] * u[None, :] + Rf[i, 1] * v[:, None] + Rf[i, 2] for i in range(3)]
-        scene = self.scene
-        o = t_wc.astype(np.float32)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s_wall = (scene.wall_z - o[2]) / ray[2]
-            s_ground = (scene.ground_y - o[1]) / ray[1]
-        s_wall[~(s_wall > 0)] = np.inf
-        s_ground[~(s_ground > 0)] = np.inf
-        on_wall = s_wall <= s_ground
-        img = np.zeros((H, W, 3), np.float32)
-        for mask, dist, tex, (a0, b0), (ia, ib) in (
-            (
-                on_wall,
-                s_wall,
-                scene.wall_texture,
-                scene.wall_origin,
-                (0, 1),
-            ),  # wall texture: (x, y)
-            (~on_wall, s_ground, scene.ground_texture, scene.ground_origin, (0, 2)),
-        ):  # ground: (x, z)
-            with np.errstate(
-                invalid="ignore"
-            ):  # rays that miss this surface: inf * 0 = NaN, mapped off-texture
-                mapx = np.nan_to_num(
-                    (o[ia] + dist * ray[ia] - a0) / scene.texel, posinf=-1, neginf=-1
-                ).astype(np.float32)
-                mapy = np.nan_to_num(
-                    (o[ib] + dist * ray[ib] - b0) / scene.texel, posinf=-1, neginf=-1
-                ).astype(np.float32)
-            sampled = cv2.remap(tex, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-            np.copyto(img, sampled.astype(np.float32), where=mask[..., None])
-        return cv2.resize(img, (cfg.width, cfg.height), interpolation=cv2.INTER_AREA)
+        return self.scene.image(self.config.camera(), self.config.supersample, R_wc, t_wc)
 
     def disk_information(
         self, seq: "CrawlerPairSequence", k: int, subsamples: int = 32
