@@ -159,7 +159,6 @@ OVER_SIZE = {
     "graphloc/mapping/fusion.py": "pending split (issue 13)",
     "graphloc/experiments/bench_hypotheses.py": "pending split (issue 13)",
     "graphloc/session_codec.py": "pending split (issue 13)",
-    "graphloc/vision/circle.py": "pending split (issue 13)",
     "graphloc/experiments/markdown.py": "pending split (issue 13)",
 }
 
