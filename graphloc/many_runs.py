@@ -149,6 +149,9 @@ def run_many(args: argparse.Namespace, mode: str, verb, runs: list[Path]) -> int
     items, hashes = [], []
     for path, name in zip(runs, names):
         run_fields = dict(fields, run=str(path), out=out / name, no_progress=True)
+        for key in ("mcap", "rerun"):  # a recording per run, in its own folder
+            if fields.get(key):
+                run_fields[key] = str(out / name / Path(fields[key]).name)
         items.append((verb, run_fields, mode))
         try:
             hashes.append(content_hash([path, *extra], config))
