@@ -54,7 +54,7 @@ from graphloc.datasets.kaushik import FOCALS_MM, NOISE_VARIANCES, KaushikConfig,
 from graphloc.executor import Executor
 from graphloc.experiments import hypotheses
 from graphloc.experiments.hypotheses import CELLS, PAPER_TABLE_III, TableIIIConfig
-from graphloc.experiments.seed000 import PAPER_TABLE_I
+from graphloc.experiments.seed000_table1 import PAPER_TABLE_I
 from graphloc.experiments.seed004 import PAPER_SEED004_TABLE_1
 from graphloc.geometry.p3p import MAX_CANDIDATES
 

@@ -19,7 +19,8 @@ import numpy as np
 
 from graphloc.datasets.feng_deterministic import TableIConfig
 from graphloc.datasets.kaushik import KaushikConfig
-from graphloc.experiments import markdown, seed000, seed004
+from graphloc.experiments import seed000, seed004
+from graphloc.experiments.seed_baselines_markdown import markdown
 from graphloc.experiments import seed_baselines as sb
 from graphloc.experiments.hypotheses import TableIIIConfig
 from graphloc.experiments.sizes import run_sizes
@@ -187,7 +188,7 @@ def render(result: dict, out: Path, docs: bool = True) -> dict:
     """Plot and markdown of a result (also from its saved JSON: --render)."""
     out.mkdir(parents=True, exist_ok=True)
     plot(result, out / "results_seed_baselines.png")
-    md = markdown.seed_baselines(result, "results_seed_baselines.png")
+    md = markdown(result, "results_seed_baselines.png")
     (out / "seed_baselines.md").write_text(md)
     if docs:
         plot(result, DOC.with_suffix(".png"))
