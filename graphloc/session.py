@@ -35,10 +35,8 @@ Example (GTSAM-example style: explicit keys, one graph, one optimizer):
 
 from __future__ import annotations
 
-import collections
-import math
 import time as _time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Iterable
 
@@ -47,95 +45,15 @@ import numpy as np
 from tqdm import tqdm
 
 from graphloc.datafile import BadData, read_data_file, write_data_file
-from graphloc.session_codec import decode_step, encode_item, encode_values, key_name
+from graphloc.fixed_lag import FixedLagWindow
+from graphloc.session_codec import decode_step, encode_item
+from graphloc.session_config import MODES, SessionConfig, config_from_dict
+from graphloc.value_codec import encode_values, key_name
 
 __all__ = ["MODES", "Session", "SessionConfig", "Step", "read_data_file", "write_data_file"]
 
-MODES = ("batch", "online")
 _SAVE_FORMAT = "graphloc-session"
 _SAVE_VERSION = 3  # 3: JSON + SHA-256 (2 was a pickle, no longer read: unpickling runs code)
-
-
-@dataclass(frozen=True)
-class SessionConfig:
-    """mode: "batch" (Levenberg-Marquardt) or "online" (iSAM2).
-
-    LM: lm_max_iterations, lm_relative_error_tol, lm_absolute_error_tol.
-    iSAM2: relinearize_threshold (on the delta of any variable), relinearize_skip (relinearize
-    every N updates), extra_updates (additional `update()` calls after each add, to converge
-    further), factorization ("CHOLESKY" or "QR"), wildfire_threshold (back-substitution stops
-    where the solution changes less than this), partial_relinearization_check (only check the
-    variables of re-eliminated cliques for relinearization), isam2_optimizer: "gauss_newton"
-    (iSAM2's default step) or "dogleg" (Powell's dog leg with an adaptive trust region: a
-    step that would raise the error is shortened, which stops the period-2 oscillation an
-    undamped step can fall into on stiff graphs).
-    lag [s]: online only; 0 keeps every variable (full smoothing); > 0 is a fixed lag: iSAM2
-    that marginalizes, with `ISAM2::marginalizeLeaves`, every variable added more than `lag`
-    seconds (of the add times) before the newest (`_update_fixed_lag`: a constrained ordering
-    by add time keeps those variables leaves of the Bayes tree, so no re-elimination is
-    needed): the tree and the per-step cost stay bounded; a marginalized variable keeps its
-    last estimate, and a factor on one is refused (`Session.add` raises ValueError;
-    `Session.marginalized` tells first). A variable's stamp is its add time and is not renewed
-    when later factors touch it, so long-lived variables (a static robot's pose, a SLAM
-    landmark) leave the window too. marginalize_every [s] (0: `lag`): stamps are add times
-    rounded down to a multiple of it; old variables leave in one batch every
-    `marginalize_every` seconds (the window spans `lag` to `lag + marginalize_every`), and
-    every update orders one group per live stamp.
-    """
-
-    mode: str = "batch"
-    lm_max_iterations: int = 100
-    lm_relative_error_tol: float = 1e-6
-    lm_absolute_error_tol: float = 1e-6
-    relinearize_threshold: float = 0.05
-    relinearize_skip: int = 1
-    extra_updates: int = 0
-    factorization: str = "CHOLESKY"
-    wildfire_threshold: float = 0.001
-    partial_relinearization_check: bool = False
-    isam2_optimizer: str = "gauss_newton"
-    lag: float = 0.0
-    marginalize_every: float = 0.0
-
-    def __post_init__(self):
-        if not (np.isfinite(self.lag) and self.lag >= 0):
-            raise ValueError(f"SessionConfig.lag must be finite >= 0, got {self.lag}")
-        if not (np.isfinite(self.marginalize_every) and self.marginalize_every >= 0):
-            raise ValueError(
-                f"SessionConfig.marginalize_every must be finite >= 0, got {self.marginalize_every}"
-            )
-        if self.mode not in MODES:
-            raise ValueError(f"SessionConfig.mode must be one of {MODES}, got {self.mode!r}")
-        if self.isam2_optimizer not in ("gauss_newton", "dogleg"):
-            raise ValueError(
-                f"SessionConfig.isam2_optimizer must be gauss_newton or dogleg, got "
-                f"{self.isam2_optimizer!r}"
-            )
-        if self.factorization not in ("CHOLESKY", "QR"):
-            raise ValueError(
-                f"SessionConfig.factorization must be CHOLESKY or QR, got {self.factorization!r}"
-            )
-        counts = (self.lm_max_iterations, self.relinearize_skip, self.extra_updates)
-        if max(counts) >= 2**31:
-            raise ValueError(
-                f"SessionConfig: lm_max_iterations, relinearize_skip and "
-                f"extra_updates must be < 2^31, got {counts}"
-            )
-        if self.lm_max_iterations < 1 or self.relinearize_skip < 1 or self.extra_updates < 0:
-            raise ValueError(
-                "SessionConfig: lm_max_iterations and relinearize_skip must be >= 1, "
-                "extra_updates >= 0"
-            )
-        if not (self.wildfire_threshold >= 0 and np.isfinite(self.wildfire_threshold)):
-            raise ValueError(
-                "SessionConfig.wildfire_threshold must be finite >= 0, "
-                f"got {self.wildfire_threshold}"
-            )
-        if not (self.relinearize_threshold >= 0 and np.isfinite(self.relinearize_threshold)):
-            raise ValueError(
-                "SessionConfig.relinearize_threshold must be finite >= 0, "
-                f"got {self.relinearize_threshold}"
-            )
 
 
 @dataclass(frozen=True)
@@ -194,20 +112,11 @@ class Session:
         self._batch_marginals: gtsam.Marginals | None = None
         self._batch_iterations = 0
         self._isam = self._make_isam() if config.mode == "online" else None
-        # fixed lag: the add time of each live variable; marginalized variables' last estimates
-        self._touched: dict[int, float] = {}
-        self._newest = -np.inf
-        self._frozen = gtsam.Values()
-        self._groups = gtsam.KeyGroupMap()  # live key -> the rank of its stamp
-        self._ranks: dict[float, int] = {}  # live stamp -> its rank (ordering group)
-        self._by_stamp: dict[float, list] = {}  # live stamp -> its keys, oldest stamp first
-        # the most recent keys, always re-eliminated: more than the groups there can be
-        stamps = 2 + (
-            math.ceil(config.lag / (config.marginalize_every or config.lag)) if config.lag else 0
+        self._window = (  # online with a fixed lag: `graphloc.fixed_lag`
+            FixedLagWindow(self._isam, config)
+            if self._isam is not None and config.lag > 0
+            else None
         )
-        n = stamps + 2
-        self._in_newest = 0  # live keys with the newest stamp
-        self._recent: collections.deque = collections.deque(maxlen=n)
 
     # ---- construction --------------------------------------------------------------------
     def _make_isam(self):
@@ -226,92 +135,11 @@ class Session:
 
     @property
     def fixed_lag(self) -> bool:
-        return self._isam is not None and self.config.lag > 0
+        return self._window is not None
 
     def marginalized(self, key: int) -> bool:
         """Whether `key` was marginalized by the fixed-lag smoother (its value is frozen)."""
-        return self._frozen.exists(key)
-
-    def _frozen_or_live(self, key: int):
-        if self._frozen.exists(key):
-            return _value(self._frozen, key)
-        for get in (
-            self._isam.calculateEstimatePose3,
-            self._isam.calculateEstimatePose2,
-            self._isam.calculateEstimatePoint3,
-            self._isam.calculateEstimateVector,
-        ):
-            try:
-                return get(key)
-            except RuntimeError:
-                continue
-        raise RuntimeError(
-            f"no estimate of type Pose3, Pose2, Point3 or vector for {key_name(key)}"
-        )
-
-    def _update_fixed_lag(
-        self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, t: float
-    ) -> None:
-        """One fixed-lag update (iSAM2 with `ISAM2::marginalizeLeaves`). New keys are stamped
-        with t rounded down to a multiple of `marginalize_every`. Every update passes iSAM2 a
-        constrained ordering with one group per live stamp, oldest first, so that every
-        (re-)elimination eliminates older stamps first: a key's subtree then holds only keys of
-        its own stamp or older ones, and the keys stamped more than `lag` before the newest
-        stamp are leaves, marginalized by `marginalizeLeaves` alone, without re-eliminating the
-        window (GTSAM's IncrementalFixedLagSmoother re-orders and re-eliminates the path from
-        the marginalized cliques to the root whenever it marginalizes). They keep their
-        estimate from before the marginalization. CCOLAMD takes group numbers below the number
-        of variables it orders, so the groups are the ranks of the live stamps and the most
-        recent keys (at least one more than there are stamps) are always re-eliminated too
-        (they are at the top of the tree, re-eliminated by most updates anyway)."""
-        quantum = self.config.marginalize_every or self.config.lag
-        now = math.floor(t / quantum) * quantum  # add times never go back
-        old = []
-        if now > self._newest:  # a new stamp: the next rank; only it can make keys old
-            self._newest = now
-            self._ranks[now] = len(self._ranks)
-            self._in_newest = 0
-            self._by_stamp[now] = []
-            limit = now - self.config.lag - 1e-9 * quantum
-            while next(iter(self._by_stamp)) < limit:  # stamps in time order
-                old += self._by_stamp.pop(next(iter(self._by_stamp)))
-        rank = self._ranks[now]
-        extra = _key_list(self._recent) if self._recent else None
-        for k in values.keys():
-            self._touched[k] = now
-            self._by_stamp[now].append(k)
-            self._groups.insert2(k, rank)
-            self._recent.append(k)
-        self._in_newest += values.size()
-        # this update only: the keys of the new factors that have the newest stamp go last
-        # (iSAM2's own default constrains the new factors' keys last), one group above the
-        # newest stamp's (used only when that stamp has other keys)
-        top = [k for k in set(graph.keyVector()) if self._touched[k] == now]
-        bump = 0 < len(top) < self._in_newest
-        for k in top if bump else ():
-            self._groups.insert2(k, rank + 1)
-        self._isam.update(graph, values, [], self._groups, None, extra)
-        for k in top if bump else ():
-            self._groups.insert2(k, rank)
-        for _ in range(self.config.extra_updates):
-            extra = _key_list(self._recent)
-            empty = gtsam.NonlinearFactorGraph()
-            self._isam.update(empty, gtsam.Values(), [], self._groups, None, extra)
-        if not old:
-            return
-        # the marginalized keys keep their estimate; the live stamps are renumbered from 0
-        self._frozen.insert(self._isam.calculateEstimate(old))
-        self._isam.marginalizeLeaves(_key_list(old))
-        for k in old:
-            del self._touched[k]
-        self._ranks = {stamp: r for r, stamp in enumerate(self._by_stamp)}
-        self._groups = gtsam.KeyGroupMap()
-        for stamp, keys in self._by_stamp.items():
-            for k in keys:
-                self._groups.insert2(k, self._ranks[stamp])
-        self._recent = collections.deque(
-            (k for k in self._recent if k in self._touched), maxlen=self._recent.maxlen
-        )
+        return self._window is not None and self._window.marginalized(key)
 
     # ---- the front door ------------------------------------------------------------------
     def add(
@@ -348,7 +176,7 @@ class Session:
             names = [key_name(k) for k in missing[:5]]
             raise ValueError(f"Session.add: factors reference keys without a value: {names}")
 
-        gone = [key_name(k) for k in graph.keyVector() if self._frozen.exists(k)]
+        gone = [key_name(k) for k in graph.keyVector() if self.marginalized(k)]
         if gone:
             raise ValueError(
                 f"Session.add: factors reference marginalized keys (older than the lag): {gone[:5]}"
@@ -356,7 +184,7 @@ class Session:
         start, cpu_start = _time.perf_counter(), _time.thread_time()
         if self.fixed_lag:
             try:
-                self._update_fixed_lag(graph, initial_values, t)
+                self._window.update(graph, initial_values, t)
             except RuntimeError as exc:
                 raise ValueError(
                     f"Session.add at time {t}: fixed-lag update failed ({_first_line(exc)})"
@@ -396,14 +224,7 @@ class Session:
             self._check_known(keys, "estimate")
         if self.fixed_lag:
             try:
-                if keys is None:
-                    out = gtsam.Values(self._frozen)
-                    out.insert(self._isam.calculateEstimate())
-                    return out
-                out = gtsam.Values()
-                for k in keys:  # one variable at a time: no estimate of the whole window
-                    out.insert(k, self._frozen_or_live(k))
-                return out
+                return self._window.estimate(keys)
             except RuntimeError as exc:
                 raise ValueError(
                     f"Session.estimate: the fixed-lag smoother cannot solve the "
@@ -463,7 +284,7 @@ class Session:
 
     def live_variables(self) -> int:
         """Variables the solver holds: all of them, or (fixed lag) those inside the lag."""
-        return len(self._touched) if self.fixed_lag else int(self.initial.size())
+        return len(self._window.touched) if self.fixed_lag else int(self.initial.size())
 
     def error(self, values: gtsam.Values | None = None) -> float:
         """Total graph error (0.5 * sum of whitened, robustified squared residuals)."""
@@ -545,7 +366,7 @@ class Session:
         type, a step the session rejects) is a ValueError naming the file."""
         payload = read_data_file(path, _SAVE_FORMAT, _SAVE_VERSION, "session")
         try:
-            session = cls(_config_from(payload.get("config")))
+            session = cls(config_from_dict(payload.get("config")))
             steps = payload.get("steps")
             if not isinstance(steps, list):
                 raise BadData("'steps' must be a list")
@@ -558,44 +379,6 @@ class Session:
         except BadData as exc:
             raise ValueError(f"{path}: {exc}") from None
         return session
-
-
-def _config_from(raw) -> SessionConfig:
-    """SessionConfig from its saved dict: every field present, of the default's type."""
-    if not isinstance(raw, dict):
-        raise BadData("'config' must be an object")
-    known = {f.name: type(f.default) for f in fields(SessionConfig)}
-    unknown = sorted(set(raw) - set(known))
-    if unknown:
-        raise BadData(f"config: unknown fields {unknown}")
-    for name, value in raw.items():
-        kind = known[name]
-        ok = isinstance(value, kind) and not (kind is not bool and isinstance(value, bool))
-        if kind is float:
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-        if not ok:
-            raise BadData(f"config.{name}: expected {kind.__name__}, got {value!r}")
-    try:
-        return SessionConfig(**raw)
-    except ValueError as exc:
-        raise BadData(f"config: {exc}") from None
-
-
-def _key_list(keys: Iterable[int]) -> gtsam.KeyList:
-    out = gtsam.KeyList()
-    for k in keys:
-        out.push_back(k)
-    return out
-
-
-def _value(values: gtsam.Values, key: int):
-    """The entry of `values` at `key` as its own type (Pose3, Pose2, Point3 / vector)."""
-    for get in (values.atPose3, values.atPose2, values.atPoint3, values.atVector):
-        try:
-            return get(key)
-        except RuntimeError:
-            continue
-    raise ValueError(f"no estimate for key {key_name(key)}")
 
 
 def _first_line(exc: Exception) -> str:

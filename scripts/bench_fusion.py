@@ -33,8 +33,8 @@ NEES of graphloc's accepted results against the chi-square 95% band of their mea
         --doc docs/results_fusion_real.md
 
 `--real --calibrate` fits the calibration of graphloc's registration covariance (scale and
-floor, `graphloc.mapping.registration.calibrated_covariance`) by maximum likelihood on view
-pairs of other seeds than the benchmark's, and writes docs/results_fusion_calibration.json
+floor, `graphloc.mapping.registration_covariance.calibrated_covariance`) by maximum likelihood
+on view pairs of other seeds than the benchmark's, and writes docs/results_fusion_calibration.json
 (RegistrationConfig's defaults are that fit; tests/test_fusion_real.py checks they agree):
 
     .venv/bin/python scripts/bench_fusion.py --real --calibrate --trials 20 --seed 1000
@@ -63,7 +63,8 @@ ROT_OK_DEG, TRANS_OK_M = 2.0, 0.05
 def run_trial(job: tuple[str, int, int]) -> dict:
     """One placement: simulate, then the three methods on the same clouds."""
     from graphloc.datasets.dual_room import DualRoomScenario, variant_config
-    from graphloc.mapping.fusion import FusionConfig, fuse
+    from graphloc.mapping.fusion import fuse
+    from graphloc.mapping.fusion_types import FusionConfig
     from graphloc.mapping.odometry import OdometryConfig
     from graphloc.mapping.registration import (
         RegistrationConfig,
@@ -229,7 +230,8 @@ def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
     import gtsam
     from scipy.spatial.transform import Rotation
 
-    from graphloc.mapping.fusion import FusionConfig, FusionInput, FusionRejected, fuse
+    from graphloc.mapping.fusion import fuse
+    from graphloc.mapping.fusion_types import FusionConfig, FusionInput, FusionRejected
     from graphloc.mapping.real_views import load_fragment, make_view_pair, perturb
     from graphloc.mapping.registration import (
         RegistrationConfig,
@@ -520,7 +522,8 @@ def markdown_real(report: dict, command: str) -> str:
 
 def fit_calibration(errors: np.ndarray, covs: np.ndarray) -> dict:
     """Maximum likelihood of e_i ~ N(0, s P_i + diag(f_r^2 I3, f_t^2 I3)) over accepted trials
-    (`graphloc.mapping.registration.calibrated_covariance`): Nelder-Mead on log(s, f_r, f_t)."""
+    (`graphloc.mapping.registration_covariance.calibrated_covariance`): Nelder-Mead on
+    log(s, f_r, f_t)."""
     from scipy.optimize import minimize
 
     eye_r, eye_t = np.diag([1.0] * 3 + [0.0] * 3), np.diag([0.0] * 3 + [1.0] * 3)

@@ -14,20 +14,13 @@ import open3d as o3d
 import pytest
 
 from graphloc.cli import main as cli_main
-from graphloc.mapping.fusion import FusionConfig, FusionInput, FusionRejected, fuse
+from graphloc.mapping.acceptance import AcceptanceConfig, Candidate, candidate_checks
+from graphloc.mapping.fusion import fuse
+from graphloc.mapping.fusion_types import FusionConfig, FusionInput, FusionRejected
 from graphloc.mapping.real_views import load_fragment, make_view_pair, perturb
-from graphloc.mapping.registration import (
-    AcceptanceConfig,
-    Candidate,
-    RegistrationConfig,
-    _candidate_checks,
-    calibrated_covariance,
-    hint_covariance,
-    hint_starts,
-    pose_errors,
-    prepare,
-    robust_register,
-)
+from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
+from graphloc.mapping.registration_covariance import calibrated_covariance
+from graphloc.mapping.robust_registration import hint_covariance, hint_starts, robust_register
 
 ROT_OK, TRANS_OK = 1.0, 0.05
 DOCS = Path(__file__).resolve().parents[1] / "docs"
@@ -138,7 +131,7 @@ def test_a_candidate_that_barely_passes_lets_the_other_starts_compete(fragment):
         cfg,
     )
     own = next(c for c in d.candidates if c.start == 0)
-    assert all(v[2] for v in _candidate_checks(own, AcceptanceConfig()).values())
+    assert all(v[2] for v in candidate_checks(own, AcceptanceConfig()).values())
     assert own.inlier_ratio < cfg.stop_inlier_ratio
     assert pose_errors(own.transformation, pair.T_ground_ceiling)[1] > 0.01
     assert d.accepted and d.best != 0
@@ -207,7 +200,7 @@ def test_robot_geometry_check_wants_the_ceiling_robot_above_and_upside_down():
     def checks(R, z):
         T = np.eye(4)
         T[:3, :3], T[2, 3] = R, z
-        out = _candidate_checks(Candidate(0, T, 0.1, 0.5, 0.9, 1.0), acc)
+        out = candidate_checks(Candidate(0, T, 0.1, 0.5, 0.9, 1.0), acc)
         return out["ceiling_height_m"][2], out["ceiling_z_down_cos"][2]
 
     flipped = np.diag([1.0, -1.0, -1.0])

@@ -17,14 +17,9 @@ from graphloc.datasets.dual_room import (
     variant_config,
 )
 from graphloc.mapping.pipeline import parse_hint
-from graphloc.mapping.fusion import (
-    CEILING,
-    GROUND,
-    FusionConfig,
-    FusionInput,
-    fuse,
-    led_candidates,
-)
+from graphloc.mapping.fusion import fuse
+from graphloc.mapping.fusion_types import CEILING, GROUND, FusionConfig, FusionInput
+from graphloc.mapping.led_guess import led_candidates
 from graphloc.mapping.io import (
     read_labelled_cloud,
     read_led_pixels,

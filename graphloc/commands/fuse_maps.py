@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     from graphloc.mapping.config import load_fusion_config
     from graphloc.experiments.fusion_demo import simulate_and_fuse
     from graphloc.mapping.pipeline import fuse_and_write, fuse_directories
-    from graphloc.mapping.fusion import FusionConfig, FusionRejected
+    from graphloc.mapping.fusion_types import FusionConfig, FusionRejected
     from graphloc.mapping.report import summary_text
     from graphloc.pipelines.recording import fusion_recording, write_recordings
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from graphloc.datasets.dual_room import DualRoomScenario, variant_config
-from graphloc.mapping.fusion import FusionConfig
+from graphloc.mapping.fusion_types import FusionConfig
 from graphloc.mapping.pipeline import fuse_and_write
 
 

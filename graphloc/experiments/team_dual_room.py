@@ -26,7 +26,8 @@ import numpy as np
 from graphloc.datasets import open_run
 from graphloc.datasets.dual_room import VARIANTS, DualRoomScenario, variant_config
 from graphloc.executor import Executor
-from graphloc.mapping.fusion import FusionConfig, FusionRejected, fuse
+from graphloc.mapping.fusion import fuse
+from graphloc.mapping.fusion_types import FusionConfig, FusionRejected
 from graphloc.mapping.registration import pose_errors
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, default_lag, solve
 from graphloc.plots import plt

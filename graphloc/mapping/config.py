@@ -6,10 +6,10 @@ default. Lists become tuples. Unknown tables or keys are a ValueError naming the
     [registration]          # graphloc.mapping.registration.RegistrationConfig
     voxel = 0.03
     normal_radius = 0.25
-    [acceptance]            # graphloc.mapping.registration.AcceptanceConfig
+    [acceptance]            # graphloc.mapping.acceptance.AcceptanceConfig
     min_inlier_ratio = 0.65
     ceiling_above = true
-    [fusion]                # scalar fields of graphloc.mapping.fusion.FusionConfig
+    [fusion]                # scalar fields of graphloc.mapping.fusion_types.FusionConfig
     guess_sigma = [0.0873, 0.1]   # 1-sigma of the inter-robot guess: rot [rad], trans [m]
     robust = true
     [odometry]              # graphloc.mapping.odometry.OdometryConfig
@@ -22,9 +22,10 @@ import dataclasses
 import tomllib
 from pathlib import Path
 
-from graphloc.mapping.fusion import FusionConfig
+from graphloc.mapping.acceptance import AcceptanceConfig
+from graphloc.mapping.fusion_types import FusionConfig
 from graphloc.mapping.odometry import OdometryConfig
-from graphloc.mapping.registration import AcceptanceConfig, RegistrationConfig
+from graphloc.mapping.registration import RegistrationConfig
 
 _NESTED = {
     "registration": RegistrationConfig,

@@ -15,12 +15,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
-from graphloc.mapping.fusion import (
+from graphloc.mapping.fusion import fuse
+from graphloc.mapping.fusion_types import (
     FusionConfig,
     FusionInput,
     FusionRejected,
     LedObservations,
-    fuse,
 )
 from graphloc.mapping.io import read_led_pixels, read_scan_sequence
 from graphloc.mapping.report import write_outputs, write_rejection

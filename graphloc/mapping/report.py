@@ -11,7 +11,13 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from graphloc.mapping.fusion import CEILING, GROUND, ROBOT_NAMES, FusionRejected, FusionResult
+from graphloc.mapping.fusion_types import (
+    CEILING,
+    GROUND,
+    ROBOT_NAMES,
+    FusionRejected,
+    FusionResult,
+)
 from graphloc.eval import write_tum
 from graphloc.mapping.io import ROBOT_COLOURS, write_labelled_cloud
 from graphloc.mapping.registration import pose_errors

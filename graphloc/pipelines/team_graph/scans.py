@@ -1,12 +1,12 @@
 """Inter-robot scan registration (seed 004 Sec. II-C / III: P3P initializes ICP, which fuses the
 ground and ceiling robots' maps) as a scan-matching factor of the team graph.
 
-For each pair of robots that both scan, one placed and one not: the unplaced robot's pose
-hint is the candidate tracker's latest best guess of it (committed or not: P3P's up to four
+For each pair of robots that both scan, one placed and one not: the unplaced robot's pose hint
+is the candidate tracker's latest best guess of it (committed or not: P3P's up to four
 candidates over a few frames may not commit, and the scans can tell them apart), carried by its
-odometry to its scan nearest that guess; `graphloc.mapping.registration.robust_register` aligns
-that scan onto the placed robot's scan taken at the same time, starting from the hint and its
-covariance, with the acceptance checks (overlap, inliers, hint gate, geometry). An accepted
+odometry to its scan nearest that guess; `graphloc.mapping.robust_registration.robust_register`
+aligns that scan onto the placed robot's scan taken at the same time, starting from the hint and
+its covariance, with the acceptance checks (overlap, inliers, hint gate, geometry). An accepted
 registration becomes a BetweenFactorPose3 between the two robots' poses with the registration's
 calibrated covariance, and places the unplaced robot; a rejected one is counted (reason
 `scan_match_rejected`, with the failed checks), never guessed."""
@@ -129,12 +129,9 @@ def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips, r
     hint_cov = adjoint_cov(E_b.inverse(), cov_b)
     # Open3D loads only for runs that register scans (`graphloc smooth` of other runs skips it)
     from graphloc.mapping.io import read_points
-    from graphloc.mapping.registration import (
-        AcceptanceConfig,
-        RegistrationConfig,
-        prepare,
-        robust_register,
-    )
+    from graphloc.mapping.acceptance import AcceptanceConfig
+    from graphloc.mapping.registration import RegistrationConfig, prepare
+    from graphloc.mapping.robust_registration import robust_register
 
     cfg = config.registration or RegistrationConfig()
     acceptance = config.acceptance or AcceptanceConfig()

@@ -1,0 +1,149 @@
+"""The fixed-lag window of an online `graphloc.session.Session` (SessionConfig.lag > 0): iSAM2
+that marginalizes, with `ISAM2::marginalizeLeaves`, every variable added more than `lag` seconds
+(of the add times) before the newest. A constrained ordering by add time keeps those variables
+leaves of the Bayes tree, so no re-elimination is needed (`FixedLagWindow.update`); a
+marginalized variable keeps its last estimate."""
+
+from __future__ import annotations
+
+import collections
+import math
+from typing import Iterable
+
+import gtsam
+import numpy as np
+
+from graphloc.session_config import SessionConfig
+from graphloc.value_codec import key_name
+
+
+class FixedLagWindow:
+    """The bookkeeping of one fixed-lag iSAM2: the add stamp of each live variable, the ordering
+    groups (one per live stamp), the most recent keys, and the marginalized variables' last
+    estimates (`frozen`)."""
+
+    def __init__(self, isam: gtsam.ISAM2, config: SessionConfig):
+        self.isam = isam
+        self.config = config
+        self.touched: dict[int, float] = {}  # live key -> its stamp
+        self.frozen = gtsam.Values()  # marginalized variables' last estimates
+        self._newest = -np.inf
+        self._groups = gtsam.KeyGroupMap()  # live key -> the rank of its stamp
+        self._ranks: dict[float, int] = {}  # live stamp -> its rank (ordering group)
+        self._by_stamp: dict[float, list] = {}  # live stamp -> its keys, oldest stamp first
+        # the most recent keys, always re-eliminated: more than the groups there can be
+        stamps = 2 + math.ceil(config.lag / (config.marginalize_every or config.lag))
+        self._in_newest = 0  # live keys with the newest stamp
+        self._recent: collections.deque = collections.deque(maxlen=stamps + 2)
+
+    def marginalized(self, key: int) -> bool:
+        """Whether `key` was marginalized (its value is frozen)."""
+        return self.frozen.exists(key)
+
+    def estimate(self, keys: list | None = None) -> gtsam.Values:
+        """Every variable (frozen and live), or only `keys`, one variable at a time (no estimate
+        of the whole window). GTSAM failures propagate as RuntimeError."""
+        if keys is None:
+            out = gtsam.Values(self.frozen)
+            out.insert(self.isam.calculateEstimate())
+            return out
+        out = gtsam.Values()
+        for k in keys:
+            out.insert(k, self._frozen_or_live(k))
+        return out
+
+    def _frozen_or_live(self, key: int):
+        if self.frozen.exists(key):
+            return _value_at(self.frozen, key)
+        for get in (
+            self.isam.calculateEstimatePose3,
+            self.isam.calculateEstimatePose2,
+            self.isam.calculateEstimatePoint3,
+            self.isam.calculateEstimateVector,
+        ):
+            try:
+                return get(key)
+            except RuntimeError:
+                continue
+        raise RuntimeError(
+            f"no estimate of type Pose3, Pose2, Point3 or vector for {key_name(key)}"
+        )
+
+    def update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, t: float) -> None:
+        """One fixed-lag update (iSAM2 with `ISAM2::marginalizeLeaves`). New keys are stamped
+        with t rounded down to a multiple of `marginalize_every`. Every update passes iSAM2 a
+        constrained ordering with one group per live stamp, oldest first, so that every
+        (re-)elimination eliminates older stamps first: a key's subtree then holds only keys of
+        its own stamp or older ones, and the keys stamped more than `lag` before the newest
+        stamp are leaves, marginalized by `marginalizeLeaves` alone, without re-eliminating the
+        window (GTSAM's IncrementalFixedLagSmoother re-orders and re-eliminates the path from
+        the marginalized cliques to the root whenever it marginalizes). They keep their
+        estimate from before the marginalization. CCOLAMD takes group numbers below the number
+        of variables it orders, so the groups are the ranks of the live stamps and the most
+        recent keys (at least one more than there are stamps) are always re-eliminated too
+        (they are at the top of the tree, re-eliminated by most updates anyway)."""
+        quantum = self.config.marginalize_every or self.config.lag
+        now = math.floor(t / quantum) * quantum  # add times never go back
+        old = []
+        if now > self._newest:  # a new stamp: the next rank; only it can make keys old
+            self._newest = now
+            self._ranks[now] = len(self._ranks)
+            self._in_newest = 0
+            self._by_stamp[now] = []
+            limit = now - self.config.lag - 1e-9 * quantum
+            while next(iter(self._by_stamp)) < limit:  # stamps in time order
+                old += self._by_stamp.pop(next(iter(self._by_stamp)))
+        rank = self._ranks[now]
+        extra = _key_list(self._recent) if self._recent else None
+        for k in values.keys():
+            self.touched[k] = now
+            self._by_stamp[now].append(k)
+            self._groups.insert2(k, rank)
+            self._recent.append(k)
+        self._in_newest += values.size()
+        # this update only: the keys of the new factors that have the newest stamp go last
+        # (iSAM2's own default constrains the new factors' keys last), one group above the
+        # newest stamp's (used only when that stamp has other keys)
+        top = [k for k in set(graph.keyVector()) if self.touched[k] == now]
+        bump = 0 < len(top) < self._in_newest
+        for k in top if bump else ():
+            self._groups.insert2(k, rank + 1)
+        self.isam.update(graph, values, [], self._groups, None, extra)
+        for k in top if bump else ():
+            self._groups.insert2(k, rank)
+        for _ in range(self.config.extra_updates):
+            extra = _key_list(self._recent)
+            empty = gtsam.NonlinearFactorGraph()
+            self.isam.update(empty, gtsam.Values(), [], self._groups, None, extra)
+        if not old:
+            return
+        # the marginalized keys keep their estimate; the live stamps are renumbered from 0
+        self.frozen.insert(self.isam.calculateEstimate(old))
+        self.isam.marginalizeLeaves(_key_list(old))
+        for k in old:
+            del self.touched[k]
+        self._ranks = {stamp: r for r, stamp in enumerate(self._by_stamp)}
+        self._groups = gtsam.KeyGroupMap()
+        for stamp, keys in self._by_stamp.items():
+            for k in keys:
+                self._groups.insert2(k, self._ranks[stamp])
+        self._recent = collections.deque(
+            (k for k in self._recent if k in self.touched), maxlen=self._recent.maxlen
+        )
+
+
+def _key_list(keys: Iterable[int]) -> gtsam.KeyList:
+    out = gtsam.KeyList()
+    for k in keys:
+        out.push_back(k)
+    return out
+
+
+def _value_at(values: gtsam.Values, key: int):
+    """The entry of `values` at `key` as its own type (Pose3, Pose2, Point3 / vector)."""
+    for get in (values.atPose3, values.atPose2, values.atPoint3, values.atVector):
+        try:
+            return get(key)
+        except RuntimeError:
+            continue
+    raise ValueError(f"no estimate for key {key_name(key)}")

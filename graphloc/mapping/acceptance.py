@@ -1,0 +1,161 @@
+"""What a robust inter-robot registration must pass before it is fused (issue 16): the
+`AcceptanceConfig` thresholds, the per-candidate checks (`candidate_checks`: overlap, inlier
+ratio, agreement with the pose hint, the robot kinds' geometry), the point-to-plane residuals they
+are computed from (`point_to_plane`, `truncated_cost`), and the `RegistrationDecision` that
+`graphloc.mapping.robust_registration.robust_register` returns (every candidate, every check, why
+each candidate lost)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+
+from graphloc.mapping.registration import PreparedCloud, Registration
+
+
+@dataclass(frozen=True)
+class AcceptanceConfig:
+    """Checks a registration must pass before it is fused (see `robust_register`).
+
+    min_overlap: inlier fraction of the source (point-to-plane |r| < c, c = residual_sigma);
+    min_inlier_ratio: inliers among the source points that have a target point within the fine
+    correspondence distance (a slid alignment puts points near surfaces, not on them);
+    min_conditioning: smallest / largest eigenvalue of the point-to-plane Hessian with rotations
+    scaled by the median source range (a plane or a corridor leaves a direction unconstrained);
+    hint_gate: Mahalanobis^2 of the result against the hint under the hint's covariance,
+    chi-square with 6 degrees of freedom at 99.9%; ceiling_above: the robot kinds' geometry --
+    the ceiling sensor is above the ground sensor (z_G > 0) and upside down (its z axis within
+    max_ceiling_tilt_deg of -z_G); hint_basin_margin: how much lower (per source point) another
+    candidate's truncated cost must be to win over the hint's own candidate."""
+
+    residual_sigma: float = 0.01
+    min_overlap: float = 0.1
+    min_inlier_ratio: float = 0.65
+    min_conditioning: float = 1e-4
+    hint_gate: float = 22.458  # scipy.stats.chi2.ppf(0.999, 6)
+    ceiling_above: bool = True
+    max_ceiling_tilt_deg: float = 45.0
+    hint_basin_margin: float = 0.05
+    distinct_deg: float = 0.5
+    distinct_m: float = 0.02
+
+    def __post_init__(self):
+        if not (self.residual_sigma > 0 and self.hint_gate > 0 and self.hint_basin_margin >= 0):
+            raise ValueError(
+                "AcceptanceConfig: residual_sigma and hint_gate must be > 0, hint_basin_margin >= 0"
+            )
+        if not (0 <= self.min_overlap <= 1 and 0 <= self.min_inlier_ratio <= 1):
+            raise ValueError("AcceptanceConfig: min_overlap and min_inlier_ratio lie in [0, 1]")
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One start of the multi-start registration after coarse + fine ICP: T_target_source,
+    truncated point-to-plane cost per source point (eq. in `truncated_cost`), overlap (inlier
+    fraction), inlier ratio among near points, and Mahalanobis^2 to the hint."""
+
+    start: int
+    transformation: np.ndarray
+    cost: float
+    overlap: float
+    inlier_ratio: float
+    hint_d2: float
+
+    def as_dict(self) -> dict:
+        return {
+            "start": self.start,
+            "cost": self.cost,
+            "overlap": self.overlap,
+            "inlier_ratio": self.inlier_ratio,
+            "hint_mahalanobis2": self.hint_d2,
+            "translation_m": self.transformation[:3, 3].tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class RegistrationDecision:
+    """Outcome of `robust_register`: the chosen candidate (`registration`, its
+    information from the residual-scaled point-to-plane Hessian), whether every check passed,
+    the failed checks' reasons, every check's (value, threshold, passed), all candidates with
+    why each lost, and wall time [s]."""
+
+    registration: Registration
+    accepted: bool
+    reasons: tuple
+    checks: dict
+    candidates: tuple
+    best: int
+    lost: dict
+    covariance: np.ndarray
+    seconds: float
+
+    def as_dict(self) -> dict:
+        return {
+            "accepted": self.accepted,
+            "reasons": list(self.reasons),
+            "checks": {
+                k: {"value": v[0], "threshold": v[1], "passed": v[2]}
+                for k, v in self.checks.items()
+            },
+            "best_candidate": self.best,
+            "candidates": [dict(c.as_dict(), lost=self.lost.get(c.start)) for c in self.candidates],
+            "merged_starts": {
+                k: v for k, v in self.lost.items() if k not in {c.start for c in self.candidates}
+            },
+            "sigma_rot_deg": np.degrees(np.sqrt(np.diag(self.covariance)[:3])).tolist(),
+            "sigma_trans_m": np.sqrt(np.diag(self.covariance)[3:]).tolist(),
+            "seconds": self.seconds,
+        }
+
+
+def candidate_checks(o: Candidate, acc: AcceptanceConfig) -> dict:
+    """name -> (value, threshold, passed) of the checks one candidate can fail on its own."""
+    checks = {
+        "overlap": (o.overlap, acc.min_overlap, o.overlap >= acc.min_overlap),
+        "inlier_ratio": (
+            o.inlier_ratio,
+            acc.min_inlier_ratio,
+            o.inlier_ratio >= acc.min_inlier_ratio,
+        ),
+        "hint_mahalanobis2": (o.hint_d2, acc.hint_gate, o.hint_d2 <= acc.hint_gate),
+    }
+    if acc.ceiling_above:
+        T = o.transformation
+        height, down = float(T[2, 3]), float(-T[2, 2])
+        min_down = float(np.cos(np.deg2rad(acc.max_ceiling_tilt_deg)))
+        checks["ceiling_height_m"] = (height, 0.0, height > 0.0)
+        checks["ceiling_z_down_cos"] = (down, min_down, down >= min_down)
+    return checks
+
+
+def point_to_plane(source: PreparedCloud, target: PreparedCloud, T: np.ndarray, nns=None):
+    """Per source point (transformed by T): point-to-plane residual to its nearest target point
+    along that point's normal, the distance to it, and the Jacobian rows [(p x n)^T, n^T] of the
+    residual for a left perturbation Exp(xi) T (rot, trans). Nearest neighbours: Open3D NNS
+    (`nns`: a prebuilt knn index of target.points, else built here)."""
+    p = source.points @ T[:3, :3].T + T[:3, 3]
+    q_all = target.points
+    if nns is None:
+        nns = target_index(target)
+    idx, d2 = nns.knn_search(o3d.core.Tensor(p), 1)
+    idx = idx.numpy()[:, 0]
+    n = target.cloud.point.normals.numpy().astype(float)[idx]
+    r = np.einsum("ij,ij->i", p - q_all[idx], n)
+    J = np.hstack([np.cross(p, n), n])
+    return r, np.sqrt(d2.numpy()[:, 0].astype(float)), J
+
+
+def target_index(target: PreparedCloud):
+    """Open3D knn index of the target's points (for `point_to_plane`)."""
+    nns = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(target.points))
+    nns.knn_index()
+    return nns
+
+
+def truncated_cost(r: np.ndarray, d: np.ndarray, c: float, max_dist: float) -> float:
+    """Truncated least squares per source point: mean of min(r^2, c^2) / c^2, a point with no
+    target point within max_dist counting 1 (an unexplained point)."""
+    near = d < max_dist
+    return float(np.mean(np.where(near, np.minimum(r * r, c * c) / (c * c), 1.0)))

@@ -1,0 +1,314 @@
+"""The inter-robot registration of issue 16 (seed 004 Sec. IV from a pose hint): a registration
+that does not slide on partial overlap, and that says "not fused" instead of returning a
+confident wrong answer. `robust_register` runs ICP from the hint and the sigma points of its
+covariance (`hint_starts`) with a truncated point-to-plane cost, the checks of
+`graphloc.mapping.acceptance`, and the covariance of `graphloc.mapping.registration_covariance`.
+"""
+
+from __future__ import annotations
+
+import time
+
+import gtsam
+import numpy as np
+import open3d as o3d
+
+from graphloc.mapping.acceptance import (
+    AcceptanceConfig,
+    Candidate,
+    RegistrationDecision,
+    candidate_checks,
+    point_to_plane,
+    target_index,
+    truncated_cost,
+)
+from graphloc.mapping.registration import (
+    PreparedCloud,
+    Registration,
+    RegistrationConfig,
+    global_fpfh_ransac,
+    information_right,
+    pose_errors,
+)
+from graphloc.mapping.registration_covariance import calibrated_covariance, cluster_covariance
+
+reg_t = o3d.t.pipelines.registration
+reg_l = o3d.pipelines.registration
+
+
+def hint_starts(hint: np.ndarray, cov: np.ndarray) -> list[np.ndarray]:
+    """The hint and its 12 sigma points hint Exp(+-sqrt(lambda_i) v_i) along the eigenvectors of
+    its 6x6 covariance (right perturbation, GTSAM tangent order rot, trans): the starts that
+    cover the hint's uncertainty, a P3P covariance's long axis included."""
+    lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    starts = [np.asarray(hint, dtype=float)]
+    for i in range(6):
+        for sign in (1.0, -1.0):
+            xi = sign * np.sqrt(max(lam[i], 0.0)) * V[:, i]
+            starts.append(starts[0] @ gtsam.Pose3.Expmap(xi).matrix())
+    return starts
+
+
+def hint_covariance(sigma_rot: float, sigma_trans: float) -> np.ndarray:
+    """6x6 diagonal covariance (rot [rad], trans [m]) of a hint given by two 1-sigmas."""
+    return np.diag(np.r_[np.full(3, sigma_rot**2), np.full(3, sigma_trans**2)])
+
+
+def _coarse_clouds(source: PreparedCloud, target: PreparedCloud, cfg: RegistrationConfig):
+    """Both clouds on the coarse grid: twice the larger of cfg.voxel and the source's median
+    nearest-neighbour spacing (the scans' density), normals re-estimated (cfg.normal_radius)."""
+    spacing = float(np.median(np.asarray(source.legacy.compute_nearest_neighbor_distance())))
+    voxel = 2.0 * max(cfg.voxel, spacing)
+    out = []
+    for c in (source.legacy, target.legacy):
+        down = c.voxel_down_sample(voxel)
+        down.estimate_normals(
+            o3d.geometry.KDTreeSearchParamHybrid(radius=cfg.normal_radius, max_nn=cfg.max_nn)
+        )
+        out.append(down)
+    return out[0], out[1], voxel
+
+
+def _wide_clouds(src_c, tgt_c, voxel: float, cfg: RegistrationConfig):
+    """The coarse clouds on a wider grid (`voxel`), normals over at least two of its voxels."""
+    out = []
+    for c in (src_c, tgt_c):
+        down = c.voxel_down_sample(voxel)
+        radius = max(cfg.normal_radius, 2.0 * voxel)
+        down.estimate_normals(
+            o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=cfg.max_nn)
+        )
+        out.append(down)
+    return out
+
+
+def robust_register(
+    source: PreparedCloud,
+    target: PreparedCloud,
+    hint: np.ndarray,
+    hint_cov: np.ndarray,
+    cfg: RegistrationConfig = RegistrationConfig(),
+    acc: AcceptanceConfig = AcceptanceConfig(),
+) -> RegistrationDecision:
+    """Multi-start registration of source onto target around a pose hint, with acceptance checks.
+
+    1. Starts: the hint and its sigma points (`hint_starts`; hint_cov is the hint's 6x6
+       covariance, rot [rad] then trans [m], right perturbation: `hint_covariance` of two
+       sigmas, or a P3P candidate's first-order covariance carried to the LiDAR frames).
+    2. Per start: when the hint's reach (1-sigma rotation times the median source range plus 1-sigma
+       translation, at most cfg.max_reach) exceeds the coarse correspondence distance, a wide level
+       first: ICP on clouds gridded at reach / cfg.coarse_voxels with correspondences within the
+       reach and a Tukey kernel of cfg.coarse_tukey of its voxels (the basin of a poor P3P guess);
+       then point-to-plane ICP on the coarse grid (`_coarse_clouds`; correspondences within
+       cfg.coarse_voxels coarse voxels, Tukey kernel of cfg.coarse_tukey voxels, so the parts that
+       do not overlap are not pulled in); starts whose coarse results lie within one fine basin of
+       each other (cfg.max_correspondence[-1], and the rotation moving the median source point that
+       far) merge; then Open3D tensor ICP on the prepared clouds within that distance
+       (cfg.max_iterations[-1]); candidates closer than acc.distinct_deg / distinct_m merge. With
+       cfg.stop_at_first_valid the starts stop at the first candidate that passes its checks with an
+       inlier ratio of at least cfg.stop_inlier_ratio (the hint comes first, so an easy case costs
+       one start; one that barely passes lets the other starts compete on cost). If none passes and
+       cfg.global_fallback, `global_fpfh_ransac` (seed 0) gives one more start (index 13), still
+       subject to every check, the hint gate included.
+    3. Each candidate's `truncated_cost` (c = acc.residual_sigma) and checks (overlap, inlier
+       ratio, hint gate, robot geometry: `candidate_checks`). Among those that pass, the lowest
+       cost wins, except that the hint's own candidate (start 0) is kept when it passes and its
+       cost is within acc.hint_basin_margin of that best (the data must clearly beat the
+       hint's basin).
+    4. The winner's conditioning; accepted only if every check passes.
+    5. Covariance: the point-to-plane Hessian H over the inliers in a cluster-robust sandwich
+       (`cluster_covariance`), converted to GTSAM's right perturbation (`information_right`),
+       calibrated (`calibrated_covariance`); `inlier_rmse` is the inliers' residual standard
+       deviation (n - 6 dof)."""
+    start_t = time.perf_counter()
+    hint = np.asarray(hint, dtype=float)
+    hint_cov = np.asarray(hint_cov, dtype=float)
+    if hint.shape != (4, 4) or not np.isfinite(hint).all():
+        raise ValueError(f"robust_register: hint must be a finite 4x4 transform, got {hint.shape}")
+    if (
+        hint_cov.shape != (6, 6)
+        or not np.isfinite(hint_cov).all()
+        or np.linalg.eigvalsh(0.5 * (hint_cov + hint_cov.T))[0] <= 0
+    ):
+        raise ValueError(
+            "robust_register: hint_cov must be a finite 6x6 positive definite covariance, got "
+            f"shape {hint_cov.shape}"
+        )
+    src_c, tgt_c, voxel_c = _coarse_clouds(source, target, cfg)
+    fine = cfg.max_correspondence[-1]
+    kernel = reg_l.TukeyLoss(cfg.coarse_tukey * voxel_c) if cfg.coarse_tukey > 0 else reg_l.L2Loss()
+    est = reg_l.TransformationEstimationPointToPlane(kernel)
+    crit_c = reg_l.ICPConvergenceCriteria(1e-6, 1e-6, cfg.max_iterations[0])
+    crit_f = reg_t.ICPConvergenceCriteria(
+        cfg.relative_fitness, cfg.relative_rmse, cfg.max_iterations[-1]
+    )
+    hint_info = np.linalg.inv(0.5 * (hint_cov + hint_cov.T))
+    hint_pose = gtsam.Pose3(hint)
+    c = acc.residual_sigma
+    nns = target_index(target)
+    r_med = float(np.median(np.linalg.norm(source.points, axis=1)))
+    basin_deg = float(np.degrees(fine / r_med))  # a rotation moving the median point by `fine`
+    merged, coarse, cands, iterations = {}, [], [], 0
+
+    lam = np.linalg.eigvalsh(hint_cov[:3, :3])[-1], np.linalg.eigvalsh(hint_cov[3:, 3:])[-1]
+    reach = min(float(np.sqrt(lam[0]) * r_med + np.sqrt(lam[1])), cfg.max_reach)
+    wide = None
+    if cfg.coarse_voxels > 0 and reach > cfg.coarse_voxels * voxel_c:
+        wide = _wide_clouds(src_c, tgt_c, reach / cfg.coarse_voxels, cfg)
+        est_w = reg_l.TransformationEstimationPointToPlane(
+            reg_l.TukeyLoss(cfg.coarse_tukey * reach / cfg.coarse_voxels)
+        )
+
+    def coarse_stage(T0: np.ndarray) -> np.ndarray:
+        """The wide level (if the hint's reach exceeds the coarse one), then the coarse ICP."""
+        if cfg.coarse_voxels <= 0:
+            return T0
+        if wide is not None:
+            T0 = reg_l.registration_icp(wide[0], wide[1], reach, T0, est_w, crit_c).transformation
+        res = reg_l.registration_icp(src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0, est, crit_c)
+        return np.asarray(res.transformation)
+
+    def try_start(k: int, T: np.ndarray) -> bool:
+        """Fine ICP from one start's coarse pose; True if its candidate passes its own checks."""
+        nonlocal iterations
+        same = [j for j, Tj in coarse if _within(T, Tj, basin_deg, fine)]
+        if same:
+            merged[k] = f"coarse stage converged within the fine basin of start {same[0]}"
+            return False
+        coarse.append((k, T))
+        try:
+            res = reg_t.icp(
+                source.cloud,
+                target.cloud,
+                fine,
+                o3d.core.Tensor(T),
+                reg_t.TransformationEstimationPointToPlane(),
+                crit_f,
+            )
+        except RuntimeError:  # Open3D: singular 6x6 system, too few correspondences from this start
+            merged[k] = f"no correspondences within {fine} m"
+            return False
+        T, iterations = res.transformation.numpy(), iterations + int(res.num_iterations)
+        same = [o.start for o in cands if not _distinct(T, o.transformation, acc)]
+        if same:
+            merged[k] = f"converged to the pose of start {same[0]}"
+            return False
+        r, d, _ = point_to_plane(source, target, T, nns)
+        near = d < fine
+        inl = near & (np.abs(r) < c)
+        e = hint_pose.localCoordinates(gtsam.Pose3(T))
+        cands.append(
+            Candidate(
+                k,
+                T,
+                truncated_cost(r, d, c, fine),
+                float(inl.mean()),
+                float(inl.sum() / max(near.sum(), 1)),
+                float(e @ hint_info @ e),
+            )
+        )
+        return all(v[2] for v in candidate_checks(cands[-1], acc).values())
+
+    starts = hint_starts(hint, hint_cov)
+    found = False
+    for k, T0 in enumerate(starts):
+        ok = try_start(k, coarse_stage(T0))
+        found = ok or found
+        if ok and cfg.stop_at_first_valid and cands[-1].inlier_ratio >= cfg.stop_inlier_ratio:
+            break
+    if not found and cfg.global_fallback:  # the hint's neighbourhood failed: one global guess
+        T_glob, _ = global_fpfh_ransac(source, target, cfg, seed=0)
+        try_start(len(starts), coarse_stage(T_glob))
+    if not cands:
+        raise ValueError(
+            f"robust_register: no start found correspondences within {fine} m: a wrong "
+            "pose hint, or scans that do not overlap"
+        )
+    checks_of = {o.start: candidate_checks(o, acc) for o in cands}
+    valid = sorted(
+        (o for o in cands if all(v[2] for v in checks_of[o.start].values())), key=lambda x: x.cost
+    )
+    lost = dict(merged)
+    if valid:
+        best = valid[0]
+        hint_own = [o for o in valid if o.start == 0]
+        if (
+            hint_own
+            and hint_own[0] is not best
+            and hint_own[0].cost - best.cost <= acc.hint_basin_margin
+        ):
+            lost[best.start] = (
+                f"truncated cost {best.cost:.4f} beats the hint's own candidate by less "
+                f"than the hint-basin margin {acc.hint_basin_margin}"
+            )
+            best = hint_own[0]
+    else:
+        best = min(cands, key=lambda x: x.cost)
+    for o in cands:
+        if o.start == best.start or o.start in lost:
+            continue
+        failed = [k for k, v in checks_of[o.start].items() if not v[2]]
+        lost[o.start] = (
+            f"failed {', '.join(failed)}"
+            if failed
+            else f"truncated cost {o.cost:.4f} > {best.cost:.4f} of start {best.start}"
+        )
+    T = best.transformation
+    r, d, J = point_to_plane(source, target, T, nns)
+    inl = (d < fine) & (np.abs(r) < c)
+    n_in = int(inl.sum())
+    H = J[inl].T @ J[inl]
+    s2 = float(r[inl] @ r[inl]) / max(n_in - 6, 1)
+    D = np.diag([r_med**-1] * 3 + [1.0] * 3)
+    eig = np.linalg.eigvalsh(D @ H @ D) if n_in >= 6 else np.zeros(6)
+    conditioning = float(eig[0] / eig[-1]) if eig[-1] > 0 else 0.0
+    if n_in >= 6 and conditioning >= acc.min_conditioning:  # else no covariance (not accepted)
+        pts_in = (source.points @ T[:3, :3].T + T[:3, 3])[inl]
+        cov_left = cluster_covariance(J[inl], r[inl], pts_in, H, cfg.covariance_block)
+        sandwich = np.linalg.inv(information_right(np.linalg.inv(cov_left), T))
+        cov = calibrated_covariance(sandwich, cfg)
+        info = np.linalg.inv(cov)
+    else:
+        info = np.eye(6) * 1e-12
+        cov = np.linalg.inv(info)
+    checks = dict(checks_of[best.start])
+    checks["conditioning"] = (
+        conditioning,
+        acc.min_conditioning,
+        conditioning >= acc.min_conditioning,
+    )
+    why = {
+        "overlap": "too little overlap",
+        "inlier_ratio": "residuals inconsistent with a fit",
+        "conditioning": "degenerate geometry (a direction is unconstrained)",
+        "hint_mahalanobis2": "disagrees with the pose hint beyond its covariance",
+        "ceiling_height_m": "ceiling robot below the ground robot",
+        "ceiling_z_down_cos": "ceiling robot not upside down",
+    }
+    reasons = tuple(
+        f"{why[k]} ({k} {v[0]:.4g} vs {v[1]:.4g})" for k, v in checks.items() if not v[2]
+    )
+    reg = Registration(
+        T, best.overlap, float(np.sqrt(s2)), iterations, info, time.perf_counter() - start_t
+    )
+    return RegistrationDecision(
+        reg,
+        not reasons,
+        reasons,
+        checks,
+        tuple(cands),
+        best.start,
+        lost,
+        cov,
+        time.perf_counter() - start_t,
+    )
+
+
+def _within(A: np.ndarray, B: np.ndarray, rot_deg: float, trans_m: float) -> bool:
+    rot, tr = pose_errors(A, B)
+    return rot <= rot_deg and tr <= trans_m
+
+
+def _distinct(A: np.ndarray, B: np.ndarray, acc: AcceptanceConfig) -> bool:
+    rot, tr = pose_errors(A, B)
+    return rot > acc.distinct_deg or tr > acc.distinct_m

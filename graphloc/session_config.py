@@ -1,0 +1,116 @@
+"""The configuration of `graphloc.session.Session`: which solver (`MODES`), its GTSAM
+parameters (Levenberg-Marquardt, iSAM2) and the fixed lag (`graphloc.fixed_lag`), and the checked
+reading of a saved config (`config_from_dict`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from graphloc.datafile import BadData
+
+MODES = ("batch", "online")
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """mode: "batch" (Levenberg-Marquardt) or "online" (iSAM2).
+
+    LM: lm_max_iterations, lm_relative_error_tol, lm_absolute_error_tol.
+    iSAM2: relinearize_threshold (on the delta of any variable), relinearize_skip (relinearize
+    every N updates), extra_updates (additional `update()` calls after each add, to converge
+    further), factorization ("CHOLESKY" or "QR"), wildfire_threshold (back-substitution stops
+    where the solution changes less than this), partial_relinearization_check (only check the
+    variables of re-eliminated cliques for relinearization), isam2_optimizer: "gauss_newton"
+    (iSAM2's default step) or "dogleg" (Powell's dog leg with an adaptive trust region: a
+    step that would raise the error is shortened, which stops the period-2 oscillation an
+    undamped step can fall into on stiff graphs).
+    lag [s]: online only; 0 keeps every variable (full smoothing); > 0 is a fixed lag: iSAM2
+    that marginalizes, with `ISAM2::marginalizeLeaves`, every variable added more than `lag`
+    seconds (of the add times) before the newest (`graphloc.fixed_lag`: a constrained ordering
+    by add time keeps those variables leaves of the Bayes tree, so no re-elimination is
+    needed): the tree and the per-step cost stay bounded; a marginalized variable keeps its
+    last estimate, and a factor on one is refused (`Session.add` raises ValueError;
+    `Session.marginalized` tells first). A variable's stamp is its add time and is not renewed
+    when later factors touch it, so long-lived variables (a static robot's pose, a SLAM
+    landmark) leave the window too. marginalize_every [s] (0: `lag`): stamps are add times
+    rounded down to a multiple of it; old variables leave in one batch every
+    `marginalize_every` seconds (the window spans `lag` to `lag + marginalize_every`), and
+    every update orders one group per live stamp.
+    """
+
+    mode: str = "batch"
+    lm_max_iterations: int = 100
+    lm_relative_error_tol: float = 1e-6
+    lm_absolute_error_tol: float = 1e-6
+    relinearize_threshold: float = 0.05
+    relinearize_skip: int = 1
+    extra_updates: int = 0
+    factorization: str = "CHOLESKY"
+    wildfire_threshold: float = 0.001
+    partial_relinearization_check: bool = False
+    isam2_optimizer: str = "gauss_newton"
+    lag: float = 0.0
+    marginalize_every: float = 0.0
+
+    def __post_init__(self):
+        if not (np.isfinite(self.lag) and self.lag >= 0):
+            raise ValueError(f"SessionConfig.lag must be finite >= 0, got {self.lag}")
+        if not (np.isfinite(self.marginalize_every) and self.marginalize_every >= 0):
+            raise ValueError(
+                f"SessionConfig.marginalize_every must be finite >= 0, got {self.marginalize_every}"
+            )
+        if self.mode not in MODES:
+            raise ValueError(f"SessionConfig.mode must be one of {MODES}, got {self.mode!r}")
+        if self.isam2_optimizer not in ("gauss_newton", "dogleg"):
+            raise ValueError(
+                f"SessionConfig.isam2_optimizer must be gauss_newton or dogleg, got "
+                f"{self.isam2_optimizer!r}"
+            )
+        if self.factorization not in ("CHOLESKY", "QR"):
+            raise ValueError(
+                f"SessionConfig.factorization must be CHOLESKY or QR, got {self.factorization!r}"
+            )
+        counts = (self.lm_max_iterations, self.relinearize_skip, self.extra_updates)
+        if max(counts) >= 2**31:
+            raise ValueError(
+                f"SessionConfig: lm_max_iterations, relinearize_skip and "
+                f"extra_updates must be < 2^31, got {counts}"
+            )
+        if self.lm_max_iterations < 1 or self.relinearize_skip < 1 or self.extra_updates < 0:
+            raise ValueError(
+                "SessionConfig: lm_max_iterations and relinearize_skip must be >= 1, "
+                "extra_updates >= 0"
+            )
+        if not (self.wildfire_threshold >= 0 and np.isfinite(self.wildfire_threshold)):
+            raise ValueError(
+                "SessionConfig.wildfire_threshold must be finite >= 0, "
+                f"got {self.wildfire_threshold}"
+            )
+        if not (self.relinearize_threshold >= 0 and np.isfinite(self.relinearize_threshold)):
+            raise ValueError(
+                "SessionConfig.relinearize_threshold must be finite >= 0, "
+                f"got {self.relinearize_threshold}"
+            )
+
+
+def config_from_dict(raw) -> SessionConfig:
+    """SessionConfig from its saved dict: every field present, of the default's type."""
+    if not isinstance(raw, dict):
+        raise BadData("'config' must be an object")
+    known = {f.name: type(f.default) for f in fields(SessionConfig)}
+    unknown = sorted(set(raw) - set(known))
+    if unknown:
+        raise BadData(f"config: unknown fields {unknown}")
+    for name, value in raw.items():
+        kind = known[name]
+        ok = isinstance(value, kind) and not (kind is not bool and isinstance(value, bool))
+        if kind is float:
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if not ok:
+            raise BadData(f"config.{name}: expected {kind.__name__}, got {value!r}")
+    try:
+        return SessionConfig(**raw)
+    except ValueError as exc:
+        raise BadData(f"config: {exc}") from None
