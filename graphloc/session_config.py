@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
-import numpy as np
 
+from graphloc.config import check
 from graphloc.datafile import BadData
 
 MODES = ("batch", "online")
@@ -55,44 +55,20 @@ class SessionConfig:
     marginalize_every: float = 0.0
 
     def __post_init__(self):
-        if not (np.isfinite(self.lag) and self.lag >= 0):
-            raise ValueError(f"SessionConfig.lag must be finite >= 0, got {self.lag}")
-        if not (np.isfinite(self.marginalize_every) and self.marginalize_every >= 0):
-            raise ValueError(
-                f"SessionConfig.marginalize_every must be finite >= 0, got {self.marginalize_every}"
-            )
-        if self.mode not in MODES:
-            raise ValueError(f"SessionConfig.mode must be one of {MODES}, got {self.mode!r}")
-        if self.isam2_optimizer not in ("gauss_newton", "dogleg"):
-            raise ValueError(
-                f"SessionConfig.isam2_optimizer must be gauss_newton or dogleg, got "
-                f"{self.isam2_optimizer!r}"
-            )
-        if self.factorization not in ("CHOLESKY", "QR"):
-            raise ValueError(
-                f"SessionConfig.factorization must be CHOLESKY or QR, got {self.factorization!r}"
-            )
-        counts = (self.lm_max_iterations, self.relinearize_skip, self.extra_updates)
-        if max(counts) >= 2**31:
-            raise ValueError(
-                f"SessionConfig: lm_max_iterations, relinearize_skip and "
-                f"extra_updates must be < 2^31, got {counts}"
-            )
-        if self.lm_max_iterations < 1 or self.relinearize_skip < 1 or self.extra_updates < 0:
-            raise ValueError(
-                "SessionConfig: lm_max_iterations and relinearize_skip must be >= 1, "
-                "extra_updates >= 0"
-            )
-        if not (self.wildfire_threshold >= 0 and np.isfinite(self.wildfire_threshold)):
-            raise ValueError(
-                "SessionConfig.wildfire_threshold must be finite >= 0, "
-                f"got {self.wildfire_threshold}"
-            )
-        if not (self.relinearize_threshold >= 0 and np.isfinite(self.relinearize_threshold)):
-            raise ValueError(
-                "SessionConfig.relinearize_threshold must be finite >= 0, "
-                f"got {self.relinearize_threshold}"
-            )
+        check(
+            self,
+            choices={
+                "mode": MODES,
+                "isam2_optimizer": ("gauss_newton", "dogleg"),
+                "factorization": ("CHOLESKY", "QR"),
+            },
+            nonnegative=("lag", "marginalize_every", "wildfire_threshold", "relinearize_threshold"),
+            integer={"lm_max_iterations": 1, "relinearize_skip": 1, "extra_updates": 0},
+            interval={
+                name: (0, 2**31, "[)")
+                for name in ("lm_max_iterations", "relinearize_skip", "extra_updates")
+            },
+        )
 
 
 def config_from_dict(raw) -> SessionConfig:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import open3d as o3d
 
+from graphloc.config import check
 from graphloc.mapping.registration import PreparedCloud, Registration
 
 
@@ -42,12 +43,12 @@ class AcceptanceConfig:
     distinct_m: float = 0.02
 
     def __post_init__(self):
-        if not (self.residual_sigma > 0 and self.hint_gate > 0 and self.hint_basin_margin >= 0):
-            raise ValueError(
-                "AcceptanceConfig: residual_sigma and hint_gate must be > 0, hint_basin_margin >= 0"
-            )
-        if not (0 <= self.min_overlap <= 1 and 0 <= self.min_inlier_ratio <= 1):
-            raise ValueError("AcceptanceConfig: min_overlap and min_inlier_ratio lie in [0, 1]")
+        check(
+            self,
+            positive=("residual_sigma", "hint_gate"),
+            nonnegative=("hint_basin_margin",),
+            interval={"min_overlap": (0.0, 1.0, "[]"), "min_inlier_ratio": (0.0, 1.0, "[]")},
+        )
 
 
 @dataclass(frozen=True)

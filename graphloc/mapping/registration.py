@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import gtsam
 import numpy as np
+
+from graphloc.config import check
 import open3d as o3d
 
 reg_t = o3d.t.pipelines.registration
@@ -74,13 +76,8 @@ class RegistrationConfig:
     covariance_floor: tuple[float, float] = (6.69e-4, 4.40e-4)
 
     def __post_init__(self):
-        if not (self.voxel > 0 and self.normal_radius > 0 and self.range_sigma > 0):
-            raise ValueError("RegistrationConfig: voxel, normal_radius and range_sigma must be > 0")
-        if not (
-            self.covariance_scale > 0
-            and len(self.covariance_floor) == 2
-            and min(self.covariance_floor) >= 0
-        ):
+        check(self, positive=("voxel", "normal_radius", "range_sigma", "covariance_scale"))
+        if not (len(self.covariance_floor) == 2 and min(self.covariance_floor) >= 0):
             raise ValueError(
                 "RegistrationConfig: covariance_scale must be > 0 and covariance_floor two values "
                 ">= 0 (rot [rad], trans [m])"
