@@ -23,8 +23,10 @@ messages and sensor frames tf does not connect are errors naming the bag and top
 
 from __future__ import annotations
 
+import atexit
 import copy
 import csv
+import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -307,9 +309,16 @@ class RosBag:
 
     def load(self, path: Path, duration: float | None, noise: dict | None, topics=None) -> TeamRun:
         topics = topics if topics is not None else find_topics_file(path)
-        with tempfile.TemporaryDirectory(prefix="graphloc-bag-") as tmp:
+        tmp = tempfile.mkdtemp(prefix="graphloc-bag-")
+        run = None
+        try:
             import_bag(path, topics, tmp)
             run = read_team_run(tmp, overrides=noise)
-        # the temporary tables are gone: their rows' messages name the bag's import instead
+        finally:
+            if run is None or not run.scans:
+                shutil.rmtree(tmp, ignore_errors=True)
+        if run.scans:  # the team graph reads scans again to register robots: kept until exit
+            atexit.register(shutil.rmtree, tmp, ignore_errors=True)
+        # the temporary tables' rows are named by the bag's import in messages
         run.skips.examples[:] = [m.replace(tmp, f"{path} (imported)") for m in run.skips.examples]
         return run if duration is None else truncate(run, duration)
