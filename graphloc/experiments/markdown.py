@@ -2,9 +2,13 @@
 table, paper | seed baseline (ours) | graphloc, from the plain dicts that
 graphloc.experiments.seed000 (seed 000 Tables I-III) and graphloc.experiments.seed004
 (seed 004 Table 1) return. Every number printed is one of the dict's; the seeds' readings
-(docs/results_seed_baselines.md) are graphloc.experiments.seed_baselines_markdown."""
+(docs/results_seed_baselines.md) are graphloc.experiments.seed_baselines_markdown. Also the
+one writer of a benchmark's JSON + markdown (`write_report`)."""
 
 from __future__ import annotations
+
+import json
+from pathlib import Path
 
 
 def fmt(x, spec: str = ".2e") -> str:
@@ -222,3 +226,13 @@ def seed004(r: dict) -> str:
         "columns there: docs/results_seed_baselines.md.",
     ]
     return "\n".join(lines) + "\n"
+
+
+def write_report(out: Path, stem: str, payload: dict, text: str, doc: Path | None = None) -> None:
+    """A benchmark's OUT/STEM.json (payload) and OUT/STEM.md (text); the markdown also at `doc`
+    (a generated page in docs/) when given."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{stem}.json").write_text(json.dumps(payload, indent=1))
+    (out / f"{stem}.md").write_text(text)
+    if doc is not None:
+        doc.write_text(text)

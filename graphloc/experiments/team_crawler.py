@@ -23,7 +23,6 @@ Target (issue 14): front door batch and online below the EKF on every axis for e
 from __future__ import annotations
 
 import argparse
-import json
 import tempfile
 from dataclasses import replace
 from pathlib import Path
@@ -36,6 +35,7 @@ from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenari
 from graphloc.datasets.crawler_pair_log import write_crawler_pair_log
 from graphloc.eval import axis_errors
 from graphloc.executor import Executor
+from graphloc.experiments.markdown import write_report
 from graphloc.pipelines.report import genuine_candidates
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, default_lag, solve
 from graphloc.plots import plt
@@ -178,13 +178,8 @@ def main(argv=None) -> int:
     command = ".venv/bin/python scripts/bench_team_crawler.py" + (
         f" --trials {args.trials}" if args.trials != SIZES["full"] else ""
     )
-    (args.out / "team_crawler.json").write_text(
-        json.dumps({"summary": summary, "trials": trials}, indent=1)
-    )
     text = markdown(summary, args.trials, command)
-    (args.out / "team_crawler.md").write_text(text)
+    write_report(args.out, "team_crawler", {"summary": summary, "trials": trials}, text, args.doc)
     plot(summary, args.out / "team_crawler.png")
-    if args.doc is not None:
-        args.doc.write_text(text)
     print(text)
     return 0

@@ -16,7 +16,6 @@ translation [cm]); target (issue 14): within 0.1 deg / 1 cm in every variant.
 from __future__ import annotations
 
 import argparse
-import json
 import tempfile
 from dataclasses import replace
 from pathlib import Path
@@ -26,6 +25,7 @@ import numpy as np
 from graphloc.datasets import open_run
 from graphloc.datasets.dual_room import VARIANTS, DualRoomScenario, variant_config
 from graphloc.executor import Executor
+from graphloc.experiments.markdown import write_report
 from graphloc.mapping.fusion import fuse
 from graphloc.mapping.fusion_types import FusionConfig, FusionRejected
 from graphloc.mapping.registration import pose_errors
@@ -174,13 +174,8 @@ def main(argv=None) -> int:
     command = ".venv/bin/python scripts/bench_team_dual_room.py" + (
         f" --seeds {args.seeds}" if args.seeds != SIZES["full"] else ""
     )
-    (args.out / "team_dual_room.json").write_text(
-        json.dumps({"summary": summary, "trials": trials}, indent=1)
-    )
     text = markdown(summary, args.seeds, command)
-    (args.out / "team_dual_room.md").write_text(text)
+    write_report(args.out, "team_dual_room", {"summary": summary, "trials": trials}, text, args.doc)
     plot(trials, args.out / "team_dual_room.png")
-    if args.doc is not None:
-        args.doc.write_text(text)
     print(text)
     return 0
