@@ -117,7 +117,7 @@ def team_recording(result: TeamResult, run: TeamRun, source=None) -> Recording:
             track = _finite_track(robot.name, "groundtruth", *ref)
             if track is not None:
                 rec.tracks.append(track)
-    for d in result.graph.decisions:
+    for d in result.decisions:  # max-mixture sets chosen at the estimate
         rec.candidates.append(
             CandidateFrame(
                 float(d.time),
