@@ -130,17 +130,8 @@ def iter_table(
             f"{path}: table {table!r} of robot {robot.name!r} listed in manifest but missing"
         )
     last_time = -math.inf
-    lines = text_lines(path)
-    _, first = next(lines, (1, ""))
-    header = _header(path, first, cols)
-    if header != cols:
-        raise ValueError(
-            f"{path}: line 1: header must be {','.join(cols)}, got {shown(','.join(header))}"
-        )
-    for line, text in lines:
+    for line, text in _data_lines(path, cols):
         where = f"{path}: line {line}"
-        if not text.strip() or text.lstrip().startswith("#"):
-            continue
         try:
             row = csv_fields(text, cols)
         except ValueError as exc:
@@ -190,6 +181,21 @@ def iter_table(
                 continue
         last_time = values["time"]
         yield cls(robot=robot.name, line=line, **values)
+
+
+def _data_lines(path: Path, cols: list[str]):
+    """(line number, text) of every data line of a CSV file whose header must be `cols`
+    (ValueError naming file and line 1 otherwise); blank and '#' lines are left out."""
+    lines = text_lines(path)
+    _, first = next(lines, (1, ""))
+    header = _header(path, first, cols)
+    if header != cols:
+        raise ValueError(
+            f"{path}: line 1: header must be {','.join(cols)}, got {shown(','.join(header))}"
+        )
+    for line, text in lines:
+        if text.strip() and not text.lstrip().startswith("#"):
+            yield line, text
 
 
 def _header(path: Path, text: str, cols: list[str]) -> list[str]:
@@ -253,18 +259,8 @@ def read_landmarks(manifest: Manifest) -> tuple[np.ndarray, np.ndarray, np.ndarr
     check_file(path, what="landmark table (manifest field 'landmarks.file')")
     convs = {name: int if name == "id" else float for name in LANDMARK_COLUMNS}
     rows: dict = {}
-    lines = text_lines(path)
-    _, first = next(lines, (1, ""))
-    header = _header(path, first, LANDMARK_COLUMNS)
-    if header != LANDMARK_COLUMNS:
-        raise ValueError(
-            f"{path}: line 1: header must be {','.join(LANDMARK_COLUMNS)}, "
-            f"got {shown(','.join(header))}"
-        )
-    for line, text in lines:
+    for line, text in _data_lines(path, LANDMARK_COLUMNS):
         where = f"{path}: line {line}"
-        if not text.strip() or text.lstrip().startswith("#"):
-            continue
         try:
             row = csv_fields(text, LANDMARK_COLUMNS)
         except ValueError as exc:
