@@ -43,7 +43,7 @@ from graphloc.datasets.room_scene import (
 )
 from graphloc.eval import write_tum
 from graphloc.io import write_table
-from graphloc.mapping.fusion_types import FusionInput, LedObservations
+from graphloc.pipelines.map_fusion.types import FusionInput, LedObservations
 from graphloc.mapping.io import read_led_pixels, read_points, read_tum
 
 ROBOTS = ("ground", "ceiling")
@@ -215,7 +215,7 @@ class DualRoomScenario:
 
     # ------------------------------------------------------------------ files
     def fusion_input(self):
-        """The run as map-fusion input (`graphloc.mapping.fusion_types.FusionInput`, no ground
+        """The run as map-fusion input (`graphloc.pipelines.map_fusion.types.FusionInput`, no ground
         truth): both robots' scans and the ceiling camera's LED pixels."""
         leds = LedObservations(
             self.config.camera.pinhole(), led_positions(), T_CEILING_CAMERA, self.led_pixels

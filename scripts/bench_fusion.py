@@ -5,7 +5,7 @@ variant, in one run, three ways to get T_G0_C0 (first ceiling scan in the first 
   icp_no_guess   point-to-plane ICP from the identity (seed 004 Fig. 5: fails on inverted scans)
   fpfh_ransac    Open3D FPFH + RANSAC global registration, then the same ICP
   graphloc       P3P on the LEDs + HypothesisTracker over the ceiling robot's motion -> the same
-                 ICP -> factor graph (graphloc.mapping.fusion.fuse, map building skipped)
+                 ICP -> factor graph (graphloc.pipelines.map_fusion.fuse, map building skipped)
 All three share the denoised clouds and the ICP settings. Success: rotation error < 2 deg and
 translation error < 5 cm. Wall time per method = its initial guess + ICP (+ graph for graphloc);
 KISS-ICP odometry (needed by graphloc's guess, and by every method to build the local maps)
@@ -15,7 +15,7 @@ is reported separately.
     .venv/bin/python scripts/bench_fusion.py --quick --out out/bench_fusion_quick
 
 `--real` runs issue 16's protocol on the real indoor fragment (tests/data/real_room) instead:
-per overlap (about 60% and 30%, graphloc.mapping.real_views) and trial, one ground + one
+per overlap (about 60% and 30%, graphloc.experiments.real_views) and trial, one ground + one
 flipped ceiling view (independent 50% subsampling, 5 mm noise, ceiling sensor 2.5 m up with a
 random yaw), then the pose hint perturbed by exactly 3 deg / 5 cm and by 10 deg / 20 cm (the
 hint's 1-sigma given to graphloc is that perturbation). Methods on the same prepared clouds:
@@ -63,8 +63,8 @@ ROT_OK_DEG, TRANS_OK_M = 2.0, 0.05
 def run_trial(job: tuple[str, int, int]) -> dict:
     """One placement: simulate, then the three methods on the same clouds."""
     from graphloc.datasets.dual_room import DualRoomScenario, variant_config
-    from graphloc.mapping.fusion import fuse
-    from graphloc.mapping.fusion_types import FusionConfig
+    from graphloc.pipelines.map_fusion.fusion import fuse
+    from graphloc.pipelines.map_fusion.types import FusionConfig
     from graphloc.mapping.odometry import OdometryConfig
     from graphloc.mapping.registration import (
         RegistrationConfig,
@@ -230,9 +230,9 @@ def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
     import gtsam
     from scipy.spatial.transform import Rotation
 
-    from graphloc.mapping.fusion import fuse
-    from graphloc.mapping.fusion_types import FusionConfig, FusionInput, FusionRejected
-    from graphloc.mapping.real_views import load_fragment, make_view_pair, perturb
+    from graphloc.pipelines.map_fusion.fusion import fuse
+    from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
+    from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
     from graphloc.mapping.registration import (
         RegistrationConfig,
         global_fpfh_ransac,

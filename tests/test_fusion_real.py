@@ -15,9 +15,9 @@ import pytest
 
 from graphloc.cli import main as cli_main
 from graphloc.mapping.acceptance import AcceptanceConfig, Candidate, candidate_checks
-from graphloc.mapping.fusion import fuse
-from graphloc.mapping.fusion_types import FusionConfig, FusionInput, FusionRejected
-from graphloc.mapping.real_views import load_fragment, make_view_pair, perturb
+from graphloc.pipelines.map_fusion.fusion import fuse
+from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
+from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
 from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
 from graphloc.mapping.registration_covariance import calibrated_covariance
 from graphloc.mapping.robust_registration import hint_covariance, hint_starts, robust_register
@@ -244,7 +244,7 @@ def test_fuse_maps_on_real_scans_fuses_or_says_not_fused(fragment, tmp_path):
 
 
 def test_fuse_maps_config_file(tmp_path, capsys):
-    from graphloc.mapping.config import load_fusion_config
+    from graphloc.pipelines.map_fusion.config import load_fusion_config
 
     p = tmp_path / "fusion.toml"
     p.write_text(
@@ -279,7 +279,7 @@ def test_fuse_maps_config_file(tmp_path, capsys):
 def test_gravity_rotation_levels_a_tilted_floor():
     from scipy.spatial.transform import Rotation
 
-    from graphloc.mapping.report import gravity_rotation
+    from graphloc.pipelines.map_fusion.report import gravity_rotation
 
     rng = np.random.default_rng(4)
     floor = np.c_[rng.uniform(-3, 3, (3000, 2)), np.full(3000, -1.0)]

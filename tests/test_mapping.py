@@ -16,10 +16,10 @@ from graphloc.datasets.dual_room import (
     DualRoomScenario,
     variant_config,
 )
-from graphloc.mapping.pipeline import parse_hint
-from graphloc.mapping.fusion import fuse
-from graphloc.mapping.fusion_types import CEILING, GROUND, FusionConfig, FusionInput
-from graphloc.mapping.led_guess import led_candidates
+from graphloc.pipelines.map_fusion.inputs import parse_hint
+from graphloc.pipelines.map_fusion.fusion import fuse
+from graphloc.pipelines.map_fusion.types import CEILING, GROUND, FusionConfig, FusionInput
+from graphloc.pipelines.map_fusion.led_guess import led_candidates
 from graphloc.mapping.io import (
     read_labelled_cloud,
     read_led_pixels,
@@ -322,7 +322,7 @@ def test_simulate_and_fuse_every_variant(variant, tmp_path):
 
 def test_user_directories_with_p3p_observations(scenario, tmp_path):
     from graphloc.datasets.dual_room import led_positions
-    from graphloc.mapping.pipeline import fuse_directories
+    from graphloc.pipelines.map_fusion.run import fuse_directories
 
     scenario.write(tmp_path / "scn")
     cam = scenario.config.camera

@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from graphloc.mapping.report import summary_text
+    from graphloc.pipelines.map_fusion.report import summary_text
     from graphloc.experiments.fusion_demo import run_demo
 
     report = run_demo(args.out, args.seed)

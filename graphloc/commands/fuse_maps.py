@@ -51,13 +51,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--p3p",
         metavar="JSON",
-        help="camera + LED setup with an LED pixel CSV (see graphloc.mapping.pipeline)",
+        help="camera + LED setup with an LED pixel CSV (see graphloc.pipelines.map_fusion.inputs)",
     )
     parser.add_argument(
         "--config",
         metavar="TOML",
         help="fusion settings: [registration], [acceptance], [fusion], [odometry] "
-        "tables (see graphloc.mapping.config)",
+        "tables (see graphloc.pipelines.map_fusion.config)",
     )
     parser.add_argument(
         "--rate", type=float, default=10.0, help="frame rate of --ground/--ceiling [Hz]"
@@ -76,11 +76,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from graphloc.mapping.config import load_fusion_config
+    from graphloc.pipelines.map_fusion.config import load_fusion_config
     from graphloc.experiments.fusion_demo import simulate_and_fuse
-    from graphloc.mapping.pipeline import fuse_and_write, fuse_directories
-    from graphloc.mapping.fusion_types import FusionConfig, FusionRejected
-    from graphloc.mapping.report import summary_text
+    from graphloc.pipelines.map_fusion.run import fuse_and_write, fuse_directories
+    from graphloc.pipelines.map_fusion.types import FusionConfig, FusionRejected
+    from graphloc.pipelines.map_fusion.report import summary_text
     from graphloc.pipelines.recording import fusion_recording, write_recordings
 
     config = load_fusion_config(args.config) if args.config else FusionConfig()

@@ -1,5 +1,5 @@
 """Map fusion on a simulated `dual-robot-room` (seed 004's setup): simulate, write the scenario
-directory, fuse (`graphloc.mapping.pipeline.fuse_and_write`), write the outputs. Behind
+directory, fuse (`graphloc.pipelines.map_fusion.run.fuse_and_write`), write the outputs. Behind
 `graphloc demo` (the README's main job) and `graphloc fuse-maps --simulate`."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from graphloc.datasets.dual_room import DualRoomScenario, variant_config
-from graphloc.mapping.fusion_types import FusionConfig
-from graphloc.mapping.pipeline import fuse_and_write
+from graphloc.pipelines.map_fusion.types import FusionConfig
+from graphloc.pipelines.map_fusion.run import fuse_and_write
 
 
 def simulate_and_fuse(

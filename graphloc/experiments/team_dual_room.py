@@ -3,7 +3,7 @@ ceiling robot scan one room; P3P of the ground robot's LEDs initializes ICP) thr
 door -- the log `graphloc simulate dual-robot-room` writes, read by `open_run` and solved by
 `graphloc.pipelines.team_graph` (KISS-ICP odometry, the LED candidate sets, the inter-robot
 scan registration of `team_graph.scans`) -- beside the map-fusion pipeline
-(`graphloc.mapping.fusion.fuse`, what `graphloc fuse-maps` runs) on the same simulated run.
+(`graphloc.pipelines.map_fusion.fuse`, what `graphloc fuse-maps` runs) on the same simulated run.
 
 Metric: the error of the ground -> ceiling transform at the first frame (rotation [deg],
 translation [cm]); target (issue 14): within 0.1 deg / 1 cm in every variant.
@@ -26,8 +26,8 @@ from graphloc.datasets import open_run
 from graphloc.datasets.dual_room import VARIANTS, DualRoomScenario, variant_config
 from graphloc.executor import Executor
 from graphloc.experiments.markdown import write_report
-from graphloc.mapping.fusion import fuse
-from graphloc.mapping.fusion_types import FusionConfig, FusionRejected
+from graphloc.pipelines.map_fusion.fusion import fuse
+from graphloc.pipelines.map_fusion.types import FusionConfig, FusionRejected
 from graphloc.mapping.registration import pose_errors
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, default_lag, solve
 from graphloc.plots import plt
@@ -110,7 +110,7 @@ def markdown(summary: dict, seeds: int, command: str) -> str:
         "`open_run` and `graphloc.pipelines.team_graph` (what `graphloc smooth` / `online` "
         "run: KISS-ICP odometry, the ceiling camera's LED candidate sets, the inter-robot scan "
         "registration hinted by the candidate tracker); `fuse_maps` = the map-fusion pipeline "
-        "(`graphloc.mapping.fusion.fuse`) on the same run. Error of the ground -> ceiling "
+        "(`graphloc.pipelines.map_fusion.fuse`) on the same run. Error of the ground -> ceiling "
         f"transform at the first frame; target {TARGET[0]} deg / {TARGET[1]} cm.",
         "",
         "| variant | method | placed | within target | median rot [deg] | max rot [deg] "

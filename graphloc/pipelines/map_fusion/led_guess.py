@@ -19,7 +19,7 @@ from graphloc.geometry.p3p import solve_p3p
 from graphloc.geometry.resection import resection_covariance
 from graphloc.hypotheses import HypothesisTracker, cap_covariances
 from graphloc.keys import pose_key
-from graphloc.mapping.fusion_types import (
+from graphloc.pipelines.map_fusion.types import (
     CEILING,
     GROUND,
     FusionConfig,

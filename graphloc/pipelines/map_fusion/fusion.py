@@ -5,7 +5,7 @@
    Sec. II-B, all up to four solutions, `graphloc.geometry.p3p`), expressed in the ground
    robot's first frame with its odometry, disambiguated over the climbing robot's motion by the
    `HypothesisTracker` (the role of seed 004 Sec. II-C's particle filter, Algorithm 2;
-   `graphloc.mapping.led_guess`); or a user-supplied relative pose hint;
+   `graphloc.pipelines.map_fusion.led_guess`); or a user-supplied relative pose hint;
 3. denoise + point-to-plane ICP of the first ceiling scan onto the first ground scan from that
    guess (seed 004 Sec. IV): `robust_register` starts from the guess and the sigma points of its
    covariance (the P3P candidate's, `guess_covariance`, or the hint's sigmas), keeps
@@ -21,7 +21,7 @@
    its robot.
 
 Frames: G_k / C_k are the ground / ceiling LiDAR at frame k; everything is expressed in G_0.
-The configuration, inputs and results are `graphloc.mapping.fusion_types`.
+The configuration, inputs and results are `graphloc.pipelines.map_fusion.types`.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ import numpy as np
 
 from graphloc.factors.odometry import between_factor
 from graphloc.keys import pose_key
-from graphloc.mapping.fusion_types import (
+from graphloc.pipelines.map_fusion.types import (
     CEILING,
     GROUND,
     ROBOT_NAMES,
@@ -43,7 +43,7 @@ from graphloc.mapping.fusion_types import (
     FusionRejected,
     FusionResult,
 )
-from graphloc.mapping.led_guess import led_initial_guess, p3p_factors
+from graphloc.pipelines.map_fusion.led_guess import led_initial_guess, p3p_factors
 from graphloc.mapping.odometry import OdometryResult, run_odometry
 from graphloc.mapping.registration import denoise, prepare, refine
 from graphloc.mapping.robust_registration import hint_covariance, robust_register

@@ -1,10 +1,5 @@
-"""Entry points of the map fusion pipeline (`graphloc fuse-maps`):
-
-    fuse_and_write(inp, out_dir, config, times)                      fuse -> outputs or "not fused"
-    fuse_directories(ground, ceiling, out_dir, hint=..., p3p=...)   a user's own scan sequences
-
-Simulated rooms (the README demo) are `graphloc.experiments.fusion_demo`.
-"""
+"""A user's inputs to map fusion, parsed and checked: the relative pose hint (`--hint`), its
+1-sigma (`--hint-sigma`) and the camera + LED setup of the P3P guess (`--p3p setup.json`)."""
 
 from __future__ import annotations
 
@@ -15,28 +10,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
-from graphloc.mapping.fusion import fuse
-from graphloc.mapping.fusion_types import (
-    FusionConfig,
-    FusionInput,
-    FusionRejected,
-    LedObservations,
-)
-from graphloc.mapping.io import read_led_pixels, read_scan_sequence
-from graphloc.mapping.report import write_outputs, write_rejection
-
-
-def fuse_and_write(
-    inp: FusionInput, out_dir, config: FusionConfig, times, truth=None, extra=None
-) -> dict:
-    """fuse -> write_outputs; on FusionRejected write the "not fused" report (no map), attach
-    it to the exception as `.report` and re-raise."""
-    try:
-        result = fuse(inp, config)
-    except FusionRejected as exc:
-        exc.report = write_rejection(exc, out_dir, truth=truth, extra=extra)
-        raise
-    return write_outputs(result, out_dir, times, truth=truth, extra=extra)["report"]
+from graphloc.mapping.io import read_led_pixels
+from graphloc.pipelines.map_fusion.types import LedObservations
 
 
 def parse_hint(text: str) -> np.ndarray:
@@ -95,44 +70,3 @@ def parse_hint_sigma(text: str) -> tuple[float, float]:
     if len(vals) != 2 or not all(np.isfinite(v) and v > 0 for v in vals):
         raise ValueError(f"hint-sigma: expected two positive numbers 'DEG M', got {text!r}")
     return float(np.deg2rad(vals[0])), vals[1]
-
-
-def fuse_directories(
-    ground_dir,
-    ceiling_dir,
-    out_dir,
-    hint: str | None = None,
-    p3p: str | None = None,
-    rate: float = 10.0,
-    config: FusionConfig = FusionConfig(),
-    hint_sigma: str | None = None,
-) -> dict:
-    """A user's two scan sequences (PCD/PLY/XYZ, file-name order, frame k of both taken together at
-    k / rate seconds) + a relative pose hint (with its 1-sigma 'DEG M') or P3P observations ->
-    outputs in out_dir. Raises FusionRejected (after writing the "not fused" report)."""
-    if not (np.isfinite(rate) and rate > 0):
-        raise ValueError(f"rate must be a positive frame rate [Hz], got {rate}")
-    ground, _, dropped_g = read_scan_sequence(ground_dir)
-    ceiling, _, dropped_c = read_scan_sequence(ceiling_dir)
-    if len(ground) != len(ceiling):
-        raise ValueError(
-            f"{ground_dir} has {len(ground)} scans but {ceiling_dir} has {len(ceiling)}: "
-            "the pipeline needs synchronized sequences"
-        )
-    times = np.arange(len(ground)) / float(rate)
-    leds = read_p3p_setup(p3p, len(ground)) if p3p else None
-    inp = FusionInput(
-        times,
-        ground,
-        ceiling,
-        leds,
-        parse_hint(hint) if hint else None,
-        parse_hint_sigma(hint_sigma) if hint_sigma else None,
-    )
-    provenance = {
-        "ground": str(ground_dir),
-        "ceiling": str(ceiling_dir),
-        "frames": len(ground),
-        "nonfinite_points_skipped": {"ground": dropped_g, "ceiling": dropped_c},
-    }
-    return fuse_and_write(inp, out_dir, config, times, extra={"input": provenance})

@@ -1,4 +1,4 @@
-"""The types of ground + ceiling map fusion (seed 004; the pipeline is `graphloc.mapping.fusion`):
+"""The types of ground + ceiling map fusion (seed 004; the pipeline is `map_fusion.fusion`):
 its configuration (`FusionConfig`), inputs (synchronized scans, plus the ceiling camera's view of
 the ground robot's LEDs or a relative pose hint), the LED initial guess (`GuessResult`), the
 result, and `FusionRejected` ("not fused"). Frames: G_k / C_k are the ground / ceiling LiDAR at

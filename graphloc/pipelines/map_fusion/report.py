@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from graphloc.mapping.fusion_types import (
+from graphloc.pipelines.map_fusion.types import (
     CEILING,
     GROUND,
     ROBOT_NAMES,

@@ -9,7 +9,7 @@ default. Lists become tuples. Unknown tables or keys are a ValueError naming the
     [acceptance]            # graphloc.mapping.acceptance.AcceptanceConfig
     min_inlier_ratio = 0.65
     ceiling_above = true
-    [fusion]                # scalar fields of graphloc.mapping.fusion_types.FusionConfig
+    [fusion]                # scalar fields of graphloc.pipelines.map_fusion.types.FusionConfig
     guess_sigma = [0.0873, 0.1]   # 1-sigma of the inter-robot guess: rot [rad], trans [m]
     robust = true
     [odometry]              # graphloc.mapping.odometry.OdometryConfig
@@ -23,7 +23,7 @@ import tomllib
 from pathlib import Path
 
 from graphloc.mapping.acceptance import AcceptanceConfig
-from graphloc.mapping.fusion_types import FusionConfig
+from graphloc.pipelines.map_fusion.types import FusionConfig
 from graphloc.mapping.odometry import OdometryConfig
 from graphloc.mapping.registration import RegistrationConfig
 
