@@ -1,5 +1,6 @@
-"""Files of the mapping pipeline: read a scan (PLY / PCD / XYZ) as an (N,3) array, write a fused
-map whose points carry the robot that saw them (`robot` attribute in PLY and PCD, plus a
+"""Files of the mapping pipeline: read a scan (PLY / PCD / XYZ) as an (N,3) array (checked for a
+plausible scale: `read_scan`; two robots' sequences for one unit: `check_scan_scales`), write a
+fused map whose points carry the robot that saw them (`robot` attribute in PLY and PCD, plus a
 per-robot colour), and SE(3) trajectories as TUM files (via evo)."""
 
 from __future__ import annotations
@@ -15,6 +16,11 @@ SCAN_SUFFIXES = (".ply", ".pcd", ".xyz")
 MAX_COORDINATE = 1e6  # m: beyond, a point cloud is not in metres (or overflowed)
 MIN_POINTS = 10  # finite points per scan
 SCAN_RANGE_M = (0.05, 500.0)  # plausible median range of one LiDAR / depth scan [m]
+# largest plausible ratio of two scales (robust extents) that should agree: one robot's scans
+# over the other's, or one scan over its sequence. A unit mismatch is a factor 39.4 (inches),
+# 100 (centimetres) or 1000 (millimetres); two sensors in the same room differ by a few.
+MAX_SCALE_RATIO = 20.0
+UNIT_FACTORS = {"inches": 39.37, "centimetres": 100.0, "millimetres": 1000.0}
 ROBOT_COLOURS = np.array([[0.85, 0.15, 0.1], [0.1, 0.3, 0.9], [0.1, 0.7, 0.2], [0.6, 0.2, 0.7]])
 
 
@@ -99,6 +105,70 @@ def read_scan(path) -> tuple[np.ndarray, int]:
             f"scan in metres (in {unit}?); convert the scans to metres"
         )
     return pts, int((~ok).sum())
+
+
+def scan_extent(pts: np.ndarray) -> float:
+    """Robust size of one scan [m]: the diagonal of its 5th-95th percentile bounding box (a few
+    stray returns do not change it; a change of unit scales it by the unit's factor)."""
+    lo, hi = np.percentile(pts, [5.0, 95.0], axis=0)
+    return float(np.linalg.norm(hi - lo))
+
+
+def _likely_unit(ratio: float) -> str:
+    """The unit whose factor is within 2x of `ratio` (or of 1/ratio), as a hint."""
+    r = max(ratio, 1.0 / ratio)
+    unit, factor = min(UNIT_FACTORS.items(), key=lambda kv: abs(np.log(r / kv[1])))
+    if abs(np.log(r / factor)) < np.log(2.0):
+        return f"ratio near {factor:g}: {unit}?"
+    return "no common unit factor"
+
+
+def _sequence_scale(name: str, scans: list, files: list) -> tuple[float, int]:
+    """The median extent of one robot's scans and the index of the scan nearest to it;
+    ValueError naming the file of a scan whose extent is MAX_SCALE_RATIO off the median."""
+    ext = np.maximum([scan_extent(p) for p in scans], 1e-9)
+    med = float(np.median(ext))
+    ratio = ext / med
+    odd = np.flatnonzero((ratio > MAX_SCALE_RATIO) | (ratio < 1.0 / MAX_SCALE_RATIO))
+    if len(odd):
+        k = int(odd[np.argmax(np.abs(np.log(ratio[odd])))])
+        raise ValueError(
+            f"{files[k]}: extent {ext[k]:.4g} is {ratio[k]:.3g} x the median {med:.4g} of the "
+            f"{len(scans)} {name} scans (beyond {MAX_SCALE_RATIO:g}x): a scan in another unit "
+            f"({_likely_unit(ratio[k])})"
+        )
+    return med, int(np.argmin(np.abs(ext - med)))
+
+
+def check_scan_scales(ground: list, ground_files: list, ceiling: list, ceiling_files: list) -> dict:
+    """Before registration: the two robots' scans (`read_scan` outputs, metres in each sensor's
+    frame) must be in one unit. Compares the robust extent (`scan_extent`) of every scan with its
+    sequence's median, then the two sequences' medians: a ratio beyond MAX_SCALE_RATIO (ceiling
+    scans in millimetres or centimetres beside ground scans in metres) is a ValueError naming a
+    file of each robot, both extents, the ratio and the unit it suggests. The median range
+    (sensor to point) of each sequence is reported beside it. Nearest-neighbour spacing is not
+    compared: it follows the sensors' densities, not only their units. Returns the scales for
+    the fusion report."""
+    med_g, k_g = _sequence_scale("ground", ground, ground_files)
+    med_c, k_c = _sequence_scale("ceiling", ceiling, ceiling_files)
+    ratio = med_c / med_g
+    if not 1.0 / MAX_SCALE_RATIO <= ratio <= MAX_SCALE_RATIO:
+        raise ValueError(
+            f"{ceiling_files[k_c]} and {ground_files[k_g]}: the ceiling scans' extent (median "
+            f"{med_c:.4g} over {len(ceiling)} scans) is {ratio:.3g} x the ground scans' "
+            f"({med_g:.4g} over {len(ground)}), beyond {MAX_SCALE_RATIO:g}x: the two robots' "
+            f"scans are not in one unit ({_likely_unit(ratio)}); convert both to metres"
+        )
+
+    def ranges(scans):
+        return float(np.median([np.median(np.linalg.norm(p, axis=1)) for p in scans]))
+
+    return {
+        "extent_m": {"ground": med_g, "ceiling": med_c},
+        "median_range_m": {"ground": ranges(ground), "ceiling": ranges(ceiling)},
+        "ceiling_over_ground": ratio,
+        "max_ratio": MAX_SCALE_RATIO,
+    }
 
 
 def write_labelled_cloud(path, points: np.ndarray, robot: np.ndarray) -> None:

@@ -1,0 +1,82 @@
+"""Issue 17, point clouds: the two robots' scans must be in one unit before any registration
+(`graphloc.mapping.io.check_scan_scales`). Ceiling scans in centimetres or millimetres beside
+ground scans in metres, or one scan of a sequence in another unit, are a ValueError naming the
+files and the ratio; scans of one room in one unit pass, whatever that room's size."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from graphloc.mapping.io import MAX_SCALE_RATIO, check_scan_scales, scan_extent
+from test_hardening import FAST
+
+
+def room_scans(rng, n: int, size=(6.0, 4.0, 3.0), points: int = 300) -> list[np.ndarray]:
+    """n scans of the walls of a box room of `size` [m] around a sensor near its centre."""
+    half = np.asarray(size) / 2.0
+    out = []
+    for _ in range(n):
+        pts = rng.uniform(-half, half, (points, 3))
+        axis = rng.integers(0, 3, points)
+        rows = np.arange(points)
+        pts[rows, axis] = np.sign(pts[rows, axis]) * half[axis]
+        out.append(pts + rng.normal(0.0, 0.2, 3))
+    return out
+
+
+def files(robot: str, n: int) -> list[Path]:
+    return [Path(robot) / f"{k:06d}.ply" for k in range(n)]
+
+
+@FAST
+@given(
+    seed=st.integers(0, 2**16),
+    size=st.tuples(*[st.floats(0.5, 40.0)] * 3),
+    factor=st.floats(1e-4, 1e4),
+    n=st.tuples(st.integers(1, 5), st.integers(1, 5)),
+)
+def test_scale_ratio_beyond_the_limit_is_an_error_naming_both_files(seed, size, factor, n):
+    rng = np.random.default_rng(seed)
+    ground = room_scans(rng, n[0], size)
+    ceiling = [p * factor for p in room_scans(rng, n[1], size)]
+    want = np.median([scan_extent(p) for p in ceiling]) / np.median(
+        [scan_extent(p) for p in ground]
+    )
+    if 1.0 / MAX_SCALE_RATIO <= want <= MAX_SCALE_RATIO:
+        got = check_scan_scales(ground, files("g", n[0]), ceiling, files("c", n[1]))
+        assert got["ceiling_over_ground"] == pytest.approx(want)
+        assert got["extent_m"]["ceiling"] == pytest.approx(want * got["extent_m"]["ground"])
+        return
+    with pytest.raises(ValueError) as err:
+        check_scan_scales(ground, files("g", n[0]), ceiling, files("c", n[1]))
+    msg = str(err.value)
+    where = r"^c/0000\d\d\.ply and g/0000\d\d\.ply: .* is " + re.escape(f"{want:.3g} x ")
+    assert re.search(where, msg), msg
+    assert "not in one unit" in msg
+
+
+@pytest.mark.parametrize(
+    "factor, hint", [(100.0, "ratio near 100: centimetres?"), (1000.0, "millimetres?")]
+)
+def test_ceiling_in_another_unit_names_the_unit(factor, hint):
+    rng = np.random.default_rng(1)
+    ground, ceiling = room_scans(rng, 3), [p * factor for p in room_scans(rng, 3)]
+    with pytest.raises(ValueError, match=re.escape(hint)):
+        check_scan_scales(ground, files("g", 3), ceiling, files("c", 3))
+
+
+def test_one_scan_in_another_unit_names_its_file():
+    rng = np.random.default_rng(2)
+    ground, ceiling = room_scans(rng, 4), room_scans(rng, 4)
+    ceiling[2] = ceiling[2] * 100.0
+    with pytest.raises(ValueError, match=r"^c/000002\.ply: extent \S+ is \S+ x the median .* 4 "):
+        check_scan_scales(ground, files("g", 4), ceiling, files("c", 4))
+    ground[0] = ground[0] / 1000.0
+    with pytest.raises(ValueError, match=r"^g/000000\.ply: .*ratio near 1000: millimetres\?"):
+        check_scan_scales(ground, files("g", 4), room_scans(rng, 4), files("c", 4))
