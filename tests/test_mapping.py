@@ -19,7 +19,8 @@ from graphloc.datasets.dual_room import (
 from graphloc.pipelines.map_fusion.inputs import parse_hint
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.types import CEILING, GROUND, FusionConfig, FusionInput
-from graphloc.pipelines.map_fusion.led_guess import led_candidates
+from graphloc.keys import pose_key
+from graphloc.pipelines.map_fusion.led_guess import led_candidates, p3p_factors
 from graphloc.mapping.io import (
     read_labelled_cloud,
     read_led_pixels,
@@ -161,7 +162,7 @@ def test_one_p3p_candidate_is_the_true_camera_pose():
         truth = np.linalg.inv(s.poses["ground"][f]) @ s.poses["ceiling"][f] @ T_CEILING_CAMERA
         errors = [pose_errors(p.matrix(), truth) for p in c.poses()]
         assert min(e[0] for e in errors) < 1e-5 and min(e[1] for e in errors) < 1e-6
-        assert c.meta["covariance"].shape == (len(c), 6, 6)
+        assert c.covariance.shape == (len(c), 6, 6)
 
 
 # ----------------------------------------------------------------------------- pipeline
@@ -177,6 +178,22 @@ def test_fusion_recovers_the_inter_robot_transform(scenario, fused):
     )  # every frame saw the LEDs and went to the tracker
     assert fused.n_p3p_factors >= 1
     assert fused.graph_error[1] <= fused.graph_error[0] + 1e-9
+
+
+def test_every_frame_mixture_chooses_the_true_candidate_at_the_estimate(scenario, fused):
+    """The P3P candidate sets reach the graph as max-mixtures (factors.mixture): at the
+    optimized poses each frame's active component is the candidate nearest the true camera."""
+    mixtures = p3p_factors(fused.guess_info, scenario.fusion_input().leds.T_ceiling_camera)
+    assert len(mixtures) == fused.n_p3p_factors == len(fused.guess_info.candidates)
+    values = gtsam.Values()
+    for r in (GROUND, CEILING):
+        for k, P in enumerate(fused.poses[r]):
+            values.insert(pose_key(r, k), gtsam.Pose3(P))
+    s = scenario
+    for (f, cands), mixture in zip(fused.guess_info.candidates.items(), mixtures):
+        truth = np.linalg.inv(s.poses["ground"][f]) @ s.poses["ceiling"][f] @ T_CEILING_CAMERA
+        nearest = int(np.argmin([pose_errors(p.matrix(), truth)[1] for p in cands.poses()]))
+        assert mixture.active(values) == nearest, f
 
 
 def test_the_p3p_covariance_is_the_registration_prior(scenario, fused):

@@ -14,8 +14,8 @@
    above the ground robot); otherwise `fuse` raises `FusionRejected` ("not fused", with why);
 4. one graph: prior on the ground robot's first pose, scan-matching between-factors for both
    robots (point-to-plane ICP of consecutive scans from the KISS-ICP increment, covariance from
-   the registration's information matrix), the ICP inter-robot factor, and a P3P between-factor
-   per camera frame (the candidate that agrees with the registered estimate); batch
+   the registration's information matrix), the ICP inter-robot factor, and per camera frame a
+   max-mixture of the P3P candidates' between-factors (the solve chooses the component); batch
    Levenberg-Marquardt (`graphloc.session.Session`);
 5. fused map: every scan placed with the optimized poses, denoised, each point labelled with
    its robot.
@@ -144,18 +144,11 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
             np.linalg.inv(reg.information),
         )
     )
-    n_p3p = 0
+    mixtures = []
     if guess_info is not None:
-        extra = p3p_factors(
-            guess_info,
-            np.asarray(inp.leds.T_ceiling_camera, dtype=float),
-            init_poses[GROUND],
-            init_poses[CEILING],
-            cfg.p3p_gate,
-        )
-        for fac in extra:
-            graph.add(fac)
-        n_p3p = len(extra)
+        mixtures = p3p_factors(guess_info, np.asarray(inp.leds.T_ceiling_camera, dtype=float))
+        for mixture in mixtures:
+            graph.add(mixture.factor)
     session = Session(cfg.session)
     session.add(graph, values, time=float(inp.times[0]))
     est = session.estimate()
@@ -188,7 +181,7 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
         guess,
         guess_info,
         reg,
-        n_p3p,
+        len(mixtures),
         np.concatenate(pts),
         np.concatenate(labels),
         timings,

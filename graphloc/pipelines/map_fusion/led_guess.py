@@ -3,7 +3,10 @@ robot's LEDs (seed 004 Sec. II-B / II-C): P3P on the three LED pixels of every c
 up to four solutions, `graphloc.geometry.p3p`, with first-order covariances), expressed in the
 ground robot's first frame with its odometry, disambiguated over the climbing robot's motion by
 the `HypothesisTracker` (the role of seed 004's particle filter, Algorithm 2); the guess's
-covariance (`guess_covariance`); and the P3P between-factors of the fusion graph (`p3p_factors`).
+covariance (`guess_covariance`); and the P3P factors of the fusion graph (`p3p_factors`).
+Candidate sets come from the one front-end route, `graphloc.vision.marker_poses
+.p3p_candidate_sets` (typed resection covariance), and reach the graph by the one route of
+`graphloc.factors.mixture`: every frame's set is a max-mixture the solve chooses from.
 Frames: G_k / C_k are the ground / ceiling LiDAR at frame k; everything is expressed in G_0."""
 
 from __future__ import annotations
@@ -14,11 +17,10 @@ import gtsam
 import numpy as np
 
 from graphloc.candidates import CandidateSet
-from graphloc.factors.odometry import between_factor
-from graphloc.geometry.p3p import solve_p3p
-from graphloc.geometry.resection import resection_covariance
+from graphloc.factors.mixture import MaxMixture, candidate_max_mixture
 from graphloc.hypotheses import HypothesisTracker, cap_covariances
 from graphloc.keys import pose_key
+from graphloc.mapping.odometry import OdometryResult
 from graphloc.pipelines.map_fusion.types import (
     CEILING,
     GROUND,
@@ -26,44 +28,27 @@ from graphloc.pipelines.map_fusion.types import (
     GuessResult,
     LedObservations,
 )
-from graphloc.mapping.odometry import OdometryResult
 from graphloc.seams import Odometry
+from graphloc.vision.marker_poses import p3p_candidate_sets
 
 
 def led_candidates(leds: LedObservations, times: np.ndarray, cfg: FusionConfig):
-    """P3P candidate sets of every camera frame with all three LEDs (camera poses in G_k) and
-    their first-order covariances. Returns ({frame: CandidateSet}, skipped frame count)."""
+    """P3P candidate sets (camera poses in G_k, `p3p_candidate_sets` with cfg.pixel_sigma:
+    typed first-order covariances) of every camera frame that sees all three LEDs. Returns
+    ({frame: CandidateSet}, count of frames without a set)."""
     F = len(leds.pixels)
-    bearings, ok = leds.camera.pixel_to_bearing(leds.pixels.reshape(-1, 2))
-    bearings, ok = bearings.reshape(F, 3, 3), ok.reshape(F, 3).all(axis=1)
-    frames = np.flatnonzero(ok)
-    out = {}
-    if len(frames) == 0:
-        return out, F
-    points = np.broadcast_to(np.asarray(leds.leds, dtype=float), (len(frames), 3, 3))
-    sol = solve_p3p(bearings[frames], points, method=cfg.p3p_method)
-    for i, f in enumerate(frames):
-        keep = sol.valid[i]
-        if not keep.any():
-            continue
-        cand = sol.candidate_set(i, time=float(times[f]), observer="ceiling", observed="ground")
-        cov = resection_covariance(
-            leds.camera,
-            sol.R_wc[i][keep],
-            sol.t_wc[i][keep],
-            np.broadcast_to(points[i], (int(keep.sum()), 3, 3)),
-            cfg.pixel_sigma,
-        )
-        out[int(f)] = CandidateSet(
-            cand.R,
-            cand.t,
-            cand.scores,
-            cand.time,
-            cand.observer,
-            cand.observed,
-            cand.source,
-            {"covariance": cov},
-        )
+    frames = np.flatnonzero(np.isfinite(leds.pixels).all(axis=(1, 2)))
+    sets = p3p_candidate_sets(
+        leds.camera,
+        list(leds.pixels[frames]),
+        [np.arange(3)] * len(frames),
+        np.asarray(leds.leds, dtype=float),
+        np.asarray(times, dtype=float)[frames],
+        cfg.pixel_sigma,
+        observer="ceiling",
+        observed="ground",
+    )
+    out = {int(f): cs for f, cs in zip(frames, sets) if cs is not None and len(cs)}
     return out, F - len(out)
 
 
@@ -72,7 +57,15 @@ def _in_first_frame(cands: CandidateSet, T_g0_gk: np.ndarray) -> CandidateSet:
     R = np.einsum("ij,kjl->kil", T_g0_gk[:3, :3], cands.R)
     t = cands.t @ T_g0_gk[:3, :3].T + T_g0_gk[:3, 3]
     return CandidateSet(
-        R, t, cands.scores, cands.time, cands.observer, cands.observed, cands.source, cands.meta
+        R,
+        t,
+        cands.scores,
+        cands.time,
+        cands.observer,
+        cands.observed,
+        cands.source,
+        cands.meta,
+        cands.covariance,
     )
 
 
@@ -90,7 +83,7 @@ def guess_covariance(
     odometry over `frames` steps bring Q each; C_Y capped at cfg.tracker.max_candidate_std (the
     tracker's linearization trust region) (cfg.odometry_sigmas^2 per step). With
     T Exp(d) M = T M Exp(Ad(M^-1) d): Sigma = Ad_X (Ad_Y^-1 Q Ad_Y^-T + C_Y + Q) Ad_X^T."""
-    cov = cands.meta["covariance"]
+    cov = cands.covariance
     predicted = gtsam.Pose3(np.linalg.inv(T_g0_gk) @ T_g0_camK)
     d2 = [
         float(e @ np.linalg.solve(c, e))
@@ -161,27 +154,28 @@ def led_initial_guess(
     )
 
 
-def p3p_factors(
-    guess: GuessResult, T_cc: np.ndarray, poses_g: np.ndarray, poses_c: np.ndarray, gate: float
-):
-    """One BetweenFactorPose3 x(ground,k) -> x(ceiling,k) per camera frame: the P3P candidate
-    closest (Mahalanobis) to the current estimate, if within `gate`; covariance carried through the
-    camera->LiDAR extrinsic (T Exp(xi) M = T M Exp(Ad(M^-1) xi))."""
-    factors = []
+def p3p_factors(guess: GuessResult, T_cc: np.ndarray) -> list[MaxMixture]:
+    """One max-mixture x(ground,k) -> x(ceiling,k) per camera frame with candidates
+    (`factors.mixture.candidate_max_mixture`): component j is candidate j (the camera in G_k)
+    carried to the ceiling LiDAR, Y_j T_cc^-1, with its covariance carried through the
+    extrinsic (T Exp(xi) M = T M Exp(Ad(M^-1) xi), M = T_cc^-1); weights from the scores. The
+    solve picks, per frame, the component nearest the estimate (Olson & Agarwal)."""
     ad = gtsam.Pose3(T_cc).AdjointMap()  # Ad(M^-1) with M = T_camera_ceiling
     T_cam_c = np.linalg.inv(T_cc)
+    out = []
     for f, cands in guess.candidates.items():
-        predicted = gtsam.Pose3(np.linalg.inv(poses_g[f]) @ poses_c[f] @ T_cc)  # camera in G_k
-        cov = cands.meta["covariance"]
-        d2 = []
-        for pose, c in zip(cands.poses(), cov):
-            e = predicted.localCoordinates(pose)
-            d2.append(float(e @ np.linalg.solve(c, e)))
-        j = int(np.argmin(d2))
-        if d2[j] > gate:
-            continue
-        rel = cands.poses()[j].matrix() @ T_cam_c
-        factors.append(
-            between_factor(pose_key(GROUND, f), pose_key(CEILING, f), rel, ad @ cov[j] @ ad.T)
+        rel = np.einsum("kij,jl->kil", np.stack([p.matrix() for p in cands.poses()]), T_cam_c)
+        cov = np.einsum("ij,kjl,ml->kim", ad, cands.covariance, ad)
+        carried = CandidateSet(
+            rel[:, :3, :3],
+            rel[:, :3, 3],
+            cands.scores,
+            cands.time,
+            cands.observer,
+            cands.observed,
+            cands.source,
+            cands.meta,
+            0.5 * (cov + np.swapaxes(cov, 1, 2)),
         )
-    return factors
+        out.append(candidate_max_mixture(carried, pose_key(CEILING, f), pose_key(GROUND, f)))
+    return out

@@ -26,7 +26,7 @@ ROBOT_NAMES = {GROUND: "ground", CEILING: "ceiling"}
 @dataclass(frozen=True)
 class FusionConfig:
     """odometry_sigmas: per-frame KISS-ICP increment sigmas (rot [rad], trans [m]); pixel_sigma:
-    LED pixel noise [px] for the P3P covariances; p3p_gate: Mahalanobis^2 gate for the P3P factors;
+    LED pixel noise [px] for the P3P covariances;
     guess_sigma: 1-sigma (rot [rad], trans [m]) of a hint given without its own (the LED
     tracker's guess carries the P3P covariance, `led_initial_guess`);
     robust: the inter-robot registration is `robust_register` with the
@@ -39,8 +39,6 @@ class FusionConfig:
     session: SessionConfig = field(default_factory=SessionConfig)
     odometry_sigmas: tuple[float, float] = (np.deg2rad(0.3), 0.01)
     pixel_sigma: float = 0.5
-    p3p_method: str = "lambdatwist"
-    p3p_gate: float = 50.0
     map_voxel: float = 0.03
     anchor_sigma: float = 1e-4
     build_map: bool = True  # False: skip step 5 (benchmarks of the transform only)
@@ -147,7 +145,7 @@ class FusionResult:
     guess: np.ndarray  # initial guess handed to ICP
     guess_info: GuessResult | None
     registration: Registration
-    n_p3p_factors: int
+    n_p3p_factors: int  # max-mixtures of P3P candidates (one per camera frame with a set)
     map_points: np.ndarray  # (M,3) fused map in G_0
     map_labels: np.ndarray  # (M,) robot index of every point
     timings: dict
