@@ -23,12 +23,14 @@ _REGISTRY: dict[str, tuple[str, str]] = {
 }
 
 
-def open_run(path, duration: float | None = None, noise: dict | None = None):
-    """The loader factory (`graphloc.datasets.loaders.open_run`): a graphloc log or an MRCLAM
-    directory -> `graphloc.run.TeamRun`."""
+def open_run(
+    path, duration: float | None = None, noise: dict | None = None, source: dict | None = None
+):
+    """The loader factory (`graphloc.datasets.loaders.open_run`): a graphloc log, an MRCLAM
+    directory, a ROS bag or a scan directory -> `graphloc.run.TeamRun`."""
     from graphloc.datasets.loaders import open_run as _open_run
 
-    return _open_run(path, duration, noise)
+    return _open_run(path, duration, noise, source)
 
 
 def available() -> list[str]:

@@ -18,10 +18,11 @@ from graphloc.run import TeamRun, team_run_from_planar, truncate
 class RunLoader(Protocol):
     name: str
     expects: str  # what a directory needs for this loader, for the error message
+    options: tuple[str, ...]  # the source options (RunOptions.source) `load` takes as keywords
 
     def matches(self, path: Path) -> bool: ...
 
-    def load(self, path: Path, duration: float | None, noise: dict | None) -> TeamRun: ...
+    def load(self, path: Path, duration: float | None, noise: dict | None, **source) -> TeamRun: ...
 
 
 class GraphlocLog:
@@ -29,6 +30,7 @@ class GraphlocLog:
 
     name = "graphloc-log"
     expects = MANIFEST
+    options = ()
 
     def matches(self, path: Path) -> bool:
         return (path / MANIFEST).is_file()
@@ -43,6 +45,7 @@ class MRCLAMDirectory:
 
     name = "mrclam"
     expects = "Barcodes.dat and RobotN_Odometry.dat"
+    options = ()
 
     def matches(self, path: Path) -> bool:
         return is_mrclam_dir(path)
@@ -54,13 +57,22 @@ class MRCLAMDirectory:
 LOADERS: tuple[RunLoader, ...] = (GraphlocLog(), MRCLAMDirectory(), RosBag())
 
 
-def open_run(path, duration: float | None = None, noise: dict | None = None) -> TeamRun:
+def open_run(
+    path, duration: float | None = None, noise: dict | None = None, source: dict | None = None
+) -> TeamRun:
     """The run at `path` through the first loader that recognises it, optionally cut to the
     first `duration` seconds; `noise` (bearing_sigma, range_sigma, range_sigma_per_m,
-    pixel_sigma) replaces what the source states (a config file or CLI flags)."""
+    pixel_sigma) replaces what the source states (a config file or CLI flags); `source`: options
+    of one kind of source (`RunOptions.source`: a bag's `topics` file, a scan directory's
+    `scan_rate`), an error when the source at `path` takes none of them."""
     path = Path(path)
+    source = dict(source or {})
     for loader in LOADERS:
         if loader.matches(path):
-            return loader.load(path, duration, noise)
+            extra = sorted(set(source) - set(loader.options))
+            if extra:
+                flags = ", ".join("--" + k.replace("_", "-") for k in extra)
+                raise ValueError(f"{path}: {flags} does not apply to a {loader.name} source")
+            return loader.load(path, duration, noise, **source)
     known = "; ".join(f"{loader.name} ({loader.expects})" for loader in LOADERS)
     raise FileNotFoundError(f"{path}: no loader recognises it; known sources: {known}")

@@ -90,15 +90,15 @@ def _read_messages(bag: Path, wanted: set, skips: SkipReport, consume):
     not take (returns False): topic -> [(bag index, msgtype, msg)], bag order; the number of
     messages per wanted topic; the bag's other topics. Undecodable messages are counted
     skips."""
-    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.highlevel import AnyReader
 
     default = _default_typestore(bag)
     per_topic: dict = {t: [] for t in wanted}
     try:
         reader = AnyReader([bag], default_typestore=default)
         reader.open()
-    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
-        raise ValueError(f"{bag}: cannot read bag: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 -- a corrupt bag raises AssertionError, MemoryError, ...
+        raise ValueError(f"{bag}: cannot read bag: {type(exc).__name__}: {exc}") from None
     try:
         # types the bag does not define (e.g. a ROS 2 sqlite3 bag without definitions)
         have = reader.typestore.fielddefs
@@ -298,11 +298,13 @@ def _write_table(path: Path, table: str, rows: list) -> None:
 
 # ---- the loader (graphloc.datasets.loaders protocol) -----------------------------------------
 class RosBag:
-    """A ROS 1 / ROS 2 / MCAP bag with a `topics.yaml` beside it (docs/rosbag.md): imported
-    into a temporary log directory and read by `graphloc.datasets.graphloc_log.read_team_run`."""
+    """A ROS 1 / ROS 2 / MCAP bag with its topics file (`topics`: a path, else `topics.yaml`
+    inside or beside the bag; docs/rosbag.md): imported into a temporary log directory and read
+    by `graphloc.datasets.graphloc_log.read_team_run`."""
 
     name = "rosbag"
     expects = f"a .bag / .mcap file or a metadata.yaml directory, with {TOPICS_FILE}"
+    options = ("topics",)
 
     def matches(self, path: Path) -> bool:
         return is_bag(path)
@@ -312,8 +314,15 @@ class RosBag:
         tmp = tempfile.mkdtemp(prefix="graphloc-bag-")
         run = None
         try:
-            import_bag(path, topics, tmp)
-            run = read_team_run(tmp, overrides=noise)
+            result = import_bag(path, topics, tmp)
+            try:
+                run = read_team_run(tmp, overrides=noise)
+            except ValueError as exc:  # named by the bag, with what its import skipped
+                skipped = ", ".join(f"{k} {n}" for k, n in sorted(result.skips.counts.items()))
+                raise ValueError(
+                    f"{str(exc).replace(tmp, f'{path} (imported)')} "
+                    f"(import skipped: {skipped or 'nothing'})"
+                ) from None
         finally:
             if run is None or not run.scans:
                 shutil.rmtree(tmp, ignore_errors=True)

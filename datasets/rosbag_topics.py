@@ -331,6 +331,5 @@ def find_topics_file(bag) -> Path:
             return p
     raise FileNotFoundError(
         f"{bag}: a bag needs a topics file (docs/rosbag.md); none at "
-        f"{' or '.join(map(str, places))}; or run `graphloc import {bag} "
-        "--topics FILE --out RUN` and then `graphloc smooth RUN`"
+        f"{' or '.join(map(str, places))}; name one with --topics FILE"
     )

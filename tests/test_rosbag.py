@@ -7,7 +7,6 @@ skips naming topic and message index; topics-file errors name the file and the f
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import gtsam
@@ -426,7 +425,7 @@ def test_topics_file_errors_name_file_and_field(tmp_path, capsys):
     )
     assert "t.yaml: topics['/rover/odom']: field 'robot'" in capsys.readouterr().err
     # no topics file beside the bag: open_run says where it looked and what to do
-    with pytest.raises(FileNotFoundError, match="graphloc import"):
+    with pytest.raises(FileNotFoundError, match="name one with --topics FILE"):
         open_run(bag)
 
 
@@ -743,81 +742,112 @@ def test_missing_camera_info_and_unconnected_frames_are_errors(tmp_path, capsys)
 
 
 # ---- a real public bag ------------------------------------------------------------------------
-# The first 60 s of evo's test/data/ROS_example.bag (github.com/MichaelGrupp/evo, GPL-3.0):
-# geometry_msgs/PoseStamped topics `groundtruth`, `S-PTAM`, `ORB-SLAM` of a real stereo camera
-# run (ROS 1). Data fetched from a public repository is kept beside the repository (shared/),
-# not in it; GRAPHLOC_REAL_BAG names another copy.
-REAL_BAG = Path(
-    os.environ.get(
-        "GRAPHLOC_REAL_BAG",
-        Path(__file__).resolve().parents[1].parent / "shared/data/rosbag/ROS_example_60s.bag",
-    )
-)
+# tests/data/real_bag/husky_outdoor_120s.bag: the first 120 s of robot_localization's
+# test/test1.bag (BSD-3-Clause; tests/data/README.md, scripts/make_real_bag.py): a Clearpath
+# Husky outdoors, wheel odometry (nav_msgs/Odometry with covariance), GPS fix and IMU.
+REAL_BAG = Path(__file__).resolve().parent / "data/real_bag/husky_outdoor_120s.bag"
+ODOM = "/husky_velocity_controller/odom"
 
 
-@pytest.mark.skipif(not REAL_BAG.is_file(), reason=f"real bag excerpt not found at {REAL_BAG}")
-def test_real_bag_is_read_and_smoothed(tmp_path):
-    """S-PTAM's poses as the odometry of one camera, anchored at its first pose: the smoothed
-    trajectory is S-PTAM's, and smooth's ATE against the bag's ground truth is the one evo
-    computes from the bag's messages directly."""
-    from evo.core import metrics, sync
-    from evo.core.trajectory import PoseTrajectory3D
-    from rosbags.highlevel import AnyReader
-
-    tracks = {}
-    with AnyReader([REAL_BAG]) as reader:
-        for conn, _, raw in reader.messages():
-            m = reader.deserialize(raw, conn.msgtype)
-            p, o = m.pose.position, m.pose.orientation
-            t = m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
-            tracks.setdefault(conn.topic, []).append([t, p.x, p.y, p.z, o.x, o.y, o.z, o.w])
-    sptam, truth = (np.array(sorted(tracks[k])) for k in ("S-PTAM", "groundtruth"))
-    topics = {
-        "name": "evo-ros-example",
-        "start_time": float(sptam[0, 0]),
+def _real_topics(first_pose) -> dict:
+    return {
+        "name": "husky-outdoor",
         "robots": [
             {
-                "name": "camera",
-                "kind": "handheld",
+                "name": "husky",
+                "kind": "ground",
                 "planar": False,
-                "initial_pose": [float(v) for v in sptam[0, 1:]],
-                "sensors": [{"name": "sptam", "type": "odometry"}],
+                "initial_pose": [float(v) for v in first_pose],
+                "sensors": [{"name": "wheels", "type": "odometry"}],
             }
         ],
-        "topics": {
-            "S-PTAM": {
-                "robot": "camera",
-                "table": "relative_pose3",
-                "sensor": "sptam",
-                "sigmas": [0.01, 0.01, 0.01, 0.05, 0.05, 0.05],
-            },
-            "groundtruth": {"robot": "camera", "table": "groundtruth"},
-        },
+        "topics": {ODOM: {"robot": "husky", "table": "relative_pose3", "sensor": "wheels"}},
     }
-    (tmp_path / "topics.yaml").write_text(yaml.safe_dump(topics))
+
+
+def _real_odometry() -> tuple[np.ndarray, np.ndarray]:
+    """The odometry topic as the bag's messages say, read here with rosbags directly: TUM rows
+    (header stamp, position, quaternion xyzw) in stamp order and the pose covariance diagonals
+    (ROS order x y z rx ry rz)."""
+    from rosbags.highlevel import AnyReader
+
+    odom = []
+    with AnyReader([REAL_BAG]) as reader:
+        conns = [c for c in reader.connections if c.topic == ODOM]
+        for conn, _, raw in reader.messages(connections=conns):
+            m = reader.deserialize(raw, conn.msgtype)
+            p, o = m.pose.pose.position, m.pose.pose.orientation
+            t = m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+            cov = np.diag(m.pose.covariance.reshape(6, 6))
+            odom.append(([t, p.x, p.y, p.z, o.x, o.y, o.z, o.w], cov))
+    odom.sort(key=lambda row: row[0][0])
+    return np.array([r for r, _ in odom]), np.array([c for _, c in odom])
+
+
+def test_real_bag_is_read_and_smoothed(tmp_path, capsys):
+    """The Husky's wheel odometry with its covariance as one robot's relative poses, anchored at
+    its first pose: `import` maps every odometry message (GPS and IMU reported as unmapped),
+    and `smooth BAG --topics FILE` gives back the bag's odometry poses at their header stamps,
+    each step weighted by the message's covariance."""
+    odom, cov = _real_odometry()
+    assert len(odom) > 1000 and np.ptp(odom[:, 1:3], axis=0).max() > 5.0  # a real drive
+    topics = tmp_path / "husky_topics.yaml"  # not beside the bag: only --topics names it
+    topics.write_text(yaml.safe_dump(_real_topics(odom[0, 1:])))
     run = tmp_path / "run"
-    assert (
-        main(
-            ["import", str(REAL_BAG), "--topics", str(tmp_path / "topics.yaml"), "--out", str(run)]
-        )
-        == 0
+    assert main(["import", str(REAL_BAG), "--topics", str(topics), "--out", str(run)]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["rows"] == {"relative_pose3": len(odom) - 1}
+    assert printed["skipped"]["total"] == 0
+    assert printed["unmapped_topics"] == ["/fix", "/imu/data"]
+    rows = np.loadtxt(
+        run / "husky/relative_pose3.csv", delimiter=",", skiprows=1, usecols=range(2, 16)
     )
-    result = json.loads((run / "manifest.json").read_text())["meta"]["import"]
-    assert result["skips"]["total"] == 0
-    assert main(["smooth", str(run), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
-    est = np.loadtxt(tmp_path / "out/camera_batch.tum", ndmin=2)
-    assert len(est) == len(sptam) > 300
-    assert np.abs(est[:, 1:4] - sptam[:, 1:4]).max() < 1e-6
-    m = json.loads((tmp_path / "out/metrics.json").read_text())
-    ate = m["per_robot"]["camera"]["batch"]["ate_rmse"]
+    # sigmas: the message's covariance diagonal, ROS (x y z rx ry rz) -> GTSAM (rx ry rz x y z)
+    np.testing.assert_allclose(rows[:, -6:], np.sqrt(cov[1:][:, [3, 4, 5, 0, 1, 2]]))
+    out = tmp_path / "out"
+    argv = ["smooth", str(REAL_BAG), "--topics", str(topics), "--out", str(out), "--no-progress"]
+    assert main(argv) == 0
+    est = np.loadtxt(out / "husky_batch.tum", ndmin=2)
+    np.testing.assert_allclose(est[:, 0], odom[:, 0], rtol=0, atol=1e-6)
+    assert np.abs(est[:, 1:4] - odom[:, 1:4]).max() < 1e-6
+    sign = np.sign(np.sum(est[:, 4:] * odom[:, 4:], axis=1))[:, None]  # q and -q: one rotation
+    assert np.abs(est[:, 4:] * sign - odom[:, 4:]).max() < 1e-6
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["options"]["topics"] == str(topics)
 
-    def traj(a):
-        return PoseTrajectory3D(a[:, 1:4], a[:, [7, 4, 5, 6]], a[:, 0])
 
-    ref, est_t = sync.associate_trajectories(traj(truth), traj(sptam), max_diff=0.02)
-    ape = metrics.APE(metrics.PoseRelation.translation_part)
-    ape.process_data((ref, est_t))
-    assert 0.0 < ate and abs(ate - ape.get_statistic(metrics.StatisticsType.rmse)) < 1e-6 * ate
+def test_topics_option(tmp_path, capsys):
+    """`--topics FILE` reaches the bag loader through RunOptions (command line and --config);
+    without it and with no topics.yaml beside the bag the error says so; a bad topics file
+    names the file and the field; a source that takes no topics file says so."""
+    bag = tmp_path / "bag" / "real.bag"
+    bag.parent.mkdir()
+    bag.write_bytes(REAL_BAG.read_bytes())
+    out = str(tmp_path / "out")
+    assert main(["validate", str(bag)]) == 2
+    assert "name one with --topics FILE" in capsys.readouterr().err
+    topics = _real_topics([0, 0, 0, 0, 0, 0, 1])
+    topics["topics"][ODOM]["robot"] = "huskyy"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(topics))
+    assert main(["smooth", str(bag), "--topics", str(bad), "--out", out, "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and f"topics['{ODOM}']: field 'robot'" in err, err
+    good = tmp_path / "good.yaml"
+    good.write_text(yaml.safe_dump(_real_topics([0, 0, 0, 0, 0, 0, 1])))
+    config = tmp_path / "run.toml"
+    config.write_text(f'topics = "{good}"\nduration = 10.0\n')
+    assert main(["validate", str(bag), "--config", str(config)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    stamps = _real_odometry()[0][:, 0]
+    assert report["graph"]["factors_odometry"] == np.sum(stamps[1:] <= stamps[0] + 10.0)
+    assert main(["validate", str(bag), "--topics", str(good), "--duration", "5"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["graph"]["factors_odometry"] == np.sum(stamps[1:] <= stamps[0] + 5.0)
+    log = tmp_path / "log"
+    import_bag(bag, good, log)
+    assert main(["validate", str(log), "--topics", str(good)]) == 2
+    assert "--topics does not apply to a graphloc-log source" in capsys.readouterr().err
 
 
 # ---- round trip: every scenario as ROS 1, ROS 2 sqlite3 and MCAP bags ------------------------

@@ -114,7 +114,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
     with StopFlag() as stop:
         noise = opts.noise()
         check_noise_params(noise, "option (command line or --config)")
-        run = open_run(args.run, duration=opts.duration, noise=noise)
+        run = open_run(args.run, duration=opts.duration, noise=noise, source=opts.source())
         lag = opts.lag if opts.lag is not None else default_lag(run, config)
         config = replace(config, lag=float(lag))
         graph = build_graph(run, config, progress=progress)

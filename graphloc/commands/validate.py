@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
 
     opts = config_from_args(RunOptions, args, exclude=SKIPPED)
     config = opts.graph_config()
-    team = open_run(args.run, duration=opts.duration, noise=opts.noise())
+    team = open_run(args.run, duration=opts.duration, noise=opts.noise(), source=opts.source())
     graph = build_graph(team, config)
     robots = {}
     for r, robot in enumerate(team.robots):

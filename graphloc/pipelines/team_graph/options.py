@@ -1,8 +1,9 @@
 """`RunOptions`: the one option tree of `graphloc smooth`, `online` and `validate` -- the
 command-line options, the `--config FILE.toml` keys and the `metrics.json` "options" are its
 fields (`graphloc.config.add_config_arguments` / `config_from_args`). What it turns into: the
-loader's `duration` and sensor-noise overrides (`noise`), the `GraphConfig` (`graph_config`),
-the online lag and the extra outputs."""
+loader's `duration`, source options (`source`: a bag's topics file, a scan directory's rate)
+and sensor-noise overrides (`noise`), the `GraphConfig` (`graph_config`), the online lag and
+the extra outputs."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ NOISE = ("bearing_sigma", "range_sigma", "range_sigma_per_m", "pixel_sigma")
 KERNELS = ("kernel", "odometry_kernel", "candidate_kernel")
 OUTPUTS = ("mcap", "rerun")  # not graph options: `validate` leaves them out
 SOLVER = ("lag",)
+SOURCE = ("topics", "scan_rate")  # options of one kind of source (open_run's `source`)
 
 
 def _help(text: str) -> dict:
@@ -26,6 +28,17 @@ def _help(text: str) -> dict:
 class RunOptions:
     duration: float | None = field(
         default=None, metadata=_help("use only the first N seconds; unset: all")
+    )
+    topics: str | None = field(
+        default=None,
+        metadata=_help(
+            "a bag run's topics file (YAML, docs/rosbag.md); unset: topics.yaml inside or "
+            "beside the bag"
+        ),
+    )
+    scan_rate: float | None = field(
+        default=None,
+        metadata=_help("a scan directory without a times file: scans per second [Hz]; unset: 10"),
     )
     keyframe_dt: float = field(
         default=0.25, metadata=_help("pose grid of wheel-odometry robots [s]")
@@ -86,10 +99,10 @@ class RunOptions:
         check(
             self,
             positive=("keyframe_dt", "sync_tolerance", "bearing_sigma", "range_sigma")
-            + ("pixel_sigma",),
+            + ("pixel_sigma", "scan_rate"),
             nonnegative=("range_sigma_per_m", "lag"),
             optional=("duration", "bearing_sigma", "range_sigma", "range_sigma_per_m")
-            + ("pixel_sigma", "lag"),
+            + ("pixel_sigma", "lag", "scan_rate"),
         )
         if self.duration is not None and not 0 < self.duration < float("inf"):
             raise ValueError(f"RunOptions.duration must be > 0, got {self.duration}")
@@ -100,6 +113,11 @@ class RunOptions:
                 raise ValueError(f"RunOptions.{name} (--{name.replace('_', '-')}): {exc}") from None
         if not (self.landmarks or self.inter_robot):
             raise ValueError("--no-landmarks with --no-inter-robot leaves only odometry")
+
+    def source(self) -> dict:
+        """Options of one kind of source that were set (`graphloc.datasets.open_run`'s
+        `source`): a bag's topics file, a scan directory's rate."""
+        return {k: getattr(self, k) for k in SOURCE if getattr(self, k) is not None}
 
     def noise(self) -> dict:
         """Sensor noise that replaces what the log's sensor params say."""
