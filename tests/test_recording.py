@@ -87,8 +87,11 @@ def test_smooth_mcap_has_every_topic_and_count(smoothed):
     clouds = mcap_messages(smoothed / "run.mcap", "/graphloc/climber/candidates")
     first = next(d for d in decisions if d["robot"] == "climber")
     assert clouds[0].width == int(first["candidates"])
-    fields = np.frombuffer(clouds[0].data.tobytes(), "<f4").reshape(clouds[0].width, 4)
+    fields = np.frombuffer(clouds[0].data.tobytes(), "<f4").reshape(clouds[0].width, 5)
     assert fields[:, 3].sum() == (int(first["committed"]) >= 0)
+    # the set's probability in decisions.csv: the committed candidate's weight, else the largest
+    j = int(first["committed"]) if int(first["committed"]) >= 0 else int(np.argmax(fields[:, 4]))
+    assert abs(fields[j, 4] - float(first["probability"])) < 1e-5
 
 
 def test_smooth_rerun_recording_holds_every_entity(smoothed):
@@ -96,6 +99,70 @@ def test_smooth_rerun_recording_holds_every_entity(smoothed):
     for label in ("batch", "dead_reckoning", "groundtruth"):
         assert f"world/climber/{label}" in entities and f"world/climber/{label}/path" in entities
     assert {"world/climber/candidates", "world/climber/committed", "world/ground/batch"} <= entities
+
+
+def rrd_columns(path: Path, entity: str) -> list:
+    """The rows logged to `entity` (Rerun's chunks as Arrow record batches), in time order."""
+    from rerun.chunk import RrdReader
+
+    rows = []
+    for chunk in RrdReader(path).stream():
+        if chunk.entity_path.lstrip("/") == entity:
+            batch = chunk.to_record_batch().to_pydict()
+            rows += [dict(zip(batch, values)) for values in zip(*batch.values())]
+    return sorted(rows, key=lambda r: r["time"])
+
+
+@pytest.mark.parametrize(
+    "scenario, overrides, route",
+    [
+        ("feng-probabilistic", [], "tracker"),
+        ("crawler-pair", ["--width", "320", "--height", "240"], "mixture"),
+    ],
+)
+def test_every_candidate_carries_its_weight(tmp_path, scenario, overrides, route):
+    """Both candidate routes of the solve: every candidate of every set, read back from the
+    MCAP cloud and the .rrd components, carries the solve's posterior weight
+    (`Decision.probabilities`: the HypothesisTracker's posterior, or the max-mixture's
+    component weights chosen at the estimate) and the committed one is marked."""
+    from graphloc.datasets import open_run
+    from graphloc.pipelines.recording import team_recording
+    from graphloc.pipelines.team_graph import build_graph, solve
+    from graphloc.pipelines.team_graph.options import RunOptions
+
+    assert main(["simulate", scenario, "--out", str(tmp_path / "run")] + overrides) == 0
+    run = open_run(tmp_path / "run")
+    result = solve(build_graph(run, RunOptions().graph_config()), mode="batch")
+    rec = team_recording(result, run)
+    write_mcap(rec, tmp_path / "r.mcap")
+    write_rerun(rec, tmp_path / "r.rrd")
+    decided = {}
+    for d in result.decisions:
+        assert (d.mixture is not None) == (route == "mixture")
+        decided.setdefault(run.robots[d.robot].name, []).append(d)
+    assert decided
+    for robot, ds in decided.items():
+        ds = sorted(ds, key=lambda d: d.time)  # stable: the order they were written in
+        clouds = mcap_messages(tmp_path / "r.mcap", f"/graphloc/{robot}/candidates")
+        logged = rrd_columns(tmp_path / "r.rrd", f"world/{robot}/candidates")
+        assert len(clouds) == len(logged) == len(ds)
+        for d, cloud, row in zip(ds, clouds, logged):
+            k = len(d.candidates_xyz)
+            assert [f.name for f in cloud.fields] == ["x", "y", "z", "committed", "weight"]
+            data = np.frombuffer(cloud.data.tobytes(), "<f4").reshape(cloud.width, 5)
+            want = np.asarray(d.probabilities, dtype=float)
+            # the tracker keeps some mass off the candidates (none of them right)
+            assert len(want) == k and (want >= 0).all() and want.sum() <= 1.0 + 1e-9
+            np.testing.assert_allclose(data[:, 4], want, rtol=1e-6, atol=1e-7)
+            np.testing.assert_allclose(np.asarray(row["weight"]), want, rtol=0, atol=1e-12)
+            marked = (np.arange(k) == d.committed).astype(int)
+            assert (data[:, 3] == marked).all() and list(row["committed"]) == list(marked)
+            assert len(row["Points3D:labels"]) == k
+            if d.committed >= 0:
+                assert f"p={want[d.committed]:.2f} committed" in row["Points3D:labels"][d.committed]
+            if route == "mixture":  # chosen at the estimate: the heaviest component
+                assert d.committed == int(np.argmax(want)) and abs(want.sum() - 1.0) < 1e-9
+    assert any(d.committed >= 0 for ds in decided.values() for d in ds)
 
 
 def test_fused_map_recording(tmp_path):

@@ -2,8 +2,10 @@
 (Foxglove opens it; `ros2 bag play` feeds RViz) and as a Rerun recording (`.rrd`).
 
 One `Recording` holds what both show: every robot's trajectories over time (the estimate,
-dead reckoning, ground truth when known), each P3P candidate set the HypothesisTracker decided
-(where every candidate puts the observer, the committed candidate's posterior and pose) and
+dead reckoning, ground truth when known), each candidate set of the solve (where every
+candidate puts the observer with its posterior weight -- the HypothesisTracker's posterior of a
+decided P3P set, or for a max-mixture set the components' weights at the estimate,
+`team_graph.solve.choose_mixtures` -- the committed candidate marked, its pose) and
 point clouds (a log's scans placed by the estimate, the fused map with the robot that saw each
 point). `team_recording` builds it from `graphloc smooth` / `online`'s result (and the log
 directory's scans), `fusion_recording` from a `fuse-maps` output directory. Writers:
@@ -12,13 +14,14 @@ directory's scans), `fusion_recording` from a `fuse-maps` output directory. Writ
   schemas). Topics per robot: `/graphloc/ROBOT/pose` (geometry_msgs/PoseStamped, one per
   estimated pose), `/graphloc/ROBOT/path`, `/graphloc/ROBOT/dead_reckoning`,
   `/graphloc/ROBOT/groundtruth` (nav_msgs/Path, one message at the end of the track),
-  `/graphloc/ROBOT/candidates` (sensor_msgs/PointCloud2, fields x y z committed, one per
-  candidate set) and `/graphloc/ROBOT/committed` (PoseStamped); clouds `/graphloc/map/NAME`
+  `/graphloc/ROBOT/candidates` (sensor_msgs/PointCloud2, fields x y z committed weight, one
+  per candidate set) and `/graphloc/ROBOT/committed` (PoseStamped); clouds `/graphloc/map/NAME`
   (PointCloud2, fields x y z robot). Frame `map`.
 - `write_rerun(recording, path)` (optional dependency `rerun-sdk`, extra `graphloc[viz]`):
   entities `world/ROBOT/LABEL` (position over the `time` timeline) with `world/ROBOT/LABEL/path`
-  (the whole track), `world/ROBOT/candidates` (labelled with the posterior of the committed
-  one), `world/ROBOT/committed`, `world/map/NAME` (coloured by robot).
+  (the whole track), `world/ROBOT/candidates` (every candidate labelled with its weight, sized
+  by it, the committed one green; the weights and the committed flags also as the components
+  `weight` / `committed`), `world/ROBOT/committed`, `world/map/NAME` (coloured by robot).
 """
 
 from __future__ import annotations
@@ -54,13 +57,15 @@ class Track:
 
 @dataclass(frozen=True)
 class CandidateFrame:
-    """One candidate set as decided: where each candidate puts the observer's body (K,3), the
-    committed candidate (-1: none), its posterior (else the largest) and the committed pose."""
+    """One candidate set as decided: where each candidate puts the observer's body (K,3), each
+    candidate's posterior weight (K,; NaN where the solve states none), the committed candidate
+    (-1: none), its posterior (else the largest) and the committed pose."""
 
     time: float
     robot: str
     target: str
     xyz: np.ndarray
+    weights: np.ndarray
     committed: int
     probability: float
     pose: np.ndarray
@@ -118,18 +123,35 @@ def team_recording(result: TeamResult, run: TeamRun, source=None) -> Recording:
             if track is not None:
                 rec.tracks.append(track)
     for d in result.decisions:  # max-mixture sets chosen at the estimate
+        xyz = np.asarray(d.candidates_xyz, dtype=float).reshape(-1, 3)
         rec.candidates.append(
             CandidateFrame(
                 float(d.time),
                 run.robots[d.robot].name,
                 run.robots[d.target].name,
-                np.asarray(d.candidates_xyz, dtype=float).reshape(-1, 3),
+                xyz,
+                candidate_weights(d, len(xyz)),
                 int(d.committed),
                 float(d.probability),
                 np.asarray(d.pose, dtype=float),
             )
         )
     return rec
+
+
+def candidate_weights(decision, k: int) -> np.ndarray:
+    """(k,) posterior weight of every candidate of a decision (`Decision.probabilities`: the
+    tracker's posterior, or the max-mixture's component weights at the estimate); a decision
+    without them (a max-mixture the solve never reached) has only the committed one's."""
+    if decision.probabilities is not None:
+        w = np.asarray(decision.probabilities, dtype=float).reshape(-1)
+        if len(w) != k:
+            raise ValueError(f"decision at t={decision.time}: {len(w)} weights for {k} candidates")
+        return w
+    w = np.full(k, np.nan)
+    if 0 <= decision.committed < k:
+        w[decision.committed] = decision.probability
+    return w
 
 
 def scan_clouds(root, result: TeamResult, run: TeamRun, voxel: float = 0.05) -> list:
@@ -242,6 +264,7 @@ def mcap_messages(rec: Recording, ts) -> list:
         base = f"/graphloc/{c.robot}"
         chosen = (np.arange(len(c.xyz)) == c.committed).astype(float)
         columns = {"x": c.xyz[:, 0], "y": c.xyz[:, 1], "z": c.xyz[:, 2], "committed": chosen}
+        columns["weight"] = c.weights
         out.append((f"{base}/candidates", cloud, c.time, _cloud(ts, c.time, columns)))
         if c.committed >= 0:
             out.append((f"{base}/committed", pose, c.time, _pose_stamped(ts, c.time, c.pose)))
@@ -311,14 +334,18 @@ def write_rerun(rec: Recording, path) -> list[str]:
         entities += [entity, f"{entity}/path"]
     for c in rec.candidates:
         stream.set_time("time", timestamp=c.time)
+        chosen = np.arange(len(c.xyz)) == c.committed
         labels = [
-            f"{c.target} #{k}" + (f" p={c.probability:.2f}" if k == c.committed else "")
-            for k in range(len(c.xyz))
+            f"{c.target} #{k} p={w:.2f}" + (" committed" if k == c.committed else "")
+            for k, w in enumerate(c.weights)
         ]
-        rgb = np.where(
-            (np.arange(len(c.xyz)) == c.committed)[:, None], [40, 200, 40], [220, 40, 40]
+        rgb = np.where(chosen[:, None], [40, 200, 40], [220, 40, 40])
+        radii = 0.03 + 0.12 * np.nan_to_num(c.weights)
+        stream.log(
+            f"world/{c.robot}/candidates",
+            rr.Points3D(c.xyz, colors=rgb, labels=labels, radii=radii),
+            rr.AnyValues(weight=c.weights, committed=chosen.astype(np.uint8)),
         )
-        stream.log(f"world/{c.robot}/candidates", rr.Points3D(c.xyz, colors=rgb, labels=labels))
         entities.append(f"world/{c.robot}/candidates")
         if c.committed >= 0:
             stream.log(
