@@ -372,6 +372,12 @@ CLOUD_CASES = [
     ("millimetres", lambda c: scale_scans(c, 1000.0), r"median range \S+ is outside .*millim"),
     ("kilometres", lambda c: scale_scans(c, 1e-3), r"median range \S+ is outside .*kilom"),
     ("scaled-1e300", lambda c: scale_scans(c, 1e300), r"coordinates up to \S+, beyond \+-1e\+06"),
+    (  # plausible on their own (median range ~250 m): caught beside the ground scans
+        "centimetres",
+        lambda c: scale_scans(c, 100.0),
+        r"ceiling/00000\d\.ply and \S+/ground/00000\d\.ply: the ceiling scans' extent \(median "
+        r"\S+ over 2 scans\) is \S+ x the ground scans' .* \(ratio near 100: centimetres\?\)",
+    ),
     (
         "garbage-ply",
         lambda c: (c / "000001.ply").write_bytes(b"ply\nformat binary_little_endian 1.0\n\x00\x01"),

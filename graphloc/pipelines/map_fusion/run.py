@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphloc.mapping.io import read_scan_sequence
+from graphloc.mapping.io import check_scan_scales, read_scan_sequence
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.inputs import parse_hint, parse_hint_sigma, read_p3p_setup
 from graphloc.pipelines.map_fusion.report import write_outputs, write_rejection
@@ -47,13 +47,14 @@ def fuse_directories(
     outputs in out_dir. Raises FusionRejected (after writing the "not fused" report)."""
     if not (np.isfinite(rate) and rate > 0):
         raise ValueError(f"rate must be a positive frame rate [Hz], got {rate}")
-    ground, _, dropped_g = read_scan_sequence(ground_dir)
-    ceiling, _, dropped_c = read_scan_sequence(ceiling_dir)
+    ground, ground_files, dropped_g = read_scan_sequence(ground_dir)
+    ceiling, ceiling_files, dropped_c = read_scan_sequence(ceiling_dir)
     if len(ground) != len(ceiling):
         raise ValueError(
             f"{ground_dir} has {len(ground)} scans but {ceiling_dir} has {len(ceiling)}: "
             "the pipeline needs synchronized sequences"
         )
+    scales = check_scan_scales(ground, ground_files, ceiling, ceiling_files)  # one unit
     times = np.arange(len(ground)) / float(rate)
     leds = read_p3p_setup(p3p, len(ground)) if p3p else None
     inp = FusionInput(
@@ -69,5 +70,6 @@ def fuse_directories(
         "ceiling": str(ceiling_dir),
         "frames": len(ground),
         "nonfinite_points_skipped": {"ground": dropped_g, "ceiling": dropped_c},
+        "scan_scales": scales,
     }
     return fuse_and_write(inp, out_dir, config, times, extra={"input": provenance})
