@@ -2,6 +2,11 @@
 HELP (one line), add_arguments(parser) and run(args) -> exit code; the verb parses, calls one
 pipeline function and writes outputs. Only verbs that work end to end are listed here.
 
+Conventions of every verb: `graphloc --version`; the common options of
+`graphloc.commands.common` (`-v` / `-q`, `--no-progress`); `--config FILE.toml` with the same
+schema as the verb's options (both derived from its config dataclass, `graphloc.config`); the
+output folder announced on stderr when the verb ends (`outputs in DIR`).
+
 `main` is the one place where failures become exit codes (`graphloc.exitcodes`, documented in
 docs/outputs.md): a verb's `--out` is checked before any computation; bad input (ValueError,
 a missing file) is one `error:` line and BAD_INPUT; an OS error, an Open3D or GTSAM runtime
@@ -11,13 +16,17 @@ expected failure ends in a traceback."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import io
 import os
 import sys
+import time
 from pathlib import Path
 
 from graphloc import __version__
-from graphloc.exitcodes import BAD_INPUT, FAILED, INTERRUPTED, OK
+from graphloc.commands.common import LOG, add_common_arguments, configure_logging
+from graphloc.exitcodes import BAD_INPUT, FAILED, INCOMPLETE, INTERRUPTED, OK
 
 # verb -> module in graphloc.commands (keep sorted by the order a user meets them)
 VERBS: dict[str, str] = {
@@ -43,8 +52,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for verb, module_name in VERBS.items():
         module = importlib.import_module(f"graphloc.commands.{module_name}")
-        p = sub.add_parser(verb, help=module.HELP, description=module.HELP)
+        p = sub.add_parser(
+            verb, help=module.HELP, description=module.HELP, conflict_handler="resolve"
+        )  # a verb's own --no-progress gives way to the common one
         module.add_arguments(p)
+        add_common_arguments(p)
         p.set_defaults(_run=module.run)
     return parser
 
@@ -68,10 +80,20 @@ def main(argv: list[str] | None = None) -> int:
         print(f"graphloc {args.verb}: error: {text}", file=sys.stderr)
         return code
 
+    if args.quiet:
+        args.no_progress = True
+    configure_logging(args.verbose)
+    shown = {k: v for k, v in sorted(vars(args).items()) if not k.startswith("_")}
+    LOG.info("%s: options %s", args.verb, shown)
+    start = time.perf_counter()
     try:
         if getattr(args, "out", None) is not None:
             check_out(Path(args.out))
-        return int(args._run(args) or OK)
+        quiet = (
+            contextlib.redirect_stdout(io.StringIO()) if args.quiet else contextlib.nullcontext()
+        )
+        with quiet:
+            code = int(args._run(args) or OK)
     except (ValueError, FileNotFoundError) as exc:
         # Bad input: one clear line naming what is wrong, not a traceback from deep inside.
         return error(str(exc), BAD_INPUT)
@@ -81,6 +103,11 @@ def main(argv: list[str] | None = None) -> int:
         return error(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), FAILED)
     except RuntimeError as exc:  # Open3D and GTSAM report their failures as RuntimeError
         return error(f"{type(exc).__name__}: {exc}", FAILED)
+    LOG.info("%s: exit %d after %.1f s", args.verb, code, time.perf_counter() - start)
+    out = getattr(args, "out", None)
+    if out is not None and code in (OK, INCOMPLETE) and Path(out).is_dir() and not args.quiet:
+        print(f"graphloc {args.verb}: outputs in {out}", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":

@@ -18,7 +18,10 @@ declaratively; a violation raises ValueError naming `Class.field`, the rule and 
 `add_config_arguments` derives one `--field-name` option per scalar field (type, default and
 help from the field's metadata["help"]) and `config_from_args` builds the config from the
 parsed options (defaults < `--config FILE.toml` < command line), so verbs do not copy fields
-by hand.
+by hand. A field whose default is itself a config dataclass is a TOML table of its name
+(`[fusion]`, `[fusion.registration]`, ...); a tuple field a TOML array. `read_config_file`
+opens the file through `graphloc.textio`; every error names the file, the line and the field
+(`ConfigError.key`: the field's dotted path).
 """
 
 from __future__ import annotations
@@ -28,9 +31,12 @@ import dataclasses
 import json
 import math
 import numbers
+import re
 import tomllib
 import typing
 from pathlib import Path
+
+from graphloc.textio import read_text
 
 BRACKETS = ("()", "(]", "[)", "[]")
 
@@ -107,20 +113,34 @@ def _bound(spec, value) -> str:
 
 
 # ---- values from strings, TOML and the command line -------------------------------------------
+class ConfigError(ValueError):
+    """A bad key or value of a config; `key` is the field's dotted path (`fusion.registration
+    .voxel`), which `config_values` turns into the line of a config file."""
+
+    def __init__(self, message: str, key: str):
+        super().__init__(message)
+        self.key = key
+
+
 def parse_overrides(config_class: type, overrides: dict) -> dict:
     """KEY=VALUE strings (or values) -> typed fields of `config_class`; unknown keys and
-    unparsable values raise ValueError naming the field. A string for a non-string field is
-    read as JSON (numbers, true / false, lists)."""
+    unparsable values raise ConfigError naming the field. A string for a non-string field is
+    read as JSON (numbers, true / false, lists); a dict for a field whose default is a config
+    dataclass fills that dataclass (recursively); a list for a tuple field becomes a tuple."""
     known = {f.name: f for f in dataclasses.fields(config_class)}
     defaults = config_class()
     hints = typing.get_type_hints(config_class)
+    name = config_class.__name__
     out = {}
     for key, value in overrides.items():
         if key not in known:
-            raise ValueError(
-                f"{config_class.__name__}: unknown field {key!r}; known: {', '.join(sorted(known))}"
+            raise ConfigError(
+                f"{name}: unknown field {key!r}; known: {', '.join(sorted(known))}", key
             )
         default = getattr(defaults, key)
+        if dataclasses.is_dataclass(default):
+            out[key] = _nested(config_class, key, default, value)
+            continue
         kind = _scalar_type(hints.get(key))
         if default is None and kind is not None:  # an optional field: its declared type
             if kind is str and isinstance(value, str):
@@ -131,21 +151,80 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
             try:
                 value = json.loads(value)
             except json.JSONDecodeError:
-                raise ValueError(f"{config_class.__name__}.{key}: cannot parse {value!r}") from None
+                kind_name = "list" if isinstance(default, tuple) else type(default).__name__
+                raise ConfigError(
+                    f"{name}.{key}: expected {kind_name}, got {value!r}", key
+                ) from None
+        if isinstance(default, tuple):
+            out[key] = _tuple(config_class, key, default, value, hints.get(key))
+            continue
         if isinstance(default, bool) != isinstance(value, bool) or (
             isinstance(default, (int, float)) and not isinstance(value, (int, float))
         ):
-            raise ValueError(
-                f"{config_class.__name__}.{key}: expected {type(default).__name__}, got {value!r}"
+            raise ConfigError(
+                f"{name}.{key}: expected {type(default).__name__}, got {value!r}", key
             )
+        if isinstance(default, str) and not isinstance(value, str):
+            raise ConfigError(f"{name}.{key}: expected str, got {value!r}", key)
         if isinstance(default, int) and not isinstance(default, bool) and value != int(value):
-            raise ValueError(f"{config_class.__name__}.{key}: expected an integer, got {value!r}")
+            raise ConfigError(f"{name}.{key}: expected an integer, got {value!r}", key)
         out[key] = (
             type(default)(value)
             if isinstance(default, (int, float)) and not isinstance(default, bool)
             else value
         )
     return out
+
+
+def _nested(config_class: type, key: str, default, value):
+    """A table of fields -> the nested config dataclass `default` with them, checked by its
+    own rules (errors carry the dotted path of the bad field)."""
+    name = f"{config_class.__name__}.{key}"
+    if not isinstance(value, dict):
+        raise ConfigError(f"{name}: expected a table of {type(default).__name__} fields", key)
+    try:
+        return dataclasses.replace(default, **parse_overrides(type(default), value))
+    except ConfigError as exc:
+        raise ConfigError(f"{name}: {exc}", f"{key}.{exc.key}") from None
+    except (TypeError, ValueError) as exc:
+        field = _named_field(str(exc), type(default))
+        raise ConfigError(f"{name}: {exc}", f"{key}.{field}" if field else key) from None
+
+
+def _tuple(config_class: type, key: str, default: tuple, value, hint) -> tuple:
+    """A list for a tuple field: the default's length (any length for `tuple[X, ...]`), each
+    element of the annotated type."""
+    name = f"{config_class.__name__}.{key}"
+    args = typing.get_args(hint)
+    variable = len(args) == 2 and args[1] is Ellipsis
+    if (
+        not isinstance(value, (list, tuple))
+        or not value
+        or (not variable and len(value) != len(default))
+    ):
+        size = "one or more" if variable else str(len(default))
+        raise ConfigError(f"{name}: expected a list of {size} values, got {value!r}", key)
+    kinds = [args[0]] * len(value) if variable else list(args) or [type(v) for v in default]
+    out = []
+    for v, kind in zip(value, kinds):
+        number = isinstance(v, numbers.Real) and not isinstance(v, bool)
+        ok = {
+            float: number,
+            int: number and v == int(v),
+            bool: isinstance(v, bool),
+            str: isinstance(v, str),
+        }.get(kind, True)
+        if not ok:
+            raise ConfigError(f"{name}: expected {kind.__name__} values, got {value!r}", key)
+        out.append(kind(v) if kind in (float, int) else v)
+    return tuple(out)
+
+
+def _named_field(message: str, config_class: type) -> str | None:
+    """The field of `config_class` an error message names as `Class.field`, if any."""
+    m = re.search(rf"\b{config_class.__name__}\.(\w+)", message)
+    names = {f.name for f in dataclasses.fields(config_class)}
+    return m.group(1) if m and m.group(1) in names else None
 
 
 def _scalar_type(hint) -> type | None:
@@ -190,24 +269,84 @@ def add_config_arguments(parser: argparse.ArgumentParser, config_class: type, ex
             )
 
 
-def config_from_args(config_class: type, args: argparse.Namespace, base=None, exclude=()):
-    """`base` (default: `config_class()`) with the values of a TOML file `args.config` (when the
-    namespace has one; keys are field names, '-' or '_') and then the options given on the
-    command line; every value checked by `parse_overrides` and the class's own rules."""
+def read_config_file(path) -> tuple[dict, dict]:
+    """A TOML config file -> (its tables as a dict with '-' in keys read as '_', {dotted key:
+    line number}). Opened through `graphloc.textio` (a missing file, a directory or bytes that
+    are not UTF-8 are errors naming the file and line); a syntax error names file, line and
+    column."""
+    path = Path(path)
+    text = read_text(path)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: not valid TOML: {exc}") from None
+    return _underscored(data), _key_lines(text)
+
+
+def _underscored(data: dict) -> dict:
+    return {
+        k.replace("-", "_"): _underscored(v) if isinstance(v, dict) else v for k, v in data.items()
+    }
+
+
+_TABLE = re.compile(r"^\s*\[\s*([A-Za-z0-9_.\- ]+?)\s*\]\s*(#.*)?$")
+_KEY = re.compile(r"^\s*([A-Za-z0-9_\-]+)\s*=")
+
+
+def _key_lines(text: str) -> dict:
+    """{dotted key (tables too): line} of a TOML text's `[table]` headers and `key =` lines."""
+    lines, table = {}, ""
+    for n, line in enumerate(text.splitlines(), start=1):
+        m = _TABLE.match(line)
+        if m:
+            table = m.group(1).replace(" ", "").replace("-", "_")
+            lines.setdefault(table, n)
+            continue
+        m = _KEY.match(line)
+        if m:
+            key = m.group(1).replace("-", "_")
+            lines.setdefault(f"{table}.{key}" if table else key, n)
+    return lines
+
+
+def _where(path, lines: dict, key: str | None) -> str:
+    """`FILE: line N: ` for the dotted key (or its nearest table) of a config file."""
+    parts = key.split(".") if key else []
+    while parts and ".".join(parts) not in lines:
+        parts.pop()
+    return f"{path}: line {lines['.'.join(parts)]}: " if parts else f"{path}: "
+
+
+def config_values(config_class: type, args: argparse.Namespace, exclude=()) -> dict:
+    """The typed field values of `config_class` given by a TOML file `args.config` (when the
+    namespace has one; `read_config_file`) and then by the command line, which wins; every
+    error from the file names file, line and field."""
     values: dict = {}
     path = getattr(args, "config", None)
+    lines: dict = {}
     if path is not None:
+        data, lines = read_config_file(path)
         try:
-            data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-            raise ValueError(f"{path}: cannot read config: {exc}") from None
-        values.update({key.replace("-", "_"): value for key, value in data.items()})
-        try:
-            parse_overrides(config_class, values)
-        except ValueError as exc:
-            raise ValueError(f"{path}: {exc}") from None
-    for name in option_fields(config_class, exclude):
-        if hasattr(args, name):
-            values[name] = getattr(args, name)
+            values.update(parse_overrides(config_class, data))
+        except ConfigError as exc:
+            raise ValueError(f"{_where(path, lines, exc.key)}{exc}") from None
+    given = {n: getattr(args, n) for n in option_fields(config_class, exclude) if hasattr(args, n)}
+    values.update(parse_overrides(config_class, given))
+    return values
+
+
+def config_from_args(config_class: type, args: argparse.Namespace, base=None, exclude=()):
+    """`base` (default: `config_class()`) with `config_values`: defaults < `--config FILE`
+    < command line, checked by `parse_overrides` and the class's own rules (an error of a
+    value from the file names file, line and field)."""
+    values = config_values(config_class, args, exclude)
     base = config_class() if base is None else base
-    return dataclasses.replace(base, **parse_overrides(config_class, values))
+    try:
+        return dataclasses.replace(base, **values)
+    except ValueError as exc:
+        path = getattr(args, "config", None)
+        field = _named_field(str(exc), config_class)
+        if path is None or field is None or hasattr(args, field):
+            raise
+        _, lines = read_config_file(path)
+        raise ValueError(f"{_where(path, lines, field)}{exc}") from None

@@ -32,6 +32,7 @@ from graphloc.exitcodes import INCOMPLETE, OK, RUNS_FAILED
 # namespace fields that choose where / how runs execute, not what they compute
 _NOT_CONFIG = {"run", "out", "config", "no_progress", "runs", "backend", "workers", "address"}
 _NOT_CONFIG |= {"cache", "checkpoint", "checkpoint_every", "resume", "_run", "verb"}
+_NOT_CONFIG |= {"verbose", "quiet"}  # graphloc.commands.common: how much is printed
 _FIELDS = ["run", "status", "error", "seconds", "robots", "ate_rmse_m", "committed", "wrong"]
 _FIELDS += ["realtime_factor", "path"]
 

@@ -5,12 +5,9 @@ per-instance Python loops over cv2.solveP3P (P3P, AP3P) and poselib.p3p on the s
     .venv/bin/python scripts/bench_p3p.py --out out/bench_p3p [--n 100000] [--seed 0]
 """
 
-import argparse
 import sys
 
-from graphloc.commands import p3p_bench
+from graphloc.cli import main
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=p3p_bench.HELP)
-    p3p_bench.add_arguments(parser)
-    sys.exit(p3p_bench.run(parser.parse_args()))
+    sys.exit(main(["p3p-bench", *sys.argv[1:]]))

@@ -243,39 +243,6 @@ def test_fuse_maps_on_real_scans_fuses_or_says_not_fused(fragment, tmp_path):
     assert not (tmp_path / "bad" / "fused_map.ply").exists()
 
 
-def test_fuse_maps_config_file(tmp_path, capsys):
-    from graphloc.pipelines.map_fusion.config import load_fusion_config
-
-    p = tmp_path / "fusion.toml"
-    p.write_text(
-        "[registration]\nvoxel = 0.04\nscales = [0.16, 0.04]\n"
-        "max_correspondence = [0.5, 0.06]\nmax_iterations = [20, 20]\n"
-        "[acceptance]\nmin_inlier_ratio = 0.7\n[fusion]\nguess_sigma = [0.1, 0.2]\n"
-    )
-    cfg = load_fusion_config(p)
-    assert cfg.registration.voxel == 0.04 and cfg.registration.scales == (0.16, 0.04)
-    assert cfg.acceptance.min_inlier_ratio == 0.7 and cfg.guess_sigma == (0.1, 0.2)
-    p.write_text("[registration]\nvoxels = 0.04\n")
-    with pytest.raises(ValueError, match=r"fusion.toml.*unknown key\(s\) voxels"):
-        load_fusion_config(p)
-    p.write_text("[registration]\nvoxel = -1.0\n")
-    with pytest.raises(ValueError, match="fusion.toml"):
-        load_fusion_config(p)
-    p.write_text("[registration\n")
-    rc = cli_main(
-        [
-            "fuse-maps",
-            "--simulate",
-            "dual-robot-room",
-            "--config",
-            str(p),
-            "--out",
-            str(tmp_path / "o"),
-        ]
-    )
-    assert rc == 2 and "fusion.toml: not valid TOML" in capsys.readouterr().err
-
-
 def test_gravity_rotation_levels_a_tilted_floor():
     from scipy.spatial.transform import Rotation
 

@@ -6,6 +6,10 @@ per-point robot label), top/side PNGs with trajectories, TUM trajectories, fusio
     graphloc fuse-maps --ground G/ --ceiling C/ (--hint "x y z qx qy qz qw" [--hint-sigma "DEG M"]
                        | --p3p setup.json) [--config fusion.toml] --out OUT
 
+Options: the fields of `graphloc.pipelines.map_fusion.options.FuseMapsOptions`, from the
+command line and from `--config FILE.toml` (the pipeline's settings in its `[fusion...]`
+tables); the command line wins. An error in the file names the file, the line and the field.
+
 Exit codes (graphloc.exitcodes, docs/outputs.md): 0 fused; 2 bad input (one `error:` line);
 3 (INCOMPLETE) the registration failed its acceptance checks -- "not fused" and why are
 printed, fusion_report.json lists every candidate and check, and no fused map is written.
@@ -14,8 +18,11 @@ printed, fusion_report.json lists every candidate and check, and no fused map is
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
+from graphloc.config import add_config_arguments, config_from_args
 from graphloc.exitcodes import INCOMPLETE, OK
+from graphloc.pipelines.map_fusion.options import FuseMapsOptions
 
 HELP = (
     "fuse ground + ceiling robot LiDAR maps "
@@ -25,7 +32,9 @@ EXIT_NOT_FUSED = INCOMPLETE
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", required=True, help="output directory")
+    """The inputs by hand (one source, --out); every other option is a field of
+    `FuseMapsOptions`, also from `--config FILE.toml` (graphloc.pipelines.map_fusion.options)."""
+    parser.add_argument("--out", required=True, type=Path, help="output directory")
     src = parser.add_mutually_exclusive_group(required=True)
     src.add_argument(
         "--simulate", metavar="SCENARIO", help="simulate a scenario (dual-robot-room) and fuse it"
@@ -40,52 +49,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--ceiling", metavar="DIR", help="ceiling robot scans, synchronized with --ground"
     )
     parser.add_argument(
-        "--hint", help="relative pose T_G0_C0: 'x y z qx qy qz qw' or 16 numbers (row-major)"
-    )
-    parser.add_argument(
-        "--hint-sigma",
-        metavar="'DEG M'",
-        help="1-sigma of --hint: rotation [deg] and translation [m] "
-        "(default: the config's guess_sigma)",
-    )
-    parser.add_argument(
-        "--p3p",
-        metavar="JSON",
-        help="camera + LED setup with an LED pixel CSV (see graphloc.pipelines.map_fusion.inputs)",
-    )
-    parser.add_argument(
         "--config",
-        metavar="TOML",
-        help="fusion settings: [registration], [acceptance], [fusion], [odometry] "
-        "tables (see graphloc.pipelines.map_fusion.config)",
+        type=Path,
+        help="TOML file: any option below, and the pipeline's settings in [fusion], "
+        "[fusion.registration], [fusion.acceptance], [fusion.odometry], ... tables",
     )
-    parser.add_argument(
-        "--rate", type=float, default=10.0, help="frame rate of --ground/--ceiling [Hz]"
-    )
-    parser.add_argument(
-        "--variant",
-        default="furnished",
-        help="dual-robot-room variant (furnished, empty, rectangular, low_overlap)",
-    )
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument(
-        "--mcap", help="also write the fused map and trajectories as an MCAP file (Foxglove)"
-    )
-    parser.add_argument("--rerun", help="also write them as a Rerun recording (.rrd)")
-    parser.add_argument("--frames", type=int, default=10)
+    add_config_arguments(parser, FuseMapsOptions)
 
 
 def run(args: argparse.Namespace) -> int:
-    from graphloc.pipelines.map_fusion.config import load_fusion_config
     from graphloc.experiments.fusion_demo import simulate_and_fuse
-    from graphloc.pipelines.map_fusion.run import fuse_and_write, fuse_directories
-    from graphloc.pipelines.map_fusion.types import FusionConfig, FusionRejected
+    from graphloc.pipelines.map_fusion import FusionRejected, fuse_and_write, fuse_directories
     from graphloc.pipelines.map_fusion.report import summary_text
     from graphloc.pipelines.recording import fusion_recording, write_recordings
 
-    config = load_fusion_config(args.config) if args.config else FusionConfig()
-    if args.hint_sigma is not None and args.hint is None:
-        raise ValueError("--hint-sigma needs --hint")
+    opts = config_from_args(FuseMapsOptions, args)
+    config = opts.fusion
     try:
         if args.simulate is not None:
             if args.simulate != "dual-robot-room":
@@ -94,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
                     f"got {args.simulate!r}"
                 )
             report = simulate_and_fuse(
-                args.out, args.variant, args.seed, args.frames, config=config
+                args.out, opts.variant, opts.seed, opts.frames, config=config
             )
         elif args.scenario is not None:
             from graphloc.datasets.dual_room import DualRoomScenario
@@ -110,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             if args.ceiling is None:
                 raise ValueError("--ground needs --ceiling")
-            if (args.hint is None) == (args.p3p is None):
+            if (opts.hint is None) == (opts.p3p is None):
                 raise ValueError(
                     "give exactly one of --hint or --p3p for the inter-robot initial guess"
                 )
@@ -118,16 +97,16 @@ def run(args: argparse.Namespace) -> int:
                 args.ground,
                 args.ceiling,
                 args.out,
-                hint=args.hint,
-                p3p=args.p3p,
-                rate=args.rate,
+                hint=opts.hint,
+                p3p=opts.p3p,
+                rate=opts.rate,
                 config=config,
-                hint_sigma=args.hint_sigma,
+                hint_sigma=opts.hint_sigma,
             )
     except FusionRejected as exc:
         print(summary_text(exc.report))
         return EXIT_NOT_FUSED
     print(summary_text(report))
-    if args.mcap or args.rerun:
-        write_recordings(fusion_recording(args.out), args.mcap, args.rerun)
+    if opts.mcap or opts.rerun:
+        write_recordings(fusion_recording(args.out), opts.mcap, opts.rerun)
     return OK

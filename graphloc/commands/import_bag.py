@@ -9,28 +9,40 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
+from graphloc.config import add_config_arguments, config_from_args
 from graphloc.exitcodes import OK
 
 HELP = "ROS 1 / ROS 2 / MCAP bag + topics file -> graphloc log directory (smooth / online input)"
 
 
+@dataclass(frozen=True)
+class ImportOptions:
+    """The options of `graphloc import` (command line and `--config FILE.toml`)."""
+
+    topics: str | None = field(
+        default=None,
+        metadata={
+            "help": "topics file (YAML, docs/rosbag.md); unset: topics.yaml inside or beside "
+            "the bag"
+        },
+    )
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("bag", type=Path, help=".bag file, .mcap file or ROS 2 bag directory")
-    parser.add_argument(
-        "--topics",
-        type=Path,
-        default=None,
-        help="topics file (YAML, docs/rosbag.md); default: topics.yaml inside or beside the bag",
-    )
     parser.add_argument("--out", required=True, type=Path, help="log directory to write")
+    parser.add_argument("--config", type=Path, help="TOML file with any of the options below")
+    add_config_arguments(parser, ImportOptions)
 
 
 def run(args: argparse.Namespace) -> int:
     from graphloc.datasets.rosbag import find_topics_file, import_bag
 
-    topics = args.topics if args.topics is not None else find_topics_file(args.bag)
+    opts = config_from_args(ImportOptions, args)
+    topics = Path(opts.topics) if opts.topics is not None else find_topics_file(args.bag)
     if (args.out / "manifest.json").exists():
         raise ValueError(f"{args.out}: holds a log already (manifest.json); choose another --out")
     result = import_bag(args.bag, topics, args.out)

@@ -10,8 +10,11 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 
+from graphloc.commands.common import progress
+from graphloc.config import add_config_arguments, check, config_from_args
 from graphloc.executor import BACKENDS
 from graphloc.experiments import TABLES
 from graphloc.exitcodes import OK
@@ -19,16 +22,31 @@ from graphloc.exitcodes import OK
 HELP = "reproduce a seed table: seed000-table1/2/3, seed004-table1, seed001-exp1"
 
 
+@dataclass(frozen=True)
+class ReproduceOptions:
+    """The options of `graphloc reproduce` (command line and `--config FILE.toml`)."""
+
+    quick: bool = field(
+        default=False, metadata={"help": "CI size (graphloc.experiments.sizes.QUICK)"}
+    )
+    workers: int = field(default=2, metadata={"help": "trials in flight"})
+    backend: str = field(default="local", metadata={"help": f"trials on: {', '.join(BACKENDS)}"})
+    address: str | None = field(
+        default=None, metadata={"help": "--backend ray: 'auto' or HOST:PORT of a cluster"}
+    )
+    cache: bool = field(
+        default=True, metadata={"help": "print a cached table (--no-cache recomputes)"}
+    )
+
+    def __post_init__(self):
+        check(self, integer={"workers": 1}, choices={"backend": BACKENDS})
+
+
 def add_arguments(parser) -> None:
     parser.add_argument("table", choices=TABLES)
-    parser.add_argument(
-        "--quick", action="store_true", help="CI size (graphloc.experiments.sizes.QUICK)"
-    )
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--backend", choices=BACKENDS, default="local", help="trials on")
-    parser.add_argument("--address", help="--backend ray: 'auto' or HOST:PORT of a cluster")
-    parser.add_argument("--no-cache", action="store_true", help="recompute a cached table")
     parser.add_argument("--out", type=Path, default=Path("out/reproduce"))
+    parser.add_argument("--config", type=Path, help="TOML file with any of the options below")
+    add_config_arguments(parser, ReproduceOptions)
 
 
 def run(args) -> int:
@@ -37,12 +55,13 @@ def run(args) -> int:
     from graphloc.executor import ResultCache, default_backend
     from graphloc.experiments.reproduce import reproduce
 
-    if args.workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {args.workers}")
+    opts = config_from_args(ReproduceOptions, args)
     args.out.mkdir(parents=True, exist_ok=True)
-    cache = None if args.no_cache else ResultCache(args.out / ".cache")
-    with default_backend(args.backend, args.address, args.workers):
-        result, md, cached = reproduce(args.table, args.quick, args.workers, args.out, cache=cache)
+    cache = ResultCache(args.out / ".cache") if opts.cache else None
+    with default_backend(opts.backend, opts.address, opts.workers):
+        result, md, cached = reproduce(
+            args.table, opts.quick, opts.workers, args.out, cache=cache, progress=progress(args)
+        )
     if cached:
         print(f"(cached: {args.out / '.cache'}; --no-cache recomputes)", file=sys.stderr)
     if result is not None:

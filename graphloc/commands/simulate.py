@@ -8,7 +8,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from graphloc.config import add_config_arguments, option_fields
+from graphloc.commands.common import add_common_arguments
+from graphloc.config import add_config_arguments, config_values, option_fields
 from graphloc.exitcodes import OK
 
 HELP = (
@@ -36,7 +37,11 @@ def scenario_parser(name: str, config_class: type) -> argparse.ArgumentParser:
     )
     parser.add_argument("--out", type=Path, help="output run directory (required)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the run")
+    parser.add_argument(
+        "--config", type=Path, help="TOML file with any of the fields below (the command line wins)"
+    )
     add_config_arguments(parser, config_class, exclude=("seed",))
+    add_common_arguments(parser)  # after NAME they reach this parser, not the verb's
     return parser
 
 
@@ -56,13 +61,12 @@ def run(args: argparse.Namespace) -> int:
             f"{args.name}: unknown option(s) {' '.join(rest)}; {config_class.__name__} fields: "
             f"{', '.join(option_fields(config_class, exclude=('seed',)))}"
         )
-    overrides = {
-        name: getattr(opts, name)
-        for name in option_fields(config_class, exclude=("seed",))
-        if hasattr(opts, name)
-    }
+    overrides = config_values(config_class, opts, exclude=("seed",))
     if opts.out is None:
         raise ValueError(f"{args.name}: --out DIR is required")
+    args.out = opts.out  # announced by graphloc.cli when the run is written
+    args.quiet = args.quiet or opts.quiet
     path = generate(args.name, opts.out, opts.seed, overrides)
-    print(f"wrote {args.name} (seed {opts.seed}) to {path.parent}")
+    if not args.quiet:
+        print(f"wrote {args.name} (seed {opts.seed}) to {path.parent}")
     return OK

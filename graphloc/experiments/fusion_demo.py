@@ -1,6 +1,7 @@
 """Map fusion on a simulated `dual-robot-room` (seed 004's setup): simulate, write the scenario
 directory, fuse (`graphloc.pipelines.map_fusion.run.fuse_and_write`), write the outputs. Behind
-`graphloc demo` (the README's main job) and `graphloc fuse-maps --simulate`."""
+`graphloc demo` (the README's main job: the furnished room) and `graphloc fuse-maps
+--simulate`."""
 
 from __future__ import annotations
 
@@ -39,9 +40,3 @@ def simulate_and_fuse(
         truth=scenario.T_ground0_ceiling0,
         extra={"scenario": scenario_info},
     )
-
-
-def run_demo(out_dir, seed: int = 0) -> dict:
-    """The README demo: furnished room, simulate -> LED pixels -> P3P -> hypothesis tracking ->
-    ICP -> graph smoothing -> fused map, pictures and report in out_dir."""
-    return simulate_and_fuse(out_dir, "furnished", seed)

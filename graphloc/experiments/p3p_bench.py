@@ -153,7 +153,7 @@ class BenchRow:
 
 
 def run_p3p_benchmark(
-    out_dir: str | Path, n: int = 100_000, seed: int = 0, rounds: int = 10
+    out_dir: str | Path, n: int = 100_000, seed: int = 0, rounds: int = 10, progress: bool = True
 ) -> dict:
     """Time every solver on the same n instances; write p3p_bench.json, p3p_bench.md and
     p3p_bench.png to out_dir; return the JSON dict.
@@ -188,7 +188,10 @@ def run_p3p_benchmark(
     seconds = {name: 0.0 for name, _, _ in solvers}
     outputs = {name: [] for name, _, _ in solvers}
     edges = np.linspace(0, n, rounds + 1).astype(int)
-    with tqdm(total=rounds * len(solvers), desc="P3P benchmark (solver x round)") as bar:
+    bar = tqdm(
+        total=rounds * len(solvers), desc="P3P benchmark (solver x round)", disable=not progress
+    )
+    with bar:
         for lo, hi in zip(edges[:-1], edges[1:]):
             for name, _, solve in solvers:
                 start = time.perf_counter()

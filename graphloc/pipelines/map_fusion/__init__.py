@@ -10,6 +10,7 @@ pipeline of `graphloc fuse-maps` and `graphloc demo`. Small modules:
     inputs     a user's hint, hint sigma and P3P setup, parsed and checked
     run        `fuse_and_write` (outputs or the "not fused" report), `fuse_directories`
     report     fused map (PLY / PCD), PNGs, TUM trajectories, fusion_report.json
+    options    `FuseMapsOptions`: the options and `--config` schema of `fuse-maps` / `demo`
 
 The registration and scan algorithms it calls are the library `graphloc.mapping`.
 """

@@ -1,0 +1,49 @@
+"""The options every verb takes, added to each verb's parser by `graphloc.cli`: `-v` / `-q`
+and `--no-progress` (`--version` is the program's, `--config FILE` each verb's own, derived
+from its config dataclass).
+
+    -v, --verbose    the effective options and the wall time on stderr; -vv: debug logging
+    -q, --quiet      only errors: no summary on stdout, no progress bars, no output folder line
+    --no-progress    no progress bars
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+
+LOG = logging.getLogger("graphloc")
+
+
+def add_common_arguments(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("common options")
+    talk = group.add_mutually_exclusive_group()
+    talk.add_argument(
+        "-v",
+        "--verbose",
+        action="count",
+        default=0,
+        help="the effective options and the wall time on stderr (-vv: debug logging)",
+    )
+    talk.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        help="only errors: no summary, no progress bars, no output folder line",
+    )
+    group.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def progress(args: argparse.Namespace) -> bool:
+    """Whether a verb shows progress bars."""
+    return not (getattr(args, "no_progress", False) or getattr(args, "quiet", False))
+
+
+def configure_logging(verbose: int) -> None:
+    """graphloc's log on stderr: warnings by default, INFO with -v, DEBUG (every library's
+    log) with -vv."""
+    level = logging.WARNING if verbose == 0 else logging.INFO if verbose == 1 else logging.DEBUG
+    logging.basicConfig(format="%(name)s: %(message)s", force=True)
+    LOG.setLevel(level)
+    if verbose >= 2:
+        logging.getLogger().setLevel(logging.DEBUG)
