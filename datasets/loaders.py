@@ -10,6 +10,7 @@ from typing import Protocol
 
 from graphloc.datasets.mrclam import MRCLAM, is_mrclam_dir
 from graphloc.datasets.rosbag import RosBag
+from graphloc.datasets.scan_directory import ScanDirectory
 from graphloc.io import MANIFEST
 from graphloc.datasets.graphloc_log import read_team_run
 from graphloc.run import TeamRun, team_run_from_planar, truncate
@@ -54,7 +55,8 @@ class MRCLAMDirectory:
         return team_run_from_planar(MRCLAM(path, duration=duration).load(), noise)
 
 
-LOADERS: tuple[RunLoader, ...] = (GraphlocLog(), MRCLAMDirectory(), RosBag())
+# a scan directory last: a log or MRCLAM directory may hold scan files too
+LOADERS: tuple[RunLoader, ...] = (GraphlocLog(), MRCLAMDirectory(), RosBag(), ScanDirectory())
 
 
 def open_run(

@@ -1,0 +1,172 @@
+"""A bare directory of point-cloud scans as a one-robot run (issue 13), as KISS-ICP's generic
+dataloader reads one (`kiss_icp.datasets.generic`: every supported file of the folder, sorted
+by name, is one scan).
+
+Scans: `.ply`, `.pcd`, `.xyz` files (Open3D) and KITTI velodyne `.bin` files (little-endian
+float32 records x y z intensity), sorted by file name. Times: `times.txt` in the directory
+when it is there (one time [s] per scan in file order, KITTI odometry's convention; blank lines
+and `#` comments skipped; errors name the file, line and field), else the scan's index at a
+stated rate (`scan_rate` [Hz], `RunOptions.scan_rate`, default DEFAULT_RATE).
+
+The loader writes a log directory (docs/log_format.md, version 2) into a temporary directory --
+one robot `scanner` (SE(3), starting at the identity) with one sensor `lidar` of type `scanner`
+at its origin and a `scans` table; each scan hard-linked (else copied) there, a `.bin` converted
+to PLY -- and reads it with `graphloc.datasets.graphloc_log.read_team_run`, so the scans pass
+the one scan reader's checks (`graphloc.mapping.io.read_scan`) and become KISS-ICP odometry
+steps (`graphloc.mapping.odometry`) like any log's scans: `graphloc smooth DIR` gives KISS-ICP's
+trajectory of the scanner. Errors name the user's files, not the temporary copies.
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+import re
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from graphloc.datasets.graphloc_log import read_team_run
+from graphloc.io import write_manifest, write_table
+from graphloc.run import TeamRun, truncate
+from graphloc.textio import check_file, text_lines
+
+NATIVE = (".ply", ".pcd", ".xyz")  # what Open3D reads (graphloc.mapping.io.SCAN_SUFFIXES)
+KITTI = ".bin"
+SUFFIXES = NATIVE + (KITTI,)
+TIMES_FILE = "times.txt"
+DEFAULT_RATE = 10.0  # Hz: KITTI's and most spinning LiDARs' frame rate
+ROBOT, SENSOR = "scanner", "lidar"
+
+
+def scan_files(path) -> list[Path]:
+    """The scans of a directory: files with a supported suffix, sorted by name."""
+    path = Path(path)
+    return sorted(
+        (p for p in path.iterdir() if p.suffix.lower() in SUFFIXES and p.is_file()),
+        key=lambda p: p.name,
+    )
+
+
+def read_times(path: Path, n: int) -> np.ndarray:
+    """(n,) strictly increasing finite times of a times file; ValueError naming file, line and
+    field otherwise, or the count when it is not one per scan."""
+    check_file(path, what="times file")
+    times, lines = [], []
+    for line, text in text_lines(path):
+        text = text.split("#", 1)[0].strip()
+        if not text:
+            continue
+        where = f"{path}: line {line}: field 'time'"
+        try:
+            t = float(text)
+        except ValueError:
+            raise ValueError(f"{where}: {text!r} is not a number") from None
+        if not np.isfinite(t):
+            raise ValueError(f"{where}: {text!r} is not finite")
+        if times and not t > times[-1]:
+            raise ValueError(f"{where}: {t!r} is not after the previous time {times[-1]!r}")
+        times.append(t)
+        lines.append(line)
+    if len(times) != n:
+        raise ValueError(f"{path}: {len(times)} times for {n} scans (one time per scan)")
+    return np.asarray(times)
+
+
+def read_kitti_bin(path: Path) -> np.ndarray:
+    """(N,3) float64 points of a KITTI velodyne `.bin` file (float32 x y z intensity)."""
+    check_file(path, what="point cloud")
+    size = path.stat().st_size
+    if size == 0 or size % 16:
+        raise ValueError(
+            f"{path}: {size} bytes is not a whole number of KITTI points "
+            "(16-byte float32 x y z intensity records)"
+        )
+    return np.fromfile(path, dtype="<f4").reshape(-1, 4)[:, :3].astype(np.float64)
+
+
+def _place(src: Path, dst: Path) -> None:
+    """The scan `src` at `dst` in the log directory: a hard link, else a copy; `.bin` -> PLY."""
+    if src.suffix.lower() == KITTI:
+        import open3d as o3d
+
+        cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(read_kitti_bin(src)))
+        if not o3d.t.io.write_point_cloud(str(dst), cloud):
+            raise OSError(f"{dst}: cannot write the scan converted from {src}")
+        return
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copyfile(src, dst)
+
+
+def write_log(path: Path, out: Path, rate: float | None = None) -> list[Path]:
+    """The scan directory `path` as a log directory `out`; returns the scans in order."""
+    files = scan_files(path)
+    if not files:
+        raise ValueError(f"{path}: no {'/'.join(SUFFIXES)} scans")
+    if (path / TIMES_FILE).exists():
+        times = read_times(path / TIMES_FILE, len(files))
+    else:
+        rate = DEFAULT_RATE if rate is None else float(rate)
+        if not (np.isfinite(rate) and rate > 0):
+            raise ValueError(f"scan_rate must be a finite number > 0 [Hz], got {rate!r}")
+        times = np.arange(len(files)) / rate
+    (out / "scans").mkdir(parents=True, exist_ok=True)
+    rows = []
+    for t, src in zip(times, files):
+        rel = f"scans/{src.name}" + (".ply" if src.suffix.lower() == KITTI else "")
+        _place(src, out / rel)
+        rows.append((float(t), SENSOR, rel))
+    write_table(out / "scans.csv", "scans", rows)
+    robot = {
+        "name": ROBOT,
+        "kind": "handheld",
+        "planar": False,
+        "initial_pose": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+        "sensors": [{"name": SENSOR, "type": "scanner"}],
+        "tables": {"scans": "scans.csv"},
+    }
+    source = "times file" if (path / TIMES_FILE).exists() else f"index at {rate:g} Hz"
+    body = {
+        "name": path.name or "scans",
+        "start_time": float(times[0]),
+        "robots": [robot],
+        "meta": {"scan_directory": {"source": str(path), "times": source}},
+    }
+    write_manifest(body, out)
+    return files
+
+
+class ScanDirectory:
+    """A directory of `.ply` / `.pcd` / `.xyz` / KITTI `.bin` scans (with an optional
+    `times.txt`): one robot `scanner` whose motion is KISS-ICP odometry over the scans."""
+
+    name = "scan-directory"
+    expects = f"a directory of {'/'.join(SUFFIXES)} scans (optional {TIMES_FILE})"
+    options = ("scan_rate",)
+
+    def matches(self, path: Path) -> bool:
+        return path.is_dir() and any(
+            p.suffix.lower() in SUFFIXES for p in path.iterdir() if p.is_file()
+        )
+
+    def load(
+        self, path: Path, duration: float | None, noise: dict | None, scan_rate=None
+    ) -> TeamRun:
+        tmp = Path(tempfile.mkdtemp(prefix="graphloc-scans-"))
+        run = None
+        try:
+            write_log(path, tmp, scan_rate)
+            run = read_team_run(tmp, overrides=noise)
+        except (OSError, ValueError) as exc:  # name the user's files, not the copies
+            msg = re.sub(r"^\S*scans\.csv: line \d+: field 'path': ", "", str(exc))
+            raise type(exc)(msg.replace(str(tmp / "scans"), str(path))) from None
+        finally:
+            if run is None:
+                shutil.rmtree(tmp, ignore_errors=True)
+        # the team graph reads the scans again (registration): kept until exit
+        atexit.register(shutil.rmtree, tmp, ignore_errors=True)
+        return run if duration is None else truncate(run, duration)
