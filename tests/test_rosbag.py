@@ -844,6 +844,10 @@ def test_topics_option(tmp_path, capsys):
     assert main(["validate", str(bag), "--topics", str(good), "--duration", "5"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["graph"]["factors_odometry"] == np.sum(stamps[1:] <= stamps[0] + 5.0)
+    argv = ["online", str(bag), "--topics", str(good), "--duration", "5", "--out", out]
+    assert main(argv + ["--no-progress"]) == 0
+    online = np.loadtxt(tmp_path / "out/husky_online.tum", ndmin=2)
+    assert len(online) == np.sum(stamps <= stamps[0] + 5.0)
     log = tmp_path / "log"
     import_bag(bag, good, log)
     assert main(["validate", str(log), "--topics", str(good)]) == 2
