@@ -232,8 +232,12 @@ def test_scans_are_placed_by_the_estimate(tmp_path):
     }
     write_manifest({"name": "box", "robots": [robot]}, tmp_path / "log")
     args = ["smooth", str(tmp_path / "log"), "--out", str(tmp_path / "out"), "--no-progress"]
-    assert main(args + ["--mcap", str(tmp_path / "box.mcap")]) == 0
+    assert (
+        main(args + ["--mcap", str(tmp_path / "box.mcap"), "--rerun", str(tmp_path / "b.rrd")]) == 0
+    )
+    (logged,) = rrd_columns(tmp_path / "b.rrd", "world/map/scans_rover")
     (cloud,) = mcap_messages(tmp_path / "box.mcap", "/graphloc/map/scans_rover")
+    assert len(logged["Points3D:positions"]) == cloud.width
     pts = np.frombuffer(cloud.data.tobytes(), "<f4").reshape(cloud.width, 4)[:, :3]
     est = np.loadtxt(tmp_path / "out/rover_batch.tum", ndmin=2)
     assert len(est) == 4
