@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.camera_tables import camera_from_params, positive_param
 from graphloc.io import MANIFEST, Sink
-from graphloc.run import CandidateObservation, Motion, ScanObservation
+from graphloc.run import CandidateObservation, MarkerPixels, Motion, ScanObservation
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
 
@@ -74,13 +74,14 @@ def marker_observations(
             observer=robots[ri].name,
             observed=target.name,
         )
-        for (time, _, _, lines), cs in zip(frames, sets):
+        for (time, marks, uv, lines), cs in zip(frames, sets):
             if cs is None or len(cs) == 0:
                 sink.bad(
                     "no_p3p_solution", f"{lines}: fields 'u, v': no pose fits the marker pixels"
                 )
                 continue
-            out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs))
+            pixels = None if target.identical_markers else MarkerPixels(marks, uv, camera, sigma)
+            out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs, pixels))
     return out
 
 

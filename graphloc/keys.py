@@ -4,6 +4,7 @@ outputs agree. Style of gtsam.symbol_shorthand, with the robot folded into the i
 Pose of robot r at step t:  Symbol('x', r * STRIDE + t)   e.g. x3000000012 = robot 3, step 12
 Landmark l:                 Symbol('l', l)
 Discrete mode of observation k (which candidate is genuine): Symbol('m', k)
+Marker j of robot r's layout, a world point (static robots): Symbol('k', r * MAX_MARKERS + j)
 """
 
 from __future__ import annotations
@@ -37,10 +38,25 @@ def mode_key(observation: int) -> int:
     return gtsam.symbol("m", int(observation))
 
 
+MAX_MARKERS = 1_000
+
+
+def marker_key(robot: int, marker: int) -> int:
+    """Key of marker `marker` of robot `robot`'s layout as a world point."""
+    if not (0 <= int(robot) < MAX_ROBOTS):
+        raise ValueError(f"robot index {robot} outside [0, {MAX_ROBOTS})")
+    if not (0 <= int(marker) < MAX_MARKERS):
+        raise ValueError(f"marker index {marker} outside [0, {MAX_MARKERS})")
+    return gtsam.symbol("k", int(robot) * MAX_MARKERS + int(marker))
+
+
 def decode(key: int) -> tuple[str, int, int]:
-    """Inverse of the builders: ('x', robot, t), ('l', id, 0) or ('m', obs, 0)."""
+    """Inverse of the builders: ('x', robot, t), ('l', id, 0), ('m', obs, 0) or
+    ('k', robot, marker)."""
     sym = gtsam.Symbol(key)
     kind, index = chr(sym.chr()), sym.index()
     if kind == "x":
         return kind, index // STRIDE, index % STRIDE
+    if kind == "k":
+        return kind, index // MAX_MARKERS, index % MAX_MARKERS
     return kind, index, 0

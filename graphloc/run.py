@@ -112,15 +112,30 @@ class ScanObservation:
 
 
 @dataclass(frozen=True)
+class MarkerPixels:
+    """The measurements a P3P candidate set was solved from: distinct markers `markers` (M,)
+    of the target's layout seen at `pixels` (M,2) by `camera` (graphloc.cameras.PinholeCamera)
+    with `pixel_sigma` [px] per coordinate."""
+
+    markers: np.ndarray
+    pixels: np.ndarray
+    camera: object
+    pixel_sigma: float
+
+
+@dataclass(frozen=True)
 class CandidateObservation:
     """One hypothesis set: robot `robot`'s sensor (body_T_sensor) sees robot `target`;
-    candidates are target_T_sensor poses with covariances (CandidateSet.covariance)."""
+    candidates are target_T_sensor poses with covariances (CandidateSet.covariance); pixels:
+    the marker pixels they were solved from (None: logged candidates, identical markers or a
+    circle)."""
 
     time: float
     robot: int
     target: int
     body_T_sensor: gtsam.Pose3
     candidates: CandidateSet
+    pixels: MarkerPixels | None = None
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from graphloc.candidates import CandidateSet
-from graphloc.keys import decode, landmark_key, mode_key, pose_key
+from graphloc.keys import decode, landmark_key, marker_key, mode_key, pose_key
 
 
 def test_pose_keys_are_unique_and_decode():
@@ -18,6 +18,14 @@ def test_pose_keys_are_unique_and_decode():
 def test_pose_key_rejects_out_of_range(robot, t):
     with pytest.raises(ValueError):
         pose_key(robot, t)
+
+
+def test_marker_keys_are_unique_and_decode():
+    keys = {marker_key(r, m) for r in (0, 1, 999) for m in (0, 2, 999)}
+    assert len(keys) == 9 and not keys & {pose_key(r, m) for r in (0, 1) for m in (0, 2)}
+    assert decode(marker_key(7, 3)) == ("k", 7, 3)
+    with pytest.raises(ValueError):
+        marker_key(0, 1000)
 
 
 def test_candidate_set_validates_and_normalizes():

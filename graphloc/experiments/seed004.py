@@ -1,8 +1,9 @@
 """Reproduce seed 004 (004_fa12d1d18dcbd0db.txt) Sec. III Table 1 (P3P position error vs focal
-length and pixel noise) -- paper | raw P3P (seed baseline, ours) | graphloc batch-smoothed
-track (`graphloc.pipelines.track_smoothing`), same runs -- and a Fig. 3 style plot (a
-sinusoidal track: true positions, every P3P candidate, the smoothed estimate). Simulation:
-graphloc.datasets.kaushik.
+length and pixel noise) -- paper | raw P3P (seed baseline, ours: the genuine candidate) |
+graphloc -- and a Fig. 3 style plot (a sinusoidal track: true positions, every P3P candidate,
+graphloc's estimate). Every run is a `graphloc simulate kaushik-p3p-error` log read by
+`graphloc.datasets.open_run` and solved by `graphloc.pipelines.team_graph` (what `graphloc
+smooth` runs); both columns come from the same logs.
 
     .venv/bin/python scripts/repro_seed004.py [--quick] [--runs 1000 --frames 10] --out DIR
 
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import tempfile
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -20,16 +22,18 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from graphloc.candidates import CandidateSet
-from graphloc.datasets.feng import odometry_covariance
-from graphloc.datasets.kaushik import FOCALS_MM, NOISE_VARIANCES, KaushikConfig, simulate
+from graphloc.datasets import open_run
+from graphloc.datasets.kaushik import (
+    FOCALS_MM,
+    NOISE_VARIANCES,
+    KaushikConfig,
+    KaushikP3PErrorScenario,
+)
 from graphloc.executor import Executor
 from graphloc.experiments import markdown
 from graphloc.experiments.sizes import RunSizes, run_sizes
-from graphloc.geometry.resection import resection_covariance
-from graphloc.pipelines.track_smoothing import smooth_track
+from graphloc.pipelines.team_graph import build_graph, solve
 from graphloc.plots import plt
-from graphloc.seams import Odometry
 
 # (focal mm, pixel noise variance) -> (mean, sigma) of the P3P position error [m], Table 1
 PAPER_SEED004_TABLE_1 = {
@@ -45,109 +49,91 @@ PAPER_SEED004_TABLE_1 = {
 }
 
 
-def genuine_track(
-    R: np.ndarray,
-    t: np.ndarray,
-    cov: np.ndarray,
-    have: np.ndarray,
-    odometry: list,
-    odometry_noise: float,
-    odometry_rot_sigma: float,
-) -> np.ndarray:
-    """graphloc's estimate of one track (seed 004 Table 1 column): the genuine P3P candidate of
-    every frame that has one (R (F,3,3), t (F,3), resection covariance (F,6,6); have (F,)) as a
-    plain Gaussian prior, odometry (F-1 gtsam.Pose3 steps, covariance of
-    graphloc.datasets.feng.odometry_covariance), batch-smoothed. Returns the centres (F,3)."""
-    candidates = [
-        CandidateSet(R[f][None], t[f][None], np.ones(1), time=float(f), covariance=cov[f][None])
-        if have[f]
-        else None
-        for f in range(len(t))
-    ]
-    steps = [None] + [
-        Odometry(o, odometry_covariance(o, odometry_noise, odometry_rot_sigma)) for o in odometry
-    ]
-    return smooth_track(candidates, steps, [0 if h else -1 for h in have])
-
-
-def _smooth_chunk(job) -> np.ndarray:
-    cand_R, cand_t, cand_cov, have, odometry, noise, rot = job
-    return np.stack(
-        [genuine_track(*args, noise, rot) for args in zip(cand_R, cand_t, cand_cov, have, odometry)]
-    )
+def front_door_run(job: tuple) -> dict:
+    """One track of a cell through the front door: `graphloc simulate kaushik-p3p-error` writes
+    its log, `graphloc.datasets.open_run` reads it (P3P candidate sets from the logged pixels)
+    and `graphloc.pipelines.team_graph` solves it in batch (what `graphloc smooth` runs). Per
+    frame: the seed baseline's error (the genuine P3P candidate, nearest the truth; NaN where
+    P3P gave none), graphloc's error, the camera's horizontal offset from the LED centroid and
+    the LED circumradius (danger cylinder), the candidates and the estimate."""
+    config, seed = job
+    overrides = {k: v for k, v in asdict(config).items() if k not in ("runs", "seed")}
+    with tempfile.TemporaryDirectory() as tmp:
+        KaushikP3PErrorScenario.generate(Path(tmp) / "run", seed, **overrides)
+        run = open_run(Path(tmp) / "run")
+    r = run.index("climber")
+    result = solve(build_graph(run), "batch")
+    gt_t, gt_p = run.groundtruth[r]
+    times = result.node_times[r]
+    truth = np.array([gt_p[int(np.argmin(np.abs(gt_t - t)))].translation() for t in times])
+    raw = np.full(len(times), np.nan)
+    candidates = []
+    for o in run.observations:
+        k = int(np.argmin(np.abs(times - o.time)))
+        world = run.robots[o.target].initial_pose
+        xyz = np.array(
+            [
+                world.compose(c).compose(o.body_T_sensor.inverse()).translation()
+                for c in o.candidates.poses()
+            ]
+        )
+        raw[k] = np.linalg.norm(xyz - truth[k], axis=1).min()
+        candidates.append(xyz)
+    est = result.estimate[r][:, :3]
+    ground = run.robots[run.index("ground")]
+    leds = np.array([ground.initial_pose.transformFrom(m) for m in ground.markers])
+    centroid = leds.mean(axis=0)
+    return {
+        "raw": raw,
+        "graphloc": np.linalg.norm(est - truth, axis=1),
+        "offset": np.linalg.norm(truth[:, :2] - centroid[:2], axis=1),
+        "radius": float(np.linalg.norm(leds[0] - centroid)),
+        "truth": truth,
+        "estimate": est,
+        "candidates": candidates,
+        "leds": leds,
+    }
 
 
 def _error_stats(err: np.ndarray) -> dict:
     e = err[np.isfinite(err)]
     return {
-        "rms": float(np.sqrt(np.mean(e**2))),
-        "mean": float(e.mean()),
-        "std": float(e.std()),
+        "rms": float(np.sqrt(np.mean(e**2))) if e.size else None,
+        "mean": float(e.mean()) if e.size else None,
+        "std": float(e.std()) if e.size else None,
         "n": int(e.size),
     }
 
 
 def seed004_cell(config: KaushikConfig, workers: int = 1) -> dict:
-    """One cell of seed 004 Table 1: raw P3P (genuine candidate) vs the smoothed track, same
-    runs."""
-    runs = simulate(config)
-    N, F = runs.genuine.shape
-    have = runs.genuine >= 0
-    flat = np.flatnonzero(have.ravel())
-    gidx = runs.genuine.ravel()[flat]
-    R = np.zeros((N * F, 3, 3))
-    R[:] = np.eye(3)
-    t = np.zeros((N * F, 3))
-    cov = np.broadcast_to(np.eye(6), (N * F, 6, 6)).copy()
-    R[flat], t[flat] = runs.candidates.R_wc[flat, gidx], runs.candidates.t_wc[flat, gidx]
-    sigma = config.pixel_sigma
-    cov[flat] = resection_covariance(
-        config.camera(), R[flat], t[flat], np.broadcast_to(runs.leds, (flat.size, 3, 3)), sigma
-    )
-    R, t, cov = R.reshape(N, F, 3, 3), t.reshape(N, F, 3), cov.reshape(N, F, 6, 6)
-    chunks = [c for c in np.array_split(np.arange(N), max(1, min(N, 4 * workers))) if c.size]
-    usable = have.any(axis=1)
-    jobs = [
-        (
-            R[c][usable[c]],
-            t[c][usable[c]],
-            cov[c][usable[c]],
-            have[c][usable[c]],
-            [runs.odometry[i] for i in c if usable[i]],
-            config.odometry_noise,
-            config.odometry_rot_sigma,
-        )
-        for c in chunks
-    ]
-    smoothed = np.full((N, F, 3), np.nan)
+    """One cell of seed 004 Table 1 from `config.runs` simulated logs (seeds config.seed, +1,
+    ...): the seed baseline (raw P3P, the genuine candidate) and graphloc (the logs through the
+    front door, `front_door_run`) on the same runs."""
+    jobs = [(config, config.seed + i) for i in range(config.runs)]
     with Executor(workers, progress=False) as ex:
-        for c, out in zip(chunks, ex.imap(_smooth_chunk, jobs)):
-            if len(out):
-                smoothed[c[usable[c]]] = out
-    raw_err = np.where(have, runs.genuine_error, np.nan)
-    smooth_err = np.linalg.norm(smoothed - runs.t_wc, axis=2)
-    paper = PAPER_SEED004_TABLE_1.get((float(config.focal_mm), float(config.noise_variance)))
+        runs = list(ex.imap(front_door_run, jobs))
+    raw_err = np.concatenate([x["raw"] for x in runs])
+    smooth_err = np.concatenate([x["graphloc"] for x in runs])
+    offset = np.concatenate([x["offset"] for x in runs])
     # evidence: P3P is singular when the camera is on the danger cylinder (through the LEDs,
     # axis normal to their plane; radius = circumradius) -- overhead views straddle it
-    radius = np.linalg.norm(runs.leds[0] - runs.leds.mean(axis=0))
-    offset = np.linalg.norm(runs.t_wc[..., :2] - runs.leds.mean(axis=0)[:2], axis=2)
-    far = np.abs(offset - radius) > 0.5 * radius
+    far = np.abs(offset - runs[0]["radius"]) > 0.5 * runs[0]["radius"]
+    paper = PAPER_SEED004_TABLE_1.get((float(config.focal_mm), float(config.noise_variance)))
     return {
         "focal_mm": config.focal_mm,
         "noise_variance": config.noise_variance,
-        "runs": N,
-        "frames": F,
+        "runs": config.runs,
+        "frames": config.frames,
         "paper": None if paper is None else {"mean": paper[0], "std": paper[1]},
         "seed_baseline_raw_p3p": _error_stats(raw_err),
         "graphloc_smoothed": _error_stats(smooth_err),
-        "frames_without_candidate": int((~have).sum()),
-        "raw_p3p_rms_far_from_danger_cylinder": _error_stats(raw_err[far])["rms"]
-        if far.any()
-        else None,
-        "raw_p3p_rms_near_danger_cylinder": _error_stats(raw_err[~far])["rms"]
-        if (~far).any()
-        else None,
-        "candidates_per_frame_mean": float(runs.candidates.valid.sum(axis=1).mean()),
+        "graphloc_placed_runs": int(sum(np.isfinite(x["graphloc"]).any() for x in runs)),
+        "frames_without_candidate": int(np.isnan(raw_err).sum()),
+        "raw_p3p_rms_far_from_danger_cylinder": _error_stats(raw_err[far])["rms"],
+        "raw_p3p_rms_near_danger_cylinder": _error_stats(raw_err[~far])["rms"],
+        "candidates_per_frame_mean": float(
+            np.mean([len(c) for x in runs for c in x["candidates"]])
+        ),
     }
 
 
@@ -213,33 +199,21 @@ def plot_table(r: dict, path: Path) -> None:
 
 
 def plot_fig3(path: Path, seed: int = 3, frames: int = 20) -> None:
-    """One sinusoidal track (16 mm, variance 3): truth, all P3P candidates (genuine / invalid)
-    and the smoothed estimate, in the LED plane (seed 004 Fig. 3)."""
-    cfg = KaushikConfig(runs=1, frames=frames, seed=seed)
-    run = simulate(cfg)
-    valid = run.candidates.valid
-    g = run.genuine[0]
-    have = g >= 0  # frames where P3P returned the genuine solution (others: no candidate used)
-    R, t = np.tile(np.eye(3), (frames, 1, 1)), np.full((frames, 3), np.nan)
-    cov = np.tile(np.eye(6), (frames, 1, 1))
-    R[have], t[have] = run.candidates.R_wc[have, g[have]], run.candidates.t_wc[have, g[have]]
-    cov[have] = resection_covariance(
-        cfg.camera(),
-        R[have],
-        t[have],
-        np.broadcast_to(run.leds, (int(have.sum()), 3, 3)),
-        cfg.pixel_sigma,
-    )
-    smoothed = genuine_track(
-        R, np.nan_to_num(t), cov, have, run.odometry[0], cfg.odometry_noise, cfg.odometry_rot_sigma
-    )
+    """One sinusoidal track (16 mm, variance 3) through the front door: truth, every P3P
+    candidate (genuine / other) and graphloc's estimate, in the LED plane (seed 004 Fig. 3)."""
+    x = front_door_run((KaushikConfig(runs=1, frames=frames), seed))
     fig, ax = plt.subplots(figsize=(6.5, 5.5))
-    others = run.candidates.t_wc[valid & (np.arange(valid.shape[1])[None, :] != g[:, None])]
-    ax.plot(others[:, 0], others[:, 1], "gx", ms=5, label="invalid P3P solutions")
-    ax.plot(t[:, 0], t[:, 1], "c.", label="genuine P3P solution (raw)")
-    ax.plot(run.t_wc[0, :, 0], run.t_wc[0, :, 1], "b-o", ms=3, label="true camera position")
-    ax.plot(smoothed[:, 0], smoothed[:, 1], "r-s", ms=3, label="graphloc smoothed")
-    ax.plot(run.leds[:, 0], run.leds[:, 1], "k+", ms=12, mew=2, label="LEDs")
+    genuine, others = [], []
+    for c, t in zip(x["candidates"], x["truth"]):
+        j = int(np.argmin(np.linalg.norm(c - t, axis=1)))
+        genuine.append(c[j])
+        others += [p for i, p in enumerate(c) if i != j]
+    genuine, others = np.array(genuine).reshape(-1, 3), np.array(others).reshape(-1, 3)
+    ax.plot(others[:, 0], others[:, 1], "gx", ms=5, label="other P3P solutions")
+    ax.plot(genuine[:, 0], genuine[:, 1], "c.", label="genuine P3P solution (raw)")
+    ax.plot(x["truth"][:, 0], x["truth"][:, 1], "b-o", ms=3, label="true camera position")
+    ax.plot(x["estimate"][:, 0], x["estimate"][:, 1], "r-s", ms=3, label="graphloc (front door)")
+    ax.plot(x["leds"][:, 0], x["leds"][:, 1], "k+", ms=12, mew=2, label="LEDs")
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")

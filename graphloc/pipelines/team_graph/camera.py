@@ -1,4 +1,9 @@
-"""Feature tracks (seed 003 II-B: KLT) as projection factors on landmark variables, one per
+"""Camera pixels as projection factors. Marker pixels of a static target (seed 000 Sec. III-B,
+seed 004 Sec. II-C): every marker of the target's layout is one world point of the graph, held by
+the target's pose prior, and each pixel a projection factor on the observer's pose -- the
+measurements the P3P candidates were solved from, with none of P3P's ambiguity once the
+observer's motion links the frames. Feature tracks (seed 003 II-B: KLT) as projection factors on
+landmark variables, one per
 track (seed 003 eq. 14), with the seed's weak prior on each point: on the first ray at the
 camera's `feature_depth` with std `feature_depth_sigma` (seed III: the EKF's KLT points start
 at the background distance with a large covariance). Explicit landmarks rather than
@@ -14,8 +19,8 @@ import numpy as np
 
 from graphloc.factors.robust import robust_noise
 from graphloc.io import SkipReport
-from graphloc.keys import landmark_key, pose_key
-from graphloc.pipelines.team_graph.config import FEATURE_BASE, GraphConfig
+from graphloc.keys import landmark_key, marker_key, pose_key
+from graphloc.pipelines.team_graph.config import FEATURE_BASE, GraphConfig, cov6
 from graphloc.pipelines.team_graph.motion import Timeline
 from graphloc.run import TeamRun
 
@@ -85,6 +90,67 @@ def feature_factors(
             )
         )
     return len(tracks)
+
+
+def marker_factors(
+    run: TeamRun,
+    config: GraphConfig,
+    r: int,
+    k: int,
+    time: float,
+    observation,
+    factors: list,
+    marker_points: dict,
+    skips: SkipReport,
+) -> None:
+    """The marker pixels of one candidate set (`CandidateObservation.pixels`) of a static
+    target as GenericProjectionFactorCal3_S2 on robot r's pose k (body_T_sensor extrinsics) and
+    the target's marker points (robust kernel 'projection'). A marker point enters once, in
+    `marker_points` (key -> world position, its initial value), with a PriorFactorPoint3 whose
+    covariance is the target's pose prior (static_sigma) carried to the point,
+    H P H^T with H = d(T m)/dT = [-R [m]x, R]."""
+    pix = observation.pixels
+    ti = observation.target
+    target = run.robots[ti]
+    T = target.initial_pose
+    cam = pix.camera
+    K = gtsam.Cal3_S2(cam.fx, cam.fy, 0.0, cam.cx, cam.cy)
+    noise = robust_noise(
+        gtsam.noiseModel.Isotropic.Sigma(2, pix.pixel_sigma), config.kernels.kernel("projection")
+    )
+    R = T.rotation().matrix()
+    for m, uv in zip(pix.markers, pix.pixels):
+        key = marker_key(ti, int(m))
+        if key not in marker_points:
+            local = np.asarray(target.markers[int(m)], float)
+            H = np.hstack([-R @ _skew(local), R])
+            cov = H @ cov6(config.static_sigma) @ H.T + np.eye(3) * 1e-12
+            marker_points[key] = T.transformFrom(local)
+            prior = gtsam.PriorFactorPoint3(
+                key, marker_points[key], gtsam.noiseModel.Gaussian.Covariance(cov)
+            )
+            factors.append((time, prior, "marker_prior"))
+        ideal = _ideal_pixel(cam, uv)
+        if ideal is None:
+            skips.add(
+                "bad_pixel",
+                f"robot {run.robots[r].name}: marker {int(m)} of {target.name} at "
+                f"{observation.time}: pixel {np.asarray(uv).tolist()} does not undistort",
+            )
+            continue
+        factors.append(
+            (
+                time,
+                gtsam.GenericProjectionFactorCal3_S2(
+                    gtsam.Point2(*ideal), noise, pose_key(r, k), key, K, observation.body_T_sensor
+                ),
+                "marker",
+            )
+        )
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _ideal_pixel(camera, pixel: np.ndarray):

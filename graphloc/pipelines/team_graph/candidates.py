@@ -1,5 +1,7 @@
 """Candidate sets (P3P, seed 000 / 001 / 004) -> factors: one HypothesisTracker per
-(observer, target) stream decides causally; a decided candidate becomes one robust factor."""
+(observer, target) stream decides causally; a decided candidate becomes one robust factor, or,
+where the set's marker pixels are known and the target is static, the pixels themselves enter
+(`camera.marker_factors`) and the candidates place the observer."""
 
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ from graphloc.factors.robust import robust_noise
 from graphloc.hypotheses import HypothesisTracker
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
+from graphloc.pipelines.team_graph.camera import marker_factors
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov
 from graphloc.pipelines.team_graph.motion import Timeline, compose_steps, dead_reckoning
 from graphloc.run import TeamRun
@@ -65,20 +68,29 @@ def candidate_factors(
     step_rel: list,
     factors: list,
     skips: SkipReport,
+    marker_points: dict,
     progress: bool = False,
-) -> tuple[list, dict]:
+) -> tuple[list, dict, dict, dict, dict]:
     """Every candidate set as factors, by one rule per (observer, target) stream:
     - the target is placed (known initial pose): the observer is placed through it; one
       HypothesisTracker decides causally and a decided candidate becomes one robust factor;
+      when the target is static and the sets carry their marker pixels, the pixels become
+      projection factors instead (`camera.marker_factors`; a decided candidate would count
+      them twice) and the observer is placed at its first decided set, or, if the tracker never
+      decides, at the stream's last set by the tracker's guess then (online, the observer's
+      factors wait until it is placed); every candidate of the stream's first set is an
+      alternative placement the batch solve also starts from (`alternatives`);
     - the target is not placed but the observer is (e.g. seed 003: a camera sees a teammate's
       base, two circle candidates): the target is placed through the observer and each set
       enters as a max-mixture of its candidates (`mixture_stream`), chosen by the solve.
     Returns the decisions, the decided observer poses (robot -> {node: Pose3}), the targets
     placed through an observer (robot -> {node: (observer, node, body_T_target)}) and each
     tracked observer's latest best guess, decided or not (robot -> (node, time, body pose,
-    6x6 covariance; the hint of the inter-robot scan registration, `team_graph.scans`)."""
+    6x6 covariance; the hint of the inter-robot scan registration, `team_graph.scans`) and the
+    alternative placements of pixel streams (robot -> (node, [body Pose3 per candidate])); the
+    target's marker points land in `marker_points` (key -> world position)."""
     node_times, nearest = timeline.node_times, timeline.nearest
-    decisions, decided_pose, placed_via, tentative = [], {}, {}, {}
+    decisions, decided_pose, placed_via, tentative, alternatives = [], {}, {}, {}, {}
     streams: dict = {}
     for o in run.observations:
         streams.setdefault((o.robot, o.target), []).append(o)
@@ -102,6 +114,9 @@ def candidate_factors(
         target_track = dead_reckoning(target, step_rel[ti], config)
         tracker = HypothesisTracker(config.tracker)
         prev = None
+        pixel_route = target.static and all(o.pixels is not None for o in obs)
+        first = last = None  # pixel route: (node, body pose per candidate of the first set),
+        # (node, the tracker's guess at the last set)
         for o in obs:
             k = nearest(r, o.time)
             if k < 0 or (prev is not None and k == prev):
@@ -143,6 +158,14 @@ def candidate_factors(
                 odo = Odometry(E.inverse().compose(rel).compose(E), adjoint_cov(E.inverse(), cov))
             d = tracker.update(cs, odo)
             prev = k
+            if pixel_route:
+                marker_factors(
+                    run, config, r, k, node_times[r][k], o, factors, marker_points, skips
+                )
+                bodies = [w.compose(E.inverse()) for w in world]
+                last = (k, bodies[int(np.argmax(d.probabilities))])
+                if first is None:
+                    first = (k, bodies)
             if d.pose is not None:  # the tracker's best guess so far (committed or not), then
                 # every candidate of this set by its posterior: hypotheses for the scans
                 order = np.argsort(-np.asarray(d.probabilities, dtype=float), kind="stable")
@@ -165,7 +188,9 @@ def candidate_factors(
                 j = d.committed
                 body = world[j].compose(E.inverse())
                 kernel = config.kernels.kernel("candidate")
-                if target.static:  # the target's pose is known: a prior on the observer
+                if pixel_route:
+                    factor = None
+                elif target.static:  # the target's pose is known: a prior on the observer
                     noise = robust_noise(
                         gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(E, cs.covariance[j])),
                         kernel,
@@ -181,8 +206,11 @@ def candidate_factors(
                     factor = gtsam.BetweenFactorPose3(
                         pose_key(r, k), pose_key(ti, kt), E.compose(seen[j].inverse()), noise
                     )
-                factors.append((max(node_times[r][k], node_times[ti][kt]), factor, "candidate"))
-                decided_pose.setdefault(r, {})[k] = body
+                if factor is not None:
+                    t = max(node_times[r][k], node_times[ti][kt])
+                    factors.append((t, factor, "candidate"))
+                if not (pixel_route and decided_pose.get(r)):  # pixels: placed once
+                    decided_pose.setdefault(r, {})[k] = body
                 q = gtsam.Rot3(body.rotation().matrix()).toQuaternion()
                 pose = np.r_[body.translation(), q.x(), q.y(), q.z(), q.w()]
             prob = (
@@ -204,7 +232,11 @@ def candidate_factors(
                     np.array(d.probabilities, dtype=float),
                 )
             )
-    return decisions, decided_pose, placed_via, tentative
+        if first is not None:
+            if r not in decided_pose:
+                decided_pose[r] = {last[0]: last[1]}
+            alternatives[r] = first
+    return decisions, decided_pose, placed_via, tentative, alternatives
 
 
 def mixture_stream(

@@ -45,6 +45,9 @@ class TeamGraph:
     skips: SkipReport = field(default_factory=SkipReport)
     precision: float = COARSE_PRECISION  # run_precision(run)
     links: dict = field(default_factory=dict)  # observer pose key -> (target key, (K,4,4))
+    # other initial values the batch solve starts from too (key -> value, over `initial`): one
+    # per candidate of a pixel stream's first set (`candidates.candidate_factors`)
+    alternatives: list = field(default_factory=list)
 
 
 def build_graph(
@@ -63,8 +66,9 @@ def build_graph(
     landmark_guess, n_anchor, excluded = point_factors(run, config, timeline, factors, skips)
     point_priors: list = []  # (landmark key, sigma, time): priors placed at the initial guess
     n_tracks = feature_factors(run, config, timeline, factors, skips, landmark_guess, point_priors)
-    decisions, decided_pose, placed_via, tentative = candidate_factors(
-        run, config, timeline, step_rel, factors, skips, progress
+    marker_points: dict = {}  # marker key -> world position (static targets' layouts)
+    decisions, decided_pose, placed_via, tentative, alternatives = candidate_factors(
+        run, config, timeline, step_rel, factors, skips, marker_points, progress
     )
 
     # --- initial values: known poses + odometry, decided poses + odometry; then robots placed
@@ -101,6 +105,14 @@ def build_graph(
                 initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
         else:
             initial[lkey] = np.asarray(guess, dtype=float)
+    initial.update(marker_points)
+    variants = []
+    for r, (k0, bodies) in alternatives.items():
+        if r not in poses:
+            continue
+        for body in bodies:
+            placed = place_robot(run, r, node_times, step_rel, config, {r: {k0: body}}, {}, poses)
+            variants.append({pose_key(r, k): p for k, p in enumerate(placed[0])})
     for lkey, sigma, t in point_priors:
         if lkey in initial:
             noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
@@ -136,6 +148,7 @@ def build_graph(
         "robots": R,
         "poses": len([k for k in initial if decode(k)[0] == "x"]),
         "candidate_sets": len(run.observations),
+        "marker_points": len(marker_points),
         "committed_sets": sum(d.committed >= 0 for d in decisions),
         "landmark_anchors": n_anchor,
         "feature_tracks": n_tracks,
@@ -164,6 +177,7 @@ def build_graph(
             for d in decisions
             if d.mixture is not None and d.relative is not None
         },
+        variants,
     )
 
 

@@ -47,8 +47,10 @@ class TeamResult:
     lag: float | None = None
     decisions: list = field(default_factory=list)  # graph.decisions, max-mixtures chosen
     values: object = None  # gtsam.Values: the final estimate of every variable
+    error: float = float("nan")  # the graph's error at the final estimate
 
 
+RELEASE_UPDATES = 5  # extra iSAM2 updates when held factors enter (a robot placed late)
 STEP_LOG_COLUMNS = ("step", "time", "latency_s", "cpu_s", "factors", "variables")
 
 
@@ -78,10 +80,31 @@ def solve(
     A batch solve of a graph with max-mixtures starts LM from a causal incremental pass (full
     smoothing, `warm_start`): a max-mixture is chosen at its linearization point, and from the
     graph's dead-reckoning guess a camera without odometry can sit in the false candidate's
-    basin; the incremental pass chooses each set near its own frame, as the online solve does."""
+    basin; the incremental pass chooses each set near its own frame, as the online solve does.
+    A batch solve also starts from each of `graph.alternatives` (the candidates of a marker
+    pixel stream's first set) and keeps the estimate of least error: the solve, not one frame,
+    chooses among the placements P3P leaves open."""
     initial = None
     if mode == "batch" and any(d.mixture is not None for d in graph.decisions):
         initial = warm_start(graph, stop)
+    result = _solve(graph, mode, progress, stop, on_step, on_stop, initial)
+    if mode != "batch" or result.partial:
+        return result
+    wall = result.wall_s
+    for i, variant in enumerate(graph.alternatives):
+        if stop is not None and stop():
+            break
+        other = _solve(
+            graph, mode, False, stop, None, None, {**(initial or graph.initial), **variant}
+        )
+        wall += other.wall_s
+        if not other.partial and other.error < result.error:
+            result = other
+    return replace(result, wall_s=wall)
+
+
+def _solve(graph: TeamGraph, mode, progress, stop, on_step, on_stop, initial) -> TeamResult:
+    """One solve of `graph` (see `solve`) from `initial` (key -> value; None: graph.initial)."""
     cfg = graph.config
     lag = float(cfg.lag or 0.0) if mode == "online" else 0.0
     session = Session(
@@ -117,7 +140,8 @@ def solve(
         values = gtsam.Values()
         factors = []
         waiting, held = held + group, []
-        for f, kind in waiting:
+        released = 0  # factors that waited for their robot's placement and enter now
+        for n, (f, kind) in enumerate(waiting):
             keys = factor_keys(f)
             if t < hold_until and any(_held(graph, key, t) for key in keys):
                 held.append((f, kind))
@@ -131,9 +155,16 @@ def solve(
                     added.add(key)
             factors.append(f)
             types.append(kind)
+            released += n < len(waiting) - len(group)
         if factors:
             step = session.add(factors, values, time=t)
-            log.append((i, t, step.latency_s, step.cpu_s, len(factors), session.live_variables()))
+            latency, cpu = step.latency_s, step.cpu_s
+            if mode == "online" and released:
+                # a robot placed late enters with its whole past at once: iterate iSAM2 on it
+                for _ in range(RELEASE_UPDATES):
+                    extra = session.add([], gtsam.Values(), time=t)
+                    latency, cpu = latency + extra.latency_s, cpu + extra.cpu_s
+            log.append((i, t, latency, cpu, len(factors), session.live_variables()))
         if factors and mode == "online":
             new_poses = [k for k in values.keys() if decode(k)[0] == "x"]
             est = session.estimate(new_poses)
@@ -202,6 +233,7 @@ def solve(
         lag if mode == "online" else None,
         decisions,
         final,
+        float(session.graph.error(final)) if mode == "batch" else float("nan"),
     )
 
 
