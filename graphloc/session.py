@@ -56,7 +56,7 @@ _SAVE_FORMAT = "graphloc-session"
 _SAVE_VERSION = 3  # 3: JSON + SHA-256 (2 was a pickle, no longer read: unpickling runs code)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Step:
     """One `add` call: its time stamp, how many factors and new variables, wall-clock latency [s]
     (in online mode the iSAM2 update; in batch mode only the bookkeeping)."""
@@ -68,7 +68,7 @@ class Step:
     cpu_s: float = 0.0  # CPU time of this thread over the same span
 
 
-@dataclass
+@dataclass(slots=True)
 class _Record:
     """What `save` keeps of one step so that `load` can replay it."""
 
@@ -104,9 +104,12 @@ class Session:
         self.stop = stop  # stop(): checked between LM iterations; True ends the solve there
         self.stopped = False  # the last batch solve was ended by `stop`
         self.graph = gtsam.NonlinearFactorGraph()  # every factor ever added, in order
-        self.initial = gtsam.Values()  # initial guess of every variable ever added
+        # batch: the initial guess of every variable ever added (what LM starts from); online
+        # sessions hand the guesses to iSAM2 and keep none (`_known` asks the solver)
+        self.initial = gtsam.Values() if config.mode == "batch" else None
         self.steps: list[Step] = []
-        self._records: list[_Record] = []
+        self._records: list[_Record] = []  # what `save` writes (config.keep_steps)
+        self._n_variables = 0  # variables ever added
         self._last_time = -np.inf
         self._batch_estimate: gtsam.Values | None = None
         self._batch_marginals: gtsam.Marginals | None = None
@@ -164,14 +167,12 @@ class Session:
         if t < self._last_time:
             raise ValueError(f"Session.add: time goes backwards ({t} < previous {self._last_time})")
         new_keys = set(initial_values.keys())
-        clash = [key_name(k) for k in new_keys if self.initial.exists(k)]
+        clash = [key_name(k) for k in new_keys if self._known(k)]
         if clash:
             raise ValueError(
                 f"Session.add: initial values for keys already in the session: {clash[:5]}"
             )
-        missing = sorted(
-            {k for k in graph.keyVector() if not self.initial.exists(k) and k not in new_keys}
-        )
+        missing = sorted({k for k in graph.keyVector() if k not in new_keys and not self._known(k)})
         if missing:
             names = [key_name(k) for k in missing[:5]]
             raise ValueError(f"Session.add: factors reference keys without a value: {names}")
@@ -202,7 +203,9 @@ class Session:
         latency, cpu = _time.perf_counter() - start, _time.thread_time() - cpu_start
 
         self.graph.push_back(graph)
-        self.initial.insert(initial_values)
+        if self.initial is not None:
+            self.initial.insert(initial_values)
+        self._n_variables += len(new_keys)
         self._batch_estimate = self._batch_marginals = None
         self._last_time = t
         step = Step(
@@ -213,7 +216,8 @@ class Session:
             cpu_s=cpu,
         )
         self.steps.append(step)
-        self._records.append(_Record(t, items, initial_values, latency))
+        if self.config.keep_steps:
+            self._records.append(_Record(t, items, initial_values, latency))
         return step
 
     def estimate(self, keys: Iterable[int] | None = None) -> gtsam.Values:
@@ -268,8 +272,15 @@ class Session:
                 f"GTSAM cannot compute it ({_first_line(exc)})"
             ) from None
 
+    def _known(self, key: int) -> bool:
+        """Whether `key` was added (batch: it has an initial guess; online: iSAM2 holds it or
+        the fixed lag marginalized it)."""
+        if self._isam is None:
+            return self.initial.exists(key)
+        return self._isam.valueExists(key) or self.marginalized(key)
+
     def _check_known(self, keys: list, what: str) -> None:
-        unknown = [key_name(k) for k in keys if not self.initial.exists(k)]
+        unknown = [key_name(k) for k in keys if not self._known(k)]
         if unknown:
             raise ValueError(f"Session.{what}: no variable {unknown[:5]} in this session")
 
@@ -284,7 +295,7 @@ class Session:
 
     def live_variables(self) -> int:
         """Variables the solver holds: all of them, or (fixed lag) those inside the lag."""
-        return len(self._window.touched) if self.fixed_lag else int(self.initial.size())
+        return len(self._window.touched) if self.fixed_lag else self._n_variables
 
     def error(self, values: gtsam.Values | None = None) -> float:
         """Total graph error (0.5 * sum of whitened, robustified squared residuals)."""
@@ -336,7 +347,13 @@ class Session:
         """Write config + every step (factors, providers, initial values, time) to `path` as
         versioned JSON, atomically (see the module docstring). A bare gtsam.CustomFactor cannot
         be saved: add the provider that builds it (e.g. a `MaxMixture` object rather than its
-        `.factor`). ValueError names the step and factor that cannot be written."""
+        `.factor`). ValueError names the step and factor that cannot be written, or says that
+        the session keeps no steps (`SessionConfig.keep_steps` False)."""
+        if not self.config.keep_steps:
+            raise ValueError(
+                "Session.save: this session keeps no steps (SessionConfig.keep_steps=False: "
+                "a long online run that bounds its memory); nothing to replay it from"
+            )
         steps = []
         for i, record in enumerate(self._records):
             where = f"Session.save: step {i} (time {record.time})"

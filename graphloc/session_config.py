@@ -38,6 +38,10 @@ class SessionConfig:
     rounded down to a multiple of it; old variables leave in one batch every
     `marginalize_every` seconds (the window spans `lag` to `lag + marginalize_every`), and
     every update orders one group per live stamp.
+    keep_steps: keep every `add` step (its factors and initial values) so that `Session.save`
+    can write the session; False: the session keeps only what its solver needs (online: iSAM2's
+    window and the marginalized variables' last estimates; batch: the graph and initial guess),
+    so a long fixed-lag run grows only by those estimates, and `save` raises ValueError.
     """
 
     mode: str = "batch"
@@ -53,6 +57,7 @@ class SessionConfig:
     isam2_optimizer: str = "gauss_newton"
     lag: float = 0.0
     marginalize_every: float = 0.0
+    keep_steps: bool = True
 
     def __post_init__(self):
         check(
