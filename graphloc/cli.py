@@ -52,9 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for verb, module_name in VERBS.items():
         module = importlib.import_module(f"graphloc.commands.{module_name}")
-        p = sub.add_parser(
-            verb, help=module.HELP, description=module.HELP, conflict_handler="resolve"
-        )  # a verb's own --no-progress gives way to the common one
+        p = sub.add_parser(verb, help=module.HELP, description=module.HELP)
         module.add_arguments(p)
         add_common_arguments(p)
         p.set_defaults(_run=module.run)

@@ -42,7 +42,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     many_runs.add_arguments(parser)
     parser.add_argument("--out", required=True, type=Path, help="output directory")
     parser.add_argument("--config", type=Path, help="TOML file with any of the options below")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     add_config_arguments(parser, RunOptions)
 
 
@@ -148,7 +147,6 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
             indent=1,
         )
     )
-    print(f"outputs in {args.out}")
     return EXIT_STOPPED if metrics["partial"] else OK
 
 
