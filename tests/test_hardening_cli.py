@@ -384,6 +384,12 @@ CLOUD_CASES = [
         r"000001\.ply: no points could be read",
     ),
     ("empty-file", lambda c: (c / "000001.ply").write_bytes(b""), r"no points could be read"),
+    (  # Open3D warns "Read PLY failed" and returns the unread half uninitialised
+        "truncated-ply",
+        lambda c: (c / "000001.ply").write_bytes((c / "000001.ply").read_bytes()[:5000]),
+        r"000001\.ply: truncated or corrupt: the header declares 400 rows \(9600 bytes of data\), "
+        r"the file holds \d+ bytes of data",
+    ),
     (
         "ten-identical-points",
         lambda c: write_cloud(c / "000001.ply", np.ones((10, 3))),

@@ -1,7 +1,9 @@
 """Issue 17, point clouds: the two robots' scans must be in one unit before any registration
 (`graphloc.mapping.io.check_scan_scales`). Ceiling scans in centimetres or millimetres beside
 ground scans in metres, or one scan of a sequence in another unit, are a ValueError naming the
-files and the ratio; scans of one room in one unit pass, whatever that room's size."""
+files and the ratio; scans of one room in one unit pass, whatever that room's size. A PLY / PCD
+file whose data do not match its header (truncated, garbled rows) is a ValueError naming it --
+Open3D only warns and returns the unread points uninitialised."""
 
 from __future__ import annotations
 
@@ -9,11 +11,12 @@ import re
 from pathlib import Path
 
 import numpy as np
+import open3d as o3d
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from graphloc.mapping.io import MAX_SCALE_RATIO, check_scan_scales, scan_extent
+from graphloc.mapping.io import MAX_SCALE_RATIO, check_scan_scales, read_points, scan_extent
 from test_hardening import FAST
 
 
@@ -80,3 +83,37 @@ def test_one_scan_in_another_unit_names_its_file():
     ground[0] = ground[0] / 1000.0
     with pytest.raises(ValueError, match=r"^g/000000\.ply: .*ratio near 1000: millimetres\?"):
         check_scan_scales(ground, files("g", 4), room_scans(rng, 4), files("c", 4))
+
+
+# ---- point-cloud files whose data do not match their header (Open3D only warns on them and
+# returns the unread points uninitialised) ------------------------------------------------------
+def _cloud(path: Path, ascii_: bool) -> bytes:
+    pts = np.random.default_rng(3).uniform(-3.0, 3.0, (100, 3))
+    cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts))
+    o3d.t.io.write_point_cloud(str(path), cloud, write_ascii=ascii_)
+    return path.read_bytes()
+
+
+def _garble_row(data: bytes) -> bytes:
+    lines = data.split(b"\n")
+    end = next(k for k, ln in enumerate(lines) if ln.startswith((b"end_header", b"DATA")))
+    lines[end + 5] = b"1.5 x 2.5"
+    return b"\n".join(lines)
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".pcd"])
+@pytest.mark.parametrize(
+    "ascii_, breaks, reason",
+    [
+        (False, lambda d: d[: len(d) // 2], r"declares 100 rows \(2400 bytes of data\), the file"),
+        (True, lambda d: d[: len(d) // 2], r"declares 100 rows, the file holds \d\d data lines"),
+        (True, _garble_row, r"data row 5 is not numbers: '1.5 x 2.5'"),
+    ],
+)
+def test_clouds_whose_data_do_not_match_their_header_are_errors(
+    tmp_path, suffix, ascii_, breaks, reason
+):
+    path = tmp_path / f"scan{suffix}"
+    path.write_bytes(breaks(_cloud(path, ascii_)))
+    with pytest.raises(ValueError, match=re.escape(str(path)) + r": .*" + reason):
+        read_points(path)
