@@ -9,7 +9,10 @@ candidate, or > WRONG_DISTANCE from the truth when the committed track has no ca
 updates to the first CORRECT commit (the comparison that counts: a fast wrong lock is not
 convergence); runs that never converge; relocalizations; position RMSE over the committed
 frames, and for the tracker its committed modes re-solved by batch LM and by frame-by-frame
-iSAM2 (`resolve_decided`). Used by `graphloc reproduce seed000-table3`
+iSAM2 (`resolve_decided`). "front_door" is graphloc itself on the same run: its
+`graphloc simulate` log through `open_run` and the team graph
+(`graphloc.experiments.front_door.feng_table_iii_run`), the column of seed 000 Table III.
+Used by `graphloc reproduce seed000-table3`
 (graphloc.experiments.seed000) and scripts/bench_hypotheses.py
 (graphloc.experiments.bench_hypotheses).
 """
@@ -34,6 +37,7 @@ from graphloc.datasets.feng import (
     odometry_covariance,
     world_odometry,
 )
+from graphloc.experiments.front_door import feng_table_iii_run
 from graphloc.hypotheses import HypothesisTracker, TrackerConfig
 from graphloc.keys import decode, pose_key
 from graphloc.pipelines.track_smoothing import decided, track_graph
@@ -49,7 +53,14 @@ PAPER_TABLE_III = {
     ("level", "quadratic"): 8.97,
     ("sloped", "quadratic"): 14.15,
 }
-METHODS = ("belief_def1", "belief_def2", "particle_filter", "straight_line", "tracker")
+METHODS = (
+    "belief_def1",
+    "belief_def2",
+    "particle_filter",
+    "straight_line",
+    "tracker",
+    "front_door",
+)
 WRONG_DISTANCE = 0.25  # [m] committed pose this far from the truth without a candidate = wrong
 
 
@@ -236,8 +247,15 @@ def trial(job) -> dict:
         ),
     }
     world = world_odometry_steps(run, sim) if args.action_frame == "world" else None
+    overrides = {
+        "ceiling": ceiling,
+        "curve": curve,
+        "pixel_sigma": args.pixel_sigma,
+        "odometry_model": args.odometry_model,
+    }
+    out["front_door"] = feng_table_iii_run(overrides, seed, WRONG_DISTANCE)
     for method in METHODS:
-        if method == "straight_line" and curve != "line":
+        if method == "front_door" or (method == "straight_line" and curve != "line"):
             continue
         steps = world if world is not None and method.startswith("belief") else odometry
         out[method] = evaluate(

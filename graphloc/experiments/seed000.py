@@ -76,9 +76,10 @@ def table_iii(config: TableIIIConfig = TableIIIConfig(), progress: bool = True) 
 
 
 def _fewer_updates(cell: dict, key: str) -> bool:
-    """graphloc's tracker needs fewer mean updates (`key`) than the paper and both belief-vector
-    definitions (a belief vector that never gets there in any run counts as slower)."""
-    mine = cell["tracker"][key]
+    """graphloc (the front door: the run's log through the team graph) needs fewer mean updates
+    (`key`) than the paper and both belief-vector definitions (a belief vector that never gets
+    there in any run counts as slower)."""
+    mine = cell["front_door"][key]
     others = [cell["paper_table_iii"]] + [cell[m][key] for m in ("belief_def1", "belief_def2")]
     return mine is not None and all(o is None or mine < o for o in others)
 

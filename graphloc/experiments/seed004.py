@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import tempfile
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -22,7 +21,6 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from graphloc.datasets import open_run
 from graphloc.datasets.kaushik import (
     FOCALS_MM,
     NOISE_VARIANCES,
@@ -31,6 +29,7 @@ from graphloc.datasets.kaushik import (
 )
 from graphloc.executor import Executor
 from graphloc.experiments import markdown
+from graphloc.experiments.front_door import simulated_run, truth_at
 from graphloc.experiments.sizes import RunSizes, run_sizes
 from graphloc.pipelines.team_graph import build_graph, solve
 from graphloc.plots import plt
@@ -58,14 +57,11 @@ def front_door_run(job: tuple) -> dict:
     the LED circumradius (danger cylinder), the candidates and the estimate."""
     config, seed = job
     overrides = {k: v for k, v in asdict(config).items() if k not in ("runs", "seed")}
-    with tempfile.TemporaryDirectory() as tmp:
-        KaushikP3PErrorScenario.generate(Path(tmp) / "run", seed, **overrides)
-        run = open_run(Path(tmp) / "run")
+    run = simulated_run(KaushikP3PErrorScenario.name, seed, overrides)
     r = run.index("climber")
     result = solve(build_graph(run), "batch")
-    gt_t, gt_p = run.groundtruth[r]
     times = result.node_times[r]
-    truth = np.array([gt_p[int(np.argmin(np.abs(gt_t - t)))].translation() for t in times])
+    truth = truth_at(run, r, times)
     raw = np.full(len(times), np.nan)
     candidates = []
     for o in run.observations:

@@ -25,6 +25,7 @@ from graphloc.candidates import CandidateSet
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
 from graphloc.executor import Executor
+from graphloc.experiments.front_door import truth_at
 from graphloc.pipelines.report import genuine_candidates
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 
@@ -33,14 +34,8 @@ KAUSHIK_CELLS = [(f, v) for v in (3.0, 5.0, 10.0) for f in (16.0, 26.0, 36.0)]
 SIZES = {"full": 20, "quick": 3}  # seeds per cell
 
 
-def _positions(run, r: int, times: np.ndarray) -> np.ndarray:
-    gt_t, gt_p = run.groundtruth[r]
-    idx = np.clip(np.searchsorted(gt_t, times - 1e-9), 0, len(gt_t) - 1)
-    return np.array([gt_p[i].translation() for i in idx])
-
-
 def _errors(run, result, r: int, rows: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(rows[:, :3] - _positions(run, r, result.node_times[r]), axis=1)
+    return np.linalg.norm(rows[:, :3] - truth_at(run, r, result.node_times[r]), axis=1)
 
 
 def through_front_door(
@@ -53,7 +48,7 @@ def through_front_door(
         # enters as a pose factor (the marker pixels withheld): seed 004's Table 1 smoothing
         obs = []
         for o in run.observations:
-            truth = _positions(run, r, np.array([o.time]))[0]
+            truth = truth_at(run, r, np.array([o.time]))[0]
             world = [
                 run.robots[o.target]
                 .initial_pose.compose(p)

@@ -1,0 +1,98 @@
+"""The seeds' tables from logs, through the front door: a scenario's `graphloc simulate` log
+read by `graphloc.datasets.open_run` and solved by `graphloc.pipelines.team_graph` (what
+`graphloc smooth` / `online` run), with the per-set decisions and the per-frame errors the
+tables need. `simulated_run` writes and reads one log; `feng_table_iii_run` is graphloc's
+column of seed 000 Table III (Sec. VI-B) on one run, in the statistics
+`graphloc.experiments.hypotheses.summarize` pools."""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from graphloc.datasets import open_run
+from graphloc.datasets.scenarios import generate
+from graphloc.pipelines.report import genuine_candidates
+from graphloc.pipelines.team_graph import build_graph, solve
+from graphloc.run import TeamRun
+
+
+def simulated_run(scenario: str, seed: int, overrides: dict) -> TeamRun:
+    """`graphloc simulate SCENARIO --seed SEED` with `overrides` (config fields) into a
+    temporary directory, read back by `open_run`."""
+    with tempfile.TemporaryDirectory() as tmp:
+        generate(scenario, Path(tmp) / "run", seed, overrides)
+        return open_run(Path(tmp) / "run")
+
+
+def truth_at(run: TeamRun, r: int, times: np.ndarray) -> np.ndarray:
+    """Robot r's true positions (N,3) at `times` (the nearest ground-truth stamp)."""
+    gt_t, gt_p = run.groundtruth[r]
+    idx = np.clip(np.searchsorted(gt_t, np.asarray(times) - 1e-9), 0, len(gt_t) - 1)
+    return np.array([gt_p[i].translation() for i in idx]).reshape(-1, 3)
+
+
+def feng_table_iii_run(overrides: dict, seed: int, wrong_distance: float) -> dict:
+    """One seed 000 Sec. VI-B run (`feng-probabilistic` with `overrides`) through the front
+    door. Frame k = the k-th update of the run (update 1 = the first odometry step). A decided
+    set is correct when its candidate is the genuine one (nearest the truth) or the same pose
+    as it (`team_graph.candidates.same_pose`), or its pose is within `wrong_distance` of the
+    truth. converged / correct_lock: frame of the first decided / first correct decided set;
+    relocalizations: decided sets that follow an undecided one after the first decision;
+    rmse_locked: the decided poses; rmse_locked_batch / _online: the batch and online
+    estimates on the frames from the first decision on; mean_latency_ms: per online step."""
+    run = simulated_run("feng-probabilistic", seed, overrides)
+    r = run.index("climber")
+    graph = build_graph(run)
+    results = {mode: solve(graph, mode) for mode in ("batch", "online")}
+    decisions = graph.decisions
+    times = graph.node_times[r]
+    truth = truth_at(run, r, times)
+    genuine = genuine_candidates(run, decisions)
+    converged = correct_lock = None
+    wrong = False
+    locked = wrong_frames = relocalizations = 0
+    sq, previous = [], None
+    for d, g in zip(decisions, genuine):
+        k = int(np.argmin(np.abs(times - d.time)))
+        decided = d.committed >= 0
+        if decided and previous is False and converged is not None:
+            relocalizations += 1
+        previous = decided
+        if not decided:
+            continue
+        err2 = float(np.sum((d.pose[:3] - truth[k]) ** 2))
+        ok = g in d.same_pose or err2 < wrong_distance**2
+        locked += 1
+        wrong_frames += int(not ok)
+        sq.append(err2)
+        if ok and correct_lock is None:
+            correct_lock = k
+        if converged is None:
+            converged, wrong = k, not ok
+    out = {
+        "converged": converged,
+        "wrong": bool(wrong),
+        "correct_lock": correct_lock,
+        "relocalizations": relocalizations,
+        "locked_frames": locked,
+        "wrong_locked_frames": wrong_frames,
+        "rmse_locked": float(np.sqrt(np.mean(sq))) if sq else None,
+        "median_error_locked": float(np.sqrt(np.median(sq))) if sq else None,
+        "rmse_locked_batch": None,
+        "rmse_locked_online": None,
+        "resolved_frames": 0,
+        "frames": len(times),
+        "mean_latency_ms": 1e3 * float(np.mean(results["online"].latencies))
+        if len(results["online"].latencies)
+        else 0.0,
+    }
+    if converged is not None:
+        after = np.arange(len(times)) >= converged
+        for mode, res in results.items():
+            err = np.linalg.norm(res.estimate[r][after, :3] - truth[after], axis=1)
+            out[f"rmse_locked_{mode}"] = float(np.sqrt(np.mean(err**2)))
+        out["resolved_frames"] = int(after.sum())
+    return out
