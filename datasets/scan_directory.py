@@ -54,7 +54,7 @@ def read_times(path: Path, n: int) -> np.ndarray:
     """(n,) strictly increasing finite times of a times file; ValueError naming file, line and
     field otherwise, or the count when it is not one per scan."""
     check_file(path, what="times file")
-    times, lines = [], []
+    times = []
     for line, text in text_lines(path):
         text = text.split("#", 1)[0].strip()
         if not text:
@@ -69,7 +69,6 @@ def read_times(path: Path, n: int) -> np.ndarray:
         if times and not t > times[-1]:
             raise ValueError(f"{where}: {t!r} is not after the previous time {times[-1]!r}")
         times.append(t)
-        lines.append(line)
     if len(times) != n:
         raise ValueError(f"{path}: {len(times)} times for {n} scans (one time per scan)")
     return np.asarray(times)
