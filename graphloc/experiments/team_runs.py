@@ -19,12 +19,14 @@ import tempfile
 from dataclasses import replace
 from pathlib import Path
 
+import gtsam
 import numpy as np
 
 from graphloc.candidates import CandidateSet
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
 from graphloc.executor import Executor
+from graphloc.keys import pose_key
 from graphloc.experiments.front_door import truth_at
 from graphloc.pipelines.report import genuine_candidates
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
@@ -111,7 +113,31 @@ def through_front_door(
             )
     out["frames_after_commit"] = int(after.sum())
     out["frames"] = int(len(times))
+    # how the batch error splits: the part that is one offset of the whole track, and what the
+    # graph itself predicts (its marginal position covariances at the estimate)
+    offset = results["batch"].estimate[r][:, :3] - truth_at(run, r, times)
+    out["batch_offset_sq"] = float(len(times) * np.sum(np.nanmean(offset, axis=0) ** 2))
+    out["batch_predicted_sq"] = _predicted_sq(graph, results["batch"].values, r)
     return out
+
+
+def _predicted_sq(graph, values, r: int) -> float | None:
+    """Sum over robot r's poses of the trace of their marginal position covariance in the
+    batch graph at `values` (gtsam.Marginals); None when the graph holds max-mixtures."""
+    factors = gtsam.NonlinearFactorGraph()
+    for _, group in graph.steps:
+        for f, _ in group:
+            if not isinstance(f, gtsam.NonlinearFactor):
+                return None
+            factors.add(f)
+    marginals = gtsam.Marginals(factors, values)
+    return float(
+        sum(
+            np.trace(marginals.marginalCovariance(pose_key(r, k))[3:, 3:])
+            for k in range(len(graph.node_times[r]))
+            if values.exists(pose_key(r, k))
+        )
+    )
 
 
 def _job(job: tuple) -> dict:

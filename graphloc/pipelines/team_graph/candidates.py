@@ -77,9 +77,8 @@ def candidate_factors(
       when the target is static and the sets carry their marker pixels, the pixels become
       projection factors instead (`camera.marker_factors`; a decided candidate would count
       them twice) and the observer is placed at its first decided set, or, if the tracker never
-      decides, at the stream's last set by the tracker's guess then (online, the observer's
-      factors wait until it is placed); every candidate of the stream's first set is an
-      alternative placement the batch solve also starts from (`alternatives`);
+      decides, at the stream's first set by the tracker's guess there; every candidate of that
+      set is an alternative placement the batch solve also starts from (`alternatives`);
     - the target is not placed but the observer is (e.g. seed 003: a camera sees a teammate's
       base, two circle candidates): the target is placed through the observer and each set
       enters as a max-mixture of its candidates (`mixture_stream`), chosen by the solve.
@@ -115,8 +114,7 @@ def candidate_factors(
         tracker = HypothesisTracker(config.tracker)
         prev = None
         pixel_route = target.static and all(o.pixels is not None for o in obs)
-        first = last = None  # pixel route: (node, body pose per candidate of the first set),
-        # (node, the tracker's guess at the last set)
+        first = None  # pixel route: (node, body pose per candidate, the tracker's guess)
         for o in obs:
             k = nearest(r, o.time)
             if k < 0 or (prev is not None and k == prev):
@@ -162,10 +160,9 @@ def candidate_factors(
                 marker_factors(
                     run, config, r, k, node_times[r][k], o, factors, marker_points, skips
                 )
-                bodies = [w.compose(E.inverse()) for w in world]
-                last = (k, bodies[int(np.argmax(d.probabilities))])
                 if first is None:
-                    first = (k, bodies)
+                    bodies = [w.compose(E.inverse()) for w in world]
+                    first = (k, bodies, bodies[int(np.argmax(d.probabilities))])
             if d.pose is not None:  # the tracker's best guess so far (committed or not), then
                 # every candidate of this set by its posterior: hypotheses for the scans
                 order = np.argsort(-np.asarray(d.probabilities, dtype=float), kind="stable")
@@ -234,8 +231,8 @@ def candidate_factors(
             )
         if first is not None:
             if r not in decided_pose:
-                decided_pose[r] = {last[0]: last[1]}
-            alternatives[r] = first
+                decided_pose[r] = {first[0]: first[2]}
+            alternatives[r] = first[:2]
     return decisions, decided_pose, placed_via, tentative, alternatives
 
 
