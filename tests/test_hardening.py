@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -513,6 +514,51 @@ def test_mrclam_window_skips_are_counted_exactly(tmp_path):
     run = _load(tmp_path / "cut", duration=1.0)
     assert run.skips.counts["after_duration"] == 2 * 2 * 4 and run.skips.counts["after_end"] == 24
     assert run.meta["window"]["end_set_by"] == "duration 1.0 s"
+
+
+DATASET6 = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
+
+
+def _raw_rows(root: Path) -> int:
+    """Data rows of a directory's RobotN_{Odometry,Measurement,Groundtruth}.dat files."""
+    return sum(
+        1
+        for p in root.glob("Robot*_*.dat")
+        if not p.stem.endswith("_x")
+        for line in p.read_text().splitlines()
+        if line.strip() and not line.startswith("#")
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not DATASET6.is_dir(), reason="MRCLAM Dataset6 not available")
+def test_dataset6_rows_are_used_or_counted_as_shipped_and_with_odometry_cut(tmp_path):
+    """The issue's two real cases: Dataset6 as shipped (57 measurements before the common start
+    were dropped uncounted) and with Robot3's odometry cut in half (about 280 measurements
+    vanished, 6 counted). Every row of every robot file is kept or counted, by reason."""
+    run = _load(DATASET6)
+    assert run.skips.counts == {
+        "before_start": 57,
+        "odometry_after_end": 7,
+        "unknown_barcode": 6,
+        "groundtruth_outside_window": 4954,
+    }
+    assert _rows_kept(run) + run.skips.total == _raw_rows(DATASET6)
+    for p in DATASET6.iterdir():  # a copy by links, Robot3_Odometry.dat cut in half
+        if p.name != "Robot3_Odometry.dat":
+            os.symlink(p.resolve(), tmp_path / p.name)
+    lines = (DATASET6 / "Robot3_Odometry.dat").read_text().splitlines()
+    (tmp_path / "Robot3_Odometry.dat").write_text("\n".join(lines[: len(lines) // 2]) + "\n")
+    run = _load(tmp_path)
+    assert run.meta["window"]["end_set_by"] == "Robot3_Odometry.dat (earliest last row)"
+    assert run.skips.counts == {
+        "before_start": 57,
+        "after_end": 10612,
+        "odometry_after_end": 126485,
+        "unknown_barcode": 3,
+        "groundtruth_outside_window": 145680,
+    }
+    assert _rows_kept(run) + run.skips.total == _raw_rows(tmp_path)
 
 
 def _edit(root, name, line_no, text):
