@@ -2,7 +2,8 @@
 that marginalizes, with `ISAM2::marginalizeLeaves`, every variable added more than `lag` seconds
 (of the add times) before the newest. A constrained ordering by add time keeps those variables
 leaves of the Bayes tree, so no re-elimination is needed (`FixedLagWindow.update`); a
-marginalized variable keeps its last estimate."""
+marginalized variable keeps its last estimate (of a full back-substitution, not iSAM2's
+wildfire-truncated one)."""
 
 from __future__ import annotations
 
@@ -77,8 +78,9 @@ class FixedLagWindow:
         its own stamp or older ones, and the keys stamped more than `lag` before the newest
         stamp are leaves, marginalized by `marginalizeLeaves` alone, without re-eliminating the
         window (GTSAM's IncrementalFixedLagSmoother re-orders and re-eliminates the path from
-        the marginalized cliques to the root whenever it marginalizes). They keep their
-        estimate from before the marginalization. CCOLAMD takes group numbers below the number
+        the marginalized cliques to the root whenever it marginalizes). They keep the estimate
+        of a full back-substitution (`ISAM2::calculateBestEstimate`) right before the
+        marginalization. CCOLAMD takes group numbers below the number
         of variables it orders, so the groups are the ranks of the live stamps and the most
         recent keys (at least one more than there are stamps) are always re-eliminated too
         (they are at the top of the tree, re-eliminated by most updates anyway)."""
@@ -117,8 +119,11 @@ class FixedLagWindow:
             self.isam.update(empty, gtsam.Values(), [], self._groups, None, extra)
         if not old:
             return
-        # the marginalized keys keep their estimate; the live stamps are renumbered from 0
-        self.frozen.insert(self.isam.calculateEstimate(old))
+        # the marginalized keys keep their estimate -- of a full back-substitution: iSAM2's
+        # own stops where the solution changes less than the wildfire threshold, which is
+        # harmless for a live variable (a later update refines it) but would freeze a stale
+        # one --; the live stamps are renumbered from 0
+        self.frozen.insert(self.isam.calculateBestEstimate().extract(old))
         self.isam.marginalizeLeaves(_key_list(old))
         for k in old:
             del self.touched[k]
