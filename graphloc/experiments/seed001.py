@@ -127,8 +127,12 @@ def run(
     n_clutter: int,
     miscalibrated: PinholeCamera,
     occlusion_rate: float,
+    record: list | None = None,
 ):
-    """Track the target through one trajectory; per-frame errors of every pose variant."""
+    """Track the target through one trajectory; per-frame errors of every pose variant.
+    record: a list that receives, per frame, the detected marker pixels (m,2) and the true
+    pose (R_tc, t) and distance -- what graphloc.experiments.seed001_readings re-estimates under
+    other readings of the setup without rendering again."""
     cam = seed001_camera()
     radius = LARGE_TARGET.marker_diameter / 2
     min_area, max_area = marker_area_bounds(cam.fx, radius, 0.5, d_hi + 0.4)
@@ -184,6 +188,9 @@ def run(
                 pred_px = None
         det = detect_markers(frame.image, det_cfg, roi=roi, predicted_px=pred_px)
         distance = float(np.linalg.norm(t_true[k] - LARGE_TARGET.points.mean(axis=0)))
+        if record is not None:
+            pts = np.asarray(det.points, float).reshape(-1, 2)
+            record.append({"pixels": pts, "R": R_true[k], "t": t_true[k], "distance": distance})
         row = {
             "frame": k,
             "hidden_marker": int(hidden[k]),

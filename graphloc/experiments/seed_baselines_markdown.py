@@ -6,6 +6,7 @@ builds. Every number printed is one of the dict's."""
 from __future__ import annotations
 
 from graphloc.experiments.markdown import fmt
+from graphloc.experiments.seed_baselines_sections import sections
 
 
 def _dev(x: float) -> str:
@@ -300,4 +301,17 @@ def markdown(r: dict, png: str) -> str:
         f"![sweeps]({png})",
         "",
     ]
-    return "\n".join(head + _sb_table1(r) + _sb_table3(r) + _sb_seed004(r))
+    more = r.get("more_wall_time_s", {})
+    if more:
+        head += [
+            "Seed 001 experiment 1 and seed 003 Fig. 6: "
+            + ", ".join(f"{k} {v:.0f} s" for k, v in more.items())
+            + " (`--only seed001,seed003` re-runs just these and merges them into "
+            "docs/results_seed_baselines.json, the whole result); plot "
+            "`results_seed_baselines_001_003.png`.",
+            "",
+            "![seed 001 and 003](results_seed_baselines_001_003.png)",
+            "",
+        ]
+    tables = _sb_table1(r) + _sb_table3(r) + _sb_seed004(r)
+    return "\n".join(head + tables + sections(r))

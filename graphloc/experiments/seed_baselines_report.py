@@ -19,7 +19,8 @@ import numpy as np
 
 from graphloc.datasets.feng_deterministic import TableIConfig
 from graphloc.datasets.kaushik import KaushikConfig
-from graphloc.experiments import seed000, seed004
+from graphloc.experiments import seed000, seed001_readings, seed003_readings, seed004
+from graphloc.experiments import seed_baselines_sections as sections
 from graphloc.experiments.seed_baselines_markdown import markdown
 from graphloc.experiments import seed_baselines as sb
 from graphloc.experiments.hypotheses import TableIIIConfig
@@ -30,7 +31,15 @@ SWEEP_SIZES = {
     False: {"t1_trials": 1000, "t3_runs": 12, "s4_runs": 150, "s4_frames": 4},
     True: {"t1_trials": 200, "t3_runs": 3, "s4_runs": 30, "s4_frames": 3},
 }
+# seed 001 experiment 1: rendered frames of runs 1 / 2; seed 003: sequences per schedule
+MORE_SIZES = {
+    False: {"s1_frames1": 300, "s1_frames2": 200, "s3_trials": 6},
+    True: {"s1_frames1": 60, "s1_frames2": 40, "s3_trials": 1},
+}
+MORE = ("seed001", "seed003")
 DOC = Path(__file__).resolve().parents[2] / "docs" / "results_seed_baselines.md"
+DOC_JSON = DOC.with_suffix(".json")  # the last run's result: --only merges into it
+MORE_PNG = "results_seed_baselines_001_003.png"
 
 
 def _sizes(quick: bool):
@@ -180,18 +189,44 @@ def run(out: Path, quick: bool, workers: int, docs: bool = True, progress: bool 
     result = {"quick": quick, "workers": workers, "sweeps": sweeps}
     result["runs"] = graphloc_runs(sweeps, quick, workers, progress)
     result["wall_time_s"] = time.perf_counter() - t0
+    run_more(result, MORE, quick, workers, progress)
     (out / "seed_baselines.json").write_text(json.dumps(result, indent=1, default=_json))
     return render(result, out, docs)
+
+
+def run_more(result: dict, parts, quick: bool, workers: int, progress: bool = True) -> dict:
+    """Seed 001 experiment 1 and / or seed 003 Fig. 6 (`parts`), each with its sweep, choice
+    and both methods at the stated and the chosen reading, into `result` (the seed 000 / 004
+    parts untouched); their wall times under result["more_wall_time_s"]."""
+    sizes = MORE_SIZES[quick]
+    times = result.setdefault("more_wall_time_s", {})
+    for part in parts:
+        t0 = time.perf_counter()
+        if part == "seed001":
+            result[part] = seed001_readings.run_all(
+                sizes["s1_frames1"], sizes["s1_frames2"], sb.choose, progress=progress
+            )
+        else:
+            result[part] = seed003_readings.run_all(sizes["s3_trials"], workers, progress=progress)
+        result[part]["quick"] = quick
+        times[part] = time.perf_counter() - t0
+    return result
 
 
 def render(result: dict, out: Path, docs: bool = True) -> dict:
     """Plot and markdown of a result (also from its saved JSON: --render)."""
     out.mkdir(parents=True, exist_ok=True)
     plot(result, out / "results_seed_baselines.png")
+    more = any(k in result for k in MORE)
+    if more:
+        sections.plot(result, out / MORE_PNG)
     md = markdown(result, "results_seed_baselines.png")
     (out / "seed_baselines.md").write_text(md)
     if docs:
         plot(result, DOC.with_suffix(".png"))
+        if more:
+            sections.plot(result, DOC.parent / MORE_PNG)
+        DOC_JSON.write_text(json.dumps(result, indent=1, default=_json))
         DOC.write_text(md)
     result["markdown"] = md
     return result
@@ -220,8 +255,26 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--resweep", choices=["table3"], help="with --render: redo the Table III sweep only"
     )
+    parser.add_argument(
+        "--only",
+        help="comma list of seed001,seed003: run only these parts and merge them into the "
+        "previous result (--previous), leaving its seed 000 / 004 parts as they are",
+    )
+    parser.add_argument("--previous", type=Path, default=DOC_JSON, help="with --only")
     args = parser.parse_args(argv)
-    if args.render:
+    if args.only:
+        parts = [p.strip() for p in args.only.split(",") if p.strip()]
+        bad = [p for p in parts if p not in MORE]
+        if bad or not parts:
+            parser.error(f"--only: {bad or args.only!r} not among {', '.join(MORE)}")
+        if not args.previous.is_file():
+            parser.error(f"--only merges into a previous result; {args.previous} does not exist")
+        r = json.loads(args.previous.read_text())
+        run_more(r, parts, args.quick, args.workers)
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "seed_baselines.json").write_text(json.dumps(r, indent=1, default=_json))
+        r = render(r, args.out, docs=not args.no_docs)
+    elif args.render:
         r = json.loads(args.render.read_text())
         if args.resweep == "table3":  # only this sweep's rows recomputed
             rows = sb.table3_sweep(SWEEP_SIZES[r["quick"]]["t3_runs"], args.workers)

@@ -1,0 +1,380 @@
+"""docs/results_seed_baselines.md sections, plot and docs/results.md rows for seed 001
+experiment 1 and seed 003 Fig. 6 (issue 20), from the dicts of
+graphloc.experiments.seed001_readings.run_all and seed003_readings.run_all that
+graphloc.experiments.seed_baselines_report stores under "seed001" / "seed003". Every number
+printed is one of the dicts'."""
+
+from __future__ import annotations
+
+import itertools
+import json
+from pathlib import Path
+
+import numpy as np
+
+from graphloc.experiments.markdown import fmt
+from graphloc.experiments.seed001_readings import SCORED, STATED
+from graphloc.experiments.seed003_readings import FIG3_RANGE_CM, N_VALUES, TILT_DEG
+from graphloc.plots import plt
+
+REPRODUCE_TOL = 0.10  # as graphloc.experiments.seed_baselines
+S1_COLUMNS = (
+    ("focal_error", "focal err.", lambda x: f"{100 * x:g} %"),
+    ("principal_px", "principal pt [px]", lambda x: f"{x:g}"),
+    ("hand_eye_deg", "hand-eye [deg]", lambda x: f"{x:g}"),
+    ("offset_cm", "offset [cm]", lambda x: f"{x:g}"),
+    ("lag_frames", "lag [frames]", lambda x: f"{x:g}"),
+    ("hover", "run 2 motion", lambda x: f"{x:g}"),
+    ("jitter_deg", "jitter [deg]", lambda x: f"{x:g}"),
+    ("jitter_cm", "jitter [cm]", lambda x: f"{x:g}"),
+)
+S1_NUMBERS = (
+    ("run1", "pos_mean_cm", "run 1 pos mean [cm]"),
+    ("run1", "pos_std_cm", "pos std"),
+    ("run1", "rot_mean_deg", "rot mean [deg]"),
+    ("run1", "rot_std_deg", "rot std"),
+    ("run2_at_3m", "pos_mean_cm", "3 m pos mean"),
+    ("run2_at_3m", "rot_mean_deg", "3 m rot mean"),
+)
+
+
+def _dev(x) -> str:
+    return "inf" if x is None or not x < float("inf") else f"{x:.2f}"
+
+
+def _reading(x: dict) -> str:
+    return " | ".join(f(x[k]) for k, _, f in S1_COLUMNS)
+
+
+def _numbers(s: dict) -> str:
+    return " | ".join(fmt(s[run].get(key), ".2f") for run, key, _ in S1_NUMBERS)
+
+
+def seed001_section(r: dict) -> list:
+    s1 = r["seed001"]
+    rows, ch, paper = s1["rows"], s1["choice"], s1["paper"]
+    best = ch["best"]
+    lines = [
+        "## Seed 001 experiment 1 (Sec. V-A): the seed's P3P pose against Vicon",
+        "",
+        "Seed baseline: P3P on three markers + the fourth-marker check, near-ties resolved by the "
+        "regression prediction (Sec. IV), on the rendered frames of graphloc.experiments.seed001 "
+        f"({s1['frames']['run1']} frames at 0.68-1.74 m, {s1['frames']['run2']} up to 3 m), "
+        "detected once. Left open by the text: the intrinsics the pose was computed with "
+        "(focal and principal-point error), the Vicon body frame vs the camera (hand-eye "
+        "rotation) and the Vicon target frame vs the markers (offset), the camera-Vicon time "
+        "offset (lag, in frame intervals of the simulated trajectory; run 2's motion at 3 m "
+        "relative to the simulated one: the quadrotor hovers there), and the truth's per-frame "
+        "jitter. Offsets and jitter are averaged over random axes. Scored: the six numbers "
+        "below; the maxima (12.2 cm, 4.5 deg: single frames with three markers, Sec. V-A) are "
+        "in the JSON, not scored.",
+        "",
+        "| "
+        + " | ".join(h for _, h, _ in S1_COLUMNS)
+        + " | "
+        + " | ".join(h for _, _, h in S1_NUMBERS)
+        + " | largest dev. |",
+        "|" + "---|" * (len(S1_COLUMNS) + len(S1_NUMBERS) + 1),
+        "| paper |"
+        + " |" * (len(S1_COLUMNS) - 1)
+        + " "
+        + " | ".join(f"{paper[run][key]:g}" for run, key, _ in S1_NUMBERS)
+        + " | |",
+    ]
+    stated = [x for x in rows if all(x[k] == v for k, v in STATED.items())]
+    rest = sorted((x for x in rows if x not in stated), key=lambda x: x["max_deviation"])
+    for x in stated + rest[:8]:
+        lines.append(f"| {_reading(x)} | {_numbers(x)} | {_dev(x['max_deviation'])} |")
+    within = sum(x["max_deviation"] <= REPRODUCE_TOL for x in rows)
+    alone = {k: min(x["deviation"][k] for x in rows) for k in rows[0]["deviation"]}
+    # the number that binds: the best largest deviation over the OTHER five numbers
+    others = {
+        k: min(max(v for kk, v in x["deviation"].items() if kk != k) for x in rows)
+        for k in rows[0]["deviation"]
+    }
+    lines += [
+        "",
+        f"Rows: the stated reading (every error 0), then the best 8 of {len(rows)} "
+        "(coarse grid, then a finer grid around its best) by largest deviation. "
+        + (
+            f"**A reading reproduces experiment 1** ({within} readings within 10 %)"
+            if ch["reproduces"]
+            else f"**No reading reproduces experiment 1 within 10 %** (best largest deviation "
+            f"{_dev(best['max_deviation'])})"
+        )
+        + ". Each number alone is met: best deviation "
+        + ", ".join(f"{k} {_dev(v)}" for k, v in alone.items())
+        + ". Leaving one number out, the other five are met at best to "
+        + ", ".join(f"{_dev(v)} (without {k})" for k, v in others.items())
+        + ". At the stated reading the seed's pose is "
+        f"{fmt(stated[0]['run1']['pos_mean_cm'], '.2f')} cm / "
+        f"{fmt(stated[0]['run1']['rot_mean_deg'], '.2f')} deg off in run 1: the rendered "
+        "images alone cannot produce the paper's centimetre / degree errors, which need errors "
+        "of the ground truth and the calibration that the paper does not report.",
+        "",
+        "Chosen: " + ", ".join(f"{h} {f(best[k])}" for k, h, f in S1_COLUMNS) + ".",
+        "",
+        "| setting | method | frames localized (run 1 / at 3 m) | "
+        + " | ".join(h for _, _, h in S1_NUMBERS)
+        + " | run 1 pos max | rot max |",
+        "|---|---|---|" + "---|" * (len(S1_NUMBERS) + 2),
+    ]
+    for name in ("stated", "reproducing"):
+        for method in ("seed_baseline", "graphloc"):
+            s = s1["runs"][name][method]
+            lines.append(
+                f"| {name} | {method.replace('_', ' ')} | {s['run1']['localized'][0]}/"
+                f"{s['run1']['localized'][1]} / {s['run2_at_3m']['localized'][0]}/"
+                f"{s['run2_at_3m']['localized'][1]} | {_numbers(s)} | "
+                f"{fmt(s['run1'].get('pos_max_cm'), '.2f')} | "
+                f"{fmt(s['run1'].get('rot_max_deg'), '.2f')} |"
+            )
+    lines += ["", _s1_margin(s1), ""]
+    return lines
+
+
+def _s1_margin(s1: dict) -> str:
+    parts = []
+    for name in ("reproducing", "stated"):
+        seed, ours = s1["runs"][name]["seed_baseline"], s1["runs"][name]["graphloc"]
+        ratio = [
+            ours[run][key] / seed[run][key]
+            for run, key in (("run1", "pos_mean_cm"), ("run2_at_3m", "pos_mean_cm"))
+        ]
+        parts.append(
+            f"at the {name} reading graphloc / seed position mean {ratio[0]:.2f} (run 1), "
+            f"{ratio[1]:.2f} (at 3 m)"
+        )
+    return (
+        "graphloc = the same detections written as a graphloc log (the reading's intrinsics) "
+        "through the front door (open_run -> team graph -> batch LM; no odometry on this "
+        "robot), scored against the same truth. Margin: " + "; ".join(parts) + ". Errors of "
+        "the truth (hand-eye, offset, lag, jitter) hit both methods alike; graphloc places a "
+        "frame only once its HypothesisTracker has committed (frames localized)."
+    )
+
+
+def seed003_section(r: dict) -> list:
+    s3 = r["seed003"]
+    rows, ch = s3["rows"], s3["choice"]
+    best = ch["best"]
+    ns = [str(n) for n in N_VALUES]
+    lines = [
+        "## Seed 003 Fig. 6 (Sec. III): the seed's EKF, T_x and T_z error vs N",
+        "",
+        "What the paper reports: Fig. 6's values are not in its text (the figure survives as "
+        "axis ticks without a unit), so no Fig. 6 number can be met within 10 %. The text "
+        'states (a) "for T_x, small N values give better estimation results", (b) "for Z, '
+        "the estimation error tends to improve as N increases\", and the robot tracker's "
+        'errors that feed the EKF (Fig. 3): "in the range of 2 cm, 0.8 cm and 9 cm" in X, Y, '
+        "Z (read as the largest absolute error over the sequence). Left open: the tracker's "
+        "error (our rendered front-end = scale 0, or camera-frame centre errors with per-axis "
+        f"std scale x (1, 0.4, 4.5) cm and disk tilt std scale x {TILT_DEG:g} deg), the EKF's "
+        'tracker noise "set to 3" (px^2 or a 3 px std), the KLT points\' "high" initial std '
+        '(1 m or 10 m) and the sequence ("12 frames", the tracked robot still; or the '
+        f"crawler-pair benchmark's 16 frames). {s3['trials']} rendered sequences per schedule; "
+        "(a): T_x at N = 1, 2 below N = 10, 20; (b): T_z falls at every step of N; mean "
+        "absolute error over the sequence and the trials [cm].",
+        "",
+        "| tracker scale | R tracker [px^2] | KLT init std [m] | sequence | tracker max X / Y / Z "
+        "[cm] | EKF T_x N = "
+        + " / ".join(ns)
+        + " | EKF T_z N = "
+        + " / ".join(ns)
+        + " | (a) | (b) | Fig. 3 dev. |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+        "| paper | | | | 2 / 0.8 / 9 | (a) | (b) | yes | yes | |",
+    ]
+    stated, rest = rows[:1], rows[1:]
+    rest = sorted(
+        rest,
+        key=lambda x: (
+            -(x["claim_tx_small_n_better"] + x["claim_tz_improves_with_n"]),
+            x["max_deviation"],
+        ),
+    )
+    for x in stated + rest[:9]:
+        lines.append(_s3_row(x))
+    both = ch["readings_with_both_claims"]
+    lines += [
+        "",
+        f"Rows: the stated reading first, then the best 9 of {len(rows)} (both claims, then "
+        "Fig. 3 deviation). "
+        + (
+            "**A reading reproduces what the paper states**"
+            if ch["reproduces"]
+            else "**No reading reproduces all of it**"
+        )
+        + f": {both} readings show (a) and (b), {ch['reproducing_readings']} of them with the "
+        f"tracker within 10 % of Fig. 3. Chosen: tracker scale {best['tracker_scale']:g}, "
+        f"R {best['tracker_variance']:g} px^2, KLT init std {best['feature_sigma']:g} m, "
+        f"{best['schedule']} (Fig. 3 deviation {_dev(best['max_deviation'])}). With our "
+        "rendered tracker (scale 0) its largest errors are millimetres, not Fig. 3's "
+        "centimetres, and T_x then improves with N: (a) needs a tracker as poor as Fig. 3's "
+        "and KLT points started far from their depth.",
+        "",
+        "| setting | N | EKF T_x / T_y / T_z [cm] | graphloc T_x / T_y / T_z [cm] | "
+        "graphloc / EKF (mean of axes) |",
+        "|---|---|---|---|---|",
+    ]
+    for name in ("stated", "reproducing"):
+        run = s3["runs"][name]
+        for n in N_VALUES:
+            e, g = (np.asarray(_by_n(run[k], n)) for k in ("ekf_cm", "graphloc_cm"))
+            lines.append(
+                f"| {name} | {n} | {' / '.join(f'{v:.2f}' for v in e)} | "
+                f"{' / '.join(f'{v:.2f}' for v in g)} | {g.mean() / e.mean():.2f} |"
+            )
+    lines.append("")
+    return lines
+
+
+def _by_n(d: dict, n: int):
+    return d[str(n)] if str(n) in d else d[n]
+
+
+def _s3_row(x: dict) -> str:
+    tx = " / ".join(f"{_by_n(x['ekf_cm'], n)[0]:.2f}" for n in N_VALUES)
+    tz = " / ".join(f"{_by_n(x['ekf_cm'], n)[2]:.2f}" for n in N_VALUES)
+    tr = " / ".join(f"{v:.2f}" for v in x["tracker_max_cm"])
+    return (
+        f"| {x['tracker_scale']:g} | {x['tracker_variance']:g} | {x['feature_sigma']:g} | "
+        f"{x['schedule']} | {tr} | {tx} | {tz} | "
+        f"{'yes' if x['claim_tx_small_n_better'] else 'no'} | "
+        f"{'yes' if x['claim_tz_improves_with_n'] else 'no'} | {_dev(x['max_deviation'])} |"
+    )
+
+
+def sections(r: dict) -> list:
+    """The seed 001 and seed 003 sections of a result that has them."""
+    out = []
+    if "seed001" in r:
+        out += seed001_section(r)
+    if "seed003" in r:
+        out += seed003_section(r)
+    return out
+
+
+def plot(r: dict, path: Path) -> None:
+    """Seed 001: ours / paper per scored number at the stated and the chosen reading, seed
+    baseline and graphloc; the sweep's largest deviations. Seed 003: EKF T_x and T_z vs N at
+    both settings with graphloc's; the tracker's largest errors vs Fig. 3."""
+    fig, axes = plt.subplots(1, 4, figsize=(19, 4.2))
+    if "seed001" in r:
+        s1 = r["seed001"]
+        ax = axes[0]
+        x = np.arange(len(SCORED))
+        for i, (name, method) in enumerate(
+            itertools.product(("stated", "reproducing"), ("seed_baseline", "graphloc"))
+        ):
+            s = s1["runs"][name][method]
+            ratio = [s[run][key] / s1["paper"][run][key] for run, key in SCORED]
+            ax.bar(x + 0.2 * i - 0.3, ratio, 0.2, label=f"{method.replace('_', ' ')}, {name}")
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.axhspan(1 - REPRODUCE_TOL, 1 + REPRODUCE_TOL, color="k", alpha=0.1)
+        ax.set_xticks(x, [f"{run[:4]} {key[:-3]}" for run, key in SCORED], fontsize=6)
+        ax.set(yscale="log", ylabel="ours / paper")
+        ax.set_title("Seed 001 exp. 1 (grey: within 10 %)", fontsize=10)
+        ax.legend(fontsize=6)
+        ax = axes[1]
+        dev = np.sort([min(x["max_deviation"], 1e3) for x in s1["rows"]])
+        ax.plot(dev, np.arange(1, len(dev) + 1) / len(dev))
+        ax.axvline(REPRODUCE_TOL, color="k", ls="--", lw=0.8)
+        ax.set(xscale="log", xlabel="largest |ours / paper - 1|", ylabel="fraction of readings")
+        ax.set_title(f"Seed 001 sweep ({len(dev)} readings)", fontsize=10)
+    if "seed003" in r:
+        s3 = r["seed003"]
+        ax = axes[2]
+        for name, style in (("stated", ":"), ("reproducing", "-")):
+            run = s3["runs"][name]
+            for key, label, colour in (
+                ("ekf_cm", "EKF", "tab:red"),
+                ("graphloc_cm", "graphloc", "tab:blue"),
+            ):
+                for axis, marker in ((0, "o"), (2, "s")):
+                    ax.plot(
+                        N_VALUES,
+                        [_by_n(run[key], n)[axis] for n in N_VALUES],
+                        style,
+                        marker=marker,
+                        color=colour,
+                        label=f"{label} T_{'xz'[axis // 2]}, {name}",
+                    )
+        ax.set(xscale="log", yscale="log", xlabel="N", ylabel="mean |error| [cm]")
+        ax.set_xticks(N_VALUES, [str(n) for n in N_VALUES])
+        ax.set_title("Seed 003 Fig. 6 quantities", fontsize=10)
+        ax.legend(fontsize=6)
+        ax = axes[3]
+        scales = sorted({x["tracker_scale"] for x in s3["rows"]})
+        for i, colour in enumerate(("tab:red", "tab:green", "tab:blue")):
+            mx = [
+                np.mean([x["tracker_max_cm"][i] for x in s3["rows"] if x["tracker_scale"] == s])
+                for s in scales
+            ]
+            ax.plot(scales, mx, marker="o", color=colour, label=f"ours {'XYZ'[i]}")
+            ax.axhline(FIG3_RANGE_CM[i], color=colour, ls="--", lw=0.8)
+        ax.set(
+            yscale="log",
+            xlabel="tracker scale (0: rendered front-end)",
+            ylabel="largest tracker error [cm]",
+        )
+        ax.set_title("Seed 003 tracker vs Fig. 3 (dashed)", fontsize=10)
+        ax.legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def results_section(path: Path) -> str:
+    """docs/results.md: paper | seed baseline | graphloc for seed 001 experiment 1 and seed 003
+    Fig. 6 at the stated and the reproducing reading, from the JSON of
+    scripts/bench_seed_baselines.py (empty if it has neither)."""
+    if not Path(path).is_file():
+        return ""
+    r = json.loads(Path(path).read_text())
+    if "seed001" not in r and "seed003" not in r:
+        return ""
+    lines = [
+        "### Seed 001 experiment 1 and seed 003 Fig. 6 at the stated and the reproducing reading",
+        "",
+        f"From `scripts/bench_seed_baselines.py` (docs/{Path(path).name}; the sweeps and the "
+        "evidence: docs/results_seed_baselines.md).",
+        "",
+    ]
+    if "seed001" in r:
+        s1 = r["seed001"]
+        lines += [
+            "| seed 001 | setting | " + " | ".join(h for _, _, h in S1_NUMBERS) + " |",
+            "|---|---|" + "---|" * len(S1_NUMBERS),
+            "| paper | | "
+            + " | ".join(f"{s1['paper'][run][key]:g}" for run, key, _ in S1_NUMBERS)
+            + " |",
+        ]
+        for name in ("stated", "reproducing"):
+            for method in ("seed_baseline", "graphloc"):
+                lines.append(
+                    f"| {method.replace('_', ' ')} | {name} | "
+                    f"{_numbers(s1['runs'][name][method])} |"
+                )
+        lines += ["", _s1_margin(s1), ""]
+    if "seed003" in r:
+        s3 = r["seed003"]
+        lines += [
+            "| seed 003 | setting | T_x N = 1 / 2 / 10 / 20 [cm] | T_z N = 1 / 2 / 10 / 20 [cm] "
+            "| (a) T_x better at small N | (b) T_z improves with N |",
+            "|---|---|---|---|---|---|",
+            "| paper | | not in the text | not in the text | yes | yes |",
+        ]
+        for name in ("stated", "reproducing"):
+            run = s3["runs"][name]
+            for key, method in (("ekf_cm", "seed baseline (EKF)"), ("graphloc_cm", "graphloc")):
+                tx = [_by_n(run[key], n)[0] for n in N_VALUES]
+                tz = [_by_n(run[key], n)[2] for n in N_VALUES]
+                lines.append(
+                    f"| {method} | {name} | {' / '.join(f'{v:.2f}' for v in tx)} | "
+                    f"{' / '.join(f'{v:.2f}' for v in tz)} | "
+                    f"{'yes' if max(tx[:2]) < min(tx[2:]) else 'no'} | "
+                    f"{'yes' if all(np.diff(tz) < 0) else 'no'} |"
+                )
+        lines.append("")
+    return "\n".join(lines)

@@ -1,0 +1,117 @@
+"""Issue 20 for seed 001 experiment 1 and seed 003 Fig. 6: the readings' truth model, the
+seed's pose under a reading, the scoring and choice, the report's --only option."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from graphloc.experiments import seed001_readings as s1
+from graphloc.experiments import seed003_readings as s3
+from graphloc.experiments import seed_baselines_report as report
+from graphloc.experiments import seed_baselines_sections as sections
+from graphloc.experiments.seed001 import look_at
+from graphloc.vision.target import LARGE_TARGET
+
+
+def _frames(n=6, distance=1.2, camera=None):
+    """Noise-free detections of the target from n poses around it (marker order shuffled)."""
+    camera = camera or s1.seed001_camera()
+    centre = LARGE_TARGET.points.mean(axis=0)
+    rng = np.random.default_rng(4)
+    out = []
+    for k in range(n):
+        az, tilt = 0.4 * k, np.radians(15 + 3 * k)
+        eye = centre + distance * np.array(
+            [np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)]
+        )
+        R = look_at(eye, centre, 0.3 * k)
+        px, _ = camera.project((LARGE_TARGET.points - eye) @ R)
+        out.append({"pixels": px[rng.permutation(4)], "R": R, "t": eye, "distance": distance})
+    return out
+
+
+def test_truth_readings_move_the_truth_by_exactly_the_offsets():
+    frames = _frames()
+    R = np.array([f["R"] for f in frames])
+    t = np.array([f["t"] for f in frames])
+    Rt, tt = s1.truth(frames, 0.0, np.zeros(3), np.zeros(3))
+    assert np.allclose(Rt, R) and np.allclose(tt, t)
+    pos, rot = s1.errors(R, t, *s1.truth(frames, 0.0, np.radians(1.0) * np.eye(3)[0], [0, 0, 0.01]))
+    assert np.allclose(rot, 1.0) and np.allclose(pos, 1.0)
+    # half a frame of lag: half way between the frames (the last frame has no successor)
+    _, half = s1.truth(frames, 0.5, np.zeros(3), np.zeros(3))
+    assert np.allclose(half[:-1], 0.5 * (t[:-1] + t[1:])) and np.allclose(half[-1], t[-1])
+
+
+def test_the_seeds_pose_is_exact_on_exact_pixels_and_biased_by_a_wrong_focal_length():
+    frames = _frames()
+    R, t = s1.seed_poses(frames, s1.reading_camera(0.0, 0.0))
+    pos, rot = s1.errors(R, t, np.array([f["R"] for f in frames]), [f["t"] for f in frames])
+    assert len(pos) == len(frames) and pos.max() < 1e-4 and rot.max() < 1e-4
+    R, t = s1.seed_poses(frames, s1.reading_camera(0.01, 0.0))
+    pos, _ = s1.errors(R, t, np.array([f["R"] for f in frames]), [f["t"] for f in frames])
+    # 1 % focal error at 1.2 m: about 1 % of the distance along the line of sight
+    assert 0.6 < np.median(pos) < 1.8
+
+
+def test_score_is_the_relative_deviation_from_the_paper():
+    row = {
+        "run1": {"pos_mean_cm": 1.5, "pos_std_cm": 0.77, "rot_mean_deg": 0.6, "rot_std_deg": 0.4},
+        "run2_at_3m": {"pos_mean_cm": 2.2, "rot_mean_deg": np.nan},
+    }
+    d = s1.score(row)
+    assert d["run1.pos_mean_cm"] == 0.0 and d["run1.pos_std_cm"] == pytest.approx(0.1)
+    assert d["run1.rot_mean_deg"] == pytest.approx(0.5) and d["run2_at_3m.rot_mean_deg"] == np.inf
+
+
+def _s3_row(tx, tz, dev, **reading):
+    return {
+        **s3.STATED,
+        **reading,
+        "claim_tx_small_n_better": tx,
+        "claim_tz_improves_with_n": tz,
+        "max_deviation": dev,
+        "reproduces": tx and tz and dev <= 0.1,
+    }
+
+
+def test_seed003_choice_prefers_both_claims_then_fig3():
+    rows = [
+        _s3_row(False, True, 0.01),
+        _s3_row(True, True, 0.3, tracker_scale=1.0),
+        _s3_row(True, True, 0.05, tracker_scale=1.5),
+    ]
+    c = s3.choose(rows)
+    assert c["best"]["tracker_scale"] == 1.5 and c["reproduces"]
+    assert c["readings_with_both_claims"] == 2 and c["reproducing_readings"] == 1
+    c = s3.choose(rows[:1])  # no reading shows both claims: the smallest deviation
+    assert c["best"] is rows[0] and not c["reproduces"]
+
+
+def test_seed003_readings_list_the_stated_one_first():
+    rows = s3.readings()
+    assert rows[0] == s3.STATED
+    n = len(s3.TRACKER_SCALES) * len(s3.TRACKER_VARIANCES) * len(s3.FEATURE_SIGMAS)
+    assert len(rows) == n * len(s3.SCHEDULES) == len({tuple(r.values()) for r in rows})
+    assert s3.SCHEDULES[s3.STATED["schedule"]] == ("camera",) * 11  # "12 frames"
+
+
+def test_only_rejects_unknown_parts_and_a_missing_previous_result(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        report.main(["--only", "seed009", "--no-docs", "--out", str(tmp_path)])
+    assert "seed009" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        report.main(["--only", "seed001", "--previous", str(tmp_path / "none.json")])
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_results_section_is_empty_without_the_parts(tmp_path):
+    assert sections.results_section(tmp_path / "none.json") == ""
+    (tmp_path / "r.json").write_text('{"sweeps": {}}')
+    assert sections.results_section(tmp_path / "r.json") == ""
+
+
+def test_rotation_errors_use_the_relative_rotation():
+    R = Rotation.from_rotvec([0.0, 0.0, 0.3]).as_matrix()[None]
+    _, rot = s1.errors(R, np.zeros((1, 3)), np.eye(3)[None], np.zeros((1, 3)))
+    assert rot[0] == pytest.approx(np.degrees(0.3))
