@@ -104,6 +104,35 @@ def robot_factor_3d(
     )
 
 
+def known_landmark_factor_3d(
+    pose_key: int,
+    landmark_xyz,
+    landmark_sigma: float,
+    direction,
+    range_: float,
+    sigmas=(0.05, 0.05, 0.1),
+    kernel: Kernel = Kernel(),
+) -> gtsam.KnownLandmarkFactorPose3:
+    """Robot pose (Pose3) sees a landmark of known position `landmark_xyz` (isotropic std
+    `landmark_sigma` [m]) along `direction` at `range_`, with no landmark variable: GTSAM's
+    KnownLandmarkFactorPose3 (residual pose.transformTo(landmark) - direction * range, body
+    frame). Its covariance is the range-bearing noise carried to the point, r^2 sb^2 (I - d d^T)
+    + sr^2 d d^T, plus the landmark's sigma^2 I (rotation invariant): the landmark variable with
+    its prior and landmark_factor_3d, marginalized at the measured point."""
+    d = _unit(direction)
+    _check(d, range_)
+    if not (np.isfinite(landmark_sigma) and landmark_sigma >= 0):
+        raise ValueError(f"landmark sigma must be finite >= 0, got {landmark_sigma}")
+    sb, _, sr = (float(s) for s in _noise(sigmas, 3, Kernel()).sigmas())
+    outer = np.outer(d, d)
+    cov = range_**2 * sb**2 * (np.eye(3) - outer) + sr**2 * outer
+    cov += float(landmark_sigma) ** 2 * np.eye(3)
+    noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(cov), kernel)
+    return gtsam.KnownLandmarkFactorPose3(
+        pose_key, np.asarray(landmark_xyz, dtype=float), d * float(range_), noise
+    )
+
+
 def _unit(direction) -> np.ndarray:
     d = np.asarray(direction, dtype=float).reshape(-1)
     n = np.linalg.norm(d) if d.shape == (3,) else 0.0

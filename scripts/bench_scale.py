@@ -24,6 +24,7 @@ from graphloc.datasets import open_run
 from graphloc.pipelines.team_graph import DEFAULT_LAG
 from graphloc.experiments.scale import (
     gtsam_only_batch,
+    known_landmarks_unary,
     online_profile,
     online_summary,
     replay_graph,
@@ -41,6 +42,11 @@ def main(argv=None) -> int:
     lags = ",".join(f"{x:g}" for x in sorted({0, 20, 30, 40, DEFAULT_LAG}))
     parser.add_argument("--lags", default=lags, help="online lags [s] to measure, 0 = full iSAM2")
     parser.add_argument("--copies", type=int, default=10, help="replays in the long run")
+    parser.add_argument(
+        "--relinearize",
+        default="0.02,0.01",
+        help="iSAM2 relinearize thresholds to measure at the default lag (beside the run's own)",
+    )
     parser.add_argument("--markdown", type=Path, default=None, help="write the results table")
     parser.add_argument(
         "--from-json",
@@ -72,6 +78,9 @@ def main(argv=None) -> int:
         "counts": graph.counts,
         "default_lag_s": DEFAULT_LAG,
         "marginalize_every_s": GraphConfig().marginalize_every,
+        "relinearize_threshold_default": GraphConfig()
+        .session_config("online", graph.precision)
+        .relinearize_threshold,
     }
 
     # the long run first: its memory slope is then not hidden by pages earlier solves freed
@@ -111,6 +120,31 @@ def main(argv=None) -> int:
         summary = online_summary(result, cpu, samples, run, batch_ate)
         report["online"][f"{lag:g}"] = summary
         print("online lag", lag, json.dumps(summary), flush=True)
+
+    # the default lag at smaller relinearization thresholds: ATE against CPU
+    report["online_relinearize"] = {}
+    for thr in (float(x) for x in args.relinearize.split(",") if x):
+        res, cpu, samples = online_profile(graph, DEFAULT_LAG, relinearize_threshold=thr)
+        report["online_relinearize"][f"{thr:g}"] = online_summary(res, cpu, samples, run, batch_ate)
+        print("relinearize", thr, json.dumps(report["online_relinearize"][f"{thr:g}"]), flush=True)
+
+    # what-if: the known-landmark anchors folded into unary factors on the poses
+    folded = known_landmarks_unary(graph)
+    c0 = time.process_time()
+    fbatch = solve(folded, "batch")
+    fmetrics = evaluate(fbatch, run)
+    report["unary_landmarks"] = {
+        "counts": folded.counts,
+        "batch_cpu_s": time.process_time() - c0,
+        "batch_ate_rmse_m": {
+            n: e["batch"]["ate_rmse"]
+            for n, e in fmetrics["per_robot"].items()
+            if isinstance(e.get("batch"), dict) and "ate_rmse" in e["batch"]
+        },
+        "online": online_summary(*online_profile(folded, DEFAULT_LAG), run, batch_ate),
+    }
+    del folded, fbatch
+    print("unary landmarks", json.dumps(report["unary_landmarks"], default=str), flush=True)
 
     base = report["online"].get(f"{DEFAULT_LAG:g}")
     if long is not None and base:
@@ -197,6 +231,64 @@ def markdown(r: dict) -> str:
             )
             + " |"
         )
+    if r.get("online_relinearize"):
+        lines += [
+            "",
+            f"## Relinearization at the default lag ({r['default_lag_s']:g} s)",
+            "",
+            "iSAM2 relinearizes a variable whose update exceeds the threshold (the run's own: "
+            f"{r['relinearize_threshold_default']:g}, from its precision); a marginalized "
+            "variable's factors stay linearized where they were when it left.",
+            "",
+            "| relinearize threshold | CPU [s] | real time x (CPU) | p95 CPU last 10 % [ms] | "
+            "slowest step CPU [ms] | "
+            + " | ".join(f"{n} ATE / batch" for n in b["ate_rmse_m"])
+            + " |",
+            "|---|---|---|---|---|" + "---|" * len(b["ate_rmse_m"]),
+        ]
+        rows = {f"{r['relinearize_threshold_default']:g}": r["online"][f"{r['default_lag_s']:g}"]}
+        rows.update(r["online_relinearize"])
+        for thr, o in rows.items():
+            t = o["trend"]
+            lines.append(
+                f"| {thr} | {o['cpu_s']:.1f} | {o['realtime_factor_cpu']:.0f} | "
+                f"{t['cpu_p95_last10_ms']:.2f} | {t['cpu_max_ms']:.1f} | "
+                + " | ".join(
+                    f"{o['ate_over_batch'].get(n, float('nan')):.3f}" for n in b["ate_rmse_m"]
+                )
+                + " |"
+            )
+    if "unary_landmarks" in r:
+        u = r["unary_landmarks"]
+        o, t = u["online"], u["online"]["trend"]
+        worst = max(o["ate_over_batch"].values())
+        lines += [
+            "",
+            "## What-if: known landmarks as unary factors (not the graph `build_graph` makes)",
+            "",
+            f"The {u['counts']['landmark_anchors_folded']} known-landmark anchors (a Point3 "
+            "variable, its prior and one range-bearing factor each) folded into one "
+            "`KnownLandmarkFactorPose3` on the observing pose "
+            "(`graphloc.factors.range_bearing.known_landmark_factor_3d`, "
+            "`graphloc.experiments.scale.known_landmarks_unary`); same run, same process.",
+            "",
+            f"- online, lag {o['lag_s']:g} s: p95 CPU first / last 10 % "
+            f"{t['cpu_p95_first10_ms']:.2f} / {t['cpu_p95_last10_ms']:.2f} ms, slowest step CPU "
+            f"{t['cpu_max_ms']:.1f} ms, variables at end {t['variables_end']}, real time "
+            f"x{o['realtime_factor']:.0f} (wall) / x{o['realtime_factor_cpu']:.0f} (CPU), "
+            f"max ATE / batch {worst:.3f} (against the anchors' batch);",
+            f"- batch of this graph: CPU {u['batch_cpu_s']:.1f} s;",
+            "",
+            "| robot | batch (anchors) | batch (unary) | online lag "
+            f"{o['lag_s']:g} (unary) | online / batch (anchors) |",
+            "|---|---|---|---|---|",
+        ]
+        for name, a in b["ate_rmse_m"].items():
+            lines.append(
+                f"| {name} | {a:.4f} | {u['batch_ate_rmse_m'].get(name, float('nan')):.4f} | "
+                f"{o['ate_rmse_m'].get(name, float('nan')):.4f} | "
+                f"{o['ate_over_batch'].get(name, float('nan')):.3f} |"
+            )
     if "long_run" in r:
         o = r["long_run"]
         t = o["trend"]
@@ -222,10 +314,11 @@ def markdown(r: dict) -> str:
             ),
             f"- variables held at the end: {t['variables_end']} (max {t['variables_max']});",
             (
-                f"- resident memory slope: {mem} MB per 1,000 steps "
-                "(the session keeps every factor "
-                "and value it was given, for `save` and the final trajectory), "
-                f"{o['rss_mb_end']:.0f} MB at the end;"
+                f"- resident memory slope: {mem} MB per 1,000 steps, "
+                f"{o['rss_mb_end']:.0f} MB at the end (the session keeps no steps, "
+                "`SessionConfig.keep_steps` False; what still grows is the marginalized "
+                "variables' last estimates -- the final trajectory --, the per-step log and "
+                "iSAM2's emptied factor slots);"
             ),
             (
                 f"- real time x{o['realtime_factor']:.0f} (wall), "

@@ -8,7 +8,11 @@
   tenth of the steps (`graphloc.pipelines.report.latency_trend`), the slowest step, real-time
   factor, ATE per robot against batch, resident memory sampled along the run;
 - long run: the run replayed `copies` times with the clock shifted by its duration (every
-  factor re-keyed onto new poses and anchors, `replay_graph`), solved online with the lag.
+  factor re-keyed onto new poses and anchors, `replay_graph`), solved online with the lag;
+- what-if (not the graph `build_graph` makes): every known-landmark anchor -- a Point3
+  variable with its prior and one range-bearing factor -- replaced by one unary factor on the
+  pose (`graphloc.factors.range_bearing.known_landmark_factor_3d`, the anchor marginalized at
+  the measured point): `known_landmarks_unary`.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from dataclasses import replace
 import gtsam
 import numpy as np
 
+from graphloc.factors.range_bearing import known_landmark_factor_3d
 from graphloc.keys import decode, landmark_key, pose_key
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph import ANCHOR_BASE, TeamGraph, solve
@@ -125,8 +130,50 @@ def replay_graph(graph: TeamGraph, copies: int) -> TeamGraph:
     )
 
 
-def online_profile(graph: TeamGraph, lag: float | None, rss_every: int = 250) -> tuple:
-    """Solve online with `lag`; resident memory [MB] sampled every `rss_every` steps.
+def known_landmarks_unary(graph: TeamGraph) -> TeamGraph:
+    """`graph` with every known-landmark anchor (a key at or above ANCHOR_BASE with a
+    PriorFactorPoint3 and BearingRangeFactor3D) folded into one KnownLandmarkFactorPose3 on the
+    observing pose: the landmark's prior mean and largest sigma, the range-bearing measurement,
+    sigmas and the graph's landmark kernel."""
+    priors = {
+        f.keys()[0]: f
+        for _, group in graph.steps
+        for f, kind in group
+        if kind == "landmark_prior" and decode(f.keys()[0])[1] >= ANCHOR_BASE
+    }
+    kernel = graph.config.kernels.kernel("landmark")
+    steps = []
+    for t, group in graph.steps:
+        out = []
+        for f, kind in group:
+            if kind == "landmark_prior" and f.keys()[0] in priors:
+                continue
+            if kind == "landmark" and isinstance(f, gtsam.BearingRangeFactor3D):
+                prior = priors.get(f.keys()[1])
+                if prior is not None:
+                    noise = f.noiseModel()
+                    base = noise.noise() if isinstance(noise, gtsam.noiseModel.Robust) else noise
+                    m = f.measured()
+                    f = known_landmark_factor_3d(
+                        f.keys()[0],
+                        prior.prior(),
+                        float(np.max(prior.noiseModel().sigmas())),
+                        m.bearing().point3(),
+                        m.range(),
+                        base.sigmas(),
+                        kernel,
+                    )
+            out.append((f, kind))
+        steps.append((t, out))
+    initial = {k: v for k, v in graph.initial.items() if k not in priors}
+    counts = {**graph.counts, "landmark_anchors": 0, "landmark_anchors_folded": len(priors)}
+    types = [k for _, group in steps for _, k in group]
+    return replace(graph, steps=steps, initial=initial, counts=counts, factor_types=types)
+
+
+def online_profile(graph: TeamGraph, lag: float | None, rss_every: int = 250, **config) -> tuple:
+    """Solve online with `lag` (and `config`: other GraphConfig fields, e.g.
+    relinearize_threshold); resident memory [MB] sampled every `rss_every` steps.
     Returns (TeamResult, CPU seconds of the solve, (steps, MB) samples)."""
     samples = []
 
@@ -135,7 +182,8 @@ def online_profile(graph: TeamGraph, lag: float | None, rss_every: int = 250) ->
             samples.append((i, rss_mb()))
 
     c0 = time.process_time()
-    result = solve(replace(graph, config=replace(graph.config, lag=lag)), "online", on_step=on_step)
+    cfg = replace(graph.config, lag=lag, **config)
+    result = solve(replace(graph, config=cfg), "online", on_step=on_step)
     return result, time.process_time() - c0, np.array(samples, dtype=float).reshape(-1, 2)
 
 
