@@ -20,6 +20,8 @@ from graphloc.datasets.feng_deterministic import TableIConfig
 from graphloc.executor import ResultCache, content_hash, default_backend
 from graphloc.experiments import TABLES, markdown, seed000, seed001, seed004
 from graphloc.experiments.hypotheses import TableIIIConfig
+from graphloc.experiments.seed_baselines_report import DOC_JSON
+from graphloc.experiments.seed_baselines_sections import results_section
 from graphloc.experiments.sizes import RunSizes, run_sizes
 
 
@@ -33,7 +35,8 @@ def seed001_section(out_dir: Path, sizes: RunSizes) -> str:
         "### Seed 001 experiment 1: pose error vs the paper (scripts/repro_seed001.py, "
         "rendered frames)\n\n"
         + seed001.markdown(result["summary"])
-        + f"\n\nPlot: {Path(out_dir).name}/repro_seed001_error_vs_distance.png.\n"
+        + f"\n\nPlot: {Path(out_dir).name}/repro_seed001_error_vs_distance.png.\n\n"
+        + results_section(DOC_JSON)
     )
 
 

@@ -86,10 +86,9 @@ def detections(frames1: int, frames2: int, seed: int = 1, progress: bool = True)
     same trajectories, clutter 3, occlusion rate 0.05): per run a list of dicts (pixels, R, t,
     distance)."""
     rng = np.random.default_rng(seed)
-    cam = seed001_camera()
     out = {"run1": [], "run2": []}
-    seed001.run("run 1", rng, frames1, 0.68, 1.74, False, 3, cam, 0.05, out["run1"])
-    seed001.run("run 2", rng, frames2, 1.0, 3.0, True, 3, cam, 0.05, out["run2"])
+    seed001.run("run 1", rng, frames1, 0.68, 1.74, False, 3, 0.05, out["run1"])
+    seed001.run("run 2", rng, frames2, 1.0, 3.0, True, 3, 0.05, out["run2"])
     return out
 
 

@@ -24,9 +24,8 @@ PAPER = {
     "run2_at_3m": {"pos_mean_cm": 2.2, "rot_mean_deg": 1.0},
 }
 
-# p3p: the seed's pose (P3P + fourth-marker check); refined: polished on all four markers;
-# p3p_miscal: the seed's pose with a slightly wrong calibration (focal / principal point error)
-VARIANTS = ("p3p", "refined", "p3p_miscal")
+# p3p: the seed's pose (P3P + fourth-marker check); refined: polished on all four markers
+VARIANTS = ("p3p", "refined")
 
 
 def plot(runs: dict, path: Path) -> None:
