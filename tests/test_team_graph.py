@@ -461,9 +461,9 @@ def test_marker_pixels_place_a_climber_the_tracker_never_decides(tmp_path):
 
 
 def test_batch_starts_from_every_candidate_of_the_first_snapshot(tmp_path):
-    """Seed 000 Sec. VI-A (three snapshots, no odometry): from the tracker's guess alone the
-    solve settles in a false P3P basin (metres off); starting also from every candidate of the
-    first snapshot and keeping the least-error estimate finds the genuine one."""
+    """Seed 000 Sec. VI-A (three snapshots, no odometry): from some candidates of the first
+    snapshot the solve settles in a false P3P basin (metres off); the batch solve starts from
+    every one of them and keeps the least-error estimate, the genuine one."""
     from graphloc.pipelines.team_graph.solve import _solve
 
     run_dir = tmp_path / "run"
@@ -471,7 +471,10 @@ def test_batch_starts_from_every_candidate_of_the_first_snapshot(tmp_path):
     run = open_run(run_dir)
     graph = build_graph(run)
     assert graph.counts["committed_sets"] == 0 and len(graph.alternatives) > 1
-    single = _solve(graph, "batch", False, None, None, None, None)
+    starts = [
+        _solve(graph, "batch", False, None, None, None, {**graph.initial, **v})
+        for v in graph.alternatives
+    ]
+    assert max(_climber_rms(run, x) for x in starts) > 0.5
     best = solve(graph, "batch")
-    assert _climber_rms(run, single) > 0.5
-    assert best.error < single.error and _climber_rms(run, best) < 0.05
+    assert best.error <= min(x.error for x in starts) + 1e-9 and _climber_rms(run, best) < 0.05
