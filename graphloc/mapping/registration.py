@@ -65,6 +65,9 @@ class RegistrationConfig:
     # stop_inlier_ratio (a candidate that barely passes may sit in a basin next to the right one)
     coarse_voxels: float = 2.0
     coarse_tukey: float = 0.5
+    # robust_register's fine stage: Tukey kernel width in fine correspondence distances
+    # (max_correspondence[-1]; 0: least squares)
+    fine_tukey: float = 1.0
     covariance_block: float = 0.5
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
@@ -72,11 +75,15 @@ class RegistrationConfig:
     # basin a local method covers (the sigma points and the global fallback take over)
     max_reach: float = 1.0
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
-    covariance_scale: float = 17.1  # fit of docs/results_fusion_calibration.json (3 digits)
-    covariance_floor: tuple[float, float] = (6.69e-4, 4.40e-4)
+    covariance_scale: float = 11.4  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_floor: tuple[float, float] = (4.58e-4, 4.27e-4)
 
     def __post_init__(self):
-        check(self, positive=("voxel", "normal_radius", "range_sigma", "covariance_scale"))
+        check(
+            self,
+            positive=("voxel", "normal_radius", "range_sigma", "covariance_scale"),
+            nonnegative=("coarse_tukey", "fine_tukey"),
+        )
         if not (len(self.covariance_floor) == 2 and min(self.covariance_floor) >= 0):
             raise ValueError(
                 "RegistrationConfig: covariance_scale must be > 0 and covariance_floor two values "

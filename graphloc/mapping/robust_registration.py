@@ -54,32 +54,73 @@ def hint_covariance(sigma_rot: float, sigma_trans: float) -> np.ndarray:
     return np.diag(np.r_[np.full(3, sigma_rot**2), np.full(3, sigma_trans**2)])
 
 
+def fine_stage(
+    source: PreparedCloud, target: PreparedCloud, init: np.ndarray, cfg: RegistrationConfig
+) -> tuple[np.ndarray, int]:
+    """`robust_register`'s fine stage: Open3D tensor point-to-plane ICP of the prepared clouds
+    from `init`, correspondences within cfg.max_correspondence[-1], a Tukey kernel of
+    cfg.fine_tukey times that distance (least squares if 0), cfg.max_iterations[-1] iterations
+    at most. Returns (T_target_source, iterations); Open3D raises RuntimeError when too few
+    correspondences are left for the 6x6 system."""
+    fine = cfg.max_correspondence[-1]
+    rk = reg_t.robust_kernel
+    kernel = (
+        rk.RobustKernel(rk.RobustKernelMethod.TukeyLoss, cfg.fine_tukey * fine)
+        if cfg.fine_tukey > 0
+        else rk.RobustKernel()
+    )
+    res = reg_t.icp(
+        source.cloud,
+        target.cloud,
+        fine,
+        o3d.core.Tensor(np.asarray(init, dtype=np.float64)),
+        reg_t.TransformationEstimationPointToPlane(kernel),
+        reg_t.ICPConvergenceCriteria(
+            cfg.relative_fitness, cfg.relative_rmse, cfg.max_iterations[-1]
+        ),
+    )
+    return res.transformation.numpy(), int(res.num_iterations)
+
+
+def _grid(cloud: o3d.geometry.PointCloud, voxel: float) -> o3d.geometry.PointCloud:
+    """`cloud` on a grid of `voxel`, each cell's normal the mean of the cloud's normals in it,
+    renormalized (the prepared clouds' normals are oriented toward their sensor, so they average
+    rather than cancel; no second normal estimation per level)."""
+    down = cloud.voxel_down_sample(voxel)
+    n = np.asarray(down.normals)
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    keep = norm[:, 0] > 0.5  # a cell whose normals disagree by more than 120 deg has no plane
+    n[keep] /= norm[keep]
+    return down.select_by_index(np.flatnonzero(keep)) if not keep.all() else down
+
+
 def _coarse_clouds(source: PreparedCloud, target: PreparedCloud, cfg: RegistrationConfig):
     """Both clouds on the coarse grid: twice the larger of cfg.voxel and the source's median
-    nearest-neighbour spacing (the scans' density), normals re-estimated (cfg.normal_radius)."""
+    nearest-neighbour spacing (the scans' density), normals averaged (`_grid`)."""
     spacing = float(np.median(np.asarray(source.legacy.compute_nearest_neighbor_distance())))
     voxel = 2.0 * max(cfg.voxel, spacing)
-    out = []
-    for c in (source.legacy, target.legacy):
-        down = c.voxel_down_sample(voxel)
-        down.estimate_normals(
-            o3d.geometry.KDTreeSearchParamHybrid(radius=cfg.normal_radius, max_nn=cfg.max_nn)
-        )
-        out.append(down)
-    return out[0], out[1], voxel
+    return _grid(source.legacy, voxel), _grid(target.legacy, voxel), voxel
 
 
-def _wide_clouds(src_c, tgt_c, voxel: float, cfg: RegistrationConfig):
-    """The coarse clouds on a wider grid (`voxel`), normals over at least two of its voxels."""
-    out = []
-    for c in (src_c, tgt_c):
-        down = c.voxel_down_sample(voxel)
-        radius = max(cfg.normal_radius, 2.0 * voxel)
-        down.estimate_normals(
-            o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=cfg.max_nn)
-        )
-        out.append(down)
-    return out
+def _wide_levels(src_c, tgt_c, reach: float, coarse_reach: float, cfg: RegistrationConfig):
+    """The wide pyramid above the coarse level: correspondences within `reach`, halved per level
+    while they exceed `coarse_reach`; each level's clouds are the coarse clouds on a grid of
+    reach / cfg.coarse_voxels, normals over at least two of its voxels. Returns
+    [(source, target, reach, voxel)], widest first."""
+    levels = []
+    while reach > coarse_reach:
+        voxel = reach / cfg.coarse_voxels
+        pair = []
+        for c in (src_c, tgt_c):
+            down = c.voxel_down_sample(voxel)
+            radius = max(cfg.normal_radius, 2.0 * voxel)
+            down.estimate_normals(
+                o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=cfg.max_nn)
+            )
+            pair.append(down)
+        levels.append((pair[0], pair[1], reach, voxel))
+        reach /= 2.0
+    return levels
 
 
 def robust_register(
@@ -95,21 +136,24 @@ def robust_register(
     1. Starts: the hint and its sigma points (`hint_starts`; hint_cov is the hint's 6x6
        covariance, rot [rad] then trans [m], right perturbation: `hint_covariance` of two
        sigmas, or a P3P candidate's first-order covariance carried to the LiDAR frames).
-    2. Per start: when the hint's reach (1-sigma rotation times the median source range plus 1-sigma
-       translation, at most cfg.max_reach) exceeds the coarse correspondence distance, a wide level
-       first: ICP on clouds gridded at reach / cfg.coarse_voxels with correspondences within the
-       reach and a Tukey kernel of cfg.coarse_tukey of its voxels (the basin of a poor P3P guess);
-       then point-to-plane ICP on the coarse grid (`_coarse_clouds`; correspondences within
-       cfg.coarse_voxels coarse voxels, Tukey kernel of cfg.coarse_tukey voxels, so the parts that
-       do not overlap are not pulled in); starts whose coarse results lie within one fine basin of
-       each other (cfg.max_correspondence[-1], and the rotation moving the median source point that
-       far) merge; then Open3D tensor ICP on the prepared clouds within that distance
-       (cfg.max_iterations[-1]); candidates closer than acc.distinct_deg / distinct_m merge. With
-       cfg.stop_at_first_valid the starts stop at the first candidate that passes its checks with an
-       inlier ratio of at least cfg.stop_inlier_ratio (the hint comes first, so an easy case costs
-       one start; one that barely passes lets the other starts compete on cost). If none passes and
-       cfg.global_fallback, `global_fpfh_ransac` (seed 0) gives one more start (index 13), still
-       subject to every check, the hint gate included.
+    2. Per start: while the hint's reach (1-sigma rotation times the median source range plus
+       1-sigma translation, at most cfg.max_reach) exceeds the coarse correspondence distance, a
+       wide pyramid first (`_wide_levels`): ICP on clouds gridded at reach / cfg.coarse_voxels
+       with correspondences within the reach and a Tukey kernel of cfg.coarse_tukey of its
+       voxels, the reach halved per level (the basin of a poor P3P guess, narrowed step by step:
+       one wide jump to the coarse level slides); then point-to-plane ICP on the coarse grid
+       (`_coarse_clouds`; correspondences within cfg.coarse_voxels coarse voxels, Tukey kernel of
+       cfg.coarse_tukey voxels, so the parts that do not overlap are not pulled in); starts whose
+       coarse results lie within one fine basin of each other (cfg.max_correspondence[-1], and
+       the rotation moving the median source point that far) merge; then Open3D tensor ICP on
+       the prepared clouds within that distance (cfg.max_iterations[-1]) with a Tukey kernel of
+       cfg.fine_tukey times it (points on surfaces the other view does not share, clutter and
+       cut edges lose their pull); candidates closer than acc.distinct_deg / distinct_m merge.
+       With cfg.stop_at_first_valid the starts stop at the first candidate that passes its
+       checks with an inlier ratio of at least cfg.stop_inlier_ratio (the hint comes first, so
+       an easy case costs one start; one that barely passes lets the other starts compete on
+       cost). If none passes and cfg.global_fallback, `global_fpfh_ransac` (seed 0) gives one
+       more start (index 13), still subject to every check, the hint gate included.
     3. Each candidate's `truncated_cost` (c = acc.residual_sigma) and checks (overlap, inlier
        ratio, hint gate, robot geometry: `candidate_checks`). Among those that pass, the lowest
        cost wins, except that the hint's own candidate (start 0) is kept when it passes and its
@@ -136,12 +180,8 @@ def robust_register(
         )
     src_c, tgt_c, voxel_c = _coarse_clouds(source, target, cfg)
     fine = cfg.max_correspondence[-1]
-    kernel = reg_l.TukeyLoss(cfg.coarse_tukey * voxel_c) if cfg.coarse_tukey > 0 else reg_l.L2Loss()
-    est = reg_l.TransformationEstimationPointToPlane(kernel)
+    est = _point_to_plane_estimation(cfg.coarse_tukey * voxel_c)
     crit_c = reg_l.ICPConvergenceCriteria(1e-6, 1e-6, cfg.max_iterations[0])
-    crit_f = reg_t.ICPConvergenceCriteria(
-        cfg.relative_fitness, cfg.relative_rmse, cfg.max_iterations[-1]
-    )
     hint_info = np.linalg.inv(0.5 * (hint_cov + hint_cov.T))
     hint_pose = gtsam.Pose3(hint)
     c = acc.residual_sigma
@@ -152,19 +192,21 @@ def robust_register(
 
     lam = np.linalg.eigvalsh(hint_cov[:3, :3])[-1], np.linalg.eigvalsh(hint_cov[3:, 3:])[-1]
     reach = min(float(np.sqrt(lam[0]) * r_med + np.sqrt(lam[1])), cfg.max_reach)
-    wide = None
-    if cfg.coarse_voxels > 0 and reach > cfg.coarse_voxels * voxel_c:
-        wide = _wide_clouds(src_c, tgt_c, reach / cfg.coarse_voxels, cfg)
-        est_w = reg_l.TransformationEstimationPointToPlane(
-            reg_l.TukeyLoss(cfg.coarse_tukey * reach / cfg.coarse_voxels)
-        )
+    wide = []
+    if cfg.coarse_voxels > 0:
+        wide = [
+            (a, b, dist, _point_to_plane_estimation(cfg.coarse_tukey * voxel))
+            for a, b, dist, voxel in _wide_levels(
+                src_c, tgt_c, reach, cfg.coarse_voxels * voxel_c, cfg
+            )
+        ]
 
     def coarse_stage(T0: np.ndarray) -> np.ndarray:
-        """The wide level (if the hint's reach exceeds the coarse one), then the coarse ICP."""
+        """The wide pyramid (while the hint's reach exceeds the coarse one), then the coarse ICP."""
         if cfg.coarse_voxels <= 0:
             return T0
-        if wide is not None:
-            T0 = reg_l.registration_icp(wide[0], wide[1], reach, T0, est_w, crit_c).transformation
+        for a, b, dist, est_w in wide:
+            T0 = reg_l.registration_icp(a, b, dist, T0, est_w, crit_c).transformation
         res = reg_l.registration_icp(src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0, est, crit_c)
         return np.asarray(res.transformation)
 
@@ -177,18 +219,11 @@ def robust_register(
             return False
         coarse.append((k, T))
         try:
-            res = reg_t.icp(
-                source.cloud,
-                target.cloud,
-                fine,
-                o3d.core.Tensor(T),
-                reg_t.TransformationEstimationPointToPlane(),
-                crit_f,
-            )
+            T, n_it = fine_stage(source, target, T, cfg)
         except RuntimeError:  # Open3D: singular 6x6 system, too few correspondences from this start
             merged[k] = f"no correspondences within {fine} m"
             return False
-        T, iterations = res.transformation.numpy(), iterations + int(res.num_iterations)
+        iterations += n_it
         same = [o.start for o in cands if not _distinct(T, o.transformation, acc)]
         if same:
             merged[k] = f"converged to the pose of start {same[0]}"
@@ -302,6 +337,13 @@ def robust_register(
         cov,
         time.perf_counter() - start_t,
     )
+
+
+def _point_to_plane_estimation(tukey: float):
+    """Open3D point-to-plane estimation with a Tukey kernel of width `tukey` [m] (0: least
+    squares)."""
+    kernel = reg_l.TukeyLoss(tukey) if tukey > 0 else reg_l.L2Loss()
+    return reg_l.TransformationEstimationPointToPlane(kernel)
 
 
 def _within(A: np.ndarray, B: np.ndarray, rot_deg: float, trans_m: float) -> bool:
