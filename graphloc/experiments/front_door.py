@@ -14,6 +14,7 @@ import numpy as np
 
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
+from graphloc.experiments.locks import lock_statistics
 from graphloc.pipelines.report import genuine_candidates
 from graphloc.pipelines.team_graph import build_graph, solve
 from graphloc.run import TeamRun
@@ -51,36 +52,20 @@ def feng_table_iii_run(overrides: dict, seed: int, wrong_distance: float) -> dic
     times = graph.node_times[r]
     truth = truth_at(run, r, times)
     genuine = genuine_candidates(run, decisions)
-    converged = correct_lock = None
-    wrong = False
-    locked = wrong_frames = relocalizations = 0
-    sq, previous = [], None
+    frames, previous, first = [], None, None
     for d, g in zip(decisions, genuine):
         k = int(np.argmin(np.abs(times - d.time)))
         decided = d.committed >= 0
-        if decided and previous is False and converged is not None:
-            relocalizations += 1
+        relocalized = decided and previous is False and first is not None
         previous = decided
         if not decided:
+            frames.append((k, False, False, 0.0, relocalized))
             continue
+        first = k if first is None else first
         err2 = float(np.sum((d.pose[:3] - truth[k]) ** 2))
-        ok = g in d.same_pose or err2 < wrong_distance**2
-        locked += 1
-        wrong_frames += int(not ok)
-        sq.append(err2)
-        if ok and correct_lock is None:
-            correct_lock = k
-        if converged is None:
-            converged, wrong = k, not ok
+        frames.append((k, True, g in d.same_pose or err2 < wrong_distance**2, err2, relocalized))
     out = {
-        "converged": converged,
-        "wrong": bool(wrong),
-        "correct_lock": correct_lock,
-        "relocalizations": relocalizations,
-        "locked_frames": locked,
-        "wrong_locked_frames": wrong_frames,
-        "rmse_locked": float(np.sqrt(np.mean(sq))) if sq else None,
-        "median_error_locked": float(np.sqrt(np.median(sq))) if sq else None,
+        **lock_statistics(frames),
         "rmse_locked_batch": None,
         "rmse_locked_online": None,
         "resolved_frames": 0,
@@ -89,6 +74,7 @@ def feng_table_iii_run(overrides: dict, seed: int, wrong_distance: float) -> dic
         if len(results["online"].latencies)
         else 0.0,
     }
+    converged = out["converged"]
     if converged is not None:
         after = np.arange(len(times)) >= converged
         for mode, res in results.items():

@@ -38,6 +38,7 @@ from graphloc.datasets.feng import (
     world_odometry,
 )
 from graphloc.experiments.front_door import feng_table_iii_run
+from graphloc.experiments.locks import lock_statistics
 from graphloc.hypotheses import HypothesisTracker, TrackerConfig
 from graphloc.keys import decode, pose_key
 from graphloc.pipelines.track_smoothing import decided, track_graph
@@ -143,48 +144,33 @@ def evaluate(engine, run, odometry, smooth: bool = False) -> dict:
     WRONG_DISTANCE of the truth (near the P3P fold two candidates are close; a coasting track
     has no candidate). smooth: also re-solve the run with the committed modes fixed in a batch
     Session (Levenberg-Marquardt over all poses) and report its RMSE on the same frames."""
-    converged, wrong, correct_lock, relocalizations = None, False, None, 0
-    locked = wrong_frames = 0
-    sq_err, latency, decisions = [], [], []
+    latency, decisions, frames = [], [], []
     for k, (cands, odo) in enumerate(zip(run.candidates, odometry)):
         t0 = time.perf_counter()
         d = engine.update(cands, odo)
         latency.append(time.perf_counter() - t0)
         decisions.append(d)
-        relocalizations += int(d.relocalized)
         if not d.locked:
+            frames.append((k, False, False, 0.0, d.relocalized))
             continue
         err2 = float(np.sum((d.pose.translation() - run.t_wc[k]) ** 2))
         ok = (
             d.committed >= 0 and d.committed == cands.meta.get("genuine", -1)
         ) or err2 < WRONG_DISTANCE**2
-        locked += 1
-        wrong_frames += int(not ok)
-        sq_err.append(err2)
-        if ok and correct_lock is None:
-            correct_lock = k
-        if converged is None:
-            converged, wrong = k, not ok
+        frames.append((k, True, ok, err2, d.relocalized))
     rmse_batch = rmse_online = None
     resolved_frames = 0
     if smooth and any(d.locked and d.committed >= 0 for d in decisions):
         batch, online = resolve_decided(run, odometry, decisions)
-        frames = sorted(online)
-        resolved_frames = len(frames)
-        rmse_batch = _rmse([batch[k].translation() - run.t_wc[k] for k in frames])
-        rmse_online = _rmse([online[k].translation() - run.t_wc[k] for k in frames])
+        resolved = sorted(online)
+        resolved_frames = len(resolved)
+        rmse_batch = _rmse([batch[k].translation() - run.t_wc[k] for k in resolved])
+        rmse_online = _rmse([online[k].translation() - run.t_wc[k] for k in resolved])
     return {
-        "converged": converged,
-        "wrong": bool(wrong),
-        "correct_lock": correct_lock,
+        **lock_statistics(frames),
         "rmse_locked_batch": rmse_batch,
         "rmse_locked_online": rmse_online,
         "resolved_frames": resolved_frames,
-        "relocalizations": relocalizations,
-        "locked_frames": locked,
-        "wrong_locked_frames": wrong_frames,
-        "rmse_locked": float(np.sqrt(np.mean(sq_err))) if sq_err else None,
-        "median_error_locked": float(np.sqrt(np.median(sq_err))) if sq_err else None,
         "frames": len(run),
         "mean_latency_ms": 1e3 * float(np.mean(latency)),
     }
