@@ -1,6 +1,8 @@
 """Issue 20 for seed 001 experiment 1 and seed 003 Fig. 6: the readings' truth model, the
 seed's pose under a reading, the scoring and choice, the report's --only option."""
 
+import json
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -92,7 +94,7 @@ def test_seed003_readings_list_the_stated_one_first():
     rows = s3.readings()
     assert rows[0] == s3.STATED
     n = len(s3.TRACKER_SCALES) * len(s3.TRACKER_VARIANCES) * len(s3.FEATURE_SIGMAS)
-    assert len(rows) == n * len(s3.SCHEDULES) == len({tuple(r.values()) for r in rows})
+    assert len(rows) == n * len(s3.SCHEDULES) == len({str(r) for r in rows})
     assert s3.SCHEDULES[s3.STATED["schedule"]] == ("camera",) * 11  # "12 frames"
 
 
@@ -115,3 +117,36 @@ def test_rotation_errors_use_the_relative_rotation():
     R = Rotation.from_rotvec([0.0, 0.0, 0.3]).as_matrix()[None]
     _, rot = s1.errors(R, np.zeros((1, 3)), np.eye(3)[None], np.zeros((1, 3)))
     assert rot[0] == pytest.approx(np.degrees(0.3))
+
+
+@pytest.mark.slow
+def test_only_quick_merges_seed001_and_seed003_into_the_previous_result(tmp_path):
+    """--only seed001,seed003 --quick on the committed result: the seed 000 / 004 parts come
+    back unchanged, the new parts are added and rendered."""
+    previous = json.loads(report.DOC_JSON.read_text())
+    assert (
+        report.main(
+            [
+                "--only",
+                "seed001,seed003",
+                "--quick",
+                "--no-docs",
+                "--previous",
+                str(report.DOC_JSON),
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 0
+    )
+    r = json.loads((tmp_path / "seed_baselines.json").read_text())
+    assert r["sweeps"] == json.loads(json.dumps(previous["sweeps"]))
+    p1, p3 = r["seed001"], r["seed003"]
+    assert p1["quick"] and p3["quick"] and p3["trials"] == 1
+    # the stated reading: rendered images alone give millimetres, far below the paper
+    stated = p1["runs"]["stated"]["seed_baseline"]["run1"]
+    assert stated["pos_mean_cm"] < 0.3 and stated["rot_mean_deg"] < 0.2
+    assert len(p3["rows"]) == len(s3.readings())
+    md = (tmp_path / "seed_baselines.md").read_text()
+    assert "## Seed 001 experiment 1" in md and "## Seed 003 Fig. 6" in md
+    assert (tmp_path / report.MORE_PNG).stat().st_size > 0

@@ -226,7 +226,7 @@ def render(result: dict, out: Path, docs: bool = True) -> dict:
         plot(result, DOC.with_suffix(".png"))
         if more:
             sections.plot(result, DOC.parent / MORE_PNG)
-        DOC_JSON.write_text(json.dumps(result, indent=1, default=_json))
+        DOC_JSON.write_text(json.dumps(result, separators=(",", ":"), default=_json))
         DOC.write_text(md)
     result["markdown"] = md
     return result
