@@ -112,6 +112,7 @@ def test_a_wrong_hint_is_not_fused(fragment):
         _fuse(pair, hint, (3.0, 0.05))
     d = info.value.decision
     assert not d.accepted and d.reasons
+    assert 0 in {c.start for c in d.candidates}  # the hint's own start always reaches the end
     assert len(d.as_dict()["candidates"]) == len(d.candidates) >= 1
 
 
@@ -135,6 +136,10 @@ def test_a_candidate_below_stop_inlier_ratio_lets_the_other_starts_compete(fragm
     d = robust_register(src, tgt, hint, cov, replace(cfg, stop_inlier_ratio=1.0))
     tried = {c.start for c in d.candidates} | set(d.lost)
     assert tried == set(range(13))  # the hint and its 12 sigma points
+    # a start whose coarse pose no fine stage can bring within the gates skips its fine stage;
+    # the hint's own start never does
+    skipped = {k for k, why in d.lost.items() if "out of fine reach" in why}
+    assert 0 not in skipped and not skipped & {c.start for c in d.candidates}
     valid = [c for c in d.candidates if all(v[2] for v in candidate_checks(c, acc).values())]
     cheapest = min(valid, key=lambda c: c.cost)
     own = next(c for c in valid if c.start == 0)

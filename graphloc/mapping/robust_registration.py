@@ -145,7 +145,9 @@ def robust_register(
        (`_coarse_clouds`; correspondences within cfg.coarse_voxels coarse voxels, Tukey kernel of
        cfg.coarse_tukey voxels, so the parts that do not overlap are not pulled in); starts whose
        coarse results lie within one fine basin of each other (cfg.max_correspondence[-1], and
-       the rotation moving the median source point that far) merge; then Open3D tensor ICP on
+       the rotation moving the median source point that far) merge, and a sigma-point or global
+       start whose coarse pose fails the hint gate or the robot geometry by more than a move of
+       one fine basin could mend stops there (`_beyond_fine_reach`); then Open3D tensor ICP on
        the prepared clouds within that distance (cfg.max_iterations[-1]) with a Tukey kernel of
        cfg.fine_tukey times it (points on surfaces the other view does not share, clutter and
        cut edges lose their pull); candidates closer than acc.distinct_deg / distinct_m merge.
@@ -210,6 +212,27 @@ def robust_register(
         res = reg_l.registration_icp(src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0, est, crit_c)
         return np.asarray(res.transformation)
 
+    # how far (in the hint's Mahalanobis norm) the fine stage can move a pose: one fine basin
+    move = (
+        np.sqrt(np.linalg.eigvalsh(hint_info[:3, :3])[-1]) * np.radians(basin_deg)
+        + np.sqrt(np.linalg.eigvalsh(hint_info[3:, 3:])[-1]) * fine
+    )
+    min_down = np.cos(np.radians(acc.max_ceiling_tilt_deg + basin_deg))
+
+    def _beyond_fine_reach(T: np.ndarray, k: int) -> str | None:
+        """Why a sigma-point or global start's coarse pose cannot pass the checks the fine stage
+        hardly changes (the hint gate, the robot geometry) after a move of one fine basin; None
+        if it can (the hint's own start always gets its fine stage)."""
+        if k == 0:
+            return None
+        e = hint_pose.localCoordinates(gtsam.Pose3(T))
+        d2 = float(e @ hint_info @ e)
+        if np.sqrt(d2) - move > np.sqrt(acc.hint_gate):
+            return f"coarse pose beyond the hint gate (Mahalanobis^2 {d2:.1f}), out of fine reach"
+        if acc.ceiling_above and (T[2, 3] < -fine or -T[2, 2] < min_down):
+            return "coarse pose fails the robot geometry, out of fine reach"
+        return None
+
     def try_start(k: int, T: np.ndarray) -> bool:
         """Fine ICP from one start's coarse pose; True if its candidate passes its own checks."""
         nonlocal iterations
@@ -218,6 +241,10 @@ def robust_register(
             merged[k] = f"coarse stage converged within the fine basin of start {same[0]}"
             return False
         coarse.append((k, T))
+        hopeless = _beyond_fine_reach(T, k)
+        if hopeless:
+            merged[k] = hopeless
+            return False
         try:
             T, n_it = fine_stage(source, target, T, cfg)
         except RuntimeError:  # Open3D: singular 6x6 system, too few correspondences from this start
