@@ -91,11 +91,11 @@ def solve(
     if mode != "batch" or result.partial:
         return result
     wall = result.wall_s
-    for i, variant in enumerate(graph.alternatives):
+    for variant in graph.alternatives:
         if stop is not None and stop():
             break
         other = _solve(
-            graph, mode, False, stop, None, None, {**(initial or graph.initial), **variant}
+            graph, mode, progress, stop, None, None, {**(initial or graph.initial), **variant}
         )
         wall += other.wall_s
         if not other.partial and other.error < result.error:
