@@ -4,6 +4,7 @@ the fusion pipeline end to end and the `fuse-maps` verb."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import gtsam
 import numpy as np
@@ -183,7 +184,8 @@ def test_fusion_recovers_the_inter_robot_transform(scenario, fused):
 def test_every_frame_mixture_chooses_the_true_candidate_at_the_estimate(scenario, fused):
     """The P3P candidate sets reach the graph as max-mixtures (factors.mixture): at the
     optimized poses each frame's active component is the candidate nearest the true camera."""
-    mixtures = p3p_factors(fused.guess_info, scenario.fusion_input().leds.T_ceiling_camera)
+    T_cc, gate = scenario.fusion_input().leds.T_ceiling_camera, FusionConfig().p3p_outlier_d2
+    mixtures = p3p_factors(fused.guess_info, T_cc, gate)
     assert len(mixtures) == fused.n_p3p_factors == len(fused.guess_info.candidates)
     values = gtsam.Values()
     for r in (GROUND, CEILING):
@@ -193,7 +195,14 @@ def test_every_frame_mixture_chooses_the_true_candidate_at_the_estimate(scenario
     for (f, cands), mixture in zip(fused.guess_info.candidates.items(), mixtures):
         truth = np.linalg.inv(s.poses["ground"][f]) @ s.poses["ceiling"][f] @ T_CEILING_CAMERA
         nearest = int(np.argmin([pose_errors(p.matrix(), truth)[1] for p in cands.poses()]))
+        assert len(mixture.components) == len(cands) + 1  # + the null component
         assert mixture.active(values) == nearest, f
+    # a frame whose candidates are all 20 cm off is an outlier: the null component wins
+    f, cands = next(iter(fused.guess_info.candidates.items()))
+    shifted = replace(cands, t=cands.t + np.array([0.2, 0.0, 0.0]))
+    guess = replace(fused.guess_info, candidates={f: shifted})
+    (mixture,) = p3p_factors(guess, T_cc, gate)
+    assert mixture.active(values) == len(cands)
 
 
 def test_the_p3p_covariance_is_the_registration_prior(scenario, fused):

@@ -15,7 +15,8 @@
 4. one graph: prior on the ground robot's first pose, scan-matching between-factors for both
    robots (point-to-plane ICP of consecutive scans from the KISS-ICP increment, covariance from
    the registration's information matrix), the ICP inter-robot factor, and per camera frame a
-   max-mixture of the P3P candidates' between-factors (the solve chooses the component); batch
+   max-mixture of the P3P candidates' between-factors and a null component (the solve
+   chooses; a frame farther than `p3p_outlier_d2` from the estimate is an outlier); batch
    Levenberg-Marquardt (`graphloc.session.Session`);
 5. fused map: every scan placed with the optimized poses, denoised, each point labelled with
    its robot.
@@ -146,7 +147,8 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
     )
     mixtures = []
     if guess_info is not None:
-        mixtures = p3p_factors(guess_info, np.asarray(inp.leds.T_ceiling_camera, dtype=float))
+        T_cc = np.asarray(inp.leds.T_ceiling_camera, dtype=float)
+        mixtures = p3p_factors(guess_info, T_cc, cfg.p3p_outlier_d2)
         for mixture in mixtures:
             graph.add(mixture.factor)
     session = Session(cfg.session)

@@ -17,7 +17,12 @@ import gtsam
 import numpy as np
 
 from graphloc.candidates import CandidateSet
-from graphloc.factors.mixture import MaxMixture, candidate_max_mixture
+from graphloc.factors.mixture import (
+    MaxMixture,
+    component_factors,
+    max_mixture_factor,
+    mixture_weights,
+)
 from graphloc.hypotheses import HypothesisTracker, cap_covariances
 from graphloc.keys import pose_key
 from graphloc.mapping.odometry import OdometryResult
@@ -154,18 +159,25 @@ def led_initial_guess(
     )
 
 
-def p3p_factors(guess: GuessResult, T_cc: np.ndarray) -> list[MaxMixture]:
+def p3p_factors(guess: GuessResult, T_cc: np.ndarray, outlier_d2: float) -> list[MaxMixture]:
     """One max-mixture x(ground,k) -> x(ceiling,k) per camera frame with candidates
-    (`factors.mixture.candidate_max_mixture`): component j is candidate j (the camera in G_k)
-    carried to the ceiling LiDAR, Y_j T_cc^-1, with its covariance carried through the
-    extrinsic (T Exp(xi) M = T M Exp(Ad(M^-1) xi), M = T_cc^-1); weights from the scores. The
-    solve picks, per frame, the component nearest the estimate (Olson & Agarwal)."""
+    (`factors.mixture`: `component_factors`, `mixture_weights`, `max_mixture_factor`):
+    component j is candidate j (the camera in G_k) carried to the ceiling LiDAR, Y_j T_cc^-1,
+    with its covariance carried through the extrinsic (T Exp(xi) M = T M Exp(Ad(M^-1) xi),
+    M = T_cc^-1); weights from the scores. The solve picks, per frame, the component nearest
+    the estimate (Olson & Agarwal, RSS 2012). A last, null component (their null hypothesis:
+    the frame is an outlier) is the best-weighted candidate with its covariance scaled by
+    s^2 = exp(outlier_d2 / 6) and that candidate's weight: its normalizer is 6 ln s =
+    outlier_d2 / 2 above the candidate's, so it wins once every candidate is farther than
+    Mahalanobis^2 ~ outlier_d2 from the estimate, and then pulls 1 / s^2 as hard."""
     ad = gtsam.Pose3(T_cc).AdjointMap()  # Ad(M^-1) with M = T_camera_ceiling
     T_cam_c = np.linalg.inv(T_cc)
+    scale = float(np.exp(outlier_d2 / 6.0))
     out = []
     for f, cands in guess.candidates.items():
         rel = np.einsum("kij,jl->kil", np.stack([p.matrix() for p in cands.poses()]), T_cam_c)
         cov = np.einsum("ij,kjl,ml->kim", ad, cands.covariance, ad)
+        cov = 0.5 * (cov + np.swapaxes(cov, 1, 2))
         carried = CandidateSet(
             rel[:, :3, :3],
             rel[:, :3, 3],
@@ -175,7 +187,12 @@ def p3p_factors(guess: GuessResult, T_cc: np.ndarray) -> list[MaxMixture]:
             cands.observed,
             cands.source,
             cands.meta,
-            0.5 * (cov + np.swapaxes(cov, 1, 2)),
+            cov,
         )
-        out.append(candidate_max_mixture(carried, pose_key(CEILING, f), pose_key(GROUND, f)))
+        keys = (pose_key(CEILING, f), pose_key(GROUND, f))
+        weights = mixture_weights(carried)
+        j = int(np.argmax(weights))
+        null = component_factors(carried, *keys, covariances=scale * cov)[j]
+        components = component_factors(carried, *keys) + [null]
+        out.append(max_mixture_factor(components, np.r_[weights, weights[j]]))
     return out
