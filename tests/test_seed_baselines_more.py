@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 from graphloc.experiments import seed001_readings as s1
 from graphloc.experiments import seed003_readings as s3
 from graphloc.experiments import seed_baselines_report as report
-from graphloc.experiments import seed_baselines_sections as sections
+from graphloc.experiments.seed_baselines_results import results_section
 from graphloc.experiments.seed001 import look_at
 from graphloc.vision.target import LARGE_TARGET
 
@@ -108,9 +108,9 @@ def test_only_rejects_unknown_parts_and_a_missing_previous_result(tmp_path, caps
 
 
 def test_results_section_is_empty_without_the_parts(tmp_path):
-    assert sections.results_section(tmp_path / "none.json") == ""
+    assert results_section(tmp_path / "none.json") == ""
     (tmp_path / "r.json").write_text('{"sweeps": {}}')
-    assert sections.results_section(tmp_path / "r.json") == ""
+    assert results_section(tmp_path / "r.json") == ""
 
 
 def test_rotation_errors_use_the_relative_rotation():

@@ -21,7 +21,7 @@ from graphloc.executor import ResultCache, content_hash, default_backend
 from graphloc.experiments import TABLES, markdown, seed000, seed001, seed004
 from graphloc.experiments.hypotheses import TableIIIConfig
 from graphloc.experiments.seed_baselines_report import DOC_JSON
-from graphloc.experiments.seed_baselines_sections import results_section
+from graphloc.experiments.seed_baselines_results import results_section
 from graphloc.experiments.sizes import RunSizes, run_sizes
 
 

@@ -21,9 +21,12 @@ background at 260 cm):
 - the KLT points' "high" initial uncertainty: 1 m or 10 m std;
 - the sequence: "12 frames" with the tracked robot stationary (11 camera steps), or the
   move-and-stop schedule of the crawler-pair benchmark (16 frames, the teammate moves 3 steps).
-A reading reproduces when (a) and (b) hold on the mean over trials and the tracker's largest
-errors are within 10 % of Fig. 3's on every axis. After the coarse grid, the chosen reading's
-per-axis tracker stds are fitted to Fig. 3 (`refine`) and the claims checked there. graphloc
+(a) and (b) are read as trends: the sign of the least-squares slope of the error against
+log N (the strict readings, every N = 1, 2 below every N = 10, 20 and T_z falling at every
+step, are reported beside). A reading reproduces when (a) and (b) hold on the mean over
+trials and the tracker's largest errors are within 10 % of Fig. 3's on every axis. After the
+coarse grid, the chosen reading's per-axis tracker stds are fitted to Fig. 3 (`refine`; the
+draws are fixed, so the fit is exact) and the claims checked there. graphloc
 (graphloc.pipelines.cooperative_sfm, batch) runs on the same frames at the stated and the
 chosen reading.
 """
@@ -155,6 +158,11 @@ def graphloc_errors(m: dict, frames: list, feature_sigma: float) -> np.ndarray:
     return 100.0 * np.abs(np.asarray(run.final_positions) - m["truth"]).mean(axis=0)
 
 
+def trend(errors) -> float:
+    """Least-squares slope of the errors (one per N_VALUES) against log N."""
+    return float(np.polyfit(np.log(N_VALUES), np.asarray(errors, float), 1)[0])
+
+
 def evaluate(measured: list, reading: dict, with_graphloc: bool = False) -> dict:
     """A reading over the trials of its schedule: per N the mean per-axis error of the EKF
     (and graphloc), the tracker's largest errors, the two claims and the Fig. 3 deviation."""
@@ -183,9 +191,12 @@ def evaluate(measured: list, reading: dict, with_graphloc: bool = False) -> dict
         "ekf_cm": {n: mean[n].tolist() for n in N_VALUES},
         "tracker_max_cm": fig3.tolist(),
         "fig3_deviation": dev.tolist(),
-        # (a) T_x: the small N (1, 2) below the large (10, 20); (b) T_z falls as N grows
-        "claim_tx_small_n_better": bool(max(tx[:2]) < min(tx[2:])),
-        "claim_tz_improves_with_n": bool(all(np.diff(tz) < 0)),
+        # read as trends ("tends to"): the sign of the error's least-squares slope in log N;
+        # the strict readings beside: N = 1, 2 both below N = 10, 20 / T_z falling every step
+        "claim_tx_small_n_better": bool(trend(tx) > 0),
+        "claim_tz_improves_with_n": bool(trend(tz) < 0),
+        "strict_tx": bool(max(tx[:2]) < min(tx[2:])),
+        "strict_tz": bool(all(np.diff(tz) < 0)),
         "max_deviation": float(np.max(dev)) if np.isfinite(dev).all() else float("inf"),
     }
     row["reproduces"] = bool(

@@ -1,0 +1,72 @@
+"""docs/results.md rows for seed 001 experiment 1 and seed 003 Fig. 6 (issue 20): paper | seed
+baseline | graphloc at the stated and the reproducing reading, from the JSON
+scripts/bench_seed_baselines.py writes (docs/results_seed_baselines.json); appended to the seed
+001 section by graphloc.experiments.reproduce."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from graphloc.experiments.seed003_readings import N_VALUES, trend
+from graphloc.experiments.seed_baselines_sections import (
+    S1_NUMBERS,
+    by_n,
+    s1_numbers,
+    s1_margin,
+    yes_no,
+)
+
+
+def results_section(path: Path) -> str:
+    """docs/results.md: paper | seed baseline | graphloc for seed 001 experiment 1 and seed 003
+    Fig. 6 at the stated and the reproducing reading, from the JSON of
+    scripts/bench_seed_baselines.py (empty if it has neither)."""
+    if not Path(path).is_file():
+        return ""
+    r = json.loads(Path(path).read_text())
+    if "seed001" not in r and "seed003" not in r:
+        return ""
+    lines = [
+        "### Seed 001 experiment 1 and seed 003 Fig. 6 at the stated and the reproducing reading",
+        "",
+        f"From `scripts/bench_seed_baselines.py` (docs/{Path(path).name}; the sweeps and the "
+        "evidence: docs/results_seed_baselines.md).",
+        "",
+    ]
+    if "seed001" in r:
+        s1 = r["seed001"]
+        lines += [
+            "| seed 001 | setting | " + " | ".join(h for _, _, h in S1_NUMBERS) + " |",
+            "|---|---|" + "---|" * len(S1_NUMBERS),
+            "| paper | | "
+            + " | ".join(f"{s1['paper'][run][key]:g}" for run, key, _ in S1_NUMBERS)
+            + " |",
+        ]
+        for name in ("stated", "reproducing"):
+            for method in ("seed_baseline", "graphloc"):
+                lines.append(
+                    f"| {method.replace('_', ' ')} | {name} | "
+                    f"{s1_numbers(s1['runs'][name][method])} |"
+                )
+        lines += ["", s1_margin(s1), ""]
+    if "seed003" in r:
+        s3 = r["seed003"]
+        lines += [
+            "| seed 003 | setting | T_x N = 1 / 2 / 10 / 20 [cm] | T_z N = 1 / 2 / 10 / 20 [cm] "
+            "| (a) T_x better at small N | (b) T_z improves with N |",
+            "|---|---|---|---|---|---|",
+            "| paper | | not in the text | not in the text | yes | yes |",
+        ]
+        for name in ("stated", "reproducing"):
+            run = s3["runs"][name]
+            for key, method in (("ekf_cm", "seed baseline (EKF)"), ("graphloc_cm", "graphloc")):
+                tx = [by_n(run[key], n)[0] for n in N_VALUES]
+                tz = [by_n(run[key], n)[2] for n in N_VALUES]
+                lines.append(
+                    f"| {method} | {name} | {' / '.join(f'{v:.2f}' for v in tx)} | "
+                    f"{' / '.join(f'{v:.2f}' for v in tz)} | "
+                    f"{yes_no(trend(tx) > 0)} | {yes_no(trend(tz) < 0)} |"
+                )
+        lines.append("")
+    return "\n".join(lines)
