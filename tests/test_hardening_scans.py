@@ -107,7 +107,7 @@ def _garble_row(data: bytes) -> bytes:
     [
         (False, lambda d: d[: len(d) // 2], r"declares 100 rows \(2400 bytes of data\), the file"),
         (True, lambda d: d[: len(d) // 2], r"declares 100 rows, the file holds \d\d data lines"),
-        (True, _garble_row, r"data row 5 is not numbers: '1.5 x 2.5'"),
+        (True, _garble_row, r"data row 5 is not 3 numbers: '1.5 x 2.5'"),
     ],
 )
 def test_clouds_whose_data_do_not_match_their_header_are_errors(
@@ -117,3 +117,83 @@ def test_clouds_whose_data_do_not_match_their_header_are_errors(
     path.write_bytes(breaks(_cloud(path, ascii_)))
     with pytest.raises(ValueError, match=re.escape(str(path)) + r": .*" + reason):
         read_points(path)
+
+
+def _xyz(path: Path, ascii_: bool) -> bytes:
+    np.savetxt(path, np.random.default_rng(3).uniform(-3.0, 3.0, (100, 3)))
+    return path.read_bytes()
+
+
+FILE_CASES = [  # (file name, writer, how it is broken, the exact reason)
+    (  # Open3D's text reader corrupted its heap on this; the interpreter aborted later
+        "scan.xyz",
+        _xyz,
+        lambda d: d[: d.index(b"e", 1000) + 1],
+        r"data row \d+ is not 3 numbers: '[^']*e'",
+    ),
+    ("scan.xyz", _xyz, lambda d: d.replace(b"\n", b" 7\n", 1), r"data row 1 is not 3 numbers"),
+    (  # Open3D read a PCD header cut short as a cloud of garbage
+        "scan.pcd",
+        _cloud,
+        lambda d: d[: d.index(b"DATA")],
+        r"not a PCD file, or its header has no DATA line",
+    ),
+    ("scan.pcd", _cloud, lambda d: d.replace(b"SIZE 8 8 8", b"SIZE 8 8"), r"corrupt PCD header"),
+]
+
+
+@pytest.mark.parametrize("name, write, breaks, reason", FILE_CASES)
+def test_broken_xyz_and_pcd_headers_are_errors(tmp_path, name, write, breaks, reason):
+    path = tmp_path / name
+    path.write_bytes(breaks(write(path, False)))
+    with pytest.raises(ValueError, match=re.escape(str(path)) + r": .*" + reason):
+        read_points(path)
+
+
+@FAST
+@given(
+    kind=st.sampled_from(
+        ["binary.ply", "ascii.ply", "binary.pcd", "ascii.pcd", "packed.pcd", "xyz"]
+    ),
+    edits=st.lists(
+        st.tuples(
+            st.sampled_from(["cut", "flip", "insert"]),
+            st.floats(0, 1),
+            st.binary(min_size=1, max_size=8),
+        ),
+        min_size=1,
+        max_size=4,
+    ),
+)
+def test_read_points_returns_points_or_names_the_file(tmp_path_factory, kind, edits):
+    """Cut, flip or insert bytes anywhere in a valid scan file (header included): read_points
+    returns (N,3) points within +-MAX_COORDINATE or raises a ValueError naming the file -- never
+    another exception, never an abort of the interpreter."""
+    from graphloc.mapping.io import MAX_COORDINATE
+
+    path = tmp_path_factory.mktemp("c") / f"scan.{kind.split('.')[-1]}"
+    pts = np.random.default_rng(4).uniform(-3.0, 3.0, (40, 3))
+    if kind == "xyz":
+        np.savetxt(path, pts)
+    else:
+        cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts))
+        how = {"write_ascii": kind.startswith("ascii"), "compressed": kind == "packed.pcd"}
+        o3d.t.io.write_point_cloud(str(path), cloud, **how)
+    data = bytearray(path.read_bytes())
+    for op, where, blob in edits:
+        k = int(where * (len(data) - 1)) if data else 0
+        if op == "cut":
+            data = data[:k]
+        elif op == "flip" and data:
+            data[k] ^= blob[0] or 1
+        else:
+            data[k:k] = blob
+    path.write_bytes(bytes(data))
+    try:
+        got = read_points(path)
+    except ValueError as exc:
+        assert str(path) in str(exc), exc
+        return
+    assert got.ndim == 2 and got.shape[1] == 3 and len(got) > 0
+    finite = got[np.isfinite(got).all(axis=1)]
+    assert not len(finite) or np.abs(finite).max() <= MAX_COORDINATE

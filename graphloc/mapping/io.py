@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 
+from graphloc.mapping.cloud_files import open3d_points, pcd_check, ply_check, xyz_points
 from graphloc.textio import check_file, csv_fields, shown, text_lines
 
 SCAN_SUFFIXES = (".ply", ".pcd", ".xyz")
@@ -26,22 +27,21 @@ ROBOT_COLOURS = np.array([[0.85, 0.15, 0.1], [0.1, 0.3, 0.9], [0.1, 0.7, 0.2], [
 
 def read_points(path) -> np.ndarray:
     """(N,3) float64 points of one scan file; ValueError naming the file if it is not a readable
-    regular file, its data do not match its PLY / PCD header (`_ply_check`, `_pcd_check`: Open3D
-    only warns on a short or garbled file), it holds no points (Open3D's failed parse of a
-    garbage file included) or points beyond +-MAX_COORDINATE (NaN returns are a counted skip
-    only in `read_scan_sequence`)."""
+    regular file, its data do not match its PLY / PCD header or an XYZ row is not three numbers
+    (`graphloc.mapping.cloud_files`), it holds no points (Open3D's failed parse of a garbage
+    file included) or points beyond +-MAX_COORDINATE (NaN returns are a counted skip only in
+    `read_scan_sequence`)."""
     path = Path(path)
     if path.suffix.lower() not in SCAN_SUFFIXES:
         raise ValueError(f"{path}: unsupported point cloud suffix (use {', '.join(SCAN_SUFFIXES)})")
     check_file(path, what="point cloud")
     suffix = path.suffix.lower()
     declared = (
-        _ply_check(path) if suffix == ".ply" else _pcd_check(path) if suffix == ".pcd" else None
+        ply_check(path) if suffix == ".ply" else pcd_check(path) if suffix == ".pcd" else None
     )
-    pcd = o3d.t.io.read_point_cloud(str(path))
-    if "positions" not in pcd.point or len(pcd.point.positions) == 0:
+    pts = xyz_points(path) if suffix == ".xyz" else open3d_points(path)
+    if len(pts) == 0:
         raise ValueError(f"{path}: no points could be read (not a {path.suffix} point cloud?)")
-    pts = pcd.point.positions.numpy().astype(float)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"{path}: positions have shape {pts.shape}, expected (N,3)")
     if declared is not None and declared != len(pts):
@@ -56,117 +56,6 @@ def read_points(path) -> np.ndarray:
             f"not a scan in metres"
         )
     return pts
-
-
-# bytes per value of the PLY / PCD scalar types (PCD: SIZE is given in the header)
-_PLY_SIZES = {
-    **dict.fromkeys([b"char", b"uchar", b"int8", b"uint8"], 1),
-    **dict.fromkeys([b"short", b"ushort", b"int16", b"uint16"], 2),
-    **dict.fromkeys([b"int", b"uint", b"float", b"int32", b"uint32", b"float32"], 4),
-    **dict.fromkeys([b"double", b"float64"], 8),
-}
-
-
-def _header(path: Path, magic: bytes, last: bytes) -> tuple[list[list[bytes]], int] | None:
-    """The split lines of a PLY / PCD header up to the line starting with `last`, and the byte
-    offset of the data after it (None: not this format, or no complete header in 64 kB)."""
-    with open(path, "rb") as fh:
-        head = fh.read(65536)
-    if not head.lstrip().startswith(magic):
-        return None
-    lines, offset = [], 0
-    for raw in head.split(b"\n")[:-1]:
-        offset += len(raw) + 1
-        lines.append(raw.split())
-        if raw.strip().startswith(last):
-            return lines, offset
-    return None
-
-
-def _data_check(path: Path, offset: int, rows: int, nbytes: int | None) -> None:
-    """ValueError naming the file if its data after the header (at `offset`) holds less than
-    the header declares: binary data (`nbytes` given) by size; ASCII data by its non-blank
-    lines, each a row of numbers. Open3D itself only warns on a short or garbled file and
-    returns the points it could not read uninitialised."""
-    size = path.stat().st_size - offset
-    if nbytes is not None:
-        if size < nbytes:
-            raise ValueError(
-                f"{path}: truncated or corrupt: the header declares {rows} rows ({nbytes} bytes "
-                f"of data), the file holds {size} bytes of data"
-            )
-        return
-    with open(path, "rb") as fh:
-        fh.seek(offset)
-        lines = [line for line in fh.read().split(b"\n") if line.strip()]
-    if len(lines) < rows:
-        raise ValueError(
-            f"{path}: truncated or corrupt: the header declares {rows} rows, the file holds "
-            f"{len(lines)} data lines"
-        )
-    try:
-        np.array(b" ".join(lines[:rows]).split(), dtype=float)
-    except ValueError:
-        bad = next(k for k, ln in enumerate(lines) if not _numbers(ln))
-        raise ValueError(
-            f"{path}: data row {bad + 1} is not numbers: {shown(lines[bad].decode('latin-1'))}"
-        ) from None
-
-
-def _numbers(line: bytes) -> bool:
-    try:
-        np.array(line.split(), dtype=float)
-    except ValueError:
-        return False
-    return True
-
-
-def _ply_check(path: Path) -> int | None:
-    """Check a PLY file's data against its header (`_data_check`); its vertex count (None if
-    the header cannot be read -- Open3D then decides)."""
-    head = _header(path, b"ply", b"end_header")
-    if head is None:
-        return None
-    lines, offset = head
-    fmt, elements = b"", []  # [count, stride or None (list properties)]
-    for parts in lines:
-        if parts[:1] == [b"format"] and len(parts) > 1:
-            fmt = parts[1]
-        elif parts[:1] == [b"element"] and len(parts) == 3 and parts[2].isdigit():
-            elements.append([parts[1], int(parts[2]), 0])
-        elif parts[:1] == [b"property"] and elements and elements[-1][2] is not None:
-            size = _PLY_SIZES.get(parts[1]) if len(parts) == 3 else None
-            elements[-1][2] = None if size is None else elements[-1][2] + size
-    vertices = next((n for name, n, _ in elements if name == b"vertex"), None)
-    if vertices is None or fmt not in (b"ascii", b"binary_little_endian", b"binary_big_endian"):
-        return vertices
-    strides = [st for _, _, st in elements]
-    rows = sum(n for _, n, _ in elements)
-    if fmt == b"ascii":
-        _data_check(path, offset, rows, None)
-    elif None not in strides:
-        _data_check(path, offset, rows, sum(n * st for _, n, st in elements))
-    return vertices
-
-
-def _pcd_check(path: Path) -> None:
-    """Check a PCD file's data (ascii or binary; binary_compressed is left to Open3D) against
-    its header's POINTS, SIZE and COUNT (`_data_check`)."""
-    head = _header(path, b"#", b"DATA") or _header(path, b"VERSION", b"DATA")
-    if head is None:
-        return
-    lines, offset = head
-    fields = {parts[0]: parts[1:] for parts in lines if parts}
-    try:
-        rows = int(fields[b"POINTS"][0])
-        sizes = [int(v) for v in fields[b"SIZE"]]
-        counts = [int(v) for v in fields.get(b"COUNT", [b"1"] * len(sizes))]
-        fmt = fields[b"DATA"][0]
-    except (KeyError, IndexError, ValueError):
-        return  # Open3D's own parse reports it
-    if fmt in (b"ascii", b"binary") and len(counts) == len(sizes):
-        stride = sum(a * b for a, b in zip(sizes, counts))
-        _data_check(path, offset, rows, rows * stride if fmt == b"binary" else None)
 
 
 def read_scan_sequence(folder) -> tuple[list[np.ndarray], list[Path], int]:
