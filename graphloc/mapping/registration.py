@@ -68,6 +68,9 @@ class RegistrationConfig:
     # robust_register's fine stage: Tukey kernel width in fine correspondence distances
     # (max_correspondence[-1]; 0: least squares)
     fine_tukey: float = 1.0
+    # ... and its stop: relative change of fitness and inlier RMSE (Open3D's default criterion;
+    # the Tukey-weighted iterations have settled by then, docs/results_fusion_real.md)
+    fine_relative: float = 1e-6
     covariance_block: float = 0.5
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
@@ -81,7 +84,7 @@ class RegistrationConfig:
     def __post_init__(self):
         check(
             self,
-            positive=("voxel", "normal_radius", "range_sigma", "covariance_scale"),
+            positive=("voxel", "normal_radius", "range_sigma", "covariance_scale", "fine_relative"),
             nonnegative=("coarse_tukey", "fine_tukey"),
         )
         if not (len(self.covariance_floor) == 2 and min(self.covariance_floor) >= 0):

@@ -59,8 +59,9 @@ def fine_stage(
 ) -> tuple[np.ndarray, int]:
     """`robust_register`'s fine stage: Open3D tensor point-to-plane ICP of the prepared clouds
     from `init`, correspondences within cfg.max_correspondence[-1], a Tukey kernel of
-    cfg.fine_tukey times that distance (least squares if 0), cfg.max_iterations[-1] iterations
-    at most. Returns (T_target_source, iterations); Open3D raises RuntimeError when too few
+    cfg.fine_tukey times that distance (least squares if 0), until fitness and inlier RMSE change
+    by less than cfg.fine_relative (relative), cfg.max_iterations[-1] iterations at most.
+    Returns (T_target_source, iterations); Open3D raises RuntimeError when too few
     correspondences are left for the 6x6 system."""
     fine = cfg.max_correspondence[-1]
     rk = reg_t.robust_kernel
@@ -75,9 +76,7 @@ def fine_stage(
         fine,
         o3d.core.Tensor(np.asarray(init, dtype=np.float64)),
         reg_t.TransformationEstimationPointToPlane(kernel),
-        reg_t.ICPConvergenceCriteria(
-            cfg.relative_fitness, cfg.relative_rmse, cfg.max_iterations[-1]
-        ),
+        reg_t.ICPConvergenceCriteria(cfg.fine_relative, cfg.fine_relative, cfg.max_iterations[-1]),
     )
     return res.transformation.numpy(), int(res.num_iterations)
 
