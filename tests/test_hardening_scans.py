@@ -3,7 +3,8 @@
 ground scans in metres, or one scan of a sequence in another unit, are a ValueError naming the
 files and the ratio; scans of one room in one unit pass, whatever that room's size. A PLY / PCD
 file whose data do not match its header (truncated, garbled rows) is a ValueError naming it --
-Open3D only warns and returns the unread points uninitialised."""
+Open3D only warns and returns the unread points uninitialised. LED pixel tables and TUM
+trajectories, whatever their rows hold, are read or name the file."""
 
 from __future__ import annotations
 
@@ -197,3 +198,52 @@ def test_read_points_returns_points_or_names_the_file(tmp_path_factory, kind, ed
     assert got.ndim == 2 and got.shape[1] == 3 and len(got) > 0
     finite = got[np.isfinite(got).all(axis=1)]
     assert not len(finite) or np.abs(finite).max() <= MAX_COORDINATE
+
+
+# ---- the other mapping tables: LED pixels (fuse-maps --p3p) and TUM trajectories -------------
+LED_TABLE = "frame,time,led,u,v\n" + "".join(
+    f"{f},{f * 0.1},{k},{100 + k}.5,{200 + f}.25\n" for f in range(4) for k in range(3)
+)
+TUM_TABLE = "".join(f"{t * 0.1} {t} 0 0 0 0 0 1\n" for t in range(6))
+TOKENS = ["nan", "inf", "1e308", "-1", "0", "", "x", ",", " ", "\x00", "\xe4", "9" * 300, "#", "3"]
+
+
+@FAST
+@given(
+    which=st.sampled_from(["led", "tum"]),
+    edits=st.lists(
+        st.tuples(st.floats(0, 1), st.sampled_from(["token", "drop", "repeat", "cut"]), st.data()),
+        min_size=1,
+        max_size=3,
+    ),
+)
+def test_led_pixels_and_tum_return_or_name_the_file(tmp_path_factory, which, edits):
+    from graphloc.mapping.io import read_led_pixels, read_tum
+
+    sep = "," if which == "led" else " "
+    lines = (LED_TABLE if which == "led" else TUM_TABLE).split("\n")
+    for where, op, data in edits:
+        i = int(where * (len(lines) - 1))
+        if op == "token":
+            parts = lines[i].split(sep)
+            parts[data.draw(st.integers(0, len(parts) - 1))] = data.draw(st.sampled_from(TOKENS))
+            lines[i] = sep.join(parts)
+        elif op == "drop" and len(lines) > 1:
+            lines.pop(i)
+        elif op == "repeat":
+            lines.insert(i, lines[i])
+        else:
+            lines[i] = lines[i][: data.draw(st.integers(0, len(lines[i])))]
+    path = tmp_path_factory.mktemp("t") / ("pixels.csv" if which == "led" else "poses.tum")
+    path.write_text("\n".join(lines))
+    try:
+        got = read_led_pixels(path, 4) if which == "led" else read_tum(path)
+    except ValueError as exc:
+        assert str(path) in str(exc), exc
+        return
+    if which == "led":
+        assert got.shape == (4, 3, 2)
+    else:
+        assert (
+            np.isfinite(got[0]).all() and np.isfinite(got[1]).all() and (np.diff(got[0]) > 0).all()
+        )
