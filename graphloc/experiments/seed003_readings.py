@@ -231,11 +231,14 @@ def choose(rows: list[dict]) -> dict:
     both = [r for r in rows if r["claim_tx_small_n_better"] and r["claim_tz_improves_with_n"]]
     pool = both or rows
     best = min(pool, key=lambda r: r["max_deviation"])
+    strict = [r for r in rows if r.get("strict_tx") and r.get("strict_tz")]
     return {
         "best": best,
         "reproduces": best["reproduces"],
         "reproducing_readings": sum(r["reproduces"] for r in rows),
         "readings_with_both_claims": len(both),
+        "readings_with_both_strict": len(strict),
+        "strict_within_tol": sum(r["max_deviation"] <= 0.10 for r in strict),
     }
 
 
@@ -246,6 +249,8 @@ def refine(measured: list, best: dict, rounds: int = REFINE_ROUNDS) -> list:
     rows, row = [], best
     for level in range(rounds):
         if row["tracker_sd_cm"] is None or not np.isfinite(row["tracker_max_cm"]).all():
+            break
+        if row["max_deviation"] < 1e-6:  # already on Fig. 3 (the draws are fixed)
             break
         sd = np.asarray(row["tracker_sd_cm"]) * FIG3_RANGE_CM / np.asarray(row["tracker_max_cm"])
         reading = {k: row[k] for k in STATED} | {"tracker_sd_cm": sd.tolist()}
