@@ -49,7 +49,15 @@ def results_section(path: Path) -> str:
                     f"| {method.replace('_', ' ')} | {name} | "
                     f"{s1_numbers(s1['runs'][name][method])} |"
                 )
-        lines += ["", s1_margin(s1), ""]
+        ch = s1["choice"]
+        lines += [
+            "",
+            "Reproducing = the sweep's closest reading, "
+            + ("within" if ch["reproduces"] else "not within")
+            + f" 10 % of every scored number (largest deviation "
+            f"{ch['best']['max_deviation']:.3f}). " + s1_margin(s1),
+            "",
+        ]
     if "seed003" in r:
         s3 = r["seed003"]
         lines += [
@@ -68,5 +76,14 @@ def results_section(path: Path) -> str:
                     f"{' / '.join(f'{v:.2f}' for v in tz)} | "
                     f"{yes_no(trend(tx) > 0)} | {yes_no(trend(tz) < 0)} |"
                 )
-        lines.append("")
+        best = s3["choice"]["best"]
+        lines += [
+            "",
+            "(a) / (b): the sign of the error's least-squares slope in log N (the text's "
+            "trends). Reproducing = the tracker's largest errors "
+            + " / ".join(f"{v:.2f}" for v in best["tracker_max_cm"])
+            + f" cm (Fig. 3: 2 / 0.8 / 9), R {best['tracker_variance']:g} px^2, KLT init std "
+            f"{best['feature_sigma']:g} m, {best['schedule']}; stated = the rendered tracker.",
+            "",
+        ]
     return "\n".join(lines)
