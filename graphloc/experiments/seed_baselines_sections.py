@@ -310,7 +310,9 @@ def plot(r: dict, path: Path) -> None:
             ax.bar(x + 0.2 * i - 0.3, ratio, 0.2, label=f"{method.replace('_', ' ')}, {name}")
         ax.axhline(1.0, color="k", lw=0.8)
         ax.axhspan(1 - REPRODUCE_TOL, 1 + REPRODUCE_TOL, color="k", alpha=0.1)
-        labels = [f"{'run 1' if run == 'run1' else '3 m'} {key[:-3]}" for run, key in SCORED]
+        labels = [
+            f"{'run 1' if run == 'run1' else '3 m'} {key.rsplit('_', 1)[0]}" for run, key in SCORED
+        ]
         ax.set_xticks(x, labels, fontsize=6, rotation=25)
         ax.set(yscale="log", ylabel="ours / paper")
         ax.set_title("Seed 001 exp. 1 (grey: within 10 %)", fontsize=10)
