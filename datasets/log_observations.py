@@ -97,10 +97,10 @@ def scan_odometry(groups: dict, robots: tuple, manifest, report) -> tuple[list, 
     if not groups:
         return [], []
     # Open3D and KISS-ICP load only for runs that have scans
-    from graphloc.mapping.io import read_scan
+    from graphloc.mapping.io import check_scan_units, read_scan
     from graphloc.mapping.odometry import run_odometry
 
-    out, observed = [], []
+    out, observed, sequences = [], [], {}
     for (ri, sensor), rows in groups.items():
         T_bs, params = robots[ri].sensors[sensor]
         E = gtsam.Pose3(T_bs)
@@ -118,10 +118,17 @@ def scan_odometry(groups: dict, robots: tuple, manifest, report) -> tuple[list, 
                 report.add(
                     "scan_points_nonfinite", f"{where}: {dropped} non-finite points", dropped
                 )
+        sequences[(ri, sensor)] = (scans, [manifest.root / r.path for r in rows])
+    if len({ri for ri, _ in groups}) > 1:  # registered with each other: one unit, checked first
+        check_scan_units({f"{robots[ri].name}/{s}": seq for (ri, s), seq in sequences.items()})
+    for (ri, sensor), rows in groups.items():
+        T_bs, params = robots[ri].sensors[sensor]
+        E = gtsam.Pose3(T_bs)
         sig = params.get("icp_sigmas", SCAN_SIGMAS)
         cov = np.diag([float(sig[0]) ** 2] * 3 + [float(sig[1]) ** 2] * 3)
         A = E.AdjointMap()
-        for a, b, step in zip(rows[:-1], rows[1:], run_odometry(scans).increments()):
+        steps = run_odometry(sequences[(ri, sensor)][0]).increments()
+        for a, b, step in zip(rows[:-1], rows[1:], steps):
             rel = E.compose(gtsam.Pose3(step)).compose(E.inverse())
             out.append(Motion(ri, a.time, b.time, rel, A @ cov @ A.T))
     return out, observed

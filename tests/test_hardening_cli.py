@@ -414,3 +414,21 @@ def test_bad_scans_fail_before_registration_naming_the_file(
     code, _, err = run_cli([*argv, "--out", tmp_path / "o"], capsys)
     assert code == exitcodes.BAD_INPUT and re.search(message, err), err
     assert str(ceiling) in err and not (tmp_path / "o" / "fusion_report.json").exists()
+
+
+def test_two_robots_scans_in_different_units_are_an_error_before_registration(tmp_path, capsys):
+    """The log reader's scans of two robots (the team graph registers them with each other):
+    ceiling scans in centimetres beside ground scans in metres fail before KISS-ICP and the
+    registration (Open3D's HashMap RuntimeError), naming a file of each robot and the unit."""
+    run = tmp_path / "room"
+    assert main(["simulate", "dual-robot-room", "--out", str(run), "--frames", "3"]) == 0
+    capsys.readouterr()
+    scale_scans(run / "scans" / "ceiling", 100.0)
+    code, _, err = run_cli(["validate", run], capsys)
+    assert code == exitcodes.BAD_INPUT, err
+    assert re.search(
+        r"scans/ceiling/00000\d\.ply and \S+/scans/ground/00000\d\.ply: the ceiling/lidar scans' "
+        r"extent \(median \S+ over 3 scans\) is \S+ x the ground/lidar scans' .*\(ratio near 100: "
+        r"centimetres\?\)",
+        err,
+    ), err

@@ -1,5 +1,5 @@
 """Issue 17, point clouds: the two robots' scans must be in one unit before any registration
-(`graphloc.mapping.io.check_scan_scales`). Ceiling scans in centimetres or millimetres beside
+(`graphloc.mapping.io.check_scan_units`). Ceiling scans in centimetres or millimetres beside
 ground scans in metres, or one scan of a sequence in another unit, are a ValueError naming the
 files and the ratio; scans of one room in one unit pass, whatever that room's size. A PLY / PCD
 file whose data do not match its header (truncated, garbled rows) is a ValueError naming it --
@@ -17,7 +17,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from graphloc.mapping.io import MAX_SCALE_RATIO, check_scan_scales, read_points, scan_extent
+from graphloc.mapping.io import MAX_SCALE_RATIO, check_scan_units, read_points, scan_extent
 from test_hardening import FAST
 
 
@@ -52,15 +52,17 @@ def test_scale_ratio_beyond_the_limit_is_an_error_naming_both_files(seed, size, 
     want = np.median([scan_extent(p) for p in ceiling]) / np.median(
         [scan_extent(p) for p in ground]
     )
+    seqs = {"ground": (ground, files("g", n[0])), "ceiling": (ceiling, files("c", n[1]))}
     if 1.0 / MAX_SCALE_RATIO <= want <= MAX_SCALE_RATIO:
-        got = check_scan_scales(ground, files("g", n[0]), ceiling, files("c", n[1]))
-        assert got["ceiling_over_ground"] == pytest.approx(want)
+        got = check_scan_units(seqs)
+        assert got["largest_over_smallest"] == pytest.approx(max(want, 1.0 / want))
         assert got["extent_m"]["ceiling"] == pytest.approx(want * got["extent_m"]["ground"])
         return
     with pytest.raises(ValueError) as err:
-        check_scan_scales(ground, files("g", n[0]), ceiling, files("c", n[1]))
+        check_scan_units(seqs)
     msg = str(err.value)
-    where = r"^c/0000\d\d\.ply and g/0000\d\d\.ply: .* is " + re.escape(f"{want:.3g} x ")
+    hi, lo, ratio = ("c", "g", want) if want > 1 else ("g", "c", 1.0 / want)
+    where = rf"^{hi}/0000\d\d\.ply and {lo}/0000\d\d\.ply: .* is " + re.escape(f"{ratio:.3g} x ")
     assert re.search(where, msg), msg
     assert "not in one unit" in msg
 
@@ -72,7 +74,7 @@ def test_ceiling_in_another_unit_names_the_unit(factor, hint):
     rng = np.random.default_rng(1)
     ground, ceiling = room_scans(rng, 3), [p * factor for p in room_scans(rng, 3)]
     with pytest.raises(ValueError, match=re.escape(hint)):
-        check_scan_scales(ground, files("g", 3), ceiling, files("c", 3))
+        check_scan_units({"ground": (ground, files("g", 3)), "ceiling": (ceiling, files("c", 3))})
 
 
 def test_one_scan_in_another_unit_names_its_file():
@@ -80,10 +82,12 @@ def test_one_scan_in_another_unit_names_its_file():
     ground, ceiling = room_scans(rng, 4), room_scans(rng, 4)
     ceiling[2] = ceiling[2] * 100.0
     with pytest.raises(ValueError, match=r"^c/000002\.ply: extent \S+ is \S+ x the median .* 4 "):
-        check_scan_scales(ground, files("g", 4), ceiling, files("c", 4))
+        check_scan_units({"ground": (ground, files("g", 4)), "ceiling": (ceiling, files("c", 4))})
     ground[0] = ground[0] / 1000.0
     with pytest.raises(ValueError, match=r"^g/000000\.ply: .*ratio near 1000: millimetres\?"):
-        check_scan_scales(ground, files("g", 4), room_scans(rng, 4), files("c", 4))
+        check_scan_units(
+            {"ground": (ground, files("g", 4)), "c": (room_scans(rng, 4), files("c", 4))}
+        )
 
 
 # ---- point-cloud files whose data do not match their header (Open3D only warns on them and

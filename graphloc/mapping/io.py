@@ -1,5 +1,5 @@
 """Files of the mapping pipeline: read a scan (PLY / PCD / XYZ) as an (N,3) array (checked for a
-plausible scale: `read_scan`; two robots' sequences for one unit: `check_scan_scales`), write a
+plausible scale: `read_scan`; robots' sequences for one unit: `check_scan_units`), write a
 fused map whose points carry the robot that saw them (`robot` attribute in PLY and PCD, plus a
 per-robot colour), and SE(3) trajectories as TUM files (via evo)."""
 
@@ -132,33 +132,36 @@ def _sequence_scale(name: str, scans: list, files: list) -> tuple[float, int]:
     return med, int(np.argmin(np.abs(ext - med)))
 
 
-def check_scan_scales(ground: list, ground_files: list, ceiling: list, ceiling_files: list) -> dict:
-    """Before registration: the two robots' scans (`read_scan` outputs, metres in each sensor's
-    frame) must be in one unit. Compares the robust extent (`scan_extent`) of every scan with its
-    sequence's median, then the two sequences' medians: a ratio beyond MAX_SCALE_RATIO (ceiling
-    scans in millimetres or centimetres beside ground scans in metres) is a ValueError naming a
-    file of each robot, both extents, the ratio and the unit it suggests. The median range
-    (sensor to point) of each sequence is reported beside it. Nearest-neighbour spacing is not
-    compared: it follows the sensors' densities, not only their units. Returns the scales for
-    the fusion report."""
-    med_g, k_g = _sequence_scale("ground", ground, ground_files)
-    med_c, k_c = _sequence_scale("ceiling", ceiling, ceiling_files)
-    ratio = med_c / med_g
-    if not 1.0 / MAX_SCALE_RATIO <= ratio <= MAX_SCALE_RATIO:
+def check_scan_units(sequences: dict) -> dict:
+    """Before registration: robots' scans (`read_scan` outputs, metres in each sensor's frame;
+    `sequences`: name -> (scans, files)) must be in one unit. Compares the robust extent
+    (`scan_extent`) of every scan with its sequence's median, then the sequences' medians: a
+    ratio beyond MAX_SCALE_RATIO (ceiling scans in millimetres or centimetres beside ground scans
+    in metres) is a ValueError naming a file of the largest and of the smallest, both extents,
+    the ratio and the unit it suggests. The median range (sensor to point) of each sequence is
+    reported beside it. Nearest-neighbour spacing is not compared: it follows the sensors'
+    densities, not only their units. Returns the scales for a report."""
+    scale = {name: _sequence_scale(name, *seq) for name, seq in sequences.items()}
+    hi = max(scale, key=lambda n: scale[n][0])
+    lo = min(scale, key=lambda n: scale[n][0])
+    ratio = scale[hi][0] / scale[lo][0]
+    if ratio > MAX_SCALE_RATIO:
+        (med_hi, k_hi), (med_lo, k_lo) = scale[hi], scale[lo]
         raise ValueError(
-            f"{ceiling_files[k_c]} and {ground_files[k_g]}: the ceiling scans' extent (median "
-            f"{med_c:.4g} over {len(ceiling)} scans) is {ratio:.3g} x the ground scans' "
-            f"({med_g:.4g} over {len(ground)}), beyond {MAX_SCALE_RATIO:g}x: the two robots' "
-            f"scans are not in one unit ({_likely_unit(ratio)}); convert both to metres"
+            f"{sequences[hi][1][k_hi]} and {sequences[lo][1][k_lo]}: the {hi} scans' extent "
+            f"(median {med_hi:.4g} over {len(sequences[hi][0])} scans) is {ratio:.3g} x the "
+            f"{lo} scans' ({med_lo:.4g} over {len(sequences[lo][0])}), beyond "
+            f"{MAX_SCALE_RATIO:g}x: the robots' scans are not in one unit "
+            f"({_likely_unit(ratio)}); convert all to metres"
         )
 
     def ranges(scans):
         return float(np.median([np.median(np.linalg.norm(p, axis=1)) for p in scans]))
 
     return {
-        "extent_m": {"ground": med_g, "ceiling": med_c},
-        "median_range_m": {"ground": ranges(ground), "ceiling": ranges(ceiling)},
-        "ceiling_over_ground": ratio,
+        "extent_m": {name: med for name, (med, _) in scale.items()},
+        "median_range_m": {name: ranges(seq[0]) for name, seq in sequences.items()},
+        "largest_over_smallest": ratio,
         "max_ratio": MAX_SCALE_RATIO,
     }
 

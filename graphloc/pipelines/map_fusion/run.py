@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphloc.mapping.io import check_scan_scales, read_scan_sequence
+from graphloc.mapping.io import check_scan_units, read_scan_sequence
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.inputs import parse_hint, parse_hint_sigma, read_p3p_setup
 from graphloc.pipelines.map_fusion.report import write_outputs, write_rejection
@@ -54,7 +54,9 @@ def fuse_directories(
             f"{ground_dir} has {len(ground)} scans but {ceiling_dir} has {len(ceiling)}: "
             "the pipeline needs synchronized sequences"
         )
-    scales = check_scan_scales(ground, ground_files, ceiling, ceiling_files)  # one unit
+    scales = check_scan_units(
+        {"ground": (ground, ground_files), "ceiling": (ceiling, ceiling_files)}
+    )
     times = np.arange(len(ground)) / float(rate)
     leds = read_p3p_setup(p3p, len(ground)) if p3p else None
     inp = FusionInput(
