@@ -1,0 +1,118 @@
+"""`scripts/bench_fusion.py --real --calibrate` (issue 16) fits the calibration of graphloc's
+registration covariance (scale and floor,
+`graphloc.mapping.registration_covariance.calibrated_covariance`) by maximum likelihood on view
+pairs of other seeds than the benchmark's, and writes docs/results_fusion_calibration.json
+(RegistrationConfig's defaults are that fit; tests/test_fusion_real.py checks they agree):
+
+    .venv/bin/python scripts/bench_fusion.py --real --calibrate --trials 20 --seed 1000
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from graphloc.executor import Executor
+
+from graphloc.experiments.fusion_bench_real import REAL_OVERLAPS, _cells, run_real_trial
+
+
+def fit_calibration(errors: np.ndarray, covs: np.ndarray) -> dict:
+    """Maximum likelihood of e_i ~ N(0, s P_i + diag(f_r^2 I3, f_t^2 I3)) over accepted trials
+    (`graphloc.mapping.registration_covariance.calibrated_covariance`): Nelder-Mead on
+    log(s, f_r, f_t)."""
+    from scipy.optimize import minimize
+
+    eye_r, eye_t = np.diag([1.0] * 3 + [0.0] * 3), np.diag([0.0] * 3 + [1.0] * 3)
+
+    def model(x):
+        s, fr, ft = np.exp(x)
+        return s * covs + fr**2 * eye_r + ft**2 * eye_t
+
+    def nll(x):
+        P = model(x)
+        _, logdet = np.linalg.slogdet(P)
+        return float(
+            np.sum(logdet)
+            + np.einsum("ni,ni->", errors, np.linalg.solve(P, errors[..., None])[..., 0])
+        )
+
+    x0 = np.log([10.0, np.deg2rad(0.05), 0.002])
+    res = minimize(
+        nll, x0, method="Nelder-Mead", options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-8}
+    )
+    s, fr, ft = np.exp(res.x)
+    return {
+        "covariance_scale": float(s),
+        "floor_rot_rad": float(fr),
+        "floor_trans_m": float(ft),
+        "nll": float(res.fun),
+        "converged": bool(res.success),
+    }
+
+
+def main_calibrate(args) -> int:
+    """`--real --calibrate`: fit the registration covariance's calibration (`fit_calibration`) on
+    view pairs of seeds args.seed.. (keep them apart from the benchmark's), write the JSON and
+    a PNG of the NEES per trial before / after."""
+    from scipy.stats import chi2
+
+    from graphloc.plots import plt  # the one place that sets the backend
+
+    jobs = [(ov, args.seed + i, True) for ov in REAL_OVERLAPS for i in range(args.trials)]
+    start = time.perf_counter()
+    with Executor(args.workers, start_method="spawn") as ex:
+        rows = [r for rs in ex.imap(run_real_trial, jobs, desc="calibration pairs") for r in rs]
+    used = [r for r in rows if r["graphloc"]["accepted"] and "covariance" in r["graphloc"]]
+    errors = np.array([r["graphloc"]["error_tangent"] for r in used])
+    covs = np.array([r["graphloc"]["covariance"] for r in used])
+    fit = fit_calibration(errors, covs)
+    P = fit["covariance_scale"] * covs + np.diag(
+        [fit["floor_rot_rad"] ** 2] * 3 + [fit["floor_trans_m"] ** 2] * 3
+    )
+    before = np.einsum("ni,ni->n", errors, np.linalg.solve(covs, errors[..., None])[..., 0])
+    after = np.einsum("ni,ni->n", errors, np.linalg.solve(P, errors[..., None])[..., 0])
+    cells = {}
+    for (ov, rd, tm), cell in _cells(used):
+        idx = [used.index(r) for r in cell]
+        lo, hi = chi2.ppf([0.025, 0.975], 6 * len(idx)) / len(idx)
+        cells[f"overlap {ov:.0%}, hint {rd:g} deg / {100 * tm:g} cm"] = {
+            "trials": len(idx),
+            "nees_mean_uncalibrated": float(before[idx].mean()),
+            "nees_mean_calibrated": float(after[idx].mean()),
+            "nees_band_95": [float(lo), float(hi)],
+        }
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    png = out / "bench_fusion_calibration.png"
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    bins = np.logspace(-1, np.log10(max(before.max(), after.max()) * 1.1), 40)
+    ax.hist(before, bins=bins, alpha=0.6, label="sandwich covariance (uncalibrated)")
+    ax.hist(after, bins=bins, alpha=0.6, label="calibrated (fitted scale + floor)")
+    ax.axvline(6.0, color="k", ls="--", lw=1, label="dimension (6)")
+    ax.set_xscale("log")
+    ax.set_xlabel("NEES per accepted calibration trial")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    report = {
+        "benchmark": "fusion_covariance_calibration",
+        "command": f"python scripts/bench_fusion.py --real --calibrate --trials {args.trials} "
+        f"--seed {args.seed}",
+        "seeds": [args.seed, args.seed + args.trials - 1],
+        "trials_per_overlap": args.trials,
+        "accepted_used": len(used),
+        "fit": fit,
+        "cells": cells,
+        "wall_time_s": time.perf_counter() - start,
+        "png": str(png),
+    }
+    path = Path(args.calibration_json)
+    path.write_text(json.dumps(report, indent=1) + "\n")
+    print(json.dumps({k: report[k] for k in ("fit", "cells")}, indent=1))
+    print(f"wrote {path} and {png}")
+    return 0
