@@ -250,7 +250,7 @@ def refine(measured: list, best: dict, rounds: int = REFINE_ROUNDS) -> list:
     for level in range(rounds):
         if row["tracker_sd_cm"] is None or not np.isfinite(row["tracker_max_cm"]).all():
             break
-        if row["max_deviation"] < 1e-6:  # already on Fig. 3 (the draws are fixed)
+        if row["max_deviation"] < 1e-3:  # already on Fig. 3 (the draws are fixed)
             break
         sd = np.asarray(row["tracker_sd_cm"]) * FIG3_RANGE_CM / np.asarray(row["tracker_max_cm"])
         reading = {k: row[k] for k in STATED} | {"tracker_sd_cm": sd.tolist()}
