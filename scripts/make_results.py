@@ -1,7 +1,7 @@
 """Regenerate docs/results.md: every seed table (paper | seed baseline (ours) | graphloc) through
 graphloc.experiments.reproduce.make_results (the route `graphloc reproduce` takes too).
 
-    .venv/bin/python scripts/make_results.py            # full size (< 15 min on 2 cores)
+    .venv/bin/python scripts/make_results.py            # full size (the run time is in the header)
     .venv/bin/python scripts/make_results.py --quick    # CI size
 
 Outputs (JSON, PNG) go to --out (default out/results); the markdown to --results.
