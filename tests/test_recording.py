@@ -75,6 +75,7 @@ def test_smooth_mcap_has_every_topic_and_count(smoothed):
         mine = [d for d in decisions if d["robot"] == robot]
         if mine:
             want[f"/graphloc/{robot}/candidates"] = len(mine)
+            want[f"/graphloc/{robot}/candidate_poses"] = len(mine)
             want[f"/graphloc/{robot}/committed"] = sum(int(d["committed"]) >= 0 for d in mine)
     assert counts == want
     assert schemas["/graphloc/climber/path"] == "nav_msgs/msg/Path"
@@ -99,6 +100,7 @@ def test_smooth_rerun_recording_holds_every_entity(smoothed):
     for label in ("batch", "dead_reckoning", "groundtruth"):
         assert f"world/climber/{label}" in entities and f"world/climber/{label}/path" in entities
     assert {"world/climber/candidates", "world/climber/committed", "world/ground/batch"} <= entities
+    assert "world/climber/candidates/poses" in entities
 
 
 def rrd_columns(path: Path, entity: str) -> list:
@@ -145,8 +147,10 @@ def test_every_candidate_carries_its_weight(tmp_path, scenario, overrides, route
         ds = sorted(ds, key=lambda d: d.time)  # stable: the order they were written in
         clouds = mcap_messages(tmp_path / "r.mcap", f"/graphloc/{robot}/candidates")
         logged = rrd_columns(tmp_path / "r.rrd", f"world/{robot}/candidates")
+        poses = mcap_messages(tmp_path / "r.mcap", f"/graphloc/{robot}/candidate_poses")
+        assert len(poses) == len(ds)
         assert len(clouds) == len(logged) == len(ds)
-        for d, cloud, row in zip(ds, clouds, logged):
+        for d, cloud, row, pa in zip(ds, clouds, logged, poses):
             k = len(d.candidates_xyz)
             assert [f.name for f in cloud.fields] == ["x", "y", "z", "committed", "weight"]
             data = np.frombuffer(cloud.data.tobytes(), "<f4").reshape(cloud.width, 5)
@@ -160,6 +164,17 @@ def test_every_candidate_carries_its_weight(tmp_path, scenario, overrides, route
             assert len(row["Points3D:labels"]) == k
             if d.committed >= 0:
                 assert f"p={want[d.committed]:.2f} committed" in row["Points3D:labels"][d.committed]
+            # every candidate's pose: the cloud's position and the decision's orientation
+            assert abs(_stamp(pa) - d.time) < 1e-6
+            got = np.array(
+                [
+                    [p.position.x, p.position.y, p.position.z]
+                    + [p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w]
+                    for p in pa.poses
+                ]
+            )
+            np.testing.assert_allclose(got[:, :3], d.candidates_xyz, atol=1e-9)
+            np.testing.assert_allclose(got[:, 3:], d.candidates_quat, atol=1e-9)
             if route == "mixture":  # chosen at the estimate: the heaviest component
                 assert d.committed == int(np.argmax(want)) and abs(want.sum() - 1.0) < 1e-9
     assert any(d.committed >= 0 for ds in decided.values() for d in ds)
@@ -254,3 +269,7 @@ def test_scans_are_placed_by_the_estimate(tmp_path):
         placed.append(scan @ T[:3, :3].T + T[:3, 3])
     d = cKDTree(np.vstack(placed)).query(pts)[0]
     assert len(pts) > 1000 and np.median(d) < 1e-4 and np.percentile(d, 95) < 0.09
+
+
+def _stamp(msg) -> float:
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec

@@ -15,13 +15,16 @@ directory's scans), `fusion_recording` from a `fuse-maps` output directory. Writ
   estimated pose), `/graphloc/ROBOT/path`, `/graphloc/ROBOT/dead_reckoning`,
   `/graphloc/ROBOT/groundtruth` (nav_msgs/Path, one message at the end of the track),
   `/graphloc/ROBOT/candidates` (sensor_msgs/PointCloud2, fields x y z committed weight, one
-  per candidate set) and `/graphloc/ROBOT/committed` (PoseStamped); clouds `/graphloc/map/NAME`
+  per candidate set), `/graphloc/ROBOT/candidate_poses` (geometry_msgs/PoseArray, every
+  candidate's pose in the cloud's order) and `/graphloc/ROBOT/committed` (PoseStamped); clouds
+  `/graphloc/map/NAME`
   (PointCloud2, fields x y z robot). Frame `map`.
 - `write_rerun(recording, path)` (optional dependency `rerun-sdk`, extra `graphloc[viz]`):
   entities `world/ROBOT/LABEL` (position over the `time` timeline) with `world/ROBOT/LABEL/path`
   (the whole track), `world/ROBOT/candidates` (every candidate labelled with its weight, sized
   by it, the committed one green; the weights and the committed flags also as the components
-  `weight` / `committed`), `world/ROBOT/committed`, `world/map/NAME` (coloured by robot).
+  `weight` / `committed`), `world/ROBOT/candidates/poses` (each candidate's pose as a flat box
+  along its body axes), `world/ROBOT/committed`, `world/map/NAME` (coloured by robot).
 """
 
 from __future__ import annotations
@@ -57,9 +60,10 @@ class Track:
 
 @dataclass(frozen=True)
 class CandidateFrame:
-    """One candidate set as decided: where each candidate puts the observer's body (K,3), each
-    candidate's posterior weight (K,; NaN where the solve states none), the committed candidate
-    (-1: none), its posterior (else the largest) and the committed pose."""
+    """One candidate set as decided: where each candidate puts the observer's body (K,3) and how
+    it turns it (K,4 x y z w; None where the solve states none), each candidate's posterior
+    weight (K,; NaN where the solve states none), the committed candidate (-1: none), its
+    posterior (else the largest) and the committed pose."""
 
     time: float
     robot: str
@@ -69,6 +73,7 @@ class CandidateFrame:
     committed: int
     probability: float
     pose: np.ndarray
+    quat: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -134,6 +139,7 @@ def team_recording(result: TeamResult, run: TeamRun, source=None) -> Recording:
                 int(d.committed),
                 float(d.probability),
                 np.asarray(d.pose, dtype=float),
+                None if d.candidates_quat is None else np.asarray(d.candidates_quat, float),
             )
         )
     return rec
@@ -266,6 +272,11 @@ def mcap_messages(rec: Recording, ts) -> list:
         columns = {"x": c.xyz[:, 0], "y": c.xyz[:, 1], "z": c.xyz[:, 2], "committed": chosen}
         columns["weight"] = c.weights
         out.append((f"{base}/candidates", cloud, c.time, _cloud(ts, c.time, columns)))
+        if c.quat is not None:  # every candidate's pose, in the cloud's order
+            header = ts.types["std_msgs/msg/Header"](stamp=_time(ts, c.time), frame_id=FRAME)
+            poses = [_pose_stamped(ts, c.time, np.r_[p, q]).pose for p, q in zip(c.xyz, c.quat)]
+            msg = ts.types["geometry_msgs/msg/PoseArray"](header=header, poses=poses)
+            out.append((f"{base}/candidate_poses", "geometry_msgs/msg/PoseArray", c.time, msg))
         if c.committed >= 0:
             out.append((f"{base}/committed", pose, c.time, _pose_stamped(ts, c.time, c.pose)))
     for cl in rec.clouds:
@@ -347,6 +358,17 @@ def write_rerun(rec: Recording, path) -> list[str]:
             rr.AnyValues(weight=c.weights, committed=chosen.astype(np.uint8)),
         )
         entities.append(f"world/{c.robot}/candidates")
+        if c.quat is not None:  # each candidate's orientation: a flat box along its body axes
+            stream.log(
+                f"world/{c.robot}/candidates/poses",
+                rr.Boxes3D(
+                    centers=c.xyz,
+                    half_sizes=np.tile([0.15, 0.1, 0.02], (len(c.xyz), 1)),
+                    quaternions=[rr.Quaternion(xyzw=q) for q in c.quat],
+                    colors=rgb,
+                ),
+            )
+            entities.append(f"world/{c.robot}/candidates/poses")
         if c.committed >= 0:
             stream.log(
                 f"world/{c.robot}/committed",

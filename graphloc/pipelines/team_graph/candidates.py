@@ -44,6 +44,7 @@ class Decision:
     probabilities: np.ndarray | None = None  # (K,) every candidate's posterior (tracker)
     mixture: object = None  # max-mixture route: the MaxMixture (chosen at the estimate)
     relative: np.ndarray | None = None  # max-mixture route: (K,4,4) observer body_T_target
+    candidates_quat: np.ndarray | None = None  # (K,4) x y z w: the body orientation each gives
 
 
 SAME_POSE_GATE = 12.59  # chi2(6) at 95 %: two candidates this close are one pose for the decision
@@ -137,6 +138,7 @@ def candidate_factors(
             # uncertainty added
             seen = o.candidates.poses()  # target_T_sensor
             world = [X_t.compose(p) for p in seen]
+            bodies = [w.compose(E.inverse()) for w in world]  # where each puts the observer
             cand_cov = candidate_covariances(o.candidates, config.tracker.default_sigmas)
             cov = cand_cov + np.stack([adjoint_cov(p.inverse(), P_t) for p in seen])
             cs = CandidateSet(
@@ -161,7 +163,6 @@ def candidate_factors(
                     run, config, r, k, node_times[r][k], o, factors, marker_points, skips
                 )
                 if first is None:
-                    bodies = [w.compose(E.inverse()) for w in world]
                     first = (k, bodies, bodies[int(np.argmax(d.probabilities))])
             if d.pose is not None:  # the tracker's best guess so far (committed or not), then
                 # every candidate of this set by its posterior: hypotheses for the scans
@@ -171,8 +172,7 @@ def candidate_factors(
                     (k, o.time, d.pose.compose(E.inverse()), adjoint_cov(E, cs.covariance[j]))
                 ]
                 tentative[r] += [
-                    (k, o.time, world[i].compose(E.inverse()), adjoint_cov(E, cs.covariance[i]))
-                    for i in order
+                    (k, o.time, bodies[i], adjoint_cov(E, cs.covariance[i])) for i in order
                 ]
             pose = np.full(7, np.nan)
             cluster = (
@@ -183,7 +183,7 @@ def candidate_factors(
             decided = bool(cluster) and d.probabilities[cluster].sum() >= config.decision_threshold
             if decided:
                 j = d.committed
-                body = world[j].compose(E.inverse())
+                body = bodies[j]
                 kernel = config.kernels.kernel("candidate")
                 if pixel_route:
                     factor = None
@@ -215,7 +215,7 @@ def candidate_factors(
                 if d.committed >= 0
                 else float(np.max(d.probabilities, initial=0))
             )
-            xyz = np.array([p.compose(E.inverse()).translation() for p in world])
+            xyz = np.array([b.translation() for b in bodies])
             decisions.append(
                 Decision(
                     o.time,
@@ -227,6 +227,7 @@ def candidate_factors(
                     pose,
                     cluster if decided else [],
                     np.array(d.probabilities, dtype=float),
+                    candidates_quat=_quats(bodies),
                 )
             )
         if first is not None:
@@ -302,8 +303,18 @@ def mixture_stream(
                 None,
                 mixture,
                 np.stack([rj.matrix() for rj in rel]),
+                _quats([X.compose(rj) for rj in rel]),
             )
         )
+    return out
+
+
+def _quats(poses: list) -> np.ndarray:
+    """(K,4) x y z w of the poses' rotations."""
+    out = np.zeros((len(poses), 4))
+    for i, p in enumerate(poses):
+        q = p.rotation().toQuaternion()
+        out[i] = (q.x(), q.y(), q.z(), q.w())
     return out
 
 
