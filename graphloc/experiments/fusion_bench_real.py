@@ -267,9 +267,9 @@ def markdown_real(report: dict, command: str) -> str:
         f"{report['machine']['load_avg_1m_at_end']:.1f} at the end, so absolute times are "
         "inflated; every time ratio below compares methods within the same trials). Data: "
         "`tests/data/real_room` (TUM RGB-D fr3 office, CC BY 4.0). Protocol and methods: the "
-        "docstring of `scripts/bench_fusion.py`. Success: rotation error < 1 deg and translation "
-        "< 5 cm (and, for graphloc, accepted). Cells: successes / trials; false accepts (fused "
-        "but wrong) in brackets; not fused in braces.",
+        "docstring of `graphloc.experiments.fusion_bench_real`. Success: rotation error < 1 deg "
+        "and translation < 5 cm (and, for graphloc, accepted). Cells: successes / trials; "
+        "false accepts (fused but wrong) in brackets; not fused in braces.",
         "",
         "| method | " + " | ".join(summ) + " |",
         "|---|" + "---|" * len(summ),

@@ -274,21 +274,22 @@ STATED = dict(
 )
 
 
+def _truth_args(reading: dict, seed: int) -> tuple:
+    """`stats`' arguments after (det, poses): the reading of the truth's errors."""
+    return (
+        reading["lag_frames"],
+        reading["hand_eye_deg"],
+        reading["offset_cm"],
+        seed,
+        reading["hover"],
+        reading["jitter_deg"],
+        reading["jitter_cm"],
+    )
+
+
 def _row(det: dict, poses: dict, reading: dict, seed: int) -> dict:
     row = dict(reading)
-    row.update(
-        stats(
-            det,
-            poses,
-            reading["lag_frames"],
-            reading["hand_eye_deg"],
-            reading["offset_cm"],
-            seed,
-            reading["hover"],
-            reading["jitter_deg"],
-            reading["jitter_cm"],
-        )
-    )
+    row.update(stats(det, poses, *_truth_args(reading, seed)))
     row["deviation"] = score(row)
     row["max_deviation"] = max(row["deviation"].values())
     return row
@@ -338,15 +339,7 @@ def sweep(det: dict, seed: int = 0, progress: bool = True) -> list[dict]:
 def compare(det: dict, reading: dict, seed: int = 0) -> dict:
     """Seed baseline and graphloc under one reading: the paper's numbers for each."""
     cam = reading_camera(reading["focal_error"], reading["principal_px"])
-    args = (
-        reading["lag_frames"],
-        reading["hand_eye_deg"],
-        reading["offset_cm"],
-        seed,
-        reading["hover"],
-        reading["jitter_deg"],
-        reading["jitter_cm"],
-    )
+    args = _truth_args(reading, seed)
     out = {}
     for name, fn in (("seed_baseline", seed_poses), ("graphloc", graphloc_poses)):
         poses = {run: fn(det[run], cam) for run in ("run1", "run2")}
