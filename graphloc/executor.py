@@ -3,7 +3,10 @@ several runs, `graphloc reproduce`, the experiments and benchmark scripts) hands
 `Executor`, which runs them on one of two backends:
 
 - ``local`` (the default, no dependency beyond the standard library): a `multiprocessing.Pool`
-  of `workers` processes, or, for one worker, the calling process itself (no start-up cost);
+  of `workers` processes, or, for one worker, the calling process itself (no start-up cost).
+  The pool starts its workers from a fork server by default, never by forking the caller: a
+  caller that has run Open3D, GTSAM's TBB or a Ray client holds native threads, and a child
+  forked from it can inherit a lock one of them held and hang for ever;
 - ``ray``: Ray tasks (`pip install graphloc[ray]`), on a local Ray instance with `workers` CPUs
   or on an existing cluster (`address="auto"` or ``"HOST:PORT"``).
 
@@ -17,7 +20,7 @@ Contract, identical on both backends:
   `Executor.imap` (trials, where a failure is a bug) raises `TaskFailed` naming the item;
 - `shared` is one large input (point clouds, long logs) sent once per worker, not once per
   task: Ray's object store (`ray.put`, read zero-copy by the workers) or the pool's initializer
-  (inherited by forked workers);
+  (pickled once per worker);
 - with a `ResultCache` and a content hash per item (`content_hash` of the inputs, the
   configuration and `code_version()`), finished tasks are read back instead of recomputed;
 - progress is one bar counting tasks done / failed / cached.
@@ -186,7 +189,8 @@ class Executor:
     workers: processes (local) or concurrent tasks (ray; the CPUs of a local Ray instance);
     backend: "local", "ray", or None (the one `default_backend` set, else "local");
     address: None (local Ray instance) or "auto" / "HOST:PORT" (an existing cluster);
-    start_method: multiprocessing start method of the local pool (None: the platform's)."""
+    start_method: multiprocessing start method of the local pool ("forkserver" by default;
+        see the module docstring for why not "fork")."""
 
     def __init__(
         self,
@@ -194,7 +198,7 @@ class Executor:
         backend: str | None = None,
         address: str | None = None,
         progress: bool = True,
-        start_method: str | None = None,
+        start_method: str = "forkserver",
     ):
         if backend is None:
             backend, address = _DEFAULT["backend"], address or _DEFAULT["address"]

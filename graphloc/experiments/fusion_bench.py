@@ -233,7 +233,7 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    with Executor(args.workers, start_method="spawn") as ex:
+    with Executor(args.workers) as ex:
         rows = list(ex.imap(run_trial, jobs, desc="placements"))
     rows.sort(key=lambda r: (r["variant"], r["seed"]))
     summary = summarize(rows)

@@ -381,7 +381,7 @@ def main_real(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start, load_start = time.perf_counter(), os.getloadavg()[0]
-    with Executor(args.workers, start_method="spawn") as ex:
+    with Executor(args.workers) as ex:
         rows = [r for rs in ex.imap(run_real_trial, jobs, desc="view pairs") for r in rs]
     rows.sort(key=lambda r: (-r["overlap_target"], r["hint_rot_deg"], r["seed"]))
     report = {

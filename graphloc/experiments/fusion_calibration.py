@@ -64,7 +64,7 @@ def main_calibrate(args) -> int:
 
     jobs = [(ov, args.seed + i, True) for ov in REAL_OVERLAPS for i in range(args.trials)]
     start = time.perf_counter()
-    with Executor(args.workers, start_method="spawn") as ex:
+    with Executor(args.workers) as ex:
         rows = [r for rs in ex.imap(run_real_trial, jobs, desc="calibration pairs") for r in rs]
     used = [r for r in rows if r["graphloc"]["accepted"] and "covariance" in r["graphloc"]]
     errors = np.array([r["graphloc"]["error_tangent"] for r in used])
