@@ -48,6 +48,9 @@ class TeamGraph:
     # other initial values the batch solve starts from too (key -> value, over `initial`): one
     # per candidate of a pixel stream's first set (`candidates.candidate_factors`)
     alternatives: list = field(default_factory=list)
+    # those of robots placed by the tracker's guess (it never decided their stream): the online
+    # solve starts from these too
+    guessed_alternatives: list = field(default_factory=list)
 
 
 def build_graph(
@@ -106,13 +109,15 @@ def build_graph(
         else:
             initial[lkey] = np.asarray(guess, dtype=float)
     initial.update(marker_points)
-    variants = []
-    for r, (k0, bodies) in alternatives.items():
+    variants, guessed_variants = [], []
+    for r, (k0, bodies, guessed) in alternatives.items():
         if r not in poses:
             continue
         for body in bodies:
             placed = place_robot(run, r, node_times, step_rel, config, {r: {k0: body}}, {}, poses)
             variants.append({pose_key(r, k): p for k, p in enumerate(placed[0])})
+            if guessed:
+                guessed_variants.append(variants[-1])
     for lkey, sigma, t in point_priors:
         if lkey in initial:
             noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
@@ -178,6 +183,7 @@ def build_graph(
             if d.mixture is not None and d.relative is not None
         },
         variants,
+        guessed_variants,
     )
 
 

@@ -47,7 +47,7 @@ class TeamResult:
     lag: float | None = None
     decisions: list = field(default_factory=list)  # graph.decisions, max-mixtures chosen
     values: object = None  # gtsam.Values: the final estimate of every variable
-    error: float = float("nan")  # the graph's error at the final estimate
+    error: float = float("nan")  # the error of the factors the solve added, at the final estimate
 
 
 RELEASE_UPDATES = 5  # extra iSAM2 updates when held factors enter (a robot placed late)
@@ -83,28 +83,57 @@ def solve(
     basin; the incremental pass chooses each set near its own frame, as the online solve does.
     A batch solve also starts from each of `graph.alternatives` (the candidates of a marker
     pixel stream's first set) and keeps the estimate of least error: the solve, not one frame,
-    chooses among the placements P3P leaves open."""
+    chooses among the placements P3P leaves open. Online, a robot placed by the tracker's guess
+    (it never decided the stream) is run as one hypothesis per candidate of that set
+    (`graph.guessed_alternatives`), side by side over the same steps: the final estimate is
+    the hypothesis of least error at the end, and each pose's causal estimate comes from the
+    hypothesis of least error at the step that pose entered -- a choice made with the data up
+    to that step only."""
     initial = None
     if mode == "batch" and any(d.mixture is not None for d in graph.decisions):
         initial = warm_start(graph, stop)
-    result = _solve(graph, mode, progress, stop, on_step, on_stop, initial)
-    if mode != "batch" or result.partial:
+    variants = graph.alternatives if mode == "batch" else graph.guessed_alternatives
+    traces: list = [{} if variants and mode == "online" else None]
+    result = _solve(graph, mode, progress, stop, on_step, on_stop, initial, traces[0])
+    if result.partial or not variants:
         return result
-    wall = result.wall_s
-    for variant in graph.alternatives:
+    passes, wall = [result], result.wall_s
+    for variant in variants:
         if stop is not None and stop():
             break
-        other = _solve(
-            graph, mode, progress, stop, None, None, {**(initial or graph.initial), **variant}
-        )
+        trace = {} if mode == "online" else None
+        start = {**(initial or graph.initial), **variant}
+        other = _solve(graph, mode, progress, stop, None, None, start, trace)
         wall += other.wall_s
-        if not other.partial and other.error < result.error:
-            result = other
+        if not other.partial:
+            passes.append(other)
+            traces.append(trace)
+    best = min(range(len(passes)), key=lambda j: passes[j].error)
+    result = passes[best]
+    if mode == "online":
+        result = replace(result, causal=_causal_of_least_error(passes, traces))
     return replace(result, wall_s=wall)
 
 
-def _solve(graph: TeamGraph, mode, progress, stop, on_step, on_stop, initial) -> TeamResult:
-    """One solve of `graph` (see `solve`) from `initial` (key -> value; None: graph.initial)."""
+def _causal_of_least_error(passes: list, traces: list) -> list:
+    """Per pose, the causal estimate of the online pass whose error was least at the step
+    that pose entered (`traces[j]`: step -> error, robot -> {node: step})."""
+    causal = [rows.copy() for rows in passes[0].causal]
+    for r, rows in enumerate(causal):
+        for k, i in traces[0]["entered"].get(r, {}).items():
+            j = min(range(len(passes)), key=lambda j: traces[j]["error"].get(i, np.inf))
+            rows[k] = passes[j].causal[r][k]
+    return causal
+
+
+def _solve(
+    graph: TeamGraph, mode, progress, stop, on_step, on_stop, initial, trace=None
+) -> TeamResult:
+    """One solve of `graph` (see `solve`) from `initial` (key -> value; None: graph.initial).
+    trace (online, a dict): filled with the graph error after each step ("error": step ->
+    error) and the step each pose entered ("entered": robot -> {node: step})."""
+    if trace is not None:
+        trace.update(error={}, entered={})
     cfg = graph.config
     lag = float(cfg.lag or 0.0) if mode == "online" else 0.0
     session = Session(
@@ -168,10 +197,14 @@ def _solve(graph: TeamGraph, mode, progress, stop, on_step, on_stop, initial) ->
         if factors and mode == "online":
             new_poses = [k for k in values.keys() if decode(k)[0] == "x"]
             est = session.estimate(new_poses)
+            if trace is not None:
+                trace["error"][i] = session.error()
             for key in new_poses:
                 _, r, k = decode(key)
                 p = est.atPose3(key)
                 causal[r][k] = _pose_row(p)
+                if trace is not None:
+                    trace["entered"].setdefault(r, {})[k] = i
                 if k >= latest.get(r, (-1, None))[0]:
                     latest[r] = (k, p)
         if on_step is not None:
@@ -233,7 +266,7 @@ def _solve(graph: TeamGraph, mode, progress, stop, on_step, on_stop, initial) ->
         lag if mode == "online" else None,
         decisions,
         final,
-        float(session.graph.error(final)) if mode == "batch" else float("nan"),
+        session.error(final),
     )
 
 
