@@ -45,6 +45,50 @@ def test_truth_readings_move_the_truth_by_exactly_the_offsets():
     assert np.allclose(half[:-1], 0.5 * (t[:-1] + t[1:])) and np.allclose(half[-1], t[-1])
 
 
+def test_tilted_axes_make_the_angle_with_the_optical_axis_and_stacked_truths_match_single():
+    rng = np.random.default_rng(2)
+    for tilt in (0.0, 30.0, 90.0):
+        a = s1.tilted_axes(rng, 6, tilt)
+        assert np.allclose(np.linalg.norm(a, axis=1), 1.0)
+        assert np.allclose(np.degrees(np.arccos(np.abs(a[:, 2]))), tilt)
+    frames = _frames()
+    he, off = 0.02 * s1.tilted_axes(rng, 3, 45.0), 0.01 * s1._axes(rng, 3)
+    R, t = s1.truth(frames, 0.3, he, off)
+    for d in range(3):
+        Rd, td = s1.truth(frames, 0.3, he[d], off[d])
+        assert np.allclose(R[d], Rd) and np.allclose(t[d], td)
+
+
+def _rolling(n=40):
+    """Noise-free frames of a camera at a fixed place turning about its optical axis at varying
+    rates (as run 1's camera mostly does), as a `det` with exact poses for both runs."""
+    centre = LARGE_TARGET.points.mean(axis=0)
+    eye = centre + np.array([0.3, 0.2, 1.1])
+    roll = np.cumsum(np.radians(np.random.default_rng(5).uniform(-4.0, 4.0, n)))
+    frames = [
+        {"pixels": np.zeros((0, 2)), "R": look_at(eye, centre, r), "t": eye, "distance": 3.0}
+        for r in roll
+    ]
+    det = {"run1": frames, "run2": frames, "steps": {}}
+    det["steps"] = {run: s1.lag_steps(frames) for run in ("run1", "run2")}
+    exact = (np.array([f["R"] for f in frames]), np.array([f["t"] for f in frames]))
+    return det, {"run1": exact, "run2": exact}
+
+
+def test_a_hand_eye_axis_along_the_roll_adds_it_in_line_one_across_in_quadrature():
+    det, poses = _rolling()
+    steps = np.degrees(det["steps"]["run1"])
+    assert np.abs(steps[:, :2]).max() < 1e-9 and np.abs(steps[:-1, 2]).min() > 0
+    along, across = (
+        s1.stats(det, poses, 0.5, 1.0, 0.0, 0, tilt_deg=tilt)["run1"] for tilt in (0.0, 90.0)
+    )
+    roll = 0.5 * steps[:, 2]
+    # along: |1 deg +- roll| per frame; across: sqrt(1 + roll^2)
+    assert along["rot_std_deg"] == pytest.approx(np.std(np.abs(1.0 + roll)), rel=0.05)
+    assert across["rot_mean_deg"] == pytest.approx(np.mean(np.hypot(1.0, roll)), rel=1e-3)
+    assert across["rot_std_deg"] < 0.5 * along["rot_std_deg"]
+
+
 def test_the_seeds_pose_is_exact_on_exact_pixels_and_biased_by_a_wrong_focal_length():
     frames = _frames()
     R, t = s1.seed_poses(frames, s1.reading_camera(0.0, 0.0))
