@@ -15,7 +15,6 @@ import gtsam
 import numpy as np
 
 from graphloc.session_config import SessionConfig
-from graphloc.value_codec import key_name
 
 
 class FixedLagWindow:
@@ -42,33 +41,20 @@ class FixedLagWindow:
         return self.frozen.exists(key)
 
     def estimate(self, keys: list | None = None) -> gtsam.Values:
-        """Every variable (frozen and live), or only `keys`, one variable at a time (no estimate
-        of the whole window). GTSAM failures propagate as RuntimeError."""
+        """Every variable (frozen and live), or only `keys` (no estimate of the whole window:
+        one `calculateEstimate(keys)` of the live ones, one `extract` of the frozen ones; a
+        value at a time would cost a Python round trip and an allocation each). GTSAM failures
+        propagate as RuntimeError."""
         if keys is None:
             out = gtsam.Values(self.frozen)
             out.insert(self.isam.calculateEstimate())
             return out
-        out = gtsam.Values()
-        for k in keys:
-            out.insert(k, self._frozen_or_live(k))
+        frozen = [k for k in keys if self.frozen.exists(k)]
+        live = [k for k in keys if not self.frozen.exists(k)] if frozen else keys
+        out = self.isam.calculateEstimate(live) if live else gtsam.Values()
+        if frozen:
+            out.insert(self.frozen.extract(frozen))
         return out
-
-    def _frozen_or_live(self, key: int):
-        if self.frozen.exists(key):
-            return _value_at(self.frozen, key)
-        for get in (
-            self.isam.calculateEstimatePose3,
-            self.isam.calculateEstimatePose2,
-            self.isam.calculateEstimatePoint3,
-            self.isam.calculateEstimateVector,
-        ):
-            try:
-                return get(key)
-            except RuntimeError:
-                continue
-        raise RuntimeError(
-            f"no estimate of type Pose3, Pose2, Point3 or vector for {key_name(key)}"
-        )
 
     def update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, t: float) -> None:
         """One fixed-lag update (iSAM2 with `ISAM2::marginalizeLeaves`). New keys are stamped
@@ -142,13 +128,3 @@ def _key_list(keys: Iterable[int]) -> gtsam.KeyList:
     for k in keys:
         out.push_back(k)
     return out
-
-
-def _value_at(values: gtsam.Values, key: int):
-    """The entry of `values` at `key` as its own type (Pose3, Pose2, Point3 / vector)."""
-    for get in (values.atPose3, values.atPose2, values.atPoint3, values.atVector):
-        try:
-            return get(key)
-        except RuntimeError:
-            continue
-    raise ValueError(f"no estimate for key {key_name(key)}")

@@ -107,12 +107,16 @@ def step_or_unknown(steps: list, k: int, config: GraphConfig) -> tuple:
     return steps[k] if steps[k] is not None else (gtsam.Pose3(), cov6(config.unknown_motion_sigma))
 
 
-def compose_steps(steps: list, k0: int, k1: int, config: GraphConfig) -> tuple:
-    """Relative pose from node k0 to k1 and its first-order covariance (right perturbations)."""
-    rel, cov = gtsam.Pose3(), np.zeros((6, 6))
+def compose_steps(
+    steps: list, k0: int, k1: int, config: GraphConfig, covariance: bool = True
+) -> tuple:
+    """Relative pose from node k0 to k1 and its first-order covariance (right perturbations;
+    None with `covariance` False: the pose alone, as an online prediction needs it)."""
+    rel, cov = gtsam.Pose3(), np.zeros((6, 6)) if covariance else None
     for k in range(k0 + 1, k1 + 1):
         step, c = step_or_unknown(steps, k, config)
-        cov = adjoint_cov(step.inverse(), cov) + c
+        if covariance:
+            cov = adjoint_cov(step.inverse(), cov) + c
         rel = rel.compose(step)
     return rel, cov
 

@@ -170,6 +170,7 @@ def _solve(
         factors = []
         waiting, held = held + group, []
         released = 0  # factors that waited for their robot's placement and enter now
+        new_poses = []  # (key, robot, index) of the poses this step adds
         for n, (f, kind) in enumerate(waiting):
             keys = factor_keys(f)
             if t < hold_until and any(_held(graph, key, t) for key in keys):
@@ -180,8 +181,11 @@ def _solve(
                 continue
             for key in keys:
                 if key not in added:
-                    values.insert(key, _predict(graph, key, latest, initial))
+                    decoded = decode(key)
+                    values.insert(key, _predict(graph, key, decoded, latest, initial))
                     added.add(key)
+                    if decoded[0] == "x":
+                        new_poses.append((key, *decoded[1:]))
             factors.append(f)
             types.append(kind)
             released += n < len(waiting) - len(group)
@@ -195,12 +199,10 @@ def _solve(
                     latency, cpu = latency + extra.latency_s, cpu + extra.cpu_s
             log.append((i, t, latency, cpu, len(factors), session.live_variables()))
         if factors and mode == "online":
-            new_poses = [k for k in values.keys() if decode(k)[0] == "x"]
-            est = session.estimate(new_poses)
+            est = session.estimate([key for key, _, _ in new_poses])
             if trace is not None:
                 trace["error"][i] = session.error()
-            for key in new_poses:
-                _, r, k = decode(key)
+            for key, r, k in new_poses:
                 p = est.atPose3(key)
                 causal[r][k] = _pose_row(p)
                 if trace is not None:
@@ -242,11 +244,11 @@ def _solve(
             "downweighted": rep.n_downweighted,
             "threshold": cfg.downweight_threshold,
         }
-    landmarks = {
-        decode(k)[1]: np.asarray(final.atPoint3(k))
-        for k in final.keys()
-        if decode(k)[0] == "l" and decode(k)[1] < ANCHOR_BASE
-    }
+    landmarks = {}
+    for k in final.keys():
+        kind, lid, _ = decode(k)
+        if kind == "l" and lid < ANCHOR_BASE:
+            landmarks[lid] = np.asarray(final.atPoint3(k))
     step_log = np.array(log, dtype=float).reshape(-1, len(STEP_LOG_COLUMNS))
     return TeamResult(
         mode,
@@ -294,19 +296,22 @@ def warm_start(graph: TeamGraph, stop=None) -> dict:
     return out
 
 
-def _predict(graph: TeamGraph, key: int, latest: dict, initial: dict | None = None):
+def _predict(graph: TeamGraph, key: int, decoded: tuple, latest: dict, initial: dict | None):
     """Initial value of a new variable: a landmark's guess; a pose from its robot's latest
     estimate composed with the odometry since -- or, where it sees a target of the
     max-mixture route that its own odometry predicts worse than the target's does, resected
     from the target (`_resected`) --, else the graph's initial guess."""
-    kind, r, k = decode(key)
+    kind, r, k = decoded  # decode(key)
     if kind != "x":
         return (graph.initial if initial is None else initial)[key]
     if r in latest and latest[r][0] < k:
         k0, pose = latest[r]
-        rel, cov = compose_steps(graph.step_rel[r], k0, k, graph.config)
+        linked = key in graph.links  # only a resection needs the prediction's covariance
+        rel, cov = compose_steps(graph.step_rel[r], k0, k, graph.config, covariance=linked)
         if all(s is not None for s in graph.step_rel[r][k0 + 1 : k + 1]):
             predicted = pose.compose(rel)
+            if not linked:
+                return predicted
             return _resected(graph, key, latest, predicted, np.trace(cov[3:, 3:])) or predicted
     return (graph.initial if initial is None else initial)[key]
 
