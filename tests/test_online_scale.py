@@ -15,6 +15,7 @@ from test_mrclam import write_synthetic_mrclam
 
 from graphloc.cli import main
 from graphloc.commands import smooth
+from graphloc.experiments.scale import marginalization_split
 from graphloc.pipelines.team_graph import DEFAULT_LAG
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.session import Session, SessionConfig
@@ -99,6 +100,23 @@ def test_team_graph_lag_writes_whole_trajectory(synthetic):
     # the window holds ~lag / dt poses per robot plus landmark anchors, not the whole run
     assert log[-1, 5] < 0.5 * full.step_log[-1, 5]
     assert lagged.lag == 3.0 and full.lag == 0.0 and not lagged.partial
+
+
+def test_marginalization_split_finds_the_marginalizing_steps(synthetic):
+    """A step marginalizes when the live-variable count drops; with marginalize_every 1 s on a
+    0.25 s grid about every 4th step of the steady state does, none while the window fills."""
+    run = open_run(synthetic)
+    result = solve(build_graph(run, GraphConfig(lag=3.0, marginalize_every=1.0)), "online")
+    split = marginalization_split(result)
+    log = result.step_log
+    drops = np.flatnonzero(np.diff(log[:, 5]) < 0) + 1
+    assert split["marginalizing_steps"] == len(drops) > 0
+    assert log[drops[0], 1] - log[0, 1] >= 3.0  # nothing leaves before the lag has passed
+    assert split["share_first10"] < split["share_last10"]
+    assert 0.1 < split["share_last10"] < 0.5
+    n = len(log) // 10
+    other = np.setdiff1d(np.arange(len(log) - n, len(log)), drops)
+    assert split["cpu_p95_last10_other_ms"] == pytest.approx(np.percentile(log[other, 3], 95) * 1e3)
 
 
 def test_factor_across_the_lag_is_dropped_and_counted(synthetic):

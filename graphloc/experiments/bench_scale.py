@@ -47,6 +47,11 @@ def main(argv=None) -> int:
         default="0.02,0.01",
         help="iSAM2 relinearize thresholds to measure at the default lag (beside the run's own)",
     )
+    parser.add_argument(
+        "--marginalize-every",
+        default="1,2",
+        help="fixed-lag batch sizes [s] to measure at the default lag (beside the default's)",
+    )
     parser.add_argument("--markdown", type=Path, default=None, help="write the results table")
     parser.add_argument(
         "--from-json",
@@ -127,6 +132,14 @@ def main(argv=None) -> int:
         res, cpu, samples = online_profile(graph, DEFAULT_LAG, relinearize_threshold=thr)
         report["online_relinearize"][f"{thr:g}"] = online_summary(res, cpu, samples, run, batch_ate)
         print("relinearize", thr, json.dumps(report["online_relinearize"][f"{thr:g}"]), flush=True)
+
+    # the default lag with other marginalization batch sizes: latency trend against CPU
+    report["online_marginalize_every"] = {}
+    for every in (float(x) for x in args.marginalize_every.split(",") if x):
+        res, cpu, samples = online_profile(graph, DEFAULT_LAG, marginalize_every=every)
+        summary = online_summary(res, cpu, samples, run, batch_ate)
+        report["online_marginalize_every"][f"{every:g}"] = summary
+        print("marginalize every", every, json.dumps(summary), flush=True)
 
     # what-if: the known-landmark anchors folded into unary factors on the poses
     folded = known_landmarks_unary(graph)
@@ -258,6 +271,8 @@ def markdown(r: dict) -> str:
                 )
                 + " |"
             )
+    if r.get("online_marginalize_every"):
+        lines += _marginalize_every_section(r)
     if "unary_landmarks" in r:
         u = r["unary_landmarks"]
         o, t = u["online"], u["online"]["trend"]
@@ -328,6 +343,41 @@ def markdown(r: dict) -> str:
     lines += ["", "## How", "", *NOTES]
     lines.append("")
     return "\n".join(lines)
+
+
+def _marginalize_every_section(r: dict) -> list:
+    """The default lag at each marginalization batch size: CPU, p95 ratio, and the same ratio
+    over the steps that did not marginalize (`graphloc.experiments.scale.marginalization_split`)."""
+    rows = {f"{r['marginalize_every_s']:g}": r["online"][f"{r['default_lag_s']:g}"]}
+    rows.update(r["online_marginalize_every"])
+    lines = [
+        "",
+        f"## Marginalization batch size at the default lag ({r['default_lag_s']:g} s)",
+        "",
+        "Old variables leave the window in batches of `marginalize_every` seconds; a step that "
+        "marginalizes also pays the full back-substitution of the window and "
+        "`marginalizeLeaves`. The p95 of a tenth lands on marginalizing steps when they are "
+        "more than 5 % of its steps; the first tenth has fewer (no marginalization while the "
+        "window fills), so the p95 ratio mixes the batch size with growth. The last columns "
+        "leave the marginalizing steps out (thread CPU time of each step).",
+        "",
+        "| marginalize every [s] | CPU [s] | real time x (CPU) | p95 CPU first / last 10 % [ms] "
+        "| ratio | marginalizing steps first / last 10 % | p95 CPU of the other steps first / "
+        "last 10 % [ms] | ratio | slowest step CPU [ms] | max ATE / batch |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for every, o in sorted(rows.items(), key=lambda kv: float(kv[0])):
+        t, m = o["trend"], o["marginalization"]
+        worst = max(o["ate_over_batch"].values())
+        lines.append(
+            f"| {every} | {o['cpu_s']:.1f} | {o['realtime_factor_cpu']:.0f} | "
+            f"{t['cpu_p95_first10_ms']:.2f} / {t['cpu_p95_last10_ms']:.2f} | "
+            f"{t['cpu_p95_last_over_first']:.2f} | {100 * m['share_first10']:.1f} % / "
+            f"{100 * m['share_last10']:.1f} % | {m['cpu_p95_first10_other_ms']:.2f} / "
+            f"{m['cpu_p95_last10_other_ms']:.2f} | {m['cpu_p95_other_last_over_first']:.2f} | "
+            f"{t['cpu_max_ms']:.1f} | {worst:.3f} |"
+        )
+    return lines
 
 
 NOTES = [

@@ -26,7 +26,7 @@ import numpy as np
 
 from graphloc.factors.range_bearing import known_landmark_factor_3d
 from graphloc.keys import decode, landmark_key, pose_key
-from graphloc.pipelines.report import evaluate
+from graphloc.pipelines.report import evaluate, latency_trend
 from graphloc.pipelines.team_graph import ANCHOR_BASE, TeamGraph, solve
 
 
@@ -187,6 +187,30 @@ def online_profile(graph: TeamGraph, lag: float | None, rss_every: int = 250, **
     return result, time.process_time() - c0, np.array(samples, dtype=float).reshape(-1, 2)
 
 
+def marginalization_split(result) -> dict:
+    """Fixed lag: the steps that marginalized (the live-variable count drops: a batch of
+    `marginalize_every` seconds left the window) apart from the others -- their share of the
+    steps in the first and last tenth, and the p95 CPU [ms] of the other steps in each tenth
+    with their ratio. A share above 5 % puts the p95 of a tenth on marginalizing steps; the
+    first tenth has fewer of them (the window fills for `lag` seconds first), so the p95
+    ratio of a run can reflect the marginalization batch size rather than growth."""
+    log = result.step_log
+    n = len(log) // 10
+    marg = np.r_[False, np.diff(log[:, 5]) < 0]
+    out = {"marginalizing_steps": int(marg.sum())}
+    for name, part in (("first10", slice(0, n)), ("last10", slice(len(log) - n, len(log)))):
+        m, cpu = marg[part], log[part, 3]
+        out[f"share_{name}"] = float(m.mean())
+        out[f"cpu_p95_{name}_other_ms"] = float(np.percentile(cpu[~m], 95) * 1e3)
+        out[f"cpu_p95_{name}_marginalizing_ms"] = (
+            float(np.percentile(cpu[m], 95) * 1e3) if m.any() else None
+        )
+    out["cpu_p95_other_last_over_first"] = out["cpu_p95_last10_other_ms"] / max(
+        out["cpu_p95_first10_other_ms"], 1e-12
+    )
+    return out
+
+
 def memory_slope(samples: np.ndarray) -> float | None:
     """Least-squares slope of resident memory over the second half of the run [MB per 1,000
     steps] (the first half includes the allocator's warm-up)."""
@@ -217,9 +241,9 @@ def online_summary(result, cpu_s: float, samples: np.ndarray, run, batch_ate: di
         "memory_mb_per_1000_steps": memory_slope(samples),
         "rss_mb_end": float(samples[-1, 1]) if len(samples) else None,
     }
-    from graphloc.pipelines.report import latency_trend
-
     out["trend"] = latency_trend(result)
+    if result.lag and len(log) >= 10:
+        out["marginalization"] = marginalization_split(result)
     if metrics is not None:
         ate = {
             name: e["online"]["ate_rmse"]
