@@ -44,6 +44,28 @@ class CameraTrackLog:
     meta: dict = dataclasses.field(default_factory=dict)
 
 
+def relative_pose3_rows(times, steps: list, covs: list) -> list:
+    """`relative_pose3` rows (sensor "odometry") of steps[k]: pose k -> k + 1 (gtsam.Pose3)
+    with its diagonal 6x6 covariance covs[k]."""
+    rows = []
+    for t0, t1, step, cov in zip(times[:-1], times[1:], steps, covs):
+        qx, qy, qz, qw = Rotation.from_matrix(step.rotation().matrix()).as_quat()
+        rows.append(
+            (
+                float(t1),
+                "odometry",
+                float(t0),
+                *map(float, step.translation()),
+                qx,
+                qy,
+                qz,
+                qw,
+                *map(float, np.sqrt(np.diag(cov))),
+            )
+        )
+    return rows
+
+
 def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
     """Write `log` as a graphloc log directory (format version 2: markers, relative_pose3,
     groundtruth TUM); returns the manifest path."""
@@ -62,22 +84,7 @@ def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
     write_tum(out / obs / "groundtruth.tum", log.times, poses)
     sensors = []
     if log.odometry:
-        rows = []
-        for t0, t1, step, cov in zip(log.times[:-1], log.times[1:], log.odometry, log.odometry_cov):
-            qx, qy, qz, qw = Rotation.from_matrix(step.rotation().matrix()).as_quat()
-            rows.append(
-                (
-                    float(t1),
-                    "odometry",
-                    float(t0),
-                    *map(float, step.translation()),
-                    qx,
-                    qy,
-                    qz,
-                    qw,
-                    *map(float, np.sqrt(np.diag(cov))),
-                )
-            )
+        rows = relative_pose3_rows(log.times, log.odometry, log.odometry_cov)
         write_table(out / obs / "relative_pose3.csv", "relative_pose3", rows)
         tables["relative_pose3"] = f"{obs}/relative_pose3.csv"
         sensors.append({"name": "odometry", "type": "odometry"})

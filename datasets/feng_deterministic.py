@@ -161,13 +161,10 @@ class TableIConfig:
     of three meters"); success_tol [m]: also counted: trials whose three estimated positions of
     C are all within this of the truth; omni_max_polar [rad]: field of view of the ground
     robots' paraboloid cameras from the mirror axis; max_redraws: ground-camera orientations
-    redrawn while a robot is outside another's field of view (counted); initial_rotations:
-    graphloc starts Levenberg-Marquardt from this many best P3P rotations
-    (graphloc.pipelines.seed000_joint.shared_rotation_initials) and keeps the lowest graph
-    error; workers: processes of the reproduction (graphloc.experiments.seed000);
-    lateral_sigma [m], orientation: Seed000Config's (the climbing robot's position noise
-    perpendicular to its motion; its orientation kept or redrawn per snapshot), swept by
-    graphloc.experiments.seed_baselines."""
+    redrawn while a robot is outside another's field of view (counted); workers: processes of
+    the reproduction (graphloc.experiments.seed000); lateral_sigma [m], orientation:
+    Seed000Config's (the climbing robot's position noise perpendicular to its motion; its
+    orientation kept or redrawn per snapshot), swept by graphloc.experiments.seed_baselines."""
 
     trials: int = 1000
     seed: int = 0
@@ -177,7 +174,6 @@ class TableIConfig:
     scale: float = 3.0
     success_tol: float = 0.1
     max_redraws: int = 50
-    initial_rotations: int = 2
     workers: int = 2
     lateral_sigma: float = 0.001
     orientation: str = "kept"

@@ -121,8 +121,6 @@ def _robot(r, where: str) -> TeamRobot:
         else SurfacePlane(np.array(r.surface["point"]), np.array(r.surface["normal"]))
     )
     markers = None if r.markers is None else np.array(r.markers, dtype=float)
-    if r.static and init is None:
-        raise ValueError(f"{where}: robot {r.name!r} is static but has no 'initial_pose'")
     sensors = {s.name: (s.body_T_sensor, dict(s.params)) for s in r.sensors}
     return TeamRobot(
         r.name,

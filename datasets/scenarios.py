@@ -22,13 +22,11 @@ from dataclasses import asdict, replace
 from pathlib import Path
 from typing import ClassVar, Protocol
 
-import gtsam
 import numpy as np
 
-from graphloc.cameras import PinholeCamera
 from graphloc.config import parse_overrides
 from graphloc.datasets import _REGISTRY, dataset_class
-from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
+from graphloc.datasets.formation_log import table_i_formation, write_formation_log
 from graphloc.datasets.feng_deterministic import (
     Seed000Config,
     TableIConfig,
@@ -90,17 +88,14 @@ def scenario_names() -> list[str]:
 
 
 # ---- seed 000 Sec. VI-A ------------------------------------------------------------------------
-STRAIGHT_ROT_SIGMA = 0.01  # [rad] heading change allowed by "moves straight" (seed 000 Sec. IV)
 
 
 class FengDeterministicScenario:
-    """Seed 000 Sec. VI-A, one trial: three tilted omni ground cameras (mutual pixels in
-    meta["mutual_pixels"], 512x512, N(0, 0.5) px) and the climbing camera's three snapshots
-    of them along its straight two-step move. The ground robots' true positions are the static
-    target's marker layout in the manifest (ground truth: a localizer must estimate C2, C3 from
-    the mutual pixels, e.g. with graphloc.vision.mutual -- meta["mutual_estimate"] is that
-    estimate); the climber's `markers` table holds its pixels of them, its `relative_pose3`
-    table the straight-move assumption as odometry."""
+    """Seed 000 Sec. VI-A, one trial, as measurements only (`formation_log`): three tilted omni
+    ground cameras that see each other (512x512, N(0, 0.5) px), C1 the reference with |T_12|
+    known, and the climbing camera's three snapshots of them along its straight two-step move.
+    A localizer must estimate C2, C3 from the mutual bearings and the climber from its views
+    of the three (`graphloc smooth` does both in one graph)."""
 
     name = "feng-deterministic"
 
@@ -111,39 +106,19 @@ class FengDeterministicScenario:
         config = replace(
             TableIConfig(trials=1, seed=seed, workers=1), **parse_overrides(TableIConfig, overrides)
         )
-        trials = simulate_straight_line_trials(
-            1, seed=seed, config=Seed000Config(pixel_sigma=config.pixel_sigma)
-        )
-        tri = ground_triangle(trials.ground, config, np.random.default_rng([seed, 1]))
-        K = trials.K
-        camera = PinholeCamera(K[0, 0], K[1, 1], K[0, 2], K[1, 2], 640, 480)
-        times = np.arange(3, dtype=float)
-        # the seed's motion assumption as odometry: the climber moves straight without turning
-        # (rotation known to STRAIGHT_ROT_SIGMA), by an unknown step (translation sigma = 3 x the
-        # mean step); the straight-line baseline uses the collinearity of the same motion instead
-        steps = [gtsam.Pose3()] * 2
-        cov = [
-            np.diag([STRAIGHT_ROT_SIGMA**2] * 3 + [(3 * Seed000Config().step_mean) ** 2] * 3)
-        ] * 2
-        log = CameraTrackLog(
-            name=cls.name,
-            times=times,
-            R_wc=np.repeat(trials.R_wc, 3, axis=0),
-            t_wc=trials.positions[0],
-            layout=trials.ground[0],
-            pixels=trials.pixels[0],
-            camera=camera,
+        sim = Seed000Config(
             pixel_sigma=config.pixel_sigma,
-            odometry=steps,
-            odometry_cov=cov,
-            meta={
-                "seed_paper": "000_05137a0a9c449be3.txt Sec. VI-A",
-                "config": asdict(config),
-                "ground_R_wc": tri.R[0].tolist(),
-                "mutual_pixels": tri.pixels[0].tolist(),
-                "mutual_estimate": tri.estimated[0].tolist(),
-                "mutual_status": str(tri.status[0]),
-                "omni": {"size": config.omni_size, "max_polar_angle": config.omni_max_polar},
-            },
+            lateral_sigma=config.lateral_sigma,
+            orientation=config.orientation,
         )
-        return write_camera_track(log, out_dir)
+        trials = simulate_straight_line_trials(1, seed=seed, config=sim)
+        tri = ground_triangle(trials.ground, config, np.random.default_rng([seed, 1]))
+        meta = {
+            "seed_paper": "000_05137a0a9c449be3.txt Sec. VI-A",
+            "config": asdict(config),
+            "omni": {"size": config.omni_size, "max_polar_angle": config.omni_max_polar},
+        }
+        log = table_i_formation(
+            trials, tri, 0, config.pixel_sigma, 3 * sim.step_mean, cls.name, meta
+        )
+        return write_formation_log(log, out_dir)

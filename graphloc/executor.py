@@ -6,7 +6,9 @@ several runs, `graphloc reproduce`, the experiments and benchmark scripts) hands
   of `workers` processes, or, for one worker, the calling process itself (no start-up cost).
   The pool starts its workers from a fork server by default, never by forking the caller: a
   caller that has run Open3D, GTSAM's TBB or a Ray client holds native threads, and a child
-  forked from it can inherit a lock one of them held and hang for ever;
+  forked from it can inherit a lock one of them held and hang for ever. As with "spawn", a
+  script that maps over the local pool must guard its entry point (`if __name__ ==
+  "__main__":`), since each worker imports the script's main module;
 - ``ray``: Ray tasks (`pip install graphloc[ray]`), on a local Ray instance with `workers` CPUs
   or on an existing cluster (`address="auto"` or ``"HOST:PORT"``).
 

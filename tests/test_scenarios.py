@@ -25,12 +25,18 @@ def test_generate_writes_readable_log_with_groundtruth(tmp_path, name):
     manifest = read_manifest(path.parent)
     records = list(iter_records(path.parent))
     assert records, name
-    markers = [r for r in records if type(r).__name__ == "MarkerPixel"]
-    assert markers and all(np.isfinite([m.u, m.v]).all() for m in markers)
+    # the climber's views: marker pixels, or (seed 000 Sec. VI-A) bearings of the ground robots
+    views = [
+        r
+        for r in records
+        if type(r).__name__ in ("MarkerPixel", "Bearing3D") and r.robot == "climber"
+    ]
+    values = [[m.u, m.v] if hasattr(m, "u") else [m.x, m.y, m.z] for m in views]
+    assert views and np.isfinite(values).all()
     assert manifest.robot("climber").tables["groundtruth"].endswith(".tum")
     gt = np.loadtxt(path.parent / manifest.robot("climber").tables["groundtruth"])
     assert gt.shape[1] == 8 and np.allclose(np.linalg.norm(gt[:, 4:], axis=1), 1.0)
-    assert len(np.unique([m.time for m in markers])) == len(gt)
+    assert len(np.unique([m.time for m in views])) == len(gt)
 
 
 # the lead's simulators conform to the protocol in their own modules (issue 13); strict: once

@@ -62,10 +62,9 @@ def test_every_scenario_through_smooth_and_online(tmp_path, name, capsys):
 
 @pytest.mark.parametrize("seed", [0, 3])
 def test_online_runs_a_guessed_placement_as_hypotheses(tmp_path, seed):
-    """feng-deterministic seeds whose three snapshots the tracker never decides: the climber is
-    placed by a guess, and the guess is a false P3P candidate (online from it alone lands over
-    2 m off). Online runs one hypothesis per candidate of the first set and keeps the one of
-    least error, so online lands near batch."""
+    """feng-deterministic seeds: nothing decides the climber's P3P candidates (three snapshots),
+    so a guess places it, and from a false candidate online alone lands metres off. Online runs
+    one hypothesis per candidate and keeps the one of least error, so online lands near batch."""
     run = tmp_path / "run"
     assert main(["simulate", "feng-deterministic", "--out", str(run), "--seed", str(seed)]) == 0
     graph = build_graph(open_run(run))
@@ -480,9 +479,9 @@ def test_marker_pixels_place_a_climber_the_tracker_never_decides(tmp_path):
 
 
 def test_batch_starts_from_every_candidate_of_the_first_snapshot(tmp_path):
-    """Seed 000 Sec. VI-A (three snapshots, no odometry): from some candidates of the first
-    snapshot the solve settles in a false P3P basin (metres off); the batch solve starts from
-    every one of them and keeps the least-error estimate, the genuine one."""
+    """Seed 000 Sec. VI-A (three snapshots, no odometry): from some P3P candidates of the
+    climber's first snapshots the solve settles in a false basin (metres off); the batch solve
+    starts from every one of them and keeps the least-error estimate, the genuine one."""
     from graphloc.pipelines.team_graph.solve import _solve
 
     run_dir = tmp_path / "run"

@@ -1,18 +1,21 @@
 """The seeds' tables from logs, through the front door: a scenario's `graphloc simulate` log
 read by `graphloc.datasets.open_run` and solved by `graphloc.pipelines.team_graph` (what
 `graphloc smooth` / `online` run), with the per-set decisions and the per-frame errors the
-tables need. `simulated_run` writes and reads one log; `feng_table_iii_run` is graphloc's
-column of seed 000 Table III (Sec. VI-B) on one run, in the statistics
+tables need. `simulated_run` writes and reads one log; `table_i_trial` is graphloc's
+estimate of one seed 000 Table I trial (Sec. VI-A); `feng_table_iii_run` is graphloc's column
+of seed 000 Table III (Sec. VI-B) on one run, in the statistics
 `graphloc.experiments.hypotheses.summarize` pools."""
 
 from __future__ import annotations
 
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 
 from graphloc.datasets import open_run
+from graphloc.datasets.formation_log import GROUND, table_i_formation, write_formation_log
 from graphloc.datasets.scenarios import generate
 from graphloc.experiments.locks import lock_statistics
 from graphloc.pipelines.report import genuine_candidates
@@ -82,3 +85,29 @@ def feng_table_iii_run(overrides: dict, seed: int, wrong_distance: float) -> dic
             out[f"rmse_locked_{mode}"] = float(np.sqrt(np.mean(err**2)))
         out["resolved_frames"] = int(after.sum())
     return out
+
+
+def table_i_trial(job: tuple) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """graphloc's estimate of one seed 000 Table I trial through the front door: the trial
+    written as a log of measurements (`graphloc.datasets.formation_log`: mutual bearings, the
+    known |T_12|, the climber's bearings and straight move), read by `open_run`, solved in
+    batch by the team graph (C2, C3 placed by mutual bearings, the climber by P3P with every
+    candidate as a start). job: (trials, triangle) restricted to the one trial, pixel_sigma,
+    step_sigma. Returns the climber's three positions (3,3), the ground robots' positions
+    (3,3) (NaN where left out), the graph error (inf without a placed climber) and the
+    seconds of open_run + build_graph + solve."""
+    trials, triangle, pixel_sigma, step_sigma = job
+    log = table_i_formation(trials, triangle, 0, pixel_sigma, step_sigma, "seed000-table1")
+    with tempfile.TemporaryDirectory() as tmp:
+        write_formation_log(log, Path(tmp) / "run")
+        t0 = time.perf_counter()
+        run = open_run(Path(tmp) / "run")
+        result = solve(build_graph(run), "batch")
+        seconds = time.perf_counter() - t0
+    names = [r.name for r in run.robots]
+    climber = result.estimate[names.index("climber")][:, :3]
+    ground = np.array([result.estimate[names.index(g)][0, :3] for g in GROUND])
+    placed = np.isfinite(climber).all() and len(climber) == 3
+    if not placed:
+        return np.full((3, 3), np.nan), ground, float("inf"), seconds
+    return climber, ground, float(result.error), seconds

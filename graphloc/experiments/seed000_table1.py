@@ -1,9 +1,11 @@
 """Seed 000 (000_05137a0a9c449be3.txt) Table I (Sec. VI-A), paper | seed baseline (ours) |
 graphloc on the same trials: ground triangle from graphloc.vision.mutual on noisy 512x512 omni
 pixels (C1 is the reference; `graphloc.datasets.feng_deterministic.ground_triangle`), camera C
-from P3P + the straight-line test (seed, Sec. IV; `graphloc.baselines.straight_line`) vs one
-GTSAM graph over all six cameras (`graphloc.pipelines.seed000_joint`). Tables II, III, the
-plots and the command line are `graphloc.experiments.seed000`.
+from P3P + the straight-line test (seed, Sec. IV; `graphloc.baselines.straight_line`) vs
+graphloc through the front door: each trial written as a log of its measurements and solved
+as `graphloc smooth` does (`graphloc.experiments.front_door.table_i_trial`: C2, C3 placed by
+mutual bearings, C by P3P, one graph). Tables II, III, the plots and the command line are
+`graphloc.experiments.seed000`.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from graphloc.datasets.feng_deterministic import (
 )
 from graphloc.executor import Executor
 from graphloc.geometry.p3p import MAX_CANDIDATES
-from graphloc.pipelines.seed000_joint import best_joint, formations, shared_rotation_initials
+from graphloc.experiments.front_door import table_i_trial
 
 PAPER_TABLE_I = {
     "success": 997,
@@ -33,7 +35,7 @@ PAPER_TABLE_I = {
 }
 
 
-def _take(record, rows: np.ndarray):
+def trial_rows(record, rows: np.ndarray):
     """The same frozen dataclass with every per-trial array field restricted to `rows`."""
     n = len(record.ground) if hasattr(record, "ground") else len(record.status)
 
@@ -47,39 +49,23 @@ def _take(record, rows: np.ndarray):
     )
 
 
-def _joint_chunk(job) -> list:
-    return [best_joint(*args) for args in zip(*job)]
-
-
-def run_joint(
-    trials, tri, R_cand: np.ndarray, valid: np.ndarray, config: TableIConfig, progress: bool = True
+def run_front_door(
+    trials, tri, rows: np.ndarray, config: TableIConfig, step_sigma: float, progress: bool = True
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """graphloc.pipelines.seed000_joint for every trial with an accepted ground triangle
-    (others stay NaN), across `config.workers` processes in chunks. Returns climber centres
-    (T,3,3), ground positions (T,3,3), graph errors (T,)."""
+    """graphloc through the front door (`front_door.table_i_trial`: the trial as a log, the
+    team graph, batch) for the trials `rows` (others stay NaN), on `config.workers` processes.
+    Returns climber centres (T,3,3), ground positions (T,3,3), graph errors (T,)."""
     T = len(trials.ground)
     positions, ground = np.full((T, 3, 3), np.nan), np.full((T, 3, 3), np.nan)
     errors = np.full(T, np.inf)
-    forms = formations(trials, tri, config.pixel_sigma)
-    rows = np.array([i for i, f in enumerate(forms) if f is not None], dtype=int)
-    if rows.size == 0:
-        return positions, ground, errors
-    R0, c0, residual = shared_rotation_initials(
-        trials.pixels[rows],
-        trials.K,
-        tri.estimated[rows],
-        R_cand[rows],
-        valid[rows],
-        keep=config.initial_rotations,
-    )
-    n_chunks = max(1, min(rows.size, 8 * config.workers))
-    chunks = [c for c in np.array_split(np.arange(rows.size), n_chunks) if c.size]
-    jobs = [([forms[rows[k]] for k in c], R0[c], c0[c], residual[c]) for c in chunks]
+    jobs = [
+        (trial_rows(trials, [i]), trial_rows(tri, [i]), config.pixel_sigma, step_sigma)
+        for i in rows
+    ]
     with Executor(config.workers, progress=progress) as ex:
-        results = list(ex.imap(_joint_chunk, jobs, desc="Table I joint (GTSAM)"))
-    for c, out in zip(chunks, results):
-        for k, (pos, g, err) in zip(c, out):
-            positions[rows[k]], ground[rows[k]], errors[rows[k]] = pos, g, err
+        results = ex.imap(table_i_trial, jobs, desc="Table I through the front door")
+        for i, (pos, g, err, _) in zip(rows, results):
+            positions[i], ground[i], errors[i] = pos, g, err
     return positions, ground, errors
 
 
@@ -134,7 +120,7 @@ def table_i(config: TableIConfig = TableIConfig(), progress: bool = True) -> dic
             f"are mutually visible with omni_max_polar={config.omni_max_polar:.3f}"
         )
     unobservable = int((~tri.visible[: rows[-1] + 1]).sum())
-    trials, tri = _take(pool, rows), _take(tri, rows)
+    trials, tri = trial_rows(pool, rows), trial_rows(tri, rows)
     ground_ok = np.isfinite(tri.estimated).all(axis=(1, 2))
     err_ground = np.linalg.norm(tri.estimated - trials.ground, axis=2)  # (T,3), NaN: rejected
     ok_rows = np.flatnonzero(ground_ok)
@@ -149,16 +135,13 @@ def table_i(config: TableIConfig = TableIConfig(), progress: bool = True) -> dic
     seed_pos[ok_rows] = choice.chosen_positions()
     cand_t = np.zeros((T, 3, MAX_CANDIDATES, 3))
     cand_valid = np.zeros((T, 3, MAX_CANDIDATES), dtype=bool)
-    R_cand = np.broadcast_to(np.eye(3), (T, 3 * MAX_CANDIDATES, 3, 3)).copy()
     cand_t[ok_rows] = choice.candidates.t_wc.reshape(-1, 3, MAX_CANDIDATES, 3)
     cand_valid[ok_rows] = choice.candidates.valid.reshape(-1, 3, MAX_CANDIDATES)
-    R_cand[ok_rows] = choice.candidates.R_wc.reshape(-1, 3 * MAX_CANDIDATES, 3, 3)
 
-    # graphloc: joint GTSAM estimate with the shared rotation, from the best P3P rotations
-    valid = cand_valid.reshape(-1, 3 * MAX_CANDIDATES)
+    # graphloc: each trial as a log through the front door (open_run -> team graph -> batch)
     t0 = time.perf_counter()
-    joint_pos, joint_ground, joint_graph_error = run_joint(
-        trials, tri, R_cand, valid, config, progress
+    joint_pos, joint_ground, joint_graph_error = run_front_door(
+        trials, tri, ok_rows, config, 3 * sim.step_mean, progress
     )
     joint_time = time.perf_counter() - t0
 

@@ -46,6 +46,23 @@ def groundtruth_rows(run: TeamRun, r: int) -> tuple[np.ndarray, np.ndarray] | No
     return np.asarray(gt[0]), rows
 
 
+def _static_error(row: np.ndarray, gt) -> dict:
+    """A static robot's one pose against its ground truth (the first stamp): position error
+    [m] and rotation error [deg] in the run's world frame (null when the robot was left out)."""
+    entry = {"groundtruth": True, "poses": 1, "alignment": "none"}
+    if not np.isfinite(row).all():
+        return {**entry, "position_error_m": None, "rotation_error_deg": None}
+    true = gt[1][0]
+    est = gtsam.Pose3(gtsam.Rot3.Quaternion(row[6], row[3], row[4], row[5]), row[:3])
+    return {
+        **entry,
+        "position_error_m": float(np.linalg.norm(row[:3] - true.translation())),
+        "rotation_error_deg": float(
+            np.degrees(np.linalg.norm(gtsam.Rot3.Logmap(true.rotation().between(est.rotation()))))
+        ),
+    }
+
+
 def _quat(p) -> np.ndarray:
     q = p.rotation().toQuaternion()
     return np.array([q.x(), q.y(), q.z(), q.w()])
@@ -65,6 +82,9 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
     for r, robot in enumerate(run.robots):
         ref = groundtruth_rows(run, r)
         times = result.node_times[r]
+        if robot.static and run.groundtruth[r] is not None:
+            per_robot[robot.name] = _static_error(result.estimate[r][0], run.groundtruth[r])
+            continue
         if ref is None or not np.isfinite(result.estimate[r]).all(axis=1).any():
             per_robot[robot.name] = {"groundtruth": ref is not None, "poses": int(len(times))}
             continue

@@ -188,6 +188,27 @@ def localize_three(
     pixels = _check_pixels(pixels)
     cams = three_cameras(cameras)
     N = len(pixels)
+    # 1. bearings u[n, i, j] in frame i
+    u = np.full((N, 3, 3, 3), np.nan)
+    for i in range(3):
+        others = [j for j in range(3) if j != i]
+        b, v = cams[i].pixel_to_bearing(pixels[:, i, others].reshape(-1, 2))
+        b = b.reshape(N, 2, 3)
+        b[~v.reshape(N, 2)] = np.nan
+        u[:, i, others] = b
+    return localize_three_bearings(u, baseline_12, config)
+
+
+def localize_three_bearings(
+    bearings, baseline_12, config: MutualConfig = MutualConfig()
+) -> ThreeRobotPoses:
+    """`localize_three` from unit bearings instead of pixels: bearings (N,3,3,3),
+    bearings[n, i, j] = direction of robot j in robot i's frame (diagonal ignored; NaN: not
+    lifted); baseline_12 as there."""
+    u = np.array(bearings, dtype=float)
+    if u.ndim != 4 or u.shape[1:] != (3, 3, 3):
+        raise ValueError(f"bearings must have shape (N, 3, 3, 3), got {u.shape}")
+    N = len(u)
     baseline = (
         np.broadcast_to(np.asarray(baseline_12, dtype=float), (N,))
         if np.ndim(baseline_12) == 0
@@ -201,14 +222,7 @@ def localize_three(
             f"baseline_12 must be positive and finite; bad at formation(s) {bad[:5].tolist()}"
         )
 
-    # 1. bearings u[n, i, j] in frame i
-    u = np.full((N, 3, 3, 3), np.nan)
-    valid = np.ones((N, 3, 3), dtype=bool)
-    for i in range(3):
-        others = [j for j in range(3) if j != i]
-        b, v = cams[i].pixel_to_bearing(pixels[:, i, others].reshape(-1, 2))
-        u[:, i, others] = b.reshape(N, 2, 3)
-        valid[:, i, others] = v.reshape(N, 2)
+    valid = np.isfinite(u).all(axis=-1)
     up = np.asarray(config.up)
     if config.planar:
         u = normalize_rows(u - (u @ up)[..., None] * up)

@@ -87,8 +87,8 @@ def candidate_factors(
     placed through an observer (robot -> {node: (observer, node, body_T_target)}) and each
     tracked observer's latest best guess, decided or not (robot -> (node, time, body pose,
     6x6 covariance; the hint of the inter-robot scan registration, `team_graph.scans`) and the
-    alternative placements of pixel streams (robot -> (node, [body Pose3 per candidate], placed
-    by the tracker's guess, never decided)); the
+    alternative placements of pixel streams (robot -> ([(node, body Pose3) per candidate],
+    placed by the tracker's guess, never decided)); the
     target's marker points land in `marker_points` (key -> world position)."""
     node_times, nearest = timeline.node_times, timeline.nearest
     decisions, decided_pose, placed_via, tentative, alternatives = [], {}, {}, {}, {}
@@ -235,7 +235,7 @@ def candidate_factors(
             guessed = r not in decided_pose
             if guessed:
                 decided_pose[r] = {first[0]: first[2]}
-            alternatives[r] = (*first[:2], guessed)
+            alternatives[r] = ([(first[0], body) for body in first[1]], guessed)
     return decisions, decided_pose, placed_via, tentative, alternatives
 
 

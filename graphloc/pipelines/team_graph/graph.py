@@ -14,6 +14,7 @@ from graphloc.factors.mixture import MaxMixture
 from graphloc.pipelines.team_graph.camera import feature_factors
 from graphloc.pipelines.team_graph.candidates import candidate_factors
 from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig, run_precision
+from graphloc.pipelines.team_graph.formation import place_unplaced
 from graphloc.pipelines.team_graph.motion import (
     Timeline,
     anchor_factors,
@@ -73,6 +74,7 @@ def build_graph(
     decisions, decided_pose, placed_via, tentative, alternatives = candidate_factors(
         run, config, timeline, step_rel, factors, skips, marker_points, progress
     )
+    place_unplaced(run, timeline, decided_pose, placed_via, alternatives)
 
     # --- initial values: known poses + odometry, decided poses + odometry; then robots placed
     # through an observer (max-mixture route); then robots placed by scan registration ---
@@ -93,8 +95,9 @@ def build_graph(
             if len(node_times[r]):
                 skips.add(
                     "unanchored_robot",
-                    f"robot {robot.name}: no initial pose, no decided candidate set and no "
-                    f"accepted scan registration; its {len(node_times[r])} poses are left out",
+                    f"robot {robot.name}: no initial pose, and nothing places it (no decided "
+                    f"candidate set, no placement by bearings, no accepted scan registration); "
+                    f"its {len(node_times[r])} poses are left out",
                     len(node_times[r]),
                 )
             continue
@@ -110,10 +113,10 @@ def build_graph(
             initial[lkey] = np.asarray(guess, dtype=float)
     initial.update(marker_points)
     variants, guessed_variants = [], []
-    for r, (k0, bodies, guessed) in alternatives.items():
+    for r, (starts, guessed) in alternatives.items():
         if r not in poses:
             continue
-        for body in bodies:
+        for k0, body in starts:
             placed = place_robot(run, r, node_times, step_rel, config, {r: {k0: body}}, {}, poses)
             variants.append({pose_key(r, k): p for k, p in enumerate(placed[0])})
             if guessed:
