@@ -190,7 +190,13 @@ def test_only_quick_merges_seed001_and_seed003_into_the_previous_result(tmp_path
     # the stated reading: rendered images alone give millimetres, far below the paper
     stated = p1["runs"]["stated"]["seed_baseline"]["run1"]
     assert stated["pos_mean_cm"] < 0.3 and stated["rot_mean_deg"] < 0.2
+    # the why (rotation per frame interval, ratio vs the hand-eye axis) and the held-out checks
+    why = p1["why"]
+    assert [t["tilt_deg"] for t in why["tilt"]] == list(s1.WHY_TILTS_DEG)
+    assert why["frame_rotation_rms_deg"]["run1"][2] > why["p3p_rotation_rms_deg"]["run1"][2]
+    assert len(p1["held_out"]["draws"]) == s1.HELD_OUT_DRAWS
     assert sum(x["stage"] == "coarse" for x in p3["rows"]) == len(s3.readings())
     md = (tmp_path / "seed_baselines.md").read_text()
     assert "## Seed 001 experiment 1" in md and "## Seed 003 Fig. 6" in md
+    assert "Why the orientation std / mean depends on the hand-eye axis" in md
     assert (tmp_path / report.MORE_PNG).stat().st_size > 0
