@@ -29,16 +29,16 @@ from graphloc.vision.mutual import localize_three_bearings
 RESECTION_SETS = 3  # a resected robot's solve starts from the P3P candidates of its first sets
 
 
-def _bearings(run: TeamRun) -> dict:
+def _bearings(run: TeamRun) -> tuple[dict, dict]:
     """(observer, target) -> unit direction in the observer's BODY frame (the first row of
-    each pair), and (a, b) -> range [m] for robot-to-robot ranges (either direction)."""
+    each pair), and {a, b} -> range [m] for robot-to-robot ranges (either direction)."""
     bearing, ranges = {}, {}
     for m in run.points:
         if m.target < 0:
             continue
         if m.kind in ("bearing", "range_bearing"):
             d = m.body_T_sensor.rotation().rotate(np.asarray(m.direction, float))
-            bearing.setdefault((m.robot, m.target), (m.time, np.asarray(d)))
+            bearing.setdefault((m.robot, m.target), np.asarray(d))
         if m.kind in ("range", "range_bearing"):
             ranges.setdefault(frozenset((m.robot, m.target)), m.range)
     return bearing, ranges
@@ -63,7 +63,7 @@ def place_by_mutual_bearings(run: TeamRun, placed: dict) -> dict:
         for a, i in enumerate(order):
             for b, j in enumerate(order):
                 if i != j:
-                    u[0, a, b] = bearing[(i, j)][1]
+                    u[0, a, b] = bearing[(i, j)]
         res = localize_three_bearings(u, ranges[frozenset(pair)])
         if not res.ok[0]:
             continue
