@@ -8,6 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from graphloc.experiments import seed001_readings as s1
+from graphloc.experiments import seed001_truth as s1t
 from graphloc.experiments import seed003_readings as s3
 from graphloc.experiments import seed_baselines_report as report
 from graphloc.experiments.seed_baselines_results import results_section
@@ -36,26 +37,28 @@ def test_truth_readings_move_the_truth_by_exactly_the_offsets():
     frames = _frames()
     R = np.array([f["R"] for f in frames])
     t = np.array([f["t"] for f in frames])
-    Rt, tt = s1.truth(frames, 0.0, np.zeros(3), np.zeros(3))
+    Rt, tt = s1t.truth(frames, 0.0, np.zeros(3), np.zeros(3))
     assert np.allclose(Rt, R) and np.allclose(tt, t)
-    pos, rot = s1.errors(R, t, *s1.truth(frames, 0.0, np.radians(1.0) * np.eye(3)[0], [0, 0, 0.01]))
+    pos, rot = s1t.errors(
+        R, t, *s1t.truth(frames, 0.0, np.radians(1.0) * np.eye(3)[0], [0, 0, 0.01])
+    )
     assert np.allclose(rot, 1.0) and np.allclose(pos, 1.0)
     # half a frame of lag: half way between the frames (the last frame has no successor)
-    _, half = s1.truth(frames, 0.5, np.zeros(3), np.zeros(3))
+    _, half = s1t.truth(frames, 0.5, np.zeros(3), np.zeros(3))
     assert np.allclose(half[:-1], 0.5 * (t[:-1] + t[1:])) and np.allclose(half[-1], t[-1])
 
 
 def test_tilted_axes_make_the_angle_with_the_optical_axis_and_stacked_truths_match_single():
     rng = np.random.default_rng(2)
     for tilt in (0.0, 30.0, 90.0):
-        a = s1.tilted_axes(rng, 6, tilt)
+        a = s1t.tilted_axes(rng, 6, tilt)
         assert np.allclose(np.linalg.norm(a, axis=1), 1.0)
         assert np.allclose(np.degrees(np.arccos(np.abs(a[:, 2]))), tilt)
     frames = _frames()
-    he, off = 0.02 * s1.tilted_axes(rng, 3, 45.0), 0.01 * s1._axes(rng, 3)
-    R, t = s1.truth(frames, 0.3, he, off)
+    he, off = 0.02 * s1t.tilted_axes(rng, 3, 45.0), 0.01 * s1t._axes(rng, 3)
+    R, t = s1t.truth(frames, 0.3, he, off)
     for d in range(3):
-        Rd, td = s1.truth(frames, 0.3, he[d], off[d])
+        Rd, td = s1t.truth(frames, 0.3, he[d], off[d])
         assert np.allclose(R[d], Rd) and np.allclose(t[d], td)
 
 
@@ -70,7 +73,7 @@ def _rolling(n=40):
         for r in roll
     ]
     det = {"run1": frames, "run2": frames, "steps": {}}
-    det["steps"] = {run: s1.lag_steps(frames) for run in ("run1", "run2")}
+    det["steps"] = {run: s1t.lag_steps(frames) for run in ("run1", "run2")}
     exact = (np.array([f["R"] for f in frames]), np.array([f["t"] for f in frames]))
     return det, {"run1": exact, "run2": exact}
 
@@ -80,7 +83,7 @@ def test_a_hand_eye_axis_along_the_roll_adds_it_in_line_one_across_in_quadrature
     steps = np.degrees(det["steps"]["run1"])
     assert np.abs(steps[:, :2]).max() < 1e-9 and np.abs(steps[:-1, 2]).min() > 0
     along, across = (
-        s1.stats(det, poses, 0.5, 1.0, 0.0, 0, tilt_deg=tilt)["run1"] for tilt in (0.0, 90.0)
+        s1t.stats(det, poses, 0.5, 1.0, 0.0, 0, tilt_deg=tilt)["run1"] for tilt in (0.0, 90.0)
     )
     roll = 0.5 * steps[:, 2]
     # along: |1 deg +- roll| per frame; across: sqrt(1 + roll^2)
@@ -92,10 +95,10 @@ def test_a_hand_eye_axis_along_the_roll_adds_it_in_line_one_across_in_quadrature
 def test_the_seeds_pose_is_exact_on_exact_pixels_and_biased_by_a_wrong_focal_length():
     frames = _frames()
     R, t = s1.seed_poses(frames, s1.reading_camera(0.0, 0.0))
-    pos, rot = s1.errors(R, t, np.array([f["R"] for f in frames]), [f["t"] for f in frames])
+    pos, rot = s1t.errors(R, t, np.array([f["R"] for f in frames]), [f["t"] for f in frames])
     assert len(pos) == len(frames) and pos.max() < 1e-4 and rot.max() < 1e-4
     R, t = s1.seed_poses(frames, s1.reading_camera(0.01, 0.0))
-    pos, _ = s1.errors(R, t, np.array([f["R"] for f in frames]), [f["t"] for f in frames])
+    pos, _ = s1t.errors(R, t, np.array([f["R"] for f in frames]), [f["t"] for f in frames])
     # 1 % focal error at 1.2 m: about 1 % of the distance along the line of sight
     assert 0.6 < np.median(pos) < 1.8
 
@@ -105,7 +108,7 @@ def test_score_is_the_relative_deviation_from_the_paper():
         "run1": {"pos_mean_cm": 1.5, "pos_std_cm": 0.77, "rot_mean_deg": 0.6, "rot_std_deg": 0.4},
         "run2_at_3m": {"pos_mean_cm": 2.2, "rot_mean_deg": np.nan},
     }
-    d = s1.score(row)
+    d = s1t.score(row)
     assert d["run1.pos_mean_cm"] == 0.0 and d["run1.pos_std_cm"] == pytest.approx(0.1)
     assert d["run1.rot_mean_deg"] == pytest.approx(0.5) and d["run2_at_3m.rot_mean_deg"] == np.inf
 
@@ -159,7 +162,7 @@ def test_results_section_is_empty_without_the_parts(tmp_path):
 
 def test_rotation_errors_use_the_relative_rotation():
     R = Rotation.from_rotvec([0.0, 0.0, 0.3]).as_matrix()[None]
-    _, rot = s1.errors(R, np.zeros((1, 3)), np.eye(3)[None], np.zeros((1, 3)))
+    _, rot = s1t.errors(R, np.zeros((1, 3)), np.eye(3)[None], np.zeros((1, 3)))
     assert rot[0] == pytest.approx(np.degrees(0.3))
 
 

@@ -12,8 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.experiments.markdown import fmt
-from graphloc.experiments.seed001_readings import SCORED, STATED
+from graphloc.experiments.seed001_readings import STATED
 from graphloc.experiments.seed001_report import s1_why
+from graphloc.experiments.seed001_truth import SCORED
 from graphloc.experiments.seed_baselines import REPRODUCE_TOL
 from graphloc.experiments.seed003_readings import (
     FEATURE_SIGMAS,
