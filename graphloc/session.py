@@ -48,6 +48,7 @@ from graphloc.datafile import BadData, read_data_file, write_data_file
 from graphloc.fixed_lag import FixedLagWindow
 from graphloc.session_codec import decode_step, encode_item
 from graphloc.session_config import MODES, SessionConfig, config_from_dict
+from graphloc.session_config import check_thresholded, relinearize_threshold
 from graphloc.value_codec import encode_values, key_name
 
 __all__ = ["MODES", "Session", "SessionConfig", "Step", "read_data_file", "write_data_file"]
@@ -124,7 +125,7 @@ class Session:
     # ---- construction --------------------------------------------------------------------
     def _make_isam(self):
         params = gtsam.ISAM2Params()
-        params.setRelinearizeThreshold(self.config.relinearize_threshold)
+        params.setRelinearizeThreshold(relinearize_threshold(self.config))
         params.relinearizeSkip = self.config.relinearize_skip
         params.setFactorization(self.config.factorization)
         params.enablePartialRelinearizationCheck = self.config.partial_relinearization_check
@@ -172,6 +173,7 @@ class Session:
             raise ValueError(
                 f"Session.add: initial values for keys already in the session: {clash[:5]}"
             )
+        check_thresholded(self.config, new_keys)
         missing = sorted({k for k in graph.keyVector() if k not in new_keys and not self._known(k)})
         if missing:
             names = [key_name(k) for k in missing[:5]]

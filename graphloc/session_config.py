@@ -6,9 +6,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
+import gtsam
+import numpy as np
 
 from graphloc.config import check
 from graphloc.datafile import BadData
+from graphloc.value_codec import key_name
 
 MODES = ("batch", "online")
 
@@ -18,11 +21,15 @@ class SessionConfig:
     """mode: "batch" (Levenberg-Marquardt) or "online" (iSAM2).
 
     LM: lm_max_iterations, lm_relative_error_tol, lm_absolute_error_tol.
-    iSAM2: relinearize_threshold (on the delta of any variable), relinearize_skip (relinearize
-    every N updates), extra_updates (additional `update()` calls after each add, to converge
-    further), factorization ("CHOLESKY" or "QR"), wildfire_threshold (back-substitution stops
-    where the solution changes less than this), partial_relinearization_check (only check the
-    variables of re-eliminated cliques for relinearization), isam2_optimizer: "gauss_newton"
+    iSAM2: relinearize_threshold (on the delta of any variable), relinearize_translation (> 0:
+    this threshold [m] on the translation of Pose3 variables and on Point3 variables,
+    relinearize_threshold on the rotation only -- iSAM2's per-symbol threshold map, so every
+    key must then be a Pose3 'x' or a Point3 'l' / 'k', `THRESHOLD_SYMBOLS`),
+    relinearize_skip (relinearize every N updates), extra_updates (additional `update()` calls
+    after each add, to converge further), factorization ("CHOLESKY" or "QR"),
+    wildfire_threshold (back-substitution stops where the solution changes less than this),
+    partial_relinearization_check (only check the variables of re-eliminated cliques for
+    relinearization), isam2_optimizer: "gauss_newton"
     (iSAM2's default step) or "dogleg" (Powell's dog leg with an adaptive trust region: a
     step that would raise the error is shortened, which stops the period-2 oscillation an
     undamped step can fall into on stiff graphs).
@@ -49,6 +56,7 @@ class SessionConfig:
     lm_relative_error_tol: float = 1e-6
     lm_absolute_error_tol: float = 1e-6
     relinearize_threshold: float = 0.05
+    relinearize_translation: float = 0.0
     relinearize_skip: int = 1
     extra_updates: int = 0
     factorization: str = "CHOLESKY"
@@ -67,12 +75,48 @@ class SessionConfig:
                 "isam2_optimizer": ("gauss_newton", "dogleg"),
                 "factorization": ("CHOLESKY", "QR"),
             },
-            nonnegative=("lag", "marginalize_every", "wildfire_threshold", "relinearize_threshold"),
+            nonnegative=(
+                "lag",
+                "marginalize_every",
+                "wildfire_threshold",
+                "relinearize_threshold",
+                "relinearize_translation",
+            ),
             integer={"lm_max_iterations": 1, "relinearize_skip": 1, "extra_updates": 0},
             interval={
                 name: (0, 2**31, "[)")
                 for name in ("lm_max_iterations", "relinearize_skip", "extra_updates")
             },
+        )
+
+
+THRESHOLD_SYMBOLS = {"x": 6, "l": 3, "k": 3}  # key symbol -> dimension (Pose3, Point3, Point3)
+
+
+def relinearize_threshold(config: SessionConfig):
+    """What `ISAM2Params.setRelinearizeThreshold` takes: one number, or with
+    `relinearize_translation` > 0 a map symbol -> thresholds per tangent component (Pose3:
+    rotation then translation)."""
+    trans = config.relinearize_translation
+    if trans <= 0:
+        return config.relinearize_threshold
+    out = gtsam.ISAM2ThresholdMap()
+    for symbol, dim in THRESHOLD_SYMBOLS.items():
+        rot = [config.relinearize_threshold] * 3 if dim == 6 else []
+        out.insert((symbol, np.array(rot + [trans] * 3)))
+    return out
+
+
+def check_thresholded(config: SessionConfig, keys) -> None:
+    """ValueError naming the keys the threshold map (`relinearize_translation` > 0) does not
+    cover (iSAM2 would look up a symbol it does not hold)."""
+    if config.relinearize_translation <= 0:
+        return
+    bad = [key_name(k) for k in keys if chr(gtsam.Symbol(k).chr()) not in THRESHOLD_SYMBOLS]
+    if bad:
+        raise ValueError(
+            f"Session.add: keys {bad[:5]} have no relinearize threshold (relinearize_translation "
+            f"> 0 covers the symbols {sorted(THRESHOLD_SYMBOLS)} only)"
         )
 
 

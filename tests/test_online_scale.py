@@ -61,6 +61,39 @@ def test_fixed_lag_session_bounds_variables_and_keeps_old_estimates():
         SessionConfig(mode="online", lag=2.0, marginalize_every=float("nan"))
 
 
+def test_translation_threshold_map_matches_one_threshold_and_names_uncovered_keys():
+    """relinearize_translation equal to relinearize_threshold is the same iSAM2 (the map form
+    of one number: identical estimates); a smaller one relinearizes translations the larger
+    leaves at their first linearization (initial guesses 3 cm off, conflicting odometry), so
+    it ends nearer the batch optimum; a key whose symbol the map does not hold is refused."""
+    x = [gtsam.symbol("x", k) for k in range(30)]
+    graph, initial, runs = gtsam.NonlinearFactorGraph(), gtsam.Values(), {}
+    for trans in (0.0, 0.05, 0.001):
+        s = Session(SessionConfig(mode="online", relinearize_translation=trans))
+        for k in range(30):
+            v = gtsam.Values()
+            v.insert(x[k], gtsam.Pose3(gtsam.Rot3(), [k + 0.03, 0.03, 0]))
+            f = [gtsam.PriorFactorPose3(x[k], gtsam.Pose3(gtsam.Rot3(), [k, 0, 0]), NOISE)]
+            if k:
+                step = gtsam.Pose3(gtsam.Rot3.Yaw(0.05), [1, 0.05, 0])
+                f.append(gtsam.BetweenFactorPose3(x[k - 1], x[k], step, NOISE))
+            s.add(f, v, time=k * 0.25)
+            if trans == 0.0:
+                for factor in f:
+                    graph.add(factor)
+                initial.insert(v)
+        runs[trans] = np.array([s.estimate([key]).atPose3(key).translation() for key in x])
+    optimum = gtsam.LevenbergMarquardtOptimizer(graph, initial).optimize()
+    best = np.array([optimum.atPose3(key).translation() for key in x])
+    assert np.array_equal(runs[0.0], runs[0.05])
+    assert np.abs(runs[0.001] - best).max() < np.abs(runs[0.05] - best).max()
+    s = Session(SessionConfig(mode="online", relinearize_translation=0.01))
+    v = gtsam.Values()
+    v.insert(7, gtsam.Pose3())
+    with pytest.raises(ValueError, match="no relinearize threshold"):
+        s.add([gtsam.PriorFactorPose3(7, gtsam.Pose3(), NOISE)], v, time=0.0)
+
+
 def test_marginalize_every_bounds_the_window_and_keeps_the_same_old_estimates():
     """Smaller batches: the window spans lag to lag + marginalize_every; every marginalized
     variable keeps the estimate it had right before it left (its own type, bit for bit)."""

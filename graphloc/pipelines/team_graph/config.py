@@ -64,6 +64,7 @@ class GraphConfig:
     decision_threshold: float = 0.8  # see the docstring
     downweight_threshold: float = 0.1
     relinearize_threshold: float | None = None
+    relinearize_translation: float | None = None  # see `session_config`
     relinearize_skip: int = 10
     wildfire_threshold: float | None = None
     extra_updates: int | None = None
@@ -92,10 +93,16 @@ class GraphConfig:
                 "relinearize_threshold",
                 "wildfire_threshold",
             ),
-            nonnegative=("lag", "downweight_threshold"),
+            nonnegative=("lag", "downweight_threshold", "relinearize_translation"),
             integer={"relinearize_skip": 1, "lm_max_iterations": 1, "extra_updates": 0},
             interval={"decision_threshold": (0.5, 1.0, "[)")},
-            optional=("lag", "relinearize_threshold", "wildfire_threshold", "extra_updates"),
+            optional=(
+                "lag",
+                "relinearize_threshold",
+                "relinearize_translation",
+                "wildfire_threshold",
+                "extra_updates",
+            ),
         )
         for name in ("initial_sigma", "static_sigma", "unknown_motion_sigma", "scan_hint_sigma"):
             v = getattr(self, name)
@@ -113,13 +120,20 @@ class GraphConfig:
         max-mixtures (`camera_graph`) relinearizes at every update (a new track's point starts
         at the depth prior, far from its estimate, and a max-mixture is re-chosen only when its
         variables are relinearized) with the dog-leg step (the undamped Gauss-Newton step
-        can oscillate with period 2 on such stiff camera graphs)."""
+        can oscillate with period 2 on such stiff camera graphs). On a coarse run without them
+        translations and points relinearize at a fifth of the precision (2 cm on MRCLAM), the
+        rotations at half of it (0: one threshold): half of a decimetre is close to the error
+        of the estimate itself, and a fixed lag marginalizes states linearized that far off
+        (MRCLAM6, lag 30 s: scripts/bench_scale.py, "Relinearization")."""
         relin = (
             self.relinearize_threshold
             if self.relinearize_threshold is not None
             else 0.5 * precision
         )
         skip = 1 if camera_graph else self.relinearize_skip
+        trans = self.relinearize_translation
+        if trans is None:
+            trans = 0.2 * precision if precision >= COARSE_PRECISION and not camera_graph else 0.0
         wildfire = (
             self.wildfire_threshold if self.wildfire_threshold is not None else 0.1 * precision
         )
@@ -132,6 +146,7 @@ class GraphConfig:
             mode=mode,
             lm_max_iterations=self.lm_max_iterations,
             relinearize_threshold=relin,
+            relinearize_translation=trans,
             relinearize_skip=skip,
             wildfire_threshold=wildfire,
             extra_updates=extra,
