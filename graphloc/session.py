@@ -129,6 +129,7 @@ class Session:
         params.relinearizeSkip = self.config.relinearize_skip
         params.setFactorization(self.config.factorization)
         params.enablePartialRelinearizationCheck = self.config.partial_relinearization_check
+        params.findUnusedFactorSlots = self.config.lag > 0  # marginalized factors' slots
         if self.config.isam2_optimizer == "dogleg":
             step = gtsam.ISAM2DoglegParams()
         else:

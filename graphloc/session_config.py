@@ -37,7 +37,9 @@ class SessionConfig:
     that marginalizes, with `ISAM2::marginalizeLeaves`, every variable added more than `lag`
     seconds (of the add times) before the newest (`graphloc.fixed_lag`: a constrained ordering
     by add time keeps those variables leaves of the Bayes tree, so no re-elimination is
-    needed): the tree and the per-step cost stay bounded; a marginalized variable keeps its
+    needed; iSAM2 reuses the factor slots marginalization empties, `findUnusedFactorSlots`,
+    else its factor list and a long run's per-step cost grow): the tree and the per-step cost
+    stay bounded; a marginalized variable keeps its
     last estimate, and a factor on one is refused (`Session.add` raises ValueError;
     `Session.marginalized` tells first). A variable's stamp is its add time and is not renewed
     when later factors touch it, so long-lived variables (a static robot's pose, a SLAM

@@ -161,7 +161,7 @@ def markdown(r: dict) -> str:
                 f"{o['rss_mb_end']:.0f} MB at the end (the session keeps no steps, "
                 "`SessionConfig.keep_steps` False; what still grows is the marginalized "
                 "variables' last estimates -- the final trajectory --, the per-step log and "
-                "iSAM2's emptied factor slots);"
+                "the session's factor list);"
             ),
             (
                 f"- real time x{o['realtime_factor']:.0f} (wall), "
