@@ -56,7 +56,7 @@ def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
         pose_errors,
         prepare,
     )
-    from graphloc.mapping.robust_registration import fine_stage
+    from graphloc.mapping.robust_registration import polish
 
     overlap, seed, calibrate = job
     rng = np.random.default_rng([seed, int(round(1000 * overlap))])
@@ -76,8 +76,9 @@ def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
             seconds=glob_s + icp_s,
             accepted=True,
         )
-        T_floor, _ = fine_stage(source, target, truth, cfg)  # graphloc's fine stage from the truth
+        T_floor = polish(source, target, truth, cfg)  # graphloc's last stage from the truth
         floor = dict(zip(("rot_deg", "trans_m"), pose_errors(T_floor, truth)))
+        floor["bound_rot_cov_deg2"] = hessian_bound(pair.ceiling, pair.ground, truth, cfg).tolist()
     rows = []
     for rot_deg, trans_m in REAL_HINTS:
         hint = perturb(truth, rot_deg, trans_m, rng)
@@ -132,7 +133,7 @@ def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
             rows.append(row)
             continue
         row["fpfh_ransac"] = fpfh
-        row["fine_from_truth"] = floor
+        row["last_stage_from_truth"] = floor
         dist = max(fine, trans_m + np.deg2rad(rot_deg) * r_med)
         T_icp, icp_s = icp_from_hint(source, target, hint, dist)
         row["o3d_icp"] = dict(
@@ -150,6 +151,29 @@ def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
         )
         rows.append(row)
     return rows
+
+
+def hessian_bound(source: np.ndarray, target: np.ndarray, T: np.ndarray, cfg) -> np.ndarray:
+    """3x3 rotation block [deg^2] of s^2 H^-1 for the point-to-plane objective of `polish` at
+    T (T_target_source): source points within cfg.polish_distance of their nearest target point,
+    on that point's plane (normal of its cfg.polish_max_nn nearest neighbours); H = J^T J with
+    J = [(p x n)^T, n^T] (left perturbation, rotation vector in the target frame, the signed
+    errors' convention), s^2 the residuals' variance."""
+    import open3d as o3d
+
+    p = source @ T[:3, :3].T + T[:3, 3]
+    tgt = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.asarray(target, dtype=np.float64)))
+    tgt.estimate_normals(cfg.polish_max_nn)
+    nns = o3d.core.nns.NearestNeighborSearch(tgt.point.positions)
+    nns.knn_index()
+    idx, d2 = nns.knn_search(o3d.core.Tensor(p), 1)
+    idx, near = idx.numpy()[:, 0], d2.numpy()[:, 0] < cfg.polish_distance**2
+    n = tgt.point.normals.numpy()[idx[near]]
+    p = p[near]
+    r = np.einsum("ij,ij->i", p - target[idx[near]], n)
+    J = np.hstack([np.cross(p, n), n])
+    cov = r.var(ddof=6) * np.linalg.inv(J.T @ J)
+    return np.degrees(np.degrees(cov[:3, :3]))
 
 
 def _cells(rows):
@@ -201,9 +225,19 @@ def summarize_real(rows: list[dict]) -> dict:
                 s["nees_mean"], s["nees_band_95"] = float(nees.mean()), [float(lo), float(hi)]
                 s["nees_in_band"] = bool(lo <= nees.mean() <= hi)
             out[name][m] = s
-        out[name]["fine_from_truth"] = {
-            "rot_deg_median": float(np.median([r["fine_from_truth"]["rot_deg"] for r in cell])),
-            "trans_m_median": float(np.median([r["fine_from_truth"]["trans_m"] for r in cell])),
+        floors = [r["last_stage_from_truth"] for r in cell]
+        covs = np.array([f["bound_rot_cov_deg2"] for f in floors])
+        draws = np.random.default_rng(0).multivariate_normal  # 200 errors per trial's bound
+        bound_err = np.concatenate(
+            [np.linalg.norm(draws(np.zeros(3), c, 200), axis=1) for c in covs]
+        )
+        out[name]["last_stage_from_truth"] = {
+            "rot_deg_median": float(np.median([f["rot_deg"] for f in floors])),
+            "trans_m_median": float(np.median([f["trans_m"] for f in floors])),
+            "bound_rot_sigma_deg_rms": np.sqrt(
+                np.mean(np.diagonal(covs, axis1=1, axis2=2), 0)
+            ).tolist(),
+            "bound_rot_deg_median": float(np.median(bound_err)),
         }
         g, f = out[name]["graphloc"], out[name]["fpfh_ransac"]
         out[name]["graphloc_vs_fpfh_time_ratio"] = g["seconds_median"] / f["seconds_median"]
@@ -304,11 +338,18 @@ def markdown_real(report: dict, command: str) -> str:
             cells.append(f"{err}, {t}")
         lines.append(f"| {m} | " + " | ".join(cells) + " |")
     lines.append(
-        "| graphloc's fine stage from the true pose (floor, all trials) | "
+        "| graphloc's last stage from the true pose (all trials) | "
         + " | ".join(
-            f"{s['fine_from_truth']['rot_deg_median']:.3f} / "
-            f"{100 * s['fine_from_truth']['trans_m_median']:.2f}"
+            f"{s['last_stage_from_truth']['rot_deg_median']:.3f} / "
+            f"{100 * s['last_stage_from_truth']['trans_m_median']:.2f}"
             for s in summ.values()
+        )
+        + " |"
+    )
+    lines.append(
+        "| Hessian bound of the last stage's objective at the true pose (rotation) | "
+        + " | ".join(
+            f"{s['last_stage_from_truth']['bound_rot_deg_median']:.3f} / —" for s in summ.values()
         )
         + " |"
     )
@@ -319,10 +360,27 @@ def markdown_real(report: dict, command: str) -> str:
     )
     lines += [
         "",
-        "The floor row is `robust_registration.fine_stage` (the last stage of graphloc's "
+        "The last-stage row is `robust_registration.polish` (the last stage of graphloc's "
         "registration) started at the true pose: the error the estimator has at its own minimum "
         "with these scans (5 mm noise, independent 50% subsampling), which no start can beat; "
-        "issue 16 asks for a median of at most 0.1 deg / 1 cm.",
+        "issue 16 asks for a median of at most 0.1 deg / 1 cm. The bound row is the median "
+        "rotation error of an efficient estimator of that objective: per trial, the "
+        "point-to-plane Hessian at the true pose (full-resolution ceiling points on the ground "
+        "view's planes within the polish distance) with the residuals' variance, s^2 H^-1 "
+        "(`hessian_bound`), 200 draws of its rotation block per trial, pooled. It treats the "
+        "residuals as independent; surfaces the views sample differently make them correlated, "
+        "so real estimators stay above it. Its 1-sigma (RMS over trials) against graphloc's "
+        "observed spread [deg]:",
+        "",
+        "| cell | bound rot x / y / z | graphloc std rot x / y / z |",
+        "|---|---|---|",
+    ]
+    for name, s in summ.items():
+        b = s["last_stage_from_truth"]["bound_rot_sigma_deg_rms"]
+        o = s["graphloc"].get("signed_error_std")
+        obs = " / ".join(f"{v:.3f}" for v in o[:3]) if o else "—"
+        lines.append(f"| {name} | " + " / ".join(f"{v:.3f}" for v in b) + f" | {obs} |")
+    lines += [
         "",
         "graphloc's reported covariance against its errors (accepted results): mean NEES "
         "(6 dof) and its chi-square 95% band for that many trials:",
@@ -357,7 +415,7 @@ def markdown_real(report: dict, command: str) -> str:
                 for mu, sd, k in zip(c["signed_error_mean"], c["signed_error_std"], scale)
             ]
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    cal_path = Path(__file__).resolve().parents[1] / "docs" / "results_fusion_calibration.json"
+    cal_path = Path(__file__).resolve().parents[2] / "docs" / "results_fusion_calibration.json"
     if cal_path.is_file():
         cal = json.loads(cal_path.read_text())
         fit = cal["fit"]

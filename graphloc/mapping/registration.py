@@ -72,20 +72,36 @@ class RegistrationConfig:
     # the Tukey-weighted iterations have settled by then, docs/results_fusion_real.md)
     fine_relative: float = 1e-6
     covariance_block: float = 0.5
+    # robust_register's last stage (`polish`): point-to-plane ICP of the full-resolution clouds,
+    # both ways, correspondences within polish_distance [m] and a Geman-McClure kernel of scale
+    # polish_kernel [m] (the residual's noise: two 5 mm point noises, sqrt(2) * 5 mm; 0: no polish)
+    polish_distance: float = 0.02
+    polish_kernel: float = 0.007
+    polish_iterations: int = 5
+    polish_max_nn: int = 20  # its normals: plane of the 20 nearest full-resolution points
+    polish_relative: float = 1e-6  # its stop: relative change of fitness and inlier RMSE
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
     # the wide level's reach is capped at max_reach [m]: beyond it a first-order covariance is no
     # basin a local method covers (the sigma points and the global fallback take over)
     max_reach: float = 1.0
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
-    covariance_scale: float = 11.4  # fit of docs/results_fusion_calibration.json (3 digits)
-    covariance_floor: tuple[float, float] = (4.58e-4, 4.27e-4)
+    covariance_scale: float = 2.92  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_floor: tuple[float, float] = (8.05e-5, 1.78e-4)
 
     def __post_init__(self):
         check(
             self,
-            positive=("voxel", "normal_radius", "range_sigma", "covariance_scale", "fine_relative"),
-            nonnegative=("coarse_tukey", "fine_tukey"),
+            positive=(
+                "voxel",
+                "normal_radius",
+                "range_sigma",
+                "covariance_scale",
+                "fine_relative",
+                "polish_relative",
+            ),
+            nonnegative=("coarse_tukey", "fine_tukey", "polish_distance", "polish_kernel"),
+            integer={"polish_iterations": 1, "polish_max_nn": 3},
         )
         if not (len(self.covariance_floor) == 2 and min(self.covariance_floor) >= 0):
             raise ValueError(
@@ -110,12 +126,15 @@ class RegistrationConfig:
 
 @dataclass(frozen=True)
 class PreparedCloud:
-    """A denoised, downsampled cloud with normals (tensor and legacy views share no memory)."""
+    """A denoised, downsampled cloud with normals (tensor and legacy views share no memory), and
+    `raw`: the input points at full resolution (for the last stage of `robust_register`,
+    `polish`; None when cfg.polish_distance is 0)."""
 
     cloud: o3d.t.geometry.PointCloud
     legacy: o3d.geometry.PointCloud
     n_input: int
     n_outliers: int
+    raw: np.ndarray | None = None
 
     @property
     def points(self) -> np.ndarray:
@@ -158,7 +177,7 @@ def prepare(
     points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0)
 ) -> PreparedCloud:
     """`denoise`, then normals oriented toward `viewpoint` (the sensor, for FPFH's signed
-    angles)."""
+    angles); with cfg.polish_distance > 0 it keeps the input points (`PreparedCloud.raw`)."""
     pcd, n_out = denoise(points, cfg)
     pcd.estimate_normals(cfg.max_nn, cfg.normal_radius)
     pcd.orient_normals_towards_camera_location(
@@ -166,7 +185,8 @@ def prepare(
     )
     if len(pcd.point.positions) < 10:
         raise ValueError("prepare: fewer than 10 points left after denoising and downsampling")
-    return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out)
+    raw = np.asarray(points, dtype=np.float64) if cfg.polish_distance > 0 else None
+    return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, raw)
 
 
 def information_right(info_left: np.ndarray, T: np.ndarray) -> np.ndarray:

@@ -1,8 +1,9 @@
 """The inter-robot registration of issue 16 (seed 004 Sec. IV from a pose hint): a registration
 that does not slide on partial overlap, and that says "not fused" instead of returning a
 confident wrong answer. `robust_register` runs ICP from the hint and the sigma points of its
-covariance (`hint_starts`) with a truncated point-to-plane cost, the checks of
-`graphloc.mapping.acceptance`, and the covariance of `graphloc.mapping.registration_covariance`.
+covariance (`hint_starts`) with a truncated point-to-plane cost and the checks of
+`graphloc.mapping.acceptance`, refines the winner at full resolution (`polish`), and gives it
+the covariance of `graphloc.mapping.registration_covariance`.
 """
 
 from __future__ import annotations
@@ -79,6 +80,50 @@ def fine_stage(
         reg_t.ICPConvergenceCriteria(cfg.fine_relative, cfg.fine_relative, cfg.max_iterations[-1]),
     )
     return res.transformation.numpy(), int(res.num_iterations)
+
+
+def polish(
+    source: PreparedCloud, target: PreparedCloud, T: np.ndarray, cfg: RegistrationConfig
+) -> np.ndarray:
+    """`robust_register`'s last stage: point-to-plane ICP of the full-resolution clouds
+    (`PreparedCloud.raw`, normals of the cfg.polish_max_nn nearest points) from T, source onto
+    target and target onto source, each with correspondences within cfg.polish_distance and a
+    Geman-McClure kernel of scale cfg.polish_kernel (the residual noise), each view cut to its
+    points within cfg.polish_distance + cfg.voxel of the other's grid (the mutual overlap:
+    normals and correspondences only where they can pair), then the midpoint of
+    the two on SE(3), A Exp(Log(A^-1 B) / 2). The fine stage's grid averages independently
+    subsampled, noisy scans into cell centroids that differ between the views, and one
+    direction's nearest-neighbour planes pass through the noisy points of one view only; here
+    every point of each view serves once as a sample and once as a plane. Returns
+    T_target_source; T unchanged when cfg.polish_distance is 0, a cloud has no `raw`, or a
+    direction finds no correspondence within the distance (the fine stage's pose stands)."""
+    if cfg.polish_distance <= 0 or source.raw is None or target.raw is None:
+        return T
+    T = np.asarray(T, dtype=float)
+    margin = cfg.polish_distance + cfg.voxel  # a grid cell's reach, plus the polish's
+    full = []
+    for c, other, M in ((source, target, T), (target, source, np.linalg.inv(T))):
+        p = c.raw @ M[:3, :3].T + M[:3, 3]  # in the other view's frame
+        _, d2 = target_index(other).knn_search(o3d.core.Tensor(p), 1)
+        near = c.raw[d2.numpy()[:, 0] < margin**2]
+        if len(near) < cfg.polish_max_nn:
+            return T
+        full.append(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(near)))
+        full[-1].estimate_normals(o3d.geometry.KDTreeSearchParamKNN(cfg.polish_max_nn))
+    est = reg_l.TransformationEstimationPointToPlane(reg_l.GMLoss(cfg.polish_kernel))
+    crit = reg_l.ICPConvergenceCriteria(
+        cfg.polish_relative, cfg.polish_relative, cfg.polish_iterations
+    )
+    out = []
+    for a, b, T0 in ((full[0], full[1], T), (full[1], full[0], np.linalg.inv(T))):
+        res = reg_l.registration_icp(a, b, cfg.polish_distance, T0, est, crit)
+        if res.fitness <= 0:  # no correspondence within the distance
+            return T
+        out.append(np.asarray(res.transformation))
+    fwd, bwd = out
+    A = gtsam.Pose3(fwd)
+    B = gtsam.Pose3(np.linalg.inv(bwd))
+    return A.compose(gtsam.Pose3.Expmap(0.5 * gtsam.Pose3.Logmap(A.between(B)))).matrix()
 
 
 def _grid(cloud: o3d.geometry.PointCloud, voxel: float) -> o3d.geometry.PointCloud:
@@ -160,7 +205,9 @@ def robust_register(
        cost wins, except that the hint's own candidate (start 0) is kept when it passes and its
        cost is within acc.hint_basin_margin of that best (the data must clearly beat the
        hint's basin).
-    4. The winner's conditioning; accepted only if every check passes.
+    4. The winner refined by `polish` (full resolution, both directions), the checks of step 3
+       and its conditioning on that pose (`candidates` keep the poses before the polish);
+       accepted only if every check passes.
     5. Covariance: the point-to-plane Hessian H over the inliers in a cluster-robust sandwich
        (`cluster_covariance`), converted to GTSAM's right perturbation (`information_right`),
        calibrated (`calibrated_covariance`); `inlier_rmse` is the inliers' residual standard
@@ -232,6 +279,21 @@ def robust_register(
             return "coarse pose fails the robot geometry, out of fine reach"
         return None
 
+    def candidate(k: int, T: np.ndarray) -> Candidate:
+        """Start k's pose T with its truncated cost, overlap, inlier ratio and hint distance."""
+        r, d, _ = point_to_plane(source, target, T, nns)
+        near = d < fine
+        inl = near & (np.abs(r) < c)
+        e = hint_pose.localCoordinates(gtsam.Pose3(T))
+        return Candidate(
+            k,
+            T,
+            truncated_cost(r, d, c, fine),
+            float(inl.mean()),
+            float(inl.sum() / max(near.sum(), 1)),
+            float(e @ hint_info @ e),
+        )
+
     def try_start(k: int, T: np.ndarray) -> bool:
         """Fine ICP from one start's coarse pose; True if its candidate passes its own checks."""
         nonlocal iterations
@@ -254,20 +316,7 @@ def robust_register(
         if same:
             merged[k] = f"converged to the pose of start {same[0]}"
             return False
-        r, d, _ = point_to_plane(source, target, T, nns)
-        near = d < fine
-        inl = near & (np.abs(r) < c)
-        e = hint_pose.localCoordinates(gtsam.Pose3(T))
-        cands.append(
-            Candidate(
-                k,
-                T,
-                truncated_cost(r, d, c, fine),
-                float(inl.mean()),
-                float(inl.sum() / max(near.sum(), 1)),
-                float(e @ hint_info @ e),
-            )
-        )
+        cands.append(candidate(k, T))
         return all(v[2] for v in candidate_checks(cands[-1], acc).values())
 
     starts = hint_starts(hint, hint_cov)
@@ -314,7 +363,8 @@ def robust_register(
             if failed
             else f"truncated cost {o.cost:.4f} > {best.cost:.4f} of start {best.start}"
         )
-    T = best.transformation
+    final = candidate(best.start, polish(source, target, best.transformation, cfg))
+    T = final.transformation
     r, d, J = point_to_plane(source, target, T, nns)
     inl = (d < fine) & (np.abs(r) < c)
     n_in = int(inl.sum())
@@ -332,7 +382,7 @@ def robust_register(
     else:
         info = np.eye(6) * 1e-12
         cov = np.linalg.inv(info)
-    checks = dict(checks_of[best.start])
+    checks = dict(candidate_checks(final, acc))  # the polished pose's
     checks["conditioning"] = (
         conditioning,
         acc.min_conditioning,
@@ -350,7 +400,7 @@ def robust_register(
         f"{why[k]} ({k} {v[0]:.4g} vs {v[1]:.4g})" for k, v in checks.items() if not v[2]
     )
     reg = Registration(
-        T, best.overlap, float(np.sqrt(s2)), iterations, info, time.perf_counter() - start_t
+        T, final.overlap, float(np.sqrt(s2)), iterations, info, time.perf_counter() - start_t
     )
     return RegistrationDecision(
         reg,
