@@ -163,7 +163,8 @@ def table_i_formation(
         ground_t=trials.ground[n],
         mutual=triangle.bearings[n],
         mutual_sigma=float(np.nanmedian(triangle.bearing_sigma[n][off])),
-        baseline=float(np.linalg.norm(trials.ground[n, 1] - trials.ground[n, 0])),
+        # float32: what a bag's sensor_msgs/Range carries, so the log and its bag form agree
+        baseline=float(np.float32(np.linalg.norm(trials.ground[n, 1] - trials.ground[n, 0]))),
         baseline_sigma=BASELINE_SIGMA,
         times=np.arange(3, dtype=float),
         climber_R=trials.R_snapshots[n],

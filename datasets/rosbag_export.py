@@ -19,7 +19,7 @@ from graphloc.io import MANIFEST, read_manifest
 from graphloc.mapping.io import read_points
 
 KINDS = ("ros1", "sqlite3", "mcap")
-EXPORTED = ("relative_pose3", "markers", "scans", "groundtruth")
+EXPORTED = ("relative_pose3", "range", "bearing", "markers", "scans", "groundtruth")
 # vision_msgs 4 (ROS 2 Humble); rosbags' type stores lack vision_msgs, so the bag carries them
 VISION_MSGS = {
     "vision_msgs/msg/Point2D": "float64 x\nfloat64 y\n",
@@ -183,6 +183,35 @@ def _scans(m: _Msgs, path: Path, root: Path, robot: str) -> list:
     return out
 
 
+def _pointing(m: _Msgs, path: Path, robot: str, table: str) -> tuple[list, dict]:
+    """range / bearing rows -> one topic per sensor (sensor_msgs/Range, geometry_msgs/
+    Vector3Stamped), one message per row with header.frame_id = the target's name (the topic's
+    'targets' map, frame -> target)."""
+    out, targets = [], {}
+    for r in _rows(path):
+        t, target = float(r["time"]), r["target"]
+        header = m.header(t, target)
+        if table == "range":
+            msgtype = "sensor_msgs/msg/Range"
+            msg = m(
+                msgtype,
+                header=header,
+                radiation_type=0,
+                field_of_view=0.0,
+                min_range=0.0,
+                max_range=0.0,
+                range=float(r["range"]),
+            )
+        else:
+            msgtype = "geometry_msgs/msg/Vector3Stamped"
+            v = m("geometry_msgs/msg/Vector3", **{a: float(r[a]) for a in ("x", "y", "z")})
+            msg = m(msgtype, header=header, vector=v)
+        topic = f"/{robot}/{r['sensor']}/{table}"
+        targets.setdefault(topic, {})[target] = target
+        out.append((topic, (msgtype, t, msg)))
+    return out, targets
+
+
 def _groundtruth(m: _Msgs, path: Path, robot: str) -> list:
     if path.suffix != ".tum":
         raise ValueError(f"{path}: planar ground truth (.csv) has no bag form here; 3D (.tum) only")
@@ -228,6 +257,8 @@ def export_bag(log_dir, bag, kind: str) -> Path:
                 got, classes = _markers(m, path, robot.name)
             elif table == "scans":
                 got = _scans(m, path, root, robot.name)
+            elif table in ("range", "bearing"):
+                got, targets = _pointing(m, path, robot.name, table)
             else:
                 got = _groundtruth(m, path, robot.name)
             for topic, msg in got:
@@ -239,6 +270,8 @@ def export_bag(log_dir, bag, kind: str) -> Path:
                     entry["sensor"] = topic.split("/")[2]
                 if table == "markers":
                     entry["classes"] = classes
+                if table in ("range", "bearing"):
+                    entry["targets"] = targets[topic]
                 topics[topic] = entry
     if kind == "ros1":
         writer = Writer1(bag)
