@@ -29,6 +29,7 @@ from graphloc.mapping.registration import (
     RegistrationConfig,
     global_fpfh_ransac,
     information_right,
+    polish,
     pose_errors,
 )
 from graphloc.mapping.registration_covariance import calibrated_covariance, cluster_covariance
@@ -80,50 +81,6 @@ def fine_stage(
         reg_t.ICPConvergenceCriteria(cfg.fine_relative, cfg.fine_relative, cfg.max_iterations[-1]),
     )
     return res.transformation.numpy(), int(res.num_iterations)
-
-
-def polish(
-    source: PreparedCloud, target: PreparedCloud, T: np.ndarray, cfg: RegistrationConfig
-) -> np.ndarray:
-    """`robust_register`'s last stage: point-to-plane ICP of the full-resolution clouds
-    (`PreparedCloud.raw`, normals of the cfg.polish_max_nn nearest points) from T, source onto
-    target and target onto source, each with correspondences within cfg.polish_distance and a
-    Geman-McClure kernel of scale cfg.polish_kernel (the residual noise), each view cut to its
-    points within cfg.polish_distance + cfg.voxel of the other's grid (the mutual overlap:
-    normals and correspondences only where they can pair), then the midpoint of
-    the two on SE(3), A Exp(Log(A^-1 B) / 2). The fine stage's grid averages independently
-    subsampled, noisy scans into cell centroids that differ between the views, and one
-    direction's nearest-neighbour planes pass through the noisy points of one view only; here
-    every point of each view serves once as a sample and once as a plane. Returns
-    T_target_source; T unchanged when cfg.polish_distance is 0, a cloud has no `raw`, or a
-    direction finds no correspondence within the distance (the fine stage's pose stands)."""
-    if cfg.polish_distance <= 0 or source.raw is None or target.raw is None:
-        return T
-    T = np.asarray(T, dtype=float)
-    margin = cfg.polish_distance + cfg.voxel  # a grid cell's reach, plus the polish's
-    full = []
-    for c, other, M in ((source, target, T), (target, source, np.linalg.inv(T))):
-        p = c.raw @ M[:3, :3].T + M[:3, 3]  # in the other view's frame
-        _, d2 = target_index(other).knn_search(o3d.core.Tensor(p), 1)
-        near = c.raw[d2.numpy()[:, 0] < margin**2]
-        if len(near) < cfg.polish_max_nn:
-            return T
-        full.append(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(near)))
-        full[-1].estimate_normals(o3d.geometry.KDTreeSearchParamKNN(cfg.polish_max_nn))
-    est = reg_l.TransformationEstimationPointToPlane(reg_l.GMLoss(cfg.polish_kernel))
-    crit = reg_l.ICPConvergenceCriteria(
-        cfg.polish_relative, cfg.polish_relative, cfg.polish_iterations
-    )
-    out = []
-    for a, b, T0 in ((full[0], full[1], T), (full[1], full[0], np.linalg.inv(T))):
-        res = reg_l.registration_icp(a, b, cfg.polish_distance, T0, est, crit)
-        if res.fitness <= 0:  # no correspondence within the distance
-            return T
-        out.append(np.asarray(res.transformation))
-    fwd, bwd = out
-    A = gtsam.Pose3(fwd)
-    B = gtsam.Pose3(np.linalg.inv(bwd))
-    return A.compose(gtsam.Pose3.Expmap(0.5 * gtsam.Pose3.Logmap(A.between(B)))).matrix()
 
 
 def _grid(cloud: o3d.geometry.PointCloud, voxel: float) -> o3d.geometry.PointCloud:
