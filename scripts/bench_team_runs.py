@@ -23,8 +23,17 @@ def main(argv=None) -> int:
     parser.add_argument("--backend", choices=BACKENDS, default="local", help="runs on")
     parser.add_argument("--address", help="--backend ray: 'auto' or HOST:PORT of a cluster")
     parser.add_argument("--seed-offset", type=int, default=0)
+    parser.add_argument(
+        "--render",
+        action="store_true",
+        help="only redraw the plot and markdown from OUT/team_runs.json (no runs)",
+    )
     args = parser.parse_args(argv)
     command = "scripts/bench_team_runs.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    if args.render:  # the doc names the command that ran the saved runs
+        team_runs_report.render(args.out, args.doc, command.replace(" --render", ""))
+        print(f"rendered {args.out / 'team_runs.json'}")
+        return 0
     with default_backend(args.backend, args.address, args.workers):
         rows = team_runs.run(args.size, args.workers, args.seed_offset)
     team_runs_report.write(rows, args.out, args.doc, command)
