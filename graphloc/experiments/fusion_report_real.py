@@ -64,6 +64,30 @@ def plot_real(rows: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
+def _method_table(summ: dict, cell) -> list:
+    """A markdown table: one row per method of REAL_METHODS, one column per cell of `summ`;
+    cell(method's entry, the cell's summary) -> text."""
+    lines = ["| method | " + " | ".join(summ) + " |", "|---|" + "---|" * len(summ)]
+    for m in REAL_METHODS:
+        lines.append(f"| {m} | " + " | ".join(cell(s[m], s) for s in summ.values()) + " |")
+    return lines
+
+
+def _success_cell(c: dict, s: dict) -> str:
+    txt = f"{c['successes']}/{s['trials']} [{c['false_accepts']}]"
+    return txt + (f" {{{c['not_fused']}}}" if c["not_fused"] else "")
+
+
+def _error_time_cell(c: dict, s: dict) -> str:
+    err = (
+        f"{c['rot_deg_median_successes']:.3f} / {100 * c['trans_m_median_successes']:.2f}"
+        if c["successes"]
+        else "—"
+    )
+    t = f"{c['seconds_median']:.2f} s" if c["seconds_median"] is not None else "—"
+    return f"{err}, {t}"
+
+
 def markdown_real(report: dict, command: str) -> str:
     summ = report["summary"]
     lines = [
@@ -80,38 +104,13 @@ def markdown_real(report: dict, command: str) -> str:
         "and translation < 5 cm (and, for graphloc, accepted). Cells: successes / trials; "
         "false accepts (fused but wrong) in brackets; not fused in braces.",
         "",
-        "| method | " + " | ".join(summ) + " |",
-        "|---|" + "---|" * len(summ),
-    ]
-    for m in REAL_METHODS:
-        cells = []
-        for s in summ.values():
-            c = s[m]
-            txt = f"{c['successes']}/{s['trials']} [{c['false_accepts']}]"
-            if c["not_fused"]:
-                txt += f" {{{c['not_fused']}}}"
-            cells.append(txt)
-        lines.append(f"| {m} | " + " | ".join(cells) + " |")
-    lines += [
+        *_method_table(summ, _success_cell),
         "",
         "Median error on successes (rotation deg / translation cm) and median registration "
         "time [s] (clouds prepared once, shared; FPFH includes features and RANSAC):",
         "",
-        "| method | " + " | ".join(summ) + " |",
-        "|---|" + "---|" * len(summ),
+        *_method_table(summ, _error_time_cell),
     ]
-    for m in REAL_METHODS:
-        cells = []
-        for s in summ.values():
-            c = s[m]
-            err = (
-                f"{c['rot_deg_median_successes']:.3f} / {100 * c['trans_m_median_successes']:.2f}"
-                if c["successes"]
-                else "—"
-            )
-            t = f"{c['seconds_median']:.2f} s" if c["seconds_median"] is not None else "—"
-            cells.append(f"{err}, {t}")
-        lines.append(f"| {m} | " + " | ".join(cells) + " |")
     lines.append(
         "| graphloc's last stage from the true pose (all trials) | "
         + " | ".join(
