@@ -37,6 +37,7 @@ import json
 import multiprocessing as mp
 import os
 import socket
+import threading
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator
@@ -147,8 +148,14 @@ class ResultCache:
         tmp.replace(self._path(digest))
 
 
-def _install_shared(token: str, shared) -> None:
-    _SHARED[token] = shared
+def _init_worker(token: str | None, shared) -> None:
+    """A pool worker's start: its shared input, and tqdm's lock as a thread lock. tqdm
+    otherwise makes a multiprocessing lock on its first bar (even a disabled one), a named
+    semaphore under the fork server that a pool worker, ended without finalizers, never
+    releases: the resource tracker then warns of a leak when the command exits."""
+    tqdm.set_lock(threading.RLock())
+    if token is not None:
+        _SHARED[token] = shared
 
 
 def _call(fn: Callable, item, shared, token: str | None):
@@ -305,7 +312,7 @@ class Executor:
         else:
             token = None if shared is None else f"{os.getpid()}-{id(shared)}"
             ctx = mp.get_context(self.start_method)
-            init = (_install_shared, (token, shared)) if token else (None, ())
+            init = (_init_worker, (token, shared))
             with ctx.Pool(min(self.workers, len(items)), *init) as pool:
                 jobs = [(fn, item, None, token) for item in items]
                 for pos, result in pool.imap_unordered(_indexed, enumerate(jobs)):

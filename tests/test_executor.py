@@ -190,3 +190,35 @@ def test_ray_and_local_backends_give_identical_numbers(tmp_path):
         assert results["ray", key[1]] == results[key], key[1]
     rows, tum = results["local", "smooth"]
     assert len(tum) >= 9 and "error" in rows["bad"] and rows["feng2"]["ate_rmse_m"]
+
+
+POOL_SCRIPT = """
+from tqdm import tqdm
+from graphloc.executor import Executor
+
+
+def task(x):
+    for _ in tqdm(range(2), disable=True):  # a bar in the worker, as the pipelines make
+        pass
+    return x * x
+
+
+if __name__ == "__main__":
+    with Executor(2, progress=False) as ex:
+        print(list(ex.imap(task, [1, 2, 3])))
+"""
+
+
+def test_pool_workers_leave_no_semaphore_behind(tmp_path):
+    """Workers start from the fork server and are ended without finalizers: a multiprocessing
+    lock tqdm made in one would be reported as leaked when the command exits."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "pool.py"
+    script.write_text(POOL_SCRIPT)
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path
+    )
+    assert done.returncode == 0 and done.stdout.strip() == "[1, 4, 9]", done.stderr
+    assert "leaked" not in done.stderr, done.stderr
