@@ -222,9 +222,10 @@ def markdown(r: dict) -> str:
             "options and graphloc's code version).",
             "",
             "Method notes: the local pool with one worker runs the tasks in the calling "
-            "process; with two it forks workers that inherit the imported modules, while Ray "
-            "starts its worker processes fresh (each imports graphloc and GTSAM once, inside "
-            "the first task it runs). Wall times include writing every run's outputs and the "
+            "process; with two it starts workers from a fork server (each imports graphloc "
+            "and GTSAM once, as the pool starts), and Ray starts its worker processes fresh "
+            "too (each imports them once, inside the first task it runs). Wall times include "
+            "writing every run's outputs and the "
             "aggregate report (runs.csv / runs.md / runs_summary.png).",
             "",
         ]
