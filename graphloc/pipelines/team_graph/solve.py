@@ -82,9 +82,10 @@ def solve(
     graph's dead-reckoning guess a camera without odometry can sit in the false candidate's
     basin; the incremental pass chooses each set near its own frame, as the online solve does.
     A batch solve also starts from each of `graph.alternatives` (the candidates of a marker
-    pixel stream's first set) and keeps the estimate of least error: the solve, not one frame,
-    chooses among the placements P3P leaves open. Online, a robot placed by the tracker's guess
-    (it never decided the stream) is run as one hypothesis per candidate of that set
+    pixel stream's first set, or of a resected robot's first sets, `team_graph.formation`)
+    and keeps the estimate of least error: the solve, not one frame, chooses among the
+    placements P3P leaves open. Online, a robot placed by a guess (the tracker never decided
+    its stream, or resection placed it) is run as one hypothesis per such start
     (`graph.guessed_alternatives`), side by side over the same steps: the final estimate is
     the hypothesis of least error at the end, and each pose's causal estimate comes from the
     hypothesis of least error at the step that pose entered -- a choice made with the data up
