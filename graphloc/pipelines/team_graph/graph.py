@@ -47,7 +47,8 @@ class TeamGraph:
     precision: float = COARSE_PRECISION  # run_precision(run)
     links: dict = field(default_factory=dict)  # observer pose key -> (target key, (K,4,4))
     # other initial values the batch solve starts from too (key -> value, over `initial`): one
-    # per candidate of a pixel stream's first set (`candidates.candidate_factors`)
+    # per candidate of a pixel stream's first set (`candidates.candidate_factors`) or of a
+    # resected robot's first sets (`formation.place_unplaced`)
     alternatives: list = field(default_factory=list)
     # those of robots placed by the tracker's guess (it never decided their stream): the online
     # solve starts from these too
