@@ -136,6 +136,7 @@ def table1_seed(
         "C3": rel(ground_err[correct, 2]),
         "C": rel(err[correct].ravel()),
         "line_genuine_mean_m": float(line_genuine.mean()) if line_genuine.size else None,
+        "line_genuine_std_m": float(line_genuine.std()) if line_genuine.size else None,
         "line_genuine_max_m": float(line_genuine.max()) if line_genuine.size else None,
         "line_second_mean_m": float(second.mean()) if second.size else None,
         "line_second_pseudo_middle_mean_m": float(middle.mean()) if middle.size else None,
@@ -196,12 +197,18 @@ def _t3_job(job) -> dict:
     return out
 
 
-def table3_sweep(runs: int, workers: int, seed_offset: int = 0, progress: bool = True) -> list:
+def table3_sweep(
+    runs: int,
+    workers: int,
+    seed_offset: int = 0,
+    progress: bool = True,
+    sigmas: tuple = T3_PIXEL_SIGMAS,
+) -> list:
     """Mean updates to converge of the belief vector per (pixel sigma, odometry model,
     likelihood) reading and cell, `runs` runs per cell, and their deviation from Table III."""
     jobs = [
         (s, m, ceiling, curve, i, seed_offset)
-        for s, m in itertools.product(T3_PIXEL_SIGMAS, T3_ODOMETRY)
+        for s, m in itertools.product(sigmas, T3_ODOMETRY)
         for ceiling, curve in CELLS
         for i in range(runs)
     ]
@@ -209,7 +216,7 @@ def table3_sweep(runs: int, workers: int, seed_offset: int = 0, progress: bool =
         results = list(ex.imap(_t3_job, jobs, desc="Table III sweep"))
     rows = []
     for s, m, lik, frame in itertools.product(
-        T3_PIXEL_SIGMAS, T3_ODOMETRY, T3_LIKELIHOODS, T3_ACTION_FRAMES
+        sigmas, T3_ODOMETRY, T3_LIKELIHOODS, T3_ACTION_FRAMES
     ):
         cells = {}
         for ceiling, curve in CELLS:
@@ -218,6 +225,8 @@ def table3_sweep(runs: int, workers: int, seed_offset: int = 0, progress: bool =
             mean = float(np.mean(conv)) if conv else None
             cells[f"{ceiling}/{curve}"] = {
                 "mean_updates_to_converge": mean,
+                "std_updates_to_converge": float(np.std(conv, ddof=1)) if len(conv) > 1 else None,
+                "converged_runs": len(conv),
                 "paper": PAPER_TABLE_III[(ceiling, curve)],
                 "deviation": deviation(mean, PAPER_TABLE_III[(ceiling, curve)]),
                 "wrong_locks": int(sum(r["wrong"] for r in res)),

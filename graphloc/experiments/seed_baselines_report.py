@@ -20,6 +20,7 @@ import numpy as np
 from graphloc.datasets.feng_deterministic import TableIConfig
 from graphloc.datasets.kaushik import KaushikConfig
 from graphloc.experiments import seed000, seed001_readings, seed003_readings, seed004
+from graphloc.experiments import seed_baselines_bounds, seed_baselines_bounds_report
 from graphloc.experiments import seed_baselines_sections as sections
 from graphloc.experiments.seed_baselines_markdown import markdown
 from graphloc.experiments import seed_baselines as sb
@@ -37,6 +38,7 @@ MORE_SIZES = {
     True: {"s1_frames1": 60, "s1_frames2": 40, "s3_trials": 1},
 }
 MORE = ("seed001", "seed003")
+PARTS = MORE + ("bounds",)  # --only: "bounds" = seed 000's bounds (seed_baselines_bounds)
 DOC = Path(__file__).resolve().parents[2] / "docs" / "results_seed_baselines.md"
 DOC_JSON = DOC.with_suffix(".json")  # the last run's result: --only merges into it
 MORE_PNG = "results_seed_baselines_001_003.png"
@@ -199,19 +201,23 @@ def run(out: Path, quick: bool, workers: int, docs: bool = True, progress: bool 
     result = {"quick": quick, "workers": workers, "sweeps": sweeps}
     result["runs"] = graphloc_runs(sweeps, quick, workers, progress)
     result["wall_time_s"] = time.perf_counter() - t0
-    run_more(result, MORE, quick, workers, progress)
+    run_more(result, PARTS, quick, workers, progress)
     (out / "seed_baselines.json").write_text(json.dumps(result, indent=1, default=_json))
     return render(result, out, docs)
 
 
 def run_more(result: dict, parts, quick: bool, workers: int, progress: bool = True) -> dict:
     """Seed 001 experiment 1 and / or seed 003 Fig. 6 (`parts`), each with its sweep, choice
-    and both methods at the stated and the chosen reading, into `result` (the seed 000 / 004
-    parts untouched); their wall times under result["more_wall_time_s"]."""
+    and both methods at the stated and the chosen reading, and / or seed 000's bounds
+    ("bounds", at the sweeps' sizes), into `result` (the seed 000 / 004 sweeps and runs
+    untouched); the wall times of seed 001 / 003 under result["more_wall_time_s"]."""
     sizes = MORE_SIZES[quick]
     times = result.setdefault("more_wall_time_s", {})
     for part in parts:
         t0 = time.perf_counter()
+        if part == "bounds":
+            result[part] = seed_baselines_bounds.bounds(SWEEP_SIZES[quick], workers, progress)
+            continue
         if part == "seed001":
             result[part] = seed001_readings.run_all(
                 sizes["s1_frames1"], sizes["s1_frames2"], sb.choose, progress=progress
@@ -230,12 +236,16 @@ def render(result: dict, out: Path, docs: bool = True) -> dict:
     more = any(k in result for k in MORE)
     if more:
         sections.plot(result, out / MORE_PNG)
+    if "bounds" in result:
+        seed_baselines_bounds_report.plot(result["bounds"], out)
     md = markdown(result, "results_seed_baselines.png")
     (out / "seed_baselines.md").write_text(md)
     if docs:
         plot(result, DOC.with_suffix(".png"))
         if more:
             sections.plot(result, DOC.parent / MORE_PNG)
+        if "bounds" in result:
+            seed_baselines_bounds_report.plot(result["bounds"], DOC.parent)
         DOC_JSON.write_text(json.dumps(result, separators=(",", ":"), default=_json))
         DOC.write_text(md)
     result["markdown"] = md
@@ -275,16 +285,17 @@ def main(argv=None) -> int:
     )
     parser.add_argument(
         "--only",
-        help="comma list of seed001,seed003: run only these parts and merge them into the "
-        "previous result (--previous), leaving its seed 000 / 004 parts as they are",
+        help="comma list of seed001,seed003,bounds (seed 000's bounds): run only these parts "
+        "and merge them into the previous result (--previous), leaving its seed 000 / 004 "
+        "sweeps and runs as they are",
     )
     parser.add_argument("--previous", type=Path, default=DOC_JSON, help="with --only")
     args = parser.parse_args(argv)
     if args.only:
         parts = [p.strip() for p in args.only.split(",") if p.strip()]
-        bad = [p for p in parts if p not in MORE]
+        bad = [p for p in parts if p not in PARTS]
         if bad or not parts:
-            parser.error(f"--only: {bad or args.only!r} not among {', '.join(MORE)}")
+            parser.error(f"--only: {bad or args.only!r} not among {', '.join(PARTS)}")
         if not args.previous.is_file():
             parser.error(f"--only merges into a previous result; {args.previous} does not exist")
         r = json.loads(args.previous.read_text())
