@@ -25,10 +25,12 @@ from graphloc.pipelines.team_graph import DEFAULT_LAG
 from graphloc.experiments.scale import (
     gtsam_only_batch,
     known_landmarks_unary,
+    observation_gaps,
     online_profile,
     online_summary,
     replay_graph,
     rss_mb,
+    tenth_error_ratios,
 )
 from graphloc.experiments.bench_scale_report import markdown
 from graphloc.pipelines.report import evaluate
@@ -50,7 +52,7 @@ def main(argv=None) -> int:
     )
     parser.add_argument(
         "--marginalize-every",
-        default="1,2",
+        default="2,4",
         help="fixed-lag batch sizes [s] to measure at the default lag (beside the default's)",
     )
     parser.add_argument("--markdown", type=Path, default=None, help="write the results table")
@@ -129,6 +131,13 @@ def main(argv=None) -> int:
         summary = online_summary(result, cpu, samples, run, batch_ate)
         report["online"][f"{lag:g}"] = summary
         print("online lag", lag, json.dumps(summary), flush=True)
+        if lag == DEFAULT_LAG:  # where along the run the default lag loses to batch, and why
+            report["lookahead"] = {
+                "robots": [robot.name for robot in run.robots],
+                "gaps": observation_gaps(graph),
+                "tenth_error_ratio_default_lag": tenth_error_ratios(result, batch, run),
+            }
+        del result
 
     # the default lag at smaller relinearization thresholds: ATE against CPU
     report["online_relinearize"] = {}

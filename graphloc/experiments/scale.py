@@ -12,7 +12,10 @@
 - what-if (not the graph `build_graph` makes): every known-landmark anchor -- a Point3
   variable with its prior and one range-bearing factor -- replaced by one unary factor on the
   pose (`graphloc.factors.range_bearing.known_landmark_factor_3d`, the anchor marginalized at
-  the measured point): `known_landmarks_unary`.
+  the measured point): `known_landmarks_unary`;
+- why a lag loses accuracy to batch: each robot's longest stretch without a landmark or
+  teammate measurement (`observation_gaps`) and the online / batch error per tenth of its
+  poses (`tenth_error_ratios`).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from dataclasses import replace
 import gtsam
 import numpy as np
 
+from graphloc.experiments.front_door import truth_at
 from graphloc.factors.range_bearing import known_landmark_factor_3d
 from graphloc.keys import decode, landmark_key, pose_key
 from graphloc.pipelines.report import evaluate, latency_trend
@@ -254,4 +258,62 @@ def online_summary(result, cpu_s: float, samples: np.ndarray, run, batch_ate: di
         out["ate_over_batch"] = {
             name: a / batch_ate[name] for name, a in ate.items() if name in batch_ate
         }
+    return out
+
+
+def observation_gaps(graph: TeamGraph, kinds=("landmark", "inter_robot")) -> list:
+    """Per robot: the longest stretch [s] of the run during which no factor of `kinds` (the
+    measurements that tie a robot to the map or to a teammate; odometry does not) touches one
+    of its poses, and when it starts (seconds from the run's first step). A fixed lag shorter
+    than a stretch cannot carry the measurements that end it back to the poses inside it: the
+    batch solve can, so the stretch bounds what any lag below it can match."""
+    start = graph.steps[0][0] if graph.steps else 0.0
+    end = graph.steps[-1][0] if graph.steps else 0.0
+    seen: list[list] = [[] for _ in graph.node_times]
+    for t, group in graph.steps:
+        for f, kind in group:
+            if kind in kinds:
+                for key in f.keys():
+                    what, r, _ = decode(key)
+                    if what == "x":
+                        seen[r].append(t - start)
+    out = []
+    for times in seen:
+        marks = np.unique(np.r_[0.0, np.asarray(times, dtype=float), end - start])
+        gaps = np.diff(marks)
+        i = int(np.argmax(gaps)) if len(gaps) else 0
+        out.append(
+            {
+                "observed_steps": len(times),
+                "longest_gap_s": float(gaps[i]) if len(gaps) else 0.0,
+                "gap_start_s": float(marks[i]) if len(gaps) else 0.0,
+            }
+        )
+    return out
+
+
+def tenth_error_ratios(online, batch, run) -> list:
+    """Per robot: the RMS position error [m] (against the ground truth nearest in time, no
+    alignment) of the online estimate over that of the batch estimate, in each tenth of the
+    robot's poses -- where along the run the online estimate loses to the batch one."""
+    out = []
+    for r in range(len(run.robots)):
+        if run.groundtruth[r] is None or len(online.node_times[r]) < 10:
+            out.append(None)
+            continue
+        truth = truth_at(run, r, online.node_times[r])
+        err = {
+            name: np.linalg.norm(res.estimate[r][:, :3] - truth, axis=1)
+            for name, res in (("online", online), ("batch", batch))
+        }
+        parts = np.array_split(np.arange(len(truth)), 10)
+        out.append(
+            [
+                float(
+                    np.sqrt(np.nanmean(err["online"][p] ** 2))
+                    / max(np.sqrt(np.nanmean(err["batch"][p] ** 2)), 1e-12)
+                )
+                for p in parts
+            ]
+        )
     return out
