@@ -5,6 +5,7 @@ resume to the same estimates as an uninterrupted run."""
 
 import json
 import signal
+from dataclasses import replace
 from pathlib import Path
 
 import gtsam
@@ -15,7 +16,12 @@ from test_mrclam import write_synthetic_mrclam
 
 from graphloc.cli import main
 from graphloc.commands import smooth
-from graphloc.experiments.scale import marginalization_split
+from graphloc.experiments.scale import (
+    marginalization_split,
+    observation_gaps,
+    tenth_error_ratios,
+)
+from graphloc.keys import decode
 from graphloc.pipelines.team_graph import DEFAULT_LAG
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.session import Session, SessionConfig
@@ -329,3 +335,28 @@ def test_fixed_lag_with_cross_links_and_extra_updates_matches_full_smoothing():
         np.linalg.norm(a.atPose3(k).translation() - b.atPose3(k).translation()) for k in b.keys()
     ]
     assert max(err) < 0.05
+
+
+def test_observation_gaps_find_a_stretch_without_measurements(synthetic):
+    """Robot 0's landmark and teammate factors removed between 2 s and 5 s of the run: its
+    longest stretch covers those 3 s; a result compared with itself is 1 in every tenth."""
+    run = open_run(synthetic)
+    graph = build_graph(run, GraphConfig())
+    t0 = graph.steps[0][0]
+
+    def robot0_measurement(t, f, kind):
+        inside = 2.0 <= t - t0 <= 5.0 and kind in ("landmark", "inter_robot")
+        return inside and any(decode(k)[:2] == ("x", 0) for k in f.keys())
+
+    steps = [
+        (t, [(f, k) for f, k in group if not robot0_measurement(t, f, k)])
+        for t, group in graph.steps
+    ]
+    before = observation_gaps(graph)
+    after = observation_gaps(replace(graph, steps=steps))
+    assert before[0]["longest_gap_s"] < 3.0 <= after[0]["longest_gap_s"]
+    assert after[0]["gap_start_s"] <= 2.0 + 1e-9
+    assert after[0]["observed_steps"] < before[0]["observed_steps"]
+    result = solve(graph, "batch")
+    ratios = tenth_error_ratios(result, result, run)
+    assert all(r is not None and np.allclose(r, 1.0) for r in ratios)
