@@ -72,6 +72,9 @@ class RegistrationConfig:
     # ... and its stop: relative change of fitness and inlier RMSE (Open3D's default criterion;
     # the Tukey-weighted iterations have settled by then, docs/results_fusion_real.md)
     fine_relative: float = 1e-6
+    # ... and its samples: every fine_stride-th prepared source point (the candidates' checks and
+    # covariance use them all; the last stage, `polish`, sets the accuracy)
+    fine_stride: int = 1
     covariance_block: float = 0.5
     # robust_register's last stage (`polish`): point-to-plane ICP of the full-resolution clouds,
     # both ways, correspondences within polish_distance [m] and a Geman-McClure kernel of scale
@@ -81,6 +84,9 @@ class RegistrationConfig:
     polish_iterations: int = 5
     polish_max_nn: int = 20  # its normals: plane of the 20 nearest full-resolution points
     polish_relative: float = 1e-6  # its stop: relative change of fitness and inlier RMSE
+    # its samples per direction: at most polish_samples, evenly strided (0: every point; every
+    # point stays a plane of the other direction)
+    polish_samples: int = 0
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
     # the wide level's reach is capped at max_reach [m]: beyond it a first-order covariance is no
@@ -102,7 +108,12 @@ class RegistrationConfig:
                 "polish_relative",
             ),
             nonnegative=("coarse_tukey", "fine_tukey", "polish_distance", "polish_kernel"),
-            integer={"polish_iterations": 1, "polish_max_nn": 3},
+            integer={
+                "polish_iterations": 1,
+                "polish_max_nn": 3,
+                "fine_stride": 1,
+                "polish_samples": 0,
+            },
         )
         if not (len(self.covariance_floor) == 2 and min(self.covariance_floor) >= 0):
             raise ValueError(
@@ -283,7 +294,11 @@ def global_fpfh_ransac(
 
 
 def polish(
-    source: PreparedCloud, target: PreparedCloud, T: np.ndarray, cfg: RegistrationConfig
+    source: PreparedCloud,
+    target: PreparedCloud,
+    T: np.ndarray,
+    cfg: RegistrationConfig,
+    target_nns=None,
 ) -> np.ndarray:
     """The last stage of `graphloc.mapping.robust_registration.robust_register`: point-to-plane
     ICP of the full-resolution clouds (`PreparedCloud.raw`, normals of the cfg.polish_max_nn
@@ -295,7 +310,9 @@ def polish(
     A Exp(Log(A^-1 B) / 2). The fine stage's grid averages independently subsampled, noisy
     scans into cell centroids that differ between the views, and one direction's
     nearest-neighbour planes pass through the noisy points of one view only; here every point
-    of each view serves once as a sample and once as a plane. Returns T_target_source; T
+    of each view serves once as a sample and once as a plane (`target_nns`: a prebuilt knn
+    index of target.points, `graphloc.mapping.acceptance.target_index`, else built here).
+    Returns T_target_source; T
     unchanged when cfg.polish_distance is 0, a cloud has no `raw`, or a direction finds no
     correspondence within the distance (the fine stage's pose stands)."""
     if cfg.polish_distance <= 0 or source.raw is None or target.raw is None:
@@ -303,10 +320,14 @@ def polish(
     T = np.asarray(T, dtype=float)
     margin = cfg.polish_distance + cfg.voxel  # a grid cell's reach, plus the polish's
     full = []
-    for c, other, M in ((source, target, T), (target, source, np.linalg.inv(T))):
+    for c, other, M, index in (
+        (source, target, T, target_nns),
+        (target, source, np.linalg.inv(T), None),
+    ):
         p = c.raw @ M[:3, :3].T + M[:3, 3]  # in the other view's frame
-        index = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(other.points))
-        index.knn_index()
+        if index is None:
+            index = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(other.points))
+            index.knn_index()
         _, d2 = index.knn_search(o3d.core.Tensor(p), 1)
         near = c.raw[d2.numpy()[:, 0] < margin**2]
         if len(near) < cfg.polish_max_nn:
@@ -319,6 +340,8 @@ def polish(
     )
     out = []
     for a, b, T0 in ((full[0], full[1], T), (full[1], full[0], np.linalg.inv(T))):
+        if 0 < cfg.polish_samples < len(a.points):
+            a = a.uniform_down_sample(-(-len(a.points) // cfg.polish_samples))
         res = reg_l.registration_icp(a, b, cfg.polish_distance, T0, est, crit)
         if res.fitness <= 0:  # no correspondence within the distance
             return T

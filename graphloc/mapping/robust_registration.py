@@ -62,9 +62,9 @@ def fine_stage(
     """`robust_register`'s fine stage: Open3D tensor point-to-plane ICP of the prepared clouds
     from `init`, correspondences within cfg.max_correspondence[-1], a Tukey kernel of
     cfg.fine_tukey times that distance (least squares if 0), until fitness and inlier RMSE change
-    by less than cfg.fine_relative (relative), cfg.max_iterations[-1] iterations at most.
-    Returns (T_target_source, iterations); Open3D raises RuntimeError when too few
-    correspondences are left for the 6x6 system."""
+    by less than cfg.fine_relative (relative), cfg.max_iterations[-1] iterations at most, with
+    every cfg.fine_stride-th source point as a sample. Returns (T_target_source, iterations);
+    Open3D raises RuntimeError when too few correspondences are left for the 6x6 system."""
     fine = cfg.max_correspondence[-1]
     rk = reg_t.robust_kernel
     kernel = (
@@ -72,8 +72,12 @@ def fine_stage(
         if cfg.fine_tukey > 0
         else rk.RobustKernel()
     )
+    src = source.cloud
+    if cfg.fine_stride > 1:
+        n = len(src.point.positions)
+        src = src.select_by_index(o3d.core.Tensor(np.arange(0, n, cfg.fine_stride)))
     res = reg_t.icp(
-        source.cloud,
+        src,
         target.cloud,
         fine,
         o3d.core.Tensor(np.asarray(init, dtype=np.float64)),
@@ -236,9 +240,10 @@ def robust_register(
             return "coarse pose fails the robot geometry, out of fine reach"
         return None
 
-    def candidate(k: int, T: np.ndarray) -> Candidate:
-        """Start k's pose T with its truncated cost, overlap, inlier ratio and hint distance."""
-        r, d, _ = point_to_plane(source, target, T, nns)
+    def candidate(k: int, T: np.ndarray, residuals=None) -> Candidate:
+        """Start k's pose T with its truncated cost, overlap, inlier ratio and hint distance
+        (`residuals`: point_to_plane's (r, d, J) at T, if already computed)."""
+        r, d, _ = residuals if residuals is not None else point_to_plane(source, target, T, nns)
         near = d < fine
         inl = near & (np.abs(r) < c)
         e = hint_pose.localCoordinates(gtsam.Pose3(T))
@@ -320,9 +325,9 @@ def robust_register(
             if failed
             else f"truncated cost {o.cost:.4f} > {best.cost:.4f} of start {best.start}"
         )
-    final = candidate(best.start, polish(source, target, best.transformation, cfg))
-    T = final.transformation
+    T = polish(source, target, best.transformation, cfg, nns)
     r, d, J = point_to_plane(source, target, T, nns)
+    final = candidate(best.start, T, (r, d, J))
     inl = (d < fine) & (np.abs(r) < c)
     n_in = int(inl.sum())
     H = J[inl].T @ J[inl]
