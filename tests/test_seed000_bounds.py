@@ -10,6 +10,7 @@ import pytest
 from graphloc.baselines.belief_vector import BeliefVectorConfig
 from graphloc.experiments import seed_baselines as sb
 from graphloc.experiments import seed_baselines_bounds as bounds
+from graphloc.experiments import seed_baselines_bounds_t3 as bounds3
 from graphloc.experiments.hypotheses import CELLS, PAPER_TABLE_III
 
 SIGMAS = (0.001, 0.01, 0.1, 1.0)
@@ -45,15 +46,27 @@ def test_side_against_the_paper_band():
 
 
 def test_noise_free_trace_keeps_the_genuine_solution_and_a_tight_gate_loses_it():
-    ev = bounds.tracing_events("level", "line", seed=0)
+    ev = bounds3.tracing_events("level", "line", seed=0)
     assert ev["genuine_error_max_m"] < 1e-9  # noise-free P3P: the genuine solution is exact
     assert ev["lost"] == [] and ev["frames"] > 10
-    tight = bounds.tracing_events("level", "line", 0, BeliefVectorConfig(gate_distance=1e-3))
+    tight = bounds3.tracing_events(
+        "level", "line", 0, config=BeliefVectorConfig(gate_distance=1e-3)
+    )
     assert len(tight["lost"]) == ev["frames"] - 1  # every step (>= 2 cm) leaves a 1 mm gate
     # the noise-free trajectory does not depend on the run's seed
-    assert bounds.tracing_events("level", "line", 5)["trajectory_digest"] == pytest.approx(
+    assert bounds3.tracing_events("level", "line", 5)["trajectory_digest"] == pytest.approx(
         ev["trajectory_digest"]
     )
+
+
+def test_image_noise_loses_the_genuine_trace_the_noise_free_one_keeps():
+    r = bounds3.table3_traces(1, sigmas=(0.0, 0.005), progress=False)
+    noise_free, noisy = r["by_sigma"]
+    assert noise_free["runs_lost"] == 0
+    level_line = noisy["cells"]["level/line"]
+    assert level_line["runs_lost"] == 1 and level_line["bound_exceeds_paper"]
+    assert level_line["updates_bound"] > level_line["paper"]
+    assert r["noise_free"]["level/line"]["identical_trajectories"]
 
 
 def test_table1_intervals_separate_the_correct_count_from_the_c_mean():
@@ -103,7 +116,7 @@ def test_table3_intervals_prove_updates_and_no_relocalization_exclusive():
             sigmas, itertools.product(sb.T3_ODOMETRY, sb.T3_LIKELIHOODS, sb.T3_ACTION_FRAMES)
         )
     ]
-    out = bounds.table3_intervals(rows, sigmas)
+    out = bounds3.table3_intervals(rows, sigmas)
     assert len(out) == len(sb.T3_ODOMETRY) * len(sb.T3_LIKELIHOODS) * len(sb.T3_ACTION_FRAMES)
     x = out[0]
     assert x["intervals"]["no_relocalization"]["outer_hi"] == 0.05

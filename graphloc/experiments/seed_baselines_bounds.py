@@ -1,18 +1,7 @@
-"""Issue 20: why no reading reproduces seed 000 (000_05137a0a9c449be3.txt) Tables I and III,
-as bounds rather than sentences (graphloc.experiments.seed_baselines sweeps the readings).
-
-Table III (Sec. VI-B, belief vector). Relocalizations come either from the geometry of the
-P3P solutions along the stated trajectories or from the image noise. `tracing_events` runs
-the seed's nearest-neighbour trace (Sec. VI-B: same track when closer than the 0.05 m gate,
-scaled by the elapsed time, and optical axes with dot >= 0.85; graphloc.baselines.
-belief_vector) on noise-free P3P candidates: a frame where the genuine solution's trace is not
-the genuine solution (lost: outside the gate; jumped: onto a pseudo solution) loses the
-genuine track for ANY image noise level near zero, likelihood, odometry reading or action
-frame; so runs with such an event bound the relocalizations from below. `table3_bounds` adds
-the image-noise side: every belief-vector reading on a finer image-noise grid (same runs as
-the sweep, including zero noise), and per reading the intervals of image std in which each
-cell's mean updates to converge is within 10 % of Table III (t interval over the runs),
-runs never relocalize, and first locks are never wrong.
+"""Issue 20: why no reading reproduces seed 000 (000_05137a0a9c449be3.txt) Table I, as a
+bound rather than a sentence (graphloc.experiments.seed_baselines sweeps the readings; Table
+III's bound: graphloc.experiments.seed_baselines_bounds_t3). Also the brackets of a monotone
+family both use.
 
 Table I (Sec. VI-A, P3P + straight-line test). For a fixed geometric reading (lateral noise,
 orientation) every Table I number is monotone in the image std (the noise draws scale with
@@ -32,18 +21,13 @@ import time
 import numpy as np
 from scipy import stats
 
-from graphloc.baselines.belief_vector import BeliefVectorConfig
-from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario
 from graphloc.executor import Executor
-from graphloc.experiments.hypotheses import CELLS, PAPER_TABLE_III
 from graphloc.experiments.seed000_table1 import PAPER_TABLE_I
 from graphloc.experiments import seed_baselines as sb
 
 # Table I: image std grid, 16 points per decade (a step of x1.155 is finer than the band's
 # 1.1 / 0.9 = x1.22, so a number growing like the std cannot jump over the band)
 T1_BOUND_SIGMAS = tuple(float(f"{s:.4g}") for s in np.logspace(-4, 0, 65))
-# Table III: the sweep's image stds plus smaller ones down to zero noise
-T3_BOUND_SIGMAS = (0.0, 0.005, 0.01, 0.02, 0.03) + sb.T3_PIXEL_SIGMAS
 CONFIDENCE = 0.95
 # Table I numbers: (key, paper value)
 T1_NUMBERS = {
@@ -223,187 +207,3 @@ def _monotone(x: np.ndarray) -> str:
     if (d <= 0).all():
         return "decreasing"
     return "no"
-
-
-# ---- Table III -----------------------------------------------------------------------------
-def tracing_events(ceiling: str, curve: str, seed: int, config=BeliefVectorConfig()) -> dict:
-    """The seed's trace of the genuine solution along one Sec. VI-B run on noise-free P3P
-    candidates: per frame k >= 1 the genuine candidate of frame k-1 traced to its nearest
-    candidate of frame k (gate and optical-axis test as graphloc.baselines.belief_vector).
-    lost: outside the gate or axes apart; jumped: traced, but onto a pseudo solution;
-    ambiguous: a pseudo solution also passes the gate and the axis test (the margin: its
-    distance minus the genuine one's, the room the image noise has before the trace flips);
-    merges: frames with two candidates closer than the gate; size changes of the set."""
-    run = FengProbabilisticScenario.simulate(
-        FengProbabilisticConfig(ceiling=ceiling, curve=curve, seed=seed, pixel_sigma=0.0)
-    )
-    lost, jumped, ambiguous, margins, merges, resized = [], [], [], [], [], []
-    pair_min = np.inf
-    for k in range(1, len(run)):
-        prev, cur = run.candidates[k - 1], run.candidates[k]
-        g0, g1 = prev.meta["genuine"], cur.meta["genuine"]
-        dt = run.times[k] - run.times[k - 1]
-        gate = config.gate_distance * max(dt / config.gate_interval, 1.0)
-        d = np.linalg.norm(cur.t - prev.t[g0], axis=1)
-        dots = cur.R[:, :, 2] @ prev.R[g0][:, 2]
-        passes = (d < gate) & (dots >= config.min_normal_dot)
-        nn = int(np.argmin(d))
-        if not passes[nn]:
-            lost.append(k)
-        elif nn != g1:
-            jumped.append(k)
-        others = passes & (np.arange(len(cur)) != g1)
-        if passes[g1] and others.any():
-            ambiguous.append(k)
-            margins.append(float(d[others].min() - d[g1]))
-        if len(cur) > 1:
-            pd = np.linalg.norm(cur.t[:, None] - cur.t[None], axis=2)[np.triu_indices(len(cur), 1)]
-            pair_min = min(pair_min, float(pd.min()))
-            if (pd < gate).any():
-                merges.append(k)
-        if len(cur) != len(prev):
-            resized.append(k)
-    return {
-        "frames": len(run),
-        "lost": lost,
-        "jumped": jumped,
-        "ambiguous": ambiguous,
-        "ambiguous_margin_min_m": min(margins) if margins else None,
-        "merges": merges,
-        "size_changes": len(resized),
-        "closest_pair_m": pair_min,
-        "genuine_error_max_m": float(max(c.meta["genuine_error"] for c in run.candidates)),
-        "trajectory_digest": float(np.abs(run.t_wc).sum()),
-    }
-
-
-def _trace_job(job) -> dict:
-    ceiling, curve, i, seed_offset = job
-    seed = seed_offset + 1000 * CELLS.index((ceiling, curve)) + i
-    return {"cell": f"{ceiling}/{curve}", "run": i, **tracing_events(ceiling, curve, seed)}
-
-
-def table3_geometry(runs: int, workers: int = 1, progress: bool = True) -> dict:
-    """`tracing_events` for every cell x `runs` runs (the sweep's seeds); per cell the runs
-    whose genuine trace is lost or jumps (a lower bound on relocalized runs near zero image
-    noise, whatever the likelihood, odometry or action frame), and the latest such frame (a
-    run that converges correctly and never relocalizes needs its first lock after it)."""
-    jobs = [(ceiling, curve, i, 0) for ceiling, curve in CELLS for i in range(runs)]
-    with Executor(workers, progress=progress) as ex:
-        events = list(ex.imap(_trace_job, jobs, desc="Table III noise-free traces"))
-    cells = {}
-    for ceiling, curve in CELLS:
-        name = f"{ceiling}/{curve}"
-        ev = [e for e in events if e["cell"] == name]
-        bad = [e for e in ev if e["lost"] or e["jumped"]]
-        cells[name] = {
-            "runs": len(ev),
-            "frames": ev[0]["frames"],
-            "identical_trajectories": len({e["trajectory_digest"] for e in ev}) == 1,
-            "runs_lost": sum(bool(e["lost"]) for e in ev),
-            "runs_jumped": sum(bool(e["jumped"]) for e in ev),
-            "runs_with_event": len(bad),
-            "last_event_frame": max((max(e["lost"] + e["jumped"]) for e in bad), default=None),
-            "jump_frames": sorted({k for e in ev for k in e["jumped"]}),
-            "ambiguous_frames": max(len(e["ambiguous"]) for e in ev),
-            "ambiguous_margin_min_m": min(
-                (
-                    e["ambiguous_margin_min_m"]
-                    for e in ev
-                    if e["ambiguous_margin_min_m"] is not None
-                ),
-                default=None,
-            ),
-            "merge_frames": max(len(e["merges"]) for e in ev),
-            "size_changes": max(e["size_changes"] for e in ev),
-            "closest_pair_m": min(e["closest_pair_m"] for e in ev),
-            "genuine_error_max_m": max(e["genuine_error_max_m"] for e in ev),
-            "paper": PAPER_TABLE_III[(ceiling, curve)],
-        }
-    total = sum(c["runs"] for c in cells.values())
-    return {
-        "cells": cells,
-        "runs": total,
-        "runs_with_event": sum(c["runs_with_event"] for c in cells.values()),
-        "runs_lost": sum(c["runs_lost"] for c in cells.values()),
-    }
-
-
-def _t_interval(cell: dict) -> tuple[float, float] | None:
-    m, s, n = (
-        cell.get(k)
-        for k in ("mean_updates_to_converge", "std_updates_to_converge", "converged_runs")
-    )
-    if m is None:
-        return None
-    if s is None or not n or n < 2:
-        return m, m
-    half = stats.t.ppf(0.5 + CONFIDENCE / 2, n - 1) * s / np.sqrt(n)
-    return m - half, m + half
-
-
-def table3_intervals(rows: list, sigmas: tuple) -> list:
-    """Per belief-vector reading (odometry, likelihood, action frame): per cell the image
-    stds where the mean updates to converge meets Table III within 10 % (t interval), where
-    no run relocalizes and where no first lock is wrong, over `sigmas` (ascending); whether
-    each cell's mean is monotone in the std; a disjoint pair over all of them."""
-    out = []
-    for m, lik, frame in itertools.product(sb.T3_ODOMETRY, sb.T3_LIKELIHOODS, sb.T3_ACTION_FRAMES):
-        sel = {
-            x["pixel_sigma"]: x
-            for x in rows
-            if (x["odometry_model"], x["likelihood"], x["action_frame"]) == (m, lik, frame)
-        }
-        seq = [sel[s] for s in sigmas]
-        per, monotone, means = {}, {}, {}
-        for cell in seq[0]["cells"]:
-            paper = seq[0]["cells"][cell]["paper"]
-            ci = [_t_interval(x["cells"][cell]) for x in seq]
-            sides = [None if c is None else side((0.0, *c), paper) for c in ci]
-            per[cell] = interval(sigmas, [x == 0 for x in sides], sides)
-            mean = [x["cells"][cell]["mean_updates_to_converge"] for x in seq]
-            means[cell] = mean
-            monotone[cell] = _monotone(np.array([np.nan if v is None else v for v in mean]))
-        per["no_relocalization"] = interval(
-            sigmas, [x["runs_with_relocalization"] == 0 for x in seq]
-        )
-        per["no_wrong_lock"] = interval(sigmas, [x["wrong_locks"] == 0 for x in seq])
-        out.append(
-            {
-                "odometry_model": m,
-                "likelihood": lik,
-                "action_frame": frame,
-                "intervals": per,
-                "monotone": monotone,
-                "mean_updates": means,
-                "relocalized_runs": [x["runs_with_relocalization"] for x in seq],
-                "wrong_locks": [x["wrong_locks"] for x in seq],
-                "disjoint": disjoint_pair(per),
-            }
-        )
-    return out
-
-
-def table3_bounds(runs: int, workers: int, progress: bool = True) -> dict:
-    """Noise-free tracing (`table3_geometry`) and the belief vector on T3_BOUND_SIGMAS with
-    its intervals (`table3_intervals`), `runs` runs per cell (the sweep's seeds)."""
-    t0 = time.perf_counter()
-    geometry = table3_geometry(runs, workers, progress)
-    rows = sb.table3_sweep(runs, workers, progress=progress, sigmas=T3_BOUND_SIGMAS)
-    return {
-        "sigmas": list(T3_BOUND_SIGMAS),
-        "runs_per_cell": runs,
-        "confidence": CONFIDENCE,
-        "geometry": geometry,
-        "rows": rows,
-        "readings": table3_intervals(rows, T3_BOUND_SIGMAS),
-        "wall_time_s": time.perf_counter() - t0,
-    }
-
-
-def bounds(sizes: dict, workers: int, progress: bool = True) -> dict:
-    """Both seed 000 bounds at the sweep's sizes (keys t1_trials, t3_runs)."""
-    return {
-        "table1": table1_intervals(sizes["t1_trials"], workers, progress=progress),
-        "table3": table3_bounds(sizes["t3_runs"], workers, progress),
-    }

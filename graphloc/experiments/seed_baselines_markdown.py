@@ -322,5 +322,13 @@ def markdown(r: dict, png: str) -> str:
             "![seed 001 and 003](results_seed_baselines_001_003.png)",
             "",
         ]
+    if "bounds" in r:
+        b = r["bounds"]
+        head += [
+            "Seed 000's bounds (why Tables I and III are not reproduced): `--only bounds` "
+            f"merges them into docs/results_seed_baselines.json (Table I "
+            f"{b['table1']['wall_time_s']:.0f} s, Table III {b['table3']['wall_time_s']:.0f} s).",
+            "",
+        ]
     tables = _sb_table1(r) + _sb_table3(r) + _sb_seed004(r)
     return "\n".join(head + tables + sections(r))

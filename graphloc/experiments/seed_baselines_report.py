@@ -20,7 +20,7 @@ import numpy as np
 from graphloc.datasets.feng_deterministic import TableIConfig
 from graphloc.datasets.kaushik import KaushikConfig
 from graphloc.experiments import seed000, seed001_readings, seed003_readings, seed004
-from graphloc.experiments import seed_baselines_bounds, seed_baselines_bounds_report
+from graphloc.experiments import seed_baselines_bounds_report, seed_baselines_bounds_t3
 from graphloc.experiments import seed_baselines_sections as sections
 from graphloc.experiments.seed_baselines_markdown import markdown
 from graphloc.experiments import seed_baselines as sb
@@ -216,7 +216,7 @@ def run_more(result: dict, parts, quick: bool, workers: int, progress: bool = Tr
     for part in parts:
         t0 = time.perf_counter()
         if part == "bounds":
-            result[part] = seed_baselines_bounds.bounds(SWEEP_SIZES[quick], workers, progress)
+            result[part] = seed_baselines_bounds_t3.bounds(SWEEP_SIZES[quick], workers, progress)
             continue
         if part == "seed001":
             result[part] = seed001_readings.run_all(
