@@ -4,8 +4,10 @@ III's bound: graphloc.experiments.seed_baselines_bounds_t3). Also the brackets o
 family both use.
 
 Table I (Sec. VI-A, P3P + straight-line test). For a fixed geometric reading (lateral noise,
-orientation) every Table I number is monotone in the image std (the noise draws scale with
-it). `table1_intervals` evaluates the seed baseline on a fine log grid of image std and
+orientation) the Table I numbers grow (errors) or fall (the correct count) with the image std
+-- the noise draws scale with it -- while most trials are correct (the errors are over the
+correct trials, a few at large std; `monotone` reports it per number over the grid).
+`table1_intervals` evaluates the seed baseline on a fine log grid of image std and
 returns, per number, the grid points where its confidence interval (Clopper-Pearson for the
 correct count, a normal interval for means, the point value for stds, the maximum and the
 runner-up) meets the paper's +-10 % band. With monotonicity the true interval lies between
