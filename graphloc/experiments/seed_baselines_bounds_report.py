@@ -132,7 +132,8 @@ def table3_section(b: dict) -> list:
         "genuine candidate of some frame, traced into the next, is lost (outside the gate, or "
         "its root no longer real) or jumps (onto a pseudo solution). A run that locks onto "
         "the genuine solution and never relocalizes must lock after its last lost frame L, so "
-        "under every reading the cell's mean updates to converge is at least mean max(L, 1) "
+        "under every reading the cell's mean updates to converge is at least the mean of L "
+        "(0 in a run without a lost frame) "
         "(bound). Cells: runs lost / jumped, bound (lost frames only) vs the paper.",
         "",
         "| image std [px] | "

@@ -10,9 +10,9 @@ frame. `tracing_events` checks every frame of one run: the genuine candidate of 
 traced into frame k is lost (outside the gate) or jumps (onto a pseudo solution). A run that
 locks onto the genuine solution and never relocalizes (the paper: "it never has a belief
 under the threshold" after converging) must lock after its last such frame L, so over the
-runs of a cell, mean updates to converge >= mean max(L, 1) under EVERY reading of the
-belief vector: where that exceeds Table III's value by more than 10 %, the cell's number and
-"never" cannot both hold at that image noise.
+runs of a cell, mean updates to converge >= mean L (0 without such a frame) under EVERY
+reading of the belief vector: where that exceeds Table III's value by more than 10 %, the
+cell's number and "never" cannot both hold at that image noise.
 
 Below that noise, `table3_intervals` gives per reading the image stds where each cell's mean
 updates to converge meets Table III within 10 % (t interval over the runs), no run
@@ -118,7 +118,7 @@ def _cell_summary(ev: list, paper: float) -> dict:
     track drops, a relocalization) or also never leave the genuine solution (lost or jumped)."""
 
     def bound(keys):
-        return float(np.mean([max([1] + [k for key in keys for k in e[key]]) for e in ev]))
+        return float(np.mean([max([0] + [k for key in keys for k in e[key]]) for e in ev]))
 
     lost_bound, left_bound = bound(("lost",)), bound(("lost", "jumped"))
     return {
