@@ -19,6 +19,7 @@ from graphloc.commands import smooth
 from graphloc.experiments.scale import (
     marginalization_split,
     observation_gaps,
+    repeated_online_cpu,
     tenth_error_ratios,
 )
 from graphloc.keys import decode
@@ -360,3 +361,15 @@ def test_observation_gaps_find_a_stretch_without_measurements(synthetic):
     result = solve(graph, "batch")
     ratios = tenth_error_ratios(result, result, run)
     assert all(r is not None and np.allclose(r, 1.0) for r in ratios)
+
+
+def test_repeated_online_cpu_takes_each_steps_least_time(synthetic):
+    """Two identical solves: the same estimates (difference 0, as resume requires), per-step
+    minima no larger than either solve's, and no repeats refused."""
+    graph = build_graph(open_run(synthetic), GraphConfig())
+    out = repeated_online_cpu(graph, 3.0, 2)
+    assert out["repeats"] == 2 and out["max_estimate_difference"] == 0.0
+    assert out["cpu_s_least"] == min(out["cpu_s_each"])
+    assert 0 < out["cpu_p95_first10_ms"] <= out["cpu_max_ms"]
+    with pytest.raises(ValueError, match="repeats"):
+        repeated_online_cpu(graph, 3.0, 0)

@@ -69,6 +69,20 @@ def markdown(r: dict) -> str:
             )
             + " |"
         )
+    if r.get("online_repeated"):
+        q = r["online_repeated"]
+        lines += [
+            "",
+            f"The default lag solved {q['repeats']} times, each step's least thread CPU time over "
+            "the repeats (other processes on a shared machine only add time, so the least "
+            "estimates a step's own cost, as `timeit` takes the best of n): slowest step "
+            f"{q['cpu_max_ms']:.1f} ms; p95 first / last 10 % {q['cpu_p95_first10_ms']:.2f} / "
+            f"{q['cpu_p95_last10_ms']:.2f} ms (ratio {q['cpu_p95_last_over_first']:.2f}); least "
+            f"total CPU of a solve {q['cpu_s_least']:.1f} s (each: "
+            + ", ".join(f"{c:.1f}" for c in q["cpu_s_each"])
+            + f"), real time x{q['realtime_factor_cpu']:.0f}; the repeats' estimates differ by "
+            f"at most {q['max_estimate_difference']:.1e}.",
+        ]
     if r.get("lookahead"):
         lines += _lookahead_section(r)
     if r.get("online_relinearize"):
