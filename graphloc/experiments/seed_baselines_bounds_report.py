@@ -105,12 +105,17 @@ def table1_section(b: dict) -> list:
 
 
 def _disjoint_all(b: dict) -> str:
-    """Over all ten numbers: readings whose brackets have no common point."""
+    """Over all ten numbers: readings whose brackets have no common point; the numbers met
+    (or crossed) at no grid std under any reading."""
     n = sum(x["disjoint"] is not None for x in b["readings"])
+    never = [
+        T1_LABELS[k] for k in T1_LABELS if all(x["intervals"][k] is None for x in b["readings"])
+    ]
     return (
         f"Over all ten numbers the brackets share no point under {n} of "
-        f"{len(b['readings'])} readings (the runner-up's 0.771 m and the genuine line "
-        "maximum are met nowhere on the grid)."
+        f"{len(b['readings'])} readings"
+        + (f" ({', '.join(never)}: met under no reading at any grid std)" if never else "")
+        + "."
         if n
         else "Over all ten numbers some std meets every bracket."
     )
