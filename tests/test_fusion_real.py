@@ -151,6 +151,35 @@ def test_a_candidate_below_stop_inlier_ratio_lets_the_other_starts_compete(fragm
     assert rot < 0.3 and tr < 0.01, (rot, tr)
 
 
+def test_strided_fine_stage_keeps_the_result_and_reports_its_stages(fragment):
+    """The fine stage on every third prepared source point (the default), the winner finished on
+    every point before the polish: the same accepted pose as the fine stage on every point
+    (within the polish's own spread), and the decision's timings add up to its wall time with
+    one start and one fine stage for an easy hint."""
+    pair, rng = _pair(fragment, 0.6, 7)
+    hint = perturb(pair.T_ground_ceiling, 3.0, 0.05, rng)
+    cfg = RegistrationConfig()
+    assert cfg.fine_stride == 3 and cfg.fine_finish > 0
+    src, tgt = prepare(pair.ceiling, cfg), prepare(pair.ground, cfg)
+    cov = hint_covariance(np.deg2rad(3.0), 0.05)
+    strided = robust_register(src, tgt, hint, cov, cfg)
+    full = robust_register(src, tgt, hint, cov, replace(cfg, fine_stride=1))
+    assert strided.accepted and full.accepted
+    for d in (strided, full):
+        rot, tr = pose_errors(d.registration.transformation, pair.T_ground_ceiling)
+        assert rot < 0.3 and tr < 0.01, (rot, tr)
+    rot, tr = pose_errors(strided.registration.transformation, full.registration.transformation)
+    assert rot < 0.1 and tr < 0.005, (rot, tr)
+    t = strided.timings
+    assert t["starts"] == 1 and t["fine_stages"] == 1
+    stages = [t[k] for k in ("coarse_s", "fine_s", "checks_s", "global_s", "polish_s", "rest_s")]
+    assert min(stages) >= 0 and t["global_s"] == 0
+    assert sum(stages) == pytest.approx(strided.seconds)
+    assert strided.as_dict()["timings"] == t
+    with pytest.raises(ValueError, match="fine_stride"):
+        RegistrationConfig(fine_stride=0)
+
+
 def test_polish_refines_a_near_pose_and_leaves_a_far_one(fragment):
     """The last stage (full resolution, both directions) brings a pose 0.3 deg / 1 cm off to
     within a tenth of that of the truth on a real view pair; from 5 m off it finds no

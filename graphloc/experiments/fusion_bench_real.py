@@ -109,21 +109,25 @@ def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
                 T, accepted, reasons = res.T_g0_c0, True, []
                 seconds = res.timings["icp_s"] + res.timings["graph_s"]
                 cov = res.decision.covariance if res.decision is not None else None
+                stages = res.decision.timings if res.decision is not None else None
             except FusionRejected as exc:
                 T, accepted, reasons = (
                     exc.decision.registration.transformation,
                     False,
                     list(exc.decision.reasons),
                 )
-                seconds, cov = exc.decision.seconds, None
+                seconds, cov, stages = exc.decision.seconds, None, exc.decision.timings
             except ValueError as exc:  # before issue 16: ICP without correspondences raises
                 T, accepted, reasons, seconds, cov = hint, False, [str(exc)], float("nan"), None
+                stages = None
             out = dict(
                 zip(("rot_deg", "trans_m"), pose_errors(T, truth)),
                 seconds=seconds,
                 accepted=accepted,
                 reasons=reasons,
             )
+            if stages:
+                out["stages"] = stages
             rv = Rotation.from_matrix(T[:3, :3] @ truth[:3, :3].T).as_rotvec(degrees=True)
             out["signed_error"] = [*rv.tolist(), *(T[:3, 3] - truth[:3, 3]).tolist()]
             if cov is not None:
@@ -207,6 +211,11 @@ def summarize_real(rows: list[dict]) -> dict:
                 "trans_m_median_successes": float(np.median(tr[ok])) if ok.any() else None,
                 "seconds_median": float(np.nanmedian(secs)) if np.isfinite(secs).any() else None,
             }
+            stages = [r[m]["stages"] for r in cell if "stages" in r[m]]
+            if stages:  # graphloc: median seconds per stage, starts and fine stages per trial
+                s["stages_median"] = {
+                    k: float(np.median([st[k] for st in stages])) for k in stages[0]
+                }
             signed = np.array(
                 [r[m]["signed_error"] for r, k in zip(cell, ok) if k and "signed_error" in r[m]]
             )

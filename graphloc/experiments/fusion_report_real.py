@@ -132,6 +132,12 @@ def markdown_real(report: dict, command: str) -> str:
         + " | ".join(f"{s['graphloc_vs_fpfh_time_ratio']:.2f}x" for s in summ.values())
         + " |"
     )
+    lines.append(
+        "| graphloc's stages, median [s]: coarse / fine / checks / polish / rest; starts, "
+        "fine stages (`RegistrationDecision.timings`) | "
+        + " | ".join(_stages(s["graphloc"].get("stages_median")) for s in summ.values())
+        + " |"
+    )
     lines += [
         "",
         "The last-stage row is `graphloc.mapping.registration.polish` (the last stage of "
@@ -206,3 +212,13 @@ def markdown_real(report: dict, command: str) -> str:
         ]
     lines += ["", f"Scatter of every trial: `{report['png']}`.", ""]
     return "\n".join(lines)
+
+
+def _stages(st: dict | None) -> str:
+    """One cell of the stage row: median seconds per stage, then starts and fine stages."""
+    if not st:
+        return "—"
+    secs = " / ".join(
+        f"{st[k]:.2f}" for k in ("coarse_s", "fine_s", "checks_s", "polish_s", "rest_s")
+    )
+    return f"{secs}; {st['starts']:g}, {st['fine_stages']:g}"

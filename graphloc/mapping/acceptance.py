@@ -80,7 +80,10 @@ class RegistrationDecision:
     """Outcome of `robust_register`: the chosen candidate (`registration`, its
     information from the residual-scaled point-to-plane Hessian), whether every check passed,
     the failed checks' reasons, every check's (value, threshold, passed), all candidates with
-    why each lost, and wall time [s]."""
+    why each lost, wall time [s], and `timings`: seconds per stage of `robust_register`
+    (coarse: clouds, pyramid and coarse ICP of every start; fine: the fine stages; checks: the
+    candidates' residuals; global: the FPFH fallback; polish; rest: final checks, covariance)
+    with the number of starts and of fine stages."""
 
     registration: Registration
     accepted: bool
@@ -91,6 +94,7 @@ class RegistrationDecision:
     lost: dict
     covariance: np.ndarray
     seconds: float
+    timings: dict | None = None
 
     def as_dict(self) -> dict:
         return {
@@ -108,6 +112,7 @@ class RegistrationDecision:
             "sigma_rot_deg": np.degrees(np.sqrt(np.diag(self.covariance)[:3])).tolist(),
             "sigma_trans_m": np.sqrt(np.diag(self.covariance)[3:]).tolist(),
             "seconds": self.seconds,
+            "timings": self.timings,
         }
 
 

@@ -9,6 +9,7 @@ the covariance of `graphloc.mapping.registration_covariance`.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import gtsam
 import numpy as np
@@ -155,7 +156,9 @@ def robust_register(
        one fine basin could mend stops there (`_beyond_fine_reach`); then Open3D tensor ICP on
        the prepared clouds within that distance (cfg.max_iterations[-1]) with a Tukey kernel of
        cfg.fine_tukey times it (points on surfaces the other view does not share, clutter and
-       cut edges lose their pull); candidates closer than acc.distinct_deg / distinct_m merge.
+       cut edges lose their pull), every cfg.fine_stride-th source point a sample (a start
+       that slides for all its iterations and fails costs a fraction); candidates closer than
+       acc.distinct_deg / distinct_m merge.
        With cfg.stop_at_first_valid the starts stop at the first candidate that passes its
        checks with an inlier ratio of at least cfg.stop_inlier_ratio (the hint comes first, so
        an easy case costs one start; one that barely passes lets the other starts compete on
@@ -166,13 +169,15 @@ def robust_register(
        cost wins, except that the hint's own candidate (start 0) is kept when it passes and its
        cost is within acc.hint_basin_margin of that best (the data must clearly beat the
        hint's basin).
-    4. The winner refined by `polish` (full resolution, both directions), the checks of step 3
+    4. The winner's fine stage finished on every prepared source point (cfg.fine_finish
+       iterations, when cfg.fine_stride > 1), refined by `polish` (full resolution, both
+       directions), the checks of step 3
        and its conditioning on that pose (`candidates` keep the poses before the polish);
        accepted only if every check passes.
     5. Covariance: the point-to-plane Hessian H over the inliers in a cluster-robust sandwich
        (`cluster_covariance`), converted to GTSAM's right perturbation (`information_right`),
        calibrated (`calibrated_covariance`); `inlier_rmse` is the inliers' residual standard
-       deviation (n - 6 dof)."""
+       deviation (n - 6 dof). `RegistrationDecision.timings`: the seconds per stage."""
     start_t = time.perf_counter()
     hint = np.asarray(hint, dtype=float)
     hint_cov = np.asarray(hint_cov, dtype=float)
@@ -187,7 +192,16 @@ def robust_register(
             "robust_register: hint_cov must be a finite 6x6 positive definite covariance, got "
             f"shape {hint_cov.shape}"
         )
-    src_c, tgt_c, voxel_c = _coarse_clouds(source, target, cfg)
+    stage_s = dict.fromkeys(("coarse", "fine", "checks", "global", "polish"), 0.0)
+    counts = {"starts": 0, "fine_stages": 0}
+
+    def timed(stage: str, f, *args):
+        t0 = time.perf_counter()
+        out = f(*args)
+        stage_s[stage] += time.perf_counter() - t0
+        return out
+
+    src_c, tgt_c, voxel_c = timed("coarse", _coarse_clouds, source, target, cfg)
     fine = cfg.max_correspondence[-1]
     est = _point_to_plane_estimation(cfg.coarse_tukey * voxel_c)
     crit_c = reg_l.ICPConvergenceCriteria(1e-6, 1e-6, cfg.max_iterations[0])
@@ -205,8 +219,8 @@ def robust_register(
     if cfg.coarse_voxels > 0:
         wide = [
             (a, b, dist, _point_to_plane_estimation(cfg.coarse_tukey * voxel))
-            for a, b, dist, voxel in _wide_levels(
-                src_c, tgt_c, reach, cfg.coarse_voxels * voxel_c, cfg
+            for a, b, dist, voxel in timed(
+                "coarse", _wide_levels, src_c, tgt_c, reach, cfg.coarse_voxels * voxel_c, cfg
             )
         ]
 
@@ -269,7 +283,8 @@ def robust_register(
             merged[k] = hopeless
             return False
         try:
-            T, n_it = fine_stage(source, target, T, cfg)
+            counts["fine_stages"] += 1
+            T, n_it = timed("fine", fine_stage, source, target, T, cfg)
         except RuntimeError:  # Open3D: singular 6x6 system, too few correspondences from this start
             merged[k] = f"no correspondences within {fine} m"
             return False
@@ -278,19 +293,21 @@ def robust_register(
         if same:
             merged[k] = f"converged to the pose of start {same[0]}"
             return False
-        cands.append(candidate(k, T))
+        cands.append(timed("checks", candidate, k, T))
         return all(v[2] for v in candidate_checks(cands[-1], acc).values())
 
     starts = hint_starts(hint, hint_cov)
     found = False
     for k, T0 in enumerate(starts):
-        ok = try_start(k, coarse_stage(T0))
+        counts["starts"] += 1
+        ok = try_start(k, timed("coarse", coarse_stage, T0))
         found = ok or found
         if ok and cfg.stop_at_first_valid and cands[-1].inlier_ratio >= cfg.stop_inlier_ratio:
             break
     if not found and cfg.global_fallback:  # the hint's neighbourhood failed: one global guess
-        T_glob, _ = global_fpfh_ransac(source, target, cfg, seed=0)
-        try_start(len(starts), coarse_stage(T_glob))
+        T_glob, _ = timed("global", global_fpfh_ransac, source, target, cfg, 0)
+        counts["starts"] += 1
+        try_start(len(starts), timed("coarse", coarse_stage, T_glob))
     if not cands:
         raise ValueError(
             f"robust_register: no start found correspondences within {fine} m: a wrong "
@@ -325,7 +342,14 @@ def robust_register(
             if failed
             else f"truncated cost {o.cost:.4f} > {best.cost:.4f} of start {best.start}"
         )
-    T = polish(source, target, best.transformation, cfg, nns)
+    T = best.transformation
+    if cfg.fine_stride > 1 and cfg.fine_finish > 0:  # the winner on every prepared point
+        its = (*cfg.max_iterations[:-1], cfg.fine_finish)
+        T, n_it = timed(
+            "fine", fine_stage, source, target, T, replace(cfg, fine_stride=1, max_iterations=its)
+        )
+        iterations += n_it
+    T = timed("polish", polish, source, target, T, cfg, nns)
     r, d, J = point_to_plane(source, target, T, nns)
     final = candidate(best.start, T, (r, d, J))
     inl = (d < fine) & (np.abs(r) < c)
@@ -361,9 +385,10 @@ def robust_register(
     reasons = tuple(
         f"{why[k]} ({k} {v[0]:.4g} vs {v[1]:.4g})" for k, v in checks.items() if not v[2]
     )
-    reg = Registration(
-        T, final.overlap, float(np.sqrt(s2)), iterations, info, time.perf_counter() - start_t
-    )
+    seconds = time.perf_counter() - start_t
+    reg = Registration(T, final.overlap, float(np.sqrt(s2)), iterations, info, seconds)
+    timings = {f"{k}_s": v for k, v in stage_s.items()}
+    timings["rest_s"] = seconds - sum(stage_s.values())  # final checks, covariance, bookkeeping
     return RegistrationDecision(
         reg,
         not reasons,
@@ -373,7 +398,8 @@ def robust_register(
         best.start,
         lost,
         cov,
-        time.perf_counter() - start_t,
+        seconds,
+        dict(timings, **counts),
     )
 
 
