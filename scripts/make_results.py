@@ -3,6 +3,7 @@ graphloc.experiments.reproduce.make_results (the route `graphloc reproduce` take
 
     .venv/bin/python scripts/make_results.py            # full size (the run time is in the header)
     .venv/bin/python scripts/make_results.py --quick    # CI size
+    .venv/bin/python scripts/make_results.py --render-seed-baselines  # that section only
 
 Outputs (JSON, PNG) go to --out (default out/results); the markdown to --results.
 """
@@ -14,6 +15,8 @@ from pathlib import Path
 
 from graphloc.executor import BACKENDS
 from graphloc.experiments.reproduce import make_results
+from graphloc.experiments.seed_baselines_report import DOC_JSON
+from graphloc.experiments.seed_baselines_results import render_into
 
 HERE = Path(__file__).resolve().parent
 
@@ -29,7 +32,17 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--skip-seed001", action="store_true", help="skip the rendered seed 001 experiment"
     )
+    parser.add_argument(
+        "--render-seed-baselines",
+        action="store_true",
+        help="only rewrite the last section (every seed table at the stated and the "
+        "reproducing reading) from docs/results_seed_baselines.json: no trials",
+    )
     args = parser.parse_args(argv)
+    if args.render_seed_baselines:
+        render_into(args.results, DOC_JSON)
+        print(f"wrote the seed-baseline section of {args.results}")
+        return 0
     seconds = make_results(
         args.out,
         args.results,

@@ -11,7 +11,7 @@ from graphloc.experiments import seed001_readings as s1
 from graphloc.experiments import seed001_truth as s1t
 from graphloc.experiments import seed003_readings as s3
 from graphloc.experiments import seed_baselines_report as report
-from graphloc.experiments.seed_baselines_results import results_section
+from graphloc.experiments.seed_baselines_results import render_into, results_section
 from graphloc.experiments.seed001 import look_at
 from graphloc.vision.target import LARGE_TARGET
 
@@ -203,3 +203,29 @@ def test_only_quick_merges_seed001_and_seed003_into_the_previous_result(tmp_path
     assert "## Seed 001 experiment 1" in md and "## Seed 003 Fig. 6" in md
     assert "Why the orientation std / mean depends on the hand-eye axis" in md
     assert (tmp_path / report.MORE_PNG).stat().st_size > 0
+
+
+def test_results_section_has_every_seed_table_at_both_settings(tmp_path):
+    """From the committed JSON: seed 000 Tables I and III, seed 004 Table 1, seed 001 and seed
+    003, each at the stated and the reproducing reading; `render_into` swaps that section of a
+    results file for it and leaves the text before it."""
+    r = json.loads(report.DOC_JSON.read_text())
+    text = results_section(report.DOC_JSON)
+    for label in ("Seed 000 Table I:", "Seed 000 Table III:", "Seed 004 Table 1", "| seed 001 |"):
+        assert label in text
+    t1 = r["runs"]["reproducing"]["table1"]
+    assert f"{t1['seed_baseline']['success']}/{t1['trials']}" in text
+    cells = len(r["runs"]["reproducing"]["table3"]["cells"])
+    assert text.count("| reproducing |") >= cells + len(
+        r["runs"]["reproducing"]["seed004"]["cells"]
+    )
+    doc = tmp_path / "results.md"
+    doc.write_text(
+        "# head\n\nkept\n\n### Seed 001 experiment 1 at the stated and the reproducing "
+        "reading\nold\n"
+    )
+    render_into(doc, report.DOC_JSON)
+    assert doc.read_text() == "# head\n\nkept\n\n" + text
+    (tmp_path / "plain.md").write_text("# no section\n")
+    with pytest.raises(ValueError, match="no '###"):
+        render_into(tmp_path / "plain.md", report.DOC_JSON)
