@@ -84,7 +84,7 @@ class RegistrationConfig:
     polish_distance: float = 0.02
     polish_kernel: float = 0.007
     polish_iterations: int = 5
-    polish_max_nn: int = 12  # its normals: plane of the 12 nearest full-resolution points
+    polish_max_nn: int = 20  # its normals: plane of the 20 nearest full-resolution points
     polish_relative: float = 1e-6  # its stop: relative change of fitness and inlier RMSE
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
@@ -92,8 +92,8 @@ class RegistrationConfig:
     # basin a local method covers (the sigma points and the global fallback take over)
     max_reach: float = 1.0
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
-    covariance_scale: float = 2.89  # fit of docs/results_fusion_calibration.json (3 digits)
-    covariance_floor: tuple[float, float] = (6.37e-5, 1.84e-4)
+    covariance_scale: float = 3.03  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_floor: tuple[float, float] = (7.77e-5, 1.77e-4)
 
     def __post_init__(self):
         check(
