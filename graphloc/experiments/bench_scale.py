@@ -53,7 +53,7 @@ def main(argv=None) -> int:
     )
     parser.add_argument(
         "--marginalize-every",
-        default="2,4",
+        default="1,2",
         help="fixed-lag batch sizes [s] to measure at the default lag (beside the default's)",
     )
     parser.add_argument(

@@ -78,7 +78,7 @@ class GraphConfig:
     scan_hint_sigma: tuple = (0.05, 0.1)  # (rot [rad], trans [m]) of registrations between
     # placed robots, started from their current initial poses
     lag: float | None = None  # online: fixed-lag window [s] (None / 0: full smoothing)
-    marginalize_every: float = 1.0  # [s] fixed lag: old variables leave in batches this long
+    marginalize_every: float = 4.0  # [s] fixed lag: old variables leave in batches this long
 
     def __post_init__(self):
         check(
