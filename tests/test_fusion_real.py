@@ -241,19 +241,12 @@ def test_hint_starts_are_the_sigma_points_of_a_full_covariance():
 
 def test_calibrated_covariance_and_the_fit_it_comes_from():
     """RegistrationConfig's calibration is the fit in docs/results_fusion_calibration.json, and
-    calibrated_covariance is s P + diag(f_r^2, f_t^2)."""
+    calibrated_covariance is s P."""
     fit = json.loads((DOCS / "results_fusion_calibration.json").read_text())["fit"]
     cfg = RegistrationConfig()
     assert cfg.covariance_scale == pytest.approx(fit["covariance_scale"], rel=5e-3)
-    assert cfg.covariance_floor == pytest.approx(
-        (fit["floor_rot_rad"], fit["floor_trans_m"]), rel=5e-3
-    )
     P = np.diag([1e-8] * 3 + [1e-6] * 3)
-    out = calibrated_covariance(P, cfg)
-    fr, ft = cfg.covariance_floor
-    assert np.allclose(
-        np.diag(out), cfg.covariance_scale * np.diag(P) + np.r_[[fr**2] * 3, [ft**2] * 3]
-    )
+    assert np.allclose(calibrated_covariance(P, cfg), cfg.covariance_scale * P)
     with pytest.raises(ValueError, match="covariance_scale"):
         RegistrationConfig(covariance_scale=0.0)
 

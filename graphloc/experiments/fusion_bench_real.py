@@ -44,8 +44,8 @@ REAL_HINTS = ((3.0, 0.05), (10.0, 0.20))
 
 def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
     """One view pair of the real fragment, both hint levels, every method (module docstring).
-    With job[2] (calibration): graphloc only, with the uncalibrated covariance (scale 1, no
-    floor), its tangent error and covariance kept for `fit_calibration`."""
+    With job[2] (calibration): graphloc only, with the uncalibrated covariance (scale 1), its
+    tangent error and covariance kept for `fit_calibration`."""
     from dataclasses import replace
 
     import gtsam
@@ -69,7 +69,7 @@ def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
     truth = pair.T_ground_ceiling
     cfg = RegistrationConfig()
     if calibrate:
-        cfg = replace(cfg, covariance_scale=1.0, covariance_floor=(0.0, 0.0))
+        cfg = replace(cfg, covariance_scale=1.0)
     source, target = prepare(pair.ceiling, cfg), prepare(pair.ground, cfg)
     fine = cfg.max_correspondence[-1]
     r_med = float(np.median(np.linalg.norm(source.points, axis=1)))

@@ -1,5 +1,5 @@
 """`scripts/bench_fusion.py --real --calibrate` (issue 16) fits the calibration of graphloc's
-registration covariance (scale and floor,
+registration covariance (its scale,
 `graphloc.mapping.registration_covariance.calibrated_covariance`) by maximum likelihood on view
 pairs of other seeds than the benchmark's, and writes docs/results_fusion_calibration.json
 (RegistrationConfig's defaults are that fit; tests/test_fusion_real.py checks they agree):
@@ -21,36 +21,29 @@ from graphloc.experiments.fusion_bench_real import REAL_OVERLAPS, _cells, run_re
 
 
 def fit_calibration(errors: np.ndarray, covs: np.ndarray) -> dict:
-    """Maximum likelihood of e_i ~ N(0, s P_i + diag(f_r^2 I3, f_t^2 I3)) over accepted trials
-    (`graphloc.mapping.registration_covariance.calibrated_covariance`): Nelder-Mead on
-    log(s, f_r, f_t)."""
-    from scipy.optimize import minimize
+    """Maximum likelihood of e_i ~ N(0, s P_i) over n accepted trials
+    (`graphloc.mapping.registration_covariance.calibrated_covariance`): in closed form,
+    s = sum_i e_i^T P_i^-1 e_i / (6 n), the mean uncalibrated NEES over the dimension; with the
+    approximate 95% interval of s from its chi-square distribution (6 n dof)."""
+    from scipy.stats import chi2
 
-    eye_r, eye_t = np.diag([1.0] * 3 + [0.0] * 3), np.diag([0.0] * 3 + [1.0] * 3)
-
-    def model(x):
-        s, fr, ft = np.exp(x)
-        return s * covs + fr**2 * eye_r + ft**2 * eye_t
-
-    def nll(x):
-        P = model(x)
-        _, logdet = np.linalg.slogdet(P)
-        return float(
-            np.sum(logdet)
-            + np.einsum("ni,ni->", errors, np.linalg.solve(P, errors[..., None])[..., 0])
+    errors, covs = np.asarray(errors, dtype=float), np.asarray(covs, dtype=float)
+    if errors.ndim != 2 or errors.shape[1] != 6 or covs.shape != (len(errors), 6, 6):
+        raise ValueError(
+            f"fit_calibration: errors (n,6) and covariances (n,6,6) expected, got {errors.shape} "
+            f"and {covs.shape}"
         )
-
-    x0 = np.log([10.0, np.deg2rad(0.05), 0.002])
-    res = minimize(
-        nll, x0, method="Nelder-Mead", options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-8}
-    )
-    s, fr, ft = np.exp(res.x)
+    if len(errors) == 0:
+        raise ValueError("fit_calibration: no accepted trial to fit")
+    q = np.einsum("ni,ni->n", errors, np.linalg.solve(covs, errors[..., None])[..., 0])
+    dof = 6 * len(q)
+    s = float(q.sum() / dof)
+    _, logdet = np.linalg.slogdet(s * covs)
+    lo, hi = q.sum() / chi2.ppf([0.975, 0.025], dof)
     return {
-        "covariance_scale": float(s),
-        "floor_rot_rad": float(fr),
-        "floor_trans_m": float(ft),
-        "nll": float(res.fun),
-        "converged": bool(res.success),
+        "covariance_scale": s,
+        "covariance_scale_95": [float(lo), float(hi)],
+        "nll": float(logdet.sum() + q.sum() / s),
     }
 
 
@@ -70,9 +63,7 @@ def main_calibrate(args) -> int:
     errors = np.array([r["graphloc"]["error_tangent"] for r in used])
     covs = np.array([r["graphloc"]["covariance"] for r in used])
     fit = fit_calibration(errors, covs)
-    P = fit["covariance_scale"] * covs + np.diag(
-        [fit["floor_rot_rad"] ** 2] * 3 + [fit["floor_trans_m"] ** 2] * 3
-    )
+    P = fit["covariance_scale"] * covs
     before = np.einsum("ni,ni->n", errors, np.linalg.solve(covs, errors[..., None])[..., 0])
     after = np.einsum("ni,ni->n", errors, np.linalg.solve(P, errors[..., None])[..., 0])
     cells = {}
@@ -91,7 +82,7 @@ def main_calibrate(args) -> int:
     fig, ax = plt.subplots(figsize=(6.5, 4))
     bins = np.logspace(-1, np.log10(max(before.max(), after.max()) * 1.1), 40)
     ax.hist(before, bins=bins, alpha=0.6, label="sandwich covariance (uncalibrated)")
-    ax.hist(after, bins=bins, alpha=0.6, label="calibrated (fitted scale + floor)")
+    ax.hist(after, bins=bins, alpha=0.6, label="calibrated (fitted scale)")
     ax.axvline(6.0, color="k", ls="--", lw=1, label="dimension (6)")
     ax.set_xscale("log")
     ax.set_xlabel("NEES per accepted calibration trial")

@@ -202,10 +202,12 @@ def markdown_real(report: dict, command: str) -> str:
         fit = cal["fit"]
         lines += [
             "",
-            "The covariance is the cluster-robust sandwich scaled by "
-            f"{fit['covariance_scale']:.3g} and floored by "
-            f"{np.degrees(fit['floor_rot_rad']):.3g} deg / {1000 * fit['floor_trans_m']:.3g} mm "
-            "(`calibrated_covariance`), fitted by maximum likelihood on "
+            "The covariance is the leave-one-cluster-out jackknife of the point-to-plane fit "
+            "(`cluster_covariance`: clusters of 0.5 m blocks, so each registration's own "
+            "number of clusters and their leverage set its inflation over the plain sandwich) "
+            f"scaled by one parameter, {fit['covariance_scale']:.3g} (95% interval "
+            f"{fit['covariance_scale_95'][0]:.3g}-{fit['covariance_scale_95'][1]:.3g}; "
+            "`calibrated_covariance`), fitted by maximum likelihood on "
             f"{cal['accepted_used']} accepted trials of seeds {cal['seeds'][0]}-{cal['seeds'][1]} "
             f"(`{cal['command']}`, docs/results_fusion_calibration.json); the NEES above is on "
             "this run's seeds, which the fit did not see.",

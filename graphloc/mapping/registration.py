@@ -39,8 +39,8 @@ class RegistrationConfig:
     max_nn), point-to-plane ICP (scales [m], max_correspondence [m], max_iterations per stage,
     relative tolerances), FPFH + RANSAC (fpfh_radius, ransac_distance, ransac_iterations,
     ransac_confidence), and the range noise used to scale the information matrix (range_sigma
-    [m]). covariance_scale and covariance_floor (rot [rad], trans [m]) calibrate
-    robust_register's covariance (`calibrated_covariance`); the defaults are the fit of
+    [m]). covariance_scale calibrates robust_register's covariance (`calibrated_covariance`);
+    the default is the fit of
     `scripts/bench_fusion.py --real --calibrate` (docs/results_fusion_calibration.json)."""
 
     nb_neighbors: int = 20
@@ -92,8 +92,7 @@ class RegistrationConfig:
     # basin a local method covers (the sigma points and the global fallback take over)
     max_reach: float = 1.0
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
-    covariance_scale: float = 3.03  # fit of docs/results_fusion_calibration.json (3 digits)
-    covariance_floor: tuple[float, float] = (7.77e-5, 1.77e-4)
+    covariance_scale: float = 3.05  # fit of docs/results_fusion_calibration.json (3 digits)
 
     def __post_init__(self):
         check(
@@ -114,11 +113,6 @@ class RegistrationConfig:
                 "fine_finish": 0,
             },
         )
-        if not (len(self.covariance_floor) == 2 and min(self.covariance_floor) >= 0):
-            raise ValueError(
-                "RegistrationConfig: covariance_scale must be > 0 and covariance_floor two values "
-                ">= 0 (rot [rad], trans [m])"
-            )
         n = len(self.scales)
         if n == 0 or len(self.max_correspondence) != n or len(self.max_iterations) != n:
             raise ValueError(
