@@ -73,17 +73,16 @@ class RegistrationConfig:
     # the Tukey-weighted iterations have settled by then, docs/results_fusion_real.md)
     fine_relative: float = 1e-6
     # ... and its samples: every fine_stride-th prepared source point (the candidates' checks and
-    # covariance use them all), the winner then fine_finish more iterations on every point before
-    # `polish` (a start that slides for 30 iterations and fails costs a third)
+    # covariance use them all); the winner goes straight to `polish`, which uses every point (a
+    # start that slides for 30 iterations and fails costs a third)
     fine_stride: int = 3
-    fine_finish: int = 3
     covariance_block: float = 0.5
     # robust_register's last stage (`polish`): point-to-plane ICP of the full-resolution clouds,
     # both ways, correspondences within polish_distance [m] and a Geman-McClure kernel of scale
     # polish_kernel [m] (the residual's noise: two 5 mm point noises, sqrt(2) * 5 mm; 0: no polish)
     polish_distance: float = 0.02
     polish_kernel: float = 0.007
-    polish_iterations: int = 5
+    polish_iterations: int = 4  # per direction (fewer when polish_relative is reached)
     polish_max_nn: int = 20  # its normals: plane of the 20 nearest full-resolution points
     polish_relative: float = 1e-6  # its stop: relative change of fitness and inlier RMSE
     stop_at_first_valid: bool = True
@@ -92,7 +91,7 @@ class RegistrationConfig:
     # basin a local method covers (the sigma points and the global fallback take over)
     max_reach: float = 1.0
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
-    covariance_scale: float = 3.05  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_scale: float = 3.08  # fit of docs/results_fusion_calibration.json (3 digits)
 
     def __post_init__(self):
         check(
@@ -110,7 +109,6 @@ class RegistrationConfig:
                 "polish_iterations": 1,
                 "polish_max_nn": 3,
                 "fine_stride": 1,
-                "fine_finish": 0,
             },
         )
         n = len(self.scales)

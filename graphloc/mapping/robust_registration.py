@@ -9,7 +9,6 @@ the covariance of `graphloc.mapping.registration_covariance`.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 
 import gtsam
 import numpy as np
@@ -169,9 +168,7 @@ def robust_register(
        cost wins, except that the hint's own candidate (start 0) is kept when it passes and its
        cost is within acc.hint_basin_margin of that best (the data must clearly beat the
        hint's basin).
-    4. The winner's fine stage finished on every prepared source point (cfg.fine_finish
-       iterations, when cfg.fine_stride > 1), refined by `polish` (full resolution, both
-       directions), the checks of step 3
+    4. The winner refined by `polish` (full resolution, both directions), the checks of step 3
        and its conditioning on that pose (`candidates` keep the poses before the polish);
        accepted only if every check passes.
     5. Covariance: the point-to-plane Hessian H over the inliers in a cluster-robust sandwich
@@ -343,12 +340,6 @@ def robust_register(
             else f"truncated cost {o.cost:.4f} > {best.cost:.4f} of start {best.start}"
         )
     T = best.transformation
-    if cfg.fine_stride > 1 and cfg.fine_finish > 0:  # the winner on every prepared point
-        its = (*cfg.max_iterations[:-1], cfg.fine_finish)
-        T, n_it = timed(
-            "fine", fine_stage, source, target, T, replace(cfg, fine_stride=1, max_iterations=its)
-        )
-        iterations += n_it
     T = timed("polish", polish, source, target, T, cfg, nns)
     r, d, J = point_to_plane(source, target, T, nns)
     final = candidate(best.start, T, (r, d, J))
