@@ -61,7 +61,7 @@ class RegistrationConfig:
     ransac_confidence: float = 0.999
     range_sigma: float = 0.01
     # robust_register: coarse correspondences within coarse_voxels coarse voxels, Tukey kernel
-    # width coarse_tukey voxels (0: least squares), cluster size [m] of the sandwich covariance,
+    # width coarse_tukey voxels (0: least squares), cluster size [m] of the jackknife covariance,
     # stop at the first start whose candidate passes its checks with an inlier ratio of at least
     # stop_inlier_ratio (a candidate that barely passes may sit in a basin next to the right one)
     coarse_voxels: float = 2.0

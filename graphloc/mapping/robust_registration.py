@@ -171,7 +171,7 @@ def robust_register(
     4. The winner refined by `polish` (full resolution, both directions), the checks of step 3
        and its conditioning on that pose (`candidates` keep the poses before the polish);
        accepted only if every check passes.
-    5. Covariance: the point-to-plane Hessian H over the inliers in a cluster-robust sandwich
+    5. Covariance: the point-to-plane fit over the inliers, its leave-one-cluster-out jackknife
        (`cluster_covariance`), converted to GTSAM's right perturbation (`information_right`),
        calibrated (`calibrated_covariance`); `inlier_rmse` is the inliers' residual standard
        deviation (n - 6 dof). `RegistrationDecision.timings`: the seconds per stage."""
@@ -353,8 +353,8 @@ def robust_register(
     if n_in >= 6 and conditioning >= acc.min_conditioning:  # else no covariance (not accepted)
         pts_in = (source.points @ T[:3, :3].T + T[:3, 3])[inl]
         cov_left = cluster_covariance(J[inl], r[inl], pts_in, H, cfg.covariance_block)
-        sandwich = np.linalg.inv(information_right(np.linalg.inv(cov_left), T))
-        cov = calibrated_covariance(sandwich, cfg)
+        jackknife = np.linalg.inv(information_right(np.linalg.inv(cov_left), T))
+        cov = calibrated_covariance(jackknife, cfg)
         info = np.linalg.inv(cov)
     else:
         info = np.eye(6) * 1e-12
