@@ -6,6 +6,7 @@ jackknife of the point-to-plane fit (`cluster_covariance`), scaled by the one pa
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse
 
 from graphloc.mapping.registration import RegistrationConfig
 
@@ -37,10 +38,10 @@ def cluster_covariance(
     )
     label = label.reshape(-1)
     B = int(label.max()) + 1
-    G = np.zeros((B, 6))
-    np.add.at(G, label, J * r[:, None])
-    Hb = np.zeros((B, 6, 6))
-    np.add.at(Hb, label, J[:, :, None] * J[:, None, :])
+    # per-cluster sums as one sparse (B, n) membership product (np.add.at is unbuffered)
+    member = scipy.sparse.csr_matrix((np.ones(len(label)), (label, np.arange(len(label)))))
+    G = member @ (J * r[:, None])
+    Hb = (member @ (J[:, :, None] * J[:, None, :]).reshape(-1, 36)).reshape(B, 6, 6)
     rest = H[None] - Hb
     d = np.einsum("bij,bj->bi", np.linalg.pinv(rest, hermitian=True), G)
     cov = (B - 1) / max(B, 1) * (d.T @ d)
