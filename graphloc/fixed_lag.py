@@ -27,6 +27,7 @@ class FixedLagWindow:
         self.config = config
         self.touched: dict[int, float] = {}  # live key -> its stamp
         self.frozen = gtsam.Values()  # marginalized variables' last estimates
+        self._frozen_keys: set[int] = set()  # their keys (a membership test without a GTSAM call)
         self._newest = -np.inf
         self._groups = gtsam.KeyGroupMap()  # live key -> the rank of its stamp
         self._ranks: dict[float, int] = {}  # live stamp -> its rank (ordering group)
@@ -38,7 +39,7 @@ class FixedLagWindow:
 
     def marginalized(self, key: int) -> bool:
         """Whether `key` was marginalized (its value is frozen)."""
-        return self.frozen.exists(key)
+        return key in self._frozen_keys
 
     def estimate(self, keys: list | None = None) -> gtsam.Values:
         """Every variable (frozen and live), or only `keys` (no estimate of the whole window:
@@ -49,8 +50,8 @@ class FixedLagWindow:
             out = gtsam.Values(self.frozen)
             out.insert(self.isam.calculateEstimate())
             return out
-        frozen = [k for k in keys if self.frozen.exists(k)]
-        live = [k for k in keys if not self.frozen.exists(k)] if frozen else keys
+        frozen = [k for k in keys if k in self._frozen_keys]
+        live = [k for k in keys if k not in self._frozen_keys] if frozen else keys
         out = self.isam.calculateEstimate(live) if live else gtsam.Values()
         if frozen:
             out.insert(self.frozen.extract(frozen))
@@ -111,6 +112,7 @@ class FixedLagWindow:
         # one --; the live stamps are renumbered from 0
         self.frozen.insert(self.isam.calculateBestEstimate().extract(old))
         self.isam.marginalizeLeaves(_key_list(old))
+        self._frozen_keys.update(old)
         for k in old:
             del self.touched[k]
         self._ranks = {stamp: r for r, stamp in enumerate(self._by_stamp)}

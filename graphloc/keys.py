@@ -10,6 +10,7 @@ Marker j of robot r's layout, a world point (static robots): Symbol('k', r * MAX
 from __future__ import annotations
 
 import gtsam
+import numpy as np
 
 STRIDE = 1_000_000_000
 MAX_ROBOTS = 1_000
@@ -60,3 +61,16 @@ def decode(key: int) -> tuple[str, int, int]:
     if kind == "k":
         return kind, index // MAX_MARKERS, index % MAX_MARKERS
     return kind, index, 0
+
+
+def decode_many(keys) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`decode` of many keys at once: (kind characters (N,) str, first (N,) int, second (N,)
+    int), as `decode` gives them (one vectorized pass over gtsam.Symbol's layout: the
+    character in the top byte, the index below)."""
+    k = np.asarray(keys, dtype=np.uint64).reshape(-1)
+    index = (k & np.uint64((1 << 56) - 1)).astype(np.int64)
+    kind = (k >> np.uint64(56)).astype(np.uint8).view("S1").astype(str)
+    stride = np.where(kind == "x", STRIDE, np.where(kind == "k", MAX_MARKERS, 0))
+    first = np.where(stride > 0, index // np.maximum(stride, 1), index)
+    second = np.where(stride > 0, index % np.maximum(stride, 1), 0)
+    return kind, first, second

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from graphloc.candidates import CandidateSet
-from graphloc.keys import decode, landmark_key, marker_key, mode_key, pose_key
+from graphloc.keys import decode, decode_many, landmark_key, marker_key, mode_key, pose_key
 
 
 def test_pose_keys_are_unique_and_decode():
@@ -37,3 +37,17 @@ def test_candidate_set_validates_and_normalizes():
         CandidateSet(R=R, t=np.zeros((3, 3)), scores=np.ones(2))
     with pytest.raises(ValueError, match="NaN"):
         CandidateSet(R=R, t=np.full((2, 3), np.nan), scores=np.ones(2))
+
+
+def test_decode_many_is_decode_of_each():
+    keys = [
+        pose_key(3, 12),
+        landmark_key(100_000_005),
+        mode_key(7),
+        marker_key(2, 9),
+        pose_key(0, 0),
+    ]
+    kind, first, second = decode_many(keys)
+    assert [(str(a), int(b), int(c)) for a, b, c in zip(kind, first, second)] == [
+        decode(k) for k in keys
+    ]

@@ -5,6 +5,7 @@ error naming file and field); noise comes from the manifest unless options overr
 import json
 from pathlib import Path
 
+import gtsam
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -13,6 +14,7 @@ from graphloc.cli import main
 from graphloc.datasets import open_run
 from graphloc.io import columns, write_manifest
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.pipelines.team_graph.solve import _rows_of_matrices
 from graphloc.datasets.graphloc_log import read_team_run
 
 SMALL = {
@@ -496,3 +498,16 @@ def test_batch_starts_from_every_candidate_of_the_first_snapshot(tmp_path):
     assert max(_climber_rms(run, x) for x in starts) > 0.5
     best = solve(graph, "batch")
     assert best.error <= min(x.error for x in starts) + 1e-9 and _climber_rms(run, best) < 0.05
+
+
+def test_pose_rows_match_gtsam_quaternions():
+    """The vectorized trajectory rows equal GTSAM's own conversion, quaternion sign included."""
+    rng = np.random.default_rng(3)
+    poses = [
+        gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3) * s), rng.normal(size=3))
+        for s in rng.choice([0.01, 1.0, 3.0], size=500)
+    ]
+    rows = _rows_of_matrices(np.array([p.matrix() for p in poses]))
+    for p, row in zip(poses, rows):
+        q, t = p.rotation().toQuaternion(), p.translation()
+        np.testing.assert_allclose(row, [*t, q.x(), q.y(), q.z(), q.w()], atol=1e-12)

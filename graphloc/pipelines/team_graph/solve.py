@@ -8,10 +8,11 @@ from dataclasses import dataclass, field, replace
 
 import gtsam
 import numpy as np
+from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
 from graphloc.factors.robust import downweighted
-from graphloc.keys import decode, pose_key
+from graphloc.keys import decode, decode_many, pose_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.pipelines.team_graph.motion import compose_steps
@@ -55,9 +56,47 @@ STEP_LOG_COLUMNS = ("step", "time", "latency_s", "cpu_s", "factors", "variables"
 
 
 def _pose_row(p: gtsam.Pose3) -> np.ndarray:
-    q = p.rotation().toQuaternion()
-    t = p.translation()
-    return np.array([t[0], t[1], t[2], q.x(), q.y(), q.z(), q.w()])
+    return _rows_of_matrices(p.matrix()[None])[0]
+
+
+def _rows_of_matrices(m: np.ndarray) -> np.ndarray:
+    """(N,7) x y z qx qy qz qw of (N,4,4) poses (one vectorized pass; a pose at a time costs a
+    GTSAM round trip each). The quaternion's sign is GTSAM's (`Rot3.toQuaternion`, Eigen's
+    conversion): w > 0 where the trace is positive, else the component of the largest diagonal
+    entry."""
+    if not len(m):
+        return np.zeros((0, 7))
+    r = m[:, :3, :3]
+    q = Rotation.from_matrix(r).as_quat()  # x y z w
+    ref = np.where(
+        np.trace(r, axis1=1, axis2=2) > 0, 3, np.argmax(np.diagonal(r, axis1=1, axis2=2), axis=1)
+    )
+    q *= np.where(q[np.arange(len(q)), ref] < 0, -1.0, 1.0)[:, None]
+    return np.hstack([m[:, :3, 3], q])
+
+
+def _trajectory_rows(node_times: list, poses: dict) -> list:
+    """Per robot, (K_r,7) rows of `poses` ((robot, index) -> (4,4) matrix), NaN where absent."""
+    out = [np.full((len(times), 7), np.nan) for times in node_times]
+    if poses:
+        where = np.array(list(poses), dtype=int).reshape(-1, 2)
+        rows = _rows_of_matrices(np.array(list(poses.values())))
+        for r, rows_r in enumerate(out):
+            mine = where[:, 0] == r
+            rows_r[where[mine, 1]] = rows[mine]
+    return out
+
+
+def _estimate_matrices(values: gtsam.Values) -> dict:
+    """(robot, index) -> (4,4) of every pose in `values` (one `extractPose3` call)."""
+    poses = gtsam.utilities.allPose3s(values)
+    kind, robot, k = decode_many(poses.keys())
+    flat = gtsam.utilities.extractPose3(poses).reshape(-1, 12)
+    m = np.zeros((len(flat), 4, 4))
+    m[:, :3, :3] = flat[:, :9].reshape(-1, 3, 3)
+    m[:, :3, 3] = flat[:, 9:]
+    m[:, 3, 3] = 1.0
+    return {(r, i): mi for r, i, mi, ok in zip(robot, k, m, kind == "x") if ok}
 
 
 def solve(
@@ -145,7 +184,7 @@ def _solve(
         progress=progress and mode == "batch",
         stop=stop,
     )
-    causal = [np.full((len(t), 7), np.nan) for t in graph.node_times]
+    causal: dict = {}  # (robot, index) -> the pose's (4,4) estimate right after its step
     start = _time.perf_counter()
     added: set = set()
     held: list = []  # online: factors on robots not yet anchored
@@ -205,7 +244,7 @@ def _solve(
                 trace["error"][i] = session.error()
             for key, r, k in new_poses:
                 p = est.atPose3(key)
-                causal[r][k] = _pose_row(p)
+                causal[r, k] = p.matrix()
                 if trace is not None:
                     trace["entered"].setdefault(r, {})[k] = i
                 if k >= latest.get(r, (-1, None))[0]:
@@ -216,22 +255,16 @@ def _solve(
     decisions = choose_mixtures(graph.decisions, final)
     partial = partial or session.stopped
     wall = _time.perf_counter() - start
-    estimate = []
-    for r, times in enumerate(graph.node_times):
-        rows = np.full((len(times), 7), np.nan)
-        for k in range(len(times)):
-            key = pose_key(r, k)
-            if final.exists(key):
-                rows[k] = _pose_row(final.atPose3(key))
-        estimate.append(rows)
-    dead = []
-    for r, times in enumerate(graph.node_times):
-        rows = np.full((len(times), 7), np.nan)
-        for k in range(len(times)):
-            key = pose_key(r, k)
-            if key in graph.initial:
-                rows[k] = _pose_row(graph.initial[key])
-        dead.append(rows)
+    estimate = _trajectory_rows(graph.node_times, _estimate_matrices(final))
+    dead = _trajectory_rows(
+        graph.node_times,
+        {
+            (r, k): graph.initial[key].matrix()
+            for r, times in enumerate(graph.node_times)
+            for k in range(len(times))
+            if (key := pose_key(r, k)) in graph.initial
+        },
+    )
     down = {}
     types = np.array(types)
     for ftype in ("odometry", "landmark", "inter_robot", "candidate"):
@@ -245,17 +278,18 @@ def _solve(
             "downweighted": rep.n_downweighted,
             "threshold": cfg.downweight_threshold,
         }
-    landmarks = {}
-    for k in final.keys():
-        kind, lid, _ = decode(k)
-        if kind == "l" and lid < ANCHOR_BASE:
-            landmarks[lid] = np.asarray(final.atPoint3(k))
+    keys = final.keys()
+    kind, lid, _ = decode_many(keys)
+    landmarks = {
+        int(lid[j]): np.asarray(final.atPoint3(keys[j]))
+        for j in np.flatnonzero((kind == "l") & (lid < ANCHOR_BASE))
+    }
     step_log = np.array(log, dtype=float).reshape(-1, len(STEP_LOG_COLUMNS))
     return TeamResult(
         mode,
         graph.node_times,
         estimate,
-        causal,
+        _trajectory_rows(graph.node_times, causal),
         dead,
         session.latencies(),
         wall,
