@@ -135,17 +135,18 @@ def test_a_candidate_below_stop_inlier_ratio_lets_the_other_starts_compete(fragm
 
     d = robust_register(src, tgt, hint, cov, replace(cfg, stop_inlier_ratio=1.0))
     tried = {c.start for c in d.candidates} | set(d.lost)
-    assert tried == set(range(13))  # the hint and its 12 sigma points
+    n_hint = len(cfg.hint_wide_tukey)  # the hint once per wide-level kernel (10 deg: a pyramid)
+    assert tried == set(range(n_hint + 12))  # the hint's starts and its 12 sigma points
     # a start whose coarse pose no fine stage can bring within the gates skips its fine stage;
-    # the hint's own start never does
+    # the hint's own starts never do
     skipped = {k for k, why in d.lost.items() if "out of fine reach" in why}
-    assert 0 not in skipped and not skipped & {c.start for c in d.candidates}
+    assert not skipped & set(range(n_hint)) and not skipped & {c.start for c in d.candidates}
     valid = [c for c in d.candidates if all(v[2] for v in candidate_checks(c, acc).values())]
     cheapest = min(valid, key=lambda c: c.cost)
-    own = next(c for c in valid if c.start == 0)
+    own = min((c for c in valid if c.start < n_hint), key=lambda c: c.cost)
     assert d.accepted
     assert d.best == cheapest.start or (
-        d.best == 0 and own.cost - cheapest.cost <= acc.hint_basin_margin
+        d.best == own.start and own.cost - cheapest.cost <= acc.hint_basin_margin
     )
     rot, tr = pose_errors(d.registration.transformation, pair.T_ground_ceiling)
     assert rot < 0.3 and tr < 0.01, (rot, tr)
@@ -329,3 +330,33 @@ def test_real_fragment_sweep_has_no_false_accepts(fragment):
                     continue
                 rot, tr = pose_errors(res.T_g0_c0, pair.T_ground_ceiling)
                 assert rot < ROT_OK and tr < TRANS_OK, (overlap, seed, rot_deg, rot, tr)
+
+
+def test_the_hint_runs_its_wide_pyramid_with_a_wide_kernel_first(fragment):
+    """A 10 deg / 20 cm hint on a 60% view pair (the exploration seed 200 of the benchmark): with
+    only the narrow kernel the hint's own pyramid slides out of its basin and sigma points must
+    find the pose; with the wide kernel first (RegistrationConfig.hint_wide_tukey) the hint's
+    first start passes with margin and ends the search. A 3 deg / 5 cm hint whose reach needs no
+    pyramid runs the hint once (then 12 sigma points)."""
+    rng = np.random.default_rng([200, 600])
+    pair = make_view_pair(fragment, 0.6, rng)
+    perturb(pair.T_ground_ceiling, 3.0, 0.05, rng)
+    hint = perturb(pair.T_ground_ceiling, 10.0, 0.20, rng)
+    cfg = RegistrationConfig()
+    assert cfg.hint_wide_tukey[0] > cfg.coarse_tukey
+    src, tgt = prepare(pair.ceiling, cfg), prepare(pair.ground, cfg)
+    cov = hint_covariance(np.deg2rad(10.0), 0.20)
+    wide = robust_register(src, tgt, hint, cov, cfg)
+    narrow = robust_register(src, tgt, hint, cov, replace(cfg, hint_wide_tukey=(cfg.coarse_tukey,)))
+    assert wide.accepted and wide.best == 0 and wide.timings["starts"] == 1
+    assert narrow.accepted and narrow.best != 0 and "failed" in narrow.lost[0]
+    assert narrow.timings["starts"] > 1
+    for d in (wide, narrow):
+        rot, tr = pose_errors(d.registration.transformation, pair.T_ground_ceiling)
+        assert rot < 0.3 and tr < 0.01, (rot, tr)
+    # reach below the coarse reach: no pyramid
+    no_pyramid = replace(cfg, coarse_voxels=5.0, stop_inlier_ratio=1.0, global_fallback=False)
+    d = robust_register(src, tgt, hint, hint_covariance(np.deg2rad(3.0), 0.05), no_pyramid)
+    assert {c.start for c in d.candidates} | set(d.lost) == set(range(13))  # hint + 12 sigma
+    with pytest.raises(ValueError, match="hint_wide_tukey"):
+        RegistrationConfig(hint_wide_tukey=())

@@ -10,10 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import open3d as o3d
 
 from graphloc.config import check
-from graphloc.mapping.registration import PreparedCloud, Registration
+from graphloc.mapping.registration import NearestIndex, PreparedCloud, Registration
 
 
 @dataclass(frozen=True)
@@ -136,28 +135,26 @@ def candidate_checks(o: Candidate, acc: AcceptanceConfig) -> dict:
     return checks
 
 
-def point_to_plane(source: PreparedCloud, target: PreparedCloud, T: np.ndarray, nns=None):
+def point_to_plane(source: PreparedCloud, target: PreparedCloud, T: np.ndarray, nns):
     """Per source point (transformed by T): point-to-plane residual to its nearest target point
     along that point's normal, the distance to it, and the Jacobian rows [(p x n)^T, n^T] of the
-    residual for a left perturbation Exp(xi) T (rot, trans). Nearest neighbours: Open3D NNS
-    (`nns`: a prebuilt knn index of target.points, else built here)."""
+    residual for a left perturbation Exp(xi) T (rot, trans). Nearest neighbours within the
+    radius of `nns` (`target_index`); a point without one has distance inf, residual and
+    Jacobian row 0."""
     p = source.points @ T[:3, :3].T + T[:3, 3]
-    q_all = target.points
-    if nns is None:
-        nns = target_index(target)
-    idx, d2 = nns.knn_search(o3d.core.Tensor(p), 1)
-    idx = idx.numpy()[:, 0]
-    n = target.cloud.point.normals.numpy().astype(float)[idx]
-    r = np.einsum("ij,ij->i", p - q_all[idx], n)
+    idx, d = nns.nearest(p)
+    has = idx >= 0
+    n = np.zeros_like(p)
+    n[has] = target.cloud.point.normals.numpy().astype(float)[idx[has]]
+    r = np.einsum("ij,ij->i", p - target.points[np.where(has, idx, 0)], n)
     J = np.hstack([np.cross(p, n), n])
-    return r, np.sqrt(d2.numpy()[:, 0].astype(float)), J
+    return r, d, J
 
 
-def target_index(target: PreparedCloud):
-    """Open3D knn index of the target's points (for `point_to_plane`)."""
-    nns = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(target.points))
-    nns.knn_index()
-    return nns
+def target_index(target: PreparedCloud, radius: float) -> NearestIndex:
+    """Nearest-neighbour index of the target's points within `radius` (for `point_to_plane`;
+    every check counts only correspondences within the fine distance)."""
+    return NearestIndex(target.points, radius)
 
 
 def truncated_cost(r: np.ndarray, d: np.ndarray, c: float, max_dist: float) -> float:

@@ -66,6 +66,11 @@ class RegistrationConfig:
     # stop_inlier_ratio (a candidate that barely passes may sit in a basin next to the right one)
     coarse_voxels: float = 2.0
     coarse_tukey: float = 0.5
+    # ... the hint's own start runs its wide pyramid once per Tukey width here [wide-level voxels],
+    # in order: a wide kernel first (where most of a view overlaps, every correspondence within
+    # the reach pulls, the right ones included), then coarse_tukey's narrow one (a small overlap:
+    # only the nearest surfaces pull); the sigma points use coarse_tukey
+    hint_wide_tukey: tuple[float, ...] = (2.0, 0.5)
     # robust_register's fine stage: Tukey kernel width in fine correspondence distances
     # (max_correspondence[-1]; 0: least squares)
     fine_tukey: float = 1.0
@@ -78,8 +83,10 @@ class RegistrationConfig:
     fine_stride: int = 3
     covariance_block: float = 0.5
     # robust_register's last stage (`polish`): point-to-plane ICP of the full-resolution clouds,
-    # both ways, correspondences within polish_distance [m] and a Geman-McClure kernel of scale
-    # polish_kernel [m] (the residual's noise: two 5 mm point noises, sqrt(2) * 5 mm; 0: no polish)
+    # both ways, correspondences within polish_distance [m] (0: no polish) and Open3D's
+    # Geman-McClure kernel GMLoss(polish_kernel), weight k / (k + r^2)^2: k is a squared scale
+    # [m^2], and 0.007 weighs every residual within polish_distance nearly alike (kernels of the
+    # residual noise, k = (7 mm)^2 or (1 cm)^2, were less accurate on exploration seeds 200-219)
     polish_distance: float = 0.02
     polish_kernel: float = 0.007
     polish_iterations: int = 4  # per direction (fewer when polish_relative is reached)
@@ -116,6 +123,11 @@ class RegistrationConfig:
             raise ValueError(
                 "RegistrationConfig: scales, max_correspondence and max_iterations need one entry "
                 "per stage"
+            )
+        if not self.hint_wide_tukey or min(self.hint_wide_tukey) < 0:
+            raise ValueError(
+                "RegistrationConfig.hint_wide_tukey: one or more Tukey widths >= 0 expected, got "
+                f"{self.hint_wide_tukey}"
             )
         if (
             min(self.scales) <= 0
@@ -171,7 +183,12 @@ def denoise(
         raise ValueError("denoise: points contain NaN/inf")
     if len(pts) < cfg.nb_neighbors + 1:
         raise ValueError(f"denoise: {len(pts)} points is too few (need > {cfg.nb_neighbors})")
-    pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts)).voxel_down_sample(cfg.voxel)
+    cells = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts)).voxel_down_sample(cfg.voxel)
+    # Open3D's voxel hash map returns the cells in an order that changes from call to call (the
+    # same points); sorted, the cloud and every index-based step after it (the fine stage's
+    # every-k-th sample) are reproducible across runs and processes
+    cells = cells.point.positions.numpy()
+    pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(cells[np.lexsort(cells.T[::-1])]))
     pcd, keep = pcd.remove_statistical_outliers(cfg.nb_neighbors, cfg.std_ratio)
     return pcd, int(len(keep) - keep.numpy().sum())
 
@@ -284,6 +301,33 @@ def global_fpfh_ransac(
     return np.asarray(result.transformation), time.perf_counter() - start
 
 
+class NearestIndex:
+    """Nearest neighbour of query points among `points` within a radius fixed at construction:
+    Open3D's fixed-radius hybrid search (a hash grid of the radius), which answers a query
+    without a neighbour in that radius at once (a k-d tree's k = 1 search walks on to the
+    nearest point however far it is; every use here ignores points beyond a radius)."""
+
+    def __init__(self, points: np.ndarray, radius: float):
+        if not radius > 0:
+            raise ValueError(f"NearestIndex: radius must be > 0, got {radius}")
+        self.radius = float(radius)
+        self._nns = o3d.core.nns.NearestNeighborSearch(
+            o3d.core.Tensor(np.asarray(points, dtype=np.float64))
+        )
+        self._nns.hybrid_index(self.radius)
+
+    def nearest(self, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(index, distance) of each query point's nearest point within the radius; -1 and inf
+        where there is none."""
+        idx, d2, _ = self._nns.hybrid_search(
+            o3d.core.Tensor(np.asarray(query, dtype=np.float64)), self.radius, 1
+        )
+        idx = idx.numpy()[:, 0]
+        d = np.sqrt(d2.numpy()[:, 0])
+        d[idx < 0] = np.inf
+        return idx, d
+
+
 def polish(
     source: PreparedCloud,
     target: PreparedCloud,
@@ -294,15 +338,15 @@ def polish(
     """The last stage of `graphloc.mapping.robust_registration.robust_register`: point-to-plane
     ICP of the full-resolution clouds (`PreparedCloud.raw`, normals of the cfg.polish_max_nn
     nearest points) from T, source onto target and target onto source, each with
-    correspondences within cfg.polish_distance and a Geman-McClure kernel of scale
-    cfg.polish_kernel (the residual noise), each view cut to its points within
+    correspondences within cfg.polish_distance and Open3D's Geman-McClure kernel
+    GMLoss(cfg.polish_kernel) (its parameter a squared scale), each view cut to its points within
     cfg.polish_distance + cfg.voxel of the other's grid (the mutual overlap: normals and
     correspondences only where they can pair), then the midpoint of the two on SE(3),
     A Exp(Log(A^-1 B) / 2). The fine stage's grid averages independently subsampled, noisy
     scans into cell centroids that differ between the views, and one direction's
     nearest-neighbour planes pass through the noisy points of one view only; here every point
-    of each view serves once as a sample and once as a plane (`target_nns`: a prebuilt knn
-    index of target.points, `graphloc.mapping.acceptance.target_index`, else built here).
+    of each view serves once as a sample and once as a plane (`target_nns`: a prebuilt
+    `NearestIndex` of target.points with a radius of at least that cut, else built here).
     Returns T_target_source; T
     unchanged when cfg.polish_distance is 0, a cloud has no `raw`, or a direction finds no
     correspondence within the distance (the fine stage's pose stands)."""
@@ -316,11 +360,9 @@ def polish(
         (target, source, np.linalg.inv(T), None),
     ):
         p = c.raw @ M[:3, :3].T + M[:3, 3]  # in the other view's frame
-        if index is None:
-            index = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(other.points))
-            index.knn_index()
-        _, d2 = index.knn_search(o3d.core.Tensor(p), 1)
-        near = c.raw[d2.numpy()[:, 0] < margin**2]
+        if index is None or index.radius < margin:
+            index = NearestIndex(other.points, margin)
+        near = c.raw[index.nearest(p)[1] < margin]
         if len(near) < cfg.polish_max_nn:
             return T
         full.append(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(near)))

@@ -140,7 +140,12 @@ def robust_register(
 
     1. Starts: the hint and its sigma points (`hint_starts`; hint_cov is the hint's 6x6
        covariance, rot [rad] then trans [m], right perturbation: `hint_covariance` of two
-       sigmas, or a P3P candidate's first-order covariance carried to the LiDAR frames).
+       sigmas, or a P3P candidate's first-order covariance carried to the LiDAR frames). When
+       there is a wide pyramid (step 2), the hint is tried once per kernel width of
+       cfg.hint_wide_tukey, in order (starts 0 .. n - 1, the hint's own), then its sigma points
+       (with cfg.coarse_tukey): a wide kernel lets every correspondence within the reach pull,
+       the right ones among them, which moves a poor hint into its basin where most of the
+       view overlaps; a narrow one keeps a small overlap from pulling the rest of the view in.
     2. Per start: while the hint's reach (1-sigma rotation times the median source range plus
        1-sigma translation, at most cfg.max_reach) exceeds the coarse correspondence distance, a
        wide pyramid first (`_wide_levels`): ICP on clouds gridded at reach / cfg.coarse_voxels
@@ -162,12 +167,12 @@ def robust_register(
        checks with an inlier ratio of at least cfg.stop_inlier_ratio (the hint comes first, so
        an easy case costs one start; one that barely passes lets the other starts compete on
        cost). If none passes and cfg.global_fallback, `global_fpfh_ransac` (seed 0) gives one
-       more start (index 13), still subject to every check, the hint gate included.
+       more start (the last index), still subject to every check, the hint gate included.
     3. Each candidate's `truncated_cost` (c = acc.residual_sigma) and checks (overlap, inlier
        ratio, hint gate, robot geometry: `candidate_checks`). Among those that pass, the lowest
-       cost wins, except that the hint's own candidate (start 0) is kept when it passes and its
-       cost is within acc.hint_basin_margin of that best (the data must clearly beat the
-       hint's basin).
+       cost wins, except that the hint's own candidate (the cheapest of its starts) is kept when
+       it passes and its cost is within acc.hint_basin_margin of that best (the data must
+       clearly beat the hint's basin).
     4. The winner refined by `polish` (full resolution, both directions), the checks of step 3
        and its conditioning on that pose (`candidates` keep the poses before the polish);
        accepted only if every check passes.
@@ -205,7 +210,8 @@ def robust_register(
     hint_info = np.linalg.inv(0.5 * (hint_cov + hint_cov.T))
     hint_pose = gtsam.Pose3(hint)
     c = acc.residual_sigma
-    nns = target_index(target)
+    # one index for the checks (within `fine`) and the polish's cut (its distance + a voxel)
+    nns = target_index(target, max(fine, cfg.polish_distance + cfg.voxel))
     r_med = float(np.median(np.linalg.norm(source.points, axis=1)))
     basin_deg = float(np.degrees(fine / r_med))  # a rotation moving the median point by `fine`
     merged, coarse, cands, iterations = {}, [], [], 0
@@ -214,18 +220,14 @@ def robust_register(
     reach = min(float(np.sqrt(lam[0]) * r_med + np.sqrt(lam[1])), cfg.max_reach)
     wide = []
     if cfg.coarse_voxels > 0:
-        wide = [
-            (a, b, dist, _point_to_plane_estimation(cfg.coarse_tukey * voxel))
-            for a, b, dist, voxel in timed(
-                "coarse", _wide_levels, src_c, tgt_c, reach, cfg.coarse_voxels * voxel_c, cfg
-            )
-        ]
+        wide = timed("coarse", _wide_levels, src_c, tgt_c, reach, cfg.coarse_voxels * voxel_c, cfg)
 
-    def coarse_stage(T0: np.ndarray) -> np.ndarray:
+    def coarse_stage(T0: np.ndarray, tukey: float = cfg.coarse_tukey) -> np.ndarray:
         """The wide pyramid (while the hint's reach exceeds the coarse one), then the coarse ICP."""
         if cfg.coarse_voxels <= 0:
             return T0
-        for a, b, dist, est_w in wide:
+        for a, b, dist, voxel in wide:
+            est_w = _point_to_plane_estimation(tukey * voxel)
             T0 = reg_l.registration_icp(a, b, dist, T0, est_w, crit_c).transformation
         res = reg_l.registration_icp(src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0, est, crit_c)
         return np.asarray(res.transformation)
@@ -240,8 +242,8 @@ def robust_register(
     def _beyond_fine_reach(T: np.ndarray, k: int) -> str | None:
         """Why a sigma-point or global start's coarse pose cannot pass the checks the fine stage
         hardly changes (the hint gate, the robot geometry) after a move of one fine basin; None
-        if it can (the hint's own start always gets its fine stage)."""
-        if k == 0:
+        if it can (the hint's own starts always get their fine stage)."""
+        if k < n_hint:
             return None
         e = hint_pose.localCoordinates(gtsam.Pose3(T))
         d2 = float(e @ hint_info @ e)
@@ -293,11 +295,15 @@ def robust_register(
         cands.append(timed("checks", candidate, k, T))
         return all(v[2] for v in candidate_checks(cands[-1], acc).values())
 
-    starts = hint_starts(hint, hint_cov)
+    # the hint once per wide-level kernel (while there is a wide level), then its sigma points
+    tukeys = cfg.hint_wide_tukey if wide else (cfg.coarse_tukey,)
+    n_hint = len(tukeys)
+    starts = [(hint, tk) for tk in tukeys]
+    starts += [(T, cfg.coarse_tukey) for T in hint_starts(hint, hint_cov)[1:]]
     found = False
-    for k, T0 in enumerate(starts):
+    for k, (T0, tk) in enumerate(starts):
         counts["starts"] += 1
-        ok = try_start(k, timed("coarse", coarse_stage, T0))
+        ok = try_start(k, timed("coarse", coarse_stage, T0, tk))
         found = ok or found
         if ok and cfg.stop_at_first_valid and cands[-1].inlier_ratio >= cfg.stop_inlier_ratio:
             break
@@ -317,7 +323,7 @@ def robust_register(
     lost = dict(merged)
     if valid:
         best = valid[0]
-        hint_own = [o for o in valid if o.start == 0]
+        hint_own = [o for o in valid if o.start < n_hint]
         if (
             hint_own
             and hint_own[0] is not best
