@@ -37,9 +37,10 @@ class FixedLagWindow:
         self._in_newest = 0  # live keys with the newest stamp
         self._recent: collections.deque = collections.deque(maxlen=stamps + 2)
 
-    def marginalized(self, key: int) -> bool:
-        """Whether `key` was marginalized (its value is frozen)."""
-        return key in self._frozen_keys
+    @property
+    def frozen_keys(self) -> frozenset | set:
+        """The marginalized variables' keys (do not modify)."""
+        return self._frozen_keys
 
     def estimate(self, keys: list | None = None) -> gtsam.Values:
         """Every variable (frozen and live), or only `keys` (no estimate of the whole window:

@@ -14,6 +14,7 @@ import numpy as np
 
 STRIDE = 1_000_000_000
 MAX_ROBOTS = 1_000
+_INDEX_MASK = (1 << 56) - 1  # gtsam.Symbol: the character in the top byte, the index below
 
 
 def pose_key(robot: int, t: int) -> int:
@@ -54,8 +55,7 @@ def marker_key(robot: int, marker: int) -> int:
 def decode(key: int) -> tuple[str, int, int]:
     """Inverse of the builders: ('x', robot, t), ('l', id, 0), ('m', obs, 0) or
     ('k', robot, marker)."""
-    sym = gtsam.Symbol(key)
-    kind, index = chr(sym.chr()), sym.index()
+    kind, index = chr(key >> 56), key & _INDEX_MASK  # gtsam.Symbol's layout, no GTSAM call
     if kind == "x":
         return kind, index // STRIDE, index % STRIDE
     if kind == "k":
@@ -68,7 +68,7 @@ def decode_many(keys) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     int), as `decode` gives them (one vectorized pass over gtsam.Symbol's layout: the
     character in the top byte, the index below)."""
     k = np.asarray(keys, dtype=np.uint64).reshape(-1)
-    index = (k & np.uint64((1 << 56) - 1)).astype(np.int64)
+    index = (k & np.uint64(_INDEX_MASK)).astype(np.int64)
     kind = (k >> np.uint64(56)).astype(np.uint8).view("S1").astype(str)
     stride = np.where(kind == "x", STRIDE, np.where(kind == "k", MAX_MARKERS, 0))
     first = np.where(stride > 0, index // np.maximum(stride, 1), index)

@@ -12,11 +12,11 @@ steps as JSON (format "graphloc-session", version 3; the codec is `graphloc.sess
 the file format `graphloc.datafile`): every factor as its GTSAM type name, keys, measurement
 and noise model (the built-in factors graphloc uses), every Values entry as numbers, and
 Python-side factor providers such as `MaxMixture` as the components and weights that rebuild
-them (`save_state` / `from_state`). Loading parses JSON and
-calls GTSAM constructors on checked numbers only: no pickle, and no Boost archive either (GTSAM's
-`deserialize` crashes the interpreter on a corrupted archive). The file is written atomically
-(temporary file, fsync, rename) with a SHA-256 of its body, so a failure midway leaves the
-previous file intact and a truncated or altered file is a ValueError naming the file.
+them (`save_state` / `from_state`). Loading parses JSON and calls GTSAM constructors on checked
+numbers only: no pickle, no Boost archive (GTSAM's `deserialize` crashes the interpreter on a
+corrupted archive). The file is written atomically (temporary file, fsync, rename) with a
+SHA-256 of its body: a failure midway leaves the previous file intact, and a truncated or
+altered file is a ValueError naming the file.
 `Session.load(path)` rebuilds the graph and, in online mode, replays the steps into a fresh
 iSAM2 with the same parameters, which reproduces the estimates exactly (iSAM2 is deterministic
 given the same update sequence; a 3-D bearing (Unit3) is re-normalized on load, which can move
@@ -116,11 +116,8 @@ class Session:
         self._batch_marginals: gtsam.Marginals | None = None
         self._batch_iterations = 0
         self._isam = self._make_isam() if config.mode == "online" else None
-        self._window = (  # online with a fixed lag: `graphloc.fixed_lag`
-            FixedLagWindow(self._isam, config)
-            if self._isam is not None and config.lag > 0
-            else None
-        )
+        lagged = self._isam is not None and config.lag > 0  # online, a fixed lag
+        self._window = FixedLagWindow(self._isam, config) if lagged else None
 
     # ---- construction --------------------------------------------------------------------
     def _make_isam(self):
@@ -144,7 +141,12 @@ class Session:
 
     def marginalized(self, key: int) -> bool:
         """Whether `key` was marginalized by the fixed-lag smoother (its value is frozen)."""
-        return self._window is not None and self._window.marginalized(key)
+        return key in self.marginalized_keys
+
+    @property
+    def marginalized_keys(self) -> frozenset | set:
+        """Every key `marginalized` is True for, as a set (do not modify)."""
+        return self._window.frozen_keys if self._window is not None else frozenset()
 
     # ---- the front door ------------------------------------------------------------------
     def add(
@@ -175,12 +177,13 @@ class Session:
                 f"Session.add: initial values for keys already in the session: {clash[:5]}"
             )
         check_thresholded(self.config, new_keys)
-        missing = sorted({k for k in graph.keyVector() if k not in new_keys and not self._known(k)})
+        old_keys = set(graph.keyVector()) - new_keys
+        missing = sorted(k for k in old_keys if not self._known(k))
         if missing:
             names = [key_name(k) for k in missing[:5]]
             raise ValueError(f"Session.add: factors reference keys without a value: {names}")
 
-        gone = [key_name(k) for k in graph.keyVector() if self.marginalized(k)]
+        gone = [key_name(k) for k in sorted(old_keys & self.marginalized_keys)]
         if gone:
             raise ValueError(
                 f"Session.add: factors reference marginalized keys (older than the lag): {gone[:5]}"
@@ -200,8 +203,8 @@ class Session:
                     self._isam.update()
             except RuntimeError as exc:
                 raise ValueError(
-                    f"Session.add at time {t}: iSAM2 update failed ({exc}); the online session "
-                    f"is unusable after this, reload a saved state"
+                    f"Session.add at time {t}: iSAM2 update failed ({_first_line(exc)}); the "
+                    f"online session is unusable after this, reload a saved state"
                 ) from None
         latency, cpu = _time.perf_counter() - start, _time.thread_time() - cpu_start
 
@@ -409,12 +412,8 @@ def _first_line(exc: Exception) -> str:
 
 def _subset(values: gtsam.Values, keys: Iterable[int]) -> gtsam.Values:
     """The entries of `values` at `keys` (unknown keys raise ValueError)."""
-    wanted = set(keys)
+    wanted = sorted(set(keys))
     missing = [key_name(k) for k in wanted if not values.exists(k)]
     if missing:
         raise ValueError(f"no estimate for keys {missing[:5]}")
-    out = gtsam.Values(values)
-    for k in values.keys():
-        if k not in wanted:
-            out.erase(k)
-    return out
+    return values.extract(wanted)

@@ -114,7 +114,7 @@ def check_thresholded(config: SessionConfig, keys) -> None:
     cover (iSAM2 would look up a symbol it does not hold)."""
     if config.relinearize_translation <= 0:
         return
-    bad = [key_name(k) for k in keys if chr(gtsam.Symbol(k).chr()) not in THRESHOLD_SYMBOLS]
+    bad = [key_name(k) for k in keys if chr(k >> 56) not in THRESHOLD_SYMBOLS]  # Symbol's chr
     if bad:
         raise ValueError(
             f"Session.add: keys {bad[:5]} have no relinearize threshold (relinearize_translation "

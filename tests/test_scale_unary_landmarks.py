@@ -1,6 +1,8 @@
-"""Known landmarks without a variable (issue 15, what-if of scripts/bench_scale.py):
-`known_landmark_factor_3d` is the anchor (Point3 + prior + range-bearing) marginalized at the
-measured point, and `known_landmarks_unary` folds every anchor of a team graph into one."""
+"""Known landmarks without a variable (issue 15): `known_landmark_factor_3d` is the anchor
+(Point3 + prior + range-bearing) marginalized at the measured point, and `build_graph` ties a
+known landmark's range-bearings to the poses by it."""
+
+import importlib
 
 import gtsam
 import numpy as np
@@ -8,10 +10,12 @@ import pytest
 from test_mrclam import write_synthetic_mrclam
 
 from graphloc.datasets import open_run
-from graphloc.experiments.scale import known_landmarks_unary
 from graphloc.factors.range_bearing import known_landmark_factor_3d, landmark_factor_3d
-from graphloc.factors.robust import Kernel
+from graphloc.factors.robust import Kernel, KernelPolicy
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+
+# the module (the package's `solve` is the function of the same name)
+team_solve = importlib.import_module("graphloc.pipelines.team_graph.solve")
 
 SIGMAS = (0.02, 0.02, 0.1)
 
@@ -54,17 +58,41 @@ def test_unary_factor_matches_the_marginalized_anchor():
         known_landmark_factor_3d(7, landmark, 0.01, [1, 0, 0], 0.0, SIGMAS)
 
 
-def test_team_graph_without_anchors_solves_to_the_same_trajectory(tmp_path):
+def test_team_graph_ties_known_landmarks_by_unary_factors(tmp_path):
+    """build_graph: a range-bearing to a known landmark is one KnownLandmarkFactorPose3 (no
+    landmark variable); the trajectory is the one-shared-variable model's to a few mm (the
+    landmark prior's floor lets a shared variable move that little)."""
     write_synthetic_mrclam(tmp_path / "run", duration=20.0)
     run = open_run(tmp_path / "run")
     graph = build_graph(run, GraphConfig())
-    folded = known_landmarks_unary(graph)
-    anchors = graph.counts["landmark_anchors"]
-    assert anchors > 0 and folded.counts["landmark_anchors_folded"] == anchors
-    assert len(folded.initial) == len(graph.initial) - anchors
-    kinds = [k for _, group in folded.steps for _, k in group]
-    assert "landmark_prior" not in kinds and kinds.count("landmark") == anchors
-    assert folded.factor_types == kinds
-    a, b = solve(graph, "batch"), solve(folded, "batch")
-    for r in range(len(run.robots)):  # same model to first order: same trajectory to ~mm
-        assert np.nanmax(np.abs(a.estimate[r][:, :3] - b.estimate[r][:, :3])) < 1e-3
+    shared = build_graph(run, GraphConfig(anchor_known_landmarks=False))
+    kinds = [(f, k) for _, group in graph.steps for f, k in group]
+    unary = [f for f, k in kinds if k == "landmark"]
+    assert unary and all(isinstance(f, gtsam.KnownLandmarkFactorPose3) for f in unary)
+    assert graph.counts["landmark_anchors"] == 0
+    assert not any(k == "landmark_prior" for _, k in kinds)
+    assert len(unary) == sum(k == "landmark" for _, g in shared.steps for _, k in g)
+    a, b = solve(graph, "batch"), solve(shared, "batch")
+    for r in range(len(run.robots)):
+        assert np.nanmax(np.abs(a.estimate[r][:, :3] - b.estimate[r][:, :3])) < 5e-3
+
+
+def test_batch_starts_lm_from_the_incremental_pass_where_kernels_are_robust(tmp_path, monkeypatch):
+    """Robust kernels: LM starts from the incremental pass, at an error no higher than from the
+    dead-reckoning guess; no robust kernel: from the guess; a pass iSAM2 cannot solve: from the
+    guess, said in `batch_start`."""
+    write_synthetic_mrclam(tmp_path / "run", duration=20.0)
+    run = open_run(tmp_path / "run")
+    graph = build_graph(run, GraphConfig())
+    warm = solve(graph, "batch")
+    assert warm.batch_start == "incremental pass"
+    plain = build_graph(run, GraphConfig(kernels=KernelPolicy()))
+    assert solve(plain, "batch").batch_start.startswith("guess (no robust kernel")
+
+    def fails(*args, **kwargs):
+        raise ValueError("indeterminate")
+
+    monkeypatch.setattr(team_solve, "warm_start", fails)
+    cold = solve(graph, "batch")
+    assert cold.batch_start == "guess (the incremental pass failed: indeterminate)"
+    assert warm.error <= cold.error * (1 + 1e-6) and np.isfinite(cold.error)

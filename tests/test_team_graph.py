@@ -14,7 +14,7 @@ from graphloc.cli import main
 from graphloc.datasets import open_run
 from graphloc.io import columns, write_manifest
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
-from graphloc.pipelines.team_graph.solve import _rows_of_matrices
+from graphloc.pipelines.team_graph.rows import rows_of_matrices
 from graphloc.datasets.graphloc_log import read_team_run
 
 SMALL = {
@@ -507,7 +507,7 @@ def test_pose_rows_match_gtsam_quaternions():
         gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3) * s), rng.normal(size=3))
         for s in rng.choice([0.01, 1.0, 3.0], size=500)
     ]
-    rows = _rows_of_matrices(np.array([p.matrix() for p in poses]))
+    rows = rows_of_matrices(np.array([p.matrix() for p in poses]))
     for p, row in zip(poses, rows):
         q, t = p.rotation().toQuaternion(), p.translation()
         np.testing.assert_allclose(row, [*t, q.x(), q.y(), q.z(), q.w()], atol=1e-12)

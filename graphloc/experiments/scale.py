@@ -9,10 +9,6 @@
   factor, ATE per robot against batch, resident memory sampled along the run;
 - long run: the run replayed `copies` times with the clock shifted by its duration (every
   factor re-keyed onto new poses and anchors, `replay_graph`), solved online with the lag;
-- what-if (not the graph `build_graph` makes): every known-landmark anchor -- a Point3
-  variable with its prior and one range-bearing factor -- replaced by one unary factor on the
-  pose (`graphloc.factors.range_bearing.known_landmark_factor_3d`, the anchor marginalized at
-  the measured point): `known_landmarks_unary`;
 - why a lag loses accuracy to batch: each robot's longest stretch without a landmark or
   teammate measurement (`observation_gaps`) and the online / batch error per tenth of its
   poses (`tenth_error_ratios`);
@@ -30,7 +26,6 @@ import gtsam
 import numpy as np
 
 from graphloc.experiments.front_door import truth_at
-from graphloc.factors.range_bearing import known_landmark_factor_3d
 from graphloc.keys import decode, landmark_key, pose_key
 from graphloc.pipelines.report import evaluate, latency_trend
 from graphloc.pipelines.team_graph import ANCHOR_BASE, TeamGraph, solve
@@ -43,10 +38,11 @@ def rss_mb() -> float:
     return pages * os.sysconf("SC_PAGE_SIZE") / 1e6
 
 
-def gtsam_only_batch(graph: TeamGraph) -> dict:
-    """GTSAM alone on the batch problem graphloc solves: the graph's factors in step order, the
-    graph's initial values, the LM parameters `Session` uses; wall and CPU time of
-    `optimize()` (graph assembly not counted)."""
+def gtsam_only_batch(graph: TeamGraph, initial: dict | None = None) -> dict:
+    """GTSAM alone on the batch problem graphloc solves: the graph's factors in step order,
+    initial values `initial` (key -> value; None: the graph's guess), the LM parameters
+    `Session` uses; wall and CPU time of `optimize()` (graph assembly not counted)."""
+    start = graph.initial if initial is None else initial
     cfg = graph.config.session_config("batch", graph.precision)
     factors = gtsam.NonlinearFactorGraph()
     values = gtsam.Values()
@@ -55,7 +51,7 @@ def gtsam_only_batch(graph: TeamGraph) -> dict:
             factors.add(f)
             for key in f.keys():
                 if not values.exists(key):
-                    values.insert(key, _as_value(graph.initial[key]))
+                    values.insert(key, _as_value(start[key]))
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(cfg.lm_max_iterations)
     params.setRelativeErrorTol(cfg.lm_relative_error_tol)
@@ -134,47 +130,6 @@ def replay_graph(graph: TeamGraph, copies: int) -> TeamGraph:
         decisions=[],
         counts={**graph.counts, "steps": len(steps), "copies": copies},
     )
-
-
-def known_landmarks_unary(graph: TeamGraph) -> TeamGraph:
-    """`graph` with every known-landmark anchor (a key at or above ANCHOR_BASE with a
-    PriorFactorPoint3 and BearingRangeFactor3D) folded into one KnownLandmarkFactorPose3 on the
-    observing pose: the landmark's prior mean and largest sigma, the range-bearing measurement,
-    sigmas and the graph's landmark kernel."""
-    priors = {
-        f.keys()[0]: f
-        for _, group in graph.steps
-        for f, kind in group
-        if kind == "landmark_prior" and decode(f.keys()[0])[1] >= ANCHOR_BASE
-    }
-    kernel = graph.config.kernels.kernel("landmark")
-    steps = []
-    for t, group in graph.steps:
-        out = []
-        for f, kind in group:
-            if kind == "landmark_prior" and f.keys()[0] in priors:
-                continue
-            if kind == "landmark" and isinstance(f, gtsam.BearingRangeFactor3D):
-                prior = priors.get(f.keys()[1])
-                if prior is not None:
-                    noise = f.noiseModel()
-                    base = noise.noise() if isinstance(noise, gtsam.noiseModel.Robust) else noise
-                    m = f.measured()
-                    f = known_landmark_factor_3d(
-                        f.keys()[0],
-                        prior.prior(),
-                        float(np.max(prior.noiseModel().sigmas())),
-                        m.bearing().point3(),
-                        m.range(),
-                        base.sigmas(),
-                        kernel,
-                    )
-            out.append((f, kind))
-        steps.append((t, out))
-    initial = {k: v for k, v in graph.initial.items() if k not in priors}
-    counts = {**graph.counts, "landmark_anchors": 0, "landmark_anchors_folded": len(priors)}
-    types = [k for _, group in steps for _, k in group]
-    return replace(graph, steps=steps, initial=initial, counts=counts, factor_types=types)
 
 
 def online_profile(graph: TeamGraph, lag: float | None, rss_every: int = 250, **config) -> tuple:

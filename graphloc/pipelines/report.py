@@ -147,6 +147,7 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
         "steps_done": int(result.steps_done),
         "steps_total": len(result.graph.steps),
         "lag_s": result.lag,
+        "batch_start": result.batch_start or None,
         "dropped_across_lag": dict(result.dropped),
         "latency_trend": latency_trend(result),
     }

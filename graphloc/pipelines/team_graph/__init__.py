@@ -15,8 +15,10 @@ Factors: prior on each known initial pose; BetweenFactorPose3 per odometry / rel
 (planar robots: out-of-plane directions held to `graphloc.run.PLANAR_SIGMA`); the surface a
 climbing robot moves on (`factors.surface`); range-bearing (BearingRangeFactor3D /
 BearingRangeFactorPose3), bearing (`factors.bearing.bearing_factor` with the sensor extrinsics,
-BearingFactor3D to landmarks), range (`factors.bearing.range_factor`, RangeFactor3D); known
-landmarks as one prior-pinned anchor per observation (each iSAM2 update stays local).
+BearingFactor3D to landmarks), range (`factors.bearing.range_factor`, RangeFactor3D); a known
+landmark tied to each observation on its own (each iSAM2 update stays local): a range-bearing
+as one unary KnownLandmarkFactorPose3 on the pose, a bearing or range through one prior-pinned
+anchor variable (`team_graph.points`).
 
 Candidate sets (P3P, seed 000 / 001 / 004) enter through one route: per (observer, target)
 stream a `graphloc.hypotheses.HypothesisTracker` (seed 000 Sec. V's belief over the candidates,
@@ -38,7 +40,7 @@ from graphloc.pipelines.team_graph.config import (
     run_precision,
 )
 from graphloc.pipelines.team_graph.graph import TeamGraph, build_graph
-from graphloc.pipelines.team_graph.solve import STEP_LOG_COLUMNS, TeamResult, solve
+from graphloc.pipelines.team_graph.solve import STEP_LOG_COLUMNS, TeamResult, solve, warm_start
 
 __all__ = [
     "ANCHOR_BASE",
@@ -52,4 +54,5 @@ __all__ = [
     "default_lag",
     "run_precision",
     "solve",
+    "warm_start",
 ]

@@ -18,7 +18,7 @@ from graphloc.session import SessionConfig
 COARSE_PRECISION = 0.1  # [m, rad] scale of a run without pose measurements (wheels, range-bearing)
 FINE_PRECISION = 0.002  # the finest precision iSAM2's thresholds follow
 ANCHOR_BASE = (
-    100_000_000  # landmark_key(ANCHOR_BASE + j): j-th per-observation anchor of a known landmark
+    100_000_000  # landmark_key(ANCHOR_BASE + j): j-th anchor of a known landmark (bearing, range)
 )
 
 
@@ -45,7 +45,7 @@ class GraphConfig:
     use_landmarks: bool = True
     use_inter_robot: bool = True
     landmark_priors: bool = True
-    anchor_known_landmarks: bool = True
+    anchor_known_landmarks: bool = True  # a known landmark per observation, not one variable
     kernels: KernelPolicy = KernelPolicy(
         {
             "landmark": Kernel("cauchy", 2.0),

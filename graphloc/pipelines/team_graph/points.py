@@ -1,5 +1,10 @@
 """Point measurements -- range, bearing and range-bearing to landmarks and to teammates --
-as factors; known landmarks as prior-pinned anchors."""
+as factors. A known landmark (a position with a prior) is tied to each observation on its own
+(`GraphConfig.anchor_known_landmarks`): a range-bearing becomes one unary GTSAM
+KnownLandmarkFactorPose3 on the observing pose (the landmark variable and its prior
+marginalized at the measured point, `known_landmark_factor_3d`), a bearing or a range one
+prior-pinned anchor variable (a Point3, its prior, the measurement's factor): no variable is
+shared across the run, so every iSAM2 update stays local and a fixed lag never drops one."""
 
 from __future__ import annotations
 
@@ -8,7 +13,11 @@ import numpy as np
 
 from graphloc.factors.bearing import bearing_factor, range_factor
 from graphloc.factors.odometry import integrate_unicycle
-from graphloc.factors.range_bearing import landmark_factor_3d, robot_factor_3d
+from graphloc.factors.range_bearing import (
+    known_landmark_factor_3d,
+    landmark_factor_3d,
+    robot_factor_3d,
+)
 from graphloc.factors.robust import robust_noise
 from graphloc.io import SkipReport
 from graphloc.keys import landmark_key, pose_key
@@ -132,6 +141,20 @@ def point_factors(
         if m.kind == "range_bearing" and i not in corrected:
             p = E.transformFrom(direction * rng)
             direction, rng = p / np.linalg.norm(p), float(np.linalg.norm(p))
+        if is_lm and m.kind == "range_bearing" and config.anchor_known_landmarks:
+            prior = lm_prior.get(m.landmark)
+            if prior is not None:
+                f = known_landmark_factor_3d(
+                    key,
+                    prior[0],
+                    float(np.max(prior[1])),
+                    direction,
+                    rng,
+                    (m.bearing_sigma, m.bearing_sigma, m.range_sigma),
+                    kernel,
+                )
+                factors.append((t_new, f, "landmark"))
+                continue
         if is_lm:
             lkey, prior = _landmark_key(m.landmark, lm_prior, config, n_anchor)
             if lkey is None:

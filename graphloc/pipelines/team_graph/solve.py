@@ -8,7 +8,6 @@ from dataclasses import dataclass, field, replace
 
 import gtsam
 import numpy as np
-from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
 from graphloc.factors.robust import downweighted
@@ -16,6 +15,7 @@ from graphloc.keys import decode, decode_many, pose_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.pipelines.team_graph.motion import compose_steps
+from graphloc.pipelines.team_graph.rows import estimate_matrices, pose_row, trajectory_rows
 from graphloc.session import Session
 
 
@@ -49,54 +49,11 @@ class TeamResult:
     decisions: list = field(default_factory=list)  # graph.decisions, max-mixtures chosen
     values: object = None  # gtsam.Values: the final estimate of every variable
     error: float = float("nan")  # the error of the factors the solve added, at the final estimate
+    batch_start: str = ""  # batch: where LM started (`solve`)
 
 
 RELEASE_UPDATES = 5  # extra iSAM2 updates when held factors enter (a robot placed late)
 STEP_LOG_COLUMNS = ("step", "time", "latency_s", "cpu_s", "factors", "variables")
-
-
-def _pose_row(p: gtsam.Pose3) -> np.ndarray:
-    return _rows_of_matrices(p.matrix()[None])[0]
-
-
-def _rows_of_matrices(m: np.ndarray) -> np.ndarray:
-    """(N,7) x y z qx qy qz qw of (N,4,4) poses (one vectorized pass; a pose at a time costs a
-    GTSAM round trip each). The quaternion's sign is GTSAM's (`Rot3.toQuaternion`, Eigen's
-    conversion): w > 0 where the trace is positive, else the component of the largest diagonal
-    entry."""
-    if not len(m):
-        return np.zeros((0, 7))
-    r = m[:, :3, :3]
-    q = Rotation.from_matrix(r).as_quat()  # x y z w
-    ref = np.where(
-        np.trace(r, axis1=1, axis2=2) > 0, 3, np.argmax(np.diagonal(r, axis1=1, axis2=2), axis=1)
-    )
-    q *= np.where(q[np.arange(len(q)), ref] < 0, -1.0, 1.0)[:, None]
-    return np.hstack([m[:, :3, 3], q])
-
-
-def _trajectory_rows(node_times: list, poses: dict) -> list:
-    """Per robot, (K_r,7) rows of `poses` ((robot, index) -> (4,4) matrix), NaN where absent."""
-    out = [np.full((len(times), 7), np.nan) for times in node_times]
-    if poses:
-        where = np.array(list(poses), dtype=int).reshape(-1, 2)
-        rows = _rows_of_matrices(np.array(list(poses.values())))
-        for r, rows_r in enumerate(out):
-            mine = where[:, 0] == r
-            rows_r[where[mine, 1]] = rows[mine]
-    return out
-
-
-def _estimate_matrices(values: gtsam.Values) -> dict:
-    """(robot, index) -> (4,4) of every pose in `values` (one `extractPose3` call)."""
-    poses = gtsam.utilities.allPose3s(values)
-    kind, robot, k = decode_many(poses.keys())
-    flat = gtsam.utilities.extractPose3(poses).reshape(-1, 12)
-    m = np.zeros((len(flat), 4, 4))
-    m[:, :3, :3] = flat[:, :9].reshape(-1, 3, 3)
-    m[:, :3, 3] = flat[:, 9:]
-    m[:, 3, 3] = 1.0
-    return {(r, i): mi for r, i, mi, ok in zip(robot, k, m, kind == "x") if ok}
 
 
 def solve(
@@ -116,10 +73,15 @@ def solve(
     iterate).
     on_step(i): called after graph step i was consumed; on_stop(steps_done): when stop()
     ended the online loop.
-    A batch solve of a graph with max-mixtures starts LM from a causal incremental pass (full
-    smoothing, `warm_start`): a max-mixture is chosen at its linearization point, and from the
-    graph's dead-reckoning guess a camera without odometry can sit in the false candidate's
-    basin; the incremental pass chooses each set near its own frame, as the online solve does.
+    A batch solve of a graph with robust kernels or max-mixtures starts LM from a causal
+    incremental pass (full smoothing, `warm_start`), not from the graph's dead-reckoning guess:
+    there, metres off, robust kernels give up on measurements that are right (a Cauchy weight
+    falls with the residual) and LM settles in a minimum of higher error; a max-mixture is
+    chosen at its linearization point, so a camera without odometry can sit in the false
+    candidate's basin. The incremental pass meets each measurement near its own pose and
+    chooses each set near its own frame, as the online solve does. Where iSAM2 cannot solve
+    that pass (an indeterminate step LM's damping gets through), LM starts from the guess;
+    `TeamResult.batch_start` says which.
     A batch solve also starts from each of `graph.alternatives` (the candidates of a marker
     pixel stream's first set, or of a resected robot's first sets, `team_graph.formation`)
     and keeps the estimate of least error: the solve, not one frame, chooses among the
@@ -129,15 +91,18 @@ def solve(
     the hypothesis of least error at the end, and each pose's causal estimate comes from the
     hypothesis of least error at the step that pose entered -- a choice made with the data up
     to that step only."""
-    initial = None
-    if mode == "batch" and any(d.mixture is not None for d in graph.decisions):
-        initial = warm_start(graph, stop)
+    t0 = _time.perf_counter()
+    initial, start_from = None, ""
+    if mode == "batch":
+        initial, start_from = _batch_start(graph, stop, progress)
+    warm = _time.perf_counter() - t0  # its wall time counts in the solve's
     variants = graph.alternatives if mode == "batch" else graph.guessed_alternatives
     traces: list = [{} if variants and mode == "online" else None]
     result = _solve(graph, mode, progress, stop, on_step, on_stop, initial, traces[0])
+    result = replace(result, batch_start=start_from)
     if result.partial or not variants:
-        return result
-    passes, wall = [result], result.wall_s
+        return replace(result, wall_s=result.wall_s + warm)
+    passes, wall = [result], result.wall_s + warm
     for variant in variants:
         if stop is not None and stop():
             break
@@ -195,6 +160,7 @@ def _solve(
     partial, done = False, 0
     # online: until the last robot is anchored, factors on robots not yet anchored wait
     hold_until = max(graph.anchored_from.values(), default=-np.inf)
+    gone = session.marginalized_keys  # grows as the fixed lag marginalizes
     if mode != "online":
         hold_until = -np.inf
     for i, (t, group) in enumerate(
@@ -216,7 +182,7 @@ def _solve(
             if t < hold_until and any(_held(graph, key, t) for key in keys):
                 held.append((f, kind))
                 continue
-            if lag and any(session.marginalized(key) for key in keys):
+            if lag and not gone.isdisjoint(keys):
                 dropped[kind] = dropped.get(kind, 0) + 1
                 continue
             for key in keys:
@@ -255,8 +221,8 @@ def _solve(
     decisions = choose_mixtures(graph.decisions, final)
     partial = partial or session.stopped
     wall = _time.perf_counter() - start
-    estimate = _trajectory_rows(graph.node_times, _estimate_matrices(final))
-    dead = _trajectory_rows(
+    estimate = trajectory_rows(graph.node_times, estimate_matrices(final))
+    dead = trajectory_rows(
         graph.node_times,
         {
             (r, k): graph.initial[key].matrix()
@@ -289,7 +255,7 @@ def _solve(
         mode,
         graph.node_times,
         estimate,
-        _trajectory_rows(graph.node_times, causal),
+        trajectory_rows(graph.node_times, causal),
         dead,
         session.latencies(),
         wall,
@@ -319,11 +285,26 @@ def camera_graph(graph: TeamGraph) -> bool:
     )
 
 
-def warm_start(graph: TeamGraph, stop=None) -> dict:
+def _batch_start(graph: TeamGraph, stop, progress: bool) -> tuple[dict | None, str]:
+    """Where a batch solve starts LM (see `solve`): (initial values or None for the graph's
+    guess, what they are)."""
+    robust = any(graph.config.kernels.kernel(t).name != "none" for t in set(graph.factor_types))
+    if not robust and all(d.mixture is None for d in graph.decisions):
+        return None, "guess (no robust kernel, no max-mixture)"
+    try:
+        initial = warm_start(graph, stop, progress)
+    except ValueError as exc:
+        return None, f"guess (the incremental pass failed: {exc})"
+    if stop is not None and stop():  # stopped during the pass: LM stops at once, from the guess
+        return None, "guess (stopped during the incremental pass)"
+    return initial, "incremental pass"
+
+
+def warm_start(graph: TeamGraph, stop=None, progress: bool = False) -> dict:
     """Initial values from an online pass over `graph` (iSAM2, full smoothing): key -> Pose3 /
     Point3 of every variable it estimated, the graph's guess for the rest."""
     online = replace(graph, config=replace(graph.config, lag=0.0))
-    values = solve(online, mode="online", stop=stop).values
+    values = solve(online, mode="online", progress=progress, stop=stop).values
     out = dict(graph.initial)
     for key in graph.initial:
         if values.exists(key):
@@ -397,7 +378,7 @@ def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:
                 committed=j,
                 probability=float(p[j]),
                 probabilities=p,
-                pose=_pose_row(estimate.atPose3(observer)),
+                pose=pose_row(estimate.atPose3(observer)),
                 same_pose=[j],
             )
         )
