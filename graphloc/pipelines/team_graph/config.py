@@ -23,7 +23,7 @@ ANCHOR_BASE = (
 
 
 FEATURE_BASE = 200_000_000  # landmark_key(FEATURE_BASE + j): the point of the j-th feature track
-DEFAULT_LAG = 30.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
+DEFAULT_LAG = 45.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
 
 
 @dataclass(frozen=True)

@@ -16,10 +16,10 @@ def pose_row(p: gtsam.Pose3) -> np.ndarray:
 
 
 def rows_of_matrices(m: np.ndarray) -> np.ndarray:
-    """(N,7) x y z qx qy qz qw of (N,4,4) poses (one vectorized pass; a pose at a time costs a
-    GTSAM round trip each). The quaternion's sign is GTSAM's (`Rot3.toQuaternion`, Eigen's
-    conversion): w > 0 where the trace is positive, else the component of the largest diagonal
-    entry."""
+    """(N,7) x y z qx qy qz qw of (N,4,4) or (N,3,4) poses (one vectorized pass; a pose at a
+    time costs a GTSAM round trip each). The quaternion's sign is GTSAM's (`Rot3.toQuaternion`,
+    Eigen's conversion): w > 0 where the trace is positive, else the component of the largest
+    diagonal entry."""
     if not len(m):
         return np.zeros((0, 7))
     r = m[:, :3, :3]
@@ -29,6 +29,14 @@ def rows_of_matrices(m: np.ndarray) -> np.ndarray:
     )
     q *= np.where(q[np.arange(len(q)), ref] < 0, -1.0, 1.0)[:, None]
     return np.hstack([m[:, :3, 3], q])
+
+
+def grid_rows(grid: np.ndarray) -> np.ndarray:
+    """(K,7) rows of (K,3,4) pose matrices [R | t], NaN rows where the grid is NaN."""
+    rows = np.full((len(grid), 7), np.nan)
+    ok = np.isfinite(grid[:, 0, 0])
+    rows[ok] = rows_of_matrices(grid[ok])
+    return rows
 
 
 def trajectory_rows(node_times: list, poses: dict) -> list:

@@ -15,7 +15,12 @@ from graphloc.keys import decode, decode_many, pose_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.pipelines.team_graph.motion import compose_steps
-from graphloc.pipelines.team_graph.rows import estimate_matrices, pose_row, trajectory_rows
+from graphloc.pipelines.team_graph.rows import (
+    estimate_matrices,
+    grid_rows,
+    pose_row,
+    trajectory_rows,
+)
 from graphloc.session import Session
 
 
@@ -149,7 +154,8 @@ def _solve(
         progress=progress and mode == "batch",
         stop=stop,
     )
-    causal: dict = {}  # (robot, index) -> the pose's (4,4) estimate right after its step
+    # per robot, each pose's estimate right after its step, [R | t] (preallocated: no growth)
+    causal = [np.full((len(t), 3, 4), np.nan) for t in graph.node_times]
     start = _time.perf_counter()
     added: set = set()
     held: list = []  # online: factors on robots not yet anchored
@@ -210,7 +216,7 @@ def _solve(
                 trace["error"][i] = session.error()
             for key, r, k in new_poses:
                 p = est.atPose3(key)
-                causal[r, k] = p.matrix()
+                causal[r][k] = p.matrix()[:3]
                 if trace is not None:
                     trace["entered"].setdefault(r, {})[k] = i
                 if k >= latest.get(r, (-1, None))[0]:
@@ -255,7 +261,7 @@ def _solve(
         mode,
         graph.node_times,
         estimate,
-        trajectory_rows(graph.node_times, causal),
+        [grid_rows(c) for c in causal],
         dead,
         session.latencies(),
         wall,
