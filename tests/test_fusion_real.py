@@ -112,7 +112,10 @@ def test_a_wrong_hint_is_not_fused(fragment):
         _fuse(pair, hint, (3.0, 0.05))
     d = info.value.decision
     assert not d.accepted and d.reasons
-    assert 0 in {c.start for c in d.candidates}  # the hint's own start always reaches the end
+    # the hint's own starts reach the end (the last always gets its fine stage, unless it
+    # converges where an earlier one did)
+    own = set(range(len(RegistrationConfig().hint_wide_tukey)))
+    assert own & {c.start for c in d.candidates}
     assert len(d.as_dict()["candidates"]) == len(d.candidates) >= 1
 
 

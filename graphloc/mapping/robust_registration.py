@@ -240,10 +240,11 @@ def robust_register(
     min_down = np.cos(np.radians(acc.max_ceiling_tilt_deg + basin_deg))
 
     def _beyond_fine_reach(T: np.ndarray, k: int) -> str | None:
-        """Why a sigma-point or global start's coarse pose cannot pass the checks the fine stage
-        hardly changes (the hint gate, the robot geometry) after a move of one fine basin; None
-        if it can (the hint's own starts always get their fine stage)."""
-        if k < n_hint:
+        """Why a start's coarse pose cannot pass the checks the fine stage hardly changes (the
+        hint gate, the robot geometry) after a move of one fine basin; None if it can. The last
+        of the hint's own starts always gets its fine stage (every report holds the hint's own
+        candidate); a wide-kernel hint start that slid beyond the gate costs no fine stage."""
+        if k == n_hint - 1:
             return None
         e = hint_pose.localCoordinates(gtsam.Pose3(T))
         d2 = float(e @ hint_info @ e)
@@ -276,11 +277,11 @@ def robust_register(
         if same:
             merged[k] = f"coarse stage converged within the fine basin of start {same[0]}"
             return False
-        coarse.append((k, T))
         hopeless = _beyond_fine_reach(T, k)
         if hopeless:
             merged[k] = hopeless
             return False
+        coarse.append((k, T))  # the coarse poses that went on to a fine stage
         try:
             counts["fine_stages"] += 1
             T, n_it = timed("fine", fine_stage, source, target, T, cfg)
