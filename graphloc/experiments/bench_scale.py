@@ -32,7 +32,7 @@ from graphloc.experiments.scale import (
     rss_mb,
     tenth_error_ratios,
 )
-from graphloc.experiments.bench_scale_report import markdown
+from graphloc.experiments.bench_scale_report import markdown, plot
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve, warm_start
 
@@ -72,6 +72,7 @@ def main(argv=None) -> int:
     if args.from_json is not None:
         report = json.loads(args.from_json.read_text())
         args.markdown.write_text(markdown(report))
+        plot(report, args.markdown.with_suffix(".png"))
         args.markdown.with_suffix(".json").write_text(json.dumps(report, indent=2) + "\n")
         return 0
     out = Path(args.out)
@@ -184,6 +185,7 @@ def main(argv=None) -> int:
     print(f"wrote {path}")
     if args.markdown is not None:  # the doc and its JSON side by side
         args.markdown.write_text(markdown(report))
+        plot(report, args.markdown.with_suffix(".png"))
         args.markdown.with_suffix(".json").write_text(path.read_text())
         print(f"wrote {args.markdown} and its JSON")
     return 0

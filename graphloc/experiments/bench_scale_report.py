@@ -3,6 +3,10 @@ from its JSON report."""
 
 from __future__ import annotations
 
+import numpy as np
+
+from graphloc.plots import plt
+
 
 def _num(x, fmt: str = ".2f") -> str:
     return "-" if x is None else format(x, fmt)
@@ -47,6 +51,9 @@ def markdown(r: dict) -> str:
         "on a comparable MRCLAM 6 graph (11k poses, range-aided SLAM, one core) at about 7 s.",
         "",
         "## Online: full iSAM2 and fixed lags",
+        "",
+        "Plot: [results_scale.png](results_scale.png) (ATE over batch, real-time factor and "
+        "per-step cost by lag).",
         "",
         f"Fixed lags marginalize every {r['marginalize_every_s']:g} s; the default lag is "
         f"{r['default_lag_s']:g} s (`graphloc online` without `--lag`). Targets (issue 15): p95 "
@@ -283,3 +290,37 @@ def _lookahead_section(r: dict) -> list:
             f"{split} |"
         )
     return lines
+
+
+def plot(r: dict, path) -> None:
+    """docs/results_scale.png: per lag (full iSAM2 at the left), each robot's online ATE over
+    batch, the real-time factor (CPU) and the p95 step CPU of the first and last tenth, with
+    issue 15's targets as dashed lines."""
+    lags = list(r["online"])
+    x = np.arange(len(lags))
+    names = ["full" if k == "0" else f"{k} s" for k in lags]
+    fig, ax = plt.subplots(1, 3, figsize=(14, 4))
+    for robot in r["batch"]["ate_rmse_m"]:
+        y = [r["online"][k]["ate_over_batch"].get(robot, np.nan) for k in lags]
+        ax[0].plot(x, y, "o-", label=robot)
+    ax[0].axhline(1.10, ls="--", c="k", lw=1, label="target 1.10")
+    ax[0].set(ylabel="online ATE / batch ATE", title="accuracy")
+    ax[0].legend(fontsize=7)
+    ax[1].bar(x, [r["online"][k]["realtime_factor_cpu"] for k in lags], color="tab:blue")
+    ax[1].axhline(100, ls="--", c="k", lw=1, label="target 100x")
+    ax[1].set(ylabel="run duration / solve CPU", title="real-time factor")
+    ax[1].legend(fontsize=7)
+    for key, label in (("cpu_p95_first10_ms", "first 10 %"), ("cpu_p95_last10_ms", "last 10 %")):
+        ax[2].plot(x, [r["online"][k]["trend"][key] for k in lags], "o-", label=label)
+    ax[2].set(ylabel="p95 step CPU [ms]", title="per-step cost, first vs last tenth")
+    ax[2].legend(fontsize=7)
+    for a in ax:
+        a.set_xticks(x, names)
+        a.set_xlabel("online lag")
+        a.grid(alpha=0.3)
+    fig.suptitle(
+        f"{r['run']}: online iSAM2, full and fixed lags (default {r['default_lag_s']:g} s)"
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
