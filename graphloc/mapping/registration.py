@@ -91,6 +91,9 @@ class RegistrationConfig:
     polish_kernel: float = 0.007
     polish_iterations: int = 4  # per direction (fewer when polish_relative is reached)
     polish_max_nn: int = 20  # its normals: plane of the 20 nearest full-resolution points
+    # ... its points: the input on a grid of polish_voxel [m] (0: every input point), which bounds
+    # the polish's cost on dense scans (its samples and planes stay finer than the 3 cm grid)
+    polish_voxel: float = 0.0
     polish_relative: float = 1e-6  # its stop: relative change of fitness and inlier RMSE
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
@@ -111,7 +114,13 @@ class RegistrationConfig:
                 "fine_relative",
                 "polish_relative",
             ),
-            nonnegative=("coarse_tukey", "fine_tukey", "polish_distance", "polish_kernel"),
+            nonnegative=(
+                "coarse_tukey",
+                "fine_tukey",
+                "polish_distance",
+                "polish_kernel",
+                "polish_voxel",
+            ),
             integer={
                 "polish_iterations": 1,
                 "polish_max_nn": 3,
@@ -143,7 +152,7 @@ class RegistrationConfig:
 class PreparedCloud:
     """A denoised, downsampled cloud with normals (tensor and legacy views share no memory), and
     `raw`: the input points at full resolution (for the last stage of `robust_register`,
-    `polish`; None when cfg.polish_distance is 0)."""
+    `polish`; None when cfg.polish_distance is 0; on the cfg.polish_voxel grid if that is > 0)."""
 
     cloud: o3d.t.geometry.PointCloud
     legacy: o3d.geometry.PointCloud
@@ -183,12 +192,8 @@ def denoise(
         raise ValueError("denoise: points contain NaN/inf")
     if len(pts) < cfg.nb_neighbors + 1:
         raise ValueError(f"denoise: {len(pts)} points is too few (need > {cfg.nb_neighbors})")
-    cells = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts)).voxel_down_sample(cfg.voxel)
-    # Open3D's voxel hash map returns the cells in an order that changes from call to call (the
-    # same points); sorted, the cloud and every index-based step after it (the fine stage's
-    # every-k-th sample) are reproducible across runs and processes
-    cells = cells.point.positions.numpy()
-    pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(cells[np.lexsort(cells.T[::-1])]))
+    # sorted cells: the fine stage's every-k-th sample is the same in every run and process
+    pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(_sorted_cells(pts, cfg.voxel)))
     pcd, keep = pcd.remove_statistical_outliers(cfg.nb_neighbors, cfg.std_ratio)
     return pcd, int(len(keep) - keep.numpy().sum())
 
@@ -197,7 +202,8 @@ def prepare(
     points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0)
 ) -> PreparedCloud:
     """`denoise`, then normals oriented toward `viewpoint` (the sensor, for FPFH's signed
-    angles); with cfg.polish_distance > 0 it keeps the input points (`PreparedCloud.raw`)."""
+    angles); with cfg.polish_distance > 0 it keeps the input points (`PreparedCloud.raw`; on
+    the cfg.polish_voxel grid when that is > 0)."""
     pcd, n_out = denoise(points, cfg)
     pcd.estimate_normals(cfg.max_nn, cfg.normal_radius)
     pcd.orient_normals_towards_camera_location(
@@ -205,8 +211,22 @@ def prepare(
     )
     if len(pcd.point.positions) < 10:
         raise ValueError("prepare: fewer than 10 points left after denoising and downsampling")
-    raw = np.asarray(points, dtype=np.float64) if cfg.polish_distance > 0 else None
+    raw = None
+    if cfg.polish_distance > 0:
+        raw = np.asarray(points, dtype=np.float64)
+        if cfg.polish_voxel > 0:
+            raw = _sorted_cells(raw, cfg.polish_voxel)
     return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, raw)
+
+
+def _sorted_cells(points: np.ndarray, voxel: float) -> np.ndarray:
+    """(N,3) points on a grid of `voxel` (each occupied cell's centroid, Open3D), sorted by x,
+    then y, then z: Open3D's voxel hash map hands the cells back in an order that changes from
+    call to call (the same points), so every index-based step after it is reproducible only
+    sorted."""
+    cells = o3d.t.geometry.PointCloud(o3d.core.Tensor(points)).voxel_down_sample(voxel)
+    cells = cells.point.positions.numpy()
+    return cells[np.lexsort(cells.T[::-1])]
 
 
 def information_right(info_left: np.ndarray, T: np.ndarray) -> np.ndarray:
