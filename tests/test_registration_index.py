@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from graphloc.mapping.registration import NearestIndex, RegistrationConfig, prepare
+from graphloc.mapping.registration import RegistrationConfig, prepare
+from graphloc.mapping.registration_index import NearestIndex
 
 
 def test_nearest_index_is_the_nearest_point_within_its_radius():

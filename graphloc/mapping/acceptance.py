@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphloc.config import check
-from graphloc.mapping.registration import NearestIndex, PreparedCloud, Registration
+from graphloc.mapping.registration import PreparedCloud, Registration
+from graphloc.mapping.registration_index import NearestIndex
 
 
 @dataclass(frozen=True)

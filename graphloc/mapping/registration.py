@@ -25,6 +25,7 @@ import gtsam
 import numpy as np
 
 from graphloc.config import check
+from graphloc.mapping.registration_index import NearestIndex
 import open3d as o3d
 
 reg_t = o3d.t.pipelines.registration
@@ -319,33 +320,6 @@ def global_fpfh_ransac(
         reg_l.RANSACConvergenceCriteria(cfg.ransac_iterations, cfg.ransac_confidence),
     )
     return np.asarray(result.transformation), time.perf_counter() - start
-
-
-class NearestIndex:
-    """Nearest neighbour of query points among `points` within a radius fixed at construction:
-    Open3D's fixed-radius hybrid search (a hash grid of the radius), which answers a query
-    without a neighbour in that radius at once (a k-d tree's k = 1 search walks on to the
-    nearest point however far it is; every use here ignores points beyond a radius)."""
-
-    def __init__(self, points: np.ndarray, radius: float):
-        if not radius > 0:
-            raise ValueError(f"NearestIndex: radius must be > 0, got {radius}")
-        self.radius = float(radius)
-        self._nns = o3d.core.nns.NearestNeighborSearch(
-            o3d.core.Tensor(np.asarray(points, dtype=np.float64))
-        )
-        self._nns.hybrid_index(self.radius)
-
-    def nearest(self, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(index, distance) of each query point's nearest point within the radius; -1 and inf
-        where there is none."""
-        idx, d2, _ = self._nns.hybrid_search(
-            o3d.core.Tensor(np.asarray(query, dtype=np.float64)), self.radius, 1
-        )
-        idx = idx.numpy()[:, 0]
-        d = np.sqrt(d2.numpy()[:, 0])
-        d[idx < 0] = np.inf
-        return idx, d
 
 
 def polish(
