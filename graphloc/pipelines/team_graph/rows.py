@@ -39,25 +39,22 @@ def grid_rows(grid: np.ndarray) -> np.ndarray:
     return rows
 
 
-def trajectory_rows(node_times: list, poses: dict) -> list:
-    """Per robot, (K_r,7) rows of `poses` ((robot, index) -> (4,4) matrix), NaN where absent."""
-    out = [np.full((len(times), 7), np.nan) for times in node_times]
-    if poses:
-        where = np.array(list(poses), dtype=int).reshape(-1, 2)
-        rows = rows_of_matrices(np.array(list(poses.values())))
-        for r, rows_r in enumerate(out):
-            mine = where[:, 0] == r
-            rows_r[where[mine, 1]] = rows[mine]
-    return out
+def pose_grids(node_times: list, robot, index, m: np.ndarray) -> list:
+    """Per robot r, a (K_r,3,4) grid of [R | t]: m[i] ((N,3,4) or (N,4,4)) at row index[i] of
+    robot[i]'s grid, NaN where no pose is given (`grid_rows` makes them rows)."""
+    robot, index = np.asarray(robot, dtype=int), np.asarray(index, dtype=int)
+    grids = [np.full((len(times), 3, 4), np.nan) for times in node_times]
+    for r, grid in enumerate(grids):
+        mine = robot == r
+        grid[index[mine]] = m[mine, :3]
+    return grids
 
 
-def estimate_matrices(values: gtsam.Values) -> dict:
-    """(robot, index) -> (4,4) of every pose in `values` (one `extractPose3` call)."""
+def values_poses(values: gtsam.Values) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(robot, index, (N,3,4) [R | t]) of every robot pose in `values` (one `extractPose3`)."""
     poses = gtsam.utilities.allPose3s(values)
-    kind, robot, k = decode_many(poses.keys())
+    kind, robot, index = decode_many(poses.keys())
     flat = gtsam.utilities.extractPose3(poses).reshape(-1, 12)
-    m = np.zeros((len(flat), 4, 4))
-    m[:, :3, :3] = flat[:, :9].reshape(-1, 3, 3)
-    m[:, :3, 3] = flat[:, 9:]
-    m[:, 3, 3] = 1.0
-    return {(r, i): mi for r, i, mi, ok in zip(robot, k, m, kind == "x") if ok}
+    m = np.concatenate([flat[:, :9].reshape(-1, 3, 3), flat[:, 9:, None]], axis=2)
+    pose = kind == "x"
+    return robot[pose], index[pose], m[pose]

@@ -15,12 +15,7 @@ from graphloc.keys import decode, decode_many, pose_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.pipelines.team_graph.motion import compose_steps
-from graphloc.pipelines.team_graph.rows import (
-    estimate_matrices,
-    grid_rows,
-    pose_row,
-    trajectory_rows,
-)
+from graphloc.pipelines.team_graph.rows import grid_rows, pose_grids, pose_row, values_poses
 from graphloc.session import Session
 
 
@@ -227,16 +222,15 @@ def _solve(
     decisions = choose_mixtures(graph.decisions, final)
     partial = partial or session.stopped
     wall = _time.perf_counter() - start
-    estimate = trajectory_rows(graph.node_times, estimate_matrices(final))
-    dead = trajectory_rows(
-        graph.node_times,
-        {
-            (r, k): graph.initial[key].matrix()
-            for r, times in enumerate(graph.node_times)
-            for k in range(len(times))
-            if (key := pose_key(r, k)) in graph.initial
-        },
-    )
+    estimate = [grid_rows(g) for g in pose_grids(graph.node_times, *values_poses(final))]
+    guessed = [
+        (r, k, graph.initial[key].matrix())
+        for r, times in enumerate(graph.node_times)
+        for k in range(len(times))
+        if (key := pose_key(r, k)) in graph.initial
+    ]
+    robot, index, m = zip(*guessed) if guessed else ((), (), np.zeros((0, 4, 4)))
+    dead = [grid_rows(g) for g in pose_grids(graph.node_times, robot, index, np.array(m))]
     down = {}
     types = np.array(types)
     for ftype in ("odometry", "landmark", "inter_robot", "candidate"):
