@@ -11,6 +11,7 @@ import numpy as np
 
 from graphloc.config import check
 from graphloc.datafile import BadData
+from graphloc.keys import decode
 from graphloc.value_codec import key_name
 
 MODES = ("batch", "online")
@@ -114,7 +115,7 @@ def check_thresholded(config: SessionConfig, keys) -> None:
     cover (iSAM2 would look up a symbol it does not hold)."""
     if config.relinearize_translation <= 0:
         return
-    bad = [key_name(k) for k in keys if chr(k >> 56) not in THRESHOLD_SYMBOLS]  # Symbol's chr
+    bad = [key_name(k) for k in keys if decode(k)[0] not in THRESHOLD_SYMBOLS]
     if bad:
         raise ValueError(
             f"Session.add: keys {bad[:5]} have no relinearize threshold (relinearize_translation "

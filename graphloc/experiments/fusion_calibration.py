@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import chi2
 
 from graphloc.executor import Executor
 
@@ -25,8 +26,6 @@ def fit_calibration(errors: np.ndarray, covs: np.ndarray) -> dict:
     (`graphloc.mapping.registration_covariance.calibrated_covariance`): in closed form,
     s = sum_i e_i^T P_i^-1 e_i / (6 n), the mean uncalibrated NEES over the dimension; with the
     approximate 95% interval of s from its chi-square distribution (6 n dof)."""
-    from scipy.stats import chi2
-
     errors, covs = np.asarray(errors, dtype=float), np.asarray(covs, dtype=float)
     if errors.ndim != 2 or errors.shape[1] != 6 or covs.shape != (len(errors), 6, 6):
         raise ValueError(
@@ -51,7 +50,6 @@ def main_calibrate(args) -> int:
     """`--real --calibrate`: fit the registration covariance's calibration (`fit_calibration`) on
     view pairs of seeds args.seed.. (keep them apart from the benchmark's), write the JSON and
     a PNG of the NEES per trial before / after."""
-    from scipy.stats import chi2
 
     from graphloc.plots import plt  # the one place that sets the backend
 
