@@ -1,4 +1,6 @@
-"""Build tests/data/real_room/tum_fr3_office.ply: a real indoor scan fragment for map fusion.
+"""Build the real indoor scan fragments of tests/data/real_room for map fusion.
+
+tum_fr3_office.ply, from a depth image:
 
 Input: one TUM RGB-D depth image (Sturm et al., IROS 2012, CC BY 4.0; the Freiburg 3 office
 desk frame that Open3D ships as TestData/RGBD/other_formats/TUM_depth.png). Steps, all Open3D
@@ -10,6 +12,16 @@ the origin stays at the sensor (the floor is at z = -camera height); then a seed
 subsample to at most --points points, stored as float32 PLY.
 
     .venv/bin/python scripts/make_real_fragment.py TUM_depth.png --out tests/data/real_room
+
+redwood_livingroom.ply, from a point cloud (PCD / PLY, e.g. the Redwood living-room fragment
+that Open3D ships as fragment.pcd): RANSAC planes, the floor the largest one, its normal turned
+toward the side holding the other points (the room stands on its floor); rotation making it +z
+with the old x axis kept in the x-z plane; the origin moved to the middle of the points' x-y
+extent, --height metres above the floor (a ground robot's sensor); every point kept unless
+there are more than --points (seeded subsample); float32 PLY.
+
+    .venv/bin/python scripts/make_real_fragment.py fragment.pcd --height 1.0 \
+        --name redwood_livingroom.ply
 """
 
 from __future__ import annotations
@@ -48,16 +60,44 @@ def floor_alignment(
     return R, float(d)  # d: signed height of the camera above the floor plane n.p + d = 0
 
 
+def cloud_floor_alignment(
+    pcd: o3d.geometry.PointCloud, planes: int, seed: int
+) -> tuple[np.ndarray, float]:
+    """(3x3 rotation to a frame with the floor normal as +z, the floor's z in that frame): the
+    floor is the largest of `planes` RANSAC planes, its normal toward the other points."""
+    o3d.utility.random.seed(seed)
+    rest, best = pcd, None
+    for _ in range(planes):
+        if len(rest.points) < 3:
+            break
+        model, inliers = rest.segment_plane(0.02, 3, 2000)
+        if best is None or len(inliers) > best[1]:
+            best = (np.asarray(model), len(inliers))
+        rest = rest.select_by_index(inliers, invert=True)
+    (a, b, c, d), _ = best
+    n = np.array([a, b, c])
+    if np.median(np.asarray(pcd.points) @ n + d) < 0:  # the room on the + side of its floor
+        n, d = -n, -d
+    x = np.array([1.0, 0.0, 0.0]) - n[0] * n
+    x /= np.linalg.norm(x)
+    R = np.stack([x, np.cross(n, x), n])
+    return R, float(-d)  # the floor n.p + d = 0 lies at z = -d
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("depth", help="TUM depth PNG (uint16, 5000 per metre)")
+    p.add_argument("depth", help="TUM depth PNG (uint16, 5000 per metre), or a PCD / PLY cloud")
     p.add_argument("--out", default="tests/data/real_room")
+    p.add_argument("--name", default="tum_fr3_office.ply", help="output file name")
+    p.add_argument("--height", type=float, default=1.0, help="cloud input: sensor height [m]")
     p.add_argument("--max-depth", type=float, default=6.0)
     p.add_argument("--voxel", type=float, default=0.02)
     p.add_argument("--points", type=int, default=30_000)
     p.add_argument("--planes", type=int, default=3)
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
+    if Path(args.depth).suffix.lower() in (".pcd", ".ply"):
+        return from_cloud(args)
     depth = o3d.io.read_image(args.depth)
     if np.asarray(depth).dtype != np.uint16:
         raise ValueError(f"{args.depth}: expected a uint16 depth PNG")
@@ -75,12 +115,37 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts.astype(np.float32)))
-    path = out / "tum_fr3_office.ply"
+    path = out / args.name
     o3d.t.io.write_point_cloud(str(path), cloud)
     ext = pts.max(0) - pts.min(0)
     print(
         f"{n_raw} depth points -> {len(pts)} in {path}; extent {np.round(ext, 2)} m, "
         f"camera height {height:.2f} m"
+    )
+    return 0
+
+
+def from_cloud(args) -> int:
+    """The point-cloud input (module docstring)."""
+    pcd = o3d.io.read_point_cloud(args.depth)
+    if len(pcd.points) < 100:
+        raise ValueError(f"{args.depth}: fewer than 100 points")
+    R, floor_z = cloud_floor_alignment(pcd, args.planes, args.seed)
+    pts = np.asarray(pcd.points) @ R.T
+    lo, hi = pts.min(0), pts.max(0)
+    pts -= np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, floor_z + args.height])
+    rng = np.random.default_rng(args.seed)
+    n_in = len(pts)
+    if len(pts) > args.points:
+        pts = pts[np.sort(rng.choice(len(pts), args.points, replace=False))]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / args.name
+    cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts.astype(np.float32)))
+    o3d.t.io.write_point_cloud(str(path), cloud)
+    print(
+        f"{n_in} points -> {len(pts)} in {path}; extent {np.round(pts.max(0) - pts.min(0), 2)} m,"
+        f" floor at z = {-args.height:.2f} m"
     )
     return 0
 

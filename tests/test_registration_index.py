@@ -44,21 +44,18 @@ def test_prepare_is_reproducible_and_sorted():
     assert np.all(np.lexsort(p.T[::-1]) == np.arange(len(p)))  # x, then y, then z
 
 
-def test_polish_voxel_grids_the_polish_points_and_zero_keeps_them():
-    """RegistrationConfig.polish_voxel bounds the polish's points on dense scans: the input on
-    that grid (one centroid per occupied cell, sorted, the same every call); 0 (the default)
-    keeps every input point."""
+def test_polish_max_points_strides_dense_scans_and_keeps_sparse_ones():
+    """RegistrationConfig.polish_max_points bounds the polish's points on dense scans: every
+    k-th input point with the smallest k leaving at most that many; fewer points, or 0, keep
+    every input point."""
     rng = np.random.default_rng(8)
     pts = np.c_[rng.uniform(0, 2, (30000, 2)), rng.normal(0, 0.002, 30000)]
-    keep_all = prepare(pts, RegistrationConfig())
-    np.testing.assert_array_equal(keep_all.raw, pts)
-    cfg = RegistrationConfig(polish_voxel=0.02)
-    a, b = prepare(pts, cfg), prepare(pts, cfg)
-    np.testing.assert_array_equal(a.raw, b.raw)
-    assert len(a.raw) < len(pts) and np.all(np.lexsort(a.raw.T[::-1]) == np.arange(len(a.raw)))
-    # one centroid per occupied cell of the grid anchored at the origin
-    occupied = np.unique(np.floor(pts / 0.02).astype(int), axis=0)
-    assert len(np.unique(np.floor(a.raw / 0.02).astype(int), axis=0)) == len(a.raw)
-    assert len(a.raw) == len(occupied)
-    with pytest.raises(ValueError, match="polish_voxel"):
-        RegistrationConfig(polish_voxel=-0.01)
+    np.testing.assert_array_equal(prepare(pts, RegistrationConfig(polish_max_points=0)).raw, pts)
+    np.testing.assert_array_equal(
+        prepare(pts, RegistrationConfig(polish_max_points=30000)).raw, pts
+    )
+    strided = prepare(pts, RegistrationConfig(polish_max_points=12000)).raw
+    np.testing.assert_array_equal(strided, pts[::3])  # 2 would leave 15000
+    assert len(strided) == 10000
+    with pytest.raises(ValueError, match="polish_max_points"):
+        RegistrationConfig(polish_max_points=-1)

@@ -210,6 +210,12 @@ def main(argv=None) -> int:
     p.add_argument("--real", action="store_true", help="issue 16's protocol on the real fragment")
     p.add_argument("--doc", default=None, help="with --real: also write the markdown table here")
     p.add_argument(
+        "--fragment",
+        default=None,
+        help="with --real: a gravity-aligned (z up) real scan, PLY / PCD / XYZ "
+        "(default: the bundled tests/data/real_room fragment)",
+    )
+    p.add_argument(
         "--calibrate",
         action="store_true",
         help="with --real: fit the registration covariance's calibration (use other seeds)",

@@ -42,10 +42,11 @@ REAL_OVERLAPS = (0.6, 0.3)
 REAL_HINTS = ((3.0, 0.05), (10.0, 0.20))
 
 
-def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
+def run_real_trial(job: tuple[float, int, bool, str | None]) -> list[dict]:
     """One view pair of the real fragment, both hint levels, every method (module docstring).
-    With job[2] (calibration): graphloc only, with the uncalibrated covariance (scale 1), its
-    tangent error and covariance kept for `fit_calibration`."""
+    job: (overlap, seed, calibration, fragment path or None for the bundled one). With
+    calibration: graphloc only, with the uncalibrated covariance (scale 1), its tangent error
+    and covariance kept for `fit_calibration`."""
     from dataclasses import replace
 
     import gtsam
@@ -63,9 +64,9 @@ def run_real_trial(job: tuple[float, int, bool]) -> list[dict]:
         prepare,
     )
 
-    overlap, seed, calibrate = job
+    overlap, seed, calibrate, fragment = job
     rng = np.random.default_rng([seed, int(round(1000 * overlap))])
-    pair = make_view_pair(load_fragment(), overlap, rng)
+    pair = make_view_pair(load_fragment(fragment), overlap, rng)
     truth = pair.T_ground_ceiling
     cfg = RegistrationConfig()
     if calibrate:
@@ -255,7 +256,9 @@ def summarize_real(rows: list[dict]) -> dict:
 
 def main_real(args) -> int:
     trials = 3 if args.quick else args.trials
-    jobs = [(ov, args.seed + i, False) for ov in REAL_OVERLAPS for i in range(trials)]
+    jobs = [
+        (ov, args.seed + i, False, args.fragment) for ov in REAL_OVERLAPS for i in range(trials)
+    ]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start, load_start = time.perf_counter(), os.getloadavg()[0]
@@ -279,6 +282,9 @@ def main_real(args) -> int:
         "trials": rows,
     }
     command = "python scripts/bench_fusion.py --real --trials %d --seed %d" % (trials, args.seed)
+    if args.fragment:
+        command += f" --fragment {args.fragment}"
+        report["fragment"] = str(args.fragment)
     report["command"] = command
     if args.doc:  # the doc's JSON (summary, no per-trial rows) and PNG beside it
         doc = Path(args.doc)
@@ -286,7 +292,7 @@ def main_real(args) -> int:
         summary_only = {k: v for k, v in report.items() if k != "trials"}
         doc.with_suffix(".json").write_text(json.dumps(summary_only, indent=1) + "\n")
     (out / "bench_fusion_real.json").write_text(json.dumps(report, indent=1))
-    plot_real(rows, Path(report["png"]))
+    plot_real(rows, Path(report["png"]), Path(args.fragment).name if args.fragment else None)
     text = markdown_real(report, command)
     if args.doc:
         Path(args.doc).write_text(text)

@@ -53,7 +53,9 @@ def main_calibrate(args) -> int:
 
     from graphloc.plots import plt  # the one place that sets the backend
 
-    jobs = [(ov, args.seed + i, True) for ov in REAL_OVERLAPS for i in range(args.trials)]
+    jobs = [
+        (ov, args.seed + i, True, args.fragment) for ov in REAL_OVERLAPS for i in range(args.trials)
+    ]
     start = time.perf_counter()
     with Executor(args.workers) as ex:
         rows = [r for rs in ex.imap(run_real_trial, jobs, desc="calibration pairs") for r in rs]

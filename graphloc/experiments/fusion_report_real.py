@@ -25,7 +25,13 @@ def _cells(rows):
     ]
 
 
-def plot_real(rows: list[dict], path: Path) -> None:
+def fragment_label(report: dict) -> str:
+    """The data a report ran on: the bundled TUM fragment, or the --fragment file."""
+    frag = report.get("fragment")
+    return f"`{frag}`" if frag else "`tests/data/real_room` (TUM RGB-D fr3 office, CC BY 4.0)"
+
+
+def plot_real(rows: list[dict], path: Path, data: str | None = None) -> None:
     from graphloc.plots import plt  # the one place that sets the backend
 
     cells = _cells(rows)
@@ -56,7 +62,7 @@ def plot_real(rows: list[dict], path: Path) -> None:
     np.atleast_1d(axes)[0].set_ylabel("translation error [m]")
     np.atleast_1d(axes)[0].legend(fontsize=7, loc="upper left")
     fig.suptitle(
-        "real fragment (TUM RGB-D fr3 office): ground + flipped ceiling view; "
+        f"real fragment ({data or 'TUM RGB-D fr3 office'}): ground + flipped ceiling view; "
         "x = returned as not fused; dashed = success bounds"
     )
     fig.tight_layout()
@@ -99,7 +105,7 @@ def markdown_real(report: dict, command: str) -> str:
         f"{report['machine']['load_avg_1m_at_start']:.1f} at the start and "
         f"{report['machine']['load_avg_1m_at_end']:.1f} at the end, so absolute times are "
         "inflated; every time ratio below compares methods within the same trials). Data: "
-        "`tests/data/real_room` (TUM RGB-D fr3 office, CC BY 4.0). Protocol and methods: the "
+        f"{fragment_label(report)}. Protocol and methods: the "
         "docstring of `graphloc.experiments.fusion_bench_real`. Success: rotation error < 1 deg "
         "and translation < 5 cm (and, for graphloc, accepted). Cells: successes / trials; "
         "false accepts (fused but wrong) in brackets; not fused in braces.",

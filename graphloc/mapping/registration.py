@@ -90,11 +90,14 @@ class RegistrationConfig:
     # residual noise, k = (7 mm)^2 or (1 cm)^2, were less accurate on exploration seeds 200-219)
     polish_distance: float = 0.02
     polish_kernel: float = 0.007
-    polish_iterations: int = 4  # per direction (fewer when polish_relative is reached)
-    polish_max_nn: int = 20  # its normals: plane of the 20 nearest full-resolution points
-    # ... its points: the input on a grid of polish_voxel [m] (0: every input point), which bounds
-    # the polish's cost on dense scans (its samples and planes stay finer than the 3 cm grid)
-    polish_voxel: float = 0.0
+    # ... its iterations per direction: a view dominated by one plane slides along it a little
+    # per iteration (a dense living-room fragment needed about 10 from the fine stage's pose)
+    polish_iterations: int = 10
+    polish_max_nn: int = 20  # its normals: plane of the 20 nearest polish points
+    # ... its points: every k-th input point, k the smallest stride leaving at most
+    # polish_max_points (0: every input point), which bounds its cost on dense scans; a stride
+    # keeps the scan's own sampling (its samples and planes stay finer than the 3 cm grid)
+    polish_max_points: int = 12_000
     polish_relative: float = 1e-6  # its stop: relative change of fitness and inlier RMSE
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
@@ -120,10 +123,10 @@ class RegistrationConfig:
                 "fine_tukey",
                 "polish_distance",
                 "polish_kernel",
-                "polish_voxel",
             ),
             integer={
                 "polish_iterations": 1,
+                "polish_max_points": 0,
                 "polish_max_nn": 3,
                 "fine_stride": 1,
             },
@@ -153,7 +156,7 @@ class RegistrationConfig:
 class PreparedCloud:
     """A denoised, downsampled cloud with normals (tensor and legacy views share no memory), and
     `raw`: the input points at full resolution (for the last stage of `robust_register`,
-    `polish`; None when cfg.polish_distance is 0; on the cfg.polish_voxel grid if that is > 0)."""
+    `polish`; None when cfg.polish_distance is 0; every k-th point beyond cfg.polish_max_points)."""
 
     cloud: o3d.t.geometry.PointCloud
     legacy: o3d.geometry.PointCloud
@@ -204,7 +207,7 @@ def prepare(
 ) -> PreparedCloud:
     """`denoise`, then normals oriented toward `viewpoint` (the sensor, for FPFH's signed
     angles); with cfg.polish_distance > 0 it keeps the input points (`PreparedCloud.raw`; on
-    the cfg.polish_voxel grid when that is > 0)."""
+    every k-th point when there are more than cfg.polish_max_points)."""
     pcd, n_out = denoise(points, cfg)
     pcd.estimate_normals(cfg.max_nn, cfg.normal_radius)
     pcd.orient_normals_towards_camera_location(
@@ -215,8 +218,8 @@ def prepare(
     raw = None
     if cfg.polish_distance > 0:
         raw = np.asarray(points, dtype=np.float64)
-        if cfg.polish_voxel > 0:
-            raw = _sorted_cells(raw, cfg.polish_voxel)
+        if 0 < cfg.polish_max_points < len(raw):
+            raw = raw[:: -(-len(raw) // cfg.polish_max_points)]
     return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, raw)
 
 
@@ -375,6 +378,12 @@ def polish(
     A = gtsam.Pose3(fwd)
     B = gtsam.Pose3(np.linalg.inv(bwd))
     return A.compose(gtsam.Pose3.Expmap(0.5 * gtsam.Pose3.Logmap(A.between(B)))).matrix()
+
+
+def poses_within(A: np.ndarray, B: np.ndarray, rot_deg: float, trans_m: float) -> bool:
+    """True if A and B differ by at most rot_deg and trans_m."""
+    rot, trans = pose_errors(A, B)
+    return rot <= rot_deg and trans <= trans_m
 
 
 def pose_errors(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:

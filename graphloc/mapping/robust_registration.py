@@ -17,6 +17,7 @@ import open3d as o3d
 from graphloc.mapping.acceptance import (
     AcceptanceConfig,
     Candidate,
+    CHECK_REASONS,
     RegistrationDecision,
     candidate_checks,
     point_to_plane,
@@ -30,7 +31,7 @@ from graphloc.mapping.registration import (
     global_fpfh_ransac,
     information_right,
     polish,
-    pose_errors,
+    poses_within,
 )
 from graphloc.mapping.registration_covariance import calibrated_covariance, cluster_covariance
 
@@ -174,8 +175,10 @@ def robust_register(
        it passes and its cost is within acc.hint_basin_margin of that best (the data must
        clearly beat the hint's basin).
     4. The winner refined by `polish` (full resolution, both directions), the checks of step 3
-       and its conditioning on that pose (`candidates` keep the poses before the polish);
-       accepted only if every check passes.
+       and its conditioning on that pose (`candidates` keep the poses before the polish), and
+       no distinct rival that passes step 3 with an inlier ratio acc.rival_margin above the
+       winner's (ambiguous), and a covariance (step 5) within acc.max_sigma_rot_deg /
+       max_sigma_trans_m; accepted only if every check passes.
     5. Covariance: the point-to-plane fit over the inliers, its leave-one-cluster-out jackknife
        (`cluster_covariance`), converted to GTSAM's right perturbation (`information_right`),
        calibrated (`calibrated_covariance`); `inlier_rmse` is the inliers' residual standard
@@ -261,19 +264,14 @@ def robust_register(
         near = d < fine
         inl = near & (np.abs(r) < c)
         e = hint_pose.localCoordinates(gtsam.Pose3(T))
-        return Candidate(
-            k,
-            T,
-            truncated_cost(r, d, c, fine),
-            float(inl.mean()),
-            float(inl.sum() / max(near.sum(), 1)),
-            float(e @ hint_info @ e),
-        )
+        ratio = float(inl.sum() / max(near.sum(), 1))
+        cost = truncated_cost(r, d, c, fine)
+        return Candidate(k, T, cost, float(inl.mean()), ratio, float(e @ hint_info @ e))
 
     def try_start(k: int, T: np.ndarray) -> bool:
         """Fine ICP from one start's coarse pose; True if its candidate passes its own checks."""
         nonlocal iterations
-        same = [j for j, Tj in coarse if _within(T, Tj, basin_deg, fine)]
+        same = [j for j, Tj in coarse if poses_within(T, Tj, basin_deg, fine)]
         if same:
             merged[k] = f"coarse stage converged within the fine basin of start {same[0]}"
             return False
@@ -346,6 +344,10 @@ def robust_register(
             if failed
             else f"truncated cost {o.cost:.4f} > {best.cost:.4f} of start {best.start}"
         )
+    rival = max(  # the most consistent other registration that passes every check
+        (o.inlier_ratio for o in valid if _distinct(o.transformation, best.transformation, acc)),
+        default=best.inlier_ratio,
+    )
     T = best.transformation
     T = timed("polish", polish, source, target, T, cfg, nns)
     r, d, J = point_to_plane(source, target, T, nns)
@@ -372,33 +374,23 @@ def robust_register(
         acc.min_conditioning,
         conditioning >= acc.min_conditioning,
     )
-    why = {
-        "overlap": "too little overlap",
-        "inlier_ratio": "residuals inconsistent with a fit",
-        "conditioning": "degenerate geometry (a direction is unconstrained)",
-        "hint_mahalanobis2": "disagrees with the pose hint beyond its covariance",
-        "ceiling_height_m": "ceiling robot below the ground robot",
-        "ceiling_z_down_cos": "ceiling robot not upside down",
-    }
+    sigma = np.sqrt(np.diag(cov))
+    for k, v, lim in (
+        ("sigma_rot_deg", float(np.degrees(sigma[:3].max())), acc.max_sigma_rot_deg),
+        ("sigma_trans_m", float(sigma[3:].max()), acc.max_sigma_trans_m),
+    ):
+        checks[k] = (v, lim, v <= lim)
+    gap = rival - best.inlier_ratio
+    checks["rival_inlier_ratio_gap"] = (gap, acc.rival_margin, gap <= acc.rival_margin)
     reasons = tuple(
-        f"{why[k]} ({k} {v[0]:.4g} vs {v[1]:.4g})" for k, v in checks.items() if not v[2]
+        f"{CHECK_REASONS[k]} ({k} {v[0]:.4g} vs {v[1]:.4g})" for k, v in checks.items() if not v[2]
     )
     seconds = time.perf_counter() - start_t
     reg = Registration(T, final.overlap, float(np.sqrt(s2)), iterations, info, seconds)
     timings = {f"{k}_s": v for k, v in stage_s.items()}
     timings["rest_s"] = seconds - sum(stage_s.values())  # final checks, covariance, bookkeeping
-    return RegistrationDecision(
-        reg,
-        not reasons,
-        reasons,
-        checks,
-        tuple(cands),
-        best.start,
-        lost,
-        cov,
-        seconds,
-        dict(timings, **counts),
-    )
+    args = (checks, tuple(cands), best.start, lost, cov, seconds, dict(timings, **counts))
+    return RegistrationDecision(reg, not reasons, reasons, *args)
 
 
 def _point_to_plane_estimation(tukey: float):
@@ -408,11 +400,5 @@ def _point_to_plane_estimation(tukey: float):
     return reg_l.TransformationEstimationPointToPlane(kernel)
 
 
-def _within(A: np.ndarray, B: np.ndarray, rot_deg: float, trans_m: float) -> bool:
-    rot, tr = pose_errors(A, B)
-    return rot <= rot_deg and tr <= trans_m
-
-
 def _distinct(A: np.ndarray, B: np.ndarray, acc: AcceptanceConfig) -> bool:
-    rot, tr = pose_errors(A, B)
-    return rot > acc.distinct_deg or tr > acc.distinct_m
+    return not poses_within(A, B, acc.distinct_deg, acc.distinct_m)

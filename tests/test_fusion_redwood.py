@@ -1,0 +1,126 @@
+"""Issue 16 on a second real fragment: tests/data/real_room/redwood_livingroom.ply, a dense living
+room whose views are dominated by the floor and slide along it. What the TUM fragment never
+showed: the covariance cap, the polish's point budget and iterations, the fragment tool, and the
+benchmark's --fragment route."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
+from graphloc.mapping.acceptance import AcceptanceConfig
+from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
+from graphloc.mapping.robust_registration import hint_covariance, robust_register
+
+ROOT = Path(__file__).resolve().parents[1]
+REDWOOD = ROOT / "tests" / "data" / "real_room" / "redwood_livingroom.ply"
+
+
+@pytest.fixture(scope="module")
+def redwood() -> np.ndarray:
+    return load_fragment(REDWOOD)
+
+
+def _register(points, overlap, seed, hint_level, acc=AcceptanceConfig()):
+    """The benchmark's view pair (overlap, seed) and its hint of level 0 (3 deg / 5 cm) or 1
+    (10 deg / 20 cm), registered; (decision, truth)."""
+    rng = np.random.default_rng([seed, int(round(1000 * overlap))])
+    pair = make_view_pair(points, overlap, rng)
+    levels = ((3.0, 0.05), (10.0, 0.20))
+    for rot_deg, trans_m in levels[: hint_level + 1]:
+        hint = perturb(pair.T_ground_ceiling, rot_deg, trans_m, rng)
+    cfg = RegistrationConfig()
+    src, tgt = prepare(pair.ceiling, cfg), prepare(pair.ground, cfg)
+    cov = hint_covariance(np.deg2rad(rot_deg), trans_m)
+    return robust_register(src, tgt, hint, cov, cfg, acc), pair.T_ground_ceiling
+
+
+def test_polish_budget_strides_the_dense_fragment(redwood):
+    """The fragment's views hold more points than RegistrationConfig.polish_max_points: the
+    polish gets every k-th one, at most that many."""
+    rng = np.random.default_rng([0, 600])
+    pair = make_view_pair(redwood, 0.6, rng)
+    cfg = RegistrationConfig()
+    c = prepare(pair.ground, cfg)
+    assert len(pair.ground) > cfg.polish_max_points >= len(c.raw)
+    k = -(-len(pair.ground) // cfg.polish_max_points)
+    np.testing.assert_array_equal(c.raw, pair.ground[::k])
+
+
+def test_a_slid_or_turned_view_is_not_fused_and_each_check_says_why(redwood):
+    """30% overlap: view pairs of the benchmark's exploration seeds where the registration turns
+    about the vertical (its covariance says so) or where another start fits far more
+    consistently than the cheapest one. With every check on, neither is fused; with the check
+    that refuses it off, each would have fused a wrong pose."""
+    cases = {  # (seed, hint level): the check that refuses it
+        (205, 0): "sigma_rot_deg",
+        (200, 1): "rival_inlier_ratio_gap",
+    }
+    off = {
+        "sigma_rot_deg": AcceptanceConfig(max_sigma_rot_deg=1e3, max_sigma_trans_m=1e3),
+        "rival_inlier_ratio_gap": AcceptanceConfig(rival_margin=1.0),
+    }
+    for (seed, level), check in cases.items():
+        d, truth = _register(redwood, 0.3, seed, level)
+        assert not d.accepted and not d.checks[check][2], (seed, d.reasons)
+        d_off, _ = _register(redwood, 0.3, seed, level, off[check])
+        rot, trans = pose_errors(d_off.registration.transformation, truth)
+        assert d_off.accepted and (rot > 1.0 or trans > 0.05), (seed, check, rot, trans)
+
+
+def test_dense_fragment_at_60_percent_is_fused_within_a_tenth_of_a_degree(redwood):
+    """The polish's iterations take a floor-dominated view the last few tenths of a degree its
+    slow sliding direction needs (the fine stage alone stops about 0.3 deg off)."""
+    d, truth = _register(redwood, 0.6, 201, 0)
+    assert d.accepted, d.reasons
+    rot, trans = pose_errors(d.registration.transformation, truth)
+    assert rot < 0.1 and trans < 0.01
+    fine = [c for c in d.candidates if c.start == d.best][0].transformation
+    assert pose_errors(fine, truth)[0] > rot
+
+
+def test_make_real_fragment_levels_a_point_cloud_on_its_floor(tmp_path):
+    """scripts/make_real_fragment.py on a cloud: a tilted, upside-down room (floor plus a box
+    standing on it) comes out with the floor at z = -height and the box above it."""
+    rng = np.random.default_rng(1)
+    floor = np.c_[rng.uniform(0, 3, (6000, 2)), np.zeros(6000)]
+    box = np.c_[rng.uniform(1, 1.5, (1500, 2)), rng.uniform(0.05, 0.6, 1500)]
+    room = np.vstack([floor, box])
+    R = o3d.geometry.get_rotation_matrix_from_xyz((np.pi + 0.1, 0.05, 0.3))
+    path = tmp_path / "room.pcd"
+    o3d.io.write_point_cloud(
+        str(path), o3d.geometry.PointCloud(o3d.utility.Vector3dVector(room @ R.T + 5.0))
+    )
+    spec = importlib.util.spec_from_file_location("mrf", ROOT / "scripts" / "make_real_fragment.py")
+    mrf = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mrf)
+    argv = [str(path), "--out", str(tmp_path), "--name", "room.ply", "--height", "1.2"]
+    assert mrf.main(argv) == 0
+    out = load_fragment(tmp_path / "room.ply")
+    assert len(out) == len(room)
+    z = out[:, 2]
+    assert np.mean(np.abs(z + 1.2) < 0.01) == pytest.approx(len(floor) / len(room), abs=0.01)
+    assert z.max() > -0.7 and z.min() > -1.21  # the box stands above the floor
+
+
+@pytest.mark.slow
+def test_bench_fusion_real_runs_on_another_fragment(tmp_path):
+    """scripts/bench_fusion.py --real --quick --fragment FILE: the JSON, markdown and PNG name
+    the fragment, and graphloc fuses nothing wrong."""
+    from graphloc.experiments.fusion_bench import main
+
+    doc = tmp_path / "redwood.md"
+    argv = ["--real", "--quick", "--fragment", str(REDWOOD), "--out", str(tmp_path / "out")]
+    assert main([*argv, "--doc", str(doc), "--workers", "2"]) == 0
+    report = json.loads((tmp_path / "out" / "bench_fusion_real.json").read_text())
+    assert report["fragment"] == str(REDWOOD) and "--fragment" in report["command"]
+    assert str(REDWOOD) in doc.read_text() and doc.with_suffix(".png").is_file()
+    for cell in report["summary"].values():
+        assert cell["graphloc"]["false_accepts"] == 0
+        assert cell["trials"] == 3
