@@ -1,9 +1,9 @@
 """The map-fusion benchmark on real geometry (issue 16, `scripts/bench_fusion.py --real`): per
-overlap (about 60% and 30%, graphloc.experiments.real_views) and trial on the real indoor
-fragment (tests/data/real_room), one ground + one flipped ceiling view (independent 50%
-subsampling, 5 mm noise, ceiling sensor 2.5 m up with a random yaw), then the pose hint perturbed
-by exactly 3 deg / 5 cm and by 10 deg / 20 cm (the hint's 1-sigma given to graphloc is that
-perturbation). Methods on the same prepared clouds:
+overlap (about 60% and 30%, graphloc.experiments.real_views) and trial on a real indoor fragment
+(tests/data/real_room's TUM office, or --fragment FILE), one ground + one flipped ceiling view
+(independent 50% subsampling, 5 mm noise, ceiling sensor 2.5 m up with a random yaw), then the
+pose hint perturbed by exactly 3 deg / 5 cm and by 10 deg / 20 cm (the hint's 1-sigma given to
+graphloc is that perturbation). Methods on the same prepared clouds:
   graphloc        fuse (robust_register + acceptance checks + graph), what fuse-maps --hint runs
   graphloc_before fuse with robust=False: the coarse-to-fine refine of before issue 16
   o3d_icp         Open3D point-to-plane ICP from the hint (one scale; correspondences within
@@ -16,6 +16,9 @@ NEES of graphloc's accepted results against the chi-square 95% band of their mea
 
     .venv/bin/python scripts/bench_fusion.py --real --trials 20 --out out/bench_fusion_real \
         --doc docs/results_fusion_real.md
+    .venv/bin/python scripts/bench_fusion.py --real --trials 20 \
+        --fragment tests/data/real_room/redwood_livingroom.ply \
+        --out out/bench_fusion_real_redwood --doc docs/results_fusion_real_redwood.md
 """
 
 from __future__ import annotations
