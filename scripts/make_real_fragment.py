@@ -16,9 +16,9 @@ subsample to at most --points points, stored as float32 PLY.
 redwood_livingroom.ply, from a point cloud (PCD / PLY, e.g. the Redwood living-room fragment
 that Open3D ships as fragment.pcd): RANSAC planes, the floor the largest one, its normal turned
 toward the side holding the other points (the room stands on its floor); rotation making it +z
-with the old x axis kept in the x-z plane; the origin moved to the middle of the points' x-y
-extent, --height metres above the floor (a ground robot's sensor); every point kept unless
-there are more than --points (seeded subsample); float32 PLY.
+with the old x axis (y if the floor faces x) kept in the x-z plane; the origin moved to the
+middle of the points' x-y extent, --height metres above the floor (a ground robot's sensor);
+every point kept unless there are more than --points (seeded subsample); float32 PLY.
 
     .venv/bin/python scripts/make_real_fragment.py fragment.pcd --height 1.0 \
         --name redwood_livingroom.ply
@@ -27,10 +27,13 @@ there are more than --points (seeded subsample); float32 PLY.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 import open3d as o3d
+
+from graphloc.mapping.io import read_points
 
 FR3 = (640, 480, 535.4, 539.2, 320.1, 247.6)  # width, height, fx, fy, cx, cy (TUM Freiburg 3)
 
@@ -78,7 +81,8 @@ def cloud_floor_alignment(
     n = np.array([a, b, c])
     if np.median(np.asarray(pcd.points) @ n + d) < 0:  # the room on the + side of its floor
         n, d = -n, -d
-    x = np.array([1.0, 0.0, 0.0]) - n[0] * n
+    axis = np.eye(3)[0] if abs(n[0]) < 0.9 else np.eye(3)[1]  # an old axis not along n
+    x = axis - (axis @ n) * n
     x /= np.linalg.norm(x)
     R = np.stack([x, np.cross(n, x), n])
     return R, float(-d)  # the floor n.p + d = 0 lies at z = -d
@@ -127,9 +131,10 @@ def main(argv=None) -> int:
 
 def from_cloud(args) -> int:
     """The point-cloud input (module docstring)."""
-    pcd = o3d.io.read_point_cloud(args.depth)
-    if len(pcd.points) < 100:
-        raise ValueError(f"{args.depth}: fewer than 100 points")
+    points = read_points(args.depth)  # checked against its header, in metres
+    if len(points) < 100:
+        raise ValueError(f"{args.depth}: {len(points)} points, need at least 100")
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     R, floor_z = cloud_floor_alignment(pcd, args.planes, args.seed)
     pts = np.asarray(pcd.points) @ R.T
     lo, hi = pts.min(0), pts.max(0)
@@ -151,4 +156,8 @@ def from_cloud(args) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    try:
+        raise SystemExit(main())
+    except (OSError, ValueError) as exc:  # a missing or unreadable input: one line, code 2
+        print(f"error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
