@@ -98,7 +98,7 @@ class RegistrationConfig:
     # ... its points: every k-th input point, k the smallest stride leaving at most
     # polish_max_points (0: every input point), which bounds its cost on dense scans; a stride
     # keeps the scan's own sampling (its samples and planes stay finer than the 3 cm grid); the
-    # simulated rooms' LiDAR scans stay below it (strided, their accuracy dropped)
+    # simulated rooms' LiDAR scans stay below it, so their every point still serves
     polish_max_points: int = 24_000
     polish_relative: float = 1e-6  # its stop: relative change of fitness and inlier RMSE
     stop_at_first_valid: bool = True
