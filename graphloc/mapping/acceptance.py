@@ -70,10 +70,7 @@ class AcceptanceConfig:
             self,
             positive=("residual_sigma", "hint_gate", "max_sigma_rot_deg", "max_sigma_trans_m"),
             nonnegative=("hint_basin_margin", "rival_margin"),
-            interval={
-                "min_overlap": (0.0, 1.0, "[]"),
-                "min_inlier_ratio": (0.0, 1.0, "[]"),
-            },
+            interval={"min_overlap": (0.0, 1.0, "[]"), "min_inlier_ratio": (0.0, 1.0, "[]")},
         )
 
 

@@ -375,10 +375,11 @@ def robust_register(
         conditioning >= acc.min_conditioning,
     )
     sigma = np.sqrt(np.diag(cov))
-    for k, v, lim in (
+    caps = (
         ("sigma_rot_deg", float(np.degrees(sigma[:3].max())), acc.max_sigma_rot_deg),
         ("sigma_trans_m", float(sigma[3:].max()), acc.max_sigma_trans_m),
-    ):
+    )
+    for k, v, lim in caps if checks["conditioning"][2] else ():  # degenerate: no covariance
         checks[k] = (v, lim, v <= lim)
     gap = rival - best.inlier_ratio
     checks["rival_inlier_ratio_gap"] = (gap, acc.rival_margin, gap <= acc.rival_margin)
