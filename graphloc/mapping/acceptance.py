@@ -24,7 +24,6 @@ CHECK_REASONS = {
     "hint_mahalanobis2": "disagrees with the pose hint beyond its covariance",
     "ceiling_height_m": "ceiling robot below the ground robot",
     "ceiling_z_down_cos": "ceiling robot not upside down",
-    "rival_inlier_ratio_gap": "ambiguous: a distinct registration fits more consistently",
     "sigma_rot_deg": "too uncertain (rotation)",
     "sigma_trans_m": "too uncertain (translation)",
 }
@@ -42,14 +41,10 @@ class AcceptanceConfig:
     hint_gate: Mahalanobis^2 of the result against the hint under the hint's covariance,
     chi-square with 6 degrees of freedom at 99.9%; ceiling_above: the robot kinds' geometry --
     the ceiling sensor is above the ground sensor (z_G > 0) and upside down (its z axis within
-    max_ceiling_tilt_deg of -z_G); hint_basin_margin: how much lower (per source point) another
-    candidate's truncated cost must be to win over the hint's own candidate; rival_margin: a
-    candidate distinct from the winner (distinct_deg / distinct_m) that passes every check with
-    an inlier ratio more than this above the winner's makes the result ambiguous (cost and
-    consistency disagree: a view slid along a dominant plane overlaps more of it, at a lower
-    truncated cost, while fewer of its near points lie on surfaces); max_sigma_rot_deg /
-    max_sigma_trans_m: the largest 1-sigma of the calibrated covariance a fusion may have (its
-    own uncertainty beyond what a map fusion is for: issue 16's success box is 1 deg / 5 cm)."""
+    max_ceiling_tilt_deg of -z_G); max_sigma_rot_deg / max_sigma_trans_m: the largest 1-sigma
+    of the calibrated covariance a fusion may have (its own uncertainty beyond what a map fusion
+    is for: issue 16's success box is 1 deg / 5 cm); distinct_deg / distinct_m: candidates
+    closer than this are one registration."""
 
     residual_sigma: float = 0.01
     min_overlap: float = 0.1
@@ -58,8 +53,6 @@ class AcceptanceConfig:
     hint_gate: float = 22.458  # scipy.stats.chi2.ppf(0.999, 6)
     ceiling_above: bool = True
     max_ceiling_tilt_deg: float = 45.0
-    hint_basin_margin: float = 0.05
-    rival_margin: float = 0.1
     max_sigma_rot_deg: float = 1.0
     max_sigma_trans_m: float = 0.05
     distinct_deg: float = 0.5
@@ -69,7 +62,6 @@ class AcceptanceConfig:
         check(
             self,
             positive=("residual_sigma", "hint_gate", "max_sigma_rot_deg", "max_sigma_trans_m"),
-            nonnegative=("hint_basin_margin", "rival_margin"),
             interval={"min_overlap": (0.0, 1.0, "[]"), "min_inlier_ratio": (0.0, 1.0, "[]")},
         )
 

@@ -1,7 +1,7 @@
 """The inter-robot registration of issue 16 (seed 004 Sec. IV from a pose hint): a registration
 that does not slide on partial overlap, and that says "not fused" instead of returning a
 confident wrong answer. `robust_register` runs ICP from the hint and the sigma points of its
-covariance (`hint_starts`) with a truncated point-to-plane cost and the checks of
+covariance (`hint_starts`), keeps the most consistent candidate that passes the checks of
 `graphloc.mapping.acceptance`, refines the winner at full resolution (`polish`), and gives it
 the covariance of `graphloc.mapping.registration_covariance`.
 """
@@ -164,21 +164,24 @@ def robust_register(
        cut edges lose their pull), every cfg.fine_stride-th source point a sample (a start
        that slides for all its iterations and fails costs a fraction); candidates closer than
        acc.distinct_deg / distinct_m merge.
-       With cfg.stop_at_first_valid the starts stop at the first candidate that passes its
-       checks with an inlier ratio of at least cfg.stop_inlier_ratio (the hint comes first, so
-       an easy case costs one start; one that barely passes lets the other starts compete on
-       cost). If none passes and cfg.global_fallback, `global_fpfh_ransac` (seed 0) gives one
-       more start (the last index), still subject to every check, the hint gate included.
-    3. Each candidate's `truncated_cost` (c = acc.residual_sigma) and checks (overlap, inlier
-       ratio, hint gate, robot geometry: `candidate_checks`). Among those that pass, the lowest
-       cost wins, except that the hint's own candidate (the cheapest of its starts) is kept when
-       it passes and its cost is within acc.hint_basin_margin of that best (the data must
-       clearly beat the hint's basin).
+       With cfg.stop_at_first_valid the starts stop once every one of the hint's own starts
+       has run and a candidate has passed its checks with an inlier ratio of at least
+       cfg.stop_inlier_ratio (an easy case costs the hint's starts; one that barely passes lets
+       the sigma points compete). If none passes and cfg.global_fallback, `global_fpfh_ransac`
+       (seed 0) gives one more start (the last index), still subject to every check, the hint
+       gate included.
+    3. Each candidate's checks (overlap, inlier ratio, hint gate, robot geometry:
+       `candidate_checks`). Among those that pass, the most consistent wins: the highest inlier
+       ratio, the share of its source points near a target surface that lie on it. Not the
+       lowest `truncated_cost` (reported): a view slid along a dominant plane towards the other
+       view overlaps more of it and so explains more points, while fewer of its points near
+       the other view's surfaces lie on them; a point near a surface that does not fit it
+       contradicts the registration, a point with no surface near it is only unseen by the
+       other robot.
     4. The winner refined by `polish` (full resolution, both directions), the checks of step 3
-       and its conditioning on that pose (`candidates` keep the poses before the polish), and
-       no distinct rival that passes step 3 with an inlier ratio acc.rival_margin above the
-       winner's (ambiguous), and a covariance (step 5) within acc.max_sigma_rot_deg /
-       max_sigma_trans_m; accepted only if every check passes.
+       and its conditioning on that pose (`candidates` keep the poses before the polish), and a
+       covariance (step 5) within acc.max_sigma_rot_deg / max_sigma_trans_m; accepted only if
+       every check passes.
     5. Covariance: the point-to-plane fit over the inliers, its leave-one-cluster-out jackknife
        (`cluster_covariance`), converted to GTSAM's right perturbation (`information_right`),
        calibrated (`calibrated_covariance`); `inlier_rmse` is the inliers' residual standard
@@ -299,12 +302,13 @@ def robust_register(
     n_hint = len(tukeys)
     starts = [(hint, tk) for tk in tukeys]
     starts += [(T, cfg.coarse_tukey) for T in hint_starts(hint, hint_cov)[1:]]
-    found = False
+    found = ready = False
     for k, (T0, tk) in enumerate(starts):
         counts["starts"] += 1
         ok = try_start(k, timed("coarse", coarse_stage, T0, tk))
         found = ok or found
-        if ok and cfg.stop_at_first_valid and cands[-1].inlier_ratio >= cfg.stop_inlier_ratio:
+        ready = ready or (ok and cands[-1].inlier_ratio >= cfg.stop_inlier_ratio)
+        if ready and cfg.stop_at_first_valid and k >= n_hint - 1:
             break
     if not found and cfg.global_fallback:  # the hint's neighbourhood failed: one global guess
         T_glob, _ = timed("global", global_fpfh_ransac, source, target, cfg, 0)
@@ -316,25 +320,9 @@ def robust_register(
             "pose hint, or scans that do not overlap"
         )
     checks_of = {o.start: candidate_checks(o, acc) for o in cands}
-    valid = sorted(
-        (o for o in cands if all(v[2] for v in checks_of[o.start].values())), key=lambda x: x.cost
-    )
+    valid = [o for o in cands if all(v[2] for v in checks_of[o.start].values())]
+    best = max(valid or cands, key=lambda x: x.inlier_ratio)  # the most consistent (step 3)
     lost = dict(merged)
-    if valid:
-        best = valid[0]
-        hint_own = [o for o in valid if o.start < n_hint]
-        if (
-            hint_own
-            and hint_own[0] is not best
-            and hint_own[0].cost - best.cost <= acc.hint_basin_margin
-        ):
-            lost[best.start] = (
-                f"truncated cost {best.cost:.4f} beats the hint's own candidate by less "
-                f"than the hint-basin margin {acc.hint_basin_margin}"
-            )
-            best = hint_own[0]
-    else:
-        best = min(cands, key=lambda x: x.cost)
     for o in cands:
         if o.start == best.start or o.start in lost:
             continue
@@ -342,12 +330,9 @@ def robust_register(
         lost[o.start] = (
             f"failed {', '.join(failed)}"
             if failed
-            else f"truncated cost {o.cost:.4f} > {best.cost:.4f} of start {best.start}"
+            else f"inlier ratio {o.inlier_ratio:.3f} < {best.inlier_ratio:.3f} of start "
+            f"{best.start}"
         )
-    rival = max(  # the most consistent other registration that passes every check
-        (o.inlier_ratio for o in valid if _distinct(o.transformation, best.transformation, acc)),
-        default=best.inlier_ratio,
-    )
     T = best.transformation
     T = timed("polish", polish, source, target, T, cfg, nns)
     r, d, J = point_to_plane(source, target, T, nns)
@@ -381,8 +366,6 @@ def robust_register(
     )
     for k, v, lim in caps if checks["conditioning"][2] else ():  # degenerate: no covariance
         checks[k] = (v, lim, v <= lim)
-    gap = rival - best.inlier_ratio
-    checks["rival_inlier_ratio_gap"] = (gap, acc.rival_margin, gap <= acc.rival_margin)
     reasons = tuple(
         f"{CHECK_REASONS[k]} ({k} {v[0]:.4g} vs {v[1]:.4g})" for k, v in checks.items() if not v[2]
     )
