@@ -1,7 +1,8 @@
 """Issue 16 on a second real fragment: tests/data/real_room/redwood_livingroom.ply, a dense living
 room whose views are dominated by the floor and slide along it. What the TUM fragment never
-showed: a slid candidate that is cheaper than the right one, the covariance cap, the polish's
-point budget and iterations, the fragment tool, and the benchmark's --fragment route."""
+showed: a slid candidate that is cheaper than the right one, the re-seat that puts a slid view
+back, the covariance cap, the polish's point budget and iterations, the fragment tool, and the
+benchmark's --fragment route."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import open3d as o3d
 import pytest
 
 from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
-from graphloc.mapping.acceptance import AcceptanceConfig
+from graphloc.mapping.acceptance import AcceptanceConfig, candidate_checks
 from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
 from graphloc.mapping.robust_registration import hint_covariance, robust_register
 
@@ -53,14 +54,14 @@ def test_polish_budget_strides_the_dense_fragment(redwood):
     np.testing.assert_array_equal(c.raw, pair.ground[::k])
 
 
-def test_a_turned_view_is_not_fused_as_too_uncertain(redwood):
-    """30% overlap, 10 deg / 20 cm hint: the view pair of exploration seed 206, where the fit
-    turns about the vertical and its covariance says so. With the covariance cap it is not
-    fused; without it, it would have fused a wrong pose."""
-    d, truth = _register(redwood, 0.3, 206, 1)
+def test_a_slid_view_is_not_fused_as_too_uncertain(redwood):
+    """30% overlap, 10 deg / 20 cm hint: the view pair of exploration seed 202, where the fit
+    slides along the floor and its covariance says so. With the covariance cap it is not fused;
+    without it, it would have fused a wrong pose."""
+    d, truth = _register(redwood, 0.3, 202, 1)
     assert not d.accepted and not d.checks["sigma_rot_deg"][2], d.reasons
     off = AcceptanceConfig(max_sigma_rot_deg=1e3, max_sigma_trans_m=1e3)
-    d_off, _ = _register(redwood, 0.3, 206, 1, off)
+    d_off, _ = _register(redwood, 0.3, 202, 1, off)
     rot, trans = pose_errors(d_off.registration.transformation, truth)
     assert d_off.accepted and (rot > 1.0 or trans > 0.05), (rot, trans)
 
@@ -80,6 +81,25 @@ def test_the_most_consistent_candidate_wins_over_the_cheapest(redwood):
     assert pose_errors(cheapest.transformation, truth)[1] > 0.05  # the slid one
     assert best.inlier_ratio == max(c.inlier_ratio for c in d.candidates)
     assert "inlier ratio" in d.lost[cheapest.start]
+
+
+def test_the_reseat_puts_a_slid_view_back_at_the_hints_translation(redwood):
+    """60% overlap, 3 deg / 5 cm hint (exploration seed 234): the hint's wide-kernel start slides
+    the view along the floor towards the other view by about 13 cm and passes every check; the
+    re-seat (its rotation at the hint's translation, the last start) lands on the pose and fits
+    more consistently, so it wins."""
+    d, truth = _register(redwood, 0.6, 234, 0)
+    cfg, acc = RegistrationConfig(), AcceptanceConfig()
+    n_hint = len(cfg.hint_wide_tukey)
+    assert d.accepted and d.best == n_hint + 12 + 1, (d.best, d.reasons)
+    rot, trans = pose_errors(d.registration.transformation, truth)
+    assert rot < 0.1 and trans < 0.01, (rot, trans)
+    slid = [
+        c
+        for c in d.candidates
+        if c.start < n_hint and all(v[2] for v in candidate_checks(c, acc).values())
+    ]
+    assert slid and all(pose_errors(c.transformation, truth)[1] > 0.05 for c in slid)
 
 
 def test_dense_fragment_at_60_percent_is_fused_within_a_tenth_of_a_degree(redwood):

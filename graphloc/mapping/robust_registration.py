@@ -168,8 +168,13 @@ def robust_register(
        has run and a candidate has passed its checks with an inlier ratio of at least
        cfg.stop_inlier_ratio (an easy case costs the hint's starts; one that barely passes lets
        the sigma points compete). If none passes and cfg.global_fallback, `global_fpfh_ransac`
-       (seed 0) gives one more start (the last index), still subject to every check, the hint
-       gate included.
+       (seed 0) gives one more start (index len(starts)), still subject to every check, the hint
+       gate included. Once a candidate has passed, a last start (index len(starts) + 1), the
+       re-seat: the most consistent valid candidate's rotation at the hint's translation,
+       through the coarse level and the fine stage (no pyramid). A pyramid slides a view along
+       its dominant plane towards the other view, a translation its rotation does not share;
+       the re-seat puts the view back where the hint says it is (skipped when that lies within
+       one fine basin of the candidate).
     3. Each candidate's checks (overlap, inlier ratio, hint gate, robot geometry:
        `candidate_checks`). Among those that pass, the most consistent wins: the highest inlier
        ratio, the share of its source points near a target surface that lie on it. Not the
@@ -228,11 +233,12 @@ def robust_register(
     if cfg.coarse_voxels > 0:
         wide = timed("coarse", _wide_levels, src_c, tgt_c, reach, cfg.coarse_voxels * voxel_c, cfg)
 
-    def coarse_stage(T0: np.ndarray, tukey: float = cfg.coarse_tukey) -> np.ndarray:
-        """The wide pyramid (while the hint's reach exceeds the coarse one), then the coarse ICP."""
+    def coarse_stage(T0: np.ndarray, tukey: float = cfg.coarse_tukey, levels=wide) -> np.ndarray:
+        """The wide pyramid `levels` (while the hint's reach exceeds the coarse one), then the
+        coarse ICP."""
         if cfg.coarse_voxels <= 0:
             return T0
-        for a, b, dist, voxel in wide:
+        for a, b, dist, voxel in levels:
             est_w = _point_to_plane_estimation(tukey * voxel)
             T0 = reg_l.registration_icp(a, b, dist, T0, est_w, crit_c).transformation
         res = reg_l.registration_icp(src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0, est, crit_c)
@@ -313,7 +319,20 @@ def robust_register(
     if not found and cfg.global_fallback:  # the hint's neighbourhood failed: one global guess
         T_glob, _ = timed("global", global_fpfh_ransac, source, target, cfg, 0)
         counts["starts"] += 1
-        try_start(len(starts), timed("coarse", coarse_stage, T_glob))
+        found = try_start(len(starts), timed("coarse", coarse_stage, T_glob))
+    if found:  # re-seat: the most consistent pose's rotation at the hint's translation
+        top = max(
+            (o for o in cands if all(v[2] for v in candidate_checks(o, acc).values())),
+            key=lambda x: x.inlier_ratio,
+        )
+        T_re = top.transformation.copy()
+        T_re[:3, 3] = hint[:3, 3]
+        k_re = len(starts) + 1
+        if poses_within(T_re, top.transformation, basin_deg, fine):
+            merged[k_re] = f"hint's translation within the fine basin of start {top.start}"
+        else:
+            counts["starts"] += 1
+            try_start(k_re, timed("coarse", coarse_stage, T_re, cfg.coarse_tukey, ()))
     if not cands:
         raise ValueError(
             f"robust_register: no start found correspondences within {fine} m: a wrong "
