@@ -33,6 +33,11 @@ CHECK_REASONS = {
 class AcceptanceConfig:
     """Checks a registration must pass before it is fused (see `robust_register`).
 
+    misfit_weight: what a source point near a target point but off its surface costs in a
+    candidate's `truncated_cost`, where an unexplained point (no target point near) costs 1: a
+    point the other robot did not see says nothing against a registration, a point beside a
+    surface it saw does (a view slid towards the other overlaps more of it, with more of its
+    points beside surfaces; one slid away overlaps less, with a few more on them);
     min_overlap: inlier fraction of the source (point-to-plane |r| < c, c = residual_sigma);
     min_inlier_ratio: inliers among the source points that have a target point within the fine
     correspondence distance (a slid alignment puts points near surfaces, not on them);
@@ -47,6 +52,7 @@ class AcceptanceConfig:
     closer than this are one registration."""
 
     residual_sigma: float = 0.01
+    misfit_weight: float = 4.0
     min_overlap: float = 0.1
     min_inlier_ratio: float = 0.65
     min_conditioning: float = 1e-4
@@ -62,7 +68,11 @@ class AcceptanceConfig:
         check(
             self,
             positive=("residual_sigma", "hint_gate", "max_sigma_rot_deg", "max_sigma_trans_m"),
-            interval={"min_overlap": (0.0, 1.0, "[]"), "min_inlier_ratio": (0.0, 1.0, "[]")},
+            interval={
+                "min_overlap": (0.0, 1.0, "[]"),
+                "min_inlier_ratio": (0.0, 1.0, "[]"),
+                "misfit_weight": (1.0, 1e6, "[]"),
+            },
         )
 
 
@@ -173,8 +183,12 @@ def target_index(target: PreparedCloud, radius: float) -> NearestIndex:
     return NearestIndex(target.points, radius)
 
 
-def truncated_cost(r: np.ndarray, d: np.ndarray, c: float, max_dist: float) -> float:
-    """Truncated least squares per source point: mean of min(r^2, c^2) / c^2, a point with no
-    target point within max_dist counting 1 (an unexplained point)."""
+def truncated_cost(
+    r: np.ndarray, d: np.ndarray, c: float, max_dist: float, misfit: float = 1.0
+) -> float:
+    """Truncated least squares per source point: mean of r^2 / c^2 for a point on a target
+    surface (|r| < c), `misfit` for a point with a target point within max_dist but off its
+    surface, 1 for a point with no target point within max_dist (an unexplained point)."""
     near = d < max_dist
-    return float(np.mean(np.where(near, np.minimum(r * r, c * c) / (c * c), 1.0)))
+    on = near & (np.abs(r) < c)
+    return float(np.mean(np.where(on, r * r / (c * c), np.where(near, misfit, 1.0))))

@@ -1,7 +1,7 @@
 """The inter-robot registration of issue 16 (seed 004 Sec. IV from a pose hint): a registration
 that does not slide on partial overlap, and that says "not fused" instead of returning a
 confident wrong answer. `robust_register` runs ICP from the hint and the sigma points of its
-covariance (`hint_starts`), keeps the most consistent candidate that passes the checks of
+covariance (`hint_starts`), keeps the cheapest candidate that passes the checks of
 `graphloc.mapping.acceptance`, refines the winner at full resolution (`polish`), and gives it
 the covariance of `graphloc.mapping.registration_covariance`.
 """
@@ -170,19 +170,18 @@ def robust_register(
        the sigma points compete). If none passes and cfg.global_fallback, `global_fpfh_ransac`
        (seed 0) gives one more start (index len(starts)), still subject to every check, the hint
        gate included. Once a candidate has passed, a last start (index len(starts) + 1), the
-       re-seat: the most consistent valid candidate's rotation at the hint's translation,
+       re-seat: the best valid candidate's (step 3) rotation at the hint's translation,
        through the coarse level and the fine stage (no pyramid). A pyramid slides a view along
        its dominant plane towards the other view, a translation its rotation does not share;
        the re-seat puts the view back where the hint says it is (skipped when that lies within
        one fine basin of the candidate).
-    3. Each candidate's checks (overlap, inlier ratio, hint gate, robot geometry:
-       `candidate_checks`). Among those that pass, the most consistent wins: the highest inlier
-       ratio, the share of its source points near a target surface that lie on it. Not the
-       lowest `truncated_cost` (reported): a view slid along a dominant plane towards the other
-       view overlaps more of it and so explains more points, while fewer of its points near
-       the other view's surfaces lie on them; a point near a surface that does not fit it
-       contradicts the registration, a point with no surface near it is only unseen by the
-       other robot.
+    3. Each candidate's `truncated_cost` (c = acc.residual_sigma; a point near a target point
+       but off its surface costs acc.misfit_weight, an unexplained point 1) and checks
+       (overlap, inlier ratio, hint gate, robot geometry: `candidate_checks`); among those that
+       pass, the lowest cost wins. A point beside a surface the other robot saw contradicts the
+       registration, a point where it saw nothing is only unseen: with every point off the
+       other view costing alike, a view slid along a dominant plane towards the other view
+       wins by overlapping more of it, though more of its points lie beside surfaces.
     4. The winner refined by `polish` (full resolution, both directions), the checks of step 3
        and its conditioning on that pose (`candidates` keep the poses before the polish), and a
        covariance (step 5) within acc.max_sigma_rot_deg / max_sigma_trans_m; accepted only if
@@ -274,7 +273,7 @@ def robust_register(
         inl = near & (np.abs(r) < c)
         e = hint_pose.localCoordinates(gtsam.Pose3(T))
         ratio = float(inl.sum() / max(near.sum(), 1))
-        cost = truncated_cost(r, d, c, fine)
+        cost = truncated_cost(r, d, c, fine, acc.misfit_weight)
         return Candidate(k, T, cost, float(inl.mean()), ratio, float(e @ hint_info @ e))
 
     def try_start(k: int, T: np.ndarray) -> bool:
@@ -320,10 +319,10 @@ def robust_register(
         T_glob, _ = timed("global", global_fpfh_ransac, source, target, cfg, 0)
         counts["starts"] += 1
         found = try_start(len(starts), timed("coarse", coarse_stage, T_glob))
-    if found:  # re-seat: the most consistent pose's rotation at the hint's translation
-        top = max(
+    if found:  # re-seat: the best valid candidate's rotation at the hint's translation
+        top = min(
             (o for o in cands if all(v[2] for v in candidate_checks(o, acc).values())),
-            key=lambda x: x.inlier_ratio,
+            key=lambda x: x.cost,
         )
         T_re = top.transformation.copy()
         T_re[:3, 3] = hint[:3, 3]
@@ -340,7 +339,7 @@ def robust_register(
         )
     checks_of = {o.start: candidate_checks(o, acc) for o in cands}
     valid = [o for o in cands if all(v[2] for v in checks_of[o.start].values())]
-    best = max(valid or cands, key=lambda x: x.inlier_ratio)  # the most consistent (step 3)
+    best = min(valid or cands, key=lambda x: x.cost)  # step 3
     lost = dict(merged)
     for o in cands:
         if o.start == best.start or o.start in lost:
@@ -349,8 +348,7 @@ def robust_register(
         lost[o.start] = (
             f"failed {', '.join(failed)}"
             if failed
-            else f"inlier ratio {o.inlier_ratio:.3f} < {best.inlier_ratio:.3f} of start "
-            f"{best.start}"
+            else f"truncated cost {o.cost:.4f} > {best.cost:.4f} of start {best.start}"
         )
     T = best.transformation
     T = timed("polish", polish, source, target, T, cfg, nns)

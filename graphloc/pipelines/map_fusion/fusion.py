@@ -9,10 +9,11 @@
 3. denoise + point-to-plane ICP of the first ceiling scan onto the first ground scan from that
    guess (seed 004 Sec. IV): `robust_register` starts from the guess and the sigma points of its
    covariance (the P3P candidate's, `guess_covariance`, or the hint's sigmas), keeps
-   the most consistent candidate (the highest share of near points on the other scan's
-   surfaces) and accepts it only if its checks pass (overlap, residual consistency,
-   conditioning, agreement with the guess, the ceiling robot above the ground robot, its own
-   covariance); otherwise `fuse` raises `FusionRejected` ("not fused", with why);
+   the candidate of lowest truncated cost (a point beside a surface of the other scan costs
+   more than one the other robot did not see) and accepts it only if its checks pass (overlap,
+   residual consistency, conditioning, agreement with the guess, the ceiling robot above the
+   ground robot, its own covariance); otherwise `fuse` raises `FusionRejected` ("not fused",
+   with why);
 4. one graph: prior on the ground robot's first pose, scan-matching between-factors for both
    robots (point-to-plane ICP of consecutive scans from the KISS-ICP increment, covariance from
    the registration's information matrix), the ICP inter-robot factor, and per camera frame a
