@@ -38,29 +38,38 @@ from graphloc.mapping.io import read_points
 FR3 = (640, 480, 535.4, 539.2, 320.1, 247.6)  # width, height, fx, fy, cx, cy (TUM Freiburg 3)
 
 
+def ransac_planes(pcd: o3d.geometry.PointCloud, planes: int, seed: int) -> list:
+    """Up to `planes` RANSAC planes (2 cm), each found among the points the earlier ones left:
+    [(unit normal n, offset d of n.p + d = 0, inlier count)]."""
+    o3d.utility.random.seed(seed)
+    rest, out = pcd, []
+    for _ in range(planes):
+        if len(rest.points) < 3:
+            break
+        (a, b, c, d), inliers = rest.segment_plane(0.02, 3, 2000)
+        out.append((np.array([a, b, c]), float(d), len(inliers)))
+        rest = rest.select_by_index(inliers, invert=True)
+    return out
+
+
+def rotation_to_z(n: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """Rotation whose rows are the new axes: z = n, x = `axis` made orthogonal to n."""
+    x = axis - (axis @ n) * n
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(n, x), n])
+
+
 def floor_alignment(
     pcd: o3d.geometry.PointCloud, planes: int, seed: int
 ) -> tuple[np.ndarray, float]:
-    """(3x3 rotation camera -> gravity frame with the floor normal as +z, camera height [m])."""
-    o3d.utility.random.seed(seed)
-    rest, best = pcd, None
-    for _ in range(planes):
-        (a, b, c, d), inliers = rest.segment_plane(0.02, 3, 2000)
-        n = np.array([a, b, c])
-        if n[1] > 0:  # orient the normal toward the camera's up (-y in the camera frame)
-            n, d = -n, -d
-        score = -n[1]
-        if best is None or score > best[0]:
-            best = (score, n, d)
-        rest = rest.select_by_index(inliers, invert=True)
-    _, n, d = best
-    if best[0] < 0.8:
+    """(3x3 rotation camera -> gravity frame with the floor normal as +z, camera height [m]):
+    the floor is the plane most aligned with the camera's up (-y in the camera frame)."""
+    up = [(-n, -d) if n[1] > 0 else (n, d) for n, d, _ in ransac_planes(pcd, planes, seed)]
+    n, d = max(up, key=lambda nd: -nd[0][1])
+    if -n[1] < 0.8:
         raise ValueError("no floor plane within 37 deg of the camera's vertical")
-    # rotation taking n to +z, keeping the camera's optical axis (z) as the new +x direction
-    x = np.array([0.0, 0.0, 1.0]) - n[2] * n
-    x /= np.linalg.norm(x)
-    R = np.stack([x, np.cross(n, x), n])  # rows: new axes in camera coordinates
-    return R, float(d)  # d: signed height of the camera above the floor plane n.p + d = 0
+    # the camera's optical axis (z) as the new +x direction
+    return rotation_to_z(n, np.array([0.0, 0.0, 1.0])), d  # d: camera height above the floor
 
 
 def cloud_floor_alignment(
@@ -68,24 +77,11 @@ def cloud_floor_alignment(
 ) -> tuple[np.ndarray, float]:
     """(3x3 rotation to a frame with the floor normal as +z, the floor's z in that frame): the
     floor is the largest of `planes` RANSAC planes, its normal toward the other points."""
-    o3d.utility.random.seed(seed)
-    rest, best = pcd, None
-    for _ in range(planes):
-        if len(rest.points) < 3:
-            break
-        model, inliers = rest.segment_plane(0.02, 3, 2000)
-        if best is None or len(inliers) > best[1]:
-            best = (np.asarray(model), len(inliers))
-        rest = rest.select_by_index(inliers, invert=True)
-    (a, b, c, d), _ = best
-    n = np.array([a, b, c])
+    n, d, _ = max(ransac_planes(pcd, planes, seed), key=lambda p: p[2])
     if np.median(np.asarray(pcd.points) @ n + d) < 0:  # the room on the + side of its floor
         n, d = -n, -d
     axis = np.eye(3)[0] if abs(n[0]) < 0.9 else np.eye(3)[1]  # an old axis not along n
-    x = axis - (axis @ n) * n
-    x /= np.linalg.norm(x)
-    R = np.stack([x, np.cross(n, x), n])
-    return R, float(-d)  # the floor n.p + d = 0 lies at z = -d
+    return rotation_to_z(n, axis), -d  # the floor n.p + d = 0 lies at z = -d
 
 
 def main(argv=None) -> int:
