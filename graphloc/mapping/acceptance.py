@@ -183,9 +183,7 @@ def target_index(target: PreparedCloud, radius: float) -> NearestIndex:
     return NearestIndex(target.points, radius)
 
 
-def truncated_cost(
-    r: np.ndarray, d: np.ndarray, c: float, max_dist: float, misfit: float = 1.0
-) -> float:
+def truncated_cost(r: np.ndarray, d: np.ndarray, c: float, max_dist: float, misfit: float) -> float:
     """Truncated least squares per source point: mean of r^2 / c^2 for a point on a target
     surface (|r| < c), `misfit` for a point with a target point within max_dist but off its
     surface, 1 for a point with no target point within max_dist (an unexplained point)."""
