@@ -112,8 +112,8 @@ def test_a_wrong_hint_is_not_fused(fragment):
         _fuse(pair, hint, (3.0, 0.05))
     d = info.value.decision
     assert not d.accepted and d.reasons
-    # the hint's own starts reach the end (the last always gets its fine stage, unless it
-    # converges where an earlier one did)
+    # the hint's own starts reach the end (the last gets its fine stage when no earlier one
+    # left a candidate, unless it converges where an earlier one did)
     own = set(range(len(RegistrationConfig().hint_wide_tukey)))
     assert own & {c.start for c in d.candidates}
     assert len(d.as_dict()["candidates"]) == len(d.candidates) >= 1

@@ -47,9 +47,13 @@ class AcceptanceConfig:
     chi-square with 6 degrees of freedom at 99.9%; ceiling_above: the robot kinds' geometry --
     the ceiling sensor is above the ground sensor (z_G > 0) and upside down (its z axis within
     max_ceiling_tilt_deg of -z_G); max_sigma_rot_deg / max_sigma_trans_m: the largest 1-sigma
-    of the calibrated covariance a fusion may have (its own uncertainty beyond what a map fusion
-    is for: issue 16's success box is 1 deg / 5 cm); distinct_deg / distinct_m: candidates
-    closer than this are one registration."""
+    of the calibrated covariance a fusion may have, half of what a map fusion is for (issue 16's
+    success box, 1 deg / 5 cm), so that every axis's 2-sigma interval lies inside the box: with
+    the cap at the box itself, a fusion whose covariance is right and whose sigma sits at the
+    cap would land outside the box in about one trial in three, and a view slid along repeated
+    structure (a local minimum that fits as tightly as the true pose, its spread set by the few
+    surfaces that tell the two apart) would pass; distinct_deg / distinct_m: candidates closer
+    than this are one registration."""
 
     residual_sigma: float = 0.01
     misfit_weight: float = 4.0
@@ -59,8 +63,8 @@ class AcceptanceConfig:
     hint_gate: float = 22.458  # scipy.stats.chi2.ppf(0.999, 6)
     ceiling_above: bool = True
     max_ceiling_tilt_deg: float = 45.0
-    max_sigma_rot_deg: float = 1.0
-    max_sigma_trans_m: float = 0.05
+    max_sigma_rot_deg: float = 0.5
+    max_sigma_trans_m: float = 0.025
     distinct_deg: float = 0.5
     distinct_m: float = 0.02
 

@@ -253,9 +253,10 @@ def robust_register(
     def _beyond_fine_reach(T: np.ndarray, k: int) -> str | None:
         """Why a start's coarse pose cannot pass the checks the fine stage hardly changes (the
         hint gate, the robot geometry) after a move of one fine basin; None if it can. The last
-        of the hint's own starts always gets its fine stage (every report holds the hint's own
-        candidate); a wide-kernel hint start that slid beyond the gate costs no fine stage."""
-        if k == n_hint - 1:
+        of the hint's own starts gets its fine stage when no earlier start has left a candidate
+        (every report holds one of the hint's own); any other hint start that slid beyond the
+        gate costs no fine stage."""
+        if k == n_hint - 1 and not cands:
             return None
         e = hint_pose.localCoordinates(gtsam.Pose3(T))
         d2 = float(e @ hint_info @ e)
