@@ -68,9 +68,9 @@ def test_a_slid_view_is_not_fused_as_too_uncertain(redwood):
 
 
 def test_a_view_slid_along_repeated_structure_is_not_fused_at_half_the_box(redwood):
-    """30% overlap, 10 deg / 20 cm hint (exploration seed 217): the hint's start lands about
-    35 cm off, on structure that repeats along the floor, and passes every other check; its
-    rotation 1-sigma lies between half the success box and the box. With the cap at the box
+    """30% overlap, 10 deg / 20 cm hint (exploration seed 217): the hint's start slides several
+    decimetres along the floor to a local minimum that passes every other check; its rotation
+    1-sigma lies between half the success box and the box. With the cap at the box
     (AcceptanceConfig's old 1 deg / 5 cm) it was fused; at half the box it is not."""
     d, truth = _register(redwood, 0.3, 217, 1)
     assert not d.accepted and not d.checks["sigma_rot_deg"][2], d.reasons

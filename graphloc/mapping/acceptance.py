@@ -50,10 +50,9 @@ class AcceptanceConfig:
     of the calibrated covariance a fusion may have, half of what a map fusion is for (issue 16's
     success box, 1 deg / 5 cm), so that every axis's 2-sigma interval lies inside the box: with
     the cap at the box itself, a fusion whose covariance is right and whose sigma sits at the
-    cap would land outside the box in about one trial in three, and a view slid along repeated
-    structure (a local minimum that fits as tightly as the true pose, its spread set by the few
-    surfaces that tell the two apart) would pass; distinct_deg / distinct_m: candidates closer
-    than this are one registration."""
+    cap would land outside the box in about one trial in three, and a view slid along the floor
+    to a local minimum (its spread set by the few surfaces that tell it from the true pose)
+    would pass; distinct_deg / distinct_m: candidates closer than this are one registration."""
 
     residual_sigma: float = 0.01
     misfit_weight: float = 4.0
