@@ -15,7 +15,13 @@ import open3d as o3d
 import pytest
 
 from graphloc.cli import main as cli_main
-from graphloc.mapping.acceptance import AcceptanceConfig, Candidate, candidate_checks
+from graphloc.mapping.acceptance import (
+    AcceptanceConfig,
+    Candidate,
+    candidate_checks,
+    contradicted_fraction,
+    cost_margin_se,
+)
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
 from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
@@ -254,13 +260,58 @@ def test_calibrated_covariance_and_the_fit_it_comes_from():
         RegistrationConfig(covariance_scale=0.0)
 
 
+def test_contradicted_fraction_counts_the_cubes_where_the_views_do_not_meet():
+    """Near points in 0.5 m cubes: a cube where most points are off the other view's surfaces
+    contradicts the registration, one with the common inlier ratio does not, and a cube with
+    fewer than contradiction_min_points near points is too small to say."""
+    rng = np.random.default_rng(0)
+    acc = AcceptanceConfig()
+
+    def cube(corner, n, inlier_ratio):
+        pts = np.asarray(corner, dtype=float) + rng.uniform(0.05, 0.45, (n, 3))
+        return pts, rng.random(n) < inlier_ratio
+
+    parts = [cube((0, 0, 0), 400, 0.9), cube((1, 0, 0), 400, 0.9), cube((2, 0, 0), 200, 0.1)]
+    pts, inl = (np.concatenate(x) for x in zip(*parts))
+    assert contradicted_fraction(pts, inl, acc) == pytest.approx(200 / 1000)
+    assert contradicted_fraction(pts[:800], inl[:800], acc) == 0.0  # the views meet everywhere
+    few = acc.contradiction_min_points - 1
+    pts_few, inl_few = (np.concatenate(x) for x in zip(*parts[:2], cube((2, 0, 0), few, 0.0)))
+    assert contradicted_fraction(pts_few, inl_few, acc) == 0.0
+    assert contradicted_fraction(np.zeros((0, 3)), np.zeros(0, bool), acc) == 0.0
+    with pytest.raises(ValueError, match="contradiction_min_points"):
+        AcceptanceConfig(contradiction_min_points=0)
+    worst = Candidate(0, np.eye(4), 0.1, 0.5, 0.9, 1.0, 0.2)
+    failed = candidate_checks(worst, AcceptanceConfig(ceiling_above=False))["contradicted_fraction"]
+    assert failed == (0.2, acc.max_contradicted, False)
+
+
+def test_cost_margin_counts_how_many_clusters_the_winner_leads_in():
+    """The paired cost difference in standard errors over clusters: a rival that loses in one
+    cluster alone (every other alike) sits at exactly one standard error, one that loses in every
+    cluster far above it, one that wins back part of the lead elsewhere below it; identical
+    differences everywhere leave no spread (inf)."""
+    label = np.repeat(np.arange(20), 50)
+    winner = np.full(label.size, 0.5)
+    one = winner + np.where(label == 3, 2.0, 0.0)
+    assert cost_margin_se(winner, one, label) == pytest.approx(1.0)
+    taken_back = one - np.where(label == 7, 1.0, 0.0)
+    assert 0.0 < cost_margin_se(winner, taken_back, label) < 1.0
+    rng = np.random.default_rng(0)
+    everywhere = winner + 0.5 + 0.1 * rng.standard_normal(20)[label]
+    assert cost_margin_se(winner, everywhere, label) > 10.0
+    assert cost_margin_se(winner, winner + 1.0, label) == np.inf
+    with pytest.raises(ValueError, match="min_cost_margin_se"):
+        AcceptanceConfig(min_cost_margin_se=-1.0)
+
+
 def test_robot_geometry_check_wants_the_ceiling_robot_above_and_upside_down():
     acc = AcceptanceConfig()
 
     def checks(R, z):
         T = np.eye(4)
         T[:3, :3], T[2, 3] = R, z
-        out = candidate_checks(Candidate(0, T, 0.1, 0.5, 0.9, 1.0), acc)
+        out = candidate_checks(Candidate(0, T, 0.1, 0.5, 0.9, 1.0, 0.0), acc)
         return out["ceiling_height_m"][2], out["ceiling_z_down_cos"][2]
 
     flipped = np.diag([1.0, -1.0, -1.0])

@@ -317,6 +317,31 @@ def test_a_wrong_hint_on_the_simulated_room_is_not_fused(scenario, tmp_path, cap
     assert not (tmp_path / "out" / "fused_map.ply").exists()
 
 
+def test_two_registrations_that_fit_alike_are_not_fused():
+    """The furnished room (seed 201) from a 10 deg / 20 cm hint: the hint's start lands on the
+    pose, the re-seat 8 cm along a wall, and the slid one is a little cheaper with the cubes of
+    the room split between the two (cost margin under one standard error). It is not fused as
+    ambiguous; with no margin asked for, the slid one was fused."""
+    from graphloc.experiments.real_views import perturb
+    from graphloc.mapping.acceptance import AcceptanceConfig
+    from graphloc.mapping.registration import RegistrationConfig
+    from graphloc.mapping.robust_registration import hint_covariance, robust_register
+
+    scn = DualRoomScenario.simulate(variant_config("furnished", 201, frames=2))
+    truth, cfg = scn.T_ground0_ceiling0, RegistrationConfig()
+    src, tgt = prepare(scn.scans["ceiling"][0], cfg), prepare(scn.scans["ground"][0], cfg)
+    rng = np.random.default_rng(201)
+    perturb(truth, 3.0, 0.05, rng)  # the probe's first hint, drawn before the poor one
+    hint, cov = perturb(truth, 10.0, 0.2, rng), hint_covariance(np.deg2rad(10.0), 0.2)
+    d = robust_register(src, tgt, hint, cov, cfg)
+    assert not d.accepted and not d.checks["cost_margin_se"][2], d.reasons
+    right = [c for c in d.candidates if pose_errors(c.transformation, truth)[1] < 0.01]
+    assert right, [pose_errors(c.transformation, truth) for c in d.candidates]
+    loose = robust_register(src, tgt, hint, cov, cfg, AcceptanceConfig(min_cost_margin_se=0.0))
+    rot, trans = pose_errors(loose.registration.transformation, truth)
+    assert loose.accepted and trans > 0.05, (rot, trans)
+
+
 def test_fuse_maps_verb_reports_bad_input(tmp_path, capsys):
     rc = cli_main(
         [

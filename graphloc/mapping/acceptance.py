@@ -1,7 +1,8 @@
 """What a robust inter-robot registration must pass before it is fused (issue 16): the
 `AcceptanceConfig` thresholds, the per-candidate checks (`candidate_checks`: overlap, inlier
-ratio, agreement with the pose hint, the robot kinds' geometry), the point-to-plane residuals they
-are computed from (`point_to_plane`, `truncated_cost`), and the `RegistrationDecision` that
+ratio, contradicted cubes, agreement with the pose hint, the robot kinds' geometry), the
+point-to-plane residuals and costs they are computed from (`point_to_plane`, `truncated_costs`,
+`contradicted_fraction`, `cost_margin_se`), and the `RegistrationDecision` that
 `graphloc.mapping.robust_registration.robust_register` returns (every candidate, every check, why
 each candidate lost)."""
 
@@ -13,6 +14,7 @@ import numpy as np
 
 from graphloc.config import check
 from graphloc.mapping.registration import PreparedCloud, Registration
+from graphloc.mapping.registration_covariance import block_labels
 from graphloc.mapping.registration_index import NearestIndex
 
 
@@ -20,10 +22,12 @@ from graphloc.mapping.registration_index import NearestIndex
 CHECK_REASONS = {
     "overlap": "too little overlap",
     "inlier_ratio": "residuals inconsistent with a fit",
+    "contradicted_fraction": "surfaces both robots saw do not meet (a slid or turned view)",
     "conditioning": "degenerate geometry (a direction is unconstrained)",
     "hint_mahalanobis2": "disagrees with the pose hint beyond its covariance",
     "ceiling_height_m": "ceiling robot below the ground robot",
     "ceiling_z_down_cos": "ceiling robot not upside down",
+    "cost_margin_se": "another registration fits about as well (ambiguous)",
     "sigma_rot_deg": "too uncertain (rotation)",
     "sigma_trans_m": "too uncertain (translation)",
 }
@@ -34,13 +38,28 @@ class AcceptanceConfig:
     """Checks a registration must pass before it is fused (see `robust_register`).
 
     misfit_weight: what a source point near a target point but off its surface costs in a
-    candidate's `truncated_cost`, where an unexplained point (no target point near) costs 1: a
-    point the other robot did not see says nothing against a registration, a point beside a
-    surface it saw does (a view slid towards the other overlaps more of it, with more of its
-    points beside surfaces; one slid away overlaps less, with a few more on them);
+    candidate's cost (`truncated_costs`), where an unexplained point (no target point near)
+    costs 1: a point the other robot did not see says nothing against a registration, a point
+    beside a surface it saw does (a view slid towards the other overlaps more of it, with more
+    of its points beside surfaces; one slid away overlaps less, with a few more on them);
     min_overlap: inlier fraction of the source (point-to-plane |r| < c, c = residual_sigma);
     min_inlier_ratio: inliers among the source points that have a target point within the fine
     correspondence distance (a slid alignment puts points near surfaces, not on them);
+    contradiction_block / contradiction_min_points / contradiction_ratio / max_contradicted: the
+    regional check (`contradicted_fraction`): the near points (a target point within the fine
+    distance) in cubes of contradiction_block [m], a cube with at least contradiction_min_points
+    of them contradicts the registration when its inlier ratio is below contradiction_ratio
+    times the candidate's own, and at most max_contradicted of the near points may lie in such
+    cubes. Two views of one surface meet all over it; a view slid or turned into a local minimum
+    lines up the dominant planes and leaves the structures that fix the slide (furniture, a
+    corner, a door frame) beside each other, a few cubes where most points are off the other
+    view's surfaces, which the global inlier ratio dilutes;
+    min_cost_margin_se: every other valid candidate (distinct, passing its checks) must cost at
+    least this many standard errors more than the winner (`cost_margin_se`): two registrations
+    that explain the views about alike (a view slid by a decimetre along a wall) are not told
+    apart by which one is a little cheaper. A rival that loses in one cluster alone, every
+    other alike, sits at exactly 1; at the default the winner must lead by at least that much,
+    and one whose lead other clusters partly take back falls below it;
     min_conditioning: smallest / largest eigenvalue of the point-to-plane Hessian with rotations
     scaled by the median source range (a plane or a corridor leaves a direction unconstrained);
     hint_gate: Mahalanobis^2 of the result against the hint under the hint's covariance,
@@ -58,6 +77,11 @@ class AcceptanceConfig:
     misfit_weight: float = 4.0
     min_overlap: float = 0.1
     min_inlier_ratio: float = 0.65
+    contradiction_block: float = 0.5
+    contradiction_min_points: int = 20
+    contradiction_ratio: float = 0.4
+    max_contradicted: float = 0.02
+    min_cost_margin_se: float = 1.0
     min_conditioning: float = 1e-4
     hint_gate: float = 22.458  # scipy.stats.chi2.ppf(0.999, 6)
     ceiling_above: bool = True
@@ -70,11 +94,21 @@ class AcceptanceConfig:
     def __post_init__(self):
         check(
             self,
-            positive=("residual_sigma", "hint_gate", "max_sigma_rot_deg", "max_sigma_trans_m"),
+            positive=(
+                "residual_sigma",
+                "hint_gate",
+                "max_sigma_rot_deg",
+                "max_sigma_trans_m",
+                "contradiction_block",
+            ),
+            nonnegative=("min_cost_margin_se",),
+            integer={"contradiction_min_points": 1},
             interval={
                 "min_overlap": (0.0, 1.0, "[]"),
                 "min_inlier_ratio": (0.0, 1.0, "[]"),
                 "misfit_weight": (1.0, 1e6, "[]"),
+                "contradiction_ratio": (0.0, 1.0, "[]"),
+                "max_contradicted": (0.0, 1.0, "[]"),
             },
         )
 
@@ -82,8 +116,9 @@ class AcceptanceConfig:
 @dataclass(frozen=True)
 class Candidate:
     """One start of the multi-start registration after coarse + fine ICP: T_target_source,
-    truncated point-to-plane cost per source point (eq. in `truncated_cost`), overlap (inlier
-    fraction), inlier ratio among near points, and Mahalanobis^2 to the hint."""
+    truncated point-to-plane cost per source point (the mean of `truncated_costs`), overlap (inlier
+    fraction), inlier ratio among near points, Mahalanobis^2 to the hint, and the fraction of
+    near points in contradicting cubes (`contradicted_fraction`)."""
 
     start: int
     transformation: np.ndarray
@@ -91,6 +126,7 @@ class Candidate:
     overlap: float
     inlier_ratio: float
     hint_d2: float
+    contradicted: float
 
     def as_dict(self) -> dict:
         return {
@@ -99,6 +135,7 @@ class Candidate:
             "overlap": self.overlap,
             "inlier_ratio": self.inlier_ratio,
             "hint_mahalanobis2": self.hint_d2,
+            "contradicted_fraction": self.contradicted,
             "translation_m": self.transformation[:3, 3].tolist(),
         }
 
@@ -153,6 +190,11 @@ def candidate_checks(o: Candidate, acc: AcceptanceConfig) -> dict:
             acc.min_inlier_ratio,
             o.inlier_ratio >= acc.min_inlier_ratio,
         ),
+        "contradicted_fraction": (
+            o.contradicted,
+            acc.max_contradicted,
+            o.contradicted <= acc.max_contradicted,
+        ),
         "hint_mahalanobis2": (o.hint_d2, acc.hint_gate, o.hint_d2 <= acc.hint_gate),
     }
     if acc.ceiling_above:
@@ -186,10 +228,44 @@ def target_index(target: PreparedCloud, radius: float) -> NearestIndex:
     return NearestIndex(target.points, radius)
 
 
-def truncated_cost(r: np.ndarray, d: np.ndarray, c: float, max_dist: float, misfit: float) -> float:
-    """Truncated least squares per source point: mean of r^2 / c^2 for a point on a target
-    surface (|r| < c), `misfit` for a point with a target point within max_dist but off its
-    surface, 1 for a point with no target point within max_dist (an unexplained point)."""
+def truncated_costs(
+    r: np.ndarray, d: np.ndarray, c: float, max_dist: float, misfit: float
+) -> np.ndarray:
+    """Truncated least squares per source point (a candidate's cost is their mean): r^2 / c^2
+    for a point on a target surface (|r| < c), `misfit` for a point with a target point within
+    max_dist but off its surface, 1 for a point with no target point within max_dist (an
+    unexplained point)."""
     near = d < max_dist
     on = near & (np.abs(r) < c)
-    return float(np.mean(np.where(on, r * r / (c * c), np.where(near, misfit, 1.0))))
+    return np.where(on, r * r / (c * c), np.where(near, misfit, 1.0))
+
+
+def cost_margin_se(winner: np.ndarray, rival: np.ndarray, label: np.ndarray) -> float:
+    """How far a rival registration's cost lies above the winner's, in standard errors: the
+    paired difference d_i = rival_i - winner_i of the per-point costs (`truncated_costs`, the
+    same source points), its mean over the n points divided by its cluster-robust standard error
+    sqrt(B / (B - 1) sum_b (S_b - n_b mean)^2) / n over the B source clusters `label` (S_b, n_b:
+    cluster b's sum of d_i and its size; points of one surface err together, Liang & Zeger
+    1986). inf when the two costs agree point for point."""
+    diff = np.asarray(rival, dtype=float) - np.asarray(winner, dtype=float)
+    n, mean = len(diff), float(np.mean(diff))
+    S, nb = np.bincount(label, weights=diff), np.bincount(label)
+    B = len(nb)
+    se = np.sqrt(B / max(B - 1, 1) * np.sum((S - nb * mean) ** 2)) / n
+    return mean / se if se > 0 else float("inf")
+
+
+def contradicted_fraction(points: np.ndarray, inlier: np.ndarray, acc: AcceptanceConfig) -> float:
+    """Fraction of the near points (`points`, (n,3) in the target frame, `inlier`: |r| < c) that
+    lie in cubes of side acc.contradiction_block holding at least acc.contradiction_min_points
+    of them with an inlier ratio below acc.contradiction_ratio times the ratio over all of them:
+    the parts of the overlap where the two views' surfaces are beside each other, not on each
+    other (`AcceptanceConfig`). 0 without near points."""
+    if len(points) == 0:
+        return 0.0
+    label = block_labels(points, acc.contradiction_block)
+    n = np.bincount(label)
+    k = np.bincount(label, weights=np.asarray(inlier, dtype=float))
+    ratio = k.sum() / n.sum()
+    bad = (n >= acc.contradiction_min_points) & (k < acc.contradiction_ratio * ratio * n)
+    return float(n[bad].sum() / n.sum())

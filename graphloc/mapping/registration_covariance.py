@@ -30,13 +30,7 @@ def cluster_covariance(
             f"cluster_covariance: J (n,6), r (n,), points (n,3) and H (6,6) expected, got "
             f"{J.shape}, {r.shape}, {points.shape}, {H.shape}"
         )
-    cells = np.floor(points / block).astype(np.int64)
-    cells -= cells.min(axis=0)
-    span = cells.max(axis=0) + 1
-    _, label = np.unique(
-        (cells[:, 0] * span[1] + cells[:, 1]) * span[2] + cells[:, 2], return_inverse=True
-    )
-    label = label.reshape(-1)
+    label = block_labels(points, block)
     B = int(label.max()) + 1
     # per-cluster sums as one sparse (B, n) membership product (np.add.at is unbuffered)
     member = scipy.sparse.csr_matrix((np.ones(len(label)), (label, np.arange(len(label)))))
@@ -46,6 +40,18 @@ def cluster_covariance(
     d = np.einsum("bij,bj->bi", np.linalg.pinv(rest, hermitian=True), G)
     cov = (B - 1) / max(B, 1) * (d.T @ d)
     return 0.5 * (cov + cov.T)
+
+
+def block_labels(points: np.ndarray, block: float) -> np.ndarray:
+    """Index 0..B-1 of the cube of side `block` (a grid from the origin) that holds each of the
+    (n,3) points, B the number of occupied cubes."""
+    cells = np.floor(np.asarray(points, dtype=float) / block).astype(np.int64)
+    cells -= cells.min(axis=0)
+    span = cells.max(axis=0) + 1
+    _, label = np.unique(
+        (cells[:, 0] * span[1] + cells[:, 1]) * span[2] + cells[:, 2], return_inverse=True
+    )
+    return label.reshape(-1)
 
 
 def calibrated_covariance(cov: np.ndarray, cfg: RegistrationConfig) -> np.ndarray:

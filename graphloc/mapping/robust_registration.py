@@ -20,9 +20,11 @@ from graphloc.mapping.acceptance import (
     CHECK_REASONS,
     RegistrationDecision,
     candidate_checks,
+    contradicted_fraction,
+    cost_margin_se,
     point_to_plane,
     target_index,
-    truncated_cost,
+    truncated_costs,
 )
 from graphloc.mapping.registration import (
     PreparedCloud,
@@ -33,9 +35,18 @@ from graphloc.mapping.registration import (
     polish,
     poses_within,
 )
-from graphloc.mapping.registration_covariance import calibrated_covariance, cluster_covariance
+from graphloc.mapping.registration_covariance import (
+    block_labels,
+    calibrated_covariance,
+    cluster_covariance,
+)
+from graphloc.mapping.registration_stages import (
+    coarse_clouds,
+    fine_stage,
+    point_to_plane_estimation,
+    wide_levels,
+)
 
-reg_t = o3d.t.pipelines.registration
 reg_l = o3d.pipelines.registration
 
 
@@ -55,78 +66,6 @@ def hint_starts(hint: np.ndarray, cov: np.ndarray) -> list[np.ndarray]:
 def hint_covariance(sigma_rot: float, sigma_trans: float) -> np.ndarray:
     """6x6 diagonal covariance (rot [rad], trans [m]) of a hint given by two 1-sigmas."""
     return np.diag(np.r_[np.full(3, sigma_rot**2), np.full(3, sigma_trans**2)])
-
-
-def fine_stage(
-    source: PreparedCloud, target: PreparedCloud, init: np.ndarray, cfg: RegistrationConfig
-) -> tuple[np.ndarray, int]:
-    """`robust_register`'s fine stage: Open3D tensor point-to-plane ICP of the prepared clouds
-    from `init`, correspondences within cfg.max_correspondence[-1], a Tukey kernel of
-    cfg.fine_tukey times that distance (least squares if 0), until fitness and inlier RMSE change
-    by less than cfg.fine_relative (relative), cfg.max_iterations[-1] iterations at most, with
-    every cfg.fine_stride-th source point as a sample. Returns (T_target_source, iterations);
-    Open3D raises RuntimeError when too few correspondences are left for the 6x6 system."""
-    fine = cfg.max_correspondence[-1]
-    rk = reg_t.robust_kernel
-    kernel = (
-        rk.RobustKernel(rk.RobustKernelMethod.TukeyLoss, cfg.fine_tukey * fine)
-        if cfg.fine_tukey > 0
-        else rk.RobustKernel()
-    )
-    src = source.cloud
-    if cfg.fine_stride > 1:
-        n = len(src.point.positions)
-        src = src.select_by_index(o3d.core.Tensor(np.arange(0, n, cfg.fine_stride)))
-    res = reg_t.icp(
-        src,
-        target.cloud,
-        fine,
-        o3d.core.Tensor(np.asarray(init, dtype=np.float64)),
-        reg_t.TransformationEstimationPointToPlane(kernel),
-        reg_t.ICPConvergenceCriteria(cfg.fine_relative, cfg.fine_relative, cfg.max_iterations[-1]),
-    )
-    return res.transformation.numpy(), int(res.num_iterations)
-
-
-def _grid(cloud: o3d.geometry.PointCloud, voxel: float) -> o3d.geometry.PointCloud:
-    """`cloud` on a grid of `voxel`, each cell's normal the mean of the cloud's normals in it,
-    renormalized (the prepared clouds' normals are oriented toward their sensor, so they average
-    rather than cancel; no second normal estimation per level)."""
-    down = cloud.voxel_down_sample(voxel)
-    n = np.asarray(down.normals)
-    norm = np.linalg.norm(n, axis=1, keepdims=True)
-    keep = norm[:, 0] > 0.5  # a cell whose normals disagree by more than 120 deg has no plane
-    n[keep] /= norm[keep]
-    return down.select_by_index(np.flatnonzero(keep)) if not keep.all() else down
-
-
-def _coarse_clouds(source: PreparedCloud, target: PreparedCloud, cfg: RegistrationConfig):
-    """Both clouds on the coarse grid: twice the larger of cfg.voxel and the source's median
-    nearest-neighbour spacing (the scans' density), normals averaged (`_grid`)."""
-    spacing = float(np.median(np.asarray(source.legacy.compute_nearest_neighbor_distance())))
-    voxel = 2.0 * max(cfg.voxel, spacing)
-    return _grid(source.legacy, voxel), _grid(target.legacy, voxel), voxel
-
-
-def _wide_levels(src_c, tgt_c, reach: float, coarse_reach: float, cfg: RegistrationConfig):
-    """The wide pyramid above the coarse level: correspondences within `reach`, halved per level
-    while they exceed `coarse_reach`; each level's clouds are the coarse clouds on a grid of
-    reach / cfg.coarse_voxels, normals over at least two of its voxels. Returns
-    [(source, target, reach, voxel)], widest first."""
-    levels = []
-    while reach > coarse_reach:
-        voxel = reach / cfg.coarse_voxels
-        pair = []
-        for c in (src_c, tgt_c):
-            down = c.voxel_down_sample(voxel)
-            radius = max(cfg.normal_radius, 2.0 * voxel)
-            down.estimate_normals(
-                o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=cfg.max_nn)
-            )
-            pair.append(down)
-        levels.append((pair[0], pair[1], reach, voxel))
-        reach /= 2.0
-    return levels
 
 
 def robust_register(
@@ -149,11 +88,11 @@ def robust_register(
        view overlaps; a narrow one keeps a small overlap from pulling the rest of the view in.
     2. Per start: while the hint's reach (1-sigma rotation times the median source range plus
        1-sigma translation, at most cfg.max_reach) exceeds the coarse correspondence distance, a
-       wide pyramid first (`_wide_levels`): ICP on clouds gridded at reach / cfg.coarse_voxels
+       wide pyramid first (`wide_levels`): ICP on clouds gridded at reach / cfg.coarse_voxels
        with correspondences within the reach and a Tukey kernel of cfg.coarse_tukey of its
        voxels, the reach halved per level (the basin of a poor P3P guess, narrowed step by step:
        one wide jump to the coarse level slides); then point-to-plane ICP on the coarse grid
-       (`_coarse_clouds`; correspondences within cfg.coarse_voxels coarse voxels, Tukey kernel of
+       (`coarse_clouds`; correspondences within cfg.coarse_voxels coarse voxels, Tukey kernel of
        cfg.coarse_tukey voxels, so the parts that do not overlap are not pulled in); starts whose
        coarse results lie within one fine basin of each other (cfg.max_correspondence[-1], and
        the rotation moving the median source point that far) merge, and a sigma-point or global
@@ -169,19 +108,23 @@ def robust_register(
        cfg.stop_inlier_ratio (an easy case costs the hint's starts; one that barely passes lets
        the sigma points compete). If none passes and cfg.global_fallback, `global_fpfh_ransac`
        (seed 0) gives one more start (index len(starts)), still subject to every check, the hint
-       gate included. Once a candidate has passed, a last start (index len(starts) + 1), the
-       re-seat: the best valid candidate's (step 3) rotation at the hint's translation,
-       through the coarse level and the fine stage (no pyramid). A pyramid slides a view along
-       its dominant plane towards the other view, a translation its rotation does not share;
-       the re-seat puts the view back where the hint says it is (skipped when that lies within
-       one fine basin of the candidate).
-    3. Each candidate's `truncated_cost` (c = acc.residual_sigma; a point near a target point
-       but off its surface costs acc.misfit_weight, an unexplained point 1) and checks
-       (overlap, inlier ratio, hint gate, robot geometry: `candidate_checks`); among those that
-       pass, the lowest cost wins. A point beside a surface the other robot saw contradicts the
-       registration, a point where it saw nothing is only unseen: with every point off the
-       other view costing alike, a view slid along a dominant plane towards the other view
-       wins by overlapping more of it, though more of its points lie beside surfaces.
+       gate included. Once a candidate is valid or only slid (it fails no check but the
+       contradicted cubes), a last start (index len(starts) + 1), the re-seat: the cheapest such
+       candidate's rotation at the hint's translation, through the coarse level and the fine
+       stage (no pyramid). A pyramid slides a view along its dominant plane towards the other
+       view, a translation its rotation does not share; the re-seat puts the view back where the
+       hint says it is (skipped when that lies within one fine basin of the candidate).
+    3. Each candidate's cost, the mean of its `truncated_costs` (c = acc.residual_sigma; a point
+       near a target point but off its surface costs acc.misfit_weight, an unexplained point 1),
+       and checks (overlap, inlier ratio, contradicted cubes, hint gate, robot geometry:
+       `candidate_checks`); among those that pass, the lowest cost wins. A point beside a
+       surface the other robot saw contradicts the registration, a point where it saw nothing
+       is only unseen: with every point off the other view costing alike, a view slid along a
+       dominant plane towards the other view wins by overlapping more of it, though more of its
+       points lie beside surfaces. The winner must undercut every other valid candidate by
+       acc.min_cost_margin_se standard errors of the paired per-point cost difference
+       (`cost_margin_se` over the source's cfg.covariance_block clusters), else the views do not
+       tell the two registrations apart.
     4. The winner refined by `polish` (full resolution, both directions), the checks of step 3
        and its conditioning on that pose (`candidates` keep the poses before the polish), and a
        covariance (step 5) within acc.max_sigma_rot_deg / max_sigma_trans_m; accepted only if
@@ -213,9 +156,9 @@ def robust_register(
         stage_s[stage] += time.perf_counter() - t0
         return out
 
-    src_c, tgt_c, voxel_c = timed("coarse", _coarse_clouds, source, target, cfg)
+    src_c, tgt_c, voxel_c = timed("coarse", coarse_clouds, source, target, cfg)
     fine = cfg.max_correspondence[-1]
-    est = _point_to_plane_estimation(cfg.coarse_tukey * voxel_c)
+    est = point_to_plane_estimation(cfg.coarse_tukey * voxel_c)
     crit_c = reg_l.ICPConvergenceCriteria(1e-6, 1e-6, cfg.max_iterations[0])
     hint_info = np.linalg.inv(0.5 * (hint_cov + hint_cov.T))
     hint_pose = gtsam.Pose3(hint)
@@ -224,13 +167,13 @@ def robust_register(
     nns = target_index(target, max(fine, cfg.polish_distance + cfg.voxel))
     r_med = float(np.median(np.linalg.norm(source.points, axis=1)))
     basin_deg = float(np.degrees(fine / r_med))  # a rotation moving the median point by `fine`
-    merged, coarse, cands, iterations = {}, [], [], 0
+    merged, coarse, cands, iterations, point_costs = {}, [], [], 0, {}
 
     lam = np.linalg.eigvalsh(hint_cov[:3, :3])[-1], np.linalg.eigvalsh(hint_cov[3:, 3:])[-1]
     reach = min(float(np.sqrt(lam[0]) * r_med + np.sqrt(lam[1])), cfg.max_reach)
     wide = []
     if cfg.coarse_voxels > 0:
-        wide = timed("coarse", _wide_levels, src_c, tgt_c, reach, cfg.coarse_voxels * voxel_c, cfg)
+        wide = timed("coarse", wide_levels, src_c, tgt_c, reach, cfg.coarse_voxels * voxel_c, cfg)
 
     def coarse_stage(T0: np.ndarray, tukey: float = cfg.coarse_tukey, levels=wide) -> np.ndarray:
         """The wide pyramid `levels` (while the hint's reach exceeds the coarse one), then the
@@ -238,7 +181,7 @@ def robust_register(
         if cfg.coarse_voxels <= 0:
             return T0
         for a, b, dist, voxel in levels:
-            est_w = _point_to_plane_estimation(tukey * voxel)
+            est_w = point_to_plane_estimation(tukey * voxel)
             T0 = reg_l.registration_icp(a, b, dist, T0, est_w, crit_c).transformation
         res = reg_l.registration_icp(src_c, tgt_c, cfg.coarse_voxels * voxel_c, T0, est, crit_c)
         return np.asarray(res.transformation)
@@ -266,16 +209,21 @@ def robust_register(
             return "coarse pose fails the robot geometry, out of fine reach"
         return None
 
-    def candidate(k: int, T: np.ndarray, residuals=None) -> Candidate:
-        """Start k's pose T with its truncated cost, overlap, inlier ratio and hint distance
-        (`residuals`: point_to_plane's (r, d, J) at T, if already computed)."""
+    def candidate(k: int, T: np.ndarray, residuals=None) -> tuple[Candidate, np.ndarray]:
+        """Start k's pose T as a Candidate (cost, overlap, inlier ratio, contradicted cubes, hint
+        distance) and its per-point `truncated_costs` (`residuals`: point_to_plane's (r, d, J)
+        at T, if already computed)."""
         r, d, _ = residuals if residuals is not None else point_to_plane(source, target, T, nns)
         near = d < fine
         inl = near & (np.abs(r) < c)
         e = hint_pose.localCoordinates(gtsam.Pose3(T))
         ratio = float(inl.sum() / max(near.sum(), 1))
-        cost = truncated_cost(r, d, c, fine, acc.misfit_weight)
-        return Candidate(k, T, cost, float(inl.mean()), ratio, float(e @ hint_info @ e))
+        costs = truncated_costs(r, d, c, fine, acc.misfit_weight)
+        cost = float(costs.mean())
+        p_near = source.points[near] @ T[:3, :3].T + T[:3, 3]
+        bad = contradicted_fraction(p_near, inl[near], acc)
+        o = Candidate(k, T, cost, float(inl.mean()), ratio, float(e @ hint_info @ e), bad)
+        return o, costs
 
     def try_start(k: int, T: np.ndarray) -> bool:
         """Fine ICP from one start's coarse pose; True if its candidate passes its own checks."""
@@ -300,7 +248,8 @@ def robust_register(
         if same:
             merged[k] = f"converged to the pose of start {same[0]}"
             return False
-        cands.append(timed("checks", candidate, k, T))
+        o, point_costs[k] = timed("checks", candidate, k, T)
+        cands.append(o)
         return all(v[2] for v in candidate_checks(cands[-1], acc).values())
 
     # the hint once per wide-level kernel (while there is a wide level), then its sigma points
@@ -320,11 +269,11 @@ def robust_register(
         T_glob, _ = timed("global", global_fpfh_ransac, source, target, cfg, 0)
         counts["starts"] += 1
         found = try_start(len(starts), timed("coarse", coarse_stage, T_glob))
-    if found:  # re-seat: the best valid candidate's rotation at the hint's translation
-        top = min(
-            (o for o in cands if all(v[2] for v in candidate_checks(o, acc).values())),
-            key=lambda x: x.cost,
-        )
+    # re-seat: the rotation of the best candidate that is valid or only slid (it fails no check
+    # but the contradicted cubes) at the hint's translation
+    seats = [o for o in cands if all(v[2] for v in _checks_but_contradiction(o, acc))]
+    if seats:
+        top = min(seats, key=lambda x: x.cost)
         T_re = top.transformation.copy()
         T_re[:3, 3] = hint[:3, 3]
         k_re = len(starts) + 1
@@ -354,7 +303,7 @@ def robust_register(
     T = best.transformation
     T = timed("polish", polish, source, target, T, cfg, nns)
     r, d, J = point_to_plane(source, target, T, nns)
-    final = candidate(best.start, T, (r, d, J))
+    final, _ = candidate(best.start, T, (r, d, J))
     inl = (d < fine) & (np.abs(r) < c)
     n_in = int(inl.sum())
     H = J[inl].T @ J[inl]
@@ -377,6 +326,17 @@ def robust_register(
         acc.min_conditioning,
         conditioning >= acc.min_conditioning,
     )
+    rivals = [o for o in valid if o.start != best.start]
+    if rivals:  # step 3's margin: the winner must fit better than every other valid candidate
+        label = block_labels(source.points, cfg.covariance_block)
+        margin = min(
+            cost_margin_se(point_costs[best.start], point_costs[o.start], label) for o in rivals
+        )
+        checks["cost_margin_se"] = (
+            margin,
+            acc.min_cost_margin_se,
+            margin >= acc.min_cost_margin_se,
+        )
     sigma = np.sqrt(np.diag(cov))
     caps = (
         ("sigma_rot_deg", float(np.degrees(sigma[:3].max())), acc.max_sigma_rot_deg),
@@ -395,11 +355,9 @@ def robust_register(
     return RegistrationDecision(reg, not reasons, reasons, *args)
 
 
-def _point_to_plane_estimation(tukey: float):
-    """Open3D point-to-plane estimation with a Tukey kernel of width `tukey` [m] (0: least
-    squares)."""
-    kernel = reg_l.TukeyLoss(tukey) if tukey > 0 else reg_l.L2Loss()
-    return reg_l.TransformationEstimationPointToPlane(kernel)
+def _checks_but_contradiction(o: Candidate, acc: AcceptanceConfig) -> list:
+    """A candidate's checks without contradicted_fraction (a slid view fails that one alone)."""
+    return [v for k, v in candidate_checks(o, acc).items() if k != "contradicted_fraction"]
 
 
 def _distinct(A: np.ndarray, B: np.ndarray, acc: AcceptanceConfig) -> bool:
