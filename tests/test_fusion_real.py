@@ -289,8 +289,8 @@ def test_contradicted_fraction_counts_the_cubes_where_the_views_do_not_meet():
 def test_cost_margin_counts_how_many_clusters_the_winner_leads_in():
     """The paired cost difference in standard errors over clusters: a rival that loses in one
     cluster alone (every other alike) sits at exactly one standard error, one that loses in every
-    cluster far above it, one that wins back part of the lead elsewhere below it; identical
-    differences everywhere leave no spread (inf)."""
+    cluster far above it, one that wins back part of the lead elsewhere below it; the same
+    difference everywhere leaves no spread (inf), and a tie counts as no margin."""
     label = np.repeat(np.arange(20), 50)
     winner = np.full(label.size, 0.5)
     one = winner + np.where(label == 3, 2.0, 0.0)
@@ -301,6 +301,7 @@ def test_cost_margin_counts_how_many_clusters_the_winner_leads_in():
     everywhere = winner + 0.5 + 0.1 * rng.standard_normal(20)[label]
     assert cost_margin_se(winner, everywhere, label) > 10.0
     assert cost_margin_se(winner, winner + 1.0, label) == np.inf
+    assert cost_margin_se(winner, winner.copy(), label) == 0.0  # a tie is ambiguous
     with pytest.raises(ValueError, match="min_cost_margin_se"):
         AcceptanceConfig(min_cost_margin_se=-1.0)
 

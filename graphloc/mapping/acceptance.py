@@ -246,13 +246,16 @@ def cost_margin_se(winner: np.ndarray, rival: np.ndarray, label: np.ndarray) -> 
     same source points), its mean over the n points divided by its cluster-robust standard error
     sqrt(B / (B - 1) sum_b (S_b - n_b mean)^2) / n over the B source clusters `label` (S_b, n_b:
     cluster b's sum of d_i and its size; points of one surface err together, Liang & Zeger
-    1986). inf when the two costs agree point for point."""
+    1986). Without spread: inf when the rival costs more by the same in every cluster, 0 when
+    it costs no more (as ambiguous as a tie)."""
     diff = np.asarray(rival, dtype=float) - np.asarray(winner, dtype=float)
     n, mean = len(diff), float(np.mean(diff))
     S, nb = np.bincount(label, weights=diff), np.bincount(label)
     B = len(nb)
     se = np.sqrt(B / max(B - 1, 1) * np.sum((S - nb * mean) ** 2)) / n
-    return mean / se if se > 0 else float("inf")
+    if se > 0:
+        return mean / se
+    return float("inf") if mean > 0 else 0.0
 
 
 def contradicted_fraction(points: np.ndarray, inlier: np.ndarray, acc: AcceptanceConfig) -> float:
