@@ -17,7 +17,7 @@ import pytest
 
 from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
 from graphloc.mapping.acceptance import AcceptanceConfig, candidate_checks
-from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
+from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare, refine
 from graphloc.mapping.robust_registration import hint_covariance, robust_register
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -161,6 +161,21 @@ def test_dense_fragment_at_60_percent_is_fused_within_a_tenth_of_a_degree(redwoo
     assert pose_errors(fine, truth)[0] > rot
 
 
+def test_refine_reports_a_singular_icp_system_as_too_few_correspondences(redwood):
+    """30% overlap, 15% of the points kept, 10 deg / 20 cm hint (exploration seed 207): Open3D's
+    multi-scale ICP stops on a singular 6x6 system, a RuntimeError that crashed the benchmark's
+    pre-issue-16 path (and would have crashed `fuse` with robust = false, or its scan matching);
+    `refine` turns it into the ValueError of too few correspondences that the CLI reports."""
+    rng = np.random.default_rng([207, 300])
+    pair = make_view_pair(redwood, 0.3, rng, keep=0.15)
+    perturb(pair.T_ground_ceiling, 3.0, 0.05, rng)  # the benchmark's first hint, drawn first
+    hint = perturb(pair.T_ground_ceiling, 10.0, 0.20, rng)
+    cfg = RegistrationConfig()
+    src, tgt = prepare(pair.ceiling, cfg), prepare(pair.ground, cfg)
+    with pytest.raises(ValueError, match="too few correspondences.*Open3D: Singular 6x6"):
+        refine(src, tgt, hint, cfg)
+
+
 def test_make_real_fragment_levels_a_point_cloud_on_its_floor(tmp_path):
     """scripts/make_real_fragment.py on a cloud: a tilted, upside-down room (floor plus a box
     standing on it) comes out with the floor at z = -height and the box above it."""
@@ -205,3 +220,21 @@ def test_bench_fusion_real_runs_on_another_fragment(tmp_path):
     for trial in report["trials"]:
         g = trial["graphloc"]
         assert g["accepted"] or g["reasons"]
+
+
+def test_bench_fusion_real_probes_other_sensors_and_says_so(tmp_path):
+    """--noise / --keep change the views' noise and subsampling (issue 16's protocol is 5 mm and
+    50%): the report records them and its command names them; nonsense is refused."""
+    from graphloc.experiments.fusion_bench import main
+
+    out = tmp_path / "out"
+    argv = ["--real", "--trials", "1", "--seed", "200", "--out", str(out), "--workers", "1"]
+    assert main([*argv, "--noise", "0.01", "--keep", "0.3"]) == 0
+    report = json.loads((out / "bench_fusion_real.json").read_text())
+    assert report["views"] == {"noise_m": 0.01, "keep": 0.3}
+    assert report["command"].endswith("--noise 0.01 --keep 0.3")
+    n = len(load_fragment(None))  # each view keeps about 30% of its part of the fragment
+    assert all(max(t["view_points"]) < 0.32 * n for t in report["trials"])
+    for bad in (["--keep", "0"], ["--keep", "1.5"], ["--noise", "-0.01"]):
+        with pytest.raises(SystemExit, match="--keep"):
+            main([*argv, *bad])

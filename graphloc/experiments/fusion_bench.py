@@ -31,7 +31,12 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.executor import Executor
-from graphloc.experiments.fusion_bench_real import TRANS_OK_M, main_real
+from graphloc.experiments.fusion_bench_real import (
+    PROTOCOL_KEEP,
+    PROTOCOL_NOISE_M,
+    TRANS_OK_M,
+    main_real,
+)
 from graphloc.experiments.fusion_calibration import main_calibrate
 
 METHODS = ("icp_no_guess", "fpfh_ransac", "graphloc")
@@ -216,6 +221,18 @@ def main(argv=None) -> int:
         "(default: the bundled tests/data/real_room fragment)",
     )
     p.add_argument(
+        "--noise",
+        type=float,
+        default=PROTOCOL_NOISE_M,
+        help="with --real: each view's Gaussian noise [m] (issue 16's protocol: 0.005)",
+    )
+    p.add_argument(
+        "--keep",
+        type=float,
+        default=PROTOCOL_KEEP,
+        help="with --real: the fraction of the fragment's points each view keeps (protocol: 0.5)",
+    )
+    p.add_argument(
         "--calibrate",
         action="store_true",
         help="with --real: fit the registration covariance's calibration (use other seeds)",
@@ -229,8 +246,8 @@ def main(argv=None) -> int:
     if args.out is None:
         args.out = "out/bench_fusion_real" if args.real else "out/bench_fusion"
     if args.real:
-        if args.trials < 1 or args.workers < 1:
-            raise SystemExit("--trials >= 1, --workers >= 1")
+        if args.trials < 1 or args.workers < 1 or args.noise < 0 or not 0 < args.keep <= 1:
+            raise SystemExit("--trials >= 1, --workers >= 1, --noise >= 0, 0 < --keep <= 1")
         return main_calibrate(args) if args.calibrate else main_real(args)
     trials = 3 if args.quick else args.trials
     if trials < 1 or args.frames < 2 or args.workers < 1:

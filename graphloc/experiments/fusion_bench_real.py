@@ -1,7 +1,8 @@
 """The map-fusion benchmark on real geometry (issue 16, `scripts/bench_fusion.py --real`): per
 overlap (about 60% and 30%, graphloc.experiments.real_views) and trial on a real indoor fragment
 (tests/data/real_room's TUM office, or --fragment FILE), one ground + one flipped ceiling view
-(independent 50% subsampling, 5 mm noise, ceiling sensor 2.5 m up with a random yaw), then the
+(independent 50% subsampling, 5 mm noise -- --keep / --noise change them to probe other
+sensors --, ceiling sensor 2.5 m up with a random yaw), then the
 pose hint perturbed by exactly 3 deg / 5 cm and by 10 deg / 20 cm (the hint's 1-sigma given to
 graphloc is that perturbation). Methods on the same prepared clouds:
   graphloc        fuse (robust_register + acceptance checks + graph), what fuse-maps --hint runs
@@ -43,11 +44,13 @@ from graphloc.experiments.fusion_report_real import (
 
 REAL_OVERLAPS = (0.6, 0.3)
 REAL_HINTS = ((3.0, 0.05), (10.0, 0.20))
+PROTOCOL_NOISE_M, PROTOCOL_KEEP = 0.005, 0.5  # issue 16's views: 5 mm noise, 50% of the points
 
 
-def run_real_trial(job: tuple[float, int, bool, str | None]) -> list[dict]:
+def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> list[dict]:
     """One view pair of the real fragment, both hint levels, every method (module docstring).
-    job: (overlap, seed, calibration, fragment path or None for the bundled one). With
+    job: (overlap, seed, calibration, fragment path or None for the bundled one, per-view noise
+    [m], kept fraction of the points; the protocol's are PROTOCOL_NOISE_M / PROTOCOL_KEEP). With
     calibration: graphloc only, with the uncalibrated covariance (scale 1), its tangent error
     and covariance kept for `fit_calibration`."""
     from dataclasses import replace
@@ -67,9 +70,9 @@ def run_real_trial(job: tuple[float, int, bool, str | None]) -> list[dict]:
         prepare,
     )
 
-    overlap, seed, calibrate, fragment = job
+    overlap, seed, calibrate, fragment, noise_m, keep = job
     rng = np.random.default_rng([seed, int(round(1000 * overlap))])
-    pair = make_view_pair(load_fragment(fragment), overlap, rng)
+    pair = make_view_pair(load_fragment(fragment), overlap, rng, keep=keep, noise_m=noise_m)
     truth = pair.T_ground_ceiling
     cfg = RegistrationConfig()
     if calibrate:
@@ -99,6 +102,7 @@ def run_real_trial(job: tuple[float, int, bool, str | None]) -> list[dict]:
             "hint_rot_deg": rot_deg,
             "hint_trans_m": trans_m,
             "points": [len(source.points), len(target.points)],
+            "view_points": [len(pair.ceiling), len(pair.ground)],
         }
         inp = FusionInput(np.zeros(1), [pair.ground], [pair.ceiling], hint=hint, hint_sigma=sigma)
         variants = (
@@ -260,7 +264,9 @@ def summarize_real(rows: list[dict]) -> dict:
 def main_real(args) -> int:
     trials = 3 if args.quick else args.trials
     jobs = [
-        (ov, args.seed + i, False, args.fragment) for ov in REAL_OVERLAPS for i in range(trials)
+        (ov, args.seed + i, False, args.fragment, args.noise, args.keep)
+        for ov in REAL_OVERLAPS
+        for i in range(trials)
     ]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -288,6 +294,9 @@ def main_real(args) -> int:
     if args.fragment:
         command += f" --fragment {args.fragment}"
         report["fragment"] = str(args.fragment)
+    report["views"] = {"noise_m": args.noise, "keep": args.keep}
+    if (args.noise, args.keep) != (PROTOCOL_NOISE_M, PROTOCOL_KEEP):  # off issue 16's protocol
+        command += f" --noise {args.noise:g} --keep {args.keep:g}"
     report["command"] = command
     if args.doc:  # the doc's JSON (summary, no per-trial rows) and PNG beside it
         doc = Path(args.doc)

@@ -54,7 +54,9 @@ def main_calibrate(args) -> int:
     from graphloc.plots import plt  # the one place that sets the backend
 
     jobs = [
-        (ov, args.seed + i, True, args.fragment) for ov in REAL_OVERLAPS for i in range(args.trials)
+        (ov, args.seed + i, True, args.fragment, args.noise, args.keep)
+        for ov in REAL_OVERLAPS
+        for i in range(args.trials)
     ]
     start = time.perf_counter()
     with Executor(args.workers) as ex:

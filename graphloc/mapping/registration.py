@@ -18,6 +18,7 @@ calibrated covariance).
 
 from __future__ import annotations
 
+import re
 import time
 from dataclasses import dataclass
 
@@ -259,26 +260,29 @@ def refine(
         reg_t.ICPConvergenceCriteria(cfg.relative_fitness, cfg.relative_rmse, n)
         for n in cfg.max_iterations
     ]
-    result = reg_t.multi_scale_icp(
-        source.cloud,
-        target.cloud,
-        o3d.utility.DoubleVector(cfg.scales),
-        criteria,
-        o3d.utility.DoubleVector(cfg.max_correspondence),
-        o3d.core.Tensor(init),
-        reg_t.TransformationEstimationPointToPlane(),
-    )
-    T = result.transformation.numpy()
-    iterations = int(result.num_iterations)
     dist = cfg.max_correspondence[-1]
+    too_few = (
+        f"refine: ICP found too few correspondences within {dist} m of the initial guess "
+        "(fitness {:.3f}): a wrong pose hint, or scans that do not overlap"
+    )
+    try:
+        result = reg_t.multi_scale_icp(
+            source.cloud,
+            target.cloud,
+            o3d.utility.DoubleVector(cfg.scales),
+            criteria,
+            o3d.utility.DoubleVector(cfg.max_correspondence),
+            o3d.core.Tensor(init),
+            reg_t.TransformationEstimationPointToPlane(),
+        )
+    except RuntimeError as exc:  # Open3D: a singular 6x6 system, too few correspondences left
+        why = re.sub(r"\x1b\[[0-9;]*m", "", str(exc)).strip().rsplit(": ", 1)[-1]
+        raise ValueError(f"{too_few.format(0.0)}; Open3D: {why}") from None
+    T, iterations = result.transformation.numpy(), int(result.num_iterations)
     info = reg_l.get_information_matrix_from_point_clouds(source.legacy, target.legacy, dist, T)
     info = information_right(np.asarray(info), T) / cfg.range_sigma**2
     if result.fitness <= 0 or np.linalg.eigvalsh(0.5 * (info + info.T))[0] <= 0:
-        raise ValueError(
-            f"refine: ICP found too few correspondences within {dist} m of the initial guess "
-            f"(fitness {float(result.fitness):.3f}): a wrong pose hint, "
-            "or scans that do not overlap"
-        )
+        raise ValueError(too_few.format(float(result.fitness)))
     seconds = time.perf_counter() - start
     return Registration(
         T, float(result.fitness), float(result.inlier_rmse), iterations, info, seconds
