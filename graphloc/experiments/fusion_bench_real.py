@@ -261,6 +261,15 @@ def summarize_real(rows: list[dict]) -> dict:
     return out
 
 
+def view_options(args) -> str:
+    """The command line's options for the views: --fragment when not the bundled one, and
+    --noise / --keep when off issue 16's protocol (PROTOCOL_NOISE_M / PROTOCOL_KEEP)."""
+    out = f" --fragment {args.fragment}" if args.fragment else ""
+    if (args.noise, args.keep) != (PROTOCOL_NOISE_M, PROTOCOL_KEEP):
+        out += f" --noise {args.noise:g} --keep {args.keep:g}"
+    return out
+
+
 def main_real(args) -> int:
     trials = 3 if args.quick else args.trials
     jobs = [
@@ -291,12 +300,10 @@ def main_real(args) -> int:
         "trials": rows,
     }
     command = "python scripts/bench_fusion.py --real --trials %d --seed %d" % (trials, args.seed)
+    command += view_options(args)
     if args.fragment:
-        command += f" --fragment {args.fragment}"
         report["fragment"] = str(args.fragment)
     report["views"] = {"noise_m": args.noise, "keep": args.keep}
-    if (args.noise, args.keep) != (PROTOCOL_NOISE_M, PROTOCOL_KEEP):  # off issue 16's protocol
-        command += f" --noise {args.noise:g} --keep {args.keep:g}"
     report["command"] = command
     if args.doc:  # the doc's JSON (summary, no per-trial rows) and PNG beside it
         doc = Path(args.doc)

@@ -19,11 +19,10 @@ from scipy.stats import chi2
 from graphloc.executor import Executor
 
 from graphloc.experiments.fusion_bench_real import (
-    PROTOCOL_KEEP,
-    PROTOCOL_NOISE_M,
     REAL_OVERLAPS,
     _cells,
     run_real_trial,
+    view_options,
 )
 
 
@@ -98,15 +97,10 @@ def main_calibrate(args) -> int:
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     plt.close(fig)
-    command = f"python scripts/bench_fusion.py --real --calibrate --trials {args.trials} "
-    command += f"--seed {args.seed}"
-    if args.fragment:
-        command += f" --fragment {args.fragment}"
-    if (args.noise, args.keep) != (PROTOCOL_NOISE_M, PROTOCOL_KEEP):  # off issue 16's protocol
-        command += f" --noise {args.noise:g} --keep {args.keep:g}"
     report = {
         "benchmark": "fusion_covariance_calibration",
-        "command": command,
+        "command": f"python scripts/bench_fusion.py --real --calibrate --trials {args.trials} "
+        f"--seed {args.seed}" + view_options(args),
         "views": {"noise_m": args.noise, "keep": args.keep},
         "seeds": [args.seed, args.seed + args.trials - 1],
         "trials_per_overlap": args.trials,
