@@ -42,7 +42,11 @@ class AcceptanceConfig:
     costs 1: a point the other robot did not see says nothing against a registration, a point
     beside a surface it saw does (a view slid towards the other overlaps more of it, with more
     of its points beside surfaces; one slid away overlaps less, with a few more on them);
-    min_overlap: inlier fraction of the source (point-to-plane |r| < c, c = residual_sigma);
+    residual_sigma: the least residual scale c [m] of the checks; c is the two scans' own residual
+    spread (`graphloc.mapping.robust_registration.residual_scale`), never below this: a noisier
+    or sparser scan widens what a surface the other robot saw looks like from it, and with c
+    fixed a right registration of such scans falls below min_inlier_ratio;
+    min_overlap: inlier fraction of the source (point-to-plane |r| < c);
     min_inlier_ratio: inliers among the source points that have a target point within the fine
     correspondence distance (a slid alignment puts points near surfaces, not on them);
     contradiction_block / contradiction_min_points / contradiction_ratio / max_contradicted: the
@@ -148,7 +152,8 @@ class RegistrationDecision:
     why each lost, wall time [s], and `timings`: seconds per stage of `robust_register`
     (coarse: clouds, pyramid and coarse ICP of every start; fine: the fine stages; checks: the
     candidates' residuals; global: the FPFH fallback; polish; rest: final checks, covariance)
-    with the number of starts and of fine stages."""
+    with the number of starts and of fine stages, and `residual_scale`: the checks' c [m]
+    (`graphloc.mapping.robust_registration.residual_scale`)."""
 
     registration: Registration
     accepted: bool
@@ -160,6 +165,7 @@ class RegistrationDecision:
     covariance: np.ndarray
     seconds: float
     timings: dict | None = None
+    residual_scale: float | None = None
 
     def as_dict(self) -> dict:
         return {
@@ -178,6 +184,7 @@ class RegistrationDecision:
             "sigma_trans_m": np.sqrt(np.diag(self.covariance)[3:]).tolist(),
             "seconds": self.seconds,
             "timings": self.timings,
+            "residual_scale_m": self.residual_scale,
         }
 
 

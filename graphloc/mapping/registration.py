@@ -27,6 +27,7 @@ import numpy as np
 
 from graphloc.config import check
 from graphloc.mapping.registration_index import NearestIndex
+from graphloc.mapping.scan_noise import grid_cells, split_half_sigma
 import open3d as o3d
 
 reg_t = o3d.t.pipelines.registration
@@ -157,15 +158,18 @@ class RegistrationConfig:
 
 @dataclass(frozen=True)
 class PreparedCloud:
-    """A denoised, downsampled cloud with normals (tensor and legacy views share no memory), and
+    """A denoised, downsampled cloud with normals (tensor and legacy views share no memory),
     `raw`: the input points at full resolution (for the last stage of `robust_register`,
-    `polish`; None when cfg.polish_distance is 0; every k-th point beyond cfg.polish_max_points)."""
+    `polish`; None when cfg.polish_distance is 0; every k-th point beyond cfg.polish_max_points),
+    and `residual_sigma`: the scan's own point-to-plane residual spread [m] on this grid
+    (`graphloc.mapping.scan_noise.split_half_sigma`; the scale of robust_register's checks)."""
 
     cloud: o3d.t.geometry.PointCloud
     legacy: o3d.geometry.PointCloud
     n_input: int
     n_outliers: int
     raw: np.ndarray | None = None
+    residual_sigma: float = float("nan")
 
     @property
     def points(self) -> np.ndarray:
@@ -200,7 +204,7 @@ def denoise(
     if len(pts) < cfg.nb_neighbors + 1:
         raise ValueError(f"denoise: {len(pts)} points is too few (need > {cfg.nb_neighbors})")
     # sorted cells: the fine stage's every-k-th sample is the same in every run and process
-    pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(_sorted_cells(pts, cfg.voxel)))
+    pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(grid_cells(pts, cfg.voxel)))
     pcd, keep = pcd.remove_statistical_outliers(cfg.nb_neighbors, cfg.std_ratio)
     return pcd, int(len(keep) - keep.numpy().sum())
 
@@ -209,8 +213,9 @@ def prepare(
     points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0)
 ) -> PreparedCloud:
     """`denoise`, then normals oriented toward `viewpoint` (the sensor, for FPFH's signed
-    angles); with cfg.polish_distance > 0 it keeps the input points (`PreparedCloud.raw`; on
-    every k-th point when there are more than cfg.polish_max_points)."""
+    angles) and the scan's residual spread (`split_half_sigma` on the prepared grid); with
+    cfg.polish_distance > 0 it keeps the input points (`PreparedCloud.raw`; on every k-th point
+    when there are more than cfg.polish_max_points)."""
     pcd, n_out = denoise(points, cfg)
     pcd.estimate_normals(cfg.max_nn, cfg.normal_radius)
     pcd.orient_normals_towards_camera_location(
@@ -223,17 +228,10 @@ def prepare(
         raw = np.asarray(points, dtype=np.float64)
         if 0 < cfg.polish_max_points < len(raw):
             raw = raw[:: -(-len(raw) // cfg.polish_max_points)]
-    return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, raw)
-
-
-def _sorted_cells(points: np.ndarray, voxel: float) -> np.ndarray:
-    """(N,3) points on a grid of `voxel` (each occupied cell's centroid, Open3D), sorted by x,
-    then y, then z: Open3D's voxel hash map hands the cells back in an order that changes from
-    call to call (the same points), so every index-based step after it is reproducible only
-    sorted."""
-    cells = o3d.t.geometry.PointCloud(o3d.core.Tensor(points)).voxel_down_sample(voxel)
-    cells = cells.point.positions.numpy()
-    return cells[np.lexsort(cells.T[::-1])]
+    spread = split_half_sigma(
+        points, cfg.voxel, cfg.normal_radius, cfg.max_nn, cfg.max_correspondence[-1]
+    )
+    return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, raw, spread)
 
 
 def information_right(info_left: np.ndarray, T: np.ndarray) -> np.ndarray:

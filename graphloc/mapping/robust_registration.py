@@ -114,7 +114,7 @@ def robust_register(
        stage (no pyramid). A pyramid slides a view along its dominant plane towards the other
        view, a translation its rotation does not share; the re-seat puts the view back where the
        hint says it is (skipped when that lies within one fine basin of the candidate).
-    3. Each candidate's cost, the mean of its `truncated_costs` (c = acc.residual_sigma; a point
+    3. Each candidate's cost, the mean of its `truncated_costs` (c = `residual_scale`; a point
        near a target point but off its surface costs acc.misfit_weight, an unexplained point 1),
        and checks (overlap, inlier ratio, contradicted cubes, hint gate, robot geometry:
        `candidate_checks`); among those that pass, the lowest cost wins. A point beside a
@@ -162,7 +162,7 @@ def robust_register(
     crit_c = reg_l.ICPConvergenceCriteria(1e-6, 1e-6, cfg.max_iterations[0])
     hint_info = np.linalg.inv(0.5 * (hint_cov + hint_cov.T))
     hint_pose = gtsam.Pose3(hint)
-    c = acc.residual_sigma
+    c = residual_scale(source, target, acc)
     # one index for the checks (within `fine`) and the polish's cut (its distance + a voxel)
     nns = target_index(target, max(fine, cfg.polish_distance + cfg.voxel))
     r_med = float(np.median(np.linalg.norm(source.points, axis=1)))
@@ -352,7 +352,17 @@ def robust_register(
     timings = {f"{k}_s": v for k, v in stage_s.items()}
     timings["rest_s"] = seconds - sum(stage_s.values())  # final checks, covariance, bookkeeping
     args = (checks, tuple(cands), best.start, lost, cov, seconds, dict(timings, **counts))
-    return RegistrationDecision(reg, not reasons, reasons, *args)
+    return RegistrationDecision(reg, not reasons, reasons, *args, residual_scale=c)
+
+
+def residual_scale(source: PreparedCloud, target: PreparedCloud, acc: AcceptanceConfig) -> float:
+    """c [m], the residual scale of every check: the two scans' own residual spread
+    sqrt((s_source^2 + s_target^2) / 2) (`PreparedCloud.residual_sigma`, each scan's split
+    halves), at least acc.residual_sigma (the thresholds' scale; a scan whose spread is not
+    measured has that)."""
+    spread = np.array([source.residual_sigma, target.residual_sigma], dtype=float)
+    pair = float(np.sqrt(np.mean(spread**2))) if np.isfinite(spread).all() else 0.0
+    return max(acc.residual_sigma, pair)
 
 
 def _checks_but_contradiction(o: Candidate, acc: AcceptanceConfig) -> list:
