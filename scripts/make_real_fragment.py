@@ -18,7 +18,10 @@ that Open3D ships as fragment.pcd): RANSAC planes, the floor the largest one, it
 toward the side holding the other points (the room stands on its floor); rotation making it +z
 with the old x axis (y if the floor faces x) kept in the x-z plane; the origin moved to the
 middle of the points' x-y extent, --height metres above the floor (a ground robot's sensor);
-every point kept unless there are more than --points (seeded subsample); float32 PLY.
+every point kept unless there are more than --points (seeded subsample); float32 PLY. With
+--camera-frame (a cloud in a camera's frame, y down and z forward, as RGB-D fragments such as
+3DMatch's are stored) the floor is the plane most aligned with the camera's -y instead, as for a
+depth image: in a fragment seen from a room's middle a wall can be the largest plane.
 
     .venv/bin/python scripts/make_real_fragment.py fragment.pcd --height 1.0 \
         --name redwood_livingroom.ply
@@ -95,6 +98,12 @@ def main(argv=None) -> int:
     p.add_argument("--points", type=int, default=30_000)
     p.add_argument("--planes", type=int, default=3)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--camera-frame",
+        action="store_true",
+        help="cloud input: in a camera's frame (y down); the floor is the plane most aligned "
+        "with -y, not the largest",
+    )
     args = p.parse_args(argv)
     if Path(args.depth).suffix.lower() in (".pcd", ".ply"):
         return from_cloud(args)
@@ -131,7 +140,11 @@ def from_cloud(args) -> int:
     if len(points) < 100:
         raise ValueError(f"{args.depth}: {len(points)} points, need at least 100")
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-    R, floor_z = cloud_floor_alignment(pcd, args.planes, args.seed)
+    if args.camera_frame:
+        R, height = floor_alignment(pcd, args.planes, args.seed)
+        floor_z = -height
+    else:
+        R, floor_z = cloud_floor_alignment(pcd, args.planes, args.seed)
     pts = np.asarray(pcd.points) @ R.T
     lo, hi = pts.min(0), pts.max(0)
     pts -= np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, floor_z + args.height])

@@ -200,6 +200,29 @@ def test_make_real_fragment_levels_a_point_cloud_on_its_floor(tmp_path):
     assert z.max() > -0.7 and z.min() > -1.21  # the box stands above the floor
 
 
+def test_make_real_fragment_finds_the_floor_of_a_camera_frame_cloud(tmp_path):
+    """A cloud in a camera's frame (y down, z forward) whose largest plane is the wall ahead:
+    with --camera-frame the floor below the camera becomes z = -height, the wall stands
+    vertical; without it the wall would be taken for the floor."""
+    rng = np.random.default_rng(2)
+    floor = np.c_[rng.uniform(-2, 2, 5000), np.full(5000, 1.4), rng.uniform(0.5, 3.0, 5000)]
+    wall = np.c_[rng.uniform(-2, 2, 9000), rng.uniform(-1.0, 1.4, 9000), np.full(9000, 3.0)]
+    room = np.vstack([floor, wall])
+    path = tmp_path / "camera.ply"
+    o3d.io.write_point_cloud(str(path), o3d.geometry.PointCloud(o3d.utility.Vector3dVector(room)))
+    spec = importlib.util.spec_from_file_location("mrf", ROOT / "scripts" / "make_real_fragment.py")
+    mrf = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mrf)
+    base = [str(path), "--out", str(tmp_path), "--height", "1.0"]
+    assert mrf.main(base + ["--name", "cam.ply", "--camera-frame"]) == 0
+    z = load_fragment(tmp_path / "cam.ply")[:, 2]
+    assert np.mean(np.abs(z + 1.0) < 0.01) == pytest.approx(len(floor) / len(room), abs=0.01)
+    assert z.max() == pytest.approx(1.4, abs=0.02)  # the wall's top, 2.4 m above the floor
+    assert mrf.main(base + ["--name", "largest.ply"]) == 0
+    z = load_fragment(tmp_path / "largest.ply")[:, 2]
+    assert np.mean(np.abs(z + 1.0) < 0.01) == pytest.approx(len(wall) / len(room), abs=0.01)
+
+
 @pytest.mark.slow
 def test_bench_fusion_real_runs_on_another_fragment(tmp_path):
     """scripts/bench_fusion.py --real --quick --fragment FILE: the JSON, markdown and PNG name
