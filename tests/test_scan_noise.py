@@ -62,12 +62,12 @@ def test_split_half_sigma_without_enough_points_is_nan():
 
 def test_residual_scale_is_the_pairs_spread_never_below_the_floor():
     cloud = prepare(_corner(0.005, n=20_000))
-    assert np.isfinite(cloud.residual_sigma) and cloud.residual_sigma > 0
+    assert np.isfinite(cloud.residual_spread) and cloud.residual_spread > 0
     acc = AcceptanceConfig(residual_sigma=0.01)
-    wide, narrow = replace(cloud, residual_sigma=0.02), replace(cloud, residual_sigma=0.004)
+    wide, narrow = replace(cloud, residual_spread=0.02), replace(cloud, residual_spread=0.004)
     assert residual_scale(wide, narrow, acc) == pytest.approx(np.sqrt((0.02**2 + 0.004**2) / 2))
     assert residual_scale(narrow, narrow, acc) == 0.01
-    unmeasured = replace(cloud, residual_sigma=float("nan"))
+    unmeasured = replace(cloud, residual_spread=float("nan"))
     assert residual_scale(unmeasured, wide, acc) == 0.01
 
 
@@ -85,7 +85,7 @@ def test_a_noisier_sensors_right_registration_is_fused():
     assert d.accepted and rot < 0.5 and trans < 0.02, (d.reasons, rot, trans)
     nan = float("nan")
     fixed = robust_register(
-        replace(source, residual_sigma=nan), replace(target, residual_sigma=nan), hint, cov
+        replace(source, residual_spread=nan), replace(target, residual_spread=nan), hint, cov
     )
     assert fixed.residual_scale == AcceptanceConfig().residual_sigma
     assert not fixed.accepted

@@ -161,7 +161,7 @@ class PreparedCloud:
     """A denoised, downsampled cloud with normals (tensor and legacy views share no memory),
     `raw`: the input points at full resolution (for the last stage of `robust_register`,
     `polish`; None when cfg.polish_distance is 0; every k-th point beyond cfg.polish_max_points),
-    and `residual_sigma`: the scan's own point-to-plane residual spread [m] on this grid
+    and `residual_spread`: the scan's own point-to-plane residual spread [m] on this grid
     (`graphloc.mapping.scan_noise.split_half_sigma`; the scale of robust_register's checks)."""
 
     cloud: o3d.t.geometry.PointCloud
@@ -169,7 +169,7 @@ class PreparedCloud:
     n_input: int
     n_outliers: int
     raw: np.ndarray | None = None
-    residual_sigma: float = float("nan")
+    residual_spread: float = float("nan")
 
     @property
     def points(self) -> np.ndarray:

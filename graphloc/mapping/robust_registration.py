@@ -357,10 +357,10 @@ def robust_register(
 
 def residual_scale(source: PreparedCloud, target: PreparedCloud, acc: AcceptanceConfig) -> float:
     """c [m], the residual scale of every check: the two scans' own residual spread
-    sqrt((s_source^2 + s_target^2) / 2) (`PreparedCloud.residual_sigma`, each scan's split
+    sqrt((s_source^2 + s_target^2) / 2) (`PreparedCloud.residual_spread`, each scan's split
     halves), at least acc.residual_sigma (the thresholds' scale; a scan whose spread is not
     measured has that)."""
-    spread = np.array([source.residual_sigma, target.residual_sigma], dtype=float)
+    spread = np.array([source.residual_spread, target.residual_spread], dtype=float)
     pair = float(np.sqrt(np.mean(spread**2))) if np.isfinite(spread).all() else 0.0
     return max(acc.residual_sigma, pair)
 
