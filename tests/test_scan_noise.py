@@ -69,6 +69,9 @@ def test_residual_scale_is_the_pairs_spread_never_below_the_floor():
     assert residual_scale(narrow, narrow, acc) == 0.01
     unmeasured = replace(cloud, residual_spread=float("nan"))
     assert residual_scale(unmeasured, wide, acc) == 0.01
+    # prepared only for consecutive scan matching: no spread measured, no polish points kept
+    plain = prepare(_corner(0.005, n=20_000), inter_robot=False)
+    assert np.isnan(plain.residual_spread) and plain.raw is None
 
 
 def test_a_noisier_sensors_right_registration_is_fused():

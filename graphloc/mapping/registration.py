@@ -209,13 +209,12 @@ def denoise(
     return pcd, int(len(keep) - keep.numpy().sum())
 
 
-def prepare(
-    points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0)
-) -> PreparedCloud:
+def prepare(points, cfg=RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0), inter_robot=True):
     """`denoise`, then normals oriented toward `viewpoint` (the sensor, for FPFH's signed
-    angles) and the scan's residual spread (`split_half_sigma` on the prepared grid); with
-    cfg.polish_distance > 0 it keeps the input points (`PreparedCloud.raw`; on every k-th point
-    when there are more than cfg.polish_max_points)."""
+    angles). With `inter_robot`, also what `robust_register` needs: the scan's residual spread
+    (`split_half_sigma`) and, with cfg.polish_distance > 0, the input points (`raw`; every k-th
+    beyond cfg.polish_max_points); scan matching of consecutive scans (`refine`) needs neither.
+    Returns a `PreparedCloud`."""
     pcd, n_out = denoise(points, cfg)
     pcd.estimate_normals(cfg.max_nn, cfg.normal_radius)
     pcd.orient_normals_towards_camera_location(
@@ -223,14 +222,15 @@ def prepare(
     )
     if len(pcd.point.positions) < 10:
         raise ValueError("prepare: fewer than 10 points left after denoising and downsampling")
+    if not inter_robot:
+        return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out)
     raw = None
     if cfg.polish_distance > 0:
         raw = np.asarray(points, dtype=np.float64)
         if 0 < cfg.polish_max_points < len(raw):
             raw = raw[:: -(-len(raw) // cfg.polish_max_points)]
-    spread = split_half_sigma(
-        points, cfg.voxel, cfg.normal_radius, cfg.max_nn, cfg.max_correspondence[-1]
-    )
+    fine = cfg.max_correspondence[-1]
+    spread = split_half_sigma(points, cfg.voxel, cfg.normal_radius, cfg.max_nn, fine)
     return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, raw, spread)
 
 

@@ -92,8 +92,10 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
     t0 = time.perf_counter()
     n_prep = len(inp.times) if cfg.scan_matching else 1
     prepared = {
-        GROUND: [prepare(s, cfg.registration) for s in inp.ground_scans[:n_prep]],
-        CEILING: [prepare(s, cfg.registration) for s in inp.ceiling_scans[:n_prep]],
+        r: [  # the first scans meet the other robot's; the rest only their predecessors
+            prepare(s, cfg.registration, inter_robot=i == 0) for i, s in enumerate(scans[:n_prep])
+        ]
+        for r, scans in ((GROUND, inp.ground_scans), (CEILING, inp.ceiling_scans))
     }
     timings["denoise_s"] = time.perf_counter() - t0
     decision = None
