@@ -25,8 +25,9 @@ from graphloc.mapping.acceptance import (
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
 from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
-from graphloc.mapping.registration import RegistrationConfig, polish, pose_errors, prepare
+from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
 from graphloc.mapping.registration_covariance import calibrated_covariance
+from graphloc.mapping.registration_stages import polish
 from graphloc.mapping.robust_registration import hint_covariance, hint_starts, robust_register
 
 ROT_OK, TRANS_OK = 1.0, 0.05

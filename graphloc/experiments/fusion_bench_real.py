@@ -65,10 +65,10 @@ def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> li
         RegistrationConfig,
         global_fpfh_ransac,
         icp_from_hint,
-        polish,
         pose_errors,
         prepare,
     )
+    from graphloc.mapping.registration_stages import polish
 
     overlap, seed, calibrate, fragment, noise_m, keep = job
     rng = np.random.default_rng([seed, int(round(1000 * overlap))])

@@ -146,7 +146,7 @@ def markdown_real(report: dict, command: str) -> str:
     )
     lines += [
         "",
-        "The last-stage row is `graphloc.mapping.registration.polish` (the last stage of "
+        "The last-stage row is `graphloc.mapping.registration_stages.polish` (the last stage of "
         "graphloc's "
         "registration) started at the true pose: the error the estimator has at its own minimum "
         "with these scans (5 mm noise, independent 50% subsampling), which no start can beat; "

@@ -1,6 +1,6 @@
 """Nearest neighbours within a radius for the inter-robot registration of issue 16: the checks
 of `graphloc.mapping.acceptance` (correspondences within the fine distance) and the overlap cut
-of `graphloc.mapping.registration.polish`."""
+of `graphloc.mapping.registration_stages.polish`."""
 
 from __future__ import annotations
 

@@ -1,15 +1,17 @@
 """The ICP stages of `graphloc.mapping.robust_registration.robust_register` (issue 16): the
 coarse grid both clouds are registered on first (`coarse_clouds`, `grid_down`), the wide pyramid
 above it that narrows a poor hint's reach step by step (`wide_levels`), the Tukey-weighted
-point-to-plane estimation of those levels (`point_to_plane_estimation`), and the fine stage on
-the prepared clouds (`fine_stage`)."""
+point-to-plane estimation of those levels (`point_to_plane_estimation`), the fine stage on
+the prepared clouds (`fine_stage`), and the last stage at full resolution (`polish`)."""
 
 from __future__ import annotations
 
+import gtsam
 import numpy as np
 import open3d as o3d
 
 from graphloc.mapping.registration import PreparedCloud, RegistrationConfig
+from graphloc.mapping.registration_index import NearestIndex
 
 reg_t = o3d.t.pipelines.registration
 reg_l = o3d.pipelines.registration
@@ -92,3 +94,58 @@ def point_to_plane_estimation(tukey: float):
     squares)."""
     kernel = reg_l.TukeyLoss(tukey) if tukey > 0 else reg_l.L2Loss()
     return reg_l.TransformationEstimationPointToPlane(kernel)
+
+
+def polish(
+    source: PreparedCloud,
+    target: PreparedCloud,
+    T: np.ndarray,
+    cfg: RegistrationConfig,
+    target_nns=None,
+) -> np.ndarray:
+    """The last stage of `graphloc.mapping.robust_registration.robust_register`: point-to-plane
+    ICP of the full-resolution clouds (`PreparedCloud.raw`, normals of the cfg.polish_max_nn
+    nearest points) from T, source onto target and target onto source, each with
+    correspondences within cfg.polish_distance and Open3D's Geman-McClure kernel
+    GMLoss(cfg.polish_kernel) (its parameter a squared scale), each view cut to its points within
+    cfg.polish_distance + cfg.voxel of the other's grid (the mutual overlap: normals and
+    correspondences only where they can pair), then the midpoint of the two on SE(3),
+    A Exp(Log(A^-1 B) / 2). The fine stage's grid averages independently subsampled, noisy
+    scans into cell centroids that differ between the views, and one direction's
+    nearest-neighbour planes pass through the noisy points of one view only; here every point
+    of each view serves once as a sample and once as a plane (`target_nns`: a prebuilt
+    `NearestIndex` of target.points with a radius of at least that cut, else built here).
+    Returns T_target_source; T
+    unchanged when cfg.polish_distance is 0, a cloud has no `raw`, or a direction finds no
+    correspondence within the distance (the fine stage's pose stands)."""
+    if cfg.polish_distance <= 0 or source.raw is None or target.raw is None:
+        return T
+    T = np.asarray(T, dtype=float)
+    margin = cfg.polish_distance + cfg.voxel  # a grid cell's reach, plus the polish's
+    full = []
+    for c, other, M, index in (
+        (source, target, T, target_nns),
+        (target, source, np.linalg.inv(T), None),
+    ):
+        p = c.raw @ M[:3, :3].T + M[:3, 3]  # in the other view's frame
+        if index is None or index.radius < margin:
+            index = NearestIndex(other.points, margin)
+        near = c.raw[index.nearest(p)[1] < margin]
+        if len(near) < cfg.polish_max_nn:
+            return T
+        full.append(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(near)))
+        full[-1].estimate_normals(o3d.geometry.KDTreeSearchParamKNN(cfg.polish_max_nn))
+    est = reg_l.TransformationEstimationPointToPlane(reg_l.GMLoss(cfg.polish_kernel))
+    crit = reg_l.ICPConvergenceCriteria(
+        cfg.polish_relative, cfg.polish_relative, cfg.polish_iterations
+    )
+    out = []
+    for a, b, T0 in ((full[0], full[1], T), (full[1], full[0], np.linalg.inv(T))):
+        res = reg_l.registration_icp(a, b, cfg.polish_distance, T0, est, crit)
+        if res.fitness <= 0:  # no correspondence within the distance
+            return T
+        out.append(np.asarray(res.transformation))
+    fwd, bwd = out
+    A = gtsam.Pose3(fwd)
+    B = gtsam.Pose3(np.linalg.inv(bwd))
+    return A.compose(gtsam.Pose3.Expmap(0.5 * gtsam.Pose3.Logmap(A.between(B)))).matrix()

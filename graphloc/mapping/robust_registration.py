@@ -32,7 +32,6 @@ from graphloc.mapping.registration import (
     RegistrationConfig,
     global_fpfh_ransac,
     information_right,
-    polish,
     poses_within,
 )
 from graphloc.mapping.registration_covariance import (
@@ -44,6 +43,7 @@ from graphloc.mapping.registration_stages import (
     coarse_clouds,
     fine_stage,
     point_to_plane_estimation,
+    polish,
     wide_levels,
 )
 
