@@ -201,16 +201,43 @@ def test_polish_refines_a_near_pose_and_leaves_a_far_one(fragment):
     assert src.raw is not None and len(src.raw) == len(pair.ceiling)
     truth = pair.T_ground_ceiling
     start = perturb(truth, 0.3, 0.01, rng)
-    rot, tr = pose_errors(polish(src, tgt, start, cfg), truth)
+    near = polish(src, tgt, start, cfg)
+    rot, tr = pose_errors(near.transformation, truth)
     assert rot < 0.15 and tr < 0.004, (rot, tr)
+    assert near.settled and 1 <= near.rounds < cfg.polish_rounds
     far = truth.copy()
     far[:3, 3] += [0.0, 0.0, 5.0]
-    np.testing.assert_array_equal(polish(src, tgt, far, cfg), far)
+    np.testing.assert_array_equal(polish(src, tgt, far, cfg).transformation, far)
     off = replace(cfg, polish_distance=0.0)
     assert prepare(pair.ceiling, off).raw is None
-    np.testing.assert_array_equal(polish(src, tgt, start, off), start)
+    np.testing.assert_array_equal(polish(src, tgt, start, off).transformation, start)
     with pytest.raises(ValueError, match="polish_max_nn"):
         RegistrationConfig(polish_max_nn=2)
+
+
+def test_polish_rounds_bring_a_slid_view_back_and_say_when_it_keeps_moving(fragment):
+    """A view slid 6 cm along the floor and turned 0.5 deg about the vertical (where a fine stage
+    dominated by the floor leaves it): one round of the polish moves it only part of the way back
+    and has not settled; rounds from the last midpoint bring it to within a centimetre and stop
+    once a round moves it less than the settle thresholds."""
+    pair, _ = _pair(fragment, 0.6, 4)
+    cfg = RegistrationConfig()
+    src, tgt = prepare(pair.ceiling, cfg), prepare(pair.ground, cfg)
+    truth = pair.T_ground_ceiling
+    slid = truth.copy()
+    c, s = np.cos(np.deg2rad(0.5)), np.sin(np.deg2rad(0.5))
+    slid[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ truth[:3, :3]
+    slid[:3, 3] += [0.06, 0.0, 0.0]
+    one = polish(src, tgt, slid, replace(cfg, polish_rounds=1))
+    settled = polish(src, tgt, slid, cfg)
+    assert not one.settled and one.rounds == 1
+    assert settled.settled and 1 < settled.rounds <= cfg.polish_rounds
+    _, tr_one = pose_errors(one.transformation, truth)
+    rot, tr = pose_errors(settled.transformation, truth)
+    assert tr < 0.01 and rot < 0.2 and tr < 0.5 * tr_one, (rot, tr, tr_one)
+    for bad in ({"polish_rounds": 0}, {"polish_settle_deg": 0.0}, {"polish_settle_m": -1.0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            RegistrationConfig(**bad)
 
 
 def test_degenerate_geometry_fails_the_conditioning_check():

@@ -44,18 +44,22 @@ def test_prepare_is_reproducible_and_sorted():
     assert np.all(np.lexsort(p.T[::-1]) == np.arange(len(p)))  # x, then y, then z
 
 
-def test_polish_max_points_strides_dense_scans_and_keeps_sparse_ones():
-    """RegistrationConfig.polish_max_points bounds the polish's points on dense scans: every
-    k-th input point with the smallest k leaving at most that many; fewer points, or 0, keep
-    every input point."""
+def test_polish_points_per_cell_strides_dense_scans_and_keeps_sparse_ones():
+    """RegistrationConfig.polish_points_per_cell bounds the polish's points on dense scans: every
+    k-th input point with the smallest k leaving at most that many per occupied grid cell; a
+    scan with fewer per cell, or 0, keeps every input point."""
     rng = np.random.default_rng(8)
     pts = np.c_[rng.uniform(0, 2, (30000, 2)), rng.normal(0, 0.002, 30000)]
-    np.testing.assert_array_equal(prepare(pts, RegistrationConfig(polish_max_points=0)).raw, pts)
+    cells = len(prepare(pts, RegistrationConfig(polish_points_per_cell=0)).points)
+    assert len(pts) > 3 * cells  # several points per 3 cm cell
+    off = prepare(pts, RegistrationConfig(polish_points_per_cell=0)).raw
+    np.testing.assert_array_equal(off, pts)
     np.testing.assert_array_equal(
-        prepare(pts, RegistrationConfig(polish_max_points=30000)).raw, pts
+        prepare(pts, RegistrationConfig(polish_points_per_cell=8)).raw, pts
     )
-    strided = prepare(pts, RegistrationConfig(polish_max_points=12000)).raw
-    np.testing.assert_array_equal(strided, pts[::3])  # 2 would leave 15000
-    assert len(strided) == 10000
-    with pytest.raises(ValueError, match="polish_max_points"):
-        RegistrationConfig(polish_max_points=-1)
+    strided = prepare(pts, RegistrationConfig(polish_points_per_cell=2)).raw
+    k = -(-len(pts) // (2 * cells))
+    assert k > 1 and len(strided) <= 2 * cells
+    np.testing.assert_array_equal(strided, pts[::k])
+    with pytest.raises(ValueError, match="polish_points_per_cell"):
+        RegistrationConfig(polish_points_per_cell=-1)

@@ -88,7 +88,7 @@ def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> li
             seconds=glob_s + icp_s,
             accepted=True,
         )
-        T_floor = polish(source, target, truth, cfg)  # graphloc's last stage from the truth
+        T_floor = polish(source, target, truth, cfg).transformation  # from the truth
         floor = dict(zip(("rot_deg", "trans_m"), pose_errors(T_floor, truth)))
         floor["bound_rot_cov_deg2"] = hessian_bound(pair.ceiling, pair.ground, truth, cfg).tolist()
     rows = []
@@ -220,7 +220,7 @@ def summarize_real(rows: list[dict]) -> dict:
                 "seconds_median": float(np.nanmedian(secs)) if np.isfinite(secs).any() else None,
             }
             stages = [r[m]["stages"] for r in cell if "stages" in r[m]]
-            if stages:  # graphloc: median seconds per stage, starts and fine stages per trial
+            if stages:  # graphloc: median seconds per stage, starts, fine stages, polish rounds
                 s["stages_median"] = {
                     k: float(np.median([st[k] for st in stages])) for k in stages[0]
                 }

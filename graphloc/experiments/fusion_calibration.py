@@ -88,7 +88,7 @@ def main_calibrate(args) -> int:
     png = out / "bench_fusion_calibration.png"
     fig, ax = plt.subplots(figsize=(6.5, 4))
     bins = np.logspace(-1, np.log10(max(before.max(), after.max()) * 1.1), 40)
-    ax.hist(before, bins=bins, alpha=0.6, label="jackknife covariance (uncalibrated)")
+    ax.hist(before, bins=bins, alpha=0.6, label="cluster-robust covariance (uncalibrated)")
     ax.hist(after, bins=bins, alpha=0.6, label="calibrated (fitted scale)")
     ax.axvline(6.0, color="k", ls="--", lw=1, label="dimension (6)")
     ax.set_xscale("log")

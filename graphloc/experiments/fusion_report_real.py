@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from graphloc.mapping.registration import RegistrationConfig
+
 TRANS_OK_M = 0.05  # [m] success: translation error below this (both protocols)
 REAL_METHODS = ("graphloc", "graphloc_before", "o3d_icp", "o3d_icp_fine", "fpfh_ransac")
 REAL_ROT_OK_DEG = 1.0
@@ -140,7 +142,7 @@ def markdown_real(report: dict, command: str) -> str:
     )
     lines.append(
         "| graphloc's stages, median [s]: coarse / fine / checks / polish / rest; starts, "
-        "fine stages (`RegistrationDecision.timings`) | "
+        "fine stages, polish rounds (`RegistrationDecision.timings`) | "
         + " | ".join(_stages(s["graphloc"].get("stages_median")) for s in summ.values())
         + " |"
     )
@@ -208,9 +210,10 @@ def markdown_real(report: dict, command: str) -> str:
         fit = cal["fit"]
         lines += [
             "",
-            "The covariance is the leave-one-cluster-out jackknife of the point-to-plane fit "
-            "(`cluster_covariance`: clusters of 0.5 m blocks, so each registration's own "
-            "number of clusters and their leverage set its inflation over the plain sandwich) "
+            "The covariance is the cluster-robust sandwich of the point-to-plane fit "
+            "(`cluster_covariance`: the residuals' scores summed per "
+            f"{RegistrationConfig().covariance_block:g} m block, so the "
+            "correlation of the points of one surface patch is in it) "
             f"scaled by one parameter, {fit['covariance_scale']:.3g} (95% interval "
             f"{fit['covariance_scale_95'][0]:.3g}-{fit['covariance_scale_95'][1]:.3g}; "
             "`calibrated_covariance`), fitted by maximum likelihood on "
@@ -223,10 +226,11 @@ def markdown_real(report: dict, command: str) -> str:
 
 
 def _stages(st: dict | None) -> str:
-    """One cell of the stage row: median seconds per stage, then starts and fine stages."""
+    """One cell of the stage row: median seconds per stage, then starts, fine stages and polish
+    rounds."""
     if not st:
         return "—"
     secs = " / ".join(
         f"{st[k]:.2f}" for k in ("coarse_s", "fine_s", "checks_s", "polish_s", "rest_s")
     )
-    return f"{secs}; {st['starts']:g}, {st['fine_stages']:g}"
+    return f"{secs}; {st['starts']:g}, {st['fine_stages']:g}, {st['polish_rounds']:g}"

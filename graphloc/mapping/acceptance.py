@@ -28,6 +28,8 @@ CHECK_REASONS = {
     "ceiling_height_m": "ceiling robot below the ground robot",
     "ceiling_z_down_cos": "ceiling robot not upside down",
     "cost_margin_se": "another registration fits about as well (ambiguous)",
+    "polish_rounds": "the pose kept moving under the last refinement (a view sliding along)",
+    "polish_move_m": "the last refinement carried the view beyond the fine stage's reach",
     "sigma_rot_deg": "too uncertain (rotation)",
     "sigma_trans_m": "too uncertain (translation)",
 }
@@ -152,8 +154,8 @@ class RegistrationDecision:
     why each lost, wall time [s], and `timings`: seconds per stage of `robust_register`
     (coarse: clouds, pyramid and coarse ICP of every start; fine: the fine stages; checks: the
     candidates' residuals; global: the FPFH fallback; polish; rest: final checks, covariance)
-    with the number of starts and of fine stages, and `residual_scale`: the checks' c [m]
-    (`graphloc.mapping.robust_registration.residual_scale`)."""
+    with the number of starts, of fine stages and of polish rounds, and `residual_scale`: the
+    checks' c [m] (`graphloc.mapping.robust_registration.residual_scale`)."""
 
     registration: Registration
     accepted: bool

@@ -63,9 +63,10 @@ class RegistrationConfig:
     ransac_confidence: float = 0.999
     range_sigma: float = 0.01
     # robust_register: coarse correspondences within coarse_voxels coarse voxels, Tukey kernel
-    # width coarse_tukey voxels (0: least squares), cluster size [m] of the jackknife covariance,
-    # stop once the hint's own starts have run and a candidate passed its checks with an inlier
-    # ratio of at least stop_inlier_ratio (one that barely passes may sit next to the right one)
+    # width coarse_tukey voxels (0: least squares), cluster size [m] of the covariance
+    # (covariance_block) and of the cost margin's standard error (margin_block), stop once the
+    # hint's own starts have run and a candidate passed its checks with an inlier ratio of at
+    # least stop_inlier_ratio (one that barely passes may sit next to the right one)
     coarse_voxels: float = 2.0
     coarse_tukey: float = 0.5
     # ... the hint's own start runs its wide pyramid once per Tukey width here [wide-level voxels],
@@ -83,7 +84,8 @@ class RegistrationConfig:
     # covariance use them all); the winner goes straight to `polish`, which uses every point (a
     # start that slides for 30 iterations and fails costs a third)
     fine_stride: int = 3
-    covariance_block: float = 0.5
+    covariance_block: float = 0.25
+    margin_block: float = 0.5
     # robust_register's last stage (`polish`): point-to-plane ICP of the full-resolution clouds,
     # both ways, correspondences within polish_distance [m] (0: no polish) and Open3D's
     # Geman-McClure kernel GMLoss(polish_kernel), weight k / (k + r^2)^2: k is a squared scale
@@ -95,12 +97,21 @@ class RegistrationConfig:
     # per iteration (on the Redwood fragment's views 4 left the fine stage's pose a tenth of a
     # degree short where 6 did not; the TUM fragment's exploration seeds were alike at 4 to 10)
     polish_iterations: int = 6
+    # ... repeated in rounds from the last midpoint until a round moves the pose less than
+    # polish_settle_deg and polish_settle_m (at most polish_rounds rounds): a view the fine stage
+    # left beside a wall or a tenth of a degree turned creeps back a little per round, and the
+    # rounds bring it to the objective's minimum instead of stopping on the way
+    polish_rounds: int = 10
+    polish_settle_deg: float = 0.01
+    polish_settle_m: float = 0.0005
     polish_max_nn: int = 20  # its normals: plane of the 20 nearest polish points
     # ... its points: every k-th input point, k the smallest stride leaving at most
-    # polish_max_points (0: every input point), which bounds its cost on dense scans; a stride
-    # keeps the scan's own sampling (its samples and planes stay finer than the 3 cm grid); the
-    # simulated rooms' LiDAR scans stay below it, so their every point still serves
-    polish_max_points: int = 24_000
+    # polish_points_per_cell per occupied grid cell (cfg.voxel) on average (0: every input
+    # point). A dense RGB-D scan holds several points per 3 cm cell, which the stride thins to
+    # about the grid's own density (each of the polish's rounds costs two ICPs over them); a
+    # LiDAR scan, with one or two per cell along its rings, keeps every point (a stride would
+    # thin its rings alone and tilt the normals across them)
+    polish_points_per_cell: float = 2.0
     polish_relative: float = 1e-6  # its stop: relative change of fitness and inlier RMSE
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
@@ -108,7 +119,7 @@ class RegistrationConfig:
     # basin a local method covers (the sigma points and the global fallback take over)
     max_reach: float = 1.0
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
-    covariance_scale: float = 2.81  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_scale: float = 3.05  # fit of docs/results_fusion_calibration.json (3 digits)
 
     def __post_init__(self):
         check(
@@ -120,8 +131,13 @@ class RegistrationConfig:
                 "covariance_scale",
                 "fine_relative",
                 "polish_relative",
+                "polish_settle_deg",
+                "polish_settle_m",
+                "covariance_block",
+                "margin_block",
             ),
             nonnegative=(
+                "polish_points_per_cell",
                 "coarse_tukey",
                 "fine_tukey",
                 "polish_distance",
@@ -129,7 +145,7 @@ class RegistrationConfig:
             ),
             integer={
                 "polish_iterations": 1,
-                "polish_max_points": 0,
+                "polish_rounds": 1,
                 "polish_max_nn": 3,
                 "fine_stride": 1,
             },
@@ -159,7 +175,8 @@ class RegistrationConfig:
 class PreparedCloud:
     """A denoised, downsampled cloud with normals (tensor and legacy views share no memory),
     `raw`: the input points at full resolution (for the last stage of `robust_register`,
-    `polish`; None when cfg.polish_distance is 0; every k-th point beyond cfg.polish_max_points),
+    `polish`; None when cfg.polish_distance is 0; every k-th one beyond
+    cfg.polish_points_per_cell per grid cell),
     and `residual_spread`: the scan's own point-to-plane residual spread [m] on this grid
     (`graphloc.mapping.scan_noise.split_half_sigma`; the scale of robust_register's checks)."""
 
@@ -212,8 +229,8 @@ def prepare(points, cfg=RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0), inter_r
     """`denoise`, then normals oriented toward `viewpoint` (the sensor, for FPFH's signed
     angles). With `inter_robot`, also what `robust_register` needs: the scan's residual spread
     (`split_half_sigma`) and, with cfg.polish_distance > 0, the input points (`raw`; every k-th
-    beyond cfg.polish_max_points); scan matching of consecutive scans (`refine`) needs neither.
-    Returns a `PreparedCloud`."""
+    beyond cfg.polish_points_per_cell per grid cell); scan matching of consecutive scans
+    (`refine`) needs neither. Returns a `PreparedCloud`."""
     pcd, n_out = denoise(points, cfg)
     pcd.estimate_normals(cfg.max_nn, cfg.normal_radius)
     pcd.orient_normals_towards_camera_location(
@@ -226,8 +243,9 @@ def prepare(points, cfg=RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0), inter_r
     raw = None
     if cfg.polish_distance > 0:
         raw = np.asarray(points, dtype=np.float64)
-        if 0 < cfg.polish_max_points < len(raw):
-            raw = raw[:: -(-len(raw) // cfg.polish_max_points)]
+        budget = int(cfg.polish_points_per_cell * len(pcd.point.positions))
+        if 0 < budget < len(raw):
+            raw = raw[:: -(-len(raw) // budget)]
     fine = cfg.max_correspondence[-1]
     spread = split_half_sigma(points, cfg.voxel, cfg.normal_radius, cfg.max_nn, fine)
     return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, raw, spread)

@@ -6,11 +6,18 @@ the prepared clouds (`fine_stage`), and the last stage at full resolution (`poli
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import gtsam
 import numpy as np
 import open3d as o3d
 
-from graphloc.mapping.registration import PreparedCloud, RegistrationConfig
+from graphloc.mapping.registration import (
+    PreparedCloud,
+    RegistrationConfig,
+    pose_errors,
+    poses_within,
+)
 from graphloc.mapping.registration_index import NearestIndex
 
 reg_t = o3d.t.pipelines.registration
@@ -102,7 +109,7 @@ def polish(
     T: np.ndarray,
     cfg: RegistrationConfig,
     target_nns=None,
-) -> np.ndarray:
+) -> Polished:
     """The last stage of `graphloc.mapping.robust_registration.robust_register`: point-to-plane
     ICP of the full-resolution clouds (`PreparedCloud.raw`, normals of the cfg.polish_max_nn
     nearest points) from T, source onto target and target onto source, each with
@@ -115,12 +122,47 @@ def polish(
     nearest-neighbour planes pass through the noisy points of one view only; here every point
     of each view serves once as a sample and once as a plane (`target_nns`: a prebuilt
     `NearestIndex` of target.points with a radius of at least that cut, else built here).
-    Returns T_target_source; T
-    unchanged when cfg.polish_distance is 0, a cloud has no `raw`, or a direction finds no
-    correspondence within the distance (the fine stage's pose stands)."""
-    if cfg.polish_distance <= 0 or source.raw is None or target.raw is None:
-        return T
+    Rounds of cfg.polish_iterations per direction, each from the last midpoint, until one moves
+    the pose less than cfg.polish_settle_deg / polish_settle_m (at most cfg.polish_rounds); the
+    views are cut again once the pose has moved a voxel from where they were cut.
+    Returns T_target_source as a `Polished`: unchanged, and settled, when cfg.polish_distance is
+    0 or a cloud has no `raw`; the last round's pose when a direction finds no correspondence
+    within the distance (the fine stage's pose if it is the first); not settled when the last
+    of cfg.polish_rounds still moved it (a view that keeps sliding along its surfaces)."""
     T = np.asarray(T, dtype=float)
+    if cfg.polish_distance <= 0 or source.raw is None or target.raw is None:
+        return Polished(T, 0, True)
+    full, cut_at, recut_deg = None, T, 0.0
+    for k in range(cfg.polish_rounds):
+        if full is None or not poses_within(T, cut_at, recut_deg, cfg.voxel):
+            full, cut_at = _overlap_cut(source, target, T, cfg, target_nns), T
+            if full is None:
+                return Polished(T, k, True)
+            reach = float(np.median(np.linalg.norm(np.asarray(full[0].points), axis=1)))
+            recut_deg = float(np.degrees(cfg.voxel / max(reach, cfg.voxel)))
+        moved = _midpoint_round(full, T, cfg)
+        if moved is None:
+            return Polished(T, k, True)
+        rot, trans = pose_errors(moved, T)
+        T = moved
+        if rot < cfg.polish_settle_deg and trans < cfg.polish_settle_m:
+            return Polished(T, k + 1, True)
+    return Polished(T, cfg.polish_rounds, False)
+
+
+@dataclass(frozen=True)
+class Polished:
+    """`polish`'s result: T_target_source, the rounds it ran (0: none), and whether the last one
+    moved the pose less than cfg.polish_settle_deg / polish_settle_m (or none could run)."""
+
+    transformation: np.ndarray
+    rounds: int
+    settled: bool
+
+
+def _overlap_cut(source, target, T, cfg, target_nns) -> list | None:
+    """`polish`'s two views cut to their mutual overlap at T, with normals; None when either
+    keeps fewer than cfg.polish_max_nn points."""
     margin = cfg.polish_distance + cfg.voxel  # a grid cell's reach, plus the polish's
     full = []
     for c, other, M, index in (
@@ -132,9 +174,15 @@ def polish(
             index = NearestIndex(other.points, margin)
         near = c.raw[index.nearest(p)[1] < margin]
         if len(near) < cfg.polish_max_nn:
-            return T
+            return None
         full.append(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(near)))
         full[-1].estimate_normals(o3d.geometry.KDTreeSearchParamKNN(cfg.polish_max_nn))
+    return full
+
+
+def _midpoint_round(full: list, T: np.ndarray, cfg: RegistrationConfig) -> np.ndarray | None:
+    """One `polish` round from T: both directions' ICP, then their midpoint on SE(3); None when
+    a direction finds no correspondence within cfg.polish_distance."""
     est = reg_l.TransformationEstimationPointToPlane(reg_l.GMLoss(cfg.polish_kernel))
     crit = reg_l.ICPConvergenceCriteria(
         cfg.polish_relative, cfg.polish_relative, cfg.polish_iterations
@@ -143,7 +191,7 @@ def polish(
     for a, b, T0 in ((full[0], full[1], T), (full[1], full[0], np.linalg.inv(T))):
         res = reg_l.registration_icp(a, b, cfg.polish_distance, T0, est, crit)
         if res.fitness <= 0:  # no correspondence within the distance
-            return T
+            return None
         out.append(np.asarray(res.transformation))
     fwd, bwd = out
     A = gtsam.Pose3(fwd)

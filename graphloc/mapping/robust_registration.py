@@ -32,6 +32,7 @@ from graphloc.mapping.registration import (
     RegistrationConfig,
     global_fpfh_ransac,
     information_right,
+    pose_errors,
     poses_within,
 )
 from graphloc.mapping.registration_covariance import (
@@ -123,16 +124,20 @@ def robust_register(
        dominant plane towards the other view wins by overlapping more of it, though more of its
        points lie beside surfaces. The winner must undercut every other valid candidate by
        acc.min_cost_margin_se standard errors of the paired per-point cost difference
-       (`cost_margin_se` over the source's cfg.covariance_block clusters), else the views do not
-       tell the two registrations apart.
-    4. The winner refined by `polish` (full resolution, both directions), the checks of step 3
-       and its conditioning on that pose (`candidates` keep the poses before the polish), and a
+       (`cost_margin_se` over the source's cfg.margin_block clusters), else the views do not
+       tell the two registrations apart; and a cheaper candidate that fails the contradicted
+       cubes alone (a slid view explaining the scans better) leaves the winner no margin.
+    4. The winner refined by `polish` (full resolution, both directions, in rounds until the
+       pose settles), the checks of step 3 and its conditioning on that pose (`candidates` keep
+       the poses before the polish; the contradicted cubes count at both), a polish that
+       settled and moved the view's sensor at most the fine distance, and a
        covariance (step 5) within acc.max_sigma_rot_deg / max_sigma_trans_m; accepted only if
        every check passes.
-    5. Covariance: the point-to-plane fit over the inliers, its leave-one-cluster-out jackknife
-       (`cluster_covariance`), converted to GTSAM's right perturbation (`information_right`),
-       calibrated (`calibrated_covariance`); `inlier_rmse` is the inliers' residual standard
-       deviation (n - 6 dof). `RegistrationDecision.timings`: the seconds per stage."""
+    5. Covariance: the point-to-plane fit over the inliers, its cluster-robust sandwich over
+       cfg.covariance_block clusters (`cluster_covariance`), converted to GTSAM's right
+       perturbation (`information_right`), calibrated (`calibrated_covariance`); `inlier_rmse`
+       is the inliers' residual standard deviation (n - 6 dof). `RegistrationDecision.timings`:
+       the seconds per stage."""
     start_t = time.perf_counter()
     hint = np.asarray(hint, dtype=float)
     hint_cov = np.asarray(hint_cov, dtype=float)
@@ -148,7 +153,7 @@ def robust_register(
             f"shape {hint_cov.shape}"
         )
     stage_s = dict.fromkeys(("coarse", "fine", "checks", "global", "polish"), 0.0)
-    counts = {"starts": 0, "fine_stages": 0}
+    counts = {"starts": 0, "fine_stages": 0, "polish_rounds": 0}
 
     def timed(stage: str, f, *args):
         t0 = time.perf_counter()
@@ -301,7 +306,9 @@ def robust_register(
             else f"truncated cost {o.cost:.4f} > {best.cost:.4f} of start {best.start}"
         )
     T = best.transformation
-    T = timed("polish", polish, source, target, T, cfg, nns)
+    polished = timed("polish", polish, source, target, T, cfg, nns)
+    T = polished.transformation
+    counts["polish_rounds"] = polished.rounds
     r, d, J = point_to_plane(source, target, T, nns)
     final, _ = candidate(best.start, T, (r, d, J))
     inl = (d < fine) & (np.abs(r) < c)
@@ -314,21 +321,38 @@ def robust_register(
     if n_in >= 6 and conditioning >= acc.min_conditioning:  # else no covariance (not accepted)
         pts_in = (source.points @ T[:3, :3].T + T[:3, 3])[inl]
         cov_left = cluster_covariance(J[inl], r[inl], pts_in, H, cfg.covariance_block)
-        jackknife = np.linalg.inv(information_right(np.linalg.inv(cov_left), T))
-        cov = calibrated_covariance(jackknife, cfg)
+        clustered = np.linalg.inv(information_right(np.linalg.inv(cov_left), T))
+        cov = calibrated_covariance(clustered, cfg)
         info = np.linalg.inv(cov)
     else:
         info = np.eye(6) * 1e-12
         cov = np.linalg.inv(info)
     checks = dict(candidate_checks(final, acc))  # the polished pose's
+    # ... but the contradicted cubes of both poses: a view slid along a wall, which the polish's
+    # rounds move on to where the cubes no longer see the slide, stays slid
+    seen = max(final.contradicted, best.contradicted)
+    checks["contradicted_fraction"] = (seen, acc.max_contradicted, seen <= acc.max_contradicted)
+    checks["polish_rounds"] = (polished.rounds, cfg.polish_rounds, polished.settled)
+    # ... and within the fine stage's reach of the pose it polished: the candidates' checks
+    # vouch for poses there, and a view the polish carries further is sliding along a surface
+    moved = pose_errors(best.transformation, T)[1]
+    checks["polish_move_m"] = (moved, fine, moved <= fine)
     checks["conditioning"] = (
         conditioning,
         acc.min_conditioning,
         conditioning >= acc.min_conditioning,
     )
-    rivals = [o for o in valid if o.start != best.start]
-    if rivals:  # step 3's margin: the winner must fit better than every other valid candidate
-        label = block_labels(source.points, cfg.covariance_block)
+    # step 3's margin: the winner must fit better than every other valid candidate, and than
+    # every cheaper one that is only slid (a view that explains the scans better, refused for
+    # its contradicted cubes alone, leaves the valid winner one of two wrong poses)
+    slid_cheaper = [
+        o
+        for o in cands
+        if o.cost < best.cost and all(v[2] for v in _checks_but_contradiction(o, acc))
+    ]
+    rivals = [o for o in valid if o.start != best.start] + slid_cheaper
+    if rivals:
+        label = block_labels(source.points, cfg.margin_block)
         margin = min(
             cost_margin_se(point_costs[best.start], point_costs[o.start], label) for o in rivals
         )
