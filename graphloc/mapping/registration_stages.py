@@ -117,11 +117,12 @@ def polish(
     GMLoss(cfg.polish_kernel) (its parameter a squared scale), each view cut to its points within
     cfg.polish_distance + cfg.voxel of the other's grid (the mutual overlap: normals and
     correspondences only where they can pair), then the midpoint of the two on SE(3),
-    A Exp(Log(A^-1 B) / 2). The fine stage's grid averages independently subsampled, noisy
-    scans into cell centroids that differ between the views, and one direction's
-    nearest-neighbour planes pass through the noisy points of one view only; here every point
-    of each view serves once as a sample and once as a plane (`target_nns`: a prebuilt
-    `NearestIndex` of target.points with a radius of at least that cut, else built here).
+    A Exp(Log(A^-1 B) / 2) (GTSAM's `Pose3.slerp`). The fine stage's grid averages
+    independently subsampled, noisy scans into cell centroids that differ between the views,
+    and one direction's nearest-neighbour planes pass through the noisy points of one view
+    only; here every point of each view serves once as a sample and once as a plane
+    (`target_nns`: a prebuilt `NearestIndex` of target.points with a radius of at least that
+    cut, else built here).
     Rounds of cfg.polish_iterations per direction, each from the last midpoint, until one moves
     the pose less than cfg.polish_settle_deg / polish_settle_m (at most cfg.polish_rounds); the
     views are cut again once the pose has moved a voxel from where they were cut.
@@ -194,6 +195,4 @@ def _midpoint_round(full: list, T: np.ndarray, cfg: RegistrationConfig) -> np.nd
             return None
         out.append(np.asarray(res.transformation))
     fwd, bwd = out
-    A = gtsam.Pose3(fwd)
-    B = gtsam.Pose3(np.linalg.inv(bwd))
-    return A.compose(gtsam.Pose3.Expmap(0.5 * gtsam.Pose3.Logmap(A.between(B)))).matrix()
+    return gtsam.Pose3(fwd).slerp(0.5, gtsam.Pose3(np.linalg.inv(bwd))).matrix()
