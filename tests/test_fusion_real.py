@@ -278,14 +278,18 @@ def test_hint_starts_are_the_sigma_points_of_a_full_covariance():
 
 def test_calibrated_covariance_and_the_fit_it_comes_from():
     """RegistrationConfig's calibration is the fit in docs/results_fusion_calibration.json, and
-    calibrated_covariance is s P."""
+    calibrated_covariance is s (1 + degeneracy) P: s P for views that constrain every direction
+    well, twice that at the acceptance's least conditioning."""
     fit = json.loads((DOCS / "results_fusion_calibration.json").read_text())["fit"]
     cfg = RegistrationConfig()
     assert cfg.covariance_scale == pytest.approx(fit["covariance_scale"], rel=5e-3)
     P = np.diag([1e-8] * 3 + [1e-6] * 3)
     assert np.allclose(calibrated_covariance(P, cfg), cfg.covariance_scale * P)
+    assert np.allclose(calibrated_covariance(P, cfg, 1.0), 2.0 * cfg.covariance_scale * P)
     with pytest.raises(ValueError, match="covariance_scale"):
         RegistrationConfig(covariance_scale=0.0)
+    with pytest.raises(ValueError, match="degeneracy"):
+        calibrated_covariance(P, cfg, -1.0)
 
 
 def test_contradicted_fraction_counts_the_cubes_where_the_views_do_not_meet():

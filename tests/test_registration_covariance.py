@@ -1,14 +1,25 @@
 """Issue 16: the registration covariance model -- the cluster-robust sandwich
-(`cluster_covariance`) and its one-parameter calibration (`fit_calibration`), on synthetic
-point-to-plane problems with known answers."""
+(`cluster_covariance`) of per-point influences (`least_squares_influence`, the polish's
+`polish_influence`) and its one-parameter calibration (`fit_calibration`), on synthetic
+point-to-plane problems with known answers and on the real fragment."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
+import gtsam
 import numpy as np
 import pytest
 
 from graphloc.experiments.fusion_calibration import fit_calibration
-from graphloc.mapping.registration_covariance import cluster_covariance
+from graphloc.experiments.real_views import load_fragment, make_view_pair
+from graphloc.mapping.registration import RegistrationConfig, prepare
+from graphloc.mapping.registration_covariance import (
+    cluster_covariance,
+    least_squares_influence,
+    polish_influence,
+)
+from graphloc.mapping.registration_stages import polish
 
 
 def _problem(rng, n, sigma, extent):
@@ -27,7 +38,7 @@ def test_sandwich_matches_the_textbook_covariance_for_many_independent_clusters(
     rng = np.random.default_rng(3)
     J, r, p = _problem(rng, 20_000, 0.005, 4.0)
     H = J.T @ J
-    cov = cluster_covariance(J, r, p, H, 0.5)
+    cov = cluster_covariance(least_squares_influence(J, r), p, 0.5)
     ratio = np.diag(cov) / np.diag(0.005**2 * np.linalg.inv(H))
     assert np.all(np.abs(ratio - 1.0) < 0.3), ratio
     assert np.allclose(cov, cov.T)
@@ -53,8 +64,9 @@ def test_sandwich_follows_residuals_correlated_within_a_cluster():
     for _ in range(300):
         r = rng.normal(0.0, 0.003, label.max() + 1)[label] + rng.normal(0.0, 0.003, len(p))
         deltas.append(H_inv @ (J.T @ r))
-        sandwich.append(cluster_covariance(J, r, p, H, block))
-        fine.append(cluster_covariance(J, r, p, H, 0.05))
+        psi = least_squares_influence(J, r)
+        sandwich.append(cluster_covariance(psi, p, block))
+        fine.append(cluster_covariance(psi, p, 0.05))
         textbook.append(np.var(r) * H_inv)
     spread = np.cov(np.array(deltas).T)
 
@@ -68,7 +80,8 @@ def test_sandwich_follows_residuals_correlated_within_a_cluster():
 def test_cluster_covariance_rejects_mismatched_shapes():
     J, r, p = _problem(np.random.default_rng(0), 50, 0.01, 1.0)
     with pytest.raises(ValueError, match="cluster_covariance"):
-        cluster_covariance(J, r[:-1], p, J.T @ J, 0.5)
+        cluster_covariance(least_squares_influence(J, r)[:-1], p, 0.5)
+    assert least_squares_influence(J[:5], r[:5]) is None  # fewer rows than unknowns
 
 
 def test_fit_calibration_recovers_the_scale_of_synthetic_errors():
@@ -89,3 +102,31 @@ def test_fit_calibration_recovers_the_scale_of_synthetic_errors():
     assert logdet.sum() + q.sum() / 2.0 > fit["nll"]
     with pytest.raises(ValueError, match="fit_calibration"):
         fit_calibration(e[:, :3], P)
+
+
+@pytest.mark.parametrize("seed,overlap", [(3, 0.6), (4, 0.3), (5, 0.6)])
+def test_polish_influences_sum_to_a_step_along_the_polish_round(seed, overlap):
+    """The real fragment's views, the settled polish moved by a few of its sigmas: the
+    influences of both directions (their signs, the backward direction's adjoint and the
+    midpoint's half) sum to the midpoint's Gauss-Newton step with the correspondences held, which
+    points where one polish round of Open3D's ICP goes and covers part of the way (ICP chooses
+    the nearest neighbours again as the pose moves; the calibrated scale carries the rest)."""
+    cfg = RegistrationConfig()
+    pair = make_view_pair(load_fragment(), overlap, np.random.default_rng(seed))
+    source, target = prepare(pair.ceiling, cfg), prepare(pair.ground, cfg)
+    settled = polish(source, target, pair.T_ground_ceiling, cfg)
+    T = settled.transformation
+    V = cluster_covariance(*polish_influence(settled.views, T, cfg), cfg.covariance_block)
+    W = np.linalg.inv(V)
+    rng = np.random.default_rng(seed)
+    for _ in range(2):
+        T1 = gtsam.Pose3.Expmap(4.0 * np.linalg.cholesky(V) @ rng.normal(size=6)).matrix() @ T
+        one = polish(source, target, T1, replace(cfg, polish_rounds=1))
+        went = gtsam.Pose3.Logmap(gtsam.Pose3(one.transformation @ np.linalg.inv(T1)))
+        psi, points = polish_influence(one.views, T1, cfg)
+        assert psi.shape == (len(points), 6)
+        step = psi.sum(axis=0)
+        cos = (step @ W @ went) / np.sqrt((step @ W @ step) * (went @ W @ went))
+        length = np.sqrt((step @ W @ step) / (went @ W @ went))
+        assert cos > 0.8, cos
+        assert 0.3 < length < 0.9, length

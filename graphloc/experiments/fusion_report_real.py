@@ -210,10 +210,12 @@ def markdown_real(report: dict, command: str) -> str:
         fit = cal["fit"]
         lines += [
             "",
-            "The covariance is the cluster-robust sandwich of the point-to-plane fit "
-            "(`cluster_covariance`: the residuals' scores summed per "
+            "The covariance is the cluster-robust sandwich of the polish's estimate "
+            "(`polish_influence`: each point's influence on the midpoint of the two "
+            "point-to-plane directions; `cluster_covariance`: the influences summed per "
             f"{RegistrationConfig().covariance_block:g} m block, so the "
-            "correlation of the points of one surface patch is in it) "
+            "correlation of the points of one surface patch is in it), inflated by "
+            "1 + least conditioning / conditioning (views that hardly constrain a direction) and "
             f"scaled by one parameter, {fit['covariance_scale']:.3g} (95% interval "
             f"{fit['covariance_scale_95'][0]:.3g}-{fit['covariance_scale_95'][1]:.3g}; "
             "`calibrated_covariance`), fitted by maximum likelihood on "

@@ -1,42 +1,89 @@
 """The covariance of a robust inter-robot registration (issue 16): the cluster-robust sandwich
-of the point-to-plane fit (`cluster_covariance`), scaled by the one parameter that
+of the estimate's per-point influences (`cluster_covariance`) -- the polish's two directions and
+their midpoint (`polish_influence`), or the fine stage's one-way fit where no polish ran
+(`least_squares_influence`) -- scaled by the one parameter that
 `scripts/bench_fusion.py --real --calibrate` fits by maximum likelihood on calibration trials
 (`calibrated_covariance`, RegistrationConfig.covariance_scale)."""
 
 from __future__ import annotations
 
+import gtsam
 import numpy as np
 import scipy.sparse
 
 from graphloc.mapping.registration import RegistrationConfig
+from graphloc.mapping.registration_index import NearestIndex
 
 
-def cluster_covariance(
-    J: np.ndarray, r: np.ndarray, points: np.ndarray, H: np.ndarray, block: float
-) -> np.ndarray:
-    """Cluster-robust covariance of the least-squares pose over cubic blocks of side `block`:
-    the sandwich B / (B - 1) H^-1 (sum_b g_b g_b^T) H^-1 with g_b = sum_{i in b} J_i^T r_i, the
-    score of cluster b (CR1; Liang & Zeger 1986, with the small-sample factor of Cameron &
-    Miller 2015). Residuals of points that share normals, voxels and sensor error are correlated,
-    so they are summed per cluster; blocks a few normal radii wide hold that correlation and
-    leave a registration enough clusters for the sum. The leave-one-cluster-out jackknife (CR3)
-    inflates a direction that one cluster constrains alone by (H - H_b)^-1: on a small overlap of
-    a real room (the Redwood fragment at 30%, exploration seeds 200-229) its sigmas stood several
-    times above the errors in the very directions the sandwich's followed them."""
-    J, r, points, H = (np.asarray(a, dtype=float) for a in (J, r, points, H))
-    if len(J) != len(r) or len(J) != len(points) or J.shape[1:] != (6,) or H.shape != (6, 6):
+def cluster_covariance(influence: np.ndarray, points: np.ndarray, block: float) -> np.ndarray:
+    """Cluster-robust covariance of an M-estimate over cubic blocks of side `block`: the sandwich
+    B / (B - 1) sum_b psi_b psi_b^T, psi_b the sum of the (n,6) per-point influences over the
+    points of block b (CR1; Liang & Zeger 1986, with the small-sample factor of Cameron &
+    Miller 2015). For least squares a point's influence is H^-1 J_i^T r_i, and this is
+    B / (B - 1) H^-1 (sum_b g_b g_b^T) H^-1 with g_b the cluster's score. Residuals of points
+    that share normals, voxels and sensor error are correlated, so they are summed per cluster;
+    blocks a few normal radii wide hold that correlation and leave a registration enough
+    clusters for the sum. The leave-one-cluster-out jackknife (CR3) inflates a direction that
+    one cluster constrains alone by (H - H_b)^-1: on small overlaps of a real room (the Redwood
+    fragment at 30%, exploration seeds 200-229) its sigmas stood several times above the errors
+    in the very directions the sandwich's followed them."""
+    influence, points = np.asarray(influence, dtype=float), np.asarray(points, dtype=float)
+    if influence.ndim != 2 or influence.shape[1] != 6 or points.shape != (len(influence), 3):
         raise ValueError(
-            f"cluster_covariance: J (n,6), r (n,), points (n,3) and H (6,6) expected, got "
-            f"{J.shape}, {r.shape}, {points.shape}, {H.shape}"
+            f"cluster_covariance: influence (n,6) and points (n,3) expected, got "
+            f"{influence.shape}, {points.shape}"
         )
     label = block_labels(points, block)
     B = int(label.max()) + 1
-    # per-cluster scores as one sparse (B, n) membership product (np.add.at is unbuffered)
+    # per-cluster sums as one sparse (B, n) membership product (np.add.at is unbuffered)
     member = scipy.sparse.csr_matrix((np.ones(len(label)), (label, np.arange(len(label)))))
-    G = member @ (J * r[:, None])
-    H_inv = np.linalg.inv(H)
-    cov = B / max(B - 1, 1) * (H_inv @ (G.T @ G) @ H_inv)
+    G = member @ influence
+    cov = B / max(B - 1, 1) * (G.T @ G)
     return 0.5 * (cov + cov.T)
+
+
+def least_squares_influence(J: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """(n,6) influence -H^-1 J_i^T r_i of each row on the Gauss-Newton step of
+    sum_i (r_i + J_i xi)^2, H = J^T J; None when H is singular (fewer than 6 independent rows)."""
+    J, r = np.asarray(J, dtype=float), np.asarray(r, dtype=float)
+    H = J.T @ J
+    if len(J) < 6 or np.linalg.matrix_rank(H) < 6:
+        return None
+    return -(J * r[:, None]) @ np.linalg.inv(H)  # H symmetric
+
+
+def polish_influence(views, T: np.ndarray, cfg: RegistrationConfig):
+    """Per-point influences (left perturbation Exp(xi) T, target frame) on the polish's estimate
+    at T (`graphloc.mapping.registration_stages.polish`), and the points they belong to (target
+    frame), for `cluster_covariance`: `views` are the polish's two cut clouds with normals
+    (source in the source frame, target in the target frame). Each direction's point-to-plane
+    residuals within cfg.polish_distance, weighted by the Geman-McClure kernel of
+    cfg.polish_kernel (k / (k + r^2)^2, as Open3D's GMLoss), give a point's influence on that
+    direction's Gauss-Newton step: -H^-1 w_i J_i^T r_i for the source onto the target; for the
+    target onto the source the step is a left perturbation of T^-1, T^-1 <- Exp(xi_B) T^-1, that
+    is T <- Exp(-Ad_T xi_B) T. The polish takes the midpoint of the two, so each influence
+    counts one half, and the influences sum to the midpoint's step. Returns (influence (n,6),
+    points (n,3)), or None when a direction has too few correspondences for its 6x6 system."""
+    T = np.asarray(T, dtype=float)
+    k = cfg.polish_kernel
+    out, where = [], []
+    for (c, other), M, back in zip(((0, 1), (1, 0)), (T, np.linalg.inv(T)), (False, True)):
+        Q = np.asarray(views[other].points)
+        p = np.asarray(views[c].points) @ M[:3, :3].T + M[:3, 3]
+        idx, _ = NearestIndex(Q, cfg.polish_distance).nearest(p)
+        has = idx >= 0
+        p, n = p[has], np.asarray(views[other].normals)[idx[has]]
+        r = np.einsum("ij,ij->i", p - Q[idx[has]], n)
+        sw = np.sqrt(k) / (k + r * r)  # the square root of the kernel's weight
+        psi = least_squares_influence(np.hstack([np.cross(p, n), n]) * sw[:, None], r * sw)
+        if psi is None:
+            return None
+        if back:  # the target onto the source: Exp(-Ad_T xi_B), its points in the target frame
+            psi = -psi @ gtsam.Pose3(T).AdjointMap().T
+            p = p @ T[:3, :3].T + T[:3, 3]
+        out.append(0.5 * psi)
+        where.append(p)
+    return np.vstack(out), np.vstack(where)
 
 
 def block_labels(points: np.ndarray, block: float) -> np.ndarray:
@@ -51,13 +98,24 @@ def block_labels(points: np.ndarray, block: float) -> np.ndarray:
     return label.reshape(-1)
 
 
-def calibrated_covariance(cov: np.ndarray, cfg: RegistrationConfig) -> np.ndarray:
-    """s P for the cluster-robust covariance P (right perturbation), s = cfg.covariance_scale. P
-    sees the residual noise and its correlation within a cluster; it cannot
-    see what the fit absorbs -- surfaces sampled differently in the two scans, normals smoothed
-    over the normal radius, correspondences re-chosen as the pose moves -- which shows as errors
-    larger than P in every direction. s is fitted by maximum likelihood, e_i ~ N(0, s P_i), on
+def calibrated_covariance(
+    cov: np.ndarray, cfg: RegistrationConfig, degeneracy: float = 0.0
+) -> np.ndarray:
+    """s (1 + degeneracy) P for the cluster-robust covariance P (right perturbation),
+    s = cfg.covariance_scale. P sees the residual noise and its correlation within a cluster; it
+    cannot see what the fit absorbs -- surfaces sampled differently in the two scans, normals
+    smoothed over the normal radius -- nor that ICP chooses the nearest neighbours again as the
+    pose moves, so that its estimate follows the noise further than the Gauss-Newton step with
+    the correspondences held, whose influences P sums (`polish_influence`); both show as errors
+    larger than P in every direction. `degeneracy` is the acceptance's least conditioning over
+    the registration's (`AcceptanceConfig.min_conditioning` / conditioning): where the views
+    hardly constrain a direction, the point-to-plane objective is nearly flat along it, and the
+    estimate there rests on where the nearest neighbours let ICP come to rest as much as on the
+    noise -- the factor doubles the variance at the acceptance's threshold and fades as the
+    views constrain every direction. s is fitted by maximum likelihood, e_i ~ N(0, s P_i), on
     calibration trials by `scripts/bench_fusion.py --real --calibrate`; the benchmark checks the
     NEES on other trials."""
-    out = cfg.covariance_scale * np.asarray(cov, dtype=float)
+    if not degeneracy >= 0.0:
+        raise ValueError(f"calibrated_covariance: degeneracy must be >= 0, got {degeneracy}")
+    out = cfg.covariance_scale * (1.0 + degeneracy) * np.asarray(cov, dtype=float)
     return 0.5 * (out + out.T)

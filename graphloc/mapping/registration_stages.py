@@ -127,9 +127,10 @@ def polish(
     the pose less than cfg.polish_settle_deg / polish_settle_m (at most cfg.polish_rounds); the
     views are cut again once the pose has moved a voxel from where they were cut.
     Returns T_target_source as a `Polished`: unchanged, and settled, when cfg.polish_distance is
-    0 or a cloud has no `raw`; the last round's pose when a direction finds no correspondence
-    within the distance (the fine stage's pose if it is the first); not settled when the last
-    of cfg.polish_rounds still moved it (a view that keeps sliding along its surfaces)."""
+    0 or a cloud has no `raw`; the last round's pose, without views, when a direction finds no
+    correspondence within the distance (the fine stage's pose if it is the first); not settled
+    when the last of cfg.polish_rounds still moved it (a view that keeps sliding along its
+    surfaces)."""
     T = np.asarray(T, dtype=float)
     if cfg.polish_distance <= 0 or source.raw is None or target.raw is None:
         return Polished(T, 0, True)
@@ -147,18 +148,22 @@ def polish(
         rot, trans = pose_errors(moved, T)
         T = moved
         if rot < cfg.polish_settle_deg and trans < cfg.polish_settle_m:
-            return Polished(T, k + 1, True)
-    return Polished(T, cfg.polish_rounds, False)
+            return Polished(T, k + 1, True, tuple(full))
+    return Polished(T, cfg.polish_rounds, False, tuple(full))
 
 
 @dataclass(frozen=True)
 class Polished:
-    """`polish`'s result: T_target_source, the rounds it ran (0: none), and whether the last one
-    moved the pose less than cfg.polish_settle_deg / polish_settle_m (or none could run)."""
+    """`polish`'s result: T_target_source, the rounds it ran (0: none), whether the last one
+    moved the pose less than cfg.polish_settle_deg / polish_settle_m (or none could run), and
+    `views`: the two clouds its last round registered (source in the source frame, target in
+    the target frame, with normals; None when no round ran), for the covariance of its
+    estimate (`graphloc.mapping.registration_covariance.polish_influence`)."""
 
     transformation: np.ndarray
     rounds: int
     settled: bool
+    views: tuple | None = None
 
 
 def _overlap_cut(source, target, T, cfg, target_nns) -> list | None:

@@ -39,6 +39,8 @@ from graphloc.mapping.registration_covariance import (
     block_labels,
     calibrated_covariance,
     cluster_covariance,
+    least_squares_influence,
+    polish_influence,
 )
 from graphloc.mapping.registration_stages import (
     coarse_clouds,
@@ -133,9 +135,12 @@ def robust_register(
        settled and moved the view's sensor at most the fine distance, and a
        covariance (step 5) within acc.max_sigma_rot_deg / max_sigma_trans_m; accepted only if
        every check passes.
-    5. Covariance: the point-to-plane fit over the inliers, its cluster-robust sandwich over
-       cfg.covariance_block clusters (`cluster_covariance`), converted to GTSAM's right
-       perturbation (`information_right`), calibrated (`calibrated_covariance`); `inlier_rmse`
+    5. Covariance: the cluster-robust sandwich over cfg.covariance_block clusters
+       (`cluster_covariance`) of the per-point influences on the estimate made -- the polish's
+       two directions and their midpoint (`polish_influence`), or, where no polish round ran,
+       the point-to-plane fit over the inliers (`least_squares_influence`) -- converted to GTSAM's
+       right perturbation (`information_right`), calibrated (`calibrated_covariance`, inflated
+       as the conditioning nears acc.min_conditioning); `inlier_rmse`
        is the inliers' residual standard deviation (n - 6 dof). `RegistrationDecision.timings`:
        the seconds per stage."""
     start_t = time.perf_counter()
@@ -318,11 +323,18 @@ def robust_register(
     D = np.diag([r_med**-1] * 3 + [1.0] * 3)
     eig = np.linalg.eigvalsh(D @ H @ D) if n_in >= 6 else np.zeros(6)
     conditioning = float(eig[0] / eig[-1]) if eig[-1] > 0 else 0.0
-    if n_in >= 6 and conditioning >= acc.min_conditioning:  # else no covariance (not accepted)
-        pts_in = (source.points @ T[:3, :3].T + T[:3, 3])[inl]
-        cov_left = cluster_covariance(J[inl], r[inl], pts_in, H, cfg.covariance_block)
+    # the covariance of the estimate made: the polish's midpoint, else the fine stage's fit
+    influence = None if polished.views is None else polish_influence(polished.views, T, cfg)
+    if polished.views is None and n_in >= 6:
+        psi = least_squares_influence(J[inl], r[inl])
+        influence = None if psi is None else (psi, (source.points @ T[:3, :3].T + T[:3, 3])[inl])
+    cov_left = None if influence is None else cluster_covariance(*influence, cfg.covariance_block)
+    if cov_left is not None and np.linalg.cond(cov_left) > 1e12:  # fewer clusters than axes
+        cov_left = None
+    if cov_left is not None and conditioning >= acc.min_conditioning:  # else not accepted
         clustered = np.linalg.inv(information_right(np.linalg.inv(cov_left), T))
-        cov = calibrated_covariance(clustered, cfg)
+        near = acc.min_conditioning / conditioning if conditioning > 0 else 0.0
+        cov = calibrated_covariance(clustered, cfg, near)
         info = np.linalg.inv(cov)
     else:
         info = np.eye(6) * 1e-12
