@@ -324,10 +324,11 @@ def robust_register(
     eig = np.linalg.eigvalsh(D @ H @ D) if n_in >= 6 else np.zeros(6)
     conditioning = float(eig[0] / eig[-1]) if eig[-1] > 0 else 0.0
     # the covariance of the estimate made: the polish's midpoint, else the fine stage's fit
-    influence = None if polished.views is None else polish_influence(polished.views, T, cfg)
-    if polished.views is None and n_in >= 6:
-        psi = least_squares_influence(J[inl], r[inl])
-        influence = None if psi is None else (psi, (source.points @ T[:3, :3].T + T[:3, 3])[inl])
+    influence = None
+    if polished.views is not None:
+        influence = polish_influence(polished.views, T, cfg)
+    elif n_in >= 6 and (psi := least_squares_influence(J[inl], r[inl])) is not None:
+        influence = psi, (source.points @ T[:3, :3].T + T[:3, 3])[inl]
     cov_left = None if influence is None else cluster_covariance(*influence, cfg.covariance_block)
     if cov_left is not None and np.linalg.cond(cov_left) > 1e12:  # fewer clusters than axes
         cov_left = None
