@@ -28,7 +28,12 @@ from graphloc.experiments.real_views import load_fragment, make_view_pair, pertu
 from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
 from graphloc.mapping.registration_covariance import calibrated_covariance
 from graphloc.mapping.registration_stages import polish
-from graphloc.mapping.robust_registration import hint_covariance, hint_starts, robust_register
+from graphloc.mapping.registration_starts import (
+    hint_covariance,
+    hint_starts,
+    weak_direction_starts,
+)
+from graphloc.mapping.robust_registration import robust_register
 
 ROT_OK, TRANS_OK = 1.0, 0.05
 DOCS = Path(__file__).resolve().parents[1] / "docs"
@@ -274,6 +279,27 @@ def test_hint_starts_are_the_sigma_points_of_a_full_covariance():
     ]
     assert d2[0] == pytest.approx(0.0, abs=1e-12)
     assert np.allclose(d2[1:], 1.0, rtol=1e-6)
+
+
+def test_weak_direction_starts_step_along_the_least_constrained_direction():
+    """Two starts, the fine distance either way along the covariance's largest variance, the
+    rotations in metres at the view's median range: a covariance loosest along the floor's y
+    steps the translation by +-step along y; one loosest in yaw turns by step / reach."""
+    T = perturb(np.eye(4), 20.0, 1.0, np.random.default_rng(5))
+    step, reach = 0.05, 2.0
+    loose_y = np.diag([1e-6, 1e-6, 1e-6, 1e-4, 4e-4, 1e-4])  # yaw 1 mrad x 2 m: tighter than y
+    for sign, S in zip((1, -1), weak_direction_starts(T, loose_y, reach, step)):
+        xi = gtsam.Pose3(T).localCoordinates(gtsam.Pose3(S))
+        assert np.allclose(np.abs(xi), [0, 0, 0, 0, step, 0], atol=1e-9), xi
+    xi_pair = [
+        gtsam.Pose3(T).localCoordinates(gtsam.Pose3(S))
+        for S in weak_direction_starts(T, loose_y, reach, step)
+    ]
+    assert np.allclose(xi_pair[0], -xi_pair[1])
+    loose_yaw = np.diag([1e-6, 1e-6, 4e-4, 1e-4, 1e-4, 1e-4])  # 2 cm x 2 m: looser than 1 cm
+    for S in weak_direction_starts(T, loose_yaw, reach, step):
+        xi = gtsam.Pose3(T).localCoordinates(gtsam.Pose3(S))
+        assert np.allclose(np.abs(xi), [0, 0, step / reach, 0, 0, 0], atol=1e-9), xi
 
 
 def test_calibrated_covariance_and_the_fit_it_comes_from():

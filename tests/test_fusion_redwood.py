@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,8 +18,20 @@ import pytest
 
 from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
 from graphloc.mapping.acceptance import AcceptanceConfig, candidate_checks
-from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare, refine
-from graphloc.mapping.robust_registration import hint_covariance, robust_register
+from graphloc.mapping.registration import (
+    RegistrationConfig,
+    pose_errors,
+    poses_within,
+    prepare,
+    refine,
+)
+from graphloc.mapping.registration_starts import hint_covariance
+from graphloc.mapping.robust_registration import robust_register
+
+
+def _distinct(A, B):
+    return not poses_within(A, B, AcceptanceConfig().distinct_deg, AcceptanceConfig().distinct_m)
+
 
 ROOT = Path(__file__).resolve().parents[1]
 REDWOOD = ROOT / "tests" / "data" / "real_room" / "redwood_livingroom.ply"
@@ -98,24 +111,49 @@ def test_a_nearly_degenerate_view_turned_a_degree_is_not_fused(redwood):
 def test_a_view_slid_along_repeated_structure_is_not_fused(redwood):
     """30% overlap, 10 deg / 20 cm hint (exploration seed 217): the hint's start slides several
     decimetres along the floor to a local minimum (once fused, with the covariance cap at the
-    success box and before the contradicted cubes). Two checks refuse it: the cubes where the
-    structures that fix the slide stand beside each other, and the polish, which keeps sliding
-    the view for all its rounds."""
+    success box and before the contradicted cubes). The polish settles there after more than
+    ten rounds, and both weak-direction starts polish back to it: a minimum as wide as the
+    right one's. The cubes where the structures that fix the slide stand beside each other
+    refuse it; without them it would be fused."""
     d, truth = _register(redwood, 0.3, 217, 1)
-    assert not d.accepted
-    assert not d.checks["contradicted_fraction"][2] and not d.checks["polish_rounds"][2]
+    assert not d.accepted and not d.checks["contradicted_fraction"][2], d.reasons
+    assert d.checks["polish_rounds"][2] and d.timings["polish_rounds"] > 10
     assert pose_errors(d.registration.transformation, truth)[1] > 0.05
+    blind, _ = _register(redwood, 0.3, 217, 1, replace(AcceptanceConfig(), max_contradicted=1.0))
+    assert blind.accepted and blind.timings["probes"] == 2
+    assert sum("polished back" in why for why in blind.lost.values()) == 2
 
 
-def test_a_view_the_polish_carries_beyond_the_fine_reach_is_not_fused(redwood):
+def test_a_view_the_polish_slides_to_a_second_minimum_is_not_fused(redwood):
     """30% overlap, 10 deg / 20 cm hint (exploration seed 255): the fine stage leaves the view
-    turned about two degrees; the polish's rounds slide it some 8 cm along the floor, where it
-    settles two decimetres from the pose with every other check passed. The candidates' checks
-    hold for poses within the fine stage's reach of theirs, so the slide is refused."""
+    turned two degrees and 30 cm along the floor; the polish's rounds carry it beyond the fine
+    stage's reach and it settles 24 cm from the pose, every other check passed (refused by the
+    polish's move alone before the weak-direction starts). Polished again from the fine
+    distance along its least constrained direction, the view finds a distinct pose, nearer the
+    truth, that fits the scans no worse: no cost margin, not fused."""
     d, truth = _register(redwood, 0.3, 255, 1)
-    assert not d.accepted and not d.checks["polish_move_m"][2], d.reasons
-    assert d.checks["polish_move_m"][1] == RegistrationConfig().max_correspondence[-1]
+    assert not d.accepted and not d.checks["cost_margin_se"][2], d.reasons
     assert pose_errors(d.registration.transformation, truth)[1] > 0.05
+    probes = [k for k, why in d.lost.items() if why.startswith("weak-direction probe")]
+    assert len(probes) == 2 and d.timings["probes"] == 2
+    found = [c for c in d.candidates if c.start in probes]
+    assert found and all(_distinct(c.transformation, d.registration.transformation) for c in found)
+
+
+def test_a_view_the_polish_brings_home_from_beyond_the_fine_reach_is_fused(redwood):
+    """30% overlap, 10 deg / 20 cm hint (exploration seed 214): the fine stage's best candidate
+    is four degrees turned and 15 cm along the floor; the polish's raw points bring it home in a
+    dozen rounds, beyond the fine stage's reach of the candidate. Both weak-direction starts
+    polish back to that pose, which is fused within a few tenths of a degree (refused by the
+    polish's move alone before them)."""
+    d, truth = _register(redwood, 0.3, 214, 1)
+    assert d.accepted, d.reasons
+    rot, trans = pose_errors(d.registration.transformation, truth)
+    assert rot < 0.5 and trans < 0.01, (rot, trans)
+    best = [c for c in d.candidates if c.start == d.best][0]
+    fine = RegistrationConfig().max_correspondence[-1]
+    assert pose_errors(best.transformation, d.registration.transformation)[1] > fine
+    assert d.timings["probes"] == 2
 
 
 def test_a_valid_winner_a_slid_view_undercuts_is_not_fused(redwood):

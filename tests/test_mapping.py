@@ -325,7 +325,8 @@ def test_two_registrations_that_fit_alike_are_not_fused():
     from graphloc.experiments.real_views import perturb
     from graphloc.mapping.acceptance import AcceptanceConfig
     from graphloc.mapping.registration import RegistrationConfig
-    from graphloc.mapping.robust_registration import hint_covariance, robust_register
+    from graphloc.mapping.registration_starts import hint_covariance
+    from graphloc.mapping.robust_registration import robust_register
 
     scn = DualRoomScenario.simulate(variant_config("furnished", 201, frames=2))
     truth, cfg = scn.T_ground0_ceiling0, RegistrationConfig()

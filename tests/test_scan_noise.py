@@ -12,7 +12,8 @@ import pytest
 from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
 from graphloc.mapping.acceptance import AcceptanceConfig
 from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
-from graphloc.mapping.robust_registration import hint_covariance, residual_scale, robust_register
+from graphloc.mapping.registration_starts import hint_covariance
+from graphloc.mapping.robust_registration import residual_scale, robust_register
 from graphloc.mapping.scan_noise import split_half_sigma
 
 CFG = RegistrationConfig()

@@ -29,7 +29,6 @@ CHECK_REASONS = {
     "ceiling_z_down_cos": "ceiling robot not upside down",
     "cost_margin_se": "another registration fits about as well (ambiguous)",
     "polish_rounds": "the pose kept moving under the last refinement (a view sliding along)",
-    "polish_move_m": "the last refinement carried the view beyond the fine stage's reach",
     "sigma_rot_deg": "too uncertain (rotation)",
     "sigma_trans_m": "too uncertain (translation)",
 }

@@ -100,8 +100,9 @@ class RegistrationConfig:
     # ... repeated in rounds from the last midpoint until a round moves the pose less than
     # polish_settle_deg and polish_settle_m (at most polish_rounds rounds): a view the fine stage
     # left beside a wall or a tenth of a degree turned creeps back a little per round, and the
-    # rounds bring it to the objective's minimum instead of stopping on the way
-    polish_rounds: int = 10
+    # rounds bring it to the objective's minimum instead of stopping on the way (a view the grid
+    # left decimetres along a floor takes a dozen or more; one still moving after these slides)
+    polish_rounds: int = 20
     polish_settle_deg: float = 0.01
     polish_settle_m: float = 0.0005
     polish_max_nn: int = 20  # its normals: plane of the 20 nearest polish points

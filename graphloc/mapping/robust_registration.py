@@ -1,9 +1,9 @@
 """The inter-robot registration of issue 16 (seed 004 Sec. IV from a pose hint): a registration
 that does not slide on partial overlap, and that says "not fused" instead of returning a
 confident wrong answer. `robust_register` runs ICP from the hint and the sigma points of its
-covariance (`hint_starts`), keeps the cheapest candidate that passes the checks of
-`graphloc.mapping.acceptance`, refines the winner at full resolution (`polish`), and gives it
-the covariance of `graphloc.mapping.registration_covariance`.
+covariance (`graphloc.mapping.registration_starts`), keeps the cheapest candidate that passes
+the checks of `graphloc.mapping.acceptance`, refines the winner at full resolution (`polish`),
+and gives it the covariance of `graphloc.mapping.registration_covariance`.
 """
 
 from __future__ import annotations
@@ -49,26 +49,9 @@ from graphloc.mapping.registration_stages import (
     polish,
     wide_levels,
 )
+from graphloc.mapping.registration_starts import hint_starts, weak_direction_starts
 
 reg_l = o3d.pipelines.registration
-
-
-def hint_starts(hint: np.ndarray, cov: np.ndarray) -> list[np.ndarray]:
-    """The hint and its 12 sigma points hint Exp(+-sqrt(lambda_i) v_i) along the eigenvectors of
-    its 6x6 covariance (right perturbation, GTSAM tangent order rot, trans): the starts that
-    cover the hint's uncertainty, a P3P covariance's long axis included."""
-    lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
-    starts = [np.asarray(hint, dtype=float)]
-    for i in range(6):
-        for sign in (1.0, -1.0):
-            xi = sign * np.sqrt(max(lam[i], 0.0)) * V[:, i]
-            starts.append(starts[0] @ gtsam.Pose3.Expmap(xi).matrix())
-    return starts
-
-
-def hint_covariance(sigma_rot: float, sigma_trans: float) -> np.ndarray:
-    """6x6 diagonal covariance (rot [rad], trans [m]) of a hint given by two 1-sigmas."""
-    return np.diag(np.r_[np.full(3, sigma_rot**2), np.full(3, sigma_trans**2)])
 
 
 def robust_register(
@@ -132,9 +115,16 @@ def robust_register(
     4. The winner refined by `polish` (full resolution, both directions, in rounds until the
        pose settles), the checks of step 3 and its conditioning on that pose (`candidates` keep
        the poses before the polish; the contradicted cubes count at both), a polish that
-       settled and moved the view's sensor at most the fine distance, and a
-       covariance (step 5) within acc.max_sigma_rot_deg / max_sigma_trans_m; accepted only if
-       every check passes.
+       settled, and a covariance (step 5) within acc.max_sigma_rot_deg / max_sigma_trans_m;
+       accepted only if every check passes. The candidates' checks and margin speak for poses
+       within the fine stage's reach of theirs; when the polish carries the view's sensor
+       further (a floor-dominated view the grid left decimetres along the floor, which the raw
+       points bring home, or one sliding on to a second minimum) and every other check passes,
+       two more starts (indices
+       len(starts) + 2, + 3, `weak_direction_starts`): the polished pose moved the fine distance
+       either way along its covariance's least constrained direction, each polished; a pose
+       found there distinct from the winner's, valid or cheaper and only slid, is one more
+       rival of step 3's margin, both sides' costs at their polished poses.
     5. Covariance: the cluster-robust sandwich over cfg.covariance_block clusters
        (`cluster_covariance`) of the per-point influences on the estimate made -- the polish's
        two directions and their midpoint (`polish_influence`), or, where no polish round ran,
@@ -158,7 +148,7 @@ def robust_register(
             f"shape {hint_cov.shape}"
         )
     stage_s = dict.fromkeys(("coarse", "fine", "checks", "global", "polish"), 0.0)
-    counts = {"starts": 0, "fine_stages": 0, "polish_rounds": 0}
+    counts = {"starts": 0, "fine_stages": 0, "polish_rounds": 0, "probes": 0}
 
     def timed(stage: str, f, *args):
         t0 = time.perf_counter()
@@ -315,7 +305,7 @@ def robust_register(
     T = polished.transformation
     counts["polish_rounds"] = polished.rounds
     r, d, J = point_to_plane(source, target, T, nns)
-    final, _ = candidate(best.start, T, (r, d, J))
+    final, final_costs = candidate(best.start, T, (r, d, J))
     inl = (d < fine) & (np.abs(r) < c)
     n_in = int(inl.sum())
     H = J[inl].T @ J[inl]
@@ -346,10 +336,6 @@ def robust_register(
     seen = max(final.contradicted, best.contradicted)
     checks["contradicted_fraction"] = (seen, acc.max_contradicted, seen <= acc.max_contradicted)
     checks["polish_rounds"] = (polished.rounds, cfg.polish_rounds, polished.settled)
-    # ... and within the fine stage's reach of the pose it polished: the candidates' checks
-    # vouch for poses there, and a view the polish carries further is sliding along a surface
-    moved = pose_errors(best.transformation, T)[1]
-    checks["polish_move_m"] = (moved, fine, moved <= fine)
     checks["conditioning"] = (
         conditioning,
         acc.min_conditioning,
@@ -364,16 +350,8 @@ def robust_register(
         if o.cost < best.cost and all(v[2] for v in _checks_but_contradiction(o, acc))
     ]
     rivals = [o for o in valid if o.start != best.start] + slid_cheaper
-    if rivals:
-        label = block_labels(source.points, cfg.margin_block)
-        margin = min(
-            cost_margin_se(point_costs[best.start], point_costs[o.start], label) for o in rivals
-        )
-        checks["cost_margin_se"] = (
-            margin,
-            acc.min_cost_margin_se,
-            margin >= acc.min_cost_margin_se,
-        )
+    label = block_labels(source.points, cfg.margin_block)
+    margins = [cost_margin_se(point_costs[best.start], point_costs[o.start], label) for o in rivals]
     sigma = np.sqrt(np.diag(cov))
     caps = (
         ("sigma_rot_deg", float(np.degrees(sigma[:3].max())), acc.max_sigma_rot_deg),
@@ -381,6 +359,33 @@ def robust_register(
     )
     for k, v, lim in caps if checks["conditioning"][2] else ():  # degenerate: no covariance
         checks[k] = (v, lim, v <= lim)
+    # a polish that carried the view beyond the fine stage's reach of the candidate it polished
+    # left the poses the starts explored: polish again from a fine reach either way along the
+    # covariance's weakest direction, where a floor-dominated view slides or turns to a second
+    # minimum; a distinct pose found there is one more rival of the margin, at polished costs
+    # (only for a fusion every other check accepts)
+    passed = all(v[2] for v in checks.values()) and (
+        not margins or min(margins) >= acc.min_cost_margin_se
+    )
+    if passed and pose_errors(best.transformation, T)[1] > fine:
+        for i, T0 in enumerate(weak_direction_starts(T, cov, r_med, fine)):
+            k = len(starts) + 2 + i
+            counts["probes"] += 1
+            P = timed("polish", polish, source, target, T0, cfg, nns).transformation
+            if not _distinct(P, T, acc):
+                lost[k] = "weak-direction probe: polished back to the winner's pose"
+                continue
+            o, costs = timed("checks", candidate, k, P)
+            cands.append(o)
+            failed = [n for n, v in candidate_checks(o, acc).items() if not v[2]]
+            lost[k] = f"weak-direction probe: truncated cost {o.cost:.4f} vs {final.cost:.4f}" + (
+                f", failed {', '.join(failed)}" if failed else ""
+            )
+            if not failed or (o.cost < final.cost and failed == ["contradicted_fraction"]):
+                margins.append(cost_margin_se(final_costs, costs, label))
+    if margins:
+        m = min(margins)
+        checks["cost_margin_se"] = (m, acc.min_cost_margin_se, m >= acc.min_cost_margin_se)
     reasons = tuple(
         f"{CHECK_REASONS[k]} ({k} {v[0]:.4g} vs {v[1]:.4g})" for k, v in checks.items() if not v[2]
     )

@@ -49,7 +49,8 @@ from graphloc.pipelines.map_fusion.types import (
 from graphloc.pipelines.map_fusion.led_guess import led_initial_guess, p3p_factors
 from graphloc.mapping.odometry import OdometryResult, run_odometry
 from graphloc.mapping.registration import denoise, prepare, refine
-from graphloc.mapping.robust_registration import hint_covariance, robust_register
+from graphloc.mapping.registration_starts import hint_covariance
+from graphloc.mapping.robust_registration import robust_register
 from graphloc.session import Session
 
 

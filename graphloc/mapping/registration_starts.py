@@ -1,0 +1,43 @@
+"""Where `graphloc.mapping.robust_registration.robust_register` starts ICP (issue 16): the pose
+hint and the sigma points of its covariance (`hint_starts`, `hint_covariance`), and, once the
+polish has carried the view beyond the fine stage's reach of the candidate it polished, the
+two poses a fine reach either way along the estimate's least constrained direction
+(`weak_direction_starts`)."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+
+def hint_starts(hint: np.ndarray, cov: np.ndarray) -> list[np.ndarray]:
+    """The hint and its 12 sigma points hint Exp(+-sqrt(lambda_i) v_i) along the eigenvectors of
+    its 6x6 covariance (right perturbation, GTSAM tangent order rot, trans): the starts that
+    cover the hint's uncertainty, a P3P covariance's long axis included."""
+    lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    starts = [np.asarray(hint, dtype=float)]
+    for i in range(6):
+        for sign in (1.0, -1.0):
+            xi = sign * np.sqrt(max(lam[i], 0.0)) * V[:, i]
+            starts.append(starts[0] @ gtsam.Pose3.Expmap(xi).matrix())
+    return starts
+
+
+def hint_covariance(sigma_rot: float, sigma_trans: float) -> np.ndarray:
+    """6x6 diagonal covariance (rot [rad], trans [m]) of a hint given by two 1-sigmas."""
+    return np.diag(np.r_[np.full(3, sigma_rot**2), np.full(3, sigma_trans**2)])
+
+
+def weak_direction_starts(
+    T: np.ndarray, cov: np.ndarray, reach: float, step: float
+) -> list[np.ndarray]:
+    """T Exp(+-xi): xi along the eigenvector of the largest eigenvalue of D cov D (cov: T's 6x6
+    right-perturbation covariance, rot [rad] then trans [m]; D scales the rotations by `reach`
+    [m], the median range of the view's points, so that both parts are metres those points
+    move), of length `step` [m] in that scaled norm. Where a floor-dominated view can slide or
+    turn to a second minimum that fits about as well, these are the starts that find it."""
+    D = np.diag([reach] * 3 + [1.0] * 3)
+    _, V = np.linalg.eigh(D @ (0.5 * (cov + cov.T)) @ D)
+    xi = np.linalg.solve(D, V[:, -1]) * step
+    T = np.asarray(T, dtype=float)
+    return [T @ gtsam.Pose3.Expmap(sign * xi).matrix() for sign in (1.0, -1.0)]
