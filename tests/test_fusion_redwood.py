@@ -128,9 +128,9 @@ def test_a_view_the_polish_slides_to_a_second_minimum_is_not_fused(redwood):
     """30% overlap, 10 deg / 20 cm hint (exploration seed 255): the fine stage leaves the view
     turned two degrees and 30 cm along the floor; the polish's rounds carry it beyond the fine
     stage's reach and it settles 24 cm from the pose, every other check passed (refused by the
-    polish's move alone before the weak-direction starts). Polished again from the fine
-    distance along its least constrained direction, the view finds a distinct pose, nearer the
-    truth, that fits the scans no worse: no cost margin, not fused."""
+    polish's move alone before the weak-direction starts). Polished again from as far as the
+    polish carried it along its least constrained direction, the view finds a distinct pose,
+    nearer the truth, that fits the scans no worse: no cost margin, not fused."""
     d, truth = _register(redwood, 0.3, 255, 1)
     assert not d.accepted and not d.checks["cost_margin_se"][2], d.reasons
     assert pose_errors(d.registration.transformation, truth)[1] > 0.05

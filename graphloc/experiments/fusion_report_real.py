@@ -141,6 +141,17 @@ def markdown_real(report: dict, command: str) -> str:
         + " |"
     )
     lines.append(
+        "| graphloc's own preparation per view pair, beyond the denoising and normals every "
+        "method shares (the scans' residual spread, full-resolution normals), median [s]; "
+        "(graphloc + it) / fpfh_ransac time | "
+        + " | ".join(
+            f"{s['graphloc_own_prepare_s_median']:.2f} s; "
+            f"{s['graphloc_with_own_prepare_vs_fpfh_time_ratio']:.2f}x"
+            for s in summ.values()
+        )
+        + " |"
+    )
+    lines.append(
         "| graphloc's stages, median [s]: coarse / fine / checks / polish / rest; starts, "
         "fine stages, polish rounds (`RegistrationDecision.timings`) | "
         + " | ".join(_stages(s["graphloc"].get("stages_median")) for s in summ.values())

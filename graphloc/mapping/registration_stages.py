@@ -15,7 +15,6 @@ import open3d as o3d
 from graphloc.mapping.registration import (
     PreparedCloud,
     RegistrationConfig,
-    pose_errors,
     poses_within,
 )
 from graphloc.mapping.registration_index import NearestIndex
@@ -112,7 +111,7 @@ def polish(
 ) -> Polished:
     """The last stage of `graphloc.mapping.robust_registration.robust_register`: point-to-plane
     ICP of the full-resolution clouds (`PreparedCloud.raw`, normals of the cfg.polish_max_nn
-    nearest points) from T, source onto target and target onto source, each with
+    nearest points, `raw_normals`) from T, source onto target and target onto source, each with
     correspondences within cfg.polish_distance and Open3D's Geman-McClure kernel
     GMLoss(cfg.polish_kernel) (its parameter a squared scale), each view cut to its points within
     cfg.polish_distance + cfg.voxel of the other's grid (the mutual overlap: normals and
@@ -124,7 +123,8 @@ def polish(
     (`target_nns`: a prebuilt `NearestIndex` of target.points with a radius of at least that
     cut, else built here).
     Rounds of cfg.polish_iterations per direction, each from the last midpoint, until one moves
-    the pose less than cfg.polish_settle_deg / polish_settle_m (at most cfg.polish_rounds); the
+    the pose less than cfg.polish_settle_deg / polish_settle_m, or back within them of a pose an
+    earlier round on the same cut left (a cycle; at most cfg.polish_rounds); the
     views are cut again once the pose has moved a voxel from where they were cut.
     Returns T_target_source as a `Polished`: unchanged, and settled, when cfg.polish_distance is
     0 or a cloud has no `raw`; the last round's pose, without views, when a direction finds no
@@ -135,6 +135,7 @@ def polish(
     if cfg.polish_distance <= 0 or source.raw is None or target.raw is None:
         return Polished(T, 0, True)
     full, cut_at, recut_deg = None, T, 0.0
+    settle = cfg.polish_settle_deg, cfg.polish_settle_m
     for k in range(cfg.polish_rounds):
         if full is None or not poses_within(T, cut_at, recut_deg, cfg.voxel):
             full, cut_at = _overlap_cut(source, target, T, cfg, target_nns), T
@@ -142,12 +143,16 @@ def polish(
                 return Polished(T, k, True)
             reach = float(np.median(np.linalg.norm(np.asarray(full[0].points), axis=1)))
             recut_deg = float(np.degrees(cfg.voxel / max(reach, cfg.voxel)))
+            visited = []  # the rounds' poses on this cut
         moved = _midpoint_round(full, T, cfg)
         if moved is None:
             return Polished(T, k, True)
-        rot, trans = pose_errors(moved, T)
+        visited.append(T)
         T = moved
-        if rot < cfg.polish_settle_deg and trans < cfg.polish_settle_m:
+        # settled: a round that moved the pose less than the settle thresholds, or one that
+        # brought it back to a pose an earlier round left (the nearest neighbours' pairings
+        # cycling among a few poses that close around the minimum)
+        if any(poses_within(T, P, *settle) for P in visited):
             return Polished(T, k + 1, True, tuple(full))
     return Polished(T, cfg.polish_rounds, False, tuple(full))
 
@@ -167,8 +172,9 @@ class Polished:
 
 
 def _overlap_cut(source, target, T, cfg, target_nns) -> list | None:
-    """`polish`'s two views cut to their mutual overlap at T, with normals; None when either
-    keeps fewer than cfg.polish_max_nn points."""
+    """`polish`'s two views cut to their mutual overlap at T, with their points' normals
+    (`PreparedCloud.raw_normals`, of the whole scan: a point at the cut's edge keeps the plane
+    of its own neighbours); None when either keeps fewer than cfg.polish_max_nn points."""
     margin = cfg.polish_distance + cfg.voxel  # a grid cell's reach, plus the polish's
     full = []
     for c, other, M, index in (
@@ -178,11 +184,11 @@ def _overlap_cut(source, target, T, cfg, target_nns) -> list | None:
         p = c.raw @ M[:3, :3].T + M[:3, 3]  # in the other view's frame
         if index is None or index.radius < margin:
             index = NearestIndex(other.points, margin)
-        near = c.raw[index.nearest(p)[1] < margin]
-        if len(near) < cfg.polish_max_nn:
+        keep = index.nearest(p)[1] < margin
+        if keep.sum() < cfg.polish_max_nn:
             return None
-        full.append(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(near)))
-        full[-1].estimate_normals(o3d.geometry.KDTreeSearchParamKNN(cfg.polish_max_nn))
+        full.append(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(c.raw[keep])))
+        full[-1].normals = o3d.utility.Vector3dVector(c.raw_normals[keep])
     return full
 
 

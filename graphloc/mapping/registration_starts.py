@@ -1,7 +1,7 @@
 """Where `graphloc.mapping.robust_registration.robust_register` starts ICP (issue 16): the pose
 hint and the sigma points of its covariance (`hint_starts`, `hint_covariance`), and, once the
 polish has carried the view beyond the fine stage's reach of the candidate it polished, the
-two poses a fine reach either way along the estimate's least constrained direction
+two poses as far either way along the estimate's least constrained direction
 (`weak_direction_starts`)."""
 
 from __future__ import annotations

@@ -121,8 +121,9 @@ def robust_register(
        further (a floor-dominated view the grid left decimetres along the floor, which the raw
        points bring home, or one sliding on to a second minimum) and every other check passes,
        two more starts (indices
-       len(starts) + 2, + 3, `weak_direction_starts`): the polished pose moved the fine distance
-       either way along its covariance's least constrained direction, each polished; a pose
+       len(starts) + 2, + 3, `weak_direction_starts`): the polished pose moved as far as the
+       polish carried the sensor, either way along its covariance's least constrained direction
+       (the objective let the view travel that far), each polished; a pose
        found there distinct from the winner's, valid or cheaper and only slid, is one more
        rival of step 3's margin, both sides' costs at their polished poses.
     5. Covariance: the cluster-robust sandwich over cfg.covariance_block clusters
@@ -360,15 +361,16 @@ def robust_register(
     for k, v, lim in caps if checks["conditioning"][2] else ():  # degenerate: no covariance
         checks[k] = (v, lim, v <= lim)
     # a polish that carried the view beyond the fine stage's reach of the candidate it polished
-    # left the poses the starts explored: polish again from a fine reach either way along the
+    # left the poses the starts explored: polish again from as far either way along the
     # covariance's weakest direction, where a floor-dominated view slides or turns to a second
     # minimum; a distinct pose found there is one more rival of the margin, at polished costs
     # (only for a fusion every other check accepts)
     passed = all(v[2] for v in checks.values()) and (
         not margins or min(margins) >= acc.min_cost_margin_se
     )
-    if passed and pose_errors(best.transformation, T)[1] > fine:
-        for i, T0 in enumerate(weak_direction_starts(T, cov, r_med, fine)):
+    moved = pose_errors(best.transformation, T)[1]  # how far the polish carried the sensor
+    if passed and moved > fine:
+        for i, T0 in enumerate(weak_direction_starts(T, cov, r_med, moved)):
             k = len(starts) + 2 + i
             counts["probes"] += 1
             P = timed("polish", polish, source, target, T0, cfg, nns).transformation
