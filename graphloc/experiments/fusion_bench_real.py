@@ -260,7 +260,7 @@ def summarize_real(rows: list[dict]) -> dict:
         g, f = out[name]["graphloc"], out[name]["fpfh_ransac"]
         out[name]["graphloc_vs_fpfh_time_ratio"] = g["seconds_median"] / f["seconds_median"]
         # ... and with what graphloc's preparation adds per view pair (the scans' residual
-        # spread, the full-resolution normals), every trial's registration charged with it
+        # spread), every trial's registration charged with it
         own = np.array([r["graphloc_own_prepare_s"] for r in cell])
         with_own = np.array([r["graphloc"]["seconds"] for r in cell]) + own
         out[name]["graphloc_own_prepare_s_median"] = float(np.median(own))

@@ -142,7 +142,7 @@ def markdown_real(report: dict, command: str) -> str:
     )
     lines.append(
         "| graphloc's own preparation per view pair, beyond the denoising and normals every "
-        "method shares (the scans' residual spread, full-resolution normals), median [s]; "
+        "method shares (the scans' residual spread), median [s]; "
         "(graphloc + it) / fpfh_ransac time | "
         + " | ".join(
             f"{s['graphloc_own_prepare_s_median']:.2f} s; "

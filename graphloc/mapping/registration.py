@@ -120,7 +120,7 @@ class RegistrationConfig:
     # basin a local method covers (the sigma points and the global fallback take over)
     max_reach: float = 1.0
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
-    covariance_scale: float = 5.38  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_scale: float = 5.46  # fit of docs/results_fusion_calibration.json (3 digits)
 
     def __post_init__(self):
         check(
@@ -177,11 +177,9 @@ class PreparedCloud:
     """A denoised, downsampled cloud with normals (tensor and legacy views share no memory),
     `raw`: the input points at full resolution (for the last stage of `robust_register`,
     `polish`; None when cfg.polish_distance is 0; every k-th one beyond
-    cfg.polish_points_per_cell per grid cell), `raw_normals`: their normals, the plane of each
-    one's cfg.polish_max_nn nearest raw points (unoriented; estimated once per scan, the
-    polish's overlap cuts select them), and `residual_spread`: the scan's own point-to-plane
-    residual spread [m] on this grid (`graphloc.mapping.scan_noise.split_half_sigma`; the scale
-    of robust_register's checks)."""
+    cfg.polish_points_per_cell per grid cell),
+    and `residual_spread`: the scan's own point-to-plane residual spread [m] on this grid
+    (`graphloc.mapping.scan_noise.split_half_sigma`; the scale of robust_register's checks)."""
 
     cloud: o3d.t.geometry.PointCloud
     legacy: o3d.geometry.PointCloud
@@ -189,7 +187,6 @@ class PreparedCloud:
     n_outliers: int
     raw: np.ndarray | None = None
     residual_spread: float = float("nan")
-    raw_normals: np.ndarray | None = None
 
     @property
     def points(self) -> np.ndarray:
@@ -233,8 +230,8 @@ def prepare(points, cfg=RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0), inter_r
     """`denoise`, then normals oriented toward `viewpoint` (the sensor, for FPFH's signed
     angles). With `inter_robot`, also what `robust_register` needs: the scan's residual spread
     (`split_half_sigma`) and, with cfg.polish_distance > 0, the input points (`raw`; every k-th
-    beyond cfg.polish_points_per_cell per grid cell) and their normals; scan matching of
-    consecutive scans (`refine`) needs neither. Returns a `PreparedCloud`."""
+    beyond cfg.polish_points_per_cell per grid cell); scan matching of consecutive scans
+    (`refine`) needs neither. Returns a `PreparedCloud`."""
     pcd, n_out = denoise(points, cfg)
     pcd.estimate_normals(cfg.max_nn, cfg.normal_radius)
     pcd.orient_normals_towards_camera_location(
@@ -244,18 +241,15 @@ def prepare(points, cfg=RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0), inter_r
         raise ValueError("prepare: fewer than 10 points left after denoising and downsampling")
     if not inter_robot:
         return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out)
-    raw = raw_normals = None
+    raw = None
     if cfg.polish_distance > 0:
         raw = np.asarray(points, dtype=np.float64)
         budget = int(cfg.polish_points_per_cell * len(pcd.point.positions))
         if 0 < budget < len(raw):
             raw = raw[:: -(-len(raw) // budget)]
-        full = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(raw))
-        full.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(cfg.polish_max_nn))
-        raw_normals = np.asarray(full.normals)
     fine = cfg.max_correspondence[-1]
     spread = split_half_sigma(points, cfg.voxel, cfg.normal_radius, cfg.max_nn, fine)
-    return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, raw, spread, raw_normals)
+    return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, raw, spread)
 
 
 def information_right(info_left: np.ndarray, T: np.ndarray) -> np.ndarray:

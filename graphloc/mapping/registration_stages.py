@@ -111,7 +111,7 @@ def polish(
 ) -> Polished:
     """The last stage of `graphloc.mapping.robust_registration.robust_register`: point-to-plane
     ICP of the full-resolution clouds (`PreparedCloud.raw`, normals of the cfg.polish_max_nn
-    nearest points, `raw_normals`) from T, source onto target and target onto source, each with
+    nearest points) from T, source onto target and target onto source, each with
     correspondences within cfg.polish_distance and Open3D's Geman-McClure kernel
     GMLoss(cfg.polish_kernel) (its parameter a squared scale), each view cut to its points within
     cfg.polish_distance + cfg.voxel of the other's grid (the mutual overlap: normals and
@@ -172,9 +172,8 @@ class Polished:
 
 
 def _overlap_cut(source, target, T, cfg, target_nns) -> list | None:
-    """`polish`'s two views cut to their mutual overlap at T, with their points' normals
-    (`PreparedCloud.raw_normals`, of the whole scan: a point at the cut's edge keeps the plane
-    of its own neighbours); None when either keeps fewer than cfg.polish_max_nn points."""
+    """`polish`'s two views cut to their mutual overlap at T, with normals; None when either
+    keeps fewer than cfg.polish_max_nn points."""
     margin = cfg.polish_distance + cfg.voxel  # a grid cell's reach, plus the polish's
     full = []
     for c, other, M, index in (
@@ -188,7 +187,7 @@ def _overlap_cut(source, target, T, cfg, target_nns) -> list | None:
         if keep.sum() < cfg.polish_max_nn:
             return None
         full.append(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(c.raw[keep])))
-        full[-1].normals = o3d.utility.Vector3dVector(c.raw_normals[keep])
+        full[-1].estimate_normals(o3d.geometry.KDTreeSearchParamKNN(cfg.polish_max_nn))
     return full
 
 
