@@ -120,12 +120,11 @@ def robust_register(
        within the fine stage's reach of theirs; when the polish carries the view's sensor
        further (a floor-dominated view the grid left decimetres along the floor, which the raw
        points bring home, or one sliding on to a second minimum) and every other check passes,
-       two more starts (indices
-       len(starts) + 2, + 3, `weak_direction_starts`): the polished pose moved as far as the
-       polish carried the sensor, either way along its covariance's least constrained direction
-       (the objective let the view travel that far), each polished; a pose
-       found there distinct from the winner's, valid or cheaper and only slid, is one more
-       rival of step 3's margin, both sides' costs at their polished poses.
+       two more starts (indices len(starts) + 2, + 3, `weak_direction_starts`): the polished
+       pose moved as far as the polish carried the sensor, either way along its covariance's
+       least constrained direction (the objective let the view travel that far), each polished;
+       a pose found there distinct from the winner's, valid or cheaper and only slid, is one
+       more rival of step 3's margin, both sides' costs at their polished poses.
     5. Covariance: the cluster-robust sandwich over cfg.covariance_block clusters
        (`cluster_covariance`) of the per-point influences on the estimate made -- the polish's
        two directions and their midpoint (`polish_influence`), or, where no polish round ran,
