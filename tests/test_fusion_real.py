@@ -29,6 +29,7 @@ from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepa
 from graphloc.mapping.registration_covariance import calibrated_covariance
 from graphloc.mapping.registration_stages import polish
 from graphloc.mapping.registration_starts import (
+    escape_starts,
     hint_covariance,
     hint_starts,
     weak_direction_starts,
@@ -330,6 +331,31 @@ def test_weak_direction_starts_step_along_the_least_constrained_direction():
     for S in weak_direction_starts(T, loose_yaw, reach, step):
         xi = gtsam.Pose3(T).localCoordinates(gtsam.Pose3(S))
         assert np.allclose(np.abs(xi), [0, 0, step / reach, 0, 0, 0], atol=1e-9), xi
+
+
+def test_escape_starts_leave_a_slid_views_valley_along_it():
+    """A slid view's Jacobian rows (left perturbation, target frame): a floor, a wall facing x
+    and a sliver of one facing y, so that the view slides most easily along y. The two escape
+    starts move the view's sensor by +-step along the target's y, hardly turned (the Hessian
+    carried to the right perturbation at a turned T); with no wall facing y the
+    Hessian is singular and there is none."""
+    rng = np.random.default_rng(3)
+    floor = np.c_[rng.uniform(-2, 2, (400, 2)), np.full(400, -1.0)]
+    wall = np.c_[np.full(200, 2.0), rng.uniform(-2, 2, 200), rng.uniform(-1, 1, 200)]
+    sliver = np.c_[rng.uniform(-0.1, 0.1, 5), np.full(5, 2.0), rng.uniform(-1, 1, 5)]
+    normals = np.repeat([[0, 0, 1.0], [1.0, 0, 0], [0, 1.0, 0]], [400, 200, 5], axis=0)
+    points = np.vstack([floor, wall, sliver])
+    J = np.hstack([np.cross(points, normals), normals])
+    T = perturb(np.eye(4), 40.0, 1.0, np.random.default_rng(6))
+    step = 0.3
+    starts = escape_starts(T, J, 2.0, step)
+    assert len(starts) == 2
+    moves = [S[:3, 3] - T[:3, 3] for S in starts]
+    for S, move in zip(starts, moves):
+        assert pose_errors(S, T)[0] < 0.5  # deg: the sliver's few points couple a little turn
+        np.testing.assert_allclose(np.abs(move), [0, step, 0], atol=0.01)
+    assert moves[0][1] * moves[1][1] < 0  # either way
+    assert escape_starts(T, J[:600], 2.0, step) == []
 
 
 def test_calibrated_covariance_and_the_fit_it_comes_from():

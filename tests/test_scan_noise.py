@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
-from graphloc.mapping.acceptance import AcceptanceConfig
+from graphloc.mapping.acceptance import AcceptanceConfig, residual_scale
 from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
 from graphloc.mapping.registration_starts import hint_covariance
-from graphloc.mapping.robust_registration import residual_scale, robust_register
+from graphloc.mapping.robust_registration import robust_register
 from graphloc.mapping.scan_noise import split_half_sigma
 
 CFG = RegistrationConfig()

@@ -2,7 +2,9 @@
 `AcceptanceConfig` thresholds, the per-candidate checks (`candidate_checks`: overlap, inlier
 ratio, contradicted cubes, agreement with the pose hint, the robot kinds' geometry), the
 point-to-plane residuals and costs they are computed from (`point_to_plane`, `truncated_costs`,
-`contradicted_fraction`, `cost_margin_se`), and the `RegistrationDecision` that
+`contradicted_fraction`, `cost_margin_se`) at the scans' own residual scale (`residual_scale`),
+which candidates only the contradicted cubes refuse (`only_slid_or_valid`), and the
+`RegistrationDecision` that
 `graphloc.mapping.robust_registration.robust_register` returns (every candidate, every check, why
 each candidate lost)."""
 
@@ -282,3 +284,19 @@ def contradicted_fraction(points: np.ndarray, inlier: np.ndarray, acc: Acceptanc
     ratio = k.sum() / n.sum()
     bad = (n >= acc.contradiction_min_points) & (k < acc.contradiction_ratio * ratio * n)
     return float(n[bad].sum() / n.sum())
+
+
+def only_slid_or_valid(o: Candidate, acc: AcceptanceConfig) -> bool:
+    """True if a candidate passes every check of `candidate_checks` but, perhaps, the
+    contradicted cubes (a slid view fails that one alone)."""
+    return all(v[2] for k, v in candidate_checks(o, acc).items() if k != "contradicted_fraction")
+
+
+def residual_scale(source: PreparedCloud, target: PreparedCloud, acc: AcceptanceConfig) -> float:
+    """c [m], the residual scale of every check: the two scans' own residual spread
+    sqrt((s_source^2 + s_target^2) / 2) (`PreparedCloud.residual_spread`, each scan's split
+    halves), at least acc.residual_sigma (the thresholds' scale; a scan whose spread is not
+    measured has that)."""
+    spread = np.array([source.residual_spread, target.residual_spread], dtype=float)
+    pair = float(np.sqrt(np.mean(spread**2))) if np.isfinite(spread).all() else 0.0
+    return max(acc.residual_sigma, pair)

@@ -2,12 +2,15 @@
 hint and the sigma points of its covariance (`hint_starts`, `hint_covariance`), and, once the
 polish has carried the view beyond the fine stage's reach of the candidate it polished, the
 two poses as far either way along the estimate's least constrained direction
-(`weak_direction_starts`)."""
+(`weak_direction_starts`), and, when the only candidates left are slid views, the two poses
+the hint's reach either way along a slid view's own (`escape_starts`)."""
 
 from __future__ import annotations
 
 import gtsam
 import numpy as np
+
+from graphloc.mapping.registration import information_right
 
 
 def hint_starts(hint: np.ndarray, cov: np.ndarray) -> list[np.ndarray]:
@@ -41,3 +44,18 @@ def weak_direction_starts(
     xi = np.linalg.solve(D, V[:, -1]) * step
     T = np.asarray(T, dtype=float)
     return [T @ gtsam.Pose3.Expmap(sign * xi).matrix() for sign in (1.0, -1.0)]
+
+
+def escape_starts(T: np.ndarray, J: np.ndarray, reach: float, step: float) -> list[np.ndarray]:
+    """`weak_direction_starts` of a slid view at T: its covariance the inverse of the
+    point-to-plane Hessian J^T J of its inliers' Jacobian rows J (n,6) (left perturbation,
+    `graphloc.mapping.acceptance.point_to_plane`), carried to the right perturbation
+    (`information_right`); `step` [m] the hint's reach. A view slid along a dominant plane into a
+    local minimum lies in a valley whose floor is that direction; the pose lies along it, a
+    distance the hint's uncertainty allows. No starts when the rows leave the Hessian singular."""
+    J = np.asarray(J, dtype=float)
+    H = information_right(J.T @ J, T) if len(J) >= 6 else np.zeros((6, 6))
+    lam = np.linalg.eigvalsh(H)
+    if lam[0] <= 1e-12 * max(lam[-1], 0.0):  # singular to double precision
+        return []
+    return weak_direction_starts(T, np.linalg.inv(H), reach, step)

@@ -22,7 +22,9 @@ from graphloc.mapping.acceptance import (
     candidate_checks,
     contradicted_fraction,
     cost_margin_se,
+    only_slid_or_valid,
     point_to_plane,
+    residual_scale,
     target_index,
     truncated_costs,
 )
@@ -49,7 +51,11 @@ from graphloc.mapping.registration_stages import (
     polish,
     wide_levels,
 )
-from graphloc.mapping.registration_starts import hint_starts, weak_direction_starts
+from graphloc.mapping.registration_starts import (
+    escape_starts,
+    hint_starts,
+    weak_direction_starts,
+)
 
 reg_l = o3d.pipelines.registration
 
@@ -95,11 +101,14 @@ def robust_register(
        the sigma points compete). If none passes and cfg.global_fallback, `global_fpfh_ransac`
        (seed 0) gives one more start (index len(starts)), still subject to every check, the hint
        gate included. Once a candidate is valid or only slid (it fails no check but the
-       contradicted cubes), a last start (index len(starts) + 1), the re-seat: the cheapest such
+       contradicted cubes), one more start (index len(starts) + 1), the re-seat: the cheapest such
        candidate's rotation at the hint's translation, through the coarse level and the fine
        stage (no pyramid). A pyramid slides a view along its dominant plane towards the other
        view, a translation its rotation does not share; the re-seat puts the view back where the
-       hint says it is (skipped when that lies within one fine basin of the candidate).
+       hint says it is (skipped when that lies within one fine basin of the candidate). If then
+       none passes but one is only slid, the escape (indices len(starts) + 2, + 3,
+       `escape_starts`): the cheapest such moved by the hint's reach either way along its least
+       constrained direction, the valley it slid down, each through the fine stage.
     3. Each candidate's cost, the mean of its `truncated_costs` (c = `residual_scale`; a point
        near a target point but off its surface costs acc.misfit_weight, an unexplained point 1),
        and checks (overlap, inlier ratio, contradicted cubes, hint gate, robot geometry:
@@ -111,7 +120,9 @@ def robust_register(
        acc.min_cost_margin_se standard errors of the paired per-point cost difference
        (`cost_margin_se` over the source's cfg.margin_block clusters), else the views do not
        tell the two registrations apart; and a cheaper candidate that fails the contradicted
-       cubes alone (a slid view explaining the scans better) leaves the winner no margin.
+       cubes alone (a slid view explaining the scans better) leaves the winner no margin; one
+       that step 4's polish carries the winner to (within acc.distinct_deg / distinct_m) is no
+       rival, the same registration.
     4. The winner refined by `polish` (full resolution, both directions, in rounds until the
        pose settles), the checks of step 3 and its conditioning on that pose (`candidates` keep
        the poses before the polish; the contradicted cubes count at both), a polish that
@@ -120,7 +131,7 @@ def robust_register(
        within the fine stage's reach of theirs; when the polish carries the view's sensor
        further (a floor-dominated view the grid left decimetres along the floor, which the raw
        points bring home, or one sliding on to a second minimum) and every other check passes,
-       two more starts (indices len(starts) + 2, + 3, `weak_direction_starts`): the polished
+       two more starts (indices len(starts) + 4, + 5, `weak_direction_starts`): the polished
        pose moved as far as the polish carried the sensor, either way along its covariance's
        least constrained direction (the objective let the view travel that far), each polished;
        a pose found there distinct from the winner's, valid or cheaper and only slid, is one
@@ -271,7 +282,7 @@ def robust_register(
         found = try_start(len(starts), timed("coarse", coarse_stage, T_glob))
     # re-seat: the rotation of the best candidate that is valid or only slid (it fails no check
     # but the contradicted cubes) at the hint's translation
-    seats = [o for o in cands if all(v[2] for v in _checks_but_contradiction(o, acc))]
+    seats = [o for o in cands if only_slid_or_valid(o, acc)]
     if seats:
         top = min(seats, key=lambda x: x.cost)
         T_re = top.transformation.copy()
@@ -282,6 +293,16 @@ def robust_register(
         else:
             counts["starts"] += 1
             try_start(k_re, timed("coarse", coarse_stage, T_re, cfg.coarse_tukey, ()))
+    # the escape: no candidate passes and one is only slid: from the cheapest such, the hint's
+    # reach either way along its least constrained direction (the valley it slid down)
+    seats = [o for o in cands if only_slid_or_valid(o, acc)]
+    if seats and not any(all(v[2] for v in candidate_checks(o, acc).values()) for o in cands):
+        top = min(seats, key=lambda x: x.cost)
+        r, d, J = point_to_plane(source, target, top.transformation, nns)
+        inl = (d < fine) & (np.abs(r) < c)
+        for i, T0 in enumerate(escape_starts(top.transformation, J[inl], r_med, reach)):
+            counts["starts"] += 1
+            try_start(len(starts) + 2 + i, T0)
     if not cands:
         raise ValueError(
             f"robust_register: no start found correspondences within {fine} m: a wrong "
@@ -343,13 +364,11 @@ def robust_register(
     )
     # step 3's margin: the winner must fit better than every other valid candidate, and than
     # every cheaper one that is only slid (a view that explains the scans better, refused for
-    # its contradicted cubes alone, leaves the valid winner one of two wrong poses)
-    slid_cheaper = [
-        o
-        for o in cands
-        if o.cost < best.cost and all(v[2] for v in _checks_but_contradiction(o, acc))
-    ]
+    # its contradicted cubes alone, leaves the valid winner one of two wrong poses); one the
+    # polish carried the winner to (not distinct from the polished pose) is the same registration
+    slid_cheaper = [o for o in cands if o.cost < best.cost and only_slid_or_valid(o, acc)]
     rivals = [o for o in valid if o.start != best.start] + slid_cheaper
+    rivals = [o for o in rivals if _distinct(o.transformation, T, acc)]
     label = block_labels(source.points, cfg.margin_block)
     margins = [cost_margin_se(point_costs[best.start], point_costs[o.start], label) for o in rivals]
     sigma = np.sqrt(np.diag(cov))
@@ -359,18 +378,16 @@ def robust_register(
     )
     for k, v, lim in caps if checks["conditioning"][2] else ():  # degenerate: no covariance
         checks[k] = (v, lim, v <= lim)
-    # a polish that carried the view beyond the fine stage's reach of the candidate it polished
-    # left the poses the starts explored: polish again from as far either way along the
-    # covariance's weakest direction, where a floor-dominated view slides or turns to a second
-    # minimum; a distinct pose found there is one more rival of the margin, at polished costs
-    # (only for a fusion every other check accepts)
+    # a polish that carried the view beyond the fine stage's reach left the poses the starts
+    # explored: polish again from as far either way along the covariance's weakest direction; a
+    # distinct pose found there is one more rival of the margin (only for an accepted fusion)
     passed = all(v[2] for v in checks.values()) and (
         not margins or min(margins) >= acc.min_cost_margin_se
     )
     moved = pose_errors(best.transformation, T)[1]  # how far the polish carried the sensor
     if passed and moved > fine:
         for i, T0 in enumerate(weak_direction_starts(T, cov, r_med, moved)):
-            k = len(starts) + 2 + i
+            k = len(starts) + 4 + i
             counts["probes"] += 1
             P = timed("polish", polish, source, target, T0, cfg, nns).transformation
             if not _distinct(P, T, acc):
@@ -396,21 +413,6 @@ def robust_register(
     timings["rest_s"] = seconds - sum(stage_s.values())  # final checks, covariance, bookkeeping
     args = (checks, tuple(cands), best.start, lost, cov, seconds, dict(timings, **counts))
     return RegistrationDecision(reg, not reasons, reasons, *args, residual_scale=c)
-
-
-def residual_scale(source: PreparedCloud, target: PreparedCloud, acc: AcceptanceConfig) -> float:
-    """c [m], the residual scale of every check: the two scans' own residual spread
-    sqrt((s_source^2 + s_target^2) / 2) (`PreparedCloud.residual_spread`, each scan's split
-    halves), at least acc.residual_sigma (the thresholds' scale; a scan whose spread is not
-    measured has that)."""
-    spread = np.array([source.residual_spread, target.residual_spread], dtype=float)
-    pair = float(np.sqrt(np.mean(spread**2))) if np.isfinite(spread).all() else 0.0
-    return max(acc.residual_sigma, pair)
-
-
-def _checks_but_contradiction(o: Candidate, acc: AcceptanceConfig) -> list:
-    """A candidate's checks without contradicted_fraction (a slid view fails that one alone)."""
-    return [v for k, v in candidate_checks(o, acc).items() if k != "contradicted_fraction"]
 
 
 def _distinct(A: np.ndarray, B: np.ndarray, acc: AcceptanceConfig) -> bool:
