@@ -163,6 +163,22 @@ def test_a_view_slid_down_the_floors_valley_escapes_along_it(redwood):
     assert slid, [(c.start, pose_errors(c.transformation, truth)) for c in d.candidates]
 
 
+def test_a_rival_that_polishes_onto_the_winner_is_the_same_registration(redwood):
+    """30% overlap, 10 deg / 20 cm hint (exploration seed 206): a second valid candidate, turned
+    about 5 deg and 11 cm along the floor, costs hardly more than the winner at the fine stage's
+    poses, so it denied the margin and nothing was fused. Polished like the winner, it lands on
+    the winner's polished pose: the same registration, no rival, and the fusion is accepted
+    within a tenth of a degree."""
+    d, truth = _register(redwood, 0.3, 206, 1)
+    assert d.accepted, d.reasons
+    rot, trans = pose_errors(d.registration.transformation, truth)
+    assert rot < 0.1 and trans < 0.01, (rot, trans)
+    assert d.timings["rivals_polished"] >= 1
+    same = [k for k, why in d.lost.items() if why.endswith("polished to the winner's pose")]
+    far = [c for c in d.candidates if c.start in same]
+    assert far and all(pose_errors(c.transformation, truth)[0] > 2.0 for c in far)
+
+
 def test_a_view_the_polish_brings_home_from_beyond_the_fine_reach_is_fused(redwood):
     """30% overlap, 10 deg / 20 cm hint (exploration seed 214): the fine stage's best candidate
     is four degrees turned and 15 cm along the floor; the polish's raw points bring it home in a

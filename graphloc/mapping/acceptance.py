@@ -157,8 +157,8 @@ class RegistrationDecision:
     why each lost, wall time [s], and `timings`: seconds per stage of `robust_register`
     (coarse: clouds, pyramid and coarse ICP of every start; fine: the fine stages; checks: the
     candidates' residuals; global: the FPFH fallback; polish; rest: final checks, covariance)
-    with the number of starts, of fine stages and of polish rounds, and `residual_scale`: the
-    checks' c [m] (`graphloc.mapping.robust_registration.residual_scale`)."""
+    with the number of starts, of fine stages, of polish rounds, of weak-direction probes and of
+    rivals polished, and `residual_scale`: the checks' c [m] (`residual_scale`)."""
 
     registration: Registration
     accepted: bool

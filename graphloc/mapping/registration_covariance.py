@@ -3,7 +3,8 @@ of the estimate's per-point influences (`cluster_covariance`) -- the polish's tw
 their midpoint (`polish_influence`), or the fine stage's one-way fit where no polish ran
 (`least_squares_influence`) -- scaled by the one parameter that
 `scripts/bench_fusion.py --real --calibrate` fits by maximum likelihood on calibration trials
-(`calibrated_covariance`, RegistrationConfig.covariance_scale)."""
+(`calibrated_covariance`, RegistrationConfig.covariance_scale); `estimate_covariance` puts them
+together for `graphloc.mapping.robust_registration.robust_register`."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import gtsam
 import numpy as np
 import scipy.sparse
 
-from graphloc.mapping.registration import RegistrationConfig
+from graphloc.mapping.registration import RegistrationConfig, information_right
 from graphloc.mapping.registration_index import NearestIndex
 
 
@@ -119,3 +120,26 @@ def calibrated_covariance(
         raise ValueError(f"calibrated_covariance: degeneracy must be >= 0, got {degeneracy}")
     out = cfg.covariance_scale * (1.0 + degeneracy) * np.asarray(cov, dtype=float)
     return 0.5 * (out + out.T)
+
+
+def estimate_covariance(views, T: np.ndarray, fit, cfg: RegistrationConfig, degeneracy: float):
+    """The calibrated covariance (right perturbation, `calibrated_covariance`) of a registration
+    T: the cluster-robust sandwich (`cluster_covariance`, cfg.covariance_block) of the per-point
+    influences on the estimate made -- the polish's two directions and their midpoint
+    (`polish_influence` of `views`, `graphloc.mapping.registration_stages.Polished.views`) or,
+    where no polish round ran (views None), the one-way point-to-plane fit `fit` = (J, r,
+    points) of the inliers (`least_squares_influence`; left perturbation, target frame) --
+    carried to the right perturbation (`information_right`). None when the influences leave
+    the sandwich singular (too few correspondences, fewer clusters than axes)."""
+    if views is not None:
+        influence = polish_influence(views, T, cfg)
+    else:
+        psi = least_squares_influence(fit[0], fit[1])
+        influence = None if psi is None else (psi, fit[2])
+    if influence is None:
+        return None
+    cov_left = cluster_covariance(*influence, cfg.covariance_block)
+    if np.linalg.cond(cov_left) > 1e12:
+        return None
+    clustered = np.linalg.inv(information_right(np.linalg.inv(cov_left), T))
+    return calibrated_covariance(clustered, cfg, degeneracy)

@@ -33,17 +33,10 @@ from graphloc.mapping.registration import (
     Registration,
     RegistrationConfig,
     global_fpfh_ransac,
-    information_right,
     pose_errors,
     poses_within,
 )
-from graphloc.mapping.registration_covariance import (
-    block_labels,
-    calibrated_covariance,
-    cluster_covariance,
-    least_squares_influence,
-    polish_influence,
-)
+from graphloc.mapping.registration_covariance import block_labels, estimate_covariance
 from graphloc.mapping.registration_stages import (
     coarse_clouds,
     fine_stage,
@@ -122,7 +115,9 @@ def robust_register(
        tell the two registrations apart; and a cheaper candidate that fails the contradicted
        cubes alone (a slid view explaining the scans better) leaves the winner no margin; one
        that step 4's polish carries the winner to (within acc.distinct_deg / distinct_m) is no
-       rival, the same registration.
+       rival, the same registration. A rival that denies the margin of a fusion every other
+       check of step 4 accepts is polished too: the same registration if it lands on the
+       winner's polished pose, else compared with it at both polished poses.
     4. The winner refined by `polish` (full resolution, both directions, in rounds until the
        pose settles), the checks of step 3 and its conditioning on that pose (`candidates` keep
        the poses before the polish; the contradicted cubes count at both), a polish that
@@ -136,14 +131,13 @@ def robust_register(
        least constrained direction (the objective let the view travel that far), each polished;
        a pose found there distinct from the winner's, valid or cheaper and only slid, is one
        more rival of step 3's margin, both sides' costs at their polished poses.
-    5. Covariance: the cluster-robust sandwich over cfg.covariance_block clusters
-       (`cluster_covariance`) of the per-point influences on the estimate made -- the polish's
-       two directions and their midpoint (`polish_influence`), or, where no polish round ran,
-       the point-to-plane fit over the inliers (`least_squares_influence`) -- converted to GTSAM's
-       right perturbation (`information_right`), calibrated (`calibrated_covariance`, inflated
-       as the conditioning nears acc.min_conditioning); `inlier_rmse`
-       is the inliers' residual standard deviation (n - 6 dof). `RegistrationDecision.timings`:
-       the seconds per stage."""
+    5. Covariance (`estimate_covariance`): the cluster-robust sandwich over
+       cfg.covariance_block clusters of the per-point influences on the estimate made -- the
+       polish's two directions and their midpoint, or, where no polish round ran, the
+       point-to-plane fit over the inliers -- converted to GTSAM's right perturbation,
+       calibrated (`calibrated_covariance`, inflated as the conditioning nears
+       acc.min_conditioning); `inlier_rmse` is the inliers' residual standard deviation
+       (n - 6 dof). `RegistrationDecision.timings`: the seconds per stage."""
     start_t = time.perf_counter()
     hint = np.asarray(hint, dtype=float)
     hint_cov = np.asarray(hint_cov, dtype=float)
@@ -159,7 +153,7 @@ def robust_register(
             f"shape {hint_cov.shape}"
         )
     stage_s = dict.fromkeys(("coarse", "fine", "checks", "global", "polish"), 0.0)
-    counts = {"starts": 0, "fine_stages": 0, "polish_rounds": 0, "probes": 0}
+    counts = {"starts": 0, "fine_stages": 0, "polish_rounds": 0, "probes": 0, "rivals_polished": 0}
 
     def timed(stage: str, f, *args):
         t0 = time.perf_counter()
@@ -335,22 +329,13 @@ def robust_register(
     eig = np.linalg.eigvalsh(D @ H @ D) if n_in >= 6 else np.zeros(6)
     conditioning = float(eig[0] / eig[-1]) if eig[-1] > 0 else 0.0
     # the covariance of the estimate made: the polish's midpoint, else the fine stage's fit
-    influence = None
-    if polished.views is not None:
-        influence = polish_influence(polished.views, T, cfg)
-    elif n_in >= 6 and (psi := least_squares_influence(J[inl], r[inl])) is not None:
-        influence = psi, (source.points @ T[:3, :3].T + T[:3, 3])[inl]
-    cov_left = None if influence is None else cluster_covariance(*influence, cfg.covariance_block)
-    if cov_left is not None and np.linalg.cond(cov_left) > 1e12:  # fewer clusters than axes
-        cov_left = None
-    if cov_left is not None and conditioning >= acc.min_conditioning:  # else not accepted
-        clustered = np.linalg.inv(information_right(np.linalg.inv(cov_left), T))
-        near = acc.min_conditioning / conditioning if conditioning > 0 else 0.0
-        cov = calibrated_covariance(clustered, cfg, near)
-        info = np.linalg.inv(cov)
-    else:
-        info = np.eye(6) * 1e-12
-        cov = np.linalg.inv(info)
+    near = acc.min_conditioning / conditioning if conditioning > 0 else 0.0
+    fit = J[inl], r[inl], (source.points @ T[:3, :3].T + T[:3, 3])[inl]
+    cov = None
+    if conditioning >= acc.min_conditioning:  # else not accepted
+        cov = estimate_covariance(polished.views, T, fit, cfg, near)
+    cov = np.eye(6) * 1e12 if cov is None else cov
+    info = np.linalg.inv(cov)
     checks = dict(candidate_checks(final, acc))  # the polished pose's
     # ... but the contradicted cubes of both poses: a view slid along a wall, which the polish's
     # rounds move on to where the cubes no longer see the slide, stays slid
@@ -370,7 +355,8 @@ def robust_register(
     rivals = [o for o in valid if o.start != best.start] + slid_cheaper
     rivals = [o for o in rivals if _distinct(o.transformation, T, acc)]
     label = block_labels(source.points, cfg.margin_block)
-    margins = [cost_margin_se(point_costs[best.start], point_costs[o.start], label) for o in rivals]
+    won = point_costs[best.start]
+    margins = {o.start: cost_margin_se(won, point_costs[o.start], label) for o in rivals}
     sigma = np.sqrt(np.diag(cov))
     caps = (
         ("sigma_rot_deg", float(np.degrees(sigma[:3].max())), acc.max_sigma_rot_deg),
@@ -378,11 +364,24 @@ def robust_register(
     )
     for k, v, lim in caps if checks["conditioning"][2] else ():  # degenerate: no covariance
         checks[k] = (v, lim, v <= lim)
+    # a rival that denies the margin at the fine stage's poses is polished too, and compared at
+    # both polished poses: one the polish brings to the winner's pose is the same registration
+    # (only for a fusion every other check accepts)
+    for o in rivals if all(v[2] for v in checks.values()) else ():
+        if margins[o.start] < acc.min_cost_margin_se:
+            P = timed("polish", polish, source, target, o.transformation, cfg, nns).transformation
+            counts["rivals_polished"] += 1
+            if not _distinct(P, T, acc):
+                del margins[o.start]
+                lost[o.start] += "; polished to the winner's pose"
+            else:
+                costs = timed("checks", candidate, o.start, P)[1]
+                margins[o.start] = cost_margin_se(final_costs, costs, label)
     # a polish that carried the view beyond the fine stage's reach left the poses the starts
     # explored: polish again from as far either way along the covariance's weakest direction; a
     # distinct pose found there is one more rival of the margin (only for an accepted fusion)
     passed = all(v[2] for v in checks.values()) and (
-        not margins or min(margins) >= acc.min_cost_margin_se
+        not margins or min(margins.values()) >= acc.min_cost_margin_se
     )
     moved = pose_errors(best.transformation, T)[1]  # how far the polish carried the sensor
     if passed and moved > fine:
@@ -400,9 +399,9 @@ def robust_register(
                 f", failed {', '.join(failed)}" if failed else ""
             )
             if not failed or (o.cost < final.cost and failed == ["contradicted_fraction"]):
-                margins.append(cost_margin_se(final_costs, costs, label))
+                margins[k] = cost_margin_se(final_costs, costs, label)
     if margins:
-        m = min(margins)
+        m = min(margins.values())
         checks["cost_margin_se"] = (m, acc.min_cost_margin_se, m >= acc.min_cost_margin_se)
     reasons = tuple(
         f"{CHECK_REASONS[k]} ({k} {v[0]:.4g} vs {v[1]:.4g})" for k, v in checks.items() if not v[2]
