@@ -1,9 +1,10 @@
 """Issue 16 on a second real fragment: tests/data/real_room/redwood_livingroom.ply, a dense living
 room whose views are dominated by the floor and slide along it. What the TUM fragment never
 showed: a slid candidate that is cheaper than the right one unless a point beside a surface
-costs more than an unseen one, the re-seat that puts a slid view back, the contradicted cubes of
-a view slid into a local minimum, the polish's point budget and its rounds, the fragment tool,
-and the benchmark's --fragment route."""
+costs more than an unseen one, the re-seat that puts a slid view back, the escape from a slid
+view's valley, the contradicted cubes of a view slid into a local minimum, a margin rival that
+polishes onto the winner, the polish's point budget and its rounds, the fragment tool, and the
+benchmark's --fragment route."""
 
 from __future__ import annotations
 
