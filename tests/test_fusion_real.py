@@ -359,19 +359,21 @@ def test_escape_starts_leave_a_slid_views_valley_along_it():
 
 
 def test_calibrated_covariance_and_the_fit_it_comes_from():
-    """RegistrationConfig's calibration is the fit in docs/results_fusion_calibration.json, and
-    calibrated_covariance is s (1 + degeneracy) P: s P for views that constrain every direction
-    well, twice that at the acceptance's least conditioning."""
-    fit = json.loads((DOCS / "results_fusion_calibration.json").read_text())["fit"]
-    cfg = RegistrationConfig()
+    """RegistrationConfig's calibration is the fit in docs/results_fusion_calibration.json (on
+    both bundled fragments), and calibrated_covariance is s (P + c Q): s P where the views
+    constrain every direction well (Q = 0)."""
+    report = json.loads((DOCS / "results_fusion_calibration.json").read_text())
+    fit, cfg = report["fit"], RegistrationConfig()
+    assert report["fragments"] == ["tum_fr3_office.ply", "redwood_livingroom.ply"]
     assert cfg.covariance_scale == pytest.approx(fit["covariance_scale"], rel=5e-3)
-    P = np.diag([1e-8] * 3 + [1e-6] * 3)
-    assert np.allclose(calibrated_covariance(P, cfg), cfg.covariance_scale * P)
-    assert np.allclose(calibrated_covariance(P, cfg, 1.0), 2.0 * cfg.covariance_scale * P)
-    with pytest.raises(ValueError, match="covariance_scale"):
-        RegistrationConfig(covariance_scale=0.0)
-    with pytest.raises(ValueError, match="degeneracy"):
-        calibrated_covariance(P, cfg, -1.0)
+    assert cfg.covariance_degeneracy == pytest.approx(fit["covariance_degeneracy"], rel=5e-3)
+    P, Q = np.diag([1e-8] * 3 + [1e-6] * 3), np.diag([0.0, 0.0, 1e-8, 0.0, 0.0, 0.0])
+    assert np.allclose(calibrated_covariance(P, 0 * Q, cfg), cfg.covariance_scale * P)
+    expected = cfg.covariance_scale * (P + cfg.covariance_degeneracy * Q)
+    assert np.allclose(calibrated_covariance(P, Q, cfg), expected)
+    for field in ("covariance_scale", "covariance_degeneracy"):
+        with pytest.raises(ValueError, match=field):
+            RegistrationConfig(**{field: -1.0})
 
 
 def test_contradicted_fraction_counts_the_cubes_where_the_views_do_not_meet():

@@ -94,9 +94,9 @@ def test_a_nearly_degenerate_view_turned_a_degree_is_not_fused(redwood):
     turned where the nearest neighbours hold it (started at the truth it rests a few tenths
     of a degree off). Its noise alone put the yaw's 1-sigma near 0.3 deg, and the fusion was
     accepted outside the success box under a cap at half the box; the covariance inflated
-    near the least conditioning and the cap at a third of the box refuse it, while the
-    fragment's right 30% views (seeds 230 and 349, yaw error a few tenths of a degree) are
-    still fused within their covariance."""
+    along the directions the views hardly constrain (`degeneracy_term`) and the cap at two
+    fifths of the box refuse it, while the fragment's right 30% views (seeds 230 and 349, yaw
+    error a few tenths of a degree) are still fused within their covariance."""
     d, truth = _register(redwood, 0.3, 347, 0)
     assert not d.accepted
     assert pose_errors(d.registration.transformation, truth)[0] > 1.0

@@ -1,6 +1,7 @@
 """Issue 16: the registration covariance model -- the cluster-robust sandwich
 (`cluster_covariance`) of per-point influences (`least_squares_influence`, the polish's
-`polish_influence`) and its one-parameter calibration (`fit_calibration`), on synthetic
+`polish_influence`), its degeneracy term (`degeneracy_term`) and their calibration
+(`fit_calibration`), on synthetic
 point-to-plane problems with known answers and on the real fragment."""
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from graphloc.experiments.real_views import load_fragment, make_view_pair
 from graphloc.mapping.registration import RegistrationConfig, prepare
 from graphloc.mapping.registration_covariance import (
     cluster_covariance,
+    degeneracy_term,
     least_squares_influence,
     polish_influence,
 )
@@ -84,24 +86,67 @@ def test_cluster_covariance_rejects_mismatched_shapes():
     assert least_squares_influence(J[:5], r[:5]) is None  # fewer rows than unknowns
 
 
-def test_fit_calibration_recovers_the_scale_of_synthetic_errors():
-    """Errors drawn from N(0, s P_i) with s = 3 and P_i of different sizes: the maximum-likelihood
-    scale is close to 3, its 95% interval holds it, and a wrong scale has a larger negative
-    log-likelihood."""
+def test_fit_calibration_recovers_the_scale_and_the_degeneracy_term_of_synthetic_errors():
+    """Errors drawn from N(0, s (P_i + c Q_i)) with s = 3, c = 4, P_i of different sizes and Q_i
+    rank-one terms along random directions, large in a third of the trials: the maximum-likelihood
+    s and c are close, their 95% intervals hold them, the fit beats the scale alone (c = 0), and
+    a wrong (s, c) has a larger -2 log-likelihood."""
     rng = np.random.default_rng(11)
-    n = 400
+    n = 600
     A = rng.normal(size=(n, 6, 6)) * np.geomspace(1e-4, 1e-2, n)[:, None, None]
     P = A @ A.transpose(0, 2, 1) + 1e-10 * np.eye(6)
-    e = np.einsum("nij,nj->ni", np.linalg.cholesky(3.0 * P), rng.normal(size=(n, 6)))
-    fit = fit_calibration(e, P)
+    u = rng.normal(size=(n, 6))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    var = np.einsum("ni,nij,nj->n", u, P, u) * np.where(np.arange(n) % 3 == 0, 2.0, 0.02)
+    Q = var[:, None, None] * np.einsum("ni,nj->nij", u, u)
+    cov = 3.0 * (P + 4.0 * Q)
+    e = np.einsum("nij,nj->ni", np.linalg.cholesky(cov), rng.normal(size=(n, 6)))
+    fit = fit_calibration(e, P, Q)
     assert fit["covariance_scale"] == pytest.approx(3.0, rel=0.1)
+    assert fit["covariance_degeneracy"] == pytest.approx(4.0, rel=0.3)
     lo, hi = fit["covariance_scale_95"]
-    assert lo < 3.0 < hi
-    q = np.einsum("ni,ni->n", e, np.linalg.solve(P, e[..., None])[..., 0])
-    _, logdet = np.linalg.slogdet(2.0 * P)
-    assert logdet.sum() + q.sum() / 2.0 > fit["nll"]
+    assert lo < fit["covariance_scale"] < hi and hi < 2 * lo
+    lo, hi = fit["covariance_degeneracy_95"]
+    assert lo < 4.0 < hi
+    assert fit["scale_alone"]["nll"] > fit["nll"] + 10.0
+
+    def nll(s, c):
+        q = np.einsum("ni,ni->n", e, np.linalg.solve(s * (P + c * Q), e[..., None])[..., 0])
+        return np.linalg.slogdet(s * (P + c * Q))[1].sum() + q.sum()
+
+    assert nll(2.0, 4.0) > fit["nll"] and nll(3.0, 1.0) > fit["nll"]
+    assert nll(fit["covariance_scale"], fit["covariance_degeneracy"]) == pytest.approx(fit["nll"])
+    # errors with no degeneracy term: c comes out near 0, the scale alone as good
+    e0 = np.einsum("nij,nj->ni", np.linalg.cholesky(3.0 * P), rng.normal(size=(n, 6)))
+    fit0 = fit_calibration(e0, P, Q)
+    assert fit0["covariance_degeneracy_95"][0] == 0.0
+    assert fit0["scale_alone"]["nll"] - fit0["nll"] < 3.84
     with pytest.raises(ValueError, match="fit_calibration"):
-        fit_calibration(e[:, :3], P)
+        fit_calibration(e[:, :3], P, Q)
+    with pytest.raises(ValueError, match="fit_calibration"):
+        fit_calibration(e, P, Q[:-1])
+
+
+def test_degeneracy_term_inflates_the_directions_the_views_hardly_constrain():
+    """A Hessian whose rotation about z (in metres at the scale) is held min_conditioning as
+    strongly as the best direction: Q along it is the sandwich's own variance there (weight one
+    at the threshold), and a hundred times less along a direction constrained a hundred times
+    better; a well-conditioned Hessian leaves Q about min_conditioning times P; rotations
+    weigh in metres at scale_m."""
+    scale, least = 2.0, 1e-4
+    d = np.array([1 / scale] * 3 + [1.0] * 3)
+    lam = np.array([1.0, 1.0, least, 1.0, 1e-2, 1.0]) * 1e6  # scaled: rot z weakest, t y weak
+    H = np.diag(lam / d**2)  # D H D = diag(lam)
+    P = np.diag([4e-6, 5e-6, 6e-6, 1e-6, 2e-6, 3e-6])
+    Q = degeneracy_term(P, H, scale, least)
+    np.testing.assert_allclose(Q, np.diag(least * lam.max() / lam * np.diag(P)), atol=1e-20)
+    assert Q[2, 2] == pytest.approx(P[2, 2]) and Q[4, 4] == pytest.approx(1e-2 * P[4, 4])
+    Qw = degeneracy_term(P, np.diag(1e6 / d**2), scale, least)
+    np.testing.assert_allclose(Qw, least * P, rtol=1e-9, atol=1e-20)
+    with pytest.raises(ValueError, match="degeneracy_term"):
+        degeneracy_term(P, np.diag([1.0] * 5 + [0.0]), scale, least)
+    with pytest.raises(ValueError, match="degeneracy_term"):
+        degeneracy_term(P, H, 0.0, least)
 
 
 @pytest.mark.parametrize("seed,overlap", [(3, 0.6), (4, 0.3), (5, 0.6)])

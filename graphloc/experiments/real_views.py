@@ -25,6 +25,7 @@ from graphloc.mapping.io import read_points
 FRAGMENT = (
     Path(__file__).resolve().parents[2] / "tests" / "data" / "real_room" / "tum_fr3_office.ply"
 )
+BUNDLED_FRAGMENTS = (FRAGMENT, FRAGMENT.parent / "redwood_livingroom.ply")  # README there
 
 
 @dataclass(frozen=True)

@@ -73,14 +73,15 @@ class AcceptanceConfig:
     chi-square with 6 degrees of freedom at 99.9%; ceiling_above: the robot kinds' geometry --
     the ceiling sensor is above the ground sensor (z_G > 0) and upside down (its z axis within
     max_ceiling_tilt_deg of -z_G); max_sigma_rot_deg / max_sigma_trans_m: the largest 1-sigma
-    of the calibrated covariance a fusion may have, a third of what a map fusion is for (issue
-    16's success box, 1 deg / 5 cm), so that every axis's 3-sigma interval lies inside the box:
-    a fusion whose covariance is right and whose sigma sits at the cap lands outside the box in
-    about one trial in three hundred per axis (at half the box, one in twenty: across hundreds
-    of low-overlap fusions, a few would be accepted outside it), and a view slid along the
-    floor to a local minimum (its spread set by the few surfaces that tell it from the true
-    pose) would pass a looser cap; distinct_deg / distinct_m: candidates closer than this are
-    one registration."""
+    of the calibrated covariance a fusion may have, two fifths of what a map fusion is for
+    (issue 16's success box, 1 deg / 5 cm), so that every axis's 2.5-sigma interval lies
+    inside the box: a fusion whose covariance is right and whose sigma sits at the cap lands
+    outside the box in about one trial in eighty per axis, and most fusions' sigmas sit well
+    below it. Views that hardly constrain a direction (a 30% overlap that is a strip of floor
+    between two walls) carry their spread along it in the covariance
+    (`graphloc.mapping.registration_covariance.degeneracy_term`): the cap refuses those whose
+    spread reaches towards the box's edge, right or wrong, and no other check could tell which;
+    distinct_deg / distinct_m: candidates closer than this are one registration."""
 
     residual_sigma: float = 0.01
     misfit_weight: float = 4.0
@@ -95,8 +96,8 @@ class AcceptanceConfig:
     hint_gate: float = 22.458  # scipy.stats.chi2.ppf(0.999, 6)
     ceiling_above: bool = True
     max_ceiling_tilt_deg: float = 45.0
-    max_sigma_rot_deg: float = 1.0 / 3.0
-    max_sigma_trans_m: float = 0.05 / 3.0
+    max_sigma_rot_deg: float = 0.4
+    max_sigma_trans_m: float = 0.02
     distinct_deg: float = 0.5
     distinct_m: float = 0.02
 
@@ -158,7 +159,9 @@ class RegistrationDecision:
     (coarse: clouds, pyramid and coarse ICP of every start; fine: the fine stages; checks: the
     candidates' residuals; global: the FPFH fallback; polish; rest: final checks, covariance)
     with the number of starts, of fine stages, of polish rounds, of weak-direction probes and of
-    rivals polished, and `residual_scale`: the checks' c [m] (`residual_scale`)."""
+    rivals polished, `residual_scale`: the checks' c [m] (`residual_scale`), and
+    `covariance_terms`: the uncalibrated (P, Q) that `covariance` calibrates
+    (`graphloc.mapping.registration_covariance.calibrated_covariance`; None when not computed)."""
 
     registration: Registration
     accepted: bool
@@ -171,6 +174,7 @@ class RegistrationDecision:
     seconds: float
     timings: dict | None = None
     residual_scale: float | None = None
+    covariance_terms: tuple | None = None
 
     def as_dict(self) -> dict:
         return {

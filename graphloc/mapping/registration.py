@@ -41,8 +41,8 @@ class RegistrationConfig:
     max_nn), point-to-plane ICP (scales [m], max_correspondence [m], max_iterations per stage,
     relative tolerances), FPFH + RANSAC (fpfh_radius, ransac_distance, ransac_iterations,
     ransac_confidence), and the range noise used to scale the information matrix (range_sigma
-    [m]). covariance_scale calibrates robust_register's covariance (`calibrated_covariance`);
-    the default is the fit of
+    [m]). covariance_scale and covariance_degeneracy calibrate robust_register's covariance
+    (`calibrated_covariance`); the defaults are the fit of
     `scripts/bench_fusion.py --real --calibrate` (docs/results_fusion_calibration.json)."""
 
     nb_neighbors: int = 20
@@ -120,7 +120,8 @@ class RegistrationConfig:
     # basin a local method covers (the sigma points and the global fallback take over)
     max_reach: float = 1.0
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
-    covariance_scale: float = 5.46  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_scale: float = 4.64  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_degeneracy: float = 4.07  # fit of docs/results_fusion_calibration.json (3 digits)
 
     def __post_init__(self):
         check(
@@ -138,6 +139,7 @@ class RegistrationConfig:
                 "margin_block",
             ),
             nonnegative=(
+                "covariance_degeneracy",
                 "polish_points_per_cell",
                 "coarse_tukey",
                 "fine_tukey",

@@ -1,10 +1,12 @@
 """The covariance of a robust inter-robot registration (issue 16): the cluster-robust sandwich
 of the estimate's per-point influences (`cluster_covariance`) -- the polish's two directions and
 their midpoint (`polish_influence`), or the fine stage's one-way fit where no polish ran
-(`least_squares_influence`) -- scaled by the one parameter that
+(`least_squares_influence`) -- inflated along the directions the views hardly
+constrain (`degeneracy_term`) and scaled, by the two parameters that
 `scripts/bench_fusion.py --real --calibrate` fits by maximum likelihood on calibration trials
-(`calibrated_covariance`, RegistrationConfig.covariance_scale); `estimate_covariance` puts them
-together for `graphloc.mapping.robust_registration.robust_register`."""
+(`calibrated_covariance`, RegistrationConfig.covariance_scale and covariance_degeneracy);
+`estimate_covariance` puts them together for
+`graphloc.mapping.robust_registration.robust_register`."""
 
 from __future__ import annotations
 
@@ -99,38 +101,62 @@ def block_labels(points: np.ndarray, block: float) -> np.ndarray:
     return label.reshape(-1)
 
 
-def calibrated_covariance(
-    cov: np.ndarray, cfg: RegistrationConfig, degeneracy: float = 0.0
-) -> np.ndarray:
-    """s (1 + degeneracy) P for the cluster-robust covariance P (right perturbation),
-    s = cfg.covariance_scale. P sees the residual noise and its correlation within a cluster; it
-    cannot see what the fit absorbs -- surfaces sampled differently in the two scans, normals
+def degeneracy_term(P: np.ndarray, H: np.ndarray, scale_m: float, min_conditioning: float):
+    """The 6x6 term Q that `calibrated_covariance` adds to the sandwich P (both right
+    perturbation, as H, the inliers' point-to-plane Hessian): with rotations in metres at
+    scale_m (the acceptance's conditioning, `robust_register` step 4), D = diag(1 / scale_m I3,
+    I3), and u_k, lambda_k the eigenvectors and eigenvalues of D H D,
+    Q = D [sum_k (min_conditioning lambda_max / lambda_k) (u_k^T P~ u_k) u_k u_k^T] D with
+    P~ = D^-1 P D^-1 (the covariance with rotations in metres): each of the Hessian's
+    directions gets the sandwich's own variance along it, weighted by how near that direction's
+    conditioning lambda_k / lambda_max comes to min_conditioning -- one at the acceptance's
+    threshold, fading as the views constrain it."""
+    P, H = np.asarray(P, dtype=float), np.asarray(H, dtype=float)
+    if P.shape != (6, 6) or H.shape != (6, 6) or not scale_m > 0 or not min_conditioning >= 0:
+        raise ValueError(
+            f"degeneracy_term: P, H (6,6), scale_m > 0 and min_conditioning >= 0 expected, got "
+            f"{P.shape}, {H.shape}, {scale_m}, {min_conditioning}"
+        )
+    d = np.array([1.0 / scale_m] * 3 + [1.0] * 3)
+    lam, U = np.linalg.eigh(d[:, None] * H * d[None, :])
+    if lam[0] <= 0:
+        raise ValueError("degeneracy_term: the Hessian is singular (a direction is unconstrained)")
+    var = np.einsum("ik,ij,jk->k", U, P / d[:, None] / d[None, :], U)
+    Q = d[:, None] * ((U * (min_conditioning * lam[-1] / lam * var)) @ U.T) * d[None, :]
+    return 0.5 * (Q + Q.T)
+
+
+def calibrated_covariance(P: np.ndarray, Q: np.ndarray, cfg: RegistrationConfig) -> np.ndarray:
+    """s (P + c Q) for the cluster-robust covariance P and its degeneracy term Q
+    (`degeneracy_term`, both right perturbation), s = cfg.covariance_scale, c =
+    cfg.covariance_degeneracy. P sees the residual noise and its correlation within a cluster;
+    it cannot see what the fit absorbs -- surfaces sampled differently in the two scans, normals
     smoothed over the normal radius -- nor that ICP chooses the nearest neighbours again as the
     pose moves, so that its estimate follows the noise further than the Gauss-Newton step with
     the correspondences held, whose influences P sums (`polish_influence`); both show as errors
-    larger than P in every direction. `degeneracy` is the acceptance's least conditioning over
-    the registration's (`AcceptanceConfig.min_conditioning` / conditioning): where the views
-    hardly constrain a direction, the point-to-plane objective is nearly flat along it, and the
-    estimate there rests on where the nearest neighbours let ICP come to rest as much as on the
-    noise -- the factor doubles the variance at the acceptance's threshold and fades as the
-    views constrain every direction. s is fitted by maximum likelihood, e_i ~ N(0, s P_i), on
-    calibration trials by `scripts/bench_fusion.py --real --calibrate`; the benchmark checks the
-    NEES on other trials."""
-    if not degeneracy >= 0.0:
-        raise ValueError(f"calibrated_covariance: degeneracy must be >= 0, got {degeneracy}")
-    out = cfg.covariance_scale * (1.0 + degeneracy) * np.asarray(cov, dtype=float)
+    larger than P in every direction (s). Where the views hardly constrain a direction, the
+    point-to-plane objective is nearly flat along it, and the estimate there rests on where the
+    nearest neighbours let ICP come to rest as much as on the noise: Q inflates the variance
+    along that direction alone (c). s and c are fitted by maximum likelihood,
+    e_i ~ N(0, s (P_i + c Q_i)), on calibration trials of both bundled fragments by
+    `scripts/bench_fusion.py --real --calibrate`; the benchmark checks the NEES on other trials."""
+    out = cfg.covariance_scale * (
+        np.asarray(P, dtype=float) + cfg.covariance_degeneracy * np.asarray(Q, dtype=float)
+    )
     return 0.5 * (out + out.T)
 
 
-def estimate_covariance(views, T: np.ndarray, fit, cfg: RegistrationConfig, degeneracy: float):
-    """The calibrated covariance (right perturbation, `calibrated_covariance`) of a registration
-    T: the cluster-robust sandwich (`cluster_covariance`, cfg.covariance_block) of the per-point
-    influences on the estimate made -- the polish's two directions and their midpoint
-    (`polish_influence` of `views`, `graphloc.mapping.registration_stages.Polished.views`) or,
-    where no polish round ran (views None), the one-way point-to-plane fit `fit` = (J, r,
+def estimate_covariance(views, T: np.ndarray, fit, cfg: RegistrationConfig, scale_m: float, least):
+    """The uncalibrated terms (P, Q) of `calibrated_covariance` (right perturbation) of a
+    registration T: P the cluster-robust sandwich (`cluster_covariance`, cfg.covariance_block)
+    of the per-point influences on the estimate made -- the polish's two directions and their
+    midpoint (`polish_influence` of `views`, `graphloc.mapping.registration_stages.Polished.views`)
+    or, where no polish round ran (views None), the one-way point-to-plane fit `fit` = (J, r,
     points) of the inliers (`least_squares_influence`; left perturbation, target frame) --
-    carried to the right perturbation (`information_right`). None when the influences leave
-    the sandwich singular (too few correspondences, fewer clusters than axes)."""
+    carried to the right perturbation (`information_right`); Q its `degeneracy_term` along the
+    inliers' Hessian J^T J, rotations at scale_m, `least` the acceptance's least conditioning.
+    None when the influences leave the sandwich singular (too few correspondences, fewer
+    clusters than axes)."""
     if views is not None:
         influence = polish_influence(views, T, cfg)
     else:
@@ -141,5 +167,6 @@ def estimate_covariance(views, T: np.ndarray, fit, cfg: RegistrationConfig, dege
     cov_left = cluster_covariance(*influence, cfg.covariance_block)
     if np.linalg.cond(cov_left) > 1e12:
         return None
-    clustered = np.linalg.inv(information_right(np.linalg.inv(cov_left), T))
-    return calibrated_covariance(clustered, cfg, degeneracy)
+    P = np.linalg.inv(information_right(np.linalg.inv(cov_left), T))
+    P = 0.5 * (P + P.T)
+    return P, degeneracy_term(P, information_right(fit[0].T @ fit[0], T), scale_m, least)

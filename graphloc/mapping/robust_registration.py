@@ -36,7 +36,11 @@ from graphloc.mapping.registration import (
     pose_errors,
     poses_within,
 )
-from graphloc.mapping.registration_covariance import block_labels, estimate_covariance
+from graphloc.mapping.registration_covariance import (
+    block_labels,
+    calibrated_covariance,
+    estimate_covariance,
+)
 from graphloc.mapping.registration_stages import (
     coarse_clouds,
     fine_stage,
@@ -131,13 +135,12 @@ def robust_register(
        least constrained direction (the objective let the view travel that far), each polished;
        a pose found there distinct from the winner's, valid or cheaper and only slid, is one
        more rival of step 3's margin, both sides' costs at their polished poses.
-    5. Covariance (`estimate_covariance`): the cluster-robust sandwich over
-       cfg.covariance_block clusters of the per-point influences on the estimate made -- the
-       polish's two directions and their midpoint, or, where no polish round ran, the
-       point-to-plane fit over the inliers -- converted to GTSAM's right perturbation,
-       calibrated (`calibrated_covariance`, inflated as the conditioning nears
-       acc.min_conditioning); `inlier_rmse` is the inliers' residual standard deviation
-       (n - 6 dof). `RegistrationDecision.timings`: the seconds per stage."""
+    5. Covariance (`estimate_covariance`): the cluster-robust sandwich (cfg.covariance_block)
+       of the per-point influences on the estimate made -- the polish's two directions and
+       their midpoint, or, where no polish round ran, the point-to-plane fit over the inliers
+       -- in GTSAM's right perturbation, inflated along the directions whose conditioning
+       nears acc.min_conditioning, calibrated; `inlier_rmse` is the inliers' residual standard
+       deviation (n - 6 dof); `RegistrationDecision.timings` the seconds per stage."""
     start_t = time.perf_counter()
     hint = np.asarray(hint, dtype=float)
     hint_cov = np.asarray(hint_cov, dtype=float)
@@ -329,12 +332,11 @@ def robust_register(
     eig = np.linalg.eigvalsh(D @ H @ D) if n_in >= 6 else np.zeros(6)
     conditioning = float(eig[0] / eig[-1]) if eig[-1] > 0 else 0.0
     # the covariance of the estimate made: the polish's midpoint, else the fine stage's fit
-    near = acc.min_conditioning / conditioning if conditioning > 0 else 0.0
     fit = J[inl], r[inl], (source.points @ T[:3, :3].T + T[:3, 3])[inl]
-    cov = None
+    terms = None
     if conditioning >= acc.min_conditioning:  # else not accepted
-        cov = estimate_covariance(polished.views, T, fit, cfg, near)
-    cov = np.eye(6) * 1e12 if cov is None else cov
+        terms = estimate_covariance(polished.views, T, fit, cfg, r_med, acc.min_conditioning)
+    cov = np.eye(6) * 1e12 if terms is None else calibrated_covariance(*terms, cfg)
     info = np.linalg.inv(cov)
     checks = dict(candidate_checks(final, acc))  # the polished pose's
     # ... but the contradicted cubes of both poses: a view slid along a wall, which the polish's
@@ -410,8 +412,8 @@ def robust_register(
     reg = Registration(T, final.overlap, float(np.sqrt(s2)), iterations, info, seconds)
     timings = {f"{k}_s": v for k, v in stage_s.items()}
     timings["rest_s"] = seconds - sum(stage_s.values())  # final checks, covariance, bookkeeping
-    args = (checks, tuple(cands), best.start, lost, cov, seconds, dict(timings, **counts))
-    return RegistrationDecision(reg, not reasons, reasons, *args, residual_scale=c)
+    args = (checks, tuple(cands), best.start, lost, cov, seconds, dict(timings, **counts), c)
+    return RegistrationDecision(reg, not reasons, reasons, *args, covariance_terms=terms)
 
 
 def _distinct(A: np.ndarray, B: np.ndarray, acc: AcceptanceConfig) -> bool:
