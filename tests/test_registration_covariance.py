@@ -14,6 +14,7 @@ import pytest
 
 from graphloc.experiments.fusion_calibration import fit_calibration
 from graphloc.experiments.real_views import load_fragment, make_view_pair
+from graphloc.mapping.acceptance import AcceptanceConfig
 from graphloc.mapping.registration import RegistrationConfig, prepare
 from graphloc.mapping.registration_covariance import (
     cluster_covariance,
@@ -143,8 +144,12 @@ def test_degeneracy_term_inflates_the_directions_the_views_hardly_constrain():
     assert Q[2, 2] == pytest.approx(P[2, 2]) and Q[4, 4] == pytest.approx(1e-2 * P[4, 4])
     Qw = degeneracy_term(P, np.diag(1e6 / d**2), scale, least)
     np.testing.assert_allclose(Qw, least * P, rtol=1e-9, atol=1e-20)
+    singular = np.diag([1.0] * 5 + [0.0])
     with pytest.raises(ValueError, match="degeneracy_term"):
-        degeneracy_term(P, np.diag([1.0] * 5 + [0.0]), scale, least)
+        degeneracy_term(P, singular, scale, least)
+    assert not degeneracy_term(P, singular, scale, 0.0).any()  # no threshold: no inflation
+    with pytest.raises(ValueError, match="min_conditioning"):
+        AcceptanceConfig(min_conditioning=-least)
     with pytest.raises(ValueError, match="degeneracy_term"):
         degeneracy_term(P, H, 0.0, least)
 

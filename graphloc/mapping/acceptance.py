@@ -111,7 +111,7 @@ class AcceptanceConfig:
                 "max_sigma_trans_m",
                 "contradiction_block",
             ),
-            nonnegative=("min_cost_margin_se",),
+            nonnegative=("min_cost_margin_se", "min_conditioning"),
             integer={"contradiction_min_points": 1},
             interval={
                 "min_overlap": (0.0, 1.0, "[]"),

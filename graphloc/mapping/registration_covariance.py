@@ -117,6 +117,8 @@ def degeneracy_term(P: np.ndarray, H: np.ndarray, scale_m: float, min_conditioni
             f"degeneracy_term: P, H (6,6), scale_m > 0 and min_conditioning >= 0 expected, got "
             f"{P.shape}, {H.shape}, {scale_m}, {min_conditioning}"
         )
+    if min_conditioning == 0:  # no direction is held near degenerate: no inflation
+        return np.zeros((6, 6))
     d = np.array([1.0 / scale_m] * 3 + [1.0] * 3)
     lam, U = np.linalg.eigh(d[:, None] * H * d[None, :])
     if lam[0] <= 0:
