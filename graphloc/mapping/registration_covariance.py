@@ -104,8 +104,9 @@ def block_labels(points: np.ndarray, block: float) -> np.ndarray:
 def degeneracy_term(P: np.ndarray, H: np.ndarray, scale_m: float, min_conditioning: float):
     """The 6x6 term Q that `calibrated_covariance` adds to the sandwich P (both right
     perturbation, as H, the inliers' point-to-plane Hessian): with rotations in metres at
-    scale_m (the acceptance's conditioning, `robust_register` step 4), D = diag(1 / scale_m I3,
-    I3), and u_k, lambda_k the eigenvectors and eigenvalues of D H D,
+    scale_m (as the acceptance's conditioning weighs them, `robust_register` step 4, there in
+    the left perturbation), D = diag(1 / scale_m I3, I3), and u_k, lambda_k the eigenvectors
+    and eigenvalues of D H D,
     Q = D [sum_k (min_conditioning lambda_max / lambda_k) (u_k^T P~ u_k) u_k u_k^T] D with
     P~ = D^-1 P D^-1 (the covariance with rotations in metres): each of the Hessian's
     directions gets the sandwich's own variance along it, weighted by how near that direction's
