@@ -1,8 +1,8 @@
 """Issue 16: the registration covariance model -- the cluster-robust sandwich
 (`cluster_covariance`) of per-point influences (`least_squares_influence`, the polish's
 `polish_influence`), its degeneracy term (`degeneracy_term`) and their calibration
-(`fit_calibration`), on synthetic
-point-to-plane problems with known answers and on the real fragment."""
+(`fit_calibration`), on synthetic point-to-plane problems with known answers and on the real
+fragment."""
 
 from __future__ import annotations
 
