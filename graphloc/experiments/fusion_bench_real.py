@@ -155,7 +155,7 @@ def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> li
                 out["nees"] = float(e @ np.linalg.solve(cov, e))
                 out["sigma_rot_deg"] = np.degrees(np.sqrt(np.diag(cov)[:3])).tolist()
                 out["sigma_trans_m"] = np.sqrt(np.diag(cov)[3:]).tolist()
-                if calibrate:
+                if calibrate and terms is not None:  # None: no covariance could be computed
                     out["error_tangent"] = e.tolist()
                     out["covariance_terms"] = [np.asarray(t).tolist() for t in terms]
             row[name] = out
