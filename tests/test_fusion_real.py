@@ -24,6 +24,7 @@ from graphloc.mapping.acceptance import (
 )
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
+from graphloc.experiments.fusion_bench_real import PROTOCOL_KEEP, PROTOCOL_NOISE_M, run_real_trial
 from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
 from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
 from graphloc.mapping.registration_covariance import calibrated_covariance
@@ -374,6 +375,22 @@ def test_calibrated_covariance_and_the_fit_it_comes_from():
     for field in ("covariance_scale", "covariance_degeneracy"):
         with pytest.raises(ValueError, match=field):
             RegistrationConfig(**{field: -1.0})
+
+
+def test_a_calibration_trial_keeps_the_terms_its_covariance_is_made_of():
+    """`--calibrate`'s trial (a TUM view pair of calibration seed 1000, 60% overlap): graphloc
+    alone, accepted, with its tangent error and the uncalibrated (P, Q) whose calibration is the
+    covariance its NEES was computed with."""
+    rows = run_real_trial((0.6, 1000, True, None, PROTOCOL_NOISE_M, PROTOCOL_KEEP))
+    assert len(rows) == 2 and all(set(r) >= {"graphloc", "seed"} for r in rows)
+    for row in rows:
+        g = row["graphloc"]
+        assert g["accepted"] and "fpfh_ransac" not in row
+        e = np.array(g["error_tangent"])
+        P, Q = (np.array(t) for t in g["covariance_terms"])
+        assert P.shape == Q.shape == (6, 6) and np.all(np.linalg.eigvalsh(Q) >= -1e-18)
+        cov = calibrated_covariance(P, Q, RegistrationConfig())
+        assert g["nees"] == pytest.approx(float(e @ np.linalg.solve(cov, e)), rel=1e-6)
 
 
 def test_contradicted_fraction_counts_the_cubes_where_the_views_do_not_meet():
