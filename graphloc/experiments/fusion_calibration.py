@@ -50,7 +50,7 @@ def fit_calibration(errors: np.ndarray, P: np.ndarray, Q: np.ndarray) -> dict:
 
     def profile(c: float):
         cov = P + c * Q
-        q = np.einsum("ni,ni->n", errors, np.linalg.solve(cov, errors[..., None])[..., 0])
+        q = nees(errors, cov)
         s = float(q.sum() / dof)
         return float(np.linalg.slogdet(s * cov)[1].sum() + q.sum() / s), s, q.sum()
 
@@ -60,9 +60,11 @@ def fit_calibration(errors: np.ndarray, P: np.ndarray, Q: np.ndarray) -> dict:
         c = 0.0
     nll, s, qsum = profile(c)
 
-    def edge(a: float, b: float) -> float:  # where the profile crosses nll + 3.84, else b
-        f = lambda x: profile(x)[0] - nll - chi2.ppf(0.95, 1)  # noqa: E731
-        return brentq(f, min(a, b), max(a, b)) if f(a) * f(b) < 0 else b
+    def rise(x: float) -> float:  # the profile above its minimum, less the 95% threshold
+        return profile(x)[0] - nll - chi2.ppf(0.95, 1)
+
+    def edge(a: float, b: float) -> float:  # where the profile crosses it in [a, b], else b
+        return brentq(rise, min(a, b), max(a, b)) if rise(a) * rise(b) < 0 else b
 
     lo_s, hi_s = qsum / chi2.ppf([0.975, 0.025], dof)
     return {
