@@ -135,10 +135,10 @@ def test_a_wrong_hint_is_not_fused(fragment):
 
 def test_a_candidate_below_stop_inlier_ratio_lets_the_other_starts_compete(fragment):
     """A 10 deg / 20 cm hint (the view pair of the benchmark's seed 5 at 60%): with the default
-    stop_inlier_ratio the hint's own candidate passes with margin and ends the search once the
-    hint's own starts have run; with a stop_inlier_ratio no candidate reaches, the same passing
-    candidate only "barely passes", every start is tried, and the winner is the valid candidate
-    of lowest truncated cost."""
+    stop_inlier_ratio the hint's first candidate passes with margin and ends the search there
+    (then the re-seat, unless it lands in that candidate's basin); with a stop_inlier_ratio no
+    candidate reaches, the same passing candidate only "barely passes", every start is tried,
+    and the winner is the valid candidate of lowest truncated cost."""
     rng = np.random.default_rng([5, 600])
     pair = make_view_pair(fragment, 0.6, rng)
     perturb(pair.T_ground_ceiling, 3.0, 0.05, rng)
@@ -149,8 +149,8 @@ def test_a_candidate_below_stop_inlier_ratio_lets_the_other_starts_compete(fragm
     n_hint = len(cfg.hint_wide_tukey)  # the hint once per wide-level kernel (10 deg: a pyramid)
     reseat = n_hint + 12 + 1  # after the hint's starts, 12 sigma points and the global slot
     first = robust_register(src, tgt, hint, cov, cfg)
-    assert first.accepted and first.best in set(range(n_hint)) | {reseat}
-    assert {c.start for c in first.candidates} | set(first.lost) == set(range(n_hint)) | {reseat}
+    assert first.accepted and first.best in {0, reseat} and first.timings["starts"] <= 2
+    assert {c.start for c in first.candidates} | set(first.lost) <= {0, reseat}
     assert max(c.inlier_ratio for c in first.candidates) >= cfg.stop_inlier_ratio
 
     d = robust_register(src, tgt, hint, cov, replace(cfg, stop_inlier_ratio=1.0))
@@ -170,7 +170,7 @@ def test_strided_fine_stage_keeps_the_result_and_reports_its_stages(fragment):
     """The fine stage on every third prepared source point (the default), the winner polished on
     every full-resolution point: the same accepted pose as the fine stage on every point
     (within the polish's own spread), and the decision's timings add up to its wall time with
-    the hint's own starts (and the re-seat, unless the hint lies in the winner's basin) only for
+    the hint's first start (and the re-seat, unless the hint lies in the winner's basin) only for
     an easy hint."""
     pair, rng = _pair(fragment, 0.6, 7)
     hint = perturb(pair.T_ground_ceiling, 3.0, 0.05, rng)
@@ -187,8 +187,7 @@ def test_strided_fine_stage_keeps_the_result_and_reports_its_stages(fragment):
     rot, tr = pose_errors(strided.registration.transformation, full.registration.transformation)
     assert rot < 0.1 and tr < 0.005, (rot, tr)
     t = strided.timings
-    n_hint = len(cfg.hint_wide_tukey)
-    assert t["starts"] in (n_hint, n_hint + 1) and 1 <= t["fine_stages"] <= t["starts"]
+    assert t["starts"] in (1, 2) and 1 <= t["fine_stages"] <= t["starts"]
     stages = [t[k] for k in ("coarse_s", "fine_s", "checks_s", "global_s", "polish_s", "rest_s")]
     assert min(stages) >= 0 and t["global_s"] == 0
     assert sum(stages) == pytest.approx(strided.seconds)
@@ -523,7 +522,7 @@ def test_the_hint_runs_its_wide_pyramid_with_a_wide_kernel_first(fragment):
     """A 10 deg / 20 cm hint on a 60% view pair (the exploration seed 200 of the benchmark): with
     only the narrow kernel the hint's own pyramid slides out of its basin and sigma points must
     find the pose; with the wide kernel first (RegistrationConfig.hint_wide_tukey) the hint's
-    first start passes with margin and the search ends with the hint's own starts. A 3 deg /
+    first start passes with margin and the search ends there (then the re-seat). A 3 deg /
     5 cm hint whose reach needs no pyramid runs the hint once (then 12 sigma points)."""
     rng = np.random.default_rng([200, 600])
     pair = make_view_pair(fragment, 0.6, rng)
@@ -535,8 +534,7 @@ def test_the_hint_runs_its_wide_pyramid_with_a_wide_kernel_first(fragment):
     cov = hint_covariance(np.deg2rad(10.0), 0.20)
     wide = robust_register(src, tgt, hint, cov, cfg)
     narrow = robust_register(src, tgt, hint, cov, replace(cfg, hint_wide_tukey=(cfg.coarse_tukey,)))
-    n_hint = len(cfg.hint_wide_tukey)
-    assert wide.accepted and wide.timings["starts"] in (n_hint, n_hint + 1)  # + the re-seat
+    assert wide.accepted and wide.timings["starts"] in (1, 2)  # + the re-seat
     c0 = wide.candidates[0]  # the wide kernel's start passes with margin
     assert c0.start == 0 and c0.inlier_ratio >= cfg.stop_inlier_ratio
     assert all(v[2] for v in candidate_checks(c0, AcceptanceConfig()).values())

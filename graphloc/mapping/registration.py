@@ -64,9 +64,9 @@ class RegistrationConfig:
     range_sigma: float = 0.01
     # robust_register: coarse correspondences within coarse_voxels coarse voxels, Tukey kernel
     # width coarse_tukey voxels (0: least squares), cluster size [m] of the covariance
-    # (covariance_block) and of the cost margin's standard error (margin_block), stop once the
-    # hint's own starts have run and a candidate passed its checks with an inlier ratio of at
-    # least stop_inlier_ratio (one that barely passes may sit next to the right one)
+    # (covariance_block) and of the cost margin's standard error (margin_block), stop once a
+    # candidate passed its checks with an inlier ratio of at least stop_inlier_ratio (one that
+    # barely passes may sit next to the right one)
     coarse_voxels: float = 2.0
     coarse_tukey: float = 0.5
     # ... the hint's own start runs its wide pyramid once per Tukey width here [wide-level voxels],

@@ -42,17 +42,14 @@ from graphloc.mapping.registration_covariance import (
     estimate_covariance,
 )
 from graphloc.mapping.registration_stages import (
+    Polished,
     coarse_clouds,
     fine_stage,
     point_to_plane_estimation,
     polish,
     wide_levels,
 )
-from graphloc.mapping.registration_starts import (
-    escape_starts,
-    hint_starts,
-    weak_direction_starts,
-)
+from graphloc.mapping.registration_starts import escape_starts, hint_starts, weak_direction_starts
 
 reg_l = o3d.pipelines.registration
 
@@ -92,20 +89,20 @@ def robust_register(
        cut edges lose their pull), every cfg.fine_stride-th source point a sample (a start
        that slides for all its iterations and fails costs a fraction); candidates closer than
        acc.distinct_deg / distinct_m merge.
-       With cfg.stop_at_first_valid the starts stop once every one of the hint's own starts
-       has run and a candidate has passed its checks with an inlier ratio of at least
-       cfg.stop_inlier_ratio (an easy case costs the hint's starts; one that barely passes lets
-       the sigma points compete). If none passes and cfg.global_fallback, `global_fpfh_ransac`
-       (seed 0) gives one more start (index len(starts)), still subject to every check, the hint
-       gate included. Once a candidate is valid or only slid (it fails no check but the
-       contradicted cubes), one more start (index len(starts) + 1), the re-seat: the cheapest such
-       candidate's rotation at the hint's translation, through the coarse level and the fine
-       stage (no pyramid). A pyramid slides a view along its dominant plane towards the other
-       view, a translation its rotation does not share; the re-seat puts the view back where the
-       hint says it is (skipped when that lies within one fine basin of the candidate). If then
-       none passes but one is only slid, the escape (indices len(starts) + 2, + 3,
-       `escape_starts`): the cheapest such moved by the hint's reach either way along its least
-       constrained direction, the valley it slid down, each through the fine stage.
+       With cfg.stop_at_first_valid the starts stop once a candidate has passed its checks with an
+       inlier ratio of at least cfg.stop_inlier_ratio (an easy case costs one start; one that barely
+       passes lets the others compete; the re-seat below puts back a view the wide kernel slid). If
+       none passes and cfg.global_fallback, `global_fpfh_ransac` (seed 0) gives one more start
+       (index len(starts)), still subject to every check, the hint gate included. Once a candidate
+       is valid or only slid (it fails no check but the contradicted cubes), one more start (index
+       len(starts) + 1), the re-seat: the cheapest such candidate's rotation at the hint's
+       translation, through the coarse level and the fine stage (no pyramid). A pyramid slides a
+       view along its dominant plane towards the other view, a translation its rotation does not
+       share; the re-seat puts the view back where the hint says it is (skipped when that lies
+       within one fine basin of the candidate). If then none passes but one is only slid, the escape
+       (indices len(starts) + 2, + 3, `escape_starts`): the cheapest such moved by the hint's reach
+       either way along its least constrained direction, the valley it slid down, each through the
+       fine stage.
     3. Each candidate's cost, the mean of its `truncated_costs` (c = `residual_scale`; a point
        near a target point but off its surface costs acc.misfit_weight, an unexplained point 1),
        and checks (overlap, inlier ratio, contradicted cubes, hint gate, robot geometry:
@@ -122,19 +119,19 @@ def robust_register(
        rival, the same registration. A rival that denies the margin of a fusion every other
        check of step 4 accepts is polished too: the same registration if it lands on the
        winner's polished pose, else compared with it at both polished poses.
-    4. The winner refined by `polish` (full resolution, both directions, in rounds until the
-       pose settles), the checks of step 3 and its conditioning on that pose (`candidates` keep
-       the poses before the polish; the contradicted cubes count at both), a polish that
-       settled, and a covariance (step 5) within acc.max_sigma_rot_deg / max_sigma_trans_m;
-       accepted only if every check passes. The candidates' checks and margin speak for poses
-       within the fine stage's reach of theirs; when the polish carries the view's sensor
-       further (a floor-dominated view the grid left decimetres along the floor, which the raw
-       points bring home, or one sliding on to a second minimum) and every other check passes,
-       two more starts (indices len(starts) + 4, + 5, `weak_direction_starts`): the polished
-       pose moved as far as the polish carried the sensor, either way along its covariance's
-       least constrained direction (the objective let the view travel that far), each polished;
-       a pose found there distinct from the winner's, valid or cheaper and only slid, is one
-       more rival of step 3's margin, both sides' costs at their polished poses.
+    4. The winner refined by `polish` (full resolution, both directions, in rounds until the pose
+       settles), the checks of step 3 and its conditioning on that pose (`candidates` keep the poses
+       before the polish; the contradicted cubes count at both, so a winner they refuse is not
+       polished), a polish that settled, and a covariance (step 5) within acc.max_sigma_rot_deg /
+       max_sigma_trans_m; accepted only if every check passes. The candidates' checks and margin
+       speak for poses within the fine stage's reach of theirs; when the polish carries the view's
+       sensor further (a floor-dominated view the grid left decimetres along the floor, which the
+       raw points bring home, or one sliding on to a second minimum) and every other check passes,
+       two more starts (indices len(starts) + 4, + 5, `weak_direction_starts`): the polished pose
+       moved as far as the polish carried the sensor, either way along its covariance's least
+       constrained direction (the objective let the view travel that far), each polished; a pose
+       found there distinct from the winner's, valid or cheaper and only slid, is one more rival of
+       step 3's margin, both sides' costs at their polished poses.
     5. Covariance (`estimate_covariance`): the cluster-robust sandwich (cfg.covariance_block)
        of the per-point influences on the estimate made -- the polish's two directions and
        their midpoint, or, where no polish round ran, the point-to-plane fit over the inliers
@@ -271,7 +268,7 @@ def robust_register(
         ok = try_start(k, timed("coarse", coarse_stage, T0, tk))
         found = ok or found
         ready = ready or (ok and cands[-1].inlier_ratio >= cfg.stop_inlier_ratio)
-        if ready and cfg.stop_at_first_valid and k >= n_hint - 1:
+        if ready and cfg.stop_at_first_valid:
             break
     if not found and cfg.global_fallback:  # the hint's neighbourhood failed: one global guess
         T_glob, _ = timed("global", global_fpfh_ransac, source, target, cfg, 0)
@@ -319,7 +316,11 @@ def robust_register(
             else f"truncated cost {o.cost:.4f} > {best.cost:.4f} of start {best.start}"
         )
     T = best.transformation
-    polished = timed("polish", polish, source, target, T, cfg, nns)
+    polished = (  # the cubes count at both poses: no polish mends a winner they refuse
+        Polished(T, 0, True)
+        if best.contradicted > acc.max_contradicted
+        else timed("polish", polish, source, target, T, cfg, nns)
+    )
     T = polished.transformation
     counts["polish_rounds"] = polished.rounds
     r, d, J = point_to_plane(source, target, T, nns)
@@ -330,11 +331,11 @@ def robust_register(
     s2 = float(r[inl] @ r[inl]) / max(n_in - 6, 1)
     D = np.diag([r_med**-1] * 3 + [1.0] * 3)
     eig = np.linalg.eigvalsh(D @ H @ D) if n_in >= 6 else np.zeros(6)
-    conditioning = float(eig[0] / eig[-1]) if eig[-1] > 0 else 0.0
+    kappa = float(eig[0] / eig[-1]) if eig[-1] > 0 else 0.0  # the conditioning
     # the covariance of the estimate made: the polish's midpoint, else the fine stage's fit
     fit = J[inl], r[inl], (source.points @ T[:3, :3].T + T[:3, 3])[inl]
     terms = None
-    if conditioning >= acc.min_conditioning:  # else not accepted
+    if kappa >= acc.min_conditioning:  # else not accepted
         terms = estimate_covariance(polished.views, T, fit, cfg, r_med, acc.min_conditioning)
     cov = np.eye(6) * 1e12 if terms is None else calibrated_covariance(*terms, cfg)
     info = np.linalg.inv(cov)
@@ -344,11 +345,7 @@ def robust_register(
     seen = max(final.contradicted, best.contradicted)
     checks["contradicted_fraction"] = (seen, acc.max_contradicted, seen <= acc.max_contradicted)
     checks["polish_rounds"] = (polished.rounds, cfg.polish_rounds, polished.settled)
-    checks["conditioning"] = (
-        conditioning,
-        acc.min_conditioning,
-        conditioning >= acc.min_conditioning,
-    )
+    checks["conditioning"] = (kappa, acc.min_conditioning, kappa >= acc.min_conditioning)
     # step 3's margin: the winner must fit better than every other valid candidate, and than
     # every cheaper one that is only slid (a view that explains the scans better, refused for
     # its contradicted cubes alone, leaves the valid winner one of two wrong poses); one the
