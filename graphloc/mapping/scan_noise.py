@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 import open3d as o3d
-from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
+
+from graphloc.mapping.registration_index import NearestIndex
 
 # the second half's frame: a fixed, generic rotation, so that its voxel grid cuts the surfaces
 # differently from the first half's, as a second robot's grid does
@@ -58,18 +59,23 @@ def split_half_sigma(
     if len(a) > samples:
         a = a[rng.choice(len(a), samples, replace=False)]
     a = a @ _SPLIT_ROTATION.T  # into B's frame
-    tree = cKDTree(b)
-    d, j = tree.query(a, distance_upper_bound=max_distance)
-    has = np.isfinite(d)
+    j, _ = NearestIndex(b, max_distance).nearest(a)
+    has = j >= 0
     if has.sum() < 10:
         return float("nan")
     a, j = a[has], j[has]
-    _, nb = tree.query(b[j], k=min(max_nn, len(b)), distance_upper_bound=normal_radius)
-    nb = nb.reshape(len(j), -1)
-    w = (nb < len(b)).astype(float)[..., None]  # cKDTree pads a missing neighbour with len(b)
-    q = np.vstack([b, np.zeros((1, 3))])[nb]
-    mean = (w * q).sum(axis=1) / w.sum(axis=1)
-    dq = (q - mean[:, None]) * w
-    _, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", dq, dq))
+    # the max_nn nearest of B's cells within normal_radius of each matched cell (Open3D's k-d
+    # tree; a radius search walks every cell within the radius, slow on dense scans), their
+    # covariance (offsets from the matched cell, one batched product), and its least
+    # eigenvector the normal
+    nns = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(b))
+    nns.knn_index()
+    nb, d2 = nns.knn_search(o3d.core.Tensor(b[j]), min(max_nn, len(b)))
+    nb = nb.numpy()
+    w = (d2.numpy() <= normal_radius**2)[..., None]
+    q = (b[nb] - b[j][:, None]) * w
+    n = w.sum(axis=1)[:, :, None]
+    m = q.sum(axis=1)[:, :, None] / n
+    _, vec = np.linalg.eigh(q.transpose(0, 2, 1) @ q - n * (m @ m.transpose(0, 2, 1)))
     r = np.einsum("ij,ij->i", a - b[j], vec[:, :, 0])  # the smallest eigenvalue's direction
     return float(1.4826 * np.median(np.abs(r)))
