@@ -56,7 +56,8 @@ def fit_calibration(errors: np.ndarray, P: np.ndarray, Q: np.ndarray) -> dict:
 
     hi_c = 1e3
     c = float(minimize_scalar(lambda x: profile(x)[0], bounds=(0.0, hi_c), method="bounded").x)
-    if profile(0.0)[0] <= profile(c)[0]:
+    alone = profile(0.0)  # the sandwich scaled alone
+    if alone[0] <= profile(c)[0]:
         c = 0.0
     nll, s, qsum = profile(c)
 
@@ -73,7 +74,7 @@ def fit_calibration(errors: np.ndarray, P: np.ndarray, Q: np.ndarray) -> dict:
         "covariance_degeneracy": c,
         "covariance_degeneracy_95": [float(edge(c, 0.0)), float(edge(c, hi_c))],
         "nll": nll,
-        "scale_alone": {"covariance_scale": profile(0.0)[1], "nll": profile(0.0)[0]},
+        "scale_alone": {"covariance_scale": alone[1], "nll": alone[0]},
     }
 
 
