@@ -28,7 +28,7 @@ from graphloc.experiments.fusion_bench_real import PROTOCOL_KEEP, PROTOCOL_NOISE
 from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
 from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
 from graphloc.mapping.registration_covariance import calibrated_covariance
-from graphloc.mapping.registration_stages import polish
+from graphloc.mapping.registration_stages import fine_stage, polish
 from graphloc.mapping.registration_starts import (
     escape_starts,
     hint_covariance,
@@ -194,6 +194,24 @@ def test_strided_fine_stage_keeps_the_result_and_reports_its_stages(fragment):
     assert strided.as_dict()["timings"] == t
     with pytest.raises(ValueError, match="fine_stride"):
         RegistrationConfig(fine_stride=0)
+
+
+def test_the_fine_stage_runs_until_it_settles_within_fine_iterations(fragment):
+    """`fine_stage` stops once fitness and inlier RMSE settle (cfg.fine_relative) or after
+    cfg.fine_iterations: a start 1.5 deg / 2 cm off, cut short after two iterations, is left on
+    the way; the default budget lets it settle before the cap, nearer the truth."""
+    pair, _ = _pair(fragment, 0.6, 7)
+    cfg = RegistrationConfig()
+    src, tgt = prepare(pair.ceiling, cfg), prepare(pair.ground, cfg)
+    start = perturb(pair.T_ground_ceiling, 1.5, 0.02, np.random.default_rng(3))
+    T_short, n_short = fine_stage(src, tgt, start, replace(cfg, fine_iterations=2))
+    T, n = fine_stage(src, tgt, start, cfg)
+    assert n_short == 2 and 2 < n < cfg.fine_iterations
+    short = pose_errors(T_short, pair.T_ground_ceiling)[0]
+    settled = pose_errors(T, pair.T_ground_ceiling)[0]
+    assert settled < 0.5 * short, (settled, short)
+    with pytest.raises(ValueError, match="fine_iterations"):
+        RegistrationConfig(fine_iterations=0)
 
 
 def test_polish_refines_a_near_pose_and_leaves_a_far_one(fragment):

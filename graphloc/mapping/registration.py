@@ -78,11 +78,16 @@ class RegistrationConfig:
     # (max_correspondence[-1]; 0: least squares)
     fine_tukey: float = 1.0
     # ... and its stop: relative change of fitness and inlier RMSE (Open3D's default criterion;
-    # the Tukey-weighted iterations have settled by then, docs/results_fusion_real.md)
+    # the Tukey-weighted iterations have settled by then, docs/results_fusion_real.md), at most
+    # fine_iterations iterations: a view the coarse stage left a few degrees turned on a floor
+    # creeps back a little per iteration, and one cut short is a candidate at no minimum, which
+    # the polish's narrower window may carry on to a slid one (a denser scan of the Redwood
+    # room: test_a_denser_scan_turned_on_the_floor_is_not_fused_slid)
     fine_relative: float = 1e-6
+    fine_iterations: int = 60
     # ... and its samples: every fine_stride-th prepared source point (the candidates' checks and
     # covariance use them all); the winner goes straight to `polish`, which uses every point (a
-    # start that slides for 30 iterations and fails costs a third)
+    # start that slides for all its iterations and fails costs a third)
     fine_stride: int = 3
     covariance_block: float = 0.25
     margin_block: float = 0.5
@@ -150,6 +155,7 @@ class RegistrationConfig:
                 "polish_iterations": 1,
                 "polish_rounds": 1,
                 "polish_max_nn": 3,
+                "fine_iterations": 1,
                 "fine_stride": 1,
             },
         )

@@ -29,7 +29,7 @@ def fine_stage(
     """`robust_register`'s fine stage: Open3D tensor point-to-plane ICP of the prepared clouds
     from `init`, correspondences within cfg.max_correspondence[-1], a Tukey kernel of
     cfg.fine_tukey times that distance (least squares if 0), until fitness and inlier RMSE change
-    by less than cfg.fine_relative (relative), cfg.max_iterations[-1] iterations at most, with
+    by less than cfg.fine_relative (relative), cfg.fine_iterations iterations at most, with
     every cfg.fine_stride-th source point as a sample. Returns (T_target_source, iterations);
     Open3D raises RuntimeError when too few correspondences are left for the 6x6 system."""
     fine = cfg.max_correspondence[-1]
@@ -49,7 +49,7 @@ def fine_stage(
         fine,
         o3d.core.Tensor(np.asarray(init, dtype=np.float64)),
         reg_t.TransformationEstimationPointToPlane(kernel),
-        reg_t.ICPConvergenceCriteria(cfg.fine_relative, cfg.fine_relative, cfg.max_iterations[-1]),
+        reg_t.ICPConvergenceCriteria(cfg.fine_relative, cfg.fine_relative, cfg.fine_iterations),
     )
     return res.transformation.numpy(), int(res.num_iterations)
 

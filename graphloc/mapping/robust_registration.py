@@ -84,7 +84,7 @@ def robust_register(
        the rotation moving the median source point that far) merge, and a sigma-point or global
        start whose coarse pose fails the hint gate or the robot geometry by more than a move of
        one fine basin could mend stops there (`_beyond_fine_reach`); then Open3D tensor ICP on
-       the prepared clouds within that distance (cfg.max_iterations[-1]) with a Tukey kernel of
+       the prepared clouds within that distance (cfg.fine_iterations at most) with a Tukey kernel of
        cfg.fine_tukey times it (points on surfaces the other view does not share, clutter and
        cut edges lose their pull), every cfg.fine_stride-th source point a sample (a start
        that slides for all its iterations and fails costs a fraction); candidates closer than
