@@ -317,9 +317,9 @@ def robust_register(
         )
     T = best.transformation
     polished = (  # the cubes count at both poses: no polish mends a winner they refuse
-        Polished(T, 0, True)
-        if best.contradicted > acc.max_contradicted
-        else timed("polish", polish, source, target, T, cfg, nns)
+        timed("polish", polish, source, target, T, cfg, nns)
+        if checks_of[best.start]["contradicted_fraction"][2]
+        else Polished(T, 0, True)
     )
     T = polished.transformation
     counts["polish_rounds"] = polished.rounds
