@@ -21,6 +21,7 @@ from graphloc.mapping.acceptance import (
     candidate_checks,
     contradicted_fraction,
     cost_margin_se,
+    overlap_shortfall,
 )
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
@@ -164,6 +165,14 @@ def test_a_candidate_below_stop_inlier_ratio_lets_the_other_starts_compete(fragm
     assert d.accepted and d.best == min(valid, key=lambda c: c.cost).start
     rot, tr = pose_errors(d.registration.transformation, pair.T_ground_ceiling)
     assert rot < 0.3 and tr < 0.01, (rot, tr)
+    # every start's candidate within the gates is a rival of the overlap shortfall, the winner's
+    # own among them (a right registration's starts converge to it: the value stays near 1)
+    best = next(c for c in d.candidates if c.start == d.best)
+    value, limit, passed = d.checks["overlap_shortfall"]
+    assert passed and 0.9 <= value <= limit
+    assert (
+        value == overlap_shortfall(max(best.overlap, d.registration.fitness), d.candidates, acc)[0]
+    )
 
 
 def test_strided_fine_stage_keeps_the_result_and_reports_its_stages(fragment):
@@ -454,6 +463,31 @@ def test_cost_margin_counts_how_many_clusters_the_winner_leads_in():
     assert cost_margin_se(winner, winner.copy(), label) == 0.0  # a tie is ambiguous
     with pytest.raises(ValueError, match="min_cost_margin_se"):
         AcceptanceConfig(min_cost_margin_se=-1.0)
+
+
+def test_overlap_shortfall_refuses_a_winner_drawn_away_from_the_other_views_surfaces():
+    """A winner overlapping the views a third as much as another candidate within the hint gate
+    and the robot geometry fails (the truncated cost's misfit weight makes a view drawn away
+    from surfaces it sat beside cheap); candidates beyond the hint gate or below the ground
+    robot are no rivals, and neither is one at the winner's pose."""
+    acc = AcceptanceConfig()
+    up = np.diag([1.0, -1.0, -1.0, 1.0])
+    up[2, 3] = 2.5
+
+    def cand(start, overlap, hint_d2=1.0, z=2.5):
+        T = up.copy()
+        T[2, 3] = z
+        return Candidate(start, T, 1.0, overlap, 0.7, hint_d2, 0.0)
+
+    winner = cand(0, 0.1)
+    assert overlap_shortfall(0.1, [winner, cand(1, 0.3)], acc) == pytest.approx((3.0, 2.0, False))
+    assert overlap_shortfall(0.1, [winner, cand(1, 0.19)], acc)[2]  # under twice: a rival only
+    beyond = [winner, cand(1, 0.3, hint_d2=acc.hint_gate + 1.0), cand(2, 0.3, z=-0.5)]
+    assert overlap_shortfall(0.1, beyond, acc) == pytest.approx((1.0, 2.0, True))
+    assert overlap_shortfall(0.1, [], acc) == (0.0, 2.0, True)
+    assert not overlap_shortfall(0.1, [winner, cand(1, 0.3)], replace(acc, ceiling_above=False))[2]
+    with pytest.raises(ValueError, match="max_overlap_shortfall"):
+        AcceptanceConfig(max_overlap_shortfall=0.5)
 
 
 def test_robot_geometry_check_wants_the_ceiling_robot_above_and_upside_down():

@@ -30,6 +30,7 @@ CHECK_REASONS = {
     "ceiling_height_m": "ceiling robot below the ground robot",
     "ceiling_z_down_cos": "ceiling robot not upside down",
     "cost_margin_se": "another registration fits about as well (ambiguous)",
+    "overlap_shortfall": "another registration explains far more of the views (a retreat)",
     "polish_rounds": "the pose kept moving under the last refinement (a view sliding along)",
     "sigma_rot_deg": "too uncertain (rotation)",
     "sigma_trans_m": "too uncertain (translation)",
@@ -81,6 +82,14 @@ class AcceptanceConfig:
     between two walls) carry their spread along it in the covariance
     (`graphloc.mapping.registration_covariance.degeneracy_term`): the cap refuses those whose
     spread reaches towards the box's edge, right or wrong, and no other check could tell which;
+    max_overlap_shortfall: no other candidate within the hint gate and the robot geometry, and
+    distinct from the winner, may overlap more than this many times the winner
+    (`overlap_shortfall`). misfit_weight makes a point beside a surface cost more than one off
+    every surface, which keeps a view from sliding towards the other; on two views that
+    genuinely differ (other viewpoints, occlusions: a right registration leaves many points beside
+    surfaces) it rewards the opposite, a pose that draws the view away from the other's
+    surfaces, cheap for explaining little. Such a winner overlaps the views a fraction of what
+    another start found; the truncated cost alone cannot say which is right;
     distinct_deg / distinct_m: candidates closer than this are one registration."""
 
     residual_sigma: float = 0.01
@@ -98,6 +107,7 @@ class AcceptanceConfig:
     max_ceiling_tilt_deg: float = 45.0
     max_sigma_rot_deg: float = 0.4
     max_sigma_trans_m: float = 0.02
+    max_overlap_shortfall: float = 2.0
     distinct_deg: float = 0.5
     distinct_m: float = 0.02
 
@@ -117,6 +127,7 @@ class AcceptanceConfig:
                 "min_overlap": (0.0, 1.0, "[]"),
                 "min_inlier_ratio": (0.0, 1.0, "[]"),
                 "misfit_weight": (1.0, 1e6, "[]"),
+                "max_overlap_shortfall": (1.0, 1e6, "[]"),
                 "contradiction_ratio": (0.0, 1.0, "[]"),
                 "max_contradicted": (0.0, 1.0, "[]"),
             },
@@ -220,6 +231,22 @@ def candidate_checks(o: Candidate, acc: AcceptanceConfig) -> dict:
         checks["ceiling_height_m"] = (height, 0.0, height > 0.0)
         checks["ceiling_z_down_cos"] = (down, min_down, down >= min_down)
     return checks
+
+
+def overlap_shortfall(winner_overlap: float, candidates, acc: AcceptanceConfig) -> tuple:
+    """(value, threshold, passed) of the winner's overlap shortfall (AcceptanceConfig
+    .max_overlap_shortfall): the largest overlap among the `candidates` that pass the hint gate
+    and the robot geometry, over `winner_overlap` (a candidate at about the winner's pose,
+    the winner's own, overlaps about as much: only a distinct pose can overlap far more); 0 when
+    none passes them."""
+    gates = ("hint_mahalanobis2", "ceiling_height_m", "ceiling_z_down_cos")
+    rivals = [
+        o.overlap
+        for o in candidates
+        if all(v[2] for k, v in candidate_checks(o, acc).items() if k in gates)
+    ]
+    value = max(rivals, default=0.0) / max(winner_overlap, 1e-12)
+    return value, acc.max_overlap_shortfall, value <= acc.max_overlap_shortfall
 
 
 def point_to_plane(source: PreparedCloud, target: PreparedCloud, T: np.ndarray, nns):

@@ -126,7 +126,7 @@ class RegistrationConfig:
     max_reach: float = 1.0
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
     covariance_scale: float = 4.64  # fit of docs/results_fusion_calibration.json (3 digits)
-    covariance_degeneracy: float = 4.07  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_degeneracy: float = 4.10  # fit of docs/results_fusion_calibration.json (3 digits)
 
     def __post_init__(self):
         check(

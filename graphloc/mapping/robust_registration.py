@@ -23,6 +23,7 @@ from graphloc.mapping.acceptance import (
     contradicted_fraction,
     cost_margin_se,
     only_slid_or_valid,
+    overlap_shortfall,
     point_to_plane,
     residual_scale,
     target_index,
@@ -122,8 +123,10 @@ def robust_register(
     4. The winner refined by `polish` (full resolution, both directions, in rounds until the pose
        settles), the checks of step 3 and its conditioning on that pose (`candidates` keep the poses
        before the polish; the contradicted cubes count at both, so a winner they refuse is not
-       polished), a polish that settled, and a covariance (step 5) within acc.max_sigma_rot_deg /
-       max_sigma_trans_m; accepted only if every check passes. The candidates' checks and margin
+       polished), a polish that settled, a covariance (step 5) within acc.max_sigma_rot_deg /
+       max_sigma_trans_m, and no candidate within the hint gate and the robot geometry that overlaps
+       acc.max_overlap_shortfall times more (`overlap_shortfall`: a winner drawn away from the other
+       view's surfaces); accepted only if every check passes. The candidates' checks and margin
        speak for poses within the fine stage's reach of theirs; when the polish carries the view's
        sensor further (a floor-dominated view the grid left decimetres along the floor, which the
        raw points bring home, or one sliding on to a second minimum) and every other check passes,
@@ -173,7 +176,6 @@ def robust_register(
     r_med = float(np.median(np.linalg.norm(source.points, axis=1)))
     basin_deg = float(np.degrees(fine / r_med))  # a rotation moving the median point by `fine`
     merged, coarse, cands, iterations, point_costs = {}, [], [], 0, {}
-
     lam = np.linalg.eigvalsh(hint_cov[:3, :3])[-1], np.linalg.eigvalsh(hint_cov[3:, 3:])[-1]
     reach = min(float(np.sqrt(lam[0]) * r_med + np.sqrt(lam[1])), cfg.max_reach)
     wide = []
@@ -346,6 +348,7 @@ def robust_register(
     checks["contradicted_fraction"] = (seen, acc.max_contradicted, seen <= acc.max_contradicted)
     checks["polish_rounds"] = (polished.rounds, cfg.polish_rounds, polished.settled)
     checks["conditioning"] = (kappa, acc.min_conditioning, kappa >= acc.min_conditioning)
+    checks["overlap_shortfall"] = overlap_shortfall(max(best.overlap, final.overlap), cands, acc)
     # step 3's margin: the winner must fit better than every other valid candidate, and than
     # every cheaper one that is only slid (a view that explains the scans better, refused for
     # its contradicted cubes alone, leaves the valid winner one of two wrong poses); one the
