@@ -82,9 +82,8 @@ class AcceptanceConfig:
     between two walls) carry their spread along it in the covariance
     (`graphloc.mapping.registration_covariance.degeneracy_term`): the cap refuses those whose
     spread reaches towards the box's edge, right or wrong, and no other check could tell which;
-    max_overlap_shortfall: no other candidate within the hint gate and the robot geometry, and
-    distinct from the winner, may overlap more than this many times the winner
-    (`overlap_shortfall`). misfit_weight makes a point beside a surface cost more than one off
+    max_overlap_shortfall: no candidate within the hint gate and the robot geometry may overlap
+    the views more than this many times the winner (`overlap_shortfall`). misfit_weight makes a point beside a surface cost more than one off
     every surface, which keeps a view from sliding towards the other; on two views that
     genuinely differ (other viewpoints, occlusions: a right registration leaves many points beside
     surfaces) it rewards the opposite, a pose that draws the view away from the other's
