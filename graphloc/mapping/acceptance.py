@@ -83,12 +83,13 @@ class AcceptanceConfig:
     (`graphloc.mapping.registration_covariance.degeneracy_term`): the cap refuses those whose
     spread reaches towards the box's edge, right or wrong, and no other check could tell which;
     max_overlap_shortfall: no candidate within the hint gate and the robot geometry may overlap
-    the views more than this many times the winner (`overlap_shortfall`). misfit_weight makes a point beside a surface cost more than one off
-    every surface, which keeps a view from sliding towards the other; on two views that
-    genuinely differ (other viewpoints, occlusions: a right registration leaves many points beside
-    surfaces) it rewards the opposite, a pose that draws the view away from the other's
-    surfaces, cheap for explaining little. Such a winner overlaps the views a fraction of what
-    another start found; the truncated cost alone cannot say which is right;
+    the views more than this many times the winner (`overlap_shortfall`). misfit_weight makes a
+    point beside a surface cost more than one off every surface, which keeps a view from sliding
+    towards the other; on two views that genuinely differ (other viewpoints, occlusions: a right
+    registration leaves many points beside surfaces) it rewards the opposite, a pose that draws
+    the view away from the other's surfaces, cheap for explaining little. Such a winner overlaps
+    the views a fraction of what another start found; the truncated cost alone cannot say which
+    is right;
     distinct_deg / distinct_m: candidates closer than this are one registration."""
 
     residual_sigma: float = 0.01
