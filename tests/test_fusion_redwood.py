@@ -219,8 +219,14 @@ def test_a_valid_winner_a_slid_view_undercuts_is_not_fused(redwood):
     that passes its checks is turned 17 deg and some 60 cm off; a cheaper one, turned less than
     a degree but slid along the floor, fails the contradicted cubes alone. Two wrong poses, the
     scans preferring the refused one: the winner has no cost margin, and nothing is fused (with
-    the sandwich covariance its sigmas lie well inside the cap)."""
-    d, truth = _register(redwood, 0.3, 2, 1)
+    the sandwich covariance its sigmas lie well inside the cap). Every start is tried
+    (stop_at_first_valid off); with the stop, the hint's first start, slid and refused by the
+    cubes alone, is re-seated at once, and what that finds is not fused wrong either."""
+    stop, truth = _register(redwood, 0.3, 2, 1)
+    rot, trans = pose_errors(stop.registration.transformation, truth)
+    assert not stop.accepted or (rot < 1.0 and trans < 0.05), (rot, trans)
+    every = replace(RegistrationConfig(), stop_at_first_valid=False)
+    d, truth = _register(redwood, 0.3, 2, 1, cfg=every)
     acc = AcceptanceConfig()
     assert not d.accepted and not d.checks["cost_margin_se"][2], d.reasons
     assert d.checks["sigma_rot_deg"][2]
@@ -266,6 +272,30 @@ def test_the_reseat_starts_from_a_slid_view_that_only_the_cubes_refuse(redwood):
     assert rot < 0.1 and trans < 0.01, (rot, trans)
     slid = [c for c in d.candidates if c.contradicted > acc.max_contradicted]
     assert slid and all(pose_errors(c.transformation, truth)[1] > 0.05 for c in slid)
+
+
+def test_a_slid_view_is_reseated_at_once_and_the_search_stops_there(redwood):
+    """30% overlap, 10 deg / 20 cm hint (exploration seed 201): the hint's first start slides the
+    view some 40 cm along the floor, and only the contradicted cubes refuse it. The re-seat runs
+    at once and lands on the pose with an inlier ratio above the stop, so no sigma point is tried
+    (they converged where the slid view did, or beyond the hint gate). Without the stop every
+    start runs and the re-seat comes last, from the same slid view, to the same pose."""
+    cfg, acc = RegistrationConfig(), AcceptanceConfig()
+    k_re = len(cfg.hint_wide_tukey) + 12 + 1  # the hint's starts, 12 sigma points, global slot
+    d, truth = _register(redwood, 0.3, 201, 1)
+    assert d.accepted and d.best == k_re and d.timings["starts"] == 2, (d.best, d.reasons)
+    assert {c.start for c in d.candidates} | set(d.lost) == {0, k_re}
+    slid = [c for c in d.candidates if c.start == 0]
+    assert slid and not candidate_checks(slid[0], acc)["contradicted_fraction"][2]
+    assert only_slid_or_valid(slid[0], acc) and pose_errors(slid[0].transformation, truth)[1] > 0.2
+    won = [c for c in d.candidates if c.start == k_re][0]
+    assert won.inlier_ratio >= cfg.stop_inlier_ratio
+    rot, trans = pose_errors(d.registration.transformation, truth)
+    assert rot < 1.0 and trans < 0.01, (rot, trans)
+    every, _ = _register(redwood, 0.3, 201, 1, cfg=replace(cfg, stop_at_first_valid=False))
+    assert every.best == k_re and every.timings["starts"] > 2 * d.timings["starts"]
+    rot, trans = pose_errors(every.registration.transformation, d.registration.transformation)
+    assert rot < 0.05 and trans < 0.002, (rot, trans)
 
 
 def test_a_point_beside_a_surface_costs_more_than_an_unseen_one(redwood):

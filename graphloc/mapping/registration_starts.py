@@ -1,7 +1,7 @@
 """Where `graphloc.mapping.robust_registration.robust_register` starts ICP (issue 16): the pose
-hint and the sigma points of its covariance (`hint_starts`, `hint_covariance`), and, once the
-polish has carried the view beyond the fine stage's reach of the candidate it polished, the
-two poses as far either way along the estimate's least constrained direction
+hint (`checked_hint`) and the sigma points of its covariance (`hint_starts`, `hint_covariance`),
+and, once the polish has carried the view beyond the fine stage's reach of the candidate it
+polished, the two poses as far either way along the estimate's least constrained direction
 (`weak_direction_starts`), and, when the only candidates left are slid views, the two poses
 the hint's reach either way along a slid view's own (`escape_starts`)."""
 
@@ -11,6 +11,24 @@ import gtsam
 import numpy as np
 
 from graphloc.mapping.registration import information_right
+
+
+def checked_hint(hint, hint_cov) -> tuple[np.ndarray, np.ndarray]:
+    """`robust_register`'s pose hint (a finite 4x4 transform) and its covariance (a finite 6x6
+    positive definite matrix) as float arrays; ValueError naming the one that is not."""
+    hint, hint_cov = np.asarray(hint, dtype=float), np.asarray(hint_cov, dtype=float)
+    if hint.shape != (4, 4) or not np.isfinite(hint).all():
+        raise ValueError(f"robust_register: hint must be a finite 4x4 transform, got {hint.shape}")
+    if (
+        hint_cov.shape != (6, 6)
+        or not np.isfinite(hint_cov).all()
+        or np.linalg.eigvalsh(0.5 * (hint_cov + hint_cov.T))[0] <= 0
+    ):
+        raise ValueError(
+            "robust_register: hint_cov must be a finite 6x6 positive definite covariance, got "
+            f"shape {hint_cov.shape}"
+        )
+    return hint, hint_cov
 
 
 def hint_starts(hint: np.ndarray, cov: np.ndarray) -> list[np.ndarray]:

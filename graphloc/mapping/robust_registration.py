@@ -50,7 +50,12 @@ from graphloc.mapping.registration_stages import (
     polish,
     wide_levels,
 )
-from graphloc.mapping.registration_starts import escape_starts, hint_starts, weak_direction_starts
+from graphloc.mapping.registration_starts import (
+    checked_hint,
+    escape_starts,
+    hint_starts,
+    weak_direction_starts,
+)
 
 reg_l = o3d.pipelines.registration
 
@@ -92,18 +97,19 @@ def robust_register(
        acc.distinct_deg / distinct_m merge.
        With cfg.stop_at_first_valid the starts stop once a candidate has passed its checks with an
        inlier ratio of at least cfg.stop_inlier_ratio (an easy case costs one start; one that barely
-       passes lets the others compete; the re-seat below puts back a view the wide kernel slid). If
-       none passes and cfg.global_fallback, `global_fpfh_ransac` (seed 0) gives one more start
-       (index len(starts)), still subject to every check, the hint gate included. Once a candidate
-       is valid or only slid (it fails no check but the contradicted cubes), one more start (index
-       len(starts) + 1), the re-seat: the cheapest such candidate's rotation at the hint's
-       translation, through the coarse level and the fine stage (no pyramid). A pyramid slides a
-       view along its dominant plane towards the other view, a translation its rotation does not
-       share; the re-seat puts the view back where the hint says it is (skipped when that lies
-       within one fine basin of the candidate). If then none passes but one is only slid, the escape
-       (indices len(starts) + 2, + 3, `escape_starts`): the cheapest such moved by the hint's reach
-       either way along its least constrained direction, the valley it slid down, each through the
-       fine stage.
+       passes lets the others compete). If none passes and cfg.global_fallback,
+       `global_fpfh_ransac` (seed 0) gives one more start (index len(starts)), still subject to
+       every check, the hint gate included. The re-seat (index len(starts) + 1): the cheapest
+       candidate valid or only slid (it fails no check but the contradicted cubes), its rotation at
+       the hint's translation, through the coarse level and the fine stage (no pyramid). A pyramid
+       slides a view along its dominant plane towards the other view, a translation its rotation
+       does not share; the re-seat puts the view back where the hint says it is (skipped when that
+       lies within one fine basin of the candidate). It runs once: at once when a start leaves a
+       slid view (with cfg.stop_at_first_valid; the later starts mostly converge where it did, and
+       the stop above counts the re-seat's candidate), else after the starts. If then none passes
+       but one is only slid, the escape (indices len(starts) + 2, + 3, `escape_starts`): the
+       cheapest such moved by the hint's reach either way along its least constrained direction,
+       the valley it slid down, each through the fine stage.
     3. Each candidate's cost, the mean of its `truncated_costs` (c = `residual_scale`; a point
        near a target point but off its surface costs acc.misfit_weight, an unexplained point 1),
        and checks (overlap, inlier ratio, contradicted cubes, hint gate, robot geometry:
@@ -142,19 +148,7 @@ def robust_register(
        nears acc.min_conditioning, calibrated; `inlier_rmse` is the inliers' residual standard
        deviation (n - 6 dof); `RegistrationDecision.timings` the seconds per stage."""
     start_t = time.perf_counter()
-    hint = np.asarray(hint, dtype=float)
-    hint_cov = np.asarray(hint_cov, dtype=float)
-    if hint.shape != (4, 4) or not np.isfinite(hint).all():
-        raise ValueError(f"robust_register: hint must be a finite 4x4 transform, got {hint.shape}")
-    if (
-        hint_cov.shape != (6, 6)
-        or not np.isfinite(hint_cov).all()
-        or np.linalg.eigvalsh(0.5 * (hint_cov + hint_cov.T))[0] <= 0
-    ):
-        raise ValueError(
-            "robust_register: hint_cov must be a finite 6x6 positive definite covariance, got "
-            f"shape {hint_cov.shape}"
-        )
+    hint, hint_cov = checked_hint(hint, hint_cov)
     stage_s = dict.fromkeys(("coarse", "fine", "checks", "global", "polish"), 0.0)
     counts = {"starts": 0, "fine_stages": 0, "polish_rounds": 0, "probes": 0, "rivals_polished": 0}
 
@@ -259,36 +253,42 @@ def robust_register(
         cands.append(o)
         return all(v[2] for v in candidate_checks(cands[-1], acc).values())
 
+    def reseat() -> bool:
+        """The re-seat (start len(starts) + 1): the rotation of the cheapest candidate valid or
+        only slid (it fails no check but the contradicted cubes) at the hint's translation, no
+        pyramid; True if its candidate passes its checks."""
+        reseated.append(k_re)
+        top = min((o for o in cands if only_slid_or_valid(o, acc)), key=lambda x: x.cost)
+        T_re = top.transformation.copy()
+        T_re[:3, 3] = hint[:3, 3]
+        if poses_within(T_re, top.transformation, basin_deg, fine):
+            merged[k_re] = f"hint's translation within the fine basin of start {top.start}"
+            return False
+        counts["starts"] += 1
+        return try_start(k_re, timed("coarse", coarse_stage, T_re, cfg.coarse_tukey, ()))
+
     # the hint once per wide-level kernel (while there is a wide level), then its sigma points
     tukeys = cfg.hint_wide_tukey if wide else (cfg.coarse_tukey,)
-    n_hint = len(tukeys)
+    n_hint, stop, reseated = len(tukeys), cfg.stop_at_first_valid, []
     starts = [(hint, tk) for tk in tukeys]
     starts += [(T, cfg.coarse_tukey) for T in hint_starts(hint, hint_cov)[1:]]
-    found = ready = False
+    k_re, found, ready = len(starts) + 1, False, False
     for k, (T0, tk) in enumerate(starts):
         counts["starts"] += 1
+        n = len(cands)
         ok = try_start(k, timed("coarse", coarse_stage, T0, tk))
+        if stop and not (ok or reseated) and len(cands) > n and only_slid_or_valid(cands[-1], acc):
+            ok = reseat()  # a slid view: re-seated at once
         found = ok or found
         ready = ready or (ok and cands[-1].inlier_ratio >= cfg.stop_inlier_ratio)
-        if ready and cfg.stop_at_first_valid:
+        if ready and stop:
             break
     if not found and cfg.global_fallback:  # the hint's neighbourhood failed: one global guess
         T_glob, _ = timed("global", global_fpfh_ransac, source, target, cfg, 0)
         counts["starts"] += 1
         found = try_start(len(starts), timed("coarse", coarse_stage, T_glob))
-    # re-seat: the rotation of the best candidate that is valid or only slid (it fails no check
-    # but the contradicted cubes) at the hint's translation
-    seats = [o for o in cands if only_slid_or_valid(o, acc)]
-    if seats:
-        top = min(seats, key=lambda x: x.cost)
-        T_re = top.transformation.copy()
-        T_re[:3, 3] = hint[:3, 3]
-        k_re = len(starts) + 1
-        if poses_within(T_re, top.transformation, basin_deg, fine):
-            merged[k_re] = f"hint's translation within the fine basin of start {top.start}"
-        else:
-            counts["starts"] += 1
-            try_start(k_re, timed("coarse", coarse_stage, T_re, cfg.coarse_tukey, ()))
+    if not reseated and any(only_slid_or_valid(o, acc) for o in cands):
+        reseat()
     # the escape: no candidate passes and one is only slid: from the cheapest such, the hint's
     # reach either way along its least constrained direction (the valley it slid down)
     seats = [o for o in cands if only_slid_or_valid(o, acc)]
