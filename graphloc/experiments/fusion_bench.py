@@ -15,8 +15,9 @@ is reported separately.
     .venv/bin/python scripts/bench_fusion.py --quick --out out/bench_fusion_quick
 
 `--real` (issue 16's protocol on a real indoor fragment): graphloc.experiments.fusion_bench_real;
-`--real --calibrate`: graphloc.experiments.fusion_calibration. Run through scripts/bench_fusion.py
-(which keeps Open3D to one thread per process).
+`--real --calibrate`: graphloc.experiments.fusion_calibration; `--real --envelope` (the real
+benchmark under other view noise and densities): graphloc.experiments.fusion_envelope. Run
+through scripts/bench_fusion.py (which keeps Open3D to one thread per process).
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from graphloc.experiments.fusion_bench_real import (
     main_real,
 )
 from graphloc.experiments.fusion_calibration import main_calibrate
+from graphloc.experiments.fusion_envelope import main_envelope
 
 METHODS = ("icp_no_guess", "fpfh_ransac", "graphloc")
 ROT_OK_DEG = 2.0
@@ -238,6 +240,11 @@ def main(argv=None) -> int:
         help="with --real: fit the registration covariance's calibration (use other seeds)",
     )
     p.add_argument(
+        "--envelope",
+        action="store_true",
+        help="with --real: the benchmark under other view noise and densities (use other seeds)",
+    )
+    p.add_argument(
         "--calibration-json",
         default="docs/results_fusion_calibration.json",
         help="with --calibrate: where the fit goes",
@@ -245,9 +252,14 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     if args.out is None:
         args.out = "out/bench_fusion_real" if args.real else "out/bench_fusion"
+        args.out += "_envelope" if args.real and args.envelope else ""
     if args.real:
         if args.trials < 1 or args.workers < 1 or args.noise < 0 or not 0 < args.keep <= 1:
             raise SystemExit("--trials >= 1, --workers >= 1, --noise >= 0, 0 < --keep <= 1")
+        if args.calibrate and args.envelope:
+            raise SystemExit("--calibrate and --envelope are two runs: give one")
+        if args.envelope:
+            return main_envelope(args)
         return main_calibrate(args) if args.calibrate else main_real(args)
     trials = 3 if args.quick else args.trials
     if trials < 1 or args.frames < 2 or args.workers < 1:
