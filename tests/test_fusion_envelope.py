@@ -76,9 +76,11 @@ def test_the_envelope_counts_each_conditions_false_accepts_and_refusals():
     assert "False accepts over every condition: 2 of 12 registrations." in text
 
 
-def test_the_envelope_is_one_run_not_a_calibration():
+def test_the_envelope_refuses_options_it_would_ignore():
     with pytest.raises(SystemExit, match="two runs"):
         bench_main(["--real", "--envelope", "--calibrate"])
+    with pytest.raises(SystemExit, match="noise and kept fraction itself"):
+        bench_main(["--real", "--envelope", "--noise", "0.01"])
 
 
 @pytest.mark.slow

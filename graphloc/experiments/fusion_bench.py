@@ -259,6 +259,8 @@ def main(argv=None) -> int:
         if args.calibrate and args.envelope:
             raise SystemExit("--calibrate and --envelope are two runs: give one")
         if args.envelope:
+            if (args.noise, args.keep) != (PROTOCOL_NOISE_M, PROTOCOL_KEEP):
+                raise SystemExit("--envelope sets the views' noise and kept fraction itself")
             return main_envelope(args)
         return main_calibrate(args) if args.calibrate else main_real(args)
     trials = 3 if args.quick else args.trials
