@@ -16,6 +16,7 @@ from graphloc.experiments.fusion_envelope import (
     summarize_envelope,
 )
 from graphloc.experiments.fusion_report_real import REAL_METHODS
+from graphloc.experiments.real_views import BUNDLED_FRAGMENTS
 
 
 def _row(fragment, noise, keep, overlap, seed, hint, graphloc):
@@ -85,17 +86,29 @@ def test_the_envelope_refuses_options_it_would_ignore():
 
 @pytest.mark.slow
 def test_the_envelope_runs_the_benchmark_trials_under_each_view_condition(tmp_path):
+    fragment = str(BUNDLED_FRAGMENTS[1])  # the Redwood living room
     args = SimpleNamespace(
-        fragment=None, trials=1, seed=2000, workers=1, out=str(tmp_path), doc=str(tmp_path / "e.md")
+        fragment=fragment,
+        trials=1,
+        seed=2000,
+        workers=1,
+        out=str(tmp_path),
+        doc=str(tmp_path / "e.md"),
     )
     assert main_envelope(args, views=((0.005, 0.5), (0.01, 0.25))) == 0
     report = json.loads((tmp_path / "bench_fusion_envelope.json").read_text())
-    assert [(e["noise_m"], e["keep"]) for e in report["entries"]] == [(0.005, 0.5), (0.01, 0.25)]
+    assert [(e["fragment"], e["noise_m"], e["keep"]) for e in report["entries"]] == [
+        ("redwood_livingroom.ply", 0.005, 0.5),
+        ("redwood_livingroom.ply", 0.01, 0.25),
+    ]
     assert {r["noise_m"] for r in report["trials"]} == {0.005, 0.01}
     for e in report["entries"]:
         assert len(e["cells"]) == 4  # two overlaps, two hints
         for c in e["cells"].values():
             assert c["trials"] == 1
-            assert c["successes"] + c["false_accepts"] + c["not_fused"] <= 1
+            assert c["successes"] + c["false_accepts"] + c["not_fused"] == 1
     assert (tmp_path / "e.png").stat().st_size > 0
-    assert "--envelope --trials 1 --seed 2000" in (tmp_path / "e.md").read_text()
+    assert (
+        f"--envelope --trials 1 --seed 2000 --fragment {fragment}"
+        in (tmp_path / "e.md").read_text()
+    )
