@@ -21,18 +21,24 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.executor import Executor
-from graphloc.experiments.fusion_bench_real import REAL_OVERLAPS, run_real_trial, summarize_real
+from graphloc.experiments.fusion_bench_real import (
+    PROTOCOL_KEEP,
+    PROTOCOL_NOISE_M,
+    REAL_OVERLAPS,
+    run_real_trial,
+    summarize_real,
+)
 from graphloc.experiments.real_views import BUNDLED_FRAGMENTS
 
-# (noise [m], kept fraction): the protocol's (0.005, 0.5), noisier and cleaner views, and
-# sparser and denser ones
+# (noise [m], kept fraction): noisier and cleaner views than the protocol's, then sparser and
+# denser ones
 ENVELOPE_VIEWS = (
-    (0.003, 0.5),
-    (0.005, 0.5),
-    (0.007, 0.5),
-    (0.01, 0.5),
-    (0.005, 0.25),
-    (0.005, 1.0),
+    (0.003, PROTOCOL_KEEP),
+    (PROTOCOL_NOISE_M, PROTOCOL_KEEP),
+    (0.007, PROTOCOL_KEEP),
+    (0.01, PROTOCOL_KEEP),
+    (PROTOCOL_NOISE_M, 0.25),
+    (PROTOCOL_NOISE_M, 1.0),
 )
 
 
@@ -63,6 +69,9 @@ def summarize_envelope(rows: list[dict]) -> list[dict]:
     return out
 
 
+PROTOCOL = (PROTOCOL_NOISE_M, PROTOCOL_KEEP)
+
+
 def markdown_envelope(report: dict) -> str:
     """The generated doc: one row per fragment and view condition, one column per cell."""
     entries = report["entries"]
@@ -88,7 +97,7 @@ def markdown_envelope(report: dict) -> str:
         row = [
             e["fragment"],
             f"{1000 * e['noise_m']:g}",
-            f"{e['keep']:g}" + (" (protocol)" if (e["noise_m"], e["keep"]) == (0.005, 0.5) else ""),
+            f"{e['keep']:g}" + (" (protocol)" if (e["noise_m"], e["keep"]) == PROTOCOL else ""),
         ]
         for name in names:
             c = e["cells"][name]
