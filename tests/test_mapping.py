@@ -9,6 +9,7 @@ from dataclasses import replace
 import gtsam
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from graphloc.cli import main as cli_main
 from graphloc.datasets.dual_room import (
@@ -249,13 +250,26 @@ def test_parse_hint():
     T = parse_hint("1 2 3 0 0 0 1")
     np.testing.assert_allclose(T[:3, 3], [1, 2, 3])
     np.testing.assert_allclose(parse_hint(" ".join(map(str, np.eye(4).ravel()))), np.eye(4))
-    with pytest.raises(ValueError, match="unit"):
+    with pytest.raises(ValueError, match="norm 2, not unit length"):
         parse_hint("1 2 3 0 0 0 2")
+    # a quaternion typed with two decimals (norm 0.9987) is the rotation it rounds
+    q = np.array([0.99, -0.13, 0.0, 0.02])
+    R = parse_hint("0 0 0 " + " ".join(map(str, q)))[:3, :3]
+    np.testing.assert_allclose(R, Rotation.from_quat(q / np.linalg.norm(q)).as_matrix())
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    with pytest.raises(ValueError, match="norm 0.9, not unit length"):
+        parse_hint("0 0 0 0.9 0 0 0")
+    skew = np.eye(4)
+    skew[0, 1] = 0.05
+    with pytest.raises(ValueError, match=r"not a rigid transform \(max \|R R\^T - I\| = 0.05"):
+        parse_hint(" ".join(map(str, skew.ravel())))
     with pytest.raises(ValueError, match="7"):
         parse_hint("1 2 3")
 
 
-def test_fuse_maps_verb_on_user_directories_with_a_hint(scenario, tmp_path):
+def test_fuse_maps_verb_on_user_directories_with_a_hint(scenario, tmp_path, capsys):
+    """A hint typed as a 4x4 rounded to three decimals (off orthonormal by the rounding) is
+    taken as its nearest rotation; the terminal summary gives the calibrated 1-sigma."""
     scenario.write(tmp_path / "scn")
     T = (
         scenario.T_ground0_ceiling0
@@ -263,7 +277,8 @@ def test_fuse_maps_verb_on_user_directories_with_a_hint(scenario, tmp_path):
             gtsam.Rot3.Expmap(np.deg2rad([2.0, 1.0, -3.0])), np.array([0.05, 0.0, -0.04])
         ).matrix()
     )
-    hint = " ".join(f"{v:.9f}" for v in T.ravel())
+    hint = " ".join(f"{v:.3f}" for v in T.ravel())
+    assert np.abs(T[:3, :3].round(3) @ T[:3, :3].round(3).T - np.eye(3)).max() > 1e-4
     rc = cli_main(
         [
             "fuse-maps",
@@ -291,6 +306,9 @@ def test_fuse_maps_verb_on_user_directories_with_a_hint(scenario, tmp_path):
     ):
         assert (tmp_path / "out" / name).stat().st_size > 0
     assert report["registration"]["icp_iterations"] > 0 and "timings_s" in report
+    out = capsys.readouterr().out
+    sigma = report["registration_decision"]["sigma_rot_deg"]
+    assert f"1-sigma (calibrated covariance): rotation {[round(v, 3) for v in sigma]} deg" in out
 
 
 def test_a_wrong_hint_on_the_simulated_room_is_not_fused(scenario, tmp_path, capsys):

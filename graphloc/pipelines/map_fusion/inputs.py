@@ -14,8 +14,17 @@ from graphloc.mapping.io import read_led_pixels
 from graphloc.pipelines.map_fusion.types import LedObservations
 
 
+# how far a hand-typed hint's rotation may be off unit length / orthonormal: rounding to two or
+# three decimals, far below any hint's sigma
+HINT_ROUNDING = 0.01
+
+
 def parse_hint(text: str) -> np.ndarray:
-    """`x y z qx qy qz qw` (TUM order) or 16 numbers (row-major 4x4) -> (4,4) T_G0_C0."""
+    """`x y z qx qy qz qw` (TUM order) or 16 numbers (row-major 4x4) -> (4,4) T_G0_C0. A hint
+    typed with a few decimals is rounded off a rotation: a quaternion whose norm is within
+    HINT_ROUNDING of 1 is normalized, and a 3x3 block within HINT_ROUNDING of orthonormal
+    (max |R R^T - I|) becomes its nearest rotation (SciPy's `Rotation.from_matrix`); farther
+    off, it is no rotation (a typo) and an error says by how much."""
     try:
         vals = np.array([float(v) for v in text.replace(",", " ").split()])
     except ValueError:
@@ -23,21 +32,25 @@ def parse_hint(text: str) -> np.ndarray:
     if not np.isfinite(vals).all():
         raise ValueError(f"hint: non-finite value in {text!r}")
     if len(vals) == 7:
-        q = vals[3:]
-        if abs(np.linalg.norm(q) - 1.0) > 1e-3:
-            raise ValueError(f"hint: quaternion {q} is not unit length")
+        q, norm = vals[3:], float(np.linalg.norm(vals[3:]))
+        if abs(norm - 1.0) > HINT_ROUNDING:
+            raise ValueError(
+                f"hint: quaternion {q.tolist()} has norm {norm:.4g}, not unit length (within "
+                f"{HINT_ROUNDING}); the order is x y z qx qy qz qw"
+            )
         T = np.eye(4)
-        T[:3, :3], T[:3, 3] = Rotation.from_quat(q).as_matrix(), vals[:3]
+        T[:3, :3], T[:3, 3] = Rotation.from_quat(q / norm).as_matrix(), vals[:3]
         return T
     if len(vals) == 16:
-        T = vals.reshape(4, 4)
+        T = vals.reshape(4, 4).copy()
         R = T[:3, :3]
-        if not (
-            np.allclose(R @ R.T, np.eye(3), atol=1e-4)
-            and np.allclose(T[3], [0, 0, 0, 1])
-            and np.linalg.det(R) > 0
-        ):
-            raise ValueError("hint: 4x4 matrix is not a rigid transform")
+        off = float(np.abs(R @ R.T - np.eye(3)).max())
+        if not (off <= HINT_ROUNDING and np.allclose(T[3], [0, 0, 0, 1]) and np.linalg.det(R) > 0):
+            raise ValueError(
+                f"hint: 4x4 matrix is not a rigid transform (max |R R^T - I| = {off:.3g}, "
+                f"det R = {np.linalg.det(R):.3g}, last row {T[3].tolist()})"
+            )
+        T[:3, :3] = Rotation.from_matrix(R).as_matrix()
         return T
     raise ValueError(f"hint: expected 7 (x y z qx qy qz qw) or 16 numbers, got {len(vals)}")
 

@@ -226,8 +226,9 @@ def write_rejection(
 
 
 def summary_text(report: dict) -> str:
-    """A few lines for the terminal: transform, ICP quality, error vs truth, timings, files (or,
-    for a rejected fusion, "not fused" and why)."""
+    """A few lines for the terminal: transform, ICP quality, the robust registration's
+    calibrated 1-sigma (when it ran), error vs truth, timings, files (or, for a rejected fusion,
+    "not fused" and why)."""
     if report.get("status") == "not_fused":
         n = len(report["registration_decision"]["candidates"])
         lines = [
@@ -244,6 +245,14 @@ def summary_text(report: dict) -> str:
         f"RMSE {report['registration']['inlier_rmse_m']:.4f} m, "
         f"{report['registration']['icp_iterations']} iterations",
     ]
+    decision = report.get("registration_decision")
+    if decision is not None and decision.get("sigma_rot_deg") is not None:
+        lines.append(
+            "1-sigma (calibrated covariance): rotation "
+            f"{[round(v, 3) for v in decision['sigma_rot_deg']]} deg, translation "
+            f"{[round(100 * v, 2) for v in decision['sigma_trans_m']]} cm; every check passed, "
+            f"{len(decision['candidates'])} distinct candidate(s) tried"
+        )
     if "errors_vs_truth" in report:
         e = report["errors_vs_truth"]
         lines.append(
