@@ -39,7 +39,8 @@ def parse_hint(text: str) -> np.ndarray:
                 f"{HINT_ROUNDING}); the order is x y z qx qy qz qw"
             )
         T = np.eye(4)
-        T[:3, :3], T[:3, 3] = Rotation.from_quat(q / norm).as_matrix(), vals[:3]
+        # SciPy normalizes the quaternion itself
+        T[:3, :3], T[:3, 3] = Rotation.from_quat(q).as_matrix(), vals[:3]
         return T
     if len(vals) == 16:
         T = vals.reshape(4, 4).copy()
