@@ -470,3 +470,29 @@ def test_bench_fusion_real_probes_other_sensors_and_says_so(tmp_path):
     for bad in (["--keep", "0"], ["--keep", "1.5"], ["--noise", "-0.01"]):
         with pytest.raises(SystemExit, match="--keep"):
             main([*argv, *bad])
+
+
+@pytest.mark.slow
+def test_a_dense_scan_is_thinned_to_the_calibrated_density_and_fused(redwood):
+    """The fragment repeated 40 times, each copy with its own 5 mm noise: views of about 200
+    points per grid cell, where the benchmark's hold a few (those keep every point). Gridded
+    whole, the noise reaches more cells along every surface and the fine stage's pose errs so
+    far that a right registration fails the contradicted cubes (not fused); thinned at random to
+    RegistrationConfig.max_points_per_cell per cell, it is fused within the benchmark's accuracy
+    (60% overlap, 3 deg / 5 cm hint, exploration seed 200)."""
+    protocol = make_view_pair(redwood, 0.6, np.random.default_rng([200, 600]))
+    view = prepare(protocol.ground)
+    assert view.n_used == view.n_input == len(protocol.ground)
+    rng = np.random.default_rng([200, 600, 40])
+    pair = make_view_pair(np.vstack([redwood] * 40), 0.6, rng)
+    hint = perturb(pair.T_ground_ceiling, 3.0, 0.05, rng)
+    cov = hint_covariance(np.deg2rad(3.0), 0.05)
+    whole = RegistrationConfig(max_points_per_cell=0)
+    d = robust_register(prepare(pair.ceiling, whole), prepare(pair.ground, whole), hint, cov, whole)
+    assert not d.accepted and not d.checks["contradicted_fraction"][2], d.checks
+    src, tgt = prepare(pair.ceiling), prepare(pair.ground)
+    assert src.n_used < len(pair.ceiling) / 20
+    d = robust_register(src, tgt, hint, cov)
+    assert d.accepted, d.reasons
+    rot, trans = pose_errors(d.registration.transformation, pair.T_ground_ceiling)
+    assert rot < 0.2 and trans < 0.01, (rot, trans)

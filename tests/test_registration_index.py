@@ -10,6 +10,7 @@ from scipy.spatial import cKDTree
 
 from graphloc.mapping.registration import RegistrationConfig, prepare
 from graphloc.mapping.registration_index import NearestIndex
+from graphloc.mapping.scan_noise import grid_cells
 
 
 def test_nearest_index_is_the_nearest_point_within_its_radius():
@@ -63,3 +64,31 @@ def test_polish_points_per_cell_strides_dense_scans_and_keeps_sparse_ones():
     np.testing.assert_array_equal(strided, pts[::k])
     with pytest.raises(ValueError, match="polish_points_per_cell"):
         RegistrationConfig(polish_points_per_cell=-1)
+
+
+def test_a_scan_denser_than_max_points_per_cell_is_thinned_at_random_to_it():
+    """RegistrationConfig.max_points_per_cell: a scan with more input points per occupied grid
+    cell on average is gridded from that many per cell, the same random draw in every call
+    (no stride: an organized scan's every k-th point can be one column); a sparser scan, or 0,
+    keeps every point; the polish's points and the residual spread come from the points kept."""
+    rng = np.random.default_rng(9)
+    pts = np.c_[rng.uniform(0, 1, (60000, 2)), rng.normal(0, 0.002, 60000)]
+    whole = prepare(pts, RegistrationConfig(max_points_per_cell=0))
+    cells = len(grid_cells(pts, RegistrationConfig().voxel))  # before the outlier removal
+    assert len(pts) > 20 * cells and whole.n_used == len(pts)  # about 25 per 3 cm cell
+    np.testing.assert_array_equal(
+        prepare(pts, RegistrationConfig(max_points_per_cell=100)).points, whole.points
+    )
+    cfg = RegistrationConfig(max_points_per_cell=8, polish_points_per_cell=0)
+    a, b = prepare(pts, cfg), prepare(pts, cfg)
+    assert a.n_input == len(pts) and a.n_used == int(8 * cells)
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.raw, b.raw)
+    # the points kept, in their input order, spread over the whole scan
+    pos = np.flatnonzero(np.isin(pts[:, 0], a.raw[:, 0]))
+    assert len(pos) == a.n_used and np.all(np.diff(pos) > 0)
+    np.testing.assert_array_equal(a.raw, pts[pos])
+    assert np.ptp(np.diff(pos)) > 1  # not a stride
+    assert abs(len(a.points) - len(whole.points)) < 0.05 * cells  # the same surface and grid
+    with pytest.raises(ValueError, match="max_points_per_cell"):
+        RegistrationConfig(max_points_per_cell=-1)

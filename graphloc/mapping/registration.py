@@ -119,6 +119,17 @@ class RegistrationConfig:
     # thin its rings alone and tilt the normals across them)
     polish_points_per_cell: float = 2.0
     polish_relative: float = 1e-6  # its stop: relative change of fitness and inlier RMSE
+    # `prepare`: a scan holding more than max_points_per_cell input points per occupied grid cell
+    # (cfg.voxel) on average is first thinned to that many per cell, drawn at random (`denoise`;
+    # 0: never thinned). The more points a noisy surface has, the more of the cells along it its
+    # noise reaches (a thicker shell of cells): the cells' centroids and normals leave the
+    # surface, the coarse and fine stages' poses err more, and a right registration's
+    # contradicted cubes rise past their limit (the Redwood fragment's views repeated tens of
+    # times, each copy with its own noise). The checks' thresholds and the covariance's
+    # calibration were fitted on views of the bundled fragments at the benchmark's density,
+    # a few points per cell; this bound keeps every such view whole and brings a denser scan
+    # (a depth camera close up, a LiDAR map accumulated over many sweeps) back to it
+    max_points_per_cell: float = 8.0
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
     # the wide level's reach is capped at max_reach [m]: beyond it a first-order covariance is no
@@ -146,6 +157,7 @@ class RegistrationConfig:
             nonnegative=(
                 "covariance_degeneracy",
                 "polish_points_per_cell",
+                "max_points_per_cell",
                 "coarse_tukey",
                 "fine_tukey",
                 "polish_distance",
@@ -185,7 +197,8 @@ class PreparedCloud:
     """A denoised, downsampled cloud with normals (tensor and legacy views share no memory),
     `raw`: the input points at full resolution (for the last stage of `robust_register`,
     `polish`; None when cfg.polish_distance is 0; every k-th one beyond
-    cfg.polish_points_per_cell per grid cell),
+    cfg.polish_points_per_cell per grid cell), `n_used`: how many of the n_input points were
+    gridded (fewer on a scan denser than cfg.max_points_per_cell),
     and `residual_spread`: the scan's own point-to-plane residual spread [m] on this grid
     (`graphloc.mapping.scan_noise.split_half_sigma`; the scale of robust_register's checks)."""
 
@@ -195,6 +208,7 @@ class PreparedCloud:
     n_outliers: int
     raw: np.ndarray | None = None
     residual_spread: float = float("nan")
+    n_used: int = 0  # the input points gridded (fewer than n_input: cfg.max_points_per_cell)
 
     @property
     def points(self) -> np.ndarray:
@@ -216,11 +230,14 @@ class Registration:
 
 
 def denoise(
-    points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig()
-) -> tuple[o3d.t.geometry.PointCloud, int]:
+    points: np.ndarray, cfg: RegistrationConfig = RegistrationConfig(), max_points_per_cell=0.0
+) -> tuple[o3d.t.geometry.PointCloud, int, np.ndarray | None]:
     """Voxel downsampling, then statistical outlier removal (seed 004 Sec. IV.A: a point far from
-    its nearest neighbours is noise); returns the cloud and the number of (voxel) outliers
-    removed."""
+    its nearest neighbours is noise). With max_points_per_cell > 0, a scan holding more points
+    than that per occupied cell on average is gridded again from that many per cell, drawn at
+    random (seeded: the same scan gives the same cloud; a stride would pick one ring or column
+    of an organized scan). Returns the cloud, the number of (voxel) outliers removed and the
+    indices of the points gridded, in their order (None: every point)."""
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"denoise: points must be (N,3), got {pts.shape}")
@@ -229,18 +246,26 @@ def denoise(
     if len(pts) < cfg.nb_neighbors + 1:
         raise ValueError(f"denoise: {len(pts)} points is too few (need > {cfg.nb_neighbors})")
     # sorted cells: the fine stage's every-k-th sample is the same in every run and process
-    pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(grid_cells(pts, cfg.voxel)))
+    cells = grid_cells(pts, cfg.voxel)
+    budget, kept = int(max_points_per_cell * len(cells)), None
+    if 0 < budget < len(pts):
+        kept = np.sort(np.random.default_rng(0).choice(len(pts), budget, replace=False))
+        cells = grid_cells(pts[kept], cfg.voxel)
+    pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor(cells))
     pcd, keep = pcd.remove_statistical_outliers(cfg.nb_neighbors, cfg.std_ratio)
-    return pcd, int(len(keep) - keep.numpy().sum())
+    return pcd, int(len(keep) - keep.numpy().sum()), kept
 
 
 def prepare(points, cfg=RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0), inter_robot=True):
-    """`denoise`, then normals oriented toward `viewpoint` (the sensor, for FPFH's signed
-    angles). With `inter_robot`, also what `robust_register` needs: the scan's residual spread
+    """`denoise` (a scan denser than cfg.max_points_per_cell per grid cell thinned first), then
+    normals oriented toward `viewpoint` (the sensor, for FPFH's signed angles). With
+    `inter_robot`, also what `robust_register` needs: the scan's residual spread
     (`split_half_sigma`) and, with cfg.polish_distance > 0, the input points (`raw`; every k-th
     beyond cfg.polish_points_per_cell per grid cell); scan matching of consecutive scans
     (`refine`) needs neither. Returns a `PreparedCloud`."""
-    pcd, n_out = denoise(points, cfg)
+    pcd, n_out, kept = denoise(points, cfg, cfg.max_points_per_cell)
+    pts = np.asarray(points, dtype=np.float64)
+    pts = pts if kept is None else pts[kept]
     pcd.estimate_normals(cfg.max_nn, cfg.normal_radius)
     pcd.orient_normals_towards_camera_location(
         o3d.core.Tensor(np.asarray(viewpoint, dtype=np.float64))
@@ -248,16 +273,16 @@ def prepare(points, cfg=RegistrationConfig(), viewpoint=(0.0, 0.0, 0.0), inter_r
     if len(pcd.point.positions) < 10:
         raise ValueError("prepare: fewer than 10 points left after denoising and downsampling")
     if not inter_robot:
-        return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out)
+        return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, n_used=len(pts))
     raw = None
     if cfg.polish_distance > 0:
-        raw = np.asarray(points, dtype=np.float64)
+        raw = pts
         budget = int(cfg.polish_points_per_cell * len(pcd.point.positions))
         if 0 < budget < len(raw):
             raw = raw[:: -(-len(raw) // budget)]
     fine = cfg.max_correspondence[-1]
-    spread = split_half_sigma(points, cfg.voxel, cfg.normal_radius, cfg.max_nn, fine)
-    return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, raw, spread)
+    spread = split_half_sigma(pts, cfg.voxel, cfg.normal_radius, cfg.max_nn, fine)
+    return PreparedCloud(pcd, pcd.to_legacy(), len(points), n_out, raw, spread, len(pts))
 
 
 def information_right(info_left: np.ndarray, T: np.ndarray) -> np.ndarray:

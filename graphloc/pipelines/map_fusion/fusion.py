@@ -173,7 +173,7 @@ def fuse(inp: FusionInput, cfg: FusionConfig = FusionConfig()) -> FusionResult:
         ((GROUND, inp.ground_scans), (CEILING, inp.ceiling_scans)) if cfg.build_map else ()
     ):
         cloud = np.concatenate([s @ P[:3, :3].T + P[:3, 3] for s, P in zip(scans, poses[r])])
-        pcd, outliers[ROBOT_NAMES[r]] = denoise(
+        pcd, outliers[ROBOT_NAMES[r]], _ = denoise(
             cloud, replace(cfg.registration, voxel=cfg.map_voxel)
         )
         p = pcd.point.positions.numpy().astype(float)
