@@ -25,8 +25,19 @@ from graphloc.mapping.acceptance import (
 )
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
-from graphloc.experiments.fusion_bench_real import PROTOCOL_KEEP, PROTOCOL_NOISE_M, run_real_trial
-from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
+from graphloc.experiments.fusion_bench_real import (
+    PROTOCOL_KEEP,
+    PROTOCOL_NOISE_M,
+    cramer_rao_bound,
+    run_real_trial,
+)
+from graphloc.experiments.real_views import (
+    ViewPair,
+    ceiling_pose,
+    load_fragment,
+    make_view_pair,
+    perturb,
+)
 from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
 from graphloc.mapping.registration_covariance import calibrated_covariance
 from graphloc.mapping.registration_stages import fine_stage, polish
@@ -417,6 +428,39 @@ def test_a_calibration_trial_keeps_the_terms_its_covariance_is_made_of():
         assert P.shape == Q.shape == (6, 6) and np.all(np.linalg.eigvalsh(Q) >= -1e-18)
         cov = calibrated_covariance(P, Q, RegistrationConfig())
         assert g["nees"] == pytest.approx(float(e @ np.linalg.solve(cov, e)), rel=1e-6)
+
+
+def test_the_cramer_rao_bound_sums_the_two_views_overlap_information():
+    """cramer_rao_bound: three planar patches far apart (a floor, two walls; each patch's
+    normal exact), both views holding every point: each view's information is sum J^T J /
+    sigma^2 with J = [(p - c) x n, n], the bound the rotation block of twice its inverse; it
+    grows with the noise squared, is zero without noise, and a view missing most of a wall (out
+    of the overlap) is bound less tightly; a view missing all of it leaves a floor and one wall,
+    along which a view slides freely (NaN)."""
+    g = np.linspace(0.0, 1.0, 30)
+    u, v = (a.ravel() for a in np.meshgrid(g, g))
+    floor = np.c_[u, v, np.zeros_like(u)]
+    wall_x = np.c_[np.full_like(u, 3.0), u + 1.5, v]
+    wall_y = np.c_[u - 2.0, np.full_like(u, 3.0), v + 0.5]
+    frag = np.vstack([floor, wall_x, wall_y])
+    normals = np.repeat(np.eye(3)[[2, 0, 1]], len(u), axis=0)
+    T = ceiling_pose(0.7, np.array([0.2, -0.3, 2.5]))
+    in_c = lambda pts: (pts - T[:3, 3]) @ T[:3, :3]  # noqa: E731  (G -> C)
+    c = frag.mean(axis=0)
+    J = np.hstack([np.cross(frag - c, normals), normals])
+    sigma = 0.005
+    expected = np.degrees(np.degrees(2 * sigma**2 * np.linalg.inv(J.T @ J)[:3, :3]))
+    pair = ViewPair(frag, in_c(frag), T, 1.0)
+    bound = cramer_rao_bound(frag, pair, sigma, 0.02)
+    np.testing.assert_allclose(bound, expected, rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(cramer_rao_bound(frag, pair, 2 * sigma, 0.02), 4 * bound)
+    assert not cramer_rao_bound(frag, pair, 0.0, 0.02).any()
+    partial = ViewPair(frag, in_c(np.vstack([floor, wall_x, wall_y[u < 0.3]])), T, 1.0)
+    looser = cramer_rao_bound(frag, partial, sigma, 0.02)
+    assert np.linalg.eigvalsh(looser - bound).min() > -1e-12  # less information: never tighter
+    assert np.trace(looser) > 1.2 * np.trace(bound)
+    corridor = ViewPair(frag, in_c(np.vstack([floor, wall_x])), T, 1.0)  # sliding along y
+    assert np.isnan(cramer_rao_bound(frag, corridor, sigma, 0.02)).all()
 
 
 def test_contradicted_fraction_counts_the_cubes_where_the_views_do_not_meet():

@@ -76,7 +76,8 @@ def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> li
 
     overlap, seed, calibrate, fragment, noise_m, keep = job
     rng = np.random.default_rng([seed, int(round(1000 * overlap))])
-    pair = make_view_pair(load_fragment(fragment), overlap, rng, keep=keep, noise_m=noise_m)
+    fragment_pts = load_fragment(fragment)
+    pair = make_view_pair(fragment_pts, overlap, rng, keep=keep, noise_m=noise_m)
     truth = pair.T_ground_ceiling
     cfg = RegistrationConfig()
     t0 = time.perf_counter()
@@ -98,7 +99,8 @@ def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> li
         )
         T_floor = polish(source, target, truth, cfg).transformation  # from the truth
         floor = dict(zip(("rot_deg", "trans_m"), pose_errors(T_floor, truth)))
-        floor["bound_rot_cov_deg2"] = hessian_bound(pair.ceiling, pair.ground, truth, cfg).tolist()
+        bound = cramer_rao_bound(fragment_pts, pair, noise_m, cfg.polish_distance)
+        floor["bound_rot_cov_deg2"] = bound.tolist()
     rows = []
     for rot_deg, trans_m in REAL_HINTS:
         hint = perturb(truth, rot_deg, trans_m, rng)
@@ -183,26 +185,40 @@ def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> li
     return rows
 
 
-def hessian_bound(source: np.ndarray, target: np.ndarray, T: np.ndarray, cfg) -> np.ndarray:
-    """3x3 rotation block [deg^2] of s^2 H^-1 for the point-to-plane objective of `polish` at
-    T (T_target_source): source points within cfg.polish_distance of their nearest target point,
-    on that point's plane (normal of its cfg.polish_max_nn nearest neighbours); H = J^T J with
-    J = [(p x n)^T, n^T] (left perturbation, rotation vector in the target frame, the signed
-    errors' convention), s^2 the residuals' variance."""
+def cramer_rao_bound(fragment: np.ndarray, pair, noise_m: float, distance: float) -> np.ndarray:
+    """3x3 rotation block [deg^2] (rotation vector in G) of the Cramer-Rao bound on
+    pair.T_ground_ceiling from its two views (`graphloc.experiments.real_views.ViewPair`, cut
+    from the (N,3) `fragment` with isotropic Gaussian noise of noise_m per axis). The surface is
+    taken as known -- the fragment's, each view point on the plane of its nearest fragment point
+    (normal of that point's 30 nearest) -- and only the overlap informs the relative pose: a
+    view's points within `distance` of the other view at the truth. Each view's pose against the
+    surface has the information I_v = sum J^T J / noise_m^2, J = [((p - c) x n)^T, n^T]
+    (rotation about the overlap's centroid c, in G), and the relative pose the covariance
+    I_ground^-1 + I_ceiling^-1. Any unbiased estimator from these views errs at least this much
+    (the two views' noise is independent; the fragment's own is common to both and cancels);
+    zero without noise, NaN when an overlap leaves a direction unconstrained."""
     import open3d as o3d
+    from scipy.spatial import cKDTree
 
-    p = source @ T[:3, :3].T + T[:3, 3]
-    tgt = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.asarray(target, dtype=np.float64)))
-    tgt.estimate_normals(cfg.polish_max_nn)
-    nns = o3d.core.nns.NearestNeighborSearch(tgt.point.positions)
-    nns.knn_index()
-    idx, d2 = nns.knn_search(o3d.core.Tensor(p), 1)
-    idx, near = idx.numpy()[:, 0], d2.numpy()[:, 0] < cfg.polish_distance**2
-    n = tgt.point.normals.numpy()[idx[near]]
-    p = p[near]
-    r = np.einsum("ij,ij->i", p - target[idx[near]], n)
-    J = np.hstack([np.cross(p, n), n])
-    cov = r.var(ddof=6) * np.linalg.inv(J.T @ J)
+    if noise_m <= 0:
+        return np.zeros((3, 3))
+    T = pair.T_ground_ceiling
+    views = (np.asarray(pair.ground), pair.ceiling @ T[:3, :3].T + T[:3, 3])
+    surface = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(fragment))
+    surface.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(30))
+    normals, nearest = np.asarray(surface.normals), cKDTree(fragment)
+    overlaps = [
+        a[cKDTree(b).query(a, distance_upper_bound=distance)[0] < distance]
+        for a, b in (views, views[::-1])
+    ]
+    c = np.vstack(overlaps).mean(axis=0)
+    cov = np.zeros((6, 6))
+    for p in overlaps:
+        n = normals[nearest.query(p)[1]]
+        J = np.hstack([np.cross(p - c, n), n])
+        if len(p) < 6 or np.linalg.cond(J.T @ J) > 1e12:  # the overlap leaves a direction free
+            return np.full((3, 3), np.nan)
+        cov += noise_m**2 * np.linalg.inv(J.T @ J)
     return np.degrees(np.degrees(cov[:3, :3]))
 
 
@@ -251,9 +267,10 @@ def summarize_real(rows: list[dict]) -> dict:
             out[name][m] = s
         floors = [r["last_stage_from_truth"] for r in cell]
         covs = np.array([f["bound_rot_cov_deg2"] for f in floors])
+        covs = covs[np.isfinite(covs).all(axis=(1, 2))]  # NaN: an overlap with a free direction
         draws = np.random.default_rng(0).multivariate_normal  # 200 errors per trial's bound
         bound_err = np.concatenate(
-            [np.linalg.norm(draws(np.zeros(3), c, 200), axis=1) for c in covs]
+            [np.linalg.norm(draws(np.zeros(3), c, 200), axis=1) for c in covs] or [[np.nan]]
         )
         out[name]["last_stage_from_truth"] = {
             "rot_deg_median": float(np.median([f["rot_deg"] for f in floors])),

@@ -130,7 +130,7 @@ def markdown_real(report: dict, command: str) -> str:
         + " |"
     )
     lines.append(
-        "| Hessian bound of the last stage's objective at the true pose (rotation) | "
+        "| Cramer-Rao bound of the two views, any unbiased estimator (rotation) | "
         + " | ".join(
             f"{s['last_stage_from_truth']['bound_rot_deg_median']:.3f} / —" for s in summ.values()
         )
@@ -165,12 +165,12 @@ def markdown_real(report: dict, command: str) -> str:
         "registration) started at the true pose: the error the estimator has at its own minimum "
         "with these scans (5 mm noise, independent 50% subsampling), which no start can beat; "
         "issue 16 asks for a median of at most 0.1 deg / 1 cm. The bound row is the median "
-        "rotation error of an efficient estimator of that objective: per trial, the "
-        "point-to-plane Hessian at the true pose (full-resolution ceiling points on the ground "
-        "view's planes within the polish distance) with the residuals' variance, s^2 H^-1 "
-        "(`hessian_bound`), 200 draws of its rotation block per trial, pooled. It treats the "
-        "residuals as independent; surfaces the views sample differently make them correlated, "
-        "so real estimators stay above it. Its 1-sigma (RMS over trials) against graphloc's "
+        "rotation error the Cramer-Rao bound allows any unbiased estimator from the two views: "
+        "per trial, the surface taken as known (the fragment's own normals), each view's points "
+        "within the polish distance of the other view at the truth (the overlap) with the "
+        "views' noise, the relative pose's covariance the sum of the two views' "
+        "(`cramer_rao_bound`), 200 draws of its rotation block per trial, pooled. Its 1-sigma "
+        "(RMS over trials) against graphloc's "
         "observed spread [deg]:",
         "",
         "| cell | bound rot x / y / z | graphloc std rot x / y / z |",
