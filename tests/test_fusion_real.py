@@ -431,8 +431,8 @@ def test_a_calibration_trial_keeps_the_terms_its_covariance_is_made_of():
 
 
 def test_the_cramer_rao_bound_sums_the_two_views_overlap_information():
-    """cramer_rao_bound: three planar patches far apart (a floor, two walls; each patch's
-    normal exact), both views holding every point: each view's information is sum J^T J /
+    """cramer_rao_bound: three planar patches far apart (a floor, two walls; their exact
+    normals), both views holding every point: each view's information is sum J^T J /
     sigma^2 with J = [(p - c) x n, n], the bound the rotation block of twice its inverse; it
     grows with the noise squared, is zero without noise, and a view missing most of a wall (out
     of the overlap) is bound less tightly; a view missing all of it leaves a floor and one wall,
@@ -451,16 +451,16 @@ def test_the_cramer_rao_bound_sums_the_two_views_overlap_information():
     sigma = 0.005
     expected = np.degrees(np.degrees(2 * sigma**2 * np.linalg.inv(J.T @ J)[:3, :3]))
     pair = ViewPair(frag, in_c(frag), T, 1.0)
-    bound = cramer_rao_bound(frag, pair, sigma, 0.02)
+    bound = cramer_rao_bound(frag, normals, pair, sigma, 0.02)
     np.testing.assert_allclose(bound, expected, rtol=1e-6, atol=1e-12)
-    np.testing.assert_allclose(cramer_rao_bound(frag, pair, 2 * sigma, 0.02), 4 * bound)
-    assert not cramer_rao_bound(frag, pair, 0.0, 0.02).any()
+    np.testing.assert_allclose(cramer_rao_bound(frag, normals, pair, 2 * sigma, 0.02), 4 * bound)
+    assert not cramer_rao_bound(frag, normals, pair, 0.0, 0.02).any()
     partial = ViewPair(frag, in_c(np.vstack([floor, wall_x, wall_y[u < 0.3]])), T, 1.0)
-    looser = cramer_rao_bound(frag, partial, sigma, 0.02)
+    looser = cramer_rao_bound(frag, normals, partial, sigma, 0.02)
     assert np.linalg.eigvalsh(looser - bound).min() > -1e-12  # less information: never tighter
     assert np.trace(looser) > 1.2 * np.trace(bound)
     corridor = ViewPair(frag, in_c(np.vstack([floor, wall_x])), T, 1.0)  # sliding along y
-    assert np.isnan(cramer_rao_bound(frag, corridor, sigma, 0.02)).all()
+    assert np.isnan(cramer_rao_bound(frag, normals, corridor, sigma, 0.02)).all()
 
 
 def test_contradicted_fraction_counts_the_cubes_where_the_views_do_not_meet():

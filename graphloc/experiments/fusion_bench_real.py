@@ -28,12 +28,14 @@ import json
 import os
 import platform
 import time
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from graphloc.executor import Executor
 from graphloc.mapping.acceptance import AcceptanceConfig
+from graphloc.mapping.registration_index import NearestIndex
 from graphloc.experiments.fusion_report_real import (
     REAL_METHODS,
     REAL_ROT_OK_DEG,
@@ -76,8 +78,7 @@ def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> li
 
     overlap, seed, calibrate, fragment, noise_m, keep = job
     rng = np.random.default_rng([seed, int(round(1000 * overlap))])
-    fragment_pts = load_fragment(fragment)
-    pair = make_view_pair(fragment_pts, overlap, rng, keep=keep, noise_m=noise_m)
+    pair = make_view_pair(load_fragment(fragment), overlap, rng, keep=keep, noise_m=noise_m)
     truth = pair.T_ground_ceiling
     cfg = RegistrationConfig()
     t0 = time.perf_counter()
@@ -99,7 +100,7 @@ def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> li
         )
         T_floor = polish(source, target, truth, cfg).transformation  # from the truth
         floor = dict(zip(("rot_deg", "trans_m"), pose_errors(T_floor, truth)))
-        bound = cramer_rao_bound(fragment_pts, pair, noise_m, cfg.polish_distance)
+        bound = cramer_rao_bound(*fragment_surface(fragment), pair, noise_m, cfg.polish_distance)
         floor["bound_rot_cov_deg2"] = bound.tolist()
     rows = []
     for rot_deg, trans_m in REAL_HINTS:
@@ -185,33 +186,46 @@ def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> li
     return rows
 
 
-def cramer_rao_bound(fragment: np.ndarray, pair, noise_m: float, distance: float) -> np.ndarray:
+@lru_cache(maxsize=4)
+def fragment_surface(fragment: str | None) -> tuple[np.ndarray, np.ndarray]:
+    """The real fragment's points (`load_fragment`) and the normals of their 30 nearest: the
+    surface `cramer_rao_bound` takes as known, estimated once per fragment and process."""
+    import open3d as o3d
+
+    from graphloc.experiments.real_views import load_fragment
+
+    points = load_fragment(fragment)
+    surface = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    surface.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(30))
+    return points, np.asarray(surface.normals)
+
+
+def cramer_rao_bound(
+    surface: np.ndarray, normals: np.ndarray, pair, noise_m: float, distance: float
+) -> np.ndarray:
     """3x3 rotation block [deg^2] (rotation vector in G) of the Cramer-Rao bound on
     pair.T_ground_ceiling from its two views (`graphloc.experiments.real_views.ViewPair`, cut
-    from the (N,3) `fragment` with isotropic Gaussian noise of noise_m per axis). The surface is
-    taken as known -- the fragment's, each view point on the plane of its nearest fragment point
-    (normal of that point's 30 nearest) -- and only the overlap informs the relative pose: a
-    view's points within `distance` of the other view at the truth. Each view's pose against the
-    surface has the information I_v = sum J^T J / noise_m^2, J = [((p - c) x n)^T, n^T]
-    (rotation about the overlap's centroid c, in G), and the relative pose the covariance
-    I_ground^-1 + I_ceiling^-1. Any unbiased estimator from these views errs at least this much
-    (the two views' noise is independent; the fragment's own is common to both and cancels);
-    zero without noise, NaN when an overlap leaves a direction unconstrained."""
-    import open3d as o3d
+    from the (N,3) `surface` points with isotropic Gaussian noise of noise_m per axis). The
+    surface is taken as known -- each view point on the plane of its nearest surface point, of
+    that point's (N,3) unit `normals` (`fragment_surface`) -- and only the overlap informs the
+    relative pose: a view's points within `distance` of the other view at the truth. Each view's
+    pose against the surface has the information I_v = sum J^T J / noise_m^2,
+    J = [((p - c) x n)^T, n^T] (rotation about the overlap's centroid c, in G), and the relative
+    pose the covariance I_ground^-1 + I_ceiling^-1. Any unbiased estimator from these views errs
+    at least this much (the two views' noise is independent; the fragment's own is common to
+    both and cancels); zero without noise, NaN when an overlap leaves a direction
+    unconstrained."""
     from scipy.spatial import cKDTree
 
     if noise_m <= 0:
         return np.zeros((3, 3))
     T = pair.T_ground_ceiling
     views = (np.asarray(pair.ground), pair.ceiling @ T[:3, :3].T + T[:3, 3])
-    surface = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(fragment))
-    surface.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(30))
-    normals, nearest = np.asarray(surface.normals), cKDTree(fragment)
     overlaps = [
-        a[cKDTree(b).query(a, distance_upper_bound=distance)[0] < distance]
-        for a, b in (views, views[::-1])
+        a[NearestIndex(b, distance).nearest(a)[1] < distance] for a, b in (views, views[::-1])
     ]
     c = np.vstack(overlaps).mean(axis=0)
+    nearest = cKDTree(surface)
     cov = np.zeros((6, 6))
     for p in overlaps:
         n = normals[nearest.query(p)[1]]
