@@ -211,9 +211,10 @@ def cramer_rao_bound(
     relative pose: a view's points within `distance` of the other view at the truth. Each view's
     pose against the surface has the information I_v = sum J^T J / noise_m^2,
     J = [((p - c) x n)^T, n^T] (rotation about the overlap's centroid c, in G), and the relative
-    pose the covariance I_ground^-1 + I_ceiling^-1. Any unbiased estimator from these views errs
-    at least this much (the two views' noise is independent; the fragment's own is common to
-    both and cancels); zero without noise, NaN when an overlap leaves a direction
+    pose the covariance I_ground^-1 + I_ceiling^-1. Any unbiased estimator that knows the
+    surface errs at least this much (the two views' noise is independent; the fragment's own is
+    common to both and cancels); one that must learn the surface from the views, its fine shape
+    included, errs more. Zero without noise, NaN when an overlap leaves a direction
     unconstrained."""
     from scipy.spatial import cKDTree
 
