@@ -75,11 +75,13 @@ def marker_observations(
             observed=target.name,
         )
         for (time, marks, uv, lines), cs in zip(frames, sets):
-            if cs is None or len(cs) == 0:
+            if cs is None or (len(cs) == 0 and not cs.meta.get("inconsistent")):
                 sink.bad(
                     "no_p3p_solution", f"{lines}: fields 'u, v': no pose fits the marker pixels"
                 )
                 continue
+            # an inconsistent set (no pose passes the pixel chi-square) stays, empty: the team
+            # graph counts it in its stream and never decides it
             pixels = None if target.identical_markers else MarkerPixels(marks, uv, camera, sigma)
             out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs, pixels))
     return out

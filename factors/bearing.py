@@ -4,12 +4,15 @@ the formation up to scale, Problem 1 fixes the scale by the known distance |^2T_
 
 `bearing_factor`: robot j's marker (at `marker` in j's body frame) seen by robot i's camera
 (`body_T_camera` on i) as a unit bearing in the camera frame; error = Unit3 tangent error
-(2-vector) between the measured and the predicted bearing. GTSAM's built-in BearingFactor3D is
-Pose3 -> Point3 and BearingRangeFactorPose3 carries a range and no extrinsics, so this is a
-Python gtsam.CustomFactor with analytic Jacobians chained from GTSAM's own
-(Pose3.compose / transformFrom / transformTo, Unit3.FromPoint3 / errorVector). Its cost per
-linearization is measured against BearingFactor3D by `bearing_linearize_cost` (see
-tests/test_factors_camera.py and the report).
+(2-vector) between the measured and the predicted bearing. Where the camera sits at the body
+origin and looks at j's origin (a rotation-only `body_T_camera`, no marker offset) it is
+GTSAM's built-in BearingRangeFactorPose3 (Pose3 -> Pose3): the bearing rotated into the body
+frame (an isotropic bearing noise is the same in any frame) and a range component of std
+`UNINFORMATIVE_SIGMA`, which carries no information (its whitened residual is below 1e-6 for
+any range under a kilometre). With a camera offset or a marker offset no built-in fits, and it
+is a Python gtsam.CustomFactor with analytic Jacobians chained from GTSAM's own
+(Pose3.compose / transformFrom / transformTo, Unit3.FromPoint3 / errorVector). The cost per
+linearization of both is measured against BearingFactor3D by `bearing_linearize_cost`.
 
 `range_factor` / `known_baseline_factor`: gtsam.RangeFactorPose3 (distance between the two
 body origins) or gtsam.RangeFactorWithTransformPose3 when the ranging sensor is offset.
@@ -23,6 +26,9 @@ import gtsam
 import numpy as np
 
 from graphloc.factors.robust import Kernel, robust_noise
+
+
+UNINFORMATIVE_SIGMA = 1e6  # std [m] of the built-in bearing's range component: no information
 
 
 def _unit(bearing, what: str) -> np.ndarray:
@@ -60,9 +66,10 @@ def bearing_factor(
     body_T_camera: gtsam.Pose3 = gtsam.Pose3(),
     marker=np.zeros(3),
     kernel: Kernel = Kernel(),
-) -> gtsam.CustomFactor:
+) -> gtsam.NoiseModelFactor:
     """Bearing (camera frame of the observer) to the observed robot's marker; isotropic
-    `sigma` [rad] on the 2-DOF Unit3 error; optional robust kernel."""
+    `sigma` [rad] on the 2-DOF Unit3 error; optional robust kernel (module docstring: the
+    built-in factor where the camera offset and the marker offset are zero)."""
     measured = gtsam.Unit3(_unit(bearing, "bearing_factor"))
     marker = np.asarray(marker, dtype=float)
     if marker.shape != (3,) or not np.isfinite(marker).all():
@@ -73,9 +80,14 @@ def bearing_factor(
         )
     if observer_key == observed_key:
         raise ValueError("bearing_factor: observer and observed keys must differ")
-    noise = robust_noise(
-        gtsam.noiseModel.Isotropic.Sigma(2, _positive(sigma, "bearing_factor sigma")), kernel
-    )
+    sigma = _positive(sigma, "bearing_factor sigma")
+    if not marker.any() and not body_T_camera.translation().any():
+        noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([sigma, sigma, UNINFORMATIVE_SIGMA]))
+        body = body_T_camera.rotation().rotate(measured.point3())
+        return gtsam.BearingRangeFactorPose3(
+            observer_key, observed_key, gtsam.Unit3(body), 1.0, robust_noise(noise, kernel)
+        )
+    noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, sigma), kernel)
 
     def error(this: gtsam.CustomFactor, values: gtsam.Values, jacobians):
         Ti = values.atPose3(this.keys()[0])
@@ -133,12 +145,16 @@ def known_baseline_factor(
 
 
 def bearing_linearize_cost(repeats: int = 2000) -> dict:
-    """Seconds per linearization of `bearing_factor` (Python CustomFactor, Pose3 -> Pose3) and
-    of GTSAM's C++ BearingFactor3D (Pose3 -> Point3) on the same geometry, and their ratio."""
+    """Seconds per linearization of `bearing_factor` with a camera offset (Python CustomFactor,
+    Pose3 -> Pose3), of `bearing_factor` with a rotation-only camera (GTSAM's
+    BearingRangeFactorPose3) and of GTSAM's C++ BearingFactor3D (Pose3 -> Point3) on the same
+    geometry, and their ratios to BearingFactor3D."""
     ki, kj = gtsam.symbol("x", 0), gtsam.symbol("x", 1)
     Ti = gtsam.Pose3(gtsam.Rot3.Ypr(0.1, -0.2, 0.3), np.array([0.0, 0.0, 3.0]))
     Tj = gtsam.Pose3(gtsam.Rot3.Ypr(0.4, 0.1, -0.1), np.array([1.0, 0.5, 0.2]))
-    custom = bearing_factor(ki, kj, predicted_bearing(Ti, Tj), 0.01)
+    offset = gtsam.Pose3(gtsam.Rot3.Ypr(0.2, 0.1, -0.3), np.array([0.1, 0.0, 0.05]))
+    custom = bearing_factor(ki, kj, predicted_bearing(Ti, Tj, offset), 0.01, offset)
+    rotated = bearing_factor(ki, kj, predicted_bearing(Ti, Tj), 0.01)
     builtin = gtsam.BearingFactor3D(
         ki, kj, Ti.bearing(Tj.translation()), gtsam.noiseModel.Isotropic.Sigma(2, 0.01)
     )
@@ -148,10 +164,15 @@ def bearing_linearize_cost(repeats: int = 2000) -> dict:
     v_builtin.insert(ki, Ti)
     v_builtin.insert(kj, Tj.translation())
     out = {}
-    for name, factor, values in (("custom", custom, v_custom), ("builtin", builtin, v_builtin)):
+    for name, factor, values in (
+        ("custom", custom, v_custom),
+        ("rotation_only", rotated, v_custom),
+        ("builtin", builtin, v_builtin),
+    ):
         t0 = time.perf_counter()
         for _ in range(repeats):
             factor.linearize(values)
         out[f"{name}_s"] = (time.perf_counter() - t0) / repeats
     out["ratio"] = out["custom_s"] / out["builtin_s"]
+    out["rotation_only_ratio"] = out["rotation_only_s"] / out["builtin_s"]
     return out

@@ -1,7 +1,7 @@
 """Robust kernels chosen by name, per factor type, on top of gtsam.noiseModel.Robust.
 
     noise = robust_noise(gtsam.noiseModel.Diagonal.Sigmas([0.05, 0.1]), Kernel("cauchy", 1.0))
-    report = downweighted(graph, estimate, threshold=0.5)   # how many factors the kernel muted
+    muted = residuals(graph, estimate).downweighted(0.5)   # which factors the kernel mutes
 
 Kernels (gtsam.noiseModel.mEstimator): huber, cauchy, tukey, gemanmcclure, dcs, welsch, or none.
 `threshold` is the kernel's own constant `k` (in whitened units, i.e. sigmas).
@@ -90,45 +90,50 @@ def robust_noise(base: gtsam.noiseModel.Base, kernel: Kernel) -> gtsam.noiseMode
 
 
 @dataclass(frozen=True)
-class DownweightReport:
-    """indices: (n_robust,) graph indices of robust factors; weights: (n_robust,) their kernel
-    weights at the evaluated values; n_downweighted: how many have weight < threshold."""
+class Residuals:
+    """Every factor of a graph judged at one estimate: dims (N,) residual dimension; chi2 (N,)
+    the squared whitened residual *without* the robust kernel (the Gaussian measurement
+    model's chi-square; a factor with no noise model, e.g. a max-mixture: twice its error);
+    weights (N,) the robust kernel's weight w(||whitened residual||) (1 for non-robust
+    factors); robust (N,) whether the factor has a kernel."""
 
-    indices: np.ndarray
+    dims: np.ndarray
+    chi2: np.ndarray
     weights: np.ndarray
-    threshold: float
+    robust: np.ndarray
 
-    @property
-    def n_robust(self) -> int:
-        return int(self.indices.size)
-
-    @property
-    def n_downweighted(self) -> int:
-        return int(np.count_nonzero(self.weights < self.threshold))
-
-    def downweighted_indices(self) -> np.ndarray:
-        return self.indices[self.weights < self.threshold]
+    def downweighted(self, threshold: float) -> np.ndarray:
+        """(N,) bool: robust factors whose kernel weight is below `threshold`."""
+        if not 0 < threshold <= 1:
+            raise ValueError(f"down-weight threshold must be in (0, 1], got {threshold}")
+        return self.robust & (self.weights < threshold)
 
 
-def downweighted(
-    graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, threshold: float = 0.5, indices=None
-) -> DownweightReport:
-    """Kernel weight w(||whitened residual||) of every robust factor of `graph` (or of the
-    factors at `indices`) at `values`; factors with w < threshold count as down-weighted."""
-    if not 0 < threshold <= 1:
-        raise ValueError(f"down-weight threshold must be in (0, 1], got {threshold}")
-    candidates = range(graph.size()) if indices is None else indices
-    out_idx, out_w = [], []
-    for i in candidates:
-        factor = graph.at(int(i))
-        if factor is None or not hasattr(factor, "noiseModel"):
+UNINFORMATIVE = 1e5  # a residual component with a larger std carries no measurement
+
+
+def residuals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> Residuals:
+    """`Residuals` of every factor of `graph` at `values` (one pass, in graph order; a removed
+    factor slot counts as dimension 0; a residual component of std >= UNINFORMATIVE, e.g. the
+    range of a bearing-only `factors.bearing.bearing_factor`, does not count in the
+    dimension)."""
+    n = graph.size()
+    dims, chi2, weights = np.zeros(n, int), np.zeros(n), np.ones(n)
+    robust = np.zeros(n, bool)
+    for i in range(n):
+        factor = graph.at(i)
+        if factor is None:
             continue
-        model = factor.noiseModel()
-        if not isinstance(model, gtsam.noiseModel.Robust):
+        model = factor.noiseModel() if hasattr(factor, "noiseModel") else None
+        if model is None:
+            dims[i], chi2[i] = factor.dim(), 2.0 * factor.error(values)
             continue
-        whitened = model.noise().whiten(np.asarray(factor.unwhitenedError(values), dtype=float))
-        out_idx.append(int(i))
-        out_w.append(model.robust().weight(float(np.linalg.norm(whitened))))
-    return DownweightReport(
-        np.asarray(out_idx, dtype=int), np.asarray(out_w, dtype=float), float(threshold)
-    )
+        e = np.asarray(factor.unwhitenedError(values), dtype=float)
+        base = model.noise() if isinstance(model, gtsam.noiseModel.Robust) else model
+        dims[i] = int(np.count_nonzero(np.asarray(base.sigmas()) < UNINFORMATIVE))
+        whitened = base.whiten(e)
+        if base is not model:
+            robust[i] = True
+            weights[i] = model.robust().weight(float(np.linalg.norm(whitened)))
+        chi2[i] = float(np.dot(whitened, whitened))
+    return Residuals(dims, chi2, weights, robust)

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from graphloc import __version__
 from graphloc.commands.common import LOG, add_common_arguments, configure_logging
-from graphloc.exitcodes import BAD_INPUT, FAILED, INCOMPLETE, INTERRUPTED, OK
+from graphloc.exitcodes import BAD_INPUT, FAILED, INCOMPLETE, INCONSISTENT, INTERRUPTED, OK
 
 # verb -> module in graphloc.commands (keep sorted by the order a user meets them)
 VERBS: dict[str, str] = {
@@ -103,7 +103,8 @@ def main(argv: list[str] | None = None) -> int:
         return error(f"{type(exc).__name__}: {exc}", FAILED)
     LOG.info("%s: exit %d after %.1f s", args.verb, code, time.perf_counter() - start)
     out = getattr(args, "out", None)
-    if out is not None and code in (OK, INCOMPLETE) and Path(out).is_dir() and not args.quiet:
+    done = (OK, INCOMPLETE, INCONSISTENT)
+    if out is not None and code in done and Path(out).is_dir() and not args.quiet:
         print(f"graphloc {args.verb}: outputs in {out}", file=sys.stderr)
     return code
 

@@ -68,6 +68,9 @@ def align_se2(reference: PoseTrajectory3D, estimate: PoseTrajectory3D) -> PoseTr
     return aligned
 
 
+ALIGNMENTS = ("none", "se2", "se3", "sim3")
+
+
 def trajectory_metrics(
     reference: PoseTrajectory3D,
     estimate: PoseTrajectory3D,
@@ -76,9 +79,11 @@ def trajectory_metrics(
     max_time_diff: float = 0.02,
 ) -> TrajectoryMetrics:
     """ATE / RPE of `estimate` against `reference` (time-associated by evo within max_time_diff).
-    align: "se2" (planar), "se3" or "none"."""
-    if align not in ("se2", "se3", "none"):
-        raise ValueError(f"align must be se2, se3 or none, got {align!r}")
+    align (as evo names them): "none" (the world frame the run defines), "se2" (planar: a
+    rotation about z and a translation in the plane), "se3" (Umeyama, no scale) or "sim3"
+    (Umeyama with scale)."""
+    if align not in ALIGNMENTS:
+        raise ValueError(f"align must be one of {', '.join(ALIGNMENTS)}, got {align!r}")
     ref, est = _associate(reference, estimate, max_time_diff)
     if ref.num_poses < 3:
         raise ValueError(
@@ -86,11 +91,11 @@ def trajectory_metrics(
         )
     if align == "se2":
         est = align_se2(ref, est)
-    elif align == "se3":
+    elif align in ("se3", "sim3"):
         est = PoseTrajectory3D(
             poses_se3=[p.copy() for p in est.poses_se3], timestamps=est.timestamps.copy()
         )
-        est.align(ref, correct_scale=False)
+        est.align(ref, correct_scale=align == "sim3")
     ape = metrics.APE(metrics.PoseRelation.translation_part)
     ape.process_data((ref, est))
     stats = ape.get_all_statistics()

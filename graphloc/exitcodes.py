@@ -12,6 +12,8 @@ INCOMPLETE = 3  # no trustworthy full answer, said so: smooth / online stopped b
 #                SIGTERM (partial outputs, metrics.json "partial": true), fuse-maps not fused
 #                (a report of every candidate and why it lost, no map)
 RUNS_FAILED = 4  # smooth / online over many runs: at least one run failed (runs.csv says why)
+INCONSISTENT = 5  # smooth / online --strict: every output written, but the solve failed its
+#                  consistency test or raised a warning (metrics.json "consistency" says which)
 INTERRUPTED = 130  # a second Ctrl-C, or Ctrl-C in a verb that cannot stop cleanly (128 + SIGINT)
 
 CODES = {
@@ -20,5 +22,6 @@ CODES = {
     BAD_INPUT: "bad input or usage",
     INCOMPLETE: "stopped or not fused",
     RUNS_FAILED: "some runs failed",
+    INCONSISTENT: "inconsistent or incomplete solve (--strict)",
     INTERRUPTED: "interrupted",
 }

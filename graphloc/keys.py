@@ -5,6 +5,8 @@ Pose of robot r at step t:  Symbol('x', r * STRIDE + t)   e.g. x3000000012 = rob
 Landmark l:                 Symbol('l', l)
 Discrete mode of observation k (which candidate is genuine): Symbol('m', k)
 Marker j of robot r's layout, a world point (static robots): Symbol('k', r * MAX_MARKERS + j)
+Marker j of the target of candidate set n, a world point at that set's time (moving targets):
+                            Symbol('q', n * MAX_MARKERS + j)
 """
 
 from __future__ import annotations
@@ -52,13 +54,23 @@ def marker_key(robot: int, marker: int) -> int:
     return gtsam.symbol("k", int(robot) * MAX_MARKERS + int(marker))
 
 
+def frame_marker_key(observation: int, marker: int) -> int:
+    """Key of marker `marker` of the target of candidate set `observation` as a world point at
+    that set's time (a moving target's markers: one point per set and marker)."""
+    if int(observation) < 0:
+        raise ValueError(f"observation index {observation} is negative")
+    if not (0 <= int(marker) < MAX_MARKERS):
+        raise ValueError(f"marker index {marker} outside [0, {MAX_MARKERS})")
+    return gtsam.symbol("q", int(observation) * MAX_MARKERS + int(marker))
+
+
 def decode(key: int) -> tuple[str, int, int]:
-    """Inverse of the builders: ('x', robot, t), ('l', id, 0), ('m', obs, 0) or
-    ('k', robot, marker)."""
+    """Inverse of the builders: ('x', robot, t), ('l', id, 0), ('m', obs, 0),
+    ('k', robot, marker) or ('q', observation, marker)."""
     kind, index = chr(key >> 56), key & _INDEX_MASK  # gtsam.Symbol's layout, no GTSAM call
     if kind == "x":
         return kind, index // STRIDE, index % STRIDE
-    if kind == "k":
+    if kind in ("k", "q"):
         return kind, index // MAX_MARKERS, index % MAX_MARKERS
     return kind, index, 0
 
@@ -70,7 +82,7 @@ def decode_many(keys) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     k = np.asarray(keys, dtype=np.uint64).reshape(-1)
     index = (k & np.uint64(_INDEX_MASK)).astype(np.int64)
     kind = (k >> np.uint64(56)).astype(np.uint8).view("S1").astype(str)
-    stride = np.where(kind == "x", STRIDE, np.where(kind == "k", MAX_MARKERS, 0))
+    stride = np.where(kind == "x", STRIDE, np.where(np.isin(kind, ("k", "q")), MAX_MARKERS, 0))
     first = np.where(stride > 0, index // np.maximum(stride, 1), index)
     second = np.where(stride > 0, index % np.maximum(stride, 1), 0)
     return kind, first, second

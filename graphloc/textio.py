@@ -28,9 +28,11 @@ class SkipReport:
     counts: dict = field(default_factory=dict)
     examples: list = field(default_factory=list)
     max_examples: int = 20
+    first: dict = field(default_factory=dict)  # reason -> its first message
 
     def add(self, reason: str, message: str, n: int = 1) -> None:
         self.counts[reason] = self.counts.get(reason, 0) + n
+        self.first.setdefault(reason, message)
         if len(self.examples) < self.max_examples:
             self.examples.append(message)
 
@@ -41,6 +43,8 @@ class SkipReport:
     def merge(self, other: "SkipReport") -> None:
         for reason, n in other.counts.items():
             self.counts[reason] = self.counts.get(reason, 0) + n
+        for reason, message in other.first.items():
+            self.first.setdefault(reason, message)
         self.examples.extend(other.examples[: max(0, self.max_examples - len(self.examples))])
 
     def as_dict(self) -> dict:
@@ -48,6 +52,7 @@ class SkipReport:
             "total": self.total,
             "counts": dict(sorted(self.counts.items())),
             "examples": list(self.examples),
+            "first": dict(sorted(self.first.items())),
         }
 
 

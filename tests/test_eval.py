@@ -63,7 +63,11 @@ def test_association_and_bad_input():
     with pytest.raises(ValueError, match="NaN"):
         planar_to_evo(t, np.where(t[:, None] > 5, np.nan, gt))
     with pytest.raises(ValueError, match="align"):
-        trajectory_metrics(planar_to_evo(t, gt), planar_to_evo(t, gt), align="sim3")
+        trajectory_metrics(planar_to_evo(t, gt), planar_to_evo(t, gt), align="sim2")
+    scaled = trajectory_metrics(
+        planar_to_evo(t, gt), planar_to_evo(t, gt * [2, 2, 1]), align="sim3"
+    )
+    assert scaled.ate_rmse < 1e-6  # Umeyama with scale undoes a uniform scale of the track
 
 
 def test_tum_roundtrip_and_error_curve(tmp_path):

@@ -381,7 +381,8 @@ def test_refine_reports_a_singular_icp_system_as_too_few_correspondences(redwood
     hint = perturb(pair.T_ground_ceiling, 10.0, 0.20, rng)
     cfg = RegistrationConfig()
     src, tgt = prepare(pair.ceiling, cfg), prepare(pair.ground, cfg)
-    with pytest.raises(ValueError, match="too few correspondences.*Open3D: Singular 6x6"):
+    # Open3D reports it as a singular system (0.18-0.19) or returns no correspondence (0.20)
+    with pytest.raises(ValueError, match="too few correspondences"):
         refine(src, tgt, hint, cfg)
 
 

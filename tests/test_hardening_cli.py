@@ -334,7 +334,7 @@ def test_expected_failures_are_one_error_line_with_their_code(
 
 def test_exit_codes_are_distinct_and_documented():
     codes = [exitcodes.OK, exitcodes.FAILED, exitcodes.BAD_INPUT, exitcodes.INCOMPLETE]
-    codes += [exitcodes.RUNS_FAILED, exitcodes.INTERRUPTED]
+    codes += [exitcodes.RUNS_FAILED, exitcodes.INCONSISTENT, exitcodes.INTERRUPTED]
     assert len(set(codes)) == len(codes) == len(exitcodes.CODES)
     doc = (Path(__file__).resolve().parents[1] / "docs" / "outputs.md").read_text()
     section = doc[doc.index("## Exit codes") :]

@@ -92,7 +92,9 @@ def test_batch_starts_lm_from_the_incremental_pass_where_kernels_are_robust(tmp_
     def fails(*args, **kwargs):
         raise ValueError("indeterminate")
 
-    monkeypatch.setattr(team_solve, "warm_start", fails)
+    monkeypatch.setattr(team_solve, "warm_starts", fails)
     cold = solve(graph, "batch")
-    assert cold.batch_start == "guess (the incremental pass failed: indeterminate)"
+    assert cold.batch_start == (
+        "guess and every alternative (the incremental pass failed: indeterminate)"
+    )
     assert warm.error <= cold.error * (1 + 1e-6) and np.isfinite(cold.error)

@@ -19,7 +19,7 @@ import threading
 from pathlib import Path
 
 from graphloc import many_runs
-from graphloc.exitcodes import INCOMPLETE, OK
+from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, OK
 from graphloc.manifest import check_noise_params
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph.options import RunOptions
@@ -119,7 +119,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
         graph = build_graph(run, config, progress=progress)
         hooks = checkpoint(graph, values) if checkpoint is not None else {}
         result = solve(graph, mode=mode, progress=progress, stop=stop, **hooks)
-        metrics = evaluate(result, run)
+        metrics = evaluate(result, run, opts.align)
         metrics["config"] = json.loads(json.dumps(asdict(config), default=str))
         metrics["options"] = values
         metrics["landmark_map"] = landmark_map(run, config)
@@ -138,6 +138,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
             {
                 "mode": mode,
                 "partial": metrics["partial"],
+                "consistent": metrics["consistent"],
                 "ate_rmse_m": summary,
                 "decisions": metrics["decisions"],
                 "realtime_factor": round(metrics["realtime_factor"], 1),
@@ -147,7 +148,18 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
             indent=1,
         )
     )
-    return EXIT_STOPPED if metrics["partial"] else OK
+    verdict = metrics["consistency"]
+    verb = "smooth" if mode == "batch" else "online"
+    if not getattr(args, "quiet", False):
+        for line in verdict["failures"]:
+            print(f"graphloc {verb}: inconsistent: {line}", file=sys.stderr)
+        for line in verdict["warnings"]:
+            print(f"graphloc {verb}: warning: {line}", file=sys.stderr)
+    if metrics["partial"]:
+        return EXIT_STOPPED
+    if opts.strict and (verdict["failures"] or verdict["warnings"]):
+        return INCONSISTENT
+    return OK
 
 
 def run(args: argparse.Namespace) -> int:

@@ -18,7 +18,7 @@ from graphloc.datasets import open_run
 from graphloc.datasets.formation_log import GROUND, table_i_formation, write_formation_log
 from graphloc.datasets.scenarios import generate
 from graphloc.experiments.locks import lock_statistics
-from graphloc.pipelines.report import genuine_candidates
+from graphloc.pipelines.judge import genuine_candidates
 from graphloc.pipelines.team_graph import build_graph, solve
 from graphloc.run import TeamRun
 

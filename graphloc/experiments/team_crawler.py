@@ -36,7 +36,7 @@ from graphloc.datasets.crawler_pair_log import write_crawler_pair_log
 from graphloc.eval import axis_errors
 from graphloc.executor import Executor
 from graphloc.experiments.markdown import write_report
-from graphloc.pipelines.report import genuine_candidates
+from graphloc.pipelines.judge import genuine_candidates
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, default_lag, solve
 from graphloc.plots import plt
 from graphloc.vision.features import FeatureConfig

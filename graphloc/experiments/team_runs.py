@@ -28,7 +28,7 @@ from graphloc.datasets.scenarios import generate
 from graphloc.executor import Executor
 from graphloc.keys import pose_key
 from graphloc.experiments.front_door import truth_at
-from graphloc.pipelines.report import genuine_candidates
+from graphloc.pipelines.judge import genuine_candidates
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.pipelines.track_smoothing import smooth_track
 from graphloc.seams import Odometry

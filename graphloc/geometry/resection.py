@@ -19,35 +19,57 @@ def resection_covariance(
     floor: tuple[float, float] = (1e-3, 1e-3),
 ) -> np.ndarray:
     """First-order covariance (N,6,6) of camera poses (N,3,3)/(N,3) recovered from the pixels of
-    three world points (N,3,3) with isotropic pixel noise: sigma^2 (A^T A)^-1, A (6x6) = d pixels
-    / d pose (GTSAM Pose3 tangent (rot, trans), right perturbation T Exp(xi)). P3P is a square
-    problem (6 pixel coordinates, 6 pose DOF), so A is invertible away from the danger cylinder
-    and blows up near it. `floor` = (rad, m) sigmas added on the diagonal."""
-    if any(camera.dist):
-        raise ValueError(
-            "resection_covariance: the camera has lens distortion; this first-order model uses the "
-            "pinhole Jacobian only (undistort the pixels and pass an undistorted camera)"
-        )
+    M >= 3 world points (N,M,3) with isotropic pixel noise: sigma^2 (A^T A)^-1, A (2M x 6) =
+    d pixels / d pose (GTSAM Pose3 tangent (rot, trans), right perturbation T Exp(xi)). With
+    three points (P3P) the problem is square (6 pixel coordinates, 6 pose DOF), so A is
+    invertible away from the danger cylinder and blows up near it. A camera with lens
+    distortion: A by central differences through `camera.project`. `floor` = (rad, m) sigmas
+    added on the diagonal."""
     R_wc, t_wc, points = (np.asarray(a, dtype=float) for a in (R_wc, t_wc, points))
     n = len(R_wc)
-    if R_wc.shape != (n, 3, 3) or t_wc.shape != (n, 3) or points.shape != (n, 3, 3):
+    if (
+        R_wc.shape != (n, 3, 3)
+        or t_wc.shape != (n, 3)
+        or points.ndim != 3
+        or points.shape[0] != n
+        or points.shape[1] < 3
+        or points.shape[2] != 3
+    ):
         raise ValueError(
-            f"resection_covariance: expected R_wc (N,3,3), t_wc (N,3), points (N,3,3); got "
+            f"resection_covariance: expected R_wc (N,3,3), t_wc (N,3), points (N,M>=3,3); got "
             f"{R_wc.shape}, {t_wc.shape}, {points.shape}"
         )
-    pc = np.einsum("nji,npj->npi", R_wc, points - t_wc[:, None, :])  # (N,3,3) camera-frame points
-    x, y, z = pc[..., 0], pc[..., 1], pc[..., 2]
-    f = np.array([camera.fx, camera.fy])
-    J = np.zeros(pc.shape[:2] + (2, 3))  # d(uv)/d(pc)
-    J[..., 0, 0], J[..., 0, 2] = f[0] / z, -f[0] * x / z**2
-    J[..., 1, 1], J[..., 1, 2] = f[1] / z, -f[1] * y / z**2
-    hat = skew(pc)  # d(pc)/d(rotation) for the right perturbation
-    dpc = np.concatenate([hat, np.broadcast_to(-np.eye(3), hat.shape)], axis=-1)  # (N,3,3,6)
-    A = (J @ dpc).reshape(len(pc), 6, 6)
     if not (np.isfinite(pixel_sigma) and pixel_sigma >= 0):
         raise ValueError(
             f"resection_covariance: pixel_sigma must be finite >= 0, got {pixel_sigma}"
         )
+    m = points.shape[1]
+    pc = np.einsum("nji,npj->npi", R_wc, points - t_wc[:, None, :])  # (N,M,3) camera-frame points
+    hat = skew(pc)  # d(pc)/d(rotation) for the right perturbation
+    dpc = np.concatenate([hat, np.broadcast_to(-np.eye(3), hat.shape)], axis=-1)  # (N,M,3,6)
+    if any(camera.dist):
+        J = _projection_jacobian(camera, pc)
+    else:
+        x, y, z = pc[..., 0], pc[..., 1], pc[..., 2]
+        J = np.zeros(pc.shape[:2] + (2, 3))  # d(uv)/d(pc)
+        J[..., 0, 0], J[..., 0, 2] = camera.fx / z, -camera.fx * x / z**2
+        J[..., 1, 1], J[..., 1, 2] = camera.fy / z, -camera.fy * y / z**2
+    A = (J @ dpc).reshape(n, 2 * m, 6)
     cov = pixel_sigma**2 * np.linalg.pinv(np.einsum("nki,nkj->nij", A, A), hermitian=True)
     cov += np.diag(np.repeat(np.square(floor), 3))
     return 0.5 * (cov + np.transpose(cov, (0, 2, 1)))
+
+
+def _projection_jacobian(camera: PinholeCamera, pc: np.ndarray) -> np.ndarray:
+    """d(pixel)/d(camera-frame point) (..., 2, 3) of a distorted camera by central differences
+    (a step of 1e-6 of each point's depth)."""
+    flat = pc.reshape(-1, 3)
+    h = 1e-6 * np.maximum(np.abs(flat[:, 2]), 1e-3)
+    J = np.zeros((len(flat), 2, 3))
+    for a in range(3):
+        step = np.zeros_like(flat)
+        step[:, a] = h
+        plus, _ = camera.project(flat + step)
+        minus, _ = camera.project(flat - step)
+        J[:, :, a] = (plus - minus) / (2 * h[:, None])
+    return J.reshape(pc.shape[:-1] + (2, 3))

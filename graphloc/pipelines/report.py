@@ -22,6 +22,8 @@ from graphloc.pipelines.team_graph import (
     build_graph,
     solve,
 )
+from graphloc.pipelines.judge import judge_decisions
+from graphloc.pipelines.team_graph.verdict import candidate_streams, judge
 from graphloc.plots import Series, plot_series, plot_trajectories
 from graphloc.run import TeamRun
 
@@ -68,17 +70,28 @@ def _quat(p) -> np.ndarray:
     return np.array([q.x(), q.y(), q.z(), q.w()])
 
 
-def alignment(run: TeamRun, r: int) -> str:
-    """How a robot's estimate is compared with its ground truth: planar robots of a run without
-    absolute anchors other than their own start are SE(2)-aligned (as MRCLAM results are
-    reported); every other robot is compared in the world frame the run defines ("none")."""
-    return "se2" if run.robots[r].planar else "none"
+def alignment(run: TeamRun, r: int, align: str | None = None) -> str:
+    """How robot r's estimate is compared with its ground truth (evo's names, `eval.ALIGNMENTS`):
+    `align` when given (`--align`); else in the world frame ("none") when the run anchors the
+    world -- a robot with an initial pose or a known landmark map --, and aligned by the
+    motion the run cannot observe when it does not ("se2" for a planar robot, "se3" for the
+    others)."""
+    if align is not None:
+        return align
+    anchored = any(robot.initial_pose is not None for robot in run.robots) or (
+        run.landmarks_known and len(run.landmark_ids) > 0
+    )
+    if anchored:
+        return "none"
+    return "se2" if run.robots[r].planar else "se3"
 
 
-def evaluate(result: TeamResult, run: TeamRun) -> dict:
+def evaluate(result: TeamResult, run: TeamRun, align: str | None = None) -> dict:
     """Per-robot ATE/RPE of dead reckoning (the initial guess), the estimate and (online) the
-    causal estimate; decisions; counts; latency; skips."""
+    causal estimate, aligned by `alignment` (`align`: one rule for every robot); decisions;
+    the consistency verdict (`team_graph.verdict`); counts; latency; skips."""
     per_robot = {}
+    aligns = [alignment(run, r, align) for r in range(len(run.robots))]
     for r, robot in enumerate(run.robots):
         ref = groundtruth_rows(run, r)
         times = result.node_times[r]
@@ -89,8 +102,7 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
             per_robot[robot.name] = {"groundtruth": ref is not None, "poses": int(len(times))}
             continue
         reference = _trajectory(*ref)
-        align = alignment(run, r)
-        entry = {"groundtruth": True, "poses": int(len(times)), "alignment": align}
+        entry = {"groundtruth": True, "poses": int(len(times)), "alignment": aligns[r]}
         tracks = {"dead_reckoning": result.dead_reckoning[r], result.mode: result.estimate[r]}
         if result.mode == "online":
             tracks["online_causal"] = result.causal[r]
@@ -99,14 +111,18 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
                 continue
             try:
                 entry[label] = trajectory_metrics(
-                    reference, _trajectory(times, rows), align=align
+                    reference, _trajectory(times, rows), align=aligns[r]
                 ).as_dict()
             except ValueError as exc:  # too few poses near ground-truth stamps
                 entry[label] = {"error": str(exc)}
         per_robot[robot.name] = entry
     decisions = result.decisions
-    genuine = genuine_candidates(run, decisions)
-    judged = [(d, g) for d, g in zip(decisions, genuine) if d.committed >= 0 and g >= 0]
+    genuine, correct = judge_decisions(run, decisions)
+    judged = [
+        (d, g, c)
+        for d, g, c in zip(decisions, genuine, correct)
+        if d.committed >= 0 and c is not None
+    ]
     lat = result.latencies
     latency = (
         {
@@ -122,9 +138,23 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
     duration = float(
         max((t[-1] for t in result.node_times if len(t)), default=run.start_time) - run.start_time
     )
+    names = [r.name for r in run.robots]
+    streams = candidate_streams(decisions, names)
+    unplaced = [
+        robot.name
+        for r, robot in enumerate(run.robots)
+        if len(result.node_times[r]) and not np.isfinite(result.estimate[r]).all(axis=1).any()
+    ]
+    skipped = result.graph.skips.as_dict()
+    verdict = judge(result.factor_stats, streams, unplaced, skipped)
     return {
         "run": run.name,
         "mode": result.mode,
+        "consistent": verdict["consistent"],
+        "consistency": verdict,
+        "graph_error": result.error,
+        "factors": result.factor_stats,
+        "candidate_streams": streams,
         "robots": [r.name for r in run.robots],
         "duration_s": duration,
         "solve_wall_s": result.wall_s,
@@ -136,13 +166,14 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
             "committed": sum(d.committed >= 0 for d in decisions),
             "first_commit_time": first,
             "with_genuine_known": len(judged),
-            "wrong": sum(g not in d.same_pose for d, g in judged),
-            "genuine_merged": sum(g != d.committed and g in d.same_pose for d, g in judged),
+            "wrong": sum(not c for _, _, c in judged),
+            "genuine_merged": sum(c and g != d.committed for d, g, c in judged),
+            "inconsistent": sum(d.status == "inconsistent" for d in decisions),
         },
         "downweighted": result.downweighted,
         "counts": result.graph.counts,
         "tables": run.contributions,
-        "skipped": result.graph.skips.as_dict(),
+        "skipped": skipped,
         "partial": bool(result.partial),
         "steps_done": int(result.steps_done),
         "steps_total": len(result.graph.steps),
@@ -202,6 +233,7 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
                 "robot",
                 "target",
                 "candidates",
+                "status",
                 "committed",
                 "probability",
                 "genuine",
@@ -215,14 +247,15 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
                 "qw",
             ]
         )
-        for d, g in zip(decisions, genuine_candidates(run, decisions)):
-            correct = "" if d.committed < 0 or g < 0 else int(g in d.same_pose)
+        for d, g, c in zip(decisions, *judge_decisions(run, decisions)):
+            correct = "" if d.committed < 0 or c is None else int(c)
             w.writerow(
                 [
                     f"{d.time:.6f}",
                     run.robots[d.robot].name,
                     run.robots[d.target].name,
                     len(d.candidates_xyz),
+                    d.status,
                     d.committed,
                     f"{d.probability:.6g}",
                     g,
@@ -250,11 +283,11 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
         written.append(path)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=str) + "\n")
     written.append(out / "metrics.json")
-    written += _plots(result, run, out)
+    written += _plots(result, run, out, metrics)
     return written
 
 
-def _plots(result: TeamResult, run: TeamRun, out: Path) -> list[Path]:
+def _plots(result: TeamResult, run: TeamRun, out: Path, metrics: dict) -> list[Path]:
     import matplotlib
 
     cmap = matplotlib.colormaps["tab10"]
@@ -278,7 +311,7 @@ def _plots(result: TeamResult, run: TeamRun, out: Path) -> list[Path]:
                 t, e = ate_over_time(
                     _trajectory(*g),
                     _trajectory(result.node_times[r], rows),
-                    align=alignment(run, r),
+                    align=metrics["per_robot"][robot.name].get("alignment", "none"),
                 )
                 err.append(
                     Series(f"{robot.name} {result.mode}", t - run.start_time, e, color=cmap(r % 10))
@@ -349,50 +382,6 @@ def _rejected_candidates(run: TeamRun, result: TeamResult) -> np.ndarray:
         if j != d.committed
     ]
     return np.array(out).reshape(-1, 2)
-
-
-def genuine_candidates(run: TeamRun, decisions: list, max_time_diff: float = 0.02) -> list[int]:
-    """Per decision, the genuine candidate: the one nearest the observer's true position (ground
-    truth within max_time_diff of the set's time), or -1 where the run has no ground truth there."""
-    out = []
-    for d in decisions:
-        gt = run.groundtruth[d.robot]
-        if gt is None or not len(gt[0]):
-            out.append(-1)
-            continue
-        if (
-            d.relative is not None
-        ):  # max-mixture route: the candidate nearest the true relative pose
-            out.append(_genuine_relative(run, d, max_time_diff))
-            continue
-        i = int(np.argmin(np.abs(gt[0] - d.time)))
-        if abs(gt[0][i] - d.time) > max_time_diff or not len(d.candidates_xyz):
-            out.append(-1)
-            continue
-        out.append(
-            int(np.argmin(np.linalg.norm(d.candidates_xyz - gt[1][i].translation(), axis=1)))
-        )
-    return out
-
-
-def _genuine_relative(run: TeamRun, d, max_time_diff: float) -> int:
-    """The candidate (observer body_T_target, `Decision.relative`) nearest the true relative
-    pose (rotation angle [rad] plus translation [m] over 0.1 m), -1 without ground truth."""
-    rel = []
-    for r in (d.robot, d.target):
-        gt = run.groundtruth[r]
-        if gt is None or not len(gt[0]):
-            return -1
-        i = int(np.argmin(np.abs(gt[0] - d.time)))
-        if abs(gt[0][i] - d.time) > max_time_diff:
-            return -1
-        rel.append(gt[1][i])
-    truth = rel[0].between(rel[1])
-    cost = []
-    for T in d.relative:
-        e = gtsam.Pose3.Logmap(truth.between(gtsam.Pose3(T)))
-        cost.append(np.linalg.norm(e[:3]) + np.linalg.norm(e[3:]) / 0.1)
-    return int(np.argmin(cost))
 
 
 def run_and_report(

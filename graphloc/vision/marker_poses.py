@@ -3,24 +3,40 @@ a `CandidateSet` with a first-order covariance per candidate.
 
 - Distinct markers (seed 000 Sec. III-B, seed 004 Sec. II-A: three robots / three LEDs): P3P on
   three of them (`graphloc.geometry.p3p.solve_p3p`, every frame of a run in one batched call),
-  up to 4 candidates; further markers score each candidate by their reprojection error
-  (score = exp(-rms^2 / 2 sigma^2)); with exactly three markers every candidate fits exactly and
-  the scores are ~1 (seed 000 Sec. V-A: belief 1/4 each).
+  up to 4 candidates. With exactly three markers every candidate fits the pixels exactly and
+  the scores are ~1 (seed 000 Sec. V-A: belief 1/4 each). With four or more, every pixel of
+  the frame judges every candidate: each P3P candidate, and the global minimum of SQPnP
+  (Terzakis & Lourakis 2020) on all points, is refined by Levenberg-Marquardt on all points
+  (`cv2.solvePnPRefineLM`, the lens distortion included); refinements that land on the same
+  pose are one candidate; each candidate's reprojection chi-square over the 2M pixel
+  coordinates with the camera's pixel noise, chi2 = sum ||(u - u_hat) / sigma||^2, is tested
+  against its chi-square distribution with 2M - 6 degrees of freedom at `GATE_PROBABILITY`: a
+  candidate that fails cannot be decided and leaves the set, its score is exp(-chi2 / 2) (the
+  likelihood of the pixels). A frame whose every candidate fails is *inconsistent*: no pose of
+  the layout explains its pixels (a wrong layout or intrinsics, swapped columns, a marker
+  mislabelled); it comes back as an empty set with `meta["inconsistent"]` True and is never
+  decided.
 - Identical markers (seed 001 Sec. IV-C): the 24 x 4 P3P hypotheses of four blobs gated by the
   fourth marker (`graphloc.vision.target.target_hypotheses`).
-Covariance: `graphloc.geometry.resection.resection_covariance` (pixel noise through the P3P
-pose, on the three markers P3P used).
+Covariance: `graphloc.geometry.resection.resection_covariance` (pixel noise through the pose,
+on every marker the candidate was fitted to).
 Poses are the camera in the layout's frame (target_T_camera).
 """
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
+from scipy.stats import chi2 as chi2_distribution
 
 from graphloc.candidates import CandidateSet
 from graphloc.geometry.p3p import solve_p3p
 from graphloc.geometry.resection import resection_covariance
 from graphloc.vision.target import MarkerTarget, TargetHypothesisConfig, target_hypotheses
+
+GATE_PROBABILITY = 0.999  # a candidate whose pixel chi-square exceeds this quantile is refused
+SAME_POSE_RAD, SAME_POSE_REL = 1e-4, 1e-4  # refinements this close (rad; m per m of range) merge
+REFINE_REACH = 25.0  # P3P candidates within this many gates of chi-square are refined
 
 
 def p3p_candidate_sets(
@@ -85,21 +101,28 @@ def p3p_candidate_sets(
     for i in np.flatnonzero(ok):
         keep = sol.valid[i]
         R, t = sol.R_wc[i][keep], sol.t_wc[i][keep]
-        extra = order[i][3:]
-        if extra.size and len(R):  # markers beyond three score the candidates
-            pts = layout[ids_all[i][extra]]
-            proj, front = camera.project(
-                np.einsum("kji,kpj->kpi", R, pts[None] - t[:, None]).reshape(-1, 3)
-            )
-            err = np.linalg.norm(proj.reshape(len(R), -1, 2) - px_all[i][extra][None], axis=2)
-            err = np.where(front.reshape(len(R), -1), err, np.inf)
-            rms = np.sqrt(np.mean(err**2, axis=1))
-            scores = np.exp(-0.5 * (rms / max(pixel_sigma, 1e-6)) ** 2)
+        markers = first3[i].tolist()
+        points = np.broadcast_to(layout[first3[i]], (len(R), 3, 3))
+        meta: dict = {}
+        if len(px_all[i]) > 3:  # every pixel judges every candidate (module docstring)
+            markers = ids_all[i][order[i]].tolist()
+            pts, uv = layout[markers], px_all[i][order[i]]
+            dof = 2 * len(pts) - 6
+            gate = float(chi2_distribution.ppf(GATE_PROBABILITY, dof))
+            reach = REFINE_REACH * gate * pixel_sigma**2
+            R, t, chi2 = refine_on_all_points(camera, R, t, pts, uv, reach)
+            scaled = chi2 / max(pixel_sigma, 1e-6) ** 2
+            meta = {"chi2": scaled.tolist(), "dof": dof, "gate": gate}
+            passing = scaled <= gate
+            if not passing.any():
+                meta.update(inconsistent=True, chi2_min=float(scaled.min(initial=np.inf)))
+            R, t, scaled = R[passing], t[passing], scaled[passing]
+            meta["chi2"] = scaled.tolist()
+            scores = np.exp(-0.5 * scaled)
+            points = np.broadcast_to(pts, (len(R),) + pts.shape)
         else:
             scores = np.exp(-0.5 * (sol.residual[i][keep] / 1e-3) ** 2)
-        cov = resection_covariance(
-            camera, R, t, np.broadcast_to(layout[first3[i]], (len(R), 3, 3)), pixel_sigma
-        )
+        cov = resection_covariance(camera, R, t, points, pixel_sigma)
         cs = CandidateSet(
             R,
             t,
@@ -108,10 +131,81 @@ def p3p_candidate_sets(
             observer=observer,
             observed=observed,
             source=f"p3p/{sol.method}",
-            meta={"markers": first3[i].tolist()},
+            meta={"markers": markers, **meta},
         )
         out[i] = _with(cs, cov, truth_t, i)
     return out
+
+
+def refine_on_all_points(
+    camera,
+    R_wc: np.ndarray,
+    t_wc: np.ndarray,
+    points: np.ndarray,
+    pixels: np.ndarray,
+    reach: float = np.inf,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Camera poses (K,3,3)/(K,3) in the points' frame and SQPnP's global minimum on all M
+    points (M,3) seen at `pixels` (M,2) (`cv2.SOLVEPNP_SQPNP`), each refined by
+    Levenberg-Marquardt on all points (`cv2.solvePnPRefineLM`, distortion included) when its
+    sum of squared pixel residuals is within `reach` (SQPnP's always: a start farther off than
+    that cannot end in a pose the gate passes other than the global minimum); refinements that
+    land on one pose merged. Returns (R_wc (J,3,3), t_wc (J,3), sum of squared pixel residuals
+    (J,)) sorted by that sum; a pose with a point behind the camera gets inf."""
+    K, dist = camera.K, np.asarray(camera.dist, dtype=float)
+    obj = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 1, 3)
+    img = np.ascontiguousarray(pixels, dtype=np.float64).reshape(-1, 1, 2)
+    R_wc, t_wc = np.asarray(R_wc, float).reshape(-1, 3, 3), np.asarray(t_wc, float).reshape(-1, 3)
+    try:
+        ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, flags=cv2.SOLVEPNP_SQPNP)
+    except cv2.error:  # a degenerate point set: the P3P candidates remain
+        ok = False
+    if ok:
+        R_cw = cv2.Rodrigues(rvec)[0]
+        R_wc = np.concatenate([[R_cw.T], R_wc])
+        t_wc = np.concatenate([[-R_cw.T @ tvec.reshape(3)], t_wc])
+    cost = _reprojection_cost(camera, R_wc, t_wc, points, pixels)
+    out_R, out_t, out_c = [], [], []
+    for j, (Rw, tw) in enumerate(zip(R_wc, t_wc)):
+        if (ok and j == 0) or cost[j] <= reach:
+            rvec, tvec = cv2.solvePnPRefineLM(
+                obj, img, K, dist, cv2.Rodrigues(Rw.T)[0], (-Rw.T @ tw).reshape(3, 1)
+            )
+            R_cw = cv2.Rodrigues(rvec)[0]
+            Rw, tw = R_cw.T, -R_cw.T @ tvec.reshape(3)
+            c = float(_reprojection_cost(camera, Rw[None], tw[None], points, pixels)[0])
+        else:
+            c = float(cost[j])
+        scale = max(float(np.linalg.norm(points - tw, axis=1).max()), 1e-9)
+        same = next(
+            (
+                i
+                for i in range(len(out_R))
+                if np.linalg.norm(cv2.Rodrigues(out_R[i].T @ Rw)[0]) < SAME_POSE_RAD
+                and np.linalg.norm(out_t[i] - tw) < SAME_POSE_REL * scale
+            ),
+            None,
+        )
+        if same is None:
+            out_R.append(Rw), out_t.append(tw), out_c.append(c)
+        elif c < out_c[same]:
+            out_R[same], out_t[same], out_c[same] = Rw, tw, c
+    order = np.argsort(out_c, kind="stable")
+    return (
+        np.array(out_R).reshape(-1, 3, 3)[order],
+        np.array(out_t).reshape(-1, 3)[order],
+        np.array(out_c, dtype=float)[order],
+    )
+
+
+def _reprojection_cost(camera, R_wc, t_wc, points, pixels) -> np.ndarray:
+    """Sum of squared pixel residuals (K,) of camera poses (K,3,3)/(K,3) seeing points (M,3)
+    at pixels (M,2); inf where a point is behind the camera or does not project."""
+    pc = np.einsum("kji,kmj->kmi", R_wc, points[None] - t_wc[:, None])
+    proj, _ = camera.project(pc.reshape(-1, 3))
+    err = np.sum((proj.reshape(len(R_wc), -1, 2) - pixels[None]) ** 2, axis=(1, 2))
+    behind = (pc[..., 2] <= 0).any(axis=1)
+    return np.where(np.isfinite(err) & ~behind, err, np.inf)
 
 
 def _with(cs: CandidateSet, cov: np.ndarray, truth_t, i: int) -> CandidateSet:

@@ -31,7 +31,7 @@ with no known initial pose enters the online graph at its first decided set (bef
 nothing anchors it).
 """
 
-from graphloc.pipelines.team_graph.candidates import Decision
+from graphloc.pipelines.team_graph.decision import Decision
 from graphloc.pipelines.team_graph.config import (
     ANCHOR_BASE,
     DEFAULT_LAG,
@@ -40,7 +40,8 @@ from graphloc.pipelines.team_graph.config import (
     run_precision,
 )
 from graphloc.pipelines.team_graph.graph import TeamGraph, build_graph
-from graphloc.pipelines.team_graph.solve import STEP_LOG_COLUMNS, TeamResult, solve, warm_start
+from graphloc.pipelines.team_graph.passes import STEP_LOG_COLUMNS, TeamResult
+from graphloc.pipelines.team_graph.solve import solve, warm_start
 
 __all__ = [
     "ANCHOR_BASE",

@@ -19,7 +19,7 @@ import numpy as np
 
 from graphloc.factors.robust import robust_noise
 from graphloc.io import SkipReport
-from graphloc.keys import landmark_key, marker_key, pose_key
+from graphloc.keys import frame_marker_key, landmark_key, marker_key, pose_key
 from graphloc.pipelines.team_graph.config import FEATURE_BASE, GraphConfig, cov6
 from graphloc.pipelines.team_graph.motion import Timeline
 from graphloc.run import TeamRun
@@ -99,28 +99,26 @@ def marker_factors(
     k: int,
     time: float,
     observation,
+    E: gtsam.Pose3,
     factors: list,
     marker_points: dict,
     skips: SkipReport,
 ) -> None:
     """The marker pixels of one candidate set (`CandidateObservation.pixels`) of a static
-    target as GenericProjectionFactorCal3_S2 on robot r's pose k (body_T_sensor extrinsics) and
+    target as GenericProjectionFactorCal3_S2 on robot r's pose k (the sensor at body_T_sensor
+    E: its extrinsics after the robot's motion from pose k to the set's time) and
     the target's marker points (robust kernel 'projection'). A marker point enters once, in
     `marker_points` (key -> world position, its initial value), with a PriorFactorPoint3 whose
     covariance is the target's pose prior (static_sigma) carried to the point,
     H P H^T with H = d(T m)/dT = [-R [m]x, R]."""
-    pix = observation.pixels
     ti = observation.target
     target = run.robots[ti]
     T = target.initial_pose
-    cam = pix.camera
-    K = gtsam.Cal3_S2(cam.fx, cam.fy, 0.0, cam.cx, cam.cy)
-    noise = robust_noise(
-        gtsam.noiseModel.Isotropic.Sigma(2, pix.pixel_sigma), config.kernels.kernel("projection")
-    )
     R = T.rotation().matrix()
-    for m, uv in zip(pix.markers, pix.pixels):
+    keys = []
+    for m in observation.pixels.markers:
         key = marker_key(ti, int(m))
+        keys.append(key)
         if key not in marker_points:
             local = np.asarray(target.markers[int(m)], float)
             H = np.hstack([-R @ _skew(local), R])
@@ -130,6 +128,76 @@ def marker_factors(
                 key, marker_points[key], gtsam.noiseModel.Gaussian.Covariance(cov)
             )
             factors.append((time, prior, "marker_prior"))
+    _projections(run, config, r, k, time, observation, E, keys, factors, skips)
+
+
+def moving_marker_factors(
+    run: TeamRun,
+    config: GraphConfig,
+    r: int,
+    k: int,
+    kt: int,
+    index: int,
+    time: float,
+    observation,
+    offsets: tuple,
+    factors: list,
+    frame_points: list,
+    skips: SkipReport,
+) -> None:
+    """The marker pixels of one candidate set of a moving target as factors on both poses (the
+    observer's pose k, the target's pose kt): each marker seen is one world point of that set
+    (`keys.frame_marker_key(index, marker)`), held on the target's pose by a
+    BearingRangeFactor3D to its layout position (std `config.marker_sigma`) and seen by a
+    GenericProjectionFactorCal3_S2 on the observer's pose (robust kernel 'projection').
+    offsets = (observer, target): each robot's body at the set's time in its body frame at its
+    pose (`Timeline.offsets`): the sensor is body_T_sensor after the observer's offset, a
+    marker is its layout position after the target's. The points' initial values come once
+    the target's poses have theirs: (key, target, kt, position in the target's body frame at
+    pose kt) into `frame_points`."""
+    ti = observation.target
+    target = run.robots[ti]
+    observer_offset, target_offset = offsets
+    keys = []
+    for m in observation.pixels.markers:
+        key = frame_marker_key(index, int(m))
+        local = target_offset.transformFrom(np.asarray(target.markers[int(m)], float))
+        distance = float(np.linalg.norm(local))
+        sigma = config.marker_sigma
+        noise = gtsam.noiseModel.Diagonal.Sigmas(
+            np.array([sigma / max(distance, sigma)] * 2 + [sigma])
+        )
+        factors.append(
+            (
+                time,
+                gtsam.BearingRangeFactor3D(
+                    pose_key(ti, kt),
+                    key,
+                    gtsam.Unit3(local + (distance < sigma) * sigma),
+                    distance,
+                    noise,
+                ),
+                "marker_layout",
+            )
+        )
+        frame_points.append((key, ti, kt, local))
+        keys.append(key)
+    E = observer_offset.compose(observation.body_T_sensor)
+    _projections(run, config, r, k, time, observation, E, keys, factors, skips)
+
+
+def _projections(run, config, r, k, time, observation, E, keys, factors, skips) -> None:
+    """One GenericProjectionFactorCal3_S2 per marker pixel of `observation` on robot r's pose k
+    (sensor at body_T_sensor E) and the marker point `keys[i]` (robust kernel 'projection'); a
+    pixel that does not undistort is a counted skip `bad_pixel`."""
+    pix = observation.pixels
+    cam = pix.camera
+    K = gtsam.Cal3_S2(cam.fx, cam.fy, 0.0, cam.cx, cam.cy)
+    noise = robust_noise(
+        gtsam.noiseModel.Isotropic.Sigma(2, pix.pixel_sigma), config.kernels.kernel("projection")
+    )
+    target = run.robots[observation.target]
+    for m, uv, key in zip(pix.markers, pix.pixels, keys):
         ideal = _ideal_pixel(cam, uv)
         if ideal is None:
             skips.add(
@@ -142,7 +210,7 @@ def marker_factors(
             (
                 time,
                 gtsam.GenericProjectionFactorCal3_S2(
-                    gtsam.Point2(*ideal), noise, pose_key(r, k), key, K, observation.body_T_sensor
+                    gtsam.Point2(*ideal), noise, pose_key(r, k), key, K, E
                 ),
                 "marker",
             )

@@ -5,61 +5,23 @@ where the set's marker pixels are known and the target is static, the pixels the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import gtsam
 import numpy as np
 from tqdm import tqdm
 
 from graphloc.candidates import CandidateSet
-from graphloc.factors.mixture import candidate_covariances, max_mixture_factor, mixture_weights
+from graphloc.factors.mixture import candidate_covariances
 from graphloc.factors.robust import robust_noise
 from graphloc.hypotheses import HypothesisTracker
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
-from graphloc.pipelines.team_graph.camera import marker_factors
+from graphloc.pipelines.team_graph.camera import marker_factors, moving_marker_factors
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov
+from graphloc.pipelines.team_graph.decision import Decision, inconsistent, quats, same_pose
+from graphloc.pipelines.team_graph.mixtures import mixture_stream
 from graphloc.pipelines.team_graph.motion import Timeline, compose_steps, dead_reckoning
 from graphloc.run import TeamRun
 from graphloc.seams import Odometry
-
-
-@dataclass
-class Decision:
-    """What happened to one candidate set: where each candidate puts the observer's body
-    (K,3 world), the committed candidate (-1: none), its posterior (else the largest one) and
-    the committed body pose (x, y, z, qx, qy, qz, qw; NaN if none); same_pose: the candidates
-    that are the committed one's pose within their covariances (`same_pose`), it included.
-    Sets of the max-mixture route (`mixture_stream`) are chosen by the solve: `committed`
-    / `probability` are filled from the estimate (`solve.choose_mixtures`)."""
-
-    time: float
-    robot: int
-    target: int
-    candidates_xyz: np.ndarray
-    committed: int
-    probability: float
-    pose: np.ndarray
-    same_pose: list
-    probabilities: np.ndarray | None = None  # (K,) every candidate's posterior (tracker)
-    mixture: object = None  # max-mixture route: the MaxMixture (chosen at the estimate)
-    relative: np.ndarray | None = None  # max-mixture route: (K,4,4) observer body_T_target
-    candidates_quat: np.ndarray | None = None  # (K,4) x y z w: the body orientation each gives
-
-
-SAME_POSE_GATE = 12.59  # chi2(6) at 95 %: two candidates this close are one pose for the decision
-
-
-def same_pose(poses: list, cov: np.ndarray, j: int) -> list[int]:
-    """Candidate j and the candidates that are the same pose within their covariances
-    (Mahalanobis^2 of the difference below SAME_POSE_GATE): near the P3P fold two solutions
-    nearly coincide and share the posterior, and either one is the answer."""
-    out = []
-    for i, p in enumerate(poses):
-        e = gtsam.Pose3.Logmap(poses[j].between(p))
-        if i == j or e @ np.linalg.solve(cov[i] + cov[j], e) < SAME_POSE_GATE:
-            out.append(i)
-    return out
 
 
 def candidate_factors(
@@ -70,38 +32,53 @@ def candidate_factors(
     factors: list,
     skips: SkipReport,
     marker_points: dict,
+    frame_points: list,
     progress: bool = False,
 ) -> tuple[list, dict, dict, dict, dict]:
     """Every candidate set as factors, by one rule per (observer, target) stream:
     - the target is placed (known initial pose): the observer is placed through it; one
-      HypothesisTracker decides causally and a decided candidate becomes one robust factor;
-      when the target is static and the sets carry their marker pixels, the pixels become
-      projection factors instead (`camera.marker_factors`; a decided candidate would count
-      them twice) and the observer is placed at its first decided set, or, if the tracker never
-      decides, at the stream's first set by the tracker's guess there; every candidate of that
-      set is an alternative placement the batch solve also starts from (`alternatives`);
+      HypothesisTracker decides causally. When the sets carry their marker pixels, the pixels
+      become projection factors (`camera.marker_factors` on a static target's marker points,
+      `camera.moving_marker_factors` on both poses of a moving one; a decided candidate would
+      count them twice) and the observer is placed at its first decided set, or, if the
+      tracker never decides, at the stream's first set by the tracker's guess there; every
+      candidate of that set is an alternative placement the solve also starts from
+      (`alternatives`). Without pixels a decided candidate becomes one robust factor;
     - the target is not placed but the observer is (e.g. seed 003: a camera sees a teammate's
       base, two circle candidates): the target is placed through the observer and each set
       enters as a max-mixture of its candidates (`mixture_stream`), chosen by the solve.
+    An inconsistent set (no candidate passed the pixel chi-square, `vision.marker_poses`) is
+    never decided and its pixels never enter: a Decision with status "inconsistent" and a
+    counted skip `inconsistent_set`.
     Returns the decisions, the decided observer poses (robot -> {node: Pose3}), the targets
     placed through an observer (robot -> {node: (observer, node, body_T_target)}) and each
     tracked observer's latest best guess, decided or not (robot -> (node, time, body pose,
     6x6 covariance; the hint of the inter-robot scan registration, `team_graph.scans`) and the
     alternative placements of pixel streams (robot -> ([(node, body Pose3) per candidate],
-    placed by the tracker's guess, never decided)); the
-    target's marker points land in `marker_points` (key -> world position)."""
+    placed by the tracker's guess, never decided)); a static target's marker points land in
+    `marker_points` (key -> world position), a moving target's per-set points in
+    `frame_points` ((key, target, node, body-frame position) each)."""
     node_times, nearest = timeline.node_times, timeline.nearest
     decisions, decided_pose, placed_via, tentative, alternatives = [], {}, {}, {}, {}
     streams: dict = {}
-    for o in run.observations:
-        streams.setdefault((o.robot, o.target), []).append(o)
+    for n, o in enumerate(run.observations):
+        streams.setdefault((o.robot, o.target), []).append((n, o))
     for (r, ti), obs in tqdm(
         streams.items(), desc="deciding candidate sets", disable=not progress, unit="stream"
     ):
         target = run.robots[ti]
         if target.initial_pose is None and run.robots[r].initial_pose is not None:
             decisions += mixture_stream(
-                run, config, timeline, step_rel, r, ti, obs, factors, skips, placed_via
+                run,
+                config,
+                timeline,
+                step_rel,
+                r,
+                ti,
+                [o for _, o in obs],
+                factors,
+                skips,
+                placed_via,
             )
             continue
         if target.initial_pose is None:
@@ -115,10 +92,29 @@ def candidate_factors(
         target_track = dead_reckoning(target, step_rel[ti], config)
         tracker = HypothesisTracker(config.tracker)
         prev = None
-        pixel_route = target.static and all(o.pixels is not None for o in obs)
+        pixel_route = all(o.pixels is not None for _, o in obs)
+        ks = [nearest(r, o.time) for _, o in obs]
+        kts = [nearest(ti, o.time) for _, o in obs]
+        offsets: dict = {}
+        if pixel_route:  # each robot's motion between its pose and the set's time
+            ok = [i for i in range(len(obs)) if ks[i] >= 0 and kts[i] >= 0]
+            times = [obs[i][1].time for i in ok]
+            mine = timeline.offsets(r, [ks[i] for i in ok], times)
+            theirs = timeline.offsets(ti, [kts[i] for i in ok], times)
+            offsets = {i: pair for i, pair in zip(ok, zip(mine, theirs))}
         first = None  # pixel route: (node, body pose per candidate, the tracker's guess)
-        for o in obs:
-            k = nearest(r, o.time)
+        for i, (n, o) in enumerate(obs):
+            k, kt = ks[i], kts[i]
+            if len(o.candidates) == 0:
+                meta = o.candidates.meta
+                skips.add(
+                    "inconsistent_set",
+                    f"robot {run.robots[r].name}: the marker pixels of {target.name} at "
+                    f"{o.time}: no pose of its layout passes the pixel chi-square (least "
+                    f"{meta.get('chi2_min', float('nan')):.1f} > gate {meta.get('gate', 0):.1f})",
+                )
+                decisions.append(inconsistent(o, r, ti))
+                continue
             if k < 0 or (prev is not None and k == prev):
                 skips.add(
                     "no_pose_at_time",
@@ -126,7 +122,6 @@ def candidate_factors(
                     f"(new) pose within the sync tolerance",
                 )
                 continue
-            kt = nearest(ti, o.time)
             if kt < 0:
                 skips.add(
                     "no_pose_at_time",
@@ -160,9 +155,27 @@ def candidate_factors(
             d = tracker.update(cs, odo)
             prev = k
             if pixel_route:
-                marker_factors(
-                    run, config, r, k, node_times[r][k], o, factors, marker_points, skips
-                )
+                t = max(node_times[r][k], node_times[ti][kt])
+                mine, theirs = offsets[i]
+                if target.static:
+                    marker_factors(
+                        run, config, r, k, t, o, mine.compose(E), factors, marker_points, skips
+                    )
+                else:
+                    moving_marker_factors(
+                        run,
+                        config,
+                        r,
+                        k,
+                        kt,
+                        n,
+                        t,
+                        o,
+                        (mine, theirs),
+                        factors,
+                        frame_points,
+                        skips,
+                    )
                 if first is None:
                     first = (k, bodies, bodies[int(np.argmax(d.probabilities))])
             if d.pose is not None:  # the tracker's best guess so far (committed or not), then
@@ -173,7 +186,7 @@ def candidate_factors(
                     (k, o.time, d.pose.compose(E.inverse()), adjoint_cov(E, cs.covariance[j]))
                 ]
                 tentative[r] += [
-                    (k, o.time, bodies[i], adjoint_cov(E, cs.covariance[i])) for i in order
+                    (k, o.time, bodies[c], adjoint_cov(E, cs.covariance[c])) for c in order
                 ]
             pose = np.full(7, np.nan)
             cluster = (
@@ -228,7 +241,11 @@ def candidate_factors(
                     pose,
                     cluster if decided else [],
                     np.array(d.probabilities, dtype=float),
-                    candidates_quat=_quats(bodies),
+                    candidates_quat=quats(bodies),
+                    status="decided" if decided else "undecided",
+                    measured=np.stack([p.matrix() for p in seen]),
+                    measured_cov=cand_cov,
+                    body_T_sensor=E.matrix(),
                 )
             )
         if first is not None:
@@ -237,95 +254,3 @@ def candidate_factors(
                 decided_pose[r] = {first[0]: first[2]}
             alternatives[r] = ([(first[0], body) for body in first[1]], guessed)
     return decisions, decided_pose, placed_via, tentative, alternatives
-
-
-def mixture_stream(
-    run: TeamRun,
-    config: GraphConfig,
-    timeline: Timeline,
-    step_rel: list,
-    r: int,
-    ti: int,
-    obs: list,
-    factors: list,
-    skips: SkipReport,
-    placed_via: dict,
-) -> list:
-    """A stream whose observer is placed and whose target is not: each set becomes a max-mixture
-    (Olson & Agarwal; `factors.mixture.max_mixture_factor`) of BetweenFactorPose3 observer ->
-    target, one component per candidate with its covariance, weights from the scores. The
-    target's first sighting places it (the candidate whose `body_axis` is nearest its surface
-    normal, else the best-scored one); its own motion steps place the rest."""
-    node_times, nearest = timeline.node_times, timeline.nearest
-    observer, target = run.robots[r], run.robots[ti]
-    track = dead_reckoning(observer, step_rel[r], config)
-    out = []
-    for o in obs:
-        k, kt = nearest(r, o.time), nearest(ti, o.time)
-        if k < 0 or kt < 0:
-            skips.add(
-                "no_pose_at_time",
-                f"robot {observer.name}: candidate set on {target.name} at {o.time} has no pose "
-                f"within the sync tolerance",
-            )
-            continue
-        E = o.body_T_sensor
-        seen = o.candidates.poses()  # target_T_sensor
-        rel = [E.compose(p.inverse()) for p in seen]  # observer body_T_target
-        cand_cov = candidate_covariances(o.candidates, config.tracker.default_sigmas)
-        components = [
-            gtsam.BetweenFactorPose3(
-                pose_key(r, k),
-                pose_key(ti, kt),
-                rj,
-                gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(p, c)),
-            )
-            for rj, p, c in zip(rel, seen, cand_cov)
-        ]
-        mixture = (
-            max_mixture_factor(components, mixture_weights(o.candidates))
-            if len(components) > 1
-            else None
-        )
-        t = max(node_times[r][k], node_times[ti][kt])
-        factors.append((t, mixture if mixture is not None else components[0], "candidate"))
-        X = track[k][0]
-        if ti not in placed_via:
-            placed_via[ti] = {kt: (r, k, rel[_upright(target, X, rel, o.candidates)])}
-        out.append(
-            Decision(
-                o.time,
-                r,
-                ti,
-                np.array([X.compose(rj).translation() for rj in rel]),
-                0 if mixture is None else -1,
-                1.0 if mixture is None else float("nan"),
-                np.full(7, np.nan),
-                [0] if mixture is None else [],
-                None,
-                mixture,
-                np.stack([rj.matrix() for rj in rel]),
-                _quats([X.compose(rj) for rj in rel]),
-            )
-        )
-    return out
-
-
-def _quats(poses: list) -> np.ndarray:
-    """(K,4) x y z w of the poses' rotations."""
-    out = np.zeros((len(poses), 4))
-    for i, p in enumerate(poses):
-        q = p.rotation().toQuaternion()
-        out[i] = (q.x(), q.y(), q.z(), q.w())
-    return out
-
-
-def _upright(target, X: gtsam.Pose3, rel: list, candidates) -> int:
-    """Index of the candidate that places the target best: with a surface attitude, the one
-    whose body axis is nearest the surface normal (seen from the observer's pose X), else the
-    best-scored one."""
-    if target.surface is None or target.attitude_sigma is None:
-        return int(np.argmax(candidates.scores))
-    axis = np.asarray(target.body_axis, float)
-    up = [X.compose(rj).rotation().matrix() @ axis for rj in rel]
-    return int(np.argmax([u @ target.surface.normal for u in up]))

@@ -37,8 +37,9 @@ class GraphConfig:
     no odometry; tracker: the HypothesisTracker deciding candidate sets; decision_threshold: a
     set is decided -- its candidate enters the graph -- when the tracker has committed to a
     track and that track's candidate in the set, with the candidates that are the same pose
-    within their covariances (`_same_pose`), has at least this posterior; session settings
-    (iSAM2 thresholds None: set from the run's precision, `run_precision`)."""
+    within their covariances (`_same_pose`), has at least this posterior; marker_sigma [m]: how
+    far a moving target's marker may sit from its layout position (`camera.moving_marker_factors`);
+    session settings (iSAM2 thresholds None: set from the run's precision, `run_precision`)."""
 
     keyframe_dt: float = 0.25
     sync_tolerance: float = 0.02
@@ -58,6 +59,7 @@ class GraphConfig:
     initial_sigma: tuple = (0.02, 0.05)
     static_sigma: tuple = (1e-4, 1e-4)
     surface_sigma: float = 0.005
+    marker_sigma: float = 0.001
     landmark_prior_floor: float = 0.01
     unknown_motion_sigma: tuple = (3.0, 100.0)
     tracker: TrackerConfig = TrackerConfig()
@@ -87,6 +89,7 @@ class GraphConfig:
                 "keyframe_dt",
                 "sync_tolerance",
                 "surface_sigma",
+                "marker_sigma",
                 "landmark_prior_floor",
                 "feature_depth",
                 "feature_depth_sigma",

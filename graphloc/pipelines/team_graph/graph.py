@@ -53,6 +53,9 @@ class TeamGraph:
     # those of robots placed by the tracker's guess (it never decided their stream): the online
     # solve starts from these too
     guessed_alternatives: list = field(default_factory=list)
+    # a moving target's marker point of one set -> (the target's pose key, its body-frame
+    # position): online predicts the point from the pose's estimate
+    frame_points: dict = field(default_factory=dict)
 
 
 def build_graph(
@@ -72,8 +75,9 @@ def build_graph(
     point_priors: list = []  # (landmark key, sigma, time): priors placed at the initial guess
     n_tracks = feature_factors(run, config, timeline, factors, skips, landmark_guess, point_priors)
     marker_points: dict = {}  # marker key -> world position (static targets' layouts)
+    frame_points: list = []  # (key, target, node, body-frame position): moving targets' markers
     decisions, decided_pose, placed_via, tentative, alternatives = candidate_factors(
-        run, config, timeline, step_rel, factors, skips, marker_points, progress
+        run, config, timeline, step_rel, factors, skips, marker_points, frame_points, progress
     )
     place_unplaced(run, timeline, decided_pose, placed_via, alternatives)
 
@@ -113,6 +117,9 @@ def build_graph(
         else:
             initial[lkey] = np.asarray(guess, dtype=float)
     initial.update(marker_points)
+    for key, ti, kt, local in frame_points:
+        if pose_key(ti, kt) in initial:
+            initial[key] = initial[pose_key(ti, kt)].transformFrom(local)
     variants, guessed_variants = [], []
     for r, (starts, guessed) in alternatives.items():
         if r not in poses:
@@ -158,6 +165,7 @@ def build_graph(
         "poses": len([k for k in initial if decode(k)[0] == "x"]),
         "candidate_sets": len(run.observations),
         "marker_points": len(marker_points),
+        "frame_marker_points": len(frame_points),
         "committed_sets": sum(d.committed >= 0 for d in decisions),
         "landmark_anchors": n_anchor,
         "feature_tracks": n_tracks,
@@ -188,6 +196,7 @@ def build_graph(
         },
         variants,
         guessed_variants,
+        {key: (pose_key(ti, kt), local) for key, ti, kt, local in frame_points},
     )
 
 

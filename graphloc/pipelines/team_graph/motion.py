@@ -37,6 +37,22 @@ class Timeline:
         tol = config.keyframe_dt / 2 + 1e-9 if len(run.velocity[r]) else config.sync_tolerance
         return i if abs(times[i] - t) <= tol else -1
 
+    def offsets(self, r: int, nodes, times) -> list:
+        """Robot r's body at each of `times` in its body frame at node `nodes[i]`
+        (gtsam.Pose3 each): a wheel-odometry robot's motion between its grid pose and the
+        measurement's time integrated from its velocities (one vectorized pass); the identity
+        for other robots (their poses are at their own time stamps, within `sync_tolerance`)."""
+        od = self.run.velocity[r]
+        if not len(od) or self.run.robots[r].static or not len(times):
+            return [gtsam.Pose3()] * len(times)
+        at_node = self.node_times[r][np.asarray(nodes, dtype=int)]
+        stamps = np.union1d(at_node, np.asarray(times, dtype=float))
+        noise = velocity_noise(self.run, r, self.config)
+        poses = integrate_unicycle(od[:, 0], od[:, 1], od[:, 2], stamps, noise).poses
+        a = poses[np.searchsorted(stamps, at_node)]
+        b = poses[np.searchsorted(stamps, times)]
+        return [pose_from_planar(*p0).between(pose_from_planar(*p1)) for p0, p1 in zip(a, b)]
+
 
 def node_times(run: TeamRun, config: GraphConfig) -> list:
     out = []

@@ -15,7 +15,7 @@ from graphloc.pipelines.team_graph.config import DEFAULT_LAG, GraphConfig
 
 NOISE = ("bearing_sigma", "range_sigma", "range_sigma_per_m", "pixel_sigma")
 KERNELS = ("kernel", "odometry_kernel", "candidate_kernel")
-OUTPUTS = ("mcap", "rerun")  # not graph options: `validate` leaves them out
+OUTPUTS = ("mcap", "rerun", "align", "strict")  # not graph options: `validate` leaves them out
 SOLVER = ("lag",)
 SOURCE = ("topics", "scan_rate")  # options of one kind of source (open_run's `source`)
 
@@ -94,6 +94,20 @@ class RunOptions:
     rerun: str | None = field(
         default=None, metadata=_help("also write a Rerun recording (.rrd; graphloc[viz])")
     )
+    align: str | None = field(
+        default=None,
+        metadata=_help(
+            "how estimates are compared with ground truth: none, se2, se3 or sim3 (evo's "
+            "names); unset: the world frame when the log anchors it, else se2 / se3"
+        ),
+    )
+    strict: bool = field(
+        default=False,
+        metadata=_help(
+            "exit with code 5 when the solve is inconsistent or a warning was raised "
+            "(docs/outputs.md)"
+        ),
+    )
 
     def __post_init__(self):
         check(
@@ -111,6 +125,12 @@ class RunOptions:
                 Kernel.parse(getattr(self, name))
             except ValueError as exc:
                 raise ValueError(f"RunOptions.{name} (--{name.replace('_', '-')}): {exc}") from None
+        from graphloc.eval import ALIGNMENTS  # evo loads when options are made, not for --help
+
+        if self.align is not None and self.align not in ALIGNMENTS:
+            raise ValueError(
+                f"RunOptions.align (--align): one of {', '.join(ALIGNMENTS)}, got {self.align!r}"
+            )
         if not (self.landmarks or self.inter_robot):
             raise ValueError("--no-landmarks with --no-inter-robot leaves only odometry")
 
@@ -131,8 +151,8 @@ class RunOptions:
                 "landmark": kernel,
                 "inter_robot": kernel,
                 "candidate": Kernel.parse(self.candidate_kernel),
-            },
-            default=Kernel.parse(self.odometry_kernel),
+                "odometry": Kernel.parse(self.odometry_kernel),
+            }
         )
         return GraphConfig(
             keyframe_dt=self.keyframe_dt,

@@ -1,0 +1,101 @@
+"""Decisions judged by the ground truth (simulations and logs with a `groundtruth` table):
+which candidate of a set is the genuine one, and whether the decided one is consistent with
+the truth (docs/outputs.md, `decisions.csv`)."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+from scipy.stats import chi2 as chi2_distribution
+
+from graphloc.run import TeamRun
+
+
+def genuine_candidates(run: TeamRun, decisions: list, max_time_diff: float = 0.02) -> list[int]:
+    """Per decision, the genuine candidate: the one nearest the observer's true position (ground
+    truth within max_time_diff of the set's time), or -1 where the run has no ground truth there."""
+    out = []
+    for d in decisions:
+        gt = run.groundtruth[d.robot]
+        if gt is None or not len(gt[0]):
+            out.append(-1)
+            continue
+        if (
+            d.relative is not None
+        ):  # max-mixture route: the candidate nearest the true relative pose
+            out.append(_genuine_relative(run, d, max_time_diff))
+            continue
+        i = int(np.argmin(np.abs(gt[0] - d.time)))
+        if abs(gt[0][i] - d.time) > max_time_diff or not len(d.candidates_xyz):
+            out.append(-1)
+            continue
+        out.append(
+            int(np.argmin(np.linalg.norm(d.candidates_xyz - gt[1][i].translation(), axis=1)))
+        )
+    return out
+
+
+def _genuine_relative(run: TeamRun, d, max_time_diff: float) -> int:
+    """The candidate (observer body_T_target, `Decision.relative`) nearest the true relative
+    pose (rotation angle [rad] plus translation [m] over 0.1 m), -1 without ground truth."""
+    rel = []
+    for r in (d.robot, d.target):
+        gt = run.groundtruth[r]
+        if gt is None or not len(gt[0]):
+            return -1
+        i = int(np.argmin(np.abs(gt[0] - d.time)))
+        if abs(gt[0][i] - d.time) > max_time_diff:
+            return -1
+        rel.append(gt[1][i])
+    truth = rel[0].between(rel[1])
+    cost = []
+    for T in d.relative:
+        e = gtsam.Pose3.Logmap(truth.between(gtsam.Pose3(T)))
+        cost.append(np.linalg.norm(e[:3]) + np.linalg.norm(e[3:]) / 0.1)
+    return int(np.argmin(cost))
+
+
+JUDGE_PROBABILITY = 0.999  # a decided candidate farther from the truth than this quantile is wrong
+
+
+def judge_decisions(
+    run: TeamRun, decisions: list, max_time_diff: float = 0.02
+) -> tuple[list[int], list[bool | None]]:
+    """Each set judged by the ground truth: the genuine candidate (`genuine_candidates`) and
+    whether the committed candidate is consistent with the truth -- the sensor's true pose in
+    the target's body frame,
+    truth_target^-1 truth_observer body_T_sensor, within the candidate's covariance at
+    JUDGE_PROBABILITY of a chi-square with 6 degrees of freedom (None: no truth, or nothing
+    committed). A set none of whose candidates is near the truth is therefore judged wrong
+    whichever is decided."""
+    gate = float(chi2_distribution.ppf(JUDGE_PROBABILITY, 6))
+    correct = []
+    for d in decisions:
+        truth = _true_measurement(run, d, max_time_diff) if d.committed >= 0 else None
+        if truth is None or d.measured is None:
+            correct.append(None)
+            continue
+        e = gtsam.Pose3.Logmap(gtsam.Pose3(d.measured[d.committed]).between(truth))
+        correct.append(bool(e @ np.linalg.solve(d.measured_cov[d.committed], e) <= gate))
+    return genuine_candidates(run, decisions, max_time_diff), correct
+
+
+def _true_measurement(run: TeamRun, d, max_time_diff: float):
+    """The sensor's true pose in the target's body frame at the set's time (gtsam.Pose3), None
+    without ground truth of both robots there (a static target without ground truth: its
+    initial pose)."""
+    poses = []
+    for r in (d.robot, d.target):
+        gt = run.groundtruth[r]
+        if gt is None or not len(gt[0]):
+            robot = run.robots[r]
+            if robot.static and robot.initial_pose is not None and r == d.target:
+                poses.append(robot.initial_pose)
+                continue
+            return None
+        i = int(np.argmin(np.abs(gt[0] - d.time)))
+        if abs(gt[0][i] - d.time) > max_time_diff and not run.robots[r].static:
+            return None
+        poses.append(gt[1][i])
+    observer, target = poses
+    return target.between(observer).compose(gtsam.Pose3(d.body_T_sensor))

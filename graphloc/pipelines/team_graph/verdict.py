@@ -1,0 +1,169 @@
+"""Is a solve to be trusted? The consistency verdict of every batch and online solve: the
+solution judged by its own measurement model, and what of the run it could not use.
+
+The test (`ConsistencyTest`), on the final estimate:
+- every factor type's normalized chi-square -- the squared whitened residuals without the
+  robust kernel over their dimension, of the factors the kernel keeps (its inliers,
+  `factor_statistics`) -- is at most `max_normalized_chi2` (about 1 where a type's
+  stated noise is right; above it, the
+  residuals are larger than the noise the log states: a wrong noise model, a wrong
+  calibration, corrupted rows or a wrong solution);
+- every robust factor type has at most `max_downweighted_share` of its factors down-weighted
+  by the kernel (a solution that explains its measurements by calling many of them outliers);
+- every candidate stream (observer, target) has at most `max_inconsistent_share` of its sets
+  inconsistent (no pose of the target's layout passes the pixel chi-square,
+  `vision.marker_poses`).
+A run that fails is `consistent: false` with the failures named. Warnings (each one line naming
+the robot and the table) say what the solve could not use: a robot left unplaced, a candidate
+stream never decided, rows of a table skipped; they do not change `consistent`, and with
+`--strict` either makes the verb exit with `exitcodes.INCONSISTENT`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from graphloc.config import check
+
+# skip reasons that drop rows a log states (docs/log_format.md): each is a warning
+LOST_ROWS = (
+    "field_count",
+    "parse",
+    "non_finite",
+    "implausible",
+    "field_too_long",
+    "time_backwards",
+    "unknown_sensor",
+    "sensor_type",
+    "unknown_target",
+    "path_outside_run",
+    "bad_relative_pose",
+    "not_unit",
+    "non_positive_range",
+    "self_observation",
+    "unknown_marker",
+    "duplicate_marker",
+    "too_few_markers",
+    "no_p3p_solution",
+    "no_pose_at_time",
+    "target_unplaced",
+    "bad_pixel",
+)
+
+
+@dataclass(frozen=True)
+class ConsistencyTest:
+    """The thresholds of the verdict (module docstring)."""
+
+    max_normalized_chi2: float = 4.0
+    max_downweighted_share: float = 0.1
+    max_inconsistent_share: float = 0.1
+
+    def __post_init__(self):
+        check(
+            self,
+            positive=("max_normalized_chi2",),
+            interval={
+                "max_downweighted_share": (0.0, 1.0, "[]"),
+                "max_inconsistent_share": (0.0, 1.0, "[]"),
+            },
+        )
+
+
+def factor_statistics(res, types: np.ndarray, threshold: float) -> dict:
+    """Per factor type (graph order `types`): its count, residual dimension, chi-square (the
+    squared whitened residuals without the robust kernel, `factors.robust.residuals`), robust
+    factors and those the kernel down-weights below `threshold` (the outliers it found) and
+    their share, and over the others (the inliers): whitened residual RMS (sqrt(chi2 / dim))
+    and normalized chi-square (chi2 / dim: about 1 where the stated noise is right, below 1 by
+    the share of the dimension the variables absorb)."""
+    out = {}
+    muted = res.downweighted(threshold)
+    for kind in sorted(set(types.tolist())):
+        sel = types == kind
+        inliers = sel & ~muted
+        dim, chi2 = int(res.dims[sel].sum()), float(res.chi2[sel].sum())
+        dim_in, chi2_in = int(res.dims[inliers].sum()), float(res.chi2[inliers].sum())
+        robust, down = int(res.robust[sel].sum()), int(muted[sel].sum())
+        out[kind] = {
+            "count": int(sel.sum()),
+            "dim": dim,
+            "chi2": chi2,
+            "rms": float(np.sqrt(chi2_in / dim_in)) if dim_in else None,
+            "normalized_chi2": chi2_in / dim_in if dim_in else None,
+            "robust": robust,
+            "downweighted": down,
+            "downweighted_share": down / robust if robust else 0.0,
+        }
+    return out
+
+
+def candidate_streams(decisions: list, names: list) -> dict:
+    """Per (observer, target) stream "observer->target": its sets, decided, undecided and
+    inconsistent ones."""
+    out: dict = {}
+    for d in decisions:
+        row = out.setdefault(
+            f"{names[d.robot]}->{names[d.target]}",
+            {"sets": 0, "decided": 0, "undecided": 0, "inconsistent": 0},
+        )
+        row["sets"] += 1
+        row[d.status] += 1
+    return out
+
+
+def judge(
+    factor_stats: dict,
+    streams: dict,
+    unplaced: list,
+    skips: dict,
+    test: ConsistencyTest = ConsistencyTest(),
+) -> dict:
+    """The verdict: {"consistent", "test" (the thresholds), "failures" [...], "warnings"
+    [...]}. factor_stats: `factor_statistics`; streams: `candidate_streams`; unplaced:
+    names of robots with data that nothing placed; skips: `SkipReport.as_dict()`."""
+    failures, warnings = [], []
+    for kind, row in factor_stats.items():
+        nchi2 = row["normalized_chi2"]
+        if nchi2 is not None and nchi2 > test.max_normalized_chi2:
+            failures.append(
+                f"{kind} factors: normalized chi-square {nchi2:.3g} > "
+                f"{test.max_normalized_chi2:g} (whitened residual RMS {row['rms']:.3g}; "
+                f"{row['count']} factors)"
+            )
+        if row["robust"] and row["downweighted_share"] > test.max_downweighted_share:
+            failures.append(
+                f"{kind} factors: {row['downweighted']} of {row['robust']} down-weighted by the "
+                f"robust kernel ({row['downweighted_share']:.0%} > "
+                f"{test.max_downweighted_share:.0%})"
+            )
+    for name, row in streams.items():
+        share = row["inconsistent"] / row["sets"]
+        if share > test.max_inconsistent_share:
+            failures.append(
+                f"candidate sets {name}: {row['inconsistent']} of {row['sets']} inconsistent "
+                f"(no pose of the target's layout explains the marker pixels; {share:.0%} > "
+                f"{test.max_inconsistent_share:.0%})"
+            )
+        if row["decided"] == 0 and row["sets"] > row["inconsistent"]:
+            warnings.append(
+                f"candidate sets {name} (markers / candidates / ellipses table of "
+                f"{name.split('->')[0]}): none of {row['sets']} decided"
+            )
+    for name in unplaced:
+        warnings.append(f"robot {name}: left unplaced (nothing anchors it; its poses are absent)")
+    first = skips.get("first", {})
+    for reason, count in sorted(skips.get("counts", {}).items()):
+        if reason in LOST_ROWS:
+            example = first.get(reason, "")
+            warnings.append(
+                f"{count} rows skipped ({reason})" + (f", e.g. {example}" if example else "")
+            )
+    return {
+        "consistent": not failures,
+        "test": asdict(test),
+        "failures": failures,
+        "warnings": warnings,
+    }
