@@ -226,6 +226,24 @@ class Session:
             self._records.append(_Record(t, items, initial_values, latency))
         return step
 
+    def iterate(self) -> float:
+        """Online: one more iSAM2 iteration over what was added, every variable whose delta
+        exceeds the relinearization threshold relinearized whatever `relinearize_skip` says
+        (a fixed-lag session: one more update). Returns its wall time [s]."""
+        if self._isam is None:
+            raise ValueError("Session.iterate: only an online session iterates")
+        start = _time.perf_counter()
+        try:
+            if self.fixed_lag:
+                self._window.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), self._last_time)
+            else:
+                self._isam.update(
+                    gtsam.NonlinearFactorGraph(), gtsam.Values(), force_relinearize=True
+                )
+        except RuntimeError as exc:
+            raise ValueError(f"Session.iterate: iSAM2 update failed ({_first_line(exc)})") from None
+        return _time.perf_counter() - start
+
     def estimate(self, keys: Iterable[int] | None = None) -> gtsam.Values:
         """Current estimate of all variables (or only `keys`). Batch: LM from the initial guess over
         the whole graph (cached until the next `add`). Online: iSAM2's current estimate."""

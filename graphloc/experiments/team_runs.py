@@ -28,7 +28,8 @@ from graphloc.datasets.scenarios import generate
 from graphloc.executor import Executor
 from graphloc.keys import pose_key
 from graphloc.experiments.front_door import truth_at
-from graphloc.pipelines.judge import genuine_candidates
+from graphloc.pipelines.judge import judge_decisions
+from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.pipelines.track_smoothing import smooth_track
 from graphloc.seams import Odometry
@@ -83,22 +84,19 @@ def through_front_door(
     graph = build_graph(run, config)
     results = {mode: solve(graph, mode) for mode in ("batch", "online")}
     decisions = results["batch"].decisions  # max-mixture sets chosen at the estimate
-    genuine = genuine_candidates(run, decisions)
+    genuine, correct = judge_decisions(run, decisions)
     committed = [d for d in decisions if d.committed >= 0]
     first = next((d.time for d in committed), None)
+    verdicts = {mode: evaluate(res, run)["consistency"] for mode, res in results.items()}
     out = {
         "candidate_sets": len(decisions),
         "committed": len(committed),
-        "wrong": sum(
-            g not in d.same_pose for d, g in zip(decisions, genuine) if d.committed >= 0 and g >= 0
-        ),
-        "merged": sum(
-            g != d.committed and g in d.same_pose
-            for d, g in zip(decisions, genuine)
-            if d.committed >= 0 and g >= 0
-        ),
+        "wrong": sum(c is False for c in correct),
+        "merged": sum(bool(c) and g != d.committed for d, g, c in zip(decisions, genuine, correct)),
         "first_commit_time": first,
         "placed": bool(np.isfinite(results["batch"].estimate[r][:, 0]).any()),
+        **{f"consistent_{mode}": v["consistent"] for mode, v in verdicts.items()},
+        **{f"warnings_{mode}": len(v["warnings"]) for mode, v in verdicts.items()},
     }
     if not out["placed"]:
         return out

@@ -56,6 +56,9 @@ def _genuine_relative(run: TeamRun, d, max_time_diff: float) -> int:
 
 
 JUDGE_PROBABILITY = 0.999  # a decided candidate farther from the truth than this quantile is wrong
+# the truth's own tolerance (rad, m): ground-truth accuracy, its time association (within
+# max_time_diff) and calibration a log does not model (e.g. a camera that wobbles on its mount)
+TRUTH_SIGMA = (0.01, 0.02)
 
 
 def judge_decisions(
@@ -64,11 +67,12 @@ def judge_decisions(
     """Each set judged by the ground truth: the genuine candidate (`genuine_candidates`) and
     whether the committed candidate is consistent with the truth -- the sensor's true pose in
     the target's body frame,
-    truth_target^-1 truth_observer body_T_sensor, within the candidate's covariance at
-    JUDGE_PROBABILITY of a chi-square with 6 degrees of freedom (None: no truth, or nothing
-    committed). A set none of whose candidates is near the truth is therefore judged wrong
-    whichever is decided."""
+    truth_target^-1 truth_observer body_T_sensor, within the candidate's covariance plus the
+    truth's own tolerance (`TRUTH_SIGMA`) at JUDGE_PROBABILITY of a chi-square with 6 degrees
+    of freedom (None: no truth, or nothing committed). A set none of whose candidates is near
+    the truth is therefore judged wrong whichever is decided."""
     gate = float(chi2_distribution.ppf(JUDGE_PROBABILITY, 6))
+    tolerance = np.diag(np.repeat(np.square(TRUTH_SIGMA), 3))
     correct = []
     for d in decisions:
         truth = _true_measurement(run, d, max_time_diff) if d.committed >= 0 else None
@@ -76,7 +80,8 @@ def judge_decisions(
             correct.append(None)
             continue
         e = gtsam.Pose3.Logmap(gtsam.Pose3(d.measured[d.committed]).between(truth))
-        correct.append(bool(e @ np.linalg.solve(d.measured_cov[d.committed], e) <= gate))
+        cov = d.measured_cov[d.committed] + tolerance
+        correct.append(bool(e @ np.linalg.solve(cov, e) <= gate))
     return genuine_candidates(run, decisions, max_time_diff), correct
 
 

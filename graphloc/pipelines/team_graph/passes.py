@@ -168,6 +168,19 @@ class Pass:
         self.wall += _time.perf_counter() - t0
         return float(res.chi2.sum()), int(res.dims.sum())
 
+    def settle(self, updates: int) -> float:
+        """Up to `updates` more iSAM2 iterations (online, `Session.iterate`), stopping when the
+        chi-square falls by less than 1 %; returns the chi-square after them."""
+        chi2 = self.current_chi2()[0]
+        for _ in range(updates if self.mode == "online" and self.session.steps else 0):
+            self.wall += self.session.iterate()
+            new = self.current_chi2()[0]
+            settled = new > 0.99 * chi2
+            chi2 = new
+            if settled:
+                break
+        return chi2
+
     def causal_row(self, r: int, k: int) -> np.ndarray:
         return grid_rows(self.causal[r][k : k + 1])[0]
 

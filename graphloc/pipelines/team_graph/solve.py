@@ -6,6 +6,7 @@ from __future__ import annotations
 import time as _time
 from dataclasses import replace
 
+import gtsam
 import numpy as np
 from tqdm import tqdm
 
@@ -17,7 +18,9 @@ __all__ = ["STEP_LOG_COLUMNS", "TeamResult", "hypotheses", "solve", "warm_start"
 
 
 PRUNE_CHI2 = 50.0  # a hypothesis whose chi-square exceeds the least by this much is dropped
-CONVERGED_CHI2 = 4.0  # ... once the least is at most this many times its residual dimension
+SETTLE_UPDATES = 5  # ... after at most this many more iSAM2 iterations of both
+SAME_ESTIMATE = (0.01, 0.01)  # (m, rad): hypotheses whose latest poses agree this well are one
+EARLY_CHECKS = 20  # hypotheses are compared after each of the first steps
 MAX_CHECKS = 200  # hypotheses are compared at most this many times over a run (and at its end)
 
 
@@ -47,10 +50,10 @@ def solve(
     (`factors.robust.residuals`) -- a placement that explains its measurements by down-
     weighting them as outliers does not win on the kernel's saturated error --, and a
     hypothesis whose chi-square exceeds the least by `PRUNE_CHI2` is dropped as the evidence
-    arrives, so one pass carries the rest of the run -- once the best hypothesis explains its
-    data (its chi-square at most `CONVERGED_CHI2` times its residual dimension, the
-    consistency bound of `team_graph.verdict`): before that the passes have not converged
-    (iSAM2 takes one step per update) and their chi-square is no evidence. The online estimate
+    arrives, so one pass carries the rest of the run; an iSAM2 update is one Gauss-Newton step,
+    so before one is dropped both it and the best get a few more iterations (a pass far from its
+    minimum is no evidence against it), and hypotheses that converged to one estimate are one.
+    The online estimate
     is the surviving hypothesis of least chi-square at the end; each pose's causal estimate
     comes from the hypothesis of least chi-square when that pose entered (a choice made with
     the data up to that step only).
@@ -99,7 +102,7 @@ def hypotheses(
         for s in starts
     ]
     alive = list(range(len(passes)))
-    chi2, dims = np.zeros(len(passes)), np.zeros(len(passes), dtype=int)
+    chi2 = np.zeros(len(passes))
     best_at: list = []  # step -> index of the best pass then
     stride = max(1, len(graph.steps) // MAX_CHECKS)
     start = _time.perf_counter()
@@ -117,13 +120,10 @@ def hypotheses(
                 if len(alive) == 1:
                     raise
                 alive.remove(j)
-        if len(alive) > 1 and (i % stride == 0 or i == len(graph.steps) - 1):
-            for j in alive:
-                chi2[j], dims[j] = passes[j].current_chi2()
-            best = min(alive, key=lambda j: chi2[j])
-            least = chi2[best]
-            if least <= CONVERGED_CHI2 * max(dims[best], 1):  # the best explains its data
-                alive = [j for j in alive if chi2[j] <= least + PRUNE_CHI2]
+        if len(alive) > 1:
+            alive = _distinct(passes, alive)
+        if len(alive) > 1 and (i % stride == 0 or i < EARLY_CHECKS or i == len(graph.steps) - 1):
+            alive = _prune(passes, alive, chi2)
         best_at.append(min(alive, key=lambda j: chi2[j]))
         if on_step is not None:
             on_step(i)
@@ -146,6 +146,55 @@ def hypotheses(
         survivors=[results[j].values for j in alive if j != best],
         hypotheses=len(passes),
     )
+
+
+def _distinct(passes: list, alive: list) -> list:
+    """The hypotheses that are not the same estimate as an earlier one: every robot's latest
+    pose within SAME_ESTIMATE (m, rad) of it (they converged to one basin)."""
+    out = []
+    for j in alive:
+        mine = passes[j].latest
+        if not any(_same(mine, passes[i].latest) for i in out):
+            out.append(j)
+    return out
+
+
+def _same(a: dict, b: dict) -> bool:
+    if a.keys() != b.keys():
+        return False
+    for r, (k, pose) in a.items():
+        kb, other = b[r]
+        if k != kb:
+            return False
+        d = pose.between(other)
+        if np.linalg.norm(d.translation()) > SAME_ESTIMATE[0]:
+            return False
+        if np.linalg.norm(gtsam.Rot3.Logmap(d.rotation())) > SAME_ESTIMATE[1]:
+            return False
+    return True
+
+
+def _prune(passes: list, alive: list, chi2: np.ndarray) -> list:
+    """Hypotheses compared by chi-square (`solve`); one more than PRUNE_CHI2 behind the best is
+    first given up to SETTLE_UPDATES more iSAM2 iterations, as is the best (an update takes one
+    Gauss-Newton step, and a pass far from its minimum is no evidence against it), and dropped
+    if it is still behind. Updates `chi2` of the passes compared."""
+    for j in alive:
+        chi2[j] = passes[j].current_chi2()[0]
+    best = min(alive, key=lambda j: chi2[j])
+    behind = [j for j in alive if chi2[j] > chi2[best] + PRUNE_CHI2]
+    if not behind:
+        return alive
+    for j in [best, *behind]:
+        try:
+            chi2[j] = passes[j].settle(SETTLE_UPDATES)
+        except ValueError:  # iSAM2 cannot iterate this hypothesis: it is dropped
+            chi2[j] = np.inf
+    best = min(alive, key=lambda j: chi2[j])
+    kept = [j for j in alive if chi2[j] <= chi2[best] + PRUNE_CHI2]
+    if not kept:
+        raise ValueError("no hypothesis can be solved")
+    return kept
 
 
 def _batch_starts(graph: TeamGraph, stop, progress: bool) -> tuple[list, str]:

@@ -27,7 +27,8 @@ import numpy as np
 
 from graphloc.config import check
 
-# skip reasons that drop rows a log states (docs/log_format.md): each is a warning
+# skip reasons that drop rows a log states (docs/log_format.md): each is a warning (not
+# `too_few_markers`: a frame where markers left the image is no fault of the log)
 LOST_ROWS = (
     "field_count",
     "parse",
@@ -45,7 +46,6 @@ LOST_ROWS = (
     "self_observation",
     "unknown_marker",
     "duplicate_marker",
-    "too_few_markers",
     "no_p3p_solution",
     "no_pose_at_time",
     "target_unplaced",
