@@ -95,6 +95,8 @@ def solve(
     initial, start_from = None, ""
     if mode == "batch":
         initial, start_from = _batch_start(graph, stop, progress)
+        if stop is not None and stop():  # stopped before LM began: its iterate is its start
+            return _start_only(graph, initial, start_from, _time.perf_counter() - t0)
     warm = _time.perf_counter() - t0  # its wall time counts in the solve's
     variants = graph.alternatives if mode == "batch" else graph.guessed_alternatives
     traces: list = [{} if variants and mode == "online" else None]
@@ -223,17 +225,12 @@ def _solve(
     partial = partial or session.stopped
     wall = _time.perf_counter() - start
     estimate = [grid_rows(g) for g in pose_grids(graph.node_times, *values_poses(final))]
-    guessed = [
-        (r, k, graph.initial[key].matrix())
-        for r, times in enumerate(graph.node_times)
-        for k in range(len(times))
-        if (key := pose_key(r, k)) in graph.initial
-    ]
-    robot, index, m = zip(*guessed) if guessed else ((), (), np.zeros((0, 4, 4)))
-    dead = [grid_rows(g) for g in pose_grids(graph.node_times, robot, index, np.array(m))]
+    dead = _guess_rows(graph, graph.initial)
     down = {}
     types = np.array(types)
     for ftype in ("odometry", "landmark", "inter_robot", "candidate"):
+        if partial:  # a stopped solve: returned promptly, its kernels' weights not evaluated
+            break
         if cfg.kernels.kernel(ftype).name == "none" or not (types == ftype).any():
             continue
         rep = downweighted(
@@ -270,6 +267,40 @@ def _solve(
         decisions,
         final,
         session.error(final),
+    )
+
+
+def _guess_rows(graph: TeamGraph, values: dict) -> list:
+    """Per robot, (K_r,7) rows of the poses `values` (key -> Pose3) holds, NaN elsewhere."""
+    guessed = [
+        (r, k, values[key].matrix())
+        for r, times in enumerate(graph.node_times)
+        for k in range(len(times))
+        if (key := pose_key(r, k)) in values
+    ]
+    robot, index, m = zip(*guessed) if guessed else ((), (), np.zeros((0, 4, 4)))
+    return [grid_rows(g) for g in pose_grids(graph.node_times, robot, index, np.array(m))]
+
+
+def _start_only(graph: TeamGraph, initial: dict | None, start_from: str, wall: float):
+    """A batch solve stopped before LM began (a signal during its incremental pass): partial,
+    its estimate the LM iterate it would have started from, `initial` (None: the graph's
+    guess); no session is built, so the stop returns at once."""
+    start = graph.initial if initial is None else initial
+    return TeamResult(
+        "batch",
+        graph.node_times,
+        _guess_rows(graph, start),
+        [np.full((len(t), 7), np.nan) for t in graph.node_times],
+        _guess_rows(graph, graph.initial),
+        np.zeros(0),
+        wall,
+        graph,
+        {},
+        {},
+        partial=True,
+        decisions=list(graph.decisions),
+        batch_start=f"{start_from}; stopped before Levenberg-Marquardt",
     )
 
 
