@@ -6,7 +6,7 @@ OUT ?= out
 
 .PHONY: demo test test-all bench-p3p clean
 
-$(STAMP): pyproject.toml scripts/bootstrap.sh
+$(STAMP): pyproject.toml setup.py scripts/bootstrap.sh
 	VENV=$(VENV) bash scripts/bootstrap.sh
 	touch $(STAMP)
 

@@ -9,19 +9,23 @@ Kernels (gtsam.noiseModel.mEstimator): huber, cauchy, tukey, gemanmcclure, dcs, 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-import gtsam
-import numpy as np
+if TYPE_CHECKING:  # annotations only
+    import gtsam
+    import numpy as np
 
-_M = gtsam.noiseModel.mEstimator
+# kernel name -> its class in gtsam.noiseModel.mEstimator (GTSAM loads where a noise model is
+# built: `Kernel` and `KernelPolicy` are settings the command line's options are checked with)
 KERNELS = {
-    "huber": _M.Huber,
-    "cauchy": _M.Cauchy,
-    "tukey": _M.Tukey,
-    "gemanmcclure": _M.GemanMcClure,
-    "dcs": _M.DCS,
-    "welsch": _M.Welsch,
+    "huber": "Huber",
+    "cauchy": "Cauchy",
+    "tukey": "Tukey",
+    "gemanmcclure": "GemanMcClure",
+    "dcs": "DCS",
+    "welsch": "Welsch",
 }
 
 
@@ -44,7 +48,7 @@ class Kernel:
             k = float(self.k)
         except (TypeError, ValueError):
             k = float("nan")
-        if not (np.isfinite(k) and k > 0):
+        if not (math.isfinite(k) and k > 0):
             raise ValueError(f"robust kernel constant k must be finite > 0, got {self.k!r}")
         object.__setattr__(self, "name", name)
         object.__setattr__(self, "k", k)
@@ -85,7 +89,9 @@ def robust_noise(base: gtsam.noiseModel.Base, kernel: Kernel) -> gtsam.noiseMode
     """`base` wrapped in gtsam.noiseModel.Robust with `kernel` (returned unchanged for "none")."""
     if kernel.name == "none":
         return base
-    estimator = KERNELS[kernel.name].Create(kernel.k)
+    import gtsam
+
+    estimator = getattr(gtsam.noiseModel.mEstimator, KERNELS[kernel.name]).Create(kernel.k)
     return gtsam.noiseModel.Robust.Create(estimator, base)
 
 
@@ -117,6 +123,9 @@ def residuals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> Residu
     factor slot counts as dimension 0; a residual component of std >= UNINFORMATIVE, e.g. the
     range of a bearing-only `factors.bearing.bearing_factor`, does not count in the
     dimension)."""
+    import gtsam
+    import numpy as np
+
     n = graph.size()
     dims, chi2, weights = np.zeros(n, int), np.zeros(n), np.ones(n)
     robust = np.zeros(n, bool)

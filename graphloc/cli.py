@@ -20,6 +20,7 @@ import contextlib
 import importlib
 import io
 import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -42,7 +43,11 @@ VERBS: dict[str, str] = {
 }
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(load=None) -> argparse.ArgumentParser:
+    """The command line: every verb with its options, or, with `load` (verbs of VERBS), those
+    verbs' options alone, the others named but not imported. `main` loads the verb the command
+    line names (none for `--version`, every verb for the program's `--help`), so a verb starts
+    without importing the other verbs' modules."""
     parser = argparse.ArgumentParser(
         prog="graphloc",
         description="Factor-graph localization of ground + climbing robot teams (GTSAM).",
@@ -51,12 +56,25 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="verb", metavar="VERB")
     sub.required = True
     for verb, module_name in VERBS.items():
+        if load is not None and verb not in load:
+            sub.add_parser(verb)
+            continue
         module = importlib.import_module(f"graphloc.commands.{module_name}")
         p = sub.add_parser(verb, help=module.HELP, description=module.HELP)
         module.add_arguments(p)
         add_common_arguments(p)
         p.set_defaults(_run=module.run)
     return parser
+
+
+def verbs_to_load(argv: list[str]) -> list[str] | None:
+    """The verbs `main` loads for a command line: the verb it names (its first word that is
+    not an option: the program's own options take no value), else none -- `--version`, or a
+    usage error -- unless it asks for the program's help (every verb, None)."""
+    word = next((a for a in argv if not a.startswith("-")), None)
+    if word in VERBS:
+        return [word]
+    return None if word is None and {"-h", "--help"} & set(argv) else []
 
 
 def check_out(out: Path) -> None:
@@ -72,7 +90,22 @@ def check_out(out: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    program = argv is None  # the process itself (the console script, python -m graphloc)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        return _main(argv)
+    except KeyboardInterrupt as exc:  # before a verb runs (its options read) or after it ended
+        verb = next((a for a in argv if a in VERBS), "")
+        text = str(exc) or "interrupted (Ctrl-C)"
+        print(f"graphloc{' ' + verb if verb else ''}: error: {text}", file=sys.stderr)
+        return INTERRUPTED
+    finally:
+        if program:  # exiting with its code: a Ctrl-C now would only turn it into "killed"
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _main(argv: list[str]) -> int:
+    args = build_parser(verbs_to_load(argv)).parse_args(argv)
 
     def error(text: str, code: int) -> int:
         print(f"graphloc {args.verb}: error: {text}", file=sys.stderr)
@@ -95,8 +128,8 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError) as exc:
         # Bad input: one clear line naming what is wrong, not a traceback from deep inside.
         return error(str(exc), BAD_INPUT)
-    except KeyboardInterrupt:
-        return error("interrupted (Ctrl-C); outputs may be incomplete", INTERRUPTED)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or `Interrupted` saying when and what was written
+        return error(str(exc) or "interrupted (Ctrl-C); outputs may be incomplete", INTERRUPTED)
     except OSError as exc:  # disk full, permissions, a path that is not a directory, ...
         return error(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), FAILED)
     except RuntimeError as exc:  # Open3D and GTSAM report their failures as RuntimeError

@@ -68,6 +68,7 @@ def align_se2(reference: PoseTrajectory3D, estimate: PoseTrajectory3D) -> PoseTr
     return aligned
 
 
+MAX_TIME_DIFF = 0.02  # [s] default of the metrics' time association (estimate vs ground truth)
 ALIGNMENTS = ("none", "se2", "se3", "sim3")
 
 
@@ -76,15 +77,20 @@ def trajectory_metrics(
     estimate: PoseTrajectory3D,
     align: str = "se2",
     rpe_delta_s: float = 1.0,
-    max_time_diff: float = 0.02,
+    max_time_diff: float = MAX_TIME_DIFF,
+    associated: bool = False,
 ) -> TrajectoryMetrics:
-    """ATE / RPE of `estimate` against `reference` (time-associated by evo within max_time_diff).
+    """ATE / RPE of `estimate` against `reference` (time-associated by evo within max_time_diff;
+    `associated`: the two are the pairs of `associate` already, pose i with pose i).
     align (as evo names them): "none" (the world frame the run defines), "se2" (planar: a
     rotation about z and a translation in the plane), "se3" (Umeyama, no scale) or "sim3"
     (Umeyama with scale)."""
     if align not in ALIGNMENTS:
         raise ValueError(f"align must be one of {', '.join(ALIGNMENTS)}, got {align!r}")
-    ref, est = _associate(reference, estimate, max_time_diff)
+    if associated:
+        ref, est = reference, estimate
+    else:
+        ref, est = _associate(reference, estimate, max_time_diff)
     if ref.num_poses < 3:
         raise ValueError(
             f"only {ref.num_poses} estimate poses have ground truth within {max_time_diff} s"
@@ -130,6 +136,25 @@ def trajectory_metrics(
     )
 
 
+def associate(
+    reference_times: np.ndarray, estimate_times: np.ndarray, max_time_diff: float = MAX_TIME_DIFF
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs (reference indices, estimate indices) that evo's nearest-time
+    `associate_trajectories(reference, estimate)` makes, from the stamps alone: from the
+    trajectory with fewer poses (the estimate on a tie), each stamp's nearest stamp of the other
+    within max_time_diff (evo's `matching_time_indices`). Lets a caller convert only the
+    reference poses that are compared (a long ground truth at 100 Hz). No pair -> ValueError."""
+    ref_t = np.asarray(reference_times, dtype=float)
+    est_t = np.asarray(estimate_times, dtype=float)
+    if len(est_t) > len(ref_t):
+        i_ref, i_est = sync.matching_time_indices(ref_t, est_t, max_time_diff)
+    else:
+        i_est, i_ref = sync.matching_time_indices(est_t, ref_t, max_time_diff)
+    if not len(i_ref):
+        raise ValueError(f"only 0 estimate poses have ground truth within {max_time_diff} s")
+    return np.asarray(i_ref, dtype=int), np.asarray(i_est, dtype=int)
+
+
 def _associate(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, max_time_diff: float):
     """evo nearest-time association; no common time stamps -> ValueError (not evo's
     SyncException)."""
@@ -145,22 +170,27 @@ def ate_over_time(
     reference: PoseTrajectory3D,
     estimate: PoseTrajectory3D,
     align: str = "se2",
-    max_time_diff: float = 0.02,
+    max_time_diff: float = MAX_TIME_DIFF,
+    associated: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(times, translation error [m]) of the associated (and aligned) estimate, for plots."""
-    ref, est = _associate(reference, estimate, max_time_diff)
+    """(times, translation error [m]) of the associated (and aligned) estimate, for plots
+    (`associated`: as in `trajectory_metrics`)."""
+    if associated:
+        ref, est = reference, estimate
+    else:
+        ref, est = _associate(reference, estimate, max_time_diff)
     if align == "se2":
         est = align_se2(ref, est)
-    elif align == "se3":
-        est.align(ref)
+    elif align in ("se3", "sim3"):
+        est.align(ref, correct_scale=align == "sim3")
     err = np.linalg.norm(est.positions_xyz - ref.positions_xyz, axis=1)
     return ref.timestamps.copy(), err
 
 
 def write_tum(path: str | Path, times: np.ndarray, poses: np.ndarray) -> Path:
     """The one TUM writer (timestamp tx ty tz qx qy qz qw, via evo) for estimates, ground truth
-    and scenarios: times (F,) and poses either planar (F,3) [x, y, theta] or homogeneous
-    (F,4,4) 3D poses."""
+    and scenarios: times (F,) and poses either planar (F,3) [x, y, theta], homogeneous (F,4,4)
+    3D poses or (F,7) rows x y z qx qy qz qw (written as they are: no conversion per pose)."""
     path = Path(path)
     poses = np.asarray(poses, dtype=float)
     times = np.asarray(times, dtype=float)
@@ -168,9 +198,15 @@ def write_tum(path: str | Path, times: np.ndarray, poses: np.ndarray) -> Path:
         trajectory = PoseTrajectory3D(poses_se3=list(poses), timestamps=times)
     elif poses.ndim == 2 and poses.shape[1] == 3 and len(poses) == len(times):
         trajectory = planar_to_evo(times, poses)
+    elif poses.ndim == 2 and poses.shape[1] == 7 and len(poses) == len(times):
+        trajectory = PoseTrajectory3D(
+            positions_xyz=poses[:, :3],
+            orientations_quat_wxyz=np.column_stack([poses[:, 6], poses[:, 3:6]]),
+            timestamps=times,
+        )
     else:
         raise ValueError(
-            f"write_tum: need (F,) times and (F,3) planar or (F,4,4) poses, "
+            f"write_tum: need (F,) times and (F,3) planar, (F,4,4) or (F,7) poses, "
             f"got {times.shape} and {poses.shape}"
         )
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -46,8 +46,6 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from tqdm import tqdm
-
 from graphloc import __version__
 
 BACKENDS = ("local", "ray")
@@ -153,6 +151,8 @@ def _init_worker(token: str | None, shared) -> None:
     otherwise makes a multiprocessing lock on its first bar (even a disabled one), a named
     semaphore under the fork server that a pool worker, ended without finalizers, never
     releases: the resource tracker then warns of a leak when the command exits."""
+    from tqdm import tqdm
+
     tqdm.set_lock(threading.RLock())
     if token is not None:
         _SHARED[token] = shared
@@ -262,6 +262,8 @@ class Executor:
             else:
                 todo.append(i)
         counts = {"done": 0, "failed": 0, "cached": len(items) - len(todo)}
+        from tqdm import tqdm
+
         bar = tqdm(total=len(items), desc=desc, disable=not self.progress, leave=False)
         bar.update(counts["cached"])
         bar.set_postfix(counts)
@@ -284,6 +286,8 @@ class Executor:
         """The values of fn over items, in item order, as they become available in that order;
         a failed task raises TaskFailed (trials of an experiment: a failure is a bug)."""
         items = list(items)
+        from tqdm import tqdm
+
         bar = tqdm(total=len(items), desc=desc, disable=not self.progress, leave=False)
         ready: dict[int, tuple] = {}
         nxt = 0

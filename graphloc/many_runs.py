@@ -24,8 +24,6 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from graphloc.executor import BACKENDS, Executor, ResultCache, content_hash
 from graphloc.exitcodes import INCOMPLETE, OK, RUNS_FAILED
 
@@ -196,6 +194,8 @@ def _cells(row: dict) -> list:
 
 def write_report(rows: list[dict], out: Path, mode: str) -> None:
     """runs.csv, runs.md, runs.json and runs_summary.png under `out`."""
+    import numpy as np
+
     from graphloc.plots import plt
 
     out.mkdir(parents=True, exist_ok=True)

@@ -1,18 +1,14 @@
 """The configuration of `graphloc.session.Session`: which solver (`MODES`), its GTSAM
 parameters (Levenberg-Marquardt, iSAM2) and the fixed lag (`graphloc.fixed_lag`), and the checked
-reading of a saved config (`config_from_dict`)."""
+reading of a saved config (`config_from_dict`). Light: GTSAM loads where a threshold map is built
+(the command line's options derive from `SessionConfig`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
-import gtsam
-import numpy as np
-
 from graphloc.config import check
 from graphloc.datafile import BadData
-from graphloc.keys import decode
-from graphloc.value_codec import key_name
 
 MODES = ("batch", "online")
 
@@ -103,6 +99,9 @@ def relinearize_threshold(config: SessionConfig):
     trans = config.relinearize_translation
     if trans <= 0:
         return config.relinearize_threshold
+    import gtsam
+    import numpy as np
+
     out = gtsam.ISAM2ThresholdMap()
     for symbol, dim in THRESHOLD_SYMBOLS.items():
         rot = [config.relinearize_threshold] * 3 if dim == 6 else []
@@ -115,6 +114,9 @@ def check_thresholded(config: SessionConfig, keys) -> None:
     cover (iSAM2 would look up a symbol it does not hold)."""
     if config.relinearize_translation <= 0:
         return
+    from graphloc.keys import decode
+    from graphloc.value_codec import key_name
+
     bad = [key_name(k) for k in keys if decode(k)[0] not in THRESHOLD_SYMBOLS]
     if bad:
         raise ValueError(

@@ -15,6 +15,11 @@ import logging
 LOG = logging.getLogger("graphloc")
 
 
+class Interrupted(KeyboardInterrupt):
+    """A signal that ends a verb at once; its message says when and what was written
+    (`graphloc.cli.main`: one `error:` line, exit code INTERRUPTED)."""
+
+
 def add_common_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("common options")
     talk = group.add_mutually_exclusive_group()

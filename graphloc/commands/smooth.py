@@ -12,6 +12,7 @@ defaults) hold."""
 from __future__ import annotations
 
 import argparse
+import importlib.machinery
 import json
 import signal
 import sys
@@ -19,8 +20,8 @@ import threading
 from pathlib import Path
 
 from graphloc import many_runs
+from graphloc.commands.common import Interrupted
 from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, OK
-from graphloc.manifest import check_noise_params
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph.options import RunOptions
 
@@ -63,34 +64,82 @@ def landmark_map(run, config) -> str:
 
 
 class StopFlag:
-    """SIGINT / SIGTERM set the flag (the solve finishes its step and stops); a second SIGINT
-    interrupts at once. Installed for the duration of a `with` block."""
+    """SIGINT / SIGTERM during `smooth` / `online`, by the phase `run_verb` is in (`phase`):
+
+    - "reading" (the run read, the graph built; nothing estimated or written yet): the first
+      signal ends the verb at once (`Interrupted`, exit code 130, a line saying so);
+    - "solving": the flag is set (`stop()` is True); the solve finishes its step (online) or LM
+      iteration (batch) and stops, and the outputs so far are written (exit code 3);
+    - "writing" (the solve is done): the outputs being written are finished.
+
+    A second signal interrupts at once in every phase (`Interrupted`, 130). A signal that
+    arrives while a C extension initializes (GTSAM, Open3D, OpenCV: an exception raised there
+    reaches the caller as ImportError "initialization failed") is handled as soon as that is
+    done: SIGALRM re-delivers it every RETRY_S. Installed for the duration of a `with` block
+    (main thread only)."""
+
+    RETRY_S = 0.02
 
     def __init__(self):
         self.signal: int | None = None
+        self.phase = "reading"
         self._old: dict = {}
+        self._pending: int | None = None
 
     def __call__(self) -> bool:
         return self.signal is not None
 
+    @staticmethod
+    def _initializing_extension(frame) -> bool:
+        """Whether the stack holds a C extension's initialization (its loader's create_module
+        or exec_module)."""
+        while frame is not None:
+            if frame.f_code.co_name in ("create_module", "exec_module") and isinstance(
+                frame.f_locals.get("self"), importlib.machinery.ExtensionFileLoader
+            ):
+                return True
+            frame = frame.f_back
+        return False
+
+    def _retry(self, signum, frame):
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            self._handle(pending, frame)
+
     def _handle(self, signum, frame):
-        if self.signal is not None and signum == signal.SIGINT:
-            raise KeyboardInterrupt
+        if self._initializing_extension(frame) and hasattr(signal, "setitimer"):
+            self._pending = signum
+            signal.setitimer(signal.ITIMER_REAL, self.RETRY_S)
+            return
+        name = signal.Signals(signum).name
+        if self.phase == "reading":
+            raise Interrupted(
+                f"{name} while reading the run or building the graph: stopped before any "
+                "estimate, nothing written"
+            )
+        if self.signal is not None:
+            raise Interrupted(f"{name} again: stopped at once; the outputs may be incomplete")
         self.signal = signum
-        print(
-            f"\n{signal.Signals(signum).name}: finishing the current step, then writing the "
-            f"outputs so far (exit code {EXIT_STOPPED})",
-            file=sys.stderr,
-            flush=True,
-        )
+        if self.phase == "solving":
+            said = (
+                "finishing the current step, then writing the outputs so far "
+                f"(exit code {EXIT_STOPPED})"
+            )
+        else:
+            said = "finishing writing the outputs"
+        print(f"\n{name}: {said}; a second signal stops at once", file=sys.stderr, flush=True)
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 self._old[sig] = signal.signal(sig, self._handle)
+            if hasattr(signal, "SIGALRM"):
+                self._old[signal.SIGALRM] = signal.signal(signal.SIGALRM, self._retry)
         return self
 
     def __exit__(self, *exc):
+        if getattr(signal, "SIGALRM", None) in self._old:
+            signal.setitimer(signal.ITIMER_REAL, 0)  # a retry not yet due
         for sig, old in self._old.items():
             signal.signal(sig, old)
         return False
@@ -98,19 +147,20 @@ class StopFlag:
 
 def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
     """The whole verb: outputs checked, run read, graph built, solved (stoppable, with an
-    online checkpoint / resume hook from `graphloc.commands.online`), evaluated, written."""
+    online checkpoint / resume hook from `graphloc.commands.online`), evaluated, written;
+    SIGINT / SIGTERM by phase (`StopFlag`)."""
     from dataclasses import asdict, replace
 
-    from graphloc.datasets import open_run
-    from graphloc.pipelines.recording import team_recording, write_recordings
-    from graphloc.pipelines.report import evaluate, write_outputs
-    from graphloc.pipelines.team_graph import build_graph, default_lag, solve
-
-    opts = options(args)
-    values = asdict(opts)
-    config = opts.graph_config()
     progress = not args.no_progress
     with StopFlag() as stop:
+        opts = options(args)
+        values = asdict(opts)
+        config = opts.graph_config()
+        from graphloc.datasets import open_run
+        from graphloc.manifest import check_noise_params
+        from graphloc.pipelines.report import evaluate, groundtruths, write_outputs
+        from graphloc.pipelines.team_graph import build_graph, default_lag, solve
+
         noise = opts.noise()
         check_noise_params(noise, "option (command line or --config)")
         run = open_run(args.run, duration=opts.duration, noise=noise, source=opts.source())
@@ -118,36 +168,55 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
         config = replace(config, lag=float(lag))
         graph = build_graph(run, config, progress=progress)
         hooks = checkpoint(graph, values) if checkpoint is not None else {}
+        stop.phase = "solving"
         result = solve(graph, mode=mode, progress=progress, stop=stop, **hooks)
-        metrics = evaluate(result, run, opts.align)
+        stop.phase = "writing"
+        truth = groundtruths(run)
+        metrics = evaluate(result, run, truth, stop, opts.align)
         metrics["config"] = json.loads(json.dumps(asdict(config), default=str))
         metrics["options"] = values
         metrics["landmark_map"] = landmark_map(run, config)
         if stop.signal is not None:
             metrics["stopped_by"] = signal.Signals(stop.signal).name
-        write_outputs(result, run, metrics, Path(args.out))
-        if opts.mcap or opts.rerun:
-            write_recordings(team_recording(result, run, args.run), opts.mcap, opts.rerun)
-    summary = {
-        name: round(v[mode]["ate_rmse"], 4)
-        for name, v in metrics["per_robot"].items()
-        if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]
-    }
-    print(
-        json.dumps(
-            {
-                "mode": mode,
-                "partial": metrics["partial"],
-                "consistent": metrics["consistent"],
-                "ate_rmse_m": summary,
-                "decisions": metrics["decisions"],
-                "realtime_factor": round(metrics["realtime_factor"], 1),
-                "skipped": metrics["skipped"]["counts"],
-                "landmark_map": metrics["landmark_map"],
-            },
-            indent=1,
+        out = Path(args.out)
+        write_outputs(
+            result, run, metrics, out, opts.groundtruth_rate, progress, truth, stop, opts.align
         )
-    )
+        recordings = [f for f in (opts.mcap, opts.rerun) if f]
+        if recordings and not stop():
+            from graphloc.pipelines.recording import team_recording, write_recordings
+
+            write_recordings(team_recording(result, run, args.run), opts.mcap, opts.rerun)
+        elif recordings:  # stopped: left out (they read the whole ground truth)
+            metrics["skipped_outputs"] += recordings
+        if stop.signal is not None:  # metrics.json says who stopped the run and what is missing
+            metrics["stopped_by"] = signal.Signals(stop.signal).name
+            (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=str) + "\n")
+        summary = {
+            name: round(v[mode]["ate_rmse"], 4)
+            for name, v in metrics["per_robot"].items()
+            if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]
+        }
+        print(
+            json.dumps(
+                {
+                    "mode": mode,
+                    "partial": metrics["partial"],
+                    "consistent": metrics["consistent"],
+                    "ate_rmse_m": summary,
+                    "decisions": metrics["decisions"],
+                    "realtime_factor": round(metrics["realtime_factor"], 1),
+                    "skipped": metrics["skipped"]["counts"],
+                    "landmark_map": metrics["landmark_map"],
+                    **(
+                        {"skipped_outputs": metrics["skipped_outputs"]}
+                        if metrics["skipped_outputs"]
+                        else {}
+                    ),
+                },
+                indent=1,
+            )
+        )
     verdict = metrics["consistency"]
     verb = "smooth" if mode == "batch" else "online"
     if not getattr(args, "quiet", False):
@@ -155,7 +224,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
             print(f"graphloc {verb}: inconsistent: {line}", file=sys.stderr)
         for line in verdict["warnings"]:
             print(f"graphloc {verb}: warning: {line}", file=sys.stderr)
-    if metrics["partial"]:
+    if metrics["partial"] or metrics["skipped_outputs"]:
         return EXIT_STOPPED
     if opts.strict and (verdict["failures"] or verdict["warnings"]):
         return INCONSISTENT

@@ -183,7 +183,7 @@ def memory_slope(samples: np.ndarray) -> float | None:
 
 def online_summary(result, cpu_s: float, samples: np.ndarray, run, batch_ate: dict | None) -> dict:
     """Latency trend, real-time factors, memory, ATE (and ATE over batch ATE) per robot."""
-    metrics = evaluate(result, run) if batch_ate is not None else None
+    metrics = evaluate(result, run, align="se2") if batch_ate is not None else None
     log = result.step_log
     duration = float(log[-1, 1] - log[0, 1]) if len(log) else 0.0
     out = {

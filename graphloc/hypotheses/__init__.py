@@ -1,9 +1,27 @@
 """The engine that decides among candidates: `HypothesisTracker` (tracker.py: the algorithm and
 its design, seed 000 Sec. V's belief and seed 004 Sec. II-C's particle filter as a bounded bank
-of Gaussian tracks), its settings and track type (config.py) and its state saved as data
-(state.py)."""
+of Gaussian tracks), its settings (config.py, light: the command line's options derive from
+it), its track type, fit score and covariance cap (track.py) and its state saved as data
+(state.py).
 
-from graphloc.hypotheses.config import TrackerConfig, cap_covariances
-from graphloc.hypotheses.tracker import HypothesisTracker
+The names below load on first use (PEP 562), so importing `TrackerConfig` does not load GTSAM."""
 
-__all__ = ["HypothesisTracker", "TrackerConfig", "cap_covariances"]
+import importlib
+
+# public name -> module that defines it
+_API = {
+    "HypothesisTracker": "graphloc.hypotheses.tracker",
+    "TrackerConfig": "graphloc.hypotheses.config",
+    "cap_covariances": "graphloc.hypotheses.track",
+}
+__all__ = list(_API)
+
+
+def __getattr__(name: str):
+    if name in _API:
+        return getattr(importlib.import_module(_API[name]), name)
+    raise AttributeError(f"module 'graphloc.hypotheses' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

@@ -1,31 +1,13 @@
-"""Settings and state types of the HypothesisTracker (graphloc.hypotheses.tracker): its
-config, one Gaussian track, the Student-t fit score of an association and the covariance cap."""
+"""The settings of the HypothesisTracker (graphloc.hypotheses.tracker), `TrackerConfig`; light
+(no GTSAM, no NumPy): the command line's options are derived from it. Its track type, fit score
+and covariance cap are in `graphloc.hypotheses.track`."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
-import gtsam
-import numpy as np
-
 from graphloc.config import check
-
-
-def fit_score(maha: np.ndarray, dof: float, dim: int = 6) -> np.ndarray:
-    """Log-density of the innovation's Mahalanobis^2 under a multivariate Student-t with `dof`
-    degrees of freedom (Gaussian for dof = inf), relative to its value at maha = dim (the mean
-    of chi2_dim): 0 for a typical consistent association, the scale of a coasting track."""
-    if np.isinf(dof):
-        return -0.5 * (maha - dim)
-    return -0.5 * (dof + dim) * (np.log1p(maha / dof) - np.log1p(dim / dof))
-
-
-def cap_covariances(cov: np.ndarray, max_std: float) -> np.ndarray:
-    """(K,n,n) covariances with eigenvalues clipped at max_std^2 (batched eigh)."""
-    if not len(cov):
-        return cov
-    w, V = np.linalg.eigh(cov)
-    return np.einsum("kij,kj,klj->kil", V, np.minimum(w, max_std**2), V)
 
 
 @dataclass(frozen=True)
@@ -71,21 +53,8 @@ class TrackerConfig:
                 "release_threshold": (0.0, "commit_threshold", "(]"),
                 "miss_probability_full": (0.0, 1.0, "()"),
                 "birth_probability": (0.0, 1.0, "()"),
-                "gate": (0.0, np.inf, "(]"),
-                "max_candidate_std": (0.0, np.inf, "(]"),
-                "student_dof": (0.0, np.inf, "(]"),
+                "gate": (0.0, math.inf, "(]"),
+                "max_candidate_std": (0.0, math.inf, "(]"),
+                "student_dof": (0.0, math.inf, "(]"),
             },
         )
-
-
-@dataclass
-class Track:
-    """One hypothesis: Gaussian on the camera pose (mean, 6x6 covariance in GTSAM's tangent
-    order), log-weight, the lineage id that survives coasting frames, the candidate it sits on."""
-
-    mean: gtsam.Pose3
-    cov: np.ndarray
-    logw: float
-    track_id: int
-    candidate: int  # index into the current frame's candidates, -1 when coasting
-    misses: int = 0

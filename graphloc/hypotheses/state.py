@@ -11,7 +11,8 @@ import gtsam
 import numpy as np
 
 from graphloc.factors.odometry import check_covariance
-from graphloc.hypotheses.config import TrackerConfig, Track
+from graphloc.hypotheses.config import TrackerConfig
+from graphloc.hypotheses.track import Track
 from graphloc.session import read_data_file, write_data_file
 
 SAVE_FORMAT = "graphloc-hypothesis-tracker"

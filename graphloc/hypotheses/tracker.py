@@ -76,7 +76,8 @@ import numpy as np
 
 from graphloc.candidates import CandidateSet
 from graphloc.factors.mixture import candidate_covariances
-from graphloc.hypotheses.config import Track, TrackerConfig, cap_covariances, fit_score
+from graphloc.hypotheses.config import TrackerConfig
+from graphloc.hypotheses.track import Track, cap_covariances, fit_score
 from graphloc.hypotheses.state import STATE_FIELDS, load_state, save_state
 from graphloc.keys import pose_key
 from graphloc.seams import Decision, Odometry, check_frame

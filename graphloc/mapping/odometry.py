@@ -13,19 +13,7 @@ from kiss_icp.config import KISSConfig
 from kiss_icp.config.config import DataConfig, MappingConfig, RegistrationConfig
 from kiss_icp.kiss_icp import KissICP
 
-
-@dataclass(frozen=True)
-class OdometryConfig:
-    """KISS-ICP settings for indoor rooms (voxel_size ~ 1% of range as KISS-ICP's default rule)."""
-
-    max_range: float = 8.0
-    min_range: float = 0.19
-    voxel_size: float = 0.08
-    deskew: bool = (
-        False  # simulated scans are motion-free; True for real spinning LiDARs (needs timestamps)
-    )
-    map_voxel: float = 0.03  # voxel of the accumulated local map
-    threads: int = 1
+from graphloc.mapping.config import OdometryConfig
 
 
 @dataclass(frozen=True)

@@ -40,7 +40,7 @@ from scipy.spatial.transform import Rotation
 
 from graphloc.io import MANIFEST, read_manifest
 from graphloc.mapping.io import read_labelled_cloud, read_points, read_tum
-from graphloc.pipelines.report import groundtruth_rows
+from graphloc.pipelines.groundtruth import groundtruth_rows
 from graphloc.pipelines.team_graph import TeamResult
 from graphloc.run import TeamRun
 

@@ -1,7 +1,9 @@
 """Outputs of `graphloc smooth` / `graphloc online` (every field documented in docs/outputs.md):
 per-robot TUM trajectories (estimate, dead reckoning, ground truth), metrics.json (per-robot
 ATE / RPE via evo with the alignment stated, candidate-set decisions, what every table
-contributed, skips, the effective configuration), decisions.csv and PNG plots."""
+contributed, skips, the effective configuration), decisions.csv and PNG plots
+(`graphloc.pipelines.report_plots`). The ground truth is converted where it is used and
+written at the estimate's rate unless asked otherwise (`graphloc.pipelines.groundtruth`)."""
 
 from __future__ import annotations
 
@@ -12,9 +14,19 @@ from pathlib import Path
 
 import gtsam
 import numpy as np
-from evo.core.trajectory import PoseTrajectory3D
+from tqdm import tqdm
 
-from graphloc.eval import ate_over_time, trajectory_metrics, write_tum
+from graphloc.eval import trajectory_metrics, write_tum
+from graphloc.pipelines.groundtruth import (
+    GroundTruth,
+    alignment,
+    groundtruth_rows,
+    groundtruth_written,
+    groundtruths,
+    paired,
+)
+from graphloc.pipelines.judge import judge_decisions
+from graphloc.pipelines.report_plots import plot_jobs
 from graphloc.pipelines.team_graph import (
     STEP_LOG_COLUMNS,
     GraphConfig,
@@ -22,30 +34,19 @@ from graphloc.pipelines.team_graph import (
     build_graph,
     solve,
 )
-from graphloc.pipelines.judge import judge_decisions
 from graphloc.pipelines.team_graph.verdict import candidate_streams, judge
-from graphloc.plots import Series, plot_series, plot_trajectories
 from graphloc.run import TeamRun
 
-
-def _trajectory(times: np.ndarray, rows: np.ndarray) -> PoseTrajectory3D:
-    """(N,) times and (N,7) x y z qx qy qz qw rows -> evo trajectory (evo's quaternions are w
-    first)."""
-    ok = np.isfinite(rows).all(axis=1)
-    q = rows[ok, 3:7]
-    return PoseTrajectory3D(
-        positions_xyz=rows[ok, :3],
-        orientations_quat_wxyz=np.column_stack([q[:, 3], q[:, :3]]),
-        timestamps=np.asarray(times, dtype=float)[ok],
-    )
-
-
-def groundtruth_rows(run: TeamRun, r: int) -> tuple[np.ndarray, np.ndarray] | None:
-    gt = run.groundtruth[r]
-    if gt is None or len(gt[0]) < 3:
-        return None
-    rows = np.array([np.r_[p.translation(), _quat(p)] for p in gt[1]])
-    return np.asarray(gt[0]), rows
+__all__ = [
+    "GroundTruth",
+    "alignment",
+    "evaluate",
+    "groundtruth_rows",
+    "groundtruths",
+    "latency_trend",
+    "run_and_report",
+    "write_outputs",
+]
 
 
 def _static_error(row: np.ndarray, gt) -> dict:
@@ -65,35 +66,26 @@ def _static_error(row: np.ndarray, gt) -> dict:
     }
 
 
-def _quat(p) -> np.ndarray:
-    q = p.rotation().toQuaternion()
-    return np.array([q.x(), q.y(), q.z(), q.w()])
-
-
-def alignment(run: TeamRun, r: int, align: str | None = None) -> str:
-    """How robot r's estimate is compared with its ground truth (evo's names, `eval.ALIGNMENTS`):
-    `align` when given (`--align`); else in the world frame ("none") when the run anchors the
-    world -- a robot with an initial pose or a known landmark map --, and aligned by the
-    motion the run cannot observe when it does not ("se2" for a planar robot, "se3" for the
-    others)."""
-    if align is not None:
-        return align
-    anchored = any(robot.initial_pose is not None for robot in run.robots) or (
-        run.landmarks_known and len(run.landmark_ids) > 0
-    )
-    if anchored:
-        return "none"
-    return "se2" if run.robots[r].planar else "se3"
-
-
-def evaluate(result: TeamResult, run: TeamRun, align: str | None = None) -> dict:
+def evaluate(
+    result: TeamResult,
+    run: TeamRun,
+    truth: list | None = None,
+    stop=None,
+    align: str | None = None,
+) -> dict:
     """Per-robot ATE/RPE of dead reckoning (the initial guess), the estimate and (online) the
-    causal estimate, aligned by `alignment` (`align`: one rule for every robot); decisions;
-    the consistency verdict (`team_graph.verdict`); counts; latency; skips."""
+    causal estimate, aligned by `groundtruth.alignment` (`align`: one rule for every robot);
+    decisions, judged by the truth (`judge`); the consistency verdict (`team_graph.verdict`);
+    counts; latency; skips. truth: `groundtruths(run)`, shared
+    with `write_outputs` (each sample converted once). stop(): checked before each
+    trajectory's ATE / RPE (evo: seconds on a long run); once True -- a run stopped by a
+    signal -- the rest are not computed and "evaluated" is False."""
+    truth = groundtruths(run) if truth is None else truth
     per_robot = {}
+    evaluated = True
     aligns = [alignment(run, r, align) for r in range(len(run.robots))]
     for r, robot in enumerate(run.robots):
-        ref = groundtruth_rows(run, r)
+        ref = truth[r]
         times = result.node_times[r]
         if robot.static and run.groundtruth[r] is not None:
             per_robot[robot.name] = _static_error(result.estimate[r][0], run.groundtruth[r])
@@ -101,7 +93,6 @@ def evaluate(result: TeamResult, run: TeamRun, align: str | None = None) -> dict
         if ref is None or not np.isfinite(result.estimate[r]).all(axis=1).any():
             per_robot[robot.name] = {"groundtruth": ref is not None, "poses": int(len(times))}
             continue
-        reference = _trajectory(*ref)
         entry = {"groundtruth": True, "poses": int(len(times)), "alignment": aligns[r]}
         tracks = {"dead_reckoning": result.dead_reckoning[r], result.mode: result.estimate[r]}
         if result.mode == "online":
@@ -109,9 +100,12 @@ def evaluate(result: TeamResult, run: TeamRun, align: str | None = None) -> dict
         for label, rows in tracks.items():
             if np.isfinite(rows).all(axis=1).sum() < 3:
                 continue
+            if stop is not None and stop():
+                evaluated = False
+                break
             try:
                 entry[label] = trajectory_metrics(
-                    reference, _trajectory(times, rows), align=aligns[r]
+                    *paired(ref, times, rows), align=aligns[r], associated=True
                 ).as_dict()
             except ValueError as exc:  # too few poses near ground-truth stamps
                 entry[label] = {"error": str(exc)}
@@ -147,6 +141,8 @@ def evaluate(result: TeamResult, run: TeamRun, align: str | None = None) -> dict
     ]
     skipped = result.graph.skips.as_dict()
     verdict = judge(result.factor_stats, streams, unplaced, skipped)
+    if result.partial:  # a stopped solve is not judged
+        verdict.update(consistent=None, failures=[], warnings=[])
     return {
         "run": run.name,
         "mode": result.mode,
@@ -160,6 +156,7 @@ def evaluate(result: TeamResult, run: TeamRun, align: str | None = None) -> dict
         "solve_wall_s": result.wall_s,
         "realtime_factor": duration / max(result.wall_s, 1e-12),
         "latency_ms": latency,
+        "evaluated": evaluated,
         "per_robot": per_robot,
         "decisions": {
             "candidate_sets": len(decisions),
@@ -205,13 +202,32 @@ def latency_trend(result: TeamResult) -> dict | None:
 
 def _write_rows(path: Path, times: np.ndarray, rows: np.ndarray) -> Path:
     """(N,) times and (N,7) x y z qx qy qz qw rows (NaN rows skipped) through the one TUM writer."""
-    trajectory = _trajectory(times, rows)
-    return write_tum(path, trajectory.timestamps, np.array(trajectory.poses_se3))
+    ok = np.isfinite(rows).all(axis=1)
+    return write_tum(path, np.asarray(times, dtype=float)[ok], rows[ok])
 
 
-def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) -> list[Path]:
+def write_outputs(
+    result: TeamResult,
+    run: TeamRun,
+    metrics: dict,
+    out: Path,
+    groundtruth_rate: str = "estimate",
+    progress: bool = False,
+    truth: list | None = None,
+    stop=None,
+    align: str | None = None,
+) -> list[Path]:
+    """Every output file of docs/outputs.md into `out`, with a progress bar over the files
+    (`progress`): per robot its estimate, dead reckoning and ground truth (`groundtruth_rate`,
+    `groundtruth_written`) as TUM, decisions.csv, latency.csv (online), the PNGs
+    (`report_plots.plot_jobs`) and last metrics.json. truth: `groundtruths(run)`, shared with
+    `evaluate`; align: `--align` (the metrics' alignment). stop(): once True (a signal,
+    `graphloc.commands.smooth.StopFlag`) the PNGs not drawn yet are left out -- as are all of
+    them when the solve was stopped or the metrics were not evaluated -- and metrics.json lists
+    them in "skipped_outputs"."""
+    truth = groundtruths(run) if truth is None else truth
     out.mkdir(parents=True, exist_ok=True)
-    written = []
+    jobs = []  # (file name, writer)
     for r, robot in enumerate(run.robots):
         times = result.node_times[r]
         for label, rows in (
@@ -219,11 +235,51 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
             ("dead_reckoning", result.dead_reckoning[r]),
         ):
             if np.isfinite(rows).all(axis=1).any():
-                written.append(_write_rows(out / f"{robot.name}_{label}.tum", times, rows))
-        ref = groundtruth_rows(run, r)
-        if ref is not None:
-            written.append(_write_rows(out / f"{robot.name}_groundtruth.tum", *ref))
-    path = out / "decisions.csv"
+                path = out / f"{robot.name}_{label}.tum"
+                jobs.append((path.name, lambda p=path, t=times, x=rows: _write_rows(p, t, x)))
+        if truth[r] is not None:
+            path = out / f"{robot.name}_groundtruth.tum"
+            jobs.append(
+                (
+                    path.name,
+                    lambda p=path, g=truth[r], t=times: _write_rows(
+                        p, *groundtruth_written(g, t, groundtruth_rate)
+                    ),
+                )
+            )
+    jobs.append(("decisions.csv", lambda: _write_decisions(out / "decisions.csv", result, run)))
+    if result.mode == "online":
+        jobs.append(("latency.csv", lambda: _write_latency(out / "latency.csv", result)))
+    plots = plot_jobs(result, run, out, truth, groundtruth_rate, align)
+    stopped = result.partial or not metrics.get("evaluated", True)
+    jobs += [(name, job, "plot") for name, job in plots]
+    written, skipped = [], [] if metrics.get("evaluated", True) else ["ATE / RPE"]
+    bar = tqdm(
+        jobs + [("metrics.json", None)],
+        desc="writing outputs",
+        unit="file",
+        disable=not progress,
+        leave=False,
+    )
+    for name, job, *kind in bar:
+        bar.set_postfix_str(name)
+        if job is None:  # metrics.json, last: it says what was left out
+            metrics["skipped_outputs"] = skipped
+            written.append(_write_metrics(out / name, metrics))
+        elif kind and (stopped or (stop is not None and stop())):
+            skipped.append(name)
+        elif (path := job()) is not None:
+            written.append(path)
+    bar.close()
+    return written
+
+
+def _write_metrics(path: Path, metrics: dict) -> Path:
+    path.write_text(json.dumps(metrics, indent=2, default=str) + "\n")
+    return path
+
+
+def _write_decisions(path: Path, result: TeamResult, run: TeamRun) -> Path:
     decisions = result.decisions
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
@@ -263,125 +319,25 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
                     *(f"{v:.9g}" for v in d.pose),
                 ]
             )
-    written.append(path)
-    if result.mode == "online":
-        path = out / "latency.csv"
-        with open(path, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(STEP_LOG_COLUMNS)
-            for row in result.step_log:
-                w.writerow(
-                    [
-                        int(row[0]),
-                        f"{row[1]:.6f}",
-                        f"{row[2]:.9f}",
-                        f"{row[3]:.9f}",
-                        int(row[4]),
-                        int(row[5]),
-                    ]
-                )
-        written.append(path)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=str) + "\n")
-    written.append(out / "metrics.json")
-    written += _plots(result, run, out, metrics)
-    return written
+    return path
 
 
-def _plots(result: TeamResult, run: TeamRun, out: Path, metrics: dict) -> list[Path]:
-    import matplotlib
-
-    cmap = matplotlib.colormaps["tab10"]
-    est, ref, err = [], [], []
-    for r, robot in enumerate(run.robots):
-        rows = result.estimate[r]
-        if robot.static or not np.isfinite(rows).all(axis=1).any():
-            continue
-        est.append(Series(f"{robot.name} {result.mode}", rows[:, :2], color=cmap(r % 10)))
-        g = groundtruth_rows(run, r)
-        if g is not None:
-            ref.append(
-                Series(
-                    "ground truth" if not ref else "_nolegend_",
-                    g[1][:, :2],
-                    style="--",
-                    color="0.4",
-                )
+def _write_latency(path: Path, result: TeamResult) -> Path:
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(STEP_LOG_COLUMNS)
+        for row in result.step_log:
+            w.writerow(
+                [
+                    int(row[0]),
+                    f"{row[1]:.6f}",
+                    f"{row[2]:.9f}",
+                    f"{row[3]:.9f}",
+                    int(row[4]),
+                    int(row[5]),
+                ]
             )
-            try:
-                t, e = ate_over_time(
-                    _trajectory(*g),
-                    _trajectory(result.node_times[r], rows),
-                    align=metrics["per_robot"][robot.name].get("alignment", "none"),
-                )
-                err.append(
-                    Series(f"{robot.name} {result.mode}", t - run.start_time, e, color=cmap(r % 10))
-                )
-            except ValueError:
-                pass
-    chosen = np.array([d.pose[:2] for d in result.decisions if d.committed >= 0]).reshape(-1, 2)
-    if len(chosen):
-        est.append(Series("committed candidates", chosen, style=".", color="tab:green"))
-    rejected = _rejected_candidates(run, result)
-    if len(rejected):
-        est.append(Series("rejected candidates", rejected, style="x", color="tab:red"))
-    statics = [r for r in run.robots if r.static and r.initial_pose is not None]
-    points = np.array(
-        [
-            r.initial_pose.transformFrom(m)[:2]
-            for r in statics
-            for m in (r.markers if r.markers is not None else [np.zeros(3)])
-        ]
-    )
-    if run.landmarks_known and len(run.landmark_xyz):
-        points = np.vstack([points.reshape(-1, 2), run.landmark_xyz[:, :2]])
-    written = [
-        plot_trajectories(
-            out / "trajectories.png",
-            est,
-            ref,
-            points if len(points) else None,
-            title=f"{run.name}: {result.mode} (top view)",
-            point_label="landmarks / markers",
-        )
-    ]
-    if err:
-        written.append(
-            plot_series(
-                out / "error_over_time.png",
-                err,
-                "time since start [s]",
-                "position error [m]",
-                f"{run.name}: error over time",
-                logy=True,
-            )
-        )
-    csv_path = out / "latency.csv"
-    if result.mode == "online" and csv_path.exists():
-        table = np.genfromtxt(csv_path, delimiter=",", names=True).reshape(-1)
-        if len(table):
-            lag = f"lag {result.lag:g} s" if result.lag else "full smoothing"
-            series = [
-                Series("wall", table["step"], table["latency_s"] * 1e3),
-                Series("CPU", table["step"], table["cpu_s"] * 1e3, style="."),
-            ]
-            title = f"{run.name}: online latency ({lag}, latency.csv)"
-            written.append(
-                plot_series(
-                    out / "latency.png", series, "step", "latency per step [ms]", title, logy=True
-                )
-            )
-    return written
-
-
-def _rejected_candidates(run: TeamRun, result: TeamResult) -> np.ndarray:
-    """World xy of every candidate the tracker did not commit (body position of the observer)."""
-    out = [
-        xyz[:2]
-        for d in result.decisions
-        for j, xyz in enumerate(d.candidates_xyz)
-        if j != d.committed
-    ]
-    return np.array(out).reshape(-1, 2)
+    return path
 
 
 def run_and_report(
@@ -391,12 +347,15 @@ def run_and_report(
     config: GraphConfig,
     progress: bool = True,
     effective: dict | None = None,
+    groundtruth_rate: str = "estimate",
 ) -> dict:
-    """Build the graph, solve it (batch or online), evaluate, write outputs; returns the metrics."""
+    """Build the graph, solve it (batch or online), evaluate, write outputs (the ground truth
+    at `groundtruth_rate`, `GROUNDTRUTH_RATES`); returns the metrics."""
     result = solve(build_graph(run, config, progress=progress), mode=mode, progress=progress)
-    metrics = evaluate(result, run)
+    truth = groundtruths(run)
+    metrics = evaluate(result, run, truth)
     metrics["config"] = json.loads(json.dumps(asdict(config), default=str))
     if effective:
         metrics["options"] = effective
-    write_outputs(result, run, metrics, Path(out))
+    write_outputs(result, run, metrics, Path(out), groundtruth_rate, progress, truth)
     return metrics

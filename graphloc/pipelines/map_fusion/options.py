@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from graphloc.config import check
-from graphloc.pipelines.map_fusion.types import FusionConfig
+from graphloc.pipelines.map_fusion.config import FusionConfig
 
 
 def _help(text: str) -> dict:

@@ -1,8 +1,9 @@
 """The types of ground + ceiling map fusion (seed 004; the pipeline is `map_fusion.fusion`):
-its configuration (`FusionConfig`), inputs (synchronized scans, plus the ceiling camera's view of
-the ground robot's LEDs or a relative pose hint), the LED initial guess (`GuessResult`), the
-result, and `FusionRejected` ("not fused"). Frames: G_k / C_k are the ground / ceiling LiDAR at
-frame k; everything is expressed in G_0."""
+its configuration (`FusionConfig`, defined in the light `map_fusion.config`), inputs
+(synchronized scans, plus the ceiling camera's view of the ground robot's LEDs or a relative
+pose hint), the LED initial guess (`GuessResult`), the result, and `FusionRejected` ("not
+fused"). Frames: G_k / C_k are the ground / ceiling LiDAR at frame k; everything is expressed
+in G_0."""
 
 from __future__ import annotations
 
@@ -11,47 +12,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
-from graphloc.config import check
-from graphloc.hypotheses import TrackerConfig
-from graphloc.mapping.acceptance import AcceptanceConfig, RegistrationDecision
-from graphloc.mapping.odometry import OdometryConfig
-from graphloc.mapping.registration import Registration, RegistrationConfig
-from graphloc.session_config import SessionConfig
+from graphloc.mapping.acceptance import RegistrationDecision
+from graphloc.mapping.registration import Registration
+from graphloc.pipelines.map_fusion.config import FusionConfig  # noqa: F401 - re-exported
 
 GROUND, CEILING = 0, 1
 
 
 ROBOT_NAMES = {GROUND: "ground", CEILING: "ceiling"}
-
-
-@dataclass(frozen=True)
-class FusionConfig:
-    """odometry_sigmas: per-frame KISS-ICP increment sigmas (rot [rad], trans [m]); pixel_sigma:
-    LED pixel noise [px] for the P3P covariances; p3p_outlier_d2: Mahalanobis^2 from the estimate
-    beyond which a camera frame's P3P max-mixture takes its null component (an outlier frame;
-    `led_guess.p3p_factors`);
-    guess_sigma: 1-sigma (rot [rad], trans [m]) of a hint given without its own (the LED
-    tracker's guess carries the P3P covariance, `led_initial_guess`);
-    robust: the inter-robot registration is `robust_register` with the
-    `acceptance` checks (False: the multi-scale `refine` from the guess, no checks)."""
-
-    odometry: OdometryConfig = field(default_factory=OdometryConfig)
-    registration: RegistrationConfig = field(default_factory=RegistrationConfig)
-    acceptance: AcceptanceConfig = field(default_factory=AcceptanceConfig)
-    tracker: TrackerConfig = field(default_factory=TrackerConfig)
-    session: SessionConfig = field(default_factory=SessionConfig)
-    odometry_sigmas: tuple[float, float] = (np.deg2rad(0.3), 0.01)
-    pixel_sigma: float = 0.5
-    p3p_outlier_d2: float = 50.0
-    map_voxel: float = 0.03
-    anchor_sigma: float = 1e-4
-    build_map: bool = True  # False: skip step 5 (benchmarks of the transform only)
-    scan_matching: bool = True  # False: between-factors straight from KISS-ICP with odometry_sigmas
-    guess_sigma: tuple[float, float] = (np.deg2rad(5.0), 0.1)
-    robust: bool = True
-
-    def __post_init__(self):
-        check(self, positive=("pixel_sigma", "p3p_outlier_d2", "map_voxel", "anchor_sigma"))
 
 
 @dataclass(frozen=True)

@@ -31,29 +31,52 @@ with no known initial pose enters the online graph at its first decided set (bef
 nothing anchors it).
 """
 
-from graphloc.pipelines.team_graph.decision import Decision
-from graphloc.pipelines.team_graph.config import (
-    ANCHOR_BASE,
-    DEFAULT_LAG,
-    GraphConfig,
-    default_lag,
-    run_precision,
-)
-from graphloc.pipelines.team_graph.graph import TeamGraph, build_graph
-from graphloc.pipelines.team_graph.passes import STEP_LOG_COLUMNS, TeamResult
-from graphloc.pipelines.team_graph.solve import solve, warm_start
+import importlib
+import sys
+import types
 
-__all__ = [
-    "ANCHOR_BASE",
-    "DEFAULT_LAG",
-    "STEP_LOG_COLUMNS",
-    "Decision",
-    "GraphConfig",
-    "TeamGraph",
-    "TeamResult",
-    "build_graph",
-    "default_lag",
-    "run_precision",
-    "solve",
-    "warm_start",
-]
+# public name -> module that defines it; loaded on first use (PEP 562), so that the verbs'
+# option tree (`team_graph.options`, light) is read without GTSAM
+_API = {
+    "ANCHOR_BASE": "graphloc.pipelines.team_graph.config",
+    "DEFAULT_LAG": "graphloc.pipelines.team_graph.options",
+    "GraphConfig": "graphloc.pipelines.team_graph.config",
+    "default_lag": "graphloc.pipelines.team_graph.config",
+    "run_precision": "graphloc.pipelines.team_graph.config",
+    "Decision": "graphloc.pipelines.team_graph.decision",
+    "TeamGraph": "graphloc.pipelines.team_graph.graph",
+    "build_graph": "graphloc.pipelines.team_graph.graph",
+    "STEP_LOG_COLUMNS": "graphloc.pipelines.team_graph.passes",
+    "TeamResult": "graphloc.pipelines.team_graph.passes",
+    "solve": "graphloc.pipelines.team_graph.solve",
+    "warm_start": "graphloc.pipelines.team_graph.solve",
+}
+__all__ = sorted(_API)
+
+
+def __getattr__(name: str):
+    if name in _API:
+        return getattr(importlib.import_module(_API[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(__all__) | set(globals()))
+
+
+class _Package(types.ModuleType):
+    """`solve` names both a submodule and the function the package exports. The import system
+    binds a submodule to its package's attribute when it first loads it; this keeps
+    `team_graph.solve` the function (the submodule stays `sys.modules[...]`), as the package's
+    eager import did."""
+
+    @property
+    def solve(self):
+        return importlib.import_module("graphloc.pipelines.team_graph.solve").solve
+
+    @solve.setter
+    def solve(self, module):
+        pass  # the submodule being bound on its first import
+
+
+sys.modules[__name__].__class__ = _Package

@@ -12,6 +12,7 @@ from graphloc.config import check
 from graphloc.factors.odometry import VelocityNoise
 from graphloc.factors.robust import Kernel, KernelPolicy
 from graphloc.hypotheses import TrackerConfig
+from graphloc.pipelines.team_graph.options import DEFAULT_LAG
 from graphloc.run import TeamRun
 from graphloc.session import SessionConfig
 
@@ -23,7 +24,6 @@ ANCHOR_BASE = (
 
 
 FEATURE_BASE = 200_000_000  # landmark_key(FEATURE_BASE + j): the point of the j-th feature track
-DEFAULT_LAG = 45.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
 
 
 @dataclass(frozen=True)

@@ -3,21 +3,29 @@ command-line options, the `--config FILE.toml` keys and the `metrics.json` "opti
 fields (`graphloc.config.add_config_arguments` / `config_from_args`). What it turns into: the
 loader's `duration`, source options (`source`: a bag's topics file, a scan directory's rate)
 and sensor-noise overrides (`noise`), the `GraphConfig` (`graph_config`), the online lag and
-the extra outputs."""
+the extra outputs. Light (no GTSAM): the command line's options derive from it, and the online
+lag's default (`DEFAULT_LAG`, the policy in `team_graph.config.default_lag`) is stated here."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from typing import TYPE_CHECKING
+
 from graphloc.config import check
 from graphloc.factors.robust import Kernel, KernelPolicy
-from graphloc.pipelines.team_graph.config import DEFAULT_LAG, GraphConfig
+
+if TYPE_CHECKING:
+    from graphloc.pipelines.team_graph.config import GraphConfig
 
 NOISE = ("bearing_sigma", "range_sigma", "range_sigma_per_m", "pixel_sigma")
 KERNELS = ("kernel", "odometry_kernel", "candidate_kernel")
-OUTPUTS = ("mcap", "rerun", "align", "strict")  # not graph options: `validate` leaves them out
+OUTPUTS = ("mcap", "rerun", "groundtruth_rate", "align", "strict")  # `validate` leaves them out
+# what <robot>_groundtruth.tum holds (graphloc.pipelines.report.groundtruth_written)
+GROUNDTRUTH_RATES = ("estimate", "full")
 SOLVER = ("lag",)
 SOURCE = ("topics", "scan_rate")  # options of one kind of source (open_run's `source`)
+DEFAULT_LAG = 45.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
 
 
 def _help(text: str) -> dict:
@@ -94,6 +102,13 @@ class RunOptions:
     rerun: str | None = field(
         default=None, metadata=_help("also write a Rerun recording (.rrd; graphloc[viz])")
     )
+    groundtruth_rate: str = field(
+        default="estimate",
+        metadata=_help(
+            "<robot>_groundtruth.tum: 'estimate' (the samples matched to the robot's pose "
+            "times, those the metrics compare) or 'full' (every sample)"
+        ),
+    )
     align: str | None = field(
         default=None,
         metadata=_help(
@@ -117,6 +132,7 @@ class RunOptions:
             nonnegative=("range_sigma_per_m", "lag"),
             optional=("duration", "bearing_sigma", "range_sigma", "range_sigma_per_m")
             + ("pixel_sigma", "lag", "scan_rate"),
+            choices={"groundtruth_rate": GROUNDTRUTH_RATES},
         )
         if self.duration is not None and not 0 < self.duration < float("inf"):
             raise ValueError(f"RunOptions.duration must be > 0, got {self.duration}")
@@ -144,6 +160,8 @@ class RunOptions:
         return {k: getattr(self, k) for k in NOISE if getattr(self, k) is not None}
 
     def graph_config(self) -> GraphConfig:
+        from graphloc.pipelines.team_graph.config import GraphConfig
+
         kernel = Kernel.parse(self.kernel)
         kernels = KernelPolicy(
             {

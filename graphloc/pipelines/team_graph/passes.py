@@ -192,16 +192,13 @@ class Pass:
         decisions = choose_mixtures(graph.decisions, final)
         partial = self.done < len(graph.steps) or session.stopped
         estimate = [grid_rows(g) for g in pose_grids(graph.node_times, *values_poses(final))]
-        guessed = [
-            (r, k, graph.initial[key].matrix())
-            for r, times in enumerate(graph.node_times)
-            for k in range(len(times))
-            if (key := pose_key(r, k)) in graph.initial
-        ]
-        robot, index, m = zip(*guessed) if guessed else ((), (), np.zeros((0, 4, 4)))
-        dead = [grid_rows(g) for g in pose_grids(graph.node_times, robot, index, np.array(m))]
-        res = residuals(session.graph, final)
-        stats = factor_statistics(res, np.array(self.types), cfg.downweight_threshold)
+        dead = guess_rows(graph, graph.initial)
+        if partial:  # a stopped solve returns promptly: its residuals are not judged
+            stats, chi2 = {}, float("nan")
+        else:
+            res = residuals(session.graph, final)
+            stats = factor_statistics(res, np.array(self.types), cfg.downweight_threshold)
+            chi2 = float(res.chi2.sum())
         down = {
             kind: {
                 "robust_factors": row["robust"],
@@ -238,7 +235,7 @@ class Pass:
             final,
             session.error(final),
             factor_stats=stats,
-            chi2=float(res.chi2.sum()),
+            chi2=chi2,
         )
 
 
@@ -279,3 +276,37 @@ def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:
             )
         )
     return out
+
+
+def guess_rows(graph: TeamGraph, values: dict) -> list:
+    """Per robot, (K_r,7) rows of the poses `values` (key -> Pose3) holds, NaN elsewhere."""
+    guessed = [
+        (r, k, values[key].matrix())
+        for r, times in enumerate(graph.node_times)
+        for k in range(len(times))
+        if (key := pose_key(r, k)) in values
+    ]
+    robot, index, m = zip(*guessed) if guessed else ((), (), np.zeros((0, 4, 4)))
+    return [grid_rows(g) for g in pose_grids(graph.node_times, robot, index, np.array(m))]
+
+
+def start_only(graph: TeamGraph, initial: dict | None, start_from: str, wall: float):
+    """A batch solve stopped before LM began (a signal during its incremental pass): partial,
+    its estimate the LM iterate it would have started from, `initial` (None: the graph's
+    guess); no session is built, so the stop returns at once."""
+    start = graph.initial if initial is None else initial
+    return TeamResult(
+        "batch",
+        graph.node_times,
+        guess_rows(graph, start),
+        [np.full((len(t), 7), np.nan) for t in graph.node_times],
+        guess_rows(graph, graph.initial),
+        np.zeros(0),
+        wall,
+        graph,
+        {},
+        {},
+        partial=True,
+        decisions=list(graph.decisions),
+        batch_start=f"{start_from}; stopped before Levenberg-Marquardt",
+    )

@@ -12,7 +12,7 @@ from tqdm import tqdm
 
 from graphloc.keys import decode
 from graphloc.pipelines.team_graph.graph import TeamGraph
-from graphloc.pipelines.team_graph.passes import STEP_LOG_COLUMNS, Pass, TeamResult
+from graphloc.pipelines.team_graph.passes import STEP_LOG_COLUMNS, Pass, TeamResult, start_only
 
 __all__ = ["STEP_LOG_COLUMNS", "TeamResult", "hypotheses", "solve", "warm_start", "warm_starts"]
 
@@ -72,6 +72,8 @@ def solve(
         return hypotheses(graph, "online", starts, progress, stop, on_step, on_stop)
     t0 = _time.perf_counter()
     starts, start_from = _batch_starts(graph, stop, progress)
+    if stop is not None and stop():  # stopped before LM began: its iterate is its start
+        return start_only(graph, starts[0], start_from, _time.perf_counter() - t0)
     warm = _time.perf_counter() - t0  # its wall time counts in the solve's
     passes = []
     for j, initial in enumerate(starts):

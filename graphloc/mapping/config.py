@@ -1,0 +1,279 @@
+"""The settings of the scan algorithms, light (no Open3D, KISS-ICP or GTSAM: the command line's
+options and `--config` tables of `fuse-maps` / `demo` derive from them): `OdometryConfig`
+(KISS-ICP odometry, `graphloc.mapping.odometry`), `RegistrationConfig` (Open3D registration and
+`robust_register`, `graphloc.mapping.registration`) and `AcceptanceConfig` (the checks a
+registration must pass, `graphloc.mapping.acceptance`). Those modules re-export them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from graphloc.config import check
+
+
+@dataclass(frozen=True)
+class OdometryConfig:
+    """KISS-ICP settings for indoor rooms (voxel_size ~ 1% of range as KISS-ICP's default rule)."""
+
+    max_range: float = 8.0
+    min_range: float = 0.19
+    voxel_size: float = 0.08
+    deskew: bool = (
+        False  # simulated scans are motion-free; True for real spinning LiDARs (needs timestamps)
+    )
+    map_voxel: float = 0.03  # voxel of the accumulated local map
+    threads: int = 1
+
+
+@dataclass(frozen=True)
+class RegistrationConfig:
+    """Denoising (nb_neighbors, std_ratio), downsampling (voxel [m]), normals (normal_radius,
+    max_nn), point-to-plane ICP (scales [m], max_correspondence [m], max_iterations per stage,
+    relative tolerances), FPFH + RANSAC (fpfh_radius, ransac_distance, ransac_iterations,
+    ransac_confidence), and the range noise used to scale the information matrix (range_sigma
+    [m]). covariance_scale and covariance_degeneracy calibrate robust_register's covariance
+    (`calibrated_covariance`); the defaults are the fit of
+    `scripts/bench_fusion.py --real --calibrate` (docs/results_fusion_calibration.json)."""
+
+    nb_neighbors: int = 20
+    std_ratio: float = 2.0
+    voxel: float = 0.03
+    normal_radius: float = 0.25  # must span several LiDAR rings (~1.5 deg apart) at room ranges
+    max_nn: int = 50
+    scales: tuple[float, ...] = (0.16, 0.08, 0.03)  # ICP voxel per stage (coarse to fine)
+    max_correspondence: tuple[float, ...] = (0.5, 0.2, 0.05)
+    max_iterations: tuple[int, ...] = (30, 30, 30)
+    relative_fitness: float = 1e-7
+    relative_rmse: float = 1e-7
+    fpfh_voxel: float = 0.08  # FPFH + RANSAC run on this coarser grid (Open3D tutorial practice)
+    fpfh_radius: float = 0.4
+    fpfh_max_nn: int = 100
+    ransac_distance: float = 0.12
+    ransac_iterations: int = 100_000
+    ransac_confidence: float = 0.999
+    range_sigma: float = 0.01
+    # robust_register: coarse correspondences within coarse_voxels coarse voxels, Tukey kernel
+    # width coarse_tukey voxels (0: least squares), cluster size [m] of the covariance
+    # (covariance_block) and of the cost margin's standard error (margin_block), stop once a
+    # candidate passed its checks with an inlier ratio of at least stop_inlier_ratio (one that
+    # barely passes may sit next to the right one)
+    coarse_voxels: float = 2.0
+    coarse_tukey: float = 0.5
+    # ... the hint's own start runs its wide pyramid once per Tukey width here [wide-level voxels],
+    # in order: a wide kernel first (where most of a view overlaps, every correspondence within
+    # the reach pulls, the right ones included), then coarse_tukey's narrow one (a small overlap:
+    # only the nearest surfaces pull); the sigma points use coarse_tukey
+    hint_wide_tukey: tuple[float, ...] = (2.0, 0.5)
+    # robust_register's fine stage: Tukey kernel width in fine correspondence distances
+    # (max_correspondence[-1]; 0: least squares)
+    fine_tukey: float = 1.0
+    # ... and its stop: relative change of fitness and inlier RMSE (Open3D's default criterion;
+    # the Tukey-weighted iterations have settled by then, docs/results_fusion_real.md), at most
+    # fine_iterations iterations: a view the coarse stage left a few degrees turned on a floor
+    # creeps back a little per iteration, and one cut short is a candidate at no minimum, which
+    # the polish's narrower window may carry on to a slid one (a denser scan of the Redwood
+    # room: test_a_denser_scan_turned_on_the_floor_is_not_fused_slid)
+    fine_relative: float = 1e-6
+    fine_iterations: int = 60
+    # ... and its samples: every fine_stride-th prepared source point (the candidates' checks and
+    # covariance use them all); the winner goes straight to `polish`, which uses every point (a
+    # start that slides for all its iterations and fails costs a third)
+    fine_stride: int = 3
+    covariance_block: float = 0.25
+    margin_block: float = 0.5
+    # robust_register's last stage (`polish`): point-to-plane ICP of the full-resolution clouds,
+    # both ways, correspondences within polish_distance [m] (0: no polish) and Open3D's
+    # Geman-McClure kernel GMLoss(polish_kernel), weight k / (k + r^2)^2: k is a squared scale
+    # [m^2], and 0.007 weighs every residual within polish_distance nearly alike (kernels of the
+    # residual noise, k = (7 mm)^2 or (1 cm)^2, were less accurate on exploration seeds 200-219)
+    polish_distance: float = 0.02
+    polish_kernel: float = 0.007
+    # ... its iterations per direction: a view dominated by one plane slides along it a little
+    # per iteration (on the Redwood fragment's views 4 left the fine stage's pose a tenth of a
+    # degree short where 6 did not; the TUM fragment's exploration seeds were alike at 4 to 10)
+    polish_iterations: int = 6
+    # ... repeated in rounds from the last midpoint until a round moves the pose less than
+    # polish_settle_deg and polish_settle_m (at most polish_rounds rounds): a view the fine stage
+    # left beside a wall or a tenth of a degree turned creeps back a little per round, and the
+    # rounds bring it to the objective's minimum instead of stopping on the way (a view the grid
+    # left decimetres along a floor takes a dozen or more; one still moving after these slides)
+    polish_rounds: int = 20
+    polish_settle_deg: float = 0.01
+    polish_settle_m: float = 0.0005
+    polish_max_nn: int = 20  # its normals: plane of the 20 nearest polish points
+    # ... its points: every k-th input point, k the smallest stride leaving at most
+    # polish_points_per_cell per occupied grid cell (cfg.voxel) on average (0: every input
+    # point). A dense RGB-D scan holds several points per 3 cm cell, which the stride thins to
+    # about the grid's own density (each of the polish's rounds costs two ICPs over them); a
+    # LiDAR scan, with one or two per cell along its rings, keeps every point (a stride would
+    # thin its rings alone and tilt the normals across them)
+    polish_points_per_cell: float = 2.0
+    polish_relative: float = 1e-6  # its stop: relative change of fitness and inlier RMSE
+    # `prepare`: a scan holding more than max_points_per_cell input points per occupied grid cell
+    # (cfg.voxel) on average is first thinned to that many per cell, drawn at random (`denoise`;
+    # 0: never thinned). The more points a noisy surface has, the more of the cells along it its
+    # noise reaches (a thicker shell of cells): the cells' centroids and normals leave the
+    # surface, the coarse and fine stages' poses err more, and a right registration's
+    # contradicted cubes rise past their limit (the Redwood fragment's views repeated tens of
+    # times, each copy with its own noise). The checks' thresholds and the covariance's
+    # calibration were fitted on views of the bundled fragments at the benchmark's density,
+    # a few points per cell; this bound keeps every such view whole and brings a denser scan
+    # (a depth camera close up, a LiDAR map accumulated over many sweeps) back to it
+    max_points_per_cell: float = 8.0
+    stop_at_first_valid: bool = True
+    stop_inlier_ratio: float = 0.72
+    # the wide level's reach is capped at max_reach [m]: beyond it a first-order covariance is no
+    # basin a local method covers (the sigma points and the global fallback take over)
+    max_reach: float = 1.0
+    global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
+    covariance_scale: float = 4.64  # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_degeneracy: float = 4.10  # fit of docs/results_fusion_calibration.json (3 digits)
+
+    def __post_init__(self):
+        check(
+            self,
+            positive=(
+                "voxel",
+                "normal_radius",
+                "range_sigma",
+                "covariance_scale",
+                "fine_relative",
+                "polish_relative",
+                "polish_settle_deg",
+                "polish_settle_m",
+                "covariance_block",
+                "margin_block",
+            ),
+            nonnegative=(
+                "covariance_degeneracy",
+                "polish_points_per_cell",
+                "max_points_per_cell",
+                "coarse_tukey",
+                "fine_tukey",
+                "polish_distance",
+                "polish_kernel",
+            ),
+            integer={
+                "polish_iterations": 1,
+                "polish_rounds": 1,
+                "polish_max_nn": 3,
+                "fine_iterations": 1,
+                "fine_stride": 1,
+            },
+        )
+        n = len(self.scales)
+        if n == 0 or len(self.max_correspondence) != n or len(self.max_iterations) != n:
+            raise ValueError(
+                "RegistrationConfig: scales, max_correspondence and max_iterations need one entry "
+                "per stage"
+            )
+        if not self.hint_wide_tukey or min(self.hint_wide_tukey) < 0:
+            raise ValueError(
+                "RegistrationConfig.hint_wide_tukey: one or more Tukey widths >= 0 expected, got "
+                f"{self.hint_wide_tukey}"
+            )
+        if (
+            min(self.scales) <= 0
+            or min(self.max_correspondence) <= 0
+            or min(self.max_iterations) < 1
+        ):
+            raise ValueError(
+                "RegistrationConfig: scales, max_correspondence, max_iterations must be positive"
+            )
+
+
+@dataclass(frozen=True)
+class AcceptanceConfig:
+    """Checks a registration must pass before it is fused (see `robust_register`).
+
+    misfit_weight: what a source point near a target point but off its surface costs in a
+    candidate's cost (`truncated_costs`), where an unexplained point (no target point near)
+    costs 1: a point the other robot did not see says nothing against a registration, a point
+    beside a surface it saw does (a view slid towards the other overlaps more of it, with more
+    of its points beside surfaces; one slid away overlaps less, with a few more on them);
+    residual_sigma: the least residual scale c [m] of the checks; c is the two scans' own residual
+    spread (`graphloc.mapping.robust_registration.residual_scale`), never below this: a noisier
+    or sparser scan widens what a surface the other robot saw looks like from it, and with c
+    fixed a right registration of such scans falls below min_inlier_ratio;
+    min_overlap: inlier fraction of the source (point-to-plane |r| < c);
+    min_inlier_ratio: inliers among the source points that have a target point within the fine
+    correspondence distance (a slid alignment puts points near surfaces, not on them);
+    contradiction_block / contradiction_min_points / contradiction_ratio / max_contradicted: the
+    regional check (`contradicted_fraction`): the near points (a target point within the fine
+    distance) in cubes of contradiction_block [m], a cube with at least contradiction_min_points
+    of them contradicts the registration when its inlier ratio is below contradiction_ratio
+    times the candidate's own, and at most max_contradicted of the near points may lie in such
+    cubes. Two views of one surface meet all over it; a view slid or turned into a local minimum
+    lines up the dominant planes and leaves the structures that fix the slide (furniture, a
+    corner, a door frame) beside each other, a few cubes where most points are off the other
+    view's surfaces, which the global inlier ratio dilutes;
+    min_cost_margin_se: every other valid candidate (distinct, passing its checks) must cost at
+    least this many standard errors more than the winner (`cost_margin_se`): two registrations
+    that explain the views about alike (a view slid by a decimetre along a wall) are not told
+    apart by which one is a little cheaper. A rival that loses in one cluster alone, every
+    other alike, sits at exactly 1; at the default the winner must lead by at least that much,
+    and one whose lead other clusters partly take back falls below it;
+    min_conditioning: smallest / largest eigenvalue of the point-to-plane Hessian with rotations
+    scaled by the median source range (a plane or a corridor leaves a direction unconstrained);
+    hint_gate: Mahalanobis^2 of the result against the hint under the hint's covariance,
+    chi-square with 6 degrees of freedom at 99.9%; ceiling_above: the robot kinds' geometry --
+    the ceiling sensor is above the ground sensor (z_G > 0) and upside down (its z axis within
+    max_ceiling_tilt_deg of -z_G); max_sigma_rot_deg / max_sigma_trans_m: the largest 1-sigma
+    of the calibrated covariance a fusion may have, two fifths of what a map fusion is for
+    (issue 16's success box, 1 deg / 5 cm), so that every axis's 2.5-sigma interval lies
+    inside the box: a fusion whose covariance is right and whose sigma sits at the cap lands
+    outside the box in about one trial in eighty per axis, and most fusions' sigmas sit well
+    below it. Views that hardly constrain a direction (a 30% overlap that is a strip of floor
+    between two walls) carry their spread along it in the covariance
+    (`graphloc.mapping.registration_covariance.degeneracy_term`): the cap refuses those whose
+    spread reaches towards the box's edge, right or wrong, and no other check could tell which;
+    max_overlap_shortfall: no candidate within the hint gate and the robot geometry may overlap
+    the views more than this many times the winner (`overlap_shortfall`). misfit_weight makes a
+    point beside a surface cost more than one off every surface, which keeps a view from sliding
+    towards the other; on two views that genuinely differ (other viewpoints, occlusions: a right
+    registration leaves many points beside surfaces) it rewards the opposite, a pose that draws
+    the view away from the other's surfaces, cheap for explaining little. Such a winner overlaps
+    the views a fraction of what another start found; the truncated cost alone cannot say which
+    is right;
+    distinct_deg / distinct_m: candidates closer than this are one registration."""
+
+    residual_sigma: float = 0.01
+    misfit_weight: float = 4.0
+    min_overlap: float = 0.1
+    min_inlier_ratio: float = 0.65
+    contradiction_block: float = 0.5
+    contradiction_min_points: int = 20
+    contradiction_ratio: float = 0.4
+    max_contradicted: float = 0.02
+    min_cost_margin_se: float = 1.0
+    min_conditioning: float = 1e-4
+    hint_gate: float = 22.458  # scipy.stats.chi2.ppf(0.999, 6)
+    ceiling_above: bool = True
+    max_ceiling_tilt_deg: float = 45.0
+    max_sigma_rot_deg: float = 0.4
+    max_sigma_trans_m: float = 0.02
+    max_overlap_shortfall: float = 2.0
+    distinct_deg: float = 0.5
+    distinct_m: float = 0.02
+
+    def __post_init__(self):
+        check(
+            self,
+            positive=(
+                "residual_sigma",
+                "hint_gate",
+                "max_sigma_rot_deg",
+                "max_sigma_trans_m",
+                "contradiction_block",
+            ),
+            nonnegative=("min_cost_margin_se", "min_conditioning"),
+            integer={"contradiction_min_points": 1},
+            interval={
+                "min_overlap": (0.0, 1.0, "[]"),
+                "min_inlier_ratio": (0.0, 1.0, "[]"),
+                "misfit_weight": (1.0, 1e6, "[]"),
+                "max_overlap_shortfall": (1.0, 1e6, "[]"),
+                "contradiction_ratio": (0.0, 1.0, "[]"),
+                "max_contradicted": (0.0, 1.0, "[]"),
+            },
+        )

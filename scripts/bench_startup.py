@@ -1,0 +1,455 @@
+"""The front door's timings (issue 47), measured on the command line as a user meets it:
+
+- start-up: wall time and peak RSS of `graphloc --version` and of `graphloc VERB --help` for
+  every verb of `graphloc.cli.VERBS`, each run `--repeats` times (median and max);
+- Ctrl-C: SIGINT sent at seeded random moments of `graphloc online` / `graphloc smooth` on a
+  simulated run (`feng-probabilistic`) and on MRCLAM Dataset6; the time from the signal to the
+  process's exit, its exit code, whether stderr holds a traceback, the line it ended with and,
+  when it wrote metrics.json, whether that says `"partial": true` (each verb is first run
+  uninterrupted once: its wall time sets the moments, fractions of it);
+- the demo: wall time of `graphloc demo` (`make demo`'s run) `--demo-repeats` times.
+
+`--peer-commit REV` measures a peer in the same run, interleaved with graphloc run by run: the
+source tree of REV (`git archive`, with factors/ and datasets/ linked in as graphloc.factors /
+graphloc.datasets) run by this interpreter (`python -m graphloc`, PYTHONPATH), so that both
+see the same load; its start-up (and with `--peer-sigint` its Ctrl-C) rows stand beside
+graphloc's with their ratio. Every child is a fresh process (`--graphloc`, default the
+`graphloc` beside this interpreter) run in a folder outside the checkout; peak RSS from
+`os.wait4`. The machine (CPU, cores, load average before and after) is recorded with the
+numbers. Writes JSON (`--json`) and renders markdown (`--md`) from it; `--render-only`
+re-renders the markdown from the JSON.
+
+    .venv/bin/python scripts/bench_startup.py --peer-commit baba18c \\
+        --json docs/results_startup.json --md docs/results_startup.md
+
+A measurement, not a test: the targets (start-up under 0.3 s, Ctrl-C back within 2 s) are
+read off the table, never asserted here."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import random
+import shlex
+import signal
+import statistics
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+MRCLAM = ROOT.parent / "shared" / "data" / "mrclam" / "MRCLAM_Dataset6"
+SCENARIO = "feng-probabilistic"
+TIMEOUT = 900.0  # [s] a child still running this long after its signal is killed (and said so)
+
+
+def _graphloc_default() -> str:
+    return str(Path(sys.executable).parent / "graphloc")
+
+
+def _reap(proc: subprocess.Popen, block: bool) -> tuple[int, float] | None:
+    """(exit code, peak RSS [MB]) of `proc` once it has exited (None while it runs, unless
+    `block`)."""
+    pid, status, usage = os.wait4(proc.pid, 0 if block else os.WNOHANG)
+    if not pid:
+        return None
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    return proc.returncode, usage.ru_maxrss / 1024.0
+
+
+def _wait(proc: subprocess.Popen, timeout: float) -> tuple[int, float]:
+    """(exit code, peak RSS [MB]) of `proc`, killed after `timeout` s (code -9 then)."""
+    deadline = time.monotonic() + timeout
+    while (done := _reap(proc, block=False)) is None:
+        if time.monotonic() > deadline:
+            proc.kill()
+            return _reap(proc, block=True)
+        time.sleep(0.005)
+    return done
+
+
+def _stats(values: list[float]) -> dict:
+    return {"median": statistics.median(values), "max": max(values), "n": len(values)}
+
+
+def _once(cmd: list[str], cwd: Path, env: dict | None) -> tuple[float, float, int]:
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(
+        cmd, cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    code, peak = _wait(proc, 120.0)
+    return time.perf_counter() - t0, peak, code
+
+
+def startup(commands: dict, verbs: list[str], repeats: int, cwd: Path) -> list[dict]:
+    """Wall time and peak RSS of `--version` and of `VERB --help` for every verb, for each
+    command of `commands` (name -> (argv prefix, env)), interleaved run by run."""
+    rows = []
+    for extra in [["--version"]] + [[v, "--help"] for v in verbs]:
+        runs = {name: ([], [], set()) for name in commands}
+        for _ in range(repeats):
+            for name, (cmd, env) in commands.items():
+                wall, peak, code = _once([*cmd, *extra], cwd, env)
+                runs[name][0].append(wall)
+                runs[name][1].append(peak)
+                runs[name][2].add(code)
+        row = {"command": "graphloc " + " ".join(extra)}
+        for name, (walls, rss, codes) in runs.items():
+            row[name] = {
+                "wall_s": _stats(walls),
+                "peak_rss_mb": _stats(rss),
+                "exit_codes": sorted(codes),
+            }
+        rows.append(row)
+        shown = ", ".join(f"{n} {statistics.median(r[0]):.3f} s" for n, r in runs.items())
+        print(f"  {row['command']}: {shown}", file=sys.stderr)
+    return rows
+
+
+def _uninterrupted(cmd: list[str], cwd: Path, env: dict | None) -> tuple[float, int]:
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(
+        cmd, cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    code, _ = _wait(proc, 3600.0)
+    return time.perf_counter() - t0, code
+
+
+def interrupt(cmd: list[str], at_s: float, out: Path, cwd: Path, env: dict | None = None) -> dict:
+    """Run `cmd`, send SIGINT `at_s` seconds after its start, wait for the exit."""
+    with tempfile.TemporaryFile() as err:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=err)
+        sent, done = None, None
+        while (done := _reap(proc, block=False)) is None and time.perf_counter() - t0 < at_s:
+            time.sleep(0.005)
+        if done is None:
+            proc.send_signal(signal.SIGINT)
+            sent = time.perf_counter()
+            done = _wait(proc, TIMEOUT)
+        code = done[0]
+        end = time.perf_counter()
+        err.seek(0)
+        text = err.read().decode("utf-8", "replace")
+    lines = [ln.strip() for ln in text.replace("\r", "\n").splitlines() if ln.strip()]
+    lines = [ln for ln in lines if not ln.startswith("graphloc: ")]  # -v log lines
+    metrics = out / "metrics.json"
+    partial = json.loads(metrics.read_text()).get("partial") if metrics.is_file() else None
+    return {
+        "at_s": round(at_s, 3),
+        "signalled": sent is not None,
+        "exit_s": None if sent is None else end - sent,
+        "exit_code": code,
+        "traceback": "Traceback (most recent call last)" in text,
+        "said": [ln for ln in lines if "SIGINT" in ln or "interrupt" in ln.lower()][-2:],
+        "metrics_partial": partial,
+    }
+
+
+def sigint(
+    name: str, command: tuple, verb: str, run: Path, moments: int, seed: int, work: Path
+) -> dict:
+    """SIGINT at `moments` seeded random fractions of the verb's uninterrupted wall time."""
+    cmd, env = command
+    base = [*cmd, verb, str(run), "--no-progress"]
+    full, code = _uninterrupted([*base, "--out", str(work / f"{name}_{verb}_full")], work, env)
+    rng = random.Random(f"{seed}:{verb}:{run.name}")
+    fractions = sorted(rng.uniform(0.02, 0.98) for _ in range(moments))
+    trials = []
+    for n, f in enumerate(fractions):
+        out = work / f"{name}_{verb}_{run.name}_{n}"
+        trials.append(interrupt([*base, "--out", str(out)], max(0.3, f * full), out, work, env))
+        t = trials[-1]
+        after = "-" if t["exit_s"] is None else f"{t['exit_s']:.2f}"
+        print(
+            f"  {name} {verb} {run.name}: SIGINT at {t['at_s']:.1f} s -> exit "
+            f"{t['exit_code']} after {after} s",
+            file=sys.stderr,
+        )
+    delays = [t["exit_s"] for t in trials if t["exit_s"] is not None]
+    return {
+        "command": name,
+        "verb": verb,
+        "run": run.name,
+        "uninterrupted_s": full,
+        "uninterrupted_exit_code": code,
+        "trials": trials,
+        "exit_s": _stats(delays) if delays else None,
+    }
+
+
+def demo(command: tuple, repeats: int, work: Path) -> dict:
+    cmd, env = command
+    walls, codes = [], set()
+    for n in range(repeats):
+        wall, code = _uninterrupted(
+            [*cmd, "demo", "--out", str(work / f"demo{n}"), "--no-progress"], work, env
+        )
+        walls.append(wall)
+        codes.add(code)
+        print(f"  graphloc demo: {wall:.1f} s (exit {code})", file=sys.stderr)
+    return {
+        "command": "graphloc demo --out DIR",
+        "wall_s": _stats(walls),
+        "walls": walls,
+        "exit_codes": sorted(codes),
+    }
+
+
+def peer_tree(rev: str, into: Path) -> Path:
+    """The source tree of commit `rev` under `into`, importable as graphloc with PYTHONPATH
+    (factors/ and datasets/ linked in as graphloc.factors / graphloc.datasets)."""
+    archive = into / "peer.tar"
+    subprocess.run(["git", "-C", str(ROOT), "archive", "-o", str(archive), rev], check=True)
+    tree = into / "peer"
+    tree.mkdir()
+    with tarfile.open(archive) as tar:
+        tar.extractall(tree, filter="data")
+    for folder in ("factors", "datasets"):
+        (tree / "graphloc" / folder).symlink_to(tree / folder, target_is_directory=True)
+    return tree
+
+
+def machine() -> dict:
+    cpu = platform.processor()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "python": platform.python_version(),
+        "system": f"{platform.system()} {platform.release()}",
+    }
+
+
+# ---- markdown ---------------------------------------------------------------------------------
+def _table(header: list[str], rows: list[list]) -> str:
+    """A markdown table: pandas' to_markdown where tabulate is installed, else plain pipes."""
+    try:
+        import pandas as pd
+        import tabulate  # noqa: F401 - to_markdown needs it
+
+        return pd.DataFrame(rows, columns=header).to_markdown(index=False)
+    except ImportError:
+        lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+        return "\n".join(lines)
+
+
+def _s(v, digits=3) -> str:
+    return "-" if v is None else f"{v:.{digits}f}"
+
+
+def _startup_md(result: dict) -> list[str]:
+    names = [n for n in ("graphloc", "peer") if n in result["startup"][0]]
+    header = ["command"]
+    for n in names:
+        header += [f"{n} wall median [s]", f"{n} wall max [s]", f"{n} peak RSS [MB]"]
+    if "peer" in names:
+        header.append("wall ratio graphloc / peer")
+    rows = []
+    for r in result["startup"]:
+        row = [f"`{r['command']}`"]
+        for n in names:
+            row += [
+                _s(r[n]["wall_s"]["median"]),
+                _s(r[n]["wall_s"]["max"]),
+                _s(r[n]["peak_rss_mb"]["median"], 0),
+            ]
+        if "peer" in names:
+            row.append(_s(r["graphloc"]["wall_s"]["median"] / r["peer"]["wall_s"]["median"], 2))
+        rows.append(row)
+    peer = f" and the peer, {result['peer']} (run interleaved with it)" if "peer" in names else ""
+    return [
+        f"## Start-up ({result['repeats']} runs each)",
+        "",
+        f"graphloc{peer}: exit code 0 in every run"
+        if all(r[n]["exit_codes"] == [0] for r in result["startup"] for n in names)
+        else "exit codes: see docs/results_startup.json",
+        "",
+        _table(header, rows),
+        "",
+    ]
+
+
+def _sigint_md(result: dict) -> list[str]:
+    out = [
+        "## Ctrl-C: SIGINT to exit",
+        "",
+        "One SIGINT per trial, at a seeded random fraction of the uninterrupted run's wall "
+        "time; `exit` is the time from the signal to the process's exit.",
+        "",
+        _table(
+            [
+                "command",
+                "verb",
+                "run",
+                "uninterrupted [s]",
+                "trials signalled",
+                "exit median [s]",
+                "exit max [s]",
+                "exit codes",
+                "tracebacks",
+                "partial metrics",
+            ],
+            [
+                [
+                    s["command"],
+                    f"`{s['verb']}`",
+                    s["run"],
+                    _s(s["uninterrupted_s"], 1),
+                    f"{sum(t['signalled'] for t in s['trials'])} / {len(s['trials'])}",
+                    _s(s["exit_s"]["median"] if s["exit_s"] else None, 2),
+                    _s(s["exit_s"]["max"] if s["exit_s"] else None, 2),
+                    ",".join(sorted({str(t["exit_code"]) for t in s["trials"] if t["signalled"]})),
+                    sum(t["traceback"] for t in s["trials"]),
+                    sum(t["metrics_partial"] is True for t in s["trials"]),
+                ]
+                for s in result["sigint"]
+            ],
+        ),
+        "",
+        "Every trial (signal at, exit after, code, the line it ended with):",
+        "",
+    ]
+    for s in result["sigint"]:
+        for t in s["trials"]:
+            said = "; ".join(t["said"]) or "-"
+            out.append(
+                f"- {s['command']} `{s['verb']}` {s['run']}: at {t['at_s']:.2f} s -> "
+                f"{_s(t['exit_s'], 2)} s, exit {t['exit_code']}: {said}"
+            )
+    return out + [""]
+
+
+def markdown(result: dict) -> str:
+    m = result["machine"]
+    load = result["load_average"]
+    out = [
+        "# Start-up, Ctrl-C and demo times",
+        "",
+        f"Generated by `{result['command']}` from docs/results_startup.json; graphloc "
+        f"{result['graphloc_version']}, commit {result['commit']}.",
+        "",
+        f"Machine: {m['cpu']}, {m['cores']} cores, shared with other work (load average "
+        f"{load['before'][0]:.1f} before, {load['after'][0]:.1f} after: the times scale with "
+        f"it), Python {m['python']}, {m['system']}.",
+        "",
+    ]
+    if result.get("startup"):
+        out += _startup_md(result)
+    if result.get("sigint"):
+        out += _sigint_md(result)
+    if result.get("demo"):
+        d = result["demo"]
+        out += [
+            "## The demo",
+            "",
+            f"`{d['command']}` (what `make demo` runs after set-up), {d['wall_s']['n']} runs: "
+            f"wall {min(d['walls']):.1f} - {max(d['walls']):.1f} s (median "
+            f"{d['wall_s']['median']:.1f} s), exit codes {d['exit_codes']}.",
+            "",
+        ]
+    return "\n".join(out)
+
+
+def _commit() -> str:
+    try:
+        res = subprocess.run(
+            ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        dirty = subprocess.run(
+            ["git", "-C", str(ROOT), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+        ).stdout.strip()
+        return res.stdout.strip() + (" (with uncommitted changes)" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--graphloc", default=_graphloc_default(), help="the command to time")
+    p.add_argument("--peer-commit", help="also time this commit's tree, interleaved (a peer)")
+    p.add_argument("--peer-sigint", action="store_true", help="the peer's Ctrl-C too (slow)")
+    p.add_argument("--repeats", type=int, default=10, help="runs per start-up command")
+    p.add_argument("--moments", type=int, default=5, help="SIGINT trials per verb and run")
+    p.add_argument("--seed", type=int, default=0, help="seed of the SIGINT moments")
+    p.add_argument("--mrclam", type=Path, default=MRCLAM, help="MRCLAM Dataset6 directory")
+    p.add_argument("--demo-repeats", type=int, default=3, help="runs of graphloc demo (0: none)")
+    p.add_argument("--skip", nargs="*", default=[], choices=["startup", "sigint", "mrclam", "demo"])
+    p.add_argument("--json", type=Path, default=ROOT / "docs" / "results_startup.json")
+    p.add_argument("--md", type=Path, default=ROOT / "docs" / "results_startup.md")
+    p.add_argument("--render-only", action="store_true", help="re-render --md from --json")
+    args = p.parse_args(argv)
+    if args.render_only:
+        args.md.write_text(markdown(json.loads(args.json.read_text())) + "\n")
+        return 0
+    from graphloc import __version__
+    from graphloc.cli import VERBS
+
+    shown = list(argv if argv is not None else sys.argv[1:])
+    result: dict = {
+        "command": " ".join(["python scripts/bench_startup.py", *map(shlex.quote, shown)]),
+        "graphloc_version": __version__,
+        "commit": _commit(),
+        "graphloc": shlex.split(args.graphloc),
+        "peer": None,
+        "machine": machine(),
+        "load_average": {"before": list(os.getloadavg())},
+        "repeats": args.repeats,
+    }
+    with tempfile.TemporaryDirectory(prefix="bench_startup_") as tmp:
+        work = Path(tmp)  # every child runs here, outside the checkout
+        commands = {"graphloc": (shlex.split(args.graphloc), None)}
+        if args.peer_commit:
+            tree = peer_tree(args.peer_commit, work)
+            env = {**os.environ, "PYTHONPATH": str(tree)}
+            commands["peer"] = ([sys.executable, "-m", "graphloc"], env)
+            result["peer"] = f"commit {args.peer_commit} (python -m graphloc from its tree)"
+        if "startup" not in args.skip:
+            print("start-up:", file=sys.stderr)
+            result["startup"] = startup(commands, list(VERBS), args.repeats, work)
+        if "sigint" not in args.skip:
+            print("SIGINT:", file=sys.stderr)
+            sim = work / "sim_run"
+            subprocess.run(
+                [*commands["graphloc"][0], "simulate", SCENARIO, "--out", str(sim), "-q"],
+                cwd=work,
+                check=True,
+            )
+            runs = [sim] + ([args.mrclam] if "mrclam" not in args.skip else [])
+            timed = {k: v for k, v in commands.items() if k == "graphloc" or args.peer_sigint}
+            result["sigint"] = [
+                sigint(name, command, verb, run, args.moments, args.seed, work)
+                for run in runs
+                for verb in ("smooth", "online")
+                for name, command in timed.items()
+            ]
+        if "demo" not in args.skip and args.demo_repeats > 0:
+            print("demo:", file=sys.stderr)
+            result["demo"] = demo(commands["graphloc"], args.demo_repeats, work)
+    result["load_average"]["after"] = list(os.getloadavg())
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps(result, indent=1) + "\n")
+    args.md.write_text(markdown(result) + "\n")
+    print(f"wrote {args.json} and {args.md}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
