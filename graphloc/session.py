@@ -36,7 +36,7 @@ Example (GTSAM-example style: explicit keys, one graph, one optimizer):
 from __future__ import annotations
 
 import time as _time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable
 
@@ -44,12 +44,12 @@ import gtsam
 import numpy as np
 from tqdm import tqdm
 
-from graphloc.datafile import BadData, read_data_file, write_data_file
+from graphloc.datafile import read_data_file, write_data_file
 from graphloc.fixed_lag import FixedLagWindow
-from graphloc.session_codec import decode_step, encode_item
-from graphloc.session_config import MODES, SessionConfig, config_from_dict
+from graphloc.session_codec import load_session, save_session
+from graphloc.session_config import MODES, SessionConfig
 from graphloc.session_config import check_thresholded, relinearize_threshold
-from graphloc.value_codec import encode_values, key_name
+from graphloc.value_codec import key_name
 
 __all__ = ["MODES", "Session", "SessionConfig", "Step", "read_data_file", "write_data_file"]
 
@@ -366,60 +366,17 @@ class Session:
         self._batch_iterations = int(optimizer.iterations())
         return optimizer.values()
 
-    # ---- persistence ---------------------------------------------------------------------
+    # ---- persistence (graphloc.session_codec) -----------------------------------------------
     def save(self, path: str | Path) -> None:
         """Write config + every step (factors, providers, initial values, time) to `path` as
-        versioned JSON, atomically (see the module docstring). A bare gtsam.CustomFactor cannot
-        be saved: add the provider that builds it (e.g. a `MaxMixture` object rather than its
-        `.factor`). ValueError names the step and factor that cannot be written, or says that
-        the session keeps no steps (`SessionConfig.keep_steps` False)."""
-        if not self.config.keep_steps:
-            raise ValueError(
-                "Session.save: this session keeps no steps (SessionConfig.keep_steps=False: "
-                "a long online run that bounds its memory); nothing to replay it from"
-            )
-        steps = []
-        for i, record in enumerate(self._records):
-            where = f"Session.save: step {i} (time {record.time})"
-            bare = [type(it).__name__ for it in record.items if isinstance(it, gtsam.CustomFactor)]
-            if bare:
-                raise ValueError(
-                    f"{where} holds a bare gtsam.CustomFactor, which cannot be "
-                    f"saved; add its provider object (e.g. MaxMixture) instead"
-                )
-            items = [encode_item(item, f"{where}, item {j}") for j, item in enumerate(record.items)]
-            steps.append(
-                {
-                    "time": record.time,
-                    "latency_s": record.latency_s,
-                    "items": items,
-                    "values": encode_values(record.values, where),
-                }
-            )
-        write_data_file(
-            path, _SAVE_FORMAT, _SAVE_VERSION, {"config": asdict(self.config), "steps": steps}
-        )
+        versioned JSON, atomically (`session_codec.save_session`)."""
+        save_session(self, path, _SAVE_FORMAT, _SAVE_VERSION)
 
     @classmethod
     def load(cls, path: str | Path) -> "Session":
-        """Rebuild a saved session; online sessions replay every step into a fresh iSAM2. Any
-        problem with the file (unreadable, not a session, truncated, altered, an unknown factor
-        type, a step the session rejects) is a ValueError naming the file."""
-        payload = read_data_file(path, _SAVE_FORMAT, _SAVE_VERSION, "session")
-        try:
-            session = cls(config_from_dict(payload.get("config")))
-            steps = payload.get("steps")
-            if not isinstance(steps, list):
-                raise BadData("'steps' must be a list")
-            for i, step in enumerate(steps):
-                t, items, values = decode_step(step, f"step {i}")
-                try:
-                    session.add(items, values, time=t)
-                except ValueError as exc:
-                    raise BadData(f"step {i}: {exc}") from None
-        except BadData as exc:
-            raise ValueError(f"{path}: {exc}") from None
-        return session
+        """Rebuild a saved session (`session_codec.load_session`); online sessions replay every
+        step into a fresh iSAM2."""
+        return load_session(cls, path, _SAVE_FORMAT, _SAVE_VERSION)
 
 
 def _first_line(exc: Exception) -> str:

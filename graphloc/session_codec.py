@@ -7,10 +7,13 @@ a corrupted archive). Errors on decode are `BadData` naming the step, item and f
 
 from __future__ import annotations
 
+from dataclasses import asdict
+
 import gtsam
 import numpy as np
 
-from graphloc.datafile import BadData
+from graphloc.datafile import BadData, read_data_file, write_data_file
+from graphloc.session_config import config_from_dict
 from graphloc.factors.mixture import MaxMixture
 from graphloc.value_codec import (
     checked_numbers,
@@ -21,6 +24,7 @@ from graphloc.value_codec import (
     decode_values,
     encode_measurement,
     encode_noise,
+    encode_values,
     is_key,
     is_number,
 )
@@ -245,3 +249,56 @@ def decode_step(raw, where: str) -> tuple[float, list, gtsam.Values]:
         raise BadData(f"{where}: items must be a list")
     decoded = [_decode_item(item, f"{where}, item {j}") for j, item in enumerate(items)]
     return float(t), decoded, decode_values(raw.get("values"), where)
+
+
+def save_session(session, path, fmt: str, version: int) -> None:
+    """`Session.save`: config + every step to `path` as versioned JSON, atomically (the
+    `graphloc.session` module docstring). A bare gtsam.CustomFactor cannot be saved: add the
+    provider that builds it (e.g. a `MaxMixture` object rather than its `.factor`). ValueError
+    names the step and factor that cannot be written, or says that the session keeps no steps
+    (`SessionConfig.keep_steps` False)."""
+    if not session.config.keep_steps:
+        raise ValueError(
+            "Session.save: this session keeps no steps (SessionConfig.keep_steps=False: "
+            "a long online run that bounds its memory); nothing to replay it from"
+        )
+    steps = []
+    for i, record in enumerate(session._records):
+        where = f"Session.save: step {i} (time {record.time})"
+        bare = [type(it).__name__ for it in record.items if isinstance(it, gtsam.CustomFactor)]
+        if bare:
+            raise ValueError(
+                f"{where} holds a bare gtsam.CustomFactor, which cannot be "
+                f"saved; add its provider object (e.g. MaxMixture) instead"
+            )
+        items = [encode_item(item, f"{where}, item {j}") for j, item in enumerate(record.items)]
+        steps.append(
+            {
+                "time": record.time,
+                "latency_s": record.latency_s,
+                "items": items,
+                "values": encode_values(record.values, where),
+            }
+        )
+    write_data_file(path, fmt, version, {"config": asdict(session.config), "steps": steps})
+
+
+def load_session(cls, path, fmt: str, version: int):
+    """`Session.load`: a saved session rebuilt as `cls`, every step replayed. Any problem with
+    the file (unreadable, not a session, truncated, altered, an unknown factor type, a step the
+    session rejects) is a ValueError naming the file."""
+    payload = read_data_file(path, fmt, version, "session")
+    try:
+        session = cls(config_from_dict(payload.get("config")))
+        steps = payload.get("steps")
+        if not isinstance(steps, list):
+            raise BadData("'steps' must be a list")
+        for i, step in enumerate(steps):
+            t, items, values = decode_step(step, f"step {i}")
+            try:
+                session.add(items, values, time=t)
+            except ValueError as exc:
+                raise BadData(f"step {i}: {exc}") from None
+    except BadData as exc:
+        raise ValueError(f"{path}: {exc}") from None
+    return session

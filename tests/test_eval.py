@@ -96,3 +96,13 @@ def test_plots_write_pngs(tmp_path):
     assert p1.stat().st_size > 5000 and p2.stat().st_size > 5000
     with pytest.raises(ValueError, match="positions"):
         plot_trajectories(tmp_path / "bad.png", [Series("bad", t)])
+
+
+def test_the_options_offer_the_alignments_evaluation_knows():
+    from graphloc.eval import ALIGNMENTS
+    from graphloc.pipelines.team_graph.options import ALIGNMENTS as OFFERED
+    from graphloc.pipelines.team_graph.options import RunOptions
+
+    assert OFFERED == ALIGNMENTS
+    with pytest.raises(ValueError, match="align"):
+        RunOptions(align="sim2")

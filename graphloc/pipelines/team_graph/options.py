@@ -23,6 +23,8 @@ KERNELS = ("kernel", "odometry_kernel", "candidate_kernel")
 OUTPUTS = ("mcap", "rerun", "groundtruth_rate", "align", "strict")  # `validate` leaves them out
 # what <robot>_groundtruth.tum holds (graphloc.pipelines.report.groundtruth_written)
 GROUNDTRUTH_RATES = ("estimate", "full")
+# how estimates meet ground truth: graphloc.eval.ALIGNMENTS (evo's names), here without evo
+ALIGNMENTS = ("none", "se2", "se3", "sim3")
 SOLVER = ("lag",)
 SOURCE = ("topics", "scan_rate")  # options of one kind of source (open_run's `source`)
 DEFAULT_LAG = 45.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
@@ -131,8 +133,8 @@ class RunOptions:
             + ("pixel_sigma", "scan_rate"),
             nonnegative=("range_sigma_per_m", "lag"),
             optional=("duration", "bearing_sigma", "range_sigma", "range_sigma_per_m")
-            + ("pixel_sigma", "lag", "scan_rate"),
-            choices={"groundtruth_rate": GROUNDTRUTH_RATES},
+            + ("pixel_sigma", "lag", "scan_rate", "align"),
+            choices={"groundtruth_rate": GROUNDTRUTH_RATES, "align": ALIGNMENTS},
         )
         if self.duration is not None and not 0 < self.duration < float("inf"):
             raise ValueError(f"RunOptions.duration must be > 0, got {self.duration}")
@@ -141,12 +143,6 @@ class RunOptions:
                 Kernel.parse(getattr(self, name))
             except ValueError as exc:
                 raise ValueError(f"RunOptions.{name} (--{name.replace('_', '-')}): {exc}") from None
-        from graphloc.eval import ALIGNMENTS  # evo loads when options are made, not for --help
-
-        if self.align is not None and self.align not in ALIGNMENTS:
-            raise ValueError(
-                f"RunOptions.align (--align): one of {', '.join(ALIGNMENTS)}, got {self.align!r}"
-            )
         if not (self.landmarks or self.inter_robot):
             raise ValueError("--no-landmarks with --no-inter-robot leaves only odometry")
 
