@@ -54,6 +54,7 @@ from graphloc.datasets.rosbag_topics import (
 )
 from graphloc.eval import write_tum
 from graphloc.io import SkipReport, write_manifest, write_table
+from graphloc.names import out_path
 from graphloc.run import TeamRun, truncate
 
 __all__ = ["BagImport", "RosBag", "find_topics_file", "import_bag", "is_bag", "read_topics"]
@@ -241,7 +242,7 @@ def import_bag(bag, topics, out) -> BagImport:
                 continue
             rs.sort(key=lambda row: row[0])
             rel = f"{name}/{'groundtruth.tum' if table == 'groundtruth' else table + '.csv'}"
-            _write_table(out / rel, table, rs)
+            _write_table(out_path(out, name, rel.split("/", 1)[1]), table, rs)
             tables[table] = rel
             written[table] = written.get(table, 0) + len(rs)
         robots.append({**r, "tables": tables})
@@ -255,7 +256,7 @@ def import_bag(bag, topics, out) -> BagImport:
         },
     }
     if tf.landmarks:
-        with open(out / "landmarks.csv", "w", newline="") as fh:
+        with open(out_path(out, "landmarks.csv"), "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"])
             for lm in tf.landmarks:
@@ -277,10 +278,11 @@ def _write_scan(out: Path, robot: str, sensor: str, index: int, pts: np.ndarray)
     import open3d as o3d
 
     rel = f"{robot}/scans/{sensor}_{index:06d}.ply"
-    (out / rel).parent.mkdir(parents=True, exist_ok=True)
+    path = out_path(out, robot, "scans", f"{sensor}_{index:06d}.ply")
+    path.parent.mkdir(parents=True, exist_ok=True)
     cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.asarray(pts, dtype=np.float64)))
-    if not o3d.t.io.write_point_cloud(str(out / rel), cloud):
-        raise OSError(f"{out / rel}: cannot write the scan")
+    if not o3d.t.io.write_point_cloud(str(path), cloud):
+        raise OSError(f"{path}: cannot write the scan")
     return rel
 
 

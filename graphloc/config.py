@@ -20,7 +20,8 @@ help from the field's metadata["help"]) and `config_from_args` builds the config
 parsed options (defaults < `--config FILE.toml` < command line), so verbs do not copy fields
 by hand. A field whose default is itself a config dataclass is a TOML table of its name
 (`[fusion]`, `[fusion.registration]`, ...); a tuple field a TOML array. `read_config_file`
-opens the file through `graphloc.textio`; every error names the file, the line and the field
+reads the file through `graphloc.structured.read_toml` (size and nesting bounded); every error
+names the file, the line and the field
 (`ConfigError.key`: the field's dotted path).
 """
 
@@ -28,15 +29,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import numbers
 import re
-import tomllib
 import typing
 from pathlib import Path
 
-from graphloc.textio import read_text
+from graphloc.structured import BadStructure, parse_json, read_toml
 
 BRACKETS = ("()", "(]", "[)", "[]")
 
@@ -149,8 +148,8 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
             default = kind()
         if isinstance(value, str) and not isinstance(default, str):
             try:
-                value = json.loads(value)
-            except json.JSONDecodeError:
+                value = parse_json(value, f"{name}.{key}", "value")
+            except BadStructure:
                 kind_name = "list" if isinstance(default, tuple) else type(default).__name__
                 raise ConfigError(
                     f"{name}.{key}: expected {kind_name}, got {value!r}", key
@@ -274,12 +273,7 @@ def read_config_file(path) -> tuple[dict, dict]:
     line number}). Opened through `graphloc.textio` (a missing file, a directory or bytes that
     are not UTF-8 are errors naming the file and line); a syntax error names file, line and
     column."""
-    path = Path(path)
-    text = read_text(path)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not valid TOML: {exc}") from None
+    data, text = read_toml(Path(path))
     return _underscored(data), _key_lines(text)
 
 

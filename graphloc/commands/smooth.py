@@ -23,6 +23,7 @@ from graphloc.exitcodes import INCOMPLETE, OK
 from graphloc.manifest import check_noise_params
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph.options import RunOptions
+from graphloc.structured import dumps_json
 
 HELP = (
     "batch factor-graph smoothing of a team's run (log dir or MRCLAM dir): TUM, metrics JSON, PNGs"
@@ -120,7 +121,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
         hooks = checkpoint(graph, values) if checkpoint is not None else {}
         result = solve(graph, mode=mode, progress=progress, stop=stop, **hooks)
         metrics = evaluate(result, run)
-        metrics["config"] = json.loads(json.dumps(asdict(config), default=str))
+        metrics["config"] = json.loads(dumps_json(asdict(config), default=str))
         metrics["options"] = values
         metrics["landmark_map"] = landmark_map(run, config)
         if stop.signal is not None:
@@ -134,7 +135,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
         if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]
     }
     print(
-        json.dumps(
+        dumps_json(
             {
                 "mode": mode,
                 "partial": metrics["partial"],

@@ -22,8 +22,10 @@ from graphloc.pipelines.team_graph import (
     build_graph,
     solve,
 )
+from graphloc.names import out_path
 from graphloc.plots import Series, plot_series, plot_trajectories
 from graphloc.run import TeamRun
+from graphloc.structured import dumps_json
 
 
 def _trajectory(times: np.ndarray, rows: np.ndarray) -> PoseTrajectory3D:
@@ -188,11 +190,11 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
             ("dead_reckoning", result.dead_reckoning[r]),
         ):
             if np.isfinite(rows).all(axis=1).any():
-                written.append(_write_rows(out / f"{robot.name}_{label}.tum", times, rows))
+                written.append(_write_rows(out_path(out, f"{robot.name}_{label}.tum"), times, rows))
         ref = groundtruth_rows(run, r)
         if ref is not None:
-            written.append(_write_rows(out / f"{robot.name}_groundtruth.tum", *ref))
-    path = out / "decisions.csv"
+            written.append(_write_rows(out_path(out, f"{robot.name}_groundtruth.tum"), *ref))
+    path = out_path(out, "decisions.csv")
     decisions = result.decisions
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
@@ -232,7 +234,7 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
             )
     written.append(path)
     if result.mode == "online":
-        path = out / "latency.csv"
+        path = out_path(out, "latency.csv")
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(STEP_LOG_COLUMNS)
@@ -248,8 +250,8 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
                     ]
                 )
         written.append(path)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=str) + "\n")
-    written.append(out / "metrics.json")
+    written.append(out_path(out, "metrics.json"))
+    written[-1].write_text(dumps_json(metrics, indent=2, default=str) + "\n")
     written += _plots(result, run, out)
     return written
 
@@ -303,7 +305,7 @@ def _plots(result: TeamResult, run: TeamRun, out: Path) -> list[Path]:
         points = np.vstack([points.reshape(-1, 2), run.landmark_xyz[:, :2]])
     written = [
         plot_trajectories(
-            out / "trajectories.png",
+            out_path(out, "trajectories.png"),
             est,
             ref,
             points if len(points) else None,
@@ -314,7 +316,7 @@ def _plots(result: TeamResult, run: TeamRun, out: Path) -> list[Path]:
     if err:
         written.append(
             plot_series(
-                out / "error_over_time.png",
+                out_path(out, "error_over_time.png"),
                 err,
                 "time since start [s]",
                 "position error [m]",
@@ -322,7 +324,7 @@ def _plots(result: TeamResult, run: TeamRun, out: Path) -> list[Path]:
                 logy=True,
             )
         )
-    csv_path = out / "latency.csv"
+    csv_path = out_path(out, "latency.csv")
     if result.mode == "online" and csv_path.exists():
         table = np.genfromtxt(csv_path, delimiter=",", names=True).reshape(-1)
         if len(table):
@@ -334,7 +336,12 @@ def _plots(result: TeamResult, run: TeamRun, out: Path) -> list[Path]:
             title = f"{run.name}: online latency ({lag}, latency.csv)"
             written.append(
                 plot_series(
-                    out / "latency.png", series, "step", "latency per step [ms]", title, logy=True
+                    out_path(out, "latency.png"),
+                    series,
+                    "step",
+                    "latency per step [ms]",
+                    title,
+                    logy=True,
                 )
             )
     return written
@@ -406,7 +413,7 @@ def run_and_report(
     """Build the graph, solve it (batch or online), evaluate, write outputs; returns the metrics."""
     result = solve(build_graph(run, config, progress=progress), mode=mode, progress=progress)
     metrics = evaluate(result, run)
-    metrics["config"] = json.loads(json.dumps(asdict(config), default=str))
+    metrics["config"] = json.loads(dumps_json(asdict(config), default=str))
     if effective:
         metrics["options"] = effective
     write_outputs(result, run, metrics, Path(out))
