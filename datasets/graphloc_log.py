@@ -19,7 +19,6 @@ from graphloc.io import (
     MANIFEST,
     Bearing3D,
     GroundTruth2D,
-    MarkerPixel,
     Odometry2D,
     PoseCandidate,
     Range,
@@ -52,6 +51,7 @@ from graphloc.datasets.camera_tables import (
 )
 from graphloc.datasets.log_observations import (
     candidate_observations,
+    marker_columns,
     marker_observations,
     scan_odometry,
 )
@@ -166,7 +166,6 @@ def read_team_run(
     velocity = {r.name: [] for r in robots}
     motions, points, gt = [], [], {r.name: None for r in robots}
     gt2d = {r.name: [] for r in robots}
-    marker_rows: dict = {}
     cand_rows: dict = {}
     scan_rows: dict = {}
     feature_rows: list = []
@@ -177,7 +176,10 @@ def read_team_run(
         if path and is_tum(path):
             gt[r.name] = read_tum_poses(manifest.root / path)
             used["groundtruth"] += len(gt[r.name][0])
-    for rec in iter_records(root, tables=GRAPH_TABLES, on_error=on_error, report=report):
+    # marker rows are read as columns (`marker_columns`: a million rows in seconds); every
+    # other table as records merged in time order
+    streamed = tuple(t for t in GRAPH_TABLES if t != "markers")
+    for rec in iter_records(root, tables=streamed, on_error=on_error, report=report):
         where = (
             f"{manifest.root / manifest.robot(rec.robot).tables[_table_of(rec)]}: line {rec.line}"
         )
@@ -285,15 +287,6 @@ def read_team_run(
                             "range_bearing", rec.time, ri, E, t_idx, lid, v, rec.range, bs, rsig
                         )
                     )
-        elif isinstance(rec, MarkerPixel):
-            if rec.target not in index:
-                sink.bad(
-                    "unknown_target",
-                    f"{where}: field 'target': {rec.target!r} is not a robot (markers are "
-                    f"on robots with a 'markers' layout)",
-                )
-                continue
-            marker_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
         elif isinstance(rec, ScanRef):
             scan_rows.setdefault((ri, rec.sensor), []).append(rec)
         elif isinstance(rec, FeaturePixel):
@@ -312,12 +305,22 @@ def read_team_run(
                     "unknown_target", f"{where}: field 'target': {rec.target!r} is not a robot"
                 )
                 continue
+            norm = float(np.linalg.norm([rec.qw, rec.qx, rec.qy, rec.qz]))
+            if not 0.5 < norm < 2.0:
+                sink.bad(
+                    "not_unit",
+                    f"{where}: fields 'qw, qx, qy, qz': |q| = {norm:.3g} is not a unit quaternion",
+                )
+                continue
             cand_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
+            continue  # counted in `used` when its set is formed (candidate_observations)
         used[_table_of(rec)] += 1
     scan_motions, scans = scan_odometry(scan_rows, robots, manifest, report)
     motions += scan_motions
-    observations = marker_observations(marker_rows, robots, manifest, d, sink, used)
-    observations += candidate_observations(cand_rows, robots, d, manifest)
+    landmark_ids = None if manifest.landmarks_file is None else set(ids.tolist())
+    markers = marker_columns(manifest, robots, index, on_error, report, landmark_ids)
+    observations = marker_observations(markers, robots, manifest, d, sink, used)
+    observations += candidate_observations(cand_rows, robots, d, manifest, sink, used)
     observations += ellipse_observations(ellipse_rows, robots, manifest, sink)
     features = feature_observations(feature_rows, robots, manifest, d)
     observations.sort(key=lambda o: (o.time, o.robot))
