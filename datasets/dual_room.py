@@ -73,9 +73,14 @@ class DualRoomConfig:
         check(
             self,
             choices={"variant": VARIANTS},
-            integer={"frames": 2},
-            interval={"min_offset": (0.0, "max_offset", "[]")},
-            positive=("rate",),
+            integer={"frames": (2, 1000)},
+            interval={
+                "min_offset": (0.0, "max_offset", "[]"),
+                "max_offset": (0.0, 10.0, "[]"),
+                "rate": (0.0, 1000.0, "(]"),
+                "ground_speed": (0.0, 10.0, "[]"),
+                "ceiling_speed": (0.0, 10.0, "[]"),
+            },
         )
 
     @staticmethod

@@ -159,6 +159,7 @@ def read_team_run(
         for s in r.sensors:
             s.params.update(forced)
     report = SkipReport()
+    notes = SkipReport()  # read and used, but said: scans thinned, a bag's stamps re-sorted
     sink = Sink(on_error, report)
     robots = tuple(_robot(r, f"{mpath}: robots[{i}]") for i, r in enumerate(manifest.robots))
     index = {r.name: i for i, r in enumerate(robots)}
@@ -315,7 +316,7 @@ def read_team_run(
             cand_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
             continue  # counted in `used` when its set is formed (candidate_observations)
         used[_table_of(rec)] += 1
-    scan_motions, scans = scan_odometry(scan_rows, robots, manifest, report)
+    scan_motions, scans = scan_odometry(scan_rows, robots, manifest, report, notes)
     motions += scan_motions
     landmark_ids = None if manifest.landmarks_file is None else set(ids.tolist())
     markers = marker_columns(manifest, robots, index, on_error, report, landmark_ids)
@@ -344,6 +345,7 @@ def read_team_run(
         stamps += [p.time for p in points] + [o.time for o in observations]
         check_start_time(start, stamps, mpath)
     _merge_import_skips(report, manifest.meta.get("import"), mpath)
+    _merge_import_skips(notes, manifest.meta.get("import"), mpath, "notes")
     return TeamRun(
         name=manifest.name,
         robots=robots,
@@ -362,6 +364,7 @@ def read_team_run(
         meta=dict(manifest.meta),
         features=tuple(features),
         scans=tuple(sorted(scans, key=lambda o: (o.time, o.robot))),
+        notes=notes,
     )
 
 
@@ -379,19 +382,24 @@ def check_start_time(start: float, stamps: list, where) -> None:
         )
 
 
-def _merge_import_skips(report: SkipReport, imported, where: Path) -> None:
+def _merge_import_skips(report: SkipReport, imported, where: Path, key: str = "skips") -> None:
     """Rows a converter (`graphloc import` of a bag) skipped before the log was written, kept in
-    the manifest's meta.import.skips: reported with the log's own skips."""
-    if not imported:
+    the manifest's meta.import.skips: reported with the log's own skips (`key` "notes": what
+    it counted but used, meta.import.notes, with the run's notes)."""
+    if not imported or (key == "notes" and "notes" not in imported):
         return
-    skips = imported.get("skips") if isinstance(imported, dict) else None
+    skips = imported.get(key) if isinstance(imported, dict) else None
     counts = skips.get("counts") if isinstance(skips, dict) else None
     if not isinstance(counts, dict) or not all(
-        isinstance(k, str) and isinstance(n, int) and n >= 0 for k, n in counts.items()
+        isinstance(k, str) and type(n) is int and n >= 0 for k, n in counts.items()
     ):
-        raise ValueError(f"{where}: field 'meta.import.skips' must hold counts by reason")
+        raise ValueError(f"{where}: field 'meta.import.{key}' must hold counts by reason")
     earlier = SkipReport(
-        dict(counts), [str(m) for m in skips.get("examples", [])][: report.max_examples]
+        dict(counts),
+        [
+            str(m)
+            for m in (skips.get("examples") if isinstance(skips.get("examples"), list) else [])
+        ][: report.max_examples],
     )
     report.merge(earlier)
 

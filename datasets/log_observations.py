@@ -172,11 +172,12 @@ def marker_observations(
 SCAN_SIGMAS = (0.002, 0.01)  # [rad, m] per KISS-ICP step where the scanner's params give none
 
 
-def scan_odometry(groups: dict, robots: tuple, manifest, report) -> tuple[list, list]:
+def scan_odometry(groups: dict, robots: tuple, manifest, report, notes=None) -> tuple[list, list]:
     """Each robot's scans (rows of its `scans` table, per scanner) -> KISS-ICP odometry
     (`graphloc.mapping.odometry`) -> one relative-pose step per consecutive pair of scans, in
     the body frame (through the scanner's extrinsics), covariance from the scanner's
-    `icp_sigmas` [rot rad, trans m]; and the scans themselves (`ScanObservation`, by path) for
+    `icp_sigmas` [rot rad, trans m] (a scan beyond the point budget thinned, counted in
+    `notes`); and the scans themselves (`ScanObservation`, by path) for
     the inter-robot registration of the team graph."""
     if not groups:
         return [], []
@@ -193,7 +194,7 @@ def scan_odometry(groups: dict, robots: tuple, manifest, report) -> tuple[list, 
         for row in rows:
             table = manifest.root / manifest.robots[ri].tables["scans"]
             try:
-                points, dropped = read_scan(manifest.root / row.path)
+                points, dropped = read_scan(manifest.root / row.path, notes)
             except (OSError, ValueError) as exc:
                 raise ValueError(f"{table}: line {row.line}: field 'path': {exc}") from None
             scans.append(points)

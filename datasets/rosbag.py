@@ -28,7 +28,7 @@ import copy
 import csv
 import shutil
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +38,7 @@ from graphloc.datasets.graphloc_log import read_team_run
 from graphloc.datasets.rosbag_messages import (
     Bad,
     camera_params,
+    count_backwards,
     message_rows,
     pose_rows,
     tf_edges,
@@ -71,13 +72,16 @@ def is_bag(path) -> bool:
 @dataclass
 class BagImport:
     """What an import wrote: the log directory, rows per table, the counted skips, topics of
-    the bag the topics file does not map, and mapped topics the bag does not hold."""
+    the bag the topics file does not map, mapped topics the bag does not hold, and `notes`:
+    what was used but is counted to be said (`stamp_backwards`: a message stamped before an
+    earlier message of its topic, re-sorted by stamp)."""
 
     root: Path
     rows: dict
     skips: SkipReport
     unmapped: list
     missing: list
+    notes: SkipReport = field(default_factory=SkipReport)
 
 
 def _default_typestore(bag: Path):
@@ -197,6 +201,7 @@ def import_bag(bag, topics, out) -> BagImport:
             f"{bag}: not a ROS bag (a .bag or .mcap file, or a directory with metadata.yaml)"
         )
     skips = SkipReport()
+    notes = SkipReport()
     aux = {m.camera_info for m in tf.topics.values() if m.camera_info}
     aux |= set(TF_TOPICS) if tf.frames else set()
     out.mkdir(parents=True, exist_ok=True)
@@ -223,8 +228,9 @@ def import_bag(bag, topics, out) -> BagImport:
             skips.add("missing_topic", f"{bag}: topic '{topic}' ({tf.path}) has no messages")
             continue
         if m.table == "relative_pose3":
-            got = pose_rows(f"{bag}: topic '{topic}'", m, per_topic[topic], skips)
+            got = pose_rows(f"{bag}: topic '{topic}'", m, per_topic[topic], skips, notes)
         else:  # in header-stamp order, bag order breaking ties
+            count_backwards(f"{bag}: topic '{topic}'", [s[:2] for s in streamed[topic]], notes)
             got = [row for *_, row in sorted(streamed[topic], key=lambda s: s[:3])]
         rows.setdefault((m.robot, m.table), []).extend(got)
     written = {}
@@ -252,7 +258,12 @@ def import_bag(bag, topics, out) -> BagImport:
         "robots": robots,
         "meta": {
             **tf.meta,
-            "import": {"source": str(bag), "topics": str(tf.path), "skips": skips.as_dict()},
+            "import": {
+                "source": str(bag),
+                "topics": str(tf.path),
+                "skips": skips.as_dict(),
+                "notes": notes.as_dict(),
+            },
         },
     }
     if tf.landmarks:
@@ -269,7 +280,7 @@ def import_bag(bag, topics, out) -> BagImport:
                 )
         body["landmarks"] = {"file": "landmarks.csv"}
     write_manifest(body, out)
-    return BagImport(out, written, skips, unmapped, missing)
+    return BagImport(out, written, skips, unmapped, missing, notes)
 
 
 def _write_scan(out: Path, robot: str, sensor: str, index: int, pts: np.ndarray) -> str:

@@ -35,6 +35,7 @@ from graphloc.structured import dumps_json
 _NOT_CONFIG = {"run", "out", "config", "no_progress", "runs", "backend", "workers", "address"}
 _NOT_CONFIG |= {"cache", "checkpoint", "checkpoint_every", "resume", "_run", "verb"}
 _NOT_CONFIG |= {"verbose", "quiet"}  # graphloc.commands.common: how much is printed
+MAX_WORKERS = 256  # parallel runs (processes or Ray tasks in flight)
 _FIELDS = ["run", "status", "error", "seconds", "robots", "ate_rmse_m", "committed", "wrong"]
 _FIELDS += ["realtime_factor", "path"]
 
@@ -86,6 +87,9 @@ def expand_runs(patterns: list[str], runs_file: Path | None) -> list[Path]:
 def dispatch(args: argparse.Namespace, mode: str, verb, checkpoint=None) -> int:
     """One run without --runs / --backend: `verb(args, mode, checkpoint)`, the single-run
     verb as it is. Several runs (or a glob matching several, --runs, --backend): `run_many`."""
+    workers = getattr(args, "workers", 1)
+    if not (isinstance(workers, int) and 1 <= workers <= MAX_WORKERS):
+        raise ValueError(f"--workers must be an integer in [1, {MAX_WORKERS}], got {workers}")
     patterns = args.run if isinstance(args.run, list) else [args.run]
     runs_file, backend = getattr(args, "runs", None), getattr(args, "backend", None)
     runs = None

@@ -11,12 +11,17 @@ own file or folder name (a scan directory, a topics file without a `name`) is ma
 Every file a verb writes under its `--out` folder is named by `out_path(out, ...)`, which
 refuses (ValueError) a part that is absolute or `..` and a result that, symbolic links
 resolved, lies outside `out`: a name that slipped past its reader, or a link left in the
-folder, never moves a write elsewhere.
+folder, never moves a write elsewhere. `written_whole(path)` is where an output's bytes go:
+a temporary file beside it, renamed over it when complete, so that a reader -- or a second
+`graphloc` writing into the same folder -- sees one writer's whole file, never a mix.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 import re
+import uuid
 from pathlib import Path, PurePosixPath, PureWindowsPath
 
 MAX_NAME = 64
@@ -73,3 +78,18 @@ def out_path(out, *parts: str) -> Path:
             f"{path}: resolves to {target}, outside the output folder {out} (a symbolic link?)"
         )
     return path
+
+
+@contextlib.contextmanager
+def written_whole(path):
+    """Yield a temporary path beside `path` (hidden, same suffix: writers that pick a format by
+    suffix still do) for the caller to write; rename it over `path` when the block ends
+    without an error (an atomic replace), remove it otherwise."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex[:12]}.tmp{path.suffix}")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise

@@ -52,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
                 "log": str(result.root),
                 "rows": result.rows,
                 "skipped": result.skips.as_dict(),
+                "notes": result.notes.as_dict(),
                 "unmapped_topics": result.unmapped,
             },
             indent=1,

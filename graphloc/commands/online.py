@@ -97,6 +97,8 @@ def hooks(args: argparse.Namespace):
     """The checkpoint / resume callbacks `smooth.run_verb` hands to `solve`."""
     if args.checkpoint_every < 1:
         raise ValueError(f"--checkpoint-every must be >= 1, got {args.checkpoint_every}")
+    if args.checkpoint_every > 10**9:
+        raise ValueError(f"--checkpoint-every must be at most 1e9, got {args.checkpoint_every}")
     if args.checkpoint is None and args.resume is None:
         return None
     if args.resume is not None and not args.resume.is_file():

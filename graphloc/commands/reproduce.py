@@ -39,7 +39,7 @@ class ReproduceOptions:
     )
 
     def __post_init__(self):
-        check(self, integer={"workers": 1}, choices={"backend": BACKENDS})
+        check(self, integer={"workers": (1, 256)}, choices={"backend": BACKENDS})
 
 
 def add_arguments(parser) -> None:

@@ -143,6 +143,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
                 "decisions": metrics["decisions"],
                 "realtime_factor": round(metrics["realtime_factor"], 1),
                 "skipped": metrics["skipped"]["counts"],
+                "notes": metrics["notes"]["counts"],
                 "landmark_map": metrics["landmark_map"],
             },
             indent=1,

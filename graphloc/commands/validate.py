@@ -57,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
                 "rows_used": team.contributions,
                 "graph": graph.counts,
                 "skipped": graph.skips.as_dict(),
+                "notes": team.notes.as_dict(),
                 "landmark_map": landmark_map(team, config),
             },
             indent=1,

@@ -122,7 +122,7 @@ class AcceptanceConfig:
                 "contradiction_block",
             ),
             nonnegative=("min_cost_margin_se", "min_conditioning"),
-            integer={"contradiction_min_points": 1},
+            integer={"contradiction_min_points": (1, 1_000_000)},
             interval={
                 "min_overlap": (0.0, 1.0, "[]"),
                 "min_inlier_ratio": (0.0, 1.0, "[]"),

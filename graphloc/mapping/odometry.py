@@ -13,6 +13,8 @@ from kiss_icp.config import KISSConfig
 from kiss_icp.config.config import DataConfig, MappingConfig, RegistrationConfig
 from kiss_icp.kiss_icp import KissICP
 
+from graphloc.config import check
+
 
 @dataclass(frozen=True)
 class OdometryConfig:
@@ -26,6 +28,18 @@ class OdometryConfig:
     )
     map_voxel: float = 0.03  # voxel of the accumulated local map
     threads: int = 1
+
+    def __post_init__(self):
+        check(
+            self,
+            interval={
+                "max_range": (0.0, 1000.0, "(]"),
+                "min_range": (0.0, "max_range", "[)"),
+                "voxel_size": (1e-3, 10.0, "[]"),
+                "map_voxel": (1e-3, 10.0, "[]"),
+            },
+            integer={"threads": (0, 256)},  # 0: KISS-ICP chooses
+        )
 
 
 @dataclass(frozen=True)

@@ -164,13 +164,22 @@ class RegistrationConfig:
                 "polish_kernel",
             ),
             integer={
-                "polish_iterations": 1,
-                "polish_rounds": 1,
-                "polish_max_nn": 3,
-                "fine_iterations": 1,
-                "fine_stride": 1,
+                "polish_iterations": (1, 1000),
+                "polish_rounds": (1, 1000),
+                "polish_max_nn": (3, 1000),
+                "fine_iterations": (1, 10_000),
+                "fine_stride": (1, 1000),
+                "nb_neighbors": (1, 1000),
+                "max_nn": (1, 1000),
+                "fpfh_max_nn": (1, 1000),
+                "ransac_iterations": (1, 10_000_000),
             },
         )
+        if not all(1 <= n <= 10_000 for n in self.max_iterations):
+            raise ValueError(
+                f"RegistrationConfig.max_iterations must be integers in [1, 10000], got "
+                f"{self.max_iterations}"
+            )
         n = len(self.scales)
         if n == 0 or len(self.max_correspondence) != n or len(self.max_iterations) != n:
             raise ValueError(

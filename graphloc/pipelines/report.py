@@ -22,7 +22,7 @@ from graphloc.pipelines.team_graph import (
     build_graph,
     solve,
 )
-from graphloc.names import out_path
+from graphloc.names import out_path, written_whole
 from graphloc.plots import Series, plot_series, plot_trajectories
 from graphloc.run import TeamRun
 from graphloc.structured import dumps_json
@@ -97,14 +97,19 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
         if result.mode == "online":
             tracks["online_causal"] = result.causal[r]
         for label, rows in tracks.items():
+            reason = None
             if np.isfinite(rows).all(axis=1).sum() < 3:
-                continue
-            try:
-                entry[label] = trajectory_metrics(
-                    reference, _trajectory(times, rows), align=align
-                ).as_dict()
-            except ValueError as exc:  # too few poses near ground-truth stamps
-                entry[label] = {"error": str(exc)}
+                reason = f"{int(np.isfinite(rows).all(axis=1).sum())} poses, 3 needed"
+            else:
+                try:
+                    entry[label] = trajectory_metrics(
+                        reference, _trajectory(times, rows), align=align
+                    ).as_dict()
+                except ValueError as exc:  # too few poses near ground truth, not alignable
+                    reason = str(exc)
+            if reason is not None:  # null metrics, and why
+                entry[label] = None
+                entry.setdefault("not_evaluated", {})[label] = reason
         per_robot[robot.name] = entry
     decisions = result.decisions
     genuine = genuine_candidates(run, decisions)
@@ -145,6 +150,7 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
         "counts": result.graph.counts,
         "tables": run.contributions,
         "skipped": result.graph.skips.as_dict(),
+        "notes": run.notes.as_dict(),
         "partial": bool(result.partial),
         "steps_done": int(result.steps_done),
         "steps_total": len(result.graph.steps),
@@ -196,7 +202,7 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
             written.append(_write_rows(out_path(out, f"{robot.name}_groundtruth.tum"), *ref))
     path = out_path(out, "decisions.csv")
     decisions = result.decisions
-    with open(path, "w", newline="") as fh:
+    with written_whole(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(
             [
@@ -235,7 +241,7 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
     written.append(path)
     if result.mode == "online":
         path = out_path(out, "latency.csv")
-        with open(path, "w", newline="") as fh:
+        with written_whole(path) as tmp, open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(STEP_LOG_COLUMNS)
             for row in result.step_log:
@@ -251,7 +257,8 @@ def write_outputs(result: TeamResult, run: TeamRun, metrics: dict, out: Path) ->
                 )
         written.append(path)
     written.append(out_path(out, "metrics.json"))
-    written[-1].write_text(dumps_json(metrics, indent=2, default=str) + "\n")
+    with written_whole(written[-1]) as tmp:
+        tmp.write_text(dumps_json(metrics, indent=2, default=str) + "\n")
     written += _plots(result, run, out)
     return written
 

@@ -20,7 +20,7 @@ from graphloc.pipelines.map_fusion.types import (
 from graphloc.eval import write_tum
 from graphloc.mapping.io import ROBOT_COLOURS, write_labelled_cloud
 from graphloc.mapping.registration import pose_errors
-from graphloc.names import out_path
+from graphloc.names import out_path, written_whole
 from graphloc.structured import dumps_json
 
 MAX_PLOT_POINTS = 60_000
@@ -186,7 +186,8 @@ def write_outputs(
     report["files"] = {k: str(v) for k, v in paths.items()}
     report.update(extra or {})
     paths["json"] = out_path(out, "fusion_report.json")
-    paths["json"].write_text(dumps_json(report, indent=1))
+    with written_whole(paths["json"]) as tmp:
+        tmp.write_text(dumps_json(report, indent=1))
     return {**paths, "report": report}
 
 
@@ -222,7 +223,8 @@ def write_rejection(
     report.update(extra or {})
     path = out_path(out, "fusion_report.json")
     report["files"] = {"json": str(path)}
-    path.write_text(dumps_json(report, indent=1))
+    with written_whole(path) as tmp:
+        tmp.write_text(dumps_json(report, indent=1))
     return report
 
 
