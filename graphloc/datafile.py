@@ -123,7 +123,8 @@ def _parse_data_file(data: bytes, fmt: str, version: int, what: str, allow_nan: 
     except UnicodeDecodeError as exc:
         raise BadData(f"body is not valid JSON ({exc})") from None
     try:
-        payload = parse_json(text, "body", f"{what} body", allow_nan=allow_nan)
+        # values bounded by the file's size (MAX_DATA_BYTES): JSON has no aliases
+        payload = parse_json(text, "body", f"{what} body", allow_nan, max_values=MAX_DATA_BYTES)
     except BadStructure as exc:  # "body: ..." -> the file's name is put in front by the caller
         raise BadData(str(exc)) from None
     if not isinstance(payload, dict):

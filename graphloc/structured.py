@@ -82,6 +82,13 @@ def _reject_constant(name: str):
     raise ValueError(f"{name} is not a finite number")
 
 
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):  # 1e400: no constant, but not a finite number either
+        raise ValueError(f"{text} is not a finite number")
+    return value
+
+
 def parse_json(
     text: str,
     where: str,
@@ -92,7 +99,11 @@ def parse_json(
     """`text` parsed as JSON; BadStructure naming `where` (and the line of a syntax error)
     when it is not JSON, holds NaN / Infinity without `allow_nan`, or is too deep or too big."""
     try:
-        data = json.loads(text, parse_constant=None if allow_nan else _reject_constant)
+        data = json.loads(
+            text,
+            parse_constant=None if allow_nan else _reject_constant,
+            parse_float=None if allow_nan else _finite_float,
+        )
     except json.JSONDecodeError as exc:
         raise BadStructure(f"{where}: line {exc.lineno}: invalid JSON ({exc.msg})") from None
     except RecursionError:
