@@ -7,7 +7,8 @@
   table (heapq.merge over per-file iterators); every row is validated and a bad row either
   raises ValueError naming file, line and field (on_error="raise") or is counted in a
   `SkipReport` (on_error="skip") -- nothing is dropped silently. Files are UTF-8 with an
-  optional byte-order mark (`graphloc.textio`).
+  optional byte-order mark (`graphloc.textio`). The rows are validated in chunks with NumPy
+  (`iter_table_chunks`, which a reader of a large table such as `markers` takes as columns).
 - `PlanarRun` is the numpy form of a planar multi-robot run (the MRCLAM loader's);
   `write_planar_run(run, dir)` writes it as a log, `write_table` one table
   (`graphloc.log_writer`). Logs are read into the one run type of the
