@@ -141,6 +141,9 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
                 f"{name}: unknown field {key!r}; known: {', '.join(sorted(known))}", key
             )
         default = getattr(defaults, key)
+        if dataclasses.is_dataclass(default) and isinstance(value, type(default)):
+            out[key] = value  # already parsed (a config file's table, passed on)
+            continue
         if dataclasses.is_dataclass(default):
             out[key] = _nested(config_class, key, default, value)
             continue

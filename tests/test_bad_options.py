@@ -223,3 +223,17 @@ def test_a_config_file_range_error_names_file_and_line(planar_log, cli, tmp_path
     )
     assert got.code == exitcodes.BAD_INPUT
     assert re.search(r"c\.toml: line 1: DualRoomConfig\.frames must be", got.error_line), got.err
+
+
+@pytest.mark.timeout(60)
+def test_a_valid_table_of_a_simulate_config_file_is_taken(cli, tmp_path):
+    """Found by the battery: `simulate` parsed a config file's nested tables twice, so even a
+    valid `[lidar]` table of dual-robot-room was refused ("expected a table")."""
+    config = tmp_path / "in" / "room.toml"
+    config.parent.mkdir()
+    config.write_text("frames = 3\n[lidar]\nbeams = 32\n")
+    out = tmp_path / "room"
+    got = cli(["simulate", "dual-robot-room", "--out", out, "--config", config], out=out)
+    assert got.code == exitcodes.OK, got.err
+    meta = (out / "meta.json").read_text()
+    assert '"beams": 32' in meta, meta[:500]
