@@ -8,7 +8,6 @@ once: marker pixels become P3P candidate sets and a robot's scans KISS-ICP odome
 
 from __future__ import annotations
 
-from collections import Counter
 from pathlib import Path
 
 import gtsam
@@ -49,6 +48,7 @@ from graphloc.datasets.camera_tables import (
     ellipse_observations,
     feature_observations,
     positive_param,
+    single_tracks,
 )
 from graphloc.datasets.log_observations import (
     candidate_observations,
@@ -324,7 +324,7 @@ def read_team_run(
     observations = marker_observations(markers, robots, manifest, d, sink, used)
     observations += candidate_observations(cand_rows, robots, d, manifest, sink, used)
     observations += ellipse_observations(ellipse_rows, robots, manifest, sink)
-    feature_rows = _single_tracks(feature_rows, manifest, sink, used)
+    feature_rows = single_tracks(feature_rows, manifest, sink, used)
     features = feature_observations(feature_rows, robots, manifest, d)
     observations.sort(key=lambda o: (o.time, o.robot))
     for name, rows in gt2d.items():
@@ -368,28 +368,6 @@ def read_team_run(
         scans=tuple(sorted(scans, key=lambda o: (o.time, o.robot))),
         notes=notes,
     )
-
-
-def _single_tracks(rows: list, manifest, sink: Sink, used: dict) -> list:
-    """`features` rows without the ones whose track appears twice in one image (time, robot,
-    sensor): which pixel is the track's cannot be told, so each such row is a counted skip
-    `duplicate_track` (as a marker seen twice in one image) and leaves `used`."""
-    counts = Counter((ri, rec.time, rec.sensor, rec.track) for ri, rec in rows)
-    if all(n == 1 for n in counts.values()):
-        return rows
-    kept = []
-    for ri, rec in rows:
-        if counts[(ri, rec.time, rec.sensor, rec.track)] == 1:
-            kept.append((ri, rec))
-            continue
-        table = manifest.root / manifest.robots[ri].tables["features"]
-        sink.bad(
-            "duplicate_track",
-            f"{table}: line {rec.line}: field 'track': track {rec.track} appears twice in one "
-            f"image (time {rec.time})",
-        )
-        used["features"] -= 1
-    return kept
 
 
 def check_start_time(start: float, stamps: list, where) -> None:

@@ -27,7 +27,7 @@ MARKER_COLUMNS = ("time", "robot", "sensor", "target", "marker", "u", "v", "line
 
 
 def marker_columns(manifest, robots: tuple, index: dict, on_error: str, report, landmark_ids):
-    """Every robot's `markers` rows that pass the row checks (`graphloc.io.iter_table_chunks`),
+    """Every robot's `markers` rows that pass the row checks (`graphloc.table_reader.iter_table_chunks`),
     as compact columns (MARKER_COLUMNS: time, observer index, sensor as an index into the
     observer's sensor names, target robot index, marker, u, v, line), read a chunk at a time
     so that only these arrays stay in memory; a row whose target is not a robot is a counted

@@ -148,6 +148,21 @@ def trajectory_metrics(
     )
 
 
+def metrics_or_reason(
+    reference: PoseTrajectory3D, estimate: PoseTrajectory3D | None, align: str
+) -> tuple[dict | None, str | None]:
+    """`trajectory_metrics` as a dict and None, or None and why there are none: fewer than 3
+    poses (`estimate` None: no pose at all), too few near ground-truth stamps, or poses the
+    alignment cannot use (all at one place: a robot that never moved)."""
+    n = 0 if estimate is None else estimate.num_poses
+    if n < 3:
+        return None, f"{n} poses, 3 needed"
+    try:
+        return trajectory_metrics(reference, estimate, align=align).as_dict(), None
+    except ValueError as exc:
+        return None, str(exc)
+
+
 def _associate(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, max_time_diff: float):
     """evo nearest-time association; no common time stamps -> ValueError (not evo's
     SyncException)."""

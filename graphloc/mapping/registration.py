@@ -164,22 +164,16 @@ class RegistrationConfig:
                 "polish_kernel",
             ),
             integer={
-                "polish_iterations": (1, 1000),
-                "polish_rounds": (1, 1000),
+                **dict.fromkeys(("polish_iterations", "polish_rounds", "fine_stride"), (1, 1000)),
+                **dict.fromkeys(("nb_neighbors", "max_nn", "fpfh_max_nn"), (1, 1000)),
                 "polish_max_nn": (3, 1000),
                 "fine_iterations": (1, 10_000),
-                "fine_stride": (1, 1000),
-                "nb_neighbors": (1, 1000),
-                "max_nn": (1, 1000),
-                "fpfh_max_nn": (1, 1000),
                 "ransac_iterations": (1, 10_000_000),
             },
         )
         if not all(1 <= n <= 10_000 for n in self.max_iterations):
-            raise ValueError(
-                f"RegistrationConfig.max_iterations must be integers in [1, 10000], got "
-                f"{self.max_iterations}"
-            )
+            bad = self.max_iterations
+            raise ValueError(f"RegistrationConfig.max_iterations must be in [1, 10000], got {bad}")
         n = len(self.scales)
         if n == 0 or len(self.max_correspondence) != n or len(self.max_iterations) != n:
             raise ValueError(

@@ -14,7 +14,7 @@ import gtsam
 import numpy as np
 from evo.core.trajectory import PoseTrajectory3D
 
-from graphloc.eval import ate_over_time, trajectory_metrics, write_tum
+from graphloc.eval import ate_over_time, metrics_or_reason, write_tum
 from graphloc.pipelines.team_graph import (
     STEP_LOG_COLUMNS,
     GraphConfig,
@@ -97,18 +97,9 @@ def evaluate(result: TeamResult, run: TeamRun) -> dict:
         if result.mode == "online":
             tracks["online_causal"] = result.causal[r]
         for label, rows in tracks.items():
-            reason = None
-            if np.isfinite(rows).all(axis=1).sum() < 3:
-                reason = f"{int(np.isfinite(rows).all(axis=1).sum())} poses, 3 needed"
-            else:
-                try:
-                    entry[label] = trajectory_metrics(
-                        reference, _trajectory(times, rows), align=align
-                    ).as_dict()
-                except ValueError as exc:  # too few poses near ground truth, not alignable
-                    reason = str(exc)
+            estimate = _trajectory(times, rows) if np.isfinite(rows).all(axis=1).any() else None
+            entry[label], reason = metrics_or_reason(reference, estimate, align)
             if reason is not None:  # null metrics, and why
-                entry[label] = None
                 entry.setdefault("not_evaluated", {})[label] = reason
         per_robot[robot.name] = entry
     decisions = result.decisions
