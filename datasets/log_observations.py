@@ -27,11 +27,12 @@ MARKER_COLUMNS = ("time", "robot", "sensor", "target", "marker", "u", "v", "line
 
 
 def marker_columns(manifest, robots: tuple, index: dict, on_error: str, report, landmark_ids):
-    """Every robot's `markers` rows that pass the row checks (`graphloc.table_reader.iter_table_chunks`),
-    as compact columns (MARKER_COLUMNS: time, observer index, sensor as an index into the
-    observer's sensor names, target robot index, marker, u, v, line), read a chunk at a time
-    so that only these arrays stay in memory; a row whose target is not a robot is a counted
-    skip `unknown_target` (markers are on robots with a 'markers' layout)."""
+    """Every robot's `markers` rows that pass the row checks
+    (`graphloc.table_reader.iter_table_chunks`), as compact columns (MARKER_COLUMNS: time,
+    observer index, sensor as an index into the observer's sensor names, target robot index,
+    marker, u, v, line), read a chunk at a time so that only these arrays stay in memory; a
+    row whose target is not a robot is a counted skip `unknown_target` (markers are on robots
+    with a 'markers' layout)."""
     sink = Sink(on_error, report)
     parts = []
     for ri, r in enumerate(manifest.robots):
