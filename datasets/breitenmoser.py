@@ -42,9 +42,13 @@ class BreitenmoserConfig:
     def __post_init__(self):
         check(
             self,
-            integer={"frames": 1},
-            interval={"d_min": (0.0, "d_max", "(]"), "tilt_deg": (0.0, 90.0, "[)")},
-            positive=("d_max", "rate_hz"),
+            integer={"frames": (1, 10_000)},
+            interval={
+                "d_min": (0.0, "d_max", "(]"),
+                "d_max": (0.0, 100.0, "(]"),
+                "tilt_deg": (0.0, 90.0, "[)"),
+                "rate_hz": (0.0, 1000.0, "(]"),
+            },
         )
 
 

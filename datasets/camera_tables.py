@@ -5,6 +5,8 @@ rows (a teammate's circular base, seed 003 II eqs. 1-4) -> circle candidate sets
 
 from __future__ import annotations
 
+from collections import Counter
+
 import gtsam
 import numpy as np
 
@@ -91,6 +93,28 @@ def feature_observations(
         )
     out.sort(key=lambda f: (f.time, f.robot, f.track))
     return out
+
+
+def single_tracks(rows: list, manifest, sink, used: dict) -> list:
+    """`features` rows without the ones whose track appears twice in one image (time, robot,
+    sensor): which pixel is the track's cannot be told, so each such row is a counted skip
+    `duplicate_track` (as a marker seen twice in one image) and leaves `used`."""
+    counts = Counter((ri, rec.time, rec.sensor, rec.track) for ri, rec in rows)
+    if all(n == 1 for n in counts.values()):
+        return rows
+    kept = []
+    for ri, rec in rows:
+        if counts[(ri, rec.time, rec.sensor, rec.track)] == 1:
+            kept.append((ri, rec))
+            continue
+        table = manifest.root / manifest.robots[ri].tables["features"]
+        sink.bad(
+            "duplicate_track",
+            f"{table}: line {rec.line}: field 'track': track {rec.track} appears twice in one "
+            f"image (time {rec.time})",
+        )
+        used["features"] -= 1
+    return kept
 
 
 def ellipse_observations(

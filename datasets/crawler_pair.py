@@ -84,7 +84,12 @@ class CrawlerPairConfig:
     def __post_init__(self):
         check(
             self,
-            integer=dict.fromkeys(("width", "height", "supersample", "n_features"), 1),
+            integer={
+                "width": (1, 8192),
+                "height": (1, 8192),
+                "supersample": (1, 8),
+                "n_features": (1, 10_000),
+            },
             positive=(
                 "pixel_pitch",
                 "base_diameter",

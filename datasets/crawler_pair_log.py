@@ -26,6 +26,7 @@ from graphloc.io import write_manifest, write_table
 from graphloc.seams import MotionNoise
 from graphloc.vision.circle import rotations_from_normals
 from graphloc.vision.teammate import TeammateConfig, pixel_sigmas
+from graphloc.structured import dumps_json
 
 FRAME_DT = 1.0  # [s] between frames (the seed gives no frame rate; the graph needs only order)
 STILL_SIGMA = 1e-3  # [rad, m] zero-motion step of a teammate that stood still
@@ -144,6 +145,6 @@ def write_crawler_pair_log(
                 },
             },
         ],
-        "meta": json.loads(json.dumps(meta or {}, default=str)),
+        "meta": json.loads(dumps_json(meta or {}, default=str)),
     }
     return write_manifest(manifest, out)

@@ -17,7 +17,6 @@ Scans are motion-free snapshots (no deskewing needed).
 from __future__ import annotations
 
 import csv
-import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import ClassVar
@@ -43,6 +42,7 @@ from graphloc.datasets.room_scene import (
 )
 from graphloc.eval import write_tum
 from graphloc.io import write_table
+from graphloc.structured import dumps_json, read_json
 from graphloc.pipelines.map_fusion.types import FusionInput, LedObservations
 from graphloc.mapping.io import read_led_pixels, read_points, read_tum
 
@@ -73,9 +73,14 @@ class DualRoomConfig:
         check(
             self,
             choices={"variant": VARIANTS},
-            integer={"frames": 2},
-            interval={"min_offset": (0.0, "max_offset", "[]")},
-            positive=("rate",),
+            integer={"frames": (2, 1000)},
+            interval={
+                "min_offset": (0.0, "max_offset", "[]"),
+                "max_offset": (0.0, 10.0, "[]"),
+                "rate": (0.0, 1000.0, "(]"),
+                "ground_speed": (0.0, 10.0, "[]"),
+                "ceiling_speed": (0.0, 10.0, "[]"),
+            },
         )
 
     @staticmethod
@@ -259,7 +264,7 @@ class DualRoomScenario:
             T_ground0_ceiling0=self.T_ground0_ceiling0.tolist(),
             counts=self.counts,
         )
-        (out / "meta.json").write_text(json.dumps(meta, indent=1))
+        (out / "meta.json").write_text(dumps_json(meta, indent=1))
         o3d.io.write_triangle_mesh(str(out / "room.ply"), self.room.mesh())
         self.write_log(out)
         return out
@@ -333,7 +338,7 @@ class DualRoomScenario:
             "meta": {"scenario": "dual-robot-room", "variant": self.config.variant},
         }
         path = out / "manifest.json"
-        path.write_text(json.dumps(manifest, indent=1) + "\n")
+        path.write_text(dumps_json(manifest, indent=1) + "\n")
         return path
 
     @staticmethod
@@ -344,10 +349,10 @@ class DualRoomScenario:
         meta_path = src / "meta.json"
         if not meta_path.is_file():
             raise FileNotFoundError(f"{meta_path}: missing (not a dual-robot-room directory)")
+        meta = read_json(meta_path, what="dual-robot-room meta file")
         try:
-            meta = json.loads(meta_path.read_text())
             config = DualRoomConfig.from_dict(meta["config"])
-        except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{meta_path}: malformed ({exc})") from None
         poses, scans, times = {}, {}, None
         for robot in ROBOTS:

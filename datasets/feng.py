@@ -57,6 +57,9 @@ def project_world(camera: PinholeCamera, R_wc: np.ndarray, t_wc: np.ndarray, poi
     return uv.reshape(pc.shape[:2] + (2,)), visible.reshape(pc.shape[:2])
 
 
+MAX_FRAMES = 100_000  # frames of one simulated run
+
+
 @dataclass(frozen=True)
 class Plane:
     """A surface the climbing robot moves on: origin (3,), in-plane unit axes u, v (3,), inward
@@ -169,8 +172,14 @@ class FengProbabilisticConfig:
         check(
             self,
             choices={"ceiling": CEILINGS, "curve": CURVES, "odometry_model": ODOMETRY_MODELS},
-            positive=("speed", "rate_hz", "first_interval"),
+            positive=("first_interval",),
             nonnegative=("odometry_noise", "odometry_rot_sigma", "pixel_sigma"),
+            interval={
+                "speed": (1e-3, 10.0, "[]"),
+                "rate_hz": (0.0, 1000.0, "(]"),
+                "max_time": (0.0, 1e5, "(]"),
+            },
+            optional=("max_time",),
         )
 
 
@@ -303,6 +312,12 @@ class FengProbabilisticScenario:
             )
         length = 2.0 * (plane.half_u + plane.half_v) * 3.0
         t_max = length / config.speed if config.max_time is None else config.max_time
+        if t_max * config.rate_hz > MAX_FRAMES:
+            raise ValueError(
+                f"FengProbabilisticConfig: {t_max:.4g} s at rate_hz {config.rate_hz:g} is "
+                f"{t_max * config.rate_hz:.4g} frames, more than {MAX_FRAMES}: raise speed or "
+                f"lower rate_hz / max_time"
+            )
         times = np.concatenate(
             [[0.0], config.first_interval + np.arange(0.0, t_max, 1.0 / config.rate_hz)]
         )

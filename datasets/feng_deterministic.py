@@ -181,7 +181,12 @@ class TableIConfig:
     def __post_init__(self):
         check(
             self,
-            integer={"trials": 1, "workers": 1},
+            integer={
+                "trials": (1, 1_000_000),
+                "workers": (1, 256),
+                "omni_size": (8, 8192),
+                "max_redraws": (0, 10_000),
+            },
             nonnegative=("pixel_sigma", "scale", "success_tol", "lateral_sigma"),
         )
 

@@ -19,7 +19,6 @@ from graphloc.io import (
     MANIFEST,
     Bearing3D,
     GroundTruth2D,
-    MarkerPixel,
     Odometry2D,
     PoseCandidate,
     Range,
@@ -49,9 +48,11 @@ from graphloc.datasets.camera_tables import (
     ellipse_observations,
     feature_observations,
     positive_param,
+    single_tracks,
 )
 from graphloc.datasets.log_observations import (
     candidate_observations,
+    marker_columns,
     marker_observations,
     scan_odometry,
 )
@@ -159,6 +160,7 @@ def read_team_run(
         for s in r.sensors:
             s.params.update(forced)
     report = SkipReport()
+    notes = SkipReport()  # read and used, but said: scans thinned, a bag's stamps re-sorted
     sink = Sink(on_error, report)
     robots = tuple(_robot(r, f"{mpath}: robots[{i}]") for i, r in enumerate(manifest.robots))
     index = {r.name: i for i, r in enumerate(robots)}
@@ -166,7 +168,6 @@ def read_team_run(
     velocity = {r.name: [] for r in robots}
     motions, points, gt = [], [], {r.name: None for r in robots}
     gt2d = {r.name: [] for r in robots}
-    marker_rows: dict = {}
     cand_rows: dict = {}
     scan_rows: dict = {}
     feature_rows: list = []
@@ -177,7 +178,10 @@ def read_team_run(
         if path and is_tum(path):
             gt[r.name] = read_tum_poses(manifest.root / path)
             used["groundtruth"] += len(gt[r.name][0])
-    for rec in iter_records(root, tables=GRAPH_TABLES, on_error=on_error, report=report):
+    # marker rows are read as columns (`marker_columns`: a million rows in seconds); every
+    # other table as records merged in time order
+    streamed = tuple(t for t in GRAPH_TABLES if t != "markers")
+    for rec in iter_records(root, tables=streamed, on_error=on_error, report=report):
         where = (
             f"{manifest.root / manifest.robot(rec.robot).tables[_table_of(rec)]}: line {rec.line}"
         )
@@ -285,15 +289,6 @@ def read_team_run(
                             "range_bearing", rec.time, ri, E, t_idx, lid, v, rec.range, bs, rsig
                         )
                     )
-        elif isinstance(rec, MarkerPixel):
-            if rec.target not in index:
-                sink.bad(
-                    "unknown_target",
-                    f"{where}: field 'target': {rec.target!r} is not a robot (markers are "
-                    f"on robots with a 'markers' layout)",
-                )
-                continue
-            marker_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
         elif isinstance(rec, ScanRef):
             scan_rows.setdefault((ri, rec.sensor), []).append(rec)
         elif isinstance(rec, FeaturePixel):
@@ -312,13 +307,24 @@ def read_team_run(
                     "unknown_target", f"{where}: field 'target': {rec.target!r} is not a robot"
                 )
                 continue
+            norm = float(np.linalg.norm([rec.qw, rec.qx, rec.qy, rec.qz]))
+            if not 0.5 < norm < 2.0:
+                sink.bad(
+                    "not_unit",
+                    f"{where}: fields 'qw, qx, qy, qz': |q| = {norm:.3g} is not a unit quaternion",
+                )
+                continue
             cand_rows.setdefault((rec.time, ri, rec.sensor, index[rec.target]), []).append(rec)
+            continue  # counted in `used` when its set is formed (candidate_observations)
         used[_table_of(rec)] += 1
-    scan_motions, scans = scan_odometry(scan_rows, robots, manifest, report)
+    scan_motions, scans = scan_odometry(scan_rows, robots, manifest, report, notes)
     motions += scan_motions
-    observations = marker_observations(marker_rows, robots, manifest, d, sink, used)
-    observations += candidate_observations(cand_rows, robots, d, manifest)
+    landmark_ids = None if manifest.landmarks_file is None else set(ids.tolist())
+    markers = marker_columns(manifest, robots, index, on_error, report, landmark_ids)
+    observations = marker_observations(markers, robots, manifest, d, sink, used)
+    observations += candidate_observations(cand_rows, robots, d, manifest, sink, used)
     observations += ellipse_observations(ellipse_rows, robots, manifest, sink)
+    feature_rows = single_tracks(feature_rows, manifest, sink, used)
     features = feature_observations(feature_rows, robots, manifest, d)
     observations.sort(key=lambda o: (o.time, o.robot))
     for name, rows in gt2d.items():
@@ -341,6 +347,7 @@ def read_team_run(
         stamps += [p.time for p in points] + [o.time for o in observations]
         check_start_time(start, stamps, mpath)
     _merge_import_skips(report, manifest.meta.get("import"), mpath)
+    _merge_import_skips(notes, manifest.meta.get("import"), mpath, "notes")
     return TeamRun(
         name=manifest.name,
         robots=robots,
@@ -359,6 +366,7 @@ def read_team_run(
         meta=dict(manifest.meta),
         features=tuple(features),
         scans=tuple(sorted(scans, key=lambda o: (o.time, o.robot))),
+        notes=notes,
     )
 
 
@@ -376,19 +384,24 @@ def check_start_time(start: float, stamps: list, where) -> None:
         )
 
 
-def _merge_import_skips(report: SkipReport, imported, where: Path) -> None:
+def _merge_import_skips(report: SkipReport, imported, where: Path, key: str = "skips") -> None:
     """Rows a converter (`graphloc import` of a bag) skipped before the log was written, kept in
-    the manifest's meta.import.skips: reported with the log's own skips."""
-    if not imported:
+    the manifest's meta.import.skips: reported with the log's own skips (`key` "notes": what
+    it counted but used, meta.import.notes, with the run's notes)."""
+    if not imported or (key == "notes" and "notes" not in imported):
         return
-    skips = imported.get("skips") if isinstance(imported, dict) else None
+    skips = imported.get(key) if isinstance(imported, dict) else None
     counts = skips.get("counts") if isinstance(skips, dict) else None
     if not isinstance(counts, dict) or not all(
-        isinstance(k, str) and isinstance(n, int) and n >= 0 for k, n in counts.items()
+        isinstance(k, str) and type(n) is int and n >= 0 for k, n in counts.items()
     ):
-        raise ValueError(f"{where}: field 'meta.import.skips' must hold counts by reason")
+        raise ValueError(f"{where}: field 'meta.import.{key}' must hold counts by reason")
     earlier = SkipReport(
-        dict(counts), [str(m) for m in skips.get("examples", [])][: report.max_examples]
+        dict(counts),
+        [
+            str(m)
+            for m in (skips.get("examples") if isinstance(skips.get("examples"), list) else [])
+        ][: report.max_examples],
     )
     report.merge(earlier)
 

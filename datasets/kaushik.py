@@ -75,7 +75,12 @@ class KaushikConfig:
         check(
             self,
             choices={"noise_reading": NOISE_READINGS},
-            integer={"runs": 1, "frames": 2, "width": 1, "height_px": 1},
+            integer={
+                "runs": (1, 1_000_000),
+                "frames": (2, 10_000),
+                "width": (1, 16384),
+                "height_px": (1, 16384),
+            },
             positive=("focal_mm", "step", "speed", "height", "pixel_pitch_um", "wavelength"),
             nonnegative=(
                 "noise_variance",

@@ -9,59 +9,144 @@ KISS-ICP odometry steps (`graphloc.mapping.odometry`). Called by
 
 from __future__ import annotations
 
+from collections import Counter
+
 import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.camera_tables import camera_from_params, positive_param
-from graphloc.io import MANIFEST, Sink
+from graphloc.io import MANIFEST, Sink, iter_table_chunks
+from graphloc.textio import cut
 from graphloc.run import CandidateObservation, MarkerPixels, Motion, ScanObservation
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
 
+MARKER_COLUMNS = ("time", "robot", "sensor", "target", "marker", "u", "v", "line")
+
+
+def marker_columns(manifest, robots: tuple, index: dict, on_error: str, report, landmark_ids):
+    """Every robot's `markers` rows that pass the row checks
+    (`graphloc.table_reader.iter_table_chunks`), as compact columns (MARKER_COLUMNS: time,
+    observer index, sensor as an index into the observer's sensor names, target robot index,
+    marker, u, v, line), read a chunk at a time so that only these arrays stay in memory; a
+    row whose target is not a robot is a counted skip `unknown_target` (markers are on robots
+    with a 'markers' layout)."""
+    sink = Sink(on_error, report)
+    parts = []
+    for ri, r in enumerate(manifest.robots):
+        if "markers" not in r.tables:
+            continue
+        path = manifest.root / r.tables["markers"]
+        names = {name: k for k, name in enumerate(robots[ri].sensors)}
+        for chunk in iter_table_chunks(manifest, r, "markers", on_error, report, landmark_ids):
+            target = np.array([index.get(t, -1) for t in chunk["target"]], dtype=np.int32)
+            for k in np.flatnonzero(target < 0):
+                message = ""
+                if sink.wants_message():
+                    message = (
+                        f"{path}: line {chunk['line'][k]}: field 'target': "
+                        f"{chunk['target'][k]!r} is not a robot (markers are on robots with a "
+                        f"'markers' layout)"
+                    )
+                sink.bad("unknown_target", message)
+            keep = target >= 0
+            sensor = np.array([names[s] for s in chunk["sensor"]], dtype=np.int32)
+            parts.append(
+                (
+                    chunk["time"][keep],
+                    np.full(int(keep.sum()), ri, dtype=np.int32),
+                    sensor[keep],
+                    target[keep],
+                    chunk["marker"][keep].astype(np.int32),
+                    chunk["u"][keep],
+                    chunk["v"][keep],
+                    chunk["line"][keep],
+                )
+            )
+    if not parts:
+        return None
+    return dict(zip(MARKER_COLUMNS, (np.concatenate(c) for c in zip(*parts))))
+
+
 def marker_observations(
-    groups: dict, robots: tuple, manifest, d: dict, sink: Sink, used: dict
+    columns: dict | None, robots: tuple, manifest, d: dict, sink: Sink, used: dict
 ) -> list:
-    """Marker pixels grouped by (time, observer, sensor, target) -> P3P candidate sets, all
-    three-marker instances of the run in one batched solve."""
-    out = []
+    """Marker pixels (`marker_columns`) grouped by (time, observer, sensor, target), one image
+    each, checked with NumPy -- a marker outside the target's layout, a marker seen twice
+    (unless the markers are identical) or fewer than three markers is a counted skip of every
+    row of the image -- then P3P candidate sets, all three-marker instances of the run in one
+    batched solve. `used["markers"]` counts the rows of images that became candidate sets."""
+    if columns is None or not len(columns["time"]):
+        return []
+    c = columns
+    order = np.lexsort((c["line"], c["target"], c["sensor"], c["robot"], c["time"]))
+    c = {k: v[order] for k, v in c.items()}
+    keys = (c["time"], c["robot"], c["sensor"], c["target"])
+    change = np.zeros(len(c["time"]), bool)
+    change[0] = True
+    for key in keys:
+        change[1:] |= key[1:] != key[:-1]
+    starts = np.flatnonzero(change)
+    sizes = np.diff(np.r_[starts, len(change)])
+    group = np.repeat(np.arange(len(starts)), sizes)
+    g_robot, g_target = c["robot"][starts], c["target"][starts]
+    layout = np.array([-1 if r.markers is None else len(r.markers) for r in robots])
+    identical = np.array([bool(r.identical_markers) for r in robots])
+    first_line = np.minimum.reduceat(c["line"], starts)
+    last_line = np.maximum.reduceat(c["line"], starts)
+
+    def where(k: int) -> str:
+        table = manifest.root / manifest.robots[g_robot[k]].tables["markers"]
+        return f"{table}: lines {first_line[k]}-{last_line[k]}"
+
+    no_layout = np.flatnonzero(layout[g_target] < 0)
+    if len(no_layout):
+        k = int(no_layout[0])
+        raise ValueError(
+            f"{where(k)}: field 'target': robot {robots[g_target[k]].name!r} has no 'markers' "
+            f"layout in the manifest"
+        )
+    marker = c["marker"]
+    outside = (marker < 0) | (marker >= layout[c["target"]])
+    unknown = np.logical_or.reduceat(outside, starts)
+    by_marker = np.lexsort((marker, group))
+    same = (group[by_marker][1:] == group[by_marker][:-1]) & (
+        marker[by_marker][1:] == marker[by_marker][:-1]
+    )
+    repeated = np.zeros(len(starts), bool)
+    repeated[group[by_marker][1:][same]] = True
+    repeated &= ~identical[g_target] & ~unknown
+    few = (sizes < 3) & ~unknown & ~repeated
+    for reason, mask, text in (
+        ("unknown_marker", unknown, "field 'marker': {marks} outside the layout of {n} markers"),
+        ("duplicate_marker", repeated, "field 'marker': a marker appears twice in one image"),
+        ("too_few_markers", few, "{size} markers seen, P3P needs 3"),
+    ):
+        for k in np.flatnonzero(mask):
+            message = ""
+            if sink.wants_message():
+                marks = marker[starts[k] : starts[k] + min(sizes[k], 20)].tolist()
+                message = f"{where(k)}: " + text.format(
+                    marks=cut(str(marks)), n=layout[g_target[k]], size=sizes[k]
+                )
+            sink.bad(reason, message, int(sizes[k]))
     by_setup: dict = {}
-    for (time, ri, sensor, ti), rows in groups.items():
-        target = robots[ti]
-        lines = sorted(r.line for r in rows)
-        where = (
-            f"{manifest.root / manifest.robots[ri].tables['markers']}: lines {lines[0]}-{lines[-1]}"
+    for k in np.flatnonzero(~(unknown | repeated | few)):
+        rows = slice(starts[k], starts[k] + sizes[k])
+        key = (int(g_robot[k]), int(c["sensor"][starts[k]]), int(g_target[k]))
+        uv = np.column_stack([c["u"][rows], c["v"][rows]])
+        by_setup.setdefault(key, []).append(
+            (float(c["time"][starts[k]]), c["marker"][rows].astype(int), uv, where(k))
         )
-        if target.markers is None:
-            raise ValueError(
-                f"{where}: field 'target': robot {target.name!r} has no 'markers' layout in the "
-                f"manifest"
-            )
-        marks = np.array([r.marker for r in rows])
-        if (marks < 0).any() or (marks >= len(target.markers)).any():
-            sink.bad(
-                "unknown_marker",
-                f"{where}: field 'marker': {marks.tolist()} outside the layout of "
-                f"{len(target.markers)} markers",
-            )
-            continue
-        if len(np.unique(marks)) != len(marks) and not target.identical_markers:
-            sink.bad(
-                "duplicate_marker", f"{where}: field 'marker': a marker appears twice in one image"
-            )
-            continue
-        if len(rows) < 3:
-            sink.bad("too_few_markers", f"{where}: {len(rows)} markers seen, P3P needs 3")
-            continue
-        by_setup.setdefault((ri, sensor, ti), []).append(
-            (time, marks, np.array([[r.u, r.v] for r in rows]), where)
-        )
-    for (ri, sensor, ti), frames in by_setup.items():
+    out = []
+    for (ri, s, ti), frames in by_setup.items():
+        sensor = list(robots[ri].sensors)[s]  # marker_columns' sensor index
         T_bs, params = robots[ri].sensors[sensor]
-        where = f"{manifest.root / MANIFEST}: robot {robots[ri].name!r} sensor {sensor!r}"
-        camera = camera_from_params(params, where)
-        sigma = positive_param(params, "pixel_sigma", d["pixel_sigma"], where)
+        where_cam = f"{manifest.root / MANIFEST}: robot {robots[ri].name!r} sensor {sensor!r}"
+        camera = camera_from_params(params, where_cam)
+        sigma = positive_param(params, "pixel_sigma", d["pixel_sigma"], where_cam)
         target = robots[ti]
         sets = p3p_candidate_sets(
             camera,
@@ -76,25 +161,27 @@ def marker_observations(
         )
         for (time, marks, uv, lines), cs in zip(frames, sets):
             if cs is None or (len(cs) == 0 and not cs.meta.get("inconsistent")):
-                sink.bad(
-                    "no_p3p_solution", f"{lines}: fields 'u, v': no pose fits the marker pixels"
-                )
+                message = f"{lines}: fields 'u, v': no pose fits the marker pixels"
+                sink.bad("no_p3p_solution", message, len(marks))
                 continue
             # an inconsistent set (no pose passes the pixel chi-square) stays, empty: the team
             # graph counts it in its stream and never decides it
             pixels = None if target.identical_markers else MarkerPixels(marks, uv, camera, sigma)
             out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs, pixels))
+            if len(cs):  # an inconsistent set's rows are counted by the graph, as skipped
+                used["markers"] = used.get("markers", 0) + len(marks)
     return out
 
 
 SCAN_SIGMAS = (0.002, 0.01)  # [rad, m] per KISS-ICP step where the scanner's params give none
 
 
-def scan_odometry(groups: dict, robots: tuple, manifest, report) -> tuple[list, list]:
+def scan_odometry(groups: dict, robots: tuple, manifest, report, notes=None) -> tuple[list, list]:
     """Each robot's scans (rows of its `scans` table, per scanner) -> KISS-ICP odometry
     (`graphloc.mapping.odometry`) -> one relative-pose step per consecutive pair of scans, in
     the body frame (through the scanner's extrinsics), covariance from the scanner's
-    `icp_sigmas` [rot rad, trans m]; and the scans themselves (`ScanObservation`, by path) for
+    `icp_sigmas` [rot rad, trans m] (a scan beyond the point budget thinned, counted in
+    `notes`); and the scans themselves (`ScanObservation`, by path) for
     the inter-robot registration of the team graph."""
     if not groups:
         return [], []
@@ -111,7 +198,7 @@ def scan_odometry(groups: dict, robots: tuple, manifest, report) -> tuple[list, 
         for row in rows:
             table = manifest.root / manifest.robots[ri].tables["scans"]
             try:
-                points, dropped = read_scan(manifest.root / row.path)
+                points, dropped = read_scan(manifest.root / row.path, notes)
             except (OSError, ValueError) as exc:
                 raise ValueError(f"{table}: line {row.line}: field 'path': {exc}") from None
             scans.append(points)
@@ -136,11 +223,28 @@ def scan_odometry(groups: dict, robots: tuple, manifest, report) -> tuple[list, 
     return out, observed
 
 
-def candidate_observations(groups: dict, robots: tuple, d: dict, manifest) -> list:
+def candidate_observations(
+    groups: dict, robots: tuple, d: dict, manifest, sink: Sink, used: dict
+) -> list:
     """`candidates` rows grouped by (time, observer, sensor, target) -> candidate sets as
-    logged, each candidate with the sensor's `candidate_sigmas` (rot rad, trans m)."""
+    logged, each candidate with the sensor's `candidate_sigmas` (rot rad, trans m). A set
+    that lists a candidate `k` twice is a counted skip `duplicate_candidate` of its every row
+    (which of the two is meant cannot be told); `used["candidates"]` counts the rows of the
+    sets formed. The rows' quaternions are checked (`not_unit`) by the reader."""
     out = []
     for (time, ri, sensor, ti), rows in groups.items():
+        ks = [r.k for r in rows]
+        if len(set(ks)) != len(ks):
+            table = manifest.root / manifest.robots[ri].tables["candidates"]
+            lines = sorted(r.line for r in rows)
+            repeated = sorted(k for k, n in Counter(ks).items() if n > 1)[:10]
+            sink.bad(
+                "duplicate_candidate",
+                f"{table}: lines {lines[0]}-{lines[-1]}: field 'k': candidate(s) {repeated} "
+                f"listed twice in one set",
+                len(rows),
+            )
+            continue
         T_bs, params = robots[ri].sensors[sensor]
         sig = params.get("candidate_sigmas", d["candidate_sigmas"])
         rows = sorted(rows, key=lambda r: r.k)
@@ -161,4 +265,5 @@ def candidate_observations(groups: dict, robots: tuple, d: dict, manifest) -> li
             covariance=cov,
         )
         out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs))
+        used["candidates"] = used.get("candidates", 0) + len(rows)
     return out

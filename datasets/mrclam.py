@@ -79,7 +79,8 @@ _INT_COLUMNS = {"barcodes": (0, 1), "landmarks": (0,), "measurement": (1,)}
 
 def is_mrclam_dir(path: str | Path) -> bool:
     p = Path(path)
-    return (p / "Barcodes.dat").is_file() and any(
+    barcodes = p / "Barcodes.dat"  # not a regular file: the reader says so, naming it
+    return (barcodes.exists() or barcodes.is_symlink()) and any(
         _ROBOT_FILE.match(f.name) for f in p.glob("Robot*_Odometry.dat")
     )
 

@@ -17,6 +17,7 @@ import numpy as np
 import open3d as o3d
 
 from graphloc.cameras import PinholeCamera
+from graphloc.config import check
 
 VARIANTS = ("furnished", "empty", "rectangular", "low_overlap")
 LED_SIDE = 0.3048  # seed 004 Sec. II.A
@@ -36,6 +37,21 @@ class LidarConfig:
     dropout: float = 0.05  # probability a return is missing
     spurious: float = 0.005  # probability a return is replaced by a random shorter range
 
+    def __post_init__(self):
+        check(
+            self,
+            integer={"beams": (1, 1024), "azimuths": (1, 10_000)},
+            interval={
+                "elev_min_deg": (-90.0, "elev_max_deg", "[]"),
+                "elev_max_deg": (-90.0, 90.0, "[]"),
+                "min_range": (0.0, "max_range", "[)"),
+                "max_range": (0.0, 1000.0, "(]"),
+                "dropout": (0.0, 1.0, "[)"),
+                "spurious": (0.0, 1.0, "[]"),
+            },
+            nonnegative=("range_noise",),
+        )
+
 
 @dataclass(frozen=True)
 class CameraConfig:
@@ -48,6 +64,14 @@ class CameraConfig:
     cx: float = 320.0
     cy: float = 240.0
     pixel_noise: float = 0.3  # [px] 1-sigma
+
+    def __post_init__(self):
+        check(
+            self,
+            integer={"width": (1, 16384), "height": (1, 16384)},
+            positive=("fx", "fy"),
+            nonnegative=("pixel_noise",),
+        )
 
     def pinhole(self) -> PinholeCamera:
         return PinholeCamera(self.fx, self.fy, self.cx, self.cy, self.width, self.height)

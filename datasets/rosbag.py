@@ -28,7 +28,7 @@ import copy
 import csv
 import shutil
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +38,7 @@ from graphloc.datasets.graphloc_log import read_team_run
 from graphloc.datasets.rosbag_messages import (
     Bad,
     camera_params,
+    count_backwards,
     message_rows,
     pose_rows,
     tf_edges,
@@ -54,6 +55,7 @@ from graphloc.datasets.rosbag_topics import (
 )
 from graphloc.eval import write_tum
 from graphloc.io import SkipReport, write_manifest, write_table
+from graphloc.names import out_path
 from graphloc.run import TeamRun, truncate
 
 __all__ = ["BagImport", "RosBag", "find_topics_file", "import_bag", "is_bag", "read_topics"]
@@ -70,13 +72,16 @@ def is_bag(path) -> bool:
 @dataclass
 class BagImport:
     """What an import wrote: the log directory, rows per table, the counted skips, topics of
-    the bag the topics file does not map, and mapped topics the bag does not hold."""
+    the bag the topics file does not map, mapped topics the bag does not hold, and `notes`:
+    what was used but is counted to be said (`stamp_backwards`: a message stamped before an
+    earlier message of its topic, re-sorted by stamp)."""
 
     root: Path
     rows: dict
     skips: SkipReport
     unmapped: list
     missing: list
+    notes: SkipReport = field(default_factory=SkipReport)
 
 
 def _default_typestore(bag: Path):
@@ -196,6 +201,7 @@ def import_bag(bag, topics, out) -> BagImport:
             f"{bag}: not a ROS bag (a .bag or .mcap file, or a directory with metadata.yaml)"
         )
     skips = SkipReport()
+    notes = SkipReport()
     aux = {m.camera_info for m in tf.topics.values() if m.camera_info}
     aux |= set(TF_TOPICS) if tf.frames else set()
     out.mkdir(parents=True, exist_ok=True)
@@ -222,8 +228,9 @@ def import_bag(bag, topics, out) -> BagImport:
             skips.add("missing_topic", f"{bag}: topic '{topic}' ({tf.path}) has no messages")
             continue
         if m.table == "relative_pose3":
-            got = pose_rows(f"{bag}: topic '{topic}'", m, per_topic[topic], skips)
+            got = pose_rows(f"{bag}: topic '{topic}'", m, per_topic[topic], skips, notes)
         else:  # in header-stamp order, bag order breaking ties
+            count_backwards(f"{bag}: topic '{topic}'", [s[:2] for s in streamed[topic]], notes)
             got = [row for *_, row in sorted(streamed[topic], key=lambda s: s[:3])]
         rows.setdefault((m.robot, m.table), []).extend(got)
     written = {}
@@ -241,7 +248,7 @@ def import_bag(bag, topics, out) -> BagImport:
                 continue
             rs.sort(key=lambda row: row[0])
             rel = f"{name}/{'groundtruth.tum' if table == 'groundtruth' else table + '.csv'}"
-            _write_table(out / rel, table, rs)
+            _write_table(out_path(out, name, rel.split("/", 1)[1]), table, rs)
             tables[table] = rel
             written[table] = written.get(table, 0) + len(rs)
         robots.append({**r, "tables": tables})
@@ -251,11 +258,16 @@ def import_bag(bag, topics, out) -> BagImport:
         "robots": robots,
         "meta": {
             **tf.meta,
-            "import": {"source": str(bag), "topics": str(tf.path), "skips": skips.as_dict()},
+            "import": {
+                "source": str(bag),
+                "topics": str(tf.path),
+                "skips": skips.as_dict(),
+                "notes": notes.as_dict(),
+            },
         },
     }
     if tf.landmarks:
-        with open(out / "landmarks.csv", "w", newline="") as fh:
+        with open(out_path(out, "landmarks.csv"), "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"])
             for lm in tf.landmarks:
@@ -268,7 +280,7 @@ def import_bag(bag, topics, out) -> BagImport:
                 )
         body["landmarks"] = {"file": "landmarks.csv"}
     write_manifest(body, out)
-    return BagImport(out, written, skips, unmapped, missing)
+    return BagImport(out, written, skips, unmapped, missing, notes)
 
 
 def _write_scan(out: Path, robot: str, sensor: str, index: int, pts: np.ndarray) -> str:
@@ -277,10 +289,11 @@ def _write_scan(out: Path, robot: str, sensor: str, index: int, pts: np.ndarray)
     import open3d as o3d
 
     rel = f"{robot}/scans/{sensor}_{index:06d}.ply"
-    (out / rel).parent.mkdir(parents=True, exist_ok=True)
+    path = out_path(out, robot, "scans", f"{sensor}_{index:06d}.ply")
+    path.parent.mkdir(parents=True, exist_ok=True)
     cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.asarray(pts, dtype=np.float64)))
-    if not o3d.t.io.write_point_cloud(str(out / rel), cloud):
-        raise OSError(f"{out / rel}: cannot write the scan")
+    if not o3d.t.io.write_point_cloud(str(path), cloud):
+        raise OSError(f"{path}: cannot write the scan")
     return rel
 
 

@@ -9,13 +9,13 @@ read through a bag gives the estimates of the run read directly (tests/test_rosb
 from __future__ import annotations
 
 import csv
-import json
 from pathlib import Path
 
 import gtsam
 import numpy as np
 
 from graphloc.io import MANIFEST, read_manifest
+from graphloc.structured import read_json
 from graphloc.mapping.io import read_points
 
 KINDS = ("ros1", "sqlite3", "mcap")
@@ -240,7 +240,7 @@ def export_bag(log_dir, bag, kind: str) -> Path:
         raise ValueError(f"bag kind must be one of {KINDS}, got {kind!r}")
     root, bag = Path(log_dir), Path(bag)
     manifest = read_manifest(root)
-    raw = json.loads((root / MANIFEST).read_text())
+    raw = read_json(root / MANIFEST, what="log manifest")
     if "landmarks" in raw:
         raise ValueError(f"{root / MANIFEST}: landmarks have no bag form here")
     ts = typestore(kind)

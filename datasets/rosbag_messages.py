@@ -302,14 +302,41 @@ def message_rows(where0: str, m: TopicMap, i: int, msgtype: str, msg, skips: Ski
     return []
 
 
-def pose_rows(where0: str, m: TopicMap, msgs: list, skips: SkipReport) -> list:
+def count_backwards(where0: str, stamps: list, notes: SkipReport | None) -> int:
+    """Count in `notes` (reason `stamp_backwards`, naming the bag, topic and message) every
+    message of one topic whose header stamp lies before an earlier message's (`stamps`: (stamp,
+    bag index) in bag order): the bag's order (receive time) differs from the stamps', which
+    the import re-sorts by stamp. Returns how many."""
+    latest, n = -math.inf, 0
+    seen = set()
+    for t, i in stamps:
+        if i in seen:  # several rows of one message (detections)
+            continue
+        seen.add(i)
+        if t < latest:
+            n += 1
+            if notes is not None:
+                notes.add(
+                    "stamp_backwards",
+                    f"{where0} message {i}: stamp {t:.9f} is before an earlier message's "
+                    f"{latest:.9f} (re-sorted by stamp)",
+                )
+        latest = max(latest, t)
+    return n
+
+
+def pose_rows(
+    where0: str, m: TopicMap, msgs: list, skips: SkipReport, notes: SkipReport | None = None
+) -> list:
     """relative_pose3 rows of one topic's messages [(bag index, msgtype, msg)]: increments
-    between consecutive poses in header-stamp order (stable: bag order breaks ties)."""
+    between consecutive poses in header-stamp order (stable: bag order breaks ties; a message
+    stamped before an earlier one counted in `notes`, `count_backwards`)."""
     stamped = []
     for i, msgtype, msg in msgs:
         t = _stamped(f"{where0} message {i}", m, msgtype, msg, skips)
         if t is not None:
             stamped.append((t, i, msgtype, msg))
+    count_backwards(where0, [s[:2] for s in stamped], notes)
     stamped.sort(key=lambda s: (s[0], s[1]))
     out, prev = [], None
     for t, i, msgtype, msg in stamped:

@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from graphloc.io import LANDMARK_PREFIX, MANIFEST, SENSOR_TYPES, read_manifest, write_manifest
+from graphloc.names import safe_name
+from graphloc.structured import dumps_json, read_yaml
 from graphloc.vision.markers import MarkerDetectorConfig
 
 TOPICS_FILE = "topics.yaml"  # what open_run(BAG) looks for beside (or inside) the bag
@@ -100,15 +102,10 @@ def read_topics(path) -> TopicsFile:
     """Parse and check a topics file (docs/rosbag.md). Every error names the file and field:
     the robots are checked by the manifest reader (`graphloc.io.read_manifest`), each topic's
     robot, table, sensor (of the table's sensor type) and targets against them."""
-    import yaml
-
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{path}: no topics file") from None
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise ValueError(f"{path}: cannot read topics file: {exc}") from None
+    if not path.exists() and not path.is_symlink():
+        raise FileNotFoundError(f"{path}: no topics file")
+    data = read_yaml(path, what="topics file")
     if not isinstance(data, dict):
         raise ValueError(f"{path}: a topics file is a mapping with fields 'robots' and 'topics'")
     unknown = set(data) - {"name", "start_time", "robots", "landmarks", "topics", "meta", "frames"}
@@ -127,11 +124,11 @@ def read_topics(path) -> TopicsFile:
     if not isinstance(meta, dict):
         raise ValueError(f"{path}: field 'meta' must be a mapping")
     start = data.get("start_time")
-    body = {"name": data.get("name") or path.stem, "start_time": start, "robots": robots}
+    body = {"name": data.get("name") or safe_name(path.stem), "start_time": start, "robots": robots}
     # the robots through the one manifest reader, its errors re-addressed to the topics file
     with tempfile.TemporaryDirectory() as tmp:
         try:
-            write_manifest(json.loads(json.dumps(body)), tmp)
+            write_manifest(json.loads(dumps_json(body)), tmp)
         except (TypeError, ValueError) as exc:  # YAML values JSON has no form for (dates, ...)
             raise ValueError(f"{path}: field 'robots': {exc}") from None
         try:

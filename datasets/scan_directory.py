@@ -30,6 +30,7 @@ import numpy as np
 
 from graphloc.datasets.graphloc_log import read_team_run
 from graphloc.io import write_manifest, write_table
+from graphloc.names import out_path, safe_name
 from graphloc.run import TeamRun, truncate
 from graphloc.textio import check_file, text_lines
 
@@ -117,7 +118,7 @@ def write_log(path: Path, out: Path, rate: float | None = None) -> list[Path]:
     rows = []
     for t, src in zip(times, files):
         rel = f"scans/{src.name}" + (".ply" if src.suffix.lower() == KITTI else "")
-        _place(src, out / rel)
+        _place(src, out_path(out, *rel.split("/")))
         rows.append((float(t), SENSOR, rel))
     write_table(out / "scans.csv", "scans", rows)
     robot = {
@@ -130,7 +131,7 @@ def write_log(path: Path, out: Path, rate: float | None = None) -> list[Path]:
     }
     source = "times file" if (path / TIMES_FILE).exists() else f"index at {rate:g} Hz"
     body = {
-        "name": path.name or "scans",
+        "name": safe_name(path.resolve().name, "scans"),
         "start_time": float(times[0]),
         "robots": [robot],
         "meta": {"scan_directory": {"source": str(path), "times": source}},

@@ -20,7 +20,8 @@ help from the field's metadata["help"]) and `config_from_args` builds the config
 parsed options (defaults < `--config FILE.toml` < command line), so verbs do not copy fields
 by hand. A field whose default is itself a config dataclass is a TOML table of its name
 (`[fusion]`, `[fusion.registration]`, ...); a tuple field a TOML array. `read_config_file`
-opens the file through `graphloc.textio`; every error names the file, the line and the field
+reads the file through `graphloc.structured.read_toml` (size and nesting bounded); every error
+names the file, the line and the field
 (`ConfigError.key`: the field's dotted path).
 """
 
@@ -28,15 +29,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import numbers
 import re
-import tomllib
 import typing
 from pathlib import Path
 
-from graphloc.textio import read_text
+from graphloc.structured import BadStructure, parse_json, read_toml
 
 BRACKETS = ("()", "(]", "[)", "[]")
 
@@ -67,9 +66,10 @@ def check(
 ) -> None:
     """Raise ValueError naming `Class.field` and its value unless every rule holds.
 
-    positive: finite numbers > 0; nonnegative: finite numbers >= 0; integer: {field: minimum}
-    integers (not bool) >= minimum; interval: {field: (low, high, brackets)} numbers in the
-    interval, brackets one of "()", "(]", "[)", "[]", a bound may name another field;
+    positive: finite numbers > 0; nonnegative: finite numbers >= 0; integer: {field: minimum
+    or (minimum, maximum)} integers (not bool) >= minimum (and <= maximum); interval: {field:
+    (low, high, brackets)} numbers in the interval, brackets one of "()", "(]", "[)", "[]", a
+    bound may name another field;
     choices: {field: allowed values}; optional: fields that may also be None (then unchecked).
     """
     integer, interval, choices = integer or {}, interval or {}, choices or {}
@@ -84,11 +84,14 @@ def check(
             v = getattr(obj, f)
             if not (math.isfinite(_number(obj, f, v, "finite and >= 0")) and v >= 0):
                 raise _fail(obj, f, "finite and >= 0", v)
-    for f, low in integer.items():
+    for f, bounds in integer.items():
         if f not in skip:
             v = getattr(obj, f)
-            rule = f"an integer >= {low}"
+            low, high = bounds if isinstance(bounds, tuple) else (bounds, None)
+            rule = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
             if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < low:
+                raise _fail(obj, f, rule, v)
+            if high is not None and v > high:
                 raise _fail(obj, f, rule, v)
     for f, (low, high, brackets) in interval.items():
         if f in skip:
@@ -138,6 +141,9 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
                 f"{name}: unknown field {key!r}; known: {', '.join(sorted(known))}", key
             )
         default = getattr(defaults, key)
+        if dataclasses.is_dataclass(default) and isinstance(value, type(default)):
+            out[key] = value  # already parsed (a config file's table, passed on)
+            continue
         if dataclasses.is_dataclass(default):
             out[key] = _nested(config_class, key, default, value)
             continue
@@ -149,8 +155,8 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
             default = kind()
         if isinstance(value, str) and not isinstance(default, str):
             try:
-                value = json.loads(value)
-            except json.JSONDecodeError:
+                value = parse_json(value, f"{name}.{key}", "value")
+            except BadStructure:
                 kind_name = "list" if isinstance(default, tuple) else type(default).__name__
                 raise ConfigError(
                     f"{name}.{key}: expected {kind_name}, got {value!r}", key
@@ -166,14 +172,35 @@ def parse_overrides(config_class: type, overrides: dict) -> dict:
             )
         if isinstance(default, str) and not isinstance(value, str):
             raise ConfigError(f"{name}.{key}: expected str, got {value!r}", key)
-        if isinstance(default, int) and not isinstance(default, bool) and value != int(value):
-            raise ConfigError(f"{name}.{key}: expected an integer, got {value!r}", key)
+        if isinstance(default, (int, float)) and not isinstance(default, bool):
+            _bounded(f"{name}.{key}", key, value, integer=isinstance(default, int))
         out[key] = (
             type(default)(value)
             if isinstance(default, (int, float)) and not isinstance(default, bool)
             else value
         )
     return out
+
+
+MAX_OPTION = 1e9  # the largest |value| of any numeric option (a class may state less)
+MAX_OPTION_INT = 2**32  # integers below it (a seed may be any 32-bit unsigned number)
+
+
+def _bounded(name: str, key: str, value, integer: bool) -> None:
+    """ConfigError naming the field unless `value` is a finite number within +-MAX_OPTION
+    (an integer within +-MAX_OPTION_INT, no fraction, for an integer field): whatever a class
+    states of its own fields, no option is NaN, inf or beyond any sane size."""
+    if integer:
+        if not (isinstance(value, int) or (math.isfinite(value) and value == int(value))):
+            raise ConfigError(f"{name}: expected an integer, got {value!r}", key)
+        if abs(value) >= MAX_OPTION_INT:
+            raise ConfigError(
+                f"{name} must be an integer within +-{MAX_OPTION_INT}, got {value!r}", key
+            )
+    elif not (math.isfinite(value) and abs(value) <= MAX_OPTION):
+        raise ConfigError(
+            f"{name} must be a finite number within +-{MAX_OPTION:g}, got {value!r}", key
+        )
 
 
 def _nested(config_class: type, key: str, default, value):
@@ -210,12 +237,14 @@ def _tuple(config_class: type, key: str, default: tuple, value, hint) -> tuple:
         number = isinstance(v, numbers.Real) and not isinstance(v, bool)
         ok = {
             float: number,
-            int: number and v == int(v),
+            int: number and math.isfinite(v) and v == int(v),
             bool: isinstance(v, bool),
             str: isinstance(v, str),
         }.get(kind, True)
         if not ok:
             raise ConfigError(f"{name}: expected {kind.__name__} values, got {value!r}", key)
+        if kind in (float, int):
+            _bounded(name, key, v, integer=kind is int)
         out.append(kind(v) if kind in (float, int) else v)
     return tuple(out)
 
@@ -274,12 +303,7 @@ def read_config_file(path) -> tuple[dict, dict]:
     line number}). Opened through `graphloc.textio` (a missing file, a directory or bytes that
     are not UTF-8 are errors naming the file and line); a syntax error names file, line and
     column."""
-    path = Path(path)
-    text = read_text(path)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not valid TOML: {exc}") from None
+    data, text = read_toml(Path(path))
     return _underscored(data), _key_lines(text)
 
 

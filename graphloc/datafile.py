@@ -1,9 +1,11 @@
 """Versioned data files: one JSON header line (format, version, body size and SHA-256) and a JSON
 body, written atomically (temporary file, fsync, rename, directory fsync). Used by
 `graphloc.session` (saved sessions), `graphloc.hypotheses` (saved trackers) and `graphloc online`
-checkpoints. Reading checks format, version, size and hash before parsing: a pickle, another
-format, a truncated or altered file is a ValueError naming the file, and nothing in a file is
-ever executed."""
+checkpoints. Reading checks the file's size (at most `graphloc.structured.MAX_DATA_BYTES`),
+format, version, body size and hash before parsing, and parses the body through
+`graphloc.structured.parse_json` (nesting and values bounded): a pickle, another format, a
+truncated, altered, oversized or too deeply nested file is a ValueError naming the file, and
+nothing in a file is ever executed."""
 
 from __future__ import annotations
 
@@ -12,6 +14,8 @@ import json
 import os
 import tempfile
 from pathlib import Path
+
+from graphloc.structured import MAX_DATA_BYTES, BadStructure, dumps_json, parse_json
 
 
 class BadData(Exception):
@@ -24,14 +28,14 @@ def write_data_file(
     """Write `payload` as a graphloc data file: one JSON header line (format, version, body size
     and SHA-256) and a JSON body, atomically. allow_nan: write inf/NaN as JSON constants
     (Infinity, NaN) instead of raising ValueError."""
-    body = json.dumps(payload, allow_nan=allow_nan, separators=(",", ":")).encode()
+    body = dumps_json(payload, allow_nan=allow_nan, separators=(",", ":")).encode()
     header = {
         "format": fmt,
         "version": version,
         "body_bytes": len(body),
         "body_sha256": hashlib.sha256(body).hexdigest(),
     }
-    write_atomically(Path(path), json.dumps(header).encode() + b"\n" + body)
+    write_atomically(Path(path), dumps_json(header).encode() + b"\n" + body)
 
 
 def read_data_file(
@@ -42,6 +46,14 @@ def read_data_file(
     unreadable file, a pickle, another format or version, a truncated or altered body."""
     path = Path(path)
     try:
+        size = path.stat().st_size
+        if not path.is_file():
+            raise ValueError(f"{path}: cannot read the {what} file (not a regular file)")
+        if size > MAX_DATA_BYTES:
+            raise ValueError(
+                f"{path}: {size} bytes, larger than the {MAX_DATA_BYTES} bytes a {what} file "
+                f"may have"
+            )
         data = path.read_bytes()
     except OSError as exc:
         raise ValueError(f"{path}: cannot read the {what} file ({exc.strerror})") from None
@@ -89,8 +101,8 @@ def _parse_data_file(data: bytes, fmt: str, version: int, what: str, allow_nan: 
         )
     head, sep, body = data.partition(b"\n")
     try:
-        header = json.loads(head.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError):
+        header = json.loads(head.decode("utf-8")) if len(head) < 4096 else None
+    except (UnicodeDecodeError, ValueError, RecursionError):
         header = None
     if not sep or not isinstance(header, dict) or header.get("format") != fmt:
         raise BadData(f"not a saved graphloc {what} (no {fmt} header line)")
@@ -107,14 +119,14 @@ def _parse_data_file(data: bytes, fmt: str, version: int, what: str, allow_nan: 
     if header.get("body_sha256") != hashlib.sha256(body).hexdigest():
         raise BadData("altered or corrupted: the SHA-256 of the body does not match the header")
     try:
-        constant = None if allow_nan else _reject_constant
-        payload = json.loads(body.decode("utf-8"), parse_constant=constant)
-    except (UnicodeDecodeError, ValueError) as exc:
+        text = body.decode("utf-8")
+    except UnicodeDecodeError as exc:
         raise BadData(f"body is not valid JSON ({exc})") from None
+    try:
+        # values bounded by the file's size (MAX_DATA_BYTES): JSON has no aliases
+        payload = parse_json(text, "body", f"{what} body", allow_nan, max_values=MAX_DATA_BYTES)
+    except BadStructure as exc:  # "body: ..." -> the file's name is put in front by the caller
+        raise BadData(str(exc)) from None
     if not isinstance(payload, dict):
         raise BadData("body must be a JSON object")
     return payload
-
-
-def _reject_constant(name: str):
-    raise ValueError(f"{name} is not a finite number")

@@ -17,6 +17,8 @@ from evo.core import geometry, metrics, sync
 from evo.core.trajectory import PoseTrajectory3D
 from evo.tools import file_interface
 
+from graphloc.names import written_whole
+
 
 @dataclass(frozen=True)
 class TrajectoryMetrics:
@@ -54,10 +56,9 @@ def planar_to_evo(times: np.ndarray, poses: np.ndarray) -> PoseTrajectory3D:
 
 
 def align_se2(reference: PoseTrajectory3D, estimate: PoseTrajectory3D) -> PoseTrajectory3D:
-    """Copy of `estimate` rigidly aligned to `reference` in the plane (Umeyama on x, y)."""
-    R2, t2, _ = geometry.umeyama_alignment(
-        estimate.positions_xyz[:, :2].T, reference.positions_xyz[:, :2].T, with_scale=False
-    )
+    """Copy of `estimate` rigidly aligned to `reference` in the plane (Umeyama on x, y);
+    ValueError when the alignment is undetermined (`_umeyama`)."""
+    R2, t2, _ = _umeyama(estimate.positions_xyz[:, :2].T, reference.positions_xyz[:, :2].T)
     T = np.eye(4)
     T[:2, :2] = R2
     T[:2, 3] = t2
@@ -70,6 +71,36 @@ def align_se2(reference: PoseTrajectory3D, estimate: PoseTrajectory3D) -> PoseTr
 
 MAX_TIME_DIFF = 0.02  # [s] default of the metrics' time association (estimate vs ground truth)
 ALIGNMENTS = ("none", "se2", "se3", "sim3")
+
+
+def _umeyama(source: np.ndarray, target: np.ndarray, with_scale: bool = False):
+    """evo's Umeyama alignment of (d, N) points `source` onto `target` (with a scale for
+    `with_scale`); a ValueError saying why, not evo's GeometryException, when the points cannot
+    determine it (all at one place, or on one line in 3D: a robot that never moved)."""
+    try:
+        return geometry.umeyama_alignment(source, target, with_scale=with_scale)
+    except geometry.GeometryException as exc:
+        raise ValueError(
+            f"cannot be aligned with its ground truth ({exc}: the {source.shape[1]} matched "
+            f"poses do not span the plane)"
+        ) from None
+
+
+def _align_se3(
+    reference: PoseTrajectory3D, estimate: PoseTrajectory3D, with_scale: bool = False
+) -> PoseTrajectory3D:
+    """Copy of `estimate` aligned to `reference` in SE(3) (evo's Umeyama; Sim(3) with
+    `with_scale`, as evo's `align(correct_scale=True)`)."""
+    R, t, c = _umeyama(estimate.positions_xyz.T, reference.positions_xyz.T, with_scale)
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    aligned = PoseTrajectory3D(
+        poses_se3=[p.copy() for p in estimate.poses_se3], timestamps=estimate.timestamps.copy()
+    )
+    if with_scale:
+        aligned.scale(c)
+    aligned.transform(T)
+    return aligned
 
 
 def trajectory_metrics(
@@ -98,10 +129,7 @@ def trajectory_metrics(
     if align == "se2":
         est = align_se2(ref, est)
     elif align in ("se3", "sim3"):
-        est = PoseTrajectory3D(
-            poses_se3=[p.copy() for p in est.poses_se3], timestamps=est.timestamps.copy()
-        )
-        est.align(ref, correct_scale=align == "sim3")
+        est = _align_se3(ref, est, with_scale=align == "sim3")
     ape = metrics.APE(metrics.PoseRelation.translation_part)
     ape.process_data((ref, est))
     stats = ape.get_all_statistics()
@@ -182,7 +210,7 @@ def ate_over_time(
     if align == "se2":
         est = align_se2(ref, est)
     elif align in ("se3", "sim3"):
-        est.align(ref, correct_scale=align == "sim3")
+        est = _align_se3(ref, est, with_scale=align == "sim3")
     err = np.linalg.norm(est.positions_xyz - ref.positions_xyz, axis=1)
     return ref.timestamps.copy(), err
 
@@ -210,7 +238,8 @@ def write_tum(path: str | Path, times: np.ndarray, poses: np.ndarray) -> Path:
             f"got {times.shape} and {poses.shape}"
         )
     path.parent.mkdir(parents=True, exist_ok=True)
-    file_interface.write_tum_trajectory_file(str(path), trajectory)
+    with written_whole(path) as tmp:
+        file_interface.write_tum_trajectory_file(str(tmp), trajectory)
     return path
 
 

@@ -47,6 +47,7 @@ from pathlib import Path
 from typing import Any
 
 from graphloc import __version__
+from graphloc.structured import MAX_DATA_BYTES, dumps_json, read_json
 
 BACKENDS = ("local", "ray")
 _SHARED: dict[str, Any] = {}  # the local pool's shared input, installed once per worker
@@ -131,9 +132,12 @@ class ResultCache:
 
     def get(self, digest: str):
         """The cached value, or None (absent or unreadable: then it is recomputed)."""
+        path = self._path(digest)
         try:
-            return json.loads(self._path(digest).read_text(encoding="utf-8"))["value"]
-        except (OSError, ValueError, KeyError):
+            if not path.is_file():
+                return None
+            return read_json(path, "cached result", max_bytes=MAX_DATA_BYTES)["value"]
+        except (OSError, ValueError, KeyError, TypeError):
             return None
 
     def discard(self, digest: str) -> None:
@@ -142,7 +146,7 @@ class ResultCache:
     def put(self, digest: str, value) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
         tmp = self._path(digest).with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(json.dumps({"version": code_version(), "value": value}, default=float))
+        tmp.write_text(dumps_json({"version": code_version(), "value": value}, default=float))
         tmp.replace(self._path(digest))
 
 

@@ -7,7 +7,9 @@
   table (heapq.merge over per-file iterators); every row is validated and a bad row either
   raises ValueError naming file, line and field (on_error="raise") or is counted in a
   `SkipReport` (on_error="skip") -- nothing is dropped silently. Files are UTF-8 with an
-  optional byte-order mark (`graphloc.textio`).
+  optional byte-order mark (`graphloc.textio`). The rows are validated in chunks with NumPy
+  (`graphloc.table_reader.iter_table_chunks`, which a reader of a large table such as
+  `markers` takes as columns).
 - `PlanarRun` is the numpy form of a planar multi-robot run (the MRCLAM loader's);
   `write_planar_run(run, dir)` writes it as a log, `write_table` one table
   (`graphloc.log_writer`). Logs are read into the one run type of the
@@ -18,7 +20,6 @@ from __future__ import annotations
 
 import heapq
 import math
-from dataclasses import fields
 from pathlib import Path
 from typing import Iterator
 
@@ -53,15 +54,14 @@ from graphloc.records import (
     plausible,
 )
 from graphloc.log_writer import PlanarRun, write_planar_run, write_table
+from graphloc.table_reader import data_lines, iter_table_chunks
 from graphloc.textio import (
     Sink,
     SkipReport,
     check_file,
-    confined,
     csv_fields,
     cut,
     shown,
-    text_lines,
 )
 
 __all__ = [
@@ -101,14 +101,6 @@ __all__ = [
 
 
 # ---- streaming, validated reading ------------------------------------------------------------
-def _converter(tp):
-    if tp in (float, "float"):
-        return float
-    if tp in (int, "int"):
-        return int
-    return str
-
-
 def iter_table(
     manifest: Manifest,
     robot: Robot,
@@ -117,92 +109,14 @@ def iter_table(
     report: SkipReport | None = None,
     landmark_ids: set | None = None,
 ) -> Iterator:
-    """Validated records of one robot's table, in file order. Checks: header, field count, number
-    parsing, NaN/inf, time non-decreasing, known sensor (of the right type), known target."""
-    sink = Sink(on_error, report)
+    """Validated records of one robot's table, in file order (the rows `iter_table_chunks`
+    accepts, one record each)."""
     cls = TABLES[table]
-    cols = columns(table)
-    convs = {f.name: _converter(f.type) for f in fields(cls)}
-    path = manifest.root / robot.tables[table]
-    robots = {r.name for r in manifest.robots}
-    if not check_file(path, required=False):
-        raise FileNotFoundError(
-            f"{path}: table {table!r} of robot {robot.name!r} listed in manifest but missing"
-        )
-    last_time = -math.inf
-    for line, text in _data_lines(path, cols):
-        where = f"{path}: line {line}"
-        try:
-            row = csv_fields(text, cols)
-        except ValueError as exc:
-            sink.bad("field_too_long", f"{where}: {exc}")
-            continue
-        if len(row) != len(cols):
-            sink.bad("field_count", f"{where}: expected {len(cols)} fields, got {len(row)}")
-            continue
-        values, problem = _values(row, cols, convs, plausible(table))
-        if problem is not None:
-            sink.bad(problem[0], f"{where}: {problem[1]}")
-            continue
-        if values["time"] < last_time:
-            sink.bad(
-                "time_backwards",
-                f"{where}: field 'time': {values['time']} goes backwards (previous {last_time})",
-            )
-            continue
-        if "sensor" in values:
-            sensor = robot.sensor(values["sensor"])
-            if sensor is None:
-                sink.bad(
-                    "unknown_sensor",
-                    f"{where}: field 'sensor': robot {robot.name!r} "
-                    f"has no sensor {values['sensor']!r}",
-                )
-                continue
-            if sensor.type != SENSOR_TYPES[table]:
-                sink.bad(
-                    "sensor_type",
-                    f"{where}: field 'sensor': {values['sensor']!r} is a {sensor.type}, "
-                    f"table {table} needs a {SENSOR_TYPES[table]}",
-                )
-                continue
-        if "target" in values and not _known_target(values["target"], robots, landmark_ids):
-            sink.bad(
-                "unknown_target",
-                f"{where}: field 'target': {values['target']!r} "
-                "is neither a robot nor a known landmark",
-            )
-            continue
-        if table == "scans":
-            try:
-                confined(manifest.root, values["path"], f"{where}: field 'path'")
-            except ValueError as exc:
-                sink.bad("path_outside_run", str(exc))
-                continue
-        last_time = values["time"]
-        yield cls(robot=robot.name, line=line, **values)
-
-
-def _data_lines(path: Path, cols: list[str]):
-    """(line number, text) of every data line of a CSV file whose header must be `cols`
-    (ValueError naming file and line 1 otherwise); blank and '#' lines are left out."""
-    lines = text_lines(path)
-    _, first = next(lines, (1, ""))
-    header = _header(path, first, cols)
-    if header != cols:
-        raise ValueError(
-            f"{path}: line 1: header must be {','.join(cols)}, got {shown(','.join(header))}"
-        )
-    for line, text in lines:
-        if text.strip() and not text.lstrip().startswith("#"):
-            yield line, text
-
-
-def _header(path: Path, text: str, cols: list[str]) -> list[str]:
-    try:
-        return [h.strip() for h in csv_fields(text)]
-    except ValueError as exc:
-        raise ValueError(f"{path}: line 1: header: {exc}") from None
+    for chunk in iter_table_chunks(manifest, robot, table, on_error, report, landmark_ids):
+        names = [c for c in chunk if c != "line"]
+        values = [chunk[c] if isinstance(chunk[c], list) else chunk[c].tolist() for c in names]
+        for line, *row in zip(chunk["line"].tolist(), *values):
+            yield cls(robot=robot.name, line=line, **dict(zip(names, row)))
 
 
 def _values(
@@ -234,18 +148,6 @@ def _values(
     return values, None
 
 
-def _known_target(target: str, robots: set, landmark_ids: set | None) -> bool:
-    if target in robots:
-        return True
-    if target.startswith(LANDMARK_PREFIX):
-        try:
-            lid = int(target[len(LANDMARK_PREFIX) :])
-        except ValueError:
-            return False
-        return landmark_ids is None or lid in landmark_ids
-    return False
-
-
 LANDMARK_COLUMNS = ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"]
 
 
@@ -259,7 +161,7 @@ def read_landmarks(manifest: Manifest) -> tuple[np.ndarray, np.ndarray, np.ndarr
     check_file(path, what="landmark table (manifest field 'landmarks.file')")
     convs = {name: int if name == "id" else float for name in LANDMARK_COLUMNS}
     rows: dict = {}
-    for line, text in _data_lines(path, LANDMARK_COLUMNS):
+    for line, text in data_lines(path, LANDMARK_COLUMNS):
         where = f"{path}: line {line}"
         try:
             row = csv_fields(text, LANDMARK_COLUMNS)

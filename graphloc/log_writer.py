@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from graphloc.names import check_name, out_path, safe_name
 from graphloc.manifest import write_manifest
 from graphloc.records import LANDMARK_PREFIX, columns
 from graphloc.textio import SkipReport
@@ -85,7 +86,8 @@ def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Pa
     root.mkdir(parents=True, exist_ok=True)
     robots = []
     for r, name in enumerate(run.robots):
-        (root / name).mkdir(exist_ok=True)
+        check_name(name, f"PlanarRun.robots[{r}]")
+        out_path(root, name).mkdir(exist_ok=True)
         tables = {"odometry": f"{name}/odometry.csv", "range_bearing": f"{name}/range_bearing.csv"}
         od = run.odometry[r]
         _write_csv(
@@ -149,7 +151,7 @@ def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Pa
     )
     write_manifest(
         {
-            "name": run.name,
+            "name": safe_name(run.name),
             "start_time": run.start_time,
             "robots": robots,
             "landmarks": {"file": "landmarks.csv"},

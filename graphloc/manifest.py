@@ -6,7 +6,6 @@ absolute path, no '..', no symbolic link out of the run: `graphloc.textio.confin
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,8 +13,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from graphloc.names import check_name, safe_name
 from graphloc.records import MAX_COORDINATE, MAX_SIGMA, MAX_TIME, TABLES
-from graphloc.textio import check_file, confined, read_text
+from graphloc.structured import dumps_json, finite_number, read_json
+from graphloc.textio import check_file, confined
 
 FORMAT = "graphloc-log"
 VERSION = 2  # what the writers produce
@@ -70,23 +71,52 @@ class Manifest:
         return next((r for r in self.robots if r.name == name), None)
 
 
+def _extrinsic_numbers(value, shape: tuple, where: str, field: str) -> np.ndarray:
+    """A nested JSON list of finite numbers (not booleans) of `shape` -> array; ValueError
+    naming `where` and the field otherwise."""
+    arr = np.asarray(value, dtype=object)
+    flat = arr.reshape(-1).tolist() if arr.shape == shape else None
+    if flat is None or not all(finite_number(a) for a in flat):
+        raise ValueError(
+            f"{where}: extrinsics must be numbers: field '{field}' must be "
+            f"{' x '.join(map(str, shape))} finite numbers, got {value!r}"
+        )
+    return np.array(flat, dtype=float).reshape(shape)
+
+
 def _extrinsics(value, where: str) -> np.ndarray:
     """[x, y, theta] (planar) or {"xyz": [...], "rpy": [...]} or a 4x4 list -> 4x4 matrix
-    (ValueError naming `where` unless finite, plausible and a rigid transform)."""
+    (ValueError naming `where` and the field -- xyz, rpy, theta, matrix -- unless finite,
+    plausible and a rigid transform)."""
     if value is None:
         return np.eye(4)
     T = np.eye(4)
+    if isinstance(value, dict):
+        unknown = sorted(set(value) - {"xyz", "rpy"})
+        if unknown:
+            raise ValueError(f"{where}: extrinsics has unknown field(s) {unknown}; use xyz, rpy")
+        xyz = _extrinsic_numbers(value.get("xyz", [0, 0, 0]), (3,), where, "xyz")
+        rpy = _extrinsic_numbers(value.get("rpy", [0, 0, 0]), (3,), where, "rpy")
+        if np.abs(rpy).max() > 2 * np.pi:
+            raise ValueError(
+                f"{where}: extrinsics field 'rpy' must be angles in radians within +-2 pi (roll, "
+                f"pitch, yaw about the body's x, y, z axes), got {rpy.tolist()}: degrees?"
+            )
+        T[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()
+        T[:3, 3] = xyz
+        if np.abs(xyz).max() > MAX_COORDINATE:
+            raise ValueError(
+                f"{where}: extrinsics field 'xyz' must lie within +-{MAX_COORDINATE:g} m"
+            )
     try:
-        if isinstance(value, dict):
-            xyz = np.asarray(value.get("xyz", [0, 0, 0]), dtype=float)
-            rpy = np.asarray(value.get("rpy", [0, 0, 0]), dtype=float)
-            if xyz.shape != (3,) or rpy.shape != (3,):
-                raise ValueError(f"{where}: extrinsics xyz and rpy must have 3 numbers")
-            if np.isfinite(rpy).all():
-                T[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()
-            T[:3, 3] = xyz
-        else:
-            arr = np.asarray(value, dtype=float)
+        if not isinstance(value, dict):
+            shape = np.shape(np.asarray(value, dtype=object))
+            if shape == (3,):
+                arr = _extrinsic_numbers(value, (3,), where, "x, y, theta")
+            elif shape == (4, 4):
+                arr = _extrinsic_numbers(value, (4, 4), where, "matrix")
+            else:
+                arr = np.asarray(value, dtype=float)
             if arr.shape == (3,):
                 c, s = math.cos(arr[2]), math.sin(arr[2])
                 T[:2, :2] = [[c, -s], [s, c]]
@@ -152,10 +182,7 @@ def read_manifest(root: str | Path) -> Manifest:
     path = root / MANIFEST
     if not check_file(path, required=False):
         raise FileNotFoundError(f"{path}: no log manifest (is {root} a graphloc log directory?)")
-    try:
-        data = json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: line {exc.lineno}: invalid JSON ({exc.msg})") from None
+    data = read_json(path, what="log manifest")
     if not isinstance(data, dict):
         raise ValueError(f"{path}: the manifest must be a JSON object, got {type(data).__name__}")
     for key, kind in (("robots", list), ("landmarks", dict), ("meta", dict)):
@@ -173,8 +200,9 @@ def read_manifest(root: str | Path) -> Manifest:
     robots = []
     for i, r in enumerate(data.get("robots") or []):
         where = f"{path}: robots[{i}]"
-        if not isinstance(r, dict) or not _name(r.get("name")):
-            raise ValueError(f"{where}: field 'name' must be a non-empty string")
+        if not isinstance(r, dict):
+            raise ValueError(f"{where}: must be a JSON object")
+        check_name(r.get("name"), f"{where}: field 'name'")
         if not isinstance(r.get("kind", "ground"), str):
             raise ValueError(f"{where}: field 'kind' must be a string")
         for key, kind in (("sensors", list), ("meta", dict)):
@@ -185,10 +213,14 @@ def read_manifest(root: str | Path) -> Manifest:
                 )
         sensors = []
         for j, s in enumerate(r.get("sensors") or []):
-            if not isinstance(s, dict) or not _name(s.get("name")) or not _name(s.get("type")):
+            if not isinstance(s, dict):
                 raise ValueError(
-                    f"{where}.sensors[{j}]: fields 'name' and 'type' must be non-empty strings"
+                    f"{where}.sensors[{j}]: fields 'name' and 'type' must be given in a JSON "
+                    f"object, got {s!r}"
                 )
+            check_name(s.get("name"), f"{where}.sensors[{j}]: field 'name'")
+            if not _name(s.get("type")):
+                raise ValueError(f"{where}.sensors[{j}]: field 'type' must be a non-empty string")
             if not isinstance(s.get("params") or {}, dict):
                 raise ValueError(f"{where}.sensors[{j}]: field 'params' must be a JSON object")
             check_noise_params(s.get("params") or {}, f"{where}.sensors[{j}]: params field")
@@ -282,9 +314,8 @@ def read_manifest(root: str | Path) -> Manifest:
             f"{path}: field 'robots' must list at least one robot with unique names, got {names}"
         )
     lm = (data.get("landmarks") or {}).get("file")
-    name = data.get("name", root.name)
-    if not _name(name):
-        raise ValueError(f"{path}: field 'name' must be a non-empty string, got {name!r}")
+    name = data["name"] if "name" in data else safe_name(root.resolve().name)
+    check_name(name, f"{path}: field 'name'")
     if lm is not None:
         confined(root, lm, f"{path}: field 'landmarks.file'")
     start = data.get("start_time")
@@ -330,5 +361,5 @@ def write_manifest(manifest_dict: dict, root: str | Path) -> Path:
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     body = {"format": FORMAT, "version": VERSION, **manifest_dict}
-    (root / MANIFEST).write_text(json.dumps(body, indent=2) + "\n")
+    (root / MANIFEST).write_text(dumps_json(body, indent=2) + "\n")
     return root / MANIFEST

@@ -26,11 +26,14 @@ from pathlib import Path
 
 from graphloc.executor import BACKENDS, Executor, ResultCache, content_hash
 from graphloc.exitcodes import INCOMPLETE, OK, RUNS_FAILED
+from graphloc.names import out_path
+from graphloc.structured import dumps_json
 
 # namespace fields that choose where / how runs execute, not what they compute
 _NOT_CONFIG = {"run", "out", "config", "no_progress", "runs", "backend", "workers", "address"}
 _NOT_CONFIG |= {"cache", "checkpoint", "checkpoint_every", "resume", "_run", "verb"}
 _NOT_CONFIG |= {"verbose", "quiet"}  # graphloc.commands.common: how much is printed
+MAX_WORKERS = 256  # parallel runs (processes or Ray tasks in flight)
 _FIELDS = ["run", "status", "error", "seconds", "robots", "ate_rmse_m", "committed", "wrong"]
 _FIELDS += ["realtime_factor", "path"]
 
@@ -82,6 +85,9 @@ def expand_runs(patterns: list[str], runs_file: Path | None) -> list[Path]:
 def dispatch(args: argparse.Namespace, mode: str, verb, checkpoint=None) -> int:
     """One run without --runs / --backend: `verb(args, mode, checkpoint)`, the single-run
     verb as it is. Several runs (or a glob matching several, --runs, --backend): `run_many`."""
+    workers = getattr(args, "workers", 1)
+    if not (isinstance(workers, int) and 1 <= workers <= MAX_WORKERS):
+        raise ValueError(f"--workers must be an integer in [1, {MAX_WORKERS}], got {workers}")
     patterns = args.run if isinstance(args.run, list) else [args.run]
     runs_file, backend = getattr(args, "runs", None), getattr(args, "backend", None)
     runs = None
@@ -147,10 +153,11 @@ def run_many(args: argparse.Namespace, mode: str, verb, runs: list[Path]) -> int
     extra = [args.config] if args.config is not None else []
     items, hashes = [], []
     for path, name in zip(runs, names):
-        run_fields = dict(fields, run=str(path), out=out / name, no_progress=True)
+        run_out = out_path(out, name)
+        run_fields = dict(fields, run=str(path), out=run_out, no_progress=True)
         for key in ("mcap", "rerun"):  # a recording per run, in its own folder
             if fields.get(key):
-                run_fields[key] = str(out / name / Path(fields[key]).name)
+                run_fields[key] = str(out_path(run_out, Path(fields[key]).name))
         items.append((verb, run_fields, mode))
         try:
             hashes.append(content_hash([path, *extra], config))
@@ -179,7 +186,7 @@ def run_many(args: argparse.Namespace, mode: str, verb, runs: list[Path]) -> int
     for r in rows:
         if r["status"] == "failed":
             print(f"graphloc: run {r['path']} failed: {r['error']}", file=sys.stderr)
-    print(json.dumps({"mode": mode, "backend": backend, "runs": len(rows), **counts}))
+    print(dumps_json({"mode": mode, "backend": backend, "runs": len(rows), **counts}))
     print(f"outputs in {out} (runs.csv, runs.md, runs_summary.png)")
     if counts["failed"]:
         return RUNS_FAILED
@@ -199,7 +206,7 @@ def write_report(rows: list[dict], out: Path, mode: str) -> None:
     from graphloc.plots import plt
 
     out.mkdir(parents=True, exist_ok=True)
-    (out / "runs.json").write_text(json.dumps({"mode": mode, "runs": rows}, indent=1))
+    (out / "runs.json").write_text(dumps_json({"mode": mode, "runs": rows}, indent=1))
     with open(out / "runs.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(_FIELDS)

@@ -162,6 +162,9 @@ class TeamRun:
     meta: dict = field(default_factory=dict, compare=False)
     features: tuple = ()  # FeatureObservation, sorted by time
     scans: tuple = ()  # ScanObservation, sorted by time
+    # what was read and used but is counted to be said (docs/log_format.md, "Notes"): a bag's
+    # stamps re-sorted, scans thinned to the point budget
+    notes: SkipReport = field(default_factory=SkipReport, compare=False)
 
     def index(self, name: str) -> int:
         return next(i for i, r in enumerate(self.robots) if r.name == name)

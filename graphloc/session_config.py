@@ -81,10 +81,10 @@ class SessionConfig:
                 "relinearize_threshold",
                 "relinearize_translation",
             ),
-            integer={"lm_max_iterations": 1, "relinearize_skip": 1, "extra_updates": 0},
-            interval={
-                name: (0, 2**31, "[)")
-                for name in ("lm_max_iterations", "relinearize_skip", "extra_updates")
+            integer={
+                "lm_max_iterations": (1, 100_000),
+                "relinearize_skip": (1, 100_000),
+                "extra_updates": (0, 1000),
             },
         )
 

@@ -65,10 +65,16 @@ class Sink:
         self.on_error = on_error
         self.report = report if report is not None else SkipReport()
 
-    def bad(self, reason: str, message: str) -> None:
+    def bad(self, reason: str, message: str, n: int = 1) -> None:
+        """Raise `message`, or count `n` items (rows, points) skipped for `reason`."""
         if self.on_error == "raise":
             raise ValueError(message)
-        self.report.add(reason, message)
+        self.report.add(reason, message, n)
+
+    def wants_message(self) -> bool:
+        """Whether the next `bad` needs its message: it raises, or examples are still kept
+        (a message costs time when millions of rows are skipped)."""
+        return self.on_error == "raise" or len(self.report.examples) < self.report.max_examples
 
 
 # ---- files -----------------------------------------------------------------------------------
@@ -104,28 +110,76 @@ def check_file(path: Path, required: bool = True, what: str = "file") -> bool:
     return True
 
 
+BLOCK = 1 << 22  # bytes read and decoded at once by `text_lines`
+MAX_LINE = 1 << 25  # bytes of one line: beyond, a file is not text a reader takes
+
+
 def text_lines(path: Path) -> Iterator[tuple[int, str]]:
     """(line number, text without the line end) of a UTF-8 file with an optional byte-order
-    mark, streamed; ValueError naming file, line and column at the first byte that is not
-    UTF-8, and naming the file when it cannot be read."""
+    mark, streamed (`text_blocks`); ValueError naming file, line and column at the first byte
+    that is not UTF-8, and naming the file when it cannot be read."""
+    for first, texts in text_blocks(path):
+        yield from enumerate(texts, start=first)
+
+
+def text_blocks(path: Path) -> Iterator[tuple[int, list[str]]]:
+    """The lines of a UTF-8 file (optional byte-order mark; lines end at \\n, \\r\\n or
+    \\r) in blocks of about BLOCK bytes: (number of the block's first line, texts without
+    the line ends). ValueError naming file, line and column at the first byte that is not
+    UTF-8, at a line longer than MAX_LINE bytes, and naming the file when it cannot be read."""
     try:
         fh = open(path, "rb")
     except OSError as exc:
         raise ValueError(f"{path}: cannot be read ({exc.strerror})") from None
     line_no = 0
+    tail = b""
     with fh:
-        for chunk in fh:  # split at b"\n"; a lone b"\r" ends a line too (bytes.splitlines)
-            if line_no == 0 and chunk.startswith(BOM):
-                chunk = chunk[len(BOM) :]
-            for raw in chunk.splitlines() or [b""]:
-                line_no += 1
-                try:
-                    yield line_no, raw.decode("utf-8")
-                except UnicodeDecodeError as exc:
+        first = True
+        while True:
+            try:
+                block = fh.read(max(BLOCK, len(BOM)) if first else BLOCK)
+            except OSError as exc:
+                raise ValueError(f"{path}: cannot be read ({exc.strerror})") from None
+            if not block:
+                break
+            if first:
+                block = block[len(BOM) :] if block.startswith(BOM) else block
+                first = False
+            data = tail + block
+            # whole lines only: up to the last \n, or a \r that is not the last byte (a \r\n
+            # is never split)
+            end = max(data.rfind(b"\n"), data.rfind(b"\r", 0, len(data) - 1)) + 1
+            if end == 0:
+                tail = data
+                if len(tail) > MAX_LINE:
                     raise ValueError(
-                        f"{path}: line {line_no}: not UTF-8 text (byte "
-                        f"0x{raw[exc.start]:02x} at column {exc.start + 1})"
-                    ) from None
+                        f"{path}: line {line_no + 1}: longer than {MAX_LINE} bytes (not a text "
+                        f"file of lines?)"
+                    )
+                continue
+            tail = data[end:]
+            texts = _decoded(path, data[:end].splitlines(), line_no)
+            yield line_no + 1, texts
+            line_no += len(texts)
+        if tail:
+            yield line_no + 1, _decoded(path, tail.splitlines(), line_no)
+
+
+def _decoded(path: Path, lines: list, before: int) -> list:
+    """`lines` (bytes) decoded as UTF-8; ValueError naming the file, the line (counted from
+    `before`) and the column of the first byte that is not UTF-8."""
+    try:
+        return [raw.decode("utf-8") for raw in lines]
+    except UnicodeDecodeError:
+        for k, raw in enumerate(lines):
+            try:
+                raw.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                raise ValueError(
+                    f"{path}: line {before + k + 1}: not UTF-8 text (byte "
+                    f"0x{raw[exc.start]:02x} at column {exc.start + 1})"
+                ) from None
+        raise
 
 
 def read_text(path: Path) -> str:

@@ -111,7 +111,7 @@ def test_reproduce_and_import_take_their_config_files(tmp_path, capsys):
     cfg.write_text("quick = true\nworkers = 0\n")
     argv = ["reproduce", "seed004-table1", "--config", str(cfg), "--out", str(tmp_path)]
     assert main(argv) == 2
-    assert "r.toml: line 2: ReproduceOptions.workers must be an integer >= 1" in (
+    assert "r.toml: line 2: ReproduceOptions.workers must be an integer in [1, 256]" in (
         capsys.readouterr().err
     )
     cfg.write_text("topic = 'x.yaml'\n")

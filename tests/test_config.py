@@ -128,4 +128,4 @@ def test_verbs_take_options_from_the_config_fields(tmp_path, capsys):
     assert '"graph"' in capsys.readouterr().out
     assert main(["validate", str(run), "--keyframe-dt", "0"]) == 2
     err = capsys.readouterr().err
-    assert "RunOptions.keyframe_dt must be finite and > 0, got 0" in err
+    assert "RunOptions.keyframe_dt must be in [0.001, 3600], got 0" in err

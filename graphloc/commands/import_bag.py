@@ -8,12 +8,12 @@ the topics file does not map."""
 from __future__ import annotations
 
 import argparse
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.exitcodes import OK
+from graphloc.structured import dumps_json
 
 HELP = "ROS 1 / ROS 2 / MCAP bag + topics file -> graphloc log directory (smooth / online input)"
 
@@ -47,11 +47,12 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{args.out}: holds a log already (manifest.json); choose another --out")
     result = import_bag(args.bag, topics, args.out)
     print(
-        json.dumps(
+        dumps_json(
             {
                 "log": str(result.root),
                 "rows": result.rows,
                 "skipped": result.skips.as_dict(),
+                "notes": result.notes.as_dict(),
                 "unmapped_topics": result.unmapped,
             },
             indent=1,

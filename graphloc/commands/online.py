@@ -46,7 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def fingerprint(graph) -> str:
     """SHA-256 of what makes two graphs the same sequence of updates: the run's name, the
     effective configuration, every step's time and factor count."""
-    body = json.dumps(
+    body = json.dumps(  # a hash: the encoding of earlier checkpoints
         {
             "run": graph.run.name,
             "config": asdict(graph.config),
@@ -85,9 +85,10 @@ def read_checkpoint(path: Path, graph) -> dict:
             f"{path}: the checkpoint is of another run or configuration (run "
             f"{data.get('run')!r}); resume with the same RUN and options"
         )
-    if not (isinstance(done, int) and 0 <= done <= len(graph.steps)):
+    if not (type(done) is int and 0 <= done <= len(graph.steps)):  # true is no step count
         raise ValueError(
-            f"{path}: steps_done must be an integer in [0, {len(graph.steps)}], got {done!r}"
+            f"{path}: field 'steps_done' must be an integer in [0, {len(graph.steps)}], got "
+            f"{done!r}"
         )
     return data
 
@@ -96,6 +97,8 @@ def hooks(args: argparse.Namespace):
     """The checkpoint / resume callbacks `smooth.run_verb` hands to `solve`."""
     if args.checkpoint_every < 1:
         raise ValueError(f"--checkpoint-every must be >= 1, got {args.checkpoint_every}")
+    if args.checkpoint_every > 10**9:
+        raise ValueError(f"--checkpoint-every must be at most 1e9, got {args.checkpoint_every}")
     if args.checkpoint is None and args.resume is None:
         return None
     if args.resume is not None and not args.resume.is_file():

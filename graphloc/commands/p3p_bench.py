@@ -26,7 +26,7 @@ class P3PBenchOptions:
     seed: int = field(default=0, metadata={"help": "random seed of the instances"})
 
     def __post_init__(self):
-        check(self, integer={"n": 1, "seed": 0})
+        check(self, integer={"n": (1, 10_000_000), "seed": (0, 2**32 - 1)})
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -8,7 +8,6 @@ scripts/repro_seed000.py, scripts/repro_seed004.py, scripts/make_results.py."""
 
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +17,7 @@ from graphloc.config import add_config_arguments, check, config_from_args
 from graphloc.executor import BACKENDS
 from graphloc.experiments import TABLES
 from graphloc.exitcodes import OK
+from graphloc.structured import dumps_json
 
 HELP = "reproduce a seed table: seed000-table1/2/3, seed004-table1, seed001-exp1"
 
@@ -39,7 +39,7 @@ class ReproduceOptions:
     )
 
     def __post_init__(self):
-        check(self, integer={"workers": 1}, choices={"backend": BACKENDS})
+        check(self, integer={"workers": (1, 256)}, choices={"backend": BACKENDS})
 
 
 def add_arguments(parser) -> None:
@@ -65,6 +65,6 @@ def run(args) -> int:
     if cached:
         print(f"(cached: {args.out / '.cache'}; --no-cache recomputes)", file=sys.stderr)
     if result is not None:
-        (args.out / f"{args.table}.json").write_text(json.dumps(result, indent=2, default=float))
+        (args.out / f"{args.table}.json").write_text(dumps_json(result, indent=2, default=float))
     print(md)
     return OK

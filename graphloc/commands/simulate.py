@@ -9,7 +9,7 @@ import argparse
 from pathlib import Path
 
 from graphloc.commands.common import add_common_arguments
-from graphloc.config import add_config_arguments, config_values, option_fields
+from graphloc.config import add_config_arguments, config_from_args, config_values, option_fields
 from graphloc.exitcodes import OK
 
 HELP = (
@@ -61,7 +61,12 @@ def run(args: argparse.Namespace) -> int:
             f"{args.name}: unknown option(s) {' '.join(rest)}; {config_class.__name__} fields: "
             f"{', '.join(option_fields(config_class, exclude=('seed',)))}"
         )
+    if not 0 <= opts.seed < 2**32:
+        raise ValueError(f"--seed must be an integer in [0, 2**32 - 1], got {opts.seed}")
     overrides = config_values(config_class, opts, exclude=("seed",))
+    # the config built once here, so that a value out of its range is named by option or by
+    # config file, line and field before anything is simulated
+    config_from_args(config_class, opts, exclude=("seed",))
     if opts.out is None:
         raise ValueError(f"{args.name}: --out DIR is required")
     args.out = opts.out  # announced by graphloc.cli when the run is written

@@ -24,6 +24,7 @@ from graphloc.commands.common import Interrupted
 from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, OK
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph.options import RunOptions
+from graphloc.structured import dumps_json
 
 HELP = (
     "batch factor-graph smoothing of a team's run (log dir or MRCLAM dir): TUM, metrics JSON, PNGs"
@@ -158,7 +159,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
         config = opts.graph_config()
         from graphloc.datasets import open_run
         from graphloc.manifest import check_noise_params
-        from graphloc.pipelines.report import evaluate, groundtruths, write_outputs
+        from graphloc.pipelines.report import evaluate, groundtruths, write_metrics, write_outputs
         from graphloc.pipelines.team_graph import build_graph, default_lag, solve
 
         noise = opts.noise()
@@ -173,7 +174,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
         stop.phase = "writing"
         truth = groundtruths(run)
         metrics = evaluate(result, run, truth, stop, opts.align)
-        metrics["config"] = json.loads(json.dumps(asdict(config), default=str))
+        metrics["config"] = json.loads(dumps_json(asdict(config), default=str))
         metrics["options"] = values
         metrics["landmark_map"] = landmark_map(run, config)
         if stop.signal is not None:
@@ -191,14 +192,14 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
             metrics["skipped_outputs"] += recordings
         if stop.signal is not None:  # metrics.json says who stopped the run and what is missing
             metrics["stopped_by"] = signal.Signals(stop.signal).name
-            (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=str) + "\n")
+            write_metrics(out, metrics)
         summary = {
             name: round(v[mode]["ate_rmse"], 4)
             for name, v in metrics["per_robot"].items()
             if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]
         }
         print(
-            json.dumps(
+            dumps_json(
                 {
                     "mode": mode,
                     "partial": metrics["partial"],
@@ -207,6 +208,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
                     "decisions": metrics["decisions"],
                     "realtime_factor": round(metrics["realtime_factor"], 1),
                     "skipped": metrics["skipped"]["counts"],
+                    "notes": metrics["notes"]["counts"],
                     "landmark_map": metrics["landmark_map"],
                     **(
                         {"skipped_outputs": metrics["skipped_outputs"]}

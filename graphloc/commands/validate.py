@@ -7,12 +7,12 @@ solver's and the outputs' (nothing is solved)."""
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from graphloc.commands.smooth import landmark_map
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph.options import OUTPUTS, SOLVER, RunOptions
+from graphloc.structured import dumps_json
 
 HELP = "check a run (log or MRCLAM dir): what every table contributes to the graph, what is skipped"
 
@@ -50,13 +50,14 @@ def run(args: argparse.Namespace) -> int:
             "groundtruth": team.groundtruth[r] is not None,
         }
     print(
-        json.dumps(
+        dumps_json(
             {
                 "run": team.name,
                 "robots": robots,
                 "rows_used": team.contributions,
                 "graph": graph.counts,
                 "skipped": graph.skips.as_dict(),
+                "notes": team.notes.as_dict(),
                 "landmark_map": landmark_map(team, config),
             },
             indent=1,

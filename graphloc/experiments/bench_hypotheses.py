@@ -22,7 +22,6 @@ graphloc.experiments.bench_hypotheses_report.)
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import resource
 import time
@@ -45,6 +44,7 @@ from graphloc.experiments.hypotheses import CELLS, TableIIIConfig, summarize, tr
 from graphloc.experiments.sizes import run_sizes
 from graphloc.hypotheses import HypothesisTracker, TrackerConfig
 from graphloc.seams import Odometry
+from graphloc.structured import dumps_json
 
 
 def long_run(args) -> dict:
@@ -258,12 +258,12 @@ def main(argv=None) -> int:
         if longrun is None
         else longrun["wall_ms"]["all"]["p99"] < 5.0,
     }
-    (args.out / "bench_hypotheses.json").write_text(json.dumps(result, indent=2))
+    (args.out / "bench_hypotheses.json").write_text(dumps_json(result, indent=2))
     md = markdown(summary, longrun, args)
     (args.out / "bench_hypotheses.md").write_text(md)
     plots(summary, longrun, args.out)
     print(md)
-    print(json.dumps({"peers": result["peers"], "targets": result["targets"]}))
+    print(dumps_json({"peers": result["peers"], "targets": result["targets"]}))
     return 0
 
 

@@ -22,7 +22,6 @@ and `graphloc.pipelines.team_graph` (SE(3) poses, planar robots held to the floo
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import sys
@@ -36,6 +35,7 @@ from graphloc.datasets import open_run
 from graphloc.pipelines.report import evaluate, write_outputs
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, default_lag, solve
 from graphloc.plots import Series, plot_series
+from graphloc.structured import dumps_json
 
 CONFIGS = {
     "landmarks+inter_robot": (GraphConfig(), ("batch", "online")),
@@ -166,7 +166,7 @@ def main(argv=None) -> int:
     bar["pass_all"] = all(v for k, v in bar.items() if k.startswith("pass_"))
     report["bar"] = bar
     report["load_average_at_end"] = os.getloadavg()
-    (out / "bench_mrclam.json").write_text(json.dumps(report, indent=2) + "\n")
+    (out / "bench_mrclam.json").write_text(dumps_json(report, indent=2) + "\n")
 
     series = []
     x = np.arange(len(robots), dtype=float)
@@ -195,6 +195,6 @@ def main(argv=None) -> int:
         f"{run.name}: ATE per robot",
         logy=True,
     )
-    print(json.dumps(bar, indent=1))
+    print(dumps_json(bar, indent=1))
     print(f"wrote {out / 'bench_mrclam.json'}")
     return 0 if bar["pass_all"] else 1

@@ -35,6 +35,7 @@ from graphloc.experiments.scale import (
 from graphloc.experiments.bench_scale_report import markdown, plot
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve, warm_start
+from graphloc.structured import dumps_json
 
 
 def main(argv=None) -> int:
@@ -77,7 +78,7 @@ def main(argv=None) -> int:
         report = json.loads(args.from_json.read_text())
         args.markdown.write_text(markdown(report))
         plot(report, args.markdown.with_suffix(".png"))
-        args.markdown.with_suffix(".json").write_text(json.dumps(report, indent=2) + "\n")
+        args.markdown.with_suffix(".json").write_text(dumps_json(report, indent=2) + "\n")
         return 0
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -112,7 +113,7 @@ def main(argv=None) -> int:
         long = online_summary(result, cpu, samples, run, None)
         long["copies"] = args.copies
         del result
-        print("long run", json.dumps(long), flush=True)
+        print("long run", dumps_json(long), flush=True)
 
     # batch: graphloc vs GTSAM alone, same graph, same process
     c0 = time.process_time()
@@ -138,14 +139,14 @@ def main(argv=None) -> int:
         "ate_rmse_m": batch_ate,
         "realtime_factor": metrics["realtime_factor"],
     }
-    print("batch", json.dumps(report["batch"]), flush=True)
+    print("batch", dumps_json(report["batch"]), flush=True)
 
     report["online"] = {}
     for lag in sorted({float(x) for x in args.lags.split(",") if x} | {DEFAULT_LAG}):
         result, cpu, samples = online_profile(graph, lag or None)
         summary = online_summary(result, cpu, samples, run, batch_ate)
         report["online"][f"{lag:g}"] = summary
-        print("online lag", lag, json.dumps(summary), flush=True)
+        print("online lag", lag, dumps_json(summary), flush=True)
         if lag == DEFAULT_LAG:  # where along the run the default lag loses to batch, and why
             report["lookahead"] = {
                 "robots": [robot.name for robot in run.robots],
@@ -157,14 +158,14 @@ def main(argv=None) -> int:
     # the default lag solved again: each step's least CPU time over the repeats
     if args.repeats > 0:
         report["online_repeated"] = repeated_online_cpu(graph, DEFAULT_LAG, args.repeats)
-        print("repeated", json.dumps(report["online_repeated"]), flush=True)
+        print("repeated", dumps_json(report["online_repeated"]), flush=True)
 
     # the default lag at smaller relinearization thresholds: ATE against CPU
     report["online_relinearize"] = {}
     for thr in (float(x) for x in args.relinearize.split(",") if x):
         res, cpu, samples = online_profile(graph, DEFAULT_LAG, relinearize_translation=thr)
         report["online_relinearize"][f"{thr:g}"] = online_summary(res, cpu, samples, run, batch_ate)
-        print("relinearize", thr, json.dumps(report["online_relinearize"][f"{thr:g}"]), flush=True)
+        print("relinearize", thr, dumps_json(report["online_relinearize"][f"{thr:g}"]), flush=True)
 
     # the default lag with other marginalization batch sizes: latency trend against CPU
     report["online_marginalize_every"] = {}
@@ -172,7 +173,7 @@ def main(argv=None) -> int:
         res, cpu, samples = online_profile(graph, DEFAULT_LAG, marginalize_every=every)
         summary = online_summary(res, cpu, samples, run, batch_ate)
         report["online_marginalize_every"][f"{every:g}"] = summary
-        print("marginalize every", every, json.dumps(summary), flush=True)
+        print("marginalize every", every, dumps_json(summary), flush=True)
 
     base = report["online"].get(f"{DEFAULT_LAG:g}")
     if long is not None and base:
@@ -185,7 +186,7 @@ def main(argv=None) -> int:
     report["rss_mb_end"] = rss_mb()
     report["load_average_at_end"] = os.getloadavg()
     path = out / "bench_scale.json"
-    path.write_text(json.dumps(report, indent=2, default=str) + "\n")
+    path.write_text(dumps_json(report, indent=2, default=str) + "\n")
     print(f"wrote {path}")
     if args.markdown is not None:  # the doc and its JSON side by side
         args.markdown.write_text(markdown(report))

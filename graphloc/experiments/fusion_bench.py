@@ -23,7 +23,6 @@ through scripts/bench_fusion.py (which keeps Open3D to one thread per process).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import time
@@ -40,6 +39,7 @@ from graphloc.experiments.fusion_bench_real import (
 )
 from graphloc.experiments.fusion_calibration import main_calibrate
 from graphloc.experiments.fusion_envelope import main_envelope
+from graphloc.structured import dumps_json
 
 METHODS = ("icp_no_guess", "fpfh_ransac", "graphloc")
 ROT_OK_DEG = 2.0
@@ -289,7 +289,7 @@ def main(argv=None) -> int:
         "summary": summary,
         "trials": rows,
     }
-    (out / "bench_fusion.json").write_text(json.dumps(report, indent=1))
+    (out / "bench_fusion.json").write_text(dumps_json(report, indent=1))
     plot(rows, out / "bench_fusion.png")
     for v, s in summary.items():
         line = " | ".join(

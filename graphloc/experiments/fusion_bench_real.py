@@ -24,7 +24,6 @@ NEES of graphloc's accepted results against the chi-square 95% band of their mea
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import time
@@ -44,6 +43,7 @@ from graphloc.experiments.fusion_report_real import (
     markdown_real,
     plot_real,
 )
+from graphloc.structured import dumps_json
 
 REAL_OVERLAPS = (0.6, 0.3)
 REAL_HINTS = ((3.0, 0.05), (10.0, 0.20))
@@ -362,8 +362,8 @@ def main_real(args) -> int:
         doc = Path(args.doc)
         report["png"] = str(doc.with_suffix(".png"))
         summary_only = {k: v for k, v in report.items() if k != "trials"}
-        doc.with_suffix(".json").write_text(json.dumps(summary_only, indent=1) + "\n")
-    (out / "bench_fusion_real.json").write_text(json.dumps(report, indent=1))
+        doc.with_suffix(".json").write_text(dumps_json(summary_only, indent=1) + "\n")
+    (out / "bench_fusion_real.json").write_text(dumps_json(report, indent=1))
     plot_real(rows, Path(report["png"]), Path(args.fragment).name if args.fragment else None)
     text = markdown_real(report, command)
     if args.doc:

@@ -10,7 +10,6 @@ tests/test_fusion_real.py checks they agree):
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -27,6 +26,7 @@ from graphloc.experiments.fusion_bench_real import (
     run_real_trial,
     view_options,
 )
+from graphloc.structured import dumps_json
 
 
 def fit_calibration(errors: np.ndarray, P: np.ndarray, Q: np.ndarray) -> dict:
@@ -150,7 +150,7 @@ def main_calibrate(args) -> int:
         "png": str(png),
     }
     path = Path(args.calibration_json)
-    path.write_text(json.dumps(report, indent=1) + "\n")
-    print(json.dumps({k: report[k] for k in ("fit", "cells")}, indent=1))
+    path.write_text(dumps_json(report, indent=1) + "\n")
+    print(dumps_json({k: report[k] for k in ("fit", "cells")}, indent=1))
     print(f"wrote {path} and {png}")
     return 0

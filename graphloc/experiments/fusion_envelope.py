@@ -13,7 +13,6 @@ a PNG of success and false-accept rates per condition, and the markdown:
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from pathlib import Path
@@ -29,6 +28,7 @@ from graphloc.experiments.fusion_bench_real import (
     summarize_real,
 )
 from graphloc.experiments.real_views import BUNDLED_FRAGMENTS
+from graphloc.structured import dumps_json
 
 # (noise [m], kept fraction): noisier and cleaner views than the protocol's, then sparser and
 # denser ones
@@ -201,8 +201,8 @@ def main_envelope(args, views=ENVELOPE_VIEWS) -> int:
         "entries": entries,
     }
     if doc:
-        doc.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
-    (out / "bench_fusion_envelope.json").write_text(json.dumps(dict(report, trials=rows), indent=1))
+        doc.with_suffix(".json").write_text(dumps_json(report, indent=1) + "\n")
+    (out / "bench_fusion_envelope.json").write_text(dumps_json(dict(report, trials=rows), indent=1))
     plot_envelope(entries, png)
     text = markdown_envelope(report)
     if doc:

@@ -7,8 +7,8 @@ one writer of a benchmark's JSON + markdown (`write_report`)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
+from graphloc.structured import dumps_json
 
 
 def fmt(x, spec: str = ".2e") -> str:
@@ -244,7 +244,7 @@ def write_report(out: Path, stem: str, payload: dict, text: str, doc: Path | Non
     """A benchmark's OUT/STEM.json (payload) and OUT/STEM.md (text); the markdown also at `doc`
     (a generated page in docs/) when given."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / f"{stem}.json").write_text(json.dumps(payload, indent=1))
+    (out / f"{stem}.json").write_text(dumps_json(payload, indent=1))
     (out / f"{stem}.md").write_text(text)
     if doc is not None:
         doc.write_text(text)

@@ -5,7 +5,6 @@ Used by scripts/bench_p3p.py, `graphloc p3p-bench` and tests/test_p3p.py."""
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -17,6 +16,7 @@ from tqdm import tqdm
 
 from graphloc.geometry.p3p import MAX_CANDIDATES, METHODS, solve_p3p
 from graphloc.plots import plt
+from graphloc.structured import dumps_json
 
 RECOVERY_TOL = 1e-6  # rotation (Frobenius of R - R_true) and translation [m] errors
 
@@ -232,7 +232,7 @@ def run_p3p_benchmark(
         "ratios": ratios,
         "targets_met": targets,
     }
-    (out_dir / "p3p_bench.json").write_text(json.dumps(result, indent=2))
+    (out_dir / "p3p_bench.json").write_text(dumps_json(result, indent=2))
     (out_dir / "p3p_bench.md").write_text(markdown_table(result))
     plot_benchmark(result, out_dir / "p3p_bench.png")
     return result

@@ -15,7 +15,6 @@ Writes <out>/seed000.json, <out>/seed000.md, <out>/table1_errors.png,
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -40,6 +39,7 @@ from graphloc.experiments.sizes import RunSizes, run_sizes
 from graphloc.factors.bearing import bearing_linearize_cost
 from graphloc.plots import plt
 from graphloc.vision.mutual import localize_three
+from graphloc.structured import dumps_json
 
 PAPER_TABLE_II_MS = {"deterministic": 1.7, "update": 0.35}
 
@@ -254,7 +254,7 @@ def run(out: Path, sizes: RunSizes, workers: int, progress: bool = True) -> dict
             "Table III: table3_convergence.png.\n",
         ]
     )
-    (out / "seed000.json").write_text(json.dumps(result, indent=2, default=float))
+    (out / "seed000.json").write_text(dumps_json(result, indent=2, default=float))
     (out / "seed000.md").write_text(md)
     plot_table_i(t1, out / "table1_errors.png")
     plot_table_iii(t3, out / "table3_convergence.png")

@@ -22,7 +22,6 @@ markdown table.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -48,6 +47,7 @@ from graphloc.vision.target import (
     predicted_marker_pixels,
     target_hypotheses,
 )
+from graphloc.structured import dumps_json
 
 K_R = 2  # regression samples (seed IV-A)
 MAX_COAST = 5  # frames a track survives without a pose
@@ -310,7 +310,7 @@ def reproduce(
         },
         "frames": runs,
     }
-    (out / "repro_seed001.json").write_text(json.dumps(result, indent=1))
+    (out / "repro_seed001.json").write_text(dumps_json(result, indent=1))
     plot(runs, out / "repro_seed001_error_vs_distance.png")
     return result
 

@@ -59,7 +59,6 @@ OUT/error_curves.png, OUT/scale_error.png.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from dataclasses import asdict, replace
@@ -93,6 +92,7 @@ from graphloc.experiments.seed003_report import METHOD_NOTE, markdown, write_plo
 from graphloc.pipelines.cooperative_sfm import CooperativeSfmConfig, run_cooperative_sfm
 from graphloc.vision.features import FeatureConfig
 from graphloc.vision.teammate import measure_frames
+from graphloc.structured import dumps_json
 
 
 def run_trial(seed: int, n_values: list[int], scenario: CrawlerPairConfig) -> dict:
@@ -388,7 +388,7 @@ def main(argv=None) -> int:
         "linearize_cost": cost,
         **result,
     }
-    (out / "bench_seed003.json").write_text(json.dumps(payload, indent=1, default=str))
+    (out / "bench_seed003.json").write_text(dumps_json(payload, indent=1, default=str))
     (out / "bench_seed003.md").write_text(markdown(result, n_values))
     write_plots(result["per_n"], n_values, out)
     if args.doc:

@@ -13,7 +13,6 @@ Writes <out>/seed004.json, <out>/seed004.md, <out>/table1_rms.png, <out>/fig3_tr
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -33,6 +32,7 @@ from graphloc.experiments.front_door import simulated_run, truth_at
 from graphloc.experiments.sizes import RunSizes, run_sizes
 from graphloc.pipelines.team_graph import build_graph, solve
 from graphloc.plots import plt
+from graphloc.structured import dumps_json
 
 # (focal mm, pixel noise variance) -> (mean, sigma) of the P3P position error [m], Table 1
 PAPER_SEED004_TABLE_1 = {
@@ -228,7 +228,7 @@ def run(out: Path, sizes: RunSizes, workers: int, progress: bool = True) -> dict
         runs=sizes.seed004_runs, frames=sizes.seed004_frames, workers=workers, progress=progress
     )
     md = markdown.seed004(r) + "\nTable 1 plot: table1_rms.png; Fig. 3 style: fig3_track.png.\n"
-    (out / "seed004.json").write_text(json.dumps(r, indent=2, default=float))
+    (out / "seed004.json").write_text(dumps_json(r, indent=2, default=float))
     (out / "seed004.md").write_text(md)
     plot_table(r, out / "table1_rms.png")
     plot_fig3(out / "fig3_track.png")

@@ -27,6 +27,7 @@ from graphloc.experiments import seed_baselines as sb
 from graphloc.experiments.hypotheses import TableIIIConfig
 from graphloc.experiments.sizes import run_sizes
 from graphloc.plots import plt
+from graphloc.structured import dumps_json
 
 SWEEP_SIZES = {
     False: {"t1_trials": 1000, "t3_runs": 12, "s4_runs": 150, "s4_frames": 4},
@@ -202,7 +203,7 @@ def run(out: Path, quick: bool, workers: int, docs: bool = True, progress: bool 
     result["runs"] = graphloc_runs(sweeps, quick, workers, progress)
     result["wall_time_s"] = time.perf_counter() - t0
     run_more(result, PARTS, quick, workers, progress)
-    (out / "seed_baselines.json").write_text(json.dumps(result, indent=1, default=_json))
+    (out / "seed_baselines.json").write_text(dumps_json(result, indent=1, default=_json))
     return render(result, out, docs)
 
 
@@ -246,7 +247,7 @@ def render(result: dict, out: Path, docs: bool = True) -> dict:
             sections.plot(result, DOC.parent / MORE_PNG)
         if "bounds" in result:
             seed_baselines_bounds_report.plot(result["bounds"], DOC.parent)
-        DOC_JSON.write_text(json.dumps(result, separators=(",", ":"), default=_json))
+        DOC_JSON.write_text(dumps_json(result, separators=(",", ":"), default=_json))
         DOC.write_text(md)
     result["markdown"] = md
     return result
@@ -301,7 +302,7 @@ def main(argv=None) -> int:
         r = json.loads(args.previous.read_text())
         run_more(r, parts, args.quick, args.workers)
         args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "seed_baselines.json").write_text(json.dumps(r, indent=1, default=_json))
+        (args.out / "seed_baselines.json").write_text(dumps_json(r, indent=1, default=_json))
         r = render(r, args.out, docs=not args.no_docs)
     elif args.render:
         r = json.loads(args.render.read_text())
@@ -311,7 +312,7 @@ def main(argv=None) -> int:
         for table in args.rerun:
             rerun(r, table, args.workers)
         if refresh(r, args.workers) or args.resweep or args.rerun:
-            (args.out / "seed_baselines.json").write_text(json.dumps(r, indent=1, default=_json))
+            (args.out / "seed_baselines.json").write_text(dumps_json(r, indent=1, default=_json))
         r = render(r, args.out, docs=not args.no_docs)
     else:
         r = run(args.out, args.quick, args.workers, docs=not args.no_docs)

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.experiments.team_runs import FENG_CELLS, KAUSHIK_CELLS
+from graphloc.structured import dumps_json
 
 
 def _pooled(rows: list, key: str, frames: str) -> float | None:
@@ -320,7 +321,7 @@ def write(rows: list, out: Path, doc: Path | None, command: str) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     summary = summarize(rows)
     (out / "team_runs.json").write_text(
-        json.dumps({"summary": summary, "runs": rows}, indent=1, default=str) + "\n"
+        dumps_json({"summary": summary, "runs": rows}, indent=1, default=str) + "\n"
     )
     plot(summary, out / "team_runs_feng.png")
     text = markdown(summary, command)

@@ -47,7 +47,12 @@ class TrackerConfig:
     def __post_init__(self):
         check(
             self,
-            integer={"max_hypotheses": 1, "full_count": 1, "max_misses": 0, "gn_iterations": 0},
+            integer={
+                "max_hypotheses": (1, 1000),
+                "full_count": (1, 1000),
+                "max_misses": (0, 1_000_000),
+                "gn_iterations": (0, 1000),
+            },
             interval={
                 "commit_threshold": (0.5, 1.0, "[)"),
                 "release_threshold": (0.0, "commit_threshold", "(]"),

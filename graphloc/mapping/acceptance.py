@@ -92,10 +92,10 @@ class RegistrationDecision:
 
     def as_dict(self) -> dict:
         return {
-            "accepted": self.accepted,
+            "accepted": bool(self.accepted),
             "reasons": list(self.reasons),
             "checks": {
-                k: {"value": v[0], "threshold": v[1], "passed": v[2]}
+                k: {"value": float(v[0]), "threshold": float(v[1]), "passed": bool(v[2])}
                 for k, v in self.checks.items()
             },
             "best_candidate": self.best,

@@ -25,11 +25,13 @@ def open3d_points(path: Path) -> np.ndarray:
     return pcd.point.positions.numpy().astype(float)
 
 
-def xyz_points(path: Path) -> np.ndarray:
+def xyz_points(path: Path, max_points: int | None = None) -> np.ndarray:
     """An XYZ file (`x y z` a line) through NumPy: Open3D's text reader corrupts its heap on a
-    number cut short (a truncated file ending in `1.5e`) and the interpreter aborts later."""
+    number cut short (a truncated file ending in `1.5e`) and the interpreter aborts later.
+    More than `max_points` lines is a ValueError naming the file."""
     with open(path, "rb") as fh:
         lines = [line for line in fh.read().split(b"\n") if line.strip()]
+    _too_many(path, len(lines), max_points)
     _data_check_rows(path, lines, len(lines), 3)
     return np.array(b" ".join(lines).split(), dtype=float).reshape(-1, 3)
 
@@ -97,6 +99,14 @@ def _data_check_rows(path: Path, lines: list, n: int, k: int) -> None:
         )
 
 
+def _too_many(path: Path, points: int, max_points: int | None) -> None:
+    if max_points is not None and points > max_points:
+        raise ValueError(
+            f"{path}: {points} points declared, beyond the limit of {max_points} points for "
+            f"one scan (graphloc.mapping.io.MAX_SCAN_POINTS); thin the cloud first"
+        )
+
+
 def _numbers(line: bytes, k: int) -> bool:
     try:
         return np.array(line.split(), dtype=float).size == k
@@ -104,9 +114,10 @@ def _numbers(line: bytes, k: int) -> bool:
         return False
 
 
-def ply_check(path: Path) -> int:
-    """Check a PLY file's header (format, a vertex element) and its data against it
-    (`_data_check`; with list properties, at least a byte per property); its vertex count."""
+def ply_check(path: Path, max_points: int | None = None) -> int:
+    """Check a PLY file's header (format, a vertex element, at most `max_points` vertices) and
+    its data against it (`_data_check`; with list properties, at least a byte per property);
+    its vertex count."""
     head = _header(path, b"ply", b"end_header")
     if head is None:
         raise ValueError(f"{path}: not a PLY file, or its header has no end_header line")
@@ -128,6 +139,7 @@ def ply_check(path: Path) -> int:
             f"{path}: corrupt PLY header: no 'element vertex N' or an unknown format "
             f"{shown(fmt.decode('latin-1'))}"
         )
+    _too_many(path, vertices, max_points)
     rows = sum(e[1] for e in elements)
     if fmt == b"ascii":  # rows of numbers: the vertices if they come first, without lists
         first = elements[0]
@@ -140,10 +152,11 @@ def ply_check(path: Path) -> int:
     return vertices
 
 
-def pcd_check(path: Path) -> None:
-    """Check a PCD file's header (POINTS, SIZE, COUNT, DATA ascii / binary / binary_compressed)
-    and its data against it (`_data_check`; compressed: the block's declared sizes). Open3D
-    reads a header cut short as a cloud of garbage (once 153 million points)."""
+def pcd_check(path: Path, max_points: int | None = None) -> int:
+    """Check a PCD file's header (POINTS, SIZE, COUNT, DATA ascii / binary / binary_compressed;
+    at most `max_points` points) and its data against it (`_data_check`; compressed: the
+    block's declared sizes); its point count. Open3D reads a header cut short as a cloud of
+    garbage (once 153 million points)."""
     head = _header(path, b"#", b"DATA") or _header(path, b"VERSION", b"DATA")
     if head is None:  # Open3D would guess the rest (and once asked for all memory)
         raise ValueError(f"{path}: not a PCD file, or its header has no DATA line")
@@ -164,6 +177,7 @@ def pcd_check(path: Path) -> None:
             f"{path}: corrupt PCD header: WIDTH x HEIGHT = POINTS, SIZE, COUNT and DATA (ascii, "
             f"binary or binary_compressed) must be given and agree"
         ) from None
+    _too_many(path, rows, max_points)
     stride = sum(a * b for a, b in zip(sizes, counts))
     if fmt == b"binary_compressed":  # uint32 compressed size, uint32 uncompressed size, block
         with open(path, "rb") as fh:
@@ -177,6 +191,7 @@ def pcd_check(path: Path) -> None:
                 f"bytes), the compressed block {unpacked} bytes from {packed} bytes; the file "
                 f"holds {held} bytes of it"
             )
-        return
+        return rows
     binary = fmt == b"binary"
     _data_check(path, offset, rows, rows * stride if binary else None, (rows, sum(counts)))
+    return rows

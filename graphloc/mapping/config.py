@@ -24,6 +24,18 @@ class OdometryConfig:
     map_voxel: float = 0.03  # voxel of the accumulated local map
     threads: int = 1
 
+    def __post_init__(self):
+        check(
+            self,
+            interval={
+                "max_range": (0.0, 1000.0, "(]"),
+                "min_range": (0.0, "max_range", "[)"),
+                "voxel_size": (1e-3, 10.0, "[]"),
+                "map_voxel": (1e-3, 10.0, "[]"),
+            },
+            integer={"threads": (0, 256)},  # 0: KISS-ICP chooses
+        )
+
 
 @dataclass(frozen=True)
 class RegistrationConfig:
@@ -154,13 +166,16 @@ class RegistrationConfig:
                 "polish_kernel",
             ),
             integer={
-                "polish_iterations": 1,
-                "polish_rounds": 1,
-                "polish_max_nn": 3,
-                "fine_iterations": 1,
-                "fine_stride": 1,
+                **dict.fromkeys(("polish_iterations", "polish_rounds", "fine_stride"), (1, 1000)),
+                **dict.fromkeys(("nb_neighbors", "max_nn", "fpfh_max_nn"), (1, 1000)),
+                "polish_max_nn": (3, 1000),
+                "fine_iterations": (1, 10_000),
+                "ransac_iterations": (1, 10_000_000),
             },
         )
+        if not all(1 <= n <= 10_000 for n in self.max_iterations):
+            bad = self.max_iterations
+            raise ValueError(f"RegistrationConfig.max_iterations must be in [1, 10000], got {bad}")
         n = len(self.scales)
         if n == 0 or len(self.max_correspondence) != n or len(self.max_iterations) != n:
             raise ValueError(
@@ -267,7 +282,7 @@ class AcceptanceConfig:
                 "contradiction_block",
             ),
             nonnegative=("min_cost_margin_se", "min_conditioning"),
-            integer={"contradiction_min_points": 1},
+            integer={"contradiction_min_points": (1, 1_000_000)},
             interval={
                 "min_overlap": (0.0, 1.0, "[]"),
                 "min_inlier_ratio": (0.0, 1.0, "[]"),

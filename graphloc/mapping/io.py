@@ -1,15 +1,24 @@
 """Files of the mapping pipeline: read a scan (PLY / PCD / XYZ) as an (N,3) array (checked for a
 plausible scale: `read_scan`; robots' sequences for one unit: `check_scan_units`), write a
 fused map whose points carry the robot that saw them (`robot` attribute in PLY and PCD, plus a
-per-robot colour), and SE(3) trajectories as TUM files (via evo)."""
+per-robot colour), and SE(3) trajectories as TUM files (via evo).
+
+Sizes (docs/log_format.md, "Scan files"): a scan file over MAX_SCAN_BYTES or declaring more
+than MAX_SCAN_POINTS points is refused before it is read (a ValueError naming the file and the
+limit); a scan of more than POINT_BUDGET points is thinned on read to POINT_BUDGET points drawn
+at random (`thin_to_budget`: seeded, so one file always gives the same points), a warning on
+the terminal and a count (`scan_thinned`, points removed) in the caller's notes -- the
+registration, KISS-ICP and the team graph then work on at most POINT_BUDGET points a scan."""
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
 import open3d as o3d
 
+from graphloc.names import written_whole
 from graphloc.mapping.cloud_files import open3d_points, pcd_check, ply_check, xyz_points
 from graphloc.textio import check_file, csv_fields, shown, text_lines
 
@@ -23,6 +32,10 @@ SCAN_RANGE_M = (0.05, 500.0)  # plausible median range of one LiDAR / depth scan
 MAX_SCALE_RATIO = 20.0
 UNIT_FACTORS = {"inches": 39.37, "centimetres": 100.0, "millimetres": 1000.0}
 ROBOT_COLOURS = np.array([[0.85, 0.15, 0.1], [0.1, 0.3, 0.9], [0.1, 0.7, 0.2], [0.6, 0.2, 0.7]])
+MAX_SCAN_BYTES = 2 << 30  # a scan file larger is refused before it is read
+MAX_SCAN_POINTS = 20_000_000  # points a scan file may declare (PLY / PCD header, XYZ lines)
+POINT_BUDGET = 500_000  # points of one scan kept on read; a denser scan is thinned at random
+LOG = logging.getLogger("graphloc.scans")
 
 
 def read_points(path) -> np.ndarray:
@@ -35,16 +48,27 @@ def read_points(path) -> np.ndarray:
     if path.suffix.lower() not in SCAN_SUFFIXES:
         raise ValueError(f"{path}: unsupported point cloud suffix (use {', '.join(SCAN_SUFFIXES)})")
     check_file(path, what="point cloud")
+    size = path.stat().st_size
+    if size > MAX_SCAN_BYTES:
+        raise ValueError(
+            f"{path}: {size} bytes, beyond the limit of {MAX_SCAN_BYTES} bytes for one scan "
+            f"(graphloc.mapping.io.MAX_SCAN_BYTES); split or thin the cloud first"
+        )
     suffix = path.suffix.lower()
+    limit = MAX_SCAN_POINTS
     declared = (
-        ply_check(path) if suffix == ".ply" else pcd_check(path) if suffix == ".pcd" else None
+        ply_check(path, limit)
+        if suffix == ".ply"
+        else pcd_check(path, limit)
+        if suffix == ".pcd"
+        else None
     )
-    pts = xyz_points(path) if suffix == ".xyz" else open3d_points(path)
+    pts = xyz_points(path, MAX_SCAN_POINTS) if suffix == ".xyz" else open3d_points(path)
     if len(pts) == 0:
         raise ValueError(f"{path}: no points could be read (not a {path.suffix} point cloud?)")
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"{path}: positions have shape {pts.shape}, expected (N,3)")
-    if declared is not None and declared != len(pts):
+    if suffix == ".ply" and declared != len(pts):
         raise ValueError(
             f"{path}: truncated or corrupt: the PLY header declares {declared} vertices, "
             f"{len(pts)} could be read"
@@ -58,9 +82,10 @@ def read_points(path) -> np.ndarray:
     return pts
 
 
-def read_scan_sequence(folder) -> tuple[list[np.ndarray], list[Path], int]:
+def read_scan_sequence(folder, notes=None) -> tuple[list[np.ndarray], list[Path], int]:
     """All scans of a folder in file-name order, each checked by `read_scan` (non-finite points
-    dropped and counted). Returns (scans, files, n_dropped_nonfinite)."""
+    dropped and counted; a scan beyond POINT_BUDGET thinned, counted in `notes`, a
+    `graphloc.textio.SkipReport`). Returns (scans, files, n_dropped_nonfinite)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: not a directory of scans")
@@ -69,21 +94,22 @@ def read_scan_sequence(folder) -> tuple[list[np.ndarray], list[Path], int]:
         raise ValueError(f"{folder}: no {'/'.join(SCAN_SUFFIXES)} scans")
     scans, dropped = [], 0
     for p in files:
-        pts, n = read_scan(p)
+        pts, n = read_scan(p, notes)
         scans.append(pts)
         dropped += n
     return scans, files, dropped
 
 
-def read_scan(path) -> tuple[np.ndarray, int]:
-    """One scan in metres in its sensor's frame (`read_points`): its finite points and how many
-    non-finite ones (no return) were dropped. ValueError naming the file unless it has at least
-    MIN_POINTS finite points, not all within 1 mm of each other, with a median range (distance
-    from the sensor) within SCAN_RANGE_M -- a scan in millimetres (a room's median range in the
+def read_scan(path, notes=None, warn: bool = True) -> tuple[np.ndarray, int]:
+    """One scan in metres in its sensor's frame (`read_points`): its finite points (thinned to
+    POINT_BUDGET, `thin_to_budget`, counted in `notes` when given) and how many non-finite ones
+    (no return) were dropped. ValueError naming the file unless it has at least MIN_POINTS
+    finite points, not all within 1 mm of each other, with a median range (distance from the
+    sensor) within SCAN_RANGE_M -- a scan in millimetres (a room's median range in the
     thousands) or kilometres is caught here, before any registration."""
     pts = read_points(path)
     ok = np.isfinite(pts).all(axis=1)
-    pts = pts[ok]
+    pts = thin_to_budget(pts[ok], path, notes, warn=warn)
     if len(pts) < MIN_POINTS:
         raise ValueError(f"{path}: {len(pts)} finite points, at least {MIN_POINTS} needed")
     if np.ptp(pts, axis=0).max() < 1e-3:
@@ -97,6 +123,30 @@ def read_scan(path) -> tuple[np.ndarray, int]:
             f"scan in metres (in {unit}?); convert the scans to metres"
         )
     return pts, int((~ok).sum())
+
+
+def thin_to_budget(
+    pts: np.ndarray, path, notes=None, budget: int | None = None, warn: bool = True
+) -> np.ndarray:
+    """`pts` if it has at most `budget` (POINT_BUDGET) points, else `budget` of them drawn at
+    random without replacement (a generator seeded by the point count, so one file always gives
+    the same points; kept in file order), with a warning naming the file on the terminal
+    (unless `warn` is False: a file read again) and the points removed counted as
+    `scan_thinned` in `notes`."""
+    budget = POINT_BUDGET if budget is None else int(budget)
+    if len(pts) <= budget:
+        return pts
+    keep = np.sort(np.random.default_rng(len(pts)).choice(len(pts), budget, replace=False))
+    removed = len(pts) - budget
+    message = (
+        f"{path}: {len(pts)} points, thinned at random to the budget of {budget} "
+        f"(graphloc.mapping.io.POINT_BUDGET)"
+    )
+    if warn:
+        LOG.warning("%s", message)
+    if notes is not None:
+        notes.add("scan_thinned", message, removed)
+    return pts[keep]
 
 
 def scan_extent(pts: np.ndarray) -> float:
@@ -183,8 +233,9 @@ def write_labelled_cloud(path, points: np.ndarray, robot: np.ndarray) -> None:
     pcd.point.colors = o3d.core.Tensor(rgb)  # uint8: PLY viewers expect 0-255 (uchar r/g/b)
     pcd.point.robot = o3d.core.Tensor(robot)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if not o3d.t.io.write_point_cloud(str(path), pcd):
-        raise ValueError(f"{path}: Open3D could not write the point cloud")
+    with written_whole(path) as tmp:
+        if not o3d.t.io.write_point_cloud(str(tmp), pcd):
+            raise ValueError(f"{path}: Open3D could not write the point cloud")
 
 
 def read_labelled_cloud(path) -> tuple[np.ndarray, np.ndarray]:

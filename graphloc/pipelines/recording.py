@@ -29,7 +29,6 @@ directory's scans), `fusion_recording` from a `fuse-maps` output directory. Writ
 
 from __future__ import annotations
 
-import csv
 import shutil
 import tempfile
 from dataclasses import dataclass, field
@@ -38,8 +37,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from graphloc.io import MANIFEST, read_manifest
-from graphloc.mapping.io import read_labelled_cloud, read_points, read_tum
+from graphloc.io import MANIFEST
+from graphloc.mapping.io import read_labelled_cloud, read_scan, read_tum
 from graphloc.pipelines.groundtruth import groundtruth_rows
 from graphloc.pipelines.team_graph import TeamResult
 from graphloc.run import TeamRun
@@ -161,33 +160,31 @@ def candidate_weights(decision, k: int) -> np.ndarray:
 
 
 def scan_clouds(root, result: TeamResult, run: TeamRun, voxel: float = 0.05) -> list:
-    """Each robot's scans (its `scans` table in the log directory `root`) placed by the
-    estimate of the pose nearest in time (through the scanner's extrinsics), one cloud per
-    robot, voxel-downsampled (Open3D) to `voxel` metres. A scan without an estimated pose
-    within `voxel` seconds of it is left out."""
+    """Each robot's scans (the rows of its `scans` table the log reader used, `run.scans`)
+    placed by the estimate of the pose nearest in time (through the scanner's extrinsics), one
+    cloud per robot, voxel-downsampled (Open3D) to `voxel` metres. A scan without an estimated
+    pose within `voxel` seconds of it is left out; a scan is read as the reader kept it
+    (`graphloc.mapping.io.read_scan`: thinned to the point budget). `root` is unused (the
+    scans' paths are the run's)."""
     import open3d as o3d
 
-    manifest = read_manifest(root)
     clouds = []
-    for robot in manifest.robots:
-        if "scans" not in robot.tables:
-            continue
-        r = run.index(robot.name)
+    for r, robot in enumerate(run.robots):
+        scans = [s for s in run.scans if s.robot == r]
         times, est = np.asarray(result.node_times[r], dtype=float), result.estimate[r]
-        if not len(times):
+        if not scans or not len(times):
             continue
         parts = []
-        with open(Path(root) / robot.tables["scans"], newline="") as fh:
-            for row in csv.DictReader(fh):
-                k = int(np.argmin(np.abs(times - float(row["time"]))))
-                if abs(times[k] - float(row["time"])) > voxel or not np.isfinite(est[k]).all():
-                    continue
-                T = np.eye(4)
-                T[:3, :3] = Rotation.from_quat(est[k, 3:7]).as_matrix()
-                T[:3, 3] = est[k, :3]
-                T = T @ robot.sensor(row["sensor"]).body_T_sensor
-                pts = read_points(Path(root) / row["path"])
-                parts.append(pts @ T[:3, :3].T + T[:3, 3])
+        for scan in scans:
+            k = int(np.argmin(np.abs(times - scan.time)))
+            if abs(times[k] - scan.time) > voxel or not np.isfinite(est[k]).all():
+                continue
+            T = np.eye(4)
+            T[:3, :3] = Rotation.from_quat(est[k, 3:7]).as_matrix()
+            T[:3, 3] = est[k, :3]
+            T = T @ scan.body_T_sensor.matrix()
+            pts = read_scan(scan.path, warn=False)[0]
+            parts.append(pts @ T[:3, :3].T + T[:3, 3])
         if parts:
             cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.vstack(parts)))
             pts = cloud.voxel_down_sample(voxel).point.positions.numpy().astype(float)

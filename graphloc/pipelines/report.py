@@ -25,6 +25,7 @@ from graphloc.pipelines.groundtruth import (
     groundtruths,
     paired,
 )
+from graphloc.names import out_path, written_whole
 from graphloc.pipelines.judge import judge_decisions
 from graphloc.pipelines.report_plots import plot_jobs
 from graphloc.pipelines.team_graph import (
@@ -36,6 +37,7 @@ from graphloc.pipelines.team_graph import (
 )
 from graphloc.pipelines.team_graph.verdict import candidate_streams, judge
 from graphloc.run import TeamRun
+from graphloc.structured import dumps_json
 
 __all__ = [
     "GroundTruth",
@@ -98,17 +100,12 @@ def evaluate(
         if result.mode == "online":
             tracks["online_causal"] = result.causal[r]
         for label, rows in tracks.items():
-            if np.isfinite(rows).all(axis=1).sum() < 3:
-                continue
             if stop is not None and stop():
                 evaluated = False
                 break
-            try:
-                entry[label] = trajectory_metrics(
-                    *paired(ref, times, rows), align=aligns[r], associated=True
-                ).as_dict()
-            except ValueError as exc:  # too few poses near ground-truth stamps
-                entry[label] = {"error": str(exc)}
+            entry[label], reason = _metrics(ref, times, rows, aligns[r])
+            if reason is not None:  # null metrics, and why
+                entry.setdefault("not_evaluated", {})[label] = reason
         per_robot[robot.name] = entry
     decisions = result.decisions
     genuine, correct = judge_decisions(run, decisions)
@@ -171,6 +168,7 @@ def evaluate(
         "counts": result.graph.counts,
         "tables": run.contributions,
         "skipped": skipped,
+        "notes": run.notes.as_dict(),
         "partial": bool(result.partial),
         "steps_done": int(result.steps_done),
         "steps_total": len(result.graph.steps),
@@ -179,6 +177,21 @@ def evaluate(
         "dropped_across_lag": dict(result.dropped),
         "latency_trend": latency_trend(result),
     }
+
+
+def _metrics(truth, times, rows, align: str) -> tuple[dict | None, str | None]:
+    """`trajectory_metrics` of one track (its poses at `times`, (N,7) rows) against its ground
+    truth as a dict and None, or None and why there are none: fewer than 3 poses, too few near
+    ground-truth stamps, or poses the alignment cannot use (all at one place: a robot that
+    never moved)."""
+    n = int(np.isfinite(rows).all(axis=1).sum())
+    if n < 3:
+        return None, f"{n} poses, 3 needed"
+    try:
+        pairs = paired(truth, times, rows)
+        return trajectory_metrics(*pairs, align=align, associated=True).as_dict(), None
+    except ValueError as exc:
+        return None, str(exc)
 
 
 def latency_trend(result: TeamResult) -> dict | None:
@@ -235,10 +248,10 @@ def write_outputs(
             ("dead_reckoning", result.dead_reckoning[r]),
         ):
             if np.isfinite(rows).all(axis=1).any():
-                path = out / f"{robot.name}_{label}.tum"
+                path = out_path(out, f"{robot.name}_{label}.tum")
                 jobs.append((path.name, lambda p=path, t=times, x=rows: _write_rows(p, t, x)))
         if truth[r] is not None:
-            path = out / f"{robot.name}_groundtruth.tum"
+            path = out_path(out, f"{robot.name}_groundtruth.tum")
             jobs.append(
                 (
                     path.name,
@@ -247,9 +260,11 @@ def write_outputs(
                     ),
                 )
             )
-    jobs.append(("decisions.csv", lambda: _write_decisions(out / "decisions.csv", result, run)))
+    decisions = out_path(out, "decisions.csv")
+    jobs.append(("decisions.csv", lambda: _write_decisions(decisions, result, run)))
     if result.mode == "online":
-        jobs.append(("latency.csv", lambda: _write_latency(out / "latency.csv", result)))
+        latency = out_path(out, "latency.csv")
+        jobs.append(("latency.csv", lambda: _write_latency(latency, result)))
     plots = plot_jobs(result, run, out, truth, groundtruth_rate, align)
     stopped = result.partial or not metrics.get("evaluated", True)
     jobs += [(name, job, "plot") for name, job in plots]
@@ -265,7 +280,7 @@ def write_outputs(
         bar.set_postfix_str(name)
         if job is None:  # metrics.json, last: it says what was left out
             metrics["skipped_outputs"] = skipped
-            written.append(_write_metrics(out / name, metrics))
+            written.append(write_metrics(out, metrics))
         elif kind and (stopped or (stop is not None and stop())):
             skipped.append(name)
         elif (path := job()) is not None:
@@ -274,14 +289,17 @@ def write_outputs(
     return written
 
 
-def _write_metrics(path: Path, metrics: dict) -> Path:
-    path.write_text(json.dumps(metrics, indent=2, default=str) + "\n")
+def write_metrics(out: Path, metrics: dict) -> Path:
+    """metrics.json into `out`, whole (`names.written_whole`)."""
+    path = out_path(out, "metrics.json")
+    with written_whole(path) as tmp:
+        tmp.write_text(dumps_json(metrics, indent=2, default=str) + "\n")
     return path
 
 
 def _write_decisions(path: Path, result: TeamResult, run: TeamRun) -> Path:
     decisions = result.decisions
-    with open(path, "w", newline="") as fh:
+    with written_whole(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(
             [
@@ -323,7 +341,7 @@ def _write_decisions(path: Path, result: TeamResult, run: TeamRun) -> Path:
 
 
 def _write_latency(path: Path, result: TeamResult) -> Path:
-    with open(path, "w", newline="") as fh:
+    with written_whole(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(STEP_LOG_COLUMNS)
         for row in result.step_log:
@@ -354,7 +372,7 @@ def run_and_report(
     result = solve(build_graph(run, config, progress=progress), mode=mode, progress=progress)
     truth = groundtruths(run)
     metrics = evaluate(result, run, truth)
-    metrics["config"] = json.loads(json.dumps(asdict(config), default=str))
+    metrics["config"] = json.loads(dumps_json(asdict(config), default=str))
     if effective:
         metrics["options"] = effective
     write_outputs(result, run, metrics, Path(out), groundtruth_rate, progress, truth)

@@ -12,6 +12,7 @@ import numpy as np
 from graphloc.eval import ate_over_time
 from graphloc.pipelines.groundtruth import alignment, groundtruth_written, paired
 from graphloc.pipelines.team_graph import TeamResult
+from graphloc.names import out_path
 from graphloc.plots import Series, plot_series, plot_trajectories
 from graphloc.run import TeamRun
 
@@ -88,7 +89,7 @@ def _trajectories(
     if run.landmarks_known and len(run.landmark_xyz):
         points = np.vstack([points.reshape(-1, 2), run.landmark_xyz[:, :2]])
     return plot_trajectories(
-        out / "trajectories.png",
+        out_path(out, "trajectories.png"),
         est,
         ref,
         points if len(points) else None,
@@ -116,7 +117,7 @@ def _errors(result: TeamResult, run: TeamRun, out: Path, truth: list, align) -> 
     if not err:
         return None
     return plot_series(
-        out / "error_over_time.png",
+        out_path(out, "error_over_time.png"),
         err,
         "time since start [s]",
         "position error [m]",
@@ -126,7 +127,7 @@ def _errors(result: TeamResult, run: TeamRun, out: Path, truth: list, align) -> 
 
 
 def _latency(result: TeamResult, run: TeamRun, out: Path) -> Path | None:
-    csv_path = out / "latency.csv"
+    csv_path = out_path(out, "latency.csv")
     if not csv_path.exists():
         return None
     table = np.genfromtxt(csv_path, delimiter=",", names=True).reshape(-1)
@@ -139,7 +140,7 @@ def _latency(result: TeamResult, run: TeamRun, out: Path) -> Path | None:
     ]
     title = f"{run.name}: online latency ({lag}, latency.csv)"
     return plot_series(
-        out / "latency.png", series, "step", "latency per step [ms]", title, logy=True
+        out_path(out, "latency.png"), series, "step", "latency per step [ms]", title, logy=True
     )
 
 

@@ -3,14 +3,14 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera
-from graphloc.mapping.io import read_led_pixels
+from graphloc.mapping.io import MAX_COORDINATE, read_led_pixels
+from graphloc.structured import read_json
 from graphloc.pipelines.map_fusion.types import LedObservations
 
 
@@ -31,6 +31,8 @@ def parse_hint(text: str) -> np.ndarray:
         raise ValueError(f"hint: non-numeric value in {text!r}") from None
     if not np.isfinite(vals).all():
         raise ValueError(f"hint: non-finite value in {text!r}")
+    if np.abs(vals).max(initial=0.0) > MAX_COORDINATE:
+        raise ValueError(f"hint: values must lie within +-{MAX_COORDINATE:g} (m), got {text!r}")
     if len(vals) == 7:
         q, norm = vals[3:], float(np.linalg.norm(vals[3:]))
         if abs(norm - 1.0) > HINT_ROUNDING:
@@ -60,13 +62,17 @@ def read_p3p_setup(path, n_frames: int) -> LedObservations:
     """JSON {camera: {fx, fy, cx, cy, width, height[, dist]}, leds: 3x3 (ground LiDAR frame),
     T_ceiling_camera: 4x4, pixels_csv: path relative to the JSON} -> LedObservations."""
     path = Path(path)
+    d = read_json(path, what="P3P setup")
+    if not isinstance(d, dict):
+        raise ValueError(f"{path}: a P3P setup is a JSON object, got {type(d).__name__}")
+    if not isinstance(d.get("pixels_csv"), str):
+        raise ValueError(f"{path}: field 'pixels_csv' must be the path of the LED pixel CSV")
     try:
-        d = json.loads(path.read_text())
         cam = PinholeCamera(**d["camera"])
         leds = np.asarray(d["leds"], dtype=float)
         T = np.asarray(d["T_ceiling_camera"], dtype=float)
         csv_path = path.parent / d["pixels_csv"]
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{path}: malformed P3P setup ({exc})") from None
     if leds.shape != (3, 3) or not np.isfinite(leds).all():
         raise ValueError(f"{path}: leds must be a finite 3x3 array")
@@ -83,4 +89,9 @@ def parse_hint_sigma(text: str) -> tuple[float, float]:
         raise ValueError(f"hint-sigma: non-numeric value in {text!r}") from None
     if len(vals) != 2 or not all(np.isfinite(v) and v > 0 for v in vals):
         raise ValueError(f"hint-sigma: expected two positive numbers 'DEG M', got {text!r}")
+    if vals[0] > 180.0 or vals[1] > MAX_COORDINATE:
+        raise ValueError(
+            f"hint-sigma: the rotation sigma must be at most 180 deg and the translation sigma "
+            f"at most {MAX_COORDINATE:g} m, got {text!r}"
+        )
     return float(np.deg2rad(vals[0])), vals[1]

@@ -53,7 +53,11 @@ class FuseMapsOptions:
     fusion: FusionConfig = field(default_factory=FusionConfig)
 
     def __post_init__(self):
-        check(self, positive=("rate",), integer={"seed": 0, "frames": 1})
+        check(
+            self,
+            integer={"seed": (0, 2**32 - 1), "frames": (1, 1000)},
+            interval={"rate": (0.0, 1000.0, "(]")},
+        )
         if self.hint_sigma is not None and self.hint is None:
             raise ValueError("FuseMapsOptions.hint_sigma needs hint (--hint-sigma needs --hint)")
         if self.hint is not None and self.p3p is not None:

@@ -5,7 +5,6 @@ tracker summary, and errors against ground truth when it is known)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +20,8 @@ from graphloc.pipelines.map_fusion.types import (
 from graphloc.eval import write_tum
 from graphloc.mapping.io import ROBOT_COLOURS, write_labelled_cloud
 from graphloc.mapping.registration import pose_errors
+from graphloc.names import out_path, written_whole
+from graphloc.structured import dumps_json
 
 MAX_PLOT_POINTS = 60_000
 
@@ -173,19 +174,20 @@ def write_outputs(
     paths = {}
     if len(result.map_points):
         for suffix in ("ply", "pcd"):
-            paths[f"map_{suffix}"] = out / f"fused_map.{suffix}"
+            paths[f"map_{suffix}"] = out_path(out, f"fused_map.{suffix}")
             write_labelled_cloud(paths[f"map_{suffix}"], result.map_points, result.map_labels)
         for view in ("top", "side"):
-            paths[f"png_{view}"] = render(result, out / f"fused_{view}.png", view)
+            paths[f"png_{view}"] = render(result, out_path(out, f"fused_{view}.png"), view)
     for r in (GROUND, CEILING):
         paths[f"tum_{ROBOT_NAMES[r]}"] = write_tum(
-            out / f"trajectory_{ROBOT_NAMES[r]}.tum", times, result.poses[r]
+            out_path(out, f"trajectory_{ROBOT_NAMES[r]}.tum"), times, result.poses[r]
         )
     report = report_dict(result, truth)
     report["files"] = {k: str(v) for k, v in paths.items()}
     report.update(extra or {})
-    paths["json"] = out / "fusion_report.json"
-    paths["json"].write_text(json.dumps(report, indent=1))
+    paths["json"] = out_path(out, "fusion_report.json")
+    with written_whole(paths["json"]) as tmp:
+        tmp.write_text(dumps_json(report, indent=1))
     return {**paths, "report": report}
 
 
@@ -219,9 +221,10 @@ def write_rejection(
             "guess_trans_m": g_tr,
         }
     report.update(extra or {})
-    path = out / "fusion_report.json"
+    path = out_path(out, "fusion_report.json")
     report["files"] = {"json": str(path)}
-    path.write_text(json.dumps(report, indent=1))
+    with written_whole(path) as tmp:
+        tmp.write_text(dumps_json(report, indent=1))
     return report
 
 

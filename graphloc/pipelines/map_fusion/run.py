@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphloc.mapping.io import check_scan_units, read_scan_sequence
+from graphloc.mapping.io import POINT_BUDGET, check_scan_units, read_scan_sequence
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.inputs import parse_hint, parse_hint_sigma, read_p3p_setup
 from graphloc.pipelines.map_fusion.report import write_outputs, write_rejection
 from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
+from graphloc.textio import SkipReport
 
 
 def fuse_and_write(
@@ -47,8 +48,9 @@ def fuse_directories(
     outputs in out_dir. Raises FusionRejected (after writing the "not fused" report)."""
     if not (np.isfinite(rate) and rate > 0):
         raise ValueError(f"rate must be a positive frame rate [Hz], got {rate}")
-    ground, ground_files, dropped_g = read_scan_sequence(ground_dir)
-    ceiling, ceiling_files, dropped_c = read_scan_sequence(ceiling_dir)
+    thinned = SkipReport()  # scans beyond the point budget (graphloc.mapping.io.POINT_BUDGET)
+    ground, ground_files, dropped_g = read_scan_sequence(ground_dir, thinned)
+    ceiling, ceiling_files, dropped_c = read_scan_sequence(ceiling_dir, thinned)
     if len(ground) != len(ceiling):
         raise ValueError(
             f"{ground_dir} has {len(ground)} scans but {ceiling_dir} has {len(ceiling)}: "
@@ -72,6 +74,7 @@ def fuse_directories(
         "ceiling": str(ceiling_dir),
         "frames": len(ground),
         "nonfinite_points_skipped": {"ground": dropped_g, "ceiling": dropped_c},
+        "scans_thinned": {"point_budget": POINT_BUDGET, **thinned.as_dict()},
         "scan_scales": scales,
     }
     return fuse_and_write(inp, out_dir, config, times, extra={"input": provenance})

@@ -17,7 +17,13 @@ from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.pipelines.team_graph.camera import marker_factors, moving_marker_factors
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov
-from graphloc.pipelines.team_graph.decision import Decision, inconsistent, quats, same_pose
+from graphloc.pipelines.team_graph.decision import (
+    Decision,
+    inconsistent,
+    quats,
+    rows_of,
+    same_pose,
+)
 from graphloc.pipelines.team_graph.mixtures import mixture_stream
 from graphloc.pipelines.team_graph.motion import Timeline, compose_steps, dead_reckoning
 from graphloc.run import TeamRun
@@ -112,6 +118,7 @@ def candidate_factors(
                     f"robot {run.robots[r].name}: the marker pixels of {target.name} at "
                     f"{o.time}: no pose of its layout passes the pixel chi-square (least "
                     f"{meta.get('chi2_min', float('nan')):.1f} > gate {meta.get('gate', 0):.1f})",
+                    rows_of(o),
                 )
                 decisions.append(inconsistent(o, r, ti))
                 continue

@@ -80,3 +80,9 @@ def quats(poses: list) -> np.ndarray:
         q = p.rotation().toQuaternion()
         out[i] = (q.x(), q.y(), q.z(), q.w())
     return out
+
+
+def rows_of(observation) -> int:
+    """The log rows a candidate set was made of: its marker pixels, else one (a `candidates`
+    set, an ellipse)."""
+    return len(observation.pixels.markers) if observation.pixels is not None else 1

@@ -10,7 +10,7 @@ from graphloc.factors.mixture import candidate_covariances, max_mixture_factor, 
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov
-from graphloc.pipelines.team_graph.decision import Decision, inconsistent, quats
+from graphloc.pipelines.team_graph.decision import Decision, inconsistent, quats, rows_of
 from graphloc.pipelines.team_graph.motion import Timeline, dead_reckoning
 from graphloc.run import TeamRun
 
@@ -42,6 +42,7 @@ def mixture_stream(
                 "inconsistent_set",
                 f"robot {observer.name}: the marker pixels of {target.name} at {o.time}: no "
                 f"pose of its layout passes the pixel chi-square",
+                rows_of(o),
             )
             out.append(inconsistent(o, r, ti))
             continue

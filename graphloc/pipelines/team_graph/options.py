@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from graphloc.config import check
+from graphloc.records import MAX_SIGMA, MAX_TIME
 from graphloc.factors.robust import Kernel, KernelPolicy
 
 if TYPE_CHECKING:
@@ -129,15 +130,22 @@ class RunOptions:
     def __post_init__(self):
         check(
             self,
-            positive=("keyframe_dt", "sync_tolerance", "bearing_sigma", "range_sigma")
-            + ("pixel_sigma", "scan_rate"),
-            nonnegative=("range_sigma_per_m", "lag"),
+            interval={
+                "keyframe_dt": (1e-3, 3600.0, "[]"),  # s: a pose grid from 1 kHz to an hour
+                "sync_tolerance": (0.0, 60.0, "(]"),  # s
+                "scan_rate": (0.0, 1000.0, "(]"),  # Hz
+                "lag": (0.0, MAX_TIME, "[]"),
+                **{s: (0.0, MAX_SIGMA, "(]") for s in NOISE if s != "range_sigma_per_m"},
+                "range_sigma_per_m": (0.0, MAX_SIGMA, "[]"),
+            },
             optional=("duration", "bearing_sigma", "range_sigma", "range_sigma_per_m")
             + ("pixel_sigma", "lag", "scan_rate", "align"),
             choices={"groundtruth_rate": GROUNDTRUTH_RATES, "align": ALIGNMENTS},
         )
-        if self.duration is not None and not 0 < self.duration < float("inf"):
-            raise ValueError(f"RunOptions.duration must be > 0, got {self.duration}")
+        if self.duration is not None and not 0 < self.duration <= MAX_TIME:
+            raise ValueError(
+                f"RunOptions.duration must be > 0 and at most {MAX_TIME:g} s, got {self.duration}"
+            )
         for name in KERNELS:
             try:
                 Kernel.parse(getattr(self, name))

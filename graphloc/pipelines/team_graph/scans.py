@@ -128,7 +128,7 @@ def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips, r
     hint = poses[a][0][ka].compose(E_a).inverse().compose(X_b.compose(E_b))  # T_sa_sb
     hint_cov = adjoint_cov(E_b.inverse(), cov_b)
     # Open3D loads only for runs that register scans (`graphloc smooth` of other runs skips it)
-    from graphloc.mapping.io import read_points
+    from graphloc.mapping.io import read_scan
     from graphloc.mapping.acceptance import AcceptanceConfig
     from graphloc.mapping.registration import RegistrationConfig, prepare
     from graphloc.mapping.robust_registration import robust_register
@@ -136,8 +136,9 @@ def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips, r
     cfg = config.registration or RegistrationConfig()
     acceptance = config.acceptance or AcceptanceConfig()
     try:
-        source = prepare(read_points(scan_b.path), cfg)
-        target = prepare(read_points(scan_a.path), cfg)
+        # the scans as the reader kept them (thinned to the point budget, read again quietly)
+        source = prepare(read_scan(scan_b.path, warn=False)[0], cfg)
+        target = prepare(read_scan(scan_a.path, warn=False)[0], cfg)
     except (OSError, ValueError) as exc:
         raise ValueError(f"{name}: scan registration: {exc}") from None
     decision = robust_register(

@@ -1,0 +1,95 @@
+"""Names that become parts of file names -- robots, sensors, runs -- and the one way an output
+path is built.
+
+A name read from an input (a log manifest, a bag's topics file; docs/log_format.md,
+"Names") is `check_name`d where it is read: ASCII letters, digits, `_`, `-` and `.`, not
+starting with `.`, at most `MAX_NAME` characters -- no path separator, no `..`, no NUL or
+other control character, nothing a terminal interprets. A name graphloc derives from a user's
+own file or folder name (a scan directory, a topics file without a `name`) is made one by
+`safe_name`.
+
+Every file a verb writes under its `--out` folder is named by `out_path(out, ...)`, which
+refuses (ValueError) a part that is absolute or `..` and a result that, symbolic links
+resolved, lies outside `out`: a name that slipped past its reader, or a link left in the
+folder, never moves a write elsewhere. `written_whole(path)` is where an output's bytes go:
+a temporary file beside it, renamed over it when complete, so that a reader -- or a second
+`graphloc` writing into the same folder -- sees one writer's whole file, never a mix.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import uuid
+from pathlib import Path, PurePosixPath, PureWindowsPath
+
+MAX_NAME = 64
+NAME_RULE = (
+    f"a name of ASCII letters, digits, '_', '-' and '.', not starting with '.', at most "
+    f"{MAX_NAME} characters"
+)
+_NAME = re.compile(rf"[A-Za-z0-9_-][A-Za-z0-9_.-]{{0,{MAX_NAME - 1}}}")
+
+
+def is_name(value) -> bool:
+    return isinstance(value, str) and _NAME.fullmatch(value) is not None
+
+
+def check_name(value, where: str) -> str:
+    """`value` if it is a name (see the module docstring); ValueError naming `where` (file and
+    field) and the value (quoted, cut to 80 characters) otherwise."""
+    if is_name(value):
+        return value
+    shown = repr(value) if not isinstance(value, str) else repr(value[:80])
+    raise ValueError(f"{where} must be {NAME_RULE}, got {shown}")
+
+
+def safe_name(text: str, fallback: str = "run") -> str:
+    """A name made of `text` (a user's file or folder name): every other character replaced by
+    '_', leading dots dropped, cut to MAX_NAME characters; `fallback` if nothing is left."""
+    name = re.sub(r"[^A-Za-z0-9_.-]", "_", str(text)).lstrip(".")[:MAX_NAME]
+    return name if is_name(name) else fallback
+
+
+def out_path(out, *parts: str) -> Path:
+    """`out / parts...`, a path to write: ValueError unless every part is relative without a
+    '..' (or NUL) and the result, symbolic links resolved, lies inside `out`."""
+    out = Path(out)
+    for part in parts:
+        part = str(part)
+        pure = PurePosixPath(part.replace("\\", "/"))
+        if (
+            not part
+            or "\0" in part
+            or pure.is_absolute()
+            or PureWindowsPath(part).is_absolute()
+            or ".." in pure.parts
+        ):
+            raise ValueError(f"{out}: output name {part!r} would leave the output folder")
+    path = out.joinpath(*parts)
+    base = out.resolve()
+    try:
+        target = path.resolve()
+    except (OSError, RuntimeError) as exc:  # a symbolic-link loop
+        raise ValueError(f"{path}: cannot be written ({exc})") from None
+    if target != base and not target.is_relative_to(base):
+        raise ValueError(
+            f"{path}: resolves to {target}, outside the output folder {out} (a symbolic link?)"
+        )
+    return path
+
+
+@contextlib.contextmanager
+def written_whole(path):
+    """Yield a temporary path beside `path` (hidden, same suffix: writers that pick a format by
+    suffix still do) for the caller to write; rename it over `path` when the block ends
+    without an error (an atomic replace), remove it otherwise."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex[:12]}.tmp{path.suffix}")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
