@@ -364,3 +364,31 @@ def test_the_cli_writes_a_run_and_refuses_a_used_folder(tmp_path, capsys):
     assert "not empty" in capsys.readouterr().err
     with pytest.raises(ValueError, match="layout"):
         gen.GeneratorConfig(layout="nope").check()
+
+
+def test_score_measures_world_frame_errors_of_tum_estimates(runs, tmp_path):
+    """score.py on estimates made from the truth: 0 error; shifted by 1 m: 1 m; missing:
+    unplaced; decided sets off by 0.8 m are counted wrong."""
+    run = runs["ceiling-markers"]
+    truth = score.read_truth(run)
+    for name, tr in truth.items():
+        shift = np.array([0.6, 0.8, 0.0]) if name == "rover3" else np.zeros(3)
+        if name == "rover4":
+            continue  # left out: unplaced
+        with open(tmp_path / f"{name}_batch.tum", "w") as fh:
+            for t, p, q in zip(tr["t"], tr["xyz"] + shift, tr["quat"]):
+                fh.write(" ".join(f"{v:.9f}" for v in (t, *p, *q)) + "\n")
+    tr = truth["climber"]
+    with open(tmp_path / "decisions.csv", "w") as fh:
+        fh.write("time,robot,target,candidates,committed,probability,genuine,correct,"
+                 "x,y,z,qx,qy,qz,qw\n")  # fmt: skip
+        for i, off in ((10, 0.0), (20, 0.8)):
+            x, y, z = tr["xyz"][i] + [off, 0, 0]
+            fh.write(f"{tr['t'][i]},climber,anchor4,2,0,0.9,0,1,{x},{y},{z},0,0,0,1\n")
+    result = score.score(run, tmp_path, "batch")
+    assert result["robots"]["climber"]["max_m"] < 1e-6
+    assert result["robots"]["rover3"]["final_m"] == pytest.approx(1.0, abs=1e-6)
+    assert result["unplaced"] == ["rover4"]
+    assert result["decisions"]["decided"] == 2
+    assert result["decisions"]["wrong_by_truth"] == 1
+    assert result["decisions"]["wrong_by_graphloc"] == 0
