@@ -117,6 +117,49 @@ def bearing_factor(
     return gtsam.CustomFactor(noise, [observer_key, observed_key], error)
 
 
+def bearing_to_point_factor(
+    pose_key: int,
+    point_key: int,
+    bearing,
+    sigma: float,
+    body_T_camera: gtsam.Pose3 = gtsam.Pose3(),
+    kernel: Kernel = Kernel(),
+) -> gtsam.NoiseModelFactor:
+    """Bearing (camera frame of the robot at `pose_key`) to a point variable (a landmark);
+    isotropic `sigma` [rad] on the 2-DOF Unit3 error. GTSAM's BearingFactor3D with the bearing
+    rotated into the body frame when the camera sits at the body origin; with a camera offset,
+    a Python gtsam.CustomFactor chained from GTSAM's own Jacobians (as `bearing_factor`)."""
+    measured = gtsam.Unit3(_unit(bearing, "bearing_to_point_factor"))
+    sigma = _positive(sigma, "bearing_to_point_factor sigma")
+    noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, sigma), kernel)
+    if not body_T_camera.translation().any():
+        body = body_T_camera.rotation().rotate(measured.point3())
+        return gtsam.BearingFactor3D(pose_key, point_key, gtsam.Unit3(body), noise)
+
+    def error(this: gtsam.CustomFactor, values: gtsam.Values, jacobians):
+        T = values.atPose3(this.keys()[0])
+        q = values.atPoint3(this.keys()[1])
+        if jacobians is None:
+            return measured.errorVector(
+                gtsam.Unit3.FromPoint3(T.compose(body_T_camera).transformTo(q))
+            )
+        H_cam = np.zeros((6, 6), order="F")
+        H_pc_cam = np.zeros((3, 6), order="F")
+        H_pc_q = np.zeros((3, 3), order="F")
+        H_u = np.zeros((2, 3), order="F")
+        H_e = np.zeros((2, 2), order="F")
+        cam = T.compose(body_T_camera, H_cam, None)
+        pc = cam.transformTo(q, H_pc_cam, H_pc_q)
+        u = gtsam.Unit3.FromPoint3(pc, H_u)
+        e = measured.errorVector(u, None, H_e)
+        H_eu = H_e @ H_u
+        jacobians[0] = H_eu @ H_pc_cam @ H_cam
+        jacobians[1] = H_eu @ H_pc_q
+        return e
+
+    return gtsam.CustomFactor(noise, [pose_key, point_key], error)
+
+
 def range_factor(
     key_a: int,
     key_b: int,

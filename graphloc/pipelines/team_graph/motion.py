@@ -66,13 +66,48 @@ def node_times(run: TeamRun, config: GraphConfig) -> list:
             times = run.start_time + config.keyframe_dt * np.arange(max(n, 1))
         else:
             stamps = [t for m in run.motions if m.robot == r for t in (m.t0, m.t1)]
-            if not stamps:
-                stamps = [p.time for p in run.points if r in (p.robot, p.target)]
-                stamps += [o.time for o in run.observations if r in (o.robot, o.target)]
-                stamps += [f.time for f in run.features if f.robot == r]
+            measured = [p.time for p in run.points if r in (p.robot, p.target)]
+            measured += [o.time for o in run.observations if r in (o.robot, o.target)]
+            measured += [f.time for f in run.features if f.robot == r]
+            if stamps:
+                stamps += inserted_times(run, r, measured, config.sync_tolerance)
+            else:
+                stamps = measured
             times = np.unique(np.round(np.array(stamps, dtype=float), 9))
         out.append(times)
     return out
+
+
+def consecutive_steps(run: TeamRun, r: int) -> list:
+    """Robot r's relative-pose steps between consecutive stamps of its motions (no stamp of
+    another of its steps strictly inside): its odometry, not a loop closure across several."""
+    motions = [m for m in run.motions if m.robot == r]
+    stamps = np.unique([t for m in motions for t in (m.t0, m.t1)])
+    out = []
+    for m in motions:
+        a, b = sorted((m.t0, m.t1))
+        i, j = np.searchsorted(stamps, a, "right"), np.searchsorted(stamps, b, "left")
+        if i >= j:
+            out.append(m)
+    return out
+
+
+def inserted_times(run: TeamRun, r: int, measured: list, tolerance: float) -> list:
+    """Times of an event-clocked robot's measurements that are no stamp of its relative poses
+    (farther than `tolerance` from every stamp) but lie inside one of its consecutive steps:
+    poses there, the step split at them (`motion_factors`), so that a measurement between two
+    odometry stamps is not dropped."""
+    steps = consecutive_steps(run, r)
+    if not steps or not measured:
+        return []
+    stamps = np.unique([t for m in steps for t in (m.t0, m.t1)])
+    spans = np.array(sorted((min(m.t0, m.t1), max(m.t0, m.t1)) for m in steps))
+    t = np.unique(np.asarray(measured, dtype=float))
+    i = np.clip(np.searchsorted(stamps, t), 1, len(stamps) - 1)
+    gap = np.minimum(np.abs(stamps[i - 1] - t), np.abs(stamps[i] - t))
+    k = np.searchsorted(spans[:, 0], t, "right") - 1
+    inside = (k >= 0) & (t < spans[np.clip(k, 0, None), 1])
+    return t[(gap > tolerance) & inside].tolist()
 
 
 def velocity_noise(run: TeamRun, r: int, config: GraphConfig) -> VelocityNoise:
@@ -154,6 +189,7 @@ def motion_factors(
                 factors.append(
                     (times[k], between_factor(r, k - 1, k, *steps[k], config), "odometry")
                 )
+        consecutive = {id(m) for m in consecutive_steps(run, r)}
         for m in (m for m in run.motions if m.robot == r):
             k0, k1 = nearest(r, m.t0), nearest(r, m.t1)
             if k0 < 0 or k1 < 0 or k0 == k1:
@@ -162,17 +198,29 @@ def motion_factors(
                     f"robot {robot.name}: relative pose {m.t0}->{m.t1} has no poses",
                 )
                 continue
-            factors.append(
-                (
-                    times[max(k0, k1)],
-                    between_factor(r, k0, k1, m.relative, m.covariance, config),
-                    "odometry",
+            if id(m) in consecutive and k1 > k0 + 1:  # split at the poses inserted inside it
+                parts = split_step(m.relative, m.covariance, times[k0 : k1 + 1])
+            else:
+                parts = [(m.relative, m.covariance)]
+            nodes = range(k0, k1 + 1) if len(parts) > 1 else (k0, k1)
+            for a, b, (rel, cov) in zip(nodes[:-1], nodes[1:], parts):
+                factors.append(
+                    (times[max(a, b)], between_factor(r, a, b, rel, cov, config), "odometry")
                 )
-            )
-            if k1 == k0 + 1 and steps[k1] is None:
-                steps[k1] = (m.relative, m.covariance)
+                if b == a + 1 and steps[b] is None:
+                    steps[b] = (rel, cov)
         step_rel.append(steps)
     return step_rel
+
+
+def split_step(relative: gtsam.Pose3, covariance: np.ndarray, times: np.ndarray) -> list:
+    """A relative-pose step over `times` (its start, the poses inserted inside it, its end)
+    cut at each time at a constant twist: the piece over a fraction s of the step is
+    Exp(s Log(relative)) with covariance s * covariance (they compose to the step exactly, and
+    their covariances add up to its own)."""
+    xi = gtsam.Pose3.Logmap(relative)
+    fractions = np.diff(times) / (times[-1] - times[0])
+    return [(gtsam.Pose3.Expmap(s * xi), s * covariance) for s in fractions]
 
 
 def anchor_factors(run: TeamRun, config: GraphConfig, node_times: list, factors: list) -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from graphloc.factors.bearing import bearing_factor, range_factor
+from graphloc.factors.bearing import bearing_factor, bearing_to_point_factor, range_factor
 from graphloc.factors.odometry import integrate_unicycle
 from graphloc.factors.range_bearing import (
     known_landmark_factor_3d,
@@ -38,16 +38,11 @@ def _point_factor(m, key, lkey, direction, rng, kernel, E):
         return landmark_factor_3d(
             key, lkey, direction, rng, (m.bearing_sigma, m.bearing_sigma, m.range_sigma), kernel
         )
-    if np.linalg.norm(E.translation()) > 1e-9:
-        raise ValueError(
-            f"{m.kind} to landmark {m.landmark}: a sensor offset from the body origin is "
-            "supported for range-bearing and robot targets only"
-        )
     if m.kind == "bearing":
-        d = E.rotation().rotate(direction)
-        noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, m.bearing_sigma), kernel)
-        return gtsam.BearingFactor3D(key, lkey, gtsam.Unit3(d), noise)
+        return bearing_to_point_factor(key, lkey, direction, m.bearing_sigma, E, kernel)
     noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(1, m.range_sigma), kernel)
+    if E.translation().any():  # the range from the sensor, not the body origin
+        return gtsam.RangeFactorWithTransform3D(key, lkey, float(rng), noise, E)
     return gtsam.RangeFactor3D(key, lkey, float(rng), noise)
 
 
