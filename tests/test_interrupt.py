@@ -98,8 +98,10 @@ def test_sigint_at_random_moments(verb, sim_run, tmp_path):
             metrics = json.loads((out / "metrics.json").read_text())
             assert metrics["partial"] is False and metrics["skipped_outputs"] == [], where
             continue
-        assert code in (3, 130), f"{where}\n{err}"
-        if code == 130:
+        # -2: ended by the SIGINT itself, which a shell reports as 130 (a KeyboardInterrupt
+        # Python re-raises at exit, e.g. one that met a C extension still initializing)
+        assert code in (3, 130, -signal.SIGINT), f"{where}\n{err}"
+        if code in (130, -signal.SIGINT):
             assert f"graphloc {verb}: error:" in err, f"{where}\n{err}"
             if "nothing written" in err:
                 assert not out.exists() or not any(out.iterdir()), where
