@@ -74,11 +74,14 @@ def evaluate(
     truth: list | None = None,
     stop=None,
     align: str | None = None,
+    cpu_s: float | None = None,
 ) -> dict:
     """Per-robot ATE/RPE of dead reckoning (the initial guess), the estimate and (online) the
     causal estimate, aligned by `groundtruth.alignment` (`align`: one rule for every robot);
     decisions, judged by the truth (`judge`); the consistency verdict (`team_graph.verdict`);
-    counts; latency; skips. truth: `groundtruths(run)`, shared
+    counts; latency; skips. cpu_s: the CPU time from reading the run to the last estimate
+    (the verbs'; `realtime_factor` is the run's duration over it, else over the solve's wall
+    time). truth: `groundtruths(run)`, shared
     with `write_outputs` (each sample converted once). stop(): checked before each
     trajectory's ATE / RPE (evo: seconds on a long run); once True -- a run stopped by a
     signal -- the rest are not computed and "evaluated" is False."""
@@ -151,7 +154,8 @@ def evaluate(
         "robots": [r.name for r in run.robots],
         "duration_s": duration,
         "solve_wall_s": result.wall_s,
-        "realtime_factor": duration / max(result.wall_s, 1e-12),
+        "cpu_s": cpu_s,
+        "realtime_factor": duration / max(result.wall_s if cpu_s is None else cpu_s, 1e-12),
         "latency_ms": latency,
         "evaluated": evaluated,
         "per_robot": per_robot,
