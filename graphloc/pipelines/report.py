@@ -140,7 +140,7 @@ def evaluate(
         if len(result.node_times[r]) and not np.isfinite(result.estimate[r]).all(axis=1).any()
     ]
     skipped = result.graph.skips.as_dict()
-    verdict = judge(result.factor_stats, streams, unplaced, skipped)
+    verdict = judge(result.factor_stats, streams, unplaced, skipped, robot_stats=result.robot_stats)
     if result.partial:  # a stopped solve is not judged
         verdict.update(consistent=None, failures=[], warnings=[])
     return {
@@ -150,6 +150,7 @@ def evaluate(
         "consistency": verdict,
         "graph_error": result.error,
         "factors": result.factor_stats,
+        "factors_by_robot": result.robot_stats,
         "candidate_streams": streams,
         "robots": [r.name for r in run.robots],
         "duration_s": duration,

@@ -172,9 +172,17 @@ def adjoint_cov(T: gtsam.Pose3, cov: np.ndarray) -> np.ndarray:
 def run_precision(run: TeamRun) -> float:
     """The scale [m, rad] of the run's estimates, for iSAM2's thresholds: FINE_PRECISION when
     the run holds candidate sets (camera poses from pixels: the fused estimate is mm-precise even
-    where one P3P candidate is cm-precise along its depth), else COARSE_PRECISION (wheel odometry
-    and range-bearing, decimetre-level)."""
-    return FINE_PRECISION if run.observations else COARSE_PRECISION
+    where one P3P candidate is cm-precise along its depth); else the median translation std of
+    one relative-pose step (SE(3) odometry, scan matching) where the run has them, within
+    FINE_PRECISION and COARSE_PRECISION: an estimate relinearized more coarsely than its own
+    steps leaves their residuals beyond their noise; else COARSE_PRECISION (wheel odometry and
+    range-bearing, decimetre-level)."""
+    if run.observations:
+        return FINE_PRECISION
+    steps = [np.sqrt(np.trace(m.covariance[3:, 3:]) / 3) for m in run.motions]
+    if steps:
+        return float(np.clip(np.median(steps), FINE_PRECISION, COARSE_PRECISION))
+    return COARSE_PRECISION
 
 
 def default_lag(run, config: GraphConfig) -> float:

@@ -18,7 +18,7 @@ from graphloc.pipelines.team_graph.config import ANCHOR_BASE
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.pipelines.team_graph.predict import frame_point, predict
 from graphloc.pipelines.team_graph.rows import grid_rows, pose_grids, pose_row, values_poses
-from graphloc.pipelines.team_graph.verdict import factor_statistics
+from graphloc.pipelines.team_graph.verdict import factor_statistics, robot_statistics
 from graphloc.session import Session
 
 
@@ -54,6 +54,7 @@ class TeamResult:
     error: float = float("nan")  # the error of the factors the solve added, at the final estimate
     batch_start: str = ""  # batch: where LM started (`solve`)
     factor_stats: dict = field(default_factory=dict)  # type -> `factor_statistics` row
+    robot_stats: dict = field(default_factory=dict)  # robot -> type -> row (`robot_statistics`)
     chi2: float = float("nan")  # the chi-square of every factor at the estimate, no kernels
     survivors: list = field(default_factory=list)  # other hypotheses' final values (`hypotheses`)
     hypotheses: int = 1  # hypotheses run side by side (alternative placements)
@@ -84,6 +85,7 @@ class Pass:
         self.held: list = []  # online: factors on robots not yet anchored
         self.latest: dict = {}
         self.types: list = []  # factor types in the order the session holds them
+        self.owners: list = []  # ... and the robot each belongs to (`_owner`)
         self.dropped: dict = {}
         self.log: list = []
         self.entered: dict = {}  # (robot, node) -> the step its pose entered
@@ -140,6 +142,7 @@ class Pass:
                         new_poses.append((key, *decoded[1:]))
             factors.append(f)
             self.types.append(kind)
+            self.owners.append(_owner(keys))
             released += n < len(waiting) - len(group)
         if factors:
             step = session.add(factors, values, time=t)
@@ -194,10 +197,13 @@ class Pass:
         estimate = [grid_rows(g) for g in pose_grids(graph.node_times, *values_poses(final))]
         dead = guess_rows(graph, graph.initial)
         if partial:  # a stopped solve returns promptly: its residuals are not judged
-            stats, chi2 = {}, float("nan")
+            stats, by_robot, chi2 = {}, {}, float("nan")
         else:
             res = residuals(session.graph, final)
-            stats = factor_statistics(res, np.array(self.types), cfg.downweight_threshold)
+            types, owners = np.array(self.types), np.array(self.owners, dtype=int)
+            stats = factor_statistics(res, types, cfg.downweight_threshold)
+            names = [robot.name for robot in graph.run.robots]
+            by_robot = robot_statistics(res, types, owners, names, cfg.downweight_threshold)
             chi2 = float(res.chi2.sum())
         down = {
             kind: {
@@ -235,6 +241,7 @@ class Pass:
             final,
             session.error(final),
             factor_stats=stats,
+            robot_stats=by_robot,
             chi2=chi2,
         )
 
@@ -276,6 +283,16 @@ def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:
             )
         )
     return out
+
+
+def _owner(keys) -> int:
+    """The robot a factor belongs to: its first pose's, else its first marker point's; -1."""
+    decoded = [decode(k) for k in keys]
+    for kind in ("x", "k"):
+        robot = next((d[1] for d in decoded if d[0] == kind), None)
+        if robot is not None:
+            return int(robot)
+    return -1
 
 
 def guess_rows(graph: TeamGraph, values: dict) -> list:

@@ -4,10 +4,10 @@ solution judged by its own measurement model, and what of the run it could not u
 The test (`ConsistencyTest`), on the final estimate:
 - every factor type's normalized chi-square -- the squared whitened residuals without the
   robust kernel over their dimension, of the factors the kernel keeps (its inliers,
-  `factor_statistics`) -- is at most `max_normalized_chi2` (about 1 where a type's
-  stated noise is right; above it, the
-  residuals are larger than the noise the log states: a wrong noise model, a wrong
-  calibration, corrupted rows or a wrong solution);
+  `factor_statistics`) -- is at most `max_normalized_chi2`, over the team and over each
+  robot's factors of that type (`robot_statistics`) (about 1 where a type's stated noise is
+  right; above it, the residuals are larger than the noise the log states: a wrong noise
+  model, a wrong calibration, corrupted rows or a wrong solution);
 - every robust factor type has at most `max_downweighted_share` of its factors down-weighted
   by the kernel (a solution that explains its measurements by calling many of them outliers);
 - every candidate stream (observer, target) has at most `max_inconsistent_share` of its sets
@@ -53,6 +53,9 @@ LOST_ROWS = (
 )
 
 
+MIN_DIM = 20  # residual dimensions a robot's factors of one type need to be judged on their own
+
+
 @dataclass(frozen=True)
 class ConsistencyTest:
     """The thresholds of the verdict (module docstring)."""
@@ -72,17 +75,19 @@ class ConsistencyTest:
         )
 
 
-def factor_statistics(res, types: np.ndarray, threshold: float) -> dict:
-    """Per factor type (graph order `types`): its count, residual dimension, chi-square (the
-    squared whitened residuals without the robust kernel, `factors.robust.residuals`), robust
-    factors and those the kernel down-weights below `threshold` (the outliers it found) and
-    their share, and over the others (the inliers): whitened residual RMS (sqrt(chi2 / dim))
-    and normalized chi-square (chi2 / dim: about 1 where the stated noise is right, below 1 by
-    the share of the dimension the variables absorb)."""
+def factor_statistics(res, types: np.ndarray, threshold: float, select=None) -> dict:
+    """Per factor type (graph order `types`; only the factors `select` (N,) bool holds, all by
+    default): its count, residual dimension, chi-square (the squared whitened residuals without
+    the robust kernel, `factors.robust.residuals`), robust factors and those the kernel
+    down-weights below `threshold` (the outliers it found) and their share, and over the others
+    (the inliers): whitened residual RMS (sqrt(chi2 / dim)) and normalized chi-square (chi2 /
+    dim: about 1 where the stated noise is right, below 1 by the share of the dimension the
+    variables absorb)."""
     out = {}
     muted = res.downweighted(threshold)
-    for kind in sorted(set(types.tolist())):
-        sel = types == kind
+    chosen = np.ones(len(types), bool) if select is None else np.asarray(select, bool)
+    for kind in sorted(set(types[chosen].tolist())):
+        sel = (types == kind) & chosen
         inliers = sel & ~muted
         dim, chi2 = int(res.dims[sel].sum()), float(res.chi2[sel].sum())
         dim_in, chi2_in = int(res.dims[inliers].sum()), float(res.chi2[inliers].sum())
@@ -98,6 +103,17 @@ def factor_statistics(res, types: np.ndarray, threshold: float) -> dict:
             "downweighted_share": down / robust if robust else 0.0,
         }
     return out
+
+
+def robot_statistics(res, types: np.ndarray, owners: np.ndarray, names: list, threshold):
+    """`factor_statistics` per robot: the factors whose first pose (else marker point) is the
+    robot's -- its odometry and surface, what its sensors measured, its markers' layout --
+    {robot name: {type: row}}."""
+    return {
+        names[r]: factor_statistics(res, types, threshold, owners == r)
+        for r in sorted(set(owners.tolist()))
+        if r >= 0
+    }
 
 
 def candidate_streams(decisions: list, names: list) -> dict:
@@ -120,25 +136,35 @@ def judge(
     unplaced: list,
     skips: dict,
     test: ConsistencyTest = ConsistencyTest(),
+    robot_stats: dict | None = None,
 ) -> dict:
     """The verdict: {"consistent", "test" (the thresholds), "failures" [...], "warnings"
-    [...]}. factor_stats: `factor_statistics`; streams: `candidate_streams`; unplaced:
-    names of robots with data that nothing placed; skips: `SkipReport.as_dict()`."""
+    [...]}. factor_stats: `factor_statistics`; robot_stats: `robot_statistics` (a robot's
+    factors of one type judged on their own when they hold at least MIN_DIM residual
+    dimensions: one robot's corrupted table is not diluted by the team's); streams:
+    `candidate_streams`; unplaced: names of robots with data that nothing placed; skips:
+    `SkipReport.as_dict()`."""
     failures, warnings = [], []
-    for kind, row in factor_stats.items():
-        nchi2 = row["normalized_chi2"]
-        if nchi2 is not None and nchi2 > test.max_normalized_chi2:
-            failures.append(
-                f"{kind} factors: normalized chi-square {nchi2:.3g} > "
-                f"{test.max_normalized_chi2:g} (whitened residual RMS {row['rms']:.3g}; "
-                f"{row['count']} factors)"
-            )
-        if row["robust"] and row["downweighted_share"] > test.max_downweighted_share:
-            failures.append(
-                f"{kind} factors: {row['downweighted']} of {row['robust']} down-weighted by the "
-                f"robust kernel ({row['downweighted_share']:.0%} > "
-                f"{test.max_downweighted_share:.0%})"
-            )
+    groups = [("", factor_stats)] + [
+        (f"robot {name}: ", rows) for name, rows in (robot_stats or {}).items()
+    ]
+    for prefix, rows in groups:
+        for kind, row in rows.items():
+            nchi2 = row["normalized_chi2"]
+            if prefix and row["dim"] < MIN_DIM:
+                continue
+            if nchi2 is not None and nchi2 > test.max_normalized_chi2:
+                failures.append(
+                    f"{prefix}{kind} factors: normalized chi-square {nchi2:.3g} > "
+                    f"{test.max_normalized_chi2:g} (whitened residual RMS {row['rms']:.3g}; "
+                    f"{row['count']} factors)"
+                )
+            if row["robust"] and row["downweighted_share"] > test.max_downweighted_share:
+                failures.append(
+                    f"{prefix}{kind} factors: {row['downweighted']} of {row['robust']} "
+                    f"down-weighted by the robust kernel ({row['downweighted_share']:.0%} > "
+                    f"{test.max_downweighted_share:.0%})"
+                )
     for name, row in streams.items():
         share = row["inconsistent"] / row["sets"]
         if share > test.max_inconsistent_share:
