@@ -27,7 +27,15 @@ from pathlib import Path
 
 from graphloc import __version__
 from graphloc.commands.common import LOG, add_common_arguments, configure_logging
-from graphloc.exitcodes import BAD_INPUT, FAILED, INCOMPLETE, INCONSISTENT, INTERRUPTED, OK
+from graphloc.exitcodes import (
+    BAD_INPUT,
+    FAILED,
+    INCOMPLETE,
+    INCONSISTENT,
+    INTERRUPTED,
+    OK,
+    SolverFailure,
+)
 
 # verb -> module in graphloc.commands (keep sorted by the order a user meets them)
 VERBS: dict[str, str] = {
@@ -125,6 +133,8 @@ def _main(argv: list[str]) -> int:
         )
         with quiet:
             code = int(args._run(args) or OK)
+    except SolverFailure as exc:  # the input was read, GTSAM could not solve it
+        return error(f"the solver failed: {exc}", FAILED)
     except (ValueError, FileNotFoundError) as exc:
         # Bad input: one clear line naming what is wrong, not a traceback from deep inside.
         return error(str(exc), BAD_INPUT)

@@ -25,3 +25,9 @@ CODES = {
     INCONSISTENT: "inconsistent or incomplete solve (--strict)",
     INTERRUPTED: "interrupted",
 }
+
+
+class SolverFailure(ValueError):
+    """The input was read but GTSAM could not solve it (an indeterminate or ill-conditioned
+    system): FAILED, not BAD_INPUT. A ValueError, so that callers that try another start or
+    drop a hypothesis on a failed solve (`team_graph.solve`) still catch it."""

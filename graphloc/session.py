@@ -35,6 +35,7 @@ Example (GTSAM-example style: explicit keys, one graph, one optimizer):
 
 from __future__ import annotations
 
+import re
 import time as _time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,6 +45,7 @@ import gtsam
 import numpy as np
 from tqdm import tqdm
 
+from graphloc.exitcodes import SolverFailure
 from graphloc.datafile import read_data_file, write_data_file
 from graphloc.fixed_lag import FixedLagWindow
 from graphloc.session_codec import load_session, save_session
@@ -193,7 +195,7 @@ class Session:
             try:
                 self._window.update(graph, initial_values, t)
             except RuntimeError as exc:
-                raise ValueError(
+                raise SolverFailure(
                     f"Session.add at time {t}: fixed-lag update failed ({_first_line(exc)})"
                 ) from None
         elif self._isam is not None:
@@ -202,7 +204,7 @@ class Session:
                 for _ in range(self.config.extra_updates):
                     self._isam.update()
             except RuntimeError as exc:
-                raise ValueError(
+                raise SolverFailure(
                     f"Session.add at time {t}: iSAM2 update failed ({_first_line(exc)}); the "
                     f"online session is unusable after this, reload a saved state"
                 ) from None
@@ -241,7 +243,9 @@ class Session:
                     gtsam.NonlinearFactorGraph(), gtsam.Values(), force_relinearize=True
                 )
         except RuntimeError as exc:
-            raise ValueError(f"Session.iterate: iSAM2 update failed ({_first_line(exc)})") from None
+            raise SolverFailure(
+                f"Session.iterate: iSAM2 update failed ({_first_line(exc)})"
+            ) from None
         return _time.perf_counter() - start
 
     def estimate(self, keys: Iterable[int] | None = None) -> gtsam.Values:
@@ -380,9 +384,13 @@ class Session:
 
 
 def _first_line(exc: Exception) -> str:
-    """The first non-empty line of a GTSAM exception's message (they run to a page)."""
-    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
-    return lines[0] if lines else type(exc).__name__
+    """The first non-empty line of a GTSAM exception's message (they run to a page), with the
+    variable it names (an IndeterminateLinearSystemException's "(Symbol: x0)")."""
+    text = str(exc)
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    first = lines[0] if lines else type(exc).__name__
+    symbol = re.search(r"\(Symbol: (\w+)\)", text)
+    return f"{first} {symbol.group(1)}" if symbol and symbol.group(1) not in first else first
 
 
 def _subset(values: gtsam.Values, keys: Iterable[int]) -> gtsam.Values:

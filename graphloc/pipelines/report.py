@@ -179,6 +179,7 @@ def evaluate(
         "steps_total": len(result.graph.steps),
         "lag_s": result.lag,
         "batch_start": result.batch_start or None,
+        "solver_note": result.solver_note or None,
         "dropped_across_lag": dict(result.dropped),
         "latency_trend": latency_trend(result),
     }

@@ -81,6 +81,9 @@ class GraphConfig:
     # placed robots, started from their current initial poses
     lag: float | None = None  # online: fixed-lag window [s] (None / 0: full smoothing)
     marginalize_every: float = 4.0  # [s] fixed lag: old variables leave in batches this long
+    # iSAM2's factorization: CHOLESKY (fast); QR where Cholesky finds the system indeterminate
+    # (`solve` retries an online solve with it)
+    factorization: str = "CHOLESKY"
 
     def __post_init__(self):
         check(
@@ -99,6 +102,7 @@ class GraphConfig:
             nonnegative=("lag", "downweight_threshold", "relinearize_translation"),
             integer={"relinearize_skip": 1, "lm_max_iterations": 1, "extra_updates": 0},
             interval={"decision_threshold": (0.5, 1.0, "[)")},
+            choices={"factorization": ("CHOLESKY", "QR")},
             optional=(
                 "lag",
                 "relinearize_threshold",
@@ -157,6 +161,7 @@ class GraphConfig:
             isam2_optimizer="dogleg" if camera_graph else "gauss_newton",
             marginalize_every=self.marginalize_every,
             keep_steps=False,  # never saved (`online --checkpoint` replays the graph instead)
+            factorization=self.factorization,
         )
 
 

@@ -58,6 +58,7 @@ class TeamResult:
     chi2: float = float("nan")  # the chi-square of every factor at the estimate, no kernels
     survivors: list = field(default_factory=list)  # other hypotheses' final values (`hypotheses`)
     hypotheses: int = 1  # hypotheses run side by side (alternative placements)
+    solver_note: str = ""  # how the solver departed from its settings, and why (`solve`)
 
 
 RELEASE_UPDATES = 5  # extra iSAM2 updates when held factors enter (a robot placed late)

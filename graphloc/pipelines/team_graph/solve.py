@@ -10,6 +10,7 @@ import gtsam
 import numpy as np
 from tqdm import tqdm
 
+from graphloc.exitcodes import SolverFailure
 from graphloc.keys import decode
 from graphloc.pipelines.team_graph.graph import TeamGraph
 from graphloc.pipelines.team_graph.passes import STEP_LOG_COLUMNS, Pass, TeamResult, start_only
@@ -69,7 +70,16 @@ def solve(
     says which."""
     if mode == "online":
         starts = [None, *graph.guessed_alternatives]
-        return hypotheses(graph, "online", starts, progress, stop, on_step, on_stop)
+        try:
+            return hypotheses(graph, "online", starts, progress, stop, on_step, on_stop)
+        except SolverFailure as exc:
+            if graph.config.factorization == "QR":
+                raise
+            # Cholesky found an ill-conditioned system indeterminate (e.g. millimetre priors
+            # beside pixels no pose explains): the solve again with QR, slower but stable
+            qr = replace(graph, config=replace(graph.config, factorization="QR"))
+            result = hypotheses(qr, "online", starts, progress, stop, on_step, on_stop)
+            return replace(result, solver_note=f"QR factorization (Cholesky failed: {exc})")
     t0 = _time.perf_counter()
     starts, start_from = _batch_starts(graph, stop, progress)
     if stop is not None and stop():  # stopped before LM began: its iterate is its start
