@@ -75,9 +75,10 @@ class StopFlag:
     - "writing" (the solve is done): the outputs being written are finished.
 
     A second signal interrupts at once in every phase (`Interrupted`, 130). A signal that
-    arrives while a C extension initializes (GTSAM, Open3D, OpenCV: an exception raised there
-    reaches the caller as ImportError "initialization failed") is handled as soon as that is
-    done: SIGALRM re-delivers it every RETRY_S. Installed for the duration of a `with` block
+    arrives during an import (a C extension initializing -- GTSAM, Open3D, OpenCV: an exception
+    raised there reaches the caller as ImportError "initialization failed" --, or the import
+    system's callbacks, which ignore an exception) is handled as soon as that is done: SIGALRM
+    re-delivers it every RETRY_S. Installed for the duration of a `with` block
     (main thread only)."""
 
     RETRY_S = 0.02
@@ -93,9 +94,12 @@ class StopFlag:
 
     @staticmethod
     def _initializing_extension(frame) -> bool:
-        """Whether the stack holds a C extension's initialization (its loader's create_module
-        or exec_module)."""
+        """Whether the stack holds an import in progress: a C extension's initialization (its
+        loader's create_module or exec_module), or the import system's own machinery, whose
+        callbacks (a module lock's weakref callback) swallow an exception raised there."""
         while frame is not None:
+            if getattr(frame.f_code, "co_filename", "").startswith("<frozen importlib"):
+                return True
             if frame.f_code.co_name in ("create_module", "exec_module") and isinstance(
                 frame.f_locals.get("self"), importlib.machinery.ExtensionFileLoader
             ):
