@@ -213,10 +213,7 @@ def markdown(report: dict, command: str) -> str:
 
 
 def plot(report: dict, path: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from graphloc.plots import plt
 
     names = list(report["runs"])
     fig, ax = plt.subplots(figsize=(9, 4))
