@@ -42,7 +42,7 @@ _HAT = np.zeros((6, 16))
 for _row, _col in zip(*np.nonzero(_SKEW)):
     _HAT[_row, 4 * (_col // 3) + _col % 3] = _SKEW[_row, _col]
 _HAT[[3, 4, 5], [3, 7, 11]] = 1.0
-_I4, _I6 = np.eye(4), np.eye(6)
+_I3, _I4, _I6 = np.eye(3), np.eye(4), np.eye(6)
 # flattened R @ _VEE_TRACE: R[2,1] - R[1,2], R[0,2] - R[2,0], R[1,0] - R[0,1] (2 sin(theta)
 # axis) and the trace
 _VEE_TRACE = np.zeros((9, 4))
@@ -138,8 +138,7 @@ def log(R: np.ndarray, t: np.ndarray, jacobian: bool = False):
     w, theta = so3_log(R)
     coef = _log_coefficients(theta)[:, :, None, None]
     W = skew(w)
-    Wt = W @ t[:, :, None]
-    u = t + (coef[:, 0] * (W @ Wt) - 0.5 * Wt)[:, :, 0]
+    u = ((_I3 - 0.5 * W + coef[:, 0] * (W @ W)) @ t[:, :, None])[:, :, 0]  # V^-1 t
     xi = np.concatenate([w, u], axis=1)
     if not jacobian:
         return xi

@@ -75,6 +75,8 @@ previous frame, in that frame, with covariance).
 
 from __future__ import annotations
 
+import math
+
 import gtsam
 import numpy as np
 
@@ -90,6 +92,12 @@ from graphloc.hypotheses.track import (
 )
 from graphloc.hypotheses.window import window_updates
 from graphloc.seams import Decision, Odometry, check_frame
+
+_sum = np.add.reduce
+# P.reshape(36) @ _POSITION_TRACE: the trace of the position block of a 6x6 covariance
+_POSITION_TRACE = np.zeros(36)
+_POSITION_TRACE[[21, 28, 35]] = 1.0
+_EMPTY_R, _EMPTY_T, _EMPTY_P = np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros((0, 6, 6))
 
 
 class HypothesisTracker:
@@ -199,17 +207,17 @@ class HypothesisTracker:
         pred_t = self._R @ ut + self._t
         P_pred = ad @ self._P @ ad.T + odometry.covariance
 
-        # (h, j) Gaussian log-likelihoods; cheap Euclidean pre-gate, then the Mahalanobis gate
-        log_assoc = np.full((H, J), -np.inf)
-        maha_hj = np.full((H, J), np.inf)
+        # (h, j) Gaussian log-likelihoods, rows 0..H-1 of `cols` (row H: the birth); cheap
+        # Euclidean pre-gate, then the Mahalanobis gate
+        cols = np.full((H + 1, J), -np.inf)
         if J:
-            c_mean = cov.sum(axis=0) / J
+            c_mean = _sum(cov, 0) / J
             d = pred_t[:, None, :] - candidates.t[None, :, :]
-            var_bound = (
-                np.trace(P_pred[:, 3:, 3:], axis1=1, axis2=2)[:, None]
-                + np.trace(cov[:, 3:, 3:], axis1=1, axis2=2)[None]
+            var_bound = (P_pred.reshape(H, 36) @ _POSITION_TRACE)[:, None] + (
+                cov.reshape(J, 36) @ _POSITION_TRACE
             )
-            hs, js = np.nonzero((d * d).sum(axis=2) <= cfg.gate * var_bound)
+            gated = _sum(d * d, 2) <= cfg.gate * var_bound
+            hs, js = np.nonzero(gated)
         else:
             c_mean = np.diag([cfg.default_sigmas[0] ** 2] * 3 + [cfg.default_sigmas[1] ** 2] * 3)
             hs = js = np.zeros(0, dtype=int)
@@ -217,40 +225,35 @@ class HypothesisTracker:
         S = P_pred[hs] + cov[js]
         # log-determinants of the candidates (their positive-definiteness check), the pairs'
         # innovation covariances, P- + C_mean (Occam factor of a coasting track, below) and
-        # C_mean; the inverses of S, of the tracks' and the candidates' covariances and of Q
-        # (the windows' information); one batched call each
+        # C_mean, in one batched call
         logdets = log_determinants(
             np.concatenate([cov, S, P_pred + c_mean, c_mean[None]]), candidates, cfg
         )
-        logdet_c, logdet_s = logdets[:J], logdets[J : J + n_pairs]
-        logdet_pc, logdet_cm = logdets[J + n_pairs : -1], logdets[-1]
-        info = np.linalg.inv(np.concatenate([S, self._P, odometry.covariance[None], cov]))
+        logdet_c = logdets[:J]
         if n_pairs:  # the pairs' innovations Log((x u)^-1 z)
             RT = pred_R[hs].transpose(0, 2, 1)
             inn_R = RT @ candidates.R[js]
             inn_t = (RT @ (candidates.t[js] - pred_t[hs])[:, :, None])[:, :, 0]
-            e = se3.log(inn_R, inn_t)
-            maha = (e[:, None, :] @ info[:n_pairs] @ e[:, :, None])[:, 0, 0]
+            e, jr_inv, ad_e = se3.log(inn_R, inn_t, jacobian=True)
+            maha = (e[:, None, :] @ np.linalg.solve(S, e[:, :, None]))[:, 0, 0]
             # log det(I + P- C^-1) = log det S - log det C
-            ll = fit_score(maha, cfg.student_dof) - 0.5 * (logdet_s - logdet_c[js])
+            ll = fit_score(maha, cfg.student_dof) - 0.5 * (logdets[J : J + n_pairs] - logdet_c[js])
             ll[maha > cfg.gate] = -np.inf
-            log_assoc[hs, js] = logw_h[hs] + logw_c[js] + ll
-            maha_hj[hs, js] = maha
-        log_birth = np.log(cfg.birth_probability) + logw_c
+            cols[hs, js] = logw_h[hs] + logw_c[js] + ll
+        cols[H] = math.log(cfg.birth_probability) + logw_c
         complete = J >= cfg.full_count
-        log_miss = np.log(cfg.miss_probability_full if complete else 1.0 / cfg.full_count)
+        log_miss = math.log(cfg.miss_probability_full if complete else 1.0 / cfg.full_count)
         if J and not complete:
-            log_assoc += np.log(J / cfg.full_count)
+            cols[:H] += math.log(J / cfg.full_count)
 
         # children: one per candidate (merged over parents + birth), plus one coasting hypothesis
         # per track (its coasting copies merged); every candidate keeps a child (so that a birth
         # can always take over: relocalization), coasting tracks fill the remaining slots
-        cols = np.vstack([log_assoc, log_birth[None, :]])  # (H+1, J): parents, then the birth
         child_lw = np.logaddexp.reduce(cols, axis=0).tolist()
-        child_parent = np.argmax(cols, axis=0).tolist()
+        child_parent = cols.argmax(axis=0).tolist()
         # a coasting track pays the Occam factor of an average consistent association,
         # 1/2 log det(I + P- C_mean^-1), so that a miss is neutral w.r.t. associating
-        coast_lw = (logw_h + log_miss - 0.5 * (logdet_pc - logdet_cm)).tolist()
+        coast_lw = (logw_h + log_miss - 0.5 * (logdets[-1 - H : -1] - logdets[-1])).tolist()
         coast: dict[int, tuple[float, int]] = {}  # track id -> (merged log-weight, best hypothesis)
         lw_h = logw_h.tolist()
         for h, (track_id, misses) in enumerate(zip(self._ids, self._misses)):
@@ -269,21 +272,20 @@ class HypothesisTracker:
 
         # the kept children's windows (tracker.py step 3; graphloc.hypotheses.window)
         updates = [j for j in kept if child_parent[j] != H]
-        win_R, win_t, win_P = np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros((0, 6, 6))
+        win_R, win_t, win_P = _EMPTY_R, _EMPTY_T, _EMPTY_P
         if updates:
             parents = [child_parent[j] for j in updates]
-            pair = np.full((H, J), -1)
-            pair[hs, js] = np.arange(n_pairs)
-            k = pair[parents, updates]
+            # the pairs' rows: np.nonzero's row-major order
+            k = (np.cumsum(gated) - 1)[np.array(parents) * J + updates]
             win_R, win_t, win_P, _ = window_updates(
-                (info[n_pairs : n_pairs + H][parents], info[n_pairs + H], info[-J:][updates]),
+                (self._P[parents], odometry.covariance, cov[updates]),
                 ad,
                 (candidates.R[updates], candidates.t[updates]),
-                (inn_R[k], inn_t[k], e[k]),
+                (inn_R[k], inn_t[k], e[k], jr_inv[k] - ad_e[k]),
                 cfg.gn_iterations,
             )
-            if cfg.student_scale and np.isfinite(cfg.student_dof):
-                scale = (cfg.student_dof + maha_hj[parents, updates]) / (cfg.student_dof + 6.0)
+            if cfg.student_scale and cfg.student_dof < math.inf:
+                scale = (cfg.student_dof + maha[k]) / (cfg.student_dof + 6.0)
                 win_P = win_P * scale[:, None, None]
 
         # the new tracks, rows of [predictions (H) | candidates (J) | windows]
@@ -325,9 +327,9 @@ class HypothesisTracker:
             track_prob[track_id] = track_prob.get(track_id, 0.0) + p
         # log-odds floored at the uninformed 1/full_count: a relocalization birth's tiny prior is
         # not evidence against it to be made up after its decisive update is held out
-        floor = -np.log(cfg.full_count - 1.0) if cfg.full_count > 1 else -np.inf
+        floor = -math.log(cfg.full_count - 1.0) if cfg.full_count > 1 else -math.inf
         logit = {
-            i: max(floor, float(np.log(p) - np.log1p(-min(p, 1.0 - 1e-15))))
+            i: max(floor, math.log(p) - math.log1p(-min(p, 1.0 - 1e-15)) if p > 0.0 else floor)
             for i, p in track_prob.items()
         }
         gain = {
@@ -345,7 +347,7 @@ class HypothesisTracker:
         if self._committed_id is None and track_prob:
             best_id = max(track_prob, key=track_prob.get)
             held_out = logit[best_id] - (gain[best_id] if cfg.robust_commit else 0.0)
-            if held_out >= np.log(cfg.commit_threshold / (1.0 - cfg.commit_threshold)):
+            if held_out >= math.log(cfg.commit_threshold / (1.0 - cfg.commit_threshold)):
                 self._committed_id = best_id
         if not self._ids:
             return Decision(probs, -1, False, None, relocalized)

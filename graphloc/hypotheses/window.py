@@ -34,23 +34,25 @@ _sum = np.add.reduce
 
 
 def window_updates(
-    information: tuple[np.ndarray, np.ndarray, np.ndarray],
+    covariance: tuple[np.ndarray, np.ndarray, np.ndarray],
     odometry_adjoint: np.ndarray,
     candidate: tuple[np.ndarray, np.ndarray],
-    innovation: tuple[np.ndarray, np.ndarray, np.ndarray],
+    innovation: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     iterations: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """n windows. information: the inverse covariances of the parents (n,6,6), of the
-    odometry (6,6) and of the candidates (n,6,6); odometry_adjoint: Ad(u^-1) (6,6); candidate:
-    R (n,3,3), t (n,3); innovation: the pose (parent u)^-1 candidate, R (n,3,3), t (n,3), and
-    its Logmap (n,6). Returns the children's R (n,3,3), t (n,3), covariance (n,6,6) and the
+    """n windows. covariance: of the parents (n,6,6), of the odometry (6,6) and of the
+    candidates (n,6,6); odometry_adjoint: Ad(u^-1) (6,6); candidate:
+    R (n,3,3), t (n,3); innovation: the pose (parent u)^-1 candidate, R (n,3,3), t (n,3), its
+    Logmap (n,6) and the inverse right Jacobian at minus it (n,6,6), Jr^-1(-xi) =
+    Jr^-1(xi) - ad(xi). Returns the children's R (n,3,3), t (n,3), covariance (n,6,6) and the
     Gauss-Newton iterations done."""
-    info_p, info_q, info_c = information
+    P, Q, C = covariance
     zR, zt = candidate
-    iR, it_, xi_c = innovation
+    iR, it_, xi_c, jc = innovation
     n = len(zR)
+    info = np.linalg.inv(np.concatenate([P, Q[None], C]))
     L = np.zeros((n, 18, 18))  # the information of the three factors, block-diagonal
-    L[:, :6, :6], L[:, 6:12, 6:12], L[:, 12:, 12:] = info_p, info_q, info_c
+    L[:, :6, :6], L[:, 6:12, 6:12], L[:, 12:, 12:] = info[:n], info[n], info[n + 1 :]
     # the error poses of every window, [E_a, E_b, E_c]: at the start I, I, z^-1 (x0 u)
     E = np.empty((n, 3, 4, 4))
     E[:] = _I4
@@ -62,7 +64,7 @@ def window_updates(
     A = np.zeros((n, 18, 12))
     A[:, :6, :6] = A[:, 6:12, 6:] = _I6
     A[:, 6:12, :6] = -odometry_adjoint
-    A[:, 12:, 6:] = se3.inverse_right_jacobian(-xi_c)
+    A[:, 12:, 6:] = jc
     Le = L @ e
     error, it = 0.5 * float(_sum(e * Le, None)), 0
     if error > 0.0 and iterations > 0:
