@@ -38,9 +38,9 @@ Per frame (odometry u with covariance Q, candidates z_j with covariances C_j and
    poses of every window relinearized, GTSAM's GaussNewtonOptimizer's steps and stopping rule
    on the windows as one graph), the new covariances are Schur complements of the Hessian's
    diagonal blocks -- in batched NumPy with GTSAM's Pose3 maps and factor Jacobians
-   (`graphloc.hypotheses.window`, `graphloc.hypotheses.se3`): a GTSAM graph per frame cost
-   more in building and ordering than in arithmetic. The tracks are arrays (one row per
-   track), so a frame creates no Python object per hypothesis. The innovation being
+   (`graphloc.hypotheses.window`, `graphloc.hypotheses.se3`), no GTSAM graph built per
+   frame. The tracks are arrays (one row per track), so a frame creates no Python object per
+   hypothesis. The innovation being
    Student-t, so is the posterior (Roth, Ozkan, Gustafsson 2013, "A Student's t filter for
    heavy tailed process and measurement noise"):
    its scale is the Gaussian one times (nu + m) / (nu + 6) -- a surprising frame makes the

@@ -4,8 +4,8 @@ PriorFactorPose3(x1; candidate, candidate covariance), solved by Gauss-Newton fr
 x1 = parent * odometry, the child's covariance the x1 block of the inverse Hessian at the
 solution. All children of a frame are one batch (disjoint windows), as they were one GTSAM graph.
 
-The same computation as `gtsam.GaussNewtonOptimizer` on that graph, in batched NumPy (one
-GTSAM graph per frame cost more in building and ordering than in arithmetic):
+The same computation as `gtsam.GaussNewtonOptimizer` on that graph, in batched NumPy (no
+graph built per frame):
 - errors and Jacobians as GTSAM's factors: prior e = Log(m^-1 x), de/dx = Jr^-1(e); between
   e = Log(u^-1 x0^-1 x1), de/dx1 = Jr^-1(e), de/dx0 = -Jr^-1(e) Ad(x1^-1 x0) = -Jl^-1(e) Ad(u^-1)
   (Jr^-1(e) Ad(Exp(e)^-1) = Jl^-1(e) = Jr^-1(e) - ad(e));
