@@ -324,7 +324,7 @@ def test_tracker_file_round_trips_infinities_and_rejects_damage(tmp_path):
     resumed = HypothesisTracker.load(path)
     assert resumed.config == tracker.config and resumed.config.student_dof == float("inf")
     assert resumed._logit == tracker._logit and resumed._max_gain == tracker._max_gain
-    assert [t.mean.equals(u.mean, 0.0) for t, u in zip(tracker._tracks, resumed._tracks)] == [
+    assert [t.mean.equals(u.mean, 0.0) for t, u in zip(tracker.tracks, resumed.tracks)] == [
         True
     ] * tracker.num_hypotheses
 

@@ -48,7 +48,8 @@ PAPER_TABLE_II_MS = {"deterministic": 1.7, "update": 0.35}
 def table_iii(config: TableIIIConfig = TableIIIConfig(), progress: bool = True) -> dict:
     """Seed 000 Table III: mean updates to converge per cell for every method of
     graphloc.experiments.hypotheses (same simulated runs for all), plus the per-update
-    latencies used by Table II."""
+    latencies of its runs (wall time, the workers side by side: Table II times the updates
+    alone, `update_latency`)."""
     jobs = [
         (ceiling, curve, i, config)
         for ceiling, curve in hypotheses.CELLS
@@ -114,40 +115,52 @@ def fig6_series(
 
 
 # ---- Table II ---------------------------------------------------------------------------------
+UPDATE_ENGINES = ("belief_def1", "belief_def2", "particle_filter", "tracker", "tracker_table3")
+
+
 def table_ii(
-    table3: dict | None = None, samples: int = 100, seed: int = 0, table1: dict | None = None
+    samples: int = 100, seed: int = 0, table1: dict | None = None, update_runs: int = 12
 ) -> dict:
-    """Seed 000 Table II on this machine: the deterministic algorithm per trial, one trial per
-    call (seed: mutual triangle + P3P on three snapshots + straight-line test; graphloc: the
-    trial's log read by open_run, the team graph built and solved in batch, as `graphloc
-    smooth` does), and one probabilistic update (mean latency of
-    belief Def. 1 / particle filter / HypothesisTracker from the Table III runs). Median over
-    `samples` trials; the simulation itself is not timed."""
+    """Seed 000 Table II on this machine, in CPU time (time.process_time: this process, all its
+    threads; the machine may be shared, so not wall time), nothing simulated in the timed part.
+
+    Deterministic algorithm, one trial per call, `samples` trials, median: the seed (three-
+    robot triangle from the mutual omni pixels, graphloc.vision.mutual, then P3P on the
+    climber's three snapshots and the straight-line test) and graphloc through the front door
+    (`front_door.table_i_trial`): the trial's log read by open_run, the team graph built and
+    solved in batch -- each phase timed apart, and the log's writing (the simulator's output,
+    not part of graphloc's estimate) reported beside them.
+
+    One probabilistic update (`update_latency`): one `engine.update(candidates, odometry)` call
+    of every engine on the same `feng-probabilistic` runs, `update_runs` of them."""
     config = TableIConfig(trials=samples, seed=seed, workers=1)
     trials = simulate_straight_line_trials(samples, seed=seed)
     omni = ParaboloidOmniCamera.from_fov(config.omni_size, config.omni_max_polar)
     tri = ground_triangle(trials.ground, config, np.random.default_rng([seed, 1]))
     step_sigma = 3 * Seed000Config().step_mean
-    seed_ms, joint_ms = [], []
+    seed_ms, phases = [], []
     for i in np.flatnonzero(np.isfinite(tri.estimated).all(axis=(1, 2))):
         sl = slice(i, i + 1)
         baseline = np.linalg.norm(trials.ground[i, 1] - trials.ground[i, 0])
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         res = localize_three(tri.pixels[sl], omni, baseline)
         ground = trials.ground[sl, 0, None, :] + np.einsum("nij,nkj->nki", tri.R[sl, 0], res.t)
         localize_by_straight_line(trials.pixels[sl], trials.K, ground)
-        seed_ms.append(1e3 * (time.perf_counter() - t0))
-        # graphloc: open_run + team graph + batch solve of the trial's log (writing it untimed)
+        seed_ms.append(1e3 * (time.process_time() - t0))
         job = (trial_rows(trials, [i]), trial_rows(tri, [i]), config.pixel_sigma, step_sigma)
-        joint_ms.append(1e3 * table_i_trial(job)[3])
+        phases.append(table_i_trial(job)[3])
+    ms = {k: 1e3 * np.array([p[k] for p in phases]) for k in ("write", "read", "build", "solve")}
+    ms["total"] = ms["read"] + ms["build"] + ms["solve"]
     out = {
         "table": "seed000-table2",
+        "clock": "CPU time (time.process_time)",
         "paper_ms": PAPER_TABLE_II_MS,
         "samples": len(seed_ms),
         "deterministic_ms": {
-            "seed_baseline": float(np.median(seed_ms)),
-            "graphloc": float(np.median(joint_ms)),
+            "seed_baseline": _summary(np.array(seed_ms)),
+            "graphloc": {k: _summary(v) for k, v in ms.items()},
         },
+        "update": update_latency(update_runs, seed),
         "bearing_custom_factor_linearize": bearing_linearize_cost(500),
     }
     if table1 is not None:  # vectorized over all Table I trials, per trial
@@ -157,13 +170,68 @@ def table_ii(
             "seed_baseline": 1e3 * timing["seed_batched_s"] / n,
             "graphloc": 1e3 * timing["graphloc_s"] / n,
         }
-    if table3 is not None:
-        cells = table3["cells"].values()
-        out["update_ms"] = {
-            m: float(np.mean([c[m]["mean_latency_ms"] for c in cells]))
-            for m in ("belief_def1", "belief_def2", "particle_filter", "tracker")
-        }
     return out
+
+
+def update_latency(runs: int = 12, seed: int = 0, config: TableIIIConfig = TableIIIConfig()):
+    """CPU time of one `engine.update(candidates, odometry)` call, nothing else (candidate
+    sets and odometry built beforehand), for every engine of `UPDATE_ENGINES` on the same
+    `runs` feng-probabilistic runs (the cells of Table III in turn, seeds from `seed`): belief
+    vector Def. 1 / Def. 2 (seed 000 Sec. V-B), particle filter (seed 004), HypothesisTracker
+    at K = 4 ("tracker") and at Table III's K ("tracker_table3", config.max_hypotheses). The
+    engines take turns run by run (the order rotated), each warmed up on a run's first frames
+    first. Median, 95th percentile and mean per update [ms]."""
+    engines = {
+        "belief_def1": ("belief_def1", config),
+        "belief_def2": ("belief_def2", config),
+        "particle_filter": ("particle_filter", config),
+        "tracker": ("tracker", replace(config, max_hypotheses=4)),
+        "tracker_table3": ("tracker", config),
+    }
+    simulated = []
+    for k in range(runs):
+        ceiling, curve = hypotheses.CELLS[k % len(hypotheses.CELLS)]
+        sim = FengProbabilisticConfig(
+            ceiling=ceiling,
+            curve=curve,
+            seed=seed + 1000 * (k % len(hypotheses.CELLS)) + k // len(hypotheses.CELLS),
+            pixel_sigma=config.pixel_sigma,
+            odometry_model=config.odometry_model,
+        )
+        run = FengProbabilisticScenario.simulate(sim)
+        world = (
+            hypotheses.world_odometry_steps(run, sim) if config.action_frame == "world" else None
+        )
+        simulated.append((ceiling, sim.seed, run, hypotheses.odometry_steps(run, sim), world))
+    names = list(engines)
+    ns = {name: [] for name in names}
+    for k, (ceiling, sim_seed, run, odometry, world) in enumerate(simulated):
+        for name in names[k % len(names) :] + names[: k % len(names)]:
+            method, cfg = engines[name]
+            steps = world if world is not None and method.startswith("belief") else odometry
+            frames = list(zip(run.candidates, steps))
+            warm = hypotheses.make_engine(method, ceiling, cfg, sim_seed)
+            for cands, odo in frames[:5]:
+                warm.update(cands, odo)
+            engine = hypotheses.make_engine(method, ceiling, cfg, sim_seed)
+            for cands, odo in frames:
+                t0 = time.process_time_ns()
+                engine.update(cands, odo)
+                ns[name].append(time.process_time_ns() - t0)
+    return {
+        "runs": runs,
+        "updates": len(ns[names[0]]),
+        "max_hypotheses": {"tracker": 4, "tracker_table3": config.max_hypotheses},
+        "ms": {name: _summary(1e-6 * np.array(v)) for name, v in ns.items()},
+    }
+
+
+def _summary(x: np.ndarray) -> dict:
+    return {
+        "median": float(np.median(x)),
+        "p95": float(np.percentile(x, 95)),
+        "mean": float(np.mean(x)),
+    }
 
 
 # ---- plots ------------------------------------------------------------------------------------
@@ -236,7 +304,7 @@ def run(out: Path, sizes: RunSizes, workers: int, progress: bool = True) -> dict
     t0 = time.perf_counter()
     t1 = table_i(TableIConfig(trials=sizes.table1_trials, workers=workers), progress)
     t3 = table_iii(TableIIIConfig(runs=sizes.table3_runs, workers=workers), progress)
-    t2 = table_ii(t3, samples=min(sizes.table2_samples, sizes.table1_trials), table1=t1)
+    t2 = table_ii(samples=min(sizes.table2_samples, sizes.table1_trials), table1=t1)
     f6 = fig6_series()
     result = {
         "table_i": t1,

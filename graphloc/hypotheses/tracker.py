@@ -32,13 +32,17 @@ Per frame (odometry u with covariance Q, candidates z_j with covariances C_j and
    a lost track). Candidate covariances are capped at max_candidate_std (linearization trust
    region: near the fold of the P3P map the first-order covariance is meaningless);
 3. children: one per candidate, log-sum-exp over all parents and the birth (the posterior
-   that j is genuine), state from the best parent updated by a 2-pose fixed-lag window in
-   GTSAM: PriorFactorPose3 (parent marginal) + BetweenFactorPose3 (odometry) + the mixture
-   component of z_j (`graphloc.factors.mixture.component_factors`); the windows of all
-   children of a frame are one graph (disjoint keys) and one Gauss-Newton (both poses of
-   every window relinearized), the new covariances are Schur complements of the Hessian's
-   diagonal blocks. The innovation being Student-t, so is the posterior (Roth, Ozkan,
-   Gustafsson 2013, "A Student's t filter for heavy tailed process and measurement noise"):
+   that j is genuine), state from the best parent updated by a 2-pose fixed-lag window:
+   PriorFactorPose3 (parent marginal) + BetweenFactorPose3 (odometry) + PriorFactorPose3 (z_j,
+   C_j); the windows of all children of a frame are one batch and one Gauss-Newton (both
+   poses of every window relinearized, GTSAM's GaussNewtonOptimizer's steps and stopping rule
+   on the windows as one graph), the new covariances are Schur complements of the Hessian's
+   diagonal blocks -- in batched NumPy with GTSAM's Pose3 maps and factor Jacobians
+   (`graphloc.hypotheses.window`, `graphloc.hypotheses.se3`), no GTSAM graph built per
+   frame. The tracks are arrays (one row per track), so a frame creates no Python object per
+   hypothesis. The innovation being
+   Student-t, so is the posterior (Roth, Ozkan, Gustafsson 2013, "A Student's t filter for
+   heavy tailed process and measurement noise"):
    its scale is the Gaussian one times (nu + m) / (nu + 6) -- a surprising frame makes the
    track less certain instead of dragging a confident wrong state into the next frames'
    scores (`student_scale`);
@@ -71,16 +75,29 @@ previous frame, in that frame, with covariance).
 
 from __future__ import annotations
 
+import math
+
 import gtsam
 import numpy as np
 
 from graphloc.candidates import CandidateSet
-from graphloc.factors.mixture import candidate_covariances
+from graphloc.hypotheses import se3
 from graphloc.hypotheses.config import TrackerConfig
-from graphloc.hypotheses.track import Track, cap_covariances, fit_score
 from graphloc.hypotheses.state import STATE_FIELDS, load_state, save_state
-from graphloc.keys import pose_key
+from graphloc.hypotheses.track import (
+    Track,
+    capped_candidate_covariances,
+    fit_score,
+    log_determinants,
+)
+from graphloc.hypotheses.window import window_updates
 from graphloc.seams import Decision, Odometry, check_frame
+
+_sum = np.add.reduce
+# P.reshape(36) @ _POSITION_TRACE: the trace of the position block of a 6x6 covariance
+_POSITION_TRACE = np.zeros(36)
+_POSITION_TRACE[[21, 28, 35]] = 1.0
+_EMPTY_R, _EMPTY_T, _EMPTY_P = np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros((0, 6, 6))
 
 
 class HypothesisTracker:
@@ -90,255 +107,229 @@ class HypothesisTracker:
     d0 = tracker.update(candidates_0)             # first frame: no odometry
     d1 = tracker.update(candidates_1, odometry_1)  # Odometry(relative, covariance)
     d1.probabilities, d1.committed, d1.pose
+
+    The live tracks are arrays (rotations, translations, covariances, log-weights, ids,
+    candidates, misses), one row per track; `tracks` gives them as `Track`s.
     """
 
     def __init__(self, config: TrackerConfig = TrackerConfig()):
         self.config = config
-        self._tracks: list[Track] = []
+        self._set_tracks([])
         self._next_id = 0
         self._committed_id: int | None = None
         self._logit: dict[int, float] = {}  # track id -> posterior log-odds after the last update
         self._max_gain: dict[int, float] = {}  # track id -> largest log-odds gain of one update
         self._last_time: float | None = None
-        self._gn = self._make_gn_params(config)
-
-    @staticmethod
-    def _make_gn_params(config: TrackerConfig) -> gtsam.GaussNewtonParams:
-        params = gtsam.GaussNewtonParams()
-        params.setMaxIterations(int(config.gn_iterations))
-        return params
-
-    def __getstate__(self) -> dict:
-        """Picklable state (save / resume an online tracker): GaussNewtonParams is rebuilt."""
-        state = self.__dict__.copy()
-        del state["_gn"]
-        return state
-
-    def __setstate__(self, state: dict) -> None:
-        self.__dict__.update(state)
-        self._gn = self._make_gn_params(self.config)
 
     # ---- save / resume as data (no pickle: a loaded file never runs code) ----------------------
     def save(self, path) -> None:
         """Write the tracker's whole state (config, tracks, commit, log-odds) to `path` as a
         versioned JSON file, atomically (`graphloc.hypotheses.state`); `load` resumes it with
         identical decisions."""
-        save_state(path, self.config, self._state())
+        state = {name: getattr(self, f"_{name}") for name in STATE_FIELDS if name != "tracks"}
+        save_state(path, self.config, {**state, "tracks": self.tracks})
 
     @classmethod
     def load(cls, path) -> "HypothesisTracker":
         """A tracker `save` wrote. ValueError naming the file and the field on anything else."""
         config, state = load_state(path)
         tracker = cls(config)
+        tracker._set_tracks(state.pop("tracks"))
         for name, value in state.items():
             setattr(tracker, f"_{name}", value)
         return tracker
 
-    def _state(self) -> dict:
-        return {name: getattr(self, f"_{name}") for name in STATE_FIELDS}
+    @property
+    def tracks(self) -> list[Track]:
+        """The live tracks (copies), in the tracker's order."""
+        return [
+            Track(gtsam.Pose3(gtsam.Rot3(R), t), P.copy(), lw, i, c, m)
+            for R, t, P, lw, i, c, m in zip(
+                self._R,
+                self._t,
+                self._P,
+                self._logw.tolist(),
+                self._ids,
+                self._cand,
+                self._misses,
+            )
+        ]
+
+    def _set_tracks(self, tracks: list[Track]) -> None:
+        self._R = np.array([t.mean.rotation().matrix() for t in tracks]).reshape(-1, 3, 3)
+        self._t = np.array([t.mean.translation() for t in tracks]).reshape(-1, 3)
+        self._P = np.array([t.cov for t in tracks], dtype=float).reshape(-1, 6, 6)
+        self._logw = np.array([t.logw for t in tracks], dtype=float)
+        self._ids = [t.track_id for t in tracks]
+        self._cand = [t.candidate for t in tracks]
+        self._misses = [t.misses for t in tracks]
 
     @property
     def num_hypotheses(self) -> int:
-        return len(self._tracks)
+        return len(self._ids)
 
     @property
     def committed_track(self) -> int | None:
         return self._committed_id
 
     def update(self, candidates: CandidateSet, odometry: Odometry | None = None) -> Decision:
-        first = not self._tracks and self._last_time is None
+        first = not self._ids and self._last_time is None
         check_frame(candidates, odometry, first, self._last_time, "HypothesisTracker.update")
-        cov = cap_covariances(
-            candidate_covariances(candidates, self.config.default_sigmas),
-            self.config.max_candidate_std,
-        )
-        self._last_time = candidates.time
+        cov = capped_candidate_covariances(candidates, self.config)
         logw_c = np.log(np.maximum(candidates.weights(), 1e-300))
-        if not self._tracks:
+        if not self._ids:
+            log_determinants(cov, candidates, self.config)  # the candidates' check
             keep = np.argsort(-logw_c, kind="stable")[: self.config.max_hypotheses]
-            poses = candidates.poses()
-            self._tracks = [self._birth(poses[j], cov[j], int(j), float(logw_c[j])) for j in keep]
+            ids = list(range(self._next_id + 1, self._next_id + 1 + len(keep)))
+            self._next_id += len(keep)
+            self._R, self._t, self._P = candidates.R[keep], candidates.t[keep], cov[keep]
+            self._logw = logw_c[keep]
+            self._ids, self._cand, self._misses = ids, keep.tolist(), [0] * len(keep)
         else:  # check_frame has required odometry for every frame after the first
             self._step(candidates, cov, logw_c, odometry)
-        self._normalize()
+        self._last_time = candidates.time
+        if len(self._logw):
+            self._logw = self._logw - np.logaddexp.reduce(self._logw)
         return self._decide(len(candidates))
 
     # ---- one frame ---------------------------------------------------------------------------
-    def _birth(self, pose: gtsam.Pose3, cov: np.ndarray, j: int, logw: float) -> Track:
-        self._next_id += 1
-        return Track(pose, cov.copy(), logw, self._next_id, j)
-
     def _step(
         self, candidates: CandidateSet, cov: np.ndarray, logw_c: np.ndarray, odometry: Odometry
     ) -> None:
         cfg = self.config
         u = odometry.relative
+        uR, ut = u.rotation().matrix(), u.translation()
         ad = u.inverse().AdjointMap()
-        preds = [t.mean.compose(u) for t in self._tracks]
-        P_pred = (
-            np.einsum("ij,hjk,lk->hil", ad, np.stack([t.cov for t in self._tracks]), ad)
-            + odometry.covariance
-        )
-        logw_h = np.array([t.logw for t in self._tracks])
-        H, J = len(self._tracks), len(candidates)
-        zs = candidates.poses()
+        logw_h = self._logw
+        H, J = len(logw_h), len(candidates)
+        # predict every track: x- = x u, P- = Ad(u^-1) P Ad(u^-1)^T + Q
+        pred_R = self._R @ uR
+        pred_t = self._R @ ut + self._t
+        P_pred = ad @ self._P @ ad.T + odometry.covariance
 
-        # (h, j) Gaussian log-likelihoods; cheap Euclidean pre-gate, then the Mahalanobis gate
-        log_assoc = np.full((H, J), -np.inf)
-        maha_hj = np.full((H, J), np.inf)
-        # log-determinants of the candidates, of P- + C_mean (Occam factor of a coasting track,
-        # below) and of C_mean, in one batched call
-        c_mean = (
-            cov.mean(axis=0)
-            if J
-            else np.diag([cfg.default_sigmas[0] ** 2] * 3 + [cfg.default_sigmas[1] ** 2] * 3)
-        )
-        logdets = np.linalg.slogdet(np.concatenate([cov, P_pred + c_mean, c_mean[None]]))[1]
-        logdet_c, logdet_pc, logdet_cm = logdets[:J], logdets[J : J + H], logdets[-1]
+        # (h, j) Gaussian log-likelihoods, rows 0..H-1 of `cols` (row H: the birth); cheap
+        # Euclidean pre-gate, then the Mahalanobis gate
+        cols = np.full((H + 1, J), -np.inf)
         if J:
-            pos_pred = np.array([p.translation() for p in preds])
-            d2 = np.sum((pos_pred[:, None, :] - candidates.t[None, :, :]) ** 2, axis=2)
-            var_bound = (
-                np.trace(P_pred[:, 3:, 3:], axis1=1, axis2=2)[:, None]
-                + np.trace(cov[:, 3:, 3:], axis1=1, axis2=2)[None]
+            c_mean = _sum(cov, 0) / J
+            d = pred_t[:, None, :] - candidates.t[None, :, :]
+            var_bound = (P_pred.reshape(H, 36) @ _POSITION_TRACE)[:, None] + (
+                cov.reshape(J, 36) @ _POSITION_TRACE
             )
-            hs, js = np.nonzero(d2 <= cfg.gate * var_bound)
-            if hs.size:
-                e = np.array([gtsam.Pose3.Logmap(preds[h].between(zs[j])) for h, j in zip(hs, js)])
-                S = P_pred[hs] + cov[js]
-                maha = np.einsum("ni,ni->n", e, np.linalg.solve(S, e[..., None])[..., 0])
-                logdet = np.linalg.slogdet(S)[1]
-                # log det(I + P- C^-1) = log det S - log det C
-                ll = fit_score(maha, cfg.student_dof) - 0.5 * (logdet - logdet_c[js])
-                ll[maha > cfg.gate] = -np.inf
-                log_assoc[hs, js] = logw_h[hs] + logw_c[js] + ll
-                maha_hj[hs, js] = maha
-        log_birth = np.log(cfg.birth_probability) + logw_c
+            gated = _sum(d * d, 2) <= cfg.gate * var_bound
+            hs, js = np.nonzero(gated)
+        else:
+            c_mean = np.diag([cfg.default_sigmas[0] ** 2] * 3 + [cfg.default_sigmas[1] ** 2] * 3)
+            hs = js = np.zeros(0, dtype=int)
+        n_pairs = len(hs)
+        S = P_pred[hs] + cov[js]
+        # log-determinants of the candidates (their positive-definiteness check), the pairs'
+        # innovation covariances, P- + C_mean (Occam factor of a coasting track, below) and
+        # C_mean, in one batched call
+        logdets = log_determinants(
+            np.concatenate([cov, S, P_pred + c_mean, c_mean[None]]), candidates, cfg
+        )
+        logdet_c = logdets[:J]
+        if n_pairs:  # the pairs' innovations Log((x u)^-1 z)
+            RT = pred_R[hs].transpose(0, 2, 1)
+            inn_R = RT @ candidates.R[js]
+            inn_t = (RT @ (candidates.t[js] - pred_t[hs])[:, :, None])[:, :, 0]
+            e, jr_inv, ad_e = se3.log(inn_R, inn_t, jacobian=True)
+            maha = (e[:, None, :] @ np.linalg.solve(S, e[:, :, None]))[:, 0, 0]
+            # log det(I + P- C^-1) = log det S - log det C
+            ll = fit_score(maha, cfg.student_dof) - 0.5 * (logdets[J : J + n_pairs] - logdet_c[js])
+            ll[maha > cfg.gate] = -np.inf
+            cols[hs, js] = logw_h[hs] + logw_c[js] + ll
+        cols[H] = math.log(cfg.birth_probability) + logw_c
         complete = J >= cfg.full_count
-        log_miss = np.log(cfg.miss_probability_full if complete else 1.0 / cfg.full_count)
+        log_miss = math.log(cfg.miss_probability_full if complete else 1.0 / cfg.full_count)
         if J and not complete:
-            log_assoc += np.log(J / cfg.full_count)
+            cols[:H] += math.log(J / cfg.full_count)
 
         # children: one per candidate (merged over parents + birth), plus one coasting hypothesis
         # per track (its coasting copies merged); every candidate keeps a child (so that a birth
         # can always take over: relocalization), coasting tracks fill the remaining slots
-        cols = np.vstack([log_assoc, log_birth[None, :]])  # (H+1, J): parents, then the birth
-        children = [
-            (float(lw), "child", j, int(p))
-            for j, (lw, p) in enumerate(
-                zip(np.logaddexp.reduce(cols, axis=0), np.argmax(cols, axis=0))
-            )
-        ]
+        child_lw = np.logaddexp.reduce(cols, axis=0).tolist()
+        child_parent = cols.argmax(axis=0).tolist()
         # a coasting track pays the Occam factor of an average consistent association,
         # 1/2 log det(I + P- C_mean^-1), so that a miss is neutral w.r.t. associating
-        occam = 0.5 * (logdet_pc - logdet_cm)
+        coast_lw = (logw_h + log_miss - 0.5 * (logdets[-1 - H : -1] - logdets[-1])).tolist()
         coast: dict[int, tuple[float, int]] = {}  # track id -> (merged log-weight, best hypothesis)
-        for h, t in enumerate(self._tracks):
-            if t.misses >= cfg.max_misses:
+        lw_h = logw_h.tolist()
+        for h, (track_id, misses) in enumerate(zip(self._ids, self._misses)):
+            if misses >= cfg.max_misses:
                 continue
-            lw = float(logw_h[h] + log_miss - occam[h])
-            if t.track_id in coast:
-                merged, best = coast[t.track_id]
-                coast[t.track_id] = (
-                    float(np.logaddexp(merged, lw)),
-                    best if logw_h[best] >= logw_h[h] else h,
+            if track_id in coast:
+                merged, best = coast[track_id]
+                coast[track_id] = (
+                    float(np.logaddexp(merged, coast_lw[h])),
+                    best if lw_h[best] >= lw_h[h] else h,
                 )
             else:
-                coast[t.track_id] = (lw, h)
-        children.sort(key=lambda e: -e[0])
-        kept = children[: cfg.max_hypotheses]
-        coasting = sorted(((lw, "coast", h, h) for lw, h in coast.values()), key=lambda e: -e[0])
-        kept += coasting[: cfg.max_hypotheses - len(kept)]
+                coast[track_id] = (coast_lw[h], h)
+        kept = sorted(range(J), key=lambda j: -child_lw[j])[: cfg.max_hypotheses]
+        coasting = sorted(coast.values(), key=lambda e: -e[0])[: cfg.max_hypotheses - len(kept)]
 
-        updates = [
-            (idx, parent) for logw, kind, idx, parent in kept if kind == "child" and parent != H
-        ]
-        posterior = (
-            self._window_updates(updates, candidates, cov, odometry, preds) if updates else {}
-        )
-        new_tracks = []
-        for logw, kind, idx, parent in kept:
-            if kind == "coast":
-                t = self._tracks[idx]
-                new_tracks.append(
-                    Track(preds[idx], P_pred[idx], logw, t.track_id, -1, t.misses + 1)
-                )
-            elif parent == H:  # birth
-                new_tracks.append(self._birth(zs[idx], cov[idx], idx, logw))
+        # the kept children's windows (tracker.py step 3; graphloc.hypotheses.window)
+        updates = [j for j in kept if child_parent[j] != H]
+        win_R, win_t, win_P = _EMPTY_R, _EMPTY_T, _EMPTY_P
+        if updates:
+            parents = [child_parent[j] for j in updates]
+            # the pairs' rows: np.nonzero's row-major order
+            k = (np.cumsum(gated) - 1)[np.array(parents) * J + updates]
+            win_R, win_t, win_P, _ = window_updates(
+                (self._P[parents], odometry.covariance, cov[updates]),
+                ad,
+                (candidates.R[updates], candidates.t[updates]),
+                (inn_R[k], inn_t[k], e[k], jr_inv[k] - ad_e[k]),
+                cfg.gn_iterations,
+            )
+            if cfg.student_scale and cfg.student_dof < math.inf:
+                scale = (cfg.student_dof + maha[k]) / (cfg.student_dof + 6.0)
+                win_P = win_P * scale[:, None, None]
+
+        # the new tracks, rows of [predictions (H) | candidates (J) | windows]
+        rows, logw, ids, cands, misses = [], [], [], [], []
+        window = H + J
+        for j in kept:
+            parent = child_parent[j]
+            logw.append(child_lw[j])
+            cands.append(j)
+            misses.append(0)
+            if parent == H:  # birth
+                self._next_id += 1
+                rows.append(H + j)
+                ids.append(self._next_id)
             else:
-                mean, P = posterior[idx]
-                if cfg.student_scale and np.isfinite(cfg.student_dof):
-                    P = P * (cfg.student_dof + maha_hj[parent, idx]) / (cfg.student_dof + 6.0)
-                new_tracks.append(Track(mean, P, logw, self._tracks[parent].track_id, idx, 0))
-        self._tracks = new_tracks
-
-    def _window_updates(
-        self,
-        updates: list[tuple[int, int]],
-        candidates: CandidateSet,
-        cov: np.ndarray,
-        odometry: Odometry,
-        preds: list[gtsam.Pose3],
-    ) -> dict[int, tuple[gtsam.Pose3, np.ndarray]]:
-        """Fixed-lag windows of two poses, one per (candidate j, parent h) in `updates`: parent
-        marginal prior + odometry between-factor + the mixture component of candidate j (its pose
-        as a Gaussian PriorFactorPose3, as `factors.mixture.component_factors`), all in ONE graph
-        (disjoint keys pose_key(0, 2i), pose_key(0, 2i + 1) for window i) solved by one
-        Gauss-Newton from the predictions; the marginal covariance of each new pose is the Schur
-        complement of its window's block of the Hessian at the solution (batched numpy).
-        Returns {j: (pose, covariance)}."""
-        poses = candidates.poses()
-        odo_noise = gtsam.noiseModel.Gaussian.Covariance(odometry.covariance)
-        graph, init, order = gtsam.NonlinearFactorGraph(), gtsam.Values(), []
-        for i, (j, h) in enumerate(updates):
-            parent = self._tracks[h]
-            k0, k1 = pose_key(0, 2 * i), pose_key(0, 2 * i + 1)
-            graph.add(
-                gtsam.PriorFactorPose3(
-                    k0, parent.mean, gtsam.noiseModel.Gaussian.Covariance(parent.cov)
-                )
-            )
-            graph.add(gtsam.BetweenFactorPose3(k0, k1, odometry.relative, odo_noise))
-            graph.add(
-                gtsam.PriorFactorPose3(k1, poses[j], gtsam.noiseModel.Gaussian.Covariance(cov[j]))
-            )
-            init.insert(k0, parent.mean)
-            init.insert(k1, preds[h])
-            order += [k0, k1]
-        result = gtsam.GaussNewtonOptimizer(graph, init, self._gn).optimize()
-        hessian = graph.linearize(result).hessian(gtsam.Ordering(order))[0]
-        n = len(updates)
-        blocks = hessian.reshape(n, 12, n, 12)[
-            np.arange(n), :, np.arange(n), :
-        ]  # (n,12,12) diagonal blocks
-        P = np.linalg.inv(blocks)[:, 6:, 6:]
-        P = 0.5 * (P + np.swapaxes(P, 1, 2))
-        return {
-            j: (result.atPose3(pose_key(0, 2 * i + 1)), P[i]) for i, (j, _) in enumerate(updates)
-        }
-
-    def _normalize(self) -> None:
-        if not self._tracks:
-            return
-        logw = np.array([t.logw for t in self._tracks])
-        shift = float(np.logaddexp.reduce(logw))
-        for t in self._tracks:
-            t.logw -= shift
+                rows.append(window)
+                window += 1
+                ids.append(self._ids[parent])
+        for lw, h in coasting:
+            rows.append(h)
+            logw.append(lw)
+            ids.append(self._ids[h])
+            cands.append(-1)
+            misses.append(self._misses[h] + 1)
+        self._R = np.concatenate([pred_R, candidates.R, win_R])[rows]
+        self._t = np.concatenate([pred_t, candidates.t, win_t])[rows]
+        self._P = np.concatenate([P_pred, cov, win_P])[rows]
+        self._logw = np.array(logw)
+        self._ids, self._cand, self._misses = ids, cands, misses
 
     def _decide(self, num_candidates: int) -> Decision:
         cfg = self.config
         probs = np.zeros(num_candidates)
         track_prob: dict[int, float] = {}
-        for t in self._tracks:
-            p = float(np.exp(t.logw))
-            if t.candidate >= 0:
-                probs[t.candidate] += p
-            track_prob[t.track_id] = track_prob.get(t.track_id, 0.0) + p
+        weights = np.exp(self._logw).tolist()
+        for p, track_id, candidate in zip(weights, self._ids, self._cand):
+            if candidate >= 0:
+                probs[candidate] += p
+            track_prob[track_id] = track_prob.get(track_id, 0.0) + p
         # log-odds floored at the uninformed 1/full_count: a relocalization birth's tiny prior is
         # not evidence against it to be made up after its decisive update is held out
-        floor = -np.log(cfg.full_count - 1.0) if cfg.full_count > 1 else -np.inf
+        floor = -math.log(cfg.full_count - 1.0) if cfg.full_count > 1 else -math.inf
         logit = {
-            i: max(floor, float(np.log(p) - np.log1p(-min(p, 1.0 - 1e-15))))
+            i: max(floor, math.log(p) - math.log1p(-min(p, 1.0 - 1e-15)) if p > 0.0 else floor)
             for i, p in track_prob.items()
         }
         gain = {
@@ -356,14 +347,15 @@ class HypothesisTracker:
         if self._committed_id is None and track_prob:
             best_id = max(track_prob, key=track_prob.get)
             held_out = logit[best_id] - (gain[best_id] if cfg.robust_commit else 0.0)
-            if held_out >= np.log(cfg.commit_threshold / (1.0 - cfg.commit_threshold)):
+            if held_out >= math.log(cfg.commit_threshold / (1.0 - cfg.commit_threshold)):
                 self._committed_id = best_id
-        if not self._tracks:
+        if not self._ids:
             return Decision(probs, -1, False, None, relocalized)
+        rows = range(len(self._ids))
+        committed = -1
         if self._committed_id is not None:
-            mine = [t for t in self._tracks if t.track_id == self._committed_id]
-            best = max(mine, key=lambda t: t.logw)
-            committed = next((t.candidate for t in mine if t.candidate >= 0), -1)
-            return Decision(probs, committed, True, best.mean, relocalized)
-        best = max(self._tracks, key=lambda t: t.logw)
-        return Decision(probs, -1, False, best.mean, relocalized)
+            rows = [h for h in rows if self._ids[h] == self._committed_id]
+            committed = next((self._cand[h] for h in rows if self._cand[h] >= 0), -1)
+        best = max(rows, key=self._logw.tolist().__getitem__)
+        pose = gtsam.Pose3(gtsam.Rot3(self._R[best]), self._t[best])
+        return Decision(probs, committed, self._committed_id is not None, pose, relocalized)
