@@ -381,7 +381,7 @@ def test_fuse_maps_verb_reports_bad_input(tmp_path, capsys):
 @pytest.mark.slow
 @pytest.mark.parametrize("variant", ["empty", "rectangular", "low_overlap"])
 def test_simulate_and_fuse_every_variant(variant, tmp_path):
-    from graphloc.experiments.fusion_demo import simulate_and_fuse
+    from graphloc.datasets.dual_room import simulate_and_fuse
 
     report = simulate_and_fuse(tmp_path, variant, seed=7, frames=5)
     assert (
