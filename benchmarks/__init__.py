@@ -1,8 +1,7 @@
-"""Experiment drivers behind scripts/ and `graphloc reproduce`: each module holds the trials,
-summaries and plots of one benchmark or seed reproduction, so the script in scripts/ and the
-CLI verb are thin callers of the same code (works from an installed package, not only a
-source checkout)."""
+"""Reproductions and benchmarks, beside the installed package (not part of it): each module
+holds the trials, summaries and plots of one benchmark or seed reproduction, the seeds' own
+algorithms are `baselines`; scripts/ are thin callers. Run from the checkout: the scripts put it
+on sys.path, the tests get it from pytest's `pythonpath`; nothing installed imports it."""
 
-# the seed tables `graphloc reproduce` knows (benchmarks.reproduce computes them);
-# kept here, free of imports, so that the CLI lists them without loading the experiments
+# the seed tables scripts/reproduce.py knows (benchmarks.reproduce computes them)
 TABLES = ("seed000-table1", "seed000-table2", "seed000-table3", "seed004-table1", "seed001-exp1")

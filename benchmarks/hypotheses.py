@@ -12,7 +12,7 @@ frames, and for the tracker its committed modes re-solved by batch LM and by fra
 iSAM2 (`resolve_decided`). "front_door" is graphloc itself on the same run: its
 `graphloc simulate` log through `open_run` and the team graph
 (`benchmarks.front_door.feng_table_iii_run`), the column of seed 000 Table III.
-Used by `graphloc reproduce seed000-table3`
+Used by `scripts/reproduce.py seed000-table3`
 (benchmarks.seed000) and scripts/bench_hypotheses.py
 (benchmarks.bench_hypotheses).
 """

@@ -1,4 +1,4 @@
-"""Markdown of the seeds' tables (docs/results.md, `graphloc reproduce`): one renderer per
+"""Markdown of the seeds' tables (docs/results.md, scripts/reproduce.py): one renderer per
 table, paper | seed baseline (ours) | graphloc, from the plain dicts that
 benchmarks.seed000 (seed 000 Tables I-III) and benchmarks.seed004
 (seed 004 Table 1) return. Every number printed is one of the dict's; the seeds' readings

@@ -13,7 +13,7 @@ reading of the experiment (calibration, the Vicon ground truth's offsets, lag an
 seed's pose meets those numbers: benchmarks.seed001_readings (issue 20).
 
     .venv/bin/python scripts/repro_seed001.py [--frames1 300 --frames2 200 --out out/seed001]
-    (thin wrapper over this module; also `graphloc reproduce seed001-exp1`)
+    (thin wrapper over this module; also `scripts/reproduce.py seed001-exp1`)
 
 Writes <out>/repro_seed001.json, <out>/repro_seed001_error_vs_distance.png and prints a
 markdown table.

@@ -1,5 +1,5 @@
 """Run sizes of every reproduction and benchmark, defined once: FULL (the papers' sizes) and
-QUICK (CI: `graphloc reproduce TABLE --quick`, `scripts/make_results.py --quick`, the
+QUICK (CI: `scripts/reproduce.py TABLE --quick`, `scripts/make_results.py --quick`, the
 scripts' --quick)."""
 
 from __future__ import annotations
