@@ -1,6 +1,7 @@
 """Types at the seam between the inputs and every estimator: the engines (`HypothesisTracker`,
-`CooperativeSfm`, the team graph) and the seeds' baselines (`benchmarks.baselines`) take the same
-inputs and return the same decisions, so both import them from here and neither from the other.
+the team graph) and, in the checkout's benchmarks/ (not installed), seed 003's `CooperativeSfm`
+and the seeds' baselines (`benchmarks.baselines`) take the same inputs and return the same
+decisions, so all import them from here and none from the other.
 
 - `Odometry`, `Decision`, `check_frame`: one update of a candidate tracker (seed 000 Sec. V,
   seed 004 Sec. II-C): the relative motion since the previous frame and the posterior over the
