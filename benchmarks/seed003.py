@@ -69,7 +69,7 @@ from tqdm import tqdm
 
 from benchmarks.baselines.ekf_seed003 import EkfConfig, run_ekf
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
-from graphloc.datasets.seed003_geometry import (
+from benchmarks.seed003_geometry import (
     genuine_candidates,
     with_teammate_from_geometry,
 )

@@ -15,7 +15,7 @@ graphloc.datasets.crawler_pair keeps the stated geometry: robot diameter 3.8 cm 
 background at 260 cm):
 - the tracker's error: our rendered front-end (refined rim), or a tracker whose camera-frame
   centre errors are Gaussian with per-axis std `tracker_scale` x FIG3_RANGE_CM / 2 (and a disk
-  tilt std of tracker_scale x TILT_DEG) -- graphloc.datasets.seed003_geometry
+  tilt std of tracker_scale x TILT_DEG) -- benchmarks.seed003_geometry
   .with_teammate_from_geometry, the same draws for every N;
 - the EKF's tracker measurement noise "set to 3": a variance [px^2] or a std [px] (9 px^2);
 - the KLT points' "high" initial uncertainty: 1 m or 10 m std;
@@ -40,7 +40,7 @@ import numpy as np
 
 from benchmarks.baselines.ekf_seed003 import EkfConfig, run_ekf
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
-from graphloc.datasets.seed003_geometry import genuine_candidates, with_teammate_from_geometry
+from benchmarks.seed003_geometry import genuine_candidates, with_teammate_from_geometry
 from graphloc.executor import Executor
 from benchmarks.seed003_measures import teammate_config
 from benchmarks.cooperative_sfm import CooperativeSfmConfig, run_cooperative_sfm

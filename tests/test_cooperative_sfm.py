@@ -11,7 +11,7 @@ from benchmarks.baselines.ekf_seed003 import run_ekf
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
-from graphloc.datasets.seed003_geometry import (
+from benchmarks.seed003_geometry import (
     genuine_candidates,
     ideal_frames,
     with_teammate_from_geometry,
