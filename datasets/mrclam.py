@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.io import PlanarRun, SkipReport, write_planar_run
-from graphloc.textio import check_file, text_lines
+from graphloc.textio import check_file, text_blocks
 
 _ROBOT_FILE = re.compile(r"^Robot(\d+)_Odometry\.dat$")
 
@@ -89,28 +89,55 @@ def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip"
     """Whitespace table of one MRCLAM file `kind` (a key of LIMITS) with '#' comments -> (n,
     n_cols) float array. Malformed rows (wrong field count, unparsable or non-finite numbers,
     non-integer ids, values outside LIMITS, ranges <= 0, time < previous time in timed files)
-    raise ValueError or are skipped and counted by reason, with file, line and field."""
+    raise ValueError or are skipped and counted by reason, with file, line and field. A block
+    of the file whose rows all pass is checked as one array (`_block_rows`); a block with a bad
+    row is read row by row (`_check_row`) for its exact skips and messages."""
     limits = LIMITS[kind]
     n_cols, int_cols = len(limits), _INT_COLUMNS.get(kind, ())
     monotonic = limits[0][0] == "time"
-    rows = []
+    blocks = []
     last = -math.inf
-    for line_no, line in text_lines(path):
-        text = line.strip()
-        if not text or text.startswith("#"):
-            continue
-        reason, message = _check_row(text, limits, int_cols, kind, last if monotonic else None)
-        if reason is not None:
-            full = f"{path}: line {line_no}: {message}"
-            if on_error == "raise":
-                raise ValueError(full)
-            report.add(reason, full)
-            continue
-        vals = [float(p) for p in text.split()]
-        if monotonic:
-            last = vals[0]
-        rows.append(vals)
-    return np.array(rows, dtype=float).reshape(-1, n_cols)
+    for first, texts in text_blocks(path):
+        data = [(first + k, t) for k, t in enumerate(map(str.strip, texts))]
+        data = [(n, t) for n, t in data if t and not t.startswith("#")]
+        block = _block_rows(data, limits, int_cols, last if monotonic else None)
+        if block is None:
+            block = []
+            for line_no, text in data:
+                reason, message = _check_row(
+                    text, limits, int_cols, kind, last if monotonic else None
+                )
+                if reason is not None:
+                    full = f"{path}: line {line_no}: {message}"
+                    if on_error == "raise":
+                        raise ValueError(full)
+                    report.add(reason, full)
+                    continue
+                block.append([float(p) for p in text.split()])
+                last = block[-1][0] if monotonic else last
+        elif monotonic and len(block):
+            last = float(block[-1, 0])
+        blocks.append(np.array(block, dtype=float).reshape(-1, n_cols))
+    return np.concatenate(blocks) if blocks else np.zeros((0, n_cols))
+
+
+def _block_rows(data: list, limits, int_cols, last: float | None) -> np.ndarray | None:
+    """(n, n_cols) rows of a block's (line, text) pairs when every row passes `_check_row`'s
+    checks, else None."""
+    parts = [t.split() for _, t in data]
+    if any(len(p) != len(limits) for p in parts):
+        return None
+    try:
+        rows = np.array(parts, dtype=float).reshape(-1, len(limits))
+    except ValueError:
+        return None
+    lo, hi = np.array([(a, b) for _, a, b in limits], dtype=float).T
+    ok = np.isfinite(rows).all() and ((rows >= lo) & (rows <= hi)).all()
+    ok = ok and all((rows[:, i] == np.trunc(rows[:, i])).all() for i in int_cols)
+    ok = ok and all((rows[:, i] > 0).all() for i, (n, _, _) in enumerate(limits) if n == "range")
+    if ok and last is not None and len(rows):
+        ok = rows[0, 0] >= last and (np.diff(rows[:, 0]) >= 0).all()
+    return rows if ok else None
 
 
 def _check_row(text: str, limits, int_cols, kind: str, last: float | None):

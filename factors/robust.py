@@ -146,3 +146,51 @@ def residuals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> Residu
             weights[i] = model.robust().weight(float(np.linalg.norm(whitened)))
         chi2[i] = float(np.dot(whitened, whitened))
     return Residuals(dims, chi2, weights, robust)
+
+
+class GaussianChi2:
+    """The chi-square without the robust kernels (as `residuals` counts it) of a growing graph,
+    in one C++ pass: each factor added is kept as its clone under the kernel's Gaussian model
+    (`cloneWithNewNoiseModel`; factors without a kernel as they are), so the sum is twice that
+    graph's `error`. A factor GTSAM cannot clone (a Python CustomFactor) is judged factor by
+    factor (`residuals`). Use: `chi2 = GaussianChi2(); chi2.add(graph); chi2(values)`."""
+
+    def __init__(self):
+        import gtsam
+
+        self.plain = gtsam.NonlinearFactorGraph()  # Gaussian clones and kernel-free factors
+        self.loose = gtsam.NonlinearFactorGraph()  # robust factors GTSAM cannot clone
+        self.dim = 0  # residual dimension counted (`residuals`' dims)
+
+    def add(self, factors) -> None:
+        """Add a NonlinearFactorGraph, or a list of factors, graphs and factor providers (an
+        object whose `factor` is the gtsam factor, as `Session.add` takes)."""
+        import gtsam
+        import numpy as np
+
+        graph = gtsam.NonlinearFactorGraph()
+        for item in [factors] if isinstance(factors, gtsam.NonlinearFactorGraph) else factors:
+            graph.push_back(getattr(item, "factor", item))
+        for i in range(graph.size()):
+            factor = graph.at(i)
+            if factor is None:
+                continue
+            model = factor.noiseModel() if hasattr(factor, "noiseModel") else None
+            if model is None:
+                self.plain.push_back(factor)
+                self.dim += factor.dim()
+                continue
+            base = model.noise() if isinstance(model, gtsam.noiseModel.Robust) else model
+            self.dim += int(np.count_nonzero(np.asarray(base.sigmas()) < UNINFORMATIVE))
+            if base is model:
+                self.plain.push_back(factor)
+            elif isinstance(factor, gtsam.CustomFactor):
+                self.loose.push_back(factor)
+            else:
+                self.plain.push_back(factor.cloneWithNewNoiseModel(base))
+
+    def __call__(self, values: gtsam.Values) -> float:
+        chi2 = 2.0 * float(self.plain.error(values))
+        if self.loose.size():
+            chi2 += float(residuals(self.loose, values).chi2.sum())
+        return chi2

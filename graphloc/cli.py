@@ -27,6 +27,7 @@ from pathlib import Path
 
 from graphloc import __version__
 from graphloc.commands.common import LOG, add_common_arguments, configure_logging
+from graphloc.names import claim_out
 from graphloc.exitcodes import (
     BAD_INPUT,
     FAILED,
@@ -124,12 +125,14 @@ def _main(argv: list[str]) -> int:
     LOG.info("%s: options %s", args.verb, shown)
     start = time.perf_counter()
     try:
+        held = contextlib.nullcontext()
         if getattr(args, "out", None) is not None:
             check_out(Path(args.out))
+            held = claim_out(args.out)
         quiet = (
             contextlib.redirect_stdout(io.StringIO()) if args.quiet else contextlib.nullcontext()
         )
-        with quiet:
+        with held, quiet:
             code = int(args._run(args) or OK)
     except SolverFailure as exc:  # the input was read, GTSAM could not solve it
         return error(f"the solver failed: {exc}", FAILED)

@@ -12,8 +12,10 @@ Every file a verb writes under its `--out` folder is named by `out_path(out, ...
 refuses (ValueError) a part that is absolute or `..` and a result that, symbolic links
 resolved, lies outside `out`: a name that slipped past its reader, or a link left in the
 folder, never moves a write elsewhere. `written_whole(path)` is where an output's bytes go:
-a temporary file beside it, renamed over it when complete, so that a reader -- or a second
-`graphloc` writing into the same folder -- sees one writer's whole file, never a mix.
+a temporary file beside it, renamed over it when complete, so that a reader sees one
+writer's whole file, never a mix. `claim_out(out)` holds the folder for one `graphloc` process
+(an exclusive lock on the folder itself): a second one started on the same `--out` is refused
+at once instead of mixing its files with the first one's.
 """
 
 from __future__ import annotations
@@ -78,6 +80,38 @@ def out_path(out, *parts: str) -> Path:
             f"{path}: resolves to {target}, outside the output folder {out} (a symbolic link?)"
         )
     return path
+
+
+@contextlib.contextmanager
+def claim_out(out):
+    """Create `out` if needed and hold it for this process while the block runs: ValueError
+    naming it if another process holds it (an advisory `flock` on the folder, released when
+    the block ends or the process dies; where the platform has no `fcntl`, no lock). A folder
+    this call created and nothing was written into is removed again."""
+    out = Path(out)
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        import fcntl
+    except ImportError:  # not POSIX
+        fcntl = None
+    fd = os.open(out, os.O_RDONLY) if fcntl is not None else None
+    try:
+        if fd is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise ValueError(
+                    f"--out {out}: another graphloc process is writing there (wait for it to "
+                    "end, or choose another --out)"
+                ) from None
+        yield out
+    finally:
+        if fd is not None:
+            os.close(fd)
+        if created:
+            with contextlib.suppress(OSError):  # not empty, or gone: left as it is
+                out.rmdir()
 
 
 @contextlib.contextmanager

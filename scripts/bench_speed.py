@@ -107,6 +107,22 @@ def timed(path: Path, mode: str) -> dict:
     return out
 
 
+SHORT_CPU_S = 2.0  # a run timed once in less CPU than this is timed REPEATS times
+REPEATS = 5
+
+
+def repeated(path: Path, mode: str) -> dict:
+    """`timed`, and for a short run (a shared machine's noise is a large share of it) the
+    timing of the repetition of median CPU time among REPEATS, with every repetition's CPU
+    time kept ("cpu_s_repeats")."""
+    first = timed(path, mode)
+    if first["cpu_s"] >= SHORT_CPU_S:
+        return {**first, "cpu_s_repeats": [first["cpu_s"]]}
+    runs = [first] + [timed(path, mode) for _ in range(REPEATS - 1)]
+    runs.sort(key=lambda r: r["cpu_s"])
+    return {**runs[len(runs) // 2], "cpu_s_repeats": [r["cpu_s"] for r in runs]}
+
+
 def gtsam_alone(graph, mode: str) -> float:
     """CPU seconds of GTSAM alone on `graph`'s factors and guess: LM (batch, the Session's LM
     settings) or one ISAM2 update per step (online, its relinearization settings; full
@@ -196,7 +212,9 @@ def markdown(report: dict, command: str) -> str:
             "`realtime_factor`): readers and front-ends (P3P, KISS-ICP, scan registration), "
             "graph building, solving; not the start-up or the outputs. GTSAM alone: the same "
             "graph's factors and guess through one LevenbergMarquardtOptimizer (batch) or one "
-            "ISAM2 update per step (online), measured in the same run.",
+            "ISAM2 update per step (online), measured in the same run. A run that takes less "
+            f"than {SHORT_CPU_S:g} s of CPU is timed {REPEATS} times and its median repetition "
+            "shown (the machine is shared: its load is a large share of a short run's time).",
             "",
             pd.DataFrame(rows).to_markdown(index=False),
             "",
@@ -252,7 +270,7 @@ def main(argv=None) -> int:
             for name, run in inputs(Path(tmp), args.seed, args.only).items():
                 report["runs"][name] = {}
                 for mode in ("batch", "online"):
-                    report["runs"][name][mode] = timed(run, mode)
+                    report["runs"][name][mode] = repeated(run, mode)
                     r = report["runs"][name][mode]
                     print(f"{name} {mode}: x{r['realtime_factor']:.1f}", flush=True)
         report["bearing_linearization"] = bearing_cost()

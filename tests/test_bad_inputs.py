@@ -1101,24 +1101,27 @@ def test_fuse_maps_writes_its_report_on_the_rooms_that_crashed_it(cli, tmp_path,
 
 # ---- two writers into one --out ------------------------------------------------------------------
 @pytest.mark.timeout(180)
-def test_two_smooths_into_one_out_leave_whole_files(planar_log, tmp_path):
-    """docs/outputs.md, "One --out, several writers": two `graphloc smooth` of one run into one
-    folder at once both end with code 0, and every output is one writer's whole file (each is
-    written beside itself and renamed into place): the TUM files parse, metrics.json is JSON,
-    no temporary file is left."""
+def test_a_second_writer_into_one_out_is_refused(planar_log, tmp_path):
+    """docs/outputs.md, "One --out, several writers": while one graphloc holds --out, a second
+    `graphloc smooth` into it ends with exit 2 naming the folder and writes nothing; once the
+    first is gone, the folder is free again and the run's files are whole (no temporary file
+    left)."""
     import subprocess
     import sys
 
     from graphloc.datasets.graphloc_log import read_tum_poses
+    from graphloc.names import claim_out
 
     out = tmp_path / "out"
     argv = [sys.executable, "-m", "graphloc", "smooth", str(planar_log), "--out", str(out), "-q"]
-    procs = [
-        subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE) for _ in range(2)
-    ]
-    for p in procs:
-        _, err = p.communicate(timeout=170)
-        assert p.returncode == exitcodes.OK and b"Traceback" not in err, err.decode()[-2000:]
+    with claim_out(out):  # another process's hold, as the folder's lock sees it
+        second = subprocess.run(argv, capture_output=True, timeout=170)
+        assert second.returncode == exitcodes.BAD_INPUT, second.stderr.decode()[-2000:]
+        assert b"another graphloc process is writing there" in second.stderr
+        assert str(out).encode() in second.stderr and b"Traceback" not in second.stderr
+        assert not any(out.iterdir())
+    first = subprocess.run(argv, capture_output=True, timeout=170)
+    assert first.returncode == exitcodes.OK, first.stderr.decode()[-2000:]
     files = sorted(p.name for p in out.iterdir())
     assert not [f for f in files if f.startswith(".")], files
     for tum in out.glob("*.tum"):
@@ -1126,6 +1129,21 @@ def test_two_smooths_into_one_out_leave_whole_files(planar_log, tmp_path):
         assert len(times) >= 3, tum
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["run"] and (out / "decisions.csv").read_text().startswith("time,robot")
+
+
+def test_claim_out_removes_a_folder_it_made_and_left_empty(tmp_path):
+    from graphloc.names import claim_out
+
+    made, kept = tmp_path / "made" / "deeper", tmp_path / "kept"
+    with claim_out(made):
+        assert made.is_dir()
+    assert not made.exists()
+    with claim_out(kept):
+        (kept / "result.txt").write_text("x")
+    assert (kept / "result.txt").exists()
+    with pytest.raises(ValueError, match="another graphloc process"), claim_out(kept):
+        with claim_out(kept):
+            pass
 
 
 # ---- a scan directory named by its user: any name is a run name ----------------------------------

@@ -73,3 +73,23 @@ def test_a_corrupted_foreign_log_says_so(tmp_path, capsys, corrupt):
     assert code == INCONSISTENT, (corrupt, verdict)
     assert not metrics["consistent"] or verdict["warnings"], verdict
     assert "inconsistent:" in err or "warning:" in err
+
+
+@pytest.mark.slow
+def test_a_moving_targets_pixels_place_it_as_well_as_a_static_ones(tmp_path):
+    """Issue 48: the same marker pixels from a moving target and from a static one
+    (tests/foreign/moving_target.py): the relative pose camera robot -> target within
+    moving_target.RATIO of the static case's error, batch and online, both consistent."""
+    import moving_target
+
+    runs = {case: moving_target.write(tmp_path, 0, case, 30.0) for case in ("static", "moving")}
+    for verb, mode in (("smooth", "batch"), ("online", "online")):
+        err = {}
+        for case, run in runs.items():
+            out = tmp_path / f"{case}-{verb}"
+            assert main([verb, str(run), "--out", str(out), "--no-progress", "--strict"]) == OK
+            err[case] = moving_target.relative_errors(run, out, mode)
+        static, moving = err["static"], err["moving"]
+        assert static["translation_rms_m"] < 0.05, static
+        assert moving["translation_rms_m"] <= moving_target.RATIO * static["translation_rms_m"]
+        assert moving["rotation_rms_deg"] <= moving_target.RATIO * static["rotation_rms_deg"]

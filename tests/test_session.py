@@ -19,7 +19,7 @@ from graphloc.factors.range_bearing import (
     robot_factor_2d,
     to_body_frame_2d,
 )
-from graphloc.factors.robust import Kernel, KernelPolicy, residuals, robust_noise
+from graphloc.factors.robust import GaussianChi2, Kernel, KernelPolicy, residuals, robust_noise
 from graphloc.keys import landmark_key, pose_key
 from graphloc.session import Session, SessionConfig
 
@@ -125,6 +125,48 @@ def test_batch_and_online_agree_and_beat_odometry(optimizer):
     report = residuals(batch.graph, batch.estimate())
     assert report.robust.sum() == sum(2 * 4 + 1 for _ in steps)
     assert report.downweighted(0.1).sum() == n_out
+    # the chi-square without kernels in one C++ pass equals the factor-by-factor one
+    chi2 = GaussianChi2()
+    for g, _, _ in steps:
+        chi2.add(g)
+    assert chi2(batch.estimate()) == pytest.approx(report.chi2.sum(), rel=1e-9)
+    assert chi2.dim == report.dims.sum()
+    assert chi2(batch.estimate()) > 2 * batch.error()  # the outliers' kernels muted them
+
+
+def test_gaussian_chi2_judges_custom_factors_and_uninformative_ranges():
+    from graphloc.factors.bearing import bearing_factor
+
+    huber = Kernel("huber", 1.0)
+    a, b = pose_key(0, 0), pose_key(1, 0)
+    values = gtsam.Values()
+    values.insert(a, gtsam.Pose3())
+    values.insert(b, gtsam.Pose3(gtsam.Rot3.Yaw(0.3), gtsam.Point3(2.0, 1.0, 0.5)))
+    factors = [
+        gtsam.PriorFactorPose3(a, gtsam.Pose3(), gtsam.noiseModel.Isotropic.Sigma(6, 0.1)),
+        gtsam.BetweenFactorPose3(
+            a, b, gtsam.Pose3(), robust_noise(gtsam.noiseModel.Isotropic.Sigma(6, 0.1), huber)
+        ),
+        # a Python CustomFactor (a camera off the body origin) and a rotation-only bearing
+        bearing_factor(
+            a,
+            b,
+            np.array([1.0, 0.0, 0.0]),
+            0.02,
+            gtsam.Pose3(gtsam.Rot3(), gtsam.Point3(0.1, 0.0, 0.2)),
+            kernel=huber,
+        ),
+        bearing_factor(a, b, np.array([0.0, 1.0, 0.0]), 0.02, kernel=huber),
+    ]
+    chi2 = GaussianChi2()
+    chi2.add(factors)
+    graph = gtsam.NonlinearFactorGraph()
+    for f in factors:
+        graph.push_back(f)
+    report = residuals(graph, values)
+    assert chi2(values) == pytest.approx(report.chi2.sum(), rel=1e-9)
+    assert chi2.dim == report.dims.sum() == 6 + 6 + 2 + 2
+    assert chi2.loose.size() == 1
 
 
 def test_marginal_covariance_batch_online():

@@ -5,8 +5,9 @@ For each case (layout, seed, corruption) this writes the run with ``team_generat
 --out ...`` as subprocesses (the CLI only, no graphloc import), keeps their terminal output, reads
 ``metrics.json`` (skips, decisions, down-weighted factors) and scores the TUM estimates against
 the ground truth in the world frame (``score``). A case is **confidently wrong** when the verb
-exited 0, printed no warning line, and some robot's final or RMS position error exceeds
-``--bar`` (0.3 m), or a robot of the run has no estimate.
+exited 0, printed no warning or ``inconsistent:`` line, its metrics.json did not say
+``"consistent": false``, and some robot's final or RMS position error exceeds ``--bar`` (0.3 m),
+or a robot of the run has no estimate.
 
 ``python tests/foreign/run_matrix.py --out DIR [--graphloc .venv/bin/graphloc] [--seeds 0 1 2]``
 writes ``DIR/results.json`` and ``DIR/results.md`` (runs in ``DIR/runs``, outputs in
@@ -39,7 +40,7 @@ CORRUPTION_CASES = {
     "target-typo": [("ceiling-markers", None), ("wall-bearings", 60.0)],
 }
 
-WARNING = re.compile(r"warn", re.IGNORECASE)
+WARNING = re.compile(r"warn|inconsistent:", re.IGNORECASE)
 PY_WARNING = re.compile(r"\b\w+Warning:|warnings\.warn|^\s+\S.*$")
 
 
@@ -140,9 +141,10 @@ def metrics_summary(out_dir: Path) -> dict:
 
 
 def judge(verb: dict, scores: dict | None, bar: float) -> str:
-    """``yes`` (exit 0, no warning, a robot off by more than ``bar``), ``unplaced`` (exit 0, no
-    warning, a robot of the run without an estimate) or ``no``."""
-    if verb["rc"] != 0 or verb["warnings"] or scores is None:
+    """``yes`` (exit 0, no warning, not called inconsistent, a robot off by more than ``bar``),
+    ``unplaced`` (the same, a robot of the run without an estimate) or ``no``."""
+    said_so = verb["warnings"] or (verb.get("metrics") or {}).get("consistent") is False
+    if verb["rc"] != 0 or said_so or scores is None:
         return "no"
     off = any(
         r["final_m"] > bar or r["rmse_m"] > bar

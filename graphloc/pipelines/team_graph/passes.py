@@ -12,12 +12,18 @@ import gtsam
 import numpy as np
 from tqdm import tqdm
 
-from graphloc.factors.robust import residuals
+from graphloc.factors.robust import GaussianChi2, residuals
 from graphloc.keys import decode, decode_many, pose_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.pipelines.team_graph.predict import frame_point, predict
-from graphloc.pipelines.team_graph.rows import grid_rows, pose_grids, pose_row, values_poses
+from graphloc.pipelines.team_graph.rows import (
+    grid_rows,
+    grids_rows,
+    pose_grids,
+    pose_row,
+    values_poses,
+)
 from graphloc.pipelines.team_graph.verdict import factor_statistics, robot_statistics
 from graphloc.session import Session
 
@@ -92,6 +98,7 @@ class Pass:
         self.entered: dict = {}  # (robot, node) -> the step its pose entered
         self.done = 0
         self.wall = 0.0
+        self.chi2 = GaussianChi2()  # the session's factors without their kernels
         # online: until the last robot is anchored, factors on robots not yet anchored wait
         self.hold_until = (
             max(graph.anchored_from.values(), default=-np.inf) if mode == "online" else -np.inf
@@ -147,6 +154,7 @@ class Pass:
             released += n < len(waiting) - len(group)
         if factors:
             step = session.add(factors, values, time=t)
+            self.chi2.add(factors)
             latency, cpu = step.latency_s, step.cpu_s
             if self.mode == "online" and released:
                 # a robot placed late enters with its whole past at once: iterate iSAM2 on it
@@ -168,9 +176,9 @@ class Pass:
         """The chi-square of every factor added so far at the current estimate, without the
         robust kernels (`factors.robust.residuals`), and their residual dimension."""
         t0 = _time.perf_counter()
-        res = residuals(self.session.graph, self.session.estimate())
+        chi2 = self.chi2(self.session.estimate())
         self.wall += _time.perf_counter() - t0
-        return float(res.chi2.sum()), int(res.dims.sum())
+        return chi2, self.chi2.dim
 
     def settle(self, updates: int) -> float:
         """Up to `updates` more iSAM2 iterations (online, `Session.iterate`), stopping when the
@@ -195,7 +203,7 @@ class Pass:
         self.wall += _time.perf_counter() - t0
         decisions = choose_mixtures(graph.decisions, final)
         partial = self.done < len(graph.steps) or session.stopped
-        estimate = [grid_rows(g) for g in pose_grids(graph.node_times, *values_poses(final))]
+        estimate = grids_rows(pose_grids(graph.node_times, *values_poses(final)))
         dead = guess_rows(graph, graph.initial)
         if partial:  # a stopped solve returns promptly: its residuals are not judged
             stats, by_robot, chi2 = {}, {}, float("nan")
@@ -226,7 +234,7 @@ class Pass:
             self.mode,
             graph.node_times,
             estimate,
-            [grid_rows(c) for c in self.causal],
+            grids_rows(self.causal),
             dead,
             session.latencies(),
             self.wall,
@@ -305,7 +313,7 @@ def guess_rows(graph: TeamGraph, values: dict) -> list:
         if (key := pose_key(r, k)) in values
     ]
     robot, index, m = zip(*guessed) if guessed else ((), (), np.zeros((0, 4, 4)))
-    return [grid_rows(g) for g in pose_grids(graph.node_times, robot, index, np.array(m))]
+    return grids_rows(pose_grids(graph.node_times, robot, index, np.array(m)))
 
 
 def start_only(graph: TeamGraph, initial: dict | None, start_from: str, wall: float):

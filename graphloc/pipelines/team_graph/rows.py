@@ -39,6 +39,14 @@ def grid_rows(grid: np.ndarray) -> np.ndarray:
     return rows
 
 
+def grids_rows(grids: list) -> list:
+    """`grid_rows` of every grid of a list (one vectorized pass over all of them)."""
+    if not grids:
+        return []
+    rows = grid_rows(np.concatenate(grids)) if sum(map(len, grids)) else np.zeros((0, 7))
+    return np.split(rows, np.cumsum([len(g) for g in grids])[:-1])
+
+
 def pose_grids(node_times: list, robot, index, m: np.ndarray) -> list:
     """Per robot r, a (K_r,3,4) grid of [R | t]: m[i] ((N,3,4) or (N,4,4)) at row index[i] of
     robot[i]'s grid, NaN where no pose is given (`grid_rows` makes them rows)."""
