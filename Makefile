@@ -20,7 +20,7 @@ test-all: $(STAMP)
 	$(VENV)/bin/python -m pytest -m "slow or not slow"
 
 bench-p3p: $(STAMP)
-	$(VENV)/bin/graphloc p3p-bench --out $(OUT)/bench_p3p
+	$(VENV)/bin/python scripts/bench_p3p.py --out $(OUT)/bench_p3p
 
 clean:
 	rm -rf $(VENV) $(OUT) build dist *.egg-info

@@ -12,6 +12,9 @@ Scans are motion-free snapshots (no deskewing needed).
     scenario = DualRoomScenario.simulate(DualRoomConfig(variant="furnished", seed=3))
     scenario.write("out/room")            # scans/*.ply, poses, LED pixels, ground truth
     same = DualRoomScenario.load("out/room")
+
+`simulate_and_fuse` is the main job of `graphloc demo` and `graphloc fuse-maps --simulate`:
+simulate a room, write it, fuse the two robots' maps.
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ from graphloc.datasets.room_scene import (
 from graphloc.eval import write_tum
 from graphloc.io import write_table
 from graphloc.structured import dumps_json, read_json
-from graphloc.pipelines.map_fusion.types import FusionInput, LedObservations
+from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, LedObservations
 from graphloc.mapping.io import read_led_pixels, read_points, read_tum
 
 ROBOTS = ("ground", "ceiling")
@@ -373,3 +376,33 @@ class DualRoomScenario:
         return DualRoomScenario(
             config, make_room(config.variant), times, poses, scans, uv, vis, meta.get("counts", {})
         )
+
+
+def simulate_and_fuse(
+    out_dir, variant: str = "furnished", seed: int = 0, frames: int = 10, config=FusionConfig()
+) -> dict:
+    """Simulate `dual-robot-room` (written to out_dir/scenario), fuse the two robots' maps
+    (`graphloc.pipelines.map_fusion.run.fuse_and_write`), write the outputs; returns the report.
+    Raises FusionRejected (after writing the "not fused" report) as `fuse_and_write` does."""
+    # the fusion pipeline loads when a run fuses, not when `graphloc simulate` imports this module
+    from graphloc.pipelines.map_fusion.run import fuse_and_write
+
+    scenario = DualRoomScenario.simulate(variant_config(variant, seed, frames=frames))
+    out = Path(out_dir)
+    scenario.write(out / "scenario")
+    scenario_info = {
+        "name": "dual-robot-room",
+        "variant": variant,
+        "seed": seed,
+        "frames": frames,
+        "dir": str(out / "scenario"),
+        "counts": scenario.counts,
+    }
+    return fuse_and_write(
+        scenario.fusion_input(),
+        out,
+        config,
+        scenario.times,
+        truth=scenario.T_ground0_ceiling0,
+        extra={"scenario": scenario_info},
+    )

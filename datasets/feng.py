@@ -231,7 +231,7 @@ def noisy_odometry(
 def world_odometry(
     t_wc: np.ndarray, rel_sigma: float, rng: np.random.Generator, model: str = "per_axis"
 ) -> list[gtsam.Pose3]:
-    """a_t read as a world-frame motion sensor (graphloc.baselines.belief_vector action_frame
+    """a_t read as a world-frame motion sensor (benchmarks.baselines.belief_vector action_frame
     "world"): the true displacements t_{k+1} - t_k with `noisy_odometry`'s translation noise,
     as identity-rotation Pose3 steps."""
     steps = np.diff(t_wc, axis=0)

@@ -162,9 +162,9 @@ class TableIConfig:
     C are all within this of the truth; omni_max_polar [rad]: field of view of the ground
     robots' paraboloid cameras from the mirror axis; max_redraws: ground-camera orientations
     redrawn while a robot is outside another's field of view (counted); workers: processes of
-    the reproduction (graphloc.experiments.seed000); lateral_sigma [m], orientation:
+    the reproduction (benchmarks.seed000); lateral_sigma [m], orientation:
     Seed000Config's (the climbing robot's position noise perpendicular to its motion; its
-    orientation kept or redrawn per snapshot), swept by graphloc.experiments.seed_baselines."""
+    orientation kept or redrawn per snapshot), swept by benchmarks.seed_baselines."""
 
     trials: int = 1000
     seed: int = 0

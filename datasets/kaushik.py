@@ -15,7 +15,7 @@ must stay in a 36 mm lens' 10 deg field of view). Odometry between updates is th
 relative camera pose (graphloc.datasets.feng.noisy_odometry; seed 004 Algorithm 1's alpha_1,
 alpha_2 are not given: `odometry_noise` relative translation, `odometry_rot_sigma` rad).
 Frame: the LED frame (P1 at the origin, X1-Y1 in the LED plane, z up), as the seed's
-X1-Y1-Z1. Readings swept by graphloc.experiments.seed_baselines (issue 20): `offset` moves the
+X1-Y1-Z1. Readings swept by benchmarks.seed_baselines (issue 20): `offset` moves the
 track's start that far (horizontally) from the point above the LED centroid (0: overhead, the
 default); `noise_reading` reads Table 1's "sigma^2 = v" as a variance (default) or as a std.
 """

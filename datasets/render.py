@@ -1,5 +1,5 @@
 """Forward models of the simulators (graphloc.datasets' scenarios, the reproductions in
-graphloc.experiments, tests): the pixels a camera sees, never used by a front-end.
+benchmarks, tests): the pixels a camera sees, never used by a front-end.
 
 - `render_mutual_pixels`: seed 000's three ground robots' omni cameras seeing each other;
 - `render_circle_rim`: seed 003's teammate base rim as points;

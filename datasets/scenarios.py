@@ -7,7 +7,7 @@ that writes one run as a log directory the loaders read (`graphloc.datasets.open
 format version 2, docs/log_format.md) with ground truth, and returns the manifest's path.
 `overrides` are fields of `config_class`, as values or strings (`graphloc.config.parse_overrides`).
 `generate(name, out_dir, seed, overrides)` is the one entry point (the `simulate` verb,
-`graphloc.experiments.team_runs`).
+`benchmarks.team_runs`).
 
 The camera-track scenarios write through `graphloc.datasets.camera_track`; seed 000 Sec. VI-A's
 trial (`feng-deterministic`) has its class here, beside the protocol, because its simulation

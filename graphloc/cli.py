@@ -41,14 +41,12 @@ from graphloc.exitcodes import (
 # verb -> module in graphloc.commands (keep sorted by the order a user meets them)
 VERBS: dict[str, str] = {
     "demo": "demo",
-    "p3p-bench": "p3p_bench",
     "validate": "validate",
     "smooth": "smooth",
     "online": "online",
     "fuse-maps": "fuse_maps",
     "simulate": "simulate",
     "import": "import_bag",
-    "reproduce": "reproduce",
 }
 
 

@@ -1,6 +1,6 @@
 """The one executor layer: every job of many runs or trials (`graphloc smooth` / `online` over
-several runs, `graphloc reproduce`, the experiments and benchmark scripts) hands its tasks to an
-`Executor`, which runs them on one of two backends:
+several runs; the reproductions and benchmarks of the checkout's benchmarks/, run by scripts/)
+hands its tasks to an `Executor`, which runs them on one of two backends:
 
 - ``local`` (the default, no dependency beyond the standard library): a `multiprocessing.Pool`
   of `workers` processes, or, for one worker, the calling process itself (no start-up cost).
@@ -182,7 +182,7 @@ def _call_packed(args):
 
 @contextlib.contextmanager
 def default_backend(backend: str = "local", address: str | None = None, workers: int = 1):
-    """Within the block, an `Executor` created without a backend (the experiments') uses this
+    """Within the block, an `Executor` created without a backend (the benchmarks') uses this
     one; a Ray instance is started once for the whole block (`workers` CPUs, or the cluster
     at `address`) and shut down at its end."""
     with Executor(workers, backend, address, progress=False):

@@ -13,8 +13,8 @@ numbers (per-run rows without timings, and every TUM file byte for byte).
     nice -n 10 .venv/bin/python scripts/bench_executor.py --out out/bench_executor \
         --doc docs/results_executor.md
 
-The whole benchmark drives the command line in-process (graphloc.cli.main), so it lives here
-rather than in graphloc.experiments (which the commands import)."""
+The whole benchmark drives the command line in-process (graphloc.cli.main): it needs nothing of
+benchmarks/."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Every scenario through the front door (`graphloc simulate` -> `smooth` / `online`), 20 seeds
-per cell, beside today's experiment code: JSON, markdown and PNG (graphloc.experiments.team_runs).
+per cell, beside today's experiment code: JSON, markdown and PNG (benchmarks.team_runs).
 
     .venv/bin/python scripts/bench_team_runs.py --out out/bench_team_runs --doc docs/results_team.md
 """
@@ -8,8 +8,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from graphloc.executor import BACKENDS, default_backend
-from graphloc.experiments import team_runs, team_runs_report
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: benchmarks/
+
+from graphloc.executor import BACKENDS, default_backend  # noqa: E402
+from benchmarks import team_runs, team_runs_report  # noqa: E402
 
 
 def main(argv=None) -> int:

@@ -1,5 +1,5 @@
 """Regenerate docs/results.md: every seed table (paper | seed baseline (ours) | graphloc) through
-graphloc.experiments.reproduce.make_results (the route `graphloc reproduce` takes too).
+benchmarks.reproduce.make_results (the route scripts/reproduce.py takes too).
 
     .venv/bin/python scripts/make_results.py            # full size (the run time is in the header)
     .venv/bin/python scripts/make_results.py --quick    # CI size
@@ -11,12 +11,15 @@ Outputs (JSON, PNG) go to --out (default out/results); the markdown to --results
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
-from graphloc.executor import BACKENDS
-from graphloc.experiments.reproduce import make_results
-from graphloc.experiments.seed_baselines_report import DOC_JSON
-from graphloc.experiments.seed_baselines_results import render_into
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: benchmarks/
+
+from graphloc.executor import BACKENDS  # noqa: E402
+from benchmarks.reproduce import make_results  # noqa: E402
+from benchmarks.seed_baselines_report import DOC_JSON  # noqa: E402
+from benchmarks.seed_baselines_results import render_into  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 

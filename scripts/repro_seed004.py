@@ -1,10 +1,15 @@
 """Reproduce seed 004's tables side by side (paper | seed baseline | graphloc); see
-graphloc.experiments.seed004.
+benchmarks.seed004.
 
     .venv/bin/python scripts/repro_seed004.py [--quick] [--out DIR]
 """
 
-from graphloc.experiments.seed004 import main
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: benchmarks/
+
+from benchmarks.seed004 import main  # noqa: E402
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -5,7 +5,7 @@ forward 1.2 cm/frame with small turns, KLT points on a wall at 2.6 m, the teamma
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
-from graphloc.datasets.seed003_geometry import ideal_frames
+from benchmarks.seed003_geometry import ideal_frames
 
 CAM = PinholeCamera.from_fov(640, 480, np.radians(50))
 

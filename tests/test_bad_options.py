@@ -28,8 +28,6 @@ INT_VALUES = ["-" + HUGE_INT, "1.5", "abc"]
 def _verbs():
     """(verb command prefix, config class, fields excluded from its options)."""
     from graphloc.commands.demo import USER_INPUTS
-    from graphloc.commands.p3p_bench import P3PBenchOptions
-    from graphloc.commands.reproduce import ReproduceOptions
     from graphloc.commands.validate import SKIPPED
 
     out = [
@@ -38,8 +36,6 @@ def _verbs():
         (["online", "{log}", "--out", "{out}"], RunOptions, ()),
         (["fuse-maps", "--simulate", "dual-robot-room", "--out", "{out}"], FuseMapsOptions, ()),
         (["demo", "--out", "{out}"], FuseMapsOptions, USER_INPUTS),
-        (["p3p-bench", "--out", "{out}"], P3PBenchOptions, ()),
-        (["reproduce", "seed000-table1", "--out", "{out}"], ReproduceOptions, ()),
     ]
     for name in scenario_names():
         out.append((["simulate", name, "--out", "{out}"], scenario_config_class(name), ("seed",)))
@@ -185,7 +181,6 @@ SIZE_CASES = [
         ["fuse-maps", "--simulate", "dual-robot-room", "--out", "{out}", "--frames", "1000000000"],
         "frames",
     ),
-    (["p3p-bench", "--out", "{out}", "--n", "1000000000000"], "n"),
     (["smooth", "{log}", "--out", "{out}", "--keyframe-dt", "1e-9"], "keyframe_dt"),
     (["smooth", "{log}", "--out", "{out}", "--keyframe-dt", "1e300"], "keyframe_dt"),
     (["smooth", "{log}", "--out", "{out}", "--sync-tolerance", "1e300"], "sync_tolerance"),

@@ -5,15 +5,15 @@ import gtsam
 import numpy as np
 import pytest
 
-from graphloc.baselines.belief_vector import BeliefVector, BeliefVectorConfig, likelihood
-from graphloc.baselines.particle_filter import (
+from benchmarks.baselines.belief_vector import BeliefVector, BeliefVectorConfig, likelihood
+from benchmarks.baselines.particle_filter import (
     ParticleFilter,
     ParticleFilterConfig,
     plane_basis,
     sample_motion,
 )
 from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straight_line_trials
-from graphloc.baselines.straight_line import (
+from benchmarks.baselines.straight_line import (
     StraightLineBaseline,
     StraightLineConfig,
     localize_by_straight_line,
@@ -166,7 +166,7 @@ def test_engines_share_the_interface_and_reject_bad_input(engine):
 
 
 def test_belief_likelihood_readings_of_issue_20():
-    """The readings swept by graphloc.experiments.seed_baselines: Def. 1 as (1 + cos) / 2,
+    """The readings swept by benchmarks.seed_baselines: Def. 1 as (1 + cos) / 2,
     Def. 2's distance as 1 / (1 + d)."""
     a = np.array([[0.02, 0.0, 0.0], [0.02, 0.0, 0.0], [0.02, 0.0, 0.0]])
     om = np.array([[0.02, 0.0, 0.0], [-0.02, 0.0, 0.0], [0.0, 0.02, 0.0]])

@@ -6,7 +6,7 @@ import json
 import pytest
 from test_mrclam import write_synthetic_mrclam
 
-from graphloc.experiments.bench_scale import main
+from benchmarks.bench_scale import main
 
 
 @pytest.mark.slow

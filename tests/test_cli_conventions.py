@@ -93,27 +93,21 @@ def test_quiet_verbose_and_the_output_folder(tmp_path, capsys):
     argv = ["simulate", "kaushik-p3p-error", "--out", str(quiet), "--frames", "3", "-q"]
     assert main(argv) == 0 and (quiet / "manifest.json").exists()
     assert capsys.readouterr() == ("", "")
-    cfg = tmp_path / "bench.toml"
-    cfg.write_text("n = 40\nseed = 2\n")
-    bench = tmp_path / "bench"
-    assert main(["p3p-bench", "--out", str(bench), "--config", str(cfg), "-v"]) == 0
+    cfg = tmp_path / "smooth.toml"
+    cfg.write_text("keyframe_dt = 0.25\n")
+    est = tmp_path / "est"
+    assert main(["smooth", str(run), "--out", str(est), "--config", str(cfg), "-v"]) == 0
     out, err = capsys.readouterr()
-    result = json.loads((bench / "p3p_bench.json").read_text())
-    assert result["n_instances"] == 40 and result["seed"] == 2
-    assert "graphloc: p3p-bench: options" in err and "exit 0 after" in err
-    assert f"outputs in {bench}" in err and "| " in out  # the markdown table on stdout
+    metrics = json.loads((est / "metrics.json").read_text())
+    assert metrics["options"]["keyframe_dt"] == 0.25
+    assert "graphloc: smooth: options" in err and "exit 0 after" in err
+    assert f"outputs in {est}" in err and out  # the summary on stdout
     with pytest.raises(SystemExit):  # -q and -v exclude each other (argparse: usage, exit 2)
-        main(["p3p-bench", "--out", str(bench), "-q", "-v"])
+        main(["smooth", str(run), "--out", str(est), "-q", "-v"])
 
 
-def test_reproduce_and_import_take_their_config_files(tmp_path, capsys):
+def test_import_takes_its_config_file(tmp_path, capsys):
     cfg = tmp_path / "r.toml"
-    cfg.write_text("quick = true\nworkers = 0\n")
-    argv = ["reproduce", "seed004-table1", "--config", str(cfg), "--out", str(tmp_path)]
-    assert main(argv) == 2
-    assert "r.toml: line 2: ReproduceOptions.workers must be an integer in [1, 256]" in (
-        capsys.readouterr().err
-    )
     cfg.write_text("topic = 'x.yaml'\n")
     argv = ["import", str(tmp_path / "none.bag"), "--config", str(cfg), "--out", str(tmp_path)]
     assert main(argv) == 2

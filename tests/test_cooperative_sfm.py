@@ -7,17 +7,17 @@ import gtsam
 import numpy as np
 import pytest
 
-from graphloc.baselines.ekf_seed003 import run_ekf
+from benchmarks.baselines.ekf_seed003 import run_ekf
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
-from graphloc.datasets.seed003_geometry import (
+from benchmarks.seed003_geometry import (
     genuine_candidates,
     ideal_frames,
     with_teammate_from_geometry,
 )
 from graphloc.eval import axis_errors, scale_errors, trajectory_scale
-from graphloc.pipelines.cooperative_sfm import (
+from benchmarks.cooperative_sfm import (
     TEAMMATE_MODELS,
     CooperativeSfm,
     CooperativeSfmConfig,

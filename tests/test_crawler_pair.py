@@ -96,7 +96,7 @@ def test_config_validation():
 
 def test_circle_candidates_share_their_centre(seq):
     """The two circle solutions differ in the normal (the max-mixture of
-    graphloc.pipelines.cooperative_sfm tells them apart); their centres agree to well under a
+    benchmarks.cooperative_sfm tells them apart); their centres agree to well under a
     millimetre. With the refined rim the centre noise is ~0.03 mm laterally at this resolution,
     so the two centres are several sigma apart: the moment-matched centre baseline widens its
     Gaussian by their spread."""

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from graphloc.baselines.ekf_seed003 import (
+from benchmarks.baselines.ekf_seed003 import (
     N_MOTION,
     TRACKER_ID,
     EkfConfig,

@@ -142,7 +142,8 @@ def test_ray_and_local_backends_give_identical_numbers(tmp_path):
     three short simulated runs (and a bad one) through `graphloc smooth` and `online`, and the
     quick reproductions of seed 000 Table I and seed 004 Table 1."""
     ray = pytest.importorskip("ray", reason="the Ray backend needs graphloc[ray]")
-    from graphloc.experiments.reproduce import reproduce
+    from benchmarks.reproduce import main as reproduce_main
+    from benchmarks.reproduce import reproduce
 
     runs = _simulate(tmp_path, [1, 2, 3])
     (tmp_path / "bad").mkdir()
@@ -175,10 +176,10 @@ def test_ray_and_local_backends_give_identical_numbers(tmp_path):
                     r, md, cached = reproduce(table, True, 2, tmp_path / f"rep_{backend}", False)
                     assert not cached
                     results[backend, table] = (strip(r), md.count("|"))
-        # the verb: `graphloc reproduce --backend ray`, then the same table from its cache
-        rep = tmp_path / "rep_verb"
-        verb = ["reproduce", "seed004-table1", "--quick", "--out", str(rep), "--backend", "ray"]
-        assert main(verb) == 0 and main(verb) == 0
+        # scripts/reproduce.py --backend ray, then the same table from its cache
+        rep = tmp_path / "rep_script"
+        argv = ["seed004-table1", "--quick", "--out", str(rep), "--backend", "ray"]
+        assert reproduce_main(argv) == 0 and reproduce_main(argv) == 0
         assert (rep / ".cache").is_dir()
         table = json.loads((rep / "seed004-table1.json").read_text())
         local = json.loads(json.dumps(results["local", "seed004-table1"][0], default=float))

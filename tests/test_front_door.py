@@ -1,11 +1,11 @@
-"""The seeds' tables from logs (graphloc.experiments.front_door): a scenario's `graphloc simulate`
+"""The seeds' tables from logs (benchmarks.front_door): a scenario's `graphloc simulate`
 log through open_run and the team graph, with the statistics the tables pool."""
 
 import numpy as np
 
-from graphloc.experiments.front_door import feng_table_iii_run, simulated_run, truth_at
-from graphloc.experiments.hypotheses import WRONG_DISTANCE
-from graphloc.experiments.seed004 import front_door_run
+from benchmarks.front_door import feng_table_iii_run, simulated_run, truth_at
+from benchmarks.hypotheses import WRONG_DISTANCE
+from benchmarks.seed004 import front_door_run
 from graphloc.datasets.kaushik import KaushikConfig
 
 

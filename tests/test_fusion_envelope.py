@@ -1,4 +1,4 @@
-"""`scripts/bench_fusion.py --real --envelope` (graphloc.experiments.fusion_envelope): the real
+"""`scripts/bench_fusion.py --real --envelope` (benchmarks.fusion_envelope): the real
 benchmark's trials under other view noise and densities, summarized per condition and cell."""
 
 from __future__ import annotations
@@ -9,14 +9,14 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from graphloc.experiments.fusion_bench import main as bench_main
-from graphloc.experiments.fusion_envelope import (
+from benchmarks.fusion_bench import main as bench_main
+from benchmarks.fusion_envelope import (
     main_envelope,
     markdown_envelope,
     summarize_envelope,
 )
-from graphloc.experiments.fusion_report_real import REAL_METHODS
-from graphloc.experiments.real_views import BUNDLED_FRAGMENTS
+from benchmarks.fusion_report_real import REAL_METHODS
+from benchmarks.real_views import BUNDLED_FRAGMENTS
 
 
 def _row(fragment, noise, keep, overlap, seed, hint, graphloc):

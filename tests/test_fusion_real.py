@@ -25,13 +25,13 @@ from graphloc.mapping.acceptance import (
 )
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
-from graphloc.experiments.fusion_bench_real import (
+from benchmarks.fusion_bench_real import (
     PROTOCOL_KEEP,
     PROTOCOL_NOISE_M,
     cramer_rao_bound,
     run_real_trial,
 )
-from graphloc.experiments.real_views import (
+from benchmarks.real_views import (
     ViewPair,
     ceiling_pose,
     load_fragment,

@@ -17,7 +17,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
+from benchmarks.real_views import load_fragment, make_view_pair, perturb
 from graphloc.mapping.acceptance import AcceptanceConfig, candidate_checks, only_slid_or_valid
 from graphloc.mapping.registration import (
     RegistrationConfig,
@@ -438,7 +438,7 @@ def test_bench_fusion_real_runs_on_another_fragment(tmp_path):
     """scripts/bench_fusion.py --real --quick --fragment FILE: the JSON, markdown and PNG name
     the fragment; every graphloc trial is a success, a false accept or "not fused" with its
     reasons (this fragment's false accepts are counted in docs/results_fusion_real_redwood.md)."""
-    from graphloc.experiments.fusion_bench import main
+    from benchmarks.fusion_bench import main
 
     doc = tmp_path / "redwood.md"
     argv = ["--real", "--quick", "--fragment", str(REDWOOD), "--out", str(tmp_path / "out")]
@@ -458,7 +458,7 @@ def test_bench_fusion_real_runs_on_another_fragment(tmp_path):
 def test_bench_fusion_real_probes_other_sensors_and_says_so(tmp_path):
     """--noise / --keep change the views' noise and subsampling (issue 16's protocol is 5 mm and
     50%): the report records them and its command names them; nonsense is refused."""
-    from graphloc.experiments.fusion_bench import main
+    from benchmarks.fusion_bench import main
 
     out = tmp_path / "out"
     argv = ["--real", "--trials", "1", "--seed", "200", "--out", str(out), "--workers", "1"]

@@ -293,7 +293,7 @@ def test_bad_online_options_name_the_option(tmp_path, capsys, options, message):
     assert not (tmp_path / "o" / "metrics.json").exists()
 
 
-@pytest.mark.parametrize("verb", ["smooth", "online", "p3p-bench", "fuse-maps"])
+@pytest.mark.parametrize("verb", ["smooth", "online", "demo", "fuse-maps"])
 @pytest.mark.parametrize("where", ["devnull", "file", "under-file"])
 def test_out_is_checked_before_any_computation(tmp_path, capsys, verb, where):
     afile = tmp_path / "afile"
@@ -302,7 +302,7 @@ def test_out_is_checked_before_any_computation(tmp_path, capsys, verb, where):
     args = {
         "smooth": [tmp_path / "nothing-read"],
         "online": [tmp_path / "nothing-read"],
-        "p3p-bench": [],
+        "demo": [],
         "fuse-maps": ["--simulate", "dual-robot-room"],
     }[verb]
     code, _, err = run_cli([verb, *args, "--out", out], capsys)

@@ -16,7 +16,7 @@ from graphloc.datasets.feng import (
 )
 from graphloc.geometry.resection import resection_covariance
 from graphloc.hypotheses import HypothesisTracker, TrackerConfig
-from graphloc.pipelines.track_smoothing import decided, track_graph
+from benchmarks.track_smoothing import decided, track_graph
 from graphloc.seams import Odometry
 from graphloc.keys import pose_key
 from graphloc.session import Session, SessionConfig

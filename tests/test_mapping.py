@@ -340,7 +340,7 @@ def test_two_registrations_that_fit_alike_are_not_fused():
     pose, the re-seat 8 cm along a wall, and the slid one is a little cheaper with the cubes of
     the room split between the two (cost margin under one standard error). It is not fused as
     ambiguous; with no margin asked for, the slid one was fused."""
-    from graphloc.experiments.real_views import perturb
+    from benchmarks.real_views import perturb
     from graphloc.mapping.acceptance import AcceptanceConfig
     from graphloc.mapping.registration import RegistrationConfig
     from graphloc.mapping.registration_starts import hint_covariance
@@ -381,7 +381,7 @@ def test_fuse_maps_verb_reports_bad_input(tmp_path, capsys):
 @pytest.mark.slow
 @pytest.mark.parametrize("variant", ["empty", "rectangular", "low_overlap"])
 def test_simulate_and_fuse_every_variant(variant, tmp_path):
-    from graphloc.experiments.fusion_demo import simulate_and_fuse
+    from graphloc.datasets.dual_room import simulate_and_fuse
 
     report = simulate_and_fuse(tmp_path, variant, seed=7, frames=5)
     assert (

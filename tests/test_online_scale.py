@@ -16,7 +16,7 @@ from test_mrclam import write_synthetic_mrclam
 
 from graphloc.cli import main
 from graphloc.commands import smooth
-from graphloc.experiments.scale import (
+from benchmarks.scale import (
     marginalization_split,
     observation_gaps,
     repeated_online_cpu,
@@ -270,7 +270,7 @@ def test_resume_after_ten_random_stops(synthetic, tmp_path, monkeypatch):
 
 
 def test_replayed_run_and_gtsam_only_batch(synthetic):
-    from graphloc.experiments.scale import (
+    from benchmarks.scale import (
         gtsam_only_batch,
         online_profile,
         replay_graph,

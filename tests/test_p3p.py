@@ -8,7 +8,7 @@ import pytest
 
 from graphloc.candidates import CandidateSet
 from graphloc.geometry.p3p import METHODS, P3PCandidates, solve_p3p, solve_p3p_poses
-from graphloc.experiments.p3p_bench import (
+from benchmarks.p3p_bench import (
     InstanceConfig,
     opencv_p3p_loop,
     poselib_p3p_loop,
@@ -16,7 +16,7 @@ from graphloc.experiments.p3p_bench import (
     recovered,
 )
 from graphloc.datasets.feng_deterministic import Seed000Config, simulate_straight_line_trials
-from graphloc.baselines.straight_line import (
+from benchmarks.baselines.straight_line import (
     StraightLineBaseline,
     StraightLineConfig,
     localize_by_straight_line,
@@ -268,12 +268,18 @@ def _identity_odometry():
     return Odometry(gtsam.Pose3(), np.eye(6) * 1e-4)
 
 
-def test_p3p_bench_command_small(tmp_path):
-    from graphloc.cli import main
-
-    assert main(["p3p-bench", "--out", str(tmp_path), "--n", "300"]) == 0
+def test_p3p_bench_script_small(tmp_path):
+    """scripts/bench_p3p.py (`make bench-p3p`) from a folder outside the checkout."""
     import json
+    import subprocess
+    import sys
+    from pathlib import Path
 
+    script = Path(__file__).resolve().parents[1] / "scripts" / "bench_p3p.py"
+    argv = [sys.executable, str(script), "--out", str(tmp_path), "--n", "300", "--no-progress"]
+    done = subprocess.run(argv, capture_output=True, text=True, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "| " in done.stdout  # the markdown table
     result = json.loads((tmp_path / "p3p_bench.json").read_text())
     names = {r["solver"] for r in result["rows"]}
     assert {"graphloc.lambdatwist", "cv2.solveP3P[P3P] loop", "poselib.p3p loop"} <= names

@@ -1,6 +1,7 @@
 """The distribution installs graphloc.factors / graphloc.datasets from factors/ and datasets/,
 and never a top-level `factors` or `datasets` module (the PyPI `datasets` package collides);
-the wheel holds every module of the source folders (packages are found, setup.py); a wheel
+the wheel holds every module of the source folders (packages are found, setup.py) and nothing of
+the checkout's benchmarks/ (reproductions, benchmarks, the seeds' baselines: issue 49); a wheel
 installed into a fresh virtual environment outside the checkout runs the command line (slow)."""
 
 import os
@@ -23,11 +24,12 @@ PACKAGE_DIR = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setu
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory) -> Path:
     """The wheel built from a copy of what the build reads (no stale build/ folder of the
-    checkout can add or hide a module)."""
+    checkout can add or hide a module), with benchmarks/ beside the package as in the checkout
+    (the build must leave it out)."""
     src = tmp_path_factory.mktemp("src")
     for name in ("pyproject.toml", "setup.py", "README.md"):
         shutil.copy2(ROOT / name, src / name)
-    for folder in PACKAGE_DIR.values():
+    for folder in [*PACKAGE_DIR.values(), "benchmarks"]:
         shutil.copytree(
             ROOT / folder, src / folder, ignore=shutil.ignore_patterns("__pycache__", "*.pyc")
         )
@@ -62,12 +64,25 @@ def test_wheel_has_only_graphloc_top_level(wheel):
     assert not any(n.startswith(("factors/", "datasets/")) for n in names)
 
 
+def test_wheel_leaves_the_benchmarks_out(wheel):
+    """benchmarks/ is run from the checkout by scripts/ and is not installed; neither are the
+    modules that moved there from the package (graphloc.experiments, graphloc.baselines,
+    graphloc.pipelines.cooperative_sfm and track_smoothing)."""
+    assert "benchmarks" not in PACKAGE_DIR.values()
+    assert (ROOT / "benchmarks" / "reproduce.py").is_file()  # the build saw it beside graphloc
+    names = zipfile.ZipFile(wheel).namelist()
+    moved = ("graphloc/experiments/", "graphloc/baselines/", "graphloc/pipelines/cooperative_sfm/")
+    left = [n for n in names if n.startswith(("benchmarks/", *moved)) or "track_smoothing" in n]
+    assert left == []
+    assert not any(n.startswith("benchmarks") for n in names)
+
+
 def test_wheel_holds_every_module_of_the_source_tree(wheel):
     """A module missing from the wheel is an ImportError only a non-editable install sees
     (issue 47: graphloc.hypotheses and three pipelines were left out)."""
     installed = {n for n in zipfile.ZipFile(wheel).namelist() if n.endswith(".py")}
     source = source_modules()
-    assert len(source) > 150  # the source folders were found at all
+    assert len(source) > 120  # the source folders were found at all
     assert sorted(source - installed) == []
     assert sorted(installed - source) == []
 

@@ -12,8 +12,8 @@ import gtsam
 import numpy as np
 import pytest
 
-from graphloc.experiments.fusion_calibration import fit_calibration
-from graphloc.experiments.real_views import load_fragment, make_view_pair
+from benchmarks.fusion_calibration import fit_calibration
+from benchmarks.real_views import load_fragment, make_view_pair
 from graphloc.mapping.acceptance import AcceptanceConfig
 from graphloc.mapping.registration import RegistrationConfig, prepare
 from graphloc.mapping.registration_covariance import (

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from graphloc.experiments.real_views import load_fragment, make_view_pair, perturb
+from benchmarks.real_views import load_fragment, make_view_pair, perturb
 from graphloc.mapping.acceptance import AcceptanceConfig, residual_scale
 from graphloc.mapping.registration import RegistrationConfig, pose_errors, prepare
 from graphloc.mapping.registration_starts import hint_covariance

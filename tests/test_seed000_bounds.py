@@ -1,4 +1,4 @@
-"""Issue 20: the seed 000 bounds (graphloc.experiments.seed_baselines_bounds) on small
+"""Issue 20: the seed 000 bounds (benchmarks.seed_baselines_bounds) on small
 instances: brackets of a monotone family, the noise-free trace of the genuine P3P solution,
 Table I's intervals and Table III's per-reading intervals."""
 
@@ -7,11 +7,11 @@ import itertools
 import numpy as np
 import pytest
 
-from graphloc.baselines.belief_vector import BeliefVectorConfig
-from graphloc.experiments import seed_baselines as sb
-from graphloc.experiments import seed_baselines_bounds as bounds
-from graphloc.experiments import seed_baselines_bounds_t3 as bounds3
-from graphloc.experiments.hypotheses import CELLS, PAPER_TABLE_III
+from benchmarks.baselines.belief_vector import BeliefVectorConfig
+from benchmarks import seed_baselines as sb
+from benchmarks import seed_baselines_bounds as bounds
+from benchmarks import seed_baselines_bounds_t3 as bounds3
+from benchmarks.hypotheses import CELLS, PAPER_TABLE_III
 
 SIGMAS = (0.001, 0.01, 0.1, 1.0)
 
@@ -128,7 +128,7 @@ def test_table3_intervals_prove_updates_and_no_relocalization_exclusive():
 
 
 def test_bounds_sections_and_plots_render_from_their_dicts(tmp_path):
-    from graphloc.experiments import seed_baselines_bounds_report as report
+    from benchmarks import seed_baselines_bounds_report as report
 
     sigmas = (0.0, 0.005)
     readings = list(itertools.product(sb.T3_ODOMETRY, sb.T3_LIKELIHOODS, sb.T3_ACTION_FRAMES))

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from graphloc.experiments import seed001_readings as s1
-from graphloc.experiments import seed001_truth as s1t
-from graphloc.experiments import seed003_readings as s3
-from graphloc.experiments import seed_baselines_report as report
-from graphloc.experiments.seed_baselines_results import render_into, results_section
-from graphloc.experiments.seed001 import look_at
+from benchmarks import seed001_readings as s1
+from benchmarks import seed001_truth as s1t
+from benchmarks import seed003_readings as s3
+from benchmarks import seed_baselines_report as report
+from benchmarks.seed_baselines_results import render_into, results_section
+from benchmarks.seed001 import look_at
 from graphloc.vision.target import LARGE_TARGET
 
 

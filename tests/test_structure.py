@@ -1,8 +1,10 @@
-"""The package's shape (issue 13): every module imports in a fresh interpreter; the package
+"""The package's shape (issue 13, 49): every module imports in a fresh interpreter; the package
 dependency graph (graphloc's subpackages and top-level modules, every import counted,
-function-level ones included) has no cycle; only graphloc/plots.py sets the matplotlib
-backend; no source line holds an absolute machine path; no module grows past about 400 lines
-unless it is listed with its reason."""
+function-level ones included) has no cycle; the installed package never imports the checkout's
+benchmarks/ nor builds a path into the repository's folders (docs/, tests/, ...); only
+graphloc/plots.py sets the matplotlib backend; no source line holds an absolute machine path;
+no module (installed or of benchmarks/) grows past about 400 lines unless it is listed with its
+reason."""
 
 import ast
 import re
@@ -38,8 +40,9 @@ def unit(module: str) -> str:
     return ".".join(parts[:2])
 
 
-def imported(module: str, path: Path) -> set[str]:
-    """Every graphloc module or name `module` imports, at any depth of the file."""
+def imported(module: str, path: Path, prefix: str = "graphloc.") -> set[str]:
+    """Every graphloc module or name `module` imports, at any depth of the file (with `prefix`
+    "", every module or name)."""
     out = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
@@ -53,7 +56,7 @@ def imported(module: str, path: Path) -> set[str]:
                 base = ".".join(package + ([base] if base else []))
             out.add(base)
             out.update(f"{base}.{a.name}" for a in node.names)
-    return {m for m in out if m.startswith("graphloc.")}
+    return {m for m in out if m.startswith(prefix)}
 
 
 def package_graph() -> dict[str, set[str]]:
@@ -110,13 +113,95 @@ def test_package_dependency_graph_is_acyclic():
 
 
 def test_the_graph_sees_function_level_imports():
-    graph = package_graph()
-    # graphloc.commands.reproduce imports the experiments inside `run` (not for --help)
-    assert "graphloc.experiments" in graph["graphloc.commands"]
+    # graphloc.commands.demo imports the simulator inside `run` (not for --help)
+    demo = modules()["graphloc.commands.demo"]
+    assert "graphloc.datasets.dual_room" in imported("graphloc.commands.demo", demo)
+    assert "graphloc.datasets" in package_graph()["graphloc.commands"]
+
+
+def test_the_installed_package_never_imports_the_benchmarks():
+    """benchmarks/ (reproductions, benchmarks, the seeds' baselines, their reports) sits beside
+    the package in the checkout and is not in the wheel: an installed module that imported it
+    would fail from a wheel. Imports at any depth, and `import_module("benchmarks...")`."""
+    found = {}
+    for module, path in modules().items():
+        names = imported(module, path, prefix="")
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant):
+                if isinstance(node.args[0].value, str):
+                    names.add(node.args[0].value)
+        bad = {n for n in names if n == "benchmarks" or n.startswith("benchmarks.")}
+        if bad:
+            found[module] = sorted(bad)
+    assert not found, f"installed modules importing benchmarks: {found}"
+
+
+REPOSITORY_FOLDERS = ("docs", "tests", "scripts", "benchmarks", ".ci")
+
+
+def _repository_paths(tree: ast.AST) -> list[str]:
+    """Where a module reaches out of the installed tree: `__file__` at all (`Path(__file__)
+    .parents[2]` is the checkout only in the checkout; package data would go through
+    importlib.resources), or a path built from a repository folder's name (`ROOT / "docs" /
+    ...`, `Path("docs/results.md")`)."""
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Name) and node.id == "__file__":
+            found.append(f"line {node.lineno}: __file__")
+        operands = []
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Div):
+            operands = [node.left, node.right]
+        elif isinstance(node, ast.Call):
+            name = getattr(node.func, "id", getattr(node.func, "attr", ""))
+            if name in ("Path", "joinpath", "PurePath"):
+                operands = list(node.args)
+        for op in operands:
+            if isinstance(op, ast.Constant) and isinstance(op.value, str):
+                head = re.sub(r"^(\./)+", "", op.value.replace("\\", "/")).split("/")[0]
+                if head in REPOSITORY_FOLDERS:
+                    found.append(f"line {node.lineno}: {op.value!r}")
+    return found
+
+
+def test_the_installed_package_reads_no_repository_folder():
+    """From a wheel there is no docs/, tests/ or benchmarks/ beside the package (issue 49:
+    `Path(__file__).parents[2] / "docs"` sections came out empty); a default output folder
+    under the user's working directory (`out/demo`) is not the repository's."""
+    found = {
+        module: hits
+        for module, path in modules().items()
+        if (hits := _repository_paths(ast.parse(path.read_text(encoding="utf-8"))))
+    }
+    assert not found, f"installed modules building paths into the repository: {found}"
+
+
+def test_the_path_check_catches_the_old_shapes():
+    for code in (
+        'DOC = Path(__file__).resolve().parents[2] / "docs" / "results.md"',
+        'p = ROOT / "tests" / "data" / "x.ply"',
+        'p = Path("docs/results_fusion_calibration.json")',
+        "here = Path(__file__).parent.parent",
+    ):
+        assert _repository_paths(ast.parse(code)), code
+    assert _repository_paths(ast.parse('p = ROOT / "./.ci" / "run"'))
+    assert not _repository_paths(ast.parse('p = out / "metrics.json"; q = Path("out/demo")'))
+
+
+def test_every_benchmark_module_imports_from_the_checkout():
+    """benchmarks/ is importable the way scripts/ and the tests import it (the checkout on
+    sys.path) and every module of it imports (nothing left pointing at a moved module)."""
+    names = sorted(
+        ".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
+        for p in (ROOT / "benchmarks").rglob("*.py")
+    )
+    assert "benchmarks.baselines.ekf_seed003" in names and "benchmarks.seed000" in names
+    code = f"import importlib, sys\nfor name in {names!r}:\n    importlib.import_module(name)\n"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert done.returncode == 0, done.stderr[-3000:]
 
 
 def _sources():
-    for folder in ("graphloc", "factors", "datasets", "scripts", "tests"):
+    for folder in ("graphloc", "factors", "datasets", "benchmarks", "scripts", "tests"):
         yield from sorted((ROOT / folder).rglob("*.py"))
 
 
@@ -156,10 +241,14 @@ OVER_SIZE: dict[str, str] = {}
 
 
 def test_modules_stay_under_about_400_lines():
+    """The installed modules and, beside them, the benchmarks' (the limit held for them inside
+    the package and still does)."""
+    paths = [*modules().values(), *sorted((ROOT / "benchmarks").rglob("*.py"))]
     sizes = {
         p.relative_to(ROOT).as_posix(): len(p.read_text(encoding="utf-8").splitlines())
-        for p in modules().values()
+        for p in paths
     }
+    assert "benchmarks/seed000.py" in sizes
     over = {path for path, n in sizes.items() if n > MAX_LINES}
     assert over <= set(OVER_SIZE), {p: sizes[p] for p in sorted(over - set(OVER_SIZE))}
     stale = {p for p in OVER_SIZE if sizes.get(p, 0) <= MAX_LINES}

@@ -1,5 +1,5 @@
-"""The seeds' tables (graphloc.experiments) on tiny sizes: structure, sanity and the
-paper | seed | graphloc columns; the one route from `graphloc reproduce` and make_results."""
+"""The seeds' tables (benchmarks) on tiny sizes: structure, sanity and the
+paper | seed | graphloc columns; the one route from scripts/reproduce.py and make_results."""
 
 import subprocess
 import sys
@@ -10,11 +10,11 @@ import pytest
 
 from graphloc.datasets.feng_deterministic import TableIConfig
 from graphloc.datasets.kaushik import KaushikConfig
-from graphloc.experiments import TABLES, markdown, seed000, seed004
-from graphloc.experiments import seed_baselines as sb
-from graphloc.experiments import seed_baselines_report as report
-from graphloc.experiments.hypotheses import TableIIIConfig
-from graphloc.experiments.sizes import FULL, QUICK, run_sizes
+from benchmarks import markdown, seed000, seed004
+from benchmarks import seed_baselines as sb
+from benchmarks import seed_baselines_report as report
+from benchmarks.hypotheses import TableIIIConfig
+from benchmarks.sizes import FULL, QUICK, run_sizes
 
 
 @pytest.fixture(scope="module")
@@ -101,16 +101,17 @@ def test_run_sizes_are_defined_once():
     assert QUICK.table1_trials < FULL.table1_trials and QUICK.seed004_runs < FULL.seed004_runs
 
 
-def test_reproduce_verb_quick(tmp_path, capsys):
-    from graphloc.cli import main
-    from graphloc.commands import reproduce
+def test_reproduce_script_quick(tmp_path, capsys):
+    """scripts/reproduce.py's code: one table printed, its JSON written, bad options refused."""
+    from benchmarks.reproduce import main
 
-    assert reproduce.TABLES is TABLES
     out = str(tmp_path)
-    assert main(["reproduce", "seed004-table1", "--quick", "--workers", "1", "--out", out]) == 0
+    assert main(["seed004-table1", "--quick", "--workers", "1", "--out", out]) == 0
     assert "| 36 mm | 10 |" in capsys.readouterr().out
     assert (tmp_path / "seed004-table1.json").is_file()
-    assert main(["reproduce", "seed004-table1", "--workers", "0", "--out", out]) == 2
+    with pytest.raises(SystemExit) as exc:
+        main(["seed004-table1", "--workers", "0", "--out", out])
+    assert exc.value.code == 2 and "--workers must be in [1, 256]" in capsys.readouterr().err
 
 
 def test_make_results_quick_writes_every_table(tmp_path):
@@ -150,7 +151,7 @@ def test_make_results_quick_writes_every_table(tmp_path):
         assert (tmp_path / "out" / png).stat().st_size > 0
 
 
-# ---- issue 20: readings of the seeds' setups (graphloc.experiments.seed_baselines) ----------
+# ---- issue 20: readings of the seeds' setups (benchmarks.seed_baselines) ----------
 def _rows(devs):
     return [{"name": i, "max_deviation": d} for i, d in enumerate(devs)]
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from graphloc.datasets.scenarios import generate
-from graphloc.experiments.team_runs import today_seed004_smoothing
+from benchmarks.team_runs import today_seed004_smoothing
 
 
 def _log(tmp_path, **overrides):

@@ -1,4 +1,4 @@
-"""graphloc.pipelines.track_smoothing: the one builder of a track with decided candidates
+"""benchmarks.track_smoothing: the one builder of a track with decided candidates
 (seed 000 Sec. V decisions of the tracker; seed 004 Table 1's genuine candidates)."""
 
 import gtsam
@@ -8,7 +8,7 @@ import pytest
 from graphloc.candidates import CandidateSet
 from graphloc.factors.robust import Kernel
 from graphloc.keys import pose_key
-from graphloc.pipelines.track_smoothing import decided, smooth_track, track_graph
+from benchmarks.track_smoothing import decided, smooth_track, track_graph
 from graphloc.seams import Decision, Odometry
 
 

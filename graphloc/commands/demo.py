@@ -33,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from graphloc.experiments.fusion_demo import simulate_and_fuse
+    from graphloc.datasets.dual_room import simulate_and_fuse
     from graphloc.pipelines.map_fusion.report import summary_text
     from graphloc.pipelines.recording import fusion_recording, write_recordings
 

@@ -49,7 +49,7 @@ Per frame (odometry u with covariance Q, candidates z_j with covariances C_j and
 4. prune: every candidate keeps its child (so a birth can always take over), coasting tracks
    (one per track id) fill the remaining slots up to K; normalize.
 Decided modes are fixed by construction (the past is marginalized into each track's Gaussian;
-`graphloc.pipelines.track_smoothing.track_graph` re-solves a run with its committed modes in a
+`benchmarks.track_smoothing.track_graph` re-solves a run with its committed modes in a
 batch Session), the number of live tracks is <= K and per-frame work is O(K * candidates):
 latency and memory do not grow with the run length.
 
@@ -68,7 +68,7 @@ first update). The cost, about one more update to the first commit, and the wron
 commits it removes are measured on held-out seeds by scripts/bench_hypotheses.py
 (--seed-offset) and tests/test_hypotheses.py.
 
-Inputs shared with the baselines (graphloc.baselines): per frame a CandidateSet (camera poses
+Inputs shared with the baselines (benchmarks.baselines): per frame a CandidateSet (camera poses
 in the world) and, from the second frame on, an `Odometry` (relative camera pose since the
 previous frame, in that frame, with covariance).
 """

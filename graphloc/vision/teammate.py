@@ -2,8 +2,8 @@
 "robot tracker" (the teammate's base rim -> both circle poses, `graphloc.vision.circle`, ->
 their moment-matched centre with its first-order covariance) and II-B (KLT feature tracks
 outside the base, `graphloc.vision.features`). `measure_frames` turns an image sequence into
-the `graphloc.seams.FrameInput`s that the graph (`graphloc.pipelines.cooperative_sfm`) and the
-seed's EKF (`graphloc.baselines.ekf_seed003`) both take.
+the `graphloc.seams.FrameInput`s that the graph (`benchmarks.cooperative_sfm`) and the
+seed's EKF (`benchmarks.baselines.ekf_seed003`) both take.
 """
 
 from __future__ import annotations
@@ -32,9 +32,9 @@ class TeammateConfig:
     set above that calibration on purpose: the two candidates' centres differ by a fraction of
     a pixel, and with the calibrated floor that difference outweighed the normals in the
     max-mixture's choice whenever the camera pose was slightly off, so that online iSAM2 kept
-    the false candidate after the teammate moved (seeds 3-4 of graphloc.experiments.seed003).
+    the false candidate after the teammate moved (seeds 3-4 of benchmarks.seed003).
     With the edge crossings alone (refine_edges=False) calibrate both floors for that
-    front-end (graphloc.experiments.seed003.teammate_config)."""
+    front-end (benchmarks.seed003.teammate_config)."""
 
     radius: float = 0.019
     blob: BlobConfig = BlobConfig()

@@ -5,7 +5,8 @@
 
 (the hint, its sigma and the P3P setup are parsed by `graphloc.pipelines.map_fusion.inputs`).
 
-Simulated rooms (the README demo) are `graphloc.experiments.fusion_demo`.
+Simulated rooms (`graphloc demo`, `fuse-maps --simulate`) are
+`graphloc.datasets.dual_room.simulate_and_fuse`.
 """
 
 from __future__ import annotations

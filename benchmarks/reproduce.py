@@ -1,0 +1,160 @@
+"""The one route to the seeds' tables: scripts/reproduce.py TABLE (`main`, one table printed as
+markdown, cached) and scripts/make_results.py (`make_results`, docs/results.md) both call this
+module, at the run sizes of benchmarks.sizes.
+
+- seed000-table1/2/3: seed 000 (000_05137a0a9c449be3.txt) Tables I-III,
+  benchmarks.seed000;
+- seed004-table1: seed 004 (004_fa12d1d18dcbd0db.txt) Table 1, benchmarks.seed004;
+- seed001-exp1: seed 001 (001_0f8f8dae37ce6b79.txt) experiment 1, benchmarks.seed001.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+from graphloc.datasets.feng_deterministic import TableIConfig
+from graphloc.executor import BACKENDS, ResultCache, content_hash, default_backend
+from graphloc.structured import dumps_json
+from benchmarks import TABLES, markdown, seed000, seed001, seed004
+from benchmarks.hypotheses import TableIIIConfig
+from benchmarks.seed_baselines_report import DOC_JSON
+from benchmarks.seed_baselines_results import results_section
+from benchmarks.sizes import RunSizes, run_sizes
+
+
+def seed001_section(out_dir: Path, sizes: RunSizes) -> str:
+    """Seed 001 experiment 1 (rendered frames; writes its JSON and PNG to out_dir); returns its
+    markdown table."""
+    result = seed001.reproduce(
+        out_dir, frames1=sizes.seed001_frames1, frames2=sizes.seed001_frames2
+    )
+    return (
+        "### Seed 001 experiment 1: pose error vs the paper (scripts/repro_seed001.py, "
+        "rendered frames)\n\n"
+        + seed001.markdown(result["summary"])
+        + f"\n\nPlot: {Path(out_dir).name}/repro_seed001_error_vs_distance.png.\n\n"
+        + results_section(DOC_JSON)
+    )
+
+
+def reproduce(
+    table: str,
+    quick: bool,
+    workers: int,
+    out: Path,
+    progress: bool = True,
+    cache: ResultCache | None = None,
+) -> tuple[dict | None, str, bool]:
+    """One table: (its JSON-ready dict, or None for seed001-exp1 which writes its own JSON and
+    PNG under out/seed001; its markdown; whether it came from `cache`). The trials run on the
+    executor's default backend (`graphloc.executor.default_backend`); the cache key is the
+    content hash of (table, run sizes, graphloc's code version): the worker count and the
+    backend do not change the numbers."""
+    if table not in TABLES:
+        raise ValueError(f"unknown table {table!r}; choose from {', '.join(TABLES)}")
+    sizes = run_sizes(quick)
+    key = content_hash([], {"table": table, "sizes": asdict(sizes)})
+    if cache is not None and table == "seed001-exp1" and not (out / "seed001").is_dir():
+        cache.discard(key)  # its JSON and PNG live under out/seed001
+    hit = cache.get(key) if cache is not None else None
+    if hit is not None:
+        return hit["result"], hit["markdown"], True
+    result, md = _compute(table, sizes, workers, out, progress)
+    if cache is not None:
+        cache.put(key, {"result": result, "markdown": md})
+        # the same JSON as a cache hit returns (tuples become lists, numpy scalars floats)
+        result = cache.get(key)["result"]
+    return result, md, False
+
+
+def _compute(
+    table: str, sizes: RunSizes, workers: int, out: Path, progress: bool
+) -> tuple[dict | None, str]:
+    if table == "seed001-exp1":
+        return None, seed001_section(out / "seed001", sizes)
+    if table == "seed000-table1":
+        r = seed000.table_i(TableIConfig(trials=sizes.table1_trials, workers=workers), progress)
+        return r, markdown.table_i(r)
+    if table == "seed000-table2":  # times its own trials and updates, in one process
+        r = seed000.table_ii(samples=sizes.table2_samples)
+        return r, markdown.table_ii(r)
+    if table == "seed000-table3":
+        t3 = seed000.table_iii(TableIIIConfig(runs=sizes.table3_runs, workers=workers), progress)
+        return t3, markdown.table_iii(t3)
+    r = seed004.seed004_table_1(
+        runs=sizes.seed004_runs, frames=sizes.seed004_frames, workers=workers, progress=progress
+    )
+    return r, markdown.seed004(r)
+
+
+def make_results(
+    out: Path,
+    results: Path,
+    quick: bool,
+    workers: int,
+    skip_seed001: bool = False,
+    backend: str = "local",
+    address: str | None = None,
+) -> float:
+    """docs/results.md: every seed table with its plots and JSON under `out`, the trials on
+    the executor's `backend` (graphloc.executor); returns the wall time [s]."""
+    t0 = time.perf_counter()
+    sizes = run_sizes(quick)
+    with default_backend(backend, address, workers):
+        parts = [
+            seed000.run(out / "seed000", sizes, workers)["markdown"],
+            seed004.run(out / "seed004", sizes, workers)["markdown"],
+        ]
+    if not skip_seed001:
+        parts.append(seed001_section(out / "seed001", sizes))
+    head = [
+        "# graphloc: the seeds' tables, reproduced",
+        "",
+        f"Generated by `scripts/make_results.py{' --quick' if quick else ''}` in "
+        f"{time.perf_counter() - t0:.0f} s on {os.cpu_count()} cores "
+        f"({platform.processor() or platform.machine()}), workers={workers} ({backend}). Plots "
+        "and JSON: "
+        f"`{out}/`. Every number below is computed by that run.",
+        "",
+    ]
+    results.parent.mkdir(parents=True, exist_ok=True)
+    results.write_text("\n".join(head + parts))
+    return time.perf_counter() - t0
+
+
+def main(argv=None) -> int:
+    """`scripts/reproduce.py TABLE [--quick] [--out DIR]`: recompute one seed table and print it
+    as markdown; its JSON goes to DIR/<table>.json. The trials run on the executor's backend
+    (`--backend local|ray`, `--workers N`, `--address auto|HOST:PORT`: graphloc.executor); the
+    table is cached under DIR/.cache by the content hash of (table, run sizes, code version),
+    so a re-run prints it without recomputing (`--no-cache` recomputes)."""
+    parser = argparse.ArgumentParser(description="reproduce a seed table: " + ", ".join(TABLES))
+    parser.add_argument("table", choices=TABLES)
+    parser.add_argument("--out", type=Path, default=Path("out/reproduce"))
+    parser.add_argument("--quick", action="store_true", help="CI size (benchmarks.sizes.QUICK)")
+    parser.add_argument("--workers", type=int, default=2, help="trials in flight")
+    parser.add_argument("--backend", choices=BACKENDS, default="local", help="trials on")
+    parser.add_argument("--address", help="--backend ray: 'auto' or HOST:PORT of a cluster")
+    parser.add_argument("--no-cache", action="store_true", help="recompute a cached table")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    args = parser.parse_args(argv)
+    if not 1 <= args.workers <= 256:
+        parser.error(f"--workers must be in [1, 256], got {args.workers}")
+    args.out.mkdir(parents=True, exist_ok=True)
+    cache = None if args.no_cache else ResultCache(args.out / ".cache")
+    with default_backend(args.backend, args.address, args.workers):
+        result, md, cached = reproduce(
+            args.table, args.quick, args.workers, args.out, not args.no_progress, cache
+        )
+    if cached:
+        print(f"(cached: {args.out / '.cache'}; --no-cache recomputes)", file=sys.stderr)
+    if result is not None:
+        (args.out / f"{args.table}.json").write_text(dumps_json(result, indent=2, default=float))
+    print(md)
+    return 0

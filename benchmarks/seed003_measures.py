@@ -1,0 +1,155 @@
+"""Seed 003 (003_8db27855ce2d5f68.txt) benchmark, what one trial measures besides the
+estimators: the teammate front-end's circle errors against the truth and against the
+Cramér-Rao bound of the images (section II-A), KLT track errors by age (section II-B), the
+camera displacement a circle cannot see, and the cost of one max-mixture linearization; the
+method and front-end names of benchmarks.seed003."""
+
+from __future__ import annotations
+
+import time
+
+import gtsam
+import numpy as np
+
+from graphloc.factors.mixture import max_mixture_factor
+from graphloc.keys import pose_key
+from graphloc.vision.circle import circle_pose_from_rim
+from graphloc.vision.base_rim import BlobConfig, detect_base_rim
+from graphloc.vision.teammate import TeammateConfig
+
+METHODS = (
+    "ekf",
+    "batch",
+    "online",
+    "batch_centre",
+    "batch_crossings",
+    "batch_crlb_circle",
+    "batch_exact_circle",
+)
+GRAPH_RUNS = {
+    "batch": ("batch", "max_mixture", "refined"),
+    "online": ("online", "max_mixture", "refined"),
+    "batch_centre": ("batch", "moment_matched_centre", "refined"),
+    "batch_crossings": ("batch", "max_mixture", "crossings"),
+    "batch_crlb_circle": ("batch", "max_mixture", "crlb"),
+    "batch_exact_circle": ("batch", "max_mixture", "exact"),
+}
+TRACK_AGES = ((1, 3), (4, 7), (8, 11), (12, 15))  # frames since a KLT track started
+EXACT_DISK_SIGMAS = np.array(
+    [1e-6, 1e-6, 1e-6, 1e-5, 1e-5]
+)  # 'exact' disk: centre [m], normal tilt [rad]
+FRONT_ENDS = ("refined", "crossings")
+AXES = ("x", "y", "z")
+
+
+def teammate_config(front_end: str, radius: float) -> TeammateConfig:
+    """The teammate front-end: 'refined' (default edge fit) or 'crossings' (the seed's edge
+    points, with the floors calibrated for them; see TeammateConfig)."""
+    if front_end == "refined":
+        return TeammateConfig(radius=radius)
+    return TeammateConfig(
+        radius=radius,
+        blob=BlobConfig(refine_edges=False),
+        radius_pixel_floor=0.01,
+        centre_pixel_floor=0.08,
+    )
+
+
+def front_end_errors(seq, front_end: str) -> dict:
+    """Per frame: the genuine circle candidate's depth error (along the line of sight) and
+    lateral error [m], its normal error [deg]; and the frame-to-frame depth-error changes
+    over the frames where only the camera moved."""
+    cfg = teammate_config(front_end, seq.config.base_radius)
+    depth, lateral, normal = [], [], []
+    for k in range(len(seq)):
+        blob = detect_base_rim(seq.images[k], cfg.blob)
+        if blob is None or blob.refine_error:
+            depth.append(np.nan), lateral.append(np.nan), normal.append(np.nan)
+            continue
+        cands, _ = circle_pose_from_rim(seq.camera, blob.rim, cfg.radius, cfg.circle)
+        centre, true_normal = seq.base_in_camera(k)
+        g = int(np.argmax(cands.R[:, :, 2] @ true_normal))
+        err = cands.t[g] - centre
+        los = centre / np.linalg.norm(centre)
+        depth.append(float(err @ los))
+        lateral.append(float(np.linalg.norm(err - (err @ los) * los)))
+        normal.append(
+            float(np.degrees(np.arccos(np.clip(cands.R[g, :, 2] @ true_normal, -1.0, 1.0))))
+        )
+    camera_moved, teammate_moved, _, _ = seq.frame_flags()
+    only_camera = camera_moved[1:] & ~teammate_moved[1:]
+    return {
+        "depth": np.array(depth),
+        "lateral": np.array(lateral),
+        "normal_deg": np.array(normal),
+        "depth_change": np.diff(np.array(depth))[only_camera],
+    }
+
+
+def crlb_errors(seq, centres: np.ndarray, disk_cov: np.ndarray) -> dict:
+    """The Cramer-Rao bound of the front_end_errors quantities, per frame: depth and lateral
+    sigmas [m], normal angle rms [deg], and the frame-to-frame depth-change sigma over the
+    frames where only the camera moved."""
+    los = centres / np.linalg.norm(centres, axis=1, keepdims=True)
+    depth_var = np.einsum("ki,kij,kj->k", los, disk_cov[:, :3, :3], los)
+    camera_moved, teammate_moved, _, _ = seq.frame_flags()
+    only_camera = camera_moved[1:] & ~teammate_moved[1:]
+    return {
+        "depth_sd": np.sqrt(depth_var),
+        "lateral_sd": np.sqrt(np.trace(disk_cov[:, :3, :3], axis1=1, axis2=2) - depth_var),
+        "normal_rms_deg": np.degrees(np.sqrt(disk_cov[:, 3, 3] + disk_cov[:, 4, 4])),
+        "depth_change_sd": np.sqrt(depth_var[1:] + depth_var[:-1])[only_camera],
+    }
+
+
+def track_errors(seq, frames) -> tuple[np.ndarray, np.ndarray]:
+    """KLT pixel error against the truth by track age: every observation of a track, the
+    distance [px] to the true projection of the surface point seen at the track's first pixel,
+    and its age [frames] -- (ages (M,), errors (M,)); grows with age where the track drifts."""
+    first, ages, errors = {}, [], []
+    for k, f in enumerate(frames):
+        ids, pixels = np.asarray(f.features.ids), np.asarray(f.features.pixels, float)
+        new = np.array([i not in first for i in ids.tolist()], dtype=bool)
+        if new.any():
+            for i, point in zip(ids[new].tolist(), seq.surface_points(k, pixels[new])):
+                first[i] = (k, point)
+        if (~new).any():
+            k0, points = zip(*(first[i] for i in ids[~new].tolist()))
+            uv, _ = seq.camera.project((np.array(points) - seq.t_wc[k]) @ seq.R_wc[k])
+            ages.extend(k - np.array(k0))
+            errors.extend(np.linalg.norm(uv - pixels[~new], axis=1))
+    return np.array(ages, dtype=int), np.array(errors)
+
+
+def unseen_displacement(seq, k: int) -> float:
+    """Camera displacement [m] at frame k that no circle measurement can show: the camera's
+    true rotation since frame 0 about the disk-normal axis through the base centre (the image
+    of a circle does not change under it) times the camera's distance from that axis."""
+    normal = seq.base_normal[k] / np.linalg.norm(seq.base_normal[k])
+    angle = float(gtsam.Rot3.Logmap(gtsam.Rot3(seq.R_wc[k] @ seq.R_wc[0].T)) @ normal)
+    arm = seq.t_wc[k] - seq.base_centre[k]
+    return abs(angle) * float(np.linalg.norm(arm - (arm @ normal) * normal))
+
+
+def linearize_cost(repeats: int = 3000) -> dict:
+    """Seconds per linearization of a 2-component max-mixture of BetweenFactorPose3 (a Python
+    CustomFactor) and of one BetweenFactorPose3 (C++), measured in the same run."""
+    noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([0.015, 0.015, 1.0, 2e-4, 2e-4, 5e-4]))
+    a, b = pose_key(0, 0), pose_key(1, 0)
+    poses = [gtsam.Pose3(gtsam.Rot3.Ry(s), [0.03, 0.03, 0.83]) for s in (0.2, -0.15)]
+    between = gtsam.BetweenFactorPose3(a, b, poses[0], noise)
+    mixture = max_mixture_factor(
+        [gtsam.BetweenFactorPose3(a, b, p, noise) for p in poses], [0.5, 0.5]
+    ).factor
+    values = gtsam.Values()
+    values.insert(a, gtsam.Pose3())
+    values.insert(b, gtsam.Pose3(gtsam.Rot3.Ry(0.19), [0.031, 0.03, 0.829]))
+    out = {}
+    for name, factor in (("between_pose3", between), ("max_mixture_2", mixture)):
+        factor.linearize(values)
+        t0 = time.perf_counter()
+        for _ in range(repeats):
+            factor.linearize(values)
+        out[f"{name}_us"] = 1e6 * (time.perf_counter() - t0) / repeats
+    out["ratio_max_mixture_over_between"] = out["max_mixture_2_us"] / out["between_pose3_us"]
+    return out
