@@ -82,6 +82,17 @@ def out_path(out, *parts: str) -> Path:
     return path
 
 
+_MADE: list = []  # folders `claim_out` made and holds now
+
+
+def release_claims() -> None:
+    """Remove the held folders `claim_out` made that are still empty (for a process ending
+    without unwinding, e.g. `os._exit` on a signal)."""
+    for out in _MADE:
+        with contextlib.suppress(OSError):
+            out.rmdir()
+
+
 @contextlib.contextmanager
 def claim_out(out):
     """Create `out` if needed and hold it for this process while the block runs: ValueError
@@ -105,8 +116,12 @@ def claim_out(out):
                     f"--out {out}: another graphloc process is writing there (wait for it to "
                     "end, or choose another --out)"
                 ) from None
+        if created:
+            _MADE.append(out)
         yield out
     finally:
+        if created and out in _MADE:
+            _MADE.remove(out)
         if fd is not None:
             os.close(fd)
         if created:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import importlib.machinery
 import json
+import os
 import signal
 import sys
 import threading
@@ -22,7 +23,7 @@ from pathlib import Path
 
 from graphloc import many_runs
 from graphloc.commands.common import Interrupted
-from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, OK
+from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, INTERRUPTED, OK
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph.options import RunOptions
 from graphloc.structured import dumps_json
@@ -77,13 +78,17 @@ class StopFlag:
     A second signal interrupts at once in every phase (`Interrupted`, 130). A signal that
     arrives during an import (a C extension initializing -- GTSAM, Open3D, OpenCV: an exception
     raised there reaches the caller as ImportError "initialization failed" --, or the import
-    system's callbacks, which ignore an exception) is handled as soon as that is done: SIGALRM
-    re-delivers it every RETRY_S. Installed for the duration of a `with` block
-    (main thread only)."""
+    system's callbacks, which ignore an exception) cannot raise there: while reading, when
+    nothing is written yet, the process says so and ends at once (`os._exit`, 130, after
+    `names.release_claims` removed the `--out` folder it made, empty); in the other phases it
+    is handled as soon as the import is done (SIGALRM re-delivers it every RETRY_S).
+    Installed for the duration of a `with` block (main thread only); `verb` names the command
+    in the line it prints."""
 
     RETRY_S = 0.02
 
-    def __init__(self):
+    def __init__(self, verb: str = "smooth"):
+        self.verb = verb
         self.signal: int | None = None
         self.phase = "reading"
         self._old: dict = {}
@@ -113,16 +118,25 @@ class StopFlag:
             self._handle(pending, frame)
 
     def _handle(self, signum, frame):
-        if self._initializing_extension(frame) and hasattr(signal, "setitimer"):
-            self._pending = signum
-            signal.setitimer(signal.ITIMER_REAL, self.RETRY_S)
-            return
         name = signal.Signals(signum).name
+        reading = (
+            f"{name} while reading the run or building the graph: stopped before any "
+            "estimate, nothing written"
+        )
+        if self._initializing_extension(frame):
+            if self.phase == "reading":  # nothing written: no need to wait for the import
+                from graphloc.names import release_claims
+
+                release_claims()
+                print(f"graphloc {self.verb}: error: {reading}", file=sys.stderr, flush=True)
+                sys.stdout.flush()
+                os._exit(INTERRUPTED)
+            if hasattr(signal, "setitimer"):
+                self._pending = signum
+                signal.setitimer(signal.ITIMER_REAL, self.RETRY_S)
+                return
         if self.phase == "reading":
-            raise Interrupted(
-                f"{name} while reading the run or building the graph: stopped before any "
-                "estimate, nothing written"
-            )
+            raise Interrupted(reading)
         if self.signal is not None:
             raise Interrupted(f"{name} again: stopped at once; the outputs may be incomplete")
         self.signal = signum
@@ -158,7 +172,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
     from dataclasses import asdict, replace
 
     progress = not args.no_progress
-    with StopFlag() as stop:
+    with StopFlag("smooth" if mode == "batch" else "online") as stop:
         opts = options(args)
         values = asdict(opts)
         config = opts.graph_config()
