@@ -7,6 +7,9 @@ Discrete mode of observation k (which candidate is genuine): Symbol('m', k)
 Marker j of robot r's layout, a world point (static robots): Symbol('k', r * MAX_MARKERS + j)
 Marker j of the target of candidate set n, a world point at that set's time (moving targets):
                             Symbol('q', n * MAX_MARKERS + j)
+Sensor slot s of robot r at step t, the Pose3 of an offset sensor (its body pose composed with
+its extrinsics, tied to it by a tight BetweenFactorPose3; not a robot pose: outputs skip it):
+                            Symbol('s', (s * MAX_ROBOTS + r) * STRIDE + t)
 """
 
 from __future__ import annotations
@@ -64,12 +67,27 @@ def frame_marker_key(observation: int, marker: int) -> int:
     return gtsam.symbol("q", int(observation) * MAX_MARKERS + int(marker))
 
 
+MAX_SENSORS = 1_000
+
+
+def sensor_key(robot: int, slot: int, t: int) -> int:
+    """Key of the pose of robot `robot`'s offset sensor `slot` (one per distinct extrinsics of
+    the robot) at time index `t`."""
+    if not (0 <= int(slot) < MAX_SENSORS):
+        raise ValueError(f"sensor slot {slot} outside [0, {MAX_SENSORS})")
+    body = pose_key(robot, t) & _INDEX_MASK  # checks robot and t
+    return gtsam.symbol("s", int(slot) * MAX_ROBOTS * STRIDE + body)
+
+
 def decode(key: int) -> tuple[str, int, int]:
     """Inverse of the builders: ('x', robot, t), ('l', id, 0), ('m', obs, 0),
-    ('k', robot, marker) or ('q', observation, marker)."""
+    ('k', robot, marker), ('q', observation, marker) or ('s', robot, t) (a sensor pose: its
+    robot and time index, as its body pose's; the slot is left out)."""
     kind, index = chr(key >> 56), key & _INDEX_MASK  # gtsam.Symbol's layout, no GTSAM call
     if kind == "x":
         return kind, index // STRIDE, index % STRIDE
+    if kind == "s":
+        return kind, (index // STRIDE) % MAX_ROBOTS, index % STRIDE
     if kind in ("k", "q"):
         return kind, index // MAX_MARKERS, index % MAX_MARKERS
     return kind, index, 0
@@ -82,7 +100,9 @@ def decode_many(keys) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     k = np.asarray(keys, dtype=np.uint64).reshape(-1)
     index = (k & np.uint64(_INDEX_MASK)).astype(np.int64)
     kind = (k >> np.uint64(56)).astype(np.uint8).view("S1").astype(str)
-    stride = np.where(kind == "x", STRIDE, np.where(np.isin(kind, ("k", "q")), MAX_MARKERS, 0))
+    pose = np.isin(kind, ("x", "s"))
+    stride = np.where(pose, STRIDE, np.where(np.isin(kind, ("k", "q")), MAX_MARKERS, 0))
     first = np.where(stride > 0, index // np.maximum(stride, 1), index)
+    first = np.where(kind == "s", first % MAX_ROBOTS, first)
     second = np.where(stride > 0, index % np.maximum(stride, 1), 0)
     return kind, first, second

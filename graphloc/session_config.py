@@ -21,7 +21,7 @@ class SessionConfig:
     iSAM2: relinearize_threshold (on the delta of any variable), relinearize_translation (> 0:
     this threshold [m] on the translation of Pose3 variables and on Point3 variables,
     relinearize_threshold on the rotation only -- iSAM2's per-symbol threshold map, so every
-    key must then be a Pose3 'x' or a Point3 'l' / 'k' / 'q', `THRESHOLD_SYMBOLS`),
+    key must then be a Pose3 'x' / 's' or a Point3 'l' / 'k' / 'q', `THRESHOLD_SYMBOLS`),
     relinearize_skip (relinearize every N updates), extra_updates (additional `update()` calls
     after each add, to converge further), factorization ("CHOLESKY" or "QR"),
     wildfire_threshold (back-substitution stops where the solution changes less than this),
@@ -89,7 +89,7 @@ class SessionConfig:
         )
 
 
-THRESHOLD_SYMBOLS = {"x": 6, "l": 3, "k": 3, "q": 3}  # key symbol -> dimension (Pose3 or Point3)
+THRESHOLD_SYMBOLS = {"x": 6, "s": 6, "l": 3, "k": 3, "q": 3}  # symbol -> dim (Pose3 / Point3)
 
 
 def relinearize_threshold(config: SessionConfig):

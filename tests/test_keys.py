@@ -2,7 +2,15 @@ import numpy as np
 import pytest
 
 from graphloc.candidates import CandidateSet
-from graphloc.keys import decode, decode_many, landmark_key, marker_key, mode_key, pose_key
+from graphloc.keys import (
+    decode,
+    decode_many,
+    landmark_key,
+    marker_key,
+    mode_key,
+    pose_key,
+    sensor_key,
+)
 
 
 def test_pose_keys_are_unique_and_decode():
@@ -28,6 +36,17 @@ def test_marker_keys_are_unique_and_decode():
         marker_key(0, 1000)
 
 
+def test_sensor_keys_are_unique_and_decode_to_their_body_pose():
+    keys = {sensor_key(r, s, t) for r in (0, 1, 999) for s in (0, 1, 999) for t in (0, 10**9 - 1)}
+    assert len(keys) == 18 and not keys & {pose_key(r, t) for r in (0, 1) for t in (0, 1)}
+    assert decode(sensor_key(7, 3, 12)) == ("s", 7, 12)
+    assert decode(sensor_key(999, 999, 10**9 - 1)) == ("s", 999, 10**9 - 1)
+    with pytest.raises(ValueError):
+        sensor_key(0, 1000, 0)
+    with pytest.raises(ValueError):
+        sensor_key(1000, 0, 0)
+
+
 def test_candidate_set_validates_and_normalizes():
     R = np.stack([np.eye(3)] * 2)
     c = CandidateSet(R=R, t=np.zeros((2, 3)), scores=np.array([1.0, 3.0]))
@@ -46,6 +65,8 @@ def test_decode_many_is_decode_of_each():
         mode_key(7),
         marker_key(2, 9),
         pose_key(0, 0),
+        sensor_key(5, 2, 33),
+        sensor_key(999, 999, 10**9 - 1),
     ]
     kind, first, second = decode_many(keys)
     assert [(str(a), int(b), int(c)) for a, b, c in zip(kind, first, second)] == [
