@@ -9,10 +9,22 @@ origin and looks at j's origin (a rotation-only `body_T_camera`, no marker offse
 GTSAM's built-in BearingRangeFactorPose3 (Pose3 -> Pose3): the bearing rotated into the body
 frame (an isotropic bearing noise is the same in any frame) and a range component of std
 `UNINFORMATIVE_SIGMA`, which carries no information (its whitened residual is below 1e-6 for
-any range under a kilometre). With a camera offset or a marker offset no built-in fits, and it
-is a Python gtsam.CustomFactor with analytic Jacobians chained from GTSAM's own
-(Pose3.compose / transformFrom / transformTo, Unit3.FromPoint3 / errorVector). The cost per
-linearization of both is measured against BearingFactor3D by `bearing_linearize_cost`.
+any range under a kilometre). With a camera offset or a marker offset no single built-in fits,
+and it is a Python gtsam.CustomFactor with analytic Jacobians chained from GTSAM's own
+(Pose3.compose / transformFrom / transformTo, Unit3.FromPoint3 / errorVector).
+`bearing_to_point_factor` is the same to a Point3 (GTSAM's BearingFactor3D, else a
+CustomFactor).
+
+Built-in route for a camera offset (what the team graph builds, `pipelines.team_graph.points`):
+an auxiliary sensor pose variable (`keys.sensor_key`) tied to the body pose by
+`sensor_tie_factor` (BetweenFactorPose3 with body_T_camera, std `SENSOR_TIE_SIGMA`), and each
+bearing a built-in factor from that sensor pose (the functions above with identity
+extrinsics); one sensor pose serves every bearing of its sensor at one time. The tie is soft,
+so the estimate differs from the CustomFactor's by a share of order (SENSOR_TIE_SIGMA /
+the bearings' positional std)^2; a much tighter tie makes iSAM2's Cholesky indeterminate.
+The CustomFactors remain for a marker offset and for callers that hold one factor. The cost
+per linearization of each form is measured against BearingFactor3D by
+`bearing_linearize_cost`.
 
 `range_factor` / `known_baseline_factor`: gtsam.RangeFactorPose3 (distance between the two
 body origins) or gtsam.RangeFactorWithTransformPose3 when the ranging sensor is offset.
@@ -160,6 +172,24 @@ def bearing_to_point_factor(
     return gtsam.CustomFactor(noise, [pose_key, point_key], error)
 
 
+SENSOR_TIE_SIGMA = 1e-4  # std [rad, m] of the tie of a sensor pose to its body pose
+
+
+def sensor_tie_factor(
+    body_key: int, sensor_key: int, body_T_sensor: gtsam.Pose3, sigma: float = SENSOR_TIE_SIGMA
+) -> gtsam.BetweenFactorPose3:
+    """The tie of an auxiliary sensor pose variable to its body pose: GTSAM's
+    BetweenFactorPose3(body, sensor, body_T_sensor) with isotropic `sigma` on all six tangent
+    components (module docstring: the built-in route for offset bearings)."""
+    if not isinstance(body_T_sensor, gtsam.Pose3):
+        raise ValueError(
+            f"sensor_tie_factor: body_T_sensor must be gtsam.Pose3, got "
+            f"{type(body_T_sensor).__name__}"
+        )
+    noise = gtsam.noiseModel.Isotropic.Sigma(6, _positive(sigma, "sensor_tie_factor sigma"))
+    return gtsam.BetweenFactorPose3(body_key, sensor_key, body_T_sensor, noise)
+
+
 def range_factor(
     key_a: int,
     key_b: int,
@@ -190,7 +220,9 @@ def known_baseline_factor(
 def bearing_linearize_cost(repeats: int = 2000) -> dict:
     """Seconds per linearization of `bearing_factor` with a camera offset (Python CustomFactor,
     Pose3 -> Pose3), of `bearing_factor` with a rotation-only camera (GTSAM's
-    BearingRangeFactorPose3) and of GTSAM's C++ BearingFactor3D (Pose3 -> Point3) on the same
+    BearingRangeFactorPose3), of the built-in route for the offset ("sensor_route": the
+    bearing from a sensor pose plus its `sensor_tie_factor`, as if every bearing had a sensor
+    pose of its own) and of GTSAM's C++ BearingFactor3D (Pose3 -> Point3) on the same
     geometry, and their ratios to BearingFactor3D."""
     ki, kj = gtsam.symbol("x", 0), gtsam.symbol("x", 1)
     Ti = gtsam.Pose3(gtsam.Rot3.Ypr(0.1, -0.2, 0.3), np.array([0.0, 0.0, 3.0]))
@@ -201,15 +233,22 @@ def bearing_linearize_cost(repeats: int = 2000) -> dict:
     builtin = gtsam.BearingFactor3D(
         ki, kj, Ti.bearing(Tj.translation()), gtsam.noiseModel.Isotropic.Sigma(2, 0.01)
     )
+    ks = gtsam.symbol("s", 0)
+    routed = gtsam.NonlinearFactorGraph()
+    routed.add(sensor_tie_factor(ki, ks, offset))
+    routed.add(bearing_factor(ks, kj, predicted_bearing(Ti, Tj, offset), 0.01))
     v_custom, v_builtin = gtsam.Values(), gtsam.Values()
     v_custom.insert(ki, Ti)
     v_custom.insert(kj, Tj)
     v_builtin.insert(ki, Ti)
     v_builtin.insert(kj, Tj.translation())
+    v_routed = gtsam.Values(v_custom)
+    v_routed.insert(ks, Ti.compose(offset))
     out = {}
     for name, factor, values in (
         ("custom", custom, v_custom),
         ("rotation_only", rotated, v_custom),
+        ("sensor_route", routed, v_routed),
         ("builtin", builtin, v_builtin),
     ):
         t0 = time.perf_counter()
@@ -218,4 +257,5 @@ def bearing_linearize_cost(repeats: int = 2000) -> dict:
         out[f"{name}_s"] = (time.perf_counter() - t0) / repeats
     out["ratio"] = out["custom_s"] / out["builtin_s"]
     out["rotation_only_ratio"] = out["rotation_only_s"] / out["builtin_s"]
+    out["sensor_route_ratio"] = out["sensor_route_s"] / out["builtin_s"]
     return out

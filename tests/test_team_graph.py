@@ -90,17 +90,22 @@ def _csv(path: Path, table: str, rows: list) -> None:
 LANDMARKS = np.array([[2.0, 2.0, 0.0], [5.0, -2.0, 0.0], [8.0, 2.0, 0.0], [4.0, 3.0, 1.0]])
 
 
-def bearing_log(root: Path, params: dict | None = None, tables: dict | None = None) -> Path:
+def bearing_log(
+    root: Path, params: dict | None = None, tables: dict | None = None, offset=None
+) -> Path:
     """A ground robot driving straight along x at 0.2 m/s for 10 s whose wheel odometry reads
-    25 % fast, with unit bearings (sensor frame = body frame) to four known landmarks."""
+    25 % fast, with unit bearings to four known landmarks (sensor frame = body frame, or
+    `offset` = (xyz, yaw) the sensor's extrinsics)."""
     times = np.arange(0.0, 10.01, 0.5)
     _csv(root / "a/odometry.csv", "odometry", [(t, "wheels", 0.25, 0.0) for t in times])
+    xyz, yaw = offset if offset is not None else ([0.0, 0.0, 0.0], 0.0)
+    E = gtsam.Pose3(gtsam.Rot3.Yaw(yaw), np.asarray(xyz, float))
     rows = []
     for t in times[1:]:
-        pos = np.array([0.2 * t, 0.0, 0.0])
+        body = gtsam.Pose3(gtsam.Rot3(), np.array([0.2 * t, 0.0, 0.0]))
         for j, p in enumerate(LANDMARKS):
-            d = (p - pos) / np.linalg.norm(p - pos)
-            rows.append((t, "eye", f"landmark:{j}", *np.round(d, 9)))
+            d = body.compose(E).transformTo(p)
+            rows.append((t, "eye", f"landmark:{j}", *np.round(d / np.linalg.norm(d), 9)))
     _csv(root / "a/bearing.csv", "bearing", rows)
     _csv(root / "a/groundtruth.csv", "groundtruth", [(t, 0.2 * t, 0.0, 0.0) for t in times])
     (root / "landmarks.csv").write_text(
@@ -122,6 +127,7 @@ def bearing_log(root: Path, params: dict | None = None, tables: dict | None = No
                         {
                             "name": "eye",
                             "type": "bearing",
+                            "extrinsics": {"xyz": list(xyz), "rpy": [0.0, 0.0, yaw]},
                             "params": params or {"bearing_sigma": 0.005},
                         },
                     ],
@@ -147,6 +153,27 @@ def test_bearing_table_becomes_factors_not_dead_reckoning(tmp_path):
     assert m["tables"]["bearing"] == 80 and m["counts"]["factors_landmark"] == 80
     assert a["batch"]["ate_rmse"] < 0.1 * a["dead_reckoning"]["ate_rmse"], a
     assert a["batch"]["ate_rmse"] < 0.01
+
+
+def test_offset_bearings_share_one_sensor_pose_per_time(tmp_path):
+    """An offset bearing sensor's bearings are built-in factors on one sensor pose per time,
+    tied to the body pose ("sensor_tie", its own factor type); the trajectories hold the body
+    poses only, batch and online as accurate as from a sensor at the body origin."""
+    root = bearing_log(tmp_path / "log", offset=([0.3, -0.2, 0.5], 0.4))
+    graph = build_graph(open_run(root))
+    assert graph.counts["sensor_poses"] == graph.counts["factors_sensor_tie"] == 20
+    assert graph.counts["factors_landmark"] == 80
+    for body, E in graph.sensor_poses.values():
+        assert np.allclose(E.translation(), [0.3, -0.2, 0.5])
+    for mode in ("smooth", "online"):
+        out = tmp_path / mode
+        assert main([mode, str(root), "--out", str(out), "--no-progress"]) == 0
+        m = json.loads((out / "metrics.json").read_text())
+        label = "batch" if mode == "smooth" else "online"
+        assert m["per_robot"]["a"][label]["ate_rmse"] < 0.01, m["per_robot"]["a"]
+        assert m["consistent"] and m["factors"]["sensor_tie"]["count"] == 20
+        rows = (out / f"a_{label}.tum").read_text().splitlines()
+        assert len(rows) == graph.counts["poses"] == m["counts"]["poses"]
 
 
 def test_manifest_noise_is_used_and_options_override_it(tmp_path):

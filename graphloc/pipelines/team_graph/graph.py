@@ -21,7 +21,7 @@ from graphloc.pipelines.team_graph.motion import (
     motion_factors,
     place_robot,
 )
-from graphloc.pipelines.team_graph.points import point_factors
+from graphloc.pipelines.team_graph.points import SensorPoses, point_factors
 from graphloc.pipelines.team_graph.scans import scan_match_factors
 from graphloc.run import TeamRun
 
@@ -56,6 +56,9 @@ class TeamGraph:
     # a moving target's marker point of one set -> (the target's pose key, its body-frame
     # position): online predicts the point from the pose's estimate
     frame_points: dict = field(default_factory=dict)
+    # an offset sensor's pose variable -> (its body pose key, body_T_sensor): its value is the
+    # body pose's composed with the extrinsics (`points.SensorPoses`)
+    sensor_poses: dict = field(default_factory=dict)
 
 
 def build_graph(
@@ -71,7 +74,10 @@ def build_graph(
     factors: list = []  # (time of newest node, factor, type)
     step_rel = motion_factors(run, config, timeline, factors, skips)
     anchor_factors(run, config, node_times, factors)
-    landmark_guess, n_anchor, excluded = point_factors(run, config, timeline, factors, skips)
+    sensors = SensorPoses()
+    landmark_guess, n_anchor, excluded = point_factors(
+        run, config, timeline, factors, skips, sensors
+    )
     point_priors: list = []  # (landmark key, sigma, time): priors placed at the initial guess
     n_tracks = feature_factors(run, config, timeline, factors, skips, landmark_guess, point_priors)
     marker_points: dict = {}  # marker key -> world position (static targets' layouts)
@@ -120,6 +126,7 @@ def build_graph(
     for key, ti, kt, local in frame_points:
         if pose_key(ti, kt) in initial:
             initial[key] = initial[pose_key(ti, kt)].transformFrom(local)
+    with_sensors(initial, sensors.poses)
     variants, guessed_variants = [], []
     for r, (starts, guessed) in alternatives.items():
         if r not in poses:
@@ -127,6 +134,7 @@ def build_graph(
         for k0, body in starts:
             placed = place_robot(run, r, node_times, step_rel, config, {r: {k0: body}}, {}, poses)
             variants.append({pose_key(r, k): p for k, p in enumerate(placed[0])})
+            with_sensors(variants[-1], sensors.poses)
             if guessed:
                 guessed_variants.append(variants[-1])
     for lkey, sigma, t in point_priors:
@@ -166,6 +174,7 @@ def build_graph(
         "candidate_sets": len(run.observations),
         "marker_points": len(marker_points),
         "frame_marker_points": len(frame_points),
+        "sensor_poses": len(sensors.poses),
         "committed_sets": sum(d.committed >= 0 for d in decisions),
         "landmark_anchors": n_anchor,
         "feature_tracks": n_tracks,
@@ -197,7 +206,17 @@ def build_graph(
         variants,
         guessed_variants,
         {key: (pose_key(ti, kt), local) for key, ti, kt, local in frame_points},
+        sensors.poses,
     )
+
+
+def with_sensors(values: dict, sensor_poses: dict) -> dict:
+    """`values` (key -> Pose3 / Point3) with the value of every sensor pose whose body pose it
+    holds: the body pose composed with the extrinsics (in place; returned)."""
+    for key, (body, E) in sensor_poses.items():
+        if body in values:
+            values[key] = values[body].compose(E)
+    return values
 
 
 def factor_keys(factor) -> list:

@@ -16,7 +16,7 @@ from graphloc.factors.robust import GaussianChi2, residuals
 from graphloc.keys import decode, decode_many, pose_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
-from graphloc.pipelines.team_graph.predict import frame_point, predict
+from graphloc.pipelines.team_graph.predict import frame_point, predict, sensor_pose
 from graphloc.pipelines.team_graph.rows import (
     grid_rows,
     grids_rows,
@@ -142,6 +142,8 @@ class Pass:
                     decoded = decode(key)
                     if self.mode == "online" and key in graph.frame_points:
                         value = frame_point(graph, key, values, session, self.added)
+                    elif self.mode == "online" and key in graph.sensor_poses:
+                        value = sensor_pose(graph, key, values, session, self.added)
                     else:
                         value = predict(graph, key, decoded, self.latest, self.initial)
                     values.insert(key, value)
@@ -257,7 +259,7 @@ class Pass:
 
 def _held(graph: TeamGraph, key: int, t: float) -> bool:
     kind, r, _ = decode(key)
-    return kind == "x" and graph.anchored_from.get(r, np.inf) > t
+    return kind in ("x", "s") and graph.anchored_from.get(r, np.inf) > t
 
 
 def camera_graph(graph: TeamGraph) -> bool:
@@ -295,10 +297,11 @@ def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:
 
 
 def _owner(keys) -> int:
-    """The robot a factor belongs to: its first pose's, else its first marker point's; -1."""
+    """The robot a factor belongs to: its first pose's (a body or a sensor pose), else its
+    first marker point's; -1."""
     decoded = [decode(k) for k in keys]
-    for kind in ("x", "k"):
-        robot = next((d[1] for d in decoded if d[0] == kind), None)
+    for kinds in (("x", "s"), ("k",)):
+        robot = next((d[1] for d in decoded if d[0] in kinds), None)
         if robot is not None:
             return int(robot)
     return -1

@@ -4,14 +4,24 @@ as factors. A known landmark (a position with a prior) is tied to each observati
 KnownLandmarkFactorPose3 on the observing pose (the landmark variable and its prior
 marginalized at the measured point, `known_landmark_factor_3d`), a bearing or a range one
 prior-pinned anchor variable (a Point3, its prior, the measurement's factor): no variable is
-shared across the run, so every iSAM2 update stays local and a fixed lag never drops one."""
+shared across the run, so every iSAM2 update stays local and a fixed lag never drops one.
+
+A bearing from an offset sensor (a translation in body_T_sensor) is GTSAM's built-in bearing
+factor on an auxiliary sensor pose variable (`keys.sensor_key`, one per robot, distinct
+extrinsics and time index, shared by every bearing of that sensor at that time), tied to the
+body pose by `sensor_tie_factor` (factor type "sensor_tie", judged on its own by the verdict)."""
 
 from __future__ import annotations
 
 import gtsam
 import numpy as np
 
-from graphloc.factors.bearing import bearing_factor, bearing_to_point_factor, range_factor
+from graphloc.factors.bearing import (
+    bearing_factor,
+    bearing_to_point_factor,
+    range_factor,
+    sensor_tie_factor,
+)
 from graphloc.factors.odometry import integrate_unicycle
 from graphloc.factors.range_bearing import (
     known_landmark_factor_3d,
@@ -20,7 +30,7 @@ from graphloc.factors.range_bearing import (
 )
 from graphloc.factors.robust import robust_noise
 from graphloc.io import SkipReport
-from graphloc.keys import landmark_key, pose_key
+from graphloc.keys import landmark_key, pose_key, sensor_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE, GraphConfig
 from graphloc.pipelines.team_graph.motion import Timeline, velocity_noise
 from graphloc.run import TeamRun
@@ -55,6 +65,31 @@ def _robot_factor(m, key, tkey, direction, rng, kernel, E):
         return bearing_factor(key, tkey, direction, m.bearing_sigma, body_T_camera=E, kernel=kernel)
     identity = np.allclose(E.matrix(), np.eye(4))
     return range_factor(key, tkey, rng, m.range_sigma, None if identity else E, kernel)
+
+
+class SensorPoses:
+    """The auxiliary sensor pose variables of offset bearings: `observer(m, k, t, factors)`
+    gives the key a bearing of measurement `m` at node k (time t) of its robot is measured
+    from, and the extrinsics left to apply -- the body pose and m's extrinsics where its sensor
+    sits at the body origin (the bearing rotated into the body frame by the factor), else the
+    sensor pose (identity), whose tie to the body pose is appended to `factors` the first time.
+    `poses`: sensor key -> (body pose key, body_T_sensor)."""
+
+    def __init__(self):
+        self.poses: dict = {}
+        self._slots: dict = {}  # (robot, extrinsics bytes) -> slot
+
+    def observer(self, m, k: int, t: float, factors: list):
+        E = m.body_T_sensor
+        body = pose_key(m.robot, k)
+        if not E.translation().any():
+            return body, E
+        slot = self._slots.setdefault((m.robot, E.matrix().tobytes()), len(self._slots))
+        key = sensor_key(m.robot, slot, k)
+        if key not in self.poses:
+            self.poses[key] = (body, E)
+            factors.append((t, sensor_tie_factor(body, key, E), "sensor_tie"))
+        return key, gtsam.Pose3()
 
 
 def _corrected_range_bearings(run: TeamRun, node_times: list, config: GraphConfig) -> dict:
@@ -98,11 +133,17 @@ def _corrected_range_bearings(run: TeamRun, node_times: list, config: GraphConfi
 
 
 def point_factors(
-    run: TeamRun, config: GraphConfig, timeline: Timeline, factors: list, skips: SkipReport
+    run: TeamRun,
+    config: GraphConfig,
+    timeline: Timeline,
+    factors: list,
+    skips: SkipReport,
+    sensors: SensorPoses,
 ) -> tuple[dict, int, int]:
-    """Every usable point measurement as a factor (appended to `factors`); returns the
-    landmarks' initial guesses (key -> position or ('from', robot, k, direction, range)), the
-    number of landmark anchors and the number of measurements the options leave out."""
+    """Every usable point measurement as a factor (appended to `factors`; offset bearings
+    through `sensors`' sensor poses); returns the landmarks' initial guesses (key -> position
+    or ('from', robot, k, direction, range)), the number of landmark anchors and the number of
+    measurements the options leave out."""
     node_times, nearest = timeline.node_times, timeline.nearest
     lm_prior = {}
     if config.landmark_priors and run.landmarks_known:
@@ -180,10 +221,14 @@ def point_factors(
                     )
             if lkey != landmark_key(m.landmark):
                 n_anchor += 1
+            if m.kind == "bearing":
+                key, E = sensors.observer(m, k, node_times[m.robot][k], factors)
             factors.append(
                 (t_new, _point_factor(m, key, lkey, direction, rng, kernel, E), "landmark")
             )
         else:
+            if m.kind == "bearing":
+                key, E = sensors.observer(m, k, node_times[m.robot][k], factors)
             factors.append(
                 (
                     t_new,

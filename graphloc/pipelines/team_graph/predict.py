@@ -1,6 +1,7 @@
 """Online initial values of new variables (`solve.Pass`): a pose from its robot's latest
 estimate and odometry (or resected from a teammate seen through a max-mixture), a moving
-target's marker point from its pose's estimate, the graph's guess otherwise."""
+target's marker point from its pose's estimate, an offset sensor's pose from its body pose's
+(`sensor_pose`), the graph's guess otherwise."""
 
 from __future__ import annotations
 
@@ -20,6 +21,17 @@ def frame_point(graph: TeamGraph, key: int, values: gtsam.Values, session, added
         return values.atPose3(pose_key_).transformFrom(local)
     if pose_key_ in added:
         return session.estimate([pose_key_]).atPose3(pose_key_).transformFrom(local)
+    return graph.initial[key]
+
+
+def sensor_pose(graph: TeamGraph, key: int, values: gtsam.Values, session, added: set):
+    """Online initial value of an offset sensor's pose: its body pose's value of this step or
+    its current estimate, composed with the extrinsics (`TeamGraph.sensor_poses`)."""
+    body, E = graph.sensor_poses[key]
+    if values.exists(body):
+        return values.atPose3(body).compose(E)
+    if body in added:
+        return session.estimate([body]).atPose3(body).compose(E)
     return graph.initial[key]
 
 

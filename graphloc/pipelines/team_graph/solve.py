@@ -239,7 +239,8 @@ def warm_starts(graph: TeamGraph, stop=None, progress: bool = False) -> list[dic
         start = dict(graph.initial)
         for key in graph.initial:
             if values.exists(key):
-                start[key] = values.atPose3(key) if decode(key)[0] == "x" else values.atPoint3(key)
+                pose = decode(key)[0] in ("x", "s")
+                start[key] = values.atPose3(key) if pose else values.atPoint3(key)
         out.append(start)
     return out
 
