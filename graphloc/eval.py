@@ -164,6 +164,27 @@ def trajectory_metrics(
     )
 
 
+def matching_time_indices(
+    stamps_1: np.ndarray, stamps_2: np.ndarray, max_diff: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """evo's `sync.matching_time_indices(stamps_1, stamps_2, max_diff)` -- each stamp of the
+    first list paired with its nearest stamp of the second within max_diff (the earlier one on a
+    tie) -- over all stamps at once where stamps_2 is sorted (evo's binary-search branch, one
+    stamp at a time in Python); evo's own linear search where it is not."""
+    s1, s2 = np.asarray(stamps_1, dtype=float), np.asarray(stamps_2, dtype=float)
+    if not len(s1) or not len(s2) or np.any(np.diff(s2) < 0):
+        i1, i2 = sync.matching_time_indices(s1, s2, max_diff)
+        return np.asarray(i1, dtype=int), np.asarray(i2, dtype=int)
+    upper = np.minimum(np.searchsorted(s2, s1, side="right"), len(s2) - 1)
+    diff_ub = s2[upper] - s1
+    diff_lb = np.where(upper > 0, s1 - s2[np.maximum(upper - 1, 0)], np.inf)
+    take_ub = (diff_ub <= max_diff) & (diff_ub < diff_lb)
+    take_lb = ~take_ub & (diff_lb <= max_diff) & (diff_lb <= diff_ub)
+    inside = (s1 >= s2[0] - max_diff) & (s1 <= s2[-1] + max_diff)
+    keep = inside & (take_ub | take_lb)
+    return np.flatnonzero(keep), np.where(take_ub, upper, upper - 1)[keep].astype(int)
+
+
 def associate(
     reference_times: np.ndarray, estimate_times: np.ndarray, max_time_diff: float = MAX_TIME_DIFF
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -175,9 +196,9 @@ def associate(
     ref_t = np.asarray(reference_times, dtype=float)
     est_t = np.asarray(estimate_times, dtype=float)
     if len(est_t) > len(ref_t):
-        i_ref, i_est = sync.matching_time_indices(ref_t, est_t, max_time_diff)
+        i_ref, i_est = matching_time_indices(ref_t, est_t, max_time_diff)
     else:
-        i_est, i_ref = sync.matching_time_indices(est_t, ref_t, max_time_diff)
+        i_est, i_ref = matching_time_indices(est_t, ref_t, max_time_diff)
     if not len(i_ref):
         raise ValueError(f"only 0 estimate poses have ground truth within {max_time_diff} s")
     return np.asarray(i_ref, dtype=int), np.asarray(i_est, dtype=int)

@@ -14,7 +14,7 @@ from test_mrclam import write_synthetic_mrclam
 
 from graphloc.cli import main
 from graphloc.datasets import open_run
-from graphloc.eval import associate, read_tum, trajectory_metrics
+from graphloc.eval import associate, matching_time_indices, read_tum, trajectory_metrics
 from graphloc.pipelines.groundtruth import alignment, groundtruth_rows, trajectory
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
@@ -47,6 +47,29 @@ def test_associate_makes_evos_pairs(n_ref, n_est):
     a, b = sync.associate_trajectories(_traj(ref), _traj(est), max_diff=0.02)
     np.testing.assert_array_equal(ref[i_ref], a.timestamps)
     np.testing.assert_array_equal(est[i_est], b.timestamps)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_matching_time_indices_is_evos(seed):
+    """graphloc's all-at-once matching returns evo's pairs: random stamps, stamps on a grid with
+    exact ties (the earlier one wins), stamps beyond either end, repeated stamps, and an
+    unsorted second list (evo's own linear search)."""
+    rng = np.random.default_rng(seed)
+    grid = np.round(np.arange(0.0, 5.0, 0.1), 6)
+    cases = [
+        (np.sort(rng.uniform(-1, 11, 80)), np.sort(rng.uniform(0, 10, 200)), 0.03),
+        (np.sort(rng.uniform(0, 10, 300)), np.sort(rng.uniform(0, 10, 40)), 0.2),
+        (grid + 0.05, grid, 0.05),  # every stamp halfway: a tie each
+        (np.repeat(grid, 2), np.repeat(grid[::3], 3), 0.1),
+        (np.array([-0.2, 5.02, 7.0]), grid, 0.05),
+        (rng.uniform(0, 5, 30), rng.uniform(0, 5, 50), 0.05),  # unsorted
+        (np.zeros(0), grid, 0.1),
+    ]
+    for s1, s2, max_diff in cases:
+        mine = matching_time_indices(s1, s2, max_diff)
+        evo = sync.matching_time_indices(s1, s2, max_diff)
+        np.testing.assert_array_equal(mine[0], np.asarray(evo[0], dtype=int))
+        np.testing.assert_array_equal(mine[1], np.asarray(evo[1], dtype=int))
 
 
 def test_metrics_equal_evo_on_the_whole_ground_truth(mrclam):
