@@ -15,7 +15,7 @@ from graphloc.datasets.pose_graph_file import (
     permute_candidates,
     read_pose_graph,
 )
-from graphloc.hypotheses.pose_graph import PoseGraphConfig, PoseGraphHypotheses, rmse
+from graphloc.hypotheses.pose_graph import PoseGraphConfig, PoseGraphHypotheses
 
 
 # ---- a synthetic ambiguous pose graph --------------------------------------------------------
@@ -208,3 +208,7 @@ def test_city10000_first_steps():
     choices = engine.choices()
     assert len(truth) >= 15
     assert sum(choices[i] == k for i, k in truth.items()) == len(truth)
+
+
+def rmse(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum((a[:, :2] - b[:, :2]) ** 2, axis=1))))

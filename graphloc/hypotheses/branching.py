@@ -34,6 +34,17 @@ def noise_of(information, sigmas, dim: int):
     return gtsam.noiseModel.Diagonal.Sigmas(np.asarray(sigmas, float))
 
 
+def candidate_factors(m, source: int, target: int, dim: int, sigmas) -> tuple[list, list]:
+    """(candidate poses, one between factor per candidate) of a measurement with
+    `candidates` and `information` (graphloc.datasets.pose_graph_file.Measurement)."""
+    poses = [pose_of(v, dim) for v in m.candidates]
+    infos = m.information or [None] * len(poses)
+    factors = [
+        between(dim, source, target, p, noise_of(i, sigmas, dim)) for p, i in zip(poses, infos)
+    ]
+    return poses, factors
+
+
 def between(dim: int, key_a: int, key_b: int, pose, noise):
     cls = gtsam.BetweenFactorPose2 if dim == 2 else gtsam.BetweenFactorPose3
     return cls(key_a, key_b, pose, noise)
@@ -110,3 +121,46 @@ def moved_values(estimate: gtsam.Values, order: list[int], moves: list, dim: int
         if out.exists(key):  # not the poses the current step introduces
             out.update(key, moved(get(key), position, moves))
     return out
+
+
+def chain_covariance(chain: list, covariances: list) -> np.ndarray:
+    """Covariance of the relative pose first -> last of a chain of poses (`chain`, current
+    estimates) from its edges' covariances (`covariances[k]`: the edge into chain[k + 1]),
+    first order: perturbing edge k by xi moves the last pose by Ad(T_last^-1 T_(k+1)) xi.
+    With every other factor dropped it bounds the relative pose's covariance in the whole
+    graph from above (information only adds), so a Mahalanobis distance under it is a lower
+    bound."""
+    if isinstance(chain[0], gtsam.Pose2):
+        return _chain_covariance_2d(chain, covariances)
+    last_inverse = chain[-1].inverse()
+    total = np.zeros_like(covariances[0])
+    for pose, cov in zip(chain[1:], covariances):
+        ad = last_inverse.compose(pose).AdjointMap()
+        total += ad @ cov @ ad.T
+    return total
+
+
+def lower_bound_chi2(factor, values: gtsam.Values, chain: list, covariances: list) -> float:
+    """A lower bound of the rise of the optimal chi-square when `factor` (a between factor
+    closing the chain) joins a graph whose optimum is `values` (first order): its residual r
+    under its own covariance plus the chain's, r^T (C + Sigma_chain)^-1 r (the rise is r^T (C +
+    Sigma_rel)^-1 r for the true relative covariance Sigma_rel <= Sigma_chain)."""
+    r = np.asarray(factor.unwhitenedError(values), float)
+    cov = factor.noiseModel().covariance() + chain_covariance(chain, covariances)
+    return float(r @ np.linalg.solve(cov, r))
+
+
+def _chain_covariance_2d(chain: list, covariances: list) -> np.ndarray:
+    """`chain_covariance` for Pose2 in NumPy: Ad of (x, y, theta) is [[c, -s, y], [s, c, -x],
+    [0, 0, 1]] (GTSAM's Pose2::AdjointMap)."""
+    xyt = np.array([[p.x(), p.y(), p.theta()] for p in chain])
+    c, s = np.cos(xyt[-1, 2]), np.sin(xyt[-1, 2])
+    d = xyt[1:, :2] - xyt[-1, :2]
+    rx, ry = c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]
+    rt = xyt[1:, 2] - xyt[-1, 2]
+    ad = np.zeros((len(rt), 3, 3))
+    ad[:, 0, 0] = ad[:, 1, 1] = np.cos(rt)
+    ad[:, 1, 0] = np.sin(rt)
+    ad[:, 0, 1] = -ad[:, 1, 0]
+    ad[:, 0, 2], ad[:, 1, 2], ad[:, 2, 2] = ry, -rx, 1.0
+    return np.einsum("nij,njk,nlk->il", ad, np.asarray(covariances), ad)

@@ -34,7 +34,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import gtsam
-import numpy as np
 from gtsam.symbol_shorthand import X
 
 from graphloc.hypotheses import branching as br
@@ -48,10 +47,12 @@ class PoseGraphConfig:
     max_branches: int = 8
     null_penalty: float = 16.3  # chi-square of choosing "no measurement" (3 dof, p = 0.999)
     settle: int = 1  # extra iSAM2 iterations of every branch before a judgement
+    batch: int = 5  # steps per iSAM2 update (a branching or a judgement updates at once)
     sigmas: tuple = (0.05, 0.05, 0.01)  # a measurement without information (Pose2 / Pose3 order)
     prior_sigma: float = 1e-4
     relinearize_threshold: float = 0.1  # iSAM2's defaults
     relinearize_skip: int = 10
+    bound_chain: int = 5000  # longest chain a branching's lower bound is computed along
 
 
 @dataclass
@@ -72,6 +73,15 @@ class Branch:
     isam: gtsam.ISAM2
     choice: dict = field(default_factory=dict)  # ambiguity index -> candidate, undecided ones
     score: float = 0.0
+    pending: gtsam.NonlinearFactorGraph = field(default_factory=gtsam.NonlinearFactorGraph)
+    values: gtsam.Values = field(default_factory=gtsam.Values)  # new poses not in the iSAM2
+    guess: dict = field(default_factory=dict)  # key -> pose of `values`
+
+    def flush(self) -> None:
+        """One iSAM2 update with the factors and poses gathered since the last."""
+        if self.pending.size() or self.values.size():
+            self.isam.update(self.pending, self.values)
+            self.pending, self.values, self.guess = gtsam.NonlinearFactorGraph(), gtsam.Values(), {}
 
 
 class PoseGraphHypotheses:
@@ -90,9 +100,11 @@ class PoseGraphHypotheses:
         self.ambiguities: dict[int, Ambiguity] = {}
         self.branches: list[Branch] = []
         self.open: set[int] = set()  # indices of open ambiguities
+        self.bridges: set[int] = set()  # indices of ambiguities no factor spans yet
         self.steps = 0
         self.last_branching = -1
-        self.stats = {"branchings": 0, "rebuilds": 0, "judgements": 0, "forced": 0}
+        self.stats = {"branchings": 0, "rebuilds": 0, "judgements": 0, "forced": 0, "bounded": 0}
+        self.edge_cov: list = []  # by position: covariance of the edge from the previous pose
 
     # ---- input ---------------------------------------------------------------------------
     def start(self, node: int, pose_values=None) -> None:
@@ -114,14 +126,7 @@ class PoseGraphHypotheses:
         certain, new_poses, loops, spans = [], [], [], []
         for index, m in measurements:
             source, target = X(m.source), X(m.target)
-            poses = [br.pose_of(v, self.dim) for v in m.candidates]
-            infos = m.information or [None] * len(poses)
-            factors = [
-                br.between(
-                    self.dim, source, target, p, br.noise_of(i, self.config.sigmas, self.dim)
-                )
-                for p, i in zip(poses, infos)
-            ]
+            poses, factors = br.candidate_factors(m, source, target, self.dim, self.config.sigmas)
             known = (source in self.position, target in self.position)
             if known == (True, True):
                 spans.append((self.position[source], self.position[target]))
@@ -133,11 +138,13 @@ class PoseGraphHypotheses:
                 else:
                     certain.append(factors[0])
             elif known == (True, False):
-                self._register(target)
+                chain = self.position[source] == len(self.order) - 1
+                self._register(target, factors[0].noiseModel().covariance() if chain else None)
                 if len(factors) > 1:
                     position = self.position[target]
                     amb = Ambiguity(index, factors, poses, (source, target), position, self.steps)
                     self.ambiguities[index] = amb
+                    self.bridges.add(index)
                     new_poses.append((target, source, amb))
                 else:
                     certain.append(factors[0])
@@ -154,26 +161,26 @@ class PoseGraphHypotheses:
             for amb in loops:
                 b.choice[amb.index] = 0
         opened = [
-            a
-            for a in self.ambiguities.values()
-            if a.state == "bridge"
-            and a.position >= 0
-            and any(min(s, t) < a.position <= max(s, t) for s, t in spans)
+            self.ambiguities[i]
+            for i in sorted(self.bridges)
+            if any(min(s, t) < self.ambiguities[i].position <= max(s, t) for s, t in spans)
         ]
         opened += loops
-        guesses = [self._guesses(b, new_poses) for b in self.branches]
         if opened:
+            for b in self.branches:
+                b.flush()
+            guesses = [self._guesses(b, new_poses, keep=False) for b in self.branches]
             self._branch(opened, certain, new_poses, guesses)
-            guesses = [self._guesses(b, new_poses) for b in self.branches]
-        for b, values in zip(self.branches, guesses):
-            graph = gtsam.NonlinearFactorGraph()
+        for b in self.branches:
+            b.values.insert(self._guesses(b, new_poses))
             for f in certain:
-                graph.add(f)
+                b.pending.add(f)
             for amb in self._step_ambiguities(new_poses, loops):
                 f = amb.factors[b.choice[amb.index]]
                 if f is not None:
-                    graph.add(f)
-            b.isam.update(graph, values)
+                    b.pending.add(f)
+            if opened or (self.steps + 1) % self.config.batch == 0:
+                b.flush()
         for f in certain:
             self.common.add(f)
         self.steps += 1
@@ -185,65 +192,108 @@ class PoseGraphHypotheses:
 
     # ---- branching -----------------------------------------------------------------------
     def _branch(self, opened, certain, new_poses, guesses) -> None:
+        """Every branch times every combination of the opened measurements' candidates: the
+        best `max_branches` by the predicted chi-square of the step's factors, without those
+        whose lower bound (`branching.lower_bound_chi2`) exceeds their parent's best
+        prediction by more than `margin`."""
         c = self.config
         self.stats["branchings"] += 1
         for a in opened:
             a.state, a.opened = "open", self.steps
             self.open.add(a.index)
+            self.bridges.discard(a.index)
         bridges = sorted((a for a in opened if a.position >= 0), key=lambda a: a.position)
         loops = [a for a in opened if a.position < 0]
-        sizes = [len(a.factors) for a in bridges + loops]
-        combos = br.combinations(sizes, limit=4096)
-        step_factors_fixed = list(certain)
+        combos = br.combinations([len(a.factors) for a in bridges + loops], limit=4096)
         children = []
         for parent, guess in zip(self.branches, guesses):
-            keys = {k for f in step_factors_fixed for k in f.keys()}
-            keys |= {k for a in loops for f in a.factors if f is not None for k in f.keys()}
-            keys |= {k for a in bridges for k in a.keys}
-            poses = {k: self._pose(parent, k, guess) for k in keys}
-            spec = [
-                (self.position[a.keys[0]], a.keys[0], a.position, a.keys[1], a.poses,
-                 parent.choice[a.index])
-                for a in bridges
-            ]  # fmt: skip
-            for combo in combos:
-                moves = br.tail_moves(spec, dict(enumerate(combo[: len(bridges)])), poses)
-                factors = list(step_factors_fixed)
-                penalty = 0.0
-                for a, k in zip(loops, combo[len(bridges) :]):
-                    if a.factors[k] is None:
-                        penalty += c.null_penalty
-                    else:
-                        factors.append(a.factors[k])
-                positions = {k: self.position[k] for k in keys}
-                chi2 = br.predicted_chi2(factors, positions, poses, moves) + penalty
-                children.append((chi2, parent, combo, moves))
+            children += self._children(parent, guess, bridges, loops, combos, certain)
         children.sort(key=lambda child: child[0])
         kept, reused = [], set()
-        for chi2, parent, combo, moves in children[: c.max_branches]:
+        for chi2, parent, combo, moves, estimate in children[: c.max_branches]:
             choice = dict(parent.choice)
             choice.update({a.index: k for a, k in zip(bridges + loops, combo)})
             if not moves and id(parent) not in reused:
                 reused.add(id(parent))
                 kept.append(Branch(parent.isam, choice, chi2))
             else:
-                kept.append(Branch(self._rebuild(parent, choice, moves), choice, chi2))
+                isam = self._rebuild(choice, br.moved_values(estimate, self.order, moves, self.dim))
+                kept.append(Branch(isam, choice, chi2))
         self.branches = kept
         self.last_branching = self.steps
 
-    def _rebuild(self, parent: Branch, choice: dict, moves: list) -> gtsam.ISAM2:
+    def _children(self, parent, guess, bridges, loops, combos, certain) -> list:
+        """[(predicted chi-square, parent, combination, tail moves, parent's estimate)] of one
+        parent, ranked, the bound-pruned ones left out."""
+        c = self.config
+        estimate = parent.isam.calculateEstimate()
+
+        def pose(key):
+            if guess.exists(key):
+                return guess.atPose2(key) if self.dim == 2 else guess.atPose3(key)
+            return estimate.atPose2(key) if self.dim == 2 else estimate.atPose3(key)
+
+        keys = {k for f in certain for k in f.keys()}
+        keys |= {k for a in loops for f in a.factors if f is not None for k in f.keys()}
+        keys |= {k for a in bridges for k in a.keys}
+        poses = {k: pose(k) for k in keys}
+        positions = {k: self.position[k] for k in keys}
+        spec = [
+            (self.position[a.keys[0]], a.keys[0], a.position, a.keys[1], a.poses,
+             parent.choice[a.index])
+            for a in bridges
+        ]  # fmt: skip
+        ranked = []
+        for combo in combos:
+            moves = br.tail_moves(spec, dict(enumerate(combo[: len(bridges)])), poses)
+            factors, penalty = list(certain), 0.0
+            for a, k in zip(loops, combo[len(bridges) :]):
+                if a.factors[k] is None:
+                    penalty += c.null_penalty
+                else:
+                    factors.append(a.factors[k])
+            chi2 = br.predicted_chi2(factors, positions, poses, moves) + penalty
+            ranked.append((chi2, combo, moves, factors, penalty))
+        ranked.sort(key=lambda r: r[0])
+        best = ranked[0][0]
+        out = []
+        for chi2, combo, moves, factors, penalty in ranked[: c.max_branches]:
+            if chi2 > best + c.margin:
+                bound = penalty + max((self._bound(f, pose, moves) for f in factors), default=0.0)
+                if bound > best + c.margin:
+                    self.stats["bounded"] += 1
+                    continue
+            out.append((chi2, parent, combo, moves, estimate))
+        return out
+
+    def _bound(self, factor, pose, moves) -> float:
+        """`branching.lower_bound_chi2` of a between factor along the insertion chain, 0 when
+        the chain is not one (a pose not introduced by its predecessor) or is too long."""
+        keys = factor.keys()
+        if len(keys) != 2:
+            return 0.0
+        first, last = self.position[keys[0]], self.position[keys[1]]
+        if not 0 <= first < last or last - first > self.config.bound_chain:
+            return 0.0
+        covariances = self.edge_cov[first + 1 : last + 1]
+        if any(cov is None for cov in covariances):
+            return 0.0
+        chain = [br.moved(pose(self.order[q]), q, moves) for q in range(first, last + 1)]
+        values = gtsam.Values()
+        values.insert(keys[0], chain[0])
+        values.insert(keys[1], chain[-1])
+        return br.lower_bound_chi2(factor, values, chain, covariances)
+
+    def _rebuild(self, choice: dict, values: gtsam.Values) -> gtsam.ISAM2:
         """A new iSAM2 of the known poses under `choice` (this step's factors not yet in),
-        linearized at the parent's estimate with the switched tails moved."""
+        linearized at `values`."""
         self.stats["rebuilds"] += 1
         graph = gtsam.NonlinearFactorGraph(self.common)
         for index, k in choice.items():
             amb = self.ambiguities[index]
             if amb.added < self.steps and amb.factors[k] is not None:
                 graph.add(amb.factors[k])
-        estimate = parent.isam.calculateEstimate()
-        return br.fresh_isam(
-            self.params, graph, br.moved_values(estimate, self.order, moves, self.dim)
-        )
+        return br.fresh_isam(self.params, graph, values)
 
     # ---- judging -------------------------------------------------------------------------
     def judge(self, force: bool = False) -> None:
@@ -253,6 +303,7 @@ class PoseGraphHypotheses:
         self.stats["judgements"] += 1
         self.stats["forced"] += int(force and len(self.branches) > 1)
         for b in self.branches:
+            b.flush()
             for _ in range(c.settle):
                 b.isam.update()
             nulls = sum(1 for i, k in b.choice.items() if self.ambiguities[i].factors[k] is None)
@@ -289,46 +340,42 @@ class PoseGraphHypotheses:
         return sum(1 for a in self.ambiguities.values() if a.state != "decided")
 
     def current(self, node: int):
+        """The best branch's estimate of pose `node` (its gathered steps updated first)."""
+        self.branches[0].flush()
         return br.estimate_of(self.branches[0].isam, X(node), self.dim)
 
     def finish(self, settle: int = 3) -> gtsam.Values:
         """The best branch's estimate after a final forced judgement and `settle` iterations."""
         if len(self.branches) > 1:
             self.judge(force=True)
+        self.branches[0].flush()
         isam = self.branches[0].isam
         for _ in range(settle):
             isam.update()
         return isam.calculateEstimate()
 
     # ---- helpers -------------------------------------------------------------------------
-    def _register(self, key: int) -> None:
+    def _register(self, key: int, covariance=None) -> None:
         self.position[key] = len(self.order)
         self.order.append(key)
+        self.edge_cov.append(covariance)
 
     def _identity(self):
         return gtsam.Pose2() if self.dim == 2 else gtsam.Pose3()
 
-    def _guesses(self, b: Branch, new_poses) -> gtsam.Values:
-        values = gtsam.Values()
-        cache = {}
+    def _guesses(self, b: Branch, new_poses, keep: bool = True) -> gtsam.Values:
+        """Initial values of the step's new poses: the source's estimate (or guess, when it is
+        not in the iSAM2 yet) composed with the branch's candidate; kept in `b.guess`."""
+        values, cache = gtsam.Values(), dict(b.guess)
         for target, source, what in new_poses:
             start = cache[source] if source in cache else br.estimate_of(b.isam, source, self.dim)
             pose = what.poses[b.choice[what.index]] if isinstance(what, Ambiguity) else what
             cache[target] = start.compose(pose)
             values.insert(target, cache[target])
+        if keep:
+            b.guess = cache
         return values
-
-    def _pose(self, b: Branch, key: int, guess: gtsam.Values):
-        if guess.exists(key):
-            return guess.atPose2(key) if self.dim == 2 else guess.atPose3(key)
-        return br.estimate_of(b.isam, key, self.dim)
 
     @staticmethod
     def _step_ambiguities(new_poses, loops):
         return [w for _, _, w in new_poses if isinstance(w, Ambiguity)] + list(loops)
-
-
-def rmse(a: np.ndarray, b: np.ndarray) -> float:
-    """Root mean square of the position differences of two (n, >=2) arrays (x, y[, z])."""
-    d = a.shape[1] if a.shape[1] in (2, 3) else 2
-    return float(np.sqrt(np.mean(np.sum((a[:, :d] - b[:, :d]) ** 2, axis=1))))
