@@ -130,7 +130,7 @@ def chain_covariance(chain: list, covariances: list) -> np.ndarray:
     With every other factor dropped it bounds the relative pose's covariance in the whole
     graph from above (information only adds), so a Mahalanobis distance under it is a lower
     bound."""
-    if isinstance(chain[0], gtsam.Pose2):
+    if isinstance(chain, np.ndarray) or isinstance(chain[0], gtsam.Pose2):
         return _chain_covariance_2d(chain, covariances)
     last_inverse = chain[-1].inverse()
     total = np.zeros_like(covariances[0])
@@ -150,10 +150,28 @@ def lower_bound_chi2(factor, values: gtsam.Values, chain: list, covariances: lis
     return float(r @ np.linalg.solve(cov, r))
 
 
-def _chain_covariance_2d(chain: list, covariances: list) -> np.ndarray:
-    """`chain_covariance` for Pose2 in NumPy: Ad of (x, y, theta) is [[c, -s, y], [s, c, -x],
-    [0, 0, 1]] (GTSAM's Pose2::AdjointMap)."""
-    xyt = np.array([[p.x(), p.y(), p.theta()] for p in chain])
+def chain_poses_2d(pose, order: list, first: int, last: int, moves: list) -> np.ndarray:
+    """(x, y, theta) of the poses at positions first..last (`pose(key)`), each after the rigid
+    moves of the tails it belongs to (`moved`, in NumPy)."""
+    xyt = np.array([[p.x(), p.y(), p.theta()] for p in map(pose, order[first : last + 1])])
+    position = np.arange(first, last + 1)
+    for start, g in moves:
+        rows = position >= start
+        c, s = np.cos(g.theta()), np.sin(g.theta())
+        x, y = xyt[rows, 0].copy(), xyt[rows, 1].copy()
+        xyt[rows, 0] = g.x() + c * x - s * y
+        xyt[rows, 1] = g.y() + s * x + c * y
+        xyt[rows, 2] += g.theta()
+    return xyt
+
+
+def _chain_covariance_2d(chain, covariances: list) -> np.ndarray:
+    """`chain_covariance` for Pose2 in NumPy (`chain`: Pose2s or (x, y, theta) rows): Ad of
+    (x, y, theta) is [[c, -s, y], [s, c, -x], [0, 0, 1]] (GTSAM's Pose2::AdjointMap)."""
+    if isinstance(chain, np.ndarray):
+        xyt = chain
+    else:
+        xyt = np.array([[p.x(), p.y(), p.theta()] for p in chain])
     c, s = np.cos(xyt[-1, 2]), np.sin(xyt[-1, 2])
     d = xyt[1:, :2] - xyt[-1, :2]
     rx, ry = c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]
@@ -164,3 +182,17 @@ def _chain_covariance_2d(chain: list, covariances: list) -> np.ndarray:
     ad[:, 0, 1] = -ad[:, 1, 0]
     ad[:, 0, 2], ad[:, 1, 2], ad[:, 2, 2] = ry, -rx, 1.0
     return np.einsum("nij,njk,nlk->il", ad, np.asarray(covariances), ad)
+
+
+def marginal_bound_chi2(factor, values: gtsam.Values, cov_a, cov_b) -> float:
+    """The lower bound of `lower_bound_chi2` from the two poses' marginal covariances instead
+    of a chain: the relative pose z = T_a^-1 T_b moves by -Ad(z^-1) xi_a + xi_b, and for any
+    two jointly Gaussian vectors cov(u + v) <= 2 cov(u) + 2 cov(v), so Sigma_rel <= 2 Ad
+    Sigma_a Ad^T + 2 Sigma_b whatever their correlation."""
+    keys = factor.keys()
+    get = values.atPose2 if len(cov_a) == 3 else values.atPose3
+    a, b = get(keys[0]), get(keys[1])
+    ad = a.between(b).inverse().AdjointMap()
+    r = np.asarray(factor.unwhitenedError(values), float)
+    cov = factor.noiseModel().covariance() + 2.0 * (ad @ cov_a @ ad.T + cov_b)
+    return float(r @ np.linalg.solve(cov, r))

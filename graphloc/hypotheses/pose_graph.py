@@ -13,8 +13,12 @@ Design (deferred decisions over a bounded set of branches, each one iSAM2):
   branches: every surviving branch times every combination of the newly open measurements'
   candidates. Combinations are ranked by the chi-square of the step's new factors at the
   branch's estimate with the switched tails moved rigidly (`branching.tail_moves`), and the
-  best `max_branches` are kept. A child that switches nothing reuses its parent's iSAM2;
-  the others are new iSAM2s built from their factor list at the moved estimate.
+  best `max_branches` are kept, except those whose first-order lower bound of the rise of the
+  optimal chi-square, r^T (C + Sigma_chain)^-1 r for a new factor with residual r and
+  covariance C, Sigma_chain the relative covariance along the odometry chain alone (an upper
+  bound of the true one, `branching.lower_bound_chi2`), exceeds the best prediction by
+  `margin`. A child that switches nothing reuses its parent's iSAM2; the others are new
+  iSAM2s built from their factor list at the moved estimate.
 * Every branch receives every later factor. Every `window` steps after a branching, each
   branch is scored by the chi-square of all its factors at its estimate (2 x the error GTSAM
   reports, after `settle` extra iSAM2 iterations) plus `null_penalty` per null component it
@@ -25,63 +29,20 @@ Design (deferred decisions over a bounded set of branches, each one iSAM2):
   taken alone (bounded deferral).
 
 The score is the whole graph's chi-square, computed only at judgements (not per step), so the
-cost per step is one iSAM2 update per branch; with one branch (no open measurement) that is
-plain iSAM2. Keys are `X(id)`.
+cost per step is one iSAM2 update per branch every `batch` steps (as HybridSmoother updates
+after every few hybrid factors); with one branch (no open measurement) that is plain iSAM2.
+Keys are `X(id)`.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass, field
 
 import gtsam
 from gtsam.symbol_shorthand import X
 
 from graphloc.hypotheses import branching as br
+from graphloc.hypotheses.pose_graph_state import Ambiguity, Branch, PoseGraphConfig
 
-
-@dataclass
-class PoseGraphConfig:
-    window: int = 10  # steps between judgements after a branching
-    max_window: int = 300  # steps a measurement may stay open before the best branch is taken
-    margin: float = 20.0  # chi-square gap that prunes a branch
-    max_branches: int = 8
-    null_penalty: float = 16.3  # chi-square of choosing "no measurement" (3 dof, p = 0.999)
-    settle: int = 1  # extra iSAM2 iterations of every branch before a judgement
-    batch: int = 5  # steps per iSAM2 update (a branching or a judgement updates at once)
-    sigmas: tuple = (0.05, 0.05, 0.01)  # a measurement without information (Pose2 / Pose3 order)
-    prior_sigma: float = 1e-4
-    relinearize_threshold: float = 0.1  # iSAM2's defaults
-    relinearize_skip: int = 10
-    bound_chain: int = 5000  # longest chain a branching's lower bound is computed along
-
-
-@dataclass
-class Ambiguity:
-    index: int  # the measurement's index in the caller's list
-    factors: list  # one factor per candidate, None for the null component
-    poses: list  # candidate poses (source -> target)
-    keys: tuple  # (source key, target key)
-    position: int  # the new pose's insertion position (bridge), else -1
-    added: int = 0  # the step it arrived in
-    state: str = "bridge"  # bridge | open | decided
-    opened: int = -1  # the step it was opened in
-    choice: int = 0  # decided (or provisional) candidate
-
-
-@dataclass
-class Branch:
-    isam: gtsam.ISAM2
-    choice: dict = field(default_factory=dict)  # ambiguity index -> candidate, undecided ones
-    score: float = 0.0
-    pending: gtsam.NonlinearFactorGraph = field(default_factory=gtsam.NonlinearFactorGraph)
-    values: gtsam.Values = field(default_factory=gtsam.Values)  # new poses not in the iSAM2
-    guess: dict = field(default_factory=dict)  # key -> pose of `values`
-
-    def flush(self) -> None:
-        """One iSAM2 update with the factors and poses gathered since the last."""
-        if self.pending.size() or self.values.size():
-            self.isam.update(self.pending, self.values)
-            self.pending, self.values, self.guess = gtsam.NonlinearFactorGraph(), gtsam.Values(), {}
+__all__ = ["Ambiguity", "Branch", "PoseGraphConfig", "PoseGraphHypotheses"]
 
 
 class PoseGraphHypotheses:
@@ -102,6 +63,7 @@ class PoseGraphHypotheses:
         self.open: set[int] = set()  # indices of open ambiguities
         self.bridges: set[int] = set()  # indices of ambiguities no factor spans yet
         self.steps = 0
+        self.gathered = 0  # steps not yet in the iSAM2s
         self.last_branching = -1
         self.stats = {"branchings": 0, "rebuilds": 0, "judgements": 0, "forced": 0, "bounded": 0}
         self.edge_cov: list = []  # by position: covariance of the edge from the previous pose
@@ -167,23 +129,26 @@ class PoseGraphHypotheses:
         ]
         opened += loops
         if opened:
-            for b in self.branches:
-                b.flush()
             guesses = [self._guesses(b, new_poses, keep=False) for b in self.branches]
             self._branch(opened, certain, new_poses, guesses)
         for b in self.branches:
-            b.values.insert(self._guesses(b, new_poses))
-            for f in certain:
-                b.pending.add(f)
+            self._guesses(b, new_poses)
+            b.pending += [(f, None) for f in certain]
             for amb in self._step_ambiguities(new_poses, loops):
                 f = amb.factors[b.choice[amb.index]]
                 if f is not None:
-                    b.pending.add(f)
-            if opened or (self.steps + 1) % self.config.batch == 0:
-                b.flush()
+                    b.pending.append((f, amb.index))
         for f in certain:
             self.common.add(f)
         self.steps += 1
+        self.gathered += 1
+        young = any(
+            self.steps - self.ambiguities[i].added < self.config.defer for i in self.bridges
+        )
+        if self.gathered >= self.config.batch and not young:
+            for b in self.branches:
+                b.flush()
+            self.gathered = 0
         if len(self.branches) == 1:
             self._decide()
         elif (self.steps - self.last_branching) % self.config.window == 0:
@@ -213,11 +178,24 @@ class PoseGraphHypotheses:
         for chi2, parent, combo, moves, estimate in children[: c.max_branches]:
             choice = dict(parent.choice)
             choice.update({a.index: k for a, k in zip(bridges + loops, combo)})
-            if not moves and id(parent) not in reused:
+            pending_only = all(start >= parent.first_pending(self.position) for start, _ in moves)
+            if pending_only and id(parent) not in reused:  # the switched tails are not in it
                 reused.add(id(parent))
-                kept.append(Branch(parent.isam, choice, chi2))
+                child = Branch(parent.isam, choice, chi2)
+                switched = {i for i, k in choice.items() if parent.choice.get(i, k) != k}
+                child.pending = [
+                    (self.ambiguities[i].factors[choice[i]] if i in switched else f, i)
+                    for f, i in parent.pending
+                ]
+                child.guess = {
+                    k: br.moved(p, self.position[k], moves) for k, p in parent.guess.items()
+                }
+                kept.append(child)
             else:
-                isam = self._rebuild(choice, br.moved_values(estimate, self.order, moves, self.dim))
+                values = gtsam.Values(estimate)
+                for k, p in parent.guess.items():
+                    values.insert(k, p)
+                isam = self._rebuild(choice, br.moved_values(values, self.order, moves, self.dim))
                 kept.append(Branch(isam, choice, chi2))
         self.branches = kept
         self.last_branching = self.steps
@@ -231,6 +209,8 @@ class PoseGraphHypotheses:
         def pose(key):
             if guess.exists(key):
                 return guess.atPose2(key) if self.dim == 2 else guess.atPose3(key)
+            if key in parent.guess:
+                return parent.guess[key]
             return estimate.atPose2(key) if self.dim == 2 else estimate.atPose3(key)
 
         keys = {k for f in certain for k in f.keys()}
@@ -256,33 +236,65 @@ class PoseGraphHypotheses:
             ranked.append((chi2, combo, moves, factors, penalty))
         ranked.sort(key=lambda r: r[0])
         best = ranked[0][0]
-        out = []
+        out, marginal = [], self._marginals(parent, estimate, pose)
         for chi2, combo, moves, factors, penalty in ranked[: c.max_branches]:
             if chi2 > best + c.margin:
-                bound = penalty + max((self._bound(f, pose, moves) for f in factors), default=0.0)
+                need = best + c.margin - penalty
+                bounds = (self._bound(f, pose, moves, marginal, need) for f in factors)
+                bound = penalty + max(bounds, default=0.0)
                 if bound > best + c.margin:
                     self.stats["bounded"] += 1
                     continue
             out.append((chi2, parent, combo, moves, estimate))
         return out
 
-    def _bound(self, factor, pose, moves) -> float:
-        """`branching.lower_bound_chi2` of a between factor along the insertion chain, 0 when
-        the chain is not one (a pose not introduced by its predecessor) or is too long."""
+    def _bound(self, factor, pose, moves, marginal, need: float) -> float:
+        """A lower bound of the rise of the optimal chi-square when a between factor joins:
+        `branching.lower_bound_chi2` along the insertion chain (when it is one, no longer than
+        `bound_chain`), else or when that is not above `need` and the chain is longer than
+        `marginal_chain`, the larger with `branching.marginal_bound_chi2` (marginals)."""
         keys = factor.keys()
         if len(keys) != 2:
             return 0.0
         first, last = self.position[keys[0]], self.position[keys[1]]
-        if not 0 <= first < last or last - first > self.config.bound_chain:
-            return 0.0
-        covariances = self.edge_cov[first + 1 : last + 1]
-        if any(cov is None for cov in covariances):
-            return 0.0
-        chain = [br.moved(pose(self.order[q]), q, moves) for q in range(first, last + 1)]
         values = gtsam.Values()
-        values.insert(keys[0], chain[0])
-        values.insert(keys[1], chain[-1])
-        return br.lower_bound_chi2(factor, values, chain, covariances)
+        for key in keys:
+            values.insert(key, br.moved(pose(key), self.position[key], moves))
+        bound = 0.0
+        covariances = self.edge_cov[first + 1 : last + 1]
+        chain_ok = all(cov is not None for cov in covariances)
+        if 0 <= first < last <= first + self.config.bound_chain and chain_ok:
+            if self.dim == 2:
+                chain = br.chain_poses_2d(pose, self.order, first, last, moves)
+            else:
+                chain = [br.moved(pose(self.order[q]), q, moves) for q in range(first, last + 1)]
+            bound = br.lower_bound_chi2(factor, values, chain, covariances)
+        if bound <= need and abs(last - first) > self.config.marginal_chain:
+            cov_a, cov_b = marginal(keys[0]), marginal(keys[1])
+            if cov_a is not None and cov_b is not None:
+                bound = max(bound, br.marginal_bound_chi2(factor, values, cov_a, cov_b))
+        return bound
+
+    def _marginals(self, parent: Branch, estimate: gtsam.Values, pose):
+        """key -> marginal covariance in `parent` (a pose of this step: its predecessor's
+        propagated through the edge between them), cached for one branching."""
+        cache = {}
+
+        def marginal(key):
+            if key not in cache:
+                if estimate.exists(key):
+                    cache[key] = parent.isam.marginalCovariance(key)
+                else:
+                    q = self.position[key]
+                    before = marginal(self.order[q - 1]) if q > 0 else None
+                    if before is None or self.edge_cov[q] is None:
+                        cache[key] = None
+                    else:
+                        ad = pose(self.order[q - 1]).between(pose(key)).inverse().AdjointMap()
+                        cache[key] = ad @ before @ ad.T + self.edge_cov[q]
+            return cache[key]
+
+        return marginal
 
     def _rebuild(self, choice: dict, values: gtsam.Values) -> gtsam.ISAM2:
         """A new iSAM2 of the known poses under `choice` (this step's factors not yet in),
