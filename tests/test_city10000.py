@@ -212,3 +212,39 @@ def test_city10000_first_steps():
 
 def rmse(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((a[:, :2] - b[:, :2]) ** 2, axis=1))))
+
+
+# ---- the verbs -------------------------------------------------------------------------------
+def test_smooth_and_online_take_a_pose_graph_file(tmp_path, cli):
+    import json
+
+    lines, poses = grid_walk(200, seed=6)
+    path = write(tmp_path, lines, "walk.txt")
+    truth = tmp_path / "truth.txt"
+    truth.write_text("".join(f"{p.x()} {p.y()} {p.theta()}\n" for p in poses), encoding="utf-8")
+    for verb in ("smooth", "online"):
+        out = tmp_path / verb
+        got = cli([verb, str(path), "--out", str(out), "--candidate-seed", "2",
+                   "--truth-poses", str(truth)], out=out)  # fmt: skip
+        assert got.code == 0, got.err[-2000:]
+        metrics = json.loads((out / "metrics.json").read_text())
+        assert metrics["decisions"]["judged"] >= 10
+        assert metrics["decisions"]["mode_accuracy"] == 1.0
+        assert metrics["position_rmse_m"] < 0.5
+        assert (out / "trajectory.tum").read_text().count("\n") == len(poses)
+        rows = (out / "decisions.csv").read_text().splitlines()
+        assert len(rows) == 1 + metrics["decisions"]["ambiguous"]
+
+
+def test_pose_graph_options_and_bad_truth_are_one_error(tmp_path, cli, planar_log_template):
+    lines, _ = grid_walk(40, seed=7)
+    path = write(tmp_path, lines, "walk.txt")
+    bad = tmp_path / "bad.txt"
+    bad.write_text("0 0 0\n1 0\n", encoding="utf-8")
+    out = tmp_path / "o1"
+    got = cli(["smooth", str(path), "--out", str(out), "--truth-poses", str(bad)], out=out)
+    assert got.code == 2 and "bad.txt: line 2: expected 3 fields" in got.err
+    out = tmp_path / "o2"
+    got = cli(["smooth", str(planar_log_template), "--out", str(out), "--candidate-seed", "1"],
+              out=out)  # fmt: skip
+    assert got.code == 2 and "--candidate-seed applies to a pose-graph file" in got.err

@@ -348,8 +348,9 @@ class PoseGraphHypotheses:
             out[index] = amb.choice if amb.state == "decided" else best.get(index, amb.choice)
         return out
 
-    def undecided(self) -> int:
-        return sum(1 for a in self.ambiguities.values() if a.state != "decided")
+    def undecided_count(self) -> int:
+        """Measurements no factor has spanned yet (their choice is the first candidate)."""
+        return len(self.bridges)
 
     def current(self, node: int):
         """The best branch's estimate of pose `node` (its gathered steps updated first)."""
