@@ -247,6 +247,9 @@ def main(argv=None) -> int:
                 print(_summary(report["runs"][-1]), flush=True)
         path.write_text(json.dumps(report) + "\n")
     report = json.loads(path.read_text())
+    if args.render and args.note:  # prose beside the tables (no number of its own)
+        report["notes"] = args.note
+        path.write_text(json.dumps(report) + "\n")
     render(report, args.out, args.doc)
     print(f"wrote {path}, {args.doc}")
     return 0

@@ -363,8 +363,10 @@ class PoseGraphHypotheses:
             self.judge(force=True)
         self.branches[0].flush()
         isam = self.branches[0].isam
-        for _ in range(settle):
-            isam.update()
+        for _ in range(
+            settle
+        ):  # Gauss-Newton steps, every variable past the threshold relinearized
+            isam.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), force_relinearize=True)
         return isam.calculateEstimate()
 
     # ---- helpers -------------------------------------------------------------------------

@@ -17,7 +17,7 @@ class PoseGraphConfig:
     max_branches: int = 4
     null_penalty: float = 16.3  # chi-square of choosing "no measurement" (3 dof, p = 0.999)
     settle: int = 1  # extra iSAM2 iterations of every branch before a judgement
-    batch: int = 5  # steps per iSAM2 update (a judgement updates at once)
+    batch: int = 10  # steps per iSAM2 update (a judgement updates at once)
     defer: int = 20  # steps a new bridge's tail stays out of the iSAM2s (a switch costs no copy)
     sigmas: tuple = (0.05, 0.05, 0.01)  # a measurement without information (Pose2 / Pose3 order)
     prior_sigma: float = 1e-4
