@@ -36,6 +36,8 @@ Keys are `X(id)`.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import gtsam
 from gtsam.symbol_shorthand import X
 
@@ -51,6 +53,8 @@ class PoseGraphHypotheses:
 
     def __init__(self, dim: int, config: PoseGraphConfig | None = None):
         self.dim, self.config = dim, config or PoseGraphConfig()
+        if self.config.null_penalty is None:  # chi-square 0.999 quantiles
+            self.config = replace(self.config, null_penalty=16.27 if dim == 2 else 22.46)
         c = self.config
         self.params = gtsam.ISAM2Params()
         self.params.setRelinearizeThreshold(c.relinearize_threshold)
@@ -86,6 +90,7 @@ class PoseGraphHypotheses:
         `information`, `null` (graphloc.datasets.pose_graph_file.Measurement); every edge joins
         known poses or introduces one new pose."""
         certain, new_poses, loops, spans = [], [], [], []
+        self.step_start = len(self.order)  # positions from here on are this step's poses
         for index, m in measurements:
             source, target = X(m.source), X(m.target)
             poses, factors = br.candidate_factors(m, source, target, self.dim, self.config.sigmas)
@@ -129,6 +134,10 @@ class PoseGraphHypotheses:
         ]
         opened += loops
         if opened:
+            if self.config.flush_to_branch:  # predictions from an estimate of every factor
+                for b in self.branches:
+                    b.flush()
+                self.gathered = 0
             guesses = [self._guesses(b, new_poses, keep=False) for b in self.branches]
             self._branch(opened, certain, new_poses, guesses)
         for b in self.branches:
@@ -178,7 +187,8 @@ class PoseGraphHypotheses:
         for chi2, parent, combo, moves, estimate in children[: c.max_branches]:
             choice = dict(parent.choice)
             choice.update({a.index: k for a, k in zip(bridges + loops, combo)})
-            pending_only = all(start >= parent.first_pending(self.position) for start, _ in moves)
+            frontier = min(parent.first_pending(self.position), self.step_start)
+            pending_only = all(start >= frontier for start, _ in moves)
             if pending_only and id(parent) not in reused:  # the switched tails are not in it
                 reused.add(id(parent))
                 child = Branch(parent.isam, choice, chi2)
@@ -238,11 +248,12 @@ class PoseGraphHypotheses:
         best = ranked[0][0]
         out, marginal = [], self._marginals(parent, estimate, pose)
         for chi2, combo, moves, factors, penalty in ranked[: c.max_branches]:
-            if chi2 > best + c.margin:
-                need = best + c.margin - penalty
+            margin = c.null_margin if penalty else c.margin  # a null's cost is exact
+            if chi2 > best + margin:
+                need = best + margin - penalty
                 bounds = (self._bound(f, pose, moves, marginal, need) for f in factors)
                 bound = penalty + max(bounds, default=0.0)
-                if bound > best + c.margin:
+                if bound > best + margin:
                     self.stats["bounded"] += 1
                     continue
             out.append((chi2, parent, combo, moves, estimate))

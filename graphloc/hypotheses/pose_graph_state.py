@@ -15,9 +15,14 @@ class PoseGraphConfig:
     max_window: int = 100  # steps a measurement may stay open before the best branch is taken
     margin: float = 20.0  # chi-square gap that prunes a branch
     max_branches: int = 4
-    null_penalty: float = 16.3  # chi-square of choosing "no measurement" (3 dof, p = 0.999)
+    # chi-square of choosing "no measurement" (unset: the 0.999 quantile, 3 dof 2D / 6 dof 3D)
+    null_penalty: float | None = None
+    # a null child is dropped at once when a combination's predicted chi-square (an upper bound
+    # of its rise) is below the null's exact cost by more than this: the estimate explains it
+    null_margin: float = 0.0
     settle: int = 1  # extra iSAM2 iterations of every branch before a judgement
     batch: int = 10  # steps per iSAM2 update (a judgement updates at once)
+    flush_to_branch: bool = True  # update the iSAM2s before a branching's predictions
     defer: int = 20  # steps a new bridge's tail stays out of the iSAM2s (a switch costs no copy)
     sigmas: tuple = (0.05, 0.05, 0.01)  # a measurement without information (Pose2 / Pose3 order)
     prior_sigma: float = 1e-4
