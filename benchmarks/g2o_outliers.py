@@ -101,10 +101,10 @@ def reference(graph) -> gtsam.Values:
     return gtsam.LevenbergMarquardtOptimizer(factors, initial).optimize()
 
 
-def run_graphloc(graph, measurements, progress=None) -> dict:
+def run_graphloc(graph, measurements, progress=None, config=None) -> dict:
     start_cpu = time.process_time()
     first, start = first_pose(graph)
-    engine = PoseGraphHypotheses(graph.dim, PoseGraphConfig())
+    engine = PoseGraphHypotheses(graph.dim, PoseGraphConfig(**(config or {})))
     engine.start(first, None if start is None else graph.vertices[first])
     times = []
     for step in group_steps(measurements):

@@ -211,8 +211,8 @@ class PoseGraphHypotheses:
         self.last_branching = self.steps
 
     def _children(self, parent, guess, bridges, loops, combos, certain) -> list:
-        """[(predicted chi-square, parent, combination, tail moves, parent's estimate)] of one
-        parent, ranked, the bound-pruned ones left out."""
+        """[(the parent's score plus the predicted chi-square, parent, combination, tail moves,
+        parent's estimate)] of one parent, ranked, the bound-pruned ones left out."""
         c = self.config
         estimate = parent.isam.calculateEstimate()
 
@@ -256,7 +256,7 @@ class PoseGraphHypotheses:
                 if bound > best + margin:
                     self.stats["bounded"] += 1
                     continue
-            out.append((chi2, parent, combo, moves, estimate))
+            out.append((parent.score + chi2, parent, combo, moves, estimate))
         return out
 
     def _bound(self, factor, pose, moves, marginal, need: float) -> float:

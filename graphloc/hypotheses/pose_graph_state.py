@@ -49,7 +49,7 @@ class Ambiguity:
 class Branch:
     isam: gtsam.ISAM2
     choice: dict = field(default_factory=dict)  # ambiguity index -> candidate, undecided ones
-    score: float = 0.0
+    score: float = 0.0  # chi-square of its factors + nulls (judged, or parent + predicted rise)
     pending: list = field(default_factory=list)  # (factor, ambiguity index or None) not in it
     guess: dict = field(default_factory=dict)  # key -> initial pose, poses not in the iSAM2
 
