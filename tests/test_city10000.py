@@ -248,3 +248,16 @@ def test_pose_graph_options_and_bad_truth_are_one_error(tmp_path, cli, planar_lo
     got = cli(["smooth", str(planar_log_template), "--out", str(out), "--candidate-seed", "1"],
               out=out)  # fmt: skip
     assert got.code == 2 and "--candidate-seed applies to a pose-graph file" in got.err
+
+
+def test_api_doc_block_runs_as_written():
+    import re
+    from pathlib import Path
+
+    doc = Path(__file__).resolve().parents[1] / "docs" / "api.md"
+    blocks = re.findall(r"```python\n(.*?)```", doc.read_text(), flags=re.S)
+    block = next(b for b in blocks if "PoseGraphHypotheses" in b)
+    namespace = {}
+    exec(compile(block, str(doc), "exec"), namespace)
+    decided, truth, choices = namespace["decided"], namespace["truth"], namespace["choices"]
+    assert decided and all(choices[i] == truth[i] for i in decided)
