@@ -368,17 +368,27 @@ class PoseGraphHypotheses:
         self.branches[0].flush()
         return br.estimate_of(self.branches[0].isam, X(node), self.dim)
 
-    def finish(self, settle: int = 3) -> gtsam.Values:
-        """The best branch's estimate after a final forced judgement and `settle` iterations."""
+    def finish(self, settle: int = 10, refine: bool = True) -> gtsam.Values:
+        """The best branch's estimate after a final forced judgement: Gauss-Newton iterations
+        of its iSAM2 (every variable whose step exceeds the relinearization threshold
+        relinearized) until none is relinearized, at most `settle`, the full back-substitution
+        (`calculateBestEstimate`, no wildfire cut-off); with `refine`, Levenberg-Marquardt on
+        the branch's graph from there (iSAM2 leaves each variable linearized up to its
+        relinearization threshold away from the optimum; this removes that last error)."""
         if len(self.branches) > 1:
             self.judge(force=True)
         self.branches[0].flush()
         isam = self.branches[0].isam
-        for _ in range(
-            settle
-        ):  # Gauss-Newton steps, every variable past the threshold relinearized
-            isam.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), force_relinearize=True)
-        return isam.calculateEstimate()
+        empty = gtsam.NonlinearFactorGraph()
+        for _ in range(settle):
+            result = isam.update(empty, gtsam.Values(), force_relinearize=True)
+            if result.getVariablesRelinearized() == 0:
+                break
+        estimate = isam.calculateBestEstimate()
+        if refine:
+            graph = isam.getFactorsUnsafe()
+            estimate = gtsam.LevenbergMarquardtOptimizer(graph, estimate).optimize()
+        return estimate
 
     # ---- helpers -------------------------------------------------------------------------
     def _register(self, key: int, covariance=None) -> None:
