@@ -175,9 +175,9 @@ def main(argv=None) -> int:
             "load": " ".join(f"{x:.1f}" for x in os.getloadavg()),
             "seed": args.seed, "notes": args.note, "rows": [],
         }  # fmt: skip
-        for graph in args.graphs:
+        for graph in args.graphs:  # the JSON after each graph: a stopped run keeps the others
             report["rows"] += run_graph(graph, args.rates, args.seed, not args.no_progress)
-        path.write_text(json.dumps(report) + "\n")
+            path.write_text(json.dumps(report) + "\n")
     report = json.loads(path.read_text())
     if args.render and args.note:
         report["notes"] = args.note
