@@ -172,8 +172,14 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
     from dataclasses import asdict, replace
 
     progress = not args.no_progress
-    with StopFlag("smooth" if mode == "batch" else "online") as stop:
+    from graphloc.commands import pose_graph_run
+
+    verb = "smooth" if mode == "batch" else "online"
+    if pose_graph_run.is_pose_graph_file(args.run):  # City10000 / g2o: the pose-graph engine
+        return pose_graph_run.run_verb(args, mode, options(args), lambda: StopFlag(verb))
+    with StopFlag(verb) as stop:
         opts = options(args)
+        pose_graph_run.reject_options(opts.pose_graph(), args.run)
         values = asdict(opts)
         config = opts.graph_config()
         from graphloc.datasets import open_run

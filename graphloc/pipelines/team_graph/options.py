@@ -28,6 +28,8 @@ GROUNDTRUTH_RATES = ("estimate", "full")
 ALIGNMENTS = ("none", "se2", "se3", "sim3")
 SOLVER = ("lag",)
 SOURCE = ("topics", "scan_rate")  # options of one kind of source (open_run's `source`)
+# options of a pose-graph file (City10000 / g2o: graphloc.commands.pose_graph_run)
+POSE_GRAPH = ("candidate_seed", "null_loops", "truth_poses")
 DEFAULT_LAG = 45.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
 
 
@@ -50,6 +52,24 @@ class RunOptions:
     scan_rate: float | None = field(
         default=None,
         metadata=_help("a scan directory without a times file: scans per second [Hz]; unset: 10"),
+    )
+    candidate_seed: int | None = field(
+        default=None,
+        metadata=_help(
+            "a pose-graph file (City10000 / g2o): shuffle each measurement's candidates with "
+            "this seed; its first-listed candidate is then the truth (mode accuracy)"
+        ),
+    )
+    null_loops: bool | None = field(
+        default=None,
+        metadata=_help("a pose-graph file: every loop closure may be an outlier (null component)"),
+    )
+    truth_poses: str | None = field(
+        default=None,
+        metadata=_help(
+            "a pose-graph file: its ground-truth poses, one line per pose id (x y theta, or "
+            "x y z qx qy qz qw)"
+        ),
     )
     keyframe_dt: float = field(
         default=0.25, metadata=_help("pose grid of wheel-odometry robots [s]")
@@ -138,8 +158,9 @@ class RunOptions:
                 **{s: (0.0, MAX_SIGMA, "(]") for s in NOISE if s != "range_sigma_per_m"},
                 "range_sigma_per_m": (0.0, MAX_SIGMA, "[]"),
             },
+            integer={"candidate_seed": (0, 2**32 - 1)},
             optional=("duration", "bearing_sigma", "range_sigma", "range_sigma_per_m")
-            + ("pixel_sigma", "lag", "scan_rate", "align"),
+            + ("pixel_sigma", "lag", "scan_rate", "align", "candidate_seed"),
             choices={"groundtruth_rate": GROUNDTRUTH_RATES, "align": ALIGNMENTS},
         )
         if self.duration is not None and not 0 < self.duration <= MAX_TIME:
@@ -158,6 +179,10 @@ class RunOptions:
         """Options of one kind of source that were set (`graphloc.datasets.open_run`'s
         `source`): a bag's topics file, a scan directory's rate."""
         return {k: getattr(self, k) for k in SOURCE if getattr(self, k) is not None}
+
+    def pose_graph(self) -> dict:
+        """Options of a pose-graph file that were set (`graphloc.commands.pose_graph_run`)."""
+        return {k: getattr(self, k) for k in POSE_GRAPH if getattr(self, k) is not None}
 
     def noise(self) -> dict:
         """Sensor noise that replaces what the log's sensor params say."""

@@ -1,0 +1,263 @@
+"""City10000-style pose graphs with discrete alternatives: the reader
+(graphloc.datasets.pose_graph_file) and the multi-hypothesis engine
+(graphloc.hypotheses.pose_graph) on small synthetic graphs with known truth (our own grid
+walk, noise and wrong candidates) and on the first steps of City10000."""
+
+import math
+
+import gtsam
+import numpy as np
+import pytest
+from gtsam.symbol_shorthand import X
+
+from graphloc.datasets.pose_graph_file import (
+    group_steps,
+    permute_candidates,
+    read_pose_graph,
+)
+from graphloc.hypotheses.pose_graph import PoseGraphConfig, PoseGraphHypotheses
+
+
+# ---- a synthetic ambiguous pose graph --------------------------------------------------------
+def grid_walk(n: int, seed: int, every: int = 12, outliers: int = 0, dim: int = 2):
+    """A robot walking 1 m steps on a 6 x 6 m grid (turns at random), loop closures to earlier
+    poses within 0.6 m, every `every`-th odometry edge ambiguous (the truth and a wrong
+    candidate, turned by 0.6-1.0 rad and shifted sideways), `outliers` random loop closures
+    flagged with a null component. Lines written in City10000's format (2D) or g2o (3D)."""
+    rng = np.random.default_rng(seed)
+    sig = np.array([0.02, 0.02, 0.005])
+    poses = [gtsam.Pose2()]
+    for _ in range(n - 1):
+        p = poses[-1]
+        turn = rng.choice([0.0, math.pi / 2, -math.pi / 2], p=[0.6, 0.2, 0.2])
+        nxt = p.compose(gtsam.Pose2(1.0, 0.0, turn))
+        if max(abs(nxt.x()), abs(nxt.y())) > 3.01:
+            nxt = p.compose(gtsam.Pose2(1.0, 0.0, math.pi))
+        poses.append(nxt)
+    lines, truth_wrong = [], []
+
+    def noisy(rel):
+        return rel.compose(gtsam.Pose2(*(rng.normal(size=3) * sig)))
+
+    def fmt(a, b, cands, flag=0):
+        nums = " ".join(f"{c.x():.6f} {c.y():.6f} {c.theta():.6f}" for c in cands)
+        return f"EDGE2 {a} 1 {b} {flag} {len(cands)} {nums}"
+
+    for k in range(1, n):
+        rel = noisy(poses[k - 1].between(poses[k]))
+        if k % every == 0:
+            side = rng.choice([-1.0, 1.0])
+            wrong = rel.compose(gtsam.Pose2(0.3, side * 0.8, side * rng.uniform(0.6, 1.0)))
+            lines.append(fmt(k - 1, k, [rel, wrong]))
+            truth_wrong.append(len(lines) - 1)
+        else:
+            lines.append(fmt(k - 1, k, [rel]))
+        for j in range(0, k - 3):
+            d = poses[j].between(poses[k])
+            if math.hypot(d.x(), d.y()) < 0.6 and rng.random() < 0.5:
+                lines.append(fmt(j, k, [noisy(d)]))
+        if outliers and k > 20 and rng.random() < outliers / n:
+            j = int(rng.integers(0, k - 5))
+            fake = gtsam.Pose2(*rng.uniform(-3, 3, 2), rng.uniform(-math.pi, math.pi))
+            lines.append(fmt(j, k, [fake], flag=1))
+    return lines, poses
+
+
+def write(tmp_path, lines, name="graph.txt"):
+    path = tmp_path / name
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def run_engine(measurements, dim=2, config=None):
+    engine = PoseGraphHypotheses(dim, config)
+    steps = group_steps(measurements)
+    engine.start(steps[0][0][1].source)
+    for step in steps:
+        engine.step(step)
+    return engine, engine.finish()
+
+
+# ---- the reader ------------------------------------------------------------------------------
+def test_reader_city_format_and_permutation(tmp_path):
+    lines, _ = grid_walk(60, seed=1)
+    graph = read_pose_graph(write(tmp_path, lines))
+    assert graph.dim == 2 and graph.format == "city10000"
+    assert len(graph.measurements) == len(lines)
+    ambiguous = [i for i, m in enumerate(graph.measurements) if m.ambiguous]
+    assert ambiguous and all(len(graph.measurements[i].candidates) == 2 for i in ambiguous)
+    a, truth_a = permute_candidates(graph.measurements, seed=3)
+    b, truth_b = permute_candidates(graph.measurements, seed=3)
+    assert truth_a == truth_b and set(truth_a) == set(ambiguous)
+    for i, k in truth_a.items():  # the first-listed candidate is where truth says
+        assert np.allclose(a[i].candidates[k], graph.measurements[i].candidates[0])
+    seeds = [permute_candidates(graph.measurements, seed=s)[1] for s in range(5)]
+    assert len({tuple(sorted(t.items())) for t in seeds}) > 1  # the order really changes
+
+
+@pytest.mark.parametrize(
+    "bad, where",
+    [
+        ("EDGE2 0 1 1 0 1 0.5 0.1 nan", "field 9 (theta0)"),
+        ("EDGE2 0 1 1 0 2 0.5 0.1 0.0", "expected 12 fields"),
+        ("EDGE2 0 1 x 0 1 0.5 0.1 0.0", "field 4 (target)"),
+        ("EDGE2 0 1 1 5 1 0.5 0.1 0.0", "field 5 (ambiguous-loop flag)"),
+        ("EDGE_SE2 0 1 1 0 0 1 0 0 1 0 -1", "field 7 (information)"),
+    ],
+)
+def test_reader_errors_name_file_line_and_field(tmp_path, bad, where):
+    path = write(tmp_path, ["EDGE2 0 1 1 0 1 1.0 0.0 0.0", bad] if "EDGE2" in bad else [bad])
+    line = 2 if "EDGE2" in bad else 1
+    with pytest.raises(ValueError) as err:
+        read_pose_graph(path)
+    assert str(path) in str(err.value) and f"line {line}" in str(err.value)
+    assert where in str(err.value)
+
+
+def test_reader_skips_are_counted(tmp_path):
+    lines = ["# comment", "EDGE2 0 1 1 0 1 1 0 0", "EDGE2 1 1 2 0 1 1 0 oops", "LANDMARK 3"]
+    graph = read_pose_graph(write(tmp_path, lines), on_error="skip")
+    assert len(graph.measurements) == 1
+    assert graph.skips.counts == {"parse": 1, "unknown_tag": 1}
+    assert "line 3" in graph.skips.first["parse"] and "field 9" in graph.skips.first["parse"]
+    with pytest.raises(ValueError, match="no edge read"):
+        read_pose_graph(write(tmp_path, ["# nothing"], "empty.txt"))
+
+
+def test_reader_g2o_alternatives_3d_order_and_mixing(tmp_path):
+    info = " ".join(["100", "0", "0", "0", "0", "0", "100", "0", "0", "0", "0", "100"]
+                    + ["0", "0", "0", "400", "0", "0", "400", "0", "400"])  # fmt: skip
+    lines = [
+        "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1",
+        f"EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 {info}",
+        f"EDGE_SE3:QUAT 1 2 1 0 0 0 0 0 1 {info}",
+        f"EDGE_SE3:QUAT 1 2 0 1 0 0 0 0.7071 0.7071 {info}",  # an alternative of the last
+    ]
+    graph = read_pose_graph(write(tmp_path, lines))
+    assert graph.dim == 3 and len(graph.measurements) == 2 and graph.vertices
+    m = graph.measurements[1]
+    assert len(m.candidates) == 2 and np.isclose(np.linalg.norm(m.candidates[1][3:]), 1.0)
+    assert np.allclose(np.diag(m.information[0]), [400, 400, 400, 100, 100, 100])  # GTSAM order
+    with pytest.raises(ValueError, match="mixes 2D and 3D"):
+        read_pose_graph(write(tmp_path, lines + ["EDGE_SE2 2 3 1 0 0 1 0 0 1 0 1"], "mix.g2o"))
+    null = read_pose_graph(write(tmp_path, lines[:3] + [lines[3].replace(" 1 2 ", " 0 2 ")]),
+                           null_on_loops=True)  # fmt: skip
+    assert [m.null for m in null.measurements] == [False, False, True]
+
+
+# ---- the engine ------------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_engine_decides_every_ambiguous_edge_of_a_synthetic_walk(tmp_path, seed):
+    lines, poses = grid_walk(260, seed=seed)
+    graph = read_pose_graph(write(tmp_path, lines))
+    measurements, truth = permute_candidates(graph.measurements, seed=seed)
+    engine, estimate = run_engine(measurements, config=PoseGraphConfig(sigmas=(0.02, 0.02, 0.005)))
+    choices = engine.choices()
+    assert len(truth) >= 15 and sum(k != 0 for k in truth.values()) >= 5  # not the first
+    assert {i: choices[i] for i in truth} == truth
+    truth_xy = np.array([[p.x(), p.y()] for p in poses])
+    est_xy = np.array(
+        [[estimate.atPose2(X(k)).x(), estimate.atPose2(X(k)).y()] for k in range(len(poses))]
+    )
+    assert rmse(est_xy, truth_xy) < 0.3
+
+
+def test_engine_rejects_outlier_loop_closures(tmp_path):
+    lines, poses = grid_walk(200, seed=4, every=10_000, outliers=15)
+    graph = read_pose_graph(write(tmp_path, lines))
+    flagged = [i for i, m in enumerate(graph.measurements) if m.null]
+    assert len(flagged) >= 5
+    engine, estimate = run_engine(
+        graph.measurements, config=PoseGraphConfig(sigmas=(0.02, 0.02, 0.005))
+    )
+    choices = engine.choices()
+    assert all(choices[i] == 1 for i in flagged)  # the null component (index K)
+    truth_xy = np.array([[p.x(), p.y()] for p in poses])
+    est_xy = np.array(
+        [[estimate.atPose2(X(k)).x(), estimate.atPose2(X(k)).y()] for k in range(len(poses))]
+    )
+    assert rmse(est_xy, truth_xy) < 0.3
+
+
+def test_engine_3d(tmp_path):
+    """The same walk lifted to Pose3 (g2o 3D lines, a wrong candidate turned about z)."""
+    lines, poses = grid_walk(200, seed=5)
+    graph2 = read_pose_graph(write(tmp_path, lines))
+    info = "2500 0 0 0 0 0 2500 0 0 0 0 2500 0 0 0 40000 0 0 40000 0 40000"
+    out = []
+    for m in graph2.measurements:
+        for c in m.candidates:
+            q = gtsam.Rot3.Rz(c[2]).toQuaternion()
+            out.append(f"EDGE_SE3:QUAT {m.source} {m.target} {c[0]} {c[1]} 0 "
+                       f"{q.x()} {q.y()} {q.z()} {q.w()} {info}")  # fmt: skip
+    graph = read_pose_graph(write(tmp_path, out, "walk3d.g2o"))
+    assert graph.dim == 3
+    measurements, truth = permute_candidates(graph.measurements, seed=5)
+    engine, estimate = run_engine(measurements, dim=3)
+    choices = engine.choices()
+    assert {i: choices[i] for i in truth} == truth
+    est = np.array([estimate.atPose3(X(k)).translation()[:2] for k in range(len(poses))])
+    assert rmse(est, np.array([[p.x(), p.y()] for p in poses])) < 0.3
+
+
+def test_city10000_first_steps():
+    path = gtsam.findExampleDataFile("T1_city10000_04.txt")
+    graph = read_pose_graph(path, max_edges=1500)
+    measurements, truth = permute_candidates(graph.measurements, seed=0)
+    engine, _ = run_engine(measurements)
+    choices = engine.choices()
+    assert len(truth) >= 15
+    assert sum(choices[i] == k for i, k in truth.items()) == len(truth)
+
+
+def rmse(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum((a[:, :2] - b[:, :2]) ** 2, axis=1))))
+
+
+# ---- the verbs -------------------------------------------------------------------------------
+def test_smooth_and_online_take_a_pose_graph_file(tmp_path, cli):
+    import json
+
+    lines, poses = grid_walk(200, seed=6)
+    path = write(tmp_path, lines, "walk.txt")
+    truth = tmp_path / "truth.txt"
+    truth.write_text("".join(f"{p.x()} {p.y()} {p.theta()}\n" for p in poses), encoding="utf-8")
+    for verb in ("smooth", "online"):
+        out = tmp_path / verb
+        got = cli([verb, str(path), "--out", str(out), "--candidate-seed", "2",
+                   "--truth-poses", str(truth)], out=out)  # fmt: skip
+        assert got.code == 0, got.err[-2000:]
+        metrics = json.loads((out / "metrics.json").read_text())
+        assert metrics["decisions"]["judged"] >= 10
+        assert metrics["decisions"]["mode_accuracy"] == 1.0
+        assert metrics["position_rmse_m"] < 0.5
+        assert (out / "trajectory.tum").read_text().count("\n") == len(poses)
+        rows = (out / "decisions.csv").read_text().splitlines()
+        assert len(rows) == 1 + metrics["decisions"]["ambiguous"]
+
+
+def test_pose_graph_options_and_bad_truth_are_one_error(tmp_path, cli, planar_log_template):
+    lines, _ = grid_walk(40, seed=7)
+    path = write(tmp_path, lines, "walk.txt")
+    bad = tmp_path / "bad.txt"
+    bad.write_text("0 0 0\n1 0\n", encoding="utf-8")
+    out = tmp_path / "o1"
+    got = cli(["smooth", str(path), "--out", str(out), "--truth-poses", str(bad)], out=out)
+    assert got.code == 2 and "bad.txt: line 2: expected 3 fields" in got.err
+    out = tmp_path / "o2"
+    got = cli(["smooth", str(planar_log_template), "--out", str(out), "--candidate-seed", "1"],
+              out=out)  # fmt: skip
+    assert got.code == 2 and "--candidate-seed applies to a pose-graph file" in got.err
+
+
+def test_api_doc_block_runs_as_written():
+    import re
+    from pathlib import Path
+
+    doc = Path(__file__).resolve().parents[1] / "docs" / "api.md"
+    blocks = re.findall(r"```python\n(.*?)```", doc.read_text(), flags=re.S)
+    block = next(b for b in blocks if "PoseGraphHypotheses" in b)
+    namespace = {}
+    exec(compile(block, str(doc), "exec"), namespace)
+    decided, truth, choices = namespace["decided"], namespace["truth"], namespace["choices"]
+    assert decided and all(choices[i] == truth[i] for i in decided)
