@@ -118,12 +118,25 @@ class Residuals:
 UNINFORMATIVE = 1e5  # a residual component with a larger std carries no measurement
 
 
+def gaussian_part(factor) -> tuple:
+    """(noise model, its Gaussian part -- the model itself where it has no kernel --, residual
+    dimension counted) of one factor; (None, None, factor.dim()) for a factor without a noise
+    model (e.g. a max-mixture). Components of std >= UNINFORMATIVE are not counted."""
+    import gtsam
+    import numpy as np
+
+    model = factor.noiseModel() if hasattr(factor, "noiseModel") else None
+    if model is None:
+        return None, None, factor.dim()
+    base = model.noise() if isinstance(model, gtsam.noiseModel.Robust) else model
+    return model, base, int(np.count_nonzero(np.asarray(base.sigmas()) < UNINFORMATIVE))
+
+
 def residuals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> Residuals:
     """`Residuals` of every factor of `graph` at `values` (one pass, in graph order; a removed
     factor slot counts as dimension 0; a residual component of std >= UNINFORMATIVE, e.g. the
     range of a bearing-only `factors.bearing.bearing_factor`, does not count in the
     dimension)."""
-    import gtsam
     import numpy as np
 
     n = graph.size()
@@ -133,14 +146,11 @@ def residuals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> Residu
         factor = graph.at(i)
         if factor is None:
             continue
-        model = factor.noiseModel() if hasattr(factor, "noiseModel") else None
+        model, base, dims[i] = gaussian_part(factor)
         if model is None:
-            dims[i], chi2[i] = factor.dim(), 2.0 * factor.error(values)
+            chi2[i] = 2.0 * factor.error(values)
             continue
-        e = np.asarray(factor.unwhitenedError(values), dtype=float)
-        base = model.noise() if isinstance(model, gtsam.noiseModel.Robust) else model
-        dims[i] = int(np.count_nonzero(np.asarray(base.sigmas()) < UNINFORMATIVE))
-        whitened = base.whiten(e)
+        whitened = base.whiten(np.asarray(factor.unwhitenedError(values), dtype=float))
         if base is not model:
             robust[i] = True
             weights[i] = model.robust().weight(float(np.linalg.norm(whitened)))
@@ -166,7 +176,6 @@ class GaussianChi2:
         """Add a NonlinearFactorGraph, or a list of factors, graphs and factor providers (an
         object whose `factor` is the gtsam factor, as `Session.add` takes)."""
         import gtsam
-        import numpy as np
 
         graph = gtsam.NonlinearFactorGraph()
         for item in [factors] if isinstance(factors, gtsam.NonlinearFactorGraph) else factors:
@@ -175,14 +184,9 @@ class GaussianChi2:
             factor = graph.at(i)
             if factor is None:
                 continue
-            model = factor.noiseModel() if hasattr(factor, "noiseModel") else None
-            if model is None:
-                self.plain.push_back(factor)
-                self.dim += factor.dim()
-                continue
-            base = model.noise() if isinstance(model, gtsam.noiseModel.Robust) else model
-            self.dim += int(np.count_nonzero(np.asarray(base.sigmas()) < UNINFORMATIVE))
-            if base is model:
+            model, base, dim = gaussian_part(factor)
+            self.dim += dim
+            if base is model:  # no kernel (or no noise model): judged as it is
                 self.plain.push_back(factor)
             elif isinstance(factor, gtsam.CustomFactor):
                 self.loose.push_back(factor)
