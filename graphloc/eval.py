@@ -3,8 +3,9 @@ aligning the estimate to ground truth) and RPE (relative pose error over a fixed
 for planar (SE(2)) or 3D (SE(3)) trajectories; TUM trajectory files.
 
 Planar trajectories are aligned in SE(2): evo's Umeyama alignment run on the 2-D positions
-(rotation about z + translation, no scale), then evo's APE / RPE on the aligned trajectory.
-3D trajectories use evo's SE(3) Umeyama alignment.
+(rotation about z + translation, no scale), then evo's APE on the aligned trajectory and evo's
+RPE (`relative_pose_errors`: the same pairs and error poses, over all pairs at once). 3D
+trajectories use evo's SE(3) Umeyama alignment.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 from evo.core import geometry, metrics, sync
 from evo.core.trajectory import PoseTrajectory3D
 from evo.tools import file_interface
+from scipy.spatial.transform import Rotation
 
 from graphloc.names import written_whole
 
@@ -59,14 +61,50 @@ def align_se2(reference: PoseTrajectory3D, estimate: PoseTrajectory3D) -> PoseTr
     """Copy of `estimate` rigidly aligned to `reference` in the plane (Umeyama on x, y);
     ValueError when the alignment is undetermined (`_umeyama`)."""
     R2, t2, _ = _umeyama(estimate.positions_xyz[:, :2].T, reference.positions_xyz[:, :2].T)
-    T = np.eye(4)
-    T[:2, :2] = R2
-    T[:2, 3] = t2
-    aligned = PoseTrajectory3D(
-        poses_se3=[p.copy() for p in estimate.poses_se3], timestamps=estimate.timestamps.copy()
+    R, t = np.eye(3), np.zeros(3)
+    R[:2, :2], t[:2] = R2, t2
+    return _moved(estimate, R, t)
+
+
+def _rotations(traj: PoseTrajectory3D) -> Rotation:
+    """The orientations of `traj` as one SciPy `Rotation` (evo keeps quaternions w, x, y, z)."""
+    return Rotation.from_quat(traj.orientations_quat_wxyz[:, [1, 2, 3, 0]])
+
+
+def _moved(
+    traj: PoseTrajectory3D, R: np.ndarray, t: np.ndarray, scale: float = 1.0
+) -> PoseTrajectory3D:
+    """Copy of `traj` with every pose moved by (R, t) after its positions are scaled by `scale`:
+    what evo's `scale(scale)` then `transform(T)` make of it (T @ pose for every pose), over all
+    poses at once instead of one 4x4 product each."""
+    quat = (Rotation.from_matrix(R) * _rotations(traj)).as_quat()[:, [3, 0, 1, 2]]
+    return PoseTrajectory3D(
+        positions_xyz=scale * traj.positions_xyz @ R.T + t,
+        orientations_quat_wxyz=quat,
+        timestamps=traj.timestamps.copy(),
     )
-    aligned.transform(T)
-    return aligned
+
+
+def relative_pose_errors(
+    reference: PoseTrajectory3D, estimate: PoseTrajectory3D, delta: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """evo's RPE over consecutive pairs `delta` poses apart (`metrics.RPE(..., delta,
+    Unit.frames, all_pairs=False)`): for pairs (i, j) = (0, delta), (delta, 2 delta), ... the
+    error pose E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j) of the reference Q and the estimate P (TUM RGB-D
+    benchmark, Sturm et al. 2012, eq. 1), as (translation norms [m], rotation angles [deg]) --
+    evo's `translation_part` and `rotation_angle_deg` relations -- computed for all pairs at
+    once (evo forms one 4x4 matrix per pose and pair in Python: seconds on a long run). The
+    translation of E is the reference step's rotation applied to the difference of the two
+    steps' translations, so its norm is that difference's."""
+    ids = np.arange(0, reference.num_poses, delta)
+    i, j = ids[:-1], ids[1:]
+
+    def steps(traj):
+        R, p = _rotations(traj), traj.positions_xyz
+        return R[i].inv() * R[j], R[i].inv().apply(p[j] - p[i])
+
+    (Rq, tq), (Rp, tp) = steps(reference), steps(estimate)
+    return np.linalg.norm(tp - tq, axis=1), np.degrees((Rq.inv() * Rp).magnitude())
 
 
 MAX_TIME_DIFF = 0.02  # [s] default of the metrics' time association (estimate vs ground truth)
@@ -92,15 +130,7 @@ def _align_se3(
     """Copy of `estimate` aligned to `reference` in SE(3) (evo's Umeyama; Sim(3) with
     `with_scale`, as evo's `align(correct_scale=True)`)."""
     R, t, c = _umeyama(estimate.positions_xyz.T, reference.positions_xyz.T, with_scale)
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, t
-    aligned = PoseTrajectory3D(
-        poses_se3=[p.copy() for p in estimate.poses_se3], timestamps=estimate.timestamps.copy()
-    )
-    if with_scale:
-        aligned.scale(c)
-    aligned.transform(T)
-    return aligned
+    return _moved(estimate, R, t, c if with_scale else 1.0)
 
 
 def trajectory_metrics(
@@ -137,27 +167,14 @@ def trajectory_metrics(
     delta = max(
         1, min(int(round(rpe_delta_s / period)), ref.num_poses - 1)
     )  # short runs: the longest pair
-    rpe_t = metrics.RPE(
-        metrics.PoseRelation.translation_part,
-        delta=delta,
-        delta_unit=metrics.Unit.frames,
-        all_pairs=False,
-    )
-    rpe_t.process_data((ref, est))
-    rpe_r = metrics.RPE(
-        metrics.PoseRelation.rotation_angle_deg,
-        delta=delta,
-        delta_unit=metrics.Unit.frames,
-        all_pairs=False,
-    )
-    rpe_r.process_data((ref, est))
+    rpe_t, rpe_r = relative_pose_errors(ref, est, delta)
     return TrajectoryMetrics(
         ate_rmse=float(stats["rmse"]),
         ate_mean=float(stats["mean"]),
         ate_median=float(stats["median"]),
         ate_max=float(stats["max"]),
-        rpe_trans_rmse=float(rpe_t.get_statistic(metrics.StatisticsType.rmse)),
-        rpe_rot_rmse=float(rpe_r.get_statistic(metrics.StatisticsType.rmse)),
+        rpe_trans_rmse=float(np.sqrt(np.mean(rpe_t**2))),
+        rpe_rot_rmse=float(np.sqrt(np.mean(rpe_r**2))),
         rpe_delta_s=delta * period,
         n_matched=int(ref.num_poses),
         aligned=align,

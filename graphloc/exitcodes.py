@@ -31,3 +31,10 @@ class SolverFailure(ValueError):
     """The input was read but GTSAM could not solve it (an indeterminate or ill-conditioned
     system): FAILED, not BAD_INPUT. A ValueError, so that callers that try another start or
     drop a hypothesis on a failed solve (`team_graph.solve`) still catch it."""
+
+
+class OutputDropped(BaseException):
+    """A stop signal arrived while an output that may be left out was being written (a figure,
+    seconds to draw on a long run): the writer drops that output and lists it as skipped
+    (`pipelines.report.write_outputs`). A BaseException, as KeyboardInterrupt, so that no
+    `except Exception` of the drawing library swallows it."""

@@ -106,3 +106,62 @@ def test_the_options_offer_the_alignments_evaluation_knows():
     assert OFFERED == ALIGNMENTS
     with pytest.raises(ValueError, match="align"):
         RunOptions(align="sim2")
+
+
+def _random_trajectory(rng, n, planar):
+    """A wandering 3D (or planar) trajectory with noisy orientations, evo's type."""
+    from evo.core.trajectory import PoseTrajectory3D
+    from scipy.spatial.transform import Rotation
+
+    xyz = np.cumsum(rng.normal(0, 0.2, (n, 3)), axis=0)
+    if planar:
+        xyz[:, 2] = 0
+        rot = Rotation.from_euler("z", np.cumsum(rng.normal(0, 0.1, n))[:, None])
+    else:
+        rot = Rotation.from_rotvec(np.cumsum(rng.normal(0, 0.1, (n, 3)), axis=0))
+    return PoseTrajectory3D(
+        positions_xyz=xyz,
+        orientations_quat_wxyz=rot.as_quat()[:, [3, 0, 1, 2]],
+        timestamps=np.arange(n) * 0.1,
+    )
+
+
+@pytest.mark.parametrize("align", ["none", "se2", "se3", "sim3"])
+@pytest.mark.parametrize("delta", [1, 7])
+def test_metrics_equal_evos_own_alignment_and_rpe(align, delta):
+    """`trajectory_metrics` aligns and computes the RPE over all poses at once; evo's own
+    `align` and `RPE` (one 4x4 matrix per pose) on the same pairs give the same numbers."""
+    import copy
+
+    from evo.core import metrics
+
+    from graphloc.eval import relative_pose_errors
+
+    rng = np.random.default_rng(delta)
+    planar = align == "se2"
+    ref = _random_trajectory(rng, 300, planar)
+    est = _random_trajectory(rng, 300, planar)
+    m = trajectory_metrics(ref, est, align=align, rpe_delta_s=delta * 0.1, associated=True)
+    aligned = copy.deepcopy(est)
+    if align == "se2":  # evo has no planar alignment: Umeyama on x, y lifted to 3D
+        from evo.core import geometry
+
+        R2, t2, _ = geometry.umeyama_alignment(est.positions_xyz[:, :2].T, ref.positions_xyz[:, :2].T)
+        T = np.eye(4)
+        T[:2, :2], T[:2, 3] = R2, t2
+        aligned.transform(T)
+    elif align in ("se3", "sim3"):
+        aligned.align(ref, correct_scale=align == "sim3")
+    ape = metrics.APE(metrics.PoseRelation.translation_part)
+    ape.process_data((ref, aligned))
+    assert m.ate_rmse == pytest.approx(ape.get_statistic(metrics.StatisticsType.rmse), rel=1e-9)
+    for relation, ours in (
+        (metrics.PoseRelation.translation_part, m.rpe_trans_rmse),
+        (metrics.PoseRelation.rotation_angle_deg, m.rpe_rot_rmse),
+    ):
+        rpe = metrics.RPE(relation, delta=delta, delta_unit=metrics.Unit.frames, all_pairs=False)
+        rpe.process_data((ref, aligned))
+        assert ours == pytest.approx(rpe.get_statistic(metrics.StatisticsType.rmse), rel=1e-9)
+        assert ours > 1e-3  # the trajectories differ: a test that can fail
+    trans, rot = relative_pose_errors(ref, aligned, delta)
+    assert len(trans) == len(rot) == len(range(0, 300, delta)) - 1

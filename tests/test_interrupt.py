@@ -135,6 +135,47 @@ def test_stop_flag_by_phase():
     assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
 
 
+def test_a_signal_while_a_figure_is_drawn_drops_it(sim_run, tmp_path, monkeypatch):
+    """Writing: a figure takes seconds to draw on a long run; a signal while it is drawn drops
+    it at once (listed in "skipped_outputs", no file, no temporary left), every other output
+    is written, exit code 3."""
+    import graphloc.pipelines.report as report
+
+    drawn = []
+
+    def slow_figure(result, run, out, truth, rate, align):
+        def job():
+            signal.raise_signal(signal.SIGINT)  # arrives while the figure is drawn
+            drawn.append("finished")  # not reached: the signal dropped it
+            (out / "slow.png").write_bytes(b"not a figure")
+            return out / "slow.png"
+
+        return [("slow.png", job), ("later.png", lambda: drawn.append("later"))]
+
+    monkeypatch.setattr(report, "plot_jobs", slow_figure)
+    out = tmp_path / "out"
+    assert main(["smooth", str(sim_run), "--out", str(out), "--no-progress", "-q"]) == 3
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["skipped_outputs"] == ["slow.png", "later.png"]
+    assert metrics["stopped_by"] == "SIGINT" and metrics["partial"] is False
+    assert drawn == [] and not (out / "slow.png").exists()
+    assert list(out.glob("*.tum")) and not list(out.glob(".*"))
+
+
+def test_stop_flag_drops_only_inside_its_droppable_block():
+    from graphloc.exitcodes import OutputDropped
+
+    with StopFlag() as stop:
+        stop.phase = "writing"
+        with pytest.raises(OutputDropped), stop.droppable():
+            signal.raise_signal(signal.SIGINT)
+        assert stop() and not stop._droppable
+    with StopFlag() as stop:
+        stop.phase = "writing"
+        signal.raise_signal(signal.SIGINT)  # outside the block: the output is finished
+        assert stop()
+
+
 def _initializing_frame():
     loader = importlib.machinery.ExtensionFileLoader("fake", "/nonexistent/fake.so")
     return SimpleNamespace(

@@ -12,6 +12,7 @@ defaults) hold."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib.machinery
 import json
 import os
@@ -23,7 +24,7 @@ from pathlib import Path
 
 from graphloc import many_runs
 from graphloc.commands.common import Interrupted
-from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, INTERRUPTED, OK
+from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, INTERRUPTED, OK, OutputDropped
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph.options import RunOptions
 from graphloc.structured import dumps_json
@@ -73,7 +74,8 @@ class StopFlag:
       signal ends the verb at once (`Interrupted`, exit code 130, a line saying so);
     - "solving": the flag is set (`stop()` is True); the solve finishes its step (online) or LM
       iteration (batch) and stops, and the outputs so far are written (exit code 3);
-    - "writing" (the solve is done): the outputs being written are finished.
+    - "writing" (the solve is done): the outputs being written are finished, except a figure
+      being drawn (`droppable`): it is dropped at once (`OutputDropped`) and listed as skipped.
 
     A second signal interrupts at once in every phase (`Interrupted`, 130). A signal that
     arrives during an import (a C extension initializing -- GTSAM, Open3D, OpenCV: an exception
@@ -93,9 +95,20 @@ class StopFlag:
         self.phase = "reading"
         self._old: dict = {}
         self._pending: int | None = None
+        self._droppable = False
 
     def __call__(self) -> bool:
         return self.signal is not None
+
+    @contextlib.contextmanager
+    def droppable(self):
+        """While the block runs, a first signal in the writing phase raises `OutputDropped`
+        in it (the output it writes may be left out) instead of letting it finish."""
+        self._droppable = True
+        try:
+            yield
+        finally:
+            self._droppable = False
 
     @staticmethod
     def _initializing_extension(frame) -> bool:
@@ -148,6 +161,9 @@ class StopFlag:
         else:
             said = "finishing writing the outputs"
         print(f"\n{name}: {said}; a second signal stops at once", file=sys.stderr, flush=True)
+        if self._droppable and self.phase == "writing":
+            self._droppable = False
+            raise OutputDropped(name)
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():

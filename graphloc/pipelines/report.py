@@ -7,6 +7,7 @@ written at the estimate's rate unless asked otherwise (`graphloc.pipelines.groun
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 from dataclasses import asdict
@@ -17,6 +18,7 @@ import numpy as np
 from tqdm import tqdm
 
 from graphloc.eval import trajectory_metrics, write_tum
+from graphloc.exitcodes import OutputDropped
 from graphloc.pipelines.groundtruth import (
     GroundTruth,
     alignment,
@@ -243,7 +245,8 @@ def write_outputs(
     `evaluate`; align: `--align` (the metrics' alignment). stop(): once True (a signal,
     `graphloc.commands.smooth.StopFlag`) the PNGs not drawn yet are left out -- as are all of
     them when the solve was stopped or the metrics were not evaluated -- and metrics.json lists
-    them in "skipped_outputs"."""
+    them in "skipped_outputs"; a `stop` with a `droppable()` block (`StopFlag`) drops the PNG
+    being drawn when the signal arrives (`OutputDropped`) instead of finishing it."""
     truth = groundtruths(run) if truth is None else truth
     out.mkdir(parents=True, exist_ok=True)
     jobs = []  # (file name, writer)
@@ -289,6 +292,15 @@ def write_outputs(
             written.append(write_metrics(out, metrics))
         elif kind and (stopped or (stop is not None and stop())):
             skipped.append(name)
+        elif kind:  # a figure: a signal while it is drawn drops it (`OutputDropped`)
+            try:
+                with getattr(stop, "droppable", contextlib.nullcontext)():
+                    path = job()
+            except OutputDropped:
+                skipped.append(name)
+                continue
+            if path is not None:
+                written.append(path)
         elif (path := job()) is not None:
             written.append(path)
     bar.close()
