@@ -146,7 +146,9 @@ def test_metrics_equal_evos_own_alignment_and_rpe(align, delta):
     if align == "se2":  # evo has no planar alignment: Umeyama on x, y lifted to 3D
         from evo.core import geometry
 
-        R2, t2, _ = geometry.umeyama_alignment(est.positions_xyz[:, :2].T, ref.positions_xyz[:, :2].T)
+        R2, t2, _ = geometry.umeyama_alignment(
+            est.positions_xyz[:, :2].T, ref.positions_xyz[:, :2].T
+        )
         T = np.eye(4)
         T[:2, :2], T[:2, 3] = R2, t2
         aligned.transform(T)
