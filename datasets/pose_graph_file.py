@@ -12,9 +12,22 @@ edge gets `CITY_SIGMAS` (x, y, theta), the sigmas of GTSAM's example.
 g2o: `VERTEX_SE2 id x y theta`, `EDGE_SE2 i j x y theta` + the 6 upper-triangular entries of the
 information matrix; `VERTEX_SE3:QUAT id x y z qx qy qz qw`, `EDGE_SE3:QUAT i j x y z qx qy qz qw`
 + 21 entries (g2o's order: translation, then rotation; stored here in GTSAM's tangent order,
-rotation first, as `gtsam.readG2o` does). Alternatives: consecutive edge lines between the same
-two vertices are the candidates of one measurement; `null_on_loops=True` gives every loop
-closure (an edge not between consecutive ids) a null component, for outlier-robust runs.
+rotation first, as `gtsam.readG2o` does). Every edge line is its own measurement, as g2o reads
+it (two edges between the same vertices are two measurements, both held). Discrete
+alternatives and possible outliers are marked with the g2o types of Vertigo's robust
+back-ends (github.com/OpenSLAM-org/openslam_vertigo, `datasets/generateDataset.py`):
+
+    EDGE_SE2_SWITCHABLE i j switch_id x y theta info(6)     a loop closure that may be an
+    EDGE_SE2_MAXMIX     i j weight    x y theta info(6)     outlier: a null component
+    EDGE_SE2_MIXTURE    i j n  (EDGE_SE2 weight i j x y theta info(6)) * n     n candidates
+
+(3D: `EDGE_SE3_SWITCHABLE`, `EDGE_SE3_MAXMIX`, `EDGE_SE3_MIXTURE` with `EDGE_SE3:QUAT`
+payloads; a mixture's components may be tagged `EDGE_SE3:QUAT` or `EDGE_SE3`). The null
+component replaces Vertigo's switch variables and the max-mixture's weighted outlier mode, so
+`VERTEX_SWITCH` / `EDGE_SWITCH_PRIOR` lines and the switch id / weight fields are read and not
+used (counted under `switch_variable`; a mixture's component weights likewise, the candidates
+are equally likely a priori). `null_on_loops=True` gives every loop closure (an edge not
+between consecutive ids) a null component, for outlier-robust runs of plain g2o files.
 
 Other tags (landmark vertices and edges, `FIX`, ...) are counted skips. A malformed line is a
 ValueError naming file, line and field (`on_error="raise"`) or a counted skip (`"skip"`) in
@@ -39,6 +52,14 @@ MAX_CANDIDATES = 64
 MAX_KEY = 2**40
 # tag -> (dimension, number of pose numbers, number of information entries)
 _G2O_EDGES = {"EDGE_SE2": (2, 3, 6), "EDGE_SE3:QUAT": (3, 7, 21)}
+# Vertigo's robust edge types (module docstring): tag -> (dimension, kind)
+_G2O_MARKED = {
+    "EDGE_SE2_SWITCHABLE": (2, "null"), "EDGE_SE3_SWITCHABLE": (3, "null"),
+    "EDGE_SE2_MAXMIX": (2, "null"), "EDGE_SE3_MAXMIX": (3, "null"),
+    "EDGE_SE2_MIXTURE": (2, "mixture"), "EDGE_SE3_MIXTURE": (3, "mixture"),
+}  # fmt: skip
+_G2O_COMPONENTS = {2: ("EDGE_SE2",), 3: ("EDGE_SE3:QUAT", "EDGE_SE3")}
+_G2O_SWITCHES = ("VERTEX_SWITCH", "EDGE_SWITCH_PRIOR")
 _G2O_VERTICES = {"VERTEX_SE2": (2, 3), "VERTEX_SE3:QUAT": (3, 7)}
 
 
@@ -126,7 +147,6 @@ def read_pose_graph(
     check_file(path, what="pose-graph file")
     sink = Sink(on_error, SkipReport())
     dims, formats, vertices, measurements = set(), set(), {}, []
-    previous: Measurement | None = None
     for line_no, text in text_lines(path):
         parts = text.split()
         if not parts or parts[0].startswith("#"):
@@ -141,7 +161,23 @@ def read_pose_graph(
             elif tag in _G2O_EDGES:
                 formats.add("g2o")
                 dims.add(_G2O_EDGES[tag][0])
-                m = _g2o_edge(row, line_no, tag)
+                m = _g2o_edge(row, line_no, _G2O_EDGES[tag][0])
+            elif tag in _G2O_MARKED:
+                formats.add("g2o")
+                dim, kind = _G2O_MARKED[tag]
+                dims.add(dim)
+                m = (
+                    _g2o_mixture(row, line_no, dim)
+                    if kind == "mixture"
+                    else _g2o_null(row, line_no, dim)
+                )
+            elif tag in _G2O_SWITCHES:
+                sink.report.add(
+                    "switch_variable",
+                    f"{path}: line {line_no}: {tag}: Vertigo's switch variable, replaced by the "
+                    "null component of its switchable edge",
+                )
+                continue
             elif tag in _G2O_VERTICES:
                 dim, n = _G2O_VERTICES[tag]
                 dims.add(dim)
@@ -159,13 +195,9 @@ def read_pose_graph(
         if m.source == m.target:
             sink.bad("self_edge", f"{path}: line {line_no}: field 2 (source) = target {m.target}")
             continue
-        if tag != "EDGE2" and previous is not None and _same_pair(previous, m):
-            measurements[-1] = previous = _merged(previous, m)  # an alternative of the last
-            continue
         if max_edges is not None and len(measurements) >= max_edges:
             break
         measurements.append(m)
-        previous = m
     if not measurements:
         raise ValueError(f"{path}: no edge read ({sink.report.total} lines skipped)")
     if null_on_loops:
@@ -190,14 +222,14 @@ def _city_edge(row: _Line, line_no: int) -> Measurement:
     return Measurement(line_no, source, target, tuple(values), None, bool(flag))
 
 
-def _g2o_edge(row: _Line, line_no: int, tag: str) -> Measurement:
-    dim, n_pose, n_info = _G2O_EDGES[tag]
-    row.exact_count(3 + n_pose + n_info, tag)
-    source, target = row.integer(1, "source"), row.integer(2, "target")
+def _g2o_payload(row: _Line, dim: int, start: int) -> tuple[np.ndarray, np.ndarray]:
+    """The relative pose and information matrix (GTSAM's tangent order) of a g2o edge whose
+    pose numbers start at field `start`."""
+    _, n_pose, n_info = _G2O_EDGES["EDGE_SE2" if dim == 2 else "EDGE_SE3:QUAT"]
     pose = row.numbers(
-        3, ["x", "y", "theta"] if dim == 2 else list("xyz") + ["qx", "qy", "qz", "qw"]
+        start, ["x", "y", "theta"] if dim == 2 else list("xyz") + ["qx", "qy", "qz", "qw"]
     )
-    upper = row.numbers(3 + n_pose, [f"info{k}" for k in range(n_info)])
+    upper = row.numbers(start + n_pose, [f"info{k}" for k in range(n_info)])
     size = 3 if dim == 2 else 6
     info = np.zeros((size, size))
     info[np.triu_indices(size)] = upper
@@ -205,22 +237,61 @@ def _g2o_edge(row: _Line, line_no: int, tag: str) -> Measurement:
     if dim == 3:
         norm = float(np.linalg.norm(pose[3:]))
         if not 0.5 < norm < 2.0:
-            raise _Bad(*row.error("quaternion", 6, "qx..qw", f"norm {norm:.3g} is not ~1"))
+            raise _Bad(*row.error("quaternion", start + 3, "qx..qw", f"norm {norm:.3g} is not ~1"))
         pose[3:] /= norm
         order = [3, 4, 5, 0, 1, 2]  # g2o (t, R) -> GTSAM (R, t)
         info = info[np.ix_(order, order)]
     if np.any(np.linalg.eigvalsh(info) <= 0):
-        raise _Bad(*row.error("information", 3 + n_pose, "information", "not positive definite"))
+        raise _Bad(
+            *row.error("information", start + n_pose, "information", "not positive definite")
+        )
+    return pose, info
+
+
+def _payload_width(dim: int) -> int:
+    _, n_pose, n_info = _G2O_EDGES["EDGE_SE2" if dim == 2 else "EDGE_SE3:QUAT"]
+    return n_pose + n_info
+
+
+def _g2o_edge(row: _Line, line_no: int, dim: int) -> Measurement:
+    """`EDGE_SE2` / `EDGE_SE3:QUAT i j pose info`: one certain measurement."""
+    row.exact_count(3 + _payload_width(dim), row.parts[0])
+    source, target = row.integer(1, "source"), row.integer(2, "target")
+    pose, info = _g2o_payload(row, dim, 3)
     return Measurement(line_no, source, target, (pose,), (info,))
 
 
-def _same_pair(a: Measurement, b: Measurement) -> bool:
-    return (a.source, a.target) == (b.source, b.target)
+def _g2o_null(row: _Line, line_no: int, dim: int) -> Measurement:
+    """Vertigo's `EDGE_SE*_SWITCHABLE i j switch_id pose info` / `EDGE_SE*_MAXMIX i j weight
+    pose info`: one candidate and a null component (the switch id / weight is read, not used)."""
+    row.exact_count(4 + _payload_width(dim), row.parts[0])
+    source, target = row.integer(1, "source"), row.integer(2, "target")
+    row.numbers(3, ["switch id" if row.parts[0].endswith("SWITCHABLE") else "weight"])
+    pose, info = _g2o_payload(row, dim, 4)
+    return Measurement(line_no, source, target, (pose,), (info,), True)
 
 
-def _merged(a: Measurement, b: Measurement) -> Measurement:
-    info = None if a.information is None else a.information + b.information
-    return replace(a, candidates=a.candidates + b.candidates, information=info)
+def _g2o_mixture(row: _Line, line_no: int, dim: int) -> Measurement:
+    """`EDGE_SE*_MIXTURE i j n` + n components `<edge tag> weight i j pose info`: n candidates
+    of one measurement (the weights are read, not used: the candidates are equally likely)."""
+    source, target = row.integer(1, "source"), row.integer(2, "target")
+    n = row.integer(3, "component count", 1, MAX_CANDIDATES)
+    width = 4 + _payload_width(dim)
+    row.exact_count(4 + n * width, f"{row.parts[0]} with {n} components")
+    poses, infos = [], []
+    for k in range(n):
+        base = 4 + k * width
+        if row.parts[base] not in _G2O_COMPONENTS[dim]:
+            raise _Bad(*row.error("parse", base, f"component {k + 1} tag", "not a g2o edge tag"))
+        row.numbers(base + 1, [f"component {k + 1} weight"])
+        for offset, name, value in ((2, "source", source), (3, "target", target)):
+            if row.integer(base + offset, f"component {k + 1} {name}") != value:
+                raise _Bad(*row.error("range", base + offset, f"component {k + 1} {name}",
+                                      f"not the mixture's {name} {value}"))  # fmt: skip
+        pose, info = _g2o_payload(row, dim, base + 4)
+        poses.append(pose)
+        infos.append(info)
+    return Measurement(line_no, source, target, tuple(poses), tuple(infos))
 
 
 def permute_candidates(measurements: list[Measurement], seed: int):

@@ -127,22 +127,54 @@ def test_reader_skips_are_counted(tmp_path):
 def test_reader_g2o_alternatives_3d_order_and_mixing(tmp_path):
     info = " ".join(["100", "0", "0", "0", "0", "0", "100", "0", "0", "0", "0", "100"]
                     + ["0", "0", "0", "400", "0", "0", "400", "0", "400"])  # fmt: skip
+    turn = "0 1 0 0 0 0.7071 0.7071"
     lines = [
         "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1",
         f"EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 {info}",
-        f"EDGE_SE3:QUAT 1 2 1 0 0 0 0 0 1 {info}",
-        f"EDGE_SE3:QUAT 1 2 0 1 0 0 0 0.7071 0.7071 {info}",  # an alternative of the last
+        f"EDGE_SE3:QUAT 0 1 1.1 0 0 0 0 0 1 {info}",  # a second measurement, as g2o reads it
+        # two candidates (Vertigo's mixture type; its weights are read, not used)
+        f"EDGE_SE3_MIXTURE 1 2 2 EDGE_SE3:QUAT 1 1 2 1 0 0 0 0 0 1 {info} "
+        f"EDGE_SE3 0.5 1 2 {turn} {info}",
     ]
     graph = read_pose_graph(write(tmp_path, lines))
-    assert graph.dim == 3 and len(graph.measurements) == 2 and graph.vertices
-    m = graph.measurements[1]
-    assert len(m.candidates) == 2 and np.isclose(np.linalg.norm(m.candidates[1][3:]), 1.0)
+    assert graph.dim == 3 and len(graph.measurements) == 3 and graph.vertices
+    assert [len(m.candidates) for m in graph.measurements] == [1, 1, 2]
+    m = graph.measurements[2]
+    assert m.ambiguous and not m.null and np.isclose(np.linalg.norm(m.candidates[1][3:]), 1.0)
     assert np.allclose(np.diag(m.information[0]), [400, 400, 400, 100, 100, 100])  # GTSAM order
     with pytest.raises(ValueError, match="mixes 2D and 3D"):
         read_pose_graph(write(tmp_path, lines + ["EDGE_SE2 2 3 1 0 0 1 0 0 1 0 1"], "mix.g2o"))
-    null = read_pose_graph(write(tmp_path, lines[:3] + [lines[3].replace(" 1 2 ", " 0 2 ")]),
-                           null_on_loops=True)  # fmt: skip
+    loop = lines[:2] + [
+        f"EDGE_SE3:QUAT 1 2 1 0 0 0 0 0 1 {info}",
+        f"EDGE_SE3:QUAT 0 2 {turn} {info}",
+    ]
+    null = read_pose_graph(write(tmp_path, loop, "loop.g2o"), null_on_loops=True)
     assert [m.null for m in null.measurements] == [False, False, True]
+    bad = lines[:3] + [lines[3].replace("EDGE_SE3 0.5 1 2", "EDGE_SE3 0.5 1 3")]
+    with pytest.raises(ValueError, match="line 4: field 40 \\(component 2 target\\)"):
+        read_pose_graph(write(tmp_path, bad, "bad.g2o"))
+
+
+def test_reader_g2o_vertigo_outlier_marks(tmp_path):
+    """Vertigo's switchable and max-mixture edges are loop closures with a null component; its
+    switch variables are counted, not used; plain edges carry none."""
+    info = "100 0 0 100 0 400"
+    lines = [
+        "VERTEX_SE2 0 0 0 0",
+        f"EDGE_SE2 0 1 1 0 0 {info}",
+        f"EDGE_SE2 1 2 1 0 0 {info}",
+        "VERTEX_SWITCH 3 1",
+        "EDGE_SWITCH_PRIOR 3 1 1",
+        f"EDGE_SE2_SWITCHABLE 0 2 3 2 0 0 {info}",
+        f"EDGE_SE2_MAXMIX 2 0 0.01 -2 0 0 {info}",
+    ]
+    graph = read_pose_graph(write(tmp_path, lines, "vertigo.g2o"))
+    assert [m.null for m in graph.measurements] == [False, False, True, True]
+    assert all(len(m.candidates) == 1 for m in graph.measurements)
+    assert graph.skips.counts == {"switch_variable": 2}
+    engine, estimate = run_engine(graph.measurements)
+    assert engine.choices()[2] == 0 and engine.choices()[3] == 0  # both closures fit: kept
+    assert np.isclose(estimate.atPose2(X(2)).x(), 2.0, atol=1e-6)
 
 
 # ---- the engine ------------------------------------------------------------------------------

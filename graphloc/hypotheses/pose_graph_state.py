@@ -43,6 +43,7 @@ class Ambiguity:
     state: str = "bridge"  # bridge | open | decided
     opened: int = -1  # the step it was opened in
     choice: int = 0  # decided (or provisional) candidate
+    slot: int = -1  # decided with a factor: its index in the engine's graph of decided factors
 
 
 @dataclass
