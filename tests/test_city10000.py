@@ -293,3 +293,32 @@ def test_api_doc_block_runs_as_written():
     exec(compile(block, str(doc), "exec"), namespace)
     decided, truth, choices = namespace["decided"], namespace["truth"], namespace["choices"]
     assert decided and all(choices[i] == truth[i] for i in decided)
+
+
+def test_decisions_with_a_null_are_taken_again_at_the_optimum():
+    """`redecided`: a true loop closure decided null (judged against a drifted estimate) is
+    taken back, an outlier decided in is taken out, each by its cost at the optimum of the
+    other decisions against the null's; the estimate is re-optimized."""
+    from graphloc.hypotheses.pose_graph_refine import redecided
+    from graphloc.hypotheses.pose_graph_state import Ambiguity
+
+    noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([0.05, 0.05, 0.01]))
+    graph = gtsam.NonlinearFactorGraph()
+    graph.add(gtsam.PriorFactorPose2(X(0), gtsam.Pose2(), noise))
+    values = gtsam.Values()
+    for k in range(4):  # a square, the odometry's turns a little wide
+        graph.add(gtsam.BetweenFactorPose2(X(k), X(k + 1), gtsam.Pose2(1.05, 0, np.pi / 2 + 0.005), noise))
+    for k in range(5):
+        values.insert(X(k), gtsam.Pose2())
+    true_loop = gtsam.BetweenFactorPose2(X(0), X(4), gtsam.Pose2(), noise)
+    outlier = gtsam.BetweenFactorPose2(X(1), X(3), gtsam.Pose2(3, 3, 1), noise)
+    rejected = Ambiguity(0, [true_loop, None], [None], (X(0), X(4)), -1, state="decided", choice=1)
+    accepted = Ambiguity(1, [outlier, None], [None], (X(1), X(3)), -1, state="decided", choice=0)
+    accepted.slot = graph.size()
+    graph.add(outlier)
+    start = gtsam.LevenbergMarquardtOptimizer(graph, values).optimize()
+    estimate, changed = redecided(graph, start, [rejected, accepted], 16.27, rounds=5)
+    assert changed == 2 and rejected.choice == 0 and accepted.choice == 1
+    assert 2 * true_loop.error(estimate) < 16.27 < 2 * outlier.error(estimate)
+    gap = [np.hypot(v.atPose2(X(4)).x(), v.atPose2(X(4)).y()) for v in (start, estimate)]
+    assert gap[1] < 0.2 * gap[0]  # the loop closes

@@ -196,3 +196,26 @@ def marginal_bound_chi2(factor, values: gtsam.Values, cov_a, cov_b) -> float:
     r = np.asarray(factor.unwhitenedError(values), float)
     cov = factor.noiseModel().covariance() + 2.0 * (ad @ cov_a @ ad.T + cov_b)
     return float(r @ np.linalg.solve(cov, r))
+
+
+def marginals(isam, estimate, pose, order: list, position: dict, edge_cov: list):
+    """key -> marginal covariance in a branch's iSAM2 (a pose not in it yet: its predecessor's
+    propagated through the edge between them, `edge_cov` by insertion position), cached for
+    one branching; None where an edge's covariance is unknown."""
+    cache = {}
+
+    def marginal(key):
+        if key not in cache:
+            if estimate.exists(key):
+                cache[key] = isam.marginalCovariance(key)
+            else:
+                q = position[key]
+                before = marginal(order[q - 1]) if q > 0 else None
+                if before is None or edge_cov[q] is None:
+                    cache[key] = None
+                else:
+                    ad = pose(order[q - 1]).between(pose(key)).inverse().AdjointMap()
+                    cache[key] = ad @ before @ ad.T + edge_cov[q]
+        return cache[key]
+
+    return marginal

@@ -42,6 +42,7 @@ import gtsam
 from gtsam.symbol_shorthand import X
 
 from graphloc.hypotheses import branching as br
+from graphloc.hypotheses.pose_graph_refine import redecided, refinement
 from graphloc.hypotheses.pose_graph_state import Ambiguity, Branch, PoseGraphConfig
 
 __all__ = ["Ambiguity", "Branch", "PoseGraphConfig", "PoseGraphHypotheses"]
@@ -247,7 +248,10 @@ class PoseGraphHypotheses:
             ranked.append((chi2, combo, moves, factors, penalty))
         ranked.sort(key=lambda r: r[0])
         best = ranked[0][0]
-        out, marginal = [], self._marginals(parent, estimate, pose)
+        out = []
+        marginal = br.marginals(
+            parent.isam, estimate, pose, self.order, self.position, self.edge_cov
+        )
         for chi2, combo, moves, factors, penalty in ranked[: c.max_branches]:
             margin = c.null_margin if penalty else c.margin  # a null's cost is exact
             if chi2 > best + margin:
@@ -286,27 +290,6 @@ class PoseGraphHypotheses:
             if cov_a is not None and cov_b is not None:
                 bound = max(bound, br.marginal_bound_chi2(factor, values, cov_a, cov_b))
         return bound
-
-    def _marginals(self, parent: Branch, estimate: gtsam.Values, pose):
-        """key -> marginal covariance in `parent` (a pose of this step: its predecessor's
-        propagated through the edge between them), cached for one branching."""
-        cache = {}
-
-        def marginal(key):
-            if key not in cache:
-                if estimate.exists(key):
-                    cache[key] = parent.isam.marginalCovariance(key)
-                else:
-                    q = self.position[key]
-                    before = marginal(self.order[q - 1]) if q > 0 else None
-                    if before is None or self.edge_cov[q] is None:
-                        cache[key] = None
-                    else:
-                        ad = pose(self.order[q - 1]).between(pose(key)).inverse().AdjointMap()
-                        cache[key] = ad @ before @ ad.T + self.edge_cov[q]
-            return cache[key]
-
-        return marginal
 
     def _rebuild(self, choice: dict, values: gtsam.Values) -> gtsam.ISAM2:
         """A new iSAM2 of the known poses under `choice` (this step's factors not yet in),
@@ -377,8 +360,8 @@ class PoseGraphHypotheses:
         (`calculateBestEstimate`, no wildfire cut-off); with `refine`, Levenberg-Marquardt on
         the branch's graph from there (iSAM2 leaves each variable linearized up to its
         relinearization threshold away from the optimum; this removes that last error), and
-        the measurements with a null component decided again at that optimum (`_redecided`,
-        at most `redecide` rounds)."""
+        the measurements with a null component decided again at that optimum
+        (`pose_graph_refine.redecided`, at most `redecide` rounds)."""
         if len(self.branches) > 1:
             self.judge(force=True)
         self.branches[0].flush()
@@ -393,58 +376,12 @@ class PoseGraphHypotheses:
             graph = gtsam.NonlinearFactorGraph(self.common)  # decided factors, at their slots
             for index in self.bridges:  # never spanned: their first candidate
                 graph.add(self.ambiguities[index].factors[self.branches[0].choice[index]])
-            estimate = gtsam.LevenbergMarquardtOptimizer(graph, estimate, self._lm()).optimize()
-            estimate = self._redecided(graph, estimate, redecide)
-        return estimate
-
-    def _redecided(self, graph, estimate: gtsam.Values, rounds: int) -> gtsam.Values:
-        """The measurements with a null component decided again at the optimum `estimate`: each
-        takes the component of least cost there -- a candidate's chi-square (2 x its error) or
-        the null's `null_penalty`, what a max-mixture of them chooses --, its factor put into
-        or taken out of `graph` (`graph` is `self.common` plus the bridges: a decided factor
-        sits at its `Ambiguity.slot`), and the graph re-optimized, until no decision changes
-        (at most `rounds` times). A loop closure is judged at its arrival, against an estimate
-        that may have drifted since the previous closure: a true one after a long loop can
-        cost more than the null there, and an outlier can fit a drifted estimate; both show at
-        the optimum of the other decisions (an alternation of decisions and estimate, as EM)."""
-        for _ in range(rounds):
-            changed = 0
-            for amb in self.ambiguities.values():
-                if amb.state != "decided" or amb.factors[-1] is not None:
-                    continue  # undecided, or no null component
-                costs = [
-                    (self.config.null_penalty if f is None else 2.0 * f.error(estimate), k)
-                    for k, f in enumerate(amb.factors)
-                ]
-                _, best = min(costs)
-                if best == amb.choice:
-                    continue
-                changed += 1
-                amb.choice = best
-                factor = amb.factors[best]
-                if factor is None:
-                    graph.remove(amb.slot)
-                elif amb.slot >= 0:
-                    graph.replace(amb.slot, factor)
-                else:
-                    amb.slot = graph.size()
-                    graph.add(factor)
+            estimate = gtsam.LevenbergMarquardtOptimizer(graph, estimate, refinement()).optimize()
+            estimate, changed = redecided(
+                graph, estimate, self.ambiguities.values(), self.config.null_penalty, redecide
+            )
             self.stats["redecided"] += changed
-            if not changed:
-                break
-            estimate = gtsam.LevenbergMarquardtOptimizer(graph, estimate, self._lm()).optimize()
         return estimate
-
-    @staticmethod
-    def _lm() -> gtsam.LevenbergMarquardtParams:
-        """The final refinement's Levenberg-Marquardt: to the optimum's numerical precision
-        (GTSAM's default relative tolerance, 1e-5 of the error, stops millimetres short on
-        graphs of thousands of poses)."""
-        params = gtsam.LevenbergMarquardtParams()
-        params.setRelativeErrorTol(1e-12)
-        params.setAbsoluteErrorTol(1e-12)
-        params.setMaxIterations(100)
-        return params
 
     # ---- helpers -------------------------------------------------------------------------
     def _register(self, key: int, covariance=None) -> None:
