@@ -306,8 +306,9 @@ def test_decisions_with_a_null_are_taken_again_at_the_optimum():
     graph = gtsam.NonlinearFactorGraph()
     graph.add(gtsam.PriorFactorPose2(X(0), gtsam.Pose2(), noise))
     values = gtsam.Values()
-    for k in range(4):  # a square, the odometry's turns a little wide
-        graph.add(gtsam.BetweenFactorPose2(X(k), X(k + 1), gtsam.Pose2(1.05, 0, np.pi / 2 + 0.005), noise))
+    step = gtsam.Pose2(1.05, 0, np.pi / 2 + 0.005)  # a square, the odometry's turns a bit wide
+    for k in range(4):
+        graph.add(gtsam.BetweenFactorPose2(X(k), X(k + 1), step, noise))
     for k in range(5):
         values.insert(X(k), gtsam.Pose2())
     true_loop = gtsam.BetweenFactorPose2(X(0), X(4), gtsam.Pose2(), noise)
