@@ -3,19 +3,21 @@ constraints, which `graphloc.config` also turns into command-line options and co
 
 A config class is declared with `config_dataclass`; its field rules are pydantic `Field`
 arguments (gt, ge, lt, le, allow_inf_nan, description) in the dataclass field's metadata,
-which pydantic reads when it validates a dataclass (`setting` builds that field), its choices
-`Literal[...]` annotations, and rules across fields `__post_init__`, which pydantic runs
-after the fields' own:
+which pydantic reads as the field's `Field` when it validates a dataclass (pydantic PR 2384,
+kept in v2; `setting` builds that field), its choices `Literal[...]` annotations, and rules
+across fields `__post_init__`, which pydantic runs after the fields' own
+(`graphloc.hypotheses.config`):
 
     @config_dataclass
     class TrackerConfig:
-        max_hypotheses: int = setting(8, ge=1, le=1000, description="K live tracks")
+        max_hypotheses: int = setting(8, ge=1, le=1000)
         commit_threshold: float = setting(0.95, ge=0.5, lt=1.0)
         release_threshold: float = setting(0.5, gt=0.0)
-        factorization: Literal["CHOLESKY", "QR"] = "CHOLESKY"
+        student_dof: float = setting(6.0, gt=0.0, allow_inf_nan=True)  # inf = Gaussian
 
         def __post_init__(self):
-            if self.release_threshold > self.commit_threshold: raise ValueError(...)
+            if not 0.0 < self.release_threshold <= self.commit_threshold:
+                raise ValueError(...)
 
 Validation is pydantic's strict mode: no bool or text where a number is wanted, no fraction
 where an integer is, no list where a tuple is; NaN and inf are refused unless a field allows
@@ -36,6 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import inspect
 import re
 import typing
 
@@ -84,6 +87,7 @@ def config_dataclass(cls):
         except error_type as exc:
             raise _config_error(type(self), exc.errors(include_url=False)[0]) from None
 
+    __init__.__signature__ = inspect.signature(cls.__init__)  # the fields, for help() / IDEs
     __init__.__qualname__ = f"{cls.__qualname__}.__init__"
     __init__.__doc__ = f"{cls.__name__}'s fields, checked by pydantic (graphloc.config)."
     cls.__init__ = __init__

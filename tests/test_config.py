@@ -4,6 +4,7 @@ the config back."""
 
 import argparse
 import dataclasses
+import inspect
 import math
 import subprocess
 import sys
@@ -76,6 +77,7 @@ def test_valid_values_optional_none_and_allowed_inf_are_taken():
     Demo(limit=None, low=0.0, high=1.0, count=1, mode="b", sigma=2)  # an int for a float
     assert Demo(limit=0.0, dof=math.inf).dof == math.inf
     assert Demo(2.0, 4).count == 4  # positional, as any dataclass
+    assert list(inspect.signature(Demo).parameters)[:2] == ["sigma", "count"]
     assert Demo(inner=Inner(scale=3.0)).inner.scale == 3.0
 
 
