@@ -20,12 +20,11 @@ Used by `scripts/reproduce.py seed000-table3`
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import gtsam
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from benchmarks.baselines.belief_vector import BeliefVector, BeliefVectorConfig
 from benchmarks.baselines.particle_filter import ParticleFilter, ParticleFilterConfig
 from benchmarks.baselines.straight_line import StraightLineBaseline, StraightLineConfig
@@ -65,7 +64,7 @@ METHODS = (
 WRONG_DISTANCE = 0.25  # [m] committed pose this far from the truth without a candidate = wrong
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class TableIIIConfig:
     """The trials' options (seed 000 Sec. VI-B): `runs` runs per (ceiling, curve) cell (paper:
     100) over `workers` processes; tracker K (max_hypotheses), belief Def. 2 lambda (lam),
@@ -76,8 +75,8 @@ class TableIIIConfig:
     action frame (benchmarks.baselines.belief_vector.ACTION_FRAMES; "world": the belief engines
     get world-frame motion readings, graphloc.datasets.feng.world_odometry)."""
 
-    runs: int = 100
-    workers: int = 2
+    runs: int = setting(100, ge=1)
+    workers: int = setting(2, ge=1)
     max_hypotheses: int = 8
     lam: float = 5.0
     line_spacing: int = 10
@@ -88,9 +87,6 @@ class TableIIIConfig:
     def2_likelihood: str = "distance_angle"
     odometry_model: str = "per_axis"
     action_frame: str = "solution"
-
-    def __post_init__(self):
-        check(self, integer={"runs": 1, "workers": 1})
 
 
 def make_engine(method: str, ceiling: str, args: TableIIIConfig, seed: int):

@@ -9,7 +9,7 @@ scripts/repro_seed001.py; this writes a run for the log readers and `graphloc` v
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import cv2
@@ -17,7 +17,8 @@ import numpy as np
 
 from graphloc.cameras import PinholeCamera
 from graphloc.datasets.feng import look_at
-from graphloc.config import check, parse_overrides
+from graphloc.config import parse_overrides
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
 from graphloc.datasets.render import RenderConfig, render_markers
 from graphloc.vision.target import LARGE_TARGET
@@ -27,29 +28,23 @@ from graphloc.vision.target import LARGE_TARGET
 CENTROID_SIGMA_PX = 0.1
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class BreitenmoserConfig:
     """frames: updates; d_min, d_max [m]: camera-target distance ramp (seed 001 V-A: 0.68-1.74 m
     by hand, up to 3 m flown); tilt_deg: viewing direction off vertical; rate_hz."""
 
-    frames: int = field(default=50, metadata={"help": "camera updates"})
-    d_min: float = field(default=0.7, metadata={"help": "first camera-target distance [m]"})
-    d_max: float = field(default=3.0, metadata={"help": "last camera-target distance [m]"})
-    tilt_deg: float = field(default=20.0, metadata={"help": "view off vertical [deg]"})
-    rate_hz: float = field(default=10.0, metadata={"help": "update rate [Hz]"})
-    save_images: bool = field(default=True, metadata={"help": "write the rendered PNGs"})
+    frames: int = setting(50, ge=1, le=10_000, description="camera updates")
+    d_min: float = setting(0.7, gt=0.0, description="first camera-target distance [m]")
+    d_max: float = setting(3.0, gt=0.0, le=100.0, description="last camera-target distance [m]")
+    tilt_deg: float = setting(20.0, ge=0.0, lt=90.0, description="view off vertical [deg]")
+    rate_hz: float = setting(10.0, gt=0.0, le=1000.0, description="update rate [Hz]")
+    save_images: bool = setting(True, description="write the rendered PNGs")
 
     def __post_init__(self):
-        check(
-            self,
-            integer={"frames": (1, 10_000)},
-            interval={
-                "d_min": (0.0, "d_max", "(]"),
-                "d_max": (0.0, 100.0, "(]"),
-                "tilt_deg": (0.0, 90.0, "[)"),
-                "rate_hz": (0.0, 1000.0, "(]"),
-            },
-        )
+        if not 0.0 < self.d_min <= self.d_max:
+            raise ValueError(
+                f"BreitenmoserConfig.d_min must be in (0, d_max = {self.d_max:g}], got {self.d_min}"
+            )
 
 
 def seed001_camera() -> PinholeCamera:

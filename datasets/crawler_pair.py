@@ -33,7 +33,8 @@ import numpy as np
 from tqdm import tqdm
 
 from graphloc.cameras import PinholeCamera
-from graphloc.config import check, parse_overrides
+from graphloc.config import parse_overrides
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.datasets.crawler_pair_log import write_crawler_pair_log
 from graphloc.datasets.textured_scene import TexturedScene, disk_coverage, make_texture
 from graphloc.vision.circle import rotations_from_normals
@@ -48,70 +49,41 @@ def default_schedule() -> tuple[str, ...]:
     return ("camera",) * 8 + ("teammate",) * 3 + ("camera",) * 4
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class CrawlerPairConfig:
     """Geometry [m], motion per step, rendering and noise. schedule: who moves between frames
     t and t+1 (len = n_frames - 1). pixel_pitch [m/px]: sensor pitch (the seed's image-plane
     units in eq. 14). base_colour: BGR of the base (the colour signature of II-A-1)."""
 
-    width: int = 640
-    height: int = 480
-    hfov_deg: float = 50.0
-    pixel_pitch: float = 6e-6
-    base_diameter: float = 0.038
-    start_distance: float = 0.83
+    width: int = setting(640, ge=1, le=8192)
+    height: int = setting(480, ge=1, le=8192)
+    hfov_deg: float = setting(50.0, gt=0.0)
+    pixel_pitch: float = setting(6e-6, gt=0.0)
+    base_diameter: float = setting(0.038, gt=0.0)
+    start_distance: float = setting(0.83, gt=0.0)
     teammate_lateral: float = 0.03
     teammate_heading_deg: float = 12.0
-    background_distance: float = 2.6
-    camera_height: float = 0.05
+    background_distance: float = setting(2.6, gt=0.0)
+    camera_height: float = setting(0.05, gt=0.0)
     schedule: tuple[str, ...] = field(default_factory=default_schedule)
-    camera_step: float = 0.012
-    camera_lateral_std: float = 0.003
-    camera_yaw_std_deg: float = 0.8
-    roughness_deg: float = 1.0
-    bounce_std: float = 0.001
-    teammate_step: float = 0.02
-    teammate_heading_std_deg: float = 0.5
-    teammate_odometry_rel_std: float = 0.02
+    camera_step: float = setting(0.012, ge=0.0)
+    camera_lateral_std: float = setting(0.003, ge=0.0)
+    camera_yaw_std_deg: float = setting(0.8, ge=0.0)
+    roughness_deg: float = setting(1.0, ge=0.0)
+    bounce_std: float = setting(0.001, ge=0.0)
+    teammate_step: float = setting(0.02, ge=0.0)
+    teammate_heading_std_deg: float = setting(0.5, ge=0.0)
+    teammate_odometry_rel_std: float = setting(0.02, ge=0.0)
     base_colour: tuple[float, float, float] = (40.0, 40.0, 200.0)
-    texel: float = 0.002
-    supersample: int = 2
-    blur_sigma: float = 0.6
-    noise_sigma: float = 2.0
-    n_features: int = 10  # N of seed III: KLT tracks + the robot tracker's point (log writer)
+    texel: float = setting(0.002, gt=0.0)
+    supersample: int = setting(2, ge=1, le=8)
+    blur_sigma: float = setting(0.6, ge=0.0)
+    noise_sigma: float = setting(2.0, ge=0.0)
+    # N of seed III: KLT tracks + the robot tracker's point (log writer)
+    n_features: int = setting(10, ge=1, le=10_000)
     seed: int = 0
 
     def __post_init__(self):
-        check(
-            self,
-            integer={
-                "width": (1, 8192),
-                "height": (1, 8192),
-                "supersample": (1, 8),
-                "n_features": (1, 10_000),
-            },
-            positive=(
-                "pixel_pitch",
-                "base_diameter",
-                "start_distance",
-                "background_distance",
-                "camera_height",
-                "texel",
-                "hfov_deg",
-            ),
-            nonnegative=(
-                "camera_step",
-                "camera_lateral_std",
-                "camera_yaw_std_deg",
-                "roughness_deg",
-                "bounce_std",
-                "teammate_step",
-                "teammate_heading_std_deg",
-                "teammate_odometry_rel_std",
-                "blur_sigma",
-                "noise_sigma",
-            ),
-        )
         if not self.background_distance > self.start_distance + 0.5:
             raise ValueError(
                 "CrawlerPairConfig.background_distance must exceed start_distance + 0.5 m, "

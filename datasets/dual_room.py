@@ -22,13 +22,14 @@ from __future__ import annotations
 import csv
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, Literal
 
 import numpy as np
 import open3d as o3d
 from scipy.spatial.transform import Rotation
 
-from graphloc.config import check, parse_overrides
+from graphloc.config import parse_overrides
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.datasets.room_scene import (
     FLIP_X,
     T_CEILING_CAMERA,
@@ -52,39 +53,32 @@ from graphloc.mapping.io import read_led_pixels, read_points, read_tum
 ROBOTS = ("ground", "ceiling")
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class DualRoomConfig:
     """One scenario: room variant, random placement/headings from `seed`, `frames` steps at
     `rate` Hz."""
 
-    variant: str = "furnished"
+    variant: Literal[VARIANTS] = "furnished"
     seed: int = 0
-    frames: int = 8
-    rate: float = 5.0
+    frames: int = setting(8, ge=2, le=1000)
+    rate: float = setting(5.0, gt=0.0, le=1000.0)
     ground_lidar_height: float = 0.35
     ceiling_gap: float = 0.08  # ceiling LiDAR centre below the ceiling plane
-    ground_speed: float = 0.25  # [m/s]
-    ceiling_speed: float = 0.3  # [m/s]
-    min_offset: float = (
-        0.6  # horizontal distance ceiling robot <-> ground robot at start: an oblique
-    )
-    max_offset: float = 1.2  # view keeps P3P away from its near-degenerate overhead case
+    ground_speed: float = setting(0.25, ge=0.0, le=10.0)  # [m/s]
+    ceiling_speed: float = setting(0.3, ge=0.0, le=10.0)  # [m/s]
+    # horizontal distance ceiling robot <-> ground robot at start: an oblique
+    # view keeps P3P away from its near-degenerate overhead case
+    min_offset: float = setting(0.6, ge=0.0)
+    max_offset: float = setting(1.2, ge=0.0, le=10.0)
     lidar: LidarConfig = field(default_factory=LidarConfig)
     camera: CameraConfig = field(default_factory=CameraConfig)
 
     def __post_init__(self):
-        check(
-            self,
-            choices={"variant": VARIANTS},
-            integer={"frames": (2, 1000)},
-            interval={
-                "min_offset": (0.0, "max_offset", "[]"),
-                "max_offset": (0.0, 10.0, "[]"),
-                "rate": (0.0, 1000.0, "(]"),
-                "ground_speed": (0.0, 10.0, "[]"),
-                "ceiling_speed": (0.0, 10.0, "[]"),
-            },
-        )
+        if not 0.0 <= self.min_offset <= self.max_offset:
+            raise ValueError(
+                f"DualRoomConfig.min_offset must be in [0, max_offset = {self.max_offset:g}], "
+                f"got {self.min_offset}"
+            )
 
     @staticmethod
     def from_dict(d: dict) -> "DualRoomConfig":

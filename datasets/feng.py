@@ -23,11 +23,13 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
+from typing import Literal
 import gtsam
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
-from graphloc.config import check, parse_overrides
+from graphloc.config import parse_overrides
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
@@ -149,38 +151,24 @@ def relative_poses(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 # ---- Sec. VI-B: probabilistic setup ----------------------------------------------------------
-@dataclass(frozen=True)
+@config_dataclass
 class FengProbabilisticConfig:
     """Sec. VI-B. odometry_noise: relative sigma on each of the three translation components of
     a_t (0.15 = 15 %); odometry_rot_sigma: gyro noise per update [rad] (not given in the seed);
     odometry_model: how the 15 % apply (ODOMETRY_MODELS, `noisy_odometry`); max_time: cap on
     the run length [s] (None = until the ceiling boundary)."""
 
-    ceiling: str = "level"
-    curve: str = "line"
-    speed: float = 0.2
-    rate_hz: float = 10.0
-    first_interval: float = 0.3
-    odometry_noise: float = 0.15
-    odometry_rot_sigma: float = 0.002
-    odometry_model: str = "per_axis"
-    pixel_sigma: float = 0.5
-    max_time: float | None = None
+    ceiling: Literal[CEILINGS] = "level"
+    curve: Literal[CURVES] = "line"
+    speed: float = setting(0.2, ge=1e-3, le=10.0)
+    rate_hz: float = setting(10.0, gt=0.0, le=1000.0)
+    first_interval: float = setting(0.3, gt=0.0)
+    odometry_noise: float = setting(0.15, ge=0.0)
+    odometry_rot_sigma: float = setting(0.002, ge=0.0)
+    odometry_model: Literal[ODOMETRY_MODELS] = "per_axis"
+    pixel_sigma: float = setting(0.5, ge=0.0)
+    max_time: float | None = setting(None, gt=0.0, le=1e5)
     seed: int = 0
-
-    def __post_init__(self):
-        check(
-            self,
-            choices={"ceiling": CEILINGS, "curve": CURVES, "odometry_model": ODOMETRY_MODELS},
-            positive=("first_interval",),
-            nonnegative=("odometry_noise", "odometry_rot_sigma", "pixel_sigma"),
-            interval={
-                "speed": (1e-3, 10.0, "[]"),
-                "rate_hz": (0.0, 1000.0, "(]"),
-                "max_time": (0.0, 1e5, "(]"),
-            },
-            optional=("max_time",),
-        )
 
 
 @dataclass(frozen=True)

@@ -18,10 +18,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from typing import Literal
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera, angular_sigma
 from graphloc.datasets.feng import noisy_pixels
 from graphloc.datasets.render import render_mutual_pixels
@@ -39,7 +40,7 @@ CAMERA_BOX = np.array([[1.0, 1.0, 2.0], [2.0, 2.0, 3.0]])
 ORIENTATIONS = ("kept", "redrawn")
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class Seed000Config:
     width: int = 640
     height: int = 480
@@ -52,10 +53,7 @@ class Seed000Config:
     lateral_sigma: float = 0.001  # position noise perpendicular to the motion [m]
     # C's orientation over the three snapshots: "kept" (drawn once, the robot only translates)
     # or "redrawn" (step 2's pitch/tilt/yaw drawn anew for every snapshot); the seed says neither
-    orientation: str = "kept"
-
-    def __post_init__(self):
-        check(self, choices={"orientation": ORIENTATIONS})
+    orientation: Literal[ORIENTATIONS] = "kept"
 
     def camera(self) -> PinholeCamera:
         """The climbing robot's camera C (the same model as
@@ -154,7 +152,7 @@ def simulate_straight_line_trials(
     )
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class TableIConfig:
     """Seed 000 Sec. VI-A, the Table I scenario. scale: the workspace size that turns errors
     into the paper's "relative error" ("within a relative error of 1e-3 meters out of a scale
@@ -166,29 +164,17 @@ class TableIConfig:
     Seed000Config's (the climbing robot's position noise perpendicular to its motion; its
     orientation kept or redrawn per snapshot), swept by benchmarks.seed_baselines."""
 
-    trials: int = 1000
+    trials: int = setting(1000, ge=1, le=1_000_000)
     seed: int = 0
-    pixel_sigma: float = 0.5
-    omni_size: int = 512
+    pixel_sigma: float = setting(0.5, ge=0.0)
+    omni_size: int = setting(512, ge=8, le=8192)
     omni_max_polar: float = 2.0 * np.pi / 3.0
-    scale: float = 3.0
-    success_tol: float = 0.1
-    max_redraws: int = 50
-    workers: int = 2
-    lateral_sigma: float = 0.001
+    scale: float = setting(3.0, ge=0.0)
+    success_tol: float = setting(0.1, ge=0.0)
+    max_redraws: int = setting(50, ge=0, le=10_000)
+    workers: int = setting(2, ge=1, le=256)
+    lateral_sigma: float = setting(0.001, ge=0.0)
     orientation: str = "kept"
-
-    def __post_init__(self):
-        check(
-            self,
-            integer={
-                "trials": (1, 1_000_000),
-                "workers": (1, 256),
-                "omni_size": (8, 8192),
-                "max_redraws": (0, 10_000),
-            },
-            nonnegative=("pixel_sigma", "scale", "success_tol", "lateral_sigma"),
-        )
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
+from typing import Literal
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
@@ -35,7 +36,8 @@ from graphloc.datasets.feng import (
     project_world,
     relative_poses,
 )
-from graphloc.config import check, parse_overrides
+from graphloc.config import parse_overrides
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
 from graphloc.geometry.p3p import P3PCandidates, solve_p3p
 
@@ -50,47 +52,26 @@ def led_triangle() -> np.ndarray:
     return np.array([[0.0, 0.0, 0.0], [SIDE, 0.0, 0.0], [SIDE / 2, SIDE * np.sqrt(3.0) / 2, 0.0]])
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class KaushikConfig:
-    focal_mm: float = 16.0
-    noise_variance: float = 3.0
-    runs: int = 1000
-    frames: int = 10
-    step: float = 0.05
-    speed: float = 0.2
-    amplitude: float = 0.1
-    wavelength: float = 0.5
-    start_radius: float = 0.3
-    offset: float = 0.0
-    noise_reading: str = "variance"
-    height: float = 2.5
-    pixel_pitch_um: float = 13.75
-    width: int = 640
-    height_px: int = 480
-    odometry_noise: float = 0.1
-    odometry_rot_sigma: float = 0.005
+    focal_mm: float = setting(16.0, gt=0.0)
+    noise_variance: float = setting(3.0, ge=0.0)
+    runs: int = setting(1000, ge=1, le=1_000_000)
+    frames: int = setting(10, ge=2, le=10_000)
+    step: float = setting(0.05, gt=0.0)
+    speed: float = setting(0.2, gt=0.0)
+    amplitude: float = setting(0.1, ge=0.0)
+    wavelength: float = setting(0.5, gt=0.0)
+    start_radius: float = setting(0.3, ge=0.0)
+    offset: float = setting(0.0, ge=0.0)
+    noise_reading: Literal[NOISE_READINGS] = "variance"
+    height: float = setting(2.5, gt=0.0)
+    pixel_pitch_um: float = setting(13.75, gt=0.0)
+    width: int = setting(640, ge=1, le=16384)
+    height_px: int = setting(480, ge=1, le=16384)
+    odometry_noise: float = setting(0.1, ge=0.0)
+    odometry_rot_sigma: float = setting(0.005, ge=0.0)
     seed: int = 0
-
-    def __post_init__(self):
-        check(
-            self,
-            choices={"noise_reading": NOISE_READINGS},
-            integer={
-                "runs": (1, 1_000_000),
-                "frames": (2, 10_000),
-                "width": (1, 16384),
-                "height_px": (1, 16384),
-            },
-            positive=("focal_mm", "step", "speed", "height", "pixel_pitch_um", "wavelength"),
-            nonnegative=(
-                "noise_variance",
-                "amplitude",
-                "start_radius",
-                "offset",
-                "odometry_noise",
-                "odometry_rot_sigma",
-            ),
-        )
 
     @property
     def pixel_sigma(self) -> float:

@@ -28,14 +28,14 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.vision.circle import rotations_from_normals
 from graphloc.vision.mutual import three_cameras
 
 CLUTTER_KINDS = ("bar", "large", "speck", "crescent", "disc")
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class RenderConfig:
     """Radiometry of a rendered frame. Levels are grey values (0-255) or BGR triples.
 
@@ -45,10 +45,11 @@ class RenderConfig:
 
     background: float | tuple[float, float, float] = 60.0
     marker_level: float | tuple[float, float, float] = 220.0
-    gradient: float = 20.0  # background brightness change across the image width [grey levels]
-    blur_sigma: float = 0.7  # optics [px]; 0 = none
-    noise_sigma: float = 2.0  # sensor noise [grey levels]
-    supersample: int = 4
+    # background brightness change across the image width [grey levels]
+    gradient: float = setting(20.0, ge=0.0)
+    blur_sigma: float = setting(0.7, ge=0.0)  # optics [px]; 0 = none
+    noise_sigma: float = setting(2.0, ge=0.0)  # sensor noise [grey levels]
+    supersample: int = setting(4, ge=1)
     color: bool = False
 
     def __post_init__(self):
@@ -60,9 +61,6 @@ class RenderConfig:
                     f"RenderConfig.{name} must be {c} finite value(s) for color={self.color}, "
                     f"got {getattr(self, name)}"
                 )
-        check(
-            self, integer={"supersample": 1}, nonnegative=("blur_sigma", "noise_sigma", "gradient")
-        )
 
     def levels(self, value) -> np.ndarray:
         return np.atleast_1d(np.asarray(value, dtype=np.float32))

@@ -17,61 +17,51 @@ import numpy as np
 import open3d as o3d
 
 from graphloc.cameras import PinholeCamera
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 
 VARIANTS = ("furnished", "empty", "rectangular", "low_overlap")
 LED_SIDE = 0.3048  # seed 004 Sec. II.A
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class LidarConfig:
     """Spinning 3D LiDAR: `beams` elevations in [elev_min, elev_max] deg, `azimuths` per turn."""
 
-    beams: int = 48
-    azimuths: int = 450
-    elev_min_deg: float = -25.0
-    elev_max_deg: float = 50.0
-    min_range: float = 0.19  # seed 004 Sec. IV.A: 0.19 m .. 4 m
-    max_range: float = 8.0
-    range_noise: float = 0.005  # [m] 1-sigma along the ray
-    dropout: float = 0.05  # probability a return is missing
-    spurious: float = 0.005  # probability a return is replaced by a random shorter range
+    beams: int = setting(48, ge=1, le=1024)
+    azimuths: int = setting(450, ge=1, le=10_000)
+    elev_min_deg: float = setting(-25.0, ge=-90.0)
+    elev_max_deg: float = setting(50.0, ge=-90.0, le=90.0)
+    min_range: float = setting(0.19, ge=0.0)  # seed 004 Sec. IV.A: 0.19 m .. 4 m
+    max_range: float = setting(8.0, gt=0.0, le=1000.0)
+    range_noise: float = setting(0.005, ge=0.0)  # [m] 1-sigma along the ray
+    dropout: float = setting(0.05, ge=0.0, lt=1.0)  # probability a return is missing
+    # probability a return is replaced by a random shorter range
+    spurious: float = setting(0.005, ge=0.0, le=1.0)
 
     def __post_init__(self):
-        check(
-            self,
-            integer={"beams": (1, 1024), "azimuths": (1, 10_000)},
-            interval={
-                "elev_min_deg": (-90.0, "elev_max_deg", "[]"),
-                "elev_max_deg": (-90.0, 90.0, "[]"),
-                "min_range": (0.0, "max_range", "[)"),
-                "max_range": (0.0, 1000.0, "(]"),
-                "dropout": (0.0, 1.0, "[)"),
-                "spurious": (0.0, 1.0, "[]"),
-            },
-            nonnegative=("range_noise",),
-        )
+        if not -90.0 <= self.elev_min_deg <= self.elev_max_deg:
+            raise ValueError(
+                f"LidarConfig.elev_min_deg must be in [-90, elev_max_deg = {self.elev_max_deg:g}], "
+                f"got {self.elev_min_deg}"
+            )
+        if not 0.0 <= self.min_range < self.max_range:
+            raise ValueError(
+                f"LidarConfig.min_range must be in [0, max_range = {self.max_range:g}), "
+                f"got {self.min_range}"
+            )
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class CameraConfig:
     """Downward pinhole camera of the ceiling robot (no distortion)."""
 
-    width: int = 640
-    height: int = 480
-    fx: float = 500.0
-    fy: float = 500.0
+    width: int = setting(640, ge=1, le=16384)
+    height: int = setting(480, ge=1, le=16384)
+    fx: float = setting(500.0, gt=0.0)
+    fy: float = setting(500.0, gt=0.0)
     cx: float = 320.0
     cy: float = 240.0
-    pixel_noise: float = 0.3  # [px] 1-sigma
-
-    def __post_init__(self):
-        check(
-            self,
-            integer={"width": (1, 16384), "height": (1, 16384)},
-            positive=("fx", "fy"),
-            nonnegative=("pixel_noise",),
-        )
+    pixel_noise: float = setting(0.3, ge=0.0)  # [px] 1-sigma
 
     def pinhole(self) -> PinholeCamera:
         return PinholeCamera(self.fx, self.fy, self.cx, self.cy, self.width, self.height)

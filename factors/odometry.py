@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.factors.mixture import check_covariances
 from graphloc.factors.robust import Kernel, robust_noise
 
@@ -64,19 +64,16 @@ def _pose_from_matrix(T: np.ndarray):
 
 
 # ---- unicycle velocity odometry --------------------------------------------------------------
-@dataclass(frozen=True)
+@config_dataclass
 class VelocityNoise:
     """Velocity noise model of a unicycle: white noise densities on forward speed
     (density_v [m/sqrt(s)]) and turn rate (density_w [rad/sqrt(s)]), plus a per-keyframe floor
     (floor_xy [m], floor_theta [rad]) so that a standing robot still has a proper covariance."""
 
-    density_v: float = 0.05
-    density_w: float = 0.08
-    floor_xy: float = 0.002
-    floor_theta: float = 0.002
-
-    def __post_init__(self):
-        check(self, positive=("density_v", "density_w", "floor_xy", "floor_theta"))
+    density_v: float = setting(0.05, gt=0.0)
+    density_w: float = setting(0.08, gt=0.0)
+    floor_xy: float = setting(0.002, gt=0.0)
+    floor_theta: float = setting(0.002, gt=0.0)
 
 
 @dataclass(frozen=True)

@@ -5,15 +5,15 @@ reading of a saved config (`config_from_dict`). Light: GTSAM loads where a thres
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from typing import Literal
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.datafile import BadData
 
 MODES = ("batch", "online")
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class SessionConfig:
     """mode: "batch" (Levenberg-Marquardt) or "online" (iSAM2).
 
@@ -50,43 +50,21 @@ class SessionConfig:
     so a long fixed-lag run grows only by those estimates, and `save` raises ValueError.
     """
 
-    mode: str = "batch"
-    lm_max_iterations: int = 100
+    mode: Literal[MODES] = "batch"
+    lm_max_iterations: int = setting(100, ge=1, le=100_000)
     lm_relative_error_tol: float = 1e-6
     lm_absolute_error_tol: float = 1e-6
-    relinearize_threshold: float = 0.05
-    relinearize_translation: float = 0.0
-    relinearize_skip: int = 1
-    extra_updates: int = 0
-    factorization: str = "CHOLESKY"
-    wildfire_threshold: float = 0.001
+    relinearize_threshold: float = setting(0.05, ge=0.0)
+    relinearize_translation: float = setting(0.0, ge=0.0)
+    relinearize_skip: int = setting(1, ge=1, le=100_000)
+    extra_updates: int = setting(0, ge=0, le=1000)
+    factorization: Literal["CHOLESKY", "QR"] = "CHOLESKY"
+    wildfire_threshold: float = setting(0.001, ge=0.0)
     partial_relinearization_check: bool = False
-    isam2_optimizer: str = "gauss_newton"
-    lag: float = 0.0
-    marginalize_every: float = 0.0
+    isam2_optimizer: Literal["gauss_newton", "dogleg"] = "gauss_newton"
+    lag: float = setting(0.0, ge=0.0)
+    marginalize_every: float = setting(0.0, ge=0.0)
     keep_steps: bool = True
-
-    def __post_init__(self):
-        check(
-            self,
-            choices={
-                "mode": MODES,
-                "isam2_optimizer": ("gauss_newton", "dogleg"),
-                "factorization": ("CHOLESKY", "QR"),
-            },
-            nonnegative=(
-                "lag",
-                "marginalize_every",
-                "wildfire_threshold",
-                "relinearize_threshold",
-                "relinearize_translation",
-            ),
-            integer={
-                "lm_max_iterations": (1, 100_000),
-                "relinearize_skip": (1, 100_000),
-                "extra_updates": (0, 1000),
-            },
-        )
 
 
 THRESHOLD_SYMBOLS = {"x": 6, "s": 6, "l": 3, "k": 3, "q": 3}  # symbol -> dim (Pose3 / Point3)
@@ -126,20 +104,10 @@ def check_thresholded(config: SessionConfig, keys) -> None:
 
 
 def config_from_dict(raw) -> SessionConfig:
-    """SessionConfig from its saved dict: every field present, of the default's type."""
+    """SessionConfig from its saved dict: every field known and of its type (strict, as any
+    config dataclass: `graphloc.config`)."""
     if not isinstance(raw, dict):
         raise BadData("'config' must be an object")
-    known = {f.name: type(f.default) for f in fields(SessionConfig)}
-    unknown = sorted(set(raw) - set(known))
-    if unknown:
-        raise BadData(f"config: unknown fields {unknown}")
-    for name, value in raw.items():
-        kind = known[name]
-        ok = isinstance(value, kind) and not (kind is not bool and isinstance(value, bool))
-        if kind is float:
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-        if not ok:
-            raise BadData(f"config.{name}: expected {kind.__name__}, got {value!r}")
     try:
         return SessionConfig(**raw)
     except ValueError as exc:

@@ -41,7 +41,7 @@ echo "[bootstrap] installing graphloc and its dependencies into $VENV (first tim
 # Fail here, with a clear message, rather than inside the first test that imports them.
 "$VENV/bin/python" - <<'PY'
 import importlib, sys
-for mod in ("gtsam", "numpy", "scipy", "cv2", "open3d", "kiss_icp", "matplotlib", "tqdm"):
+for mod in ("gtsam", "numpy", "scipy", "cv2", "open3d", "kiss_icp", "matplotlib", "tqdm", "pydantic"):
     try:
         importlib.import_module(mod)
     except Exception as exc:  # noqa: BLE001 - report every broken import by name

@@ -352,7 +352,10 @@ def test_tracker_file_round_trips_infinities_and_rejects_damage(tmp_path):
             lambda p: p["config"].update(commit_threshold=2.0),
             r"TrackerConfig.commit_threshold must be in \[0.5, 1\)",
         ),
-        (lambda p: p["config"].update(robust_commit=1), r"config.robust_commit: expected bool"),
+        (
+            lambda p: p["config"].update(robust_commit=1),
+            r"TrackerConfig.robust_commit: expected bool, got 1",
+        ),
         (lambda p: p.update(tracks={}), r"tracks: expected a list"),
     ]
     for edit, reason in cases:

@@ -97,10 +97,12 @@ def test_parse_overrides_types():
         "focal_mm": 26.0,
         "runs": 5,
     }
-    with pytest.raises(ValueError, match="noise_variance"):
-        parse_overrides(KaushikConfig, {"noise_variance": "[1]"})
-    with pytest.raises(ValueError, match="integer"):
-        parse_overrides(KaushikConfig, {"runs": "1.5"})
+    with pytest.raises(ValueError, match="noise_variance"):  # checked by the class's rules
+        KaushikConfig(**parse_overrides(KaushikConfig, {"noise_variance": "[1]"}))
+    with pytest.raises(ValueError, match="KaushikConfig.runs: expected int, got 1.5"):
+        KaushikConfig(**parse_overrides(KaushikConfig, {"runs": "1.5"}))
+    with pytest.raises(ValueError, match="KaushikConfig.focal_mm: expected float, got 'x'"):
+        parse_overrides(KaushikConfig, {"focal_mm": "x"})
 
 
 def test_kaushik_geometry_and_genuine_candidate():

@@ -589,9 +589,13 @@ MALFORMED_BODIES = [  # (where in the body, the value written there, the reason 
         "step 0: Session.add at time 0.0: iSAM2 update failed",
     ),
     (("steps", 0, "time"), "now", "step 0: time must be a finite number"),
-    (("config", "mode"), 3, "config.mode: expected str, got 3"),
-    (("config", "lm_max_iterations"), True, "config.lm_max_iterations: expected int, got True"),
-    (("config", "__class__"), "x", r"config: unknown fields \['__class__'\]"),
+    (("config", "mode"), 3, r"config: SessionConfig.mode must be one of \('batch', 'online'\)"),
+    (
+        ("config", "lm_max_iterations"),
+        True,
+        "config: SessionConfig.lm_max_iterations: expected int, got True",
+    ),
+    (("config", "__class__"), "x", "config: SessionConfig: unknown field '__class__'"),
     (("steps",), {}, "'steps' must be a list"),
 ]
 

@@ -25,6 +25,7 @@ HEAVY = (
     "pyarrow",
     "rerun",
     "ray",
+    "pydantic",  # loads on a config's first construction (graphloc.config), not for --help
 )
 
 

@@ -29,12 +29,12 @@ lost) the vector restarts uniformly on the current solutions, as at t = 0.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
+from typing import Literal
 import gtsam
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.candidates import CandidateSet
 from graphloc.seams import Decision, Odometry, check_frame
 
@@ -47,25 +47,16 @@ LIKELIHOODS = (
 )
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class BeliefVectorConfig:
-    likelihood: str = "inner_product"
-    lam: float = 5.0
+    likelihood: Literal[LIKELIHOODS] = "inner_product"
+    lam: float = setting(5.0, ge=0.0)
     floor: float = 1e-3
-    gate_distance: float = 0.05
-    gate_interval: float = 0.1
+    gate_distance: float = setting(0.05, gt=0.0)
+    gate_interval: float = setting(0.1, gt=0.0)
     min_normal_dot: float = 0.85
-    threshold: float = 0.95
-    action_frame: str = "solution"
-
-    def __post_init__(self):
-        check(
-            self,
-            choices={"action_frame": ACTION_FRAMES, "likelihood": LIKELIHOODS},
-            positive=("gate_distance", "gate_interval"),
-            nonnegative=("lam",),
-            interval={"threshold": (0.0, 1.0, "()")},
-        )
+    threshold: float = setting(0.95, gt=0.0, lt=1.0)
+    action_frame: Literal[ACTION_FRAMES] = "solution"
 
 
 def likelihood(a: np.ndarray, om: np.ndarray, config: BeliefVectorConfig) -> np.ndarray:

@@ -34,12 +34,12 @@ that knows it stood still gets the `still` process noise.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
+from typing import Literal
 import gtsam
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.cameras import PinholeCamera
 from graphloc.seams import FrameInput, MotionNoise
 from graphloc.geometry.so3 import skew
@@ -47,7 +47,7 @@ from graphloc.geometry.so3 import skew
 TRACKER_SETTINGS = ("proper", "ideal", "noisy")
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class EkfConfig:
     """pixel_pitch [m/px]: sensor units of eq. 14. beta_rel_sigma: initial std of beta relative
     to 1/f. feature_depth [m], feature_sigma [m]: common initial depth of KLT points (seed III:
@@ -57,30 +57,15 @@ class EkfConfig:
     tracker's covariance), 'ideal' (zero), 'noisy' (x noisy_factor). motion: process noise
     (shared with the graph)."""
 
-    pixel_pitch: float = 6e-6
-    beta_rel_sigma: float = 0.01
-    feature_depth: float = 2.6
-    feature_sigma: float = 1.0
-    klt_variance: float = 1.0
-    tracker_variance: float = 3.0
-    tracker_setting: str = "proper"
-    noisy_factor: float = 100.0
+    pixel_pitch: float = setting(6e-6, gt=0.0)
+    beta_rel_sigma: float = setting(0.01, ge=0.0)
+    feature_depth: float = setting(2.6, gt=0.0)
+    feature_sigma: float = setting(1.0, gt=0.0)
+    klt_variance: float = setting(1.0, gt=0.0)
+    tracker_variance: float = setting(3.0, gt=0.0)
+    tracker_setting: Literal[TRACKER_SETTINGS] = "proper"
+    noisy_factor: float = setting(100.0, gt=0.0)
     motion: MotionNoise = MotionNoise()
-
-    def __post_init__(self):
-        check(
-            self,
-            choices={"tracker_setting": TRACKER_SETTINGS},
-            positive=(
-                "pixel_pitch",
-                "feature_depth",
-                "feature_sigma",
-                "klt_variance",
-                "tracker_variance",
-                "noisy_factor",
-            ),
-            nonnegative=("beta_rel_sigma",),
-        )
 
 
 N_MOTION = 7  # T (3), w (3), beta

@@ -17,26 +17,25 @@ Commit / relocate use the same threshold rule as the other engines so that compa
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import gtsam
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.candidates import CandidateSet
 from graphloc.seams import Decision, Odometry, check_frame
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class ParticleFilterConfig:
     """alpha1 [rad/rad], alpha2 [1]: Algorithm 1 noise; sigma [m]: RBF width of eq. (3)
     (not given in the seed); plane_normal: world normal of the motion plane; threshold: commit."""
 
-    alpha1: float = 0.01
-    alpha2: float = 0.15
-    sigma: float = 0.05
+    alpha1: float = setting(0.01, ge=0.0)
+    alpha2: float = setting(0.15, ge=0.0)
+    sigma: float = setting(0.05, gt=0.0)
     plane_normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
-    threshold: float = 0.95
+    threshold: float = setting(0.95, gt=0.0, lt=1.0)
     seed: int = 0
 
     def __post_init__(self):
@@ -46,12 +45,6 @@ class ParticleFilterConfig:
                 "ParticleFilterConfig.plane_normal must be a non-zero 3-vector, "
                 f"got {self.plane_normal}"
             )
-        check(
-            self,
-            nonnegative=("alpha1", "alpha2"),
-            positive=("sigma",),
-            interval={"threshold": (0.0, 1.0, "()")},
-        )
 
 
 def plane_basis(normal) -> np.ndarray:

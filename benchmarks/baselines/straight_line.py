@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.candidates import CandidateSet
 from graphloc.geometry.p3p import MAX_CANDIDATES, P3PCandidates, solve_p3p
 from graphloc.seams import Decision, check_frame
@@ -123,16 +123,13 @@ def localize_by_straight_line(
     )
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class StraightLineConfig:
     """spacing: updates between the three snapshots; max_error [m]: commit when the best
     combination's line error is below this (seed 000 sec. VI-A step 5 uses 0.003 m)."""
 
-    spacing: int = 10
-    max_error: float = 0.003
-
-    def __post_init__(self):
-        check(self, integer={"spacing": 1}, positive=("max_error",))
+    spacing: int = setting(10, ge=1)
+    max_error: float = setting(0.003, gt=0.0)
 
 
 class StraightLineBaseline:

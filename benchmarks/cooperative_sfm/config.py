@@ -3,12 +3,13 @@ robot indices, and the checks a frame passes before it enters the graph."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 
+from typing import Literal
 import gtsam
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.factors.mixture import check_covariances
 from graphloc.factors.robust import Kernel
 from graphloc.seams import FrameInput, MotionNoise
@@ -19,7 +20,7 @@ TEAMMATE_MODELS = ("max_mixture", "moment_matched_centre")
 WORLD_UP = np.array([0.0, -1.0, 0.0])  # OpenCV world (camera 0, level): y points down
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class CooperativeSfmConfig:
     """pixel_sigma [px]: KLT noise (seed III: variance 1); kernel: robust kernel on the
     projections; motion: process noise; first_pose_sigma: gauge prior (rad and m);
@@ -45,38 +46,22 @@ class CooperativeSfmConfig:
     dog-leg step: with the refined rim's tight depth noise the undamped Gauss-Newton step
     oscillated with period 2 on crawler-pair seed 9, N = 20, which the dog-leg step does not)."""
 
-    pixel_sigma: float = 1.0
+    pixel_sigma: float = setting(1.0, gt=0.0)
     kernel: Kernel = Kernel("huber", 1.345)
     motion: MotionNoise = MotionNoise()
-    first_pose_sigma: float = 1e-4
-    feature_prior_depth: float = 2.6
-    feature_prior_sigma: float = 1.0
-    teammate_still_sigma: float = 1e-3
-    teammate_model: str = "max_mixture"
-    normal_sigma: float = 0.03
-    circle_yaw_sigma: float = 1.0
-    upright_sigma: float = 0.05
+    first_pose_sigma: float = setting(1e-4, gt=0.0)
+    feature_prior_depth: float = setting(2.6, gt=0.0)
+    feature_prior_sigma: float = setting(1.0, gt=0.0)
+    teammate_still_sigma: float = setting(1e-3, gt=0.0)
+    teammate_model: Literal[TEAMMATE_MODELS] = "max_mixture"
+    normal_sigma: float = setting(0.03, gt=0.0)
+    circle_yaw_sigma: float = setting(1.0, gt=0.0)
+    upright_sigma: float = setting(0.05, gt=0.0)
     session: SessionConfig = field(
         default_factory=lambda: SessionConfig(
             relinearize_threshold=0.01, extra_updates=2, isam2_optimizer="dogleg"
         )
     )
-
-    def __post_init__(self):
-        check(
-            self,
-            positive=(
-                "pixel_sigma",
-                "first_pose_sigma",
-                "feature_prior_depth",
-                "feature_prior_sigma",
-                "teammate_still_sigma",
-                "normal_sigma",
-                "circle_yaw_sigma",
-                "upright_sigma",
-            ),
-            choices={"teammate_model": TEAMMATE_MODELS},
-        )
 
 
 def pose_noise(rot: float, trans: float):

@@ -8,26 +8,25 @@ the topics file does not map."""
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass, field
 from pathlib import Path
 
 from graphloc.config import add_config_arguments, config_from_args
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.exitcodes import OK
 from graphloc.structured import dumps_json
 
 HELP = "ROS 1 / ROS 2 / MCAP bag + topics file -> graphloc log directory (smooth / online input)"
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class ImportOptions:
     """The options of `graphloc import` (command line and `--config FILE.toml`)."""
 
-    topics: str | None = field(
-        default=None,
-        metadata={
-            "help": "topics file (YAML, docs/rosbag.md); unset: topics.yaml inside or beside "
-            "the bag"
-        },
+    topics: str | None = setting(
+        None,
+        description=(
+            "topics file (YAML, docs/rosbag.md); unset: topics.yaml inside or beside the bag"
+        ),
     )
 
 

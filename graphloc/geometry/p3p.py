@@ -40,7 +40,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.candidates import CandidateSet
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.geometry.p3p_soa import (
     cosines_and_sides,
     gather,
@@ -65,26 +65,22 @@ MAX_CANDIDATES = 4
 BLOCK = 4096  # instances per vectorized pass (cache-sized)
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class P3PConfig:
     """Thresholds of the solver (angles in radians, lengths relative to the longest side)."""
 
-    min_bearing_sine: float = 1e-6  # |f_i x f_j| below this -> parallel bearings, degenerate
-    min_triangle_ratio: float = 1e-6  # |d12 x d13| / longest^2 below this -> collinear points
-    max_residual_rad: float = 1e-6  # reprojection check on every returned candidate
-    duplicate_tol: float = 1e-7  # candidate centres closer than this * longest side merge
-    depth_refine_iters: int | None = None  # Gauss-Newton steps on the depths; None: per method
+    # |f_i x f_j| below this -> parallel bearings, degenerate
+    min_bearing_sine: float = setting(1e-6, ge=0.0)
+    # |d12 x d13| / longest^2 below this -> collinear points
+    min_triangle_ratio: float = setting(1e-6, ge=0.0)
+    # reprojection check on every returned candidate
+    max_residual_rad: float = setting(1e-6, gt=0.0)
+    # candidate centres closer than this * longest side merge
+    duplicate_tol: float = setting(1e-7, ge=0.0)
+    # Gauss-Newton steps on the depths; None: per method
     # (lambdatwist 1: its depths are accurate to ~1e-10 before; grunert, finsterwalder 2)
-    polish_iters: int = 2  # Gauss-Newton steps on the pose when polish=True
-
-    def __post_init__(self):
-        check(
-            self,
-            nonnegative=("min_bearing_sine", "min_triangle_ratio", "duplicate_tol"),
-            positive=("max_residual_rad",),
-            integer={"depth_refine_iters": 0, "polish_iters": 0},
-            optional=("depth_refine_iters",),
-        )
+    depth_refine_iters: int | None = setting(None, ge=0)
+    polish_iters: int = setting(2, ge=0)  # Gauss-Newton steps on the pose when polish=True
 
 
 @dataclass(frozen=True)

@@ -4,13 +4,10 @@ and covariance cap are in `graphloc.hypotheses.track`."""
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class TrackerConfig:
     """max_hypotheses: K live tracks. commit_threshold / release_threshold: posterior to commit
     a candidate / below which the committed track is released (0.5: another explanation has
@@ -29,37 +26,24 @@ class TrackerConfig:
     the posterior passes commit_threshold without the track's largest one-update log-odds gain.
     student_scale: Student-t posterior scale (nu + m) / (nu + 6) after an association."""
 
-    max_hypotheses: int = 8
-    commit_threshold: float = 0.95
-    release_threshold: float = 0.5
-    full_count: int = 4
-    miss_probability_full: float = 0.02
-    birth_probability: float = 1e-12
-    max_misses: int = 50
-    gate: float = 100.0
-    max_candidate_std: float = 1.0
-    student_dof: float = 6.0
+    max_hypotheses: int = setting(8, ge=1, le=1000)
+    commit_threshold: float = setting(0.95, ge=0.5, lt=1.0)
+    release_threshold: float = setting(0.5, gt=0.0)
+    full_count: int = setting(4, ge=1, le=1000)
+    miss_probability_full: float = setting(0.02, gt=0.0, lt=1.0)
+    birth_probability: float = setting(1e-12, gt=0.0, lt=1.0)
+    max_misses: int = setting(50, ge=0, le=1_000_000)
+    gate: float = setting(100.0, gt=0.0, allow_inf_nan=True)
+    max_candidate_std: float = setting(1.0, gt=0.0, allow_inf_nan=True)
+    student_dof: float = setting(6.0, gt=0.0, allow_inf_nan=True)
     default_sigmas: tuple[float, float] = (0.02, 0.05)
-    gn_iterations: int = 3
+    gn_iterations: int = setting(3, ge=0, le=1000)
     robust_commit: bool = True
     student_scale: bool = True
 
     def __post_init__(self):
-        check(
-            self,
-            integer={
-                "max_hypotheses": (1, 1000),
-                "full_count": (1, 1000),
-                "max_misses": (0, 1_000_000),
-                "gn_iterations": (0, 1000),
-            },
-            interval={
-                "commit_threshold": (0.5, 1.0, "[)"),
-                "release_threshold": (0.0, "commit_threshold", "(]"),
-                "miss_probability_full": (0.0, 1.0, "()"),
-                "birth_probability": (0.0, 1.0, "()"),
-                "gate": (0.0, math.inf, "(]"),
-                "max_candidate_std": (0.0, math.inf, "(]"),
-                "student_dof": (0.0, math.inf, "(]"),
-            },
-        )
+        if not 0.0 < self.release_threshold <= self.commit_threshold:
+            raise ValueError(
+                "TrackerConfig.release_threshold must be in (0, commit_threshold = "
+                f"{self.commit_threshold:g}], got {self.release_threshold}"
+            )

@@ -82,13 +82,7 @@ def _parse(raw: dict) -> tuple[TrackerConfig, dict]:
         raise ValueError(f"config: expected the fields of TrackerConfig, got {sorted(config)}")
     sigmas = items(config["default_sigmas"], "config.default_sigmas")
     config["default_sigmas"] = tuple(number(v, "config.default_sigmas") for v in sigmas)
-    for f in fields(TrackerConfig):
-        value, default = config[f.name], f.default
-        if isinstance(default, bool) != isinstance(value, bool) or (
-            isinstance(default, (int, float)) and not isinstance(value, (int, float))
-        ):
-            raise ValueError(f"config.{f.name}: expected {type(default).__name__}, got {value!r}")
-    config = TrackerConfig(**config)
+    config = TrackerConfig(**config)  # each value of its field's type and rule (strict)
     tracks = []
     for k, t in enumerate(items(raw["tracks"], "tracks")):
         where = f"tracks[{k}]"

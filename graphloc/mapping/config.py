@@ -6,38 +6,31 @@ registration must pass, `graphloc.mapping.acceptance`). Those modules re-export 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class OdometryConfig:
     """KISS-ICP settings for indoor rooms (voxel_size ~ 1% of range as KISS-ICP's default rule)."""
 
-    max_range: float = 8.0
-    min_range: float = 0.19
-    voxel_size: float = 0.08
+    max_range: float = setting(8.0, gt=0.0, le=1000.0)
+    min_range: float = setting(0.19, ge=0.0)
+    voxel_size: float = setting(0.08, ge=1e-3, le=10.0)
     deskew: bool = (
         False  # simulated scans are motion-free; True for real spinning LiDARs (needs timestamps)
     )
-    map_voxel: float = 0.03  # voxel of the accumulated local map
-    threads: int = 1
+    map_voxel: float = setting(0.03, ge=1e-3, le=10.0)  # voxel of the accumulated local map
+    threads: int = setting(1, ge=0, le=256)
 
     def __post_init__(self):
-        check(
-            self,
-            interval={
-                "max_range": (0.0, 1000.0, "(]"),
-                "min_range": (0.0, "max_range", "[)"),
-                "voxel_size": (1e-3, 10.0, "[]"),
-                "map_voxel": (1e-3, 10.0, "[]"),
-            },
-            integer={"threads": (0, 256)},  # 0: KISS-ICP chooses
-        )
+        if not self.min_range < self.max_range:
+            raise ValueError(
+                f"OdometryConfig.min_range must be in [0, max_range = {self.max_range:g}), "
+                f"got {self.min_range}"
+            )
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class RegistrationConfig:
     """Denoising (nb_neighbors, std_ratio), downsampling (voxel [m]), normals (normal_radius,
     max_nn), point-to-plane ICP (scales [m], max_correspondence [m], max_iterations per stage,
@@ -47,11 +40,12 @@ class RegistrationConfig:
     (`calibrated_covariance`); the defaults are the fit of
     `scripts/bench_fusion.py --real --calibrate` (docs/results_fusion_calibration.json)."""
 
-    nb_neighbors: int = 20
+    nb_neighbors: int = setting(20, ge=1, le=1000)
     std_ratio: float = 2.0
-    voxel: float = 0.03
-    normal_radius: float = 0.25  # must span several LiDAR rings (~1.5 deg apart) at room ranges
-    max_nn: int = 50
+    voxel: float = setting(0.03, gt=0.0)
+    # must span several LiDAR rings (~1.5 deg apart) at room ranges
+    normal_radius: float = setting(0.25, gt=0.0)
+    max_nn: int = setting(50, ge=1, le=1000)
     scales: tuple[float, ...] = (0.16, 0.08, 0.03)  # ICP voxel per stage (coarse to fine)
     max_correspondence: tuple[float, ...] = (0.5, 0.2, 0.05)
     max_iterations: tuple[int, ...] = (30, 30, 30)
@@ -59,18 +53,18 @@ class RegistrationConfig:
     relative_rmse: float = 1e-7
     fpfh_voxel: float = 0.08  # FPFH + RANSAC run on this coarser grid (Open3D tutorial practice)
     fpfh_radius: float = 0.4
-    fpfh_max_nn: int = 100
+    fpfh_max_nn: int = setting(100, ge=1, le=1000)
     ransac_distance: float = 0.12
-    ransac_iterations: int = 100_000
+    ransac_iterations: int = setting(100_000, ge=1, le=10_000_000)
     ransac_confidence: float = 0.999
-    range_sigma: float = 0.01
+    range_sigma: float = setting(0.01, gt=0.0)
     # robust_register: coarse correspondences within coarse_voxels coarse voxels, Tukey kernel
     # width coarse_tukey voxels (0: least squares), cluster size [m] of the covariance
     # (covariance_block) and of the cost margin's standard error (margin_block), stop once a
     # candidate passed its checks with an inlier ratio of at least stop_inlier_ratio (one that
     # barely passes may sit next to the right one)
     coarse_voxels: float = 2.0
-    coarse_tukey: float = 0.5
+    coarse_tukey: float = setting(0.5, ge=0.0)
     # ... the hint's own start runs its wide pyramid once per Tukey width here [wide-level voxels],
     # in order: a wide kernel first (where most of a view overlaps, every correspondence within
     # the reach pulls, the right ones included), then coarse_tukey's narrow one (a small overlap:
@@ -78,49 +72,51 @@ class RegistrationConfig:
     hint_wide_tukey: tuple[float, ...] = (2.0, 0.5)
     # robust_register's fine stage: Tukey kernel width in fine correspondence distances
     # (max_correspondence[-1]; 0: least squares)
-    fine_tukey: float = 1.0
+    fine_tukey: float = setting(1.0, ge=0.0)
     # ... and its stop: relative change of fitness and inlier RMSE (Open3D's default criterion;
     # the Tukey-weighted iterations have settled by then, docs/results_fusion_real.md), at most
     # fine_iterations iterations: a view the coarse stage left a few degrees turned on a floor
     # creeps back a little per iteration, and one cut short is a candidate at no minimum, which
     # the polish's narrower window may carry on to a slid one (a denser scan of the Redwood
     # room: test_a_denser_scan_turned_on_the_floor_is_not_fused_slid)
-    fine_relative: float = 1e-6
-    fine_iterations: int = 60
+    fine_relative: float = setting(1e-6, gt=0.0)
+    fine_iterations: int = setting(60, ge=1, le=10_000)
     # ... and its samples: every fine_stride-th prepared source point (the candidates' checks and
     # covariance use them all); the winner goes straight to `polish`, which uses every point (a
     # start that slides for all its iterations and fails costs a third)
-    fine_stride: int = 3
-    covariance_block: float = 0.25
-    margin_block: float = 0.5
+    fine_stride: int = setting(3, ge=1, le=1000)
+    covariance_block: float = setting(0.25, gt=0.0)
+    margin_block: float = setting(0.5, gt=0.0)
     # robust_register's last stage (`polish`): point-to-plane ICP of the full-resolution clouds,
     # both ways, correspondences within polish_distance [m] (0: no polish) and Open3D's
     # Geman-McClure kernel GMLoss(polish_kernel), weight k / (k + r^2)^2: k is a squared scale
     # [m^2], and 0.007 weighs every residual within polish_distance nearly alike (kernels of the
     # residual noise, k = (7 mm)^2 or (1 cm)^2, were less accurate on exploration seeds 200-219)
-    polish_distance: float = 0.02
-    polish_kernel: float = 0.007
+    polish_distance: float = setting(0.02, ge=0.0)
+    polish_kernel: float = setting(0.007, ge=0.0)
     # ... its iterations per direction: a view dominated by one plane slides along it a little
     # per iteration (on the Redwood fragment's views 4 left the fine stage's pose a tenth of a
     # degree short where 6 did not; the TUM fragment's exploration seeds were alike at 4 to 10)
-    polish_iterations: int = 6
+    polish_iterations: int = setting(6, ge=1, le=1000)
     # ... repeated in rounds from the last midpoint until a round moves the pose less than
     # polish_settle_deg and polish_settle_m (at most polish_rounds rounds): a view the fine stage
     # left beside a wall or a tenth of a degree turned creeps back a little per round, and the
     # rounds bring it to the objective's minimum instead of stopping on the way (a view the grid
     # left decimetres along a floor takes a dozen or more; one still moving after these slides)
-    polish_rounds: int = 20
-    polish_settle_deg: float = 0.01
-    polish_settle_m: float = 0.0005
-    polish_max_nn: int = 20  # its normals: plane of the 20 nearest polish points
+    polish_rounds: int = setting(20, ge=1, le=1000)
+    polish_settle_deg: float = setting(0.01, gt=0.0)
+    polish_settle_m: float = setting(0.0005, gt=0.0)
+    # its normals: plane of the 20 nearest polish points
+    polish_max_nn: int = setting(20, ge=3, le=1000)
     # ... its points: every k-th input point, k the smallest stride leaving at most
     # polish_points_per_cell per occupied grid cell (cfg.voxel) on average (0: every input
     # point). A dense RGB-D scan holds several points per 3 cm cell, which the stride thins to
     # about the grid's own density (each of the polish's rounds costs two ICPs over them); a
     # LiDAR scan, with one or two per cell along its rings, keeps every point (a stride would
     # thin its rings alone and tilt the normals across them)
-    polish_points_per_cell: float = 2.0
-    polish_relative: float = 1e-6  # its stop: relative change of fitness and inlier RMSE
+    polish_points_per_cell: float = setting(2.0, ge=0.0)
+    # its stop: relative change of fitness and inlier RMSE
+    polish_relative: float = setting(1e-6, gt=0.0)
     # `prepare`: a scan holding more than max_points_per_cell input points per occupied grid cell
     # (cfg.voxel) on average is first thinned to that many per cell, drawn at random (`denoise`;
     # 0: never thinned). The more points a noisy surface has, the more of the cells along it its
@@ -131,48 +127,19 @@ class RegistrationConfig:
     # calibration were fitted on views of the bundled fragments at the benchmark's density,
     # a few points per cell; this bound keeps every such view whole and brings a denser scan
     # (a depth camera close up, a LiDAR map accumulated over many sweeps) back to it
-    max_points_per_cell: float = 8.0
+    max_points_per_cell: float = setting(8.0, ge=0.0)
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
     # the wide level's reach is capped at max_reach [m]: beyond it a first-order covariance is no
     # basin a local method covers (the sigma points and the global fallback take over)
     max_reach: float = 1.0
     global_fallback: bool = True  # robust_register: FPFH + RANSAC start when every hint start fails
-    covariance_scale: float = 4.64  # fit of docs/results_fusion_calibration.json (3 digits)
-    covariance_degeneracy: float = 4.10  # fit of docs/results_fusion_calibration.json (3 digits)
+    # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_scale: float = setting(4.64, gt=0.0)
+    # fit of docs/results_fusion_calibration.json (3 digits)
+    covariance_degeneracy: float = setting(4.10, ge=0.0)
 
     def __post_init__(self):
-        check(
-            self,
-            positive=(
-                "voxel",
-                "normal_radius",
-                "range_sigma",
-                "covariance_scale",
-                "fine_relative",
-                "polish_relative",
-                "polish_settle_deg",
-                "polish_settle_m",
-                "covariance_block",
-                "margin_block",
-            ),
-            nonnegative=(
-                "covariance_degeneracy",
-                "polish_points_per_cell",
-                "max_points_per_cell",
-                "coarse_tukey",
-                "fine_tukey",
-                "polish_distance",
-                "polish_kernel",
-            ),
-            integer={
-                **dict.fromkeys(("polish_iterations", "polish_rounds", "fine_stride"), (1, 1000)),
-                **dict.fromkeys(("nb_neighbors", "max_nn", "fpfh_max_nn"), (1, 1000)),
-                "polish_max_nn": (3, 1000),
-                "fine_iterations": (1, 10_000),
-                "ransac_iterations": (1, 10_000_000),
-            },
-        )
         if not all(1 <= n <= 10_000 for n in self.max_iterations):
             bad = self.max_iterations
             raise ValueError(f"RegistrationConfig.max_iterations must be in [1, 10000], got {bad}")
@@ -197,7 +164,7 @@ class RegistrationConfig:
             )
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class AcceptanceConfig:
     """Checks a registration must pass before it is fused (see `robust_register`).
 
@@ -252,43 +219,21 @@ class AcceptanceConfig:
     is right;
     distinct_deg / distinct_m: candidates closer than this are one registration."""
 
-    residual_sigma: float = 0.01
-    misfit_weight: float = 4.0
-    min_overlap: float = 0.1
-    min_inlier_ratio: float = 0.65
-    contradiction_block: float = 0.5
-    contradiction_min_points: int = 20
-    contradiction_ratio: float = 0.4
-    max_contradicted: float = 0.02
-    min_cost_margin_se: float = 1.0
-    min_conditioning: float = 1e-4
-    hint_gate: float = 22.458  # scipy.stats.chi2.ppf(0.999, 6)
+    residual_sigma: float = setting(0.01, gt=0.0)
+    misfit_weight: float = setting(4.0, ge=1.0, le=1e6)
+    min_overlap: float = setting(0.1, ge=0.0, le=1.0)
+    min_inlier_ratio: float = setting(0.65, ge=0.0, le=1.0)
+    contradiction_block: float = setting(0.5, gt=0.0)
+    contradiction_min_points: int = setting(20, ge=1, le=1_000_000)
+    contradiction_ratio: float = setting(0.4, ge=0.0, le=1.0)
+    max_contradicted: float = setting(0.02, ge=0.0, le=1.0)
+    min_cost_margin_se: float = setting(1.0, ge=0.0)
+    min_conditioning: float = setting(1e-4, ge=0.0)
+    hint_gate: float = setting(22.458, gt=0.0)  # scipy.stats.chi2.ppf(0.999, 6)
     ceiling_above: bool = True
     max_ceiling_tilt_deg: float = 45.0
-    max_sigma_rot_deg: float = 0.4
-    max_sigma_trans_m: float = 0.02
-    max_overlap_shortfall: float = 2.0
+    max_sigma_rot_deg: float = setting(0.4, gt=0.0)
+    max_sigma_trans_m: float = setting(0.02, gt=0.0)
+    max_overlap_shortfall: float = setting(2.0, ge=1.0, le=1e6)
     distinct_deg: float = 0.5
     distinct_m: float = 0.02
-
-    def __post_init__(self):
-        check(
-            self,
-            positive=(
-                "residual_sigma",
-                "hint_gate",
-                "max_sigma_rot_deg",
-                "max_sigma_trans_m",
-                "contradiction_block",
-            ),
-            nonnegative=("min_cost_margin_se", "min_conditioning"),
-            integer={"contradiction_min_points": (1, 1_000_000)},
-            interval={
-                "min_overlap": (0.0, 1.0, "[]"),
-                "min_inlier_ratio": (0.0, 1.0, "[]"),
-                "misfit_weight": (1.0, 1e6, "[]"),
-                "max_overlap_shortfall": (1.0, 1e6, "[]"),
-                "contradiction_ratio": (0.0, 1.0, "[]"),
-                "max_contradicted": (0.0, 1.0, "[]"),
-            },
-        )

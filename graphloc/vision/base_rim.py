@@ -10,12 +10,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.vision.ellipse import EllipseRefinement, ellipse_points, fit_ellipse, refine_ellipse
 from graphloc.vision.images import check_image, opencv_errors
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class BlobConfig:
     """Colour signature of the base: BGR colour `colour`; a pixel is a candidate when its
     signature score (projection of (pixel - background grey) on the colour direction minus the
@@ -28,21 +28,15 @@ class BlobConfig:
     ring, each with its own background colour in the coverage map."""
 
     colour: tuple[float, float, float] = (40.0, 40.0, 200.0)
-    min_score: float = 50.0
-    median_size: int = 3
-    min_area: float = 20.0
-    exclusion_dilate: int = 6
+    min_score: float = setting(50.0, gt=0.0)
+    median_size: int = setting(3, ge=1)
+    min_area: float = setting(20.0, gt=0.0)
+    exclusion_dilate: int = setting(6, ge=0)
     refine_edges: bool = True
-    edge_band: float = 4.0
-    sectors: int = 16
+    edge_band: float = setting(4.0, ge=1.5)
+    sectors: int = setting(16, ge=1)
 
     def __post_init__(self):
-        check(
-            self,
-            integer={"median_size": 1, "exclusion_dilate": 0, "sectors": 1},
-            positive=("min_score", "min_area"),
-            interval={"edge_band": (1.5, np.inf, "[)")},
-        )
         if self.median_size % 2 != 1:
             raise ValueError(f"BlobConfig.median_size must be odd, got {self.median_size!r}")
 

@@ -30,12 +30,12 @@ ellipse -- the ellipse cannot tell the two apart; engines choose.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Literal, Sequence
 
 import cv2
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.cameras import PinholeCamera, check_rows, normalize_rows
 from graphloc.candidates import CandidateSet
 from graphloc.vision.ellipse import FITTERS, ellipse_to_conic, fit_ellipse, sampson_rms
@@ -47,27 +47,20 @@ STATUS_EDGE_ON = "edge_on"  # collinear rim or ellipse axis ratio < min_axis_rat
 STATUS_FIT_FAILED = "fit_failed"  # OpenCV returned a non-finite or empty ellipse
 STATUS_NO_CONE = "no_real_cone"  # the ellipse does not back-project to a real elliptic cone
 
+FITS = tuple(sorted(FITTERS))  # the ellipse fits CircleConfig.fit names
 
-@dataclass(frozen=True)
+
+@config_dataclass
 class CircleConfig:
     """min_points: rim points needed after dropping non-finite ones (OpenCV needs >= 5).
     min_axis_ratio: minor/major axis of the fitted ellipse below which the circle counts as
     seen edge-on (no usable normal). pixel_sigma: rim noise [px] used in the score.
     fit: 'direct' (cv2.fitEllipseDirect), 'ams' (cv2.fitEllipseAMS) or 'lsq' (cv2.fitEllipse)."""
 
-    min_points: int = 6
-    min_axis_ratio: float = 0.05
-    pixel_sigma: float = 1.0
-    fit: str = "direct"
-
-    def __post_init__(self):
-        check(
-            self,
-            choices={"fit": tuple(sorted(FITTERS))},
-            integer={"min_points": 5},
-            interval={"min_axis_ratio": (0.0, 1.0, "()")},
-            positive=("pixel_sigma",),
-        )
+    min_points: int = setting(6, ge=5)
+    min_axis_ratio: float = setting(0.05, gt=0.0, lt=1.0)
+    pixel_sigma: float = setting(1.0, gt=0.0)
+    fit: Literal[FITS] = "direct"
 
 
 @dataclass(frozen=True)

@@ -18,11 +18,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.vision.images import check_image, check_points, opencv_errors
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class FeatureConfig:
     """max_features: tracks kept alive (new corners are detected when fewer survive).
     quality_level, min_distance [px], block_size [px]: cv2.goodFeaturesToTrack (quality_level
@@ -31,32 +31,16 @@ class FeatureConfig:
     fb_threshold [px]: forward-backward error above which a track is dropped.
     border [px]: corners and tracks this close to the image edge are not used."""
 
-    max_features: int = 20
-    quality_level: float = 0.01
-    min_distance: float = 12.0
-    block_size: int = 7
-    win_size: int = 21
-    max_level: int = 3
-    iterations: int = 30
-    epsilon: float = 0.01
-    fb_threshold: float = 0.5
-    border: int = 10
-
-    def __post_init__(self):
-        check(
-            self,
-            integer={
-                "max_features": 0,
-                "block_size": 3,
-                "win_size": 3,
-                "max_level": 0,
-                "iterations": 1,
-                "border": 0,
-            },
-            interval={"quality_level": (0.0, 1.0, "()")},
-            nonnegative=("min_distance",),
-            positive=("fb_threshold", "epsilon"),
-        )
+    max_features: int = setting(20, ge=0)
+    quality_level: float = setting(0.01, gt=0.0, lt=1.0)
+    min_distance: float = setting(12.0, ge=0.0)
+    block_size: int = setting(7, ge=3)
+    win_size: int = setting(21, ge=3)
+    max_level: int = setting(3, ge=0)
+    iterations: int = setting(30, ge=1)
+    epsilon: float = setting(0.01, gt=0.0)
+    fb_threshold: float = setting(0.5, gt=0.0)
+    border: int = setting(10, ge=0)
 
 
 def as_gray(image: np.ndarray, name: str = "image") -> np.ndarray:

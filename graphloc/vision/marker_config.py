@@ -5,14 +5,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from typing import Literal
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 
 POLARITIES = ("bright", "dark", "color")
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class MarkerDetectorConfig:
     """Parameters of the seed-001 blob extraction (pixels and 8-bit grey levels).
 
@@ -20,15 +21,16 @@ class MarkerDetectorConfig:
     ground, thresholds computed inversely) or "color" (YUV chroma distance to `marker_yuv`).
     """
 
-    expected: int = 4
-    polarity: str = "bright"
+    expected: int = setting(4, ge=1)
+    polarity: Literal[POLARITIES] = "bright"
     marker_yuv: tuple[float, float, float] = (0.0, 128.0, 128.0)
     uv_scale: float = 3.0  # likeness grey levels lost per unit of UV distance (colour only)
     min_luma: float = 30.0  # colour only: darker pixels are never markers
-    min_area: int = 4
+    min_area: int = setting(4, gt=0.0)
     max_area: int = 20000
-    min_axis_ratio: float = 0.4  # minor/major axis of the blob's second moments
-    min_solidity: float = 0.75  # area / convex-hull area
+    # minor/major axis of the blob's second moments
+    min_axis_ratio: float = setting(0.4, ge=0.0, le=1.0)
+    min_solidity: float = setting(0.75, ge=0.0, le=1.0)  # area / convex-hull area
     f2_sigmas: float = 4.0  # F2 = mean + f2_sigmas * std of the fitted background Gaussian
     window_margin: int = 6
     merge_factor: float = 1.5  # merge the closest pair if closer than factor * (r_i + r_j)
@@ -41,16 +43,11 @@ class MarkerDetectorConfig:
     full_image_fallback: bool = True  # ROI failed -> search the whole image (seed IV-B)
 
     def __post_init__(self):
-        check(
-            self,
-            choices={"polarity": POLARITIES},
-            integer={"expected": 1},
-            interval={
-                "min_area": (0.0, "max_area", "(]"),
-                "min_axis_ratio": (0.0, 1.0, "[]"),
-                "min_solidity": (0.0, 1.0, "[]"),
-            },
-        )
+        if not 0.0 < self.min_area <= self.max_area:
+            raise ValueError(
+                f"MarkerDetectorConfig.min_area must be in (0, max_area = {self.max_area:g}], "
+                f"got {self.min_area}"
+            )
 
 
 @dataclass(frozen=True)

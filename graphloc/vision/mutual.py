@@ -43,7 +43,7 @@ import gtsam
 import numpy as np
 
 from graphloc.cameras import normalize_rows
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 
 STATUS_OK = "ok"
 STATUS_NO_BEARING = (
@@ -55,7 +55,7 @@ STATUS_INCONSISTENT = (
 )
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class MutualConfig:
     """min_angle [rad]: smallest usable interior angle.
     max_closure [rad]: largest accepted |theta_1 + theta_2 + theta_3 - pi|.
@@ -66,23 +66,14 @@ class MutualConfig:
       (0,-1,0) for an OpenCV pinhole looking sideways).
     planar: robots on a plane with their `up` axes vertical (setting of [16])."""
 
-    min_angle: float = math.radians(2.0)
-    max_closure: float = math.radians(5.0)
-    max_misfit: float = 0.05
-    max_relative_tilt: float = math.pi / 2
+    min_angle: float = setting(math.radians(2.0), gt=0.0, lt=math.pi / 3)
+    max_closure: float = setting(math.radians(5.0), gt=0.0, allow_inf_nan=True)
+    max_misfit: float = setting(0.05, gt=0.0, allow_inf_nan=True)
+    max_relative_tilt: float = setting(math.pi / 2, gt=0.0, le=math.pi)
     up: tuple[float, float, float] = (0.0, 0.0, 1.0)
     planar: bool = False
 
     def __post_init__(self):
-        check(
-            self,
-            interval={
-                "min_angle": (0.0, math.pi / 3, "()"),
-                "max_closure": (0.0, math.inf, "(]"),
-                "max_relative_tilt": (0.0, math.pi, "(]"),
-                "max_misfit": (0.0, math.inf, "(]"),
-            },
-        )
         up = np.asarray(self.up, dtype=float)
         if up.shape != (3,) or not np.isfinite(up).all() or np.linalg.norm(up) == 0:
             raise ValueError(f"MutualConfig.up must be a non-zero 3-vector, got {self.up}")

@@ -11,10 +11,10 @@ import numpy as np
 from scipy.optimize import minimize
 from tqdm import tqdm
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class TargetDesignConfig:
     """Seed 001 III-A eq. (1): n targets x m markers, lengths in metres.
     weight w, distance bounds D1 <= d <= D2, minimum face height H, penalty G. `tolerance`
@@ -22,30 +22,25 @@ class TargetDesignConfig:
     for D2 = 30 cm). h_min is the smallest distance of a marker from the plane of any three
     others of its target (flat and collinear arrangements both make it small)."""
 
-    n_targets: int = 1
-    n_markers: int = 4
-    weight: float = 2.0 / 3.0
-    d_min: float = 0.15
+    n_targets: int = setting(1, ge=1)
+    n_markers: int = setting(4, ge=4)
+    weight: float = setting(2.0 / 3.0, ge=0.0, le=1.0)
+    d_min: float = setting(0.15, gt=0.0)
     d_max: float = 0.30
-    min_height: float = 0.12
-    penalty: float = 1.0
-    tolerance: float = 5e-4
-    n_starts: int = 20
-    n_samples: int = 20000  # random configurations screened for feasible starts
-    maxiter: int = 1500
+    min_height: float = setting(0.12, ge=0.0)
+    penalty: float = setting(1.0, ge=0.0)
+    tolerance: float = setting(5e-4, ge=0.0)
+    n_starts: int = setting(20, ge=1)
+    n_samples: int = setting(20000, ge=1)  # random configurations screened for feasible starts
+    maxiter: int = setting(1500, ge=1)
     restarts: int = 1  # Nelder-Mead runs per start, each from the previous optimum
     seed: int = 0
 
     def __post_init__(self):
-        check(
-            self,
-            integer={"n_targets": 1, "n_markers": 4, "n_starts": 1, "n_samples": 1, "maxiter": 1},
-            interval={
-                "d_min": (0.0, "d_max", "()"),
-                "weight": (0.0, 1.0, "[]"),
-            },
-            nonnegative=("min_height", "tolerance", "penalty"),
-        )
+        if not 0.0 < self.d_min < self.d_max:
+            raise ValueError(
+                f"TargetDesignConfig.d_min must be in (0, d_max = {self.d_max:g}), got {self.d_min}"
+            )
 
 
 def _index_sets(m: int):

@@ -15,14 +15,14 @@ from tqdm import tqdm
 
 from graphloc.cameras import PinholeCamera
 from graphloc.candidates import CandidateSet
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.seams import FrameInput, TeammateObservation
 from graphloc.vision.circle import CircleConfig, circle_pose_from_rim
 from graphloc.vision.base_rim import BlobConfig, detect_base_rim
 from graphloc.vision.features import FeatureConfig, FeatureTracker
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class TeammateConfig:
     """radius [m] of the base disk; blob: its colour signature; circle: ellipse-fit settings;
     radius_pixel_floor, centre_pixel_floor [px]: lower bounds of the ellipse radius and centre
@@ -36,14 +36,11 @@ class TeammateConfig:
     With the edge crossings alone (refine_edges=False) calibrate both floors for that
     front-end (benchmarks.seed003.teammate_config)."""
 
-    radius: float = 0.019
+    radius: float = setting(0.019, gt=0.0)
     blob: BlobConfig = BlobConfig()
     circle: CircleConfig = CircleConfig()
-    radius_pixel_floor: float = 0.007
-    centre_pixel_floor: float = 0.03
-
-    def __post_init__(self):
-        check(self, positive=("radius", "radius_pixel_floor", "centre_pixel_floor"))
+    radius_pixel_floor: float = setting(0.007, gt=0.0)
+    centre_pixel_floor: float = setting(0.03, gt=0.0)
 
 
 def disk_pose_covariance(

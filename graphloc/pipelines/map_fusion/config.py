@@ -6,15 +6,15 @@ the tracker's (`graphloc.hypotheses.config`) and the session's (`graphloc.sessio
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import field
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.hypotheses.config import TrackerConfig
 from graphloc.mapping.config import AcceptanceConfig, OdometryConfig, RegistrationConfig
 from graphloc.session_config import SessionConfig
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class FusionConfig:
     """odometry_sigmas: per-frame KISS-ICP increment sigmas (rot [rad], trans [m]); pixel_sigma:
     LED pixel noise [px] for the P3P covariances; p3p_outlier_d2: Mahalanobis^2 from the estimate
@@ -31,14 +31,11 @@ class FusionConfig:
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     session: SessionConfig = field(default_factory=SessionConfig)
     odometry_sigmas: tuple[float, float] = (math.radians(0.3), 0.01)
-    pixel_sigma: float = 0.5
-    p3p_outlier_d2: float = 50.0
-    map_voxel: float = 0.03
-    anchor_sigma: float = 1e-4
+    pixel_sigma: float = setting(0.5, gt=0.0)
+    p3p_outlier_d2: float = setting(50.0, gt=0.0)
+    map_voxel: float = setting(0.03, gt=0.0)
+    anchor_sigma: float = setting(1e-4, gt=0.0)
     build_map: bool = True  # False: skip step 5 (benchmarks of the transform only)
     scan_matching: bool = True  # False: between-factors straight from KISS-ICP with odometry_sigmas
     guess_sigma: tuple[float, float] = (math.radians(5.0), 0.1)
     robust: bool = True
-
-    def __post_init__(self):
-        check(self, positive=("pixel_sigma", "p3p_outlier_d2", "map_voxel", "anchor_sigma"))

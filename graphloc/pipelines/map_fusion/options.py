@@ -1,6 +1,7 @@
 """`FuseMapsOptions`: the one option tree of `graphloc fuse-maps` -- its command-line options
 and the keys of `--config FILE.toml` are these fields (`graphloc.config.add_config_arguments`
-/ `config_from_args`). The pipeline's own settings are the nested `fusion` table
+/ `config_from_args`; their rules are pydantic field constraints). The pipeline's own settings
+are the nested `fusion` table
 (`FusionConfig`: `[fusion]` for its scalars, `[fusion.registration]`, `[fusion.acceptance]`,
 `[fusion.odometry]`, `[fusion.tracker]`, `[fusion.session]` for its parts):
 
@@ -15,49 +16,43 @@ and the keys of `--config FILE.toml` are these fields (`graphloc.config.add_conf
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.pipelines.map_fusion.config import FusionConfig
 
 
-def _help(text: str) -> dict:
-    return {"help": text}
-
-
-@dataclass(frozen=True)
+@config_dataclass
 class FuseMapsOptions:
-    hint: str | None = field(
-        default=None,
-        metadata=_help("with --ground: T_G0_C0 as 'x y z qx qy qz qw' or 16 numbers (row-major)"),
+    hint: str | None = setting(
+        None,
+        description="with --ground: T_G0_C0 as 'x y z qx qy qz qw' or 16 numbers (row-major)",
     )
-    hint_sigma: str | None = field(
-        default=None,
-        metadata=_help("1-sigma of --hint: 'DEG M'; unset: the config's fusion.guess_sigma"),
+    hint_sigma: str | None = setting(
+        None,
+        description="1-sigma of --hint: 'DEG M'; unset: the config's fusion.guess_sigma",
     )
-    p3p: str | None = field(
-        default=None,
-        metadata=_help("with --ground: camera + LED setup JSON with an LED pixel CSV (inputs.py)"),
+    p3p: str | None = setting(
+        None,
+        description="with --ground: camera + LED setup JSON with an LED pixel CSV (inputs.py)",
     )
-    rate: float = field(default=10.0, metadata=_help("frame rate of --ground / --ceiling [Hz]"))
-    variant: str = field(
-        default="furnished",
-        metadata=_help("simulated room variant (furnished, empty, rectangular, low_overlap)"),
+    rate: float = setting(
+        10.0, gt=0.0, le=1000.0, description="frame rate of --ground / --ceiling [Hz]"
     )
-    seed: int = field(default=0, metadata=_help("simulated room: scenario seed"))
-    frames: int = field(default=10, metadata=_help("simulated room: frames per robot"))
-    mcap: str | None = field(
-        default=None, metadata=_help("also write the fused map and trajectories as MCAP")
+    variant: str = setting(
+        "furnished",
+        description="simulated room variant (furnished, empty, rectangular, low_overlap)",
     )
-    rerun: str | None = field(default=None, metadata=_help("also write a Rerun recording (.rrd)"))
+    seed: int = setting(0, ge=0, le=2**32 - 1, description="simulated room: scenario seed")
+    frames: int = setting(10, ge=1, le=1000, description="simulated room: frames per robot")
+    mcap: str | None = setting(
+        None,
+        description="also write the fused map and trajectories as MCAP",
+    )
+    rerun: str | None = setting(None, description="also write a Rerun recording (.rrd)")
     fusion: FusionConfig = field(default_factory=FusionConfig)
 
     def __post_init__(self):
-        check(
-            self,
-            integer={"seed": (0, 2**32 - 1), "frames": (1, 1000)},
-            interval={"rate": (0.0, 1000.0, "(]")},
-        )
         if self.hint_sigma is not None and self.hint is None:
             raise ValueError("FuseMapsOptions.hint_sigma needs hint (--hint-sigma needs --hint)")
         if self.hint is not None and self.p3p is not None:

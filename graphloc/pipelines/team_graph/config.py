@@ -3,12 +3,12 @@ follow, and the online lag policy."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
+from typing import Literal
 import gtsam
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.factors.odometry import VelocityNoise
 from graphloc.factors.robust import Kernel, KernelPolicy
 from graphloc.hypotheses import TrackerConfig
@@ -26,7 +26,7 @@ ANCHOR_BASE = (
 FEATURE_BASE = 200_000_000  # landmark_key(FEATURE_BASE + j): the point of the j-th feature track
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class GraphConfig:
     """keyframe_dt [s]: pose grid of wheel-odometry robots; sync_tolerance [s]: how far from a
     pose a measurement of an event-clocked robot may be; which measurements to use; robust
@@ -41,8 +41,8 @@ class GraphConfig:
     far a moving target's marker may sit from its layout position (`camera.moving_marker_factors`);
     session settings (iSAM2 thresholds None: set from the run's precision, `run_precision`)."""
 
-    keyframe_dt: float = 0.25
-    sync_tolerance: float = 0.02
+    keyframe_dt: float = setting(0.25, gt=0.0)
+    sync_tolerance: float = setting(0.02, gt=0.0)
     use_landmarks: bool = True
     use_inter_robot: bool = True
     landmark_priors: bool = True
@@ -58,59 +58,37 @@ class GraphConfig:
     velocity_noise: VelocityNoise = VelocityNoise(density_v=0.01, density_w=0.05)
     initial_sigma: tuple = (0.02, 0.05)
     static_sigma: tuple = (1e-4, 1e-4)
-    surface_sigma: float = 0.005
-    marker_sigma: float = 0.001
-    landmark_prior_floor: float = 0.01
+    surface_sigma: float = setting(0.005, gt=0.0)
+    marker_sigma: float = setting(0.001, gt=0.0)
+    landmark_prior_floor: float = setting(0.01, gt=0.0)
     unknown_motion_sigma: tuple = (3.0, 100.0)
     tracker: TrackerConfig = TrackerConfig()
-    decision_threshold: float = 0.8  # see the docstring
-    downweight_threshold: float = 0.1
-    relinearize_threshold: float | None = None
-    relinearize_translation: float | None = None  # see `session_config`
-    relinearize_skip: int = 10
-    wildfire_threshold: float | None = None
-    extra_updates: int | None = None
-    lm_max_iterations: int = 100
-    feature_depth: float = 2.6  # [m] seed 003 III: KLT points start at the background (260 cm)
-    feature_depth_sigma: float = 1.0  # [m] and its std (where the camera's params give none)
+    decision_threshold: float = setting(0.8, ge=0.5, lt=1.0)  # see the docstring
+    downweight_threshold: float = setting(0.1, ge=0.0)
+    relinearize_threshold: float | None = setting(None, gt=0.0)
+    relinearize_translation: float | None = setting(None, ge=0.0)  # see `session_config`
+    relinearize_skip: int = setting(10, ge=1)
+    wildfire_threshold: float | None = setting(None, gt=0.0)
+    extra_updates: int | None = setting(None, ge=0)
+    lm_max_iterations: int = setting(100, ge=1)
+    # [m] seed 003 III: KLT points start at the background (260 cm)
+    feature_depth: float = setting(2.6, gt=0.0)
+    # [m] and its std (where the camera's params give none)
+    feature_depth_sigma: float = setting(1.0, gt=0.0)
     # inter-robot scan registration (`team_graph.scans`): graphloc.mapping.registration's
     # RegistrationConfig / AcceptanceConfig, None = their defaults
     registration: object = None
     acceptance: object = None
     scan_hint_sigma: tuple = (0.05, 0.1)  # (rot [rad], trans [m]) of registrations between
     # placed robots, started from their current initial poses
-    lag: float | None = None  # online: fixed-lag window [s] (None / 0: full smoothing)
+    # online: fixed-lag window [s] (None / 0: full smoothing)
+    lag: float | None = setting(None, ge=0.0)
     marginalize_every: float = 4.0  # [s] fixed lag: old variables leave in batches this long
     # iSAM2's factorization: CHOLESKY (fast); QR where Cholesky finds the system indeterminate
     # (`solve` retries an online solve with it)
-    factorization: str = "CHOLESKY"
+    factorization: Literal["CHOLESKY", "QR"] = "CHOLESKY"
 
     def __post_init__(self):
-        check(
-            self,
-            positive=(
-                "keyframe_dt",
-                "sync_tolerance",
-                "surface_sigma",
-                "marker_sigma",
-                "landmark_prior_floor",
-                "feature_depth",
-                "feature_depth_sigma",
-                "relinearize_threshold",
-                "wildfire_threshold",
-            ),
-            nonnegative=("lag", "downweight_threshold", "relinearize_translation"),
-            integer={"relinearize_skip": 1, "lm_max_iterations": 1, "extra_updates": 0},
-            interval={"decision_threshold": (0.5, 1.0, "[)")},
-            choices={"factorization": ("CHOLESKY", "QR")},
-            optional=(
-                "lag",
-                "relinearize_threshold",
-                "relinearize_translation",
-                "wildfire_threshold",
-                "extra_updates",
-            ),
-        )
         for name in ("initial_sigma", "static_sigma", "unknown_motion_sigma", "scan_hint_sigma"):
             v = getattr(self, name)
             if len(v) != 2 or not all(np.isfinite(s) and s > 0 for s in v):

@@ -1,6 +1,7 @@
 """`RunOptions`: the one option tree of `graphloc smooth`, `online` and `validate` -- the
 command-line options, the `--config FILE.toml` keys and the `metrics.json` "options" are its
-fields (`graphloc.config.add_config_arguments` / `config_from_args`). What it turns into: the
+fields (`graphloc.config.add_config_arguments` / `config_from_args`), their rules pydantic
+field constraints (`graphloc.config.config_dataclass`). What it turns into: the
 loader's `duration`, source options (`source`: a bag's topics file, a scan directory's rate)
 and sensor-noise overrides (`noise`), the `GraphConfig` (`graph_config`), the online lag and
 the extra outputs. Light (no GTSAM): the command line's options derive from it, and the online
@@ -8,11 +9,9 @@ lag's default (`DEFAULT_LAG`, the policy in `team_graph.config.default_lag`) is 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Literal
 
-from typing import TYPE_CHECKING
-
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 from graphloc.records import MAX_SIGMA, MAX_TIME
 from graphloc.factors.robust import Kernel, KernelPolicy
 
@@ -33,140 +32,147 @@ POSE_GRAPH = ("candidate_seed", "null_loops", "truth_poses")
 DEFAULT_LAG = 45.0  # [s] online fixed-lag window (scripts/bench_scale.py measures the choice)
 
 
-def _help(text: str) -> dict:
-    return {"help": text}
-
-
-@dataclass(frozen=True)
+@config_dataclass
 class RunOptions:
-    duration: float | None = field(
-        default=None, metadata=_help("use only the first N seconds; unset: all")
+    duration: float | None = setting(
+        None,
+        gt=0.0,
+        le=MAX_TIME,
+        description="use only the first N seconds; unset: all",
     )
-    topics: str | None = field(
-        default=None,
-        metadata=_help(
+    topics: str | None = setting(
+        None,
+        description=(
             "a bag run's topics file (YAML, docs/rosbag.md); unset: topics.yaml inside or "
             "beside the bag"
         ),
     )
-    scan_rate: float | None = field(
-        default=None,
-        metadata=_help("a scan directory without a times file: scans per second [Hz]; unset: 10"),
+    scan_rate: float | None = setting(
+        None,
+        gt=0.0,
+        le=1000.0,
+        description="a scan directory without a times file: scans per second [Hz]; unset: 10",
     )
-    candidate_seed: int | None = field(
-        default=None,
-        metadata=_help(
+    candidate_seed: int | None = setting(
+        None,
+        ge=0,
+        le=2**32 - 1,
+        description=(
             "a pose-graph file (City10000 / g2o): shuffle each measurement's candidates with "
             "this seed; its first-listed candidate is then the truth (mode accuracy)"
         ),
     )
-    null_loops: bool | None = field(
-        default=None,
-        metadata=_help("a pose-graph file: every loop closure may be an outlier (null component)"),
+    null_loops: bool | None = setting(
+        None,
+        description="a pose-graph file: every loop closure may be an outlier (null component)",
     )
-    truth_poses: str | None = field(
-        default=None,
-        metadata=_help(
+    truth_poses: str | None = setting(
+        None,
+        description=(
             "a pose-graph file: its ground-truth poses, one line per pose id (x y theta, or "
             "x y z qx qy qz qw)"
         ),
     )
-    keyframe_dt: float = field(
-        default=0.25, metadata=_help("pose grid of wheel-odometry robots [s]")
+    keyframe_dt: float = setting(
+        0.25,
+        ge=1e-3,
+        le=3600.0,
+        description="pose grid of wheel-odometry robots [s]",
     )
-    sync_tolerance: float = field(
-        default=0.02,
-        metadata=_help(
+    sync_tolerance: float = setting(
+        0.02,
+        gt=0.0,
+        le=60.0,
+        description=(
             "largest time offset between a measurement and its pose [s] (robots without wheel "
             "odometry)"
         ),
     )
-    landmarks: bool = field(default=True, metadata=_help("use landmark measurements"))
-    inter_robot: bool = field(default=True, metadata=_help("use robot-to-robot measurements"))
-    unknown_landmarks: bool = field(
-        default=False,
-        metadata=_help("cooperative SLAM: estimate landmark positions instead of using the map"),
+    landmarks: bool = setting(True, description="use landmark measurements")
+    inter_robot: bool = setting(True, description="use robot-to-robot measurements")
+    unknown_landmarks: bool = setting(
+        False,
+        description="cooperative SLAM: estimate landmark positions instead of using the map",
     )
-    kernel: str = field(
-        default="cauchy:2.0",
-        metadata=_help(
+    kernel: str = setting(
+        "cauchy:2.0",
+        description=(
             "robust kernel NAME[:k] of landmark and inter-robot factors (huber, cauchy, tukey, "
             "gemanmcclure, dcs, none)"
         ),
     )
-    odometry_kernel: str = field(
-        default="none", metadata=_help("robust kernel NAME[:k] of odometry factors")
+    odometry_kernel: str = setting(
+        "none",
+        description="robust kernel NAME[:k] of odometry factors",
     )
-    candidate_kernel: str = field(
-        default="cauchy:1.0", metadata=_help("robust kernel NAME[:k] of decided candidate sets")
+    candidate_kernel: str = setting(
+        "cauchy:1.0",
+        description="robust kernel NAME[:k] of decided candidate sets",
     )
-    bearing_sigma: float | None = field(
-        default=None, metadata=_help("bearing noise [rad] of every sensor; unset: the log's")
+    bearing_sigma: float | None = setting(
+        None,
+        gt=0.0,
+        le=MAX_SIGMA,
+        description="bearing noise [rad] of every sensor; unset: the log's",
     )
-    range_sigma: float | None = field(
-        default=None, metadata=_help("range noise at 0 m [m]; unset: the log's")
+    range_sigma: float | None = setting(
+        None,
+        gt=0.0,
+        le=MAX_SIGMA,
+        description="range noise at 0 m [m]; unset: the log's",
     )
-    range_sigma_per_m: float | None = field(
-        default=None, metadata=_help("range noise growth [m per m]; unset: the log's")
+    range_sigma_per_m: float | None = setting(
+        None,
+        ge=0.0,
+        le=MAX_SIGMA,
+        description="range noise growth [m per m]; unset: the log's",
     )
-    pixel_sigma: float | None = field(
-        default=None, metadata=_help("pixel noise [px] of every camera; unset: the log's")
+    pixel_sigma: float | None = setting(
+        None,
+        gt=0.0,
+        le=MAX_SIGMA,
+        description="pixel noise [px] of every camera; unset: the log's",
     )
-    lag: float | None = field(
-        default=None,
-        metadata=_help(
+    lag: float | None = setting(
+        None,
+        ge=0.0,
+        le=MAX_TIME,
+        description=(
             f"online: fixed-lag window [s], 0 = full smoothing; unset: {DEFAULT_LAG:g} s where "
             "no variable must outlive it, else 0 (docs/outputs.md)"
         ),
     )
-    mcap: str | None = field(
-        default=None, metadata=_help("also write the results as an MCAP file (Foxglove, RViz)")
+    mcap: str | None = setting(
+        None,
+        description="also write the results as an MCAP file (Foxglove, RViz)",
     )
-    rerun: str | None = field(
-        default=None, metadata=_help("also write a Rerun recording (.rrd; graphloc[viz])")
+    rerun: str | None = setting(
+        None,
+        description="also write a Rerun recording (.rrd; graphloc[viz])",
     )
-    groundtruth_rate: str = field(
-        default="estimate",
-        metadata=_help(
+    groundtruth_rate: Literal[GROUNDTRUTH_RATES] = setting(
+        "estimate",
+        description=(
             "<robot>_groundtruth.tum: 'estimate' (the samples matched to the robot's pose "
             "times, those the metrics compare) or 'full' (every sample)"
         ),
     )
-    align: str | None = field(
-        default=None,
-        metadata=_help(
+    align: Literal[ALIGNMENTS] | None = setting(
+        None,
+        description=(
             "how estimates are compared with ground truth: none, se2, se3 or sim3 (evo's "
             "names); unset: the world frame when the log anchors it, else se2 / se3"
         ),
     )
-    strict: bool = field(
-        default=False,
-        metadata=_help(
+    strict: bool = setting(
+        False,
+        description=(
             "exit with code 5 when the solve is inconsistent or a warning was raised "
             "(docs/outputs.md)"
         ),
     )
 
     def __post_init__(self):
-        check(
-            self,
-            interval={
-                "keyframe_dt": (1e-3, 3600.0, "[]"),  # s: a pose grid from 1 kHz to an hour
-                "sync_tolerance": (0.0, 60.0, "(]"),  # s
-                "scan_rate": (0.0, 1000.0, "(]"),  # Hz
-                "lag": (0.0, MAX_TIME, "[]"),
-                **{s: (0.0, MAX_SIGMA, "(]") for s in NOISE if s != "range_sigma_per_m"},
-                "range_sigma_per_m": (0.0, MAX_SIGMA, "[]"),
-            },
-            integer={"candidate_seed": (0, 2**32 - 1)},
-            optional=("duration", "bearing_sigma", "range_sigma", "range_sigma_per_m")
-            + ("pixel_sigma", "lag", "scan_rate", "align", "candidate_seed"),
-            choices={"groundtruth_rate": GROUNDTRUTH_RATES, "align": ALIGNMENTS},
-        )
-        if self.duration is not None and not 0 < self.duration <= MAX_TIME:
-            raise ValueError(
-                f"RunOptions.duration must be > 0 and at most {MAX_TIME:g} s, got {self.duration}"
-            )
         for name in KERNELS:
             try:
                 Kernel.parse(getattr(self, name))

@@ -21,11 +21,11 @@ stream never decided, rows of a table skipped; they do not change `consistent`, 
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 
 import numpy as np
 
-from graphloc.config import check
+from graphloc.config_schema import config_dataclass, setting
 
 # skip reasons that drop rows a log states (docs/log_format.md): each is a warning (not
 # `too_few_markers`: a frame where markers left the image is no fault of the log)
@@ -56,23 +56,13 @@ LOST_ROWS = (
 MIN_DIM = 20  # residual dimensions a robot's factors of one type need to be judged on their own
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class ConsistencyTest:
     """The thresholds of the verdict (module docstring)."""
 
-    max_normalized_chi2: float = 4.0
-    max_downweighted_share: float = 0.1
-    max_inconsistent_share: float = 0.1
-
-    def __post_init__(self):
-        check(
-            self,
-            positive=("max_normalized_chi2",),
-            interval={
-                "max_downweighted_share": (0.0, 1.0, "[]"),
-                "max_inconsistent_share": (0.0, 1.0, "[]"),
-            },
-        )
+    max_normalized_chi2: float = setting(4.0, gt=0.0)
+    max_downweighted_share: float = setting(0.1, ge=0.0, le=1.0)
+    max_inconsistent_share: float = setting(0.1, ge=0.0, le=1.0)
 
 
 def factor_statistics(res, types: np.ndarray, threshold: float, select=None) -> dict:
