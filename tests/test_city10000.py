@@ -282,6 +282,61 @@ def test_pose_graph_options_and_bad_truth_are_one_error(tmp_path, cli, planar_lo
     assert got.code == 2 and "--candidate-seed applies to a pose-graph file" in got.err
 
 
+def _vertigo_square(tmp_path, outliers: int, seed: int = 5):
+    """A g2o file written as Vertigo's generateDataset.py writes one (not by graphloc): a robot
+    driving a 10 x 10 m square twice, noisy odometry, every pose of the second lap closing to
+    the first (EDGE_SE2_SWITCHABLE with its switch variable and prior), `outliers` random false
+    closures (EDGE_SE2_MAXMIX). Returns the path and the true poses."""
+    rng = np.random.default_rng(seed)
+    info = "400 0 0 400 0 2500"
+    lines, poses, (x, y, th) = [], [], (0.0, 0.0, 0.0)
+    for k in range(80):
+        poses.append(gtsam.Pose2(x, y, th))
+        lines.append(f"VERTEX_SE2 {k} {x} {y} {th}")
+        x, y, th = x + np.cos(th), y + np.sin(th), th + (np.pi / 2 if k % 10 == 9 else 0.0)
+    for k in range(79):
+        r = poses[k].between(poses[k + 1])
+        dx, dy, dth = rng.normal(0, [0.05, 0.05, 0.02])
+        lines.append(f"EDGE_SE2 {k} {k + 1} {r.x() + dx} {r.y() + dy} {r.theta() + dth} {info}")
+    for k in range(40, 80):
+        r, s = poses[k - 40].between(poses[k]), 80 + k
+        closure = f"{k - 40} {k} {s} {r.x()} {r.y()} {r.theta()} {info}"
+        lines += [
+            f"VERTEX_SWITCH {s} 1",
+            f"EDGE_SWITCH_PRIOR {s} 1 1",
+            f"EDGE_SE2_SWITCHABLE {closure}",
+        ]
+    for _ in range(outliers):
+        a = int(rng.integers(0, 70))
+        b = a + int(rng.integers(3, 10))
+        lines.append(f"EDGE_SE2_MAXMIX {a} {b} 0.01 {rng.uniform(-5, 5)} {rng.uniform(-5, 5)} "
+                     f"0.3 {info}")  # fmt: skip
+    return write(tmp_path, lines, "square.g2o"), poses
+
+
+def test_smooth_and_validate_read_a_vertigo_outlier_file(tmp_path, cli):
+    import json
+
+    path, poses = _vertigo_square(tmp_path, outliers=10)
+    got = cli(["validate", str(path)])
+    assert got.code == 0, got.err[-2000:]
+    report = json.loads(got.out)
+    assert report["measurements"]["with_null"] == 50 and report["unreachable_edges"] == 0
+    assert report["skipped"]["counts"] == {"switch_variable": 80}
+    out = tmp_path / "out"
+    got = cli(["smooth", str(path), "--out", str(out), "--no-progress"], out=out)
+    assert got.code == 0, got.err[-2000:]
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["decisions"]["decided_null"] == 10  # the ten false closures, no true one
+    rows = [r.split(",") for r in (out / "decisions.csv").read_text().splitlines()[1:]]
+    nulls = {int(r[0]) for r in rows if r[6] == "1"}  # choice 1 = the null of one candidate
+    assert nulls == set(range(79 + 40, 79 + 40 + 10))  # the MAXMIX lines, after the closures
+    bad = write(tmp_path, path.read_text().splitlines() + ["EDGE_SE2 200 201 1 0 0 1 0 0 1 0 1"],
+                "bad.g2o")  # fmt: skip
+    got = cli(["validate", str(bad)])
+    assert got.code == 2 and "bad.g2o: line " in got.err and "200 is no pose" in got.err
+
+
 def test_api_doc_block_runs_as_written():
     import re
     from pathlib import Path

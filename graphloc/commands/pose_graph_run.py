@@ -1,8 +1,9 @@
 """`graphloc smooth FILE` / `graphloc online FILE` for a pose-graph file with discrete
 alternatives (City10000's format or g2o 2D / 3D: `graphloc.datasets.pose_graph_file`), solved by
 the multi-hypothesis engine (`graphloc.hypotheses.pose_graph.PoseGraphHypotheses`) step by step
-(one step per new pose); `smooth` then runs Levenberg-Marquardt on the best branch's graph from
-its estimate, `online` records the causal estimate and the CPU time of every step.
+(one step per new pose), then its final refinement (`PoseGraphHypotheses.finish`: Levenberg-
+Marquardt on the decided graph, the measurements with a null component decided again at its
+optimum); `online` also records the causal estimate and the CPU time of every step.
 
 Options (RunOptions' pose-graph fields): `--candidate-seed N` shuffles each measurement's
 candidates (seeded); the first-listed candidate is then the truth and metrics.json holds the
@@ -20,15 +21,16 @@ from pathlib import Path
 
 import numpy as np
 
-from graphloc.exitcodes import INCOMPLETE, OK
+from graphloc.exitcodes import INCOMPLETE, OK, SolverFailure
 from graphloc.textio import check_file, shown, text_lines
 
-TAGS = ("EDGE2", "EDGE_SE2", "VERTEX_SE2", "EDGE_SE3:QUAT", "VERTEX_SE3:QUAT")
 SIGMAS = {2: (0.05, 0.05, 0.01), 3: (0.01, 0.01, 0.01, 0.05, 0.05, 0.05)}  # no information
 
 
 def is_pose_graph_file(path) -> bool:
-    """A regular file whose first data line starts with a City10000 or g2o pose tag."""
+    """A regular file whose first data line starts with a tag the pose-graph reader reads."""
+    from graphloc.datasets.pose_graph_file import TAGS
+
     path = Path(str(path))
     if not path.is_file():
         return False
@@ -83,6 +85,47 @@ def read_file(path, options: dict):
     return read_pose_graph(path, on_error="skip", null_on_loops=bool(options.get("null_loops")))
 
 
+def summary(graph) -> dict:
+    """What `graphloc validate` says of a pose-graph file without solving it: its measurements
+    by kind (certain, with candidates, with a null component; loop closures), the vertices, the
+    skipped lines, and whether the edges grow the graph from its first pose step by step as the
+    engine needs (`group_steps`: every edge joins known poses or starts at a known one), with
+    the first edge that does not."""
+    from collections import Counter
+
+    from graphloc.datasets.pose_graph_file import group_steps
+
+    ms = graph.measurements
+    steps = group_steps(ms)
+    known, unreachable, first_bad = {steps[0][0][1].source}, 0, None
+    for step in steps:
+        for _, m in step:
+            if m.source not in known:
+                unreachable += 1
+                first_bad = first_bad or (
+                    f"line {m.line}: {m.source} -> {m.target}: {m.source} is no pose of the "
+                    "edges before it (edges must grow the graph from its first pose)"
+                )
+            known.add(m.target)
+    return {
+        "path": str(graph.path), "format": graph.format, "dim": graph.dim,
+        "vertices": len(graph.vertices),
+        "poses": len({k for m in ms for k in (m.source, m.target)}),
+        "measurements": {
+            "total": len(ms),
+            "certain": sum(not m.ambiguous for m in ms),
+            "with_candidates": sum(len(m.candidates) > 1 for m in ms),
+            "with_null": sum(bool(m.null) for m in ms),
+            "loop_closures": sum(abs(m.target - m.source) != 1 for m in ms),
+            "candidates_per_measurement": dict(sorted(Counter(len(m.candidates) for m in ms).items())),  # noqa: E501
+        },
+        "steps": len(steps),
+        "unreachable_edges": unreachable,
+        **({"first_unreachable": first_bad} if first_bad else {}),
+        "skipped": graph.skips.as_dict(),
+    }  # fmt: skip
+
+
 def solve_file(graph, mode: str, options: dict, stop=None, progress: bool = False) -> dict:
     """Solve step by step, (batch) refine: the estimate and what metrics.json reports."""
     import gtsam
@@ -107,15 +150,17 @@ def solve_file(graph, mode: str, options: dict, stop=None, progress: bool = Fals
             partial = True
             break
         start = time.process_time()
-        engine.step(step)
+        try:
+            engine.step(step)
+        except SolverFailure:
+            raise
+        except ValueError as exc:  # an edge that does not grow the graph: name the file
+            raise ValueError(f"{graph.path}: {exc}") from None
         if mode == "online":
             node = max(max(m.source, m.target) for _, m in step)
             causal.append((node, _row(engine.current(node), graph.dim)))
         latency.append(time.process_time() - start)
-    estimate = engine.finish()
-    if mode == "batch" and not partial:
-        best = engine.branches[0].isam.getFactorsUnsafe()
-        estimate = gtsam.LevenbergMarquardtOptimizer(best, estimate).optimize()
+    estimate = engine.finish()  # LM on the decided graph, nulls decided again at its optimum
     nodes = sorted(int(gtsam.Symbol(k).index()) for k in estimate.keys())
     poses = np.array([_row(_get(estimate, X(n), graph.dim), graph.dim) for n in nodes])
     choices = engine.choices()

@@ -10,6 +10,7 @@ import argparse
 from pathlib import Path
 
 from graphloc.commands.smooth import landmark_map
+from graphloc.exitcodes import OK
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph.options import OUTPUTS, SOLVER, RunOptions
 from graphloc.structured import dumps_json
@@ -19,7 +20,9 @@ HELP = "check a run (log or MRCLAM dir): what every table contributes to the gra
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "run", help="graphloc log directory (manifest.json) or MRCLAM dataset directory"
+        "run",
+        help="graphloc log directory (manifest.json), MRCLAM dataset directory, bag, or a "
+        "pose-graph file (City10000 / g2o)",
     )
     parser.add_argument("--config", type=Path, help="TOML file with any of the options below")
     add_config_arguments(parser, RunOptions, exclude=SKIPPED)
@@ -30,10 +33,20 @@ SKIPPED = SOLVER + OUTPUTS
 
 
 def run(args: argparse.Namespace) -> int:
+    from graphloc.commands import pose_graph_run
+
+    opts = config_from_args(RunOptions, args, exclude=SKIPPED)
+    if pose_graph_run.is_pose_graph_file(args.run):  # City10000 / g2o
+        graph = pose_graph_run.read_file(args.run, opts.pose_graph())
+        report = pose_graph_run.summary(graph)
+        print(dumps_json(report, indent=1, default=str))
+        if report["unreachable_edges"]:  # smooth / online would stop there: bad input
+            raise ValueError(f"{args.run}: {report['first_unreachable']}")
+        return OK
+    pose_graph_run.reject_options(opts.pose_graph(), args.run)
     from graphloc.datasets import open_run
     from graphloc.pipelines.team_graph import build_graph
 
-    opts = config_from_args(RunOptions, args, exclude=SKIPPED)
     config = opts.graph_config()
     team = open_run(args.run, duration=opts.duration, noise=opts.noise(), source=opts.source())
     graph = build_graph(team, config)
@@ -64,4 +77,4 @@ def run(args: argparse.Namespace) -> int:
             default=str,
         )
     )
-    return 0
+    return OK
