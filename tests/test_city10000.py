@@ -331,6 +331,15 @@ def test_smooth_and_validate_read_a_vertigo_outlier_file(tmp_path, cli):
     rows = [r.split(",") for r in (out / "decisions.csv").read_text().splitlines()[1:]]
     nulls = {int(r[0]) for r in rows if r[6] == "1"}  # choice 1 = the null of one candidate
     assert nulls == set(range(79 + 40, 79 + 40 + 10))  # the MAXMIX lines, after the closures
+    assert metrics["consistent"] is True and got.err.count("warning") == 0
+    # well-formed but wrong: information matrices 100x too tight -> inconsistent, said so
+    tight = write(tmp_path, [line.replace("400 0 0 400 0 2500", "40000 0 0 40000 0 250000")
+                             for line in path.read_text().splitlines()], "tight.g2o")  # fmt: skip
+    out = tmp_path / "tight"
+    got = cli(["smooth", str(tight), "--out", str(out), "--no-progress", "--strict"], out=out)
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert got.code == 5 and metrics["consistent"] is False  # every closure called an outlier
+    assert "inconsistent: 50 of 50 measurements with a null component decided outliers" in got.err
     bad = write(tmp_path, path.read_text().splitlines() + ["EDGE_SE2 200 201 1 0 0 1 0 0 1 0 1"],
                 "bad.g2o")  # fmt: skip
     got = cli(["validate", str(bad)])

@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import csv
 import json
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from graphloc.exitcodes import INCOMPLETE, OK, SolverFailure
+from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, OK, SolverFailure
 from graphloc.textio import check_file, shown, text_lines
 
 SIGMAS = {2: (0.05, 0.05, 0.01), 3: (0.01, 0.01, 0.01, 0.05, 0.05, 0.05)}  # no information
@@ -164,12 +165,85 @@ def solve_file(graph, mode: str, options: dict, stop=None, progress: bool = Fals
     nodes = sorted(int(gtsam.Symbol(k).index()) for k in estimate.keys())
     poses = np.array([_row(_get(estimate, X(n), graph.dim), graph.dim) for n in nodes])
     choices = engine.choices()
+    factors = factor_statistics(engine.final_graph, estimate)
     return {
         "graph": graph, "measurements": measurements, "truth": truth, "choices": choices,
         "nodes": nodes, "poses": poses, "latency": latency, "causal": causal, "partial": partial,
         "cpu": time.process_time() - cpu0, "stats": dict(engine.stats),
-        "undecided": engine.undecided_count(),
+        "undecided": engine.undecided_count(), "factors": factors,
     }  # fmt: skip
+
+
+def factor_statistics(graph, estimate) -> dict:
+    """Per kind of factor of the final graph -- `prior`, `odometry` (between consecutive pose
+    ids), `loop_closure` (the others, with candidates and nulls as decided) --: count, residual
+    dimension, chi-square (2 x the error: the engine's factors are Gaussian) and normalized
+    chi-square (chi2 / dim: about 1 where the file's information matrices are right, as
+    `team_graph.verdict.factor_statistics` reports a team's)."""
+    from gtsam import Symbol
+
+    out: dict = {}
+    for i in range(graph.size()):
+        f = graph.at(i)
+        if f is None:  # a slot a re-decision emptied
+            continue
+        keys = [Symbol(k).index() for k in f.keys()]
+        kind = (
+            "prior"
+            if len(keys) == 1
+            else "odometry"
+            if abs(keys[1] - keys[0]) == 1
+            else "loop_closure"
+        )
+        row = out.setdefault(kind, {"count": 0, "dim": 0, "chi2": 0.0})
+        row["count"] += 1
+        row["dim"] += int(f.dim())
+        row["chi2"] += 2.0 * f.error(estimate)
+    for row in out.values():
+        row["normalized_chi2"] = row["chi2"] / row["dim"] if row["dim"] else None
+    return out
+
+
+def verdict(metrics: dict) -> dict:
+    """The consistency verdict of a pose-graph solve (the team verdict's test,
+    `team_graph.verdict.ConsistencyTest`): every kind of factor's normalized chi-square at most
+    `max_normalized_chi2` (above it, the residuals are larger than the file's information
+    matrices say: wrong noise, corrupted edges or a wrong solution), and at most
+    `max_null_share` of the measurements with a null component decided outliers (a file marks
+    possible outliers because it has many; most of them rejected is a solve that explains its
+    measurements away, as the team verdict's share of down-weighted factors); warnings for
+    measurements
+    no later edge constrained and for skipped lines. A stopped solve is not judged."""
+    from graphloc.pipelines.team_graph.verdict import ConsistencyTest
+
+    test = ConsistencyTest()
+    limit = test.max_normalized_chi2
+    failures, warnings = [], []
+    for kind, row in sorted(metrics["factors"].items()):
+        if row["normalized_chi2"] is not None and row["normalized_chi2"] > limit:
+            failures.append(
+                f"{kind}: normalized chi-square {row['normalized_chi2']:.3g} over {row['count']} "
+                f"factors > {limit:g}: the residuals exceed the file's noise"
+            )
+    nullable, null = metrics["decisions"]["with_null"], metrics["decisions"]["decided_null"]
+    share = test.max_null_share
+    if nullable and null / nullable > share:
+        failures.append(
+            f"{null} of {nullable} measurements with a null component decided outliers "
+            f"(> {share:.0%}): a solution that explains its measurements by calling most of "
+            "them outliers (the file's noise understated, or a file with that many outliers)"
+        )
+    if metrics["decisions"]["never_spanned"]:
+        warnings.append(
+            f"{metrics['decisions']['never_spanned']} measurements with candidates no later "
+            "edge constrained: their first candidate was kept, undecided"
+        )
+    lost = {k: n for k, n in metrics["skipped"]["counts"].items() if k != "switch_variable"}
+    if lost:  # (Vertigo's switch variables are read: the null components replace them)
+        counts = ", ".join(f"{k} {n}" for k, n in lost.items())
+        warnings.append(f"{sum(lost.values())} lines skipped ({counts})")
+    consistent = None if metrics["partial"] else not failures
+    return {"consistent": consistent, "failures": failures, "warnings": warnings}
 
 
 def _get(values, key, dim):
@@ -186,10 +260,11 @@ def _row(pose, dim: int) -> list:
 def metrics_of(result: dict, mode: str, truth_xy: np.ndarray | None) -> dict:
     graph, truth, choices = result["graph"], result["truth"], result["choices"]
     ambiguous = [i for i, m in enumerate(result["measurements"]) if m.ambiguous]
-    decisions = {"ambiguous": len(ambiguous), "decided_null": 0,
+    decisions = {"ambiguous": len(ambiguous), "with_null": 0, "decided_null": 0,
                  "never_spanned": result["undecided"]}  # fmt: skip
     for i in ambiguous:
         m = result["measurements"][i]
+        decisions["with_null"] += int(bool(m.null))
         decisions["decided_null"] += int(m.null and choices.get(i) == len(m.candidates))
     if truth:
         correct = sum(choices.get(i) == k for i, k in truth.items())
@@ -199,8 +274,10 @@ def metrics_of(result: dict, mode: str, truth_xy: np.ndarray | None) -> dict:
         "dim": graph.dim, "mode": mode, "partial": result["partial"],
         "poses": len(result["nodes"]), "measurements": len(result["measurements"]),
         "skipped": graph.skips.as_dict(), "decisions": decisions, "engine": result["stats"],
-        "cpu_s": result["cpu"],
+        "factors": result["factors"], "cpu_s": result["cpu"],
     }  # fmt: skip
+    out["consistency"] = verdict(out)
+    out["consistent"] = out["consistency"]["consistent"]
     if result["latency"]:
         t = np.asarray(result["latency"]) * 1e3
         out["step_cpu_ms"] = {"p50": float(np.median(t)), "p95": float(np.percentile(t, 95)),
@@ -271,7 +348,17 @@ def run_verb(args, mode: str, opts, stop_flag) -> int:
         metrics = metrics_of(result, mode, truth_poses)
         metrics["options"] = given
         write_outputs(Path(args.out), result, metrics, truth_poses)
-    summary = {k: metrics[k] for k in ("mode", "partial", "poses", "decisions")}
+    summary = {k: metrics[k] for k in ("mode", "partial", "consistent", "poses", "decisions")}
     summary["position_rmse_m"] = metrics.get("position_rmse_m")
     print(json.dumps(summary, indent=1))
-    return INCOMPLETE if result["partial"] else OK
+    verb = "smooth" if mode == "batch" else "online"
+    if not getattr(args, "quiet", False):
+        for line in metrics["consistency"]["failures"]:
+            print(f"graphloc {verb}: inconsistent: {line}", file=sys.stderr)
+        for line in metrics["consistency"]["warnings"]:
+            print(f"graphloc {verb}: warning: {line}", file=sys.stderr)
+    if result["partial"]:
+        return INCOMPLETE
+    if opts.strict and (metrics["consistency"]["failures"] or metrics["consistency"]["warnings"]):
+        return INCONSISTENT
+    return OK

@@ -361,7 +361,8 @@ class PoseGraphHypotheses:
         the branch's graph from there (iSAM2 leaves each variable linearized up to its
         relinearization threshold away from the optimum; this removes that last error), and
         the measurements with a null component decided again at that optimum
-        (`pose_graph_refine.redecided`, at most `redecide` rounds)."""
+        (`pose_graph_refine.redecided`, at most `redecide` rounds). `final_graph`: the graph
+        of that estimate."""
         if len(self.branches) > 1:
             self.judge(force=True)
         self.branches[0].flush()
@@ -372,8 +373,9 @@ class PoseGraphHypotheses:
             if result.getVariablesRelinearized() == 0:
                 break
         estimate = isam.calculateBestEstimate()
+        self.final_graph = isam.getFactorsUnsafe()
         if refine:
-            graph = gtsam.NonlinearFactorGraph(self.common)  # decided factors, at their slots
+            graph = self.final_graph = gtsam.NonlinearFactorGraph(self.common)  # at their slots
             for index in self.bridges:  # never spanned: their first candidate
                 graph.add(self.ambiguities[index].factors[self.branches[0].choice[index]])
             estimate = gtsam.LevenbergMarquardtOptimizer(graph, estimate, refinement()).optimize()

@@ -63,6 +63,9 @@ class ConsistencyTest:
     max_normalized_chi2: float = setting(4.0, gt=0.0)
     max_downweighted_share: float = setting(0.1, ge=0.0, le=1.0)
     max_inconsistent_share: float = setting(0.1, ge=0.0, le=1.0)
+    # pose-graph files: of the measurements a file marks as possible outliers, the share a
+    # solve may decide outliers (`commands.pose_graph_run.verdict`); such files come with many
+    max_null_share: float = setting(0.5, ge=0.0, le=1.0)
 
 
 def factor_statistics(res, types: np.ndarray, threshold: float, select=None) -> dict:
