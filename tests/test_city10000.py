@@ -3,6 +3,7 @@
 (graphloc.hypotheses.pose_graph) on small synthetic graphs with known truth (our own grid
 walk, noise and wrong candidates) and on the first steps of City10000."""
 
+import json
 import math
 
 import gtsam
@@ -387,3 +388,41 @@ def test_decisions_with_a_null_are_taken_again_at_the_optimum():
     assert 2 * true_loop.error(estimate) < 16.27 < 2 * outlier.error(estimate)
     gap = [np.hypot(v.atPose2(X(4)).x(), v.atPose2(X(4)).y()) for v in (start, estimate)]
     assert gap[1] < 0.2 * gap[0]  # the loop closes
+
+
+I3 = "100 0 0 100 0 400"
+I6 = " ".join(["100", "0", "0", "0", "0", "0", "100", "0", "0", "0", "0", "100"]
+              + ["0", "0", "0", "400", "0", "0", "400", "0", "400"])  # fmt: skip
+BAD_VERTIGO = [  # (id, line, the words the error names)
+    ("switchable-short", f"EDGE_SE2_SWITCHABLE 0 1 9 1 0 0 {I3[:-4]}", "expected 13 fields"),
+    ("maxmix-nan-weight", f"EDGE_SE2_MAXMIX 0 1 nan 1 0 0 {I3}", "field 4 (weight)"),
+    ("mixture-no-component", "EDGE_SE2_MIXTURE 0 1 0", "field 4 (component count)"),
+    ("mixture-huge-count", "EDGE_SE2_MIXTURE 0 1 1000000000", "field 4 (component count)"),
+    ("mixture-count-mismatch", f"EDGE_SE2_MIXTURE 0 1 2 EDGE_SE2 1 0 1 1 0 0 {I3}",
+     "with 2 components: expected 30 fields"),
+    ("mixture-wrong-tag", f"EDGE_SE2_MIXTURE 0 1 1 VERTEX_SE2 1 0 1 1 0 0 {I3}",
+     "field 5 (component 1 tag)"),
+    ("mixture-wrong-pair", f"EDGE_SE2_MIXTURE 0 1 1 EDGE_SE2 1 0 2 1 0 0 {I3}",
+     "field 8 (component 1 target)"),
+    ("se3-switchable-zero-quaternion", f"EDGE_SE3_SWITCHABLE 0 1 9 1 0 0 0 0 0 0 {I6}",
+     "field 8 (qx..qw)"),
+    ("switchable-not-pd", "EDGE_SE2_SWITCHABLE 0 1 9 1 0 0 1 0 0 1 0 -1", "(information)"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("line, names", [pytest.param(c[1], c[2], id=c[0]) for c in BAD_VERTIGO])
+def test_a_bad_vertigo_line_is_named_or_counted(tmp_path, cli, line, names):
+    """Each malformed robust-edge line: `read_pose_graph` raises naming file, line and field;
+    `graphloc validate` (which skips bad lines, as smooth / online do) counts it with that
+    message and reads the rest."""
+    dim3 = "SE3" in line
+    good = f"EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 {I6}" if dim3 else f"EDGE_SE2 0 1 1 0 0 {I3}"
+    path = write(tmp_path, [good, line], "bad.g2o")
+    with pytest.raises(ValueError) as err:
+        read_pose_graph(path)
+    assert f"{path}: line 2" in str(err.value) and names in str(err.value)
+    got = cli(["validate", str(path)])
+    assert got.code == 0 and "Traceback" not in got.err
+    report = json.loads(got.out)
+    assert report["measurements"]["total"] == 1 and report["skipped"]["total"] == 1
+    assert names in json.dumps(report["skipped"]["examples"])
