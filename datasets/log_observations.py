@@ -3,8 +3,9 @@
 (`graphloc.vision.marker_poses`, seed 000 Sec. III-B / seed 004 Sec. II-C: three distinct
 markers, up to 4 candidates; seed 001 Sec. IV-C: four identical markers, 24 x 4 hypotheses gated
 by the fourth marker), `candidates` rows -> candidate sets as logged, and a robot's `scans` ->
-KISS-ICP odometry steps (`graphloc.mapping.odometry`). Called by
-`graphloc.datasets.graphloc_log.read_team_run` with the rows it grouped.
+KISS-ICP odometry steps (`graphloc.mapping.odometry`). Called by the front-end stage
+(`graphloc.datasets.log_front_end.run_front_ends`) with the rows parsing grouped; the markers'
+columns are read by parsing (`marker_columns`, `graphloc.datasets.log_rows.read_log_rows`).
 """
 
 from __future__ import annotations
