@@ -12,7 +12,7 @@ from graphloc.io import SkipReport
 from graphloc.keys import decode, pose_key
 from graphloc.factors.mixture import MaxMixture
 from graphloc.pipelines.team_graph.camera import feature_factors
-from graphloc.pipelines.team_graph.candidates import candidate_factors
+from graphloc.pipelines.team_graph.candidates import candidate_section
 from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig, run_precision
 from graphloc.pipelines.team_graph.formation import place_unplaced
 from graphloc.pipelines.team_graph.motion import (
@@ -21,7 +21,7 @@ from graphloc.pipelines.team_graph.motion import (
     motion_factors,
     place_robot,
 )
-from graphloc.pipelines.team_graph.points import SensorPoses, point_factors
+from graphloc.pipelines.team_graph.points import point_factors
 from graphloc.pipelines.team_graph.scans import scan_match_factors
 from graphloc.run import TeamRun
 
@@ -47,7 +47,7 @@ class TeamGraph:
     precision: float = COARSE_PRECISION  # run_precision(run)
     links: dict = field(default_factory=dict)  # observer pose key -> (target key, (K,4,4))
     # other initial values the batch solve starts from too (key -> value, over `initial`): one
-    # per candidate of a pixel stream's first set (`candidates.candidate_factors`) or of a
+    # per candidate of a pixel stream's first set (`candidates.place_observers`) or of a
     # resected robot's first sets (`formation.place_unplaced`)
     alternatives: list = field(default_factory=list)
     # those of robots placed by the tracker's guess (it never decided their stream): the online
@@ -71,21 +71,24 @@ def build_graph(
     R = len(run.robots)
     timeline = Timeline(run, config)
     node_times = timeline.node_times
-    factors: list = []  # (time of newest node, factor, type)
-    step_rel = motion_factors(run, config, timeline, factors, skips)
-    anchor_factors(run, config, node_times, factors)
-    sensors = SensorPoses()
-    landmark_guess, n_anchor, excluded = point_factors(
-        run, config, timeline, factors, skips, sensors
-    )
-    point_priors: list = []  # (landmark key, sigma, time): priors placed at the initial guess
-    n_tracks = feature_factors(run, config, timeline, factors, skips, landmark_guess, point_priors)
-    marker_points: dict = {}  # marker key -> world position (static targets' layouts)
-    frame_points: list = []  # (key, target, node, body-frame position): moving targets' markers
-    decisions, decided_pose, placed_via, tentative, alternatives = candidate_factors(
-        run, config, timeline, step_rel, factors, skips, marker_points, frame_points, progress
-    )
-    place_unplaced(run, timeline, decided_pose, placed_via, alternatives)
+    motion = motion_factors(run, config, timeline)
+    step_rel = motion.step_rel
+    points = point_factors(run, config, timeline)
+    features = feature_factors(run, config, timeline)
+    sets = candidate_section(run, config, timeline, step_rel, progress)
+    by_bearings = place_unplaced(run, timeline, sets.decided_pose, sets.placed_via)
+    # (time of newest node, factor, type), in the sections' order
+    factors = motion.made.factors + anchor_factors(run, config, node_times)
+    factors += points.made.factors + features.made.factors + sets.factors
+    for section in (motion.made.skips, points.made.skips, features.made.skips, sets.skips):
+        skips.merge(section)
+    decisions, placed_via, tentative = sets.decisions, sets.placed_via, sets.tentative
+    decided_pose = {**sets.decided_pose, **by_bearings.poses}
+    alternatives = {**sets.alternatives, **by_bearings.alternatives}
+    marker_points = sets.marker_points  # marker key -> world position (static targets' layouts)
+    frame_points = sets.frame_points  # (key, target, node, body-frame position) per marker
+    landmark_guess = {**points.landmark_guess, **features.landmark_guess}
+    sensor_poses = points.sensor_poses
 
     # --- initial values: known poses + odometry, decided poses + odometry; then robots placed
     # through an observer (max-mixture route); then robots placed by scan registration ---
@@ -95,9 +98,10 @@ def build_graph(
         placed = place_robot(run, r, node_times, step_rel, config, decided_pose, placed_via, poses)
         if placed is not None:
             poses[r] = placed
-    by_scans = scan_match_factors(
-        run, config, timeline, step_rel, poses, tentative, factors, skips, progress
-    )
+    scans = scan_match_factors(run, config, timeline, step_rel, poses, tentative, progress)
+    factors += scans.made.factors
+    skips.merge(scans.made.skips)
+    by_scans = scans.placed_via
     for r in by_scans:
         poses[r] = place_robot(run, r, node_times, step_rel, config, {}, by_scans, poses)
     initial, anchored_from = {}, {}
@@ -126,7 +130,7 @@ def build_graph(
     for key, ti, kt, local in frame_points:
         if pose_key(ti, kt) in initial:
             initial[key] = initial[pose_key(ti, kt)].transformFrom(local)
-    with_sensors(initial, sensors.poses)
+    with_sensors(initial, sensor_poses)
     variants, guessed_variants = [], []
     for r, (starts, guessed) in alternatives.items():
         if r not in poses:
@@ -134,10 +138,10 @@ def build_graph(
         for k0, body in starts:
             placed = place_robot(run, r, node_times, step_rel, config, {r: {k0: body}}, {}, poses)
             variants.append({pose_key(r, k): p for k, p in enumerate(placed[0])})
-            with_sensors(variants[-1], sensors.poses)
+            with_sensors(variants[-1], sensor_poses)
             if guessed:
                 guessed_variants.append(variants[-1])
-    for lkey, sigma, t in point_priors:
+    for lkey, sigma, t in features.point_priors:
         if lkey in initial:
             noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
             factors.append(
@@ -174,12 +178,12 @@ def build_graph(
         "candidate_sets": len(run.observations),
         "marker_points": len(marker_points),
         "frame_marker_points": len(frame_points),
-        "sensor_poses": len(sensors.poses),
+        "sensor_poses": len(sensor_poses),
         "committed_sets": sum(d.committed >= 0 for d in decisions),
-        "landmark_anchors": n_anchor,
-        "feature_tracks": n_tracks,
+        "landmark_anchors": points.n_anchor,
+        "feature_tracks": features.tracks,
         "steps": len(steps),
-        "excluded_by_option": excluded,
+        "excluded_by_option": points.excluded,
         **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
     }
     return TeamGraph(
@@ -206,7 +210,7 @@ def build_graph(
         variants,
         guessed_variants,
         {key: (pose_key(ti, kt), local) for key, ti, kt, local in frame_points},
-        sensors.poses,
+        sensor_poses,
     )
 
 
