@@ -71,6 +71,7 @@ def team_run(rows: LogRows, front: FrontEndOutput) -> TeamRun:
     _merge_import_skips(rows.skips, manifest.meta.get("import"), mpath)
     _merge_import_skips(rows.notes, manifest.meta.get("import"), mpath, "notes")
     ids, xyz, sig = rows.landmarks
+    used = {table: n + front.used.get(table, 0) for table, n in rows.used.items()}
     return TeamRun(
         name=manifest.name,
         robots=robots,
@@ -85,7 +86,7 @@ def team_run(rows: LogRows, front: FrontEndOutput) -> TeamRun:
         landmark_sigma=sig,
         landmarks_known=manifest.landmarks_file is not None,
         skips=rows.skips,
-        contributions={k: v for k, v in rows.used.items() if v},
+        contributions={k: n for k, n in used.items() if n},
         meta=dict(manifest.meta),
         features=features,
         scans=front.scans,

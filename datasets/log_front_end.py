@@ -27,12 +27,15 @@ from graphloc.datasets.log_rows import LogRows
 class FrontEndOutput:
     """What the front-ends made of a log's rows: KISS-ICP steps (`Motion`) and the scans they
     came from (`ScanObservation`, by time), candidate sets (`CandidateObservation`: P3P,
-    logged, circles; by time, then observer) and feature pixels (`FeatureObservation`)."""
+    logged, circles; by time, then observer), feature pixels (`FeatureObservation`) and the
+    rows they used per table (`markers`, `candidates`, `features`: counted here, not when
+    parsed)."""
 
     scan_motions: tuple
     scans: tuple
     observations: tuple
     features: tuple
+    used: dict
 
 
 def grouped(pairs: list) -> dict:
@@ -44,22 +47,31 @@ def grouped(pairs: list) -> dict:
 
 
 def run_front_ends(rows: LogRows) -> FrontEndOutput:
-    """Every front-end over `rows`; each refused set is counted in `rows.sink` (or raised) and
-    the rows that became observations in `rows.used`."""
-    robots, manifest, sink, used = rows.robots, rows.manifest, rows.sink, rows.used
+    """Every front-end over `rows`; each refused row or set is counted in `rows.sink` (or
+    raised)."""
+    robots, manifest, sink = rows.robots, rows.manifest, rows.sink
     scan_motions, scans = scan_odometry(
         grouped(rows.rows("scans")), robots, manifest, rows.skips, rows.notes
     )
-    observations = marker_observations(rows.markers, robots, manifest, rows.noise, sink, used)
+    observations, marker_rows = marker_observations(
+        rows.markers, robots, manifest, rows.noise, sink
+    )
     candidates = grouped(rows.rows("candidates"))
-    observations += candidate_observations(candidates, robots, rows.noise, manifest, sink, used)
+    logged = candidate_observations(candidates, robots, rows.noise, manifest, sink)
+    observations += logged
     observations += ellipse_observations(rows.rows("ellipses"), robots, manifest, sink)
-    feature_rows = single_tracks(rows.rows("features"), manifest, sink, used)
+    feature_rows = single_tracks(rows.rows("features"), manifest, sink)
     features = feature_observations(feature_rows, robots, manifest, rows.noise)
     observations.sort(key=lambda o: (o.time, o.robot))
+    used = {
+        "markers": marker_rows,
+        "candidates": sum(len(o.candidates) for o in logged),
+        "features": len(feature_rows),
+    }
     return FrontEndOutput(
         tuple(scan_motions),
         tuple(sorted(scans, key=lambda o: (o.time, o.robot))),
         tuple(observations),
         tuple(features),
+        used,
     )

@@ -75,7 +75,9 @@ class LogRows:
     observations (`candidates` grouped by (time, observer, sensor, target), `scans` by
     (robot, sensor), `features` as (robot, row), `ellipses` as (observer, target, row, where),
     `markers` as columns); 3D ground truth (times, poses) per robot name; the rows used per
-    table, the skips and the notes (read and used, but said)."""
+    table as parsed (a front-end's rows count when it makes their set,
+    `log_front_end.FrontEndOutput.used`), the skips and the notes (read and used, but
+    said)."""
 
     manifest: Manifest
     robots: tuple
@@ -214,7 +216,7 @@ TABLE_HANDLERS: dict[str, Handler] = {
     "range": Handler(_point, "points"),
     "range_bearing": Handler(_point, "points"),
     "scans": Handler(_scan, "scans"),
-    "features": Handler(_feature, "features"),
+    "features": Handler(_feature, "features", counted=False),
     "ellipses": Handler(_ellipse, "ellipses"),
     "candidates": Handler(_candidate, "candidates", counted=False),
 }

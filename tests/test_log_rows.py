@@ -36,7 +36,7 @@ def test_parsing_runs_no_front_end_and_the_stage_makes_the_candidate_sets(tmp_pa
     rows = read_log_rows(root)
     assert len(rows.markers["time"]) > 0 and rows.used["markers"] == 0
     front = run_front_ends(rows)
-    assert len(front.observations) > 0 and rows.used["markers"] > 0
+    assert len(front.observations) > 0 and front.used["markers"] > 0 and rows.used["markers"] == 0
     assert all(len(o.candidates) <= 4 for o in front.observations)
     times = [(o.time, o.robot) for o in front.observations]
     assert times == sorted(times)
