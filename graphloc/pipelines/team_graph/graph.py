@@ -64,11 +64,12 @@ class TeamGraph:
 def build_graph(
     run: TeamRun, config: GraphConfig = GraphConfig(), progress: bool = False
 ) -> TeamGraph:
-    """Every usable row of `run` as a factor, grouped in time steps (`motion`, `points`,
-    `camera`, `candidates`), with initial values."""
+    """Every usable row of `run` as a factor, grouped in time steps, with initial values: the
+    sections (`motion`, `points`, `camera`, `candidates`, `formation`, `scans`), each returning
+    what it makes, then `initial_poses`, `initial_values`, `alternative_starts` and
+    `time_steps`."""
     skips = SkipReport()
     skips.merge(run.skips)
-    R = len(run.robots)
     timeline = Timeline(run, config)
     node_times = timeline.node_times
     motion = motion_factors(run, config, timeline)
@@ -82,102 +83,42 @@ def build_graph(
     factors += points.made.factors + features.made.factors + sets.factors
     for section in (motion.made.skips, points.made.skips, features.made.skips, sets.skips):
         skips.merge(section)
-    decisions, placed_via, tentative = sets.decisions, sets.placed_via, sets.tentative
     decided_pose = {**sets.decided_pose, **by_bearings.poses}
-    alternatives = {**sets.alternatives, **by_bearings.alternatives}
-    marker_points = sets.marker_points  # marker key -> world position (static targets' layouts)
-    frame_points = sets.frame_points  # (key, target, node, body-frame position) per marker
-    landmark_guess = {**points.landmark_guess, **features.landmark_guess}
-    sensor_poses = points.sensor_poses
-
-    # --- initial values: known poses + odometry, decided poses + odometry; then robots placed
-    # through an observer (max-mixture route); then robots placed by scan registration ---
-    poses: dict = {}  # robot -> initial Pose3 per node
-    order = [r for r in range(R) if r not in placed_via] + [r for r in placed_via]
-    for r in order:
-        placed = place_robot(run, r, node_times, step_rel, config, decided_pose, placed_via, poses)
-        if placed is not None:
-            poses[r] = placed
-    scans = scan_match_factors(run, config, timeline, step_rel, poses, tentative, progress)
+    poses = initial_poses(run, config, timeline, step_rel, decided_pose, sets.placed_via)
+    scans = scan_match_factors(run, config, timeline, step_rel, poses, sets.tentative, progress)
     factors += scans.made.factors
     skips.merge(scans.made.skips)
-    by_scans = scans.placed_via
-    for r in by_scans:
-        poses[r] = place_robot(run, r, node_times, step_rel, config, {}, by_scans, poses)
-    initial, anchored_from = {}, {}
-    for r, robot in enumerate(run.robots):
-        if r not in poses:
-            if len(node_times[r]):
-                skips.add(
-                    "unanchored_robot",
-                    f"robot {robot.name}: no initial pose, and nothing places it (no decided "
-                    f"candidate set, no placement by bearings, no accepted scan registration); "
-                    f"its {len(node_times[r])} poses are left out",
-                    len(node_times[r]),
-                )
-            continue
-        anchored_from[r] = node_times[r][poses[r][1]]
-        for k, p in enumerate(poses[r][0]):
-            initial[pose_key(r, k)] = p
-    for lkey, guess in landmark_guess.items():
-        if isinstance(guess, tuple) and guess and guess[0] == "from":
-            _, r, k, direction, rng = guess
-            if pose_key(r, k) in initial:
-                initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
-        else:
-            initial[lkey] = np.asarray(guess, dtype=float)
-    initial.update(marker_points)
-    for key, ti, kt, local in frame_points:
-        if pose_key(ti, kt) in initial:
-            initial[key] = initial[pose_key(ti, kt)].transformFrom(local)
+    for r in scans.placed_via:
+        poses[r] = place_robot(run, r, node_times, step_rel, config, {}, scans.placed_via, poses)
+    skips.merge(unplaced_robots(run, node_times, poses))
+    landmark_guess = {**points.landmark_guess, **features.landmark_guess}
+    sensor_poses = points.sensor_poses
+    initial = initial_values(poses, landmark_guess, sets.marker_points, sets.frame_points)
     with_sensors(initial, sensor_poses)
-    variants, guessed_variants = [], []
-    for r, (starts, guessed) in alternatives.items():
-        if r not in poses:
-            continue
-        for k0, body in starts:
-            placed = place_robot(run, r, node_times, step_rel, config, {r: {k0: body}}, {}, poses)
-            variants.append({pose_key(r, k): p for k, p in enumerate(placed[0])})
-            with_sensors(variants[-1], sensor_poses)
-            if guessed:
-                guessed_variants.append(variants[-1])
+    alternatives = {**sets.alternatives, **by_bearings.alternatives}
+    variants, guessed_variants = alternative_starts(
+        run, config, timeline, step_rel, poses, alternatives, sensor_poses
+    )
     for lkey, sigma, t in features.point_priors:
         if lkey in initial:
             noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
             factors.append(
                 (t, gtsam.PriorFactorPoint3(lkey, initial[lkey], noise), "feature_prior")
             )
-
-    # --- steps: factors grouped by the time of their newest pose; unanchored robots dropped ---
-    factors.sort(key=lambda f: f[0])
-    kept, types = [], []
-    dropped = 0
-    for t, f, kind in factors:
-        if all(key in initial for key in factor_keys(f)):
-            kept.append((t, f, kind))
-            types.append(kind)
-        else:
-            dropped += 1
+    steps, types, dropped = time_steps(factors, initial)
     if dropped:
         skips.add(
             "unanchored_robot",
             f"{dropped} factors touch poses of robots that nothing places",
             dropped,
         )
-    step_times = np.unique([k[0] for k in kept]) if kept else np.zeros(0)
-    steps, j = [], 0
-    for t in step_times:
-        group = []
-        while j < len(kept) and kept[j][0] == t:
-            group.append(kept[j][1:])
-            j += 1
-        steps.append((float(t), group))
+    decisions = sets.decisions
     counts = {
-        "robots": R,
+        "robots": len(run.robots),
         "poses": len([k for k in initial if decode(k)[0] == "x"]),
         "candidate_sets": len(run.observations),
-        "marker_points": len(marker_points),
-        "frame_marker_points": len(frame_points),
+        "marker_points": len(sets.marker_points),
+        "frame_marker_points": len(sets.frame_points),
         "sensor_poses": len(sensor_poses),
         "committed_sets": sum(d.committed >= 0 for d in decisions),
         "landmark_anchors": points.n_anchor,
@@ -194,7 +135,7 @@ def build_graph(
         steps,
         types,
         decisions,
-        anchored_from,
+        {r: node_times[r][poses[r][1]] for r in sorted(poses)},
         step_rel,
         counts,
         skips,
@@ -209,9 +150,123 @@ def build_graph(
         },
         variants,
         guessed_variants,
-        {key: (pose_key(ti, kt), local) for key, ti, kt, local in frame_points},
+        {key: (pose_key(ti, kt), local) for key, ti, kt, local in sets.frame_points},
         sensor_poses,
     )
+
+
+def initial_poses(
+    run: TeamRun,
+    config: GraphConfig,
+    timeline: Timeline,
+    step_rel: list,
+    decided_pose: dict,
+    placed_via: dict,
+) -> dict:
+    """Each placed robot's initial poses (robot -> ([Pose3 per node], first seeded node)):
+    known poses and decided ones carried along the robot's steps, then the robots placed
+    through an observer (the max-mixture route)."""
+    poses: dict = {}
+    R = len(run.robots)
+    order = [r for r in range(R) if r not in placed_via] + [r for r in placed_via]
+    for r in order:
+        placed = place_robot(
+            run, r, timeline.node_times, step_rel, config, decided_pose, placed_via, poses
+        )
+        if placed is not None:
+            poses[r] = placed
+    return poses
+
+
+def unplaced_robots(run: TeamRun, node_times: list, poses: dict) -> SkipReport:
+    """A robot with poses that nothing placed: its poses are left out (counted)."""
+    skips = SkipReport()
+    for r, robot in enumerate(run.robots):
+        if r not in poses and len(node_times[r]):
+            skips.add(
+                "unanchored_robot",
+                f"robot {robot.name}: no initial pose, and nothing places it (no decided "
+                f"candidate set, no placement by bearings, no accepted scan registration); "
+                f"its {len(node_times[r])} poses are left out",
+                len(node_times[r]),
+            )
+    return skips
+
+
+def initial_values(
+    poses: dict, landmark_guess: dict, marker_points: dict, frame_points: list
+) -> dict:
+    """key -> initial value: every placed robot's poses, the landmarks (a position, or 'from'
+    a pose along a ray, where that pose is placed), the static markers and each moving
+    target's per-set markers from the target's pose."""
+    initial = {}
+    for r in sorted(poses):
+        for k, p in enumerate(poses[r][0]):
+            initial[pose_key(r, k)] = p
+    for lkey, guess in landmark_guess.items():
+        if isinstance(guess, tuple) and guess and guess[0] == "from":
+            _, r, k, direction, rng = guess
+            if pose_key(r, k) in initial:
+                initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
+        else:
+            initial[lkey] = np.asarray(guess, dtype=float)
+    initial.update(marker_points)
+    for key, ti, kt, local in frame_points:
+        if pose_key(ti, kt) in initial:
+            initial[key] = initial[pose_key(ti, kt)].transformFrom(local)
+    return initial
+
+
+def alternative_starts(
+    run: TeamRun,
+    config: GraphConfig,
+    timeline: Timeline,
+    step_rel: list,
+    poses: dict,
+    alternatives: dict,
+    sensor_poses: dict,
+) -> tuple[list, list]:
+    """The other initial values the solve starts from (key -> value, over the initial values):
+    one per alternative placement of a placed robot, carried along its steps; and those of
+    robots placed by a guess (the online solve starts from these too)."""
+    variants, guessed_variants = [], []
+    for r, (starts, guessed) in alternatives.items():
+        if r not in poses:
+            continue
+        for k0, body in starts:
+            placed = place_robot(
+                run, r, timeline.node_times, step_rel, config, {r: {k0: body}}, {}, poses
+            )
+            variants.append({pose_key(r, k): p for k, p in enumerate(placed[0])})
+            with_sensors(variants[-1], sensor_poses)
+            if guessed:
+                guessed_variants.append(variants[-1])
+    return variants, guessed_variants
+
+
+def time_steps(factors: list, initial: dict) -> tuple[list, list, int]:
+    """Factors (time, factor, type) grouped by the time of their newest pose: the steps
+    [(time, [(factor, type), ...]), ...], the kept factors' types in order, and the number of
+    factors left out because they touch a variable with no initial value (an unplaced
+    robot's)."""
+    factors = sorted(factors, key=lambda f: f[0])
+    kept, types = [], []
+    dropped = 0
+    for t, f, kind in factors:
+        if all(key in initial for key in factor_keys(f)):
+            kept.append((t, f, kind))
+            types.append(kind)
+        else:
+            dropped += 1
+    step_times = np.unique([k[0] for k in kept]) if kept else np.zeros(0)
+    steps, j = [], 0
+    for t in step_times:
+        group = []
+        while j < len(kept) and kept[j][0] == t:
+            group.append(kept[j][1:])
+            j += 1
+        steps.append((float(t), group))
+    return steps, types, dropped
 
 
 def with_sensors(values: dict, sensor_poses: dict) -> dict:
