@@ -95,10 +95,10 @@ def feature_observations(
     return out
 
 
-def single_tracks(rows: list, manifest, sink, used: dict) -> list:
+def single_tracks(rows: list, manifest, sink) -> list:
     """`features` rows without the ones whose track appears twice in one image (time, robot,
     sensor): which pixel is the track's cannot be told, so each such row is a counted skip
-    `duplicate_track` (as a marker seen twice in one image) and leaves `used`."""
+    `duplicate_track` (as a marker seen twice in one image)."""
     counts = Counter((ri, rec.time, rec.sensor, rec.track) for ri, rec in rows)
     if all(n == 1 for n in counts.values()):
         return rows
@@ -113,7 +113,6 @@ def single_tracks(rows: list, manifest, sink, used: dict) -> list:
             f"{table}: line {rec.line}: field 'track': track {rec.track} appears twice in one "
             f"image (time {rec.time})",
         )
-        used["features"] -= 1
     return kept
 
 

@@ -3,8 +3,9 @@
 (`graphloc.vision.marker_poses`, seed 000 Sec. III-B / seed 004 Sec. II-C: three distinct
 markers, up to 4 candidates; seed 001 Sec. IV-C: four identical markers, 24 x 4 hypotheses gated
 by the fourth marker), `candidates` rows -> candidate sets as logged, and a robot's `scans` ->
-KISS-ICP odometry steps (`graphloc.mapping.odometry`). Called by
-`graphloc.datasets.graphloc_log.read_team_run` with the rows it grouped.
+KISS-ICP odometry steps (`graphloc.mapping.odometry`). Called by the front-end stage
+(`graphloc.datasets.log_front_end.run_front_ends`) with the rows parsing grouped; the markers'
+columns are read by parsing (`marker_columns`, `graphloc.datasets.log_rows.read_log_rows`).
 """
 
 from __future__ import annotations
@@ -71,15 +72,17 @@ def marker_columns(manifest, robots: tuple, index: dict, on_error: str, report, 
 
 
 def marker_observations(
-    columns: dict | None, robots: tuple, manifest, d: dict, sink: Sink, used: dict
-) -> list:
+    columns: dict | None, robots: tuple, manifest, d: dict, sink: Sink
+) -> tuple[list, int]:
     """Marker pixels (`marker_columns`) grouped by (time, observer, sensor, target), one image
     each, checked with NumPy -- a marker outside the target's layout, a marker seen twice
     (unless the markers are identical) or fewer than three markers is a counted skip of every
     row of the image -- then P3P candidate sets, all three-marker instances of the run in one
-    batched solve. `used["markers"]` counts the rows of images that became candidate sets."""
+    batched solve. Returns the candidate sets and the number of rows of the images that became
+    candidate sets that are not empty (an inconsistent set's rows are counted by the graph, as
+    skipped)."""
     if columns is None or not len(columns["time"]):
-        return []
+        return [], 0
     c = columns
     order = np.lexsort((c["line"], c["target"], c["sensor"], c["robot"], c["time"]))
     c = {k: v[order] for k, v in c.items()}
@@ -140,7 +143,7 @@ def marker_observations(
         by_setup.setdefault(key, []).append(
             (float(c["time"][starts[k]]), c["marker"][rows].astype(int), uv, where(k))
         )
-    out = []
+    out, used = [], 0
     for (ri, s, ti), frames in by_setup.items():
         sensor = list(robots[ri].sensors)[s]  # marker_columns' sensor index
         T_bs, params = robots[ri].sensors[sensor]
@@ -169,8 +172,8 @@ def marker_observations(
             pixels = None if target.identical_markers else MarkerPixels(marks, uv, camera, sigma)
             out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs, pixels))
             if len(cs):  # an inconsistent set's rows are counted by the graph, as skipped
-                used["markers"] = used.get("markers", 0) + len(marks)
-    return out
+                used += len(marks)
+    return out, used
 
 
 SCAN_SIGMAS = (0.002, 0.01)  # [rad, m] per KISS-ICP step where the scanner's params give none
@@ -223,14 +226,12 @@ def scan_odometry(groups: dict, robots: tuple, manifest, report, notes=None) -> 
     return out, observed
 
 
-def candidate_observations(
-    groups: dict, robots: tuple, d: dict, manifest, sink: Sink, used: dict
-) -> list:
+def candidate_observations(groups: dict, robots: tuple, d: dict, manifest, sink: Sink) -> list:
     """`candidates` rows grouped by (time, observer, sensor, target) -> candidate sets as
     logged, each candidate with the sensor's `candidate_sigmas` (rot rad, trans m). A set
     that lists a candidate `k` twice is a counted skip `duplicate_candidate` of its every row
-    (which of the two is meant cannot be told); `used["candidates"]` counts the rows of the
-    sets formed. The rows' quaternions are checked (`not_unit`) by the reader."""
+    (which of the two is meant cannot be told); a set formed uses its every row, one per
+    candidate. The rows' quaternions are checked (`not_unit`) by the reader."""
     out = []
     for (time, ri, sensor, ti), rows in groups.items():
         ks = [r.k for r in rows]
@@ -265,5 +266,4 @@ def candidate_observations(
             covariance=cov,
         )
         out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs))
-        used["candidates"] = used.get("candidates", 0) + len(rows)
     return out

@@ -185,7 +185,7 @@ def read_landmarks(manifest: Manifest) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def is_tum(path: str) -> bool:
-    """3D ground truth is a TUM file (graphloc.datasets.graphloc_log.read_tum_poses), not a CSV
+    """3D ground truth is a TUM file (graphloc.datasets.log_rows.read_tum_poses), not a CSV
     table."""
     return str(path).endswith(".tum")
 

@@ -48,7 +48,8 @@ class Odometry:
 
 @dataclass(frozen=True)
 class Decision:
-    """Output of one update, shared by the tracker and the baselines.
+    """Output of one update, shared by the tracker and the baselines (the team graph's record
+    of what became of a candidate set, made from it, is `team_graph.decision.SetOutcome`).
 
     probabilities (K,): posterior that candidate k of this frame is the genuine one (may sum
     to < 1: the rest is on "none of them", e.g. a coasting track). committed: index of the

@@ -1109,7 +1109,7 @@ def test_a_second_writer_into_one_out_is_refused(planar_log, tmp_path):
     import subprocess
     import sys
 
-    from graphloc.datasets.graphloc_log import read_tum_poses
+    from graphloc.datasets.log_rows import read_tum_poses
     from graphloc.names import claim_out
 
     out = tmp_path / "out"

@@ -36,7 +36,7 @@ def genuine_candidates(run: TeamRun, decisions: list, max_time_diff: float = 0.0
 
 
 def _genuine_relative(run: TeamRun, d, max_time_diff: float) -> int:
-    """The candidate (observer body_T_target, `Decision.relative`) nearest the true relative
+    """The candidate (observer body_T_target, `SetOutcome.relative`) nearest the true relative
     pose (rotation angle [rad] plus translation [m] over 0.1 m), -1 without ground truth."""
     rel = []
     for r in (d.robot, d.target):

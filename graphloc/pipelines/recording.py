@@ -145,7 +145,7 @@ def team_recording(result: TeamResult, run: TeamRun, source=None) -> Recording:
 
 
 def candidate_weights(decision, k: int) -> np.ndarray:
-    """(k,) posterior weight of every candidate of a decision (`Decision.probabilities`: the
+    """(k,) posterior weight of every candidate of a decision (`SetOutcome.probabilities`: the
     tracker's posterior, or the max-mixture's component weights at the estimate); a decision
     without them (a max-mixture the solve never reached) has only the committed one's."""
     if decision.probabilities is not None:

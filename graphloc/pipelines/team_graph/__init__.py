@@ -43,7 +43,7 @@ _API = {
     "GraphConfig": "graphloc.pipelines.team_graph.config",
     "default_lag": "graphloc.pipelines.team_graph.config",
     "run_precision": "graphloc.pipelines.team_graph.config",
-    "Decision": "graphloc.pipelines.team_graph.decision",
+    "SetOutcome": "graphloc.pipelines.team_graph.decision",
     "TeamGraph": "graphloc.pipelines.team_graph.graph",
     "build_graph": "graphloc.pipelines.team_graph.graph",
     "STEP_LOG_COLUMNS": "graphloc.pipelines.team_graph.passes",

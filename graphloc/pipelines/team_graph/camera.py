@@ -14,32 +14,38 @@ projection gives no information)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import gtsam
 import numpy as np
 
 from graphloc.factors.robust import robust_noise
-from graphloc.io import SkipReport
 from graphloc.keys import frame_marker_key, landmark_key, marker_key, pose_key
 from graphloc.pipelines.team_graph.config import FEATURE_BASE, GraphConfig, cov6
 from graphloc.pipelines.team_graph.motion import Timeline
+from graphloc.pipelines.team_graph.section import SectionFactors
 from graphloc.run import TeamRun
 
 
-def feature_factors(
-    run: TeamRun,
-    config: GraphConfig,
-    timeline: Timeline,
-    factors: list,
-    skips: SkipReport,
-    landmark_guess: dict,
-    point_priors: list,
-) -> int:
+@dataclass
+class FeatureSection:
+    """The feature section's output: its factors and skips (`made`), each track's landmark
+    guess ('from' the first pose, on the first ray at the depth prior: key -> ('from', robot,
+    k, direction, range)), the tracks' point priors ((key, sigma, time) each: placed at the
+    guess once the poses' initial values exist) and the number of tracks."""
+
+    made: SectionFactors
+    landmark_guess: dict
+    point_priors: list
+    tracks: int
+
+
+def feature_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> FeatureSection:
     """Every usable feature pixel as a GenericProjectionFactorCal3_S2 (robust kernel
-    'projection'); a new track adds its landmark's guess ('from' the first pose, on the first
-    ray at the depth prior) to `landmark_guess` and (key, sigma, time) to `point_priors` (the
-    prior is placed at the guess once the poses' initial values exist). Returns the number of
-    tracks."""
+    'projection'), one landmark per track (`FeatureSection`)."""
     node_times, nearest = timeline.node_times, timeline.nearest
+    made, landmark_guess, point_priors = SectionFactors(), {}, []
+    factors, skips = made.factors, made.skips
     kernel = config.kernels.kernel("projection")
     tracks: dict = {}
     calibrations: dict = {}
@@ -89,7 +95,7 @@ def feature_factors(
                 "projection",
             )
         )
-    return len(tracks)
+    return FeatureSection(made, landmark_guess, point_priors, len(tracks))
 
 
 def marker_factors(
@@ -100,17 +106,16 @@ def marker_factors(
     time: float,
     observation,
     E: gtsam.Pose3,
-    factors: list,
-    marker_points: dict,
-    skips: SkipReport,
-) -> None:
+    known: dict,
+) -> SectionFactors:
     """The marker pixels of one candidate set (`CandidateObservation.pixels`) of a static
     target as GenericProjectionFactorCal3_S2 on robot r's pose k (the sensor at body_T_sensor
     E: its extrinsics after the robot's motion from pose k to the set's time) and
-    the target's marker points (robust kernel 'projection'). A marker point enters once, in
-    `marker_points` (key -> world position, its initial value), with a PriorFactorPoint3 whose
-    covariance is the target's pose prior (static_sigma) carried to the point,
-    H P H^T with H = d(T m)/dT = [-R [m]x, R]."""
+    the target's marker points (robust kernel 'projection'). A marker point enters once: one
+    not in `known` (the marker points made before) is a new marker point (its world position,
+    its initial value) with a PriorFactorPoint3 whose covariance is the target's pose prior
+    (static_sigma) carried to the point, H P H^T with H = d(T m)/dT = [-R [m]x, R]."""
+    out = SectionFactors()
     ti = observation.target
     target = run.robots[ti]
     T = target.initial_pose
@@ -119,16 +124,17 @@ def marker_factors(
     for m in observation.pixels.markers:
         key = marker_key(ti, int(m))
         keys.append(key)
-        if key not in marker_points:
+        if key not in known and key not in out.marker_points:
             local = np.asarray(target.markers[int(m)], float)
             H = np.hstack([-R @ _skew(local), R])
             cov = H @ cov6(config.static_sigma) @ H.T + np.eye(3) * 1e-12
-            marker_points[key] = T.transformFrom(local)
+            out.marker_points[key] = T.transformFrom(local)
             prior = gtsam.PriorFactorPoint3(
-                key, marker_points[key], gtsam.noiseModel.Gaussian.Covariance(cov)
+                key, out.marker_points[key], gtsam.noiseModel.Gaussian.Covariance(cov)
             )
-            factors.append((time, prior, "marker_prior"))
-    _projections(run, config, r, k, time, observation, E, keys, factors, skips)
+            out.factors.append((time, prior, "marker_prior"))
+    out.merge(_projections(run, config, r, k, time, observation, E, keys))
+    return out
 
 
 def moving_marker_factors(
@@ -141,10 +147,7 @@ def moving_marker_factors(
     time: float,
     observation,
     offsets: tuple,
-    factors: list,
-    frame_points: list,
-    skips: SkipReport,
-) -> None:
+) -> SectionFactors:
     """The marker pixels of one candidate set of a moving target as factors on both poses (the
     observer's pose k, the target's pose kt): each marker seen is one world point of that set
     (`keys.frame_marker_key(index, marker)`), held on the target's pose by a
@@ -154,7 +157,8 @@ def moving_marker_factors(
     pose (`Timeline.offsets`): the sensor is body_T_sensor after the observer's offset, a
     marker is its layout position after the target's. The points' initial values come once
     the target's poses have theirs: (key, target, kt, position in the target's body frame at
-    pose kt) into `frame_points`."""
+    pose kt) in `frame_points`."""
+    out = SectionFactors()
     ti = observation.target
     target = run.robots[ti]
     observer_offset, target_offset = offsets
@@ -167,7 +171,7 @@ def moving_marker_factors(
         noise = gtsam.noiseModel.Diagonal.Sigmas(
             np.array([sigma / max(distance, sigma)] * 2 + [sigma])
         )
-        factors.append(
+        out.factors.append(
             (
                 time,
                 gtsam.BearingRangeFactor3D(
@@ -180,16 +184,18 @@ def moving_marker_factors(
                 "marker_layout",
             )
         )
-        frame_points.append((key, ti, kt, local))
+        out.frame_points.append((key, ti, kt, local))
         keys.append(key)
     E = observer_offset.compose(observation.body_T_sensor)
-    _projections(run, config, r, k, time, observation, E, keys, factors, skips)
+    out.merge(_projections(run, config, r, k, time, observation, E, keys))
+    return out
 
 
-def _projections(run, config, r, k, time, observation, E, keys, factors, skips) -> None:
+def _projections(run, config, r, k, time, observation, E, keys) -> SectionFactors:
     """One GenericProjectionFactorCal3_S2 per marker pixel of `observation` on robot r's pose k
     (sensor at body_T_sensor E) and the marker point `keys[i]` (robust kernel 'projection'); a
     pixel that does not undistort is a counted skip `bad_pixel`."""
+    out = SectionFactors()
     pix = observation.pixels
     cam = pix.camera
     K = gtsam.Cal3_S2(cam.fx, cam.fy, 0.0, cam.cx, cam.cy)
@@ -200,13 +206,13 @@ def _projections(run, config, r, k, time, observation, E, keys, factors, skips) 
     for m, uv, key in zip(pix.markers, pix.pixels, keys):
         ideal = _ideal_pixel(cam, uv)
         if ideal is None:
-            skips.add(
+            out.skips.add(
                 "bad_pixel",
                 f"robot {run.robots[r].name}: marker {int(m)} of {target.name} at "
                 f"{observation.time}: pixel {np.asarray(uv).tolist()} does not undistort",
             )
             continue
-        factors.append(
+        out.factors.append(
             (
                 time,
                 gtsam.GenericProjectionFactorCal3_S2(
@@ -215,6 +221,7 @@ def _projections(run, config, r, k, time, observation, E, keys, factors, skips) 
                 "marker",
             )
         )
+    return out
 
 
 def _skew(v: np.ndarray) -> np.ndarray:

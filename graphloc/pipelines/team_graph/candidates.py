@@ -1,9 +1,24 @@
-"""Candidate sets (P3P, seed 000 / 001 / 004) -> factors: one HypothesisTracker per
-(observer, target) stream decides causally; a decided candidate becomes one robust factor, or,
-where the set's marker pixels are known and the target is static, the pixels themselves enter
-(`camera.marker_factors`) and the candidates place the observer."""
+"""Candidate sets (P3P, seed 000 / 001 / 004) -> factors, in three steps with explicit inputs
+and outputs, one rule per (observer, target) stream:
+
+1. `decide_stream`: the target is placed (known initial pose): the observer is placed through
+   it and one HypothesisTracker decides the stream's sets causally -> `StreamDecisions`;
+2. `stream_factors`: the factors of those decisions -> `SectionFactors`. When the sets carry
+   their marker pixels, the pixels become projection factors (`camera.marker_factors` on a
+   static target's marker points, `camera.moving_marker_factors` on both poses of a moving
+   one; a decided candidate would count them twice); without pixels a decided candidate
+   becomes one robust prior (static target) or between factor (moving target);
+3. `place_observers`: the decided observer poses, each tracked observer's latest best guess
+   (the scan registration's hint) and a pixel stream's alternative placements.
+
+A stream whose target is not placed but whose observer is (seed 003: a camera sees a teammate's
+base, two circle candidates) is `mixtures.mixture_stream`'s: each set a max-mixture the solve
+chooses, the target placed through the observer. `candidate_section` runs them all.
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
@@ -18,7 +33,7 @@ from graphloc.keys import pose_key
 from graphloc.pipelines.team_graph.camera import marker_factors, moving_marker_factors
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov
 from graphloc.pipelines.team_graph.decision import (
-    Decision,
+    SetOutcome,
     inconsistent,
     quats,
     rows_of,
@@ -26,46 +41,279 @@ from graphloc.pipelines.team_graph.decision import (
 )
 from graphloc.pipelines.team_graph.mixtures import mixture_stream
 from graphloc.pipelines.team_graph.motion import Timeline, compose_steps, dead_reckoning
+from graphloc.pipelines.team_graph.section import SectionFactors
 from graphloc.run import TeamRun
-from graphloc.seams import Odometry
+from graphloc.seams import Decision, Odometry
 
 
-def candidate_factors(
+@dataclass(frozen=True)
+class TrackedSet:
+    """One set of a tracked stream as the tracker saw it: its index in `run.observations`, the
+    observation, the observer's and target's nodes k / kt, each candidate as target_T_sensor
+    (`seen`, with `measured_cov`, its own covariance) and as the observer's world_T_body
+    (`bodies`, with `covariance`, the target's pose uncertainty added), the tracker's update
+    and whether the update decided the set (committed, its same-pose cluster's posterior at
+    least `decision_threshold`)."""
+
+    index: int
+    observation: object
+    k: int
+    kt: int
+    seen: list
+    measured_cov: np.ndarray
+    bodies: list
+    covariance: np.ndarray
+    update: Decision  # the tracker's
+    decided: bool
+
+
+@dataclass
+class StreamDecisions:
+    """What the tracker made of one (observer, target) stream: the sets it saw, what became of
+    every set (`SetOutcome`, inconsistent ones included), the sets it skipped, and the latest
+    best guess with every candidate of that set by posterior ((node, time, body pose, 6x6
+    covariance) each; None: no guess)."""
+
+    robot: int
+    target: int
+    pixel_route: bool
+    sets: list = field(default_factory=list)
+    outcomes: list = field(default_factory=list)
+    skips: SkipReport = field(default_factory=SkipReport)
+    tentative: list | None = None
+
+
+@dataclass
+class CandidateSection:
+    """The candidate section's output: factors (time, factor, type) and skips; what became of
+    every set; the decided observer poses (robot -> {node: Pose3}); the targets placed through
+    an observer (robot -> {node: (observer, node, body_T_target)}); each tracked observer's
+    latest best guess and candidates (`StreamDecisions.tentative`); the alternative placements
+    of pixel streams (robot -> ([(node, body Pose3) per candidate], placed by the tracker's
+    guess, never decided)); a static target's marker points (key -> world position) and a
+    moving target's per-set points ((key, target, node, body-frame position) each)."""
+
+    factors: list
+    skips: SkipReport
+    decisions: list
+    decided_pose: dict
+    placed_via: dict
+    tentative: dict
+    alternatives: dict
+    marker_points: dict
+    frame_points: list
+
+
+def decide_stream(
+    run: TeamRun, config: GraphConfig, timeline: Timeline, step_rel: list, r: int, ti: int, obs
+) -> StreamDecisions:
+    """Robot r's sets on placed robot ti (`obs`: (index in run.observations, observation)) through
+    one HypothesisTracker, in time order, with the observer's odometry between them. A set with
+    no (new) observer pose or no target pose within the sync tolerance is a counted skip
+    `no_pose_at_time`; an inconsistent set (no candidate passed the pixel chi-square,
+    `vision.marker_poses`) is never decided: an outcome with status "inconsistent" and a
+    counted skip `inconsistent_set`."""
+    nearest = timeline.nearest
+    observer, target = run.robots[r], run.robots[ti]
+    out = StreamDecisions(r, ti, all(o.pixels is not None for _, o in obs))
+    target_track = dead_reckoning(target, step_rel[ti], config)
+    tracker = HypothesisTracker(config.tracker)
+    prev = None
+    for n, o in obs:
+        k, kt = nearest(r, o.time), nearest(ti, o.time)
+        if len(o.candidates) == 0:
+            meta = o.candidates.meta
+            out.skips.add(
+                "inconsistent_set",
+                f"robot {observer.name}: the marker pixels of {target.name} at "
+                f"{o.time}: no pose of its layout passes the pixel chi-square (least "
+                f"{meta.get('chi2_min', float('nan')):.1f} > gate {meta.get('gate', 0):.1f})",
+                rows_of(o),
+            )
+            out.outcomes.append(inconsistent(o, r, ti))
+            continue
+        if k < 0 or (prev is not None and k == prev):
+            out.skips.add(
+                "no_pose_at_time",
+                f"robot {observer.name}: candidate set at {o.time} has no "
+                f"(new) pose within the sync tolerance",
+            )
+            continue
+        if kt < 0:
+            out.skips.add(
+                "no_pose_at_time",
+                f"robot {target.name}: seen at {o.time} with no pose within the sync tolerance",
+            )
+            continue
+        E = o.body_T_sensor
+        X_t, P_t = target_track[kt]
+        # the candidates (target_T_sensor) in the world through the target's pose, its
+        # uncertainty added
+        seen = o.candidates.poses()  # target_T_sensor
+        world = [X_t.compose(p) for p in seen]
+        bodies = [w.compose(E.inverse()) for w in world]  # where each puts the observer
+        cand_cov = candidate_covariances(o.candidates, config.tracker.default_sigmas)
+        cov = cand_cov + np.stack([adjoint_cov(p.inverse(), P_t) for p in seen])
+        cs = CandidateSet(
+            np.stack([p.rotation().matrix() for p in world]),
+            np.stack([p.translation() for p in world]),
+            o.candidates.scores,
+            o.time,
+            observer.name,
+            target.name,
+            o.candidates.source,
+            o.candidates.meta,
+            cov,
+        )
+        odo = None
+        if prev is not None:
+            rel, odo_cov = compose_steps(step_rel[r], prev, k, config)
+            odo = Odometry(E.inverse().compose(rel).compose(E), adjoint_cov(E.inverse(), odo_cov))
+        d = tracker.update(cs, odo)
+        prev = k
+        if d.pose is not None:  # the tracker's best guess so far (committed or not), then
+            # every candidate of this set by its posterior: hypotheses for the scans
+            order = np.argsort(-np.asarray(d.probabilities, dtype=float), kind="stable")
+            j = int(order[0]) if len(order) else 0
+            out.tentative = [
+                (k, o.time, d.pose.compose(E.inverse()), adjoint_cov(E, cs.covariance[j]))
+            ]
+            out.tentative += [
+                (k, o.time, bodies[c], adjoint_cov(E, cs.covariance[c])) for c in order
+            ]
+        cluster = (
+            same_pose(world, cs.covariance, d.committed) if d.locked and d.committed >= 0 else []
+        )
+        decided = bool(cluster) and d.probabilities[cluster].sum() >= config.decision_threshold
+        out.sets.append(TrackedSet(n, o, k, kt, seen, cand_cov, bodies, cov, d, decided))
+        out.outcomes.append(_outcome(o, r, ti, out.sets[-1], cluster))
+    return out
+
+
+def _outcome(o, r: int, ti: int, s: TrackedSet, cluster: list) -> SetOutcome:
+    """The record of a set the tracker saw."""
+    d = s.update
+    pose = np.full(7, np.nan)
+    if s.decided:
+        body = s.bodies[d.committed]
+        q = gtsam.Rot3(body.rotation().matrix()).toQuaternion()
+        pose = np.r_[body.translation(), q.x(), q.y(), q.z(), q.w()]
+    prob = (
+        float(d.probabilities[d.committed])
+        if d.committed >= 0
+        else float(np.max(d.probabilities, initial=0))
+    )
+    return SetOutcome(
+        o.time,
+        r,
+        ti,
+        np.array([b.translation() for b in s.bodies]),
+        int(d.committed) if s.decided else -1,
+        prob,
+        pose,
+        cluster if s.decided else [],
+        np.array(d.probabilities, dtype=float),
+        candidates_quat=quats(s.bodies),
+        status="decided" if s.decided else "undecided",
+        measured=np.stack([p.matrix() for p in s.seen]),
+        measured_cov=s.measured_cov,
+        body_T_sensor=o.body_T_sensor.matrix(),
+    )
+
+
+def stream_factors(
     run: TeamRun,
     config: GraphConfig,
     timeline: Timeline,
-    step_rel: list,
-    factors: list,
-    skips: SkipReport,
+    stream: StreamDecisions,
+    obs: list,
     marker_points: dict,
-    frame_points: list,
-    progress: bool = False,
-) -> tuple[list, dict, dict, dict, dict]:
-    """Every candidate set as factors, by one rule per (observer, target) stream:
-    - the target is placed (known initial pose): the observer is placed through it; one
-      HypothesisTracker decides causally. When the sets carry their marker pixels, the pixels
-      become projection factors (`camera.marker_factors` on a static target's marker points,
-      `camera.moving_marker_factors` on both poses of a moving one; a decided candidate would
-      count them twice) and the observer is placed at its first decided set, or, if the
-      tracker never decides, at the stream's first set by the tracker's guess there; every
-      candidate of that set is an alternative placement the solve also starts from
-      (`alternatives`). Without pixels a decided candidate becomes one robust factor;
-    - the target is not placed but the observer is (e.g. seed 003: a camera sees a teammate's
-      base, two circle candidates): the target is placed through the observer and each set
-      enters as a max-mixture of its candidates (`mixture_stream`), chosen by the solve.
-    An inconsistent set (no candidate passed the pixel chi-square, `vision.marker_poses`) is
-    never decided and its pixels never enter: a Decision with status "inconsistent" and a
-    counted skip `inconsistent_set`.
-    Returns the decisions, the decided observer poses (robot -> {node: Pose3}), the targets
-    placed through an observer (robot -> {node: (observer, node, body_T_target)}) and each
-    tracked observer's latest best guess, decided or not (robot -> (node, time, body pose,
-    6x6 covariance; the hint of the inter-robot scan registration, `team_graph.scans`) and the
-    alternative placements of pixel streams (robot -> ([(node, body Pose3) per candidate],
-    placed by the tracker's guess, never decided)); a static target's marker points land in
-    `marker_points` (key -> world position), a moving target's per-set points in
-    `frame_points` ((key, target, node, body-frame position) each)."""
-    node_times, nearest = timeline.node_times, timeline.nearest
-    decisions, decided_pose, placed_via, tentative, alternatives = [], {}, {}, {}, {}
+) -> SectionFactors:
+    """The factors of one tracked stream's decisions (module docstring, step 2); `obs`: the
+    stream's every set, over which the pixel route integrates each robot's motion between its
+    pose and the set's time; `marker_points`: the static markers earlier streams made, so a
+    point enters once."""
+    out = SectionFactors()
+    r, ti = stream.robot, stream.target
+    node_times, target = timeline.node_times, run.robots[ti]
+    offsets: dict = {}
+    if stream.pixel_route:  # each robot's motion between its pose and the set's time
+        nodes = [(timeline.nearest(r, o.time), timeline.nearest(ti, o.time)) for _, o in obs]
+        ok = [i for i, (k, kt) in enumerate(nodes) if k >= 0 and kt >= 0]
+        times = [obs[i][1].time for i in ok]
+        mine = timeline.offsets(r, [nodes[i][0] for i in ok], times)
+        theirs = timeline.offsets(ti, [nodes[i][1] for i in ok], times)
+        offsets = {obs[i][0]: pair for i, pair in zip(ok, zip(mine, theirs))}
+    kernel = config.kernels.kernel("candidate")
+    for s in stream.sets:
+        o, k, kt, E = s.observation, s.k, s.kt, s.observation.body_T_sensor
+        t = max(node_times[r][k], node_times[ti][kt])
+        if stream.pixel_route:
+            mine, theirs = offsets[s.index]
+            if target.static:
+                known = {**marker_points, **out.marker_points}
+                out.merge(marker_factors(run, config, r, k, t, o, mine.compose(E), known))
+            else:
+                out.merge(
+                    moving_marker_factors(run, config, r, k, kt, s.index, t, o, (mine, theirs))
+                )
+            continue
+        if not s.decided:
+            continue
+        j = s.update.committed
+        if target.static:  # the target's pose is known: a prior on the observer
+            noise = robust_noise(
+                gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(E, s.covariance[j])), kernel
+            )
+            factor = gtsam.PriorFactorPose3(pose_key(r, k), s.bodies[j], noise)
+        else:
+            # observer_T_target = E target_T_sensor^-1, covariance moved to the target's side
+            noise = robust_noise(
+                gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(s.seen[j], s.measured_cov[j])),
+                kernel,
+            )
+            factor = gtsam.BetweenFactorPose3(
+                pose_key(r, k), pose_key(ti, kt), E.compose(s.seen[j].inverse()), noise
+            )
+        out.factors.append((t, factor, "candidate"))
+    return out
+
+
+def place_observers(streams: list) -> tuple[dict, dict, dict]:
+    """The observers the tracked streams place, in stream order (module docstring, step 3):
+    (decided poses robot -> {node: world_T_body}, the latest guesses robot -> tentative list,
+    alternatives robot -> ([(node, body) per candidate of the first set], guessed)). Without
+    pixels every decided set places its observer; a pixel stream places it once, at its first
+    decided set, else (never decided, nor by an earlier stream) at its first set by the
+    tracker's guess there, and every candidate of that first set is an alternative."""
+    decided_pose: dict = {}
+    tentative: dict = {}
+    alternatives: dict = {}
+    for stream in streams:
+        r = stream.robot
+        if stream.tentative is not None:
+            tentative[r] = stream.tentative
+        for s in stream.sets:
+            if s.decided and not (stream.pixel_route and decided_pose.get(r)):
+                decided_pose.setdefault(r, {})[s.k] = s.bodies[s.update.committed]
+        if stream.pixel_route and stream.sets:
+            first = stream.sets[0]
+            guess = first.bodies[int(np.argmax(first.update.probabilities))]
+            guessed = r not in decided_pose
+            if guessed:
+                decided_pose[r] = {first.k: guess}
+            alternatives[r] = ([(first.k, body) for body in first.bodies], guessed)
+    return decided_pose, tentative, alternatives
+
+
+def candidate_section(
+    run: TeamRun, config: GraphConfig, timeline: Timeline, step_rel: list, progress: bool = False
+) -> CandidateSection:
+    """Every candidate set of `run` through its stream's rule (module docstring)."""
+    skips = SkipReport()
+    factors, decisions, placed_via, tracked = [], [], {}, []
+    marker_points: dict = {}
+    frame_points: list = []
     streams: dict = {}
     for n, o in enumerate(run.observations):
         streams.setdefault((o.robot, o.target), []).append((n, o))
@@ -74,18 +322,12 @@ def candidate_factors(
     ):
         target = run.robots[ti]
         if target.initial_pose is None and run.robots[r].initial_pose is not None:
-            decisions += mixture_stream(
-                run,
-                config,
-                timeline,
-                step_rel,
-                r,
-                ti,
-                [o for _, o in obs],
-                factors,
-                skips,
-                placed_via,
-            )
+            mixtures = mixture_stream(run, config, timeline, step_rel, r, ti, [o for _, o in obs])
+            decisions += mixtures.outcomes
+            factors += mixtures.made.factors
+            skips.merge(mixtures.made.skips)
+            if mixtures.placed is not None and ti not in placed_via:
+                placed_via[ti] = mixtures.placed
             continue
         if target.initial_pose is None:
             skips.add(
@@ -95,169 +337,24 @@ def candidate_factors(
                 len(obs),
             )
             continue
-        target_track = dead_reckoning(target, step_rel[ti], config)
-        tracker = HypothesisTracker(config.tracker)
-        prev = None
-        pixel_route = all(o.pixels is not None for _, o in obs)
-        ks = [nearest(r, o.time) for _, o in obs]
-        kts = [nearest(ti, o.time) for _, o in obs]
-        offsets: dict = {}
-        if pixel_route:  # each robot's motion between its pose and the set's time
-            ok = [i for i in range(len(obs)) if ks[i] >= 0 and kts[i] >= 0]
-            times = [obs[i][1].time for i in ok]
-            mine = timeline.offsets(r, [ks[i] for i in ok], times)
-            theirs = timeline.offsets(ti, [kts[i] for i in ok], times)
-            offsets = {i: pair for i, pair in zip(ok, zip(mine, theirs))}
-        first = None  # pixel route: (node, body pose per candidate, the tracker's guess)
-        for i, (n, o) in enumerate(obs):
-            k, kt = ks[i], kts[i]
-            if len(o.candidates) == 0:
-                meta = o.candidates.meta
-                skips.add(
-                    "inconsistent_set",
-                    f"robot {run.robots[r].name}: the marker pixels of {target.name} at "
-                    f"{o.time}: no pose of its layout passes the pixel chi-square (least "
-                    f"{meta.get('chi2_min', float('nan')):.1f} > gate {meta.get('gate', 0):.1f})",
-                    rows_of(o),
-                )
-                decisions.append(inconsistent(o, r, ti))
-                continue
-            if k < 0 or (prev is not None and k == prev):
-                skips.add(
-                    "no_pose_at_time",
-                    f"robot {run.robots[r].name}: candidate set at {o.time} has no "
-                    f"(new) pose within the sync tolerance",
-                )
-                continue
-            if kt < 0:
-                skips.add(
-                    "no_pose_at_time",
-                    f"robot {target.name}: seen at {o.time} with no pose within the sync tolerance",
-                )
-                continue
-            E = o.body_T_sensor
-            X_t, P_t = target_track[kt]
-            # the candidates (target_T_sensor) in the world through the target's pose, its
-            # uncertainty added
-            seen = o.candidates.poses()  # target_T_sensor
-            world = [X_t.compose(p) for p in seen]
-            bodies = [w.compose(E.inverse()) for w in world]  # where each puts the observer
-            cand_cov = candidate_covariances(o.candidates, config.tracker.default_sigmas)
-            cov = cand_cov + np.stack([adjoint_cov(p.inverse(), P_t) for p in seen])
-            cs = CandidateSet(
-                np.stack([p.rotation().matrix() for p in world]),
-                np.stack([p.translation() for p in world]),
-                o.candidates.scores,
-                o.time,
-                run.robots[r].name,
-                target.name,
-                o.candidates.source,
-                o.candidates.meta,
-                cov,
-            )
-            odo = None
-            if prev is not None:
-                rel, cov = compose_steps(step_rel[r], prev, k, config)
-                odo = Odometry(E.inverse().compose(rel).compose(E), adjoint_cov(E.inverse(), cov))
-            d = tracker.update(cs, odo)
-            prev = k
-            if pixel_route:
-                t = max(node_times[r][k], node_times[ti][kt])
-                mine, theirs = offsets[i]
-                if target.static:
-                    marker_factors(
-                        run, config, r, k, t, o, mine.compose(E), factors, marker_points, skips
-                    )
-                else:
-                    moving_marker_factors(
-                        run,
-                        config,
-                        r,
-                        k,
-                        kt,
-                        n,
-                        t,
-                        o,
-                        (mine, theirs),
-                        factors,
-                        frame_points,
-                        skips,
-                    )
-                if first is None:
-                    first = (k, bodies, bodies[int(np.argmax(d.probabilities))])
-            if d.pose is not None:  # the tracker's best guess so far (committed or not), then
-                # every candidate of this set by its posterior: hypotheses for the scans
-                order = np.argsort(-np.asarray(d.probabilities, dtype=float), kind="stable")
-                j = int(order[0]) if len(order) else 0
-                tentative[r] = [
-                    (k, o.time, d.pose.compose(E.inverse()), adjoint_cov(E, cs.covariance[j]))
-                ]
-                tentative[r] += [
-                    (k, o.time, bodies[c], adjoint_cov(E, cs.covariance[c])) for c in order
-                ]
-            pose = np.full(7, np.nan)
-            cluster = (
-                same_pose(world, cs.covariance, d.committed)
-                if d.locked and d.committed >= 0
-                else []
-            )
-            decided = bool(cluster) and d.probabilities[cluster].sum() >= config.decision_threshold
-            if decided:
-                j = d.committed
-                body = bodies[j]
-                kernel = config.kernels.kernel("candidate")
-                if pixel_route:
-                    factor = None
-                elif target.static:  # the target's pose is known: a prior on the observer
-                    noise = robust_noise(
-                        gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(E, cs.covariance[j])),
-                        kernel,
-                    )
-                    factor = gtsam.PriorFactorPose3(pose_key(r, k), body, noise)
-                else:
-                    # observer_T_target = E target_T_sensor^-1, covariance moved to the target's
-                    # side
-                    noise = robust_noise(
-                        gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(seen[j], cand_cov[j])),
-                        kernel,
-                    )
-                    factor = gtsam.BetweenFactorPose3(
-                        pose_key(r, k), pose_key(ti, kt), E.compose(seen[j].inverse()), noise
-                    )
-                if factor is not None:
-                    t = max(node_times[r][k], node_times[ti][kt])
-                    factors.append((t, factor, "candidate"))
-                if not (pixel_route and decided_pose.get(r)):  # pixels: placed once
-                    decided_pose.setdefault(r, {})[k] = body
-                q = gtsam.Rot3(body.rotation().matrix()).toQuaternion()
-                pose = np.r_[body.translation(), q.x(), q.y(), q.z(), q.w()]
-            prob = (
-                float(d.probabilities[d.committed])
-                if d.committed >= 0
-                else float(np.max(d.probabilities, initial=0))
-            )
-            xyz = np.array([b.translation() for b in bodies])
-            decisions.append(
-                Decision(
-                    o.time,
-                    r,
-                    ti,
-                    xyz,
-                    int(d.committed) if decided else -1,
-                    prob,
-                    pose,
-                    cluster if decided else [],
-                    np.array(d.probabilities, dtype=float),
-                    candidates_quat=quats(bodies),
-                    status="decided" if decided else "undecided",
-                    measured=np.stack([p.matrix() for p in seen]),
-                    measured_cov=cand_cov,
-                    body_T_sensor=E.matrix(),
-                )
-            )
-        if first is not None:
-            guessed = r not in decided_pose
-            if guessed:
-                decided_pose[r] = {first[0]: first[2]}
-            alternatives[r] = ([(first[0], body) for body in first[1]], guessed)
-    return decisions, decided_pose, placed_via, tentative, alternatives
+        stream = decide_stream(run, config, timeline, step_rel, r, ti, obs)
+        made = stream_factors(run, config, timeline, stream, obs, marker_points)
+        decisions += stream.outcomes
+        skips.merge(stream.skips)
+        skips.merge(made.skips)
+        factors += made.factors
+        marker_points.update(made.marker_points)
+        frame_points += made.frame_points
+        tracked.append(stream)
+    decided_pose, tentative, alternatives = place_observers(tracked)
+    return CandidateSection(
+        factors,
+        skips,
+        decisions,
+        decided_pose,
+        placed_via,
+        tentative,
+        alternatives,
+        marker_points,
+        frame_points,
+    )

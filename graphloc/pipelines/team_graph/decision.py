@@ -1,5 +1,12 @@
-"""`Decision`: what happened to one candidate set of the team graph (`candidates`,
-`mixtures`), and the helpers both routes share."""
+"""`SetOutcome`: what happened to one candidate set of the team graph (`candidates`,
+`mixtures`), and the helpers both routes share.
+
+Not `graphloc.seams.Decision`: that is one update of a candidate tracker (the posterior over a
+frame's candidates, the committed one, the track's pose), what `HypothesisTracker` and the
+seeds' baselines return; a `SetOutcome` is the team graph's record of a set, made from such an
+update (`candidates.decide_stream`) or from the solve's choice of a max-mixture, with the
+candidates' poses in the world and in the target's frame that `decisions.csv`, the judge and
+the recordings read."""
 
 from __future__ import annotations
 
@@ -10,7 +17,7 @@ import numpy as np
 
 
 @dataclass
-class Decision:
+class SetOutcome:
     """What happened to one candidate set: where each candidate puts the observer's body
     (K,3 world), the committed candidate (-1: none), its posterior (else the largest one) and
     the committed body pose (x, y, z, qx, qy, qz, qw; NaN if none); same_pose: the candidates
@@ -56,9 +63,9 @@ def same_pose(poses: list, cov: np.ndarray, j: int) -> list[int]:
     return out
 
 
-def inconsistent(o, r: int, ti: int) -> Decision:
+def inconsistent(o, r: int, ti: int) -> SetOutcome:
     """The record of a set no candidate of which passed the pixel chi-square."""
-    return Decision(
+    return SetOutcome(
         o.time,
         r,
         ti,

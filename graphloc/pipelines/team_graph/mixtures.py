@@ -3,16 +3,29 @@ teammate's circular base, two candidates): each set a max-mixture the solve choo
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import gtsam
 import numpy as np
 
 from graphloc.factors.mixture import candidate_covariances, max_mixture_factor, mixture_weights
-from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov
-from graphloc.pipelines.team_graph.decision import Decision, inconsistent, quats, rows_of
+from graphloc.pipelines.team_graph.decision import SetOutcome, inconsistent, quats, rows_of
 from graphloc.pipelines.team_graph.motion import Timeline, dead_reckoning
+from graphloc.pipelines.team_graph.section import SectionFactors
 from graphloc.run import TeamRun
+
+
+@dataclass
+class MixtureStream:
+    """What a max-mixture stream makes: the outcome of every set, its factors and skips, and
+    where its first usable sighting places the target ({node: (observer, its node,
+    body_T_target)}; None: no set placed it)."""
+
+    outcomes: list = field(default_factory=list)
+    made: SectionFactors = field(default_factory=SectionFactors)
+    placed: dict | None = None
 
 
 def mixture_stream(
@@ -23,10 +36,7 @@ def mixture_stream(
     r: int,
     ti: int,
     obs: list,
-    factors: list,
-    skips: SkipReport,
-    placed_via: dict,
-) -> list:
+) -> MixtureStream:
     """A stream whose observer is placed and whose target is not: each set becomes a max-mixture
     (Olson & Agarwal; `factors.mixture.max_mixture_factor`) of BetweenFactorPose3 observer ->
     target, one component per candidate with its covariance, weights from the scores. The
@@ -35,7 +45,8 @@ def mixture_stream(
     node_times, nearest = timeline.node_times, timeline.nearest
     observer, target = run.robots[r], run.robots[ti]
     track = dead_reckoning(observer, step_rel[r], config)
-    out = []
+    result = MixtureStream()
+    out, skips = result.outcomes, result.made.skips
     for o in obs:
         if len(o.candidates) == 0:
             skips.add(
@@ -73,12 +84,14 @@ def mixture_stream(
             else None
         )
         t = max(node_times[r][k], node_times[ti][kt])
-        factors.append((t, mixture if mixture is not None else components[0], "candidate"))
+        result.made.factors.append(
+            (t, mixture if mixture is not None else components[0], "candidate")
+        )
         X = track[k][0]
-        if ti not in placed_via:
-            placed_via[ti] = {kt: (r, k, rel[_upright(target, X, rel, o.candidates)])}
+        if result.placed is None:
+            result.placed = {kt: (r, k, rel[_upright(target, X, rel, o.candidates)])}
         out.append(
-            Decision(
+            SetOutcome(
                 o.time,
                 r,
                 ti,
@@ -97,7 +110,7 @@ def mixture_stream(
                 body_T_sensor=E.matrix(),
             )
         )
-    return out
+    return result
 
 
 def _upright(target, X: gtsam.Pose3, rel: list, candidates) -> int:

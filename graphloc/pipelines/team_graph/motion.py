@@ -3,15 +3,17 @@ tables, dead reckoning; the between factors, initial-pose priors and surface fac
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import gtsam
 import numpy as np
 
 from graphloc.factors.odometry import VelocityNoise, integrate_unicycle
 from graphloc.factors.robust import robust_noise
 from graphloc.factors.surface import plane_attitude_factor, plane_distance_factor
-from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov, cov6
+from graphloc.pipelines.team_graph.section import SectionFactors
 from graphloc.run import TeamRun, planar_covariance, pose_from_planar
 
 
@@ -172,13 +174,22 @@ def compose_steps(
     return rel, cov
 
 
-def motion_factors(
-    run: TeamRun, config: GraphConfig, timeline: Timeline, factors: list, skips: SkipReport
-) -> list:
-    """Between factors of every odometry / relative-pose step (appended to `factors` as
-    (time, factor, type)); returns per robot the step from node k-1 to k (relative Pose3,
-    covariance) for k >= 1, None where no measurement gives it."""
+@dataclass
+class MotionSection:
+    """The motion section's output: the between factors of every step and the skips
+    (`made`), and per robot the step from node k-1 to k (relative Pose3, covariance) for
+    k >= 1, None where no measurement gives it (`step_rel`)."""
+
+    made: SectionFactors
+    step_rel: list
+
+
+def motion_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> MotionSection:
+    """Between factors of every odometry / relative-pose step ((time, factor, type) each) and
+    the step of every node (`MotionSection`)."""
     node_times, nearest = timeline.node_times, timeline.nearest
+    made = SectionFactors()
+    factors, skips = made.factors, made.skips
     step_rel = []
     for r, robot in enumerate(run.robots):
         times = node_times[r]
@@ -210,7 +221,7 @@ def motion_factors(
                 if b == a + 1 and steps[b] is None:
                     steps[b] = (rel, cov)
         step_rel.append(steps)
-    return step_rel
+    return MotionSection(made, step_rel)
 
 
 def split_step(relative: gtsam.Pose3, covariance: np.ndarray, times: np.ndarray) -> list:
@@ -223,8 +234,10 @@ def split_step(relative: gtsam.Pose3, covariance: np.ndarray, times: np.ndarray)
     return [(gtsam.Pose3.Expmap(s * xi), s * covariance) for s in fractions]
 
 
-def anchor_factors(run: TeamRun, config: GraphConfig, node_times: list, factors: list) -> None:
-    """Priors on the robots' known initial poses and surface factors of climbing robots."""
+def anchor_factors(run: TeamRun, config: GraphConfig, node_times: list) -> list:
+    """Priors on the robots' known initial poses and surface factors of climbing robots,
+    (time, factor, type) each."""
+    factors: list = []
     for r, robot in enumerate(run.robots):
         if robot.initial_pose is not None and len(node_times[r]):
             sig = (
@@ -255,6 +268,7 @@ def anchor_factors(run: TeamRun, config: GraphConfig, node_times: list, factors:
                         pose_key(r, k), robot.surface, robot.attitude_sigma, robot.body_axis
                     )
                     factors.append((t, f, "surface"))
+    return factors
 
 
 def place_robot(run, r, node_times, step_rel, config, decided_pose, placed_via, poses):

@@ -13,6 +13,8 @@ body pose by `sensor_tie_factor` (factor type "sensor_tie", judged on its own by
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import gtsam
 import numpy as np
 
@@ -29,10 +31,10 @@ from graphloc.factors.range_bearing import (
     robot_factor_3d,
 )
 from graphloc.factors.robust import robust_noise
-from graphloc.io import SkipReport
 from graphloc.keys import landmark_key, pose_key, sensor_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE, GraphConfig
 from graphloc.pipelines.team_graph.motion import Timeline, velocity_noise
+from graphloc.pipelines.team_graph.section import SectionFactors
 from graphloc.run import TeamRun
 
 
@@ -132,19 +134,26 @@ def _corrected_range_bearings(run: TeamRun, node_times: list, config: GraphConfi
     return out
 
 
-def point_factors(
-    run: TeamRun,
-    config: GraphConfig,
-    timeline: Timeline,
-    factors: list,
-    skips: SkipReport,
-    sensors: SensorPoses,
-) -> tuple[dict, int, int]:
-    """Every usable point measurement as a factor (appended to `factors`; offset bearings
-    through `sensors`' sensor poses); returns the landmarks' initial guesses (key -> position
-    or ('from', robot, k, direction, range)), the number of landmark anchors and the number of
-    measurements the options leave out."""
+@dataclass
+class PointSection:
+    """The point section's output: its factors and skips (`made`), the landmarks' initial
+    guesses (key -> position or ('from', robot, k, direction, range)), the number of landmark
+    anchors, the number of measurements the options leave out, and the offset bearings'
+    sensor poses (sensor key -> (body pose key, body_T_sensor), `SensorPoses.poses`)."""
+
+    made: SectionFactors
+    landmark_guess: dict
+    n_anchor: int
+    excluded: int
+    sensor_poses: dict
+
+
+def point_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> PointSection:
+    """Every usable point measurement as a factor (offset bearings on sensor poses,
+    `SensorPoses`), with the landmarks' initial guesses (`PointSection`)."""
     node_times, nearest = timeline.node_times, timeline.nearest
+    made, sensors = SectionFactors(), SensorPoses()
+    factors, skips = made.factors, made.skips
     lm_prior = {}
     if config.landmark_priors and run.landmarks_known:
         lm_prior = {
@@ -236,4 +245,4 @@ def point_factors(
                     "inter_robot",
                 )
             )
-    return landmark_guess, n_anchor, excluded
+    return PointSection(made, landmark_guess, n_anchor, excluded, sensors.poses)

@@ -13,14 +13,26 @@ calibrated covariance, and places the unplaced robot; a rejected one is counted 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import gtsam
 from tqdm import tqdm
 
-from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov, cov6
 from graphloc.pipelines.team_graph.motion import Timeline, compose_steps, place_robot
+from graphloc.pipelines.team_graph.section import SectionFactors
 from graphloc.run import TeamRun
+
+
+@dataclass
+class ScanSection:
+    """The scan section's output: the accepted registrations ((time, factor, 'scan_match')
+    each) and the rejections (`made`), and the robots they place (robot -> {node: (placed
+    robot, its node, body_T_body)})."""
+
+    made: SectionFactors
+    placed_via: dict
 
 
 def scan_match_factors(
@@ -30,20 +42,20 @@ def scan_match_factors(
     step_rel: list,
     poses: dict,
     tentative: dict,
-    factors: list,
-    skips: SkipReport,
     progress: bool = False,
-) -> dict:
+) -> ScanSection:
     """Register every unplaced scanning robot with a tentative pose onto a placed scanning
     robot (`poses`: robot -> ([initial Pose3 per node], first seeded node) of the placed
     robots), from each of its hypotheses in turn (`tentative`: the tracker's guess, then the
-    last set's candidates) until one is accepted; appends accepted registrations to `factors`
-    (type 'scan_match') and returns the robots they place (robot -> {node: (placed robot, its
-    node, body_T_body)}); a robot whose every registration is rejected stays unplaced (counted)."""
+    last set's candidates) until one is accepted, then every further common scan time of two
+    placed robots; a robot whose every registration is rejected stays unplaced (counted)."""
+    made = SectionFactors()
+    factors, skips = made.factors, made.skips
     placed_via: dict = {}
+    poses = dict(poses)  # a robot placed here joins the placed ones for the scans after it
     scanning = sorted({s.robot for s in run.scans})
     if len(scanning) < 2 or not any(b in poses or b in tentative for b in scanning):
-        return placed_via
+        return ScanSection(made, placed_via)
     used = set()
     for b in scanning:
         if b in poses or b not in tentative:
@@ -91,9 +103,7 @@ def scan_match_factors(
                 if link is not None and link[3] not in used:
                     used.add(link[3])
                     factors.append((link[0], link[1], "scan_match"))
-    for r in placed_via:
-        del poses[r]  # placed again by the caller, through its own steps
-    return placed_via
+    return ScanSection(made, placed_via)  # the caller places those robots through their steps
 
 
 def _scan_near(run: TeamRun, r: int, t: float):
