@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -98,10 +99,10 @@ def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip"
     blocks = []
     last = -math.inf
     for first, texts in text_blocks(path):
-        data = [(first + k, t) for k, t in enumerate(map(str.strip, texts))]
-        data = [(n, t) for n, t in data if t and not t.startswith("#")]
-        block = _block_rows(data, limits, int_cols, last if monotonic else None)
+        block = _block_rows(texts, limits, int_cols, last if monotonic else None)
         if block is None:
+            data = [(first + k, t) for k, t in enumerate(map(str.strip, texts))]
+            data = [(n, t) for n, t in data if t and not t.startswith("#")]
             block = []
             for line_no, text in data:
                 reason, message = _check_row(
@@ -121,15 +122,22 @@ def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip"
     return np.concatenate(blocks) if blocks else np.zeros((0, n_cols))
 
 
-def _block_rows(data: list, limits, int_cols, last: float | None) -> np.ndarray | None:
-    """(n, n_cols) rows of a block's (line, text) pairs when every row passes `_check_row`'s
-    checks, else None."""
-    parts = [t.split() for _, t in data]
-    if any(len(p) != len(limits) for p in parts):
+def _block_rows(texts: list, limits, int_cols, last: float | None) -> np.ndarray | None:
+    """(n, n_cols) rows of a block's lines (blank lines and whole-line '#' comments left out)
+    when every row passes `_check_row`'s checks, else None. NumPy's C parser reads the block
+    (`np.loadtxt`: a row of another field count or an unparsable field is None); a '#' after
+    other text on its line is None too (a bad row `_check_row` names)."""
+    if any(not t.lstrip().startswith("#") for t in texts if "#" in t):
         return None
-    try:
-        rows = np.array(parts, dtype=float).reshape(-1, len(limits))
-    except ValueError:
+    with warnings.catch_warnings():  # a block of comments only: "input contained no data"
+        warnings.simplefilter("ignore", UserWarning)
+        try:
+            rows = np.loadtxt(texts, dtype=float, comments="#", ndmin=2)
+        except ValueError:
+            return None
+    if rows.size == 0:
+        rows = rows.reshape(0, len(limits))
+    if rows.shape[1] != len(limits):
         return None
     lo, hi = np.array([(a, b) for _, a, b in limits], dtype=float).T
     ok = np.isfinite(rows).all() and ((rows >= lo) & (rows <= hi)).all()
