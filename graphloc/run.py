@@ -211,12 +211,16 @@ class PlanarPoses(Sequence):
         return pose_from_planar(*self.xytheta[i])
 
 
+_PLANAR_IDX = np.array([3, 4, 2])  # SE(2) (x, y, theta) in the SE(3) tangent
+
+
 def planar_covariance(cov3: np.ndarray) -> np.ndarray:
-    """SE(2) covariance (x, y, theta) -> SE(3) tangent (rx, ry, rz, tx, ty, tz) with the
-    out-of-plane directions held to PLANAR_SIGMA."""
-    cov = np.diag([PLANAR_SIGMA**2] * 6)
-    idx = [3, 4, 2]
-    cov[np.ix_(idx, idx)] = cov3
+    """SE(2) covariance (..., 3, 3) (x, y, theta) -> SE(3) tangent (..., 6, 6) (rx, ry, rz, tx,
+    ty, tz) with the out-of-plane directions held to PLANAR_SIGMA (one or a stack of them)."""
+    cov3 = np.asarray(cov3, dtype=float)
+    cov = np.zeros(cov3.shape[:-2] + (6, 6))
+    cov[..., range(6), range(6)] = PLANAR_SIGMA**2
+    cov[..., _PLANAR_IDX[:, None], _PLANAR_IDX] = cov3
     return cov
 
 
