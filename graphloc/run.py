@@ -271,10 +271,7 @@ def team_run_from_planar(run, defaults: dict | None = None) -> TeamRun:
             rsig,
         )
     )
-    gt = tuple(
-        None if g is None else (g[:, 0], PlanarPoses(g[:, 1:4]))
-        for g in run.groundtruth
-    )
+    gt = tuple(None if g is None else (g[:, 0], PlanarPoses(g[:, 1:4])) for g in run.groundtruth)
     sig = np.column_stack([run.landmark_sigma, np.zeros(len(run.landmark_ids))])
     xyz = np.column_stack([run.landmark_xy, np.zeros(len(run.landmark_ids))])
     return TeamRun(
