@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import math
 import re
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -91,8 +90,7 @@ def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip"
     n_cols) float array. Malformed rows (wrong field count, unparsable or non-finite numbers,
     non-integer ids, values outside LIMITS, ranges <= 0, time < previous time in timed files)
     raise ValueError or are skipped and counted by reason, with file, line and field. A block
-    of the file whose rows all pass is checked as one array (`_block_rows`); a block with a bad
-    row is read row by row (`_check_row`) for its exact skips and messages."""
+    whose rows all pass is one array (`_block_rows`), one with a bad row read row by row."""
     limits = LIMITS[kind]
     n_cols, int_cols = len(limits), _INT_COLUMNS.get(kind, ())
     monotonic = limits[0][0] == "time"
@@ -123,20 +121,16 @@ def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip"
 
 
 def _block_rows(texts: list, limits, int_cols, last: float | None) -> np.ndarray | None:
-    """(n, n_cols) rows of a block's lines (blank lines and whole-line '#' comments left out)
-    when every row passes `_check_row`'s checks, else None. NumPy's C parser reads the block
-    (`np.loadtxt`: a row of another field count or an unparsable field is None); a '#' after
-    other text on its line is None too (a bad row `_check_row` names)."""
+    """(n, n_cols) rows of a block's lines (blank and '#' lines left out) when every row passes
+    `_check_row`'s checks (read by NumPy's C parser, `np.loadtxt`), else None."""
     if any(not t.lstrip().startswith("#") for t in texts if "#" in t):
+        return None  # a '#' after other text: a bad row `_check_row` names
+    if not any(t.strip() and not t.lstrip().startswith("#") for t in texts):
+        return np.zeros((0, len(limits)))
+    try:
+        rows = np.loadtxt(texts, dtype=float, comments="#", ndmin=2)
+    except ValueError:  # a row of another field count or an unparsable field
         return None
-    with warnings.catch_warnings():  # a block of comments only: "input contained no data"
-        warnings.simplefilter("ignore", UserWarning)
-        try:
-            rows = np.loadtxt(texts, dtype=float, comments="#", ndmin=2)
-        except ValueError:
-            return None
-    if rows.size == 0:
-        rows = rows.reshape(0, len(limits))
     if rows.shape[1] != len(limits):
         return None
     lo, hi = np.array([(a, b) for _, a, b in limits], dtype=float).T
