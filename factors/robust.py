@@ -160,10 +160,10 @@ def residuals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> Residu
             chi2[i] = 2.0 * factor.error(values)
             continue
         whitened = base.whiten(np.asarray(factor.unwhitenedError(values), dtype=float))
+        chi2[i] = square = float(whitened @ whitened)
         if base is not model:
             robust[i] = True
-            weights[i] = model.robust().weight(float(np.linalg.norm(whitened)))
-        chi2[i] = float(np.dot(whitened, whitened))
+            weights[i] = model.robust().weight(math.sqrt(square))
     return Residuals(dims, chi2, weights, robust)
 
 
