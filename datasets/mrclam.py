@@ -90,18 +90,17 @@ def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip"
     n_cols) float array. Malformed rows (wrong field count, unparsable or non-finite numbers,
     non-integer ids, values outside LIMITS, ranges <= 0, time < previous time in timed files)
     raise ValueError or are skipped and counted by reason, with file, line and field. A block
-    of the file whose rows all pass is checked as one array (`_block_rows`); a block with a bad
-    row is read row by row (`_check_row`) for its exact skips and messages."""
+    whose rows all pass is one array (`_block_rows`), one with a bad row read row by row."""
     limits = LIMITS[kind]
     n_cols, int_cols = len(limits), _INT_COLUMNS.get(kind, ())
     monotonic = limits[0][0] == "time"
     blocks = []
     last = -math.inf
     for first, texts in text_blocks(path):
-        data = [(first + k, t) for k, t in enumerate(map(str.strip, texts))]
-        data = [(n, t) for n, t in data if t and not t.startswith("#")]
-        block = _block_rows(data, limits, int_cols, last if monotonic else None)
+        block = _block_rows(texts, limits, int_cols, last if monotonic else None)
         if block is None:
+            data = [(first + k, t) for k, t in enumerate(map(str.strip, texts))]
+            data = [(n, t) for n, t in data if t and not t.startswith("#")]
             block = []
             for line_no, text in data:
                 reason, message = _check_row(
@@ -121,15 +120,18 @@ def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip"
     return np.concatenate(blocks) if blocks else np.zeros((0, n_cols))
 
 
-def _block_rows(data: list, limits, int_cols, last: float | None) -> np.ndarray | None:
-    """(n, n_cols) rows of a block's (line, text) pairs when every row passes `_check_row`'s
-    checks, else None."""
-    parts = [t.split() for _, t in data]
-    if any(len(p) != len(limits) for p in parts):
-        return None
+def _block_rows(texts: list, limits, int_cols, last: float | None) -> np.ndarray | None:
+    """(n, n_cols) rows of a block's lines (blank and '#' lines left out) when every row passes
+    `_check_row`'s checks (read by NumPy's C parser, `np.loadtxt`), else None."""
+    if any(not t.lstrip().startswith("#") for t in texts if "#" in t):
+        return None  # a '#' after other text: a bad row `_check_row` names
+    if not any(t.strip() and not t.lstrip().startswith("#") for t in texts):
+        return np.zeros((0, len(limits)))
     try:
-        rows = np.array(parts, dtype=float).reshape(-1, len(limits))
-    except ValueError:
+        rows = np.loadtxt(texts, dtype=float, comments="#", ndmin=2)
+    except ValueError:  # a row of another field count or an unparsable field
+        return None
+    if rows.shape[1] != len(limits):
         return None
     lo, hi = np.array([(a, b) for _, a, b in limits], dtype=float).T
     ok = np.isfinite(rows).all() and ((rows >= lo) & (rows <= hi)).all()

@@ -14,19 +14,25 @@ Noise: sigmas (bearing [rad], range [m]) in 2D, (bearing 2 DOF [rad], range [m])
 
 from __future__ import annotations
 
+import math
+
 import gtsam
 import numpy as np
 
 from graphloc.factors.robust import Kernel, robust_noise
 
 
-def _noise(sigmas, dim: int, kernel: Kernel):
+def _sigmas(sigmas, dim: int) -> np.ndarray:
     sig = np.asarray(sigmas, dtype=float)
     if sig.shape != (dim,) or not np.isfinite(sig).all() or np.any(sig <= 0):
         raise ValueError(
             f"range-bearing sigmas must be {dim} finite positive numbers, got {sigmas}"
         )
-    return robust_noise(gtsam.noiseModel.Diagonal.Sigmas(sig), kernel)
+    return sig
+
+
+def _noise(sigmas, dim: int, kernel: Kernel):
+    return robust_noise(gtsam.noiseModel.Diagonal.Sigmas(_sigmas(sigmas, dim)), kernel)
 
 
 def _check(bearing, range_):
@@ -123,10 +129,10 @@ def known_landmark_factor_3d(
     _check(d, range_)
     if not (np.isfinite(landmark_sigma) and landmark_sigma >= 0):
         raise ValueError(f"landmark sigma must be finite >= 0, got {landmark_sigma}")
-    sb, _, sr = (float(s) for s in _noise(sigmas, 3, Kernel()).sigmas())
-    outer = np.outer(d, d)
-    cov = range_**2 * sb**2 * (np.eye(3) - outer) + sr**2 * outer
-    cov += float(landmark_sigma) ** 2 * np.eye(3)
+    sb, _, sr = _sigmas(sigmas, 3).tolist()
+    across = range_**2 * sb**2  # r^2 sb^2 (I - d d^T) + sr^2 d d^T + sigma^2 I
+    cov = (sr**2 - across) * (d[:, None] * d)
+    cov.flat[::4] += across + float(landmark_sigma) ** 2
     noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(cov), kernel)
     return gtsam.KnownLandmarkFactorPose3(
         pose_key, np.asarray(landmark_xyz, dtype=float), d * float(range_), noise
@@ -135,8 +141,8 @@ def known_landmark_factor_3d(
 
 def _unit(direction) -> np.ndarray:
     d = np.asarray(direction, dtype=float).reshape(-1)
-    n = np.linalg.norm(d) if d.shape == (3,) else 0.0
-    if not np.isfinite(n) or n < 1e-12:
+    n = math.sqrt(d @ d) if d.shape == (3,) else 0.0
+    if not math.isfinite(n) or n < 1e-12:
         raise ValueError(f"bearing direction must be a finite non-zero 3-vector, got {direction}")
     return d / n
 

@@ -9,6 +9,7 @@ Kernels (gtsam.noiseModel.mEstimator): huber, cauchy, tukey, gemanmcclure, dcs, 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -91,8 +92,16 @@ def robust_noise(base: gtsam.noiseModel.Base, kernel: Kernel) -> gtsam.noiseMode
         return base
     import gtsam
 
-    estimator = getattr(gtsam.noiseModel.mEstimator, KERNELS[kernel.name]).Create(kernel.k)
-    return gtsam.noiseModel.Robust.Create(estimator, base)
+    return gtsam.noiseModel.Robust.Create(_estimator(kernel.name, kernel.k), base)
+
+
+@functools.lru_cache(maxsize=64)
+def _estimator(name: str, k: float):
+    """The m-estimator of a kernel: one immutable GTSAM object per (name, k), shared by every
+    noise model that uses it (a graph builds tens of thousands)."""
+    import gtsam
+
+    return getattr(gtsam.noiseModel.mEstimator, KERNELS[name]).Create(k)
 
 
 @dataclass(frozen=True)
@@ -151,10 +160,10 @@ def residuals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> Residu
             chi2[i] = 2.0 * factor.error(values)
             continue
         whitened = base.whiten(np.asarray(factor.unwhitenedError(values), dtype=float))
+        chi2[i] = square = float(whitened @ whitened)
         if base is not model:
             robust[i] = True
-            weights[i] = model.robust().weight(float(np.linalg.norm(whitened)))
-        chi2[i] = float(np.dot(whitened, whitened))
+            weights[i] = model.robust().weight(math.sqrt(square))
     return Residuals(dims, chi2, weights, robust)
 
 
@@ -170,22 +179,35 @@ class GaussianChi2:
 
         self.plain = gtsam.NonlinearFactorGraph()  # Gaussian clones and kernel-free factors
         self.loose = gtsam.NonlinearFactorGraph()  # robust factors GTSAM cannot clone
-        self.dim = 0  # residual dimension counted (`residuals`' dims)
+        self._dim = 0  # residual dimension counted (`residuals`' dims)
+        self._pending: list = []  # what `add` was given since the last sum: cloned when asked
+
+    @property
+    def dim(self) -> int:
+        """The residual dimension counted (`residuals`' dims) of every factor added."""
+        self._take_pending()
+        return self._dim
 
     def add(self, factors) -> None:
         """Add a NonlinearFactorGraph, or a list of factors, graphs and factor providers (an
-        object whose `factor` is the gtsam factor, as `Session.add` takes)."""
+        object whose `factor` is the gtsam factor, as `Session.add` takes). The clones are made
+        when the sum or `dim` is next asked for (a single online pass never asks)."""
+        self._pending.append(factors)
+
+    def _take_pending(self) -> None:
         import gtsam
 
+        pending, self._pending = self._pending, []
         graph = gtsam.NonlinearFactorGraph()
-        for item in [factors] if isinstance(factors, gtsam.NonlinearFactorGraph) else factors:
-            graph.push_back(getattr(item, "factor", item))
+        for factors in pending:
+            for item in [factors] if isinstance(factors, gtsam.NonlinearFactorGraph) else factors:
+                graph.push_back(getattr(item, "factor", item))
         for i in range(graph.size()):
             factor = graph.at(i)
             if factor is None:
                 continue
             model, base, dim = gaussian_part(factor)
-            self.dim += dim
+            self._dim += dim
             if base is model:  # no kernel (or no noise model): judged as it is
                 self.plain.push_back(factor)
             elif isinstance(factor, gtsam.CustomFactor):
@@ -194,6 +216,7 @@ class GaussianChi2:
                 self.plain.push_back(factor.cloneWithNewNoiseModel(base))
 
     def __call__(self, values: gtsam.Values) -> float:
+        self._take_pending()
         chi2 = 2.0 * float(self.plain.error(values))
         if self.loose.size():
             chi2 += float(residuals(self.loose, values).chi2.sum())

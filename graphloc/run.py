@@ -11,6 +11,7 @@ layout returns); covariances are 6x6 in GTSAM's Pose3 tangent order (rx, ry, rz,
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -141,9 +142,9 @@ class CandidateObservation:
 @dataclass(frozen=True)
 class TeamRun:
     """A run in memory. velocity[r]: (N,3) time, v, omega (planar robots' wheel odometry);
-    groundtruth[r]: (times (G,), poses list of Pose3) or None; landmarks: ids (L,), xyz (L,3),
-    sigma (L,3) (std devs, 0 = surveyed with unknown precision); landmarks_known: False when the
-    run has no landmark file (positions estimated: SLAM)."""
+    groundtruth[r]: (times (G,), poses: a sequence of Pose3, e.g. `PlanarPoses`) or None;
+    landmarks: ids (L,), xyz (L,3), sigma (L,3) (std devs, 0 = surveyed with unknown precision);
+    landmarks_known: False when the run has no landmark file (positions estimated: SLAM)."""
 
     name: str
     robots: tuple
@@ -193,12 +194,33 @@ def pose_from_planar(x: float, y: float, theta: float, z: float = 0.0) -> gtsam.
     return gtsam.Pose3(gtsam.Rot3.Yaw(float(theta)), np.array([x, y, z], dtype=float))
 
 
+class PlanarPoses(Sequence):
+    """(N,3) x, y, theta rows as a sequence of Pose3 (`pose_from_planar`), each built when it is
+    indexed: a planar ground truth is read at its own rate (tens of times the estimate's), and
+    only the samples the metrics compare are ever converted (`pipelines.groundtruth`)."""
+
+    def __init__(self, xytheta: np.ndarray):
+        self.xytheta = np.asarray(xytheta, dtype=float).reshape(-1, 3)
+
+    def __len__(self) -> int:
+        return len(self.xytheta)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return PlanarPoses(self.xytheta[i])
+        return pose_from_planar(*self.xytheta[i])
+
+
+_PLANAR_IDX = np.array([3, 4, 2])  # SE(2) (x, y, theta) in the SE(3) tangent
+
+
 def planar_covariance(cov3: np.ndarray) -> np.ndarray:
-    """SE(2) covariance (x, y, theta) -> SE(3) tangent (rx, ry, rz, tx, ty, tz) with the
-    out-of-plane directions held to PLANAR_SIGMA."""
-    cov = np.diag([PLANAR_SIGMA**2] * 6)
-    idx = [3, 4, 2]
-    cov[np.ix_(idx, idx)] = cov3
+    """SE(2) covariance (..., 3, 3) (x, y, theta) -> SE(3) tangent (..., 6, 6) (rx, ry, rz, tx,
+    ty, tz) with the out-of-plane directions held to PLANAR_SIGMA (one or a stack of them)."""
+    cov3 = np.asarray(cov3, dtype=float)
+    cov = np.zeros(cov3.shape[:-2] + (6, 6))
+    cov[..., range(6), range(6)] = PLANAR_SIGMA**2
+    cov[..., _PLANAR_IDX[:, None], _PLANAR_IDX] = cov3
     return cov
 
 
@@ -249,10 +271,7 @@ def team_run_from_planar(run, defaults: dict | None = None) -> TeamRun:
             rsig,
         )
     )
-    gt = tuple(
-        None if g is None else (g[:, 0], [pose_from_planar(x, y, th) for x, y, th in g[:, 1:4]])
-        for g in run.groundtruth
-    )
+    gt = tuple(None if g is None else (g[:, 0], PlanarPoses(g[:, 1:4])) for g in run.groundtruth)
     sig = np.column_stack([run.landmark_sigma, np.zeros(len(run.landmark_ids))])
     xyz = np.column_stack([run.landmark_xy, np.zeros(len(run.landmark_ids))])
     return TeamRun(

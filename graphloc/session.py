@@ -108,11 +108,12 @@ class Session:
         self.stopped = False  # the last batch solve was ended by `stop`
         self.graph = gtsam.NonlinearFactorGraph()  # every factor ever added, in order
         # batch: the initial guess of every variable ever added (what LM starts from); online
-        # sessions hand the guesses to iSAM2 and keep none (`_known` asks the solver)
+        # sessions hand the guesses to iSAM2 and keep none
         self.initial = gtsam.Values() if config.mode == "batch" else None
         self.steps: list[Step] = []
         self._records: list[_Record] = []  # what `save` writes (config.keep_steps)
         self._n_variables = 0  # variables ever added
+        self._keys: set = set()  # ... their keys (`_known`: a set lookup, no solver call)
         self._last_time = -np.inf
         self._batch_estimate: gtsam.Values | None = None
         self._batch_marginals: gtsam.Marginals | None = None
@@ -173,14 +174,14 @@ class Session:
         if t < self._last_time:
             raise ValueError(f"Session.add: time goes backwards ({t} < previous {self._last_time})")
         new_keys = set(initial_values.keys())
-        clash = [key_name(k) for k in new_keys if self._known(k)]
+        clash = [key_name(k) for k in new_keys & self._keys]
         if clash:
             raise ValueError(
                 f"Session.add: initial values for keys already in the session: {clash[:5]}"
             )
         check_thresholded(self.config, new_keys)
         old_keys = set(graph.keyVector()) - new_keys
-        missing = sorted(k for k in old_keys if not self._known(k))
+        missing = sorted(old_keys - self._keys)
         if missing:
             names = [key_name(k) for k in missing[:5]]
             raise ValueError(f"Session.add: factors reference keys without a value: {names}")
@@ -214,6 +215,7 @@ class Session:
         if self.initial is not None:
             self.initial.insert(initial_values)
         self._n_variables += len(new_keys)
+        self._keys |= new_keys
         self._batch_estimate = self._batch_marginals = None
         self._last_time = t
         step = Step(
@@ -303,9 +305,7 @@ class Session:
     def _known(self, key: int) -> bool:
         """Whether `key` was added (batch: it has an initial guess; online: iSAM2 holds it or
         the fixed lag marginalized it)."""
-        if self._isam is None:
-            return self.initial.exists(key)
-        return self._isam.valueExists(key) or self.marginalized(key)
+        return key in self._keys
 
     def _check_known(self, keys: list, what: str) -> None:
         unknown = [key_name(k) for k in keys if not self._known(k)]

@@ -17,7 +17,7 @@ a `CandidateSet` with a first-order covariance per candidate.
   mislabelled); it comes back as an empty set with `meta["inconsistent"]` True and is never
   decided.
 - Identical markers (seed 001 Sec. IV-C): the 24 x 4 P3P hypotheses of four blobs gated by the
-  fourth marker (`graphloc.vision.target.target_hypotheses`).
+  fourth marker (`graphloc.vision.target.target_hypotheses_frames`: every frame's in one batch).
 Covariance: `graphloc.geometry.resection.resection_covariance` (pixel noise through the pose,
 on every marker the candidate was fitted to).
 Poses are the camera in the layout's frame (target_T_camera).
@@ -32,7 +32,7 @@ from scipy.stats import chi2 as chi2_distribution
 from graphloc.candidates import CandidateSet
 from graphloc.geometry.p3p import solve_p3p
 from graphloc.geometry.resection import resection_covariance
-from graphloc.vision.target import MarkerTarget, TargetHypothesisConfig, target_hypotheses
+from graphloc.vision.target import MarkerTarget, TargetHypothesisConfig, target_hypotheses_frames
 
 GATE_PROBABILITY = 0.999  # a candidate whose pixel chi-square exceeds this quantile is refused
 SAME_POSE_RAD, SAME_POSE_REL = 1e-4, 1e-4  # refinements this close (rad; m per m of range) merge
@@ -66,24 +66,33 @@ def p3p_candidate_sets(
     if identical:
         target = MarkerTarget(layout, 0.01, "layout")
         config = TargetHypothesisConfig(pixel_sigma=max(pixel_sigma, 0.5))
-        for i in range(n):
-            px = np.asarray(pixels[i], dtype=float)
-            if len(px) not in (3, 4) or len(layout) != 4:
-                continue
-            cs = target_hypotheses(
-                px,
+        px_all = [np.asarray(p, dtype=float) for p in pixels]
+        frames = [i for i in range(n) if len(px_all[i]) in (3, 4) and len(layout) == 4]
+        sets = target_hypotheses_frames(
+            [px_all[i] for i in frames],
+            camera,
+            target,
+            config,
+            times=[float(times[i]) for i in frames],
+            observer=observer,
+            observed=observed,
+        )
+        found = [(i, cs) for i, cs in zip(frames, sets) if len(cs)]
+        if found:  # every frame's candidates through one covariance call
+            used = [
+                np.argsort(cs.meta["assignment"] < 0, axis=1, kind="stable")[:, :3]
+                for _, cs in found
+            ]
+            cov = resection_covariance(
                 camera,
-                target,
-                config,
-                time=float(times[i]),
-                observer=observer,
-                observed=observed,
+                np.concatenate([cs.R for _, cs in found]),
+                np.concatenate([cs.t for _, cs in found]),
+                layout[np.concatenate(used)],
+                pixel_sigma,
             )
-            if len(cs):
-                assign = cs.meta["assignment"]
-                used = np.argsort(assign < 0, axis=1, kind="stable")[:, :3]
-                cov = resection_covariance(camera, cs.R, cs.t, layout[used], pixel_sigma)
-                out[i] = _with(cs, cov, truth_t, i)
+            splits = np.cumsum([len(cs) for _, cs in found])[:-1]
+            for (i, cs), c in zip(found, np.split(cov, splits)):
+                out[i] = _with(cs, c, truth_t, i)
         return out
     px_all = [np.asarray(p, dtype=float).reshape(-1, 2) for p in pixels]
     if any(len(p) < 3 for p in px_all):

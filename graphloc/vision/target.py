@@ -178,7 +178,8 @@ def _check_detections(detections) -> np.ndarray:
         raise ValueError(f"target_hypotheses: detections must be (4,2) (or (3,2)), got {det.shape}")
     if not np.isfinite(det).all():
         raise ValueError("target_hypotheses: detections contain NaN/inf")
-    if len(np.unique(np.round(det, 6), axis=0)) < len(det):
+    rounded = np.round(det, 6)
+    if (rounded[:, None] == rounded[None]).all(axis=2).sum() > len(det):  # a pair beside i == i
         raise ValueError("target_hypotheses: two detections coincide")
     return det
 
@@ -203,108 +204,186 @@ def target_hypotheses(
     passes the gate (one blob is not a marker, e.g. a partly occluded one), every 3-of-4 subset
     is tried the same way (meta["fallback"] = "three_of_four"). meta: assignment (K,4) =
     detection index of each marker (-1 unseen), reprojection_px (K,) rms, gate_error_px (K,),
-    n_assignments, prediction_used, fallback.
+    n_assignments, prediction_used, fallback. One frame of `target_hypotheses_frames`.
     """
-    det = _check_detections(detections)
+    return target_hypotheses_frames(
+        [detections], camera, target, config, [predicted], [time], observer, observed
+    )[0]
+
+
+def target_hypotheses_frames(
+    detections: Sequence,
+    camera,
+    target: MarkerTarget = LARGE_TARGET,
+    config: TargetHypothesisConfig = TargetHypothesisConfig(),
+    predicted: Sequence | None = None,
+    times: Sequence[float] | None = None,
+    observer: str = "",
+    observed: str = "",
+) -> list[CandidateSet]:
+    """`target_hypotheses` of many frames (detections[i] (4,2) or (3,2), predicted[i] a pose or
+    None, times[i]), one CandidateSet per frame: the frames of one blob count go through each
+    stage together -- the 24 x 4 P3P hypotheses of every frame in one `solve_p3p` call, their
+    reprojections in one projection --, so a run's frames cost a few batched calls instead of
+    a few per frame. A frame with bad detections raises `target_hypotheses`' ValueError."""
+    n = len(detections)
+    predicted = [None] * n if predicted is None else list(predicted)
+    times = [0.0] * n if times is None else list(times)
+    dets = [_check_detections(d) for d in detections]
     if len(target.points) != 4:
         raise ValueError(
             f"target_hypotheses: needs a 4-marker target, got {len(target.points)} markers"
         )
-    bearings, ok = camera.pixel_to_bearing(det)
-    if not ok.all():
-        raise ValueError(
-            f"target_hypotheses: detections {np.flatnonzero(~ok).tolist()} have no bearing"
+    out: list = [None] * n
+    for count in (4, 3):
+        frames = [i for i in range(n) if len(dets[i]) == count]
+        if not frames:
+            continue
+        det = np.stack([dets[i] for i in frames])
+        bearings, ok = camera.pixel_to_bearing(det.reshape(-1, 2))
+        ok = ok.reshape(len(frames), count)
+        if not ok.all():
+            bad = ok[int(np.flatnonzero(~ok.all(axis=1))[0])]
+            raise ValueError(
+                f"target_hypotheses: detections {np.flatnonzero(~bad).tolist()} have no bearing"
+            )
+        bearings = bearings.reshape(len(frames), count, 3)
+        pred_px = np.full((len(frames), 4, 2), np.nan)
+        has_pred = np.array([predicted[i] is not None for i in frames])
+        for f in np.flatnonzero(has_pred):
+            pred_px[f] = predicted_marker_pixels(camera, target, predicted[frames[f]])[0]
+        full = count == 4
+        result = _hypotheses(
+            det,
+            bearings,
+            PERMUTATIONS if full else _PARTIAL,
+            camera,
+            target,
+            config,
+            pred_px,
+            has_pred,
+            full,
         )
-    pred_px = None if predicted is None else predicted_marker_pixels(camera, target, predicted)[0]
-    full = len(det) == 4
-    result = _hypotheses(
-        det, bearings, PERMUTATIONS if full else _PARTIAL, camera, target, config, pred_px, full
-    )
-    fallback = ""
-    if full and len(result[0]) == 0:
-        result = _hypotheses(det, bearings, _THREE_OF_FOUR, camera, target, config, pred_px, False)
-        fallback = "three_of_four"
-    R, t, cand_assign, gate_err, rms, n_assign, prediction_used = result
-    scores = np.exp(-0.5 * (rms / config.pixel_sigma) ** 2)
-    return CandidateSet(
-        R=R,
-        t=t,
-        scores=scores,
-        time=time,
-        observer=observer,
-        observed=observed,
-        source="seed001/target",
-        meta={
-            "assignment": cand_assign,
-            "reprojection_px": rms,
-            "gate_error_px": gate_err,
-            "n_assignments": n_assign,
-            "prediction_used": prediction_used,
-            "fallback": fallback,
-            "frame": "camera pose in target frame (T_target_camera)",
-        },
-    )
+        parts = _by_frame(result, len(frames))
+        fallback = [""] * len(frames)
+        empty = [f for f in range(len(frames)) if full and len(parts[f][0]) == 0]
+        if empty:  # no 4-blob hypothesis passes the gate: every 3-of-4 subset
+            again = _hypotheses(
+                det[empty],
+                bearings[empty],
+                _THREE_OF_FOUR,
+                camera,
+                target,
+                config,
+                pred_px[empty],
+                has_pred[empty],
+                False,
+            )
+            for f, part in zip(empty, _by_frame(again, len(empty))):
+                parts[f], fallback[f] = part, "three_of_four"
+        for f, i in enumerate(frames):
+            R, t, cand_assign, gate_err, rms, n_assign, prediction_used = parts[f]
+            out[i] = CandidateSet(
+                R=R,
+                t=t,
+                scores=np.exp(-0.5 * (rms / config.pixel_sigma) ** 2),
+                time=float(times[i]),
+                observer=observer,
+                observed=observed,
+                source="seed001/target",
+                meta={
+                    "assignment": cand_assign,
+                    "reprojection_px": rms,
+                    "gate_error_px": gate_err,
+                    "n_assignments": n_assign,
+                    "prediction_used": prediction_used,
+                    "fallback": fallback[f],
+                    "frame": "camera pose in target frame (T_target_camera)",
+                },
+            )
+    return out
 
 
-def _hypotheses(det, bearings, assign, camera, target, config, pred_px, gated):
-    """P3P for every assignment row (marker j <- detection assign[j], -1 unseen) in ONE batched
-    call, fourth-marker gate (if `gated`), optional refinement. Returns R, t, assignment,
-    gate error, rms reprojection, number of assignments tried, whether the prediction was used."""
-    prediction_used = False
-    if pred_px is not None:
-        d = np.linalg.norm(pred_px[:, None] - det[None], axis=2)  # (marker, detection)
+def _by_frame(result: tuple, frames: int) -> list:
+    """`_hypotheses`' candidates (sorted by frame) split into one tuple per frame: R, t,
+    assignment, gate error, rms, number of assignments tried, whether the prediction was used."""
+    frame, R, t, cand_assign, gate_err, rms, n_assign, prediction_used = result
+    edges = np.searchsorted(frame, np.arange(frames + 1))
+    return [
+        tuple(a[edges[f] : edges[f + 1]] for a in (R, t, cand_assign, gate_err, rms))
+        + (int(n_assign[f]), bool(prediction_used[f]))
+        for f in range(frames)
+    ]
+
+
+def _hypotheses(det, bearings, assign, camera, target, config, pred_px, has_pred, gated):
+    """P3P for every assignment row (marker j <- detection assign[j], -1 unseen) of every frame
+    (det (F,n,2), bearings (F,n,3)) in ONE batched call, fourth-marker gate (if `gated`),
+    optional refinement. pred_px (F,4,2): predicted marker pixels of the frames with a
+    prediction (has_pred (F,)). Returns per candidate, sorted by frame: its frame, R, t,
+    assignment, gate error, rms reprojection; per frame: the number of assignments tried and
+    whether the prediction was used."""
+    n_frames, n_rows = len(det), len(assign)
+    rows_ok = np.ones((n_frames, n_rows), dtype=bool)
+    prediction_used = np.zeros(n_frames, dtype=bool)
+    if has_pred.any():
+        d = np.linalg.norm(pred_px[:, :, None] - det[:, None], axis=3)  # (F, marker, detection)
         d = np.where(np.isfinite(d), d, np.inf)
-        allowed = (d <= config.prediction_gate_px) | (d == d.min(axis=1, keepdims=True))
-        rows = np.arange(4)[None].repeat(len(assign), 0)
-        ok_rows = np.where(assign >= 0, allowed[rows, np.maximum(assign, 0)], True).all(axis=1)
-        if ok_rows.any():
-            assign, prediction_used = assign[ok_rows], True
+        allowed = (d <= config.prediction_gate_px) | (d == d.min(axis=2, keepdims=True))
+        markers = np.arange(4)[None].repeat(n_rows, 0)
+        ok_rows = np.where(assign >= 0, allowed[:, markers, np.maximum(assign, 0)], True).all(
+            axis=2
+        )
+        prediction_used = has_pred & ok_rows.any(axis=1)
+        rows_ok[prediction_used] = ok_rows[prediction_used]
     seen = np.argsort(assign < 0, axis=1, kind="stable")  # marker indices, seen ones first
     det_idx = np.take_along_axis(assign, seen[:, :3], axis=1)
-    sol = solve_p3p(bearings[det_idx], target.points[seen[:, :3]], method=config.p3p_method)
-    N = len(assign)
+    fi, ai = np.nonzero(rows_ok)  # the instances, frame by frame
+    sol = solve_p3p(
+        bearings[fi[:, None], det_idx[ai]], target.points[seen[ai, :3]], method=config.p3p_method
+    )
+    N = len(fi)
     valid = sol.valid.reshape(N * 4)
     R = sol.R_wc.reshape(N * 4, 3, 3)[valid]
     t = sol.t_wc.reshape(N * 4, 3)[valid]
-    cand_assign = np.repeat(assign, 4, axis=0)[valid]
-    check_marker = np.repeat(seen[:, 3], 4)[valid]  # the fourth marker
-    err = _marker_errors(camera, target, R, t, cand_assign, det)
+    frame = np.repeat(fi, 4)[valid]
+    cand_assign = np.repeat(assign[ai], 4, axis=0)[valid]
+    check_marker = np.repeat(seen[ai, 3], 4)[valid]  # the fourth marker
+    err = _marker_errors(camera, target, R, t, cand_assign, det[frame])
     if gated:  # seed IV-C: drop hypotheses whose fourth marker does not fit
         gate_err = err[np.arange(len(R)), check_marker]
         keep = gate_err <= config.gate_px
     else:
         gate_err = np.zeros(len(R))
         keep = np.isfinite(err).all(axis=1)
-    R, t, cand_assign, gate_err = R[keep], t[keep], cand_assign[keep], gate_err[keep]
+    frame, R, t, cand_assign, gate_err = (a[keep] for a in (frame, R, t, cand_assign, gate_err))
     if config.refine and gated and len(R) and hasattr(camera, "K"):
-        R, t = _refine(R, t, cand_assign, det, camera, target)
-    err = _marker_errors(camera, target, R, t, cand_assign, det)
+        R, t = _refine(R, t, cand_assign, det[frame], camera, target)
+    err = _marker_errors(camera, target, R, t, cand_assign, det[frame])
     finite = np.isfinite(err).all(axis=1)
-    R, t, cand_assign, gate_err, err = (
-        R[finite],
-        t[finite],
-        cand_assign[finite],
-        gate_err[finite],
-        err[finite],
+    frame, R, t, cand_assign, gate_err, err = (
+        a[finite] for a in (frame, R, t, cand_assign, gate_err, err)
     )
     rms = np.sqrt((err**2).sum(axis=1) / (cand_assign >= 0).sum(axis=1))
-    return R, t, cand_assign, gate_err, rms, N, prediction_used
+    return frame, R, t, cand_assign, gate_err, rms, rows_ok.sum(axis=1), prediction_used
 
 
 def _marker_errors(camera, target, R, t, assign, det) -> np.ndarray:
     """(K,4) reprojection error [px] of every seen marker (0 for the unseen one, inf behind the
-    camera)."""
+    camera); det (K,n,2): each hypothesis's detections."""
     if len(R) == 0:
         return np.zeros((0, 4))
     px, _ = project_markers(camera, target, R, t)
-    err = np.linalg.norm(px - det[np.maximum(assign, 0)], axis=2)
+    picked = np.take_along_axis(det, np.maximum(assign, 0)[:, :, None], axis=1)
+    err = np.linalg.norm(px - picked, axis=2)
     err = np.where(np.isfinite(err), err, np.inf)
     return np.where(assign >= 0, err, 0.0)
 
 
 def _refine(R, t, assign, det, camera, target):
-    """Levenberg-Marquardt on all seen markers of each hypothesis (cv2.solvePnPRefineLM);
-    the loop runs over the few survivors of the P3P stage only."""
+    """Levenberg-Marquardt on all seen markers of each hypothesis (cv2.solvePnPRefineLM; det
+    (K,n,2) each hypothesis's detections); the loop runs over the few survivors of the P3P
+    stage only."""
     K, dist = camera.K, np.asarray(camera.dist, dtype=float)
     R_out, t_out = R.copy(), t.copy()
     for k in range(len(R)):
@@ -314,7 +393,7 @@ def _refine(R, t, assign, det, camera, target):
         tvec = (-R_ct @ t[k]).reshape(3, 1)
         rvec, tvec = cv2.solvePnPRefineLM(
             target.points[seen].reshape(-1, 1, 3),
-            det[assign[k][seen]].reshape(-1, 1, 2),
+            det[k][assign[k][seen]].reshape(-1, 1, 2),
             K,
             dist,
             rvec,

@@ -33,7 +33,8 @@ class Timeline:
             return 0
         if not len(times):
             return -1
-        i = int(np.clip(np.searchsorted(times, t), 1, len(times) - 1)) if len(times) > 1 else 0
+        n = len(times)
+        i = min(max(int(times.searchsorted(t)), 1), n - 1) if n > 1 else 0
         if i > 0 and abs(times[i - 1] - t) <= abs(times[i] - t):
             i -= 1
         tol = config.keyframe_dt / 2 + 1e-9 if len(run.velocity[r]) else config.sync_tolerance
@@ -130,8 +131,8 @@ def _velocity_steps(run: TeamRun, r: int, times: np.ndarray, config: GraphConfig
     od = run.velocity[r]
     integ = integrate_unicycle(od[:, 0], od[:, 1], od[:, 2], times, velocity_noise(run, r, config))
     return [None] + [
-        (pose_from_planar(*d), planar_covariance(c))
-        for d, c in zip(integ.deltas, integ.covariances)
+        (pose_from_planar(*d), c)
+        for d, c in zip(integ.deltas, planar_covariance(integ.covariances))
     ]
 
 

@@ -299,9 +299,8 @@ def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:
 def _owner(keys) -> int:
     """The robot a factor belongs to: its first pose's (a body or a sensor pose), else its
     first marker point's; -1."""
-    decoded = [decode(k) for k in keys]
-    for kinds in (("x", "s"), ("k",)):
-        robot = next((d[1] for d in decoded if d[0] in kinds), None)
+    for kinds in (("x", "s"), ("k",)):  # keys decoded up to the first that answers
+        robot = next((d[1] for d in map(decode, keys) if d[0] in kinds), None)
         if robot is not None:
             return int(robot)
     return -1
