@@ -14,12 +14,10 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib.machinery
-import json
 import os
 import signal
 import sys
 import threading
-import time
 from pathlib import Path
 
 from graphloc import many_runs
@@ -53,18 +51,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def options(args: argparse.Namespace) -> RunOptions:
     """Effective options: defaults < --config file < command line (`RunOptions`)."""
     return config_from_args(RunOptions, args)
-
-
-def landmark_map(run, config) -> str:
-    """Where the landmark positions come from, said explicitly (metrics.json, printed): a run
-    with landmark measurements but no landmark file is solved as SLAM, never silently."""
-    if not config.use_landmarks or not any(p.landmark >= 0 for p in run.points):
-        return "none: no landmark measurements used"
-    if not run.landmarks_known:
-        return "estimated (SLAM): the run has no landmark file"
-    if not config.landmark_priors:
-        return "estimated (SLAM): --unknown-landmarks"
-    return f"known: {len(run.landmark_ids)} landmarks from the run's landmark file"
 
 
 class StopFlag:
@@ -182,11 +168,10 @@ class StopFlag:
 
 
 def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
-    """The whole verb: outputs checked, run read, graph built, solved (stoppable, with an
-    online checkpoint / resume hook from `graphloc.commands.online`), evaluated, written;
-    SIGINT / SIGTERM by phase (`StopFlag`)."""
-    from dataclasses import asdict, replace
-
+    """The whole verb: `runner.team_run.run_team` (run read, graph built, solved --
+    stoppable, with an online checkpoint / resume hook from `graphloc.commands.online` --,
+    evaluated, written) under SIGINT / SIGTERM handling by phase (`StopFlag`), then the
+    summary, the verdict's lines and the exit code."""
     progress = not args.no_progress
     from graphloc.commands import pose_graph_run
 
@@ -196,46 +181,18 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
     with StopFlag(verb) as stop:
         opts = options(args)
         pose_graph_run.reject_options(opts.pose_graph(), args.run)
-        values = asdict(opts)
-        config = opts.graph_config()
-        from graphloc.datasets import open_run
-        from graphloc.manifest import check_noise_params
-        from graphloc.pipelines.report import evaluate, groundtruths, write_metrics, write_outputs
-        from graphloc.pipelines.team_graph import build_graph, default_lag, solve
+        from graphloc.runner.team_run import run_team
 
-        noise = opts.noise()
-        check_noise_params(noise, "option (command line or --config)")
-        cpu0 = time.process_time()  # the realtime factor counts from reading the run
-        run = open_run(args.run, duration=opts.duration, noise=noise, source=opts.source())
-        lag = opts.lag if opts.lag is not None else default_lag(run, config)
-        config = replace(config, lag=float(lag))
-        graph = build_graph(run, config, progress=progress)
-        hooks = checkpoint(graph, values) if checkpoint is not None else {}
-        stop.phase = "solving"
-        result = solve(graph, mode=mode, progress=progress, stop=stop, **hooks)
-        cpu = time.process_time() - cpu0
-        stop.phase = "writing"
-        truth = groundtruths(run)
-        metrics = evaluate(result, run, truth, stop, opts.align, cpu)
-        metrics["config"] = json.loads(dumps_json(asdict(config), default=str))
-        metrics["options"] = values
-        metrics["landmark_map"] = landmark_map(run, config)
-        if stop.signal is not None:
-            metrics["stopped_by"] = signal.Signals(stop.signal).name
-        out = Path(args.out)
-        write_outputs(
-            result, run, metrics, out, opts.groundtruth_rate, progress, truth, stop, opts.align
-        )
-        recordings = [f for f in (opts.mcap, opts.rerun) if f]
-        if recordings and not stop():
-            from graphloc.pipelines.recording import team_recording, write_recordings
-
-            write_recordings(team_recording(result, run, args.run), opts.mcap, opts.rerun)
-        elif recordings:  # stopped: left out (they read the whole ground truth)
-            metrics["skipped_outputs"] += recordings
-        if stop.signal is not None:  # metrics.json says who stopped the run and what is missing
-            metrics["stopped_by"] = signal.Signals(stop.signal).name
-            write_metrics(out, metrics)
+        metrics = run_team(
+            args.run,
+            args.out,
+            mode,
+            opts,
+            stop=stop,
+            checkpoint=checkpoint,
+            progress=progress,
+            on_phase=lambda phase: setattr(stop, "phase", phase),
+        ).metrics
         summary = {
             name: round(v[mode]["ate_rmse"], 4)
             for name, v in metrics["per_robot"].items()

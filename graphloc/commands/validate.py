@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from graphloc.commands.smooth import landmark_map
 from graphloc.exitcodes import OK
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph.options import OUTPUTS, SOLVER, RunOptions
@@ -46,6 +45,7 @@ def run(args: argparse.Namespace) -> int:
     pose_graph_run.reject_options(opts.pose_graph(), args.run)
     from graphloc.datasets import open_run
     from graphloc.pipelines.team_graph import build_graph
+    from graphloc.runner.team_run import landmark_map
 
     config = opts.graph_config()
     team = open_run(args.run, duration=opts.duration, noise=opts.noise(), source=opts.source())

@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import json
-from dataclasses import asdict
 from pathlib import Path
 
 import gtsam
@@ -32,10 +30,7 @@ from graphloc.pipelines.judge import judge_decisions
 from graphloc.pipelines.report_plots import plot_jobs
 from graphloc.pipelines.team_graph import (
     STEP_LOG_COLUMNS,
-    GraphConfig,
     TeamResult,
-    build_graph,
-    solve,
 )
 from graphloc.pipelines.team_graph.verdict import candidate_streams, judge
 from graphloc.run import TeamRun
@@ -48,7 +43,6 @@ __all__ = [
     "groundtruth_rows",
     "groundtruths",
     "latency_trend",
-    "run_and_report",
     "write_outputs",
 ]
 
@@ -374,24 +368,3 @@ def _write_latency(path: Path, result: TeamResult) -> Path:
                 ]
             )
     return path
-
-
-def run_and_report(
-    run: TeamRun,
-    out: Path,
-    mode: str,
-    config: GraphConfig,
-    progress: bool = True,
-    effective: dict | None = None,
-    groundtruth_rate: str = "estimate",
-) -> dict:
-    """Build the graph, solve it (batch or online), evaluate, write outputs (the ground truth
-    at `groundtruth_rate`, `GROUNDTRUTH_RATES`); returns the metrics."""
-    result = solve(build_graph(run, config, progress=progress), mode=mode, progress=progress)
-    truth = groundtruths(run)
-    metrics = evaluate(result, run, truth)
-    metrics["config"] = json.loads(dumps_json(asdict(config), default=str))
-    if effective:
-        metrics["options"] = effective
-    write_outputs(result, run, metrics, Path(out), groundtruth_rate, progress, truth)
-    return metrics

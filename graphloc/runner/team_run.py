@@ -1,0 +1,109 @@
+"""`run_team`: one team run from its source to its outputs -- read (`graphloc.datasets.open_run`),
+graph (`team_graph.build_graph`), solve (`team_graph.solve`, batch or online), judge
+(`report.evaluate`: metrics and the consistency verdict), write (`report.write_outputs`) --,
+the one route `graphloc smooth` / `online` (and so `graphloc.many_runs`) and the Python API take.
+
+    from graphloc import RunOptions, run_team
+    outcome = run_team("runs/team1", "out/team1", "batch", RunOptions(lag=30.0))
+    outcome.metrics["consistent"], outcome.result.estimate[0]
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+from graphloc.pipelines.team_graph.options import RunOptions
+from graphloc.structured import dumps_json
+
+
+@dataclass(frozen=True)
+class TeamOutcome:
+    """What `run_team` made: the solve (`team_graph.TeamResult`), the run it read and the
+    metrics it wrote (metrics.json, docs/outputs.md)."""
+
+    result: object
+    run: object
+    metrics: dict
+
+
+def landmark_map(run, config) -> str:
+    """Where the landmark positions come from, said explicitly (metrics.json, printed): a run
+    with landmark measurements but no landmark file is solved as SLAM, never silently."""
+    if not config.use_landmarks or not any(p.landmark >= 0 for p in run.points):
+        return "none: no landmark measurements used"
+    if not run.landmarks_known:
+        return "estimated (SLAM): the run has no landmark file"
+    if not config.landmark_priors:
+        return "estimated (SLAM): --unknown-landmarks"
+    return f"known: {len(run.landmark_ids)} landmarks from the run's landmark file"
+
+
+def run_team(
+    source,
+    out,
+    mode: str = "batch",
+    options: RunOptions | None = None,
+    stop=None,
+    checkpoint=None,
+    progress: bool = False,
+    on_phase=None,
+) -> TeamOutcome:
+    """Read `source` (a log directory, MRCLAM directory or bag, `open_run`), build its graph,
+    solve it (`mode` "batch" or "online"), evaluate and write every output into `out`.
+    options: `RunOptions` (defaults when None; the default lag when its `lag` is None).
+    stop(): True ends the solve early (`team_graph.solve`; the outputs so far are written,
+    `partial`), and leaves out figures not drawn yet. checkpoint(graph, option values) -> the
+    solve's on_step / on_stop hooks (`graphloc online --checkpoint`). on_phase(name): told
+    "solving" when the graph is built and "writing" when the solve is done (the command line's
+    Ctrl-C handling, `commands.smooth.StopFlag`). The realtime factor counts CPU time from
+    reading the run to the last estimate."""
+    from graphloc.datasets import open_run
+    from graphloc.manifest import check_noise_params
+    from graphloc.pipelines.report import evaluate, groundtruths, write_metrics, write_outputs
+    from graphloc.pipelines.team_graph import build_graph, default_lag, solve
+
+    opts = RunOptions() if options is None else options
+    values = asdict(opts)
+    config = opts.graph_config()
+    noise = opts.noise()
+    check_noise_params(noise, "option (command line or --config)")
+    cpu0 = time.process_time()
+    run = open_run(source, duration=opts.duration, noise=noise, source=opts.source())
+    lag = opts.lag if opts.lag is not None else default_lag(run, config)
+    config = replace(config, lag=float(lag))
+    graph = build_graph(run, config, progress=progress)
+    hooks = checkpoint(graph, values) if checkpoint is not None else {}
+    if on_phase is not None:
+        on_phase("solving")
+    result = solve(graph, mode=mode, progress=progress, stop=stop, **hooks)
+    cpu = time.process_time() - cpu0
+    if on_phase is not None:
+        on_phase("writing")
+    truth = groundtruths(run)
+    metrics = evaluate(result, run, truth, stop, opts.align, cpu)
+    metrics["config"] = json.loads(dumps_json(asdict(config), default=str))
+    metrics["options"] = values
+    metrics["landmark_map"] = landmark_map(run, config)
+    signalled = getattr(stop, "signal", None)
+    if signalled is not None:
+        metrics["stopped_by"] = signal.Signals(signalled).name
+    out = Path(out)
+    write_outputs(
+        result, run, metrics, out, opts.groundtruth_rate, progress, truth, stop, opts.align
+    )
+    recordings = [f for f in (opts.mcap, opts.rerun) if f]
+    if recordings and not (stop is not None and stop()):
+        from graphloc.pipelines.recording import team_recording, write_recordings
+
+        write_recordings(team_recording(result, run, source), opts.mcap, opts.rerun)
+    elif recordings:  # stopped: left out (they read the whole ground truth)
+        metrics["skipped_outputs"] += recordings
+    signalled = getattr(stop, "signal", None)
+    if signalled is not None:  # metrics.json says who stopped the run and what is missing
+        metrics["stopped_by"] = signal.Signals(signalled).name
+        write_metrics(out, metrics)
+    return TeamOutcome(result, run, metrics)
