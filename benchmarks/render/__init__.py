@@ -1,0 +1,67 @@
+"""The results docs (docs/results*.md), each rendered from its committed JSON: one module
+here per doc family whose `context(...)` turns the JSON into the values and pandas tables
+its Jinja2 template (templates/<renderer>.md.j2, the prose) prints. `DOCS` names every
+rendered doc with its renderer and the JSON files in docs/ it reads; the benchmarks call
+`render` on the result they have just written, `scripts/render_docs.py` re-renders a doc from
+its committed JSON without running anything (tests/test_results_docs.py: every doc as
+committed)."""
+
+from __future__ import annotations
+
+import importlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import jinja2
+import pandas as pd
+
+DOCS_DIR = Path(__file__).resolve().parents[2] / "docs"
+TEMPLATES = Path(__file__).resolve().parent / "templates"
+
+
+@dataclass(frozen=True)
+class Doc:
+    """A rendered doc: the module of benchmarks.render (and template) that renders it, and
+    the JSON files of docs/ handed to its `context`, in that order."""
+
+    renderer: str
+    inputs: tuple[str, ...]
+
+
+DOCS = {
+    "results_fusion_real.md": Doc(
+        "fusion_real", ("results_fusion_real.json", "results_fusion_calibration.json")
+    ),
+    "results_fusion_real_redwood.md": Doc(
+        "fusion_real", ("results_fusion_real_redwood.json", "results_fusion_calibration.json")
+    ),
+}
+
+
+def markdown_table(frame: pd.DataFrame) -> str:
+    """A DataFrame as a markdown (pipe) table, its cells printed as given (the renderers
+    format the numbers)."""
+    return frame.astype(str).to_markdown(index=False, tablefmt="pipe", disable_numparse=True)
+
+
+_ENV = jinja2.Environment(
+    loader=jinja2.FileSystemLoader(TEMPLATES),
+    undefined=jinja2.StrictUndefined,
+    keep_trailing_newline=True,
+    trim_blocks=True,
+    lstrip_blocks=True,
+)
+_ENV.filters["table"] = markdown_table
+
+
+def render(renderer: str, *data) -> str:
+    """The markdown of benchmarks.render.<renderer> for its JSON documents `data`."""
+    context = importlib.import_module(f"{__name__}.{renderer}").context(*data)
+    return _ENV.get_template(f"{renderer}.md.j2").render(context)
+
+
+def render_doc(name: str, docs_dir: Path = DOCS_DIR) -> str:
+    """The markdown of docs/`name` from the JSON files it is rendered from."""
+    doc = DOCS[name]
+    return render(doc.renderer, *(json.loads((docs_dir / f).read_text()) for f in doc.inputs))
