@@ -27,9 +27,18 @@ class Doc:
 
     renderer: str
     inputs: tuple[str, ...]
+    # a rendered section: the doc from this heading line to its end (the text before it is
+    # written by a benchmark without committed JSON)
+    section: str | None = None
 
 
 DOCS = {
+    "results_seed_baselines.md": Doc("seed_baselines", ("results_seed_baselines.json",)),
+    "results.md": Doc(
+        "seed_baselines_results",
+        ("results_seed_baselines.json",),
+        section="### Every seed table at the stated and the reproducing reading",
+    ),
     "results_fusion_real.md": Doc(
         "fusion_real", ("results_fusion_real.json", "results_fusion_calibration.json")
     ),
@@ -53,6 +62,8 @@ _ENV = jinja2.Environment(
     lstrip_blocks=True,
 )
 _ENV.filters["table"] = markdown_table
+_ENV.filters["g"] = lambda x: f"{x:g}"
+_ENV.filters["f2"] = lambda x: f"{x:.2f}"
 
 
 def render(renderer: str, *data) -> str:
@@ -62,6 +73,13 @@ def render(renderer: str, *data) -> str:
 
 
 def render_doc(name: str, docs_dir: Path = DOCS_DIR) -> str:
-    """The markdown of docs/`name` from the JSON files it is rendered from."""
+    """The markdown of docs/`name` from the JSON files it is rendered from (a section doc: the
+    text before its section as it is, the section rendered)."""
     doc = DOCS[name]
-    return render(doc.renderer, *(json.loads((docs_dir / f).read_text()) for f in doc.inputs))
+    text = render(doc.renderer, *(json.loads((docs_dir / f).read_text()) for f in doc.inputs))
+    if doc.section is None:
+        return text
+    lines = (docs_dir / name).read_text().splitlines()
+    if doc.section not in lines:
+        raise ValueError(f"{name}: no line {doc.section!r} to render from")
+    return "\n".join(lines[: lines.index(doc.section)]) + "\n" + text
