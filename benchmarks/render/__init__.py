@@ -33,6 +33,7 @@ class Doc:
 
 
 DOCS = {
+    "results_fusion_envelope.md": Doc("fusion_envelope", ("results_fusion_envelope.json",)),
     "results_seed_baselines.md": Doc("seed_baselines", ("results_seed_baselines.json",)),
     "results.md": Doc(
         "seed_baselines_results",
