@@ -34,6 +34,10 @@ class Doc:
 
 DOCS = {
     "results_fusion_envelope.md": Doc("fusion_envelope", ("results_fusion_envelope.json",)),
+    "results_g2o_outliers.md": Doc("g2o_outliers", ("results_g2o_outliers.json",)),
+    "results_g2o_outliers_sphere2500.md": Doc(
+        "g2o_outliers", ("results_g2o_outliers_sphere2500.json",)
+    ),
     "results_seed_baselines.md": Doc("seed_baselines", ("results_seed_baselines.json",)),
     "results.md": Doc(
         "seed_baselines_results",
@@ -67,17 +71,19 @@ _ENV.filters["g"] = lambda x: f"{x:g}"
 _ENV.filters["f2"] = lambda x: f"{x:.2f}"
 
 
-def render(renderer: str, *data) -> str:
-    """The markdown of benchmarks.render.<renderer> for its JSON documents `data`."""
+def render(renderer: str, *data, doc: str = "") -> str:
+    """The markdown of benchmarks.render.<renderer> for its JSON documents `data`; `doc`: the
+    doc's file stem, for a template that names the files beside it."""
     context = importlib.import_module(f"{__name__}.{renderer}").context(*data)
-    return _ENV.get_template(f"{renderer}.md.j2").render(context)
+    return _ENV.get_template(f"{renderer}.md.j2").render(context, doc=doc)
 
 
 def render_doc(name: str, docs_dir: Path = DOCS_DIR) -> str:
     """The markdown of docs/`name` from the JSON files it is rendered from (a section doc: the
     text before its section as it is, the section rendered)."""
     doc = DOCS[name]
-    text = render(doc.renderer, *(json.loads((docs_dir / f).read_text()) for f in doc.inputs))
+    data = [json.loads((docs_dir / f).read_text()) for f in doc.inputs]
+    text = render(doc.renderer, *data, doc=Path(name).stem)
     if doc.section is None:
         return text
     lines = (docs_dir / name).read_text().splitlines()

@@ -1,0 +1,36 @@
+"""docs/results_g2o_outliers.md (and _sphere2500.md): outlier loop closures injected into
+public g2o pose graphs, graphloc online beside GNC (scripts/bench_g2o_outliers.py,
+benchmarks.g2o_outliers, issue 51), from the doc's JSON. Template:
+templates/g2o_outliers.md.j2."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+
+def _cells(frame: pd.DataFrame) -> pd.DataFrame:
+    """Floats to 4 significant digits (nan where a method has no such number), the rest as
+    they are."""
+    return frame.map(lambda x: format(x, ".4g") if isinstance(x, float) else x)
+
+
+def context(report: dict) -> dict:
+    frame = pd.DataFrame(report["rows"])
+    verdict = []
+    for (graph, rate), part in frame.groupby(["graph", "rate"]):
+        g = part[part.method == "graphloc"].iloc[0]
+        n = part[part.method == "gnc"].iloc[0]
+        verdict.append(
+            {
+                "graph": graph,
+                "rate": rate,
+                "graphloc RMSE": g.rmse_m,
+                "GNC RMSE": n.rmse_m,
+                "graphloc <= GNC": "yes" if g.rmse_m <= n.rmse_m else "**no**",
+            }
+        )
+    return {
+        "report": report,
+        "runs": _cells(frame.round(4)),
+        "verdict": _cells(pd.DataFrame(verdict)),
+    }
