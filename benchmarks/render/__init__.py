@@ -33,6 +33,7 @@ class Doc:
 
 
 DOCS = {
+    "results_city10000.md": Doc("city10000", ("results_city10000.json",)),
     "results_fusion_envelope.md": Doc("fusion_envelope", ("results_fusion_envelope.json",)),
     "results_g2o_outliers.md": Doc("g2o_outliers", ("results_g2o_outliers.json",)),
     "results_g2o_outliers_sphere2500.md": Doc(
