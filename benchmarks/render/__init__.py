@@ -39,6 +39,7 @@ DOCS = {
     "results_g2o_outliers_sphere2500.md": Doc(
         "g2o_outliers", ("results_g2o_outliers_sphere2500.json",)
     ),
+    "results_startup.md": Doc("startup", ("results_startup.json",)),
     "results_seed_baselines.md": Doc("seed_baselines", ("results_seed_baselines.json",)),
     "results.md": Doc(
         "seed_baselines_results",
