@@ -55,6 +55,11 @@ DOCS = {
 }
 
 
+def header(columns: str) -> list[str]:
+    """A table's column names written as its markdown header row: "a | b [m] | c"."""
+    return columns.split(" | ")
+
+
 def markdown_table(frame: pd.DataFrame) -> str:
     """A DataFrame as a markdown (pipe) table, its cells printed as given (the renderers
     format the numbers)."""

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import pandas as pd
 
+from benchmarks.render import header
+
 from benchmarks.render.seed_baselines_bounds import table1_bounds, table3_bounds
 from benchmarks.render.seed_baselines_more import f2, seed001, seed003
 from benchmarks.seed_baselines import PAPER_LINE_ERRORS
@@ -74,18 +76,10 @@ def _table1(sw: dict) -> dict:
                 dev(x["max_deviation"]),
             ]
         )
-    columns = [
-        "image std [px]",
-        "lateral [m]",
-        "orientation",
-        "correct /1000",
-        "C2",
-        "C3",
-        "C",
-        "genuine line mean / max [m]",
-        "runner-up mean (any / 2nd pseudo) [m]",
-        "largest dev.",
-    ]
+    columns = header(
+        "image std [px] | lateral [m] | orientation | correct /1000 | C2 | C3 | C | "
+        "genuine line mean / max [m] | runner-up mean (any / 2nd pseudo) [m] | largest dev."
+    )
     # where each number alone is met best, at the chosen reading's lateral noise / orientation
     same = [
         x
@@ -131,13 +125,10 @@ def table1_by_setting(runs: dict) -> pd.DataFrame:
                 f"{fmt(s['C']['mean'])} / {fmt(g['C']['mean'])}",
             ]
         )
-    columns = [
-        "setting",
-        "seed correct (genuine picked)",
-        "graphloc correct",
-        "C2 seed / graphloc",
-        "C seed / graphloc",
-    ]
+    columns = header(
+        "setting | seed correct (genuine picked) | graphloc correct | C2 seed / graphloc | "
+        "C seed / graphloc"
+    )
     return pd.DataFrame(rows, columns=columns)
 
 
@@ -256,15 +247,10 @@ def seed004_by_setting(runs: dict) -> pd.DataFrame:
                     f"{g['mean'] / s['mean']:.2f}",
                 ]
             )
-    columns = [
-        "setting",
-        "focal",
-        "v [px^2]",
-        "paper mean (std)",
-        "seed raw P3P mean (std)",
-        "graphloc smoothed mean (std)",
-        "graphloc / seed",
-    ]
+    columns = header(
+        "setting | focal | v [px^2] | paper mean (std) | seed raw P3P mean (std) | "
+        "graphloc smoothed mean (std) | graphloc / seed"
+    )
     return pd.DataFrame(rows, columns=columns)
 
 

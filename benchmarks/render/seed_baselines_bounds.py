@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from benchmarks.render import header
+
 T1_LABELS = {
     "correct": "correct /1000",
     "C2_mean": "C2 mean",
@@ -113,16 +115,10 @@ def table3_bounds(b: dict) -> dict:
             ]
             for name, c in tr["noise_free"].items()
         ],
-        columns=[
-            "cell",
-            "frames",
-            "jump frames",
-            "ambiguous frames",
-            "smallest margin [m]",
-            "frames with two candidates within the gate",
-            "set size changes",
-            "closest pair [m]",
-        ],
+        columns=header(
+            "cell | frames | jump frames | ambiguous frames | smallest margin [m] | "
+            "frames with two candidates within the gate | set size changes | closest pair [m]"
+        ),
     )
     all_cells = [x["pixel_sigma"] for x in tr["by_sigma"] if x["cells_bound_exceeds_paper"] == 6]
     below = [i for i, s in enumerate(sig) if not all_cells or s < min(all_cells)]

@@ -8,6 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from benchmarks.render import header
+
 from benchmarks.seed001_readings import STATED
 from benchmarks.seed003_readings import FEATURE_SIGMAS, N_VALUES, TILT_DEG
 from benchmarks.seed_baselines import REPRODUCE_TOL
@@ -136,8 +138,10 @@ def seed001(s1: dict) -> dict:
                     ]
                     for t in why["tilt"]
                 ],
-                columns="axis to optical axis [deg] | rot mean [deg] | rot std | std / mean | "
-                "largest dev.".split(" | "),
+                columns=header(
+                    "axis to optical axis [deg] | rot mean [deg] | rot std | std / mean | "
+                    "largest dev."
+                ),
             ),
         }
     return out
@@ -217,12 +221,9 @@ def seed003(s3: dict) -> dict:
         ),
         "by_setting": pd.DataFrame(
             by_setting,
-            columns=[
-                "setting",
-                "N",
-                "EKF T_x / T_y / T_z [cm]",
-                "graphloc T_x / T_y / T_z [cm]",
-                "graphloc / EKF (mean of axes)",
-            ],
+            columns=header(
+                "setting | N | EKF T_x / T_y / T_z [cm] | graphloc T_x / T_y / T_z [cm] | "
+                "graphloc / EKF (mean of axes)"
+            ),
         ),
     }

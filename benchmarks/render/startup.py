@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import pandas as pd
 
+from benchmarks.render import header
+
 
 def s(v, digits: int = 3) -> str:
     """v to `digits` decimals, "-" for a time that was not measured."""
@@ -53,10 +55,10 @@ def _sigint(result: dict) -> pd.DataFrame:
         ]
         for x in result["sigint"]
     ]
-    columns = (
+    columns = header(
         "command | verb | run | uninterrupted [s] | trials signalled | exit median [s] | "
         "exit max [s] | exit codes | tracebacks | partial metrics"
-    ).split(" | ")
+    )
     return pd.DataFrame(rows, columns=columns)
 
 
