@@ -18,3 +18,13 @@ def test_markdown_table_prints_cells_as_given():
 
     text = markdown_table(pd.DataFrame([["0.50", 3]], columns=["a [m]", "n"]))
     assert text.splitlines() == ["| a [m]   | n   |", "|:--------|:----|", "| 0.50    | 3   |"]
+
+
+def test_reflow_joins_paragraphs_and_list_items_only():
+    from benchmarks.render import reflow
+
+    text = "# A\n\nsome\nprose.\n\n| a |\n| b |\n\n- one\n  more\n- two\n\n    code\n    kept\n"
+    assert (
+        reflow(text)
+        == "# A\n\nsome prose.\n\n| a |\n| b |\n\n- one more\n- two\n\n    code\n    kept\n"
+    )

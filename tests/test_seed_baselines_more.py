@@ -212,7 +212,7 @@ def test_results_section_has_every_seed_table_at_both_settings():
     cells = len(r["runs"]["reproducing"]["table3"]["cells"])
     assert text.count("| reproducing ") >= cells + len(r["runs"]["reproducing"]["seed004"]["cells"])
     g, sb = t1["graphloc"]["success"], t1["seed_baseline"]["success"]
-    assert f"correct in {g}/{t1['trials']}\ntrials against the seed baseline's {sb}" in text
+    assert f"correct in {g}/{t1['trials']} trials against the seed baseline's {sb}" in text
     s4 = r["runs"]["reproducing"]["seed004"]["cells"]
     below = sum(c["graphloc_smoothed"]["mean"] < c["seed_baseline_raw_p3p"]["mean"] for c in s4)
     assert f"below it in {below} of {len(s4)} cells" in text

@@ -79,11 +79,33 @@ _ENV.filters["g"] = lambda x: f"{x:g}"
 _ENV.filters["f2"] = lambda x: f"{x:.2f}"
 
 
+def reflow(markdown: str) -> str:
+    """Each paragraph and list item of `markdown` on one line (the templates wrap their prose);
+    tables, headings, images and indented code as they are."""
+    body = markdown.rstrip("\n")
+    blocks = []
+    for block in body.split("\n\n"):
+        lines = block.split("\n")
+        if block.startswith(("|", "#", "![", "    ")) or not block.strip():
+            blocks.append(block)
+        elif block.startswith("- "):  # a list: continuation lines join their item
+            items = []
+            for line in lines:
+                if line.startswith("- ") or not items:
+                    items.append(line)
+                else:
+                    items[-1] += " " + line.strip()
+            blocks.append("\n".join(items))
+        else:
+            blocks.append(" ".join(line.strip() for line in lines))
+    return "\n\n".join(blocks) + markdown[len(body) :]
+
+
 def render(renderer: str, *data, doc: str = "") -> str:
     """The markdown of benchmarks.render.<renderer> for its JSON documents `data`; `doc`: the
     doc's file stem, for a template that names the files beside it."""
     context = importlib.import_module(f"{__name__}.{renderer}").context(*data)
-    return _ENV.get_template(f"{renderer}.md.j2").render(context, doc=doc)
+    return reflow(_ENV.get_template(f"{renderer}.md.j2").render(context, doc=doc))
 
 
 def render_doc(name: str, docs_dir: Path = DOCS_DIR) -> str:
