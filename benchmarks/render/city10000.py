@@ -6,16 +6,13 @@ from __future__ import annotations
 
 import pandas as pd
 
+from benchmarks.render.numbers import significant
+
 # issue 51's targets: correct choices of 45 (partial) / 200 (full) ambiguous edges, RMSE
 # against the oracle (partial) / the ground truth (full), CPU against HybridSmoother's and the
 # last tenth's step p95 over the first tenth's
 TARGETS = {"partial_correct": 43, "partial_rmse_oracle": 1.0, "full_correct": 195,
            "full_rmse_gt": 0.5, "time_ratio": 2.0, "growth": 3.0}  # fmt: skip
-
-
-def _cells(frame: pd.DataFrame) -> pd.DataFrame:
-    """Floats to 3 significant digits (nan where a method has no such number)."""
-    return frame.map(lambda x: format(x, ".3g") if isinstance(x, float) else x)
 
 
 def _checks(run: dict, partial: bool) -> list:
@@ -66,6 +63,6 @@ def context(report: dict) -> dict:
         checks += _checks(run, run["edges"] < report["file_edges"])
     return {
         "report": report,
-        "runs": _cells(pd.DataFrame(rows)),
-        "targets": _cells(pd.DataFrame(checks)) if checks else None,
+        "runs": significant(pd.DataFrame(rows), 3),
+        "targets": significant(pd.DataFrame(checks), 3) if checks else None,
     }

@@ -7,11 +7,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-
-def _cells(frame: pd.DataFrame) -> pd.DataFrame:
-    """Floats to 4 significant digits (nan where a method has no such number), the rest as
-    they are."""
-    return frame.map(lambda x: format(x, ".4g") if isinstance(x, float) else x)
+from benchmarks.render.numbers import significant
 
 
 def context(report: dict) -> dict:
@@ -31,6 +27,6 @@ def context(report: dict) -> dict:
         )
     return {
         "report": report,
-        "runs": _cells(frame.round(4)),
-        "verdict": _cells(pd.DataFrame(verdict)),
+        "runs": significant(frame.round(4), 4),
+        "verdict": significant(pd.DataFrame(verdict), 4),
     }

@@ -11,23 +11,14 @@ import pandas as pd
 from benchmarks.render import header
 
 from benchmarks.render.seed_baselines_bounds import table1_bounds, table3_bounds
-from benchmarks.render.seed_baselines_more import f2, seed001, seed003
+from benchmarks.render.numbers import dev, fmt
+from benchmarks.render.seed_baselines_more import seed001, seed003
 from benchmarks.seed_baselines import PAPER_LINE_ERRORS
 
 T1_STATED = (0.5, 0.001, "kept")
 T3_STATED = (0.5, "per_axis", "inner_product", "solution")
 S4_STATED = (2.5, 13.75, 0.0, "variance")
 SETTINGS = ("stated", "reproducing")
-
-
-def fmt(x, spec: str = ".2e") -> str:
-    """x formatted with `spec`, or "n/a" for None."""
-    return "n/a" if x is None else format(x, spec)
-
-
-def dev(x) -> str:
-    """A deviation |ours / paper - 1|; "inf" for a reading that produced no number."""
-    return "inf" if x is None or not x < float("inf") else f"{x:.2f}"
 
 
 def top(rows: list, stated, n: int = 8) -> list:
@@ -278,5 +269,5 @@ def context(r: dict) -> dict:
         "s1": seed001(r["seed001"]) if "seed001" in r else None,
         "s3": seed003(r["seed003"]) if "seed003" in r else None,
         "dev": dev,
-        "f2": f2,
+        "f2": lambda x: fmt(x, ".2f"),
     }

@@ -12,6 +12,7 @@ from benchmarks.render import header
 
 from benchmarks.seed001_readings import STATED
 from benchmarks.seed003_readings import FEATURE_SIGMAS, N_VALUES, TILT_DEG
+from benchmarks.render.numbers import dev, fmt, joined, yes_no
 from benchmarks.seed_baselines import REPRODUCE_TOL
 
 S1_COLUMNS = (
@@ -37,25 +38,13 @@ S1_HEADERS = [h for _, _, h in S1_NUMBERS]
 SETTINGS = ("stated", "reproducing")
 
 
-def f2(x) -> str:
-    return "n/a" if x is None else f"{x:.2f}"
-
-
-def joined(values, spec: str = ".2f") -> str:
-    return " / ".join(format(v, spec) for v in values)
-
-
-def yes_no(flag) -> str:
-    return "yes" if flag else "no"
-
-
 def _cell(x: dict, key: str, f) -> str:
     """A reading's value; "-" for a reading a result from before that column did not sweep."""
     return f(x[key]) if key in x else "-"
 
 
 def s1_numbers(s: dict) -> list:
-    return [f2(s[run].get(key)) for run, key, _ in S1_NUMBERS]
+    return [fmt(s[run].get(key), ".2f") for run, key, _ in S1_NUMBERS]
 
 
 def s1_paper(s1: dict) -> list:
@@ -78,24 +67,20 @@ def seed001(s1: dict) -> dict:
     rows, best = s1["rows"], s1["choice"]["best"]
     stated = [x for x in rows if all(x.get(k, v) == v for k, v in STATED.items())]
     rest = sorted((x for x in rows if x not in stated), key=lambda x: x["max_deviation"])
-    dev = lambda x: "inf" if not x < float("inf") else f"{x:.2f}"  # noqa: E731
     readings = [["paper"] + [""] * (len(S1_COLUMNS) - 1) + s1_paper(s1) + [""]] + [
         [_cell(x, k, f) for k, _, f in S1_COLUMNS] + s1_numbers(x) + [dev(x["max_deviation"])]
         for x in stated + rest[:8]
     ]
-    by_setting = [
-        [
-            name,
-            method.replace("_", " "),
-            "{}/{} / {}/{}".format(*s["run1"]["localized"], *s["run2_at_3m"]["localized"]),
-            *s1_numbers(s),
-            f2(s["run1"].get("pos_max_cm")),
-            f2(s["run1"].get("rot_max_deg")),
-        ]
-        for name in SETTINGS
-        for method in ("seed_baseline", "graphloc")
-        if (s := s1["runs"][name][method])
-    ]
+    by_setting = []
+    for name in SETTINGS:
+        for method in ("seed_baseline", "graphloc"):
+            s = s1["runs"][name][method]
+            by_setting.append(
+                [name, method.replace("_", " ")]
+                + ["{}/{} / {}/{}".format(*s["run1"]["localized"], *s["run2_at_3m"]["localized"])]
+                + s1_numbers(s)
+                + [fmt(s["run1"].get(k), ".2f") for k in ("pos_max_cm", "rot_max_deg")]
+            )
     out = {
         "s1": s1,
         "readings": pd.DataFrame(
@@ -159,7 +144,6 @@ def tracker(x: dict) -> str:
 
 
 def _s3_row(x: dict) -> list:
-    dev = "inf" if not x["max_deviation"] < float("inf") else f"{x['max_deviation']:.2f}"
     return [
         tracker(x),
         f"{x['tracker_variance']:g}",
@@ -170,7 +154,7 @@ def _s3_row(x: dict) -> list:
         joined(by_n(x["ekf_cm"], n)[2] for n in N_VALUES),
         f"{yes_no(x['claim_tx_small_n_better'])} ({yes_no(x.get('strict_tx'))})",
         f"{yes_no(x['claim_tz_improves_with_n'])} ({yes_no(x.get('strict_tz'))})",
-        dev,
+        dev(x["max_deviation"]),
     ]
 
 

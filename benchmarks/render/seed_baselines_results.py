@@ -9,14 +9,13 @@ import pandas as pd
 
 from benchmarks.render import DOCS
 from benchmarks.render.seed_baselines import runs_tables
+from benchmarks.render.numbers import joined, yes_no
 from benchmarks.render.seed_baselines_more import (
     S1_HEADERS,
     by_n,
-    joined,
     s1_numbers,
     s1_paper,
     s1_ratios,
-    yes_no,
 )
 from benchmarks.seed003_readings import N_VALUES, trend
 

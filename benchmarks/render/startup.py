@@ -6,11 +6,12 @@ from __future__ import annotations
 import pandas as pd
 
 from benchmarks.render import header
+from benchmarks.render.numbers import fmt
 
 
 def s(v, digits: int = 3) -> str:
     """v to `digits` decimals, "-" for a time that was not measured."""
-    return "-" if v is None else f"{v:.{digits}f}"
+    return fmt(v, f".{digits}f", "-")
 
 
 def _startup(result: dict) -> dict:
