@@ -24,6 +24,7 @@ NEES of graphloc's accepted results against the chi-square 95% band of their mea
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import time
@@ -40,9 +41,9 @@ from benchmarks.fusion_report_real import (
     REAL_ROT_OK_DEG,
     TRANS_OK_M,
     _cells,
-    markdown_real,
     plot_real,
 )
+from benchmarks.render import DOCS_DIR, render
 from graphloc.structured import dumps_json
 
 REAL_OVERLAPS = (0.6, 0.3)
@@ -365,7 +366,8 @@ def main_real(args) -> int:
         doc.with_suffix(".json").write_text(dumps_json(summary_only, indent=1) + "\n")
     (out / "bench_fusion_real.json").write_text(dumps_json(report, indent=1))
     plot_real(rows, Path(report["png"]), Path(args.fragment).name if args.fragment else None)
-    text = markdown_real(report, command)
+    calibration = json.loads((DOCS_DIR / "results_fusion_calibration.json").read_text())
+    text = render("fusion_real", report, calibration)
     if args.doc:
         Path(args.doc).write_text(text)
     print(text)

@@ -2,7 +2,7 @@
 table, paper | seed baseline (ours) | graphloc, from the plain dicts that
 benchmarks.seed000 (seed 000 Tables I-III) and benchmarks.seed004
 (seed 004 Table 1) return. Every number printed is one of the dict's; the seeds' readings
-(docs/results_seed_baselines.md) are benchmarks.seed_baselines_markdown. Also the
+(docs/results_seed_baselines.md) are benchmarks.render.seed_baselines. Also the
 one writer of a benchmark's JSON + markdown (`write_report`)."""
 
 from __future__ import annotations

@@ -11,6 +11,7 @@ module, at the run sizes of benchmarks.sizes.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
 import sys
@@ -24,7 +25,7 @@ from graphloc.structured import dumps_json
 from benchmarks import TABLES, markdown, seed000, seed001, seed004
 from benchmarks.hypotheses import TableIIIConfig
 from benchmarks.seed_baselines_report import DOC_JSON
-from benchmarks.seed_baselines_results import results_section
+from benchmarks.render import render
 from benchmarks.sizes import RunSizes, run_sizes
 
 
@@ -39,7 +40,7 @@ def seed001_section(out_dir: Path, sizes: RunSizes) -> str:
         "rendered frames)\n\n"
         + seed001.markdown(result["summary"])
         + f"\n\nPlot: {Path(out_dir).name}/repro_seed001_error_vs_distance.png.\n\n"
-        + results_section(DOC_JSON)
+        + render("seed_baselines_results", json.loads(DOC_JSON.read_text()))
     )
 
 

@@ -99,37 +99,3 @@ def markdown(summary: dict) -> str:
                 f"{cell(s, 'rot_std_deg', 'deg')} | {cell(s, 'rot_max_deg', 'deg')} |"
             )
     return "\n".join(lines)
-
-
-def _xyz(v) -> str:
-    return " / ".join(f"{x:.2f}" for x in v)
-
-
-def s1_why(why: dict, best: dict, paper: dict) -> list:
-    """Why the hand-eye axis sets run 1's orientation std / mean (seed001_readings.rotation_why)."""
-    f, p3p, lag = why["frame_rotation_rms_deg"], why["p3p_rotation_rms_deg"], best["lag_frames"]
-    a, b = why["tilt"][0], why["tilt"][-1]  # axis along / across the optical axis
-    lines = [
-        "**Why the orientation std / mean depends on the hand-eye axis.** The orientation error "
-        "of a frame is the angle of (constant hand-eye rotation) + (per-frame rotation). One "
-        f"frame interval turns the camera by {_xyz(f['run1'])} deg rms about its x / y / z "
-        f"(optical) axis in run 1 ({_xyz(f['run2'])} in run 2): mostly roll about the line of "
-        f"sight, so a lag of {lag:g} frames adds about {lag * f['run1'][2]:.2f} deg rms of roll "
-        "per frame, while the seed's P3P itself errs by only "
-        f"{_xyz(p3p['run1'])} deg rms (run 1, x / y / z; the P3P noise is not what sets the "
-        "ratio). A hand-eye axis along the optical axis adds that roll in line with the "
-        "constant angle, one across it in quadrature: from along to across, run 1's "
-        f"orientation std goes {a['rot_std_deg']:.2f} -> {b['rot_std_deg']:.2f} deg and its "
-        f"mean {a['rot_mean_deg']:.2f} -> {b['rot_mean_deg']:.2f} deg. Run 1 at the chosen "
-        f"reading with only the axis changed (paper: mean {paper['rot_mean_deg']:g}, std "
-        f"{paper['rot_std_deg']:g}, ratio {paper['rot_std_deg'] / paper['rot_mean_deg']:.2f}):",
-        "",
-        "| axis to optical axis [deg] | rot mean [deg] | rot std | std / mean | largest dev. |",
-        "|---|---|---|---|---|",
-    ]
-    for t in why["tilt"]:
-        lines.append(
-            f"| {t['tilt_deg']:g} | {t['rot_mean_deg']:.2f} | {t['rot_std_deg']:.2f} | "
-            f"{t['std_over_mean']:.2f} | {t['max_deviation']:.2f} |"
-        )
-    return lines + [""]

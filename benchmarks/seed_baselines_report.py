@@ -22,7 +22,7 @@ from graphloc.datasets.kaushik import KaushikConfig
 from benchmarks import seed000, seed001_readings, seed003_readings, seed004
 from benchmarks import seed_baselines_bounds_report, seed_baselines_bounds_t3
 from benchmarks import seed_baselines_sections as sections
-from benchmarks.seed_baselines_markdown import markdown
+from benchmarks.render import render as render_doc
 from benchmarks import seed_baselines as sb
 from benchmarks.hypotheses import TableIIIConfig
 from benchmarks.sizes import run_sizes
@@ -239,7 +239,8 @@ def render(result: dict, out: Path, docs: bool = True) -> dict:
         sections.plot(result, out / MORE_PNG)
     if "bounds" in result:
         seed_baselines_bounds_report.plot(result["bounds"], out)
-    md = markdown(result, "results_seed_baselines.png")
+    # rendered from the JSON as written (numpy values as plain numbers), as the committed doc is
+    md = render_doc("seed_baselines", json.loads(dumps_json(result, default=_json)))
     (out / "seed_baselines.md").write_text(md)
     if docs:
         plot(result, DOC.with_suffix(".png"))

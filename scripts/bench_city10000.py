@@ -5,7 +5,7 @@ in one run, on the first `--steps` edges (the example's loop index: one file lin
 and optionally the whole file (`--full`). Mode accuracy, position RMSE against the oracle and
 against ISAM2_GT_city10000.txt, total CPU time and per-step CPU p50 / p95 and p95 over the first
 and the last tenth of the steps (a step: the edges ending at one new pose). Writes JSON, a PNG
-per run length and docs/results_city10000.md (pandas tables rendered from the JSON).
+per run length and docs/results_city10000.md (benchmarks.render.city10000, from the JSON).
 
     .venv/bin/python scripts/bench_city10000.py --seeds 0 1 2 --steps 3000 --full \
         --out out/bench_city10000 --doc docs/results_city10000.md
@@ -25,8 +25,6 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # benchmarks/ (the script's helpers, not installed)
 
-TARGETS = {"partial_correct": 43, "partial_rmse_oracle": 1.0, "full_correct": 195,
-           "full_rmse_gt": 0.5, "time_ratio": 2.0, "growth": 3.0}  # fmt: skip
 METHODS = ("graphloc", "hybrid", "gnc", "oracle")
 
 
@@ -77,44 +75,13 @@ def run_one(edges, seed, methods, progress: bool, repeat: int = 1) -> dict:
 
 
 def render(report: dict, out: Path, doc: Path) -> None:
+    """Every run's figures under `out`; the doc's (the last run's), its summary JSON and its
+    markdown (benchmarks.render.city10000) beside `doc`."""
     import numpy as np
-    import pandas as pd
 
+    from benchmarks.render import render as render_doc
     from graphloc.plots import Series, plot_series, plot_trajectories
 
-    rows, checks = [], []
-    for run in report["runs"]:
-        partial = run["edges"] < report["file_edges"]
-        for name, m in run["methods"].items():
-            rows.append({
-                "edges": run["edges"], "seed": run["seed"], "method": name,
-                "correct": f"{m['correct']} / {run['ambiguous']}",
-                "RMSE vs oracle [m]": m.get("rmse_oracle_m"), "RMSE vs GT [m]": m["rmse_gt_m"],
-                "CPU [s]": m["cpu_s"], "step p50 [ms]": m.get("p50_ms"),
-                "step p95 [ms]": m.get("p95_ms"), "first tenth p95": m.get("first_tenth_p95_ms"),
-                "last tenth p95": m.get("last_tenth_p95_ms"), "growth": m.get("growth"),
-            })  # fmt: skip
-        g, h = run["methods"].get("graphloc"), run["methods"].get("hybrid")
-        if g is None:
-            continue
-        need = TARGETS["partial_correct" if partial else "full_correct"]
-        scale = run["ambiguous"] / (45 if partial else 200)
-        checks.append(_check(run, "correct", g["correct"], f">= {need * scale:.0f}",
-                             g["correct"] >= need * scale))  # fmt: skip
-        if partial and "rmse_oracle_m" in g:
-            value = g["rmse_oracle_m"]
-            checks.append(_check(run, "RMSE vs oracle [m]", value, "<= 1",
-                                 value <= TARGETS["partial_rmse_oracle"]))  # fmt: skip
-        if not partial:
-            value = g["rmse_gt_m"]
-            checks.append(_check(run, "RMSE vs GT [m]", value, "<= 0.5",
-                                 value <= TARGETS["full_rmse_gt"]))  # fmt: skip
-        if h is not None:
-            ratio = g["cpu_s"] / h["cpu_s"]
-            checks.append(_check(run, "CPU / HybridSmoother's", ratio, "<= 2",
-                                 ratio <= TARGETS["time_ratio"]))  # fmt: skip
-        checks.append(_check(run, "last / first tenth step p95", g["growth"], "<= 3",
-                             g["growth"] <= TARGETS["growth"]))  # fmt: skip
     figures = {}
     for run in report["runs"]:
         tag = f"{run['edges']}_seed{run['seed']}"
@@ -129,15 +96,6 @@ def render(report: dict, out: Path, doc: Path) -> None:
         ]
         plot_series(figures[tag][1], lat, xlabel="step (pose)",
                     ylabel="CPU per step [ms]", logy=True, title=tag)  # fmt: skip
-    table = _markdown(pd.DataFrame(rows))
-    verdict = _markdown(pd.DataFrame(checks)) if checks else ""
-    text = DOC.format(
-        command=report["command"], when=report["when"], load=report["load"], table=table,
-        verdict=verdict, seeds=", ".join(str(s) for s in report["seeds"]),
-        repeat=report.get("repeat", 1), stem=doc.stem,
-        notes="\n".join(f"- {n}" for n in report.get("notes", [])) or "- (none)",
-    )  # fmt: skip
-    doc.write_text(text)
     shown = report["runs"][-1]  # the doc's figures: the last run (a full run when there is one)
     for source, suffix in zip(figures[f"{shown['edges']}_seed{shown['seed']}"], ("", "_steps")):
         doc.with_name(f"{doc.stem}{suffix}.png").write_bytes(source.read_bytes())
@@ -146,64 +104,7 @@ def render(report: dict, out: Path, doc: Path) -> None:
         {k: v for k, v in r.items() if k not in ("xy", "times")} for r in report["runs"]
     ]
     doc.with_suffix(".json").write_text(json.dumps(summary, indent=1) + "\n")
-
-
-def _markdown(frame) -> str:
-    """pandas' to_markdown (tabulate) where installed, else the same table in plain pipes."""
-    try:
-        import tabulate  # noqa: F401 - to_markdown needs it
-
-        return frame.to_markdown(index=False, floatfmt=".3g")
-    except ImportError:
-
-        def cell(v):
-            return f"{v:.3g}" if isinstance(v, float) else str(v)
-
-        lines = ["| " + " | ".join(frame.columns) + " |", "|" + "---|" * len(frame.columns)]
-        lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in frame.itertuples(False)]
-        return "\n".join(lines)
-
-
-def _check(run, what, value, target, met) -> dict:
-    return {"edges": run["edges"], "seed": run["seed"], "target": f"{what} {target}",
-            "graphloc": value, "met": "yes" if met else "**no**"}  # fmt: skip
-
-
-DOC = """# City10000 with permuted candidates (issue 51)
-
-Generated by `scripts/bench_city10000.py` ({when}; load average at the start {load}); every
-number below is computed by that script. Regenerate with:
-
-    {command}
-
-City10000 (`T1_city10000_04.txt`, GTSAM's example data) lists the correct candidate of each
-ambiguous odometry edge first; every run here permutes each edge's candidates with numpy's
-`default_rng(seed)` (seeds {seeds}). A step of `edges` is one file line (the HybridCity10000
-example's loop index); timings are per pose (the edges ending at one new pose), CPU seconds
-(`time.process_time`), all methods in the same process one after the other, the partial runs
-repeated {repeat} times with the methods interleaved (the least CPU time of each method and its
-per-step times are reported: the least disturbed run on a shared machine). `graphloc`:
-`graphloc.hypotheses.pose_graph.PoseGraphHypotheses` (default `PoseGraphConfig`); `hybrid`:
-`gtsam.HybridSmoother` with the example's settings; `gnc`: `gtsam.GncLMOptimizer`, TLS, every
-candidate a factor (batch, one solve: no per-step times); `oracle`: iSAM2 given the correct
-candidates. RMSE: positions of every pose, in the frame of the prior on pose 0 (no alignment).
-
-## Results
-
-{table}
-
-## Issue 51's targets, graphloc
-
-{verdict}
-
-Figures (the last run above): `{stem}.png` (positions of every method and the ground
-truth) and `{stem}_steps.png` (CPU per step); the summary as JSON in `{stem}.json`, every
-run's figures and per-step times in the script's `--out` folder.
-
-## Notes
-
-{notes}
-"""
+    doc.write_text(render_doc("city10000", summary, doc=doc.stem))
 
 
 def main(argv=None) -> int:

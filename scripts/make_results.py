@@ -3,7 +3,9 @@ benchmarks.reproduce.make_results (the route scripts/reproduce.py takes too).
 
     .venv/bin/python scripts/make_results.py            # full size (the run time is in the header)
     .venv/bin/python scripts/make_results.py --quick    # CI size
-    .venv/bin/python scripts/make_results.py --render-seed-baselines  # that section only
+
+The last section (every seed table at the stated and the reproducing reading) is rendered from
+docs/results_seed_baselines.json; `scripts/render_docs.py results.md` re-renders it alone.
 
 Outputs (JSON, PNG) go to --out (default out/results); the markdown to --results.
 """
@@ -18,8 +20,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: be
 
 from graphloc.executor import BACKENDS  # noqa: E402
 from benchmarks.reproduce import make_results  # noqa: E402
-from benchmarks.seed_baselines_report import DOC_JSON  # noqa: E402
-from benchmarks.seed_baselines_results import render_into  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
@@ -35,17 +35,7 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--skip-seed001", action="store_true", help="skip the rendered seed 001 experiment"
     )
-    parser.add_argument(
-        "--render-seed-baselines",
-        action="store_true",
-        help="only rewrite the last section (every seed table at the stated and the "
-        "reproducing reading) from docs/results_seed_baselines.json: no trials",
-    )
     args = parser.parse_args(argv)
-    if args.render_seed_baselines:
-        render_into(args.results, DOC_JSON)
-        print(f"wrote the seed-baseline section of {args.results}")
-        return 0
     seconds = make_results(
         args.out,
         args.results,

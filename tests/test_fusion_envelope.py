@@ -10,13 +10,10 @@ import numpy as np
 import pytest
 
 from benchmarks.fusion_bench import main as bench_main
-from benchmarks.fusion_envelope import (
-    main_envelope,
-    markdown_envelope,
-    summarize_envelope,
-)
+from benchmarks.fusion_envelope import main_envelope, summarize_envelope
 from benchmarks.fusion_report_real import REAL_METHODS
 from benchmarks.real_views import BUNDLED_FRAGMENTS
+from benchmarks.render import render
 
 
 def _row(fragment, noise, keep, overlap, seed, hint, graphloc):
@@ -70,7 +67,7 @@ def test_the_envelope_counts_each_conditions_false_accepts_and_refusals():
         "png": "x.png",
         "entries": entries,
     }
-    text = markdown_envelope(report)
+    text = render("fusion_envelope", report)
     protocol, noisy = (ln for ln in text.splitlines() if ln.startswith("| room.ply"))
     assert "(protocol)" in protocol and "**[" not in protocol and "{1}" in protocol
     assert noisy.count("**[1]**") == 2 and "(protocol)" not in noisy

@@ -129,6 +129,7 @@ def test_table3_intervals_prove_updates_and_no_relocalization_exclusive():
 
 def test_bounds_sections_and_plots_render_from_their_dicts(tmp_path):
     from benchmarks import seed_baselines_bounds_report as report
+    from benchmarks.render.seed_baselines_bounds import table1_bounds, table3_bounds
 
     sigmas = (0.0, 0.005)
     readings = list(itertools.product(sb.T3_ODOMETRY, sb.T3_LIKELIHOODS, sb.T3_ACTION_FRAMES))
@@ -150,11 +151,12 @@ def test_bounds_sections_and_plots_render_from_their_dicts(tmp_path):
             "wall_time_s": 0.0,
         },
     }
-    t1 = "\n".join(report.table1_section(b["table1"]))
-    t3 = "\n".join(report.table3_section(b["table3"]))
-    assert "| 0 | kept |" in t1 and "correct /1000 needs <" in t1
+    t1, t3 = table1_bounds(b["table1"]), table3_bounds(b["table3"])
+    row = t1["brackets"].iloc[0]
+    assert (row["lateral [m]"], row["orientation"]) == ("0", "kept")
+    assert row["proof"].startswith("correct /1000 needs <")
     # the synthetic means meet the paper at 0 px only, where no run relocalizes
-    assert "From 0.005 px up" in t3 and "| 0.005 |" in t3
+    assert min(t3["all_cells"]) == 0.005 and "0.005" in list(t3["traces"]["image std [px]"])
     report.plot(b, tmp_path)
     assert (tmp_path / report.T1_PNG).stat().st_size > 0
     assert (tmp_path / report.T3_PNG).stat().st_size > 0

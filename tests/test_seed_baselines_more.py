@@ -11,7 +11,7 @@ from benchmarks import seed001_readings as s1
 from benchmarks import seed001_truth as s1t
 from benchmarks import seed003_readings as s3
 from benchmarks import seed_baselines_report as report
-from benchmarks.seed_baselines_results import render_into, results_section
+from benchmarks.render import render
 from benchmarks.seed001 import look_at
 from graphloc.vision.target import LARGE_TARGET
 
@@ -154,12 +154,6 @@ def test_only_rejects_unknown_parts_and_a_missing_previous_result(tmp_path, caps
     assert "does not exist" in capsys.readouterr().err
 
 
-def test_results_section_is_empty_without_the_parts(tmp_path):
-    assert results_section(tmp_path / "none.json") == ""
-    (tmp_path / "r.json").write_text('{"sweeps": {}}')
-    assert results_section(tmp_path / "r.json") == ""
-
-
 def test_rotation_errors_use_the_relative_rotation():
     R = Rotation.from_rotvec([0.0, 0.0, 0.3]).as_matrix()[None]
     _, rot = s1t.errors(R, np.zeros((1, 3)), np.eye(3)[None], np.zeros((1, 3)))
@@ -205,32 +199,20 @@ def test_only_quick_merges_seed001_and_seed003_into_the_previous_result(tmp_path
     assert (tmp_path / report.MORE_PNG).stat().st_size > 0
 
 
-def test_results_section_has_every_seed_table_at_both_settings(tmp_path):
+def test_results_section_has_every_seed_table_at_both_settings():
     """From the committed JSON: seed 000 Tables I and III, seed 004 Table 1, seed 001 and seed
-    003, each at the stated and the reproducing reading; `render_into` swaps that section of a
-    results file for it and leaves the text before it."""
+    003, each at the stated and the reproducing reading (tests/test_results_docs.py: the
+    section as docs/results.md holds it)."""
     r = json.loads(report.DOC_JSON.read_text())
-    text = results_section(report.DOC_JSON)
-    for label in ("Seed 000 Table I:", "Seed 000 Table III:", "Seed 004 Table 1", "| seed 001 |"):
+    text = render("seed_baselines_results", r)
+    for label in ("Seed 000 Table I:", "Seed 000 Table III:", "Seed 004 Table 1", "| seed 001 "):
         assert label in text
     t1 = r["runs"]["reproducing"]["table1"]
     assert f"{t1['seed_baseline']['success']}/{t1['trials']}" in text
     cells = len(r["runs"]["reproducing"]["table3"]["cells"])
-    assert text.count("| reproducing |") >= cells + len(
-        r["runs"]["reproducing"]["seed004"]["cells"]
-    )
+    assert text.count("| reproducing ") >= cells + len(r["runs"]["reproducing"]["seed004"]["cells"])
     g, sb = t1["graphloc"]["success"], t1["seed_baseline"]["success"]
     assert f"correct in {g}/{t1['trials']} trials against the seed baseline's {sb}" in text
     s4 = r["runs"]["reproducing"]["seed004"]["cells"]
     below = sum(c["graphloc_smoothed"]["mean"] < c["seed_baseline_raw_p3p"]["mean"] for c in s4)
     assert f"below it in {below} of {len(s4)} cells" in text
-    doc = tmp_path / "results.md"
-    doc.write_text(
-        "# head\n\nkept\n\n### Seed 001 experiment 1 at the stated and the reproducing "
-        "reading\nold\n"
-    )
-    render_into(doc, report.DOC_JSON)
-    assert doc.read_text() == "# head\n\nkept\n\n" + text
-    (tmp_path / "plain.md").write_text("# no section\n")
-    with pytest.raises(ValueError, match="no '###"):
-        render_into(tmp_path / "plain.md", report.DOC_JSON)

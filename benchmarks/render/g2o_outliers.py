@@ -1,0 +1,32 @@
+"""docs/results_g2o_outliers.md (and _sphere2500.md): outlier loop closures injected into
+public g2o pose graphs, graphloc online beside GNC (scripts/bench_g2o_outliers.py,
+benchmarks.g2o_outliers, issue 51), from the doc's JSON. Template:
+templates/g2o_outliers.md.j2."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from benchmarks.render.numbers import significant
+
+
+def context(report: dict) -> dict:
+    frame = pd.DataFrame(report["rows"])
+    verdict = []
+    for (graph, rate), part in frame.groupby(["graph", "rate"]):
+        g = part[part.method == "graphloc"].iloc[0]
+        n = part[part.method == "gnc"].iloc[0]
+        verdict.append(
+            {
+                "graph": graph,
+                "rate": rate,
+                "graphloc RMSE": g.rmse_m,
+                "GNC RMSE": n.rmse_m,
+                "graphloc <= GNC": "yes" if g.rmse_m <= n.rmse_m else "**no**",
+            }
+        )
+    return {
+        "report": report,
+        "runs": significant(frame.round(4), 4),
+        "verdict": significant(pd.DataFrame(verdict), 4),
+    }
