@@ -9,6 +9,10 @@ import pandas as pd
 
 from benchmarks.render.numbers import significant
 
+# [m] RMSEs this close are one: both methods at the outlier-free optimum, differing by their
+# optimizers' stopping tolerances (Intel: 0.006846252 against 0.006846... m)
+SAME_M = 1e-6
+
 
 def context(report: dict) -> dict:
     frame = pd.DataFrame(report["rows"])
@@ -22,11 +26,12 @@ def context(report: dict) -> dict:
                 "rate": rate,
                 "graphloc RMSE": g.rmse_m,
                 "GNC RMSE": n.rmse_m,
-                "graphloc <= GNC": "yes" if g.rmse_m <= n.rmse_m else "**no**",
+                "graphloc <= GNC": "yes" if g.rmse_m <= n.rmse_m + SAME_M else "**no**",
             }
         )
     return {
         "report": report,
         "runs": significant(frame.round(4), 4),
         "verdict": significant(pd.DataFrame(verdict), 4),
+        "same_um": SAME_M * 1e6,
     }

@@ -237,32 +237,33 @@ def write_outputs(
     `groundtruth_written`) as TUM, decisions.csv, latency.csv (online), the PNGs
     (`report_plots.plot_jobs`) and last metrics.json. truth: `groundtruths(run)`, shared with
     `evaluate`; align: `--align` (the metrics' alignment). stop(): once True (a signal,
-    `graphloc.commands.smooth.StopFlag`) the PNGs not drawn yet are left out -- as are all of
-    them when the solve was stopped or the metrics were not evaluated -- and metrics.json lists
-    them in "skipped_outputs"; a `stop` with a `droppable()` block (`StopFlag`) drops the PNG
-    being drawn when the signal arrives (`OutputDropped`) instead of finishing it."""
+    `graphloc.commands.smooth.StopFlag`) what is derived and not written yet is left out --
+    dead reckoning, ground truth, the PNGs (these also when the solve was stopped or the
+    metrics were not evaluated) -- and metrics.json lists it in "skipped_outputs": the
+    estimate so far is what a stop keeps; a `stop` with a `droppable()` block (`StopFlag`)
+    drops the PNG being drawn when the signal arrives (`OutputDropped`) instead of finishing
+    it."""
     truth = groundtruths(run) if truth is None else truth
     out.mkdir(parents=True, exist_ok=True)
-    jobs = []  # (file name, writer)
+    jobs = []  # (file name, writer[, "derived": left out once stopped; "plot": that, droppable])
     for r, robot in enumerate(run.robots):
         times = result.node_times[r]
-        for label, rows in (
-            (result.mode, result.estimate[r]),
-            ("dead_reckoning", result.dead_reckoning[r]),
-        ):
-            if np.isfinite(rows).all(axis=1).any():
-                path = out_path(out, f"{robot.name}_{label}.tum")
-                jobs.append((path.name, lambda p=path, t=times, x=rows: _write_rows(p, t, x)))
+        if np.isfinite(result.estimate[r]).all(axis=1).any():
+            path = out_path(out, f"{robot.name}_{result.mode}.tum")
+            rows = result.estimate[r]
+            jobs.append((path.name, lambda p=path, t=times, x=rows: _write_rows(p, t, x)))
+        if np.isfinite(result.dead_reckoning[r]).all(axis=1).any():
+            path = out_path(out, f"{robot.name}_dead_reckoning.tum")
+            rows = result.dead_reckoning[r]
+            job = lambda p=path, t=times, x=rows: _write_rows(p, t, x)  # noqa: E731
+            jobs.append((path.name, job, "derived"))
         if truth[r] is not None:
             path = out_path(out, f"{robot.name}_groundtruth.tum")
-            jobs.append(
-                (
-                    path.name,
-                    lambda p=path, g=truth[r], t=times: _write_rows(
-                        p, *groundtruth_written(g, t, groundtruth_rate)
-                    ),
-                )
+            g = truth[r]
+            job = lambda p=path, g=g, t=times: _write_rows(  # noqa: E731
+                p, *groundtruth_written(g, t, groundtruth_rate)
             )
+            jobs.append((path.name, job, "derived"))
     decisions = out_path(out, "decisions.csv")
     jobs.append(("decisions.csv", lambda: _write_decisions(decisions, result, run)))
     if result.mode == "online":
@@ -284,9 +285,11 @@ def write_outputs(
         if job is None:  # metrics.json, last: it says what was left out
             metrics["skipped_outputs"] = skipped
             written.append(write_metrics(out, metrics))
-        elif kind and (stopped or (stop is not None and stop())):
+        elif kind and (stop is not None and stop()):  # a signal: derived outputs left out
             skipped.append(name)
-        elif kind:  # a figure: a signal while it is drawn drops it (`OutputDropped`)
+        elif kind == ["plot"] and stopped:  # no figures of a stopped solve
+            skipped.append(name)
+        elif kind == ["plot"]:  # a figure: a signal while it is drawn drops it (`OutputDropped`)
             try:
                 with getattr(stop, "droppable", contextlib.nullcontext)():
                     path = job()
