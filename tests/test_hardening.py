@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -29,15 +29,8 @@ from graphloc.vision.features import (
     track_forward_backward,
 )
 from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, roi_from_points
-
-# bounded for the default run; GRAPHLOC_FUZZ_EXAMPLES=2000 (random seeds) for a deeper search
-EXAMPLES = int(os.environ.get("GRAPHLOC_FUZZ_EXAMPLES", "0"))
-FAST = settings(
-    max_examples=EXAMPLES or 40,
-    deadline=None,
-    derandomize=not EXAMPLES,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
-)
+from helpers import EXAMPLES, FAST, JSON_LEAVES, REPLACEMENTS, write_tiny_mrclam
+from helpers import json_paths as _json_paths
 
 # ---- vision -------------------------------------------------------------------------------------
 
@@ -383,38 +376,6 @@ def test_p3p_corpus_gives_the_exact_reason(call, reason):
 # ---- MRCLAM reader ------------------------------------------------------------------------------
 from graphloc.datasets.mrclam import MRCLAM  # noqa: E402
 
-T0 = 1000.0
-
-
-def write_tiny_mrclam(root, seconds=(6.0, 6.0), offsets=(0.0, 0.0)) -> dict:
-    """Two robots (subjects 1, 2) and two landmarks (6, 7): odometry and ground truth at 10 Hz,
-    one measurement of each landmark every 0.5 s from T0 + 0.25 s to T0 + 5.75 s. Robot r's
-    odometry spans [T0 + offsets[r], T0 + seconds[r]]. Returns {file name: list of lines}."""
-    root.mkdir(parents=True, exist_ok=True)
-    files = {
-        "Barcodes.dat": ["# subject barcode", "1 5", "2 14", "6 63", "7 81"],
-        "Landmark_Groundtruth.dat": [
-            "# subject x y sx sy",
-            "6 2.0 0.0 0.01 0.01",
-            "7 0.0 2.0 0.01 0.02",
-        ],
-    }
-    for r in range(2):
-        t = T0 + np.arange(round(offsets[r] * 10), round(seconds[r] * 10) + 1) / 10
-        files[f"Robot{r + 1}_Odometry.dat"] = ["# t v w"] + [f"{x:.3f} 0.1 0.05" for x in t]
-        files[f"Robot{r + 1}_Groundtruth.dat"] = ["# t x y th"] + [
-            f"{x:.3f} {0.1 * (x - T0):.4f} {r:.1f} {0.05 * (x - T0):.4f}" for x in t
-        ]
-        tm = T0 + 0.25 + 0.5 * np.arange(12)
-        files[f"Robot{r + 1}_Measurement.dat"] = ["# t barcode range bearing"] + [
-            f"{x:.3f} {code} {2.0 + 0.01 * k:.3f} 0.1"
-            for k, x in enumerate(tm)
-            for code in (63, 81)
-        ]
-    for name, lines in files.items():
-        (root / name).write_text("\n".join(lines) + "\n")
-    return files
-
 
 def _data_rows(files: dict) -> int:
     return sum(
@@ -432,33 +393,6 @@ def _rows_kept(run) -> int:
         + sum(len(o) for o in run.odometry)
         + sum(len(g) for g in run.groundtruth if g is not None)
     )
-
-
-REPLACEMENTS = st.one_of(
-    st.text(max_size=30).filter(lambda s: "\n" not in s and "\r" not in s),
-    st.lists(
-        st.sampled_from(
-            [
-                "nan",
-                "inf",
-                "-inf",
-                "1e308",
-                "-1",
-                "0",
-                "1000.5",
-                "999",
-                "63",
-                "3.2",
-                "7",
-                "x",
-                "1e-320",
-            ]
-        ),
-        min_size=0,
-        max_size=5,
-    ).map(" ".join),
-    st.binary(min_size=1, max_size=6),
-)
 
 
 @settings(FAST, max_examples=EXAMPLES or 30)
@@ -725,45 +659,6 @@ def test_mrclam_files_that_are_missing_looping_or_empty_are_errors(tmp_path):
 
 
 # ---- session files ------------------------------------------------------------------------------
-JSON_LEAVES = st.one_of(
-    st.sampled_from(
-        [
-            0,
-            1,
-            -1,
-            2,
-            3,
-            6,
-            2**64 - 1,
-            2**63,
-            True,
-            None,
-            "x",
-            "Huber",
-            [],
-            {},
-            [1.0],
-            [[1.0]],
-            "PriorFactorPose3",
-            "max_mixture",
-            "pose3",
-        ]
-    ),
-    st.floats(allow_nan=False, allow_infinity=False),
-)
-
-
-def _json_paths(obj, prefix=()):
-    if isinstance(obj, dict):
-        for k, v in obj.items():
-            yield from _json_paths(v, prefix + (k,))
-    elif isinstance(obj, list):
-        for i, v in enumerate(obj):
-            yield from _json_paths(v, prefix + (i,))
-    if prefix:
-        yield prefix
-
-
 @settings(FAST, max_examples=EXAMPLES or 25)
 @given(data=st.data(), mode=st.sampled_from(["batch", "online"]))
 def test_crafted_session_files_load_or_raise_value_error(tmp_path_factory, data, mode):

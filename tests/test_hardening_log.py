@@ -12,8 +12,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from graphloc.datasets.graphloc_log import read_team_run
-from graphloc.datasets.mrclam import MRCLAM
-from test_hardening import EXAMPLES, FAST, JSON_LEAVES, REPLACEMENTS, _json_paths, write_tiny_mrclam
+from helpers import EXAMPLES, FAST, JSON_LEAVES, REPLACEMENTS
+from helpers import json_paths as _json_paths
+from helpers import write_planar_log as planar_log
 
 TABLE_FILES = [
     "robot1/odometry.csv",
@@ -30,11 +31,6 @@ CSV_LINES = st.one_of(
 PATHS = st.sampled_from(
     ["/etc/passwd", "../mr/Barcodes.dat", "robot1/odometry.csv", "landmarks.csv", "", "a\x00b"]
 )
-
-
-def planar_log(tmp):
-    write_tiny_mrclam(tmp / "mr")
-    return MRCLAM(tmp / "mr").to_log(tmp / "log")
 
 
 def _data_rows(path) -> int:
