@@ -93,6 +93,18 @@ def json_paths(obj, prefix=()):
         yield prefix
 
 
+def set_json_leaf(doc, where, value) -> None:
+    """Set the node of `doc` at the path `where` (one of json_paths') to `value`; nothing where
+    an earlier edit changed the structure so that the path no longer leads anywhere."""
+    obj = doc
+    try:
+        for key in where[:-1]:
+            obj = obj[key]
+        obj[where[-1]] = value
+    except (KeyError, IndexError, TypeError):
+        pass
+
+
 # ---- a tiny MRCLAM run and the planar log made from it ------------------------------------------
 T0 = 1000.0
 

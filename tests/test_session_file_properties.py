@@ -8,7 +8,7 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from helpers import EXAMPLES, FAST, JSON_LEAVES
+from helpers import EXAMPLES, FAST, JSON_LEAVES, set_json_leaf
 from helpers import json_paths as _json_paths
 
 
@@ -36,13 +36,7 @@ def test_crafted_session_files_load_or_raise_value_error(tmp_path_factory, data,
 
     def edit(doc):
         for where, value in edits:
-            obj = doc
-            try:
-                for key in where[:-1]:
-                    obj = obj[key]
-                obj[where[-1]] = value
-            except (KeyError, IndexError, TypeError):  # an earlier edit changed the structure
-                pass
+            set_json_leaf(doc, where, value)
         return doc
 
     _rewrite(path, edit)
