@@ -14,10 +14,10 @@ demo: $(STAMP)
 	$(VENV)/bin/graphloc demo --out $(OUT)/demo
 
 test: $(STAMP)
-	$(VENV)/bin/python -m pytest
+	$(VENV)/bin/python -m pytest --durations=20
 
 test-all: $(STAMP)
-	$(VENV)/bin/python -m pytest -m "slow or not slow"
+	$(VENV)/bin/python -m pytest -m "slow or not slow" --durations=20
 
 bench-p3p: $(STAMP)
 	$(VENV)/bin/python scripts/bench_p3p.py --out $(OUT)/bench_p3p

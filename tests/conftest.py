@@ -1,6 +1,8 @@
 """Fixtures shared by the test modules: small valid runs written once per session and copied
 for each test that breaks them, and the command line run in-process with the checks every
 bad-input test makes (no traceback, a documented exit code, no file written outside `--out`).
+Plain functions the test modules share (writers of small inputs, hypothesis settings) are in
+tests/helpers.py.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from graphloc import exitcodes
+from helpers import scan_dirs, write_planar_log, write_tiny_mrclam
 
 DOCUMENTED_CODES = set(exitcodes.CODES)
 
@@ -21,20 +24,13 @@ DOCUMENTED_CODES = set(exitcodes.CODES)
 @pytest.fixture(scope="session")
 def planar_log_template(tmp_path_factory) -> Path:
     """A valid planar log (two robots, wheel odometry, range-bearing to two landmarks, planar
-    ground truth; the tiny MRCLAM run of tests/test_hardening.py through the MRCLAM reader)."""
-    from graphloc.datasets.mrclam import MRCLAM
-    from test_hardening import write_tiny_mrclam
-
-    tmp = tmp_path_factory.mktemp("planar")
-    write_tiny_mrclam(tmp / "mr")
-    return MRCLAM(tmp / "mr").to_log(tmp / "log")
+    ground truth; the tiny MRCLAM run of helpers.write_tiny_mrclam through the MRCLAM reader)."""
+    return write_planar_log(tmp_path_factory.mktemp("planar"))
 
 
 @pytest.fixture(scope="session")
 def mrclam_template(tmp_path_factory) -> Path:
     """The tiny MRCLAM directory itself (RobotN_*.dat, Barcodes.dat, landmarks)."""
-    from test_hardening import write_tiny_mrclam
-
     root = tmp_path_factory.mktemp("mrclam") / "mr"
     write_tiny_mrclam(root)
     return root
@@ -81,9 +77,7 @@ def checkpoint_template(tmp_path_factory, planar_log_template) -> Path:
 @pytest.fixture(scope="session")
 def scan_dirs_template(tmp_path_factory) -> Path:
     """`ground/` and `ceiling/`: two scans each of 400 points on the walls of a 6 x 4 x 3 m room
-    (tests/test_hardening_cli.py), the inputs of `fuse-maps --ground --ceiling`."""
-    from test_hardening_cli import scan_dirs
-
+    (helpers.scan_dirs), the inputs of `fuse-maps --ground --ceiling`."""
     root = tmp_path_factory.mktemp("scans") / "scans"
     scan_dirs(root)
     return root
@@ -118,15 +112,6 @@ def bag_dir(bag_template, tmp_path) -> Path:
 @pytest.fixture
 def scans(scan_dirs_template, tmp_path) -> Path:
     return _copy(scan_dirs_template, tmp_path, "scans")
-
-
-# ---- editing inputs ---------------------------------------------------------------------------
-def edit_manifest(root: Path, edit) -> None:
-    """Apply `edit(dict)` to root/manifest.json (NaN and inf written as JSON's extensions)."""
-    path = root / "manifest.json"
-    data = json.loads(path.read_text())
-    edit(data)
-    path.write_text(json.dumps(data))
 
 
 # ---- the command line, in-process -------------------------------------------------------------

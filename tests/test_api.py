@@ -1,6 +1,7 @@
 """The public API and docs/api.md's quick start, run as written."""
 
 import re
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +12,13 @@ DOC = Path(__file__).resolve().parents[1] / "docs" / "api.md"
 
 
 def test_public_names_resolve():
-    for name in graphloc.__all__:
-        assert getattr(graphloc, name) is not None, name
+    """Each public name is graphloc's own class or function (loaded on first use), and
+    __version__ is the distribution's version."""
+    project = tomllib.loads((DOC.parents[1] / "pyproject.toml").read_text())["project"]
+    assert graphloc.__version__ == project["version"]
+    for name in set(graphloc.__all__) - {"__version__"}:
+        obj = getattr(graphloc, name)
+        assert callable(obj) and obj.__module__.startswith("graphloc."), (name, obj)
 
 
 def test_quick_start_runs_as_written():

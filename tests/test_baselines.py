@@ -21,21 +21,11 @@ from benchmarks.baselines.straight_line import (
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.feng import (
     FengProbabilisticConfig,
-    FengProbabilisticScenario,
     noisy_odometry,
     odometry_covariance,
 )
 from graphloc.seams import Odometry
-
-
-def simulate(**kw):
-    cfg = FengProbabilisticConfig(**kw)
-    run = FengProbabilisticScenario.simulate(cfg)
-    odo = [None] + [
-        Odometry(o, odometry_covariance(o, cfg.odometry_noise, cfg.odometry_rot_sigma))
-        for o in run.odometry
-    ]
-    return run, odo
+from helpers import simulate_feng as simulate
 
 
 def test_straight_line_baseline_agrees_with_the_batch_test():

@@ -11,7 +11,7 @@ from graphloc.factors.mixture import (
     component_factors,
     max_mixture_factor,
 )
-from graphloc.keys import pose_key
+from graphloc.keys import mode_key, pose_key
 from graphloc.session import Session, SessionConfig
 
 A, B = pose_key(0, 0), pose_key(1, 0)
@@ -174,4 +174,10 @@ def test_candidate_with_underflowed_score_keeps_its_component():
     mix = candidate_max_mixture(zero, B, A)
     assert len(mix.components) == 2
     hybrid = candidate_mixture(zero, 0, B, A)
-    assert hybrid is not None
+    assert hybrid.discreteKeys().at(0) == (mode_key(0), 2)
+    for pose in zero.poses():  # even at its own pose the zero-score candidate is not chosen
+        modes = [gtsam.DiscreteValues() for _ in range(2)]
+        for m, dv in enumerate(modes):
+            dv[mode_key(0)] = m
+        errors = [hybrid.error(values_at(pose), dv) for dv in modes]
+        assert np.isfinite(errors).all() and errors[0] < errors[1], errors

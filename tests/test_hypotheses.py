@@ -11,7 +11,6 @@ from graphloc.candidates import CandidateSet
 from graphloc.datasets.feng import (
     FengProbabilisticConfig,
     FengProbabilisticScenario,
-    odometry_covariance,
     seed000_camera,
 )
 from graphloc.geometry.resection import resection_covariance
@@ -20,16 +19,7 @@ from benchmarks.track_smoothing import decided, track_graph
 from graphloc.seams import Odometry
 from graphloc.keys import pose_key
 from graphloc.session import Session, SessionConfig
-
-
-def simulate(**kw):
-    cfg = FengProbabilisticConfig(**kw)
-    run = FengProbabilisticScenario.simulate(cfg)
-    odo = [None] + [
-        Odometry(o, odometry_covariance(o, cfg.odometry_noise, cfg.odometry_rot_sigma))
-        for o in run.odometry
-    ]
-    return run, odo
+from helpers import simulate_feng as simulate
 
 
 def feed(tracker, run, odo, start=0, stop=None):

@@ -18,7 +18,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from graphloc.mapping.io import MAX_SCALE_RATIO, check_scan_units, read_points, scan_extent
-from test_hardening import FAST
+from helpers import FAST
 
 
 def room_scans(rng, n: int, size=(6.0, 4.0, 3.0), points: int = 300) -> list[np.ndarray]:

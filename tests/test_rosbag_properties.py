@@ -25,7 +25,7 @@ from graphloc.cli import main
 from graphloc.datasets import open_run
 from graphloc.datasets.rosbag_export import KINDS, export_bag
 from graphloc.datasets.rosbag_topics import MESSAGE_TYPES
-from test_hardening import EXAMPLES, FAST
+from helpers import EXAMPLES, FAST
 
 DETECTIONS = "/climber/camera/detections"
 

@@ -17,22 +17,10 @@ import pytest
 
 from graphloc import exitcodes
 from graphloc.cli import main
-from graphloc.datasets.mrclam import MRCLAM
-from test_hardening import write_tiny_mrclam
+from helpers import edit_manifest, manifest, scan_dirs, write_cloud
+from helpers import write_planar_log as planar_log
 
 # ---- inputs ------------------------------------------------------------------------------------
-
-
-def planar_log(tmp: Path) -> Path:
-    """A valid graphloc log (two robots, odometry, range-bearing, ground truth, landmarks)."""
-    write_tiny_mrclam(tmp / "mr")
-    return MRCLAM(tmp / "mr").to_log(tmp / "log")
-
-
-def edit_manifest(root: Path, edit) -> None:
-    data = json.loads((root / "manifest.json").read_text())
-    edit(data)
-    (root / "manifest.json").write_text(json.dumps(data))
 
 
 def edit_line(path: Path, line_no: int, text: bytes | str) -> None:
@@ -67,10 +55,6 @@ def scan_in_millimetres(root: Path) -> None:
 
 def odometry_row(text: bytes | str):
     return lambda root: edit_line(root / "robot1" / "odometry.csv", 3, text)
-
-
-def manifest(edit):
-    return lambda root: edit_manifest(root, edit)
 
 
 def sensor_params(**params):
@@ -343,25 +327,6 @@ def test_exit_codes_are_distinct_and_documented():
 
 
 # ---- point clouds (fuse-maps) --------------------------------------------------------------------
-def write_cloud(path: Path, pts: np.ndarray) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    o3d.t.io.write_point_cloud(str(path), o3d.t.geometry.PointCloud(o3d.core.Tensor(pts)))
-
-
-def scan_dirs(tmp: Path) -> tuple[Path, Path]:
-    """Two robots' two scans each: points on the walls of a 6 x 4 x 3 m room around the
-    sensor (median range ~2-3 m)."""
-    rng = np.random.default_rng(0)
-    for robot in ("ground", "ceiling"):
-        for k in range(2):
-            pts = rng.uniform([-3, -2, -1.5], [3, 2, 1.5], (400, 3))
-            axis = rng.integers(0, 3, 400)
-            rows = np.arange(400)
-            pts[rows, axis] = np.sign(pts[rows, axis]) * np.array([3.0, 2.0, 1.5])[axis]
-            write_cloud(tmp / robot / f"{k:06d}.ply", pts)
-    return tmp / "ground", tmp / "ceiling"
-
-
 def scale_scans(folder: Path, factor: float) -> None:
     for p in folder.glob("*.ply"):
         pts = o3d.t.io.read_point_cloud(str(p)).point.positions.numpy().astype(float)

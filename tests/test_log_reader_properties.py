@@ -12,8 +12,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from graphloc.datasets.graphloc_log import read_team_run
-from graphloc.datasets.mrclam import MRCLAM
-from test_hardening import EXAMPLES, FAST, JSON_LEAVES, REPLACEMENTS, _json_paths, write_tiny_mrclam
+from helpers import EXAMPLES, FAST, JSON_LEAVES, REPLACEMENTS, set_json_leaf
+from helpers import json_paths as _json_paths
+from helpers import write_planar_log as planar_log
 
 TABLE_FILES = [
     "robot1/odometry.csv",
@@ -30,11 +31,6 @@ CSV_LINES = st.one_of(
 PATHS = st.sampled_from(
     ["/etc/passwd", "../mr/Barcodes.dat", "robot1/odometry.csv", "landmarks.csv", "", "a\x00b"]
 )
-
-
-def planar_log(tmp):
-    write_tiny_mrclam(tmp / "mr")
-    return MRCLAM(tmp / "mr").to_log(tmp / "log")
 
 
 def _data_rows(path) -> int:
@@ -81,13 +77,7 @@ def test_crafted_manifests_load_or_name_the_manifest(tmp_path_factory, data):
     for _ in range(data.draw(st.integers(1, 3))):
         where = data.draw(st.sampled_from(paths))
         value = data.draw(st.one_of(JSON_LEAVES, PATHS))
-        obj = doc
-        try:
-            for key in where[:-1]:
-                obj = obj[key]
-            obj[where[-1]] = value
-        except (KeyError, IndexError, TypeError):  # an earlier edit changed the structure
-            pass
+        set_json_leaf(doc, where, value)
     (root / "manifest.json").write_text(json.dumps(doc))
     try:
         run = read_team_run(root)
