@@ -322,13 +322,13 @@ def start_only(graph: TeamGraph, initial: dict | None, start_from: str, wall: fl
     """A batch solve stopped before LM began (a signal during its incremental pass): partial,
     its estimate the LM iterate it would have started from, `initial` (None: the graph's
     guess); no session is built, so the stop returns at once."""
-    start = graph.initial if initial is None else initial
+    guess = guess_rows(graph, graph.initial)
     return TeamResult(
         "batch",
         graph.node_times,
-        guess_rows(graph, start),
+        guess if initial is None else guess_rows(graph, initial),
         [np.full((len(t), 7), np.nan) for t in graph.node_times],
-        guess_rows(graph, graph.initial),
+        guess,
         np.zeros(0),
         wall,
         graph,

@@ -234,6 +234,8 @@ def warm_starts(graph: TeamGraph, stop=None, progress: bool = False) -> list[dic
     online = replace(graph, config=replace(graph.config, lag=0.0))
     starts = [None, *graph.alternatives]
     result = hypotheses(online, "online", starts, progress, stop)
+    if stop is not None and stop():  # stopped: the batch solve starts from the guess
+        return [dict(graph.initial)]
     out = []
     for values in [result.values, *result.survivors]:
         start = dict(graph.initial)
