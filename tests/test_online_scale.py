@@ -208,7 +208,11 @@ def test_clean_stop_writes_partial_outputs(synthetic, tmp_path, monkeypatch):
         assert code == smooth.EXIT_STOPPED
         m = json.loads((out / "metrics.json").read_text())
         assert m["partial"] is True and m["stopped_by"] == "SIGTERM"
-        assert (out / "robot1_dead_reckoning.tum").is_file()
+        mode = "online" if verb == "online" else "batch"
+        assert (out / f"robot1_{mode}.tum").is_file()  # the estimate so far is kept
+        # what is derived from the run's own tables is left out, and said so
+        assert not (out / "robot1_dead_reckoning.tum").exists()
+        assert "robot1_dead_reckoning.tum" in m["skipped_outputs"]
         monkeypatch.undo()
         _stop_after(monkeypatch, 2)  # batch: the stop flag is checked between LM iterations
     assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
