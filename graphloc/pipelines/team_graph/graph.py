@@ -85,7 +85,19 @@ def build_graph(
         skips.merge(section)
     decided_pose = {**sets.decided_pose, **by_bearings.poses}
     poses = initial_poses(run, config, timeline, step_rel, decided_pose, sets.placed_via)
-    scans = scan_match_factors(run, config, timeline, step_rel, poses, sets.tentative, progress)
+    # a robot a pixel stream placed only by the tracker's guess (never decided) is registered
+    # from its hypotheses like an unplaced one: the guess at the stream's first set may be the
+    # wrong candidate, and scans from it never meet (dual-robot-room: the ceiling robot)
+    guessed = {r for r, (_, g) in sets.alternatives.items() if g and r in sets.tentative}
+    scans = scan_match_factors(
+        run,
+        config,
+        timeline,
+        step_rel,
+        {r: p for r, p in poses.items() if r not in guessed},
+        sets.tentative,
+        progress,
+    )
     factors += scans.made.factors
     skips.merge(scans.made.skips)
     for r in scans.placed_via:
