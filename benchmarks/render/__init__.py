@@ -41,6 +41,7 @@ DOCS = {
     ),
     "results_startup.md": Doc("startup", ("results_startup.json",)),
     "results_team_crawler.md": Doc("team_crawler", ("results_team_crawler.json",)),
+    "results_team_dual_room.md": Doc("team_dual_room", ("results_team_dual_room.json",)),
     "results_seed_baselines.md": Doc("seed_baselines", ("results_seed_baselines.json",)),
     "results.md": Doc(
         "seed_baselines_results",
