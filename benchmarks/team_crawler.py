@@ -149,9 +149,8 @@ def main(argv=None) -> int:
     )
     report = {"command": command, "trials": args.trials, "summary": summary}
     text = render("team_crawler", json.loads(dumps_json(report)))
-    write_report(args.out, "team_crawler", {"summary": summary, "trials": trials}, text, args.doc)
-    if args.doc:  # the doc's JSON beside it: scripts/render_docs.py renders the doc from it
-        args.doc.with_suffix(".json").write_text(dumps_json(report, indent=1) + "\n")
+    payload = {"summary": summary, "trials": trials}
+    write_report(args.out, "team_crawler", payload, text, args.doc, rendered=report)
     plot(summary, args.out / "team_crawler.png")
     print(text)
     return 0

@@ -141,9 +141,8 @@ def main(argv=None) -> int:
     )
     report = {"command": command, "seeds": args.seeds, "summary": summary}
     text = render("team_dual_room", json.loads(dumps_json(report)))
-    write_report(args.out, "team_dual_room", {"summary": summary, "trials": trials}, text, args.doc)
-    if args.doc:  # the doc's JSON beside it: scripts/render_docs.py renders the doc from it
-        args.doc.with_suffix(".json").write_text(dumps_json(report, indent=1) + "\n")
+    payload = {"summary": summary, "trials": trials}
+    write_report(args.out, "team_dual_room", payload, text, args.doc, rendered=report)
     plot(trials, args.out / "team_dual_room.png")
     print(text)
     return 0

@@ -97,6 +97,7 @@ def summary(graph) -> dict:
     from graphloc.datasets.pose_graph_file import group_steps
 
     ms = graph.measurements
+    sizes = Counter(len(m.candidates) for m in ms)
     steps = group_steps(ms)
     known, unreachable, first_bad = {steps[0][0][1].source}, 0, None
     for step in steps:
@@ -118,7 +119,7 @@ def summary(graph) -> dict:
             "with_candidates": sum(len(m.candidates) > 1 for m in ms),
             "with_null": sum(bool(m.null) for m in ms),
             "loop_closures": sum(abs(m.target - m.source) != 1 for m in ms),
-            "candidates_per_measurement": dict(sorted(Counter(len(m.candidates) for m in ms).items())),  # noqa: E501
+            "candidates_per_measurement": dict(sorted(sizes.items())),
         },
         "steps": len(steps),
         "unreachable_edges": unreachable,
