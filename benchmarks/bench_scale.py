@@ -2,7 +2,8 @@
 on the same graph, online with full iSAM2 and fixed lags (latency first vs last tenth, slowest
 step, real-time factor, ATE vs batch, memory), and the run replayed COPIES times with a
 shifted clock through the default lag. Writes bench_scale.json (every number computed here)
-and, with --markdown, docs/results_scale.md from it and a copy of the JSON beside it.
+and, with --markdown, docs/results_scale.md from it (benchmarks.render.scale), its JSON and
+its PNG beside it.
 
     .venv/bin/python scripts/bench_scale.py --out out/bench_scale --markdown docs/results_scale.md
 
@@ -19,6 +20,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from graphloc.datasets import open_run
 
 from graphloc.pipelines.team_graph import DEFAULT_LAG
@@ -32,9 +35,11 @@ from benchmarks.scale import (
     rss_mb,
     tenth_error_ratios,
 )
-from benchmarks.bench_scale_report import markdown, plot
+from benchmarks.markdown import write_report
+from benchmarks.render import render
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve, warm_start
+from graphloc.plots import plt
 from graphloc.structured import dumps_json
 
 
@@ -71,17 +76,13 @@ def main(argv=None) -> int:
         "--from-json",
         type=Path,
         default=None,
-        help="only write --markdown from this bench_scale.json",
+        help="no runs: --markdown and its PNG from this bench_scale.json",
     )
     args = parser.parse_args(argv)
-    if args.from_json is not None:
-        report = json.loads(args.from_json.read_text())
-        args.markdown.write_text(markdown(report))
-        plot(report, args.markdown.with_suffix(".png"))
-        args.markdown.with_suffix(".json").write_text(dumps_json(report, indent=2) + "\n")
-        return 0
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    if args.from_json is not None:
+        write(json.loads(args.from_json.read_text()), out, args.markdown)
+        return 0
 
     run = open_run(args.data, args.duration)
     t0 = time.perf_counter()
@@ -185,12 +186,49 @@ def main(argv=None) -> int:
 
     report["rss_mb_end"] = rss_mb()
     report["load_average_at_end"] = os.getloadavg()
-    path = out / "bench_scale.json"
-    path.write_text(dumps_json(report, indent=2, default=str) + "\n")
-    print(f"wrote {path}")
-    if args.markdown is not None:  # the doc and its JSON side by side
-        args.markdown.write_text(markdown(report))
-        plot(report, args.markdown.with_suffix(".png"))
-        args.markdown.with_suffix(".json").write_text(path.read_text())
-        print(f"wrote {args.markdown} and its JSON")
+    write(json.loads(dumps_json(report, default=str)), out, args.markdown)
     return 0
+
+
+def write(report: dict, out: Path, doc: Path | None) -> None:
+    """OUT/bench_scale.json and .md; the doc (`doc`, e.g. docs/results_scale.md), its JSON and
+    its PNG beside it when given."""
+    text = render("scale", report, doc=doc.stem if doc is not None else "results_scale")
+    write_report(out, "bench_scale", report, text, doc, rendered=report)
+    if doc is not None:
+        plot(report, doc.with_suffix(".png"))
+    print(f"wrote {out / 'bench_scale.json'}" + (f", {doc} and its JSON and PNG" if doc else ""))
+
+
+def plot(r: dict, path) -> None:
+    """docs/results_scale.png: per lag (full iSAM2 at the left), each robot's online ATE over
+    batch, the real-time factor (CPU) and the p95 step CPU of the first and last tenth, with
+    issue 15's targets as dashed lines."""
+    lags = list(r["online"])
+    x = np.arange(len(lags))
+    names = ["full" if k == "0" else f"{k} s" for k in lags]
+    fig, ax = plt.subplots(1, 3, figsize=(14, 4))
+    for robot in r["batch"]["ate_rmse_m"]:
+        y = [r["online"][k]["ate_over_batch"].get(robot, np.nan) for k in lags]
+        ax[0].plot(x, y, "o-", label=robot)
+    ax[0].axhline(1.10, ls="--", c="k", lw=1, label="target 1.10")
+    ax[0].set(ylabel="online ATE / batch ATE", title="accuracy")
+    ax[0].legend(fontsize=7)
+    ax[1].bar(x, [r["online"][k]["realtime_factor_cpu"] for k in lags], color="tab:blue")
+    ax[1].axhline(100, ls="--", c="k", lw=1, label="target 100x")
+    ax[1].set(ylabel="run duration / solve CPU", title="real-time factor")
+    ax[1].legend(fontsize=7)
+    for key, label in (("cpu_p95_first10_ms", "first 10 %"), ("cpu_p95_last10_ms", "last 10 %")):
+        ax[2].plot(x, [r["online"][k]["trend"][key] for k in lags], "o-", label=label)
+    ax[2].set(ylabel="p95 step CPU [ms]", title="per-step cost, first vs last tenth")
+    ax[2].legend(fontsize=7)
+    for a in ax:
+        a.set_xticks(x, names)
+        a.set_xlabel("online lag")
+        a.grid(alpha=0.3)
+    fig.suptitle(
+        f"{r['run']}: online iSAM2, full and fixed lags (default {r['default_lag_s']:g} s)"
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

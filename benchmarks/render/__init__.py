@@ -39,6 +39,7 @@ DOCS = {
     "results_g2o_outliers_sphere2500.md": Doc(
         "g2o_outliers", ("results_g2o_outliers_sphere2500.json",)
     ),
+    "results_scale.md": Doc("scale", ("results_scale.json",)),
     "results_startup.md": Doc("startup", ("results_startup.json",)),
     "results_team_crawler.md": Doc("team_crawler", ("results_team_crawler.json",)),
     "results_team_dual_room.md": Doc("team_dual_room", ("results_team_dual_room.json",)),
