@@ -28,3 +28,5 @@ def test_reflow_joins_paragraphs_and_list_items_only():
         reflow(text)
         == "# A\n\nsome prose.\n\n| a |\n| b |\n\n- one more\n- two\n\n    code\n    kept\n"
     )
+    fenced = "```python\ndef f():\n    a = 1\n\n    return a\n```\n\nafter\nit\n"
+    assert reflow(fenced) == "```python\ndef f():\n    a = 1\n\n    return a\n```\n\nafter it\n"

@@ -33,6 +33,7 @@ class Doc:
 
 
 DOCS = {
+    "gtsam_isam2_chain.md": Doc("isam2_chain", ("gtsam_isam2_chain.json",)),
     "results_city10000.md": Doc("city10000", ("results_city10000.json",)),
     "results_fusion_envelope.md": Doc("fusion_envelope", ("results_fusion_envelope.json",)),
     "results_g2o_outliers.md": Doc("g2o_outliers", ("results_g2o_outliers.json",)),
@@ -83,13 +84,14 @@ _ENV.filters["f2"] = lambda x: f"{x:.2f}"
 
 def reflow(markdown: str) -> str:
     """Each paragraph and list item of `markdown` on one line (the templates wrap their prose);
-    tables, headings, images and indented code as they are."""
+    tables, headings, images, indented and fenced code as they are."""
     body = markdown.rstrip("\n")
-    blocks = []
+    blocks, fenced = [], False  # fenced: inside a ``` code block (blank lines in it)
     for block in body.split("\n\n"):
         lines = block.split("\n")
-        if block.startswith(("|", "#", "![", "    ")) or not block.strip():
+        if fenced or block.startswith(("|", "#", "![", "    ", "```")) or not block.strip():
             blocks.append(block)
+            fenced ^= block.count("```") % 2 == 1
         elif block.startswith("- "):  # a list: continuation lines join their item
             items = []
             for line in lines:

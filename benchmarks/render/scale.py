@@ -48,8 +48,10 @@ def _online(r: dict) -> pd.DataFrame:
 def _ate(r: dict) -> pd.DataFrame:
     rows = [
         {"robot": name, "batch": f"{a:.4f}"}
-        | {f"online lag {k}": f"{o['ate_rmse_m'].get(name, float('nan')):.4f}"
-           for k, o in r["online"].items()}  # fmt: skip
+        | {
+            f"online lag {k}": f"{o['ate_rmse_m'].get(name, float('nan')):.4f}"
+            for k, o in r["online"].items()
+        }  # fmt: skip
         for name, a in r["batch"]["ate_rmse_m"].items()
     ]
     return pd.DataFrame(rows)
@@ -125,8 +127,6 @@ def context(r: dict) -> dict:
         "ate": _ate(r),
         "lookahead": _lookahead(r) if r.get("lookahead") else None,
         "relinearize": _relinearize(r) if r.get("online_relinearize") else None,
-        "marginalize_every": (
-            _marginalize_every(r) if r.get("online_marginalize_every") else None
-        ),
+        "marginalize_every": (_marginalize_every(r) if r.get("online_marginalize_every") else None),
         "num": lambda x, spec=".2f": fmt(x, spec, "-"),
     }
