@@ -2,6 +2,9 @@
 per cell, beside today's experiment code: JSON, markdown and PNG (benchmarks.team_runs).
 
     .venv/bin/python scripts/bench_team_runs.py --out out/bench_team_runs --doc docs/results_team.md
+
+The doc (benchmarks.render.team_runs) and its JSON (the command and the per-cell summary)
+are written side by side; `--render` redraws them from OUT/team_runs.json without running.
 """
 
 import argparse
