@@ -46,6 +46,8 @@ DOCS = {
     "results_team_crawler.md": Doc("team_crawler", ("results_team_crawler.json",)),
     "results_team_dual_room.md": Doc("team_dual_room", ("results_team_dual_room.json",)),
     "results_seed_baselines.md": Doc("seed_baselines", ("results_seed_baselines.json",)),
+    "results_seed003.md": Doc("seed003", ("results_seed003.json",)),
+    "results_seed003_heldout.md": Doc("seed003", ("results_seed003_heldout.json",)),
     "results.md": Doc(
         "seed_baselines_results",
         ("results_seed_baselines.json",),
