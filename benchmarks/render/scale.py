@@ -51,7 +51,7 @@ def _ate(r: dict) -> pd.DataFrame:
         | {
             f"online lag {k}": f"{o['ate_rmse_m'].get(name, float('nan')):.4f}"
             for k, o in r["online"].items()
-        }  # fmt: skip
+        }
         for name, a in r["batch"]["ate_rmse_m"].items()
     ]
     return pd.DataFrame(rows)
