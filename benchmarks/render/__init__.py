@@ -35,6 +35,7 @@ class Doc:
 DOCS = {
     "gtsam_isam2_chain.md": Doc("isam2_chain", ("gtsam_isam2_chain.json",)),
     "results_city10000.md": Doc("city10000", ("results_city10000.json",)),
+    "results_executor.md": Doc("executor", ("results_executor.json",)),
     "results_fusion_envelope.md": Doc("fusion_envelope", ("results_fusion_envelope.json",)),
     "results_g2o_outliers.md": Doc("g2o_outliers", ("results_g2o_outliers.json",)),
     "results_g2o_outliers_sphere2500.md": Doc(
