@@ -5,9 +5,6 @@ at open, naming them."""
 
 from __future__ import annotations
 
-import heapq
-import random
-from dataclasses import replace
 from pathlib import Path
 
 import gtsam
@@ -19,8 +16,7 @@ from graphloc.datasets import open_run
 from graphloc.factors.odometry import VelocityNoise, integrate_unicycle
 from graphloc.live import LiveTeam, NotLiveError, replay, replay_live, run_rows
 from graphloc.live.arc import ArcIntegrator
-from graphloc.live.builder import LiveGraph
-from graphloc.live.setup import empty_run
+from graphloc.live.builder import build_live
 from graphloc.pipelines.team_graph import GraphConfig, build_graph
 from graphloc.pipelines.team_graph.graph import factor_keys
 
@@ -50,23 +46,6 @@ def test_arc_integrator_is_integrate_unicycle_bit_for_bit():
     assert np.array_equal(poses, ref.poses)
     assert np.array_equal(deltas, ref.deltas)
     assert np.array_equal(covs, ref.covariances)
-
-
-def _feed_in_time_order(run, config) -> LiveGraph:
-    """A loaded run's odometry rows and point measurements into a `LiveGraph`, merged in time
-    order, the graph advanced after each."""
-    live = LiveGraph(empty_run(run), config, run.start_time)
-
-    def odometry(r):
-        return ((row[0], 0, r, row) for row in run.velocity[r])
-
-    streams = [odometry(r) for r in range(len(run.robots))]
-    streams.append((m.time, 1, -1, m) for m in run.points)
-    for t, kind, r, item in heapq.merge(*streams, key=lambda e: e[0]):
-        live.velocity(r, item) if kind == 0 else live.point(item)
-        live.advance(t)
-    live.finish()
-    return live
 
 
 def _same_graph(ref, graph) -> None:
@@ -102,14 +81,14 @@ def _same_graph(ref, graph) -> None:
 )
 def test_live_graph_is_the_whole_run_graph(planar_log, config):
     run = open_run(planar_log)
-    _same_graph(build_graph(run, config), _feed_in_time_order(run, config).graph)
+    _same_graph(build_graph(run, config), build_live(run, config))
 
 
 @needs_dataset6
 def test_live_graph_is_the_whole_run_graph_on_dataset6():
     run = open_run(DATASET6, duration=30.0)
     config = GraphConfig()
-    _same_graph(build_graph(run, config), _feed_in_time_order(run, config).graph)
+    _same_graph(build_graph(run, config), build_live(run, config))
 
 
 def _same_estimates(result, reference, tol: float = 1e-9) -> None:
@@ -256,3 +235,14 @@ def test_live_options_replace_the_noise(mrclam_dir):
     assert [(m.range_sigma, m.bearing_sigma) for m in live_points] == [
         (m.range_sigma, m.bearing_sigma) for m in run.points
     ]
+
+
+def test_the_api_doc_block_runs(mrclam_dir, capsys):
+    text = (Path(__file__).resolve().parents[1] / "docs/api.md").read_text(encoding="utf-8")
+    section = text.split("## Live: rows pushed as a team runs")[1].split("\n## ")[0]
+    block = section.split("```python\n")[1].split("```")[0]
+    scope = {"run_dir": mrclam_dir}
+    exec(compile(block, "docs/api.md", "exec"), scope)
+    assert scope["result"].steps_done == len(scope["result"].graph.steps) == len(scope["seen"])
+    assert scope["pose"].covariance.shape == (6, 6)
+    assert "updates;" in capsys.readouterr().out

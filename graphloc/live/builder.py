@@ -63,6 +63,12 @@ def not_live(run: TeamRun, tables: dict) -> list[str]:
                 f"robot {robot.name}: no initial_pose: its placement (decided candidate sets, "
                 f"mutual bearings, resection, scan registration) and alternative starts"
             )
+        measured = sorted(set(tables.get(robot.name, ())) & {"range", "bearing", "range_bearing"})
+        if robot.static and measured:
+            out.append(
+                f"robot {robot.name}: static, with tables {measured}: its measurements join its "
+                f"one pose at the start (a step long past when they arrive)"
+            )
         if not robot.static and "odometry" not in tables.get(robot.name, ()):
             out.append(
                 f"robot {robot.name}: no odometry table: event-clocked pose times (poses at "
@@ -155,11 +161,14 @@ class LiveGraph:
 
     # ---- rows in ------------------------------------------------------------------------------
 
-    def velocity(self, r: int, row) -> None:
-        """A wheel-odometry row (time, v, omega) of robot r."""
-        self.first_seen = min(self.first_seen, row[0])
+    def velocity(self, r: int, rows) -> None:
+        """Wheel-odometry rows (time, v, omega), one (3,) or many (N,3), of robot r."""
+        rows = np.asarray(rows, dtype=float).reshape(-1, 3)
+        if not len(rows):
+            return
+        self.first_seen = min(self.first_seen, rows[0, 0])
         robot = self.robots[r]
-        robot.velocity.append(row)
+        robot.velocity.append(rows)
         if self.start is None:
             self._start_if_known()
         if self.start is not None:
@@ -350,25 +359,18 @@ class LiveGraph:
         self.pending.setdefault(float(t), []).append((order, factor, kind))
 
     def _emit(self, complete) -> list:
-        """Steps of every pending time `complete(time)` is True for, in time order; a factor
-        older than the last emitted step joins the next one."""
+        """Steps of every pending time `complete(time)` is True for, in time order."""
         due = sorted(t for t in self.pending if complete(t))
         steps = []
-        late: list = []
         for t in due:
+            if t <= self.emitted:  # `not_live` keeps the measurements of static robots out
+                raise AssertionError(f"a factor at {t} after the step at {self.emitted}")
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
-            if t <= self.emitted:
-                late += group
-                continue
-            group = late + group
-            late = []
             step = (t, [(f, kind) for _, f, kind in group])
             self.graph.steps.append(step)
             self.graph.factor_types += [kind for _, _, kind in group]
             self.emitted = t
             steps.append(step)
-        if late:  # joins the next step
-            self.pending.setdefault(np.nextafter(self.emitted, np.inf), []).extend(late)
         return steps
 
     def _counts(self) -> None:
@@ -389,3 +391,44 @@ class LiveGraph:
             **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
         }
         graph.skips.merge(points.made.skips)
+
+
+def run_tables(run: TeamRun) -> dict:
+    """The tables a loaded run's rows came from, per robot name, as far as `not_live` asks."""
+    tables: dict = {robot.name: set() for robot in run.robots}
+    for r, robot in enumerate(run.robots):
+        if len(run.velocity[r]):
+            tables[robot.name].add("odometry")
+    for m in run.motions:
+        tables[run.robots[m.robot].name].add("relative_pose3")
+    for p in run.points:
+        tables[run.robots[p.robot].name].add(p.kind)
+    for o in run.observations:
+        tables[run.robots[o.robot].name].add("candidates")
+    for f in run.features:
+        tables[run.robots[f.robot].name].add("features")
+    for s in run.scans:
+        tables[run.robots[s.robot].name].add("scans")
+    return tables
+
+
+def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:
+    """A loaded run's graph built by `LiveGraph` (each robot's odometry at once, then the
+    point measurements in the run's order: the graph does not depend on how the rows are split
+    into calls): the graph `graphloc online` solves for a run `not_live` finds nothing in, the
+    live API's route."""
+    live = LiveGraph(_without_rows(run), config, run.start_time)
+
+    for r, rows in enumerate(run.velocity):
+        live.velocity(r, rows)
+    for m in run.points:
+        live.point(m)
+    live.finish()
+    live.graph.run = run
+    return live.graph
+
+
+def _without_rows(run: TeamRun) -> TeamRun:
+    from dataclasses import replace
+
+    return replace(run, velocity=tuple(np.zeros((0, 3)) for _ in run.robots), points=())
