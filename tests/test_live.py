@@ -246,3 +246,38 @@ def test_the_api_doc_block_runs(mrclam_dir, capsys):
     assert scope["result"].steps_done == len(scope["result"].graph.steps) == len(scope["seen"])
     assert scope["pose"].covariance.shape == (6, 6)
     assert "updates;" in capsys.readouterr().out
+
+
+def test_a_restarted_team_resumes_from_its_checkpoint(mrclam_dir, tmp_path):
+    """A team killed after a checkpoint and opened again with it replays the rows the file
+    holds (the same graph, checked by its fingerprint); pushing the rest gives the result of a
+    team never stopped: nothing before the checkpoint is lost."""
+    rows = list(run_rows(mrclam_dir))
+    path = tmp_path / "live.checkpoint"
+    first = LiveTeam.open(mrclam_dir, checkpoint=path, checkpoint_every=10)
+    replay(first, rows[: len(rows) // 2])
+    assert path.is_file() and first.solver.done >= 10
+    del first  # killed: the rows after its last checkpoint are lost with it
+    second = LiveTeam.open(mrclam_dir, checkpoint=path, checkpoint_every=10)
+    assert 0 < second.resumed <= len(rows) // 2
+    assert second.solver.done % 10 == 0
+    replay(second, rows[second.resumed :])
+    _same_estimates(second.finish(), replay_live(mrclam_dir).finish(), tol=0.0)
+    finished = LiveTeam.open(mrclam_dir, checkpoint=path)  # written by finish(): finished
+    _same_estimates(finished.finish(), second.finish(), tol=0.0)
+    with pytest.raises(ValueError, match="after finish"):
+        finished.push(*rows[0])
+
+
+def test_a_checkpoint_of_another_run_or_option_is_refused(mrclam_dir, tmp_path):
+    rows = list(run_rows(mrclam_dir))
+    path = tmp_path / "live.checkpoint"
+    team = LiveTeam.open(mrclam_dir, checkpoint=path, checkpoint_every=5)
+    replay(team, rows[:200])
+    with pytest.raises(ValueError, match="another run or configuration"):
+        LiveTeam.open(mrclam_dir, graphloc.RunOptions(keyframe_dt=0.1), checkpoint=path)
+    with pytest.raises(ValueError, match="window"):
+        LiveTeam.open(mrclam_dir, window=1.0, checkpoint=path)
+    path.write_text("not a checkpoint\n")
+    with pytest.raises(ValueError, match=str(path)):
+        LiveTeam.open(mrclam_dir, checkpoint=path)

@@ -21,7 +21,6 @@ step.
 
 from __future__ import annotations
 
-import gtsam
 import numpy as np
 
 from graphloc.io import SkipReport
@@ -255,7 +254,7 @@ class LiveGraph:
         self.graph.node_times[r] = robot.times.view
         initial, steps = self.graph.initial, self.graph.step_rel[r]
         if robot.robot.static:
-            stamps, deltas, covs = new, np.zeros((0, 3)), np.zeros((0, 3, 3))
+            deltas, covs = np.zeros((0, 3)), np.zeros((0, 3, 3))
         else:
             _, deltas, covs = robot.steps.advance(new)
         if k0 == 0:
