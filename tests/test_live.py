@@ -5,6 +5,7 @@ at open, naming them."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import gtsam
@@ -62,10 +63,11 @@ def _same_graph(ref, graph) -> None:
         if isinstance(value, gtsam.Pose3):
             assert np.array_equal(value.matrix(), other.matrix())
         else:
-            assert np.array_equal(np.asarray(value), np.asarray(other))
+            assert np.array_equal(np.asarray(value), np.asarray(other), equal_nan=True)
         values.insert(key, value)
-    errors = [[f.error(values) for f, _ in group] for _, group in ref.steps]
-    assert errors == [[f.error(values) for f, _ in group] for _, group in graph.steps]
+    errors = [f.error(values) for _, group in ref.steps for f, _ in group]
+    assert np.isfinite(errors).all()
+    assert errors == [f.error(values) for _, group in graph.steps for f, _ in group]
     assert ref.counts == graph.counts
     assert ref.skips.counts == graph.skips.counts
 
@@ -281,3 +283,47 @@ def test_a_checkpoint_of_another_run_or_option_is_refused(mrclam_dir, tmp_path):
     path.write_text("not a checkpoint\n")
     with pytest.raises(ValueError, match=str(path)):
         LiveTeam.open(mrclam_dir, checkpoint=path)
+
+
+def _bearing_and_range_log(planar_log: Path) -> Path:
+    """The planar log with its range-bearing rows also as `bearing` rows (3D unit directions,
+    from a sensor offset from the body origin: sensor poses) and `range` rows (an offset
+    sensor), the first robot on a surface, and no start_time (the rows give it)."""
+    from helpers import edit_manifest
+
+    def edit(data):
+        data.pop("start_time")
+        for i, robot in enumerate(data["robots"]):
+            robot["sensors"] += [
+                {"name": "eye", "type": "bearing", "extrinsics": [0.1, 0.05, 0.3]},
+                {"name": "ranger", "type": "range", "extrinsics": [-0.1, 0.0, 0.0]},
+            ]
+            robot["tables"]["bearing"] = f"{robot['name']}/bearing.csv"
+            robot["tables"]["range"] = f"{robot['name']}/range.csv"
+            if i == 0:
+                robot["surface"] = {"point": [0, 0, 0], "normal": [0, 0, 1], "attitude_sigma": 0.01}
+            lines = (planar_log / robot["tables"]["range_bearing"]).read_text().splitlines()
+            bearing, ranges = ["time,sensor,target,x,y,z"], ["time,sensor,target,range"]
+            for line in lines[1:]:
+                t, _, target, rng, b = line.split(",")
+                c, s = np.cos(float(b)), np.sin(float(b))
+                bearing.append(f"{t},eye,{target},{c:.9f},{s:.9f},0.0")
+                ranges.append(f"{t},ranger,{target},{float(rng) + 0.05:.6f}")
+            (planar_log / robot["tables"]["bearing"]).write_text("\n".join(bearing) + "\n")
+            (planar_log / robot["tables"]["range"]).write_text("\n".join(ranges) + "\n")
+
+    edit_manifest(planar_log, edit)
+    return planar_log
+
+
+@pytest.mark.parametrize("unknown_landmarks", [False, True], ids=["known", "slam"])
+def test_bearings_ranges_surfaces_and_a_start_from_the_rows(planar_log, tmp_path, unknown_landmarks):
+    log = _bearing_and_range_log(planar_log)
+    options = graphloc.RunOptions(unknown_landmarks=unknown_landmarks)
+    run = open_run(log)
+    config = replace(options.graph_config(), lag=0.0)
+    graph = build_live(run, config)
+    assert graph.counts["sensor_poses"] > 0 and graph.counts.get("factors_surface", 0) > 0
+    _same_graph(build_graph(run, config), graph)
+    result = replay_live(log, options).finish()
+    _same_estimates(result, graphloc.run_team(log, tmp_path / "out", "online", options).result)

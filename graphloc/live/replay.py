@@ -39,7 +39,7 @@ def _log_rows(root: Path, duration):
 
         end = open_run(root).start_time + duration
     manifest = read_manifest(root)
-    tables = [t for t in LIVE_TABLES if t != "groundtruth"]
+    tables = [t for t in TABLES if t in LIVE_TABLES and t != "groundtruth"]  # the log's order
     for rec in iter_records(root, tables=tables, on_error="skip"):
         if end is not None and rec.time > end:
             continue
