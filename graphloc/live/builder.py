@@ -21,6 +21,8 @@ step.
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from graphloc.io import SkipReport
@@ -135,7 +137,7 @@ class LiveGraph:
         self.start = start_time
         self.robots = [_Robot(r, robot, run, config) for r, robot in enumerate(run.robots)]
         self.points = PointBuilder(run, config)
-        self.queue: list = []  # point measurements waiting for their poses, in arrival order
+        self.queue: deque = deque()  # point measurements waiting for their poses, in order
         self.arrived: list = []  # every point measurement, in arrival order (the run's points)
         self.pending: dict = {}  # step time -> [(order key, factor, type)]
         self.emitted = -np.inf  # time of the last emitted step
@@ -306,14 +308,18 @@ class LiveGraph:
         if t_f > watermark:
             return None
         upto = max(m.time, t_f)
-        known = np.union1d(times[times <= upto], [s for s in robot.stamps if s <= upto])
-        if robot.frames.stamp is not None:
-            known = known[known > robot.frames.stamp]
+        last = -np.inf if robot.frames.stamp is None else robot.frames.stamp
+        nodes = times[np.searchsorted(times, last, "right") : np.searchsorted(times, upto, "right")]
+        known = np.union1d(nodes, [s for s in robot.stamps if last < s <= upto])
         if len(known):
             poses, _, _ = robot.frames.advance(known)
             robot.at.update(zip(known.tolist(), poses))
             robot.stamps = [s for s in robot.stamps if s > upto]
-        return body_frame_points([m], robot.at[m.time][None], robot.at[float(t_f)][None])[0]
+        out = body_frame_points([m], robot.at[m.time][None], robot.at[float(t_f)][None])[0]
+        # later measurements are at or after m.time and join nodes at or after t_f
+        oldest = min(m.time, float(t_f))
+        robot.at = {s: p for s, p in robot.at.items() if s >= oldest}
+        return out
 
     def _take_points(self, watermark: float) -> None:
         """Point measurements whose poses are known, in arrival order, as factors."""
@@ -321,7 +327,7 @@ class LiveGraph:
         while self.queue:
             m = self.queue[0]
             if not self.points.used(m):
-                self.queue.pop(0)
+                self.queue.popleft()
                 continue
             known, k = self._nearest(m.robot, m.time)
             known_t, kt = (True, -1) if m.target < 0 else self._nearest(m.target, m.time)
@@ -330,7 +336,7 @@ class LiveGraph:
             corrected = self._corrected(m, watermark) if k >= 0 else False
             if corrected is None:
                 return
-            self.queue.pop(0)
+            self.queue.popleft()
             self.points.add(m, k, kt, node_times, corrected or None)
             self._take_made()
 
