@@ -121,8 +121,9 @@ class LiveTeam:
         self.subscribers.append((callback, covariance))
 
     def push(self, robot: str, table: str, row) -> None:
-        """One row of robot `robot`'s `table` (column -> text or number): checked, put in time
-        order, and every step it completes solved."""
+        """One row of robot `robot`'s `table` (column -> text or number): checked (a refused
+        row counted in `skips`, named by robot, table, its number among the rows pushed to the
+        team and the field), put in time order, and every step it completes solved."""
         self._check_open()
         self.rows += 1
         if self.pushed is not None:
@@ -136,17 +137,12 @@ class LiveTeam:
         for row in rows:
             self.push(robot, table, row)
 
-    def push_item(self, item) -> None:
-        """An item as a table's handler makes it -- (robot index, (time, v, omega)) of an
-        odometry row, a `PointMeasurement` --, already checked (a loaded run's rows)."""
-        self._check_open()
-        table = "points" if isinstance(item, PointMeasurement) else "odometry"
-        self._arrive(_item_time(item), (table, item), "item")
-
     # ---- out -------------------------------------------------------------------------------
 
     def latest(self, robot: str, covariance: bool = True) -> RobotPose | None:
         """Robot `robot`'s latest pose as now estimated, None before its first."""
+        if robot not in self.names:
+            raise ValueError(f"unknown robot {robot!r}; robots: {sorted(self.names)}")
         r = self.names.index(robot)
         if r not in self.solver.latest:
             return None
@@ -269,7 +265,10 @@ class LiveTeam:
                 r for r, (k, _) in self.solver.latest.items() if before.get(r, (-1,))[0] != k
             ]
             wanted = any(cov for _, cov in self.subscribers)
-            poses = {self.names[r]: self._pose(r, wanted) for r in changed}
+            if self.subscribers:  # the estimates (and covariances) only when someone listens
+                poses = {self.names[r]: self._pose(r, wanted) for r in changed}
+            else:
+                poses = {}
             update = LiveUpdate(
                 i,
                 self.graph.steps[i][0],
