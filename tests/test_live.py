@@ -317,7 +317,9 @@ def _bearing_and_range_log(planar_log: Path) -> Path:
 
 
 @pytest.mark.parametrize("unknown_landmarks", [False, True], ids=["known", "slam"])
-def test_bearings_ranges_surfaces_and_a_start_from_the_rows(planar_log, tmp_path, unknown_landmarks):
+def test_bearings_ranges_surfaces_and_a_start_from_the_rows(
+    planar_log, tmp_path, unknown_landmarks
+):
     log = _bearing_and_range_log(planar_log)
     options = graphloc.RunOptions(unknown_landmarks=unknown_landmarks)
     run = open_run(log)

@@ -2,7 +2,7 @@
 step (`LiveTeam`, `team`); the incremental team graph behind it (`builder.LiveGraph`); a
 recorded run replayed through it in time order (`replay_live`, `replay`)."""
 
-from graphloc.live.builder import NotLiveError
+from graphloc.live.coverage import NotLiveError
 from graphloc.live.replay import replay, run_rows
 from graphloc.live.team import LiveTeam, LiveUpdate, RobotPose
 

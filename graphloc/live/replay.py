@@ -9,7 +9,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from graphloc.io import LANDMARK_PREFIX, MANIFEST, iter_records, read_manifest
-from graphloc.live.builder import LIVE_TABLES
+from graphloc.live.coverage import LIVE_TABLES
 from graphloc.live.team import LiveTeam
 from graphloc.pipelines.team_graph.options import RunOptions
 from graphloc.records import TABLES

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import fields
 
 from graphloc.datasets.log_rows import TABLE_HANDLERS, RowContext, Skip
-from graphloc.live.builder import LIVE_TABLES, NOT_LIVE, NotLiveError
+from graphloc.live.coverage import LIVE_TABLES, NOT_LIVE, NotLiveError
 from graphloc.records import SENSOR_TYPES, TABLES, columns, plausible
 from graphloc.table_reader import known_target
 from graphloc.textio import SkipReport, cut, shown

@@ -106,7 +106,7 @@ class LiveTeam:
         """A live team of the run at `source`: a log directory's manifest.json (its tables may
         be empty or absent) or an MRCLAM directory's robots and landmarks; `options`: the
         `RunOptions` of `graphloc online`; `window` [s]: how late a row may arrive and still be
-        put in time order. `builder.NotLiveError` names what of the run is not live yet.
+        put in time order. `coverage.NotLiveError` names what of the run is not live yet.
         checkpoint: a file (`graphloc.checkpoint`'s format, with the rows pushed so far)
         written every `checkpoint_every` steps and by `finish` / `write_checkpoint`; when it
         exists at open, the team resumes from it (its rows replayed: the same state, checked by

@@ -66,7 +66,8 @@ def run_team(
     from graphloc.datasets import open_run
     from graphloc.manifest import check_noise_params
     from graphloc.pipelines.report import evaluate, groundtruths, write_metrics, write_outputs
-    from graphloc.live.builder import build_live, not_live, run_tables
+    from graphloc.live.builder import build_live
+    from graphloc.live.coverage import not_live, run_tables
     from graphloc.pipelines.team_graph import build_graph, default_lag, solve
 
     opts = RunOptions() if options is None else options
