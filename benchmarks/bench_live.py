@@ -3,8 +3,9 @@ into `graphloc.LiveTeam` in time order, one iSAM2 update per completed step. Mea
 run, against `graphloc online`'s solve of the same run (`open_run`, its graph, `solve(...,
 "online")`):
 
-- the per-step latency (`LiveUpdate.latency_s`: from the step's completion to its estimates)
-  p50 / p95 / max, with and without each new pose's marginal covariance;
+- the per-step latency (`LiveUpdate.latency_s`: from the step's completion to its estimates;
+  `cpu_s`: the CPU time of the same span, which other processes on a busy machine do not
+  inflate) p50 / p95 / max, with and without each new pose's marginal covariance;
 - the CPU time of the whole replay (open, every push, finish) with and without covariances,
   and its ratios to the online solve's CPU time (the peer in the same run);
 - that the live estimates are the online ones (max abs difference of estimate and causal rows).
@@ -49,9 +50,15 @@ def live(data: str, options: RunOptions, covariance: bool, progress: bool) -> di
     per-step latencies and the number of rows."""
     rows = list(run_rows(data, options))  # read before the clock starts: the rows "arrive"
     latencies: list = []
+    cpus: list = []
     cpu0, wall0 = time.process_time(), time.perf_counter()
     team = LiveTeam.open(data, options, window=0.5)
-    team.subscribe(lambda update: latencies.append(update.latency_s), covariance=covariance)
+
+    def listen(update):
+        latencies.append(update.latency_s)
+        cpus.append(update.cpu_s)
+
+    team.subscribe(listen, covariance=covariance)
     what = "live replay" + (" (covariances)" if covariance else "")
     replay(team, tqdm(rows, desc=what, unit="row", disable=not progress, mininterval=2.0))
     result = team.finish()
@@ -60,6 +67,7 @@ def live(data: str, options: RunOptions, covariance: bool, progress: bool) -> di
         "cpu_s": time.process_time() - cpu0,
         "wall_s": time.perf_counter() - wall0,
         "latencies": np.array(latencies),
+        "cpus": np.array(cpus),
         "rows": len(rows),
     }
 
@@ -108,12 +116,14 @@ def main(argv=None) -> int:
             "cpu_s": plain["cpu_s"],
             "wall_s": plain["wall_s"],
             "latency": quantiles(plain["latencies"]),
+            "step_cpu": quantiles(plain["cpus"]),
             "cpu_per_row_us": plain["cpu_s"] / plain["rows"] * 1e6,
         },
         "live_with_covariance": {
             "cpu_s": with_cov["cpu_s"],
             "wall_s": with_cov["wall_s"],
             "latency": quantiles(with_cov["latencies"]),
+            "step_cpu": quantiles(with_cov["cpus"]),
         },
         "ratios": {
             "live_cpu_over_online_cpu": plain["cpu_s"] / online_cpu,
