@@ -329,3 +329,12 @@ def test_bearings_ranges_surfaces_and_a_start_from_the_rows(
     _same_graph(build_graph(run, config), graph)
     result = replay_live(log, options).finish()
     _same_estimates(result, graphloc.run_team(log, tmp_path / "out", "online", options).result)
+
+
+@pytest.mark.slow
+@needs_dataset6
+@pytest.mark.parametrize("landmark_priors", [True, False], ids=["known", "slam"])
+def test_live_graph_is_the_whole_run_graph_on_full_dataset6(landmark_priors):
+    run = open_run(DATASET6)
+    config = GraphConfig(landmark_priors=landmark_priors)
+    _same_graph(build_graph(run, config), build_live(run, config))
