@@ -338,3 +338,25 @@ def test_live_graph_is_the_whole_run_graph_on_full_dataset6(landmark_priors):
     run = open_run(DATASET6)
     config = GraphConfig(landmark_priors=landmark_priors)
     _same_graph(build_graph(run, config), build_live(run, config))
+
+
+def test_a_manifest_without_tables_takes_pushed_rows(planar_log, tmp_path):
+    """A live team opened from a manifest whose robots list no tables (the rows are pushed,
+    not logged) solves the rows of the log they came from as the log itself."""
+    import shutil
+
+    from helpers import edit_manifest
+
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    shutil.copy(planar_log / "manifest.json", bare / "manifest.json")
+    shutil.copy(planar_log / "landmarks.csv", bare / "landmarks.csv")
+
+    def no_tables(data):
+        for robot in data["robots"]:
+            robot["tables"] = {}
+
+    edit_manifest(bare, no_tables)
+    team = LiveTeam.open(bare)
+    replay(team, run_rows(planar_log))
+    _same_estimates(team.finish(), replay_live(planar_log).finish(), tol=0.0)
