@@ -115,9 +115,7 @@ def _scan_near(run: TeamRun, r: int, t: float):
     return min(scans, key=lambda s: abs(s.time - t)) if scans else None
 
 
-def _register_pair(
-    run, config, timeline, step_rel, poses, guess, a, b, skips, reasons, prepared
-):
+def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips, reasons, prepared):
     """Robot b's scan nearest its guess (node, time, body pose, 6x6 covariance) registered onto
     robot a's scan at the same time: (factor time, factor, {b's node: (a, a's node, rel)},
     (scan times)) or None (counted). `prepared`: scan path -> PreparedCloud, the scans this
