@@ -60,13 +60,19 @@ def check_covariances(cov: np.ndarray, what: str) -> None:
     naming the first bad index)."""
     if not np.isfinite(cov).all():
         raise ValueError(f"{what}: contains NaN/inf")
-    asym = np.abs(cov - np.swapaxes(cov, -1, -2)).max(axis=(-2, -1)) if cov.size else np.zeros(0)
-    bad = np.nonzero(asym > 1e-9 * np.maximum(1.0, np.abs(cov).max(axis=(-2, -1))))[0]
-    if bad.size:
-        raise ValueError(f"{what}[{bad[0]}]: not symmetric")
-    bad = np.nonzero(np.linalg.eigvalsh(cov)[..., 0] <= 0)[0] if cov.size else bad
-    if bad.size:
-        raise ValueError(f"{what}[{bad[0]}]: not positive definite")
+    if not cov.size:
+        return
+    transposed = np.swapaxes(cov, -1, -2)
+    if not np.array_equal(cov, transposed):  # exactly symmetric needs no tolerance
+        asym = np.abs(cov - transposed).max(axis=(-2, -1))
+        bad = np.nonzero(asym > 1e-9 * np.maximum(1.0, np.abs(cov).max(axis=(-2, -1))))[0]
+        if bad.size:
+            raise ValueError(f"{what}[{bad[0]}]: not symmetric")
+    try:  # a Cholesky factorization exists iff positive definite (the cheaper test)
+        np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        bad = np.nonzero(np.linalg.eigvalsh(cov)[..., 0] <= 0)[0]
+        raise ValueError(f"{what}[{bad[0] if bad.size else 0}]: not positive definite") from None
 
 
 def component_factors(

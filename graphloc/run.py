@@ -17,7 +17,6 @@ from pathlib import Path
 
 import gtsam
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from graphloc.candidates import CandidateSet
 from graphloc.factors.surface import SurfacePlane
@@ -185,9 +184,8 @@ class TeamRun:
 def pose_from_xyz_quat(v) -> gtsam.Pose3:
     """(x, y, z, qx, qy, qz, qw) -> Pose3 (quaternion normalized)."""
     v = np.asarray(v, dtype=float)
-    return gtsam.Pose3(
-        gtsam.Rot3(Rotation.from_quat(v[3:7] / np.linalg.norm(v[3:7])).as_matrix()), v[:3]
-    )
+    x, y, z, w = (v[3:7] / np.linalg.norm(v[3:7])).tolist()
+    return gtsam.Pose3(gtsam.Rot3.Quaternion(w, x, y, z), v[:3])
 
 
 def pose_from_planar(x: float, y: float, theta: float, z: float = 0.0) -> gtsam.Pose3:

@@ -107,6 +107,7 @@ def p3p_candidate_sets(
         np.where(ok[:, None, None], bearings.reshape(n, 3, 3), [[1, 0, 0], [0, 1, 0], [0, 0, 1]]),
         layout[first3],
     )
+    found: dict = {}  # markers fitted -> [(frame, its set without covariances, their points)]
     for i in np.flatnonzero(ok):
         keep = sol.valid[i]
         R, t = sol.R_wc[i][keep], sol.t_wc[i][keep]
@@ -131,7 +132,6 @@ def p3p_candidate_sets(
             points = np.broadcast_to(pts, (len(R),) + pts.shape)
         else:
             scores = np.exp(-0.5 * (sol.residual[i][keep] / 1e-3) ** 2)
-        cov = resection_covariance(camera, R, t, points, pixel_sigma)
         cs = CandidateSet(
             R,
             t,
@@ -142,7 +142,19 @@ def p3p_candidate_sets(
             source=f"p3p/{sol.method}",
             meta={"markers": markers, **meta},
         )
-        out[i] = _with(cs, cov, truth_t, i)
+        found.setdefault(points.shape[1], []).append((i, cs, points))
+    # the covariances of every frame's candidates fitted to as many markers in one call
+    for group in found.values():
+        cov = resection_covariance(
+            camera,
+            np.concatenate([cs.R for _, cs, _ in group]),
+            np.concatenate([cs.t for _, cs, _ in group]),
+            np.concatenate([points for _, _, points in group]),
+            pixel_sigma,
+        )
+        splits = np.cumsum([len(cs) for _, cs, _ in group])[:-1]
+        for (i, cs, _), c in zip(group, np.split(cov, splits)):
+            out[i] = _with(cs, c, truth_t, i)
     return out
 
 

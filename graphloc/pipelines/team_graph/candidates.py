@@ -215,10 +215,17 @@ def _outcome(o, r: int, ti: int, s: TrackedSet, cluster: list) -> SetOutcome:
         np.array(d.probabilities, dtype=float),
         candidates_quat=quats(s.bodies),
         status="decided" if s.decided else "undecided",
-        measured=np.stack([p.matrix() for p in s.seen]),
+        measured=homogeneous(o.candidates.R, o.candidates.t),
         measured_cov=s.measured_cov,
         body_T_sensor=o.body_T_sensor.matrix(),
     )
+
+
+def homogeneous(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(K,4,4) [R t; 0 1] of rotations (K,3,3) and translations (K,3)."""
+    out = np.zeros((len(R), 4, 4))
+    out[:, :3, :3], out[:, :3, 3], out[:, 3, 3] = R, t, 1.0
+    return out
 
 
 def stream_factors(

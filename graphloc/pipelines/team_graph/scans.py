@@ -57,6 +57,7 @@ def scan_match_factors(
     if len(scanning) < 2 or not any(b in poses or b in tentative for b in scanning):
         return ScanSection(made, placed_via)
     used = set()
+    prepared: dict = {}  # scan path -> its PreparedCloud: each scan prepared once
     for b in scanning:
         if b in poses or b not in tentative:
             continue
@@ -64,7 +65,7 @@ def scan_match_factors(
         for a in (a for a in scanning if a in poses):
             for guess in tentative[b]:  # the tracker's guess, then each candidate
                 link = _register_pair(
-                    run, config, timeline, step_rel, poses, guess, a, b, skips, reasons
+                    run, config, timeline, step_rel, poses, guess, a, b, skips, reasons, prepared
                 )
                 if link is not None:
                     break
@@ -93,10 +94,13 @@ def scan_match_factors(
                 kb = timeline.nearest(b, scan_b.time)
                 if kb < 0:
                     continue
+                scan_a = _scan_near(run, a, scan_b.time)
+                if (scan_a.time, scan_b.time) in used:  # the pair placed b: already a factor
+                    continue
                 guess = (kb, scan_b.time, poses[b][0][kb], cov6(config.scan_hint_sigma))
                 reasons = []
                 link = _register_pair(
-                    run, config, timeline, step_rel, poses, guess, a, b, skips, reasons
+                    run, config, timeline, step_rel, poses, guess, a, b, skips, reasons, prepared
                 )
                 if link is None and reasons:
                     skips.add("scan_match_rejected", reasons[0])
@@ -111,10 +115,11 @@ def _scan_near(run: TeamRun, r: int, t: float):
     return min(scans, key=lambda s: abs(s.time - t)) if scans else None
 
 
-def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips, reasons):
+def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips, reasons, prepared):
     """Robot b's scan nearest its guess (node, time, body pose, 6x6 covariance) registered onto
     robot a's scan at the same time: (factor time, factor, {b's node: (a, a's node, rel)},
-    (scan times)) or None (counted)."""
+    (scan times)) or None (counted). `prepared`: scan path -> PreparedCloud, the scans this
+    section has prepared (filled here)."""
     nearest, node_times = timeline.nearest, timeline.node_times
     k_tent, t_tent, X_tent, cov_tent = guess
     scan_b = _scan_near(run, b, t_tent)
@@ -147,8 +152,10 @@ def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips, r
     acceptance = config.acceptance or AcceptanceConfig()
     try:
         # the scans as the reader kept them (thinned to the point budget, read again quietly)
-        source = prepare(read_scan(scan_b.path, warn=False)[0], cfg)
-        target = prepare(read_scan(scan_a.path, warn=False)[0], cfg)
+        for scan in (scan_b, scan_a):
+            if scan.path not in prepared:
+                prepared[scan.path] = prepare(read_scan(scan.path, warn=False)[0], cfg)
+        source, target = prepared[scan_b.path], prepared[scan_a.path]
     except (OSError, ValueError) as exc:
         raise ValueError(f"{name}: scan registration: {exc}") from None
     decision = robust_register(
