@@ -21,7 +21,8 @@ step.
 
 from __future__ import annotations
 
-from collections import deque
+import heapq
+from collections import OrderedDict, deque
 
 import numpy as np
 
@@ -70,8 +71,8 @@ class _Robot:
         # reckoning over the node times and every range-bearing time, as the whole run's
         # `points._corrected_range_bearings` integrates it
         self.frames = ArcIntegrator(lambda: self.velocity.view, noise, covariances=False)
-        self.stamps: list = []  # range-bearing times not integrated by `frames` yet
-        self.at: dict = {}  # stamp -> planar pose of `frames`
+        self.stamps: list = []  # heap of range-bearing times not integrated by `frames` yet
+        self.at = OrderedDict()  # stamp -> planar pose of `frames`, in increasing stamps
 
     @property
     def end(self) -> float:
@@ -138,7 +139,7 @@ class LiveGraph:
         self.first_seen = min(self.first_seen, m.time)
         self.arrived.append(m)
         if m.kind == "range_bearing":
-            self.robots[m.robot].stamps.append(m.time)
+            heapq.heappush(self.robots[m.robot].stamps, m.time)
         self.queue.append(m)
 
     # ---- steps out ----------------------------------------------------------------------------
@@ -268,15 +269,21 @@ class LiveGraph:
         upto = max(m.time, t_f)
         last = -np.inf if robot.frames.stamp is None else robot.frames.stamp
         nodes = times[np.searchsorted(times, last, "right") : np.searchsorted(times, upto, "right")]
-        known = np.union1d(nodes, [s for s in robot.stamps if last < s <= upto])
+        due = []  # the range-bearing times up to `upto` (those at or before `last` are done)
+        while robot.stamps and robot.stamps[0] <= upto:
+            s = heapq.heappop(robot.stamps)
+            if s > last:
+                due.append(s)
+        known = np.union1d(nodes, due)
         if len(known):
             poses, _, _ = robot.frames.advance(known)
             robot.at.update(zip(known.tolist(), poses))
-            robot.stamps = [s for s in robot.stamps if s > upto]
         out = body_frame_points([m], robot.at[m.time][None], robot.at[float(t_f)][None])[0]
-        # later measurements are at or after m.time and join nodes at or after t_f
+        # later measurements are at or after m.time and join nodes at or after t_f (the stamps
+        # enter `at` in increasing order: each call's are after the last integrated one)
         oldest = min(m.time, float(t_f))
-        robot.at = {s: p for s, p in robot.at.items() if s >= oldest}
+        while robot.at and next(iter(robot.at)) < oldest:
+            robot.at.popitem(last=False)
         return out
 
     def _take_points(self, watermark: float) -> None:
