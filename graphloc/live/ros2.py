@@ -1,0 +1,244 @@
+"""ROS 2 topics in and poses out over Cyclone DDS (`pip install 'graphloc[live]'`), no ROS
+installation: the DDS names and types of rmw_cyclonedds (`graphloc.live.ros2_types`).
+
+- `Ros2Source(topics)`: subscribes to the topics file's topics (docs/rosbag.md). A topic's
+  message type is the one its publisher announces (DDS discovery, as `ros2 bag record` finds
+  it), so the topics file needs no types; a type its table does not take is a counted skip
+  `wrong_type` per message, as in the import. `poll(timeout)` returns the (robot, table, row)
+  of the messages received since, in arrival order (`graphloc.live.topics.LiveTopics`).
+- `Ros2Sink(robots)`: per robot `/<robot>/pose` (`geometry_msgs/PoseWithCovarianceStamped`),
+  `/<robot>/path` (`nav_msgs/Path`, the poses published so far, at most every `path_period`
+  s) and `/tf` (frame `map` -> the robot's name).
+
+Quality of service: reliable, keep-all (nothing dropped between a publisher and graphloc on one
+machine; a best-effort ROS 2 publisher does not match a reliable reader). The domain is
+`ROS_DOMAIN_ID` (default 0); `CYCLONEDDS_URI` selects the network interfaces (the loopback
+test: `lo` only)."""
+
+from __future__ import annotations
+
+import os
+import queue
+import time
+
+import numpy as np
+
+from graphloc.datasets.rosbag_topics import MESSAGE_TYPES, TopicsFile
+from graphloc.live.ros2_types import as_message, dds_topic, idl_type
+from graphloc.live.topics import LiveTopics
+
+POSE_TYPE = "geometry_msgs/msg/PoseWithCovarianceStamped"
+PATH_TYPE = "nav_msgs/msg/Path"
+TF_TYPE = "tf2_msgs/msg/TFMessage"
+FRAME = "map"
+# GTSAM Pose3 tangent (rx ry rz tx ty tz) -> ROS pose covariance order (x y z rx ry rz)
+_GTSAM_TO_ROS = [3, 4, 5, 0, 1, 2]
+
+
+def domain_id() -> int:
+    """ROS 2's domain: ROS_DOMAIN_ID (default 0); ValueError naming it if not an integer."""
+    text = os.environ.get("ROS_DOMAIN_ID", "0").strip() or "0"
+    try:
+        value = int(text)
+    except ValueError:
+        raise ValueError(f"ROS_DOMAIN_ID={text!r} is not an integer") from None
+    if not 0 <= value <= 232:
+        raise ValueError(f"ROS_DOMAIN_ID={value} is outside DDS's domains 0..232")
+    return value
+
+
+def qos():
+    from cyclonedds.core import Policy, Qos
+    from cyclonedds.util import duration
+
+    return Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.History.KeepAll)
+
+
+def participant(domain: int | None = None):
+    from cyclonedds.domain import DomainParticipant
+
+    return DomainParticipant(domain_id() if domain is None else domain)
+
+
+def ros_type(dds_type_name: str) -> str | None:
+    """`pkg::msg::dds_::Type_` -> `pkg/msg/Type` (None for a name of another form)."""
+    parts = dds_type_name.split("::")
+    if len(parts) != 4 or parts[2] != "dds_" or not parts[3].endswith("_"):
+        return None
+    return f"{parts[0]}/{parts[1]}/{parts[3][:-1]}"
+
+
+def stamp_of(t: float) -> dict:
+    """builtin_interfaces/Time fields of a time [s] (rounded to the nanosecond)."""
+    ns = int(round(t * 1e9))
+    return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
+
+
+class Ros2Source:
+    """The mapped topics of a topics file, subscribed as their publishers appear."""
+
+    def __init__(self, topics: TopicsFile, converter: LiveTopics | None = None, dp=None):
+        from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication
+
+        self.topics = topics
+        self.converter = converter or LiveTopics(topics)
+        self.dp = dp if dp is not None else participant()
+        self._pubs = BuiltinDataReader(self.dp, BuiltinTopicDcpsPublication)
+        self._wanted = {dds_topic(t): t for t in topics.topics}
+        self._readers: dict = {}  # ROS topic -> (msgtype, reader)
+        self._queue: queue.Queue = queue.Queue()
+        self.received = 0
+
+    def _discover(self) -> None:
+        from cyclonedds.core import Listener
+        from cyclonedds.sub import DataReader, InvalidSample
+        from cyclonedds.topic import Topic
+
+        for ep in self._pubs.take(N=256):
+            topic = self._wanted.get(ep.topic_name)
+            if topic is None or topic in self._readers:
+                continue
+            msgtype = ros_type(ep.type_name)
+            m = self.topics.topics[topic]
+            if msgtype not in MESSAGE_TYPES[m.table]:
+                self.converter.skips.add(
+                    "wrong_type",
+                    f"ros2: topic '{topic}': its publisher's type {ep.type_name} cannot fill "
+                    f"table '{m.table}' (takes {', '.join(MESSAGE_TYPES[m.table])})",
+                )
+                self._readers[topic] = (msgtype, None)
+                continue
+            put = self._queue.put
+
+            def on_data(reader, topic=topic, msgtype=msgtype):
+                now = time.perf_counter()
+                for sample in reader.take(N=1024):
+                    if not isinstance(sample, InvalidSample):  # a writer gone, not data
+                        put((now, topic, msgtype, sample))
+
+            dds = Topic(self.dp, ep.topic_name, idl_type(msgtype))
+            reader = DataReader(
+                self.dp, dds, qos=qos(), listener=Listener(on_data_available=on_data)
+            )
+            self._readers[topic] = (msgtype, reader)
+
+    def subscribed(self) -> set:
+        """The ROS topics with a reader so far."""
+        return {t for t, (_, r) in self._readers.items() if r is not None}
+
+    def poll(self, timeout: float = 0.05) -> list[tuple[float, str, str, dict]]:
+        """(receive time [perf_counter s], robot, table, row) of the messages received since
+        the last call; waits up to `timeout` s for the first."""
+        self._discover()
+        out = []
+        try:
+            item = self._queue.get(timeout=timeout)
+        except queue.Empty:
+            return out
+        while True:
+            now, topic, msgtype, sample = item
+            self.received += 1
+            msg = as_message(msgtype, sample)
+            out += [(now, *r) for r in self.converter.rows(topic, msgtype, msg)]
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                return out
+
+
+def ros_covariance(pose, cov: np.ndarray) -> list:
+    """The 36 values of a ROS pose covariance (x y z rx ry rz, frame `map`) of a gtsam.Pose3's
+    6x6 covariance in GTSAM's tangent order (body frame): J C J^T with J = diag(R, R), as a
+    body-frame perturbation moves the pose by R times it in the world."""
+    R = pose.rotation().matrix()
+    J = np.zeros((6, 6))
+    J[:3, :3] = J[3:, 3:] = R
+    c = np.asarray(cov, dtype=float)[np.ix_(_GTSAM_TO_ROS, _GTSAM_TO_ROS)]
+    return (J @ c @ J.T).ravel().tolist()
+
+
+class Ros2Sink:
+    """Poses out: `/<robot>/pose`, `/<robot>/path`, `/tf` (see the module docstring)."""
+
+    def __init__(self, robots, dp=None, path_period: float = 1.0):
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.topic import Topic
+
+        self.dp = dp if dp is not None else participant()
+        self.path_period = path_period
+        self._writers = {}
+        for robot in robots:
+            for suffix, msgtype in (("pose", POSE_TYPE), ("path", PATH_TYPE)):
+                name = dds_topic(f"/{robot}/{suffix}")
+                self._writers[(robot, suffix)] = DataWriter(
+                    self.dp, Topic(self.dp, name, idl_type(msgtype)), qos=qos()
+                )
+        self._tf = DataWriter(
+            self.dp, Topic(self.dp, dds_topic("/tf"), idl_type(TF_TYPE)), qos=qos()
+        )
+        self._paths: dict = {r: [] for r in robots}
+        self._path_sent = {r: -np.inf for r in robots}
+        self.published = 0
+
+    def _header(self, t: float, frame: str = FRAME):
+        return idl_type("std_msgs/msg/Header")(
+            stamp=idl_type("builtin_interfaces/msg/Time")(**stamp_of(t)), frame_id=frame
+        )
+
+    def _pose(self, pose):
+        q = pose.rotation().toQuaternion()
+        p = pose.translation()
+        return idl_type("geometry_msgs/msg/Pose")(
+            position=idl_type("geometry_msgs/msg/Point")(x=p[0], y=p[1], z=p[2]),
+            orientation=idl_type("geometry_msgs/msg/Quaternion")(
+                x=q.x(), y=q.y(), z=q.z(), w=q.w()
+            ),
+        )
+
+    def publish(self, poses: dict) -> None:
+        """`poses`: robot -> (time, gtsam.Pose3, 6x6 covariance, GTSAM tangent order)."""
+        transforms = []
+        now = time.monotonic()
+        for robot, (t, pose, cov) in poses.items():
+            msg = idl_type(POSE_TYPE)(
+                header=self._header(t),
+                pose=idl_type("geometry_msgs/msg/PoseWithCovariance")(
+                    pose=self._pose(pose), covariance=ros_covariance(pose, cov)
+                ),
+            )
+            self._writers[(robot, "pose")].write(msg)
+            self.published += 1
+            stamped = idl_type("geometry_msgs/msg/PoseStamped")(
+                header=self._header(t), pose=msg.pose.pose
+            )
+            self._paths[robot].append(stamped)
+            if now - self._path_sent[robot] >= self.path_period:
+                self.publish_path(robot)
+            p, o = msg.pose.pose.position, msg.pose.pose.orientation
+            transforms.append(
+                idl_type("geometry_msgs/msg/TransformStamped")(
+                    header=self._header(t),
+                    child_frame_id=robot,
+                    transform=idl_type("geometry_msgs/msg/Transform")(
+                        translation=idl_type("geometry_msgs/msg/Vector3")(x=p.x, y=p.y, z=p.z),
+                        rotation=o,
+                    ),
+                )
+            )
+        if transforms:
+            self._tf.write(idl_type(TF_TYPE)(transforms=transforms))
+
+    def publish_path(self, robot: str) -> None:
+        """The robot's poses published so far as one nav_msgs/Path."""
+        path = self._paths[robot]
+        if not path:
+            return
+        self._path_sent[robot] = time.monotonic()
+        self._writers[(robot, "path")].write(
+            idl_type(PATH_TYPE)(header=path[-1].header, poses=list(path))
+        )
+
+    def flush(self) -> None:
+        """Every robot's full path (at the end of a run)."""
+        for robot in self._paths:
+            self.publish_path(robot)

@@ -1,0 +1,247 @@
+"""Live sources (issue 50): a log directory being written, tailed line by line, and ROS 2
+topics over Cyclone DDS on loopback, each giving the rows the log reader / `graphloc import`
+give for the same data."""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from graphloc.cli import main
+from graphloc.io import columns, iter_records, read_manifest
+
+REAL_BAG = Path(__file__).resolve().parent / "data/real_bag/husky_outdoor_120s.bag"
+
+
+def _records(root) -> dict:
+    """(robot, table) -> rows of the log (column -> value), as the log reader reads them."""
+    from graphloc.io import TABLES
+
+    table_of = {cls: t for t, cls in TABLES.items()}
+    out: dict = {}
+    for rec in iter_records(root):
+        t = table_of[type(rec)]
+        out.setdefault((rec.robot, t), []).append({c: getattr(rec, c) for c in columns(t)})
+    return out
+
+
+def _grouped(rows) -> dict:
+    out: dict = {}
+    for robot, table, row in rows:
+        out.setdefault((robot, table), []).append({c: row[c] for c in columns(table)})
+    return out
+
+
+@pytest.fixture(scope="module")
+def feng_log(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("feng")
+    assert main(["simulate", "feng-probabilistic", "--out", str(tmp / "log")]) == 0
+    return tmp / "log"
+
+
+def test_tail_of_a_log_being_written(feng_log, tmp_path):
+    """The logger writes the manifest, then each table in pieces that end mid-line, one table
+    only after the others; the tail returns every complete row once, the partial line when it
+    is completed, and all rows equal the log reader's. A bad line is a skip naming file, line
+    and field; the rows after it still come."""
+    from graphloc.live.tail import LogTail
+
+    live = tmp_path / "live"
+    live.mkdir()
+    tail = LogTail(live)
+    with pytest.raises(FileNotFoundError, match="manifest.json"):
+        tail.wait_manifest(0.1)
+    shutil.copy(feng_log / "manifest.json", live / "manifest.json")
+    manifest = tail.wait_manifest(1.0)
+    files = {
+        (r.name, t): p for r in manifest.robots for t, p in r.tables.items() if p.endswith(".csv")
+    }
+    assert len(files) >= 2
+    got = []
+    late = sorted(files)[-1]  # this table's file appears only after the others are written
+    for key, rel in sorted(files.items()):
+        if key == late:
+            continue
+        text = (feng_log / rel).read_bytes()
+        (live / rel).parent.mkdir(parents=True, exist_ok=True)
+        cut = len(text) // 2 + 3  # mid-line (the rows are longer than 3 bytes)
+        (live / rel).write_bytes(text[:cut])
+        got += tail.poll()
+        n_lines = text[:cut].count(b"\n")
+        assert len([g for g in got if g[:2] == key]) == n_lines - 1  # header, partial left
+        with open(live / rel, "ab") as fh:
+            fh.write(text[cut:])
+        got += tail.poll()
+    assert tail.poll() == []
+    rel = files[late]
+    (live / rel).parent.mkdir(parents=True, exist_ok=True)
+    lines = (feng_log / rel).read_text().splitlines(keepends=True)
+    bad = lines[1].split(",")
+    bad[0] = "nan"
+    (live / rel).write_text(lines[0] + ",".join(bad) + "".join(lines[1:]))
+    got += tail.poll()
+    assert tail.skips.counts == {"non_finite": 1}
+    assert f"{live / rel}: line 2: field 'time'" in tail.skips.examples[0]
+    want = _records(feng_log)
+    assert _grouped(got) == want
+    assert tail.rows_read == sum(map(len, want.values()))
+
+
+@pytest.fixture
+def loopback(tmp_path, monkeypatch):
+    """Cyclone DDS on the loopback interface only, in a domain of this test alone."""
+    xml = tmp_path / "cyclonedds.xml"
+    xml.write_text(
+        "<CycloneDDS><Domain Id='any'><General><Interfaces><NetworkInterface name='lo'/>"
+        "</Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery>"
+        "<ParticipantIndex>auto</ParticipantIndex><Peers><Peer Address='127.0.0.1'/></Peers>"
+        "</Discovery></Domain></CycloneDDS>"
+    )
+    monkeypatch.setenv("CYCLONEDDS_URI", xml.as_uri())
+    domain = 100 + os.getpid() % 100  # another pytest process picks another domain
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+    return domain
+
+
+def _receive(source, expected: int, timeout: float = 30.0) -> list:
+    rows, end = [], time.monotonic() + timeout
+    while source.received < expected and time.monotonic() < end:
+        rows += [r[1:] for r in source.poll(0.05)]
+    return rows
+
+
+def _same(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for key in a:
+        assert len(a[key]) == len(b[key]), key
+        for x, y in zip(a[key], b[key]):
+            for c, v in x.items():
+                if isinstance(v, str):
+                    assert v == y[c], (key, c)
+                else:
+                    assert math.isclose(v, y[c], rel_tol=0, abs_tol=1e-12), (key, c, v, y[c])
+
+
+@pytest.mark.parametrize("bag", ["husky", "feng-mcap"])
+def test_ros2_topics_give_the_import_rows(bag, loopback, feng_log, tmp_path):
+    """A bag's messages published over DDS (ROS 2 names and types; the ROS 1 Husky bag's
+    Odometry, a simulated run's PoseWithCovarianceStamped and vision_msgs Detection2DArray in
+    MCAP) and received by `Ros2Source` give the rows `graphloc import` writes for that bag (in
+    time order, as the bag is published in order)."""
+    import yaml
+
+    from graphloc.datasets.rosbag import import_bag
+    from graphloc.datasets.rosbag_topics import read_topics
+    from graphloc.live.publish import Publisher, bag_messages
+    from graphloc.live.ros2 import Ros2Source
+
+    if bag == "husky":
+        path, topics = REAL_BAG, tmp_path / "topics.yaml"
+        topics.write_text(yaml.safe_dump(_husky_topics()))
+    else:
+        from graphloc.datasets.rosbag_export import export_bag
+
+        path = tmp_path / "bag"
+        topics = export_bag(feng_log, path, "mcap")
+    tf = read_topics(topics)
+    imported = import_bag(path, tf, tmp_path / "imported")
+    want = _records(imported.root)
+    messages = bag_messages(path, set(tf.topics))
+    source = Ros2Source(tf)
+    pub = Publisher(messages)
+    assert pub.wait_for_subscribers(0.2) == set(pub.writers)  # subscribed on discovery only
+    end = time.monotonic() + 20
+    while source.subscribed() != set(pub.writers) and time.monotonic() < end:
+        source.poll(0.05)
+    assert pub.wait_for_subscribers(10.0) == set()
+    pub.run(rate=None)
+    rows = _receive(source, len(messages))
+    assert source.received == len(messages)
+    truth = [r for r in rows if r[1] == "groundtruth"]
+    got = _grouped([r for r in rows if r[1] != "groundtruth"])
+    for key in got:  # the import sorts each table by time; one bag topic per table here
+        got[key].sort(key=lambda r: r["time"])
+    _same(got, want)
+    assert source.converter.skips.total == imported.skips.total == 0
+    tum = {r.name: r.tables.get("groundtruth") for r in read_manifest(imported.root).robots}
+    for robot, rel in tum.items():  # ground truth: a TUM line per message, the same poses
+        mine = np.array([list(r[2].values()) for r in truth if r[0] == robot]).reshape(-1, 8)
+        theirs = np.loadtxt(imported.root / rel, ndmin=2) if rel else np.zeros((0, 8))
+        mine = mine[np.argsort(mine[:, 0], kind="stable")]
+        sign = np.sign(np.sum(mine[:, 4:] * theirs[:, 4:], axis=1))[:, None]  # q, -q: one pose
+        mine[:, 4:] *= sign
+        np.testing.assert_allclose(mine, theirs, atol=1e-9)
+
+
+def _husky_topics() -> dict:
+    from rosbags.highlevel import AnyReader
+
+    odom = "/husky_velocity_controller/odom"
+    with AnyReader([REAL_BAG]) as reader:
+        conn = next(c for c in reader.connections if c.topic == odom)
+        _, _, raw = next(reader.messages(connections=[conn]))
+        p = reader.deserialize(raw, conn.msgtype).pose.pose
+    first = [p.position.x, p.position.y, p.position.z]
+    first += [p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w]
+    return {
+        "name": "husky-outdoor",
+        "robots": [
+            {
+                "name": "husky",
+                "kind": "ground",
+                "planar": False,
+                "initial_pose": [float(v) for v in first],
+                "sensors": [{"name": "wheels", "type": "odometry"}],
+            }
+        ],
+        "topics": {odom: {"robot": "husky", "table": "relative_pose3", "sensor": "wheels"}},
+    }
+
+
+def test_received_poses_out(loopback):
+    """`Ros2Sink` publishes a pose with its covariance (GTSAM tangent order, body frame) as a
+    PoseWithCovarianceStamped whose covariance is the same uncertainty in ROS's order in the
+    map frame; a reader on the topic gets it back."""
+    import gtsam
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    from graphloc.live.ros2 import POSE_TYPE, Ros2Sink, participant, qos
+    from graphloc.live.ros2_types import dds_topic, idl_type
+
+    dp = participant()
+    reader = DataReader(dp, Topic(dp, dds_topic("/r1/pose"), idl_type(POSE_TYPE)), qos=qos())
+    sink = Ros2Sink(["r1"], dp=participant())
+    pose = gtsam.Pose3(gtsam.Rot3.Ypr(0.7, 0.1, -0.2), gtsam.Point3(1.0, 2.0, 3.0))
+    rng = np.random.default_rng(5)
+    a = rng.standard_normal((6, 6))
+    cov = a @ a.T + np.eye(6)
+    end = time.monotonic() + 10
+    while not sink._writers[("r1", "pose")].get_matched_subscriptions():
+        assert time.monotonic() < end
+        time.sleep(0.05)
+    sink.publish({"r1": (12.5, pose, cov)})
+    got = []
+    while not got and time.monotonic() < end:
+        got = [s for s in reader.take(N=10) if hasattr(s, "header")]
+        time.sleep(0.02)
+    (msg,) = got
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id) == (
+        12,
+        500_000_000,
+        "map",
+    )
+    p = msg.pose.pose.position
+    np.testing.assert_allclose([p.x, p.y, p.z], [1.0, 2.0, 3.0])
+    # a world-frame position sample: R times the body-frame translation perturbation
+    R = pose.rotation().matrix()
+    ros = np.asarray(msg.pose.covariance).reshape(6, 6)
+    np.testing.assert_allclose(ros[:3, :3], R @ cov[3:, 3:] @ R.T, atol=1e-12)
+    np.testing.assert_allclose(ros[3:, 3:], R @ cov[:3, :3] @ R.T, atol=1e-12)
+    np.testing.assert_allclose(ros[:3, 3:], R @ cov[3:, :3] @ R.T, atol=1e-12)
