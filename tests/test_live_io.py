@@ -245,3 +245,38 @@ def test_received_poses_out(loopback):
     np.testing.assert_allclose(ros[:3, :3], R @ cov[3:, 3:] @ R.T, atol=1e-12)
     np.testing.assert_allclose(ros[3:, 3:], R @ cov[:3, :3] @ R.T, atol=1e-12)
     np.testing.assert_allclose(ros[:3, 3:], R @ cov[3:, :3] @ R.T, atol=1e-12)
+
+
+def test_live_view_logs_poses_and_ellipsoids(tmp_path):
+    """The Foxglove view's server starts on a free port; what it logs (recorded by an MCAP
+    sink on its context) is each robot's pose, its path, tf and a SceneUpdate whose ellipsoid
+    diameters are twice the square roots of the position covariance's eigenvalues."""
+    import foxglove
+    import gtsam
+    from mcap.reader import make_reader
+
+    from graphloc.live.view import LiveView, position_ellipsoid
+
+    view = LiveView(port=0)
+    assert view.port > 0
+    mcap = tmp_path / "view.mcap"
+    writer = foxglove.open_mcap(str(mcap), context=view.context)
+    pose = gtsam.Pose3(gtsam.Rot3.Ypr(0.5, 0.0, 0.0), gtsam.Point3(1.0, 2.0, 3.0))
+    cov = np.diag([1e-4, 1e-4, 1e-4, 0.04, 0.01, 0.0025])
+    view.show({"r1": (1.0, pose, cov), "r2": (0.9, pose, cov)}, 1.0)
+    writer.close()
+    view.close()
+    with open(mcap, "rb") as fh:
+        got = {(ch.topic, sch.name) for sch, ch, _ in make_reader(fh).iter_messages()}
+    assert got == {
+        ("/graphloc/r1/pose", "foxglove.PoseInFrame"),
+        ("/graphloc/r2/pose", "foxglove.PoseInFrame"),
+        ("/graphloc/r1/path", "foxglove.PosesInFrame"),
+        ("/graphloc/r2/path", "foxglove.PosesInFrame"),
+        ("/tf", "foxglove.FrameTransforms"),
+        ("/graphloc/covariance", "foxglove.SceneUpdate"),
+    }
+    axes, rot = position_ellipsoid(pose, cov)
+    np.testing.assert_allclose(sorted(axes), [0.05, 0.1, 0.2], atol=1e-12)
+    R = pose.rotation().matrix()
+    np.testing.assert_allclose(rot @ np.diag(axes**2) @ rot.T, R @ cov[3:, 3:] @ R.T, atol=1e-12)
