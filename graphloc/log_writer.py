@@ -171,11 +171,13 @@ def write_table(path: str | Path, table: str, rows) -> Path:
     return path
 
 
-def _write_csv(path: Path, header: list[str], rows) -> None:
-    def text(v):
-        return repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)
+def cell(v) -> str:
+    """A table cell: floats written losslessly (repr), everything else as str."""
+    return repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)
 
+
+def _write_csv(path: Path, header: list[str], rows) -> None:
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
-        w.writerows([text(v) for v in row] for row in rows)
+        w.writerows([cell(v) for v in row] for row in rows)

@@ -72,12 +72,12 @@ def test_tail_of_a_log_being_written(feng_log, tmp_path):
         (live / rel).parent.mkdir(parents=True, exist_ok=True)
         cut = len(text) // 2 + 3  # mid-line (the rows are longer than 3 bytes)
         (live / rel).write_bytes(text[:cut])
-        got += tail.poll()
+        got += [r[1:] for r in tail.poll()]
         n_lines = text[:cut].count(b"\n")
         assert len([g for g in got if g[:2] == key]) == n_lines - 1  # header, partial left
         with open(live / rel, "ab") as fh:
             fh.write(text[cut:])
-        got += tail.poll()
+        got += [r[1:] for r in tail.poll()]
     assert tail.poll() == []
     rel = files[late]
     (live / rel).parent.mkdir(parents=True, exist_ok=True)
@@ -85,7 +85,7 @@ def test_tail_of_a_log_being_written(feng_log, tmp_path):
     bad = lines[1].split(",")
     bad[0] = "nan"
     (live / rel).write_text(lines[0] + ",".join(bad) + "".join(lines[1:]))
-    got += tail.poll()
+    got += [r[1:] for r in tail.poll()]
     assert tail.skips.counts == {"non_finite": 1}
     assert f"{live / rel}: line 2: field 'time'" in tail.skips.examples[0]
     want = _records(feng_log)
@@ -280,3 +280,31 @@ def test_live_view_logs_poses_and_ellipsoids(tmp_path):
     np.testing.assert_allclose(sorted(axes), [0.05, 0.1, 0.2], atol=1e-12)
     R = pose.rotation().matrix()
     np.testing.assert_allclose(rot @ np.diag(axes**2) @ rot.T, R @ cov[3:, 3:] @ R.T, atol=1e-12)
+
+
+def test_log_rows_over_ros2(loopback, feng_log, tmp_path):
+    """A log published line by line (graphloc_msgs/msg/LogRow) and read by `Ros2LogSource`
+    gives the log reader's rows; a line with a bad field is a skip naming the table's file,
+    line and field, and the lines after it still come."""
+    from graphloc.live.publish import Publisher, log_messages
+    from graphloc.live.ros2 import Ros2LogSource
+
+    log = tmp_path / "log"
+    shutil.copytree(feng_log, log)
+    messages = log_messages(log)
+    robot, table = messages[0][1].split("/")[-2:]
+    k = next(i for i, m in enumerate(messages) if m[1] == messages[0][1])
+    good = messages[k][3].line
+    messages[k][3].line = "x" + good  # the table's first data line: line 2 of its file
+    source = Ros2LogSource(log)
+    pub = Publisher(messages)
+    assert pub.wait_for_subscribers(10.0) == set()
+    pub.run(rate=None)
+    rows = _receive(source, len(messages))
+    assert source.received == len(messages)
+    assert source.skips.counts == {"parse": 1}
+    rel = read_manifest(log).robot(robot).tables[table]
+    assert f"{log / rel}: line 2: field 'time'" in source.skips.examples[0]
+    want = _records(feng_log)
+    want[(robot, table)] = want[(robot, table)][1:]
+    _same(_grouped(rows), want)

@@ -33,6 +33,39 @@ def bag_messages(bag, topics: set) -> list[tuple[float, str, str, object]]:
     return out
 
 
+def log_messages(root) -> list[tuple[float, str, str, object]]:
+    """(row time [s], topic, LOG_ROW, sample) of every data line of a log's tables (ground
+    truth aside), merged by time (stable: robot, then table order), each line as its table's
+    `graphloc_msgs/msg/LogRow` (`graphloc.live.ros2.log_row_topic`)."""
+    from graphloc.io import columns, is_tum, read_manifest
+    from graphloc.live.ros2 import LOG_ROW, log_row_topic, stamp_of
+    from graphloc.table_reader import data_lines
+
+    manifest = read_manifest(root)
+    Row, Header, Time = (
+        idl_type(LOG_ROW),
+        idl_type("std_msgs/msg/Header"),
+        idl_type("builtin_interfaces/msg/Time"),
+    )
+    out = []
+    for r in manifest.robots:
+        for table, rel in r.tables.items():
+            if is_tum(rel):
+                continue
+            topic, t = log_row_topic(r.name, table), 0.0
+            for _, text in data_lines(manifest.root / rel, columns(table)):
+                try:
+                    t = float(text.split(",", 1)[0])
+                except ValueError:  # a bad time: sent where it stands, the reader skips it
+                    pass
+                head = Header(stamp=Time(**stamp_of(max(t, 0.0))), frame_id="")
+                out.append(
+                    (t, topic, LOG_ROW, Row(header=head, robot=r.name, table=table, line=text))
+                )
+    out.sort(key=lambda m: m[0])
+    return out
+
+
 class Publisher:
     """One DDS writer per topic of `messages` (reliable, keep-all: `graphloc.live.ros2.qos`)."""
 

@@ -31,6 +31,7 @@ POSE_TYPE = "geometry_msgs/msg/PoseWithCovarianceStamped"
 PATH_TYPE = "nav_msgs/msg/Path"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 FRAME = "map"
+LOG_ROW = "graphloc_msgs/msg/LogRow"  # a log table's line (graphloc.live.ros2_types)
 # GTSAM Pose3 tangent (rx ry rz tx ty tz) -> ROS pose covariance order (x y z rx ry rz)
 _GTSAM_TO_ROS = [3, 4, 5, 0, 1, 2]
 
@@ -74,26 +75,64 @@ def stamp_of(t: float) -> dict:
     return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
 
 
-class Ros2Source:
+class _Readers:
+    """DDS readers whose samples queue up with their arrival time (a listener, on Cyclone's
+    thread); `_take` hands them to the caller's thread in arrival order."""
+
+    def __init__(self, dp=None):
+        self.dp = dp if dp is not None else participant()
+        self._queue: queue.Queue = queue.Queue()
+        self._readers: dict = {}  # ROS topic -> reader (None: refused)
+        self.received = 0
+
+    def _subscribe(self, topic: str, msgtype: str) -> None:
+        from cyclonedds.core import Listener
+        from cyclonedds.sub import DataReader, InvalidSample
+        from cyclonedds.topic import Topic
+
+        put = self._queue.put
+
+        def on_data(reader):
+            now = time.perf_counter()
+            for sample in reader.take(N=1024):
+                if not isinstance(sample, InvalidSample):  # a writer gone, not data
+                    put((now, topic, msgtype, sample))
+
+        dds = Topic(self.dp, dds_topic(topic), idl_type(msgtype))
+        listener = Listener(on_data_available=on_data)
+        self._readers[topic] = DataReader(self.dp, dds, qos=qos(), listener=listener)
+
+    def subscribed(self) -> set:
+        """The ROS topics with a reader so far."""
+        return {t for t, r in self._readers.items() if r is not None}
+
+    def _take(self, timeout: float) -> list:
+        try:
+            items = [self._queue.get(timeout=timeout)]
+        except queue.Empty:
+            return []
+        while True:
+            try:
+                items.append(self._queue.get_nowait())
+            except queue.Empty:
+                self.received += len(items)
+                return items
+
+
+class Ros2Source(_Readers):
     """The mapped topics of a topics file, subscribed as their publishers appear."""
 
     def __init__(self, topics: TopicsFile, converter: LiveTopics | None = None, dp=None):
         from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication
 
+        super().__init__(dp)
         self.topics = topics
         self.converter = converter or LiveTopics(topics)
-        self.dp = dp if dp is not None else participant()
+        self.skips = self.converter.skips
         self._pubs = BuiltinDataReader(self.dp, BuiltinTopicDcpsPublication)
         self._wanted = {dds_topic(t): t for t in topics.topics}
-        self._readers: dict = {}  # ROS topic -> (msgtype, reader)
-        self._queue: queue.Queue = queue.Queue()
-        self.received = 0
 
     def _discover(self) -> None:
-        from cyclonedds.core import Listener
-        from cyclonedds.sub import DataReader, InvalidSample
-        from cyclonedds.topic import Topic
-
         for ep in self._pubs.take(N=256):
             topic = self._wanted.get(ep.topic_name)
             if topic is None or topic in self._readers:
@@ -101,49 +140,68 @@ class Ros2Source:
             msgtype = ros_type(ep.type_name)
             m = self.topics.topics[topic]
             if msgtype not in MESSAGE_TYPES[m.table]:
-                self.converter.skips.add(
+                self.skips.add(
                     "wrong_type",
                     f"ros2: topic '{topic}': its publisher's type {ep.type_name} cannot fill "
                     f"table '{m.table}' (takes {', '.join(MESSAGE_TYPES[m.table])})",
                 )
-                self._readers[topic] = (msgtype, None)
+                self._readers[topic] = None
                 continue
-            put = self._queue.put
-
-            def on_data(reader, topic=topic, msgtype=msgtype):
-                now = time.perf_counter()
-                for sample in reader.take(N=1024):
-                    if not isinstance(sample, InvalidSample):  # a writer gone, not data
-                        put((now, topic, msgtype, sample))
-
-            dds = Topic(self.dp, ep.topic_name, idl_type(msgtype))
-            reader = DataReader(
-                self.dp, dds, qos=qos(), listener=Listener(on_data_available=on_data)
-            )
-            self._readers[topic] = (msgtype, reader)
-
-    def subscribed(self) -> set:
-        """The ROS topics with a reader so far."""
-        return {t for t, (_, r) in self._readers.items() if r is not None}
+            self._subscribe(topic, msgtype)
 
     def poll(self, timeout: float = 0.05) -> list[tuple[float, str, str, dict]]:
         """(receive time [perf_counter s], robot, table, row) of the messages received since
         the last call; waits up to `timeout` s for the first."""
         self._discover()
         out = []
-        try:
-            item = self._queue.get(timeout=timeout)
-        except queue.Empty:
-            return out
-        while True:
-            now, topic, msgtype, sample = item
-            self.received += 1
+        for now, topic, msgtype, sample in self._take(timeout):
             msg = as_message(msgtype, sample)
             out += [(now, *r) for r in self.converter.rows(topic, msgtype, msg)]
-            try:
-                item = self._queue.get_nowait()
-            except queue.Empty:
-                return out
+        return out
+
+
+def log_row_topic(robot: str, table: str) -> str:
+    """The ROS 2 topic of one table of a log published as lines (`LOG_ROW`)."""
+    return f"/graphloc/log/{robot}/{table}"
+
+
+class Ros2LogSource(_Readers):
+    """The tables of a log's manifest published line by line as `graphloc_msgs/msg/LogRow`
+    (`log_row_topic`): the rows of a source that has no ROS message type (MRCLAM's unicycle
+    velocities, planar range-bearing), checked by the log reader's row checks
+    (`graphloc.table_reader.LineChecker`: a bad line is a skip naming the topic's table, line
+    and field)."""
+
+    def __init__(self, root, dp=None):
+        from graphloc.io import SkipReport, is_tum, read_landmarks, read_manifest
+        from graphloc.table_reader import LineChecker
+
+        super().__init__(dp)
+        self.manifest = read_manifest(root)
+        self.skips = SkipReport()
+        ids = None
+        if self.manifest.landmarks_file is not None:
+            ids = set(read_landmarks(self.manifest)[0].tolist())
+        self._checkers = {}
+        for r in self.manifest.robots:
+            for table, rel in r.tables.items():
+                if is_tum(rel):
+                    continue
+                topic = log_row_topic(r.name, table)
+                check = LineChecker(self.manifest, r, table, self.skips, ids)
+                self._checkers[topic] = (r.name, table, check)
+                self._subscribe(topic, LOG_ROW)
+        self._lines = dict.fromkeys(self._checkers, 1)  # the header is line 1
+
+    def poll(self, timeout: float = 0.05) -> list[tuple[float, str, str, dict]]:
+        out = []
+        for now, topic, _, sample in self._take(timeout):
+            robot, table, check = self._checkers[topic]
+            self._lines[topic] += 1
+            out += [
+                (now, robot, table, row) for row in check.rows(self._lines[topic], [sample.line])
+            ]
+        return out
 
 
 def ros_covariance(pose, cov: np.ndarray) -> list:

@@ -38,12 +38,25 @@ _BASE = {
 }
 
 
+# graphloc's own message: one line of a log table (docs/log_format.md), for sources whose rows
+# have no ROS message (graphloc.live.ros2.Ros2LogSource); stamp: the row's time
+GRAPHLOC_MSGS = {
+    "graphloc_msgs/msg/LogRow": "std_msgs/Header header\nstring robot\nstring table\nstring line\n"
+}
+
+
 @functools.cache
 def typestore():
-    """rosbags' ROS 2 Humble type store with vision_msgs 4 (the types of docs/rosbag.md)."""
+    """rosbags' ROS 2 Humble type store with vision_msgs 4 (the types of docs/rosbag.md) and
+    graphloc_msgs (GRAPHLOC_MSGS)."""
+    from rosbags.typesys import get_types_from_msg
+
     from graphloc.datasets.rosbag_export import typestore as bag_typestore
 
-    return bag_typestore("ros2")
+    ts = bag_typestore("ros2")
+    for name, text in GRAPHLOC_MSGS.items():
+        ts.register(get_types_from_msg(text, name))
+    return ts
 
 
 def dds_topic(topic: str) -> str:

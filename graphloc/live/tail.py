@@ -6,8 +6,9 @@ is picked up when it does. Every row passes the checks of the log reader
 targets, time non-decreasing within the table); a bad row is a counted skip naming file, line
 and field. Ground truth (`.tum`) is not a measurement and is not tailed.
 
-`LogTail(root).poll()` returns the (robot, table, row) of the lines completed since the last
-call, merged by time across tables (rows of one table in file order)."""
+`LogTail(root).poll(timeout)` returns the (receive time, robot, table, row) of the lines
+completed since the last call, merged by time across tables (rows of one table in file order);
+with none, it waits `timeout` s first."""
 
 from __future__ import annotations
 
@@ -71,8 +72,17 @@ class LogTail:
         ]
         self.manifest = manifest
 
-    def poll(self) -> list[tuple[str, str, dict]]:
-        """(robot, table, row) of every line completed since the last call."""
+    def poll(self, timeout: float = 0.0) -> list[tuple[float, str, str, dict]]:
+        """(receive time [perf_counter s], robot, table, row) of every line completed since
+        the last call (none: after waiting `timeout` s, once more)."""
+        out = self._poll()
+        if not out and timeout > 0:
+            time.sleep(timeout)
+            out = self._poll()
+        now = time.perf_counter()
+        return [(now, *item) for item in out]
+
+    def _poll(self) -> list[tuple[str, str, dict]]:
         if self.manifest is None:
             self.open()
         streams = []

@@ -1,0 +1,78 @@
+"""One live run: rows from a source pushed into a `graphloc.LiveTeam` as they arrive, each
+update's poses out to the sinks (ROS 2 topics, the Foxglove view) and the status line, until a
+stop signal or `idle` seconds without a row; `graphloc live` is a thin verb over `LiveRun`.
+
+A source has `poll(timeout) -> [(receive time, robot, table, row)]` (`graphloc.live.ros2.
+Ros2Source`, `graphloc.live.tail.LogTail`) and `skips`. Ground-truth rows are recorded, not
+pushed (they are no measurement). The end-to-end latency of an update is the time from the
+arrival of the newest row it contains to the poses' publication (`latencies`)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+
+def robot_poses(update) -> dict:
+    """robot -> (time, gtsam.Pose3, 6x6 covariance) of a LiveUpdate's poses."""
+    return {name: (p.time, p.pose, p.covariance) for name, p in update.poses.items()}
+
+
+@dataclass
+class LiveRun:
+    team: object
+    source: object
+    sinks: list = field(default_factory=list)  # .publish(poses) / LiveView.show(poses, time)
+    status: object | None = None  # graphloc.live.status.StatusLine
+    recorder: object | None = None  # graphloc.live.record.LogRecorder
+    latencies: list = field(default_factory=list)  # [s] newest row's arrival -> poses out
+    pushed: int = 0
+
+    def __post_init__(self):
+        self._newest = None  # arrival time of the newest row pushed since the last update
+        self.team.subscribe(self._on_update)
+
+    def _on_update(self, update) -> None:
+        poses = robot_poses(update)
+        for sink in self.sinks:
+            if hasattr(sink, "show"):
+                sink.show(poses, update.time)
+            else:
+                sink.publish(poses)
+        if self._newest is not None:
+            self.latencies.append(time.perf_counter() - self._newest)
+            self._newest = None
+        if self.status is not None:
+            self.status.add_update(update.latency_s, poses)
+
+    def skipped(self) -> int:
+        return self.source.skips.total + self.team.skips.total
+
+    def push(self, rows) -> None:
+        """Rows (receive time, robot, table, row) into the recorder and the team."""
+        if self.recorder is not None:
+            self.recorder.write([r[1:] for r in rows])
+        for arrived, robot, table, row in rows:
+            if table == "groundtruth":
+                continue
+            self._newest = arrived
+            self.team.push(robot, table, row)
+            self.pushed += 1
+        if self.status is not None:
+            self.status.add_rows([r[2] for r in rows])
+
+    def run(self, stop=lambda: False, idle: float | None = None, poll: float = 0.05) -> str:
+        """Until `stop()` ("stopped") or `idle` s without a row ("idle")."""
+        last = time.monotonic()
+        while True:
+            if stop():
+                return "stopped"
+            rows = self.source.poll(poll)
+            now = time.monotonic()
+            if rows:
+                last = now
+                self.push(rows)
+            elif idle is not None and now - last >= idle:
+                return "idle"
+            if self.status is not None:
+                self.status.show(self.skipped())
