@@ -37,6 +37,11 @@ _API = {
     "pose_key": "graphloc.keys",
     "landmark_key": "graphloc.keys",
     "component_factors": "graphloc.factors.mixture",
+    "LiveTeam": "graphloc.live",
+    "LiveUpdate": "graphloc.live",
+    "RobotPose": "graphloc.live",
+    "NotLiveError": "graphloc.live",
+    "replay_live": "graphloc.live",
 }
 __all__ = ["__version__", *_API]
 

@@ -240,35 +240,40 @@ def anchor_factors(run: TeamRun, config: GraphConfig, node_times: list) -> list:
     (time, factor, type) each."""
     factors: list = []
     for r, robot in enumerate(run.robots):
-        if robot.initial_pose is not None and len(node_times[r]):
-            sig = (
-                config.static_sigma
-                if robot.static
-                else (robot.initial_sigma or config.initial_sigma)
+        factors += robot_anchors(r, robot, config, node_times[r])
+    return factors
+
+
+def robot_anchors(r: int, robot, config: GraphConfig, times, k0: int = 0) -> list:
+    """Robot r's anchors of its poses from k0 on: the prior on its known initial pose (k0 = 0)
+    and its surface factors, (time, factor, type) each."""
+    factors: list = []
+    if robot.initial_pose is not None and len(times) and k0 == 0:
+        sig = config.static_sigma if robot.static else (robot.initial_sigma or config.initial_sigma)
+        factors.append(
+            (
+                times[0],
+                gtsam.PriorFactorPose3(
+                    pose_key(r, 0),
+                    robot.initial_pose,
+                    gtsam.noiseModel.Gaussian.Covariance(cov6(sig)),
+                ),
+                "prior",
             )
-            factors.append(
-                (
-                    node_times[r][0],
-                    gtsam.PriorFactorPose3(
-                        pose_key(r, 0),
-                        robot.initial_pose,
-                        gtsam.noiseModel.Gaussian.Covariance(cov6(sig)),
-                    ),
-                    "prior",
+        )
+    if robot.surface is not None:
+        sigma = config.surface_sigma if robot.surface_sigma is None else robot.surface_sigma
+        for k in range(k0, len(times)):
+            t = times[k]
+            if sigma > 0:  # 0: attitude only
+                factors.append(
+                    (t, plane_distance_factor(pose_key(r, k), robot.surface, sigma), "surface")
                 )
-            )
-        if robot.surface is not None:
-            sigma = config.surface_sigma if robot.surface_sigma is None else robot.surface_sigma
-            for k, t in enumerate(node_times[r]):
-                if sigma > 0:  # 0: attitude only
-                    factors.append(
-                        (t, plane_distance_factor(pose_key(r, k), robot.surface, sigma), "surface")
-                    )
-                if robot.attitude_sigma is not None:
-                    f = plane_attitude_factor(
-                        pose_key(r, k), robot.surface, robot.attitude_sigma, robot.body_axis
-                    )
-                    factors.append((t, f, "surface"))
+            if robot.attitude_sigma is not None:
+                f = plane_attitude_factor(
+                    pose_key(r, k), robot.surface, robot.attitude_sigma, robot.body_axis
+                )
+                factors.append((t, f, "surface"))
     return factors
 
 

@@ -167,6 +167,9 @@ class Pass:
         if factors and self.mode == "online":
             est = session.estimate([key for key, _, _ in new_poses])
             for key, r, k in new_poses:
+                if k >= len(self.causal[r]):  # a graph that grows (`graphloc.live`)
+                    grown = max(len(graph.node_times[r]), 2 * len(self.causal[r]))
+                    self.causal[r] = _fit(self.causal[r], grown)
                 p = est.atPose3(key)
                 self.causal[r][k] = p.matrix()[:3]
                 self.entered[(r, k)] = i
@@ -204,6 +207,7 @@ class Pass:
         final = session.estimate()
         self.wall += _time.perf_counter() - t0
         decisions = choose_mixtures(graph.decisions, final)
+        self.causal = [_fit(c, len(t)) for c, t in zip(self.causal, graph.node_times)]
         partial = self.done < len(graph.steps) or session.stopped
         estimate = grids_rows(pose_grids(graph.node_times, *values_poses(final)))
         dead = guess_rows(graph, graph.initial)
@@ -255,6 +259,13 @@ class Pass:
             robot_stats=by_robot,
             chi2=chi2,
         )
+
+
+def _fit(grid: np.ndarray, n: int) -> np.ndarray:
+    """A (K,3,4) grid of causal estimates cut or padded with NaN rows to n rows."""
+    if len(grid) >= n:
+        return grid[:n]
+    return np.concatenate([grid, np.full((n - len(grid), 3, 4), np.nan)])
 
 
 def _held(graph: TeamGraph, key: int, t: float) -> bool:

@@ -113,25 +113,26 @@ def _corrected_range_bearings(run: TeamRun, node_times: list, config: GraphConfi
         ).poses
         at_meas = poses[np.searchsorted(stamps, t)]
         at_frame = poses[np.searchsorted(stamps, times[frame])]
-        pts = np.array(
-            [
-                run.points[i].body_T_sensor.transformFrom(
-                    run.points[i].direction * run.points[i].range
-                )
-                for i in idx
-            ]
-        )
-        c, s = np.cos(at_meas[:, 2]), np.sin(at_meas[:, 2])
-        world = at_meas[:, :2] + np.column_stack(
-            [c * pts[:, 0] - s * pts[:, 1], s * pts[:, 0] + c * pts[:, 1]]
-        )
-        d = world - at_frame[:, :2]
-        c, s = np.cos(at_frame[:, 2]), np.sin(at_frame[:, 2])
-        local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], pts[:, 2]])
-        rng = np.linalg.norm(local, axis=1)
+        local = body_frame_points([run.points[i] for i in idx], at_meas, at_frame)
         for j, i in enumerate(idx):
-            out[i] = (local[j] / rng[j], float(rng[j]))
+            out[i] = local[j]
     return out
+
+
+def body_frame_points(points: list, at_meas: np.ndarray, at_frame: np.ndarray) -> list:
+    """Range-bearing measurements `points` of one robot, each taken at its dead-reckoned planar
+    pose `at_meas` (N,3), as (direction (3,), range) in its body frame at the planar pose
+    `at_frame` (N,3) of the grid pose it joins."""
+    pts = np.array([m.body_T_sensor.transformFrom(m.direction * m.range) for m in points])
+    c, s = np.cos(at_meas[:, 2]), np.sin(at_meas[:, 2])
+    world = at_meas[:, :2] + np.column_stack(
+        [c * pts[:, 0] - s * pts[:, 1], s * pts[:, 0] + c * pts[:, 1]]
+    )
+    d = world - at_frame[:, :2]
+    c, s = np.cos(at_frame[:, 2]), np.sin(at_frame[:, 2])
+    local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], pts[:, 2]])
+    rng = np.linalg.norm(local, axis=1)
+    return [(local[j] / rng[j], float(rng[j])) for j in range(len(points))]
 
 
 @dataclass
@@ -148,42 +149,54 @@ class PointSection:
     sensor_poses: dict
 
 
-def point_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> PointSection:
-    """Every usable point measurement as a factor (offset bearings on sensor poses,
-    `SensorPoses`), with the landmarks' initial guesses (`PointSection`)."""
-    node_times, nearest = timeline.node_times, timeline.nearest
-    made, sensors = SectionFactors(), SensorPoses()
-    factors, skips = made.factors, made.skips
-    lm_prior = {}
-    if config.landmark_priors and run.landmarks_known:
-        lm_prior = {
-            int(i): (p, np.maximum(s, config.landmark_prior_floor))
-            for i, p, s in zip(run.landmark_ids, run.landmark_xyz, run.landmark_sigma)
-        }
-    landmark_guess: dict = {}
-    n_anchor = 0
-    corrected = _corrected_range_bearings(run, node_times, config)
-    excluded = 0  # measurements the options leave out (not a data problem: counted, not skipped)
-    for i, m in enumerate(run.points):
+class PointBuilder:
+    """The point section, one measurement at a time, in the run's order (`add`): its factors
+    and skips (`made`), the landmarks' initial guesses, the anchors made, the measurements the
+    options leave out and the offset bearings' sensor poses. `point_factors` feeds it the whole
+    run; the live builder (`graphloc.live.builder`) each measurement once its poses exist."""
+
+    def __init__(self, run: TeamRun, config: GraphConfig):
+        self.run, self.config = run, config
+        self.made, self.sensors = SectionFactors(), SensorPoses()
+        self.lm_prior = {}
+        if config.landmark_priors and run.landmarks_known:
+            self.lm_prior = {
+                int(i): (p, np.maximum(s, config.landmark_prior_floor))
+                for i, p, s in zip(run.landmark_ids, run.landmark_xyz, run.landmark_sigma)
+            }
+        self.landmark_guess: dict = {}
+        self.n_anchor = 0
+        self.excluded = 0  # left out by the options (not a data problem: counted, not skipped)
+
+    def used(self, m) -> bool:
+        """The options take measurement `m` (else it is counted in `excluded`)."""
         is_lm = m.target < 0
+        config = self.config
         if (is_lm and not config.use_landmarks) or (not is_lm and not config.use_inter_robot):
-            excluded += 1
-            continue
-        k = nearest(m.robot, m.time)
-        kt = -1 if is_lm else nearest(m.target, m.time)
+            self.excluded += 1
+            return False
+        return True
+
+    def add(self, m, k: int, kt: int, node_times: list, corrected=None) -> None:
+        """Measurement `m` at robot node k (target node kt; -1: none within the tolerance,
+        counted) as a factor; `corrected`: its (direction, range) in the body frame at node k
+        (a wheel-odometry robot's range-bearing, `body_frame_points`), None: as measured."""
+        run, config, lm_prior = self.run, self.config, self.lm_prior
+        factors, skips, landmark_guess = self.made.factors, self.made.skips, self.landmark_guess
+        is_lm = m.target < 0
         if k < 0 or (not is_lm and kt < 0):
             skips.add(
                 "no_pose_at_time",
                 f"robot {run.robots[m.robot].name}: {m.kind} at {m.time} has no pose "
                 f"within the sync tolerance",
             )
-            continue
+            return
         key = pose_key(m.robot, k)
-        direction, rng = corrected.get(i, (m.direction, m.range))
+        direction, rng = (m.direction, m.range) if corrected is None else corrected
         E = m.body_T_sensor
         t_new = max(node_times[m.robot][k], -np.inf if is_lm else node_times[m.target][kt])
         kernel = config.kernels.kernel("landmark" if is_lm else "inter_robot")
-        if m.kind == "range_bearing" and i not in corrected:
+        if m.kind == "range_bearing" and corrected is None:
             p = E.transformFrom(direction * rng)
             direction, rng = p / np.linalg.norm(p), float(np.linalg.norm(p))
         if is_lm and m.kind == "range_bearing" and config.anchor_known_landmarks:
@@ -199,12 +212,12 @@ def point_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> Poin
                     kernel,
                 )
                 factors.append((t_new, f, "landmark"))
-                continue
+                return
         if is_lm:
-            lkey, prior = _landmark_key(m.landmark, lm_prior, config, n_anchor)
+            lkey, prior = _landmark_key(m.landmark, lm_prior, config, self.n_anchor)
             if lkey is None:
                 skips.add("unknown_landmark", f"landmark {m.landmark} is not in the landmark table")
-                continue
+                return
             if lkey not in landmark_guess:
                 guess = prior[0] if prior is not None else None
                 if guess is None and np.isfinite(rng):
@@ -214,7 +227,7 @@ def point_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> Poin
                         "landmark_without_position",
                         f"landmark {m.landmark}: first seen by a bearing only",
                     )
-                    continue
+                    return
                 landmark_guess[lkey] = guess
                 if prior is not None:
                     factors.append(
@@ -229,15 +242,15 @@ def point_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> Poin
                         )
                     )
             if lkey != landmark_key(m.landmark):
-                n_anchor += 1
+                self.n_anchor += 1
             if m.kind == "bearing":
-                key, E = sensors.observer(m, k, node_times[m.robot][k], factors)
+                key, E = self.sensors.observer(m, k, node_times[m.robot][k], factors)
             factors.append(
                 (t_new, _point_factor(m, key, lkey, direction, rng, kernel, E), "landmark")
             )
         else:
             if m.kind == "bearing":
-                key, E = sensors.observer(m, k, node_times[m.robot][k], factors)
+                key, E = self.sensors.observer(m, k, node_times[m.robot][k], factors)
             factors.append(
                 (
                     t_new,
@@ -245,4 +258,22 @@ def point_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> Poin
                     "inter_robot",
                 )
             )
-    return PointSection(made, landmark_guess, n_anchor, excluded, sensors.poses)
+
+    def section(self) -> PointSection:
+        return PointSection(
+            self.made, self.landmark_guess, self.n_anchor, self.excluded, self.sensors.poses
+        )
+
+
+def point_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> PointSection:
+    """Every usable point measurement as a factor (offset bearings on sensor poses,
+    `SensorPoses`), with the landmarks' initial guesses (`PointSection`)."""
+    node_times, nearest = timeline.node_times, timeline.nearest
+    points = PointBuilder(run, config)
+    corrected = _corrected_range_bearings(run, node_times, config)
+    for i, m in enumerate(run.points):
+        if points.used(m):
+            k = nearest(m.robot, m.time)
+            kt = -1 if m.target < 0 else nearest(m.target, m.time)
+            points.add(m, k, kt, node_times, corrected.get(i))
+    return points.section()

@@ -1,0 +1,87 @@
+"""`ArcIntegrator`: `factors.odometry.integrate_unicycle` carried forward stamp by stamp, as
+velocity rows arrive. Each call integrates the next stamps from the state the last one ended
+at -- the running sums continued (`np.cumsum` of the carried value and the new increments, the
+same sequence of additions the whole-run call makes), every interval's covariance summed over
+its own segments -- so the poses, steps and covariances are those of one call over the whole
+run, bit for bit (tests/test_live.py checks it)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from graphloc.factors.odometry import VelocityNoise, _wrap, relative_poses
+
+
+class ArcIntegrator:
+    """One robot's dead reckoning from its first stamp (0, 0, 0) over its velocity samples
+    (zero-order hold, `integrate_unicycle`). `samples` returns the (N,3) time, v, omega rows
+    known so far (the caller's growing table); `advance(stamps)` needs every row up to the
+    last of them."""
+
+    def __init__(self, samples, noise: VelocityNoise, covariances: bool = True):
+        self.samples, self.noise, self.covariances = samples, noise, covariances
+        self.stamp: float | None = None
+        self.state = (0.0, 0.0, 0.0)  # x, y and the unwrapped heading at `stamp`
+
+    def advance(self, stamps) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Integrate to `stamps` (increasing, after the last stamp; the first call's first
+        stamp is the origin): (K,3) poses (x, y, wrapped theta) at the new stamps, (K,3) steps
+        from the stamp before each, (K,3,3) their covariances (`integrate_unicycle`'s)."""
+        kf = np.asarray(stamps, dtype=float)
+        if self.stamp is None:
+            self.stamp = float(kf[0])
+            kf = kf[1:]
+            first = np.array([[0.0, 0.0, 0.0]])
+            if not len(kf):
+                return first, np.zeros((0, 3)), np.zeros((0, 3, 3))
+        else:
+            first = np.zeros((0, 3))
+        kf = np.concatenate([[self.stamp], kf])
+        table = self.samples()
+        times, v, w = table[:, 0], table[:, 1], table[:, 2]
+        inside = times[(times > kf[0]) & (times < kf[-1])]
+        bp = np.union1d(kf, inside)
+        dt = np.diff(bp)
+        sample = np.searchsorted(times, bp[:-1], side="right") - 1
+        active = sample >= 0
+        seg_v = np.where(active, v[np.maximum(sample, 0)], 0.0)
+        seg_w = np.where(active, w[np.maximum(sample, 0)], 0.0)
+        ds = seg_v * dt
+        dth = seg_w * dt
+        half = 0.5 * dth
+        chord = ds * np.sinc(half / np.pi)
+        x0, y0, th0 = self.state
+        theta = np.cumsum(np.concatenate([[th0], dth]))
+        mid = theta[:-1] + half
+        x = np.cumsum(np.concatenate([[x0], chord * np.cos(mid)]))
+        y = np.cumsum(np.concatenate([[y0], chord * np.sin(mid)]))
+        kf_idx = np.searchsorted(bp, kf)
+        poses = np.stack([x[kf_idx], y[kf_idx], _wrap(theta[kf_idx])], axis=1)
+        deltas = relative_poses(np.stack([x[kf_idx], y[kf_idx], theta[kf_idx]], axis=1))
+        self.stamp = float(kf[-1])
+        self.state = (x[-1], y[-1], theta[-1])
+        poses = np.concatenate([first, poses[1:]])
+        if not self.covariances:
+            return poses, deltas, np.zeros((0, 3, 3))
+        noise = self.noise
+        seg_interval = np.searchsorted(kf_idx, np.arange(dt.size), side="right") - 1
+        end = kf_idx[seg_interval + 1]
+        ex, ey = x[end] - x[:-1], y[end] - y[:-1]
+        var_s = noise.density_v**2 * dt
+        var_t = noise.density_w**2 * dt
+        c, s = np.cos(mid), np.sin(mid)
+        g = np.zeros((dt.size, 3, 2))
+        g[:, 0, 0], g[:, 1, 0] = c, s
+        g[:, 0, 1], g[:, 1, 1], g[:, 2, 1] = -ey, ex, 1.0
+        contrib = (
+            var_s[:, None, None] * g[:, :, 0, None] * g[:, None, :, 0]
+            + var_t[:, None, None] * g[:, :, 1, None] * g[:, None, :, 1]
+        )
+        cov_world = np.add.reduceat(contrib, kf_idx[:-1], axis=0)
+        th_end = theta[kf_idx[1:]]
+        rot = np.zeros((th_end.size, 3, 3))
+        ce, se = np.cos(th_end), np.sin(th_end)
+        rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = ce, se, -se, ce, 1.0
+        cov = rot @ cov_world @ np.transpose(rot, (0, 2, 1))
+        cov += np.diag([noise.floor_xy**2, noise.floor_xy**2, noise.floor_theta**2])
+        return poses, deltas, 0.5 * (cov + np.transpose(cov, (0, 2, 1)))

@@ -1,0 +1,391 @@
+"""`LiveGraph`: the team graph built as rows arrive -- wheel velocities and point measurements
+in time order in, each completed time step (time, factors with types) out, with the initial
+values of its new variables -- for the sections that are causal: `motion` (each wheel-odometry
+robot's pose grid and between factors, `ArcIntegrator`), the anchors (initial-pose priors,
+surfaces), `points` (range, bearing, range-bearing to robots and landmarks, known or SLAM,
+`team_graph.points.PointBuilder`). It grows a `TeamGraph` that `team_graph.passes.Pass` solves
+step by step (`graphloc.live.team.LiveTeam`).
+
+Causality. A grid node start + k dt exists once its robot's odometry reaches it (the whole-run
+grid ends at the last odometry row: `motion.node_times`), and its step is integrated then (the
+rows before it are known). A measurement joins the nearest node (`motion.Timeline.nearest`)
+once a node after it beyond the tolerance exists (no later node can be nearer) or the run is
+finished; measurements are taken in arrival order (the run's order, which fixes the landmark
+anchors and guesses). A step at time T is emitted once every robot's odometry has reached T and
+no measurement that could join a node at T (time <= T + dt/2) is still to come or waiting. So
+the steps, their factors in order and the initial values are those of `build_graph` over the
+same rows (tests/test_live.py). A factor whose newest pose is older than the last emitted step
+(a measurement between two static robots, whose one pose is at the start) enters with the next
+step.
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+from graphloc.io import SkipReport
+from graphloc.keys import pose_key
+from graphloc.live.arc import ArcIntegrator
+from graphloc.pipelines.team_graph.config import GraphConfig, run_precision
+from graphloc.pipelines.team_graph.graph import TeamGraph
+from graphloc.pipelines.team_graph.motion import between_factor, robot_anchors, velocity_noise
+from graphloc.pipelines.team_graph.points import PointBuilder, body_frame_points
+from graphloc.run import TeamRun, planar_covariance, pose_from_planar
+
+# the sections `LiveGraph` builds, and the tables it takes rows of
+LIVE_TABLES = ("odometry", "range", "bearing", "range_bearing", "groundtruth")
+# tables whose sections are not causal yet, and why (`not_live`)
+NOT_LIVE = {
+    "relative_pose": "event-clocked pose times (relative poses split at measurement times)",
+    "relative_pose3": "event-clocked pose times (relative poses split at measurement times)",
+    "markers": "candidate sets (P3P, the hypothesis trackers, placement by decisions)",
+    "candidates": "candidate sets (the hypothesis trackers, placement by decisions)",
+    "ellipses": "candidate sets (circle poses, the hypothesis trackers)",
+    "features": "camera feature tracks (a track's point prior from all its pixels)",
+    "scans": "KISS-ICP odometry and inter-robot scan registration",
+}
+
+
+class NotLiveError(ValueError):
+    """A run that needs sections the live builder does not build yet (`not_live`)."""
+
+
+def not_live(run: TeamRun, tables: dict) -> list[str]:
+    """What keeps a run (its robots, and each robot's tables by name) off the live builder, one
+    line each; empty: the run is live."""
+    out = []
+    for r, robot in enumerate(run.robots):
+        for table in sorted(set(tables.get(robot.name, ())) & set(NOT_LIVE)):
+            out.append(f"robot {robot.name}: table {table!r}: {NOT_LIVE[table]}")
+        if robot.initial_pose is None:
+            out.append(
+                f"robot {robot.name}: no initial_pose: its placement (decided candidate sets, "
+                f"mutual bearings, resection, scan registration) and alternative starts"
+            )
+        if not robot.static and "odometry" not in tables.get(robot.name, ()):
+            out.append(
+                f"robot {robot.name}: no odometry table: event-clocked pose times (poses at "
+                f"its measurement times)"
+            )
+    return out
+
+
+class _Grid:
+    """A growable float array (amortized appends) with its filled part as a view."""
+
+    def __init__(self, width: int = 0):
+        self.shape = (width,) if width else ()
+        self.data = np.zeros((64, *self.shape))
+        self.n = 0
+
+    def append(self, rows: np.ndarray) -> None:
+        rows = np.asarray(rows, dtype=float).reshape(-1, *self.shape)
+        while self.n + len(rows) > len(self.data):
+            self.data = np.concatenate([self.data, np.zeros_like(self.data)])
+        self.data[self.n : self.n + len(rows)] = rows
+        self.n += len(rows)
+
+    @property
+    def view(self) -> np.ndarray:
+        return self.data[: self.n]
+
+
+class _Robot:
+    """One robot's live state: its odometry rows, pose times, dead reckoning and integrators."""
+
+    def __init__(self, r: int, robot, run: TeamRun, config: GraphConfig):
+        self.r, self.robot = r, robot
+        self.velocity = _Grid(3)
+        self.times = _Grid()
+        self.finished = False
+        noise = velocity_noise(run, r, config)
+        self.steps = ArcIntegrator(lambda: self.velocity.view, noise)
+        # range-bearing rows re-expressed at their node (`points.body_frame_points`): dead
+        # reckoning over the node times and every range-bearing time, as the whole run's
+        # `points._corrected_range_bearings` integrates it
+        self.frames = ArcIntegrator(lambda: self.velocity.view, noise, covariances=False)
+        self.stamps: list = []  # range-bearing times not integrated by `frames` yet
+        self.at: dict = {}  # stamp -> planar pose of `frames`
+
+    @property
+    def end(self) -> float:
+        """Time up to which the robot's pose times are final."""
+        if self.finished or self.robot.static:
+            return np.inf
+        return self.velocity.view[-1, 0] if self.velocity.n else -np.inf
+
+
+class LiveGraph:
+    """A `TeamGraph` (`graph`) grown from rows in time order: `velocity(r, row)` and
+    `point(m)` take them, `advance(watermark)` returns the steps completed now that no row
+    before `watermark` can arrive (each appended to graph.steps with the initial values of
+    its variables in graph.initial), `finish()` the rest."""
+
+    def __init__(self, run: TeamRun, config: GraphConfig, start_time: float | None):
+        problems = not_live(run, {r.name: ("odometry",) for r in run.robots})
+        if problems:
+            raise NotLiveError("not live yet: " + "; ".join(problems))
+        self.run, self.config = run, config
+        self.start = start_time
+        self.robots = [_Robot(r, robot, run, config) for r, robot in enumerate(run.robots)]
+        self.points = PointBuilder(run, config)
+        self.queue: list = []  # point measurements waiting for their poses, in arrival order
+        self.arrived: list = []  # every point measurement, in arrival order (the run's points)
+        self.pending: dict = {}  # step time -> [(order key, factor, type)]
+        self.emitted = -np.inf  # time of the last emitted step
+        self.horizon = max(config.keyframe_dt / 2, config.sync_tolerance) + 1e-6
+        self.made = 0  # point factors taken from `points.made` so far
+        self.first_seen = np.inf  # earliest row time (the start of a run without odometry)
+        self.graph = TeamGraph(
+            run,
+            config,
+            [r.times.view for r in self.robots],
+            {},
+            [],
+            [],
+            [],
+            {},
+            [[None] for _ in run.robots],
+            skips=SkipReport(),
+            precision=run_precision(run),
+            sensor_poses=self.points.sensors.poses,
+        )
+        self.graph.skips.merge(run.skips)
+
+    # ---- rows in ------------------------------------------------------------------------------
+
+    def velocity(self, r: int, row) -> None:
+        """A wheel-odometry row (time, v, omega) of robot r."""
+        self.first_seen = min(self.first_seen, row[0])
+        robot = self.robots[r]
+        robot.velocity.append(row)
+        if self.start is None:
+            self._start_if_known()
+        if self.start is not None:
+            self._grow(robot)
+
+    def point(self, m) -> None:
+        """A point measurement (`graphloc.run.PointMeasurement`)."""
+        self.first_seen = min(self.first_seen, m.time)
+        self.arrived.append(m)
+        if m.kind == "range_bearing":
+            self.robots[m.robot].stamps.append(m.time)
+        self.queue.append(m)
+
+    # ---- steps out ----------------------------------------------------------------------------
+
+    def advance(self, watermark: float) -> list:
+        """The steps completed when every row before `watermark` has arrived (time order)."""
+        if self.start is None:
+            return []
+        self._take_points(watermark)
+        end = min(robot.end for robot in self.robots)
+        before = watermark - self.horizon  # no measurement that joins a pose there can come
+        if self.queue:
+            before = min(before, self.queue[0].time - self.horizon)
+        return self._emit(lambda t: t <= end and t < before)
+
+    def finish(self) -> list:
+        """Every row is in: the remaining steps."""
+        for robot in self.robots:
+            robot.finished = True
+        if self.start is None:
+            self._start_if_known(final=True)
+            if self.start is None:
+                return []
+            for robot in self.robots:
+                self._grow(robot)
+        self._take_points(np.inf)
+        steps = self._emit(lambda t: True)
+        graph = self.graph
+        graph.node_times = [robot.times.view.copy() for robot in self.robots]
+        graph.anchored_from = {
+            r: robot.times.view[0] for r, robot in enumerate(self.robots) if robot.times.n
+        }
+        for r, robot in enumerate(self.robots):
+            if not robot.times.n and not robot.robot.static:
+                graph.skips.add(
+                    "unanchored_robot",
+                    f"robot {robot.robot.name}: no odometry rows arrived, so it has no poses",
+                )
+        self._counts()
+        return steps
+
+    # ---- internals ----------------------------------------------------------------------------
+
+    def _start_if_known(self, final: bool = False) -> None:
+        """The run's start when the manifest gives none (`graphloc_log.team_run`): the latest
+        first odometry time of the robots (once each has its first row), else the first row."""
+        moving = [robot for robot in self.robots if not robot.robot.static]
+        firsts = [robot.velocity.view[0, 0] for robot in moving if robot.velocity.n]
+        if moving and (len(firsts) == len(moving) or (final and firsts)):
+            self.start = float(max(firsts))
+        elif final and np.isfinite(self.first_seen):
+            self.start = float(self.first_seen)
+        if self.start is not None:
+            for robot in self.robots:
+                self._grow(robot)
+
+    def _grow(self, robot: _Robot) -> None:
+        """New pose times of a robot (its grid up to its last odometry row; a static robot's
+        one pose), each step integrated, its factors and dead-reckoned initial value made."""
+        config, r = self.config, robot.r
+        if robot.robot.static:
+            n = 1
+        elif robot.velocity.n:
+            end = robot.velocity.view[-1, 0]
+            n = max(int(np.floor((end - self.start) / config.keyframe_dt + 1e-9)) + 1, 1)
+        else:
+            return
+        k0 = robot.times.n
+        if n <= k0:
+            return
+        new = self.start + config.keyframe_dt * np.arange(k0, n)
+        robot.times.append(new)
+        self.graph.node_times[r] = robot.times.view
+        initial, steps = self.graph.initial, self.graph.step_rel[r]
+        if robot.robot.static:
+            stamps, deltas, covs = new, np.zeros((0, 3)), np.zeros((0, 3, 3))
+        else:
+            _, deltas, covs = robot.steps.advance(new)
+        if k0 == 0:
+            initial[pose_key(r, 0)] = robot.robot.initial_pose
+        for j, (d, c) in enumerate(zip(deltas, planar_covariance(covs))):
+            k = k0 + j + (k0 == 0)
+            rel = pose_from_planar(*d)
+            steps.append((rel, c))
+            initial[pose_key(r, k)] = initial[pose_key(r, k - 1)].compose(rel)
+            f = between_factor(r, k - 1, k, rel, c, config)
+            self._pending(robot.times.view[k], (0, r, k), f, "odometry")
+        self._anchors(robot, k0)
+
+    def _anchors(self, robot: _Robot, k0: int) -> None:
+        """The prior on the robot's first pose and the surface factors of its poses from k0
+        on (`motion.robot_anchors`, in its order)."""
+        made = robot_anchors(robot.r, robot.robot, self.config, robot.times.view, k0)
+        for j, (t, f, kind) in enumerate(made):
+            self._pending(t, (1, robot.r, j), f, kind)
+
+    def _nearest(self, r: int, t: float) -> tuple[bool, int]:
+        """(known, index of robot r's pose nearest t or -1) as `motion.Timeline.nearest` gives
+        it over the robot's final pose times; known False while a later pose could be nearer."""
+        robot = self.robots[r]
+        if robot.robot.static:
+            return robot.times.n > 0, 0
+        times = robot.times.view
+        tol = self.config.keyframe_dt / 2 + 1e-9
+        if not robot.finished and (not len(times) or times[-1] <= t + tol):
+            return False, -1
+        n = len(times)
+        if not n:
+            return True, -1
+        i = min(max(int(times.searchsorted(t)), 1), n - 1) if n > 1 else 0
+        if i > 0 and abs(times[i - 1] - t) <= abs(times[i] - t):
+            i -= 1
+        return True, (i if abs(times[i] - t) <= tol else -1)
+
+    def _corrected(self, m, watermark: float):
+        """A wheel-odometry robot's range-bearing `m` in its body frame at the node it joins
+        (`points.body_frame_points`), None until every range-bearing time before that node has
+        arrived; `False`: the measurement is taken as measured (no odometry)."""
+        robot = self.robots[m.robot]
+        if m.kind != "range_bearing" or not robot.velocity.n:
+            return False
+        times = robot.times.view
+        f = int(np.clip(np.rint((m.time - times[0]) / self.config.keyframe_dt), 0, len(times) - 1))
+        t_f = times[f]
+        if t_f > watermark:
+            return None
+        upto = max(m.time, t_f)
+        known = np.union1d(times[times <= upto], [s for s in robot.stamps if s <= upto])
+        if robot.frames.stamp is not None:
+            known = known[known > robot.frames.stamp]
+        if len(known):
+            poses, _, _ = robot.frames.advance(known)
+            robot.at.update(zip(known.tolist(), poses))
+            robot.stamps = [s for s in robot.stamps if s > upto]
+        return body_frame_points([m], robot.at[m.time][None], robot.at[float(t_f)][None])[0]
+
+    def _take_points(self, watermark: float) -> None:
+        """Point measurements whose poses are known, in arrival order, as factors."""
+        node_times = self.graph.node_times
+        while self.queue:
+            m = self.queue[0]
+            if not self.points.used(m):
+                self.queue.pop(0)
+                continue
+            known, k = self._nearest(m.robot, m.time)
+            known_t, kt = (True, -1) if m.target < 0 else self._nearest(m.target, m.time)
+            if not (known and known_t):
+                return
+            corrected = self._corrected(m, watermark) if k >= 0 else False
+            if corrected is None:
+                return
+            self.queue.pop(0)
+            self.points.add(m, k, kt, node_times, corrected or None)
+            self._take_made()
+
+    def _take_made(self) -> None:
+        """The point section's new factors and initial values (landmark guesses, sensor
+        poses) into the graph."""
+        made = self.points.made.factors
+        initial = self.graph.initial
+        for t, f, kind in made[self.made :]:
+            self.made += 1
+            self._pending(t, (2, 0, self.made), f, kind)
+        for lkey, guess in self.points.landmark_guess.items():
+            if lkey in initial:
+                continue
+            if isinstance(guess, tuple) and guess and guess[0] == "from":
+                _, r, k, direction, rng = guess
+                initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
+            else:
+                initial[lkey] = np.asarray(guess, dtype=float)
+        for key, (body, E) in self.points.sensors.poses.items():
+            if key not in initial:
+                initial[key] = initial[body].compose(E)
+
+    def _pending(self, t: float, order: tuple, factor, kind: str) -> None:
+        self.pending.setdefault(float(t), []).append((order, factor, kind))
+
+    def _emit(self, complete) -> list:
+        """Steps of every pending time `complete(time)` is True for, in time order; a factor
+        older than the last emitted step joins the next one."""
+        due = sorted(t for t in self.pending if complete(t))
+        steps = []
+        late: list = []
+        for t in due:
+            group = sorted(self.pending.pop(t), key=lambda item: item[0])
+            if t <= self.emitted:
+                late += group
+                continue
+            group = late + group
+            late = []
+            step = (t, [(f, kind) for _, f, kind in group])
+            self.graph.steps.append(step)
+            self.graph.factor_types += [kind for _, _, kind in group]
+            self.emitted = t
+            steps.append(step)
+        if late:  # joins the next step
+            self.pending.setdefault(np.nextafter(self.emitted, np.inf), []).extend(late)
+        return steps
+
+    def _counts(self) -> None:
+        graph, points = self.graph, self.points
+        types = graph.factor_types
+        graph.counts = {
+            "robots": len(self.run.robots),
+            "poses": sum(robot.times.n for robot in self.robots),
+            "candidate_sets": 0,
+            "marker_points": 0,
+            "frame_marker_points": 0,
+            "sensor_poses": len(points.sensors.poses),
+            "committed_sets": 0,
+            "landmark_anchors": points.n_anchor,
+            "feature_tracks": 0,
+            "steps": len(graph.steps),
+            "excluded_by_option": points.excluded,
+            **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
+        }
+        graph.skips.merge(points.made.skips)

@@ -1,0 +1,90 @@
+"""A recorded run through the live API, as if its robots were running: every row of a log
+directory or an MRCLAM directory in time order, the rows of all robots merged (`run_rows`),
+pushed into a `LiveTeam` (`replay`)."""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import fields
+from pathlib import Path
+
+from graphloc.io import LANDMARK_PREFIX, MANIFEST, iter_records, read_manifest
+from graphloc.live.builder import LIVE_TABLES
+from graphloc.live.team import LiveTeam
+from graphloc.pipelines.team_graph.options import RunOptions
+from graphloc.records import TABLES
+
+
+def run_rows(source, options: RunOptions | None = None):
+    """(robot, table, row) of every row of the run at `source` that a live team takes, in
+    time order (ties: robot, then table, as `graphloc.io.iter_records` merges a log), cut
+    like the loader cuts it (`RunOptions.duration`)."""
+    source = Path(source)
+    opts = RunOptions() if options is None else options
+    if (source / MANIFEST).is_file():
+        return _log_rows(source, opts.duration)
+    return _mrclam_rows(source, opts.duration)
+
+
+def replay(team: LiveTeam, rows) -> None:
+    """Push `rows` ((robot, table, row) each) into `team`, in their order."""
+    for robot, table, row in rows:
+        team.push(robot, table, row)
+
+
+def _log_rows(root: Path, duration):
+    end = None
+    if duration is not None:
+        from graphloc.datasets import open_run
+
+        end = open_run(root).start_time + duration
+    manifest = read_manifest(root)
+    tables = [t for t in LIVE_TABLES if t != "groundtruth"]
+    for rec in iter_records(root, tables=tables, on_error="skip"):
+        if end is not None and rec.time > end:
+            continue
+        row = {f.name: getattr(rec, f.name) for f in fields(rec) if f.name not in ("robot", "line")}
+        yield rec.robot, _table_of(rec, manifest), row
+
+
+def _table_of(rec, manifest) -> str:
+    return next(name for name, cls in TABLES.items() if isinstance(rec, cls))
+
+
+def _mrclam_rows(root: Path, duration):
+    """An MRCLAM directory's rows as `write_planar_run` writes them (sensors "wheels" and
+    "camera"), as numbers."""
+    from graphloc.datasets.mrclam import MRCLAM
+
+    run = MRCLAM(root, duration=duration).load()
+    names = run.robots
+
+    def odometry(r):
+        for t, v, w in run.odometry[r]:
+            yield float(t), names[r], "odometry", {
+                "time": float(t),
+                "sensor": "wheels",
+                "v": float(v),
+                "omega": float(w),
+            }
+
+    def observations():
+        for t, r, target, lm, rng, b in zip(
+            run.obs_time,
+            run.obs_robot,
+            run.obs_target_robot,
+            run.obs_landmark,
+            run.obs_range,
+            run.obs_bearing,
+        ):
+            yield float(t), names[r], "range_bearing", {
+                "time": float(t),
+                "sensor": "camera",
+                "target": names[target] if target >= 0 else f"{LANDMARK_PREFIX}{lm}",
+                "range": float(rng),
+                "bearing": float(b),
+            }
+
+    streams = [odometry(r) for r in range(len(names))] + [observations()]
+    for _, robot, table, row in heapq.merge(*streams, key=lambda e: e[0]):
+        yield robot, table, row

@@ -1,0 +1,145 @@
+"""Rows pushed to a live team: each checked field by field as `graphloc.table_reader` checks a
+table's rows (parsing, finite, plausible range, known sensor of the table's type, known target)
+and then by its table's handler (`datasets.log_rows.TABLE_HANDLERS`), a refused row counted in
+a `SkipReport` naming robot, table, row and field (`RowChecker`); the accepted ones held in a
+time window and released in time order, a row older than what was released counted as a
+`late_row` skip (`TimeWindow`)."""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Mapping
+from dataclasses import fields
+
+from graphloc.datasets.log_rows import TABLE_HANDLERS, RowContext, Skip
+from graphloc.live.builder import LIVE_TABLES, NOT_LIVE, NotLiveError
+from graphloc.records import SENSOR_TYPES, TABLES, columns, plausible
+from graphloc.table_reader import known_target
+from graphloc.textio import SkipReport, cut, shown
+
+
+class RowChecker:
+    """Checks rows of a team (`manifest`: the sensors and names rows refer to; `robots`: the
+    run's `TeamRobot`s; `noise`: the noise defaults the handlers take) into typed items:
+    `check(robot, table, row, n)` -> the handler's item, or None (the row counted in
+    `skips`)."""
+
+    def __init__(self, manifest, robots: tuple, noise: dict, landmark_ids, skips: SkipReport):
+        self.manifest, self.robots, self.noise = manifest, robots, noise
+        self.index = {r.name: i for i, r in enumerate(robots)}
+        self.landmark_ids = landmark_ids
+        self.skips = skips
+        self._convs = {
+            table: {f.name: f.type for f in fields(TABLES[table])} for table in LIVE_TABLES
+        }
+
+    def check(self, robot: str, table: str, row: Mapping, n: int):
+        """Robot `robot`'s row n of `table` as its handler's item, None if refused (counted).
+        ValueError for an unknown robot or table, `NotLiveError` for a table not live yet."""
+        if robot not in self.index:
+            raise ValueError(f"unknown robot {robot!r}; robots: {sorted(self.index)}")
+        if table in NOT_LIVE:
+            raise NotLiveError(f"table {table!r} is not live yet: {NOT_LIVE[table]}")
+        if table not in LIVE_TABLES:
+            raise ValueError(f"unknown table {table!r}; live tables: {', '.join(LIVE_TABLES)}")
+        where = f"robot {robot!r}, table {table!r}, row {n}"
+        values = {}
+        limits = plausible(table)
+        for name in columns(table):
+            if name not in row:
+                return self._skip("missing_field", f"{where}: field {name!r} is missing")
+            value, problem = _value(row[name], self._convs[table][name], limits.get(name))
+            if problem:
+                return self._skip(problem[0], f"{where}: field {name!r}: {problem[1]}")
+            values[name] = value
+        manifest_robot = self.manifest.robot(robot)
+        if "sensor" in values:
+            sensor = manifest_robot.sensor(values["sensor"])
+            if sensor is None:
+                return self._skip(
+                    "unknown_sensor",
+                    f"{where}: field 'sensor': robot {robot!r} has no sensor {values['sensor']!r}",
+                )
+            if table in SENSOR_TYPES and sensor.type != SENSOR_TYPES[table]:
+                return self._skip(
+                    "sensor_type",
+                    f"{where}: field 'sensor': {sensor.name!r} is a {sensor.type}, table "
+                    f"{table} needs a {SENSOR_TYPES[table]}",
+                )
+        if "target" in values and not known_target(
+            values["target"], set(self.index), self.landmark_ids
+        ):
+            return self._skip(
+                "unknown_target",
+                f"{where}: field 'target': {values['target']!r} is neither a robot nor a known "
+                f"landmark",
+            )
+        record = TABLES[table](robot=robot, line=n, **values)
+        ctx = RowContext(where, self.index[robot], self.index, self.robots, self.noise)
+        item = TABLE_HANDLERS[table].parse(record, ctx)
+        if isinstance(item, Skip):
+            return self._skip(item.reason, item.message)
+        return item
+
+    def _skip(self, reason: str, message: str) -> None:
+        self.skips.add(reason, message)
+        return None
+
+
+def _value(raw, kind, limits) -> tuple:
+    """(value, None) of one field (text or a number), or (None, (reason, message))."""
+    conv = float if kind in (float, "float") else int if kind in (int, "int") else str
+    if conv is str:
+        return str(raw).strip(), None
+    if isinstance(raw, bool):
+        return None, ("parse", f"{raw!r} is not a number")
+    try:
+        value = conv(raw.strip() if isinstance(raw, str) else raw)
+    except (TypeError, ValueError, OverflowError):
+        return None, ("parse", f"cannot parse {shown(str(raw))} as {conv.__name__}")
+    if conv is float and not math.isfinite(value):
+        return None, ("non_finite", f"{cut(str(raw))} is not finite")
+    lo, hi = limits or (-math.inf, math.inf)
+    if not lo <= value <= hi:
+        return None, ("implausible", f"{cut(str(raw))} is outside the plausible [{lo:g}, {hi:g}]")
+    return value, None
+
+
+class TimeWindow:
+    """Items held until `window` seconds of newer time have arrived, then released in time order
+    (ties in arrival order). The release front is the newest time seen minus `window`; an
+    item older than the front is late: counted (`late_row`) and dropped."""
+
+    def __init__(self, window: float, skips: SkipReport):
+        if not (math.isfinite(window) and window >= 0):
+            raise ValueError(f"window must be finite and >= 0 [s], got {window}")
+        self.window, self.skips = window, skips
+        self.heap: list = []
+        self.front = -math.inf  # every item before this time has been released
+        self.count = 0
+
+    def add(self, time: float, item, where: str) -> list:
+        """Hold one item; returns the items released by it, in time order."""
+        if time < self.front:
+            self.skips.add(
+                "late_row",
+                f"{where}: time {time} arrived after the window released up to {self.front} "
+                f"(window {self.window} s)",
+            )
+            return []
+        heapq.heappush(self.heap, (time, self.count, item))
+        self.count += 1
+        self.front = max(self.front, time - self.window)
+        return self.release(self.front)
+
+    def release(self, front: float) -> list:
+        out = []
+        while self.heap and self.heap[0][0] <= front:
+            out.append(heapq.heappop(self.heap)[2])
+        return out
+
+    def flush(self) -> list:
+        """Every held item (the run is over)."""
+        self.front = math.inf
+        return self.release(math.inf)
