@@ -18,6 +18,7 @@ from graphloc.datasets.rosbag_topics import (
     COMPRESSED,
     IMAGE,
     MESSAGE_TYPES,
+    ODOMETRY,
     POSE,
     TRANSFORM,
     VECTOR3,
@@ -272,6 +273,11 @@ def message_rows(where0: str, m: TopicMap, i: int, msgtype: str, msg, skips: Ski
         if m.table == "groundtruth":
             xyz, q, _ = pose(msgtype, msg)
             return [(t, *xyz, *q)]
+        if m.table == "odometry":  # unicycle velocities: forward speed, yaw rate (body frame)
+            tw = msg.twist.twist if msgtype == ODOMETRY else msg.twist
+            v, omega = float(tw.linear.x), float(tw.angular.z)
+            _finite(v, omega)
+            return [(t, m.sensor, v, omega)]
         if m.table == "range":
             r = float(msg.range)
             _finite(r)

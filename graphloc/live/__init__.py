@@ -22,4 +22,12 @@ def replay_live(source, options=None, window: float = 0.5, subscriber=None):
     return team
 
 
-__all__ = ["LiveTeam", "LiveUpdate", "NotLiveError", "RobotPose", "replay", "replay_live", "run_rows"]
+__all__ = [
+    "LiveTeam",
+    "LiveUpdate",
+    "NotLiveError",
+    "RobotPose",
+    "replay",
+    "replay_live",
+    "run_rows",
+]

@@ -48,9 +48,9 @@ class LiveRun:
     def skipped(self) -> int:
         return self.source.skips.total + self.team.skips.total
 
-    def push(self, rows) -> None:
-        """Rows (receive time, robot, table, row) into the recorder and the team."""
-        if self.recorder is not None:
+    def push(self, rows, record: bool = True) -> None:
+        """Rows (receive time, robot, table, row) into the recorder (`record`) and the team."""
+        if record and self.recorder is not None:
             self.recorder.write([r[1:] for r in rows])
         for arrived, robot, table, row in rows:
             if table == "groundtruth":
@@ -60,6 +60,17 @@ class LiveRun:
             self.pushed += 1
         if self.status is not None:
             self.status.add_rows([r[2] for r in rows])
+
+    def latency_summary(self) -> dict:
+        """p50 / p95 / max [s] of the end-to-end latencies (empty before an update)."""
+        import numpy as np
+
+        lat = np.asarray(self.latencies)
+        if not len(lat):
+            return {}
+        return {
+            k: float(np.percentile(lat, q)) for k, q in (("p50", 50), ("p95", 95), ("max", 100))
+        }
 
     def run(self, stop=lambda: False, idle: float | None = None, poll: float = 0.05) -> str:
         """Until `stop()` ("stopped") or `idle` s without a row ("idle")."""

@@ -61,12 +61,17 @@ def _mrclam_rows(root: Path, duration):
 
     def odometry(r):
         for t, v, w in run.odometry[r]:
-            yield float(t), names[r], "odometry", {
-                "time": float(t),
-                "sensor": "wheels",
-                "v": float(v),
-                "omega": float(w),
-            }
+            yield (
+                float(t),
+                names[r],
+                "odometry",
+                {
+                    "time": float(t),
+                    "sensor": "wheels",
+                    "v": float(v),
+                    "omega": float(w),
+                },
+            )
 
     def observations():
         for t, r, target, lm, rng, b in zip(
@@ -77,13 +82,18 @@ def _mrclam_rows(root: Path, duration):
             run.obs_range,
             run.obs_bearing,
         ):
-            yield float(t), names[r], "range_bearing", {
-                "time": float(t),
-                "sensor": "camera",
-                "target": names[target] if target >= 0 else f"{LANDMARK_PREFIX}{lm}",
-                "range": float(rng),
-                "bearing": float(b),
-            }
+            yield (
+                float(t),
+                names[r],
+                "range_bearing",
+                {
+                    "time": float(t),
+                    "sensor": "camera",
+                    "target": names[target] if target >= 0 else f"{LANDMARK_PREFIX}{lm}",
+                    "range": float(rng),
+                    "bearing": float(b),
+                },
+            )
 
     streams = [odometry(r) for r in range(len(names))] + [observations()]
     for _, robot, table, row in heapq.merge(*streams, key=lambda e: e[0]):
