@@ -254,11 +254,18 @@ def table_path(robot: str, table: str) -> str:
 
 
 def write_log_manifest(
-    tf: TopicsFile, out: Path, tables: dict, meta: dict, intrinsics=None, extrinsics=None
+    tf: TopicsFile,
+    out: Path,
+    tables: dict,
+    meta: dict,
+    intrinsics=None,
+    extrinsics=None,
+    key: str = "import",
 ) -> None:
     """The manifest (and landmarks.csv) of a log directory of the topics file `tf`: its robots
     with `tables` (robot -> {table: relative path}), the cameras' intrinsics and the sensors'
-    extrinsics found in the bag ((robot, sensor) -> params / 4x4), `meta` as `meta.import`."""
+    extrinsics found in the bag ((robot, sensor) -> params / 4x4), `meta` as `meta.<key>`
+    (`import`: what the log reader counts as the import's skips; `live`: a live recording)."""
     intrinsics, extrinsics = intrinsics or {}, extrinsics or {}
     robots = []
     for r in copy.deepcopy(tf.robots):
@@ -273,7 +280,7 @@ def write_log_manifest(
         "name": tf.name,
         "start_time": tf.start_time,
         "robots": robots,
-        "meta": {**tf.meta, "import": meta},
+        "meta": {**tf.meta, key: meta},
     }
     if tf.landmarks:
         with open(out_path(out, "landmarks.csv"), "w", newline="") as fh:

@@ -44,7 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--window", type=float, default=0.5, help="s a row may arrive late (default 0.5)"
     )
-    parser.add_argument("--idle", type=float, help="end after this many s without a row")
+    parser.add_argument(
+        "--idle", type=float, help="end this many s after the last row (not before the first)"
+    )
     parser.add_argument(
         "--wait", type=float, default=60.0, help="s to wait for the log's manifest (default 60)"
     )

@@ -73,8 +73,9 @@ class LiveRun:
         }
 
     def run(self, stop=lambda: False, idle: float | None = None, poll: float = 0.05) -> str:
-        """Until `stop()` ("stopped") or `idle` s without a row ("idle")."""
-        last = time.monotonic()
+        """Until `stop()` ("stopped") or `idle` s after the last row ("idle"; not before the
+        first row)."""
+        last = None
         while True:
             if stop():
                 return "stopped"
@@ -83,7 +84,7 @@ class LiveRun:
             if rows:
                 last = now
                 self.push(rows)
-            elif idle is not None and now - last >= idle:
+            elif idle is not None and last is not None and now - last >= idle:
                 return "idle"
             if self.status is not None:
                 self.status.show(self.skipped())

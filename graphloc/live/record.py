@@ -59,9 +59,8 @@ class LogRecorder:
                 )
         else:
             self.root.mkdir(parents=True, exist_ok=True)
-            write_log_manifest(
-                tf, self.root, self.tables, {"source": "ros2", "topics": str(tf.path)}
-            )
+            meta = {"source": "ros2", "topics": str(tf.path)}
+            write_log_manifest(tf, self.root, self.tables, meta, key="live")
         self._files = {}
         for robot, tables in self.tables.items():
             for table, rel in tables.items():

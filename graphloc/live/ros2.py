@@ -31,6 +31,7 @@ POSE_TYPE = "geometry_msgs/msg/PoseWithCovarianceStamped"
 PATH_TYPE = "nav_msgs/msg/Path"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 FRAME = "map"
+KEEP_POSES = 10000  # pose and tf messages a late reader gets (transient-local history)
 LOG_ROW = "graphloc_msgs/msg/LogRow"  # a log table's line (graphloc.live.ros2_types)
 # GTSAM Pose3 tangent (rx ry rz tx ty tz) -> ROS pose covariance order (x y z rx ry rz)
 _GTSAM_TO_ROS = [3, 4, 5, 0, 1, 2]
@@ -48,11 +49,16 @@ def domain_id() -> int:
     return value
 
 
-def qos():
+def qos(keep: int | None = None):
+    """Reliable, keep-all (`keep` None: the rows in) or transient-local keeping the last `keep`
+    messages (the poses out: a reader that joins late gets them, as ROS 2's latched topics)."""
     from cyclonedds.core import Policy, Qos
     from cyclonedds.util import duration
 
-    return Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.History.KeepAll)
+    reliable = Policy.Reliability.Reliable(duration(seconds=1))
+    if keep is None:
+        return Qos(reliable, Policy.History.KeepAll)
+    return Qos(reliable, Policy.History.KeepLast(keep), Policy.Durability.TransientLocal)
 
 
 def participant(domain: int | None = None):
@@ -229,10 +235,12 @@ class Ros2Sink:
             for suffix, msgtype in (("pose", POSE_TYPE), ("path", PATH_TYPE)):
                 name = dds_topic(f"/{robot}/{suffix}")
                 self._writers[(robot, suffix)] = DataWriter(
-                    self.dp, Topic(self.dp, name, idl_type(msgtype)), qos=qos()
+                    self.dp,
+                    Topic(self.dp, name, idl_type(msgtype)),
+                    qos=qos(KEEP_POSES if suffix == "pose" else 1),
                 )
         self._tf = DataWriter(
-            self.dp, Topic(self.dp, dds_topic("/tf"), idl_type(TF_TYPE)), qos=qos()
+            self.dp, Topic(self.dp, dds_topic("/tf"), idl_type(TF_TYPE)), qos=qos(KEEP_POSES)
         )
         self._paths: dict = {r: [] for r in robots}
         self._path_sent = {r: -np.inf for r in robots}
