@@ -19,8 +19,9 @@ from graphloc.io import MANIFEST, read_manifest
 
 
 def _write_slowly(src: Path, dst: Path, pause: float = 0.002) -> None:
-    """A logger: the landmark map and the manifest, then every table's lines in time order across tables (each line
-    in two writes, so the tail meets partial lines), TUM ground truth at the end."""
+    """A logger: the landmark map and the manifest, then every table's lines in time order
+    across tables (each line in two writes, so the tail meets partial lines), TUM ground truth
+    at the end."""
     time.sleep(0.3)  # the verb waits for the manifest
     for extra in src.glob("*.csv"):  # landmarks.csv: the map, known before the run
         (dst / extra.name).write_bytes(extra.read_bytes())
