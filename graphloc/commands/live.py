@@ -89,7 +89,8 @@ def _source(args, opts: RunOptions):
 def run(args: argparse.Namespace) -> int:
     from graphloc.datasets import open_run
     from graphloc.live import LiveTeam
-    from graphloc.live.pipeline import LiveRun
+    from graphloc.live.pipeline import UPDATE_COLUMNS, LiveRun
+    from graphloc.log_writer import write_csv as write_table_rows
     from graphloc.live.status import StatusLine
     from graphloc.runner.team_run import write_run
 
@@ -145,6 +146,7 @@ def run(args: argparse.Namespace) -> int:
             "consistent": metrics["consistent"],
         }
         (out / "live.json").write_text(dumps_json(summary, indent=1) + "\n")
+        write_table_rows(out / "live_updates.csv", UPDATE_COLUMNS, live.updates)
         if view is not None:
             view.close()
         print(dumps_json({k: summary[k] for k in ("ended", "rows", "updates")}, indent=1))

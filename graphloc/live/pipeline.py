@@ -4,13 +4,29 @@ stop signal or `idle` seconds without a row; `graphloc live` is a thin verb over
 
 A source has `poll(timeout) -> [(receive time, robot, table, row)]` (`graphloc.live.ros2.
 Ros2Source`, `graphloc.live.tail.LogTail`) and `skips`. Ground-truth rows are recorded, not
-pushed (they are no measurement). The end-to-end latency of an update is the time from the
-arrival of the newest row it contains to the poses' publication (`latencies`)."""
+pushed (they are no measurement). An update happens while a row is pushed (the row whose time
+completes a step): its trigger. `updates` logs, per update and robot pose, the trigger (robot,
+table, its line: the log file's line, or for ROS 2 lines the message's index on its topic + 2)
+with the trigger's arrival and the poses' publication times (perf_counter, CLOCK_MONOTONIC, so
+another process on the machine can pair them with its own); `latencies` are the differences
+(a row's arrival -> the poses it completed, out)."""
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+
+
+UPDATE_COLUMNS = (
+    "step",
+    "time",
+    "robot",
+    "trigger_robot",
+    "trigger_table",
+    "trigger_line",
+    "arrived_s",
+    "published_s",
+)
 
 
 def robot_poses(update) -> dict:
@@ -25,11 +41,12 @@ class LiveRun:
     sinks: list = field(default_factory=list)  # .publish(poses) / LiveView.show(poses, time)
     status: object | None = None  # graphloc.live.status.StatusLine
     recorder: object | None = None  # graphloc.live.record.LogRecorder
-    latencies: list = field(default_factory=list)  # [s] newest row's arrival -> poses out
+    latencies: list = field(default_factory=list)  # [s] trigger's arrival -> poses out
+    updates: list = field(default_factory=list)  # UPDATE_COLUMNS rows
     pushed: int = 0
 
     def __post_init__(self):
-        self._newest = None  # arrival time of the newest row pushed since the last update
+        self._trigger = None  # (robot, table, line, arrival) of the row being pushed
         self.team.subscribe(self._on_update)
 
     def _on_update(self, update) -> None:
@@ -39,9 +56,12 @@ class LiveRun:
                 sink.show(poses, update.time)
             else:
                 sink.publish(poses)
-        if self._newest is not None:
-            self.latencies.append(time.perf_counter() - self._newest)
-            self._newest = None
+        out = time.perf_counter()
+        if self._trigger is not None:
+            robot, table, line, arrived = self._trigger
+            self.latencies.append(out - arrived)
+            for name, (t, _, _) in poses.items():
+                self.updates.append((update.step, t, name, robot, table, line, arrived, out))
         if self.status is not None:
             self.status.add_update(update.latency_s, poses)
 
@@ -55,7 +75,7 @@ class LiveRun:
         for arrived, robot, table, row in rows:
             if table == "groundtruth":
                 continue
-            self._newest = arrived
+            self._trigger = (robot, table, row.get("line", -1), arrived)
             self.team.push(robot, table, row)
             self.pushed += 1
         if self.status is not None:

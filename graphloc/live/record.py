@@ -13,6 +13,7 @@ from pathlib import Path
 from graphloc.datasets.rosbag import table_path, write_log_manifest
 from graphloc.datasets.rosbag_topics import TopicsFile
 from graphloc.io import MANIFEST, columns, iter_records, read_manifest
+from graphloc.live.topics import GROUNDTRUTH_COLUMNS
 from graphloc.log_writer import cell
 from graphloc.names import out_path
 
@@ -92,8 +93,10 @@ class LogRecorder:
         touched = set()
         for robot, table, row in rows:
             fh = self._files[(robot, table)]
-            sep = " " if table == "groundtruth" else ","
-            fh.write(sep.join(cell(v) for v in row.values()) + "\n")
+            if table == "groundtruth":
+                fh.write(" ".join(cell(row[c]) for c in GROUNDTRUTH_COLUMNS) + "\n")
+            else:
+                fh.write(",".join(cell(row[c]) for c in columns(table)) + "\n")
             touched.add(fh)
         for fh in touched:
             fh.flush()
