@@ -7,9 +7,9 @@ Ros2Source`, `graphloc.live.tail.LogTail`) and `skips`. Ground-truth rows are re
 pushed (they are no measurement). An update happens while a row is pushed (the row whose time
 completes a step): its trigger. `updates` logs, per update and robot pose, the trigger (robot,
 table, its line: the log file's line, or for ROS 2 lines the message's index on its topic + 2)
-with the trigger's arrival and the poses' publication times (perf_counter, CLOCK_MONOTONIC, so
-another process on the machine can pair them with its own); `latencies` are the differences
-(a row's arrival -> the poses it completed, out)."""
+with the trigger's arrival and the time the update's poses were ready, before the sinks
+(perf_counter, CLOCK_MONOTONIC: another process on the machine pairs them with its own);
+`latencies`: a trigger's arrival -> the poses it completed, out through every sink."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ UPDATE_COLUMNS = (
     "trigger_table",
     "trigger_line",
     "arrived_s",
-    "published_s",
+    "ready_s",
 )
 
 
@@ -50,18 +50,18 @@ class LiveRun:
         self.team.subscribe(self._on_update)
 
     def _on_update(self, update) -> None:
+        ready = time.perf_counter()  # the update's poses and covariances computed
         poses = robot_poses(update)
         for sink in self.sinks:
             if hasattr(sink, "show"):
                 sink.show(poses, update.time)
             else:
                 sink.publish(poses)
-        out = time.perf_counter()
         if self._trigger is not None:
             robot, table, line, arrived = self._trigger
-            self.latencies.append(out - arrived)
+            self.latencies.append(time.perf_counter() - arrived)
             for name, (t, _, _) in poses.items():
-                self.updates.append((update.step, t, name, robot, table, line, arrived, out))
+                self.updates.append((update.step, t, name, robot, table, line, arrived, ready))
         if self.status is not None:
             self.status.add_update(update.latency_s, poses)
 

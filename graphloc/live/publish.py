@@ -34,9 +34,9 @@ def bag_messages(bag, topics: set) -> list[tuple[float, str, str, object]]:
 
 
 def log_messages(root) -> list[tuple[float, str, str, object]]:
-    """(row time [s], topic, LOG_ROW, sample) of every data line of a log's tables (ground
-    truth aside), merged by time (stable: robot, then table order), each line as its table's
-    `graphloc_msgs/msg/LogRow` (`graphloc.live.ros2.log_row_topic`)."""
+    """(row time [s], topic, LOG_ROW, sample) of every data line of a log's measurement
+    tables (ground truth, CSV or TUM, aside), merged by time (stable: robot, then table
+    order), each line as its table's `graphloc_msgs/msg/LogRow` (`ros2.log_row_topic`)."""
     from graphloc.io import columns, is_tum, read_manifest
     from graphloc.live.ros2 import LOG_ROW, log_row_topic, stamp_of
     from graphloc.table_reader import data_lines
@@ -50,7 +50,7 @@ def log_messages(root) -> list[tuple[float, str, str, object]]:
     out = []
     for r in manifest.robots:
         for table, rel in r.tables.items():
-            if is_tum(rel):
+            if is_tum(rel) or table == "groundtruth":
                 continue
             topic, t = log_row_topic(r.name, table), 0.0
             for _, text in data_lines(manifest.root / rel, columns(table)):

@@ -3,22 +3,26 @@ installation: the DDS names and types of rmw_cyclonedds (`graphloc.live.ros2_typ
 
 - `Ros2Source(topics)`: subscribes to the topics file's topics (docs/rosbag.md). A topic's
   message type is the one its publisher announces (DDS discovery, as `ros2 bag record` finds
-  it), so the topics file needs no types; a type its table does not take is a counted skip
-  `wrong_type` per message, as in the import. `poll(timeout)` returns the (robot, table, row)
+  it), so the topics file needs no types; a publisher of a type its table does not take is a
+  counted skip `wrong_type` (its topic is not read). `poll(timeout)` returns the (robot, table, row)
   of the messages received since, in arrival order (`graphloc.live.topics.LiveTopics`).
+- `Ros2LogSource(log)`: a log's tables as lines (`graphloc_msgs/msg/LogRow` on
+  `/graphloc/log/ROBOT/TABLE`), for rows no ROS message holds as they are (MRCLAM's).
 - `Ros2Sink(robots)`: per robot `/<robot>/pose` (`geometry_msgs/PoseWithCovarianceStamped`),
-  `/<robot>/path` (`nav_msgs/Path`, the poses published so far, at most every `path_period`
-  s) and `/tf` (frame `map` -> the robot's name).
+  `/<robot>/path` (`nav_msgs/Path`, the poses published so far, every `path_period` s from a
+  thread of its own, and at the end) and `/tf` (frame `map` -> the robot's name).
 
-Quality of service: reliable, keep-all (nothing dropped between a publisher and graphloc on one
-machine; a best-effort ROS 2 publisher does not match a reliable reader). The domain is
-`ROS_DOMAIN_ID` (default 0); `CYCLONEDDS_URI` selects the network interfaces (the loopback
-test: `lo` only)."""
+Quality of service: rows in reliable, keep-all (nothing dropped between a publisher and
+graphloc on one machine; a best-effort ROS 2 publisher does not match a reliable reader);
+poses out reliable and transient-local (a reader that joins late gets the last KEEP_POSES).
+The domain is `ROS_DOMAIN_ID` (default 0); `CYCLONEDDS_URI` selects the network interfaces
+(the loopback test: `lo` only)."""
 
 from __future__ import annotations
 
 import os
 import queue
+import threading
 import time
 
 import numpy as np
@@ -191,7 +195,7 @@ class Ros2LogSource(_Readers):
         self._checkers = {}
         for r in self.manifest.robots:
             for table, rel in r.tables.items():
-                if is_tum(rel):
+                if is_tum(rel) or table == "groundtruth":  # no measurement
                     continue
                 topic = log_row_topic(r.name, table)
                 check = LineChecker(self.manifest, r, table, self.skips, ids)
@@ -224,7 +228,7 @@ def ros_covariance(pose, cov: np.ndarray) -> list:
 class Ros2Sink:
     """Poses out: `/<robot>/pose`, `/<robot>/path`, `/tf` (see the module docstring)."""
 
-    def __init__(self, robots, dp=None, path_period: float = 1.0):
+    def __init__(self, robots, dp=None, path_period: float = 5.0):
         from cyclonedds.pub import DataWriter
         from cyclonedds.topic import Topic
 
@@ -243,8 +247,17 @@ class Ros2Sink:
             self.dp, Topic(self.dp, dds_topic("/tf"), idl_type(TF_TYPE)), qos=qos(KEEP_POSES)
         )
         self._paths: dict = {r: [] for r in robots}
-        self._path_sent = {r: -np.inf for r in robots}
         self.published = 0
+        # the paths (a message of every pose so far: serializing it takes long, ~40 us a
+        # pose) go out from a thread of their own every path_period s, not in the update
+        self._stop = threading.Event()
+        self._path_thread = threading.Thread(target=self._path_loop, daemon=True)
+        self._path_thread.start()
+
+    def _path_loop(self) -> None:
+        while not self._stop.wait(self.path_period):
+            for robot in self._paths:
+                self.publish_path(robot)
 
     def _header(self, t: float, frame: str = FRAME):
         return idl_type("std_msgs/msg/Header")(
@@ -264,7 +277,6 @@ class Ros2Sink:
     def publish(self, poses: dict) -> None:
         """`poses`: robot -> (time, gtsam.Pose3, 6x6 covariance, GTSAM tangent order)."""
         transforms = []
-        now = time.monotonic()
         for robot, (t, pose, cov) in poses.items():
             msg = idl_type(POSE_TYPE)(
                 header=self._header(t),
@@ -278,8 +290,6 @@ class Ros2Sink:
                 header=self._header(t), pose=msg.pose.pose
             )
             self._paths[robot].append(stamped)
-            if now - self._path_sent[robot] >= self.path_period:
-                self.publish_path(robot)
             p, o = msg.pose.pose.position, msg.pose.pose.orientation
             transforms.append(
                 idl_type("geometry_msgs/msg/TransformStamped")(
@@ -296,15 +306,15 @@ class Ros2Sink:
 
     def publish_path(self, robot: str) -> None:
         """The robot's poses published so far as one nav_msgs/Path."""
-        path = self._paths[robot]
-        if not path:
-            return
-        self._path_sent[robot] = time.monotonic()
-        self._writers[(robot, "path")].write(
-            idl_type(PATH_TYPE)(header=path[-1].header, poses=list(path))
-        )
+        path = list(self._paths[robot])  # a snapshot: the update thread appends
+        if path:
+            self._writers[(robot, "path")].write(
+                idl_type(PATH_TYPE)(header=path[-1].header, poses=path)
+            )
 
     def flush(self) -> None:
-        """Every robot's full path (at the end of a run)."""
+        """Every robot's full path (at the end of a run); the path thread stops."""
+        self._stop.set()
+        self._path_thread.join()
         for robot in self._paths:
             self.publish_path(robot)
