@@ -198,6 +198,8 @@ def end_to_end(log: Path, out: Path, window: float, rate: float = 1.0) -> dict:
     way_in, update, way_out, total, age, missing = [], [], [], [], [], 0
     with open(out / "live_updates.csv", newline="") as fh:
         for row in csv.DictReader(fh):
+            if not row["trigger_robot"]:  # solved when the run ended: no row triggered it
+                continue
             topic = f"/graphloc/log/{row['trigger_robot']}/{row['trigger_table']}"
             sent = by_topic[topic][int(row["trigger_line"]) - 2]
             got = received.get((row["robot"], int(round(float(row["time"]) * 1e9))))

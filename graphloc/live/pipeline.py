@@ -9,7 +9,8 @@ completes a step): its trigger. `updates` logs, per update and robot pose, the t
 table, its line: the log file's line, or for ROS 2 lines the message's index on its topic + 2)
 with the trigger's arrival and the time the update's poses were ready, before the sinks
 (perf_counter, CLOCK_MONOTONIC: another process on the machine pairs them with its own);
-`latencies`: a trigger's arrival -> the poses it completed, out through every sink."""
+`latencies`: a trigger's arrival -> the poses it completed, out through every sink. The steps
+solved when the run ends (`LiveTeam.finish`) have no trigger (empty fields)."""
 
 from __future__ import annotations
 
@@ -57,11 +58,11 @@ class LiveRun:
                 sink.show(poses, update.time)
             else:
                 sink.publish(poses)
+        robot, table, line, arrived = self._trigger or ("", "", -1, float("nan"))
         if self._trigger is not None:
-            robot, table, line, arrived = self._trigger
             self.latencies.append(time.perf_counter() - arrived)
-            for name, (t, _, _) in poses.items():
-                self.updates.append((update.step, t, name, robot, table, line, arrived, ready))
+        for name, (t, _, _) in poses.items():
+            self.updates.append((update.step, t, name, robot, table, line, arrived, ready))
         if self.status is not None:
             self.status.add_update(update.latency_s, poses)
 
@@ -77,6 +78,7 @@ class LiveRun:
                 continue
             self._trigger = (robot, table, row.get("line", -1), arrived)
             self.team.push(robot, table, row)
+            self._trigger = None  # updates at the end (finish) have no trigger
             self.pushed += 1
         if self.status is not None:
             self.status.add_rows([r[2] for r in rows])
