@@ -308,3 +308,31 @@ def test_log_rows_over_ros2(loopback, feng_log, tmp_path):
     want = _records(feng_log)
     want[(robot, table)] = want[(robot, table)][1:]
     _same(_grouped(rows), want)
+
+
+def test_odometry_table_from_twists(tmp_path):
+    """A topics file maps nav_msgs/Odometry (or TwistStamped) to the `odometry` table: one row
+    per message, v = twist.linear.x and omega = twist.angular.z, at the header stamps."""
+    import yaml
+    from rosbags.highlevel import AnyReader
+
+    from graphloc.datasets.rosbag import import_bag
+
+    odom = "/husky_velocity_controller/odom"
+    topics = tmp_path / "topics.yaml"
+    body = _husky_topics()
+    body["topics"] = {odom: {"robot": "husky", "table": "odometry", "sensor": "wheels"}}
+    topics.write_text(yaml.safe_dump(body))
+    result = import_bag(REAL_BAG, topics, tmp_path / "log")
+    assert result.rows == {"odometry": 1200} and result.skips.total == 0
+    want = []
+    with AnyReader([REAL_BAG]) as reader:
+        conns = [c for c in reader.connections if c.topic == odom]
+        for conn, _, raw in reader.messages(connections=conns):
+            m = reader.deserialize(raw, conn.msgtype)
+            t = m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+            want.append((t, m.twist.twist.linear.x, m.twist.twist.angular.z))
+    got = np.loadtxt(
+        tmp_path / "log/husky/odometry.csv", delimiter=",", skiprows=1, usecols=(0, 2, 3)
+    )
+    np.testing.assert_array_equal(got, np.array(sorted(want)))
