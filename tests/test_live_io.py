@@ -336,3 +336,41 @@ def test_odometry_table_from_twists(tmp_path):
         tmp_path / "log/husky/odometry.csv", delimiter=",", skiprows=1, usecols=(0, 2, 3)
     )
     np.testing.assert_array_equal(got, np.array(sorted(want)))
+
+
+def test_recorder_writes_a_log_and_resumes_it(tmp_path):
+    """A live ROS 2 run's rows written as a log directory (the import's manifest and paths):
+    the log reader reads them back as written; opened again it is resumed (its rows handed
+    back, new ones appended), and a log of another topics file is refused, naming it."""
+    import yaml
+
+    from graphloc.datasets.rosbag_topics import read_topics
+    from graphloc.live.record import LogRecorder
+
+    odom = "/husky_velocity_controller/odom"
+    body = _husky_topics()
+    body["topics"] = {odom: {"robot": "husky", "table": "odometry", "sensor": "wheels"}}
+    topics = tmp_path / "topics.yaml"
+    topics.write_text(yaml.safe_dump(body))
+    tf = read_topics(topics)
+    rows = [
+        (
+            "husky",
+            "odometry",
+            {"time": 10.0 + k / 3, "sensor": "wheels", "v": 0.1 * k, "omega": -0.01},
+        )
+        for k in range(5)
+    ]
+    rec = LogRecorder(tf, tmp_path / "log")
+    assert not rec.resumed
+    rec.write(rows[:3])
+    rec.close()
+    again = LogRecorder(tf, tmp_path / "log")
+    assert again.resumed and again.recorded() == rows[:3]
+    again.write(rows[3:])
+    again.close()
+    assert LogRecorder(tf, tmp_path / "log").recorded() == rows
+    body["topics"][odom]["table"] = "relative_pose3"
+    topics.write_text(yaml.safe_dump(body))
+    with pytest.raises(ValueError, match="a log of other topics"):
+        LogRecorder(read_topics(topics), tmp_path / "log")
