@@ -265,10 +265,7 @@ def run(duration: float, out: Path, rate: float, windows=(0.0, 0.5)) -> dict:
 
 def plot(result: dict, path: Path) -> None:
     """Per-step latency by team size (p50, p95, max) and the end-to-end latencies' CDFs."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from graphloc.plots import plt  # the Agg backend, set there
 
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
     sizes = [s["team"] for s in result["steps"]]
