@@ -40,7 +40,7 @@ DOCS = {
         "g2o_outliers", ("results_g2o_outliers_sphere2500.json",)
     ),
     "results_startup.md": Doc("startup", ("results_startup.json",)),
-    "results_live.md": Doc("live", ("results_live.json",)),
+    "results_live_latency.md": Doc("live_latency", ("results_live_latency.json",)),
     "results_team_crawler.md": Doc("team_crawler", ("results_team_crawler.json",)),
     "results_team_dual_room.md": Doc("team_dual_room", ("results_team_dual_room.json",)),
     "results_seed_baselines.md": Doc("seed_baselines", ("results_seed_baselines.json",)),

@@ -1,5 +1,5 @@
-"""docs/results_live.md: the live latency benchmark (scripts/bench_live.py) from
-docs/results_live.json. Template: templates/live.md.j2."""
+"""docs/results_live_latency.md: the live latency benchmark (scripts/bench_live_latency.py) from
+docs/results_live_latency.json. Template: templates/live_latency.md.j2."""
 
 from __future__ import annotations
 
