@@ -1,10 +1,11 @@
 """Live latency (issue 50; benchmarks/live_latency.py says what is measured and how): per-step
 latency of the live API against the team size (1, 2, 5, 10 robots) and end to end over ROS 2
-(row published -> pose received) for MRCLAM Dataset6's five robots. Writes OUT/results_live_latency.json,
-OUT/results_live_latency.md and docs/results_live_latency.{md,json,png} (benchmarks.render.live_latency;
-`scripts/render_docs.py results_live_latency.md` re-renders the doc from the committed JSON).
+(row published -> pose received) for MRCLAM Dataset6's five robots. Writes
+OUT/results_live_latency.{json,md} and docs/results_live_latency.{md,json,png}
+(benchmarks.render.live_latency; `scripts/render_docs.py results_live_latency.md` re-renders
+the doc from the committed JSON).
 
-    .venv/bin/python scripts/bench_live_latency.py --duration 120 --out out/bench_live
+    .venv/bin/python scripts/bench_live_latency.py --duration 120
 
 A measurement, not a test: the target (end-to-end p95 under 20 ms) is read off the doc."""
 
