@@ -5,8 +5,6 @@ at open, naming them."""
 
 from __future__ import annotations
 
-import heapq
-import random
 from dataclasses import replace
 from pathlib import Path
 
@@ -19,8 +17,7 @@ from graphloc.datasets import open_run
 from graphloc.factors.odometry import VelocityNoise, integrate_unicycle
 from graphloc.live import LiveTeam, NotLiveError, replay, replay_live, run_rows
 from graphloc.live.arc import ArcIntegrator
-from graphloc.live.builder import LiveGraph
-from graphloc.live.setup import empty_run
+from graphloc.live.builder import build_live
 from graphloc.pipelines.team_graph import GraphConfig, build_graph
 from graphloc.pipelines.team_graph.graph import factor_keys
 
@@ -52,23 +49,6 @@ def test_arc_integrator_is_integrate_unicycle_bit_for_bit():
     assert np.array_equal(covs, ref.covariances)
 
 
-def _feed_in_time_order(run, config) -> LiveGraph:
-    """A loaded run's odometry rows and point measurements into a `LiveGraph`, merged in time
-    order, the graph advanced after each."""
-    live = LiveGraph(empty_run(run), config, run.start_time)
-
-    def odometry(r):
-        return ((row[0], 0, r, row) for row in run.velocity[r])
-
-    streams = [odometry(r) for r in range(len(run.robots))]
-    streams.append((m.time, 1, -1, m) for m in run.points)
-    for t, kind, r, item in heapq.merge(*streams, key=lambda e: e[0]):
-        live.velocity(r, item) if kind == 0 else live.point(item)
-        live.advance(t)
-    live.finish()
-    return live
-
-
 def _same_graph(ref, graph) -> None:
     for a, b in zip(ref.node_times, graph.node_times):
         assert np.array_equal(a, b)
@@ -83,10 +63,11 @@ def _same_graph(ref, graph) -> None:
         if isinstance(value, gtsam.Pose3):
             assert np.array_equal(value.matrix(), other.matrix())
         else:
-            assert np.array_equal(np.asarray(value), np.asarray(other))
+            assert np.array_equal(np.asarray(value), np.asarray(other), equal_nan=True)
         values.insert(key, value)
-    errors = [[f.error(values) for f, _ in group] for _, group in ref.steps]
-    assert errors == [[f.error(values) for f, _ in group] for _, group in graph.steps]
+    errors = [f.error(values) for _, group in ref.steps for f, _ in group]
+    assert np.isfinite(errors).all()
+    assert errors == [f.error(values) for _, group in graph.steps for f, _ in group]
     assert ref.counts == graph.counts
     assert ref.skips.counts == graph.skips.counts
 
@@ -102,14 +83,14 @@ def _same_graph(ref, graph) -> None:
 )
 def test_live_graph_is_the_whole_run_graph(planar_log, config):
     run = open_run(planar_log)
-    _same_graph(build_graph(run, config), _feed_in_time_order(run, config).graph)
+    _same_graph(build_graph(run, config), build_live(run, config))
 
 
 @needs_dataset6
 def test_live_graph_is_the_whole_run_graph_on_dataset6():
     run = open_run(DATASET6, duration=30.0)
     config = GraphConfig()
-    _same_graph(build_graph(run, config), _feed_in_time_order(run, config).graph)
+    _same_graph(build_graph(run, config), build_live(run, config))
 
 
 def _same_estimates(result, reference, tol: float = 1e-9) -> None:
@@ -256,3 +237,126 @@ def test_live_options_replace_the_noise(mrclam_dir):
     assert [(m.range_sigma, m.bearing_sigma) for m in live_points] == [
         (m.range_sigma, m.bearing_sigma) for m in run.points
     ]
+
+
+def test_the_api_doc_block_runs(mrclam_dir, capsys):
+    text = (Path(__file__).resolve().parents[1] / "docs/api.md").read_text(encoding="utf-8")
+    section = text.split("## Live: rows pushed as a team runs")[1].split("\n## ")[0]
+    block = section.split("```python\n")[1].split("```")[0]
+    scope = {"run_dir": mrclam_dir}
+    exec(compile(block, "docs/api.md", "exec"), scope)
+    assert scope["result"].steps_done == len(scope["result"].graph.steps) == len(scope["seen"])
+    assert scope["pose"].covariance.shape == (6, 6)
+    assert "updates;" in capsys.readouterr().out
+
+
+def test_a_restarted_team_resumes_from_its_checkpoint(mrclam_dir, tmp_path):
+    """A team killed after a checkpoint and opened again with it replays the rows the file
+    holds (the same graph, checked by its fingerprint); pushing the rest gives the result of a
+    team never stopped: nothing before the checkpoint is lost."""
+    rows = list(run_rows(mrclam_dir))
+    path = tmp_path / "live.checkpoint"
+    first = LiveTeam.open(mrclam_dir, checkpoint=path, checkpoint_every=10)
+    replay(first, rows[: len(rows) // 2])
+    assert path.is_file() and first.solver.done >= 10
+    del first  # killed: the rows after its last checkpoint are lost with it
+    second = LiveTeam.open(mrclam_dir, checkpoint=path, checkpoint_every=10)
+    assert 0 < second.resumed <= len(rows) // 2
+    assert second.solver.done % 10 == 0
+    replay(second, rows[second.resumed :])
+    _same_estimates(second.finish(), replay_live(mrclam_dir).finish(), tol=0.0)
+    finished = LiveTeam.open(mrclam_dir, checkpoint=path)  # written by finish(): finished
+    _same_estimates(finished.finish(), second.finish(), tol=0.0)
+    with pytest.raises(ValueError, match="after finish"):
+        finished.push(*rows[0])
+
+
+def test_a_checkpoint_of_another_run_or_option_is_refused(mrclam_dir, tmp_path):
+    rows = list(run_rows(mrclam_dir))
+    path = tmp_path / "live.checkpoint"
+    team = LiveTeam.open(mrclam_dir, checkpoint=path, checkpoint_every=5)
+    replay(team, rows[:200])
+    with pytest.raises(ValueError, match="another run or configuration"):
+        LiveTeam.open(mrclam_dir, graphloc.RunOptions(keyframe_dt=0.1), checkpoint=path)
+    with pytest.raises(ValueError, match="window"):
+        LiveTeam.open(mrclam_dir, window=1.0, checkpoint=path)
+    path.write_text("not a checkpoint\n")
+    with pytest.raises(ValueError, match=str(path)):
+        LiveTeam.open(mrclam_dir, checkpoint=path)
+
+
+def _bearing_and_range_log(planar_log: Path) -> Path:
+    """The planar log with its range-bearing rows also as `bearing` rows (3D unit directions,
+    from a sensor offset from the body origin: sensor poses) and `range` rows (an offset
+    sensor), the first robot on a surface, and no start_time (the rows give it)."""
+    from helpers import edit_manifest
+
+    def edit(data):
+        data.pop("start_time")
+        for i, robot in enumerate(data["robots"]):
+            robot["sensors"] += [
+                {"name": "eye", "type": "bearing", "extrinsics": [0.1, 0.05, 0.3]},
+                {"name": "ranger", "type": "range", "extrinsics": [-0.1, 0.0, 0.0]},
+            ]
+            robot["tables"]["bearing"] = f"{robot['name']}/bearing.csv"
+            robot["tables"]["range"] = f"{robot['name']}/range.csv"
+            if i == 0:
+                robot["surface"] = {"point": [0, 0, 0], "normal": [0, 0, 1], "attitude_sigma": 0.01}
+            lines = (planar_log / robot["tables"]["range_bearing"]).read_text().splitlines()
+            bearing, ranges = ["time,sensor,target,x,y,z"], ["time,sensor,target,range"]
+            for line in lines[1:]:
+                t, _, target, rng, b = line.split(",")
+                c, s = np.cos(float(b)), np.sin(float(b))
+                bearing.append(f"{t},eye,{target},{c:.9f},{s:.9f},0.0")
+                ranges.append(f"{t},ranger,{target},{float(rng) + 0.05:.6f}")
+            (planar_log / robot["tables"]["bearing"]).write_text("\n".join(bearing) + "\n")
+            (planar_log / robot["tables"]["range"]).write_text("\n".join(ranges) + "\n")
+
+    edit_manifest(planar_log, edit)
+    return planar_log
+
+
+@pytest.mark.parametrize("unknown_landmarks", [False, True], ids=["known", "slam"])
+def test_bearings_ranges_surfaces_and_a_start_from_the_rows(
+    planar_log, tmp_path, unknown_landmarks
+):
+    log = _bearing_and_range_log(planar_log)
+    options = graphloc.RunOptions(unknown_landmarks=unknown_landmarks)
+    run = open_run(log)
+    config = replace(options.graph_config(), lag=0.0)
+    graph = build_live(run, config)
+    assert graph.counts["sensor_poses"] > 0 and graph.counts.get("factors_surface", 0) > 0
+    _same_graph(build_graph(run, config), graph)
+    result = replay_live(log, options).finish()
+    _same_estimates(result, graphloc.run_team(log, tmp_path / "out", "online", options).result)
+
+
+@pytest.mark.slow
+@needs_dataset6
+@pytest.mark.parametrize("landmark_priors", [True, False], ids=["known", "slam"])
+def test_live_graph_is_the_whole_run_graph_on_full_dataset6(landmark_priors):
+    run = open_run(DATASET6)
+    config = GraphConfig(landmark_priors=landmark_priors)
+    _same_graph(build_graph(run, config), build_live(run, config))
+
+
+def test_a_manifest_without_tables_takes_pushed_rows(planar_log, tmp_path):
+    """A live team opened from a manifest whose robots list no tables (the rows are pushed,
+    not logged) solves the rows of the log they came from as the log itself."""
+    import shutil
+
+    from helpers import edit_manifest
+
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    shutil.copy(planar_log / "manifest.json", bare / "manifest.json")
+    shutil.copy(planar_log / "landmarks.csv", bare / "landmarks.csv")
+
+    def no_tables(data):
+        for robot in data["robots"]:
+            robot["tables"] = {}
+
+    edit_manifest(bare, no_tables)
+    team = LiveTeam.open(bare)
+    replay(team, run_rows(planar_log))
+    _same_estimates(team.finish(), replay_live(planar_log).finish(), tol=0.0)

@@ -18,20 +18,16 @@ replay's times for them)."""
 from __future__ import annotations
 
 import argparse
-import hashlib
-import json
 import os
-from dataclasses import asdict
 from pathlib import Path
 
 from graphloc import many_runs
+from graphloc.checkpoint import read_checkpoint, write_checkpoint
 from graphloc.commands import smooth
 
 HELP = (
     "online iSAM2 smoothing of a multi-robot run frame by frame (latency, TUM, metrics JSON, PNGs)"
 )
-CHECKPOINT_FORMAT = "graphloc-online-checkpoint"
-CHECKPOINT_VERSION = 1
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,56 +37,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--checkpoint-every", type=int, default=500, help="steps between checkpoints (default 500)"
     )
     parser.add_argument("--resume", type=Path, help="continue from this checkpoint")
-
-
-def fingerprint(graph) -> str:
-    """SHA-256 of what makes two graphs the same sequence of updates: the run's name, the
-    effective configuration, every step's time and factor count."""
-    body = json.dumps(  # a hash: the encoding of earlier checkpoints
-        {
-            "run": graph.run.name,
-            "config": asdict(graph.config),
-            "steps": [[t, len(group)] for t, group in graph.steps],
-        },
-        default=str,
-        sort_keys=True,
-    )
-    return hashlib.sha256(body.encode()).hexdigest()
-
-
-def write_checkpoint(path: Path, graph, steps_done: int) -> None:
-    from graphloc.session import write_data_file
-
-    write_data_file(
-        path,
-        CHECKPOINT_FORMAT,
-        CHECKPOINT_VERSION,
-        {
-            "run": graph.run.name,
-            "fingerprint": fingerprint(graph),
-            "steps_done": int(steps_done),
-            "steps_total": len(graph.steps),
-        },
-    )
-
-
-def read_checkpoint(path: Path, graph) -> dict:
-    """The checkpoint's payload after checking it belongs to `graph` (ValueError otherwise)."""
-    from graphloc.session import read_data_file
-
-    data = read_data_file(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "online checkpoint")
-    done = data.get("steps_done")
-    if data.get("fingerprint") != fingerprint(graph):
-        raise ValueError(
-            f"{path}: the checkpoint is of another run or configuration (run "
-            f"{data.get('run')!r}); resume with the same RUN and options"
-        )
-    if not (type(done) is int and 0 <= done <= len(graph.steps)):  # true is no step count
-        raise ValueError(
-            f"{path}: field 'steps_done' must be an integer in [0, {len(graph.steps)}], got "
-            f"{done!r}"
-        )
-    return data
 
 
 def hooks(args: argparse.Namespace):

@@ -6,7 +6,7 @@ directory being written (`tail`), ROS 2 topics in and poses out over Cyclone DDS
 `ros2_types`, `topics`, `publish`), a ROS 2 run recorded as a log (`record`), the Foxglove view
 (`view`), the status line (`status`) and the run loop (`pipeline`)."""
 
-from graphloc.live.builder import NotLiveError
+from graphloc.live.coverage import NotLiveError
 from graphloc.live.replay import replay, run_rows
 from graphloc.live.team import LiveTeam, LiveUpdate, RobotPose
 

@@ -38,6 +38,11 @@ class ArcIntegrator:
             first = np.zeros((0, 3))
         kf = np.concatenate([[self.stamp], kf])
         table = self.samples()
+        # the rows that act on [kf[0], kf[-1]): the last at or before kf[0] on (a slice, so a
+        # call costs the rows of its own stamps, not of the whole run)
+        s0 = max(int(np.searchsorted(table[:, 0], kf[0], side="right")) - 1, 0)
+        s1 = int(np.searchsorted(table[:, 0], kf[-1], side="left"))
+        table = table[s0 : max(s1, s0 + 1)]
         times, v, w = table[:, 0], table[:, 1], table[:, 2]
         inside = times[(times > kf[0]) & (times < kf[-1])]
         bp = np.union1d(kf, inside)

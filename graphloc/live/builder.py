@@ -21,54 +21,19 @@ step.
 
 from __future__ import annotations
 
-import gtsam
+from collections import deque
+
 import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.live.arc import ArcIntegrator
+from graphloc.live.coverage import NotLiveError, not_live
 from graphloc.pipelines.team_graph.config import GraphConfig, run_precision
 from graphloc.pipelines.team_graph.graph import TeamGraph
 from graphloc.pipelines.team_graph.motion import between_factor, robot_anchors, velocity_noise
 from graphloc.pipelines.team_graph.points import PointBuilder, body_frame_points
 from graphloc.run import TeamRun, planar_covariance, pose_from_planar
-
-# the sections `LiveGraph` builds, and the tables it takes rows of
-LIVE_TABLES = ("odometry", "range", "bearing", "range_bearing", "groundtruth")
-# tables whose sections are not causal yet, and why (`not_live`)
-NOT_LIVE = {
-    "relative_pose": "event-clocked pose times (relative poses split at measurement times)",
-    "relative_pose3": "event-clocked pose times (relative poses split at measurement times)",
-    "markers": "candidate sets (P3P, the hypothesis trackers, placement by decisions)",
-    "candidates": "candidate sets (the hypothesis trackers, placement by decisions)",
-    "ellipses": "candidate sets (circle poses, the hypothesis trackers)",
-    "features": "camera feature tracks (a track's point prior from all its pixels)",
-    "scans": "KISS-ICP odometry and inter-robot scan registration",
-}
-
-
-class NotLiveError(ValueError):
-    """A run that needs sections the live builder does not build yet (`not_live`)."""
-
-
-def not_live(run: TeamRun, tables: dict) -> list[str]:
-    """What keeps a run (its robots, and each robot's tables by name) off the live builder, one
-    line each; empty: the run is live."""
-    out = []
-    for r, robot in enumerate(run.robots):
-        for table in sorted(set(tables.get(robot.name, ())) & set(NOT_LIVE)):
-            out.append(f"robot {robot.name}: table {table!r}: {NOT_LIVE[table]}")
-        if robot.initial_pose is None:
-            out.append(
-                f"robot {robot.name}: no initial_pose: its placement (decided candidate sets, "
-                f"mutual bearings, resection, scan registration) and alternative starts"
-            )
-        if not robot.static and "odometry" not in tables.get(robot.name, ()):
-            out.append(
-                f"robot {robot.name}: no odometry table: event-clocked pose times (poses at "
-                f"its measurement times)"
-            )
-    return out
 
 
 class _Grid:
@@ -130,7 +95,7 @@ class LiveGraph:
         self.start = start_time
         self.robots = [_Robot(r, robot, run, config) for r, robot in enumerate(run.robots)]
         self.points = PointBuilder(run, config)
-        self.queue: list = []  # point measurements waiting for their poses, in arrival order
+        self.queue: deque = deque()  # point measurements waiting for their poses, in order
         self.arrived: list = []  # every point measurement, in arrival order (the run's points)
         self.pending: dict = {}  # step time -> [(order key, factor, type)]
         self.emitted = -np.inf  # time of the last emitted step
@@ -155,11 +120,14 @@ class LiveGraph:
 
     # ---- rows in ------------------------------------------------------------------------------
 
-    def velocity(self, r: int, row) -> None:
-        """A wheel-odometry row (time, v, omega) of robot r."""
-        self.first_seen = min(self.first_seen, row[0])
+    def velocity(self, r: int, rows) -> None:
+        """Wheel-odometry rows (time, v, omega), one (3,) or many (N,3), of robot r."""
+        rows = np.asarray(rows, dtype=float).reshape(-1, 3)
+        if not len(rows):
+            return
+        self.first_seen = min(self.first_seen, rows[0, 0])
         robot = self.robots[r]
-        robot.velocity.append(row)
+        robot.velocity.append(rows)
         if self.start is None:
             self._start_if_known()
         if self.start is not None:
@@ -246,7 +214,7 @@ class LiveGraph:
         self.graph.node_times[r] = robot.times.view
         initial, steps = self.graph.initial, self.graph.step_rel[r]
         if robot.robot.static:
-            stamps, deltas, covs = new, np.zeros((0, 3)), np.zeros((0, 3, 3))
+            deltas, covs = np.zeros((0, 3)), np.zeros((0, 3, 3))
         else:
             _, deltas, covs = robot.steps.advance(new)
         if k0 == 0:
@@ -298,14 +266,18 @@ class LiveGraph:
         if t_f > watermark:
             return None
         upto = max(m.time, t_f)
-        known = np.union1d(times[times <= upto], [s for s in robot.stamps if s <= upto])
-        if robot.frames.stamp is not None:
-            known = known[known > robot.frames.stamp]
+        last = -np.inf if robot.frames.stamp is None else robot.frames.stamp
+        nodes = times[np.searchsorted(times, last, "right") : np.searchsorted(times, upto, "right")]
+        known = np.union1d(nodes, [s for s in robot.stamps if last < s <= upto])
         if len(known):
             poses, _, _ = robot.frames.advance(known)
             robot.at.update(zip(known.tolist(), poses))
             robot.stamps = [s for s in robot.stamps if s > upto]
-        return body_frame_points([m], robot.at[m.time][None], robot.at[float(t_f)][None])[0]
+        out = body_frame_points([m], robot.at[m.time][None], robot.at[float(t_f)][None])[0]
+        # later measurements are at or after m.time and join nodes at or after t_f
+        oldest = min(m.time, float(t_f))
+        robot.at = {s: p for s, p in robot.at.items() if s >= oldest}
+        return out
 
     def _take_points(self, watermark: float) -> None:
         """Point measurements whose poses are known, in arrival order, as factors."""
@@ -313,7 +285,7 @@ class LiveGraph:
         while self.queue:
             m = self.queue[0]
             if not self.points.used(m):
-                self.queue.pop(0)
+                self.queue.popleft()
                 continue
             known, k = self._nearest(m.robot, m.time)
             known_t, kt = (True, -1) if m.target < 0 else self._nearest(m.target, m.time)
@@ -322,7 +294,7 @@ class LiveGraph:
             corrected = self._corrected(m, watermark) if k >= 0 else False
             if corrected is None:
                 return
-            self.queue.pop(0)
+            self.queue.popleft()
             self.points.add(m, k, kt, node_times, corrected or None)
             self._take_made()
 
@@ -350,25 +322,18 @@ class LiveGraph:
         self.pending.setdefault(float(t), []).append((order, factor, kind))
 
     def _emit(self, complete) -> list:
-        """Steps of every pending time `complete(time)` is True for, in time order; a factor
-        older than the last emitted step joins the next one."""
+        """Steps of every pending time `complete(time)` is True for, in time order."""
         due = sorted(t for t in self.pending if complete(t))
         steps = []
-        late: list = []
         for t in due:
+            if t <= self.emitted:  # `not_live` keeps the measurements of static robots out
+                raise AssertionError(f"a factor at {t} after the step at {self.emitted}")
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
-            if t <= self.emitted:
-                late += group
-                continue
-            group = late + group
-            late = []
             step = (t, [(f, kind) for _, f, kind in group])
             self.graph.steps.append(step)
             self.graph.factor_types += [kind for _, _, kind in group]
             self.emitted = t
             steps.append(step)
-        if late:  # joins the next step
-            self.pending.setdefault(np.nextafter(self.emitted, np.inf), []).extend(late)
         return steps
 
     def _counts(self) -> None:
@@ -389,3 +354,25 @@ class LiveGraph:
             **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
         }
         graph.skips.merge(points.made.skips)
+
+
+def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:
+    """A loaded run's graph built by `LiveGraph` (each robot's odometry at once, then the
+    point measurements in the run's order: the graph does not depend on how the rows are split
+    into calls): the graph `graphloc online` solves for a run `not_live` finds nothing in, the
+    live API's route."""
+    live = LiveGraph(_without_rows(run), config, run.start_time)
+
+    for r, rows in enumerate(run.velocity):
+        live.velocity(r, rows)
+    for m in run.points:
+        live.point(m)
+    live.finish()
+    live.graph.run = run
+    return live.graph
+
+
+def _without_rows(run: TeamRun) -> TeamRun:
+    from dataclasses import replace
+
+    return replace(run, velocity=tuple(np.zeros((0, 3)) for _ in run.robots), points=())

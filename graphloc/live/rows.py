@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import fields
 
 from graphloc.datasets.log_rows import TABLE_HANDLERS, RowContext, Skip
-from graphloc.live.builder import LIVE_TABLES, NOT_LIVE, NotLiveError
+from graphloc.live.coverage import LIVE_TABLES, NOT_LIVE, NotLiveError
 from graphloc.records import SENSOR_TYPES, TABLES, columns, plausible
 from graphloc.table_reader import known_target
 from graphloc.textio import SkipReport, cut, shown
@@ -30,8 +30,16 @@ class RowChecker:
         self.index = {r.name: i for i, r in enumerate(robots)}
         self.landmark_ids = landmark_ids
         self.skips = skips
-        self._convs = {
-            table: {f.name: f.type for f in fields(TABLES[table])} for table in LIVE_TABLES
+        self.names = set(self.index)
+        self.by_name = {r.name: r for r in manifest.robots}
+        # per table: (column, kind, plausible range) of every column
+        self.columns = {
+            table: [
+                (f.name, f.type, plausible(table).get(f.name))
+                for f in fields(TABLES[table])
+                if f.name in columns(table)
+            ]
+            for table in LIVE_TABLES
         }
 
     def check(self, robot: str, table: str, row: Mapping, n: int):
@@ -45,15 +53,14 @@ class RowChecker:
             raise ValueError(f"unknown table {table!r}; live tables: {', '.join(LIVE_TABLES)}")
         where = f"robot {robot!r}, table {table!r}, row {n}"
         values = {}
-        limits = plausible(table)
-        for name in columns(table):
+        for name, kind, limits in self.columns[table]:
             if name not in row:
                 return self._skip("missing_field", f"{where}: field {name!r} is missing")
-            value, problem = _value(row[name], self._convs[table][name], limits.get(name))
+            value, problem = _value(row[name], kind, limits)
             if problem:
                 return self._skip(problem[0], f"{where}: field {name!r}: {problem[1]}")
             values[name] = value
-        manifest_robot = self.manifest.robot(robot)
+        manifest_robot = self.by_name[robot]
         if "sensor" in values:
             sensor = manifest_robot.sensor(values["sensor"])
             if sensor is None:
@@ -67,9 +74,7 @@ class RowChecker:
                     f"{where}: field 'sensor': {sensor.name!r} is a {sensor.type}, table "
                     f"{table} needs a {SENSOR_TYPES[table]}",
                 )
-        if "target" in values and not known_target(
-            values["target"], set(self.index), self.landmark_ids
-        ):
+        if "target" in values and not known_target(values["target"], self.names, self.landmark_ids):
             return self._skip(
                 "unknown_target",
                 f"{where}: field 'target': {values['target']!r} is neither a robot nor a known "
@@ -92,17 +97,27 @@ def _value(raw, kind, limits) -> tuple:
     conv = float if kind in (float, "float") else int if kind in (int, "int") else str
     if conv is str:
         return str(raw).strip(), None
-    if isinstance(raw, bool):
+    if type(raw) is float and conv is float:  # the common case, checked below
+        value = raw
+    elif isinstance(raw, bool):
         return None, ("parse", f"{raw!r} is not a number")
-    try:
-        value = conv(raw.strip() if isinstance(raw, str) else raw)
-    except (TypeError, ValueError, OverflowError):
-        return None, ("parse", f"cannot parse {shown(str(raw))} as {conv.__name__}")
+    else:
+        value, problem = _converted(raw, conv)
+        if problem:
+            return None, problem
     if conv is float and not math.isfinite(value):
         return None, ("non_finite", f"{cut(str(raw))} is not finite")
     lo, hi = limits or (-math.inf, math.inf)
     if not lo <= value <= hi:
         return None, ("implausible", f"{cut(str(raw))} is outside the plausible [{lo:g}, {hi:g}]")
+    return value, None
+
+
+def _converted(raw, conv) -> tuple:
+    try:
+        value = conv(raw.strip() if isinstance(raw, str) else raw)
+    except (TypeError, ValueError, OverflowError):
+        return None, ("parse", f"cannot parse {shown(str(raw))} as {conv.__name__}")
     return value, None
 
 

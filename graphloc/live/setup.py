@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.io import MANIFEST, SkipReport, read_landmarks, read_manifest
-from graphloc.live.builder import NotLiveError, not_live
+from graphloc.live.coverage import NotLiveError, not_live
 from graphloc.manifest import Manifest, Robot, Sensor, check_noise_params
 from graphloc.pipelines.team_graph.config import GraphConfig, default_lag
 from graphloc.pipelines.team_graph.options import RunOptions

@@ -21,6 +21,7 @@ from pathlib import Path
 import gtsam
 import numpy as np
 
+from graphloc.checkpoint import read_checkpoint, read_checkpoint_file, write_checkpoint
 from graphloc.exitcodes import SolverFailure
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
@@ -47,19 +48,29 @@ class RobotPose:
 class LiveUpdate:
     """One iSAM2 update: the graph step's index and time, the latest pose of every robot that
     got a new pose in it (name -> RobotPose), the factors it added and its latency [s] (wall
-    time from the step's completion to its estimates, covariances included)."""
+    time from the step's completion to its estimates, covariances included) and the CPU time
+    [s] of the same span (the process's: a latency a busy machine does not inflate)."""
 
     step: int
     time: float
     poses: dict
     factors: int
     latency_s: float
+    cpu_s: float = 0.0
 
 
 class LiveTeam:
     """A team solved as its rows arrive (module docstring). `open` it from a run's setup."""
 
-    def __init__(self, setup: LiveSetup, window: float = 0.5):
+    def __init__(
+        self,
+        setup: LiveSetup,
+        window: float = 0.5,
+        checkpoint: Path | None = None,
+        checkpoint_every: int = 500,
+    ):
+        if not (type(checkpoint_every) is int and checkpoint_every >= 1):
+            raise ValueError(f"checkpoint_every must be an integer >= 1, got {checkpoint_every!r}")
         self.setup = setup
         self.skips = SkipReport()
         self.skips.merge(setup.run.skips)
@@ -75,15 +86,34 @@ class LiveTeam:
         self.solver_note = ""
         self.subscribers: list = []
         self.rows = 0
+        self.closed = False  # finish() began: no more rows
         self.finished: TeamResult | None = None
+        # checkpoints (`checkpoint`): every row pushed, in push order, and when they were written
+        self.checkpoint_path = None if checkpoint is None else Path(checkpoint)
+        self.checkpoint_every = checkpoint_every
+        self.pushed: list | None = None if checkpoint is None else []
+        self.resumed = 0  # rows replayed from the checkpoint the team was opened with
+        if self.checkpoint_path is not None and self.checkpoint_path.exists():
+            self._resume(self.checkpoint_path)
 
     @classmethod
-    def open(cls, source, options=None, window: float = 0.5) -> "LiveTeam":
+    def open(
+        cls,
+        source,
+        options=None,
+        window: float = 0.5,
+        checkpoint=None,
+        checkpoint_every: int = 500,
+    ) -> "LiveTeam":
         """A live team of the run at `source`: a log directory's manifest.json (its tables may
         be empty or absent) or an MRCLAM directory's robots and landmarks; `options`: the
         `RunOptions` of `graphloc online`; `window` [s]: how late a row may arrive and still be
-        put in time order. `builder.NotLiveError` names what of the run is not live yet."""
-        return cls(live_setup(Path(source), options), window)
+        put in time order. `coverage.NotLiveError` names what of the run is not live yet.
+        checkpoint: a file (`graphloc.checkpoint`'s format, with the rows pushed so far)
+        written every `checkpoint_every` steps and by `finish` / `write_checkpoint`; when it
+        exists at open, the team resumes from it (its rows replayed: the same state, checked by
+        the graph's fingerprint), so nothing pushed before it is lost."""
+        return cls(live_setup(Path(source), options), window, checkpoint, checkpoint_every)
 
     # ---- in --------------------------------------------------------------------------------
 
@@ -93,10 +123,13 @@ class LiveTeam:
         self.subscribers.append((callback, covariance))
 
     def push(self, robot: str, table: str, row) -> None:
-        """One row of robot `robot`'s `table` (column -> text or number): checked, put in time
-        order, and every step it completes solved."""
+        """One row of robot `robot`'s `table` (column -> text or number): checked (a refused
+        row counted in `skips`, named by robot, table, its number among the rows pushed to the
+        team and the field), put in time order, and every step it completes solved."""
         self._check_open()
         self.rows += 1
+        if self.pushed is not None:
+            self.pushed.append([robot, table, {k: _plain(v) for k, v in dict(row).items()}])
         item = self.checker.check(robot, table, row, self.rows)
         if item is not None:
             self._arrive(_item_time(item), (table, item), f"robot {robot!r}, table {table!r}")
@@ -106,17 +139,12 @@ class LiveTeam:
         for row in rows:
             self.push(robot, table, row)
 
-    def push_item(self, item) -> None:
-        """An item as a table's handler makes it -- (robot index, (time, v, omega)) of an
-        odometry row, a `PointMeasurement` --, already checked (a loaded run's rows)."""
-        self._check_open()
-        table = "points" if isinstance(item, PointMeasurement) else "odometry"
-        self._arrive(_item_time(item), (table, item), "item")
-
     # ---- out -------------------------------------------------------------------------------
 
     def latest(self, robot: str, covariance: bool = True) -> RobotPose | None:
         """Robot `robot`'s latest pose as now estimated, None before its first."""
+        if robot not in self.names:
+            raise ValueError(f"unknown robot {robot!r}; robots: {sorted(self.names)}")
         r = self.names.index(robot)
         if r not in self.solver.latest:
             return None
@@ -126,8 +154,7 @@ class LiveTeam:
         """Every held row in, every remaining step solved: the `TeamResult` of the run."""
         if self.finished is not None:
             return self.finished
-        self._release(self.window.flush(), np.inf)
-        self._solve(self.builder.finish())
+        self._close()
         self.graph.run = replace(
             self.setup.run,
             start_time=float(self.builder.start if self.builder.start is not None else np.nan),
@@ -135,6 +162,8 @@ class LiveTeam:
             points=tuple(self.builder.arrived),
         )
         result = self.solver.result()
+        if self.checkpoint_path is not None:
+            self.write_checkpoint(finished=True)
         self.finished = replace(
             result,
             wall_s=self.solver.wall,
@@ -144,10 +173,71 @@ class LiveTeam:
         )
         return self.finished
 
+    def write_checkpoint(self, finished: bool = False) -> None:
+        """Write the checkpoint file now (`open`'s `checkpoint`): the graph's position and
+        fingerprint, and every row pushed so far (those still held in the window too);
+        `finished`: written by `finish` (a team resumed from it is finished too)."""
+        if self.checkpoint_path is None:
+            raise ValueError("LiveTeam.write_checkpoint: the team was opened without a checkpoint")
+        write_checkpoint(
+            self.checkpoint_path,
+            self.graph,
+            self.solver.done,
+            {
+                "live": {
+                    "window": self.window.window,
+                    "rows": self.pushed,
+                    "finished": finished,
+                }
+            },
+        )
+
     # ---- internals -------------------------------------------------------------------------
 
+    def _resume(self, path: Path) -> None:
+        """Replay the rows of the checkpoint at `path` and check the graph is the one it was
+        written from (ValueError naming the file otherwise)."""
+        data = read_checkpoint_file(path, allow_nan=True)
+        live = data.get("live")
+        rows = live.get("rows") if isinstance(live, dict) else None
+        if not isinstance(rows, list) or not all(
+            isinstance(r, list) and len(r) == 3 and isinstance(r[2], dict) for r in rows
+        ):
+            raise ValueError(
+                f"{path}: field 'live.rows' must list [robot, table, row] (a checkpoint of "
+                f"graphloc online, not of a live team?)"
+            )
+        if live.get("window") != self.window.window:
+            raise ValueError(
+                f"{path}: written with window {live.get('window')} s, opened with "
+                f"{self.window.window} s; open with the same window"
+            )
+        every, self.checkpoint_every = self.checkpoint_every, 0  # no writes while replaying
+        try:
+            for robot, table, row in rows:
+                self.push(robot, table, row)
+            if live.get("finished") is True:
+                self._close()
+        finally:
+            self.checkpoint_every = every
+        read_checkpoint(path, self.graph, allow_nan=True)  # the same run, options and steps
+        if data["steps_done"] != self.solver.done:
+            raise ValueError(
+                f"{path}: field 'steps_done' is {data['steps_done']}, its rows give "
+                f"{self.solver.done} steps"
+            )
+        self.resumed = len(rows)
+
+    def _close(self) -> None:
+        """No more rows: the held ones released, the remaining steps solved (once)."""
+        if self.closed:
+            return
+        self.closed = True
+        self._release(self.window.flush(), np.inf)
+        self._solve(self.builder.finish())
+
     def _check_open(self) -> None:
-        if self.finished is not None:
+        if self.closed:
             raise ValueError("LiveTeam.push after finish(): the run is over")
 
     def _arrive(self, t: float, entry, where: str) -> None:
@@ -166,7 +256,7 @@ class LiveTeam:
 
     def _solve(self, steps: list) -> None:
         for _ in steps:
-            t0 = _time.perf_counter()
+            t0, cpu0 = _time.perf_counter(), _time.process_time()
             i = self.solver.done
             before = dict(self.solver.latest)
             try:
@@ -177,14 +267,21 @@ class LiveTeam:
                 r for r, (k, _) in self.solver.latest.items() if before.get(r, (-1,))[0] != k
             ]
             wanted = any(cov for _, cov in self.subscribers)
-            poses = {self.names[r]: self._pose(r, wanted) for r in changed}
+            if self.subscribers:  # the estimates (and covariances) only when someone listens
+                poses = {self.names[r]: self._pose(r, wanted) for r in changed}
+            else:
+                poses = {}
             update = LiveUpdate(
                 i,
                 self.graph.steps[i][0],
                 poses,
                 len(self.graph.steps[i][1]),
                 _time.perf_counter() - t0,
+                _time.process_time() - cpu0,
             )
+            every = self.checkpoint_every
+            if self.checkpoint_path is not None and every and self.solver.done % every == 0:
+                self.write_checkpoint()
             for callback, covariance in self.subscribers:
                 callback(
                     update
@@ -213,6 +310,19 @@ class LiveTeam:
         pose = session.estimate([key]).atPose3(key)
         cov = session.marginal_covariance(key) if covariance else None
         return RobotPose(float(self.graph.node_times[r][k]), k, pose, cov)
+
+
+def _plain(value):
+    """A row's value as JSON takes it (a number or text)."""
+    if isinstance(value, (bool, np.bool_)):
+        return str(value)
+    if isinstance(value, (int, float, str)):
+        return value
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return float(value)
+    return str(value)
 
 
 def _item_time(item) -> float:

@@ -1,5 +1,7 @@
 """`run_team`: one team run from its source to its outputs -- read (`graphloc.datasets.open_run`),
-graph (`team_graph.build_graph`), solve (`team_graph.solve`, batch or online), judge
+graph (`team_graph.build_graph`; online, a run whose sections are all live:
+`live.builder.build_live`, the live API's incremental builder), solve (`team_graph.solve`,
+batch or online), judge
 (`report.evaluate`: metrics and the consistency verdict), write (`report.write_outputs`) --,
 the one route `graphloc smooth` / `online` (and so `graphloc.many_runs`) and the Python API take.
 
@@ -63,6 +65,8 @@ def run_team(
     reading the run to the last estimate."""
     from graphloc.datasets import open_run
     from graphloc.manifest import check_noise_params
+    from graphloc.live.builder import build_live
+    from graphloc.live.coverage import not_live, run_tables
     from graphloc.pipelines.team_graph import build_graph, default_lag, solve
 
     opts = RunOptions() if options is None else options
@@ -74,7 +78,10 @@ def run_team(
     run = open_run(source, duration=opts.duration, noise=noise, source=opts.source())
     lag = opts.lag if opts.lag is not None else default_lag(run, config)
     config = replace(config, lag=float(lag))
-    graph = build_graph(run, config, progress=progress)
+    if mode == "online" and not not_live(run, run_tables(run)):
+        graph = build_live(run, config)  # the live API's route (`graphloc.live`)
+    else:
+        graph = build_graph(run, config, progress=progress)
     hooks = checkpoint(graph, values) if checkpoint is not None else {}
     if on_phase is not None:
         on_phase("solving")

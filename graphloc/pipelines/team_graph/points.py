@@ -220,12 +220,12 @@ class PointBuilder:
                 return
             if lkey not in landmark_guess:
                 guess = prior[0] if prior is not None else None
-                if guess is None and np.isfinite(rng):
+                if guess is None and np.isfinite(rng) and np.isfinite(direction).all():
                     guess = ("from", m.robot, k, direction, rng)
                 if guess is None:
                     skips.add(
                         "landmark_without_position",
-                        f"landmark {m.landmark}: first seen by a bearing only",
+                        f"landmark {m.landmark}: first seen by a {m.kind} only",
                     )
                     return
                 landmark_guess[lkey] = guess
