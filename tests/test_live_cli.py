@@ -104,3 +104,48 @@ def test_ctrl_c_ends_live_cleanly(planar_log, tmp_path):
     assert "Traceback" not in stderr
     assert json.loads((out / "live.json").read_text())["ended"] == "stopped"
     assert _tums(out) and (out / "metrics.json").is_file()
+
+
+def test_killed_and_restarted_from_its_checkpoint_loses_nothing(planar_log, tmp_path, capsys):
+    """`graphloc live --checkpoint` killed (SIGKILL) while the logger has written half the
+    rows, then restarted with the same checkpoint once the log is complete: the team resumes
+    from the checkpoint, the tail skips the rows it holds and pushes the others, and the
+    outputs are `graphloc online`'s on the whole log."""
+    live, ck = tmp_path / "live", tmp_path / "live.ckpt"
+    live.mkdir()
+    for extra in planar_log.glob("*.csv"):
+        (live / extra.name).write_bytes(extra.read_bytes())
+    (live / MANIFEST).write_bytes((planar_log / MANIFEST).read_bytes())
+    manifest = read_manifest(planar_log)
+    halves = {}
+    for r in manifest.robots:
+        for rel in r.tables.values():
+            lines = (planar_log / rel).read_text().splitlines(keepends=True)
+            (live / rel).parent.mkdir(parents=True, exist_ok=True)
+            cut = 1 + (len(lines) - 1) // 2
+            (live / rel).write_text("".join(lines[:cut]))
+            halves[rel] = "".join(lines[cut:])
+    exe = Path(sys.executable).parent / "graphloc"
+    argv = [exe, "live", "--log-dir", live, "--checkpoint", ck, "--checkpoint-every", "3"]
+    proc = subprocess.Popen(argv + ["--out", tmp_path / "o1", "--no-progress"])
+    end = time.monotonic() + 120
+    while not ck.exists() and time.monotonic() < end:
+        time.sleep(0.1)
+    assert ck.exists()
+    time.sleep(0.5)
+    proc.kill()
+    proc.wait(timeout=30)
+    for rel, rest in halves.items():
+        with open(live / rel, "a") as fh:
+            fh.write(rest)
+    out = tmp_path / "o2"
+    argv = ["live", "--log-dir", str(live), "--checkpoint", str(ck), "--checkpoint-every", "3"]
+    assert main(argv + ["--out", str(out), "--idle", "1.5", "--no-progress"]) == 0
+    assert (
+        main(["online", str(planar_log), "--out", str(tmp_path / "online"), "--no-progress"]) == 0
+    )
+    want, got = _tums(tmp_path / "online"), _tums(out)
+    assert want and got.keys() == want.keys()
+    for name in want:
+        assert got[name].shape == want[name].shape
+        assert np.abs(got[name] - want[name]).max() < 1e-9, name

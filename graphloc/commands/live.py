@@ -7,9 +7,10 @@ out: ROS 2 topics (`--publish`: /ROBOT/pose, /ROBOT/path, /tf) and a Foxglove li
 (`--view [PORT]`). One status line while live (rows per second per table, step latency, the
 largest position sigma, skips). The run ends on Ctrl-C / SIGTERM or after `--idle` seconds
 without a row; then the rows still held are solved and DIR gets `graphloc online`'s outputs
-(`runner.team_run.write_run`) plus live.json (rows, updates, latencies, skips). A restarted
-`graphloc live --ros2 --topics` with the same --out pushes the rows DIR/log holds first: every
-row is flushed to it as it arrives, so nothing that arrived before a kill is lost."""
+(`runner.team_run.write_run`) plus live.json (rows, updates, latencies, skips) and
+live_updates.csv. `--checkpoint FILE`: the live team's checkpoint (`LiveTeam.open`), from which
+a restarted `graphloc live` resumes (a log's tail skips the rows it holds); DIR/log (ROS 2
+topics) then goes on, holding every row that arrived (each flushed as it came)."""
 
 from __future__ import annotations
 
@@ -54,6 +55,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--view", type=int, nargs="?", const=8765, help="Foxglove live view on this port (8765)"
     )
     parser.add_argument("--publish", action="store_true", help="poses out as ROS 2 topics")
+    parser.add_argument(
+        "--checkpoint",
+        type=Path,
+        help="the live team's checkpoint (every row pushed): written every --checkpoint-every "
+        "steps and at the end; when it exists, the team resumes from it",
+    )
+    parser.add_argument(
+        "--checkpoint-every", type=int, default=500, help="steps between checkpoints (500)"
+    )
     parser.add_argument("--config", type=Path, help="TOML file with any of the options below")
     add_config_arguments(parser, RunOptions)
 
@@ -82,6 +92,12 @@ def _source(args, opts: RunOptions):
     tf = read_topics(opts.topics)
     check_live(tf)
     recorder = LogRecorder(tf, Path(args.out) / "log")
+    if recorder.resumed and not (args.checkpoint is not None and args.checkpoint.is_file()):
+        recorder.close()
+        raise ValueError(
+            f"--out {args.out}: {recorder.root} holds the rows of an earlier live run; resume it "
+            "with --checkpoint FILE (the one that run wrote) or give another --out"
+        )
     source = Ros2Source(tf, LiveTopics(tf, scans_dir=recorder.root))
     return source, recorder.root, recorder
 
@@ -103,7 +119,15 @@ def run(args: argparse.Namespace) -> int:
     with smooth.StopFlag("live") as stop:
         cpu0 = time.process_time()
         source, run_dir, recorder = _source(args, opts)
-        team = LiveTeam.open(run_dir, replace(opts, topics=None), args.window)
+        team = LiveTeam.open(
+            run_dir, replace(opts, topics=None), args.window, args.checkpoint, args.checkpoint_every
+        )
+        if team.resumed:
+            done = " (a finished run: its outputs again)" if team.closed else ""
+            print(
+                f"graphloc live: resumed {args.checkpoint}: {team.resumed} rows{done}",
+                file=sys.stderr,
+            )
         sinks = []
         if args.publish:
             from graphloc.live.ros2 import Ros2Sink
@@ -118,12 +142,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"graphloc live: Foxglove view on ws://127.0.0.1:{view.port}", file=sys.stderr)
         status = StatusLine(enabled=not args.no_progress)
         live = LiveRun(team, source, sinks, status, recorder)
+        if args.log_dir is not None and team.pushed:  # a resumed tail skips the rows in
+            live.seen = {(r, t, row.get("line")) for r, t, row in team.pushed}
         stop.phase = "solving"
-        if recorder is not None and recorder.resumed:
-            before = recorder.recorded()
-            print(f"graphloc live: resuming {recorder.root}: {len(before)} rows", file=sys.stderr)
-            live.push([(time.perf_counter(), *r) for r in before], record=False)
-        ended = live.run(stop, args.idle)
+        ended = "finished" if team.closed else live.run(stop, args.idle)
         status.show(live.skipped(), force=True)
         status.close()
         stop.phase = "writing"

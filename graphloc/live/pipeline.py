@@ -45,6 +45,9 @@ class LiveRun:
     latencies: list = field(default_factory=list)  # [s] trigger's arrival -> poses out
     updates: list = field(default_factory=list)  # UPDATE_COLUMNS rows
     pushed: int = 0
+    # (robot, table, line) of rows the team holds already (resumed from a checkpoint): a
+    # source that reads them again (a log's tail) does not push them twice
+    seen: set = field(default_factory=set)
 
     def __post_init__(self):
         self._trigger = None  # (robot, table, line, arrival) of the row being pushed
@@ -69,12 +72,12 @@ class LiveRun:
     def skipped(self) -> int:
         return self.source.skips.total + self.team.skips.total
 
-    def push(self, rows, record: bool = True) -> None:
-        """Rows (receive time, robot, table, row) into the recorder (`record`) and the team."""
-        if record and self.recorder is not None:
+    def push(self, rows) -> None:
+        """Rows (receive time, robot, table, row) into the recorder and the team."""
+        if self.recorder is not None:
             self.recorder.write([r[1:] for r in rows])
         for arrived, robot, table, row in rows:
-            if table == "groundtruth":
+            if table == "groundtruth" or (robot, table, row.get("line")) in self.seen:
                 continue
             self._trigger = (robot, table, row.get("line", -1), arrived)
             self.team.push(robot, table, row)

@@ -3,8 +3,8 @@
 write_log_manifest`, the import's; every mapped (robot, table) listed, at the import's paths),
 then each row appended to its table (the log writer's cells, `graphloc.log_writer.cell`) and
 flushed, ground truth as TUM lines. The team is opened on this directory, and `graphloc online
-DIR/log` replays what arrived. An existing log of the same topics file is continued (its rows
-are `recorded()`, for a restarted `graphloc live` to push again first)."""
+DIR/log` replays what arrived. An existing log of the same topics file is continued (a
+restarted `graphloc live` resuming from its checkpoint)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from pathlib import Path
 
 from graphloc.datasets.rosbag import table_path, write_log_manifest
 from graphloc.datasets.rosbag_topics import TopicsFile
-from graphloc.io import MANIFEST, columns, iter_records, read_manifest
+from graphloc.io import MANIFEST, columns, read_manifest
 from graphloc.live.topics import GROUNDTRUTH_COLUMNS
 from graphloc.log_writer import cell
 from graphloc.names import out_path
@@ -73,20 +73,6 @@ class LogRecorder:
                     fh.write(",".join(columns(table)) + "\n")
                     fh.flush()
                 self._files[(robot, table)] = fh
-
-    def recorded(self) -> list[tuple[str, str, dict]]:
-        """(robot, table, row) of the measurement rows already in the log, in time order."""
-        from graphloc.io import TABLES
-
-        table_of = {cls: t for t, cls in TABLES.items()}
-        return [
-            (
-                rec.robot,
-                table_of[type(rec)],
-                {c: getattr(rec, c) for c in columns(table_of[type(rec)])},
-            )
-            for rec in iter_records(self.root)
-        ]
 
     def write(self, rows) -> None:
         """Append (robot, table, row) rows; each file flushed once."""
