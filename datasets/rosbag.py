@@ -213,7 +213,7 @@ def import_bag(bag, topics, out) -> BagImport:
             return False
         got = message_rows(f"{bag}: topic '{topic}'", m, i, msgtype, msg, skips)
         if m.table == "scans":
-            got = [(t, s, _write_scan(out, m.robot, s, i, pts)) for t, s, pts in got]
+            got = [(t, s, write_scan(out, m.robot, s, i, pts)) for t, s, pts in got]
         streamed[topic] += [(row[0], i, k, row) for k, row in enumerate(got)]
         return True
 
@@ -298,7 +298,7 @@ def write_log_manifest(
     write_manifest(body, out)
 
 
-def _write_scan(out: Path, robot: str, sensor: str, index: int, pts: np.ndarray) -> str:
+def write_scan(out: Path, robot: str, sensor: str, index: int, pts: np.ndarray) -> str:
     """One cloud as ROBOT/scans/SENSOR_INDEX.ply (float64; INDEX: the message's index in its
     topic); returns the path relative to `out`, as the `scans` table holds it."""
     import open3d as o3d

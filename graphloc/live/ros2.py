@@ -4,8 +4,9 @@ installation: the DDS names and types of rmw_cyclonedds (`graphloc.live.ros2_typ
 - `Ros2Source(topics)`: subscribes to the topics file's topics (docs/rosbag.md). A topic's
   message type is the one its publisher announces (DDS discovery, as `ros2 bag record` finds
   it), so the topics file needs no types; a publisher of a type its table does not take is a
-  counted skip `wrong_type` (its topic is not read). `poll(timeout)` returns the (robot, table, row)
-  of the messages received since, in arrival order (`graphloc.live.topics.LiveTopics`).
+  counted skip `wrong_type` (its topic is not read). `poll(timeout)` returns the (arrival
+  time, robot, table, row) of the messages received since, in arrival order
+  (`graphloc.live.topics.LiveTopics`).
 - `Ros2LogSource(log)`: a log's tables as lines (`graphloc_msgs/msg/LogRow` on
   `/graphloc/log/ROBOT/TABLE`), for rows no ROS message holds as they are (MRCLAM's).
 - `Ros2Sink(robots)`: per robot `/<robot>/pose` (`geometry_msgs/PoseWithCovarianceStamped`),

@@ -56,8 +56,8 @@ class LiveTopics:
         return [(m.robot, m.table, dict(zip(names, row))) for row in got]
 
     def _scan(self, robot: str, sensor: str, index: int, pts) -> str:
-        from graphloc.datasets.rosbag import _write_scan
+        from graphloc.datasets.rosbag import write_scan
 
         if self.scans_dir is None:
             raise ValueError(f"{self._where('?')}: a scans topic needs a folder for its clouds")
-        return _write_scan(self.scans_dir, robot, sensor, index, pts)
+        return write_scan(self.scans_dir, robot, sensor, index, pts)
