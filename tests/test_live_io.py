@@ -376,3 +376,33 @@ def test_recorder_writes_a_log_and_resumes_it(tmp_path):
     topics.write_text(yaml.safe_dump(body))
     with pytest.raises(ValueError, match="a log of other topics"):
         LogRecorder(read_topics(topics), tmp_path / "log")
+
+
+def test_a_publisher_of_the_wrong_type_is_a_counted_skip(loopback, tmp_path):
+    """A mapped topic whose publisher announces a type its table does not take (a Range on an
+    odometry topic) is not read: one `wrong_type` skip naming the topic and both types."""
+    import yaml
+
+    from graphloc.datasets.rosbag_topics import read_topics
+    from graphloc.live.publish import Publisher
+    from graphloc.live.ros2 import Ros2Source
+    from graphloc.live.ros2_types import idl_type
+
+    topics = tmp_path / "topics.yaml"
+    topics.write_text(yaml.safe_dump(_husky_topics()))
+    source = Ros2Source(read_topics(topics))
+    odom = "/husky_velocity_controller/odom"
+    head = idl_type("std_msgs/msg/Header")(
+        stamp=idl_type("builtin_interfaces/msg/Time")(sec=1, nanosec=0), frame_id="uwb"
+    )
+    rng = idl_type("sensor_msgs/msg/Range")(
+        header=head, radiation_type=0, field_of_view=0.1, min_range=0.1, max_range=9.0, range=2.0
+    )
+    pub = Publisher([(0.0, odom, "sensor_msgs/msg/Range", rng)])
+    end = time.monotonic() + 10
+    while not source.skips.total and time.monotonic() < end:
+        assert source.poll(0.05) == []
+    assert source.skips.counts == {"wrong_type": 1}
+    assert f"topic '{odom}'" in source.skips.examples[0]
+    assert "sensor_msgs::msg::dds_::Range_" in source.skips.examples[0]
+    assert source.subscribed() == set() and pub.wait_for_subscribers(0.5) == {odom}
