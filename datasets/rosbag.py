@@ -213,7 +213,7 @@ def import_bag(bag, topics, out) -> BagImport:
             return False
         got = message_rows(f"{bag}: topic '{topic}'", m, i, msgtype, msg, skips)
         if m.table == "scans":
-            got = [(t, s, _write_scan(out, m.robot, s, i, pts)) for t, s, pts in got]
+            got = [(t, s, write_scan(out, m.robot, s, i, pts)) for t, s, pts in got]
         streamed[topic] += [(row[0], i, k, row) for k, row in enumerate(got)]
         return True
 
@@ -234,6 +234,39 @@ def import_bag(bag, topics, out) -> BagImport:
             got = [row for *_, row in sorted(streamed[topic], key=lambda s: s[:3])]
         rows.setdefault((m.robot, m.table), []).extend(got)
     written = {}
+    tables: dict = {}  # robot -> {table: path relative to out}
+    for (robot, table), rs in sorted(rows.items()):
+        if not rs:
+            continue
+        rs.sort(key=lambda row: row[0])
+        rel = table_path(robot, table)
+        _write_table(out_path(out, *rel.split("/")), table, rs)
+        tables.setdefault(robot, {})[table] = rel
+        written[table] = written.get(table, 0) + len(rs)
+    meta = {"source": str(bag), "topics": str(tf.path), "skips": skips.as_dict()}
+    write_log_manifest(tf, out, tables, {**meta, "notes": notes.as_dict()}, intrinsics, extrinsics)
+    return BagImport(out, written, skips, unmapped, missing, notes)
+
+
+def table_path(robot: str, table: str) -> str:
+    """Where a topics file's (robot, table) is written in a log directory, relative to it."""
+    return f"{robot}/{'groundtruth.tum' if table == 'groundtruth' else table + '.csv'}"
+
+
+def write_log_manifest(
+    tf: TopicsFile,
+    out: Path,
+    tables: dict,
+    meta: dict,
+    intrinsics=None,
+    extrinsics=None,
+    key: str = "import",
+) -> None:
+    """The manifest (and landmarks.csv) of a log directory of the topics file `tf`: its robots
+    with `tables` (robot -> {table: relative path}), the cameras' intrinsics and the sensors'
+    extrinsics found in the bag ((robot, sensor) -> params / 4x4), `meta` as `meta.<key>`
+    (`import`: what the log reader counts as the import's skips; `live`: a live recording)."""
+    intrinsics, extrinsics = intrinsics or {}, extrinsics or {}
     robots = []
     for r in copy.deepcopy(tf.robots):
         name = r["name"]
@@ -242,29 +275,12 @@ def import_bag(bag, topics, out) -> BagImport:
                 s["params"] = {**s.get("params", {}), **intrinsics[(name, s["name"])]}
             if (name, s.get("name")) in extrinsics:
                 s["extrinsics"] = extrinsics[(name, s["name"])].tolist()
-        tables = {}
-        for (robot, table), rs in sorted(rows.items()):
-            if robot != name or not rs:
-                continue
-            rs.sort(key=lambda row: row[0])
-            rel = f"{name}/{'groundtruth.tum' if table == 'groundtruth' else table + '.csv'}"
-            _write_table(out_path(out, name, rel.split("/", 1)[1]), table, rs)
-            tables[table] = rel
-            written[table] = written.get(table, 0) + len(rs)
-        robots.append({**r, "tables": tables})
+        robots.append({**r, "tables": dict(sorted(tables.get(name, {}).items()))})
     body = {
         "name": tf.name,
         "start_time": tf.start_time,
         "robots": robots,
-        "meta": {
-            **tf.meta,
-            "import": {
-                "source": str(bag),
-                "topics": str(tf.path),
-                "skips": skips.as_dict(),
-                "notes": notes.as_dict(),
-            },
-        },
+        "meta": {**tf.meta, key: meta},
     }
     if tf.landmarks:
         with open(out_path(out, "landmarks.csv"), "w", newline="") as fh:
@@ -280,10 +296,9 @@ def import_bag(bag, topics, out) -> BagImport:
                 )
         body["landmarks"] = {"file": "landmarks.csv"}
     write_manifest(body, out)
-    return BagImport(out, written, skips, unmapped, missing, notes)
 
 
-def _write_scan(out: Path, robot: str, sensor: str, index: int, pts: np.ndarray) -> str:
+def write_scan(out: Path, robot: str, sensor: str, index: int, pts: np.ndarray) -> str:
     """One cloud as ROBOT/scans/SENSOR_INDEX.ply (float64; INDEX: the message's index in its
     topic); returns the path relative to `out`, as the `scans` table holds it."""
     import open3d as o3d

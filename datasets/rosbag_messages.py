@@ -18,6 +18,7 @@ from graphloc.datasets.rosbag_topics import (
     COMPRESSED,
     IMAGE,
     MESSAGE_TYPES,
+    ODOMETRY,
     POSE,
     TRANSFORM,
     VECTOR3,
@@ -272,6 +273,11 @@ def message_rows(where0: str, m: TopicMap, i: int, msgtype: str, msg, skips: Ski
         if m.table == "groundtruth":
             xyz, q, _ = pose(msgtype, msg)
             return [(t, *xyz, *q)]
+        if m.table == "odometry":  # unicycle velocities: forward speed, yaw rate (body frame)
+            tw = msg.twist.twist if msgtype == ODOMETRY else msg.twist
+            v, omega = float(tw.linear.x), float(tw.angular.z)
+            _finite(v, omega)
+            return [(t, m.sensor, v, omega)]
         if m.table == "range":
             r = float(msg.range)
             _finite(r)
@@ -338,19 +344,49 @@ def pose_rows(
             stamped.append((t, i, msgtype, msg))
     count_backwards(where0, [s[:2] for s in stamped], notes)
     stamped.sort(key=lambda s: (s[0], s[1]))
-    out, prev = [], None
-    for t, i, msgtype, msg in stamped:
-        where = f"{where0} message {i} (stamp {t:.9f})"
+    chain = PoseChain(where0, m, skips)
+    out = [chain.add(i, msgtype, msg, t) for t, i, msgtype, msg in stamped]
+    return [row for row in out if row is not None]
+
+
+class PoseChain:
+    """One pose topic's relative_pose3 rows as its messages come in header-stamp order (a
+    bag's topic once sorted, `pose_rows`; a live topic as it arrives): each message's pose and
+    covariance against the previous good one (`_increment`). A bad message is a counted skip;
+    on a live topic, a message stamped before the previous one cannot be re-sorted and is
+    skipped too (`stamp_backwards`)."""
+
+    def __init__(self, where0: str, m: TopicMap, skips: SkipReport):
+        self.where0, self.m, self.skips = where0, m, skips
+        self.prev = None  # (t, xyz, q, cov) of the previous good message
+
+    def add(self, i: int, msgtype: str, msg, t: float | None = None):
+        """The row from the previous message's pose to message `i`'s (None: the first, or a
+        skip); `t`: its header stamp when already read (`_stamped`)."""
+        if t is None:
+            t = _stamped(f"{self.where0} message {i}", self.m, msgtype, msg, self.skips)
+            if t is None:
+                return None
+        where = f"{self.where0} message {i} (stamp {t:.9f})"
         try:
+            if self.prev is not None and t < self.prev[0]:
+                raise Bad(
+                    "stamp_backwards",
+                    f"stamp before the previous message's {self.prev[0]:.9f} (not re-sorted live)",
+                )
             xyz, q, cov = pose(msgtype, msg)
-            if prev is not None:
-                out.append(_increment(m, prev, (t, xyz, q, cov), msgtype))
-            prev = (t, xyz, q, cov)
+            row = (
+                None
+                if self.prev is None
+                else _increment(self.m, self.prev, (t, xyz, q, cov), msgtype)
+            )
+            self.prev = (t, xyz, q, cov)
+            return row
         except Bad as exc:
-            skips.add(exc.reason, f"{where}: {exc}")
+            self.skips.add(exc.reason, f"{where}: {exc}")
         except (AttributeError, TypeError, ValueError) as exc:
-            skips.add("malformed", f"{where}: {exc}")
-    return out
+            self.skips.add("malformed", f"{where}: {exc}")
+        return None
 
 
 def _increment(m: TopicMap, prev, cur, msgtype: str):

@@ -21,6 +21,7 @@ TOPICS_FILE = "topics.yaml"  # what open_run(BAG) looks for beside (or inside) t
 ODOMETRY = "nav_msgs/msg/Odometry"
 POSE_COV = "geometry_msgs/msg/PoseWithCovarianceStamped"
 POSE = "geometry_msgs/msg/PoseStamped"
+TWIST = "geometry_msgs/msg/TwistStamped"
 TRANSFORM = "geometry_msgs/msg/TransformStamped"
 RANGE = "sensor_msgs/msg/Range"
 VECTOR3 = "geometry_msgs/msg/Vector3Stamped"
@@ -34,6 +35,7 @@ TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 TF_TOPICS = ("/tf_static", "/tf")  # read when the topics file has 'frames'
 # table -> message types a topic of that table may carry
 MESSAGE_TYPES = {
+    "odometry": (TWIST, ODOMETRY),
     "relative_pose3": (ODOMETRY, POSE_COV, POSE),
     "range": (RANGE,),
     "bearing": (VECTOR3, POINT),
@@ -55,7 +57,7 @@ TOPIC_KEYS = {
     "detector",
 }
 TABLE_KEYS = {  # topic fields that only some tables take
-    "sensor": ("relative_pose3", "range", "bearing", "markers", "scans"),
+    "sensor": ("odometry", "relative_pose3", "range", "bearing", "markers", "scans"),
     "target": ("range", "bearing", "markers"),
     "targets": ("range", "bearing"),
     "covariance": ("relative_pose3",),

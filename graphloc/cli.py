@@ -44,6 +44,7 @@ VERBS: dict[str, str] = {
     "validate": "validate",
     "smooth": "smooth",
     "online": "online",
+    "live": "live",
     "fuse-maps": "fuse_maps",
     "simulate": "simulate",
     "import": "import_bag",

@@ -90,7 +90,7 @@ def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Pa
         out_path(root, name).mkdir(exist_ok=True)
         tables = {"odometry": f"{name}/odometry.csv", "range_bearing": f"{name}/range_bearing.csv"}
         od = run.odometry[r]
-        _write_csv(
+        write_csv(
             root / tables["odometry"],
             columns("odometry"),
             [(f"{t:.6f}", "wheels", f"{v:.6g}", f"{w:.6g}") for t, v, w in od],
@@ -112,10 +112,10 @@ def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Pa
                     f"{run.obs_bearing[i]:.6g}",
                 )
             )
-        _write_csv(root / tables["range_bearing"], columns("range_bearing"), rows)
+        write_csv(root / tables["range_bearing"], columns("range_bearing"), rows)
         if run.groundtruth[r] is not None:
             tables["groundtruth"] = f"{name}/groundtruth.csv"
-            _write_csv(
+            write_csv(
                 root / tables["groundtruth"],
                 columns("groundtruth"),
                 [
@@ -141,7 +141,7 @@ def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Pa
                 "tables": tables,
             }
         )
-    _write_csv(
+    write_csv(
         root / "landmarks.csv",
         ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"],
         [
@@ -167,15 +167,18 @@ def write_table(path: str | Path, table: str, rows) -> Path:
     large time stamps keep their digits); parent folders created."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    _write_csv(path, columns(table), rows)
+    write_csv(path, columns(table), rows)
     return path
 
 
-def _write_csv(path: Path, header: list[str], rows) -> None:
-    def text(v):
-        return repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)
+def cell(v) -> str:
+    """A table cell: floats written losslessly (repr), everything else as str."""
+    return repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)
 
+
+def write_csv(path: Path, header, rows) -> None:
+    """A CSV file: `header`, then `rows` (cells by `cell`)."""
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
-        w.writerows([text(v) for v in row] for row in rows)
+        w.writerows([cell(v) for v in row] for row in rows)

@@ -80,6 +80,55 @@ def iter_table_chunks(
         yield from _then_raise(chunk, state)
 
 
+class LineChecker:
+    """The row checks of `iter_table_chunks` for lines that arrive a few at a time (a table a
+    logger is still writing: `graphloc.live.tail`): `header(text)` checks the header line,
+    `rows(batch)` validates [(line number, text)] of data lines against the rows before them
+    (time non-decreasing) and returns the accepted rows as column -> value mappings with
+    `line`; a bad row is counted in `report` naming file, line and field."""
+
+    def __init__(self, manifest, robot, table, report: SkipReport, landmark_ids=None):
+        self.args = (manifest, robot, table)
+        self.cols = columns(table)
+        self.convs = {f.name: _converter(f.type) for f in fields(TABLES[table])}
+        self.sink = Sink("skip", report)
+        self.landmark_ids = landmark_ids
+        self.state = {"last_time": -math.inf}
+        self.path = manifest.root / robot.tables[table]
+
+    def header(self, text: str) -> None:
+        """ValueError naming the file and line 1 unless `text` is the table's header."""
+        header = _header(self.path, text, self.cols)
+        if header != self.cols:
+            raise ValueError(
+                f"{self.path}: line 1: header must be {','.join(self.cols)}, got "
+                f"{shown(','.join(header))}"
+            )
+
+    def rows(self, first_line: int, texts: list[str]) -> list[dict]:
+        batch = _data_only(first_line, texts)
+        if not batch:
+            return []
+        manifest, robot, table = self.args
+        chunk = _chunk(
+            batch,
+            manifest,
+            robot,
+            table,
+            self.cols,
+            self.convs,
+            self.sink,
+            self.landmark_ids,
+            self.state,
+        )
+        names = [c for c in chunk if c != "line"]
+        values = [chunk[c] if isinstance(chunk[c], list) else chunk[c].tolist() for c in names]
+        return [
+            {"line": line, **dict(zip(names, row))}
+            for line, *row in zip(chunk["line"].tolist(), *values)
+        ]
+
+
 def _then_raise(chunk: dict, state: dict) -> Iterator[dict]:
     """The chunk (if it holds rows), then (on_error="raise") the error of the first bad row
     after them: a reader meets the rows before a bad row first, as if read one by one."""

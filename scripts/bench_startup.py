@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import random
 import shlex
 import signal
@@ -42,6 +41,9 @@ import tarfile
 import tempfile
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: benchmarks/
+from benchmarks.host import commit, machine  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 MRCLAM = ROOT.parent / "shared" / "data" / "mrclam" / "MRCLAM_Dataset6"
@@ -216,41 +218,6 @@ def peer_tree(rev: str, into: Path) -> Path:
     return tree
 
 
-def machine() -> dict:
-    cpu = platform.processor()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {
-        "cpu": cpu,
-        "cores": os.cpu_count(),
-        "python": platform.python_version(),
-        "system": f"{platform.system()} {platform.release()}",
-    }
-
-
-def _commit() -> str:
-    try:
-        res = subprocess.run(
-            ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=True,
-        )
-        dirty = subprocess.run(
-            ["git", "-C", str(ROOT), "status", "--porcelain", "--untracked-files=no"],
-            capture_output=True,
-            text=True,
-        ).stdout.strip()
-        return res.stdout.strip() + (" (with uncommitted changes)" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--graphloc", default=_graphloc_default(), help="the command to time")
@@ -272,7 +239,7 @@ def main(argv: list[str] | None = None) -> int:
     result: dict = {
         "command": " ".join(["python scripts/bench_startup.py", *map(shlex.quote, shown)]),
         "graphloc_version": __version__,
-        "commit": _commit(),
+        "commit": commit(),
         "graphloc": shlex.split(args.graphloc),
         "peer": None,
         "machine": machine(),

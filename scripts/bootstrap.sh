@@ -37,7 +37,7 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 "$VENV/bin/python" -m pip install -q --upgrade pip >/dev/null
 echo "[bootstrap] installing graphloc and its dependencies into $VENV (first time takes a few minutes)"
-"$VENV/bin/python" -m pip install -q -e ".[test]"
+"$VENV/bin/python" -m pip install -q -e ".[test,live]"
 # Fail here, with a clear message, rather than inside the first test that imports them.
 "$VENV/bin/python" - <<'PY'
 import importlib, sys

@@ -65,7 +65,6 @@ def run_team(
     reading the run to the last estimate."""
     from graphloc.datasets import open_run
     from graphloc.manifest import check_noise_params
-    from graphloc.pipelines.report import evaluate, groundtruths, write_metrics, write_outputs
     from graphloc.live.builder import build_live
     from graphloc.live.coverage import not_live, run_tables
     from graphloc.pipelines.team_graph import build_graph, default_lag, solve
@@ -90,6 +89,20 @@ def run_team(
     cpu = time.process_time() - cpu0
     if on_phase is not None:
         on_phase("writing")
+    metrics = write_run(result, run, out, opts, config, cpu, stop, progress, source)
+    return TeamOutcome(result, run, metrics)
+
+
+def write_run(
+    result, run, out, opts: RunOptions, config, cpu: float, stop=None, progress=False, source=None
+) -> dict:
+    """Judge and write a solved run (`run_team`'s last phase, and `graphloc live`'s at its
+    end): metrics with the consistency verdict (`report.evaluate`), every output of
+    docs/outputs.md into `out`, the MCAP / Rerun recordings the options ask for. Returns the
+    metrics (metrics.json)."""
+    from graphloc.pipelines.report import evaluate, groundtruths, write_metrics, write_outputs
+
+    values = asdict(opts)
     truth = groundtruths(run)
     metrics = evaluate(result, run, truth, stop, opts.align, cpu)
     metrics["config"] = json.loads(dumps_json(asdict(config), default=str))
@@ -113,4 +126,4 @@ def run_team(
     if signalled is not None:  # metrics.json says who stopped the run and what is missing
         metrics["stopped_by"] = signal.Signals(signalled).name
         write_metrics(out, metrics)
-    return TeamOutcome(result, run, metrics)
+    return metrics

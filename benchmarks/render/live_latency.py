@@ -1,0 +1,79 @@
+"""docs/results_live_latency.md: the live latency benchmark (scripts/bench_live_latency.py) from
+docs/results_live_latency.json. Template: templates/live_latency.md.j2."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from benchmarks.render import header
+
+
+def ms(x) -> str:
+    return "-" if x is None else f"{1e3 * x:.2f}"
+
+
+def _steps(result: dict) -> pd.DataFrame:
+    rows = [
+        [
+            s["team"],
+            s["steps"],
+            ms(s["latency_s"].get("p50")),
+            ms(s["latency_s"].get("p95")),
+            ms(s["latency_s"].get("max")),
+            f"{s['wall_s']:.1f}",
+            s["skipped"],
+        ]
+        for s in result["steps"]
+    ]
+    cols = "robots | updates | p50 [ms] | p95 [ms] | max [ms] | replay wall [s] | skipped rows"
+    return pd.DataFrame(rows, columns=header(cols))
+
+
+def _e2e(result: dict) -> pd.DataFrame:
+    rows = []
+    for e in result["end_to_end"]:
+        for part, key in (
+            ("end to end", "end_to_end_s"),
+            ("way in (published -> arrived)", "way_in_s"),
+            ("update (arrived -> poses ready)", "update_s"),
+            ("way out (ready -> received)", "way_out_s"),
+            ("age (newest row at the pose's time published -> received)", "age_s"),
+        ):
+            st = e[key]
+            rows.append(
+                [
+                    f"{e['window_s']:g}",
+                    part,
+                    st["n"],
+                    ms(st.get("p50")),
+                    ms(st.get("p95")),
+                    ms(st.get("max")),
+                ]
+            )
+    cols = "window [s] | part | poses | p50 [ms] | p95 [ms] | max [ms]"
+    return pd.DataFrame(rows, columns=header(cols))
+
+
+def context(result: dict) -> dict:
+    target = result["target_p95_s"]
+    verdicts = [
+        {
+            "window": e["window_s"],
+            "p95_ms": 1e3 * e["end_to_end_s"]["p95"],
+            "met": e["end_to_end_s"]["p95"] < target,
+            "messages": e["messages"],
+            "poses": e["poses"],
+            "missing": e["poses_not_received"],
+            "skipped": e["skipped"],
+            "skip_counts": e["skip_counts"],
+        }
+        for e in result["end_to_end"]
+        if e["end_to_end_s"]["n"]
+    ]
+    return {
+        "r": result,
+        "steps": _steps(result),
+        "e2e": _e2e(result),
+        "verdicts": verdicts,
+        "target_ms": 1e3 * target,
+    }

@@ -1,0 +1,115 @@
+"""One live run: rows from a source pushed into a `graphloc.LiveTeam` as they arrive, each
+update's poses out to the sinks (ROS 2 topics, the Foxglove view) and the status line, until a
+stop signal or `idle` seconds without a row; `graphloc live` is a thin verb over `LiveRun`.
+
+A source has `poll(timeout) -> [(receive time, robot, table, row)]` (`graphloc.live.ros2.
+Ros2Source`, `graphloc.live.tail.LogTail`) and `skips`. Ground-truth rows are recorded, not
+pushed (they are no measurement). An update happens while a row is pushed (the row whose time
+completes a step): its trigger. `updates` logs, per update and robot pose, the trigger (robot,
+table, its line: the log file's line, or for ROS 2 lines the message's index on its topic + 2)
+with the trigger's arrival and the time the update's poses were ready, before the sinks
+(perf_counter, CLOCK_MONOTONIC: another process on the machine pairs them with its own);
+`latencies`: a trigger's arrival -> the poses it completed, out through every sink. The steps
+solved when the run ends (`LiveTeam.finish`) have no trigger (empty fields)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+
+UPDATE_COLUMNS = (
+    "step",
+    "time",
+    "robot",
+    "trigger_robot",
+    "trigger_table",
+    "trigger_line",
+    "arrived_s",
+    "ready_s",
+)
+
+
+def robot_poses(update) -> dict:
+    """robot -> (time, gtsam.Pose3, 6x6 covariance) of a LiveUpdate's poses."""
+    return {name: (p.time, p.pose, p.covariance) for name, p in update.poses.items()}
+
+
+@dataclass
+class LiveRun:
+    team: object
+    source: object
+    sinks: list = field(default_factory=list)  # .publish(poses) / LiveView.show(poses, time)
+    status: object | None = None  # graphloc.live.status.StatusLine
+    recorder: object | None = None  # graphloc.live.record.LogRecorder
+    latencies: list = field(default_factory=list)  # [s] trigger's arrival -> poses out
+    updates: list = field(default_factory=list)  # UPDATE_COLUMNS rows
+    pushed: int = 0
+    # (robot, table, line) of rows the team holds already (resumed from a checkpoint): a
+    # source that reads them again (a log's tail) does not push them twice
+    seen: set = field(default_factory=set)
+
+    def __post_init__(self):
+        self._trigger = None  # (robot, table, line, arrival) of the row being pushed
+        self.team.subscribe(self._on_update)
+
+    def _on_update(self, update) -> None:
+        ready = time.perf_counter()  # the update's poses and covariances computed
+        poses = robot_poses(update)
+        for sink in self.sinks:
+            if hasattr(sink, "show"):
+                sink.show(poses, update.time)
+            else:
+                sink.publish(poses)
+        robot, table, line, arrived = self._trigger or ("", "", -1, float("nan"))
+        if self._trigger is not None:
+            self.latencies.append(time.perf_counter() - arrived)
+        for name, (t, _, _) in poses.items():
+            self.updates.append((update.step, t, name, robot, table, line, arrived, ready))
+        if self.status is not None:
+            self.status.add_update(update.latency_s, poses)
+
+    def skipped(self) -> int:
+        return self.source.skips.total + self.team.skips.total
+
+    def push(self, rows) -> None:
+        """Rows (receive time, robot, table, row) into the recorder and the team."""
+        if self.recorder is not None:
+            self.recorder.write([r[1:] for r in rows])
+        for arrived, robot, table, row in rows:
+            if table == "groundtruth" or (robot, table, row.get("line")) in self.seen:
+                continue
+            self._trigger = (robot, table, row.get("line", -1), arrived)
+            self.team.push(robot, table, row)
+            self._trigger = None  # updates at the end (finish) have no trigger
+            self.pushed += 1
+        if self.status is not None:
+            self.status.add_rows([r[2] for r in rows])
+
+    def latency_summary(self) -> dict:
+        """p50 / p95 / max [s] of the end-to-end latencies (empty before an update)."""
+        import numpy as np
+
+        lat = np.asarray(self.latencies)
+        if not len(lat):
+            return {}
+        return {
+            k: float(np.percentile(lat, q)) for k, q in (("p50", 50), ("p95", 95), ("max", 100))
+        }
+
+    def run(self, stop=lambda: False, idle: float | None = None, poll: float = 0.05) -> str:
+        """Until `stop()` ("stopped") or `idle` s after the last row ("idle"; not before the
+        first row)."""
+        last = None
+        while True:
+            if stop():
+                return "stopped"
+            rows = self.source.poll(poll)
+            now = time.monotonic()
+            if rows:
+                last = now
+                self.push(rows)
+            elif idle is not None and last is not None and now - last >= idle:
+                return "idle"
+            if self.status is not None:
+                self.status.show(self.skipped())
