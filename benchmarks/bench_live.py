@@ -12,6 +12,9 @@ run, against `graphloc online`'s solve of the same run (`open_run`, its graph, `
 
     .venv/bin/python scripts/bench_live.py --data ../shared/data/mrclam/MRCLAM_Dataset6 \\
         --json docs/results_live.json
+
+docs/results_live_latency.md renders that JSON in its last section
+(`scripts/render_docs.py results_live_latency.md`).
 """
 
 from __future__ import annotations

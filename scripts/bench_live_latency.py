@@ -12,6 +12,7 @@ A measurement, not a test: the target (end-to-end p95 under 20 ms) is read off t
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -36,7 +37,9 @@ def main(argv=None) -> int:
     result["command"] = "scripts/bench_live_latency.py " + " ".join(argv or sys.argv[1:])
     png = (args.out if args.no_doc else DOCS_DIR) / "results_live_latency.png"
     plot(result, png)
-    text = render("live_latency", result, doc="results_live_latency")
+    api = DOCS_DIR / "results_live.json"  # scripts/bench_live.py's, rendered beside
+    api = json.loads(api.read_text()) if api.is_file() else None
+    text = render("live_latency", result, api, doc="results_live_latency")
     doc = None if args.no_doc else DOCS_DIR / "results_live_latency.md"
     write_report(args.out, "results_live_latency", result, text, doc, rendered=result)
     print(text)

@@ -45,7 +45,9 @@ DOCS = {
     "results_startup.md": Doc("startup", ("results_startup.json",)),
     "results_team.md": Doc("team_runs", ("results_team.json",)),
     "results_speed.md": Doc("speed", ("results_speed.json", "results_mrclam_pose2.json")),
-    "results_live_latency.md": Doc("live_latency", ("results_live_latency.json",)),
+    "results_live_latency.md": Doc(
+        "live_latency", ("results_live_latency.json", "results_live.json")
+    ),
     "results_team_crawler.md": Doc("team_crawler", ("results_team_crawler.json",)),
     "results_team_dual_room.md": Doc("team_dual_room", ("results_team_dual_room.json",)),
     "results_seed_baselines.md": Doc("seed_baselines", ("results_seed_baselines.json",)),

@@ -1,5 +1,7 @@
 """docs/results_live_latency.md: the live latency benchmark (scripts/bench_live_latency.py) from
-docs/results_live_latency.json. Template: templates/live_latency.md.j2."""
+docs/results_live_latency.json, and the live API against `graphloc online` on the full
+Dataset6 (scripts/bench_live.py) from docs/results_live.json. Template:
+templates/live_latency.md.j2."""
 
 from __future__ import annotations
 
@@ -54,7 +56,25 @@ def _e2e(result: dict) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=header(cols))
 
 
-def context(result: dict) -> dict:
+def _api(api: dict) -> pd.DataFrame:
+    rows = [
+        [
+            name,
+            f"{run['cpu_s']:.1f}",
+            f"{run['cpu_s'] / api['online']['cpu_s']:.2f}",
+            *(f"{run['latency'][q]:.2f}" for q in ("p50_ms", "p95_ms", "max_ms")),
+            *(f"{run['step_cpu'][q]:.2f}" for q in ("p50_ms", "p95_ms", "max_ms")),
+        ]
+        for name, run in (("live", api["live"]), ("live, covariances", api["live_with_covariance"]))
+    ]
+    cols = (
+        "replay | CPU [s] | CPU / online's | latency p50 [ms] | p95 [ms] | max [ms] "
+        "| step CPU p50 [ms] | p95 [ms] | max [ms]"
+    )
+    return pd.DataFrame(rows, columns=header(cols))
+
+
+def context(result: dict, api: dict | None = None) -> dict:
     target = result["target_p95_s"]
     verdicts = [
         {
@@ -76,4 +96,6 @@ def context(result: dict) -> dict:
         "e2e": _e2e(result),
         "verdicts": verdicts,
         "target_ms": 1e3 * target,
+        "api": api,
+        "api_table": None if api is None else _api(api),
     }
