@@ -108,19 +108,36 @@ def decide_stream(
     run: TeamRun, config: GraphConfig, timeline: Timeline, step_rel: list, r: int, ti: int, obs
 ) -> StreamDecisions:
     """Robot r's sets on placed robot ti (`obs`: (index in run.observations, observation)) through
-    one HypothesisTracker, in time order, with the observer's odometry between them. A set with
-    no (new) observer pose or no target pose within the sync tolerance is a counted skip
-    `no_pose_at_time`; an inconsistent set (no candidate passed the pixel chi-square,
-    `vision.marker_poses`) is never decided: an outcome with status "inconsistent" and a
-    counted skip `inconsistent_set`."""
+    one HypothesisTracker, in time order, with the observer's odometry between them
+    (`StreamTracker`, one set at a time)."""
+    tracker = StreamTracker(run, config, r, ti, all(o.pixels is not None for _, o in obs))
     nearest = timeline.nearest
-    observer, target = run.robots[r], run.robots[ti]
-    out = StreamDecisions(r, ti, all(o.pixels is not None for _, o in obs))
-    target_track = dead_reckoning(target, step_rel[ti], config)
-    tracker = HypothesisTracker(config.tracker)
-    prev = None
     for n, o in obs:
-        k, kt = nearest(r, o.time), nearest(ti, o.time)
+        tracker.add(n, o, nearest(r, o.time), nearest(ti, o.time), step_rel)
+    return tracker.out
+
+
+class StreamTracker:
+    """One (observer r, placed target ti) stream's HypothesisTracker fed one set at a time
+    (`add`), causally: a set's decision uses the sets before it and the observer's steps up to
+    its pose only. `out` is the stream's `StreamDecisions` so far. A set with no (new) observer
+    pose or no target pose within the sync tolerance is a counted skip `no_pose_at_time`; an
+    inconsistent set (no candidate passed the pixel chi-square, `vision.marker_poses`) is never
+    decided: an outcome with status "inconsistent" and a counted skip `inconsistent_set`."""
+
+    def __init__(self, run: TeamRun, config: GraphConfig, r: int, ti: int, pixel_route: bool):
+        self.run, self.config, self.r, self.ti = run, config, r, ti
+        self.out = StreamDecisions(r, ti, pixel_route)
+        self.tracker = HypothesisTracker(config.tracker)
+        self.prev = None
+        self.target_track: list | None = None
+
+    def add(self, n: int, o, k: int, kt: int, step_rel: list):
+        """Set n (`o`, at observer node k and target node kt, -1: none) through the tracker;
+        its `TrackedSet` (None: skipped or inconsistent)."""
+        run, config, r, ti, out = self.run, self.config, self.r, self.ti, self.out
+        observer, target = run.robots[r], run.robots[ti]
+        prev = self.prev
         if len(o.candidates) == 0:
             meta = o.candidates.meta
             out.skips.add(
@@ -131,22 +148,24 @@ def decide_stream(
                 rows_of(o),
             )
             out.outcomes.append(inconsistent(o, r, ti))
-            continue
+            return None
         if k < 0 or (prev is not None and k == prev):
             out.skips.add(
                 "no_pose_at_time",
                 f"robot {observer.name}: candidate set at {o.time} has no "
                 f"(new) pose within the sync tolerance",
             )
-            continue
+            return None
         if kt < 0:
             out.skips.add(
                 "no_pose_at_time",
                 f"robot {target.name}: seen at {o.time} with no pose within the sync tolerance",
             )
-            continue
+            return None
+        if self.target_track is None or kt >= len(self.target_track):
+            self.target_track = dead_reckoning(target, step_rel[ti][: kt + 1], config)
         E = o.body_T_sensor
-        X_t, P_t = target_track[kt]
+        X_t, P_t = self.target_track[kt]
         # the candidates (target_T_sensor) in the world through the target's pose, its
         # uncertainty added
         seen = o.candidates.poses()  # target_T_sensor
@@ -169,8 +188,8 @@ def decide_stream(
         if prev is not None:
             rel, odo_cov = compose_steps(step_rel[r], prev, k, config)
             odo = Odometry(E.inverse().compose(rel).compose(E), adjoint_cov(E.inverse(), odo_cov))
-        d = tracker.update(cs, odo)
-        prev = k
+        d = self.tracker.update(cs, odo)
+        self.prev = k
         if d.pose is not None:  # the tracker's best guess so far (committed or not), then
             # every candidate of this set by its posterior: hypotheses for the scans
             order = np.argsort(-np.asarray(d.probabilities, dtype=float), kind="stable")
@@ -187,7 +206,7 @@ def decide_stream(
         decided = bool(cluster) and d.probabilities[cluster].sum() >= config.decision_threshold
         out.sets.append(TrackedSet(n, o, k, kt, seen, cand_cov, bodies, cov, d, decided))
         out.outcomes.append(_outcome(o, r, ti, out.sets[-1], cluster))
-    return out
+        return out.sets[-1]
 
 
 def _outcome(o, r: int, ti: int, s: TrackedSet, cluster: list) -> SetOutcome:

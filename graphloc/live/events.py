@@ -1,0 +1,510 @@
+"""`EventGraph`: the team graph of event-clocked robots built as rows arrive -- robots without
+wheel odometry, whose poses are at their relative poses' stamps and their measurements' times
+(`team_graph.motion.node_times`), placed by the candidate sets they see of a static target with
+a known pose (`team_graph.candidates`: one `StreamTracker` per stream, fed set by set).
+
+Causality. A robot's pose times up to x are final once every row before x has arrived (the
+watermark passed x) and, for a robot with relative poses, x is no later than the last arrived
+step's end (a measurement inside a step is a pose of its own, `motion.inserted_times`, which
+only the step covering it tells). Each advance recomputes the pose times of the rows so far
+and keeps their final prefix; rows that would change a final pose time (a step arriving with
+its start inside steps already built) are refused (`NotLiveError`, naming them). A relative
+pose becomes its between factors once its poses are final; a candidate set joins its poses
+once those near it are final, goes through its stream's tracker (the decision uses the sets
+before it only) and becomes the factors `candidates.stream_factors` makes of it. An observer
+with no initial pose is placed at its first decided set (`candidates.place_observers`: every
+decided set of a stream without pixels, the first of a pixel stream), its earlier poses
+carried back along its steps (`motion.place_robot`); until then it has no `anchored_from`
+and the online pass holds its factors (`Pass.hold_until` infinite), as `graphloc online`
+holds them until its `anchored_from`. A step is emitted once every pose time up to it is
+final and no row that could add a factor to it is still to come.
+
+Not causal in today's whole-run route, so refused here (`NotLiveError` at `finish`, and
+`graphloc online` builds such a run with `build_graph`): a pixel stream that is never decided
+places its observer by the tracker's guess at its first set and runs every candidate of that
+set as a hypothesis (`guessed_alternatives`): whether the first set is a guess or the robot
+waits for a decision depends on every later set of the stream (kaushik-p3p-error: never
+decided on any seed)."""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import replace
+
+import gtsam
+import numpy as np
+
+from graphloc.io import SkipReport
+from graphloc.keys import pose_key
+from graphloc.live.coverage import NotLiveError
+from graphloc.pipelines.team_graph.candidates import (
+    StreamDecisions,
+    StreamTracker,
+    stream_factors,
+)
+from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig
+from graphloc.pipelines.team_graph.graph import TeamGraph, alternative_starts
+from graphloc.pipelines.team_graph.motion import (
+    between_factor,
+    robot_anchors,
+    split_step,
+    step_or_unknown,
+)
+from graphloc.run import TeamRun
+
+
+class _Clock:
+    """The `motion.Timeline` interface (`node_times`, `nearest`, `offsets`) over the live pose
+    times (event-clocked robots: no offsets)."""
+
+    def __init__(self, run: TeamRun, config: GraphConfig, node_times: list):
+        self.run, self.config, self.node_times = run, config, node_times
+
+    def nearest(self, r: int, t: float) -> int:
+        if self.run.robots[r].static:
+            return 0
+        times = self.node_times[r]
+        n = len(times)
+        if not n:
+            return -1
+        i = min(max(int(times.searchsorted(t)), 1), n - 1) if n > 1 else 0
+        if i > 0 and abs(times[i - 1] - t) <= abs(times[i] - t):
+            i -= 1
+        return i if abs(times[i] - t) <= self.config.sync_tolerance else -1
+
+    def offsets(self, r: int, nodes, times) -> list:
+        return [gtsam.Pose3()] * len(times)
+
+
+class _Robot:
+    """One robot's rows so far: relative poses (in arrival order), measured times, its final
+    pose times and steps, and its placement."""
+
+    def __init__(self, r: int, robot, stamped: bool):
+        self.r, self.robot = r, robot
+        self.stamped = stamped  # pose times at relative-pose stamps (else at measurements)
+        self.motions: list = []
+        self.done = 0  # motions made into factors
+        self.measured: list = []
+        self.times = np.zeros(0)  # final pose times
+        self.changed = False
+        self.steps: list = []  # step_rel
+        self.placed: dict = {}  # node -> decided / initial pose (the seeds)
+        self.seed: int | None = None  # first seeded node
+        self.initial_done = 0  # nodes whose initial value is set
+        self.anchors_done = 0
+        self.anchor_count = 0
+        self.finished = False
+
+
+class EventGraph:
+    """A `TeamGraph` (`graph`) grown from relative poses (`motion(m)`) and candidate sets
+    (`observation(o)`) in time order; `advance(watermark)` returns the completed steps,
+    `finish()` the rest (module docstring)."""
+
+    def __init__(self, run: TeamRun, config: GraphConfig, start_time: float | None, stamped):
+        """stamped: the robots with a relative-pose table (their pose times at its stamps).
+        The run must hold candidate sets (a markers or candidates table): iSAM2's thresholds
+        are then FINE_PRECISION (`config.run_precision`); without, they would come from the
+        median of every relative pose of the run (not causal)."""
+        self.run, self.config = run, config
+        self.start = start_time
+        self.robots = [_Robot(r, robot, r in stamped) for r, robot in enumerate(run.robots)]
+        self.clock = _Clock(run, config, [np.zeros(0) for _ in run.robots])
+        self.streams: dict = {}  # (observer, target) -> [StreamTracker, obs list, index]
+        self.queue: list = []  # candidate sets waiting for their poses, in arrival order
+        self.arrived: list = []  # every candidate set, in arrival order
+        self.marker_points: dict = {}
+        self.pending: dict = {}
+        self.emitted = -np.inf
+        self.first_seen = np.inf
+        self.skips = SkipReport()
+        self.graph = TeamGraph(
+            run,
+            config,
+            self.clock.node_times,
+            {},
+            [],
+            [],
+            [],
+            {},
+            [r.steps for r in self.robots],
+            skips=SkipReport(),
+            precision=FINE_PRECISION,
+        )
+        self.graph.skips.merge(run.skips)
+
+    # ---- rows in ------------------------------------------------------------------------------
+
+    def motion(self, m) -> None:
+        """A relative pose (`graphloc.run.Motion`) of an event-clocked robot."""
+        robot = self.robots[m.robot]
+        if not robot.stamped:
+            raise NotLiveError(
+                f"robot {robot.robot.name}: a relative pose, but its manifest has no "
+                f"relative_pose table (its pose times are at its measurements)"
+            )
+        self.first_seen = min(self.first_seen, m.t0)
+        if self.start is None:
+            self.start = float(min(m.t0, m.t1))
+        robot.motions.append(m)
+        robot.changed = True
+
+    def observation(self, o) -> None:
+        """A candidate set (`graphloc.run.CandidateObservation`)."""
+        self.first_seen = min(self.first_seen, o.time)
+        self.arrived.append(o)
+        for r in (o.robot, o.target):
+            self.robots[r].measured.append(o.time)
+            self.robots[r].changed = True
+        self.queue.append((len(self.arrived) - 1, o))
+
+    # ---- steps out ----------------------------------------------------------------------------
+
+    def advance(self, watermark: float) -> list:
+        """The steps completed when every row before `watermark` has arrived."""
+        if self.start is None and not any(robot.stamped for robot in self.robots):
+            if np.isfinite(self.first_seen):
+                self.start = float(self.first_seen)
+        if self.start is None:
+            return []
+        self._anchor_static()
+        for robot in self.robots:
+            self._times(robot, watermark)
+        self._take_motions(watermark)
+        self._take_sets(watermark)
+        bound = min(self._bound(robot, watermark) for robot in self.robots)
+        bound = min(bound, watermark - self.config.sync_tolerance - 1e-9)
+        if self.queue:
+            bound = min(bound, self.queue[0][1].time - self.config.sync_tolerance - 1e-9)
+        return self._emit(bound)
+
+    def finish(self) -> list:
+        """Every row is in: the remaining steps, the graph's counts, decisions and
+        alternatives (NotLiveError where today's route is not causal: module docstring)."""
+        for robot in self.robots:
+            robot.finished = True
+        if self.start is None and np.isfinite(self.first_seen):
+            self.start = float(self.first_seen)
+        steps = self.advance(np.inf) if self.start is not None else []
+        graph, streams = self.graph, list(self.streams.values())
+        for tracker, obs, _ in streams:
+            s = tracker.out
+            if s.pixel_route and s.sets and not any(x.decided for x in s.sets):
+                robot, target = self.run.robots[s.robot], self.run.robots[s.target]
+                if robot.initial_pose is None:
+                    raise NotLiveError(
+                        f"robot {robot.name}: its candidate sets of {target.name}"
+                        f" were never decided: graphloc online places it by the tracker's guess at"
+                        f" its first set and runs that set's candidates as hypotheses, which "
+                        f"depends on every later set (not causal)"
+                    )
+        for robot in self.robots:
+            if robot.seed is None and len(robot.times) and not robot.robot.static:
+                raise NotLiveError(
+                    f"robot {robot.robot.name}: nothing placed it (no decided candidate set): "
+                    f"the whole-run graph leaves its factors out, the live one held them"
+                )
+        graph.decisions = [d for tracker, _, _ in streams for d in tracker.out.outcomes]
+        for tracker, _, _ in streams:
+            graph.skips.merge(tracker.out.skips)
+        graph.skips.merge(self.skips)
+        self._alternatives([tracker.out for tracker, _, _ in streams])
+        types = graph.factor_types
+        graph.counts = {
+            "robots": len(self.run.robots),
+            "poses": sum(len(r.times) for r in self.robots if r.seed is not None),
+            "candidate_sets": len(self.arrived),
+            "marker_points": len(self.marker_points),
+            "frame_marker_points": 0,
+            "sensor_poses": 0,
+            "committed_sets": sum(d.committed >= 0 for d in graph.decisions),
+            "landmark_anchors": 0,
+            "feature_tracks": 0,
+            "steps": len(graph.steps),
+            "excluded_by_option": 0,
+            **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
+        }
+        return steps
+
+    # ---- internals ----------------------------------------------------------------------------
+
+    def _anchor_static(self) -> None:
+        for robot in self.robots:
+            if robot.robot.static and not len(robot.times):
+                robot.times = np.array([self.start])
+                self.clock.node_times[robot.r] = robot.times
+                robot.steps.append(None)
+                if robot.robot.initial_pose is not None:
+                    self._seed(robot, 0, robot.robot.initial_pose)
+                self._anchors(robot)
+
+    def _final_end(self, robot: _Robot, watermark: float) -> float:
+        """Pose times before this (or at it, for a relative-pose stamp bound) are final."""
+        if robot.finished:
+            return np.inf
+        if robot.stamped:
+            last = max((m.t1 for m in robot.motions), default=-np.inf)
+            return min(watermark, np.nextafter(last, np.inf))
+        return watermark
+
+    def _times(self, robot: _Robot, watermark: float) -> None:
+        """Robot's final pose times (the whole-run rule over the rows so far, cut at what is
+        final), checked to extend those before."""
+        if robot.robot.static:
+            return
+        end = self._final_end(robot, watermark)
+        if robot.stamped:
+            stamps = [t for m in robot.motions for t in (m.t0, m.t1)]
+            if stamps:
+                stamps += self._inserted(robot)
+        else:
+            stamps = list(robot.measured)
+        times = np.unique(np.round(np.array(stamps, dtype=float), 9))
+        times = times[times < end]
+        n = len(robot.times)
+        if len(times) < n or not np.array_equal(times[:n], robot.times):
+            raise NotLiveError(
+                f"robot {robot.robot.name}: a row changed its pose times before "
+                f"{robot.times[-1] if n else '-'} that were already built (a relative pose "
+                f"starting inside built steps, or a measurement after its step): not causal"
+            )
+        if len(times) > n:
+            robot.times = times
+            self.clock.node_times[robot.r] = times
+            robot.steps += [None] * (len(times) - n)
+            self._anchors(robot)
+        robot.changed = False
+
+    def _inserted(self, robot: _Robot) -> list:
+        """`motion.inserted_times` over the robot's rows so far."""
+        tol = self.config.sync_tolerance
+        motions = robot.motions
+        stamps = np.unique([t for m in motions for t in (m.t0, m.t1)])
+        spans = []
+        for m in motions:
+            a, b = sorted((m.t0, m.t1))
+            i, j = np.searchsorted(stamps, a, "right"), np.searchsorted(stamps, b, "left")
+            if i >= j:
+                spans.append((a, b))
+        if not spans or not robot.measured:
+            return []
+        cons = np.unique([t for s in spans for t in s])
+        spans = np.array(sorted(spans))
+        t = np.unique(np.asarray(robot.measured, dtype=float))
+        i = np.clip(np.searchsorted(cons, t), 1, len(cons) - 1)
+        gap = np.minimum(np.abs(cons[i - 1] - t), np.abs(cons[i] - t))
+        k = np.searchsorted(spans[:, 0], t, "right") - 1
+        inside = (k >= 0) & (t < spans[np.clip(k, 0, None), 1])
+        return t[(gap > tol) & inside].tolist()
+
+    def _anchors(self, robot: _Robot) -> None:
+        made = robot_anchors(robot.r, robot.robot, self.config, robot.times, robot.anchors_done)
+        for t, f, kind in made:
+            robot.anchor_count += 1
+            self._pending(t, (1, robot.r, robot.anchor_count), f, kind)
+        robot.anchors_done = len(robot.times)
+
+    def _bound(self, robot: _Robot, watermark: float) -> float:
+        """Steps up to this time may be emitted as far as this robot is concerned."""
+        if robot.robot.static:
+            return np.inf
+        end = self._final_end(robot, watermark)
+        if robot.done < len(robot.motions):
+            end = min(end, min(m.t1 for m in robot.motions[robot.done :]) - 1e-9)
+        return end - 1e-9 if np.isfinite(end) else end
+
+    def _take_motions(self, watermark: float) -> None:
+        """Relative poses whose poses are final (their stamps are poses: `nearest` finds them
+        exactly): their between factors (`motion_factors`), in arrival order."""
+        for robot in self.robots:
+            while robot.done < len(robot.motions):
+                m = robot.motions[robot.done]
+                if not max(m.t0, m.t1) < self._final_end(robot, watermark):
+                    break
+                self._motion_factors(robot, robot.done, m)
+                robot.done += 1
+
+    def _motion_factors(self, robot: _Robot, index: int, m) -> None:
+        r, times, config = robot.r, robot.times, self.config
+        k0, k1 = self.clock.nearest(r, m.t0), self.clock.nearest(r, m.t1)
+        if k0 < 0 or k1 < 0 or k0 == k1:
+            self.skips.add(
+                "no_pose_at_time",
+                f"robot {robot.robot.name}: relative pose {m.t0}->{m.t1} has no poses",
+            )
+            return
+        stamps = np.unique([t for x in robot.motions for t in (x.t0, x.t1)])
+        a, b = sorted((m.t0, m.t1))
+        consecutive = np.searchsorted(stamps, a, "right") >= np.searchsorted(stamps, b, "left")
+        if consecutive and k1 > k0 + 1:
+            parts = split_step(m.relative, m.covariance, times[k0 : k1 + 1])
+        else:
+            parts = [(m.relative, m.covariance)]
+        nodes = range(k0, k1 + 1) if len(parts) > 1 else (k0, k1)
+        for j, (x, y, (rel, cov)) in enumerate(zip(nodes[:-1], nodes[1:], parts)):
+            f = between_factor(r, x, y, rel, cov, config)
+            self._pending(times[max(x, y)], (0, r, index, j), f, "odometry")
+            if y == x + 1 and robot.steps[y] is None:
+                robot.steps[y] = (rel, cov)
+
+    def _take_sets(self, watermark: float) -> None:
+        """Candidate sets whose poses are final, in arrival order, through their streams."""
+        tol = self.config.sync_tolerance
+        while self.queue:
+            n, o = self.queue[0]
+            observer, target = self.robots[o.robot], self.robots[o.target]
+            if o.time + tol >= min(
+                self._final_end(observer, watermark), self._final_end(target, watermark)
+            ):
+                return
+            self.queue.pop(0)
+            self._set(n, o)
+
+    def _set(self, n: int, o) -> None:
+        run, r, ti = self.run, o.robot, o.target
+        key = (r, ti)
+        if key not in self.streams:
+            t = run.robots[ti]
+            if not t.static or t.initial_pose is None:
+                raise NotLiveError(
+                    f"robot {run.robots[r].name}: candidate sets of {t.name}, which is not a "
+                    f"static robot with an initial_pose (a moving or unplaced target: "
+                    f"max-mixtures, marker points per set)"
+                )
+            if any(k[0] == r for k in self.streams):
+                raise NotLiveError(
+                    f"robot {run.robots[r].name}: candidate sets of two targets: the whole-run "
+                    f"route places it by its streams in order of their first set"
+                )
+            tracker = StreamTracker(run, self.config, r, ti, o.pixels is not None)
+            self.streams[key] = [tracker, [], len(self.streams)]
+        tracker, obs, index = self.streams[key]
+        if (o.pixels is not None) != tracker.out.pixel_route:
+            raise NotLiveError(
+                f"robot {run.robots[r].name}: candidate sets of {run.robots[ti].name} with and "
+                f"without marker pixels"
+            )
+        obs.append((n, o))
+        step_rel = self.graph.step_rel
+        tracked = tracker.add(n, o, self.clock.nearest(r, o.time), 0, step_rel)
+        if tracked is None:
+            return
+        one = StreamDecisions(r, ti, tracker.out.pixel_route, [tracked])
+        made = stream_factors(run, self.config, self.clock, one, [(n, o)], self.marker_points)
+        self.skips.merge(made.skips)
+        self.marker_points.update(made.marker_points)
+        self.graph.initial.update(made.marker_points)
+        for j, (t, f, kind) in enumerate(made.factors):
+            self._pending(t, (4, index, len(obs), j), f, kind)
+        robot = self.robots[r]
+        if tracked.decided and not (tracker.out.pixel_route and robot.placed):
+            self._seed(robot, tracked.k, tracked.bodies[tracked.update.committed])
+
+    def _seed(self, robot: _Robot, k: int, pose) -> None:
+        """A known or decided pose of robot at node k (`motion.place_robot`'s seeds): the first
+        places the robot, its earlier poses carried back along its steps."""
+        if k in robot.placed:
+            return
+        robot.placed[k] = pose
+        if robot.seed is not None:
+            if k < robot.seed:
+                raise NotLiveError(f"robot {robot.robot.name}: a decision before its placement")
+            return
+        robot.seed = k
+        initial, r = self.graph.initial, robot.r
+        initial[pose_key(r, k)] = pose
+        for j in range(k - 1, -1, -1):
+            step = step_or_unknown(robot.steps, j + 1, self.config)[0]
+            initial[pose_key(r, j)] = initial[pose_key(r, j + 1)].compose(step.inverse())
+        robot.initial_done = k + 1
+        self.graph.anchored_from[r] = float(robot.times[k])
+
+    def _initial_upto(self, t: float) -> None:
+        """Initial values of placed robots' poses up to time t (carried along their steps)."""
+        initial = self.graph.initial
+        for robot in self.robots:
+            if robot.seed is None:
+                continue
+            r = robot.r
+            while robot.initial_done < len(robot.times) and robot.times[robot.initial_done] <= t:
+                k = robot.initial_done
+                if k in robot.placed:
+                    initial[pose_key(r, k)] = robot.placed[k]
+                else:
+                    step = step_or_unknown(robot.steps, k, self.config)[0]
+                    initial[pose_key(r, k)] = initial[pose_key(r, k - 1)].compose(step)
+                robot.initial_done += 1
+
+    def _pending(self, t: float, order: tuple, factor, kind: str) -> None:
+        self.pending.setdefault(float(t), []).append((order, factor, kind))
+
+    def _emit(self, bound: float) -> list:
+        due = sorted(t for t in self.pending if t <= bound)
+        steps = []
+        for t in due:
+            if t <= self.emitted:
+                raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
+            self._initial_upto(t)
+            group = sorted(self.pending.pop(t), key=lambda item: item[0])
+            step = (t, [(f, kind) for _, f, kind in group])
+            self.graph.steps.append(step)
+            self.graph.factor_types += [kind for _, _, kind in group]
+            self.emitted = t
+            steps.append(step)
+        if bound == np.inf:
+            self._initial_upto(np.inf)
+        return steps
+
+    def _alternatives(self, streams: list) -> None:
+        """The pixel streams' alternative placements (`candidates.place_observers`, used by a
+        batch solve), carried along the steps as `graph.alternative_starts` carries them."""
+        alternatives = {}
+        for s in streams:
+            if s.pixel_route and s.sets:
+                first = s.sets[0]
+                alternatives[s.robot] = ([(first.k, body) for body in first.bodies], False)
+        poses = {
+            robot.r: (
+                [self.graph.initial[pose_key(robot.r, k)] for k in range(len(robot.times))],
+                robot.seed,
+            )
+            for robot in self.robots
+            if robot.seed is not None
+        }
+        variants, _ = alternative_starts(
+            self.run, self.config, self.clock, self.graph.step_rel, poses, alternatives, {}
+        )
+        self.graph.alternatives = variants
+
+
+EVENT_TABLES = ("relative_pose", "relative_pose3", "markers", "candidates")
+
+
+def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
+    """A loaded run's graph built by `EventGraph` (its relative poses and candidate sets merged
+    in time order, a relative pose at its end time): the graph `graphloc online` solves for an
+    event-clocked run (`coverage.event_route`). steps: None, or a list that gets, after each
+    row, the steps it completed (`advance` at the row's time: the live order)."""
+    if not run.observations:
+        raise NotLiveError(
+            "no candidate sets: iSAM2's precision would come from the median of every "
+            "relative pose of the run (`run_precision`, not causal)"
+        )
+    stamped = {m.robot for m in run.motions}
+    live = EventGraph(_without_rows(run), config, run.start_time, stamped)
+    motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
+    sets = ((o.time, 1, i, o) for i, o in enumerate(run.observations))
+    for t, kind, _, row in heapq.merge(motions, sets, key=lambda e: e[:3]):
+        (live.motion if kind == 0 else live.observation)(row)
+        if steps is not None:
+            steps.append(live.advance(t))
+    done = live.finish()
+    if steps is not None:
+        steps.append(done)
+    live.graph.run = run
+    return live.graph
+
+
+def _without_rows(run: TeamRun) -> TeamRun:
+    return replace(run, motions=(), observations=())
