@@ -204,9 +204,9 @@ def test_bad_rows_are_counted_skips_naming_robot_table_and_field(mrclam_dir):
 @pytest.mark.parametrize(
     "scenario, missing",
     [
-        ("feng-probabilistic", ["table 'markers'", "climber: no initial_pose"]),
+        ("feng-deterministic", ["climber: table 'bearing'", "climber: no initial_pose"]),
         ("dual-robot-room", ["table 'scans'"]),
-        ("crawler-pair", ["table 'ellipses'", "table 'features'", "table 'relative_pose3'"]),
+        ("crawler-pair", ["table 'ellipses'", "table 'features'", "teammate: no initial_pose"]),
     ],
 )
 def test_a_run_not_live_yet_is_refused_at_open(tmp_path, scenario, missing):

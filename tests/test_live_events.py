@@ -12,9 +12,10 @@ import gtsam
 import numpy as np
 import pytest
 
+import graphloc
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
-from graphloc.live import NotLiveError
+from graphloc.live import NotLiveError, replay_live
 from graphloc.live.events import EventGraph, _without_rows, build_events
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.pipelines.team_graph.passes import Pass
@@ -82,7 +83,7 @@ def test_event_graph_solved_step_by_step_is_graphloc_online(runs, name, seed):
 
     live = EventGraph(_without_rows(run), config, run.start_time, {m.robot for m in run.motions})
     solver = Pass(live.graph, "online", None, False, None)
-    solver.hold_until = np.inf  # robots are held until the builder knows where they start
+    assert solver.hold_until == np.inf  # robots are held until the builder places them
     for t, kind, row in _rows(run):
         (live.motion if kind == 0 else live.observation)(row)
         step(live.advance(t))
@@ -125,3 +126,40 @@ def test_a_run_without_candidate_sets_is_refused(runs):
     run = replace(runs[("feng-probabilistic", 1)], observations=())
     with pytest.raises(NotLiveError, match="median of every relative pose"):
         build_events(run, GraphConfig())
+
+
+@pytest.mark.parametrize("name, seed", CASES)
+def test_live_team_is_graphloc_online(runs, name, seed, tmp_path):
+    """The log's rows (relative poses, marker pixels) pushed in time order through the live
+    API: the marker images made into candidate sets as the window passes them, every step one
+    update, the estimates and causal estimates of `run_team(..., "online")`; an observer
+    placed late gets no pose before its first decided set."""
+    source = tmp_path / "run"
+    generate(name, source, seed)
+    updates = []
+    team = replay_live(source, subscriber=updates.append)
+    result = team.finish()
+    online = graphloc.run_team(source, tmp_path / "out", "online").result
+    _same_estimates(result, online)
+    assert [u.step for u in updates] == list(range(len(result.graph.steps)))
+    first = result.graph.anchored_from[0]
+    seen = [u.time for u in updates if "climber" in u.poses]
+    assert seen and min(seen) == first
+    estimated = np.flatnonzero(np.isfinite(result.estimate[0][:, 0]))
+    assert team.latest("climber").index == estimated[-1]
+
+
+def test_live_team_counts_a_never_decided_observer(tmp_path):
+    """kaushik-p3p-error: the live team holds the camera's factors waiting for a decision that
+    never comes; its poses are left out, counted as `unanchored_robot` naming why (graphloc
+    online, with the whole run, places it by the guess and runs its hypotheses)."""
+    source = tmp_path / "run"
+    generate("kaushik-p3p-error", source, 1)
+    team = replay_live(source)
+    result = team.finish()
+    assert team.skips.counts["unanchored_robot"] == len(result.node_times[0]) > 0
+    assert any("never decided" in e for e in team.skips.examples)
+    assert np.isnan(result.estimate[0]).all() and np.isfinite(result.estimate[1]).all()
+    online = graphloc.run_team(source, tmp_path / "out", "online").result
+    assert online.hypotheses == 1 + len(online.graph.guessed_alternatives) > 1
+    assert np.isfinite(online.estimate[0]).all()

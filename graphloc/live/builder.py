@@ -29,7 +29,7 @@ import numpy as np
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.live.arc import ArcIntegrator
-from graphloc.live.coverage import NotLiveError, not_live
+from graphloc.live.coverage import NotLiveError, not_live, route, run_tables
 from graphloc.pipelines.team_graph.config import GraphConfig, run_precision
 from graphloc.pipelines.team_graph.graph import TeamGraph
 from graphloc.pipelines.team_graph.motion import between_factor, robot_anchors, velocity_noise
@@ -367,9 +367,13 @@ def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:
     """A loaded run's graph built by `LiveGraph` (each robot's odometry at once, then the
     point measurements in the run's order: the graph does not depend on how the rows are split
     into calls): the graph `graphloc online` solves for a run `not_live` finds nothing in, the
-    live API's route."""
-    live = LiveGraph(_without_rows(run), config, run.start_time)
+    live API's route; an event-clocked run's by `live.events.build_events` (NotLiveError where
+    only its whole run shows how to build it)."""
+    if route(run, run_tables(run)) == "event":  # event-clocked robots (`live.events`)
+        from graphloc.live.events import build_events
 
+        return build_events(run, config)
+    live = LiveGraph(_without_rows(run), config, run.start_time)
     for r, rows in enumerate(run.velocity):
         live.velocity(r, rows)
     for m in run.points:

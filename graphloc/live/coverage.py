@@ -1,6 +1,8 @@
-"""What the live builder covers (`graphloc.live.builder.LiveGraph`): the tables it takes rows
-of, and what keeps a run off it (`not_live`), with why -- the sections that need rows after
-the step they shape."""
+"""What the live builders cover: the tables they take rows of, and what keeps a run off them
+(`not_live`), with why -- the sections that need rows after the step they shape. Two routes
+(`route`): wheel-odometry robots with point measurements (`graphloc.live.builder.LiveGraph`),
+and event-clocked robots -- relative poses, no wheel odometry -- placed by the candidate sets
+they see of a static target (`graphloc.live.events.EventGraph`)."""
 
 from __future__ import annotations
 
@@ -8,12 +10,10 @@ from graphloc.run import TeamRun
 
 # the sections `LiveGraph` builds, and the tables it takes rows of
 LIVE_TABLES = ("odometry", "range", "bearing", "range_bearing", "groundtruth")
+# the tables of `EventGraph`'s route (`route` "event")
+EVENT_TABLES = ("relative_pose", "relative_pose3", "markers", "candidates", "groundtruth")
 # tables whose sections are not causal yet, and why (`not_live`)
 NOT_LIVE = {
-    "relative_pose": "event-clocked pose times (relative poses split at measurement times)",
-    "relative_pose3": "event-clocked pose times (relative poses split at measurement times)",
-    "markers": "candidate sets (P3P, the hypothesis trackers, placement by decisions)",
-    "candidates": "candidate sets (the hypothesis trackers, placement by decisions)",
     "ellipses": "candidate sets (circle poses, the hypothesis trackers)",
     "features": "camera feature tracks (a track's point prior from all its pixels)",
     "scans": "KISS-ICP odometry and inter-robot scan registration",
@@ -24,13 +24,33 @@ class NotLiveError(ValueError):
     """A run that needs sections the live builder does not build yet (`not_live`)."""
 
 
+def route(run: TeamRun, tables: dict) -> str:
+    """ "event" for a run with relative poses or candidate sets and no wheel odometry (its
+    robots' pose times at their rows' times: `EventGraph`), else "wheel" (`LiveGraph`)."""
+    named = set().union(*map(set, tables.values())) if tables else set()
+    event = named & {"relative_pose", "relative_pose3", "markers", "candidates"}
+    return "event" if event and "odometry" not in named else "wheel"
+
+
+def tables_of(kind: str) -> tuple:
+    """The tables a route takes rows of."""
+    return EVENT_TABLES if kind == "event" else LIVE_TABLES
+
+
 def not_live(run: TeamRun, tables: dict) -> list[str]:
-    """What keeps a run (its robots, and each robot's tables by name) off the live builder, one
-    line each; empty: the run is live."""
+    """What keeps a run (its robots, and each robot's tables by name) off the live builders, one
+    line each; empty: the run is live (on its `route`)."""
+    if route(run, tables) == "event":
+        return _event_problems(run, tables)
     out = []
     for r, robot in enumerate(run.robots):
         for table in sorted(set(tables.get(robot.name, ())) & set(NOT_LIVE)):
             out.append(f"robot {robot.name}: table {table!r}: {NOT_LIVE[table]}")
+        for table in sorted(set(tables.get(robot.name, ())) & set(EVENT_TABLES[:4])):
+            out.append(
+                f"robot {robot.name}: table {table!r}: wheel odometry and event-clocked robots "
+                f"(relative poses, candidate sets) in one run"
+            )
         if robot.initial_pose is None:
             out.append(
                 f"robot {robot.name}: no initial_pose: its placement (decided candidate sets, "
@@ -47,6 +67,32 @@ def not_live(run: TeamRun, tables: dict) -> list[str]:
                 f"robot {robot.name}: no odometry table: event-clocked pose times (poses at "
                 f"its measurement times)"
             )
+    return out
+
+
+def _event_problems(run: TeamRun, tables: dict) -> list[str]:
+    """What keeps an event-clocked run off `EventGraph`, one line each."""
+    out = []
+    for robot in run.robots:
+        mine = set(tables.get(robot.name, ()))
+        for table in sorted(mine & set(NOT_LIVE)):
+            out.append(f"robot {robot.name}: table {table!r}: {NOT_LIVE[table]}")
+        for table in sorted(mine - set(NOT_LIVE) - set(EVENT_TABLES)):
+            out.append(
+                f"robot {robot.name}: table {table!r}: point measurements of event-clocked "
+                f"robots (a robot placed by mutual bearings, a static robot's measurements)"
+            )
+        sees = mine & {"markers", "candidates"}
+        if robot.initial_pose is None and (robot.static or not sees):
+            out.append(
+                f"robot {robot.name}: no initial_pose and no candidate sets to place it (mutual "
+                f"bearings, resection, scan registration)"
+            )
+    if not any({"markers", "candidates", "ellipses"} & set(t) for t in tables.values()):
+        out.append(
+            "no markers or candidates table: iSAM2's precision would come from the median of "
+            "every relative pose of the run (`run_precision`)"
+        )
     return out
 
 

@@ -133,6 +133,9 @@ class EventGraph:
             precision=FINE_PRECISION,
         )
         self.graph.skips.merge(run.skips)
+        for r, robot in enumerate(run.robots):  # held by the online pass until placed
+            if robot.initial_pose is None:
+                self.graph.anchored_from[r] = np.inf
 
     # ---- rows in ------------------------------------------------------------------------------
 
@@ -179,32 +182,43 @@ class EventGraph:
             bound = min(bound, self.queue[0][1].time - self.config.sync_tolerance - 1e-9)
         return self._emit(bound)
 
-    def finish(self) -> list:
+    def finish(self, strict: bool = True) -> list:
         """Every row is in: the remaining steps, the graph's counts, decisions and
-        alternatives (NotLiveError where today's route is not causal: module docstring)."""
+        alternatives. A robot nothing placed: NotLiveError when `strict` (a never-decided pixel
+        stream, whose observer today's route places by a guess: not causal, module docstring),
+        else a counted skip `unanchored_robot` (its factors stayed held)."""
         for robot in self.robots:
             robot.finished = True
         if self.start is None and np.isfinite(self.first_seen):
             self.start = float(self.first_seen)
         steps = self.advance(np.inf) if self.start is not None else []
         graph, streams = self.graph, list(self.streams.values())
-        for tracker, obs, _ in streams:
-            s = tracker.out
-            if s.pixel_route and s.sets and not any(x.decided for x in s.sets):
-                robot, target = self.run.robots[s.robot], self.run.robots[s.target]
-                if robot.initial_pose is None:
-                    raise NotLiveError(
-                        f"robot {robot.name}: its candidate sets of {target.name}"
-                        f" were never decided: graphloc online places it by the tracker's guess at"
-                        f" its first set and runs that set's candidates as hypotheses, which "
-                        f"depends on every later set (not causal)"
-                    )
         for robot in self.robots:
-            if robot.seed is None and len(robot.times) and not robot.robot.static:
-                raise NotLiveError(
-                    f"robot {robot.robot.name}: nothing placed it (no decided candidate set): "
-                    f"the whole-run graph leaves its factors out, the live one held them"
+            if robot.seed is not None or robot.robot.static:
+                continue
+            graph.anchored_from.pop(robot.r, None)
+            if not len(robot.times):  # no rows: no poses
+                continue
+            undecided = [
+                self.run.robots[t.out.target].name
+                for t, _, _ in streams
+                if t.out.robot == robot.r and t.out.pixel_route and t.out.sets
+            ]
+            if undecided:
+                why = (
+                    f"its candidate sets of {undecided[0]} were never decided: graphloc online "
+                    f"places it by the tracker's guess at its first set and runs that set's "
+                    f"candidates as hypotheses, which depends on every later set (not causal)"
                 )
+            else:
+                why = "nothing placed it (no decided candidate set)"
+            if strict:
+                raise NotLiveError(f"robot {robot.robot.name}: {why}")
+            self.skips.add(
+                "unanchored_robot",
+                f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",
+                len(robot.times),
+            )
         graph.decisions = [d for tracker, _, _ in streams for d in tracker.out.outcomes]
         for tracker, _, _ in streams:
             graph.skips.merge(tracker.out.skips)
@@ -273,6 +287,8 @@ class EventGraph:
             robot.times = times
             self.clock.node_times[robot.r] = times
             robot.steps += [None] * (len(times) - n)
+            if not n and robot.robot.initial_pose is not None:
+                self._seed(robot, 0, robot.robot.initial_pose)
             self._anchors(robot)
         robot.changed = False
 

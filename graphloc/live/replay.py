@@ -9,7 +9,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from graphloc.io import LANDMARK_PREFIX, MANIFEST, iter_records, read_manifest
-from graphloc.live.coverage import LIVE_TABLES
+from graphloc.live.coverage import EVENT_TABLES, LIVE_TABLES
 from graphloc.live.team import LiveTeam
 from graphloc.pipelines.team_graph.options import RunOptions
 from graphloc.records import TABLES
@@ -39,7 +39,8 @@ def _log_rows(root: Path, duration):
 
         end = open_run(root).start_time + duration
     manifest = read_manifest(root)
-    tables = [t for t in TABLES if t in LIVE_TABLES and t != "groundtruth"]  # the log's order
+    live = LIVE_TABLES + EVENT_TABLES
+    tables = [t for t in TABLES if t in live and t != "groundtruth"]  # the log's order
     for rec in iter_records(root, tables=tables, on_error="skip"):
         if end is not None and rec.time > end:
             continue

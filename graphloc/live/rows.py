@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import fields
 
 from graphloc.datasets.log_rows import TABLE_HANDLERS, RowContext, Skip
-from graphloc.live.coverage import LIVE_TABLES, NOT_LIVE, NotLiveError
+from graphloc.live.coverage import EVENT_TABLES, LIVE_TABLES, NOT_LIVE, NotLiveError
 from graphloc.records import SENSOR_TYPES, TABLES, columns, plausible
 from graphloc.table_reader import known_target
 from graphloc.textio import SkipReport, cut, shown
@@ -23,9 +23,20 @@ class RowChecker:
     """Checks rows of a team (`manifest`: the sensors and names rows refer to; `robots`: the
     run's `TeamRobot`s; `noise`: the noise defaults the handlers take) into typed items:
     `check(robot, table, row, n)` -> the handler's item, or None (the row counted in
-    `skips`)."""
+    `skips`). tables: the tables of the team's route (`coverage.tables_of`); a row of an event
+    table is (robot index, (time, table, what it becomes)): a `Motion`, a `candidates` row's
+    (set key, record), a `markers` row's record (`live.event_rows` forms the sets)."""
 
-    def __init__(self, manifest, robots: tuple, noise: dict, landmark_ids, skips: SkipReport):
+    def __init__(
+        self,
+        manifest,
+        robots: tuple,
+        noise: dict,
+        landmark_ids,
+        skips: SkipReport,
+        tables: tuple = LIVE_TABLES,
+    ):
+        self.tables = tables
         self.manifest, self.robots, self.noise = manifest, robots, noise
         self.index = {r.name: i for i, r in enumerate(robots)}
         self.landmark_ids = landmark_ids
@@ -39,7 +50,7 @@ class RowChecker:
                 for f in fields(TABLES[table])
                 if f.name in columns(table)
             ]
-            for table in LIVE_TABLES
+            for table in tables
         }
 
     def check(self, robot: str, table: str, row: Mapping, n: int):
@@ -49,8 +60,14 @@ class RowChecker:
             raise ValueError(f"unknown robot {robot!r}; robots: {sorted(self.index)}")
         if table in NOT_LIVE:
             raise NotLiveError(f"table {table!r} is not live yet: {NOT_LIVE[table]}")
-        if table not in LIVE_TABLES:
-            raise ValueError(f"unknown table {table!r}; live tables: {', '.join(LIVE_TABLES)}")
+        if table not in self.tables:
+            if table in LIVE_TABLES + EVENT_TABLES:
+                raise NotLiveError(
+                    f"table {table!r} is not live in this team: its tables are "
+                    f"{', '.join(self.tables)} (wheel odometry and event-clocked robots do not "
+                    f"mix)"
+                )
+            raise ValueError(f"unknown table {table!r}; live tables: {', '.join(self.tables)}")
         where = f"robot {robot!r}, table {table!r}, row {n}"
         values = {}
         for name, kind, limits in self.columns[table]:
@@ -82,9 +99,20 @@ class RowChecker:
             )
         record = TABLES[table](robot=robot, line=n, **values)
         ctx = RowContext(where, self.index[robot], self.index, self.robots, self.noise)
-        item = TABLE_HANDLERS[table].parse(record, ctx)
+        if table == "markers":  # no handler: the front end checks a set's rows together
+            if values["target"] not in self.index:
+                return self._skip(
+                    "unknown_target",
+                    f"{where}: field 'target': {values['target']!r} is not a robot (markers are "
+                    f"on robots with a 'markers' layout)",
+                )
+            item = record
+        else:
+            item = TABLE_HANDLERS[table].parse(record, ctx)
         if isinstance(item, Skip):
             return self._skip(item.reason, item.message)
+        if table in EVENT_TABLES and table != "groundtruth":
+            return (self.index[robot], (values["time"], table, item))
         return item
 
     def _skip(self, reason: str, message: str) -> None:

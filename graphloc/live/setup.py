@@ -22,7 +22,8 @@ class LiveSetup:
     """run: the team's `TeamRun` with no rows yet (robots, landmarks, start time: NaN where
     the rows will tell, `start_time` None); manifest: what rows are checked against; noise: the
     handlers' defaults; landmark_ids: the known landmarks (None: SLAM, any id); config: the
-    graph's (the lag set)."""
+    graph's (the lag set); tables: each robot's tables by name (which builder takes the run:
+    `coverage.route`)."""
 
     run: TeamRun
     manifest: Manifest
@@ -30,6 +31,7 @@ class LiveSetup:
     landmark_ids: set | None
     config: GraphConfig
     start_time: float | None
+    tables: dict | None = None
 
 
 def live_setup(source: Path, options: RunOptions | None = None) -> LiveSetup:
@@ -53,7 +55,8 @@ def live_setup(source: Path, options: RunOptions | None = None) -> LiveSetup:
         raise NotLiveError(f"{source}: not live yet: " + "; ".join(problems))
     config = opts.graph_config()
     lag = opts.lag if opts.lag is not None else default_lag(run, config)
-    return LiveSetup(run, manifest, defaults, ids, replace(config, lag=float(lag)), start)
+    config = replace(config, lag=float(lag))
+    return LiveSetup(run, manifest, defaults, ids, config, start, tables)
 
 
 def empty_run(run: TeamRun) -> TeamRun:

@@ -26,6 +26,7 @@ from graphloc.exitcodes import SolverFailure
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.live.builder import LiveGraph
+from graphloc.live.coverage import route, tables_of
 from graphloc.live.rows import RowChecker, TimeWindow
 from graphloc.live.setup import LiveSetup, live_setup
 from graphloc.pipelines.team_graph.passes import Pass, TeamResult
@@ -74,11 +75,11 @@ class LiveTeam:
         self.setup = setup
         self.skips = SkipReport()
         self.skips.merge(setup.run.skips)
-        self.checker = RowChecker(
-            setup.manifest, setup.run.robots, setup.noise, setup.landmark_ids, self.skips
-        )
         self.window = TimeWindow(window, self.skips)
-        self.builder = LiveGraph(setup.run, setup.config, setup.start_time)
+        self.builder, tables = live_builder(setup, self.skips)
+        self.checker = RowChecker(
+            setup.manifest, setup.run.robots, setup.noise, setup.landmark_ids, self.skips, tables
+        )
         self.graph = self.builder.graph
         self.graph.skips = self.skips
         self.names = [r.name for r in setup.run.robots]
@@ -155,12 +156,15 @@ class LiveTeam:
         if self.finished is not None:
             return self.finished
         self._close()
-        self.graph.run = replace(
-            self.setup.run,
-            start_time=float(self.builder.start if self.builder.start is not None else np.nan),
-            velocity=tuple(robot.velocity.view.copy() for robot in self.builder.robots),
-            points=tuple(self.builder.arrived),
-        )
+        if isinstance(self.builder, LiveGraph):
+            self.graph.run = replace(
+                self.setup.run,
+                start_time=float(self.builder.start if self.builder.start is not None else np.nan),
+                velocity=tuple(robot.velocity.view.copy() for robot in self.builder.robots),
+                points=tuple(self.builder.arrived),
+            )
+        else:
+            self.graph.run = self.builder.run_so_far()
         result = self.solver.result()
         if self.checkpoint_path is not None:
             self.write_checkpoint(finished=True)
@@ -310,6 +314,17 @@ class LiveTeam:
         pose = session.estimate([key]).atPose3(key)
         cov = session.marginal_covariance(key) if covariance else None
         return RobotPose(float(self.graph.node_times[r][k]), k, pose, cov)
+
+
+def live_builder(setup: LiveSetup, skips: SkipReport) -> tuple:
+    """(the builder of the team's route, the tables it takes: `coverage.route`): `LiveGraph`
+    for wheel-odometry robots, `event_rows.EventRows` for event-clocked ones."""
+    tables = setup.tables or {}
+    if route(setup.run, tables) == "event":
+        from graphloc.live.event_rows import EventRows
+
+        return EventRows(setup, tables, skips), tables_of("event")
+    return LiveGraph(setup.run, setup.config, setup.start_time), tables_of("wheel")
 
 
 def _plain(value):

@@ -66,7 +66,7 @@ def run_team(
     from graphloc.datasets import open_run
     from graphloc.manifest import check_noise_params
     from graphloc.live.builder import build_live
-    from graphloc.live.coverage import not_live, run_tables
+    from graphloc.live.coverage import NotLiveError, not_live, run_tables
     from graphloc.pipelines.team_graph import build_graph, default_lag, solve
 
     opts = RunOptions() if options is None else options
@@ -78,9 +78,13 @@ def run_team(
     run = open_run(source, duration=opts.duration, noise=noise, source=opts.source())
     lag = opts.lag if opts.lag is not None else default_lag(run, config)
     config = replace(config, lag=float(lag))
+    graph = None
     if mode == "online" and not not_live(run, run_tables(run)):
-        graph = build_live(run, config)  # the live API's route (`graphloc.live`)
-    else:
+        try:
+            graph = build_live(run, config)  # the live API's route (`graphloc.live`)
+        except NotLiveError:  # what only the whole run shows (`live.events`: never decided)
+            graph = None
+    if graph is None:
         graph = build_graph(run, config, progress=progress)
     hooks = checkpoint(graph, values) if checkpoint is not None else {}
     if on_phase is not None:

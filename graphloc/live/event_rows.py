@@ -1,0 +1,110 @@
+"""`EventRows`: an event-clocked team's checked rows (`rows.RowChecker` with the event tables)
+into its `events.EventGraph`, with the interface `LiveTeam` drives (`point`, `advance`,
+`finish`, `graph`, `start`, `run_so_far`): relative poses go in as they come; `markers` and
+`candidates` rows are held until the watermark passes their time (every row of their image or
+set has arrived), then made into candidate sets by the loader's own front ends
+(`log_observations.marker_observations`: the checks and P3P of a log's marker pixels,
+`candidate_observations`), in the loader's order, and go in."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from graphloc.datasets.log_observations import candidate_observations, marker_observations
+from graphloc.io import Sink
+from graphloc.live.coverage import NotLiveError
+from graphloc.live.events import EventGraph
+
+RELATIVE = ("relative_pose", "relative_pose3")
+
+
+class EventRows:
+    """The rows of an event-clocked team (module docstring); `setup`: its `LiveSetup`,
+    `tables`: each robot's tables by name, `skips`: where refused rows and sets are counted."""
+
+    def __init__(self, setup, tables: dict, skips):
+        run = setup.run
+        self.setup, self.robots = setup, run.robots
+        stamped = {
+            r
+            for r, robot in enumerate(run.robots)
+            if set(RELATIVE) & set(tables.get(robot.name, ()))
+        }
+        self.events = EventGraph(run, setup.config, setup.start_time, stamped)
+        self.graph = self.events.graph
+        self.sink = Sink("skip", skips)
+        self.sensors = [list(robot.sensors) for robot in run.robots]
+        self.index = {robot.name: r for r, robot in enumerate(run.robots)}
+        self.markers: list = []  # (time, observer, sensor index, target, marker, u, v, row)
+        self.candidates: dict = {}  # (time, observer, sensor, target) -> [record]
+        self.motions: list = []
+
+    @property
+    def start(self):
+        return self.events.start
+
+    def velocity(self, r: int, rows) -> None:
+        raise NotLiveError(
+            "wheel odometry in an event-clocked team (relative poses, candidate sets)"
+        )
+
+    def point(self, item) -> None:
+        """A checked row: (robot index, (time, table, item))."""
+        r, (t, table, row) = item
+        if table in RELATIVE:
+            self.motions.append(row)
+            self.events.motion(row)
+        elif table == "markers":
+            sensor = self.sensors[r].index(row.sensor)
+            target = self.index[row.target]
+            self.markers.append((t, r, sensor, target, row.marker, row.u, row.v, row.line))
+        elif table == "candidates":
+            key, record = row
+            self.candidates.setdefault(key, []).append(record)
+        else:
+            raise NotLiveError(f"table {table!r} is not live in an event-clocked team")
+
+    def advance(self, watermark: float) -> list:
+        self._sets(watermark)
+        return self.events.advance(watermark)
+
+    def finish(self) -> list:
+        self._sets(np.inf)
+        return self.events.finish(strict=False)
+
+    def run_so_far(self):
+        """The run of the rows that arrived (the loaded run's motions and candidate sets)."""
+        events = self.events
+        start = np.nan if events.start is None else float(events.start)
+        return replace(
+            self.setup.run,
+            start_time=start,
+            motions=tuple(self.motions),
+            observations=tuple(events.arrived),
+        )
+
+    def _sets(self, watermark: float) -> None:
+        """The images and logged sets before `watermark` as candidate sets, in the loader's
+        order (marker sets, then logged ones, by time and observer), into the graph."""
+        manifest, noise = self.setup.manifest, self.setup.noise
+        out: list = []
+        done = [m for m in self.markers if m[0] < watermark]
+        if done:
+            self.markers = [m for m in self.markers if m[0] >= watermark]
+            names = ("time", "robot", "sensor", "target", "marker", "u", "v", "line")
+            types = (float, np.int32, np.int32, np.int32, np.int32, float, float, np.int64)
+            columns = {
+                name: np.array(values, dtype=kind)
+                for name, kind, values in zip(names, types, zip(*done))
+            }
+            sets, _ = marker_observations(columns, self.robots, manifest, noise, self.sink)
+            out += sets
+        keys = [key for key in self.candidates if key[0] < watermark]
+        if keys:
+            groups = {key: self.candidates.pop(key) for key in keys}
+            out += candidate_observations(groups, self.robots, noise, manifest, self.sink)
+        out.sort(key=lambda o: (o.time, o.robot))
+        for o in out:
+            self.events.observation(o)
