@@ -87,7 +87,6 @@ class _Robot:
         self.done = 0  # motions made into factors
         self.measured: list = []
         self.times = np.zeros(0)  # final pose times
-        self.changed = False
         self.steps: list = []  # step_rel
         self.placed: dict = {}  # node -> decided / initial pose (the seeds)
         self.seed: int | None = None  # first seeded node
@@ -109,6 +108,7 @@ class EventGraph:
         median of every relative pose of the run (not causal)."""
         self.run, self.config = run, config
         self.start = start_time
+        self.start_from_rows = False  # the start came from the first relative pose
         self.robots = [_Robot(r, robot, r in stamped) for r, robot in enumerate(run.robots)]
         self.clock = _Clock(run, config, [np.zeros(0) for _ in run.robots])
         self.streams: dict = {}  # (observer, target) -> [StreamTracker, obs list, index]
@@ -148,10 +148,14 @@ class EventGraph:
                 f"relative_pose table (its pose times are at its measurements)"
             )
         self.first_seen = min(self.first_seen, m.t0)
-        if self.start is None:
-            self.start = float(min(m.t0, m.t1))
+        if self.start is None:  # the whole run's: the earliest relative-pose start
+            self.start, self.start_from_rows = float(m.t0), True
+        elif self.start_from_rows and m.t0 < self.start:
+            raise NotLiveError(
+                f"robot {robot.robot.name}: a relative pose from {m.t0}, before the start "
+                f"{self.start} the first one set (the run's start is its earliest: not causal)"
+            )
         robot.motions.append(m)
-        robot.changed = True
 
     def observation(self, o) -> None:
         """A candidate set (`graphloc.run.CandidateObservation`)."""
@@ -159,7 +163,6 @@ class EventGraph:
         self.arrived.append(o)
         for r in (o.robot, o.target):
             self.robots[r].measured.append(o.time)
-            self.robots[r].changed = True
         self.queue.append((len(self.arrived) - 1, o))
 
     # ---- steps out ----------------------------------------------------------------------------
@@ -290,7 +293,6 @@ class EventGraph:
             if not n and robot.robot.initial_pose is not None:
                 self._seed(robot, 0, robot.robot.initial_pose)
             self._anchors(robot)
-        robot.changed = False
 
     def _inserted(self, robot: _Robot) -> list:
         """`motion.inserted_times` over the robot's rows so far."""
