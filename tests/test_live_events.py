@@ -15,7 +15,9 @@ import pytest
 import graphloc
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
-from graphloc.live import NotLiveError, replay_live
+from graphloc.live import LiveTeam, NotLiveError, replay_live
+from graphloc.live.builder import build_live
+from graphloc.live.coverage import not_live, route, run_tables
 from graphloc.live.events import EventGraph, _without_rows, build_events
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.pipelines.team_graph.passes import Pass
@@ -64,7 +66,9 @@ def test_event_graph_is_the_whole_run_graph(runs, name, seed):
     assert sum(map(len, emitted)) == len(ref.steps)
     assert [d.status for d in live.graph.decisions] == [d.status for d in ref.decisions]
     assert live.graph.anchored_from == ref.anchored_from
-    _same_graph(ref, build_events(run, config))
+    # graphloc online's route for the loaded run: the event builder, the same graph
+    assert not not_live(run, run_tables(run)) and route(run, run_tables(run)) == "event"
+    _same_graph(ref, build_live(run, config))
 
 
 @pytest.mark.parametrize("name, seed", CASES)
@@ -163,3 +167,25 @@ def test_live_team_counts_a_never_decided_observer(tmp_path):
     online = graphloc.run_team(source, tmp_path / "out", "online").result
     assert online.hypotheses == 1 + len(online.graph.guessed_alternatives) > 1
     assert np.isfinite(online.estimate[0]).all()
+
+
+def test_an_event_team_counts_bad_rows_and_refuses_wheel_odometry(tmp_path):
+    """Rows of an event-clocked team are checked as a log's (a counted skip naming robot,
+    table, row and field); a table of the other route is refused naming it."""
+    source = tmp_path / "run"
+    generate("feng-probabilistic", source, 1)
+    team = LiveTeam.open(source)
+    marker = {"time": 0.0, "sensor": "camera", "target": "ground", "marker": 0, "u": 1.0}
+    team.push("climber", "markers", {**marker, "v": "nan"})
+    team.push("climber", "markers", {**marker, "target": "nobody", "v": 2.0})
+    step = {"time": 0.3, "sensor": "odometry", "time0": 0.0, "tx": 0.1, "ty": 0.0, "tz": 0.0}
+    rotation = {"qx": 0.0, "qy": 0.0, "qz": 0.0, "qw": 0.0}
+    sigmas = {f"sigma_{c}": 0.01 for c in ("rx", "ry", "rz", "tx", "ty", "tz")}
+    team.push("climber", "relative_pose3", {**step, **rotation, **sigmas})
+    counts = team.skips.counts
+    assert counts.get("non_finite") == counts.get("unknown_target") == 1
+    assert counts.get("bad_relative_pose") == 1  # a zero quaternion
+    examples = "\n".join(team.skips.examples)
+    assert "robot 'climber', table 'markers', row 1: field 'v'" in examples
+    with pytest.raises(NotLiveError, match="'odometry' is not live in this team"):
+        team.push("climber", "odometry", {"time": 0.0, "sensor": "wheels", "v": 0, "omega": 0})
