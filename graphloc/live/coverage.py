@@ -14,7 +14,8 @@ LIVE_TABLES = ("odometry", "range", "bearing", "range_bearing", "groundtruth")
 EVENT_TABLES = ("relative_pose", "relative_pose3", "markers", "candidates", "groundtruth")
 # tables whose sections are not causal yet, and why (`not_live`)
 NOT_LIVE = {
-    "ellipses": "candidate sets (circle poses, the hypothesis trackers)",
+    "ellipses": "circle candidate sets of an unplaced target (the max-mixture route, "
+    "`mixtures.mixture_stream`: the target placed through the camera)",
     "features": "camera feature tracks (a track's point prior from all its pixels)",
     "scans": "KISS-ICP odometry and inter-robot scan registration",
 }

@@ -14,9 +14,9 @@ once those near it are final, goes through its stream's tracker (the decision us
 before it only) and becomes the factors `candidates.stream_factors` makes of it. An observer
 with no initial pose is placed at its first decided set (`candidates.place_observers`: every
 decided set of a stream without pixels, the first of a pixel stream), its earlier poses
-carried back along its steps (`motion.place_robot`); until then it has no `anchored_from`
-and the online pass holds its factors (`Pass.hold_until` infinite), as `graphloc online`
-holds them until its `anchored_from`. A step is emitted once every pose time up to it is
+carried back along its steps (`motion.place_robot`); until then its `anchored_from` is
+infinite, so the online pass (`Pass`: `hold_until` the largest `anchored_from`) holds its
+factors, as `graphloc online` holds them until its `anchored_from`. A step is emitted once every pose time up to it is
 final and no row that could add a factor to it is still to come.
 
 Not causal in today's whole-run route, so refused here (`NotLiveError` at `finish`, and
