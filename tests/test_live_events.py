@@ -108,7 +108,8 @@ def test_a_stream_never_decided_is_refused_naming_the_dependency(runs):
 
 def test_a_step_starting_inside_built_steps_is_refused(runs):
     """A relative pose whose start lies inside steps already built would split them (its stamp
-    a new pose among final ones): refused, not silently rebuilt."""
+    a new pose among final ones), a candidate set older than the built poses would add one:
+    refused as they arrive, not silently rebuilt."""
     run = runs[("feng-probabilistic", 1)]
     live = EventGraph(_without_rows(run), GraphConfig(), run.start_time, {0})
     rows = _rows(run)
@@ -119,9 +120,11 @@ def test_a_step_starting_inside_built_steps_is_refused(runs):
     assert len(built) > 5
     t0 = 0.5 * (built[2] + built[3])
     late = Motion(0, t0, rows[40][0], gtsam.Pose3(), np.eye(6) * 1e-4)
-    live.motion(late)
-    with pytest.raises(NotLiveError, match="changed its pose times"):
-        live.advance(rows[40][0])
+    with pytest.raises(NotLiveError, match="inside steps already built"):
+        live.motion(late)
+    early = next(row for _, kind, row in rows[:40] if kind == 1)  # a set before the built times
+    with pytest.raises(NotLiveError, match="candidate set at .* after its pose times"):
+        live.observation(early)
 
 
 def test_a_run_without_candidate_sets_is_refused(runs):

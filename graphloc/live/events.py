@@ -6,9 +6,11 @@ a known pose (`team_graph.candidates`: one `StreamTracker` per stream, fed set b
 Causality. A robot's pose times up to x are final once every row before x has arrived (the
 watermark passed x) and, for a robot with relative poses, x is no later than the last arrived
 step's end (a measurement inside a step is a pose of its own, `motion.inserted_times`, which
-only the step covering it tells). Each advance recomputes the pose times of the rows so far
-and keeps their final prefix; rows that would change a final pose time (a step arriving with
-its start inside steps already built) are refused (`NotLiveError`, naming them). A relative
+only the step covering it tells). Each advance applies the whole-run rule to the rows that
+can shape times after the last final one (those within the longest step of it) and appends
+the new final times; rows that would change a final pose time or step (a step starting
+inside steps already built, rows out of time order) are refused as they arrive
+(`NotLiveError`, naming them). A relative
 pose becomes its between factors once its poses are final; a candidate set joins its poses
 once those near it are final, goes through its stream's tracker (the decision uses the sets
 before it only) and becomes the factors `candidates.stream_factors` makes of it. An observer
@@ -16,8 +18,8 @@ with no initial pose is placed at its first decided set (`candidates.place_obser
 decided set of a stream without pixels, the first of a pixel stream), its earlier poses
 carried back along its steps (`motion.place_robot`); until then its `anchored_from` is
 infinite, so the online pass (`Pass`: `hold_until` the largest `anchored_from`) holds its
-factors, as `graphloc online` holds them until its `anchored_from`. A step is emitted once every pose time up to it is
-final and no row that could add a factor to it is still to come.
+factors, as `graphloc online` holds them until its `anchored_from`. A step is emitted once
+every pose time up to it is final and no row that could add a factor to it is still to come.
 
 Not causal in today's whole-run route, so refused here (`NotLiveError` at `finish`, and
 `graphloc online` builds such a run with `build_graph`): a pixel stream that is never decided
@@ -28,7 +30,9 @@ decided on any seed)."""
 
 from __future__ import annotations
 
+import bisect
 import heapq
+from collections import deque
 from dataclasses import replace
 
 import gtsam
@@ -84,6 +88,9 @@ class _Robot:
         self.r, self.robot = r, robot
         self.stamped = stamped  # pose times at relative-pose stamps (else at measurements)
         self.motions: list = []
+        self.ends: list = []  # each relative pose's end time, in arrival (time) order
+        self.stamps = np.zeros(0)  # every relative-pose stamp, sorted
+        self.span = 0.0  # the longest relative pose [s]
         self.done = 0  # motions made into factors
         self.measured: list = []
         self.times = np.zeros(0)  # final pose times
@@ -112,7 +119,7 @@ class EventGraph:
         self.robots = [_Robot(r, robot, r in stamped) for r, robot in enumerate(run.robots)]
         self.clock = _Clock(run, config, [np.zeros(0) for _ in run.robots])
         self.streams: dict = {}  # (observer, target) -> [StreamTracker, obs list, index]
-        self.queue: list = []  # candidate sets waiting for their poses, in arrival order
+        self.queue: deque = deque()  # candidate sets waiting for their poses, in arrival order
         self.arrived: list = []  # every candidate set, in arrival order
         self.marker_points: dict = {}
         self.pending: dict = {}
@@ -155,14 +162,52 @@ class EventGraph:
                 f"robot {robot.robot.name}: a relative pose from {m.t0}, before the start "
                 f"{self.start} the first one set (the run's start is its earliest: not causal)"
             )
+        if m.t0 > m.t1:
+            raise NotLiveError(
+                f"robot {robot.robot.name}: a relative pose from {m.t0} to the earlier {m.t1} "
+                f"(its row arrives before the time it starts from)"
+            )
+        if robot.ends and m.t1 < robot.ends[-1]:
+            raise NotLiveError(
+                f"robot {robot.robot.name}: relative poses out of time order ({m.t1} after "
+                f"{robot.ends[-1]})"
+            )
+        built = robot.times
+        for t in (m.t0, m.t1):
+            if len(built) and t < built[-1]:
+                i = np.searchsorted(robot.stamps, t)
+                if not (i < len(robot.stamps) and robot.stamps[i] == t):
+                    raise NotLiveError(
+                        f"robot {robot.robot.name}: a relative pose from {t}, inside steps "
+                        f"already built (up to {built[-1]}): it changed its pose times or "
+                        f"steps (not causal)"
+                    )
+        for t in (m.t0, m.t1):
+            i = np.searchsorted(robot.stamps, t)
+            if not (i < len(robot.stamps) and robot.stamps[i] == t):
+                robot.stamps = np.insert(robot.stamps, i, t)
         robot.motions.append(m)
+        robot.ends.append(m.t1)
+        robot.span = max(robot.span, m.t1 - m.t0)
 
     def observation(self, o) -> None:
         """A candidate set (`graphloc.run.CandidateObservation`)."""
         self.first_seen = min(self.first_seen, o.time)
         self.arrived.append(o)
         for r in (o.robot, o.target):
-            self.robots[r].measured.append(o.time)
+            robot = self.robots[r]
+            built = robot.times
+            if not robot.robot.static and len(built) and o.time < built[-1]:
+                raise NotLiveError(
+                    f"robot {robot.robot.name}: a candidate set at {o.time}, after its pose "
+                    f"times up to {built[-1]} were built (rows out of time order)"
+                )
+            if robot.measured and o.time < robot.measured[-1]:
+                raise NotLiveError(
+                    f"robot {robot.robot.name}: candidate sets out of time order ({o.time} "
+                    f"after {robot.measured[-1]})"
+                )
+            robot.measured.append(o.time)
         self.queue.append((len(self.arrived) - 1, o))
 
     # ---- steps out ----------------------------------------------------------------------------
@@ -266,50 +311,51 @@ class EventGraph:
         return watermark
 
     def _times(self, robot: _Robot, watermark: float) -> None:
-        """Robot's final pose times (the whole-run rule over the rows so far, cut at what is
-        final), checked to extend those before."""
+        """Robot's new final pose times: the whole-run rule (`motion.node_times`) over the rows
+        that can shape times after its last final one -- the relative poses ending within the
+        longest step before it and the measurements after it (a pose time t depends on the
+        stamps and steps around t only) --, cut at what is final. Rows that would change a
+        final time are refused as they arrive (`motion`, `observation`)."""
         if robot.robot.static:
             return
         end = self._final_end(robot, watermark)
-        if robot.stamped:
-            stamps = [t for m in robot.motions for t in (m.t0, m.t1)]
-            if stamps:
-                stamps += self._inserted(robot)
-        else:
-            stamps = list(robot.measured)
-        times = np.unique(np.round(np.array(stamps, dtype=float), 9))
-        times = times[times < end]
         n = len(robot.times)
-        if len(times) < n or not np.array_equal(times[:n], robot.times):
-            raise NotLiveError(
-                f"robot {robot.robot.name}: a row changed its pose times before "
-                f"{robot.times[-1] if n else '-'} that were already built (a relative pose "
-                f"starting inside built steps, or a measurement after its step): not causal"
-            )
-        if len(times) > n:
-            robot.times = times
-            self.clock.node_times[robot.r] = times
-            robot.steps += [None] * (len(times) - n)
+        last = robot.times[-1] if n else -np.inf
+        lo = last - robot.span - 2 * self.config.sync_tolerance - 1e-6
+        measured = robot.measured[bisect.bisect_left(robot.measured, lo) :]
+        if robot.stamped:
+            motions = robot.motions[bisect.bisect_left(robot.ends, lo - robot.span) :]
+            stamps = [t for m in motions for t in (m.t0, m.t1)]
+            if stamps:
+                stamps += self._inserted(robot, motions, measured)
+        else:
+            stamps = measured
+        times = np.unique(np.round(np.array(stamps, dtype=float), 9))
+        new = times[(times > last) & (times < end)]
+        if len(new):
+            robot.times = np.concatenate([robot.times, new])
+            self.clock.node_times[robot.r] = robot.times
+            robot.steps += [None] * len(new)
             if not n and robot.robot.initial_pose is not None:
                 self._seed(robot, 0, robot.robot.initial_pose)
             self._anchors(robot)
 
-    def _inserted(self, robot: _Robot) -> list:
-        """`motion.inserted_times` over the robot's rows so far."""
+    def _inserted(self, robot: _Robot, motions: list, measured: list) -> list:
+        """`motion.inserted_times` of `measured` within `motions` (a step is consecutive when
+        no stamp of the robot's relative poses lies strictly inside it)."""
         tol = self.config.sync_tolerance
-        motions = robot.motions
-        stamps = np.unique([t for m in motions for t in (m.t0, m.t1)])
+        stamps = robot.stamps
         spans = []
         for m in motions:
-            a, b = sorted((m.t0, m.t1))
+            a, b = m.t0, m.t1
             i, j = np.searchsorted(stamps, a, "right"), np.searchsorted(stamps, b, "left")
             if i >= j:
                 spans.append((a, b))
-        if not spans or not robot.measured:
+        if not spans or not measured:
             return []
         cons = np.unique([t for s in spans for t in s])
         spans = np.array(sorted(spans))
-        t = np.unique(np.asarray(robot.measured, dtype=float))
+        t = np.unique(np.asarray(measured, dtype=float))
         i = np.clip(np.searchsorted(cons, t), 1, len(cons) - 1)
         gap = np.minimum(np.abs(cons[i - 1] - t), np.abs(cons[i] - t))
         k = np.searchsorted(spans[:, 0], t, "right") - 1
@@ -352,8 +398,8 @@ class EventGraph:
                 f"robot {robot.robot.name}: relative pose {m.t0}->{m.t1} has no poses",
             )
             return
-        stamps = np.unique([t for x in robot.motions for t in (x.t0, x.t1)])
-        a, b = sorted((m.t0, m.t1))
+        stamps = robot.stamps
+        a, b = m.t0, m.t1
         consecutive = np.searchsorted(stamps, a, "right") >= np.searchsorted(stamps, b, "left")
         if consecutive and k1 > k0 + 1:
             parts = split_step(m.relative, m.covariance, times[k0 : k1 + 1])
@@ -376,7 +422,7 @@ class EventGraph:
                 self._final_end(observer, watermark), self._final_end(target, watermark)
             ):
                 return
-            self.queue.pop(0)
+            self.queue.popleft()
             self._set(n, o)
 
     def _set(self, n: int, o) -> None:
