@@ -1,6 +1,7 @@
 """`run_team`: one team run from its source to its outputs -- read (`graphloc.datasets.open_run`),
-graph (`team_graph.build_graph`; online, a run whose sections are all live:
-`live.builder.build_live`, the live API's incremental builder), solve (`team_graph.solve`,
+graph (`live.builder.build_live`, the live API's incremental builder, for a run whose sections
+are all live -- `live.coverage.not_live` -- in batch and online alike; `team_graph.build_graph`
+for the others), solve (`team_graph.solve`,
 batch or online), judge
 (`report.evaluate`: metrics and the consistency verdict), write (`report.write_outputs`) --,
 the one route `graphloc smooth` / `online` (and so `graphloc.many_runs`) and the Python API take.
@@ -79,7 +80,7 @@ def run_team(
     lag = opts.lag if opts.lag is not None else default_lag(run, config)
     config = replace(config, lag=float(lag))
     graph = None
-    if mode == "online" and not not_live(run, run_tables(run)):
+    if not not_live(run, run_tables(run)):  # batch and online: the graph the live API builds
         try:
             graph = build_live(run, config)  # the live API's route (`graphloc.live`)
         except NotLiveError:  # what only the whole run shows (`live.events`: never decided)
