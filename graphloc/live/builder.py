@@ -13,8 +13,9 @@ once its robot's odometry is past it and the grid's next node, should it come, w
 the answer (not within the tolerance or not nearer: a measurement just after a node joins it
 without waiting for the next), or the run is finished; a range-bearing whose own node (of
 `points.body_frame_points`: the later one at a tie) is the next waits for it. Measurements are
-taken in arrival order (the run's order, which fixes the landmark anchors and guesses). A step at time T is emitted once every robot's odometry has reached T and
-no measurement that could join a node at T (time <= T + dt/2) is still to come or waiting. So
+taken in arrival order (the run's order, which fixes the landmark anchors and guesses). A step
+at time T is emitted once every robot's odometry has reached T and no measurement that could
+join a node at T (time <= T + dt/2) is still to come or waiting. So
 the steps, their factors in order and the initial values are those of `build_graph` over the
 same rows (tests/test_live.py). A factor whose newest pose is older than the last emitted step
 (a measurement between two static robots, whose one pose is at the start) enters with the next
