@@ -17,7 +17,11 @@ first `duration` seconds as a log: `MRCLAM.to_log`):
   a pose's end-to-end latency is the time from the trigger's publication here to that pose's
   reception here (one clock, CLOCK_MONOTONIC), split into the way in (publication -> arrival
   in graphloc live), the update (arrival -> the update's poses and covariances ready) and the
-  way out (-> reception, through the ROS 2 sink). Its age is the time from the publication of
+  way out (-> reception, through the ROS 2 sink); the update split further by the times
+  `graphloc live` logs per trigger: queued for the run loop, before the step (the trigger's
+  checks and graph building, and the earlier steps of the same push for a step that is not
+  the first a row completes), the step itself (iSAM2 and covariances, wall and CPU time) and
+  the sinks (the poses published). Its age is the time from the publication of
   the robot's newest row at the pose's time to the pose's reception: the end-to-end latency
   plus the wait for the rows that complete the step (the late-row window, the other robots'
   rows up to that time). Measured with the window 0 (rows in time order on one machine) and
@@ -196,25 +200,40 @@ def end_to_end(log: Path, out: Path, window: float, rate: float = 1.0) -> dict:
         rows_of.setdefault(topic.split("/")[3], []).append((t, published[k]))
     rows_of = {r: np.asarray(v) for r, v in rows_of.items()}
     way_in, update, way_out, total, age, missing = [], [], [], [], [], 0
+    parts = {k: [] for k in ("queue", "before", "step", "step_cpu", "sinks", "later")}
     with open(out / "live_updates.csv", newline="") as fh:
-        for row in csv.DictReader(fh):
-            if not row["trigger_robot"]:  # solved when the run ended: no row triggered it
-                continue
-            topic = f"/graphloc/log/{row['trigger_robot']}/{row['trigger_table']}"
-            sent = by_topic[topic][int(row["trigger_line"]) - 2]
-            got = received.get((row["robot"], int(round(float(row["time"]) * 1e9))))
-            if got is None:
-                missing += 1
-                continue
-            arrived, written = float(row["arrived_s"]), float(row["ready_s"])
-            way_in.append(arrived - sent)
-            update.append(written - arrived)
-            way_out.append(got - written)
-            total.append(got - sent)
-            mine = rows_of[row["robot"]]  # the robot's newest row at the pose's time
-            k = np.searchsorted(mine[:, 0], float(row["time"]), side="right") - 1
-            if k >= 0:
-                age.append(got - mine[k, 1])
+        rows = [row for row in csv.DictReader(fh) if row["trigger_robot"]]  # not the final ones
+    first = {}  # a trigger's push (its start time) -> its first step
+    for row in rows:
+        first.setdefault(row["pushed_s"], row["step"])
+    for row in rows:
+        topic = f"/graphloc/log/{row['trigger_robot']}/{row['trigger_table']}"
+        sent = by_topic[topic][int(row["trigger_line"]) - 2]
+        got = received.get((row["robot"], int(round(float(row["time"]) * 1e9))))
+        if got is None:
+            missing += 1
+            continue
+        arrived, written = float(row["arrived_s"]), float(row["ready_s"])
+        way_in.append(arrived - sent)
+        update.append(written - arrived)
+        # the update's span: the row queued for the run loop, the work before the step
+        # (the rows taken with it, its checks and graph building, and for a step after the
+        # first one the trigger completed, the steps and sinks before it), the step
+        # (iSAM2 update and covariances; wall and CPU) and the sinks (ready -> published)
+        step = float(row["step_s"])
+        parts["queue"].append(float(row["taken_s"]) - arrived)
+        parts["before"].append(written - step - float(row["taken_s"]))
+        parts["step"].append(step)
+        parts["step_cpu"].append(float(row["step_cpu_s"]))
+        parts["sinks"].append(float(row["sent_s"]) - written)
+        if row["step"] != first[row["pushed_s"]]:
+            parts["later"].append(written - arrived)
+        way_out.append(got - written)
+        total.append(got - sent)
+        mine = rows_of[row["robot"]]  # the robot's newest row at the pose's time
+        k = np.searchsorted(mine[:, 0], float(row["time"]), side="right") - 1
+        if k >= 0:
+            age.append(got - mine[k, 1])
     summary = json.loads((out / "live.json").read_text())
     return {
         "window_s": window,
@@ -226,6 +245,7 @@ def end_to_end(log: Path, out: Path, window: float, rate: float = 1.0) -> dict:
         "way_in_s": stats(way_in),
         "update_s": stats(update),
         "way_out_s": stats(way_out),
+        "breakdown_s": {k: stats(v) for k, v in parts.items()},
         "age_s": stats(age),
         "skipped": summary["skipped"]["total"] + summary["skipped"]["team"]["total"],
         "skip_counts": {**summary["skipped"]["counts"], **summary["skipped"]["team"]["counts"]},

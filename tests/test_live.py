@@ -360,3 +360,31 @@ def test_a_manifest_without_tables_takes_pushed_rows(planar_log, tmp_path):
     team = LiveTeam.open(bare)
     replay(team, run_rows(planar_log))
     _same_estimates(team.finish(), replay_live(planar_log).finish(), tol=0.0)
+
+
+@needs_dataset6
+def test_a_step_is_not_held_for_the_next_grid_pose():
+    """Window 0: a step at T is solved once the rows up to T + dt/2 are in and its
+    measurements' nearest poses are certain -- a measurement at T < t < T + dt/2 is nearest to
+    T before the pose at T + dt exists -- so a step with range-bearing rows just after it
+    mostly does not wait for odometry at its next grid pose (some wait for other robots' rows
+    or a tie's later pose)."""
+    options = graphloc.RunOptions(duration=30.0)
+    team = LiveTeam.open(DATASET6, options, window=0.0)
+    dt = team.graph.config.keyframe_dt
+    trigger = {}  # step time -> time of the row whose push solved it
+    now = [None]
+    team.subscribe(lambda u: trigger.setdefault(u.time, now[0]), covariance=False)
+    after = set()  # steps with a range-bearing row in (T, T + dt/2), not at the tie
+    for robot, table, row in run_rows(DATASET6, options):
+        now[0] = float(row["time"])
+        team.push(robot, table, row)
+        if table == "range_bearing":
+            k = (now[0] - team.builder.start) / dt
+            if 0.05 < k - np.floor(k) < 0.45:
+                after.add(round(team.builder.start + np.floor(k) * dt, 6))
+    team.finish()
+    held = [t for t, at in trigger.items() if at is not None and round(t, 6) in after]
+    early = [t for t in held if trigger[t] < t + dt]  # solved before its next grid pose
+    assert len(held) > 20
+    assert len(early) > len(held) / 2  # waiting for the pose at T + dt: hardly any early

@@ -3,6 +3,7 @@ are `graphloc online`'s on the finished log; Ctrl-C ends it cleanly with its out
 
 from __future__ import annotations
 
+import csv
 import heapq
 import json
 import signal
@@ -78,6 +79,16 @@ def test_live_on_a_log_being_written_is_graphloc_online(planar_log, tmp_path):
             n = len((planar_log / rel).read_text().splitlines()) - 1
             lines[table] = lines.get(table, 0) + n
     assert summary["rows"] == lines
+    # live_updates.csv: per pose, the trigger's way through the process in order (arrived,
+    # taken by the run loop, push began, step began, poses ready, sinks done)
+    with open(out / "live_updates.csv", newline="") as fh:
+        updates = [row for row in csv.DictReader(fh) if row["trigger_robot"]]
+    assert updates
+    for row in updates:
+        t = {k: float(row[k]) for k in ("arrived_s", "taken_s", "pushed_s", "ready_s", "sent_s")}
+        began = t["ready_s"] - float(row["step_s"])
+        assert t["arrived_s"] <= t["taken_s"] <= t["pushed_s"] <= began + 1e-6
+        assert began < t["ready_s"] <= t["sent_s"] and float(row["step_cpu_s"]) >= 0
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["partial"] is False
     # the ground truth, written last, was read at the end: the estimates were evaluated

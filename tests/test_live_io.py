@@ -8,6 +8,7 @@ import math
 import os
 import shutil
 import time
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -284,30 +285,77 @@ def test_live_view_logs_poses_and_ellipsoids(tmp_path):
 
 def test_log_rows_over_ros2(loopback, feng_log, tmp_path):
     """A log published line by line (graphloc_msgs/msg/LogRow) and read by `Ros2LogSource`
-    gives the log reader's rows; a line with a bad field is a skip naming the table's file,
-    line and field, and the lines after it still come."""
+    gives the log's lines split into their columns, as text (the log reader's rows once
+    converted: the fields are checked by the team they are pushed to); a line of the wrong
+    number of fields is a skip of the source naming robot, table and line, a bad field passes
+    (the team's to count), and the lines after them still come."""
     from graphloc.live.publish import Publisher, log_messages
     from graphloc.live.ros2 import Ros2LogSource
+    from graphloc.records import TABLES
 
     log = tmp_path / "log"
     shutil.copytree(feng_log, log)
     messages = log_messages(log)
     robot, table = messages[0][1].split("/")[-2:]
-    k = next(i for i, m in enumerate(messages) if m[1] == messages[0][1])
-    good = messages[k][3].line
-    messages[k][3].line = "x" + good  # the table's first data line: line 2 of its file
+    mine = [i for i, m in enumerate(messages) if m[1] == messages[0][1]]
+    bad = "x" + messages[mine[0]][3].line  # the table's first data line: line 2 of its file
+    messages[mine[0]][3].line = bad
+    messages[mine[1]][3].line += ",1"  # line 3: one field too many
     source = Ros2LogSource(log)
     pub = Publisher(messages)
     assert pub.wait_for_subscribers(10.0) == set()
     pub.run(rate=None)
     rows = _receive(source, len(messages))
     assert source.received == len(messages)
-    assert source.skips.counts == {"parse": 1}
-    rel = read_manifest(log).robot(robot).tables[table]
-    assert f"{log / rel}: line 2: field 'time'" in source.skips.examples[0]
+    assert source.skips.counts == {"field_count": 1}
+    assert f"robot {robot!r}, table {table!r}, line 3: expected" in source.skips.examples[0]
+    first = next(row for r, t, row in rows if (r, t) == (robot, table))
+    assert first["line"] == 2 and first["time"] == bad.split(",")[0]
     want = _records(feng_log)
-    want[(robot, table)] = want[(robot, table)][1:]
-    _same(_grouped(rows), want)
+    want[(robot, table)] = want[(robot, table)][2:]
+    kinds = {t: {f.name: f.type for f in fields(TABLES[t])} for t in {t for _, t, _ in rows}}
+    typed = [
+        (r, t, {c: v if kinds[t][c] in (str, "str") else float(v) for c, v in row.items()})
+        for r, t, row in rows
+        if row["line"] != 2 or (r, t) != (robot, table)
+    ]
+    _same(_grouped(typed), want)
+
+
+def test_log_rows_over_ros2_are_checked_once(loopback, planar_log, tmp_path):
+    """A live log's lines over ROS 2 pushed into a team: a line with a bad field is one counted
+    skip, the team's, naming robot, table and field (the source passes it on unchecked), and
+    the team's estimates are those of the log replayed (whose reader skips that line)."""
+    from graphloc.live import LiveTeam, replay_live
+    from graphloc.live.publish import Publisher, log_messages
+    from graphloc.live.ros2 import Ros2LogSource
+
+    log = tmp_path / "log"
+    shutil.copytree(planar_log, log)
+    manifest = read_manifest(log)
+    robot = manifest.robots[0]
+    path = log / robot.tables["odometry"]
+    lines = path.read_text().splitlines()
+    lines[5] = "x" + lines[5]  # line 6 of the file
+    path.write_text("\n".join(lines) + "\n")
+    messages = log_messages(log)
+    source = Ros2LogSource(log)
+    pub = Publisher(messages)
+    assert pub.wait_for_subscribers(10.0) == set()
+    pub.run(rate=None)
+    rows = _receive(source, len(messages))
+    assert source.skips.total == 0
+    team = LiveTeam.open(log, window=0.5)
+    for r, t, row in rows:  # arrival order: the publisher's, time order
+        team.push(r, t, row)
+    assert team.skips.counts == {"parse": 1}
+    assert f"robot {robot.name!r}, table 'odometry', row " in team.skips.examples[0]
+    assert "field 'time'" in team.skips.examples[0]
+    reference = replay_live(log, window=0.5)
+    result, want = team.finish(), reference.finish()
+    assert len(result.estimate) == len(want.estimate)
+    for a, b in zip(result.estimate, want.estimate):
+        assert a.shape == b.shape and np.allclose(a, b, rtol=0, atol=1e-9, equal_nan=True)
 
 
 def test_odometry_table_from_twists(tmp_path):

@@ -10,6 +10,17 @@ import pandas as pd
 from benchmarks.render import header
 
 
+# the parts of the update's span (`breakdown_s`), as the table names them
+BREAKDOWN = (
+    ("queued (arrived -> taken by the run loop)", "queue"),
+    ("before the step (taken -> step began)", "before"),
+    ("step (iSAM2 update + covariances), wall", "step"),
+    ("step, CPU", "step_cpu"),
+    ("sinks (ready -> published)", "sinks"),
+    ("poses of a push's later steps (arrived -> ready)", "later"),
+)
+
+
 def ms(x) -> str:
     return "-" if x is None else f"{1e3 * x:.2f}"
 
@@ -34,14 +45,19 @@ def _steps(result: dict) -> pd.DataFrame:
 def _e2e(result: dict) -> pd.DataFrame:
     rows = []
     for e in result["end_to_end"]:
-        for part, key in (
-            ("end to end", "end_to_end_s"),
-            ("way in (published -> arrived)", "way_in_s"),
-            ("update (arrived -> poses ready)", "update_s"),
-            ("way out (ready -> received)", "way_out_s"),
-            ("age (newest row at the pose's time published -> received)", "age_s"),
+        parts = e.get("breakdown_s", {})  # the update's span split (benchmarks/live_latency.py)
+        for part, st in (
+            ("end to end", e["end_to_end_s"]),
+            ("way in (published -> arrived)", e["way_in_s"]),
+            ("update (arrived -> poses ready)", e["update_s"]),
+            *(
+                (f"- update: {name}", parts[key])
+                for name, key in BREAKDOWN
+                if key in parts and parts[key]["n"]
+            ),
+            ("way out (ready -> received)", e["way_out_s"]),
+            ("age (newest row at the pose's time published -> received)", e["age_s"]),
         ):
-            st = e[key]
             rows.append(
                 [
                     f"{e['window_s']:g}",

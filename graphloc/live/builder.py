@@ -9,10 +9,13 @@ step by step (`graphloc.live.team.LiveTeam`).
 Causality. A grid node start + k dt exists once its robot's odometry reaches it (the whole-run
 grid ends at the last odometry row: `motion.node_times`), and its step is integrated then (the
 rows before it are known). A measurement joins the nearest node (`motion.Timeline.nearest`)
-once a node after it beyond the tolerance exists (no later node can be nearer) or the run is
-finished; measurements are taken in arrival order (the run's order, which fixes the landmark
-anchors and guesses). A step at time T is emitted once every robot's odometry has reached T and
-no measurement that could join a node at T (time <= T + dt/2) is still to come or waiting. So
+once its robot's odometry is past it and the grid's next node, should it come, would not be
+the answer (not within the tolerance or not nearer: a measurement just after a node joins it
+without waiting for the next), or the run is finished; a range-bearing whose own node (of
+`points.body_frame_points`: the later one at a tie) is the next waits for it. Measurements are
+taken in arrival order (the run's order, which fixes the landmark anchors and guesses). A step
+at time T is emitted once every robot's odometry has reached T and no measurement that could
+join a node at T (time <= T + dt/2) is still to come or waiting. So
 the steps, their factors in order and the initial values are those of `build_graph` over the
 same rows (tests/test_live.py). A factor whose newest pose is older than the last emitted step
 (a measurement between two static robots, whose one pose is at the start) enters with the next
@@ -238,20 +241,27 @@ class LiveGraph:
 
     def _nearest(self, r: int, t: float) -> tuple[bool, int]:
         """(known, index of robot r's pose nearest t or -1) as `motion.Timeline.nearest` gives
-        it over the robot's final pose times; known False while a later pose could be nearer."""
+        it over the robot's final pose times; known False until the robot's odometry is past t
+        while a later grid pose (the next, start + n dt, once the odometry reaches it) could be
+        the answer: within the tolerance of t and nearer than the nearest pose so far (a tie
+        goes to the earlier pose)."""
         robot = self.robots[r]
         if robot.robot.static:
             return robot.times.n > 0, 0
         times = robot.times.view
         tol = self.config.keyframe_dt / 2 + 1e-9
-        if not robot.finished and (not len(times) or times[-1] <= t + tol):
-            return False, -1
         n = len(times)
+        if not robot.finished and (not n or robot.end <= t):
+            return False, -1
         if not n:
             return True, -1
         i = min(max(int(times.searchsorted(t)), 1), n - 1) if n > 1 else 0
         if i > 0 and abs(times[i - 1] - t) <= abs(times[i] - t):
             i -= 1
+        if not robot.finished:
+            following = self.start + self.config.keyframe_dt * n  # as `_grow` places it
+            if t > following or (following - t <= tol and following - t < abs(times[i] - t)):
+                return False, -1
         return True, (i if abs(times[i] - t) <= tol else -1)
 
     def _corrected(self, m, watermark: float):
@@ -262,7 +272,10 @@ class LiveGraph:
         if m.kind != "range_bearing" or not robot.velocity.n:
             return False
         times = robot.times.view
-        f = int(np.clip(np.rint((m.time - times[0]) / self.config.keyframe_dt), 0, len(times) - 1))
+        f = np.rint((m.time - times[0]) / self.config.keyframe_dt)
+        if f > len(times) - 1 and not robot.finished:  # its node (a tie: the later) to come
+            return None
+        f = int(np.clip(f, 0, len(times) - 1))
         t_f = times[f]
         if t_f > watermark:
             return None

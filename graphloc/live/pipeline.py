@@ -7,8 +7,10 @@ Ros2Source`, `graphloc.live.tail.LogTail`) and `skips`. Ground-truth rows are re
 pushed (they are no measurement). An update happens while a row is pushed (the row whose time
 completes a step): its trigger. `updates` logs, per update and robot pose, the trigger (robot,
 table, its line: the log file's line, or for ROS 2 lines the message's index on its topic + 2)
-with the trigger's arrival and the time the update's poses were ready, before the sinks
-(perf_counter, CLOCK_MONOTONIC: another process on the machine pairs them with its own);
+with the trigger's arrival, when the run loop took it from the source, when its push began,
+the time the update's poses were ready (before the sinks) and when the sinks were done
+(perf_counter, CLOCK_MONOTONIC: another process on the machine pairs them with its own), and
+the update's own span (`LiveUpdate.latency_s`: iSAM2 step and covariances) and CPU time;
 `latencies`: a trigger's arrival -> the poses it completed, out through every sink. The steps
 solved when the run ends (`LiveTeam.finish`) have no trigger (empty fields)."""
 
@@ -27,6 +29,11 @@ UPDATE_COLUMNS = (
     "trigger_line",
     "arrived_s",
     "ready_s",
+    "taken_s",
+    "pushed_s",
+    "sent_s",
+    "step_s",
+    "step_cpu_s",
 )
 
 
@@ -50,7 +57,8 @@ class LiveRun:
     seen: set = field(default_factory=set)
 
     def __post_init__(self):
-        self._trigger = None  # (robot, table, line, arrival) of the row being pushed
+        # (robot, table, line, arrival, taken from the source, push began) of the row pushed
+        self._trigger = None
         self.team.subscribe(self._on_update)
 
     def _on_update(self, update) -> None:
@@ -61,25 +69,33 @@ class LiveRun:
                 sink.show(poses, update.time)
             else:
                 sink.publish(poses)
-        robot, table, line, arrived = self._trigger or ("", "", -1, float("nan"))
+        sent = time.perf_counter()
+        nan = float("nan")
+        robot, table, line, arrived, taken, pushed = self._trigger or ("", "", -1, nan, nan, nan)
         if self._trigger is not None:
-            self.latencies.append(time.perf_counter() - arrived)
+            self.latencies.append(sent - arrived)
         for name, (t, _, _) in poses.items():
-            self.updates.append((update.step, t, name, robot, table, line, arrived, ready))
+            self.updates.append(
+                (update.step, t, name, robot, table, line, arrived, ready)
+                + (taken, pushed, sent, update.latency_s, update.cpu_s)
+            )
         if self.status is not None:
             self.status.add_update(update.latency_s, poses)
 
     def skipped(self) -> int:
         return self.source.skips.total + self.team.skips.total
 
-    def push(self, rows) -> None:
-        """Rows (receive time, robot, table, row) into the recorder and the team."""
+    def push(self, rows, taken: float | None = None) -> None:
+        """Rows (receive time, robot, table, row) into the recorder and the team; `taken`: when
+        the run loop got them from the source (perf_counter s; default now)."""
+        taken = time.perf_counter() if taken is None else taken
         if self.recorder is not None:
             self.recorder.write([r[1:] for r in rows])
         for arrived, robot, table, row in rows:
             if table == "groundtruth" or (robot, table, row.get("line")) in self.seen:
                 continue
-            self._trigger = (robot, table, row.get("line", -1), arrived)
+            line = row.get("line", -1)
+            self._trigger = (robot, table, line, arrived, taken, time.perf_counter())
             self.team.push(robot, table, row)
             self._trigger = None  # updates at the end (finish) have no trigger
             self.pushed += 1
@@ -105,10 +121,10 @@ class LiveRun:
             if stop():
                 return "stopped"
             rows = self.source.poll(poll)
-            now = time.monotonic()
+            taken, now = time.perf_counter(), time.monotonic()
             if rows:
                 last = now
-                self.push(rows)
+                self.push(rows, taken)
             elif idle is not None and last is not None and now - last >= idle:
                 return "idle"
             if self.status is not None:

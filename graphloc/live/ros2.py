@@ -179,40 +179,61 @@ def log_row_topic(robot: str, table: str) -> str:
 class Ros2LogSource(_Readers):
     """The tables of a log's manifest published line by line as `graphloc_msgs/msg/LogRow`
     (`log_row_topic`): the rows of a source that has no ROS message type (MRCLAM's unicycle
-    velocities, planar range-bearing), checked by the log reader's row checks
-    (`graphloc.table_reader.LineChecker`: a bad line is a skip naming the topic's table, line
-    and field)."""
+    velocities, planar range-bearing). A line is split into its table's columns here (a line
+    without the table's number of fields is a `field_count` skip naming robot, table and line;
+    blank and '#' lines are passed over, as the log reader does) and goes out as column -> text
+    with its `line` (the message's index on its topic + 2: line 1 is the header); its fields are
+    checked once, by the team it is pushed to (`graphloc.live.rows.RowChecker`: a bad field is
+    a skip naming robot, table and field; a row behind the release front a `late_row`)."""
 
     def __init__(self, root, dp=None):
-        from graphloc.io import SkipReport, is_tum, read_landmarks, read_manifest
-        from graphloc.table_reader import LineChecker
+        from graphloc.io import SkipReport, columns, is_tum, read_manifest
 
         super().__init__(dp)
         self.manifest = read_manifest(root)
         self.skips = SkipReport()
-        ids = None
-        if self.manifest.landmarks_file is not None:
-            ids = set(read_landmarks(self.manifest)[0].tolist())
-        self._checkers = {}
+        self._tables = {}  # topic -> (robot, table, its columns)
         for r in self.manifest.robots:
             for table, rel in r.tables.items():
                 if is_tum(rel) or table == "groundtruth":  # no measurement
                     continue
                 topic = log_row_topic(r.name, table)
-                check = LineChecker(self.manifest, r, table, self.skips, ids)
-                self._checkers[topic] = (r.name, table, check)
+                self._tables[topic] = (r.name, table, tuple(columns(table)))
                 self._subscribe(topic, LOG_ROW)
-        self._lines = dict.fromkeys(self._checkers, 1)  # the header is line 1
+        self._lines = dict.fromkeys(self._tables, 1)  # the header is line 1
 
     def poll(self, timeout: float = 0.05) -> list[tuple[float, str, str, dict]]:
         out = []
         for now, topic, _, sample in self._take(timeout):
-            robot, table, check = self._checkers[topic]
+            robot, table, cols = self._tables[topic]
             self._lines[topic] += 1
-            out += [
-                (now, robot, table, row) for row in check.rows(self._lines[topic], [sample.line])
-            ]
+            row = self._row(robot, table, cols, self._lines[topic], sample.line)
+            if row is not None:
+                out.append((now, robot, table, row))
         return out
+
+    def _row(self, robot: str, table: str, cols: tuple, line: int, text: str) -> dict | None:
+        """Line `line` of `table` as column -> text (and `line`); None for a blank or comment
+        line and for one that does not split into the table's columns (counted)."""
+        from graphloc.textio import csv_fields
+
+        if not text.strip() or text.lstrip()[0] == "#":
+            return None
+        where = f"robot {robot!r}, table {table!r}, line {line}"
+        if '"' in text or "\0" in text:
+            try:
+                fields = csv_fields(text, list(cols))
+            except ValueError as exc:
+                self.skips.add("field_too_long", f"{where}: {exc}")
+                return None
+        else:
+            fields = text.split(",")
+        if len(fields) != len(cols):
+            self.skips.add(
+                "field_count", f"{where}: expected {len(cols)} fields, got {len(fields)}"
+            )
+            return None
+        return {"line": line, **dict(zip(cols, fields))}
 
 
 def ros_covariance(pose, cov: np.ndarray) -> list:
