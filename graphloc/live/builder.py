@@ -117,6 +117,10 @@ class LiveGraph:
             sensor_poses=self.points.sensors.poses,
         )
         self.graph.skips.merge(run.skips)
+        if self.start is not None:  # a static robot's one pose is at the start
+            for robot in self.robots:
+                if robot.robot.static:
+                    self._grow(robot)
 
     # ---- rows in ------------------------------------------------------------------------------
 
