@@ -343,3 +343,10 @@ def test_a_static_robot_without_rows_has_its_pose_in_every_route(tmp_path, start
     assert [len(e) for e in result.estimate][2] == 1
     np.testing.assert_allclose(result.estimate[2][0, :2], [1.0, 2.0], atol=1e-6)
     _same(result, online)
+
+
+@pytest.mark.parametrize("window", ["0.5", None, True, float("nan"), -1.0])
+def test_a_bad_window_is_a_clear_error(logs, window):
+    _, run_dir, _ = logs["loop"]
+    with pytest.raises(ValueError, match="window must be"):
+        LiveTeam.open(run_dir, window=window)

@@ -159,6 +159,8 @@ class TimeWindow:
     (`late_row`) and dropped."""
 
     def __init__(self, window: float, skips: SkipReport):
+        if isinstance(window, bool) or not isinstance(window, (int, float)):
+            raise ValueError(f"window must be a number of seconds >= 0, got {window!r}")
         if not (math.isfinite(window) and window >= 0):
             raise ValueError(f"window must be finite and >= 0 [s], got {window}")
         self.window, self.skips = window, skips
