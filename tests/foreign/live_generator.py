@@ -75,14 +75,30 @@ class RobotTruth:
     initial_pose: list = field(default_factory=list)  # what the manifest states
 
     def planar_at(self, t: float) -> tuple:
-        """(x, y, theta) of the body in its start frame at time t (exact zero-order hold)."""
-        return _integrate(self.times, self.v, self.w, self._start, t)
+        """(x, y, theta) of the body in its start frame at time t (exact zero-order hold): the
+        state at the last row time at or after the start before t, carried on to t."""
+        if self._states is None:  # the state at each row time from the start on
+            self._states = {}
+            state, cur = (0.0, 0.0, 0.0), self._start
+            for i, ti in enumerate(self.times):
+                if ti < self._start:
+                    continue
+                state = _carry(state, self.times, self.v, self.w, cur, ti)
+                self._states[i] = state
+                cur = ti
+        i = int(np.searchsorted(self.times, t, "right")) - 1
+        while i >= 0 and i not in self._states:
+            i = -1 if self.times[i] < self._start else i - 1
+        if i < 0:
+            return _integrate(self.times, self.v, self.w, self._start, t)
+        return _carry(self._states[i], self.times, self.v, self.w, self.times[i], t)
 
     def pose(self, t: float) -> np.ndarray:
         """4x4 world_T_body at time t."""
         return self.origin @ _planar_matrix(*self.planar_at(t))
 
     _start: float = 0.0
+    _states: dict | None = None
 
 
 @dataclass
@@ -121,6 +137,14 @@ def _integrate(times, v, w, t0: float, t: float) -> tuple:
         cur = end
         i += 1
     return x, y, th
+
+
+def _carry(state, times, v, w, t0: float, t: float) -> tuple:
+    """`state` at t0 carried to t >= t0 under the held commands."""
+    dx, dy, dth = _integrate(times, v, w, t0, t)
+    x, y, th = state
+    c, s = math.cos(th), math.sin(th)
+    return x + c * dx - s * dy, y + s * dx + c * dy, th + dth
 
 
 def _arc(x, y, th, ds, dth):
