@@ -179,6 +179,8 @@ BAD = [
     ("negative range", {"range": -2.0}, "non_positive_range", "range"),
     ("implausible time", {"time": 1e12}, "implausible", "time"),
     ("extra column", {"rnage": 3.0}, "unknown_field", "rnage"),
+    ("bytes number", {"range": b"3.0"}, "parse", "range"),
+    ("bytes text", {"sensor": b"uwb"}, "parse", "sensor"),
 ]
 
 

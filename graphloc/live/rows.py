@@ -125,6 +125,8 @@ class RowChecker:
 def _value(raw, kind, limits) -> tuple:
     """(value, None) of one field (text or a number), or (None, (reason, message))."""
     conv = float if kind in (float, "float") else int if kind in (int, "int") else str
+    if isinstance(raw, (bytes, bytearray, memoryview)):  # float(b"1") parses, str(b"a") not
+        return None, ("parse", f"{cut(repr(raw))} is bytes, not text or a number (decode it)")
     if conv is str:
         return str(raw).strip(), None
     if type(raw) is float and conv is float:  # the common case, checked below
