@@ -352,3 +352,51 @@ def test_a_bad_window_is_a_clear_error(logs, window):
     _, run_dir, _ = logs["loop"]
     with pytest.raises(ValueError, match="window must be"):
         LiveTeam.open(run_dir, window=window)
+
+
+def test_rows_of_a_static_robot_pushed_live_join_the_next_step(tmp_path):
+    """A static robot that lists no tables (its rows pushed live, so `open` lets it in) ranging
+    to a landmark: the factor is on its one pose at the start, a step long solved; it joins
+    the next step (it raised an AssertionError from push, and every later push too)."""
+    log = generate(Scenario("corridor", robots=2, duration=5.0, seed=5))
+    manifest = dict(log.manifest)
+    beacon = {"name": "beacon", "kind": "post", "static": True, "initial_pose": [1.0, 2.0, 0.0]}
+    sensors = [{"name": "uwb", "type": "range"}]
+    manifest["robots"] = [*manifest["robots"], {**beacon, "sensors": sensors, "tables": {}}]
+    run_dir = write_log(log, tmp_path / "run", manifest)
+    landmark = next(iter(log.landmarks))
+    true_range = float(np.linalg.norm(log.landmarks[landmark] - [1.0, 2.0, 0.0]))
+    team = LiveTeam.open(run_dir)
+    rows = log.pushes()
+    beacon_rows = 0
+    for i, row in enumerate(rows):
+        if i % 300 == 299:
+            team.push(
+                "beacon",
+                "range",
+                {
+                    "time": row[2]["time"],
+                    "sensor": "uwb",
+                    "target": f"landmark:{landmark}",
+                    "range": true_range,
+                },
+            )
+            beacon_rows += 1
+        team.push(*row)
+    team.push(
+        "beacon",
+        "range",
+        {
+            "time": rows[-1][2]["time"],
+            "sensor": "uwb",
+            "target": f"landmark:{landmark}",
+            "range": true_range,
+        },
+    )
+    result = team.finish()
+    assert beacon_rows >= 3
+    assert not team.skips.counts  # the last one too: it joins the final step
+    reference = _pushed(run_dir, rows).finish()
+    ranges = result.graph.factor_types.count("landmark")
+    assert ranges == reference.graph.factor_types.count("landmark") + beacon_rows + 1
+    np.testing.assert_allclose(result.estimate[2][0, :3], [1.0, 2.0, 0.0], atol=1e-3)
