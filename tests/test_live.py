@@ -164,7 +164,7 @@ def test_late_row_beyond_the_window_is_a_counted_skip(mrclam_dir):
     team.push(*late)
     assert team.skips.counts.get("late_row") == 1
     message = next(e for e in team.skips.examples if "released" in e)
-    assert message.startswith(f"robot {late[0]!r}, table 'range_bearing': time ")
+    assert message.startswith(f"robot {late[0]!r}, table 'range_bearing', row {k + 41}: time ")
     replay(team, rows[k + 40 :])
     without = LiveTeam.open(mrclam_dir, window=0.5)
     replay(without, rows)

@@ -103,6 +103,7 @@ class LiveGraph:
         self.arrived: list = []  # every point measurement, in arrival order (the run's points)
         self.pending: dict = {}  # step time -> [(order key, factor, type)]
         self.emitted = -np.inf  # time of the last emitted step
+        self.carried: list = []  # factors whose newest pose is before `emitted`: the next step
         self.horizon = max(config.keyframe_dt / 2, config.sync_tolerance) + 1e-6
         self.made = 0  # point factors taken from `points.made` so far
         self.first_seen = np.inf  # earliest row time (the start of a run without odometry)
@@ -121,6 +122,10 @@ class LiveGraph:
             sensor_poses=self.points.sensors.poses,
         )
         self.graph.skips.merge(run.skips)
+        if self.start is not None:  # a static robot's one pose is at the start
+            for robot in self.robots:
+                if robot.robot.static:
+                    self._grow(robot)
 
     # ---- rows in ------------------------------------------------------------------------------
 
@@ -171,6 +176,13 @@ class LiveGraph:
         self._take_points(np.inf)
         steps = self._emit(lambda t: True)
         graph = self.graph
+        for _, _, kind in self.carried:  # no step came after them
+            graph.skips.add(
+                "after_last_step",
+                f"a {kind} factor on poses of steps already solved (a static robot's row) "
+                f"arrived after the last step: no step left to take it",
+            )
+        self.carried = []
         graph.node_times = [robot.times.view.copy() for robot in self.robots]
         graph.anchored_from = {
             r: robot.times.view[0] for r, robot in enumerate(self.robots) if robot.times.n
@@ -339,6 +351,9 @@ class LiveGraph:
                 initial[key] = initial[body].compose(E)
 
     def _pending(self, t: float, order: tuple, factor, kind: str) -> None:
+        if t <= self.emitted:  # on poses of steps already solved (static robots' rows pushed
+            self.carried.append((order, factor, kind))  # live): it joins the next step
+            return
         self.pending.setdefault(float(t), []).append((order, factor, kind))
 
     def _emit(self, complete) -> list:
@@ -346,9 +361,10 @@ class LiveGraph:
         due = sorted(t for t in self.pending if complete(t))
         steps = []
         for t in due:
-            if t <= self.emitted:  # `not_live` keeps the measurements of static robots out
+            if t <= self.emitted:  # `_pending` carries such factors to the next step
                 raise AssertionError(f"a factor at {t} after the step at {self.emitted}")
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
+            group, self.carried = self.carried + group, []
             step = (t, [(f, kind) for _, f, kind in group])
             self.graph.steps.append(step)
             self.graph.factor_types += [kind for _, _, kind in group]

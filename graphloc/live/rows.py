@@ -18,6 +18,8 @@ from graphloc.records import SENSOR_TYPES, TABLES, columns, plausible
 from graphloc.table_reader import known_target
 from graphloc.textio import SkipReport, cut, shown
 
+TABLE_RANK = {table: i for i, table in enumerate(TABLES)}  # the log reader's order of tables
+
 
 class RowChecker:
     """Checks rows of a team (`manifest`: the sensors and names rows refer to; `robots`: the
@@ -52,23 +54,21 @@ class RowChecker:
             ]
             for table in tables
         }
+        self.wanted = {table: columns(table) for table in tables}
 
     def check(self, robot: str, table: str, row: Mapping, n: int):
         """Robot `robot`'s row n of `table` as its handler's item, None if refused (counted).
         ValueError for an unknown robot or table, `NotLiveError` for a table not live yet."""
-        if robot not in self.index:
-            raise ValueError(f"unknown robot {robot!r}; robots: {sorted(self.index)}")
-        if table in NOT_LIVE:
-            raise NotLiveError(f"table {table!r} is not live yet: {NOT_LIVE[table]}")
-        if table not in self.tables:
-            if table in LIVE_TABLES + EVENT_TABLES:
-                raise NotLiveError(
-                    f"table {table!r} is not live in this team: its tables are "
-                    f"{', '.join(self.tables)} (wheel odometry and event-clocked robots do not "
-                    f"mix)"
-                )
-            raise ValueError(f"unknown table {table!r}; live tables: {', '.join(self.tables)}")
+        self.refuse(robot, table, row)
         where = f"robot {robot!r}, table {table!r}, row {n}"
+        # a log source's rows (`live.tail`, `live.ros2`) name their line: provenance, no column
+        extra = sorted(str(k) for k in row if k not in self.wanted[table] and k != "line")
+        if extra:
+            return self._skip(
+                "unknown_field",
+                f"{where}: field {cut(extra[0])!r} is not a column of table {table!r} "
+                f"(columns: {', '.join(self.wanted[table])})",
+            )
         values = {}
         for name, kind, limits in self.columns[table]:
             if name not in row:
@@ -115,6 +115,38 @@ class RowChecker:
             return (self.index[robot], (values["time"], table, item))
         return item
 
+    def refuse(self, robot, table, row) -> None:
+        """Raise for a push no row of the run can be: an unknown robot or table (ValueError), a
+        table not live yet (`NotLiveError`), a row that is not a mapping of column -> value
+        (TypeError); each names robot and table."""
+        where = f"robot {robot!r}, table {table!r}"
+        if not isinstance(robot, str) or robot not in self.index:
+            raise ValueError(f"{where}: unknown robot {robot!r}; robots: {sorted(self.index)}")
+        if isinstance(table, str) and table in NOT_LIVE:
+            raise NotLiveError(f"{where}: table {table!r} is not live yet: {NOT_LIVE[table]}")
+        if isinstance(table, str) and table not in self.tables and table in set(
+            LIVE_TABLES + EVENT_TABLES
+        ):
+            raise NotLiveError(
+                f"{where}: table {table!r} is not live in this team: its tables are "
+                f"{', '.join(self.tables)} (wheel odometry and event-clocked robots do not mix)"
+            )
+        if not isinstance(table, str) or table not in self.tables:
+            raise ValueError(
+                f"{where}: unknown table {table!r}; live tables: {', '.join(self.tables)}"
+            )
+        if not isinstance(row, Mapping):
+            raise TypeError(
+                f"{where}: a row is a mapping of column -> text or number (columns: "
+                f"{', '.join(self.wanted[table])}), got {type(row).__name__}"
+            )
+
+    def rank(self, robot: str, table: str) -> tuple:
+        """Where a row of `robot`'s `table` goes among rows of equal time: robot (manifest
+        order), then table (docs/log_format.md's order), as `graphloc.io.iter_records` merges
+        a log's files."""
+        return (self.index[robot], TABLE_RANK[table])
+
     def _skip(self, reason: str, message: str) -> None:
         self.skips.add(reason, message)
         return None
@@ -123,6 +155,8 @@ class RowChecker:
 def _value(raw, kind, limits) -> tuple:
     """(value, None) of one field (text or a number), or (None, (reason, message))."""
     conv = float if kind in (float, "float") else int if kind in (int, "int") else str
+    if isinstance(raw, (bytes, bytearray, memoryview)):  # float(b"1") parses, str(b"a") not
+        return None, ("parse", f"{cut(repr(raw))} is bytes, not text or a number (decode it)")
     if conv is str:
         return str(raw).strip(), None
     if type(raw) is float and conv is float:  # the common case, checked below
@@ -151,10 +185,14 @@ def _converted(raw, conv) -> tuple:
 
 class TimeWindow:
     """Items held until `window` seconds of newer time have arrived, then released in time order
-    (ties in arrival order). The release front is the newest time seen minus `window`; an
-    item older than the front is late: counted (`late_row`) and dropped."""
+    (ties by their `rank`, then in arrival order: so rows of equal time that arrive within the
+    window come out in one order whatever order they arrived in). The release front is the
+    newest time seen minus `window`; an item older than the front is late: counted
+    (`late_row`) and dropped."""
 
     def __init__(self, window: float, skips: SkipReport):
+        if isinstance(window, bool) or not isinstance(window, (int, float)):
+            raise ValueError(f"window must be a number of seconds >= 0, got {window!r}")
         if not (math.isfinite(window) and window >= 0):
             raise ValueError(f"window must be finite and >= 0 [s], got {window}")
         self.window, self.skips = window, skips
@@ -162,7 +200,7 @@ class TimeWindow:
         self.front = -math.inf  # every item before this time has been released
         self.count = 0
 
-    def add(self, time: float, item, where: str) -> list:
+    def add(self, time: float, item, where: str, rank: tuple = ()) -> list:
         """Hold one item; returns the items released by it, in time order."""
         if time < self.front:
             self.skips.add(
@@ -171,7 +209,7 @@ class TimeWindow:
                 f"(window {self.window} s)",
             )
             return []
-        heapq.heappush(self.heap, (time, self.count, item))
+        heapq.heappush(self.heap, (time, rank, self.count, item))
         self.count += 1
         self.front = max(self.front, time - self.window)
         return self.release(self.front)
@@ -179,7 +217,7 @@ class TimeWindow:
     def release(self, front: float) -> list:
         out = []
         while self.heap and self.heap[0][0] <= front:
-            out.append(heapq.heappop(self.heap)[2])
+            out.append(heapq.heappop(self.heap)[3])
         return out
 
     def flush(self) -> list:

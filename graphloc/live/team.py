@@ -86,6 +86,7 @@ class LiveTeam:
         self.solver = Pass(self.graph, "online", None, False, None)
         self.solver_note = ""
         self.subscribers: list = []
+        self.callback_errors: list = []  # exceptions of subscribers, raised after the step
         self.rows = 0
         self.closed = False  # finish() began: no more rows
         self.finished: TeamResult | None = None
@@ -127,13 +128,19 @@ class LiveTeam:
         """One row of robot `robot`'s `table` (column -> text or number): checked (a refused
         row counted in `skips`, named by robot, table, its number among the rows pushed to the
         team and the field), put in time order, and every step it completes solved."""
-        self._check_open()
+        self._check_open(robot, table)
+        self.checker.refuse(robot, table, row)  # raises: the push is no row (not counted)
         self.rows += 1
         if self.pushed is not None:
-            self.pushed.append([robot, table, {k: _plain(v) for k, v in dict(row).items()}])
+            self.pushed.append([robot, table, {str(k): _plain(v) for k, v in row.items()}])
         item = self.checker.check(robot, table, row, self.rows)
         if item is not None:
-            self._arrive(_item_time(item), (table, item), f"robot {robot!r}, table {table!r}")
+            where = f"robot {robot!r}, table {table!r}, row {self.rows}"
+            rank = self.checker.rank(robot, table)
+            released = self.window.add(_item_time(item), (table, item), where, rank)
+            if released:
+                self._release(released, self.window.front)
+        self._raise_callback_error()
 
     def push_many(self, robot: str, table: str, rows) -> None:
         """Rows of one robot's table, in the order they arrived (`push` each)."""
@@ -175,6 +182,7 @@ class LiveTeam:
             hypotheses=1,
             solver_note=self.solver_note or result.solver_note,
         )
+        self._raise_callback_error()  # the team is finished: finish() again returns the result
         return self.finished
 
     def write_checkpoint(self, finished: bool = False) -> None:
@@ -240,14 +248,19 @@ class LiveTeam:
         self._release(self.window.flush(), np.inf)
         self._solve(self.builder.finish())
 
-    def _check_open(self) -> None:
+    def _check_open(self, robot, table) -> None:
         if self.closed:
-            raise ValueError("LiveTeam.push after finish(): the run is over")
+            raise ValueError(
+                f"robot {robot!r}, table {table!r}: LiveTeam.push after finish(): the run is "
+                f"over (the row is not taken)"
+            )
 
-    def _arrive(self, t: float, entry, where: str) -> None:
-        released = self.window.add(t, entry, where)
-        if released:
-            self._release(released, self.window.front)
+    def _raise_callback_error(self) -> None:
+        """The first exception a subscriber raised during this call, raised again now that
+        every step of it is solved and every other subscriber called."""
+        if self.callback_errors:
+            first, self.callback_errors = self.callback_errors[0], []
+            raise first
 
     def _release(self, entries: list, front: float) -> None:
         builder = self.builder
@@ -259,7 +272,9 @@ class LiveTeam:
         self._solve(builder.advance(front))
 
     def _solve(self, steps: list) -> None:
-        for _ in steps:
+        """Solve every step the builder emitted and the pass has not solved yet (`steps`: the
+        new ones; the pass catches up on any step left behind)."""
+        while self.solver.done < len(self.graph.steps):
             t0, cpu0 = _time.perf_counter(), _time.process_time()
             i = self.solver.done
             before = dict(self.solver.latest)
@@ -287,14 +302,17 @@ class LiveTeam:
             if self.checkpoint_path is not None and every and self.solver.done % every == 0:
                 self.write_checkpoint()
             for callback, covariance in self.subscribers:
-                callback(
-                    update
-                    if covariance or not wanted
-                    else replace(
-                        update,
-                        poses={n: replace(p, covariance=None) for n, p in poses.items()},
+                try:
+                    callback(
+                        update
+                        if covariance or not wanted
+                        else replace(
+                            update,
+                            poses={n: replace(p, covariance=None) for n, p in poses.items()},
+                        )
                     )
-                )
+                except Exception as exc:  # the team goes on; raised after (`push`, `finish`)
+                    self.callback_errors.append(exc)
 
     def _refactor(self, exc: Exception, i: int) -> None:
         """Cholesky found the system indeterminate: the pass again with QR from the first step
