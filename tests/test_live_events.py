@@ -18,7 +18,8 @@ from graphloc.datasets.scenarios import generate
 from graphloc.live import LiveTeam, NotLiveError, replay_live
 from graphloc.live.builder import build_live
 from graphloc.live.coverage import not_live, route, run_tables
-from graphloc.live.events import EventGraph, _without_rows, build_events
+from graphloc.live.event_rows import _without_rows, build_events
+from graphloc.live.events import EventGraph
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.pipelines.team_graph.passes import Pass
 from graphloc.run import Motion

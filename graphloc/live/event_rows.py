@@ -8,6 +8,7 @@ set has arrived), then made into candidate sets by the loader's own front ends
 
 from __future__ import annotations
 
+import heapq
 from dataclasses import replace
 
 import numpy as np
@@ -16,6 +17,9 @@ from graphloc.datasets.log_observations import candidate_observations, marker_ob
 from graphloc.io import Sink
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.events import EventGraph
+from graphloc.pipelines.team_graph.config import GraphConfig
+from graphloc.pipelines.team_graph.graph import TeamGraph
+from graphloc.run import TeamRun
 
 RELATIVE = ("relative_pose", "relative_pose3")
 
@@ -108,3 +112,32 @@ class EventRows:
         out.sort(key=lambda o: (o.time, o.robot))
         for o in out:
             self.events.observation(o)
+
+
+def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
+    """A loaded run's graph built by `EventGraph` (its relative poses and candidate sets merged
+    in time order, a relative pose at its end time): the graph `graphloc online` solves for an
+    event-clocked run (`coverage.event_route`). steps: None, or a list that gets, after each
+    row, the steps it completed (`advance` at the row's time: the live order)."""
+    if not run.observations:
+        raise NotLiveError(
+            "no candidate sets: iSAM2's precision would come from the median of every "
+            "relative pose of the run (`run_precision`, not causal)"
+        )
+    stamped = {m.robot for m in run.motions}
+    live = EventGraph(_without_rows(run), config, run.start_time, stamped)
+    motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
+    sets = ((o.time, 1, i, o) for i, o in enumerate(run.observations))
+    for t, kind, _, row in heapq.merge(motions, sets, key=lambda e: e[:3]):
+        (live.motion if kind == 0 else live.observation)(row)
+        if steps is not None:
+            steps.append(live.advance(t))
+    done = live.finish()
+    if steps is not None:
+        steps.append(done)
+    live.graph.run = run
+    return live.graph
+
+
+def _without_rows(run: TeamRun) -> TeamRun:
+    return replace(run, motions=(), observations=())

@@ -31,76 +31,33 @@ decided on any seed)."""
 from __future__ import annotations
 
 import bisect
-import heapq
 from collections import deque
-from dataclasses import replace
 
-import gtsam
 import numpy as np
 
 from graphloc.io import SkipReport
-from graphloc.keys import pose_key
 from graphloc.live.coverage import NotLiveError
+from graphloc.live.event_placement import alternative_placements, initial_upto, seed_robot
+from graphloc.live.event_clock import (
+    EventClock,
+    EventRobot,
+    final_end,
+    inserted_times,
+    motion_bound,
+)
 from graphloc.pipelines.team_graph.candidates import (
     StreamDecisions,
     StreamTracker,
     stream_factors,
 )
 from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig
-from graphloc.pipelines.team_graph.graph import TeamGraph, alternative_starts
+from graphloc.pipelines.team_graph.graph import TeamGraph
 from graphloc.pipelines.team_graph.motion import (
     between_factor,
     robot_anchors,
     split_step,
-    step_or_unknown,
 )
 from graphloc.run import TeamRun
-
-
-class _Clock:
-    """The `motion.Timeline` interface (`node_times`, `nearest`, `offsets`) over the live pose
-    times (event-clocked robots: no offsets)."""
-
-    def __init__(self, run: TeamRun, config: GraphConfig, node_times: list):
-        self.run, self.config, self.node_times = run, config, node_times
-
-    def nearest(self, r: int, t: float) -> int:
-        if self.run.robots[r].static:
-            return 0
-        times = self.node_times[r]
-        n = len(times)
-        if not n:
-            return -1
-        i = min(max(int(times.searchsorted(t)), 1), n - 1) if n > 1 else 0
-        if i > 0 and abs(times[i - 1] - t) <= abs(times[i] - t):
-            i -= 1
-        return i if abs(times[i] - t) <= self.config.sync_tolerance else -1
-
-    def offsets(self, r: int, nodes, times) -> list:
-        return [gtsam.Pose3()] * len(times)
-
-
-class _Robot:
-    """One robot's rows so far: relative poses (in arrival order), measured times, its final
-    pose times and steps, and its placement."""
-
-    def __init__(self, r: int, robot, stamped: bool):
-        self.r, self.robot = r, robot
-        self.stamped = stamped  # pose times at relative-pose stamps (else at measurements)
-        self.motions: list = []
-        self.ends: list = []  # each relative pose's end time, in arrival (time) order
-        self.stamps = np.zeros(0)  # every relative-pose stamp, sorted
-        self.span = 0.0  # the longest relative pose [s]
-        self.done = 0  # motions made into factors
-        self.measured: list = []
-        self.times = np.zeros(0)  # final pose times
-        self.steps: list = []  # step_rel
-        self.placed: dict = {}  # node -> decided / initial pose (the seeds)
-        self.seed: int | None = None  # first seeded node
-        self.initial_done = 0  # nodes whose initial value is set
-        self.anchors_done = 0
-        self.anchor_count = 0
-        self.finished = False
 
 
 class EventGraph:
@@ -116,8 +73,8 @@ class EventGraph:
         self.run, self.config = run, config
         self.start = start_time
         self.start_from_rows = False  # the start came from the first relative pose
-        self.robots = [_Robot(r, robot, r in stamped) for r, robot in enumerate(run.robots)]
-        self.clock = _Clock(run, config, [np.zeros(0) for _ in run.robots])
+        self.robots = [EventRobot(r, robot, r in stamped) for r, robot in enumerate(run.robots)]
+        self.clock = EventClock(run, config, [np.zeros(0) for _ in run.robots])
         self.streams: dict = {}  # (observer, target) -> [StreamTracker, obs list, index]
         self.queue: deque = deque()  # candidate sets waiting for their poses, in arrival order
         self.arrived: list = []  # every candidate set, in arrival order
@@ -224,7 +181,7 @@ class EventGraph:
             self._times(robot, watermark)
         self._take_motions(watermark)
         self._take_sets(watermark)
-        bound = min(self._bound(robot, watermark) for robot in self.robots)
+        bound = min(motion_bound(robot, watermark) for robot in self.robots)
         bound = min(bound, watermark - self.config.sync_tolerance - 1e-9)
         if self.queue:
             bound = min(bound, self.queue[0][1].time - self.config.sync_tolerance - 1e-9)
@@ -271,7 +228,14 @@ class EventGraph:
         for tracker, _, _ in streams:
             graph.skips.merge(tracker.out.skips)
         graph.skips.merge(self.skips)
-        self._alternatives([tracker.out for tracker, _, _ in streams])
+        alternative_placements(
+            self.run,
+            self.config,
+            self.clock,
+            self.graph,
+            self.robots,
+            [tracker.out for tracker, _, _ in streams],
+        )
         types = graph.factor_types
         graph.counts = {
             "robots": len(self.run.robots),
@@ -298,19 +262,10 @@ class EventGraph:
                 self.clock.node_times[robot.r] = robot.times
                 robot.steps.append(None)
                 if robot.robot.initial_pose is not None:
-                    self._seed(robot, 0, robot.robot.initial_pose)
+                    seed_robot(self.graph, self.config, robot, 0, robot.robot.initial_pose)
                 self._anchors(robot)
 
-    def _final_end(self, robot: _Robot, watermark: float) -> float:
-        """Pose times before this (or at it, for a relative-pose stamp bound) are final."""
-        if robot.finished:
-            return np.inf
-        if robot.stamped:
-            last = max((m.t1 for m in robot.motions), default=-np.inf)
-            return min(watermark, np.nextafter(last, np.inf))
-        return watermark
-
-    def _times(self, robot: _Robot, watermark: float) -> None:
+    def _times(self, robot: EventRobot, watermark: float) -> None:
         """Robot's new final pose times: the whole-run rule (`motion.node_times`) over the rows
         that can shape times after its last final one -- the relative poses ending within the
         longest step before it and the measurements after it (a pose time t depends on the
@@ -318,7 +273,7 @@ class EventGraph:
         final time are refused as they arrive (`motion`, `observation`)."""
         if robot.robot.static:
             return
-        end = self._final_end(robot, watermark)
+        end = final_end(robot, watermark)
         n = len(robot.times)
         last = robot.times[-1] if n else -np.inf
         lo = last - robot.span - 2 * self.config.sync_tolerance - 1e-6
@@ -327,7 +282,7 @@ class EventGraph:
             motions = robot.motions[bisect.bisect_left(robot.ends, lo - robot.span) :]
             stamps = [t for m in motions for t in (m.t0, m.t1)]
             if stamps:
-                stamps += self._inserted(robot, motions, measured)
+                stamps += inserted_times(robot, motions, measured, self.config.sync_tolerance)
         else:
             stamps = measured
         times = np.unique(np.round(np.array(stamps, dtype=float), 9))
@@ -337,46 +292,15 @@ class EventGraph:
             self.clock.node_times[robot.r] = robot.times
             robot.steps += [None] * len(new)
             if not n and robot.robot.initial_pose is not None:
-                self._seed(robot, 0, robot.robot.initial_pose)
+                seed_robot(self.graph, self.config, robot, 0, robot.robot.initial_pose)
             self._anchors(robot)
 
-    def _inserted(self, robot: _Robot, motions: list, measured: list) -> list:
-        """`motion.inserted_times` of `measured` within `motions` (a step is consecutive when
-        no stamp of the robot's relative poses lies strictly inside it)."""
-        tol = self.config.sync_tolerance
-        stamps = robot.stamps
-        spans = []
-        for m in motions:
-            a, b = m.t0, m.t1
-            i, j = np.searchsorted(stamps, a, "right"), np.searchsorted(stamps, b, "left")
-            if i >= j:
-                spans.append((a, b))
-        if not spans or not measured:
-            return []
-        cons = np.unique([t for s in spans for t in s])
-        spans = np.array(sorted(spans))
-        t = np.unique(np.asarray(measured, dtype=float))
-        i = np.clip(np.searchsorted(cons, t), 1, len(cons) - 1)
-        gap = np.minimum(np.abs(cons[i - 1] - t), np.abs(cons[i] - t))
-        k = np.searchsorted(spans[:, 0], t, "right") - 1
-        inside = (k >= 0) & (t < spans[np.clip(k, 0, None), 1])
-        return t[(gap > tol) & inside].tolist()
-
-    def _anchors(self, robot: _Robot) -> None:
+    def _anchors(self, robot: EventRobot) -> None:
         made = robot_anchors(robot.r, robot.robot, self.config, robot.times, robot.anchors_done)
         for t, f, kind in made:
             robot.anchor_count += 1
             self._pending(t, (1, robot.r, robot.anchor_count), f, kind)
         robot.anchors_done = len(robot.times)
-
-    def _bound(self, robot: _Robot, watermark: float) -> float:
-        """Steps up to this time may be emitted as far as this robot is concerned."""
-        if robot.robot.static:
-            return np.inf
-        end = self._final_end(robot, watermark)
-        if robot.done < len(robot.motions):
-            end = min(end, min(m.t1 for m in robot.motions[robot.done :]) - 1e-9)
-        return end - 1e-9 if np.isfinite(end) else end
 
     def _take_motions(self, watermark: float) -> None:
         """Relative poses whose poses are final (their stamps are poses: `nearest` finds them
@@ -384,12 +308,12 @@ class EventGraph:
         for robot in self.robots:
             while robot.done < len(robot.motions):
                 m = robot.motions[robot.done]
-                if not max(m.t0, m.t1) < self._final_end(robot, watermark):
+                if not max(m.t0, m.t1) < final_end(robot, watermark):
                     break
                 self._motion_factors(robot, robot.done, m)
                 robot.done += 1
 
-    def _motion_factors(self, robot: _Robot, index: int, m) -> None:
+    def _motion_factors(self, robot: EventRobot, index: int, m) -> None:
         r, times, config = robot.r, robot.times, self.config
         k0, k1 = self.clock.nearest(r, m.t0), self.clock.nearest(r, m.t1)
         if k0 < 0 or k1 < 0 or k0 == k1:
@@ -418,9 +342,7 @@ class EventGraph:
         while self.queue:
             n, o = self.queue[0]
             observer, target = self.robots[o.robot], self.robots[o.target]
-            if o.time + tol >= min(
-                self._final_end(observer, watermark), self._final_end(target, watermark)
-            ):
+            if o.time + tol >= min(final_end(observer, watermark), final_end(target, watermark)):
                 return
             self.queue.popleft()
             self._set(n, o)
@@ -463,42 +385,9 @@ class EventGraph:
             self._pending(t, (4, index, len(obs), j), f, kind)
         robot = self.robots[r]
         if tracked.decided and not (tracker.out.pixel_route and robot.placed):
-            self._seed(robot, tracked.k, tracked.bodies[tracked.update.committed])
-
-    def _seed(self, robot: _Robot, k: int, pose) -> None:
-        """A known or decided pose of robot at node k (`motion.place_robot`'s seeds): the first
-        places the robot, its earlier poses carried back along its steps."""
-        if k in robot.placed:
-            return
-        robot.placed[k] = pose
-        if robot.seed is not None:
-            if k < robot.seed:
-                raise NotLiveError(f"robot {robot.robot.name}: a decision before its placement")
-            return
-        robot.seed = k
-        initial, r = self.graph.initial, robot.r
-        initial[pose_key(r, k)] = pose
-        for j in range(k - 1, -1, -1):
-            step = step_or_unknown(robot.steps, j + 1, self.config)[0]
-            initial[pose_key(r, j)] = initial[pose_key(r, j + 1)].compose(step.inverse())
-        robot.initial_done = k + 1
-        self.graph.anchored_from[r] = float(robot.times[k])
-
-    def _initial_upto(self, t: float) -> None:
-        """Initial values of placed robots' poses up to time t (carried along their steps)."""
-        initial = self.graph.initial
-        for robot in self.robots:
-            if robot.seed is None:
-                continue
-            r = robot.r
-            while robot.initial_done < len(robot.times) and robot.times[robot.initial_done] <= t:
-                k = robot.initial_done
-                if k in robot.placed:
-                    initial[pose_key(r, k)] = robot.placed[k]
-                else:
-                    step = step_or_unknown(robot.steps, k, self.config)[0]
-                    initial[pose_key(r, k)] = initial[pose_key(r, k - 1)].compose(step)
-                robot.initial_done += 1
+            seed_robot(
+                self.graph, self.config, robot, tracked.k, tracked.bodies[tracked.update.committed]
+            )
 
     def _pending(self, t: float, order: tuple, factor, kind: str) -> None:
         self.pending.setdefault(float(t), []).append((order, factor, kind))
@@ -509,7 +398,7 @@ class EventGraph:
         for t in due:
             if t <= self.emitted:
                 raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
-            self._initial_upto(t)
+            initial_upto(self.graph, self.config, self.robots, t)
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
             step = (t, [(f, kind) for _, f, kind in group])
             self.graph.steps.append(step)
@@ -517,58 +406,5 @@ class EventGraph:
             self.emitted = t
             steps.append(step)
         if bound == np.inf:
-            self._initial_upto(np.inf)
+            initial_upto(self.graph, self.config, self.robots, np.inf)
         return steps
-
-    def _alternatives(self, streams: list) -> None:
-        """The pixel streams' alternative placements (`candidates.place_observers`, used by a
-        batch solve), carried along the steps as `graph.alternative_starts` carries them."""
-        alternatives = {}
-        for s in streams:
-            if s.pixel_route and s.sets:
-                first = s.sets[0]
-                alternatives[s.robot] = ([(first.k, body) for body in first.bodies], False)
-        poses = {
-            robot.r: (
-                [self.graph.initial[pose_key(robot.r, k)] for k in range(len(robot.times))],
-                robot.seed,
-            )
-            for robot in self.robots
-            if robot.seed is not None
-        }
-        variants, _ = alternative_starts(
-            self.run, self.config, self.clock, self.graph.step_rel, poses, alternatives, {}
-        )
-        self.graph.alternatives = variants
-
-
-EVENT_TABLES = ("relative_pose", "relative_pose3", "markers", "candidates")
-
-
-def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
-    """A loaded run's graph built by `EventGraph` (its relative poses and candidate sets merged
-    in time order, a relative pose at its end time): the graph `graphloc online` solves for an
-    event-clocked run (`coverage.event_route`). steps: None, or a list that gets, after each
-    row, the steps it completed (`advance` at the row's time: the live order)."""
-    if not run.observations:
-        raise NotLiveError(
-            "no candidate sets: iSAM2's precision would come from the median of every "
-            "relative pose of the run (`run_precision`, not causal)"
-        )
-    stamped = {m.robot for m in run.motions}
-    live = EventGraph(_without_rows(run), config, run.start_time, stamped)
-    motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
-    sets = ((o.time, 1, i, o) for i, o in enumerate(run.observations))
-    for t, kind, _, row in heapq.merge(motions, sets, key=lambda e: e[:3]):
-        (live.motion if kind == 0 else live.observation)(row)
-        if steps is not None:
-            steps.append(live.advance(t))
-    done = live.finish()
-    if steps is not None:
-        steps.append(done)
-    live.graph.run = run
-    return live.graph
-
-
-def _without_rows(run: TeamRun) -> TeamRun:
-    return replace(run, motions=(), observations=())

@@ -124,8 +124,10 @@ class RowChecker:
             raise ValueError(f"{where}: unknown robot {robot!r}; robots: {sorted(self.index)}")
         if isinstance(table, str) and table in NOT_LIVE:
             raise NotLiveError(f"{where}: table {table!r} is not live yet: {NOT_LIVE[table]}")
-        if isinstance(table, str) and table not in self.tables and table in set(
-            LIVE_TABLES + EVENT_TABLES
+        if (
+            isinstance(table, str)
+            and table not in self.tables
+            and table in set(LIVE_TABLES + EVENT_TABLES)
         ):
             raise NotLiveError(
                 f"{where}: table {table!r} is not live in this team: its tables are "

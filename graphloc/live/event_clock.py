@@ -1,0 +1,101 @@
+"""The event clock of `live.events.EventGraph`: the pose times of event-clocked robots as rows
+arrive (`team_graph.motion.node_times`' rule: poses at relative-pose stamps, and at measurements
+inside a step) -- one robot's rows so far (`EventRobot`), the `motion.Timeline` interface over
+the final times (`EventClock`), and which times are final (`final_end`, `motion_bound`,
+`inserted_times`)."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+from graphloc.pipelines.team_graph.config import GraphConfig
+from graphloc.run import TeamRun
+
+
+class EventClock:
+    """The `motion.Timeline` interface (`node_times`, `nearest`, `offsets`) over the live pose
+    times (event-clocked robots: no offsets)."""
+
+    def __init__(self, run: TeamRun, config: GraphConfig, node_times: list):
+        self.run, self.config, self.node_times = run, config, node_times
+
+    def nearest(self, r: int, t: float) -> int:
+        if self.run.robots[r].static:
+            return 0
+        times = self.node_times[r]
+        n = len(times)
+        if not n:
+            return -1
+        i = min(max(int(times.searchsorted(t)), 1), n - 1) if n > 1 else 0
+        if i > 0 and abs(times[i - 1] - t) <= abs(times[i] - t):
+            i -= 1
+        return i if abs(times[i] - t) <= self.config.sync_tolerance else -1
+
+    def offsets(self, r: int, nodes, times) -> list:
+        return [gtsam.Pose3()] * len(times)
+
+
+class EventRobot:
+    """One robot's rows so far: relative poses (in arrival order), measured times, its final
+    pose times and steps, and its placement."""
+
+    def __init__(self, r: int, robot, stamped: bool):
+        self.r, self.robot = r, robot
+        self.stamped = stamped  # pose times at relative-pose stamps (else at measurements)
+        self.motions: list = []
+        self.ends: list = []  # each relative pose's end time, in arrival (time) order
+        self.stamps = np.zeros(0)  # every relative-pose stamp, sorted
+        self.span = 0.0  # the longest relative pose [s]
+        self.done = 0  # motions made into factors
+        self.measured: list = []
+        self.times = np.zeros(0)  # final pose times
+        self.steps: list = []  # step_rel
+        self.placed: dict = {}  # node -> decided / initial pose (the seeds)
+        self.seed: int | None = None  # first seeded node
+        self.initial_done = 0  # nodes whose initial value is set
+        self.anchors_done = 0
+        self.anchor_count = 0
+        self.finished = False
+
+
+def final_end(robot: EventRobot, watermark: float) -> float:
+    """Pose times before this (or at it, for a relative-pose stamp bound) are final."""
+    if robot.finished:
+        return np.inf
+    if robot.stamped:
+        last = max((m.t1 for m in robot.motions), default=-np.inf)
+        return min(watermark, np.nextafter(last, np.inf))
+    return watermark
+
+
+def motion_bound(robot: EventRobot, watermark: float) -> float:
+    """Steps up to this time may be emitted as far as this robot is concerned."""
+    if robot.robot.static:
+        return np.inf
+    end = final_end(robot, watermark)
+    if robot.done < len(robot.motions):
+        end = min(end, min(m.t1 for m in robot.motions[robot.done :]) - 1e-9)
+    return end - 1e-9 if np.isfinite(end) else end
+
+
+def inserted_times(robot: EventRobot, motions: list, measured: list, tol: float) -> list:
+    """`motion.inserted_times` of `measured` within `motions` (a step is consecutive when
+    no stamp of the robot's relative poses lies strictly inside it)."""
+    stamps = robot.stamps
+    spans = []
+    for m in motions:
+        a, b = m.t0, m.t1
+        i, j = np.searchsorted(stamps, a, "right"), np.searchsorted(stamps, b, "left")
+        if i >= j:
+            spans.append((a, b))
+    if not spans or not measured:
+        return []
+    cons = np.unique([t for s in spans for t in s])
+    spans = np.array(sorted(spans))
+    t = np.unique(np.asarray(measured, dtype=float))
+    i = np.clip(np.searchsorted(cons, t), 1, len(cons) - 1)
+    gap = np.minimum(np.abs(cons[i - 1] - t), np.abs(cons[i] - t))
+    k = np.searchsorted(spans[:, 0], t, "right") - 1
+    inside = (k >= 0) & (t < spans[np.clip(k, 0, None), 1])
+    return t[(gap > tol) & inside].tolist()
