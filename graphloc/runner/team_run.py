@@ -66,9 +66,7 @@ def run_team(
     reading the run to the last estimate."""
     from graphloc.datasets import open_run
     from graphloc.manifest import check_noise_params
-    from graphloc.live.builder import build_live
-    from graphloc.live.coverage import NotLiveError, not_live, run_tables
-    from graphloc.pipelines.team_graph import build_graph, default_lag, solve
+    from graphloc.pipelines.team_graph import default_lag, solve
 
     opts = RunOptions() if options is None else options
     values = asdict(opts)
@@ -79,14 +77,7 @@ def run_team(
     run = open_run(source, duration=opts.duration, noise=noise, source=opts.source())
     lag = opts.lag if opts.lag is not None else default_lag(run, config)
     config = replace(config, lag=float(lag))
-    graph = None
-    if not not_live(run, run_tables(run)):  # batch and online: the graph the live API builds
-        try:
-            graph = build_live(run, config)  # the live API's route (`graphloc.live`)
-        except NotLiveError:  # what only the whole run shows (`live.events`: never decided)
-            graph = None
-    if graph is None:
-        graph = build_graph(run, config, progress=progress)
+    graph = team_graph(run, config, progress)
     hooks = checkpoint(graph, values) if checkpoint is not None else {}
     if on_phase is not None:
         on_phase("solving")
@@ -96,6 +87,23 @@ def run_team(
         on_phase("writing")
     metrics = write_run(result, run, out, opts, config, cpu, stop, progress, source)
     return TeamOutcome(result, run, metrics)
+
+
+def team_graph(run, config, progress: bool = False):
+    """The graph `run_team` solves, batch and online alike: the live API's incremental builder
+    (`live.builder.build_live`) for a run whose sections are all live (`live.coverage.not_live`),
+    the whole-run `team_graph.build_graph` for the others and for what only the whole run shows
+    (`NotLiveError` from `build_live`: a stream never decided)."""
+    from graphloc.live.builder import build_live
+    from graphloc.live.coverage import NotLiveError, not_live, run_tables
+    from graphloc.pipelines.team_graph import build_graph
+
+    if not not_live(run, run_tables(run)):
+        try:
+            return build_live(run, config)
+        except NotLiveError:
+            pass
+    return build_graph(run, config, progress=progress)
 
 
 def write_run(
