@@ -146,6 +146,15 @@ def integrate_unicycle(
     # G_j [d_s, d_theta]^T with G_j = [[cos th_j, -(y_e - y_j)], [sin th_j, x_e - x_j], [0, 1]]
     if kf.size == 1:
         return UnicycleIntegration(poses, deltas, np.zeros((0, 3, 3)))
+    return UnicycleIntegration(poses, deltas, step_covariances(x, y, theta, mid, dt, kf_idx, noise))
+
+
+def step_covariances(x, y, theta, mid, dt, kf_idx, noise) -> np.ndarray:
+    """The first-order covariance of each keyframe step of an integrated unicycle path (the
+    breakpoints' x, y, theta, each segment's mid heading and length dt, the keyframes'
+    breakpoint indices kf_idx): a segment-wise sum (np.add.reduceat) of G Q G^T with G the 3x2
+    Jacobian of the step's end pose w.r.t. each segment's (distance, heading) increments,
+    expressed in the end pose's frame, plus the noise floors; symmetrized."""
     seg_interval = np.searchsorted(kf_idx, np.arange(dt.size), side="right") - 1
     end = kf_idx[seg_interval + 1]
     ex, ey = x[end] - x[:-1], y[end] - y[:-1]
@@ -167,7 +176,7 @@ def integrate_unicycle(
     rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = ce, se, -se, ce, 1.0
     cov = rot @ cov_world @ np.transpose(rot, (0, 2, 1))
     cov += np.diag([noise.floor_xy**2, noise.floor_xy**2, noise.floor_theta**2])
-    return UnicycleIntegration(poses, deltas, 0.5 * (cov + np.transpose(cov, (0, 2, 1))))
+    return 0.5 * (cov + np.transpose(cov, (0, 2, 1)))
 
 
 def relative_poses(poses: np.ndarray) -> np.ndarray:

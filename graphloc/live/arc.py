@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphloc.factors.odometry import VelocityNoise, _wrap, relative_poses
+from graphloc.factors.odometry import VelocityNoise, _wrap, relative_poses, step_covariances
 
 
 class ArcIntegrator:
@@ -68,25 +68,4 @@ class ArcIntegrator:
         poses = np.concatenate([first, poses[1:]])
         if not self.covariances:
             return poses, deltas, np.zeros((0, 3, 3))
-        noise = self.noise
-        seg_interval = np.searchsorted(kf_idx, np.arange(dt.size), side="right") - 1
-        end = kf_idx[seg_interval + 1]
-        ex, ey = x[end] - x[:-1], y[end] - y[:-1]
-        var_s = noise.density_v**2 * dt
-        var_t = noise.density_w**2 * dt
-        c, s = np.cos(mid), np.sin(mid)
-        g = np.zeros((dt.size, 3, 2))
-        g[:, 0, 0], g[:, 1, 0] = c, s
-        g[:, 0, 1], g[:, 1, 1], g[:, 2, 1] = -ey, ex, 1.0
-        contrib = (
-            var_s[:, None, None] * g[:, :, 0, None] * g[:, None, :, 0]
-            + var_t[:, None, None] * g[:, :, 1, None] * g[:, None, :, 1]
-        )
-        cov_world = np.add.reduceat(contrib, kf_idx[:-1], axis=0)
-        th_end = theta[kf_idx[1:]]
-        rot = np.zeros((th_end.size, 3, 3))
-        ce, se = np.cos(th_end), np.sin(th_end)
-        rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = ce, se, -se, ce, 1.0
-        cov = rot @ cov_world @ np.transpose(rot, (0, 2, 1))
-        cov += np.diag([noise.floor_xy**2, noise.floor_xy**2, noise.floor_theta**2])
-        return poses, deltas, 0.5 * (cov + np.transpose(cov, (0, 2, 1)))
+        return poses, deltas, step_covariances(x, y, theta, mid, dt, kf_idx, self.noise)
