@@ -2,7 +2,8 @@
 (`not_live`), with why -- the sections that need rows after the step they shape. Two routes
 (`route`): wheel-odometry robots with point measurements (`graphloc.live.builder.LiveGraph`),
 and event-clocked robots -- relative poses, no wheel odometry -- placed by the candidate sets
-they see of a static target (`graphloc.live.events.EventGraph`)."""
+they see of a static target, or, seen as circles by a placed camera, by max-mixtures, with
+the camera's feature tracks (`graphloc.live.events.EventGraph`, `live.event_camera`)."""
 
 from __future__ import annotations
 
@@ -11,12 +12,19 @@ from graphloc.run import TeamRun
 # the sections `LiveGraph` builds, and the tables it takes rows of
 LIVE_TABLES = ("odometry", "range", "bearing", "range_bearing", "groundtruth")
 # the tables of `EventGraph`'s route (`route` "event")
-EVENT_TABLES = ("relative_pose", "relative_pose3", "markers", "candidates", "groundtruth")
+EVENT_TABLES = (
+    "relative_pose",
+    "relative_pose3",
+    "markers",
+    "candidates",
+    "ellipses",
+    "features",
+    "groundtruth",
+)
+# the event tables that make an event-clocked team (`route`)
+EVENT_SIGNS = ("relative_pose", "relative_pose3", "markers", "candidates", "ellipses", "features")
 # tables whose sections are not causal yet, and why (`not_live`)
 NOT_LIVE = {
-    "ellipses": "circle candidate sets of an unplaced target (the max-mixture route, "
-    "`mixtures.mixture_stream`: the target placed through the camera)",
-    "features": "camera feature tracks (a track's point prior from all its pixels)",
     "scans": "KISS-ICP odometry and inter-robot scan registration",
 }
 
@@ -26,10 +34,11 @@ class NotLiveError(ValueError):
 
 
 def route(run: TeamRun, tables: dict) -> str:
-    """ "event" for a run with relative poses or candidate sets and no wheel odometry (its
-    robots' pose times at their rows' times: `EventGraph`), else "wheel" (`LiveGraph`)."""
+    """ "event" for a run with relative poses, candidate sets (markers, candidates, ellipses)
+    or feature tracks and no wheel odometry (its robots' pose times at their rows' times:
+    `EventGraph`), else "wheel" (`LiveGraph`)."""
     named = set().union(*map(set, tables.values())) if tables else set()
-    event = named & {"relative_pose", "relative_pose3", "markers", "candidates"}
+    event = named & set(EVENT_SIGNS)
     return "event" if event and "odometry" not in named else "wheel"
 
 
@@ -47,10 +56,10 @@ def not_live(run: TeamRun, tables: dict) -> list[str]:
     for r, robot in enumerate(run.robots):
         for table in sorted(set(tables.get(robot.name, ())) & set(NOT_LIVE)):
             out.append(f"robot {robot.name}: table {table!r}: {NOT_LIVE[table]}")
-        for table in sorted(set(tables.get(robot.name, ())) & set(EVENT_TABLES[:4])):
+        for table in sorted(set(tables.get(robot.name, ())) & set(EVENT_SIGNS)):
             out.append(
                 f"robot {robot.name}: table {table!r}: wheel odometry and event-clocked robots "
-                f"(relative poses, candidate sets) in one run"
+                f"(relative poses, candidate sets, camera tables) in one run"
             )
         if robot.initial_pose is None:
             out.append(
@@ -74,6 +83,11 @@ def not_live(run: TeamRun, tables: dict) -> list[str]:
 def _event_problems(run: TeamRun, tables: dict) -> list[str]:
     """What keeps an event-clocked run off `EventGraph`, one line each."""
     out = []
+    # circles a placed robot sees place a teammate with a base radius (`live.event_camera`)
+    circles = any(
+        "ellipses" in tables.get(robot.name, ()) and robot.initial_pose is not None
+        for robot in run.robots
+    )
     for robot in run.robots:
         mine = set(tables.get(robot.name, ()))
         for table in sorted(mine & set(NOT_LIVE)):
@@ -84,10 +98,16 @@ def _event_problems(run: TeamRun, tables: dict) -> list[str]:
                 f"robots (a robot placed by mutual bearings, a static robot's measurements)"
             )
         sees = mine & {"markers", "candidates"}
-        if robot.initial_pose is None and (robot.static or not sees):
+        seen = circles and robot.base_radius is not None and not robot.static
+        if robot.initial_pose is None and (robot.static or not sees) and not seen:
             out.append(
                 f"robot {robot.name}: no initial_pose and no candidate sets to place it (mutual "
                 f"bearings, resection, scan registration)"
+            )
+        for table in sorted(mine & {"ellipses", "features"} if robot.initial_pose is None else ()):
+            out.append(
+                f"robot {robot.name}: table {table!r} of a robot without an initial_pose (circle "
+                f"sets and feature tracks are built from a placed camera's poses)"
             )
     if not any({"markers", "candidates", "ellipses"} & set(t) for t in tables.values()):
         out.append(
@@ -108,7 +128,8 @@ def run_tables(run: TeamRun) -> dict:
     for p in run.points:
         tables[run.robots[p.robot].name].add(p.kind)
     for o in run.observations:
-        tables[run.robots[o.robot].name].add("candidates")
+        circle = o.candidates.source == "circle"
+        tables[run.robots[o.robot].name].add("ellipses" if circle else "candidates")
     for f in run.features:
         tables[run.robots[f.robot].name].add("features")
     for s in run.scans:

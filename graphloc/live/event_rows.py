@@ -1,10 +1,12 @@
 """`EventRows`: an event-clocked team's checked rows (`rows.RowChecker` with the event tables)
 into its `events.EventGraph`, with the interface `LiveTeam` drives (`point`, `advance`,
-`finish`, `graph`, `start`, `run_so_far`): relative poses go in as they come; `markers` and
-`candidates` rows are held until the watermark passes their time (every row of their image or
-set has arrived), then made into candidate sets by the loader's own front ends
-(`log_observations.marker_observations`: the checks and P3P of a log's marker pixels,
-`candidate_observations`), in the loader's order, and go in."""
+`finish`, `graph`, `start`, `run_so_far`): relative poses go in as they come; `markers`,
+`candidates`, `ellipses` and `features` rows are held until the watermark passes their time
+(every row of their image or set has arrived), then made into candidate sets and feature
+pixels by the loader's own front ends (`log_observations.marker_observations`: the checks and
+P3P of a log's marker pixels, `candidate_observations`; `camera_tables.ellipse_observations`:
+seed 003's two circle candidates, `single_tracks` and `feature_observations`), in the
+loader's order, and go in."""
 
 from __future__ import annotations
 
@@ -13,6 +15,11 @@ from dataclasses import replace
 
 import numpy as np
 
+from graphloc.datasets.camera_tables import (
+    ellipse_observations,
+    feature_observations,
+    single_tracks,
+)
 from graphloc.datasets.log_observations import candidate_observations, marker_observations
 from graphloc.io import Sink
 from graphloc.live.coverage import NotLiveError
@@ -36,13 +43,16 @@ class EventRows:
             for r, robot in enumerate(run.robots)
             if set(RELATIVE) & set(tables.get(robot.name, ()))
         }
-        self.events = EventGraph(run, setup.config, setup.start_time, stamped)
+        camera = any({"features", "ellipses"} & set(t) for t in tables.values())
+        self.events = EventGraph(run, setup.config, setup.start_time, stamped, camera)
         self.graph = self.events.graph
         self.sink = Sink("skip", skips)
         self.sensors = [list(robot.sensors) for robot in run.robots]
         self.index = {robot.name: r for r, robot in enumerate(run.robots)}
         self.markers: list = []  # (time, observer, sensor index, target, marker, u, v, row)
         self.candidates: dict = {}  # (time, observer, sensor, target) -> [record]
+        self.ellipses: list = []  # (observer, target, record, where)
+        self.pixels: list = []  # features: (robot, record)
         self.motions: list = []
 
     @property
@@ -67,6 +77,10 @@ class EventRows:
         elif table == "candidates":
             key, record = row
             self.candidates.setdefault(key, []).append(record)
+        elif table == "ellipses":
+            self.ellipses.append(row)
+        elif table == "features":
+            self.pixels.append(row)
         else:
             raise NotLiveError(f"table {table!r} is not live in an event-clocked team")
 
@@ -87,11 +101,17 @@ class EventRows:
             start_time=start,
             motions=tuple(self.motions),
             observations=tuple(events.arrived),
+            features=tuple(events.features.arrived),
         )
 
+    def _where(self, r: int, row) -> str:
+        return f"robot {self.robots[r].name!r}, table 'features', row {row.line}"
+
     def _sets(self, watermark: float) -> None:
-        """The images and logged sets before `watermark` as candidate sets, in the loader's
-        order (marker sets, then logged ones, by time and observer), into the graph."""
+        """The images, logged sets and ellipses before `watermark` as candidate sets, in the
+        loader's order (marker sets, logged ones, circles; by time and observer), and the
+        feature pixels before it (`camera_tables.single_tracks`, `feature_observations`), into
+        the graph in time order."""
         manifest, noise = self.setup.manifest, self.setup.noise
         out: list = []
         done = [m for m in self.markers if m[0] < watermark]
@@ -109,9 +129,20 @@ class EventRows:
         if keys:
             groups = {key: self.candidates.pop(key) for key in keys}
             out += candidate_observations(groups, self.robots, noise, manifest, self.sink)
+        ellipses = [e for e in self.ellipses if e[2].time < watermark]
+        if ellipses:
+            self.ellipses = [e for e in self.ellipses if e[2].time >= watermark]
+            out += ellipse_observations(ellipses, self.robots, manifest, self.sink)
         out.sort(key=lambda o: (o.time, o.robot))
-        for o in out:
-            self.events.observation(o)
+        features: list = []
+        pixels = [p for p in self.pixels if p[1].time < watermark]
+        if pixels:  # the loader's front end: one image's pixels together
+            self.pixels = [p for p in self.pixels if p[1].time >= watermark]
+            pixels = single_tracks(pixels, manifest, self.sink, self._where)
+            features = feature_observations(pixels, self.robots, manifest, noise)
+        sets = ((o.time, 0, o) for o in out)  # at one time: sets, then pixels (`build_events`)
+        for _, kind, row in heapq.merge(sets, ((f.time, 1, f) for f in features), key=_order):
+            (self.events.observation if kind == 0 else self.events.feature)(row)
 
 
 def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
@@ -125,11 +156,14 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
             "relative pose of the run (`run_precision`, not causal)"
         )
     stamped = {m.robot for m in run.motions}
-    live = EventGraph(_without_rows(run), config, run.start_time, stamped)
+    camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
+    live = EventGraph(_without_rows(run), config, run.start_time, stamped, camera)
     motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
     sets = ((o.time, 1, i, o) for i, o in enumerate(run.observations))
-    for t, kind, _, row in heapq.merge(motions, sets, key=lambda e: e[:3]):
-        (live.motion if kind == 0 else live.observation)(row)
+    pixels = ((f.time, 2, i, f) for i, f in enumerate(run.features))
+    take = (live.motion, live.observation, live.feature)
+    for t, kind, _, row in heapq.merge(motions, sets, pixels, key=lambda e: e[:3]):
+        take[kind](row)
         if steps is not None:
             steps.append(live.advance(t))
     done = live.finish()
@@ -139,5 +173,9 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     return live.graph
 
 
+def _order(entry: tuple) -> tuple:
+    return entry[:2]
+
+
 def _without_rows(run: TeamRun) -> TeamRun:
-    return replace(run, motions=(), observations=())
+    return replace(run, motions=(), observations=(), features=())

@@ -1,7 +1,9 @@
 """`EventGraph`: the team graph of event-clocked robots built as rows arrive -- robots without
 wheel odometry, whose poses are at their relative poses' stamps and their measurements' times
 (`team_graph.motion.node_times`), placed by the candidate sets they see of a static target with
-a known pose (`team_graph.candidates`: one `StreamTracker` per stream, fed set by set).
+a known pose (`team_graph.candidates`: one `StreamTracker` per stream, fed set by set), or,
+without an initial pose, by the circle sets a placed camera sees of them (max-mixtures), with
+the camera's feature tracks (`live.event_camera`, seed 003).
 
 Causality. A robot's pose times up to x are final once every row before x has arrived (the
 watermark passed x) and, for a robot with relative poses, x is no later than the last arrived
@@ -37,7 +39,9 @@ import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.live.coverage import NotLiveError
-from graphloc.live.event_placement import alternative_placements, initial_upto, seed_robot
+from graphloc.live.event_camera import EventFeatures, mixture_set
+from graphloc.live.event_record import record_graph
+from graphloc.live.event_placement import initial_upto, seed_robot
 from graphloc.live.event_clock import (
     EventClock,
     EventRobot,
@@ -65,8 +69,11 @@ class EventGraph:
     (`observation(o)`) in time order; `advance(watermark)` returns the completed steps,
     `finish()` the rest (module docstring)."""
 
-    def __init__(self, run: TeamRun, config: GraphConfig, start_time: float | None, stamped):
-        """stamped: the robots with a relative-pose table (their pose times at its stamps).
+    def __init__(
+        self, run: TeamRun, config: GraphConfig, start_time: float | None, stamped, camera=False
+    ):
+        """stamped: the robots with a relative-pose table (their pose times at its stamps);
+        camera: the run has feature or ellipse tables (`TeamGraph.camera`).
         The run must hold candidate sets (a markers or candidates table): iSAM2's thresholds
         are then FINE_PRECISION (`config.run_precision`); without, they would come from the
         median of every relative pose of the run (not causal)."""
@@ -76,6 +83,8 @@ class EventGraph:
         self.robots = [EventRobot(r, robot, r in stamped) for r, robot in enumerate(run.robots)]
         self.clock = EventClock(run, config, [np.zeros(0) for _ in run.robots])
         self.streams: dict = {}  # (observer, target) -> [StreamTracker, obs list, index]
+        self.mixtures: dict = {}  # (observer, unplaced target) -> [MixtureTracker, index]
+        self.features = EventFeatures(run, config)  # `live.event_camera`
         self.queue: deque = deque()  # candidate sets waiting for their poses, in arrival order
         self.arrived: list = []  # every candidate set, in arrival order
         self.marker_points: dict = {}
@@ -97,6 +106,7 @@ class EventGraph:
             precision=FINE_PRECISION,
         )
         self.graph.skips.merge(run.skips)
+        self.graph.camera = camera
         for r, robot in enumerate(run.robots):  # held by the online pass until placed
             if robot.initial_pose is None:
                 self.graph.anchored_from[r] = np.inf
@@ -167,6 +177,11 @@ class EventGraph:
             robot.measured.append(o.time)
         self.queue.append((len(self.arrived) - 1, o))
 
+    def feature(self, f) -> None:
+        """A feature pixel (`graphloc.run.FeatureObservation`, `live.event_camera`)."""
+        self.first_seen = min(self.first_seen, f.time)
+        self.features.arrive(self, f)
+
     # ---- steps out ----------------------------------------------------------------------------
 
     def advance(self, watermark: float) -> list:
@@ -181,8 +196,10 @@ class EventGraph:
             self._times(robot, watermark)
         self._take_motions(watermark)
         self._take_sets(watermark)
+        self.features.take(self, watermark)
         bound = min(motion_bound(robot, watermark) for robot in self.robots)
         bound = min(bound, watermark - self.config.sync_tolerance - 1e-9)
+        bound = min(bound, self.features.head() - self.config.sync_tolerance - 1e-9)
         if self.queue:
             bound = min(bound, self.queue[0][1].time - self.config.sync_tolerance - 1e-9)
         return self._emit(bound)
@@ -224,33 +241,7 @@ class EventGraph:
                 f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",
                 len(robot.times),
             )
-        graph.decisions = [d for tracker, _, _ in streams for d in tracker.out.outcomes]
-        for tracker, _, _ in streams:
-            graph.skips.merge(tracker.out.skips)
-        graph.skips.merge(self.skips)
-        alternative_placements(
-            self.run,
-            self.config,
-            self.clock,
-            self.graph,
-            self.robots,
-            [tracker.out for tracker, _, _ in streams],
-        )
-        types = graph.factor_types
-        graph.counts = {
-            "robots": len(self.run.robots),
-            "poses": sum(len(r.times) for r in self.robots if r.seed is not None),
-            "candidate_sets": len(self.arrived),
-            "marker_points": len(self.marker_points),
-            "frame_marker_points": 0,
-            "sensor_poses": 0,
-            "committed_sets": sum(d.committed >= 0 for d in graph.decisions),
-            "landmark_anchors": 0,
-            "feature_tracks": 0,
-            "steps": len(graph.steps),
-            "excluded_by_option": 0,
-            **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
-        }
+        record_graph(self)
         return steps
 
     # ---- internals ----------------------------------------------------------------------------
@@ -350,6 +341,12 @@ class EventGraph:
     def _set(self, n: int, o) -> None:
         run, r, ti = self.run, o.robot, o.target
         key = (r, ti)
+        if key in self.mixtures or (
+            key not in self.streams
+            and run.robots[ti].initial_pose is None
+            and run.robots[r].initial_pose is not None
+        ):  # a placed observer, an unplaced target: max-mixtures (`live.event_camera`)
+            return mixture_set(self, n, o)
         if key not in self.streams:
             t = run.robots[ti]
             if not t.static or t.initial_pose is None:
@@ -364,7 +361,7 @@ class EventGraph:
                     f"route places it by its streams in order of their first set"
                 )
             tracker = StreamTracker(run, self.config, r, ti, o.pixels is not None)
-            self.streams[key] = [tracker, [], len(self.streams)]
+            self.streams[key] = [tracker, [], len(self.streams) + len(self.mixtures)]
         tracker, obs, index = self.streams[key]
         if (o.pixels is not None) != tracker.out.pixel_route:
             raise NotLiveError(
@@ -399,6 +396,7 @@ class EventGraph:
             if t <= self.emitted:
                 raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
             initial_upto(self.graph, self.config, self.robots, t)
+            self.features.priors(self, t)
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
             step = (t, [(f, kind) for _, f, kind in group])
             self.graph.steps.append(step)

@@ -92,7 +92,8 @@ def run_team(
 def team_graph(run, config, progress: bool = False):
     """The graph `run_team` solves, batch and online alike: the live API's incremental builder
     (`live.builder.build_live`) for an event-clocked run whose sections are all live
-    (`live.coverage.not_live`, `route` "event"); the whole-run `team_graph.build_graph` for the
+    (`live.coverage.not_live`, `route` "event": candidate sets of static targets, circle sets
+    and feature tracks of a placed camera); the whole-run `team_graph.build_graph` for the
     others, for what only the whole run shows (`NotLiveError` from `build_live`: a stream never
     decided), and for a wheel-odometry run: fed a whole run, the wheel route's row-by-row
     builder costs several times build_graph's vectorized pass on the same graph
