@@ -74,9 +74,9 @@ class EventGraph:
     ):
         """stamped: the robots with a relative-pose table (their pose times at its stamps);
         camera: the run has feature or ellipse tables (`TeamGraph.camera`).
-        The run must hold candidate sets (a markers or candidates table): iSAM2's thresholds
-        are then FINE_PRECISION (`config.run_precision`); without, they would come from the
-        median of every relative pose of the run (not causal)."""
+        The run must hold candidate sets (a markers, candidates or ellipses table): iSAM2's
+        thresholds are then FINE_PRECISION (`config.run_precision`); without, they would come
+        from the median of every relative pose of the run (not causal)."""
         self.run, self.config = run, config
         self.start = start_time
         self.start_from_rows = False  # the start came from the first relative pose
