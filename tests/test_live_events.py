@@ -25,6 +25,7 @@ from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.pipelines.team_graph.graph import factor_keys
 from graphloc.pipelines.team_graph.passes import Pass
 from graphloc.run import Motion
+from graphloc.runner.team_run import team_graph
 from test_live import _same_estimates, _same_graph
 
 CASES = [(name, seed) for name in ("breitenmoser-target", "feng-probabilistic") for seed in (1, 2)]
@@ -174,6 +175,21 @@ def test_a_step_starting_inside_built_steps_is_refused(runs):
     early = next(row for _, kind, row in rows[:40] if kind == 1)  # a set before the built times
     with pytest.raises(NotLiveError, match="candidate set at .* after its pose times"):
         live.observation(early)
+
+
+def test_streams_the_event_route_does_not_take_are_named_and_take_build_graph(runs):
+    """A loaded run whose candidate sets see an unplaced target (or one robot's sets of two
+    targets, or with and without pixels) is not live: `not_live` names it, so `team_graph`
+    builds it whole, and `EventGraph` refuses the same sets as they arrive."""
+    run = runs[("feng-probabilistic", 1)]
+    unplaced = replace(
+        run, robots=tuple(replace(r, initial_pose=None) if r.static else r for r in run.robots)
+    )
+    problems = not_live(unplaced, run_tables(unplaced))
+    assert any("not a static robot with an initial_pose" in p for p in problems)
+    assert team_graph(unplaced, GraphConfig()).counts == build_graph(unplaced, GraphConfig()).counts
+    with pytest.raises(NotLiveError, match="not a static robot with an initial_pose"):
+        build_events(unplaced, GraphConfig())
 
 
 def test_a_run_without_candidate_sets_is_refused(runs):
