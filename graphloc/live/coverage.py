@@ -109,11 +109,41 @@ def _event_problems(run: TeamRun, tables: dict) -> list[str]:
                 f"robot {robot.name}: table {table!r} of a robot without an initial_pose (circle "
                 f"sets and feature tracks are built from a placed camera's poses)"
             )
+    out += _stream_problems(run)
     if not any({"markers", "candidates", "ellipses"} & set(t) for t in tables.values()):
         out.append(
             "no markers or candidates table: iSAM2's precision would come from the median of "
             "every relative pose of the run (`run_precision`)"
         )
+    return out
+
+
+def _stream_problems(run: TeamRun) -> list[str]:
+    """The candidate streams of a loaded run `EventGraph` does not take (the live team finds
+    them as the sets arrive: `events.EventGraph._set`), one line each."""
+    out, robots = [], run.robots
+    targets: dict = {}
+    for o in run.observations:
+        targets.setdefault(o.robot, {}).setdefault(o.target, set()).add(o.pixels is not None)
+    for r, seen in sorted(targets.items()):
+        name = robots[r].name
+        for ti in sorted(seen):
+            if not robots[ti].static or robots[ti].initial_pose is None:
+                out.append(
+                    f"robot {name}: candidate sets of {robots[ti].name}, which is not a static "
+                    f"robot with an initial_pose (a moving or unplaced target: max-mixtures, "
+                    f"marker points per set)"
+                )
+            if len(seen[ti]) > 1:
+                out.append(
+                    f"robot {name}: candidate sets of {robots[ti].name} with and without "
+                    f"marker pixels"
+                )
+        if len(seen) > 1:
+            out.append(
+                f"robot {name}: candidate sets of {len(seen)} targets (the whole-run route "
+                f"places it by its streams in order of their first set)"
+            )
     return out
 
 

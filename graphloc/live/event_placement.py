@@ -1,10 +1,13 @@
 """Where event-clocked robots start (`live.events.EventGraph`): a robot placed at a known or
 decided pose (`seed_robot`: `motion.place_robot`'s seeds, its earlier poses carried back along
-its steps), the initial values of placed robots' later poses carried forward (`initial_upto`),
-and the pixel streams' alternative placements a batch solve starts from too
-(`alternative_placements`, `candidates.place_observers`)."""
+its steps; the pose a marker-pixel stream's placing set gives, `stream_placement`), the initial
+values of placed robots' later poses carried forward (`initial_upto`), and the pixel streams'
+alternative placements a batch solve starts from too (the candidates of their first set, as
+`candidates.place_observers` makes them: `alternative_placements`)."""
 
 from __future__ import annotations
+
+import numpy as np
 
 from graphloc.keys import pose_key
 from graphloc.live.coverage import NotLiveError
@@ -33,6 +36,16 @@ def seed_robot(graph: TeamGraph, config: GraphConfig, robot: EventRobot, k: int,
         initial[pose_key(r, j)] = initial[pose_key(r, j + 1)].compose(step.inverse())
     robot.initial_done = k + 1
     graph.anchored_from[r] = float(robot.times[k])
+
+
+def stream_placement(tracked) -> object:
+    """Where the set (`candidates.TrackedSet`) that places a marker-pixel stream's observer
+    puts it (`events.EventGraph`: its first decided set, or its `guess_after_sets`-th set):
+    the decided candidate, else the tracker's best guess there -- the candidate of highest
+    posterior after every set so far (`HypothesisTracker.update`)."""
+    if tracked.decided:
+        return tracked.bodies[tracked.update.committed]
+    return tracked.bodies[int(np.argmax(tracked.update.probabilities))]
 
 
 def initial_upto(graph: TeamGraph, config: GraphConfig, robots: list, t: float) -> None:

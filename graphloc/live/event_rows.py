@@ -22,10 +22,11 @@ from graphloc.datasets.camera_tables import (
 )
 from graphloc.datasets.log_observations import candidate_observations, marker_observations
 from graphloc.io import Sink
+from graphloc.keys import decode
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.events import EventGraph
 from graphloc.pipelines.team_graph.config import GraphConfig
-from graphloc.pipelines.team_graph.graph import TeamGraph
+from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.run import TeamRun
 
 RELATIVE = ("relative_pose", "relative_pose3")
@@ -90,7 +91,7 @@ class EventRows:
 
     def finish(self) -> list:
         self._sets(np.inf)
-        return self.events.finish(strict=False)
+        return self.events.finish()
 
     def run_so_far(self):
         """The run of the rows that arrived (the loaded run's motions and candidate sets)."""
@@ -170,11 +171,35 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     if steps is not None:
         steps.append(done)
     live.graph.run = run
+    _drop_unplaced(live.graph, {r.r for r in live.robots if r.seed is None})
     return live.graph
 
 
 def _order(entry: tuple) -> tuple:
     return entry[:2]
+
+
+def _drop_unplaced(graph: TeamGraph, robots: set) -> None:
+    """The factors on poses of `robots` (nothing placed them: `EventGraph.finish` counted them
+    `unanchored_robot`) out of the graph's steps, as the live team's online pass holds them to
+    the end; a batch solve has no initial values for them."""
+    if not robots:
+        return
+    steps, types = [], []
+    for t, group in graph.steps:
+        kept = [
+            (f, kind)
+            for f, kind in group
+            if not any(
+                decode(key)[0] in ("x", "s") and decode(key)[1] in robots for key in factor_keys(f)
+            )
+        ]
+        steps.append((t, kept))
+        types += [kind for _, kind in kept]
+    graph.steps, graph.factor_types = steps, types
+    counts = {k: v for k, v in graph.counts.items() if not k.startswith("factors_")}
+    counts.update({f"factors_{name}": types.count(name) for name in sorted(set(types))})
+    graph.counts = counts
 
 
 def _without_rows(run: TeamRun) -> TeamRun:

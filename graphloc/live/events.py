@@ -8,27 +8,30 @@ the camera's feature tracks (`live.event_camera`, seed 003).
 Causality. A robot's pose times up to x are final once every row before x has arrived (the
 watermark passed x) and, for a robot with relative poses, x is no later than the last arrived
 step's end (a measurement inside a step is a pose of its own, `motion.inserted_times`, which
-only the step covering it tells). Each advance applies the whole-run rule to the rows that
-can shape times after the last final one (those within the longest step of it) and appends
-the new final times; rows that would change a final pose time or step (a step starting
-inside steps already built, rows out of time order) are refused as they arrive
-(`NotLiveError`, naming them). A relative
-pose becomes its between factors once its poses are final; a candidate set joins its poses
-once those near it are final, goes through its stream's tracker (the decision uses the sets
-before it only) and becomes the factors `candidates.stream_factors` makes of it. An observer
-with no initial pose is placed at its first decided set (`candidates.place_observers`: every
-decided set of a stream without pixels, the first of a pixel stream), its earlier poses
-carried back along its steps (`motion.place_robot`); until then its `anchored_from` is
-infinite, so the online pass (`Pass`: `hold_until` the largest `anchored_from`) holds its
-factors, as `graphloc online` holds them until its `anchored_from`. A step is emitted once
-every pose time up to it is final and no row that could add a factor to it is still to come.
+only the step covering it tells). Each advance applies the whole-run rule to the rows that can
+shape times after the last final one (those within the longest step of it) and appends the new
+final times; rows that would change a final pose time or step (a step starting inside steps
+already built, rows out of time order) are refused as they arrive (`NotLiveError`, naming
+them). A relative pose becomes its between factors once its poses are final; a candidate set
+joins its poses once those near it are final, goes through its stream's tracker (the decision
+uses the sets before it only) and becomes the factors `candidates.stream_factors` makes of it.
+A step is emitted once every pose time up to it is final and no row that could add a factor to
+it is still to come.
 
-Not causal in today's whole-run route, so refused here (`NotLiveError` at `finish`, and
-`graphloc online` builds such a run with `build_graph`): a pixel stream that is never decided
-places its observer by the tracker's guess at its first set and runs every candidate of that
-set as a hypothesis (`guessed_alternatives`): whether the first set is a guess or the robot
-waits for a decision depends on every later set of the stream (kaushik-p3p-error: never
-decided on any seed)."""
+Placement, one causal rule. An observer with no initial pose is placed by its stream: a stream
+without pixels at each decided set (its decisions are its only factors); a marker-pixel stream
+once, at its first decided set, or -- when none of its first `GraphConfig.guess_after_sets`
+tracked sets was decided -- at that set by the tracker's best guess there
+(`event_placement.stream_placement`): when that set arrives, the sets before it decide where
+the observer goes, and no later set can change it. Its earlier poses are carried back along its
+steps (`motion.place_robot`); until then its `anchored_from` is infinite, so the online pass
+(`Pass`: `hold_until` the largest `anchored_from`) holds its factors and they enter with the
+placement. The wait lets a stream that will decide be placed by its decision
+(feng-probabilistic); one that never decides (kaushik-p3p-error) is placed by a guess that has
+seen those sets, where the whole-run route (`candidates.place_observers`) guesses at the first
+set, knowing it will never decide. A robot nothing placed by the end is a counted
+`unanchored_robot` (`finish`); its factors stay held (`event_rows.build_events` leaves them out
+of the graph)."""
 
 from __future__ import annotations
 
@@ -41,7 +44,12 @@ from graphloc.io import SkipReport
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_camera import EventFeatures, mixture_set
 from graphloc.live.event_record import record_graph
-from graphloc.live.event_placement import initial_upto, seed_robot
+from graphloc.live.event_placement import (
+    alternative_placements,
+    initial_upto,
+    seed_robot,
+    stream_placement,
+)
 from graphloc.live.event_clock import (
     EventClock,
     EventRobot,
@@ -204,11 +212,11 @@ class EventGraph:
             bound = min(bound, self.queue[0][1].time - self.config.sync_tolerance - 1e-9)
         return self._emit(bound)
 
-    def finish(self, strict: bool = True) -> list:
+    def finish(self) -> list:
         """Every row is in: the remaining steps, the graph's counts, decisions and
-        alternatives. A robot nothing placed: NotLiveError when `strict` (a never-decided pixel
-        stream, whose observer today's route places by a guess: not causal, module docstring),
-        else a counted skip `unanchored_robot` (its factors stayed held)."""
+        alternatives. A robot nothing placed (a stream without pixels never decided, a pixel
+        stream that ended undecided before `guess_after_sets` sets) is a counted skip
+        `unanchored_robot`: its factors stay held."""
         for robot in self.robots:
             robot.finished = True
         if self.start is None and np.isfinite(self.first_seen):
@@ -221,21 +229,15 @@ class EventGraph:
             graph.anchored_from.pop(robot.r, None)
             if not len(robot.times):  # no rows: no poses
                 continue
-            undecided = [
-                self.run.robots[t.out.target].name
-                for t, _, _ in streams
-                if t.out.robot == robot.r and t.out.pixel_route and t.out.sets
-            ]
-            if undecided:
+            why = "nothing placed it (no decided candidate set)"
+            for out in (t.out for t, _, _ in streams if t.out.robot == robot.r and t.out.sets):
+                if not out.pixel_route:
+                    continue
                 why = (
-                    f"its candidate sets of {undecided[0]} were never decided: graphloc online "
-                    f"places it by the tracker's guess at its first set and runs that set's "
-                    f"candidates as hypotheses, which depends on every later set (not causal)"
+                    f"its {len(out.sets)} candidate sets of {self.run.robots[out.target].name} "
+                    f"were never decided, fewer than guess_after_sets "
+                    f"({self.config.guess_after_sets}) to place it by a guess"
                 )
-            else:
-                why = "nothing placed it (no decided candidate set)"
-            if strict:
-                raise NotLiveError(f"robot {robot.robot.name}: {why}")
             self.skips.add(
                 "unanchored_robot",
                 f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",
@@ -381,7 +383,12 @@ class EventGraph:
         for j, (t, f, kind) in enumerate(made.factors):
             self._pending(t, (4, index, len(obs), j), f, kind)
         robot = self.robots[r]
-        if tracked.decided and not (tracker.out.pixel_route and robot.placed):
+        if tracker.out.pixel_route:  # placed once (`stream_placement`)
+            if not robot.placed and (
+                tracked.decided or len(tracker.out.sets) >= self.config.guess_after_sets
+            ):
+                seed_robot(self.graph, self.config, robot, tracked.k, stream_placement(tracked))
+        elif tracked.decided:
             seed_robot(
                 self.graph, self.config, robot, tracked.k, tracked.bodies[tracked.update.committed]
             )
