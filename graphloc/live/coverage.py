@@ -124,6 +124,8 @@ def _stream_problems(run: TeamRun) -> list[str]:
     out, robots = [], run.robots
     targets: dict = {}
     for o in run.observations:
+        if o.candidates.source == "circle":  # circle sets: max-mixtures (`live.event_camera`)
+            continue
         targets.setdefault(o.robot, {}).setdefault(o.target, set()).add(o.pixels is not None)
     for r, seen in sorted(targets.items()):
         name = robots[r].name

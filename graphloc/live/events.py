@@ -45,7 +45,6 @@ from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_camera import EventFeatures, mixture_set
 from graphloc.live.event_record import record_graph
 from graphloc.live.event_placement import (
-    alternative_placements,
     initial_upto,
     seed_robot,
     stream_placement,
