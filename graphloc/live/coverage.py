@@ -1,8 +1,9 @@
 """What the live builders cover: the tables they take rows of, and what keeps a run off them
 (`not_live`), with why -- the sections that need rows after the step they shape. Two routes
 (`route`): wheel-odometry robots with point measurements (`graphloc.live.builder.LiveGraph`),
-and event-clocked robots -- relative poses, no wheel odometry -- placed by the candidate sets
-they see of a static target (`graphloc.live.events.EventGraph`)."""
+and event-clocked robots -- relative poses or scans (KISS-ICP steps, `live.scan_feed`), no
+wheel odometry -- placed by the candidate sets they see of a target with a known pose, or by
+the inter-robot scan registration those sets hint (`graphloc.live.events.EventGraph`)."""
 
 from __future__ import annotations
 
@@ -10,14 +11,14 @@ from graphloc.run import TeamRun
 
 # the sections `LiveGraph` builds, and the tables it takes rows of
 LIVE_TABLES = ("odometry", "range", "bearing", "range_bearing", "groundtruth")
-# the tables of `EventGraph`'s route (`route` "event")
-EVENT_TABLES = ("relative_pose", "relative_pose3", "markers", "candidates", "groundtruth")
+# the tables whose rows make `EventGraph`'s route (`route` "event"), and all it takes
+EVENT_ROWS = ("relative_pose", "relative_pose3", "scans", "markers", "candidates")
+EVENT_TABLES = EVENT_ROWS + ("groundtruth",)
 # tables whose sections are not causal yet, and why (`not_live`)
 NOT_LIVE = {
     "ellipses": "circle candidate sets of an unplaced target (the max-mixture route, "
     "`mixtures.mixture_stream`: the target placed through the camera)",
     "features": "camera feature tracks (a track's point prior from all its pixels)",
-    "scans": "KISS-ICP odometry and inter-robot scan registration",
 }
 
 
@@ -26,10 +27,10 @@ class NotLiveError(ValueError):
 
 
 def route(run: TeamRun, tables: dict) -> str:
-    """ "event" for a run with relative poses or candidate sets and no wheel odometry (its
+    """ "event" for a run with relative poses, scans or candidate sets and no wheel odometry (its
     robots' pose times at their rows' times: `EventGraph`), else "wheel" (`LiveGraph`)."""
     named = set().union(*map(set, tables.values())) if tables else set()
-    event = named & {"relative_pose", "relative_pose3", "markers", "candidates"}
+    event = named & set(EVENT_ROWS)
     return "event" if event and "odometry" not in named else "wheel"
 
 
@@ -47,10 +48,10 @@ def not_live(run: TeamRun, tables: dict) -> list[str]:
     for r, robot in enumerate(run.robots):
         for table in sorted(set(tables.get(robot.name, ())) & set(NOT_LIVE)):
             out.append(f"robot {robot.name}: table {table!r}: {NOT_LIVE[table]}")
-        for table in sorted(set(tables.get(robot.name, ())) & set(EVENT_TABLES[:4])):
+        for table in sorted(set(tables.get(robot.name, ())) & set(EVENT_ROWS)):
             out.append(
                 f"robot {robot.name}: table {table!r}: wheel odometry and event-clocked robots "
-                f"(relative poses, candidate sets) in one run"
+                f"(relative poses, scans, candidate sets) in one run"
             )
         if robot.initial_pose is None:
             out.append(
@@ -74,6 +75,15 @@ def not_live(run: TeamRun, tables: dict) -> list[str]:
 def _event_problems(run: TeamRun, tables: dict) -> list[str]:
     """What keeps an event-clocked run off `EventGraph`, one line each."""
     out = []
+    seen = {run.robots[o.target].name for o in run.observations}
+    if any("markers" in t for t in tables.values()):  # a marker layout is what markers see
+        seen |= {robot.name for robot in run.robots if robot.markers is not None}
+    for robot in run.robots:
+        if robot.name in seen and robot.initial_pose is None:
+            out.append(
+                f"robot {robot.name}: a target of candidate sets (marker layout or set rows) "
+                f"with no initial_pose: an unplaced target (max-mixtures)"
+            )
     for robot in run.robots:
         mine = set(tables.get(robot.name, ()))
         for table in sorted(mine & set(NOT_LIVE)):

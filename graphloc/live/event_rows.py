@@ -1,8 +1,9 @@
 """`EventRows`: an event-clocked team's checked rows (`rows.RowChecker` with the event tables)
 into its `events.EventGraph`, with the interface `LiveTeam` drives (`point`, `advance`,
-`finish`, `graph`, `start`, `run_so_far`): relative poses go in as they come; `markers` and
-`candidates` rows are held until the watermark passes their time (every row of their image or
-set has arrived), then made into candidate sets by the loader's own front ends
+`finish`, `graph`, `start`, `run_so_far`): relative poses go in as they come, a scan as the
+relative pose KISS-ICP makes of it from the scanner's previous one (`scan_feed.ScanFeed`);
+`markers` and `candidates` rows are held until the watermark passes their time (every row of
+their image or set has arrived), then made into candidate sets by the loader's own front ends
 (`log_observations.marker_observations`: the checks and P3P of a log's marker pixels,
 `candidate_observations`), in the loader's order, and go in."""
 
@@ -14,9 +15,10 @@ from dataclasses import replace
 import numpy as np
 
 from graphloc.datasets.log_observations import candidate_observations, marker_observations
-from graphloc.io import Sink
+from graphloc.io import Sink, SkipReport
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.events import EventGraph
+from graphloc.live.scan_feed import ScanFeed
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.graph import TeamGraph
 from graphloc.run import TeamRun
@@ -34,7 +36,7 @@ class EventRows:
         stamped = {
             r
             for r, robot in enumerate(run.robots)
-            if set(RELATIVE) & set(tables.get(robot.name, ()))
+            if set(RELATIVE + ("scans",)) & set(tables.get(robot.name, ()))
         }
         self.events = EventGraph(run, setup.config, setup.start_time, stamped)
         self.graph = self.events.graph
@@ -44,6 +46,7 @@ class EventRows:
         self.markers: list = []  # (time, observer, sensor index, target, marker, u, v, row)
         self.candidates: dict = {}  # (time, observer, sensor, target) -> [record]
         self.motions: list = []
+        self.scans = ScanFeed(run, setup.manifest.root, skips, SkipReport())
 
     @property
     def start(self):
@@ -60,6 +63,14 @@ class EventRows:
         if table in RELATIVE:
             self.motions.append(row)
             self.events.motion(row)
+        elif table == "scans":
+            made = self.scans.add(r, *row)
+            if made is not None:
+                scan, step = made
+                if step is not None:
+                    self.motions.append(step)
+                    self.events.motion(step)
+                self.events.scan(scan)
         elif table == "markers":
             sensor = self.sensors[r].index(row.sensor)
             target = self.index[row.target]
@@ -87,6 +98,7 @@ class EventRows:
             start_time=start,
             motions=tuple(self.motions),
             observations=tuple(events.arrived),
+            scans=tuple(self.scans.scans),
         )
 
     def _sets(self, watermark: float) -> None:
@@ -127,9 +139,10 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     stamped = {m.robot for m in run.motions}
     live = EventGraph(_without_rows(run), config, run.start_time, stamped)
     motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
-    sets = ((o.time, 1, i, o) for i, o in enumerate(run.observations))
-    for t, kind, _, row in heapq.merge(motions, sets, key=lambda e: e[:3]):
-        (live.motion if kind == 0 else live.observation)(row)
+    scans = ((s.time, 1, i, s) for i, s in enumerate(run.scans))
+    sets = ((o.time, 2, i, o) for i, o in enumerate(run.observations))
+    for t, kind, _, row in heapq.merge(motions, scans, sets, key=lambda e: e[:3]):
+        (live.motion, live.scan, live.observation)[kind](row)
         if steps is not None:
             steps.append(live.advance(t))
     done = live.finish()
@@ -140,4 +153,4 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
 
 
 def _without_rows(run: TeamRun) -> TeamRun:
-    return replace(run, motions=(), observations=())
+    return replace(run, motions=(), observations=(), scans=())

@@ -1,7 +1,9 @@
 """`EventGraph`: the team graph of event-clocked robots built as rows arrive -- robots without
-wheel odometry, whose poses are at their relative poses' stamps and their measurements' times
-(`team_graph.motion.node_times`), placed by the candidate sets they see of a static target with
-a known pose (`team_graph.candidates`: one `StreamTracker` per stream, fed set by set).
+wheel odometry, whose poses are at their relative poses' stamps (KISS-ICP steps of scans among
+them, `live.scan_feed`) and their measurements' times (`team_graph.motion.node_times`), placed
+by the candidate sets they see of a target with a known pose (`team_graph.candidates`: one
+`StreamTracker` per stream, fed set by set, `live.event_sets`) or by the inter-robot scan
+registration those sets hint (`live.event_scans`).
 
 Causality. A robot's pose times up to x are final once every row before x has arrived (the
 watermark passed x) and, for a robot with relative poses, x is no later than the last arrived
@@ -15,8 +17,10 @@ pose becomes its between factors once its poses are final; a candidate set joins
 once those near it are final, goes through its stream's tracker (the decision uses the sets
 before it only) and becomes the factors `candidates.stream_factors` makes of it. An observer
 with no initial pose is placed at its first decided set (`candidates.place_observers`: every
-decided set of a stream without pixels, the first of a pixel stream), its earlier poses
-carried back along its steps (`motion.place_robot`); until then its `anchored_from` is
+decided set of a stream without pixels, the first of a pixel stream) or, scanning, by the
+first accepted registration from its stream's hypotheses (`event_scans.ScanLinks`, which also
+registers every later common scan time), its earlier poses carried back along its steps
+(`motion.place_robot`); until then its `anchored_from` is
 infinite, so the online pass (`Pass`: `hold_until` the largest `anchored_from`) holds its
 factors, as `graphloc online` holds them until its `anchored_from`. A step is emitted once
 every pose time up to it is final and no row that could add a factor to it is still to come.
@@ -26,7 +30,8 @@ Not causal in today's whole-run route, so refused here (`NotLiveError` at `finis
 places its observer by the tracker's guess at its first set and runs every candidate of that
 set as a hypothesis (`guessed_alternatives`): whether the first set is a guess or the robot
 waits for a decision depends on every later set of the stream (kaushik-p3p-error: never
-decided on any seed)."""
+decided on any seed). A scanning observer so guessed is placed by its registration instead
+(dual-robot-room's ceiling robot), which needs no such guess."""
 
 from __future__ import annotations
 
@@ -38,17 +43,14 @@ import numpy as np
 from graphloc.io import SkipReport
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_placement import alternative_placements, initial_upto, seed_robot
+from graphloc.live.event_scans import ScanLinks
+from graphloc.live.event_sets import take_set
 from graphloc.live.event_clock import (
     EventClock,
     EventRobot,
     final_end,
     inserted_times,
     motion_bound,
-)
-from graphloc.pipelines.team_graph.candidates import (
-    StreamDecisions,
-    StreamTracker,
-    stream_factors,
 )
 from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig
 from graphloc.pipelines.team_graph.graph import TeamGraph
@@ -97,6 +99,7 @@ class EventGraph:
             precision=FINE_PRECISION,
         )
         self.graph.skips.merge(run.skips)
+        self.links = ScanLinks(self)  # the inter-robot scan registration
         for r, robot in enumerate(run.robots):  # held by the online pass until placed
             if robot.initial_pose is None:
                 self.graph.anchored_from[r] = np.inf
@@ -147,6 +150,11 @@ class EventGraph:
         robot.ends.append(m.t1)
         robot.span = max(robot.span, m.t1 - m.t0)
 
+    def scan(self, obs) -> None:
+        """A scan (`graphloc.run.ScanObservation`) for the inter-robot registration; its
+        KISS-ICP step comes in as a relative pose (`motion`)."""
+        self.links.scan(obs)
+
     def observation(self, o) -> None:
         """A candidate set (`graphloc.run.CandidateObservation`)."""
         self.first_seen = min(self.first_seen, o.time)
@@ -181,7 +189,9 @@ class EventGraph:
             self._times(robot, watermark)
         self._take_motions(watermark)
         self._take_sets(watermark)
+        self.links.pairs(lambda r: final_end(self.robots[r], watermark))
         bound = min(motion_bound(robot, watermark) for robot in self.robots)
+        bound = min(bound, self.links.bound())
         bound = min(bound, watermark - self.config.sync_tolerance - 1e-9)
         if self.queue:
             bound = min(bound, self.queue[0][1].time - self.config.sync_tolerance - 1e-9)
@@ -197,6 +207,7 @@ class EventGraph:
         if self.start is None and np.isfinite(self.first_seen):
             self.start = float(self.first_seen)
         steps = self.advance(np.inf) if self.start is not None else []
+        self.links.finish(self.skips)
         graph, streams = self.graph, list(self.streams.values())
         for robot in self.robots:
             if robot.seed is not None or robot.robot.static:
@@ -242,7 +253,7 @@ class EventGraph:
             "poses": sum(len(r.times) for r in self.robots if r.seed is not None),
             "candidate_sets": len(self.arrived),
             "marker_points": len(self.marker_points),
-            "frame_marker_points": 0,
+            "frame_marker_points": len(graph.frame_points),
             "sensor_poses": 0,
             "committed_sets": sum(d.committed >= 0 for d in graph.decisions),
             "landmark_anchors": 0,
@@ -299,7 +310,7 @@ class EventGraph:
         made = robot_anchors(robot.r, robot.robot, self.config, robot.times, robot.anchors_done)
         for t, f, kind in made:
             robot.anchor_count += 1
-            self._pending(t, (1, robot.r, robot.anchor_count), f, kind)
+            self.pending_factor(t, (1, robot.r, robot.anchor_count), f, kind)
         robot.anchors_done = len(robot.times)
 
     def _take_motions(self, watermark: float) -> None:
@@ -332,7 +343,7 @@ class EventGraph:
         nodes = range(k0, k1 + 1) if len(parts) > 1 else (k0, k1)
         for j, (x, y, (rel, cov)) in enumerate(zip(nodes[:-1], nodes[1:], parts)):
             f = between_factor(r, x, y, rel, cov, config)
-            self._pending(times[max(x, y)], (0, r, index, j), f, "odometry")
+            self.pending_factor(times[max(x, y)], (0, r, index, j), f, "odometry")
             if y == x + 1 and robot.steps[y] is None:
                 robot.steps[y] = (rel, cov)
 
@@ -345,51 +356,9 @@ class EventGraph:
             if o.time + tol >= min(final_end(observer, watermark), final_end(target, watermark)):
                 return
             self.queue.popleft()
-            self._set(n, o)
+            take_set(self, n, o)
 
-    def _set(self, n: int, o) -> None:
-        run, r, ti = self.run, o.robot, o.target
-        key = (r, ti)
-        if key not in self.streams:
-            t = run.robots[ti]
-            if not t.static or t.initial_pose is None:
-                raise NotLiveError(
-                    f"robot {run.robots[r].name}: candidate sets of {t.name}, which is not a "
-                    f"static robot with an initial_pose (a moving or unplaced target: "
-                    f"max-mixtures, marker points per set)"
-                )
-            if any(k[0] == r for k in self.streams):
-                raise NotLiveError(
-                    f"robot {run.robots[r].name}: candidate sets of two targets: the whole-run "
-                    f"route places it by its streams in order of their first set"
-                )
-            tracker = StreamTracker(run, self.config, r, ti, o.pixels is not None)
-            self.streams[key] = [tracker, [], len(self.streams)]
-        tracker, obs, index = self.streams[key]
-        if (o.pixels is not None) != tracker.out.pixel_route:
-            raise NotLiveError(
-                f"robot {run.robots[r].name}: candidate sets of {run.robots[ti].name} with and "
-                f"without marker pixels"
-            )
-        obs.append((n, o))
-        step_rel = self.graph.step_rel
-        tracked = tracker.add(n, o, self.clock.nearest(r, o.time), 0, step_rel)
-        if tracked is None:
-            return
-        one = StreamDecisions(r, ti, tracker.out.pixel_route, [tracked])
-        made = stream_factors(run, self.config, self.clock, one, [(n, o)], self.marker_points)
-        self.skips.merge(made.skips)
-        self.marker_points.update(made.marker_points)
-        self.graph.initial.update(made.marker_points)
-        for j, (t, f, kind) in enumerate(made.factors):
-            self._pending(t, (4, index, len(obs), j), f, kind)
-        robot = self.robots[r]
-        if tracked.decided and not (tracker.out.pixel_route and robot.placed):
-            seed_robot(
-                self.graph, self.config, robot, tracked.k, tracked.bodies[tracked.update.committed]
-            )
-
-    def _pending(self, t: float, order: tuple, factor, kind: str) -> None:
+    def pending_factor(self, t: float, order: tuple, factor, kind: str) -> None:
         self.pending.setdefault(float(t), []).append((order, factor, kind))
 
     def _emit(self, bound: float) -> list:
@@ -399,6 +368,7 @@ class EventGraph:
             if t <= self.emitted:
                 raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
             initial_upto(self.graph, self.config, self.robots, t)
+            self._frame_points()
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
             step = (t, [(f, kind) for _, f, kind in group])
             self.graph.steps.append(step)
@@ -407,4 +377,12 @@ class EventGraph:
             steps.append(step)
         if bound == np.inf:
             initial_upto(self.graph, self.config, self.robots, np.inf)
+            self._frame_points()
         return steps
+
+    def _frame_points(self) -> None:
+        """Initial values of a moving target's per-set marker points whose pose has one."""
+        initial = self.graph.initial
+        for key, (pose, local) in self.graph.frame_points.items():
+            if key not in initial and pose in initial:
+                initial[key] = initial[pose].transformFrom(local)
