@@ -92,7 +92,9 @@ def run_team(
 def team_graph(run, config, progress: bool = False):
     """The graph `run_team` solves, batch and online alike: the live API's incremental builder
     (`live.builder.build_live`) for an event-clocked run whose sections are all live
-    (`live.coverage.not_live`, `route` "event"); the whole-run `team_graph.build_graph` for the
+    (`live.coverage.not_live`, `route` "event"; dual-robot-room's scans among them: KISS-ICP
+    steps as the live team makes them, the inter-robot registration by the causal rule of
+    `live.event_scans`); the whole-run `team_graph.build_graph` for the
     others, for what only the whole run shows (`NotLiveError` from `build_live`: a stream never
     decided), and for a wheel-odometry run: fed a whole run, the wheel route's row-by-row
     builder costs several times build_graph's vectorized pass on the same graph
