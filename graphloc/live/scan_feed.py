@@ -52,7 +52,7 @@ class ScanFeed:
             self.skips.add(reason, message)
             return None
         except OSError as exc:
-            self.skips.add("bad_scan", f"{where}: {path}: {exc.strerror or exc}")
+            self.skips.add("bad_scan", f"{where}: {row.path}: {exc.strerror or exc}")
             return None
         if dropped:
             self.skips.add(
