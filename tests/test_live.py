@@ -215,7 +215,6 @@ def test_bad_rows_are_counted_skips_naming_robot_table_and_field(mrclam_dir):
     "scenario, missing",
     [
         ("feng-deterministic", ["climber: table 'bearing'", "climber: no initial_pose"]),
-        ("dual-robot-room", ["table 'scans'"]),
     ],
 )
 def test_a_run_not_live_yet_is_refused_at_open(tmp_path, scenario, missing):

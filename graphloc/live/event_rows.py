@@ -1,12 +1,13 @@
 """`EventRows`: an event-clocked team's checked rows (`rows.RowChecker` with the event tables)
 into its `events.EventGraph`, with the interface `LiveTeam` drives (`point`, `advance`,
-`finish`, `graph`, `start`, `run_so_far`): relative poses go in as they come; `markers`,
-`candidates`, `ellipses` and `features` rows are held until the watermark passes their time
-(every row of their image or set has arrived), then made into candidate sets and feature
-pixels by the loader's own front ends (`log_observations.marker_observations`: the checks and
-P3P of a log's marker pixels, `candidate_observations`; `camera_tables.ellipse_observations`:
-seed 003's two circle candidates, `single_tracks` and `feature_observations`), in the
-loader's order, and go in."""
+`finish`, `graph`, `start`, `run_so_far`): relative poses go in as they come, a scan as the
+relative pose KISS-ICP makes of it from the scanner's previous one (`scan_feed.ScanFeed`);
+`markers`, `candidates`, `ellipses` and `features` rows are held until the watermark passes
+their time (every row of their image or set has arrived), then made into candidate sets and
+feature pixels by the loader's own front ends (`log_observations.marker_observations`: the
+checks and P3P of a log's marker pixels, `candidate_observations`;
+`camera_tables.ellipse_observations`: seed 003's two circle candidates, `single_tracks` and
+`feature_observations`), in the loader's order, and go in."""
 
 from __future__ import annotations
 
@@ -21,10 +22,11 @@ from graphloc.datasets.camera_tables import (
     single_tracks,
 )
 from graphloc.datasets.log_observations import candidate_observations, marker_observations
-from graphloc.io import Sink
+from graphloc.io import Sink, SkipReport
 from graphloc.keys import decode
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.events import EventGraph
+from graphloc.live.scan_feed import ScanFeed
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.run import TeamRun
@@ -42,7 +44,7 @@ class EventRows:
         stamped = {
             r
             for r, robot in enumerate(run.robots)
-            if set(RELATIVE) & set(tables.get(robot.name, ()))
+            if set(RELATIVE + ("scans",)) & set(tables.get(robot.name, ()))
         }
         camera = any({"features", "ellipses"} & set(t) for t in tables.values())
         self.events = EventGraph(run, setup.config, setup.start_time, stamped, camera)
@@ -55,6 +57,7 @@ class EventRows:
         self.ellipses: list = []  # (observer, target, record, where)
         self.pixels: list = []  # features: (robot, record)
         self.motions: list = []
+        self.scans = ScanFeed(run, setup.manifest.root, skips, SkipReport())
 
     @property
     def start(self):
@@ -71,6 +74,14 @@ class EventRows:
         if table in RELATIVE:
             self.motions.append(row)
             self.events.motion(row)
+        elif table == "scans":
+            made = self.scans.add(r, *row)
+            if made is not None:
+                scan, step = made
+                if step is not None:
+                    self.motions.append(step)
+                    self.events.motion(step)
+                self.events.scan(scan)
         elif table == "markers":
             sensor = self.sensors[r].index(row.sensor)
             target = self.index[row.target]
@@ -103,6 +114,7 @@ class EventRows:
             motions=tuple(self.motions),
             observations=tuple(events.arrived),
             features=tuple(events.features.arrived),
+            scans=tuple(self.scans.scans),
         )
 
     def _where(self, r: int, row) -> str:
@@ -160,10 +172,11 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
     live = EventGraph(_without_rows(run), config, run.start_time, stamped, camera)
     motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
-    sets = ((o.time, 1, i, o) for i, o in enumerate(run.observations))
-    pixels = ((f.time, 2, i, f) for i, f in enumerate(run.features))
-    take = (live.motion, live.observation, live.feature)
-    for t, kind, _, row in heapq.merge(motions, sets, pixels, key=lambda e: e[:3]):
+    scans = ((s.time, 1, i, s) for i, s in enumerate(run.scans))
+    sets = ((o.time, 2, i, o) for i, o in enumerate(run.observations))
+    pixels = ((f.time, 3, i, f) for i, f in enumerate(run.features))
+    take = (live.motion, live.scan, live.observation, live.feature)
+    for t, kind, _, row in heapq.merge(motions, scans, sets, pixels, key=lambda e: e[:3]):
         take[kind](row)
         if steps is not None:
             steps.append(live.advance(t))
@@ -203,4 +216,4 @@ def _drop_unplaced(graph: TeamGraph, robots: set) -> None:
 
 
 def _without_rows(run: TeamRun) -> TeamRun:
-    return replace(run, motions=(), observations=(), features=())
+    return replace(run, motions=(), observations=(), features=(), scans=())
