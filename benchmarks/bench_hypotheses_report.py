@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.hypotheses import METHODS, WRONG_DISTANCE
-from benchmarks.markdown import fmt
+from benchmarks.render.numbers import fmt
 from graphloc.plots import plt
 
 

@@ -22,26 +22,20 @@ from pathlib import Path
 from graphloc.datasets.feng_deterministic import TableIConfig
 from graphloc.executor import BACKENDS, ResultCache, content_hash, default_backend
 from graphloc.structured import dumps_json
-from benchmarks import TABLES, markdown, seed000, seed001, seed004
+from benchmarks import TABLES, seed000, seed001, seed004
 from benchmarks.hypotheses import TableIIIConfig
 from benchmarks.seed_baselines_report import DOC_JSON
 from benchmarks.render import render
 from benchmarks.sizes import RunSizes, run_sizes
 
 
-def seed001_section(out_dir: Path, sizes: RunSizes) -> str:
-    """Seed 001 experiment 1 (rendered frames; writes its JSON and PNG to out_dir); returns its
-    markdown table."""
+def seed001_result(out_dir: Path, sizes: RunSizes) -> dict:
+    """Seed 001 experiment 1 (rendered frames; writes its JSON with every frame and its PNG to
+    out_dir); returns the paper's numbers, the summary per run and variant and the config."""
     result = seed001.reproduce(
         out_dir, frames1=sizes.seed001_frames1, frames2=sizes.seed001_frames2
     )
-    return (
-        "### Seed 001 experiment 1: pose error vs the paper (scripts/repro_seed001.py, "
-        "rendered frames)\n\n"
-        + seed001.markdown(result["summary"])
-        + f"\n\nPlot: {Path(out_dir).name}/repro_seed001_error_vs_distance.png.\n\n"
-        + render("seed_baselines_results", json.loads(DOC_JSON.read_text()))
-    )
+    return {key: result[key] for key in ("paper", "summary", "config", "seconds")}
 
 
 def reproduce(
@@ -51,12 +45,12 @@ def reproduce(
     out: Path,
     progress: bool = True,
     cache: ResultCache | None = None,
-) -> tuple[dict | None, str, bool]:
-    """One table: (its JSON-ready dict, or None for seed001-exp1 which writes its own JSON and
-    PNG under out/seed001; its markdown; whether it came from `cache`). The trials run on the
-    executor's default backend (`graphloc.executor.default_backend`); the cache key is the
-    content hash of (table, run sizes, graphloc's code version): the worker count and the
-    backend do not change the numbers."""
+) -> tuple[dict, bool]:
+    """One table: (its JSON-ready result, the entry docs/results.json holds for it; whether it
+    came from `cache`). The trials run on the executor's default backend
+    (`graphloc.executor.default_backend`); the cache key is the content hash of (table, run
+    sizes, graphloc's code version): the worker count and the backend do not change the
+    numbers."""
     if table not in TABLES:
         raise ValueError(f"unknown table {table!r}; choose from {', '.join(TABLES)}")
     sizes = run_sizes(quick)
@@ -64,34 +58,43 @@ def reproduce(
     if cache is not None and table == "seed001-exp1" and not (out / "seed001").is_dir():
         cache.discard(key)  # its JSON and PNG live under out/seed001
     hit = cache.get(key) if cache is not None else None
-    if hit is not None:
-        return hit["result"], hit["markdown"], True
-    result, md = _compute(table, sizes, workers, out, progress)
+    if hit is not None and hit.get("result") is not None:
+        return hit["result"], True
+    result = json_ready(_compute(table, sizes, workers, out, progress))
     if cache is not None:
-        cache.put(key, {"result": result, "markdown": md})
-        # the same JSON as a cache hit returns (tuples become lists, numpy scalars floats)
-        result = cache.get(key)["result"]
-    return result, md, False
+        cache.put(key, {"result": result})
+    return result, False
 
 
-def _compute(
-    table: str, sizes: RunSizes, workers: int, out: Path, progress: bool
-) -> tuple[dict | None, str]:
+def json_ready(result: dict) -> dict:
+    """`result` as its JSON reads back (tuples lists, numpy scalars floats): what a cache hit
+    and docs/results.json return."""
+    return json.loads(dumps_json(result, default=float))
+
+
+def _compute(table: str, sizes: RunSizes, workers: int, out: Path, progress: bool) -> dict:
     if table == "seed001-exp1":
-        return None, seed001_section(out / "seed001", sizes)
+        return seed001_result(out / "seed001", sizes)
     if table == "seed000-table1":
-        r = seed000.table_i(TableIConfig(trials=sizes.table1_trials, workers=workers), progress)
-        return r, markdown.table_i(r)
+        return seed000.table_i(TableIConfig(trials=sizes.table1_trials, workers=workers), progress)
     if table == "seed000-table2":  # times its own trials and updates, in one process
-        r = seed000.table_ii(samples=sizes.table2_samples)
-        return r, markdown.table_ii(r)
+        return seed000.table_ii(samples=sizes.table2_samples)
     if table == "seed000-table3":
-        t3 = seed000.table_iii(TableIIIConfig(runs=sizes.table3_runs, workers=workers), progress)
-        return t3, markdown.table_iii(t3)
-    r = seed004.seed004_table_1(
+        return seed000.table_iii(TableIIIConfig(runs=sizes.table3_runs, workers=workers), progress)
+    return seed004.seed004_table_1(
         runs=sizes.seed004_runs, frames=sizes.seed004_frames, workers=workers, progress=progress
     )
-    return r, markdown.seed004(r)
+
+
+def write_results(results: Path, doc: dict) -> None:
+    """docs/results.json (`doc`: the run and one entry per table) beside `results`, and
+    `results` (docs/results.md) rendered from that JSON as written (benchmarks.render.results;
+    its last section from docs/results_seed_baselines.json), as scripts/render_docs.py renders
+    it."""
+    text = dumps_json(doc, indent=1) + "\n"
+    results.parent.mkdir(parents=True, exist_ok=True)
+    results.with_suffix(".json").write_text(text)
+    results.write_text(render("results", json.loads(text), json.loads(DOC_JSON.read_text())))
 
 
 def make_results(
@@ -103,38 +106,45 @@ def make_results(
     backend: str = "local",
     address: str | None = None,
 ) -> float:
-    """docs/results.md: every seed table with its plots and JSON under `out`, the trials on
-    the executor's `backend` (graphloc.executor); returns the wall time [s]."""
+    """docs/results.md and docs/results.json beside it (`write_results`): every seed table with
+    its plots and JSON under `out`, the trials on the executor's `backend`
+    (graphloc.executor); returns the wall time [s]."""
     t0 = time.perf_counter()
     sizes = run_sizes(quick)
     with default_backend(backend, address, workers):
-        parts = [
-            seed000.run(out / "seed000", sizes, workers)["markdown"],
-            seed004.run(out / "seed004", sizes, workers)["markdown"],
-        ]
+        s000 = seed000.run(out / "seed000", sizes, workers)
+        tables = {
+            "seed000-table1": s000["table_i"],
+            "seed000-table2": s000["table_ii"],
+            "seed000-table3": s000["table_iii"],
+            "seed004-table1": seed004.run(out / "seed004", sizes, workers),
+        }
     if not skip_seed001:
-        parts.append(seed001_section(out / "seed001", sizes))
-    head = [
-        "# graphloc: the seeds' tables, reproduced",
-        "",
-        f"Generated by `scripts/make_results.py{' --quick' if quick else ''}` in "
-        f"{time.perf_counter() - t0:.0f} s on {os.cpu_count()} cores "
-        f"({platform.processor() or platform.machine()}), workers={workers} ({backend}). Plots "
-        "and JSON: "
-        f"`{out}/`. Every number below is computed by that run.",
-        "",
-    ]
-    results.parent.mkdir(parents=True, exist_ok=True)
-    results.write_text("\n".join(head + parts))
-    return time.perf_counter() - t0
+        tables["seed001-exp1"] = seed001_result(out / "seed001", sizes)
+    seconds = time.perf_counter() - t0
+    run = {
+        "command": f"scripts/make_results.py{' --quick' if quick else ''}",
+        "seconds": seconds,
+        "cores": os.cpu_count(),
+        "processor": platform.processor() or platform.machine(),
+        "workers": workers,
+        "backend": backend,
+        "out": str(out),
+    }
+    sections = {name: {"command": None, "result": json_ready(r)} for name, r in tables.items()}
+    write_results(results, {"run": run, "sections": sections})
+    return seconds
 
 
 def main(argv=None) -> int:
-    """`scripts/reproduce.py TABLE [--quick] [--out DIR]`: recompute one seed table and print it
-    as markdown; its JSON goes to DIR/<table>.json. The trials run on the executor's backend
-    (`--backend local|ray`, `--workers N`, `--address auto|HOST:PORT`: graphloc.executor); the
-    table is cached under DIR/.cache by the content hash of (table, run sizes, code version),
-    so a re-run prints it without recomputing (`--no-cache` recomputes)."""
+    """`scripts/reproduce.py TABLE [--quick] [--out DIR] [--results docs/results.md]`:
+    recompute one seed table and print it as markdown; its JSON goes to DIR/<table>.json and,
+    with --results, replaces the table's entry in the JSON beside that doc (the doc re-rendered,
+    the entry naming this command). The trials run on the executor's backend (`--backend
+    local|ray`, `--workers N`, `--address auto|HOST:PORT`: graphloc.executor); the table is
+    cached under DIR/.cache by the content hash of (table, run sizes, code version), so a re-run
+    prints it without recomputing (`--no-cache` recomputes)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
     parser = argparse.ArgumentParser(description="reproduce a seed table: " + ", ".join(TABLES))
     parser.add_argument("table", choices=TABLES)
     parser.add_argument("--out", type=Path, default=Path("out/reproduce"))
@@ -144,18 +154,30 @@ def main(argv=None) -> int:
     parser.add_argument("--address", help="--backend ray: 'auto' or HOST:PORT of a cluster")
     parser.add_argument("--no-cache", action="store_true", help="recompute a cached table")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    parser.add_argument(
+        "--results", type=Path, help="a doc of scripts/make_results.py whose table entry to replace"
+    )
     args = parser.parse_args(argv)
     if not 1 <= args.workers <= 256:
         parser.error(f"--workers must be in [1, 256], got {args.workers}")
+    if args.results is not None and not args.results.with_suffix(".json").is_file():
+        parser.error(f"no {args.results.with_suffix('.json')} to replace the entry of")
     args.out.mkdir(parents=True, exist_ok=True)
     cache = None if args.no_cache else ResultCache(args.out / ".cache")
     with default_backend(args.backend, args.address, args.workers):
-        result, md, cached = reproduce(
+        result, cached = reproduce(
             args.table, args.quick, args.workers, args.out, not args.no_progress, cache
         )
     if cached:
         print(f"(cached: {args.out / '.cache'}; --no-cache recomputes)", file=sys.stderr)
-    if result is not None:
-        (args.out / f"{args.table}.json").write_text(dumps_json(result, indent=2, default=float))
-    print(md)
+    (args.out / f"{args.table}.json").write_text(dumps_json(result, indent=2))
+    entry = {"command": " ".join(["scripts/reproduce.py", *argv]), "result": result}
+    if args.results is not None:
+        doc = json.loads(args.results.with_suffix(".json").read_text())
+        doc["sections"][args.table] = entry
+        doc["sections"] = {
+            name: doc["sections"][name] for name in TABLES if name in doc["sections"]
+        }
+        write_results(args.results, doc)
+    print(render("results_section", args.table, {"result": result}))
     return 0

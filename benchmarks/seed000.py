@@ -8,8 +8,9 @@ paper | seed baseline (ours) | graphloc on the same trials.
 
     .venv/bin/python scripts/repro_seed000.py [--quick] [--trials 1000 --runs 100] --out DIR
 
-Writes <out>/seed000.json, <out>/seed000.md, <out>/table1_errors.png,
-<out>/table3_convergence.png, <out>/fig6_posterior.png and prints the markdown tables.
+Writes <out>/seed000.json, <out>/table1_errors.png, <out>/table3_convergence.png,
+<out>/fig6_posterior.png and prints the tables as docs/results.md has them
+(benchmarks.render.results).
 """
 
 from __future__ import annotations
@@ -32,10 +33,11 @@ from graphloc.datasets.feng_deterministic import (
     simulate_straight_line_trials,
 )
 from graphloc.executor import Executor
-from benchmarks import hypotheses, markdown
+from benchmarks import hypotheses
 from benchmarks.hypotheses import TableIIIConfig
 from benchmarks.front_door import table_i_trial
 from benchmarks.seed000_table1 import trial_rows, table_i
+from benchmarks.render import render
 from benchmarks.sizes import RunSizes, run_sizes
 from graphloc.factors.bearing import bearing_linearize_cost
 from graphloc.hypotheses import tracker as tracker_module
@@ -332,7 +334,8 @@ def plot_fig6(series: dict, path: Path) -> None:
 
 # ---- all of seed 000 -------------------------------------------------------------------------
 def run(out: Path, sizes: RunSizes, workers: int, progress: bool = True) -> dict:
-    """Tables I-III and Fig. 6 at `sizes`; JSON, markdown and plots to `out`."""
+    """Tables I-III and Fig. 6 at `sizes`; JSON and plots to `out` (the tables' markdown:
+    benchmarks.render.results)."""
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     t1 = table_i(TableIConfig(trials=sizes.table1_trials, workers=workers), progress)
@@ -346,21 +349,10 @@ def run(out: Path, sizes: RunSizes, workers: int, progress: bool = True) -> dict
         "fig6": f6,
         "wall_time_s": time.perf_counter() - t0,
     }
-    md = "\n".join(
-        [
-            markdown.table_i(t1),
-            markdown.table_ii(t2),
-            markdown.table_iii(t3),
-            "Fig. 6 style plot: fig6_posterior.png; Table I errors: table1_errors.png; "
-            "Table III: table3_convergence.png.\n",
-        ]
-    )
     (out / "seed000.json").write_text(dumps_json(result, indent=2, default=float))
-    (out / "seed000.md").write_text(md)
     plot_table_i(t1, out / "table1_errors.png")
     plot_table_iii(t3, out / "table3_convergence.png")
     plot_fig6(f6, out / "fig6_posterior.png")
-    result["markdown"] = md
     return result
 
 
@@ -378,5 +370,7 @@ def main(argv=None) -> int:
         table1_trials=args.trials or sizes.table1_trials,
         table3_runs=args.runs or sizes.table3_runs,
     )
-    print(run(args.out, sizes, args.workers)["markdown"])
+    result = run(args.out, sizes, args.workers)
+    for name, key in (("table1", "table_i"), ("table2", "table_ii"), ("table3", "table_iii")):
+        print(render("results_section", f"seed000-{name}", {"result": result[key]}))
     return 0

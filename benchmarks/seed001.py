@@ -15,8 +15,8 @@ seed's pose meets those numbers: benchmarks.seed001_readings (issue 20).
     .venv/bin/python scripts/repro_seed001.py [--frames1 300 --frames2 200 --out out/seed001]
     (thin wrapper over this module; also `scripts/reproduce.py seed001-exp1`)
 
-Writes <out>/repro_seed001.json, <out>/repro_seed001_error_vs_distance.png and prints a
-markdown table.
+Writes <out>/repro_seed001.json, <out>/repro_seed001_error_vs_distance.png and prints the
+table as docs/results.md has it (benchmarks.render.results).
 """
 
 from __future__ import annotations
@@ -31,7 +31,8 @@ import numpy as np
 from tqdm import tqdm
 
 from graphloc.datasets.breitenmoser import seed001_camera
-from benchmarks.seed001_report import PAPER, VARIANTS, markdown, plot
+from benchmarks.render import render
+from benchmarks.seed001_report import PAPER, VARIANTS, plot
 from benchmarks.sizes import run_sizes
 from graphloc.vision.markers import (
     MarkerDetectorConfig,
@@ -343,7 +344,7 @@ def main(argv=None) -> int:
         args.occlusion_rate,
         args.seed,
     )
-    print(markdown(result["summary"]))
+    print(render("results_section", "seed001-exp1", {"result": result}))
     print(
         f"\n{result['seconds']:.1f} s; wrote {args.out / 'repro_seed001.json'} and "
         f"{args.out / 'repro_seed001_error_vs_distance.png'}"

@@ -1,6 +1,6 @@
 """The seed 001 experiment 1 report (benchmarks.seed001): the paper's numbers
-(001_0f8f8dae37ce6b79.txt Sec. V-A), the error table beside them and the error-vs-distance
-plot."""
+(001_0f8f8dae37ce6b79.txt Sec. V-A) and the error-vs-distance plot (the error table beside the
+paper's numbers: benchmarks.render.results)."""
 
 from __future__ import annotations
 
@@ -61,41 +61,3 @@ def plot(runs: dict, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
-
-
-def markdown(summary: dict) -> str:
-    """The error table (paper rows next to the simulated variants) of a `summary` from `main`."""
-
-    def cell(s, key, unit):
-        return f"{s[key]:.2f} {unit}" if key in s else "n/a"
-
-    p = PAPER["run1"]
-    lines = [
-        "| run | pose | frames localized | pos mean | pos std | pos max "
-        "| rot mean | rot std | rot max |",
-        "|---|---|---|---|---|---|---|---|---|",
-        f"| 1 (0.68-1.74 m) | paper | - | {p['pos_mean_cm']} cm | {p['pos_std_cm']} cm | "
-        f"{p['pos_max_cm']} cm | "
-        f"{p['rot_mean_deg']} deg | {p['rot_std_deg']} deg | {p['rot_max_deg']} deg |",
-    ]
-    for key, label in (
-        ("run1", "1 (0.68-1.74 m)"),
-        ("run2_at_3m", "2 (>= 2.8 m)"),
-        ("run2_all", "2 (1-3 m)"),
-    ):
-        if key == "run2_at_3m":
-            q = PAPER["run2_at_3m"]
-            lines.append(
-                f"| {label} | paper | - | {q['pos_mean_cm']} cm | - | - | "
-                f"{q['rot_mean_deg']} deg | - | - |"
-            )
-        for v in VARIANTS:
-            s = summary[key][v]
-            lines.append(
-                f"| {label} | sim {v} | {s['localized']}/{s['frames']} | "
-                f"{cell(s, 'pos_mean_cm', 'cm')} | "
-                f"{cell(s, 'pos_std_cm', 'cm')} | {cell(s, 'pos_max_cm', 'cm')} | "
-                f"{cell(s, 'rot_mean_deg', 'deg')} | "
-                f"{cell(s, 'rot_std_deg', 'deg')} | {cell(s, 'rot_max_deg', 'deg')} |"
-            )
-    return "\n".join(lines)

@@ -7,7 +7,8 @@ smooth` runs); both columns come from the same logs.
 
     .venv/bin/python scripts/repro_seed004.py [--quick] [--runs 1000 --frames 10] --out DIR
 
-Writes <out>/seed004.json, <out>/seed004.md, <out>/table1_rms.png, <out>/fig3_track.png.
+Writes <out>/seed004.json, <out>/table1_rms.png, <out>/fig3_track.png and prints the table as
+docs/results.md has it (benchmarks.render.results).
 """
 
 from __future__ import annotations
@@ -27,8 +28,8 @@ from graphloc.datasets.kaushik import (
     KaushikP3PErrorScenario,
 )
 from graphloc.executor import Executor
-from benchmarks import markdown
 from benchmarks.front_door import simulated_run, truth_at
+from benchmarks.render import render
 from benchmarks.sizes import RunSizes, run_sizes
 from graphloc.pipelines.team_graph import build_graph, solve
 from graphloc.plots import plt
@@ -221,18 +222,16 @@ def plot_fig3(path: Path, seed: int = 3, frames: int = 20) -> None:
 
 
 def run(out: Path, sizes: RunSizes, workers: int, progress: bool = True) -> dict:
-    """Table 1 at `sizes` and the Fig. 3 plot; JSON, markdown and plots to `out`."""
+    """Table 1 at `sizes` and the Fig. 3 plot; JSON and plots to `out` (the table's markdown:
+    benchmarks.render.results)."""
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     r = seed004_table_1(
         runs=sizes.seed004_runs, frames=sizes.seed004_frames, workers=workers, progress=progress
     )
-    md = markdown.seed004(r) + "\nTable 1 plot: table1_rms.png; Fig. 3 style: fig3_track.png.\n"
     (out / "seed004.json").write_text(dumps_json(r, indent=2, default=float))
-    (out / "seed004.md").write_text(md)
     plot_table(r, out / "table1_rms.png")
     plot_fig3(out / "fig3_track.png")
-    r["markdown"] = md
     r["wall_time_s"] = time.perf_counter() - t0
     return r
 
@@ -251,5 +250,6 @@ def main(argv=None) -> int:
         seed004_runs=args.runs or sizes.seed004_runs,
         seed004_frames=args.frames or sizes.seed004_frames,
     )
-    print(run(args.out, sizes, args.workers)["markdown"])
+    result = run(args.out, sizes, args.workers)
+    print(render("results_section", "seed004-table1", {"result": result}))
     return 0

@@ -1,13 +1,17 @@
-"""Regenerate docs/results.md: every seed table (paper | seed baseline (ours) | graphloc) through
-benchmarks.reproduce.make_results (the route scripts/reproduce.py takes too).
+"""Regenerate docs/results.md and its JSON: every seed table, paper | seed baseline | graphloc.
+
+Every table through benchmarks.reproduce.make_results (the route scripts/reproduce.py takes
+too): its numbers to docs/results.json (the run and one entry per table; `scripts/reproduce.py
+TABLE --results docs/results.md` replaces one), docs/results.md rendered from that JSON
+(benchmarks.render.results; its last section, every seed table at the stated and the
+reproducing reading, from docs/results_seed_baselines.json). `scripts/render_docs.py results.md`
+re-renders it without running anything.
 
     .venv/bin/python scripts/make_results.py            # full size (the run time is in the header)
     .venv/bin/python scripts/make_results.py --quick    # CI size
 
-The last section (every seed table at the stated and the reproducing reading) is rendered from
-docs/results_seed_baselines.json; `scripts/render_docs.py results.md` re-renders it alone.
-
-Outputs (JSON, PNG) go to --out (default out/results); the markdown to --results.
+Outputs (JSON, PNG) go to --out (default out/results); the markdown to --results, its JSON
+beside it.
 """
 
 from __future__ import annotations
@@ -31,7 +35,12 @@ def main(argv=None) -> int:
     parser.add_argument("--backend", choices=BACKENDS, default="local", help="trials on")
     parser.add_argument("--address", help="--backend ray: 'auto' or HOST:PORT of a cluster")
     parser.add_argument("--out", type=Path, default=Path("out/results"))
-    parser.add_argument("--results", type=Path, default=HERE.parent / "docs" / "results.md")
+    parser.add_argument(
+        "--results",
+        type=Path,
+        default=HERE.parent / "docs" / "results.md",
+        help="the doc; its JSON is written beside it (.json)",
+    )
     parser.add_argument(
         "--skip-seed001", action="store_true", help="skip the rendered seed 001 experiment"
     )

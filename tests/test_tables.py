@@ -1,6 +1,7 @@
 """The seeds' tables (benchmarks) on tiny sizes: structure, sanity and the
 paper | seed | graphloc columns; the one route from scripts/reproduce.py and make_results."""
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -12,11 +13,18 @@ from graphloc.hypotheses import tracker as tracker_module
 from graphloc.hypotheses.window import window_updates
 from graphloc.datasets.feng_deterministic import TableIConfig
 from graphloc.datasets.kaushik import KaushikConfig
-from benchmarks import markdown, seed000, seed004
+from benchmarks import TABLES, seed000, seed004
 from benchmarks import seed_baselines as sb
 from benchmarks import seed_baselines_report as report
 from benchmarks.hypotheses import TableIIIConfig
+from benchmarks.render import render
+from benchmarks.seed_baselines_report import DOC_JSON
 from benchmarks.sizes import FULL, QUICK, run_sizes
+
+
+def _markdown(table: str, result: dict) -> str:
+    """A table as docs/results.md and scripts/reproduce.py print it (benchmarks.render)."""
+    return render("results_section", table, {"result": result})
 
 
 @pytest.fixture(scope="module")
@@ -33,8 +41,8 @@ def test_table_i_structure_and_graphloc_identifies_more(table1):
     # far more often than the straight-line test at 0.5 px
     assert g["success"] >= 38 and g["success"] > s["success"]
     assert 0 < g["C"]["mean"] < 0.1
-    md = markdown.table_i(table1)
-    assert "| paper |" in md and "997/1000" in md and "/40 |" in md
+    md = _markdown("seed000-table1", table1)
+    assert "| quantity " in md and "997/1000" in md and "/40 " in md
 
 
 def test_table_i_noise_free_is_exact():
@@ -73,7 +81,7 @@ def test_table_ii_times_each_phase_and_update_apart():
     assert 0 < w["median"] <= u["ms"]["tracker"]["median"]
     assert w["p95"] <= u["ms"]["tracker"]["p95"]
     assert tracker_module.window_updates is window_updates
-    md = markdown.table_ii(r)
+    md = _markdown("seed000-table2", r)
     assert "CPU time" in md and "update(candidates, odometry)" in md
     assert f"That window update alone, timed inside the same K = 4 updates: {w['median']:.3f}" in md
     assert f"read {g['read']['median']:.2f} + build" in md
@@ -88,8 +96,8 @@ def test_seed004_cell_smoothing_beats_raw_p3p():
 
 def test_seed004_markdown_has_nine_rows():
     r = seed004.seed004_table_1(runs=4, frames=4, workers=1, progress=False)
-    md = markdown.seed004(r)
-    assert len(r["cells"]) == 9 and md.count("| 16 mm |") == 3
+    md = _markdown("seed004-table1", r)
+    assert len(r["cells"]) == 9 and md.count("| 16 mm ") == 3
 
 
 @pytest.mark.slow
@@ -98,7 +106,7 @@ def test_table_iii_quick():
     assert len(r["cells"]) == 6
     for cell in r["cells"].values():
         assert {"belief_def1", "tracker", "paper_table_iii"} <= set(cell)
-    assert "| level/line |" in markdown.table_iii(r)
+    assert "| level/line " in _markdown("seed000-table3", r)
     series = seed000.fig6_series(updates=5)
     assert all(
         len(s["tracker"]) == 5 and np.all(np.asarray(s["tracker"]) <= 1.0) for s in series.values()
@@ -116,8 +124,30 @@ def test_reproduce_script_quick(tmp_path, capsys):
 
     out = str(tmp_path)
     assert main(["seed004-table1", "--quick", "--workers", "1", "--out", out]) == 0
-    assert "| 36 mm | 10 |" in capsys.readouterr().out
+    assert "| 36 mm   | 10 " in capsys.readouterr().out
     assert (tmp_path / "seed004-table1.json").is_file()
+    # --results: the table's entry of the doc's JSON replaced (the others kept), the doc
+    # re-rendered from it, naming the re-run; from the cache this time
+    doc = tmp_path / "results.md"
+    run = {"command": "scripts/make_results.py", "seconds": 1.0, "cores": 2, "processor": "x"}
+    run.update(workers=1, backend="local", out="out/results")
+    table1 = json.loads(json.dumps(seed000.table_i(TableIConfig(trials=4, workers=1), False)))
+    kept = {"command": None, "result": table1}
+    doc.with_suffix(".json").write_text(
+        json.dumps({"run": run, "sections": {"seed000-table1": kept}})
+    )
+    argv = ["seed004-table1", "--quick", "--workers", "1", "--out", out, "--results", str(doc)]
+    assert main(argv) == 0
+    written = json.loads(doc.with_suffix(".json").read_text())
+    assert list(written["sections"]) == ["seed000-table1", "seed004-table1"]
+    assert written["sections"]["seed000-table1"] == kept
+    entry = written["sections"]["seed004-table1"]
+    assert entry["command"] == "scripts/reproduce.py " + " ".join(argv)
+    assert entry["result"] == json.loads((tmp_path / "seed004-table1.json").read_text())
+    text = doc.read_text()
+    assert text == render("results", written, json.loads(DOC_JSON.read_text()))
+    assert text.count("This section alone was re-run by") == 1
+    assert f"This section alone was re-run by `{entry['command']}`" in text
     with pytest.raises(SystemExit) as exc:
         main(["seed004-table1", "--workers", "0", "--out", out])
     assert exc.value.code == 2 and "--workers must be in [1, 256]" in capsys.readouterr().err
@@ -143,12 +173,19 @@ def test_make_results_quick_writes_every_table(tmp_path):
         check=True,
     )
     text = results.read_text()
+    # the doc is its JSON rendered (scripts/render_docs.py's route), every table of the run in it
+    doc = json.loads(results.with_suffix(".json").read_text())
+    assert text == render("results", doc, json.loads(DOC_JSON.read_text()))
+    assert list(doc["sections"]) == list(TABLES)
+    assert all(entry["command"] is None for entry in doc["sections"].values())
+    assert "This section alone was re-run" not in text
     for heading in (
         "Seed 000 Table I",
         "Seed 000 Table II",
         "Seed 000 Table III",
         "Seed 004 Table 1",
         "Seed 001 experiment 1",
+        "Every seed table at the stated and the reproducing reading",
     ):
         assert heading in text
     for png in (

@@ -27,9 +27,6 @@ class Doc:
 
     renderer: str
     inputs: tuple[str, ...]
-    # a rendered section: the doc from this heading line to its end (the text before it is
-    # written by a benchmark without committed JSON)
-    section: str | None = None
 
 
 DOCS = {
@@ -53,11 +50,7 @@ DOCS = {
     "results_seed_baselines.md": Doc("seed_baselines", ("results_seed_baselines.json",)),
     "results_seed003.md": Doc("seed003", ("results_seed003.json",)),
     "results_seed003_heldout.md": Doc("seed003", ("results_seed003_heldout.json",)),
-    "results.md": Doc(
-        "seed_baselines_results",
-        ("results_seed_baselines.json",),
-        section="### Every seed table at the stated and the reproducing reading",
-    ),
+    "results.md": Doc("results", ("results.json", "results_seed_baselines.json")),
     "results_fusion_real.md": Doc(
         "fusion_real", ("results_fusion_real.json", "results_fusion_calibration.json")
     ),
@@ -121,14 +114,7 @@ def render(renderer: str, *data, doc: str = "") -> str:
 
 
 def render_doc(name: str, docs_dir: Path = DOCS_DIR) -> str:
-    """The markdown of docs/`name` from the JSON files it is rendered from (a section doc: the
-    text before its section as it is, the section rendered)."""
+    """The markdown of docs/`name` from the JSON files it is rendered from."""
     doc = DOCS[name]
     data = [json.loads((docs_dir / f).read_text()) for f in doc.inputs]
-    text = render(doc.renderer, *data, doc=Path(name).stem)
-    if doc.section is None:
-        return text
-    lines = (docs_dir / name).read_text().splitlines()
-    if doc.section not in lines:
-        raise ValueError(f"{name}: no line {doc.section!r} to render from")
-    return "\n".join(lines[: lines.index(doc.section)]) + "\n" + text
+    return render(doc.renderer, *data, doc=Path(name).stem)

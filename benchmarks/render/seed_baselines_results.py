@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import pandas as pd
 
-from benchmarks.render import DOCS
 from benchmarks.render.seed_baselines import runs_tables
 from benchmarks.render.numbers import joined, yes_no
 from benchmarks.render.seed_baselines_more import (
@@ -63,7 +62,7 @@ def _seed003(s3: dict) -> pd.DataFrame:
 
 def context(r: dict) -> dict:
     runs = r.get("runs", {})
-    out = {"r": r, "heading": DOCS["results.md"].section, "s1": None, "s3": None}
+    out = {"r": r, "s1": None, "s3": None}
     if runs:
         t1 = runs["reproducing"]["table1"]
         ratios = [
