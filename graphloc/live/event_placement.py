@@ -13,7 +13,7 @@ from graphloc.keys import pose_key
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_clock import EventRobot
 from graphloc.pipelines.team_graph.config import GraphConfig
-from graphloc.pipelines.team_graph.graph import TeamGraph, alternative_starts
+from graphloc.pipelines.team_graph.graph import TeamGraph, alternative_starts, anchor_times
 from graphloc.pipelines.team_graph.motion import step_or_unknown
 from graphloc.run import TeamRun
 
@@ -85,3 +85,4 @@ def alternative_placements(
     }
     variants, _ = alternative_starts(run, config, clock, graph.step_rel, poses, alternatives, {})
     graph.alternatives = variants
+    graph.alternative_times = anchor_times(alternatives, poses, clock.node_times)[0]

@@ -62,6 +62,12 @@ class TeamGraph:
     # the graph holds feature tracks or max-mixtures (iSAM2's settings for camera graphs,
     # `passes.camera_graph`); a graph built live knows it from the run's tables before its rows
     camera: bool = False
+    # the time of the node each alternative (each guessed alternative) was placed at: the
+    # node of its own candidate set; the solve does not drop a hypothesis before that node's
+    # step (`solve.hypotheses`): earlier steps hold another snapshot's pose, which its start
+    # only carried along
+    alternative_times: list = field(default_factory=list)
+    guessed_alternative_times: list = field(default_factory=list)
 
 
 def build_graph(
@@ -168,6 +174,7 @@ def build_graph(
         {key: (pose_key(ti, kt), local) for key, ti, kt, local in sets.frame_points},
         sensor_poses,
         features.tracks > 0 or any(d.mixture is not None for d in decisions),
+        *anchor_times(alternatives, poses, node_times),
     )
 
 
@@ -258,6 +265,20 @@ def alternative_starts(
             if guessed:
                 guessed_variants.append(variants[-1])
     return variants, guessed_variants
+
+
+def anchor_times(alternatives: dict, poses: dict, node_times: list) -> tuple[list, list]:
+    """The node time each of `alternative_starts`' variants (and guessed variants), in their
+    order, was placed at."""
+    times, guessed_times = [], []
+    for r, (starts, guessed) in alternatives.items():
+        if r not in poses:
+            continue
+        for k0, _ in starts:
+            times.append(float(node_times[r][k0]))
+            if guessed:
+                guessed_times.append(times[-1])
+    return times, guessed_times
 
 
 def time_steps(factors: list, initial: dict) -> tuple[list, list, int]:

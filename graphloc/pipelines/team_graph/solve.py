@@ -51,9 +51,12 @@ def solve(
     (`factors.robust.residuals`) -- a placement that explains its measurements by down-
     weighting them as outliers does not win on the kernel's saturated error --, and a
     hypothesis whose chi-square exceeds the least by `PRUNE_CHI2` is dropped as the evidence
-    arrives, so one pass carries the rest of the run; an iSAM2 update is one Gauss-Newton step,
-    so before one is dropped both it and the best get a few more iterations (a pass far from its
-    minimum is no evidence against it), and hypotheses that converged to one estimate are one.
+    arrives (an alternative no earlier than the step of the node it was placed at,
+    `judged_from`: seed 000's climber placed by a later snapshot's P3P candidate starts its
+    earlier poses at that snapshot's position), so one pass carries the rest of the run; an
+    iSAM2 update is one Gauss-Newton step, so before one is dropped both it and the best get a
+    few more iterations (a pass far from its minimum is no evidence against it), and
+    hypotheses that converged to one estimate are one.
     The online estimate
     is the surviving hypothesis of least chi-square at the end; each pose's causal estimate
     comes from the hypothesis of least chi-square when that pose entered (a choice made with
@@ -70,15 +73,16 @@ def solve(
     says which."""
     if mode == "online":
         starts = [None, *graph.guessed_alternatives]
+        judged = judged_from(graph, graph.guessed_alternatives, graph.guessed_alternative_times)
         try:
-            return hypotheses(graph, "online", starts, progress, stop, on_step, on_stop)
+            return hypotheses(graph, "online", starts, progress, stop, on_step, on_stop, judged)
         except SolverFailure as exc:
             if graph.config.factorization == "QR":
                 raise
             # Cholesky found an ill-conditioned system indeterminate (e.g. millimetre priors
             # beside pixels no pose explains): the solve again with QR, slower but stable
             qr = replace(graph, config=replace(graph.config, factorization="QR"))
-            result = hypotheses(qr, "online", starts, progress, stop, on_step, on_stop)
+            result = hypotheses(qr, "online", starts, progress, stop, on_step, on_stop, judged)
             return replace(result, solver_note=f"QR factorization (Cholesky failed: {exc})")
     t0 = _time.perf_counter()
     starts, start_from = _batch_starts(graph, stop, progress)
@@ -104,9 +108,14 @@ def hypotheses(
     stop=None,
     on_step=None,
     on_stop=None,
+    judged: list | None = None,
 ) -> TeamResult:
     """Online passes of `graph` from each of `starts` (key -> value over the graph's guess;
     None: the guess) side by side, step by step, compared and pruned by chi-square (`solve`).
+    judged: per start, the first step at which it may be dropped (`judged_from`; None: 0 for
+    all): a resected robot's alternative from a later snapshot's P3P candidate starts its
+    earlier poses at that snapshot's position (seed 000, Sec. IV: the climber moves between
+    snapshots), so the steps before its own snapshot are no evidence against it.
     Returns the best surviving pass, its causal estimates chosen per pose, and the others
     that survived in `TeamResult.survivors` (their final values)."""
     passes = [
@@ -114,6 +123,7 @@ def hypotheses(
         for s in starts
     ]
     alive = list(range(len(passes)))
+    judged = [0] * len(passes) if judged is None else judged
     chi2 = np.zeros(len(passes))
     best_at: list = []  # step -> index of the best pass then
     stride = max(1, len(graph.steps) // MAX_CHECKS)
@@ -135,7 +145,7 @@ def hypotheses(
         if len(alive) > 1:
             alive = _distinct(passes, alive)
         if len(alive) > 1 and (i % stride == 0 or i < EARLY_CHECKS or i == len(graph.steps) - 1):
-            alive = _prune(passes, alive, chi2)
+            alive = _prune(passes, alive, chi2, {j for j in alive if judged[j] > i})
         best_at.append(min(alive, key=lambda j: chi2[j]))
         if on_step is not None:
             on_step(i)
@@ -186,15 +196,16 @@ def _same(a: dict, b: dict) -> bool:
     return True
 
 
-def _prune(passes: list, alive: list, chi2: np.ndarray) -> list:
+def _prune(passes: list, alive: list, chi2: np.ndarray, unjudged: set = frozenset()) -> list:
     """Hypotheses compared by chi-square (`solve`); one more than PRUNE_CHI2 behind the best is
     first given up to SETTLE_UPDATES more iSAM2 iterations, as is the best (an update takes one
     Gauss-Newton step, and a pass far from its minimum is no evidence against it), and dropped
-    if it is still behind. Updates `chi2` of the passes compared."""
+    if it is still behind; those in `unjudged` are kept whatever their chi-square. Updates
+    `chi2` of the passes compared."""
     for j in alive:
         chi2[j] = passes[j].current_chi2()[0]
     best = min(alive, key=lambda j: chi2[j])
-    behind = [j for j in alive if chi2[j] > chi2[best] + PRUNE_CHI2]
+    behind = [j for j in alive if chi2[j] > chi2[best] + PRUNE_CHI2 and j not in unjudged]
     if not behind:
         return alive
     for j in [best, *behind]:
@@ -203,10 +214,21 @@ def _prune(passes: list, alive: list, chi2: np.ndarray) -> list:
         except ValueError:  # iSAM2 cannot iterate this hypothesis: it is dropped
             chi2[j] = np.inf
     best = min(alive, key=lambda j: chi2[j])
-    kept = [j for j in alive if chi2[j] <= chi2[best] + PRUNE_CHI2]
+    kept = [j for j in alive if chi2[j] <= chi2[best] + PRUNE_CHI2 or j in unjudged]
     if not kept:
         raise ValueError("no hypothesis can be solved")
     return kept
+
+
+def judged_from(graph: TeamGraph, alternatives: list, times: list) -> list | None:
+    """Per hypothesis (the guess, then one per alternative of `alternatives`, placed at node
+    time `times[j]`), the first step at which `hypotheses` may drop it: the step of its own
+    node (0 for the guess); None where the times do not match the alternatives (a graph built
+    without them: every step judges)."""
+    if len(times) != len(alternatives):
+        return None
+    step_times = np.array([t for t, _ in graph.steps])
+    return [0] + [int(np.searchsorted(step_times, t - 1e-9)) for t in times]
 
 
 def _batch_starts(graph: TeamGraph, stop, progress: bool) -> tuple[list, str]:
@@ -233,7 +255,8 @@ def warm_starts(graph: TeamGraph, stop=None, progress: bool = False) -> list[dic
     Pose3 / Point3 of every variable it estimated, the graph's guess for the rest."""
     online = replace(graph, config=replace(graph.config, lag=0.0))
     starts = [None, *graph.alternatives]
-    result = hypotheses(online, "online", starts, progress, stop)
+    judged = judged_from(graph, graph.alternatives, graph.alternative_times)
+    result = hypotheses(online, "online", starts, progress, stop, judged=judged)
     if stop is not None and stop():  # stopped: the batch solve starts from the guess
         return [dict(graph.initial)]
     out = []
