@@ -204,7 +204,6 @@ def test_bad_rows_are_counted_skips_naming_robot_table_and_field(mrclam_dir):
 @pytest.mark.parametrize(
     "scenario, missing",
     [
-        ("feng-deterministic", ["climber: table 'bearing'", "climber: no initial_pose"]),
         ("dual-robot-room", ["table 'scans'"]),
         ("crawler-pair", ["table 'ellipses'", "table 'features'", "teammate: no initial_pose"]),
     ],

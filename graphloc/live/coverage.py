@@ -1,8 +1,9 @@
 """What the live builders cover: the tables they take rows of, and what keeps a run off them
 (`not_live`), with why -- the sections that need rows after the step they shape. Two routes
 (`route`): wheel-odometry robots with point measurements (`graphloc.live.builder.LiveGraph`),
-and event-clocked robots -- relative poses, no wheel odometry -- placed by the candidate sets
-they see of a static target (`graphloc.live.events.EventGraph`)."""
+and event-clocked robots -- relative poses, no wheel odometry -- with point measurements,
+placed by the candidate sets they see of a static target, by mutual bearings or by resection
+on their bearings of placed static robots (`graphloc.live.events.EventGraph`)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,16 @@ from graphloc.run import TeamRun
 # the sections `LiveGraph` builds, and the tables it takes rows of
 LIVE_TABLES = ("odometry", "range", "bearing", "range_bearing", "groundtruth")
 # the tables of `EventGraph`'s route (`route` "event")
-EVENT_TABLES = ("relative_pose", "relative_pose3", "markers", "candidates", "groundtruth")
+EVENT_TABLES = (
+    "relative_pose",
+    "relative_pose3",
+    "markers",
+    "candidates",
+    "range",
+    "bearing",
+    "range_bearing",
+    "groundtruth",
+)
 # tables whose sections are not causal yet, and why (`not_live`)
 NOT_LIVE = {
     "ellipses": "circle candidate sets of an unplaced target (the max-mixture route, "
@@ -78,22 +88,12 @@ def _event_problems(run: TeamRun, tables: dict) -> list[str]:
         mine = set(tables.get(robot.name, ()))
         for table in sorted(mine & set(NOT_LIVE)):
             out.append(f"robot {robot.name}: table {table!r}: {NOT_LIVE[table]}")
-        for table in sorted(mine - set(NOT_LIVE) - set(EVENT_TABLES)):
+        placers = {"markers", "candidates", "bearing"}  # candidate sets, mutual bearings, P3P
+        if robot.initial_pose is None and not (mine & placers):
             out.append(
-                f"robot {robot.name}: table {table!r}: point measurements of event-clocked "
-                f"robots (a robot placed by mutual bearings, a static robot's measurements)"
+                f"robot {robot.name}: no initial_pose, and no candidate sets or bearings to "
+                f"place it (scan registration)"
             )
-        sees = mine & {"markers", "candidates"}
-        if robot.initial_pose is None and (robot.static or not sees):
-            out.append(
-                f"robot {robot.name}: no initial_pose and no candidate sets to place it (mutual "
-                f"bearings, resection, scan registration)"
-            )
-    if not any({"markers", "candidates", "ellipses"} & set(t) for t in tables.values()):
-        out.append(
-            "no markers or candidates table: iSAM2's precision would come from the median of "
-            "every relative pose of the run (`run_precision`)"
-        )
     return out
 
 

@@ -54,6 +54,7 @@ class EventRobot:
         self.placed: dict = {}  # node -> decided / initial pose (the seeds)
         self.seed: int | None = None  # first seeded node
         self.initial_done = 0  # nodes whose initial value is set
+        self.variants: list = []  # a guessed placement's alternatives: (nodes done, key -> Pose3)
         self.anchors_done = 0
         self.anchor_count = 0
         self.finished = False

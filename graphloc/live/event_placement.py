@@ -1,8 +1,9 @@
 """Where event-clocked robots start (`live.events.EventGraph`): a robot placed at a known or
 decided pose (`seed_robot`: `motion.place_robot`'s seeds, its earlier poses carried back along
 its steps), the initial values of placed robots' later poses carried forward (`initial_upto`),
-and the pixel streams' alternative placements a batch solve starts from too
-(`alternative_placements`, `candidates.place_observers`)."""
+the alternative placements a solve starts from too (`alternative_placements`: the pixel
+streams', `candidates.place_observers`, and the resected robots', `live.event_points`), the
+robots nothing placed (`unplaced_robots`) and the graph's counts (`graph_counts`)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from graphloc.keys import pose_key
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_clock import EventRobot
 from graphloc.pipelines.team_graph.config import GraphConfig
-from graphloc.pipelines.team_graph.graph import TeamGraph, alternative_starts
+from graphloc.pipelines.team_graph.graph import TeamGraph, alternative_starts, with_sensors
 from graphloc.pipelines.team_graph.motion import step_or_unknown
 from graphloc.run import TeamRun
 
@@ -50,13 +51,48 @@ def initial_upto(graph: TeamGraph, config: GraphConfig, robots: list, t: float) 
                 step = step_or_unknown(robot.steps, k, config)[0]
                 initial[pose_key(r, k)] = initial[pose_key(r, k - 1)].compose(step)
             robot.initial_done += 1
+        extend_variants(robot, config, robot.initial_done)
+
+
+def start_variants(graph: TeamGraph, config: GraphConfig, robot: EventRobot, starts: list) -> None:
+    """A robot placed by a guess (`event_points`: resection): every start (node, world_T_body)
+    an alternative of its poses so far, carried along its steps as `graph.alternative_starts`
+    carries them, and grown with its poses (`initial_upto`); the online solve runs them as
+    hypotheses from when they are made (`graph.guessed_alternatives`)."""
+    r = robot.r
+    for k0, body in starts:
+        v = {pose_key(r, k0): body}
+        for j in range(k0 - 1, -1, -1):
+            step = step_or_unknown(robot.steps, j + 1, config)[0]
+            v[pose_key(r, j)] = v[pose_key(r, j + 1)].compose(step.inverse())
+        robot.variants.append((k0 + 1, v))
+    extend_variants(robot, config, robot.initial_done)
+    graph.guessed_alternatives += [v for _, v in robot.variants]
+
+
+def extend_variants(robot: EventRobot, config: GraphConfig, n: int) -> None:
+    """A guessed robot's alternatives carried forward along its steps to its first n poses."""
+    r = robot.r
+    for j, (done, v) in enumerate(robot.variants):
+        for k in range(done, n):
+            step = step_or_unknown(robot.steps, k, config)[0]
+            v[pose_key(r, k)] = v[pose_key(r, k - 1)].compose(step)
+        robot.variants[j] = (max(done, n), v)
 
 
 def alternative_placements(
-    run: TeamRun, config: GraphConfig, clock, graph: TeamGraph, robots: list, streams: list
+    run: TeamRun,
+    config: GraphConfig,
+    clock,
+    graph: TeamGraph,
+    robots: list,
+    streams: list,
+    points,
 ) -> None:
-    """The pixel streams' alternative placements (`candidates.place_observers`, used by a
-    batch solve), carried along the steps as `graph.alternative_starts` carries them."""
+    """The alternative placements a solve starts from too, carried along the steps as
+    `graph.alternative_starts` carries them: the pixel streams' (`candidates.place_observers`,
+    used by a batch solve) and the resected robots' (`event_points`: a guess, so the online
+    solve runs them as hypotheses too, `guessed_alternatives`)."""
     alternatives = {}
     for s in streams:
         if s.pixel_route and s.sets:
@@ -70,5 +106,65 @@ def alternative_placements(
         for robot in robots
         if robot.seed is not None
     }
-    variants, _ = alternative_starts(run, config, clock, graph.step_rel, poses, alternatives, {})
-    graph.alternatives = variants
+    sensor_poses = points.builder.sensors.poses
+    variants, _ = alternative_starts(
+        run, config, clock, graph.step_rel, poses, alternatives, sensor_poses
+    )
+    guessed = [
+        with_sensors(v, sensor_poses) for r in points.resected for _, v in robots[r].variants
+    ]
+    graph.alternatives, graph.guessed_alternatives = variants + guessed, guessed
+
+
+def unplaced_robots(run, graph: TeamGraph, robots: list, streams: list, strict: bool, skips):
+    """Robots nothing placed by the end: NotLiveError when `strict` (a never-decided pixel
+    stream, whose observer today's route places by a guess: not causal, `live.events`), else a
+    counted skip `unanchored_robot` (their factors stayed held)."""
+    for robot in robots:
+        if robot.seed is not None:
+            continue
+        graph.anchored_from.pop(robot.r, None)
+        if not len(robot.times):  # no rows: no poses
+            continue
+        undecided = [
+            run.robots[t.out.target].name
+            for t, _, _ in streams
+            if t.out.robot == robot.r and t.out.pixel_route and t.out.sets
+        ]
+        if undecided:
+            why = (
+                f"its candidate sets of {undecided[0]} were never decided: graphloc online "
+                f"places it by the tracker's guess at its first set and runs that set's "
+                f"candidates as hypotheses, which depends on every later set (not causal)"
+            )
+        else:
+            why = (
+                "nothing placed it (no decided candidate set, no placement by mutual bearings "
+                "or resection)"
+            )
+        if strict:
+            raise NotLiveError(f"robot {robot.robot.name}: {why}")
+        skips.add(
+            "unanchored_robot",
+            f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",
+            len(robot.times),
+        )
+
+
+def graph_counts(events, graph: TeamGraph) -> dict:
+    """The counts `build_graph` gives its graph, of an `EventGraph` at its end."""
+    types, points = graph.factor_types, events.points.builder
+    return {
+        "robots": len(events.run.robots),
+        "poses": sum(len(r.times) for r in events.robots if r.seed is not None),
+        "candidate_sets": len(events.arrived),
+        "marker_points": len(events.marker_points),
+        "frame_marker_points": 0,
+        "sensor_poses": len(points.sensors.poses),
+        "committed_sets": sum(d.committed >= 0 for d in graph.decisions),
+        "landmark_anchors": points.n_anchor,
+        "feature_tracks": 0,
+        "steps": len(graph.steps),
+        "excluded_by_option": points.excluded,
+        **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
+    }

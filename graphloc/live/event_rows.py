@@ -1,8 +1,8 @@
 """`EventRows`: an event-clocked team's checked rows (`rows.RowChecker` with the event tables)
 into its `events.EventGraph`, with the interface `LiveTeam` drives (`point`, `advance`,
-`finish`, `graph`, `start`, `run_so_far`): relative poses go in as they come; `markers` and
-`candidates` rows are held until the watermark passes their time (every row of their image or
-set has arrived), then made into candidate sets by the loader's own front ends
+`finish`, `graph`, `start`, `run_so_far`): relative poses and point measurements go in as they
+come; `markers` and `candidates` rows are held until the watermark passes their time (every
+row of their image or set has arrived), then made into candidate sets by the loader's own front ends
 (`log_observations.marker_observations`: the checks and P3P of a log's marker pixels,
 `candidate_observations`), in the loader's order, and go in."""
 
@@ -22,6 +22,7 @@ from graphloc.pipelines.team_graph.graph import TeamGraph
 from graphloc.run import TeamRun
 
 RELATIVE = ("relative_pose", "relative_pose3")
+POINT_TABLES = ("range", "bearing", "range_bearing")
 
 
 class EventRows:
@@ -36,7 +37,12 @@ class EventRows:
             for r, robot in enumerate(run.robots)
             if set(RELATIVE) & set(tables.get(robot.name, ()))
         }
-        self.events = EventGraph(run, setup.config, setup.start_time, stamped)
+        observers = {
+            r
+            for r, robot in enumerate(run.robots)
+            if {"markers", "candidates"} & set(tables.get(robot.name, ()))
+        }
+        self.events = EventGraph(run, setup.config, setup.start_time, stamped, observers)
         self.graph = self.events.graph
         self.sink = Sink("skip", skips)
         self.sensors = [list(robot.sensors) for robot in run.robots]
@@ -44,6 +50,7 @@ class EventRows:
         self.markers: list = []  # (time, observer, sensor index, target, marker, u, v, row)
         self.candidates: dict = {}  # (time, observer, sensor, target) -> [record]
         self.motions: list = []
+        self.points: list = []
 
     @property
     def start(self):
@@ -67,6 +74,9 @@ class EventRows:
         elif table == "candidates":
             key, record = row
             self.candidates.setdefault(key, []).append(record)
+        elif table in POINT_TABLES:
+            self.points.append(row)
+            self.events.point(row)
         else:
             raise NotLiveError(f"table {table!r} is not live in an event-clocked team")
 
@@ -87,6 +97,7 @@ class EventRows:
             start_time=start,
             motions=tuple(self.motions),
             observations=tuple(events.arrived),
+            points=tuple(self.points),
         )
 
     def _sets(self, watermark: float) -> None:
@@ -115,21 +126,20 @@ class EventRows:
 
 
 def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
-    """A loaded run's graph built by `EventGraph` (its relative poses and candidate sets merged
-    in time order, a relative pose at its end time): the graph `graphloc online` solves for an
-    event-clocked run (`coverage.event_route`). steps: None, or a list that gets, after each
-    row, the steps it completed (`advance` at the row's time: the live order)."""
-    if not run.observations:
-        raise NotLiveError(
-            "no candidate sets: iSAM2's precision would come from the median of every "
-            "relative pose of the run (`run_precision`, not causal)"
-        )
+    """A loaded run's graph built by `EventGraph` (its relative poses, candidate sets and point
+    measurements merged in time order, a relative pose at its end time): the graph `graphloc
+    online` solves for an event-clocked run (`coverage.event_route`). steps: None, or a list
+    that gets, after each row, the steps it completed (`advance` at the row's time: the live
+    order)."""
     stamped = {m.robot for m in run.motions}
-    live = EventGraph(_without_rows(run), config, run.start_time, stamped)
+    observers = {o.robot for o in run.observations}
+    live = EventGraph(_without_rows(run), config, run.start_time, stamped, observers)
     motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
     sets = ((o.time, 1, i, o) for i, o in enumerate(run.observations))
-    for t, kind, _, row in heapq.merge(motions, sets, key=lambda e: e[:3]):
-        (live.motion if kind == 0 else live.observation)(row)
+    points = ((m.time, 2, i, m) for i, m in enumerate(run.points))
+    take = (live.motion, live.observation, live.point)
+    for t, kind, _, row in heapq.merge(motions, sets, points, key=lambda e: e[:3]):
+        take[kind](row)
         if steps is not None:
             steps.append(live.advance(t))
     done = live.finish()
@@ -140,4 +150,4 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
 
 
 def _without_rows(run: TeamRun) -> TeamRun:
-    return replace(run, motions=(), observations=())
+    return replace(run, motions=(), observations=(), points=())

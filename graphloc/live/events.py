@@ -32,12 +32,21 @@ from __future__ import annotations
 
 import bisect
 from collections import deque
+from dataclasses import replace
 
 import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.live.coverage import NotLiveError
-from graphloc.live.event_placement import alternative_placements, initial_upto, seed_robot
+from graphloc.live.event_placement import (
+    alternative_placements,
+    graph_counts,
+    initial_upto,
+    seed_robot,
+    start_variants,
+    unplaced_robots,
+)
+from graphloc.live.event_points import EventPoints
 from graphloc.live.event_clock import (
     EventClock,
     EventRobot,
@@ -50,7 +59,7 @@ from graphloc.pipelines.team_graph.candidates import (
     StreamTracker,
     stream_factors,
 )
-from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig
+from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig, run_precision
 from graphloc.pipelines.team_graph.graph import TeamGraph
 from graphloc.pipelines.team_graph.motion import (
     between_factor,
@@ -65,12 +74,16 @@ class EventGraph:
     (`observation(o)`) in time order; `advance(watermark)` returns the completed steps,
     `finish()` the rest (module docstring)."""
 
-    def __init__(self, run: TeamRun, config: GraphConfig, start_time: float | None, stamped):
-        """stamped: the robots with a relative-pose table (their pose times at its stamps).
-        The run must hold candidate sets (a markers or candidates table): iSAM2's thresholds
-        are then FINE_PRECISION (`config.run_precision`); without, they would come from the
-        median of every relative pose of the run (not causal)."""
+    def __init__(
+        self, run: TeamRun, config: GraphConfig, start_time, stamped, observers=frozenset()
+    ):
+        """stamped: the robots with a relative-pose table (their pose times at its stamps);
+        observers: those with candidate sets (a markers or candidates table). With candidate
+        sets iSAM2's thresholds are FINE_PRECISION (`config.run_precision`); without, the
+        median of the relative poses that arrived before the first step (the whole run's
+        rule, `run_precision`, over the rows so far)."""
         self.run, self.config = run, config
+        self.points = EventPoints(run, config, set(observers))
         self.start = start_time
         self.start_from_rows = False  # the start came from the first relative pose
         self.robots = [EventRobot(r, robot, r in stamped) for r, robot in enumerate(run.robots)]
@@ -80,6 +93,7 @@ class EventGraph:
         self.arrived: list = []  # every candidate set, in arrival order
         self.marker_points: dict = {}
         self.pending: dict = {}
+        self.carried: list = []  # point factors on poses of steps already emitted
         self.emitted = -np.inf
         self.first_seen = np.inf
         self.skips = SkipReport()
@@ -94,7 +108,7 @@ class EventGraph:
             {},
             [r.steps for r in self.robots],
             skips=SkipReport(),
-            precision=FINE_PRECISION,
+            precision=FINE_PRECISION if observers else np.nan,
         )
         self.graph.skips.merge(run.skips)
         for r, robot in enumerate(run.robots):  # held by the online pass until placed
@@ -152,20 +166,30 @@ class EventGraph:
         self.first_seen = min(self.first_seen, o.time)
         self.arrived.append(o)
         for r in (o.robot, o.target):
-            robot = self.robots[r]
-            built = robot.times
-            if not robot.robot.static and len(built) and o.time < built[-1]:
-                raise NotLiveError(
-                    f"robot {robot.robot.name}: a candidate set at {o.time}, after its pose "
-                    f"times up to {built[-1]} were built (rows out of time order)"
-                )
-            if robot.measured and o.time < robot.measured[-1]:
-                raise NotLiveError(
-                    f"robot {robot.robot.name}: candidate sets out of time order ({o.time} "
-                    f"after {robot.measured[-1]})"
-                )
-            robot.measured.append(o.time)
+            self._measured(self.robots[r], o.time, "a candidate set")
         self.queue.append((len(self.arrived) - 1, o))
+
+    def point(self, m) -> None:
+        """A range, bearing or range-bearing (`graphloc.run.PointMeasurement`)."""
+        self.first_seen = min(self.first_seen, m.time)
+        for r in (m.robot, m.target) if m.target >= 0 else (m.robot,):
+            self._measured(self.robots[r], m.time, "a point measurement")
+        self.points.add(m)
+
+    def _measured(self, robot: EventRobot, t: float, what: str) -> None:
+        """A measurement at t of robot: a pose time to come (refused out of time order)."""
+        built = robot.times
+        if not robot.robot.static and len(built) and t < built[-1]:
+            raise NotLiveError(
+                f"robot {robot.robot.name}: {what} at {t}, after its pose times up to "
+                f"{built[-1]} were built (rows out of time order)"
+            )
+        if robot.measured and t < robot.measured[-1]:
+            raise NotLiveError(
+                f"robot {robot.robot.name}: measurements out of time order ({what} at {t} "
+                f"after {robot.measured[-1]})"
+            )
+        robot.measured.append(t)
 
     # ---- steps out ----------------------------------------------------------------------------
 
@@ -180,11 +204,19 @@ class EventGraph:
         for robot in self.robots:
             self._times(robot, watermark)
         self._take_motions(watermark)
+        points, robots, tol = self.points, self.robots, self.config.sync_tolerance
+        points.take(self.clock, lambda r: final_end(robots[r], watermark), self._pending)
         self._take_sets(watermark)
-        bound = min(motion_bound(robot, watermark) for robot in self.robots)
-        bound = min(bound, watermark - self.config.sync_tolerance - 1e-9)
-        if self.queue:
-            bound = min(bound, self.queue[0][1].time - self.config.sync_tolerance - 1e-9)
+        finished = watermark == np.inf and all(robot.finished for robot in robots)
+        points.place(robots, self.clock, self._seed, finished)
+        for r, (starts, _) in points.resected.items():
+            if not robots[r].variants:
+                start_variants(self.graph, self.config, robots[r], starts)
+        bound = min(motion_bound(robot, watermark) for robot in robots)
+        held = np.inf if finished else points.hold_from(robots) - 1e-9
+        bound = min(bound, watermark - tol - 1e-9, held)
+        for head in ([self.queue[0][1]] if self.queue else []) + list(points.queue)[:1]:
+            bound = min(bound, head.time - tol - 1e-9)
         return self._emit(bound)
 
     def finish(self, strict: bool = True) -> list:
@@ -198,59 +230,17 @@ class EventGraph:
             self.start = float(self.first_seen)
         steps = self.advance(np.inf) if self.start is not None else []
         graph, streams = self.graph, list(self.streams.values())
-        for robot in self.robots:
-            if robot.seed is not None or robot.robot.static:
-                continue
-            graph.anchored_from.pop(robot.r, None)
-            if not len(robot.times):  # no rows: no poses
-                continue
-            undecided = [
-                self.run.robots[t.out.target].name
-                for t, _, _ in streams
-                if t.out.robot == robot.r and t.out.pixel_route and t.out.sets
-            ]
-            if undecided:
-                why = (
-                    f"its candidate sets of {undecided[0]} were never decided: graphloc online "
-                    f"places it by the tracker's guess at its first set and runs that set's "
-                    f"candidates as hypotheses, which depends on every later set (not causal)"
-                )
-            else:
-                why = "nothing placed it (no decided candidate set)"
-            if strict:
-                raise NotLiveError(f"robot {robot.robot.name}: {why}")
-            self.skips.add(
-                "unanchored_robot",
-                f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",
-                len(robot.times),
-            )
+        unplaced_robots(self.run, graph, self.robots, streams, strict, self.skips)
         graph.decisions = [d for tracker, _, _ in streams for d in tracker.out.outcomes]
         for tracker, _, _ in streams:
             graph.skips.merge(tracker.out.skips)
         graph.skips.merge(self.skips)
+        graph.skips.merge(self.points.builder.made.skips)
+        outs = [tracker.out for tracker, _, _ in streams]
         alternative_placements(
-            self.run,
-            self.config,
-            self.clock,
-            self.graph,
-            self.robots,
-            [tracker.out for tracker, _, _ in streams],
+            self.run, self.config, self.clock, graph, self.robots, outs, self.points
         )
-        types = graph.factor_types
-        graph.counts = {
-            "robots": len(self.run.robots),
-            "poses": sum(len(r.times) for r in self.robots if r.seed is not None),
-            "candidate_sets": len(self.arrived),
-            "marker_points": len(self.marker_points),
-            "frame_marker_points": 0,
-            "sensor_poses": 0,
-            "committed_sets": sum(d.committed >= 0 for d in graph.decisions),
-            "landmark_anchors": 0,
-            "feature_tracks": 0,
-            "steps": len(graph.steps),
-            "excluded_by_option": 0,
-            **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
-        }
+        graph.counts = graph_counts(self, graph)
         return steps
 
     # ---- internals ----------------------------------------------------------------------------
@@ -390,21 +380,34 @@ class EventGraph:
             )
 
     def _pending(self, t: float, order: tuple, factor, kind: str) -> None:
+        if order[0] == 2 and t <= self.emitted:  # a row between static robots, whose one pose
+            self.carried.append((order, factor, kind))  # is at the start: in the next step
+            return
         self.pending.setdefault(float(t), []).append((order, factor, kind))
 
     def _emit(self, bound: float) -> list:
         due = sorted(t for t in self.pending if t <= bound)
+        graph = self.graph
+        if (due or bound == np.inf) and not np.isfinite(graph.precision):  # no candidate sets:
+            motions = tuple(m for robot in self.robots for m in robot.motions)  # the steps so far
+            graph.precision = run_precision(replace(self.run, motions=motions, observations=()))
         steps = []
         for t in due:
             if t <= self.emitted:
                 raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
-            initial_upto(self.graph, self.config, self.robots, t)
+            initial_upto(graph, self.config, self.robots, t)
+            self.points.initials(graph.initial)
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
+            group, self.carried = self.carried + group, []
             step = (t, [(f, kind) for _, f, kind in group])
-            self.graph.steps.append(step)
-            self.graph.factor_types += [kind for _, _, kind in group]
+            graph.steps.append(step)
+            graph.factor_types += [kind for _, _, kind in group]
             self.emitted = t
             steps.append(step)
         if bound == np.inf:
-            initial_upto(self.graph, self.config, self.robots, np.inf)
+            initial_upto(graph, self.config, self.robots, np.inf)
+            self.points.initials(graph.initial)
         return steps
+
+    def _seed(self, robot: EventRobot, k: int, pose) -> None:
+        seed_robot(self.graph, self.config, robot, k, pose)
