@@ -1,7 +1,8 @@
 """`EventGraph`: the team graph of event-clocked robots built as rows arrive -- robots without
 wheel odometry, whose poses are at their relative poses' stamps and their measurements' times
 (`team_graph.motion.node_times`), placed by the candidate sets they see of a static target with
-a known pose (`team_graph.candidates`: one `StreamTracker` per stream, fed set by set).
+a known pose (`team_graph.candidates`: one `StreamTracker` per stream, fed set by set), or by
+their bearings (`live.event_points`: point measurements, mutual bearings, resection).
 
 Causality. A robot's pose times up to x are final once every row before x has arrived (the
 watermark passed x) and, for a robot with relative poses, x is no later than the last arrived
