@@ -49,6 +49,8 @@ class EventPoints:
         self.observers = observers  # robots a candidate stream places (not resected)
         self.resected: dict = {}
         self.first_set: dict = {}  # robot -> time of its first complete resection set
+        self.seen: dict = {}  # robot -> time -> robots its bearings at that time see
+        self.placed_at = 0  # rows taken when `place` last looked
 
     def add(self, m) -> None:
         self.arrived.append(m)
@@ -66,6 +68,8 @@ class EventPoints:
                 return
             self.queue.popleft()
             self.taken.append(m)
+            if m.kind == "bearing" and m.target >= 0:
+                self.seen.setdefault(m.robot, {}).setdefault(m.time, set()).add(m.target)
             if builder.used(m):
                 k = clock.nearest(m.robot, m.time)
                 kt = -1 if m.target < 0 else clock.nearest(m.target, m.time)
@@ -78,8 +82,9 @@ class EventPoints:
         """Place the robots the rows taken so far place (module docstring): seed(robot, node,
         world_T_body) for each new placement."""
         unplaced = [r for r in robots if r.seed is None and r.robot.initial_pose is None]
-        if not unplaced or not self.taken:
+        if not unplaced or not self.taken or (self.placed_at == len(self.taken) and not finished):
             return
+        self.placed_at = len(self.taken)
         run = replace(self.run, points=tuple(self.taken))
         known = {
             r.r: r.robot.initial_pose
@@ -101,7 +106,10 @@ class EventPoints:
                 continue
             if robot.robot.static and not finished:  # mutual bearings place it first
                 continue
-            sets = _resection_times(self.taken, r, positions, complete)
+            seen = self.seen.get(r, {})
+            sets = [
+                t for t in sorted(seen) if t < complete and len(seen[t] & positions.keys()) >= 3
+            ]
             if sets:
                 self.first_set.setdefault(r, sets[0])
             if not sets or (len(sets) < RESECTION_SETS and not finished):
@@ -151,13 +159,3 @@ def clock_time(robot, config: GraphConfig, t: float) -> float:
     times = robot.times
     near = times[np.abs(times - t) <= config.sync_tolerance] if len(times) else times
     return float(near.min()) if len(near) else t - config.sync_tolerance
-
-
-def _resection_times(points: list, r: int, positions: dict, complete: float) -> list:
-    """The times before `complete` at which robot r's bearings see three placed static robots
-    (`formation.resection_candidates`' sets), in time order."""
-    seen: dict = {}
-    for m in points:
-        if m.robot == r and m.kind == "bearing" and m.target in positions and m.time < complete:
-            seen.setdefault(m.time, set()).add(m.target)
-    return [t for t in sorted(seen) if len(seen[t]) >= 3]
