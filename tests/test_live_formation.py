@@ -17,7 +17,7 @@ import graphloc
 from graphloc.cli import main
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
-from graphloc.live import replay_live
+from graphloc.live import LiveTeam, replay_live
 from graphloc.live.builder import build_live
 from graphloc.live.coverage import not_live, route, run_tables
 from graphloc.live.event_rows import _without_rows
@@ -164,3 +164,14 @@ def test_without_candidate_sets_the_precision_is_the_steps_before_the_first_step
     first = longer.motions[: len(run.motions) + 1]  # in when the climber was resected
     assert live.graph.precision == run_precision(replace(run, motions=first))
     assert live.graph.precision > run_precision(longer)
+
+
+def test_a_team_without_rows_checkpoints_and_finishes_empty(runs, tmp_path):
+    """Before any step the passes are not made (the precision comes with the first step): a
+    checkpoint then says no step is done, and a team finished without rows has no pose."""
+    team = LiveTeam.open(runs / "1", checkpoint=tmp_path / "team.checkpoint")
+    team.write_checkpoint()
+    assert team.latest("climber") is None
+    result = team.finish()
+    assert not result.graph.steps and all(np.isnan(e).all() for e in result.estimate)
+    assert result.graph.precision == run_precision(replace(open_run(runs / "1"), motions=()))

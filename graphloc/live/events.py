@@ -229,7 +229,7 @@ class EventGraph:
             robot.finished = True
         if self.start is None and np.isfinite(self.first_seen):
             self.start = float(self.first_seen)
-        steps = self.advance(np.inf) if self.start is not None else []
+        steps = self.advance(np.inf) if self.start is not None else self._emit(np.inf)
         graph, streams = self.graph, list(self.streams.values())
         unplaced_robots(self.run, graph, self.robots, streams, strict, self.skips)
         graph.decisions = [d for tracker, _, _ in streams for d in tracker.out.outcomes]

@@ -196,7 +196,7 @@ class LiveTeam:
         write_checkpoint(
             self.checkpoint_path,
             self.graph,
-            self._solver().done,
+            self._done(),
             {
                 "live": {
                     "window": self.window.window,
@@ -235,10 +235,10 @@ class LiveTeam:
         finally:
             self.checkpoint_every = every
         read_checkpoint(path, self.graph, allow_nan=True)  # the same run, options and steps
-        if data["steps_done"] != self._solver().done:
+        if data["steps_done"] != self._done():
             raise ValueError(
                 f"{path}: field 'steps_done' is {data['steps_done']}, its rows give "
-                f"{self._solver().done} steps"
+                f"{self._done()} steps"
             )
         self.resumed = len(rows)
 
@@ -331,6 +331,10 @@ class LiveTeam:
         for j in range(i + 1):
             self._solver().step(j)
         self.solver_note = f"QR factorization (Cholesky failed: {exc})"
+
+    def _done(self) -> int:
+        """Graph steps solved."""
+        return 0 if self.solver is None else self.solver.done
 
     def _solver(self) -> SideBySide:
         """The online passes (`solver`), made now if not yet: one per start, the guess and
