@@ -175,3 +175,16 @@ def test_a_team_without_rows_checkpoints_and_finishes_empty(runs, tmp_path):
     result = team.finish()
     assert not result.graph.steps and all(np.isnan(e).all() for e in result.estimate)
     assert result.graph.precision == run_precision(replace(open_run(runs / "1"), motions=()))
+
+
+def test_a_robot_nothing_can_place_is_named(runs):
+    """Without its bearings the climber has nothing to place it (no candidate sets, no
+    resection): `not_live` names it (`LiveTeam.open` refuses such a run with that list)."""
+    run = open_run(runs / "1")
+    tables = run_tables(run)
+    assert not not_live(run, tables)
+    tables["climber"] = tables["climber"] - {"bearing"}
+    assert not_live(run, tables) == [
+        "robot climber: no initial_pose, and no candidate sets or bearings to place it (scan "
+        "registration)"
+    ]

@@ -131,7 +131,7 @@ class EventPoints:
         for robot in robots:
             if robot.seed is not None or robot.robot.initial_pose is not None:
                 continue
-            if robot.robot.static and self.arrived and robot.r not in self.observers:
+            if robot.robot.static and robot.r not in self.observers:
                 out = -np.inf
             elif robot.r in self.first_set:
                 out = min(out, clock_time(robot, self.config, self.first_set[robot.r]))
