@@ -1,9 +1,10 @@
 """Benchmark: the `crawler-pair` scenario (seed 003, 003_8db27855ce2d5f68.txt, Sec. III / Fig. 6)
 through the front door -- the log `graphloc simulate crawler-pair` writes, read by
-`graphloc.datasets.open_run` and solved by `graphloc.pipelines.team_graph` (what `graphloc
-smooth` / `online` run) -- beside the seed's EKF (`benchmarks.baselines.ekf_seed003`) on the same
-front-end measurements, for N = 1, 2, 10, 20 feature points (N counts the robot tracker's
-point, so N - 1 KLT tracks).
+`graphloc.datasets.open_run`, built by `graphloc.runner.team_run.team_graph` (the live
+builder's event route, `graphloc.live.events`) and solved by `graphloc.pipelines.team_graph`
+(what `graphloc smooth` / `online` run) -- beside the seed's EKF
+(`benchmarks.baselines.ekf_seed003`) on the same front-end measurements, for N = 1, 2, 10,
+20 feature points (N counts the robot tracker's point, so N - 1 KLT tracks).
 
 Per trial one rendered sequence (a different random scene and motion per seed); per N the
 front-end (`measure_frames`) runs once and feeds both the EKF and the log writer
@@ -39,7 +40,8 @@ from graphloc.executor import Executor
 from benchmarks.markdown import write_report
 from benchmarks.render import render
 from graphloc.pipelines.judge import genuine_candidates
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, default_lag, solve
+from graphloc.pipelines.team_graph import GraphConfig, default_lag, solve
+from graphloc.runner.team_run import team_graph
 from graphloc.plots import plt
 from graphloc.structured import dumps_json
 from graphloc.vision.features import FeatureConfig
@@ -79,7 +81,7 @@ def run_trial(seed: int) -> dict:
             write_crawler_pair_log(seq, frames, tmp)
             run = open_run(tmp)
         cam = run.index("camera")
-        graph = build_graph(run, GraphConfig())
+        graph = team_graph(run, GraphConfig())  # the verbs' graph (the live builder's)
         for mode in ("batch", "online"):
             config = replace(graph.config, lag=default_lag(run, graph.config))
             result = solve(replace(graph, config=config), mode=mode)

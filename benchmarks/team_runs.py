@@ -30,7 +30,8 @@ from graphloc.keys import pose_key
 from benchmarks.front_door import truth_at
 from graphloc.pipelines.judge import judge_decisions
 from graphloc.pipelines.report import evaluate
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.pipelines.team_graph import GraphConfig, solve
+from graphloc.runner.team_run import team_graph
 from benchmarks.track_smoothing import smooth_track
 from graphloc.seams import Odometry
 
@@ -46,7 +47,8 @@ def _errors(run, result, r: int, rows: np.ndarray) -> np.ndarray:
 def through_front_door(
     run_dir: Path, config: GraphConfig = GraphConfig(), oracle: bool = False
 ) -> dict:
-    """One simulated log through open_run -> build_graph -> batch and online solves."""
+    """One simulated log through open_run -> the verbs' graph (`runner.team_run.team_graph`)
+    -> batch and online solves."""
     run = open_run(run_dir)
     r = run.index("climber")
     if oracle:  # each candidate set reduced to its genuine candidate (nearest the truth), which
@@ -81,7 +83,7 @@ def through_front_door(
                 )
             )
         run = replace(run, observations=tuple(obs))
-    graph = build_graph(run, config)
+    graph = team_graph(run, config)
     results = {mode: solve(graph, mode) for mode in ("batch", "online")}
     decisions = results["batch"].decisions  # max-mixture sets chosen at the estimate
     genuine, correct = judge_decisions(run, decisions)

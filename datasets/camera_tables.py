@@ -95,10 +95,11 @@ def feature_observations(
     return out
 
 
-def single_tracks(rows: list, manifest, sink) -> list:
+def single_tracks(rows: list, manifest, sink, where=None) -> list:
     """`features` rows without the ones whose track appears twice in one image (time, robot,
     sensor): which pixel is the track's cannot be told, so each such row is a counted skip
-    `duplicate_track` (as a marker seen twice in one image)."""
+    `duplicate_track` (as a marker seen twice in one image). where(robot index, row): where a
+    row is (default: the table's file and line)."""
     counts = Counter((ri, rec.time, rec.sensor, rec.track) for ri, rec in rows)
     if all(n == 1 for n in counts.values()):
         return rows
@@ -107,11 +108,13 @@ def single_tracks(rows: list, manifest, sink) -> list:
         if counts[(ri, rec.time, rec.sensor, rec.track)] == 1:
             kept.append((ri, rec))
             continue
-        table = manifest.root / manifest.robots[ri].tables["features"]
+        if where is None:
+            at = f"{manifest.root / manifest.robots[ri].tables['features']}: line {rec.line}"
+        else:
+            at = where(ri, rec)
         sink.bad(
             "duplicate_track",
-            f"{table}: line {rec.line}: field 'track': track {rec.track} appears twice in one "
-            f"image (time {rec.time})",
+            f"{at}: field 'track': track {rec.track} appears twice in one image (time {rec.time})",
         )
     return kept
 

@@ -160,3 +160,25 @@ def test_killed_and_restarted_from_its_checkpoint_loses_nothing(planar_log, tmp_
     for name in want:
         assert got[name].shape == want[name].shape
         assert np.abs(got[name] - want[name]).max() < 1e-9, name
+
+
+def test_live_on_a_finished_kaushik_log_is_graphloc_online(tmp_path):
+    """kaushik-p3p-error, whose marker stream is never decided: `graphloc live --log-dir` on
+    the finished log places the camera where `graphloc online` does (the event route's one
+    rule, `graphloc.live.events`) and writes the same estimates."""
+    from graphloc.datasets.scenarios import generate
+
+    log = tmp_path / "log"
+    generate("kaushik-p3p-error", log, 2)
+    out = tmp_path / "live"
+    argv = ["live", "--log-dir", str(log), "--out", str(out), "--idle", "1.0", "--no-progress"]
+    assert main(argv) == 0
+    assert main(["online", str(log), "--out", str(tmp_path / "online"), "--no-progress"]) == 0
+    want, got = _tums(tmp_path / "online"), _tums(out)
+    assert "climber_online.tum" in want and got.keys() == want.keys()
+    for name in want:
+        assert got[name].shape == want[name].shape
+        assert np.abs(got[name] - want[name]).max() < 1e-9, name
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["per_robot"]["climber"]["online"]["ate_rmse"] < 0.1
+    assert "unanchored_robot" not in metrics["skipped"]["counts"]

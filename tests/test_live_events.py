@@ -6,6 +6,7 @@ order -- each step emitted as soon as it is complete and solved then -- give the
 from __future__ import annotations
 
 import heapq
+from dataclasses import replace
 
 import gtsam
 import numpy as np
@@ -19,9 +20,12 @@ from graphloc.live.builder import build_live
 from graphloc.live.coverage import not_live, route, run_tables
 from graphloc.live.event_rows import _without_rows, build_events
 from graphloc.live.events import EventGraph
+from graphloc.keys import decode, pose_key
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.pipelines.team_graph.graph import factor_keys
 from graphloc.pipelines.team_graph.passes import Pass
 from graphloc.run import Motion
+from graphloc.runner.team_run import team_graph
 from test_live import _same_estimates, _same_graph
 
 CASES = [(name, seed) for name in ("breitenmoser-target", "feng-probabilistic") for seed in (1, 2)]
@@ -102,14 +106,60 @@ def test_event_graph_solved_step_by_step_is_graphloc_online(runs, name, seed):
     _same_estimates(solver.result(), reference, tol=1e-9)
 
 
-def test_a_stream_never_decided_is_refused_naming_the_dependency(runs):
-    """kaushik-p3p-error: no set is ever decided; graphloc online places the camera by the
-    tracker's guess at the first set and runs that set's candidates as hypotheses -- a choice
-    that depends on every later set."""
+def test_a_stream_never_decided_places_its_observer_by_the_guess_after_some_sets(runs):
+    """kaushik-p3p-error: no set is ever decided; the camera is placed at its
+    `guess_after_sets`-th tracked set by the tracker's best guess there (the candidate of
+    highest posterior), its factors held until then -- for any wait, at that set;
+    another set; the run goes through `build_live`, no whole-run builder."""
     run = runs[("kaushik-p3p-error", 1)]
-    assert all(d.status != "decided" for d in build_graph(run, GraphConfig()).decisions)
-    with pytest.raises(NotLiveError, match="never decided.*not causal"):
-        build_events(run, GraphConfig())
+    for wait in (1, 3, GraphConfig().guess_after_sets):
+        config = replace(GraphConfig(), guess_after_sets=wait)
+        live = _live(run, config)
+        assert all(d.status == "undecided" for d in live.graph.decisions)
+        tracker = live.streams[(0, 1)][0]
+        placing = tracker.out.sets[wait - 1]
+        assert live.graph.anchored_from[0] == live.graph.node_times[0][placing.k]
+        best = placing.bodies[int(np.argmax(placing.update.probabilities))]
+        placed = live.graph.initial[pose_key(0, placing.k)]
+        assert np.array_equal(placed.matrix(), best.matrix())
+        assert not live.skips.counts.get("unanchored_robot")
+    assert not not_live(run, run_tables(run)) and route(run, run_tables(run)) == "event"
+    _same_graph(live.graph, build_live(run, GraphConfig()))
+
+
+@pytest.mark.parametrize("name, seed", [*CASES, ("kaushik-p3p-error", 1)])
+def test_the_steps_up_to_a_time_do_not_change_when_later_rows_exist(runs, name, seed):
+    """Causal: the run cut at a time t (every row after it withheld) emits before its end the
+    same steps -- times, factors, initial values, placement -- as the whole run does up to
+    there; nothing built before t waits for what comes after it."""
+    run, config = runs[(name, seed)], GraphConfig()
+    whole = build_events(run, config)
+    times = [t for t, _, _ in _rows(run)]
+    for cut in (times[len(times) // 3], times[2 * len(times) // 3]):
+        part = replace(
+            run,
+            motions=tuple(m for m in run.motions if max(m.t0, m.t1) <= cut),
+            observations=tuple(o for o in run.observations if o.time <= cut),
+        )
+        emitted = []
+        live = _live(part, config, emitted.append)
+        early = [step for steps in emitted[:-1] for step in steps]  # before `finish`
+        assert early and len(early) < len(whole.steps)
+        prefix = replace(whole, steps=whole.steps[: len(early)])
+        assert [t for t, _ in early] == [t for t, _ in prefix.steps]
+        for (_, fa), (_, fb) in zip(early, prefix.steps):
+            assert [factor_keys(f) for f, _ in fa] == [factor_keys(f) for f, _ in fb]
+            assert [kind for _, kind in fa] == [kind for _, kind in fb]
+        for key in {k for _, group in early for f, _ in group for k in factor_keys(f)}:
+            if key not in live.graph.initial:  # a robot not placed by the cut: held
+                assert decode(key)[1] not in live.graph.anchored_from
+                continue
+            a, b = live.graph.initial[key], whole.initial[key]
+            a, b = (a.matrix(), b.matrix()) if isinstance(a, gtsam.Pose3) else (a, b)
+            assert np.array_equal(np.asarray(a), np.asarray(b))
+        for r, t in live.graph.anchored_from.items():
+            if t <= early[-1][0]:
+                assert whole.anchored_from[r] == t
 
 
 def test_a_step_starting_inside_built_steps_is_refused(runs):
@@ -133,6 +183,21 @@ def test_a_step_starting_inside_built_steps_is_refused(runs):
         live.observation(early)
 
 
+def test_streams_the_event_route_does_not_take_are_named_and_take_build_graph(runs):
+    """A loaded run whose candidate sets see an unplaced target (or one robot's sets of two
+    targets, or with and without pixels) is not live: `not_live` names it, so `team_graph`
+    builds it whole, and `EventGraph` refuses the same sets as they arrive."""
+    run = runs[("feng-probabilistic", 1)]
+    unplaced = replace(
+        run, robots=tuple(replace(r, initial_pose=None) if r.static else r for r in run.robots)
+    )
+    problems = not_live(unplaced, run_tables(unplaced))
+    assert any("not a static robot with an initial_pose" in p for p in problems)
+    assert team_graph(unplaced, GraphConfig()).counts == build_graph(unplaced, GraphConfig()).counts
+    with pytest.raises(NotLiveError, match="not a static robot with an initial_pose"):
+        build_events(unplaced, GraphConfig())
+
+
 @pytest.mark.parametrize("name, seed", CASES)
 def test_live_team_is_graphloc_online(runs, name, seed, tmp_path):
     """The log's rows (relative poses, marker pixels) pushed in time order through the live
@@ -154,20 +219,41 @@ def test_live_team_is_graphloc_online(runs, name, seed, tmp_path):
     assert team.latest("climber").index == estimated[-1]
 
 
-def test_live_team_counts_a_never_decided_observer(tmp_path):
-    """kaushik-p3p-error: the live team holds the camera's factors waiting for a decision that
-    never comes; its poses are left out, counted as `unanchored_robot` naming why (graphloc
-    online, with the whole run, places it by the guess and runs its hypotheses)."""
+def test_kaushik_live_online_and_smooth_take_one_graph(tmp_path):
+    """kaushik-p3p-error (never decided): the live team, `graphloc online` and `graphloc
+    smooth` build the event route's graph (no whole-run builder): live gives online's estimates
+    and causal estimates, one hypothesis each, the camera placed and estimated."""
     source = tmp_path / "run"
     generate("kaushik-p3p-error", source, 1)
     team = replay_live(source)
     result = team.finish()
-    assert team.skips.counts["unanchored_robot"] == len(result.node_times[0]) > 0
-    assert any("never decided" in e for e in team.skips.examples)
-    assert np.isnan(result.estimate[0]).all() and np.isfinite(result.estimate[1]).all()
     online = graphloc.run_team(source, tmp_path / "out", "online").result
-    assert online.hypotheses == 1 + len(online.graph.guessed_alternatives) > 1
+    _same_estimates(result, online)
+    assert online.hypotheses == 1 and not team.skips.counts.get("unanchored_robot")
     assert np.isfinite(online.estimate[0]).all()
+    smooth = graphloc.run_team(source, tmp_path / "smooth", "batch").result
+    _same_graph(build_live(open_run(source), GraphConfig()), smooth.graph)
+    assert np.isfinite(smooth.estimate[0]).all()
+
+
+def test_a_stream_that_ends_before_its_guess_leaves_the_observer_out(tmp_path):
+    """kaushik-p3p-error with fewer frames than `guess_after_sets`, none decided: nothing
+    places the camera; live, online and smooth leave it out, counted `unanchored_robot`
+    naming why, and solve the rest (its factors out of the graph: no initial values)."""
+    source = tmp_path / "run"
+    frames = GraphConfig().guess_after_sets - 1
+    generate("kaushik-p3p-error", source, 1, overrides={"frames": str(frames)})
+    team = replay_live(source)
+    result = team.finish()
+    online = graphloc.run_team(source, tmp_path / "out", "online")
+    assert team.skips.counts["unanchored_robot"] == len(result.node_times[0]) > 0
+    assert any("never decided, fewer than guess_after_sets" in e for e in team.skips.examples)
+    assert online.result.graph.skips.counts["unanchored_robot"] == len(result.node_times[0])
+    for solved in (result, online.result):
+        assert np.isnan(solved.estimate[0]).all() and np.isfinite(solved.estimate[1]).all()
+    smooth = graphloc.run_team(source, tmp_path / "smooth", "batch").result
+    assert np.isnan(smooth.estimate[0]).all() and np.isfinite(smooth.estimate[1]).all()
+    assert online.metrics["skipped"]["counts"]["unanchored_robot"] > 0
 
 
 def test_an_event_team_counts_bad_rows_and_refuses_wheel_odometry(tmp_path):

@@ -185,6 +185,6 @@ def test_a_robot_nothing_can_place_is_named(runs):
     assert not not_live(run, tables)
     tables["climber"] = tables["climber"] - {"bearing"}
     assert not_live(run, tables) == [
-        "robot climber: no initial_pose, and no candidate sets or bearings to place it (scan "
-        "registration)"
+        "robot climber: no initial_pose, and no candidate sets, circles or bearings to place "
+        "it (scan registration)"
     ]

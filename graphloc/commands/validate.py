@@ -44,12 +44,11 @@ def run(args: argparse.Namespace) -> int:
         return OK
     pose_graph_run.reject_options(opts.pose_graph(), args.run)
     from graphloc.datasets import open_run
-    from graphloc.pipelines.team_graph import build_graph
-    from graphloc.runner.team_run import landmark_map
+    from graphloc.runner.team_run import landmark_map, team_graph
 
     config = opts.graph_config()
     team = open_run(args.run, duration=opts.duration, noise=opts.noise(), source=opts.source())
-    graph = build_graph(team, config)
+    graph = team_graph(team, config)  # the graph smooth / online solve
     robots = {}
     for r, robot in enumerate(team.robots):
         robots[robot.name] = {

@@ -396,8 +396,8 @@ def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:
     """A loaded run's graph built by `LiveGraph` (each robot's odometry at once, then the
     point measurements in the run's order: the graph does not depend on how the rows are split
     into calls): the graph `graphloc online` solves for a run `not_live` finds nothing in, the
-    live API's route; an event-clocked run's by `live.event_rows.build_events` (NotLiveError where
-    only its whole run shows how to build it)."""
+    live API's route; an event-clocked run's by `live.event_rows.build_events` (NotLiveError for
+    rows it refuses as a live team would: steps that overlap built ones, `live.events`)."""
     if route(run, run_tables(run)) == "event":  # event-clocked robots (`live.events`)
         from graphloc.live.event_rows import build_events
 

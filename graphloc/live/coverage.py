@@ -3,7 +3,9 @@
 (`route`): wheel-odometry robots with point measurements (`graphloc.live.builder.LiveGraph`),
 and event-clocked robots -- relative poses, no wheel odometry -- with point measurements,
 placed by the candidate sets they see of a static target, by mutual bearings or by resection
-on their bearings of placed static robots (`graphloc.live.events.EventGraph`)."""
+on their bearings of placed static robots, or, seen as circles by a placed camera, by
+max-mixtures, with the camera's feature tracks (`graphloc.live.events.EventGraph`,
+`live.event_points`, `live.event_camera`)."""
 
 from __future__ import annotations
 
@@ -20,13 +22,14 @@ EVENT_TABLES = (
     "range",
     "bearing",
     "range_bearing",
+    "ellipses",
+    "features",
     "groundtruth",
 )
+# the event tables that make an event-clocked team (`route`)
+EVENT_SIGNS = ("relative_pose", "relative_pose3", "markers", "candidates", "ellipses", "features")
 # tables whose sections are not causal yet, and why (`not_live`)
 NOT_LIVE = {
-    "ellipses": "circle candidate sets of an unplaced target (the max-mixture route, "
-    "`mixtures.mixture_stream`: the target placed through the camera)",
-    "features": "camera feature tracks (a track's point prior from all its pixels)",
     "scans": "KISS-ICP odometry and inter-robot scan registration",
 }
 
@@ -36,10 +39,11 @@ class NotLiveError(ValueError):
 
 
 def route(run: TeamRun, tables: dict) -> str:
-    """ "event" for a run with relative poses or candidate sets and no wheel odometry (its
-    robots' pose times at their rows' times: `EventGraph`), else "wheel" (`LiveGraph`)."""
+    """ "event" for a run with relative poses, candidate sets (markers, candidates, ellipses)
+    or feature tracks and no wheel odometry (its robots' pose times at their rows' times:
+    `EventGraph`), else "wheel" (`LiveGraph`)."""
     named = set().union(*map(set, tables.values())) if tables else set()
-    event = named & {"relative_pose", "relative_pose3", "markers", "candidates"}
+    event = named & set(EVENT_SIGNS)
     return "event" if event and "odometry" not in named else "wheel"
 
 
@@ -57,10 +61,10 @@ def not_live(run: TeamRun, tables: dict) -> list[str]:
     for r, robot in enumerate(run.robots):
         for table in sorted(set(tables.get(robot.name, ())) & set(NOT_LIVE)):
             out.append(f"robot {robot.name}: table {table!r}: {NOT_LIVE[table]}")
-        for table in sorted(set(tables.get(robot.name, ())) & set(EVENT_TABLES[:4])):
+        for table in sorted(set(tables.get(robot.name, ())) & set(EVENT_SIGNS)):
             out.append(
                 f"robot {robot.name}: table {table!r}: wheel odometry and event-clocked robots "
-                f"(relative poses, candidate sets) in one run"
+                f"(relative poses, candidate sets, camera tables) in one run"
             )
         if robot.initial_pose is None:
             out.append(
@@ -84,15 +88,58 @@ def not_live(run: TeamRun, tables: dict) -> list[str]:
 def _event_problems(run: TeamRun, tables: dict) -> list[str]:
     """What keeps an event-clocked run off `EventGraph`, one line each."""
     out = []
+    # circles a placed robot sees place a teammate with a base radius (`live.event_camera`)
+    circles = any(
+        "ellipses" in tables.get(robot.name, ()) and robot.initial_pose is not None
+        for robot in run.robots
+    )
     for robot in run.robots:
         mine = set(tables.get(robot.name, ()))
         for table in sorted(mine & set(NOT_LIVE)):
             out.append(f"robot {robot.name}: table {table!r}: {NOT_LIVE[table]}")
-        placers = {"markers", "candidates", "bearing"}  # candidate sets, mutual bearings, P3P
-        if robot.initial_pose is None and not (mine & placers):
+        # what places it: candidate sets it sees (a moving observer), its bearings (mutual
+        # bearings, P3P), a placed camera's circles of it
+        sees = mine & ({"bearing"} if robot.static else {"markers", "candidates", "bearing"})
+        seen = circles and robot.base_radius is not None and not robot.static
+        if robot.initial_pose is None and not sees and not seen:
             out.append(
-                f"robot {robot.name}: no initial_pose, and no candidate sets or bearings to "
-                f"place it (scan registration)"
+                f"robot {robot.name}: no initial_pose, and no candidate sets, circles or "
+                f"bearings to place it (scan registration)"
+            )
+        for table in sorted(mine & {"ellipses", "features"} if robot.initial_pose is None else ()):
+            out.append(
+                f"robot {robot.name}: table {table!r} of a robot without an initial_pose (circle "
+                f"sets and feature tracks are built from a placed camera's poses)"
+            )
+    out += _stream_problems(run)
+    return out
+
+
+def _stream_problems(run: TeamRun) -> list[str]:
+    """The candidate streams of a loaded run `EventGraph` does not take (the live team finds
+    them as the sets arrive: `events.EventGraph._set`), one line each."""
+    out, robots = [], run.robots
+    targets: dict = {}
+    for o in run.observations:
+        targets.setdefault(o.robot, {}).setdefault(o.target, set()).add(o.pixels is not None)
+    for r, seen in sorted(targets.items()):
+        name = robots[r].name
+        for ti in sorted(seen):
+            if not robots[ti].static or robots[ti].initial_pose is None:
+                out.append(
+                    f"robot {name}: candidate sets of {robots[ti].name}, which is not a static "
+                    f"robot with an initial_pose (a moving or unplaced target: max-mixtures, "
+                    f"marker points per set)"
+                )
+            if len(seen[ti]) > 1:
+                out.append(
+                    f"robot {name}: candidate sets of {robots[ti].name} with and without "
+                    f"marker pixels"
+                )
+        if len(seen) > 1:
+            out.append(
+                f"robot {name}: candidate sets of {len(seen)} targets (the whole-run route "
+                f"places it by its streams in order of their first set)"
             )
     return out
 
@@ -108,7 +155,8 @@ def run_tables(run: TeamRun) -> dict:
     for p in run.points:
         tables[run.robots[p.robot].name].add(p.kind)
     for o in run.observations:
-        tables[run.robots[o.robot].name].add("candidates")
+        circle = o.candidates.source == "circle"
+        tables[run.robots[o.robot].name].add("ellipses" if circle else "candidates")
     for f in run.features:
         tables[run.robots[f.robot].name].add("features")
     for s in run.scans:

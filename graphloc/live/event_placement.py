@@ -1,11 +1,14 @@
 """Where event-clocked robots start (`live.events.EventGraph`): a robot placed at a known or
 decided pose (`seed_robot`: `motion.place_robot`'s seeds, its earlier poses carried back along
-its steps), the initial values of placed robots' later poses carried forward (`initial_upto`),
-the alternative placements a solve starts from too (`alternative_placements`: the pixel
-streams', `candidates.place_observers`, and the resected robots', `live.event_points`), the
-robots nothing placed (`unplaced_robots`) and the graph's counts (`graph_counts`)."""
+its steps; the pose a marker-pixel stream's placing set gives, `stream_placement`), the initial
+values of placed robots' later poses carried forward (`initial_upto`), and the alternative
+placements a solve starts from too (`alternative_placements`: the pixel streams', the
+candidates of their first set as `candidates.place_observers` makes them, and the resected
+robots', `live.event_points`, grown with their poses: `start_variants`)."""
 
 from __future__ import annotations
+
+import numpy as np
 
 from graphloc.keys import pose_key
 from graphloc.live.coverage import NotLiveError
@@ -34,6 +37,16 @@ def seed_robot(graph: TeamGraph, config: GraphConfig, robot: EventRobot, k: int,
         initial[pose_key(r, j)] = initial[pose_key(r, j + 1)].compose(step.inverse())
     robot.initial_done = k + 1
     graph.anchored_from[r] = float(robot.times[k])
+
+
+def stream_placement(tracked) -> object:
+    """Where the set (`candidates.TrackedSet`) that places a marker-pixel stream's observer
+    puts it (`events.EventGraph`: its first decided set, or its `guess_after_sets`-th set):
+    the decided candidate, else the tracker's best guess there -- the candidate of highest
+    posterior after every set so far (`HypothesisTracker.update`)."""
+    if tracked.decided:
+        return tracked.bodies[tracked.update.committed]
+    return tracked.bodies[int(np.argmax(tracked.update.probabilities))]
 
 
 def initial_upto(graph: TeamGraph, config: GraphConfig, robots: list, t: float) -> None:
@@ -114,57 +127,3 @@ def alternative_placements(
         with_sensors(v, sensor_poses) for r in points.resected for _, v in robots[r].variants
     ]
     graph.alternatives, graph.guessed_alternatives = variants + guessed, guessed
-
-
-def unplaced_robots(run, graph: TeamGraph, robots: list, streams: list, strict: bool, skips):
-    """Robots nothing placed by the end: NotLiveError when `strict` (a never-decided pixel
-    stream, whose observer today's route places by a guess: not causal, `live.events`), else a
-    counted skip `unanchored_robot` (their factors stayed held)."""
-    for robot in robots:
-        if robot.seed is not None:
-            continue
-        graph.anchored_from.pop(robot.r, None)
-        if not len(robot.times):  # no rows: no poses
-            continue
-        undecided = [
-            run.robots[t.out.target].name
-            for t, _, _ in streams
-            if t.out.robot == robot.r and t.out.pixel_route and t.out.sets
-        ]
-        if undecided:
-            why = (
-                f"its candidate sets of {undecided[0]} were never decided: graphloc online "
-                f"places it by the tracker's guess at its first set and runs that set's "
-                f"candidates as hypotheses, which depends on every later set (not causal)"
-            )
-        else:
-            why = (
-                "nothing placed it (no decided candidate set, no placement by mutual bearings "
-                "or resection)"
-            )
-        if strict:
-            raise NotLiveError(f"robot {robot.robot.name}: {why}")
-        skips.add(
-            "unanchored_robot",
-            f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",
-            len(robot.times),
-        )
-
-
-def graph_counts(events, graph: TeamGraph) -> dict:
-    """The counts `build_graph` gives its graph, of an `EventGraph` at its end."""
-    types, points = graph.factor_types, events.points.builder
-    return {
-        "robots": len(events.run.robots),
-        "poses": sum(len(r.times) for r in events.robots if r.seed is not None),
-        "candidate_sets": len(events.arrived),
-        "marker_points": len(events.marker_points),
-        "frame_marker_points": 0,
-        "sensor_poses": len(points.sensors.poses),
-        "committed_sets": sum(d.committed >= 0 for d in graph.decisions),
-        "landmark_anchors": points.n_anchor,
-        "feature_tracks": 0,
-        "steps": len(graph.steps),
-        "excluded_by_option": points.excluded,
-        **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
-    }

@@ -1,10 +1,12 @@
 """`EventRows`: an event-clocked team's checked rows (`rows.RowChecker` with the event tables)
 into its `events.EventGraph`, with the interface `LiveTeam` drives (`point`, `advance`,
 `finish`, `graph`, `start`, `run_so_far`): relative poses and point measurements go in as they
-come; `markers` and `candidates` rows are held until the watermark passes their time (every
-row of their image or set has arrived), then made into candidate sets by the loader's own front ends
-(`log_observations.marker_observations`: the checks and P3P of a log's marker pixels,
-`candidate_observations`), in the loader's order, and go in."""
+come; `markers`, `candidates`, `ellipses` and `features` rows are held until the watermark
+passes their time (every row of their image or set has arrived), then made into candidate sets
+and feature pixels by the loader's own front ends (`log_observations.marker_observations`: the
+checks and P3P of a log's marker pixels, `candidate_observations`;
+`camera_tables.ellipse_observations`: seed 003's two circle candidates, `single_tracks` and
+`feature_observations`), in the loader's order, and go in."""
 
 from __future__ import annotations
 
@@ -13,12 +15,18 @@ from dataclasses import replace
 
 import numpy as np
 
+from graphloc.datasets.camera_tables import (
+    ellipse_observations,
+    feature_observations,
+    single_tracks,
+)
 from graphloc.datasets.log_observations import candidate_observations, marker_observations
 from graphloc.io import Sink
+from graphloc.keys import decode
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.events import EventGraph
 from graphloc.pipelines.team_graph.config import GraphConfig
-from graphloc.pipelines.team_graph.graph import TeamGraph
+from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.run import TeamRun
 
 RELATIVE = ("relative_pose", "relative_pose3")
@@ -40,15 +48,18 @@ class EventRows:
         observers = {
             r
             for r, robot in enumerate(run.robots)
-            if {"markers", "candidates"} & set(tables.get(robot.name, ()))
+            if {"markers", "candidates", "ellipses"} & set(tables.get(robot.name, ()))
         }
-        self.events = EventGraph(run, setup.config, setup.start_time, stamped, observers)
+        camera = any({"features", "ellipses"} & set(t) for t in tables.values())
+        self.events = EventGraph(run, setup.config, setup.start_time, stamped, observers, camera)
         self.graph = self.events.graph
         self.sink = Sink("skip", skips)
         self.sensors = [list(robot.sensors) for robot in run.robots]
         self.index = {robot.name: r for r, robot in enumerate(run.robots)}
         self.markers: list = []  # (time, observer, sensor index, target, marker, u, v, row)
         self.candidates: dict = {}  # (time, observer, sensor, target) -> [record]
+        self.ellipses: list = []  # (observer, target, record, where)
+        self.pixels: list = []  # features: (robot, record)
         self.motions: list = []
         self.points: list = []
 
@@ -77,6 +88,10 @@ class EventRows:
         elif table in POINT_TABLES:
             self.points.append(row)
             self.events.point(row)
+        elif table == "ellipses":
+            self.ellipses.append(row)
+        elif table == "features":
+            self.pixels.append(row)
         else:
             raise NotLiveError(f"table {table!r} is not live in an event-clocked team")
 
@@ -86,7 +101,7 @@ class EventRows:
 
     def finish(self) -> list:
         self._sets(np.inf)
-        return self.events.finish(strict=False)
+        return self.events.finish()
 
     def run_so_far(self):
         """The run of the rows that arrived (the loaded run's motions and candidate sets)."""
@@ -98,11 +113,17 @@ class EventRows:
             motions=tuple(self.motions),
             observations=tuple(events.arrived),
             points=tuple(self.points),
+            features=tuple(events.features.arrived),
         )
 
+    def _where(self, r: int, row) -> str:
+        return f"robot {self.robots[r].name!r}, table 'features', row {row.line}"
+
     def _sets(self, watermark: float) -> None:
-        """The images and logged sets before `watermark` as candidate sets, in the loader's
-        order (marker sets, then logged ones, by time and observer), into the graph."""
+        """The images, logged sets and ellipses before `watermark` as candidate sets, in the
+        loader's order (marker sets, logged ones, circles; by time and observer), and the
+        feature pixels before it (`camera_tables.single_tracks`, `feature_observations`), into
+        the graph in time order."""
         manifest, noise = self.setup.manifest, self.setup.noise
         out: list = []
         done = [m for m in self.markers if m[0] < watermark]
@@ -120,9 +141,20 @@ class EventRows:
         if keys:
             groups = {key: self.candidates.pop(key) for key in keys}
             out += candidate_observations(groups, self.robots, noise, manifest, self.sink)
+        ellipses = [e for e in self.ellipses if e[2].time < watermark]
+        if ellipses:
+            self.ellipses = [e for e in self.ellipses if e[2].time >= watermark]
+            out += ellipse_observations(ellipses, self.robots, manifest, self.sink)
         out.sort(key=lambda o: (o.time, o.robot))
-        for o in out:
-            self.events.observation(o)
+        features: list = []
+        pixels = [p for p in self.pixels if p[1].time < watermark]
+        if pixels:  # the loader's front end: one image's pixels together
+            self.pixels = [p for p in self.pixels if p[1].time >= watermark]
+            pixels = single_tracks(pixels, manifest, self.sink, self._where)
+            features = feature_observations(pixels, self.robots, manifest, noise)
+        sets = ((o.time, 0, o) for o in out)  # at one time: sets, then pixels (`build_events`)
+        for _, kind, row in heapq.merge(sets, ((f.time, 1, f) for f in features), key=_order):
+            (self.events.observation if kind == 0 else self.events.feature)(row)
 
 
 def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
@@ -133,12 +165,14 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     order)."""
     stamped = {m.robot for m in run.motions}
     observers = {o.robot for o in run.observations}
-    live = EventGraph(_without_rows(run), config, run.start_time, stamped, observers)
+    camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
+    live = EventGraph(_without_rows(run), config, run.start_time, stamped, observers, camera)
     motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
     sets = ((o.time, 1, i, o) for i, o in enumerate(run.observations))
-    points = ((m.time, 2, i, m) for i, m in enumerate(run.points))
-    take = (live.motion, live.observation, live.point)
-    for t, kind, _, row in heapq.merge(motions, sets, points, key=lambda e: e[:3]):
+    pixels = ((f.time, 2, i, f) for i, f in enumerate(run.features))
+    points = ((m.time, 3, i, m) for i, m in enumerate(run.points))
+    take = (live.motion, live.observation, live.feature, live.point)
+    for t, kind, _, row in heapq.merge(motions, sets, pixels, points, key=lambda e: e[:3]):
         take[kind](row)
         if steps is not None:
             steps.append(live.advance(t))
@@ -146,8 +180,36 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     if steps is not None:
         steps.append(done)
     live.graph.run = run
+    _drop_unplaced(live.graph, {r.r for r in live.robots if r.seed is None})
     return live.graph
 
 
+def _order(entry: tuple) -> tuple:
+    return entry[:2]
+
+
+def _drop_unplaced(graph: TeamGraph, robots: set) -> None:
+    """The factors on poses of `robots` (nothing placed them: `EventGraph.finish` counted them
+    `unanchored_robot`) out of the graph's steps, as the live team's online pass holds them to
+    the end; a batch solve has no initial values for them."""
+    if not robots:
+        return
+    steps, types = [], []
+    for t, group in graph.steps:
+        kept = [
+            (f, kind)
+            for f, kind in group
+            if not any(
+                decode(key)[0] in ("x", "s") and decode(key)[1] in robots for key in factor_keys(f)
+            )
+        ]
+        steps.append((t, kept))
+        types += [kind for _, kind in kept]
+    graph.steps, graph.factor_types = steps, types
+    counts = {k: v for k, v in graph.counts.items() if not k.startswith("factors_")}
+    counts.update({f"factors_{name}": types.count(name) for name in sorted(set(types))})
+    graph.counts = counts
+
+
 def _without_rows(run: TeamRun) -> TeamRun:
-    return replace(run, motions=(), observations=(), points=())
+    return replace(run, motions=(), observations=(), features=(), points=())

@@ -1,58 +1,65 @@
 """`EventGraph`: the team graph of event-clocked robots built as rows arrive -- robots without
 wheel odometry, whose poses are at their relative poses' stamps and their measurements' times
 (`team_graph.motion.node_times`), placed by the candidate sets they see of a static target with
-a known pose (`team_graph.candidates`: one `StreamTracker` per stream, fed set by set), or by
-their bearings (`live.event_points`: point measurements, mutual bearings, resection).
+a known pose (`team_graph.candidates`: one `StreamTracker` per stream, fed set by set), by
+their bearings (`live.event_points`: point measurements, mutual bearings, resection), or,
+without an initial pose, by the circle sets a placed camera sees of them (max-mixtures), with
+the camera's feature tracks (`live.event_camera`, seed 003).
 
 Causality. A robot's pose times up to x are final once every row before x has arrived (the
 watermark passed x) and, for a robot with relative poses, x is no later than the last arrived
 step's end (a measurement inside a step is a pose of its own, `motion.inserted_times`, which
-only the step covering it tells). Each advance applies the whole-run rule to the rows that
-can shape times after the last final one (those within the longest step of it) and appends
-the new final times; rows that would change a final pose time or step (a step starting
-inside steps already built, rows out of time order) are refused as they arrive
-(`NotLiveError`, naming them). A relative
-pose becomes its between factors once its poses are final; a candidate set joins its poses
-once those near it are final, goes through its stream's tracker (the decision uses the sets
-before it only) and becomes the factors `candidates.stream_factors` makes of it. An observer
-with no initial pose is placed at its first decided set (`candidates.place_observers`: every
-decided set of a stream without pixels, the first of a pixel stream), its earlier poses
-carried back along its steps (`motion.place_robot`); until then its `anchored_from` is
-infinite, so the online pass (`Pass`: `hold_until` the largest `anchored_from`) holds its
-factors, as `graphloc online` holds them until its `anchored_from`. A step is emitted once
-every pose time up to it is final and no row that could add a factor to it is still to come.
+only the step covering it tells). Each advance applies the whole-run rule to the rows that can
+shape times after the last final one (those within the longest step of it) and appends the new
+final times; rows that would change a final pose time or step (a step starting inside steps
+already built, rows out of time order) are refused as they arrive (`NotLiveError`, naming
+them). A relative pose becomes its between factors once its poses are final; a candidate set
+joins its poses once those near it are final, goes through its stream's tracker (the decision
+uses the sets before it only) and becomes the factors `candidates.stream_factors` makes of it.
+A step is emitted once every pose time up to it is final and no row that could add a factor to
+it is still to come.
 
-Not causal in today's whole-run route, so refused here (`NotLiveError` at `finish`, and
-`graphloc online` builds such a run with `build_graph`): a pixel stream that is never decided
-places its observer by the tracker's guess at its first set and runs every candidate of that
-set as a hypothesis (`guessed_alternatives`): whether the first set is a guess or the robot
-waits for a decision depends on every later set of the stream (kaushik-p3p-error: never
-decided on any seed)."""
+Placement, one causal rule. An observer with no initial pose is placed by its stream: a stream
+without pixels at each decided set (its decisions are its only factors); a marker-pixel stream
+once, at its first decided set, or -- when none of its first `GraphConfig.guess_after_sets`
+tracked sets was decided -- at that set by the tracker's best guess there
+(`event_placement.stream_placement`): when that set arrives, the sets before it decide where
+the observer goes, and no later set can change it. Its earlier poses are carried back along its
+steps (`motion.place_robot`); until then its `anchored_from` is infinite, so the online pass
+(`Pass`: `hold_until` the largest `anchored_from`) holds its factors and they enter with the
+placement. The wait lets a stream that will decide be placed by its decision
+(feng-probabilistic); one that never decides (kaushik-p3p-error) is placed by a guess that has
+seen those sets, where the whole-run route (`candidates.place_observers`) guesses at the first
+set, knowing it will never decide. A robot nothing placed by the end is a counted
+`unanchored_robot` (`finish`); its factors stay held (`event_rows.build_events` leaves them out
+of the graph)."""
 
 from __future__ import annotations
 
 import bisect
 from collections import deque
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.live.coverage import NotLiveError
+from graphloc.live.event_camera import EventFeatures, mixture_set
 from graphloc.live.event_placement import (
-    alternative_placements,
-    graph_counts,
     initial_upto,
     seed_robot,
     start_variants,
-    unplaced_robots,
+    stream_placement,
 )
 from graphloc.live.event_points import EventPoints
+from graphloc.live.event_record import record_graph, unplaced_robots
 from graphloc.live.event_clock import (
     EventClock,
     EventRobot,
     final_end,
     inserted_times,
+    measured,
     motion_bound,
 )
 from graphloc.pipelines.team_graph.candidates import (
@@ -76,13 +83,18 @@ class EventGraph:
     `finish()` the rest (module docstring)."""
 
     def __init__(
-        self, run: TeamRun, config: GraphConfig, start_time, stamped, observers=frozenset()
+        self,
+        run: TeamRun,
+        config: GraphConfig,
+        start_time: float | None,
+        stamped,
+        observers=frozenset(),
+        camera=False,
     ):
         """stamped: the robots with a relative-pose table (their pose times at its stamps);
-        observers: those with candidate sets (a markers or candidates table). With candidate
-        sets iSAM2's thresholds are FINE_PRECISION (`config.run_precision`); without, the
-        median of the relative poses that arrived before the first step (the whole run's
-        rule, `run_precision`, over the rows so far)."""
+        observers: those with candidate sets (markers, candidates, ellipses); camera: the run
+        has feature or ellipse tables (`TeamGraph.camera`). iSAM2's precision: FINE_PRECISION
+        with candidate sets, else `run_precision` of the relative poses before the first step."""
         self.run, self.config = run, config
         self.points = EventPoints(run, config, set(observers))
         self.start = start_time
@@ -90,6 +102,8 @@ class EventGraph:
         self.robots = [EventRobot(r, robot, r in stamped) for r, robot in enumerate(run.robots)]
         self.clock = EventClock(run, config, [np.zeros(0) for _ in run.robots])
         self.streams: dict = {}  # (observer, target) -> [StreamTracker, obs list, index]
+        self.mixtures: dict = {}  # (observer, unplaced target) -> [MixtureTracker, index]
+        self.features = EventFeatures(run, config)  # `live.event_camera`
         self.queue: deque = deque()  # candidate sets waiting for their poses, in arrival order
         self.arrived: list = []  # every candidate set, in arrival order
         self.marker_points: dict = {}
@@ -112,6 +126,7 @@ class EventGraph:
             precision=FINE_PRECISION if observers else np.nan,
         )
         self.graph.skips.merge(run.skips)
+        self.graph.camera = camera
         for r, robot in enumerate(run.robots):  # held by the online pass until placed
             if robot.initial_pose is None:
                 self.graph.anchored_from[r] = np.inf
@@ -167,30 +182,20 @@ class EventGraph:
         self.first_seen = min(self.first_seen, o.time)
         self.arrived.append(o)
         for r in (o.robot, o.target):
-            self._measured(self.robots[r], o.time, "a candidate set")
+            measured(self.robots[r], o.time, "a candidate set")
         self.queue.append((len(self.arrived) - 1, o))
 
     def point(self, m) -> None:
         """A range, bearing or range-bearing (`graphloc.run.PointMeasurement`)."""
         self.first_seen = min(self.first_seen, m.time)
         for r in (m.robot, m.target) if m.target >= 0 else (m.robot,):
-            self._measured(self.robots[r], m.time, "a point measurement")
+            measured(self.robots[r], m.time, "a point measurement")
         self.points.add(m)
 
-    def _measured(self, robot: EventRobot, t: float, what: str) -> None:
-        """A measurement at t of robot: a pose time to come (refused out of time order)."""
-        built = robot.times
-        if not robot.robot.static and len(built) and t < built[-1]:
-            raise NotLiveError(
-                f"robot {robot.robot.name}: {what} at {t}, after its pose times up to "
-                f"{built[-1]} were built (rows out of time order)"
-            )
-        if robot.measured and t < robot.measured[-1]:
-            raise NotLiveError(
-                f"robot {robot.robot.name}: measurements out of time order ({what} at {t} "
-                f"after {robot.measured[-1]})"
-            )
-        robot.measured.append(t)
+    def feature(self, f) -> None:
+        """A feature pixel (`graphloc.run.FeatureObservation`, `live.event_camera`)."""
+        self.first_seen = min(self.first_seen, f.time)
+        self.features.arrive(self, f)
 
     # ---- steps out ----------------------------------------------------------------------------
 
@@ -208,40 +213,31 @@ class EventGraph:
         points, robots, tol = self.points, self.robots, self.config.sync_tolerance
         points.take(self.clock, lambda r: final_end(robots[r], watermark), self._pending)
         self._take_sets(watermark)
+        self.features.take(self, watermark)
         finished = watermark == np.inf and all(robot.finished for robot in robots)
-        points.place(robots, self.clock, self._seed, finished)
+        points.place(robots, self.clock, partial(seed_robot, self.graph, self.config), finished)
         for r, (starts, _) in points.resected.items():
             if not robots[r].variants:
                 start_variants(self.graph, self.config, robots[r], starts)
         bound = min(motion_bound(robot, watermark) for robot in robots)
         held = np.inf if finished else points.hold_from(robots) - 1e-9
-        bound = min(bound, watermark - tol - 1e-9, held)
+        bound = min(bound, watermark - tol - 1e-9, held, self.features.head() - tol - 1e-9)
         for head in ([self.queue[0][1]] if self.queue else []) + list(points.queue)[:1]:
             bound = min(bound, head.time - tol - 1e-9)
         return self._emit(bound)
 
-    def finish(self, strict: bool = True) -> list:
+    def finish(self) -> list:
         """Every row is in: the remaining steps, the graph's counts, decisions and
-        alternatives. A robot nothing placed: NotLiveError when `strict` (a never-decided pixel
-        stream, whose observer today's route places by a guess: not causal, module docstring),
-        else a counted skip `unanchored_robot` (its factors stayed held)."""
+        alternatives. A robot nothing placed (a stream without pixels never decided, a pixel
+        stream that ended undecided before `guess_after_sets` sets) is a counted skip
+        `unanchored_robot`: its factors stay held."""
         for robot in self.robots:
             robot.finished = True
         if self.start is None and np.isfinite(self.first_seen):
             self.start = float(self.first_seen)
         steps = self.advance(np.inf) if self.start is not None else self._emit(np.inf)
-        graph, streams = self.graph, list(self.streams.values())
-        unplaced_robots(self.run, graph, self.robots, streams, strict, self.skips)
-        graph.decisions = [d for tracker, _, _ in streams for d in tracker.out.outcomes]
-        for tracker, _, _ in streams:
-            graph.skips.merge(tracker.out.skips)
-        graph.skips.merge(self.skips)
-        graph.skips.merge(self.points.builder.made.skips)
-        outs = [tracker.out for tracker, _, _ in streams]
-        alternative_placements(
-            self.run, self.config, self.clock, graph, self.robots, outs, self.points
-        )
-        graph.counts = graph_counts(self, graph)
+        unplaced_robots(self)
+        record_graph(self)
         return steps
 
     # ---- internals ----------------------------------------------------------------------------
@@ -341,6 +337,12 @@ class EventGraph:
     def _set(self, n: int, o) -> None:
         run, r, ti = self.run, o.robot, o.target
         key = (r, ti)
+        if key in self.mixtures or (
+            key not in self.streams
+            and run.robots[ti].initial_pose is None
+            and run.robots[r].initial_pose is not None
+        ):  # a placed observer, an unplaced target: max-mixtures (`live.event_camera`)
+            return mixture_set(self, n, o)
         if key not in self.streams:
             t = run.robots[ti]
             if not t.static or t.initial_pose is None:
@@ -355,7 +357,7 @@ class EventGraph:
                     f"route places it by its streams in order of their first set"
                 )
             tracker = StreamTracker(run, self.config, r, ti, o.pixels is not None)
-            self.streams[key] = [tracker, [], len(self.streams)]
+            self.streams[key] = [tracker, [], len(self.streams) + len(self.mixtures)]
         tracker, obs, index = self.streams[key]
         if (o.pixels is not None) != tracker.out.pixel_route:
             raise NotLiveError(
@@ -375,7 +377,12 @@ class EventGraph:
         for j, (t, f, kind) in enumerate(made.factors):
             self._pending(t, (4, index, len(obs), j), f, kind)
         robot = self.robots[r]
-        if tracked.decided and not (tracker.out.pixel_route and robot.placed):
+        if tracker.out.pixel_route:  # placed once (`stream_placement`)
+            if not robot.placed and (
+                tracked.decided or len(tracker.out.sets) >= self.config.guess_after_sets
+            ):
+                seed_robot(self.graph, self.config, robot, tracked.k, stream_placement(tracked))
+        elif tracked.decided:
             seed_robot(
                 self.graph, self.config, robot, tracked.k, tracked.bodies[tracked.update.committed]
             )
@@ -398,6 +405,7 @@ class EventGraph:
                 raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
             initial_upto(graph, self.config, self.robots, t)
             self.points.initials(graph.initial)
+            self.features.priors(self, t)
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
             group, self.carried = self.carried + group, []
             step = (t, [(f, kind) for _, f, kind in group])
@@ -409,6 +417,3 @@ class EventGraph:
             initial_upto(graph, self.config, self.robots, np.inf)
             self.points.initials(graph.initial)
         return steps
-
-    def _seed(self, robot: EventRobot, k: int, pose) -> None:
-        seed_robot(self.graph, self.config, robot, k, pose)

@@ -42,25 +42,43 @@ class FeatureSection:
 
 def feature_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> FeatureSection:
     """Every usable feature pixel as a GenericProjectionFactorCal3_S2 (robust kernel
-    'projection'), one landmark per track (`FeatureSection`)."""
-    node_times, nearest = timeline.node_times, timeline.nearest
-    made, landmark_guess, point_priors = SectionFactors(), {}, []
-    factors, skips = made.factors, made.skips
-    kernel = config.kernels.kernel("projection")
-    tracks: dict = {}
-    calibrations: dict = {}
+    'projection'), one landmark per track (`FeatureSection`), through one `FeatureTracks`."""
+    tracks = FeatureTracks(run, config)
     for f in run.features:
-        k = nearest(f.robot, f.time)
+        k = timeline.nearest(f.robot, f.time)
+        tracks.add(f, k, timeline.node_times[f.robot][k] if k >= 0 else np.nan)
+    return tracks.section
+
+
+class FeatureTracks:
+    """Feature pixels fed one at a time (`add`), causally: a track's landmark, its guess and
+    its point prior come from the track's first pixel alone (module docstring); `section`: the
+    `FeatureSection` so far."""
+
+    def __init__(self, run: TeamRun, config: GraphConfig):
+        self.run, self.config = run, config
+        self.kernel = config.kernels.kernel("projection")
+        self.tracks: dict = {}  # (robot, track) -> landmark key
+        self.calibrations: dict = {}
+        self.section = FeatureSection(SectionFactors(), {}, [], 0)
+
+    def add(self, f, k: int, time: float) -> list:
+        """Pixel `f` at its robot's pose k (-1: none within the sync tolerance; a counted skip
+        `no_pose_at_time`) at that pose's `time`: its projection factor ((time, factor,
+        "projection"), returned too: [] when skipped), a new track's landmark guess and point
+        prior (`section`). A pixel that does not undistort is a counted skip `bad_pixel`."""
+        run, section = self.run, self.section
+        skips = section.made.skips
         if k < 0:
             skips.add(
                 "no_pose_at_time",
                 f"robot {run.robots[f.robot].name}: feature track {f.track} at {f.time} has no "
                 f"pose within the sync tolerance",
             )
-            continue
+            return []
         cam = f.camera
-        if id(cam) not in calibrations:
-            calibrations[id(cam)] = gtsam.Cal3_S2(cam.fx, cam.fy, 0.0, cam.cx, cam.cy)
+        if id(cam) not in self.calibrations:
+            self.calibrations[id(cam)] = gtsam.Cal3_S2(cam.fx, cam.fy, 0.0, cam.cx, cam.cy)
         ideal = _ideal_pixel(cam, f.pixel)
         if ideal is None:
             skips.add(
@@ -68,34 +86,31 @@ def feature_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> Fe
                 f"robot {run.robots[f.robot].name}: feature track {f.track} at {f.time}: pixel "
                 f"{f.pixel.tolist()} does not undistort",
             )
-            continue
-        key = pose_key(f.robot, k)
+            return []
         stream = (f.robot, f.track)
-        if stream not in tracks:
-            lkey = landmark_key(FEATURE_BASE + len(tracks))
-            tracks[stream] = lkey
+        if stream not in self.tracks:
+            lkey = landmark_key(FEATURE_BASE + len(self.tracks))
+            self.tracks[stream] = lkey
+            section.tracks = len(self.tracks)
+            config = self.config
             depth, sigma = f.depth_prior or (config.feature_depth, config.feature_depth_sigma)
             ray = np.array([(ideal[0] - cam.cx) / cam.fx, (ideal[1] - cam.cy) / cam.fy, 1.0])
             p_body = f.body_T_sensor.transformFrom(ray * depth)
             rng = float(np.linalg.norm(p_body))
-            landmark_guess[lkey] = ("from", f.robot, k, p_body / rng, rng)
-            point_priors.append((lkey, sigma, node_times[f.robot][k]))
-        noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, f.pixel_sigma), kernel)
-        factors.append(
-            (
-                node_times[f.robot][k],
-                gtsam.GenericProjectionFactorCal3_S2(
-                    gtsam.Point2(*ideal),
-                    noise,
-                    key,
-                    tracks[stream],
-                    calibrations[id(cam)],
-                    f.body_T_sensor,
-                ),
-                "projection",
-            )
+            section.landmark_guess[lkey] = ("from", f.robot, k, p_body / rng, rng)
+            section.point_priors.append((lkey, sigma, time))
+        noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, f.pixel_sigma), self.kernel)
+        factor = gtsam.GenericProjectionFactorCal3_S2(
+            gtsam.Point2(*ideal),
+            noise,
+            pose_key(f.robot, k),
+            self.tracks[stream],
+            self.calibrations[id(cam)],
+            f.body_T_sensor,
         )
-    return FeatureSection(made, landmark_guess, point_priors, len(tracks))
+        made = [(time, factor, "projection")]
+        section.made.factors += made
+        return made
 
 
 def marker_factors(

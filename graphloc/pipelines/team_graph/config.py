@@ -37,7 +37,10 @@ class GraphConfig:
     no odometry; tracker: the HypothesisTracker deciding candidate sets; decision_threshold: a
     set is decided -- its candidate enters the graph -- when the tracker has committed to a
     track and that track's candidate in the set, with the candidates that are the same pose
-    within their covariances (`_same_pose`), has at least this posterior; marker_sigma [m]: how
+    within their covariances (`_same_pose`), has at least this posterior; guess_after_sets: a
+    marker-pixel stream none of whose first this many tracked sets was decided places its
+    observer at the last of them by the tracker's best guess there (the event route,
+    `live.events`; before it, the stream waits for a decision); marker_sigma [m]: how
     far a moving target's marker may sit from its layout position (`camera.moving_marker_factors`);
     session settings (iSAM2 thresholds None: set from the run's precision, `run_precision`)."""
 
@@ -64,6 +67,7 @@ class GraphConfig:
     unknown_motion_sigma: tuple = (3.0, 100.0)
     tracker: TrackerConfig = TrackerConfig()
     decision_threshold: float = setting(0.8, ge=0.5, lt=1.0)  # see the docstring
+    guess_after_sets: int = setting(5, ge=1)  # see the docstring
     downweight_threshold: float = setting(0.1, ge=0.0)
     relinearize_threshold: float | None = setting(None, gt=0.0)
     relinearize_translation: float | None = setting(None, ge=0.0)  # see `session_config`

@@ -59,6 +59,9 @@ class TeamGraph:
     # an offset sensor's pose variable -> (its body pose key, body_T_sensor): its value is the
     # body pose's composed with the extrinsics (`points.SensorPoses`)
     sensor_poses: dict = field(default_factory=dict)
+    # the graph holds feature tracks or max-mixtures (iSAM2's settings for camera graphs,
+    # `passes.camera_graph`); a graph built live knows it from the run's tables before its rows
+    camera: bool = False
 
 
 def build_graph(
@@ -164,6 +167,7 @@ def build_graph(
         guessed_variants,
         {key: (pose_key(ti, kt), local) for key, ti, kt, local in sets.frame_points},
         sensor_poses,
+        features.tracks > 0 or any(d.mixture is not None for d in decisions),
     )
 
 

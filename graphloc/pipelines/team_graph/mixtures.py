@@ -1,5 +1,6 @@
 """Candidate sets of a placed observer on an unplaced target (seed 003: a camera sees a
-teammate's circular base, two candidates): each set a max-mixture the solve chooses."""
+teammate's circular base, two candidates): each set a max-mixture the solve chooses, set by set
+(`MixtureTracker`: the whole run's `mixture_stream` and the live builder, `live.event_camera`)."""
 
 from __future__ import annotations
 
@@ -37,17 +38,38 @@ def mixture_stream(
     ti: int,
     obs: list,
 ) -> MixtureStream:
-    """A stream whose observer is placed and whose target is not: each set becomes a max-mixture
-    (Olson & Agarwal; `factors.mixture.max_mixture_factor`) of BetweenFactorPose3 observer ->
-    target, one component per candidate with its covariance, weights from the scores. The
-    target's first sighting places it (the candidate whose `body_axis` is nearest its surface
-    normal, else the best-scored one); its own motion steps place the rest."""
-    node_times, nearest = timeline.node_times, timeline.nearest
-    observer, target = run.robots[r], run.robots[ti]
-    track = dead_reckoning(observer, step_rel[r], config)
-    result = MixtureStream()
-    out, skips = result.outcomes, result.made.skips
+    """A stream whose observer is placed and whose target is not, set by set through one
+    `MixtureTracker` (each set a max-mixture, the target placed at its first sighting)."""
+    tracker = MixtureTracker(run, config, r, ti)
     for o in obs:
+        tracker.add(o, timeline.nearest(r, o.time), timeline.nearest(ti, o.time), step_rel[r])
+        tracker.factor_times(timeline.node_times)
+    return tracker.out
+
+
+class MixtureTracker:
+    """One (placed observer r, unplaced target ti) stream fed one set at a time (`add`), each
+    set on its own: a max-mixture (Olson & Agarwal; `factors.mixture.max_mixture_factor`) of
+    BetweenFactorPose3 observer -> target, one component per candidate with its covariance,
+    weights from the scores. The target's first usable sighting places it (the candidate whose
+    `body_axis` is nearest its surface normal, seen from the observer's dead-reckoned pose,
+    else the best-scored one); its own motion steps place the rest. Causal: a set's factor and
+    record use the observer's steps up to its pose only. `out`: the `MixtureStream` so far."""
+
+    def __init__(self, run: TeamRun, config: GraphConfig, r: int, ti: int):
+        self.run, self.config, self.r, self.ti = run, config, r, ti
+        self.out = MixtureStream()
+        self.track: list = []  # the observer's dead reckoning, grown as sets need it
+        self.pending: list = []  # factors made by the last `add`, their times not set yet
+
+    def add(self, o, k: int, kt: int, steps: list):
+        """Set `o` at observer node k and target node kt (-1: none); `steps`: the observer's
+        step_rel, known up to k. Returns the set's graph item (a max-mixture, or a
+        BetweenFactorPose3 for a single candidate; None: skipped), made into
+        (time, factor, "candidate") by `factor_times`."""
+        run, config, r, ti, out = self.run, self.config, self.r, self.ti, self.out
+        observer, target = run.robots[r], run.robots[ti]
+        skips = out.made.skips
         if len(o.candidates) == 0:
             skips.add(
                 "inconsistent_set",
@@ -55,16 +77,15 @@ def mixture_stream(
                 f"pose of its layout passes the pixel chi-square",
                 rows_of(o),
             )
-            out.append(inconsistent(o, r, ti))
-            continue
-        k, kt = nearest(r, o.time), nearest(ti, o.time)
+            out.outcomes.append(inconsistent(o, r, ti))
+            return None
         if k < 0 or kt < 0:
             skips.add(
                 "no_pose_at_time",
                 f"robot {observer.name}: candidate set on {target.name} at {o.time} has no pose "
                 f"within the sync tolerance",
             )
-            continue
+            return None
         E = o.body_T_sensor
         seen = o.candidates.poses()  # target_T_sensor
         rel = [E.compose(p.inverse()) for p in seen]  # observer body_T_target
@@ -83,14 +104,14 @@ def mixture_stream(
             if len(components) > 1
             else None
         )
-        t = max(node_times[r][k], node_times[ti][kt])
-        result.made.factors.append(
-            (t, mixture if mixture is not None else components[0], "candidate")
-        )
-        X = track[k][0]
-        if result.placed is None:
-            result.placed = {kt: (r, k, rel[_upright(target, X, rel, o.candidates)])}
-        out.append(
+        factor = mixture if mixture is not None else components[0]
+        self.pending.append((k, kt, factor))
+        if len(self.track) <= k:  # the observer's dead reckoning, grown up to k
+            self.track = dead_reckoning(observer, steps[: k + 1], config, self.track)
+        X = self.track[k][0]
+        if out.placed is None:
+            out.placed = {kt: (r, k, rel[_upright(target, X, rel, o.candidates)])}
+        out.outcomes.append(
             SetOutcome(
                 o.time,
                 r,
@@ -110,7 +131,18 @@ def mixture_stream(
                 body_T_sensor=E.matrix(),
             )
         )
-    return result
+        return factor
+
+    def factor_times(self, node_times: list) -> list:
+        """The factors of the sets added since the last call as (time, factor, "candidate"),
+        each at the newer of its two poses' times (appended to `out.made.factors` too)."""
+        made = [
+            (max(node_times[self.r][k], node_times[self.ti][kt]), f, "candidate")
+            for k, kt, f in self.pending
+        ]
+        self.pending = []
+        self.out.made.factors += made
+        return made
 
 
 def _upright(target, X: gtsam.Pose3, rel: list, candidates) -> int:

@@ -136,12 +136,13 @@ def _velocity_steps(run: TeamRun, r: int, times: np.ndarray, config: GraphConfig
     ]
 
 
-def dead_reckoning(robot, steps: list, config: GraphConfig) -> list:
+def dead_reckoning(robot, steps: list, config: GraphConfig, known: list | None = None) -> list:
     """(pose, 6x6 covariance) of each of a robot's poses: its initial pose (and prior) chained
-    through its odometry steps, covariances propagated to first order (right perturbations)."""
+    through its odometry steps, covariances propagated to first order (right perturbations).
+    known: the first poses of this list already made (a track grown as steps arrive)."""
     sig = config.static_sigma if robot.static else (robot.initial_sigma or config.initial_sigma)
-    out = [(robot.initial_pose, cov6(sig))]
-    for k in range(1, len(steps)):
+    out = list(known) if known else [(robot.initial_pose, cov6(sig))]
+    for k in range(len(out), len(steps)):
         step, c = step_or_unknown(steps, k, config)
         pose, cov = out[-1]
         out.append((pose.compose(step), adjoint_cov(step.inverse(), cov) + c))

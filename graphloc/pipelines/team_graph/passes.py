@@ -274,10 +274,9 @@ def _held(graph: TeamGraph, key: int, t: float) -> bool:
 
 
 def camera_graph(graph: TeamGraph) -> bool:
-    """The graph holds feature tracks or max-mixtures (`GraphConfig.session_config`)."""
-    return graph.counts.get("feature_tracks", 0) > 0 or any(
-        d.mixture is not None for d in graph.decisions
-    )
+    """The graph holds feature tracks or max-mixtures (`GraphConfig.session_config`;
+    `TeamGraph.camera`)."""
+    return graph.camera
 
 
 def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:

@@ -1,0 +1,135 @@
+"""The camera sections of `live.events.EventGraph` as rows arrive (seed 003: a camera on a
+crawler tracks KLT features and sees a teammate's circular base as an ellipse, two circle
+candidates, scale from the base's radius):
+
+- feature pixels (`EventFeatures`): each pixel, once its robot's poses around it are final, is
+  a projection factor on one landmark per track (`team_graph.camera.FeatureTracks`, the class
+  `build_graph` runs too). Causal as it stands: a track's landmark guess and its point prior
+  come from the track's first pixel alone (on the first ray at the camera's `feature_depth`,
+  seed 003 III), so no pixel waits for later ones; the prior enters with the first pixel's
+  step, at the guess through that pose's initial value (`priors`).
+- circle candidate sets of an unplaced target seen by a placed observer (`mixture_set`): each
+  set a max-mixture the solve chooses (`team_graph.mixtures.MixtureTracker`, the class
+  `build_graph` runs too), made once the set's poses are final; the target is placed at its
+  first usable sighting (the observer's pose composed with the upright candidate,
+  `motion.place_robot`'s `placed_via`), its earlier poses carried back along its own steps
+  (`event_placement.seed_robot`); until then its factors are held by the online pass
+  (`anchored_from` infinite), as for an observer placed by a decided set.
+
+Order keys of the pending factors (`EventGraph._pending`) put them where `build_graph`'s
+sections put them within a step: projections (3, pixel) after the anchors, mixtures (4, stream,
+set) with the other candidate streams, point priors (9, track) last."""
+
+from __future__ import annotations
+
+from collections import deque
+
+import gtsam
+import numpy as np
+
+from graphloc.keys import pose_key
+from graphloc.live.coverage import NotLiveError
+from graphloc.live.event_clock import final_end
+from graphloc.live.event_placement import initial_upto, seed_robot
+from graphloc.pipelines.team_graph.camera import FeatureTracks
+from graphloc.pipelines.team_graph.mixtures import MixtureTracker
+
+
+class EventFeatures:
+    """Feature pixels (`graphloc.run.FeatureObservation`) of an `EventGraph`, in time order:
+    held until their poses are final (`take`), then factors; the tracks' point priors enter
+    with their first pixel's step (`priors`)."""
+
+    def __init__(self, run, config):
+        self.config = config
+        self.tracks = FeatureTracks(run, config)
+        self.queue: deque = deque()
+        self.arrived: list = []  # every pixel, in arrival order
+        self.taken = 0  # pixels made into factors (their order key)
+        self.priors_done = 0  # point priors entered
+
+    def arrive(self, events, f) -> None:
+        """One pixel: its time is one of its robot's measurement times (a pose inside a
+        relative-pose step, `event_clock.inserted_times`)."""
+        robot = events.robots[f.robot]
+        built = robot.times
+        if len(built) and f.time < built[-1]:
+            raise NotLiveError(
+                f"robot {robot.robot.name}: a feature pixel at {f.time}, after its pose times "
+                f"up to {built[-1]} were built (rows out of time order)"
+            )
+        if robot.measured and f.time < robot.measured[-1]:
+            raise NotLiveError(
+                f"robot {robot.robot.name}: feature pixels out of time order ({f.time} after "
+                f"{robot.measured[-1]})"
+            )
+        if not robot.measured or robot.measured[-1] != f.time:
+            robot.measured.append(f.time)
+        self.arrived.append(f)
+        self.queue.append(f)
+
+    def head(self) -> float:
+        """The time of the oldest pixel still waiting (inf: none)."""
+        return self.queue[0].time if self.queue else np.inf
+
+    def take(self, events, watermark: float) -> None:
+        """The waiting pixels whose robot's poses near them are final, as projection factors."""
+        tol = self.config.sync_tolerance
+        while self.queue:
+            f = self.queue[0]
+            if f.time + tol >= final_end(events.robots[f.robot], watermark):
+                return
+            self.queue.popleft()
+            k = events.clock.nearest(f.robot, f.time)
+            time = events.clock.node_times[f.robot][k] if k >= 0 else np.nan
+            for t, factor, kind in self.tracks.add(f, k, time):
+                events._pending(t, (3, self.taken), factor, kind)
+            self.taken += 1
+
+    def priors(self, events, t: float) -> None:
+        """The point priors of tracks whose first pixel's step is at t, once that pose has
+        its initial value (`initial_upto` ran to t): the landmark's guess on the first ray is
+        its initial value and the prior's mean (`build_graph`'s feature priors); a robot
+        nothing placed gets none (its projections are held)."""
+        section, graph = self.tracks.section, events.graph
+        while self.priors_done < len(section.point_priors):
+            lkey, sigma, time = section.point_priors[self.priors_done]
+            if time > t:
+                return
+            _, r, k, direction, rng = section.landmark_guess[lkey]
+            pose = graph.initial.get(pose_key(r, k))
+            if pose is not None:
+                graph.initial[lkey] = pose.transformFrom(direction * rng)
+                noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
+                prior = gtsam.PriorFactorPoint3(lkey, graph.initial[lkey], noise)
+                events._pending(time, (9, self.priors_done), prior, "feature_prior")
+            self.priors_done += 1
+
+
+def mixture_set(events, n: int, o) -> None:
+    """Candidate set n (`o`) of a placed observer on a target without an initial pose, through
+    its stream's `MixtureTracker` (module docstring); the target placed at its first usable
+    sighting."""
+    run, config, graph = events.run, events.config, events.graph
+    r, ti = o.robot, o.target
+    entry = events.mixtures.get((r, ti))
+    if entry is None:
+        entry = [MixtureTracker(run, config, r, ti), len(events.streams) + len(events.mixtures)]
+        events.mixtures[(r, ti)] = entry
+    tracker, index = entry
+    before = tracker.out.placed
+    k, kt = events.clock.nearest(r, o.time), events.clock.nearest(ti, o.time)
+    tracker.add(o, k, kt, events.robots[r].steps)
+    for t, factor, kind in tracker.factor_times(events.clock.node_times):
+        events._pending(t, (4, index, len(tracker.out.outcomes), 0), factor, kind)
+        d = tracker.out.outcomes[-1]
+        if d.mixture is not None and d.relative is not None:
+            graph.links[pose_key(r, k)] = (pose_key(ti, kt), d.relative)
+    if before is None and tracker.out.placed is not None:
+        ((k_target, (_, k_observer, rel)),) = tracker.out.placed.items()
+        observer = events.robots[r]
+        if observer.seed is None:  # `coverage`: such an observer's sets are refused
+            raise NotLiveError(f"robot {run.robots[r].name}: circle sets from an unplaced robot")
+        initial_upto(graph, config, [observer], float(observer.times[k_observer]))
+        pose = graph.initial[pose_key(r, k_observer)].compose(rel)
+        seed_robot(graph, config, events.robots[ti], k_target, pose)

@@ -1,0 +1,80 @@
+"""What a finished `live.events.EventGraph` records in its `TeamGraph`, as `build_graph` records
+it: every stream's set outcomes in the order the streams began (tracked and max-mixture
+streams alike), the sections' skips (the point measurements' too), the alternative placements
+(pixel streams', resected robots') and the graph's counts."""
+
+from __future__ import annotations
+
+from graphloc.live.event_placement import alternative_placements
+
+
+def record_graph(events) -> None:
+    """Decisions, skips, alternatives and counts of `events` (an `EventGraph` whose rows are
+    all in) into its graph."""
+    graph = events.graph
+    tracked = list(events.streams.values())
+    ordered = sorted(
+        [(i, t.out.outcomes, t.out.skips) for t, _, i in tracked]
+        + [(i, t.out.outcomes, t.out.made.skips) for t, i in events.mixtures.values()],
+        key=lambda item: item[0],
+    )
+    graph.decisions = [d for _, outcomes, _ in ordered for d in outcomes]
+    for _, _, skips in ordered:
+        graph.skips.merge(skips)
+    graph.skips.merge(events.features.tracks.section.made.skips)
+    graph.skips.merge(events.skips)
+    points = events.points.builder
+    graph.skips.merge(points.made.skips)
+    alternative_placements(
+        events.run,
+        events.config,
+        events.clock,
+        graph,
+        events.robots,
+        [tracker.out for tracker, _, _ in tracked],
+        events.points,
+    )
+    types = graph.factor_types
+    graph.counts = {
+        "robots": len(events.run.robots),
+        "poses": sum(len(r.times) for r in events.robots if r.seed is not None),
+        "candidate_sets": len(events.arrived),
+        "marker_points": len(events.marker_points),
+        "frame_marker_points": 0,
+        "sensor_poses": len(points.sensors.poses),
+        "committed_sets": sum(d.committed >= 0 for d in graph.decisions),
+        "landmark_anchors": points.n_anchor,
+        "feature_tracks": events.features.tracks.section.tracks,
+        "steps": len(graph.steps),
+        "excluded_by_option": points.excluded,
+        **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
+    }
+
+
+def unplaced_robots(events) -> None:
+    """Robots nothing placed by the end of `events` (an `EventGraph` whose rows are all in):
+    each a counted skip `unanchored_robot` naming why (its factors stay held)."""
+    graph, streams = events.graph, list(events.streams.values())
+    for robot in events.robots:
+        if robot.seed is not None:
+            continue
+        graph.anchored_from.pop(robot.r, None)
+        if not len(robot.times):  # no rows: no poses
+            continue
+        why = (
+            "nothing placed it (no decided candidate set, no placement by mutual bearings "
+            "or resection)"
+        )
+        for out in (t.out for t, _, _ in streams if t.out.robot == robot.r and t.out.sets):
+            if not out.pixel_route:
+                continue
+            why = (
+                f"its {len(out.sets)} candidate sets of {events.run.robots[out.target].name} "
+                f"were never decided, fewer than guess_after_sets "
+                f"({events.config.guess_after_sets}) to place it by a guess"
+            )
+        events.skips.add(
+            "unanchored_robot",
+            f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",
+            len(robot.times),
+        )
