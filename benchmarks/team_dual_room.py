@@ -1,9 +1,11 @@
 """Benchmark: the `dual-robot-room` scenario (seed 004, fa12d1d18dcbd0db.txt: a ground and a
 ceiling robot scan one room; P3P of the ground robot's LEDs initializes ICP) through the front
-door -- the log `graphloc simulate dual-robot-room` writes, read by `open_run` and solved by
-`graphloc.pipelines.team_graph` (KISS-ICP odometry, the LED candidate sets, the inter-robot
-scan registration of `team_graph.scans`) -- beside the map-fusion pipeline
-(`graphloc.pipelines.map_fusion.fuse`, what `graphloc fuse-maps` runs) on the same simulated run.
+door -- the log `graphloc simulate dual-robot-room` writes, read by `open_run`, its graph the
+one `graphloc smooth` / `online` solve (`runner.team_run.team_graph`: the live builder's
+KISS-ICP steps, LED candidate sets and causal inter-robot scan registration,
+`live.event_scans`), solved by `graphloc.pipelines.team_graph.solve` -- beside the map-fusion
+pipeline (`graphloc.pipelines.map_fusion.fuse`, what `graphloc fuse-maps` runs) on the same
+simulated run.
 
 Metric: the error of the ground -> ceiling transform at the first frame (rotation [deg],
 translation [cm]); target (issue 14): within 0.1 deg / 1 cm in every variant.
@@ -31,9 +33,10 @@ from benchmarks.render import render
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.types import FusionConfig, FusionRejected
 from graphloc.mapping.registration import pose_errors
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, default_lag, solve
+from graphloc.pipelines.team_graph import GraphConfig, default_lag, solve
 from graphloc.plots import plt
 from graphloc.run import pose_from_xyz_quat
+from graphloc.runner.team_run import team_graph
 from graphloc.structured import dumps_json
 
 METHODS = ("batch", "online", "fuse_maps")
@@ -58,7 +61,7 @@ def run_trial(item: tuple[str, int]) -> dict:
         scenario.write(Path(tmp))
         run = open_run(tmp)
         g, c = run.index("ground"), run.index("ceiling")
-        graph = build_graph(run, GraphConfig())
+        graph = team_graph(run, GraphConfig())
         out["scan_matches"] = graph.counts.get("factors_scan_match", 0)
         out["skipped"] = graph.skips.as_dict()["counts"]
         for mode in ("batch", "online"):

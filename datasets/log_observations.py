@@ -190,7 +190,7 @@ def scan_odometry(groups: dict, robots: tuple, manifest, report, notes=None) -> 
         return [], []
     # Open3D and KISS-ICP load only for runs that have scans
     from graphloc.mapping.io import check_scan_units, read_scan
-    from graphloc.mapping.odometry import run_odometry
+    from graphloc.mapping.odometry import ScanOdometry
 
     out, observed, sequences = [], [], {}
     for (ri, sensor), rows in groups.items():
@@ -215,15 +215,24 @@ def scan_odometry(groups: dict, robots: tuple, manifest, report, notes=None) -> 
         check_scan_units({f"{robots[ri].name}/{s}": seq for (ri, s), seq in sequences.items()})
     for (ri, sensor), rows in groups.items():
         T_bs, params = robots[ri].sensors[sensor]
-        E = gtsam.Pose3(T_bs)
-        sig = params.get("icp_sigmas", SCAN_SIGMAS)
-        cov = np.diag([float(sig[0]) ** 2] * 3 + [float(sig[1]) ** 2] * 3)
-        A = E.AdjointMap()
-        steps = run_odometry(sequences[(ri, sensor)][0]).increments()
-        for a, b, step in zip(rows[:-1], rows[1:], steps):
-            rel = E.compose(gtsam.Pose3(step)).compose(E.inverse())
-            out.append(Motion(ri, a.time, b.time, rel, A @ cov @ A.T))
+        odometry = ScanOdometry()  # scan by scan, as the live team feeds it (`live.scan_feed`)
+        steps = [odometry.add(points) for points in sequences[(ri, sensor)][0]]
+        for a, b, step in zip(rows[:-1], rows[1:], steps[1:]):
+            out.append(scan_step(ri, T_bs, params, a.time, b.time, step))
     return out, observed
+
+
+def scan_step(ri: int, T_bs, params: dict, t0: float, t1: float, step) -> Motion:
+    """One KISS-ICP step of robot ri's scanner (extrinsics `T_bs`, its `params`) from its scan
+    at t0 to the one at t1 as a relative pose of the body: the step through the extrinsics,
+    covariance from the scanner's `icp_sigmas` [rot rad, trans m] (SCAN_SIGMAS when it gives
+    none), moved to the body frame."""
+    E = gtsam.Pose3(T_bs)
+    sig = params.get("icp_sigmas", SCAN_SIGMAS)
+    cov = np.diag([float(sig[0]) ** 2] * 3 + [float(sig[1]) ** 2] * 3)
+    A = E.AdjointMap()
+    rel = E.compose(gtsam.Pose3(step)).compose(E.inverse())
+    return Motion(ri, t0, t1, rel, A @ cov @ A.T)
 
 
 def candidate_observations(groups: dict, robots: tuple, d: dict, manifest, sink: Sink) -> list:

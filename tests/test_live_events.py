@@ -192,9 +192,9 @@ def test_streams_the_event_route_does_not_take_are_named_and_take_build_graph(ru
         run, robots=tuple(replace(r, initial_pose=None) if r.static else r for r in run.robots)
     )
     problems = not_live(unplaced, run_tables(unplaced))
-    assert any("not a static robot with an initial_pose" in p for p in problems)
+    assert any("with no initial_pose: an unplaced target" in p for p in problems)
     assert team_graph(unplaced, GraphConfig()).counts == build_graph(unplaced, GraphConfig()).counts
-    with pytest.raises(NotLiveError, match="not a static robot with an initial_pose"):
+    with pytest.raises(NotLiveError, match="which has no initial_pose"):
         build_events(unplaced, GraphConfig())
 
 

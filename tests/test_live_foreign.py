@@ -215,7 +215,8 @@ def test_bad_rows_are_counted_skips_naming_robot_table_and_field(logs):
     for robot, table, row, error, text in [
         ("rover9", "range", base, ValueError, "unknown robot 'rover9'"),
         ("rover0", "lidar", base, ValueError, "unknown table 'lidar'"),
-        ("rover0", "scans", base, NotLiveError, "not live yet"),
+        ("rover0", "features", base, NotLiveError, "not live in this team"),
+        ("rover0", "scans", base, NotLiveError, "not live in this team"),
         ("rover0", "markers", base, NotLiveError, "not live in this team"),
         ("rover0", "range", [("time", base["time"])], TypeError, "mapping of column"),
         ("rover0", "range", None, TypeError, "mapping of column"),

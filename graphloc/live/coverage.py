@@ -1,11 +1,14 @@
 """What the live builders cover: the tables they take rows of, and what keeps a run off them
 (`not_live`), with why -- the sections that need rows after the step they shape. Two routes
 (`route`): wheel-odometry robots with point measurements (`graphloc.live.builder.LiveGraph`),
-and event-clocked robots -- relative poses, no wheel odometry -- with point measurements,
-placed by the candidate sets they see of a static target, by mutual bearings or by resection
-on their bearings of placed static robots, or, seen as circles by a placed camera, by
-max-mixtures, with the camera's feature tracks (`graphloc.live.events.EventGraph`,
-`live.event_points`, `live.event_camera`)."""
+and event-clocked robots -- relative poses or scans (KISS-ICP steps, `live.scan_feed`), no
+wheel odometry -- with point measurements, placed by the candidate sets they see of a target
+with a known pose, by the inter-robot scan registration those sets hint, by mutual bearings or
+by resection on their bearings of placed static robots, or, seen as circles by a placed
+camera, by max-mixtures, with the camera's feature tracks (`graphloc.live.events.EventGraph`,
+`live.event_scans`, `live.event_points`, `live.event_camera`). Every table of
+docs/log_format.md has a route; what keeps a run off them is how its robots and tables combine
+(`not_live`)."""
 
 from __future__ import annotations
 
@@ -13,25 +16,18 @@ from graphloc.run import TeamRun
 
 # the sections `LiveGraph` builds, and the tables it takes rows of
 LIVE_TABLES = ("odometry", "range", "bearing", "range_bearing", "groundtruth")
-# the tables of `EventGraph`'s route (`route` "event")
-EVENT_TABLES = (
+# the tables whose rows make `EventGraph`'s route (`route` "event"), and all it takes
+EVENT_ROWS = (
     "relative_pose",
     "relative_pose3",
+    "scans",
     "markers",
     "candidates",
-    "range",
-    "bearing",
-    "range_bearing",
     "ellipses",
     "features",
-    "groundtruth",
 )
-# the event tables that make an event-clocked team (`route`)
-EVENT_SIGNS = ("relative_pose", "relative_pose3", "markers", "candidates", "ellipses", "features")
-# tables whose sections are not causal yet, and why (`not_live`)
-NOT_LIVE = {
-    "scans": "KISS-ICP odometry and inter-robot scan registration",
-}
+# ... and the point measurements it takes with them
+EVENT_TABLES = EVENT_ROWS + ("range", "bearing", "range_bearing", "groundtruth")
 
 
 class NotLiveError(ValueError):
@@ -39,11 +35,11 @@ class NotLiveError(ValueError):
 
 
 def route(run: TeamRun, tables: dict) -> str:
-    """ "event" for a run with relative poses, candidate sets (markers, candidates, ellipses)
-    or feature tracks and no wheel odometry (its robots' pose times at their rows' times:
-    `EventGraph`), else "wheel" (`LiveGraph`)."""
+    """ "event" for a run with relative poses, scans, candidate sets (markers, candidates,
+    ellipses) or feature tracks and no wheel odometry (its robots' pose times at their rows'
+    times: `EventGraph`), else "wheel" (`LiveGraph`)."""
     named = set().union(*map(set, tables.values())) if tables else set()
-    event = named & set(EVENT_SIGNS)
+    event = named & set(EVENT_ROWS)
     return "event" if event and "odometry" not in named else "wheel"
 
 
@@ -59,12 +55,10 @@ def not_live(run: TeamRun, tables: dict) -> list[str]:
         return _event_problems(run, tables)
     out = []
     for r, robot in enumerate(run.robots):
-        for table in sorted(set(tables.get(robot.name, ())) & set(NOT_LIVE)):
-            out.append(f"robot {robot.name}: table {table!r}: {NOT_LIVE[table]}")
-        for table in sorted(set(tables.get(robot.name, ())) & set(EVENT_SIGNS)):
+        for table in sorted(set(tables.get(robot.name, ())) & set(EVENT_ROWS)):
             out.append(
                 f"robot {robot.name}: table {table!r}: wheel odometry and event-clocked robots "
-                f"(relative poses, candidate sets, camera tables) in one run"
+                f"(relative poses, scans, candidate sets, camera tables) in one run"
             )
         if robot.initial_pose is None:
             out.append(
@@ -95,8 +89,6 @@ def _event_problems(run: TeamRun, tables: dict) -> list[str]:
     )
     for robot in run.robots:
         mine = set(tables.get(robot.name, ()))
-        for table in sorted(mine & set(NOT_LIVE)):
-            out.append(f"robot {robot.name}: table {table!r}: {NOT_LIVE[table]}")
         # what places it: candidate sets it sees (a moving observer), its bearings (mutual
         # bearings, P3P), a placed camera's circles of it
         sees = mine & ({"bearing"} if robot.static else {"markers", "candidates", "bearing"})
@@ -111,25 +103,40 @@ def _event_problems(run: TeamRun, tables: dict) -> list[str]:
                 f"robot {robot.name}: table {table!r} of a robot without an initial_pose (circle "
                 f"sets and feature tracks are built from a placed camera's poses)"
             )
-    out += _stream_problems(run)
+    out += _stream_problems(run, tables)
     return out
 
 
-def _stream_problems(run: TeamRun) -> list[str]:
-    """The candidate streams of a loaded run `EventGraph` does not take (the live team finds
-    them as the sets arrive: `events.EventGraph._set`), one line each."""
+def _stream_problems(run: TeamRun, tables: dict) -> list[str]:
+    """The candidate streams `EventGraph` does not take (`event_sets.take_set` refuses them as
+    their sets arrive), one line each: sets of a target without an initial pose (a marker layout
+    markers see, or a loaded run's set rows; circle sets are max-mixtures, `live.event_camera`),
+    of a moving target without marker pixels, with and without pixels, of two targets."""
     out, robots = [], run.robots
     targets: dict = {}
     for o in run.observations:
+        if o.candidates.source == "circle":
+            continue
         targets.setdefault(o.robot, {}).setdefault(o.target, set()).add(o.pixels is not None)
+    unplaced = {ti for seen in targets.values() for ti in seen if robots[ti].initial_pose is None}
+    if any("markers" in t for t in tables.values()):  # a marker layout is what markers see
+        unplaced |= {
+            ti
+            for ti, robot in enumerate(robots)
+            if robot.markers is not None and robot.initial_pose is None
+        }
+    for ti in sorted(unplaced):
+        out.append(
+            f"robot {robots[ti].name}: a target of candidate sets (marker layout or set rows) "
+            f"with no initial_pose: an unplaced target (max-mixtures)"
+        )
     for r, seen in sorted(targets.items()):
         name = robots[r].name
         for ti in sorted(seen):
-            if not robots[ti].static or robots[ti].initial_pose is None:
+            if not robots[ti].static and False in seen[ti]:
                 out.append(
-                    f"robot {name}: candidate sets of {robots[ti].name}, which is not a static "
-                    f"robot with an initial_pose (a moving or unplaced target: max-mixtures, "
-                    f"marker points per set)"
+                    f"robot {name}: candidate sets of the moving {robots[ti].name} without "
+                    f"marker pixels (between factors on both poses: not live yet)"
                 )
             if len(seen[ti]) > 1:
                 out.append(

@@ -16,7 +16,7 @@ candidates, scale from the base's radius):
   (`event_placement.seed_robot`); until then its factors are held by the online pass
   (`anchored_from` infinite), as for an observer placed by a decided set.
 
-Order keys of the pending factors (`EventGraph._pending`) put them where `build_graph`'s
+Order keys of the pending factors (`EventGraph.pending_factor`) put them where `build_graph`'s
 sections put them within a step: projections (3, pixel) after the anchors, mixtures (4, stream,
 set) with the other candidate streams, point priors (9, track) last."""
 
@@ -83,7 +83,7 @@ class EventFeatures:
             k = events.clock.nearest(f.robot, f.time)
             time = events.clock.node_times[f.robot][k] if k >= 0 else np.nan
             for t, factor, kind in self.tracks.add(f, k, time):
-                events._pending(t, (3, self.taken), factor, kind)
+                events.pending_factor(t, (3, self.taken), factor, kind)
             self.taken += 1
 
     def priors(self, events, t: float) -> None:
@@ -102,7 +102,7 @@ class EventFeatures:
                 graph.initial[lkey] = pose.transformFrom(direction * rng)
                 noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
                 prior = gtsam.PriorFactorPoint3(lkey, graph.initial[lkey], noise)
-                events._pending(time, (9, self.priors_done), prior, "feature_prior")
+                events.pending_factor(time, (9, self.priors_done), prior, "feature_prior")
             self.priors_done += 1
 
 
@@ -121,7 +121,7 @@ def mixture_set(events, n: int, o) -> None:
     k, kt = events.clock.nearest(r, o.time), events.clock.nearest(ti, o.time)
     tracker.add(o, k, kt, events.robots[r].steps)
     for t, factor, kind in tracker.factor_times(events.clock.node_times):
-        events._pending(t, (4, index, len(tracker.out.outcomes), 0), factor, kind)
+        events.pending_factor(t, (4, index, len(tracker.out.outcomes), 0), factor, kind)
         d = tracker.out.outcomes[-1]
         if d.mixture is not None and d.relative is not None:
             graph.links[pose_key(r, k)] = (pose_key(ti, kt), d.relative)

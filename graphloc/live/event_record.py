@@ -40,7 +40,7 @@ def record_graph(events) -> None:
         "poses": sum(len(r.times) for r in events.robots if r.seed is not None),
         "candidate_sets": len(events.arrived),
         "marker_points": len(events.marker_points),
-        "frame_marker_points": 0,
+        "frame_marker_points": len(graph.frame_points),
         "sensor_poses": len(points.sensors.poses),
         "committed_sets": sum(d.committed >= 0 for d in graph.decisions),
         "landmark_anchors": points.n_anchor,

@@ -1,9 +1,11 @@
 """`EventRows`: an event-clocked team's checked rows (`rows.RowChecker` with the event tables)
 into its `events.EventGraph`, with the interface `LiveTeam` drives (`point`, `advance`,
 `finish`, `graph`, `start`, `run_so_far`): relative poses and point measurements go in as they
-come; `markers`, `candidates`, `ellipses` and `features` rows are held until the watermark
-passes their time (every row of their image or set has arrived), then made into candidate sets
-and feature pixels by the loader's own front ends (`log_observations.marker_observations`: the
+come, a scan as the relative pose KISS-ICP makes of it from the scanner's previous one
+(`scan_feed.ScanFeed`); `markers`, `candidates`, `ellipses` and `features` rows are held until
+the watermark passes their time (every row of their image or set has arrived), then made into
+candidate sets and feature pixels by the loader's own front ends
+(`log_observations.marker_observations`: the
 checks and P3P of a log's marker pixels, `candidate_observations`;
 `camera_tables.ellipse_observations`: seed 003's two circle candidates, `single_tracks` and
 `feature_observations`), in the loader's order, and go in."""
@@ -21,10 +23,11 @@ from graphloc.datasets.camera_tables import (
     single_tracks,
 )
 from graphloc.datasets.log_observations import candidate_observations, marker_observations
-from graphloc.io import Sink
+from graphloc.io import Sink, SkipReport
 from graphloc.keys import decode
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.events import EventGraph
+from graphloc.live.scan_feed import ScanFeed
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.run import TeamRun
@@ -43,7 +46,7 @@ class EventRows:
         stamped = {
             r
             for r, robot in enumerate(run.robots)
-            if set(RELATIVE) & set(tables.get(robot.name, ()))
+            if set(RELATIVE + ("scans",)) & set(tables.get(robot.name, ()))
         }
         observers = {
             r
@@ -62,6 +65,7 @@ class EventRows:
         self.pixels: list = []  # features: (robot, record)
         self.motions: list = []
         self.points: list = []
+        self.scans = ScanFeed(run, setup.manifest.root, skips, SkipReport())
 
     @property
     def start(self):
@@ -78,6 +82,14 @@ class EventRows:
         if table in RELATIVE:
             self.motions.append(row)
             self.events.motion(row)
+        elif table == "scans":
+            made = self.scans.add(r, *row)
+            if made is not None:
+                scan, step = made
+                if step is not None:
+                    self.motions.append(step)
+                    self.events.motion(step)
+                self.events.scan(scan)
         elif table == "markers":
             sensor = self.sensors[r].index(row.sensor)
             target = self.index[row.target]
@@ -114,6 +126,7 @@ class EventRows:
             observations=tuple(events.arrived),
             points=tuple(self.points),
             features=tuple(events.features.arrived),
+            scans=tuple(self.scans.scans),
         )
 
     def _where(self, r: int, row) -> str:
@@ -168,11 +181,13 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
     live = EventGraph(_without_rows(run), config, run.start_time, stamped, observers, camera)
     motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
-    sets = ((o.time, 1, i, o) for i, o in enumerate(run.observations))
-    pixels = ((f.time, 2, i, f) for i, f in enumerate(run.features))
-    points = ((m.time, 3, i, m) for i, m in enumerate(run.points))
-    take = (live.motion, live.observation, live.feature, live.point)
-    for t, kind, _, row in heapq.merge(motions, sets, pixels, points, key=lambda e: e[:3]):
+    scans = ((s.time, 1, i, s) for i, s in enumerate(run.scans))
+    sets = ((o.time, 2, i, o) for i, o in enumerate(run.observations))
+    pixels = ((f.time, 3, i, f) for i, f in enumerate(run.features))
+    points = ((m.time, 4, i, m) for i, m in enumerate(run.points))
+    take = (live.motion, live.scan, live.observation, live.feature, live.point)
+    rows = heapq.merge(motions, scans, sets, pixels, points, key=lambda e: e[:3])
+    for t, kind, _, row in rows:
         take[kind](row)
         if steps is not None:
             steps.append(live.advance(t))
@@ -212,4 +227,4 @@ def _drop_unplaced(graph: TeamGraph, robots: set) -> None:
 
 
 def _without_rows(run: TeamRun) -> TeamRun:
-    return replace(run, motions=(), observations=(), features=(), points=())
+    return replace(run, motions=(), observations=(), features=(), scans=(), points=())

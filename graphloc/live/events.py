@@ -1,10 +1,12 @@
 """`EventGraph`: the team graph of event-clocked robots built as rows arrive -- robots without
-wheel odometry, whose poses are at their relative poses' stamps and their measurements' times
-(`team_graph.motion.node_times`), placed by the candidate sets they see of a static target with
-a known pose (`team_graph.candidates`: one `StreamTracker` per stream, fed set by set), by
-their bearings (`live.event_points`: point measurements, mutual bearings, resection), or,
-without an initial pose, by the circle sets a placed camera sees of them (max-mixtures), with
-the camera's feature tracks (`live.event_camera`, seed 003).
+wheel odometry, whose poses are at their relative poses' stamps (KISS-ICP steps of scans among
+them, `live.scan_feed`) and their measurements' times (`team_graph.motion.node_times`), placed
+by the candidate sets they see of a target with a known pose (`team_graph.candidates`: one
+`StreamTracker` per stream, fed set by set, `live.event_sets`), by the inter-robot scan
+registration those sets hint (`live.event_scans`), by their bearings (`live.event_points`:
+point measurements, mutual bearings, resection), or, without an initial pose, by the circle
+sets a placed camera sees of them (max-mixtures), with the camera's feature tracks
+(`live.event_camera`, seed 003).
 
 Causality. A robot's pose times up to x are final once every row before x has arrived (the
 watermark passed x) and, for a robot with relative poses, x is no later than the last arrived
@@ -24,7 +26,10 @@ without pixels at each decided set (its decisions are its only factors); a marke
 once, at its first decided set, or -- when none of its first `GraphConfig.guess_after_sets`
 tracked sets was decided -- at that set by the tracker's best guess there
 (`event_placement.stream_placement`): when that set arrives, the sets before it decide where
-the observer goes, and no later set can change it. Its earlier poses are carried back along its
+the observer goes, and no later set can change it. A scanning observer not placed by a
+decision is placed by the first accepted inter-robot scan registration from its stream's
+hypotheses (`event_scans.ScanLinks`, which also registers every later common scan time),
+tried at each set before the guess. Its earlier poses are carried back along its
 steps (`motion.place_robot`); until then its `anchored_from` is infinite, so the online pass
 (`Pass`: `hold_until` the largest `anchored_from`) holds its factors and they enter with the
 placement. The wait lets a stream that will decide be placed by its decision
@@ -45,15 +50,12 @@ import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.live.coverage import NotLiveError
-from graphloc.live.event_camera import EventFeatures, mixture_set
-from graphloc.live.event_placement import (
-    initial_upto,
-    seed_robot,
-    start_variants,
-    stream_placement,
-)
+from graphloc.live.event_camera import EventFeatures
+from graphloc.live.event_placement import initial_upto, seed_robot, start_variants
 from graphloc.live.event_points import EventPoints
 from graphloc.live.event_record import record_graph, unplaced_robots
+from graphloc.live.event_scans import ScanLinks
+from graphloc.live.event_sets import take_set
 from graphloc.live.event_clock import (
     EventClock,
     EventRobot,
@@ -61,11 +63,6 @@ from graphloc.live.event_clock import (
     inserted_times,
     measured,
     motion_bound,
-)
-from graphloc.pipelines.team_graph.candidates import (
-    StreamDecisions,
-    StreamTracker,
-    stream_factors,
 )
 from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig, run_precision
 from graphloc.pipelines.team_graph.graph import TeamGraph
@@ -127,6 +124,7 @@ class EventGraph:
         )
         self.graph.skips.merge(run.skips)
         self.graph.camera = camera
+        self.links = ScanLinks(self)  # the inter-robot scan registration
         for r, robot in enumerate(run.robots):  # held by the online pass until placed
             if robot.initial_pose is None:
                 self.graph.anchored_from[r] = np.inf
@@ -177,6 +175,11 @@ class EventGraph:
         robot.ends.append(m.t1)
         robot.span = max(robot.span, m.t1 - m.t0)
 
+    def scan(self, obs) -> None:
+        """A scan (`graphloc.run.ScanObservation`) for the inter-robot registration; its
+        KISS-ICP step comes in as a relative pose (`motion`)."""
+        self.links.scan(obs)
+
     def observation(self, o) -> None:
         """A candidate set (`graphloc.run.CandidateObservation`)."""
         self.first_seen = min(self.first_seen, o.time)
@@ -211,9 +214,10 @@ class EventGraph:
             self._times(robot, watermark)
         self._take_motions(watermark)
         points, robots, tol = self.points, self.robots, self.config.sync_tolerance
-        points.take(self.clock, lambda r: final_end(robots[r], watermark), self._pending)
+        points.take(self.clock, lambda r: final_end(robots[r], watermark), self.pending_factor)
         self._take_sets(watermark)
         self.features.take(self, watermark)
+        self.links.pairs(lambda r: final_end(self.robots[r], watermark))
         finished = watermark == np.inf and all(robot.finished for robot in robots)
         points.place(robots, self.clock, partial(seed_robot, self.graph, self.config), finished)
         for r, (starts, _) in points.resected.items():
@@ -221,7 +225,8 @@ class EventGraph:
                 start_variants(self.graph, self.config, robots[r], starts)
         bound = min(motion_bound(robot, watermark) for robot in robots)
         held = np.inf if finished else points.hold_from(robots) - 1e-9
-        bound = min(bound, watermark - tol - 1e-9, held, self.features.head() - tol - 1e-9)
+        bound = min(bound, self.links.bound(), watermark - tol - 1e-9, held)
+        bound = min(bound, self.features.head() - tol - 1e-9)
         for head in ([self.queue[0][1]] if self.queue else []) + list(points.queue)[:1]:
             bound = min(bound, head.time - tol - 1e-9)
         return self._emit(bound)
@@ -236,6 +241,7 @@ class EventGraph:
         if self.start is None and np.isfinite(self.first_seen):
             self.start = float(self.first_seen)
         steps = self.advance(np.inf) if self.start is not None else self._emit(np.inf)
+        self.links.finish(self.skips)
         unplaced_robots(self)
         record_graph(self)
         return steps
@@ -286,7 +292,7 @@ class EventGraph:
         made = robot_anchors(robot.r, robot.robot, self.config, robot.times, robot.anchors_done)
         for t, f, kind in made:
             robot.anchor_count += 1
-            self._pending(t, (1, robot.r, robot.anchor_count), f, kind)
+            self.pending_factor(t, (1, robot.r, robot.anchor_count), f, kind)
         robot.anchors_done = len(robot.times)
 
     def _take_motions(self, watermark: float) -> None:
@@ -319,7 +325,7 @@ class EventGraph:
         nodes = range(k0, k1 + 1) if len(parts) > 1 else (k0, k1)
         for j, (x, y, (rel, cov)) in enumerate(zip(nodes[:-1], nodes[1:], parts)):
             f = between_factor(r, x, y, rel, cov, config)
-            self._pending(times[max(x, y)], (0, r, index, j), f, "odometry")
+            self.pending_factor(times[max(x, y)], (0, r, index, j), f, "odometry")
             if y == x + 1 and robot.steps[y] is None:
                 robot.steps[y] = (rel, cov)
 
@@ -332,62 +338,9 @@ class EventGraph:
             if o.time + tol >= min(final_end(observer, watermark), final_end(target, watermark)):
                 return
             self.queue.popleft()
-            self._set(n, o)
+            take_set(self, n, o)
 
-    def _set(self, n: int, o) -> None:
-        run, r, ti = self.run, o.robot, o.target
-        key = (r, ti)
-        if key in self.mixtures or (
-            key not in self.streams
-            and run.robots[ti].initial_pose is None
-            and run.robots[r].initial_pose is not None
-        ):  # a placed observer, an unplaced target: max-mixtures (`live.event_camera`)
-            return mixture_set(self, n, o)
-        if key not in self.streams:
-            t = run.robots[ti]
-            if not t.static or t.initial_pose is None:
-                raise NotLiveError(
-                    f"robot {run.robots[r].name}: candidate sets of {t.name}, which is not a "
-                    f"static robot with an initial_pose (a moving or unplaced target: "
-                    f"max-mixtures, marker points per set)"
-                )
-            if any(k[0] == r for k in self.streams):
-                raise NotLiveError(
-                    f"robot {run.robots[r].name}: candidate sets of two targets: the whole-run "
-                    f"route places it by its streams in order of their first set"
-                )
-            tracker = StreamTracker(run, self.config, r, ti, o.pixels is not None)
-            self.streams[key] = [tracker, [], len(self.streams) + len(self.mixtures)]
-        tracker, obs, index = self.streams[key]
-        if (o.pixels is not None) != tracker.out.pixel_route:
-            raise NotLiveError(
-                f"robot {run.robots[r].name}: candidate sets of {run.robots[ti].name} with and "
-                f"without marker pixels"
-            )
-        obs.append((n, o))
-        step_rel = self.graph.step_rel
-        tracked = tracker.add(n, o, self.clock.nearest(r, o.time), 0, step_rel)
-        if tracked is None:
-            return
-        one = StreamDecisions(r, ti, tracker.out.pixel_route, [tracked])
-        made = stream_factors(run, self.config, self.clock, one, [(n, o)], self.marker_points)
-        self.skips.merge(made.skips)
-        self.marker_points.update(made.marker_points)
-        self.graph.initial.update(made.marker_points)
-        for j, (t, f, kind) in enumerate(made.factors):
-            self._pending(t, (4, index, len(obs), j), f, kind)
-        robot = self.robots[r]
-        if tracker.out.pixel_route:  # placed once (`stream_placement`)
-            if not robot.placed and (
-                tracked.decided or len(tracker.out.sets) >= self.config.guess_after_sets
-            ):
-                seed_robot(self.graph, self.config, robot, tracked.k, stream_placement(tracked))
-        elif tracked.decided:
-            seed_robot(
-                self.graph, self.config, robot, tracked.k, tracked.bodies[tracked.update.committed]
-            )
-
-    def _pending(self, t: float, order: tuple, factor, kind: str) -> None:
+    def pending_factor(self, t: float, order: tuple, factor, kind: str) -> None:
         if order[0] == 2 and t <= self.emitted:  # a row between static robots, whose one pose
             self.carried.append((order, factor, kind))  # is at the start: in the next step
             return
@@ -406,6 +359,7 @@ class EventGraph:
             initial_upto(graph, self.config, self.robots, t)
             self.points.initials(graph.initial)
             self.features.priors(self, t)
+            self._frame_points()
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
             group, self.carried = self.carried + group, []
             step = (t, [(f, kind) for _, f, kind in group])
@@ -416,4 +370,12 @@ class EventGraph:
         if bound == np.inf:
             initial_upto(graph, self.config, self.robots, np.inf)
             self.points.initials(graph.initial)
+            self._frame_points()
         return steps
+
+    def _frame_points(self) -> None:
+        """Initial values of a moving target's per-set marker points whose pose has one."""
+        initial = self.graph.initial
+        for key, (pose, local) in self.graph.frame_points.items():
+            if key not in initial and pose in initial:
+                initial[key] = initial[pose].transformFrom(local)

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import fields
 
 from graphloc.datasets.log_rows import TABLE_HANDLERS, RowContext, Skip
-from graphloc.live.coverage import EVENT_TABLES, LIVE_TABLES, NOT_LIVE, NotLiveError
+from graphloc.live.coverage import EVENT_TABLES, LIVE_TABLES, NotLiveError
 from graphloc.records import SENSOR_TYPES, TABLES, columns, plausible
 from graphloc.table_reader import known_target
 from graphloc.textio import SkipReport, cut, shown
@@ -59,7 +59,7 @@ class RowChecker:
 
     def check(self, robot: str, table: str, row: Mapping, n: int):
         """Robot `robot`'s row n of `table` as its handler's item, None if refused (counted).
-        ValueError for an unknown robot or table, `NotLiveError` for a table not live yet."""
+        ValueError for an unknown robot or table, `NotLiveError` for a table of the other route."""
         self.refuse(robot, table, row)
         where = f"robot {robot!r}, table {table!r}, row {n}"
         # a log source's rows (`live.tail`, `live.ros2`) name their line: provenance, no column
@@ -118,13 +118,11 @@ class RowChecker:
 
     def refuse(self, robot, table, row) -> None:
         """Raise for a push no row of the run can be: an unknown robot or table (ValueError), a
-        table not live yet (`NotLiveError`), a row that is not a mapping of column -> value
+        table of the other route (`NotLiveError`), a row that is not a mapping of column -> value
         (TypeError); each names robot and table."""
         where = f"robot {robot!r}, table {table!r}"
         if not isinstance(robot, str) or robot not in self.index:
             raise ValueError(f"{where}: unknown robot {robot!r}; robots: {sorted(self.index)}")
-        if isinstance(table, str) and table in NOT_LIVE:
-            raise NotLiveError(f"{where}: table {table!r} is not live yet: {NOT_LIVE[table]}")
         if (
             isinstance(table, str)
             and table not in self.tables

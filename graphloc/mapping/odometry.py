@@ -39,30 +39,50 @@ def kiss_config(cfg: OdometryConfig) -> KISSConfig:
     )
 
 
+class ScanOdometry:
+    """KISS-ICP's own pipeline (`KissICP`) over one scanner's sequence, one scan at a time:
+    `add(points)` registers a scan onto the map of the scans before it and returns the step
+    T_{k-1,k} from the previous scan (None for the first). A scan's step uses the scans before
+    it only (causal), so the live team (`graphloc.live.scan_feed`) and the log reader
+    (`datasets.log_observations.scan_odometry`) make the same steps."""
+
+    def __init__(self, cfg: OdometryConfig = OdometryConfig()):
+        self.kiss = KissICP(kiss_config(cfg))
+        self.pose: np.ndarray | None = None  # the last scan's pose in KISS-ICP's frame
+        self.frame: np.ndarray | None = None  # the last scan's points KISS-ICP kept
+        self.count = 0
+
+    def add(self, points, timestamps=None) -> np.ndarray | None:
+        """Scan `count` ((N,3) finite points; `timestamps` (N,) per-point times in [0,1] for
+        deskewing, zeros otherwise): its step from the previous scan, (4,4), or None."""
+        f = self.count
+        pts = np.asarray(points, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise ValueError(f"KISS-ICP odometry: scan {f} has shape {pts.shape}, expected (N,3)")
+        if not np.isfinite(pts).all():
+            raise ValueError(f"KISS-ICP odometry: scan {f} contains NaN/inf points")
+        ts = np.zeros(len(pts)) if timestamps is None else np.asarray(timestamps, np.float64)
+        self.frame, _ = self.kiss.register_frame(pts, ts)
+        previous, self.pose = self.pose, self.kiss.last_pose.copy()
+        self.count += 1
+        return None if previous is None else np.linalg.inv(previous) @ self.pose
+
+
 def run_odometry(
     scans: list[np.ndarray], cfg: OdometryConfig = OdometryConfig(), timestamps=None
 ) -> OdometryResult:
-    """KISS-ICP over a scan sequence. `timestamps`: optional per-scan (N_f,) per-point times in
-    [0,1] for deskewing; zeros otherwise."""
+    """KISS-ICP over a scan sequence (`ScanOdometry`, scan by scan) and the local map it
+    implies. `timestamps`: optional per-scan (N_f,) per-point times in [0,1] for deskewing;
+    zeros otherwise."""
     if len(scans) == 0:
         raise ValueError("run_odometry: empty scan sequence")
     start = time.perf_counter()
-    odom = KissICP(kiss_config(cfg))
+    odom = ScanOdometry(cfg)
     poses, clouds = [], []
     for f, pts in enumerate(scans):
-        pts = np.asarray(pts, dtype=np.float64)
-        if pts.ndim != 2 or pts.shape[1] != 3:
-            raise ValueError(f"run_odometry: scan {f} has shape {pts.shape}, expected (N,3)")
-        if not np.isfinite(pts).all():
-            raise ValueError(f"run_odometry: scan {f} contains NaN/inf points")
-        ts = (
-            np.zeros(len(pts))
-            if timestamps is None
-            else np.asarray(timestamps[f], dtype=np.float64)
-        )
-        frame, _ = odom.register_frame(pts, ts)
-        poses.append(odom.last_pose.copy())
-        clouds.append(frame @ odom.last_pose[:3, :3].T + odom.last_pose[:3, 3])
+        odom.add(pts, None if timestamps is None else timestamps[f])
+        poses.append(odom.pose)
+        clouds.append(odom.frame @ odom.pose[:3, :3].T + odom.pose[:3, 3])
     poses = np.asarray(poses)
     first_inv = np.linalg.inv(poses[0])
     poses = first_inv @ poses

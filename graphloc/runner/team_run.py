@@ -92,18 +92,25 @@ def run_team(
 def team_graph(run, config, progress: bool = False):
     """The graph `run_team` solves, batch and online alike: the live API's incremental builder
     (`live.builder.build_live`) for an event-clocked run whose sections are all live
-    (`live.coverage.not_live`, `route` "event": candidate sets of static targets, circle sets
-    and feature tracks of a placed camera); the whole-run `team_graph.build_graph` for the
-    others, and for a wheel-odometry run: fed a whole run, the wheel route's row-by-row
+    (`live.coverage.not_live`, `route` "event": candidate sets of targets with a known pose,
+    scans -- KISS-ICP steps as the live team makes them, the inter-robot registration by the
+    causal rule of `live.event_scans` --, circle sets and feature tracks of a placed camera);
+    the whole-run `team_graph.build_graph` for the others, for a run whose rows the live
+    builder refuses as they come (`NotLiveError` from `build_live`: relative-pose steps that
+    overlap, which only the whole run puts in one order), and for a wheel-odometry run: fed a
+    whole run, the wheel route's row-by-row
     builder costs several times build_graph's vectorized pass on the same graph
     (docs/architecture.md; tests/test_live.py holds the two graphs equal)."""
     from graphloc.live.builder import build_live
-    from graphloc.live.coverage import not_live, route, run_tables
+    from graphloc.live.coverage import NotLiveError, not_live, route, run_tables
     from graphloc.pipelines.team_graph import build_graph
 
     tables = run_tables(run)
     if route(run, tables) == "event" and not not_live(run, tables):
-        return build_live(run, config)
+        try:
+            return build_live(run, config)
+        except NotLiveError:  # rows only the whole run puts in one order (docstring)
+            pass
     return build_graph(run, config, progress=progress)
 
 

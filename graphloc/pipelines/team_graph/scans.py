@@ -64,7 +64,7 @@ def scan_match_factors(
         reasons = []
         for a in (a for a in scanning if a in poses):
             for guess in tentative[b]:  # the tracker's guess, then each candidate
-                link = _register_pair(
+                link = register_pair(
                     run, config, timeline, step_rel, poses, guess, a, b, skips, reasons, prepared
                 )
                 if link is not None:
@@ -94,12 +94,12 @@ def scan_match_factors(
                 kb = timeline.nearest(b, scan_b.time)
                 if kb < 0:
                     continue
-                scan_a = _scan_near(run, a, scan_b.time)
+                scan_a = scan_near(run, a, scan_b.time)
                 if (scan_a.time, scan_b.time) in used:  # the pair placed b: already a factor
                     continue
                 guess = (kb, scan_b.time, poses[b][0][kb], cov6(config.scan_hint_sigma))
                 reasons = []
-                link = _register_pair(
+                link = register_pair(
                     run, config, timeline, step_rel, poses, guess, a, b, skips, reasons, prepared
                 )
                 if link is None and reasons:
@@ -110,20 +110,20 @@ def scan_match_factors(
     return ScanSection(made, placed_via)  # the caller places those robots through their steps
 
 
-def _scan_near(run: TeamRun, r: int, t: float):
+def scan_near(run: TeamRun, r: int, t: float):
     scans = [s for s in run.scans if s.robot == r]
     return min(scans, key=lambda s: abs(s.time - t)) if scans else None
 
 
-def _register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips, reasons, prepared):
+def register_pair(run, config, timeline, step_rel, poses, guess, a, b, skips, reasons, prepared):
     """Robot b's scan nearest its guess (node, time, body pose, 6x6 covariance) registered onto
     robot a's scan at the same time: (factor time, factor, {b's node: (a, a's node, rel)},
     (scan times)) or None (counted). `prepared`: scan path -> PreparedCloud, the scans this
     section has prepared (filled here)."""
     nearest, node_times = timeline.nearest, timeline.node_times
     k_tent, t_tent, X_tent, cov_tent = guess
-    scan_b = _scan_near(run, b, t_tent)
-    scan_a = _scan_near(run, a, scan_b.time)
+    scan_b = scan_near(run, b, t_tent)
+    scan_a = scan_near(run, a, scan_b.time)
     name = f"robots {run.robots[a].name} / {run.robots[b].name}"
     if abs(scan_a.time - scan_b.time) > max(config.sync_tolerance, config.keyframe_dt / 2):
         skips.add("scan_match_rejected", f"{name}: no scans at a common time near {t_tent}")
