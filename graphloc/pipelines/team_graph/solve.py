@@ -6,23 +6,15 @@ from __future__ import annotations
 import time as _time
 from dataclasses import replace
 
-import gtsam
-import numpy as np
 from tqdm import tqdm
 
 from graphloc.exitcodes import SolverFailure
 from graphloc.keys import decode
 from graphloc.pipelines.team_graph.graph import TeamGraph
 from graphloc.pipelines.team_graph.passes import STEP_LOG_COLUMNS, Pass, TeamResult, start_only
+from graphloc.pipelines.team_graph.side_by_side import MAX_CHECKS, SideBySide
 
 __all__ = ["STEP_LOG_COLUMNS", "TeamResult", "hypotheses", "solve", "warm_start", "warm_starts"]
-
-
-PRUNE_CHI2 = 50.0  # a hypothesis whose chi-square exceeds the least by this much is dropped
-SETTLE_UPDATES = 5  # ... after at most this many more iSAM2 iterations of both
-SAME_ESTIMATE = (0.01, 0.01)  # (m, rad): hypotheses whose latest poses agree this well are one
-EARLY_CHECKS = 20  # hypotheses are compared after each of the first steps
-MAX_CHECKS = 200  # hypotheses are compared at most this many times over a run (and at its end)
 
 
 def solve(
@@ -106,107 +98,25 @@ def hypotheses(
     on_stop=None,
 ) -> TeamResult:
     """Online passes of `graph` from each of `starts` (key -> value over the graph's guess;
-    None: the guess) side by side, step by step, compared and pruned by chi-square (`solve`).
-    Returns the best surviving pass, its causal estimates chosen per pose, and the others
-    that survived in `TeamResult.survivors` (their final values)."""
-    passes = [
-        Pass(graph, mode, None if s is None else {**graph.initial, **s}, False, stop)
-        for s in starts
-    ]
-    alive = list(range(len(passes)))
-    chi2 = np.zeros(len(passes))
-    best_at: list = []  # step -> index of the best pass then
-    stride = max(1, len(graph.steps) // MAX_CHECKS)
+    None: the guess) side by side, step by step, compared and pruned by chi-square (`solve`,
+    `side_by_side.SideBySide`: compared after each of the first steps, then MAX_CHECKS times
+    over the run and at its end). Returns the best surviving pass, its causal estimates chosen
+    per pose, and the others that survived in `TeamResult.survivors` (their final values)."""
+    n = len(graph.steps)
+    passes = SideBySide(graph, mode, starts, stop, stride=max(1, n // MAX_CHECKS))
     start = _time.perf_counter()
     partial = False
-    for i in tqdm(range(len(graph.steps)), desc=f"{mode} steps", disable=not progress, unit="step"):
+    for i in tqdm(range(n), desc=f"{mode} steps", disable=not progress, unit="step"):
         if stop is not None and stop():
             partial = True
             if on_stop is not None:
                 on_stop(i)
             break
-        for j in list(alive):
-            try:
-                passes[j].step(i)
-            except ValueError:  # iSAM2 cannot solve this hypothesis: it is dropped
-                if len(alive) == 1:
-                    raise
-                alive.remove(j)
-        if len(alive) > 1:
-            alive = _distinct(passes, alive)
-        if len(alive) > 1 and (i % stride == 0 or i < EARLY_CHECKS or i == len(graph.steps) - 1):
-            alive = _prune(passes, alive, chi2)
-        best_at.append(min(alive, key=lambda j: chi2[j]))
+        passes.step(i, last=i == n - 1)
         if on_step is not None:
             on_step(i)
     wall = _time.perf_counter() - start
-    results = {j: passes[j].result() for j in alive}
-    best = min(alive, key=lambda j: results[j].chi2)
-    result = results[best]
-    if len(passes) > 1:  # each pose's causal estimate from the pass best when it entered
-        causal = [rows.copy() for rows in result.causal]
-        for r, rows in enumerate(causal):
-            for k in range(len(rows)):
-                i = passes[0].entered.get((r, k))
-                if i is not None and i < len(best_at):
-                    rows[k] = passes[best_at[i]].causal_row(r, k)
-        result = replace(result, causal=causal)
-    return replace(
-        result,
-        wall_s=wall,
-        partial=partial or result.partial,
-        survivors=[results[j].values for j in alive if j != best],
-        hypotheses=len(passes),
-    )
-
-
-def _distinct(passes: list, alive: list) -> list:
-    """The hypotheses that are not the same estimate as an earlier one: every robot's latest
-    pose within SAME_ESTIMATE (m, rad) of it (they converged to one basin)."""
-    out = []
-    for j in alive:
-        mine = passes[j].latest
-        if not any(_same(mine, passes[i].latest) for i in out):
-            out.append(j)
-    return out
-
-
-def _same(a: dict, b: dict) -> bool:
-    if a.keys() != b.keys():
-        return False
-    for r, (k, pose) in a.items():
-        kb, other = b[r]
-        if k != kb:
-            return False
-        d = pose.between(other)
-        if np.linalg.norm(d.translation()) > SAME_ESTIMATE[0]:
-            return False
-        if np.linalg.norm(gtsam.Rot3.Logmap(d.rotation())) > SAME_ESTIMATE[1]:
-            return False
-    return True
-
-
-def _prune(passes: list, alive: list, chi2: np.ndarray) -> list:
-    """Hypotheses compared by chi-square (`solve`); one more than PRUNE_CHI2 behind the best is
-    first given up to SETTLE_UPDATES more iSAM2 iterations, as is the best (an update takes one
-    Gauss-Newton step, and a pass far from its minimum is no evidence against it), and dropped
-    if it is still behind. Updates `chi2` of the passes compared."""
-    for j in alive:
-        chi2[j] = passes[j].current_chi2()[0]
-    best = min(alive, key=lambda j: chi2[j])
-    behind = [j for j in alive if chi2[j] > chi2[best] + PRUNE_CHI2]
-    if not behind:
-        return alive
-    for j in [best, *behind]:
-        try:
-            chi2[j] = passes[j].settle(SETTLE_UPDATES)
-        except ValueError:  # iSAM2 cannot iterate this hypothesis: it is dropped
-            chi2[j] = np.inf
-    best = min(alive, key=lambda j: chi2[j])
-    kept = [j for j in alive if chi2[j] <= chi2[best] + PRUNE_CHI2]
-    if not kept:
-        raise ValueError("no hypothesis can be solved")
-    return kept
+    return replace(passes.result(partial), wall_s=wall)
 
 
 def _batch_starts(graph: TeamGraph, stop, progress: bool) -> tuple[list, str]:
