@@ -32,9 +32,9 @@ from tqdm import tqdm
 
 from graphloc.datasets import open_run
 from graphloc.live import LiveTeam, replay, run_rows
-from graphloc.live.builder import build_live
 from graphloc.pipelines.team_graph import default_lag, solve
 from graphloc.pipelines.team_graph.options import RunOptions
+from graphloc.runner.team_run import team_graph
 from graphloc.structured import dumps_json
 
 
@@ -44,7 +44,7 @@ def online(data: str, options: RunOptions) -> tuple[object, float, float]:
     run = open_run(data, duration=options.duration, noise=options.noise())
     config = options.graph_config()
     config = replace(config, lag=float(default_lag(run, config)))
-    result = solve(build_live(run, config), mode="online")
+    result = solve(team_graph(run, config), mode="online")
     return result, time.process_time() - cpu0, time.perf_counter() - wall0
 
 

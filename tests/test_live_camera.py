@@ -47,7 +47,8 @@ def _rows(run, until=np.inf):
 
 def _live(run, until=np.inf, finish=True, on_steps=lambda steps: None) -> EventGraph:
     stamped = {m.robot for m in run.motions}
-    live = EventGraph(_without_rows(run), GraphConfig(), run.start_time, stamped, True)
+    observers = {o.robot for o in run.observations}
+    live = EventGraph(_without_rows(run), GraphConfig(), run.start_time, stamped, observers, True)
     for t, kind, row in _rows(run, until):
         (live.motion, live.observation, live.feature)[kind](row)
         on_steps(live.advance(t))

@@ -7,7 +7,6 @@ it. Trial 5 of the table's config (seed 0) is one whose only genuine start is th
 snapshot's candidate (the first snapshot's genuine candidate sits in a pseudo solution's
 basin, Sec. IV); it went to a wrong basin when every step judged every hypothesis."""
 
-import sys
 import tempfile
 from pathlib import Path
 
@@ -23,7 +22,9 @@ from graphloc.datasets.feng_deterministic import (
     simulate_straight_line_trials,
 )
 from graphloc.datasets.formation_log import table_i_formation, write_formation_log
-from graphloc.pipelines.team_graph import build_graph
+from graphloc.live.builder import build_live
+from graphloc.pipelines.team_graph import GraphConfig, build_graph
+from graphloc.pipelines.team_graph.side_by_side import judged_from
 
 TRIAL = 5  # a Table I trial index (of the default TableIConfig's trials)
 
@@ -43,18 +44,30 @@ def _table_i_trial(index: int):
     return trial_rows(pool, row), trial_rows(tri, row), config, 3 * sim.step_mean
 
 
+def _judged(graph, alternatives: list, times: list) -> list:
+    judged = judged_from(graph, alternatives, times)
+    assert judged is not None and len(judged) == len(alternatives) + 1 and judged[0] == 0
+    assert all(0 <= j < len(graph.steps) for j in judged)
+    return judged
+
+
 def test_later_snapshot_alternative_is_judged_from_its_own_step():
     trials, tri, config, step_sigma = _table_i_trial(TRIAL)
     log = table_i_formation(trials, tri, 0, config.pixel_sigma, step_sigma, "seed000-table1")
     with tempfile.TemporaryDirectory() as tmp:
         write_formation_log(log, Path(tmp) / "run")
-        graph = build_graph(open_run(Path(tmp) / "run"))
-    solve_module = sys.modules["graphloc.pipelines.team_graph.solve"]
-    judged = solve_module.judged_from(graph, graph.alternatives, graph.alternative_times)
-    assert len(judged) == len(graph.alternatives) + 1 and judged[0] == 0
+        run = open_run(Path(tmp) / "run")
+        graph = build_graph(run)
+        live = build_live(run, GraphConfig())
     # one alternative per candidate of each of the three snapshots: judged at its own step
+    judged = _judged(graph, graph.alternatives, graph.alternative_times)
     assert sorted(set(judged[1:])) == [0, 1, 2]
-    assert all(0 <= j < len(graph.steps) for j in judged)
+    # the live event route (smooth, online, live): the resected climber's variants alike,
+    # among every alternative and among the guessed ones the online solve runs
+    judged = _judged(live, live.alternatives, live.alternative_times)
+    assert sorted(set(judged[1:])) == [0, 1, 2]
+    judged = _judged(live, live.guessed_alternatives, live.guessed_alternative_times)
+    assert sorted(set(judged[1:])) == [0, 1, 2]
 
 
 def test_table_i_trial_resolved_by_a_later_snapshot_candidate():

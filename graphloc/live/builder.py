@@ -4,7 +4,14 @@ values of its new variables -- for the sections that are causal: `motion` (each 
 robot's pose grid and between factors, `ArcIntegrator`), the anchors (initial-pose priors,
 surfaces), `points` (range, bearing, range-bearing to robots and landmarks, known or SLAM,
 `team_graph.points.PointBuilder`). It grows a `TeamGraph` that `team_graph.passes.Pass` solves
-step by step (`graphloc.live.team.LiveTeam`).
+step by step (`graphloc.live.team.LiveTeam`). Robot state lives in `live.robot_state`, the
+measurements waiting for their poses in `live.waiting.WaitingPoints`.
+
+One path, whatever the batch. A call may bring one row (`graphloc live`) or a whole table
+(`build_live`: each robot's odometry in one call, every measurement, then `finish`): a robot's
+new grid steps are integrated in one `ArcIntegrator.advance`, and the waiting measurements are
+released as the longest ready run from the queue's front, found in NumPy, their range-bearing
+rows re-expressed per robot in one pass -- a row pushed live is the batch of one.
 
 Causality. A grid node start + k dt exists once its robot's odometry reaches it (the whole-run
 grid ends at the last odometry row: `motion.node_times`), and its step is integrated then (the
@@ -24,65 +31,20 @@ step.
 
 from __future__ import annotations
 
-import heapq
-from collections import OrderedDict, deque
+from itertools import islice
 
 import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
-from graphloc.live.arc import ArcIntegrator
 from graphloc.live.coverage import NotLiveError, not_live, route, run_tables
+from graphloc.live.robot_state import RobotState
+from graphloc.live.waiting import WaitingPoints
 from graphloc.pipelines.team_graph.config import GraphConfig, run_precision
 from graphloc.pipelines.team_graph.graph import TeamGraph
-from graphloc.pipelines.team_graph.motion import between_factor, robot_anchors, velocity_noise
-from graphloc.pipelines.team_graph.points import PointBuilder, body_frame_points
+from graphloc.pipelines.team_graph.motion import between_factor, robot_anchors
+from graphloc.pipelines.team_graph.points import PointBuilder
 from graphloc.run import TeamRun, planar_covariance, pose_from_planar
-
-
-class _Grid:
-    """A growable float array (amortized appends) with its filled part as a view."""
-
-    def __init__(self, width: int = 0):
-        self.shape = (width,) if width else ()
-        self.data = np.zeros((64, *self.shape))
-        self.n = 0
-
-    def append(self, rows: np.ndarray) -> None:
-        rows = np.asarray(rows, dtype=float).reshape(-1, *self.shape)
-        while self.n + len(rows) > len(self.data):
-            self.data = np.concatenate([self.data, np.zeros_like(self.data)])
-        self.data[self.n : self.n + len(rows)] = rows
-        self.n += len(rows)
-
-    @property
-    def view(self) -> np.ndarray:
-        return self.data[: self.n]
-
-
-class _Robot:
-    """One robot's live state: its odometry rows, pose times, dead reckoning and integrators."""
-
-    def __init__(self, r: int, robot, run: TeamRun, config: GraphConfig):
-        self.r, self.robot = r, robot
-        self.velocity = _Grid(3)
-        self.times = _Grid()
-        self.finished = False
-        noise = velocity_noise(run, r, config)
-        self.steps = ArcIntegrator(lambda: self.velocity.view, noise)
-        # range-bearing rows re-expressed at their node (`points.body_frame_points`): dead
-        # reckoning over the node times and every range-bearing time, as the whole run's
-        # `points._corrected_range_bearings` integrates it
-        self.frames = ArcIntegrator(lambda: self.velocity.view, noise, covariances=False)
-        self.stamps: list = []  # heap of range-bearing times not integrated by `frames` yet
-        self.at = OrderedDict()  # stamp -> planar pose of `frames`, in increasing stamps
-
-    @property
-    def end(self) -> float:
-        """Time up to which the robot's pose times are final."""
-        if self.finished or self.robot.static:
-            return np.inf
-        return self.velocity.view[-1, 0] if self.velocity.n else -np.inf
 
 
 class LiveGraph:
@@ -97,15 +59,15 @@ class LiveGraph:
             raise NotLiveError("not live yet: " + "; ".join(problems))
         self.run, self.config = run, config
         self.start = start_time
-        self.robots = [_Robot(r, robot, run, config) for r, robot in enumerate(run.robots)]
+        self.robots = [RobotState(r, robot, run, config) for r, robot in enumerate(run.robots)]
         self.points = PointBuilder(run, config)
-        self.queue: deque = deque()  # point measurements waiting for their poses, in order
+        self.waiting = WaitingPoints(config.keyframe_dt)  # those waiting for their poses
         self.arrived: list = []  # every point measurement, in arrival order (the run's points)
         self.pending: dict = {}  # step time -> [(order key, factor, type)]
         self.emitted = -np.inf  # time of the last emitted step
         self.carried: list = []  # factors whose newest pose is before `emitted`: the next step
         self.horizon = max(config.keyframe_dt / 2, config.sync_tolerance) + 1e-6
-        self.made = 0  # point factors taken from `points.made` so far
+        self.made = [0, 0, 0]  # point factors, landmark guesses, sensor poses taken so far
         self.first_seen = np.inf  # earliest row time (the start of a run without odometry)
         self.graph = TeamGraph(
             run,
@@ -146,9 +108,10 @@ class LiveGraph:
         """A point measurement (`graphloc.run.PointMeasurement`)."""
         self.first_seen = min(self.first_seen, m.time)
         self.arrived.append(m)
-        if m.kind == "range_bearing":
-            heapq.heappush(self.robots[m.robot].stamps, m.time)
-        self.queue.append(m)
+        if m.kind == "range_bearing":  # a breakpoint of the robot's dead reckoning, used or not
+            self.robots[m.robot].frames.stamp(m.time)
+        if self.points.used(m):  # else counted as left out by the options
+            self.waiting.push(m)
 
     # ---- steps out ----------------------------------------------------------------------------
 
@@ -159,8 +122,9 @@ class LiveGraph:
         self._take_points(watermark)
         end = min(robot.end for robot in self.robots)
         before = watermark - self.horizon  # no measurement that joins a pose there can come
-        if self.queue:
-            before = min(before, self.queue[0].time - self.horizon)
+        first = self.waiting.first_time()
+        if first is not None:
+            before = min(before, first - self.horizon)
         return self._emit(lambda t: t <= end and t < before)
 
     def finish(self) -> list:
@@ -211,7 +175,7 @@ class LiveGraph:
             for robot in self.robots:
                 self._grow(robot)
 
-    def _grow(self, robot: _Robot) -> None:
+    def _grow(self, robot: RobotState) -> None:
         """New pose times of a robot (its grid up to its last odometry row; a static robot's
         one pose), each step integrated, its factors and dead-reckoned initial value made."""
         config, r = self.config, robot.r
@@ -244,101 +208,32 @@ class LiveGraph:
             self._pending(robot.times.view[k], (0, r, k), f, "odometry")
         self._anchors(robot, k0)
 
-    def _anchors(self, robot: _Robot, k0: int) -> None:
+    def _anchors(self, robot: RobotState, k0: int) -> None:
         """The prior on the robot's first pose and the surface factors of its poses from k0
         on (`motion.robot_anchors`, in its order)."""
         made = robot_anchors(robot.r, robot.robot, self.config, robot.times.view, k0)
         for j, (t, f, kind) in enumerate(made):
             self._pending(t, (1, robot.r, j), f, kind)
 
-    def _nearest(self, r: int, t: float) -> tuple[bool, int]:
-        """(known, index of robot r's pose nearest t or -1) as `motion.Timeline.nearest` gives
-        it over the robot's final pose times; known False until the robot's odometry is past t
-        while a later grid pose (the next, start + n dt, once the odometry reaches it) could be
-        the answer: within the tolerance of t and nearer than the nearest pose so far (a tie
-        goes to the earlier pose)."""
-        robot = self.robots[r]
-        if robot.robot.static:
-            return robot.times.n > 0, 0
-        times = robot.times.view
-        tol = self.config.keyframe_dt / 2 + 1e-9
-        n = len(times)
-        if not robot.finished and (not n or robot.end <= t):
-            return False, -1
-        if not n:
-            return True, -1
-        i = min(max(int(times.searchsorted(t)), 1), n - 1) if n > 1 else 0
-        if i > 0 and abs(times[i - 1] - t) <= abs(times[i] - t):
-            i -= 1
-        if not robot.finished:
-            following = self.start + self.config.keyframe_dt * n  # as `_grow` places it
-            if t > following or (following - t <= tol and following - t < abs(times[i] - t)):
-                return False, -1
-        return True, (i if abs(times[i] - t) <= tol else -1)
-
-    def _corrected(self, m, watermark: float):
-        """A wheel-odometry robot's range-bearing `m` in its body frame at the node it joins
-        (`points.body_frame_points`), None until every range-bearing time before that node has
-        arrived; `False`: the measurement is taken as measured (no odometry)."""
-        robot = self.robots[m.robot]
-        if m.kind != "range_bearing" or not robot.velocity.n:
-            return False
-        times = robot.times.view
-        f = np.rint((m.time - times[0]) / self.config.keyframe_dt)
-        if f > len(times) - 1 and not robot.finished:  # its node (a tie: the later) to come
-            return None
-        f = int(np.clip(f, 0, len(times) - 1))
-        t_f = times[f]
-        if t_f > watermark:
-            return None
-        upto = max(m.time, t_f)
-        last = -np.inf if robot.frames.stamp is None else robot.frames.stamp
-        nodes = times[np.searchsorted(times, last, "right") : np.searchsorted(times, upto, "right")]
-        due = []  # the range-bearing times up to `upto` (those at or before `last` are done)
-        while robot.stamps and robot.stamps[0] <= upto:
-            s = heapq.heappop(robot.stamps)
-            if s > last:
-                due.append(s)
-        known = np.union1d(nodes, due)
-        if len(known):
-            poses, _, _ = robot.frames.advance(known)
-            robot.at.update(zip(known.tolist(), poses))
-        out = body_frame_points([m], robot.at[m.time][None], robot.at[float(t_f)][None])[0]
-        # later measurements are at or after m.time and join nodes at or after t_f (the stamps
-        # enter `at` in increasing order: each call's are after the last integrated one)
-        oldest = min(m.time, float(t_f))
-        while robot.at and next(iter(robot.at)) < oldest:
-            robot.at.popitem(last=False)
-        return out
-
     def _take_points(self, watermark: float) -> None:
-        """Point measurements whose poses are known, in arrival order, as factors."""
+        """Point measurements whose poses are known (`WaitingPoints.take`), in arrival order,
+        as factors."""
         node_times = self.graph.node_times
-        while self.queue:
-            m = self.queue[0]
-            if not self.points.used(m):
-                self.queue.popleft()
-                continue
-            known, k = self._nearest(m.robot, m.time)
-            known_t, kt = (True, -1) if m.target < 0 else self._nearest(m.target, m.time)
-            if not (known and known_t):
-                return
-            corrected = self._corrected(m, watermark) if k >= 0 else False
-            if corrected is None:
-                return
-            self.queue.popleft()
-            self.points.add(m, k, kt, node_times, corrected or None)
+        taken = self.waiting.take(self.robots, self.start, watermark)
+        for m, k, kt, corrected in taken:
+            self.points.add(m, k, kt, node_times, corrected)
+        if taken:
             self._take_made()
 
     def _take_made(self) -> None:
         """The point section's new factors and initial values (landmark guesses, sensor
         poses) into the graph."""
-        made = self.points.made.factors
-        initial = self.graph.initial
-        for t, f, kind in made[self.made :]:
-            self.made += 1
-            self._pending(t, (2, 0, self.made), f, kind)
-        for lkey, guess in self.points.landmark_guess.items():
+        points, initial, made = self.points, self.graph.initial, self.made
+        for t, f, kind in points.made.factors[made[0] :]:
+            made[0] += 1
+            self._pending(t, (2, 0, made[0]), f, kind)
+        guesses = points.landmark_guess  # dicts that only grow: the new items are the last
+        for lkey, guess in islice(guesses.items(), made[1], None):
             if lkey in initial:
                 continue
             if isinstance(guess, tuple) and guess and guess[0] == "from":
@@ -346,9 +241,11 @@ class LiveGraph:
                 initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
             else:
                 initial[lkey] = np.asarray(guess, dtype=float)
-        for key, (body, E) in self.points.sensors.poses.items():
+        made[1] = len(guesses)
+        for key, (body, E) in islice(points.sensors.poses.items(), made[2], None):
             if key not in initial:
                 initial[key] = initial[body].compose(E)
+        made[2] = len(points.sensors.poses)
 
     def _pending(self, t: float, order: tuple, factor, kind: str) -> None:
         if t <= self.emitted:  # on poses of steps already solved (static robots' rows pushed

@@ -2,11 +2,13 @@
 (`not_live`), with why -- the sections that need rows after the step they shape. Two routes
 (`route`): wheel-odometry robots with point measurements (`graphloc.live.builder.LiveGraph`),
 and event-clocked robots -- relative poses or scans (KISS-ICP steps, `live.scan_feed`), no
-wheel odometry -- placed by the candidate sets they see of a target with a known pose, by the
-inter-robot scan registration those sets hint, or, seen as circles by a placed camera, by
-max-mixtures, with the camera's feature tracks (`graphloc.live.events.EventGraph`,
-`live.event_scans`, `live.event_camera`). Every table of docs/log_format.md has a route; what
-keeps a run off them is how its robots and tables combine (`not_live`)."""
+wheel odometry -- with point measurements, placed by the candidate sets they see of a target
+with a known pose, by the inter-robot scan registration those sets hint, by mutual bearings or
+by resection on their bearings of placed static robots, or, seen as circles by a placed
+camera, by max-mixtures, with the camera's feature tracks (`graphloc.live.events.EventGraph`,
+`live.event_scans`, `live.event_points`, `live.event_camera`). Every table of
+docs/log_format.md has a route; what keeps a run off them is how its robots and tables combine
+(`not_live`)."""
 
 from __future__ import annotations
 
@@ -24,7 +26,8 @@ EVENT_ROWS = (
     "ellipses",
     "features",
 )
-EVENT_TABLES = EVENT_ROWS + ("groundtruth",)
+# ... and the point measurements it takes with them
+EVENT_TABLES = EVENT_ROWS + ("range", "bearing", "range_bearing", "groundtruth")
 
 
 class NotLiveError(ValueError):
@@ -86,17 +89,14 @@ def _event_problems(run: TeamRun, tables: dict) -> list[str]:
     )
     for robot in run.robots:
         mine = set(tables.get(robot.name, ()))
-        for table in sorted(mine - set(EVENT_TABLES)):
-            out.append(
-                f"robot {robot.name}: table {table!r}: point measurements of event-clocked "
-                f"robots (a robot placed by mutual bearings, a static robot's measurements)"
-            )
-        sees = mine & {"markers", "candidates"}
+        # what places it: candidate sets it sees (a moving observer), its bearings (mutual
+        # bearings, P3P), a placed camera's circles of it
+        sees = mine & ({"bearing"} if robot.static else {"markers", "candidates", "bearing"})
         seen = circles and robot.base_radius is not None and not robot.static
-        if robot.initial_pose is None and (robot.static or not sees) and not seen:
+        if robot.initial_pose is None and not sees and not seen:
             out.append(
-                f"robot {robot.name}: no initial_pose and no candidate sets to place it (mutual "
-                f"bearings, resection, scan registration)"
+                f"robot {robot.name}: no initial_pose, and no candidate sets, circles or "
+                f"bearings to place it (scan registration)"
             )
         for table in sorted(mine & {"ellipses", "features"} if robot.initial_pose is None else ()):
             out.append(
@@ -104,11 +104,6 @@ def _event_problems(run: TeamRun, tables: dict) -> list[str]:
                 f"sets and feature tracks are built from a placed camera's poses)"
             )
     out += _stream_problems(run, tables)
-    if not any({"markers", "candidates", "ellipses"} & set(t) for t in tables.values()):
-        out.append(
-            "no markers or candidates table: iSAM2's precision would come from the median of "
-            "every relative pose of the run (`run_precision`)"
-        )
     return out
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
+from graphloc.live.coverage import NotLiveError
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.run import TeamRun
 
@@ -54,6 +55,7 @@ class EventRobot:
         self.placed: dict = {}  # node -> decided / initial pose (the seeds)
         self.seed: int | None = None  # first seeded node
         self.initial_done = 0  # nodes whose initial value is set
+        self.variants: list = []  # a guessed placement's alternatives: (nodes done, key -> Pose3)
         self.anchors_done = 0
         self.anchor_count = 0
         self.finished = False
@@ -99,3 +101,19 @@ def inserted_times(robot: EventRobot, motions: list, measured: list, tol: float)
     k = np.searchsorted(spans[:, 0], t, "right") - 1
     inside = (k >= 0) & (t < spans[np.clip(k, 0, None), 1])
     return t[(gap > tol) & inside].tolist()
+
+
+def measured(robot: EventRobot, t: float, what: str) -> None:
+    """A measurement at t of robot: a pose time to come (refused out of time order)."""
+    built = robot.times
+    if not robot.robot.static and len(built) and t < built[-1]:
+        raise NotLiveError(
+            f"robot {robot.robot.name}: {what} at {t}, after its pose times up to "
+            f"{built[-1]} were built (rows out of time order)"
+        )
+    if robot.measured and t < robot.measured[-1]:
+        raise NotLiveError(
+            f"robot {robot.robot.name}: measurements out of time order ({what} at {t} "
+            f"after {robot.measured[-1]})"
+        )
+    robot.measured.append(t)

@@ -1,9 +1,10 @@
 """Where event-clocked robots start (`live.events.EventGraph`): a robot placed at a known or
 decided pose (`seed_robot`: `motion.place_robot`'s seeds, its earlier poses carried back along
 its steps; the pose a marker-pixel stream's placing set gives, `stream_placement`), the initial
-values of placed robots' later poses carried forward (`initial_upto`), and the pixel streams'
-alternative placements a batch solve starts from too (the candidates of their first set, as
-`candidates.place_observers` makes them: `alternative_placements`)."""
+values of placed robots' later poses carried forward (`initial_upto`), and the alternative
+placements a solve starts from too (`alternative_placements`: the pixel streams', the
+candidates of their first set as `candidates.place_observers` makes them, and the resected
+robots', `live.event_points`, grown with their poses: `start_variants`)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,12 @@ from graphloc.keys import pose_key
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_clock import EventRobot
 from graphloc.pipelines.team_graph.config import GraphConfig
-from graphloc.pipelines.team_graph.graph import TeamGraph, alternative_starts, anchor_times
+from graphloc.pipelines.team_graph.graph import (
+    TeamGraph,
+    alternative_starts,
+    anchor_times,
+    with_sensors,
+)
 from graphloc.pipelines.team_graph.motion import step_or_unknown
 from graphloc.run import TeamRun
 
@@ -63,13 +69,56 @@ def initial_upto(graph: TeamGraph, config: GraphConfig, robots: list, t: float) 
                 step = step_or_unknown(robot.steps, k, config)[0]
                 initial[pose_key(r, k)] = initial[pose_key(r, k - 1)].compose(step)
             robot.initial_done += 1
+        extend_variants(robot, config, robot.initial_done)
+
+
+def start_variants(graph: TeamGraph, config: GraphConfig, robot: EventRobot, starts: list) -> None:
+    """A robot placed by a guess (`event_points`: resection): every start (node, world_T_body)
+    an alternative of its poses so far, carried along its steps as `graph.alternative_starts`
+    carries them, and grown with its poses (`initial_upto`); the online solve runs them as
+    hypotheses from when they are made (`graph.guessed_alternatives`), each judged from its
+    own node's time (`graph.guessed_alternative_times`)."""
+    r = robot.r
+    for k0, body in starts:
+        v = {pose_key(r, k0): body}
+        for j in range(k0 - 1, -1, -1):
+            step = step_or_unknown(robot.steps, j + 1, config)[0]
+            v[pose_key(r, j)] = v[pose_key(r, j + 1)].compose(step.inverse())
+        robot.variants.append((k0 + 1, v))
+    extend_variants(robot, config, robot.initial_done)
+    graph.guessed_alternatives += [v for _, v in robot.variants]
+    graph.guessed_alternative_times += _variant_times(robot, starts)
+
+
+def _variant_times(robot: EventRobot, starts: list) -> list:
+    """The node time each start (node, world_T_body) of a guessed robot was placed at."""
+    return [float(robot.times[k0]) for k0, _ in starts]
+
+
+def extend_variants(robot: EventRobot, config: GraphConfig, n: int) -> None:
+    """A guessed robot's alternatives carried forward along its steps to its first n poses."""
+    r = robot.r
+    for j, (done, v) in enumerate(robot.variants):
+        for k in range(done, n):
+            step = step_or_unknown(robot.steps, k, config)[0]
+            v[pose_key(r, k)] = v[pose_key(r, k - 1)].compose(step)
+        robot.variants[j] = (max(done, n), v)
 
 
 def alternative_placements(
-    run: TeamRun, config: GraphConfig, clock, graph: TeamGraph, robots: list, streams: list
+    run: TeamRun,
+    config: GraphConfig,
+    clock,
+    graph: TeamGraph,
+    robots: list,
+    streams: list,
+    points,
 ) -> None:
-    """The pixel streams' alternative placements (`candidates.place_observers`, used by a
-    batch solve), carried along the steps as `graph.alternative_starts` carries them."""
+    """The alternative placements a solve starts from too, carried along the steps as
+    `graph.alternative_starts` carries them: the pixel streams' (`candidates.place_observers`,
+    used by a batch solve) and the resected robots' (`event_points`: a guess, so the online
+    solve runs them as hypotheses too, `guessed_alternatives`), with the node time each was
+    placed at (`alternative_times`, `guessed_alternative_times`)."""
     alternatives = {}
     for s in streams:
         if s.pixel_route and s.sets:
@@ -83,6 +132,20 @@ def alternative_placements(
         for robot in robots
         if robot.seed is not None
     }
-    variants, _ = alternative_starts(run, config, clock, graph.step_rel, poses, alternatives, {})
-    graph.alternatives = variants
-    graph.alternative_times = anchor_times(alternatives, poses, clock.node_times)[0]
+    sensor_poses = points.builder.sensors.poses
+    variants, _ = alternative_starts(
+        run, config, clock, graph.step_rel, poses, alternatives, sensor_poses
+    )
+    guessed = [
+        with_sensors(v, sensor_poses) for r in points.resected for _, v in robots[r].variants
+    ]
+    graph.alternatives, graph.guessed_alternatives = variants + guessed, guessed
+    guessed_times = [
+        t
+        for r, (starts, _) in points.resected.items()
+        if robots[r].variants
+        for t in _variant_times(robots[r], starts)
+    ]
+    times = anchor_times(alternatives, poses, clock.node_times)[0]
+    graph.alternative_times = times + guessed_times
+    graph.guessed_alternative_times = guessed_times

@@ -1,7 +1,7 @@
 """What a finished `live.events.EventGraph` records in its `TeamGraph`, as `build_graph` records
 it: every stream's set outcomes in the order the streams began (tracked and max-mixture
-streams alike), the sections' skips, the pixel streams' alternative placements and the graph's
-counts."""
+streams alike), the sections' skips (the point measurements' too), the alternative placements
+(pixel streams', resected robots') and the graph's counts."""
 
 from __future__ import annotations
 
@@ -23,6 +23,8 @@ def record_graph(events) -> None:
         graph.skips.merge(skips)
     graph.skips.merge(events.features.tracks.section.made.skips)
     graph.skips.merge(events.skips)
+    points = events.points.builder
+    graph.skips.merge(points.made.skips)
     alternative_placements(
         events.run,
         events.config,
@@ -30,6 +32,7 @@ def record_graph(events) -> None:
         graph,
         events.robots,
         [tracker.out for tracker, _, _ in tracked],
+        events.points,
     )
     types = graph.factor_types
     graph.counts = {
@@ -38,11 +41,40 @@ def record_graph(events) -> None:
         "candidate_sets": len(events.arrived),
         "marker_points": len(events.marker_points),
         "frame_marker_points": len(graph.frame_points),
-        "sensor_poses": 0,
+        "sensor_poses": len(points.sensors.poses),
         "committed_sets": sum(d.committed >= 0 for d in graph.decisions),
-        "landmark_anchors": 0,
+        "landmark_anchors": points.n_anchor,
         "feature_tracks": events.features.tracks.section.tracks,
         "steps": len(graph.steps),
-        "excluded_by_option": 0,
+        "excluded_by_option": points.excluded,
         **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
     }
+
+
+def unplaced_robots(events) -> None:
+    """Robots nothing placed by the end of `events` (an `EventGraph` whose rows are all in):
+    each a counted skip `unanchored_robot` naming why (its factors stay held)."""
+    graph, streams = events.graph, list(events.streams.values())
+    for robot in events.robots:
+        if robot.seed is not None:
+            continue
+        graph.anchored_from.pop(robot.r, None)
+        if not len(robot.times):  # no rows: no poses
+            continue
+        why = (
+            "nothing placed it (no decided candidate set, no placement by mutual bearings "
+            "or resection)"
+        )
+        for out in (t.out for t, _, _ in streams if t.out.robot == robot.r and t.out.sets):
+            if not out.pixel_route:
+                continue
+            why = (
+                f"its {len(out.sets)} candidate sets of {events.run.robots[out.target].name} "
+                f"were never decided, fewer than guess_after_sets "
+                f"({events.config.guess_after_sets}) to place it by a guess"
+            )
+        events.skips.add(
+            "unanchored_robot",
+            f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",
+            len(robot.times),
+        )

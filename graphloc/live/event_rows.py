@@ -1,10 +1,11 @@
 """`EventRows`: an event-clocked team's checked rows (`rows.RowChecker` with the event tables)
 into its `events.EventGraph`, with the interface `LiveTeam` drives (`point`, `advance`,
-`finish`, `graph`, `start`, `run_so_far`): relative poses go in as they come, a scan as the
-relative pose KISS-ICP makes of it from the scanner's previous one (`scan_feed.ScanFeed`);
-`markers`, `candidates`, `ellipses` and `features` rows are held until the watermark passes
-their time (every row of their image or set has arrived), then made into candidate sets and
-feature pixels by the loader's own front ends (`log_observations.marker_observations`: the
+`finish`, `graph`, `start`, `run_so_far`): relative poses and point measurements go in as they
+come, a scan as the relative pose KISS-ICP makes of it from the scanner's previous one
+(`scan_feed.ScanFeed`); `markers`, `candidates`, `ellipses` and `features` rows are held until
+the watermark passes their time (every row of their image or set has arrived), then made into
+candidate sets and feature pixels by the loader's own front ends
+(`log_observations.marker_observations`: the
 checks and P3P of a log's marker pixels, `candidate_observations`;
 `camera_tables.ellipse_observations`: seed 003's two circle candidates, `single_tracks` and
 `feature_observations`), in the loader's order, and go in."""
@@ -32,6 +33,7 @@ from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.run import TeamRun
 
 RELATIVE = ("relative_pose", "relative_pose3")
+POINT_TABLES = ("range", "bearing", "range_bearing")
 
 
 class EventRows:
@@ -46,8 +48,13 @@ class EventRows:
             for r, robot in enumerate(run.robots)
             if set(RELATIVE + ("scans",)) & set(tables.get(robot.name, ()))
         }
+        observers = {
+            r
+            for r, robot in enumerate(run.robots)
+            if {"markers", "candidates", "ellipses"} & set(tables.get(robot.name, ()))
+        }
         camera = any({"features", "ellipses"} & set(t) for t in tables.values())
-        self.events = EventGraph(run, setup.config, setup.start_time, stamped, camera)
+        self.events = EventGraph(run, setup.config, setup.start_time, stamped, observers, camera)
         self.graph = self.events.graph
         self.sink = Sink("skip", skips)
         self.sensors = [list(robot.sensors) for robot in run.robots]
@@ -57,6 +64,7 @@ class EventRows:
         self.ellipses: list = []  # (observer, target, record, where)
         self.pixels: list = []  # features: (robot, record)
         self.motions: list = []
+        self.points: list = []
         self.scans = ScanFeed(run, setup.manifest.root, skips, SkipReport())
 
     @property
@@ -89,6 +97,9 @@ class EventRows:
         elif table == "candidates":
             key, record = row
             self.candidates.setdefault(key, []).append(record)
+        elif table in POINT_TABLES:
+            self.points.append(row)
+            self.events.point(row)
         elif table == "ellipses":
             self.ellipses.append(row)
         elif table == "features":
@@ -113,6 +124,7 @@ class EventRows:
             start_time=start,
             motions=tuple(self.motions),
             observations=tuple(events.arrived),
+            points=tuple(self.points),
             features=tuple(events.features.arrived),
             scans=tuple(self.scans.scans),
         )
@@ -159,24 +171,23 @@ class EventRows:
 
 
 def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
-    """A loaded run's graph built by `EventGraph` (its relative poses and candidate sets merged
-    in time order, a relative pose at its end time): the graph `graphloc online` solves for an
-    event-clocked run (`coverage.event_route`). steps: None, or a list that gets, after each
-    row, the steps it completed (`advance` at the row's time: the live order)."""
-    if not run.observations:
-        raise NotLiveError(
-            "no candidate sets: iSAM2's precision would come from the median of every "
-            "relative pose of the run (`run_precision`, not causal)"
-        )
+    """A loaded run's graph built by `EventGraph` (its relative poses, candidate sets and point
+    measurements merged in time order, a relative pose at its end time): the graph `graphloc
+    online` solves for an event-clocked run (`coverage.event_route`). steps: None, or a list
+    that gets, after each row, the steps it completed (`advance` at the row's time: the live
+    order)."""
     stamped = {m.robot for m in run.motions}
+    observers = {o.robot for o in run.observations}
     camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
-    live = EventGraph(_without_rows(run), config, run.start_time, stamped, camera)
+    live = EventGraph(_without_rows(run), config, run.start_time, stamped, observers, camera)
     motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
     scans = ((s.time, 1, i, s) for i, s in enumerate(run.scans))
     sets = ((o.time, 2, i, o) for i, o in enumerate(run.observations))
     pixels = ((f.time, 3, i, f) for i, f in enumerate(run.features))
-    take = (live.motion, live.scan, live.observation, live.feature)
-    for t, kind, _, row in heapq.merge(motions, scans, sets, pixels, key=lambda e: e[:3]):
+    points = ((m.time, 4, i, m) for i, m in enumerate(run.points))
+    take = (live.motion, live.scan, live.observation, live.feature, live.point)
+    rows = heapq.merge(motions, scans, sets, pixels, points, key=lambda e: e[:3])
+    for t, kind, _, row in rows:
         take[kind](row)
         if steps is not None:
             steps.append(live.advance(t))
@@ -216,4 +227,4 @@ def _drop_unplaced(graph: TeamGraph, robots: set) -> None:
 
 
 def _without_rows(run: TeamRun) -> TeamRun:
-    return replace(run, motions=(), observations=(), features=(), scans=())
+    return replace(run, motions=(), observations=(), features=(), scans=(), points=())

@@ -2,8 +2,9 @@
 wheel odometry, whose poses are at their relative poses' stamps (KISS-ICP steps of scans among
 them, `live.scan_feed`) and their measurements' times (`team_graph.motion.node_times`), placed
 by the candidate sets they see of a target with a known pose (`team_graph.candidates`: one
-`StreamTracker` per stream, fed set by set, `live.event_sets`) or by the inter-robot scan
-registration those sets hint (`live.event_scans`), or, without an initial pose, by the circle
+`StreamTracker` per stream, fed set by set, `live.event_sets`), by the inter-robot scan
+registration those sets hint (`live.event_scans`), by their bearings (`live.event_points`:
+point measurements, mutual bearings, resection), or, without an initial pose, by the circle
 sets a placed camera sees of them (max-mixtures), with the camera's feature tracks
 (`live.event_camera`, seed 003).
 
@@ -42,14 +43,17 @@ from __future__ import annotations
 
 import bisect
 from collections import deque
+from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_camera import EventFeatures
-from graphloc.live.event_record import record_graph
-from graphloc.live.event_placement import initial_upto, seed_robot
+from graphloc.live.event_placement import initial_upto, seed_robot, start_variants
+from graphloc.live.event_points import EventPoints
+from graphloc.live.event_record import record_graph, unplaced_robots
 from graphloc.live.event_scans import ScanLinks
 from graphloc.live.event_sets import take_set
 from graphloc.live.event_clock import (
@@ -57,9 +61,10 @@ from graphloc.live.event_clock import (
     EventRobot,
     final_end,
     inserted_times,
+    measured,
     motion_bound,
 )
-from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig
+from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig, run_precision
 from graphloc.pipelines.team_graph.graph import TeamGraph
 from graphloc.pipelines.team_graph.motion import (
     between_factor,
@@ -75,14 +80,20 @@ class EventGraph:
     `finish()` the rest (module docstring)."""
 
     def __init__(
-        self, run: TeamRun, config: GraphConfig, start_time: float | None, stamped, camera=False
+        self,
+        run: TeamRun,
+        config: GraphConfig,
+        start_time: float | None,
+        stamped,
+        observers=frozenset(),
+        camera=False,
     ):
         """stamped: the robots with a relative-pose table (their pose times at its stamps);
-        camera: the run has feature or ellipse tables (`TeamGraph.camera`).
-        The run must hold candidate sets (a markers, candidates or ellipses table): iSAM2's
-        thresholds are then FINE_PRECISION (`config.run_precision`); without, they would come
-        from the median of every relative pose of the run (not causal)."""
+        observers: those with candidate sets (markers, candidates, ellipses); camera: the run
+        has feature or ellipse tables (`TeamGraph.camera`). iSAM2's precision: FINE_PRECISION
+        with candidate sets, else `run_precision` of the relative poses before the first step."""
         self.run, self.config = run, config
+        self.points = EventPoints(run, config, set(observers))
         self.start = start_time
         self.start_from_rows = False  # the start came from the first relative pose
         self.robots = [EventRobot(r, robot, r in stamped) for r, robot in enumerate(run.robots)]
@@ -94,6 +105,7 @@ class EventGraph:
         self.arrived: list = []  # every candidate set, in arrival order
         self.marker_points: dict = {}
         self.pending: dict = {}
+        self.carried: list = []  # point factors on poses of steps already emitted
         self.emitted = -np.inf
         self.first_seen = np.inf
         self.skips = SkipReport()
@@ -108,7 +120,7 @@ class EventGraph:
             {},
             [r.steps for r in self.robots],
             skips=SkipReport(),
-            precision=FINE_PRECISION,
+            precision=FINE_PRECISION if observers else np.nan,
         )
         self.graph.skips.merge(run.skips)
         self.graph.camera = camera
@@ -173,20 +185,15 @@ class EventGraph:
         self.first_seen = min(self.first_seen, o.time)
         self.arrived.append(o)
         for r in (o.robot, o.target):
-            robot = self.robots[r]
-            built = robot.times
-            if not robot.robot.static and len(built) and o.time < built[-1]:
-                raise NotLiveError(
-                    f"robot {robot.robot.name}: a candidate set at {o.time}, after its pose "
-                    f"times up to {built[-1]} were built (rows out of time order)"
-                )
-            if robot.measured and o.time < robot.measured[-1]:
-                raise NotLiveError(
-                    f"robot {robot.robot.name}: candidate sets out of time order ({o.time} "
-                    f"after {robot.measured[-1]})"
-                )
-            robot.measured.append(o.time)
+            measured(self.robots[r], o.time, "a candidate set")
         self.queue.append((len(self.arrived) - 1, o))
+
+    def point(self, m) -> None:
+        """A range, bearing or range-bearing (`graphloc.run.PointMeasurement`)."""
+        self.first_seen = min(self.first_seen, m.time)
+        for r in (m.robot, m.target) if m.target >= 0 else (m.robot,):
+            measured(self.robots[r], m.time, "a point measurement")
+        self.points.add(m)
 
     def feature(self, f) -> None:
         """A feature pixel (`graphloc.run.FeatureObservation`, `live.event_camera`)."""
@@ -206,15 +213,22 @@ class EventGraph:
         for robot in self.robots:
             self._times(robot, watermark)
         self._take_motions(watermark)
+        points, robots, tol = self.points, self.robots, self.config.sync_tolerance
+        points.take(self.clock, lambda r: final_end(robots[r], watermark), self.pending_factor)
         self._take_sets(watermark)
         self.features.take(self, watermark)
         self.links.pairs(lambda r: final_end(self.robots[r], watermark))
-        bound = min(motion_bound(robot, watermark) for robot in self.robots)
-        bound = min(bound, self.links.bound())
-        bound = min(bound, watermark - self.config.sync_tolerance - 1e-9)
-        bound = min(bound, self.features.head() - self.config.sync_tolerance - 1e-9)
-        if self.queue:
-            bound = min(bound, self.queue[0][1].time - self.config.sync_tolerance - 1e-9)
+        finished = watermark == np.inf and all(robot.finished for robot in robots)
+        points.place(robots, self.clock, partial(seed_robot, self.graph, self.config), finished)
+        for r, (starts, _) in points.resected.items():
+            if not robots[r].variants:
+                start_variants(self.graph, self.config, robots[r], starts)
+        bound = min(motion_bound(robot, watermark) for robot in robots)
+        held = np.inf if finished else points.hold_from(robots) - 1e-9
+        bound = min(bound, self.links.bound(), watermark - tol - 1e-9, held)
+        bound = min(bound, self.features.head() - tol - 1e-9)
+        for head in ([self.queue[0][1]] if self.queue else []) + list(points.queue)[:1]:
+            bound = min(bound, head.time - tol - 1e-9)
         return self._emit(bound)
 
     def finish(self) -> list:
@@ -226,29 +240,9 @@ class EventGraph:
             robot.finished = True
         if self.start is None and np.isfinite(self.first_seen):
             self.start = float(self.first_seen)
-        steps = self.advance(np.inf) if self.start is not None else []
+        steps = self.advance(np.inf) if self.start is not None else self._emit(np.inf)
         self.links.finish(self.skips)
-        graph, streams = self.graph, list(self.streams.values())
-        for robot in self.robots:
-            if robot.seed is not None or robot.robot.static:
-                continue
-            graph.anchored_from.pop(robot.r, None)
-            if not len(robot.times):  # no rows: no poses
-                continue
-            why = "nothing placed it (no decided candidate set)"
-            for out in (t.out for t, _, _ in streams if t.out.robot == robot.r and t.out.sets):
-                if not out.pixel_route:
-                    continue
-                why = (
-                    f"its {len(out.sets)} candidate sets of {self.run.robots[out.target].name} "
-                    f"were never decided, fewer than guess_after_sets "
-                    f"({self.config.guess_after_sets}) to place it by a guess"
-                )
-            self.skips.add(
-                "unanchored_robot",
-                f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",
-                len(robot.times),
-            )
+        unplaced_robots(self)
         record_graph(self)
         return steps
 
@@ -347,25 +341,35 @@ class EventGraph:
             take_set(self, n, o)
 
     def pending_factor(self, t: float, order: tuple, factor, kind: str) -> None:
+        if order[0] == 2 and t <= self.emitted:  # a row between static robots, whose one pose
+            self.carried.append((order, factor, kind))  # is at the start: in the next step
+            return
         self.pending.setdefault(float(t), []).append((order, factor, kind))
 
     def _emit(self, bound: float) -> list:
         due = sorted(t for t in self.pending if t <= bound)
+        graph = self.graph
+        if (due or bound == np.inf) and not np.isfinite(graph.precision):  # no candidate sets:
+            motions = tuple(m for robot in self.robots for m in robot.motions)  # the steps so far
+            graph.precision = run_precision(replace(self.run, motions=motions, observations=()))
         steps = []
         for t in due:
             if t <= self.emitted:
                 raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
-            initial_upto(self.graph, self.config, self.robots, t)
+            initial_upto(graph, self.config, self.robots, t)
+            self.points.initials(graph.initial)
             self.features.priors(self, t)
             self._frame_points()
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
+            group, self.carried = self.carried + group, []
             step = (t, [(f, kind) for _, f, kind in group])
-            self.graph.steps.append(step)
-            self.graph.factor_types += [kind for _, _, kind in group]
+            graph.steps.append(step)
+            graph.factor_types += [kind for _, _, kind in group]
             self.emitted = t
             steps.append(step)
         if bound == np.inf:
-            initial_upto(self.graph, self.config, self.robots, np.inf)
+            initial_upto(graph, self.config, self.robots, np.inf)
+            self.points.initials(graph.initial)
             self._frame_points()
         return steps
 

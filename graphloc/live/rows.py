@@ -25,9 +25,10 @@ class RowChecker:
     """Checks rows of a team (`manifest`: the sensors and names rows refer to; `robots`: the
     run's `TeamRobot`s; `noise`: the noise defaults the handlers take) into typed items:
     `check(robot, table, row, n)` -> the handler's item, or None (the row counted in
-    `skips`). tables: the tables of the team's route (`coverage.tables_of`); a row of an event
-    table is (robot index, (time, table, what it becomes)): a `Motion`, a `candidates` row's
-    (set key, record), a `markers` row's record (`live.event_rows` forms the sets)."""
+    `skips`). tables: the tables of the team's route (`coverage.tables_of`); a row of an event-
+    clocked team is (robot index, (time, table, what it becomes)): a `Motion`, a
+    `PointMeasurement`, a `candidates` row's (set key, record), a `markers` row's record
+    (`live.event_rows` forms the sets)."""
 
     def __init__(
         self,
@@ -111,7 +112,7 @@ class RowChecker:
             item = TABLE_HANDLERS[table].parse(record, ctx)
         if isinstance(item, Skip):
             return self._skip(item.reason, item.message)
-        if table in EVENT_TABLES and table != "groundtruth":
+        if self.tables == EVENT_TABLES and table != "groundtruth":  # an event-clocked team's
             return (self.index[robot], (values["time"], table, item))
         return item
 

@@ -29,7 +29,8 @@ from graphloc.live.builder import LiveGraph
 from graphloc.live.coverage import route, tables_of
 from graphloc.live.rows import RowChecker, TimeWindow
 from graphloc.live.setup import LiveSetup, live_setup
-from graphloc.pipelines.team_graph.passes import Pass, TeamResult
+from graphloc.pipelines.team_graph.passes import TeamResult
+from graphloc.pipelines.team_graph.side_by_side import SideBySide, start_times
 from graphloc.run import PointMeasurement
 
 
@@ -83,7 +84,9 @@ class LiveTeam:
         self.graph = self.builder.graph
         self.graph.skips = self.skips
         self.names = [r.name for r in setup.run.robots]
-        self.solver = Pass(self.graph, "online", None, False, None)
+        # the online passes, made at the first step (the builder sets the graph's precision by
+        # then): one, and one more per alternative start of a robot placed by a guess
+        self.solver: SideBySide | None = None
         self.solver_note = ""
         self.subscribers: list = []
         self.callback_errors: list = []  # exceptions of subscribers, raised after the step
@@ -154,7 +157,7 @@ class LiveTeam:
         if robot not in self.names:
             raise ValueError(f"unknown robot {robot!r}; robots: {sorted(self.names)}")
         r = self.names.index(robot)
-        if r not in self.solver.latest:
+        if self.solver is None or r not in self.solver.best.latest:
             return None
         return self._pose(r, covariance)
 
@@ -172,14 +175,13 @@ class LiveTeam:
             )
         else:
             self.graph.run = self.builder.run_so_far()
-        result = self.solver.result()
+        solver = self._solver()
+        result = solver.result()
         if self.checkpoint_path is not None:
             self.write_checkpoint(finished=True)
         self.finished = replace(
             result,
-            wall_s=self.solver.wall,
-            survivors=[],
-            hypotheses=1,
+            wall_s=sum(p.wall for p in solver.passes),
             solver_note=self.solver_note or result.solver_note,
         )
         self._raise_callback_error()  # the team is finished: finish() again returns the result
@@ -194,7 +196,7 @@ class LiveTeam:
         write_checkpoint(
             self.checkpoint_path,
             self.graph,
-            self.solver.done,
+            self._done(),
             {
                 "live": {
                     "window": self.window.window,
@@ -233,10 +235,10 @@ class LiveTeam:
         finally:
             self.checkpoint_every = every
         read_checkpoint(path, self.graph, allow_nan=True)  # the same run, options and steps
-        if data["steps_done"] != self.solver.done:
+        if data["steps_done"] != self._done():
             raise ValueError(
                 f"{path}: field 'steps_done' is {data['steps_done']}, its rows give "
-                f"{self.solver.done} steps"
+                f"{self._done()} steps"
             )
         self.resumed = len(rows)
 
@@ -273,18 +275,25 @@ class LiveTeam:
 
     def _solve(self, steps: list) -> None:
         """Solve every step the builder emitted and the pass has not solved yet (`steps`: the
-        new ones; the pass catches up on any step left behind)."""
-        while self.solver.done < len(self.graph.steps):
+        new ones; the passes catch up on any step left behind). A robot placed by a guess adds
+        a pass per alternative start as the builder makes them (`SideBySide.add`), compared
+        after every step."""
+        while self.graph.steps and self._solver().done < len(self.graph.steps):
             t0, cpu0 = _time.perf_counter(), _time.process_time()
-            i = self.solver.done
-            before = dict(self.solver.latest)
+            solver = self.solver
+            guessed = self.graph.guessed_alternatives
+            if len(solver.passes) < 1 + len(guessed):
+                n = len(solver.passes) - 1
+                times = start_times(guessed, self.graph.guessed_alternative_times)
+                solver.add(guessed[n:], None if times is None else times[1 + n :])
+            i = solver.done
+            before = dict(solver.best.latest)
             try:
-                self.solver.step(i)
+                solver.step(i)
             except SolverFailure as exc:
                 self._refactor(exc, i)
-            changed = [
-                r for r, (k, _) in self.solver.latest.items() if before.get(r, (-1,))[0] != k
-            ]
+            latest = self.solver.best.latest
+            changed = [r for r, (k, _) in latest.items() if before.get(r, (-1,))[0] != k]
             wanted = any(cov for _, cov in self.subscribers)
             if self.subscribers:  # the estimates (and covariances) only when someone listens
                 poses = {self.names[r]: self._pose(r, wanted) for r in changed}
@@ -320,15 +329,29 @@ class LiveTeam:
         if self.graph.config.factorization == "QR":
             raise exc
         self.graph.config = replace(self.graph.config, factorization="QR")
-        self.solver = Pass(self.graph, "online", None, False, None)
+        self.solver = None
         for j in range(i + 1):
-            self.solver.step(j)
+            self._solver().step(j)
         self.solver_note = f"QR factorization (Cholesky failed: {exc})"
 
+    def _done(self) -> int:
+        """Graph steps solved."""
+        return 0 if self.solver is None else self.solver.done
+
+    def _solver(self) -> SideBySide:
+        """The online passes (`solver`), made now if not yet: one per start, the guess and
+        the alternatives of robots placed by a guess so far."""
+        if self.solver is None:
+            guessed = self.graph.guessed_alternatives
+            times = start_times(guessed, self.graph.guessed_alternative_times)
+            self.solver = SideBySide(self.graph, "online", [None, *guessed], times=times)
+        return self.solver
+
     def _pose(self, r: int, covariance: bool) -> RobotPose:
-        k, _ = self.solver.latest[r]
+        best = self.solver.best
+        k, _ = best.latest[r]
         key = pose_key(r, k)
-        session = self.solver.session
+        session = best.session
         pose = session.estimate([key]).atPose3(key)
         cov = session.marginal_covariance(key) if covariance else None
         return RobotPose(float(self.graph.node_times[r][k]), k, pose, cov)

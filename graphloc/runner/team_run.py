@@ -1,7 +1,7 @@
 """`run_team`: one team run from its source to its outputs -- read (`graphloc.datasets.open_run`),
-graph (`team_graph`: `live.builder.build_live`, the live API's incremental builder, for an
-event-clocked run whose sections are all live, in batch and online alike; `team_graph.build_graph`
-for the others), solve (`team_graph.solve`,
+graph (`team_graph`: `live.builder.build_live`, the live API's incremental builder, for a run
+whose sections are all live -- wheel-odometry or event-clocked --, in batch and online alike;
+`team_graph.build_graph` for the others), solve (`team_graph.solve`,
 batch or online), judge
 (`report.evaluate`: metrics and the consistency verdict), write (`report.write_outputs`) --,
 the one route `graphloc smooth` / `online` (and so `graphloc.many_runs`) and the Python API take.
@@ -91,22 +91,20 @@ def run_team(
 
 def team_graph(run, config, progress: bool = False):
     """The graph `run_team` solves, batch and online alike: the live API's incremental builder
-    (`live.builder.build_live`) for an event-clocked run whose sections are all live
-    (`live.coverage.not_live`, `route` "event": candidate sets of targets with a known pose,
-    scans -- KISS-ICP steps as the live team makes them, the inter-robot registration by the
-    causal rule of `live.event_scans` --, circle sets and feature tracks of a placed camera);
-    the whole-run `team_graph.build_graph` for the others, for a run whose rows the live
-    builder refuses as they come (`NotLiveError` from `build_live`: relative-pose steps that
-    overlap, which only the whole run puts in one order), and for a wheel-odometry run: fed a
-    whole run, the wheel route's row-by-row
-    builder costs several times build_graph's vectorized pass on the same graph
-    (docs/architecture.md; tests/test_live.py holds the two graphs equal)."""
+    (`live.builder.build_live`, the run's tables fed whole) for a run whose sections are all
+    live (`live.coverage.not_live` finds nothing): wheel-odometry runs such as MRCLAM (the
+    wheel route's whole tables in one batch, `live.waiting`) and event-clocked ones (`route`
+    "event": candidate sets of targets with a known pose, scans -- KISS-ICP steps as the live
+    team makes them, the inter-robot registration by the causal rule of `live.event_scans` --,
+    circle sets and feature tracks of a placed camera); the whole-run `team_graph.build_graph`
+    for the others and for a run whose rows the live builder refuses as they come
+    (`NotLiveError` from `build_live`: relative-pose steps that overlap, which only the whole
+    run puts in one order)."""
     from graphloc.live.builder import build_live
-    from graphloc.live.coverage import NotLiveError, not_live, route, run_tables
+    from graphloc.live.coverage import NotLiveError, not_live, run_tables
     from graphloc.pipelines.team_graph import build_graph
 
-    tables = run_tables(run)
-    if route(run, tables) == "event" and not not_live(run, tables):
+    if not not_live(run, run_tables(run)):
         try:
             return build_live(run, config)
         except NotLiveError:  # rows only the whole run puts in one order (docstring)

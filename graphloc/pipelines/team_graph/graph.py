@@ -64,7 +64,7 @@ class TeamGraph:
     camera: bool = False
     # the time of the node each alternative (each guessed alternative) was placed at: the
     # node of its own candidate set; the solve does not drop a hypothesis before that node's
-    # step (`solve.hypotheses`): earlier steps hold another snapshot's pose, which its start
+    # step (`side_by_side.SideBySide`): earlier steps hold another snapshot's pose, which its start
     # only carried along
     alternative_times: list = field(default_factory=list)
     guessed_alternative_times: list = field(default_factory=list)

@@ -1,0 +1,161 @@
+"""Point measurements of an event-clocked team (`live.events.EventGraph`) and the robots their
+bearings place (seed 000, 000_05137a0a9c449be3.txt; `team_graph.formation`):
+
+- each range / bearing / range-bearing row joins its poses once their times are final (its
+  robot's and its target's, `event_clock.final_end`), in arrival order, through the whole
+  run's `points.PointBuilder` (the same factors, landmark guesses and sensor poses);
+- a static robot without an initial pose is placed by mutual bearings (Sec. III-A,
+  `formation.place_by_mutual_bearings`) as soon as the rows taken so far place it -- the first
+  row of each pair, as the whole run takes it;
+- a robot without an initial pose that no candidate stream places is resected (Sec. IV,
+  `formation.resection_candidates`: P3P on its bearings of three placed static robots at one
+  time) once its first RESECTION_SETS such times are complete (every row at them taken), or
+  at the end of the run with fewer: the first candidate places it, every candidate of those
+  sets is an alternative start run as a hypothesis (the seed's pseudo solutions; the
+  placement is a guess, as the whole run's is). Until then its `anchored_from` is unknown and
+  no step from its first set's time on is emitted (`hold_from`), so the online pass meets its
+  factors with its placement known, as `graphloc online` does."""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import replace
+
+import numpy as np
+
+from graphloc.keys import pose_key
+from graphloc.pipelines.team_graph.config import GraphConfig
+from graphloc.pipelines.team_graph.formation import (
+    RESECTION_SETS,
+    place_by_mutual_bearings,
+    resection_candidates,
+)
+from graphloc.pipelines.team_graph.points import PointBuilder
+from graphloc.run import TeamRun
+
+
+class EventPoints:
+    """The point rows of an event-clocked team so far (`add` as they arrive, `take` once their
+    poses are final) and the placements their bearings make (module docstring). `resected`:
+    robot -> its alternative starts ([(node, world_T_body), ...], True: a guess)."""
+
+    def __init__(self, run: TeamRun, config: GraphConfig, observers: set):
+        self.run, self.config = run, config
+        self.builder = PointBuilder(run, config)
+        self.queue: deque = deque()  # rows waiting for their poses, in arrival order
+        self.arrived: list = []  # every row, in arrival order
+        self.taken: list = []  # rows made into factors (or skipped), in arrival order
+        self.made = 0  # the builder's factors handed to the graph
+        self.observers = observers  # robots a candidate stream places (not resected)
+        self.resected: dict = {}
+        self.first_set: dict = {}  # robot -> time of its first complete resection set
+        self.seen: dict = {}  # robot -> time -> robots its bearings at that time see
+        self.placed_at = 0  # rows taken when `place` last looked
+
+    def add(self, m) -> None:
+        self.arrived.append(m)
+        self.queue.append(m)
+
+    def take(self, clock, final_end, emit) -> None:
+        """Rows whose poses are final (`final_end(r)`: robot r's pose times before it are),
+        in arrival order, as factors: emit(time, order, factor, type)."""
+        tol = self.config.sync_tolerance
+        builder = self.builder
+        while self.queue:
+            m = self.queue[0]
+            ends = [final_end(m.robot)] + ([final_end(m.target)] if m.target >= 0 else [])
+            if m.time + tol >= min(ends):
+                return
+            self.queue.popleft()
+            self.taken.append(m)
+            if m.kind == "bearing" and m.target >= 0:
+                self.seen.setdefault(m.robot, {}).setdefault(m.time, set()).add(m.target)
+            if builder.used(m):
+                k = clock.nearest(m.robot, m.time)
+                kt = -1 if m.target < 0 else clock.nearest(m.target, m.time)
+                builder.add(m, k, kt, clock.node_times)
+            for t, f, kind in builder.made.factors[self.made :]:
+                self.made += 1
+                emit(t, (2, self.made), f, kind)
+
+    def place(self, robots: list, clock, seed, finished: bool) -> None:
+        """Place the robots the rows taken so far place (module docstring): seed(robot, node,
+        world_T_body) for each new placement."""
+        unplaced = [r for r in robots if r.seed is None and r.robot.initial_pose is None]
+        if not unplaced or not self.taken or (self.placed_at == len(self.taken) and not finished):
+            return
+        self.placed_at = len(self.taken)
+        run = replace(self.run, points=tuple(self.taken))
+        known = {
+            r.r: r.robot.initial_pose
+            for r in robots
+            if r.robot.static and r.robot.initial_pose is not None
+        }
+        if any(r.robot.static for r in unplaced):
+            for i, pose in place_by_mutual_bearings(run, known).items():
+                if robots[i].seed is None and len(robots[i].times):
+                    seed(robots[i], 0, pose)
+        placed = {
+            r.r: r.placed[0] for r in robots if r.robot.static and r.seed is not None and r.placed
+        }
+        positions = {i: np.asarray(p.translation()) for i, p in {**known, **placed}.items()}
+        complete = self.queue[0].time if self.queue else np.inf
+        for robot in unplaced:
+            r = robot.r
+            if robot.seed is not None or r in self.observers:
+                continue
+            if robot.robot.static and not finished:  # mutual bearings place it first
+                continue
+            seen = self.seen.get(r, {})
+            sets = [
+                t for t in sorted(seen) if t < complete and len(seen[t] & positions.keys()) >= 3
+            ]
+            if sets:
+                self.first_set.setdefault(r, sets[0])
+            if not sets or (len(sets) < RESECTION_SETS and not finished):
+                continue
+            starts = [
+                (clock.nearest(r, t), body)
+                for t, body in resection_candidates(run, r, positions, RESECTION_SETS)
+            ]
+            starts = [(k, body) for k, body in starts if k >= 0]
+            if starts:
+                self.resected[r] = (starts, True)
+                seed(robot, *starts[0])
+
+    def hold_from(self, robots: list) -> float:
+        """No step at or after this time may be emitted yet: a static robot waiting for its
+        placement by mutual bearings holds every step (its pose is at the start), a robot
+        waiting for its resection the steps from its first set on."""
+        out = np.inf
+        for robot in robots:
+            if robot.seed is not None or robot.robot.initial_pose is not None:
+                continue
+            if robot.robot.static and robot.r not in self.observers:
+                out = -np.inf
+            elif robot.r in self.first_set:
+                out = min(out, clock_time(robot, self.config, self.first_set[robot.r]))
+        return out
+
+    def initials(self, initial: dict) -> None:
+        """The landmark guesses and offset sensors' poses whose pose has an initial value."""
+        builder = self.builder
+        for lkey, guess in builder.landmark_guess.items():
+            if lkey in initial:
+                continue
+            if isinstance(guess, tuple) and guess and guess[0] == "from":
+                _, r, k, direction, rng = guess
+                if pose_key(r, k) in initial:
+                    initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
+            else:
+                initial[lkey] = np.asarray(guess, dtype=float)
+        for key, (body, E) in builder.sensors.poses.items():
+            if key not in initial and body in initial:
+                initial[key] = initial[body].compose(E)
+
+
+def clock_time(robot, config: GraphConfig, t: float) -> float:
+    """The earliest pose time a row at t can join (within the sync tolerance)."""
+    times = robot.times
+    near = times[np.abs(times - t) <= config.sync_tolerance] if len(times) else times
+    return float(near.min()) if len(near) else t - config.sync_tolerance

@@ -1,0 +1,180 @@
+"""`SideBySide`: online passes of one `TeamGraph` from several starts (alternative placements,
+`TeamGraph.guessed_alternatives`) stepped together, compared by chi-square and pruned as the
+evidence arrives (`team_graph.solve`'s docstring says why: a placement that explains its
+measurements by downweighting them does not win on the kernel's saturated error; a pass far
+from its minimum gets a few more iterations before it is judged). `solve.hypotheses` steps it
+over a whole graph; the live team (`graphloc.live.team.LiveTeam`) step by step as the graph
+grows, adding the starts of a robot placed by a guess when the builder places it (`add`).
+An alternative is judged (may be dropped) only from the step of the node it was placed at
+(`TeamGraph.alternative_times`): a resected robot's alternative from a later snapshot's P3P
+candidate starts its earlier poses at that snapshot's position (seed 000, Sec. IV: the climber
+moves between snapshots), so the steps before its own snapshot are no evidence against it."""
+
+from __future__ import annotations
+
+from collections import ChainMap
+from dataclasses import replace
+
+import gtsam
+import numpy as np
+
+from graphloc.pipelines.team_graph.graph import TeamGraph
+from graphloc.pipelines.team_graph.passes import Pass, TeamResult
+
+PRUNE_CHI2 = 50.0  # a hypothesis whose chi-square exceeds the least by this much is dropped
+SETTLE_UPDATES = 5  # ... after at most this many more iSAM2 iterations of both
+SAME_ESTIMATE = (0.01, 0.01)  # (m, rad): hypotheses whose latest poses agree this well are one
+EARLY_CHECKS = 20  # hypotheses are compared after each of the first steps
+MAX_CHECKS = 200  # hypotheses are compared at most this many times over a run (and at its end)
+
+
+class SideBySide:
+    """Passes of `graph` in `mode` from each of `starts` (key -> value over the graph's guess,
+    read as the graph grows; None: the guess). `step(i)` steps every live pass through graph
+    step i and compares them after the first EARLY_CHECKS steps, every `stride`-th one and
+    the `last`; `result()` the best surviving pass, each pose's causal estimate from the pass
+    best when it entered, the others' final values in `survivors`. times: per start, the
+    node time it was placed at (`start_times`; None, or a None entry: judged from the first
+    step): a pass is not dropped on a step before that time (`_prune`'s `unjudged`)."""
+
+    def __init__(
+        self,
+        graph: TeamGraph,
+        mode: str,
+        starts: list,
+        stop=None,
+        stride: int = 1,
+        times: list | None = None,
+    ):
+        self.graph, self.mode, self.stop, self.stride = graph, mode, stop, stride
+        self.passes: list = []
+        self.alive: list = []
+        self.times: list = []  # per pass, the node time it is judged from (None: every step)
+        self.chi2 = np.zeros(0)
+        self.best_at: list = []  # step -> index of the best pass then
+        self.done = 0  # graph steps taken
+        self.add(starts, times)
+
+    @property
+    def best(self) -> Pass:
+        """The pass of least chi-square at the last comparison (the first before any)."""
+        return self.passes[self.best_at[-1] if self.best_at else self.alive[0]]
+
+    def add(self, starts: list, times: list | None = None) -> None:
+        """More passes, one per start (placed at node time `times[j]`, None: judged from the
+        first step), brought up to the steps already taken."""
+        self.times += [None] * len(starts) if times is None else list(times)
+        for s in starts:
+            initial = None if s is None else ChainMap(s, self.graph.initial)
+            solver = Pass(self.graph, self.mode, initial, False, self.stop)
+            for i in range(self.done):
+                solver.step(i)
+            self.passes.append(solver)
+            self.alive.append(len(self.passes) - 1)
+        self.chi2 = np.concatenate([self.chi2, np.zeros(len(starts))])
+
+    def step(self, i: int, last: bool = False) -> None:
+        passes, alive = self.passes, self.alive
+        self.done = i + 1
+        for j in list(alive):
+            try:
+                passes[j].step(i)
+            except ValueError:  # iSAM2 cannot solve this hypothesis: it is dropped
+                if len(alive) == 1:
+                    raise
+                alive.remove(j)
+        if len(alive) > 1:
+            alive[:] = _distinct(passes, alive)
+        if len(alive) > 1 and (i % self.stride == 0 or i < EARLY_CHECKS or last):
+            t = self.graph.steps[i][0]
+            unjudged = {j for j in alive if self.times[j] is not None and t < self.times[j] - 1e-9}
+            alive[:] = _prune(passes, alive, self.chi2, unjudged)
+        self.best_at.append(min(alive, key=lambda j: self.chi2[j]))
+
+    def result(self, partial: bool = False) -> TeamResult:
+        passes, alive = self.passes, self.alive
+        results = {j: passes[j].result() for j in alive}
+        best = min(alive, key=lambda j: results[j].chi2)
+        result = results[best]
+        if len(passes) > 1:  # each pose's causal estimate from the pass best when it entered
+            causal = [rows.copy() for rows in result.causal]
+            for r, rows in enumerate(causal):
+                for k in range(len(rows)):
+                    i = passes[0].entered.get((r, k))
+                    if i is not None and i < len(self.best_at):
+                        rows[k] = passes[self.best_at[i]].causal_row(r, k)
+            result = replace(result, causal=causal)
+        return replace(
+            result,
+            partial=partial or result.partial,
+            survivors=[results[j].values for j in alive if j != best],
+            hypotheses=len(passes),
+        )
+
+
+def _distinct(passes: list, alive: list) -> list:
+    """The hypotheses that are not the same estimate as an earlier one: every robot's latest
+    pose within SAME_ESTIMATE (m, rad) of it (they converged to one basin)."""
+    out = []
+    for j in alive:
+        mine = passes[j].latest
+        if not any(_same(mine, passes[i].latest) for i in out):
+            out.append(j)
+    return out
+
+
+def _same(a: dict, b: dict) -> bool:
+    if a.keys() != b.keys():
+        return False
+    for r, (k, pose) in a.items():
+        kb, other = b[r]
+        if k != kb:
+            return False
+        d = pose.between(other)
+        if np.linalg.norm(d.translation()) > SAME_ESTIMATE[0]:
+            return False
+        if np.linalg.norm(gtsam.Rot3.Logmap(d.rotation())) > SAME_ESTIMATE[1]:
+            return False
+    return True
+
+
+def start_times(alternatives: list, times: list) -> list | None:
+    """Per start of a `SideBySide` over the guess and `alternatives` (placed at node times
+    `times`, `TeamGraph.alternative_times`): its `times` entry, None for the guess; None where
+    the times do not match the alternatives (a graph built without them: every step judges)."""
+    return [None, *times] if len(times) == len(alternatives) else None
+
+
+def judged_from(graph: TeamGraph, alternatives: list, times: list) -> list | None:
+    """Per start (the guess, then `alternatives` placed at node times `times`), the first of
+    `graph.steps` at which `SideBySide` may drop it: the step of its own node (0 for the guess);
+    None where `start_times` is."""
+    starts = start_times(alternatives, times)
+    if starts is None:
+        return None
+    step_times = np.array([t for t, _ in graph.steps])
+    return [0 if t is None else int(np.searchsorted(step_times, t - 1e-9)) for t in starts]
+
+
+def _prune(passes: list, alive: list, chi2: np.ndarray, unjudged: set = frozenset()) -> list:
+    """Hypotheses compared by chi-square (`solve`); one more than PRUNE_CHI2 behind the best is
+    first given up to SETTLE_UPDATES more iSAM2 iterations, as is the best (an update takes one
+    Gauss-Newton step, and a pass far from its minimum is no evidence against it), and dropped
+    if it is still behind; those in `unjudged` are kept whatever their chi-square. Updates
+    `chi2` of the passes compared."""
+    for j in alive:
+        chi2[j] = passes[j].current_chi2()[0]
+    best = min(alive, key=lambda j: chi2[j])
+    behind = [j for j in alive if chi2[j] > chi2[best] + PRUNE_CHI2 and j not in unjudged]
+    if not behind:
+        return alive
+    for j in [best, *behind]:
+        try:
+            chi2[j] = passes[j].settle(SETTLE_UPDATES)
+        except ValueError:  # iSAM2 cannot iterate this hypothesis: it is dropped
+            chi2[j] = np.inf
+    best = min(alive, key=lambda j: chi2[j])
+    kept = [j for j in alive if chi2[j] <= chi2[best] + PRUNE_CHI2 or j in unjudged]
+    if not kept:
+        raise ValueError("no hypothesis can be solved")
+    return kept
