@@ -23,7 +23,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from graphloc.keys import pose_key
+from graphloc.pipelines.team_graph.graph import landmark_initial
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.formation import (
     RESECTION_SETS,
@@ -141,14 +141,8 @@ class EventPoints:
         """The landmark guesses and offset sensors' poses whose pose has an initial value."""
         builder = self.builder
         for lkey, guess in builder.landmark_guess.items():
-            if lkey in initial:
-                continue
-            if isinstance(guess, tuple) and guess and guess[0] == "from":
-                _, r, k, direction, rng = guess
-                if pose_key(r, k) in initial:
-                    initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
-            else:
-                initial[lkey] = np.asarray(guess, dtype=float)
+            if lkey not in initial:
+                landmark_initial(initial, lkey, guess)
         for key, (body, E) in builder.sensors.poses.items():
             if key not in initial and body in initial:
                 initial[key] = initial[body].compose(E)

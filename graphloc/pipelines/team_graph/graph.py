@@ -227,12 +227,7 @@ def initial_values(
         for k, p in enumerate(poses[r][0]):
             initial[pose_key(r, k)] = p
     for lkey, guess in landmark_guess.items():
-        if isinstance(guess, tuple) and guess and guess[0] == "from":
-            _, r, k, direction, rng = guess
-            if pose_key(r, k) in initial:
-                initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
-        else:
-            initial[lkey] = np.asarray(guess, dtype=float)
+        landmark_initial(initial, lkey, guess)
     initial.update(marker_points)
     for key, ti, kt, local in frame_points:
         if pose_key(ti, kt) in initial:
@@ -318,3 +313,14 @@ def with_sensors(values: dict, sensor_poses: dict) -> dict:
 def factor_keys(factor) -> list:
     """The variables of a graph item: a gtsam factor or a factor provider (`MaxMixture`)."""
     return list(factor.keys) if isinstance(factor, MaxMixture) else list(factor.keys())
+
+
+def landmark_initial(initial: dict, lkey: int, guess) -> None:
+    """A landmark's initial value into `initial`: a position, or ('from', r, k, direction,
+    range) -- along a ray of pose (r, k), once that pose has an initial value."""
+    if isinstance(guess, tuple) and guess and guess[0] == "from":
+        _, r, k, direction, rng = guess
+        if pose_key(r, k) in initial:
+            initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
+    else:
+        initial[lkey] = np.asarray(guess, dtype=float)
