@@ -6,6 +6,7 @@ order -- each step emitted as soon as it is complete and solved then -- give the
 from __future__ import annotations
 
 import heapq
+import re
 from dataclasses import replace
 
 import gtsam
@@ -162,10 +163,11 @@ def test_the_steps_up_to_a_time_do_not_change_when_later_rows_exist(runs, name, 
                 assert whole.anchored_from[r] == t
 
 
-def test_a_step_starting_inside_built_steps_is_refused(runs):
+def test_a_step_starting_inside_built_steps_is_a_counted_skip(runs):
     """A relative pose whose start lies inside steps already built would split them (its stamp
     a new pose among final ones), a candidate set older than the built poses would add one:
-    refused as they arrive, not silently rebuilt."""
+    each a counted skip naming it as it arrives (a live team's late row), the built steps and
+    the rows that follow unchanged."""
     run = runs[("feng-probabilistic", 1)]
     live = _event_graph(run, GraphConfig())
     rows = _rows(run)
@@ -176,11 +178,19 @@ def test_a_step_starting_inside_built_steps_is_refused(runs):
     assert len(built) > 5
     t0 = 0.5 * (built[2] + built[3])
     late = Motion(0, t0, rows[40][0], gtsam.Pose3(), np.eye(6) * 1e-4)
-    with pytest.raises(NotLiveError, match="inside steps already built"):
-        live.motion(late)
+    live.motion(late)
     early = next(row for _, kind, row in rows[:40] if kind == 1)  # a set before the built times
-    with pytest.raises(NotLiveError, match="candidate set at .* after its pose times"):
-        live.observation(early)
+    live.observation(early)
+    assert live.skips.counts == {"relative_pose_late": 1, "set_late": 1}
+    examples = "\n".join(live.skips.examples)
+    assert "climber: a relative pose from" in examples and "inside steps already built" in examples
+    assert re.search(r"climber: a candidate set at \S+, after its pose times", examples)
+    for t, kind, row in rows[40:]:
+        (live.motion if kind == 0 else live.observation)(row)
+        live.advance(t)
+    live.finish()
+    whole = build_live(run, GraphConfig())
+    assert [t for t, _ in live.graph.steps] == [t for t, _ in whole.steps]
 
 
 def test_streams_the_event_route_does_not_take_are_named_and_take_build_graph(runs):

@@ -180,11 +180,13 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     observers = {o.robot for o in run.observations}
     camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
     live = EventGraph(_without_rows(run), config, run.start_time, stamped, observers, camera)
-    motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
-    scans = ((s.time, 1, i, s) for i, s in enumerate(run.scans))
-    sets = ((o.time, 2, i, o) for i, o in enumerate(run.observations))
-    pixels = ((f.time, 3, i, f) for i, f in enumerate(run.features))
-    points = ((m.time, 4, i, m) for i, m in enumerate(run.points))
+    # each table in time order (a robot's relative poses and its scans' KISS-ICP steps are
+    # two tables: merged by end time, as a live team's window orders them)
+    motions = sorted((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
+    scans = sorted((s.time, 1, i, s) for i, s in enumerate(run.scans))
+    sets = sorted((o.time, 2, i, o) for i, o in enumerate(run.observations))
+    pixels = sorted((f.time, 3, i, f) for i, f in enumerate(run.features))
+    points = sorted((m.time, 4, i, m) for i, m in enumerate(run.points))
     take = (live.motion, live.scan, live.observation, live.feature, live.point)
     rows = heapq.merge(motions, scans, sets, pixels, points, key=lambda e: e[:3])
     for t, kind, _, row in rows:

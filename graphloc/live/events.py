@@ -14,10 +14,11 @@ step's end (a measurement inside a step is a pose of its own, `motion.inserted_t
 only the step covering it tells). Each advance applies the whole-run rule to the rows that can
 shape times after the last final one (those within the longest step of it) and appends the new
 final times; rows that would change a final pose time or step (a step starting inside steps
-already built, rows out of time order) are refused as they arrive (`NotLiveError`, naming
-them). A relative pose becomes its between factors once its poses are final; a candidate set
-joins its poses once those near it are final, goes through its stream's tracker (the decision
-uses the sets before it only) and becomes the factors `candidates.stream_factors` makes of it.
+already built, rows out of time order) are refused as they arrive: counted skips naming them
+(`relative_pose_late`, `point_late`, `set_late`), as any late row of a live team. A relative
+pose becomes its between factors once its poses are final; a candidate set joins its poses
+once those near it are final, goes through its stream's tracker (the decision uses the sets
+before it only) and becomes the factors `candidates.stream_factors` makes of it.
 A step is emitted once every pose time up to it is final and no row that could add a factor to
 it is still to come.
 
@@ -63,6 +64,7 @@ from graphloc.live.event_clock import (
     inserted_times,
     measured,
     motion_bound,
+    refused_motion,
 )
 from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig, run_precision
 from graphloc.pipelines.team_graph.graph import TeamGraph
@@ -139,34 +141,13 @@ class EventGraph:
                 f"robot {robot.robot.name}: a relative pose, but its manifest has no "
                 f"relative_pose table (its pose times are at its measurements)"
             )
+        late = refused_motion(robot, m, self.start, self.start_from_rows)
+        if late is not None:  # a live team cannot take it: counted, never the whole run
+            self.skips.add("relative_pose_late", f"robot {robot.robot.name}: {late}")
+            return
         self.first_seen = min(self.first_seen, m.t0)
         if self.start is None:  # the whole run's: the earliest relative-pose start
             self.start, self.start_from_rows = float(m.t0), True
-        elif self.start_from_rows and m.t0 < self.start:
-            raise NotLiveError(
-                f"robot {robot.robot.name}: a relative pose from {m.t0}, before the start "
-                f"{self.start} the first one set (the run's start is its earliest: not causal)"
-            )
-        if m.t0 > m.t1:
-            raise NotLiveError(
-                f"robot {robot.robot.name}: a relative pose from {m.t0} to the earlier {m.t1} "
-                f"(its row arrives before the time it starts from)"
-            )
-        if robot.ends and m.t1 < robot.ends[-1]:
-            raise NotLiveError(
-                f"robot {robot.robot.name}: relative poses out of time order ({m.t1} after "
-                f"{robot.ends[-1]})"
-            )
-        built = robot.times
-        for t in (m.t0, m.t1):
-            if len(built) and t < built[-1]:
-                i = np.searchsorted(robot.stamps, t)
-                if not (i < len(robot.stamps) and robot.stamps[i] == t):
-                    raise NotLiveError(
-                        f"robot {robot.robot.name}: a relative pose from {t}, inside steps "
-                        f"already built (up to {built[-1]}): it changed its pose times or "
-                        f"steps (not causal)"
-                    )
         for t in (m.t0, m.t1):
             i = np.searchsorted(robot.stamps, t)
             if not (i < len(robot.stamps) and robot.stamps[i] == t):
@@ -184,15 +165,20 @@ class EventGraph:
         """A candidate set (`graphloc.run.CandidateObservation`)."""
         self.first_seen = min(self.first_seen, o.time)
         self.arrived.append(o)
-        for r in (o.robot, o.target):
-            measured(self.robots[r], o.time, "a candidate set")
+        late = [measured(self.robots[r], o.time, "a candidate set") for r in (o.robot, o.target)]
+        if any(late):
+            self.skips.add("set_late", next(filter(None, late)))
+            return
         self.queue.append((len(self.arrived) - 1, o))
 
     def point(self, m) -> None:
         """A range, bearing or range-bearing (`graphloc.run.PointMeasurement`)."""
         self.first_seen = min(self.first_seen, m.time)
-        for r in (m.robot, m.target) if m.target >= 0 else (m.robot,):
-            measured(self.robots[r], m.time, "a point measurement")
+        robots = (m.robot, m.target) if m.target >= 0 else (m.robot,)
+        late = [measured(self.robots[r], m.time, "a point measurement") for r in robots]
+        if any(late):
+            self.skips.add("point_late", next(filter(None, late)))
+            return
         self.points.add(m)
 
     def feature(self, f) -> None:
