@@ -74,7 +74,7 @@ def main(argv=None) -> int:
     results = {}
     for name, (config, modes) in CONFIGS.items():
         t0 = time.perf_counter()
-        problem = team_graph(run, config, progress=True)
+        problem = team_graph(run, config)
         build_s = time.perf_counter() - t0
         lag = default_lag(run, config)
         for mode in modes:
