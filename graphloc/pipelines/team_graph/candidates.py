@@ -267,4 +267,3 @@ def stream_factors(
             )
         out.factors.append((t, factor, "candidate"))
     return out
-

@@ -101,4 +101,3 @@ def resection_candidates(run: TeamRun, r: int, positions: dict, sets: int) -> li
             for c in np.flatnonzero(cand.valid[0])
         ]
     return out
-

@@ -236,4 +236,3 @@ class PointBuilder:
         return PointSection(
             self.made, self.landmark_guess, self.n_anchor, self.excluded, self.sensors.poses
         )
-
