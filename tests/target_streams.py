@@ -13,11 +13,14 @@ robot at the world origin, so the climber's truth is its pose in the target's fr
   in its own frame), every other set of the climber's re-expressed as a set of it;
 - `mixed_pixels`: every other set without its marker pixels.
 
-Each keeps the truth of every robot it moves, so ATE and a static robot's error are measured."""
+Each keeps the truth of every robot it moves, so ATE and a static robot's error are measured;
+`write_moving_target` writes the moving-target case as a log."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
+from pathlib import Path
 
 import gtsam
 import numpy as np
@@ -134,3 +137,61 @@ CASES = {
     "two-targets": two_targets,
     "mixed-pixels": mixed_pixels,
 }
+
+
+def _pose_row(p: gtsam.Pose3) -> list:
+    """tx ty tz qx qy qz qw of a pose."""
+    q = p.rotation().toQuaternion()
+    return [*p.translation(), q.x(), q.y(), q.z(), q.w()]
+
+
+def write_moving_target(source: Path, out: Path, seed: int = 0) -> Path:
+    """`moving_target` of the feng-probabilistic log at `source` written as a log at `out`
+    (docs/log_format.md): both robots' `relative_pose3` steps, the climber's sets as
+    `candidates` rows (target_T_sensor per candidate; their sigmas the manifest's
+    `candidate_sigmas` default) and both robots' TUM ground truth."""
+    from graphloc.datasets import open_run
+
+    run = moving_target(open_run(source), seed)
+    manifest = json.loads((source / "manifest.json").read_text())
+    climber, ground = manifest["robots"]
+    climber["tables"] = {
+        "relative_pose3": "climber/relative_pose3.csv",
+        "candidates": "climber/candidates.csv",
+        "groundtruth": "climber/groundtruth.tum",
+    }
+    ground.pop("static")
+    ground["sensors"] = [{"name": "odometry", "type": "odometry"}]
+    ground["tables"] = {
+        "relative_pose3": "ground/relative_pose3.csv",
+        "groundtruth": "ground/groundtruth.tum",
+    }
+    for name in ("climber", "ground"):
+        (out / name).mkdir(parents=True, exist_ok=True)
+    (out / "manifest.json").write_text(json.dumps(manifest, indent=1))
+    for r, name in enumerate(("climber", "ground")):
+        steps = [m for m in run.motions if m.robot == r]
+        sig = [np.sqrt(np.diag(m.covariance)) for m in steps]
+        rows = [[m.t1, "odometry", m.t0, *_pose_row(m.relative), *s] for m, s in zip(steps, sig)]
+        columns = "time,sensor,time0,tx,ty,tz,qx,qy,qz,qw," + ",".join(
+            f"sigma_{c}" for c in ("rx", "ry", "rz", "tx", "ty", "tz")
+        )
+        _write_csv(out / name / "relative_pose3.csv", columns, rows)
+        times, poses = run.groundtruth[r]
+        tum = [" ".join(repr(float(v)) for v in [t, *_pose_row(p)]) for t, p in zip(times, poses)]
+        (out / name / "groundtruth.tum").write_text("\n".join(tum) + "\n")
+    rows = []
+    for o in run.observations:
+        for k, (p, score) in enumerate(zip(o.candidates.poses(), o.candidates.scores)):
+            t = _pose_row(p)
+            rows.append([o.time, "camera", "ground", k, score, t[6], *t[3:6], *t[:3]])
+    columns = "time,sensor,target,k,score,qw,qx,qy,qz,tx,ty,tz"
+    _write_csv(out / "climber" / "candidates.csv", columns, rows)
+    return out
+
+
+def _write_csv(path: Path, header: str, rows: list) -> None:
+    def text(v) -> str:
+        return repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)
+
+    path.write_text("\n".join([header] + [",".join(map(text, row)) for row in rows]) + "\n")

@@ -26,7 +26,7 @@ from graphloc.live.event_rows import build_events
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph.graph import factor_keys
-from target_streams import CASES
+from target_streams import CASES, write_moving_target
 from test_live import _same_estimates, _same_graph
 from test_live_events import _live
 
@@ -176,3 +176,22 @@ def test_live_team_on_a_placed_observers_log_is_graphloc_online(tmp_path):
     mixtures = [d for d in result.graph.decisions if d.mixture is not None]
     assert len(mixtures) == len(open_run(source).observations) > 0
     assert np.isfinite(result.estimate[1]).all()
+
+
+def test_live_team_on_a_moving_targets_candidates_log_is_graphloc_online(tmp_path):
+    """The moving-target case written as a log (`candidates` rows, both robots'
+    `relative_pose3`): pushed row by row through the live API it gives `run_team(...,
+    "online")`'s estimates and causal estimates; both robots estimated, the sets' decisions
+    between factors, as `build_graph` makes them of the same log (`smooth` builds it live)."""
+    feng = tmp_path / "feng"
+    generate("feng-probabilistic", feng, 1)
+    source = write_moving_target(feng, tmp_path / "run")
+    team = replay_live(source)
+    result = team.finish()
+    online = run_team(source, tmp_path / "out", "online").result
+    _same_estimates(result, online)
+    assert online.hypotheses == 1 and not team.skips.counts
+    assert all(np.isfinite(e).all() for e in result.estimate)
+    run = open_run(source)
+    _same_graph(build_graph(run, GraphConfig()), build_live(run, GraphConfig()))
+    assert result.graph.counts["factors_candidate"] > 0
