@@ -195,3 +195,30 @@ def _write_csv(path: Path, header: str, rows: list) -> None:
         return repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)
 
     path.write_text("\n".join([header] + [",".join(map(text, row)) for row in rows]) + "\n")
+
+
+def write_two_targets(source: Path, out: Path) -> Path:
+    """`two_targets` as a log: the feng-probabilistic log at `source` copied to `out`, a second
+    static robot `ground2` at `SECOND` with the same markers in its frame, and every other
+    image's marker rows made rows of it (the same pixels: the same world points)."""
+    import shutil
+
+    shutil.copytree(source, out)
+    manifest = json.loads((out / "manifest.json").read_text())
+    ground = manifest["robots"][1]
+    layout = [list(SECOND.transformTo(np.array(p, float))) for p in ground["markers"]]
+    pose = _pose_row(SECOND)
+    manifest["robots"].append(
+        {**ground, "name": "ground2", "initial_pose": pose, "markers": layout}
+    )
+    (out / "manifest.json").write_text(json.dumps(manifest, indent=1))
+    path = out / "climber" / "markers.csv"
+    header, *rows = path.read_text().splitlines()
+    times = sorted({float(row.split(",")[0]) for row in rows})
+    second = set(times[1::2])
+    rows = [
+        row.replace(",ground,", ",ground2,", 1) if float(row.split(",")[0]) in second else row
+        for row in rows
+    ]
+    path.write_text("\n".join([header, *rows]) + "\n")
+    return out

@@ -26,7 +26,7 @@ from graphloc.live.event_rows import build_events
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph.graph import factor_keys
-from target_streams import CASES, write_moving_target
+from target_streams import CASES, write_moving_target, write_two_targets
 from test_live import _same_estimates, _same_graph
 from test_live_events import _live
 
@@ -195,3 +195,21 @@ def test_live_team_on_a_moving_targets_candidates_log_is_graphloc_online(tmp_pat
     run = open_run(source)
     _same_graph(build_graph(run, GraphConfig()), build_live(run, GraphConfig()))
     assert result.graph.counts["factors_candidate"] > 0
+
+
+def test_live_team_on_a_log_of_two_targets_is_graphloc_online(tmp_path):
+    """Every other image of the climber sees a second static robot (its markers in its own
+    frame, `write_two_targets`): pushed row by row through the live API, the two streams give
+    `run_team(..., "online")`'s estimates and causal estimates, and `build_graph`'s graph."""
+    feng = tmp_path / "feng"
+    generate("feng-probabilistic", feng, 1)
+    source = write_two_targets(feng, tmp_path / "run")
+    team = replay_live(source)
+    result = team.finish()
+    online = run_team(source, tmp_path / "out", "online").result
+    _same_estimates(result, online)
+    assert online.hypotheses == 1 and not team.skips.counts
+    assert {d.target for d in result.graph.decisions} == {1, 2}
+    assert np.isfinite(result.estimate[0]).all()
+    run = open_run(source)
+    _same_graph(build_graph(run, GraphConfig()), build_live(run, GraphConfig()))
