@@ -22,8 +22,8 @@ def record_graph(events) -> None:
     graph.decisions = [d for _, outcomes, _ in ordered for d in outcomes]
     for _, _, skips in ordered:
         graph.skips.merge(skips)
+    robots = events.run.robots
     for (r, ti), n in events.unplaced_sets.items():
-        robots = events.run.robots
         graph.skips.add(
             "target_unplaced",
             f"robot {robots[r].name}: {n} candidate sets on robot {robots[ti].name}: neither "
