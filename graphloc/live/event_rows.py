@@ -25,7 +25,7 @@ from graphloc.datasets.camera_tables import (
 from graphloc.datasets.log_observations import candidate_observations, marker_observations
 from graphloc.io import Sink, SkipReport
 from graphloc.keys import decode
-from graphloc.live.coverage import NotLiveError
+from graphloc.live.coverage import NotLiveError, max_mixtures_possible, run_tables
 from graphloc.live.events import EventGraph
 from graphloc.live.scan_feed import ScanFeed
 from graphloc.pipelines.team_graph.config import GraphConfig
@@ -54,6 +54,7 @@ class EventRows:
             if {"markers", "candidates", "ellipses"} & set(tables.get(robot.name, ()))
         }
         camera = any({"features", "ellipses"} & set(t) for t in tables.values())
+        camera = camera or max_mixtures_possible(run, tables)
         self.events = EventGraph(run, setup.config, setup.start_time, stamped, observers, camera)
         self.graph = self.events.graph
         self.sink = Sink("skip", skips)
@@ -179,6 +180,7 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     stamped = {m.robot for m in run.motions}
     observers = {o.robot for o in run.observations}
     camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
+    camera = camera or max_mixtures_possible(run, run_tables(run))
     live = EventGraph(_without_rows(run), config, run.start_time, stamped, observers, camera)
     # each table in time order (a robot's relative poses and its scans' KISS-ICP steps are
     # two tables: merged by end time, as a live team's window orders them)

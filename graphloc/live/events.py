@@ -22,23 +22,23 @@ before it only) and becomes the factors `candidates.stream_factors` makes of it.
 A step is emitted once every pose time up to it is final and no row that could add a factor to
 it is still to come.
 
-Placement, one causal rule. An observer with no initial pose is placed by its stream: a stream
-without pixels at each decided set (its decisions are its only factors); a marker-pixel stream
-once, at its first decided set, or -- when none of its first `GraphConfig.guess_after_sets`
-tracked sets was decided -- at that set by the tracker's best guess there
-(`event_placement.stream_placement`): when that set arrives, the sets before it decide where
-the observer goes, and no later set can change it. A scanning observer not placed by a
-decision is placed by the first accepted inter-robot scan registration from its stream's
-hypotheses (`event_scans.ScanLinks`, which also registers every later common scan time),
-tried at each set before the guess. Its earlier poses are carried back along its
-steps (`motion.place_robot`); until then its `anchored_from` is infinite, so the online pass
-(`Pass`: `hold_until` the largest `anchored_from`) holds its factors and they enter with the
-placement. The wait lets a stream that will decide be placed by its decision
-(feng-probabilistic); one that never decides (kaushik-p3p-error) is placed by a guess that has
-seen those sets, where the whole-run route (`candidates.place_observers`) guesses at the first
-set, knowing it will never decide. A robot nothing placed by the end is a counted
-`unanchored_robot` (`finish`); its factors stay held (`event_rows.build_events` leaves them out
-of the graph)."""
+Placement, one causal rule. An observer with no initial pose is placed by the first of its
+streams (one per target, and per target with and without pixels, `live.event_sets`) that places
+it, in arrival order: a stream without pixels at each decided set (its decisions are its only
+factors); a marker-pixel stream once, at its first decided set, or -- when none of its first
+`GraphConfig.guess_after_sets` tracked sets was decided -- at that set by the tracker's best
+guess there (`event_placement.stream_placement`): when that set arrives, the sets before it
+decide where the observer goes, and no later set can change it. A scanning observer not placed
+by a decision is placed by the first accepted inter-robot scan registration from its stream's
+hypotheses (`event_scans.ScanLinks`, which also registers every later common scan time), tried
+at each set before the guess. Its earlier poses are carried back along its steps
+(`motion.place_robot`); until then its `anchored_from` is infinite, so the online pass (`Pass`:
+`hold_until` the largest `anchored_from`) holds its factors and they enter with the placement.
+The wait lets a stream that will decide be placed by its decision (feng-probabilistic); one
+that never decides (kaushik-p3p-error) is placed by a guess that has seen those sets, where the
+whole-run route (`candidates.place_observers`) guesses at the first set, knowing it will never
+decide. A robot nothing placed by the end is a counted `unanchored_robot` (`finish`); its
+factors stay held (`event_rows.build_events` leaves them out of the graph)."""
 
 from __future__ import annotations
 
@@ -102,6 +102,7 @@ class EventGraph:
         self.clock = EventClock(run, config, [np.zeros(0) for _ in run.robots])
         self.streams: dict = {}  # (observer, target) -> [StreamTracker, obs list, index]
         self.mixtures: dict = {}  # (observer, unplaced target) -> [MixtureTracker, index]
+        self.unplaced_sets: dict = {}  # (unplaced observer, unplaced target) -> sets skipped
         self.features = EventFeatures(run, config)  # `live.event_camera`
         self.queue: deque = deque()  # candidate sets waiting for their poses, in arrival order
         self.arrived: list = []  # every candidate set, in arrival order

@@ -127,7 +127,9 @@ class StreamTracker:
             )
             return None
         if self.target_track is None or kt >= len(self.target_track):
-            self.target_track = dead_reckoning(target, step_rel[ti][: kt + 1], config)
+            self.target_track = dead_reckoning(
+                target, step_rel[ti][: kt + 1], config, self.target_track
+            )
         E = o.body_T_sensor
         X_t, P_t = self.target_track[kt]
         # the candidates (target_T_sensor) in the world through the target's pose, its
