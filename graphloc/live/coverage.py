@@ -51,8 +51,10 @@ def tables_of(kind: str) -> tuple:
 def not_live(run: TeamRun, tables: dict) -> list[str]:
     """What keeps a run (its robots, and each robot's tables by name) off the live builders, one
     line each; empty: the run is live (on its `route`)."""
-    if route(run, tables) == "event":
-        return _event_problems(run, tables)
+    if route(run, tables) == "event":  # a robot nothing places is left out as it goes
+        # (`unanchored_robot`), a camera's feature tracks and circle sets wait for its placement
+        # (`live.event_camera`; never placed: `unplaced_camera`), both counted at `finish`
+        return _stream_problems(run, tables)
     out = []
     for r, robot in enumerate(run.robots):
         for table in sorted(set(tables.get(robot.name, ())) & set(EVENT_ROWS)):
@@ -76,34 +78,6 @@ def not_live(run: TeamRun, tables: dict) -> list[str]:
                 f"robot {robot.name}: no odometry table: event-clocked pose times (poses at "
                 f"its measurement times)"
             )
-    return out
-
-
-def _event_problems(run: TeamRun, tables: dict) -> list[str]:
-    """What keeps an event-clocked run off `EventGraph`, one line each."""
-    out = []
-    # circles a placed robot sees place a teammate with a base radius (`live.event_camera`)
-    circles = any(
-        "ellipses" in tables.get(robot.name, ()) and robot.initial_pose is not None
-        for robot in run.robots
-    )
-    for robot in run.robots:
-        mine = set(tables.get(robot.name, ()))
-        # what places it: candidate sets it sees (a moving observer), its bearings (mutual
-        # bearings, P3P), a placed camera's circles of it
-        sees = mine & ({"bearing"} if robot.static else {"markers", "candidates", "bearing"})
-        seen = circles and robot.base_radius is not None and not robot.static
-        if robot.initial_pose is None and not sees and not seen:
-            out.append(
-                f"robot {robot.name}: no initial_pose, and no candidate sets, circles or "
-                f"bearings to place it (scan registration)"
-            )
-        for table in sorted(mine & {"ellipses", "features"} if robot.initial_pose is None else ()):
-            out.append(
-                f"robot {robot.name}: table {table!r} of a robot without an initial_pose (circle "
-                f"sets and feature tracks are built from a placed camera's poses)"
-            )
-    out += _stream_problems(run, tables)
     return out
 
 

@@ -31,8 +31,9 @@ def take_set(events, n: int, o) -> None:
     if key in events.mixtures or (
         key not in events.streams
         and run.robots[ti].initial_pose is None
-        and run.robots[r].initial_pose is not None
-    ):  # a placed observer, an unplaced target: max-mixtures (`live.event_camera`)
+        and (run.robots[r].initial_pose is not None or o.candidates.source == "circle")
+    ):  # a placed observer (circles: once placed), an unplaced target: max-mixtures
+        # (`live.event_camera`)
         return mixture_set(events, n, o)
     if key not in events.streams:
         t = run.robots[ti]

@@ -50,7 +50,7 @@ import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.live.coverage import NotLiveError
-from graphloc.live.event_camera import EventFeatures
+from graphloc.live.event_camera import EventFeatures, camera_skips, release_circles
 from graphloc.live.event_placement import initial_upto, seed_robot, start_variants
 from graphloc.live.event_points import EventPoints
 from graphloc.live.event_record import record_graph, unplaced_robots
@@ -100,6 +100,7 @@ class EventGraph:
         self.clock = EventClock(run, config, [np.zeros(0) for _ in run.robots])
         self.streams: dict = {}  # (observer, target) -> [StreamTracker, obs list, index]
         self.mixtures: dict = {}  # (observer, unplaced target) -> [MixtureTracker, index]
+        self.held_circles: dict = {}  # observer not placed yet -> its circle sets [(n, o)]
         self.features = EventFeatures(run, config)  # `live.event_camera`
         self.queue: deque = deque()  # candidate sets waiting for their poses, in arrival order
         self.arrived: list = []  # every candidate set, in arrival order
@@ -220,6 +221,7 @@ class EventGraph:
         self.links.pairs(lambda r: final_end(self.robots[r], watermark))
         finished = watermark == np.inf and all(robot.finished for robot in robots)
         points.place(robots, self.clock, partial(seed_robot, self.graph, self.config), finished)
+        release_circles(self)
         for r, (starts, _) in points.resected.items():
             if not robots[r].variants:
                 start_variants(self.graph, self.config, robots[r], starts)
@@ -242,6 +244,7 @@ class EventGraph:
             self.start = float(self.first_seen)
         steps = self.advance(np.inf) if self.start is not None else self._emit(np.inf)
         self.links.finish(self.skips)
+        camera_skips(self)
         unplaced_robots(self)
         record_graph(self)
         return steps
@@ -340,9 +343,12 @@ class EventGraph:
             self.queue.popleft()
             take_set(self, n, o)
 
-    def pending_factor(self, t: float, order: tuple, factor, kind: str) -> None:
-        if order[0] == 2 and t <= self.emitted:  # a row between static robots, whose one pose
-            self.carried.append((order, factor, kind))  # is at the start: in the next step
+    def pending_factor(self, t: float, order: tuple, factor, kind: str, late=False) -> None:
+        """A factor at step time t; on a step already emitted -- a row between static robots,
+        whose one pose is at the start, or a `late` one, held until a camera was placed
+        (`live.event_camera`) -- it joins the next step."""
+        if (order[0] == 2 or late) and t <= self.emitted:
+            self.carried.append((order, factor, kind))
             return
         self.pending.setdefault(float(t), []).append((order, factor, kind))
 
