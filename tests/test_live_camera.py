@@ -15,7 +15,7 @@ import graphloc
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
 from graphloc.keys import pose_key
-from graphloc.live import LiveTeam, NotLiveError, replay_live
+from graphloc.live import LiveTeam, replay_live
 from graphloc.live.builder import build_live
 from graphloc.live.coverage import not_live, route, run_tables
 from graphloc.live.event_rows import _without_rows
@@ -173,9 +173,12 @@ def test_bad_camera_rows_are_counted_naming_robot_table_row_and_field(logs):
         assert text in examples, text
 
 
-def test_circles_of_an_unplaced_camera_are_refused_at_open(logs, tmp_path):
-    """A camera without an initial pose: its circle sets and feature tracks would need its
-    pose (the max-mixture route needs a placed observer) -- refused naming both tables."""
+def test_rows_of_a_camera_nothing_places_are_counted_naming_robot_and_table(logs, tmp_path):
+    """A camera without an initial pose that nothing places (no candidate sets of a placed
+    target): no refusal -- its feature pixels and circle sets wait for a placement that never
+    comes, counted `unplaced_camera` naming robot and table, both robots `unanchored_robot`;
+    the live team, `team_graph` and `run_team(..., "online")` give the same counts and no
+    pose."""
     source = tmp_path / "run"
     source.mkdir()
     for path in logs[1].iterdir():
@@ -183,10 +186,25 @@ def test_circles_of_an_unplaced_camera_are_refused_at_open(logs, tmp_path):
     manifest = json.loads((source / "manifest.json").read_text())
     del manifest["robots"][0]["initial_pose"]
     (source / "manifest.json").write_text(json.dumps(manifest))
-    with pytest.raises(NotLiveError) as info:
-        LiveTeam.open(source)
-    for text in ("camera: table 'ellipses'", "camera: table 'features'", "teammate: no initial"):
-        assert text in str(info.value)
-    run = open_run(source)  # smooth / online: the whole-run builder
-    assert not_live(run, run_tables(run))
-    assert pose_key(0, 0) not in team_graph(run, GraphConfig()).initial
+    run = open_run(source)
+    assert route(run, run_tables(run)) == "event" and not not_live(run, run_tables(run))
+    team = replay_live(source)
+    result = team.finish()
+    graph = team_graph(run, GraphConfig())
+    pixels, sets = len(run.features), len(run.observations)
+    counts = {"unplaced_camera": pixels + sets, "unanchored_robot": sum(map(len, graph.node_times))}
+    assert team.skips.counts == graph.skips.counts == counts
+    examples = "\n".join(graph.skips.examples)
+    for text in (
+        f"robot camera: table 'features': {pixels} pixels",
+        f"robot camera: table 'ellipses': {sets} circle sets of teammate",
+        "robot camera: nothing placed it",
+        "robot teammate: nothing placed it",
+    ):
+        assert text in examples, text
+    assert pose_key(0, 0) not in graph.initial and pose_key(1, 0) not in graph.initial
+    assert not any(group for _, group in graph.steps)  # every factor touches an unplaced pose
+    online = graphloc.run_team(source, tmp_path / "out", "online")
+    _same_estimates(result, online.result)
+    assert all(np.isnan(e).all() for e in result.estimate)
+    assert online.metrics["skipped"]["counts"] == counts
