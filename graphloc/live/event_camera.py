@@ -19,13 +19,14 @@ candidates, scale from the base's radius):
 A camera without an initial pose: its pixels are factors as they come (the online pass holds
 them with the camera's other factors until it is placed), but a track's landmark guess and
 point prior need the pose of its first pixel, so they wait for the placement (by the camera's
-decided candidate sets, or any other causal rule of the route) and enter with the first step
-after it (`EventGraph.pending_factor`, late: on poses of steps already emitted, they join the
-next step). Its circle sets wait for the placement too (the max-mixture route needs the
-observer's pose: `MixtureTracker` dead-reckons it from the pose the placement gives its first
-node, as from a known initial pose), then go through their stream in order before any later
-set. A camera nothing placed by the end leaves both as counted skips `unplaced_camera` naming
-robot and table (`camera_skips`).
+decided candidate sets, or any other causal rule of the route). Its circle sets wait for it
+too (the max-mixture route needs the observer's pose: `MixtureTracker` dead-reckons it from the
+pose the placement gives its first node, as from a known initial pose), then go through their
+stream in order before any later set; the target placed through it is held as long as it is.
+What waited joins the step the camera was placed at (`_placed_step`: not emitted yet when the
+placement comes), so the graph does not depend on when rows arrived. A camera nothing placed
+by the end leaves both as counted skips `unplaced_camera` naming robot and table
+(`camera_skips`).
 
 Order keys of the pending factors (`EventGraph.pending_factor`) put them where `build_graph`'s
 sections put them within a step: projections (3, pixel) after the anchors, mixtures (4, stream,
@@ -107,7 +108,7 @@ class EventFeatures:
         pose has its initial value (`initial_upto` ran to t): the landmark's guess on the first
         ray is its initial value and the prior's mean (`build_graph`'s feature priors). A
         prior whose camera was not placed at its step waits (`waiting`) and enters with the
-        first step after the placement (late: module docstring)."""
+        step that placed it (`_placed_step`)."""
         section, graph = self.tracks.section, events.graph
         new = []
         while self.priors_done < len(section.point_priors):
@@ -124,7 +125,8 @@ class EventFeatures:
                 continue
             noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
             prior = gtsam.PriorFactorPoint3(lkey, graph.initial[lkey], noise)
-            events.pending_factor(time, (9, i), prior, "feature_prior", late=True)
+            at = _placed_step(graph, section.landmark_guess[lkey][1], time)
+            events.pending_factor(at, (9, i), prior, "feature_prior")
 
 
 def mixture_set(events, n: int, o) -> None:
@@ -146,10 +148,10 @@ def release_circles(events, r: int | None = None) -> None:
         if events.robots[observer].seed is None:
             continue
         for _, o in events.held_circles.pop(observer, []):
-            _mixture_set(events, o, late=True)
+            _mixture_set(events, o)
 
 
-def _mixture_set(events, o, late: bool = False) -> None:
+def _mixture_set(events, o) -> None:
     run, config, graph = events.run, events.config, events.graph
     r, ti = o.robot, o.target
     observer = events.robots[r]
@@ -167,7 +169,8 @@ def _mixture_set(events, o, late: bool = False) -> None:
     k, kt = events.clock.nearest(r, o.time), events.clock.nearest(ti, o.time)
     tracker.add(o, k, kt, observer.steps)
     for t, factor, kind in tracker.factor_times(events.clock.node_times):
-        events.pending_factor(t, (4, index, len(tracker.out.outcomes), 0), factor, kind, late)
+        at = _placed_step(graph, r, t)
+        events.pending_factor(at, (4, index, len(tracker.out.outcomes), 0), factor, kind)
         d = tracker.out.outcomes[-1]
         if d.mixture is not None and d.relative is not None:
             graph.links[pose_key(r, k)] = (pose_key(ti, kt), d.relative)
@@ -176,6 +179,8 @@ def _mixture_set(events, o, late: bool = False) -> None:
         initial_upto(graph, config, [observer], float(observer.times[k_observer]))
         pose = graph.initial[pose_key(r, k_observer)].compose(rel)
         seed_robot(graph, config, events.robots[ti], k_target, pose)
+        # placed through the observer: held as long as the observer is (a camera placed late)
+        graph.anchored_from[ti] = max(graph.anchored_from[ti], graph.anchored_from[r])
 
 
 def camera_skips(events) -> None:
@@ -204,3 +209,10 @@ def camera_skips(events) -> None:
                 f"through its pose)",
                 sets,
             )
+
+
+def _placed_step(graph, r: int, t: float) -> float:
+    """The step a factor made at step time t that waited for robot r's placement joins: t, or
+    the step r was placed at, if later (not emitted yet: the rows that place a robot are
+    factors of that step), so the graph does not depend on when the placement came."""
+    return max(t, graph.anchored_from.get(r, -np.inf))

@@ -343,12 +343,9 @@ class EventGraph:
             self.queue.popleft()
             take_set(self, n, o)
 
-    def pending_factor(self, t: float, order: tuple, factor, kind: str, late=False) -> None:
-        """A factor at step time t; on a step already emitted -- a row between static robots,
-        whose one pose is at the start, or a `late` one, held until a camera was placed
-        (`live.event_camera`) -- it joins the next step."""
-        if (order[0] == 2 or late) and t <= self.emitted:
-            self.carried.append((order, factor, kind))
+    def pending_factor(self, t: float, order: tuple, factor, kind: str) -> None:
+        if order[0] == 2 and t <= self.emitted:  # a row between static robots, whose one pose
+            self.carried.append((order, factor, kind))  # is at the start: in the next step
             return
         self.pending.setdefault(float(t), []).append((order, factor, kind))
 
