@@ -17,10 +17,11 @@ import graphloc
 from graphloc.cli import main
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
+from graphloc.keys import decode
 from graphloc.live import LiveTeam, replay_live
 from graphloc.live.builder import build_live
 from graphloc.live.coverage import not_live, route, run_tables
-from graphloc.live.event_rows import _without_rows
+from graphloc.live.event_rows import _without_rows, build_events
 from graphloc.live.events import EventGraph
 from graphloc.pipelines.team_graph import GraphConfig, build_graph, run_precision
 from graphloc.pipelines.team_graph.graph import factor_keys
@@ -177,14 +178,22 @@ def test_a_team_without_rows_checkpoints_and_finishes_empty(runs, tmp_path):
     assert result.graph.precision == run_precision(replace(open_run(runs / "1"), motions=()))
 
 
-def test_a_robot_nothing_can_place_is_named(runs):
+def test_a_robot_nothing_can_place_is_counted_naming_it(runs):
     """Without its bearings the climber has nothing to place it (no candidate sets, no
-    resection): `not_live` names it (`LiveTeam.open` refuses such a run with that list)."""
+    resection): the run is live all the same (`not_live` finds nothing), and `EventGraph`
+    leaves the climber out at `finish` -- a counted `unanchored_robot` naming it, its factors
+    out of the graph, no initial value of its poses."""
     run = open_run(runs / "1")
     tables = run_tables(run)
-    assert not not_live(run, tables)
     tables["climber"] = tables["climber"] - {"bearing"}
-    assert not_live(run, tables) == [
-        "robot climber: no initial_pose, and no candidate sets, circles or bearings to place "
-        "it (scan registration)"
-    ]
+    assert not not_live(run, tables)
+    climber = [r.name for r in run.robots].index("climber")
+    blind = replace(run, points=tuple(p for p in run.points if p.robot != climber))
+    graph = build_events(blind, GraphConfig())
+    poses = len(graph.node_times[climber])
+    assert poses and graph.skips.counts == {"unanchored_robot": poses}
+    assert "robot climber: nothing placed it" in "\n".join(graph.skips.examples)
+    assert not any(decode(k)[:2] == ("x", climber) for k in graph.initial)
+    for _, group in graph.steps:
+        for f, _ in group:
+            assert all(decode(k)[:2] != ("x", climber) for k in factor_keys(f))

@@ -4,11 +4,11 @@
 and event-clocked robots -- relative poses or scans (KISS-ICP steps, `live.scan_feed`), no
 wheel odometry -- with point measurements, placed by the candidate sets they see of a target
 with a known pose, by the inter-robot scan registration those sets hint, by mutual bearings or
-by resection on their bearings of placed static robots, or, seen as circles by a placed
-camera, by max-mixtures, with the camera's feature tracks (`graphloc.live.events.EventGraph`,
-`live.event_scans`, `live.event_points`, `live.event_camera`). Every table of
-docs/log_format.md has a route; what keeps a run off them is how its robots and tables combine
-(`not_live`)."""
+by resection on their bearings of placed static robots, or, seen as circles by a camera
+(placed, or held until it is), by max-mixtures, with the camera's feature tracks
+(`graphloc.live.events.EventGraph`, `live.event_scans`, `live.event_points`,
+`live.event_camera`). Every table of docs/log_format.md has a route; what keeps a run off
+them is how its robots and tables combine (`not_live`)."""
 
 from __future__ import annotations
 

@@ -8,8 +8,9 @@ one) --, then the observer's placement: its decided pose (a pixel stream: the fi
 a scanning observer, the inter-robot scan registration from the tracker's hypotheses
 (`event_scans.ScanLinks.place`), or, for a pixel stream with no decision among its first
 `GraphConfig.guess_after_sets` sets, the tracker's best guess at that set
-(`event_placement.stream_placement`). A set of an unplaced target seen by a placed observer is
-a max-mixture set (`live.event_camera.mixture_set`)."""
+(`event_placement.stream_placement`). A set of an unplaced target seen by a placed observer --
+circles: by any camera, held until it is placed -- is a max-mixture set
+(`live.event_camera.mixture_set`)."""
 
 from __future__ import annotations
 
