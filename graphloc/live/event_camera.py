@@ -143,7 +143,8 @@ def mixture_set(events, n: int, o) -> None:
 
 def release_circles(events, r: int | None = None) -> None:
     """The held circle sets of observer r (None: of every observer) that is placed now, in
-    the order they arrived, through their streams; their factors join the next step."""
+    the order they arrived, through their streams; their factors join the step that placed
+    it (`_placed_step`)."""
     for observer in [r] if r is not None else list(events.held_circles):
         if events.robots[observer].seed is None:
             continue
@@ -168,6 +169,7 @@ def _mixture_set(events, o) -> None:
     before = tracker.out.placed
     k, kt = events.clock.nearest(r, o.time), events.clock.nearest(ti, o.time)
     tracker.add(o, k, kt, observer.steps)
+    at = -np.inf
     for t, factor, kind in tracker.factor_times(events.clock.node_times):
         at = _placed_step(graph, r, t)
         events.pending_factor(at, (4, index, len(tracker.out.outcomes), 0), factor, kind)
@@ -179,8 +181,8 @@ def _mixture_set(events, o) -> None:
         initial_upto(graph, config, [observer], float(observer.times[k_observer]))
         pose = graph.initial[pose_key(r, k_observer)].compose(rel)
         seed_robot(graph, config, events.robots[ti], k_target, pose)
-        # placed through the observer: held as long as the observer is (a camera placed late)
-        graph.anchored_from[ti] = max(graph.anchored_from[ti], graph.anchored_from[r])
+        # held until the step of the set that placed it (a camera placed late: that step)
+        graph.anchored_from[ti] = max(graph.anchored_from[ti], at)
 
 
 def camera_skips(events) -> None:
