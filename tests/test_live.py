@@ -252,10 +252,11 @@ def test_bad_rows_are_counted_skips_naming_robot_table_and_field(mrclam_dir):
         team.push(robot, "markers", {})
 
 
-def test_a_run_not_live_yet_is_refused_at_open(tmp_path):
+def test_a_robot_nothing_can_place_is_left_out_live(tmp_path):
     """feng-deterministic whose climber logs no bearings: nothing can place it (no candidate
-    sets, circles or bearings; only the whole run's scan registration could): refused at open,
-    naming it."""
+    sets, circles or bearings). No refusal: the live team takes the run, leaves the climber out
+    (a counted `unanchored_robot` naming it, no pose) and places the static robots, as
+    `graphloc online` does."""
     import json
 
     from graphloc.datasets.scenarios import generate
@@ -265,8 +266,15 @@ def test_a_run_not_live_yet_is_refused_at_open(tmp_path):
     manifest = json.loads(path.read_text())
     del manifest["robots"][0]["tables"]["bearing"]  # the climber's
     path.write_text(json.dumps(manifest))
-    with pytest.raises(NotLiveError, match="climber: no initial_pose, and no candidate sets"):
-        LiveTeam.open(tmp_path / "run")
+    team = replay_live(tmp_path / "run")
+    result = team.finish()
+    assert set(team.skips.counts) == {"unanchored_robot"}
+    assert "robot climber: nothing placed it" in "\n".join(team.skips.examples)
+    assert team.latest("climber") is None and np.isnan(result.estimate[0]).all()
+    assert all(np.isfinite(e).all() for e in result.estimate[1:])
+    online = graphloc.run_team(tmp_path / "run", tmp_path / "out", "online")
+    _same_estimates(result, online.result)
+    assert online.metrics["skipped"]["counts"] == team.skips.counts
 
 
 def test_no_rows_yet_means_no_pose(mrclam_dir):

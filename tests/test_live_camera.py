@@ -15,12 +15,11 @@ import graphloc
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
 from graphloc.keys import pose_key
-from graphloc.live import LiveTeam, NotLiveError, replay_live
-from graphloc.live.builder import build_live
+from graphloc.live import LiveTeam, replay_live
 from graphloc.live.coverage import not_live, route, run_tables
 from graphloc.live.event_rows import _without_rows
 from graphloc.live.events import EventGraph
-from graphloc.pipelines.team_graph import GraphConfig, build_graph
+from graphloc.pipelines.team_graph import GraphConfig
 from graphloc.runner.team_run import team_graph
 from test_live import _item_error, _same_estimates, _same_graph
 
@@ -59,17 +58,17 @@ def _live(run, until=np.inf, finish=True, on_steps=lambda steps: None) -> EventG
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-def test_crawler_graph_is_the_whole_run_graph(logs, seed):
+def test_crawler_graph_row_by_row_is_the_graph_of_its_whole_tables(logs, seed):
     """Rows in time order, `advance` after each: the steps come out frame by frame (only the
     last waits for the end) and the graph -- max-mixtures, feature projections and point
-    priors, the teammate's initial values from its first sighting -- is `build_graph`'s; the
-    verbs take it (`team_graph`)."""
+    priors, the teammate's initial values from its first sighting -- is the one the verbs
+    build from the whole tables (`team_graph`)."""
     run = open_run(logs[seed])
     tables = run_tables(run)
     assert route(run, tables) == "event" and not not_live(run, tables)
     emitted = []
     live = _live(run, on_steps=emitted.append)
-    ref = build_graph(run, GraphConfig())
+    ref = team_graph(run, GraphConfig())
     _same_graph(ref, live.graph)
     assert len(emitted[-1]) <= 1 < len(ref.steps) == sum(map(len, emitted))
     assert live.graph.anchored_from == ref.anchored_from
@@ -77,8 +76,6 @@ def test_crawler_graph_is_the_whole_run_graph(logs, seed):
     assert {k: v[0] for k, v in live.graph.links.items()} == {k: v[0] for k, v in ref.links.items()}
     assert ref.counts["feature_tracks"] > 0 and ref.counts["factors_candidate"] > 0
     assert live.graph.camera and ref.camera
-    _same_graph(ref, build_live(run, GraphConfig()))
-    _same_graph(ref, team_graph(run, GraphConfig()))
 
 
 def test_steps_up_to_a_time_do_not_change_with_later_rows(logs):
@@ -173,9 +170,12 @@ def test_bad_camera_rows_are_counted_naming_robot_table_row_and_field(logs):
         assert text in examples, text
 
 
-def test_circles_of_an_unplaced_camera_are_refused_at_open(logs, tmp_path):
-    """A camera without an initial pose: its circle sets and feature tracks would need its
-    pose (the max-mixture route needs a placed observer) -- refused naming both tables."""
+def test_rows_of_a_camera_nothing_places_are_counted_naming_robot_and_table(logs, tmp_path):
+    """A camera without an initial pose that nothing places (no candidate sets of a placed
+    target): no refusal -- its feature pixels and circle sets wait for a placement that never
+    comes, counted `unplaced_camera` naming robot and table, both robots `unanchored_robot`;
+    the live team, `team_graph` and `run_team(..., "online")` give the same counts and no
+    pose."""
     source = tmp_path / "run"
     source.mkdir()
     for path in logs[1].iterdir():
@@ -183,10 +183,25 @@ def test_circles_of_an_unplaced_camera_are_refused_at_open(logs, tmp_path):
     manifest = json.loads((source / "manifest.json").read_text())
     del manifest["robots"][0]["initial_pose"]
     (source / "manifest.json").write_text(json.dumps(manifest))
-    with pytest.raises(NotLiveError) as info:
-        LiveTeam.open(source)
-    for text in ("camera: table 'ellipses'", "camera: table 'features'", "teammate: no initial"):
-        assert text in str(info.value)
-    run = open_run(source)  # smooth / online: the whole-run builder
-    assert not_live(run, run_tables(run))
-    assert pose_key(0, 0) not in team_graph(run, GraphConfig()).initial
+    run = open_run(source)
+    assert route(run, run_tables(run)) == "event" and not not_live(run, run_tables(run))
+    team = replay_live(source)
+    result = team.finish()
+    graph = team_graph(run, GraphConfig())
+    pixels, sets = len(run.features), len(run.observations)
+    counts = {"unplaced_camera": pixels + sets, "unanchored_robot": sum(map(len, graph.node_times))}
+    assert team.skips.counts == graph.skips.counts == counts
+    examples = "\n".join(graph.skips.examples)
+    for text in (
+        f"robot camera: table 'features': {pixels} pixels",
+        f"robot camera: table 'ellipses': {sets} circle sets of teammate",
+        "robot camera: nothing placed it",
+        "robot teammate: nothing placed it",
+    ):
+        assert text in examples, text
+    assert pose_key(0, 0) not in graph.initial and pose_key(1, 0) not in graph.initial
+    assert not any(group for _, group in graph.steps)  # every factor touches an unplaced pose
+    online = graphloc.run_team(source, tmp_path / "out", "online")
+    _same_estimates(result, online.result)
+    assert all(np.isnan(e).all() for e in result.estimate)
+    assert online.metrics["skipped"]["counts"] == counts

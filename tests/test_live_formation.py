@@ -1,8 +1,8 @@
 """The event-clocked live builder on seed 000 Sec. VI-A (feng-deterministic): three static
 ground robots placed by mutual bearings, a climber resected by P3P on its bearings of them
-(`graphloc.live.event_points`) -- built row by row, the graph is `build_graph`'s, each step
-emitted once the placements it needs are made, and the live team (hypotheses from every P3P
-candidate) gives `graphloc online`'s estimates."""
+(`graphloc.live.event_points`) -- built row by row, the graph is the one built from the whole
+tables, each step emitted once the placements it needs are made, and the live team
+(hypotheses from every P3P candidate) gives `graphloc online`'s estimates."""
 
 from __future__ import annotations
 
@@ -17,10 +17,11 @@ import graphloc
 from graphloc.cli import main
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
+from graphloc.keys import decode
 from graphloc.live import LiveTeam, replay_live
 from graphloc.live.builder import build_live
 from graphloc.live.coverage import not_live, route, run_tables
-from graphloc.live.event_rows import _without_rows
+from graphloc.live.event_rows import _without_rows, build_events
 from graphloc.live.events import EventGraph
 from graphloc.pipelines.team_graph import GraphConfig, run_precision
 from graphloc.runner.team_run import team_graph
@@ -66,7 +67,8 @@ def _same_starts(a: list, b: list) -> None:
 def test_placed_by_bearings_row_by_row_is_the_whole_run_graph(runs, seed):
     """Rows in time order: the ground robots placed by mutual bearings, the climber resected
     once its three snapshots are in (the run's end): the graph, its placements and the
-    climber's P3P alternatives (every candidate: hypotheses) are `build_graph`'s."""
+    climber's P3P alternatives (every candidate: hypotheses) are those of the graph built from
+    the whole tables."""
     run, config = open_run(runs / str(seed)), GraphConfig()
     emitted: list = []
     live = _feed(run, config, _rows(run), emitted)
@@ -178,14 +180,22 @@ def test_a_team_without_rows_checkpoints_and_finishes_empty(runs, tmp_path):
     assert result.graph.precision == run_precision(replace(open_run(runs / "1"), motions=()))
 
 
-def test_a_robot_nothing_can_place_is_named(runs):
+def test_a_robot_nothing_can_place_is_counted_naming_it(runs):
     """Without its bearings the climber has nothing to place it (no candidate sets, no
-    resection): `not_live` names it (`LiveTeam.open` refuses such a run with that list)."""
+    resection): the run is live all the same (`not_live` finds nothing), and `EventGraph`
+    leaves the climber out at `finish` -- a counted `unanchored_robot` naming it, its factors
+    out of the graph, no initial value of its poses."""
     run = open_run(runs / "1")
     tables = run_tables(run)
-    assert not not_live(run, tables)
     tables["climber"] = tables["climber"] - {"bearing"}
-    assert not_live(run, tables) == [
-        "robot climber: no initial_pose, and no candidate sets, circles or bearings to place "
-        "it (scan registration)"
-    ]
+    assert not not_live(run, tables)
+    climber = [r.name for r in run.robots].index("climber")
+    blind = replace(run, points=tuple(p for p in run.points if p.robot != climber))
+    graph = build_events(blind, GraphConfig())
+    poses = len(graph.node_times[climber])
+    assert poses and graph.skips.counts == {"unanchored_robot": poses}
+    assert "robot climber: nothing placed it" in "\n".join(graph.skips.examples)
+    assert not any(decode(k)[:2] == ("x", climber) for k in graph.initial)
+    for _, group in graph.steps:
+        for f, _ in group:
+            assert all(decode(k)[:2] != ("x", climber) for k in factor_keys(f))

@@ -4,7 +4,7 @@ without an initial pose seen by a placed observer (max-mixtures), a moving targe
 without marker pixels (between factors on both poses), one observer's sets of two targets and
 of one target with and without pixels (streams; the first that places the observer places
 it). Each is live (`not_live` names nothing), causal (the steps up to a time do not change
-when later rows exist) and, where `build_graph` takes the same streams, its graph."""
+when later rows exist) and its graph built row by row the one built from the whole tables."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ from graphloc.live import replay_live
 from graphloc.live.builder import build_live
 from graphloc.live.coverage import not_live, run_tables
 from graphloc.live.event_rows import build_events
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.pipelines.team_graph import GraphConfig, solve
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph.graph import factor_keys
 from target_streams import CASES, write_moving_target, write_two_targets
@@ -39,9 +39,11 @@ def base(tmp_path_factory):
 
 
 def _live_and_whole(run):
-    """The run's live graph (`build_live`, after `not_live` found nothing) and `build_graph`'s."""
+    """The run's graph built row by row (`advance` after each) and from the whole tables
+    (`build_live`, what the verbs solve), after `not_live` found nothing."""
     assert not not_live(run, run_tables(run))
-    return build_live(run, GraphConfig()), build_graph(run, GraphConfig())
+    emitted: list = []  # `advance` after each row: the live order
+    return build_events(run, GraphConfig(), emitted), build_live(run, GraphConfig())
 
 
 def _placing(events) -> int:
@@ -60,7 +62,7 @@ def _placing(events) -> int:
 def test_a_placed_observer_places_an_unplaced_target_by_max_mixtures(base):
     """The climber at its true start, the ground robot without an initial pose: every set a
     max-mixture between their poses, the target placed at the first set through the climber
-    (its upright candidate); `build_graph`'s graph, and its online estimates."""
+    (its upright candidate); row by row and whole, one graph, one online estimate."""
     run = CASES["placed-observer"](base)
     live, whole = _live_and_whole(run)
     _same_graph(whole, live)
@@ -73,7 +75,7 @@ def test_a_placed_observer_places_an_unplaced_target_by_max_mixtures(base):
 def test_a_moving_targets_sets_without_pixels_are_between_factors(base):
     """The ground robot drives, the climber's sets of it carry no pixels: each decided set is
     a robust between factor on the climber's and the ground robot's poses at the set, made
-    when the set is decided; `build_graph`'s graph and online estimates."""
+    when the set is decided; row by row and whole, one graph and online estimate."""
     run = CASES["moving-target"](base)
     live, whole = _live_and_whole(run)
     _same_graph(whole, live)
@@ -92,7 +94,7 @@ def test_a_moving_targets_sets_without_pixels_are_between_factors(base):
 def test_an_observers_sets_of_two_targets_are_two_streams(base):
     """Every other set of the climber is of a second static target: two streams, the climber
     placed by the first that decides (its first decided set of either), the other's factors
-    with it; `build_graph`'s graph."""
+    with it; row by row and whole, one graph."""
     run = CASES["two-targets"](base)
     live, whole = _live_and_whole(run)
     _same_graph(whole, live)
@@ -105,17 +107,19 @@ def test_an_observers_sets_of_two_targets_are_two_streams(base):
 def test_sets_with_and_without_pixels_are_two_streams(base):
     """Every other set without its pixels: the pixel sets are one stream (projection factors),
     the others another (decided sets: robust priors); the first that places the climber
-    places it. `build_graph` makes one stream without pixels of them all (it sees the whole
-    run): both consistent, the climber's ATE within a quarter of `build_graph`'s."""
+    places it: consistent, the climber's ATE within a quarter of the run whose sets all carry
+    their pixels (one stream)."""
     run = CASES["mixed-pixels"](base)
     live, whole = _live_and_whole(run)
     events = _live(run, GraphConfig())
     assert list(events.streams) == [(0, 1, True), (0, 1, False)]
     types = set(live.factor_types)
-    assert {"marker", "candidate"} <= types and "marker" not in whole.factor_types
+    assert {"marker", "candidate"} <= types
     assert live.anchored_from[0] == live.node_times[0][_placing(events)]
+    _same_graph(whole, live)
+    pixels = build_live(base, GraphConfig())
     for mode in ("batch", "online"):
-        a, b = (evaluate(solve(graph, mode), run) for graph in (live, whole))
+        a, b = evaluate(solve(live, mode), run), evaluate(solve(pixels, mode), base)
         assert a["consistent"] and b["consistent"]
         ate = [m["per_robot"]["climber"][mode]["ate_rmse"] for m in (a, b)]
         assert ate[0] <= 1.25 * ate[1]
@@ -182,7 +186,7 @@ def test_live_team_on_a_moving_targets_candidates_log_is_graphloc_online(tmp_pat
     """The moving-target case written as a log (`candidates` rows, both robots'
     `relative_pose3`): pushed row by row through the live API it gives `run_team(...,
     "online")`'s estimates and causal estimates; both robots estimated, the sets' decisions
-    between factors, as `build_graph` makes them of the same log (`smooth` builds it live)."""
+    between factors (`smooth` builds the same graph from the whole tables)."""
     feng = tmp_path / "feng"
     generate("feng-probabilistic", feng, 1)
     source = write_moving_target(feng, tmp_path / "run")
@@ -193,14 +197,15 @@ def test_live_team_on_a_moving_targets_candidates_log_is_graphloc_online(tmp_pat
     assert online.hypotheses == 1 and not team.skips.counts
     assert all(np.isfinite(e).all() for e in result.estimate)
     run = open_run(source)
-    _same_graph(build_graph(run, GraphConfig()), build_live(run, GraphConfig()))
+    _same_graph(result.graph, build_live(run, GraphConfig()))
     assert result.graph.counts["factors_candidate"] > 0
 
 
 def test_live_team_on_a_log_of_two_targets_is_graphloc_online(tmp_path):
     """Every other image of the climber sees a second static robot (its markers in its own
     frame, `write_two_targets`): pushed row by row through the live API, the two streams give
-    `run_team(..., "online")`'s estimates and causal estimates, and `build_graph`'s graph."""
+    `run_team(..., "online")`'s estimates and causal estimates, and the graph `smooth` builds
+    from the whole tables."""
     feng = tmp_path / "feng"
     generate("feng-probabilistic", feng, 1)
     source = write_two_targets(feng, tmp_path / "run")
@@ -212,4 +217,4 @@ def test_live_team_on_a_log_of_two_targets_is_graphloc_online(tmp_path):
     assert {d.target for d in result.graph.decisions} == {1, 2}
     assert np.isfinite(result.estimate[0]).all()
     run = open_run(source)
-    _same_graph(build_graph(run, GraphConfig()), build_live(run, GraphConfig()))
+    _same_graph(result.graph, build_live(run, GraphConfig()))

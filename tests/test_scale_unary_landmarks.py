@@ -1,5 +1,5 @@
 """Known landmarks without a variable (issue 15): `known_landmark_factor_3d` is the anchor
-(Point3 + prior + range-bearing) marginalized at the measured point, and `build_graph` ties a
+(Point3 + prior + range-bearing) marginalized at the measured point, and the team graph ties a
 known landmark's range-bearings to the poses by it."""
 
 import importlib
@@ -60,7 +60,7 @@ def test_unary_factor_matches_the_marginalized_anchor():
 
 
 def test_team_graph_ties_known_landmarks_by_unary_factors(tmp_path):
-    """build_graph: a range-bearing to a known landmark is one KnownLandmarkFactorPose3 (no
+    """The team graph: a range-bearing to a known landmark is one KnownLandmarkFactorPose3 (no
     landmark variable); the trajectory is the one-shared-variable model's to a few mm (the
     landmark prior's floor lets a shared variable move that little)."""
     write_synthetic_mrclam(tmp_path / "run", duration=20.0)

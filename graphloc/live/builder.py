@@ -22,9 +22,10 @@ without waiting for the next), or the run is finished; a range-bearing whose own
 `points.body_frame_points`: the later one at a tie) is the next waits for it. Measurements are
 taken in arrival order (the run's order, which fixes the landmark anchors and guesses). A step
 at time T is emitted once every robot's odometry has reached T and no measurement that could
-join a node at T (time <= T + dt/2) is still to come or waiting. So
-the steps, their factors in order and the initial values are those of `build_graph` over the
-same rows (tests/test_live.py). A factor whose newest pose is older than the last emitted step
+join a node at T (time <= T + dt/2) is still to come or waiting. So the steps, their factors
+in order and the initial values do not depend on how the rows are split into calls: one row at
+a time (`graphloc live`) or whole tables (`build_live`, what `graphloc smooth` / `online`
+solve; tests/test_live.py). A factor whose newest pose is older than the last emitted step
 (a measurement between two static robots, whose one pose is at the start) enters with the next
 step.
 """

@@ -2,27 +2,39 @@
 crawler tracks KLT features and sees a teammate's circular base as an ellipse, two circle
 candidates, scale from the base's radius):
 
-- feature pixels (`EventFeatures`): each pixel, once its robot's poses around it are final, is
-  a projection factor on one landmark per track (`team_graph.camera.FeatureTracks`, the class
-  `build_graph` runs too). Causal as it stands: a track's landmark guess and its point prior
-  come from the track's first pixel alone (on the first ray at the camera's `feature_depth`,
-  seed 003 III), so no pixel waits for later ones; the prior enters with the first pixel's
-  step, at the guess through that pose's initial value (`priors`).
-- circle candidate sets of an unplaced target seen by a placed observer (`mixture_set`): each
-  set a max-mixture the solve chooses (`team_graph.mixtures.MixtureTracker`, the class
-  `build_graph` runs too), made once the set's poses are final; the target is placed at its
-  first usable sighting (the observer's pose composed with the upright candidate,
-  `motion.place_robot`'s `placed_via`), its earlier poses carried back along its own steps
-  (`event_placement.seed_robot`); until then its factors are held by the online pass
+- feature pixels (`EventFeatures`): each pixel, once its robot's poses around it are final, is a
+  projection factor on one landmark per track (`team_graph.camera.FeatureTracks`). Causal as it
+  stands: a track's landmark guess and its point prior come from the track's first pixel alone (on
+  the first ray at the camera's `feature_depth`, seed 003 III), so no pixel waits for later ones;
+  the prior enters with the first pixel's step, at the guess through that pose's initial value
+  (`priors`).
+- circle candidate sets of an unplaced target seen by a placed observer (`mixture_set`): each set a
+  max-mixture the solve chooses (`team_graph.mixtures.MixtureTracker`), made once the set's poses
+  are final; the target is placed at its first usable sighting (the observer's pose composed with
+  the upright candidate, `motion.place_robot`'s `placed_via`), its earlier poses carried back along
+  its own steps (`event_placement.seed_robot`); until then its factors are held by the online pass
   (`anchored_from` infinite), as for an observer placed by a decided set.
 
-Order keys of the pending factors (`EventGraph.pending_factor`) put them where `build_graph`'s
-sections put them within a step: projections (3, pixel) after the anchors, mixtures (4, stream,
-set) with the other candidate streams, point priors (9, track) last."""
+A camera without an initial pose: its pixels are factors as they come (the online pass holds
+them with the camera's other factors until it is placed), but a track's landmark guess and
+point prior need the pose of its first pixel, so they wait for the placement (by the camera's
+decided candidate sets, or any other causal rule of the route). Its circle sets wait for it
+too (the max-mixture route needs the observer's pose: `MixtureTracker` dead-reckons it from the
+pose the placement gives its first node, as from a known initial pose), then go through their
+stream in order before any later set; the target placed through it is held as long as it is.
+What waited joins the step the camera was placed at (`_placed_step`: not emitted yet when the
+placement comes), so the graph does not depend on when rows arrived. A camera nothing placed
+by the end leaves both as counted skips `unplaced_camera` naming robot and table
+(`camera_skips`).
+
+Order keys of the pending factors (`EventGraph.pending_factor`) order them within a step:
+projections (3, pixel) after the anchors, mixtures (4, stream, set) with the other candidate
+streams, point priors (9, track) last."""
 
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import replace
 
 import gtsam
 import numpy as np
@@ -32,6 +44,7 @@ from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_clock import final_end
 from graphloc.live.event_placement import initial_upto, seed_robot
 from graphloc.pipelines.team_graph.camera import FeatureTracks
+from graphloc.pipelines.team_graph.graph import landmark_initial
 from graphloc.pipelines.team_graph.mixtures import MixtureTracker
 
 
@@ -46,7 +59,9 @@ class EventFeatures:
         self.queue: deque = deque()
         self.arrived: list = []  # every pixel, in arrival order
         self.taken = 0  # pixels made into factors (their order key)
-        self.priors_done = 0  # point priors entered
+        self.priors_done = 0  # point priors looked at
+        self.waiting: list = []  # ... of those, the ones whose camera was not placed then
+        self.pixels_of: dict = {}  # robot -> its pixels made into factors
 
     def arrive(self, events, f) -> None:
         """One pixel: its time is one of its robot's measurement times (a pose inside a
@@ -84,52 +99,121 @@ class EventFeatures:
             time = events.clock.node_times[f.robot][k] if k >= 0 else np.nan
             for t, factor, kind in self.tracks.add(f, k, time):
                 events.pending_factor(t, (3, self.taken), factor, kind)
+                self.pixels_of[f.robot] = self.pixels_of.get(f.robot, 0) + 1
             self.taken += 1
 
     def priors(self, events, t: float) -> None:
-        """The point priors of tracks whose first pixel's step is at t, once that pose has
-        its initial value (`initial_upto` ran to t): the landmark's guess on the first ray is
-        its initial value and the prior's mean (`build_graph`'s feature priors); a robot
-        nothing placed gets none (its projections are held)."""
+        """The point priors of tracks whose first pixel's step is at or before t, once that
+        pose has its initial value (`initial_upto` ran to t): the landmark's guess on the first
+        ray is its initial value and the prior's mean (the track's point prior). A
+        prior whose camera was not placed at its step waits (`waiting`) and enters with the
+        step that placed it (`_placed_step`)."""
         section, graph = self.tracks.section, events.graph
+        new = []
         while self.priors_done < len(section.point_priors):
-            lkey, sigma, time = section.point_priors[self.priors_done]
-            if time > t:
-                return
-            _, r, k, direction, rng = section.landmark_guess[lkey]
-            pose = graph.initial.get(pose_key(r, k))
-            if pose is not None:
-                graph.initial[lkey] = pose.transformFrom(direction * rng)
-                noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
-                prior = gtsam.PriorFactorPoint3(lkey, graph.initial[lkey], noise)
-                events.pending_factor(time, (9, self.priors_done), prior, "feature_prior")
+            if section.point_priors[self.priors_done][2] > t:
+                break
+            new.append(self.priors_done)
             self.priors_done += 1
+        waiting, self.waiting = self.waiting, []
+        for i in waiting + new:
+            lkey, sigma, time = section.point_priors[i]
+            landmark_initial(graph.initial, lkey, section.landmark_guess[lkey])
+            if lkey not in graph.initial:
+                self.waiting.append(i)
+                continue
+            noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
+            prior = gtsam.PriorFactorPoint3(lkey, graph.initial[lkey], noise)
+            at = _placed_step(graph, section.landmark_guess[lkey][1], time)
+            events.pending_factor(at, (9, i), prior, "feature_prior")
 
 
 def mixture_set(events, n: int, o) -> None:
-    """Candidate set n (`o`) of a placed observer on a target without an initial pose, through
-    its stream's `MixtureTracker` (module docstring); the target placed at its first usable
-    sighting."""
+    """Candidate set n (`o`) of an observer on a target without an initial pose, through its
+    stream's `MixtureTracker` (module docstring); the target placed at its first usable
+    sighting. An observer not placed yet: the set waits (`events.held_circles`) until it is,
+    then the held sets go first (`release_circles`)."""
+    if events.robots[o.robot].seed is None:
+        events.held_circles.setdefault(o.robot, []).append((n, o))
+        return
+    release_circles(events, o.robot)
+    _mixture_set(events, o)
+
+
+def release_circles(events, r: int | None = None) -> None:
+    """The held circle sets of observer r (None: of every observer) that is placed now, in
+    the order they arrived, through their streams; their factors join the step that placed
+    it (`_placed_step`)."""
+    for observer in [r] if r is not None else list(events.held_circles):
+        if events.robots[observer].seed is None:
+            continue
+        for _, o in events.held_circles.pop(observer, []):
+            _mixture_set(events, o)
+
+
+def _mixture_set(events, o) -> None:
     run, config, graph = events.run, events.config, events.graph
     r, ti = o.robot, o.target
+    observer = events.robots[r]
     entry = events.mixtures.get((r, ti))
     if entry is None:
-        entry = [MixtureTracker(run, config, r, ti), len(events.streams) + len(events.mixtures)]
+        tracked = run
+        if run.robots[r].initial_pose is None:  # dead-reckoned from its placed first pose
+            robots = list(run.robots)
+            robots[r] = replace(robots[r], initial_pose=graph.initial[pose_key(r, 0)])
+            tracked = replace(run, robots=tuple(robots))
+        entry = [MixtureTracker(tracked, config, r, ti), len(events.streams) + len(events.mixtures)]
         events.mixtures[(r, ti)] = entry
     tracker, index = entry
     before = tracker.out.placed
     k, kt = events.clock.nearest(r, o.time), events.clock.nearest(ti, o.time)
-    tracker.add(o, k, kt, events.robots[r].steps)
+    tracker.add(o, k, kt, observer.steps)
+    at = -np.inf
     for t, factor, kind in tracker.factor_times(events.clock.node_times):
-        events.pending_factor(t, (4, index, len(tracker.out.outcomes), 0), factor, kind)
+        at = _placed_step(graph, r, t)
+        events.pending_factor(at, (4, index, len(tracker.out.outcomes), 0), factor, kind)
         d = tracker.out.outcomes[-1]
         if d.mixture is not None and d.relative is not None:
             graph.links[pose_key(r, k)] = (pose_key(ti, kt), d.relative)
     if before is None and tracker.out.placed is not None:
         ((k_target, (_, k_observer, rel)),) = tracker.out.placed.items()
-        observer = events.robots[r]
-        if observer.seed is None:  # `coverage`: such an observer's sets are refused
-            raise NotLiveError(f"robot {run.robots[r].name}: circle sets from an unplaced robot")
         initial_upto(graph, config, [observer], float(observer.times[k_observer]))
         pose = graph.initial[pose_key(r, k_observer)].compose(rel)
         seed_robot(graph, config, events.robots[ti], k_target, pose)
+        # held until the step of the set that placed it (a camera placed late: that step)
+        graph.anchored_from[ti] = max(graph.anchored_from[ti], at)
+
+
+def camera_skips(events) -> None:
+    """Every row is in: the feature pixels and held circle sets of a camera nothing placed,
+    counted skips `unplaced_camera` naming robot and table (module docstring)."""
+    names = events.run.robots
+    for r, robot in enumerate(events.robots):
+        if robot.seed is not None:
+            continue
+        pixels = events.features.pixels_of.get(r, 0)
+        if pixels:
+            tracks = sum(1 for (owner, _) in events.features.tracks.tracks if owner == r)
+            events.skips.add(
+                "unplaced_camera",
+                f"robot {names[r].name}: table 'features': {pixels} pixels of {tracks} tracks "
+                f"from a camera nothing placed (a landmark's guess is on its first pixel's ray)",
+                pixels,
+            )
+        held = events.held_circles.get(r, [])
+        for ti in sorted({o.target for _, o in held}):
+            sets = sum(1 for _, o in held if o.target == ti)
+            events.skips.add(
+                "unplaced_camera",
+                f"robot {names[r].name}: table 'ellipses': {sets} circle sets of "
+                f"{names[ti].name} from a camera nothing placed (they place {names[ti].name} "
+                f"through its pose)",
+                sets,
+            )
+
+
+def _placed_step(graph, r: int, t: float) -> float:
+    """The step a factor made at step time t that waited for robot r's placement joins: t, or
+    the step r was placed at, if later (not emitted yet: the rows that place a robot are
+    factors of that step), so the graph does not depend on when the placement came."""
+    return max(t, graph.anchored_from.get(r, -np.inf))

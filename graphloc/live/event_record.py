@@ -1,8 +1,8 @@
-"""What a finished `live.events.EventGraph` records in its `TeamGraph`, as `build_graph` records
-it: every stream's set outcomes in the order the streams began (tracked and max-mixture
-streams alike), the sections' skips (the point measurements' too; the sets of a target without
-an initial pose seen by an observer without one: one `target_unplaced` skip per stream), the
-alternative placements (pixel streams', resected robots') and the graph's counts."""
+"""What a finished `live.events.EventGraph` records in its `TeamGraph`: every stream's set outcomes
+in the order the streams began (tracked and max-mixture streams alike), the sections' skips (the
+point measurements' too; the sets of a target without an initial pose seen by an observer without
+one: one `target_unplaced` skip per stream), the alternative placements (pixel streams', resected
+robots') and the graph's counts."""
 
 from __future__ import annotations
 

@@ -11,10 +11,11 @@ its (observer, target) stream -- one rule per stream, as `team_graph.candidates`
   target with and without marker pixels are two streams (which kind a set is, is known when
   it arrives), as are its sets of two targets: the first stream that places the observer
   places it, the others' factors enter with that placement (held until then);
-- a target without an initial pose seen by an observer with one: each set a max-mixture
-  (`live.event_camera.mixture_set`), the target placed through the observer;
+- a target without an initial pose seen by an observer with one -- circles: by any camera,
+  held until it is placed --: each set a max-mixture (`live.event_camera.mixture_set`), the
+  target placed through the observer;
 - a target without an initial pose seen by an observer without one: nothing places either
-  through the other; each set a counted `target_unplaced` skip (`build_graph`'s rule)."""
+  through the other; each set a counted `target_unplaced` skip."""
 
 from __future__ import annotations
 
@@ -32,8 +33,9 @@ def take_set(events, n: int, o) -> None:
     """Set n (`o`, a `graphloc.run.CandidateObservation`) of `events`' run."""
     run, r, ti = events.run, o.robot, o.target
     if run.robots[ti].initial_pose is None:
-        if run.robots[r].initial_pose is not None:  # max-mixtures (`live.event_camera`)
-            return mixture_set(events, n, o)
+        if run.robots[r].initial_pose is not None or o.candidates.source == "circle":
+            # a placed observer (circles: a camera, held until it is placed): max-mixtures
+            return mixture_set(events, n, o)  # (`live.event_camera`)
         key = (r, ti)  # counted at the end, one skip per stream (`event_record`)
         events.unplaced_sets[key] = events.unplaced_sets.get(key, 0) + 1
         return

@@ -51,7 +51,7 @@ import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.live.coverage import NotLiveError
-from graphloc.live.event_camera import EventFeatures
+from graphloc.live.event_camera import EventFeatures, camera_skips, release_circles
 from graphloc.live.event_placement import initial_upto, seed_robot, start_variants
 from graphloc.live.event_points import EventPoints
 from graphloc.live.event_record import record_graph, unplaced_robots
@@ -100,9 +100,10 @@ class EventGraph:
         self.start_from_rows = False  # the start came from the first relative pose
         self.robots = [EventRobot(r, robot, r in stamped) for r, robot in enumerate(run.robots)]
         self.clock = EventClock(run, config, [np.zeros(0) for _ in run.robots])
-        self.streams: dict = {}  # (observer, target) -> [StreamTracker, obs list, index]
+        self.streams: dict = {}  # (observer, target, pixels) -> [StreamTracker, obs, index]
         self.mixtures: dict = {}  # (observer, unplaced target) -> [MixtureTracker, index]
         self.unplaced_sets: dict = {}  # (unplaced observer, unplaced target) -> sets skipped
+        self.held_circles: dict = {}  # observer not placed yet -> its circle sets [(n, o)]
         self.features = EventFeatures(run, config)  # `live.event_camera`
         self.queue: deque = deque()  # candidate sets waiting for their poses, in arrival order
         self.arrived: list = []  # every candidate set, in arrival order
@@ -207,6 +208,7 @@ class EventGraph:
         self.links.pairs(lambda r: final_end(self.robots[r], watermark))
         finished = watermark == np.inf and all(robot.finished for robot in robots)
         points.place(robots, self.clock, partial(seed_robot, self.graph, self.config), finished)
+        release_circles(self)
         for r, (starts, _) in points.resected.items():
             if not robots[r].variants:
                 start_variants(self.graph, self.config, robots[r], starts)
@@ -229,6 +231,7 @@ class EventGraph:
             self.start = float(self.first_seen)
         steps = self.advance(np.inf) if self.start is not None else self._emit(np.inf)
         self.links.finish(self.skips)
+        camera_skips(self)
         unplaced_robots(self)
         record_graph(self)
         return steps

@@ -1,6 +1,6 @@
-"""`SectionFactors`: what one section of the team graph (`graph.build_graph`) returns -- its
-factors, the skips it counted and the marker points it made -- instead of writing into lists
-it is handed."""
+"""`SectionFactors`: what one section of the team graph (`live.events.EventGraph`'s candidate
+streams) returns -- its factors, the skips it counted and the marker points it made -- instead of
+writing into lists it is handed."""
 
 from __future__ import annotations
 

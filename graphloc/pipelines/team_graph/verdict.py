@@ -49,6 +49,7 @@ LOST_ROWS = (
     "no_p3p_solution",
     "no_pose_at_time",
     "target_unplaced",
+    "unplaced_camera",
     "bad_pixel",
 )
 
