@@ -55,6 +55,7 @@ class EventRobot:
         self.seed: int | None = None  # first seeded node
         self.initial_done = 0  # nodes whose initial value is set
         self.variants: list = []  # a guessed placement's alternatives: (nodes done, key -> Pose3)
+        self.variant_starts: list = []  # ... and where each starts: (node, world_T_body)
         self.anchors_done = 0
         self.anchor_count = 0
         self.finished = False

@@ -73,12 +73,14 @@ def initial_upto(graph: TeamGraph, config: GraphConfig, robots: list, t: float) 
 
 
 def start_variants(graph: TeamGraph, config: GraphConfig, robot: EventRobot, starts: list) -> None:
-    """A robot placed by a guess (`event_points`: resection): every start (node, world_T_body)
+    """A robot placed by a guess (`event_points`: resection; a marker-pixel stream never
+    decided in its first `guess_after_sets` sets, `event_sets`): every start (node, world_T_body)
     an alternative of its poses so far, carried along its steps as `graph.alternative_starts`
     carries them, and grown with its poses (`initial_upto`); the online solve runs them as
     hypotheses from when they are made (`graph.guessed_alternatives`), each judged from its
     own node's time (`graph.guessed_alternative_times`)."""
     r = robot.r
+    robot.variant_starts += starts
     for k0, body in starts:
         v = {pose_key(r, k0): body}
         for j in range(k0 - 1, -1, -1):
@@ -120,8 +122,8 @@ def alternative_placements(
     solve runs them as hypotheses too, `guessed_alternatives`), with the node time each was
     placed at (`alternative_times`, `guessed_alternative_times`)."""
     alternatives = {}
-    for s in streams:
-        if s.pixel_route and s.sets:
+    for s in streams:  # a decided placement: its stream's first set (a guess: `start_variants`)
+        if s.pixel_route and s.sets and not robots[s.robot].variants:
             first = s.sets[0]
             alternatives[s.robot] = ([(first.k, body) for body in first.bodies], False)
     poses = {
@@ -136,16 +138,9 @@ def alternative_placements(
     variants, _ = alternative_starts(
         run, config, clock, graph.step_rel, poses, alternatives, sensor_poses
     )
-    guessed = [
-        with_sensors(v, sensor_poses) for r in points.resected for _, v in robots[r].variants
-    ]
+    guessed = [with_sensors(v, sensor_poses) for robot in robots for _, v in robot.variants]
     graph.alternatives, graph.guessed_alternatives = variants + guessed, guessed
-    guessed_times = [
-        t
-        for r, (starts, _) in points.resected.items()
-        if robots[r].variants
-        for t in _variant_times(robots[r], starts)
-    ]
+    guessed_times = [t for robot in robots for t in _variant_times(robot, robot.variant_starts)]
     times = anchor_times(alternatives, poses, clock.node_times)[0]
     graph.alternative_times = times + guessed_times
     graph.guessed_alternative_times = guessed_times

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from graphloc.keys import pose_key
 from graphloc.live.event_camera import mixture_set
-from graphloc.live.event_placement import seed_robot, stream_placement
+from graphloc.live.event_placement import seed_robot, start_variants, stream_placement
 from graphloc.pipelines.team_graph.candidates import (
     StreamDecisions,
     StreamTracker,
@@ -67,7 +67,10 @@ def _place(events, tracker, tracked) -> None:
     only while nothing placed it --; a scanning observer is registered from the stream's
     hypotheses (`event_scans.ScanLinks.place`); a pixel stream none of whose first
     `GraphConfig.guess_after_sets` sets was decided places an observer still unplaced by the
-    tracker's best guess at that set (`event_placement.stream_placement`)."""
+    tracker's best guess at that set (`event_placement.stream_placement`), every candidate of
+    that set an alternative placement the online solve runs as a hypothesis too
+    (`event_placement.start_variants`): the guess may be a wrong candidate, which the later
+    sets' pixels tell apart."""
     r, pixels = tracked.observation.robot, tracker.out.pixel_route
     robot = events.robots[r]
     if tracked.decided and not (pixels and robot.placed):
@@ -76,3 +79,5 @@ def _place(events, tracker, tracked) -> None:
     events.links.place(r, tracker.out.tentative)
     if pixels and not robot.placed and len(tracker.out.sets) >= events.config.guess_after_sets:
         seed_robot(events.graph, events.config, robot, tracked.k, stream_placement(tracked))
+        starts = [(tracked.k, body) for body in tracked.bodies]
+        start_variants(events.graph, events.config, robot, starts)

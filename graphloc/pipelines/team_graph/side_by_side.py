@@ -83,11 +83,11 @@ class SideBySide:
                 if len(alive) == 1:
                     raise
                 alive.remove(j)
+        t = self.graph.steps[i][0]
+        unjudged = {j for j in alive if self.times[j] is not None and t < self.times[j] - 1e-9}
         if len(alive) > 1:
-            alive[:] = _distinct(passes, alive)
+            alive[:] = _distinct(passes, alive, unjudged)
         if len(alive) > 1 and (i % self.stride == 0 or i < EARLY_CHECKS or last):
-            t = self.graph.steps[i][0]
-            unjudged = {j for j in alive if self.times[j] is not None and t < self.times[j] - 1e-9}
             alive[:] = _prune(passes, alive, self.chi2, unjudged)
         self.best_at.append(min(alive, key=lambda j: self.chi2[j]))
 
@@ -112,13 +112,15 @@ class SideBySide:
         )
 
 
-def _distinct(passes: list, alive: list) -> list:
+def _distinct(passes: list, alive: list, unjudged: set = frozenset()) -> list:
     """The hypotheses that are not the same estimate as an earlier one: every robot's latest
-    pose within SAME_ESTIMATE (m, rad) of it (they converged to one basin)."""
+    pose within SAME_ESTIMATE (m, rad) of it (they converged to one basin). Those in
+    `unjudged` are kept: before the step of the node a start was placed at, the robot it
+    places may hold no pose yet, so every start reads as the same estimate."""
     out = []
     for j in alive:
         mine = passes[j].latest
-        if not any(_same(mine, passes[i].latest) for i in out):
+        if j in unjudged or not any(_same(mine, passes[i].latest) for i in out):
             out.append(j)
     return out
 
