@@ -256,9 +256,12 @@ def test_a_stream_that_ends_before_its_guess_leaves_the_observer_out(tmp_path):
     assert online.metrics["skipped"]["counts"]["unanchored_robot"] > 0
 
 
-def test_an_event_team_counts_bad_rows_and_refuses_wheel_odometry(tmp_path):
+def test_an_event_team_counts_bad_rows_and_refuses_odometry_of_a_robot_without_its_table(
+    tmp_path,
+):
     """Rows of an event-clocked team are checked as a log's (a counted skip naming robot,
-    table, row and field); a table of the other route is refused naming it."""
+    table, row and field); wheel odometry of a robot whose manifest has no odometry table (its
+    pose times at its relative poses) is refused naming it."""
     source = tmp_path / "run"
     generate("feng-probabilistic", source, 1)
     team = LiveTeam.open(source)
@@ -274,5 +277,6 @@ def test_an_event_team_counts_bad_rows_and_refuses_wheel_odometry(tmp_path):
     assert counts.get("bad_relative_pose") == 1  # a zero quaternion
     examples = "\n".join(team.skips.examples)
     assert "robot 'climber', table 'markers', row 1: field 'v'" in examples
-    with pytest.raises(NotLiveError, match="'odometry' is not live in this team"):
-        team.push("climber", "odometry", {"time": 0.0, "sensor": "wheels", "v": 0, "omega": 0})
+    team.push("climber", "odometry", {"time": 0.0, "sensor": "odometry", "v": 0, "omega": 0})
+    with pytest.raises(NotLiveError, match="robot climber: wheel odometry, but its manifest"):
+        team.finish()

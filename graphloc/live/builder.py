@@ -37,7 +37,7 @@ import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
-from graphloc.live.coverage import NotLiveError, not_live, route, run_tables
+from graphloc.live.coverage import NotLiveError, route, run_tables, wheel_problems
 from graphloc.live.robot_state import RobotState
 from graphloc.live.waiting import WaitingPoints
 from graphloc.pipelines.team_graph.config import GraphConfig, run_precision
@@ -54,7 +54,7 @@ class LiveGraph:
     its variables in graph.initial), `finish()` the rest."""
 
     def __init__(self, run: TeamRun, config: GraphConfig, start_time: float | None):
-        problems = not_live(run, {r.name: ("odometry",) for r in run.robots})
+        problems = wheel_problems(run, {r.name: ("odometry",) for r in run.robots})
         if problems:
             raise NotLiveError("not live yet: " + "; ".join(problems))
         self.run, self.config = run, config

@@ -1,0 +1,137 @@
+"""Wheel-odometry robots on the event route (`graphloc.live.wheel_steps`): a team that mixes
+wheel odometry (`odometry`) with event-clocked robots (relative poses, marker pixels) is live --
+`not_live` finds nothing, `team_graph` builds it with `build_events` --, each wheel robot's grid
+steps are the whole run's integration bit for bit however its rows are split, the steps up to a
+time do not change when later rows exist, and the live team gives `graphloc online`'s
+estimates. The mixed log is the outside user's generator (tests/foreign/team_generator.py,
+layout mixed-team) with the ceiling camera's markers of one wheel robot."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import graphloc
+from graphloc.datasets import open_run
+from graphloc.factors.odometry import integrate_unicycle
+from graphloc.live import replay_live
+from graphloc.live.coverage import not_live, route, run_tables
+from graphloc.live.event_rows import build_events
+from graphloc.live.wheel_steps import WheelSteps, wheel_motions
+from graphloc.pipelines.team_graph import GraphConfig
+from graphloc.pipelines.team_graph.graph import factor_keys
+from graphloc.pipelines.team_graph.motion import velocity_noise
+from graphloc.runner.team_run import team_graph
+from test_live import _same_estimates, _same_graph
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "foreign"))
+
+import team_generator as gen  # noqa: E402
+
+
+def _mixed(root: Path, duration: float = 12.0, target: str = "rover_c") -> Path:
+    """The generator's mixed team (wheel robots rover_a / rover_c, relative poses of rover_b,
+    the ceiling and wall climbers, the ceiling camera without an initial pose), its camera's
+    marker rows of `target` only (one stream places it)."""
+    config = gen.GeneratorConfig(
+        layout="mixed-team", seed=0, duration_s=duration, landmark_heights="sensor"
+    )
+    run = gen.generate(root / "mixed", config)
+    markers = run / "ceiling" / "markers.csv"
+    head, *rows = markers.read_text().splitlines()
+    markers.write_text("\n".join([head, *(r for r in rows if r.split(",")[2] == target)]) + "\n")
+    return run
+
+
+@pytest.fixture(scope="module")
+def mixed(tmp_path_factory) -> Path:
+    return _mixed(tmp_path_factory.mktemp("wheel-events"))
+
+
+def test_a_mixed_team_is_live_on_the_event_route(mixed):
+    """Wheel robots beside relative-pose and marker robots: nothing keeps the run off the live
+    builder; `team_graph` builds the event route's graph, every wheel robot's pose times the
+    grid start + k keyframe_dt and its measurements' times inside a step."""
+    run, config = open_run(mixed), GraphConfig()
+    tables = run_tables(run)
+    assert {"odometry", "relative_pose3", "candidates"} <= set().union(*tables.values())
+    assert route(run, tables) == "event" and not_live(run, tables) == []
+    graph = team_graph(run, config)
+    _same_graph(build_events(run, config), graph)
+    for r in (1, 3):  # rover_a, rover_c: wheel odometry
+        times, end = graph.node_times[r], run.velocity[r][-1, 0]
+        grid = run.start_time + config.keyframe_dt * np.arange(int(end / config.keyframe_dt) + 1)
+        assert np.isin(np.round(grid, 9), times).all()
+        between = times[~np.isin(times, np.round(grid, 9))]
+        measured = [p.time for p in run.points if r in (p.robot, p.target)]
+        measured += [o.time for o in run.observations if o.target == r]
+        assert len(between) and np.isin(between, np.round(measured, 9)).all()
+    assert graph.counts["committed_sets"] > 0 and not graph.skips.counts.get("unanchored_robot")
+
+
+def test_wheel_steps_are_the_whole_run_integration_however_the_rows_are_split(mixed):
+    """Rows in random chunks: the grid steps, their times and covariances are those of
+    `integrate_unicycle` over the whole table (`motion._velocity_steps`), bit for bit, each made
+    by the first row at or after its end."""
+    run, config = open_run(mixed), GraphConfig()
+    rng = np.random.default_rng(5)
+    for r in (1, 3):
+        rows = run.velocity[r]
+        wheel, made, i = WheelSteps(r, run, config), [], 0
+        while i < len(rows):
+            j = min(len(rows), i + int(rng.integers(1, 9)))
+            wheel.add(rows[i:j])
+            made += wheel.steps(run.start_time)
+            i = j
+        grid = run.start_time + config.keyframe_dt * np.arange(len(made) + 1)
+        ref = integrate_unicycle(*rows.T, grid, velocity_noise(run, r, config))
+        assert len(made) == len(ref.deltas) > 0
+        for (t, m), d, t0, t1 in zip(made, ref.deltas, grid[:-1], grid[1:]):
+            assert (m.robot, m.t0, m.t1) == (r, t0, t1)
+            assert t == rows[np.searchsorted(rows[:, 0], t1 - 1e-9 * config.keyframe_dt), 0]
+            assert np.array_equal(np.r_[m.relative.x(), m.relative.y()], d[:2])
+        whole = [m for _, m in wheel_motions(run, config) if m.robot == r]
+        assert [(m.t0, m.t1) for m in whole] == [(m.t0, m.t1) for _, m in made]
+        for a, (_, b) in zip(whole, made):
+            assert np.array_equal(a.relative.matrix(), b.relative.matrix())
+            assert np.array_equal(a.covariance, b.covariance)
+
+
+def test_the_steps_up_to_a_time_do_not_change_when_later_rows_exist(mixed):
+    """Causal: the run cut at a time (every row after it withheld) emits the whole run's
+    steps up to there, with the same factors."""
+    run, config = open_run(mixed), GraphConfig()
+    whole = build_events(run, config)
+    cut = 0.5 * (run.start_time + run.velocity[1][-1, 0])
+    part = replace(
+        run,
+        velocity=tuple(v[v[:, 0] <= cut] for v in run.velocity),
+        motions=tuple(m for m in run.motions if max(m.t0, m.t1) <= cut),
+        observations=tuple(o for o in run.observations if o.time <= cut),
+        points=tuple(p for p in run.points if p.time <= cut),
+    )
+    emitted: list = []
+    build_events(part, config, emitted)
+    early = [step for steps in emitted[:-1] for step in steps]  # before `finish`
+    assert len(early) > len(whole.steps) // 4
+    assert [t for t, _ in early] == [t for t, _ in whole.steps[: len(early)]]
+    for (_, fa), (_, fb) in zip(early, whole.steps):
+        assert [factor_keys(f) for f, _ in fa] == [factor_keys(f) for f, _ in fb]
+
+
+def test_live_team_of_a_mixed_run_is_graphloc_online(mixed, tmp_path):
+    """The log's rows (odometry, relative poses, marker pixels, ranges and bearings) pushed in
+    time order through the live API give `run_team(..., "online")`'s estimates and causal
+    estimates, every robot estimated."""
+    updates: list = []
+    team = replay_live(mixed, subscriber=updates.append)
+    result = team.finish()
+    online = graphloc.run_team(mixed, tmp_path / "out", "online").result
+    _same_estimates(result, online)
+    assert [u.step for u in updates] == list(range(len(result.graph.steps)))
+    for estimate in result.estimate:
+        assert np.isfinite(estimate[:, :3]).any()
