@@ -4,12 +4,15 @@ wheel odometry (`odometry`) with event-clocked robots (relative poses, marker pi
 steps are the whole run's integration bit for bit however its rows are split, the steps up to a
 time do not change when later rows exist, and the live team gives `graphloc online`'s
 estimates. The mixed log is the outside user's generator (tests/foreign/team_generator.py,
-layout mixed-team) with the ceiling camera's markers of one wheel robot."""
+layout mixed-team) with the ceiling camera's markers of one wheel robot. The wheel runs the
+wheel route (`LiveGraph`) does not take -- static robots with bearings of their own, robots
+without an initial pose placed by mutual bearings and resection -- take the event route too
+(`_wheel_team`, from the generator's parts)."""
 
 from __future__ import annotations
 
 import sys
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +33,7 @@ from test_live import _same_estimates, _same_graph
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "foreign"))
 
+import score  # noqa: E402
 import team_generator as gen  # noqa: E402
 
 
@@ -45,6 +49,42 @@ def _mixed(root: Path, duration: float = 12.0, target: str = "rover_c") -> Path:
     head, *rows = markers.read_text().splitlines()
     markers.write_text("\n".join([head, *(r for r in rows if r.split(",")[2] == target)]) + "\n")
     return run
+
+
+def _wheel_team(out: Path, rover_placed: bool, duration: float = 20.0) -> Path:
+    """Three static robots g1..g3 with omni bearings of each other and of a wheel-odometry
+    rover (g1 with an initial pose and a range to g2: mutual bearings place g2 and g3), the
+    rover with bearings of the three (with `rover_placed` False, resection places it)."""
+    config = gen.GeneratorConfig(layout="mixed-team", seed=0, duration_s=duration)
+    rng, noise = np.random.default_rng(0), config.noise
+    log = gen.Log("wheel-team", [], duration=duration)
+    sim = gen.Sim(config, log, rng)
+    omni = {"bearing_sigma": noise.omni_bearing_sigma}
+    statics = []
+    for i, (x, y) in enumerate([(2.5, 2.0), (-2.8, 1.5), (0.3, -2.6)], start=1):
+        g = gen._ground(rng, sim, f"g{i}", None, moving=False, duration=duration,
+                        start=(x, y, rng.uniform(-3, 3)))  # fmt: skip
+        g.initial_pose = i == 1
+        sim.mount(g, "omni", "bearing", [0.0, 0.0, 0.25], [0, 0, rng.uniform(-3, 3)], omni)
+        statics.append(g)
+    tape = {"range_sigma": noise.range_sigma, "range_sigma_per_m": 0.0}
+    sim.mount(statics[0], "tape", "range", [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], tape)
+    rover = gen._ground(rng, sim, "rover", None, moving=True, duration=duration,
+                        region=(-1.5, 1.5, -1.0, 1.0))  # fmt: skip
+    rover.initial_pose = rover_placed
+    sim.odometry_sensor(rover, wheel=True)
+    sim.mount(rover, "omni", "bearing", [0.0, 0.0, 0.25], [0, 0, rng.uniform(-3, 3)], omni)
+    log.robots = [*statics, rover]
+    sim.wheel_odometry(rover)
+    names = [g.name for g in statics]
+    for g in statics:
+        others = [n for n in [*names, "rover"] if n != g.name]
+        sim.bearings(g, "omni", others, gen.frame_times(4.0, duration), omni["bearing_sigma"])
+    sim.ranges(statics[0], "tape", [names[1]], [0.0], per_m=0.0)
+    sim.bearings(rover, "omni", names, gen.frame_times(0.5, duration), omni["bearing_sigma"])
+    meta = {"config": asdict(config), "conventions": gen.CONVENTIONS, "true_layouts": {}}
+    gen.write_log(log, out, meta)
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -135,3 +175,31 @@ def test_live_team_of_a_mixed_run_is_graphloc_online(mixed, tmp_path):
     assert [u.step for u in updates] == list(range(len(result.graph.steps)))
     for estimate in result.estimate:
         assert np.isfinite(estimate[:, :3]).any()
+
+
+@pytest.mark.parametrize("rover_placed", [True, False])
+def test_wheel_runs_the_wheel_route_does_not_take_are_live_on_the_event_route(
+    tmp_path, rover_placed
+):
+    """Static robots with bearings of their own, two without an initial pose (mutual
+    bearings), a wheel rover with or without one (resection on its bearings of the three):
+    the event route builds the run (`team_graph`, no whole-run builder), smooth and online
+    place every robot near the truth, smooth calls itself consistent, and the live team gives
+    online's estimates. (Online's verdict is not asserted: iSAM2 relinearizes a wheel run at
+    COARSE_PRECISION, `config.run_precision`, which leaves the rover's sensor ties beyond
+    their noise here -- build_graph's online pass did the same on this run.)"""
+    source = _wheel_team(tmp_path / "run", rover_placed)
+    run = open_run(source)
+    tables = run_tables(run)
+    assert route(run, tables) == "event" and not_live(run, tables) == []
+    _same_graph(build_events(run, GraphConfig()), team_graph(run, GraphConfig()))
+    results = {}
+    for verb, mode in (("smooth", "batch"), ("online", "online")):
+        done = graphloc.run_team(source, tmp_path / verb, mode)
+        assert mode == "online" or done.metrics["consistent"], done.metrics["consistency"]
+        scores = score.score(source, tmp_path / verb, mode)
+        assert not scores["unplaced"]
+        for name, robot in scores["robots"].items():
+            assert robot["rmse_m"] < 0.1 and robot["final_m"] < 0.1, (verb, name, robot)
+        results[mode] = done.result
+    _same_estimates(replay_live(source).finish(), results["online"])

@@ -31,7 +31,7 @@ from graphloc.keys import decode
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.events import EventGraph
 from graphloc.live.scan_feed import ScanFeed
-from graphloc.live.wheel_steps import WheelSteps, wheel_motions
+from graphloc.live.wheel_steps import WheelSteps, skip_relative, wheel_motions
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.run import TeamRun
@@ -63,7 +63,9 @@ class EventRows:
             if {"markers", "candidates", "ellipses"} & set(tables.get(robot.name, ()))
         }
         camera = any({"features", "ellipses"} & set(t) for t in tables.values())
-        self.events = EventGraph(run, setup.config, setup.start_time, stamped, observers, camera)
+        self.events = EventGraph(
+            run, setup.config, setup.start_time, stamped, observers, camera, set(self.wheels)
+        )
         self.graph = self.events.graph
         self.sink = Sink("skip", skips)
         self.sensors = [list(robot.sensors) for robot in run.robots]
@@ -120,8 +122,12 @@ class EventRows:
                 events.motion(m)
         return events.start
 
-    def _motion(self, m) -> None:
-        """A relative pose (a row or a scan step) into the graph, or held for the start."""
+    def _motion(self, m, table: str) -> None:
+        """A relative pose (a row or a scan step) into the graph, or held for the start; a
+        wheel robot's is a counted skip (`wheel_steps.skip_relative`)."""
+        if m.robot in self.wheels:
+            skip_relative(self.sink.report, self.robots[m.robot], f"{table!r} row")
+            return
         self.motions.append(m)
         if self.wheels and self._start() is None:
             self.held.append(m)
@@ -132,13 +138,13 @@ class EventRows:
         """A checked row: (robot index, (time, table, item))."""
         r, (t, table, row) = item
         if table in RELATIVE:
-            self._motion(row)
+            self._motion(row, table)
         elif table == "scans":
             made = self.scans.add(r, *row)
             if made is not None:
                 scan, step = made
                 if step is not None:
-                    self._motion(step)
+                    self._motion(step, table)
                 self.events.scan(scan)
         elif table == "markers":
             sensor = self.sensors[r].index(row.sensor)
@@ -247,9 +253,15 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     stamped = {m.robot for m in run.motions} | {m.robot for _, m in wheel}
     observers = {o.robot for o in run.observations}
     camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
-    live = EventGraph(_without_rows(run), config, run.start_time, stamped, observers, camera)
+    wheels = {m.robot for _, m in wheel}
+    live = EventGraph(
+        _without_rows(run), config, run.start_time, stamped, observers, camera, wheels
+    )
+    for m in run.motions:
+        if m.robot in wheels:
+            skip_relative(live.graph.skips, run.robots[m.robot])
     motions = heapq.merge(
-        ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions)),
+        ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions) if m.robot not in wheels),
         ((t, 0, len(run.motions) + i, m) for i, (t, m) in enumerate(wheel)),
         key=lambda e: e[:3],
     )

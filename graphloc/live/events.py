@@ -87,12 +87,15 @@ class EventGraph:
         stamped,
         observers=frozenset(),
         camera=False,
+        wheels=frozenset(),
     ):
         """stamped: the robots with a relative-pose table (their pose times at its stamps);
         observers: those with candidate sets (markers, candidates, ellipses); camera: the run
-        has feature or ellipse tables (`TeamGraph.camera`). iSAM2's precision: FINE_PRECISION
-        with candidate sets, else `run_precision` of the relative poses before the first step."""
-        self.run, self.config = run, config
+        has feature or ellipse tables (`TeamGraph.camera`); wheels: the stamped robots whose
+        relative poses are wheel-odometry grid steps (`live.wheel_steps`). iSAM2's precision:
+        FINE_PRECISION with candidate sets, else `run_precision` of the relative poses (not the
+        wheel steps, as `build_graph`'s) before the first step."""
+        self.run, self.config, self.wheels = run, config, frozenset(wheels)
         self.points = EventPoints(run, config, set(observers))
         self.start = start_time
         self.start_from_rows = False  # the start came from the first relative pose
@@ -350,14 +353,16 @@ class EventGraph:
         due = sorted(t for t in self.pending if t <= bound)
         graph = self.graph
         if (due or bound == np.inf) and not np.isfinite(graph.precision):  # no candidate sets:
-            motions = tuple(m for robot in self.robots for m in robot.motions)  # the steps so far
+            motions = tuple(  # the steps so far
+                m for robot in self.robots if robot.r not in self.wheels for m in robot.motions
+            )
             graph.precision = run_precision(replace(self.run, motions=motions, observations=()))
         steps = []
         for t in due:
             if t <= self.emitted:
                 raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
             initial_upto(graph, self.config, self.robots, t)
-            self.points.initials(graph.initial)
+            self.points.initials(graph.initial, graph.guessed_alternatives)
             self.features.priors(self, t)
             self._frame_points()
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
@@ -369,7 +374,7 @@ class EventGraph:
             steps.append(step)
         if bound == np.inf:
             initial_upto(graph, self.config, self.robots, np.inf)
-            self.points.initials(graph.initial)
+            self.points.initials(graph.initial, graph.guessed_alternatives)
             self._frame_points()
         return steps
 

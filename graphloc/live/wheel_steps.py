@@ -7,7 +7,9 @@ made once the robot's odometry has reached the step's end (causal: node k exists
 or after its time has arrived). The steps come from `live.arc.ArcIntegrator` carried forward,
 so they are bit for bit those of one integration over the whole table, however the rows are
 split into calls. On the event route such a robot is stamped (its pose times at the grid and
-at its measurements inside a step, `event_clock`)."""
+at its measurements inside a step, `event_clock`); relative poses of its own (a relative-pose
+table or scans beside its odometry) would be a second clock of its poses: each is a counted
+skip (`skip_relative`)."""
 
 from __future__ import annotations
 
@@ -79,3 +81,12 @@ def wheel_motions(run: TeamRun, config: GraphConfig) -> list[tuple[float, Motion
         wheel.add(run.velocity[r])
         out += wheel.steps(run.start_time)
     return sorted(out, key=lambda e: (e[0], e[1].robot, e[1].t0))
+
+
+def skip_relative(skips, robot, what: str = "relative pose") -> None:
+    """Count a relative pose of a wheel-odometry robot as skipped (`skips`: a SkipReport)."""
+    skips.add(
+        "relative_pose_of_wheel_robot",
+        f"robot {robot.name}: a {what} of a robot with wheel odometry (its poses are on its "
+        f"odometry grid): not used",
+    )
