@@ -11,6 +11,7 @@ without an initial pose placed by mutual bearings and resection -- take the even
 
 from __future__ import annotations
 
+import json
 import sys
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -25,7 +26,7 @@ from graphloc.live import replay_live
 from graphloc.live.coverage import not_live, route, run_tables
 from graphloc.live.event_rows import build_events
 from graphloc.live.wheel_steps import WheelSteps, wheel_motions
-from graphloc.pipelines.team_graph import GraphConfig
+from graphloc.pipelines.team_graph import GraphConfig, solve
 from graphloc.pipelines.team_graph.graph import factor_keys
 from graphloc.pipelines.team_graph.motion import velocity_noise
 from graphloc.runner.team_run import team_graph
@@ -203,3 +204,24 @@ def test_wheel_runs_the_wheel_route_does_not_take_are_live_on_the_event_route(
             assert robot["rmse_m"] < 0.1 and robot["final_m"] < 0.1, (verb, name, robot)
         results[mode] = done.result
     _same_estimates(replay_live(source).finish(), results["online"])
+
+
+def test_a_mixed_run_without_a_start_time_starts_where_the_reader_does(tmp_path):
+    """No start_time in the manifest and rover_a's odometry from 0.35 s: the live team waits
+    for every wheel robot's first row and starts at the latest (the log reader's start, 0.4 s
+    -- a grid that puts the camera's frames inside the target's steps), holding the relative
+    poses until then; it gives the estimates of online's graph."""
+    source = _mixed(tmp_path)
+    manifest = json.loads((source / "manifest.json").read_text())
+    del manifest["start_time"]
+    (source / "manifest.json").write_text(json.dumps(manifest))
+    odometry = source / "rover_a" / "odometry.csv"
+    head, *rows = odometry.read_text().splitlines()
+    late = [row for row in rows if float(row.split(",")[0]) >= 0.35]
+    odometry.write_text("\n".join([head, *late]) + "\n")
+    run = open_run(source)
+    assert run.start_time == float(late[0].split(",")[0])
+    online = solve(team_graph(run, GraphConfig()), "online")
+    live = replay_live(source).finish()
+    assert live.graph.run.start_time == run.start_time
+    _same_estimates(live, online)

@@ -333,12 +333,16 @@ class EventGraph:
                 robot.steps[y] = (rel, cov)
 
     def _take_sets(self, watermark: float) -> None:
-        """Candidate sets whose poses are final, in arrival order, through their streams."""
+        """Candidate sets whose poses and the steps into them are final (the tracker takes
+        the odometry between sets: `motion_bound`), in arrival order, through their streams."""
         tol = self.config.sync_tolerance
         while self.queue:
             n, o = self.queue[0]
-            observer, target = self.robots[o.robot], self.robots[o.target]
-            if o.time + tol >= min(final_end(observer, watermark), final_end(target, watermark)):
+            ends = [
+                min(final_end(robot, watermark), motion_bound(robot, watermark))
+                for robot in (self.robots[o.robot], self.robots[o.target])
+            ]
+            if o.time + tol >= min(ends):
                 return
             self.queue.popleft()
             take_set(self, n, o)
