@@ -16,8 +16,9 @@ shape times after the last final one (those within the longest step of it) and a
 final times; rows that would change a final pose time or step (a step starting inside steps
 already built, rows out of time order) are refused as they arrive (`NotLiveError`, naming
 them). A relative pose becomes its between factors once its poses are final; a candidate set
-joins its poses once those near it are final, goes through its stream's tracker (the decision
-uses the sets before it only) and becomes the factors `candidates.stream_factors` makes of it.
+joins its poses once those near it and the steps into them are final, goes through its
+stream's tracker (the decision uses the sets before it only) and becomes the factors
+`candidates.stream_factors` makes of it.
 A step is emitted once every pose time up to it is final and no row that could add a factor to
 it is still to come.
 
