@@ -33,7 +33,8 @@ import numpy as np
 
 from graphloc.datasets import open_run
 from graphloc.pipelines.report import evaluate, write_outputs
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, default_lag, solve
+from graphloc.pipelines.team_graph import GraphConfig, default_lag, solve
+from graphloc.runner.team_run import team_graph
 from graphloc.plots import Series, plot_series
 from graphloc.structured import dumps_json
 
@@ -73,7 +74,7 @@ def main(argv=None) -> int:
     results = {}
     for name, (config, modes) in CONFIGS.items():
         t0 = time.perf_counter()
-        problem = build_graph(run, config, progress=True)
+        problem = team_graph(run, config)
         build_s = time.perf_counter() - t0
         lag = default_lag(run, config)
         for mode in modes:

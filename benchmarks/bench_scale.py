@@ -25,6 +25,7 @@ import numpy as np
 from graphloc.datasets import open_run
 
 from graphloc.pipelines.team_graph import DEFAULT_LAG
+from graphloc.runner.team_run import team_graph
 from benchmarks.scale import (
     gtsam_only_batch,
     observation_gaps,
@@ -38,7 +39,7 @@ from benchmarks.scale import (
 from benchmarks.markdown import write_report
 from benchmarks.render import render
 from graphloc.pipelines.report import evaluate
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve, warm_start
+from graphloc.pipelines.team_graph import GraphConfig, solve, warm_start
 from graphloc.plots import plt
 from graphloc.structured import dumps_json
 
@@ -86,7 +87,7 @@ def main(argv=None) -> int:
 
     run = open_run(args.data, args.duration)
     t0 = time.perf_counter()
-    graph = build_graph(run, GraphConfig())
+    graph = team_graph(run, GraphConfig())
     report = {
         "data": str(args.data),
         "run": run.name,

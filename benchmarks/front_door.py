@@ -19,7 +19,8 @@ from graphloc.datasets.formation_log import GROUND, table_i_formation, write_for
 from graphloc.datasets.scenarios import generate
 from benchmarks.locks import lock_statistics
 from graphloc.pipelines.judge import genuine_candidates
-from graphloc.pipelines.team_graph import build_graph, solve
+from graphloc.pipelines.team_graph import GraphConfig, solve
+from graphloc.runner.team_run import team_graph
 from graphloc.run import TeamRun
 
 
@@ -49,7 +50,7 @@ def feng_table_iii_run(overrides: dict, seed: int, wrong_distance: float) -> dic
     estimates on the frames from the first decision on; mean_latency_ms: per online step."""
     run = simulated_run("feng-probabilistic", seed, overrides)
     r = run.index("climber")
-    graph = build_graph(run)
+    graph = team_graph(run, GraphConfig())
     results = {mode: solve(graph, mode) for mode in ("batch", "online")}
     decisions = graph.decisions
     times = graph.node_times[r]
@@ -96,7 +97,7 @@ def table_i_trial(job: tuple) -> tuple[np.ndarray, np.ndarray, float, dict]:
     step_sigma. Returns the climber's three positions (3,3), the ground robots' positions
     (3,3) (NaN where left out), the graph error (inf without a placed climber) and the CPU
     seconds (time.process_time: this process, all its threads) of each phase: "write" (the
-    log written), "read" (open_run), "build" (build_graph), "solve" (solve, batch)."""
+    log written), "read" (open_run), "build" (team_graph), "solve" (solve, batch)."""
     trials, triangle, pixel_sigma, step_sigma = job
     log = table_i_formation(trials, triangle, 0, pixel_sigma, step_sigma, "seed000-table1")
     with tempfile.TemporaryDirectory() as tmp:
@@ -105,7 +106,7 @@ def table_i_trial(job: tuple) -> tuple[np.ndarray, np.ndarray, float, dict]:
         t1 = time.process_time()
         run = open_run(Path(tmp) / "run")
         t2 = time.process_time()
-        graph = build_graph(run)
+        graph = team_graph(run, GraphConfig())
         t3 = time.process_time()
         result = solve(graph, "batch")
         t4 = time.process_time()

@@ -1,5 +1,5 @@
 """Online and batch at scale (issue 15), measured on one run through the path `graphloc smooth`
-/ `online` take (`open_run` -> `build_graph` -> `solve`):
+/ `online` take (`open_run` -> `team_graph` -> `solve`):
 
 - batch: graphloc's solve (`Session`'s LM loop, iteration by iteration, plus the Python
   bookkeeping of the steps) against GTSAM alone (`LevenbergMarquardtOptimizer.optimize()` on

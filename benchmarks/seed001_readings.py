@@ -54,7 +54,8 @@ from benchmarks import seed001
 from benchmarks.seed001_report import PAPER
 from benchmarks.seed001_truth import lag_steps, score, stats
 from benchmarks.seed_baselines import REPRODUCE_TOL
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.pipelines.team_graph import GraphConfig, solve
+from graphloc.runner.team_run import team_graph
 from graphloc.vision.target import LARGE_TARGET, TargetHypothesisConfig, target_hypotheses
 
 FOCAL_ERRORS = (0.0, 0.0025, 0.005, 0.01)  # relative
@@ -160,7 +161,7 @@ def graphloc_poses(frames: list, camera: PinholeCamera) -> tuple[np.ndarray, np.
     with tempfile.TemporaryDirectory() as tmp:
         write_camera_track(log, Path(tmp))
         run = open_run(Path(tmp))
-        graph = build_graph(run, GraphConfig())
+        graph = team_graph(run, GraphConfig())
         res = solve(graph, "batch")
         r = run.index("climber")
         for time, row in zip(graph.node_times[r], res.estimate[r]):

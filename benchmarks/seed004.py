@@ -31,7 +31,8 @@ from graphloc.executor import Executor
 from benchmarks.front_door import simulated_run, truth_at
 from benchmarks.render import render
 from benchmarks.sizes import RunSizes, run_sizes
-from graphloc.pipelines.team_graph import build_graph, solve
+from graphloc.pipelines.team_graph import GraphConfig, solve
+from graphloc.runner.team_run import team_graph
 from graphloc.plots import plt
 from graphloc.structured import dumps_json
 
@@ -60,7 +61,7 @@ def front_door_run(job: tuple) -> dict:
     overrides = {k: v for k, v in asdict(config).items() if k not in ("runs", "seed")}
     run = simulated_run(KaushikP3PErrorScenario.name, seed, overrides)
     r = run.index("climber")
-    result = solve(build_graph(run), "batch")
+    result = solve(team_graph(run, GraphConfig()), "batch")
     times = result.node_times[r]
     truth = truth_at(run, r, times)
     raw = np.full(len(times), np.nan)

@@ -18,7 +18,7 @@ _API = {
     "open_run": "graphloc.datasets",
     "TeamRun": "graphloc.run",
     "GraphConfig": "graphloc.pipelines.team_graph",
-    "build_graph": "graphloc.pipelines.team_graph",
+    "team_graph": "graphloc.runner.team_run",
     "solve": "graphloc.pipelines.team_graph",
     "run_team": "graphloc.runner.team_run",
     "TeamOutcome": "graphloc.runner.team_run",

@@ -186,7 +186,8 @@ def ate(result, run, rows=None) -> dict:
 
 def main(argv=None) -> int:
     from graphloc.datasets import open_run
-    from graphloc.pipelines.team_graph import build_graph, default_lag, solve
+    from graphloc.pipelines.team_graph import default_lag, solve
+    from graphloc.runner.team_run import team_graph
     from graphloc.pipelines.team_graph.options import RunOptions
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -204,7 +205,7 @@ def main(argv=None) -> int:
     run = open_run(args.run)
     read = time.process_time() - c0
     config = replace(config, lag=float(default_lag(run, config)))
-    graph = build_graph(run, config)
+    graph = team_graph(run, config)
     build = time.process_time() - c0 - read
     c1 = time.process_time()
     result = solve(graph, "online")

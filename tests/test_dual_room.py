@@ -198,12 +198,13 @@ def test_a_guessed_ceiling_robot_is_still_registered_from_its_hypotheses(tmp_pat
 
     from benchmarks.team_dual_room import TARGET, _errors, _relative
     from graphloc.datasets import open_run
-    from graphloc.pipelines.team_graph import GraphConfig, build_graph, default_lag, solve
+    from graphloc.pipelines.team_graph import GraphConfig, default_lag, solve
+    from graphloc.runner.team_run import team_graph
 
     scenario = DualRoomScenario.simulate(variant_config("furnished", 1))
     scenario.write(tmp_path)
     run = open_run(tmp_path)
-    graph = build_graph(run, GraphConfig())
+    graph = team_graph(run, GraphConfig())
     assert graph.counts.get("factors_scan_match", 0) > 0
     config = replace(graph.config, lag=default_lag(run, graph.config))
     result = solve(replace(graph, config=config), mode="batch")

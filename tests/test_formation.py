@@ -11,7 +11,8 @@ import pytest
 from graphloc.cli import main
 from graphloc.datasets import open_run
 from graphloc.keys import pose_key
-from graphloc.pipelines.team_graph import build_graph, solve
+from graphloc.pipelines.team_graph import GraphConfig, solve
+from graphloc.runner.team_run import team_graph
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +38,7 @@ def test_the_log_holds_measurements_only(run_dir):
 
 def test_mutual_bearings_place_the_ground_robots_and_p3p_the_climber(run_dir):
     run = open_run(run_dir)
-    graph = build_graph(run)
+    graph = team_graph(run, GraphConfig())
     for name in ("ground2", "ground3"):
         r, truth = _truth(run, name)
         guess = graph.initial[pose_key(r, 0)]
@@ -71,8 +72,8 @@ def test_without_the_known_baseline_nothing_is_placed_and_that_is_counted(run_di
     shutil.copytree(run_dir, copy)
     (copy / "manifest.json").write_text(json.dumps(manifest))
     run = open_run(copy)
-    graph = build_graph(run)
-    left_out = [e for e in graph.skips.examples if "nothing places it" in e]
+    graph = team_graph(run, GraphConfig())
+    left_out = [e for e in graph.skips.examples if "nothing placed it" in e]
     assert sorted(e.split(":")[0] for e in left_out) == [
         "robot climber",
         "robot ground2",

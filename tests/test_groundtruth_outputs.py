@@ -17,7 +17,8 @@ from graphloc.datasets import open_run
 from graphloc.eval import associate, matching_time_indices, read_tum, trajectory_metrics
 from graphloc.pipelines.groundtruth import alignment, groundtruth_rows, trajectory
 from graphloc.pipelines.report import evaluate
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.pipelines.team_graph import GraphConfig, solve
+from graphloc.runner.team_run import team_graph
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +77,7 @@ def test_metrics_equal_evo_on_the_whole_ground_truth(mrclam):
     """`evaluate` converts only the ground-truth samples it compares; its numbers are those of
     evo on every sample (the computation before issue 47), bit for bit."""
     run = open_run(mrclam, duration=10.0)
-    result = solve(build_graph(run, GraphConfig()), "batch")
+    result = solve(team_graph(run, GraphConfig()), "batch")
     metrics = evaluate(result, run)
     for r, robot in enumerate(run.robots):
         reference = trajectory(*groundtruth_rows(run, r))

@@ -19,7 +19,7 @@ from graphloc.factors.odometry import VelocityNoise, integrate_unicycle
 from graphloc.live import LiveTeam, NotLiveError, replay, replay_live, run_rows
 from graphloc.live.arc import ArcIntegrator
 from graphloc.live.builder import build_live
-from graphloc.pipelines.team_graph import GraphConfig, build_graph
+from graphloc.pipelines.team_graph import GraphConfig
 from graphloc.pipelines.team_graph.graph import factor_keys
 
 DATASET6 = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
@@ -91,21 +91,24 @@ def _item_error(item, values) -> float:
     ],
     ids=["known", "slam", "shared-landmarks"],
 )
-def test_live_graph_is_the_whole_run_graph(planar_log, config):
+def test_live_graph_of_whole_tables_is_the_graph_of_rows_one_by_one(planar_log, config):
+    """The graph `graphloc smooth` solves (each table fed whole) is the graph of the rows pushed
+    one at a time in time order, `advance` after each (what `graphloc live` builds)."""
     run = open_run(planar_log)
-    _same_graph(build_graph(run, config), build_live(run, config))
+    _same_graph(_fed_in_chunks(run, config, None), build_live(run, config))
 
 
 @needs_dataset6
-def test_live_graph_is_the_whole_run_graph_on_dataset6():
+def test_live_graph_of_whole_tables_is_the_graph_of_rows_one_by_one_on_dataset6():
     run = open_run(DATASET6, duration=30.0)
     config = GraphConfig()
-    _same_graph(build_graph(run, config), build_live(run, config))
+    _same_graph(_fed_in_chunks(run, config, None), build_live(run, config))
 
 
 def _fed_in_chunks(run, config, seed: int):
     """`LiveGraph` fed the run's rows in time order in random chunks (one row to a few dozen,
-    odometry and measurements as they interleave), `advance` after each chunk."""
+    odometry and measurements as they interleave), `advance` after each chunk; seed None: one
+    row at a time."""
     from graphloc.live.builder import LiveGraph, _without_rows
 
     rng = np.random.default_rng(seed)
@@ -115,7 +118,7 @@ def _fed_in_chunks(run, config, seed: int):
     live = LiveGraph(_without_rows(run), config, run.start_time)
     i = 0
     while i < len(rows):
-        j = min(len(rows), i + int(rng.choice([1, 1, 1, 2, 7, 40])))
+        j = min(len(rows), i + (1 if seed is None else int(rng.choice([1, 1, 1, 2, 7, 40]))))
         for _, kind, r, item in rows[i:j]:
             live.velocity(r, item) if kind == 0 else live.point(item)
         live.advance(rows[j - 1][0])
@@ -126,12 +129,11 @@ def _fed_in_chunks(run, config, seed: int):
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_the_graph_does_not_depend_on_how_rows_are_split(planar_log, seed):
-    """Rows pushed one by one or in chunks give `build_live`'s whole-table feed's graph (and
-    so `build_graph`'s): the batched release of waiting measurements is the same rule."""
+    """Rows pushed in chunks give `build_live`'s whole-table feed's graph: the batched release
+    of waiting measurements is the same rule."""
     run = open_run(planar_log)
     config = GraphConfig(keyframe_dt=0.1)
     graph = build_live(run, config)
-    _same_graph(build_graph(run, config), graph)
     _same_graph(graph, _fed_in_chunks(run, config, seed))
 
 
@@ -374,7 +376,7 @@ def test_bearings_ranges_surfaces_and_a_start_from_the_rows(
     config = replace(options.graph_config(), lag=0.0)
     graph = build_live(run, config)
     assert graph.counts["sensor_poses"] > 0 and graph.counts.get("factors_surface", 0) > 0
-    _same_graph(build_graph(run, config), graph)
+    _same_graph(_fed_in_chunks(run, config, None), graph)
     result = replay_live(log, options).finish()
     _same_estimates(result, graphloc.run_team(log, tmp_path / "out", "online", options).result)
 
@@ -382,10 +384,10 @@ def test_bearings_ranges_surfaces_and_a_start_from_the_rows(
 @pytest.mark.slow
 @needs_dataset6
 @pytest.mark.parametrize("landmark_priors", [True, False], ids=["known", "slam"])
-def test_live_graph_is_the_whole_run_graph_on_full_dataset6(landmark_priors):
+def test_live_graph_of_whole_tables_is_the_graph_of_chunks_on_full_dataset6(landmark_priors):
     run = open_run(DATASET6)
     config = GraphConfig(landmark_priors=landmark_priors)
-    _same_graph(build_graph(run, config), build_live(run, config))
+    _same_graph(_fed_in_chunks(run, config, 0), build_live(run, config))
 
 
 def test_a_manifest_without_tables_takes_pushed_rows(planar_log, tmp_path):

@@ -6,6 +6,7 @@ order -- each step emitted as soon as it is complete and solved then -- give the
 from __future__ import annotations
 
 import heapq
+import re
 from dataclasses import replace
 
 import gtsam
@@ -116,7 +117,7 @@ def test_a_stream_never_decided_places_its_observer_by_the_guess_after_some_sets
         config = replace(GraphConfig(), guess_after_sets=wait)
         live = _live(run, config)
         assert all(d.status == "undecided" for d in live.graph.decisions)
-        tracker = live.streams[(0, 1)][0]
+        tracker = live.streams[(0, 1, True)][0]
         placing = tracker.out.sets[wait - 1]
         assert live.graph.anchored_from[0] == live.graph.node_times[0][placing.k]
         best = placing.bodies[int(np.argmax(placing.update.probabilities))]
@@ -162,10 +163,11 @@ def test_the_steps_up_to_a_time_do_not_change_when_later_rows_exist(runs, name, 
                 assert whole.anchored_from[r] == t
 
 
-def test_a_step_starting_inside_built_steps_is_refused(runs):
+def test_a_step_starting_inside_built_steps_is_a_counted_skip(runs):
     """A relative pose whose start lies inside steps already built would split them (its stamp
     a new pose among final ones), a candidate set older than the built poses would add one:
-    refused as they arrive, not silently rebuilt."""
+    each a counted skip naming it as it arrives (a live team's late row), the built steps and
+    the rows that follow unchanged."""
     run = runs[("feng-probabilistic", 1)]
     live = _event_graph(run, GraphConfig())
     rows = _rows(run)
@@ -176,26 +178,44 @@ def test_a_step_starting_inside_built_steps_is_refused(runs):
     assert len(built) > 5
     t0 = 0.5 * (built[2] + built[3])
     late = Motion(0, t0, rows[40][0], gtsam.Pose3(), np.eye(6) * 1e-4)
-    with pytest.raises(NotLiveError, match="inside steps already built"):
-        live.motion(late)
+    live.motion(late)
     early = next(row for _, kind, row in rows[:40] if kind == 1)  # a set before the built times
-    with pytest.raises(NotLiveError, match="candidate set at .* after its pose times"):
-        live.observation(early)
+    live.observation(early)
+    assert live.skips.counts == {"relative_pose_late": 1, "set_late": 1}
+    examples = "\n".join(live.skips.examples)
+    assert "climber: a relative pose from" in examples and "inside steps already built" in examples
+    assert re.search(r"climber: a candidate set at \S+, after its pose times", examples)
+    for t, kind, row in rows[40:]:
+        (live.motion if kind == 0 else live.observation)(row)
+        live.advance(t)
+    live.finish()
+    whole = build_live(run, GraphConfig())
+    assert [t for t, _ in live.graph.steps] == [t for t, _ in whole.steps]
 
 
-def test_streams_the_event_route_does_not_take_are_named_and_take_build_graph(runs):
-    """A loaded run whose candidate sets see an unplaced target (or one robot's sets of two
-    targets, or with and without pixels) is not live: `not_live` names it, so `team_graph`
-    builds it whole, and `EventGraph` refuses the same sets as they arrive."""
+def test_sets_of_a_target_nothing_places_are_counted_skips_on_the_live_route(runs):
+    """feng-probabilistic with its static target's initial_pose removed: neither the climber
+    nor its target has a pose, so no max-mixture places one through the other. The run is
+    live (`not_live` names nothing; `team_graph` builds it with the event route): every set a
+    counted `target_unplaced` skip, as `build_graph` counts them, and each robot nothing
+    placed a counted `unanchored_robot` naming it, its poses left out (no factor)."""
     run = runs[("feng-probabilistic", 1)]
     unplaced = replace(
         run, robots=tuple(replace(r, initial_pose=None) if r.static else r for r in run.robots)
     )
-    problems = not_live(unplaced, run_tables(unplaced))
-    assert any("with no initial_pose: an unplaced target" in p for p in problems)
-    assert team_graph(unplaced, GraphConfig()).counts == build_graph(unplaced, GraphConfig()).counts
-    with pytest.raises(NotLiveError, match="which has no initial_pose"):
-        build_events(unplaced, GraphConfig())
+    assert not not_live(unplaced, run_tables(unplaced))
+    graph = team_graph(unplaced, GraphConfig())
+    reference = build_graph(unplaced, GraphConfig())
+    sets = len(run.observations)
+    assert graph.skips.counts["target_unplaced"] == reference.skips.counts["target_unplaced"]
+    assert graph.skips.counts["target_unplaced"] == sets
+    poses = [len(t) for t in graph.node_times]
+    assert graph.skips.counts["unanchored_robot"] == sum(poses) and poses[0] == sets
+    assert sum(map(len, (group for _, group in graph.steps))) == 0 == len(reference.factor_types)
+    assert any(f"climber: {sets} candidate sets on robot ground" in e for e in graph.skips.examples)
+    assert any("robot ground:" in e and "left out" in e for e in graph.skips.examples)
+    result = solve(graph, "online")
+    assert all(np.isnan(e).all() for e in result.estimate)
 
 
 @pytest.mark.parametrize("name, seed", CASES)

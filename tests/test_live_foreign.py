@@ -337,14 +337,14 @@ def test_six_robots_a_minute_live_is_online_and_consistent(tmp_path):
 @pytest.mark.parametrize("start_time", [True, False], ids=["start_time", "no-start_time"])
 def test_a_static_robot_without_rows_has_its_pose_in_every_route(tmp_path, start_time):
     """A static robot with an initial pose and no tables (a beacon): its one pose at the start
-    in the whole-run graph, the live builder's (the route of `graphloc online`) and a live
-    team's, with or without the manifest's start_time."""
+    in the graph of its whole tables (`graphloc smooth` / `online`), of its rows one by one and
+    a live team's, with or without the manifest's start_time."""
     from graphloc.datasets import open_run
     from graphloc.live.builder import build_live
-    from graphloc.pipelines.team_graph import GraphConfig, build_graph
+    from graphloc.pipelines.team_graph import GraphConfig
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from test_live import _same_graph
+    from test_live import _fed_in_chunks, _same_graph
 
     log = generate(Scenario("corridor", robots=2, duration=5.0, seed=5))
     manifest = dict(log.manifest)
@@ -354,7 +354,7 @@ def test_a_static_robot_without_rows_has_its_pose_in_every_route(tmp_path, start
     manifest["robots"] = [*manifest["robots"], {**beacon, "sensors": [], "tables": {}}]
     run_dir = write_log(log, tmp_path / "run", manifest)
     run = open_run(run_dir)
-    _same_graph(build_graph(run, GraphConfig()), build_live(run, GraphConfig()))
+    _same_graph(_fed_in_chunks(run, GraphConfig(), None), build_live(run, GraphConfig()))
     online = graphloc.run_team(run_dir, tmp_path / "online", "online").result
     team = _pushed(run_dir, log.pushes())
     result = team.finish()

@@ -22,7 +22,8 @@ from graphloc.live.builder import build_live
 from graphloc.live.coverage import not_live, route, run_tables
 from graphloc.live.event_rows import _without_rows
 from graphloc.live.events import EventGraph
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, run_precision
+from graphloc.pipelines.team_graph import GraphConfig, run_precision
+from graphloc.runner.team_run import team_graph
 from graphloc.pipelines.team_graph.graph import factor_keys
 from graphloc.run import Motion
 from test_live import _same_estimates, _same_graph
@@ -69,7 +70,7 @@ def test_placed_by_bearings_row_by_row_is_the_whole_run_graph(runs, seed):
     run, config = open_run(runs / str(seed)), GraphConfig()
     emitted: list = []
     live = _feed(run, config, _rows(run), emitted)
-    ref = build_graph(run, config)
+    ref = team_graph(run, config)
     _same_graph(ref, live.graph)
     assert live.graph.anchored_from == ref.anchored_from
     assert live.graph.precision == ref.precision

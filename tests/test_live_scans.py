@@ -23,7 +23,8 @@ from graphloc.live.coverage import not_live, route, run_tables
 from graphloc.live.event_rows import build_events
 from graphloc.mapping.io import read_scan
 from graphloc.mapping.odometry import ScanOdometry, run_odometry
-from graphloc.pipelines.team_graph import GraphConfig, build_graph
+from graphloc.pipelines.team_graph import GraphConfig
+from graphloc.runner.team_run import team_graph
 from graphloc.pipelines.team_graph.graph import factor_keys
 from test_live import _same_estimates, _same_graph
 
@@ -124,14 +125,17 @@ def test_scan_odometry_is_causal(room):
 
 def test_one_scanner_is_live_and_its_graph_is_the_whole_runs(scanner_log):
     """A run whose one scanning robot is placed by candidate sets of a static beacon: on the
-    event route, nothing keeps it off; the graph built as rows arrive is `build_graph`'s."""
+    event route, nothing keeps it off; the graph built as rows arrive is the one built from the
+    whole tables (what `graphloc smooth` solves)."""
     run = open_run(scanner_log)
     tables = run_tables(run)
     assert route(run, tables) == "event" and not not_live(run, tables)
     config = GraphConfig()
-    reference = build_graph(run, config)
+    reference = build_live(run, config)  # the whole tables at once
     assert reference.factor_types.count("odometry") == len(run.scans) - 1
-    _same_graph(reference, build_live(run, config))
+    emitted: list = []
+    _same_graph(reference, build_events(run, config, emitted))  # `advance` after each row
+    assert len(emitted[-1]) <= 1 < len(reference.steps)
 
 
 def test_one_scanner_live_team_is_graphloc_online(scanner_log, tmp_path):
@@ -191,7 +195,7 @@ def test_dual_room_registration_is_causal(room):
     assert not not_live(run, run_tables(run)) and route(run, run_tables(run)) == "event"
     emitted = []
     graph = build_events(run, config, emitted)
-    reference = build_graph(run, config)
+    reference = team_graph(run, config)
     ceiling = run.index("ceiling")
     assert graph.anchored_from[ceiling] in {o.time for o in run.observations}
     assert graph.counts == reference.counts and graph.skips.counts == reference.skips.counts

@@ -15,7 +15,8 @@ from graphloc.factors.odometry import integrate_unicycle
 from graphloc.factors.range_bearing import bearing_range_2d
 from graphloc.datasets import open_run
 from graphloc.pipelines.report import evaluate
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.pipelines.team_graph import GraphConfig, solve
+from graphloc.runner.team_run import team_graph
 
 DATASET6 = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
 HEADER = "# synthetic MRCLAM-format file\n# Time [s] ...\n"
@@ -151,7 +152,7 @@ def test_smoothing_beats_dead_reckoning_synthetic(synthetic, mode):
         GraphConfig(use_landmarks=False),
         GraphConfig(landmark_priors=False),
     ):
-        result = solve(build_graph(run, cfg), mode)
+        result = solve(team_graph(run, cfg), mode)
         m = evaluate(result, run)
         for name, entry in m["per_robot"].items():
             assert entry[mode]["ate_rmse"] < entry["dead_reckoning"]["ate_rmse"], (name, cfg)
@@ -216,7 +217,7 @@ def test_commands_no_landmarks_option(synthetic, tmp_path):
 def test_dataset6_first_two_minutes():
     run = open_run(DATASET6, duration=120.0)
     assert len(run.robots) == 5
-    problem = build_graph(run, GraphConfig())
+    problem = team_graph(run, GraphConfig())
     batch, online = evaluate(solve(problem, "batch"), run), evaluate(solve(problem, "online"), run)
     for name in (r.name for r in run.robots):
         b, o = batch["per_robot"][name], online["per_robot"][name]
@@ -228,8 +229,8 @@ def test_dataset6_first_two_minutes():
 @pytest.mark.skipif(not DATASET6.is_dir(), reason="MRCLAM Dataset6 not available")
 def test_dataset6_whole_run_bar():
     run = open_run(DATASET6)
-    full = build_graph(run, GraphConfig())
-    coop = build_graph(run, GraphConfig(use_landmarks=False))
+    full = team_graph(run, GraphConfig())
+    coop = team_graph(run, GraphConfig(use_landmarks=False))
     batch, online = evaluate(solve(full, "batch"), run), evaluate(solve(full, "online"), run)
     coop_batch = evaluate(solve(coop, "batch"), run)
     for name in (r.name for r in run.robots):

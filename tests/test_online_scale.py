@@ -24,7 +24,8 @@ from benchmarks.scale import (
 )
 from graphloc.keys import decode
 from graphloc.pipelines.team_graph import DEFAULT_LAG
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.runner.team_run import team_graph
+from graphloc.pipelines.team_graph import GraphConfig, solve
 from graphloc.session import Session, SessionConfig
 
 NOISE = gtsam.noiseModel.Isotropic.Sigma(6, 0.1)
@@ -128,9 +129,9 @@ def synthetic(tmp_path_factory):
 
 def test_team_graph_lag_writes_whole_trajectory(synthetic):
     run = open_run(synthetic)
-    graph = build_graph(run, GraphConfig(lag=3.0))
+    graph = team_graph(run, GraphConfig(lag=3.0))
     lagged = solve(graph, "online")
-    full = solve(build_graph(run, GraphConfig()), "online")
+    full = solve(team_graph(run, GraphConfig()), "online")
     for r in range(len(run.robots)):
         assert np.isfinite(lagged.estimate[r]).all()
         err = np.linalg.norm(lagged.estimate[r][:, :3] - full.estimate[r][:, :3], axis=1)
@@ -146,7 +147,7 @@ def test_marginalization_split_finds_the_marginalizing_steps(synthetic):
     """A step marginalizes when the live-variable count drops; with marginalize_every 1 s on a
     0.25 s grid about every 4th step of the steady state does, none while the window fills."""
     run = open_run(synthetic)
-    result = solve(build_graph(run, GraphConfig(lag=3.0, marginalize_every=1.0)), "online")
+    result = solve(team_graph(run, GraphConfig(lag=3.0, marginalize_every=1.0)), "online")
     split = marginalization_split(result)
     log = result.step_log
     drops = np.flatnonzero(np.diff(log[:, 5]) < 0) + 1
@@ -161,7 +162,7 @@ def test_marginalization_split_finds_the_marginalizing_steps(synthetic):
 
 def test_factor_across_the_lag_is_dropped_and_counted(synthetic):
     run = open_run(synthetic)
-    graph = build_graph(run, GraphConfig(lag=1.0))
+    graph = team_graph(run, GraphConfig(lag=1.0))
     t, group = graph.steps[-1]
     first = next(f for f, kind in graph.steps[1][1] if kind == "odometry")
     old = first.keys()[0]
@@ -280,7 +281,7 @@ def test_replayed_run_and_gtsam_only_batch(synthetic):
         replay_graph,
     )
 
-    graph = build_graph(open_run(synthetic), GraphConfig())
+    graph = team_graph(open_run(synthetic), GraphConfig())
     long = replay_graph(graph, 3)
     assert len(long.steps) == 3 * len(graph.steps) and len(long.initial) == 3 * len(graph.initial)
     result, cpu, samples = online_profile(long, 3.0, rss_every=50)
@@ -346,7 +347,7 @@ def test_observation_gaps_find_a_stretch_without_measurements(synthetic):
     """Robot 0's landmark and teammate factors removed between 2 s and 5 s of the run: its
     longest stretch covers those 3 s; a result compared with itself is 1 in every tenth."""
     run = open_run(synthetic)
-    graph = build_graph(run, GraphConfig())
+    graph = team_graph(run, GraphConfig())
     t0 = graph.steps[0][0]
 
     def robot0_measurement(t, f, kind):
@@ -370,7 +371,7 @@ def test_observation_gaps_find_a_stretch_without_measurements(synthetic):
 def test_repeated_online_cpu_takes_each_steps_least_time(synthetic):
     """Two identical solves: the same estimates (difference 0, as resume requires), per-step
     minima no larger than either solve's, and no repeats refused."""
-    graph = build_graph(open_run(synthetic), GraphConfig())
+    graph = team_graph(open_run(synthetic), GraphConfig())
     out = repeated_online_cpu(graph, 3.0, 2)
     assert out["repeats"] == 2 and out["max_estimate_difference"] == 0.0
     assert out["cpu_s_least"] == min(out["cpu_s_each"])

@@ -129,12 +129,13 @@ def test_every_candidate_carries_its_weight(tmp_path, scenario, overrides, route
     component weights chosen at the estimate) and the committed one is marked."""
     from graphloc.datasets import open_run
     from graphloc.pipelines.recording import team_recording
-    from graphloc.pipelines.team_graph import build_graph, solve
+    from graphloc.pipelines.team_graph import solve
+    from graphloc.runner.team_run import team_graph
     from graphloc.pipelines.team_graph.options import RunOptions
 
     assert main(["simulate", scenario, "--out", str(tmp_path / "run")] + overrides) == 0
     run = open_run(tmp_path / "run")
-    result = solve(build_graph(run, RunOptions().graph_config()), mode="batch")
+    result = solve(team_graph(run, RunOptions().graph_config()), mode="batch")
     rec = team_recording(result, run)
     write_mcap(rec, tmp_path / "r.mcap")
     write_rerun(rec, tmp_path / "r.rrd")

@@ -12,7 +12,8 @@ from test_mrclam import write_synthetic_mrclam
 from graphloc.datasets import open_run
 from graphloc.factors.range_bearing import known_landmark_factor_3d, landmark_factor_3d
 from graphloc.factors.robust import Kernel, KernelPolicy
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.pipelines.team_graph import GraphConfig, solve
+from graphloc.runner.team_run import team_graph
 
 # the module (the package's `solve` is the function of the same name)
 team_solve = importlib.import_module("graphloc.pipelines.team_graph.solve")
@@ -64,8 +65,8 @@ def test_team_graph_ties_known_landmarks_by_unary_factors(tmp_path):
     landmark prior's floor lets a shared variable move that little)."""
     write_synthetic_mrclam(tmp_path / "run", duration=20.0)
     run = open_run(tmp_path / "run")
-    graph = build_graph(run, GraphConfig())
-    shared = build_graph(run, GraphConfig(anchor_known_landmarks=False))
+    graph = team_graph(run, GraphConfig())
+    shared = team_graph(run, GraphConfig(anchor_known_landmarks=False))
     kinds = [(f, k) for _, group in graph.steps for f, k in group]
     unary = [f for f, k in kinds if k == "landmark"]
     assert unary and all(isinstance(f, gtsam.KnownLandmarkFactorPose3) for f in unary)
@@ -83,10 +84,10 @@ def test_batch_starts_lm_from_the_incremental_pass_where_kernels_are_robust(tmp_
     guess, said in `batch_start`."""
     write_synthetic_mrclam(tmp_path / "run", duration=20.0)
     run = open_run(tmp_path / "run")
-    graph = build_graph(run, GraphConfig())
+    graph = team_graph(run, GraphConfig())
     warm = solve(graph, "batch")
     assert warm.batch_start == "incremental pass"
-    plain = build_graph(run, GraphConfig(kernels=KernelPolicy()))
+    plain = team_graph(run, GraphConfig(kernels=KernelPolicy()))
     assert solve(plain, "batch").batch_start.startswith("guess (no robust kernel")
 
     def fails(*args, **kwargs):

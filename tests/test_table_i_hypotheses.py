@@ -23,7 +23,8 @@ from graphloc.datasets.feng_deterministic import (
 )
 from graphloc.datasets.formation_log import table_i_formation, write_formation_log
 from graphloc.live.builder import build_live
-from graphloc.pipelines.team_graph import GraphConfig, build_graph
+from graphloc.pipelines.team_graph import GraphConfig
+from graphloc.runner.team_run import team_graph
 from graphloc.pipelines.team_graph.side_by_side import judged_from
 
 TRIAL = 5  # a Table I trial index (of the default TableIConfig's trials)
@@ -57,7 +58,7 @@ def test_later_snapshot_alternative_is_judged_from_its_own_step():
     with tempfile.TemporaryDirectory() as tmp:
         write_formation_log(log, Path(tmp) / "run")
         run = open_run(Path(tmp) / "run")
-        graph = build_graph(run)
+        graph = team_graph(run, GraphConfig())
         live = build_live(run, GraphConfig())
     # one alternative per candidate of each of the three snapshots: judged at its own step
     judged = _judged(graph, graph.alternatives, graph.alternative_times)

@@ -13,7 +13,8 @@ from scipy.spatial.transform import Rotation
 from graphloc.cli import main
 from graphloc.datasets import open_run
 from graphloc.io import columns, write_manifest
-from graphloc.pipelines.team_graph import GraphConfig, build_graph, solve
+from graphloc.pipelines.team_graph import GraphConfig, solve
+from graphloc.runner.team_run import team_graph
 from graphloc.pipelines.team_graph.rows import rows_of_matrices
 from graphloc.datasets.graphloc_log import read_team_run
 
@@ -69,7 +70,7 @@ def test_online_runs_a_guessed_placement_as_hypotheses(tmp_path, seed):
     one hypothesis per candidate and keeps the one of least error, so online lands near batch."""
     run = tmp_path / "run"
     assert main(["simulate", "feng-deterministic", "--out", str(run), "--seed", str(seed)]) == 0
-    graph = build_graph(open_run(run))
+    graph = team_graph(open_run(run), GraphConfig())
     assert len(graph.guessed_alternatives) >= 2
     ate = {}
     for mode, label in (("smooth", "batch"), ("online", "online")):
@@ -160,7 +161,7 @@ def test_offset_bearings_share_one_sensor_pose_per_time(tmp_path):
     tied to the body pose ("sensor_tie", its own factor type); the trajectories hold the body
     poses only, batch and online as accurate as from a sensor at the body origin."""
     root = bearing_log(tmp_path / "log", offset=([0.3, -0.2, 0.5], 0.4))
-    graph = build_graph(open_run(root))
+    graph = team_graph(open_run(root), GraphConfig())
     assert graph.counts["sensor_poses"] == graph.counts["factors_sensor_tie"] == 20
     assert graph.counts["factors_landmark"] == 80
     for body, E in graph.sensor_poses.values():
@@ -310,7 +311,7 @@ def test_relative_pose3_chain_and_surface(tmp_path):
     )
     run = open_run(root)
     assert run.contributions == {"relative_pose3": 10, "range": 22, "groundtruth": 11}
-    graph = build_graph(run, GraphConfig())
+    graph = team_graph(run, GraphConfig())
     assert graph.counts["factors_surface"] == 11 and graph.counts["factors_inter_robot"] == 22
     result = solve(graph, "batch")
     est = result.estimate[run.index("c")]
@@ -503,7 +504,7 @@ def test_marker_pixels_place_a_climber_the_tracker_never_decides(tmp_path):
     args = ["--focal-mm", "26", "--noise-variance", "3", "--seed", "2"]
     assert main(["simulate", "kaushik-p3p-error", "--out", str(run_dir), *args]) == 0
     run = open_run(run_dir)
-    graph = build_graph(run)
+    graph = team_graph(run, GraphConfig())
     assert graph.counts["committed_sets"] == 0
     assert graph.counts["factors_marker"] == 3 * graph.counts["candidate_sets"]
     assert graph.counts["marker_points"] == 3 and "factors_candidate" not in graph.counts
@@ -521,7 +522,7 @@ def test_batch_starts_from_every_candidate_of_the_first_snapshot(tmp_path):
     run_dir = tmp_path / "run"
     assert main(["simulate", "feng-deterministic", "--out", str(run_dir), "--seed", "3"]) == 0
     run = open_run(run_dir)
-    graph = build_graph(run)
+    graph = team_graph(run, GraphConfig())
     assert graph.counts["committed_sets"] == 0 and len(graph.alternatives) > 1
     starts = [
         Pass(graph, "batch", {**graph.initial, **v}, False, None).run() for v in graph.alternatives

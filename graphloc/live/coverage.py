@@ -5,10 +5,11 @@ and event-clocked robots -- relative poses, scans (KISS-ICP steps, `live.scan_fe
 odometry over the grid (`live.wheel_steps`) -- with point measurements, placed by the
 candidate sets they see of a target with a known pose, by the inter-robot scan registration
 those sets hint, by mutual bearings or by resection on their bearings of placed static robots,
-or, seen as circles by a placed camera, by max-mixtures, with the camera's feature tracks
-(`graphloc.live.events.EventGraph`, `live.event_scans`, `live.event_points`,
-`live.event_camera`). Every table of docs/log_format.md has a route; what keeps a run off
-them is how its robots and tables combine (`not_live`)."""
+or, seen as circles or candidate sets by an observer with a known pose, by max-mixtures
+(`live.event_sets`), with the camera's feature tracks (`graphloc.live.events.EventGraph`,
+`live.event_scans`, `live.event_points`, `live.event_camera`). Every table of
+docs/log_format.md has a route; what keeps a run off them is how its robots and tables combine
+(`not_live`)."""
 
 from __future__ import annotations
 
@@ -94,13 +95,14 @@ def _event_problems(run: TeamRun, tables: dict) -> list[str]:
         "ellipses" in tables.get(robot.name, ()) and robot.initial_pose is not None
         for robot in run.robots
     )
-    for robot in run.robots:
+    targets = set_targets(run, tables)
+    for r, robot in enumerate(run.robots):
         mine = set(tables.get(robot.name, ()))
         # what places it: candidate sets it sees (a moving observer), its bearings (mutual
         # bearings, P3P), a placed camera's circles of it
         sees = mine & ({"bearing"} if robot.static else {"markers", "candidates", "bearing"})
         seen = circles and robot.base_radius is not None and not robot.static
-        if robot.initial_pose is None and not sees and not seen:
+        if robot.initial_pose is None and not sees and not seen and r not in targets:
             out.append(
                 f"robot {robot.name}: no initial_pose, and no candidate sets, circles or "
                 f"bearings to place it (scan registration)"
@@ -110,52 +112,37 @@ def _event_problems(run: TeamRun, tables: dict) -> list[str]:
                 f"robot {robot.name}: table {table!r} of a robot without an initial_pose (circle "
                 f"sets and feature tracks are built from a placed camera's poses)"
             )
-    out += _stream_problems(run, tables)
     return out
 
 
-def _stream_problems(run: TeamRun, tables: dict) -> list[str]:
-    """The candidate streams `EventGraph` does not take (`event_sets.take_set` refuses them as
-    their sets arrive), one line each: sets of a target without an initial pose (a marker layout
-    markers see, or a loaded run's set rows; circle sets are max-mixtures, `live.event_camera`),
-    of a moving target without marker pixels, with and without pixels, of two targets."""
-    out, robots = [], run.robots
-    targets: dict = {}
-    for o in run.observations:
-        if o.candidates.source == "circle":
-            continue
-        targets.setdefault(o.robot, {}).setdefault(o.target, set()).add(o.pixels is not None)
-    unplaced = {ti for seen in targets.values() for ti in seen if robots[ti].initial_pose is None}
-    if any("markers" in t for t in tables.values()):  # a marker layout is what markers see
-        unplaced |= {
-            ti
-            for ti, robot in enumerate(robots)
-            if robot.markers is not None and robot.initial_pose is None
-        }
-    for ti in sorted(unplaced):
-        out.append(
-            f"robot {robots[ti].name}: a target of candidate sets (marker layout or set rows) "
-            f"with no initial_pose: an unplaced target (max-mixtures)"
-        )
-    for r, seen in sorted(targets.items()):
-        name = robots[r].name
-        for ti in sorted(seen):
-            if not robots[ti].static and False in seen[ti]:
-                out.append(
-                    f"robot {name}: candidate sets of the moving {robots[ti].name} without "
-                    f"marker pixels (between factors on both poses: not live yet)"
-                )
-            if len(seen[ti]) > 1:
-                out.append(
-                    f"robot {name}: candidate sets of {robots[ti].name} with and without "
-                    f"marker pixels"
-                )
-        if len(seen) > 1:
-            out.append(
-                f"robot {name}: candidate sets of {len(seen)} targets (the whole-run route "
-                f"places it by its streams in order of their first set)"
-            )
-    return out
+def set_targets(run: TeamRun, tables: dict) -> set:
+    """The robots candidate sets see (`live.event_sets`: a target without an initial pose is
+    placed by max-mixtures through an observer with one, else its sets are counted
+    `target_unplaced` skips): a loaded run's targets; before any row (a live team opening),
+    robots with a marker layout when some robot has a markers table, and every robot when some
+    robot has a candidates table (its rows name their target as they arrive)."""
+    if run.observations:
+        return {o.target for o in run.observations if o.candidates.source != "circle"}
+    named = set().union(*map(set, tables.values())) if tables else set()
+    if "candidates" in named:
+        return set(range(len(run.robots)))
+    if "markers" in named:
+        return {r for r, robot in enumerate(run.robots) if robot.markers is not None}
+    return set()
+
+
+def max_mixtures_possible(run: TeamRun, tables: dict) -> bool:
+    """Whether candidate sets may become max-mixtures (`live.event_sets`): an observer of
+    candidate sets with an initial pose and a target of them without one. The graph is then a
+    camera graph (`TeamGraph.camera`: iSAM2's settings for max-mixtures), known before its
+    rows."""
+    observers = [
+        robot for robot in run.robots if {"markers", "candidates"} & set(tables.get(robot.name, ()))
+    ]
+    targets = set_targets(run, tables)
+    return any(o.initial_pose is not None for o in observers) and any(
+        run.robots[t].initial_pose is None for t in targets
+    )
 
 
 def run_tables(run: TeamRun) -> dict:

@@ -9,7 +9,6 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from graphloc.live.coverage import NotLiveError
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.run import TeamRun
 
@@ -108,17 +107,42 @@ def inserted_times(robot: EventRobot, motions: list, measured: list, tol: float)
     return t[(gap > tol) & inside].tolist()
 
 
-def measured(robot: EventRobot, t: float, what: str) -> None:
-    """A measurement at t of robot: a pose time to come (refused out of time order)."""
+def measured(robot: EventRobot, t: float, what: str) -> str | None:
+    """A measurement at t of robot: a pose time to come. Out of time order (before pose times
+    already built, or before its previous measurement): the reason it is refused, else None."""
     built = robot.times
     if not robot.robot.static and len(built) and t < built[-1]:
-        raise NotLiveError(
+        return (
             f"robot {robot.robot.name}: {what} at {t}, after its pose times up to "
             f"{built[-1]} were built (rows out of time order)"
         )
     if robot.measured and t < robot.measured[-1]:
-        raise NotLiveError(
+        return (
             f"robot {robot.robot.name}: measurements out of time order ({what} at {t} "
             f"after {robot.measured[-1]})"
         )
     robot.measured.append(t)
+    return None
+
+
+def refused_motion(robot: EventRobot, m, start, start_from_rows: bool) -> str | None:
+    """Why a relative pose cannot join the robot's steps as it arrives, or None: it starts
+    before the run's start that the first relative pose set, runs backwards, ends before the
+    robot's last one (out of time order), or starts or ends inside steps already built without
+    being a pose time of them (it would change final pose times or steps)."""
+    if start_from_rows and m.t0 < start:
+        return f"a relative pose from {m.t0}, before the start {start} the first one set"
+    if m.t0 > m.t1:
+        return f"a relative pose from {m.t0} to the earlier {m.t1}"
+    if robot.ends and m.t1 < robot.ends[-1]:
+        return f"relative poses out of time order ({m.t1} after {robot.ends[-1]})"
+    built = robot.times
+    for t in (m.t0, m.t1):
+        if len(built) and t < built[-1]:
+            i = np.searchsorted(robot.stamps, t)
+            if not (i < len(robot.stamps) and robot.stamps[i] == t):
+                return (
+                    f"a relative pose from {t}, inside steps already built (up to "
+                    f"{built[-1]}): it would change their pose times"
+                )
+    return None

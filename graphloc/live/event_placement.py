@@ -11,7 +11,6 @@ from __future__ import annotations
 import numpy as np
 
 from graphloc.keys import pose_key
-from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_clock import EventRobot
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.graph import (
@@ -26,13 +25,14 @@ from graphloc.run import TeamRun
 
 def seed_robot(graph: TeamGraph, config: GraphConfig, robot: EventRobot, k: int, pose) -> None:
     """A known or decided pose of robot at node k (`motion.place_robot`'s seeds): the first
-    places the robot, its earlier poses carried back along its steps."""
-    if k in robot.placed:
+    places the robot, its earlier poses carried back along its steps; a later one is the
+    initial value at k. A pose at a node before the placement (another stream's decision, or a
+    decision after a placement by bearings or registration, arriving later) comes after that
+    node's initial value was carried back and used: its factors stand, its pose is not a seed."""
+    if k in robot.placed or (robot.seed is not None and k < robot.seed):
         return
     robot.placed[k] = pose
     if robot.seed is not None:
-        if k < robot.seed:
-            raise NotLiveError(f"robot {robot.robot.name}: a decision before its placement")
         return
     robot.seed = k
     initial, r = graph.initial, robot.r

@@ -1,7 +1,8 @@
 """What a finished `live.events.EventGraph` records in its `TeamGraph`, as `build_graph` records
 it: every stream's set outcomes in the order the streams began (tracked and max-mixture
-streams alike), the sections' skips (the point measurements' too), the alternative placements
-(pixel streams', resected robots') and the graph's counts."""
+streams alike), the sections' skips (the point measurements' too; the sets of a target without
+an initial pose seen by an observer without one: one `target_unplaced` skip per stream), the
+alternative placements (pixel streams', resected robots') and the graph's counts."""
 
 from __future__ import annotations
 
@@ -21,6 +22,14 @@ def record_graph(events) -> None:
     graph.decisions = [d for _, outcomes, _ in ordered for d in outcomes]
     for _, _, skips in ordered:
         graph.skips.merge(skips)
+    robots = events.run.robots
+    for (r, ti), n in events.unplaced_sets.items():
+        graph.skips.add(
+            "target_unplaced",
+            f"robot {robots[r].name}: {n} candidate sets on robot {robots[ti].name}: neither "
+            f"has an initial pose (no max-mixture places one through the other)",
+            n,
+        )
     graph.skips.merge(events.features.tracks.section.made.skips)
     graph.skips.merge(events.skips)
     points = events.points.builder

@@ -28,7 +28,7 @@ from graphloc.datasets.camera_tables import (
 from graphloc.datasets.log_observations import candidate_observations, marker_observations
 from graphloc.io import Sink, SkipReport
 from graphloc.keys import decode
-from graphloc.live.coverage import NotLiveError
+from graphloc.live.coverage import NotLiveError, max_mixtures_possible, run_tables
 from graphloc.live.events import EventGraph
 from graphloc.live.scan_feed import ScanFeed
 from graphloc.live.wheel_steps import WheelSteps, skip_relative, wheel_motions
@@ -63,6 +63,7 @@ class EventRows:
             if {"markers", "candidates", "ellipses"} & set(tables.get(robot.name, ()))
         }
         camera = any({"features", "ellipses"} & set(t) for t in tables.values())
+        camera = camera or max_mixtures_possible(run, tables)
         self.events = EventGraph(
             run, setup.config, setup.start_time, stamped, observers, camera, set(self.wheels)
         )
@@ -253,6 +254,7 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     stamped = {m.robot for m in run.motions} | {m.robot for _, m in wheel}
     observers = {o.robot for o in run.observations}
     camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
+    camera = camera or max_mixtures_possible(run, run_tables(run))
     wheels = {m.robot for _, m in wheel}
     live = EventGraph(
         _without_rows(run), config, run.start_time, stamped, observers, camera, wheels
@@ -260,15 +262,18 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     for m in run.motions:
         if m.robot in wheels:
             skip_relative(live.graph.skips, run.robots[m.robot])
-    motions = heapq.merge(
-        ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions) if m.robot not in wheels),
-        ((t, 0, len(run.motions) + i, m) for i, (t, m) in enumerate(wheel)),
-        key=lambda e: e[:3],
+    # each table in time order (a robot's relative poses and its scans' KISS-ICP steps are
+    # two tables: merged by end time, as a live team's window orders them); a wheel robot's
+    # grid step at the odometry row that completes it
+    relative = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
+    motions = sorted(
+        [e for e in relative if e[3].robot not in wheels]
+        + [(t, 0, len(run.motions) + i, m) for i, (t, m) in enumerate(wheel)]
     )
-    scans = ((s.time, 1, i, s) for i, s in enumerate(run.scans))
-    sets = ((o.time, 2, i, o) for i, o in enumerate(run.observations))
-    pixels = ((f.time, 3, i, f) for i, f in enumerate(run.features))
-    points = ((m.time, 4, i, m) for i, m in enumerate(run.points))
+    scans = sorted((s.time, 1, i, s) for i, s in enumerate(run.scans))
+    sets = sorted((o.time, 2, i, o) for i, o in enumerate(run.observations))
+    pixels = sorted((f.time, 3, i, f) for i, f in enumerate(run.features))
+    points = sorted((m.time, 4, i, m) for i, m in enumerate(run.points))
     take = (live.motion, live.scan, live.observation, live.feature, live.point)
     rows = heapq.merge(motions, scans, sets, pixels, points, key=lambda e: e[:3])
     for t, kind, _, row in rows:

@@ -14,31 +14,32 @@ step's end (a measurement inside a step is a pose of its own, `motion.inserted_t
 only the step covering it tells). Each advance applies the whole-run rule to the rows that can
 shape times after the last final one (those within the longest step of it) and appends the new
 final times; rows that would change a final pose time or step (a step starting inside steps
-already built, rows out of time order) are refused as they arrive (`NotLiveError`, naming
-them). A relative pose becomes its between factors once its poses are final; a candidate set
-joins its poses once those near it and the steps into them are final, goes through its
-stream's tracker (the decision uses the sets before it only) and becomes the factors
-`candidates.stream_factors` makes of it.
+already built, rows out of time order) are refused as they arrive: counted skips naming them
+(`relative_pose_late`, `point_late`, `set_late`), as any late row of a live team. A relative
+pose becomes its between factors once its poses are final; a candidate set joins its poses
+once those near it and the steps into them are final, goes through its stream's tracker (the
+decision uses the sets before it only) and becomes the factors `candidates.stream_factors`
+makes of it.
 A step is emitted once every pose time up to it is final and no row that could add a factor to
 it is still to come.
 
-Placement, one causal rule. An observer with no initial pose is placed by its stream: a stream
-without pixels at each decided set (its decisions are its only factors); a marker-pixel stream
-once, at its first decided set, or -- when none of its first `GraphConfig.guess_after_sets`
-tracked sets was decided -- at that set by the tracker's best guess there
-(`event_placement.stream_placement`): when that set arrives, the sets before it decide where
-the observer goes, and no later set can change it. A scanning observer not placed by a
-decision is placed by the first accepted inter-robot scan registration from its stream's
-hypotheses (`event_scans.ScanLinks`, which also registers every later common scan time),
-tried at each set before the guess. Its earlier poses are carried back along its
-steps (`motion.place_robot`); until then its `anchored_from` is infinite, so the online pass
-(`Pass`: `hold_until` the largest `anchored_from`) holds its factors and they enter with the
-placement. The wait lets a stream that will decide be placed by its decision
-(feng-probabilistic); one that never decides (kaushik-p3p-error) is placed by a guess that has
-seen those sets, where the whole-run route (`candidates.place_observers`) guesses at the first
-set, knowing it will never decide. A robot nothing placed by the end is a counted
-`unanchored_robot` (`finish`); its factors stay held (`event_rows.build_events` leaves them out
-of the graph)."""
+Placement, one causal rule. An observer with no initial pose is placed by the first of its
+streams (one per target, and per target with and without pixels, `live.event_sets`) that places
+it, in arrival order: a stream without pixels at each decided set (its decisions are its only
+factors); a marker-pixel stream once, at its first decided set, or -- when none of its first
+`GraphConfig.guess_after_sets` tracked sets was decided -- at that set by the tracker's best
+guess there (`event_placement.stream_placement`): when that set arrives, the sets before it
+decide where the observer goes, and no later set can change it. A scanning observer not placed
+by a decision is placed by the first accepted inter-robot scan registration from its stream's
+hypotheses (`event_scans.ScanLinks`, which also registers every later common scan time), tried
+at each set before the guess. Its earlier poses are carried back along its steps
+(`motion.place_robot`); until then its `anchored_from` is infinite, so the online pass (`Pass`:
+`hold_until` the largest `anchored_from`) holds its factors and they enter with the placement.
+The wait lets a stream that will decide be placed by its decision (feng-probabilistic); one
+that never decides (kaushik-p3p-error) is placed by a guess that has seen those sets, where the
+whole-run route (`candidates.place_observers`) guesses at the first set, knowing it will never
+decide. A robot nothing placed by the end is a counted `unanchored_robot` (`finish`); its
+factors stay held (`event_rows.build_events` leaves them out of the graph)."""
 
 from __future__ import annotations
 
@@ -64,6 +65,7 @@ from graphloc.live.event_clock import (
     inserted_times,
     measured,
     motion_bound,
+    refused_motion,
 )
 from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig, run_precision
 from graphloc.pipelines.team_graph.graph import TeamGraph
@@ -104,6 +106,7 @@ class EventGraph:
         self.clock = EventClock(run, config, [np.zeros(0) for _ in run.robots])
         self.streams: dict = {}  # (observer, target) -> [StreamTracker, obs list, index]
         self.mixtures: dict = {}  # (observer, unplaced target) -> [MixtureTracker, index]
+        self.unplaced_sets: dict = {}  # (unplaced observer, unplaced target) -> sets skipped
         self.features = EventFeatures(run, config)  # `live.event_camera`
         self.queue: deque = deque()  # candidate sets waiting for their poses, in arrival order
         self.arrived: list = []  # every candidate set, in arrival order
@@ -143,34 +146,13 @@ class EventGraph:
                 f"robot {robot.robot.name}: a relative pose, but its manifest has no "
                 f"relative_pose table (its pose times are at its measurements)"
             )
+        late = refused_motion(robot, m, self.start, self.start_from_rows)
+        if late is not None:  # a live team cannot take it: counted, never the whole run
+            self.skips.add("relative_pose_late", f"robot {robot.robot.name}: {late}")
+            return
         self.first_seen = min(self.first_seen, m.t0)
         if self.start is None:  # the whole run's: the earliest relative-pose start
             self.start, self.start_from_rows = float(m.t0), True
-        elif self.start_from_rows and m.t0 < self.start:
-            raise NotLiveError(
-                f"robot {robot.robot.name}: a relative pose from {m.t0}, before the start "
-                f"{self.start} the first one set (the run's start is its earliest: not causal)"
-            )
-        if m.t0 > m.t1:
-            raise NotLiveError(
-                f"robot {robot.robot.name}: a relative pose from {m.t0} to the earlier {m.t1} "
-                f"(its row arrives before the time it starts from)"
-            )
-        if robot.ends and m.t1 < robot.ends[-1]:
-            raise NotLiveError(
-                f"robot {robot.robot.name}: relative poses out of time order ({m.t1} after "
-                f"{robot.ends[-1]})"
-            )
-        built = robot.times
-        for t in (m.t0, m.t1):
-            if len(built) and t < built[-1]:
-                i = np.searchsorted(robot.stamps, t)
-                if not (i < len(robot.stamps) and robot.stamps[i] == t):
-                    raise NotLiveError(
-                        f"robot {robot.robot.name}: a relative pose from {t}, inside steps "
-                        f"already built (up to {built[-1]}): it changed its pose times or "
-                        f"steps (not causal)"
-                    )
         for t in (m.t0, m.t1):
             i = np.searchsorted(robot.stamps, t)
             if not (i < len(robot.stamps) and robot.stamps[i] == t):
@@ -188,15 +170,20 @@ class EventGraph:
         """A candidate set (`graphloc.run.CandidateObservation`)."""
         self.first_seen = min(self.first_seen, o.time)
         self.arrived.append(o)
-        for r in (o.robot, o.target):
-            measured(self.robots[r], o.time, "a candidate set")
+        late = [measured(self.robots[r], o.time, "a candidate set") for r in (o.robot, o.target)]
+        if any(late):
+            self.skips.add("set_late", next(filter(None, late)))
+            return
         self.queue.append((len(self.arrived) - 1, o))
 
     def point(self, m) -> None:
         """A range, bearing or range-bearing (`graphloc.run.PointMeasurement`)."""
         self.first_seen = min(self.first_seen, m.time)
-        for r in (m.robot, m.target) if m.target >= 0 else (m.robot,):
-            measured(self.robots[r], m.time, "a point measurement")
+        robots = (m.robot, m.target) if m.target >= 0 else (m.robot,)
+        late = [measured(self.robots[r], m.time, "a point measurement") for r in robots]
+        if any(late):
+            self.skips.add("point_late", next(filter(None, late)))
+            return
         self.points.add(m)
 
     def feature(self, f) -> None:

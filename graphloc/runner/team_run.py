@@ -1,10 +1,8 @@
 """`run_team`: one team run from its source to its outputs -- read (`graphloc.datasets.open_run`),
-graph (`team_graph`: `live.builder.build_live`, the live API's incremental builder, for a run
-whose sections are all live -- wheel-odometry or event-clocked --, in batch and online alike;
-`team_graph.build_graph` for the others), solve (`team_graph.solve`,
-batch or online), judge
-(`report.evaluate`: metrics and the consistency verdict), write (`report.write_outputs`) --,
-the one route `graphloc smooth` / `online` (and so `graphloc.many_runs`) and the Python API take.
+graph (`team_graph`: `live.builder.build_live`, the live API's incremental builder, in batch
+and online alike), solve (`team_graph.solve`, batch or online), judge (`report.evaluate`:
+metrics and the consistency verdict), write (`report.write_outputs`) --, the one route
+`graphloc smooth` / `online` (and so `graphloc.many_runs`) and the Python API take.
 
     from graphloc import RunOptions, run_team
     outcome = run_team("runs/team1", "out/team1", "batch", RunOptions(lag=30.0))
@@ -77,7 +75,7 @@ def run_team(
     run = open_run(source, duration=opts.duration, noise=noise, source=opts.source())
     lag = opts.lag if opts.lag is not None else default_lag(run, config)
     config = replace(config, lag=float(lag))
-    graph = team_graph(run, config, progress)
+    graph = team_graph(run, config)
     hooks = checkpoint(graph, values) if checkpoint is not None else {}
     if on_phase is not None:
         on_phase("solving")
@@ -89,27 +87,17 @@ def run_team(
     return TeamOutcome(result, run, metrics)
 
 
-def team_graph(run, config, progress: bool = False):
+def team_graph(run, config):
     """The graph `run_team` solves, batch and online alike: the live API's incremental builder
-    (`live.builder.build_live`, the run's tables fed whole) for a run whose sections are all
-    live (`live.coverage.not_live` finds nothing): wheel-odometry runs such as MRCLAM (the
-    wheel route's whole tables in one batch, `live.waiting`) and event-clocked ones (`route`
-    "event": candidate sets of targets with a known pose, scans -- KISS-ICP steps as the live
-    team makes them, the inter-robot registration by the causal rule of `live.event_scans` --,
-    circle sets and feature tracks of a placed camera); the whole-run `team_graph.build_graph`
-    for the others and for a run whose rows the live builder refuses as they come
-    (`NotLiveError` from `build_live`: relative-pose steps that overlap, which only the whole
-    run puts in one order)."""
+    (`live.builder.build_live`) fed the run's whole tables -- the wheel route (`LiveGraph`:
+    wheel-odometry robots, MRCLAM) or the event route (`live.events.EventGraph`: relative poses,
+    scans, candidate sets, circle sets, feature tracks, bearings, with the wheel robots' odometry
+    as grid steps) --, so that `graphloc smooth`, `graphloc online` and `graphloc live` build one
+    graph from the same rows. What a live team cannot use is a counted skip, never the whole run
+    refused."""
     from graphloc.live.builder import build_live
-    from graphloc.live.coverage import NotLiveError, not_live, run_tables
-    from graphloc.pipelines.team_graph import build_graph
 
-    if not not_live(run, run_tables(run)):
-        try:
-            return build_live(run, config)
-        except NotLiveError:  # rows only the whole run puts in one order (docstring)
-            pass
-    return build_graph(run, config, progress=progress)
+    return build_live(run, config)
 
 
 def write_run(

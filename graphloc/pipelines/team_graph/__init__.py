@@ -45,7 +45,6 @@ _API = {
     "run_precision": "graphloc.pipelines.team_graph.config",
     "SetOutcome": "graphloc.pipelines.team_graph.decision",
     "TeamGraph": "graphloc.pipelines.team_graph.graph",
-    "build_graph": "graphloc.pipelines.team_graph.graph",
     "STEP_LOG_COLUMNS": "graphloc.pipelines.team_graph.passes",
     "TeamResult": "graphloc.pipelines.team_graph.passes",
     "solve": "graphloc.pipelines.team_graph.solve",

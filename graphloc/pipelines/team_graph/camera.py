@@ -22,7 +22,6 @@ import numpy as np
 from graphloc.factors.robust import robust_noise
 from graphloc.keys import frame_marker_key, landmark_key, marker_key, pose_key
 from graphloc.pipelines.team_graph.config import FEATURE_BASE, GraphConfig, cov6
-from graphloc.pipelines.team_graph.motion import Timeline
 from graphloc.pipelines.team_graph.section import SectionFactors
 from graphloc.run import TeamRun
 
@@ -38,16 +37,6 @@ class FeatureSection:
     landmark_guess: dict
     point_priors: list
     tracks: int
-
-
-def feature_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> FeatureSection:
-    """Every usable feature pixel as a GenericProjectionFactorCal3_S2 (robust kernel
-    'projection'), one landmark per track (`FeatureSection`), through one `FeatureTracks`."""
-    tracks = FeatureTracks(run, config)
-    for f in run.features:
-        k = timeline.nearest(f.robot, f.time)
-        tracks.add(f, k, timeline.node_times[f.robot][k] if k >= 0 else np.nan)
-    return tracks.section
 
 
 class FeatureTracks:

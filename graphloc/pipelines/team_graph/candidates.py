@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
-from tqdm import tqdm
 
 from graphloc.candidates import CandidateSet
 from graphloc.factors.mixture import candidate_covariances
@@ -39,7 +38,6 @@ from graphloc.pipelines.team_graph.decision import (
     rows_of,
     same_pose,
 )
-from graphloc.pipelines.team_graph.mixtures import mixture_stream
 from graphloc.pipelines.team_graph.motion import Timeline, compose_steps, dead_reckoning
 from graphloc.pipelines.team_graph.section import SectionFactors
 from graphloc.run import TeamRun
@@ -81,40 +79,6 @@ class StreamDecisions:
     outcomes: list = field(default_factory=list)
     skips: SkipReport = field(default_factory=SkipReport)
     tentative: list | None = None
-
-
-@dataclass
-class CandidateSection:
-    """The candidate section's output: factors (time, factor, type) and skips; what became of
-    every set; the decided observer poses (robot -> {node: Pose3}); the targets placed through
-    an observer (robot -> {node: (observer, node, body_T_target)}); each tracked observer's
-    latest best guess and candidates (`StreamDecisions.tentative`); the alternative placements
-    of pixel streams (robot -> ([(node, body Pose3) per candidate], placed by the tracker's
-    guess, never decided)); a static target's marker points (key -> world position) and a
-    moving target's per-set points ((key, target, node, body-frame position) each)."""
-
-    factors: list
-    skips: SkipReport
-    decisions: list
-    decided_pose: dict
-    placed_via: dict
-    tentative: dict
-    alternatives: dict
-    marker_points: dict
-    frame_points: list
-
-
-def decide_stream(
-    run: TeamRun, config: GraphConfig, timeline: Timeline, step_rel: list, r: int, ti: int, obs
-) -> StreamDecisions:
-    """Robot r's sets on placed robot ti (`obs`: (index in run.observations, observation)) through
-    one HypothesisTracker, in time order, with the observer's odometry between them
-    (`StreamTracker`, one set at a time)."""
-    tracker = StreamTracker(run, config, r, ti, all(o.pixels is not None for _, o in obs))
-    nearest = timeline.nearest
-    for n, o in obs:
-        tracker.add(n, o, nearest(r, o.time), nearest(ti, o.time), step_rel)
-    return tracker.out
 
 
 class StreamTracker:
@@ -163,7 +127,9 @@ class StreamTracker:
             )
             return None
         if self.target_track is None or kt >= len(self.target_track):
-            self.target_track = dead_reckoning(target, step_rel[ti][: kt + 1], config)
+            self.target_track = dead_reckoning(
+                target, step_rel[ti][: kt + 1], config, self.target_track
+            )
         E = o.body_T_sensor
         X_t, P_t = self.target_track[kt]
         # the candidates (target_T_sensor) in the world through the target's pose, its
@@ -303,84 +269,3 @@ def stream_factors(
             )
         out.factors.append((t, factor, "candidate"))
     return out
-
-
-def place_observers(streams: list) -> tuple[dict, dict, dict]:
-    """The observers the tracked streams place, in stream order (module docstring, step 3):
-    (decided poses robot -> {node: world_T_body}, the latest guesses robot -> tentative list,
-    alternatives robot -> ([(node, body) per candidate of the first set], guessed)). Without
-    pixels every decided set places its observer; a pixel stream places it once, at its first
-    decided set, else (never decided, nor by an earlier stream) at its first set by the
-    tracker's guess there, and every candidate of that first set is an alternative."""
-    decided_pose: dict = {}
-    tentative: dict = {}
-    alternatives: dict = {}
-    for stream in streams:
-        r = stream.robot
-        if stream.tentative is not None:
-            tentative[r] = stream.tentative
-        for s in stream.sets:
-            if s.decided and not (stream.pixel_route and decided_pose.get(r)):
-                decided_pose.setdefault(r, {})[s.k] = s.bodies[s.update.committed]
-        if stream.pixel_route and stream.sets:
-            first = stream.sets[0]
-            guess = first.bodies[int(np.argmax(first.update.probabilities))]
-            guessed = r not in decided_pose
-            if guessed:
-                decided_pose[r] = {first.k: guess}
-            alternatives[r] = ([(first.k, body) for body in first.bodies], guessed)
-    return decided_pose, tentative, alternatives
-
-
-def candidate_section(
-    run: TeamRun, config: GraphConfig, timeline: Timeline, step_rel: list, progress: bool = False
-) -> CandidateSection:
-    """Every candidate set of `run` through its stream's rule (module docstring)."""
-    skips = SkipReport()
-    factors, decisions, placed_via, tracked = [], [], {}, []
-    marker_points: dict = {}
-    frame_points: list = []
-    streams: dict = {}
-    for n, o in enumerate(run.observations):
-        streams.setdefault((o.robot, o.target), []).append((n, o))
-    for (r, ti), obs in tqdm(
-        streams.items(), desc="deciding candidate sets", disable=not progress, unit="stream"
-    ):
-        target = run.robots[ti]
-        if target.initial_pose is None and run.robots[r].initial_pose is not None:
-            mixtures = mixture_stream(run, config, timeline, step_rel, r, ti, [o for _, o in obs])
-            decisions += mixtures.outcomes
-            factors += mixtures.made.factors
-            skips.merge(mixtures.made.skips)
-            if mixtures.placed is not None and ti not in placed_via:
-                placed_via[ti] = mixtures.placed
-            continue
-        if target.initial_pose is None:
-            skips.add(
-                "target_unplaced",
-                f"robot {run.robots[r].name}: {len(obs)} candidate sets on robot "
-                f"{target.name}, which has no initial pose",
-                len(obs),
-            )
-            continue
-        stream = decide_stream(run, config, timeline, step_rel, r, ti, obs)
-        made = stream_factors(run, config, timeline, stream, obs, marker_points)
-        decisions += stream.outcomes
-        skips.merge(stream.skips)
-        skips.merge(made.skips)
-        factors += made.factors
-        marker_points.update(made.marker_points)
-        frame_points += made.frame_points
-        tracked.append(stream)
-    decided_pose, tentative, alternatives = place_observers(tracked)
-    return CandidateSection(
-        factors,
-        skips,
-        decisions,
-        decided_pose,
-        placed_via,
-        tentative,
-        alternatives,
-        marker_points,
-        frame_points,
-    )

@@ -17,7 +17,6 @@ factors (`team_graph.points`), so the solve refines what these guesses start.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from itertools import combinations
 
 import gtsam
@@ -102,41 +101,3 @@ def resection_candidates(run: TeamRun, r: int, positions: dict, sets: int) -> li
             for c in np.flatnonzero(cand.valid[0])
         ]
     return out
-
-
-@dataclass(frozen=True)
-class Placements:
-    """Robots `place_unplaced` places: robot -> {node: world_T_body}, and a resected robot's
-    alternative starts (robot -> ([(node, world_T_body), ...], True): placed by a guess)."""
-
-    poses: dict
-    alternatives: dict
-
-
-def place_unplaced(run: TeamRun, timeline, decided_pose: dict, placed_via: dict) -> Placements:
-    """Initial poses for robots with no initial pose that nothing else placed (module
-    docstring; `decided_pose`, `placed_via`: the robots the candidate sets placed); a resected
-    robot's P3P candidates of its first RESECTION_SETS sets are its alternatives (the first
-    candidate its pose)."""
-    robots = run.robots
-    known = {
-        r: robot.initial_pose
-        for r, robot in enumerate(robots)
-        if robot.static and robot.initial_pose is not None
-    }
-    mutual = place_by_mutual_bearings(run, known)
-    poses = {r: {0: pose} for r, pose in mutual.items() if r not in decided_pose}
-    alternatives = {}
-    positions = {r: np.asarray(p.translation()) for r, p in {**known, **mutual}.items()}
-    for r, robot in enumerate(robots):
-        if robot.initial_pose is not None or r in decided_pose or r in poses or r in placed_via:
-            continue
-        starts = [
-            (timeline.nearest(r, t), body)
-            for t, body in resection_candidates(run, r, positions, RESECTION_SETS)
-        ]
-        starts = [(k, body) for k, body in starts if k >= 0]
-        if starts:
-            poses[r] = {starts[0][0]: starts[0][1]}
-            alternatives[r] = (starts, True)
-    return Placements(poses, alternatives)

@@ -1,28 +1,22 @@
-"""`build_graph`: a `TeamRun` -> `TeamGraph`, every factor grouped in time steps with initial
-values (the sections: `motion`, `points`, `candidates`)."""
+"""`TeamGraph`: a team run as one graph, its factors grouped in time steps with initial values
+(what the live builder, `graphloc.live.builder.build_live`, grows row by row and `solve` takes),
+and the helpers its builders share: alternative starts, sensor poses, factor keys, landmark
+initial values."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import gtsam
 import numpy as np
 
 from graphloc.io import SkipReport
-from graphloc.keys import decode, pose_key
+from graphloc.keys import pose_key
 from graphloc.factors.mixture import MaxMixture
-from graphloc.pipelines.team_graph.camera import feature_factors
-from graphloc.pipelines.team_graph.candidates import candidate_section
-from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig, run_precision
-from graphloc.pipelines.team_graph.formation import place_unplaced
+from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig
 from graphloc.pipelines.team_graph.motion import (
     Timeline,
-    anchor_factors,
-    motion_factors,
     place_robot,
 )
-from graphloc.pipelines.team_graph.points import point_factors
-from graphloc.pipelines.team_graph.scans import scan_match_factors
 from graphloc.run import TeamRun
 
 
@@ -70,171 +64,6 @@ class TeamGraph:
     guessed_alternative_times: list = field(default_factory=list)
 
 
-def build_graph(
-    run: TeamRun, config: GraphConfig = GraphConfig(), progress: bool = False
-) -> TeamGraph:
-    """Every usable row of `run` as a factor, grouped in time steps, with initial values: the
-    sections (`motion`, `points`, `camera`, `candidates`, `formation`, `scans`), each returning
-    what it makes, then `initial_poses`, `initial_values`, `alternative_starts` and
-    `time_steps`."""
-    skips = SkipReport()
-    skips.merge(run.skips)
-    timeline = Timeline(run, config)
-    node_times = timeline.node_times
-    motion = motion_factors(run, config, timeline)
-    step_rel = motion.step_rel
-    points = point_factors(run, config, timeline)
-    features = feature_factors(run, config, timeline)
-    sets = candidate_section(run, config, timeline, step_rel, progress)
-    by_bearings = place_unplaced(run, timeline, sets.decided_pose, sets.placed_via)
-    # (time of newest node, factor, type), in the sections' order
-    factors = motion.made.factors + anchor_factors(run, config, node_times)
-    factors += points.made.factors + features.made.factors + sets.factors
-    for section in (motion.made.skips, points.made.skips, features.made.skips, sets.skips):
-        skips.merge(section)
-    decided_pose = {**sets.decided_pose, **by_bearings.poses}
-    poses = initial_poses(run, config, timeline, step_rel, decided_pose, sets.placed_via)
-    # a robot a pixel stream placed only by the tracker's guess (never decided) is registered
-    # from its hypotheses like an unplaced one: the guess at the stream's first set may be the
-    # wrong candidate, and scans from it never meet (dual-robot-room: the ceiling robot)
-    guessed = {r for r, (_, g) in sets.alternatives.items() if g and r in sets.tentative}
-    scans = scan_match_factors(
-        run,
-        config,
-        timeline,
-        step_rel,
-        {r: p for r, p in poses.items() if r not in guessed},
-        sets.tentative,
-        progress,
-    )
-    factors += scans.made.factors
-    skips.merge(scans.made.skips)
-    for r in scans.placed_via:
-        poses[r] = place_robot(run, r, node_times, step_rel, config, {}, scans.placed_via, poses)
-    skips.merge(unplaced_robots(run, node_times, poses))
-    landmark_guess = {**points.landmark_guess, **features.landmark_guess}
-    sensor_poses = points.sensor_poses
-    initial = initial_values(poses, landmark_guess, sets.marker_points, sets.frame_points)
-    with_sensors(initial, sensor_poses)
-    alternatives = {**sets.alternatives, **by_bearings.alternatives}
-    variants, guessed_variants = alternative_starts(
-        run, config, timeline, step_rel, poses, alternatives, sensor_poses
-    )
-    for lkey, sigma, t in features.point_priors:
-        if lkey in initial:
-            noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
-            factors.append(
-                (t, gtsam.PriorFactorPoint3(lkey, initial[lkey], noise), "feature_prior")
-            )
-    steps, types, dropped = time_steps(factors, initial)
-    if dropped:
-        skips.add(
-            "unanchored_robot",
-            f"{dropped} factors touch poses of robots that nothing places",
-            dropped,
-        )
-    decisions = sets.decisions
-    counts = {
-        "robots": len(run.robots),
-        "poses": len([k for k in initial if decode(k)[0] == "x"]),
-        "candidate_sets": len(run.observations),
-        "marker_points": len(sets.marker_points),
-        "frame_marker_points": len(sets.frame_points),
-        "sensor_poses": len(sensor_poses),
-        "committed_sets": sum(d.committed >= 0 for d in decisions),
-        "landmark_anchors": points.n_anchor,
-        "feature_tracks": features.tracks,
-        "steps": len(steps),
-        "excluded_by_option": points.excluded,
-        **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
-    }
-    return TeamGraph(
-        run,
-        config,
-        node_times,
-        initial,
-        steps,
-        types,
-        decisions,
-        {r: node_times[r][poses[r][1]] for r in sorted(poses)},
-        step_rel,
-        counts,
-        skips,
-        run_precision(run),
-        {
-            d.mixture.components[0][0].keys()[0]: (
-                d.mixture.components[0][0].keys()[1],
-                d.relative,
-            )
-            for d in decisions
-            if d.mixture is not None and d.relative is not None
-        },
-        variants,
-        guessed_variants,
-        {key: (pose_key(ti, kt), local) for key, ti, kt, local in sets.frame_points},
-        sensor_poses,
-        features.tracks > 0 or any(d.mixture is not None for d in decisions),
-        *anchor_times(alternatives, poses, node_times),
-    )
-
-
-def initial_poses(
-    run: TeamRun,
-    config: GraphConfig,
-    timeline: Timeline,
-    step_rel: list,
-    decided_pose: dict,
-    placed_via: dict,
-) -> dict:
-    """Each placed robot's initial poses (robot -> ([Pose3 per node], first seeded node)):
-    known poses and decided ones carried along the robot's steps, then the robots placed
-    through an observer (the max-mixture route)."""
-    poses: dict = {}
-    R = len(run.robots)
-    order = [r for r in range(R) if r not in placed_via] + [r for r in placed_via]
-    for r in order:
-        placed = place_robot(
-            run, r, timeline.node_times, step_rel, config, decided_pose, placed_via, poses
-        )
-        if placed is not None:
-            poses[r] = placed
-    return poses
-
-
-def unplaced_robots(run: TeamRun, node_times: list, poses: dict) -> SkipReport:
-    """A robot with poses that nothing placed: its poses are left out (counted)."""
-    skips = SkipReport()
-    for r, robot in enumerate(run.robots):
-        if r not in poses and len(node_times[r]):
-            skips.add(
-                "unanchored_robot",
-                f"robot {robot.name}: no initial pose, and nothing places it (no decided "
-                f"candidate set, no placement by bearings, no accepted scan registration); "
-                f"its {len(node_times[r])} poses are left out",
-                len(node_times[r]),
-            )
-    return skips
-
-
-def initial_values(
-    poses: dict, landmark_guess: dict, marker_points: dict, frame_points: list
-) -> dict:
-    """key -> initial value: every placed robot's poses, the landmarks (a position, or 'from'
-    a pose along a ray, where that pose is placed), the static markers and each moving
-    target's per-set markers from the target's pose."""
-    initial = {}
-    for r in sorted(poses):
-        for k, p in enumerate(poses[r][0]):
-            initial[pose_key(r, k)] = p
-    for lkey, guess in landmark_guess.items():
-        landmark_initial(initial, lkey, guess)
-    initial.update(marker_points)
-    for key, ti, kt, local in frame_points:
-        if pose_key(ti, kt) in initial:
-            initial[key] = initial[pose_key(ti, kt)].transformFrom(local)
-    return initial
-
-
 def alternative_starts(
     run: TeamRun,
     config: GraphConfig,
@@ -274,31 +103,6 @@ def anchor_times(alternatives: dict, poses: dict, node_times: list) -> tuple[lis
             if guessed:
                 guessed_times.append(times[-1])
     return times, guessed_times
-
-
-def time_steps(factors: list, initial: dict) -> tuple[list, list, int]:
-    """Factors (time, factor, type) grouped by the time of their newest pose: the steps
-    [(time, [(factor, type), ...]), ...], the kept factors' types in order, and the number of
-    factors left out because they touch a variable with no initial value (an unplaced
-    robot's)."""
-    factors = sorted(factors, key=lambda f: f[0])
-    kept, types = [], []
-    dropped = 0
-    for t, f, kind in factors:
-        if all(key in initial for key in factor_keys(f)):
-            kept.append((t, f, kind))
-            types.append(kind)
-        else:
-            dropped += 1
-    step_times = np.unique([k[0] for k in kept]) if kept else np.zeros(0)
-    steps, j = [], 0
-    for t in step_times:
-        group = []
-        while j < len(kept) and kept[j][0] == t:
-            group.append(kept[j][1:])
-            j += 1
-        steps.append((float(t), group))
-    return steps, types, dropped
 
 
 def with_sensors(values: dict, sensor_poses: dict) -> dict:

@@ -13,7 +13,7 @@ from graphloc.factors.mixture import candidate_covariances, max_mixture_factor, 
 from graphloc.keys import pose_key
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov
 from graphloc.pipelines.team_graph.decision import SetOutcome, inconsistent, quats, rows_of
-from graphloc.pipelines.team_graph.motion import Timeline, dead_reckoning
+from graphloc.pipelines.team_graph.motion import dead_reckoning
 from graphloc.pipelines.team_graph.section import SectionFactors
 from graphloc.run import TeamRun
 
@@ -27,24 +27,6 @@ class MixtureStream:
     outcomes: list = field(default_factory=list)
     made: SectionFactors = field(default_factory=SectionFactors)
     placed: dict | None = None
-
-
-def mixture_stream(
-    run: TeamRun,
-    config: GraphConfig,
-    timeline: Timeline,
-    step_rel: list,
-    r: int,
-    ti: int,
-    obs: list,
-) -> MixtureStream:
-    """A stream whose observer is placed and whose target is not, set by set through one
-    `MixtureTracker` (each set a max-mixture, the target placed at its first sighting)."""
-    tracker = MixtureTracker(run, config, r, ti)
-    for o in obs:
-        tracker.add(o, timeline.nearest(r, o.time), timeline.nearest(ti, o.time), step_rel[r])
-        tracker.factor_times(timeline.node_times)
-    return tracker.out
 
 
 class MixtureTracker:

@@ -3,7 +3,6 @@ tables, dead reckoning; the between factors, initial-pose priors and surface fac
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -13,8 +12,7 @@ from graphloc.factors.robust import robust_noise
 from graphloc.factors.surface import plane_attitude_factor, plane_distance_factor
 from graphloc.keys import pose_key
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov, cov6
-from graphloc.pipelines.team_graph.section import SectionFactors
-from graphloc.run import TeamRun, planar_covariance, pose_from_planar
+from graphloc.run import TeamRun, pose_from_planar
 
 
 class Timeline:
@@ -127,15 +125,6 @@ def velocity_noise(run: TeamRun, r: int, config: GraphConfig) -> VelocityNoise:
     return base
 
 
-def _velocity_steps(run: TeamRun, r: int, times: np.ndarray, config: GraphConfig) -> list:
-    od = run.velocity[r]
-    integ = integrate_unicycle(od[:, 0], od[:, 1], od[:, 2], times, velocity_noise(run, r, config))
-    return [None] + [
-        (pose_from_planar(*d), c)
-        for d, c in zip(integ.deltas, planar_covariance(integ.covariances))
-    ]
-
-
 def dead_reckoning(robot, steps: list, config: GraphConfig, known: list | None = None) -> list:
     """(pose, 6x6 covariance) of each of a robot's poses: its initial pose (and prior) chained
     through its odometry steps, covariances propagated to first order (right perturbations).
@@ -176,56 +165,6 @@ def compose_steps(
     return rel, cov
 
 
-@dataclass
-class MotionSection:
-    """The motion section's output: the between factors of every step and the skips
-    (`made`), and per robot the step from node k-1 to k (relative Pose3, covariance) for
-    k >= 1, None where no measurement gives it (`step_rel`)."""
-
-    made: SectionFactors
-    step_rel: list
-
-
-def motion_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> MotionSection:
-    """Between factors of every odometry / relative-pose step ((time, factor, type) each) and
-    the step of every node (`MotionSection`)."""
-    node_times, nearest = timeline.node_times, timeline.nearest
-    made = SectionFactors()
-    factors, skips = made.factors, made.skips
-    step_rel = []
-    for r, robot in enumerate(run.robots):
-        times = node_times[r]
-        steps = [None] * len(times)
-        if len(run.velocity[r]) and not robot.static:
-            steps = _velocity_steps(run, r, times, config)
-            for k in range(1, len(times)):
-                factors.append(
-                    (times[k], between_factor(r, k - 1, k, *steps[k], config), "odometry")
-                )
-        consecutive = {id(m) for m in consecutive_steps(run, r)}
-        for m in (m for m in run.motions if m.robot == r):
-            k0, k1 = nearest(r, m.t0), nearest(r, m.t1)
-            if k0 < 0 or k1 < 0 or k0 == k1:
-                skips.add(
-                    "no_pose_at_time",
-                    f"robot {robot.name}: relative pose {m.t0}->{m.t1} has no poses",
-                )
-                continue
-            if id(m) in consecutive and k1 > k0 + 1:  # split at the poses inserted inside it
-                parts = split_step(m.relative, m.covariance, times[k0 : k1 + 1])
-            else:
-                parts = [(m.relative, m.covariance)]
-            nodes = range(k0, k1 + 1) if len(parts) > 1 else (k0, k1)
-            for a, b, (rel, cov) in zip(nodes[:-1], nodes[1:], parts):
-                factors.append(
-                    (times[max(a, b)], between_factor(r, a, b, rel, cov, config), "odometry")
-                )
-                if b == a + 1 and steps[b] is None:
-                    steps[b] = (rel, cov)
-        step_rel.append(steps)
-    return MotionSection(made, step_rel)
-
-
 def split_step(relative: gtsam.Pose3, covariance: np.ndarray, times: np.ndarray) -> list:
     """A relative-pose step over `times` (its start, the poses inserted inside it, its end)
     cut at each time at a constant twist: the piece over a fraction s of the step is
@@ -234,15 +173,6 @@ def split_step(relative: gtsam.Pose3, covariance: np.ndarray, times: np.ndarray)
     xi = gtsam.Pose3.Logmap(relative)
     fractions = np.diff(times) / (times[-1] - times[0])
     return [(gtsam.Pose3.Expmap(s * xi), s * covariance) for s in fractions]
-
-
-def anchor_factors(run: TeamRun, config: GraphConfig, node_times: list) -> list:
-    """Priors on the robots' known initial poses and surface factors of climbing robots,
-    (time, factor, type) each."""
-    factors: list = []
-    for r, robot in enumerate(run.robots):
-        factors += robot_anchors(r, robot, config, node_times[r])
-    return factors
 
 
 def robot_anchors(r: int, robot, config: GraphConfig, times, k0: int = 0) -> list:

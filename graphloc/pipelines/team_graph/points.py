@@ -24,7 +24,6 @@ from graphloc.factors.bearing import (
     range_factor,
     sensor_tie_factor,
 )
-from graphloc.factors.odometry import integrate_unicycle
 from graphloc.factors.range_bearing import (
     known_landmark_factor_3d,
     landmark_factor_3d,
@@ -33,7 +32,6 @@ from graphloc.factors.range_bearing import (
 from graphloc.factors.robust import robust_noise
 from graphloc.keys import landmark_key, pose_key, sensor_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE, GraphConfig
-from graphloc.pipelines.team_graph.motion import Timeline, velocity_noise
 from graphloc.pipelines.team_graph.section import SectionFactors
 from graphloc.run import TeamRun
 
@@ -92,31 +90,6 @@ class SensorPoses:
             self.poses[key] = (body, E)
             factors.append((t, sensor_tie_factor(body, key, E), "sensor_tie"))
         return key, gtsam.Pose3()
-
-
-def _corrected_range_bearings(run: TeamRun, node_times: list, config: GraphConfig) -> dict:
-    """Range-bearing rows of wheel-odometry robots re-expressed in the body frame at the grid
-    time they join (the observer's own motion over <= dt/2 integrated from its odometry):
-    index -> (direction (3,), range) in the body frame."""
-    out = {}
-    for r in range(len(run.robots)):
-        od = run.velocity[r]
-        idx = [i for i, m in enumerate(run.points) if m.robot == r and m.kind == "range_bearing"]
-        if not len(od) or not idx:
-            continue
-        times = node_times[r]
-        t = np.array([run.points[i].time for i in idx])
-        frame = np.clip(np.rint((t - times[0]) / config.keyframe_dt).astype(int), 0, len(times) - 1)
-        stamps = np.union1d(times, t)
-        poses = integrate_unicycle(
-            od[:, 0], od[:, 1], od[:, 2], stamps, velocity_noise(run, r, config)
-        ).poses
-        at_meas = poses[np.searchsorted(stamps, t)]
-        at_frame = poses[np.searchsorted(stamps, times[frame])]
-        local = body_frame_points([run.points[i] for i in idx], at_meas, at_frame)
-        for j, i in enumerate(idx):
-            out[i] = local[j]
-    return out
 
 
 def body_frame_points(points: list, at_meas: np.ndarray, at_frame: np.ndarray) -> list:
@@ -263,17 +236,3 @@ class PointBuilder:
         return PointSection(
             self.made, self.landmark_guess, self.n_anchor, self.excluded, self.sensors.poses
         )
-
-
-def point_factors(run: TeamRun, config: GraphConfig, timeline: Timeline) -> PointSection:
-    """Every usable point measurement as a factor (offset bearings on sensor poses,
-    `SensorPoses`), with the landmarks' initial guesses (`PointSection`)."""
-    node_times, nearest = timeline.node_times, timeline.nearest
-    points = PointBuilder(run, config)
-    corrected = _corrected_range_bearings(run, node_times, config)
-    for i, m in enumerate(run.points):
-        if points.used(m):
-            k = nearest(m.robot, m.time)
-            kt = -1 if m.target < 0 else nearest(m.target, m.time)
-            points.add(m, k, kt, node_times, corrected.get(i))
-    return points.section()

@@ -13,101 +13,13 @@ calibrated covariance, and places the unplaced robot; a rejected one is counted 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import gtsam
-from tqdm import tqdm
 
 from graphloc.keys import pose_key
-from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov, cov6
-from graphloc.pipelines.team_graph.motion import Timeline, compose_steps, place_robot
-from graphloc.pipelines.team_graph.section import SectionFactors
+from graphloc.pipelines.team_graph.config import adjoint_cov
+from graphloc.pipelines.team_graph.motion import compose_steps
 from graphloc.run import TeamRun
-
-
-@dataclass
-class ScanSection:
-    """The scan section's output: the accepted registrations ((time, factor, 'scan_match')
-    each) and the rejections (`made`), and the robots they place (robot -> {node: (placed
-    robot, its node, body_T_body)})."""
-
-    made: SectionFactors
-    placed_via: dict
-
-
-def scan_match_factors(
-    run: TeamRun,
-    config: GraphConfig,
-    timeline: Timeline,
-    step_rel: list,
-    poses: dict,
-    tentative: dict,
-    progress: bool = False,
-) -> ScanSection:
-    """Register every unplaced scanning robot with a tentative pose onto a placed scanning
-    robot (`poses`: robot -> ([initial Pose3 per node], first seeded node) of the placed
-    robots), from each of its hypotheses in turn (`tentative`: the tracker's guess, then the
-    last set's candidates) until one is accepted, then every further common scan time of two
-    placed robots; a robot whose every registration is rejected stays unplaced (counted)."""
-    made = SectionFactors()
-    factors, skips = made.factors, made.skips
-    placed_via: dict = {}
-    poses = dict(poses)  # a robot placed here joins the placed ones for the scans after it
-    scanning = sorted({s.robot for s in run.scans})
-    if len(scanning) < 2 or not any(b in poses or b in tentative for b in scanning):
-        return ScanSection(made, placed_via)
-    used = set()
-    prepared: dict = {}  # scan path -> its PreparedCloud: each scan prepared once
-    for b in scanning:
-        if b in poses or b not in tentative:
-            continue
-        reasons = []
-        for a in (a for a in scanning if a in poses):
-            for guess in tentative[b]:  # the tracker's guess, then each candidate
-                link = register_pair(
-                    run, config, timeline, step_rel, poses, guess, a, b, skips, reasons, prepared
-                )
-                if link is not None:
-                    break
-            if link is not None:
-                t, factor, via, stamps = link
-                factors.append((t, factor, "scan_match"))
-                placed_via[b] = via
-                used.add(stamps)
-                poses[b] = place_robot(
-                    run, b, timeline.node_times, step_rel, config, {}, {b: via}, poses
-                )
-                break
-        if b not in placed_via and reasons:
-            skips.add(
-                "scan_match_rejected",
-                f"robot {run.robots[b].name}: no registration from its {len(tentative[b])} "
-                f"hypotheses was accepted ({reasons[0]}); left unplaced",
-            )
-    # every further common scan time of two placed robots, from the current initial poses
-    placed = [r for r in scanning if r in poses]
-    for i, a in enumerate(placed):
-        for b in placed[i + 1 :]:
-            scans_b = [s for s in run.scans if s.robot == b]
-            desc = f"registering {run.robots[b].name} onto {run.robots[a].name}"
-            for scan_b in tqdm(scans_b, desc=desc, disable=not progress, unit="scan"):
-                kb = timeline.nearest(b, scan_b.time)
-                if kb < 0:
-                    continue
-                scan_a = scan_near(run, a, scan_b.time)
-                if (scan_a.time, scan_b.time) in used:  # the pair placed b: already a factor
-                    continue
-                guess = (kb, scan_b.time, poses[b][0][kb], cov6(config.scan_hint_sigma))
-                reasons = []
-                link = register_pair(
-                    run, config, timeline, step_rel, poses, guess, a, b, skips, reasons, prepared
-                )
-                if link is None and reasons:
-                    skips.add("scan_match_rejected", reasons[0])
-                if link is not None and link[3] not in used:
-                    used.add(link[3])
-                    factors.append((link[0], link[1], "scan_match"))
-    return ScanSection(made, placed_via)  # the caller places those robots through their steps
 
 
 def scan_near(run: TeamRun, r: int, t: float):
