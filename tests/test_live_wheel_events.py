@@ -188,7 +188,7 @@ def test_wheel_runs_the_wheel_route_does_not_take_are_live_on_the_event_route(
     place every robot near the truth, smooth calls itself consistent, and the live team gives
     online's estimates. (Online's verdict is not asserted: iSAM2 relinearizes a wheel run at
     COARSE_PRECISION, `config.run_precision`, which leaves the rover's sensor ties beyond
-    their noise here -- build_graph's online pass did the same on this run.)"""
+    their noise here -- the deleted whole-run builder's online pass did the same on this run.)"""
     source = _wheel_team(tmp_path / "run", rover_placed)
     run = open_run(source)
     tables = run_tables(run)

@@ -97,7 +97,7 @@ class EventGraph:
         has feature or ellipse tables (`TeamGraph.camera`); wheels: the stamped robots whose
         relative poses are wheel-odometry grid steps (`live.wheel_steps`). iSAM2's precision:
         FINE_PRECISION with candidate sets, else `run_precision` of the relative poses (not the
-        wheel steps, as `build_graph`'s) before the first step."""
+        wheel steps: a wheel run is COARSE, `run_precision`) before the first step."""
         self.run, self.config, self.wheels = run, config, frozenset(wheels)
         self.points = EventPoints(run, config, set(observers))
         self.start = start_time
