@@ -225,3 +225,18 @@ def test_a_mixed_run_without_a_start_time_starts_where_the_reader_does(tmp_path)
     live = replay_live(source).finish()
     assert live.graph.run.start_time == run.start_time
     _same_estimates(live, online)
+
+
+@pytest.mark.slow
+def test_the_foreign_mixed_team_live_is_graphloc_online(tmp_path):
+    """tests/test_foreign_runs.py's mixed-team log (wheel rovers, a relative-pose rover, two
+    climbers, the ceiling camera's marker sets of four targets): live, every row pushed in
+    time order, gives online's estimates and causal estimates."""
+    config = gen.GeneratorConfig(
+        layout="mixed-team", seed=0, duration_s=40.0, landmark_heights="sensor"
+    )
+    source = gen.generate(tmp_path / "mixed", config)
+    run = open_run(source)
+    assert route(run, run_tables(run)) == "event" and not_live(run, run_tables(run)) == []
+    online = solve(team_graph(run, GraphConfig()), "online")
+    _same_estimates(replay_live(source).finish(), online)
