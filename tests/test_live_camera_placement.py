@@ -18,7 +18,7 @@ import graphloc
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
 from graphloc.live import replay_live
-from graphloc.live.coverage import not_live, route, run_tables
+from graphloc.live.coverage import route, run_tables
 from graphloc.live.event_rows import build_events
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph import GraphConfig, solve
@@ -70,7 +70,7 @@ def test_feature_tracks_of_a_camera_placed_by_its_marker_sets(feng_features, tmp
     tracks make the batch estimate better than the log without them."""
     run = open_run(feng_features / "features")
     tables = run_tables(run)
-    assert route(run, tables) == "event" and not not_live(run, tables)
+    assert route(run, tables) == "event"
     live, whole, emitted = _one_row_at_a_time(run)
     _same_graph(whole, live)
     assert sum(map(len, emitted)) == len(live.steps) and len(emitted[-1]) < len(live.steps)
@@ -102,7 +102,7 @@ def test_circle_sets_of_a_camera_placed_by_candidate_sets(crawler_beacon, tmp_pa
     Both are localized to within the teammate base's radius."""
     run = open_run(crawler_beacon)
     tables = run_tables(run)
-    assert route(run, tables) == "event" and not not_live(run, tables)
+    assert route(run, tables) == "event"
     live, whole, _ = _one_row_at_a_time(run)
     _same_graph(whole, live)
     circles = [o for o in run.observations if o.candidates.source == "circle"]

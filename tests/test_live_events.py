@@ -19,7 +19,7 @@ from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
 from graphloc.live import LiveTeam, NotLiveError, replay_live
 from graphloc.live.builder import build_live
-from graphloc.live.coverage import not_live, route, run_tables
+from graphloc.live.coverage import route, run_tables
 from graphloc.live.event_rows import _without_rows, build_events
 from graphloc.live.events import EventGraph
 from graphloc.keys import decode, pose_key
@@ -80,7 +80,7 @@ def test_event_graph_row_by_row_is_the_graph_of_the_whole_tables(runs, name, see
     assert [d.status for d in live.graph.decisions] == [d.status for d in ref.decisions]
     assert live.graph.anchored_from == ref.anchored_from
     # graphloc online's route for the loaded run: the event builder
-    assert not not_live(run, run_tables(run)) and route(run, run_tables(run)) == "event"
+    assert route(run, run_tables(run)) == "event"
 
 
 @pytest.mark.parametrize("name, seed", CASES)
@@ -125,7 +125,7 @@ def test_a_stream_never_decided_places_its_observer_by_the_guess_after_some_sets
         placed = live.graph.initial[pose_key(0, placing.k)]
         assert np.array_equal(placed.matrix(), best.matrix())
         assert not live.skips.counts.get("unanchored_robot")
-    assert not not_live(run, run_tables(run)) and route(run, run_tables(run)) == "event"
+    assert route(run, run_tables(run)) == "event"
     _same_graph(live.graph, build_live(run, GraphConfig()))
 
 
@@ -197,14 +197,13 @@ def test_a_step_starting_inside_built_steps_is_a_counted_skip(runs):
 def test_sets_of_a_target_nothing_places_are_counted_skips_on_the_live_route(runs):
     """feng-probabilistic with its static target's initial_pose removed: neither the climber
     nor its target has a pose, so no max-mixture places one through the other. The run is
-    live (`not_live` names nothing; `team_graph` builds it with the event route): every set a
+    live (`team_graph` builds it with the event route): every set a
     counted `target_unplaced` skip, and each robot nothing
     placed a counted `unanchored_robot` naming it, its poses left out (no factor)."""
     run = runs[("feng-probabilistic", 1)]
     unplaced = replace(
         run, robots=tuple(replace(r, initial_pose=None) if r.static else r for r in run.robots)
     )
-    assert not not_live(unplaced, run_tables(unplaced))
     graph = team_graph(unplaced, GraphConfig())
     sets = len(run.observations)
     assert graph.skips.counts["target_unplaced"] == sets
@@ -280,9 +279,12 @@ def test_a_stream_that_ends_before_its_guess_leaves_the_observer_out(tmp_path):
     assert online.metrics["skipped"]["counts"]["unanchored_robot"] > 0
 
 
-def test_an_event_team_counts_bad_rows_and_refuses_wheel_odometry(tmp_path):
+def test_an_event_team_counts_bad_rows_and_refuses_odometry_of_a_robot_without_its_table(
+    tmp_path,
+):
     """Rows of an event-clocked team are checked as a log's (a counted skip naming robot,
-    table, row and field); a table of the other route is refused naming it."""
+    table, row and field); wheel odometry of a robot whose manifest has no odometry table (its
+    pose times at its relative poses) is refused naming it."""
     source = tmp_path / "run"
     generate("feng-probabilistic", source, 1)
     team = LiveTeam.open(source)
@@ -298,5 +300,6 @@ def test_an_event_team_counts_bad_rows_and_refuses_wheel_odometry(tmp_path):
     assert counts.get("bad_relative_pose") == 1  # a zero quaternion
     examples = "\n".join(team.skips.examples)
     assert "robot 'climber', table 'markers', row 1: field 'v'" in examples
-    with pytest.raises(NotLiveError, match="'odometry' is not live in this team"):
-        team.push("climber", "odometry", {"time": 0.0, "sensor": "wheels", "v": 0, "omega": 0})
+    team.push("climber", "odometry", {"time": 0.0, "sensor": "odometry", "v": 0, "omega": 0})
+    with pytest.raises(NotLiveError, match="robot climber: wheel odometry, but its manifest"):
+        team.finish()

@@ -18,7 +18,7 @@ from scipy.stats import chi2
 
 import graphloc
 from graphloc.checkpoint import read_checkpoint_file
-from graphloc.live import LiveTeam, NotLiveError
+from graphloc.live import LiveTeam, NotLiveError, run_rows
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "foreign"))
 from live_generator import Scenario, generate, write_log  # noqa: E402
@@ -287,23 +287,37 @@ def test_checkpoint_then_restart_loses_nothing(logs, tmp_path):
     _same(again.finish(), online)
 
 
-def test_a_run_the_builder_does_not_cover_is_refused_naming_it(logs, tmp_path):
+def test_a_wheel_run_the_wheel_route_does_not_cover_takes_the_event_route(logs, tmp_path):
+    """A robot without an initial pose (nothing places it) and a wheel robot with a relative
+    pose of its own: the event route takes the run (`live.wheel_steps`); the relative pose is
+    a counted skip, the unplaced robot a counted `unanchored_robot` with no estimate, and the
+    live team gives `graphloc online`'s estimates."""
     log, run_dir, _ = logs["loop"]
     manifest = json.loads((run_dir / "manifest.json").read_text())
     manifest["robots"][1].pop("initial_pose")
     manifest["robots"][2]["tables"]["relative_pose3"] = "rover2/relative_pose3.csv"
+    sensor = next(s["name"] for s in manifest["robots"][2]["sensors"] if s["type"] == "odometry")
     other = tmp_path / "run"
     shutil.copytree(run_dir, other)
     (other / "manifest.json").write_text(json.dumps(manifest))
     (other / "rover2/relative_pose3.csv").write_text(
         "time,sensor,time0,tx,ty,tz,qx,qy,qz,qw,sigma_rx,sigma_ry,sigma_rz,sigma_tx,sigma_ty,"
-        "sigma_tz\n"
+        f"sigma_tz\n1.0,{sensor},0.5,0.1,0,0,0,0,0,1,0.01,0.01,0.01,0.01,0.01,0.01\n"
     )
-    with pytest.raises(NotLiveError) as info:
-        LiveTeam.open(other)
-    text = str(info.value)
-    assert "robot Unit-B.2: no initial_pose" in text
-    assert "robot rover2: table 'relative_pose3'" in text
+    team = LiveTeam.open(other)
+    for row in run_rows(other):
+        team.push(*row)
+    result = team.finish()
+    online = graphloc.run_team(other, tmp_path / "online", "online").result
+    for name in ("estimate", "causal"):  # the unplaced robot's rows all NaN
+        for a, b in zip(getattr(result, name), getattr(online, name)):
+            assert a.shape == b.shape and np.array_equal(np.isnan(a), np.isnan(b))
+            assert np.nanmax(np.abs(a - b), initial=0.0) <= 1e-9
+    for counts in (team.skips.counts, online.graph.skips.counts):
+        assert counts["relative_pose_of_wheel_robot"] == 1
+    unanchored = result.graph.skips.counts["unanchored_robot"]
+    assert unanchored == online.graph.skips.counts["unanchored_robot"] > 0
+    assert np.isnan(result.estimate[1]).all() and np.isfinite(result.estimate[0]).all()
 
 
 @pytest.mark.slow

@@ -20,7 +20,7 @@ from graphloc.datasets.scenarios import generate
 from graphloc.keys import decode
 from graphloc.live import LiveTeam, replay_live
 from graphloc.live.builder import build_live
-from graphloc.live.coverage import not_live, route, run_tables
+from graphloc.live.coverage import route, run_tables
 from graphloc.live.event_rows import _without_rows, build_events
 from graphloc.live.events import EventGraph
 from graphloc.pipelines.team_graph import GraphConfig, run_precision
@@ -81,7 +81,7 @@ def test_placed_by_bearings_row_by_row_is_the_whole_run_graph(runs, seed):
     # the climber's first snapshot is at the first step: every step waits for its placement
     assert sum(map(len, emitted[:-1])) == 0 and len(emitted[-1]) == len(ref.steps)
     tables = run_tables(run)
-    assert route(run, tables) == "event" and not not_live(run, tables)
+    assert route(run, tables) == "event"
     _same_graph(ref, build_live(run, config))  # smooth's and online's route
 
 
@@ -182,13 +182,12 @@ def test_a_team_without_rows_checkpoints_and_finishes_empty(runs, tmp_path):
 
 def test_a_robot_nothing_can_place_is_counted_naming_it(runs):
     """Without its bearings the climber has nothing to place it (no candidate sets, no
-    resection): the run is live all the same (`not_live` finds nothing), and `EventGraph`
+    resection): the run is live all the same, and `EventGraph`
     leaves the climber out at `finish` -- a counted `unanchored_robot` naming it, its factors
     out of the graph, no initial value of its poses."""
     run = open_run(runs / "1")
     tables = run_tables(run)
     tables["climber"] = tables["climber"] - {"bearing"}
-    assert not not_live(run, tables)
     climber = [r.name for r in run.robots].index("climber")
     blind = replace(run, points=tuple(p for p in run.points if p.robot != climber))
     graph = build_events(blind, GraphConfig())

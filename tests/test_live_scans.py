@@ -19,7 +19,7 @@ from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
 from graphloc.live import LiveTeam, replay_live
 from graphloc.live.builder import build_live
-from graphloc.live.coverage import not_live, route, run_tables
+from graphloc.live.coverage import route, run_tables
 from graphloc.live.event_rows import build_events
 from graphloc.mapping.io import read_scan
 from graphloc.mapping.odometry import ScanOdometry, run_odometry
@@ -129,7 +129,7 @@ def test_one_scanner_is_live_and_its_graph_is_the_whole_runs(scanner_log):
     whole tables (what `graphloc smooth` solves)."""
     run = open_run(scanner_log)
     tables = run_tables(run)
-    assert route(run, tables) == "event" and not not_live(run, tables)
+    assert route(run, tables) == "event"
     config = GraphConfig()
     reference = build_live(run, config)  # the whole tables at once
     assert reference.factor_types.count("odometry") == len(run.scans) - 1
@@ -192,7 +192,7 @@ def test_dual_room_registration_is_causal(room):
     steps emitted before the end do not change when later rows arrive (the run cut after the
     placement emits the same steps), and the graph holds the whole-run route's factors."""
     run, config = open_run(room), GraphConfig()
-    assert not not_live(run, run_tables(run)) and route(run, run_tables(run)) == "event"
+    assert route(run, run_tables(run)) == "event"
     emitted = []
     graph = build_events(run, config, emitted)
     reference = team_graph(run, config)

@@ -38,7 +38,7 @@ import numpy as np
 
 from graphloc.io import SkipReport
 from graphloc.keys import pose_key
-from graphloc.live.coverage import NotLiveError, not_live, route, run_tables
+from graphloc.live.coverage import NotLiveError, route, run_tables, wheel_problems
 from graphloc.live.robot_state import RobotState
 from graphloc.live.waiting import WaitingPoints
 from graphloc.pipelines.team_graph.config import GraphConfig, run_precision
@@ -55,7 +55,7 @@ class LiveGraph:
     its variables in graph.initial), `finish()` the rest."""
 
     def __init__(self, run: TeamRun, config: GraphConfig, start_time: float | None):
-        problems = not_live(run, {r.name: ("odometry",) for r in run.robots})
+        problems = wheel_problems(run, {r.name: ("odometry",) for r in run.robots})
         if problems:
             raise NotLiveError("not live yet: " + "; ".join(problems))
         self.run, self.config = run, config
@@ -293,9 +293,9 @@ class LiveGraph:
 def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:
     """A loaded run's graph built by `LiveGraph` (each robot's odometry at once, then the
     point measurements in the run's order: the graph does not depend on how the rows are split
-    into calls): the graph `graphloc online` solves for a run `not_live` finds nothing in, the
-    live API's route; an event-clocked run's by `live.event_rows.build_events` (NotLiveError for
-    rows it refuses as a live team would: steps that overlap built ones, `live.events`)."""
+    into calls) on the wheel route, an event-clocked run's by `live.event_rows.build_events`
+    (`coverage.route`): the graph `graphloc smooth` / `online` solve (`runner.team_run.team_graph`)
+    and the live API's; rows a live team could not take as they come are counted skips."""
     if route(run, run_tables(run)) == "event":  # event-clocked robots (`live.events`)
         from graphloc.live.event_rows import build_events
 

@@ -1,15 +1,15 @@
-"""What the live builders cover: the tables they take rows of, and what keeps a run off them
-(`not_live`), with why -- the sections that need rows after the step they shape. Two routes
+"""What the live builders cover: the tables they take rows of, and which of the two routes a
+run takes (`route`; `wheel_problems`: why a wheel-odometry run is not on the first). Two routes
 (`route`): wheel-odometry robots with point measurements (`graphloc.live.builder.LiveGraph`),
-and event-clocked robots -- relative poses or scans (KISS-ICP steps, `live.scan_feed`), no
-wheel odometry -- with point measurements, placed by the candidate sets they see of a target
-with a known pose, by the inter-robot scan registration those sets hint, by mutual bearings or
-by resection on their bearings of placed static robots, or, seen as circles (by a camera placed,
-or held until it is) or as candidate sets by an observer with a known pose, by max-mixtures
-(`live.event_sets`, `live.event_camera`), with the camera's feature tracks
-(`graphloc.live.events.EventGraph`, `live.event_scans`, `live.event_points`). Every table of
-docs/log_format.md has a route; what keeps a run off them is how its robots and tables combine
-(`not_live`)."""
+and event-clocked robots -- relative poses, scans (KISS-ICP steps, `live.scan_feed`) or wheel
+odometry over the grid (`live.wheel_steps`) -- with point measurements, placed by the
+candidate sets they see of a target with a known pose, by the inter-robot scan registration
+those sets hint, by mutual bearings or by resection on their bearings of placed static robots,
+or, seen as circles or candidate sets by an observer with a known pose, by max-mixtures
+(`live.event_sets`), with the camera's feature tracks (`graphloc.live.events.EventGraph`,
+`live.event_scans`, `live.event_points`, `live.event_camera`). Every table of
+docs/log_format.md has a route, and every run is built live: what a route cannot use is a
+counted skip."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from graphloc.run import TeamRun
 
 # the sections `LiveGraph` builds, and the tables it takes rows of
 LIVE_TABLES = ("odometry", "range", "bearing", "range_bearing", "groundtruth")
-# the tables whose rows make `EventGraph`'s route (`route` "event"), and all it takes
+# the tables whose rows make `EventGraph`'s route (`route` "event")
 EVENT_ROWS = (
     "relative_pose",
     "relative_pose3",
@@ -27,21 +27,26 @@ EVENT_ROWS = (
     "ellipses",
     "features",
 )
-# ... and the point measurements it takes with them
-EVENT_TABLES = EVENT_ROWS + ("range", "bearing", "range_bearing", "groundtruth")
+# ... and all it takes: with the point measurements, wheel robots' odometry (`live.wheel_steps`)
+EVENT_TABLES = EVENT_ROWS + ("odometry", "range", "bearing", "range_bearing", "groundtruth")
 
 
 class NotLiveError(ValueError):
-    """A run that needs sections the live builder does not build yet (`not_live`)."""
+    """A row or table the live team cannot take as it comes (e.g. a table no route reads, a
+    topic of the wrong table), named."""
 
 
 def route(run: TeamRun, tables: dict) -> str:
-    """ "event" for a run with relative poses, scans, candidate sets (markers, candidates,
-    ellipses) or feature tracks and no wheel odometry (its robots' pose times at their rows'
-    times: `EventGraph`), else "wheel" (`LiveGraph`)."""
+    """ "wheel" (`LiveGraph`) for a run of wheel-odometry robots with an initial pose and point
+    measurements that the wheel route takes whole (`wheel_problems` finds nothing: MRCLAM and
+    the logs converted from it), else "event" (`EventGraph`): relative poses, scans, candidate
+    sets or camera tables, with or without wheel-odometry robots (their grid steps as relative
+    poses, `live.wheel_steps`), and the wheel runs the wheel route does not take (robots
+    without an initial pose or an odometry table, static robots' measurements)."""
     named = set().union(*map(set, tables.values())) if tables else set()
-    event = named & set(EVENT_ROWS)
-    return "event" if event and "odometry" not in named else "wheel"
+    if named & set(EVENT_ROWS) or wheel_problems(run, tables):
+        return "event"
+    return "wheel"
 
 
 def tables_of(kind: str) -> tuple:
@@ -49,33 +54,27 @@ def tables_of(kind: str) -> tuple:
     return EVENT_TABLES if kind == "event" else LIVE_TABLES
 
 
-def not_live(run: TeamRun, tables: dict) -> list[str]:
-    """What keeps a run (its robots, and each robot's tables by name) off the live builders, one
-    line each; empty: the run is live (on its `route`)."""
-    if route(run, tables) == "event":  # a robot nothing places is left out as it goes
-        # (`unanchored_robot`), a camera's feature tracks and circle sets wait for its placement
-        # (`live.event_camera`; never placed: `unplaced_camera`), both counted at `finish`;
-        # candidate sets take one placement rule over an observer's streams (`live.event_sets`)
-        return []
+def wheel_problems(run: TeamRun, tables: dict) -> list[str]:
+    """What keeps a run off the wheel route (`LiveGraph`), one line each: tables of the event
+    route, and the robots whose sections need rows after the step they shape there (the event
+    route takes them: `route`)."""
     out = []
-    for r, robot in enumerate(run.robots):
-        for table in sorted(set(tables.get(robot.name, ())) & set(EVENT_ROWS)):
-            out.append(
-                f"robot {robot.name}: table {table!r}: wheel odometry and event-clocked robots "
-                f"(relative poses, scans, candidate sets, camera tables) in one run"
-            )
+    for robot in run.robots:
+        mine = set(tables.get(robot.name, ()))
+        for table in sorted(mine & set(EVENT_ROWS)):
+            out.append(f"robot {robot.name}: table {table!r} of the event route")
         if robot.initial_pose is None:
             out.append(
                 f"robot {robot.name}: no initial_pose: its placement (decided candidate sets, "
                 f"mutual bearings, resection, scan registration) and alternative starts"
             )
-        measured = sorted(set(tables.get(robot.name, ())) & {"range", "bearing", "range_bearing"})
+        measured = sorted(mine & {"range", "bearing", "range_bearing"})
         if robot.static and measured:
             out.append(
                 f"robot {robot.name}: static, with tables {measured}: its measurements join its "
                 f"one pose at the start (a step long past when they arrive)"
             )
-        if not robot.static and "odometry" not in tables.get(robot.name, ()):
+        if not robot.static and "odometry" not in mine:
             out.append(
                 f"robot {robot.name}: no odometry table: event-clocked pose times (poses at "
                 f"its measurement times)"
@@ -114,7 +113,7 @@ def max_mixtures_possible(run: TeamRun, tables: dict) -> bool:
 
 
 def run_tables(run: TeamRun) -> dict:
-    """The tables a loaded run's rows came from, per robot name, as far as `not_live` asks."""
+    """The tables a loaded run's rows came from, per robot name, as far as `route` asks."""
     tables: dict = {robot.name: set() for robot in run.robots}
     for r, robot in enumerate(run.robots):
         if len(run.velocity[r]):

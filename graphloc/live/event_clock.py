@@ -72,12 +72,17 @@ def final_end(robot: EventRobot, watermark: float) -> float:
 
 
 def motion_bound(robot: EventRobot, watermark: float) -> float:
-    """Steps up to this time may be emitted as far as this robot is concerned."""
+    """Steps up to this time may be emitted as far as this robot is concerned: before the
+    final pose times, and before the first factor of a relative pose not made yet (its end,
+    or the first pose inside it: a measurement's, where the step is split)."""
     if robot.robot.static:
         return np.inf
     end = final_end(robot, watermark)
     if robot.done < len(robot.motions):
-        end = min(end, min(m.t1 for m in robot.motions[robot.done :]) - 1e-9)
+        times = robot.times
+        for m in robot.motions[robot.done :]:
+            inside = times[np.searchsorted(times, m.t0 + 1e-6, "right") :][:1]
+            end = min(end, min([m.t1, *inside]) - 1e-9)
     return end - 1e-9 if np.isfinite(end) else end
 
 

@@ -3,7 +3,10 @@ bearings place (seed 000, 000_05137a0a9c449be3.txt; `team_graph.formation`):
 
 - each range / bearing / range-bearing row joins its poses once their times are final (its
   robot's and its target's, `event_clock.final_end`), in arrival order, through the whole
-  run's `points.PointBuilder` (the same factors, landmark guesses and sensor poses);
+  run's `points.PointBuilder` (the same factors, landmark guesses and sensor poses); a row
+  between static robots (their one pose at the start) or of a static robot and a landmark
+  enters with the step of its own time, so whenever the steps before it were emitted (live,
+  or a loaded run at once) it is in the same step;
 - a static robot without an initial pose is placed by mutual bearings (Sec. III-A,
   `formation.place_by_mutual_bearings`) as soon as the rows taken so far place it -- the first
   row of each pair, as the whole run takes it;
@@ -74,9 +77,11 @@ class EventPoints:
                 k = clock.nearest(m.robot, m.time)
                 kt = -1 if m.target < 0 else clock.nearest(m.target, m.time)
                 builder.add(m, k, kt, clock.node_times)
+            robots = self.run.robots
+            static = robots[m.robot].static and (m.target < 0 or robots[m.target].static)
             for t, f, kind in builder.made.factors[self.made :]:
-                self.made += 1
-                emit(t, (2, self.made), f, kind)
+                self.made += 1  # a static robot's row: in the step of its own time
+                emit(max(t, m.time) if static else t, (2, self.made), f, kind)
 
     def place(self, robots: list, clock, seed, finished: bool) -> None:
         """Place the robots the rows taken so far place (module docstring): seed(robot, node,
@@ -137,15 +142,19 @@ class EventPoints:
                 out = min(out, clock_time(robot, self.config, self.first_set[robot.r]))
         return out
 
-    def initials(self, initial: dict) -> None:
-        """The landmark guesses and offset sensors' poses whose pose has an initial value."""
+    def initials(self, initial: dict, alternatives: list = ()) -> None:
+        """The landmark guesses and offset sensors' poses whose pose has an initial value, and
+        the sensors' poses of the guessed alternatives (`TeamGraph.guessed_alternatives`, as
+        the finished graph's `with_sensors` gives them: a pass the live team steps now reads
+        its own sensor poses, not the guess's)."""
         builder = self.builder
         for lkey, guess in builder.landmark_guess.items():
             if lkey not in initial:
                 landmark_initial(initial, lkey, guess)
-        for key, (body, E) in builder.sensors.poses.items():
-            if key not in initial and body in initial:
-                initial[key] = initial[body].compose(E)
+        for values in (initial, *alternatives):
+            for key, (body, E) in builder.sensors.poses.items():
+                if key not in values and body in values:
+                    values[key] = values[body].compose(E)
 
 
 def clock_time(robot, config: GraphConfig, t: float) -> float:

@@ -1,8 +1,11 @@
 """`EventRows`: an event-clocked team's checked rows (`rows.RowChecker` with the event tables)
-into its `events.EventGraph`, with the interface `LiveTeam` drives (`point`, `advance`,
-`finish`, `graph`, `start`, `run_so_far`): relative poses and point measurements go in as they
-come, a scan as the relative pose KISS-ICP makes of it from the scanner's previous one
-(`scan_feed.ScanFeed`); `markers`, `candidates`, `ellipses` and `features` rows are held until
+into its `events.EventGraph`, with the interface `LiveTeam` drives (`velocity`, `point`,
+`advance`, `finish`, `graph`, `start`, `run_so_far`): relative poses and point measurements go
+in as they come, a scan as the relative pose KISS-ICP makes of it from the scanner's previous
+one (`scan_feed.ScanFeed`), a wheel-odometry robot's odometry as the relative pose of each grid
+step it completes (`wheel_steps.WheelSteps`; with no start in the manifest, the run's start is
+the loader's -- the latest first odometry row of the robots with an odometry table -- and the
+relative poses wait for it); `markers`, `candidates`, `ellipses` and `features` rows are held until
 the watermark passes their time (every row of their image or set has arrived), then made into
 candidate sets and feature pixels by the loader's own front ends
 (`log_observations.marker_observations`: the
@@ -28,6 +31,7 @@ from graphloc.keys import decode
 from graphloc.live.coverage import NotLiveError, max_mixtures_possible, run_tables
 from graphloc.live.events import EventGraph
 from graphloc.live.scan_feed import ScanFeed
+from graphloc.live.wheel_steps import WheelSteps, skip_relative, wheel_motions
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
 from graphloc.run import TeamRun
@@ -43,7 +47,12 @@ class EventRows:
     def __init__(self, setup, tables: dict, skips):
         run = setup.run
         self.setup, self.robots = setup, run.robots
-        stamped = {
+        self.wheels = {  # moving robots with wheel odometry (a static robot's is not used)
+            r: WheelSteps(r, run, setup.config)
+            for r, robot in enumerate(run.robots)
+            if "odometry" in tables.get(robot.name, ()) and not robot.static
+        }
+        stamped = set(self.wheels) | {
             r
             for r, robot in enumerate(run.robots)
             if set(RELATIVE + ("scans",)) & set(tables.get(robot.name, ()))
@@ -55,7 +64,9 @@ class EventRows:
         }
         camera = any({"features", "ellipses"} & set(t) for t in tables.values())
         camera = camera or max_mixtures_possible(run, tables)
-        self.events = EventGraph(run, setup.config, setup.start_time, stamped, observers, camera)
+        self.events = EventGraph(
+            run, setup.config, setup.start_time, stamped, observers, camera, set(self.wheels)
+        )
         self.graph = self.events.graph
         self.sink = Sink("skip", skips)
         self.sensors = [list(robot.sensors) for robot in run.robots]
@@ -64,8 +75,10 @@ class EventRows:
         self.candidates: dict = {}  # (time, observer, sensor, target) -> [record]
         self.ellipses: list = []  # (observer, target, record, where)
         self.pixels: list = []  # features: (robot, record)
-        self.motions: list = []
+        self.motions: list = []  # relative poses and scan steps, in arrival order
+        self.held: list = []  # ... waiting for the run's start (`_start`)
         self.points: list = []
+        self.waiting: list = []  # point rows not in the graph yet, in arrival (time) order
         self.scans = ScanFeed(run, setup.manifest.root, skips, SkipReport())
 
     @property
@@ -73,23 +86,66 @@ class EventRows:
         return self.events.start
 
     def velocity(self, r: int, rows) -> None:
-        raise NotLiveError(
-            "wheel odometry in an event-clocked team (relative poses, candidate sets)"
-        )
+        """Wheel-odometry rows (time, v, omega), one (3,) or many (N,3), of robot r: the grid
+        steps they complete into the graph as relative poses."""
+        wheel = self.wheels.get(r)
+        if wheel is None:
+            if self.robots[r].static:  # its one pose is at the start (`LiveGraph` alike)
+                return
+            raise NotLiveError(
+                f"robot {self.robots[r].name}: wheel odometry, but its manifest has no "
+                f"odometry table (its pose times are at its relative poses or measurements)"
+            )
+        wheel.add(rows)
+        start = self._start()
+        if start is not None:
+            for _, m in wheel.steps(start):
+                self.events.motion(m)
+
+    def _start(self, final: bool = False) -> float | None:
+        """The run's start once known: the manifest's, else (wheel robots) the latest first
+        odometry row of the robots with an odometry table (`graphloc_log.team_run`), once each
+        has one (`final`: of those that have one), else the event route's own (the first
+        relative pose's). The relative poses held until then go in, then every wheel robot's
+        steps so far."""
+        events = self.events
+        if events.start is not None or not self.wheels:
+            return events.start
+        firsts = [w.first for w in self.wheels.values() if w.first is not None]
+        if not firsts or (len(firsts) < len(self.wheels) and not final):
+            return None
+        events.start = max(firsts)
+        for m in self.held:
+            events.motion(m)
+        self.held = []
+        for wheel in self.wheels.values():
+            for _, m in wheel.steps(events.start):
+                events.motion(m)
+        return events.start
+
+    def _motion(self, m, table: str) -> None:
+        """A relative pose (a row or a scan step) into the graph, or held for the start; a
+        wheel robot's is a counted skip (`wheel_steps.skip_relative`)."""
+        if m.robot in self.wheels:
+            skip_relative(self.sink.report, self.robots[m.robot], f"{table!r} row")
+            return
+        self.motions.append(m)
+        if self.wheels and self._start() is None:
+            self.held.append(m)
+        else:
+            self.events.motion(m)
 
     def point(self, item) -> None:
         """A checked row: (robot index, (time, table, item))."""
         r, (t, table, row) = item
         if table in RELATIVE:
-            self.motions.append(row)
-            self.events.motion(row)
+            self._motion(row, table)
         elif table == "scans":
             made = self.scans.add(r, *row)
             if made is not None:
                 scan, step = made
                 if step is not None:
-                    self.motions.append(step)
-                    self.events.motion(step)
+                    self._motion(step, table)
                 self.events.scan(scan)
         elif table == "markers":
             sensor = self.sensors[r].index(row.sensor)
@@ -98,9 +154,9 @@ class EventRows:
         elif table == "candidates":
             key, record = row
             self.candidates.setdefault(key, []).append(record)
-        elif table in POINT_TABLES:
+        elif table in POINT_TABLES:  # with the sets and pixels of its time (`_sets`)
             self.points.append(row)
-            self.events.point(row)
+            self.waiting.append(row)
         elif table == "ellipses":
             self.ellipses.append(row)
         elif table == "features":
@@ -113,16 +169,25 @@ class EventRows:
         return self.events.advance(watermark)
 
     def finish(self) -> list:
+        self._start(final=True)
+        for m in self.held:  # no wheel robot had a row: the event route's own start
+            self.events.motion(m)
+        self.held = []
         self._sets(np.inf)
         return self.events.finish()
 
     def run_so_far(self):
-        """The run of the rows that arrived (the loaded run's motions and candidate sets)."""
+        """The run of the rows that arrived (the loaded run's odometry, motions and candidate
+        sets)."""
         events = self.events
         start = np.nan if events.start is None else float(events.start)
+        velocity = [np.zeros((0, 3)) for _ in self.robots]
+        for r, wheel in self.wheels.items():
+            velocity[r] = wheel.rows.view.copy()
         return replace(
             self.setup.run,
             start_time=start,
+            velocity=tuple(velocity),
             motions=tuple(self.motions),
             observations=tuple(events.arrived),
             points=tuple(self.points),
@@ -135,9 +200,10 @@ class EventRows:
 
     def _sets(self, watermark: float) -> None:
         """The images, logged sets and ellipses before `watermark` as candidate sets, in the
-        loader's order (marker sets, logged ones, circles; by time and observer), and the
-        feature pixels before it (`camera_tables.single_tracks`, `feature_observations`), into
-        the graph in time order."""
+        loader's order (marker sets, logged ones, circles; by time and observer), the feature
+        pixels before it (`camera_tables.single_tracks`, `feature_observations`) and the point
+        rows before it, into the graph in time order (a point row arrives before the sets of
+        an earlier image, made once the window passes it)."""
         manifest, noise = self.setup.manifest, self.setup.noise
         out: list = []
         done = [m for m in self.markers if m[0] < watermark]
@@ -166,25 +232,44 @@ class EventRows:
             self.pixels = [p for p in self.pixels if p[1].time >= watermark]
             pixels = single_tracks(pixels, manifest, self.sink, self._where)
             features = feature_observations(pixels, self.robots, manifest, noise)
-        sets = ((o.time, 0, o) for o in out)  # at one time: sets, then pixels (`build_events`)
-        for _, kind, row in heapq.merge(sets, ((f.time, 1, f) for f in features), key=_order):
-            (self.events.observation if kind == 0 else self.events.feature)(row)
+        points = [m for m in self.waiting if m.time < watermark]
+        self.waiting = self.waiting[len(points) :]
+        # at one time: sets, pixels, then point rows (`build_events`)
+        sets = ((o.time, 0, o) for o in out)
+        pixels = ((f.time, 1, f) for f in features)
+        rows = heapq.merge(sets, pixels, ((m.time, 2, m) for m in points), key=_order)
+        take = (self.events.observation, self.events.feature, self.events.point)
+        for _, kind, row in rows:
+            take[kind](row)
 
 
 def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
-    """A loaded run's graph built by `EventGraph` (its relative poses, candidate sets and point
-    measurements merged in time order, a relative pose at its end time): the graph `graphloc
-    online` solves for an event-clocked run (`coverage.event_route`). steps: None, or a list
-    that gets, after each row, the steps it completed (`advance` at the row's time: the live
-    order)."""
-    stamped = {m.robot for m in run.motions}
+    """A loaded run's graph built by `EventGraph` (its relative poses, wheel robots' grid
+    steps, candidate sets and point measurements merged in time order, a relative pose at its
+    end time, a grid step at the odometry row that completes it: `wheel_steps`): the graph
+    `graphloc online` solves for an event-clocked run (`coverage.route`). steps: None, or a
+    list that gets, after each row, the steps it completed (`advance` at the row's time: the
+    live order)."""
+    wheel = wheel_motions(run, config)
+    stamped = {m.robot for m in run.motions} | {m.robot for _, m in wheel}
     observers = {o.robot for o in run.observations}
     camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
     camera = camera or max_mixtures_possible(run, run_tables(run))
-    live = EventGraph(_without_rows(run), config, run.start_time, stamped, observers, camera)
+    wheels = {m.robot for _, m in wheel}
+    live = EventGraph(
+        _without_rows(run), config, run.start_time, stamped, observers, camera, wheels
+    )
+    for m in run.motions:
+        if m.robot in wheels:
+            skip_relative(live.graph.skips, run.robots[m.robot])
     # each table in time order (a robot's relative poses and its scans' KISS-ICP steps are
-    # two tables: merged by end time, as a live team's window orders them)
-    motions = sorted((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
+    # two tables: merged by end time, as a live team's window orders them); a wheel robot's
+    # grid step at the odometry row that completes it
+    relative = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
+    motions = sorted(
+        [e for e in relative if e[3].robot not in wheels]
+        + [(t, 0, len(run.motions) + i, m) for i, (t, m) in enumerate(wheel)]
+    )
     scans = sorted((s.time, 1, i, s) for i, s in enumerate(run.scans))
     sets = sorted((o.time, 2, i, o) for i, o in enumerate(run.observations))
     pixels = sorted((f.time, 3, i, f) for i, f in enumerate(run.features))
@@ -231,4 +316,7 @@ def _drop_unplaced(graph: TeamGraph, robots: set) -> None:
 
 
 def _without_rows(run: TeamRun) -> TeamRun:
-    return replace(run, motions=(), observations=(), features=(), scans=(), points=())
+    velocity = tuple(np.zeros((0, 3)) for _ in run.robots)
+    return replace(
+        run, velocity=velocity, motions=(), observations=(), features=(), scans=(), points=()
+    )

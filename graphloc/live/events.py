@@ -17,8 +17,9 @@ final times; rows that would change a final pose time or step (a step starting i
 already built, rows out of time order) are refused as they arrive: counted skips naming them
 (`relative_pose_late`, `point_late`, `set_late`), as any late row of a live team. A relative
 pose becomes its between factors once its poses are final; a candidate set joins its poses
-once those near it are final, goes through its stream's tracker (the decision uses the sets
-before it only) and becomes the factors `candidates.stream_factors` makes of it.
+once those near it and the steps into them are final, goes through its stream's tracker (the
+decision uses the sets before it only) and becomes the factors `candidates.stream_factors`
+makes of it.
 A step is emitted once every pose time up to it is final and no row that could add a factor to
 it is still to come.
 
@@ -89,12 +90,15 @@ class EventGraph:
         stamped,
         observers=frozenset(),
         camera=False,
+        wheels=frozenset(),
     ):
         """stamped: the robots with a relative-pose table (their pose times at its stamps);
         observers: those with candidate sets (markers, candidates, ellipses); camera: the run
-        has feature or ellipse tables (`TeamGraph.camera`). iSAM2's precision: FINE_PRECISION
-        with candidate sets, else `run_precision` of the relative poses before the first step."""
-        self.run, self.config = run, config
+        has feature or ellipse tables (`TeamGraph.camera`); wheels: the stamped robots whose
+        relative poses are wheel-odometry grid steps (`live.wheel_steps`). iSAM2's precision:
+        FINE_PRECISION with candidate sets, else `run_precision` of the relative poses (not the
+        wheel steps: a wheel run is COARSE, `run_precision`) before the first step."""
+        self.run, self.config, self.wheels = run, config, frozenset(wheels)
         self.points = EventPoints(run, config, set(observers))
         self.start = start_time
         self.start_from_rows = False  # the start came from the first relative pose
@@ -320,12 +324,16 @@ class EventGraph:
                 robot.steps[y] = (rel, cov)
 
     def _take_sets(self, watermark: float) -> None:
-        """Candidate sets whose poses are final, in arrival order, through their streams."""
+        """Candidate sets whose poses and the steps into them are final (the tracker takes
+        the odometry between sets: `motion_bound`), in arrival order, through their streams."""
         tol = self.config.sync_tolerance
         while self.queue:
             n, o = self.queue[0]
-            observer, target = self.robots[o.robot], self.robots[o.target]
-            if o.time + tol >= min(final_end(observer, watermark), final_end(target, watermark)):
+            ends = [
+                min(final_end(robot, watermark), motion_bound(robot, watermark))
+                for robot in (self.robots[o.robot], self.robots[o.target])
+            ]
+            if o.time + tol >= min(ends):
                 return
             self.queue.popleft()
             take_set(self, n, o)
@@ -340,14 +348,16 @@ class EventGraph:
         due = sorted(t for t in self.pending if t <= bound)
         graph = self.graph
         if (due or bound == np.inf) and not np.isfinite(graph.precision):  # no candidate sets:
-            motions = tuple(m for robot in self.robots for m in robot.motions)  # the steps so far
+            motions = tuple(  # the steps so far
+                m for robot in self.robots if robot.r not in self.wheels for m in robot.motions
+            )
             graph.precision = run_precision(replace(self.run, motions=motions, observations=()))
         steps = []
         for t in due:
             if t <= self.emitted:
                 raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
             initial_upto(graph, self.config, self.robots, t)
-            self.points.initials(graph.initial)
+            self.points.initials(graph.initial, graph.guessed_alternatives)
             self.features.priors(self, t)
             self._frame_points()
             group = sorted(self.pending.pop(t), key=lambda item: item[0])
@@ -359,7 +369,7 @@ class EventGraph:
             steps.append(step)
         if bound == np.inf:
             initial_upto(graph, self.config, self.robots, np.inf)
-            self.points.initials(graph.initial)
+            self.points.initials(graph.initial, graph.guessed_alternatives)
             self._frame_points()
         return steps
 

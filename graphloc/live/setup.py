@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.io import MANIFEST, SkipReport, read_landmarks, read_manifest
-from graphloc.live.coverage import NotLiveError, not_live
 from graphloc.manifest import Manifest, Robot, Sensor, check_noise_params
 from graphloc.pipelines.team_graph.config import GraphConfig, default_lag
 from graphloc.pipelines.team_graph.options import RunOptions
@@ -50,9 +49,6 @@ def live_setup(source: Path, options: RunOptions | None = None) -> LiveSetup:
         raise FileNotFoundError(
             f"{source}: a live team opens a log directory ({MANIFEST}) or an MRCLAM directory"
         )
-    problems = not_live(run, tables)
-    if problems:
-        raise NotLiveError(f"{source}: not live yet: " + "; ".join(problems))
     config = opts.graph_config()
     lag = opts.lag if opts.lag is not None else default_lag(run, config)
     config = replace(config, lag=float(lag))
