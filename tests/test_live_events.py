@@ -156,6 +156,8 @@ def test_the_steps_up_to_a_time_do_not_change_when_later_rows_exist(runs, name, 
             if key not in live.graph.initial:  # a robot not placed by the cut: held
                 assert decode(key)[1] not in live.graph.anchored_from
                 continue
+            if live.graph.anchored_from.get(decode(key)[1], -np.inf) > early[-1][0]:
+                continue  # placed after these steps (a stream placed when the cut run ended)
             a, b = live.graph.initial[key], whole.initial[key]
             a, b = (a.matrix(), b.matrix()) if isinstance(a, gtsam.Pose3) else (a, b)
             assert np.array_equal(np.asarray(a), np.asarray(b))
@@ -259,24 +261,29 @@ def test_kaushik_live_online_and_smooth_take_one_graph(tmp_path):
     assert np.isfinite(smooth.estimate[0]).all()
 
 
-def test_a_stream_that_ends_before_its_guess_leaves_the_observer_out(tmp_path):
-    """kaushik-p3p-error with fewer frames than `guess_after_sets`, none decided: nothing
-    places the camera; live, online and smooth leave it out, counted `unanchored_robot`
-    naming why, and solve the rest (its factors out of the graph: no initial values)."""
+def test_a_stream_that_ends_before_its_guess_places_the_observer_at_its_last_set(tmp_path):
+    """kaushik-p3p-error with fewer frames than `guess_after_sets`, none decided: when the run
+    ends, the camera is placed at its stream's last set by the tracker's guess there, every
+    candidate of that set a hypothesis; live, online and smooth estimate it, live gives
+    online's estimates, nothing is left out. (Four frames of this scenario's erroneous P3P do
+    not always tell the candidates apart: the estimate is near the truth, not at it.)"""
     source = tmp_path / "run"
     frames = GraphConfig().guess_after_sets - 1
     generate("kaushik-p3p-error", source, 1, overrides={"frames": str(frames)})
     team = replay_live(source)
     result = team.finish()
     online = graphloc.run_team(source, tmp_path / "out", "online")
-    assert team.skips.counts["unanchored_robot"] == len(result.node_times[0]) > 0
-    assert any("never decided, fewer than guess_after_sets" in e for e in team.skips.examples)
-    assert online.result.graph.skips.counts["unanchored_robot"] == len(result.node_times[0])
-    for solved in (result, online.result):
-        assert np.isnan(solved.estimate[0]).all() and np.isfinite(solved.estimate[1]).all()
-    smooth = graphloc.run_team(source, tmp_path / "smooth", "batch").result
-    assert np.isnan(smooth.estimate[0]).all() and np.isfinite(smooth.estimate[1]).all()
-    assert online.metrics["skipped"]["counts"]["unanchored_robot"] > 0
+    _same_estimates(result, online.result)
+    run = open_run(source)
+    last = max(o.time for o in run.observations)
+    assert online.result.graph.anchored_from[0] == last
+    assert online.result.hypotheses == 1 + len(online.result.graph.guessed_alternatives) > 1
+    assert not online.result.graph.skips.counts.get("unanchored_robot")
+    smooth = graphloc.run_team(source, tmp_path / "smooth", "batch")
+    for solved in (result, online.result, smooth.result):
+        assert np.isfinite(solved.estimate[0]).all() and np.isfinite(solved.estimate[1]).all()
+    ate = smooth.metrics["per_robot"][run.robots[0].name]["batch"]["ate_rmse"]
+    assert ate < 1.0 and smooth.metrics["consistent"], smooth.metrics["per_robot"]
 
 
 def test_an_event_team_counts_bad_rows_and_refuses_odometry_of_a_robot_without_its_table(

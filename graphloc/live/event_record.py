@@ -63,7 +63,7 @@ def record_graph(events) -> None:
 def unplaced_robots(events) -> None:
     """Robots nothing placed by the end of `events` (an `EventGraph` whose rows are all in):
     each a counted skip `unanchored_robot` naming why (its factors stay held)."""
-    graph, streams = events.graph, list(events.streams.values())
+    graph = events.graph
     for robot in events.robots:
         if robot.seed is not None:
             continue
@@ -71,17 +71,9 @@ def unplaced_robots(events) -> None:
         if not len(robot.times):  # no rows: no poses
             continue
         why = (
-            "nothing placed it (no decided candidate set, no placement by mutual bearings "
-            "or resection)"
+            "nothing placed it (no decided candidate set, no marker-pixel set, no placement "
+            "by mutual bearings, resection or scan registration)"
         )
-        for out in (t.out for t, _, _ in streams if t.out.robot == robot.r and t.out.sets):
-            if not out.pixel_route:
-                continue
-            why = (
-                f"its {len(out.sets)} candidate sets of {events.run.robots[out.target].name} "
-                f"were never decided, fewer than guess_after_sets "
-                f"({events.config.guess_after_sets}) to place it by a guess"
-            )
         events.skips.add(
             "unanchored_robot",
             f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",

@@ -67,7 +67,8 @@ def _place(events, tracker, tracked) -> None:
     only while nothing placed it --; a scanning observer is registered from the stream's
     hypotheses (`event_scans.ScanLinks.place`); a pixel stream none of whose first
     `GraphConfig.guess_after_sets` sets was decided places an observer still unplaced by the
-    tracker's best guess at that set (`event_placement.stream_placement`), every candidate of
+    tracker's best guess at that set (a stream that ends before that many: at its last set,
+    when the run ends) (`event_placement.stream_placement`), every candidate of
     that set an alternative placement the online solve runs as a hypothesis too
     (`event_placement.start_variants`): the guess may be a wrong candidate, which the later
     sets' pixels tell apart."""
@@ -77,7 +78,11 @@ def _place(events, tracker, tracked) -> None:
         pose = tracked.bodies[tracked.update.committed]
         seed_robot(events.graph, events.config, robot, tracked.k, pose)
     events.links.place(r, tracker.out.tentative)
-    if pixels and not robot.placed and len(tracker.out.sets) >= events.config.guess_after_sets:
+    # the run ended (`EventGraph.finish`) with no set of this observer left: the stream's last
+    # set is the guess's too, whatever its count (a short run)
+    ended = robot.finished and not any(q.robot == r for _, q in events.queue)
+    enough = len(tracker.out.sets) >= events.config.guess_after_sets
+    if pixels and not robot.placed and (enough or ended):
         seed_robot(events.graph, events.config, robot, tracked.k, stream_placement(tracked))
         starts = [(tracked.k, body) for body in tracked.bodies]
         start_variants(events.graph, events.config, robot, starts)

@@ -226,8 +226,9 @@ class EventGraph:
 
     def finish(self) -> list:
         """Every row is in: the remaining steps, the graph's counts, decisions and
-        alternatives. A robot nothing placed (a stream without pixels never decided, a pixel
-        stream that ended undecided before `guess_after_sets` sets) is a counted skip
+        alternatives. A pixel stream that ended undecided before `guess_after_sets` sets places
+        its observer at its last set by the tracker's guess (`event_sets._place`). A robot
+        nothing placed (a stream without pixels never decided) is a counted skip
         `unanchored_robot`: its factors stay held."""
         for robot in self.robots:
             robot.finished = True
