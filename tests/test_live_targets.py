@@ -180,19 +180,27 @@ def test_live_team_on_a_placed_observers_log_is_graphloc_online(tmp_path):
     assert np.isfinite(result.estimate[1]).all()
 
 
-def test_live_team_on_a_moving_targets_candidates_log_is_graphloc_online(tmp_path):
-    """The moving-target case written as a log (`candidates` rows, both robots'
-    `relative_pose3`): pushed row by row through the live API it gives `run_team(...,
-    "online")`'s estimates and causal estimates; both robots estimated, the sets' decisions
-    between factors (`smooth` builds the same graph from the whole tables)."""
+def _pushed_is_online(tmp_path, write):
+    """feng-probabilistic seed 1 rewritten by `write` as a log, pushed row by row through the
+    live API: the live team's result, checked equal to `run_team(..., "online")`'s estimates
+    and causal estimates (one hypothesis, no skips). Returns (log directory, live result)."""
     feng = tmp_path / "feng"
     generate("feng-probabilistic", feng, 1)
-    source = write_moving_target(feng, tmp_path / "run")
+    source = write(feng, tmp_path / "run")
     team = replay_live(source)
     result = team.finish()
     online = run_team(source, tmp_path / "out", "online").result
     _same_estimates(result, online)
     assert online.hypotheses == 1 and not team.skips.counts
+    return source, result
+
+
+def test_live_team_on_a_moving_targets_candidates_log_is_graphloc_online(tmp_path):
+    """The moving-target case written as a log (`candidates` rows, both robots'
+    `relative_pose3`): pushed row by row through the live API it gives `run_team(...,
+    "online")`'s estimates and causal estimates; both robots estimated, the sets' decisions
+    between factors (`smooth` builds the same graph from the whole tables)."""
+    source, result = _pushed_is_online(tmp_path, write_moving_target)
     assert all(np.isfinite(e).all() for e in result.estimate)
     run = open_run(source)
     _same_graph(result.graph, build_live(run, GraphConfig()))
@@ -204,14 +212,7 @@ def test_live_team_on_a_log_of_two_targets_is_graphloc_online(tmp_path):
     frame, `write_two_targets`): pushed row by row through the live API, the two streams give
     `run_team(..., "online")`'s estimates and causal estimates, and the graph `smooth` builds
     from the whole tables."""
-    feng = tmp_path / "feng"
-    generate("feng-probabilistic", feng, 1)
-    source = write_two_targets(feng, tmp_path / "run")
-    team = replay_live(source)
-    result = team.finish()
-    online = run_team(source, tmp_path / "out", "online").result
-    _same_estimates(result, online)
-    assert online.hypotheses == 1 and not team.skips.counts
+    source, result = _pushed_is_online(tmp_path, write_two_targets)
     assert {d.target for d in result.graph.decisions} == {1, 2}
     assert np.isfinite(result.estimate[0]).all()
     run = open_run(source)
