@@ -82,16 +82,25 @@ def first_pose(graph):
     return first, (br.pose_of(start, graph.dim) if start is not None else None)
 
 
+def inlier_graph(graph) -> gtsam.NonlinearFactorGraph:
+    """The graph without outliers: the prior on the first pose and every file measurement; its
+    `error(values)` is the objective both methods' estimates are scored on."""
+    first, start = first_pose(graph)
+    start = start or (gtsam.Pose2() if graph.dim == 2 else gtsam.Pose3())
+    factors = gtsam.NonlinearFactorGraph()
+    factors.add(_prior(graph.dim, X(first), start))
+    for m in graph.measurements:
+        factors.add(_factor(m, graph.dim))
+    return factors
+
+
 def reference(graph) -> gtsam.Values:
     """The graph without outliers, Levenberg-Marquardt from the file's vertices (else the
     odometry chain) to the optimum's numerical precision."""
     dim = graph.dim
     first, start = first_pose(graph)
     start = start or (gtsam.Pose2() if dim == 2 else gtsam.Pose3())
-    factors = gtsam.NonlinearFactorGraph()
-    factors.add(_prior(dim, X(first), start))
-    for m in graph.measurements:
-        factors.add(_factor(m, dim))
+    factors = inlier_graph(graph)
     initial = gtsam.Values()
     if len(graph.vertices) >= len({k for m in graph.measurements for k in (m.source, m.target)}):
         for k, v in graph.vertices.items():

@@ -31,7 +31,17 @@ def context(report: dict) -> dict:
         )
     return {
         "report": report,
-        "runs": significant(frame.round(4), 4),
+        "runs": significant(_rounded(frame), 4),
         "verdict": significant(pd.DataFrame(verdict), 4),
         "same_um": SAME_M * 1e6,
+        "objective": "objective_above_reference" in frame,
     }
+
+
+def _rounded(frame: pd.DataFrame) -> pd.DataFrame:
+    """Four decimals, but for the objective's excess over the reference (small where both
+    optima are close: significant digits only)."""
+    out = frame.round(4)
+    if "objective_above_reference" in frame:
+        out["objective_above_reference"] = frame["objective_above_reference"]
+    return out
