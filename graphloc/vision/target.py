@@ -154,7 +154,6 @@ class TargetHypothesisConfig:
     gate_px: float = 3.0
     pixel_sigma: float = 1.0
     prediction_gate_px: float = 25.0
-    p3p_method: str = "lambdatwist"
     refine: bool = True
 
 
@@ -339,9 +338,7 @@ def _hypotheses(det, bearings, assign, camera, target, config, pred_px, has_pred
     seen = np.argsort(assign < 0, axis=1, kind="stable")  # marker indices, seen ones first
     det_idx = np.take_along_axis(assign, seen[:, :3], axis=1)
     fi, ai = np.nonzero(rows_ok)  # the instances, frame by frame
-    sol = solve_p3p(
-        bearings[fi[:, None], det_idx[ai]], target.points[seen[ai, :3]], method=config.p3p_method
-    )
+    sol = solve_p3p(bearings[fi[:, None], det_idx[ai]], target.points[seen[ai, :3]])
     N = len(fi)
     valid = sol.valid.reshape(N * 4)
     R = sol.R_wc.reshape(N * 4, 3, 3)[valid]
