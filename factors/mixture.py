@@ -1,21 +1,6 @@
-"""P3P candidate mixture: one discrete mode per observation (`keys.mode_key`), one Gaussian
-component per candidate pose (seed 000 Sec. III-B / V: up to four P3P solutions, one genuine;
-seed 004 Sec. II-C: the same ambiguity).
-
-Component k is `BetweenFactorPose3(observer, observed, T_k)` -- or `PriorFactorPose3(observed,
-T_k)` when the observer is the world (ground robots localized beforehand, seed 000 Sec. III-A)
--- with the candidate's covariance. `candidate_mixture` wraps them in GTSAM 4.3's
-`HybridNonlinearFactor`; the scalar of component k is -log w_k + the Gaussian's negative log
-normalizer, so the factor's error is the negative log of a properly weighted Gaussian mixture.
-
-Candidate covariances: `CandidateSet.meta["covariance"]` (K,6,6) when the front-end provides
-it (e.g. `graphloc.geometry.resection.resection_covariance`), else `default_sigmas` (rot [rad],
-trans [m]); GTSAM Pose3 tangent order (rx, ry, rz, tx, ty, tz).
-
-`max_mixture_factor` / `candidate_max_mixture`: the same components as a max-mixture (Olson &
-Agarwal, RSS 2012), an ordinary nonlinear factor (gtsam.CustomFactor) that `Session` (LM /
-iSAM2) can optimize; it reports the active component for given Values.
-"""
+"""P3P candidate mixtures (seed 000 Sec. III-B / V, seed 004 Sec. II-C: up to four P3P solutions,
+one genuine): one Gaussian component per candidate pose (`component_factors`), combined as a
+max-mixture (Olson & Agarwal, RSS 2012), an ordinary factor LM and iSAM2 optimize."""
 
 from __future__ import annotations
 
@@ -24,7 +9,6 @@ import numpy as np
 
 from graphloc.candidates import CandidateSet
 from graphloc.factors.robust import Kernel, robust_noise
-from graphloc.keys import mode_key
 
 
 def candidate_covariances(candidates: CandidateSet, default_sigmas=(0.02, 0.05)) -> np.ndarray:
@@ -114,25 +98,6 @@ def mixture_weights(candidates: CandidateSet) -> np.ndarray:
     underflowed to exactly 0 (e.g. exp(-r^2/2 sigma^2) of a bad candidate) floored at MIN_WEIGHT so
     every candidate keeps its component and index (one rule for both mixture kinds)."""
     return np.maximum(candidates.weights(), MIN_WEIGHT)
-
-
-def candidate_mixture(
-    candidates: CandidateSet,
-    observation: int,
-    observed_key: int,
-    observer_key: int | None = None,
-    covariances: np.ndarray | None = None,
-) -> gtsam.HybridNonlinearFactor:
-    """HybridNonlinearFactor over mode_key(observation) with one component per candidate and
-    component weights `mixture_weights(candidates)` (from the scores)."""
-    if len(candidates) == 0:
-        raise ValueError(f"candidate_mixture: observation {observation} has no candidates")
-    factors = component_factors(candidates, observed_key, observer_key, covariances)
-    neg_log_w = -np.log(mixture_weights(candidates))
-    pairs = [
-        (f, float(nlw + f.noiseModel().negLogConstant())) for f, nlw in zip(factors, neg_log_w)
-    ]
-    return gtsam.HybridNonlinearFactor((mode_key(observation), len(candidates)), pairs)
 
 
 # ---- max-mixture (Olson & Agarwal, RSS 2012) --------------------------------------------------
@@ -276,22 +241,3 @@ def max_mixture_factor(components, weights) -> MaxMixture:
     list of them (summed) -- with weights (K,) > 0 (normalized here); see `MaxMixture`. Add
     `.factor` to the graph; keep the object to read `.active(values)`."""
     return MaxMixture(list(components), weights)
-
-
-def candidate_max_mixture(
-    candidates: CandidateSet,
-    observed_key: int,
-    observer_key: int | None = None,
-    covariances: np.ndarray | None = None,
-) -> MaxMixture:
-    """Max-mixture counterpart of `candidate_mixture`: one `component_factors` factor per
-    candidate, weights from the candidate scores."""
-    if len(candidates) == 0:
-        raise ValueError(
-            f"candidate_max_mixture: candidate set (source={candidates.source!r}, "
-            f"time={candidates.time}) is empty"
-        )
-    return max_mixture_factor(
-        component_factors(candidates, observed_key, observer_key, covariances),
-        mixture_weights(candidates),
-    )

@@ -193,19 +193,5 @@ def between_poses(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([c * dx + s * dy, -s * dx + c * dy, _wrap(b[:, 2] - a[:, 2])], axis=1)
 
 
-def compose_poses(poses: np.ndarray, deltas: np.ndarray) -> np.ndarray:
-    """(N,3) planar poses composed with (N,3) relative poses, row by row (vectorized)."""
-    p, d = np.asarray(poses, dtype=float), np.asarray(deltas, dtype=float)
-    c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
-    return np.stack(
-        [
-            p[:, 0] + c * d[:, 0] - s * d[:, 1],
-            p[:, 1] + s * d[:, 0] + c * d[:, 1],
-            _wrap(p[:, 2] + d[:, 2]),
-        ],
-        axis=1,
-    )
-
-
 def _wrap(a):
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi

@@ -95,17 +95,3 @@ def plane_attitude_factor(
         gtsam.noiseModel.Isotropic.Sigma(2, sigma),
         gtsam.Unit3(b / np.linalg.norm(b)),
     )
-
-
-def surface_factors(
-    key: int,
-    plane: SurfacePlane,
-    thickness_sigma: float = 0.005,
-    attitude_sigma: float | None = 0.02,
-    body_normal=(0.0, 0.0, 1.0),
-) -> list:
-    """Both constraints for one pose (attitude omitted when attitude_sigma is None)."""
-    out = [plane_distance_factor(key, plane, thickness_sigma)]
-    if attitude_sigma is not None:
-        out.append(plane_attitude_factor(key, plane, attitude_sigma, body_normal))
-    return out
