@@ -32,14 +32,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal, Sequence
 
-import cv2
 import numpy as np
 
 from graphloc.config_schema import config_dataclass, setting
 from graphloc.cameras import PinholeCamera, check_rows, normalize_rows
 from graphloc.candidates import CandidateSet
 from graphloc.vision.ellipse import FITTERS, ellipse_to_conic, fit_ellipse, sampson_rms
-from graphloc.vision.images import opencv_errors
 
 STATUS_OK = "ok"
 STATUS_TOO_FEW = "too_few_points"  # fewer than min_points finite rim points
@@ -268,22 +266,3 @@ def circle_pose_from_rim(
     if not poses.ok[0]:
         raise ValueError(poses.explain(0))
     return poses.candidates(0, time, observer, observed), poses
-
-
-def rim_points_from_mask(mask: np.ndarray) -> np.ndarray:
-    """Boundary pixels (M,2) (u, v) of the largest blob of a binary mask (seed 003 II-A-1:
-    colour threshold -> median filter -> edges), via cv2.findContours."""
-    mask = np.asarray(mask)
-    if mask.ndim != 2:
-        raise ValueError(f"mask must be a 2-D image, got shape {mask.shape}")
-    if mask.dtype.kind not in "biuf":
-        raise ValueError(f"mask must be a numeric or boolean image, got dtype {mask.dtype}")
-    if mask.size == 0:
-        raise ValueError(f"mask is empty (shape {mask.shape})")
-    with opencv_errors(f"rim_points_from_mask on a {mask.shape[1]}x{mask.shape[0]} mask"):
-        contours, _ = cv2.findContours(
-            (mask > 0).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
-        )
-    if not contours:
-        raise ValueError("mask has no foreground blob")
-    return max(contours, key=cv2.contourArea).reshape(-1, 2).astype(float)
