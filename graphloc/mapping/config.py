@@ -166,58 +166,25 @@ class RegistrationConfig:
 
 @config_dataclass
 class AcceptanceConfig:
-    """Checks a registration must pass before it is fused (see `robust_register`).
+    """Checks a registration must pass before it is fused (`robust_register`; why each:
+    docs/design_algorithms.md, "Acceptance checks").
 
-    misfit_weight: what a source point near a target point but off its surface costs in a
-    candidate's cost (`truncated_costs`), where an unexplained point (no target point near)
-    costs 1: a point the other robot did not see says nothing against a registration, a point
-    beside a surface it saw does (a view slid towards the other overlaps more of it, with more
-    of its points beside surfaces; one slid away overlaps less, with a few more on them);
-    residual_sigma: the least residual scale c [m] of the checks; c is the two scans' own residual
-    spread (`graphloc.mapping.robust_registration.residual_scale`), never below this: a noisier
-    or sparser scan widens what a surface the other robot saw looks like from it, and with c
-    fixed a right registration of such scans falls below min_inlier_ratio;
-    min_overlap: inlier fraction of the source (point-to-plane |r| < c);
-    min_inlier_ratio: inliers among the source points that have a target point within the fine
-    correspondence distance (a slid alignment puts points near surfaces, not on them);
-    contradiction_block / contradiction_min_points / contradiction_ratio / max_contradicted: the
-    regional check (`contradicted_fraction`): the near points (a target point within the fine
-    distance) in cubes of contradiction_block [m], a cube with at least contradiction_min_points
-    of them contradicts the registration when its inlier ratio is below contradiction_ratio
-    times the candidate's own, and at most max_contradicted of the near points may lie in such
-    cubes. Two views of one surface meet all over it; a view slid or turned into a local minimum
-    lines up the dominant planes and leaves the structures that fix the slide (furniture, a
-    corner, a door frame) beside each other, a few cubes where most points are off the other
-    view's surfaces, which the global inlier ratio dilutes;
-    min_cost_margin_se: every other valid candidate (distinct, passing its checks) must cost at
-    least this many standard errors more than the winner (`cost_margin_se`): two registrations
-    that explain the views about alike (a view slid by a decimetre along a wall) are not told
-    apart by which one is a little cheaper. A rival that loses in one cluster alone, every
-    other alike, sits at exactly 1; at the default the winner must lead by at least that much,
-    and one whose lead other clusters partly take back falls below it;
-    min_conditioning: smallest / largest eigenvalue of the point-to-plane Hessian with rotations
-    scaled by the median source range (a plane or a corridor leaves a direction unconstrained);
-    hint_gate: Mahalanobis^2 of the result against the hint under the hint's covariance,
-    chi-square with 6 degrees of freedom at 99.9%; ceiling_above: the robot kinds' geometry --
-    the ceiling sensor is above the ground sensor (z_G > 0) and upside down (its z axis within
-    max_ceiling_tilt_deg of -z_G); max_sigma_rot_deg / max_sigma_trans_m: the largest 1-sigma
-    of the calibrated covariance a fusion may have, two fifths of what a map fusion is for
-    (issue 16's success box, 1 deg / 5 cm), so that every axis's 2.5-sigma interval lies
-    inside the box: a fusion whose covariance is right and whose sigma sits at the cap lands
-    outside the box in about one trial in eighty per axis, and most fusions' sigmas sit well
-    below it. Views that hardly constrain a direction (a 30% overlap that is a strip of floor
-    between two walls) carry their spread along it in the covariance
-    (`graphloc.mapping.registration_covariance.degeneracy_term`): the cap refuses those whose
-    spread reaches towards the box's edge, right or wrong, and no other check could tell which;
-    max_overlap_shortfall: no candidate within the hint gate and the robot geometry may overlap
-    the views more than this many times the winner (`overlap_shortfall`). misfit_weight makes a
-    point beside a surface cost more than one off every surface, which keeps a view from sliding
-    towards the other; on two views that genuinely differ (other viewpoints, occlusions: a right
-    registration leaves many points beside surfaces) it rewards the opposite, a pose that draws
-    the view away from the other's surfaces, cheap for explaining little. Such a winner overlaps
-    the views a fraction of what another start found; the truncated cost alone cannot say which
-    is right;
-    distinct_deg / distinct_m: candidates closer than this are one registration."""
+    misfit_weight: the cost of a source point near a target point but off its surface (an
+    unexplained point costs 1); residual_sigma: the least residual scale c [m] of the checks
+    (c is the two scans' own residual spread, never below this); min_overlap: inlier fraction of
+    the source (|r| < c); min_inlier_ratio: inliers among the source points with a target point
+    within the fine correspondence distance; contradiction_block [m] / contradiction_min_points /
+    contradiction_ratio / max_contradicted: at most max_contradicted of the near points may lie in
+    cubes (of at least contradiction_min_points near points) whose inlier ratio is below
+    contradiction_ratio times the candidate's; min_cost_margin_se: standard errors by which every
+    other valid candidate must cost more than the winner; min_conditioning: smallest / largest
+    eigenvalue of the point-to-plane Hessian (rotations scaled by the median source range);
+    hint_gate: Mahalanobis^2 of the result against the hint (chi-square, 6 dof, 99.9%);
+    ceiling_above: the ceiling sensor above the ground sensor and upside down (its z axis within
+    max_ceiling_tilt_deg of -z_G); max_sigma_rot_deg / max_sigma_trans_m: the largest 1-sigma of
+    the calibrated covariance; max_overlap_shortfall: no candidate within the hint gate and the
+    robot geometry may overlap this many times more than the winner; distinct_deg / distinct_m:
+    candidates closer than this are one registration."""
 
     residual_sigma: float = setting(0.01, gt=0.0)
     misfit_weight: float = setting(4.0, ge=1.0, le=1e6)
