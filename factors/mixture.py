@@ -115,16 +115,10 @@ class MaxMixture:
     fixed length, plus one row sqrt(2 (c_k - min_j c_j)) for its constant c_k, so that
     0.5 ||residual||^2 = error(x) - min_j c_j (a constant shift of the error).
 
-    A component is one factor or a group of factors whose errors add (e.g. a centre term plus
-    a normal term); every component must touch the same variables. `active(values)` is the
-    chosen mode at `values`; `component_errors(values)` all K terms.
-
-    iSAM2 caveat: iSAM2 re-evaluates a factor only when it relinearizes one of its variables
-    (delta above `relinearize_threshold`, every `relinearize_skip` updates); until then the
-    linear factor of the previously active component stays in the Bayes tree, so a switch of
-    mode takes effect only at the next relinearization of those variables. Keep the threshold
-    small for the mixture's variables (the seed-003 graph uses 0.01) or read `active` off the
-    final estimate; batch LM re-linearizes every iteration and has no such lag.
+    A component is one factor or a group of factors whose errors add; every component must
+    touch the same variables. `active(values)` is the chosen mode at `values`;
+    `component_errors(values)` all K terms. Under iSAM2 a switch of mode takes effect at the
+    next relinearization of its variables (docs/design_algorithms.md).
     """
 
     def __init__(self, components, weights):

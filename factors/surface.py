@@ -1,14 +1,7 @@
-"""Surface constraint: a climbing robot stays on a known plane -- floor, wall, level ceiling or
-the 45-degree sloped ceiling of seed 000 Sec. VI-B -- within a small thickness sigma; its body
-axis normal to the surface (e.g. the wheels' axis of the climbing robot) stays aligned with the
-plane normal (seed 000 Sec. I-A: "its action space is confined within planar surfaces";
-seed 004 Algorithm 1 line 7: z' = z on the ceiling).
-
-Built-ins only:
-- distance to the plane: gtsam.PoseTranslationPrior3D at a point of the plane with a rank-1
-  square-root information n^T / sigma (gtsam.noiseModel.Gaussian.SqrtInformation): the
-  whitened error is n.(t - p0) / sigma, zero along the plane;
-- orientation: gtsam.AttitudeFactorPose3 (body axis `body_normal` -> world plane normal).
+"""Surface constraint (seed 000 Sec. I-A, VI-B; seed 004 Algorithm 1 line 7): a climbing robot
+stays on a known plane within a thickness sigma (gtsam.PoseTranslationPrior3D with a rank-1
+square-root information n^T / sigma), its body axis normal to the surface aligned with the
+plane normal (gtsam.AttitudeFactorPose3).
 """
 
 from __future__ import annotations

@@ -1,30 +1,10 @@
 """Pose of a circle of known radius from its image ellipse (seed 003, section II-A "Robot
-Tracker": 1) ellipse detection and least-squares fit to edge points, 2) position from the
-ellipse via the oblique elliptical cone, eqs. (1)-(4)).
-
-Pipeline (batched over N rims where it matters):
-  rim pixels (M,2) -> undistorted ideal pixels (camera model) -> OpenCV ellipse fit
-  (`vision.ellipse`:
-  cv2.fitEllipseDirect, Fitzgibbon's direct least squares, the seed's "least-squares
-  fitting technique [3]"; AMS / plain fitEllipse selectable) -> image conic C (3x3)
-  -> cone Q = K^T C K through the camera centre (seed eq. 1, in normalized coordinates)
-  -> eigen-decomposition Q = V diag(l1, l2, l3) V^T, l1 >= l2 > 0 > l3 (the seed's
-  "rotation R1 by diagonalizing") -> the two circular sections (seed eqs. 2-3; Shiu & Ahmad
-  1989, Safaee-Rad et al. 1992):
-
-    Q - l2 I = (l1 - l3) (n . P)(m . P),  n, m = (+-sqrt(l1-l2), 0, +-sqrt(l2-l3)) / sqrt(l1-l3)
-
-  so on a plane n . P = d the cone is the sphere |P|^2 + (l1-l3) d (m . P) / l2 = 0, whose
-  section by that plane is the circle; its radius fixes d, its centre is the projection of
-  the sphere centre onto the plane (closed form, the seed's eq. 4).
-
-Both solutions (normal sign choices +-sqrt(l1-l2)) are returned, as a CandidateSet of
-circle-frame poses T_cam_circle: origin = circle centre, z axis = the circle's normal turned
-towards the camera (n . centre < 0). Rotation about the normal (yaw) is unobservable for a
-circle; convention: the circle's x axis is the camera x axis projected onto the circle plane
-(camera y axis if x is within 1e-6 of the normal). Both candidates share one score,
-exp(-rms^2 / (2 sigma^2)) of the RMS Sampson distance [px] of the rim points to the fitted
-ellipse -- the ellipse cannot tell the two apart; engines choose.
+Tracker": 1) ellipse fit to edge points, `vision.ellipse`; 2) position from the ellipse via the
+oblique elliptical cone, eqs. (1)-(4); Shiu & Ahmad 1989, Safaee-Rad et al. 1992), batched over
+N rims. Both solutions come back as a CandidateSet of circle-frame poses T_cam_circle (z axis
+the normal turned towards the camera, yaw by convention) sharing one score from the fit's RMS
+Sampson distance: the ellipse cannot tell them apart. The derivation: docs/design_algorithms.md,
+"Circle poses".
 """
 
 from __future__ import annotations

@@ -1,17 +1,9 @@
-"""Blob extraction for identical spherical markers (active LEDs or passive paint).
-
-Seed 001 (seeds/001_0f8f8dae37ce6b79.txt), section IV-B "Blob extraction":
-Otsu threshold F1 locates blobs; first outlier rejection (size, non-convexity, eccentricity);
-the looser threshold F2 (a Gaussian fitted to the grey-level histogram, F2 at a multiple of its
-standard deviation) refines the blobs inside the window enclosing the survivors; second
-rejection; too many blobs -> merge the closest pair or remove the blob farthest from the others;
-too few -> erosion, then circular Hough transform; sub-pixel centroids from intensity-weighted
-moments. Colour markers: the foreground is computed in YUV so chroma is decoupled from
-brightness (seed 001 IV-B, last paragraph). An optional region of interest (from a predicted
-pose, see `graphloc.vision.target.predicted_marker_pixels`) restricts all work.
-
-Never silently returns fewer blobs than expected: `MarkerDetections.shortfall` says how many are
-missing and `status` is "shortfall".
+"""Blob extraction for identical spherical markers (active LEDs or passive paint), seed 001
+(001_0f8f8dae37ce6b79.txt) section IV-B "Blob extraction": Otsu threshold F1, outlier
+rejection, the looser histogram threshold F2 inside the survivors' window, a second rejection,
+merging or Hough recovery to the expected count, sub-pixel centroids from intensity-weighted
+moments; colour markers in YUV. An optional region of interest restricts all work. Never
+silently returns fewer blobs than expected (`MarkerDetections.shortfall`, status "shortfall").
 """
 
 from __future__ import annotations

@@ -1,13 +1,9 @@
 """The inter-robot initial guess of map fusion from the ceiling camera's view of the ground
-robot's LEDs (seed 004 Sec. II-B / II-C): P3P on the three LED pixels of every camera frame (all
-up to four solutions, `graphloc.geometry.p3p`, with first-order covariances), expressed in the
-ground robot's first frame with its odometry, disambiguated over the climbing robot's motion by
-the `HypothesisTracker` (the role of seed 004's particle filter, Algorithm 2); the guess's
-covariance (`guess_covariance`); and the P3P factors of the fusion graph (`p3p_factors`).
-Candidate sets come from the one front-end route, `graphloc.vision.marker_poses
-.p3p_candidate_sets` (typed resection covariance), and reach the graph by the one route of
-`graphloc.factors.mixture`: every frame's set is a max-mixture the solve chooses from.
-Frames: G_k / C_k are the ground / ceiling LiDAR at frame k; everything is expressed in G_0."""
+robot's LEDs (seed 004 Sec. II-B / II-C): P3P candidate sets of every camera frame
+(`p3p_candidate_sets`), expressed in G_0 with the ground robot's odometry, disambiguated over
+the climbing robot's motion by the `HypothesisTracker` (the role of seed 004's particle filter,
+Algorithm 2); the guess's covariance (`guess_covariance`); every frame's set a max-mixture
+factor of the fusion graph (`p3p_factors`)."""
 
 from __future__ import annotations
 
