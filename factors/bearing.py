@@ -64,25 +64,11 @@ def bearing_factor(
         Ti = values.atPose3(this.keys()[0])
         Tj = values.atPose3(this.keys()[1])
         if jacobians is None:
-            return measured.errorVector(
-                gtsam.Unit3.FromPoint3(
-                    Ti.compose(body_T_camera).transformTo(Tj.transformFrom(marker))
-                )
-            )
-        H_cam = np.zeros((6, 6), order="F")
+            return _seen_error(measured, Ti, body_T_camera, Tj.transformFrom(marker))[0]
         H_q = np.zeros((3, 6), order="F")
-        H_pc_cam = np.zeros((3, 6), order="F")
-        H_pc_q = np.zeros((3, 3), order="F")
-        H_u = np.zeros((2, 3), order="F")
-        H_e = np.zeros((2, 2), order="F")
-        cam = Ti.compose(body_T_camera, H_cam, None)
         q = Tj.transformFrom(marker, H_q, None)
-        pc = cam.transformTo(q, H_pc_cam, H_pc_q)
-        u = gtsam.Unit3.FromPoint3(pc, H_u)
-        e = measured.errorVector(u, None, H_e)
-        H_eu = H_e @ H_u
-        jacobians[0] = H_eu @ H_pc_cam @ H_cam
-        jacobians[1] = H_eu @ H_pc_q @ H_q
+        e, jacobians[0], H_point = _seen_error(measured, Ti, body_T_camera, q, True)
+        jacobians[1] = H_point @ H_q
         return e
 
     return gtsam.CustomFactor(noise, [observer_key, observed_key], error)
@@ -111,24 +97,29 @@ def bearing_to_point_factor(
         T = values.atPose3(this.keys()[0])
         q = values.atPoint3(this.keys()[1])
         if jacobians is None:
-            return measured.errorVector(
-                gtsam.Unit3.FromPoint3(T.compose(body_T_camera).transformTo(q))
-            )
-        H_cam = np.zeros((6, 6), order="F")
-        H_pc_cam = np.zeros((3, 6), order="F")
-        H_pc_q = np.zeros((3, 3), order="F")
-        H_u = np.zeros((2, 3), order="F")
-        H_e = np.zeros((2, 2), order="F")
-        cam = T.compose(body_T_camera, H_cam, None)
-        pc = cam.transformTo(q, H_pc_cam, H_pc_q)
-        u = gtsam.Unit3.FromPoint3(pc, H_u)
-        e = measured.errorVector(u, None, H_e)
-        H_eu = H_e @ H_u
-        jacobians[0] = H_eu @ H_pc_cam @ H_cam
-        jacobians[1] = H_eu @ H_pc_q
+            return _seen_error(measured, T, body_T_camera, q)[0]
+        e, jacobians[0], jacobians[1] = _seen_error(measured, T, body_T_camera, q, True)
         return e
 
     return gtsam.CustomFactor(noise, [pose_key, point_key], error)
+
+
+def _seen_error(measured: gtsam.Unit3, T, body_T_camera, q, jacobians: bool = False):
+    """Unit3 error of the bearing to world point q from the camera at T * body_T_camera; with
+    `jacobians` also its Jacobians in T and in q (GTSAM's own, chained), else None, None."""
+    if not jacobians:
+        pc = T.compose(body_T_camera).transformTo(q)
+        return measured.errorVector(gtsam.Unit3.FromPoint3(pc)), None, None
+    H_cam = np.zeros((6, 6), order="F")
+    H_pc_cam = np.zeros((3, 6), order="F")
+    H_pc_q = np.zeros((3, 3), order="F")
+    H_u = np.zeros((2, 3), order="F")
+    H_e = np.zeros((2, 2), order="F")
+    cam = T.compose(body_T_camera, H_cam, None)
+    pc = cam.transformTo(q, H_pc_cam, H_pc_q)
+    e = measured.errorVector(gtsam.Unit3.FromPoint3(pc, H_u), None, H_e)
+    H_eu = H_e @ H_u
+    return e, H_eu @ H_pc_cam @ H_cam, H_eu @ H_pc_q
 
 
 SENSOR_TIE_SIGMA = 1e-4  # std [rad, m] of the tie of a sensor pose to its body pose
