@@ -26,15 +26,7 @@ from graphloc.vision.features import FeatureConfig, FeatureTracker
 class TeammateConfig:
     """radius [m] of the base disk; blob: its colour signature; circle: ellipse-fit settings;
     radius_pixel_floor, centre_pixel_floor [px]: lower bounds of the ellipse radius and centre
-    accuracy used for the centre covariance (the edge fit's own sigmas are slightly
-    optimistic). The radius floor is the refined rim's (BlobConfig.refine_edges) depth accuracy
-    calibrated on crawler-pair seeds 100-102 (not used by the benchmark). The centre floor is
-    set above that calibration on purpose: the two candidates' centres differ by a fraction of
-    a pixel, and with the calibrated floor that difference outweighed the normals in the
-    max-mixture's choice whenever the camera pose was slightly off, so that online iSAM2 kept
-    the false candidate after the teammate moved (seeds 3-4 of benchmarks.seed003).
-    With the edge crossings alone (refine_edges=False) calibrate both floors for that
-    front-end (benchmarks.seed003.teammate_config)."""
+    accuracy used for the centre covariance (how they were chosen: docs/design_algorithms.md)."""
 
     radius: float = setting(0.019, gt=0.0)
     blob: BlobConfig = BlobConfig()
