@@ -42,11 +42,6 @@ class SurfacePlane:
         return (np.asarray(points, dtype=float) - self.point) @ self.normal
 
     @classmethod
-    def level_ceiling(cls, height: float = 3.0) -> "SurfacePlane":
-        """Seed 000 ceiling I (3 m), normal pointing down into the room."""
-        return cls(np.array([0.0, 0.0, height]), np.array([0.0, 0.0, -1.0]))
-
-    @classmethod
     def sloped_ceiling(cls) -> "SurfacePlane":
         """Seed 000 ceiling II: 45 deg, from 2 m at x = 0 to 5 m at x = 3 (z = 2 + x)."""
         return cls(np.array([0.0, 0.0, 2.0]), np.array([1.0, 0.0, -1.0]))
