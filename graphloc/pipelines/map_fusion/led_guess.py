@@ -8,6 +8,7 @@ factor of the fusion graph (`p3p_factors`)."""
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import gtsam
 import numpy as np
@@ -57,17 +58,7 @@ def _in_first_frame(cands: CandidateSet, T_g0_gk: np.ndarray) -> CandidateSet:
     """Candidates (camera in G_k) re-expressed in G_0 (right-perturbation covariances unchanged)."""
     R = np.einsum("ij,kjl->kil", T_g0_gk[:3, :3], cands.R)
     t = cands.t @ T_g0_gk[:3, :3].T + T_g0_gk[:3, 3]
-    return CandidateSet(
-        R,
-        t,
-        cands.scores,
-        cands.time,
-        cands.observer,
-        cands.observed,
-        cands.source,
-        cands.meta,
-        cands.covariance,
-    )
+    return replace(cands, R=R, t=t)
 
 
 def guess_covariance(
@@ -174,17 +165,7 @@ def p3p_factors(guess: GuessResult, T_cc: np.ndarray, outlier_d2: float) -> list
         rel = np.einsum("kij,jl->kil", np.stack([p.matrix() for p in cands.poses()]), T_cam_c)
         cov = np.einsum("ij,kjl,ml->kim", ad, cands.covariance, ad)
         cov = 0.5 * (cov + np.swapaxes(cov, 1, 2))
-        carried = CandidateSet(
-            rel[:, :3, :3],
-            rel[:, :3, 3],
-            cands.scores,
-            cands.time,
-            cands.observer,
-            cands.observed,
-            cands.source,
-            cands.meta,
-            cov,
-        )
+        carried = replace(cands, R=rel[:, :3, :3], t=rel[:, :3, 3], covariance=cov)
         keys = (pose_key(CEILING, f), pose_key(GROUND, f))
         weights = mixture_weights(carried)
         j = int(np.argmax(weights))
