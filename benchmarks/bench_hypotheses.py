@@ -37,7 +37,7 @@ from graphloc.datasets.feng import (
     FengProbabilisticScenario,
     odometry_covariance,
 )
-from graphloc.factors.bearing import bearing_linearize_cost
+from benchmarks.bearing_cost import bearing_linearize_cost
 from graphloc.executor import Executor
 from benchmarks.bench_hypotheses_report import markdown, plots
 from benchmarks.hypotheses import CELLS, TableIIIConfig, summarize, trial

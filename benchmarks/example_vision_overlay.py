@@ -23,8 +23,10 @@ import numpy as np
 from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera
 from benchmarks.seed001 import look_at
 from graphloc.plots import plt
-from graphloc.vision.circle import circle_pose_from_rim, rim_points_from_mask
-from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, marker_area_bounds
+from graphloc.vision.circle import circle_pose_from_rim
+from benchmarks.seed003_geometry import rim_points_from_mask
+from graphloc.vision.markers import MarkerDetectorConfig, detect_markers
+from benchmarks.baselines.seed001_target import marker_area_bounds, target_hypotheses
 from graphloc.vision.mutual import localize_three
 from graphloc.datasets.render import (
     Occluder,
@@ -34,7 +36,7 @@ from graphloc.datasets.render import (
     render_markers,
     render_mutual_pixels,
 )
-from graphloc.vision.target import LARGE_TARGET, project_markers, target_hypotheses
+from graphloc.vision.target import LARGE_TARGET, project_markers
 
 
 def panel_markers(ax, rng):

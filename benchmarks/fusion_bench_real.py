@@ -53,6 +53,30 @@ PROTOCOL_NOISE_M, PROTOCOL_KEEP = 0.005, 0.5  # issue 16's views: 5 mm noise, 50
 UNCAPPED = AcceptanceConfig(max_sigma_rot_deg=1e9, max_sigma_trans_m=1e9)  # beyond any sigma
 
 
+def icp_from_hint(
+    source,
+    target,
+    hint: np.ndarray,
+    distance: float,
+    max_iterations: int = 60,
+) -> tuple[np.ndarray, float]:
+    """Open3D point-to-plane ICP (legacy registration_icp, one scale) from a hint: the benchmark's
+    plain-ICP peer (source, target: PreparedCloud). Returns (T_target_source, seconds)."""
+    import open3d as o3d
+
+    reg_l = o3d.pipelines.registration
+    start = time.perf_counter()
+    r = reg_l.registration_icp(
+        source.legacy,
+        target.legacy,
+        distance,
+        np.asarray(hint, dtype=float),
+        reg_l.TransformationEstimationPointToPlane(),
+        reg_l.ICPConvergenceCriteria(1e-7, 1e-7, max_iterations),
+    )
+    return np.asarray(r.transformation), time.perf_counter() - start
+
+
 def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> list[dict]:
     """One view pair of the real fragment, both hint levels, every method (module docstring).
     job: (overlap, seed, calibration, fragment path or None for the bundled one, per-view noise
@@ -71,7 +95,6 @@ def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> li
     from graphloc.mapping.registration import (
         RegistrationConfig,
         global_fpfh_ransac,
-        icp_from_hint,
         pose_errors,
         prepare,
     )

@@ -16,7 +16,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
-from graphloc.geometry.p3p import MAX_CANDIDATES, METHODS, solve_p3p
+from benchmarks.baselines.p3p_seeds import METHODS, solve_p3p_by_name
+from graphloc.geometry.p3p import MAX_CANDIDATES
 from graphloc.plots import plt
 from graphloc.structured import dumps_json
 
@@ -169,7 +170,7 @@ def run_p3p_benchmark(
 
     def batched(method, polish):
         def solve(f, X):
-            c = solve_p3p(f, X, method=method, polish=polish)
+            c = solve_p3p_by_name(f, X, method=method, polish=polish)
             return c.R_wc, c.t_wc, c.valid
 
         return solve

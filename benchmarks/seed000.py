@@ -39,7 +39,7 @@ from benchmarks.front_door import table_i_trial
 from benchmarks.seed000_table1 import trial_rows, table_i
 from benchmarks.render import render
 from benchmarks.sizes import RunSizes, run_sizes
-from graphloc.factors.bearing import bearing_linearize_cost
+from benchmarks.bearing_cost import bearing_linearize_cost
 from graphloc.hypotheses import tracker as tracker_module
 from graphloc.plots import plt
 from graphloc.vision.mutual import localize_three

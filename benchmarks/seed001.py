@@ -34,18 +34,13 @@ from graphloc.datasets.breitenmoser import seed001_camera
 from benchmarks.render import render
 from benchmarks.seed001_report import PAPER, VARIANTS, plot
 from benchmarks.sizes import run_sizes
-from graphloc.vision.markers import (
-    MarkerDetectorConfig,
-    detect_markers,
-    marker_area_bounds,
-    roi_from_points,
-)
+from graphloc.vision.markers import MarkerDetectorConfig, detect_markers
 from graphloc.datasets.render import Occluder, RenderConfig, random_clutter, render_markers
-from graphloc.vision.target import (
-    LARGE_TARGET,
-    TargetHypothesisConfig,
+from graphloc.vision.target import LARGE_TARGET, TargetHypothesisConfig, predicted_marker_pixels
+from benchmarks.baselines.seed001_target import (
+    marker_area_bounds,
     predict_pose,
-    predicted_marker_pixels,
+    roi_from_points,
     target_hypotheses,
 )
 from graphloc.structured import dumps_json

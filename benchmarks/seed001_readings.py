@@ -56,7 +56,8 @@ from benchmarks.seed001_truth import lag_steps, score, stats
 from benchmarks.seed_baselines import REPRODUCE_TOL
 from graphloc.pipelines.team_graph import GraphConfig, solve
 from graphloc.runner.team_run import team_graph
-from graphloc.vision.target import LARGE_TARGET, TargetHypothesisConfig, target_hypotheses
+from graphloc.vision.target import LARGE_TARGET, TargetHypothesisConfig
+from benchmarks.baselines.seed001_target import target_hypotheses
 
 FOCAL_ERRORS = (0.0, 0.0025, 0.005, 0.01)  # relative
 PRINCIPAL_ERRORS_PX = (0.0, 2.0, 5.0)

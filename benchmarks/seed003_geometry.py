@@ -3,13 +3,15 @@ bypassed, for tests and ablations. `ideal_frames` builds `graphloc.seams.FrameIn
 world points and base centres (sections II-A / II-B quantities with chosen noise);
 `with_teammate_from_geometry` replaces each sighting's circle candidates by those of the true
 disk (exact, or moved by a draw from a given covariance such as the Cramér-Rao bound of the
-crawler-pair images); `genuine_candidates` names the candidate nearest the true normal.
+crawler-pair images); `genuine_candidates` names the candidate nearest the true normal;
+`rim_points_from_mask` the rim of a binary mask (seed 003 II-A-1).
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
 
+import cv2
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
@@ -19,6 +21,7 @@ from graphloc.seams import FrameInput, TeammateObservation
 from graphloc.datasets.render import render_circle_rim
 from graphloc.vision.circle import circle_pose_from_rim, rotations_from_normals
 from graphloc.vision.features import FrameFeatures
+from graphloc.vision.images import opencv_errors
 from graphloc.vision.teammate import TeammateConfig, teammate_observation
 
 
@@ -195,3 +198,22 @@ def with_teammate_from_geometry(
             )
         out.append(replace(f, teammate=obs))
     return out
+
+
+def rim_points_from_mask(mask: np.ndarray) -> np.ndarray:
+    """Boundary pixels (M,2) (u, v) of the largest blob of a binary mask (seed 003 II-A-1:
+    colour threshold -> median filter -> edges), via cv2.findContours."""
+    mask = np.asarray(mask)
+    if mask.ndim != 2:
+        raise ValueError(f"mask must be a 2-D image, got shape {mask.shape}")
+    if mask.dtype.kind not in "biuf":
+        raise ValueError(f"mask must be a numeric or boolean image, got dtype {mask.dtype}")
+    if mask.size == 0:
+        raise ValueError(f"mask is empty (shape {mask.shape})")
+    with opencv_errors(f"rim_points_from_mask on a {mask.shape[1]}x{mask.shape[0]} mask"):
+        contours, _ = cv2.findContours(
+            (mask > 0).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
+        )
+    if not contours:
+        raise ValueError("mask has no foreground blob")
+    return max(contours, key=cv2.contourArea).reshape(-1, 2).astype(float)

@@ -1,21 +1,6 @@
-"""P3P candidate mixture: one discrete mode per observation (`keys.mode_key`), one Gaussian
-component per candidate pose (seed 000 Sec. III-B / V: up to four P3P solutions, one genuine;
-seed 004 Sec. II-C: the same ambiguity).
-
-Component k is `BetweenFactorPose3(observer, observed, T_k)` -- or `PriorFactorPose3(observed,
-T_k)` when the observer is the world (ground robots localized beforehand, seed 000 Sec. III-A)
--- with the candidate's covariance. `candidate_mixture` wraps them in GTSAM 4.3's
-`HybridNonlinearFactor`; the scalar of component k is -log w_k + the Gaussian's negative log
-normalizer, so the factor's error is the negative log of a properly weighted Gaussian mixture.
-
-Candidate covariances: `CandidateSet.meta["covariance"]` (K,6,6) when the front-end provides
-it (e.g. `graphloc.geometry.resection.resection_covariance`), else `default_sigmas` (rot [rad],
-trans [m]); GTSAM Pose3 tangent order (rx, ry, rz, tx, ty, tz).
-
-`max_mixture_factor` / `candidate_max_mixture`: the same components as a max-mixture (Olson &
-Agarwal, RSS 2012), an ordinary nonlinear factor (gtsam.CustomFactor) that `Session` (LM /
-iSAM2) can optimize; it reports the active component for given Values.
-"""
+"""P3P candidate mixtures (seed 000 Sec. III-B / V, seed 004 Sec. II-C: up to four P3P solutions,
+one genuine): one Gaussian component per candidate pose (`component_factors`), combined as a
+max-mixture (Olson & Agarwal, RSS 2012), an ordinary factor LM and iSAM2 optimize."""
 
 from __future__ import annotations
 
@@ -24,7 +9,6 @@ import numpy as np
 
 from graphloc.candidates import CandidateSet
 from graphloc.factors.robust import Kernel, robust_noise
-from graphloc.keys import mode_key
 
 
 def candidate_covariances(candidates: CandidateSet, default_sigmas=(0.02, 0.05)) -> np.ndarray:
@@ -116,25 +100,6 @@ def mixture_weights(candidates: CandidateSet) -> np.ndarray:
     return np.maximum(candidates.weights(), MIN_WEIGHT)
 
 
-def candidate_mixture(
-    candidates: CandidateSet,
-    observation: int,
-    observed_key: int,
-    observer_key: int | None = None,
-    covariances: np.ndarray | None = None,
-) -> gtsam.HybridNonlinearFactor:
-    """HybridNonlinearFactor over mode_key(observation) with one component per candidate and
-    component weights `mixture_weights(candidates)` (from the scores)."""
-    if len(candidates) == 0:
-        raise ValueError(f"candidate_mixture: observation {observation} has no candidates")
-    factors = component_factors(candidates, observed_key, observer_key, covariances)
-    neg_log_w = -np.log(mixture_weights(candidates))
-    pairs = [
-        (f, float(nlw + f.noiseModel().negLogConstant())) for f, nlw in zip(factors, neg_log_w)
-    ]
-    return gtsam.HybridNonlinearFactor((mode_key(observation), len(candidates)), pairs)
-
-
 # ---- max-mixture (Olson & Agarwal, RSS 2012) --------------------------------------------------
 class MaxMixture:
     """A max-mixture of K components (Olson & Agarwal, "Inference on networks of mixtures for
@@ -150,16 +115,10 @@ class MaxMixture:
     fixed length, plus one row sqrt(2 (c_k - min_j c_j)) for its constant c_k, so that
     0.5 ||residual||^2 = error(x) - min_j c_j (a constant shift of the error).
 
-    A component is one factor or a group of factors whose errors add (e.g. a centre term plus
-    a normal term); every component must touch the same variables. `active(values)` is the
-    chosen mode at `values`; `component_errors(values)` all K terms.
-
-    iSAM2 caveat: iSAM2 re-evaluates a factor only when it relinearizes one of its variables
-    (delta above `relinearize_threshold`, every `relinearize_skip` updates); until then the
-    linear factor of the previously active component stays in the Bayes tree, so a switch of
-    mode takes effect only at the next relinearization of those variables. Keep the threshold
-    small for the mixture's variables (the seed-003 graph uses 0.01) or read `active` off the
-    final estimate; batch LM re-linearizes every iteration and has no such lag.
+    A component is one factor or a group of factors whose errors add; every component must
+    touch the same variables. `active(values)` is the chosen mode at `values`;
+    `component_errors(values)` all K terms. Under iSAM2 a switch of mode takes effect at the
+    next relinearization of its variables (docs/design_algorithms.md).
     """
 
     def __init__(self, components, weights):
@@ -276,22 +235,3 @@ def max_mixture_factor(components, weights) -> MaxMixture:
     list of them (summed) -- with weights (K,) > 0 (normalized here); see `MaxMixture`. Add
     `.factor` to the graph; keep the object to read `.active(values)`."""
     return MaxMixture(list(components), weights)
-
-
-def candidate_max_mixture(
-    candidates: CandidateSet,
-    observed_key: int,
-    observer_key: int | None = None,
-    covariances: np.ndarray | None = None,
-) -> MaxMixture:
-    """Max-mixture counterpart of `candidate_mixture`: one `component_factors` factor per
-    candidate, weights from the candidate scores."""
-    if len(candidates) == 0:
-        raise ValueError(
-            f"candidate_max_mixture: candidate set (source={candidates.source!r}, "
-            f"time={candidates.time}) is empty"
-        )
-    return max_mixture_factor(
-        component_factors(candidates, observed_key, observer_key, covariances),
-        mixture_weights(candidates),
-    )

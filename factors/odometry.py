@@ -1,14 +1,8 @@
 """Odometry and scan-matching between-factors (gtsam.BetweenFactorPose2 / BetweenFactorPose3)
-with the covariance supplied by the odometry model or the scan matcher, and vectorized
-integration of unicycle velocity odometry (v, omega) to keyframes.
-
-Seed 004 (004_fa12d1d18dcbd0db.txt, sec. II.3 "Odometry motion model", Algorithm 1) samples
-odometry with rotational + translational noise inside a particle filter; here the same motion
-uncertainty enters the factor graph as a covariance propagated analytically from a velocity noise
-model. Its ICP map fusion (sec. IV) hands a relative pose to `between_factor` as a 4x4 matrix.
-
-Covariances are in GTSAM's tangent order: Pose2 (x, y, theta) in the frame of the second pose;
-Pose3 (rx, ry, rz, tx, ty, tz).
+with the covariance of the odometry model or the scan matcher, and unicycle velocity odometry
+(v, omega) integrated to keyframes with its covariance propagated analytically (seed 004
+sec. II.3, Algorithm 1, samples the same motion noise in a particle filter). Covariances in
+GTSAM's tangent order.
 """
 
 from __future__ import annotations
@@ -191,20 +185,6 @@ def between_poses(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
     c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
     return np.stack([c * dx + s * dy, -s * dx + c * dy, _wrap(b[:, 2] - a[:, 2])], axis=1)
-
-
-def compose_poses(poses: np.ndarray, deltas: np.ndarray) -> np.ndarray:
-    """(N,3) planar poses composed with (N,3) relative poses, row by row (vectorized)."""
-    p, d = np.asarray(poses, dtype=float), np.asarray(deltas, dtype=float)
-    c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
-    return np.stack(
-        [
-            p[:, 0] + c * d[:, 0] - s * d[:, 1],
-            p[:, 1] + s * d[:, 0] + c * d[:, 1],
-            _wrap(p[:, 2] + d[:, 2]),
-        ],
-        axis=1,
-    )
 
 
 def _wrap(a):

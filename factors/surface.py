@@ -1,14 +1,7 @@
-"""Surface constraint: a climbing robot stays on a known plane -- floor, wall, level ceiling or
-the 45-degree sloped ceiling of seed 000 Sec. VI-B -- within a small thickness sigma; its body
-axis normal to the surface (e.g. the wheels' axis of the climbing robot) stays aligned with the
-plane normal (seed 000 Sec. I-A: "its action space is confined within planar surfaces";
-seed 004 Algorithm 1 line 7: z' = z on the ceiling).
-
-Built-ins only:
-- distance to the plane: gtsam.PoseTranslationPrior3D at a point of the plane with a rank-1
-  square-root information n^T / sigma (gtsam.noiseModel.Gaussian.SqrtInformation): the
-  whitened error is n.(t - p0) / sigma, zero along the plane;
-- orientation: gtsam.AttitudeFactorPose3 (body axis `body_normal` -> world plane normal).
+"""Surface constraint (seed 000 Sec. I-A, VI-B; seed 004 Algorithm 1 line 7): a climbing robot
+stays on a known plane within a thickness sigma (gtsam.PoseTranslationPrior3D with a rank-1
+square-root information n^T / sigma), its body axis normal to the surface aligned with the
+plane normal (gtsam.AttitudeFactorPose3).
 """
 
 from __future__ import annotations
@@ -47,11 +40,6 @@ class SurfacePlane:
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Signed distances (N,) of points (N,3) along the normal."""
         return (np.asarray(points, dtype=float) - self.point) @ self.normal
-
-    @classmethod
-    def level_ceiling(cls, height: float = 3.0) -> "SurfacePlane":
-        """Seed 000 ceiling I (3 m), normal pointing down into the room."""
-        return cls(np.array([0.0, 0.0, height]), np.array([0.0, 0.0, -1.0]))
 
     @classmethod
     def sloped_ceiling(cls) -> "SurfacePlane":
@@ -95,17 +83,3 @@ def plane_attitude_factor(
         gtsam.noiseModel.Isotropic.Sigma(2, sigma),
         gtsam.Unit3(b / np.linalg.norm(b)),
     )
-
-
-def surface_factors(
-    key: int,
-    plane: SurfacePlane,
-    thickness_sigma: float = 0.005,
-    attitude_sigma: float | None = 0.02,
-    body_normal=(0.0, 0.0, 1.0),
-) -> list:
-    """Both constraints for one pose (attitude omitted when attitude_sigma is None)."""
-    out = [plane_distance_factor(key, plane, thickness_sigma)]
-    if attitude_sigma is not None:
-        out.append(plane_attitude_factor(key, plane, attitude_sigma, body_normal))
-    return out

@@ -213,7 +213,7 @@ def kiss_icp_alone(path: Path) -> dict | None:
 
 
 def bearing_cost() -> dict:
-    from graphloc.factors.bearing import bearing_linearize_cost
+    from benchmarks.bearing_cost import bearing_linearize_cost
 
     return bearing_linearize_cost(5000)
 

@@ -10,10 +10,10 @@ from graphloc.vision.circle import (
     CircleConfig,
     circle_pose_from_rim,
     circle_poses_from_rims,
-    rim_points_from_mask,
     rotations_from_normals,
 )
 from graphloc.vision.ellipse import ellipse_to_conic
+from benchmarks.seed003_geometry import rim_points_from_mask
 
 from graphloc.datasets.render import render_circle_rim
 

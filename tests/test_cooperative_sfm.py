@@ -24,12 +24,8 @@ from benchmarks.cooperative_sfm import (
     run_cooperative_sfm,
 )
 from graphloc.seams import FrameInput, TeammateObservation
-from graphloc.vision.teammate import (
-    TeammateConfig,
-    disk_pose_covariance,
-    measure_frames,
-    teammate_observation,
-)
+from graphloc.vision.teammate import TeammateConfig, measure_frames, teammate_observation
+from benchmarks.cooperative_sfm.graph import disk_pose_covariance
 from graphloc.keys import pose_key
 from graphloc.session import Session
 from graphloc.vision.circle import rotations_from_normals

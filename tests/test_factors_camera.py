@@ -6,19 +6,11 @@ import numpy as np
 import pytest
 
 from graphloc.candidates import CandidateSet
-from graphloc.factors.bearing import (
-    bearing_factor,
-    known_baseline_factor,
-    predicted_bearing,
-    range_factor,
-)
-from graphloc.factors.mixture import candidate_covariances, candidate_mixture, component_factors
-from graphloc.factors.surface import (
-    SurfacePlane,
-    plane_attitude_factor,
-    plane_distance_factor,
-    surface_factors,
-)
+from graphloc.factors.bearing import bearing_factor, range_factor
+from graphloc.factors.mixture import candidate_covariances, component_factors
+from graphloc.factors.surface import SurfacePlane, plane_attitude_factor, plane_distance_factor
+from benchmarks.bearing_cost import predicted_bearing
+from benchmarks.candidate_mixtures import candidate_mixture
 from graphloc.keys import mode_key, pose_key
 
 
@@ -70,8 +62,8 @@ def test_mutual_bearings_with_known_baseline_recover_formation():
             if i != j:
                 g.add(bearing_factor(keys[i], keys[j], predicted_bearing(truth[i], truth[j]), 1e-3))
     g.add(
-        known_baseline_factor(
-            keys[0], keys[1], np.linalg.norm(truth[0].translation() - truth[1].translation())
+        range_factor(
+            keys[0], keys[1], np.linalg.norm(truth[0].translation() - truth[1].translation()), 1e-3
         )
     )
     init = gtsam.Values()
@@ -174,8 +166,8 @@ def test_surface_factors_pull_a_pose_onto_the_sloped_ceiling():
     plane = SurfacePlane.sloped_ceiling()
     key = pose_key(3, 0)
     g = gtsam.NonlinearFactorGraph()
-    for f in surface_factors(key, plane, 0.005, 0.02):
-        g.add(f)
+    g.add(plane_distance_factor(key, plane, 0.005))
+    g.add(plane_attitude_factor(key, plane, 0.02))
     start = pose((0.0, 0.0, 0.0), (1.0, 1.0, 2.5))
     g.add(gtsam.PriorFactorPose3(key, start, gtsam.noiseModel.Isotropic.Sigma(6, 10.0)))
     init = gtsam.Values()

@@ -5,12 +5,8 @@ import numpy as np
 import pytest
 
 from graphloc.candidates import CandidateSet
-from graphloc.factors.mixture import (
-    candidate_max_mixture,
-    candidate_mixture,
-    component_factors,
-    max_mixture_factor,
-)
+from graphloc.factors.mixture import component_factors, max_mixture_factor
+from benchmarks.candidate_mixtures import candidate_max_mixture, candidate_mixture
 from graphloc.keys import mode_key, pose_key
 from graphloc.session import Session, SessionConfig
 

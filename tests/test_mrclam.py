@@ -12,7 +12,7 @@ from graphloc.cli import main
 from graphloc.datasets import dataset_class
 from graphloc.datasets.mrclam import MRCLAM, interpolate_pose, is_mrclam_dir
 from graphloc.factors.odometry import integrate_unicycle
-from graphloc.factors.range_bearing import bearing_range_2d
+from benchmarks.planar_factors import bearing_range_2d
 from graphloc.datasets import open_run
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph import GraphConfig, solve

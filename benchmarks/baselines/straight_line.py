@@ -94,7 +94,7 @@ def bearings_from_pixels(pixels: np.ndarray, K: np.ndarray) -> np.ndarray:
 
 
 def localize_by_straight_line(
-    pixels: np.ndarray, K: np.ndarray, ground: np.ndarray, method: str = "lambdatwist"
+    pixels: np.ndarray, K: np.ndarray, ground: np.ndarray
 ) -> StraightLineChoice:
     """pixels (T,3,3,2) [trial, snapshot, robot], K (3,3), ground (T,3,3) robot positions ->
     P3P per snapshot (batched over all T*3) and the straight-line choice."""
@@ -109,7 +109,7 @@ def localize_by_straight_line(
     T = pixels.shape[0]
     bearings = bearings_from_pixels(pixels, K).reshape(T * 3, 3, 3)
     points = np.repeat(ground, 3, axis=0)
-    cands = solve_p3p(bearings, points, method=method)
+    cands = solve_p3p(bearings, points)
     pos = cands.t_wc.reshape(T, 3, MAX_CANDIDATES, 3)
     valid = cands.valid.reshape(T, 3, MAX_CANDIDATES)
     chosen, error, second, errors = pick_straight_line(pos, valid)

@@ -26,7 +26,23 @@ from benchmarks.cooperative_sfm.config import (
 )
 from graphloc.seams import FrameInput
 from graphloc.session import Session
-from graphloc.vision.teammate import disk_pose_covariance
+
+
+def disk_pose_covariance(
+    R: np.ndarray, disk_covariance: np.ndarray, yaw_sigma: float
+) -> np.ndarray:
+    """(K,6,6) covariances of circle poses T_cam_base (rotations R (K,3,3), z = normal) in
+    GTSAM's Pose3 tangent (omega, v; base frame) from a (5,5) disk covariance over (centre in
+    the camera frame, normal tilt a, b towards the disk's x, y axes), yaw_sigma [rad] about the
+    normal: T Exp(omega, v) moves the centre by R v and the normal by omega_y x - omega_x y, so
+    omega_x = -b, omega_y = a, v = R^T dc."""
+    R = np.asarray(R, float).reshape(-1, 3, 3)
+    J = np.zeros((len(R), 6, 5))
+    J[:, 0, 4], J[:, 1, 3] = -1.0, 1.0
+    J[:, 3:, :3] = np.transpose(R, (0, 2, 1))
+    cov = np.einsum("kij,jl,kml->kim", J, np.asarray(disk_covariance, float).reshape(5, 5), J)
+    cov[:, 2, 2] = yaw_sigma**2
+    return cov
 
 
 class CooperativeSfm:

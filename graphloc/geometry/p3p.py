@@ -1,34 +1,16 @@
 """Perspective-three-point (P3P): every camera pose consistent with three bearings of three
-known world points, batched over N instances in numpy (no Python loop per instance).
-
-Methods (all return every real candidate, up to four per instance):
-- ``lambdatwist`` (default): Persson & Nordberg, "Lambda Twist", ECCV 2018 -- one real root of
-  the cubic that makes the pencil of two depth conics degenerate, closed-form eigenvectors of
-  that rank-2 conic, its two planes, a quadratic on each, Gauss-Newton on the depths.
-- ``grunert``: Grunert 1841 as reviewed by Haralick et al. 1991 (the solver of seed
-  004_fa12d1d18dcbd0db.txt, section II-B, eq. 1): quartic in v = s3/s1.
-- ``finsterwalder``: seed 000_05137a0a9c449be3.txt, section III-B, eqs. (1)-(10): a root of the
-  cubic (10) makes (8) a line pair, (9) gives v linear in u, (7) a quadratic in u. (The middle
-  fraction of eq. (5) has numerator b^2, from (2); the seed prints a^2.)
-- ``kneip``: Kneip, Scaramuzza & Siegwart, CVPR 2011 (seed 001_0f8f8dae37ce6b79.txt,
-  section III-C, ref. [18]): quartic in cos(theta) in intermediate camera/world frames, camera
-  centre and orientation in closed form.
+known world points, batched over N instances in numpy (no Python loop per instance), by Lambda
+Twist (Persson & Nordberg, ECCV 2018; `p3p_solvers`). The seeds' solvers (Grunert, seed 004
+Sec. II-B; Finsterwalder, seed 000 Sec. III-B; Kneip, seed 001 Sec. III-C) plug into
+`solve_p3p` from benchmarks/baselines/p3p_seeds.py.
 
 Conventions: ``bearings`` (N,3,3), row i = direction to world point i in the camera frame
 (normalized here); ``points`` (N,3,3), row i = world point i. Output: pose of the camera in the
 world, X_i = R_wc @ (depth_i * f_i) + t_wc. Malformed shapes raise ValueError; degenerate
 geometry (NaN/inf, zero or parallel bearings, coincident or collinear points) gives rows with
 ``valid`` all False and ``degenerate`` True. Every returned candidate has positive depths and
-reprojects the three points within ``P3PConfig.max_residual_rad``.
-
-Modules: this one holds the API, the input checks and the steps every method shares (depth
-refinement, pose from depths, reprojection check, polish); `p3p_solvers` the four solver
-families; `p3p_soa` the vector algebra and polynomial roots they use.
-
-Implementation note: the hot path keeps vectors as tuples of three arrays (structure of arrays):
-per-instance quantities are (N,1) columns, and after the polynomial stage only the M candidates
-that exist are kept as flat (M,) arrays, so numpy does one pass per scalar operation over all of
-them. Large batches run in cache-sized blocks of BLOCK instances.
+reprojects the three points within ``P3PConfig.max_residual_rad``. Vectors are tuples of three
+arrays (`p3p_soa`); large batches run in blocks of BLOCK instances.
 """
 
 from __future__ import annotations
@@ -52,15 +34,8 @@ from graphloc.geometry.p3p_soa import (
     vsub,
     vunit,
 )
-from graphloc.geometry.p3p_solvers import (
-    finsterwalder_depths,
-    grunert_depths,
-    kneip,
-    lambdatwist_depths,
-    refine_depths,
-)
+from graphloc.geometry.p3p_solvers import lambdatwist_depths, refine_depths
 
-METHODS = ("lambdatwist", "grunert", "finsterwalder", "kneip")
 MAX_CANDIDATES = 4
 BLOCK = 4096  # instances per vectorized pass (cache-sized)
 
@@ -77,8 +52,7 @@ class P3PConfig:
     max_residual_rad: float = setting(1e-6, gt=0.0)
     # candidate centres closer than this * longest side merge
     duplicate_tol: float = setting(1e-7, ge=0.0)
-    # Gauss-Newton steps on the depths; None: per method
-    # (lambdatwist 1: its depths are accurate to ~1e-10 before; grunert, finsterwalder 2)
+    # Gauss-Newton steps on the depths; None: the solver's own (lambdatwist 1)
     depth_refine_iters: int | None = setting(None, ge=0)
     polish_iters: int = setting(2, ge=0)  # Gauss-Newton steps on the pose when polish=True
 
@@ -129,21 +103,18 @@ class P3PCandidates:
 
 
 def solve_p3p(
-    bearings,
-    points,
-    method: str = "lambdatwist",
-    polish: bool = False,
-    config: P3PConfig = P3PConfig(),
+    bearings, points, polish: bool = False, config: P3PConfig = P3PConfig(), solver=None
 ) -> P3PCandidates:
-    """All P3P candidates of N instances; bearings, points (N,3,3). See the module docstring."""
-    if method not in METHODS:
-        raise ValueError(f"solve_p3p: unknown method {method!r}; choose one of {METHODS}")
+    """All P3P candidates of N instances; bearings, points (N,3,3). See the module docstring.
+    solver(F, P, config) -> flat candidates (R, t, instance, ok), `lambdatwist` when None; its
+    __name__ is the candidates' method."""
+    solver = lambdatwist if solver is None else solver
     f, X = _check_shapes(bearings, points)
     if f.shape[0] <= BLOCK:
-        return _solve_block(f, X, method, polish, config)
+        return _solve_block(f, X, solver, polish, config)
     # blocks that fit the CPU cache are ~2x faster than one pass over 100k instances
     parts = [
-        _solve_block(f[s : s + BLOCK], X[s : s + BLOCK], method, polish, config)
+        _solve_block(f[s : s + BLOCK], X[s : s + BLOCK], solver, polish, config)
         for s in range(0, f.shape[0], BLOCK)
     ]
     return P3PCandidates(
@@ -151,58 +122,43 @@ def solve_p3p(
             name: np.concatenate([getattr(p, name) for p in parts])
             for name in ("R_wc", "t_wc", "valid", "residual", "degenerate")
         },
-        method=method,
+        method=solver.__name__,
     )
 
 
-def _solve_block(f, X, method, polish, config) -> P3PCandidates:
+def _solve_block(f, X, solver, polish, config) -> P3PCandidates:
     """solve_p3p on one block; numpy warnings are suppressed and bad values masked instead."""
     with np.errstate(all="ignore"):
         F, P, origin, degenerate, longest2 = _prepare(f, X, config)
-        if method == "kneip":
-            R, t, inst = kneip(F, P)
-            F, P = gather(F, inst), gather(P, inst)
-            ok_m = np.ones(inst.size, bool)
-        else:
-            solver = {
-                "lambdatwist": lambdatwist_depths,
-                "grunert": grunert_depths,
-                "finsterwalder": finsterwalder_depths,
-            }[method]
-            geo = cosines_and_sides(F, P)
-            FP = _triangle_frame(*P)  # world triangle frame, per instance
-            lam, ok = solver(geo)
-            # from here on only the candidates that exist: flat arrays of length M, sorted by
-            # instance
-            inst, slot = np.nonzero(ok)
-            lam = tuple(x[inst, slot] for x in lam)
-            F, P = gather(F, inst), gather(P, inst)
-            geo = tuple(x[inst, 0] for x in geo)
-            iters = config.depth_refine_iters
-            lam = refine_depths(
-                geo, lam, (1 if method == "lambdatwist" else 2) if iters is None else iters
-            )
-            ok_m = (lam[0] > 0) & (lam[1] > 0) & (lam[2] > 0)
-            R, t = _pose_from_depths(F, gather(FP, inst), lam)
+        R, t, inst, ok_m = solver(F, P, config)
+        F, P = gather(F, inst), gather(P, inst)
         if polish:
             R, t = _polish_pose(F, P, R, t, config.polish_iters)
         residual, in_front = _reprojection_check(F, P, R, t)
         ok_m &= in_front & (residual < config.max_residual_rad) & ~degenerate[inst]
         lim2 = config.duplicate_tol**2 * longest2[inst]
-        return _assemble(R, t, residual, ok_m, inst, origin, degenerate, method, lim2)
+        return _assemble(R, t, residual, ok_m, inst, origin, degenerate, solver.__name__, lim2)
 
 
-def solve_p3p_poses(
-    bearings, points, method: str = "lambdatwist", polish: bool = False
-) -> list[gtsam.Pose3]:
-    """Convenience for one instance: bearings, points (3,3) -> valid candidates as gtsam.Pose3."""
-    b = np.asarray(bearings, dtype=float)
-    p = np.asarray(points, dtype=float)
-    if b.shape != (3, 3) or p.shape != (3, 3):
-        raise ValueError(
-            f"solve_p3p_poses: bearings and points must be (3,3), got {b.shape} and {p.shape}"
-        )
-    return solve_p3p(b[None], p[None], method=method, polish=polish).poses(0)
+def depth_candidates(F, P, depths, iters):
+    """Flat candidates (R, t, instance, ok) of a depth solver (cosines and sides -> up to four
+    depth triples and a mask), its depths refined by `iters` Gauss-Newton steps."""
+    geo = cosines_and_sides(F, P)
+    FP = _triangle_frame(*P)  # world triangle frame, per instance
+    lam, ok = depths(geo)
+    # from here on only the candidates that exist: flat arrays of length M, sorted by instance
+    inst, slot = np.nonzero(ok)
+    lam = tuple(x[inst, slot] for x in lam)
+    lam = refine_depths(tuple(x[inst, 0] for x in geo), lam, iters)
+    ok_m = (lam[0] > 0) & (lam[1] > 0) & (lam[2] > 0)
+    R, t = _pose_from_depths(gather(F, inst), gather(FP, inst), lam)
+    return R, t, inst, ok_m
+
+
+def lambdatwist(F, P, config):
+    """The default solver of `solve_p3p`: Lambda Twist's depths, refined once."""
+    iters = 1 if config.depth_refine_iters is None else config.depth_refine_iters
+    return depth_candidates(F, P, lambdatwist_depths, iters)
 
 
 # ----------------------------------------------------------------------------- input checks

@@ -1,15 +1,8 @@
 """The geometry of one branching of `graphloc.hypotheses.pose_graph`: factors of a measurement's
-candidates, the rigid move of a trajectory's tail when a bridge edge changes candidate, the
-predicted chi-square of new factors under each combination of candidates, and a fresh iSAM2
-from a factor list (the one way a hypothesis is copied: GTSAM's ISAM2 cannot be cloned).
-
-A bridge edge (a -> b) is an edge whose removal disconnects the graph: every pose after b in
-insertion order hangs on it alone. Switching its candidate from z to z' leaves the error of
-every other factor unchanged if the tail moves rigidly by G = T_a z' T_b^-1 (T_b the current
-estimate of b, about T_a z), so the switched hypothesis starts at its own optimum; loop
-closures arriving later tell the candidates apart (Olson's loop consistency; MH-iSAM2's
-hypothesis tree, Hsiao & Kaess, ICRA 2019, keeps such branches in one Bayes tree; here one
-iSAM2 per branch)."""
+candidates, the rigid move of a trajectory's tail when a bridge edge changes candidate (so the
+switched hypothesis starts at its own optimum), the predicted chi-square of new factors under
+each combination of candidates, and a fresh iSAM2 from a factor list (GTSAM's ISAM2 cannot be
+cloned). Bridge edges: docs/design_algorithms.md, "Branching"."""
 
 from __future__ import annotations
 

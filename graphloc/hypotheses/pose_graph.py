@@ -1,37 +1,9 @@
 """Incremental multi-hypothesis inference for pose graphs whose measurements have discrete
 alternatives: K candidate relative poses (ambiguous odometry, ambiguous loop closures) and
 optionally a "null" component (a loop closure that may be an outlier), 2D (Pose2) and 3D
-(Pose3), on GTSAM's iSAM2.
-
-Design (deferred decisions over a bounded set of branches, each one iSAM2):
-
-* A measurement that introduces a new pose is a *bridge* while no factor spans it (no factor
-  joins a pose before it to a pose after it, in insertion order). Its candidates cannot be told
-  apart yet (the tail moves rigidly with it, every candidate has the same optimal error), so
-  it enters every branch with its first candidate and no branch is created.
-* When factors arrive that span bridges, or an ambiguous loop closure arrives, the engine
-  branches: every surviving branch times every combination of the newly open measurements'
-  candidates. Combinations are ranked by the chi-square of the step's new factors at the
-  branch's estimate with the switched tails moved rigidly (`branching.tail_moves`), and the
-  best `max_branches` are kept, except those whose first-order lower bound of the rise of the
-  optimal chi-square, r^T (C + Sigma_chain)^-1 r for a new factor with residual r and
-  covariance C, Sigma_chain the relative covariance along the odometry chain alone (an upper
-  bound of the true one, `branching.lower_bound_chi2`), exceeds the best prediction by
-  `margin`. A child that switches nothing reuses its parent's iSAM2; the others are new
-  iSAM2s built from their factor list at the moved estimate.
-* Every branch receives every later factor. Every `window` steps after a branching, each
-  branch is scored by the chi-square of all its factors at its estimate (2 x the error GTSAM
-  reports, after `settle` extra iSAM2 iterations) plus `null_penalty` per null component it
-  chose (the negative log of a null's prior odds, as in a max-mixture / switchable constraint);
-  branches worse than the best by more than `margin` are pruned (a chi-square test on the
-  difference of two nested fits). A measurement is decided when every surviving branch holds
-  the same candidate; `max_window` steps after the oldest open measurement the best branch is
-  taken alone (bounded deferral).
-
-The score is the whole graph's chi-square, computed only at judgements (not per step), so the
-cost per step is one iSAM2 update per branch every `batch` steps (as HybridSmoother updates
-after every few hybrid factors); with one branch (no open measurement) that is plain iSAM2.
-Keys are `X(id)`.
+(Pose3), on GTSAM's iSAM2: a bounded set of branches, each one iSAM2, judged by the whole
+graph's chi-square every `window` steps (the design: docs/design_algorithms.md, "Pose-graph
+hypotheses"). Keys are `X(id)`.
 """
 
 from __future__ import annotations

@@ -1,23 +1,8 @@
 """Batched Pose3 maps in GTSAM's conventions, in NumPy, for the HypothesisTracker's per-frame
-work (a few poses at a time, where one GTSAM call per pose costs more than the arithmetic).
-
-Tangent order (omega, v), right perturbation x Exp(xi), as `gtsam.Pose3`:
-- `log(R, t)`: `gtsam.Pose3.Logmap` of every pose (N,3,3), (N,3) -> (N,6); with
-  `jacobian=True` also `gtsam.Pose3.LogmapDerivative` (the inverse right Jacobian Jr^-1, the
-  Jacobian of PriorFactorPose3 / BetweenFactorPose3 errors) and ad(xi);
-- `exp(xi)`: `gtsam.Pose3.Expmap` (= `retract` at the identity: GTSAM_POSE3_EXPMAP), as
-  homogeneous 4x4 matrices;
-- `inverse_right_jacobian(xi)`: Jr^-1 from tangent vectors.
-
-Jr^-1(xi) = f(ad_xi), f(x) = x / (1 - e^-x) = x/2 + (x/2) coth(x/2) (Barfoot and Furgale 2014,
-"Associating uncertainty with three-dimensional poses", eq. 100ff). ad_xi has the eigenvalues
-0 and +-i theta (each twice), so the even part of f is the polynomial I + alpha ad^2 + beta ad^4
-that matches it and its derivative at -theta^2 (in ad^2); its top-left block is SO(3)'s
-I + 1/2 W + c W^2, the same c as in Pose3::Logmap's V^-1 = I - 1/2 W + c W^2. The coefficients
-are power series in theta^2 (Bernoulli numbers) for theta < 1 and the closed forms above it; the
-rotation angle is atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2), exact near 0, and GTSAM's own
-Rot3::Logmap where tr R < -1 + 1e-3 (near pi). Agreement with GTSAM to rounding:
-tests/test_tracker_window.py."""
+work: `log` (Pose3.Logmap, with `jacobian=True` also LogmapDerivative Jr^-1 and ad(xi)), `exp`
+(Pose3.Expmap, homogeneous 4x4), `inverse_right_jacobian`; tangent order (omega, v), right
+perturbation. Jr^-1(xi) = f(ad_xi), f(x) = x / (1 - e^-x) (Barfoot and Furgale 2014, eq. 100ff);
+the series and closed forms: docs/design_algorithms.md, "Pose3 maps"."""
 
 from __future__ import annotations
 

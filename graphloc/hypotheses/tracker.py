@@ -1,76 +1,11 @@
 """HypothesisTracker: multi-hypothesis inference over per-frame P3P candidate mixtures with a
 bounded bank of Gaussian tracks (seed 000 Sec. V: belief over the up-to-four P3P solutions,
 commit at belief 0.95, relocalize when the committed solution loses support; seed 004
-Sec. II-C: the same question with odometry).
-
-Design (and why). GTSAM's HybridSmoother keeps one discrete mode per frame in a tree that
-grows with every frame; pruning by leaves or marginal thresholds alone either stalls or stops
-relinearizing. Here the discrete history is never kept: each hypothesis is a *track* -- "the
-genuine candidate at this frame is candidate j, reached along this path" -- carrying a Gaussian
-on the camera pose (mean Pose3, 6x6 covariance, GTSAM tangent order) and a log-weight.
-
-Per frame (odometry u with covariance Q, candidates z_j with covariances C_j and weights w_j):
-1. predict every track: x- = x u, P- = Ad(u^-1) P Ad(u^-1)^T + Q;
-2. score every (track h, candidate j) pair with innovation e = Log(x-^-1 z_j), S = P- + C_j:
-       log w_j + f(e^T S^-1 e) - 1/2 log det(I + P- C_j^-1),
-   the likelihood of the raw measurement the candidates were solved from: the pixels y are (to
-   first order) linear in a candidate's pose with C_j = sigma^2 (A^T A)^-1, so p(y | h) =
-   int N(x; x-, P-) p(y | x) dx = sigma^-6 sqrt(det C_j) N(e; 0, S). The Jacobian factor
-   sqrt(det C_j) cancels log det C_j inside N: every P3P candidate reprojects the pixels
-   exactly, so a candidate is not more likely because its pose covariance is tighter (scored in
-   pose space, a pseudo solution with a smaller covariance wins on the log-determinant alone).
-   f(m) = -(nu + 6)/2 [log(1 + m/nu) - log(1 + 6/nu)] is a multivariate Student-t (nu = 6; P3P
-   errors are heavy-tailed near its danger cylinder; nu = inf gives the Gaussian -1/2 (m - 6)),
-   centred at m = 6 = E[chi2_6] so that a consistent association scores ~0 per frame -- the
-   scale of the two other options:
-   a "miss" keeps a track coasting, scored as an average consistent association (f = 0, Occam
-   factor with the frame's mean candidate covariance) times the prior of its solution being
-   absent: near the danger cylinder the genuine solution merges with a pseudo one and both
-   vanish, sometimes for seconds; with J of 4 solutions present each absent one keeps prior 1/4
-   like a present one, with all four present a miss is nearly impossible (miss_probability_full);
-   a "birth" starts a track at z_j with log p_birth + log w_j (relocalization after a kidnap or
-   a lost track). Candidate covariances are capped at max_candidate_std (linearization trust
-   region: near the fold of the P3P map the first-order covariance is meaningless);
-3. children: one per candidate, log-sum-exp over all parents and the birth (the posterior
-   that j is genuine), state from the best parent updated by a 2-pose fixed-lag window:
-   PriorFactorPose3 (parent marginal) + BetweenFactorPose3 (odometry) + PriorFactorPose3 (z_j,
-   C_j); the windows of all children of a frame are one batch and one Gauss-Newton (both
-   poses of every window relinearized, GTSAM's GaussNewtonOptimizer's steps and stopping rule
-   on the windows as one graph), the new covariances are Schur complements of the Hessian's
-   diagonal blocks -- in batched NumPy with GTSAM's Pose3 maps and factor Jacobians
-   (`graphloc.hypotheses.window`, `graphloc.hypotheses.se3`), no GTSAM graph built per
-   frame. The tracks are arrays (one row per track), so a frame creates no Python object per
-   hypothesis. The innovation being
-   Student-t, so is the posterior (Roth, Ozkan, Gustafsson 2013, "A Student's t filter for
-   heavy tailed process and measurement noise"):
-   its scale is the Gaussian one times (nu + m) / (nu + 6) -- a surprising frame makes the
-   track less certain instead of dragging a confident wrong state into the next frames'
-   scores (`student_scale`);
-4. prune: every candidate keeps its child (so a birth can always take over), coasting tracks
-   (one per track id) fill the remaining slots up to K; normalize.
-Decided modes are fixed by construction (the past is marginalized into each track's Gaussian;
-`benchmarks.track_smoothing.track_graph` re-solves a run with its committed modes in a
-batch Session), the number of live tracks is <= K and per-frame work is O(K * candidates):
-latency and memory do not grow with the run length.
-
-Commit: a track is the lineage of hypotheses through best parents (its id survives frames in
-which it coasts). When a track's posterior (summed over its live hypotheses: the child on a
-candidate and a coasting copy) passes `commit_threshold` (0.95, seed 000 Sec. VI-B) *without
-the single update that raised its log-odds most* (`robust_commit`), it is committed; when it
-falls below `release_threshold` the question is re-opened (the `relocalized` flag of that
-frame's Decision). Why the held-out update: P3P candidates are heavy-tailed (the genuine
-solution is far outside its first-order covariance more often than a Gaussian allows) and on
-a sloped ceiling a pseudo solution can follow the odometry for the first few updates (their
-motion is well inside the candidates' spread), so the posterior can pass 0.95 on one frame's
-noise; a commit now needs the threshold to hold on the evidence of the other updates, i.e. at
-least two updates must agree (the seed's own remedy is to wait for motion: 0.3 s before its
-first update). The cost, about one more update to the first commit, and the wrong first
-commits it removes are measured on held-out seeds by scripts/bench_hypotheses.py
-(--seed-offset) and tests/test_hypotheses.py.
-
-Inputs shared with the baselines (benchmarks.baselines): per frame a CandidateSet (camera poses
-in the world) and, from the second frame on, an `Odometry` (relative camera pose since the
-previous frame, in that frame, with covariance).
+Sec. II-C: the same question with odometry). Per frame: predict every track by the odometry,
+score every (track, candidate) pair by a Student-t innovation, one child per candidate from
+its best parent (a 2-pose window, `window`), prune to K tracks; commit a track whose posterior
+passes `commit_threshold` without its strongest single update. The derivation and the design:
+docs/design_algorithms.md, "The hypothesis tracker".
 """
 
 from __future__ import annotations

@@ -1,26 +1,8 @@
-"""The HypothesisTracker's window update (tracker.py, step 3): for every child, the 2-pose graph
-PriorFactorPose3(x0; parent mean, parent covariance) + BetweenFactorPose3(x0, x1; odometry) +
-PriorFactorPose3(x1; candidate, candidate covariance), solved by Gauss-Newton from x0 = parent,
-x1 = parent * odometry, the child's covariance the x1 block of the inverse Hessian at the
-solution. All children of a frame are one batch (disjoint windows), as they were one GTSAM graph.
-
-The same computation as `gtsam.GaussNewtonOptimizer` on that graph, in batched NumPy (no
-graph built per frame):
-- errors and Jacobians as GTSAM's factors: prior e = Log(m^-1 x), de/dx = Jr^-1(e); between
-  e = Log(u^-1 x0^-1 x1), de/dx1 = Jr^-1(e), de/dx0 = -Jr^-1(e) Ad(x1^-1 x0) = -Jl^-1(e) Ad(u^-1)
-  (Jr^-1(e) Ad(Exp(e)^-1) = Jl^-1(e) = Jr^-1(e) - ad(e));
-- the normal equations of each window's 12 unknowns, retraction x Exp(delta) (GTSAM_POSE3_EXPMAP);
-- the stopping rule of NonlinearOptimizer::defaultOptimize: no iteration when the error is 0 or
-  `iterations` is 0, else iterate until `iterations` or until checkConvergence (relative or
-  absolute decrease of the whole graph's error <= 1e-5, GaussNewtonParams' defaults) -- one
-  rule for the batch, whose error is the sum of the windows' errors, as in the one graph;
-- at the start (x1 = x0 u) the prior on x0 and the between factor have zero error, their
-  Jacobians are I and (-Ad(u^-1), I), and the candidate's error is -Log(x1^-1 z), which the
-  tracker's scoring has already computed.
-The iterations follow the three factors' error poses E_a = m^-1 x0, E_b = u^-1 x0^-1 x1,
-E_c = z^-1 x1 rather than x0, x1: a step x0 Exp(d0), x1 Exp(d1) is E_a Exp(d0),
-Exp(-Ad(u^-1) d0) E_b Exp(d1), E_c Exp(d1) (u^-1 Exp(a) u = Exp(Ad(u^-1) a)), and x1 = z E_c.
-Equality with the GTSAM graph to rounding: tests/test_tracker_window.py."""
+"""The HypothesisTracker's window update (tracker.py): for every child, the 2-pose graph
+PriorFactorPose3(x0; parent) + BetweenFactorPose3(x0, x1; odometry) + PriorFactorPose3(x1;
+candidate) solved as `gtsam.GaussNewtonOptimizer` would (same Jacobians, retraction and stopping
+rule), all children of a frame in one batched NumPy pass; the child's covariance is the x1
+block of the inverse Hessian. The derivation: docs/design_algorithms.md, "The tracker's window"."""
 
 from __future__ import annotations
 

@@ -1,12 +1,7 @@
 """What a robust inter-robot registration must pass before it is fused (issue 16): the
-`AcceptanceConfig` thresholds, the per-candidate checks (`candidate_checks`: overlap, inlier
-ratio, contradicted cubes, agreement with the pose hint, the robot kinds' geometry), the
-point-to-plane residuals and costs they are computed from (`point_to_plane`, `truncated_costs`,
-`contradicted_fraction`, `cost_margin_se`) at the scans' own residual scale (`residual_scale`),
-which candidates only the contradicted cubes refuse (`only_slid_or_valid`), and the
-`RegistrationDecision` that
-`graphloc.mapping.robust_registration.robust_register` returns (every candidate, every check, why
-each candidate lost)."""
+per-candidate checks (`candidate_checks`), the point-to-plane residuals and costs they are
+computed from at the scans' own residual scale, and the `RegistrationDecision` that
+`robust_register` returns (every candidate, every check, why each candidate lost)."""
 
 from __future__ import annotations
 

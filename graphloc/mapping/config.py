@@ -58,75 +58,41 @@ class RegistrationConfig:
     ransac_iterations: int = setting(100_000, ge=1, le=10_000_000)
     ransac_confidence: float = 0.999
     range_sigma: float = setting(0.01, gt=0.0)
-    # robust_register: coarse correspondences within coarse_voxels coarse voxels, Tukey kernel
-    # width coarse_tukey voxels (0: least squares), cluster size [m] of the covariance
-    # (covariance_block) and of the cost margin's standard error (margin_block), stop once a
-    # candidate passed its checks with an inlier ratio of at least stop_inlier_ratio (one that
-    # barely passes may sit next to the right one)
+    # robust_register (the choice of each: docs/design_algorithms.md, "Registration settings"):
+    # coarse correspondences within coarse_voxels coarse voxels, Tukey width coarse_tukey voxels
+    # (0: least squares); cluster size [m] of the covariance (covariance_block) and of the cost
+    # margin's standard error (margin_block); stop once a candidate passed its checks with an
+    # inlier ratio of at least stop_inlier_ratio
     coarse_voxels: float = 2.0
     coarse_tukey: float = setting(0.5, ge=0.0)
-    # ... the hint's own start runs its wide pyramid once per Tukey width here [wide-level voxels],
-    # in order: a wide kernel first (where most of a view overlaps, every correspondence within
-    # the reach pulls, the right ones included), then coarse_tukey's narrow one (a small overlap:
-    # only the nearest surfaces pull); the sigma points use coarse_tukey
+    # the hint's own start runs its wide pyramid once per Tukey width here [wide-level voxels]
     hint_wide_tukey: tuple[float, ...] = (2.0, 0.5)
-    # robust_register's fine stage: Tukey kernel width in fine correspondence distances
-    # (max_correspondence[-1]; 0: least squares)
+    # fine stage: Tukey width in fine correspondence distances (0: least squares), its stop on
+    # the relative change of fitness and inlier RMSE, at most fine_iterations, on every
+    # fine_stride-th prepared source point
     fine_tukey: float = setting(1.0, ge=0.0)
-    # ... and its stop: relative change of fitness and inlier RMSE (Open3D's default criterion;
-    # the Tukey-weighted iterations have settled by then, docs/results_fusion_real.md), at most
-    # fine_iterations iterations: a view the coarse stage left a few degrees turned on a floor
-    # creeps back a little per iteration, and one cut short is a candidate at no minimum, which
-    # the polish's narrower window may carry on to a slid one (a denser scan of the Redwood
-    # room: test_a_denser_scan_turned_on_the_floor_is_not_fused_slid)
     fine_relative: float = setting(1e-6, gt=0.0)
     fine_iterations: int = setting(60, ge=1, le=10_000)
-    # ... and its samples: every fine_stride-th prepared source point (the candidates' checks and
-    # covariance use them all); the winner goes straight to `polish`, which uses every point (a
-    # start that slides for all its iterations and fails costs a third)
     fine_stride: int = setting(3, ge=1, le=1000)
     covariance_block: float = setting(0.25, gt=0.0)
     margin_block: float = setting(0.5, gt=0.0)
-    # robust_register's last stage (`polish`): point-to-plane ICP of the full-resolution clouds,
-    # both ways, correspondences within polish_distance [m] (0: no polish) and Open3D's
-    # Geman-McClure kernel GMLoss(polish_kernel), weight k / (k + r^2)^2: k is a squared scale
-    # [m^2], and 0.007 weighs every residual within polish_distance nearly alike (kernels of the
-    # residual noise, k = (7 mm)^2 or (1 cm)^2, were less accurate on exploration seeds 200-219)
+    # `polish`: correspondences within polish_distance [m] (0: no polish), Geman-McClure kernel
+    # GMLoss(polish_kernel) (k [m^2] in k / (k + r^2)^2), polish_iterations per direction in
+    # rounds until a round moves the pose less than polish_settle_deg and polish_settle_m (at
+    # most polish_rounds), normals of the polish_max_nn nearest points, every k-th input point
+    # (k the least stride leaving at most polish_points_per_cell per grid cell; 0: every point),
+    # stop on the relative change of fitness and inlier RMSE
     polish_distance: float = setting(0.02, ge=0.0)
     polish_kernel: float = setting(0.007, ge=0.0)
-    # ... its iterations per direction: a view dominated by one plane slides along it a little
-    # per iteration (on the Redwood fragment's views 4 left the fine stage's pose a tenth of a
-    # degree short where 6 did not; the TUM fragment's exploration seeds were alike at 4 to 10)
     polish_iterations: int = setting(6, ge=1, le=1000)
-    # ... repeated in rounds from the last midpoint until a round moves the pose less than
-    # polish_settle_deg and polish_settle_m (at most polish_rounds rounds): a view the fine stage
-    # left beside a wall or a tenth of a degree turned creeps back a little per round, and the
-    # rounds bring it to the objective's minimum instead of stopping on the way (a view the grid
-    # left decimetres along a floor takes a dozen or more; one still moving after these slides)
     polish_rounds: int = setting(20, ge=1, le=1000)
     polish_settle_deg: float = setting(0.01, gt=0.0)
     polish_settle_m: float = setting(0.0005, gt=0.0)
-    # its normals: plane of the 20 nearest polish points
     polish_max_nn: int = setting(20, ge=3, le=1000)
-    # ... its points: every k-th input point, k the smallest stride leaving at most
-    # polish_points_per_cell per occupied grid cell (cfg.voxel) on average (0: every input
-    # point). A dense RGB-D scan holds several points per 3 cm cell, which the stride thins to
-    # about the grid's own density (each of the polish's rounds costs two ICPs over them); a
-    # LiDAR scan, with one or two per cell along its rings, keeps every point (a stride would
-    # thin its rings alone and tilt the normals across them)
     polish_points_per_cell: float = setting(2.0, ge=0.0)
-    # its stop: relative change of fitness and inlier RMSE
     polish_relative: float = setting(1e-6, gt=0.0)
-    # `prepare`: a scan holding more than max_points_per_cell input points per occupied grid cell
-    # (cfg.voxel) on average is first thinned to that many per cell, drawn at random (`denoise`;
-    # 0: never thinned). The more points a noisy surface has, the more of the cells along it its
-    # noise reaches (a thicker shell of cells): the cells' centroids and normals leave the
-    # surface, the coarse and fine stages' poses err more, and a right registration's
-    # contradicted cubes rise past their limit (the Redwood fragment's views repeated tens of
-    # times, each copy with its own noise). The checks' thresholds and the covariance's
-    # calibration were fitted on views of the bundled fragments at the benchmark's density,
-    # a few points per cell; this bound keeps every such view whole and brings a denser scan
-    # (a depth camera close up, a LiDAR map accumulated over many sweeps) back to it
+    # `prepare`: a scan with more than max_points_per_cell input points per occupied grid cell on
+    # average is first thinned at random to that many (0: never thinned)
     max_points_per_cell: float = setting(8.0, ge=0.0)
     stop_at_first_valid: bool = True
     stop_inlier_ratio: float = 0.72
@@ -166,58 +132,25 @@ class RegistrationConfig:
 
 @config_dataclass
 class AcceptanceConfig:
-    """Checks a registration must pass before it is fused (see `robust_register`).
+    """Checks a registration must pass before it is fused (`robust_register`; why each:
+    docs/design_algorithms.md, "Acceptance checks").
 
-    misfit_weight: what a source point near a target point but off its surface costs in a
-    candidate's cost (`truncated_costs`), where an unexplained point (no target point near)
-    costs 1: a point the other robot did not see says nothing against a registration, a point
-    beside a surface it saw does (a view slid towards the other overlaps more of it, with more
-    of its points beside surfaces; one slid away overlaps less, with a few more on them);
-    residual_sigma: the least residual scale c [m] of the checks; c is the two scans' own residual
-    spread (`graphloc.mapping.robust_registration.residual_scale`), never below this: a noisier
-    or sparser scan widens what a surface the other robot saw looks like from it, and with c
-    fixed a right registration of such scans falls below min_inlier_ratio;
-    min_overlap: inlier fraction of the source (point-to-plane |r| < c);
-    min_inlier_ratio: inliers among the source points that have a target point within the fine
-    correspondence distance (a slid alignment puts points near surfaces, not on them);
-    contradiction_block / contradiction_min_points / contradiction_ratio / max_contradicted: the
-    regional check (`contradicted_fraction`): the near points (a target point within the fine
-    distance) in cubes of contradiction_block [m], a cube with at least contradiction_min_points
-    of them contradicts the registration when its inlier ratio is below contradiction_ratio
-    times the candidate's own, and at most max_contradicted of the near points may lie in such
-    cubes. Two views of one surface meet all over it; a view slid or turned into a local minimum
-    lines up the dominant planes and leaves the structures that fix the slide (furniture, a
-    corner, a door frame) beside each other, a few cubes where most points are off the other
-    view's surfaces, which the global inlier ratio dilutes;
-    min_cost_margin_se: every other valid candidate (distinct, passing its checks) must cost at
-    least this many standard errors more than the winner (`cost_margin_se`): two registrations
-    that explain the views about alike (a view slid by a decimetre along a wall) are not told
-    apart by which one is a little cheaper. A rival that loses in one cluster alone, every
-    other alike, sits at exactly 1; at the default the winner must lead by at least that much,
-    and one whose lead other clusters partly take back falls below it;
-    min_conditioning: smallest / largest eigenvalue of the point-to-plane Hessian with rotations
-    scaled by the median source range (a plane or a corridor leaves a direction unconstrained);
-    hint_gate: Mahalanobis^2 of the result against the hint under the hint's covariance,
-    chi-square with 6 degrees of freedom at 99.9%; ceiling_above: the robot kinds' geometry --
-    the ceiling sensor is above the ground sensor (z_G > 0) and upside down (its z axis within
-    max_ceiling_tilt_deg of -z_G); max_sigma_rot_deg / max_sigma_trans_m: the largest 1-sigma
-    of the calibrated covariance a fusion may have, two fifths of what a map fusion is for
-    (issue 16's success box, 1 deg / 5 cm), so that every axis's 2.5-sigma interval lies
-    inside the box: a fusion whose covariance is right and whose sigma sits at the cap lands
-    outside the box in about one trial in eighty per axis, and most fusions' sigmas sit well
-    below it. Views that hardly constrain a direction (a 30% overlap that is a strip of floor
-    between two walls) carry their spread along it in the covariance
-    (`graphloc.mapping.registration_covariance.degeneracy_term`): the cap refuses those whose
-    spread reaches towards the box's edge, right or wrong, and no other check could tell which;
-    max_overlap_shortfall: no candidate within the hint gate and the robot geometry may overlap
-    the views more than this many times the winner (`overlap_shortfall`). misfit_weight makes a
-    point beside a surface cost more than one off every surface, which keeps a view from sliding
-    towards the other; on two views that genuinely differ (other viewpoints, occlusions: a right
-    registration leaves many points beside surfaces) it rewards the opposite, a pose that draws
-    the view away from the other's surfaces, cheap for explaining little. Such a winner overlaps
-    the views a fraction of what another start found; the truncated cost alone cannot say which
-    is right;
-    distinct_deg / distinct_m: candidates closer than this are one registration."""
+    misfit_weight: the cost of a source point near a target point but off its surface (an
+    unexplained point costs 1); residual_sigma: the least residual scale c [m] of the checks
+    (c is the two scans' own residual spread, never below this); min_overlap: inlier fraction of
+    the source (|r| < c); min_inlier_ratio: inliers among the source points with a target point
+    within the fine correspondence distance; contradiction_block [m] / contradiction_min_points /
+    contradiction_ratio / max_contradicted: at most max_contradicted of the near points may lie in
+    cubes (of at least contradiction_min_points near points) whose inlier ratio is below
+    contradiction_ratio times the candidate's; min_cost_margin_se: standard errors by which every
+    other valid candidate must cost more than the winner; min_conditioning: smallest / largest
+    eigenvalue of the point-to-plane Hessian (rotations scaled by the median source range);
+    hint_gate: Mahalanobis^2 of the result against the hint (chi-square, 6 dof, 99.9%);
+    ceiling_above: the ceiling sensor above the ground sensor and upside down (its z axis within
+    max_ceiling_tilt_deg of -z_G); max_sigma_rot_deg / max_sigma_trans_m: the largest 1-sigma of
+    the calibrated covariance; max_overlap_shortfall: no candidate within the hint gate and the
+    robot geometry may overlap this many times more than the winner; distinct_deg / distinct_m:
+    candidates closer than this are one registration."""
 
     residual_sigma: float = setting(0.01, gt=0.0)
     misfit_weight: float = setting(4.0, ge=1.0, le=1e6)

@@ -1,14 +1,9 @@
-"""Files of the mapping pipeline: read a scan (PLY / PCD / XYZ) as an (N,3) array (checked for a
-plausible scale: `read_scan`; robots' sequences for one unit: `check_scan_units`), write a
-fused map whose points carry the robot that saw them (`robot` attribute in PLY and PCD, plus a
-per-robot colour), and SE(3) trajectories as TUM files (via evo).
-
-Sizes (docs/log_format.md, "Scan files"): a scan file over MAX_SCAN_BYTES or declaring more
-than MAX_SCAN_POINTS points is refused before it is read (a ValueError naming the file and the
-limit); a scan of more than POINT_BUDGET points is thinned on read to POINT_BUDGET points drawn
-at random (`thin_to_budget`: seeded, so one file always gives the same points), a warning on
-the terminal and a count (`scan_thinned`, points removed) in the caller's notes -- the
-registration, KISS-ICP and the team graph then work on at most POINT_BUDGET points a scan."""
+"""Files of the mapping pipeline: read a scan (PLY / PCD / XYZ) as an (N,3) array (`read_scan`,
+checked for a plausible scale; `check_scan_units`: robots' sequences in one unit), write a fused
+map whose points carry the robot that saw them, and SE(3) trajectories as TUM files. Sizes
+(docs/log_format.md, "Scan files"): a file over MAX_SCAN_BYTES or MAX_SCAN_POINTS is refused
+before it is read; a scan over POINT_BUDGET points is thinned on read (`thin_to_budget`,
+seeded), counted as `scan_thinned` in the caller's notes."""
 
 from __future__ import annotations
 

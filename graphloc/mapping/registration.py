@@ -1,19 +1,9 @@
 """Open3D scan registration for inter-robot map fusion (seed 004 Sec. IV): the shared steps.
-
-- `prepare`: denoise as seed 004 Sec. IV.A does -- drop points far from their nearest
-  neighbours (statistical outlier removal), then voxel-downsample and estimate normals
-  oriented toward the sensor.
-- `refine`: coarse-to-fine point-to-plane ICP from an initial guess (seed 004 Sec. IV:
-  ICP converges only from a good initial estimate), with the 6x6 information matrix of the
-  result from `get_information_matrix_from_point_clouds`, converted to GTSAM's Pose3 tangent
-  (right perturbation) so it can weight a BetweenFactorPose3.
-- `global_fpfh_ransac`: Open3D's FPFH features + RANSAC, the peer initial guess of the benchmark;
-  `icp_from_hint`: the benchmark's plain-ICP peer.
-
-The inter-robot registration of issue 16 builds on these: `graphloc.mapping.robust_registration`
-(multi-start, its winner refined by `registration_stages.polish`: full-resolution point-to-plane
-both ways), `graphloc.mapping.acceptance` (its checks) and
-`graphloc.mapping.registration_covariance` (its calibrated covariance).
+`prepare` denoises as Sec. IV.A does (statistical outlier removal), voxel-downsamples and
+estimates normals towards the sensor; `refine` is coarse-to-fine point-to-plane ICP from an
+initial guess with its information matrix in GTSAM's Pose3 tangent; `global_fpfh_ransac` is
+Open3D's FPFH + RANSAC, the benchmark's peer guess. The robust registration builds on these
+(`robust_registration`, `acceptance`, `registration_covariance`).
 """
 
 from __future__ import annotations
@@ -234,24 +224,3 @@ def pose_errors(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:
     E = np.linalg.inv(T_true) @ T_est
     cos = np.clip((np.trace(E[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)
     return float(np.degrees(np.arccos(cos))), float(np.linalg.norm(T_est[:3, 3] - T_true[:3, 3]))
-
-
-def icp_from_hint(
-    source: PreparedCloud,
-    target: PreparedCloud,
-    hint: np.ndarray,
-    distance: float,
-    max_iterations: int = 60,
-) -> tuple[np.ndarray, float]:
-    """Open3D point-to-plane ICP (legacy registration_icp, one scale) from a hint: the benchmark's
-    plain-ICP peer. Returns (T_target_source, seconds)."""
-    start = time.perf_counter()
-    r = reg_l.registration_icp(
-        source.legacy,
-        target.legacy,
-        distance,
-        np.asarray(hint, dtype=float),
-        reg_l.TransformationEstimationPointToPlane(),
-        reg_l.ICPConvergenceCriteria(1e-7, 1e-7, max_iterations),
-    )
-    return np.asarray(r.transformation), time.perf_counter() - start

@@ -21,15 +21,8 @@ from graphloc.mapping.registration_index import NearestIndex
 def cluster_covariance(influence: np.ndarray, points: np.ndarray, block: float) -> np.ndarray:
     """Cluster-robust covariance of an M-estimate over cubic blocks of side `block`: the sandwich
     B / (B - 1) sum_b psi_b psi_b^T, psi_b the sum of the (n,6) per-point influences over the
-    points of block b (CR1; Liang & Zeger 1986, with the small-sample factor of Cameron &
-    Miller 2015). For least squares a point's influence is H^-1 J_i^T r_i, and this is
-    B / (B - 1) H^-1 (sum_b g_b g_b^T) H^-1 with g_b the cluster's score. Residuals of points
-    that share normals, voxels and sensor error are correlated, so they are summed per cluster;
-    blocks a few normal radii wide hold that correlation and leave a registration enough
-    clusters for the sum. The leave-one-cluster-out jackknife (CR3) inflates a direction that
-    one cluster constrains alone by (H - H_b)^-1: on small overlaps of a real room (the Redwood
-    fragment at 30%, exploration seeds 200-229) its sigmas stood several times above the errors
-    in the very directions the sandwich's followed them."""
+    points of block b (CR1; Liang & Zeger 1986, Cameron & Miller 2015): residuals of points that
+    share normals, voxels and sensor error are correlated, so they are summed per cluster."""
     influence, points = np.asarray(influence, dtype=float), np.asarray(points, dtype=float)
     if influence.ndim != 2 or influence.shape[1] != 6 or points.shape != (len(influence), 3):
         raise ValueError(
@@ -57,16 +50,11 @@ def least_squares_influence(J: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 def polish_influence(views, T: np.ndarray, cfg: RegistrationConfig):
     """Per-point influences (left perturbation Exp(xi) T, target frame) on the polish's estimate
-    at T (`graphloc.mapping.registration_stages.polish`), and the points they belong to (target
-    frame), for `cluster_covariance`: `views` are the polish's two cut clouds with normals
-    (source in the source frame, target in the target frame). Each direction's point-to-plane
-    residuals within cfg.polish_distance, weighted by the Geman-McClure kernel of
-    cfg.polish_kernel (k / (k + r^2)^2, as Open3D's GMLoss), give a point's influence on that
-    direction's Gauss-Newton step: -H^-1 w_i J_i^T r_i for the source onto the target; for the
-    target onto the source the step is a left perturbation of T^-1, T^-1 <- Exp(xi_B) T^-1, that
-    is T <- Exp(-Ad_T xi_B) T. The polish takes the midpoint of the two, so each influence
-    counts one half, and the influences sum to the midpoint's step. Returns (influence (n,6),
-    points (n,3)), or None when a direction has too few correspondences for its 6x6 system."""
+    at T and the points they belong to (target frame), for `cluster_covariance`: each direction's
+    Geman-McClure-weighted point-to-plane residuals within cfg.polish_distance (`views`: the
+    polish's two cut clouds) give -H^-1 w_i J_i^T r_i, the target-onto-source one carried by
+    -Ad_T, each counting one half as the polish's midpoint does. None when a direction has too few
+    correspondences for its 6x6 system."""
     T = np.asarray(T, dtype=float)
     k = cfg.polish_kernel
     out, where = [], []
@@ -130,19 +118,9 @@ def degeneracy_term(P: np.ndarray, H: np.ndarray, scale_m: float, min_conditioni
 
 
 def calibrated_covariance(P: np.ndarray, Q: np.ndarray, cfg: RegistrationConfig) -> np.ndarray:
-    """s (P + c Q) for the cluster-robust covariance P and its degeneracy term Q
-    (`degeneracy_term`, both right perturbation), s = cfg.covariance_scale, c =
-    cfg.covariance_degeneracy. P sees the residual noise and its correlation within a cluster;
-    it cannot see what the fit absorbs -- surfaces sampled differently in the two scans, normals
-    smoothed over the normal radius -- nor that ICP chooses the nearest neighbours again as the
-    pose moves, so that its estimate follows the noise further than the Gauss-Newton step with
-    the correspondences held, whose influences P sums (`polish_influence`); both show as errors
-    larger than P in every direction (s). Where the views hardly constrain a direction, the
-    point-to-plane objective is nearly flat along it, and the estimate there rests on where the
-    nearest neighbours let ICP come to rest as much as on the noise: Q inflates the variance
-    along that direction alone (c). s and c are fitted by maximum likelihood,
-    e_i ~ N(0, s (P_i + c Q_i)), on calibration trials of both bundled fragments by
-    `scripts/bench_fusion.py --real --calibrate`; the benchmark checks the NEES on other trials."""
+    """s (P + c Q) for the cluster-robust covariance P and its degeneracy term Q (both right
+    perturbation), s = cfg.covariance_scale, c = cfg.covariance_degeneracy, fitted by maximum
+    likelihood by `scripts/bench_fusion.py --real --calibrate` (why: docs/design_algorithms.md)."""
     out = cfg.covariance_scale * (
         np.asarray(P, dtype=float) + cfg.covariance_degeneracy * np.asarray(Q, dtype=float)
     )

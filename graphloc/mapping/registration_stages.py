@@ -109,28 +109,14 @@ def polish(
     cfg: RegistrationConfig,
     target_nns=None,
 ) -> Polished:
-    """The last stage of `graphloc.mapping.robust_registration.robust_register`: point-to-plane
-    ICP of the full-resolution clouds (`PreparedCloud.raw`, normals of the cfg.polish_max_nn
-    nearest points) from T, source onto target and target onto source, each with
-    correspondences within cfg.polish_distance and Open3D's Geman-McClure kernel
-    GMLoss(cfg.polish_kernel) (its parameter a squared scale), each view cut to its points within
-    cfg.polish_distance + cfg.voxel of the other's grid (the mutual overlap: normals and
-    correspondences only where they can pair), then the midpoint of the two on SE(3),
-    A Exp(Log(A^-1 B) / 2) (GTSAM's `Pose3.slerp`). The fine stage's grid averages
-    independently subsampled, noisy scans into cell centroids that differ between the views,
-    and one direction's nearest-neighbour planes pass through the noisy points of one view
-    only; here every point of each view serves once as a sample and once as a plane
-    (`target_nns`: a prebuilt `NearestIndex` of target.points with a radius of at least that
-    cut, else built here).
-    Rounds of cfg.polish_iterations per direction, each from the last midpoint, until one moves
-    the pose less than cfg.polish_settle_deg / polish_settle_m, or back within them of a pose an
-    earlier round on the same cut left (a cycle; at most cfg.polish_rounds); the
-    views are cut again once the pose has moved a voxel from where they were cut.
-    Returns T_target_source as a `Polished`: unchanged, and settled, when cfg.polish_distance is
-    0 or a cloud has no `raw`; the last round's pose, without views, when a direction finds no
-    correspondence within the distance (the fine stage's pose if it is the first); not settled
-    when the last of cfg.polish_rounds still moved it (a view that keeps sliding along its
-    surfaces)."""
+    """The last stage of `robust_register`: point-to-plane ICP of the full-resolution clouds
+    (`PreparedCloud.raw`) from T, source onto target and target onto source (correspondences
+    within cfg.polish_distance, Geman-McClure kernel cfg.polish_kernel, each view cut to the mutual
+    overlap), then the midpoint of the two on SE(3) (`Pose3.slerp`); in rounds from the last
+    midpoint until the pose settles or cycles (at most cfg.polish_rounds). `target_nns`: a prebuilt
+    `NearestIndex` of target.points, else built here. Returns T_target_source as a `Polished`
+    (unchanged and settled when there is nothing to polish; not settled when the last round
+    still moved it)."""
     T = np.asarray(T, dtype=float)
     if cfg.polish_distance <= 0 or source.raw is None or target.raw is None:
         return Polished(T, 0, True)

@@ -68,85 +68,14 @@ def robust_register(
     cfg: RegistrationConfig = RegistrationConfig(),
     acc: AcceptanceConfig = AcceptanceConfig(),
 ) -> RegistrationDecision:
-    """Multi-start registration of source onto target around a pose hint, with acceptance checks.
-
-    1. Starts: the hint and its sigma points (`hint_starts`; hint_cov is the hint's 6x6
-       covariance, rot [rad] then trans [m], right perturbation: `hint_covariance` of two
-       sigmas, or a P3P candidate's first-order covariance carried to the LiDAR frames). When
-       there is a wide pyramid (step 2), the hint is tried once per kernel width of
-       cfg.hint_wide_tukey, in order (starts 0 .. n - 1, the hint's own), then its sigma points
-       (with cfg.coarse_tukey): a wide kernel lets every correspondence within the reach pull,
-       the right ones among them, which moves a poor hint into its basin where most of the
-       view overlaps; a narrow one keeps a small overlap from pulling the rest of the view in.
-    2. Per start: while the hint's reach (1-sigma rotation times the median source range plus
-       1-sigma translation, at most cfg.max_reach) exceeds the coarse correspondence distance, a
-       wide pyramid first (`wide_levels`): ICP on clouds gridded at reach / cfg.coarse_voxels
-       with correspondences within the reach and a Tukey kernel of cfg.coarse_tukey of its
-       voxels, the reach halved per level (the basin of a poor P3P guess, narrowed step by step:
-       one wide jump to the coarse level slides); then point-to-plane ICP on the coarse grid
-       (`coarse_clouds`; correspondences within cfg.coarse_voxels coarse voxels, Tukey kernel of
-       cfg.coarse_tukey voxels, so the parts that do not overlap are not pulled in); starts whose
-       coarse results lie within one fine basin of each other (cfg.max_correspondence[-1], and
-       the rotation moving the median source point that far) merge, and a sigma-point or global
-       start whose coarse pose fails the hint gate or the robot geometry by more than a move of
-       one fine basin could mend stops there (`_beyond_fine_reach`); then Open3D tensor ICP on
-       the prepared clouds within that distance (cfg.fine_iterations at most) with a Tukey kernel of
-       cfg.fine_tukey times it (points on surfaces the other view does not share, clutter and
-       cut edges lose their pull), every cfg.fine_stride-th source point a sample (a start
-       that slides for all its iterations and fails costs a fraction); candidates closer than
-       acc.distinct_deg / distinct_m merge.
-       With cfg.stop_at_first_valid the starts stop once a candidate has passed its checks with an
-       inlier ratio of at least cfg.stop_inlier_ratio (an easy case costs one start; one that barely
-       passes lets the others compete). If none passes and cfg.global_fallback,
-       `global_fpfh_ransac` (seed 0) gives one more start (index len(starts)), still subject to
-       every check, the hint gate included. The re-seat (index len(starts) + 1): the cheapest
-       candidate valid or only slid (it fails no check but the contradicted cubes), its rotation at
-       the hint's translation, through the coarse level and the fine stage (no pyramid). A pyramid
-       slides a view along its dominant plane towards the other view, a translation its rotation
-       does not share; the re-seat puts the view back where the hint says it is (skipped when that
-       lies within one fine basin of the candidate). It runs once: at once when a start leaves a
-       slid view (with cfg.stop_at_first_valid; the later starts mostly converge where it did, and
-       the stop above counts the re-seat's candidate), else after the starts. If then none passes
-       but one is only slid, the escape (indices len(starts) + 2, + 3, `escape_starts`): the
-       cheapest such moved by the hint's reach either way along its least constrained direction,
-       the valley it slid down, each through the fine stage.
-    3. Each candidate's cost, the mean of its `truncated_costs` (c = `residual_scale`; a point
-       near a target point but off its surface costs acc.misfit_weight, an unexplained point 1),
-       and checks (overlap, inlier ratio, contradicted cubes, hint gate, robot geometry:
-       `candidate_checks`); among those that pass, the lowest cost wins. A point beside a
-       surface the other robot saw contradicts the registration, a point where it saw nothing
-       is only unseen: with every point off the other view costing alike, a view slid along a
-       dominant plane towards the other view wins by overlapping more of it, though more of its
-       points lie beside surfaces. The winner must undercut every other valid candidate by
-       acc.min_cost_margin_se standard errors of the paired per-point cost difference
-       (`cost_margin_se` over the source's cfg.margin_block clusters), else the views do not
-       tell the two registrations apart; and a cheaper candidate that fails the contradicted
-       cubes alone (a slid view explaining the scans better) leaves the winner no margin; one
-       that step 4's polish carries the winner to (within acc.distinct_deg / distinct_m) is no
-       rival, the same registration. A rival that denies the margin of a fusion every other
-       check of step 4 accepts is polished too: the same registration if it lands on the
-       winner's polished pose, else compared with it at both polished poses.
-    4. The winner refined by `polish` (full resolution, both directions, in rounds until the pose
-       settles), the checks of step 3 and its conditioning on that pose (`candidates` keep the poses
-       before the polish; the contradicted cubes count at both, so a winner they refuse is not
-       polished), a polish that settled, a covariance (step 5) within acc.max_sigma_rot_deg /
-       max_sigma_trans_m, and no candidate within the hint gate and the robot geometry that overlaps
-       acc.max_overlap_shortfall times more (`overlap_shortfall`: a winner drawn away from the other
-       view's surfaces); accepted only if every check passes. The candidates' checks and margin
-       speak for poses within the fine stage's reach of theirs; when the polish carries the view's
-       sensor further (a floor-dominated view the grid left decimetres along the floor, which the
-       raw points bring home, or one sliding on to a second minimum) and every other check passes,
-       two more starts (indices len(starts) + 4, + 5, `weak_direction_starts`): the polished pose
-       moved as far as the polish carried the sensor, either way along its covariance's least
-       constrained direction (the objective let the view travel that far), each polished; a pose
-       found there distinct from the winner's, valid or cheaper and only slid, is one more rival of
-       step 3's margin, both sides' costs at their polished poses.
-    5. Covariance (`estimate_covariance`): the cluster-robust sandwich (cfg.covariance_block)
-       of the per-point influences on the estimate made -- the polish's two directions and
-       their midpoint, or, where no polish round ran, the point-to-plane fit over the inliers
-       -- in GTSAM's right perturbation, inflated along the directions whose conditioning
-       nears acc.min_conditioning, calibrated; `inlier_rmse` is the inliers' residual standard
-       deviation (n - 6 dof); `RegistrationDecision.timings` the seconds per stage."""
+    """Multi-start registration of source onto target around a pose hint (4x4) and its 6x6
+    covariance (rot [rad] then trans [m], right perturbation), with acceptance checks: ICP from
+    the hint and its sigma points (wide pyramid, coarse, fine stage), a global FPFH start when
+    none passes, the re-seat and escape starts of a slid view; the cheapest candidate passing
+    `candidate_checks` wins if it undercuts every rival by acc.min_cost_margin_se; the winner is
+    polished, checked again at its polished pose (conditioning, covariance caps, overlap
+    shortfall, weak-direction probes) and given its calibrated covariance. The steps in full:
+    docs/design_algorithms.md, "Robust registration"."""
     start_t = time.perf_counter()
     hint, hint_cov = checked_hint(hint, hint_cov)
     stage_s = dict.fromkeys(("coarse", "fine", "checks", "global", "polish"), 0.0)

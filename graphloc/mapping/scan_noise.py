@@ -36,18 +36,11 @@ def split_half_sigma(
     samples: int = 2000,
     seed: int = 0,
 ) -> float:
-    """The point-to-plane residual spread [m] between two independent halves of one scan at
-    their known relative pose: the points split at random into halves A and B, B turned by a
-    fixed rotation, each gridded at `voxel` (`grid_cells`); for up to `samples` of A's cells
-    (seeded: the same scan gives the same value), the residual to the nearest of B's cells
-    within `max_distance` along that cell's normal (the plane of its `max_nn` nearest cells
-    within `normal_radius`, as `graphloc.mapping.registration.prepare` estimates normals); the
-    spread is 1.4826 times the median absolute residual (a robust sigma; a normal's sign is
-    arbitrary, so the residuals spread symmetrically about 0). Two robots' views of
-    one surface differ by the same things, each view's own noise and sampling, on grids that cut
-    the surfaces differently, so the residuals of a right registration spread about as much (at
-    half the density the halves' spread errs on the wide side). NaN when fewer than 10 of the
-    samples have a neighbour."""
+    """The point-to-plane residual spread [m] between two independent halves of one scan at their
+    known relative pose (each gridded at `voxel`, B turned by a fixed rotation): 1.4826 times the
+    median absolute residual of up to `samples` of A's cells (seeded) to B's nearest cell's plane
+    within `max_distance`; two robots' views of one surface differ by the same noise and
+    sampling. NaN when fewer than 10 of the samples have a neighbour."""
     pts = np.asarray(points, dtype=np.float64)
     rng = np.random.default_rng(seed)
     order = rng.permutation(len(pts))

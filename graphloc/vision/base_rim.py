@@ -142,17 +142,11 @@ def coverage_map(
 
 
 def detect_base_rim(image: np.ndarray, config: BlobConfig = BlobConfig()) -> BlobRim | None:
-    """Largest blob of the base colour -> its sub-pixel rim, or None when no blob of
-    `min_area` px exists. The edge crossings are where the score crosses the level half-way
-    between the blob's interior and its surroundings, on every horizontal and vertical pixel
-    pair around the blob (linear interpolation, marching-squares style, so not biased inwards
-    by half a pixel as the integer contour of the mask is). With config.refine_edges the cv2
-    ellipse of the crossings starts `refine_ellipse` on the blob's `coverage_map` and the rim
-    is 90 points on the refined ellipse (crawler-pair, 256 frames of scripts/bench_seed003.py:
-    the frame-to-frame change of the base's depth error has sd 0.36 mm instead of 0.56 mm, the
-    depth error rms is 0.33 mm instead of 0.93 mm). A failed
-    refinement is reported in BlobRim.refine_error, never raised (the mask still keeps KLT
-    features off the robot)."""
+    """Largest blob of the base colour -> its sub-pixel rim, or None when no blob of `min_area`
+    px exists: the crossings of the level half-way between the blob's interior and surroundings on
+    every horizontal and vertical pixel pair (not biased inwards as the mask's integer contour is);
+    with config.refine_edges, 90 points on the ellipse `refine_ellipse` fits to the blob's
+    `coverage_map`. A failed refinement is reported in BlobRim.refine_error, never raised."""
     score = colour_score(image, config)
     h, w = score.shape
     with opencv_errors(f"detect_base_rim on a {w}x{h} image"):

@@ -1,30 +1,10 @@
 """Pose of a circle of known radius from its image ellipse (seed 003, section II-A "Robot
-Tracker": 1) ellipse detection and least-squares fit to edge points, 2) position from the
-ellipse via the oblique elliptical cone, eqs. (1)-(4)).
-
-Pipeline (batched over N rims where it matters):
-  rim pixels (M,2) -> undistorted ideal pixels (camera model) -> OpenCV ellipse fit
-  (`vision.ellipse`:
-  cv2.fitEllipseDirect, Fitzgibbon's direct least squares, the seed's "least-squares
-  fitting technique [3]"; AMS / plain fitEllipse selectable) -> image conic C (3x3)
-  -> cone Q = K^T C K through the camera centre (seed eq. 1, in normalized coordinates)
-  -> eigen-decomposition Q = V diag(l1, l2, l3) V^T, l1 >= l2 > 0 > l3 (the seed's
-  "rotation R1 by diagonalizing") -> the two circular sections (seed eqs. 2-3; Shiu & Ahmad
-  1989, Safaee-Rad et al. 1992):
-
-    Q - l2 I = (l1 - l3) (n . P)(m . P),  n, m = (+-sqrt(l1-l2), 0, +-sqrt(l2-l3)) / sqrt(l1-l3)
-
-  so on a plane n . P = d the cone is the sphere |P|^2 + (l1-l3) d (m . P) / l2 = 0, whose
-  section by that plane is the circle; its radius fixes d, its centre is the projection of
-  the sphere centre onto the plane (closed form, the seed's eq. 4).
-
-Both solutions (normal sign choices +-sqrt(l1-l2)) are returned, as a CandidateSet of
-circle-frame poses T_cam_circle: origin = circle centre, z axis = the circle's normal turned
-towards the camera (n . centre < 0). Rotation about the normal (yaw) is unobservable for a
-circle; convention: the circle's x axis is the camera x axis projected onto the circle plane
-(camera y axis if x is within 1e-6 of the normal). Both candidates share one score,
-exp(-rms^2 / (2 sigma^2)) of the RMS Sampson distance [px] of the rim points to the fitted
-ellipse -- the ellipse cannot tell the two apart; engines choose.
+Tracker": 1) ellipse fit to edge points, `vision.ellipse`; 2) position from the ellipse via the
+oblique elliptical cone, eqs. (1)-(4); Shiu & Ahmad 1989, Safaee-Rad et al. 1992), batched over
+N rims. Both solutions come back as a CandidateSet of circle-frame poses T_cam_circle (z axis
+the normal turned towards the camera, yaw by convention) sharing one score from the fit's RMS
+Sampson distance: the ellipse cannot tell them apart. The derivation: docs/design_algorithms.md,
+"Circle poses".
 """
 
 from __future__ import annotations
@@ -32,14 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal, Sequence
 
-import cv2
 import numpy as np
 
 from graphloc.config_schema import config_dataclass, setting
 from graphloc.cameras import PinholeCamera, check_rows, normalize_rows
 from graphloc.candidates import CandidateSet
 from graphloc.vision.ellipse import FITTERS, ellipse_to_conic, fit_ellipse, sampson_rms
-from graphloc.vision.images import opencv_errors
 
 STATUS_OK = "ok"
 STATUS_TOO_FEW = "too_few_points"  # fewer than min_points finite rim points
@@ -268,22 +246,3 @@ def circle_pose_from_rim(
     if not poses.ok[0]:
         raise ValueError(poses.explain(0))
     return poses.candidates(0, time, observer, observed), poses
-
-
-def rim_points_from_mask(mask: np.ndarray) -> np.ndarray:
-    """Boundary pixels (M,2) (u, v) of the largest blob of a binary mask (seed 003 II-A-1:
-    colour threshold -> median filter -> edges), via cv2.findContours."""
-    mask = np.asarray(mask)
-    if mask.ndim != 2:
-        raise ValueError(f"mask must be a 2-D image, got shape {mask.shape}")
-    if mask.dtype.kind not in "biuf":
-        raise ValueError(f"mask must be a numeric or boolean image, got dtype {mask.dtype}")
-    if mask.size == 0:
-        raise ValueError(f"mask is empty (shape {mask.shape})")
-    with opencv_errors(f"rim_points_from_mask on a {mask.shape[1]}x{mask.shape[0]} mask"):
-        contours, _ = cv2.findContours(
-            (mask > 0).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
-        )
-    if not contours:
-        raise ValueError("mask has no foreground blob")
-    return max(contours, key=cv2.contourArea).reshape(-1, 2).astype(float)

@@ -121,17 +121,11 @@ def refine_ellipse(
     blur0: float = 0.7,
     min_contrast: float = 0.5,
 ) -> EllipseRefinement:
-    """Sub-pixel ellipse from a coverage map (seed 003 II-A-1 refined: the seed fits edge
-    points; here the edge itself is the measurement). coverage (h,w): the fraction of each
-    pixel covered by the disk (e.g. `vision.base_rim.coverage_map`), its pixel (0,0) at image
-    pixel `origin` (x0, y0); ellipse0 (5,): the starting ellipse (cv2 fit of edge points).
-    Fits every pixel within `band` px of ellipse0 with `_edge_model` by Levenberg-Marquardt
-    (scipy.optimize.least_squares). Edge points interpolated between pixel centres lock onto
-    the pixel grid (their ellipse size wobbles as the image moves); the edge model does not.
-    The fit is in raw pixels: under lens distortion the rim is an ellipse only to first order
-    across the blob (points on it are undistorted afterwards by `circle_poses_from_rims`).
-    ValueError when the band is too small, the fit diverges or finds no edge (fitted inside
-    minus outside coverage <= min_contrast)."""
+    """Sub-pixel ellipse from a coverage map (seed 003 II-A-1 refined: the edge itself is the
+    measurement): every pixel of `coverage` (the fraction covered by the disk; its pixel (0,0) at
+    image pixel `origin`) within `band` px of ellipse0 (5,) fitted with `_edge_model` by
+    Levenberg-Marquardt, in raw pixels. ValueError when the band is too small, the fit diverges or
+    finds no edge (inside minus outside coverage <= min_contrast)."""
     coverage = np.asarray(coverage, dtype=float)
     u0, v0, w, h, ang = np.asarray(ellipse0, dtype=float).reshape(5)
     origin = np.asarray(origin, dtype=float).reshape(-1)

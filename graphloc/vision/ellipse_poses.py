@@ -1,13 +1,7 @@
 """A teammate's circular base seen as an ellipse -> its two candidate poses (seed 003,
-003_8db27855ce2d5f68.txt, section II "robot tracker", eqs. 1-4: the cone through the ellipse
-and a circle of known radius give two solutions that the image cannot tell apart).
-
-`circle_candidates` is the one function from an ellipse (ideal pixels, OpenCV RotatedRect
-convention, as `graphloc.vision.circle.CirclePoses.ellipses`) to a `CandidateSet` whose poses
-are target_T_sensor (the convention of `graphloc.run.CandidateObservation`) with their typed
-covariance: the centre's first-order noise from the ellipse's centre and radius accuracy
-(`centre_covariance`), the normal's tilt `normal_sigma`, and the rotation about the normal,
-which a circle cannot observe, `yaw_sigma`.
+003_8db27855ce2d5f68.txt, section II, eqs. 1-4): `circle_candidates`, a `CandidateSet` of
+target_T_sensor poses with their covariance (centre from the ellipse's accuracy, the normal's
+tilt `normal_sigma`, the unobservable yaw `yaw_sigma`).
 """
 
 from __future__ import annotations

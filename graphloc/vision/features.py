@@ -1,14 +1,7 @@
-"""Feature detection and tracking for motion and structure (seed 003 section II-B-1, eqs. 5-7:
-KLT -- a window is a feature when min(eig G) > lambda, eq. 5; tracked by minimizing the
-intensity difference, eqs. 6-7). The teammate's base rim is graphloc.vision.base_rim.
-
-OpenCV does the pixel work: cv2.goodFeaturesToTrack (Shi-Tomasi, the min-eigenvalue test of
-eq. 5) and cv2.calcOpticalFlowPyrLK (pyramidal Lucas-Kanade, the Newton iteration of eq. 7),
-run forward and backward; a track survives only if the backward track returns within
-`fb_threshold` px of where it started (Kalal et al. 2010 forward-backward error).
-
-Shapes: pixels are float64 (M,2) (u, v), (0, 0) the centre of the top-left pixel; track ids are
-int64 (M,), unique over a tracker's lifetime.
+"""Feature detection and tracking for motion and structure (seed 003 section II-B-1, eqs. 5-7):
+cv2.goodFeaturesToTrack (Shi-Tomasi, eq. 5) and cv2.calcOpticalFlowPyrLK (eq. 7) forward and
+backward, a track kept only if it returns within `fb_threshold` px (Kalal et al. 2010).
+Pixels are float64 (M,2) (u, v); track ids int64, unique over a tracker's lifetime.
 """
 
 from __future__ import annotations

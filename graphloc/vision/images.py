@@ -1,10 +1,6 @@
-"""Input checks shared by the vision entry points (markers, features, circle).
-
-OpenCV does not check what it is given: `cv2.connectedComponentsWithStats` segfaults on a
-zero-size image, `cv2.calcOpticalFlowPyrLK` never returns on one, and other calls raise a
-`cv2.error` that names a C++ source line rather than the caller's argument. Every public
-function that takes pixels runs `check_image` first and wraps its OpenCV calls in
-`opencv_errors`, so bad input is a ValueError that says which argument was wrong and how.
+"""Input checks shared by the vision entry points: `check_image` before any OpenCV call (some
+crash or hang on a zero-size image) and `opencv_errors`, which turns a `cv2.error` into a
+ValueError naming the caller's argument.
 """
 
 from __future__ import annotations

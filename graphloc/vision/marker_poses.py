@@ -1,26 +1,11 @@
 """Marker pixels -> candidate poses: the one route from a camera's view of a marker layout to
-a `CandidateSet` with a first-order covariance per candidate.
-
-- Distinct markers (seed 000 Sec. III-B, seed 004 Sec. II-A: three robots / three LEDs): P3P on
-  three of them (`graphloc.geometry.p3p.solve_p3p`, every frame of a run in one batched call),
-  up to 4 candidates. With exactly three markers every candidate fits the pixels exactly and
-  the scores are ~1 (seed 000 Sec. V-A: belief 1/4 each). With four or more, every pixel of
-  the frame judges every candidate: each P3P candidate, and the global minimum of SQPnP
-  (Terzakis & Lourakis 2020) on all points, is refined by Levenberg-Marquardt on all points
-  (`cv2.solvePnPRefineLM`, the lens distortion included); refinements that land on the same
-  pose are one candidate; each candidate's reprojection chi-square over the 2M pixel
-  coordinates with the camera's pixel noise, chi2 = sum ||(u - u_hat) / sigma||^2, is tested
-  against its chi-square distribution with 2M - 6 degrees of freedom at `GATE_PROBABILITY`: a
-  candidate that fails cannot be decided and leaves the set, its score is exp(-chi2 / 2) (the
-  likelihood of the pixels). A frame whose every candidate fails is *inconsistent*: no pose of
-  the layout explains its pixels (a wrong layout or intrinsics, swapped columns, a marker
-  mislabelled); it comes back as an empty set with `meta["inconsistent"]` True and is never
-  decided.
-- Identical markers (seed 001 Sec. IV-C): the 24 x 4 P3P hypotheses of four blobs gated by the
-  fourth marker (`graphloc.vision.target.target_hypotheses_frames`: every frame's in one batch).
-Covariance: `graphloc.geometry.resection.resection_covariance` (pixel noise through the pose,
-on every marker the candidate was fitted to).
-Poses are the camera in the layout's frame (target_T_camera).
+a `CandidateSet` with a first-order covariance per candidate (`resection_covariance`); poses are
+the camera in the layout's frame (target_T_camera).
+- Distinct markers (seed 000 Sec. III-B, seed 004 Sec. II-A): P3P on three of them, every frame
+  in one batched call; with four or more, every candidate (and SQPnP's minimum) refined on all
+  pixels and gated by its reprojection chi-square at `GATE_PROBABILITY`, a frame no candidate
+  passes an empty, inconsistent set (docs/design_algorithms.md, "Marker poses").
+- Identical markers (seed 001 Sec. IV-C): `graphloc.vision.target.target_hypotheses_frames`.
 """
 
 from __future__ import annotations

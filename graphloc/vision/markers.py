@@ -1,17 +1,9 @@
-"""Blob extraction for identical spherical markers (active LEDs or passive paint).
-
-Seed 001 (seeds/001_0f8f8dae37ce6b79.txt), section IV-B "Blob extraction":
-Otsu threshold F1 locates blobs; first outlier rejection (size, non-convexity, eccentricity);
-the looser threshold F2 (a Gaussian fitted to the grey-level histogram, F2 at a multiple of its
-standard deviation) refines the blobs inside the window enclosing the survivors; second
-rejection; too many blobs -> merge the closest pair or remove the blob farthest from the others;
-too few -> erosion, then circular Hough transform; sub-pixel centroids from intensity-weighted
-moments. Colour markers: the foreground is computed in YUV so chroma is decoupled from
-brightness (seed 001 IV-B, last paragraph). An optional region of interest (from a predicted
-pose, see `graphloc.vision.target.predicted_marker_pixels`) restricts all work.
-
-Never silently returns fewer blobs than expected: `MarkerDetections.shortfall` says how many are
-missing and `status` is "shortfall".
+"""Blob extraction for identical spherical markers (active LEDs or passive paint), seed 001
+(001_0f8f8dae37ce6b79.txt) section IV-B "Blob extraction": Otsu threshold F1, outlier
+rejection, the looser histogram threshold F2 inside the survivors' window, a second rejection,
+merging or Hough recovery to the expected count, sub-pixel centroids from intensity-weighted
+moments; colour markers in YUV. An optional region of interest restricts all work. Never
+silently returns fewer blobs than expected (`MarkerDetections.shortfall`, status "shortfall").
 """
 
 from __future__ import annotations
@@ -81,41 +73,6 @@ def background_gaussian(gray: np.ndarray) -> tuple[float, float]:
 
 
 # ----------------------------------------------------------------------------- pipeline
-
-
-def marker_area_bounds(
-    focal_px: float, marker_radius: float, min_range: float, max_range: float, slack: float = 2.0
-) -> tuple[int, int]:
-    """(min_area, max_area) [px] of a sphere of radius `marker_radius` seen from `min_range` to
-    `max_range` [m] with focal length `focal_px`, widened by `slack` in radius (blur, threshold)."""
-    if not (0 < marker_radius < min_range <= max_range) or focal_px <= 0 or slack < 1:
-        raise ValueError(
-            f"marker_area_bounds: need 0 < marker_radius < min_range <= max_range, focal > 0, "
-            f"slack >= 1; got {marker_radius}, {min_range}, {max_range}, {focal_px}, {slack}"
-        )
-    r_far = focal_px * np.tan(np.arcsin(marker_radius / max_range))
-    r_near = focal_px * np.tan(np.arcsin(marker_radius / min_range))
-    return max(1, int(np.floor(np.pi * (r_far / slack) ** 2))), int(
-        np.ceil(np.pi * (r_near * slack) ** 2)
-    )
-
-
-def roi_from_points(
-    points_px: np.ndarray, margin: float, shape: tuple[int, int]
-) -> tuple[int, int, int, int]:
-    """(x0, y0, x1, y1) window around predicted marker pixels, `margin` px wide, clipped to the
-    image."""
-    p = np.asarray(points_px, dtype=float).reshape(-1, 2)
-    if len(p) == 0 or not np.isfinite(p).all():
-        raise ValueError(f"roi_from_points: predicted pixels must be finite (M,2), got {p.shape}")
-    if not (np.isfinite(margin) and margin >= 0):
-        raise ValueError(f"roi_from_points: margin must be finite and >= 0, got {margin}")
-    h, w = shape[:2]
-    x0 = int(np.clip(np.floor(p[:, 0].min() - margin), 0, w))
-    y0 = int(np.clip(np.floor(p[:, 1].min() - margin), 0, h))
-    x1 = int(np.clip(np.ceil(p[:, 0].max() + margin) + 1, 0, w))
-    y1 = int(np.clip(np.ceil(p[:, 1].max() + margin) + 1, 0, h))
-    return x0, y0, x1, y1
 
 
 def _detect_in_region(gray, region, config, predicted_px, steps, counts):

@@ -1,37 +1,9 @@
 """Three robots localized from mutual bearings (seed 000, section III-A "Three Robots
-Localization Algorithm", the algorithm of Spletzer et al. 2001, its ref. [16]).
-
-Input: the pixel of robot j in robot i's panoramic image for the 6 ordered pairs i != j
-(seed 000 Problem 1: (u_ij, v_ij)), the three calibrated cameras, and the length |T_12| of
-one baseline. Output: poses of C2 and C3 in C1's frame (rotations ^1R_j and translations
-^1T_j, fixed in scale by |T_12|).
-
-Method (batched over N formations, no iteration):
-  1. pixels -> unit bearings u_ij (camera model of robot i, frame i).
-  2. interior angle of the triangle at robot i: theta_i = angle(u_ij, u_ik). These are
-     rotation invariant, so they hold for tilted cameras too; noise-free they sum to pi.
-     The closure error sum - pi is reported and spread equally over the three angles.
-  3. law of sines: |T_12| = baseline, |T_13| = baseline sin(theta_2)/sin(theta_3),
-     |T_23| = baseline sin(theta_1)/sin(theta_3).
-  4. each robot i knows the triangle in its own frame: vertex j at |T_ij| u_ij, itself at 0.
-     ^1R_j, ^1T_j align robot j's triangle to robot 1's (orthogonal Procrustes / Kabsch via
-     a batched SVD; three non-collinear points fix the rigid motion). Its RMS residual
-     ("misfit") is 0 noise-free.
-Setting of [16] (robots on a locally planar floor, mirror axes vertical): `planar=True`
-projects the bearings onto each camera's horizontal plane (normal to `MutualConfig.up`, +z
-for the omni camera) before step 2, so the angles are the planar interior angles and the
-rotations come out about the vertical only (headings). With `planar=False` (default) the
-same construction is the full 3D solution for tilted cameras (seed 000 section VI tilts the
-C_i by up to pi/6).
-
-Bad formations are reported per row in `status`, never raised: a pixel that does not lift
-to a bearing; a smallest interior angle below `min_angle` (collinear robots: the law of
-sines divides by ~0); a closure error above `max_closure`, a misfit above `max_misfit`, or a
-camera turned over relative to C1 (inconsistent or mislabelled detections: a robot that
-swapped the labels of the other two keeps its interior angle, and its swapped triangle is
-the true one turned over about the bisector, i.e. an upside-down robot).
-condition = 1 / min_i sin(theta_i) >= 2/sqrt(3) measures how much the triangle amplifies
-bearing noise (inf when collinear).
+Localization Algorithm", the algorithm of Spletzer et al. 2001, its ref. [16]): the pixel of
+robot j in robot i's image for the 6 ordered pairs, the cameras and the baseline |T_12| ->
+poses of C2 and C3 in C1's frame, batched over N formations: interior angles from the bearings,
+the law of sines, each robot's triangle aligned to robot 1's (Kabsch). Bad formations are a
+status per row, never raised. The steps and checks: docs/design_algorithms.md, "Mutual bearings".
 """
 
 from __future__ import annotations

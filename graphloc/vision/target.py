@@ -1,17 +1,9 @@
-"""Targets of four identical markers: hypotheses from detected blobs, pose prediction (the
-target geometry's design, seed 001 III-A, is graphloc.vision.target_design).
-
-Seed 001 (001_0f8f8dae37ce6b79.txt):
-- section IV-C "Pose update": all (n*m)! = 24 marker assignments x up to 4 P3P solutions
-  (<= 96) in one batched `solve_p3p` call; the fourth marker's reprojection removes the wrong
-  ones; a predicted pose restricts the assignments to those whose detections lie near the
-  predicted marker pixels.
-- section IV-A "Pose and marker prediction": linear regression over the last k_R poses (k_R = 2)
-  -- here on SE(3) in the tangent space of the newest pose (gtsam.Pose3 Logmap / Expmap).
-
-Pose convention: every pose here is the CAMERA IN THE TARGET FRAME, T_target_camera = [R_TC |
-t_cam,T] as in the seed (X_target = R_TC X_cam + t_cam,T). `CandidateSet` rows are such poses
-(world = target frame); the target in the camera frame is their inverse.
+"""Targets of four identical markers: every camera pose in the target frame that 4 (or 3)
+detected blobs allow, seed 001 (001_0f8f8dae37ce6b79.txt) section IV-C: all 24 marker
+assignments x up to 4 P3P solutions in one batched `solve_p3p` call, the fourth marker's
+reprojection removing the wrong ones, a predicted pose restricting the assignments. Every pose
+here is the camera in the target frame, T_target_camera (X_target = R_TC X_cam + t_cam,T).
+The seed's target design (III-A) and pose prediction (IV-A): benchmarks/baselines/seed001_target.py.
 """
 
 from __future__ import annotations
@@ -72,50 +64,11 @@ SMALL_TARGET = LARGE_TARGET.scaled(0.5, "seed001-small")
 # ----------------------------------------------------------------------------- prediction
 
 
-def _as_pose(pose) -> gtsam.Pose3:
+def as_pose3(pose) -> gtsam.Pose3:
     if isinstance(pose, gtsam.Pose3):
         return pose
     R, t = pose
     return gtsam.Pose3(gtsam.Rot3(np.asarray(R, dtype=float)), np.asarray(t, dtype=float))
-
-
-def predict_pose(
-    history: Sequence,
-    k_R: int = 2,
-    times: Sequence[float] | None = None,
-    t_next: float | None = None,
-) -> gtsam.Pose3:
-    """Seed 001 IV-A: linear regression over the last `k_R` poses, extrapolated one step.
-
-    history: gtsam.Pose3 or (R, t) of the camera in the target frame, oldest first. times:
-    their timestamps (default 0, 1, 2, ...) and t_next the time to predict (default last + 1).
-    The regression xi(tau) = a + b tau is fitted to xi_i = Logmap(T_last^-1 T_i); prediction
-    T_last Expmap(a + b t_next). k_R = 2 is constant velocity on SE(3).
-    """
-    if k_R < 1:
-        raise ValueError(f"predict_pose: k_R must be >= 1, got {k_R}")
-    poses = [_as_pose(p) for p in history][-k_R:]
-    if not poses:
-        raise ValueError("predict_pose: empty pose history")
-    n_all = len(history)
-    tau = np.arange(n_all, dtype=float) if times is None else np.asarray(times, dtype=float)
-    if tau.shape != (n_all,) or not np.isfinite(tau).all():
-        raise ValueError(
-            f"predict_pose: times must be {n_all} finite values, got shape {tau.shape}"
-        )
-    tau = tau[-k_R:]
-    if np.any(np.diff(tau) <= 0):
-        raise ValueError(f"predict_pose: times must increase, got {tau.tolist()}")
-    t_next = (
-        tau[-1] + (tau[-1] - tau[-2] if len(tau) > 1 else 1.0) if t_next is None else float(t_next)
-    )
-    last = poses[-1]
-    if len(poses) == 1:
-        return last
-    xi = np.array([gtsam.Pose3.Logmap(last.between(p)) for p in poses])  # (k,6), last row 0
-    A = np.column_stack([np.ones(len(tau)), tau - tau[-1]])
-    coef, *_ = np.linalg.lstsq(A, xi, rcond=None)
-    return last.compose(gtsam.Pose3.Expmap(coef[0] + coef[1] * (t_next - tau[-1])))
 
 
 def project_markers(
@@ -135,7 +88,7 @@ def project_markers(
 def predicted_marker_pixels(camera, target: MarkerTarget, pose) -> tuple[np.ndarray, np.ndarray]:
     """Predicted marker pixels (m,2) + visible (m,) for a predicted camera pose (gtsam.Pose3 or
     (R,t))."""
-    p = _as_pose(pose)
+    p = as_pose3(pose)
     return project_markers(camera, target, p.rotation().matrix(), p.translation())
 
 
@@ -154,7 +107,6 @@ class TargetHypothesisConfig:
     gate_px: float = 3.0
     pixel_sigma: float = 1.0
     prediction_gate_px: float = 25.0
-    p3p_method: str = "lambdatwist"
     refine: bool = True
 
 
@@ -184,33 +136,6 @@ def _check_detections(detections) -> np.ndarray:
     return det
 
 
-def target_hypotheses(
-    detections: np.ndarray,
-    camera,
-    target: MarkerTarget = LARGE_TARGET,
-    config: TargetHypothesisConfig = TargetHypothesisConfig(),
-    predicted=None,
-    time: float = 0.0,
-    observer: str = "",
-    observed: str = "",
-) -> CandidateSet:
-    """All plausible camera poses in the target frame from 4 (or 3) blobs of identical markers.
-
-    detections: (4,2) pixels in any order. predicted: predicted camera pose (gtsam.Pose3 or (R,t))
-    restricting the assignments (seed IV-C); if no assignment is compatible, all are tried.
-    With 4 detections, hypotheses whose fourth marker misses its detection by more than
-    `gate_px` are dropped. With 3 (one marker lost, seed V-A) nothing can be gated: every P3P
-    solution is returned and a prediction is the only restriction. If no 4-blob hypothesis
-    passes the gate (one blob is not a marker, e.g. a partly occluded one), every 3-of-4 subset
-    is tried the same way (meta["fallback"] = "three_of_four"). meta: assignment (K,4) =
-    detection index of each marker (-1 unseen), reprojection_px (K,) rms, gate_error_px (K,),
-    n_assignments, prediction_used, fallback. One frame of `target_hypotheses_frames`.
-    """
-    return target_hypotheses_frames(
-        [detections], camera, target, config, [predicted], [time], observer, observed
-    )[0]
-
-
 def target_hypotheses_frames(
     detections: Sequence,
     camera,
@@ -221,11 +146,13 @@ def target_hypotheses_frames(
     observer: str = "",
     observed: str = "",
 ) -> list[CandidateSet]:
-    """`target_hypotheses` of many frames (detections[i] (4,2) or (3,2), predicted[i] a pose or
-    None, times[i]), one CandidateSet per frame: the frames of one blob count go through each
-    stage together -- the 24 x 4 P3P hypotheses of every frame in one `solve_p3p` call, their
-    reprojections in one projection --, so a run's frames cost a few batched calls instead of
-    a few per frame. A frame with bad detections raises `target_hypotheses`' ValueError."""
+    """All plausible camera poses in the target frame, one CandidateSet per frame, from
+    detections[i]: (4,2) or (3,2) pixels in any order; predicted[i]: None or a predicted pose
+    restricting the assignments (all are tried when none is compatible). With 4 detections,
+    hypotheses whose fourth marker misses its detection by more than `gate_px` are dropped;
+    when none passes, every 3-of-4 subset is tried (meta["fallback"] = "three_of_four"). With 3
+    (one marker lost, seed V-A) every P3P solution is returned. The frames of one blob count go
+    through each stage together, in a few batched calls. Bad detections raise ValueError."""
     n = len(detections)
     predicted = [None] * n if predicted is None else list(predicted)
     times = [0.0] * n if times is None else list(times)
@@ -339,9 +266,7 @@ def _hypotheses(det, bearings, assign, camera, target, config, pred_px, has_pred
     seen = np.argsort(assign < 0, axis=1, kind="stable")  # marker indices, seen ones first
     det_idx = np.take_along_axis(assign, seen[:, :3], axis=1)
     fi, ai = np.nonzero(rows_ok)  # the instances, frame by frame
-    sol = solve_p3p(
-        bearings[fi[:, None], det_idx[ai]], target.points[seen[ai, :3]], method=config.p3p_method
-    )
+    sol = solve_p3p(bearings[fi[:, None], det_idx[ai]], target.points[seen[ai, :3]])
     N = len(fi)
     valid = sol.valid.reshape(N * 4)
     R = sol.R_wc.reshape(N * 4, 3, 3)[valid]

@@ -26,38 +26,13 @@ from graphloc.vision.features import FeatureConfig, FeatureTracker
 class TeammateConfig:
     """radius [m] of the base disk; blob: its colour signature; circle: ellipse-fit settings;
     radius_pixel_floor, centre_pixel_floor [px]: lower bounds of the ellipse radius and centre
-    accuracy used for the centre covariance (the edge fit's own sigmas are slightly
-    optimistic). The radius floor is the refined rim's (BlobConfig.refine_edges) depth accuracy
-    calibrated on crawler-pair seeds 100-102 (not used by the benchmark). The centre floor is
-    set above that calibration on purpose: the two candidates' centres differ by a fraction of
-    a pixel, and with the calibrated floor that difference outweighed the normals in the
-    max-mixture's choice whenever the camera pose was slightly off, so that online iSAM2 kept
-    the false candidate after the teammate moved (seeds 3-4 of benchmarks.seed003).
-    With the edge crossings alone (refine_edges=False) calibrate both floors for that
-    front-end (benchmarks.seed003.teammate_config)."""
+    accuracy used for the centre covariance (how they were chosen: docs/design_algorithms.md)."""
 
     radius: float = setting(0.019, gt=0.0)
     blob: BlobConfig = BlobConfig()
     circle: CircleConfig = CircleConfig()
     radius_pixel_floor: float = setting(0.007, gt=0.0)
     centre_pixel_floor: float = setting(0.03, gt=0.0)
-
-
-def disk_pose_covariance(
-    R: np.ndarray, disk_covariance: np.ndarray, yaw_sigma: float
-) -> np.ndarray:
-    """(K,6,6) covariances of circle poses T_cam_base (rotations R (K,3,3), z = normal) in
-    GTSAM's Pose3 tangent (omega, v; base frame) from a (5,5) disk covariance over (centre in
-    the camera frame, normal tilt a, b towards the disk's x, y axes), yaw_sigma [rad] about the
-    normal: T Exp(omega, v) moves the centre by R v and the normal by omega_y x - omega_x y, so
-    omega_x = -b, omega_y = a, v = R^T dc."""
-    R = np.asarray(R, float).reshape(-1, 3, 3)
-    J = np.zeros((len(R), 6, 5))
-    J[:, 0, 4], J[:, 1, 3] = -1.0, 1.0
-    J[:, 3:, :3] = np.transpose(R, (0, 2, 1))
-    cov = np.einsum("kij,jl,kml->kim", J, np.asarray(disk_covariance, float).reshape(5, 5), J)
-    cov[:, 2, 2] = yaw_sigma**2
-    return cov
 
 
 def pixel_sigmas(candidates: CandidateSet, config: TeammateConfig) -> tuple[float, float]:

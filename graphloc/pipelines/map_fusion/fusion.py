@@ -1,30 +1,9 @@
-"""Ground + ceiling laser map fusion (seed 004, Kaushik et al.), as one factor graph.
-
-1. per robot KISS-ICP odometry over its scans (`graphloc.mapping.odometry`);
-2. inter-robot initial guess: P3P on the three LED pixels of every camera frame (seed 004
-   Sec. II-B, all up to four solutions, `graphloc.geometry.p3p`), expressed in the ground
-   robot's first frame with its odometry, disambiguated over the climbing robot's motion by the
-   `HypothesisTracker` (the role of seed 004 Sec. II-C's particle filter, Algorithm 2;
-   `graphloc.pipelines.map_fusion.led_guess`); or a user-supplied relative pose hint;
-3. denoise + point-to-plane ICP of the first ceiling scan onto the first ground scan from that
-   guess (seed 004 Sec. IV): `robust_register` starts from the guess and the sigma points of its
-   covariance (the P3P candidate's, `guess_covariance`, or the hint's sigmas), keeps
-   the candidate of lowest truncated cost (a point beside a surface of the other scan costs
-   more than one the other robot did not see) and accepts it only if its checks pass (overlap,
-   residual consistency, conditioning, agreement with the guess, the ceiling robot above the
-   ground robot, its own covariance); otherwise `fuse` raises `FusionRejected` ("not fused",
-   with why);
-4. one graph: prior on the ground robot's first pose, scan-matching between-factors for both
-   robots (point-to-plane ICP of consecutive scans from the KISS-ICP increment, covariance from
-   the registration's information matrix), the ICP inter-robot factor, and per camera frame a
-   max-mixture of the P3P candidates' between-factors and a null component (the solve
-   chooses; a frame farther than `p3p_outlier_d2` from the estimate is an outlier); batch
-   Levenberg-Marquardt (`graphloc.session.Session`);
-5. fused map: every scan placed with the optimized poses, denoised, each point labelled with
-   its robot.
-
-Frames: G_k / C_k are the ground / ceiling LiDAR at frame k; everything is expressed in G_0.
-The configuration, inputs and results are `graphloc.pipelines.map_fusion.types`.
+"""Ground + ceiling laser map fusion (seed 004, Kaushik et al.), as one factor graph: per-robot
+KISS-ICP odometry; the inter-robot guess (the LED tracker of `led_guess`, seed 004 Sec. II-B /
+II-C, or a user's hint); `robust_register` of the first ceiling scan onto the first ground scan
+from it (Sec. IV), or `FusionRejected`; one graph (prior, scan-matching between-factors, the
+inter-robot factor, the P3P max-mixtures) solved by LM; the fused map. Everything is expressed
+in G_0, the ground LiDAR's first frame (the steps: docs/design_algorithms.md, "Map fusion").
 """
 
 from __future__ import annotations

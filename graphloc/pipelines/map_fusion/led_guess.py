@@ -1,17 +1,14 @@
 """The inter-robot initial guess of map fusion from the ceiling camera's view of the ground
-robot's LEDs (seed 004 Sec. II-B / II-C): P3P on the three LED pixels of every camera frame (all
-up to four solutions, `graphloc.geometry.p3p`, with first-order covariances), expressed in the
-ground robot's first frame with its odometry, disambiguated over the climbing robot's motion by
-the `HypothesisTracker` (the role of seed 004's particle filter, Algorithm 2); the guess's
-covariance (`guess_covariance`); and the P3P factors of the fusion graph (`p3p_factors`).
-Candidate sets come from the one front-end route, `graphloc.vision.marker_poses
-.p3p_candidate_sets` (typed resection covariance), and reach the graph by the one route of
-`graphloc.factors.mixture`: every frame's set is a max-mixture the solve chooses from.
-Frames: G_k / C_k are the ground / ceiling LiDAR at frame k; everything is expressed in G_0."""
+robot's LEDs (seed 004 Sec. II-B / II-C): P3P candidate sets of every camera frame
+(`p3p_candidate_sets`), expressed in G_0 with the ground robot's odometry, disambiguated over
+the climbing robot's motion by the `HypothesisTracker` (the role of seed 004's particle filter,
+Algorithm 2); the guess's covariance (`guess_covariance`); every frame's set a max-mixture
+factor of the fusion graph (`p3p_factors`)."""
 
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import gtsam
 import numpy as np
@@ -61,17 +58,7 @@ def _in_first_frame(cands: CandidateSet, T_g0_gk: np.ndarray) -> CandidateSet:
     """Candidates (camera in G_k) re-expressed in G_0 (right-perturbation covariances unchanged)."""
     R = np.einsum("ij,kjl->kil", T_g0_gk[:3, :3], cands.R)
     t = cands.t @ T_g0_gk[:3, :3].T + T_g0_gk[:3, 3]
-    return CandidateSet(
-        R,
-        t,
-        cands.scores,
-        cands.time,
-        cands.observer,
-        cands.observed,
-        cands.source,
-        cands.meta,
-        cands.covariance,
-    )
+    return replace(cands, R=R, t=t)
 
 
 def guess_covariance(
@@ -178,17 +165,7 @@ def p3p_factors(guess: GuessResult, T_cc: np.ndarray, outlier_d2: float) -> list
         rel = np.einsum("kij,jl->kil", np.stack([p.matrix() for p in cands.poses()]), T_cam_c)
         cov = np.einsum("ij,kjl,ml->kim", ad, cands.covariance, ad)
         cov = 0.5 * (cov + np.swapaxes(cov, 1, 2))
-        carried = CandidateSet(
-            rel[:, :3, :3],
-            rel[:, :3, 3],
-            cands.scores,
-            cands.time,
-            cands.observer,
-            cands.observed,
-            cands.source,
-            cands.meta,
-            cov,
-        )
+        carried = replace(cands, R=rel[:, :3, :3], t=rel[:, :3, 3], covariance=cov)
         keys = (pose_key(CEILING, f), pose_key(GROUND, f))
         weights = mixture_weights(carried)
         j = int(np.argmax(weights))

@@ -1,12 +1,5 @@
-"""Entry points of the map fusion pipeline (`graphloc fuse-maps`):
-
-    fuse_and_write(inp, out_dir, config, times)                      fuse -> outputs or "not fused"
-    fuse_directories(ground, ceiling, out_dir, hint=..., p3p=...)   a user's own scan sequences
-
-(the hint, its sigma and the P3P setup are parsed by `graphloc.pipelines.map_fusion.inputs`).
-
-Simulated rooms (`graphloc demo`, `fuse-maps --simulate`) are
-`graphloc.datasets.dual_room.simulate_and_fuse`.
+"""Entry points of the map fusion pipeline (`graphloc fuse-maps`): `fuse_and_write` (fuse ->
+outputs or the "not fused" report) and `fuse_directories` (a user's own scan sequences).
 """
 
 from __future__ import annotations

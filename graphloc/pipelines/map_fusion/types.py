@@ -1,5 +1,5 @@
 """The types of ground + ceiling map fusion (seed 004; the pipeline is `map_fusion.fusion`):
-its configuration (`FusionConfig`, defined in the light `map_fusion.config`), inputs
+its configuration (`FusionConfig`, defined in the light `map_fusion.options`), inputs
 (synchronized scans, plus the ceiling camera's view of the ground robot's LEDs or a relative
 pose hint), the LED initial guess (`GuessResult`), the result, and `FusionRejected` ("not
 fused"). Frames: G_k / C_k are the ground / ceiling LiDAR at frame k; everything is expressed
@@ -14,7 +14,7 @@ import numpy as np
 from graphloc.cameras import PinholeCamera
 from graphloc.mapping.acceptance import RegistrationDecision
 from graphloc.mapping.registration import Registration
-from graphloc.pipelines.map_fusion.config import FusionConfig  # noqa: F401 - re-exported
+from graphloc.pipelines.map_fusion.options import FusionConfig  # noqa: F401 - re-exported
 
 GROUND, CEILING = 0, 1
 
