@@ -1,36 +1,7 @@
-"""Camera models: pixel <-> unit bearing, batched over rows.
-
-Both models share one interface (all arrays float64, M rows):
-
-    pixel_to_bearing(pixels (M,2))   -> bearings (M,3) unit vectors, valid (M,) bool
-    bearing_to_pixel(bearings (M,3)) -> pixels (M,2), visible (M,) bool
-    project(points_cam (M,3))        -> pixels (M,2), visible (M,) bool
-
-Rows that are NaN/inf (or cannot be mapped, e.g. behind a pinhole camera) give NaN outputs
-and a False mask; a wrong *shape* is a ValueError naming the argument.
-
-`PinholeCamera`: OpenCV pinhole + Brown-Conrady distortion (seed 001 section IV-A: 752x480,
-90 deg FOV; seed 000 section VI: 640x480, FOV 2/3 pi for the climbing robot's camera C).
-
-`ParaboloidOmniCamera`: the panoramic cameras C_i of seed 000 section II (paraboloid mirror,
-effective focal length f_i, conic constant k_i, equivalent sensor resolution n_i x n_i,
-aspect ratio 1), in the unified central-catadioptric form of Geyer & Daniilidis (2000):
-a bearing d (|d| = 1, camera frame, z along the mirror axis) maps to
-
-    u = c_x + f_i * d_x / (d_z + xi),   v = c_y + f_i * d_y / (d_z + xi),
-
-with xi = 2e / (1 + e^2) and mirror eccentricity e = sqrt(-k_i). For the paraboloid,
-k_i = -1, so e = 1 and xi = 1: this is the para-catadioptric model of Baker & Nayar (1999) --
-mirror z = (h^2 - r^2) / (2h) with its focus at the camera centre (h = vertex radius of
-curvature = twice the parabola's focal distance) viewed by an orthographic camera of
-magnification m [px/m]. The mirror size h and m only enter as the product f_i = h * m [px]
-(the image radius of the horizon d_z = 0), so h cannot be recovered from k_i (which is
-dimensionless) and is not a separate parameter. k_i < -1 (hyperboloid + perspective camera)
-gives xi < 1 in the same formula. The inverse (lifting) is closed form:
-
-    x = (u - c_x)/f_i, y = (v - c_y)/f_i, r2 = x^2 + y^2,
-    s = (xi + sqrt(1 + (1 - xi^2) r2)) / (r2 + 1),   d = (s x, s y, s - xi).
-"""
+"""Camera models, pixel <-> unit bearing batched over rows: `PinholeCamera` (OpenCV pinhole +
+Brown-Conrady, seed 001 Sec. IV-A, seed 000 Sec. VI) and `ParaboloidOmniCamera` (seed 000
+Sec. II's panoramic cameras in the unified central-catadioptric model; docs/design_core.md,
+"Cameras"). Rows that cannot be mapped give NaN and a False mask; a wrong shape is a ValueError."""
 
 from __future__ import annotations
 

@@ -1,15 +1,5 @@
-"""A config dataclass's fields as command-line options and as the keys of a TOML config file:
-what pydantic, which checks the values (`graphloc.config_schema`), does not do.
-
-`parse_overrides` turns KEY=VALUE strings (or TOML values) into field values;
-`add_config_arguments` derives one `--field-name` option per scalar field (type, default and
-help from the field's description and choices) and `config_from_args` builds the config from
-the parsed options (defaults < `--config FILE.toml` < command line). A field whose default is
-itself a config dataclass is a TOML table of its name (`[fusion]`, `[fusion.registration]`,
-...); a tuple field a TOML array. `read_config_file` reads the file through
-`graphloc.structured.read_toml` (size and nesting bounded); every error names the file, the
-line and the field (`ConfigError.key`: the field's dotted path).
-"""
+"""A config dataclass's fields as command-line options and TOML config-file keys (defaults <
+`--config FILE.toml` < command line); every error names the file, the line and the field."""
 
 from __future__ import annotations
 

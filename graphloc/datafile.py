@@ -1,11 +1,6 @@
-"""Versioned data files: one JSON header line (format, version, body size and SHA-256) and a JSON
-body, written atomically (temporary file, fsync, rename, directory fsync). Used by
-`graphloc.session` (saved sessions), `graphloc.hypotheses` (saved trackers) and `graphloc online`
-checkpoints. Reading checks the file's size (at most `graphloc.structured.MAX_DATA_BYTES`),
-format, version, body size and hash before parsing, and parses the body through
-`graphloc.structured.parse_json` (nesting and values bounded): a pickle, another format, a
-truncated, altered, oversized or too deeply nested file is a ValueError naming the file, and
-nothing in a file is ever executed."""
+"""Versioned data files (saved sessions, trackers, online checkpoints): one JSON header line
+(format, version, body size and SHA-256) and a JSON body, written atomically; a pickle, another
+format, a truncated, altered or oversized file is a ValueError naming the file."""
 
 from __future__ import annotations
 

@@ -1,32 +1,6 @@
-"""The one executor layer: every job of many runs or trials (`graphloc smooth` / `online` over
-several runs; the reproductions and benchmarks of the checkout's benchmarks/, run by scripts/)
-hands its tasks to an `Executor`, which runs them on one of two backends:
-
-- ``local`` (the default, no dependency beyond the standard library): a `multiprocessing.Pool`
-  of `workers` processes, or, for one worker, the calling process itself (no start-up cost).
-  The pool starts its workers from a fork server by default, never by forking the caller: a
-  caller that has run Open3D, GTSAM's TBB or a Ray client holds native threads, and a child
-  forked from it can inherit a lock one of them held and hang for ever. As with "spawn", a
-  script that maps over the local pool must guard its entry point (`if __name__ ==
-  "__main__":`), since each worker imports the script's main module;
-- ``ray``: Ray tasks (`pip install graphloc[ray]`), on a local Ray instance with `workers` CPUs
-  or on an existing cluster (`address="auto"` or ``"HOST:PORT"``).
-
-Contract, identical on both backends:
-
-- a task is ``fn(item)`` (or ``fn(item, shared)``); `fn` is a module-level function and `item`
-  carries everything that decides the result, its random seed included (`task_seed`), so the
-  result depends on the item only, never on the worker, the backend or the completion order;
-  results come back in item order;
-- a task that raises is an `Outcome` with its error (`Executor.map`) while the others finish;
-  `Executor.imap` (trials, where a failure is a bug) raises `TaskFailed` naming the item;
-- `shared` is one large input (point clouds, long logs) sent once per worker, not once per
-  task: Ray's object store (`ray.put`, read zero-copy by the workers) or the pool's initializer
-  (pickled once per worker);
-- with a `ResultCache` and a content hash per item (`content_hash` of the inputs, the
-  configuration and `code_version()`), finished tasks are read back instead of recomputed;
-- progress is one bar counting tasks done / failed / cached.
-"""
+"""Runs the tasks of many runs or trials on a local process pool or on Ray, with a result cache
+keyed by content hash; results come back in item order whatever the backend
+(docs/design_core.md, "Executor")."""
 
 from __future__ import annotations
 

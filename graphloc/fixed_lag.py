@@ -1,9 +1,6 @@
-"""The fixed-lag window of an online `graphloc.session.Session` (SessionConfig.lag > 0): iSAM2
-that marginalizes, with `ISAM2::marginalizeLeaves`, every variable added more than `lag` seconds
-(of the add times) before the newest. A constrained ordering by add time keeps those variables
-leaves of the Bayes tree, so no re-elimination is needed (`FixedLagWindow.update`); a
-marginalized variable keeps its last estimate (of a full back-substitution, not iSAM2's
-wildfire-truncated one)."""
+"""The fixed-lag window of an online `Session` (SessionConfig.lag > 0): iSAM2 marginalizing, with
+`marginalizeLeaves`, every variable added more than `lag` seconds before the newest, kept a leaf
+by a constrained ordering by add time."""
 
 from __future__ import annotations
 

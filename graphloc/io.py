@@ -1,20 +1,6 @@
-"""The graphloc log format: one directory, a `manifest.json` and per-robot CSV tables
-(documented in docs/log_format.md). Reader, writer and validation.
-
-- `read_manifest(dir)` -> Manifest (robots, sensors with extrinsics, tables, landmarks;
-  `graphloc.manifest`); the records of each table are in `graphloc.records`.
-- `iter_records(dir, tables=...)` streams typed records time-ordered across every robot and
-  table (heapq.merge over per-file iterators); every row is validated and a bad row either
-  raises ValueError naming file, line and field (on_error="raise") or is counted in a
-  `SkipReport` (on_error="skip") -- nothing is dropped silently. Files are UTF-8 with an
-  optional byte-order mark (`graphloc.textio`). The rows are validated in chunks with NumPy
-  (`graphloc.table_reader.iter_table_chunks`, which a reader of a large table such as
-  `markers` takes as columns).
-- `PlanarRun` is the numpy form of a planar multi-robot run (the MRCLAM loader's);
-  `write_planar_run(run, dir)` writes it as a log, `write_table` one table
-  (`graphloc.log_writer`). Logs are read into the one run type of the
-  pipelines by `graphloc.datasets.graphloc_log.read_team_run` (`graphloc.datasets.open_run`).
-"""
+"""The graphloc log format (docs/log_format.md): `read_manifest`, `iter_records` (typed records of
+every robot and table in time order, each bad row raised or counted naming file, line and
+field) and the writers of `graphloc.log_writer`."""
 
 from __future__ import annotations
 

@@ -1,7 +1,5 @@
-"""Writers of the graphloc log format (docs/log_format.md): one table (`write_table`, floats
-written losslessly) and a planar multi-robot run in arrays (`PlanarRun`, the MRCLAM loader's
-form) as a whole log directory (`write_planar_run`). Importable from `graphloc.io` too.
-"""
+"""Writers of the graphloc log format: one table (`write_table`, floats lossless) and a planar
+run in arrays (`PlanarRun`, the MRCLAM loader's form) as a log directory (`write_planar_run`)."""
 
 from __future__ import annotations
 

@@ -1,8 +1,5 @@
-"""The manifest of a graphloc log directory (`manifest.json`, docs/log_format.md): robots,
-sensors with extrinsics, table paths, landmarks. `read_manifest` checks every field and names
-manifest and field in its errors; every path it holds is confined to the run directory (no
-absolute path, no '..', no symbolic link out of the run: `graphloc.textio.confined`).
-"""
+"""The manifest of a graphloc log (`manifest.json`, docs/log_format.md): `read_manifest` checks
+every field, names manifest and field in its errors and confines every path to the run."""
 
 from __future__ import annotations
 

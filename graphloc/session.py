@@ -1,37 +1,6 @@
-"""The estimation engine: one factor list, two ways to solve it.
-
-`Session` has one front door -- `add(factors, initial_values, time=...)`, `estimate()`,
-`marginal_covariance(key)` -- and two modes over the SAME factor list:
-
-- "batch":  gtsam.LevenbergMarquardtOptimizer over the whole graph (re-run lazily when
-  `estimate()` is asked after new factors arrived);
-- "online": gtsam.ISAM2, one incremental `update` per `add` (wall-clock latency recorded).
-
-State is saved as data, never as code: `save(path)` writes the config and the list of `add`
-steps as JSON (format "graphloc-session", version 3; the codec is `graphloc.session_codec`,
-the file format `graphloc.datafile`): every factor as its GTSAM type name, keys, measurement
-and noise model (the built-in factors graphloc uses), every Values entry as numbers, and
-Python-side factor providers such as `MaxMixture` as the components and weights that rebuild
-them (`save_state` / `from_state`). Loading parses JSON and calls GTSAM constructors on checked
-numbers only: no pickle, no Boost archive (GTSAM's `deserialize` crashes the interpreter on a
-corrupted archive). The file is written atomically (temporary file, fsync, rename) with a
-SHA-256 of its body: a failure midway leaves the previous file intact, and a truncated or
-altered file is a ValueError naming the file.
-`Session.load(path)` rebuilds the graph and, in online mode, replays the steps into a fresh
-iSAM2 with the same parameters, which reproduces the estimates exactly (iSAM2 is deterministic
-given the same update sequence; a 3-D bearing (Unit3) is re-normalized on load, which can move
-it by 1 ulp).
-
-Example (GTSAM-example style: explicit keys, one graph, one optimizer):
-
-    from graphloc.keys import pose_key
-    s = Session(SessionConfig(mode="online"))
-    g = gtsam.NonlinearFactorGraph()
-    g.add(gtsam.PriorFactorPose2(pose_key(0, 0), gtsam.Pose2(), noise))
-    v = gtsam.Values(); v.insert(pose_key(0, 0), gtsam.Pose2())
-    s.add(g, v, time=0.0)
-    s.estimate().atPose2(pose_key(0, 0))
-"""
+"""The estimation engine: one factor list solved in batch (Levenberg-Marquardt, re-run lazily when
+`estimate()` follows new factors) or online (iSAM2, one update per `add`), saved and loaded as
+checked JSON (`graphloc.session_codec`; docs/design_core.md, "Saved sessions")."""
 
 from __future__ import annotations
 

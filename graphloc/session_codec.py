@@ -1,9 +1,6 @@
-"""The JSON codec of saved sessions (`graphloc.session.Session.save` / `load`): GTSAM's built-in
-factors graphloc uses (`FACTOR_TYPES`) and factor providers such as
-`graphloc.factors.mixture.MaxMixture`, one added step at a time; their measurements, noise models
-and Values entries are `graphloc.value_codec`'s. Decoding checks every number and calls GTSAM
-constructors only: no pickle, no Boost archive (GTSAM's `deserialize` crashes the interpreter on
-a corrupted archive). Errors on decode are `BadData` naming the step, item and field."""
+"""The JSON codec of saved sessions: GTSAM's built-in factors graphloc uses and factor providers
+(`MaxMixture`), rebuilt from checked numbers by GTSAM constructors only (no pickle, no Boost
+archive); decode errors are `BadData` naming the step, item and field."""
 
 from __future__ import annotations
 

@@ -1,19 +1,6 @@
-"""Structured files -- JSON, YAML, TOML -- read one way and written one way.
-
-Reading (every manifest, topics file, config file, saved session / tracker / checkpoint body
-and `--p3p` setup goes through here): the file is opened through `graphloc.textio` (a regular,
-readable file; UTF-8 with an optional byte-order mark, a bad byte named by line and column),
-refused beyond a size (`MAX_TEXT_BYTES` for files a user writes, `MAX_DATA_BYTES` for files
-graphloc writes), parsed, and refused when nested deeper than `MAX_DEPTH` levels or holding
-more than `MAX_VALUES` values (YAML aliases count every time they are used, so an alias bomb
-is refused, not expanded). Every refusal is a ValueError naming the file (`BadStructure`);
-a parser's own RecursionError never reaches the caller. Nothing in a file is ever executed
-(`yaml.safe_load`, `json`, `tomllib`).
-
-Writing: `dumps_json` is the one JSON encoder of the package's outputs (reports, metrics,
-manifests, data files): NumPy scalars and arrays become JSON numbers, booleans and lists,
-paths strings.
-"""
+"""JSON, YAML and TOML files read one way (size, nesting and value count bounded, nothing
+executed; every refusal a `BadStructure` naming the file) and JSON written one way
+(`dumps_json`: NumPy values and paths as JSON)."""
 
 from __future__ import annotations
 

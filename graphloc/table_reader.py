@@ -1,11 +1,6 @@
-"""Reading one table of a graphloc log (docs/log_format.md): its header checked, its data
-lines (blank and '#' lines left out) in blocks of the file (`graphloc.textio.text_blocks`),
-every row validated -- field count, number parsing, NaN / inf, plausible range, time
-non-decreasing, known sensor of the right type, known target, a `scans` path inside the run --
-CHUNK_ROWS rows at a time with NumPy (`iter_table_chunks`), each bad row raised or counted with
-its file, line and field. `graphloc.io.iter_table` makes records of the accepted rows; a reader
-of a large table (`markers`) takes the columns as they are.
-"""
+"""Reading one table of a graphloc log: header checked, rows validated CHUNK_ROWS at a time with
+NumPy (field count, numbers, plausible range, time order, sensors, targets, scan paths), each
+bad row raised or counted with its file, line and field."""
 
 from __future__ import annotations
 

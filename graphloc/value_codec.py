@@ -1,8 +1,5 @@
-"""Checked numbers for GTSAM objects, the layer under the session codec
-(`graphloc.session_codec`): measurements and Values entries (Pose2, Pose3, Rot2, Rot3, Unit3,
-bearing-range pairs, vectors), noise models with robust kernels, and key names. Decoding checks
-every number (unit rotations and directions, positive sigmas, upper-triangular square-root
-information) before it calls a GTSAM constructor; errors are `BadData` naming the field."""
+"""Checked numbers for GTSAM measurements, Values entries and noise models, the layer under
+`graphloc.session_codec`; decode errors are `BadData` naming the field."""
 
 from __future__ import annotations
 

@@ -1,11 +1,4 @@
-"""The options every verb takes, added to each verb's parser by `graphloc.cli`: `-v` / `-q`
-and `--no-progress` (`--version` is the program's, `--config FILE` each verb's own, derived
-from its config dataclass).
-
-    -v, --verbose    the effective options and the wall time on stderr; -vv: debug logging
-    -q, --quiet      only errors: no summary on stdout, no progress bars, no output folder line
-    --no-progress    no progress bars
-"""
+"""The options every verb takes: `-v` / `-q` and `--no-progress`."""
 
 from __future__ import annotations
 

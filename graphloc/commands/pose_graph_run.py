@@ -1,16 +1,6 @@
-"""`graphloc smooth FILE` / `graphloc online FILE` for a pose-graph file with discrete
-alternatives (City10000's format or g2o 2D / 3D: `graphloc.datasets.pose_graph_file`), solved by
-the multi-hypothesis engine (`graphloc.hypotheses.pose_graph.PoseGraphHypotheses`) step by step
-(one step per new pose), then its final refinement (`PoseGraphHypotheses.finish`: Levenberg-
-Marquardt on the decided graph, the measurements with a null component decided again at its
-optimum); `online` also records the causal estimate and the CPU time of every step.
-
-Options (RunOptions' pose-graph fields): `--candidate-seed N` shuffles each measurement's
-candidates (seeded); the first-listed candidate is then the truth and metrics.json holds the
-mode accuracy -- City10000 lists the correct candidate first; `--null-loops` gives every loop
-closure a null component (outliers); `--truth-poses FILE` the ground truth (one line per pose
-id) for the position RMSE. Outputs in `--out`: trajectory.tum (time = pose id), groundtruth.tum,
-metrics.json, decisions.csv, latency.csv (online), trajectory.png (docs/outputs.md)."""
+"""`graphloc smooth FILE` / `online FILE` for a pose-graph file with discrete alternatives
+(City10000, g2o), solved step by step by `PoseGraphHypotheses` then refined
+(`--candidate-seed`, `--null-loops`, `--truth-poses`; outputs in docs/outputs.md)."""
 
 from __future__ import annotations
 

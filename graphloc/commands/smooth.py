@@ -1,13 +1,5 @@
-"""`graphloc smooth RUN --out DIR`: batch smoothing (Levenberg-Marquardt over the whole factor
-graph) of a team's run -- a graphloc log directory (every table: odometry, relative poses,
-bearings, ranges, range-bearing, markers -> P3P candidate sets, surfaces) or an MRCLAM dataset
-directory (`graphloc.datasets.open_run`, `graphloc.pipelines.team_graph`). Writes per-robot
-TUM trajectories, metrics.json, decisions.csv and PNG plots (docs/outputs.md).
-
-Options are the fields of `graphloc.pipelines.team_graph.options.RunOptions`, from the command
-line and from `--config FILE` (TOML, the field names); the command line wins. Sensor noise
-options replace what the log's sensor params state; left unset, the log's values (or graphloc's
-defaults) hold."""
+"""`graphloc smooth RUN --out DIR`: batch smoothing of a team's run (log directory, MRCLAM
+directory or bag) with `RunOptions` from the command line and `--config FILE`."""
 
 from __future__ import annotations
 

@@ -1,10 +1,5 @@
-"""Ground truth as the metrics and the outputs of `graphloc smooth` / `online` use it
-(`graphloc.pipelines.report`): a robot's ground truth (`TeamRun.groundtruth[r]`: times and
-Pose3) as TUM rows x y z qx qy qz qw, each sample converted once and only where it is used
-(`GroundTruth`); the pairs the metrics compare, evo's time association (`paired`,
-`graphloc.eval.associate`); what a robot's ground-truth file holds (`groundtruth_written`: by
-default the samples matched to its pose times -- a run's ground truth at 100 Hz is tens of
-times the estimate's poses --, or every sample); how an estimate is aligned (`alignment`)."""
+"""Ground truth as the metrics and outputs use it: TUM rows converted only where used, evo's time
+association (`paired`), what a ground-truth file holds (`groundtruth_written`), `alignment`."""
 
 from __future__ import annotations
 

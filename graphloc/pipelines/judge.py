@@ -1,6 +1,5 @@
-"""Decisions judged by the ground truth (simulations and logs with a `groundtruth` table):
-which candidate of a set is the genuine one, and whether the decided one is consistent with
-the truth (docs/outputs.md, `decisions.csv`)."""
+"""Decisions judged by the ground truth: which candidate of a set is genuine, and whether the
+decided one is consistent with the truth."""
 
 from __future__ import annotations
 

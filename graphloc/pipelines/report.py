@@ -1,9 +1,5 @@
-"""Outputs of `graphloc smooth` / `graphloc online` (every field documented in docs/outputs.md):
-per-robot TUM trajectories (estimate, dead reckoning, ground truth), metrics.json (per-robot
-ATE / RPE via evo with the alignment stated, candidate-set decisions, what every table
-contributed, skips, the effective configuration), decisions.csv and PNG plots
-(`graphloc.pipelines.report_plots`). The ground truth is converted where it is used and
-written at the estimate's rate unless asked otherwise (`graphloc.pipelines.groundtruth`)."""
+"""Outputs of `graphloc smooth` / `online` (docs/outputs.md): TUM trajectories, metrics.json,
+decisions.csv and PNG plots."""
 
 from __future__ import annotations
 

@@ -1,6 +1,4 @@
-"""The PNG plots of `graphloc smooth` / `online` (docs/outputs.md): trajectories.png,
-error_over_time.png and, online, latency.png, through `graphloc.plots`. `plot_jobs` gives one
-job per figure, so that the writer can show its progress and stop between figures."""
+"""The PNG plots of `graphloc smooth` / `online`, one job per figure (`plot_jobs`)."""
 
 from __future__ import annotations
 
