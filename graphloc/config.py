@@ -15,11 +15,9 @@ from graphloc.structured import BadStructure, parse_json, read_toml
 
 
 def parse_overrides(config_class: type, overrides: dict) -> dict:
-    """KEY=VALUE strings (or values) -> field values of `config_class`, which its constructor
-    then checks; unknown keys and unparsable values raise ConfigError naming the field. A
-    string for a non-string field is read as JSON (numbers, true / false, lists); a dict for a
-    field whose default is a config dataclass fills that dataclass (recursively); a list for a
-    tuple field becomes a tuple; every number is within `MAX_OPTION` / `MAX_OPTION_INT`."""
+    """KEY=VALUE strings (or values) -> field values of `config_class`: strings read as JSON, tables
+    as nested config dataclasses, lists as tuples, numbers bounded (`_bounded`); ConfigError
+    names the field."""
     known = {f.name: f for f in dataclasses.fields(config_class) if f.init}
     hints = typing.get_type_hints(config_class)
     name = config_class.__name__

@@ -169,15 +169,10 @@ def default_backend(backend: str = "local", address: str | None = None, workers:
 
 
 class Executor:
-    """Runs tasks on the local pool or Ray (see the module docstring). Use as a context
-    manager: the pool / the local Ray instance lives for the `with` block; a Ray instance that
-    was already initialised (by the caller or an earlier block) is reused and left running.
-
-    workers: processes (local) or concurrent tasks (ray; the CPUs of a local Ray instance);
-    backend: "local", "ray", or None (the one `default_backend` set, else "local");
-    address: None (local Ray instance) or "auto" / "HOST:PORT" (an existing cluster);
-    start_method: multiprocessing start method of the local pool ("forkserver" by default;
-        see the module docstring for why not "fork")."""
+    """Runs tasks on the local pool ("forkserver") or Ray, as a context manager: the pool or a Ray
+    instance it started lives for the `with` block (a running Ray instance is reused).
+    `backend` None: the one `default_backend` set, else "local"; `address`: "auto" or
+    "HOST:PORT" of a Ray cluster."""
 
     def __init__(
         self,

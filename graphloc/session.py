@@ -127,11 +127,9 @@ class Session:
         initial_values: gtsam.Values,
         time: float | None = None,
     ) -> Step:
-        """Append `factors` (a NonlinearFactorGraph or iterable of factors) and the initial guess of
-        the variables they introduce. `time` must not go backwards (None: same as the previous
-        step). Every key a factor touches must be known already or be in `initial_values`; keys in
-        `initial_values` must be new. A system GTSAM cannot solve (e.g. an unconstrained variable)
-        raises ValueError."""
+        """Append `factors` and the initial guess of the variables they introduce at `time`
+        (None: the previous step's; never backwards). ValueError for new keys already known,
+        factors on unknown or marginalized keys, or a system GTSAM cannot solve."""
         items = _as_items(factors)
         graph = _as_graph(items)
         if time is None:  # same time as the previous step (0 for the first)

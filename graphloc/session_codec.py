@@ -249,11 +249,8 @@ def decode_step(raw, where: str) -> tuple[float, list, gtsam.Values]:
 
 
 def save_session(session, path, fmt: str, version: int) -> None:
-    """`Session.save`: config + every step to `path` as versioned JSON, atomically (the
-    `graphloc.session` module docstring). A bare gtsam.CustomFactor cannot be saved: add the
-    provider that builds it (e.g. a `MaxMixture` object rather than its `.factor`). ValueError
-    names the step and factor that cannot be written, or says that the session keeps no steps
-    (`SessionConfig.keep_steps` False)."""
+    """`Session.save`: config + every step as versioned JSON, atomically; ValueError names the
+    step and factor that cannot be written (a bare CustomFactor: add its provider instead)."""
     if not session.config.keep_steps:
         raise ValueError(
             "Session.save: this session keeps no steps (SessionConfig.keep_steps=False: "

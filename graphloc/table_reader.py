@@ -45,14 +45,9 @@ def iter_table_chunks(
     report: SkipReport | None = None,
     landmark_ids: set | None = None,
 ) -> Iterator[dict]:
-    """The rows of one robot's table that pass every row check, in file order, as columns:
-    dicts of column name -> float64 / int64 array or list of str, plus `line` (int64), for up
-    to CHUNK_ROWS rows at a time (validated with NumPy, a row's first problem being the one
-    reported). Checks: header, field count, number parsing, NaN/inf, plausible range, time
-    non-decreasing (against the last accepted row), known sensor of the right type, known
-    target, a `scans` path inside the run; a bad row raises (on_error="raise") or is counted
-    in `report` by reason with its file, line and field (on_error="raise": the rows before the
-    first bad row are yielded first)."""
+    """The rows of one robot's table that pass every row check, in file order, as columns (name ->
+    array or list, plus `line`), CHUNK_ROWS at a time; a bad row raises (on_error="raise", after
+    the rows before it) or is counted in `report` with its file, line and field."""
     sink = Sink(on_error, report)
     cls = TABLES[table]
     cols = columns(table)
@@ -76,11 +71,8 @@ def iter_table_chunks(
 
 
 class LineChecker:
-    """The row checks of `iter_table_chunks` for lines that arrive a few at a time (a table a
-    logger is still writing: `graphloc.live.tail`): `header(text)` checks the header line,
-    `rows(batch)` validates [(line number, text)] of data lines against the rows before them
-    (time non-decreasing) and returns the accepted rows as column -> value mappings with
-    `line`; a bad row is counted in `report` naming file, line and field."""
+    """The row checks of `iter_table_chunks` for lines that arrive a few at a time (`live.tail`):
+    `header(text)`, then `rows(batch)` of (line number, text) -> accepted rows as mappings."""
 
     def __init__(self, manifest, robot, table, report: SkipReport, landmark_ids=None):
         self.args = (manifest, robot, table)

@@ -77,11 +77,8 @@ def read_file(path, options: dict):
 
 
 def summary(graph) -> dict:
-    """What `graphloc validate` says of a pose-graph file without solving it: its measurements
-    by kind (certain, with candidates, with a null component; loop closures), the vertices, the
-    skipped lines, and whether the edges grow the graph from its first pose step by step as the
-    engine needs (`group_steps`: every edge joins known poses or starts at a known one), with
-    the first edge that does not."""
+    """What `graphloc validate` says of a pose-graph file: measurements by kind, vertices, skipped
+    lines, and the first edge that does not grow the graph from its first pose."""
     from collections import Counter
 
     from graphloc.datasets.pose_graph_file import group_steps
@@ -166,11 +163,8 @@ def solve_file(graph, mode: str, options: dict, stop=None, progress: bool = Fals
 
 
 def factor_statistics(graph, estimate) -> dict:
-    """Per kind of factor of the final graph -- `prior`, `odometry` (between consecutive pose
-    ids), `loop_closure` (the others, with candidates and nulls as decided) --: count, residual
-    dimension, chi-square (2 x the error: the engine's factors are Gaussian) and normalized
-    chi-square (chi2 / dim: about 1 where the file's information matrices are right, as
-    `team_graph.verdict.factor_statistics` reports a team's)."""
+    """Per factor kind (`prior`, `odometry`, `loop_closure`): count, residual dimension, chi-square
+    and normalized chi-square (chi2 / dim)."""
     from gtsam import Symbol
 
     out: dict = {}
@@ -196,15 +190,10 @@ def factor_statistics(graph, estimate) -> dict:
 
 
 def verdict(metrics: dict) -> dict:
-    """The consistency verdict of a pose-graph solve (the team verdict's test,
-    `team_graph.verdict.ConsistencyTest`): every kind of factor's normalized chi-square at most
-    `max_normalized_chi2` (above it, the residuals are larger than the file's information
-    matrices say: wrong noise, corrupted edges or a wrong solution), and at most
-    `max_null_share` of the measurements with a null component decided outliers (a file marks
-    possible outliers because it has many; most of them rejected is a solve that explains its
-    measurements away, as the team verdict's share of down-weighted factors); warnings for
-    measurements
-    no later edge constrained and for skipped lines. A stopped solve is not judged."""
+    """The consistency verdict of a pose-graph solve (as `team_graph.verdict`): every factor kind's
+    normalized chi-square at most `max_normalized_chi2`, at most `max_null_share` of the
+    null-component measurements decided outliers; warnings for unconstrained measurements and
+    skipped lines. A stopped solve is not judged."""
     from graphloc.pipelines.team_graph.verdict import ConsistencyTest
 
     test = ConsistencyTest()

@@ -46,24 +46,10 @@ def options(args: argparse.Namespace) -> RunOptions:
 
 
 class StopFlag:
-    """SIGINT / SIGTERM during `smooth` / `online`, by the phase `run_verb` is in (`phase`):
-
-    - "reading" (the run read, the graph built; nothing estimated or written yet): the first
-      signal ends the verb at once (`Interrupted`, exit code 130, a line saying so);
-    - "solving": the flag is set (`stop()` is True); the solve finishes its step (online) or LM
-      iteration (batch) and stops, and the outputs so far are written (exit code 3);
-    - "writing" (the solve is done): the outputs being written are finished, except a figure
-      being drawn (`droppable`): it is dropped at once (`OutputDropped`) and listed as skipped.
-
-    A second signal interrupts at once in every phase (`Interrupted`, 130). A signal that
-    arrives during an import (a C extension initializing -- GTSAM, Open3D, OpenCV: an exception
-    raised there reaches the caller as ImportError "initialization failed" --, or the import
-    system's callbacks, which ignore an exception) cannot raise there: while reading, when
-    nothing is written yet, the process says so and ends at once (`os._exit`, 130, after
-    `names.release_claims` removed the `--out` folder it made, empty); in the other phases it
-    is handled as soon as the import is done (SIGALRM re-delivers it every RETRY_S).
-    Installed for the duration of a `with` block (main thread only); `verb` names the command
-    in the line it prints."""
+    """SIGINT / SIGTERM during `smooth` / `online`, by `phase`: "reading" ends at once (130),
+    "solving" stops after the current step and writes the outputs so far (3), "writing" finishes
+    them but drops a figure being drawn (`droppable`); a second signal ends at once
+    (docs/design_core.md, "Stopping")."""
 
     RETRY_S = 0.02
 

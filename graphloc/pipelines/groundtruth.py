@@ -87,11 +87,8 @@ def paired(truth: GroundTruth, times: np.ndarray, rows: np.ndarray):
 
 
 def alignment(run: TeamRun, r: int, align: str | None = None) -> str:
-    """How robot r's estimate is compared with its ground truth (evo's names, `eval.ALIGNMENTS`):
-    `align` when given (`--align`); else in the world frame ("none") when the run anchors the
-    world -- a robot with an initial pose or a known landmark map --, and aligned by the
-    motion the run cannot observe when it does not ("se2" for a planar robot, "se3" for the
-    others)."""
+    """How robot r's estimate is aligned to its truth (`eval.ALIGNMENTS`): `align` when given; else
+    "none" when the run anchors the world, "se2" (planar) or "se3" when it does not."""
     if align is not None:
         return align
     anchored = any(robot.initial_pose is not None for robot in run.robots) or (

@@ -63,13 +63,9 @@ TRUTH_SIGMA = (0.01, 0.02)
 def judge_decisions(
     run: TeamRun, decisions: list, max_time_diff: float = 0.02
 ) -> tuple[list[int], list[bool | None]]:
-    """Each set judged by the ground truth: the genuine candidate (`genuine_candidates`) and
-    whether the committed candidate is consistent with the truth -- the sensor's true pose in
-    the target's body frame,
-    truth_target^-1 truth_observer body_T_sensor, within the candidate's covariance plus the
-    truth's own tolerance (`TRUTH_SIGMA`) at JUDGE_PROBABILITY of a chi-square with 6 degrees
-    of freedom (None: no truth, or nothing committed). A set none of whose candidates is near
-    the truth is therefore judged wrong whichever is decided."""
+    """Each set's genuine candidate and whether the committed one is consistent with the truth:
+    the sensor's true pose in the target's frame within the candidate's covariance plus
+    `TRUTH_SIGMA`, at JUDGE_PROBABILITY of a chi-square with 6 degrees of freedom."""
     gate = float(chi2_distribution.ppf(JUDGE_PROBABILITY, 6))
     tolerance = np.diag(np.repeat(np.square(TRUTH_SIGMA), 3))
     correct = []

@@ -135,12 +135,8 @@ def candidate_weights(decision, k: int) -> np.ndarray:
 
 
 def scan_clouds(root, result: TeamResult, run: TeamRun, voxel: float = 0.05) -> list:
-    """Each robot's scans (the rows of its `scans` table the log reader used, `run.scans`)
-    placed by the estimate of the pose nearest in time (through the scanner's extrinsics), one
-    cloud per robot, voxel-downsampled (Open3D) to `voxel` metres. A scan without an estimated
-    pose within `voxel` seconds of it is left out; a scan is read as the reader kept it
-    (`graphloc.mapping.io.read_scan`: thinned to the point budget). `root` is unused (the
-    scans' paths are the run's)."""
+    """Each robot's scans placed by the estimate of the pose nearest in time (through the
+    scanner's extrinsics), voxel-downsampled; a scan without a pose within `voxel` s is left out."""
     import open3d as o3d
 
     clouds = []

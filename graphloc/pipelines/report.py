@@ -68,15 +68,9 @@ def evaluate(
     align: str | None = None,
     cpu_s: float | None = None,
 ) -> dict:
-    """Per-robot ATE/RPE of dead reckoning (the initial guess), the estimate and (online) the
-    causal estimate, aligned by `groundtruth.alignment` (`align`: one rule for every robot);
-    decisions, judged by the truth (`judge`); the consistency verdict (`team_graph.verdict`);
-    counts; latency; skips. cpu_s: the CPU time from reading the run to the last estimate
-    (the verbs'; `realtime_factor` is the run's duration over it, else over the solve's wall
-    time). truth: `groundtruths(run)`, shared
-    with `write_outputs` (each sample converted once). stop(): checked before each
-    trajectory's ATE / RPE (evo: seconds on a long run); once True -- a run stopped by a
-    signal -- the rest are not computed and "evaluated" is False."""
+    """Per-robot ATE/RPE of dead reckoning, the estimate and (online) the causal estimate, decisions
+    judged by the truth, the consistency verdict, counts, latency and skips. Once `stop()` is
+    True, the remaining trajectories are not evaluated ("evaluated" False)."""
     truth = groundtruths(run) if truth is None else truth
     per_robot = {}
     evaluated = True
@@ -228,17 +222,9 @@ def write_outputs(
     stop=None,
     align: str | None = None,
 ) -> list[Path]:
-    """Every output file of docs/outputs.md into `out`, with a progress bar over the files
-    (`progress`): per robot its estimate, dead reckoning and ground truth (`groundtruth_rate`,
-    `groundtruth_written`) as TUM, decisions.csv, latency.csv (online), the PNGs
-    (`report_plots.plot_jobs`) and last metrics.json. truth: `groundtruths(run)`, shared with
-    `evaluate`; align: `--align` (the metrics' alignment). stop(): once True (a signal,
-    `graphloc.commands.smooth.StopFlag`) what is derived and not written yet is left out --
-    dead reckoning, ground truth, the PNGs (these also when the solve was stopped or the
-    metrics were not evaluated) -- and metrics.json lists it in "skipped_outputs": the
-    estimate so far is what a stop keeps; a `stop` with a `droppable()` block (`StopFlag`)
-    drops the PNG being drawn when the signal arrives (`OutputDropped`) instead of finishing
-    it."""
+    """Every output file of docs/outputs.md into `out`, metrics.json last. Once `stop()` is True,
+    what is derived and not written yet (dead reckoning, ground truth, PNGs) is left out and
+    listed in metrics.json's "skipped_outputs"; a PNG being drawn is dropped (`OutputDropped`)."""
     truth = groundtruths(run) if truth is None else truth
     out.mkdir(parents=True, exist_ok=True)
     jobs = []  # (file name, writer[, "derived": left out once stopped; "plot": that, droppable])
