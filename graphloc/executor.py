@@ -4,7 +4,6 @@ keyed by content hash; results come back in item order whatever the backend
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import importlib.util
 import json
@@ -25,8 +24,6 @@ from graphloc.structured import MAX_DATA_BYTES, dumps_json, read_json
 
 BACKENDS = ("local", "ray")
 _SHARED: dict[str, Any] = {}  # the local pool's shared input, installed once per worker
-# the backend an Executor created without one uses (`default_backend` sets it for a block)
-_DEFAULT = {"backend": "local", "address": None}
 
 
 @dataclass(frozen=True)
@@ -44,17 +41,6 @@ class Outcome:
     @property
     def ok(self) -> bool:
         return self.error is None
-
-
-class TaskFailed(RuntimeError):
-    """A task of `Executor.imap` raised; the message names the task and its error."""
-
-
-def task_seed(base: int, *key: int | str) -> int:
-    """A deterministic 63-bit seed for the task `key` of a job seeded with `base`: the same
-    on every backend and worker (SHA-256 of the JSON of (base, key), not Python's hash)."""
-    digest = hashlib.sha256(json.dumps([base, *key]).encode()).digest()
-    return int.from_bytes(digest[:8], "little") >> 1
 
 
 @lru_cache(maxsize=1)
@@ -150,50 +136,31 @@ def _call(fn: Callable, item, shared, token: str | None):
         return "error", message, time.perf_counter() - t0
 
 
-def _call_packed(args):
-    return _call(*args)
-
-
-@contextlib.contextmanager
-def default_backend(backend: str = "local", address: str | None = None, workers: int = 1):
-    """Within the block, an `Executor` created without a backend (the benchmarks') uses this
-    one; a Ray instance is started once for the whole block (`workers` CPUs, or the cluster
-    at `address`) and shut down at its end."""
-    with Executor(workers, backend, address, progress=False):
-        old = dict(_DEFAULT)
-        _DEFAULT.update(backend=backend, address=address)
-        try:
-            yield
-        finally:
-            _DEFAULT.update(old)
-
-
 class Executor:
     """Runs tasks on the local pool ("forkserver") or Ray, as a context manager: the pool or a Ray
-    instance it started lives for the `with` block (a running Ray instance is reused).
-    `backend` None: the one `default_backend` set, else "local"; `address`: "auto" or
-    "HOST:PORT" of a Ray cluster."""
+    instance it started lives for the `with` block (a running Ray instance is reused);
+    `address`: "auto" or "HOST:PORT" of a Ray cluster."""
 
     def __init__(
         self,
         workers: int = 1,
-        backend: str | None = None,
+        backend: str = "local",
         address: str | None = None,
         progress: bool = True,
-        start_method: str = "forkserver",
     ):
-        if backend is None:
-            backend, address = _DEFAULT["backend"], address or _DEFAULT["address"]
         if backend not in BACKENDS:
             raise ValueError(f"--backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
         if not (isinstance(workers, int) and workers >= 1):
             raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
         if address is not None and backend != "ray":
             raise ValueError("--address needs --backend ray")
-        self.workers, self.backend, self.address = workers, backend, address
-        self.progress, self.start_method = progress, start_method
-        self._ray = None
-        self._started_ray = False
+        self.workers, self.backend, self.address, self.progress = (
+            workers,
+            backend,
+            address,
+            progress,
+        )
+        self._ray, self._started_ray = None, False
 
     def __enter__(self) -> Executor:
         if self.backend == "ray":
@@ -255,27 +222,6 @@ class Executor:
         bar.close()
         return outcomes
 
-    def imap(self, fn: Callable, items: Iterable, *, shared=None, desc: str = "tasks") -> Iterator:
-        """The values of fn over items, in item order, as they become available in that order;
-        a failed task raises TaskFailed (trials of an experiment: a failure is a bug)."""
-        items = list(items)
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(items), desc=desc, disable=not self.progress, leave=False)
-        ready: dict[int, tuple] = {}
-        nxt = 0
-        for i, result in self._run(fn, items, shared, list(range(len(items)))):
-            ready[i] = result
-            bar.update(1)
-            while nxt in ready:
-                status, value, _ = ready.pop(nxt)
-                if status != "ok":
-                    bar.close()
-                    raise TaskFailed(f"{desc}: task {nxt} ({_short(items[nxt])}) failed: {value}")
-                yield value
-                nxt += 1
-        bar.close()
-
     # ---- backends ---------------------------------------------------------------------------
     def _run(self, fn, items: list, shared, index: list[int]) -> Iterator[tuple[int, tuple]]:
         """(index, (status, value, seconds)) per item, in completion order."""
@@ -288,7 +234,7 @@ class Executor:
                 yield i, _call(fn, item, shared, None)
         else:
             token = None if shared is None else f"{os.getpid()}-{id(shared)}"
-            ctx = mp.get_context(self.start_method)
+            ctx = mp.get_context("forkserver")  # not "fork": see docs/design_core.md
             init = (_init_worker, (token, shared))
             with ctx.Pool(min(self.workers, len(items)), *init) as pool:
                 jobs = [(fn, item, None, token) for item in items]
@@ -322,12 +268,7 @@ class Executor:
 
 def _indexed(job):
     pos, args = job
-    return pos, _call_packed(args)
-
-
-def _short(item) -> str:
-    text = repr(item)
-    return text if len(text) <= 120 else text[:117] + "..."
+    return pos, _call(*args)
 
 
 def _start_ray(workers: int, address: str | None):
