@@ -128,17 +128,26 @@ class PinholeCamera:
     def _dist_array(self) -> np.ndarray:
         return np.asarray(self.dist, dtype=float)
 
-    @cached_property
-    def max_radius(self) -> float:
-        """Largest undistorted normalized radius |(x/z, y/z)| up to which the radial distortion
-        r -> r (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6) is increasing
-        (inf without distortion). Beyond it the model folds back and cv2.projectPoints would
-        put points outside the lens's view inside the image, so they count as not visible.
-        Searched up to 3x the image-corner radius (tangential terms ignored)."""
+    def _radial(self, r: np.ndarray) -> np.ndarray:
+        """The distorted normalized radius of undistorted radius r (tangential terms ignored):
+        r (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6)."""
         k = np.zeros(8)
         k[: len(self.dist)] = self.dist
-        k1, k2, k3, k4, k5, k6 = k[0], k[1], k[4], k[5], k[6], k[7]
-        if not any((k1, k2, k3, k4, k5, k6)):
+        r2 = r * r
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return (
+                r
+                * (1 + r2 * (k[0] + r2 * (k[1] + r2 * k[4])))
+                / (1 + r2 * (k[5] + r2 * (k[6] + r2 * k[7])))
+            )
+
+    @cached_property
+    def max_radius(self) -> float:
+        """Largest undistorted normalized radius up to which `_radial` is increasing (inf
+        without distortion), searched up to 3x the image-corner radius: beyond it the model
+        folds back and cv2.projectPoints would put points outside the lens's view inside the
+        image, so they count as not visible."""
+        if not any(k for i, k in enumerate(self.dist) if i not in (2, 3)):
             return math.inf
         corner = max(
             math.hypot(u, v)
@@ -146,26 +155,14 @@ class PinholeCamera:
             for v in ((0 - self.cy) / self.fy, (self.height - 1 - self.cy) / self.fy)
         )
         r = np.linspace(0.0, 3.0 * corner, 30001)
-        r2 = r * r
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rd = r * (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
-        increasing = np.diff(rd) > 0
+        increasing = np.diff(self._radial(r)) > 0
         return math.inf if increasing.all() else float(r[np.argmin(increasing)])
 
     @cached_property
     def max_distorted_radius(self) -> float:
         """Distorted normalized radius reached at max_radius (pixels beyond have no preimage)."""
         r = self.max_radius
-        if not math.isfinite(r):
-            return math.inf
-        k = np.zeros(8)
-        k[: len(self.dist)] = self.dist
-        r2 = r * r
-        return float(
-            r
-            * (1 + r2 * (k[0] + r2 * (k[1] + r2 * k[4])))
-            / (1 + r2 * (k[5] + r2 * (k[6] + r2 * k[7])))
-        )
+        return float(self._radial(np.float64(r))) if math.isfinite(r) else math.inf
 
     def pixel_to_bearing(self, pixels) -> tuple[np.ndarray, np.ndarray]:
         """Observed (distorted) pixels (M,2) -> unit bearings (M,3) via cv2.undistortPoints;
@@ -285,17 +282,13 @@ class ParaboloidOmniCamera:
         size x size image (radius size/2)."""
         if not conic_constant <= -1.0:
             raise ValueError(f"conic_constant must be <= -1, got {conic_constant}")
-        e = math.sqrt(-conic_constant)
-        xi = 2.0 * e / (1.0 + e * e)
         theta = float(max_polar_angle)
-        focal = 0.5 * size * (math.cos(theta) + xi) / math.sin(theta)
+        focal = 0.5 * size * (math.cos(theta) + _xi(conic_constant)) / math.sin(theta)
         return cls(focal, size, conic_constant, None, None, theta, min_polar_angle)
 
     @property
     def xi(self) -> float:
-        """Unified-model mirror parameter, 2e/(1+e^2) with e = sqrt(-k); 1 for the paraboloid."""
-        e = math.sqrt(-self.conic_constant)
-        return 2.0 * e / (1.0 + e * e)
+        return _xi(self.conic_constant)
 
     def _in_fov(self, bearings: np.ndarray) -> np.ndarray:
         with np.errstate(invalid="ignore"):
@@ -335,6 +328,12 @@ class ParaboloidOmniCamera:
     def project(self, points_cam) -> tuple[np.ndarray, np.ndarray]:
         """3D points in the camera frame (M,3) (origin = the mirror focus) -> pixels, visible."""
         return self.bearing_to_pixel(check_rows(points_cam, 3, "points_cam"))
+
+
+def _xi(conic_constant: float) -> float:
+    """Unified-model mirror parameter, 2e/(1+e^2) with e = sqrt(-k); 1 for the paraboloid."""
+    e = math.sqrt(-conic_constant)
+    return 2.0 * e / (1.0 + e * e)
 
 
 def angular_sigma(

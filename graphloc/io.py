@@ -23,6 +23,7 @@ from graphloc.manifest import (
     write_manifest,
 )
 from graphloc.records import (
+    LANDMARK_COLUMNS,
     LANDMARK_PREFIX,
     SENSOR_TYPES,
     TABLES,
@@ -40,7 +41,7 @@ from graphloc.records import (
     plausible,
 )
 from graphloc.log_writer import PlanarRun, write_planar_run, write_table
-from graphloc.table_reader import data_lines, iter_table_chunks
+from graphloc.table_reader import chunk_rows, data_lines, iter_table_chunks
 from graphloc.textio import (
     Sink,
     SkipReport,
@@ -99,10 +100,8 @@ def iter_table(
     accepts, one record each)."""
     cls = TABLES[table]
     for chunk in iter_table_chunks(manifest, robot, table, on_error, report, landmark_ids):
-        names = [c for c in chunk if c != "line"]
-        values = [chunk[c] if isinstance(chunk[c], list) else chunk[c].tolist() for c in names]
-        for line, *row in zip(chunk["line"].tolist(), *values):
-            yield cls(robot=robot.name, line=line, **dict(zip(names, row)))
+        for line, row in chunk_rows(chunk):
+            yield cls(robot=robot.name, line=line, **row)
 
 
 def _values(
@@ -132,9 +131,6 @@ def _values(
             )
         values[name] = value
     return values, None
-
-
-LANDMARK_COLUMNS = ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"]
 
 
 def read_landmarks(manifest: Manifest) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

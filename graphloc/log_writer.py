@@ -11,7 +11,7 @@ import numpy as np
 
 from graphloc.names import check_name, out_path, safe_name
 from graphloc.manifest import write_manifest
-from graphloc.records import LANDMARK_PREFIX, columns
+from graphloc.records import LANDMARK_COLUMNS, LANDMARK_PREFIX, columns
 from graphloc.textio import SkipReport
 
 
@@ -73,9 +73,6 @@ class PlanarRun:
     @property
     def end_time(self) -> float:
         return float(min(od[-1, 0] for od in self.odometry if len(od)))
-
-    def duration(self) -> float:
-        return self.end_time - self.start_time
 
 
 def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Path:
@@ -141,7 +138,7 @@ def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Pa
         )
     write_csv(
         root / "landmarks.csv",
-        ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"],
+        LANDMARK_COLUMNS,
         [
             (int(i), f"{p[0]:.8g}", f"{p[1]:.8g}", "0", f"{s[0]:.3g}", f"{s[1]:.3g}", "0")
             for i, p, s in zip(run.landmark_ids, run.landmark_xy, run.landmark_sigma)

@@ -41,9 +41,7 @@ def _walk(obj, where: str, what: str, max_values: int) -> None:
         else:
             continue
         if depth > MAX_DEPTH:
-            raise BadStructure(
-                f"{where}: {what} nested deeper than {MAX_DEPTH} levels, more than graphloc reads"
-            )
+            raise _too_deep(where, what)
         stack.extend((child, depth + 1) for child in children)
 
 
@@ -131,14 +129,6 @@ def dumps_json(obj, *, default=None, **kwargs) -> str:
             return default(value)
 
     return json.dumps(obj, default=fallback, **kwargs)
-
-
-def write_json(path, obj, **kwargs) -> Path:
-    """`obj` as a JSON file (`dumps_json`, indented) ending in a newline."""
-    path = Path(path)
-    kwargs.setdefault("indent", 1)
-    path.write_text(dumps_json(obj, **kwargs) + "\n")
-    return path
 
 
 # ---- YAML, TOML ---------------------------------------------------------------------------------

@@ -85,12 +85,7 @@ class LineChecker:
 
     def header(self, text: str) -> None:
         """ValueError naming the file and line 1 unless `text` is the table's header."""
-        header = _header(self.path, text, self.cols)
-        if header != self.cols:
-            raise ValueError(
-                f"{self.path}: line 1: header must be {','.join(self.cols)}, got "
-                f"{shown(','.join(header))}"
-            )
+        _check_header(self.path, text, self.cols)
 
     def rows(self, first_line: int, texts: list[str]) -> list[dict]:
         batch = _data_only(first_line, texts)
@@ -108,12 +103,15 @@ class LineChecker:
             self.landmark_ids,
             self.state,
         )
-        names = [c for c in chunk if c != "line"]
-        values = [chunk[c] if isinstance(chunk[c], list) else chunk[c].tolist() for c in names]
-        return [
-            {"line": line, **dict(zip(names, row))}
-            for line, *row in zip(chunk["line"].tolist(), *values)
-        ]
+        return [{"line": line, **row} for line, row in chunk_rows(chunk)]
+
+
+def chunk_rows(chunk: dict) -> Iterator[tuple[int, dict]]:
+    """(line, {column: value}) of every row of a chunk of columns."""
+    names = [c for c in chunk if c != "line"]
+    values = [chunk[c] if isinstance(chunk[c], list) else chunk[c].tolist() for c in names]
+    for line, *row in zip(chunk["line"].tolist(), *values):
+        yield line, dict(zip(names, row))
 
 
 def _then_raise(chunk: dict, state: dict) -> Iterator[dict]:
@@ -341,11 +339,7 @@ def _data_blocks(path: Path, cols: list[str]):
     """`data_lines` in lists, a block of the file at a time."""
     blocks = text_blocks(path)
     first_line, texts = next(blocks, (1, [""]))
-    header = _header(path, texts[0] if texts else "", cols)
-    if header != cols:
-        raise ValueError(
-            f"{path}: line 1: header must be {','.join(cols)}, got {shown(','.join(header))}"
-        )
+    _check_header(path, texts[0] if texts else "", cols)
     yield _data_only(first_line + 1, texts[1:])
     for first_line, texts in blocks:
         yield _data_only(first_line, texts)
@@ -360,11 +354,16 @@ def _data_only(first_line: int, texts: list[str]) -> list:
     ]
 
 
-def _header(path: Path, text: str, cols: list[str]) -> list[str]:
+def _check_header(path: Path, text: str, cols: list[str]) -> None:
+    """ValueError naming the file and line 1 unless `text` is the header `cols`."""
     try:
-        return [h.strip() for h in csv_fields(text)]
+        header = [h.strip() for h in csv_fields(text)]
     except ValueError as exc:
         raise ValueError(f"{path}: line 1: header: {exc}") from None
+    if header != cols:
+        raise ValueError(
+            f"{path}: line 1: header must be {','.join(cols)}, got {shown(','.join(header))}"
+        )
 
 
 def known_target(target: str, robots: set, landmark_ids: set | None) -> bool:

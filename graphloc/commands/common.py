@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 import logging
+import sys
+
+from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, OK
 
 LOG = logging.getLogger("graphloc")
 
@@ -45,3 +48,17 @@ def configure_logging(verbose: int) -> None:
     LOG.setLevel(level)
     if verbose >= 2:
         logging.getLogger().setLevel(logging.DEBUG)
+
+
+def verdict_exit(mode: str, args, verdict: dict, partial: bool, strict: bool) -> int:
+    """The consistency verdict's lines on stderr (unless -q), then `smooth` / `online`'s exit
+    code: INCOMPLETE for a stopped run, INCONSISTENT with --strict, else OK."""
+    verb = "smooth" if mode == "batch" else "online"
+    if not getattr(args, "quiet", False):
+        for line in verdict["failures"]:
+            print(f"graphloc {verb}: inconsistent: {line}", file=sys.stderr)
+        for line in verdict["warnings"]:
+            print(f"graphloc {verb}: warning: {line}", file=sys.stderr)
+    if partial:
+        return INCOMPLETE
+    return INCONSISTENT if strict and (verdict["failures"] or verdict["warnings"]) else OK

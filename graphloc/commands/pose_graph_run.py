@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import csv
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, OK, SolverFailure
+from graphloc.commands.common import verdict_exit
+from graphloc.exitcodes import SolverFailure
 from graphloc.textio import check_file, shown, text_lines
 
 SIGMAS = {2: (0.05, 0.05, 0.01), 3: (0.01, 0.01, 0.01, 0.05, 0.05, 0.05)}  # no information
@@ -331,14 +331,4 @@ def run_verb(args, mode: str, opts, stop_flag) -> int:
     summary = {k: metrics[k] for k in ("mode", "partial", "consistent", "poses", "decisions")}
     summary["position_rmse_m"] = metrics.get("position_rmse_m")
     print(json.dumps(summary, indent=1))
-    verb = "smooth" if mode == "batch" else "online"
-    if not getattr(args, "quiet", False):
-        for line in metrics["consistency"]["failures"]:
-            print(f"graphloc {verb}: inconsistent: {line}", file=sys.stderr)
-        for line in metrics["consistency"]["warnings"]:
-            print(f"graphloc {verb}: warning: {line}", file=sys.stderr)
-    if result["partial"]:
-        return INCOMPLETE
-    if opts.strict and (metrics["consistency"]["failures"] or metrics["consistency"]["warnings"]):
-        return INCONSISTENT
-    return OK
+    return verdict_exit(mode, args, metrics["consistency"], result["partial"], opts.strict)

@@ -13,8 +13,8 @@ import threading
 from pathlib import Path
 
 from graphloc import many_runs
-from graphloc.commands.common import Interrupted
-from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, INTERRUPTED, OK, OutputDropped
+from graphloc.commands.common import Interrupted, verdict_exit
+from graphloc.exitcodes import INCOMPLETE, INTERRUPTED, OutputDropped
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph.options import RunOptions
 from graphloc.structured import dumps_json
@@ -197,18 +197,8 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
                 indent=1,
             )
         )
-    verdict = metrics["consistency"]
-    verb = "smooth" if mode == "batch" else "online"
-    if not getattr(args, "quiet", False):
-        for line in verdict["failures"]:
-            print(f"graphloc {verb}: inconsistent: {line}", file=sys.stderr)
-        for line in verdict["warnings"]:
-            print(f"graphloc {verb}: warning: {line}", file=sys.stderr)
-    if metrics["partial"] or metrics["skipped_outputs"]:
-        return EXIT_STOPPED
-    if opts.strict and (verdict["failures"] or verdict["warnings"]):
-        return INCONSISTENT
-    return OK
+    partial = bool(metrics["partial"] or metrics["skipped_outputs"])
+    return verdict_exit(mode, args, metrics["consistency"], partial, opts.strict)
 
 
 def run(args: argparse.Namespace) -> int:

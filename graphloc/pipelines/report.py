@@ -13,34 +13,14 @@ from tqdm import tqdm
 
 from graphloc.eval import trajectory_metrics, write_tum
 from graphloc.exitcodes import OutputDropped
-from graphloc.pipelines.groundtruth import (
-    GroundTruth,
-    alignment,
-    groundtruth_rows,
-    groundtruth_written,
-    groundtruths,
-    paired,
-)
+from graphloc.pipelines.groundtruth import alignment, groundtruth_written, groundtruths, paired
 from graphloc.names import out_path, written_whole
 from graphloc.pipelines.judge import judge_decisions
 from graphloc.pipelines.report_plots import plot_jobs
-from graphloc.pipelines.team_graph import (
-    STEP_LOG_COLUMNS,
-    TeamResult,
-)
+from graphloc.pipelines.team_graph import STEP_LOG_COLUMNS, TeamResult
 from graphloc.pipelines.team_graph.verdict import candidate_streams, judge
 from graphloc.run import TeamRun
 from graphloc.structured import dumps_json
-
-__all__ = [
-    "GroundTruth",
-    "alignment",
-    "evaluate",
-    "groundtruth_rows",
-    "groundtruths",
-    "latency_trend",
-    "write_outputs",
-]
 
 
 def _static_error(row: np.ndarray, gt) -> dict:
@@ -294,30 +274,16 @@ def write_metrics(out: Path, metrics: dict) -> Path:
     return path
 
 
+DECISION_COLUMNS = (
+    "time robot target candidates status committed probability genuine correct x y z qx qy qz qw"
+).split()
+
+
 def _write_decisions(path: Path, result: TeamResult, run: TeamRun) -> Path:
     decisions = result.decisions
     with written_whole(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(
-            [
-                "time",
-                "robot",
-                "target",
-                "candidates",
-                "status",
-                "committed",
-                "probability",
-                "genuine",
-                "correct",
-                "x",
-                "y",
-                "z",
-                "qx",
-                "qy",
-                "qz",
-                "qw",
-            ]
-        )
+        w.writerow(DECISION_COLUMNS)
         for d, g, c in zip(decisions, *judge_decisions(run, decisions)):
             correct = "" if d.committed < 0 or c is None else int(c)
             w.writerow(

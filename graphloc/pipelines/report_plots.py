@@ -35,14 +35,6 @@ def plot_jobs(
     return jobs
 
 
-def write_plots(
-    result: TeamResult, run: TeamRun, out: Path, truth: list, groundtruth_rate: str = "estimate"
-) -> list[Path]:
-    """Every figure of `plot_jobs`; the paths written."""
-    done = [job() for _, job in plot_jobs(result, run, out, truth, groundtruth_rate)]
-    return [p for p in done if p is not None]
-
-
 def _moving(run: TeamRun, result: TeamResult) -> list[int]:
     """The robots drawn: not static, some pose estimated."""
     return [
