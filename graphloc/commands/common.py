@@ -50,10 +50,9 @@ def configure_logging(verbose: int) -> None:
         logging.getLogger().setLevel(logging.DEBUG)
 
 
-def verdict_exit(mode: str, args, verdict: dict, partial: bool, strict: bool) -> int:
-    """The consistency verdict's lines on stderr (unless -q), then `smooth` / `online`'s exit
-    code: INCOMPLETE for a stopped run, INCONSISTENT with --strict, else OK."""
-    verb = "smooth" if mode == "batch" else "online"
+def verdict_exit(verb: str, args, verdict: dict, partial: bool, strict: bool) -> int:
+    """The consistency verdict's lines on stderr (unless -q), then the verb's exit code:
+    INCOMPLETE for a stopped run, INCONSISTENT with --strict, else OK."""
     if not getattr(args, "quiet", False):
         for line in verdict["failures"]:
             print(f"graphloc {verb}: inconsistent: {line}", file=sys.stderr)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from graphloc.commands import smooth
 from graphloc.config import add_config_arguments
-from graphloc.exitcodes import INCONSISTENT, OK
+from graphloc.commands.common import verdict_exit
 from graphloc.pipelines.team_graph.options import RunOptions
 from graphloc.structured import dumps_json
 
@@ -162,12 +162,4 @@ def run(args: argparse.Namespace) -> int:
         if view is not None:
             view.close()
         print(dumps_json({k: summary[k] for k in ("ended", "rows", "updates")}, indent=1))
-    verdict = metrics["consistency"]
-    if not args.quiet:
-        for line in verdict["failures"]:
-            print(f"graphloc live: inconsistent: {line}", file=sys.stderr)
-        for line in verdict["warnings"]:
-            print(f"graphloc live: warning: {line}", file=sys.stderr)
-    if opts.strict and (verdict["failures"] or verdict["warnings"]):
-        return INCONSISTENT
-    return OK
+    return verdict_exit("live", args, metrics["consistency"], False, opts.strict)

@@ -331,4 +331,5 @@ def run_verb(args, mode: str, opts, stop_flag) -> int:
     summary = {k: metrics[k] for k in ("mode", "partial", "consistent", "poses", "decisions")}
     summary["position_rmse_m"] = metrics.get("position_rmse_m")
     print(json.dumps(summary, indent=1))
-    return verdict_exit(mode, args, metrics["consistency"], result["partial"], opts.strict)
+    verb = "smooth" if mode == "batch" else "online"
+    return verdict_exit(verb, args, metrics["consistency"], result["partial"], opts.strict)

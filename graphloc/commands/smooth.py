@@ -198,7 +198,7 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
             )
         )
     partial = bool(metrics["partial"] or metrics["skipped_outputs"])
-    return verdict_exit(mode, args, metrics["consistency"], partial, opts.strict)
+    return verdict_exit(verb, args, metrics["consistency"], partial, opts.strict)
 
 
 def run(args: argparse.Namespace) -> int:
