@@ -25,7 +25,7 @@ class TrialExecutor(Executor):
             backend, address = _DEFAULT["backend"], address or _DEFAULT["address"]
         super().__init__(workers, backend, address, progress)
 
-    def imap(self, fn: Callable, items: Iterable, *, shared=None, desc: str = "tasks") -> Iterator:
+    def imap(self, fn: Callable, items: Iterable, *, desc: str = "tasks") -> Iterator:
         """The values of fn over items, in item order, as they become available in that order;
         a failed task raises TaskFailed (trials of an experiment: a failure is a bug)."""
         items = list(items)
@@ -34,7 +34,7 @@ class TrialExecutor(Executor):
         bar = tqdm(total=len(items), desc=desc, disable=not self.progress, leave=False)
         ready: dict[int, tuple] = {}
         nxt = 0
-        for i, result in self._run(fn, items, shared, list(range(len(items)))):
+        for i, result in self._run(fn, items, list(range(len(items)))):
             ready[i] = result
             bar.update(1)
             while nxt in ready:

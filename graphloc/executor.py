@@ -8,7 +8,6 @@ import hashlib
 import importlib.util
 import json
 import multiprocessing as mp
-import os
 import socket
 import threading
 import time
@@ -20,10 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from graphloc import __version__
+from graphloc.names import written_whole
 from graphloc.structured import MAX_DATA_BYTES, dumps_json, read_json
 
 BACKENDS = ("local", "ray")
-_SHARED: dict[str, Any] = {}  # the local pool's shared input, installed once per worker
 
 
 @dataclass(frozen=True)
@@ -105,31 +104,25 @@ class ResultCache:
 
     def put(self, digest: str, value) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
-        tmp = self._path(digest).with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(dumps_json({"version": code_version(), "value": value}, default=float))
-        tmp.replace(self._path(digest))
+        with written_whole(self._path(digest)) as tmp:
+            tmp.write_text(dumps_json({"version": code_version(), "value": value}, default=float))
 
 
-def _init_worker(token: str | None, shared) -> None:
-    """A pool worker's start: its shared input, and tqdm's lock as a thread lock. tqdm
-    otherwise makes a multiprocessing lock on its first bar (even a disabled one), a named
-    semaphore under the fork server that a pool worker, ended without finalizers, never
-    releases: the resource tracker then warns of a leak when the command exits."""
+def _init_worker() -> None:
+    """A pool worker's start: tqdm's lock as a thread lock. tqdm otherwise makes a
+    multiprocessing lock on its first bar (even a disabled one), a named semaphore under the
+    fork server that a pool worker, ended without finalizers, never releases: the resource
+    tracker then warns of a leak when the command exits."""
     from tqdm import tqdm
 
     tqdm.set_lock(threading.RLock())
-    if token is not None:
-        _SHARED[token] = shared
 
 
-def _call(fn: Callable, item, shared, token: str | None):
+def _call(fn: Callable, item):
     """Run one task and return ("ok", value, seconds) or ("error", message, seconds)."""
     t0 = time.perf_counter()
     try:
-        if token is not None:
-            shared = _SHARED[token]
-        value = fn(item) if token is None and shared is None else fn(item, shared)
-        return "ok", value, time.perf_counter() - t0
+        return "ok", fn(item), time.perf_counter() - t0
     except Exception as exc:  # reported per task; the other tasks go on
         where = traceback.extract_tb(exc.__traceback__)[-1]
         message = f"{type(exc).__name__}: {exc} ({Path(where.filename).name}:{where.lineno})"
@@ -154,12 +147,8 @@ class Executor:
             raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
         if address is not None and backend != "ray":
             raise ValueError("--address needs --backend ray")
-        self.workers, self.backend, self.address, self.progress = (
-            workers,
-            backend,
-            address,
-            progress,
-        )
+        self.workers, self.backend, self.address = workers, backend, address
+        self.progress = progress
         self._ray, self._started_ray = None, False
 
     def __enter__(self) -> Executor:
@@ -180,7 +169,6 @@ class Executor:
         items: list,
         *,
         keys: list[str] | None = None,
-        shared=None,
         cache: ResultCache | None = None,
         hashes: list[str] | None = None,
         desc: str = "tasks",
@@ -207,7 +195,7 @@ class Executor:
         bar = tqdm(total=len(items), desc=desc, disable=not self.progress, leave=False)
         bar.update(counts["cached"])
         bar.set_postfix(counts)
-        for i, (status, value, seconds) in self._run(fn, [items[i] for i in todo], shared, todo):
+        for i, (status, value, seconds) in self._run(fn, [items[i] for i in todo], todo):
             ok = status == "ok"
             if ok and cache is not None:  # computed and cached results look the same
                 value = json.loads(json.dumps(value, default=float))
@@ -223,39 +211,34 @@ class Executor:
         return outcomes
 
     # ---- backends ---------------------------------------------------------------------------
-    def _run(self, fn, items: list, shared, index: list[int]) -> Iterator[tuple[int, tuple]]:
+    def _run(self, fn, items: list, index: list[int]) -> Iterator[tuple[int, tuple]]:
         """(index, (status, value, seconds)) per item, in completion order."""
         if not items:
             return
         if self.backend == "ray":
-            yield from self._run_ray(fn, items, shared, index)
+            yield from self._run_ray(fn, items, index)
         elif self.workers == 1 or len(items) == 1:
             for i, item in zip(index, items):
-                yield i, _call(fn, item, shared, None)
+                yield i, _call(fn, item)
         else:
-            token = None if shared is None else f"{os.getpid()}-{id(shared)}"
             ctx = mp.get_context("forkserver")  # not "fork": see docs/design_core.md
-            init = (_init_worker, (token, shared))
-            with ctx.Pool(min(self.workers, len(items)), *init) as pool:
-                jobs = [(fn, item, None, token) for item in items]
-                for pos, result in pool.imap_unordered(_indexed, enumerate(jobs)):
+            with ctx.Pool(min(self.workers, len(items)), _init_worker) as pool:
+                jobs = [(pos, fn, item) for pos, item in enumerate(items)]
+                for pos, result in pool.imap_unordered(_indexed, jobs):
                     yield index[pos], result
 
-    def _run_ray(self, fn, items: list, shared, index: list[int]):
+    def _run_ray(self, fn, items: list, index: list[int]):
         ray = self._ray
         if ray is None:
             raise RuntimeError("Executor(backend='ray') must be used in a `with` block")
         remote = ray.remote(num_cpus=1, max_retries=0)(_call)
-        ref = None if shared is None else ray.put(shared)
         # `workers` tasks in flight (a local instance started here has that many CPUs too)
         limit = self.workers
         pending: dict = {}
         nxt = 0
         while nxt < len(items) or pending:
             while nxt < len(items) and len(pending) < limit:
-                # a shared ObjectRef passed as a top-level argument is resolved by Ray in the
-                # worker (zero-copy for numpy arrays), not sent with each task
-                pending[remote.remote(fn, items[nxt], ref, None)] = index[nxt]
+                pending[remote.remote(fn, items[nxt])] = index[nxt]
                 nxt += 1
             done, _ = ray.wait(list(pending), num_returns=1)
             for obj in done:
@@ -267,8 +250,8 @@ class Executor:
 
 
 def _indexed(job):
-    pos, args = job
-    return pos, _call(*args)
+    pos, fn, item = job
+    return pos, _call(fn, item)
 
 
 def _start_ray(workers: int, address: str | None):

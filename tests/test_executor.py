@@ -1,6 +1,6 @@
 """graphloc.executor and graphloc.many_runs (issue 19): results in item order whatever the
 backend and worker count, a failing task reported while the others finish, the content-hash
-cache, shared inputs, many runs through `graphloc smooth`; and (slow, needs Ray) a local Ray
+cache, many runs through `graphloc smooth`; and (slow, needs Ray) a local Ray
 instance with 2 CPUs giving the same numbers as the local pool on a small sweep of simulated
 runs and quick reproductions."""
 
@@ -26,8 +26,8 @@ def _noisy_sum(item: tuple[int, int]) -> float:
     return float(np.random.default_rng(seed).normal(size=100).sum())
 
 
-def _with_shared(x: int, shared: np.ndarray) -> float:
-    return float(x * shared.sum())
+def _square(x: int) -> int:
+    return x * x
 
 
 def _items(n: int = 6) -> list[tuple[int, int]]:
@@ -54,15 +54,14 @@ def test_map_keeps_item_order_reports_failures_and_caches(tmp_path, workers):
     assert [o.value for o in again] == expected and not again[3].ok
 
 
-def test_imap_raises_naming_the_task_and_shares_one_input():
+def test_imap_keeps_item_order_and_raises_naming_the_task():
     with TrialExecutor(2, progress=False) as ex:
         with pytest.raises(TaskFailed, match=r"task 3 \(\(3, .*ValueError: trial 3"):
             list(ex.imap(_noisy_sum, _items()))
-        shared = np.arange(1000.0)
-        two = list(ex.imap(_with_shared, range(5), shared=shared))
+        two = list(ex.imap(_square, range(5)))
     with TrialExecutor(1, progress=False) as ex:
-        one = list(ex.imap(_with_shared, range(5), shared=shared))
-    assert two == one == [x * shared.sum() for x in range(5)]
+        one = list(ex.imap(_square, range(5)))
+    assert two == one == [x * x for x in range(5)]
 
 
 def test_hashes_and_options_are_checked(tmp_path):
