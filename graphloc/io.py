@@ -11,17 +11,7 @@ from typing import Iterator
 
 import numpy as np
 
-from graphloc.manifest import (
-    FORMAT,
-    MANIFEST,
-    VERSION,
-    VERSIONS,
-    Manifest,
-    Robot,
-    Sensor,
-    read_manifest,
-    write_manifest,
-)
+from graphloc.manifest import MANIFEST, Manifest, Robot, read_manifest, write_manifest
 from graphloc.records import (
     LANDMARK_COLUMNS,
     LANDMARK_PREFIX,
@@ -32,10 +22,7 @@ from graphloc.records import (
     MarkerPixel,
     Odometry2D,
     PoseCandidate,
-    Range,
     RangeBearing2D,
-    RelativePose2D,
-    RelativePose3D,
     ScanRef,
     columns,
     plausible,
@@ -52,13 +39,10 @@ from graphloc.textio import (
 )
 
 __all__ = [
-    "FORMAT",
     "LANDMARK_PREFIX",
     "MANIFEST",
     "SENSOR_TYPES",
     "TABLES",
-    "VERSION",
-    "VERSIONS",
     "Bearing3D",
     "GroundTruth2D",
     "Manifest",
@@ -66,13 +50,8 @@ __all__ = [
     "Odometry2D",
     "PlanarRun",
     "PoseCandidate",
-    "Range",
     "RangeBearing2D",
-    "RelativePose2D",
-    "RelativePose3D",
-    "Robot",
     "ScanRef",
-    "Sensor",
     "Sink",
     "SkipReport",
     "columns",
