@@ -13,6 +13,7 @@ from graphloc.datafile import BadData, read_data_file, write_data_file
 from graphloc.session_config import config_from_dict
 from graphloc.factors.mixture import MaxMixture
 from graphloc.value_codec import (
+    KINDS,
     checked_numbers,
     decode_measurement,
     decode_noise,
@@ -179,16 +180,7 @@ def _decode_factor(raw, where: str):
             factor = _make_factor(name, keys, measured, noise)
     except (RuntimeError, TypeError) as exc:  # e.g. a noise dimension the factor does not have
         raise BadData(f"{where}: GTSAM rejected the {name} ({exc})") from None
-    want = {
-        "pose2": 3,
-        "pose3": 6,
-        "rot2": 1,
-        "rot3": 3,
-        "unit3": 2,
-        "double": 1,
-        "bearing_range_2d": 2,
-        "bearing_range_3d": 3,
-    }.get(kind, len(raw["measured"]))
+    want = KINDS[kind][1] if kind in KINDS else len(raw["measured"])
     if noise.dim() != want:  # a mismatch GTSAM would not notice could corrupt memory
         raise BadData(
             f"{where}: {name} has an error of dimension {want}, its noise model {noise.dim()}"

@@ -31,20 +31,21 @@ def encode_measurement(kind: str, m) -> list:
     return np.asarray(m, dtype=float).ravel().tolist()  # vector
 
 
-_MEASUREMENT_SIZES = {
-    "pose2": 4,
-    "rot2": 2,
-    "pose3": 16,
-    "rot3": 9,
-    "unit3": 3,
-    "double": 1,
-    "bearing_range_2d": 3,
-    "bearing_range_3d": 4,
+# measurement kind -> (numbers it is written as, dimension of its error); a vector: its length
+KINDS = {
+    "pose2": (4, 3),
+    "rot2": (2, 1),
+    "pose3": (16, 6),
+    "rot3": (9, 3),
+    "unit3": (3, 2),
+    "double": (1, 1),
+    "bearing_range_2d": (3, 2),
+    "bearing_range_3d": (4, 3),
 }
 
 
 def decode_measurement(kind: str, v: list, where: str):
-    want = _MEASUREMENT_SIZES.get(kind)
+    want = KINDS.get(kind, (None,))[0]
     if (want is not None and len(v) != want) or (want is None and not v):
         raise BadData(f"{where}: a {kind} measurement needs {want or '>= 1'} numbers, got {len(v)}")
     if kind == "pose2":
