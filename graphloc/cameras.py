@@ -101,24 +101,13 @@ class PinholeCamera:
         return {**out, "dist": list(self.dist)} if self.dist else out
 
     @classmethod
-    def from_fov(
-        cls,
-        width: int,
-        height: int,
-        fov: float,
-        axis: str = "horizontal",
-        dist: tuple[float, ...] = (),
-    ) -> "PinholeCamera":
-        """Square pixels, principal point at the image centre, `fov` [rad] across `axis`
-        ('horizontal', 'vertical' or 'diagonal'). Seed 000: (640, 480, 2*pi/3); seed 001:
-        (752, 480, pi/2)."""
+    def from_fov(cls, width: int, height: int, fov: float, dist: tuple = ()) -> "PinholeCamera":
+        """Square pixels, principal point at the image centre, horizontal `fov` [rad]. Seed 000:
+        (640, 480, 2*pi/3); seed 001: (752, 480, pi/2)."""
         fov = _positive(fov, "fov")
         if fov >= math.pi:
             raise ValueError(f"fov must be < pi for a pinhole camera, got {fov}")
-        extent = {"horizontal": width, "vertical": height, "diagonal": math.hypot(width, height)}
-        if axis not in extent:
-            raise ValueError(f"axis must be one of {sorted(extent)}, got {axis!r}")
-        f = 0.5 * extent[axis] / math.tan(0.5 * fov)
+        f = 0.5 * width / math.tan(0.5 * fov)
         return cls(f, f, (width - 1) / 2.0, (height - 1) / 2.0, width, height, dist)
 
     @property

@@ -185,14 +185,12 @@ def config_values(config_class: type, args: argparse.Namespace, exclude=()) -> d
     return values
 
 
-def config_from_args(config_class: type, args: argparse.Namespace, base=None, exclude=()):
-    """`base` (default: `config_class()`) with `config_values`: defaults < `--config FILE`
-    < command line, checked by the class's rules (an error of a value from the file names
-    file, line and field)."""
+def config_from_args(config_class: type, args: argparse.Namespace, exclude=()):
+    """`config_class` with `config_values`: defaults < `--config FILE` < command line, checked
+    by the class's rules (an error of a value from the file names file, line and field)."""
     values = config_values(config_class, args, exclude)
-    base = config_class() if base is None else base
     try:
-        return dataclasses.replace(base, **values)
+        return dataclasses.replace(config_class(), **values)
     except ConfigError as exc:
         path = getattr(args, "config", None)
         field = exc.key.split(".")[0] if exc.key else None

@@ -154,13 +154,12 @@ def is_tum(path: str) -> bool:
 def iter_records(
     root: str | Path,
     tables=None,
-    robots=None,
     on_error: str = "raise",
     report: SkipReport | None = None,
 ) -> Iterator:
-    """All records of the log (optionally only `tables` / `robots`), merged in time order across
-    robots and tables (heapq.merge; ties keep robot-then-table order). Streaming: one row per file
-    in memory."""
+    """All records of the log (optionally only `tables`), merged in time order across robots
+    and tables (heapq.merge; ties keep robot-then-table order). Streaming: one row per file in
+    memory."""
     manifest = read_manifest(root)
     # without a landmarks file (SLAM: positions unknown) every landmark id is acceptable
     landmark_ids = (
@@ -170,16 +169,9 @@ def iter_records(
     for t in wanted_tables:
         if t not in TABLES:
             raise ValueError(f"unknown table {t!r}; known: {', '.join(TABLES)}")
-    known = {r.name for r in manifest.robots}
-    for name in robots or []:
-        if name not in known:
-            raise ValueError(
-                f"{manifest.root / MANIFEST}: unknown robot {name!r}; robots: {sorted(known)}"
-            )
     streams = [
         iter_table(manifest, r, t, on_error, report, landmark_ids)
         for r in manifest.robots
-        if robots is None or r.name in robots
         for t in wanted_tables
         if t in r.tables and not is_tum(r.tables[t])
     ]
