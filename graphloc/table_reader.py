@@ -48,62 +48,47 @@ def iter_table_chunks(
     """The rows of one robot's table that pass every row check, in file order, as columns (name ->
     array or list, plus `line`), CHUNK_ROWS at a time; a bad row raises (on_error="raise", after
     the rows before it) or is counted in `report` with its file, line and field."""
-    sink = Sink(on_error, report)
-    cls = TABLES[table]
-    cols = columns(table)
-    convs = {f.name: _converter(f.type) for f in fields(cls)}
-    path = manifest.root / robot.tables[table]
+    checker = LineChecker(manifest, robot, table, report, landmark_ids, on_error)
+    path = checker.path
     if not check_file(path, required=False):
         raise FileNotFoundError(
             f"{path}: table {table!r} of robot {robot.name!r} listed in manifest but missing"
         )
-    state = {"last_time": -math.inf}
     batch: list = []
-    for block in _data_blocks(path, cols):
+    for block in _data_blocks(path, checker.cols):
         batch += block
         while len(batch) >= CHUNK_ROWS:
             part, batch = batch[:CHUNK_ROWS], batch[CHUNK_ROWS:]
-            chunk = _chunk(part, manifest, robot, table, cols, convs, sink, landmark_ids, state)
-            yield from _then_raise(chunk, state)
+            yield from _then_raise(checker.chunk(part), checker.state)
     if batch:
-        chunk = _chunk(batch, manifest, robot, table, cols, convs, sink, landmark_ids, state)
-        yield from _then_raise(chunk, state)
+        yield from _then_raise(checker.chunk(batch), checker.state)
 
 
 class LineChecker:
-    """The row checks of `iter_table_chunks` for lines that arrive a few at a time (`live.tail`):
-    `header(text)`, then `rows(batch)` of (line number, text) -> accepted rows as mappings."""
+    """The row checks of one table (`iter_table_chunks`; `live.tail`, whose lines arrive a few at
+    a time): `header(text)`, then `chunk(batch)` of (line number, text) -> accepted columns, or
+    `rows(first_line, texts)` -> accepted rows as mappings."""
 
-    def __init__(self, manifest, robot, table, report: SkipReport, landmark_ids=None):
-        self.args = (manifest, robot, table)
+    def __init__(self, manifest, robot, table, report, landmark_ids=None, on_error="skip"):
         self.cols = columns(table)
-        self.convs = {f.name: _converter(f.type) for f in fields(TABLES[table])}
-        self.sink = Sink("skip", report)
-        self.landmark_ids = landmark_ids
-        self.state = {"last_time": -math.inf}
         self.path = manifest.root / robot.tables[table]
+        self.state = {"last_time": -math.inf}
+        convs = {f.name: _converter(f.type) for f in fields(TABLES[table])}
+        sink = Sink(on_error, report)
+        self._args = (manifest, robot, table, self.cols, convs, sink, landmark_ids, self.state)
 
     def header(self, text: str) -> None:
         """ValueError naming the file and line 1 unless `text` is the table's header."""
         _check_header(self.path, text, self.cols)
 
+    def chunk(self, batch: list) -> dict:
+        return _chunk(batch, *self._args)
+
     def rows(self, first_line: int, texts: list[str]) -> list[dict]:
         batch = _data_only(first_line, texts)
         if not batch:
             return []
-        manifest, robot, table = self.args
-        chunk = _chunk(
-            batch,
-            manifest,
-            robot,
-            table,
-            self.cols,
-            self.convs,
-            self.sink,
-            self.landmark_ids,
-            self.state,
-        )
-        return [{"line": line, **row} for line, row in chunk_rows(chunk)]
+        return [{"line": line, **row} for line, row in chunk_rows(self.chunk(batch))]
 
 
 def chunk_rows(chunk: dict) -> Iterator[tuple[int, dict]]:
