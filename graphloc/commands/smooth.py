@@ -171,32 +171,21 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
             progress=progress,
             on_phase=lambda phase: setattr(stop, "phase", phase),
         ).metrics
+        ate = many_runs.ate_by_robot(metrics, mode)
         summary = {
-            name: round(v[mode]["ate_rmse"], 4)
-            for name, v in metrics["per_robot"].items()
-            if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]
+            "mode": mode,
+            "partial": metrics["partial"],
+            "consistent": metrics["consistent"],
+            "ate_rmse_m": {name: round(v, 4) for name, v in ate.items()},
+            "decisions": metrics["decisions"],
+            "realtime_factor": round(metrics["realtime_factor"], 1),
+            "skipped": metrics["skipped"]["counts"],
+            "notes": metrics["notes"]["counts"],
+            "landmark_map": metrics["landmark_map"],
         }
-        print(
-            dumps_json(
-                {
-                    "mode": mode,
-                    "partial": metrics["partial"],
-                    "consistent": metrics["consistent"],
-                    "ate_rmse_m": summary,
-                    "decisions": metrics["decisions"],
-                    "realtime_factor": round(metrics["realtime_factor"], 1),
-                    "skipped": metrics["skipped"]["counts"],
-                    "notes": metrics["notes"]["counts"],
-                    "landmark_map": metrics["landmark_map"],
-                    **(
-                        {"skipped_outputs": metrics["skipped_outputs"]}
-                        if metrics["skipped_outputs"]
-                        else {}
-                    ),
-                },
-                indent=1,
-            )
-        )
+        if metrics["skipped_outputs"]:
+            summary["skipped_outputs"] = metrics["skipped_outputs"]
+        print(dumps_json(summary, indent=1))
     partial = bool(metrics["partial"] or metrics["skipped_outputs"])
     return verdict_exit(verb, args, metrics["consistency"], partial, opts.strict)
 

@@ -67,11 +67,8 @@ def groundtruths(run: TeamRun) -> list:
 
 def groundtruth_rows(run: TeamRun, r: int) -> tuple[np.ndarray, np.ndarray] | None:
     """Every ground-truth sample of robot r: (times (G,), rows (G,7)), None below 3 samples."""
-    gt = run.groundtruth[r]
-    if gt is None or len(gt[0]) < 3:
-        return None
-    truth = GroundTruth(gt[0], gt[1])
-    return truth.times, truth.rows()
+    truth = groundtruths(run)[r]
+    return None if truth is None else (truth.times, truth.rows())
 
 
 def paired(truth: GroundTruth, times: np.ndarray, rows: np.ndarray):
