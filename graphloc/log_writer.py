@@ -75,7 +75,7 @@ class PlanarRun:
         return float(min(od[-1, 0] for od in self.odometry if len(od)))
 
 
-def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Path:
+def write_planar_run(run: PlanarRun, root: str | Path) -> Path:
     """Write `run` as a graphloc log directory (manifest.json + robot tables + landmarks.csv)."""
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
@@ -130,7 +130,7 @@ def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Pa
                         "name": "camera",
                         "type": "range_bearing",
                         "extrinsics": [0.0, 0.0, 0.0],
-                        "params": dict(sensor_sigmas or {}),
+                        "params": {},
                     },
                 ],
                 "tables": tables,

@@ -189,18 +189,16 @@ def decode_noise(raw, where: str, depth: int = 0):
     raise BadData(f"{where}: unknown noise model {sorted(raw)}")
 
 
+# the kinds of Values entries a session saves, tried in this order (getter: `at` + Kind)
+VALUE_KINDS = ("pose3", "pose2", "rot3", "rot2", "vector")
+
+
 def encode_values(values: gtsam.Values, where: str) -> list:
     out = []
     for key in values.keys():
-        for kind, get in (
-            ("pose3", values.atPose3),
-            ("pose2", values.atPose2),
-            ("rot3", values.atRot3),
-            ("rot2", values.atRot2),
-            ("vector", values.atVector),
-        ):
+        for kind in VALUE_KINDS:
             try:
-                value = get(key)
+                value = getattr(values, "at" + kind.capitalize())(key)
             except RuntimeError:
                 continue
             numbers = encode_measurement(kind, value)
@@ -225,7 +223,7 @@ def decode_values(raw, where: str) -> gtsam.Values:
             isinstance(entry, list)
             and len(entry) == 3
             and is_key(entry[0])
-            and entry[1] in ("pose3", "pose2", "rot3", "rot2", "vector")
+            and entry[1] in VALUE_KINDS
         ):
             raise BadData(f"{where}: a value must be [key, kind, numbers], got {str(entry)[:80]}")
         key, kind, numbers = entry
