@@ -105,28 +105,19 @@ def read_json(path, what: str = "JSON file", max_bytes: int = MAX_TEXT_BYTES, al
     return parse_json(_sized_text(path, what, max_bytes), str(path), what, allow_nan)
 
 
-def _plain(obj):
-    np = sys.modules.get("numpy")  # not imported: no NumPy value can exist (a light import)
-    if np is not None and isinstance(obj, np.generic):
-        return obj.item()
-    if np is not None and isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"Object of type {type(obj).__name__} is not JSON serializable")
-
-
 def dumps_json(obj, *, default=None, **kwargs) -> str:
     """`json.dumps` with NumPy scalars and arrays as JSON values and paths as strings (then
     `default`, if given, for anything else)."""
 
     def fallback(value):
-        try:
-            return _plain(value)
-        except TypeError:
-            if default is None:
-                raise
-            return default(value)
+        np = sys.modules.get("numpy")  # not imported: no NumPy value can exist (a light import)
+        if np is not None and isinstance(value, (np.generic, np.ndarray)):
+            return value.tolist()
+        if isinstance(value, Path):
+            return str(value)
+        if default is None:
+            raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
+        return default(value)
 
     return json.dumps(obj, default=fallback, **kwargs)
 
