@@ -98,10 +98,8 @@ def option_fields(config_class: type, exclude=()) -> dict[str, type]:
 
 
 def add_config_arguments(parser: argparse.ArgumentParser, config_class: type, exclude=()) -> None:
-    """One `--field-name` option per scalar field of `config_class` (bool fields:
-    `--name` / `--no-name`); help from the field's description, its choices and its default
-    (read from the fields: no config is built, so pydantic is not loaded). Unset options stay
-    out of the namespace (`config_from_args` keeps the default)."""
+    """One `--field-name` option per scalar field of `config_class` (bools: `--name` / `--no-name`),
+    its help from the field's description, choices and default; unset options stay out of `args`."""
     group = parser.add_argument_group(f"{config_class.__name__} options")
     hints = typing.get_type_hints(config_class)
     kinds = option_fields(config_class, exclude)
@@ -126,10 +124,8 @@ def add_config_arguments(parser: argparse.ArgumentParser, config_class: type, ex
 
 
 def read_config_file(path) -> tuple[dict, dict]:
-    """A TOML config file -> (its tables as a dict with '-' in keys read as '_', {dotted key:
-    line number}). Opened through `graphloc.textio` (a missing file, a directory or bytes that
-    are not UTF-8 are errors naming the file and line); a syntax error names file, line and
-    column."""
+    """A TOML config file -> (its tables, '-' in keys read as '_'; {dotted key: line number});
+    errors name the file and line."""
     data, text = read_toml(Path(path))
     return _underscored(data), _key_lines(text)
 

@@ -109,10 +109,8 @@ class ResultCache:
 
 
 def _init_worker() -> None:
-    """A pool worker's start: tqdm's lock as a thread lock. tqdm otherwise makes a
-    multiprocessing lock on its first bar (even a disabled one), a named semaphore under the
-    fork server that a pool worker, ended without finalizers, never releases: the resource
-    tracker then warns of a leak when the command exits."""
+    """A pool worker's start: tqdm's lock as a thread lock (a multiprocessing lock, made on its
+    first bar, is never released by a pool worker: the resource tracker would warn of a leak)."""
     from tqdm import tqdm
 
     tqdm.set_lock(threading.RLock())

@@ -40,10 +40,8 @@ class FixedLagWindow:
         return self._frozen_keys
 
     def estimate(self, keys: list | None = None) -> gtsam.Values:
-        """Every variable (frozen and live), or only `keys` (no estimate of the whole window:
-        one `calculateEstimate(keys)` of the live ones, one `extract` of the frozen ones; a
-        value at a time would cost a Python round trip and an allocation each). GTSAM failures
-        propagate as RuntimeError."""
+        """Every variable (frozen and live), or only `keys` (one `calculateEstimate(keys)` of
+        the live ones, one `extract` of the frozen ones); GTSAM failures raise RuntimeError."""
         if keys is None:
             out = gtsam.Values(self.frozen)
             out.insert(self.isam.calculateEstimate())

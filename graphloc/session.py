@@ -51,10 +51,8 @@ class _Record:
 
 
 def _as_items(factors) -> list:
-    """The factors of one `add` call as a list. A *factor provider* -- an object with a `factor`
-    attribute holding a gtsam factor, such as `graphloc.factors.mixture.MaxMixture` -- is kept as
-    itself so that `save` can pickle what rebuilds it (GTSAM cannot serialize a Python
-    CustomFactor)."""
+    """The factors of one `add` call as a list; a factor provider (an object with a `factor`
+    attribute, e.g. `MaxMixture`) is kept as itself, so that `save` can write what rebuilds it."""
     if isinstance(factors, gtsam.NonlinearFactorGraph):
         return [factors.at(i) for i in range(factors.size()) if factors.exists(i)]
     return list(factors)
@@ -81,8 +79,7 @@ class Session:
         self.initial = gtsam.Values() if config.mode == "batch" else None
         self.steps: list[Step] = []
         self._records: list[_Record] = []  # what `save` writes (config.keep_steps)
-        self._n_variables = 0  # variables ever added
-        self._keys: set = set()  # ... their keys (`_known`: a set lookup, no solver call)
+        self._keys: set = set()  # the keys of every variable ever added
         self._last_time = -np.inf
         self._batch_estimate: gtsam.Values | None = None
         self._batch_marginals: gtsam.Marginals | None = None
@@ -181,7 +178,6 @@ class Session:
         self.graph.push_back(graph)
         if self.initial is not None:
             self.initial.insert(initial_values)
-        self._n_variables += len(new_keys)
         self._keys |= new_keys
         self._batch_estimate = self._batch_marginals = None
         self._last_time = t
@@ -269,13 +265,8 @@ class Session:
                 f"GTSAM cannot compute it ({_first_line(exc)})"
             ) from None
 
-    def _known(self, key: int) -> bool:
-        """Whether `key` was added (batch: it has an initial guess; online: iSAM2 holds it or
-        the fixed lag marginalized it)."""
-        return key in self._keys
-
     def _check_known(self, keys: list, what: str) -> None:
-        unknown = [key_name(k) for k in keys if not self._known(k)]
+        unknown = [key_name(k) for k in keys if k not in self._keys]
         if unknown:
             raise ValueError(f"Session.{what}: no variable {unknown[:5]} in this session")
 
@@ -290,7 +281,7 @@ class Session:
 
     def live_variables(self) -> int:
         """Variables the solver holds: all of them, or (fixed lag) those inside the lag."""
-        return len(self._window.touched) if self.fixed_lag else self._n_variables
+        return len(self._window.touched) if self.fixed_lag else len(self._keys)
 
     def error(self, values: gtsam.Values | None = None) -> float:
         """Total graph error (0.5 * sum of whitened, robustified squared residuals)."""

@@ -146,10 +146,8 @@ class StopFlag:
 
 
 def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
-    """The whole verb: `runner.team_run.run_team` (run read, graph built, solved --
-    stoppable, with an online checkpoint / resume hook from `graphloc.commands.online` --,
-    evaluated, written) under SIGINT / SIGTERM handling by phase (`StopFlag`), then the
-    summary, the verdict's lines and the exit code."""
+    """The whole verb: `runner.team_run.run_team` under SIGINT / SIGTERM handling by phase
+    (`StopFlag`), then the summary, the verdict's lines and the exit code."""
     progress = not args.no_progress
     from graphloc.commands import pose_graph_run
 

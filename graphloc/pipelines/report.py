@@ -152,10 +152,8 @@ def evaluate(
 
 
 def _metrics(truth, times, rows, align: str) -> tuple[dict | None, str | None]:
-    """`trajectory_metrics` of one track (its poses at `times`, (N,7) rows) against its ground
-    truth as a dict and None, or None and why there are none: fewer than 3 poses, too few near
-    ground-truth stamps, or poses the alignment cannot use (all at one place: a robot that
-    never moved)."""
+    """`trajectory_metrics` of one track against its ground truth and None, or None and why there
+    are none (fewer than 3 poses, too few near ground-truth stamps, a robot that never moved)."""
     n = int(np.isfinite(rows).all(axis=1).sum())
     if n < 3:
         return None, f"{n} poses, 3 needed"

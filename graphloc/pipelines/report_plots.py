@@ -23,10 +23,8 @@ def plot_jobs(
     groundtruth_rate: str = "estimate",
     align: str | None = None,
 ) -> list[tuple[str, object]]:
-    """(file name, job() -> Path or None) per figure: trajectories.png (the ground truth as
-    written, `groundtruth_written`), error_over_time.png (the metrics' pairs, `paired`, and
-    their alignment, `alignment` with `align`; none without ground truth) and, online,
-    latency.png (from latency.csv, written before)."""
+    """(file name, job() -> Path or None) per figure: trajectories.png, error_over_time.png (with
+    ground truth) and, online, latency.png (from latency.csv, written before)."""
     jobs = [("trajectories.png", lambda: _trajectories(result, run, out, truth, groundtruth_rate))]
     if any(g is not None for g in truth):
         jobs.append(("error_over_time.png", lambda: _errors(result, run, out, truth, align)))
