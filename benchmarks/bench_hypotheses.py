@@ -38,7 +38,7 @@ from graphloc.datasets.feng import (
     odometry_covariance,
 )
 from benchmarks.bearing_cost import bearing_linearize_cost
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from benchmarks.bench_hypotheses_report import markdown, plots
 from benchmarks.hypotheses import CELLS, TableIIIConfig, summarize, trial
 from benchmarks.sizes import run_sizes
@@ -202,7 +202,7 @@ def main(argv=None) -> int:
     )
     jobs = [(ceiling, curve, i, config) for ceiling, curve in CELLS for i in range(args.runs)]
     t0 = time.time()
-    with Executor(args.workers) as ex:
+    with TrialExecutor(args.workers) as ex:
         trials = list(ex.imap(trial, jobs, desc="trials"))
     summary = summarize(trials)
     longrun = None if args.skip_long_run else long_run(args)

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from benchmarks.fusion_bench_real import (
     PROTOCOL_KEEP,
     PROTOCOL_NOISE_M,
@@ -270,7 +270,7 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    with Executor(args.workers) as ex:
+    with TrialExecutor(args.workers) as ex:
         rows = list(ex.imap(run_trial, jobs, desc="placements"))
     rows.sort(key=lambda r: (r["variant"], r["seed"]))
     summary = summarize(rows)

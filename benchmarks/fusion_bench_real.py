@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from graphloc.mapping.acceptance import AcceptanceConfig
 from graphloc.mapping.registration_index import NearestIndex
 from benchmarks.fusion_report_real import (
@@ -357,7 +357,7 @@ def main_real(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start, load_start = time.perf_counter(), os.getloadavg()[0]
-    with Executor(args.workers) as ex:
+    with TrialExecutor(args.workers) as ex:
         rows = [r for rs in ex.imap(run_real_trial, jobs, desc="view pairs") for r in rs]
     rows.sort(key=lambda r: (-r["overlap_target"], r["hint_rot_deg"], r["seed"]))
     report = {

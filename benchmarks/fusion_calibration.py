@@ -17,7 +17,7 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 from scipy.stats import chi2
 
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 
 from benchmarks.real_views import BUNDLED_FRAGMENTS
 from benchmarks.fusion_bench_real import (
@@ -101,7 +101,7 @@ def main_calibrate(args) -> int:
     ]
     start = time.perf_counter()
     rows = []
-    with Executor(args.workers) as ex:
+    with TrialExecutor(args.workers) as ex:
         for job, rs in zip(jobs, ex.imap(run_real_trial, jobs, desc="calibration pairs")):
             rows += [dict(r, fragment=Path(job[3]).name) for r in rs]
     used = [r for r in rows if r["graphloc"]["accepted"] and "covariance_terms" in r["graphloc"]]

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from benchmarks.fusion_bench_real import (
     PROTOCOL_KEEP,
     PROTOCOL_NOISE_M,
@@ -129,7 +129,7 @@ def main_envelope(args, views=ENVELOPE_VIEWS) -> int:
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     rows = []
-    with Executor(args.workers) as ex:
+    with TrialExecutor(args.workers) as ex:
         for job, rs in zip(jobs, ex.imap(run_real_trial, jobs, desc="view pairs")):
             tags = {"fragment": Path(job[3]).name, "noise_m": job[4], "keep": job[5]}
             rows += [dict(r, **tags) for r in rs]

@@ -20,7 +20,8 @@ from dataclasses import asdict
 from pathlib import Path
 
 from graphloc.datasets.feng_deterministic import TableIConfig
-from graphloc.executor import BACKENDS, ResultCache, content_hash, default_backend
+from benchmarks.trials import default_backend
+from graphloc.executor import BACKENDS, ResultCache, content_hash
 from graphloc.structured import dumps_json
 from benchmarks import TABLES, seed000, seed001, seed004
 from benchmarks.hypotheses import TableIIIConfig
@@ -48,7 +49,7 @@ def reproduce(
 ) -> tuple[dict, bool]:
     """One table: (its JSON-ready result, the entry docs/results.json holds for it; whether it
     came from `cache`). The trials run on the executor's default backend
-    (`graphloc.executor.default_backend`); the cache key is the content hash of (table, run
+    (`benchmarks.trials.default_backend`); the cache key is the content hash of (table, run
     sizes, graphloc's code version): the worker count and the backend do not change the
     numbers."""
     if table not in TABLES:

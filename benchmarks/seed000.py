@@ -32,7 +32,7 @@ from graphloc.datasets.feng_deterministic import (
     ground_triangle,
     simulate_straight_line_trials,
 )
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from benchmarks import hypotheses
 from benchmarks.hypotheses import TableIIIConfig
 from benchmarks.front_door import table_i_trial
@@ -60,7 +60,7 @@ def table_iii(config: TableIIIConfig = TableIIIConfig(), progress: bool = True) 
         for i in range(config.runs)
     ]
     t0 = time.perf_counter()
-    with Executor(config.workers, progress=progress) as ex:
+    with TrialExecutor(config.workers, progress=progress) as ex:
         trials = list(ex.imap(hypotheses.trial, jobs, desc="Table III runs"))
     cells = hypotheses.summarize(trials)
     beaten = {

@@ -22,7 +22,7 @@ from graphloc.datasets.feng_deterministic import (
     simulate_straight_line_trials,
     Seed000Config,
 )
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from graphloc.geometry.p3p import MAX_CANDIDATES
 from benchmarks.front_door import table_i_trial
 
@@ -62,7 +62,7 @@ def run_front_door(
         (trial_rows(trials, [i]), trial_rows(tri, [i]), config.pixel_sigma, step_sigma)
         for i in rows
     ]
-    with Executor(config.workers, progress=progress) as ex:
+    with TrialExecutor(config.workers, progress=progress) as ex:
         results = ex.imap(table_i_trial, jobs, desc="Table I through the front door")
         for i, (pos, g, err, _) in zip(rows, results):
             positions[i], ground[i], errors[i] = pos, g, err

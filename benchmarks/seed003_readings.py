@@ -41,7 +41,7 @@ import numpy as np
 from benchmarks.baselines.ekf_seed003 import EkfConfig, run_ekf
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
 from benchmarks.seed003_geometry import genuine_candidates, with_teammate_from_geometry
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from benchmarks.seed003_measures import teammate_config
 from benchmarks.cooperative_sfm import CooperativeSfmConfig, run_cooperative_sfm
 from graphloc.vision.features import FeatureConfig
@@ -263,7 +263,7 @@ def run_all(trials: int, workers: int, seed_offset: int = 0, progress: bool = Tr
     """Render and measure `trials` sequences per schedule, sweep every reading with the EKF,
     then the seed's EKF and graphloc at the stated and the chosen reading."""
     jobs = [(k, seed_offset + i) for k in SCHEDULES for i in range(trials)]
-    with Executor(workers, progress=progress) as ex:
+    with TrialExecutor(workers, progress=progress) as ex:
         measured = list(ex.imap(_measure, jobs, desc="seed 003 sequences"))
     rows = [{**evaluate(measured, r), "stage": "coarse"} for r in readings()]
     rows += refine(measured, choose(rows)["best"])

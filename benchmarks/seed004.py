@@ -27,7 +27,7 @@ from graphloc.datasets.kaushik import (
     KaushikConfig,
     KaushikP3PErrorScenario,
 )
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from benchmarks.front_door import simulated_run, truth_at
 from benchmarks.render import render
 from benchmarks.sizes import RunSizes, run_sizes
@@ -108,7 +108,7 @@ def seed004_cell(config: KaushikConfig, workers: int = 1) -> dict:
     ...): the seed baseline (raw P3P, the genuine candidate) and graphloc (the logs through the
     front door, `front_door_run`) on the same runs."""
     jobs = [(config, config.seed + i) for i in range(config.runs)]
-    with Executor(workers, progress=False) as ex:
+    with TrialExecutor(workers, progress=False) as ex:
         runs = list(ex.imap(front_door_run, jobs))
     raw_err = np.concatenate([x["raw"] for x in runs])
     smooth_err = np.concatenate([x["graphloc"] for x in runs])

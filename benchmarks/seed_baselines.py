@@ -51,7 +51,7 @@ from graphloc.datasets.feng_deterministic import (
     simulate_straight_line_trials,
 )
 from graphloc.datasets.kaushik import FOCALS_MM, NOISE_VARIANCES, KaushikConfig, simulate
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from benchmarks import hypotheses
 from benchmarks.hypotheses import CELLS, PAPER_TABLE_III, TableIIIConfig
 from benchmarks.seed000_table1 import PAPER_TABLE_I
@@ -212,7 +212,7 @@ def table3_sweep(
         for ceiling, curve in CELLS
         for i in range(runs)
     ]
-    with Executor(workers, progress=progress) as ex:
+    with TrialExecutor(workers, progress=progress) as ex:
         results = list(ex.imap(_t3_job, jobs, desc="Table III sweep"))
     rows = []
     for s, m, lik, frame in itertools.product(
@@ -294,7 +294,7 @@ def _s4_job(job) -> dict:
 def seed004_sweep(runs: int, frames: int, workers: int, progress: bool = True) -> list:
     grid = itertools.product(S4_HEIGHTS, S4_PITCHES_UM, S4_OFFSETS, S4_NOISE_READINGS)
     jobs = [(reading, runs, frames, 0) for reading in grid]
-    with Executor(workers, progress=progress) as ex:
+    with TrialExecutor(workers, progress=progress) as ex:
         return list(ex.imap(_s4_job, jobs, desc="seed 004 sweep"))
 
 
@@ -359,7 +359,7 @@ def sweep_all(sizes: dict, workers: int, progress: bool = True) -> dict:
         (s, lat, o, sizes["t1_trials"], 0)
         for s, lat, o in itertools.product(T1_PIXEL_SIGMAS, T1_LATERAL_SIGMAS, T1_ORIENTATIONS)
     ]
-    with Executor(workers, progress=progress) as ex:
+    with TrialExecutor(workers, progress=progress) as ex:
         t1 = list(ex.imap(_t1_job, jobs, desc="Table I sweep"))
     t3 = table3_sweep(sizes["t3_runs"], workers, progress=progress)
     s4 = seed004_sweep(sizes["s4_runs"], sizes["s4_frames"], workers, progress)

@@ -23,7 +23,7 @@ import time
 import numpy as np
 from scipy import stats
 
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from benchmarks.seed000_table1 import PAPER_TABLE_I
 from benchmarks import seed_baselines as sb
 
@@ -162,7 +162,7 @@ def table1_intervals(
     sigmas = tuple(sorted(sigmas))
     readings = list(readings or itertools.product(sb.T1_LATERAL_SIGMAS, sb.T1_ORIENTATIONS))
     jobs = [(s, lat, o, trials, 0) for (lat, o) in readings for s in sigmas]
-    with Executor(workers, progress=progress) as ex:
+    with TrialExecutor(workers, progress=progress) as ex:
         rows = list(ex.imap(sb._t1_job, jobs, desc="Table I intervals"))
     out = []
     for lat, orient in readings:

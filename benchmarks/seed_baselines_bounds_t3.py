@@ -29,7 +29,7 @@ from scipy import stats
 
 from benchmarks.baselines.belief_vector import BeliefVectorConfig
 from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from benchmarks import seed_baselines as sb
 from benchmarks.hypotheses import CELLS, PAPER_TABLE_III
 from benchmarks.seed_baselines_bounds import (
@@ -141,7 +141,7 @@ def table3_traces(runs: int, workers: int = 1, sigmas=T3_BOUND_SIGMAS, progress=
     jumps, and the bound on mean updates to converge of a run that locks correctly and never
     relocalizes (module docstring); the noise-free details per cell."""
     jobs = [(ce, cu, i, s) for s in sigmas for ce, cu in CELLS for i in range(runs)]
-    with Executor(workers, progress=progress) as ex:
+    with TrialExecutor(workers, progress=progress) as ex:
         events = list(ex.imap(_trace_job, jobs, desc="Table III genuine traces"))
     by_sigma = []
     for s in sigmas:

@@ -36,7 +36,7 @@ from graphloc.datasets import open_run
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
 from graphloc.datasets.crawler_pair_log import write_crawler_pair_log
 from graphloc.eval import axis_errors
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from benchmarks.markdown import write_report
 from benchmarks.render import render
 from graphloc.pipelines.judge import genuine_candidates
@@ -143,7 +143,7 @@ def main(argv=None) -> int:
     if args.trials < 1:
         p.error("--trials must be >= 1")
     args.out.mkdir(parents=True, exist_ok=True)
-    with Executor(workers=args.workers, progress=not args.no_progress) as ex:
+    with TrialExecutor(workers=args.workers, progress=not args.no_progress) as ex:
         trials = list(ex.imap(run_trial, list(range(args.trials)), desc="crawler-pair trials"))
     summary = summarize(trials)
     command = ".venv/bin/python scripts/bench_team_crawler.py" + (

@@ -27,7 +27,7 @@ import numpy as np
 
 from graphloc.datasets import open_run
 from graphloc.datasets.dual_room import VARIANTS, DualRoomScenario, variant_config
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from benchmarks.markdown import write_report
 from benchmarks.render import render
 from graphloc.pipelines.map_fusion.fusion import fuse
@@ -136,7 +136,7 @@ def main(argv=None) -> int:
         p.error("--seeds must be >= 1")
     args.out.mkdir(parents=True, exist_ok=True)
     items = [(v, s) for v in VARIANTS for s in range(args.seeds)]
-    with Executor(workers=args.workers, progress=not args.no_progress) as ex:
+    with TrialExecutor(workers=args.workers, progress=not args.no_progress) as ex:
         trials = list(ex.imap(run_trial, items, desc="dual-robot-room runs"))
     summary = summarize(trials)
     command = ".venv/bin/python scripts/bench_team_dual_room.py" + (

@@ -25,7 +25,7 @@ import numpy as np
 from graphloc.candidates import CandidateSet
 from graphloc.datasets import open_run
 from graphloc.datasets.scenarios import generate
-from graphloc.executor import Executor
+from benchmarks.trials import TrialExecutor
 from graphloc.keys import pose_key
 from benchmarks.front_door import truth_at
 from graphloc.pipelines.judge import judge_decisions
@@ -240,5 +240,5 @@ def jobs(size: str, seed_offset: int = 0) -> list:
 
 def run(size: str = "full", workers: int = 2, seed_offset: int = 0, progress: bool = True) -> list:
     todo = jobs(size, seed_offset)
-    with Executor(workers, progress=progress) as ex:
+    with TrialExecutor(workers, progress=progress) as ex:
         return list(ex.imap(_job, todo, desc="scenario runs"))

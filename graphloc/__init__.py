@@ -1,13 +1,6 @@
-"""graphloc: probabilistic localization of heterogeneous robot teams on GTSAM factor graphs.
-
-Seeds (in ../shared/seeds/): 000 Feng et al. (mutual bearings + P3P for a climbing robot),
-001 Breitenmoser et al. (four-marker targets), 003 (circle pose + EKF), 004 Kaushik et al.
-(ground + ceiling laser map fusion). See docs/architecture.md for the data flow and docs/api.md
-for a quick start.
-
-The names below are the public API; they load on first use, so `import graphloc` (and the
-command line's `--help`) does not pay for GTSAM, OpenCV or Open3D.
-"""
+"""graphloc: probabilistic localization of heterogeneous robot teams on GTSAM factor graphs
+(docs/architecture.md, docs/api.md). The names below are the public API; they load on first
+use, so `import graphloc` does not pay for GTSAM, OpenCV or Open3D."""
 
 import importlib
 

@@ -1,6 +1,4 @@
-"""`python -m graphloc` and the `graphloc` console script (`run`): the command line of
-`graphloc.cli`, imported inside `run` so that a Ctrl-C while it loads ends with exit code 130
-and one line rather than Python's traceback."""
+"""`python -m graphloc` and the `graphloc` console script; a Ctrl-C while loading exits 130."""
 
 import sys
 

@@ -1,36 +1,7 @@
-"""Camera models: pixel <-> unit bearing, batched over rows.
-
-Both models share one interface (all arrays float64, M rows):
-
-    pixel_to_bearing(pixels (M,2))   -> bearings (M,3) unit vectors, valid (M,) bool
-    bearing_to_pixel(bearings (M,3)) -> pixels (M,2), visible (M,) bool
-    project(points_cam (M,3))        -> pixels (M,2), visible (M,) bool
-
-Rows that are NaN/inf (or cannot be mapped, e.g. behind a pinhole camera) give NaN outputs
-and a False mask; a wrong *shape* is a ValueError naming the argument.
-
-`PinholeCamera`: OpenCV pinhole + Brown-Conrady distortion (seed 001 section IV-A: 752x480,
-90 deg FOV; seed 000 section VI: 640x480, FOV 2/3 pi for the climbing robot's camera C).
-
-`ParaboloidOmniCamera`: the panoramic cameras C_i of seed 000 section II (paraboloid mirror,
-effective focal length f_i, conic constant k_i, equivalent sensor resolution n_i x n_i,
-aspect ratio 1), in the unified central-catadioptric form of Geyer & Daniilidis (2000):
-a bearing d (|d| = 1, camera frame, z along the mirror axis) maps to
-
-    u = c_x + f_i * d_x / (d_z + xi),   v = c_y + f_i * d_y / (d_z + xi),
-
-with xi = 2e / (1 + e^2) and mirror eccentricity e = sqrt(-k_i). For the paraboloid,
-k_i = -1, so e = 1 and xi = 1: this is the para-catadioptric model of Baker & Nayar (1999) --
-mirror z = (h^2 - r^2) / (2h) with its focus at the camera centre (h = vertex radius of
-curvature = twice the parabola's focal distance) viewed by an orthographic camera of
-magnification m [px/m]. The mirror size h and m only enter as the product f_i = h * m [px]
-(the image radius of the horizon d_z = 0), so h cannot be recovered from k_i (which is
-dimensionless) and is not a separate parameter. k_i < -1 (hyperboloid + perspective camera)
-gives xi < 1 in the same formula. The inverse (lifting) is closed form:
-
-    x = (u - c_x)/f_i, y = (v - c_y)/f_i, r2 = x^2 + y^2,
-    s = (xi + sqrt(1 + (1 - xi^2) r2)) / (r2 + 1),   d = (s x, s y, s - xi).
-"""
+"""Camera models, pixel <-> unit bearing batched over rows: `PinholeCamera` (OpenCV pinhole +
+Brown-Conrady, seed 001 Sec. IV-A, seed 000 Sec. VI) and `ParaboloidOmniCamera` (seed 000
+Sec. II's panoramic cameras in the unified central-catadioptric model; docs/design_core.md,
+"Cameras"). Rows that cannot be mapped give NaN and a False mask; a wrong shape is a ValueError."""
 
 from __future__ import annotations
 
@@ -130,24 +101,13 @@ class PinholeCamera:
         return {**out, "dist": list(self.dist)} if self.dist else out
 
     @classmethod
-    def from_fov(
-        cls,
-        width: int,
-        height: int,
-        fov: float,
-        axis: str = "horizontal",
-        dist: tuple[float, ...] = (),
-    ) -> "PinholeCamera":
-        """Square pixels, principal point at the image centre, `fov` [rad] across `axis`
-        ('horizontal', 'vertical' or 'diagonal'). Seed 000: (640, 480, 2*pi/3); seed 001:
-        (752, 480, pi/2)."""
+    def from_fov(cls, width: int, height: int, fov: float, dist: tuple = ()) -> "PinholeCamera":
+        """Square pixels, principal point at the image centre, horizontal `fov` [rad]. Seed 000:
+        (640, 480, 2*pi/3); seed 001: (752, 480, pi/2)."""
         fov = _positive(fov, "fov")
         if fov >= math.pi:
             raise ValueError(f"fov must be < pi for a pinhole camera, got {fov}")
-        extent = {"horizontal": width, "vertical": height, "diagonal": math.hypot(width, height)}
-        if axis not in extent:
-            raise ValueError(f"axis must be one of {sorted(extent)}, got {axis!r}")
-        f = 0.5 * extent[axis] / math.tan(0.5 * fov)
+        f = 0.5 * width / math.tan(0.5 * fov)
         return cls(f, f, (width - 1) / 2.0, (height - 1) / 2.0, width, height, dist)
 
     @property
@@ -157,17 +117,26 @@ class PinholeCamera:
     def _dist_array(self) -> np.ndarray:
         return np.asarray(self.dist, dtype=float)
 
-    @cached_property
-    def max_radius(self) -> float:
-        """Largest undistorted normalized radius |(x/z, y/z)| up to which the radial distortion
-        r -> r (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6) is increasing
-        (inf without distortion). Beyond it the model folds back and cv2.projectPoints would
-        put points outside the lens's view inside the image, so they count as not visible.
-        Searched up to 3x the image-corner radius (tangential terms ignored)."""
+    def _radial(self, r: np.ndarray) -> np.ndarray:
+        """The distorted normalized radius of undistorted radius r (tangential terms ignored):
+        r (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6)."""
         k = np.zeros(8)
         k[: len(self.dist)] = self.dist
-        k1, k2, k3, k4, k5, k6 = k[0], k[1], k[4], k[5], k[6], k[7]
-        if not any((k1, k2, k3, k4, k5, k6)):
+        r2 = r * r
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return (
+                r
+                * (1 + r2 * (k[0] + r2 * (k[1] + r2 * k[4])))
+                / (1 + r2 * (k[5] + r2 * (k[6] + r2 * k[7])))
+            )
+
+    @cached_property
+    def max_radius(self) -> float:
+        """Largest undistorted normalized radius up to which `_radial` is increasing (inf
+        without distortion), searched up to 3x the image-corner radius: beyond it the model
+        folds back and cv2.projectPoints would put points outside the lens's view inside the
+        image, so they count as not visible."""
+        if not any(k for i, k in enumerate(self.dist) if i not in (2, 3)):
             return math.inf
         corner = max(
             math.hypot(u, v)
@@ -175,26 +144,14 @@ class PinholeCamera:
             for v in ((0 - self.cy) / self.fy, (self.height - 1 - self.cy) / self.fy)
         )
         r = np.linspace(0.0, 3.0 * corner, 30001)
-        r2 = r * r
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rd = r * (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
-        increasing = np.diff(rd) > 0
+        increasing = np.diff(self._radial(r)) > 0
         return math.inf if increasing.all() else float(r[np.argmin(increasing)])
 
     @cached_property
     def max_distorted_radius(self) -> float:
         """Distorted normalized radius reached at max_radius (pixels beyond have no preimage)."""
         r = self.max_radius
-        if not math.isfinite(r):
-            return math.inf
-        k = np.zeros(8)
-        k[: len(self.dist)] = self.dist
-        r2 = r * r
-        return float(
-            r
-            * (1 + r2 * (k[0] + r2 * (k[1] + r2 * k[4])))
-            / (1 + r2 * (k[5] + r2 * (k[6] + r2 * k[7])))
-        )
+        return float(self._radial(np.float64(r))) if math.isfinite(r) else math.inf
 
     def pixel_to_bearing(self, pixels) -> tuple[np.ndarray, np.ndarray]:
         """Observed (distorted) pixels (M,2) -> unit bearings (M,3) via cv2.undistortPoints;
@@ -314,17 +271,13 @@ class ParaboloidOmniCamera:
         size x size image (radius size/2)."""
         if not conic_constant <= -1.0:
             raise ValueError(f"conic_constant must be <= -1, got {conic_constant}")
-        e = math.sqrt(-conic_constant)
-        xi = 2.0 * e / (1.0 + e * e)
         theta = float(max_polar_angle)
-        focal = 0.5 * size * (math.cos(theta) + xi) / math.sin(theta)
+        focal = 0.5 * size * (math.cos(theta) + _xi(conic_constant)) / math.sin(theta)
         return cls(focal, size, conic_constant, None, None, theta, min_polar_angle)
 
     @property
     def xi(self) -> float:
-        """Unified-model mirror parameter, 2e/(1+e^2) with e = sqrt(-k); 1 for the paraboloid."""
-        e = math.sqrt(-self.conic_constant)
-        return 2.0 * e / (1.0 + e * e)
+        return _xi(self.conic_constant)
 
     def _in_fov(self, bearings: np.ndarray) -> np.ndarray:
         with np.errstate(invalid="ignore"):
@@ -364,6 +317,12 @@ class ParaboloidOmniCamera:
     def project(self, points_cam) -> tuple[np.ndarray, np.ndarray]:
         """3D points in the camera frame (M,3) (origin = the mirror focus) -> pixels, visible."""
         return self.bearing_to_pixel(check_rows(points_cam, 3, "points_cam"))
+
+
+def _xi(conic_constant: float) -> float:
+    """Unified-model mirror parameter, 2e/(1+e^2) with e = sqrt(-k); 1 for the paraboloid."""
+    e = math.sqrt(-conic_constant)
+    return 2.0 * e / (1.0 + e * e)
 
 
 def angular_sigma(

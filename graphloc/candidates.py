@@ -1,5 +1,4 @@
-"""The seam between front-ends and engines: every plausible pose hypothesis of one
-observation, with a score. Front-ends produce these and never choose; engines choose."""
+"""The seam between front-ends and engines: every plausible pose of one observation, scored."""
 
 from __future__ import annotations
 

@@ -1,7 +1,5 @@
-"""The online checkpoint file (format "graphloc-online-checkpoint", a graphloc data file:
-`graphloc.datafile`): the position in a run's graph (steps done) and a fingerprint of that
-graph, written by `graphloc online --checkpoint` and by a live team (`graphloc.live`, which adds
-the rows it was pushed, so a restarted team replays them)."""
+"""The online checkpoint file ("graphloc-online-checkpoint"): steps done and the graph's
+fingerprint, written by `graphloc online --checkpoint` and by a live team."""
 
 from __future__ import annotations
 

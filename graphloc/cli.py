@@ -1,17 +1,7 @@
-"""`graphloc VERB ...`: a thin command line. Each verb is a module in graphloc.commands with
-HELP (one line), add_arguments(parser) and run(args) -> exit code; the verb parses, calls one
-pipeline function and writes outputs. Only verbs that work end to end are listed here.
-
-Conventions of every verb: `graphloc --version`; the common options of
-`graphloc.commands.common` (`-v` / `-q`, `--no-progress`); `--config FILE.toml` with the same
-schema as the verb's options (both derived from its config dataclass, `graphloc.config`); the
-output folder announced on stderr when the verb ends (`outputs in DIR`).
-
-`main` is the one place where failures become exit codes (`graphloc.exitcodes`, documented in
-docs/outputs.md): a verb's `--out` is checked before any computation; bad input (ValueError,
-a missing file) is one `error:` line and BAD_INPUT; an OS error, an Open3D or GTSAM runtime
-error is one `error:` line and FAILED; Ctrl-C outside a stoppable solve is INTERRUPTED. No
-expected failure ends in a traceback."""
+"""`graphloc VERB ...`: each verb is a module in graphloc.commands with HELP, add_arguments(parser)
+and run(args) -> exit code. `main` is the one place where failures become exit codes
+(`graphloc.exitcodes`, docs/outputs.md): bad input is one `error:` line and BAD_INPUT, an OS or
+solver error FAILED, Ctrl-C INTERRUPTED; no expected failure ends in a traceback."""
 
 from __future__ import annotations
 

@@ -1,15 +1,5 @@
-"""A config dataclass's fields as command-line options and as the keys of a TOML config file:
-what pydantic, which checks the values (`graphloc.config_schema`), does not do.
-
-`parse_overrides` turns KEY=VALUE strings (or TOML values) into field values;
-`add_config_arguments` derives one `--field-name` option per scalar field (type, default and
-help from the field's description and choices) and `config_from_args` builds the config from
-the parsed options (defaults < `--config FILE.toml` < command line). A field whose default is
-itself a config dataclass is a TOML table of its name (`[fusion]`, `[fusion.registration]`,
-...); a tuple field a TOML array. `read_config_file` reads the file through
-`graphloc.structured.read_toml` (size and nesting bounded); every error names the file, the
-line and the field (`ConfigError.key`: the field's dotted path).
-"""
+"""A config dataclass's fields as command-line options and TOML config-file keys (defaults <
+`--config FILE.toml` < command line); every error names the file, the line and the field."""
 
 from __future__ import annotations
 
@@ -25,11 +15,9 @@ from graphloc.structured import BadStructure, parse_json, read_toml
 
 
 def parse_overrides(config_class: type, overrides: dict) -> dict:
-    """KEY=VALUE strings (or values) -> field values of `config_class`, which its constructor
-    then checks; unknown keys and unparsable values raise ConfigError naming the field. A
-    string for a non-string field is read as JSON (numbers, true / false, lists); a dict for a
-    field whose default is a config dataclass fills that dataclass (recursively); a list for a
-    tuple field becomes a tuple; every number is within `MAX_OPTION` / `MAX_OPTION_INT`."""
+    """KEY=VALUE strings (or values) -> field values of `config_class`: strings read as JSON, tables
+    as nested config dataclasses, lists as tuples, numbers bounded (`_bounded`); ConfigError
+    names the field."""
     known = {f.name: f for f in dataclasses.fields(config_class) if f.init}
     hints = typing.get_type_hints(config_class)
     name = config_class.__name__
@@ -110,10 +98,8 @@ def option_fields(config_class: type, exclude=()) -> dict[str, type]:
 
 
 def add_config_arguments(parser: argparse.ArgumentParser, config_class: type, exclude=()) -> None:
-    """One `--field-name` option per scalar field of `config_class` (bool fields:
-    `--name` / `--no-name`); help from the field's description, its choices and its default
-    (read from the fields: no config is built, so pydantic is not loaded). Unset options stay
-    out of the namespace (`config_from_args` keeps the default)."""
+    """One `--field-name` option per scalar field of `config_class` (bools: `--name` / `--no-name`),
+    its help from the field's description, choices and default; unset options stay out of `args`."""
     group = parser.add_argument_group(f"{config_class.__name__} options")
     hints = typing.get_type_hints(config_class)
     kinds = option_fields(config_class, exclude)
@@ -138,10 +124,8 @@ def add_config_arguments(parser: argparse.ArgumentParser, config_class: type, ex
 
 
 def read_config_file(path) -> tuple[dict, dict]:
-    """A TOML config file -> (its tables as a dict with '-' in keys read as '_', {dotted key:
-    line number}). Opened through `graphloc.textio` (a missing file, a directory or bytes that
-    are not UTF-8 are errors naming the file and line); a syntax error names file, line and
-    column."""
+    """A TOML config file -> (its tables, '-' in keys read as '_'; {dotted key: line number});
+    errors name the file and line."""
     data, text = read_toml(Path(path))
     return _underscored(data), _key_lines(text)
 
@@ -197,14 +181,12 @@ def config_values(config_class: type, args: argparse.Namespace, exclude=()) -> d
     return values
 
 
-def config_from_args(config_class: type, args: argparse.Namespace, base=None, exclude=()):
-    """`base` (default: `config_class()`) with `config_values`: defaults < `--config FILE`
-    < command line, checked by the class's rules (an error of a value from the file names
-    file, line and field)."""
+def config_from_args(config_class: type, args: argparse.Namespace, exclude=()):
+    """`config_class` with `config_values`: defaults < `--config FILE` < command line, checked
+    by the class's rules (an error of a value from the file names file, line and field)."""
     values = config_values(config_class, args, exclude)
-    base = config_class() if base is None else base
     try:
-        return dataclasses.replace(base, **values)
+        return dataclasses.replace(config_class(), **values)
     except ConfigError as exc:
         path = getattr(args, "config", None)
         field = exc.key.split(".")[0] if exc.key else None

@@ -1,38 +1,6 @@
-"""Config classes: frozen dataclasses checked by pydantic, their rules stated once as field
-constraints, which `graphloc.config` also turns into command-line options and config-file keys.
-
-A config class is declared with `config_dataclass`; its field rules are pydantic `Field`
-arguments (gt, ge, lt, le, allow_inf_nan, description) in the dataclass field's metadata,
-which pydantic reads as the field's `Field` when it validates a dataclass (pydantic PR 2384,
-kept in v2; `setting` builds that field), its choices `Literal[...]` annotations, and rules
-across fields `__post_init__`, which pydantic runs after the fields' own
-(`graphloc.hypotheses.config`):
-
-    @config_dataclass
-    class TrackerConfig:
-        max_hypotheses: int = setting(8, ge=1, le=1000)
-        commit_threshold: float = setting(0.95, ge=0.5, lt=1.0)
-        release_threshold: float = setting(0.5, gt=0.0)
-        student_dof: float = setting(6.0, gt=0.0, allow_inf_nan=True)  # inf = Gaussian
-
-        def __post_init__(self):
-            if not 0.0 < self.release_threshold <= self.commit_threshold:
-                raise ValueError(...)
-
-Validation is pydantic's strict mode: no bool or text where a number is wanted, no fraction
-where an integer is, no list where a tuple is; NaN and inf are refused unless a field allows
-them (`allow_inf_nan=True`). A violation raises `ConfigError` (a ValueError) naming
-`Class.field` and the value: `expected float, got 'abc'` for a value of the wrong type,
-`must be in [0.001, 3600], got 0` for one outside the rule rendered from the same metadata.
-
-Why stdlib dataclasses validated by pydantic rather than `pydantic.dataclasses.dataclass` or
-`BaseModel`: the classes stay dataclasses (`dataclasses.replace` re-validates, `fields` and
-`asdict` work, as everywhere in graphloc), and pydantic is imported and a class's validator
-built on its first construction only (`_validator`), not where the class is defined: importing
-pydantic costs about as much as the rest of `graphloc VERB --help` (issue 47), which reads the
-options from the fields without constructing a config. `BaseModel` would also replace
-`dataclasses.replace` by `model_copy`, which does not validate.
-"""
+"""Config classes: frozen dataclasses checked by pydantic in strict mode, their rules stated once
+as field constraints (`setting`), which `graphloc.config` also turns into command-line options
+and config-file keys (docs/design_core.md, "Configuration")."""
 
 from __future__ import annotations
 

@@ -1,20 +1,15 @@
-"""Versioned data files: one JSON header line (format, version, body size and SHA-256) and a JSON
-body, written atomically (temporary file, fsync, rename, directory fsync). Used by
-`graphloc.session` (saved sessions), `graphloc.hypotheses` (saved trackers) and `graphloc online`
-checkpoints. Reading checks the file's size (at most `graphloc.structured.MAX_DATA_BYTES`),
-format, version, body size and hash before parsing, and parses the body through
-`graphloc.structured.parse_json` (nesting and values bounded): a pickle, another format, a
-truncated, altered, oversized or too deeply nested file is a ValueError naming the file, and
-nothing in a file is ever executed."""
+"""Versioned data files (saved sessions, trackers, online checkpoints): one JSON header line
+(format, version, body size and SHA-256) and a JSON body, written atomically; a pickle, another
+format, a truncated, altered or oversized file is a ValueError naming the file."""
 
 from __future__ import annotations
 
 import hashlib
 import json
 import os
-import tempfile
 from pathlib import Path
 
+from graphloc.names import written_whole
 from graphloc.structured import MAX_DATA_BYTES, BadStructure, dumps_json, parse_json
 
 
@@ -67,24 +62,15 @@ def write_atomically(path: Path, data: bytes) -> None:
     """Write `data` to a temporary file beside `path`, fsync it, rename it over `path` and fsync
     the directory: `path` holds either the old or the new content, never a partial one. An
     OSError (missing directory, disk full, `path` a directory) names `path`."""
-    directory = path.parent
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    except OSError as exc:
-        raise type(exc)(exc.errno, f"{path}: cannot write ({exc.strerror})") from None
-    try:
-        with os.fdopen(fd, "wb") as fh:
+        with written_whole(path) as tmp, open(tmp, "wb") as fh:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException as exc:
-        Path(tmp).unlink(missing_ok=True)
-        if isinstance(exc, OSError):
-            raise type(exc)(exc.errno, f"{path}: cannot write ({exc.strerror})") from None
-        raise
+    except OSError as exc:
+        raise type(exc)(exc.errno, f"{path}: cannot write ({exc.strerror})") from None
     try:
-        dir_fd = os.open(directory, os.O_RDONLY)
+        dir_fd = os.open(path.parent, os.O_RDONLY)
     except OSError:  # a directory that cannot be opened (some platforms): the rename is done
         return
     try:

@@ -1,12 +1,5 @@
-"""Trajectory metrics with the `evo` library: ATE (absolute trajectory error, translation, after
-aligning the estimate to ground truth) and RPE (relative pose error over a fixed time step),
-for planar (SE(2)) or 3D (SE(3)) trajectories; TUM trajectory files.
-
-Planar trajectories are aligned in SE(2): evo's Umeyama alignment run on the 2-D positions
-(rotation about z + translation, no scale), then evo's APE on the aligned trajectory and evo's
-RPE (`relative_pose_errors`: the same pairs and error poses, over all pairs at once). 3D
-trajectories use evo's SE(3) Umeyama alignment.
-"""
+"""Trajectory metrics with evo: ATE (after Umeyama alignment: SE(2) on planar positions, SE(3)
+otherwise) and RPE over a fixed time step; TUM trajectory files."""
 
 from __future__ import annotations
 

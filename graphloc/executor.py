@@ -1,41 +1,13 @@
-"""The one executor layer: every job of many runs or trials (`graphloc smooth` / `online` over
-several runs; the reproductions and benchmarks of the checkout's benchmarks/, run by scripts/)
-hands its tasks to an `Executor`, which runs them on one of two backends:
-
-- ``local`` (the default, no dependency beyond the standard library): a `multiprocessing.Pool`
-  of `workers` processes, or, for one worker, the calling process itself (no start-up cost).
-  The pool starts its workers from a fork server by default, never by forking the caller: a
-  caller that has run Open3D, GTSAM's TBB or a Ray client holds native threads, and a child
-  forked from it can inherit a lock one of them held and hang for ever. As with "spawn", a
-  script that maps over the local pool must guard its entry point (`if __name__ ==
-  "__main__":`), since each worker imports the script's main module;
-- ``ray``: Ray tasks (`pip install graphloc[ray]`), on a local Ray instance with `workers` CPUs
-  or on an existing cluster (`address="auto"` or ``"HOST:PORT"``).
-
-Contract, identical on both backends:
-
-- a task is ``fn(item)`` (or ``fn(item, shared)``); `fn` is a module-level function and `item`
-  carries everything that decides the result, its random seed included (`task_seed`), so the
-  result depends on the item only, never on the worker, the backend or the completion order;
-  results come back in item order;
-- a task that raises is an `Outcome` with its error (`Executor.map`) while the others finish;
-  `Executor.imap` (trials, where a failure is a bug) raises `TaskFailed` naming the item;
-- `shared` is one large input (point clouds, long logs) sent once per worker, not once per
-  task: Ray's object store (`ray.put`, read zero-copy by the workers) or the pool's initializer
-  (pickled once per worker);
-- with a `ResultCache` and a content hash per item (`content_hash` of the inputs, the
-  configuration and `code_version()`), finished tasks are read back instead of recomputed;
-- progress is one bar counting tasks done / failed / cached.
-"""
+"""Runs the tasks of many runs or trials on a local process pool or on Ray, with a result cache
+keyed by content hash; results come back in item order whatever the backend
+(docs/design_core.md, "Executor")."""
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import importlib.util
 import json
 import multiprocessing as mp
-import os
 import socket
 import threading
 import time
@@ -47,12 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from graphloc import __version__
+from graphloc.names import written_whole
 from graphloc.structured import MAX_DATA_BYTES, dumps_json, read_json
 
 BACKENDS = ("local", "ray")
-_SHARED: dict[str, Any] = {}  # the local pool's shared input, installed once per worker
-# the backend an Executor created without one uses (`default_backend` sets it for a block)
-_DEFAULT = {"backend": "local", "address": None}
 
 
 @dataclass(frozen=True)
@@ -70,17 +40,6 @@ class Outcome:
     @property
     def ok(self) -> bool:
         return self.error is None
-
-
-class TaskFailed(RuntimeError):
-    """A task of `Executor.imap` raised; the message names the task and its error."""
-
-
-def task_seed(base: int, *key: int | str) -> int:
-    """A deterministic 63-bit seed for the task `key` of a job seeded with `base`: the same
-    on every backend and worker (SHA-256 of the JSON of (base, key), not Python's hash)."""
-    digest = hashlib.sha256(json.dumps([base, *key]).encode()).digest()
-    return int.from_bytes(digest[:8], "little") >> 1
 
 
 @lru_cache(maxsize=1)
@@ -145,76 +104,41 @@ class ResultCache:
 
     def put(self, digest: str, value) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
-        tmp = self._path(digest).with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(dumps_json({"version": code_version(), "value": value}, default=float))
-        tmp.replace(self._path(digest))
+        with written_whole(self._path(digest)) as tmp:
+            tmp.write_text(dumps_json({"version": code_version(), "value": value}, default=float))
 
 
-def _init_worker(token: str | None, shared) -> None:
-    """A pool worker's start: its shared input, and tqdm's lock as a thread lock. tqdm
-    otherwise makes a multiprocessing lock on its first bar (even a disabled one), a named
-    semaphore under the fork server that a pool worker, ended without finalizers, never
-    releases: the resource tracker then warns of a leak when the command exits."""
+def _init_worker() -> None:
+    """A pool worker's start: tqdm's lock as a thread lock (a multiprocessing lock, made on its
+    first bar, is never released by a pool worker: the resource tracker would warn of a leak)."""
     from tqdm import tqdm
 
     tqdm.set_lock(threading.RLock())
-    if token is not None:
-        _SHARED[token] = shared
 
 
-def _call(fn: Callable, item, shared, token: str | None):
+def _call(fn: Callable, item):
     """Run one task and return ("ok", value, seconds) or ("error", message, seconds)."""
     t0 = time.perf_counter()
     try:
-        if token is not None:
-            shared = _SHARED[token]
-        value = fn(item) if token is None and shared is None else fn(item, shared)
-        return "ok", value, time.perf_counter() - t0
+        return "ok", fn(item), time.perf_counter() - t0
     except Exception as exc:  # reported per task; the other tasks go on
         where = traceback.extract_tb(exc.__traceback__)[-1]
         message = f"{type(exc).__name__}: {exc} ({Path(where.filename).name}:{where.lineno})"
         return "error", message, time.perf_counter() - t0
 
 
-def _call_packed(args):
-    return _call(*args)
-
-
-@contextlib.contextmanager
-def default_backend(backend: str = "local", address: str | None = None, workers: int = 1):
-    """Within the block, an `Executor` created without a backend (the benchmarks') uses this
-    one; a Ray instance is started once for the whole block (`workers` CPUs, or the cluster
-    at `address`) and shut down at its end."""
-    with Executor(workers, backend, address, progress=False):
-        old = dict(_DEFAULT)
-        _DEFAULT.update(backend=backend, address=address)
-        try:
-            yield
-        finally:
-            _DEFAULT.update(old)
-
-
 class Executor:
-    """Runs tasks on the local pool or Ray (see the module docstring). Use as a context
-    manager: the pool / the local Ray instance lives for the `with` block; a Ray instance that
-    was already initialised (by the caller or an earlier block) is reused and left running.
-
-    workers: processes (local) or concurrent tasks (ray; the CPUs of a local Ray instance);
-    backend: "local", "ray", or None (the one `default_backend` set, else "local");
-    address: None (local Ray instance) or "auto" / "HOST:PORT" (an existing cluster);
-    start_method: multiprocessing start method of the local pool ("forkserver" by default;
-        see the module docstring for why not "fork")."""
+    """Runs tasks on the local pool ("forkserver") or Ray, as a context manager: the pool or a Ray
+    instance it started lives for the `with` block (a running Ray instance is reused);
+    `address`: "auto" or "HOST:PORT" of a Ray cluster."""
 
     def __init__(
         self,
         workers: int = 1,
-        backend: str | None = None,
+        backend: str = "local",
         address: str | None = None,
         progress: bool = True,
-        start_method: str = "forkserver",
     ):
-        if backend is None:
-            backend, address = _DEFAULT["backend"], address or _DEFAULT["address"]
         if backend not in BACKENDS:
             raise ValueError(f"--backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
         if not (isinstance(workers, int) and workers >= 1):
@@ -222,9 +146,8 @@ class Executor:
         if address is not None and backend != "ray":
             raise ValueError("--address needs --backend ray")
         self.workers, self.backend, self.address = workers, backend, address
-        self.progress, self.start_method = progress, start_method
-        self._ray = None
-        self._started_ray = False
+        self.progress = progress
+        self._ray, self._started_ray = None, False
 
     def __enter__(self) -> Executor:
         if self.backend == "ray":
@@ -244,7 +167,6 @@ class Executor:
         items: list,
         *,
         keys: list[str] | None = None,
-        shared=None,
         cache: ResultCache | None = None,
         hashes: list[str] | None = None,
         desc: str = "tasks",
@@ -271,7 +193,7 @@ class Executor:
         bar = tqdm(total=len(items), desc=desc, disable=not self.progress, leave=False)
         bar.update(counts["cached"])
         bar.set_postfix(counts)
-        for i, (status, value, seconds) in self._run(fn, [items[i] for i in todo], shared, todo):
+        for i, (status, value, seconds) in self._run(fn, [items[i] for i in todo], todo):
             ok = status == "ok"
             if ok and cache is not None:  # computed and cached results look the same
                 value = json.loads(json.dumps(value, default=float))
@@ -286,61 +208,35 @@ class Executor:
         bar.close()
         return outcomes
 
-    def imap(self, fn: Callable, items: Iterable, *, shared=None, desc: str = "tasks") -> Iterator:
-        """The values of fn over items, in item order, as they become available in that order;
-        a failed task raises TaskFailed (trials of an experiment: a failure is a bug)."""
-        items = list(items)
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(items), desc=desc, disable=not self.progress, leave=False)
-        ready: dict[int, tuple] = {}
-        nxt = 0
-        for i, result in self._run(fn, items, shared, list(range(len(items)))):
-            ready[i] = result
-            bar.update(1)
-            while nxt in ready:
-                status, value, _ = ready.pop(nxt)
-                if status != "ok":
-                    bar.close()
-                    raise TaskFailed(f"{desc}: task {nxt} ({_short(items[nxt])}) failed: {value}")
-                yield value
-                nxt += 1
-        bar.close()
-
     # ---- backends ---------------------------------------------------------------------------
-    def _run(self, fn, items: list, shared, index: list[int]) -> Iterator[tuple[int, tuple]]:
+    def _run(self, fn, items: list, index: list[int]) -> Iterator[tuple[int, tuple]]:
         """(index, (status, value, seconds)) per item, in completion order."""
         if not items:
             return
         if self.backend == "ray":
-            yield from self._run_ray(fn, items, shared, index)
+            yield from self._run_ray(fn, items, index)
         elif self.workers == 1 or len(items) == 1:
             for i, item in zip(index, items):
-                yield i, _call(fn, item, shared, None)
+                yield i, _call(fn, item)
         else:
-            token = None if shared is None else f"{os.getpid()}-{id(shared)}"
-            ctx = mp.get_context(self.start_method)
-            init = (_init_worker, (token, shared))
-            with ctx.Pool(min(self.workers, len(items)), *init) as pool:
-                jobs = [(fn, item, None, token) for item in items]
-                for pos, result in pool.imap_unordered(_indexed, enumerate(jobs)):
+            ctx = mp.get_context("forkserver")  # not "fork": see docs/design_core.md
+            with ctx.Pool(min(self.workers, len(items)), _init_worker) as pool:
+                jobs = [(pos, fn, item) for pos, item in enumerate(items)]
+                for pos, result in pool.imap_unordered(_indexed, jobs):
                     yield index[pos], result
 
-    def _run_ray(self, fn, items: list, shared, index: list[int]):
+    def _run_ray(self, fn, items: list, index: list[int]):
         ray = self._ray
         if ray is None:
             raise RuntimeError("Executor(backend='ray') must be used in a `with` block")
         remote = ray.remote(num_cpus=1, max_retries=0)(_call)
-        ref = None if shared is None else ray.put(shared)
         # `workers` tasks in flight (a local instance started here has that many CPUs too)
         limit = self.workers
         pending: dict = {}
         nxt = 0
         while nxt < len(items) or pending:
             while nxt < len(items) and len(pending) < limit:
-                # a shared ObjectRef passed as a top-level argument is resolved by Ray in the
-                # worker (zero-copy for numpy arrays), not sent with each task
-                pending[remote.remote(fn, items[nxt], ref, None)] = index[nxt]
+                pending[remote.remote(fn, items[nxt])] = index[nxt]
                 nxt += 1
             done, _ = ray.wait(list(pending), num_returns=1)
             for obj in done:
@@ -352,13 +248,8 @@ class Executor:
 
 
 def _indexed(job):
-    pos, args = job
-    return pos, _call_packed(args)
-
-
-def _short(item) -> str:
-    text = repr(item)
-    return text if len(text) <= 120 else text[:117] + "..."
+    pos, fn, item = job
+    return pos, _call(fn, item)
 
 
 def _start_ray(workers: int, address: str | None):

@@ -1,5 +1,4 @@
-"""The exit codes of every `graphloc` verb, defined once (documented in docs/outputs.md, "Exit
-codes"). `graphloc.cli.main` maps exceptions to them; verbs return OK or INCOMPLETE."""
+"""The exit codes of every `graphloc` verb (docs/outputs.md, "Exit codes")."""
 
 from __future__ import annotations
 

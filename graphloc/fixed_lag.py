@@ -1,9 +1,6 @@
-"""The fixed-lag window of an online `graphloc.session.Session` (SessionConfig.lag > 0): iSAM2
-that marginalizes, with `ISAM2::marginalizeLeaves`, every variable added more than `lag` seconds
-(of the add times) before the newest. A constrained ordering by add time keeps those variables
-leaves of the Bayes tree, so no re-elimination is needed (`FixedLagWindow.update`); a
-marginalized variable keeps its last estimate (of a full back-substitution, not iSAM2's
-wildfire-truncated one)."""
+"""The fixed-lag window of an online `Session` (SessionConfig.lag > 0): iSAM2 marginalizing, with
+`marginalizeLeaves`, every variable added more than `lag` seconds before the newest, kept a leaf
+by a constrained ordering by add time."""
 
 from __future__ import annotations
 
@@ -43,10 +40,8 @@ class FixedLagWindow:
         return self._frozen_keys
 
     def estimate(self, keys: list | None = None) -> gtsam.Values:
-        """Every variable (frozen and live), or only `keys` (no estimate of the whole window:
-        one `calculateEstimate(keys)` of the live ones, one `extract` of the frozen ones; a
-        value at a time would cost a Python round trip and an allocation each). GTSAM failures
-        propagate as RuntimeError."""
+        """Every variable (frozen and live), or only `keys` (one `calculateEstimate(keys)` of
+        the live ones, one `extract` of the frozen ones); GTSAM failures raise RuntimeError."""
         if keys is None:
             out = gtsam.Values(self.frozen)
             out.insert(self.isam.calculateEstimate())
@@ -59,19 +54,10 @@ class FixedLagWindow:
         return out
 
     def update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, t: float) -> None:
-        """One fixed-lag update (iSAM2 with `ISAM2::marginalizeLeaves`). New keys are stamped
-        with t rounded down to a multiple of `marginalize_every`. Every update passes iSAM2 a
-        constrained ordering with one group per live stamp, oldest first, so that every
-        (re-)elimination eliminates older stamps first: a key's subtree then holds only keys of
-        its own stamp or older ones, and the keys stamped more than `lag` before the newest
-        stamp are leaves, marginalized by `marginalizeLeaves` alone, without re-eliminating the
-        window (GTSAM's IncrementalFixedLagSmoother re-orders and re-eliminates the path from
-        the marginalized cliques to the root whenever it marginalizes). They keep the estimate
-        of a full back-substitution (`ISAM2::calculateBestEstimate`) right before the
-        marginalization. CCOLAMD takes group numbers below the number
-        of variables it orders, so the groups are the ranks of the live stamps and the most
-        recent keys (at least one more than there are stamps) are always re-eliminated too
-        (they are at the top of the tree, re-eliminated by most updates anyway)."""
+        """One fixed-lag update: new keys stamped with t rounded down to `marginalize_every`, iSAM2
+        given a constrained ordering (one group per live stamp, oldest first) so that the keys older
+        than `lag` are leaves, marginalized by `marginalizeLeaves` at their full back-substitution
+        estimate (docs/design_core.md, "Fixed lag")."""
         quantum = self.config.marginalize_every or self.config.lag
         now = math.floor(t / quantum) * quantum  # add times never go back
         old = []

@@ -1,20 +1,6 @@
-"""The graphloc log format: one directory, a `manifest.json` and per-robot CSV tables
-(documented in docs/log_format.md). Reader, writer and validation.
-
-- `read_manifest(dir)` -> Manifest (robots, sensors with extrinsics, tables, landmarks;
-  `graphloc.manifest`); the records of each table are in `graphloc.records`.
-- `iter_records(dir, tables=...)` streams typed records time-ordered across every robot and
-  table (heapq.merge over per-file iterators); every row is validated and a bad row either
-  raises ValueError naming file, line and field (on_error="raise") or is counted in a
-  `SkipReport` (on_error="skip") -- nothing is dropped silently. Files are UTF-8 with an
-  optional byte-order mark (`graphloc.textio`). The rows are validated in chunks with NumPy
-  (`graphloc.table_reader.iter_table_chunks`, which a reader of a large table such as
-  `markers` takes as columns).
-- `PlanarRun` is the numpy form of a planar multi-robot run (the MRCLAM loader's);
-  `write_planar_run(run, dir)` writes it as a log, `write_table` one table
-  (`graphloc.log_writer`). Logs are read into the one run type of the
-  pipelines by `graphloc.datasets.graphloc_log.read_team_run` (`graphloc.datasets.open_run`).
-"""
+"""The graphloc log format (docs/log_format.md): `read_manifest`, `iter_records` (typed records of
+every robot and table in time order, each bad row raised or counted naming file, line and
+field) and the writers of `graphloc.log_writer`."""
 
 from __future__ import annotations
 
@@ -25,18 +11,9 @@ from typing import Iterator
 
 import numpy as np
 
-from graphloc.manifest import (
-    FORMAT,
-    MANIFEST,
-    VERSION,
-    VERSIONS,
-    Manifest,
-    Robot,
-    Sensor,
-    read_manifest,
-    write_manifest,
-)
+from graphloc.manifest import MANIFEST, Manifest, Robot, read_manifest, write_manifest
 from graphloc.records import (
+    LANDMARK_COLUMNS,
     LANDMARK_PREFIX,
     SENSOR_TYPES,
     TABLES,
@@ -45,16 +22,13 @@ from graphloc.records import (
     MarkerPixel,
     Odometry2D,
     PoseCandidate,
-    Range,
     RangeBearing2D,
-    RelativePose2D,
-    RelativePose3D,
     ScanRef,
     columns,
     plausible,
 )
 from graphloc.log_writer import PlanarRun, write_planar_run, write_table
-from graphloc.table_reader import data_lines, iter_table_chunks
+from graphloc.table_reader import chunk_rows, data_lines, iter_table_chunks
 from graphloc.textio import (
     Sink,
     SkipReport,
@@ -65,13 +39,10 @@ from graphloc.textio import (
 )
 
 __all__ = [
-    "FORMAT",
     "LANDMARK_PREFIX",
     "MANIFEST",
     "SENSOR_TYPES",
     "TABLES",
-    "VERSION",
-    "VERSIONS",
     "Bearing3D",
     "GroundTruth2D",
     "Manifest",
@@ -79,13 +50,8 @@ __all__ = [
     "Odometry2D",
     "PlanarRun",
     "PoseCandidate",
-    "Range",
     "RangeBearing2D",
-    "RelativePose2D",
-    "RelativePose3D",
-    "Robot",
     "ScanRef",
-    "Sensor",
     "Sink",
     "SkipReport",
     "columns",
@@ -113,10 +79,8 @@ def iter_table(
     accepts, one record each)."""
     cls = TABLES[table]
     for chunk in iter_table_chunks(manifest, robot, table, on_error, report, landmark_ids):
-        names = [c for c in chunk if c != "line"]
-        values = [chunk[c] if isinstance(chunk[c], list) else chunk[c].tolist() for c in names]
-        for line, *row in zip(chunk["line"].tolist(), *values):
-            yield cls(robot=robot.name, line=line, **dict(zip(names, row)))
+        for line, row in chunk_rows(chunk):
+            yield cls(robot=robot.name, line=line, **row)
 
 
 def _values(
@@ -146,9 +110,6 @@ def _values(
             )
         values[name] = value
     return values, None
-
-
-LANDMARK_COLUMNS = ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"]
 
 
 def read_landmarks(manifest: Manifest) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -193,13 +154,12 @@ def is_tum(path: str) -> bool:
 def iter_records(
     root: str | Path,
     tables=None,
-    robots=None,
     on_error: str = "raise",
     report: SkipReport | None = None,
 ) -> Iterator:
-    """All records of the log (optionally only `tables` / `robots`), merged in time order across
-    robots and tables (heapq.merge; ties keep robot-then-table order). Streaming: one row per file
-    in memory."""
+    """All records of the log (optionally only `tables`), merged in time order across robots
+    and tables (heapq.merge; ties keep robot-then-table order). Streaming: one row per file in
+    memory."""
     manifest = read_manifest(root)
     # without a landmarks file (SLAM: positions unknown) every landmark id is acceptable
     landmark_ids = (
@@ -209,16 +169,9 @@ def iter_records(
     for t in wanted_tables:
         if t not in TABLES:
             raise ValueError(f"unknown table {t!r}; known: {', '.join(TABLES)}")
-    known = {r.name for r in manifest.robots}
-    for name in robots or []:
-        if name not in known:
-            raise ValueError(
-                f"{manifest.root / MANIFEST}: unknown robot {name!r}; robots: {sorted(known)}"
-            )
     streams = [
         iter_table(manifest, r, t, on_error, report, landmark_ids)
         for r in manifest.robots
-        if robots is None or r.name in robots
         for t in wanted_tables
         if t in r.tables and not is_tum(r.tables[t])
     ]

@@ -1,16 +1,11 @@
-"""The one place GTSAM keys are built: (robot, time index) -> key, so logs, factors and
-outputs agree. Style of gtsam.symbol_shorthand, with the robot folded into the index.
+"""The one place GTSAM keys are built, in the style of gtsam.symbol_shorthand:
 
-Pose of robot r at step t:  Symbol('x', r * STRIDE + t)   e.g. x3000000012 = robot 3, step 12
-Landmark l:                 Symbol('l', l)
-Discrete mode of observation k (which candidate is genuine): Symbol('m', k)
-Marker j of robot r's layout, a world point (static robots): Symbol('k', r * MAX_MARKERS + j)
-Marker j of the target of candidate set n, a world point at that set's time (moving targets):
-                            Symbol('q', n * MAX_MARKERS + j)
-Sensor slot s of robot r at step t, the Pose3 of an offset sensor (its body pose composed with
-its extrinsics, tied to it by a tight BetweenFactorPose3; not a robot pose: outputs skip it):
-                            Symbol('s', (s * MAX_ROBOTS + r) * STRIDE + t)
-"""
+robot r's pose at step t             Symbol('x', r * STRIDE + t)
+landmark l                           Symbol('l', l)
+mode of observation k                Symbol('m', k)
+marker j of static robot r           Symbol('k', r * MAX_MARKERS + j)
+marker j of candidate set n's target Symbol('q', n * MAX_MARKERS + j)
+sensor slot s of robot r at step t   Symbol('s', (s * MAX_ROBOTS + r) * STRIDE + t)"""
 
 from __future__ import annotations
 

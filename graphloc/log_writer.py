@@ -1,7 +1,5 @@
-"""Writers of the graphloc log format (docs/log_format.md): one table (`write_table`, floats
-written losslessly) and a planar multi-robot run in arrays (`PlanarRun`, the MRCLAM loader's
-form) as a whole log directory (`write_planar_run`). Importable from `graphloc.io` too.
-"""
+"""Writers of the graphloc log format: one table (`write_table`, floats lossless) and a planar
+run in arrays (`PlanarRun`, the MRCLAM loader's form) as a log directory (`write_planar_run`)."""
 
 from __future__ import annotations
 
@@ -13,7 +11,7 @@ import numpy as np
 
 from graphloc.names import check_name, out_path, safe_name
 from graphloc.manifest import write_manifest
-from graphloc.records import LANDMARK_PREFIX, columns
+from graphloc.records import LANDMARK_COLUMNS, LANDMARK_PREFIX, columns
 from graphloc.textio import SkipReport
 
 
@@ -76,11 +74,8 @@ class PlanarRun:
     def end_time(self) -> float:
         return float(min(od[-1, 0] for od in self.odometry if len(od)))
 
-    def duration(self) -> float:
-        return self.end_time - self.start_time
 
-
-def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Path:
+def write_planar_run(run: PlanarRun, root: str | Path) -> Path:
     """Write `run` as a graphloc log directory (manifest.json + robot tables + landmarks.csv)."""
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
@@ -135,7 +130,7 @@ def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Pa
                         "name": "camera",
                         "type": "range_bearing",
                         "extrinsics": [0.0, 0.0, 0.0],
-                        "params": dict(sensor_sigmas or {}),
+                        "params": {},
                     },
                 ],
                 "tables": tables,
@@ -143,7 +138,7 @@ def write_planar_run(run: PlanarRun, root: str | Path, sensor_sigmas=None) -> Pa
         )
     write_csv(
         root / "landmarks.csv",
-        ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"],
+        LANDMARK_COLUMNS,
         [
             (int(i), f"{p[0]:.8g}", f"{p[1]:.8g}", "0", f"{s[0]:.3g}", f"{s[1]:.3g}", "0")
             for i, p, s in zip(run.landmark_ids, run.landmark_xy, run.landmark_sigma)

@@ -1,8 +1,5 @@
-"""The manifest of a graphloc log directory (`manifest.json`, docs/log_format.md): robots,
-sensors with extrinsics, table paths, landmarks. `read_manifest` checks every field and names
-manifest and field in its errors; every path it holds is confined to the run directory (no
-absolute path, no '..', no symbolic link out of the run: `graphloc.textio.confined`).
-"""
+"""The manifest of a graphloc log (`manifest.json`, docs/log_format.md): `read_manifest` checks
+every field, names manifest and field in its errors and confines every path to the run."""
 
 from __future__ import annotations
 
@@ -185,11 +182,7 @@ def read_manifest(root: str | Path) -> Manifest:
     data = read_json(path, what="log manifest")
     if not isinstance(data, dict):
         raise ValueError(f"{path}: the manifest must be a JSON object, got {type(data).__name__}")
-    for key, kind in (("robots", list), ("landmarks", dict), ("meta", dict)):
-        if data.get(key) is not None and not isinstance(data[key], kind):
-            raise ValueError(
-                f"{path}: field '{key}' must be a JSON {kind.__name__.replace('dict', 'object')}"
-            )
+    _check_kinds(data, path, (("robots", list), ("landmarks", dict), ("meta", dict)))
     if data.get("format") != FORMAT:
         raise ValueError(f"{path}: field 'format' must be {FORMAT!r}, got {data.get('format')!r}")
     version = data.get("version")
@@ -205,12 +198,7 @@ def read_manifest(root: str | Path) -> Manifest:
         check_name(r.get("name"), f"{where}: field 'name'")
         if not isinstance(r.get("kind", "ground"), str):
             raise ValueError(f"{where}: field 'kind' must be a string")
-        for key, kind in (("sensors", list), ("meta", dict)):
-            if r.get(key) is not None and not isinstance(r[key], kind):
-                raise ValueError(
-                    f"{where}: field '{key}' must be a JSON "
-                    f"{kind.__name__.replace('dict', 'object')}"
-                )
+        _check_kinds(r, where, (("sensors", list), ("meta", dict)))
         sensors = []
         for j, s in enumerate(r.get("sensors") or []):
             if not isinstance(s, dict):
@@ -326,6 +314,15 @@ def read_manifest(root: str | Path) -> Manifest:
             f"{path}: field 'start_time' must be a number within +-{MAX_TIME:g} s, got {start!r}"
         )
     return Manifest(root, name, tuple(robots), lm, start, dict(data.get("meta") or {}))
+
+
+def _check_kinds(data: dict, where, kinds) -> None:
+    """ValueError naming `where` and the field unless each (field, type) given is of its type."""
+    for key, kind in kinds:
+        if data.get(key) is not None and not isinstance(data[key], kind):
+            raise ValueError(
+                f"{where}: field '{key}' must be a JSON {kind.__name__.replace('dict', 'object')}"
+            )
 
 
 def _name(value) -> bool:

@@ -1,18 +1,6 @@
-"""`graphloc smooth` / `online` over many runs: `graphloc smooth RUN1 RUN2 ... --out DIR`
-(also a quoted glob, or `--runs FILE` with one run per line) solves each run as one task of
-`graphloc.executor.Executor` (`--backend local|ray`, `--workers N`, `--address auto|HOST:PORT`)
-into DIR/<run name>/ (the single-run outputs, docs/outputs.md, plus the verb's printed summary
-in log.txt), and writes the aggregate report: DIR/runs.csv and runs.md (one row per run:
-status, error, ATE per robot, decisions, wall time), runs.json and runs_summary.png.
-
-Each run's result is cached under DIR/.cache (or `--cache DIR`) by the content hash of the
-run's files, the effective options (and the --config file's bytes) and graphloc's code version,
-so a re-run skips the runs already solved with the same inputs. A run that fails (bad input, a
-solver error) is reported with its error; the others finish. Exit code (graphloc.exitcodes):
-RUNS_FAILED when a run failed, else INCOMPLETE when a run was stopped early (partial), else OK.
-
-The verb itself (`graphloc.commands.smooth.run_verb`) is handed in by the caller, so this
-module does not import the commands."""
+"""`graphloc smooth` / `online` over many runs (several paths, a glob or `--runs FILE`): each run
+one `Executor` task into DIR/<run name>/, cached by content hash, and the aggregate report
+runs.csv, runs.md, runs.json, runs_summary.png (docs/outputs.md)."""
 
 from __future__ import annotations
 
@@ -126,18 +114,22 @@ def _solve_one(item: tuple) -> dict:
     with open(out / "log.txt", "w") as log, contextlib.redirect_stdout(log):
         code = verb(args, mode, None)
     metrics = json.loads((out / "metrics.json").read_text())
-    ate = {
-        name: v[mode]["ate_rmse"]
-        for name, v in metrics["per_robot"].items()
-        if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]
-    }
     return {
         "status": "partial" if code == INCOMPLETE else "ok",
         "robots": len(metrics["per_robot"]),
-        "ate_rmse_m": ate,
+        "ate_rmse_m": ate_by_robot(metrics, mode),
         "committed": metrics["decisions"]["committed"],
         "wrong": metrics["decisions"]["wrong"],
         "realtime_factor": round(metrics["realtime_factor"], 2),
+    }
+
+
+def ate_by_robot(metrics: dict, mode: str) -> dict:
+    """Robot -> the estimate's ATE RMSE [m] in a run's metrics (robots without one left out)."""
+    return {
+        name: v[mode]["ate_rmse"]
+        for name, v in metrics["per_robot"].items()
+        if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]
     }
 
 

@@ -1,22 +1,5 @@
-"""Names that become parts of file names -- robots, sensors, runs -- and the one way an output
-path is built.
-
-A name read from an input (a log manifest, a bag's topics file; docs/log_format.md,
-"Names") is `check_name`d where it is read: ASCII letters, digits, `_`, `-` and `.`, not
-starting with `.`, at most `MAX_NAME` characters -- no path separator, no `..`, no NUL or
-other control character, nothing a terminal interprets. A name graphloc derives from a user's
-own file or folder name (a scan directory, a topics file without a `name`) is made one by
-`safe_name`.
-
-Every file a verb writes under its `--out` folder is named by `out_path(out, ...)`, which
-refuses (ValueError) a part that is absolute or `..` and a result that, symbolic links
-resolved, lies outside `out`: a name that slipped past its reader, or a link left in the
-folder, never moves a write elsewhere. `written_whole(path)` is where an output's bytes go:
-a temporary file beside it, renamed over it when complete, so that a reader sees one
-writer's whole file, never a mix. `claim_out(out)` holds the folder for one `graphloc` process
-(an exclusive lock on the folder itself): a second one started on the same `--out` is refused
-at once instead of mixing its files with the first one's.
-"""
+"""Names that become parts of file names (`check_name`, `safe_name`) and the one way an output
+path is built (`out_path`, `written_whole`, `claim_out`; docs/design_core.md, "Output paths")."""
 
 from __future__ import annotations
 

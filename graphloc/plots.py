@@ -1,9 +1,4 @@
-"""Generic result plots (matplotlib, Agg backend, PNG files) anyone can reuse:
-
-plot_trajectories(path, [Series("batch", xy), ...], reference=[Series("ground truth", xy)],
-                  points=landmarks)
-plot_series(path, [Series("batch robot1", t, err), ...], xlabel="time [s]", ylabel="ATE [m]")
-"""
+"""Generic result plots (matplotlib, Agg backend, PNG files): `plot_trajectories`, `plot_series`."""
 
 from __future__ import annotations
 

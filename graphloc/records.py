@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 
 LANDMARK_PREFIX = "landmark:"
+LANDMARK_COLUMNS = ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"]  # landmarks.csv
 
 # plausible range of a numeric column, by column name (a row outside it is counted as
 # "implausible", naming file, line and field): generous for any lab or field robot, tight enough

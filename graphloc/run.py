@@ -1,13 +1,5 @@
-"""The one run type every pipeline takes: `TeamRun`, a heterogeneous team's logged run in SE(3).
-
-Loaders (`graphloc.datasets.open_run`) produce it: from a graphloc log directory
-(`graphloc.datasets.graphloc_log.read_team_run`, log format versions 1 and 2), an MRCLAM
-directory (`team_run_from_planar`) or a ROS bag.
-
-Conventions: poses are `gtsam.Pose3` world_T_body; a candidate set holds poses of the observing
-sensor in the observed robot's body frame (target_T_sensor, what P3P on the target's marker
-layout returns); covariances are 6x6 in GTSAM's Pose3 tangent order (rx, ry, rz, tx, ty, tz).
-"""
+"""`TeamRun`, the one run type every pipeline takes: poses are gtsam.Pose3 world_T_body, a
+candidate set holds target_T_sensor poses, covariances are 6x6 in GTSAM's Pose3 tangent order."""
 
 from __future__ import annotations
 

@@ -1,16 +1,6 @@
-"""Types at the seam between the inputs and every estimator: the engines (`HypothesisTracker`,
-the team graph) and, in the checkout's benchmarks/ (not installed), seed 003's `CooperativeSfm`
-and the seeds' baselines (`benchmarks.baselines`) take the same inputs and return the same
-decisions, so all import them from here and none from the other.
-
-- `Odometry`, `Decision`, `check_frame`: one update of a candidate tracker (seed 000 Sec. V,
-  seed 004 Sec. II-C): the relative motion since the previous frame and the posterior over the
-  frame's P3P candidates.
-- `TeammateObservation`, `FrameInput`, `MotionNoise`: one frame of seed 003 (section II-B:
-  KLT features, the teammate's base circle, who moved; eq. 8 process noise), shared by the
-  graph (`benchmarks.cooperative_sfm`) and the seed's EKF
-  (`benchmarks.baselines.ekf_seed003`).
-"""
+"""Types shared by the engines and the checkout's baselines: a candidate tracker's update
+(`Odometry`, `Decision`; seed 000 Sec. V, seed 004 Sec. II-C) and one frame of seed 003
+(`FrameInput`, `TeammateObservation`, `MotionNoise`; Sec. II-B, eq. 8)."""
 
 from __future__ import annotations
 

@@ -1,37 +1,6 @@
-"""The estimation engine: one factor list, two ways to solve it.
-
-`Session` has one front door -- `add(factors, initial_values, time=...)`, `estimate()`,
-`marginal_covariance(key)` -- and two modes over the SAME factor list:
-
-- "batch":  gtsam.LevenbergMarquardtOptimizer over the whole graph (re-run lazily when
-  `estimate()` is asked after new factors arrived);
-- "online": gtsam.ISAM2, one incremental `update` per `add` (wall-clock latency recorded).
-
-State is saved as data, never as code: `save(path)` writes the config and the list of `add`
-steps as JSON (format "graphloc-session", version 3; the codec is `graphloc.session_codec`,
-the file format `graphloc.datafile`): every factor as its GTSAM type name, keys, measurement
-and noise model (the built-in factors graphloc uses), every Values entry as numbers, and
-Python-side factor providers such as `MaxMixture` as the components and weights that rebuild
-them (`save_state` / `from_state`). Loading parses JSON and calls GTSAM constructors on checked
-numbers only: no pickle, no Boost archive (GTSAM's `deserialize` crashes the interpreter on a
-corrupted archive). The file is written atomically (temporary file, fsync, rename) with a
-SHA-256 of its body: a failure midway leaves the previous file intact, and a truncated or
-altered file is a ValueError naming the file.
-`Session.load(path)` rebuilds the graph and, in online mode, replays the steps into a fresh
-iSAM2 with the same parameters, which reproduces the estimates exactly (iSAM2 is deterministic
-given the same update sequence; a 3-D bearing (Unit3) is re-normalized on load, which can move
-it by 1 ulp).
-
-Example (GTSAM-example style: explicit keys, one graph, one optimizer):
-
-    from graphloc.keys import pose_key
-    s = Session(SessionConfig(mode="online"))
-    g = gtsam.NonlinearFactorGraph()
-    g.add(gtsam.PriorFactorPose2(pose_key(0, 0), gtsam.Pose2(), noise))
-    v = gtsam.Values(); v.insert(pose_key(0, 0), gtsam.Pose2())
-    s.add(g, v, time=0.0)
-    s.estimate().atPose2(pose_key(0, 0))
-"""
+"""The estimation engine: one factor list solved in batch (Levenberg-Marquardt, re-run lazily when
+`estimate()` follows new factors) or online (iSAM2, one update per `add`), saved and loaded as
+checked JSON (`graphloc.session_codec`; docs/design_core.md, "Saved sessions")."""
 
 from __future__ import annotations
 
@@ -82,10 +51,8 @@ class _Record:
 
 
 def _as_items(factors) -> list:
-    """The factors of one `add` call as a list. A *factor provider* -- an object with a `factor`
-    attribute holding a gtsam factor, such as `graphloc.factors.mixture.MaxMixture` -- is kept as
-    itself so that `save` can pickle what rebuilds it (GTSAM cannot serialize a Python
-    CustomFactor)."""
+    """The factors of one `add` call as a list; a factor provider (an object with a `factor`
+    attribute, e.g. `MaxMixture`) is kept as itself, so that `save` can write what rebuilds it."""
     if isinstance(factors, gtsam.NonlinearFactorGraph):
         return [factors.at(i) for i in range(factors.size()) if factors.exists(i)]
     return list(factors)
@@ -112,8 +79,7 @@ class Session:
         self.initial = gtsam.Values() if config.mode == "batch" else None
         self.steps: list[Step] = []
         self._records: list[_Record] = []  # what `save` writes (config.keep_steps)
-        self._n_variables = 0  # variables ever added
-        self._keys: set = set()  # ... their keys (`_known`: a set lookup, no solver call)
+        self._keys: set = set()  # the keys of every variable ever added
         self._last_time = -np.inf
         self._batch_estimate: gtsam.Values | None = None
         self._batch_marginals: gtsam.Marginals | None = None
@@ -158,11 +124,9 @@ class Session:
         initial_values: gtsam.Values,
         time: float | None = None,
     ) -> Step:
-        """Append `factors` (a NonlinearFactorGraph or iterable of factors) and the initial guess of
-        the variables they introduce. `time` must not go backwards (None: same as the previous
-        step). Every key a factor touches must be known already or be in `initial_values`; keys in
-        `initial_values` must be new. A system GTSAM cannot solve (e.g. an unconstrained variable)
-        raises ValueError."""
+        """Append `factors` and the initial guess of the variables they introduce at `time`
+        (None: the previous step's; never backwards). ValueError for new keys already known,
+        factors on unknown or marginalized keys, or a system GTSAM cannot solve."""
         items = _as_items(factors)
         graph = _as_graph(items)
         if time is None:  # same time as the previous step (0 for the first)
@@ -214,7 +178,6 @@ class Session:
         self.graph.push_back(graph)
         if self.initial is not None:
             self.initial.insert(initial_values)
-        self._n_variables += len(new_keys)
         self._keys |= new_keys
         self._batch_estimate = self._batch_marginals = None
         self._last_time = t
@@ -302,13 +265,8 @@ class Session:
                 f"GTSAM cannot compute it ({_first_line(exc)})"
             ) from None
 
-    def _known(self, key: int) -> bool:
-        """Whether `key` was added (batch: it has an initial guess; online: iSAM2 holds it or
-        the fixed lag marginalized it)."""
-        return key in self._keys
-
     def _check_known(self, keys: list, what: str) -> None:
-        unknown = [key_name(k) for k in keys if not self._known(k)]
+        unknown = [key_name(k) for k in keys if k not in self._keys]
         if unknown:
             raise ValueError(f"Session.{what}: no variable {unknown[:5]} in this session")
 
@@ -323,7 +281,7 @@ class Session:
 
     def live_variables(self) -> int:
         """Variables the solver holds: all of them, or (fixed lag) those inside the lag."""
-        return len(self._window.touched) if self.fixed_lag else self._n_variables
+        return len(self._window.touched) if self.fixed_lag else len(self._keys)
 
     def error(self, values: gtsam.Values | None = None) -> float:
         """Total graph error (0.5 * sum of whitened, robustified squared residuals)."""

@@ -1,9 +1,6 @@
-"""The JSON codec of saved sessions (`graphloc.session.Session.save` / `load`): GTSAM's built-in
-factors graphloc uses (`FACTOR_TYPES`) and factor providers such as
-`graphloc.factors.mixture.MaxMixture`, one added step at a time; their measurements, noise models
-and Values entries are `graphloc.value_codec`'s. Decoding checks every number and calls GTSAM
-constructors only: no pickle, no Boost archive (GTSAM's `deserialize` crashes the interpreter on
-a corrupted archive). Errors on decode are `BadData` naming the step, item and field."""
+"""The JSON codec of saved sessions: GTSAM's built-in factors graphloc uses and factor providers
+(`MaxMixture`), rebuilt from checked numbers by GTSAM constructors only (no pickle, no Boost
+archive); decode errors are `BadData` naming the step, item and field."""
 
 from __future__ import annotations
 
@@ -16,6 +13,7 @@ from graphloc.datafile import BadData, read_data_file, write_data_file
 from graphloc.session_config import config_from_dict
 from graphloc.factors.mixture import MaxMixture
 from graphloc.value_codec import (
+    KINDS,
     checked_numbers,
     decode_measurement,
     decode_noise,
@@ -182,16 +180,7 @@ def _decode_factor(raw, where: str):
             factor = _make_factor(name, keys, measured, noise)
     except (RuntimeError, TypeError) as exc:  # e.g. a noise dimension the factor does not have
         raise BadData(f"{where}: GTSAM rejected the {name} ({exc})") from None
-    want = {
-        "pose2": 3,
-        "pose3": 6,
-        "rot2": 1,
-        "rot3": 3,
-        "unit3": 2,
-        "double": 1,
-        "bearing_range_2d": 2,
-        "bearing_range_3d": 3,
-    }.get(kind, len(raw["measured"]))
+    want = KINDS[kind][1] if kind in KINDS else len(raw["measured"])
     if noise.dim() != want:  # a mismatch GTSAM would not notice could corrupt memory
         raise BadData(
             f"{where}: {name} has an error of dimension {want}, its noise model {noise.dim()}"
@@ -252,11 +241,8 @@ def decode_step(raw, where: str) -> tuple[float, list, gtsam.Values]:
 
 
 def save_session(session, path, fmt: str, version: int) -> None:
-    """`Session.save`: config + every step to `path` as versioned JSON, atomically (the
-    `graphloc.session` module docstring). A bare gtsam.CustomFactor cannot be saved: add the
-    provider that builds it (e.g. a `MaxMixture` object rather than its `.factor`). ValueError
-    names the step and factor that cannot be written, or says that the session keeps no steps
-    (`SessionConfig.keep_steps` False)."""
+    """`Session.save`: config + every step as versioned JSON, atomically; ValueError names the
+    step and factor that cannot be written (a bare CustomFactor: add its provider instead)."""
     if not session.config.keep_steps:
         raise ValueError(
             "Session.save: this session keeps no steps (SessionConfig.keep_steps=False: "

@@ -15,40 +15,10 @@ MODES = ("batch", "online")
 
 @config_dataclass
 class SessionConfig:
-    """mode: "batch" (Levenberg-Marquardt) or "online" (iSAM2).
-
-    LM: lm_max_iterations, lm_relative_error_tol, lm_absolute_error_tol.
-    iSAM2: relinearize_threshold (on the delta of any variable), relinearize_translation (> 0:
-    this threshold [m] on the translation of Pose3 variables and on Point3 variables,
-    relinearize_threshold on the rotation only -- iSAM2's per-symbol threshold map, so every
-    key must then be a Pose3 'x' / 's' or a Point3 'l' / 'k' / 'q', `THRESHOLD_SYMBOLS`),
-    relinearize_skip (relinearize every N updates), extra_updates (additional `update()` calls
-    after each add, to converge further), factorization ("CHOLESKY" or "QR"),
-    wildfire_threshold (back-substitution stops where the solution changes less than this),
-    partial_relinearization_check (only check the variables of re-eliminated cliques for
-    relinearization), isam2_optimizer: "gauss_newton"
-    (iSAM2's default step) or "dogleg" (Powell's dog leg with an adaptive trust region: a
-    step that would raise the error is shortened, which stops the period-2 oscillation an
-    undamped step can fall into on stiff graphs).
-    lag [s]: online only; 0 keeps every variable (full smoothing); > 0 is a fixed lag: iSAM2
-    that marginalizes, with `ISAM2::marginalizeLeaves`, every variable added more than `lag`
-    seconds (of the add times) before the newest (`graphloc.fixed_lag`: a constrained ordering
-    by add time keeps those variables leaves of the Bayes tree, so no re-elimination is
-    needed; iSAM2 reuses the factor slots marginalization empties, `findUnusedFactorSlots`,
-    else its factor list and a long run's per-step cost grow): the tree and the per-step cost
-    stay bounded; a marginalized variable keeps its
-    last estimate, and a factor on one is refused (`Session.add` raises ValueError;
-    `Session.marginalized` tells first). A variable's stamp is its add time and is not renewed
-    when later factors touch it, so long-lived variables (a static robot's pose, a SLAM
-    landmark) leave the window too. marginalize_every [s] (0: `lag`): stamps are add times
-    rounded down to a multiple of it; old variables leave in one batch every
-    `marginalize_every` seconds (the window spans `lag` to `lag + marginalize_every`), and
-    every update orders one group per live stamp.
-    keep_steps: keep every `add` step (its factors and initial values) so that `Session.save`
-    can write the session; False: the session keeps only what its solver needs (online: iSAM2's
-    window and the marginalized variables' last estimates; batch: the graph and initial guess),
-    so a long fixed-lag run grows only by those estimates, and `save` raises ValueError.
-    """
+    """The solver of a `Session` and its parameters: "batch" (Levenberg-Marquardt, the `lm_*`
+    fields) or "online" (iSAM2: relinearization, factorization, wildfire, step), `lag` /
+    `marginalize_every` [s] for a fixed-lag window (`graphloc.fixed_lag`), `keep_steps` for
+    `Session.save`; each field in docs/design_core.md, "Session options"."""
 
     mode: Literal[MODES] = "batch"
     lm_max_iterations: int = setting(100, ge=1, le=100_000)

@@ -1,19 +1,6 @@
-"""Structured files -- JSON, YAML, TOML -- read one way and written one way.
-
-Reading (every manifest, topics file, config file, saved session / tracker / checkpoint body
-and `--p3p` setup goes through here): the file is opened through `graphloc.textio` (a regular,
-readable file; UTF-8 with an optional byte-order mark, a bad byte named by line and column),
-refused beyond a size (`MAX_TEXT_BYTES` for files a user writes, `MAX_DATA_BYTES` for files
-graphloc writes), parsed, and refused when nested deeper than `MAX_DEPTH` levels or holding
-more than `MAX_VALUES` values (YAML aliases count every time they are used, so an alias bomb
-is refused, not expanded). Every refusal is a ValueError naming the file (`BadStructure`);
-a parser's own RecursionError never reaches the caller. Nothing in a file is ever executed
-(`yaml.safe_load`, `json`, `tomllib`).
-
-Writing: `dumps_json` is the one JSON encoder of the package's outputs (reports, metrics,
-manifests, data files): NumPy scalars and arrays become JSON numbers, booleans and lists,
-paths strings.
-"""
+"""JSON, YAML and TOML files read one way (size, nesting and value count bounded, nothing
+executed; every refusal a `BadStructure` naming the file) and JSON written one way
+(`dumps_json`: NumPy values and paths as JSON)."""
 
 from __future__ import annotations
 
@@ -54,9 +41,7 @@ def _walk(obj, where: str, what: str, max_values: int) -> None:
         else:
             continue
         if depth > MAX_DEPTH:
-            raise BadStructure(
-                f"{where}: {what} nested deeper than {MAX_DEPTH} levels, more than graphloc reads"
-            )
+            raise _too_deep(where, what)
         stack.extend((child, depth + 1) for child in children)
 
 
@@ -120,38 +105,21 @@ def read_json(path, what: str = "JSON file", max_bytes: int = MAX_TEXT_BYTES, al
     return parse_json(_sized_text(path, what, max_bytes), str(path), what, allow_nan)
 
 
-def _plain(obj):
-    np = sys.modules.get("numpy")  # not imported: no NumPy value can exist (a light import)
-    if np is not None and isinstance(obj, np.generic):
-        return obj.item()
-    if np is not None and isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"Object of type {type(obj).__name__} is not JSON serializable")
-
-
 def dumps_json(obj, *, default=None, **kwargs) -> str:
     """`json.dumps` with NumPy scalars and arrays as JSON values and paths as strings (then
     `default`, if given, for anything else)."""
 
     def fallback(value):
-        try:
-            return _plain(value)
-        except TypeError:
-            if default is None:
-                raise
-            return default(value)
+        np = sys.modules.get("numpy")  # not imported: no NumPy value can exist (a light import)
+        if np is not None and isinstance(value, (np.generic, np.ndarray)):
+            return value.tolist()
+        if isinstance(value, Path):
+            return str(value)
+        if default is None:
+            raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
+        return default(value)
 
     return json.dumps(obj, default=fallback, **kwargs)
-
-
-def write_json(path, obj, **kwargs) -> Path:
-    """`obj` as a JSON file (`dumps_json`, indented) ending in a newline."""
-    path = Path(path)
-    kwargs.setdefault("indent", 1)
-    path.write_text(dumps_json(obj, **kwargs) + "\n")
-    return path
 
 
 # ---- YAML, TOML ---------------------------------------------------------------------------------

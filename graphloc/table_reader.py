@@ -1,11 +1,6 @@
-"""Reading one table of a graphloc log (docs/log_format.md): its header checked, its data
-lines (blank and '#' lines left out) in blocks of the file (`graphloc.textio.text_blocks`),
-every row validated -- field count, number parsing, NaN / inf, plausible range, time
-non-decreasing, known sensor of the right type, known target, a `scans` path inside the run --
-CHUNK_ROWS rows at a time with NumPy (`iter_table_chunks`), each bad row raised or counted with
-its file, line and field. `graphloc.io.iter_table` makes records of the accepted rows; a reader
-of a large table (`markers`) takes the columns as they are.
-"""
+"""Reading one table of a graphloc log: header checked, rows validated CHUNK_ROWS at a time with
+NumPy (field count, numbers, plausible range, time order, sensors, targets, scan paths), each
+bad row raised or counted with its file, line and field."""
 
 from __future__ import annotations
 
@@ -50,83 +45,58 @@ def iter_table_chunks(
     report: SkipReport | None = None,
     landmark_ids: set | None = None,
 ) -> Iterator[dict]:
-    """The rows of one robot's table that pass every row check, in file order, as columns:
-    dicts of column name -> float64 / int64 array or list of str, plus `line` (int64), for up
-    to CHUNK_ROWS rows at a time (validated with NumPy, a row's first problem being the one
-    reported). Checks: header, field count, number parsing, NaN/inf, plausible range, time
-    non-decreasing (against the last accepted row), known sensor of the right type, known
-    target, a `scans` path inside the run; a bad row raises (on_error="raise") or is counted
-    in `report` by reason with its file, line and field (on_error="raise": the rows before the
-    first bad row are yielded first)."""
-    sink = Sink(on_error, report)
-    cls = TABLES[table]
-    cols = columns(table)
-    convs = {f.name: _converter(f.type) for f in fields(cls)}
-    path = manifest.root / robot.tables[table]
+    """The rows of one robot's table that pass every row check, in file order, as columns (name ->
+    array or list, plus `line`), CHUNK_ROWS at a time; a bad row raises (on_error="raise", after
+    the rows before it) or is counted in `report` with its file, line and field."""
+    checker = LineChecker(manifest, robot, table, report, landmark_ids, on_error)
+    path = checker.path
     if not check_file(path, required=False):
         raise FileNotFoundError(
             f"{path}: table {table!r} of robot {robot.name!r} listed in manifest but missing"
         )
-    state = {"last_time": -math.inf}
     batch: list = []
-    for block in _data_blocks(path, cols):
+    for block in _data_blocks(path, checker.cols):
         batch += block
         while len(batch) >= CHUNK_ROWS:
             part, batch = batch[:CHUNK_ROWS], batch[CHUNK_ROWS:]
-            chunk = _chunk(part, manifest, robot, table, cols, convs, sink, landmark_ids, state)
-            yield from _then_raise(chunk, state)
+            yield from _then_raise(checker.chunk(part), checker.state)
     if batch:
-        chunk = _chunk(batch, manifest, robot, table, cols, convs, sink, landmark_ids, state)
-        yield from _then_raise(chunk, state)
+        yield from _then_raise(checker.chunk(batch), checker.state)
 
 
 class LineChecker:
-    """The row checks of `iter_table_chunks` for lines that arrive a few at a time (a table a
-    logger is still writing: `graphloc.live.tail`): `header(text)` checks the header line,
-    `rows(batch)` validates [(line number, text)] of data lines against the rows before them
-    (time non-decreasing) and returns the accepted rows as column -> value mappings with
-    `line`; a bad row is counted in `report` naming file, line and field."""
+    """The row checks of one table (`iter_table_chunks`; `live.tail`, whose lines arrive a few at
+    a time): `header(text)`, then `chunk(batch)` of (line number, text) -> accepted columns, or
+    `rows(first_line, texts)` -> accepted rows as mappings."""
 
-    def __init__(self, manifest, robot, table, report: SkipReport, landmark_ids=None):
-        self.args = (manifest, robot, table)
+    def __init__(self, manifest, robot, table, report, landmark_ids=None, on_error="skip"):
         self.cols = columns(table)
-        self.convs = {f.name: _converter(f.type) for f in fields(TABLES[table])}
-        self.sink = Sink("skip", report)
-        self.landmark_ids = landmark_ids
-        self.state = {"last_time": -math.inf}
         self.path = manifest.root / robot.tables[table]
+        self.state = {"last_time": -math.inf}
+        convs = {f.name: _converter(f.type) for f in fields(TABLES[table])}
+        sink = Sink(on_error, report)
+        self._args = (manifest, robot, table, self.cols, convs, sink, landmark_ids, self.state)
 
     def header(self, text: str) -> None:
         """ValueError naming the file and line 1 unless `text` is the table's header."""
-        header = _header(self.path, text, self.cols)
-        if header != self.cols:
-            raise ValueError(
-                f"{self.path}: line 1: header must be {','.join(self.cols)}, got "
-                f"{shown(','.join(header))}"
-            )
+        _check_header(self.path, text, self.cols)
+
+    def chunk(self, batch: list) -> dict:
+        return _chunk(batch, *self._args)
 
     def rows(self, first_line: int, texts: list[str]) -> list[dict]:
         batch = _data_only(first_line, texts)
         if not batch:
             return []
-        manifest, robot, table = self.args
-        chunk = _chunk(
-            batch,
-            manifest,
-            robot,
-            table,
-            self.cols,
-            self.convs,
-            self.sink,
-            self.landmark_ids,
-            self.state,
-        )
-        names = [c for c in chunk if c != "line"]
-        values = [chunk[c] if isinstance(chunk[c], list) else chunk[c].tolist() for c in names]
-        return [
-            {"line": line, **dict(zip(names, row))}
-            for line, *row in zip(chunk["line"].tolist(), *values)
-        ]
+        return [{"line": line, **row} for line, row in chunk_rows(self.chunk(batch))]
+
+
+def chunk_rows(chunk: dict) -> Iterator[tuple[int, dict]]:
+    """(line, {column: value}) of every row of a chunk of columns."""
+    names = [c for c in chunk if c != "line"]
+    values = [chunk[c] if isinstance(chunk[c], list) else chunk[c].tolist() for c in names]
+    for line, *row in zip(chunk["line"].tolist(), *values):
+        yield line, dict(zip(names, row))
 
 
 def _then_raise(chunk: dict, state: dict) -> Iterator[dict]:
@@ -354,11 +324,7 @@ def _data_blocks(path: Path, cols: list[str]):
     """`data_lines` in lists, a block of the file at a time."""
     blocks = text_blocks(path)
     first_line, texts = next(blocks, (1, [""]))
-    header = _header(path, texts[0] if texts else "", cols)
-    if header != cols:
-        raise ValueError(
-            f"{path}: line 1: header must be {','.join(cols)}, got {shown(','.join(header))}"
-        )
+    _check_header(path, texts[0] if texts else "", cols)
     yield _data_only(first_line + 1, texts[1:])
     for first_line, texts in blocks:
         yield _data_only(first_line, texts)
@@ -373,11 +339,16 @@ def _data_only(first_line: int, texts: list[str]) -> list:
     ]
 
 
-def _header(path: Path, text: str, cols: list[str]) -> list[str]:
+def _check_header(path: Path, text: str, cols: list[str]) -> None:
+    """ValueError naming the file and line 1 unless `text` is the header `cols`."""
     try:
-        return [h.strip() for h in csv_fields(text)]
+        header = [h.strip() for h in csv_fields(text)]
     except ValueError as exc:
         raise ValueError(f"{path}: line 1: header: {exc}") from None
+    if header != cols:
+        raise ValueError(
+            f"{path}: line 1: header must be {','.join(cols)}, got {shown(','.join(header))}"
+        )
 
 
 def known_target(target: str, robots: set, landmark_ids: set | None) -> bool:

@@ -1,10 +1,5 @@
-"""Reading input files safely: the one place where a reader checks that a file is a readable
-regular file, decodes UTF-8 (optional byte-order mark) naming file, line and column on a bad
-byte, splits CSV lines (a field longer than the csv module's limit is a reported problem of
-that line and field, not a `_csv.Error`), keeps paths named by a manifest inside the run
-directory, and counts what it does not use (`SkipReport`). Used by the log reader
-(`graphloc.io`), the MRCLAM reader and the point-cloud reader.
-"""
+"""Reading input files safely: a readable regular file, UTF-8 (a bad byte named by line and
+column), CSV fields of any length, manifest paths confined to the run, and `SkipReport`."""
 
 from __future__ import annotations
 

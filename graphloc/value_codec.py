@@ -1,8 +1,5 @@
-"""Checked numbers for GTSAM objects, the layer under the session codec
-(`graphloc.session_codec`): measurements and Values entries (Pose2, Pose3, Rot2, Rot3, Unit3,
-bearing-range pairs, vectors), noise models with robust kernels, and key names. Decoding checks
-every number (unit rotations and directions, positive sigmas, upper-triangular square-root
-information) before it calls a GTSAM constructor; errors are `BadData` naming the field."""
+"""Checked numbers for GTSAM measurements, Values entries and noise models, the layer under
+`graphloc.session_codec`; decode errors are `BadData` naming the field."""
 
 from __future__ import annotations
 
@@ -34,20 +31,21 @@ def encode_measurement(kind: str, m) -> list:
     return np.asarray(m, dtype=float).ravel().tolist()  # vector
 
 
-_MEASUREMENT_SIZES = {
-    "pose2": 4,
-    "rot2": 2,
-    "pose3": 16,
-    "rot3": 9,
-    "unit3": 3,
-    "double": 1,
-    "bearing_range_2d": 3,
-    "bearing_range_3d": 4,
+# measurement kind -> (numbers it is written as, dimension of its error); a vector: its length
+KINDS = {
+    "pose2": (4, 3),
+    "rot2": (2, 1),
+    "pose3": (16, 6),
+    "rot3": (9, 3),
+    "unit3": (3, 2),
+    "double": (1, 1),
+    "bearing_range_2d": (3, 2),
+    "bearing_range_3d": (4, 3),
 }
 
 
 def decode_measurement(kind: str, v: list, where: str):
-    want = _MEASUREMENT_SIZES.get(kind)
+    want = KINDS.get(kind, (None,))[0]
     if (want is not None and len(v) != want) or (want is None and not v):
         raise BadData(f"{where}: a {kind} measurement needs {want or '>= 1'} numbers, got {len(v)}")
     if kind == "pose2":
@@ -191,18 +189,16 @@ def decode_noise(raw, where: str, depth: int = 0):
     raise BadData(f"{where}: unknown noise model {sorted(raw)}")
 
 
+# the kinds of Values entries a session saves, tried in this order (getter: `at` + Kind)
+VALUE_KINDS = ("pose3", "pose2", "rot3", "rot2", "vector")
+
+
 def encode_values(values: gtsam.Values, where: str) -> list:
     out = []
     for key in values.keys():
-        for kind, get in (
-            ("pose3", values.atPose3),
-            ("pose2", values.atPose2),
-            ("rot3", values.atRot3),
-            ("rot2", values.atRot2),
-            ("vector", values.atVector),
-        ):
+        for kind in VALUE_KINDS:
             try:
-                value = get(key)
+                value = getattr(values, "at" + kind.capitalize())(key)
             except RuntimeError:
                 continue
             numbers = encode_measurement(kind, value)
@@ -227,7 +223,7 @@ def decode_values(raw, where: str) -> gtsam.Values:
             isinstance(entry, list)
             and len(entry) == 3
             and is_key(entry[0])
-            and entry[1] in ("pose3", "pose2", "rot3", "rot2", "vector")
+            and entry[1] in VALUE_KINDS
         ):
             raise BadData(f"{where}: a value must be [key, kind, numbers], got {str(entry)[:80]}")
         key, kind, numbers = entry

@@ -33,13 +33,13 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.cli import main as graphloc_main
-from graphloc.executor import Executor, default_backend
 from graphloc.structured import dumps_json
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: benchmarks/
 
 from benchmarks.markdown import write_report  # noqa: E402
 from benchmarks.render import render  # noqa: E402
+from benchmarks.trials import TrialExecutor, default_backend  # noqa: E402
 
 CONFIGS = [("local", 1), ("local", 2), ("ray", 1), ("ray", 2)]
 SCENARIO = "feng-probabilistic"
@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> dict:
     ]
     todo = [it for it in items if not (Path(it[1]) / "manifest.json").is_file()]
     t0 = time.perf_counter()
-    with Executor(2, progress=True) as ex:  # the set-up: simulated logs
+    with TrialExecutor(2, progress=True) as ex:  # the set-up: simulated logs
         list(ex.imap(_simulate, todo, desc="simulate"))
     simulate_s = time.perf_counter() - t0
     runs = [it[1] for it in items]

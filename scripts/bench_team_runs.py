@@ -13,7 +13,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: benchmarks/
 
-from graphloc.executor import BACKENDS, default_backend  # noqa: E402
+from benchmarks.trials import default_backend  # noqa: E402
+from graphloc.executor import BACKENDS  # noqa: E402
 from benchmarks import team_runs, team_runs_report  # noqa: E402
 
 

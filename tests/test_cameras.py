@@ -51,8 +51,6 @@ def test_pinhole_from_fov_seed_settings():
     # the left and right image borders are at +-45 deg
     pixels, visible = cam.bearing_to_pixel(np.array([[1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]]))
     np.testing.assert_allclose(pixels[:, 0], [375.5 + 376.0, 375.5 - 376.0])
-    diag = PinholeCamera.from_fov(640, 480, math.pi / 2, axis="diagonal")
-    assert diag.fx == pytest.approx(400.0)
 
 
 def test_pinhole_visibility_mask():
@@ -121,8 +119,6 @@ def test_wrong_shapes_name_the_argument():
             model.project(np.zeros((2, 2)))
     with pytest.raises(ValueError, match="fov"):
         PinholeCamera.from_fov(640, 480, math.pi)
-    with pytest.raises(ValueError, match="axis"):
-        PinholeCamera.from_fov(640, 480, 1.0, axis="sideways")
     with pytest.raises(ValueError, match="points"):
         check_rows([["a", "b"]], 2, "points")
 

@@ -1,6 +1,6 @@
 """graphloc.executor and graphloc.many_runs (issue 19): results in item order whatever the
 backend and worker count, a failing task reported while the others finish, the content-hash
-cache, shared inputs, many runs through `graphloc smooth`; and (slow, needs Ray) a local Ray
+cache, many runs through `graphloc smooth`; and (slow, needs Ray) a local Ray
 instance with 2 CPUs giving the same numbers as the local pool on a small sweep of simulated
 runs and quick reproductions."""
 
@@ -13,16 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from benchmarks.trials import TaskFailed, TrialExecutor, default_backend
 from graphloc.cli import main
-from graphloc.executor import (
-    Executor,
-    ResultCache,
-    TaskFailed,
-    _probe,
-    content_hash,
-    default_backend,
-    task_seed,
-)
+from graphloc.executor import Executor, ResultCache, _probe, content_hash
 
 
 def _noisy_sum(item: tuple[int, int]) -> float:
@@ -33,12 +26,12 @@ def _noisy_sum(item: tuple[int, int]) -> float:
     return float(np.random.default_rng(seed).normal(size=100).sum())
 
 
-def _with_shared(x: int, shared: np.ndarray) -> float:
-    return float(x * shared.sum())
+def _square(x: int) -> int:
+    return x * x
 
 
 def _items(n: int = 6) -> list[tuple[int, int]]:
-    return [(i, task_seed(7, i)) for i in range(n)]
+    return [(i, 7000 + i) for i in range(n)]
 
 
 @pytest.mark.parametrize("workers", [1, 2])
@@ -61,19 +54,17 @@ def test_map_keeps_item_order_reports_failures_and_caches(tmp_path, workers):
     assert [o.value for o in again] == expected and not again[3].ok
 
 
-def test_imap_raises_naming_the_task_and_shares_one_input():
-    with Executor(2, progress=False) as ex:
+def test_imap_keeps_item_order_and_raises_naming_the_task():
+    with TrialExecutor(2, progress=False) as ex:
         with pytest.raises(TaskFailed, match=r"task 3 \(\(3, .*ValueError: trial 3"):
             list(ex.imap(_noisy_sum, _items()))
-        shared = np.arange(1000.0)
-        two = list(ex.imap(_with_shared, range(5), shared=shared))
-    with Executor(1, progress=False) as ex:
-        one = list(ex.imap(_with_shared, range(5), shared=shared))
-    assert two == one == [x * shared.sum() for x in range(5)]
+        two = list(ex.imap(_square, range(5)))
+    with TrialExecutor(1, progress=False) as ex:
+        one = list(ex.imap(_square, range(5)))
+    assert two == one == [x * x for x in range(5)]
 
 
-def test_seeds_hashes_and_options_are_checked(tmp_path):
-    assert task_seed(1, 2) == task_seed(1, 2) != task_seed(1, 3)
+def test_hashes_and_options_are_checked(tmp_path):
     f = tmp_path / "run" / "a.csv"
     f.parent.mkdir()
     f.write_text("1,2\n")
@@ -205,7 +196,7 @@ def task(x):
 
 if __name__ == "__main__":
     with Executor(2, progress=False) as ex:
-        print(list(ex.imap(task, [1, 2, 3])))
+        print([o.value for o in ex.map(task, [1, 2, 3])])
 """
 
 

@@ -1,16 +1,12 @@
-"""The options every verb takes, added to each verb's parser by `graphloc.cli`: `-v` / `-q`
-and `--no-progress` (`--version` is the program's, `--config FILE` each verb's own, derived
-from its config dataclass).
-
-    -v, --verbose    the effective options and the wall time on stderr; -vv: debug logging
-    -q, --quiet      only errors: no summary on stdout, no progress bars, no output folder line
-    --no-progress    no progress bars
-"""
+"""The options every verb takes: `-v` / `-q` and `--no-progress`."""
 
 from __future__ import annotations
 
 import argparse
 import logging
+import sys
+
+from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, OK
 
 LOG = logging.getLogger("graphloc")
 
@@ -52,3 +48,16 @@ def configure_logging(verbose: int) -> None:
     LOG.setLevel(level)
     if verbose >= 2:
         logging.getLogger().setLevel(logging.DEBUG)
+
+
+def verdict_exit(verb: str, args, verdict: dict, partial: bool, strict: bool) -> int:
+    """The consistency verdict's lines on stderr (unless -q), then the verb's exit code:
+    INCOMPLETE for a stopped run, INCONSISTENT with --strict, else OK."""
+    if not getattr(args, "quiet", False):
+        for line in verdict["failures"]:
+            print(f"graphloc {verb}: inconsistent: {line}", file=sys.stderr)
+        for line in verdict["warnings"]:
+            print(f"graphloc {verb}: warning: {line}", file=sys.stderr)
+    if partial:
+        return INCOMPLETE
+    return INCONSISTENT if strict and (verdict["failures"] or verdict["warnings"]) else OK

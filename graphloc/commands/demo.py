@@ -1,9 +1,4 @@
-"""`graphloc demo`: the README's main job on the bundled default scenario -- the furnished
-`dual-robot-room` end to end (seed 004 pipeline): simulate the two robots' LiDAR scans and the
-ceiling camera's LED pixels -> P3P candidates -> HypothesisTracker over the ceiling robot's motion
--> ICP from that guess -> joint factor graph (Session) -> fused labelled map, PNG renderings,
-TUM trajectories and fusion_report.json in --out. Its options are `fuse-maps`' option tree
-(`FuseMapsOptions`: --seed, --variant, --frames, ... and `--config FILE.toml`)."""
+"""`graphloc demo`: the dual-robot-room map fusion (seed 004) end to end, `fuse-maps` options."""
 
 from __future__ import annotations
 

@@ -1,19 +1,7 @@
-"""`graphloc fuse-maps`: ground + ceiling laser map fusion (seed 004) -> fused map (PLY + PCD,
-per-point robot label), top/side PNGs with trajectories, TUM trajectories, fusion_report.json.
-
-    graphloc fuse-maps --simulate dual-robot-room [--variant furnished] [--seed 0] --out DIR
-    graphloc fuse-maps --scenario DIR --out OUT            # a directory written by dual-robot-room
-    graphloc fuse-maps --ground G/ --ceiling C/ (--hint "x y z qx qy qz qw" [--hint-sigma "DEG M"]
-                       | --p3p setup.json) [--config fusion.toml] --out OUT
-
-Options: the fields of `graphloc.pipelines.map_fusion.options.FuseMapsOptions`, from the
-command line and from `--config FILE.toml` (the pipeline's settings in its `[fusion...]`
-tables); the command line wins. An error in the file names the file, the line and the field.
-
-Exit codes (graphloc.exitcodes, docs/outputs.md): 0 fused; 2 bad input (one `error:` line);
-3 (INCOMPLETE) the registration failed its acceptance checks -- "not fused" and why are
-printed, fusion_report.json lists every candidate and check, and no fused map is written.
-"""
+"""`graphloc fuse-maps`: ground + ceiling laser map fusion (seed 004) from a simulation
+(`--simulate`), a scenario directory (`--scenario`) or two scan directories (`--ground`,
+`--ceiling` with `--hint` or `--p3p`); options `FuseMapsOptions`. Exit 3 (INCOMPLETE) when the
+registration fails its checks: no fused map, fusion_report.json says why."""
 
 from __future__ import annotations
 

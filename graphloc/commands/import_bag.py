@@ -1,9 +1,5 @@
-"""`graphloc import BAG --topics topics.yaml --out RUN`: a ROS 1 `.bag`, ROS 2 sqlite3 bag
-directory or MCAP file -> a graphloc log directory (format version 2, docs/log_format.md),
-through `graphloc.datasets.rosbag.import_bag` (issue 18; the topics file: docs/rosbag.md).
-`graphloc smooth RUN` / `online RUN` / `validate RUN` then take the directory. Prints rows per
-table, the counted skips (also kept in the manifest's meta.import.skips) and the bag's topics
-the topics file does not map."""
+"""`graphloc import BAG --topics topics.yaml --out RUN`: a ROS 1 / ROS 2 / MCAP bag -> a graphloc
+log directory (docs/rosbag.md)."""
 
 from __future__ import annotations
 

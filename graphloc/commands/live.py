@@ -1,16 +1,6 @@
-"""`graphloc live --out DIR (--log-dir LOG | --ros2 --topics FILE | --ros2 --manifest LOG)`: a
-running team localized as its rows arrive (`graphloc.LiveTeam`, one iSAM2 update per completed
-step), from a log directory a logger is still writing (`graphloc.live.tail`) or from ROS 2
-topics over Cyclone DDS (`graphloc.live.ros2`: the topics of `graphloc import`'s topics file,
-recorded as they arrive into DIR/log; or a log's lines as graphloc_msgs/msg/LogRow). Poses
-out: ROS 2 topics (`--publish`: /ROBOT/pose, /ROBOT/path, /tf) and a Foxglove live view
-(`--view [PORT]`). One status line while live (rows per second per table, step latency, the
-largest position sigma, skips). The run ends on Ctrl-C / SIGTERM or after `--idle` seconds
-without a row; then the rows still held are solved and DIR gets `graphloc online`'s outputs
-(`runner.team_run.write_run`) plus live.json (rows, updates, latencies, skips) and
-live_updates.csv. `--checkpoint FILE`: the live team's checkpoint (`LiveTeam.open`), from which
-a restarted `graphloc live` resumes (a log's tail skips the rows it holds); DIR/log (ROS 2
-topics) then goes on, holding every row that arrived (each flushed as it came)."""
+"""`graphloc live`: a running team localized as its rows arrive (`graphloc.LiveTeam`), from a log
+being written (`--log-dir`) or ROS 2 topics (`--ros2`); poses published (`--publish`, `--view`),
+`graphloc online`'s outputs plus live.json and live_updates.csv at the end (docs/live.md)."""
 
 from __future__ import annotations
 
@@ -22,7 +12,7 @@ from pathlib import Path
 
 from graphloc.commands import smooth
 from graphloc.config import add_config_arguments
-from graphloc.exitcodes import INCONSISTENT, OK
+from graphloc.commands.common import verdict_exit
 from graphloc.pipelines.team_graph.options import RunOptions
 from graphloc.structured import dumps_json
 
@@ -172,12 +162,4 @@ def run(args: argparse.Namespace) -> int:
         if view is not None:
             view.close()
         print(dumps_json({k: summary[k] for k in ("ended", "rows", "updates")}, indent=1))
-    verdict = metrics["consistency"]
-    if not args.quiet:
-        for line in verdict["failures"]:
-            print(f"graphloc live: inconsistent: {line}", file=sys.stderr)
-        for line in verdict["warnings"]:
-            print(f"graphloc live: warning: {line}", file=sys.stderr)
-    if opts.strict and (verdict["failures"] or verdict["warnings"]):
-        return INCONSISTENT
-    return OK
+    return verdict_exit("live", args, metrics["consistency"], False, opts.strict)

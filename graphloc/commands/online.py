@@ -1,19 +1,6 @@
-"""`graphloc online RUN --out DIR`: online smoothing with iSAM2, one incremental update per
-frame, per-frame latency recorded (latency.csv); same factors, options and outputs as
-`graphloc smooth`, plus the causal (as-it-happened) estimate's metrics and latency plot. With a
-fixed lag (`--lag`, the default where the run allows it) the per-step cost stays bounded.
-
-Checkpoint and resume: `--checkpoint FILE` writes, every `--checkpoint-every` steps and when a
-SIGINT / SIGTERM stops the run, a graphloc data file (format "graphloc-online-checkpoint",
-JSON with a SHA-256, written atomically: `graphloc.session.write_data_file`; loading parses
-numbers only, never code). It holds the position in the run (steps done), a fingerprint of the
-graph (run, effective configuration, step times and sizes) and the per-step log so far. GTSAM's
-Bayes tree cannot be written as data (only as a Boost archive, which is unsafe to load from an
-untrusted file) and the bearing factors are Python CustomFactors, so `--resume FILE` rebuilds
-the graph from the log, checks the fingerprint, replays the iSAM2 updates of the steps done
-(the same deterministic sequence, so the estimates are identical to an uninterrupted run) and
-continues; the replay costs the solver time of those steps (latency.csv then shows the
-replay's times for them)."""
+"""`graphloc online RUN --out DIR`: iSAM2, one update per step, with `smooth`'s options and outputs
+plus the causal estimate and latency.csv; `--checkpoint` / `--resume` (docs/outputs.md;
+docs/design_core.md, "Online checkpoints")."""
 
 from __future__ import annotations
 

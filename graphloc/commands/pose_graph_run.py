@@ -1,28 +1,18 @@
-"""`graphloc smooth FILE` / `graphloc online FILE` for a pose-graph file with discrete
-alternatives (City10000's format or g2o 2D / 3D: `graphloc.datasets.pose_graph_file`), solved by
-the multi-hypothesis engine (`graphloc.hypotheses.pose_graph.PoseGraphHypotheses`) step by step
-(one step per new pose), then its final refinement (`PoseGraphHypotheses.finish`: Levenberg-
-Marquardt on the decided graph, the measurements with a null component decided again at its
-optimum); `online` also records the causal estimate and the CPU time of every step.
-
-Options (RunOptions' pose-graph fields): `--candidate-seed N` shuffles each measurement's
-candidates (seeded); the first-listed candidate is then the truth and metrics.json holds the
-mode accuracy -- City10000 lists the correct candidate first; `--null-loops` gives every loop
-closure a null component (outliers); `--truth-poses FILE` the ground truth (one line per pose
-id) for the position RMSE. Outputs in `--out`: trajectory.tum (time = pose id), groundtruth.tum,
-metrics.json, decisions.csv, latency.csv (online), trajectory.png (docs/outputs.md)."""
+"""`graphloc smooth FILE` / `online FILE` for a pose-graph file with discrete alternatives
+(City10000, g2o), solved step by step by `PoseGraphHypotheses` then refined
+(`--candidate-seed`, `--null-loops`, `--truth-poses`; outputs in docs/outputs.md)."""
 
 from __future__ import annotations
 
 import csv
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, OK, SolverFailure
+from graphloc.commands.common import verdict_exit
+from graphloc.exitcodes import SolverFailure
 from graphloc.textio import check_file, shown, text_lines
 
 SIGMAS = {2: (0.05, 0.05, 0.01), 3: (0.01, 0.01, 0.01, 0.05, 0.05, 0.05)}  # no information
@@ -87,11 +77,8 @@ def read_file(path, options: dict):
 
 
 def summary(graph) -> dict:
-    """What `graphloc validate` says of a pose-graph file without solving it: its measurements
-    by kind (certain, with candidates, with a null component; loop closures), the vertices, the
-    skipped lines, and whether the edges grow the graph from its first pose step by step as the
-    engine needs (`group_steps`: every edge joins known poses or starts at a known one), with
-    the first edge that does not."""
+    """What `graphloc validate` says of a pose-graph file: measurements by kind, vertices, skipped
+    lines, and the first edge that does not grow the graph from its first pose."""
     from collections import Counter
 
     from graphloc.datasets.pose_graph_file import group_steps
@@ -176,11 +163,8 @@ def solve_file(graph, mode: str, options: dict, stop=None, progress: bool = Fals
 
 
 def factor_statistics(graph, estimate) -> dict:
-    """Per kind of factor of the final graph -- `prior`, `odometry` (between consecutive pose
-    ids), `loop_closure` (the others, with candidates and nulls as decided) --: count, residual
-    dimension, chi-square (2 x the error: the engine's factors are Gaussian) and normalized
-    chi-square (chi2 / dim: about 1 where the file's information matrices are right, as
-    `team_graph.verdict.factor_statistics` reports a team's)."""
+    """Per factor kind (`prior`, `odometry`, `loop_closure`): count, residual dimension, chi-square
+    and normalized chi-square (chi2 / dim)."""
     from gtsam import Symbol
 
     out: dict = {}
@@ -206,15 +190,10 @@ def factor_statistics(graph, estimate) -> dict:
 
 
 def verdict(metrics: dict) -> dict:
-    """The consistency verdict of a pose-graph solve (the team verdict's test,
-    `team_graph.verdict.ConsistencyTest`): every kind of factor's normalized chi-square at most
-    `max_normalized_chi2` (above it, the residuals are larger than the file's information
-    matrices say: wrong noise, corrupted edges or a wrong solution), and at most
-    `max_null_share` of the measurements with a null component decided outliers (a file marks
-    possible outliers because it has many; most of them rejected is a solve that explains its
-    measurements away, as the team verdict's share of down-weighted factors); warnings for
-    measurements
-    no later edge constrained and for skipped lines. A stopped solve is not judged."""
+    """The consistency verdict of a pose-graph solve (as `team_graph.verdict`): every factor kind's
+    normalized chi-square at most `max_normalized_chi2`, at most `max_null_share` of the
+    null-component measurements decided outliers; warnings for unconstrained measurements and
+    skipped lines. A stopped solve is not judged."""
     from graphloc.pipelines.team_graph.verdict import ConsistencyTest
 
     test = ConsistencyTest()
@@ -353,13 +332,4 @@ def run_verb(args, mode: str, opts, stop_flag) -> int:
     summary["position_rmse_m"] = metrics.get("position_rmse_m")
     print(json.dumps(summary, indent=1))
     verb = "smooth" if mode == "batch" else "online"
-    if not getattr(args, "quiet", False):
-        for line in metrics["consistency"]["failures"]:
-            print(f"graphloc {verb}: inconsistent: {line}", file=sys.stderr)
-        for line in metrics["consistency"]["warnings"]:
-            print(f"graphloc {verb}: warning: {line}", file=sys.stderr)
-    if result["partial"]:
-        return INCOMPLETE
-    if opts.strict and (metrics["consistency"]["failures"] or metrics["consistency"]["warnings"]):
-        return INCONSISTENT
-    return OK
+    return verdict_exit(verb, args, metrics["consistency"], result["partial"], opts.strict)

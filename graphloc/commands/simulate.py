@@ -1,7 +1,5 @@
-"""`graphloc simulate NAME --out DIR [--seed N] [--FIELD VALUE ...]`: write one simulated run
-(log format + 3D ground truth) through the simulator protocol (graphloc.datasets.scenarios).
-The options after NAME are the fields of the scenario's config dataclass, derived from it
-(graphloc.config.add_config_arguments): `graphloc simulate NAME --help` lists them."""
+"""`graphloc simulate NAME --out DIR [--seed N] [--FIELD VALUE ...]`: one simulated run, options
+from the scenario's config dataclass."""
 
 from __future__ import annotations
 

@@ -1,13 +1,5 @@
-"""`graphloc smooth RUN --out DIR`: batch smoothing (Levenberg-Marquardt over the whole factor
-graph) of a team's run -- a graphloc log directory (every table: odometry, relative poses,
-bearings, ranges, range-bearing, markers -> P3P candidate sets, surfaces) or an MRCLAM dataset
-directory (`graphloc.datasets.open_run`, `graphloc.pipelines.team_graph`). Writes per-robot
-TUM trajectories, metrics.json, decisions.csv and PNG plots (docs/outputs.md).
-
-Options are the fields of `graphloc.pipelines.team_graph.options.RunOptions`, from the command
-line and from `--config FILE` (TOML, the field names); the command line wins. Sensor noise
-options replace what the log's sensor params state; left unset, the log's values (or graphloc's
-defaults) hold."""
+"""`graphloc smooth RUN --out DIR`: batch smoothing of a team's run (log directory, MRCLAM
+directory or bag) with `RunOptions` from the command line and `--config FILE`."""
 
 from __future__ import annotations
 
@@ -21,8 +13,8 @@ import threading
 from pathlib import Path
 
 from graphloc import many_runs
-from graphloc.commands.common import Interrupted
-from graphloc.exitcodes import INCOMPLETE, INCONSISTENT, INTERRUPTED, OK, OutputDropped
+from graphloc.commands.common import Interrupted, verdict_exit
+from graphloc.exitcodes import INCOMPLETE, INTERRUPTED, OutputDropped
 from graphloc.config import add_config_arguments, config_from_args
 from graphloc.pipelines.team_graph.options import RunOptions
 from graphloc.structured import dumps_json
@@ -54,24 +46,10 @@ def options(args: argparse.Namespace) -> RunOptions:
 
 
 class StopFlag:
-    """SIGINT / SIGTERM during `smooth` / `online`, by the phase `run_verb` is in (`phase`):
-
-    - "reading" (the run read, the graph built; nothing estimated or written yet): the first
-      signal ends the verb at once (`Interrupted`, exit code 130, a line saying so);
-    - "solving": the flag is set (`stop()` is True); the solve finishes its step (online) or LM
-      iteration (batch) and stops, and the outputs so far are written (exit code 3);
-    - "writing" (the solve is done): the outputs being written are finished, except a figure
-      being drawn (`droppable`): it is dropped at once (`OutputDropped`) and listed as skipped.
-
-    A second signal interrupts at once in every phase (`Interrupted`, 130). A signal that
-    arrives during an import (a C extension initializing -- GTSAM, Open3D, OpenCV: an exception
-    raised there reaches the caller as ImportError "initialization failed" --, or the import
-    system's callbacks, which ignore an exception) cannot raise there: while reading, when
-    nothing is written yet, the process says so and ends at once (`os._exit`, 130, after
-    `names.release_claims` removed the `--out` folder it made, empty); in the other phases it
-    is handled as soon as the import is done (SIGALRM re-delivers it every RETRY_S).
-    Installed for the duration of a `with` block (main thread only); `verb` names the command
-    in the line it prints."""
+    """SIGINT / SIGTERM during `smooth` / `online`, by `phase`: "reading" ends at once (130),
+    "solving" stops after the current step and writes the outputs so far (3), "writing" finishes
+    them but drops a figure being drawn (`droppable`); a second signal ends at once
+    (docs/design_core.md, "Stopping")."""
 
     RETRY_S = 0.02
 
@@ -168,10 +146,8 @@ class StopFlag:
 
 
 def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
-    """The whole verb: `runner.team_run.run_team` (run read, graph built, solved --
-    stoppable, with an online checkpoint / resume hook from `graphloc.commands.online` --,
-    evaluated, written) under SIGINT / SIGTERM handling by phase (`StopFlag`), then the
-    summary, the verdict's lines and the exit code."""
+    """The whole verb: `runner.team_run.run_team` under SIGINT / SIGTERM handling by phase
+    (`StopFlag`), then the summary, the verdict's lines and the exit code."""
     progress = not args.no_progress
     from graphloc.commands import pose_graph_run
 
@@ -193,44 +169,23 @@ def run_verb(args: argparse.Namespace, mode: str, checkpoint=None) -> int:
             progress=progress,
             on_phase=lambda phase: setattr(stop, "phase", phase),
         ).metrics
+        ate = many_runs.ate_by_robot(metrics, mode)
         summary = {
-            name: round(v[mode]["ate_rmse"], 4)
-            for name, v in metrics["per_robot"].items()
-            if isinstance(v.get(mode), dict) and "ate_rmse" in v[mode]
+            "mode": mode,
+            "partial": metrics["partial"],
+            "consistent": metrics["consistent"],
+            "ate_rmse_m": {name: round(v, 4) for name, v in ate.items()},
+            "decisions": metrics["decisions"],
+            "realtime_factor": round(metrics["realtime_factor"], 1),
+            "skipped": metrics["skipped"]["counts"],
+            "notes": metrics["notes"]["counts"],
+            "landmark_map": metrics["landmark_map"],
         }
-        print(
-            dumps_json(
-                {
-                    "mode": mode,
-                    "partial": metrics["partial"],
-                    "consistent": metrics["consistent"],
-                    "ate_rmse_m": summary,
-                    "decisions": metrics["decisions"],
-                    "realtime_factor": round(metrics["realtime_factor"], 1),
-                    "skipped": metrics["skipped"]["counts"],
-                    "notes": metrics["notes"]["counts"],
-                    "landmark_map": metrics["landmark_map"],
-                    **(
-                        {"skipped_outputs": metrics["skipped_outputs"]}
-                        if metrics["skipped_outputs"]
-                        else {}
-                    ),
-                },
-                indent=1,
-            )
-        )
-    verdict = metrics["consistency"]
-    verb = "smooth" if mode == "batch" else "online"
-    if not getattr(args, "quiet", False):
-        for line in verdict["failures"]:
-            print(f"graphloc {verb}: inconsistent: {line}", file=sys.stderr)
-        for line in verdict["warnings"]:
-            print(f"graphloc {verb}: warning: {line}", file=sys.stderr)
-    if metrics["partial"] or metrics["skipped_outputs"]:
-        return EXIT_STOPPED
-    if opts.strict and (verdict["failures"] or verdict["warnings"]):
-        return INCONSISTENT
-    return OK
+        if metrics["skipped_outputs"]:
+            summary["skipped_outputs"] = metrics["skipped_outputs"]
+        print(dumps_json(summary, indent=1))
+    partial = bool(metrics["partial"] or metrics["skipped_outputs"])
+    return verdict_exit(verb, args, metrics["consistency"], partial, opts.strict)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,8 +1,5 @@
-"""`graphloc validate RUN`: read a run the way `smooth` / `online` do and print what each table
-contributes -- rows read, factors built, candidate sets decided, rows skipped and why -- without
-solving. Exit 0 when the run is usable, 2 (with the reason) when it is rejected. The options
-are those of `smooth` / `online` (`RunOptions`), also from `--config FILE.toml`, without the
-solver's and the outputs' (nothing is solved)."""
+"""`graphloc validate RUN`: read and build a run as `smooth` / `online` do and print what each
+table contributes, without solving; exit 2 when the run is rejected."""
 
 from __future__ import annotations
 

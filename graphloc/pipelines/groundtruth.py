@@ -1,10 +1,5 @@
-"""Ground truth as the metrics and the outputs of `graphloc smooth` / `online` use it
-(`graphloc.pipelines.report`): a robot's ground truth (`TeamRun.groundtruth[r]`: times and
-Pose3) as TUM rows x y z qx qy qz qw, each sample converted once and only where it is used
-(`GroundTruth`); the pairs the metrics compare, evo's time association (`paired`,
-`graphloc.eval.associate`); what a robot's ground-truth file holds (`groundtruth_written`: by
-default the samples matched to its pose times -- a run's ground truth at 100 Hz is tens of
-times the estimate's poses --, or every sample); how an estimate is aligned (`alignment`)."""
+"""Ground truth as the metrics and outputs use it: TUM rows converted only where used, evo's time
+association (`paired`), what a ground-truth file holds (`groundtruth_written`), `alignment`."""
 
 from __future__ import annotations
 
@@ -72,11 +67,8 @@ def groundtruths(run: TeamRun) -> list:
 
 def groundtruth_rows(run: TeamRun, r: int) -> tuple[np.ndarray, np.ndarray] | None:
     """Every ground-truth sample of robot r: (times (G,), rows (G,7)), None below 3 samples."""
-    gt = run.groundtruth[r]
-    if gt is None or len(gt[0]) < 3:
-        return None
-    truth = GroundTruth(gt[0], gt[1])
-    return truth.times, truth.rows()
+    truth = groundtruths(run)[r]
+    return None if truth is None else (truth.times, truth.rows())
 
 
 def paired(truth: GroundTruth, times: np.ndarray, rows: np.ndarray):
@@ -92,11 +84,8 @@ def paired(truth: GroundTruth, times: np.ndarray, rows: np.ndarray):
 
 
 def alignment(run: TeamRun, r: int, align: str | None = None) -> str:
-    """How robot r's estimate is compared with its ground truth (evo's names, `eval.ALIGNMENTS`):
-    `align` when given (`--align`); else in the world frame ("none") when the run anchors the
-    world -- a robot with an initial pose or a known landmark map --, and aligned by the
-    motion the run cannot observe when it does not ("se2" for a planar robot, "se3" for the
-    others)."""
+    """How robot r's estimate is aligned to its truth (`eval.ALIGNMENTS`): `align` when given; else
+    "none" when the run anchors the world, "se2" (planar) or "se3" when it does not."""
     if align is not None:
         return align
     anchored = any(robot.initial_pose is not None for robot in run.robots) or (

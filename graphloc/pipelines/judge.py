@@ -1,6 +1,5 @@
-"""Decisions judged by the ground truth (simulations and logs with a `groundtruth` table):
-which candidate of a set is the genuine one, and whether the decided one is consistent with
-the truth (docs/outputs.md, `decisions.csv`)."""
+"""Decisions judged by the ground truth: which candidate of a set is genuine, and whether the
+decided one is consistent with the truth."""
 
 from __future__ import annotations
 
@@ -16,37 +15,39 @@ def genuine_candidates(run: TeamRun, decisions: list, max_time_diff: float = 0.0
     truth within max_time_diff of the set's time), or -1 where the run has no ground truth there."""
     out = []
     for d in decisions:
-        gt = run.groundtruth[d.robot]
-        if gt is None or not len(gt[0]):
+        if run.groundtruth[d.robot] is None or not len(run.groundtruth[d.robot][0]):
             out.append(-1)
-            continue
-        if (
-            d.relative is not None
-        ):  # max-mixture route: the candidate nearest the true relative pose
+        elif d.relative is not None:  # max-mixture route: nearest the true relative pose
             out.append(_genuine_relative(run, d, max_time_diff))
-            continue
-        i = int(np.argmin(np.abs(gt[0] - d.time)))
-        if abs(gt[0][i] - d.time) > max_time_diff or not len(d.candidates_xyz):
-            out.append(-1)
-            continue
-        out.append(
-            int(np.argmin(np.linalg.norm(d.candidates_xyz - gt[1][i].translation(), axis=1)))
-        )
+        else:
+            truth = _truth_at(run, d.robot, d.time, max_time_diff)
+            if truth is None or not len(d.candidates_xyz):
+                out.append(-1)
+                continue
+            out.append(
+                int(np.argmin(np.linalg.norm(d.candidates_xyz - truth.translation(), axis=1)))
+            )
     return out
+
+
+def _truth_at(run: TeamRun, r: int, t: float, max_time_diff: float, static_ok: bool = False):
+    """Robot r's ground-truth pose nearest time t, None without a sample within max_time_diff
+    (`static_ok`: any sample of a static robot)."""
+    gt = run.groundtruth[r]
+    if gt is None or not len(gt[0]):
+        return None
+    i = int(np.argmin(np.abs(gt[0] - t)))
+    if abs(gt[0][i] - t) > max_time_diff and not (static_ok and run.robots[r].static):
+        return None
+    return gt[1][i]
 
 
 def _genuine_relative(run: TeamRun, d, max_time_diff: float) -> int:
     """The candidate (observer body_T_target, `SetOutcome.relative`) nearest the true relative
     pose (rotation angle [rad] plus translation [m] over 0.1 m), -1 without ground truth."""
-    rel = []
-    for r in (d.robot, d.target):
-        gt = run.groundtruth[r]
-        if gt is None or not len(gt[0]):
-            return -1
-        i = int(np.argmin(np.abs(gt[0] - d.time)))
-        if abs(gt[0][i] - d.time) > max_time_diff:
-            return -1
-        rel.append(gt[1][i])
+    rel = [_truth_at(run, r, d.time, max_time_diff) for r in (d.robot, d.target)]
+    if any(p is None for p in rel):
+        return -1
     truth = rel[0].between(rel[1])
     cost = []
     for T in d.relative:
@@ -64,13 +65,9 @@ TRUTH_SIGMA = (0.01, 0.02)
 def judge_decisions(
     run: TeamRun, decisions: list, max_time_diff: float = 0.02
 ) -> tuple[list[int], list[bool | None]]:
-    """Each set judged by the ground truth: the genuine candidate (`genuine_candidates`) and
-    whether the committed candidate is consistent with the truth -- the sensor's true pose in
-    the target's body frame,
-    truth_target^-1 truth_observer body_T_sensor, within the candidate's covariance plus the
-    truth's own tolerance (`TRUTH_SIGMA`) at JUDGE_PROBABILITY of a chi-square with 6 degrees
-    of freedom (None: no truth, or nothing committed). A set none of whose candidates is near
-    the truth is therefore judged wrong whichever is decided."""
+    """Each set's genuine candidate and whether the committed one is consistent with the truth:
+    the sensor's true pose in the target's frame within the candidate's covariance plus
+    `TRUTH_SIGMA`, at JUDGE_PROBABILITY of a chi-square with 6 degrees of freedom."""
     gate = float(chi2_distribution.ppf(JUDGE_PROBABILITY, 6))
     tolerance = np.diag(np.repeat(np.square(TRUTH_SIGMA), 3))
     correct = []
@@ -89,18 +86,11 @@ def _true_measurement(run: TeamRun, d, max_time_diff: float):
     """The sensor's true pose in the target's body frame at the set's time (gtsam.Pose3), None
     without ground truth of both robots there (a static target without ground truth: its
     initial pose)."""
-    poses = []
-    for r in (d.robot, d.target):
-        gt = run.groundtruth[r]
-        if gt is None or not len(gt[0]):
-            robot = run.robots[r]
-            if robot.static and robot.initial_pose is not None and r == d.target:
-                poses.append(robot.initial_pose)
-                continue
-            return None
-        i = int(np.argmin(np.abs(gt[0] - d.time)))
-        if abs(gt[0][i] - d.time) > max_time_diff and not run.robots[r].static:
-            return None
-        poses.append(gt[1][i])
-    observer, target = poses
+    observer = _truth_at(run, d.robot, d.time, max_time_diff, static_ok=True)
+    target = _truth_at(run, d.target, d.time, max_time_diff, static_ok=True)
+    gt = run.groundtruth[d.target]
+    if (gt is None or not len(gt[0])) and run.robots[d.target].static:
+        target = run.robots[d.target].initial_pose
+    if observer is None or target is None:
+        return None
     return target.between(observer).compose(gtsam.Pose3(d.body_T_sensor))

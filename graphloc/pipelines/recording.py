@@ -1,31 +1,6 @@
-"""Results out for viewers (issue 18): a run's estimates as an MCAP file of ROS 2 messages
-(Foxglove opens it; `ros2 bag play` feeds RViz) and as a Rerun recording (`.rrd`).
-
-One `Recording` holds what both show: every robot's trajectories over time (the estimate,
-dead reckoning, ground truth when known), each candidate set of the solve (where every
-candidate puts the observer with its posterior weight -- the HypothesisTracker's posterior of a
-decided P3P set, or for a max-mixture set the components' weights at the estimate,
-`team_graph.solve.choose_mixtures` -- the committed candidate marked, its pose) and
-point clouds (a log's scans placed by the estimate, the fused map with the robot that saw each
-point). `team_recording` builds it from `graphloc smooth` / `online`'s result (and the log
-directory's scans), `fusion_recording` from a `fuse-maps` output directory. Writers:
-
-- `write_mcap(recording, path)`: rosbags' ROS 2 writer (MCAP storage, CDR messages with their
-  schemas). Topics per robot: `/graphloc/ROBOT/pose` (geometry_msgs/PoseStamped, one per
-  estimated pose), `/graphloc/ROBOT/path`, `/graphloc/ROBOT/dead_reckoning`,
-  `/graphloc/ROBOT/groundtruth` (nav_msgs/Path, one message at the end of the track),
-  `/graphloc/ROBOT/candidates` (sensor_msgs/PointCloud2, fields x y z committed weight, one
-  per candidate set), `/graphloc/ROBOT/candidate_poses` (geometry_msgs/PoseArray, every
-  candidate's pose in the cloud's order) and `/graphloc/ROBOT/committed` (PoseStamped); clouds
-  `/graphloc/map/NAME`
-  (PointCloud2, fields x y z robot). Frame `map`.
-- `write_rerun(recording, path)` (optional dependency `rerun-sdk`, extra `graphloc[viz]`):
-  entities `world/ROBOT/LABEL` (position over the `time` timeline) with `world/ROBOT/LABEL/path`
-  (the whole track), `world/ROBOT/candidates` (every candidate labelled with its weight, sized
-  by it, the committed one green; the weights and the committed flags also as the components
-  `weight` / `committed`), `world/ROBOT/candidates/poses` (each candidate's pose as a flat box
-  along its body axes), `world/ROBOT/committed`, `world/map/NAME` (coloured by robot).
-"""
+"""Results out for viewers: a run's estimates, candidate sets and point clouds (`Recording`) as an
+MCAP file of ROS 2 messages (`write_mcap`) or a Rerun recording (`write_rerun`); topics and
+entities in docs/rosbag.md."""
 
 from __future__ import annotations
 
@@ -160,12 +135,8 @@ def candidate_weights(decision, k: int) -> np.ndarray:
 
 
 def scan_clouds(root, result: TeamResult, run: TeamRun, voxel: float = 0.05) -> list:
-    """Each robot's scans (the rows of its `scans` table the log reader used, `run.scans`)
-    placed by the estimate of the pose nearest in time (through the scanner's extrinsics), one
-    cloud per robot, voxel-downsampled (Open3D) to `voxel` metres. A scan without an estimated
-    pose within `voxel` seconds of it is left out; a scan is read as the reader kept it
-    (`graphloc.mapping.io.read_scan`: thinned to the point budget). `root` is unused (the
-    scans' paths are the run's)."""
+    """Each robot's scans placed by the estimate of the pose nearest in time (through the
+    scanner's extrinsics), voxel-downsampled; a scan without a pose within `voxel` s is left out."""
     import open3d as o3d
 
     clouds = []

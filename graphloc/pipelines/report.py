@@ -1,9 +1,5 @@
-"""Outputs of `graphloc smooth` / `graphloc online` (every field documented in docs/outputs.md):
-per-robot TUM trajectories (estimate, dead reckoning, ground truth), metrics.json (per-robot
-ATE / RPE via evo with the alignment stated, candidate-set decisions, what every table
-contributed, skips, the effective configuration), decisions.csv and PNG plots
-(`graphloc.pipelines.report_plots`). The ground truth is converted where it is used and
-written at the estimate's rate unless asked otherwise (`graphloc.pipelines.groundtruth`)."""
+"""Outputs of `graphloc smooth` / `online` (docs/outputs.md): TUM trajectories, metrics.json,
+decisions.csv and PNG plots."""
 
 from __future__ import annotations
 
@@ -17,34 +13,14 @@ from tqdm import tqdm
 
 from graphloc.eval import trajectory_metrics, write_tum
 from graphloc.exitcodes import OutputDropped
-from graphloc.pipelines.groundtruth import (
-    GroundTruth,
-    alignment,
-    groundtruth_rows,
-    groundtruth_written,
-    groundtruths,
-    paired,
-)
+from graphloc.pipelines.groundtruth import alignment, groundtruth_written, groundtruths, paired
 from graphloc.names import out_path, written_whole
 from graphloc.pipelines.judge import judge_decisions
 from graphloc.pipelines.report_plots import plot_jobs
-from graphloc.pipelines.team_graph import (
-    STEP_LOG_COLUMNS,
-    TeamResult,
-)
+from graphloc.pipelines.team_graph import STEP_LOG_COLUMNS, TeamResult
 from graphloc.pipelines.team_graph.verdict import candidate_streams, judge
 from graphloc.run import TeamRun
 from graphloc.structured import dumps_json
-
-__all__ = [
-    "GroundTruth",
-    "alignment",
-    "evaluate",
-    "groundtruth_rows",
-    "groundtruths",
-    "latency_trend",
-    "write_outputs",
-]
 
 
 def _static_error(row: np.ndarray, gt) -> dict:
@@ -72,15 +48,9 @@ def evaluate(
     align: str | None = None,
     cpu_s: float | None = None,
 ) -> dict:
-    """Per-robot ATE/RPE of dead reckoning (the initial guess), the estimate and (online) the
-    causal estimate, aligned by `groundtruth.alignment` (`align`: one rule for every robot);
-    decisions, judged by the truth (`judge`); the consistency verdict (`team_graph.verdict`);
-    counts; latency; skips. cpu_s: the CPU time from reading the run to the last estimate
-    (the verbs'; `realtime_factor` is the run's duration over it, else over the solve's wall
-    time). truth: `groundtruths(run)`, shared
-    with `write_outputs` (each sample converted once). stop(): checked before each
-    trajectory's ATE / RPE (evo: seconds on a long run); once True -- a run stopped by a
-    signal -- the rest are not computed and "evaluated" is False."""
+    """Per-robot ATE/RPE of dead reckoning, the estimate and (online) the causal estimate, decisions
+    judged by the truth, the consistency verdict, counts, latency and skips. Once `stop()` is
+    True, the remaining trajectories are not evaluated ("evaluated" False)."""
     truth = groundtruths(run) if truth is None else truth
     per_robot = {}
     evaluated = True
@@ -182,10 +152,8 @@ def evaluate(
 
 
 def _metrics(truth, times, rows, align: str) -> tuple[dict | None, str | None]:
-    """`trajectory_metrics` of one track (its poses at `times`, (N,7) rows) against its ground
-    truth as a dict and None, or None and why there are none: fewer than 3 poses, too few near
-    ground-truth stamps, or poses the alignment cannot use (all at one place: a robot that
-    never moved)."""
+    """`trajectory_metrics` of one track against its ground truth and None, or None and why there
+    are none (fewer than 3 poses, too few near ground-truth stamps, a robot that never moved)."""
     n = int(np.isfinite(rows).all(axis=1).sum())
     if n < 3:
         return None, f"{n} poses, 3 needed"
@@ -232,17 +200,9 @@ def write_outputs(
     stop=None,
     align: str | None = None,
 ) -> list[Path]:
-    """Every output file of docs/outputs.md into `out`, with a progress bar over the files
-    (`progress`): per robot its estimate, dead reckoning and ground truth (`groundtruth_rate`,
-    `groundtruth_written`) as TUM, decisions.csv, latency.csv (online), the PNGs
-    (`report_plots.plot_jobs`) and last metrics.json. truth: `groundtruths(run)`, shared with
-    `evaluate`; align: `--align` (the metrics' alignment). stop(): once True (a signal,
-    `graphloc.commands.smooth.StopFlag`) what is derived and not written yet is left out --
-    dead reckoning, ground truth, the PNGs (these also when the solve was stopped or the
-    metrics were not evaluated) -- and metrics.json lists it in "skipped_outputs": the
-    estimate so far is what a stop keeps; a `stop` with a `droppable()` block (`StopFlag`)
-    drops the PNG being drawn when the signal arrives (`OutputDropped`) instead of finishing
-    it."""
+    """Every output file of docs/outputs.md into `out`, metrics.json last. Once `stop()` is True,
+    what is derived and not written yet (dead reckoning, ground truth, PNGs) is left out and
+    listed in metrics.json's "skipped_outputs"; a PNG being drawn is dropped (`OutputDropped`)."""
     truth = groundtruths(run) if truth is None else truth
     out.mkdir(parents=True, exist_ok=True)
     jobs = []  # (file name, writer[, "derived": left out once stopped; "plot": that, droppable])
@@ -312,30 +272,16 @@ def write_metrics(out: Path, metrics: dict) -> Path:
     return path
 
 
+DECISION_COLUMNS = (
+    "time robot target candidates status committed probability genuine correct x y z qx qy qz qw"
+).split()
+
+
 def _write_decisions(path: Path, result: TeamResult, run: TeamRun) -> Path:
     decisions = result.decisions
     with written_whole(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(
-            [
-                "time",
-                "robot",
-                "target",
-                "candidates",
-                "status",
-                "committed",
-                "probability",
-                "genuine",
-                "correct",
-                "x",
-                "y",
-                "z",
-                "qx",
-                "qy",
-                "qz",
-                "qw",
-            ]
-        )
+        w.writerow(DECISION_COLUMNS)
         for d, g, c in zip(decisions, *judge_decisions(run, decisions)):
             correct = "" if d.committed < 0 or c is None else int(c)
             w.writerow(

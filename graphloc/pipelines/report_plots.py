@@ -1,6 +1,4 @@
-"""The PNG plots of `graphloc smooth` / `online` (docs/outputs.md): trajectories.png,
-error_over_time.png and, online, latency.png, through `graphloc.plots`. `plot_jobs` gives one
-job per figure, so that the writer can show its progress and stop between figures."""
+"""The PNG plots of `graphloc smooth` / `online`, one job per figure (`plot_jobs`)."""
 
 from __future__ import annotations
 
@@ -25,24 +23,14 @@ def plot_jobs(
     groundtruth_rate: str = "estimate",
     align: str | None = None,
 ) -> list[tuple[str, object]]:
-    """(file name, job() -> Path or None) per figure: trajectories.png (the ground truth as
-    written, `groundtruth_written`), error_over_time.png (the metrics' pairs, `paired`, and
-    their alignment, `alignment` with `align`; none without ground truth) and, online,
-    latency.png (from latency.csv, written before)."""
+    """(file name, job() -> Path or None) per figure: trajectories.png, error_over_time.png (with
+    ground truth) and, online, latency.png (from latency.csv, written before)."""
     jobs = [("trajectories.png", lambda: _trajectories(result, run, out, truth, groundtruth_rate))]
     if any(g is not None for g in truth):
         jobs.append(("error_over_time.png", lambda: _errors(result, run, out, truth, align)))
     if result.mode == "online":
         jobs.append(("latency.png", lambda: _latency(result, run, out)))
     return jobs
-
-
-def write_plots(
-    result: TeamResult, run: TeamRun, out: Path, truth: list, groundtruth_rate: str = "estimate"
-) -> list[Path]:
-    """Every figure of `plot_jobs`; the paths written."""
-    done = [job() for _, job in plot_jobs(result, run, out, truth, groundtruth_rate)]
-    return [p for p in done if p is not None]
 
 
 def _moving(run: TeamRun, result: TeamResult) -> list[int]:
