@@ -177,22 +177,6 @@ class MaxMixture:
         rebuilt."""
         return (MaxMixture, (self.components, self.weights))
 
-    def save_state(self) -> dict:
-        """What rebuilds this max-mixture (`graphloc.session.Session.save` writes it as data):
-        kind "max_mixture", components (tuple of tuples of built-in factors) and the normalized
-        weights (K,). The CustomFactor itself is not saved; `from_state` rebuilds it."""
-        return {
-            "kind": "max_mixture",
-            "components": self.components,
-            "weights": self.weights.copy(),
-        }
-
-    @classmethod
-    def from_state(cls, components, weights) -> "MaxMixture":
-        """The max-mixture `save_state` describes (the constructor's checks apply: ValueError on
-        empty components, weights of the wrong shape or <= 0, components on different keys)."""
-        return cls(list(components), weights)
-
     def component_errors(self, values: gtsam.Values) -> np.ndarray:
         """(K,) c_k + sum of the component's factor errors at `values`."""
         return self.constants + np.array([sum(f.error(values) for f in g) for g in self.components])

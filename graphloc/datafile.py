@@ -1,4 +1,4 @@
-"""Versioned data files (saved sessions, trackers, online checkpoints): one JSON header line
+"""Versioned data files (online checkpoints): one JSON header line
 (format, version, body size and SHA-256) and a JSON body, written atomically; a pickle, another
 format, a truncated, altered or oversized file is a ValueError naming the file."""
 

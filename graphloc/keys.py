@@ -101,3 +101,12 @@ def decode_many(keys) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     first = np.where(kind == "s", first % MAX_ROBOTS, first)
     second = np.where(stride > 0, index % np.maximum(stride, 1), 0)
     return kind, first, second
+
+
+def key_name(key: int) -> str:
+    """GTSAM's name of a key (x0, l3, ...), or the number when GTSAM cannot format it (a
+    symbol character that is not text raises UnicodeDecodeError in DefaultKeyFormatter)."""
+    try:
+        return gtsam.DefaultKeyFormatter(key)
+    except UnicodeDecodeError:
+        return str(key)

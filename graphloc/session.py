@@ -1,13 +1,11 @@
 """The estimation engine: one factor list solved in batch (Levenberg-Marquardt, re-run lazily when
-`estimate()` follows new factors) or online (iSAM2, one update per `add`), saved and loaded as
-checked JSON (`graphloc.session_codec`; docs/design_core.md, "Saved sessions")."""
+`estimate()` follows new factors) or online (iSAM2, one update per `add`)."""
 
 from __future__ import annotations
 
 import re
 import time as _time
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Iterable
 
 import gtsam
@@ -15,17 +13,12 @@ import numpy as np
 from tqdm import tqdm
 
 from graphloc.exitcodes import SolverFailure
-from graphloc.datafile import read_data_file, write_data_file
 from graphloc.fixed_lag import FixedLagWindow
-from graphloc.session_codec import load_session, save_session
 from graphloc.session_config import MODES, SessionConfig
 from graphloc.session_config import check_thresholded, relinearize_threshold
-from graphloc.value_codec import key_name
+from graphloc.keys import key_name
 
-__all__ = ["MODES", "Session", "SessionConfig", "Step", "read_data_file", "write_data_file"]
-
-_SAVE_FORMAT = "graphloc-session"
-_SAVE_VERSION = 3  # 3: JSON + SHA-256 (2 was a pickle, no longer read: unpickling runs code)
+__all__ = ["MODES", "Session", "SessionConfig", "Step"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,27 +33,13 @@ class Step:
     cpu_s: float = 0.0  # CPU time of this thread over the same span
 
 
-@dataclass(slots=True)
-class _Record:
-    """What `save` keeps of one step so that `load` can replay it."""
-
-    time: float
-    items: list  # what `add` was given: gtsam factors and factor providers (e.g. MaxMixture)
-    values: gtsam.Values
-    latency_s: float = field(default=0.0)
-
-
-def _as_items(factors) -> list:
-    """The factors of one `add` call as a list; a factor provider (an object with a `factor`
-    attribute, e.g. `MaxMixture`) is kept as itself, so that `save` can write what rebuilds it."""
+def _as_graph(factors) -> gtsam.NonlinearFactorGraph:
+    """The factors of one `add` call as a graph (a factor provider such as `MaxMixture` adds its
+    `factor`)."""
     if isinstance(factors, gtsam.NonlinearFactorGraph):
-        return [factors.at(i) for i in range(factors.size()) if factors.exists(i)]
-    return list(factors)
-
-
-def _as_graph(items: list) -> gtsam.NonlinearFactorGraph:
+        factors = [factors.at(i) for i in range(factors.size()) if factors.exists(i)]
     graph = gtsam.NonlinearFactorGraph()
-    for item in items:
+    for item in factors:
         graph.add(getattr(item, "factor", item))
     return graph
 
@@ -78,7 +57,6 @@ class Session:
         # sessions hand the guesses to iSAM2 and keep none
         self.initial = gtsam.Values() if config.mode == "batch" else None
         self.steps: list[Step] = []
-        self._records: list[_Record] = []  # what `save` writes (config.keep_steps)
         self._keys: set = set()  # the keys of every variable ever added
         self._last_time = -np.inf
         self._batch_estimate: gtsam.Values | None = None
@@ -127,8 +105,7 @@ class Session:
         """Append `factors` and the initial guess of the variables they introduce at `time`
         (None: the previous step's; never backwards). ValueError for new keys already known,
         factors on unknown or marginalized keys, or a system GTSAM cannot solve."""
-        items = _as_items(factors)
-        graph = _as_graph(items)
+        graph = _as_graph(factors)
         if time is None:  # same time as the previous step (0 for the first)
             t = self._last_time if self.steps else 0.0
         else:
@@ -189,8 +166,6 @@ class Session:
             cpu_s=cpu,
         )
         self.steps.append(step)
-        if self.config.keep_steps:
-            self._records.append(_Record(t, items, initial_values, latency))
         return step
 
     def iterate(self) -> float:
@@ -327,18 +302,6 @@ class Session:
             bar.close()
         self._batch_iterations = int(optimizer.iterations())
         return optimizer.values()
-
-    # ---- persistence (graphloc.session_codec) -----------------------------------------------
-    def save(self, path: str | Path) -> None:
-        """Write config + every step (factors, providers, initial values, time) to `path` as
-        versioned JSON, atomically (`session_codec.save_session`)."""
-        save_session(self, path, _SAVE_FORMAT, _SAVE_VERSION)
-
-    @classmethod
-    def load(cls, path: str | Path) -> "Session":
-        """Rebuild a saved session (`session_codec.load_session`); online sessions replay every
-        step into a fresh iSAM2."""
-        return load_session(cls, path, _SAVE_FORMAT, _SAVE_VERSION)
 
 
 def _first_line(exc: Exception) -> str:

@@ -17,8 +17,8 @@ MODES = ("batch", "online")
 class SessionConfig:
     """The solver of a `Session` and its parameters: "batch" (Levenberg-Marquardt, the `lm_*`
     fields) or "online" (iSAM2: relinearization, factorization, wildfire, step), `lag` /
-    `marginalize_every` [s] for a fixed-lag window (`graphloc.fixed_lag`), `keep_steps` for
-    `Session.save`; each field in docs/design_core.md, "Session options"."""
+    `marginalize_every` [s] for a fixed-lag window (`graphloc.fixed_lag`); each field in
+    docs/design_core.md, "Session options"."""
 
     mode: Literal[MODES] = "batch"
     lm_max_iterations: int = setting(100, ge=1, le=100_000)
@@ -34,7 +34,6 @@ class SessionConfig:
     isam2_optimizer: Literal["gauss_newton", "dogleg"] = "gauss_newton"
     lag: float = setting(0.0, ge=0.0)
     marginalize_every: float = setting(0.0, ge=0.0)
-    keep_steps: bool = True
 
 
 THRESHOLD_SYMBOLS = {"x": 6, "s": 6, "l": 3, "k": 3, "q": 3}  # symbol -> dim (Pose3 / Point3)
@@ -63,7 +62,7 @@ def check_thresholded(config: SessionConfig, keys) -> None:
     if config.relinearize_translation <= 0:
         return
     from graphloc.keys import decode
-    from graphloc.value_codec import key_name
+    from graphloc.keys import key_name
 
     bad = [key_name(k) for k in keys if decode(k)[0] not in THRESHOLD_SYMBOLS]
     if bad:

@@ -11,9 +11,9 @@ from pathlib import Path
 
 from graphloc.textio import check_file, read_text
 
-MAX_DEPTH = 64  # levels of nested lists / objects (a manifest needs 6, a saved session 8)
+MAX_DEPTH = 64  # levels of nested lists / objects (a manifest needs 6)
 MAX_TEXT_BYTES = 16 << 20  # a manifest, topics file, config file or setup JSON
-MAX_DATA_BYTES = 1 << 30  # a saved session, tracker or online checkpoint
+MAX_DATA_BYTES = 1 << 30  # an online checkpoint
 MAX_VALUES = 5_000_000  # values in one parsed document (YAML aliases counted where used)
 
 

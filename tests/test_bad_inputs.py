@@ -1,6 +1,6 @@
 """Issue 47, the battery of bad inputs: every reader of graphloc (log manifest, every table kind,
 landmarks, scan files, MRCLAM files, ROS bag topics files, TOML configs, online checkpoints,
-saved sessions and trackers, the `--p3p` setup JSON, `--hint`) through the command line as a
+the `--p3p` setup JSON, `--hint`) through the command line as a
 user meets it, with truncated, binary, non-UTF-8, empty, deeply nested, huge, NaN / inf,
 symlinked and directory-for-a-file inputs, and names that would make a path.
 
@@ -869,34 +869,6 @@ def test_bad_checkpoint(planar_log, checkpoint_template, cli, tmp_path, breaks, 
     assert re.search(
         rf"x\.ckpt\S*: .*{message}|--resume \S+x\.ckpt: .*{message}", got.error_line
     ), got.error_line
-
-
-# ---- saved sessions and trackers (the API: no verb loads them) -----------------------------------
-@pytest.mark.timeout(30)
-@pytest.mark.parametrize("what", ["session", "tracker"])
-@pytest.mark.parametrize(
-    "body, message",
-    [
-        ('{"x": ' + deep_json() + "}", "nested deeper"),
-        ('{"x": ' + deep_json(MODERATE) + "}", "nested deeper"),
-        ("[" * 50 + "]" * 50, "must be a JSON object"),
-        ('{"config": ' + '{"a": ' * 5000 + "1" + "}" * 5001, "nested deeper"),
-    ],
-    ids=["deep", "moderately-deep", "list", "deep-objects"],
-)
-def test_a_crafted_session_or_tracker_file_is_a_value_error_naming_it(
-    tmp_path, what, body, message
-):
-    from graphloc.hypotheses import HypothesisTracker
-    from graphloc.hypotheses.state import SAVE_FORMAT, SAVE_VERSION
-    from graphloc.session import _SAVE_FORMAT, _SAVE_VERSION, Session
-
-    fmt = (_SAVE_FORMAT, _SAVE_VERSION) if what == "session" else (SAVE_FORMAT, SAVE_VERSION)
-    path = tmp_path / f"saved.{what}"
-    path.write_bytes(data_file(*fmt, body))
-    load = Session.load if what == "session" else HypothesisTracker.load
-    with pytest.raises(ValueError, match=rf"saved\.{what}: .*{message}"):
-        load(path)
 
 
 # ---- fuse-maps: the --p3p setup and --hint -------------------------------------------------------

@@ -27,7 +27,6 @@ from graphloc.seams import FrameInput, TeammateObservation
 from graphloc.vision.teammate import TeammateConfig, measure_frames, teammate_observation
 from benchmarks.cooperative_sfm.graph import disk_pose_covariance
 from graphloc.keys import pose_key
-from graphloc.session import Session
 from graphloc.vision.circle import rotations_from_normals
 from graphloc.vision.features import FeatureConfig, FrameFeatures
 
@@ -115,24 +114,6 @@ def test_teammate_odometry_enters_as_a_range(model):
         mate_world = est.atPoint3(pose_key(1, T - 1))
     assert np.linalg.norm(mate_world - base[-1]) < 0.003
     assert axis_errors(sfm.positions(), truth).max() < 0.003
-
-
-@pytest.mark.parametrize("model", ["max_mixture", "moment_matched_centre"])
-def test_online_session_save_and_resume(tmp_path, model):
-    """An online session with the max-mixtures (Python CustomFactors, rebuilt from their pickled
-    components) saves and resumes with identical estimates; so does the moment-matched baseline."""
-    frames, _, _, _ = frames_for(8)
-    sfm = CooperativeSfm(CAM, replace(config("online"), teammate_model=model))
-    for f in frames[:5]:
-        sfm.add_frame(f)
-    path = tmp_path / "sfm.pkl"
-    sfm.session.save(path)
-    resumed = Session.load(path)
-    a, b = sfm.session.estimate(), resumed.estimate()
-    for k in range(5):
-        assert a.atPose3(pose_key(0, k)).equals(b.atPose3(pose_key(0, k)), 1e-9)
-    if model == "max_mixture":
-        assert sfm.mixtures, "the scenario must exercise the mixture"
 
 
 def test_trajectory_scale():

@@ -295,17 +295,6 @@ def test_replayed_run_and_gtsam_only_batch(synthetic):
     assert np.isfinite(alone["error"]) and batch.wall_s > 0
 
 
-def test_fixed_lag_session_save_load_replays_exactly(tmp_path):
-    s = Session(SessionConfig(mode="online", lag=1.0))
-    _chain(s, 30)
-    s.save(tmp_path / "s.json")
-    loaded = Session.load(tmp_path / "s.json")
-    assert loaded.config.lag == 1.0 and loaded.marginalized(0)
-    a, b = s.estimate(), loaded.estimate()
-    assert a.size() == b.size() == 30
-    assert all(np.array_equal(a.atPose3(k).matrix(), b.atPose3(k).matrix()) for k in range(30))
-
-
 def test_fixed_lag_with_cross_links_and_extra_updates_matches_full_smoothing():
     """Two robots linked at every step (inter-robot factors cross the stamp groups), relinearized
     at every update with extra updates: marginalizing the oldest stamps as leaves leaves the

@@ -18,7 +18,6 @@ import numpy as np
 from graphloc.candidates import CandidateSet
 from graphloc.hypotheses import se3
 from graphloc.hypotheses.config import TrackerConfig
-from graphloc.hypotheses.state import STATE_FIELDS, load_state, save_state
 from graphloc.hypotheses.track import (
     Track,
     capped_candidate_covariances,
@@ -55,24 +54,6 @@ class HypothesisTracker:
         self._logit: dict[int, float] = {}  # track id -> posterior log-odds after the last update
         self._max_gain: dict[int, float] = {}  # track id -> largest log-odds gain of one update
         self._last_time: float | None = None
-
-    # ---- save / resume as data (no pickle: a loaded file never runs code) ----------------------
-    def save(self, path) -> None:
-        """Write the tracker's whole state (config, tracks, commit, log-odds) to `path` as a
-        versioned JSON file, atomically (`graphloc.hypotheses.state`); `load` resumes it with
-        identical decisions."""
-        state = {name: getattr(self, f"_{name}") for name in STATE_FIELDS if name != "tracks"}
-        save_state(path, self.config, {**state, "tracks": self.tracks})
-
-    @classmethod
-    def load(cls, path) -> "HypothesisTracker":
-        """A tracker `save` wrote. ValueError naming the file and the field on anything else."""
-        config, state = load_state(path)
-        tracker = cls(config)
-        tracker._set_tracks(state.pop("tracks"))
-        for name, value in state.items():
-            setattr(tracker, f"_{name}", value)
-        return tracker
 
     @property
     def tracks(self) -> list[Track]:

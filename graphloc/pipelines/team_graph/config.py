@@ -142,7 +142,6 @@ class GraphConfig:
             partial_relinearization_check=True,
             isam2_optimizer="dogleg" if camera_graph else "gauss_newton",
             marginalize_every=self.marginalize_every,
-            keep_steps=False,  # never saved (`online --checkpoint` replays the graph instead)
             factorization=self.factorization,
         )
 
