@@ -40,7 +40,8 @@ from graphloc.vision.markers import (
     marker_area_bounds,
     roi_from_points,
 )
-from graphloc.datasets.render import Occluder, RenderConfig, random_clutter, render_markers
+from benchmarks.clutter import clutter_backdrop, random_clutter
+from graphloc.datasets.render import Occluder, RenderConfig, render_markers
 from graphloc.vision.target import (
     LARGE_TARGET,
     TargetHypothesisConfig,
@@ -167,9 +168,8 @@ def run(
             u, v = true_px[hidden[k]]
             h = 3 * r_px + 3  # > the elongated image of an off-axis sphere
             occluders = (Occluder((u - h, v - h, u + h, v + h), 30.0),)
-        frame = render_markers(
-            cam, X_cam, radius, RENDER, rng, clutter=clutter, occluders=occluders
-        )
+        backdrop = clutter_backdrop(clutter, RENDER.background)
+        frame = render_markers(cam, X_cam, radius, RENDER, rng, backdrop, occluders)
         if history and k - history[-1][0] > MAX_COAST:
             history.clear()  # lost for too long: re-initialize from the whole image (seed IV-B)
         predicted = None

@@ -1,11 +1,9 @@
-"""graphloc.datasets (source folder datasets/): run loaders behind one protocol
-(`loaders.open_run`, the factory that picks the loader from the path) and scenario generators,
-one class each, in the style of KISS-ICP's datasets. Entries are imported lazily so that
-`graphloc --help` does not pay for GTSAM, Open3D or rendering code.
+"""graphloc.datasets: run loaders behind one protocol (`loaders.open_run`) and scenario
+generators, registered by name; entries are imported lazily so that `graphloc --help` does not
+pay for GTSAM, Open3D or rendering code.
 
     from graphloc.datasets import open_run, dataset_class
-    run = open_run("../shared/data/mrclam/MRCLAM_Dataset6")
-"""
+    run = open_run("../shared/data/mrclam/MRCLAM_Dataset6")"""
 
 from __future__ import annotations
 

@@ -1,8 +1,5 @@
-"""The log writer of the camera-track scenarios (`feng-deterministic`, `feng-probabilistic`,
-`kaushik-p3p-error`, `breitenmoser-target`): one camera robot watching the markers of a static
-target, written in the project's log format version 2 (docs/log_format.md, graphloc.io): the
-`markers` table, the camera's odometry as `relative_pose3`, and 3D ground truth as a TUM file
-(timestamp tx ty tz qx qy qz qw, what evo reads) named in the robot's tables as "groundtruth"."""
+"""The log writer of the camera-track scenarios: one camera robot watching the markers of a static
+target (`markers`, odometry as `relative_pose3`, ground truth as TUM; docs/log_format.md)."""
 
 from __future__ import annotations
 

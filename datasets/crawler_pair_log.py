@@ -1,18 +1,6 @@
-"""The `crawler-pair` run as a graphloc log (docs/log_format.md): the rendered images through
-seed 003's front-end (`graphloc.vision.teammate.measure_frames`: KLT tracks, the teammate's base
-rim -> ellipse), written as the tables any team with such cameras would log:
-
-- robot `camera` (the moving robot; body = its camera, OpenCV axes; world = camera 0):
-  `features` (KLT pixels per track), `ellipses` (the teammate's base), `relative_pose3` (seed
-  eq. 8, F = identity: a zero-motion step per frame with the process noise of a frame in which
-  the robot moved or stood still; the robot knows which, seed II), initial pose = identity;
-- robot `teammate` (body = its base disk: origin the centre, z the normal towards its back,
-  y up, `graphloc.vision.circle.rotations_from_normals`): `base_radius`, `relative_pose3`
-  between the frames it is seen (standing still: zero motion; crawling: its odometry distance
-  straight back along -z, heading and lateral loose), and the ground as its `surface` with an
-  attitude-only constraint (its y axis up, seed 003 III: the robots move on the ground);
-- ground truth of both as TUM files.
-"""
+"""The `crawler-pair` run as a log (docs/log_format.md): seed 003's front-end output (KLT
+features, the teammate's base ellipse), zero-motion steps for the camera (seed eq. 8), the
+teammate's odometry and ground surface (docs/design_datasets.md, "crawler-pair")."""
 
 from __future__ import annotations
 

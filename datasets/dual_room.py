@@ -1,21 +1,6 @@
-"""`dual-robot-room`: a simulated room with a ground robot (3D LiDAR + three LEDs) and a
-ceiling robot (upside down on the ceiling, 3D LiDAR + downward camera), both moving.
-
-Seed 004 (Kaushik et al.), Sec. II.A / Fig. 1: the ceiling robot is inverted (~180 deg about x)
-and at any yaw; the ground robot carries the LED triangle. The room, the LEDs and the sensors
-(ray-cast scans, LED pixels) are `graphloc.datasets.room_scene`; this module places and moves
-the robots (seed 004 Fig. 3), simulates a run and writes / reads its files.
-Frames: `ground` = ground LiDAR frame (z up); `ceiling` = ceiling LiDAR frame (z down, into
-the room); `camera` = ceiling camera (z = optical axis, down), `T_ceiling_camera` apart.
-Scans are motion-free snapshots (no deskewing needed).
-
-    scenario = DualRoomScenario.simulate(DualRoomConfig(variant="furnished", seed=3))
-    scenario.write("out/room")            # scans/*.ply, poses, LED pixels, ground truth
-    same = DualRoomScenario.load("out/room")
-
-`simulate_and_fuse` is the main job of `graphloc demo` and `graphloc fuse-maps --simulate`:
-simulate a room, write it, fuse the two robots' maps.
-"""
+"""Scenario `dual-robot-room`: seed 004 (Kaushik et al.) Sec. II-A / Fig. 1, 3: a ground robot
+(LiDAR, LED triangle) and an inverted ceiling robot (LiDAR, downward camera) moving in a room
+(`room_scene`); the run's files, its log, and `simulate_and_fuse`, the job of `graphloc demo`."""
 
 from __future__ import annotations
 

@@ -1,18 +1,6 @@
-"""Seed 000 (000_05137a0a9c449be3.txt) section VI-A, the deterministic-algorithm simulation:
-three ground robots uniform in the sub-cubes (0,0,0)-(1,1,1), (0,2,0)-(1,3,1), (2,1,0)-(3,2,1);
-a climbing-robot camera C uniform in (1,1,2)-(2,2,3) under the ceiling, looking down with
-pitch/tilt/yaw each U(0, pi/6); C moves twice by X ~ N(0.4, 0.2) m along a direction with tilt
-and pitch U(0, pi/6) (steps 3-4), each position perturbed by N(0, 0.001) m perpendicular to the
-motion; a 640x480 pinhole with a 2pi/3 horizontal field of view sees the three robots with pixel
-noise of N(0, 0.5) px in a uniformly random direction.
-
-Interpretation where the seed is silent: the camera keeps its orientation while moving
-(Seed000Config.orientation; "redrawn" draws step 2's orientation anew per snapshot); the
-motion direction is (cos(tilt) cos(pitch), cos(tilt) sin(pitch), sin(tilt)) in the world frame
-(tilt = elevation, pitch = heading); step lengths below 0.05 m are redrawn; trials where a robot
-leaves the image are redrawn and counted. The ground robots' positions are known exactly.
-The same trials serve the baseline and the engines, so comparisons run identical inputs.
-"""
+"""Seed 000 (000_05137a0a9c449be3.txt) Sec. VI-A: the straight-line trials of the climbing
+camera (three snapshots) and the ground robots' mutual-bearing triangle, vectorized over trials
+(docs/design_datasets.md, "Seed 000")."""
 
 from __future__ import annotations
 

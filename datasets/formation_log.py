@@ -1,11 +1,6 @@
-"""The log writer of seed 000 Sec. VI-A (000_05137a0a9c449be3.txt) as measurements, nothing
-pre-solved: three static ground robots with omni cameras that see each other (the `bearing`
-table of each, unit directions in its camera frame), one of them the reference (C1, its
-`initial_pose`), the known |T_12| as a `range` row of C1; the climbing robot's camera sees the
-three (its `bearing` table, the pixels lifted by its pinhole model), and its straight move is
-`relative_pose3` odometry. The team graph places C2, C3 by mutual bearings and the climber by
-P3P on its bearings (`graphloc.pipelines.team_graph.formation`), then solves everything in one
-graph. Format: docs/log_format.md version 2; ground truth as TUM per robot."""
+"""Seed 000 (000_05137a0a9c449be3.txt) Sec. VI-A as a log of measurements: the ground robots'
+mutual bearings, C1 the reference with |T_12| as a range, the climbing camera's bearings of
+the three and its straight move as odometry."""
 
 from __future__ import annotations
 

@@ -1,10 +1,6 @@
-"""Reader of a graphloc log directory (docs/log_format.md, versions 1 and 2) into the one run
-type, `graphloc.run.TeamRun`, in two stages: parsing (`graphloc.datasets.log_rows.read_log_rows`:
-every row of every table through its table's handler, used, counted as a skip with its reason,
-or rejected with file, line and field) and the front-ends
-(`graphloc.datasets.log_front_end.run_front_ends`: P3P, circles, KISS-ICP), then the run's
-start time checked and the converter's skips merged.
-"""
+"""A graphloc log directory (docs/log_format.md) -> `graphloc.run.TeamRun`: parsing
+(`log_rows.read_log_rows`), the front-ends (`log_front_end.run_front_ends`), the start time
+checked and the converter's skips merged."""
 
 from __future__ import annotations
 

@@ -1,24 +1,6 @@
 """Scenario `kaushik-p3p-error`: seed 004 (004_fa12d1d18dcbd0db.txt) Sec. III, the P3P error
-analysis behind its Table 1: three LEDs on the ground robot forming an equilateral triangle of
-side 0.3048 m (Sec. II-A), seen by the overhead camera of the wall-climbing robot, focal length
-16 / 26 / 36 mm, Gaussian pixel noise of variance 3 / 5 / 10 px^2 on each image coordinate,
-1000 runs per cell; RMS position error Eq. (4).
-
-Where the seed is silent (stated, not tuned): a 640x480 2/3" sensor (8.8 x 6.6 mm, pixel
-pitch 13.75 um: C-mount 16-36 mm lenses), the camera 2.5 m above the LED plane (a 3 m ceiling
-over a 0.5 m ground robot) -- with a smaller sensor or a lower ceiling the 36 mm lens cannot
-see the whole 0.3048 m triangle. Each run is a
-short track (Fig. 3: the climbing robot follows a sinusoid on the ceiling): `frames` updates
-`step` m apart (at `speed` m/s) along y = A sin(2 pi x / wavelength), starting within
-`start_radius` of the point above the LED centroid, the camera pan-tilted at the centroid (it
-must stay in a 36 mm lens' 10 deg field of view). Odometry between updates is the noisy
-relative camera pose (graphloc.datasets.feng.noisy_odometry; seed 004 Algorithm 1's alpha_1,
-alpha_2 are not given: `odometry_noise` relative translation, `odometry_rot_sigma` rad).
-Frame: the LED frame (P1 at the origin, X1-Y1 in the LED plane, z up), as the seed's
-X1-Y1-Z1. Readings swept by benchmarks.seed_baselines (issue 20): `offset` moves the
-track's start that far (horizontally) from the point above the LED centroid (0: overhead, the
-default); `noise_reading` reads Table 1's "sigma^2 = v" as a variance (default) or as a std.
-"""
+analysis behind its Table 1 (LED triangle of Sec. II-A, RMS error Eq. (4)), runs batched over
+tracks of a climbing robot's overhead camera (docs/design_datasets.md, "Seed 004")."""
 
 from __future__ import annotations
 

@@ -1,10 +1,5 @@
-"""The front-end stage of a graphloc log: the raw rows of `LogRows`
-(`graphloc.datasets.log_rows`) -> what the team graph takes. Marker pixels -> P3P candidate
-sets and logged `candidates` -> candidate sets (`log_observations`), ellipses -> circle
-candidate sets and features -> camera observations (`camera_tables`), a robot's scans ->
-KISS-ICP odometry steps (`log_observations.scan_odometry`). Parsing never runs a front-end;
-this stage never reads a table.
-"""
+"""The front-end stage of a graphloc log: the raw rows of `LogRows` -> what the team graph takes
+(candidate sets, camera observations, KISS-ICP steps). It never reads a table."""
 
 from __future__ import annotations
 

@@ -1,12 +1,6 @@
-"""Tables of a graphloc log that become observations in batches (docs/log_format.md):
-`markers` rows grouped by image -> P3P candidate sets in one batched solve
-(`graphloc.vision.marker_poses`, seed 000 Sec. III-B / seed 004 Sec. II-C: three distinct
-markers, up to 4 candidates; seed 001 Sec. IV-C: four identical markers, 24 x 4 hypotheses gated
-by the fourth marker), `candidates` rows -> candidate sets as logged, and a robot's `scans` ->
-KISS-ICP odometry steps (`graphloc.mapping.odometry`). Called by the front-end stage
-(`graphloc.datasets.log_front_end.run_front_ends`) with the rows parsing grouped; the markers'
-columns are read by parsing (`marker_columns`, `graphloc.datasets.log_rows.read_log_rows`).
-"""
+"""Log tables that become observations in batches: `markers` rows -> P3P candidate sets (seed 000
+Sec. III-B, seed 004 Sec. II-C: three markers; seed 001 Sec. IV-C: four identical markers),
+`candidates` rows -> candidate sets, a robot's `scans` -> KISS-ICP odometry steps."""
 
 from __future__ import annotations
 

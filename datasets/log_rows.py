@@ -1,11 +1,6 @@
-"""Parsing of a graphloc log directory (docs/log_format.md, versions 1 and 2) into typed tables,
-`LogRows`, with no front-end work: each table's rows go to the handler its table kind is
-registered under (`TABLE_HANDLERS`), which checks a row and returns what it becomes -- a wheel
-velocity, a relative-pose `Motion`, a `PointMeasurement`, or a raw row the front-end stage
-takes (`graphloc.datasets.log_front_end`: marker pixels, candidates, ellipses, features, scans)
--- or a `Skip` naming file, line and field. `markers` rows are read as columns
-(`log_observations.marker_columns`: a million rows in seconds), 3D ground truth from TUM files.
-"""
+"""Parsing of a graphloc log directory (docs/log_format.md) into typed tables, `LogRows`: each
+row through its table kind's handler (`TABLE_HANDLERS`) -> a typed row, or a `Skip` naming
+file, line and field; no front-end work."""
 
 from __future__ import annotations
 

@@ -1,31 +1,7 @@
-"""UTIAS Multi-Robot Cooperative Localization and Mapping (MRCLAM) dataset loader
-(Leung et al., IJRR 2011). Reads the directory layout of any MRCLAM_DatasetN:
-
-    Barcodes.dat               subject #, barcode #
-    Landmark_Groundtruth.dat   subject #, x, y, x std-dev, y std-dev
-    RobotN_Odometry.dat        time, forward velocity v [m/s], angular velocity omega [rad/s]
-    RobotN_Measurement.dat     time, barcode #, range [m], bearing [rad]
-    RobotN_Groundtruth.dat     time, x, y, orientation   (optional)
-
-Subjects 1..R are the robots (R = number of RobotN_Odometry.dat files), the others landmarks.
-Files are UTF-8 (an optional byte-order mark is dropped); a byte that is not UTF-8 is a
-ValueError naming file, line and column. Every row that is not used is counted by reason in the
-run's SkipReport, with file and line (on_error="raise": the first one is a ValueError instead):
-malformed lines ("field_count", "parse"), NaN/inf ("non_finite"), values outside the plausible
-ranges of `LIMITS` ("implausible", e.g. a speed of 1e308 m/s), time going backwards
-("time_backwards"), ranges <= 0 ("non_positive_range"), unknown barcodes, self-observations,
-and rows outside the run's time window: measurements before the common start
-("before_start"), after the earliest end of any robot's odometry ("after_end") or after the
-requested `duration` ("after_duration"); odometry rows past the end ("odometry_after_end",
-"odometry_after_duration"); ground truth outside the window ("groundtruth_outside_window").
-`run.meta["window"]` says which file (or the duration) set each end of the window.
-Barcodes.dat and Landmark_Groundtruth.dat define the ids and the map, so any bad row in them,
-a missing or empty landmark file or a landmark listed twice is always a ValueError. Missing,
-unreadable, looping (symlink) or non-regular files are errors, never "no data".
-
-    run = MRCLAM("/data/MRCLAM_Dataset6", duration=60.0).load()    # graphloc.io.PlanarRun
-    MRCLAM("/data/MRCLAM_Dataset6").to_log("out/ds6_log")           # graphloc log format
-"""
+"""UTIAS MRCLAM dataset loader (Leung et al., IJRR 2011): a MRCLAM_DatasetN directory
+(Barcodes.dat, Landmark_Groundtruth.dat, RobotN_Odometry / _Measurement / _Groundtruth.dat) ->
+`graphloc.io.PlanarRun`, every unused row a counted skip naming file and line
+(docs/design_datasets.md, "MRCLAM")."""
 
 from __future__ import annotations
 

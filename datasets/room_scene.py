@@ -1,13 +1,6 @@
-"""The `dual-robot-room` scene: rooms (four variants), the ground robot's LED triangle and the
-sensors -- a spinning 3D LiDAR ray cast with Open3D's `o3d.t.geometry.RaycastingScene` (all
-frames in one call) and the ceiling robot's downward pinhole camera that sees the LEDs.
-
-Seed 004 (Kaushik et al.), Sec. II.A / Fig. 1: LEDs P1..P3 form an equilateral triangle of side
-0.3048 m; the ceiling camera and LiDAR frames have parallel axes and a small offset
-(`T_CEILING_CAMERA`). Sec. IV.A: scans carry noise and outliers (range noise, dropouts, spurious
-returns here). Furniture tops are only visible from the ceiling (Sec. I, "furniture tops").
-The scenario and its files are `graphloc.datasets.dual_room`.
-"""
+"""The `dual-robot-room` scene: four room variants, the ground robot's LED triangle and the
+sensors, ray cast with Open3D (seed 004 Sec. II-A, Fig. 1; Sec. IV-A: LiDAR noise, dropouts and
+spurious returns)."""
 
 from __future__ import annotations
 

@@ -1,25 +1,7 @@
-"""ROS bags as graphloc runs (issue 18): ROS 1 `.bag` files, ROS 2 sqlite3 bag directories and
-MCAP files (a bare `.mcap` or a ROS 2 directory of them), read through the pure-Python
-`rosbags` library (`rosbags.highlevel.AnyReader`), no ROS installation.
-
-A topics file (YAML, docs/rosbag.md; parsed by `graphloc.datasets.rosbag_topics`) names the
-robots in the schema of the log manifest's `robots` and maps each topic to one robot and one
-table of the log format version 2 (docs/log_format.md): odometry / pose topics ->
-`relative_pose3`, ranges, bearings, Detection2DArray or images (marker detector) -> `markers`,
-PointCloud2 -> `scans` (one PLY file per cloud), pose topics -> `groundtruth`; a camera's
-CameraInfo topic gives its intrinsics and `tf` / `tf_static` the sensors' extrinsics (the
-message conversions: `graphloc.datasets.rosbag_messages`).
-
-`import_bag(bag, topics, out)` writes a version-2 log directory (`graphloc.io` tables, the one
-reader being `graphloc.datasets.graphloc_log.read_team_run`); the `RosBag` loader of
-`graphloc.datasets.open_run` imports into a temporary directory and reads that. The clock is
-the messages' header stamps; each topic is sorted by stamp (bag order, i.e. receive time, may
-differ). A message that cannot be decoded, has the wrong type for its table, or holds a bad
-value is a counted skip naming the bag, topic and message index (`graphloc.io.SkipReport`);
-the import's skips are kept in the manifest's `meta.import.skips` and merged into
-`TeamRun.skips` by the loader. A bag that cannot be opened, a camera without its CameraInfo
-messages and sensor frames tf does not connect are errors naming the bag and topic.
-"""
+"""ROS 1 / ROS 2 sqlite3 / MCAP bags (issue 18) through `rosbags`, no ROS installation:
+`import_bag` writes a log directory (version 2) as the topics file maps it (docs/rosbag.md), the
+`RosBag` loader imports into a temporary directory and reads that. A bad message is a counted
+skip naming bag, topic and message index."""
 
 from __future__ import annotations
 

@@ -1,9 +1,6 @@
-"""Decoded bag messages -> rows of graphloc's tables (docs/rosbag.md, "Messages -> rows"): the
-clock from header stamps, poses and their increments, ranges, bearings, detections; point
-clouds (KISS-ICP's own PointCloud2 reader, `kiss_icp.tools.point_cloud2`); images through
-graphloc's marker detector (`graphloc.vision.markers.detect_markers`, seed 001 IV-B);
-CameraInfo -> pinhole intrinsics; tf / tf_static -> a sensor's extrinsics. A bad value raises
-`Bad(reason, text)`, which the importer counts as a skip naming bag, topic and message index."""
+"""Decoded bag messages -> rows of graphloc's tables (docs/rosbag.md, "Messages -> rows"). A bad
+value raises `Bad(reason, text)`, which the importer counts as a skip naming bag, topic and
+message index."""
 
 from __future__ import annotations
 

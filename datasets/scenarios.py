@@ -1,18 +1,6 @@
-"""The simulator protocol behind `graphloc simulate NAME --out DIR [--seed N] [--FIELD VALUE]`.
-
-A scenario is a class registered in `graphloc.datasets` (`_REGISTRY`) that implements
-`Scenario`: class attributes `name` (its registered name) and `config_class` (a frozen
-dataclass of its settings) and a classmethod `generate(out_dir, seed=0, **overrides) -> Path`
-that writes one run as a log directory the loaders read (`graphloc.datasets.open_run`, log
-format version 2, docs/log_format.md) with ground truth, and returns the manifest's path.
-`overrides` are fields of `config_class`, as values or strings (`graphloc.config.parse_overrides`).
-`generate(name, out_dir, seed, overrides)` is the one entry point (the `simulate` verb,
-`benchmarks.team_runs`).
-
-The camera-track scenarios write through `graphloc.datasets.camera_track`; seed 000 Sec. VI-A's
-trial (`feng-deterministic`) has its class here, beside the protocol, because its simulation
-module (`feng_deterministic`) is shared with the straight-line baseline's experiments.
-"""
+"""The simulator protocol behind `graphloc simulate NAME --out DIR [--seed N] [--FIELD VALUE]`:
+a registered class with `name`, `config_class` and `generate(out_dir, seed, **overrides)` that
+writes a log directory with ground truth; and seed 000 Sec. VI-A's `feng-deterministic`."""
 
 from __future__ import annotations
 

@@ -1,8 +1,5 @@
-"""The rendering of scenario `crawler-pair` (`graphloc.datasets.crawler_pair`, seed 003
-section III): a textured back wall and ground (`TexturedScene`, random textures from
-`make_texture`: multi-octave noise plus random shapes, so Shi-Tomasi finds corners) ray cast per
-pixel, and the exact pixel coverage of the teammate's circular base (`disk_coverage`).
-"""
+"""The rendering of scenario `crawler-pair` (seed 003 Sec. III): a textured wall and ground ray
+cast per pixel, and the exact pixel coverage of the teammate's circular base."""
 
 from __future__ import annotations
 

@@ -5,6 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from benchmarks.seed003_measures import disk_information
 from graphloc.datasets import dataset_class
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
 from graphloc.vision.circle import circle_pose_from_rim
@@ -118,7 +119,7 @@ def test_disk_information_is_the_bound_of_this_renderer(seq):
     definite; depth much worse than lateral; it scales with 1/(noise^2 + 1/12) exactly (the same
     background); the finite differences have converged in the ray sampling."""
     gen = CrawlerPairScenario(seq.config)
-    info = gen.disk_information(seq, 1, subsamples=16)
+    info = disk_information(gen, seq, 1, subsamples=16)
     assert info.shape == (5, 5) and np.allclose(info, info.T)
     cov = np.linalg.inv(info)
     assert np.linalg.eigvalsh(info)[0] > 0
@@ -127,9 +128,9 @@ def test_disk_information_is_the_bound_of_this_renderer(seq):
     depth = np.sqrt(los @ cov[:3, :3] @ los)
     lateral = np.sqrt((np.trace(cov[:3, :3]) - los @ cov[:3, :3] @ los) / 2)
     assert 10 * lateral < depth < 2e-3 and np.degrees(np.sqrt(cov[3, 3])) < 2.0
-    noisier = CrawlerPairScenario(replace(seq.config, noise_sigma=4.0)).disk_information(
-        seq, 1, subsamples=16
+    noisier = disk_information(
+        CrawlerPairScenario(replace(seq.config, noise_sigma=4.0)), seq, 1, subsamples=16
     )
     np.testing.assert_allclose(info / noisier, (16 + 1 / 12) / (4 + 1 / 12), rtol=1e-6)
-    finer = np.linalg.inv(gen.disk_information(seq, 1, subsamples=32))
+    finer = np.linalg.inv(disk_information(gen, seq, 1, subsamples=32))
     assert abs(np.sqrt(los @ finer[:3, :3] @ los) / depth - 1) < 0.1
