@@ -41,6 +41,13 @@ class CameraTrackLog:
     meta: dict = dataclasses.field(default_factory=dict)
 
 
+def stack_poses(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(F,3,3) rotations, (F,3) translations -> (F,4,4) poses."""
+    T = np.tile(np.eye(4), (len(R), 1, 1))
+    T[:, :3, :3], T[:, :3, 3] = R, t
+    return T
+
+
 def relative_pose3_rows(times, steps: list, covs: list) -> list:
     """`relative_pose3` rows (sensor "odometry") of steps[k]: pose k -> k + 1 (gtsam.Pose3)
     with its diagonal 6x6 covariance covs[k]."""
@@ -76,9 +83,7 @@ def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
     ]
     write_table(out / obs / "markers.csv", "markers", markers)
     tables = {"markers": f"{obs}/markers.csv", "groundtruth": f"{obs}/groundtruth.tum"}
-    poses = np.broadcast_to(np.eye(4), (len(log.times), 4, 4)).copy()
-    poses[:, :3, :3], poses[:, :3, 3] = log.R_wc, log.t_wc
-    write_tum(out / obs / "groundtruth.tum", log.times, poses)
+    write_tum(out / obs / "groundtruth.tum", log.times, stack_poses(log.R_wc, log.t_wc))
     sensors = []
     if log.odometry:
         rows = relative_pose3_rows(log.times, log.odometry, log.odometry_cov)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from graphloc.datasets.camera_track import stack_poses
 from graphloc.eval import write_tum
 from graphloc.io import write_manifest, write_table
 from graphloc.seams import MotionNoise
@@ -21,12 +22,6 @@ STILL_SIGMA = 1e-3  # [rad, m] zero-motion step of a teammate that stood still
 UPRIGHT_SIGMA = 0.05  # [rad] the teammate's y axis stays vertical (ground roughness)
 CRAWL_ROT_SIGMA = 0.05  # [rad] heading change of one teammate crawl
 CRAWL_LATERAL = 0.25  # lateral sigma per metre crawled
-
-
-def _homogeneous(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    T = np.tile(np.eye(4), (len(R), 1, 1))
-    T[:, :3, :3], T[:, :3, 3] = R, t
-    return T
 
 
 def _relative_row(t0, t1, sensor, t=(0.0, 0.0, 0.0), rot=1e-3, trans=(1e-3,) * 3) -> list:
@@ -85,9 +80,9 @@ def write_crawler_pair_log(
     write_table(out / "camera_ellipses.csv", "ellipses", ellipses)
     write_table(out / "camera_motion.csv", "relative_pose3", cam_motion)
     write_table(out / "teammate_motion.csv", "relative_pose3", mate_motion)
-    write_tum(out / "camera_groundtruth.tum", times, _homogeneous(seq.R_wc, seq.t_wc))
+    write_tum(out / "camera_groundtruth.tum", times, stack_poses(seq.R_wc, seq.t_wc))
     R_disk = rotations_from_normals(seq.base_normal)
-    write_tum(out / "teammate_groundtruth.tum", times, _homogeneous(R_disk, seq.base_centre))
+    write_tum(out / "teammate_groundtruth.tum", times, stack_poses(R_disk, seq.base_centre))
     camera_params = {
         **seq.camera.params(),
         "pixel_sigma": 1.0,  # seed III: KLT pixel variance 1

@@ -27,8 +27,8 @@ from graphloc.datasets.room_scene import (
     observe_leds,
     rot_z,
     scan_frames,
-    stack_poses,
 )
+from graphloc.datasets.camera_track import stack_poses
 from graphloc.eval import write_tum
 from graphloc.io import write_table
 from graphloc.structured import dumps_json, read_json

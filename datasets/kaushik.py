@@ -21,7 +21,6 @@ from graphloc.datasets.feng import (
 from graphloc.config import parse_overrides
 from graphloc.config_schema import config_dataclass, setting
 from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
-from graphloc.geometry.p3p import P3PCandidates, solve_p3p
 
 SIDE = 0.3048  # LED triangle side [m] (seed 004 Sec. II-A)
 FOCALS_MM = (16.0, 26.0, 36.0)
@@ -81,8 +80,7 @@ class KaushikConfig:
 class KaushikRuns:
     """`runs` tracks of `frames` updates. times (F,); R_wc (N,F,3,3), t_wc (N,F,3) true camera
     poses; leds (3,3); pixels (N,F,3,2) noisy; odometry: N lists of F-1 noisy relative poses
-    (gtsam.Pose3); candidates: P3P of every frame, shaped (N*F,) run-major; genuine (N,F):
-    index of the candidate nearest the truth (-1: none); genuine_error (N,F) [m]."""
+    (gtsam.Pose3)."""
 
     config: KaushikConfig
     times: np.ndarray
@@ -91,9 +89,6 @@ class KaushikRuns:
     leds: np.ndarray
     pixels: np.ndarray
     odometry: list
-    candidates: P3PCandidates
-    genuine: np.ndarray
-    genuine_error: np.ndarray
 
 
 def tracks(config: KaushikConfig, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -122,7 +117,7 @@ def tracks(config: KaushikConfig, rng: np.random.Generator) -> tuple[np.ndarray,
 
 
 def simulate(config: KaushikConfig = KaushikConfig()) -> KaushikRuns:
-    """All runs of one (focal, noise) cell, P3P batched over every frame of every run."""
+    """All runs of one (focal, noise) cell, batched over every frame of every run."""
     rng = np.random.default_rng(config.seed)
     N, F = config.runs, config.frames
     leds = led_triangle()
@@ -135,14 +130,6 @@ def simulate(config: KaushikConfig = KaushikConfig()) -> KaushikRuns:
             f"(focal {config.focal_mm} mm, height {config.height} m)"
         )
     pixels = uv + rng.normal(0.0, config.pixel_sigma, uv.shape)
-    bearings, ok = camera.pixel_to_bearing(pixels.reshape(-1, 2))
-    if not ok.all():
-        raise ValueError(
-            f"kaushik-p3p-error: {int((~ok).sum())} noisy pixels do not lift to bearings"
-        )
-    cands = solve_p3p(bearings.reshape(-1, 3, 3), np.broadcast_to(leds, (N * F, 3, 3)))
-    d = np.where(cands.valid, np.linalg.norm(cands.t_wc - t.reshape(-1, 1, 3), axis=2), np.inf)
-    genuine = np.where(cands.valid.any(axis=1), d.argmin(axis=1), -1).reshape(N, F)
     odometry = []
     for n in range(N):
         Rrel, trel = relative_poses(R[n], t[n])
@@ -157,9 +144,6 @@ def simulate(config: KaushikConfig = KaushikConfig()) -> KaushikRuns:
         leds,
         pixels.reshape(N, F, 3, 2),
         odometry,
-        cands,
-        genuine,
-        d.min(axis=1).reshape(N, F),
     )
 
 

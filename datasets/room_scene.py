@@ -11,6 +11,7 @@ import open3d as o3d
 
 from graphloc.cameras import PinholeCamera
 from graphloc.config_schema import config_dataclass, setting
+from graphloc.datasets.camera_track import stack_poses
 
 VARIANTS = ("furnished", "empty", "rectangular", "low_overlap")
 LED_SIDE = 0.3048  # seed 004 Sec. II.A
@@ -58,13 +59,6 @@ class CameraConfig:
 
     def pinhole(self) -> PinholeCamera:
         return PinholeCamera(self.fx, self.fy, self.cx, self.cy, self.width, self.height)
-
-
-def stack_poses(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """(F,3,3), (F,3) -> (F,4,4)."""
-    T = np.tile(np.eye(4), (len(R), 1, 1))
-    T[:, :3, :3], T[:, :3, 3] = R, t
-    return T
 
 
 def rot_z(yaw: np.ndarray) -> np.ndarray:

@@ -14,7 +14,7 @@ import numpy as np
 
 from graphloc.config import parse_overrides
 from graphloc.datasets import _REGISTRY, dataset_class
-from graphloc.datasets.formation_log import table_i_formation, write_formation_log
+from graphloc.datasets.formation_log import write_table_i_trial
 from graphloc.datasets.feng_deterministic import (
     Seed000Config,
     TableIConfig,
@@ -106,7 +106,7 @@ class FengDeterministicScenario:
             "config": asdict(config),
             "omni": {"size": config.omni_size, "max_polar_angle": config.omni_max_polar},
         }
-        log = table_i_formation(
-            trials, tri, 0, config.pixel_sigma, 3 * sim.step_mean, cls.name, meta
+        step_sigma = 3 * sim.step_mean
+        return write_table_i_trial(
+            trials, tri, 0, config.pixel_sigma, step_sigma, cls.name, out_dir, meta
         )
-        return write_formation_log(log, out_dir)
