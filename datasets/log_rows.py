@@ -71,7 +71,7 @@ class LogRows:
     (robot, sensor), `features` as (robot, row), `ellipses` as (observer, target, row, where),
     `markers` as columns); 3D ground truth (times, poses) per robot name; the rows used per
     table as parsed (a front-end's rows count when it makes their set,
-    `log_front_end.FrontEndOutput.used`), the skips and the notes (read and used, but
+    `graphloc_log.FrontEndOutput.used`), the skips and the notes (read and used, but
     said)."""
 
     manifest: Manifest
