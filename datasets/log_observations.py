@@ -11,8 +11,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.candidates import CandidateSet
-from graphloc.datasets.camera_tables import camera_from_params, positive_param
-from graphloc.io import MANIFEST, Sink, iter_table_chunks
+from graphloc.datasets.camera_tables import camera_sensor, positive_param
+from graphloc.io import Sink, iter_table_chunks
 from graphloc.textio import cut
 from graphloc.run import CandidateObservation, MarkerPixels, Motion, ScanObservation
 from graphloc.vision.marker_poses import p3p_candidate_sets
@@ -140,9 +140,7 @@ def marker_observations(
     out, used = [], 0
     for (ri, s, ti), frames in by_setup.items():
         sensor = list(robots[ri].sensors)[s]  # marker_columns' sensor index
-        T_bs, params = robots[ri].sensors[sensor]
-        where_cam = f"{manifest.root / MANIFEST}: robot {robots[ri].name!r} sensor {sensor!r}"
-        camera = camera_from_params(params, where_cam)
+        E, params, camera, where_cam = camera_sensor(robots, ri, sensor, manifest)
         sigma = positive_param(params, "pixel_sigma", d["pixel_sigma"], where_cam)
         target = robots[ti]
         sets = p3p_candidate_sets(
@@ -164,7 +162,7 @@ def marker_observations(
             # an inconsistent set (no pose passes the pixel chi-square) stays, empty: the team
             # graph counts it in its stream and never decides it
             pixels = None if target.identical_markers else MarkerPixels(marks, uv, camera, sigma)
-            out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs, pixels))
+            out.append(CandidateObservation(time, ri, ti, E, cs, pixels))
             if len(cs):  # an inconsistent set's rows are counted by the graph, as skipped
                 used += len(marks)
     return out, used

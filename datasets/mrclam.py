@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from graphloc.io import PlanarRun, SkipReport, write_planar_run
+from graphloc.io import PlanarRun, SkipReport
 from graphloc.textio import check_file, text_blocks
 
 _ROBOT_FILE = re.compile(r"^Robot(\d+)_Odometry\.dat$")
@@ -375,10 +375,6 @@ class MRCLAM:
                     n,
                     strict=False,
                 )
-
-    def to_log(self, out_dir: str | Path) -> Path:
-        """Convert to the graphloc log format (docs/log_format.md)."""
-        return write_planar_run(self.load(), out_dir)
 
     def _file(self, name: str) -> Path:
         path = self.root / name
