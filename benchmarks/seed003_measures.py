@@ -113,7 +113,7 @@ def track_errors(seq, frames) -> tuple[np.ndarray, np.ndarray]:
         ids, pixels = np.asarray(f.features.ids), np.asarray(f.features.pixels, float)
         new = np.array([i not in first for i in ids.tolist()], dtype=bool)
         if new.any():
-            for i, point in zip(ids[new].tolist(), seq.surface_points(k, pixels[new])):
+            for i, point in zip(ids[new].tolist(), surface_points(seq, k, pixels[new])):
                 first[i] = (k, point)
         if (~new).any():
             k0, points = zip(*(first[i] for i in ids[~new].tolist()))
@@ -187,3 +187,19 @@ def disk_information(generator, seq, k: int, subsamples: int = 32) -> np.ndarray
         grads.append(cv2.GaussianBlur(d, (0, 0), cfg.blur_sigma) if cfg.blur_sigma > 0 else d)
     J = np.stack([g.reshape(-1) for g in grads], axis=1).astype(np.float64)  # (pixels * 3, 5)
     return J.T @ J / (cfg.noise_sigma**2 + 1.0 / 12.0)
+
+
+def surface_points(seq, t: int, pixels: np.ndarray) -> np.ndarray:
+    """World points (M,3) of the textured wall or ground (`seq.scene`) seen at `pixels` (M,2)
+    of frame t: the ground truth of KLT features (the base is not a surface here)."""
+    rays = seq.camera.pixel_to_bearing(pixels)[0] @ seq.R_wc[t].T
+    o, scene = np.asarray(seq.t_wc[t], float), seq.scene
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s_wall = (scene.wall_z - o[2]) / rays[:, 2]
+        s_ground = (scene.ground_y - o[1]) / rays[:, 1]
+    s_wall = np.where(s_wall > 0, s_wall, np.inf)
+    s_ground = np.where(s_ground > 0, s_ground, np.inf)
+    s = np.minimum(s_wall, s_ground)
+    hits = o + s[:, None] * rays
+    hits[~np.isfinite(s)] = np.nan
+    return hits

@@ -138,12 +138,6 @@ class CrawlerPairSequence:
         R = self.R_wc[t]
         return R.T @ (self.base_centre[t] - self.t_wc[t]), R.T @ self.base_normal[t]
 
-    def surface_points(self, t: int, pixels: np.ndarray) -> np.ndarray:
-        """World points (M,3) of the textured surfaces seen at `pixels` (M,2) of frame t (the
-        ground truth of KLT features; the base is not a surface here)."""
-        rays = self.camera.pixel_to_bearing(pixels)[0] @ self.R_wc[t].T
-        return self.scene.intersect(self.t_wc[t], rays)[0]
-
 
 def _rot_y(a):
     c, s = np.cos(a), np.sin(a)

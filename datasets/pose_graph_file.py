@@ -12,7 +12,6 @@ import numpy as np
 
 from graphloc.textio import Sink, SkipReport, check_file, shown, text_lines
 
-CITY_SIGMAS = (1.0 / 20.0, 1.0 / 20.0, 1.0 / 100.0)  # GTSAM's HybridCity10000 example
 MAX_CANDIDATES = 64
 MAX_KEY = 2**40
 # tag -> (dimension, number of pose numbers, number of information entries)

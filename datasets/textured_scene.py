@@ -26,21 +26,6 @@ class TexturedScene:
     ground_texture: np.ndarray
     ground_origin: tuple[float, float]
 
-    def intersect(self, origin: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Nearest hit (M,3) of rays (M,3) from origin (3,) with wall or ground, and on_wall
-        (M,)."""
-        o = np.asarray(origin, float)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s_wall = (self.wall_z - o[2]) / rays[:, 2]
-            s_ground = (self.ground_y - o[1]) / rays[:, 1]
-        s_wall = np.where(s_wall > 0, s_wall, np.inf)
-        s_ground = np.where(s_ground > 0, s_ground, np.inf)
-        on_wall = s_wall <= s_ground
-        s = np.where(on_wall, s_wall, s_ground)
-        hits = o + s[:, None] * rays
-        hits[~np.isfinite(s)] = np.nan
-        return hits, on_wall
-
     def image(
         self, camera: PinholeCamera, supersample: int, R_wc: np.ndarray, t_wc: np.ndarray
     ) -> np.ndarray:

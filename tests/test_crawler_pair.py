@@ -5,7 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from benchmarks.seed003_measures import disk_information
+from benchmarks.seed003_measures import disk_information, surface_points
 from graphloc.datasets import dataset_class
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
 from graphloc.vision.circle import circle_pose_from_rim
@@ -57,7 +57,7 @@ def test_seed_geometry(seq):
 
 def test_surface_points_on_wall_and_ground(seq):
     px = np.array([[160.0, 20.0], [160.0, 235.0]])  # top: the wall at 2.6 m; bottom: the ground
-    pts = seq.surface_points(0, px)
+    pts = surface_points(seq, 0, px)
     assert pts[0, 2] == pytest.approx(seq.config.background_distance)
     assert pts[1, 1] == pytest.approx(seq.config.camera_height)
     assert pts[1, 2] < 0.5
