@@ -4,8 +4,6 @@ writes a log directory with ground truth; and seed 000 Sec. VI-A's `feng-determi
 
 from __future__ import annotations
 
-import dataclasses
-import inspect
 from dataclasses import asdict, replace
 from pathlib import Path
 from typing import ClassVar, Protocol
@@ -13,7 +11,7 @@ from typing import ClassVar, Protocol
 import numpy as np
 
 from graphloc.config import parse_overrides
-from graphloc.datasets import _REGISTRY, dataset_class
+from graphloc.datasets import scenario_class
 from graphloc.datasets.formation_log import write_table_i_trial
 from graphloc.datasets.feng_deterministic import (
     Seed000Config,
@@ -24,40 +22,14 @@ from graphloc.datasets.feng_deterministic import (
 
 
 class Scenario(Protocol):
-    """What `graphloc simulate` needs from a registered scenario class."""
+    """What `graphloc simulate` needs from a scenario class registered in
+    `graphloc.datasets.SCENARIOS`: `config_class` a dataclass whose fields are the overrides."""
 
     name: ClassVar[str]
     config_class: ClassVar[type]
 
     @classmethod
     def generate(cls, out_dir, seed: int = 0, **overrides) -> Path: ...
-
-
-def is_scenario(cls) -> bool:
-    """`cls` implements `Scenario`: a classmethod `generate(out_dir, seed, **overrides)` and a
-    dataclass `config_class`."""
-    gen = inspect.getattr_static(cls, "generate", None)
-    if not isinstance(gen, classmethod):
-        return False
-    params = list(inspect.signature(cls.generate).parameters.values())
-    return (
-        dataclasses.is_dataclass(getattr(cls, "config_class", None))
-        and isinstance(getattr(cls, "name", None), str)
-        and [p.name for p in params[:2]] == ["out_dir", "seed"]
-        and params[-1].kind is inspect.Parameter.VAR_KEYWORD
-    )
-
-
-def scenario_class(name: str) -> type:
-    """The registered class of scenario `name`; ValueError for unknown names and for
-    registered classes that are not scenarios (loaders such as `mrclam`)."""
-    cls = dataset_class(name)  # raises for unknown names
-    if not is_scenario(cls):
-        raise ValueError(
-            f"{name!r} is not a scenario (no `generate` into a log directory); "
-            f"scenarios: {', '.join(scenario_names())}"
-        )
-    return cls
 
 
 def scenario_config_class(name: str) -> type:
@@ -68,11 +40,6 @@ def scenario_config_class(name: str) -> type:
 def generate(name: str, out_dir, seed: int = 0, overrides: dict | None = None) -> Path:
     """Write one run of scenario `name` to out_dir; returns the manifest's path."""
     return scenario_class(name).generate(out_dir, seed, **dict(overrides or {}))
-
-
-def scenario_names() -> list[str]:
-    """Registered names whose class implements `Scenario`."""
-    return sorted(n for n in _REGISTRY if is_scenario(dataset_class(n)))
 
 
 # ---- seed 000 Sec. VI-A ------------------------------------------------------------------------

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from benchmarks.seed003_measures import disk_information, surface_points
-from graphloc.datasets import dataset_class
+from graphloc.datasets import scenario_class
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
 from graphloc.vision.circle import circle_pose_from_rim
 from graphloc.vision.base_rim import detect_base_rim
@@ -21,7 +21,7 @@ def seq():
 
 
 def test_registered_and_shapes(seq):
-    assert dataset_class("crawler-pair") is CrawlerPairScenario
+    assert scenario_class("crawler-pair") is CrawlerPairScenario
     T = seq.config.n_frames
     assert T == 6 and seq.images.shape == (T, 240, 320, 3) and seq.images.dtype == np.uint8
     assert seq.R_wc.shape == (T, 3, 3) and seq.t_wc.shape == (T, 3)

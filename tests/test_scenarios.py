@@ -1,15 +1,18 @@
 """The simulator protocol and `graphloc simulate`: every scenario class implements
 `Scenario` and writes a valid log with ground truth; options derive from its config."""
 
+import dataclasses
+import inspect
+
 import numpy as np
 import pytest
 
 from benchmarks.seed_baselines import genuine_p3p_errors
 from graphloc.cli import main
 from graphloc.config import parse_overrides
-from graphloc.datasets import dataset_class
+from graphloc.datasets import scenario_class, scenario_names
 from graphloc.datasets.kaushik import SIDE, KaushikConfig, led_triangle, simulate
-from graphloc.datasets.scenarios import generate, is_scenario, scenario_names
+from graphloc.datasets.scenarios import generate
 from graphloc.io import iter_records, read_manifest
 
 SMALL = {
@@ -54,13 +57,18 @@ SCENARIOS = [
 
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_every_scenario_class_implements_the_protocol(name):
-    cls = dataset_class(name)
-    assert is_scenario(cls) and cls.name == name
+    cls = scenario_class(name)
+    assert cls.name == name and dataclasses.is_dataclass(cls.config_class)
+    assert isinstance(inspect.getattr_static(cls, "generate"), classmethod)
+    params = list(inspect.signature(cls.generate).parameters.values())
+    assert [p.name for p in params[:2]] == ["out_dir", "seed"]
+    assert params[-1].kind is inspect.Parameter.VAR_KEYWORD
 
 
 def test_loaders_are_not_scenarios():
-    assert not is_scenario(dataset_class("mrclam"))
     assert "mrclam" not in scenario_names()
+    with pytest.raises(ValueError, match="unknown scenario 'mrclam'; scenarios: breitenmoser"):
+        scenario_class("mrclam")
 
 
 def test_simulate_verb_and_bad_input(tmp_path, capsys):
