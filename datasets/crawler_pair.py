@@ -155,11 +155,8 @@ def _rot_z(a):
 
 
 class CrawlerPairScenario:
-    """Generator of `CrawlerPairSequence`s (see the module docstring).
-
-    seq = CrawlerPairScenario(CrawlerPairConfig(seed=3)).render_sequence()
-
-    `generate` (the scenario protocol, `graphloc simulate crawler-pair`) writes a log."""
+    """Renders `CrawlerPairSequence`s: `CrawlerPairScenario(config).render_sequence()`;
+    `generate` writes one as a log (`graphloc simulate crawler-pair`)."""
 
     name = "crawler-pair"
     config_class = CrawlerPairConfig
@@ -269,10 +266,8 @@ class CrawlerPairScenario:
 
     @classmethod
     def generate(cls, out_dir, seed: int = 0, **overrides) -> Path:
-        """`graphloc simulate crawler-pair`: render a sequence, run seed 003's front-end on it
-        (`measure_frames`: n_features - 1 KLT tracks plus the teammate's base, as the seed counts
-        N) and write the measurements as a log (`datasets.crawler_pair_log`); returns the
-        manifest path."""
+        """Render a sequence, run seed 003's front-end on it (n_features - 1 KLT tracks plus
+        the teammate's base, as the seed counts N), write the measurements; the manifest path."""
         config = replace(
             CrawlerPairConfig(seed=seed), **parse_overrides(CrawlerPairConfig, overrides)
         )

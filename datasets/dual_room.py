@@ -252,11 +252,9 @@ class DualRoomScenario:
         return out
 
     def write_log(self, out: Path) -> Path:
-        """The same run as a graphloc log (docs/log_format.md) beside the files above, so that
-        `graphloc smooth` / `online` take it: each robot's scans (KISS-ICP odometry at load
-        time), the ceiling camera's LED pixels on the ground robot (markers), ground truth
-        (TUM). The ground robot's first pose anchors the world; the ceiling robot is placed by
-        the LEDs and moves on the ceiling plane (its LiDAR centre `ceiling_gap` below it)."""
+        """The same run as a graphloc log beside the files above (scans, LED pixels as markers,
+        ground truth): the ground robot's first pose anchors the world, the ceiling robot is
+        placed by the LEDs and moves on the ceiling plane."""
         tables = {}
         for robot in ROBOTS:
             rows = [

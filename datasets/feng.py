@@ -224,10 +224,8 @@ def odometry_covariance(
 
 
 class FengProbabilisticScenario:
-    """Sec. VI-B scenario generator: `FengProbabilisticScenario.simulate(config) -> FengRun` in
-    memory; `generate(out_dir, seed, **overrides)` writes one run as a log directory
-    (`graphloc simulate feng-probabilistic`, the `graphloc.datasets.scenarios.Scenario`
-    protocol)."""
+    """Sec. VI-B: `simulate(config) -> FengRun` in memory; `generate` writes one run as a log
+    (`graphloc simulate feng-probabilistic`)."""
 
     name = "feng-probabilistic"
     config_class = FengProbabilisticConfig

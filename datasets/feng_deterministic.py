@@ -48,9 +48,6 @@ class Seed000Config:
         graphloc.datasets.feng.seed000_camera)."""
         return PinholeCamera.from_fov(self.width, self.height, self.fov_rad)
 
-    def camera_matrix(self) -> np.ndarray:
-        return self.camera().K
-
 
 @dataclass(frozen=True)
 class StraightLineTrials:
@@ -85,7 +82,7 @@ def simulate_straight_line_trials(
     if n < 1:
         raise ValueError(f"simulate_straight_line_trials: n must be positive, got {n}")
     rng = np.random.default_rng(seed)
-    K = config.camera_matrix()
+    K = config.camera().K
     parts, have, redrawn = [], 0, 0
     while have < n:
         m = int((n - have) * 1.5) + 8
@@ -168,16 +165,13 @@ class TableIConfig:
 @dataclass(frozen=True)
 class GroundTriangle:
     """Ground robots C1..C3 for T trials. R (T,3,3,3): camera-to-world rotations; estimated
-    (T,3,3): positions from mutual bearings (C1 known: the reference), NaN where the mutual
-    solver rejected the formation; R_estimated (T,3,3,3) the estimated rotations; status (T,)
-    the solver's status; pixels (T,3,3,2) noisy [observer i, robot j]; bearings (T,3,3,3) their
-    lifted unit bearings and bearing_sigma (T,3,3) [rad] (diagonal NaN); visible (T,): every
-    robot inside the others' field of view; redrawn: orientation redraws because a robot left
-    another's field of view."""
+    (T,3,3): positions from mutual bearings (C1 the reference), NaN where the mutual solver
+    rejected the formation, status (T,) its status; pixels (T,3,3,2) noisy [observer i, robot
+    j], bearings (T,3,3,3) lifted and bearing_sigma (T,3,3) [rad] (diagonal NaN); visible (T,):
+    every robot inside the others' field of view; redrawn: orientation redraws."""
 
     R: np.ndarray
     estimated: np.ndarray
-    R_estimated: np.ndarray
     status: np.ndarray
     pixels: np.ndarray
     bearings: np.ndarray
@@ -212,14 +206,12 @@ def ground_triangle(
     baseline = np.linalg.norm(ground[:, 1] - ground[:, 0], axis=1)
     res = localize_three(pixels, omni, baseline)
     estimated = ground[:, 0, None, :] + np.einsum("nij,nkj->nki", R[:, 0], res.t)
-    R_estimated = np.einsum("nab,njbc->njac", R[:, 0], res.R)
     with np.errstate(invalid="ignore"):
         bearings = omni.pixel_to_bearing(pixels.reshape(-1, 2))[0].reshape(T, 3, 3, 3)
         sigma = angular_sigma(omni, pixels, config.pixel_sigma)
     return GroundTriangle(
         R,
         estimated,
-        R_estimated,
         res.status,
         pixels,
         bearings,

@@ -42,12 +42,9 @@ def write_table_i_trial(
     out_dir,
     meta: dict | None = None,
 ) -> Path:
-    """Trial n of seed 000 Table I (`feng_deterministic`: the climbing camera's
-    `StraightLineTrials`, the ground robots' `GroundTriangle`) as a log directory: the bearings
-    with their median angular sigma (`graphloc.cameras.angular_sigma`), and the seed's motion
-    assumption as odometry: the climber moves straight without turning (rotation held to
-    STRAIGHT_ROT_SIGMA) by an unknown step (translation sigma `step_sigma`). Returns the
-    manifest path."""
+    """Trial n of seed 000 Table I (`StraightLineTrials`, `GroundTriangle`) as a log directory,
+    bearings with their median angular sigma; the seed's motion assumption as odometry (straight,
+    not turning, an unknown step of sigma `step_sigma`). Returns the manifest path."""
     out = Path(out_dir)
     off = ~np.eye(3, dtype=bool)
     ground_R, ground_t = triangle.R[n], trials.ground[n]

@@ -68,13 +68,10 @@ def marker_columns(manifest, robots: tuple, index: dict, on_error: str, report, 
 def marker_observations(
     columns: dict | None, robots: tuple, manifest, d: dict, sink: Sink
 ) -> tuple[list, int]:
-    """Marker pixels (`marker_columns`) grouped by (time, observer, sensor, target), one image
-    each, checked with NumPy -- a marker outside the target's layout, a marker seen twice
-    (unless the markers are identical) or fewer than three markers is a counted skip of every
-    row of the image -- then P3P candidate sets, all three-marker instances of the run in one
-    batched solve. Returns the candidate sets and the number of rows of the images that became
-    candidate sets that are not empty (an inconsistent set's rows are counted by the graph, as
-    skipped)."""
+    """Marker pixels (`marker_columns`) grouped by image (time, observer, sensor, target), an
+    image with a marker outside the layout, one seen twice (markers not identical) or fewer than
+    three a counted skip of its rows, then P3P in one batched solve. Returns the candidate sets
+    and the number of rows that became non-empty sets."""
     if columns is None or not len(columns["time"]):
         return [], 0
     c = columns
@@ -172,12 +169,9 @@ SCAN_SIGMAS = (0.002, 0.01)  # [rad, m] per KISS-ICP step where the scanner's pa
 
 
 def scan_odometry(groups: dict, robots: tuple, manifest, report, notes=None) -> tuple[list, list]:
-    """Each robot's scans (rows of its `scans` table, per scanner) -> KISS-ICP odometry
-    (`graphloc.mapping.odometry`) -> one relative-pose step per consecutive pair of scans, in
-    the body frame (through the scanner's extrinsics), covariance from the scanner's
-    `icp_sigmas` [rot rad, trans m] (a scan beyond the point budget thinned, counted in
-    `notes`); and the scans themselves (`ScanObservation`, by path) for
-    the inter-robot registration of the team graph."""
+    """Each robot's scans (per scanner) -> KISS-ICP odometry, one body-frame step per pair of
+    consecutive scans (`scan_step`); and the scans themselves (`ScanObservation`) for the team
+    graph's inter-robot registration."""
     if not groups:
         return [], []
     # Open3D and KISS-ICP load only for runs that have scans
@@ -215,10 +209,8 @@ def scan_odometry(groups: dict, robots: tuple, manifest, report, notes=None) -> 
 
 
 def scan_step(ri: int, T_bs, params: dict, t0: float, t1: float, step) -> Motion:
-    """One KISS-ICP step of robot ri's scanner (extrinsics `T_bs`, its `params`) from its scan
-    at t0 to the one at t1 as a relative pose of the body: the step through the extrinsics,
-    covariance from the scanner's `icp_sigmas` [rot rad, trans m] (SCAN_SIGMAS when it gives
-    none), moved to the body frame."""
+    """One KISS-ICP step of robot ri's scanner from t0 to t1 as a relative pose of the body,
+    covariance from the scanner's `icp_sigmas` [rot rad, trans m] (default SCAN_SIGMAS)."""
     E = gtsam.Pose3(T_bs)
     sig = params.get("icp_sigmas", SCAN_SIGMAS)
     cov = np.diag([float(sig[0]) ** 2] * 3 + [float(sig[1]) ** 2] * 3)
@@ -229,10 +221,8 @@ def scan_step(ri: int, T_bs, params: dict, t0: float, t1: float, step) -> Motion
 
 def candidate_observations(groups: dict, robots: tuple, d: dict, manifest, sink: Sink) -> list:
     """`candidates` rows grouped by (time, observer, sensor, target) -> candidate sets as
-    logged, each candidate with the sensor's `candidate_sigmas` (rot rad, trans m). A set
-    that lists a candidate `k` twice is a counted skip `duplicate_candidate` of its every row
-    (which of the two is meant cannot be told); a set formed uses its every row, one per
-    candidate. The rows' quaternions are checked (`not_unit`) by the reader."""
+    logged, with the sensor's `candidate_sigmas` (rot rad, trans m); a set listing a candidate
+    `k` twice is a counted skip `duplicate_candidate` of its every row."""
     out = []
     for (time, ri, sensor, ti), rows in groups.items():
         ks = [r.k for r in rows]

@@ -62,11 +62,9 @@ def is_mrclam_dir(path: str | Path) -> bool:
 
 
 def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip") -> np.ndarray:
-    """Whitespace table of one MRCLAM file `kind` (a key of LIMITS) with '#' comments -> (n,
-    n_cols) float array. Malformed rows (wrong field count, unparsable or non-finite numbers,
-    non-integer ids, values outside LIMITS, ranges <= 0, time < previous time in timed files)
-    raise ValueError or are skipped and counted by reason, with file, line and field. A block
-    whose rows all pass is one array (`_block_rows`), one with a bad row read row by row."""
+    """Whitespace table of one MRCLAM file `kind` (a key of LIMITS) -> (n, n_cols) floats; a row
+    `_check_row` refuses raises or is a counted skip naming file, line and field. A block whose
+    rows all pass is read at once (`_block_rows`), one with a bad row row by row."""
     limits = LIMITS[kind]
     n_cols, int_cols = len(limits), _INT_COLUMNS.get(kind, ())
     monotonic = limits[0][0] == "time"

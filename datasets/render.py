@@ -17,11 +17,8 @@ from graphloc.vision.mutual import three_cameras
 
 @config_dataclass
 class RenderConfig:
-    """Radiometry of a rendered frame. Levels are grey values (0-255) or BGR triples.
-
-    Active markers: bright `marker_level` on dark `background`. Passive dark paint: the
-    reverse. Colour markers: BGR triples with `color=True`.
-    """
+    """Radiometry of a rendered frame: levels are grey values (0-255), or BGR triples with
+    `color=True`; active markers are brighter than the background, painted ones darker."""
 
     background: float | tuple[float, float, float] = 60.0
     marker_level: float | tuple[float, float, float] = 220.0

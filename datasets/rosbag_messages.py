@@ -347,11 +347,9 @@ def pose_rows(
 
 
 class PoseChain:
-    """One pose topic's relative_pose3 rows as its messages come in header-stamp order (a
-    bag's topic once sorted, `pose_rows`; a live topic as it arrives): each message's pose and
-    covariance against the previous good one (`_increment`). A bad message is a counted skip;
-    on a live topic, a message stamped before the previous one cannot be re-sorted and is
-    skipped too (`stamp_backwards`)."""
+    """One pose topic's relative_pose3 rows, message by message in stamp order (a sorted bag
+    topic, or a live topic as it arrives), each against the previous good one (`_increment`);
+    a bad message, or live one stamped before the previous, is a counted skip."""
 
     def __init__(self, where0: str, m: TopicMap, skips: SkipReport):
         self.where0, self.m, self.skips = where0, m, skips

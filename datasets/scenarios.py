@@ -46,11 +46,8 @@ def generate(name: str, out_dir, seed: int = 0, overrides: dict | None = None) -
 
 
 class FengDeterministicScenario:
-    """Seed 000 Sec. VI-A, one trial, as measurements only (`formation_log`): three tilted omni
-    ground cameras that see each other (512x512, N(0, 0.5) px), C1 the reference with |T_12|
-    known, and the climbing camera's three snapshots of them along its straight two-step move.
-    A localizer must estimate C2, C3 from the mutual bearings and the climber from its views
-    of the three (`graphloc smooth` does both in one graph)."""
+    """Seed 000 Sec. VI-A, one trial as measurements only (`formation_log`): C2, C3 are to be
+    placed by mutual bearings and the climber by its views of the three."""
 
     name = "feng-deterministic"
 
