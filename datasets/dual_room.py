@@ -65,13 +65,6 @@ class DualRoomConfig:
                 f"got {self.min_offset}"
             )
 
-    @staticmethod
-    def from_dict(d: dict) -> "DualRoomConfig":
-        d = dict(d)
-        lidar = LidarConfig(**d.pop("lidar", {}))
-        camera = CameraConfig(**d.pop("camera", {}))
-        return DualRoomConfig(lidar=lidar, camera=camera, **d)
-
 
 def variant_config(variant: str, seed: int, **overrides) -> DualRoomConfig:
     """Default config of a variant (low_overlap: 4 m LiDAR range as in seed 004 Sec. IV.A, robots
@@ -331,7 +324,7 @@ class DualRoomScenario:
             raise FileNotFoundError(f"{meta_path}: missing (not a dual-robot-room directory)")
         meta = read_json(meta_path, what="dual-robot-room meta file")
         try:
-            config = DualRoomConfig.from_dict(meta["config"])
+            config = DualRoomConfig(**parse_overrides(DualRoomConfig, meta["config"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{meta_path}: malformed ({exc})") from None
         poses, scans, times = {}, {}, None
