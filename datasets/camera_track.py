@@ -48,6 +48,11 @@ def stack_poses(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     return T
 
 
+def pose7(R: np.ndarray, t: np.ndarray) -> list:
+    """A manifest pose [x, y, z, qx, qy, qz, qw] of rotation R (3,3) and translation t (3,)."""
+    return [*map(float, t), *map(float, Rotation.from_matrix(R).as_quat())]
+
+
 def relative_pose3_rows(times, steps: list, covs: list) -> list:
     """`relative_pose3` rows (sensor "odometry") of steps[k]: pose k -> k + 1 (gtsam.Pose3)
     with its diagonal 6x6 covariance covs[k]."""

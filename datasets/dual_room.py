@@ -11,7 +11,6 @@ from typing import ClassVar, Literal
 
 import numpy as np
 import open3d as o3d
-from scipy.spatial.transform import Rotation
 
 from graphloc.config import parse_overrides
 from graphloc.config_schema import config_dataclass, setting
@@ -28,7 +27,7 @@ from graphloc.datasets.room_scene import (
     rot_z,
     scan_frames,
 )
-from graphloc.datasets.camera_track import stack_poses
+from graphloc.datasets.camera_track import pose7, stack_poses
 from graphloc.eval import write_tum
 from graphloc.io import write_table
 from graphloc.structured import dumps_json, read_json
@@ -120,10 +119,6 @@ def trajectories(room: Room, cfg: DualRoomConfig, rng: np.random.Generator):
         rot_z(yaw_c) @ FLIP_X, np.column_stack([c_xy, np.full(F, room.size[2] - cfg.ceiling_gap)])
     )
     return t, Tg, Tc
-
-
-def _quat_xyzw(R: np.ndarray) -> list:
-    return [float(a) for a in Rotation.from_matrix(R).as_quat()]
 
 
 @dataclass
@@ -273,7 +268,6 @@ class DualRoomScenario:
         tables["ceiling"]["markers"] = "ceiling/markers.csv"
         cam = self.config.camera
         T0 = self.poses["ground"][0]
-        q = _quat_xyzw(T0[:3, :3])
         height = self.room.size[2] - self.config.ceiling_gap
         manifest = {
             "format": "graphloc-log",
@@ -285,7 +279,7 @@ class DualRoomScenario:
                     "name": "ground",
                     "kind": "ground",
                     "planar": False,
-                    "initial_pose": [*map(float, T0[:3, 3]), *q],
+                    "initial_pose": pose7(T0[:3, :3], T0[:3, 3]),
                     "initial_sigma": [1e-3, 1e-3],
                     "markers": led_positions().tolist(),
                     "sensors": [{"name": "lidar", "type": "scanner"}],

@@ -8,20 +8,15 @@ from pathlib import Path
 
 import gtsam
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera, angular_sigma
-from graphloc.datasets.camera_track import relative_pose3_rows, stack_poses
+from graphloc.datasets.camera_track import pose7, relative_pose3_rows, stack_poses
 from graphloc.eval import write_tum
 from graphloc.io import write_manifest, write_table
 
 GROUND = ("ground1", "ground2", "ground3")
 STRAIGHT_ROT_SIGMA = 0.01  # [rad] heading change allowed by "moves straight" (seed 000 Sec. IV)
 BASELINE_SIGMA = 1e-6  # [m] |T_12| is known (seed 000 Problem 1)
-
-
-def _pose7(R: np.ndarray, t: np.ndarray) -> list:
-    return [*map(float, t), *map(float, Rotation.from_matrix(R).as_quat())]
 
 
 def _bearing_rows(time: float, sensor: str, bearings, names) -> list:
@@ -65,7 +60,7 @@ def write_table_i_trial(
         sensors = [{"name": "omni", "type": "bearing", "params": {"bearing_sigma": mutual_sigma}}]
         robot = {"name": robot_name, "kind": "ground", "planar": False, "static": True}
         if i == 0:  # C1 is the reference; it knows |T_12|
-            robot["initial_pose"] = _pose7(ground_R[0], ground_t[0])
+            robot["initial_pose"] = pose7(ground_R[0], ground_t[0])
             write_table(
                 out / robot_name / "range.csv", "range", [(0.0, "baseline", GROUND[1], baseline)]
             )

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from graphloc.datasets.camera_track import stack_poses
 from graphloc.datasets.graphloc_log import read_team_run
 from graphloc.datasets.rosbag_messages import (
     Bad,
@@ -299,11 +300,8 @@ def _write_table(path: Path, table: str, rows: list) -> None:
         write_table(path, table, rows)
         return
     a = np.asarray(rows, dtype=float)  # timestamp tx ty tz qx qy qz qw -> the one TUM writer
-    poses = np.tile(np.eye(4), (len(a), 1, 1))
-    poses[:, :3, :3] = Rotation.from_quat(a[:, 4:8]).as_matrix()
-    poses[:, :3, 3] = a[:, 1:4]
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_tum(path, a[:, 0], poses)
+    write_tum(path, a[:, 0], stack_poses(Rotation.from_quat(a[:, 4:8]).as_matrix(), a[:, 1:4]))
 
 
 # ---- the loader (graphloc.datasets.loaders protocol) -----------------------------------------

@@ -134,9 +134,7 @@ class ScanDirectory:
     options = ("scan_rate",)
 
     def matches(self, path: Path) -> bool:
-        return path.is_dir() and any(
-            p.suffix.lower() in SUFFIXES for p in path.iterdir() if p.is_file()
-        )
+        return path.is_dir() and bool(scan_files(path))
 
     def load(
         self, path: Path, duration: float | None, noise: dict | None, scan_rate=None
