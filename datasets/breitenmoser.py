@@ -96,7 +96,6 @@ class BreitenmoserTargetScenario:
             pixel_sigma=CENTROID_SIGMA_PX,
             odometry=[],
             odometry_cov=[],
-            observer="climber",
             target="target",
             identical_markers=True,
             meta={

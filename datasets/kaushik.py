@@ -174,8 +174,6 @@ class KaushikP3PErrorScenario:
             pixel_sigma=config.pixel_sigma,
             odometry=run.odometry[0],
             odometry_cov=cov,
-            observer="climber",
-            target="ground",
             surface=(np.array([0.0, 0.0, config.height]), np.array([0.0, 0.0, -1.0])),
             meta={"seed_paper": "004_fa12d1d18dcbd0db.txt Sec. III", "config": asdict(config)},
         )

@@ -37,8 +37,6 @@ from graphloc.run import (
 )
 from graphloc.textio import check_file, shown, text_lines
 
-# tables the graph uses (every table of docs/log_format.md)
-GRAPH_TABLES = tuple(TABLES)
 TABLE_OF = {cls: name for name, cls in TABLES.items()}  # record class -> its table's name
 
 
@@ -311,7 +309,7 @@ def read_log_rows(
         read_landmarks(manifest),
         Sink(on_error, SkipReport()),
         SkipReport(),  # read and used, but said: scans thinned, a bag's stamps re-sorted
-        {t: 0 for t in GRAPH_TABLES},
+        {t: 0 for t in TABLES},
         {kind: [] for kind in ROW_KINDS},
         {r.name: None for r in robots},
     )
@@ -320,7 +318,7 @@ def read_log_rows(
         if path and is_tum(path):
             rows.groundtruth[r.name] = read_tum_poses(manifest.root / path)
             rows.used["groundtruth"] += len(rows.groundtruth[r.name][0])
-    streamed = tuple(t for t in GRAPH_TABLES if t in TABLE_HANDLERS)
+    streamed = tuple(t for t in TABLES if t in TABLE_HANDLERS)
     records = iter_records(root, tables=streamed, on_error=on_error, report=rows.skips)
     for rec in records:
         table = TABLE_OF[type(rec)]

@@ -134,7 +134,7 @@ def read_pose_graph(
                 m = (
                     _g2o_mixture(row, line_no, dim)
                     if kind == "mixture"
-                    else _g2o_null(row, line_no, dim)
+                    else _g2o_edge(row, line_no, dim, null=True)
                 )
             elif tag in _G2O_SWITCHES:
                 sink.report.add(
@@ -218,22 +218,17 @@ def _payload_width(dim: int) -> int:
     return n_pose + n_info
 
 
-def _g2o_edge(row: _Line, line_no: int, dim: int) -> Measurement:
-    """`EDGE_SE2` / `EDGE_SE3:QUAT i j pose info`: one certain measurement."""
-    row.exact_count(3 + _payload_width(dim), row.parts[0])
+def _g2o_edge(row: _Line, line_no: int, dim: int, null: bool = False) -> Measurement:
+    """`EDGE_SE2` / `EDGE_SE3:QUAT i j pose info`: one certain measurement; `null`: Vertigo's
+    `EDGE_SE*_SWITCHABLE i j switch_id pose info` / `EDGE_SE*_MAXMIX i j weight pose info`, one
+    candidate and a null component (the switch id / weight is read, not used)."""
+    start = 4 if null else 3
+    row.exact_count(start + _payload_width(dim), row.parts[0])
     source, target = row.integer(1, "source"), row.integer(2, "target")
-    pose, info = _g2o_payload(row, dim, 3)
-    return Measurement(line_no, source, target, (pose,), (info,))
-
-
-def _g2o_null(row: _Line, line_no: int, dim: int) -> Measurement:
-    """Vertigo's `EDGE_SE*_SWITCHABLE i j switch_id pose info` / `EDGE_SE*_MAXMIX i j weight
-    pose info`: one candidate and a null component (the switch id / weight is read, not used)."""
-    row.exact_count(4 + _payload_width(dim), row.parts[0])
-    source, target = row.integer(1, "source"), row.integer(2, "target")
-    row.numbers(3, ["switch id" if row.parts[0].endswith("SWITCHABLE") else "weight"])
-    pose, info = _g2o_payload(row, dim, 4)
-    return Measurement(line_no, source, target, (pose,), (info,), True)
+    if null:
+        row.numbers(3, ["switch id" if row.parts[0].endswith("SWITCHABLE") else "weight"])
+    pose, info = _g2o_payload(row, dim, start)
+    return Measurement(line_no, source, target, (pose,), (info,), null)
 
 
 def _g2o_mixture(row: _Line, line_no: int, dim: int) -> Measurement:
