@@ -168,9 +168,8 @@ class CrawlerPairScenario:
     def scene(self) -> TexturedScene:
         cfg = self.config
         rng = np.random.default_rng([cfg.seed, 7])
-        half_w = (
-            cfg.background_distance * np.tan(np.radians(cfg.hfov_deg) / 2) + 0.6
-        )  # FOV plus the robot's turns
+        # the field of view plus the robot's turns
+        half_w = cfg.background_distance * np.tan(np.radians(cfg.hfov_deg) / 2) + 0.6
         wall_h = 0.6 * half_w + cfg.camera_height
         wall = make_texture(
             rng, int(wall_h / cfg.texel), int(2 * half_w / cfg.texel), (0.95, 1.0, 0.9)
@@ -225,9 +224,8 @@ class CrawlerPairScenario:
                 centre[t + 1] = centre[t] + step * np.array([np.sin(mid), 0.0, np.cos(mid)])
                 odo_std[t] = max(cfg.teammate_odometry_rel_std * step, 1e-4)
                 odo[t] = step + odo_std[t] * rng.normal()
-        normal[:] = -np.stack(
-            [np.sin(theta), np.zeros(T), np.cos(theta)], axis=1
-        )  # back face: towards -forward
+        # the back face: towards -forward
+        normal[:] = -np.stack([np.sin(theta), np.zeros(T), np.cos(theta)], axis=1)
         pitch = np.radians(cfg.roughness_deg) * rng.normal(size=T)
         roll = np.radians(cfg.roughness_deg) * rng.normal(size=T)
         pitch[0] = roll[0] = 0.0  # the world frame is camera 0

@@ -19,12 +19,8 @@ from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
 CEILINGS = ("level", "sloped")
-CURVES = (
-    "line",
-    "sine",
-    "quadratic",
-    "loop",
-)  # "loop": not in the seed, a closed circle for long runs
+# "loop": not in the seed, a closed circle for long runs
+CURVES = ("line", "sine", "quadratic", "loop")
 LOOP_RADIUS = 0.6
 FIELD = 3.0  # side of the square field / ceiling [m] (Sec. VI-B)
 GROUND_ROBOTS = ((0.5, 0.5, 0.3), (0.5, 2.5, 0.4), (2.5, 1.5, 0.2))  # Sec. VI-B

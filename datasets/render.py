@@ -262,9 +262,8 @@ def render_mutual_pixels(
     visible = np.zeros((N, 3, 3), dtype=bool)
     for i in range(3):
         others = [j for j in range(3) if j != i]
-        rel = np.einsum(
-            "nji,nkj->nki", R_world[:, i], t_world[:, others] - t_world[:, i, None]
-        )  # R_i^T (t_j - t_i)
+        # R_i^T (t_j - t_i)
+        rel = np.einsum("nji,nkj->nki", R_world[:, i], t_world[:, others] - t_world[:, i, None])
         p, v = cams[i].project(rel.reshape(-1, 3))
         pixels[:, i, others] = p.reshape(N, 2, 2)
         visible[:, i, others] = v.reshape(N, 2)

@@ -80,9 +80,8 @@ def led_positions() -> np.ndarray:
     return np.stack([r * np.cos(ang), r * np.sin(ang), np.full(3, 0.12)], axis=1)
 
 
-T_CEILING_CAMERA = stack_poses(np.eye(3)[None], np.array([[0.10, 0.0, 0.04]]))[
-    0
-]  # camera in ceiling-LiDAR frame (axes parallel)
+# the camera in the ceiling-LiDAR frame (axes parallel)
+T_CEILING_CAMERA = stack_poses(np.eye(3)[None], np.array([[0.10, 0.0, 0.04]]))[0]
 
 
 @dataclass(frozen=True)
