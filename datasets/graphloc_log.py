@@ -53,16 +53,16 @@ def run_front_ends(rows: LogRows) -> FrontEndOutput:
     raised)."""
     robots, manifest, sink = rows.robots, rows.manifest, rows.sink
     scan_motions, scans = scan_odometry(
-        grouped(rows.rows("scans")), robots, manifest, rows.skips, rows.notes
+        grouped(rows.tables["scans"]), robots, manifest, rows.skips, rows.notes
     )
     observations, marker_rows = marker_observations(
         rows.markers, robots, manifest, rows.noise, sink
     )
-    candidates = grouped(rows.rows("candidates"))
+    candidates = grouped(rows.tables["candidates"])
     logged = candidate_observations(candidates, robots, rows.noise, manifest, sink)
     observations += logged
-    observations += ellipse_observations(rows.rows("ellipses"), robots, manifest, sink)
-    feature_rows = single_tracks(rows.rows("features"), manifest, sink)
+    observations += ellipse_observations(rows.tables["ellipses"], robots, manifest, sink)
+    feature_rows = single_tracks(rows.tables["features"], manifest, sink)
     features = feature_observations(feature_rows, robots, manifest, rows.noise)
     observations.sort(key=lambda o: (o.time, o.robot))
     used = {
@@ -97,16 +97,16 @@ def team_run(rows: LogRows, front: FrontEndOutput) -> TeamRun:
     first wheel-odometry stamp of a robot, else the earliest stamp of any row."""
     manifest, robots = rows.manifest, rows.robots
     mpath = manifest.root / MANIFEST
-    motions = rows.rows("motions") + list(front.scan_motions)
-    points = rows.rows("points")
+    motions = rows.tables["motions"] + list(front.scan_motions)
+    points = rows.tables["points"]
     observations, features = front.observations, front.features
     velocity = {i: [] for i in range(len(robots))}
-    for ri, row in rows.rows("velocity"):
+    for ri, row in rows.tables["velocity"]:
         velocity[ri].append(row)
     vel = tuple(np.array(velocity[i], dtype=float).reshape(-1, 3) for i in range(len(robots)))
     gt = dict(rows.groundtruth)
     planar_gt = {i: [] for i in range(len(robots))}
-    for ri, row in rows.rows("groundtruth"):
+    for ri, row in rows.tables["groundtruth"]:
         planar_gt[ri].append(row)
     for ri, samples in planar_gt.items():
         if samples:

@@ -61,14 +61,11 @@ class KaushikConfig:
         v = float(self.noise_variance)
         return float(np.sqrt(v)) if self.noise_reading == "variance" else v
 
-    @property
-    def focal_px(self) -> float:
-        return 1e3 * self.focal_mm / self.pixel_pitch_um
-
     def camera(self) -> PinholeCamera:
+        focal_px = 1e3 * self.focal_mm / self.pixel_pitch_um
         return PinholeCamera(
-            self.focal_px,
-            self.focal_px,
+            focal_px,
+            focal_px,
             (self.width - 1) / 2.0,
             (self.height_px - 1) / 2.0,
             self.width,

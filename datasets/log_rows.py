@@ -88,10 +88,6 @@ class LogRows:
     def skips(self) -> SkipReport:
         return self.sink.report
 
-    def rows(self, kind: str) -> list:
-        """The items of one row kind (`Handler.into`), in time order."""
-        return self.tables[kind]
-
 
 def _velocity(rec, ctx: RowContext):
     return ctx.robot, (rec.time, rec.v, rec.omega)
