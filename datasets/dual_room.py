@@ -4,7 +4,6 @@
 
 from __future__ import annotations
 
-import csv
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import ClassVar, Literal
@@ -30,6 +29,7 @@ from graphloc.datasets.room_scene import (
 from graphloc.datasets.camera_track import pose7, stack_poses
 from graphloc.eval import write_tum
 from graphloc.io import write_table
+from graphloc.log_writer import write_csv
 from graphloc.structured import dumps_json, read_json
 from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, LedObservations
 from graphloc.mapping.io import read_led_pixels, read_points, read_tum
@@ -210,21 +210,7 @@ class DualRoomScenario:
                 if not o3d.t.io.write_point_cloud(str(path), pcd):
                     raise OSError(f"could not write {path}")
             write_tum(out / f"poses_{robot}.tum", self.times, self.poses[robot])
-        with open(out / "led_pixels.csv", "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["frame", "time", "led", "u", "v"])
-            for f in range(len(self.times)):
-                for k in range(3):
-                    if self.led_visible[f, k]:
-                        w.writerow(
-                            [
-                                f,
-                                f"{self.times[f]:.6f}",
-                                k,
-                                f"{self.led_pixels[f, k, 0]:.4f}",
-                                f"{self.led_pixels[f, k, 1]:.4f}",
-                            ]
-                        )
+        write_csv(out / "led_pixels.csv", ["frame", "time", "led", "u", "v"], self._led_rows())
         meta = dict(
             scenario="dual-robot-room",
             config=asdict(self.config),
@@ -239,6 +225,14 @@ class DualRoomScenario:
         self.write_log(out)
         return out
 
+    def _led_rows(self) -> list:
+        """(frame, time, led, u, v) of every LED seen, as the files write them."""
+        uv = self.led_pixels
+        return [
+            (f, f"{self.times[f]:.6f}", k, f"{uv[f, k, 0]:.4f}", f"{uv[f, k, 1]:.4f}")
+            for f, k in zip(*np.nonzero(self.led_visible))
+        ]
+
     def write_log(self, out: Path) -> Path:
         """The same run as a graphloc log beside the files above (scans, LED pixels as markers,
         ground truth): the ground robot's first pose anchors the world, the ceiling robot is
@@ -251,19 +245,7 @@ class DualRoomScenario:
             ]
             write_table(out / robot / "scans.csv", "scans", rows)
             tables[robot] = {"scans": f"{robot}/scans.csv", "groundtruth": f"poses_{robot}.tum"}
-        rows = [
-            (
-                f"{self.times[f]:.6f}",
-                "camera",
-                "ground",
-                k,
-                f"{self.led_pixels[f, k, 0]:.4f}",
-                f"{self.led_pixels[f, k, 1]:.4f}",
-            )
-            for f in range(len(self.times))
-            for k in range(3)
-            if self.led_visible[f, k]
-        ]
+        rows = [(t, "camera", "ground", k, u, v) for _, t, k, u, v in self._led_rows()]
         write_table(out / "ceiling" / "markers.csv", "markers", rows)
         tables["ceiling"]["markers"] = "ceiling/markers.csv"
         cam = self.config.camera
