@@ -181,11 +181,6 @@ def _merge_import_skips(report: SkipReport, imported, where: Path, key: str = "s
         isinstance(k, str) and type(n) is int and n >= 0 for k, n in counts.items()
     ):
         raise ValueError(f"{where}: field 'meta.import.{key}' must hold counts by reason")
-    earlier = SkipReport(
-        dict(counts),
-        [
-            str(m)
-            for m in (skips.get("examples") if isinstance(skips.get("examples"), list) else [])
-        ][: report.max_examples],
-    )
-    report.merge(earlier)
+    examples = skips.get("examples")
+    examples = [str(m) for m in examples] if isinstance(examples, list) else []
+    report.merge(SkipReport(dict(counts), examples[: report.max_examples]))

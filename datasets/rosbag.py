@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import atexit
 import copy
-import csv
 import shutil
 import tempfile
 from dataclasses import dataclass, field
@@ -38,6 +37,7 @@ from graphloc.datasets.rosbag_topics import (
 )
 from graphloc.eval import write_tum
 from graphloc.io import SkipReport, write_manifest, write_table
+from graphloc.log_writer import write_csv
 from graphloc.names import out_path
 from graphloc.run import TeamRun, truncate
 
@@ -266,17 +266,12 @@ def write_log_manifest(
         "meta": {**tf.meta, key: meta},
     }
     if tf.landmarks:
-        with open(out_path(out, "landmarks.csv"), "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"])
-            for lm in tf.landmarks:
-                w.writerow(
-                    [
-                        lm["id"],
-                        *map(repr, map(float, lm["xyz"])),
-                        *map(repr, map(float, lm.get("sigma", [0, 0, 0]))),
-                    ]
-                )
+        header = ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"]
+        rows = [
+            [lm["id"], *map(float, lm["xyz"]), *map(float, lm.get("sigma", [0, 0, 0]))]
+            for lm in tf.landmarks
+        ]
+        write_csv(out_path(out, "landmarks.csv"), header, rows)
         body["landmarks"] = {"file": "landmarks.csv"}
     write_manifest(body, out)
 
