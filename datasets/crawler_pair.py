@@ -122,16 +122,8 @@ class CrawlerPairSequence:
         """Per frame (T,): camera_moved, teammate_moved (since the previous frame; False at 0),
         teammate odometry distance and its std (0 where it stood still)."""
         mover = np.array(("",) + self.mover)
-
-        def pad(a):
-            return np.concatenate([[0.0], a])
-
-        return (
-            mover == "camera",
-            mover == "teammate",
-            pad(self.teammate_odometry),
-            pad(self.teammate_odometry_std),
-        )
+        odometry, std = np.r_[0.0, self.teammate_odometry], np.r_[0.0, self.teammate_odometry_std]
+        return mover == "camera", mover == "teammate", odometry, std
 
     def base_in_camera(self, t: int) -> tuple[np.ndarray, np.ndarray]:
         """Base centre (3,) and normal (3,) in camera t's frame."""
@@ -203,12 +195,8 @@ class CrawlerPairScenario:
         odo = np.zeros(T - 1)
         odo_std = np.zeros(T - 1)
         for t, who in enumerate(cfg.schedule):
-            yaw[t + 1], pos[t + 1], theta[t + 1], centre[t + 1] = (
-                yaw[t],
-                pos[t],
-                theta[t],
-                centre[t],
-            )
+            yaw[t + 1], theta[t + 1] = yaw[t], theta[t]
+            pos[t + 1], centre[t + 1] = pos[t], centre[t]
             if who == "camera":
                 yaw[t + 1] = yaw[t] + np.radians(cfg.camera_yaw_std_deg) * rng.normal()
                 fwd = np.array([np.sin(yaw[t]), 0.0, np.cos(yaw[t])])

@@ -48,18 +48,10 @@ def marker_columns(manifest, robots: tuple, index: dict, on_error: str, report, 
                 sink.bad("unknown_target", message)
             keep = target >= 0
             sensor = np.array([names[s] for s in chunk["sensor"]], dtype=np.int32)
-            parts.append(
-                (
-                    chunk["time"][keep],
-                    np.full(int(keep.sum()), ri, dtype=np.int32),
-                    sensor[keep],
-                    target[keep],
-                    chunk["marker"][keep].astype(np.int32),
-                    chunk["u"][keep],
-                    chunk["v"][keep],
-                    chunk["line"][keep],
-                )
-            )
+            robot = np.full(len(target), ri, dtype=np.int32)
+            marker = chunk["marker"].astype(np.int32)
+            time, u, v, line = (chunk[k] for k in ("time", "u", "v", "line"))
+            parts.append(tuple(c[keep] for c in (time, robot, sensor, target, marker, u, v, line)))
     if not parts:
         return None
     return dict(zip(MARKER_COLUMNS, (np.concatenate(c) for c in zip(*parts))))
