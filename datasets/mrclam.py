@@ -145,14 +145,7 @@ def interpolate_pose(gt: np.ndarray, times: np.ndarray) -> np.ndarray:
     """Ground truth (G,4) time, x, y, theta linearly interpolated (heading unwrapped) at `times`
     -> (n,3)."""
     th = np.unwrap(gt[:, 3])
-    out = np.stack(
-        [
-            np.interp(times, gt[:, 0], gt[:, 1]),
-            np.interp(times, gt[:, 0], gt[:, 2]),
-            np.interp(times, gt[:, 0], th),
-        ],
-        axis=1,
-    )
+    out = np.stack([np.interp(times, gt[:, 0], v) for v in (gt[:, 1], gt[:, 2], th)], axis=1)
     out[:, 2] = (out[:, 2] + np.pi) % (2 * np.pi) - np.pi
     return out
 
@@ -280,19 +273,9 @@ class MRCLAM:
             keep = ~unknown & ~own
             target_robot = np.array([robot_index.get(s, -1) for s in subject[keep]], dtype=int)
             landmark = np.where(target_robot < 0, subject[keep], -1)
-            obs.append(
-                np.stack(
-                    [
-                        m[keep, 0],
-                        np.full(keep.sum(), i),
-                        target_robot,
-                        landmark,
-                        m[keep, 2],
-                        m[keep, 3],
-                    ],
-                    axis=1,
-                )
-            )
+            # time, observer, target robot, landmark, range, bearing
+            columns = [m[keep, 0], np.full(keep.sum(), i), target_robot, landmark, m[keep, 2:4]]
+            obs.append(np.column_stack(columns))
         o = np.concatenate(obs, axis=0)
         o = o[np.argsort(o[:, 0], kind="stable")]
 
