@@ -100,21 +100,14 @@ def team_run(rows: LogRows, front: FrontEndOutput) -> TeamRun:
     motions = rows.tables["motions"] + list(front.scan_motions)
     points = rows.tables["points"]
     observations, features = front.observations, front.features
-    velocity = {i: [] for i in range(len(robots))}
-    for ri, row in rows.tables["velocity"]:
-        velocity[ri].append(row)
-    vel = tuple(np.array(velocity[i], dtype=float).reshape(-1, 3) for i in range(len(robots)))
+    velocity = grouped(rows.tables["velocity"])
+    vel = tuple(
+        np.array(velocity.get(i, []), dtype=float).reshape(-1, 3) for i in range(len(robots))
+    )
     gt = dict(rows.groundtruth)
-    planar_gt = {i: [] for i in range(len(robots))}
-    for ri, row in rows.tables["groundtruth"]:
-        planar_gt[ri].append(row)
-    for ri, samples in planar_gt.items():
-        if samples:
-            arr = np.array(samples)
-            gt[robots[ri].name] = (
-                arr[:, 0],
-                [pose_from_planar(x, y, th) for _, x, y, th in arr],
-            )
+    for ri, samples in grouped(rows.tables["groundtruth"]).items():
+        arr = np.array(samples)
+        gt[robots[ri].name] = (arr[:, 0], [pose_from_planar(x, y, th) for _, x, y, th in arr])
     start = manifest.start_time
     if start is None:
         firsts = [v[0, 0] for v in vel if len(v)] or [m.t0 for m in motions]
