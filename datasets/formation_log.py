@@ -33,7 +33,7 @@ def write_table_i_trial(
     n: int,
     pixel_sigma: float,
     step_sigma: float,
-    name: str,
+    log_name: str,
     out_dir,
     meta: dict | None = None,
 ) -> Path:
@@ -47,24 +47,19 @@ def write_table_i_trial(
     # float32: what a bag's sensor_msgs/Range carries, so the log and its bag form agree
     baseline = float(np.float32(np.linalg.norm(ground_t[1] - ground_t[0])))
     robots = []
-    for i, robot_name in enumerate(GROUND):
+    for i, name in enumerate(GROUND):
         names = [g if j != i else None for j, g in enumerate(GROUND)]
         rows = _bearing_rows(0.0, "omni", triangle.bearings[n][i], names)
-        write_table(out / robot_name / "bearing.csv", "bearing", rows)
+        write_table(out / name / "bearing.csv", "bearing", rows)
         pose = stack_poses(ground_R[i][None], ground_t[i][None])
-        write_tum(out / robot_name / "groundtruth.tum", np.zeros(1), pose)
-        tables = {
-            "bearing": f"{robot_name}/bearing.csv",
-            "groundtruth": f"{robot_name}/groundtruth.tum",
-        }
+        write_tum(out / name / "groundtruth.tum", np.zeros(1), pose)
+        tables = {"bearing": f"{name}/bearing.csv", "groundtruth": f"{name}/groundtruth.tum"}
         sensors = [{"name": "omni", "type": "bearing", "params": {"bearing_sigma": mutual_sigma}}]
-        robot = {"name": robot_name, "kind": "ground", "planar": False, "static": True}
+        robot = {"name": name, "kind": "ground", "planar": False, "static": True}
         if i == 0:  # C1 is the reference; it knows |T_12|
             robot["initial_pose"] = pose7(ground_R[0], ground_t[0])
-            write_table(
-                out / robot_name / "range.csv", "range", [(0.0, "baseline", GROUND[1], baseline)]
-            )
-            tables["range"] = f"{robot_name}/range.csv"
+            write_table(out / name / "range.csv", "range", [(0.0, "baseline", GROUND[1], baseline)])
+            tables["range"] = f"{name}/range.csv"
             sensors.append(
                 {
                     "name": "baseline",
@@ -102,8 +97,8 @@ def write_table_i_trial(
         },
     }
     manifest = {
-        "name": name,
+        "name": log_name,
         "robots": [climber, *robots],
-        "meta": {"scenario": name, **(meta or {})},
+        "meta": {"scenario": log_name, **(meta or {})},
     }
     return write_manifest(manifest, out)
