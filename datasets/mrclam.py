@@ -164,7 +164,8 @@ class MRCLAM:
         self.duration = duration
         self.on_error = on_error
 
-    def robot_ids(self) -> list[int]:
+    def load(self) -> PlanarRun:
+        report = SkipReport()
         ids = sorted(
             int(m.group(1)) for f in self.root.iterdir() if (m := _ROBOT_FILE.match(f.name))
         )
@@ -172,11 +173,6 @@ class MRCLAM:
             raise ValueError(
                 f"{self.root}: no RobotN_Odometry.dat files (not an MRCLAM directory?)"
             )
-        return ids
-
-    def load(self) -> PlanarRun:
-        report = SkipReport()
-        ids = self.robot_ids()
         barcodes = read_table(self._file("Barcodes.dat"), "barcodes", report, "raise")
         lm_path = self._file("Landmark_Groundtruth.dat")
         landmarks = read_table(lm_path, "landmarks", report, "raise")
