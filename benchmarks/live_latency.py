@@ -1,5 +1,5 @@
 """Live latency (issue 50), on MRCLAM Dataset6 (`../shared/data/mrclam/MRCLAM_Dataset6`, its
-first `duration` seconds as a log: `MRCLAM.to_log`):
+first `duration` seconds as a log: `graphloc.io.write_planar_run`):
 
 - per-step latency against the team size: teams of 1, 2 and 5 of its robots and of 10 (its
   five and a renamed copy of them, observing the copies where the originals observe each
