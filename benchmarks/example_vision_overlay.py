@@ -28,10 +28,10 @@ from benchmarks.seed003_geometry import rim_points_from_mask
 from graphloc.vision.markers import MarkerDetectorConfig, detect_markers
 from benchmarks.baselines.seed001_target import marker_area_bounds, target_hypotheses
 from graphloc.vision.mutual import localize_three
+from benchmarks.clutter import clutter_backdrop, random_clutter
 from graphloc.datasets.render import (
     Occluder,
     RenderConfig,
-    random_clutter,
     render_circle_rim,
     render_markers,
     render_mutual_pixels,
@@ -60,15 +60,9 @@ def panel_markers(ax, rng):
         ),
         25.0,
     )
-    frame = render_markers(
-        cam,
-        X_cam,
-        radius,
-        RenderConfig(background=55.0, marker_level=215.0),
-        rng,
-        clutter=clutter,
-        occluders=(occluder,),
-    )
+    config = RenderConfig(background=55.0, marker_level=215.0)
+    backdrop = clutter_backdrop(clutter, config.background)
+    frame = render_markers(cam, X_cam, radius, config, rng, backdrop, (occluder,))
     min_area, max_area = marker_area_bounds(cam.fx, radius, 0.5, 2.0)
     det = detect_markers(frame.image, MarkerDetectorConfig(min_area=min_area, max_area=max_area))
     ax.imshow(frame.image, cmap="gray", vmin=0, vmax=255)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.datasets import open_run
-from graphloc.datasets.formation_log import GROUND, table_i_formation, write_formation_log
+from graphloc.datasets.formation_log import GROUND, write_table_i_trial
 from graphloc.datasets.scenarios import generate
 from benchmarks.locks import lock_statistics
 from graphloc.pipelines.judge import genuine_candidates
@@ -99,10 +99,11 @@ def table_i_trial(job: tuple) -> tuple[np.ndarray, np.ndarray, float, dict]:
     seconds (time.process_time: this process, all its threads) of each phase: "write" (the
     log written), "read" (open_run), "build" (team_graph), "solve" (solve, batch)."""
     trials, triangle, pixel_sigma, step_sigma = job
-    log = table_i_formation(trials, triangle, 0, pixel_sigma, step_sigma, "seed000-table1")
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.process_time()
-        write_formation_log(log, Path(tmp) / "run")
+        write_table_i_trial(
+            trials, triangle, 0, pixel_sigma, step_sigma, "seed000-table1", Path(tmp) / "run"
+        )
         t1 = time.process_time()
         run = open_run(Path(tmp) / "run")
         t2 = time.process_time()

@@ -33,8 +33,8 @@ from graphloc.datasets.feng import (
     FengProbabilisticConfig,
     FengProbabilisticScenario,
     ceiling_plane,
+    noisy_odometry,
     odometry_covariance,
-    world_odometry,
 )
 from benchmarks.front_door import feng_table_iii_run
 from benchmarks.locks import lock_statistics
@@ -73,7 +73,7 @@ class TableIIIConfig:
     Def. 1 / Def. 2 likelihood mappings (benchmarks.baselines.belief_vector.LIKELIHOODS) and the
     odometry noise model (graphloc.datasets.feng.ODOMETRY_MODELS), and the belief vector's
     action frame (benchmarks.baselines.belief_vector.ACTION_FRAMES; "world": the belief engines
-    get world-frame motion readings, graphloc.datasets.feng.world_odometry)."""
+    get world-frame motion readings, `world_odometry_steps`)."""
 
     runs: int = setting(100, ge=1)
     workers: int = setting(2, ge=1)
@@ -130,7 +130,11 @@ def world_odometry_steps(run, sim: FengProbabilisticConfig) -> list:
     """The belief vector's world-frame motion readings (action_frame "world") of one run, seeded
     from the run's seed."""
     rng = np.random.default_rng([sim.seed, 7])
-    steps = world_odometry(run.t_wc, sim.odometry_noise, rng, sim.odometry_model)
+    # a_t read as a world-frame motion sensor: the true displacements with noisy_odometry's
+    # translation noise, as identity-rotation steps
+    moves = np.diff(run.t_wc, axis=0)
+    eye = np.broadcast_to(np.eye(3), (len(moves), 3, 3))
+    steps = noisy_odometry(eye, moves, sim.odometry_noise, 0.0, rng, sim.odometry_model)
     return [None] + [Odometry(o, np.eye(6)) for o in steps]
 
 

@@ -1,5 +1,5 @@
 """Live latency (issue 50), on MRCLAM Dataset6 (`../shared/data/mrclam/MRCLAM_Dataset6`, its
-first `duration` seconds as a log: `MRCLAM.to_log`):
+first `duration` seconds as a log: `graphloc.io.write_planar_run`):
 
 - per-step latency against the team size: teams of 1, 2 and 5 of its robots and of 10 (its
   five and a renamed copy of them, observing the copies where the originals observe each
@@ -256,11 +256,12 @@ def end_to_end(log: Path, out: Path, window: float, rate: float = 1.0) -> dict:
 def run(duration: float, out: Path, rate: float, windows=(0.0, 0.5)) -> dict:
     """The benchmark (module docstring); its working files under `out`."""
     from graphloc.datasets.mrclam import MRCLAM
+    from graphloc.io import write_planar_run
 
     from benchmarks.host import commit, machine
 
     load0 = os.getloadavg()
-    base = MRCLAM(DATASET6, duration=duration).to_log(out / "dataset6")
+    base = write_planar_run(MRCLAM(DATASET6, duration=duration).load(), out / "dataset6")
     steps = []
     for size in TEAM_SIZES:
         log = team_log(base, out / f"team{size}", size)

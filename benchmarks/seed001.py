@@ -35,7 +35,8 @@ from benchmarks.render import render
 from benchmarks.seed001_report import PAPER, VARIANTS, plot
 from benchmarks.sizes import run_sizes
 from graphloc.vision.markers import MarkerDetectorConfig, detect_markers
-from graphloc.datasets.render import Occluder, RenderConfig, random_clutter, render_markers
+from benchmarks.clutter import clutter_backdrop, random_clutter
+from graphloc.datasets.render import Occluder, RenderConfig, render_markers
 from graphloc.vision.target import LARGE_TARGET, TargetHypothesisConfig, predicted_marker_pixels
 from benchmarks.baselines.seed001_target import (
     marker_area_bounds,
@@ -162,9 +163,8 @@ def run(
             u, v = true_px[hidden[k]]
             h = 3 * r_px + 3  # > the elongated image of an off-axis sphere
             occluders = (Occluder((u - h, v - h, u + h, v + h), 30.0),)
-        frame = render_markers(
-            cam, X_cam, radius, RENDER, rng, clutter=clutter, occluders=occluders
-        )
+        backdrop = clutter_backdrop(clutter, RENDER.background)
+        frame = render_markers(cam, X_cam, radius, RENDER, rng, backdrop, occluders)
         if history and k - history[-1][0] > MAX_COAST:
             history.clear()  # lost for too long: re-initialize from the whole image (seed IV-B)
         predicted = None

@@ -16,7 +16,7 @@ same front-end measurements (KLT tracks, circle candidates) through
   - batch_crossings: batch with the seed's rim, the interpolated edge crossings
             (BlobConfig.refine_edges=False, their calibrated floors) -- does the edge fit help?
   - batch_crlb_circle: batch with circle candidates from a disk drawn at the Cramer-Rao bound
-            of each image (`CrawlerPairScenario.disk_information`, known background: no
+            of each image (`seed003_measures.disk_information`, known background: no
             front-end on these pixels can do better) and told that covariance, correlations
             included (`with_teammate_from_geometry`; same KLT tracks) -- what a circle front-end
             at the bound would give this graph (at N >= 10 the normals, told their true accuracy,
@@ -84,6 +84,7 @@ from benchmarks.seed003_measures import (
     METHODS,
     TRACK_AGES,
     crlb_errors,
+    disk_information,
     front_end_errors,
     linearize_cost,
     teammate_config,
@@ -111,7 +112,7 @@ def run_trial(seed: int, n_values: list[int], scenario: CrawlerPairConfig) -> di
         np.array(a) for a in zip(*(seq.base_in_camera(k) for k in range(len(seq))))
     )
     disk_cov = np.array(
-        [np.linalg.inv(generator.disk_information(seq, k, subsamples=16)) for k in range(len(seq))]
+        [np.linalg.inv(disk_information(generator, seq, k, subsamples=16)) for k in range(len(seq))]
     )
     exact_cov = np.tile(np.diag(EXACT_DISK_SIGMAS**2), (len(seq), 1, 1))
     out = {"front_end": {fe: front_end_errors(seq, fe) for fe in FRONT_ENDS}}

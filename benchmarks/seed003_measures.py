@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import time
 
+import cv2
 import gtsam
 import numpy as np
 
+from graphloc.datasets.textured_scene import disk_coverage
 from graphloc.factors.mixture import max_mixture_factor
 from graphloc.keys import pose_key
-from graphloc.vision.circle import circle_pose_from_rim
+from graphloc.vision.circle import circle_pose_from_rim, rotations_from_normals
 from graphloc.vision.base_rim import BlobConfig, detect_base_rim
 from graphloc.vision.teammate import TeammateConfig
 
@@ -111,7 +113,7 @@ def track_errors(seq, frames) -> tuple[np.ndarray, np.ndarray]:
         ids, pixels = np.asarray(f.features.ids), np.asarray(f.features.pixels, float)
         new = np.array([i not in first for i in ids.tolist()], dtype=bool)
         if new.any():
-            for i, point in zip(ids[new].tolist(), seq.surface_points(k, pixels[new])):
+            for i, point in zip(ids[new].tolist(), surface_points(seq, k, pixels[new])):
                 first[i] = (k, point)
         if (~new).any():
             k0, points = zip(*(first[i] for i in ids[~new].tolist()))
@@ -153,3 +155,51 @@ def linearize_cost(repeats: int = 3000) -> dict:
         out[f"{name}_us"] = 1e6 * (time.perf_counter() - t0) / repeats
     out["ratio_max_mixture_over_between"] = out["max_mixture_2_us"] / out["between_pose3_us"]
     return out
+
+
+def disk_information(generator, seq, k: int, subsamples: int = 32) -> np.ndarray:
+    """(5,5) Fisher information of frame k's pixels about the base disk in camera k (centre x,
+    y, z [m]; normal tilt towards the disk's x and y axes [rad], n + a x + b y, axes of
+    `rotations_from_normals`) for `generator`'s (a CrawlerPairScenario) image model: coverage
+    blend of the base colour over the KNOWN background, blur, white noise of variance
+    noise_sigma^2 + 1/12 (the uint8 rounding) per channel. Its inverse is the Cramér-Rao bound of
+    any unbiased estimate of the disk from that image (optimistic: a real front-end does not know
+    the background behind the base). Derivatives of the coverage by central differences (0.2 mm
+    across, 5 mm along z, 0.03 rad: the coverage is linear in edge shifts this small) at
+    subsamples^2 rays per pixel."""
+    cfg = generator.config
+    cam = cfg.camera()
+    centre, normal = seq.base_in_camera(k)
+    R = rotations_from_normals(normal[None])[0]
+    colour = np.float32(cfg.base_colour) - generator.background(seq.R_wc[k], seq.t_wc[k])
+    steps = (2e-4, 2e-4, 5e-3, 3e-2, 3e-2)
+    grads = []
+    for i, h in enumerate(steps):
+        pair = []
+        for sign in (1.0, -1.0):
+            c, n = centre.copy(), normal.copy()
+            if i < 3:
+                c[i] += sign * h
+            else:
+                n = n + sign * h * R[:, i - 3]
+            pair.append(disk_coverage(cam, c, n / np.linalg.norm(n), cfg.base_radius, subsamples))
+        d = (pair[0] - pair[1])[..., None] / (2.0 * h) * colour
+        grads.append(cv2.GaussianBlur(d, (0, 0), cfg.blur_sigma) if cfg.blur_sigma > 0 else d)
+    J = np.stack([g.reshape(-1) for g in grads], axis=1).astype(np.float64)  # (pixels * 3, 5)
+    return J.T @ J / (cfg.noise_sigma**2 + 1.0 / 12.0)
+
+
+def surface_points(seq, t: int, pixels: np.ndarray) -> np.ndarray:
+    """World points (M,3) of the textured wall or ground (`seq.scene`) seen at `pixels` (M,2)
+    of frame t: the ground truth of KLT features (the base is not a surface here)."""
+    rays = seq.camera.pixel_to_bearing(pixels)[0] @ seq.R_wc[t].T
+    o, scene = np.asarray(seq.t_wc[t], float), seq.scene
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s_wall = (scene.wall_z - o[2]) / rays[:, 2]
+        s_ground = (scene.ground_y - o[1]) / rays[:, 1]
+    s_wall = np.where(s_wall > 0, s_wall, np.inf)
+    s_ground = np.where(s_ground > 0, s_ground, np.inf)
+    s = np.minimum(s_wall, s_ground)
+    hits = o + s[:, None] * rays
+    hits[~np.isfinite(s)] = np.nan
+    return hits

@@ -1,21 +1,18 @@
-"""graphloc.datasets (source folder datasets/): run loaders behind one protocol
-(`loaders.open_run`, the factory that picks the loader from the path) and scenario generators,
-one class each, in the style of KISS-ICP's datasets. Entries are imported lazily so that
+"""graphloc.datasets: run loaders behind one protocol (`loaders.open_run`) and the scenario
+generators (`scenarios.Scenario`), registered by name; entries are imported lazily so that
 `graphloc --help` does not pay for GTSAM, Open3D or rendering code.
 
-    from graphloc.datasets import open_run, dataset_class
-    run = open_run("../shared/data/mrclam/MRCLAM_Dataset6")
-"""
+    from graphloc.datasets import open_run, scenario_class
+    run = open_run("../shared/data/mrclam/MRCLAM_Dataset6")"""
 
 from __future__ import annotations
 
 import importlib
 
-# name -> (module inside graphloc.datasets, class name)
-_REGISTRY: dict[str, tuple[str, str]] = {
+# scenario name -> (module inside graphloc.datasets, class name)
+SCENARIOS: dict[str, tuple[str, str]] = {
     "feng-probabilistic": ("feng", "FengProbabilisticScenario"),
     "crawler-pair": ("crawler_pair", "CrawlerPairScenario"),
-    "mrclam": ("mrclam", "MRCLAM"),
     "dual-robot-room": ("dual_room", "DualRoomScenario"),
     "feng-deterministic": ("scenarios", "FengDeterministicScenario"),
     "kaushik-p3p-error": ("kaushik", "KaushikP3PErrorScenario"),
@@ -33,17 +30,17 @@ def open_run(
     return _open_run(path, duration, noise, source)
 
 
-def available() -> list[str]:
-    return sorted(_REGISTRY)
+def scenario_names() -> list[str]:
+    return sorted(SCENARIOS)
 
 
-def dataset_class(name: str):
-    """The loader / scenario class registered under `name`."""
+def scenario_class(name: str):
+    """The scenario class registered under `name`; ValueError naming the scenarios otherwise."""
     try:
-        module_name, class_name = _REGISTRY[name]
+        module_name, class_name = SCENARIOS[name]
     except KeyError:
         raise ValueError(
-            f"unknown dataset or scenario {name!r}; available: {', '.join(available())}"
+            f"unknown scenario {name!r}; scenarios: {', '.join(scenario_names())}"
         ) from None
     module = importlib.import_module(f"graphloc.datasets.{module_name}")
     return getattr(module, class_name)

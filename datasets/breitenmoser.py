@@ -1,11 +1,6 @@
-"""Scenario `breitenmoser-target`: seed 001 (001_0f8f8dae37ce6b79.txt) Sec. V-A experiment 1 --
-a downward-looking 752x480, 90 deg FOV camera over the larger four-marker target (Sec. III-A,
-graphloc.vision.target.LARGE_TARGET), camera-target distance from 0.7 m to 3 m. Thin over
-graphloc.datasets.render: every frame is rendered (blur, sensor noise) and saved as a PNG; the
-marker pixels in the log are the centroids of each marker's visible area in the rendering.
-The accuracy experiment itself (detection, hypotheses, errors vs distance) is
-scripts/repro_seed001.py; this writes a run for the log readers and `graphloc` verbs.
-"""
+"""Scenario `breitenmoser-target`: seed 001 (001_0f8f8dae37ce6b79.txt) Sec. V-A experiment 1, a
+752x480, 90 deg camera over the large four-marker target at 0.7-3 m, every frame rendered
+(`render.render_markers`); the logged pixels are the visible markers' centroids."""
 
 from __future__ import annotations
 
@@ -101,7 +96,6 @@ class BreitenmoserTargetScenario:
             pixel_sigma=CENTROID_SIGMA_PX,
             odometry=[],
             odometry_cov=[],
-            observer="climber",
             target="target",
             identical_markers=True,
             meta={

@@ -54,7 +54,8 @@ def positive_param(params: dict, name: str, default: float, where: str) -> float
     return value
 
 
-def _sensor(robots: tuple, ri: int, sensor: str, manifest) -> tuple:
+def camera_sensor(robots: tuple, ri: int, sensor: str, manifest) -> tuple:
+    """Robot ri's camera `sensor`: extrinsics (Pose3), params, PinholeCamera, where named."""
     T_bs, params = robots[ri].sensors[sensor]
     where = f"{manifest.root / MANIFEST}: robot {robots[ri].name!r} sensor {sensor!r}"
     return gtsam.Pose3(T_bs), params, camera_from_params(params, where), where
@@ -70,7 +71,7 @@ def feature_observations(
     setups: dict = {}
     for ri, rec in rows:
         if (ri, rec.sensor) not in setups:
-            E, params, camera, where = _sensor(robots, ri, rec.sensor, manifest)
+            E, params, camera, where = camera_sensor(robots, ri, rec.sensor, manifest)
             sigma = positive_param(params, "pixel_sigma", d["pixel_sigma"], where)
             depth = None
             if "feature_depth" in params:
@@ -133,7 +134,7 @@ def ellipse_observations(
                 f"{where}: field 'target': robot {target.name!r} has no 'base_radius' in the "
                 f"manifest (an ellipse needs the circle's radius)"
             )
-        E, params, camera, swhere = _sensor(robots, ri, rec.sensor, manifest)
+        E, params, camera, swhere = camera_sensor(robots, ri, rec.sensor, manifest)
         normal = positive_param(params, "normal_sigma", NORMAL_SIGMA, swhere)
         yaw = positive_param(params, "circle_yaw_sigma", CIRCLE_YAW_SIGMA, swhere)
         try:

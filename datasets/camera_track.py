@@ -1,8 +1,5 @@
-"""The log writer of the camera-track scenarios (`feng-deterministic`, `feng-probabilistic`,
-`kaushik-p3p-error`, `breitenmoser-target`): one camera robot watching the markers of a static
-target, written in the project's log format version 2 (docs/log_format.md, graphloc.io): the
-`markers` table, the camera's odometry as `relative_pose3`, and 3D ground truth as a TUM file
-(timestamp tx ty tz qx qy qz qw, what evo reads) named in the robot's tables as "groundtruth"."""
+"""The log writer of the camera-track scenarios: one camera robot watching the markers of a static
+target (`markers`, odometry as `relative_pose3`, ground truth as TUM; docs/log_format.md)."""
 
 from __future__ import annotations
 
@@ -44,6 +41,18 @@ class CameraTrackLog:
     meta: dict = dataclasses.field(default_factory=dict)
 
 
+def stack_poses(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(F,3,3) rotations, (F,3) translations -> (F,4,4) poses."""
+    T = np.tile(np.eye(4), (len(R), 1, 1))
+    T[:, :3, :3], T[:, :3, 3] = R, t
+    return T
+
+
+def pose7(R: np.ndarray, t: np.ndarray) -> list:
+    """A manifest pose [x, y, z, qx, qy, qz, qw] of rotation R (3,3) and translation t (3,)."""
+    return [*map(float, t), *map(float, Rotation.from_matrix(R).as_quat())]
+
+
 def relative_pose3_rows(times, steps: list, covs: list) -> list:
     """`relative_pose3` rows (sensor "odometry") of steps[k]: pose k -> k + 1 (gtsam.Pose3)
     with its diagonal 6x6 covariance covs[k]."""
@@ -79,9 +88,7 @@ def write_camera_track(log: CameraTrackLog, out_dir) -> Path:
     ]
     write_table(out / obs / "markers.csv", "markers", markers)
     tables = {"markers": f"{obs}/markers.csv", "groundtruth": f"{obs}/groundtruth.tum"}
-    poses = np.broadcast_to(np.eye(4), (len(log.times), 4, 4)).copy()
-    poses[:, :3, :3], poses[:, :3, 3] = log.R_wc, log.t_wc
-    write_tum(out / obs / "groundtruth.tum", log.times, poses)
+    write_tum(out / obs / "groundtruth.tum", log.times, stack_poses(log.R_wc, log.t_wc))
     sensors = []
     if log.odometry:
         rows = relative_pose3_rows(log.times, log.odometry, log.odometry_cov)

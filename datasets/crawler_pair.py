@@ -1,25 +1,6 @@
-"""Scenario `crawler-pair`: two small crawlers on rough ground, rendered (seed 003,
-003_8db27855ce2d5f68.txt, section III: the tracked robot's 3.8 cm base
-starts 83 cm from the moving robot's camera, the KLT-textured background 260 cm away;
-section II: the robots move and stop in turns).
-
-World frame = the moving robot's camera at frame 0 (OpenCV axes: x right, y down, z forward).
-Ground: the plane y = camera_height; back wall: z = background_distance. Both carry a random
-texture (multi-octave noise plus random shapes, so Shi-Tomasi finds corners). Rough ground
-is the moving robot's attitude jitter (pitch/roll noise and a small bounce) while it crawls.
-
-Each frame is rendered by ray casting at `supersample`^2 rays per pixel: every ray hits the
-wall or the ground (ray-plane intersection), the texture is sampled with cv2.remap, the
-cv2.resize(INTER_AREA) averages the rays; the teammate's base (the back disk of its
-cylinder, radius base_diameter/2, centre one base radius above the ground, normal along its
-heading towards the camera) is blended in with its exact pixel coverage (8x8 rays per pixel
-intersected with the disk plane, `disk_coverage`); Gaussian blur (optics) and sensor noise
-follow. The scene and the disk coverage are `graphloc.datasets.textured_scene`.
-
-Between frames exactly one robot moves (`schedule`): "camera" crawls forward along its
-heading with lateral and heading noise; "teammate" crawls away along its axis; its own
-odometry (distance travelled, with relative noise) is recorded.
-"""
+"""Scenario `crawler-pair`: seed 003 (003_8db27855ce2d5f68.txt) Sec. II-III, two small crawlers
+that move and stop in turns, the moving robot's camera rendering the textured scene and the
+teammate's 3.8 cm base (docs/design_datasets.md, "crawler-pair")."""
 
 from __future__ import annotations
 
@@ -37,7 +18,6 @@ from graphloc.config import parse_overrides
 from graphloc.config_schema import config_dataclass, setting
 from graphloc.datasets.crawler_pair_log import write_crawler_pair_log
 from graphloc.datasets.textured_scene import TexturedScene, disk_coverage, make_texture
-from graphloc.vision.circle import rotations_from_normals
 from graphloc.vision.features import FeatureConfig
 from graphloc.vision.teammate import TeammateConfig, measure_frames
 
@@ -142,27 +122,13 @@ class CrawlerPairSequence:
         """Per frame (T,): camera_moved, teammate_moved (since the previous frame; False at 0),
         teammate odometry distance and its std (0 where it stood still)."""
         mover = np.array(("",) + self.mover)
-
-        def pad(a):
-            return np.concatenate([[0.0], a])
-
-        return (
-            mover == "camera",
-            mover == "teammate",
-            pad(self.teammate_odometry),
-            pad(self.teammate_odometry_std),
-        )
+        odometry, std = np.r_[0.0, self.teammate_odometry], np.r_[0.0, self.teammate_odometry_std]
+        return mover == "camera", mover == "teammate", odometry, std
 
     def base_in_camera(self, t: int) -> tuple[np.ndarray, np.ndarray]:
         """Base centre (3,) and normal (3,) in camera t's frame."""
         R = self.R_wc[t]
         return R.T @ (self.base_centre[t] - self.t_wc[t]), R.T @ self.base_normal[t]
-
-    def surface_points(self, t: int, pixels: np.ndarray) -> np.ndarray:
-        """World points (M,3) of the textured surfaces seen at `pixels` (M,2) of frame t (the
-        ground truth of KLT features; the base is not a surface here)."""
-        rays = self.camera.pixel_to_bearing(pixels)[0] @ self.R_wc[t].T
-        return self.scene.intersect(self.t_wc[t], rays)[0]
 
 
 def _rot_y(a):
@@ -181,11 +147,8 @@ def _rot_z(a):
 
 
 class CrawlerPairScenario:
-    """Generator of `CrawlerPairSequence`s (see the module docstring).
-
-    seq = CrawlerPairScenario(CrawlerPairConfig(seed=3)).render_sequence()
-
-    `generate` (the scenario protocol, `graphloc simulate crawler-pair`) writes a log."""
+    """Renders `CrawlerPairSequence`s: `CrawlerPairScenario(config).render_sequence()`;
+    `generate` writes one as a log (`graphloc simulate crawler-pair`)."""
 
     name = "crawler-pair"
     config_class = CrawlerPairConfig
@@ -197,9 +160,8 @@ class CrawlerPairScenario:
     def scene(self) -> TexturedScene:
         cfg = self.config
         rng = np.random.default_rng([cfg.seed, 7])
-        half_w = (
-            cfg.background_distance * np.tan(np.radians(cfg.hfov_deg) / 2) + 0.6
-        )  # FOV plus the robot's turns
+        # the field of view plus the robot's turns
+        half_w = cfg.background_distance * np.tan(np.radians(cfg.hfov_deg) / 2) + 0.6
         wall_h = 0.6 * half_w + cfg.camera_height
         wall = make_texture(
             rng, int(wall_h / cfg.texel), int(2 * half_w / cfg.texel), (0.95, 1.0, 0.9)
@@ -233,12 +195,8 @@ class CrawlerPairScenario:
         odo = np.zeros(T - 1)
         odo_std = np.zeros(T - 1)
         for t, who in enumerate(cfg.schedule):
-            yaw[t + 1], pos[t + 1], theta[t + 1], centre[t + 1] = (
-                yaw[t],
-                pos[t],
-                theta[t],
-                centre[t],
-            )
+            yaw[t + 1], theta[t + 1] = yaw[t], theta[t]
+            pos[t + 1], centre[t + 1] = pos[t], centre[t]
             if who == "camera":
                 yaw[t + 1] = yaw[t] + np.radians(cfg.camera_yaw_std_deg) * rng.normal()
                 fwd = np.array([np.sin(yaw[t]), 0.0, np.cos(yaw[t])])
@@ -254,9 +212,8 @@ class CrawlerPairScenario:
                 centre[t + 1] = centre[t] + step * np.array([np.sin(mid), 0.0, np.cos(mid)])
                 odo_std[t] = max(cfg.teammate_odometry_rel_std * step, 1e-4)
                 odo[t] = step + odo_std[t] * rng.normal()
-        normal[:] = -np.stack(
-            [np.sin(theta), np.zeros(T), np.cos(theta)], axis=1
-        )  # back face: towards -forward
+        # the back face: towards -forward
+        normal[:] = -np.stack([np.sin(theta), np.zeros(T), np.cos(theta)], axis=1)
         pitch = np.radians(cfg.roughness_deg) * rng.normal(size=T)
         roll = np.radians(cfg.roughness_deg) * rng.normal(size=T)
         pitch[0] = roll[0] = 0.0  # the world frame is camera 0
@@ -293,47 +250,10 @@ class CrawlerPairScenario:
         base disk, blur and sensor noise."""
         return self.scene.image(self.config.camera(), self.config.supersample, R_wc, t_wc)
 
-    def disk_information(
-        self, seq: "CrawlerPairSequence", k: int, subsamples: int = 32
-    ) -> np.ndarray:
-        """(5,5) Fisher information of frame k's pixels about the base disk in camera k:
-        (centre x, y, z [m]; normal tilt towards the disk's x and y axes [rad], n + a x + b y, axes
-        of `rotations_from_normals`), for this renderer's image model -- coverage blend of the base
-        colour over the KNOWN background, blur, white noise of variance noise_sigma^2 + 1/12 (the
-        uint8 rounding) per channel. Its inverse is the Cramér-Rao bound of any unbiased estimate
-        of the disk from that image (optimistic: a real front-end does not know the background
-        behind the base). Derivatives of the coverage by central differences (steps 0.2 mm
-        across, 5 mm along z, 0.03 rad: the coverage is linear in edge shifts this small) at
-        subsamples^2 rays per pixel (16 is within ~2 % of 64 on crawler-pair)."""
-        cfg = self.config
-        cam = cfg.camera()
-        centre, normal = seq.base_in_camera(k)
-        R = rotations_from_normals(normal[None])[0]
-        colour = np.float32(cfg.base_colour) - self.background(seq.R_wc[k], seq.t_wc[k])  # (H,W,3)
-        steps = (2e-4, 2e-4, 5e-3, 3e-2, 3e-2)
-        grads = []
-        for i, h in enumerate(steps):
-            pair = []
-            for sign in (1.0, -1.0):
-                c, n = centre.copy(), normal.copy()
-                if i < 3:
-                    c[i] += sign * h
-                else:
-                    n = n + sign * h * R[:, i - 3]
-                pair.append(
-                    disk_coverage(cam, c, n / np.linalg.norm(n), cfg.base_radius, subsamples)
-                )
-            d = (pair[0] - pair[1])[..., None] / (2.0 * h) * colour
-            grads.append(cv2.GaussianBlur(d, (0, 0), cfg.blur_sigma) if cfg.blur_sigma > 0 else d)
-        J = np.stack([g.reshape(-1) for g in grads], axis=1).astype(np.float64)  # (pixels * 3, 5)
-        return J.T @ J / (cfg.noise_sigma**2 + 1.0 / 12.0)
-
     @classmethod
     def generate(cls, out_dir, seed: int = 0, **overrides) -> Path:
-        """`graphloc simulate crawler-pair`: render a sequence, run seed 003's front-end on it
-        (`measure_frames`: n_features - 1 KLT tracks plus the teammate's base, as the seed counts
-        N) and write the measurements as a log (`datasets.crawler_pair_log`); returns the
-        manifest path."""
+        """Render a sequence, run seed 003's front-end on it (n_features - 1 KLT tracks plus
+        the teammate's base, as the seed counts N), write the measurements; the manifest path."""
         config = replace(
             CrawlerPairConfig(seed=seed), **parse_overrides(CrawlerPairConfig, overrides)
         )

@@ -1,18 +1,6 @@
-"""The `crawler-pair` run as a graphloc log (docs/log_format.md): the rendered images through
-seed 003's front-end (`graphloc.vision.teammate.measure_frames`: KLT tracks, the teammate's base
-rim -> ellipse), written as the tables any team with such cameras would log:
-
-- robot `camera` (the moving robot; body = its camera, OpenCV axes; world = camera 0):
-  `features` (KLT pixels per track), `ellipses` (the teammate's base), `relative_pose3` (seed
-  eq. 8, F = identity: a zero-motion step per frame with the process noise of a frame in which
-  the robot moved or stood still; the robot knows which, seed II), initial pose = identity;
-- robot `teammate` (body = its base disk: origin the centre, z the normal towards its back,
-  y up, `graphloc.vision.circle.rotations_from_normals`): `base_radius`, `relative_pose3`
-  between the frames it is seen (standing still: zero motion; crawling: its odometry distance
-  straight back along -z, heading and lateral loose), and the ground as its `surface` with an
-  attitude-only constraint (its y axis up, seed 003 III: the robots move on the ground);
-- ground truth of both as TUM files.
-"""
+"""The `crawler-pair` run as a log (docs/log_format.md): seed 003's front-end output (KLT
+features, the teammate's base ellipse), zero-motion steps for the camera (seed eq. 8), the
+teammate's odometry and ground surface (docs/design_datasets.md, "crawler-pair")."""
 
 from __future__ import annotations
 
@@ -21,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from graphloc.datasets.camera_track import stack_poses
 from graphloc.eval import write_tum
 from graphloc.io import write_manifest, write_table
 from graphloc.seams import MotionNoise
@@ -33,12 +22,6 @@ STILL_SIGMA = 1e-3  # [rad, m] zero-motion step of a teammate that stood still
 UPRIGHT_SIGMA = 0.05  # [rad] the teammate's y axis stays vertical (ground roughness)
 CRAWL_ROT_SIGMA = 0.05  # [rad] heading change of one teammate crawl
 CRAWL_LATERAL = 0.25  # lateral sigma per metre crawled
-
-
-def _homogeneous(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    T = np.tile(np.eye(4), (len(R), 1, 1))
-    T[:, :3, :3], T[:, :3, 3] = R, t
-    return T
 
 
 def _relative_row(t0, t1, sensor, t=(0.0, 0.0, 0.0), rot=1e-3, trans=(1e-3,) * 3) -> list:
@@ -97,9 +80,9 @@ def write_crawler_pair_log(
     write_table(out / "camera_ellipses.csv", "ellipses", ellipses)
     write_table(out / "camera_motion.csv", "relative_pose3", cam_motion)
     write_table(out / "teammate_motion.csv", "relative_pose3", mate_motion)
-    write_tum(out / "camera_groundtruth.tum", times, _homogeneous(seq.R_wc, seq.t_wc))
+    write_tum(out / "camera_groundtruth.tum", times, stack_poses(seq.R_wc, seq.t_wc))
     R_disk = rotations_from_normals(seq.base_normal)
-    write_tum(out / "teammate_groundtruth.tum", times, _homogeneous(R_disk, seq.base_centre))
+    write_tum(out / "teammate_groundtruth.tum", times, stack_poses(R_disk, seq.base_centre))
     camera_params = {
         **seq.camera.params(),
         "pixel_sigma": 1.0,  # seed III: KLT pixel variance 1

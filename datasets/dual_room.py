@@ -1,32 +1,15 @@
-"""`dual-robot-room`: a simulated room with a ground robot (3D LiDAR + three LEDs) and a
-ceiling robot (upside down on the ceiling, 3D LiDAR + downward camera), both moving.
-
-Seed 004 (Kaushik et al.), Sec. II.A / Fig. 1: the ceiling robot is inverted (~180 deg about x)
-and at any yaw; the ground robot carries the LED triangle. The room, the LEDs and the sensors
-(ray-cast scans, LED pixels) are `graphloc.datasets.room_scene`; this module places and moves
-the robots (seed 004 Fig. 3), simulates a run and writes / reads its files.
-Frames: `ground` = ground LiDAR frame (z up); `ceiling` = ceiling LiDAR frame (z down, into
-the room); `camera` = ceiling camera (z = optical axis, down), `T_ceiling_camera` apart.
-Scans are motion-free snapshots (no deskewing needed).
-
-    scenario = DualRoomScenario.simulate(DualRoomConfig(variant="furnished", seed=3))
-    scenario.write("out/room")            # scans/*.ply, poses, LED pixels, ground truth
-    same = DualRoomScenario.load("out/room")
-
-`simulate_and_fuse` is the main job of `graphloc demo` and `graphloc fuse-maps --simulate`:
-simulate a room, write it, fuse the two robots' maps.
-"""
+"""Scenario `dual-robot-room`: seed 004 (Kaushik et al.) Sec. II-A / Fig. 1, 3: a ground robot
+(LiDAR, LED triangle) and an inverted ceiling robot (LiDAR, downward camera) moving in a room
+(`room_scene`); the run's files, its log, and `simulate_and_fuse`, the job of `graphloc demo`."""
 
 from __future__ import annotations
 
-import csv
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import ClassVar, Literal
 
 import numpy as np
 import open3d as o3d
-from scipy.spatial.transform import Rotation
 
 from graphloc.config import parse_overrides
 from graphloc.config_schema import config_dataclass, setting
@@ -42,10 +25,11 @@ from graphloc.datasets.room_scene import (
     observe_leds,
     rot_z,
     scan_frames,
-    stack_poses,
 )
+from graphloc.datasets.camera_track import pose7, stack_poses
 from graphloc.eval import write_tum
 from graphloc.io import write_table
+from graphloc.log_writer import write_csv
 from graphloc.structured import dumps_json, read_json
 from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, LedObservations
 from graphloc.mapping.io import read_led_pixels, read_points, read_tum
@@ -79,13 +63,6 @@ class DualRoomConfig:
                 f"DualRoomConfig.min_offset must be in [0, max_offset = {self.max_offset:g}], "
                 f"got {self.min_offset}"
             )
-
-    @staticmethod
-    def from_dict(d: dict) -> "DualRoomConfig":
-        d = dict(d)
-        lidar = LidarConfig(**d.pop("lidar", {}))
-        camera = CameraConfig(**d.pop("camera", {}))
-        return DualRoomConfig(lidar=lidar, camera=camera, **d)
 
 
 def variant_config(variant: str, seed: int, **overrides) -> DualRoomConfig:
@@ -142,10 +119,6 @@ def trajectories(room: Room, cfg: DualRoomConfig, rng: np.random.Generator):
         rot_z(yaw_c) @ FLIP_X, np.column_stack([c_xy, np.full(F, room.size[2] - cfg.ceiling_gap)])
     )
     return t, Tg, Tc
-
-
-def _quat_xyzw(R: np.ndarray) -> list:
-    return [float(a) for a in Rotation.from_matrix(R).as_quat()]
 
 
 @dataclass
@@ -237,21 +210,7 @@ class DualRoomScenario:
                 if not o3d.t.io.write_point_cloud(str(path), pcd):
                     raise OSError(f"could not write {path}")
             write_tum(out / f"poses_{robot}.tum", self.times, self.poses[robot])
-        with open(out / "led_pixels.csv", "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["frame", "time", "led", "u", "v"])
-            for f in range(len(self.times)):
-                for k in range(3):
-                    if self.led_visible[f, k]:
-                        w.writerow(
-                            [
-                                f,
-                                f"{self.times[f]:.6f}",
-                                k,
-                                f"{self.led_pixels[f, k, 0]:.4f}",
-                                f"{self.led_pixels[f, k, 1]:.4f}",
-                            ]
-                        )
+        write_csv(out / "led_pixels.csv", ["frame", "time", "led", "u", "v"], self._led_rows())
         meta = dict(
             scenario="dual-robot-room",
             config=asdict(self.config),
@@ -266,12 +225,18 @@ class DualRoomScenario:
         self.write_log(out)
         return out
 
+    def _led_rows(self) -> list:
+        """(frame, time, led, u, v) of every LED seen, as the files write them."""
+        uv = self.led_pixels
+        return [
+            (f, f"{self.times[f]:.6f}", k, f"{uv[f, k, 0]:.4f}", f"{uv[f, k, 1]:.4f}")
+            for f, k in zip(*np.nonzero(self.led_visible))
+        ]
+
     def write_log(self, out: Path) -> Path:
-        """The same run as a graphloc log (docs/log_format.md) beside the files above, so that
-        `graphloc smooth` / `online` take it: each robot's scans (KISS-ICP odometry at load
-        time), the ceiling camera's LED pixels on the ground robot (markers), ground truth
-        (TUM). The ground robot's first pose anchors the world; the ceiling robot is placed by
-        the LEDs and moves on the ceiling plane (its LiDAR centre `ceiling_gap` below it)."""
+        """The same run as a graphloc log beside the files above (scans, LED pixels as markers,
+        ground truth): the ground robot's first pose anchors the world, the ceiling robot is
+        placed by the LEDs and moves on the ceiling plane."""
         tables = {}
         for robot in ROBOTS:
             rows = [
@@ -280,24 +245,11 @@ class DualRoomScenario:
             ]
             write_table(out / robot / "scans.csv", "scans", rows)
             tables[robot] = {"scans": f"{robot}/scans.csv", "groundtruth": f"poses_{robot}.tum"}
-        rows = [
-            (
-                f"{self.times[f]:.6f}",
-                "camera",
-                "ground",
-                k,
-                f"{self.led_pixels[f, k, 0]:.4f}",
-                f"{self.led_pixels[f, k, 1]:.4f}",
-            )
-            for f in range(len(self.times))
-            for k in range(3)
-            if self.led_visible[f, k]
-        ]
+        rows = [(t, "camera", "ground", k, u, v) for _, t, k, u, v in self._led_rows()]
         write_table(out / "ceiling" / "markers.csv", "markers", rows)
         tables["ceiling"]["markers"] = "ceiling/markers.csv"
         cam = self.config.camera
         T0 = self.poses["ground"][0]
-        q = _quat_xyzw(T0[:3, :3])
         height = self.room.size[2] - self.config.ceiling_gap
         manifest = {
             "format": "graphloc-log",
@@ -309,7 +261,7 @@ class DualRoomScenario:
                     "name": "ground",
                     "kind": "ground",
                     "planar": False,
-                    "initial_pose": [*map(float, T0[:3, 3]), *q],
+                    "initial_pose": pose7(T0[:3, :3], T0[:3, 3]),
                     "initial_sigma": [1e-3, 1e-3],
                     "markers": led_positions().tolist(),
                     "sensors": [{"name": "lidar", "type": "scanner"}],
@@ -348,7 +300,7 @@ class DualRoomScenario:
             raise FileNotFoundError(f"{meta_path}: missing (not a dual-robot-room directory)")
         meta = read_json(meta_path, what="dual-robot-room meta file")
         try:
-            config = DualRoomConfig.from_dict(meta["config"])
+            config = DualRoomConfig(**parse_overrides(DualRoomConfig, meta["config"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{meta_path}: malformed ({exc})") from None
         poses, scans, times = {}, {}, None

@@ -1,22 +1,7 @@
-"""Seed 000 (Feng, Zhu, Xiao) simulators: three ground robots seen by the camera of a
-climbing robot, the camera pose from P3P (up to four candidates, one genuine).
-
-- Sec. VI-A (three snapshots for the straight-line test) is simulated, vectorized over trials,
-  by `graphloc.datasets.feng_deterministic.simulate_straight_line_trials` (one implementation).
-- `FengProbabilisticScenario` -- Sec. VI-B: ground robots at (0.5,0.5,0.3), (0.5,2.5,0.4),
-  (2.5,1.5,0.2); ceiling I level at 3 m or ceiling II sloped 45 deg from 2 m to 5 m over the
-  3 m field; curves y=0.5x, y=sin 2x, y=x^2 from the ceiling centre in ceiling coordinates;
-  0.2 m/s, 10 Hz, first update interval 0.3 s; 15 % Gaussian noise on each of the three
-  odometry dimensions (a_t); run ends at the ceiling boundary.
-
-Camera: perspective 640x480, FOV 2/3 pi (Sec. VI-A), pixel noise N(0, 0.5) px along a
-uniformly random direction (Sec. VI-A). Candidates come from
-`graphloc.vision.marker_poses.p3p_candidate_sets` on the noisy bearings, one call per run.
-Camera frame: z = optical axis, x = image right.
-The probabilistic camera is a pan-tilt head looking at the ground robots' centroid with image
-x along the direction of travel; odometry is the noisy relative camera pose between updates
-(`T_{t-1}^-1 T_t`, frame of the previous camera pose).
-"""
+"""Scenario `feng-probabilistic`: seed 000 (000_05137a0a9c449be3.txt) Sec. VI-B, a climbing
+robot's camera on ceiling I or II seeing three ground robots, P3P candidates per update, noisy
+odometry; and the camera, projection and odometry-noise models the seed's simulators share
+(docs/design_datasets.md, "Seed 000")."""
 
 from __future__ import annotations
 
@@ -34,12 +19,8 @@ from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
 CEILINGS = ("level", "sloped")
-CURVES = (
-    "line",
-    "sine",
-    "quadratic",
-    "loop",
-)  # "loop": not in the seed, a closed circle for long runs
+# "loop": not in the seed, a closed circle for long runs
+CURVES = ("line", "sine", "quadratic", "loop")
 LOOP_RADIUS = 0.6
 FIELD = 3.0  # side of the square field / ceiling [m] (Sec. VI-B)
 GROUND_ROBOTS = ((0.5, 0.5, 0.3), (0.5, 2.5, 0.4), (2.5, 1.5, 0.2))  # Sec. VI-B
@@ -216,17 +197,6 @@ def noisy_odometry(
     ]
 
 
-def world_odometry(
-    t_wc: np.ndarray, rel_sigma: float, rng: np.random.Generator, model: str = "per_axis"
-) -> list[gtsam.Pose3]:
-    """a_t read as a world-frame motion sensor (benchmarks.baselines.belief_vector action_frame
-    "world"): the true displacements t_{k+1} - t_k with `noisy_odometry`'s translation noise,
-    as identity-rotation Pose3 steps."""
-    steps = np.diff(t_wc, axis=0)
-    eye = np.broadcast_to(np.eye(3), (len(steps), 3, 3))
-    return noisy_odometry(eye, steps, rel_sigma, 0.0, rng, model)
-
-
 def odometry_covariance(
     relative: gtsam.Pose3,
     rel_sigma: float = 0.15,
@@ -250,10 +220,8 @@ def odometry_covariance(
 
 
 class FengProbabilisticScenario:
-    """Sec. VI-B scenario generator: `FengProbabilisticScenario.simulate(config) -> FengRun` in
-    memory; `generate(out_dir, seed, **overrides)` writes one run as a log directory
-    (`graphloc simulate feng-probabilistic`, the `graphloc.datasets.scenarios.Scenario`
-    protocol)."""
+    """Sec. VI-B: `simulate(config) -> FengRun` in memory; `generate` writes one run as a log
+    (`graphloc simulate feng-probabilistic`)."""
 
     name = "feng-probabilistic"
     config_class = FengProbabilisticConfig

@@ -1,18 +1,6 @@
-"""Seed 000 (000_05137a0a9c449be3.txt) section VI-A, the deterministic-algorithm simulation:
-three ground robots uniform in the sub-cubes (0,0,0)-(1,1,1), (0,2,0)-(1,3,1), (2,1,0)-(3,2,1);
-a climbing-robot camera C uniform in (1,1,2)-(2,2,3) under the ceiling, looking down with
-pitch/tilt/yaw each U(0, pi/6); C moves twice by X ~ N(0.4, 0.2) m along a direction with tilt
-and pitch U(0, pi/6) (steps 3-4), each position perturbed by N(0, 0.001) m perpendicular to the
-motion; a 640x480 pinhole with a 2pi/3 horizontal field of view sees the three robots with pixel
-noise of N(0, 0.5) px in a uniformly random direction.
-
-Interpretation where the seed is silent: the camera keeps its orientation while moving
-(Seed000Config.orientation; "redrawn" draws step 2's orientation anew per snapshot); the
-motion direction is (cos(tilt) cos(pitch), cos(tilt) sin(pitch), sin(tilt)) in the world frame
-(tilt = elevation, pitch = heading); step lengths below 0.05 m are redrawn; trials where a robot
-leaves the image are redrawn and counted. The ground robots' positions are known exactly.
-The same trials serve the baseline and the engines, so comparisons run identical inputs.
-"""
+"""Seed 000 (000_05137a0a9c449be3.txt) Sec. VI-A: the straight-line trials of the climbing
+camera (three snapshots) and the ground robots' mutual-bearing triangle, vectorized over trials
+(docs/design_datasets.md, "Seed 000")."""
 
 from __future__ import annotations
 
@@ -60,9 +48,6 @@ class Seed000Config:
         graphloc.datasets.feng.seed000_camera)."""
         return PinholeCamera.from_fov(self.width, self.height, self.fov_rad)
 
-    def camera_matrix(self) -> np.ndarray:
-        return self.camera().K
-
 
 @dataclass(frozen=True)
 class StraightLineTrials:
@@ -97,7 +82,7 @@ def simulate_straight_line_trials(
     if n < 1:
         raise ValueError(f"simulate_straight_line_trials: n must be positive, got {n}")
     rng = np.random.default_rng(seed)
-    K = config.camera_matrix()
+    K = config.camera().K
     parts, have, redrawn = [], 0, 0
     while have < n:
         m = int((n - have) * 1.5) + 8
@@ -180,16 +165,13 @@ class TableIConfig:
 @dataclass(frozen=True)
 class GroundTriangle:
     """Ground robots C1..C3 for T trials. R (T,3,3,3): camera-to-world rotations; estimated
-    (T,3,3): positions from mutual bearings (C1 known: the reference), NaN where the mutual
-    solver rejected the formation; R_estimated (T,3,3,3) the estimated rotations; status (T,)
-    the solver's status; pixels (T,3,3,2) noisy [observer i, robot j]; bearings (T,3,3,3) their
-    lifted unit bearings and bearing_sigma (T,3,3) [rad] (diagonal NaN); visible (T,): every
-    robot inside the others' field of view; redrawn: orientation redraws because a robot left
-    another's field of view."""
+    (T,3,3): positions from mutual bearings (C1 the reference), NaN where the mutual solver
+    rejected the formation, status (T,) its status; pixels (T,3,3,2) noisy [observer i, robot
+    j], bearings (T,3,3,3) lifted and bearing_sigma (T,3,3) [rad] (diagonal NaN); visible (T,):
+    every robot inside the others' field of view; redrawn: orientation redraws."""
 
     R: np.ndarray
     estimated: np.ndarray
-    R_estimated: np.ndarray
     status: np.ndarray
     pixels: np.ndarray
     bearings: np.ndarray
@@ -224,14 +206,12 @@ def ground_triangle(
     baseline = np.linalg.norm(ground[:, 1] - ground[:, 0], axis=1)
     res = localize_three(pixels, omni, baseline)
     estimated = ground[:, 0, None, :] + np.einsum("nij,nkj->nki", R[:, 0], res.t)
-    R_estimated = np.einsum("nab,njbc->njac", R[:, 0], res.R)
     with np.errstate(invalid="ignore"):
         bearings = omni.pixel_to_bearing(pixels.reshape(-1, 2))[0].reshape(T, 3, 3, 3)
         sigma = angular_sigma(omni, pixels, config.pixel_sigma)
     return GroundTriangle(
         R,
         estimated,
-        R_estimated,
         res.status,
         pixels,
         bearings,

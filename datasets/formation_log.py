@@ -1,61 +1,22 @@
-"""The log writer of seed 000 Sec. VI-A (000_05137a0a9c449be3.txt) as measurements, nothing
-pre-solved: three static ground robots with omni cameras that see each other (the `bearing`
-table of each, unit directions in its camera frame), one of them the reference (C1, its
-`initial_pose`), the known |T_12| as a `range` row of C1; the climbing robot's camera sees the
-three (its `bearing` table, the pixels lifted by its pinhole model), and its straight move is
-`relative_pose3` odometry. The team graph places C2, C3 by mutual bearings and the climber by
-P3P on its bearings (`graphloc.pipelines.team_graph.formation`), then solves everything in one
-graph. Format: docs/log_format.md version 2; ground truth as TUM per robot."""
+"""Seed 000 (000_05137a0a9c449be3.txt) Sec. VI-A as a log of measurements: the ground robots'
+mutual bearings, C1 the reference with |T_12| as a range, the climbing camera's bearings of
+the three and its straight move as odometry."""
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass
 from pathlib import Path
 
 import gtsam
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from graphloc.cameras import PinholeCamera, angular_sigma
-from graphloc.datasets.camera_track import relative_pose3_rows
+from graphloc.datasets.camera_track import pose7, relative_pose3_rows, stack_poses
 from graphloc.eval import write_tum
 from graphloc.io import write_manifest, write_table
 
 GROUND = ("ground1", "ground2", "ground3")
 STRAIGHT_ROT_SIGMA = 0.01  # [rad] heading change allowed by "moves straight" (seed 000 Sec. IV)
 BASELINE_SIGMA = 1e-6  # [m] |T_12| is known (seed 000 Problem 1)
-
-
-@dataclass(frozen=True)
-class FormationLog:
-    """One seed 000 Sec. VI-A trial. ground_R (3,3,3) world_R_camera and ground_t (3,3) of the
-    ground robots (body = omni camera frame); mutual (3,3,3): mutual[i, j] unit bearing of
-    robot j in robot i's frame (diagonal ignored), mutual_sigma [rad]; baseline: the known
-    |T_12| [m] and baseline_sigma; times (T,), climber_R (T,3,3), climber_t (T,3): the
-    climbing camera's true poses; climber_bearings (T,3,3): [snapshot, ground robot] unit
-    bearings in the camera frame (NaN: not seen), climber_sigma [rad]; odometry: T-1 relative
-    Pose3 with diagonal covariances odometry_cov (the motion assumption); meta: free-form."""
-
-    name: str
-    ground_R: np.ndarray
-    ground_t: np.ndarray
-    mutual: np.ndarray
-    mutual_sigma: float
-    baseline: float
-    baseline_sigma: float
-    times: np.ndarray
-    climber_R: np.ndarray
-    climber_t: np.ndarray
-    climber_bearings: np.ndarray
-    climber_sigma: float
-    odometry: list
-    odometry_cov: list
-    meta: dict = dataclasses.field(default_factory=dict)
-
-
-def _pose7(R: np.ndarray, t: np.ndarray) -> list:
-    return [*map(float, t), *map(float, Rotation.from_matrix(R).as_quat())]
 
 
 def _bearing_rows(time: float, sensor: str, bearings, names) -> list:
@@ -66,46 +27,60 @@ def _bearing_rows(time: float, sensor: str, bearings, names) -> list:
     ]
 
 
-def write_formation_log(log: FormationLog, out_dir) -> Path:
-    """Write `log` as a graphloc log directory; returns the manifest path."""
+def write_table_i_trial(
+    trials,
+    triangle,
+    n: int,
+    pixel_sigma: float,
+    step_sigma: float,
+    log_name: str,
+    out_dir,
+    meta: dict | None = None,
+) -> Path:
+    """Trial n of seed 000 Table I (`StraightLineTrials`, `GroundTriangle`) as a log directory,
+    bearings with their median angular sigma; the seed's motion assumption as odometry (straight,
+    not turning, an unknown step of sigma `step_sigma`). Returns the manifest path."""
     out = Path(out_dir)
+    off = ~np.eye(3, dtype=bool)
+    ground_R, ground_t = triangle.R[n], trials.ground[n]
+    mutual_sigma = float(np.nanmedian(triangle.bearing_sigma[n][off]))
+    # float32: what a bag's sensor_msgs/Range carries, so the log and its bag form agree
+    baseline = float(np.float32(np.linalg.norm(ground_t[1] - ground_t[0])))
     robots = []
     for i, name in enumerate(GROUND):
         names = [g if j != i else None for j, g in enumerate(GROUND)]
-        write_table(
-            out / name / "bearing.csv", "bearing", _bearing_rows(0.0, "omni", log.mutual[i], names)
-        )
-        write_tum(
-            out / name / "groundtruth.tum", np.zeros(1), _matrix(log.ground_R[i], log.ground_t[i])
-        )
+        rows = _bearing_rows(0.0, "omni", triangle.bearings[n][i], names)
+        write_table(out / name / "bearing.csv", "bearing", rows)
+        pose = stack_poses(ground_R[i][None], ground_t[i][None])
+        write_tum(out / name / "groundtruth.tum", np.zeros(1), pose)
         tables = {"bearing": f"{name}/bearing.csv", "groundtruth": f"{name}/groundtruth.tum"}
-        sensors = [
-            {"name": "omni", "type": "bearing", "params": {"bearing_sigma": log.mutual_sigma}}
-        ]
+        sensors = [{"name": "omni", "type": "bearing", "params": {"bearing_sigma": mutual_sigma}}]
         robot = {"name": name, "kind": "ground", "planar": False, "static": True}
         if i == 0:  # C1 is the reference; it knows |T_12|
-            robot["initial_pose"] = _pose7(log.ground_R[0], log.ground_t[0])
-            write_table(
-                out / name / "range.csv", "range", [(0.0, "baseline", GROUND[1], log.baseline)]
-            )
+            robot["initial_pose"] = pose7(ground_R[0], ground_t[0])
+            write_table(out / name / "range.csv", "range", [(0.0, "baseline", GROUND[1], baseline)])
             tables["range"] = f"{name}/range.csv"
             sensors.append(
                 {
                     "name": "baseline",
                     "type": "range",
-                    "params": {"range_sigma": log.baseline_sigma, "range_sigma_per_m": 0.0},
+                    "params": {"range_sigma": BASELINE_SIGMA, "range_sigma_per_m": 0.0},
                 }
             )
         robots.append({**robot, "sensors": sensors, "tables": tables})
-    rows = [
-        row
-        for t, b in zip(log.times, log.climber_bearings)
-        for row in _bearing_rows(t, "camera", b, GROUND)
-    ]
+    K = trials.K
+    camera = PinholeCamera(K[0, 0], K[1, 1], K[0, 2], K[1, 2], 640, 480)
+    pixels = trials.pixels[n]
+    bearings, ok = camera.pixel_to_bearing(pixels.reshape(-1, 2))
+    bearings = np.where(ok[:, None], bearings, np.nan).reshape(3, 3, 3)
+    climber_sigma = float(np.median(angular_sigma(camera, pixels, pixel_sigma)))
+    times = np.arange(3, dtype=float)
+    rows = [row for t, b in zip(times, bearings) for row in _bearing_rows(t, "camera", b, GROUND)]
     write_table(out / "climber" / "bearing.csv", "bearing", rows)
-    poses = np.stack([_matrix(R, t)[0] for R, t in zip(log.climber_R, log.climber_t)])
-    write_tum(out / "climber" / "groundtruth.tum", np.asarray(log.times, float), poses)
-    rel = relative_pose3_rows(log.times, log.odometry, log.odometry_cov)
+    poses = stack_poses(trials.R_snapshots[n], trials.positions[n])
+    write_tum(out / "climber" / "groundtruth.tum", times, poses)
+    cov = np.diag([STRAIGHT_ROT_SIGMA**2] * 3 + [step_sigma**2] * 3)
+    rel = relative_pose3_rows(times, [gtsam.Pose3()] * 2, [cov] * 2)
     write_table(out / "climber" / "relative_pose3.csv", "relative_pose3", rel)
     climber = {
         "name": "climber",
@@ -113,7 +88,7 @@ def write_formation_log(log: FormationLog, out_dir) -> Path:
         "planar": False,
         "sensors": [
             {"name": "odometry", "type": "odometry"},
-            {"name": "camera", "type": "bearing", "params": {"bearing_sigma": log.climber_sigma}},
+            {"name": "camera", "type": "bearing", "params": {"bearing_sigma": climber_sigma}},
         ],
         "tables": {
             "bearing": "climber/bearing.csv",
@@ -122,56 +97,8 @@ def write_formation_log(log: FormationLog, out_dir) -> Path:
         },
     }
     manifest = {
-        "name": log.name,
+        "name": log_name,
         "robots": [climber, *robots],
-        "meta": {"scenario": log.name, **log.meta},
+        "meta": {"scenario": log_name, **(meta or {})},
     }
     return write_manifest(manifest, out)
-
-
-def _matrix(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    T = np.eye(4)[None].copy()
-    T[0, :3, :3], T[0, :3, 3] = R, t
-    return T
-
-
-def table_i_formation(
-    trials,
-    triangle,
-    n: int,
-    pixel_sigma: float,
-    step_sigma: float,
-    name: str,
-    meta: dict | None = None,
-) -> FormationLog:
-    """Trial n of seed 000 Table I (`graphloc.datasets.feng_deterministic`: the climbing
-    camera's `StraightLineTrials` and the ground robots' `GroundTriangle`) as a FormationLog:
-    the mutual bearings and the climber's pixels lifted to bearings, with their median angular
-    sigma (`graphloc.cameras.angular_sigma`); the seed's motion assumption as odometry: the
-    climber moves straight without turning (rotation held to STRAIGHT_ROT_SIGMA), by an unknown
-    step (translation sigma `step_sigma`)."""
-    K = trials.K
-    camera = PinholeCamera(K[0, 0], K[1, 1], K[0, 2], K[1, 2], 640, 480)
-    pixels = trials.pixels[n]
-    bearings, ok = camera.pixel_to_bearing(pixels.reshape(-1, 2))
-    bearings = np.where(ok[:, None], bearings, np.nan).reshape(3, 3, 3)
-    off = ~np.eye(3, dtype=bool)
-    cov = np.diag([STRAIGHT_ROT_SIGMA**2] * 3 + [step_sigma**2] * 3)
-    return FormationLog(
-        name=name,
-        ground_R=triangle.R[n],
-        ground_t=trials.ground[n],
-        mutual=triangle.bearings[n],
-        mutual_sigma=float(np.nanmedian(triangle.bearing_sigma[n][off])),
-        # float32: what a bag's sensor_msgs/Range carries, so the log and its bag form agree
-        baseline=float(np.float32(np.linalg.norm(trials.ground[n, 1] - trials.ground[n, 0]))),
-        baseline_sigma=BASELINE_SIGMA,
-        times=np.arange(3, dtype=float),
-        climber_R=trials.R_snapshots[n],
-        climber_t=trials.positions[n],
-        climber_bearings=bearings,
-        climber_sigma=float(np.median(angular_sigma(camera, pixels, pixel_sigma))),
-        odometry=[gtsam.Pose3()] * 2,
-        odometry_cov=[cov] * 2,
-        meta=meta or {},
-    )

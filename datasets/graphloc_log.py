@@ -1,21 +1,82 @@
-"""Reader of a graphloc log directory (docs/log_format.md, versions 1 and 2) into the one run
-type, `graphloc.run.TeamRun`, in two stages: parsing (`graphloc.datasets.log_rows.read_log_rows`:
-every row of every table through its table's handler, used, counted as a skip with its reason,
-or rejected with file, line and field) and the front-ends
-(`graphloc.datasets.log_front_end.run_front_ends`: P3P, circles, KISS-ICP), then the run's
-start time checked and the converter's skips merged.
-"""
+"""A graphloc log directory (docs/log_format.md) -> `graphloc.run.TeamRun`: parsing
+(`log_rows.read_log_rows`), the front-end stage (`run_front_ends`: candidate sets, camera
+observations, KISS-ICP steps; it never reads a table), then the start time checked and the
+converter's skips merged."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from graphloc.datasets.log_front_end import FrontEndOutput, run_front_ends
+from graphloc.datasets.camera_tables import (
+    ellipse_observations,
+    feature_observations,
+    single_tracks,
+)
+from graphloc.datasets.log_observations import (
+    candidate_observations,
+    marker_observations,
+    scan_odometry,
+)
 from graphloc.datasets.log_rows import LogRows, read_log_rows
 from graphloc.io import MANIFEST, SkipReport
 from graphloc.run import TeamRun, pose_from_planar
+
+
+@dataclass(frozen=True)
+class FrontEndOutput:
+    """What the front-ends made of a log's rows: KISS-ICP steps (`Motion`) and the scans they
+    came from (`ScanObservation`, by time), candidate sets (`CandidateObservation`: P3P,
+    logged, circles; by time, then observer), feature pixels (`FeatureObservation`) and the
+    rows they used per table (`markers`, `candidates`, `features`: counted here, not when
+    parsed)."""
+
+    scan_motions: tuple
+    scans: tuple
+    observations: tuple
+    features: tuple
+    used: dict
+
+
+def grouped(pairs: list) -> dict:
+    """(key, row) pairs -> key -> [rows], keys in order of first appearance."""
+    out: dict = {}
+    for key, row in pairs:
+        out.setdefault(key, []).append(row)
+    return out
+
+
+def run_front_ends(rows: LogRows) -> FrontEndOutput:
+    """Every front-end over `rows`; each refused row or set is counted in `rows.sink` (or
+    raised)."""
+    robots, manifest, sink = rows.robots, rows.manifest, rows.sink
+    scan_motions, scans = scan_odometry(
+        grouped(rows.tables["scans"]), robots, manifest, rows.skips, rows.notes
+    )
+    observations, marker_rows = marker_observations(
+        rows.markers, robots, manifest, rows.noise, sink
+    )
+    candidates = grouped(rows.tables["candidates"])
+    logged = candidate_observations(candidates, robots, rows.noise, manifest, sink)
+    observations += logged
+    observations += ellipse_observations(rows.tables["ellipses"], robots, manifest, sink)
+    feature_rows = single_tracks(rows.tables["features"], manifest, sink)
+    features = feature_observations(feature_rows, robots, manifest, rows.noise)
+    observations.sort(key=lambda o: (o.time, o.robot))
+    used = {
+        "markers": marker_rows,
+        "candidates": sum(len(o.candidates) for o in logged),
+        "features": len(feature_rows),
+    }
+    return FrontEndOutput(
+        tuple(scan_motions),
+        tuple(sorted(scans, key=lambda o: (o.time, o.robot))),
+        tuple(observations),
+        tuple(features),
+        used,
+    )
 
 
 def read_team_run(
@@ -36,24 +97,17 @@ def team_run(rows: LogRows, front: FrontEndOutput) -> TeamRun:
     first wheel-odometry stamp of a robot, else the earliest stamp of any row."""
     manifest, robots = rows.manifest, rows.robots
     mpath = manifest.root / MANIFEST
-    motions = rows.rows("motions") + list(front.scan_motions)
-    points = rows.rows("points")
+    motions = rows.tables["motions"] + list(front.scan_motions)
+    points = rows.tables["points"]
     observations, features = front.observations, front.features
-    velocity = {i: [] for i in range(len(robots))}
-    for ri, row in rows.rows("velocity"):
-        velocity[ri].append(row)
-    vel = tuple(np.array(velocity[i], dtype=float).reshape(-1, 3) for i in range(len(robots)))
+    velocity = grouped(rows.tables["velocity"])
+    vel = tuple(
+        np.array(velocity.get(i, []), dtype=float).reshape(-1, 3) for i in range(len(robots))
+    )
     gt = dict(rows.groundtruth)
-    planar_gt = {i: [] for i in range(len(robots))}
-    for ri, row in rows.rows("groundtruth"):
-        planar_gt[ri].append(row)
-    for ri, samples in planar_gt.items():
-        if samples:
-            arr = np.array(samples)
-            gt[robots[ri].name] = (
-                arr[:, 0],
-                [pose_from_planar(x, y, th) for _, x, y, th in arr],
-            )
+    for ri, samples in grouped(rows.tables["groundtruth"]).items():
+        arr = np.array(samples)
+        gt[robots[ri].name] = (arr[:, 0], [pose_from_planar(x, y, th) for _, x, y, th in arr])
     start = manifest.start_time
     if start is None:
         firsts = [v[0, 0] for v in vel if len(v)] or [m.t0 for m in motions]
@@ -120,11 +174,6 @@ def _merge_import_skips(report: SkipReport, imported, where: Path, key: str = "s
         isinstance(k, str) and type(n) is int and n >= 0 for k, n in counts.items()
     ):
         raise ValueError(f"{where}: field 'meta.import.{key}' must hold counts by reason")
-    earlier = SkipReport(
-        dict(counts),
-        [
-            str(m)
-            for m in (skips.get("examples") if isinstance(skips.get("examples"), list) else [])
-        ][: report.max_examples],
-    )
-    report.merge(earlier)
+    examples = skips.get("examples")
+    examples = [str(m) for m in examples] if isinstance(examples, list) else []
+    report.merge(SkipReport(dict(counts), examples[: report.max_examples]))

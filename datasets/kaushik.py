@@ -1,24 +1,6 @@
 """Scenario `kaushik-p3p-error`: seed 004 (004_fa12d1d18dcbd0db.txt) Sec. III, the P3P error
-analysis behind its Table 1: three LEDs on the ground robot forming an equilateral triangle of
-side 0.3048 m (Sec. II-A), seen by the overhead camera of the wall-climbing robot, focal length
-16 / 26 / 36 mm, Gaussian pixel noise of variance 3 / 5 / 10 px^2 on each image coordinate,
-1000 runs per cell; RMS position error Eq. (4).
-
-Where the seed is silent (stated, not tuned): a 640x480 2/3" sensor (8.8 x 6.6 mm, pixel
-pitch 13.75 um: C-mount 16-36 mm lenses), the camera 2.5 m above the LED plane (a 3 m ceiling
-over a 0.5 m ground robot) -- with a smaller sensor or a lower ceiling the 36 mm lens cannot
-see the whole 0.3048 m triangle. Each run is a
-short track (Fig. 3: the climbing robot follows a sinusoid on the ceiling): `frames` updates
-`step` m apart (at `speed` m/s) along y = A sin(2 pi x / wavelength), starting within
-`start_radius` of the point above the LED centroid, the camera pan-tilted at the centroid (it
-must stay in a 36 mm lens' 10 deg field of view). Odometry between updates is the noisy
-relative camera pose (graphloc.datasets.feng.noisy_odometry; seed 004 Algorithm 1's alpha_1,
-alpha_2 are not given: `odometry_noise` relative translation, `odometry_rot_sigma` rad).
-Frame: the LED frame (P1 at the origin, X1-Y1 in the LED plane, z up), as the seed's
-X1-Y1-Z1. Readings swept by benchmarks.seed_baselines (issue 20): `offset` moves the
-track's start that far (horizontally) from the point above the LED centroid (0: overhead, the
-default); `noise_reading` reads Table 1's "sigma^2 = v" as a variance (default) or as a std.
-"""
+analysis behind its Table 1 (LED triangle of Sec. II-A, RMS error Eq. (4)), runs batched over
+tracks of a climbing robot's overhead camera (docs/design_datasets.md, "Seed 004")."""
 
 from __future__ import annotations
 
@@ -39,7 +21,6 @@ from graphloc.datasets.feng import (
 from graphloc.config import parse_overrides
 from graphloc.config_schema import config_dataclass, setting
 from graphloc.datasets.camera_track import CameraTrackLog, write_camera_track
-from graphloc.geometry.p3p import P3PCandidates, solve_p3p
 
 SIDE = 0.3048  # LED triangle side [m] (seed 004 Sec. II-A)
 FOCALS_MM = (16.0, 26.0, 36.0)
@@ -80,14 +61,11 @@ class KaushikConfig:
         v = float(self.noise_variance)
         return float(np.sqrt(v)) if self.noise_reading == "variance" else v
 
-    @property
-    def focal_px(self) -> float:
-        return 1e3 * self.focal_mm / self.pixel_pitch_um
-
     def camera(self) -> PinholeCamera:
+        focal_px = 1e3 * self.focal_mm / self.pixel_pitch_um
         return PinholeCamera(
-            self.focal_px,
-            self.focal_px,
+            focal_px,
+            focal_px,
             (self.width - 1) / 2.0,
             (self.height_px - 1) / 2.0,
             self.width,
@@ -99,8 +77,7 @@ class KaushikConfig:
 class KaushikRuns:
     """`runs` tracks of `frames` updates. times (F,); R_wc (N,F,3,3), t_wc (N,F,3) true camera
     poses; leds (3,3); pixels (N,F,3,2) noisy; odometry: N lists of F-1 noisy relative poses
-    (gtsam.Pose3); candidates: P3P of every frame, shaped (N*F,) run-major; genuine (N,F):
-    index of the candidate nearest the truth (-1: none); genuine_error (N,F) [m]."""
+    (gtsam.Pose3)."""
 
     config: KaushikConfig
     times: np.ndarray
@@ -109,9 +86,6 @@ class KaushikRuns:
     leds: np.ndarray
     pixels: np.ndarray
     odometry: list
-    candidates: P3PCandidates
-    genuine: np.ndarray
-    genuine_error: np.ndarray
 
 
 def tracks(config: KaushikConfig, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -140,7 +114,7 @@ def tracks(config: KaushikConfig, rng: np.random.Generator) -> tuple[np.ndarray,
 
 
 def simulate(config: KaushikConfig = KaushikConfig()) -> KaushikRuns:
-    """All runs of one (focal, noise) cell, P3P batched over every frame of every run."""
+    """All runs of one (focal, noise) cell, batched over every frame of every run."""
     rng = np.random.default_rng(config.seed)
     N, F = config.runs, config.frames
     leds = led_triangle()
@@ -153,14 +127,6 @@ def simulate(config: KaushikConfig = KaushikConfig()) -> KaushikRuns:
             f"(focal {config.focal_mm} mm, height {config.height} m)"
         )
     pixels = uv + rng.normal(0.0, config.pixel_sigma, uv.shape)
-    bearings, ok = camera.pixel_to_bearing(pixels.reshape(-1, 2))
-    if not ok.all():
-        raise ValueError(
-            f"kaushik-p3p-error: {int((~ok).sum())} noisy pixels do not lift to bearings"
-        )
-    cands = solve_p3p(bearings.reshape(-1, 3, 3), np.broadcast_to(leds, (N * F, 3, 3)))
-    d = np.where(cands.valid, np.linalg.norm(cands.t_wc - t.reshape(-1, 1, 3), axis=2), np.inf)
-    genuine = np.where(cands.valid.any(axis=1), d.argmin(axis=1), -1).reshape(N, F)
     odometry = []
     for n in range(N):
         Rrel, trel = relative_poses(R[n], t[n])
@@ -175,9 +141,6 @@ def simulate(config: KaushikConfig = KaushikConfig()) -> KaushikRuns:
         leds,
         pixels.reshape(N, F, 3, 2),
         odometry,
-        cands,
-        genuine,
-        d.min(axis=1).reshape(N, F),
     )
 
 
@@ -208,8 +171,6 @@ class KaushikP3PErrorScenario:
             pixel_sigma=config.pixel_sigma,
             odometry=run.odometry[0],
             odometry_cov=cov,
-            observer="climber",
-            target="ground",
             surface=(np.array([0.0, 0.0, config.height]), np.array([0.0, 0.0, -1.0])),
             meta={"seed_paper": "004_fa12d1d18dcbd0db.txt Sec. III", "config": asdict(config)},
         )

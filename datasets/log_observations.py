@@ -1,12 +1,6 @@
-"""Tables of a graphloc log that become observations in batches (docs/log_format.md):
-`markers` rows grouped by image -> P3P candidate sets in one batched solve
-(`graphloc.vision.marker_poses`, seed 000 Sec. III-B / seed 004 Sec. II-C: three distinct
-markers, up to 4 candidates; seed 001 Sec. IV-C: four identical markers, 24 x 4 hypotheses gated
-by the fourth marker), `candidates` rows -> candidate sets as logged, and a robot's `scans` ->
-KISS-ICP odometry steps (`graphloc.mapping.odometry`). Called by the front-end stage
-(`graphloc.datasets.log_front_end.run_front_ends`) with the rows parsing grouped; the markers'
-columns are read by parsing (`marker_columns`, `graphloc.datasets.log_rows.read_log_rows`).
-"""
+"""Log tables that become observations in batches: `markers` rows -> P3P candidate sets (seed 000
+Sec. III-B, seed 004 Sec. II-C: three markers; seed 001 Sec. IV-C: four identical markers),
+`candidates` rows -> candidate sets, a robot's `scans` -> KISS-ICP odometry steps."""
 
 from __future__ import annotations
 
@@ -17,8 +11,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.candidates import CandidateSet
-from graphloc.datasets.camera_tables import camera_from_params, positive_param
-from graphloc.io import MANIFEST, Sink, iter_table_chunks
+from graphloc.datasets.camera_tables import camera_sensor, positive_param
+from graphloc.io import Sink, iter_table_chunks
 from graphloc.textio import cut
 from graphloc.run import CandidateObservation, MarkerPixels, Motion, ScanObservation
 from graphloc.vision.marker_poses import p3p_candidate_sets
@@ -54,18 +48,10 @@ def marker_columns(manifest, robots: tuple, index: dict, on_error: str, report, 
                 sink.bad("unknown_target", message)
             keep = target >= 0
             sensor = np.array([names[s] for s in chunk["sensor"]], dtype=np.int32)
-            parts.append(
-                (
-                    chunk["time"][keep],
-                    np.full(int(keep.sum()), ri, dtype=np.int32),
-                    sensor[keep],
-                    target[keep],
-                    chunk["marker"][keep].astype(np.int32),
-                    chunk["u"][keep],
-                    chunk["v"][keep],
-                    chunk["line"][keep],
-                )
-            )
+            robot = np.full(len(target), ri, dtype=np.int32)
+            marker = chunk["marker"].astype(np.int32)
+            time, u, v, line = (chunk[k] for k in ("time", "u", "v", "line"))
+            parts.append(tuple(c[keep] for c in (time, robot, sensor, target, marker, u, v, line)))
     if not parts:
         return None
     return dict(zip(MARKER_COLUMNS, (np.concatenate(c) for c in zip(*parts))))
@@ -74,13 +60,10 @@ def marker_columns(manifest, robots: tuple, index: dict, on_error: str, report, 
 def marker_observations(
     columns: dict | None, robots: tuple, manifest, d: dict, sink: Sink
 ) -> tuple[list, int]:
-    """Marker pixels (`marker_columns`) grouped by (time, observer, sensor, target), one image
-    each, checked with NumPy -- a marker outside the target's layout, a marker seen twice
-    (unless the markers are identical) or fewer than three markers is a counted skip of every
-    row of the image -- then P3P candidate sets, all three-marker instances of the run in one
-    batched solve. Returns the candidate sets and the number of rows of the images that became
-    candidate sets that are not empty (an inconsistent set's rows are counted by the graph, as
-    skipped)."""
+    """Marker pixels (`marker_columns`) grouped by image (time, observer, sensor, target), an
+    image with a marker outside the layout, one seen twice (markers not identical) or fewer than
+    three a counted skip of its rows, then P3P in one batched solve. Returns the candidate sets
+    and the number of rows that became non-empty sets."""
     if columns is None or not len(columns["time"]):
         return [], 0
     c = columns
@@ -146,9 +129,7 @@ def marker_observations(
     out, used = [], 0
     for (ri, s, ti), frames in by_setup.items():
         sensor = list(robots[ri].sensors)[s]  # marker_columns' sensor index
-        T_bs, params = robots[ri].sensors[sensor]
-        where_cam = f"{manifest.root / MANIFEST}: robot {robots[ri].name!r} sensor {sensor!r}"
-        camera = camera_from_params(params, where_cam)
+        E, params, camera, where_cam = camera_sensor(robots, ri, sensor, manifest)
         sigma = positive_param(params, "pixel_sigma", d["pixel_sigma"], where_cam)
         target = robots[ti]
         sets = p3p_candidate_sets(
@@ -170,7 +151,7 @@ def marker_observations(
             # an inconsistent set (no pose passes the pixel chi-square) stays, empty: the team
             # graph counts it in its stream and never decides it
             pixels = None if target.identical_markers else MarkerPixels(marks, uv, camera, sigma)
-            out.append(CandidateObservation(time, ri, ti, gtsam.Pose3(T_bs), cs, pixels))
+            out.append(CandidateObservation(time, ri, ti, E, cs, pixels))
             if len(cs):  # an inconsistent set's rows are counted by the graph, as skipped
                 used += len(marks)
     return out, used
@@ -180,12 +161,9 @@ SCAN_SIGMAS = (0.002, 0.01)  # [rad, m] per KISS-ICP step where the scanner's pa
 
 
 def scan_odometry(groups: dict, robots: tuple, manifest, report, notes=None) -> tuple[list, list]:
-    """Each robot's scans (rows of its `scans` table, per scanner) -> KISS-ICP odometry
-    (`graphloc.mapping.odometry`) -> one relative-pose step per consecutive pair of scans, in
-    the body frame (through the scanner's extrinsics), covariance from the scanner's
-    `icp_sigmas` [rot rad, trans m] (a scan beyond the point budget thinned, counted in
-    `notes`); and the scans themselves (`ScanObservation`, by path) for
-    the inter-robot registration of the team graph."""
+    """Each robot's scans (per scanner) -> KISS-ICP odometry, one body-frame step per pair of
+    consecutive scans (`scan_step`); and the scans themselves (`ScanObservation`) for the team
+    graph's inter-robot registration."""
     if not groups:
         return [], []
     # Open3D and KISS-ICP load only for runs that have scans
@@ -223,10 +201,8 @@ def scan_odometry(groups: dict, robots: tuple, manifest, report, notes=None) -> 
 
 
 def scan_step(ri: int, T_bs, params: dict, t0: float, t1: float, step) -> Motion:
-    """One KISS-ICP step of robot ri's scanner (extrinsics `T_bs`, its `params`) from its scan
-    at t0 to the one at t1 as a relative pose of the body: the step through the extrinsics,
-    covariance from the scanner's `icp_sigmas` [rot rad, trans m] (SCAN_SIGMAS when it gives
-    none), moved to the body frame."""
+    """One KISS-ICP step of robot ri's scanner from t0 to t1 as a relative pose of the body,
+    covariance from the scanner's `icp_sigmas` [rot rad, trans m] (default SCAN_SIGMAS)."""
     E = gtsam.Pose3(T_bs)
     sig = params.get("icp_sigmas", SCAN_SIGMAS)
     cov = np.diag([float(sig[0]) ** 2] * 3 + [float(sig[1]) ** 2] * 3)
@@ -237,10 +213,8 @@ def scan_step(ri: int, T_bs, params: dict, t0: float, t1: float, step) -> Motion
 
 def candidate_observations(groups: dict, robots: tuple, d: dict, manifest, sink: Sink) -> list:
     """`candidates` rows grouped by (time, observer, sensor, target) -> candidate sets as
-    logged, each candidate with the sensor's `candidate_sigmas` (rot rad, trans m). A set
-    that lists a candidate `k` twice is a counted skip `duplicate_candidate` of its every row
-    (which of the two is meant cannot be told); a set formed uses its every row, one per
-    candidate. The rows' quaternions are checked (`not_unit`) by the reader."""
+    logged, with the sensor's `candidate_sigmas` (rot rad, trans m); a set listing a candidate
+    `k` twice is a counted skip `duplicate_candidate` of its every row."""
     out = []
     for (time, ri, sensor, ti), rows in groups.items():
         ks = [r.k for r in rows]

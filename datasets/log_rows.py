@@ -1,11 +1,6 @@
-"""Parsing of a graphloc log directory (docs/log_format.md, versions 1 and 2) into typed tables,
-`LogRows`, with no front-end work: each table's rows go to the handler its table kind is
-registered under (`TABLE_HANDLERS`), which checks a row and returns what it becomes -- a wheel
-velocity, a relative-pose `Motion`, a `PointMeasurement`, or a raw row the front-end stage
-takes (`graphloc.datasets.log_front_end`: marker pixels, candidates, ellipses, features, scans)
--- or a `Skip` naming file, line and field. `markers` rows are read as columns
-(`log_observations.marker_columns`: a million rows in seconds), 3D ground truth from TUM files.
-"""
+"""Parsing of a graphloc log directory (docs/log_format.md) into typed tables, `LogRows`: each
+row through its table kind's handler (`TABLE_HANDLERS`) -> a typed row, or a `Skip` naming
+file, line and field; no front-end work."""
 
 from __future__ import annotations
 
@@ -42,8 +37,6 @@ from graphloc.run import (
 )
 from graphloc.textio import check_file, shown, text_lines
 
-# tables the graph uses (every table of docs/log_format.md)
-GRAPH_TABLES = tuple(TABLES)
 TABLE_OF = {cls: name for name, cls in TABLES.items()}  # record class -> its table's name
 
 
@@ -76,7 +69,7 @@ class LogRows:
     (robot, sensor), `features` as (robot, row), `ellipses` as (observer, target, row, where),
     `markers` as columns); 3D ground truth (times, poses) per robot name; the rows used per
     table as parsed (a front-end's rows count when it makes their set,
-    `log_front_end.FrontEndOutput.used`), the skips and the notes (read and used, but
+    `graphloc_log.FrontEndOutput.used`), the skips and the notes (read and used, but
     said)."""
 
     manifest: Manifest
@@ -94,10 +87,6 @@ class LogRows:
     @property
     def skips(self) -> SkipReport:
         return self.sink.report
-
-    def rows(self, kind: str) -> list:
-        """The items of one row kind (`Handler.into`), in time order."""
-        return self.tables[kind]
 
 
 def _velocity(rec, ctx: RowContext):
@@ -316,7 +305,7 @@ def read_log_rows(
         read_landmarks(manifest),
         Sink(on_error, SkipReport()),
         SkipReport(),  # read and used, but said: scans thinned, a bag's stamps re-sorted
-        {t: 0 for t in GRAPH_TABLES},
+        {t: 0 for t in TABLES},
         {kind: [] for kind in ROW_KINDS},
         {r.name: None for r in robots},
     )
@@ -325,7 +314,7 @@ def read_log_rows(
         if path and is_tum(path):
             rows.groundtruth[r.name] = read_tum_poses(manifest.root / path)
             rows.used["groundtruth"] += len(rows.groundtruth[r.name][0])
-    streamed = tuple(t for t in GRAPH_TABLES if t in TABLE_HANDLERS)
+    streamed = tuple(t for t in TABLES if t in TABLE_HANDLERS)
     records = iter_records(root, tables=streamed, on_error=on_error, report=rows.skips)
     for rec in records:
         table = TABLE_OF[type(rec)]

@@ -1,31 +1,7 @@
-"""UTIAS Multi-Robot Cooperative Localization and Mapping (MRCLAM) dataset loader
-(Leung et al., IJRR 2011). Reads the directory layout of any MRCLAM_DatasetN:
-
-    Barcodes.dat               subject #, barcode #
-    Landmark_Groundtruth.dat   subject #, x, y, x std-dev, y std-dev
-    RobotN_Odometry.dat        time, forward velocity v [m/s], angular velocity omega [rad/s]
-    RobotN_Measurement.dat     time, barcode #, range [m], bearing [rad]
-    RobotN_Groundtruth.dat     time, x, y, orientation   (optional)
-
-Subjects 1..R are the robots (R = number of RobotN_Odometry.dat files), the others landmarks.
-Files are UTF-8 (an optional byte-order mark is dropped); a byte that is not UTF-8 is a
-ValueError naming file, line and column. Every row that is not used is counted by reason in the
-run's SkipReport, with file and line (on_error="raise": the first one is a ValueError instead):
-malformed lines ("field_count", "parse"), NaN/inf ("non_finite"), values outside the plausible
-ranges of `LIMITS` ("implausible", e.g. a speed of 1e308 m/s), time going backwards
-("time_backwards"), ranges <= 0 ("non_positive_range"), unknown barcodes, self-observations,
-and rows outside the run's time window: measurements before the common start
-("before_start"), after the earliest end of any robot's odometry ("after_end") or after the
-requested `duration` ("after_duration"); odometry rows past the end ("odometry_after_end",
-"odometry_after_duration"); ground truth outside the window ("groundtruth_outside_window").
-`run.meta["window"]` says which file (or the duration) set each end of the window.
-Barcodes.dat and Landmark_Groundtruth.dat define the ids and the map, so any bad row in them,
-a missing or empty landmark file or a landmark listed twice is always a ValueError. Missing,
-unreadable, looping (symlink) or non-regular files are errors, never "no data".
-
-    run = MRCLAM("/data/MRCLAM_Dataset6", duration=60.0).load()    # graphloc.io.PlanarRun
-    MRCLAM("/data/MRCLAM_Dataset6").to_log("out/ds6_log")           # graphloc log format
-"""
+"""UTIAS MRCLAM dataset loader (Leung et al., IJRR 2011): a MRCLAM_DatasetN directory
+(Barcodes.dat, Landmark_Groundtruth.dat, RobotN_Odometry / _Measurement / _Groundtruth.dat) ->
+`graphloc.io.PlanarRun`, every unused row a counted skip naming file and line
+(docs/design_datasets.md, "MRCLAM")."""
 
 from __future__ import annotations
 
@@ -35,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from graphloc.io import PlanarRun, SkipReport, write_planar_run
+from graphloc.io import PlanarRun, SkipReport
 from graphloc.textio import check_file, text_blocks
 
 _ROBOT_FILE = re.compile(r"^Robot(\d+)_Odometry\.dat$")
@@ -86,11 +62,9 @@ def is_mrclam_dir(path: str | Path) -> bool:
 
 
 def read_table(path: Path, kind: str, report: SkipReport, on_error: str = "skip") -> np.ndarray:
-    """Whitespace table of one MRCLAM file `kind` (a key of LIMITS) with '#' comments -> (n,
-    n_cols) float array. Malformed rows (wrong field count, unparsable or non-finite numbers,
-    non-integer ids, values outside LIMITS, ranges <= 0, time < previous time in timed files)
-    raise ValueError or are skipped and counted by reason, with file, line and field. A block
-    whose rows all pass is one array (`_block_rows`), one with a bad row read row by row."""
+    """Whitespace table of one MRCLAM file `kind` (a key of LIMITS) -> (n, n_cols) floats; a row
+    `_check_row` refuses raises or is a counted skip naming file, line and field. A block whose
+    rows all pass is read at once (`_block_rows`), one with a bad row row by row."""
     limits = LIMITS[kind]
     n_cols, int_cols = len(limits), _INT_COLUMNS.get(kind, ())
     monotonic = limits[0][0] == "time"
@@ -171,14 +145,7 @@ def interpolate_pose(gt: np.ndarray, times: np.ndarray) -> np.ndarray:
     """Ground truth (G,4) time, x, y, theta linearly interpolated (heading unwrapped) at `times`
     -> (n,3)."""
     th = np.unwrap(gt[:, 3])
-    out = np.stack(
-        [
-            np.interp(times, gt[:, 0], gt[:, 1]),
-            np.interp(times, gt[:, 0], gt[:, 2]),
-            np.interp(times, gt[:, 0], th),
-        ],
-        axis=1,
-    )
+    out = np.stack([np.interp(times, gt[:, 0], v) for v in (gt[:, 1], gt[:, 2], th)], axis=1)
     out[:, 2] = (out[:, 2] + np.pi) % (2 * np.pi) - np.pi
     return out
 
@@ -197,7 +164,8 @@ class MRCLAM:
         self.duration = duration
         self.on_error = on_error
 
-    def robot_ids(self) -> list[int]:
+    def load(self) -> PlanarRun:
+        report = SkipReport()
         ids = sorted(
             int(m.group(1)) for f in self.root.iterdir() if (m := _ROBOT_FILE.match(f.name))
         )
@@ -205,11 +173,6 @@ class MRCLAM:
             raise ValueError(
                 f"{self.root}: no RobotN_Odometry.dat files (not an MRCLAM directory?)"
             )
-        return ids
-
-    def load(self) -> PlanarRun:
-        report = SkipReport()
-        ids = self.robot_ids()
         barcodes = read_table(self._file("Barcodes.dat"), "barcodes", report, "raise")
         lm_path = self._file("Landmark_Groundtruth.dat")
         landmarks = read_table(lm_path, "landmarks", report, "raise")
@@ -306,19 +269,9 @@ class MRCLAM:
             keep = ~unknown & ~own
             target_robot = np.array([robot_index.get(s, -1) for s in subject[keep]], dtype=int)
             landmark = np.where(target_robot < 0, subject[keep], -1)
-            obs.append(
-                np.stack(
-                    [
-                        m[keep, 0],
-                        np.full(keep.sum(), i),
-                        target_robot,
-                        landmark,
-                        m[keep, 2],
-                        m[keep, 3],
-                    ],
-                    axis=1,
-                )
-            )
+            # time, observer, target robot, landmark, range, bearing
+            columns = [m[keep, 0], np.full(keep.sum(), i), target_robot, landmark, m[keep, 2:4]]
+            obs.append(np.column_stack(columns))
         o = np.concatenate(obs, axis=0)
         o = o[np.argsort(o[:, 0], kind="stable")]
 
@@ -399,10 +352,6 @@ class MRCLAM:
                     n,
                     strict=False,
                 )
-
-    def to_log(self, out_dir: str | Path) -> Path:
-        """Convert to the graphloc log format (docs/log_format.md)."""
-        return write_planar_run(self.load(), out_dir)
 
     def _file(self, name: str) -> Path:
         path = self.root / name

@@ -1,41 +1,6 @@
-"""Pose-graph files with discrete alternatives: City10000's format and g2o (2D and 3D).
-
-City10000 (`T1_city10000_04.txt` in GTSAM's example data; format as read by GTSAM's
-HybridCity10000 example), one edge per line:
-
-    EDGE2 <source> <robot> <target> <ambiguous-loop flag> <n> <x y theta> * n
-
-`n` candidate relative poses (Pose2) for the edge source -> target; a flag of 1 marks a loop
-closure that may be an outlier (a "null" component). The file carries no covariance: every
-edge gets `CITY_SIGMAS` (x, y, theta), the sigmas of GTSAM's example.
-
-g2o: `VERTEX_SE2 id x y theta`, `EDGE_SE2 i j x y theta` + the 6 upper-triangular entries of the
-information matrix; `VERTEX_SE3:QUAT id x y z qx qy qz qw`, `EDGE_SE3:QUAT i j x y z qx qy qz qw`
-+ 21 entries (g2o's order: translation, then rotation; stored here in GTSAM's tangent order,
-rotation first, as `gtsam.readG2o` does). Every edge line is its own measurement, as g2o reads
-it (two edges between the same vertices are two measurements, both held). Discrete
-alternatives and possible outliers are marked with the g2o types of Vertigo's robust
-back-ends (github.com/OpenSLAM-org/openslam_vertigo, `datasets/generateDataset.py`):
-
-    EDGE_SE2_SWITCHABLE i j switch_id x y theta info(6)     a loop closure that may be an
-    EDGE_SE2_MAXMIX     i j weight    x y theta info(6)     outlier: a null component
-    EDGE_SE2_MIXTURE    i j n  (EDGE_SE2 weight i j x y theta info(6)) * n     n candidates
-
-(3D: `EDGE_SE3_SWITCHABLE`, `EDGE_SE3_MAXMIX`, `EDGE_SE3_MIXTURE` with `EDGE_SE3:QUAT`
-payloads; a mixture's components may be tagged `EDGE_SE3:QUAT` or `EDGE_SE3`). The null
-component replaces Vertigo's switch variables and the max-mixture's weighted outlier mode, so
-`VERTEX_SWITCH` / `EDGE_SWITCH_PRIOR` lines and the switch id / weight fields are read and not
-used (counted under `switch_variable`; a mixture's component weights likewise, the candidates
-are equally likely a priori). `null_on_loops=True` gives every loop closure (an edge not
-between consecutive ids) a null component, for outlier-robust runs of plain g2o files.
-
-Other tags (landmark vertices and edges, `FIX`, ...) are counted skips. A malformed line is a
-ValueError naming file, line and field (`on_error="raise"`) or a counted skip (`"skip"`) in
-`PoseGraphFile.skips`; a file mixing 2D and 3D, or holding no edge, is always an error.
-
-    graph = read_pose_graph("T1_city10000_04.txt")
-    permuted, truth = permute_candidates(graph.measurements, seed=0)
-"""
+"""Pose-graph files with discrete alternatives (issue 51): City10000's `EDGE2` lines and g2o 2D /
+3D with Vertigo's switchable / max-mixture / mixture edges (docs/pose_graph_files.md), errors
+naming file, line and field or counted skips."""
 
 from __future__ import annotations
 
@@ -47,7 +12,6 @@ import numpy as np
 
 from graphloc.textio import Sink, SkipReport, check_file, shown, text_lines
 
-CITY_SIGMAS = (1.0 / 20.0, 1.0 / 20.0, 1.0 / 100.0)  # GTSAM's HybridCity10000 example
 MAX_CANDIDATES = 64
 MAX_KEY = 2**40
 # tag -> (dimension, number of pose numbers, number of information entries)
@@ -170,7 +134,7 @@ def read_pose_graph(
                 m = (
                     _g2o_mixture(row, line_no, dim)
                     if kind == "mixture"
-                    else _g2o_null(row, line_no, dim)
+                    else _g2o_edge(row, line_no, dim, null=True)
                 )
             elif tag in _G2O_SWITCHES:
                 sink.report.add(
@@ -254,22 +218,17 @@ def _payload_width(dim: int) -> int:
     return n_pose + n_info
 
 
-def _g2o_edge(row: _Line, line_no: int, dim: int) -> Measurement:
-    """`EDGE_SE2` / `EDGE_SE3:QUAT i j pose info`: one certain measurement."""
-    row.exact_count(3 + _payload_width(dim), row.parts[0])
+def _g2o_edge(row: _Line, line_no: int, dim: int, null: bool = False) -> Measurement:
+    """`EDGE_SE2` / `EDGE_SE3:QUAT i j pose info`: one certain measurement; `null`: Vertigo's
+    `EDGE_SE*_SWITCHABLE i j switch_id pose info` / `EDGE_SE*_MAXMIX i j weight pose info`, one
+    candidate and a null component (the switch id / weight is read, not used)."""
+    start = 4 if null else 3
+    row.exact_count(start + _payload_width(dim), row.parts[0])
     source, target = row.integer(1, "source"), row.integer(2, "target")
-    pose, info = _g2o_payload(row, dim, 3)
-    return Measurement(line_no, source, target, (pose,), (info,))
-
-
-def _g2o_null(row: _Line, line_no: int, dim: int) -> Measurement:
-    """Vertigo's `EDGE_SE*_SWITCHABLE i j switch_id pose info` / `EDGE_SE*_MAXMIX i j weight
-    pose info`: one candidate and a null component (the switch id / weight is read, not used)."""
-    row.exact_count(4 + _payload_width(dim), row.parts[0])
-    source, target = row.integer(1, "source"), row.integer(2, "target")
-    row.numbers(3, ["switch id" if row.parts[0].endswith("SWITCHABLE") else "weight"])
-    pose, info = _g2o_payload(row, dim, 4)
-    return Measurement(line_no, source, target, (pose,), (info,), True)
+    if null:
+        row.numbers(3, ["switch id" if row.parts[0].endswith("SWITCHABLE") else "weight"])
+    pose, info = _g2o_payload(row, dim, start)
+    return Measurement(line_no, source, target, (pose,), (info,), null)
 
 
 def _g2o_mixture(row: _Line, line_no: int, dim: int) -> Measurement:

@@ -1,28 +1,10 @@
-"""Forward models of the simulators (graphloc.datasets' scenarios, the reproductions in
-benchmarks, tests): the pixels a camera sees, never used by a front-end.
-
-- `render_mutual_pixels`: seed 000's three ground robots' omni cameras seeing each other;
-- `render_circle_rim`: seed 003's teammate base rim as points;
-- `render_markers`: synthetic camera frames of spherical markers (LEDs or painted balls), for
-  the seed-001 scenario and reproduction (001_0f8f8dae37ce6b79.txt, section III: four
-  identical spherical markers; section V-A: 752x480 monochrome camera, 90 deg FOV).
-
-A sphere of radius r whose centre c is seen under the cone of half-angle asin(r/|c|) around
-c/|c|; a sub-pixel sample belongs to the marker when its bearing (camera.pixel_to_bearing) lies
-inside that cone. This gives the exact projected size and shape at any distance and for any
-camera model; `supersample` x `supersample` samples per pixel give the coverage. Nearer markers
-hide farther ones, rectangular occluders hide both, clutter blobs lie behind. Then Gaussian
-blur (optics) and Gaussian sensor noise. No per-pixel Python loops: numpy over each marker's
-bounding box, cv2 for clutter drawing and blur.
-
-Ground truth per marker: `centers` = projection of the sphere centre (what pose estimation
-wants) and `centroids` = centroid of the visible, in-image marker area (what a blob detector can
-measure; blur preserves it). They differ by the perspective shift of the sphere's image, up to a
-few tenths of a pixel near the image border at short range.
-"""
+"""Forward models of the simulators (never used by a front-end): seed 000's mutual omni pixels,
+seed 003's base rim, and camera frames of spherical markers (seed 001 Sec. III, V-A), rendered
+by sub-pixel bearing tests (docs/design_datasets.md, "Rendered markers")."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -32,16 +14,11 @@ from graphloc.config_schema import config_dataclass, setting
 from graphloc.vision.circle import rotations_from_normals
 from graphloc.vision.mutual import three_cameras
 
-CLUTTER_KINDS = ("bar", "large", "speck", "crescent", "disc")
-
 
 @config_dataclass
 class RenderConfig:
-    """Radiometry of a rendered frame. Levels are grey values (0-255) or BGR triples.
-
-    Active markers: bright `marker_level` on dark `background`. Passive dark paint: the
-    reverse. Colour markers: BGR triples with `color=True`.
-    """
+    """Radiometry of a rendered frame: levels are grey values (0-255), or BGR triples with
+    `color=True`; active markers are brighter than the background, painted ones darker."""
 
     background: float | tuple[float, float, float] = 60.0
     marker_level: float | tuple[float, float, float] = 220.0
@@ -67,18 +44,6 @@ class RenderConfig:
 
 
 @dataclass(frozen=True)
-class Clutter:
-    """A distractor blob drawn behind the markers: ellipse centre (x, y) [px], semi-axes
-    (a, b) [px], angle [deg], grey level or BGR; kind "crescent" has a bite taken out."""
-
-    kind: str
-    center: tuple[float, float]
-    axes: tuple[float, float]
-    angle: float
-    level: float | tuple[float, float, float]
-
-
-@dataclass(frozen=True)
 class Occluder:
     """An axis-aligned rectangle (x0, y0, x1, y1) [px, pixel-edge coordinates] in front of all
     markers, with grey level or BGR `level`."""
@@ -99,8 +64,6 @@ class RenderedFrame:
     centroids: np.ndarray
     radii: np.ndarray
     visible: np.ndarray
-    clutter: tuple[Clutter, ...] = ()
-    occluders: tuple[Occluder, ...] = ()
 
 
 def image_size(camera) -> tuple[int, int]:
@@ -162,91 +125,20 @@ def _rect_coverage(rect, width, height) -> np.ndarray:
     return np.outer(oy, ox)
 
 
-def draw_clutter(img: np.ndarray, clutter: tuple[Clutter, ...], background) -> None:
-    """Draw clutter blobs into the float image in place (cv2 ellipses)."""
-    for c in clutter:
-        level = tuple(float(v) for v in np.atleast_1d(c.level))
-        center = (int(round(c.center[0])), int(round(c.center[1])))
-        if c.kind == "speck":  # a single hot / dead pixel
-            cv2.circle(img, center, 0, level, thickness=-1)
-            continue
-        axes = (max(1, int(round(c.axes[0]))), max(0, int(round(c.axes[1]))))
-        cv2.ellipse(img, center, axes, float(c.angle), 0.0, 360.0, level, thickness=-1)
-        if c.kind == "crescent":
-            bite = (int(round(c.center[0] + 0.35 * c.axes[0])), center[1])
-            bg = tuple(float(v) for v in np.atleast_1d(background))
-            cv2.circle(img, bite, max(1, int(round(0.9 * c.axes[0]))), bg, thickness=-1)
-
-
-def random_clutter(
-    rng: np.random.Generator,
-    width: int,
-    height: int,
-    marker_radius_px: float,
-    level,
-    n: int = 6,
-    avoid: np.ndarray | None = None,
-    avoid_radius: float = 0.0,
-    kinds: tuple[str, ...] = ("bar", "large", "speck", "crescent"),
-) -> tuple[Clutter, ...]:
-    """`n` distractors the detector should reject: thin bars (eccentric), large blobs (too big),
-    specks (too small) and crescents (non-convex); kind "disc" is a marker look-alike. Centres
-    keep `avoid_radius` px away from the `avoid` points (the true markers)."""
-    unknown = set(kinds) - set(CLUTTER_KINDS)
-    if unknown:
-        raise ValueError(f"random_clutter: unknown kinds {sorted(unknown)}; known {CLUTTER_KINDS}")
-    r = max(float(marker_radius_px), 1.5)
-    out = []
-    tries = 0
-    while len(out) < n:
-        tries += 1
-        if tries > 1000 * max(n, 1):
-            raise ValueError(
-                f"random_clutter: cannot place {n} blobs {avoid_radius} px away from the markers"
-            )
-        kind = kinds[len(out) % len(kinds)]
-        center = (rng.uniform(0, width), rng.uniform(0, height))
-        size = {
-            "bar": (4.0 * r, 0.5 * r),
-            "large": (12.0 * r, 12.0 * r),
-            "speck": (0.5, 0.5),
-            "crescent": (max(2.0 * r, 7.0),) * 2,
-            "disc": (r, r),
-        }[kind]
-        reach = max(size)
-        if not (reach <= center[0] <= width - reach and reach <= center[1] <= height - reach):
-            continue  # wholly inside the image: a cut-off bar could look like a marker
-        if avoid is not None and len(avoid):
-            gap = np.linalg.norm(np.asarray(avoid, float) - center, axis=1).min()
-            if gap < avoid_radius + reach:
-                continue
-        if any(
-            np.hypot(center[0] - c.center[0], center[1] - c.center[1]) < reach + max(c.axes) + 2
-            for c in out
-        ):
-            continue  # distractors do not touch each other
-        out.append(Clutter(kind, center, size, float(rng.uniform(0, 180)), level))
-    return tuple(out)
-
-
 def render_markers(
     camera,
     markers_cam: np.ndarray,
     marker_radius: float,
     config: RenderConfig = RenderConfig(),
     rng: np.random.Generator | None = None,
-    clutter: tuple[Clutter, ...] = (),
+    backdrop: Callable[[np.ndarray], None] | None = None,
     occluders: tuple[Occluder, ...] = (),
     gains: np.ndarray | None = None,
 ) -> RenderedFrame:
     """Render spheres of radius `marker_radius` [m] centred at `markers_cam` (M,3) [m, camera
-    frame].
-
-    gains: (M,) contrast of each marker in [0, 1] (a dim LED: level = background + gain *
-    (marker_level - background)); default all 1.
-
-    Raises ValueError for a wrong shape, NaN, or a sphere that contains the camera centre.
-    """
+    frame]; `backdrop(image)` draws distractors into the float background first, in place;
+    gains (M,): each marker's contrast in [0, 1] (a dim LED), default 1. ValueError for a wrong
+    shape, NaN, or a sphere that contains the camera centre."""
     pts = np.asarray(markers_cam, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"render_markers: markers_cam must be (M,3), got {pts.shape}")
@@ -274,13 +166,13 @@ def render_markers(
     fg = config.levels(config.marker_level)
     nch = len(bg)
 
-    # background with a horizontal gradient, then clutter (behind everything)
+    # background with a horizontal gradient, then the backdrop (behind everything)
     ramp = (np.arange(width, dtype=np.float32) / max(width - 1, 1) - 0.5) * config.gradient
     img = np.empty((height, width, nch), np.float32)
     img[:] = bg[None, None, :] + ramp[None, :, None]
-    if clutter:
+    if backdrop is not None:
         img = np.ascontiguousarray(img[..., 0]) if nch == 1 else img
-        draw_clutter(img, clutter, config.background)
+        backdrop(img)
         img = img.reshape(height, width, nch)
 
     axes = pts / dist[:, None]
@@ -350,8 +242,6 @@ def render_markers(
         centroids=centroids,
         radii=radii,
         visible=visible,
-        clutter=tuple(clutter),
-        occluders=tuple(occluders),
     )
 
 
@@ -372,9 +262,8 @@ def render_mutual_pixels(
     visible = np.zeros((N, 3, 3), dtype=bool)
     for i in range(3):
         others = [j for j in range(3) if j != i]
-        rel = np.einsum(
-            "nji,nkj->nki", R_world[:, i], t_world[:, others] - t_world[:, i, None]
-        )  # R_i^T (t_j - t_i)
+        # R_i^T (t_j - t_i)
+        rel = np.einsum("nji,nkj->nki", R_world[:, i], t_world[:, others] - t_world[:, i, None])
         p, v = cams[i].project(rel.reshape(-1, 3))
         pixels[:, i, others] = p.reshape(N, 2, 2)
         visible[:, i, others] = v.reshape(N, 2)

@@ -1,13 +1,6 @@
-"""The `dual-robot-room` scene: rooms (four variants), the ground robot's LED triangle and the
-sensors -- a spinning 3D LiDAR ray cast with Open3D's `o3d.t.geometry.RaycastingScene` (all
-frames in one call) and the ceiling robot's downward pinhole camera that sees the LEDs.
-
-Seed 004 (Kaushik et al.), Sec. II.A / Fig. 1: LEDs P1..P3 form an equilateral triangle of side
-0.3048 m; the ceiling camera and LiDAR frames have parallel axes and a small offset
-(`T_CEILING_CAMERA`). Sec. IV.A: scans carry noise and outliers (range noise, dropouts, spurious
-returns here). Furniture tops are only visible from the ceiling (Sec. I, "furniture tops").
-The scenario and its files are `graphloc.datasets.dual_room`.
-"""
+"""The `dual-robot-room` scene: four room variants, the ground robot's LED triangle and the
+sensors, ray cast with Open3D (seed 004 Sec. II-A, Fig. 1; Sec. IV-A: LiDAR noise, dropouts and
+spurious returns)."""
 
 from __future__ import annotations
 
@@ -18,6 +11,7 @@ import open3d as o3d
 
 from graphloc.cameras import PinholeCamera
 from graphloc.config_schema import config_dataclass, setting
+from graphloc.datasets.camera_track import stack_poses
 
 VARIANTS = ("furnished", "empty", "rectangular", "low_overlap")
 LED_SIDE = 0.3048  # seed 004 Sec. II.A
@@ -67,13 +61,6 @@ class CameraConfig:
         return PinholeCamera(self.fx, self.fy, self.cx, self.cy, self.width, self.height)
 
 
-def stack_poses(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """(F,3,3), (F,3) -> (F,4,4)."""
-    T = np.tile(np.eye(4), (len(R), 1, 1))
-    T[:, :3, :3], T[:, :3, 3] = R, t
-    return T
-
-
 def rot_z(yaw: np.ndarray) -> np.ndarray:
     """(N,) yaw -> (N,3,3)."""
     c, s = np.cos(yaw), np.sin(yaw)
@@ -93,9 +80,8 @@ def led_positions() -> np.ndarray:
     return np.stack([r * np.cos(ang), r * np.sin(ang), np.full(3, 0.12)], axis=1)
 
 
-T_CEILING_CAMERA = stack_poses(np.eye(3)[None], np.array([[0.10, 0.0, 0.04]]))[
-    0
-]  # camera in ceiling-LiDAR frame (axes parallel)
+# the camera in the ceiling-LiDAR frame (axes parallel)
+T_CEILING_CAMERA = stack_poses(np.eye(3)[None], np.array([[0.10, 0.0, 0.04]]))[0]
 
 
 @dataclass(frozen=True)

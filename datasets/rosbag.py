@@ -1,31 +1,12 @@
-"""ROS bags as graphloc runs (issue 18): ROS 1 `.bag` files, ROS 2 sqlite3 bag directories and
-MCAP files (a bare `.mcap` or a ROS 2 directory of them), read through the pure-Python
-`rosbags` library (`rosbags.highlevel.AnyReader`), no ROS installation.
-
-A topics file (YAML, docs/rosbag.md; parsed by `graphloc.datasets.rosbag_topics`) names the
-robots in the schema of the log manifest's `robots` and maps each topic to one robot and one
-table of the log format version 2 (docs/log_format.md): odometry / pose topics ->
-`relative_pose3`, ranges, bearings, Detection2DArray or images (marker detector) -> `markers`,
-PointCloud2 -> `scans` (one PLY file per cloud), pose topics -> `groundtruth`; a camera's
-CameraInfo topic gives its intrinsics and `tf` / `tf_static` the sensors' extrinsics (the
-message conversions: `graphloc.datasets.rosbag_messages`).
-
-`import_bag(bag, topics, out)` writes a version-2 log directory (`graphloc.io` tables, the one
-reader being `graphloc.datasets.graphloc_log.read_team_run`); the `RosBag` loader of
-`graphloc.datasets.open_run` imports into a temporary directory and reads that. The clock is
-the messages' header stamps; each topic is sorted by stamp (bag order, i.e. receive time, may
-differ). A message that cannot be decoded, has the wrong type for its table, or holds a bad
-value is a counted skip naming the bag, topic and message index (`graphloc.io.SkipReport`);
-the import's skips are kept in the manifest's `meta.import.skips` and merged into
-`TeamRun.skips` by the loader. A bag that cannot be opened, a camera without its CameraInfo
-messages and sensor frames tf does not connect are errors naming the bag and topic.
-"""
+"""ROS 1 / ROS 2 sqlite3 / MCAP bags (issue 18) through `rosbags`, no ROS installation:
+`import_bag` writes a log directory (version 2) as the topics file maps it (docs/rosbag.md), the
+`RosBag` loader imports into a temporary directory and reads that. A bad message is a counted
+skip naming bag, topic and message index."""
 
 from __future__ import annotations
 
 import atexit
 import copy
-import csv
 import shutil
 import tempfile
 from dataclasses import dataclass, field
@@ -34,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from graphloc.datasets.camera_track import stack_poses
 from graphloc.datasets.graphloc_log import read_team_run
 from graphloc.datasets.rosbag_messages import (
     Bad,
@@ -55,6 +37,7 @@ from graphloc.datasets.rosbag_topics import (
 )
 from graphloc.eval import write_tum
 from graphloc.io import SkipReport, write_manifest, write_table
+from graphloc.log_writer import write_csv
 from graphloc.names import out_path
 from graphloc.run import TeamRun, truncate
 
@@ -283,17 +266,12 @@ def write_log_manifest(
         "meta": {**tf.meta, key: meta},
     }
     if tf.landmarks:
-        with open(out_path(out, "landmarks.csv"), "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"])
-            for lm in tf.landmarks:
-                w.writerow(
-                    [
-                        lm["id"],
-                        *map(repr, map(float, lm["xyz"])),
-                        *map(repr, map(float, lm.get("sigma", [0, 0, 0]))),
-                    ]
-                )
+        header = ["id", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z"]
+        rows = [
+            [lm["id"], *map(float, lm["xyz"]), *map(float, lm.get("sigma", [0, 0, 0]))]
+            for lm in tf.landmarks
+        ]
+        write_csv(out_path(out, "landmarks.csv"), header, rows)
         body["landmarks"] = {"file": "landmarks.csv"}
     write_manifest(body, out)
 
@@ -317,11 +295,8 @@ def _write_table(path: Path, table: str, rows: list) -> None:
         write_table(path, table, rows)
         return
     a = np.asarray(rows, dtype=float)  # timestamp tx ty tz qx qy qz qw -> the one TUM writer
-    poses = np.tile(np.eye(4), (len(a), 1, 1))
-    poses[:, :3, :3] = Rotation.from_quat(a[:, 4:8]).as_matrix()
-    poses[:, :3, 3] = a[:, 1:4]
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_tum(path, a[:, 0], poses)
+    write_tum(path, a[:, 0], stack_poses(Rotation.from_quat(a[:, 4:8]).as_matrix(), a[:, 1:4]))
 
 
 # ---- the loader (graphloc.datasets.loaders protocol) -----------------------------------------

@@ -1,9 +1,6 @@
-"""Decoded bag messages -> rows of graphloc's tables (docs/rosbag.md, "Messages -> rows"): the
-clock from header stamps, poses and their increments, ranges, bearings, detections; point
-clouds (KISS-ICP's own PointCloud2 reader, `kiss_icp.tools.point_cloud2`); images through
-graphloc's marker detector (`graphloc.vision.markers.detect_markers`, seed 001 IV-B);
-CameraInfo -> pinhole intrinsics; tf / tf_static -> a sensor's extrinsics. A bad value raises
-`Bad(reason, text)`, which the importer counts as a skip naming bag, topic and message index."""
+"""Decoded bag messages -> rows of graphloc's tables (docs/rosbag.md, "Messages -> rows"). A bad
+value raises `Bad(reason, text)`, which the importer counts as a skip naming bag, topic and
+message index."""
 
 from __future__ import annotations
 
@@ -256,11 +253,6 @@ def _stamped(where: str, m: TopicMap, msgtype: str, msg, skips: SkipReport) -> f
         return None
 
 
-def detector_config(m: TopicMap) -> MarkerDetectorConfig:
-    """The marker detector of an image topic (its `detector` fields; four markers)."""
-    return MarkerDetectorConfig(**{**m.detector, "expected": 4})
-
-
 def message_rows(where0: str, m: TopicMap, i: int, msgtype: str, msg, skips: SkipReport) -> list:
     """Rows of message `i` of a topic whose rows stand alone (every table but relative_pose3),
     so a bag is converted as it streams (images and clouds are not kept); scans rows carry the
@@ -293,7 +285,8 @@ def message_rows(where0: str, m: TopicMap, i: int, msgtype: str, msg, skips: Ski
                 skips.add("nonfinite_points", f"{where}: {dropped} NaN / inf points", dropped)
             return [(t, m.sensor, pts)]
         if msgtype in (IMAGE, COMPRESSED):
-            det = detect_markers(image_array(msgtype, msg), detector_config(m))
+            config = MarkerDetectorConfig(**{**m.detector, "expected": 4})
+            det = detect_markers(image_array(msgtype, msg), config)
             if det.status != "ok":
                 raise Bad("marker_shortfall", f"{det.shortfall} of 4 markers not found")
             return [(t, m.sensor, m.target, k, *det.points[k]) for k in range(4)]
@@ -308,32 +301,24 @@ def message_rows(where0: str, m: TopicMap, i: int, msgtype: str, msg, skips: Ski
     return []
 
 
-def count_backwards(where0: str, stamps: list, notes: SkipReport | None) -> int:
-    """Count in `notes` (reason `stamp_backwards`, naming the bag, topic and message) every
-    message of one topic whose header stamp lies before an earlier message's (`stamps`: (stamp,
-    bag index) in bag order): the bag's order (receive time) differs from the stamps', which
-    the import re-sorts by stamp. Returns how many."""
-    latest, n = -math.inf, 0
-    seen = set()
+def count_backwards(where0: str, stamps: list, notes: SkipReport) -> None:
+    """Count in `notes` (reason `stamp_backwards`) every message of one topic stamped before an
+    earlier message (`stamps`: (stamp, bag index) in bag order), which the import re-sorts."""
+    latest, seen = -math.inf, set()
     for t, i in stamps:
         if i in seen:  # several rows of one message (detections)
             continue
         seen.add(i)
         if t < latest:
-            n += 1
-            if notes is not None:
-                notes.add(
-                    "stamp_backwards",
-                    f"{where0} message {i}: stamp {t:.9f} is before an earlier message's "
-                    f"{latest:.9f} (re-sorted by stamp)",
-                )
+            notes.add(
+                "stamp_backwards",
+                f"{where0} message {i}: stamp {t:.9f} is before an earlier message's "
+                f"{latest:.9f} (re-sorted by stamp)",
+            )
         latest = max(latest, t)
-    return n
 
 
-def pose_rows(
-    where0: str, m: TopicMap, msgs: list, skips: SkipReport, notes: SkipReport | None = None
-) -> list:
+def pose_rows(where0: str, m: TopicMap, msgs: list, skips: SkipReport, notes: SkipReport) -> list:
     """relative_pose3 rows of one topic's messages [(bag index, msgtype, msg)]: increments
     between consecutive poses in header-stamp order (stable: bag order breaks ties; a message
     stamped before an earlier one counted in `notes`, `count_backwards`)."""
@@ -350,11 +335,9 @@ def pose_rows(
 
 
 class PoseChain:
-    """One pose topic's relative_pose3 rows as its messages come in header-stamp order (a
-    bag's topic once sorted, `pose_rows`; a live topic as it arrives): each message's pose and
-    covariance against the previous good one (`_increment`). A bad message is a counted skip;
-    on a live topic, a message stamped before the previous one cannot be re-sorted and is
-    skipped too (`stamp_backwards`)."""
+    """One pose topic's relative_pose3 rows, message by message in stamp order (a sorted bag
+    topic, or a live topic as it arrives), each against the previous good one (`_increment`);
+    a bad message, or live one stamped before the previous, is a counted skip."""
 
     def __init__(self, where0: str, m: TopicMap, skips: SkipReport):
         self.where0, self.m, self.skips = where0, m, skips

@@ -44,18 +44,6 @@ MESSAGE_TYPES = {
     "groundtruth": (ODOMETRY, POSE, POSE_COV, TRANSFORM),
 }
 COVARIANCE_MODES = ("step", "difference")
-TOPIC_KEYS = {
-    "robot",
-    "table",
-    "sensor",
-    "target",
-    "targets",
-    "covariance",
-    "sigmas",
-    "classes",
-    "camera_info",
-    "detector",
-}
 TABLE_KEYS = {  # topic fields that only some tables take
     "sensor": ("odometry", "relative_pose3", "range", "bearing", "markers", "scans"),
     "target": ("range", "bearing", "markers"),
@@ -66,6 +54,7 @@ TABLE_KEYS = {  # topic fields that only some tables take
     "camera_info": ("markers",),
     "detector": ("markers",),
 }
+TOPIC_KEYS = {"robot", "table", *TABLE_KEYS}
 
 
 @dataclass(frozen=True)

@@ -1,21 +1,6 @@
-"""A bare directory of point-cloud scans as a one-robot run (issue 13), as KISS-ICP's generic
-dataloader reads one (`kiss_icp.datasets.generic`: every supported file of the folder, sorted
-by name, is one scan).
-
-Scans: `.ply`, `.pcd`, `.xyz` files (Open3D) and KITTI velodyne `.bin` files (little-endian
-float32 records x y z intensity), sorted by file name. Times: `times.txt` in the directory
-when it is there (one time [s] per scan in file order, KITTI odometry's convention; blank lines
-and `#` comments skipped; errors name the file, line and field), else the scan's index at a
-stated rate (`scan_rate` [Hz], `RunOptions.scan_rate`, default DEFAULT_RATE).
-
-The loader writes a log directory (docs/log_format.md, version 2) into a temporary directory --
-one robot `scanner` (SE(3), starting at the identity) with one sensor `lidar` of type `scanner`
-at its origin and a `scans` table; each scan hard-linked (else copied) there, a `.bin` converted
-to PLY -- and reads it with `graphloc.datasets.graphloc_log.read_team_run`, so the scans pass
-the one scan reader's checks (`graphloc.mapping.io.read_scan`) and become KISS-ICP odometry
-steps (`graphloc.mapping.odometry`) like any log's scans: `graphloc smooth DIR` gives KISS-ICP's
-trajectory of the scanner. Errors name the user's files, not the temporary copies.
-"""
+"""A bare directory of scans (`.ply`, `.pcd`, `.xyz`, KITTI `.bin`; times from `times.txt` or a
+rate) as a one-robot run (issue 13), as KISS-ICP's generic dataloader reads it: written as a
+log in a temporary directory and read like any log's scans."""
 
 from __future__ import annotations
 
@@ -149,9 +134,7 @@ class ScanDirectory:
     options = ("scan_rate",)
 
     def matches(self, path: Path) -> bool:
-        return path.is_dir() and any(
-            p.suffix.lower() in SUFFIXES for p in path.iterdir() if p.is_file()
-        )
+        return path.is_dir() and bool(scan_files(path))
 
     def load(
         self, path: Path, duration: float | None, noise: dict | None, scan_rate=None

@@ -1,23 +1,9 @@
-"""The simulator protocol behind `graphloc simulate NAME --out DIR [--seed N] [--FIELD VALUE]`.
-
-A scenario is a class registered in `graphloc.datasets` (`_REGISTRY`) that implements
-`Scenario`: class attributes `name` (its registered name) and `config_class` (a frozen
-dataclass of its settings) and a classmethod `generate(out_dir, seed=0, **overrides) -> Path`
-that writes one run as a log directory the loaders read (`graphloc.datasets.open_run`, log
-format version 2, docs/log_format.md) with ground truth, and returns the manifest's path.
-`overrides` are fields of `config_class`, as values or strings (`graphloc.config.parse_overrides`).
-`generate(name, out_dir, seed, overrides)` is the one entry point (the `simulate` verb,
-`benchmarks.team_runs`).
-
-The camera-track scenarios write through `graphloc.datasets.camera_track`; seed 000 Sec. VI-A's
-trial (`feng-deterministic`) has its class here, beside the protocol, because its simulation
-module (`feng_deterministic`) is shared with the straight-line baseline's experiments.
-"""
+"""The simulator protocol behind `graphloc simulate NAME --out DIR [--seed N] [--FIELD VALUE]`:
+a registered class with `name`, `config_class` and `generate(out_dir, seed, **overrides)` that
+writes a log directory with ground truth; and seed 000 Sec. VI-A's `feng-deterministic`."""
 
 from __future__ import annotations
 
-import dataclasses
-import inspect
 from dataclasses import asdict, replace
 from pathlib import Path
 from typing import ClassVar, Protocol
@@ -25,8 +11,8 @@ from typing import ClassVar, Protocol
 import numpy as np
 
 from graphloc.config import parse_overrides
-from graphloc.datasets import _REGISTRY, dataset_class
-from graphloc.datasets.formation_log import table_i_formation, write_formation_log
+from graphloc.datasets import scenario_class
+from graphloc.datasets.formation_log import write_table_i_trial
 from graphloc.datasets.feng_deterministic import (
     Seed000Config,
     TableIConfig,
@@ -36,40 +22,14 @@ from graphloc.datasets.feng_deterministic import (
 
 
 class Scenario(Protocol):
-    """What `graphloc simulate` needs from a registered scenario class."""
+    """What `graphloc simulate` needs from a scenario class registered in
+    `graphloc.datasets.SCENARIOS`: `config_class` a dataclass whose fields are the overrides."""
 
     name: ClassVar[str]
     config_class: ClassVar[type]
 
     @classmethod
     def generate(cls, out_dir, seed: int = 0, **overrides) -> Path: ...
-
-
-def is_scenario(cls) -> bool:
-    """`cls` implements `Scenario`: a classmethod `generate(out_dir, seed, **overrides)` and a
-    dataclass `config_class`."""
-    gen = inspect.getattr_static(cls, "generate", None)
-    if not isinstance(gen, classmethod):
-        return False
-    params = list(inspect.signature(cls.generate).parameters.values())
-    return (
-        dataclasses.is_dataclass(getattr(cls, "config_class", None))
-        and isinstance(getattr(cls, "name", None), str)
-        and [p.name for p in params[:2]] == ["out_dir", "seed"]
-        and params[-1].kind is inspect.Parameter.VAR_KEYWORD
-    )
-
-
-def scenario_class(name: str) -> type:
-    """The registered class of scenario `name`; ValueError for unknown names and for
-    registered classes that are not scenarios (loaders such as `mrclam`)."""
-    cls = dataset_class(name)  # raises for unknown names
-    if not is_scenario(cls):
-        raise ValueError(
-            f"{name!r} is not a scenario (no `generate` into a log directory); "
-            f"scenarios: {', '.join(scenario_names())}"
-        )
-    return cls
 
 
 def scenario_config_class(name: str) -> type:
@@ -82,20 +42,12 @@ def generate(name: str, out_dir, seed: int = 0, overrides: dict | None = None) -
     return scenario_class(name).generate(out_dir, seed, **dict(overrides or {}))
 
 
-def scenario_names() -> list[str]:
-    """Registered names whose class implements `Scenario`."""
-    return sorted(n for n in _REGISTRY if is_scenario(dataset_class(n)))
-
-
 # ---- seed 000 Sec. VI-A ------------------------------------------------------------------------
 
 
 class FengDeterministicScenario:
-    """Seed 000 Sec. VI-A, one trial, as measurements only (`formation_log`): three tilted omni
-    ground cameras that see each other (512x512, N(0, 0.5) px), C1 the reference with |T_12|
-    known, and the climbing camera's three snapshots of them along its straight two-step move.
-    A localizer must estimate C2, C3 from the mutual bearings and the climber from its views
-    of the three (`graphloc smooth` does both in one graph)."""
+    """Seed 000 Sec. VI-A, one trial as measurements only (`formation_log`): C2, C3 are to be
+    placed by mutual bearings and the climber by its views of the three."""
 
     name = "feng-deterministic"
 
@@ -118,7 +70,7 @@ class FengDeterministicScenario:
             "config": asdict(config),
             "omni": {"size": config.omni_size, "max_polar_angle": config.omni_max_polar},
         }
-        log = table_i_formation(
-            trials, tri, 0, config.pixel_sigma, 3 * sim.step_mean, cls.name, meta
+        step_sigma = 3 * sim.step_mean
+        return write_table_i_trial(
+            trials, tri, 0, config.pixel_sigma, step_sigma, cls.name, out_dir, meta
         )
-        return write_formation_log(log, out_dir)

@@ -1,8 +1,5 @@
-"""The rendering of scenario `crawler-pair` (`graphloc.datasets.crawler_pair`, seed 003
-section III): a textured back wall and ground (`TexturedScene`, random textures from
-`make_texture`: multi-octave noise plus random shapes, so Shi-Tomasi finds corners) ray cast per
-pixel, and the exact pixel coverage of the teammate's circular base (`disk_coverage`).
-"""
+"""The rendering of scenario `crawler-pair` (seed 003 Sec. III): a textured wall and ground ray
+cast per pixel, and the exact pixel coverage of the teammate's circular base."""
 
 from __future__ import annotations
 
@@ -29,21 +26,6 @@ class TexturedScene:
     ground_texture: np.ndarray
     ground_origin: tuple[float, float]
 
-    def intersect(self, origin: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Nearest hit (M,3) of rays (M,3) from origin (3,) with wall or ground, and on_wall
-        (M,)."""
-        o = np.asarray(origin, float)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s_wall = (self.wall_z - o[2]) / rays[:, 2]
-            s_ground = (self.ground_y - o[1]) / rays[:, 1]
-        s_wall = np.where(s_wall > 0, s_wall, np.inf)
-        s_ground = np.where(s_ground > 0, s_ground, np.inf)
-        on_wall = s_wall <= s_ground
-        s = np.where(on_wall, s_wall, s_ground)
-        hits = o + s[:, None] * rays
-        hits[~np.isfinite(s)] = np.nan
-        return hits, on_wall
-
     def image(
         self, camera: PinholeCamera, supersample: int, R_wc: np.ndarray, t_wc: np.ndarray
     ) -> np.ndarray:
@@ -57,33 +39,26 @@ class TexturedScene:
         Rf = R_wc.astype(np.float32)
         # world ray components of pixel (v, u): R[:, 0] u + R[:, 1] v + R[:, 2], as (H,W) arrays
         ray = [Rf[i, 0] * u[None, :] + Rf[i, 1] * v[:, None] + Rf[i, 2] for i in range(3)]
-        scene = self
         o = t_wc.astype(np.float32)
         with np.errstate(divide="ignore", invalid="ignore"):
-            s_wall = (scene.wall_z - o[2]) / ray[2]
-            s_ground = (scene.ground_y - o[1]) / ray[1]
+            s_wall = (self.wall_z - o[2]) / ray[2]
+            s_ground = (self.ground_y - o[1]) / ray[1]
         s_wall[~(s_wall > 0)] = np.inf
         s_ground[~(s_ground > 0)] = np.inf
         on_wall = s_wall <= s_ground
         img = np.zeros((H, W, 3), np.float32)
+        # texture coordinates: the wall's (x, y), the ground's (x, z)
         for mask, dist, tex, (a0, b0), (ia, ib) in (
-            (
-                on_wall,
-                s_wall,
-                scene.wall_texture,
-                scene.wall_origin,
-                (0, 1),
-            ),  # wall texture: (x, y)
-            (~on_wall, s_ground, scene.ground_texture, scene.ground_origin, (0, 2)),
-        ):  # ground: (x, z)
-            with np.errstate(
-                invalid="ignore"
-            ):  # rays that miss this surface: inf * 0 = NaN, mapped off-texture
+            (on_wall, s_wall, self.wall_texture, self.wall_origin, (0, 1)),
+            (~on_wall, s_ground, self.ground_texture, self.ground_origin, (0, 2)),
+        ):
+            # rays that miss this surface: inf * 0 = NaN, mapped off-texture
+            with np.errstate(invalid="ignore"):
                 mapx = np.nan_to_num(
-                    (o[ia] + dist * ray[ia] - a0) / scene.texel, posinf=-1, neginf=-1
+                    (o[ia] + dist * ray[ia] - a0) / self.texel, posinf=-1, neginf=-1
                 ).astype(np.float32)
                 mapy = np.nan_to_num(
-                    (o[ib] + dist * ray[ib] - b0) / scene.texel, posinf=-1, neginf=-1
+                    (o[ib] + dist * ray[ib] - b0) / self.texel, posinf=-1, neginf=-1
                 ).astype(np.float32)
             sampled = cv2.remap(tex, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
             np.copyto(img, sampled.astype(np.float32), where=mask[..., None])

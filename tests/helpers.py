@@ -143,9 +143,10 @@ def write_planar_log(tmp: Path) -> Path:
     """A valid graphloc log (two robots, odometry, range-bearing, ground truth, landmarks): the
     tiny MRCLAM run in tmp/mr through the MRCLAM reader, written to tmp/log."""
     from graphloc.datasets.mrclam import MRCLAM
+    from graphloc.io import write_planar_run
 
     write_tiny_mrclam(tmp / "mr")
-    return MRCLAM(tmp / "mr").to_log(tmp / "log")
+    return write_planar_run(MRCLAM(tmp / "mr").load(), tmp / "log")
 
 
 # ---- editing a log ------------------------------------------------------------------------------

@@ -16,7 +16,8 @@ import pytest
 
 from graphloc import exitcodes
 from graphloc.config import option_fields
-from graphloc.datasets.scenarios import scenario_config_class, scenario_names
+from graphloc.datasets import scenario_names
+from graphloc.datasets.scenarios import scenario_config_class
 from graphloc.pipelines.map_fusion.options import FuseMapsOptions
 from graphloc.pipelines.team_graph.options import RunOptions
 

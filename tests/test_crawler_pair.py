@@ -5,7 +5,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from graphloc.datasets import dataset_class
+from benchmarks.seed003_measures import disk_information, surface_points
+from graphloc.datasets import scenario_class
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
 from graphloc.vision.circle import circle_pose_from_rim
 from graphloc.vision.base_rim import detect_base_rim
@@ -20,7 +21,7 @@ def seq():
 
 
 def test_registered_and_shapes(seq):
-    assert dataset_class("crawler-pair") is CrawlerPairScenario
+    assert scenario_class("crawler-pair") is CrawlerPairScenario
     T = seq.config.n_frames
     assert T == 6 and seq.images.shape == (T, 240, 320, 3) and seq.images.dtype == np.uint8
     assert seq.R_wc.shape == (T, 3, 3) and seq.t_wc.shape == (T, 3)
@@ -56,7 +57,7 @@ def test_seed_geometry(seq):
 
 def test_surface_points_on_wall_and_ground(seq):
     px = np.array([[160.0, 20.0], [160.0, 235.0]])  # top: the wall at 2.6 m; bottom: the ground
-    pts = seq.surface_points(0, px)
+    pts = surface_points(seq, 0, px)
     assert pts[0, 2] == pytest.approx(seq.config.background_distance)
     assert pts[1, 1] == pytest.approx(seq.config.camera_height)
     assert pts[1, 2] < 0.5
@@ -118,7 +119,7 @@ def test_disk_information_is_the_bound_of_this_renderer(seq):
     definite; depth much worse than lateral; it scales with 1/(noise^2 + 1/12) exactly (the same
     background); the finite differences have converged in the ray sampling."""
     gen = CrawlerPairScenario(seq.config)
-    info = gen.disk_information(seq, 1, subsamples=16)
+    info = disk_information(gen, seq, 1, subsamples=16)
     assert info.shape == (5, 5) and np.allclose(info, info.T)
     cov = np.linalg.inv(info)
     assert np.linalg.eigvalsh(info)[0] > 0
@@ -127,9 +128,9 @@ def test_disk_information_is_the_bound_of_this_renderer(seq):
     depth = np.sqrt(los @ cov[:3, :3] @ los)
     lateral = np.sqrt((np.trace(cov[:3, :3]) - los @ cov[:3, :3] @ los) / 2)
     assert 10 * lateral < depth < 2e-3 and np.degrees(np.sqrt(cov[3, 3])) < 2.0
-    noisier = CrawlerPairScenario(replace(seq.config, noise_sigma=4.0)).disk_information(
-        seq, 1, subsamples=16
+    noisier = disk_information(
+        CrawlerPairScenario(replace(seq.config, noise_sigma=4.0)), seq, 1, subsamples=16
     )
     np.testing.assert_allclose(info / noisier, (16 + 1 / 12) / (4 + 1 / 12), rtol=1e-6)
-    finer = np.linalg.inv(gen.disk_information(seq, 1, subsamples=32))
+    finer = np.linalg.inv(disk_information(gen, seq, 1, subsamples=32))
     assert abs(np.sqrt(los @ finer[:3, :3] @ los) / depth - 1) < 0.1

@@ -6,7 +6,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from graphloc.datasets import dataset_class
+from graphloc.datasets import scenario_class
 from graphloc.datasets.dual_room import DualRoomConfig, DualRoomScenario, variant_config
 from graphloc.datasets.room_scene import (
     LED_SIDE,
@@ -38,7 +38,7 @@ def _scene(room):
 
 
 def test_registered_in_dataset_registry():
-    assert dataset_class("dual-robot-room") is DualRoomScenario
+    assert scenario_class("dual-robot-room") is DualRoomScenario
 
 
 def test_led_triangle_is_equilateral_with_seed_side():

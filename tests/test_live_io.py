@@ -146,7 +146,7 @@ def test_ros2_topics_give_the_import_rows(bag, loopback, feng_log, tmp_path):
         path, topics = REAL_BAG, tmp_path / "topics.yaml"
         topics.write_text(yaml.safe_dump(_husky_topics()))
     else:
-        from graphloc.datasets.rosbag_export import export_bag
+        from benchmarks.rosbag_export import export_bag
 
         path = tmp_path / "bag"
         topics = export_bag(feng_log, path, "mcap")

@@ -1,13 +1,12 @@
 """Parsing apart from the front-ends (issue 49): a log's rows through the registry of table
 handlers (`graphloc.datasets.log_rows`), then the front-end stage
-(`graphloc.datasets.log_front_end`)."""
+(`graphloc.datasets.graphloc_log.run_front_ends`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from graphloc.datasets.graphloc_log import read_team_run, team_run
-from graphloc.datasets.log_front_end import run_front_ends
+from graphloc.datasets.graphloc_log import read_team_run, run_front_ends, team_run
 from graphloc.datasets.log_rows import TABLE_HANDLERS, RowContext, Skip, read_log_rows
 from graphloc.datasets.scenarios import generate
 from graphloc.records import TABLES, RelativePose2D

@@ -7,7 +7,8 @@ import pytest
 from graphloc.cameras import PinholeCamera
 from graphloc.vision.markers import MarkerDetectorConfig, detect_markers
 from benchmarks.baselines.seed001_target import marker_area_bounds, roi_from_points
-from graphloc.datasets.render import Occluder, RenderConfig, random_clutter, render_markers
+from benchmarks.clutter import clutter_backdrop, random_clutter
+from graphloc.datasets.render import Occluder, RenderConfig, render_markers
 
 CAM = PinholeCamera.from_fov(752, 480, np.pi / 2)
 RADIUS = 0.015  # seed 001 larger target: b = 3 cm
@@ -96,7 +97,8 @@ def test_colour_markers_yuv():
             avoid_radius=30,
             kinds=("disc",),
         )
-        frame = render_markers(CAM, markers_at(px, depth), RADIUS, cfg, rng, clutter=clutter)
+        backdrop = clutter_backdrop(clutter, cfg.background)
+        frame = render_markers(CAM, markers_at(px, depth), RADIUS, cfg, rng, backdrop)
         det = detect_markers(frame.image, det_cfg)
         assert det.status == "ok"
         assert match_errors(det.points, frame.centroids).max() < 0.3
@@ -116,7 +118,8 @@ def test_clutter_is_rejected():
         clutter = random_clutter(
             rng, 752, 480, r_px, 220.0, n=8, avoid=px, avoid_radius=4 * r_px + 10
         )
-        frame = render_markers(CAM, markers_at(px, depth), RADIUS, cfg, rng, clutter=clutter)
+        backdrop = clutter_backdrop(clutter, cfg.background)
+        frame = render_markers(CAM, markers_at(px, depth), RADIUS, cfg, rng, backdrop)
         det = detect_markers(
             frame.image, MarkerDetectorConfig(min_area=min_area, max_area=max_area)
         )

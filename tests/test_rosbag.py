@@ -895,7 +895,7 @@ def native_scenarios(tmp_path_factory):
 
 @pytest.mark.parametrize("name, kind", ROUND_TRIPS)
 def test_scenario_round_trip_through_a_bag(name, kind, native_scenarios, tmp_path):
-    from graphloc.datasets.rosbag_export import export_bag
+    from benchmarks.rosbag_export import export_bag
 
     log, want = native_scenarios(name)
     bag = tmp_path / ("b/run.bag" if kind == "ros1" else "bag")

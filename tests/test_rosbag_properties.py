@@ -1,7 +1,7 @@
 """Issue 17, ROS bags: a property-based test of the bag reader through the front door
 (`graphloc.datasets.open_run`, the loader `smooth` / `online` / `validate` use). A valid run
 (seed 004's `kaushik-p3p-error`: odometry, marker detections, ground truth, plus two scans) is
-written as ROS 1, ROS 2 sqlite3 and MCAP bags by `graphloc.datasets.rosbag_export`; hypothesis
+written as ROS 1, ROS 2 sqlite3 and MCAP bags by `benchmarks.rosbag_export`; hypothesis
 truncates them, flips bytes, maps topics to other topics' messages and names a CameraInfo topic
 the bag does not hold. Whatever it does, the reader returns a run whose skips each name the bag,
 a topic and a message index, or raises a ValueError naming the bag -- never another exception;
@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 
 from graphloc.cli import main
 from graphloc.datasets import open_run
-from graphloc.datasets.rosbag_export import KINDS, export_bag
+from benchmarks.rosbag_export import KINDS, export_bag
 from graphloc.datasets.rosbag_topics import MESSAGE_TYPES
 from helpers import EXAMPLES, FAST
 

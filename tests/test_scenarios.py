@@ -1,14 +1,18 @@
 """The simulator protocol and `graphloc simulate`: every scenario class implements
 `Scenario` and writes a valid log with ground truth; options derive from its config."""
 
+import dataclasses
+import inspect
+
 import numpy as np
 import pytest
 
+from benchmarks.seed_baselines import genuine_p3p_errors
 from graphloc.cli import main
 from graphloc.config import parse_overrides
-from graphloc.datasets import dataset_class
+from graphloc.datasets import scenario_class, scenario_names
 from graphloc.datasets.kaushik import SIDE, KaushikConfig, led_triangle, simulate
-from graphloc.datasets.scenarios import generate, is_scenario, scenario_names
+from graphloc.datasets.scenarios import generate
 from graphloc.io import iter_records, read_manifest
 
 SMALL = {
@@ -53,13 +57,18 @@ SCENARIOS = [
 
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_every_scenario_class_implements_the_protocol(name):
-    cls = dataset_class(name)
-    assert is_scenario(cls) and cls.name == name
+    cls = scenario_class(name)
+    assert cls.name == name and dataclasses.is_dataclass(cls.config_class)
+    assert isinstance(inspect.getattr_static(cls, "generate"), classmethod)
+    params = list(inspect.signature(cls.generate).parameters.values())
+    assert [p.name for p in params[:2]] == ["out_dir", "seed"]
+    assert params[-1].kind is inspect.Parameter.VAR_KEYWORD
 
 
 def test_loaders_are_not_scenarios():
-    assert not is_scenario(dataset_class("mrclam"))
     assert "mrclam" not in scenario_names()
+    with pytest.raises(ValueError, match="unknown scenario 'mrclam'; scenarios: breitenmoser"):
+        scenario_class("mrclam")
 
 
 def test_simulate_verb_and_bad_input(tmp_path, capsys):
@@ -109,10 +118,10 @@ def test_kaushik_geometry_and_genuine_candidate():
     tri = led_triangle()
     sides = np.linalg.norm(tri - np.roll(tri, 1, axis=0), axis=1)
     assert np.allclose(sides, SIDE)
-    noiseless = simulate(KaushikConfig(runs=5, frames=3, noise_variance=0.0))
-    assert (noiseless.genuine >= 0).all() and noiseless.genuine_error.max() < 1e-6
-    noisy = simulate(KaushikConfig(runs=5, frames=3, noise_variance=3.0))
-    assert noisy.genuine_error.mean() > noiseless.genuine_error.mean()
+    noiseless = genuine_p3p_errors(simulate(KaushikConfig(runs=5, frames=3, noise_variance=0.0)))
+    assert len(noiseless) == 15 and noiseless.max() < 1e-6
+    noisy = genuine_p3p_errors(simulate(KaushikConfig(runs=5, frames=3, noise_variance=3.0)))
+    assert noisy.mean() > noiseless.mean()
     with pytest.raises(ValueError, match="focal_mm"):
         KaushikConfig(focal_mm=float("nan"))
     with pytest.raises(ValueError, match="lose an LED"):

@@ -21,7 +21,7 @@ from graphloc.datasets.feng_deterministic import (
     ground_triangle,
     simulate_straight_line_trials,
 )
-from graphloc.datasets.formation_log import table_i_formation, write_formation_log
+from graphloc.datasets.formation_log import write_table_i_trial
 from graphloc.live.builder import build_live
 from graphloc.pipelines.team_graph import GraphConfig
 from graphloc.runner.team_run import team_graph
@@ -54,10 +54,12 @@ def _judged(graph, alternatives: list, times: list) -> list:
 
 def test_later_snapshot_alternative_is_judged_from_its_own_step():
     trials, tri, config, step_sigma = _table_i_trial(TRIAL)
-    log = table_i_formation(trials, tri, 0, config.pixel_sigma, step_sigma, "seed000-table1")
     with tempfile.TemporaryDirectory() as tmp:
-        write_formation_log(log, Path(tmp) / "run")
-        run = open_run(Path(tmp) / "run")
+        run_dir = Path(tmp) / "run"
+        write_table_i_trial(
+            trials, tri, 0, config.pixel_sigma, step_sigma, "seed000-table1", run_dir
+        )
+        run = open_run(run_dir)
         graph = team_graph(run, GraphConfig())
         live = build_live(run, GraphConfig())
     # one alternative per candidate of each of the three snapshots: judged at its own step
