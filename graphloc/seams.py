@@ -82,7 +82,7 @@ class TeammateObservation:
     special feature point of seed II-B). disk_covariance (5,5), optional: the full covariance
     of (centre x, y, z [m] in the camera frame; normal tilt a, b [rad] towards the disk's x and
     y axes, n + a x + b y) when it is known (e.g. a Cramér-Rao bound,
-    `CrawlerPairScenario.disk_information`); it then replaces candidate_covariance and
+    `benchmarks.seed003_measures.disk_information`); it then replaces candidate_covariance and
     CooperativeSfmConfig.normal_sigma in the max-mixture, correlations included."""
 
     centre: np.ndarray
