@@ -1,9 +1,6 @@
-"""`ArcIntegrator`: `factors.odometry.integrate_unicycle` carried forward stamp by stamp, as
-velocity rows arrive. Each call integrates the next stamps from the state the last one ended
-at -- the running sums continued (`np.cumsum` of the carried value and the new increments, the
-same sequence of additions the whole-run call makes), every interval's covariance summed over
-its own segments -- so the poses, steps and covariances are those of one call over the whole
-run, bit for bit (tests/test_live.py checks it)."""
+"""`ArcIntegrator`: `factors.odometry.integrate_unicycle` carried forward as velocity rows
+arrive; the running sums continued, so poses, steps and covariances are those of one call over
+the whole run, bit for bit (tests/test_live.py)."""
 
 from __future__ import annotations
 

@@ -1,37 +1,10 @@
-"""`LiveGraph`: the team graph built as rows arrive -- wheel velocities and point measurements
-in time order in, each completed time step (time, factors with types) out, with the initial
-values of its new variables -- for the sections that are causal: `motion` (each wheel-odometry
-robot's pose grid and between factors, `ArcIntegrator`), the anchors (initial-pose priors,
-surfaces), `points` (range, bearing, range-bearing to robots and landmarks, known or SLAM,
-`team_graph.points.PointBuilder`). It grows a `TeamGraph` that `team_graph.passes.Pass` solves
-step by step (`graphloc.live.team.LiveTeam`). Robot state lives in `live.robot_state`, the
-measurements waiting for their poses in `live.waiting.WaitingPoints`.
-
-One path, whatever the batch. A call may bring one row (`graphloc live`) or a whole table
-(`build_live`: each robot's odometry in one call, every measurement, then `finish`): a robot's
-new grid steps are integrated in one `ArcIntegrator.advance`, and the waiting measurements are
-released as the longest ready run from the queue's front, found in NumPy, their range-bearing
-rows re-expressed per robot in one pass -- a row pushed live is the batch of one.
-
-Causality. A grid node start + k dt exists once its robot's odometry reaches it (the whole-run
-grid ends at the last odometry row: `motion.node_times`), and its step is integrated then (the
-rows before it are known). A measurement joins the nearest node (`motion.Timeline.nearest`)
-once its robot's odometry is past it and the grid's next node, should it come, would not be
-the answer (not within the tolerance or not nearer: a measurement just after a node joins it
-without waiting for the next), or the run is finished; a range-bearing whose own node (of
-`points.body_frame_points`: the later one at a tie) is the next waits for it. Measurements are
-taken in arrival order (the run's order, which fixes the landmark anchors and guesses). A step
-at time T is emitted once every robot's odometry has reached T and no measurement that could
-join a node at T (time <= T + dt/2) is still to come or waiting. So the steps, their factors
-in order and the initial values do not depend on how the rows are split into calls: one row at
-a time (`graphloc live`) or whole tables (`build_live`, what `graphloc smooth` / `online`
-solve; tests/test_live.py). A factor whose newest pose is older than the last emitted step
-(a measurement between two static robots, whose one pose is at the start) enters with the next
-step.
-"""
+"""`LiveGraph`: the team graph of wheel-odometry robots built as rows arrive (the pose grid,
+anchors and point measurements, each step emitted once no row can change it), and `build_live`,
+the graph of a loaded run on either route (docs/design_team_graph.md, "The wheel route")."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from itertools import islice
 
 import numpy as np
@@ -40,9 +13,10 @@ from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.live.coverage import NotLiveError, route, run_tables, wheel_problems
 from graphloc.live.robot_state import RobotState
+from graphloc.live.setup import empty_run
 from graphloc.live.waiting import WaitingPoints
 from graphloc.pipelines.team_graph.config import GraphConfig, run_precision
-from graphloc.pipelines.team_graph.graph import TeamGraph
+from graphloc.pipelines.team_graph.graph import TeamGraph, count_graph, landmark_initial
 from graphloc.pipelines.team_graph.motion import between_factor, robot_anchors
 from graphloc.pipelines.team_graph.points import PointBuilder
 from graphloc.run import TeamRun, planar_covariance, pose_from_planar
@@ -158,8 +132,15 @@ class LiveGraph:
                     "unanchored_robot",
                     f"robot {robot.robot.name}: no odometry rows arrived, so it has no poses",
                 )
-        self._counts()
+        count_graph(self.graph, self.points, sum(robot.times.n for robot in self.robots))
+        self.graph.skips.merge(self.points.made.skips)
         return steps
+
+    def run_so_far(self) -> TeamRun:
+        """The run of the rows that arrived."""
+        start = float(self.start if self.start is not None else np.nan)
+        velocity = tuple(robot.velocity.view.copy() for robot in self.robots)
+        return replace(self.run, start_time=start, velocity=velocity, points=tuple(self.arrived))
 
     # ---- internals ----------------------------------------------------------------------------
 
@@ -235,13 +216,8 @@ class LiveGraph:
             self._pending(t, (2, 0, made[0]), f, kind)
         guesses = points.landmark_guess  # dicts that only grow: the new items are the last
         for lkey, guess in islice(guesses.items(), made[1], None):
-            if lkey in initial:
-                continue
-            if isinstance(guess, tuple) and guess and guess[0] == "from":
-                _, r, k, direction, rng = guess
-                initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
-            else:
-                initial[lkey] = np.asarray(guess, dtype=float)
+            if lkey not in initial:
+                landmark_initial(initial, lkey, guess)
         made[1] = len(guesses)
         for key, (body, E) in islice(points.sensors.poses.items(), made[2], None):
             if key not in initial:
@@ -270,25 +246,6 @@ class LiveGraph:
             steps.append(step)
         return steps
 
-    def _counts(self) -> None:
-        graph, points = self.graph, self.points
-        types = graph.factor_types
-        graph.counts = {
-            "robots": len(self.run.robots),
-            "poses": sum(robot.times.n for robot in self.robots),
-            "candidate_sets": 0,
-            "marker_points": 0,
-            "frame_marker_points": 0,
-            "sensor_poses": len(points.sensors.poses),
-            "committed_sets": 0,
-            "landmark_anchors": points.n_anchor,
-            "feature_tracks": 0,
-            "steps": len(graph.steps),
-            "excluded_by_option": points.excluded,
-            **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
-        }
-        graph.skips.merge(points.made.skips)
-
 
 def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:
     """A loaded run's graph built by `LiveGraph` (each robot's odometry at once, then the
@@ -300,7 +257,7 @@ def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:
         from graphloc.live.event_rows import build_events
 
         return build_events(run, config)
-    live = LiveGraph(_without_rows(run), config, run.start_time)
+    live = LiveGraph(empty_run(run), config, run.start_time)
     for r, rows in enumerate(run.velocity):
         live.velocity(r, rows)
     for m in run.points:
@@ -308,9 +265,3 @@ def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:
     live.finish()
     live.graph.run = run
     return live.graph
-
-
-def _without_rows(run: TeamRun) -> TeamRun:
-    from dataclasses import replace
-
-    return replace(run, velocity=tuple(np.zeros((0, 3)) for _ in run.robots), points=())

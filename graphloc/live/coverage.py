@@ -1,15 +1,5 @@
-"""What the live builders cover: the tables they take rows of, and which of the two routes a
-run takes (`route`; `wheel_problems`: why a wheel-odometry run is not on the first). Two routes
-(`route`): wheel-odometry robots with point measurements (`graphloc.live.builder.LiveGraph`),
-and event-clocked robots -- relative poses, scans (KISS-ICP steps, `live.scan_feed`) or wheel
-odometry over the grid (`live.wheel_steps`) -- with point measurements, placed by the
-candidate sets they see of a target with a known pose, by the inter-robot scan registration
-those sets hint, by mutual bearings or by resection on their bearings of placed static robots,
-or, seen as circles or candidate sets by an observer with a known pose, by max-mixtures
-(`live.event_sets`), with the camera's feature tracks (`graphloc.live.events.EventGraph`,
-`live.event_scans`, `live.event_points`, `live.event_camera`). Every table of
-docs/log_format.md has a route, and every run is built live: what a route cannot use is a
-counted skip."""
+"""Which of the two live routes a run takes (`route`: the wheel route's `LiveGraph` or the
+event route's `EventGraph`) and the tables each takes rows of."""
 
 from __future__ import annotations
 

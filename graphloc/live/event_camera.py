@@ -1,35 +1,7 @@
-"""The camera sections of `live.events.EventGraph` as rows arrive (seed 003: a camera on a
-crawler tracks KLT features and sees a teammate's circular base as an ellipse, two circle
-candidates, scale from the base's radius):
-
-- feature pixels (`EventFeatures`): each pixel, once its robot's poses around it are final, is a
-  projection factor on one landmark per track (`team_graph.camera.FeatureTracks`). Causal as it
-  stands: a track's landmark guess and its point prior come from the track's first pixel alone (on
-  the first ray at the camera's `feature_depth`, seed 003 III), so no pixel waits for later ones;
-  the prior enters with the first pixel's step, at the guess through that pose's initial value
-  (`priors`).
-- circle candidate sets of an unplaced target seen by a placed observer (`mixture_set`): each set a
-  max-mixture the solve chooses (`team_graph.mixtures.MixtureTracker`), made once the set's poses
-  are final; the target is placed at its first usable sighting (the observer's pose composed with
-  the upright candidate, `motion.place_robot`'s `placed_via`), its earlier poses carried back along
-  its own steps (`event_placement.seed_robot`); until then its factors are held by the online pass
-  (`anchored_from` infinite), as for an observer placed by a decided set.
-
-A camera without an initial pose: its pixels are factors as they come (the online pass holds
-them with the camera's other factors until it is placed), but a track's landmark guess and
-point prior need the pose of its first pixel, so they wait for the placement (by the camera's
-decided candidate sets, or any other causal rule of the route). Its circle sets wait for it
-too (the max-mixture route needs the observer's pose: `MixtureTracker` dead-reckons it from the
-pose the placement gives its first node, as from a known initial pose), then go through their
-stream in order before any later set; the target placed through it is held as long as it is.
-What waited joins the step the camera was placed at (`_placed_step`: not emitted yet when the
-placement comes), so the graph does not depend on when rows arrived. A camera nothing placed
-by the end leaves both as counted skips `unplaced_camera` naming robot and table
-(`camera_skips`).
-
-Order keys of the pending factors (`EventGraph.pending_factor`) order them within a step:
-projections (3, pixel) after the anchors, mixtures (4, stream, set) with the other candidate
-streams, point priors (9, track) last."""
+"""The camera sections of `live.events.EventGraph` (seed 003: KLT feature tracks, a teammate's
+base seen as two circle candidates): feature pixels as projection factors (`EventFeatures`),
+circle sets of an unplaced target as max-mixtures (`mixture_set`), a camera not placed yet
+holding both (docs/design_team_graph.md, "Camera tables")."""
 
 from __future__ import annotations
 

@@ -6,7 +6,6 @@ the final times (`EventClock`), and which times are final (`final_end`, `motion_
 
 from __future__ import annotations
 
-import gtsam
 import numpy as np
 
 from graphloc.pipelines.team_graph.config import GraphConfig
@@ -31,9 +30,6 @@ class EventClock:
         if i > 0 and abs(times[i - 1] - t) <= abs(times[i] - t):
             i -= 1
         return i if abs(times[i] - t) <= self.config.sync_tolerance else -1
-
-    def offsets(self, r: int, nodes, times) -> list:
-        return [gtsam.Pose3()] * len(times)
 
 
 class EventRobot:

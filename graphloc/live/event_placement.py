@@ -13,14 +13,8 @@ import numpy as np
 from graphloc.keys import pose_key
 from graphloc.live.event_clock import EventRobot
 from graphloc.pipelines.team_graph.config import GraphConfig
-from graphloc.pipelines.team_graph.graph import (
-    TeamGraph,
-    alternative_starts,
-    anchor_times,
-    with_sensors,
-)
+from graphloc.pipelines.team_graph.graph import TeamGraph, with_sensors
 from graphloc.pipelines.team_graph.motion import step_or_unknown
-from graphloc.run import TeamRun
 
 
 def seed_robot(graph: TeamGraph, config: GraphConfig, robot: EventRobot, k: int, pose) -> None:
@@ -108,39 +102,46 @@ def extend_variants(robot: EventRobot, config: GraphConfig, n: int) -> None:
 
 
 def alternative_placements(
-    run: TeamRun,
-    config: GraphConfig,
-    clock,
-    graph: TeamGraph,
-    robots: list,
-    streams: list,
-    points,
+    graph: TeamGraph, config: GraphConfig, robots: list, streams: list, sensor_poses: dict
 ) -> None:
-    """The alternative placements a solve starts from too, carried along the steps as
-    `graph.alternative_starts` carries them: the pixel streams' (`candidates.place_observers`,
-    used by a batch solve) and the resected robots' (`event_points`: a guess, so the online
-    solve runs them as hypotheses too, `guessed_alternatives`), with the node time each was
-    placed at (`alternative_times`, `guessed_alternative_times`)."""
-    alternatives = {}
-    for s in streams:  # a decided placement: its stream's first set (a guess: `start_variants`)
+    """The alternative placements a solve starts from too: the pixel streams' (every candidate
+    of the stream's first set, carried along the observer's steps; batch only) and the guessed
+    robots' (`start_variants`: the online solve runs them as hypotheses too), with the node time
+    each was placed at (`alternative_times`, `guessed_alternative_times`)."""
+    firsts = {}  # robot -> the first set of its last pixel stream
+    for s in streams:
         if s.pixel_route and s.sets and not robots[s.robot].variants:
-            first = s.sets[0]
-            alternatives[s.robot] = ([(first.k, body) for body in first.bodies], False)
-    poses = {
-        robot.r: (
-            [graph.initial[pose_key(robot.r, k)] for k in range(len(robot.times))],
-            robot.seed,
-        )
-        for robot in robots
-        if robot.seed is not None
-    }
-    sensor_poses = points.builder.sensors.poses
-    variants, _ = alternative_starts(
-        run, config, clock, graph.step_rel, poses, alternatives, sensor_poses
-    )
+            firsts[s.robot] = s.sets[0]
+    variants, times = [], []
+    for r, first in firsts.items():
+        robot = robots[r]
+        if robot.seed is None:
+            continue
+        for body in first.bodies:
+            poses = _carried(robot, config, first.k, body)
+            variants.append(
+                with_sensors({pose_key(r, k): p for k, p in enumerate(poses)}, sensor_poses)
+            )
+            times.append(float(robot.times[first.k]))
     guessed = [with_sensors(v, sensor_poses) for robot in robots for _, v in robot.variants]
-    graph.alternatives, graph.guessed_alternatives = variants + guessed, guessed
     guessed_times = [t for robot in robots for t in _variant_times(robot, robot.variant_starts)]
-    times = anchor_times(alternatives, poses, clock.node_times)[0]
+    graph.alternatives, graph.guessed_alternatives = variants + guessed, guessed
     graph.alternative_times = times + guessed_times
     graph.guessed_alternative_times = guessed_times
+
+
+def _carried(robot: EventRobot, config: GraphConfig, k0: int, body) -> list:
+    """Robot's poses with node k0 at `body` (node 0 at its initial pose, where it has one),
+    carried along its steps."""
+    out: list = [None] * len(robot.times)
+    if robot.robot.initial_pose is not None:
+        out[0] = robot.robot.initial_pose
+    if out[k0] is None:
+        out[k0] = body
+    seed = 0 if out[0] is not None else k0
+    for k in range(seed + 1, len(out)):
+        if out[k] is None:
+            out[k] = out[k - 1].compose(step_or_unknown(robot.steps, k, config)[0])
+    for k in range(seed - 1, -1, -1):
+        out[k] = out[k + 1].compose(step_or_unknown(robot.steps, k + 1, config)[0].inverse())
+    return out

@@ -7,6 +7,7 @@ robots') and the graph's counts."""
 from __future__ import annotations
 
 from graphloc.live.event_placement import alternative_placements
+from graphloc.pipelines.team_graph.graph import count_graph
 
 
 def record_graph(events) -> None:
@@ -34,30 +35,17 @@ def record_graph(events) -> None:
     graph.skips.merge(events.skips)
     points = events.points.builder
     graph.skips.merge(points.made.skips)
-    alternative_placements(
-        events.run,
-        events.config,
-        events.clock,
+    streams = [tracker.out for tracker, _, _ in tracked]
+    alternative_placements(graph, events.config, events.robots, streams, points.sensors.poses)
+    count_graph(
         graph,
-        events.robots,
-        [tracker.out for tracker, _, _ in tracked],
-        events.points,
+        points,
+        sum(len(r.times) for r in events.robots if r.seed is not None),
+        candidate_sets=len(events.arrived),
+        marker_points=len(events.marker_points),
+        committed_sets=sum(d.committed >= 0 for d in graph.decisions),
+        feature_tracks=events.features.tracks.section.tracks,
     )
-    types = graph.factor_types
-    graph.counts = {
-        "robots": len(events.run.robots),
-        "poses": sum(len(r.times) for r in events.robots if r.seed is not None),
-        "candidate_sets": len(events.arrived),
-        "marker_points": len(events.marker_points),
-        "frame_marker_points": len(graph.frame_points),
-        "sensor_poses": len(points.sensors.poses),
-        "committed_sets": sum(d.committed >= 0 for d in graph.decisions),
-        "landmark_anchors": points.n_anchor,
-        "feature_tracks": events.features.tracks.section.tracks,
-        "steps": len(graph.steps),
-        "excluded_by_option": points.excluded,
-        **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
-    }
 
 
 def unplaced_robots(events) -> None:

@@ -1,17 +1,7 @@
-"""`EventRows`: an event-clocked team's checked rows (`rows.RowChecker` with the event tables)
-into its `events.EventGraph`, with the interface `LiveTeam` drives (`velocity`, `point`,
-`advance`, `finish`, `graph`, `start`, `run_so_far`): relative poses and point measurements go
-in as they come, a scan as the relative pose KISS-ICP makes of it from the scanner's previous
-one (`scan_feed.ScanFeed`), a wheel-odometry robot's odometry as the relative pose of each grid
-step it completes (`wheel_steps.WheelSteps`; with no start in the manifest, the run's start is
-the loader's -- the latest first odometry row of the robots with an odometry table -- and the
-relative poses wait for it); `markers`, `candidates`, `ellipses` and `features` rows are held until
-the watermark passes their time (every row of their image or set has arrived), then made into
-candidate sets and feature pixels by the loader's own front ends
-(`log_observations.marker_observations`: the
-checks and P3P of a log's marker pixels, `candidate_observations`;
-`camera_tables.ellipse_observations`: seed 003's two circle candidates, `single_tracks` and
-`feature_observations`), in the loader's order, and go in."""
+"""`EventRows`: an event-clocked team's checked rows into its `events.EventGraph`, with the
+interface `LiveTeam` drives; marker, candidate, ellipse and feature rows held until the window
+passes their time, then made into sets and pixels by the loader's own front ends.
+`build_events`: a loaded run's graph on the event route."""
 
 from __future__ import annotations
 
@@ -31,6 +21,7 @@ from graphloc.keys import decode
 from graphloc.live.coverage import NotLiveError, max_mixtures_possible, run_tables
 from graphloc.live.events import EventGraph
 from graphloc.live.scan_feed import ScanFeed
+from graphloc.live.setup import empty_run
 from graphloc.live.wheel_steps import WheelSteps, skip_relative, wheel_motions
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
@@ -256,9 +247,7 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
     camera = camera or max_mixtures_possible(run, run_tables(run))
     wheels = {m.robot for _, m in wheel}
-    live = EventGraph(
-        _without_rows(run), config, run.start_time, stamped, observers, camera, wheels
-    )
+    live = EventGraph(empty_run(run), config, run.start_time, stamped, observers, camera, wheels)
     for m in run.motions:
         if m.robot in wheels:
             skip_relative(live.graph.skips, run.robots[m.robot])
@@ -313,10 +302,3 @@ def _drop_unplaced(graph: TeamGraph, robots: set) -> None:
     counts = {k: v for k, v in graph.counts.items() if not k.startswith("factors_")}
     counts.update({f"factors_{name}": types.count(name) for name in sorted(set(types))})
     graph.counts = counts
-
-
-def _without_rows(run: TeamRun) -> TeamRun:
-    velocity = tuple(np.zeros((0, 3)) for _ in run.robots)
-    return replace(
-        run, velocity=velocity, motions=(), observations=(), features=(), scans=(), points=()
-    )

@@ -1,26 +1,6 @@
 """`ScanLinks`: the inter-robot scan registration of `live.events.EventGraph`, made causal
-(seed 004, ../shared/seeds/004_fa12d1d18dcbd0db.txt, Sec. II-C / III: P3P initializes ICP,
-which fuses the ground and ceiling robots' maps). Each registration is the whole-run one
-(`team_graph.scans.register_pair`: `robust_register` from a hint and its covariance, the
-acceptance checks, a BetweenFactorPose3 with the registration's calibrated covariance); what
-changes is when it runs.
-
-Rule. A scanning robot that nothing placed is registered at each set of its candidate stream
-that the tracker takes, until one registration is accepted: onto each placed scanning robot in
-turn, from the tracker's best guess after that set, then each candidate of the set by
-posterior (`candidates.StreamDecisions.tentative`), its arrived scan nearest the set's time
-onto the other's scan at that time (the set waits for both robots' steps past its time, so
-those scans are in). The accepted registration places the robot (`event_placement.seed_robot`)
-and is a `scan_match` factor. (The whole-run route waits for the stream's last set and starts
-from the guess after it.) Then every common scan time of two placed scanning robots is
-registered, hinted by the later robot's initial pose there (`GraphConfig.scan_hint_sigma`):
-the earlier times at the placement -- their factors enter with the placing step, before which
-the online pass holds the robot's factors anyway (`graph.anchored_from`), as `graphloc online`
-holds them --, each later one once the other robot's scans that could be nearest it have
-arrived. A robot no registration placed is counted (`scan_match_rejected`) at the end.
-
-Memory: scans are kept as `ScanObservation`s (time, robot, extrinsics, path); a registration
-reads and prepares its two scans and lets them go."""
+(seed 004, Sec. II-C / III: P3P initializes ICP, which fuses the ground and ceiling robots'
+maps); the rule is in docs/design_team_graph.md, "Scan registration"."""
 
 from __future__ import annotations
 

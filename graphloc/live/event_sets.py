@@ -1,21 +1,5 @@
-"""A candidate set into `live.events.EventGraph` once its poses are final (`take_set`), by
-its (observer, target) stream -- one rule per stream, as `team_graph.candidates` has it:
-
-- a target with an initial pose: the stream's `candidates.StreamTracker` (the decision uses
-  the sets before it only) and the factors `candidates.stream_factors` makes of the set -- a
-  decided candidate's robust prior (static target) or between factor on the observer's and
-  the target's poses (moving target), or a pixel stream's projection factors on a static
-  target's marker points or, for a moving target, on per-set marker points held on the
-  target's pose (`camera.moving_marker_factors`; their initial values from the target's pose
-  once it has one) --, then the observer's placement (`_place`). An observer's sets of one
-  target with and without marker pixels are two streams (which kind a set is, is known when
-  it arrives), as are its sets of two targets: the first stream that places the observer
-  places it, the others' factors enter with that placement (held until then);
-- a target without an initial pose seen by an observer with one -- circles: by any camera,
-  held until it is placed --: each set a max-mixture (`live.event_camera.mixture_set`), the
-  target placed through the observer;
-- a target without an initial pose seen by an observer without one: nothing places either
-  through the other; each set a counted `target_unplaced` skip."""
+"""A candidate set into `live.events.EventGraph` once its poses are final (`take_set`): one
+rule per (observer, target) stream (docs/design_team_graph.md, "Candidate sets")."""
 
 from __future__ import annotations
 
@@ -50,7 +34,7 @@ def take_set(events, n: int, o) -> None:
     if tracked is None:
         return
     one = StreamDecisions(r, ti, tracker.out.pixel_route, [tracked])
-    made = stream_factors(run, events.config, clock, one, [(n, o)], events.marker_points)
+    made = stream_factors(run, events.config, clock.node_times, one, events.marker_points)
     events.skips.merge(made.skips)
     events.marker_points.update(made.marker_points)
     events.graph.initial.update(made.marker_points)

@@ -1,45 +1,6 @@
-"""`EventGraph`: the team graph of event-clocked robots built as rows arrive -- robots without
-wheel odometry, whose poses are at their relative poses' stamps (KISS-ICP steps of scans among
-them, `live.scan_feed`) and their measurements' times (`team_graph.motion.node_times`), placed
-by the candidate sets they see of a target with a known pose (`team_graph.candidates`: one
-`StreamTracker` per stream, fed set by set, `live.event_sets`), by the inter-robot scan
-registration those sets hint (`live.event_scans`), by their bearings (`live.event_points`:
-point measurements, mutual bearings, resection), or, without an initial pose, by the circle
-sets a placed camera sees of them (max-mixtures), with the camera's feature tracks
-(`live.event_camera`, seed 003).
-
-Causality. A robot's pose times up to x are final once every row before x has arrived (the
-watermark passed x) and, for a robot with relative poses, x is no later than the last arrived
-step's end (a measurement inside a step is a pose of its own, `motion.inserted_times`, which
-only the step covering it tells). Each advance applies the whole-run rule to the rows that can
-shape times after the last final one (those within the longest step of it) and appends the new
-final times; rows that would change a final pose time or step (a step starting inside steps
-already built, rows out of time order) are refused as they arrive: counted skips naming them
-(`relative_pose_late`, `point_late`, `set_late`), as any late row of a live team. A relative
-pose becomes its between factors once its poses are final; a candidate set joins its poses
-once those near it and the steps into them are final, goes through its stream's tracker (the
-decision uses the sets before it only) and becomes the factors `candidates.stream_factors`
-makes of it.
-A step is emitted once every pose time up to it is final and no row that could add a factor to
-it is still to come.
-
-Placement, one causal rule. An observer with no initial pose is placed by the first of its
-streams (one per target, and per target with and without pixels, `live.event_sets`) that places
-it, in arrival order: a stream without pixels at each decided set (its decisions are its only
-factors); a marker-pixel stream once, at its first decided set, or -- when none of its first
-`GraphConfig.guess_after_sets` tracked sets was decided -- at that set by the tracker's best
-guess there (`event_placement.stream_placement`): when that set arrives, the sets before it
-decide where the observer goes, and no later set can change it. A scanning observer not placed
-by a decision is placed by the first accepted inter-robot scan registration from its stream's
-hypotheses (`event_scans.ScanLinks`, which also registers every later common scan time), tried
-at each set before the guess. Its earlier poses are carried back along its steps
-(`motion.place_robot`); until then its `anchored_from` is infinite, so the online pass (`Pass`:
-`hold_until` the largest `anchored_from`) holds its factors and they enter with the placement.
-The wait lets a stream that will decide be placed by its decision (feng-probabilistic); one
-that never decides (kaushik-p3p-error) is placed by a guess that has seen those sets, where the
-whole-run route (`candidates.place_observers`) guesses at the first set, knowing it will never
-decide. A robot nothing placed by the end is a counted `unanchored_robot` (`finish`); its
-factors stay held (`event_rows.build_events` leaves them out of the graph)."""
+"""`EventGraph`: the team graph of event-clocked robots (relative poses, scan steps, wheel grid
+steps) built as rows arrive, with their candidate sets, scan registrations, point measurements
+and camera tables; the causality and placement rules are in docs/design_team_graph.md."""
 
 from __future__ import annotations
 

@@ -166,15 +166,7 @@ class LiveTeam:
         if self.finished is not None:
             return self.finished
         self._close()
-        if isinstance(self.builder, LiveGraph):
-            self.graph.run = replace(
-                self.setup.run,
-                start_time=float(self.builder.start if self.builder.start is not None else np.nan),
-                velocity=tuple(robot.velocity.view.copy() for robot in self.builder.robots),
-                points=tuple(self.builder.arrived),
-            )
-        else:
-            self.graph.run = self.builder.run_so_far()
+        self.graph.run = self.builder.run_so_far()
         solver = self._solver()
         result = solver.result()
         if self.checkpoint_path is not None:

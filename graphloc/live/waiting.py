@@ -1,10 +1,6 @@
 """`WaitingPoints`: the point measurements `live.builder.LiveGraph` holds until their poses are
-known, in arrival order, and the rule that releases them -- a measurement joins the pose nearest
-its time (`motion.Timeline.nearest`) once no later grid pose could be nearer, and a wheel-odometry
-robot's range-bearing once every range-bearing time before its node has arrived -- applied to
-many at once: the longest ready run from the front of the queue is found in NumPy over chunks
-that double in size (one row pushed live is a chunk of one; a whole run is a few chunks), and
-its range-bearing rows are re-expressed per robot in one pass (`RangeBearingFrames.body_frame`)."""
+known, released in arrival order as the longest ready run from the queue's front (found in
+NumPy; a row pushed live is a batch of one)."""
 
 from __future__ import annotations
 

@@ -1,15 +1,6 @@
-"""A wheel-odometry robot on the event route (`live.events.EventGraph`): its odometry rows
-(time, v, omega) integrated over the wheel route's pose grid (start + k keyframe_dt, up to its
-last row: `team_graph.motion.node_times`) into one relative pose per grid step
-(`graphloc.run.Motion`: the planar step and its covariance as SE(3), `run.planar_covariance`,
-as `live.builder.LiveGraph._grow` and the whole run's `motion._velocity_steps` make them), each
-made once the robot's odometry has reached the step's end (causal: node k exists once a row at
-or after its time has arrived). The steps come from `live.arc.ArcIntegrator` carried forward,
-so they are bit for bit those of one integration over the whole table, however the rows are
-split into calls. On the event route such a robot is stamped (its pose times at the grid and
-at its measurements inside a step, `event_clock`); relative poses of its own (a relative-pose
-table or scans beside its odometry) would be a second clock of its poses: each is a counted
-skip (`skip_relative`)."""
+"""A wheel-odometry robot on the event route: its odometry integrated over the wheel route's
+pose grid (`live.arc.ArcIntegrator`, bit for bit whatever the split), one relative pose per
+grid step once its odometry reaches the step's end."""
 
 from __future__ import annotations
 

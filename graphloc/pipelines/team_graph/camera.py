@@ -1,16 +1,6 @@
-"""Camera pixels as projection factors. Marker pixels of a static target (seed 000 Sec. III-B,
-seed 004 Sec. II-C): every marker of the target's layout is one world point of the graph, held by
-the target's pose prior, and each pixel a projection factor on the observer's pose -- the
-measurements the P3P candidates were solved from, with none of P3P's ambiguity once the
-observer's motion links the frames. Feature tracks (seed 003 II-B: KLT) as projection factors on
-landmark variables, one per
-track (seed 003 eq. 14), with the seed's weak prior on each point: on the first ray at the
-camera's `feature_depth` with std `feature_depth_sigma` (seed III: the EKF's KLT points start
-at the background distance with a large covariance). Explicit landmarks rather than
-SmartProjectionPose3Factor: a smart factor grows with its track, and `Session` (append-only
-`add`) cannot tell iSAM2 that an added factor changed; the prior keeps every landmark determined
-from its first pixel on (an undamped iSAM2 step can push a point behind a camera, where the
-projection gives no information)."""
+"""Camera pixels as projection factors: marker pixels of a static or moving target (seed 000
+Sec. III-B, seed 004 Sec. II-C) and feature tracks on one landmark per track with the seed's
+weak depth prior (seed 003 II-B, eq. 14; docs/design_team_graph.md, "Feature tracks")."""
 
 from __future__ import annotations
 
@@ -150,26 +140,21 @@ def moving_marker_factors(
     index: int,
     time: float,
     observation,
-    offsets: tuple,
 ) -> SectionFactors:
     """The marker pixels of one candidate set of a moving target as factors on both poses (the
     observer's pose k, the target's pose kt): each marker seen is one world point of that set
     (`keys.frame_marker_key(index, marker)`), held on the target's pose by a
     BearingRangeFactor3D to its layout position (std `config.marker_sigma`) and seen by a
-    GenericProjectionFactorCal3_S2 on the observer's pose (robust kernel 'projection').
-    offsets = (observer, target): each robot's body at the set's time in its body frame at its
-    pose (`Timeline.offsets`): the sensor is body_T_sensor after the observer's offset, a
-    marker is its layout position after the target's. The points' initial values come once
-    the target's poses have theirs: (key, target, kt, position in the target's body frame at
-    pose kt) in `frame_points`."""
+    GenericProjectionFactorCal3_S2 on the observer's pose (robust kernel 'projection'). The
+    points' initial values come once the target's poses have theirs: (key, target, kt,
+    position in the target's body frame at pose kt) in `frame_points`."""
     out = SectionFactors()
     ti = observation.target
     target = run.robots[ti]
-    observer_offset, target_offset = offsets
     keys = []
     for m in observation.pixels.markers:
         key = frame_marker_key(index, int(m))
-        local = target_offset.transformFrom(np.asarray(target.markers[int(m)], float))
+        local = np.asarray(target.markers[int(m)], float)
         distance = float(np.linalg.norm(local))
         sigma = config.marker_sigma
         noise = gtsam.noiseModel.Diagonal.Sigmas(
@@ -190,8 +175,7 @@ def moving_marker_factors(
         )
         out.frame_points.append((key, ti, kt, local))
         keys.append(key)
-    E = observer_offset.compose(observation.body_T_sensor)
-    out.merge(_projections(run, config, r, k, time, observation, E, keys))
+    out.merge(_projections(run, config, r, k, time, observation, observation.body_T_sensor, keys))
     return out
 
 

@@ -1,20 +1,7 @@
-"""Candidate sets (P3P, seed 000 / 001 / 004) -> factors, in three steps with explicit inputs
-and outputs, one rule per (observer, target) stream:
-
-1. `decide_stream`: the target is placed (known initial pose): the observer is placed through
-   it and one HypothesisTracker decides the stream's sets causally -> `StreamDecisions`;
-2. `stream_factors`: the factors of those decisions -> `SectionFactors`. When the sets carry
-   their marker pixels, the pixels become projection factors (`camera.marker_factors` on a
-   static target's marker points, `camera.moving_marker_factors` on both poses of a moving
-   one; a decided candidate would count them twice); without pixels a decided candidate
-   becomes one robust prior (static target) or between factor (moving target);
-3. `place_observers`: the decided observer poses, each tracked observer's latest best guess
-   (the scan registration's hint) and a pixel stream's alternative placements.
-
-A stream whose target is not placed but whose observer is (seed 003: a camera sees a teammate's
-base, two circle candidates) is `mixtures.mixture_stream`'s: each set a max-mixture the solve
-chooses, the target placed through the observer. `candidate_section` runs them all.
-"""
+"""Candidate sets (P3P, seed 000 / 001 / 004) of a placed target -> factors: per (observer,
+target) stream one `HypothesisTracker` decides causally (`StreamTracker`, seed 000 Sec. V),
+and `stream_factors` makes the decided sets robust priors / between factors, or a pixel
+stream's marker pixels projection factors."""
 
 from __future__ import annotations
 
@@ -38,7 +25,7 @@ from graphloc.pipelines.team_graph.decision import (
     rows_of,
     same_pose,
 )
-from graphloc.pipelines.team_graph.motion import Timeline, compose_steps, dead_reckoning
+from graphloc.pipelines.team_graph.motion import compose_steps, dead_reckoning
 from graphloc.pipelines.team_graph.section import SectionFactors
 from graphloc.run import TeamRun
 from graphloc.seams import Decision, Odometry
@@ -216,39 +203,25 @@ def homogeneous(R: np.ndarray, t: np.ndarray) -> np.ndarray:
 def stream_factors(
     run: TeamRun,
     config: GraphConfig,
-    timeline: Timeline,
+    node_times: list,
     stream: StreamDecisions,
-    obs: list,
     marker_points: dict,
 ) -> SectionFactors:
-    """The factors of one tracked stream's decisions (module docstring, step 2); `obs`: the
-    stream's every set, over which the pixel route integrates each robot's motion between its
-    pose and the set's time; `marker_points`: the static markers earlier streams made, so a
-    point enters once."""
+    """The factors of one tracked stream's decisions (module docstring, step 2);
+    `marker_points`: the static markers earlier streams made, so a point enters once."""
     out = SectionFactors()
     r, ti = stream.robot, stream.target
-    node_times, target = timeline.node_times, run.robots[ti]
-    offsets: dict = {}
-    if stream.pixel_route:  # each robot's motion between its pose and the set's time
-        nodes = [(timeline.nearest(r, o.time), timeline.nearest(ti, o.time)) for _, o in obs]
-        ok = [i for i, (k, kt) in enumerate(nodes) if k >= 0 and kt >= 0]
-        times = [obs[i][1].time for i in ok]
-        mine = timeline.offsets(r, [nodes[i][0] for i in ok], times)
-        theirs = timeline.offsets(ti, [nodes[i][1] for i in ok], times)
-        offsets = {obs[i][0]: pair for i, pair in zip(ok, zip(mine, theirs))}
+    target = run.robots[ti]
     kernel = config.kernels.kernel("candidate")
     for s in stream.sets:
         o, k, kt, E = s.observation, s.k, s.kt, s.observation.body_T_sensor
         t = max(node_times[r][k], node_times[ti][kt])
         if stream.pixel_route:
-            mine, theirs = offsets[s.index]
             if target.static:
                 known = {**marker_points, **out.marker_points}
-                out.merge(marker_factors(run, config, r, k, t, o, mine.compose(E), known))
+                out.merge(marker_factors(run, config, r, k, t, o, E, known))
             else:
-                out.merge(
-                    moving_marker_factors(run, config, r, k, kt, s.index, t, o, (mine, theirs))
-                )
+                out.merge(moving_marker_factors(run, config, r, k, kt, s.index, t, o))
             continue
         if not s.decided:
             continue

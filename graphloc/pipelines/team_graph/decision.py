@@ -1,12 +1,5 @@
-"""`SetOutcome`: what happened to one candidate set of the team graph (`candidates`,
-`mixtures`), and the helpers both routes share.
-
-Not `graphloc.seams.Decision`: that is one update of a candidate tracker (the posterior over a
-frame's candidates, the committed one, the track's pose), what `HypothesisTracker` and the
-seeds' baselines return; a `SetOutcome` is the team graph's record of a set, made from such an
-update (`candidates.decide_stream`) or from the solve's choice of a max-mixture, with the
-candidates' poses in the world and in the target's frame that `decisions.csv`, the judge and
-the recordings read."""
+"""`SetOutcome`: the team graph's record of one candidate set (not `seams.Decision`, one
+tracker update), and the helpers the tracked and max-mixture streams share."""
 
 from __future__ import annotations
 

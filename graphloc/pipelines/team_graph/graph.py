@@ -13,10 +13,6 @@ from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.factors.mixture import MaxMixture
 from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig
-from graphloc.pipelines.team_graph.motion import (
-    Timeline,
-    place_robot,
-)
 from graphloc.run import TeamRun
 
 
@@ -54,7 +50,7 @@ class TeamGraph:
     # body pose's composed with the extrinsics (`points.SensorPoses`)
     sensor_poses: dict = field(default_factory=dict)
     # the graph holds feature tracks or max-mixtures (iSAM2's settings for camera graphs,
-    # `passes.camera_graph`); a graph built live knows it from the run's tables before its rows
+    # `GraphConfig.session_config`), known from the run's tables before its rows
     camera: bool = False
     # the time of the node each alternative (each guessed alternative) was placed at: the
     # node of its own candidate set; the solve does not drop a hypothesis before that node's
@@ -62,47 +58,6 @@ class TeamGraph:
     # only carried along
     alternative_times: list = field(default_factory=list)
     guessed_alternative_times: list = field(default_factory=list)
-
-
-def alternative_starts(
-    run: TeamRun,
-    config: GraphConfig,
-    timeline: Timeline,
-    step_rel: list,
-    poses: dict,
-    alternatives: dict,
-    sensor_poses: dict,
-) -> tuple[list, list]:
-    """The other initial values the solve starts from (key -> value, over the initial values):
-    one per alternative placement of a placed robot, carried along its steps; and those of
-    robots placed by a guess (the online solve starts from these too)."""
-    variants, guessed_variants = [], []
-    for r, (starts, guessed) in alternatives.items():
-        if r not in poses:
-            continue
-        for k0, body in starts:
-            placed = place_robot(
-                run, r, timeline.node_times, step_rel, config, {r: {k0: body}}, {}, poses
-            )
-            variants.append({pose_key(r, k): p for k, p in enumerate(placed[0])})
-            with_sensors(variants[-1], sensor_poses)
-            if guessed:
-                guessed_variants.append(variants[-1])
-    return variants, guessed_variants
-
-
-def anchor_times(alternatives: dict, poses: dict, node_times: list) -> tuple[list, list]:
-    """The node time each of `alternative_starts`' variants (and guessed variants), in their
-    order, was placed at."""
-    times, guessed_times = [], []
-    for r, (starts, guessed) in alternatives.items():
-        if r not in poses:
-            continue
-        for k0, _ in starts:
-            times.append(float(node_times[r][k0]))
-            if guessed:
-                guessed_times.append(times[-1])
-    return times, guessed_times
 
 
 def with_sensors(values: dict, sensor_poses: dict) -> dict:
@@ -128,3 +83,26 @@ def landmark_initial(initial: dict, lkey: int, guess) -> None:
             initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
     else:
         initial[lkey] = np.asarray(guess, dtype=float)
+
+
+def count_graph(graph: TeamGraph, points, poses: int, **sections) -> None:
+    """graph.counts (metrics.json): robots, `poses`, the point section's (`points`: a
+    `points.PointBuilder`), the steps and factors by type; `sections`: the candidate and camera
+    sections' counts (0 where not given)."""
+    types = graph.factor_types
+    counts = {
+        "robots": len(graph.run.robots),
+        "poses": poses,
+        "candidate_sets": 0,
+        "marker_points": 0,
+        "frame_marker_points": len(graph.frame_points),
+        "sensor_poses": len(points.sensors.poses),
+        "committed_sets": 0,
+        "landmark_anchors": points.n_anchor,
+        "feature_tracks": 0,
+        "steps": len(graph.steps),
+        "excluded_by_option": points.excluded,
+    }
+    counts.update(sections)
+    counts.update({f"factors_{name}": types.count(name) for name in sorted(set(types))})
+    graph.counts = counts

@@ -81,7 +81,7 @@ class Pass:
         cfg = graph.config
         self.lag = float(cfg.lag or 0.0) if mode == "online" else 0.0
         self.session = Session(
-            replace(cfg.session_config(mode, graph.precision, camera_graph(graph)), lag=self.lag),
+            replace(cfg.session_config(mode, graph.precision, graph.camera), lag=self.lag),
             progress=progress and mode == "batch",
             stop=stop,
         )
@@ -271,12 +271,6 @@ def _fit(grid: np.ndarray, n: int) -> np.ndarray:
 def _held(graph: TeamGraph, key: int, t: float) -> bool:
     kind, r, _ = decode(key)
     return kind in ("x", "s") and graph.anchored_from.get(r, np.inf) > t
-
-
-def camera_graph(graph: TeamGraph) -> bool:
-    """The graph holds feature tracks or max-mixtures (`GraphConfig.session_config`;
-    `TeamGraph.camera`)."""
-    return graph.camera
 
 
 def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:

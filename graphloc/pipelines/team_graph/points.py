@@ -1,15 +1,6 @@
-"""Point measurements -- range, bearing and range-bearing to landmarks and to teammates --
-as factors. A known landmark (a position with a prior) is tied to each observation on its own
-(`GraphConfig.anchor_known_landmarks`): a range-bearing becomes one unary GTSAM
-KnownLandmarkFactorPose3 on the observing pose (the landmark variable and its prior
-marginalized at the measured point, `known_landmark_factor_3d`), a bearing or a range one
-prior-pinned anchor variable (a Point3, its prior, the measurement's factor): no variable is
-shared across the run, so every iSAM2 update stays local and a fixed lag never drops one.
-
-A bearing from an offset sensor (a translation in body_T_sensor) is GTSAM's built-in bearing
-factor on an auxiliary sensor pose variable (`keys.sensor_key`, one per robot, distinct
-extrinsics and time index, shared by every bearing of that sensor at that time), tied to the
-body pose by `sensor_tie_factor` (factor type "sensor_tie", judged on its own by the verdict)."""
+"""Range, bearing and range-bearing measurements to landmarks and teammates as factors
+(`PointBuilder`); a known landmark tied to each observation on its own, an offset bearing on an
+auxiliary sensor pose (docs/design_team_graph.md, "Point measurements")."""
 
 from __future__ import annotations
 

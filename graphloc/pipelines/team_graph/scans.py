@@ -1,15 +1,6 @@
-"""Inter-robot scan registration (seed 004 Sec. II-C / III: P3P initializes ICP, which fuses the
-ground and ceiling robots' maps) as a scan-matching factor of the team graph.
-
-For each pair of robots that both scan, one placed and one not: the unplaced robot's pose hint
-is the candidate tracker's latest best guess of it (committed or not: P3P's up to four
-candidates over a few frames may not commit, and the scans can tell them apart), carried by its
-odometry to its scan nearest that guess; `graphloc.mapping.robust_registration.robust_register`
-aligns that scan onto the placed robot's scan taken at the same time, starting from the hint and
-its covariance, with the acceptance checks (overlap, inliers, hint gate, geometry). An accepted
-registration becomes a BetweenFactorPose3 between the two robots' poses with the registration's
-calibrated covariance, and places the unplaced robot; a rejected one is counted (reason
-`scan_match_rejected`, with the failed checks), never guessed."""
+"""Inter-robot scan registration (seed 004 Sec. II-C / III) as a scan-matching factor:
+`register_pair` aligns one robot's scan onto another's from a hint and its covariance
+(`mapping.robust_registration.robust_register`); a rejected one is counted, never guessed."""
 
 from __future__ import annotations
 

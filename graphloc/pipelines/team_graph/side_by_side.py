@@ -1,14 +1,6 @@
-"""`SideBySide`: online passes of one `TeamGraph` from several starts (alternative placements,
-`TeamGraph.guessed_alternatives`) stepped together, compared by chi-square and pruned as the
-evidence arrives (`team_graph.solve`'s docstring says why: a placement that explains its
-measurements by downweighting them does not win on the kernel's saturated error; a pass far
-from its minimum gets a few more iterations before it is judged). `solve.hypotheses` steps it
-over a whole graph; the live team (`graphloc.live.team.LiveTeam`) step by step as the graph
-grows, adding the starts of a robot placed by a guess when the builder places it (`add`).
-An alternative is judged (may be dropped) only from the step of the node it was placed at
-(`TeamGraph.alternative_times`): a resected robot's alternative from a later snapshot's P3P
-candidate starts its earlier poses at that snapshot's position (seed 000, Sec. IV: the climber
-moves between snapshots), so the steps before its own snapshot are no evidence against it."""
+"""`SideBySide`: online passes of one `TeamGraph` from several starts stepped together,
+compared by the chi-square of their factors without the robust kernels and pruned as the
+evidence arrives (docs/design_team_graph.md, "Hypotheses side by side")."""
 
 from __future__ import annotations
 
@@ -145,17 +137,6 @@ def start_times(alternatives: list, times: list) -> list | None:
     `times`, `TeamGraph.alternative_times`): its `times` entry, None for the guess; None where
     the times do not match the alternatives (a graph built without them: every step judges)."""
     return [None, *times] if len(times) == len(alternatives) else None
-
-
-def judged_from(graph: TeamGraph, alternatives: list, times: list) -> list | None:
-    """Per start (the guess, then `alternatives` placed at node times `times`), the first of
-    `graph.steps` at which `SideBySide` may drop it: the step of its own node (0 for the guess);
-    None where `start_times` is."""
-    starts = start_times(alternatives, times)
-    if starts is None:
-        return None
-    step_times = np.array([t for t, _ in graph.steps])
-    return [0 if t is None else int(np.searchsorted(step_times, t - 1e-9)) for t in starts]
 
 
 def _prune(passes: list, alive: list, chi2: np.ndarray, unjudged: set = frozenset()) -> list:

@@ -1,23 +1,6 @@
-"""Is a solve to be trusted? The consistency verdict of every batch and online solve: the
-solution judged by its own measurement model, and what of the run it could not use.
-
-The test (`ConsistencyTest`), on the final estimate:
-- every factor type's normalized chi-square -- the squared whitened residuals without the
-  robust kernel over their dimension, of the factors the kernel keeps (its inliers,
-  `factor_statistics`) -- is at most `max_normalized_chi2`, over the team and over each
-  robot's factors of that type (`robot_statistics`) (about 1 where a type's stated noise is
-  right; above it, the residuals are larger than the noise the log states: a wrong noise
-  model, a wrong calibration, corrupted rows or a wrong solution);
-- every robust factor type has at most `max_downweighted_share` of its factors down-weighted
-  by the kernel (a solution that explains its measurements by calling many of them outliers);
-- every candidate stream (observer, target) has at most `max_inconsistent_share` of its sets
-  inconsistent (no pose of the target's layout passes the pixel chi-square,
-  `vision.marker_poses`).
-A run that fails is `consistent: false` with the failures named. Warnings (each one line naming
-the robot and the table) say what the solve could not use: a robot left unplaced, a candidate
-stream never decided, rows of a table skipped; they do not change `consistent`, and with
-`--strict` either makes the verb exit with `exitcodes.INCONSISTENT`.
-"""
+"""The consistency verdict of every solve (`judge`): per factor type and robot the normalized
+chi-square without the robust kernels and the share down-weighted, per candidate stream the
+share of inconsistent sets, and warnings for what the solve could not use (docs/outputs.md)."""
 
 from __future__ import annotations
 

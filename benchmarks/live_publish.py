@@ -1,8 +1,8 @@
-"""A bag's messages published as ROS 2 topics over Cyclone DDS (`scripts/publish_bag_ros2.py`,
-the loopback test and the live benchmark): the topics a topics file maps, in bag order, at
-their recorded rate (`rate` 1.0), faster, or as fast as they go (`rate` None). Each message is
-copied into its ROS 2 DDS type by field name (`graphloc.live.ros2_types.to_idl`), so a ROS 1
-bag's messages go out as their ROS 2 types."""
+"""A bag's or a log's messages published as ROS 2 topics over Cyclone DDS, for
+`scripts/publish_bag_ros2.py`, the loopback test and the live benchmark: the topics a topics
+file maps, in bag order, at their recorded rate (`rate` 1.0), faster, or as fast as they go
+(`rate` None). Each message is copied into its ROS 2 DDS type by field name
+(`graphloc.live.ros2_types.to_idl`), so a ROS 1 bag's messages go out as their ROS 2 types."""
 
 from __future__ import annotations
 
