@@ -38,9 +38,6 @@ class LiveGraph:
         self.points = PointBuilder(run, config)
         self.waiting = WaitingPoints(config.keyframe_dt)  # those waiting for their poses
         self.arrived: list = []  # every point measurement, in arrival order (the run's points)
-        self.pending: dict = {}  # step time -> [(order key, factor, type)]
-        self.emitted = -np.inf  # time of the last emitted step
-        self.carried: list = []  # factors whose newest pose is before `emitted`: the next step
         self.horizon = max(config.keyframe_dt / 2, config.sync_tolerance) + 1e-6
         self.made = [0, 0, 0]  # point factors, landmark guesses, sensor poses taken so far
         self.first_seen = np.inf  # earliest row time (the start of a run without odometry)
@@ -59,6 +56,7 @@ class LiveGraph:
             sensor_poses=self.points.sensors.poses,
         )
         self.graph.skips.merge(run.skips)
+        self.pending = StepQueue(self.graph)
         if self.start is not None:  # a static robot's one pose is at the start
             for robot in self.robots:
                 if robot.robot.static:
@@ -100,7 +98,7 @@ class LiveGraph:
         first = self.waiting.first_time()
         if first is not None:
             before = min(before, first - self.horizon)
-        return self._emit(lambda t: t <= end and t < before)
+        return self._emit(min(end, np.nextafter(before, -np.inf)))
 
     def finish(self) -> list:
         """Every row is in: the remaining steps."""
@@ -113,15 +111,15 @@ class LiveGraph:
             for robot in self.robots:
                 self._grow(robot)
         self._take_points(np.inf)
-        steps = self._emit(lambda t: True)
+        steps = self._emit(np.inf)
         graph = self.graph
-        for _, _, kind in self.carried:  # no step came after them
+        for _, _, kind in self.pending.carried:  # no step came after them
             graph.skips.add(
                 "after_last_step",
                 f"a {kind} factor on poses of steps already solved (a static robot's row) "
                 f"arrived after the last step: no step left to take it",
             )
-        self.carried = []
+        self.pending.carried = []
         graph.node_times = [robot.times.view.copy() for robot in self.robots]
         graph.anchored_from = {
             r: robot.times.view[0] for r, robot in enumerate(self.robots) if robot.times.n
@@ -187,7 +185,7 @@ class LiveGraph:
             steps.append((rel, c))
             initial[pose_key(r, k)] = initial[pose_key(r, k - 1)].compose(rel)
             f = between_factor(r, k - 1, k, rel, c, config)
-            self._pending(robot.times.view[k], (0, r, k), f, "odometry")
+            self.pending.add(robot.times.view[k], (0, r, k), f, "odometry", carry=True)
         self._anchors(robot, k0)
 
     def _anchors(self, robot: RobotState, k0: int) -> None:
@@ -195,7 +193,7 @@ class LiveGraph:
         on (`motion.robot_anchors`, in its order)."""
         made = robot_anchors(robot.r, robot.robot, self.config, robot.times.view, k0)
         for j, (t, f, kind) in enumerate(made):
-            self._pending(t, (1, robot.r, j), f, kind)
+            self.pending.add(t, (1, robot.r, j), f, kind, carry=True)
 
     def _take_points(self, watermark: float) -> None:
         """Point measurements whose poses are known (`WaitingPoints.take`), in arrival order,
@@ -213,7 +211,7 @@ class LiveGraph:
         points, initial, made = self.points, self.graph.initial, self.made
         for t, f, kind in points.made.factors[made[0] :]:
             made[0] += 1
-            self._pending(t, (2, 0, made[0]), f, kind)
+            self.pending.add(t, (2, 0, made[0]), f, kind, carry=True)
         guesses = points.landmark_guess  # dicts that only grow: the new items are the last
         for lkey, guess in islice(guesses.items(), made[1], None):
             if lkey not in initial:
@@ -224,27 +222,43 @@ class LiveGraph:
                 initial[key] = initial[body].compose(E)
         made[2] = len(points.sensors.poses)
 
-    def _pending(self, t: float, order: tuple, factor, kind: str) -> None:
-        if t <= self.emitted:  # on poses of steps already solved (static robots' rows pushed
-            self.carried.append((order, factor, kind))  # live): it joins the next step
-            return
-        self.pending.setdefault(float(t), []).append((order, factor, kind))
+    def _emit(self, bound: float) -> list:
+        return [self.pending.emit(t) for t in self.pending.due(bound)]
 
-    def _emit(self, complete) -> list:
-        """Steps of every pending time `complete(time)` is True for, in time order."""
-        due = sorted(t for t in self.pending if complete(t))
-        steps = []
-        for t in due:
-            if t <= self.emitted:  # `_pending` carries such factors to the next step
-                raise AssertionError(f"a factor at {t} after the step at {self.emitted}")
-            group = sorted(self.pending.pop(t), key=lambda item: item[0])
-            group, self.carried = self.carried + group, []
-            step = (t, [(f, kind) for _, f, kind in group])
-            self.graph.steps.append(step)
-            self.graph.factor_types += [kind for _, _, kind in group]
-            self.emitted = t
-            steps.append(step)
-        return steps
+
+class StepQueue:
+    """Factors waiting for their step, the time of their newest pose (`add`), emitted into
+    `graph.steps` in time order (`emit`), a step's factors in the order of their order keys; a
+    factor on a step already emitted that may be `carry`-ed (a static robot's row, whose one
+    pose is at the start) joins the next step."""
+
+    def __init__(self, graph: TeamGraph):
+        self.graph = graph
+        self.steps: dict = {}  # step time -> [(order key, factor, type)]
+        self.carried: list = []
+        self.emitted = -np.inf  # time of the last emitted step
+
+    def add(self, t: float, order: tuple, factor, kind: str, carry: bool = False) -> None:
+        if carry and t <= self.emitted:
+            self.carried.append((order, factor, kind))
+        else:
+            self.steps.setdefault(float(t), []).append((order, factor, kind))
+
+    def due(self, bound: float) -> list:
+        """The waiting step times up to `bound`, in time order."""
+        return sorted(t for t in self.steps if t <= bound)
+
+    def emit(self, t: float) -> tuple:
+        """The step at time t (the carried factors first) into the graph."""
+        if t <= self.emitted:
+            raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
+        group = sorted(self.steps.pop(t), key=lambda item: item[0])
+        group, self.carried = self.carried + group, []
+        step = (t, [(f, kind) for _, f, kind in group])
+        self.graph.steps.append(step)
+        self.graph.factor_types += [kind for _, _, kind in group]
+        self.emitted = t
+        return step
 
 
 def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:

@@ -70,7 +70,7 @@ class EventFeatures:
             k = events.clock.nearest(f.robot, f.time)
             time = events.clock.node_times[f.robot][k] if k >= 0 else np.nan
             for t, factor, kind in self.tracks.add(f, k, time):
-                events.pending_factor(t, (3, self.taken), factor, kind)
+                events.pending.add(t, (3, self.taken), factor, kind)
                 self.pixels_of[f.robot] = self.pixels_of.get(f.robot, 0) + 1
             self.taken += 1
 
@@ -80,24 +80,24 @@ class EventFeatures:
         ray is its initial value and the prior's mean (the track's point prior). A
         prior whose camera was not placed at its step waits (`waiting`) and enters with the
         step that placed it (`_placed_step`)."""
-        section, graph = self.tracks.section, events.graph
+        tracks, graph = self.tracks, events.graph
         new = []
-        while self.priors_done < len(section.point_priors):
-            if section.point_priors[self.priors_done][2] > t:
+        while self.priors_done < len(tracks.point_priors):
+            if tracks.point_priors[self.priors_done][2] > t:
                 break
             new.append(self.priors_done)
             self.priors_done += 1
         waiting, self.waiting = self.waiting, []
         for i in waiting + new:
-            lkey, sigma, time = section.point_priors[i]
-            landmark_initial(graph.initial, lkey, section.landmark_guess[lkey])
+            lkey, sigma, time = tracks.point_priors[i]
+            landmark_initial(graph.initial, lkey, tracks.landmark_guess[lkey])
             if lkey not in graph.initial:
                 self.waiting.append(i)
                 continue
             noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
             prior = gtsam.PriorFactorPoint3(lkey, graph.initial[lkey], noise)
-            at = _placed_step(graph, section.landmark_guess[lkey][1], time)
-            events.pending_factor(at, (9, i), prior, "feature_prior")
+            at = _placed_step(graph, tracks.landmark_guess[lkey][1], time)
+            events.pending.add(at, (9, i), prior, "feature_prior")
 
 
 def mixture_set(events, n: int, o) -> None:
@@ -137,18 +137,18 @@ def _mixture_set(events, o) -> None:
         entry = [MixtureTracker(tracked, config, r, ti), len(events.streams) + len(events.mixtures)]
         events.mixtures[(r, ti)] = entry
     tracker, index = entry
-    before = tracker.out.placed
+    before = tracker.placed
     k, kt = events.clock.nearest(r, o.time), events.clock.nearest(ti, o.time)
     tracker.add(o, k, kt, observer.steps)
     at = -np.inf
     for t, factor, kind in tracker.factor_times(events.clock.node_times):
         at = _placed_step(graph, r, t)
-        events.pending_factor(at, (4, index, len(tracker.out.outcomes), 0), factor, kind)
-        d = tracker.out.outcomes[-1]
+        events.pending.add(at, (4, index, len(tracker.outcomes), 0), factor, kind)
+        d = tracker.outcomes[-1]
         if d.mixture is not None and d.relative is not None:
             graph.links[pose_key(r, k)] = (pose_key(ti, kt), d.relative)
-    if before is None and tracker.out.placed is not None:
-        ((k_target, (_, k_observer, rel)),) = tracker.out.placed.items()
+    if before is None and tracker.placed is not None:
+        ((k_target, (_, k_observer, rel)),) = tracker.placed.items()
         initial_upto(graph, config, [observer], float(observer.times[k_observer]))
         pose = graph.initial[pose_key(r, k_observer)].compose(rel)
         seed_robot(graph, config, events.robots[ti], k_target, pose)

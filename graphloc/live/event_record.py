@@ -17,7 +17,7 @@ def record_graph(events) -> None:
     tracked = list(events.streams.values())
     ordered = sorted(
         [(i, t.out.outcomes, t.out.skips) for t, _, i in tracked]
-        + [(i, t.out.outcomes, t.out.made.skips) for t, i in events.mixtures.values()],
+        + [(i, t.outcomes, t.made.skips) for t, i in events.mixtures.values()],
         key=lambda item: item[0],
     )
     graph.decisions = [d for _, outcomes, _ in ordered for d in outcomes]
@@ -31,7 +31,7 @@ def record_graph(events) -> None:
             f"has an initial pose (no max-mixture places one through the other)",
             n,
         )
-    graph.skips.merge(events.features.tracks.section.made.skips)
+    graph.skips.merge(events.features.tracks.made.skips)
     graph.skips.merge(events.skips)
     points = events.points.builder
     graph.skips.merge(points.made.skips)
@@ -44,7 +44,7 @@ def record_graph(events) -> None:
         candidate_sets=len(events.arrived),
         marker_points=len(events.marker_points),
         committed_sets=sum(d.committed >= 0 for d in graph.decisions),
-        feature_tracks=events.features.tracks.section.tracks,
+        feature_tracks=len(events.features.tracks.tracks),
     )
 
 

@@ -159,7 +159,7 @@ class ScanLinks:
         anchored = self.events.graph.anchored_from
         t = max(t, anchored.get(a, -np.inf), anchored.get(b, -np.inf))
         self.count += 1
-        self.events.pending_factor(t, (5, self.count), factor, "scan_match")
+        self.events.pending.add(t, (5, self.count), factor, "scan_match")
 
 
 class _Initial:

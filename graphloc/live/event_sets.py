@@ -41,7 +41,7 @@ def take_set(events, n: int, o) -> None:
     for point, target, kt, local in made.frame_points:
         events.graph.frame_points[point] = (pose_key(target, kt), local)
     for j, (t, f, kind) in enumerate(made.factors):
-        events.pending_factor(t, (4, index, len(obs), j), f, kind)
+        events.pending.add(t, (4, index, len(obs), j), f, kind)
     _place(events, tracker, tracked)
 
 

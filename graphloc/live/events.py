@@ -12,6 +12,7 @@ from functools import partial
 import numpy as np
 
 from graphloc.io import SkipReport
+from graphloc.live.builder import StepQueue
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_camera import EventFeatures, camera_skips, release_circles
 from graphloc.live.event_placement import initial_upto, seed_robot, start_variants
@@ -73,9 +74,6 @@ class EventGraph:
         self.queue: deque = deque()  # candidate sets waiting for their poses, in arrival order
         self.arrived: list = []  # every candidate set, in arrival order
         self.marker_points: dict = {}
-        self.pending: dict = {}
-        self.carried: list = []  # point factors on poses of steps already emitted
-        self.emitted = -np.inf
         self.first_seen = np.inf
         self.skips = SkipReport()
         self.graph = TeamGraph(
@@ -93,6 +91,7 @@ class EventGraph:
         )
         self.graph.skips.merge(run.skips)
         self.graph.camera = camera
+        self.pending = StepQueue(self.graph)
         self.links = ScanLinks(self)  # the inter-robot scan registration
         for r, robot in enumerate(run.robots):  # held by the online pass until placed
             if robot.initial_pose is None:
@@ -167,7 +166,8 @@ class EventGraph:
             self._times(robot, watermark)
         self._take_motions(watermark)
         points, robots, tol = self.points, self.robots, self.config.sync_tolerance
-        points.take(self.clock, lambda r: final_end(robots[r], watermark), self.pending_factor)
+        carried = partial(self.pending.add, carry=True)  # a point row on a static robot's pose
+        points.take(self.clock, lambda r: final_end(robots[r], watermark), carried)
         self._take_sets(watermark)
         self.features.take(self, watermark)
         self.links.pairs(lambda r: final_end(self.robots[r], watermark))
@@ -248,7 +248,7 @@ class EventGraph:
         made = robot_anchors(robot.r, robot.robot, self.config, robot.times, robot.anchors_done)
         for t, f, kind in made:
             robot.anchor_count += 1
-            self.pending_factor(t, (1, robot.r, robot.anchor_count), f, kind)
+            self.pending.add(t, (1, robot.r, robot.anchor_count), f, kind)
         robot.anchors_done = len(robot.times)
 
     def _take_motions(self, watermark: float) -> None:
@@ -281,7 +281,7 @@ class EventGraph:
         nodes = range(k0, k1 + 1) if len(parts) > 1 else (k0, k1)
         for j, (x, y, (rel, cov)) in enumerate(zip(nodes[:-1], nodes[1:], parts)):
             f = between_factor(r, x, y, rel, cov, config)
-            self.pending_factor(times[max(x, y)], (0, r, index, j), f, "odometry")
+            self.pending.add(times[max(x, y)], (0, r, index, j), f, "odometry")
             if y == x + 1 and robot.steps[y] is None:
                 robot.steps[y] = (rel, cov)
 
@@ -300,14 +300,8 @@ class EventGraph:
             self.queue.popleft()
             take_set(self, n, o)
 
-    def pending_factor(self, t: float, order: tuple, factor, kind: str) -> None:
-        if order[0] == 2 and t <= self.emitted:  # a row between static robots, whose one pose
-            self.carried.append((order, factor, kind))  # is at the start: in the next step
-            return
-        self.pending.setdefault(float(t), []).append((order, factor, kind))
-
     def _emit(self, bound: float) -> list:
-        due = sorted(t for t in self.pending if t <= bound)
+        due = self.pending.due(bound)
         graph = self.graph
         if (due or bound == np.inf) and not np.isfinite(graph.precision):  # no candidate sets:
             motions = tuple(  # the steps so far
@@ -316,19 +310,11 @@ class EventGraph:
             graph.precision = run_precision(replace(self.run, motions=motions, observations=()))
         steps = []
         for t in due:
-            if t <= self.emitted:
-                raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
             initial_upto(graph, self.config, self.robots, t)
             self.points.initials(graph.initial, graph.guessed_alternatives)
             self.features.priors(self, t)
             self._frame_points()
-            group = sorted(self.pending.pop(t), key=lambda item: item[0])
-            group, self.carried = self.carried + group, []
-            step = (t, [(f, kind) for _, f, kind in group])
-            graph.steps.append(step)
-            graph.factor_types += [kind for _, _, kind in group]
-            self.emitted = t
-            steps.append(step)
+            steps.append(self.pending.emit(t))
         if bound == np.inf:
             initial_upto(graph, self.config, self.robots, np.inf)
             self.points.initials(graph.initial, graph.guessed_alternatives)

@@ -145,11 +145,6 @@ class LiveTeam:
                 self._release(released, self.window.front)
         self._raise_callback_error()
 
-    def push_many(self, robot: str, table: str, rows) -> None:
-        """Rows of one robot's table, in the order they arrived (`push` each)."""
-        for row in rows:
-            self.push(robot, table, row)
-
     # ---- out -------------------------------------------------------------------------------
 
     def latest(self, robot: str, covariance: bool = True) -> RobotPose | None:

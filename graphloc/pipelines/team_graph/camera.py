@@ -4,7 +4,6 @@ weak depth prior (seed 003 II-B, eq. 14; docs/design_team_graph.md, "Feature tra
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -12,42 +11,31 @@ import numpy as np
 from graphloc.factors.robust import robust_noise
 from graphloc.keys import frame_marker_key, landmark_key, marker_key, pose_key
 from graphloc.pipelines.team_graph.config import FEATURE_BASE, GraphConfig, cov6
-from graphloc.pipelines.team_graph.section import SectionFactors
+from graphloc.pipelines.team_graph.graph import SectionFactors
 from graphloc.run import TeamRun
-
-
-@dataclass
-class FeatureSection:
-    """The feature section's output: its factors and skips (`made`), each track's landmark
-    guess ('from' the first pose, on the first ray at the depth prior: key -> ('from', robot,
-    k, direction, range)), the tracks' point priors ((key, sigma, time) each: placed at the
-    guess once the poses' initial values exist) and the number of tracks."""
-
-    made: SectionFactors
-    landmark_guess: dict
-    point_priors: list
-    tracks: int
 
 
 class FeatureTracks:
     """Feature pixels fed one at a time (`add`), causally: a track's landmark, its guess and
-    its point prior come from the track's first pixel alone (module docstring); `section`: the
-    `FeatureSection` so far."""
+    its point prior come from the track's first pixel alone: `made` (factors, skips), each
+    track's landmark guess ('from' its first pose, on the first ray at the depth prior) and the
+    point priors ((key, sigma, time) each, placed at the guess once that pose has a value)."""
 
     def __init__(self, run: TeamRun, config: GraphConfig):
         self.run, self.config = run, config
         self.kernel = config.kernels.kernel("projection")
         self.tracks: dict = {}  # (robot, track) -> landmark key
         self.calibrations: dict = {}
-        self.section = FeatureSection(SectionFactors(), {}, [], 0)
+        self.made = SectionFactors()
+        self.landmark_guess: dict = {}
+        self.point_priors: list = []
 
     def add(self, f, k: int, time: float) -> list:
         """Pixel `f` at its robot's pose k (-1: none within the sync tolerance; a counted skip
         `no_pose_at_time`) at that pose's `time`: its projection factor ((time, factor,
         "projection"), returned too: [] when skipped), a new track's landmark guess and point
-        prior (`section`). A pixel that does not undistort is a counted skip `bad_pixel`."""
-        run, section = self.run, self.section
-        skips = section.made.skips
+        prior. A pixel that does not undistort is a counted skip `bad_pixel`."""
+        run, skips = self.run, self.made.skips
         if k < 0:
             skips.add(
                 "no_pose_at_time",
@@ -70,14 +58,13 @@ class FeatureTracks:
         if stream not in self.tracks:
             lkey = landmark_key(FEATURE_BASE + len(self.tracks))
             self.tracks[stream] = lkey
-            section.tracks = len(self.tracks)
             config = self.config
             depth, sigma = f.depth_prior or (config.feature_depth, config.feature_depth_sigma)
             ray = np.array([(ideal[0] - cam.cx) / cam.fx, (ideal[1] - cam.cy) / cam.fy, 1.0])
             p_body = f.body_T_sensor.transformFrom(ray * depth)
             rng = float(np.linalg.norm(p_body))
-            section.landmark_guess[lkey] = ("from", f.robot, k, p_body / rng, rng)
-            section.point_priors.append((lkey, sigma, time))
+            self.landmark_guess[lkey] = ("from", f.robot, k, p_body / rng, rng)
+            self.point_priors.append((lkey, sigma, time))
         noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, f.pixel_sigma), self.kernel)
         factor = gtsam.GenericProjectionFactorCal3_S2(
             gtsam.Point2(*ideal),
@@ -88,7 +75,7 @@ class FeatureTracks:
             f.body_T_sensor,
         )
         made = [(time, factor, "projection")]
-        section.made.factors += made
+        self.made.factors += made
         return made
 
 

@@ -26,7 +26,7 @@ from graphloc.pipelines.team_graph.decision import (
     same_pose,
 )
 from graphloc.pipelines.team_graph.motion import compose_steps, dead_reckoning
-from graphloc.pipelines.team_graph.section import SectionFactors
+from graphloc.pipelines.team_graph.graph import SectionFactors
 from graphloc.run import TeamRun
 from graphloc.seams import Decision, Odometry
 

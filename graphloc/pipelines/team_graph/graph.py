@@ -1,7 +1,6 @@
 """`TeamGraph`: a team run as one graph, its factors grouped in time steps with initial values
-(what the live builder, `graphloc.live.builder.build_live`, grows row by row and `solve` takes),
-and the helpers its builders share: alternative starts, sensor poses, factor keys, landmark
-initial values."""
+(what `graphloc.live.builder.build_live` grows row by row and `solve` takes); `SectionFactors`,
+what one section makes; and the helpers its builders share."""
 
 from __future__ import annotations
 
@@ -14,6 +13,26 @@ from graphloc.keys import pose_key
 from graphloc.factors.mixture import MaxMixture
 from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig
 from graphloc.run import TeamRun
+
+
+@dataclass
+class SectionFactors:
+    """What a section of the graph makes: factors (time of the newest pose, factor, type), the
+    skips it counted, a static target's new marker points (key -> world position: their
+    initial values) and a moving target's per-set points ((key, target, node, body-frame
+    position) each: their initial values come from the target's pose)."""
+
+    factors: list = field(default_factory=list)
+    skips: SkipReport = field(default_factory=SkipReport)
+    marker_points: dict = field(default_factory=dict)
+    frame_points: list = field(default_factory=list)
+
+    def merge(self, other: "SectionFactors") -> None:
+        """`other`'s factors, skips and points after these."""
+        self.factors += other.factors
+        self.skips.merge(other.skips)
+        self.marker_points.update(other.marker_points)
+        self.frame_points += other.frame_points
 
 
 @dataclass

@@ -16,7 +16,7 @@ from graphloc.factors.robust import GaussianChi2, residuals
 from graphloc.keys import decode, decode_many, pose_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
-from graphloc.pipelines.team_graph.predict import frame_point, predict, sensor_pose
+from graphloc.pipelines.team_graph.predict import on_body, predict
 from graphloc.pipelines.team_graph.rows import (
     grid_rows,
     grids_rows,
@@ -140,10 +140,9 @@ class Pass:
             for key in keys:
                 if key not in self.added:
                     decoded = decode(key)
-                    if self.mode == "online" and key in graph.frame_points:
-                        value = frame_point(graph, key, values, session, self.added)
-                    elif self.mode == "online" and key in graph.sensor_poses:
-                        value = sensor_pose(graph, key, values, session, self.added)
+                    on_pose = key in graph.frame_points or key in graph.sensor_poses
+                    if self.mode == "online" and on_pose:
+                        value = on_body(graph, key, values, session, self.added)
                     else:
                         value = predict(graph, key, decoded, self.latest, self.initial)
                     values.insert(key, value)

@@ -4,7 +4,6 @@ auxiliary sensor pose (docs/design_team_graph.md, "Point measurements")."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -23,7 +22,7 @@ from graphloc.factors.range_bearing import (
 from graphloc.factors.robust import robust_noise
 from graphloc.keys import landmark_key, pose_key, sensor_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE, GraphConfig
-from graphloc.pipelines.team_graph.section import SectionFactors
+from graphloc.pipelines.team_graph.graph import SectionFactors
 from graphloc.run import TeamRun
 
 
@@ -99,25 +98,11 @@ def body_frame_points(points: list, at_meas: np.ndarray, at_frame: np.ndarray) -
     return [(local[j] / rng[j], float(rng[j])) for j in range(len(points))]
 
 
-@dataclass
-class PointSection:
-    """The point section's output: its factors and skips (`made`), the landmarks' initial
-    guesses (key -> position or ('from', robot, k, direction, range)), the number of landmark
-    anchors, the number of measurements the options leave out, and the offset bearings'
-    sensor poses (sensor key -> (body pose key, body_T_sensor), `SensorPoses.poses`)."""
-
-    made: SectionFactors
-    landmark_guess: dict
-    n_anchor: int
-    excluded: int
-    sensor_poses: dict
-
-
 class PointBuilder:
     """The point section, one measurement at a time, in the run's order (`add`): its factors
     and skips (`made`), the landmarks' initial guesses, the anchors made, the measurements the
-    options leave out and the offset bearings' sensor poses. `point_factors` feeds it the whole
-    run; the live builder (`graphloc.live.builder`) each measurement once its poses exist."""
+    options leave out and the offset bearings' sensor poses; the live builders feed it each
+    measurement once its poses exist."""
 
     def __init__(self, run: TeamRun, config: GraphConfig):
         self.run, self.config = run, config
@@ -222,8 +207,3 @@ class PointBuilder:
                     "inter_robot",
                 )
             )
-
-    def section(self) -> PointSection:
-        return PointSection(
-            self.made, self.landmark_guess, self.n_anchor, self.excluded, self.sensors.poses
-        )
