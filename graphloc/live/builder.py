@@ -262,11 +262,9 @@ class StepQueue:
 
 
 def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:
-    """A loaded run's graph built by `LiveGraph` (each robot's odometry at once, then the
-    point measurements in the run's order: the graph does not depend on how the rows are split
-    into calls) on the wheel route, an event-clocked run's by `live.event_rows.build_events`
-    (`coverage.route`): the graph `graphloc smooth` / `online` solve (`runner.team_run.team_graph`)
-    and the live API's; rows a live team could not take as they come are counted skips."""
+    """A loaded run's graph, built as the live team builds it (`coverage.route`): by `LiveGraph`
+    (each robot's odometry at once, then the point measurements in the run's order) or
+    `event_rows.build_events`; what `graphloc smooth` / `online` solve."""
     if route(run, run_tables(run)) == "event":  # event-clocked robots (`live.events`)
         from graphloc.live.event_rows import build_events
 

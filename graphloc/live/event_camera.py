@@ -75,11 +75,9 @@ class EventFeatures:
             self.taken += 1
 
     def priors(self, events, t: float) -> None:
-        """The point priors of tracks whose first pixel's step is at or before t, once that
-        pose has its initial value (`initial_upto` ran to t): the landmark's guess on the first
-        ray is its initial value and the prior's mean (the track's point prior). A
-        prior whose camera was not placed at its step waits (`waiting`) and enters with the
-        step that placed it (`_placed_step`)."""
+        """The point priors of tracks whose first pixel's step is at or before t, at the landmark's
+        guess once that pose has its initial value; a prior whose camera was not placed then waits
+        for the step that places it (`_placed_step`)."""
         tracks, graph = self.tracks, events.graph
         new = []
         while self.priors_done < len(tracks.point_priors):
@@ -101,10 +99,8 @@ class EventFeatures:
 
 
 def mixture_set(events, n: int, o) -> None:
-    """Candidate set n (`o`) of an observer on a target without an initial pose, through its
-    stream's `MixtureTracker` (module docstring); the target placed at its first usable
-    sighting. An observer not placed yet: the set waits (`events.held_circles`) until it is,
-    then the held sets go first (`release_circles`)."""
+    """Candidate set n (`o`) of an observer on a target without an initial pose through its stream's
+    `MixtureTracker`; an observer not placed yet holds it (`events.held_circles`) until it is."""
     if events.robots[o.robot].seed is None:
         events.held_circles.setdefault(o.robot, []).append((n, o))
         return

@@ -1,10 +1,6 @@
 """Where event-clocked robots start (`live.events.EventGraph`): a robot placed at a known or
-decided pose (`seed_robot`: `motion.place_robot`'s seeds, its earlier poses carried back along
-its steps; the pose a marker-pixel stream's placing set gives, `stream_placement`), the initial
-values of placed robots' later poses carried forward (`initial_upto`), and the alternative
-placements a solve starts from too (`alternative_placements`: the pixel streams', the
-candidates of their first set as `candidates.place_observers` makes them, and the resected
-robots', `live.event_points`, grown with their poses: `start_variants`)."""
+decided pose (`seed_robot`), initial values carried along its steps (`initial_upto`), and the
+alternative placements a solve starts from too (`start_variants`, `alternative_placements`)."""
 
 from __future__ import annotations
 
@@ -18,11 +14,9 @@ from graphloc.pipelines.team_graph.motion import step_or_unknown
 
 
 def seed_robot(graph: TeamGraph, config: GraphConfig, robot: EventRobot, k: int, pose) -> None:
-    """A known or decided pose of robot at node k (`motion.place_robot`'s seeds): the first
-    places the robot, its earlier poses carried back along its steps; a later one is the
-    initial value at k. A pose at a node before the placement (another stream's decision, or a
-    decision after a placement by bearings or registration, arriving later) comes after that
-    node's initial value was carried back and used: its factors stand, its pose is not a seed."""
+    """A known or decided pose of robot at node k: the first places the robot, its earlier poses
+    carried back along its steps; a later one is the initial value at k, one before the placement is
+    no seed."""
     if k in robot.placed or (robot.seed is not None and k < robot.seed):
         return
     robot.placed[k] = pose
@@ -67,12 +61,9 @@ def initial_upto(graph: TeamGraph, config: GraphConfig, robots: list, t: float) 
 
 
 def start_variants(graph: TeamGraph, config: GraphConfig, robot: EventRobot, starts: list) -> None:
-    """A robot placed by a guess (`event_points`: resection; a marker-pixel stream never
-    decided in its first `guess_after_sets` sets, `event_sets`): every start (node, world_T_body)
-    an alternative of its poses so far, carried along its steps as `graph.alternative_starts`
-    carries them, and grown with its poses (`initial_upto`); the online solve runs them as
-    hypotheses from when they are made (`graph.guessed_alternatives`), each judged from its
-    own node's time (`graph.guessed_alternative_times`)."""
+    """A robot placed by a guess (resection, or a pixel stream undecided after `guess_after_sets`
+    sets): every start (node, world_T_body) an alternative the online solve runs as a hypothesis,
+    carried along the robot's steps as its poses grow, judged from its own node's time."""
     r = robot.r
     robot.variant_starts += starts
     for k0, body in starts:

@@ -94,11 +94,9 @@ class EventRows:
                 self.events.motion(m)
 
     def _start(self, final: bool = False) -> float | None:
-        """The run's start once known: the manifest's, else (wheel robots) the latest first
-        odometry row of the robots with an odometry table (`graphloc_log.team_run`), once each
-        has one (`final`: of those that have one), else the event route's own (the first
-        relative pose's). The relative poses held until then go in, then every wheel robot's
-        steps so far."""
+        """The run's start once known: the manifest's, else the latest first odometry row of the
+        wheel robots once each has one (`final`: of those that have one), else the event route's
+        own; the held relative poses, then the wheel steps so far, go in."""
         events = self.events
         if events.start is not None or not self.wheels:
             return events.start
@@ -190,11 +188,8 @@ class EventRows:
         return f"robot {self.robots[r].name!r}, table 'features', row {row.line}"
 
     def _sets(self, watermark: float) -> None:
-        """The images, logged sets and ellipses before `watermark` as candidate sets, in the
-        loader's order (marker sets, logged ones, circles; by time and observer), the feature
-        pixels before it (`camera_tables.single_tracks`, `feature_observations`) and the point
-        rows before it, into the graph in time order (a point row arrives before the sets of
-        an earlier image, made once the window passes it)."""
+        """The images, logged sets and ellipses before `watermark` as candidate sets in the loader's
+        order, the feature pixels and point rows before it: into the graph in time order."""
         manifest, noise = self.setup.manifest, self.setup.noise
         out: list = []
         done = [m for m in self.markers if m[0] < watermark]
@@ -235,12 +230,9 @@ class EventRows:
 
 
 def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
-    """A loaded run's graph built by `EventGraph` (its relative poses, wheel robots' grid
-    steps, candidate sets and point measurements merged in time order, a relative pose at its
-    end time, a grid step at the odometry row that completes it: `wheel_steps`): the graph
-    `graphloc online` solves for an event-clocked run (`coverage.route`). steps: None, or a
-    list that gets, after each row, the steps it completed (`advance` at the row's time: the
-    live order)."""
+    """A loaded run's graph built by `EventGraph`: its relative poses, wheel robots' grid steps,
+    scans, candidate sets, pixels and point measurements merged in time order. steps: None, or a
+    list that gets the steps each row completed (`advance` at its time: the live order)."""
     wheel = wheel_motions(run, config)
     stamped = {m.robot for m in run.motions} | {m.robot for _, m in wheel}
     observers = {o.robot for o in run.observations}

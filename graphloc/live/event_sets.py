@@ -46,16 +46,10 @@ def take_set(events, n: int, o) -> None:
 
 
 def _place(events, tracker, tracked) -> None:
-    """The observer's placement by one tracked set (the one causal rule, `live.events`):
-    a decided set places it -- a stream without pixels at each decided set, a pixel stream
-    only while nothing placed it --; a scanning observer is registered from the stream's
-    hypotheses (`event_scans.ScanLinks.place`); a pixel stream none of whose first
-    `GraphConfig.guess_after_sets` sets was decided places an observer still unplaced by the
-    tracker's best guess at that set (a stream that ends before that many: at its last set,
-    when the run ends) (`event_placement.stream_placement`), every candidate of
-    that set an alternative placement the online solve runs as a hypothesis too
-    (`event_placement.start_variants`): the guess may be a wrong candidate, which the later
-    sets' pixels tell apart."""
+    """The observer's placement by one tracked set (docs/design_team_graph.md, "The event route:
+    causality and placement"): a decided set, a registration from the stream's hypotheses, or a
+    pixel stream's guess at its `guess_after_sets`-th set (at its last when the run ends sooner),
+    every candidate of that set a hypothesis."""
     r, pixels = tracked.observation.robot, tracker.out.pixel_route
     robot = events.robots[r]
     if tracked.decided and not (pixels and robot.placed):

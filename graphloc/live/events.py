@@ -54,12 +54,10 @@ class EventGraph:
         camera=False,
         wheels=frozenset(),
     ):
-        """stamped: the robots with a relative-pose table (their pose times at its stamps);
-        observers: those with candidate sets (markers, candidates, ellipses); camera: the run
-        has feature or ellipse tables (`TeamGraph.camera`); wheels: the stamped robots whose
-        relative poses are wheel-odometry grid steps (`live.wheel_steps`). iSAM2's precision:
-        FINE_PRECISION with candidate sets, else `run_precision` of the relative poses (not the
-        wheel steps: a wheel run is COARSE, `run_precision`) before the first step."""
+        """stamped: robots whose pose times are at relative-pose stamps; observers: robots with
+        candidate sets; camera: `TeamGraph.camera`; wheels: the stamped robots whose relative poses
+        are wheel grid steps. iSAM2's precision: FINE_PRECISION with candidate sets, else
+        `run_precision` of the relative poses before the first step."""
         self.run, self.config, self.wheels = run, config, frozenset(wheels)
         self.points = EventPoints(run, config, set(observers))
         self.start = start_time
@@ -186,11 +184,8 @@ class EventGraph:
         return self._emit(bound)
 
     def finish(self) -> list:
-        """Every row is in: the remaining steps, the graph's counts, decisions and
-        alternatives. A pixel stream that ended undecided before `guess_after_sets` sets places
-        its observer at its last set by the tracker's guess (`event_sets._place`). A robot
-        nothing placed (a stream without pixels never decided) is a counted skip
-        `unanchored_robot`: its factors stay held."""
+        """Every row is in: the remaining steps, the graph's counts, decisions and alternatives; a
+        robot nothing placed is a counted `unanchored_robot`, its factors held."""
         for robot in self.robots:
             robot.finished = True
         if self.start is None and np.isfinite(self.first_seen):
@@ -215,11 +210,9 @@ class EventGraph:
                 self._anchors(robot)
 
     def _times(self, robot: EventRobot, watermark: float) -> None:
-        """Robot's new final pose times: the whole-run rule (`motion.node_times`) over the rows
-        that can shape times after its last final one -- the relative poses ending within the
-        longest step before it and the measurements after it (a pose time t depends on the
-        stamps and steps around t only) --, cut at what is final. Rows that would change a
-        final time are refused as they arrive (`motion`, `observation`)."""
+        """Robot's new final pose times: poses at its relative-pose stamps and at measurements
+        inside a step (else at its measurements), over the rows that can shape times after its last
+        final one, cut at what is final."""
         if robot.robot.static:
             return
         end = final_end(robot, watermark)

@@ -1,14 +1,7 @@
-"""ROS 2 message types on the wire without a ROS installation: Cyclone DDS IDL structs
-(`cyclonedds.idl.IdlStruct`) generated from rosbags' ROS 2 Humble type store, the one schema
-`graphloc import` reads bags with (plus vision_msgs 4, `datasets.rosbag_export.typestore`).
-ROS 2's DDS names (rmw_cyclonedds): topic `/a/b` -> `rt/a/b`, type `pkg/msg/T` ->
-`pkg::msg::dds_::T_`.
-
-`idl_type(msgtype)` is the struct of one ROS 2 type (its nested types generated on the way);
-`to_idl(msg, msgtype)` copies a rosbags message (ROS 1 or ROS 2, e.g. from a bag) into it by
-field name; `as_message(msgtype, sample)` is the one seam where a received sample is adapted to
-what `graphloc.datasets.rosbag_messages` reads from rosbags' messages (byte buffers as uint8
-arrays), so bags and live topics share one converter."""
+"""ROS 2 message types on the wire without a ROS installation: Cyclone DDS IDL structs generated
+from rosbags' ROS 2 type store, the one schema of `graphloc import` (`idl_type`), rosbags
+messages copied into them (`to_idl`) and received samples adapted back (`as_message`), so bags
+and live topics share one converter."""
 
 from __future__ import annotations
 

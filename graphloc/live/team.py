@@ -1,16 +1,11 @@
 """`LiveTeam`: a running team's rows pushed as they arrive, one iSAM2 update per completed time
-step, each robot's latest pose (with its marginal covariance when asked) after every update.
+step, each robot's latest pose (with its marginal covariance when asked) after every update
+(docs/api.md, "Live").
 
     team = graphloc.LiveTeam.open("runs/team1", options=graphloc.RunOptions(), window=0.5)
-    team.subscribe(lambda update: print(update.time, update.poses))
     team.push("robot1", "odometry", {"time": 12.0, "sensor": "wheels", "v": 0.2, "omega": 0.0})
-    team.latest("robot1")  # RobotPose: time, gtsam.Pose3, 6x6 covariance (or None)
     result = team.finish()  # the TeamResult `solve(graph, mode="online")` gives
-
-Rows (docs/log_format.md columns, text or numbers) are checked (`rows.RowChecker`), held for
-`window` seconds and released in time order (`rows.TimeWindow`), built into the team graph
-(`builder.LiveGraph`) and solved step by step by the online pass of `graphloc online`
-(`team_graph.passes.Pass`)."""
+"""
 
 from __future__ import annotations
 
@@ -261,10 +256,9 @@ class LiveTeam:
         self._solve(builder.advance(front))
 
     def _solve(self, steps: list) -> None:
-        """Solve every step the builder emitted and the pass has not solved yet (`steps`: the
-        new ones; the passes catch up on any step left behind). A robot placed by a guess adds
-        a pass per alternative start as the builder makes them (`SideBySide.add`), compared
-        after every step."""
+        """Solve every step the builder emitted that the passes have not (`steps`: the new ones); a
+        robot placed by a guess adds a pass per alternative start as the builder makes them
+        (`SideBySide.add`)."""
         while self.graph.steps and self._solver().done < len(self.graph.steps):
             t0, cpu0 = _time.perf_counter(), _time.process_time()
             solver = self.solver

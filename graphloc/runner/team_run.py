@@ -1,13 +1,6 @@
-"""`run_team`: one team run from its source to its outputs -- read (`graphloc.datasets.open_run`),
-graph (`team_graph`: `live.builder.build_live`, the live API's incremental builder, in batch
-and online alike), solve (`team_graph.solve`, batch or online), judge (`report.evaluate`:
-metrics and the consistency verdict), write (`report.write_outputs`) --, the one route
-`graphloc smooth` / `online` (and so `graphloc.many_runs`) and the Python API take.
-
-    from graphloc import RunOptions, run_team
-    outcome = run_team("runs/team1", "out/team1", "batch", RunOptions(lag=30.0))
-    outcome.metrics["consistent"], outcome.result.estimate[0]
-"""
+"""`run_team`: one team run from its source to its outputs -- read (`datasets.open_run`), graph
+(`team_graph`), solve (`team_graph.solve`), judge and write (`pipelines.report`) -- the route of
+`graphloc smooth` / `online` and of the Python API (docs/api.md)."""
 
 from __future__ import annotations
 
@@ -88,13 +81,8 @@ def run_team(
 
 
 def team_graph(run, config):
-    """The graph `run_team` solves, batch and online alike: the live API's incremental builder
-    (`live.builder.build_live`) fed the run's whole tables -- the wheel route (`LiveGraph`:
-    wheel-odometry robots, MRCLAM) or the event route (`live.events.EventGraph`: relative poses,
-    scans, candidate sets, circle sets, feature tracks, bearings, with the wheel robots' odometry
-    as grid steps) --, so that `graphloc smooth`, `graphloc online` and `graphloc live` build one
-    graph from the same rows. What a live team cannot use is a counted skip, never the whole run
-    refused."""
+    """The graph `run_team` solves, batch and online alike: `live.builder.build_live`, the live
+    team's builder fed the run's whole tables."""
     from graphloc.live.builder import build_live
 
     return build_live(run, config)

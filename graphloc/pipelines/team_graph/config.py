@@ -101,19 +101,9 @@ class GraphConfig:
     def session_config(
         self, mode: str, precision: float = COARSE_PRECISION, camera_graph: bool = False
     ) -> SessionConfig:
-        """Session settings; iSAM2's settings, unless set, follow the run's `precision` (see
-        `run_precision`): relinearize when a variable's update exceeds half of it, stop the
-        back-substitution where the solution changes by less than a tenth of it, and on
-        camera-precise runs two extra iSAM2 iterations per step (robust candidate factors need
-        iterations to reweight; such runs have few steps). A graph with feature tracks or
-        max-mixtures (`camera_graph`) relinearizes at every update (a new track's point starts
-        at the depth prior, far from its estimate, and a max-mixture is re-chosen only when its
-        variables are relinearized) with the dog-leg step (the undamped Gauss-Newton step
-        can oscillate with period 2 on such stiff camera graphs). On a coarse run without them
-        translations and points relinearize at a fifth of the precision (2 cm on MRCLAM), the
-        rotations at half of it (0: one threshold): half of a decimetre is close to the error
-        of the estimate itself, and a fixed lag marginalizes states linearized that far off
-        (MRCLAM6, lag 30 s: scripts/bench_scale.py, "Relinearization")."""
+        """Session settings; iSAM2's thresholds, unless set, follow the run's `precision`
+        (`run_precision`); a graph with feature tracks or max-mixtures (`camera_graph`) relinearizes
+        at every update with the dog-leg step (docs/design_team_graph.md, "iSAM2 settings")."""
         relin = (
             self.relinearize_threshold
             if self.relinearize_threshold is not None
@@ -157,13 +147,9 @@ def adjoint_cov(T: gtsam.Pose3, cov: np.ndarray) -> np.ndarray:
 
 
 def run_precision(run: TeamRun) -> float:
-    """The scale [m, rad] of the run's estimates, for iSAM2's thresholds: FINE_PRECISION when
-    the run holds candidate sets (camera poses from pixels: the fused estimate is mm-precise even
-    where one P3P candidate is cm-precise along its depth); else the median translation std of
-    one relative-pose step (SE(3) odometry, scan matching) where the run has them, within
-    FINE_PRECISION and COARSE_PRECISION: an estimate relinearized more coarsely than its own
-    steps leaves their residuals beyond their noise; else COARSE_PRECISION (wheel odometry and
-    range-bearing, decimetre-level)."""
+    """The scale [m, rad] of the run's estimates that iSAM2's thresholds follow: FINE_PRECISION with
+    candidate sets, else the median translation std of one relative-pose step (within FINE and
+    COARSE), else COARSE_PRECISION."""
     if run.observations:
         return FINE_PRECISION
     steps = [np.sqrt(np.trace(m.covariance[3:, 3:]) / 3) for m in run.motions]
@@ -173,11 +159,9 @@ def run_precision(run: TeamRun) -> float:
 
 
 def default_lag(run, config: GraphConfig) -> float:
-    """The online lag when none is given: DEFAULT_LAG when every variable is only needed
-    near its own time -- no static robot (its one pose is observed all run long) and no
-    landmark estimated as one variable (SLAM) -- else 0 (full smoothing): the fixed-lag
-    smoother stamps a variable once (`graphloc.session.SessionConfig`), so a long-lived one
-    would leave the window and every later factor on it would be dropped."""
+    """The online lag when none is given: DEFAULT_LAG unless a variable must outlive the window -- a
+    static robot's one pose, a landmark estimated as one variable (SLAM) --, then 0 (full
+    smoothing)."""
     static = any(r.static for r in run.robots)
     slam = config.use_landmarks and not (
         config.landmark_priors and run.landmarks_known and config.anchor_known_landmarks

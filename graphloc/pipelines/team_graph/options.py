@@ -1,11 +1,6 @@
-"""`RunOptions`: the one option tree of `graphloc smooth`, `online` and `validate` -- the
-command-line options, the `--config FILE.toml` keys and the `metrics.json` "options" are its
-fields (`graphloc.config.add_config_arguments` / `config_from_args`), their rules pydantic
-field constraints (`graphloc.config.config_dataclass`). What it turns into: the
-loader's `duration`, source options (`source`: a bag's topics file, a scan directory's rate)
-and sensor-noise overrides (`noise`), the `GraphConfig` (`graph_config`), the online lag and
-the extra outputs. Light (no GTSAM): the command line's options derive from it, and the online
-lag's default (`DEFAULT_LAG`, the policy in `team_graph.config.default_lag`) is stated here."""
+"""`RunOptions`: the one option tree of `graphloc smooth`, `online` and `validate` (command-line
+options, `--config` keys and metrics.json's "options"), turned into the loader's options, the
+noise overrides and the `GraphConfig`. Light (no GTSAM), with the online lag's default."""
 
 from __future__ import annotations
 

@@ -21,13 +21,10 @@ MAX_CHECKS = 200  # hypotheses are compared at most this many times over a run (
 
 
 class SideBySide:
-    """Passes of `graph` in `mode` from each of `starts` (key -> value over the graph's guess,
-    read as the graph grows; None: the guess). `step(i)` steps every live pass through graph
-    step i and compares them after the first EARLY_CHECKS steps, every `stride`-th one and
-    the `last`; `result()` the best surviving pass, each pose's causal estimate from the pass
-    best when it entered, the others' final values in `survivors`. times: per start, the
-    node time it was placed at (`start_times`; None, or a None entry: judged from the first
-    step): a pass is not dropped on a step before that time (`_prune`'s `unjudged`)."""
+    """Passes of `graph` in `mode` from each of `starts` (key -> value over the graph's guess; None:
+    the guess): `step(i)` steps them and compares them (the first EARLY_CHECKS steps, every
+    `stride`-th, the `last`), `result()` the best; times: per start the node time before which it is
+    not dropped (`start_times`)."""
 
     def __init__(
         self,
@@ -140,11 +137,9 @@ def start_times(alternatives: list, times: list) -> list | None:
 
 
 def _prune(passes: list, alive: list, chi2: np.ndarray, unjudged: set = frozenset()) -> list:
-    """Hypotheses compared by chi-square (`solve`); one more than PRUNE_CHI2 behind the best is
-    first given up to SETTLE_UPDATES more iSAM2 iterations, as is the best (an update takes one
-    Gauss-Newton step, and a pass far from its minimum is no evidence against it), and dropped
-    if it is still behind; those in `unjudged` are kept whatever their chi-square. Updates
-    `chi2` of the passes compared."""
+    """Hypotheses compared by chi-square: one more than PRUNE_CHI2 behind the best gets up to
+    SETTLE_UPDATES more iSAM2 iterations, as does the best, and is dropped if still behind (those in
+    `unjudged` are kept); updates `chi2`."""
     for j in alive:
         chi2[j] = passes[j].current_chi2()[0]
     best = min(alive, key=lambda j: chi2[j])

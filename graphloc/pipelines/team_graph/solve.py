@@ -71,13 +71,9 @@ def hypotheses(
     on_stop=None,
     times: list | None = None,
 ) -> TeamResult:
-    """Online passes of `graph` from each of `starts` (key -> value over the graph's guess;
-    None: the guess) side by side, step by step, compared and pruned by chi-square (`solve`,
-    `side_by_side.SideBySide`: compared after each of the first steps, then MAX_CHECKS times
-    over the run and at its end; a start placed at node time `times[j]` not dropped before
-    that node's step, `side_by_side.start_times`). Returns the best surviving pass, its causal
-    estimates chosen per pose, and the others that survived in `TeamResult.survivors` (their
-    final values)."""
+    """Online passes of `graph` from each of `starts` side by side (`side_by_side.SideBySide`,
+    compared MAX_CHECKS times over the run): the best surviving pass, its causal estimates chosen
+    per pose, the others' final values in `TeamResult.survivors`."""
     n = len(graph.steps)
     passes = SideBySide(graph, mode, starts, stop, stride=max(1, n // MAX_CHECKS), times=times)
     start = _time.perf_counter()
