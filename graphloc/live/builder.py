@@ -19,7 +19,7 @@ from graphloc.pipelines.team_graph.config import GraphConfig, run_precision
 from graphloc.pipelines.team_graph.graph import TeamGraph, count_graph, landmark_initial
 from graphloc.pipelines.team_graph.motion import between_factor, robot_anchors
 from graphloc.pipelines.team_graph.points import PointBuilder
-from graphloc.run import TeamRun, planar_covariance, pose_from_planar
+from graphloc.run import TeamRun
 
 
 class LiveGraph:
@@ -156,35 +156,24 @@ class LiveGraph:
                 self._grow(robot)
 
     def _grow(self, robot: RobotState) -> None:
-        """New pose times of a robot (its grid up to its last odometry row; a static robot's
-        one pose), each step integrated, its factors and dead-reckoned initial value made."""
-        config, r = self.config, robot.r
+        """New pose times of a robot (its grid up to its last odometry row: `WheelSteps`; a
+        static robot's one pose), each step's factor and dead-reckoned initial value made."""
+        config, r, k0 = self.config, robot.r, robot.times.n
         if robot.robot.static:
-            n = 1
-        elif robot.velocity.n:
-            end = robot.velocity.view[-1, 0]
-            n = max(int(np.floor((end - self.start) / config.keyframe_dt + 1e-9)) + 1, 1)
+            steps, n = [], 1
         else:
-            return
-        k0 = robot.times.n
+            steps, n = robot.wheel.steps(self.start), robot.wheel.nodes
         if n <= k0:
             return
-        new = self.start + config.keyframe_dt * np.arange(k0, n)
-        robot.times.append(new)
+        robot.times.append(self.start + config.keyframe_dt * np.arange(k0, n))
         self.graph.node_times[r] = robot.times.view
-        initial, steps = self.graph.initial, self.graph.step_rel[r]
-        if robot.robot.static:
-            deltas, covs = np.zeros((0, 3)), np.zeros((0, 3, 3))
-        else:
-            _, deltas, covs = robot.steps.advance(new)
+        initial, step_rel = self.graph.initial, self.graph.step_rel[r]
         if k0 == 0:
             initial[pose_key(r, 0)] = robot.robot.initial_pose
-        for j, (d, c) in enumerate(zip(deltas, planar_covariance(covs))):
-            k = k0 + j + (k0 == 0)
-            rel = pose_from_planar(*d)
-            steps.append((rel, c))
-            initial[pose_key(r, k)] = initial[pose_key(r, k - 1)].compose(rel)
-            f = between_factor(r, k - 1, k, rel, c, config)
+        for k, (_, m) in enumerate(steps, start=max(k0, 1)):
+            step_rel.append((m.relative, m.covariance))
+            initial[pose_key(r, k)] = initial[pose_key(r, k - 1)].compose(m.relative)
+            f = between_factor(r, k - 1, k, m.relative, m.covariance, config)
             self.pending.add(robot.times.view[k], (0, r, k), f, "odometry", carry=True)
         self._anchors(robot, k0)
 

@@ -1,7 +1,6 @@
-"""One wheel-odometry robot's live state in `live.builder.LiveGraph`: its odometry rows and pose
-times (`GrowingArray`), its steps' integration (`live.arc.ArcIntegrator`) and the dead reckoning
-its range-bearing rows are re-expressed with (`RangeBearingFrames`), each carried forward as
-rows arrive."""
+"""One wheel-odometry robot's live state in `live.builder.LiveGraph`: its odometry rows and grid
+steps (`wheel_steps.WheelSteps`), pose times, and the dead reckoning its range-bearing rows are
+re-expressed with (`RangeBearingFrames`), each carried forward as rows arrive."""
 
 from __future__ import annotations
 
@@ -10,31 +9,12 @@ from collections import OrderedDict
 
 import numpy as np
 
-from graphloc.live.arc import ArcIntegrator
+from graphloc.live.arc import ArcIntegrator, GrowingArray
+from graphloc.live.wheel_steps import WheelSteps
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.motion import velocity_noise
 from graphloc.pipelines.team_graph.points import body_frame_points
 from graphloc.run import TeamRun
-
-
-class GrowingArray:
-    """A growable float array (amortized appends) with its filled part as a view."""
-
-    def __init__(self, width: int = 0):
-        self.shape = (width,) if width else ()
-        self.data = np.zeros((64, *self.shape))
-        self.n = 0
-
-    def append(self, rows: np.ndarray) -> None:
-        rows = np.asarray(rows, dtype=float).reshape(-1, *self.shape)
-        while self.n + len(rows) > len(self.data):
-            self.data = np.concatenate([self.data, np.zeros_like(self.data)])
-        self.data[self.n : self.n + len(rows)] = rows
-        self.n += len(rows)
-
-    @property
-    def view(self) -> np.ndarray:
-        return self.data[: self.n]
 
 
 class RangeBearingFrames:
@@ -87,11 +67,11 @@ class RobotState:
 
     def __init__(self, r: int, robot, run: TeamRun, config: GraphConfig):
         self.r, self.robot = r, robot
-        self.velocity = GrowingArray(3)
+        self.wheel = WheelSteps(r, run, config)
+        self.velocity = self.wheel.rows
         self.times = GrowingArray()
         self.finished = False
         noise = velocity_noise(run, r, config)
-        self.steps = ArcIntegrator(lambda: self.velocity.view, noise)
         self.frames = RangeBearingFrames(lambda: self.velocity.view, noise)
 
     @property

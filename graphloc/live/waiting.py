@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphloc.live.robot_state import GrowingArray, RobotState
+from graphloc.live.arc import GrowingArray
+from graphloc.live.robot_state import RobotState
 
 
 class WaitingPoints:

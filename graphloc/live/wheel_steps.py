@@ -1,13 +1,13 @@
-"""A wheel-odometry robot on the event route: its odometry integrated over the wheel route's
-pose grid (`live.arc.ArcIntegrator`, bit for bit whatever the split), one relative pose per
-grid step once its odometry reaches the step's end."""
+"""A wheel-odometry robot's grid steps on both routes (`LiveGraph`'s pose grid, the event route's
+relative poses): its odometry integrated over the grid start + k keyframe_dt
+(`live.arc.ArcIntegrator`, bit for bit whatever the split), each step made once its odometry
+reaches the step's end."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from graphloc.live.arc import ArcIntegrator
-from graphloc.live.robot_state import GrowingArray
+from graphloc.live.arc import ArcIntegrator, GrowingArray
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.motion import velocity_noise
 from graphloc.run import Motion, TeamRun, planar_covariance, pose_from_planar
@@ -41,7 +41,7 @@ class WheelSteps:
         if not len(times):
             return []
         self.seen = self.rows.n
-        # nodes that exist once each row has arrived (`LiveGraph._grow`'s count)
+        # nodes that exist once each row has arrived
         made = np.maximum(np.floor((times - start) / self.dt + 1e-9).astype(int) + 1, 1)
         n = int(made[-1])
         k0 = self.nodes

@@ -9,6 +9,7 @@ import gtsam
 import numpy as np
 
 from graphloc.factors.robust import robust_noise
+from graphloc.geometry.so3 import skew
 from graphloc.keys import frame_marker_key, landmark_key, marker_key, pose_key
 from graphloc.pipelines.team_graph.config import FEATURE_BASE, GraphConfig, cov6
 from graphloc.pipelines.team_graph.graph import SectionFactors
@@ -107,7 +108,7 @@ def marker_factors(
         keys.append(key)
         if key not in known and key not in out.marker_points:
             local = np.asarray(target.markers[int(m)], float)
-            H = np.hstack([-R @ _skew(local), R])
+            H = np.hstack([-R @ skew(local), R])
             cov = H @ cov6(config.static_sigma) @ H.T + np.eye(3) * 1e-12
             out.marker_points[key] = T.transformFrom(local)
             prior = gtsam.PriorFactorPoint3(
@@ -197,10 +198,6 @@ def _projections(run, config, r, k, time, observation, E, keys) -> SectionFactor
             )
         )
     return out
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _ideal_pixel(camera, pixel: np.ndarray):
