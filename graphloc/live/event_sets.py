@@ -7,9 +7,8 @@ from graphloc.keys import pose_key
 from graphloc.live.event_camera import mixture_set
 from graphloc.live.event_placement import seed_robot, start_variants, stream_placement
 from graphloc.pipelines.team_graph.candidates import (
-    StreamDecisions,
     StreamTracker,
-    stream_factors,
+    set_factors,
 )
 
 
@@ -20,7 +19,7 @@ def take_set(events, n: int, o) -> None:
         if run.robots[r].initial_pose is not None or o.candidates.source == "circle":
             # a placed observer (circles: a camera, held until it is placed): max-mixtures
             return mixture_set(events, n, o)  # (`live.event_camera`)
-        key = (r, ti)  # counted at the end, one skip per stream (`event_record`)
+        key = (r, ti)  # counted at the end, one skip per stream (`events.record_graph`)
         events.unplaced_sets[key] = events.unplaced_sets.get(key, 0) + 1
         return
     key = (r, ti, o.pixels is not None)
@@ -33,8 +32,8 @@ def take_set(events, n: int, o) -> None:
     tracked = tracker.add(n, o, clock.nearest(r, o.time), clock.nearest(ti, o.time), step_rel)
     if tracked is None:
         return
-    one = StreamDecisions(r, ti, tracker.out.pixel_route, [tracked])
-    made = stream_factors(run, events.config, clock.node_times, one, events.marker_points)
+    pixels, config = tracker.out.pixel_route, events.config
+    made = set_factors(run, config, clock.node_times, tracked, pixels, events.marker_points)
     events.skips.merge(made.skips)
     events.marker_points.update(made.marker_points)
     events.graph.initial.update(made.marker_points)

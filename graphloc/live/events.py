@@ -15,9 +15,13 @@ from graphloc.io import SkipReport
 from graphloc.live.builder import StepQueue
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_camera import EventFeatures, camera_skips, release_circles
-from graphloc.live.event_placement import initial_upto, seed_robot, start_variants
+from graphloc.live.event_placement import (
+    alternative_placements,
+    initial_upto,
+    seed_robot,
+    start_variants,
+)
 from graphloc.live.event_points import EventPoints
-from graphloc.live.event_record import record_graph, unplaced_robots
 from graphloc.live.event_scans import ScanLinks
 from graphloc.live.event_sets import take_set
 from graphloc.live.event_clock import (
@@ -30,7 +34,7 @@ from graphloc.live.event_clock import (
     refused_motion,
 )
 from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig, run_precision
-from graphloc.pipelines.team_graph.graph import TeamGraph
+from graphloc.pipelines.team_graph.graph import TeamGraph, count_graph
 from graphloc.pipelines.team_graph.motion import (
     between_factor,
     robot_anchors,
@@ -320,3 +324,62 @@ class EventGraph:
         for key, (pose, local) in self.graph.frame_points.items():
             if key not in initial and pose in initial:
                 initial[key] = initial[pose].transformFrom(local)
+
+
+def record_graph(events) -> None:
+    """Decisions, skips, alternatives and counts of `events` (an `EventGraph` whose rows are
+    all in) into its graph."""
+    graph = events.graph
+    tracked = list(events.streams.values())
+    ordered = sorted(
+        [(i, t.out.outcomes, t.out.skips) for t, _, i in tracked]
+        + [(i, t.outcomes, t.made.skips) for t, i in events.mixtures.values()],
+        key=lambda item: item[0],
+    )
+    graph.decisions = [d for _, outcomes, _ in ordered for d in outcomes]
+    for _, _, skips in ordered:
+        graph.skips.merge(skips)
+    robots = events.run.robots
+    for (r, ti), n in events.unplaced_sets.items():
+        graph.skips.add(
+            "target_unplaced",
+            f"robot {robots[r].name}: {n} candidate sets on robot {robots[ti].name}: neither "
+            f"has an initial pose (no max-mixture places one through the other)",
+            n,
+        )
+    graph.skips.merge(events.features.tracks.made.skips)
+    graph.skips.merge(events.skips)
+    points = events.points.builder
+    graph.skips.merge(points.made.skips)
+    streams = [tracker.out for tracker, _, _ in tracked]
+    alternative_placements(graph, events.config, events.robots, streams, points.sensors.poses)
+    count_graph(
+        graph,
+        points,
+        sum(len(r.times) for r in events.robots if r.seed is not None),
+        candidate_sets=len(events.arrived),
+        marker_points=len(events.marker_points),
+        committed_sets=sum(d.committed >= 0 for d in graph.decisions),
+        feature_tracks=len(events.features.tracks.tracks),
+    )
+
+
+def unplaced_robots(events) -> None:
+    """Robots nothing placed by the end of `events` (an `EventGraph` whose rows are all in):
+    each a counted skip `unanchored_robot` naming why (its factors stay held)."""
+    graph = events.graph
+    for robot in events.robots:
+        if robot.seed is not None:
+            continue
+        graph.anchored_from.pop(robot.r, None)
+        if not len(robot.times):  # no rows: no poses
+            continue
+        why = (
+            "nothing placed it (no decided candidate set, no marker-pixel set, no placement "
+            "by mutual bearings, resection or scan registration)"
+        )
+        events.skips.add(
+            "unanchored_robot",
+            f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",
+            len(robot.times),
+        )

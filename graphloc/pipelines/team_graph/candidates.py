@@ -1,6 +1,6 @@
 """Candidate sets (P3P, seed 000 / 001 / 004) of a placed target -> factors: per (observer,
 target) stream one `HypothesisTracker` decides causally (`StreamTracker`, seed 000 Sec. V),
-and `stream_factors` makes the decided sets robust priors / between factors, or a pixel
+and `set_factors` makes the decided sets robust priors / between factors, or a pixel
 stream's marker pixels projection factors."""
 
 from __future__ import annotations
@@ -200,45 +200,43 @@ def homogeneous(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     return out
 
 
-def stream_factors(
+def set_factors(
     run: TeamRun,
     config: GraphConfig,
     node_times: list,
-    stream: StreamDecisions,
+    s: TrackedSet,
+    pixel_route: bool,
     marker_points: dict,
 ) -> SectionFactors:
-    """The factors of one tracked stream's decisions (module docstring, step 2);
-    `marker_points`: the static markers earlier streams made, so a point enters once."""
-    out = SectionFactors()
-    r, ti = stream.robot, stream.target
+    """The factors of one tracked set: a pixel stream's marker pixels as projection factors,
+    else a decided set's robust prior (static target) or between factor (moving target);
+    `marker_points`: the static markers made before, so a point enters once."""
+    o, k, kt, E = s.observation, s.k, s.kt, s.observation.body_T_sensor
+    r, ti = o.robot, o.target
     target = run.robots[ti]
+    t = max(node_times[r][k], node_times[ti][kt])
+    if pixel_route and target.static:
+        return marker_factors(run, config, r, k, t, o, E, marker_points)
+    if pixel_route:
+        return moving_marker_factors(run, config, r, k, kt, s.index, t, o)
+    out = SectionFactors()
+    if not s.decided:
+        return out
     kernel = config.kernels.kernel("candidate")
-    for s in stream.sets:
-        o, k, kt, E = s.observation, s.k, s.kt, s.observation.body_T_sensor
-        t = max(node_times[r][k], node_times[ti][kt])
-        if stream.pixel_route:
-            if target.static:
-                known = {**marker_points, **out.marker_points}
-                out.merge(marker_factors(run, config, r, k, t, o, E, known))
-            else:
-                out.merge(moving_marker_factors(run, config, r, k, kt, s.index, t, o))
-            continue
-        if not s.decided:
-            continue
-        j = s.update.committed
-        if target.static:  # the target's pose is known: a prior on the observer
-            noise = robust_noise(
-                gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(E, s.covariance[j])), kernel
-            )
-            factor = gtsam.PriorFactorPose3(pose_key(r, k), s.bodies[j], noise)
-        else:
-            # observer_T_target = E target_T_sensor^-1, covariance moved to the target's side
-            noise = robust_noise(
-                gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(s.seen[j], s.measured_cov[j])),
-                kernel,
-            )
-            factor = gtsam.BetweenFactorPose3(
-                pose_key(r, k), pose_key(ti, kt), E.compose(s.seen[j].inverse()), noise
-            )
-        out.factors.append((t, factor, "candidate"))
+    j = s.update.committed
+    if target.static:  # the target's pose is known: a prior on the observer
+        noise = robust_noise(
+            gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(E, s.covariance[j])), kernel
+        )
+        factor = gtsam.PriorFactorPose3(pose_key(r, k), s.bodies[j], noise)
+    else:
+        # observer_T_target = E target_T_sensor^-1, covariance moved to the target's side
+        noise = robust_noise(
+            gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(s.seen[j], s.measured_cov[j])),
+            kernel,
+        )
+        factor = gtsam.BetweenFactorPose3(
+            pose_key(r, k), pose_key(ti, kt), E.compose(s.seen[j].inverse()), noise
+        )
+    out.factors.append((t, factor, "candidate"))
     return out
