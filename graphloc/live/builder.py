@@ -9,12 +9,10 @@ from itertools import islice
 
 import numpy as np
 
-from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.live.coverage import NotLiveError, route, run_tables, wheel_problems
-from graphloc.live.robot_state import RobotState
 from graphloc.live.setup import empty_run
-from graphloc.live.waiting import WaitingPoints
+from graphloc.live.waiting import RobotState, WaitingPoints
 from graphloc.pipelines.team_graph.config import GraphConfig, run_precision
 from graphloc.pipelines.team_graph.graph import TeamGraph, count_graph, landmark_initial
 from graphloc.pipelines.team_graph.motion import between_factor, robot_anchors
@@ -45,13 +43,7 @@ class LiveGraph:
             run,
             config,
             [r.times.view for r in self.robots],
-            {},
-            [],
-            [],
-            [],
-            {},
             [[None] for _ in run.robots],
-            skips=SkipReport(),
             precision=run_precision(run),
             sensor_poses=self.points.sensors.poses,
         )

@@ -1,8 +1,6 @@
-"""The event clock of `live.events.EventGraph`: the pose times of event-clocked robots as rows
-arrive (`team_graph.motion.node_times`' rule: poses at relative-pose stamps, and at measurements
-inside a step) -- one robot's rows so far (`EventRobot`), the `motion.Timeline` interface over
-the final times (`EventClock`), and which times are final (`final_end`, `motion_bound`,
-`inserted_times`)."""
+"""The event clock of `live.events.EventGraph`: one robot's rows so far (`EventRobot`), the pose
+a measurement joins (`EventClock`), and which pose times are final (`final_end`,
+`motion_bound`; poses inside a step at measurements, `inserted_times`)."""
 
 from __future__ import annotations
 
@@ -13,8 +11,8 @@ from graphloc.run import TeamRun
 
 
 class EventClock:
-    """The `motion.Timeline` interface (`node_times`, `nearest`, `offsets`) over the live pose
-    times (event-clocked robots: no offsets)."""
+    """The robots' final pose times (`node_times`) and the pose a measurement at time t joins
+    (`nearest`: within `sync_tolerance`, else -1)."""
 
     def __init__(self, run: TeamRun, config: GraphConfig, node_times: list):
         self.run, self.config, self.node_times = run, config, node_times

@@ -72,10 +72,6 @@ class EventRows:
         self.waiting: list = []  # point rows not in the graph yet, in arrival (time) order
         self.scans = ScanFeed(run, setup.manifest.root, skips, SkipReport())
 
-    @property
-    def start(self):
-        return self.events.start
-
     def velocity(self, r: int, rows) -> None:
         """Wheel-odometry rows (time, v, omega), one (3,) or many (N,3), of robot r: the grid
         steps they complete into the graph as relative poses."""
@@ -135,7 +131,7 @@ class EventRows:
                 scan, step = made
                 if step is not None:
                     self._motion(step, table)
-                self.events.scan(scan)
+                self.events.links.scan(scan)
         elif table == "markers":
             sensor = self.sensors[r].index(row.sensor)
             target = self.index[row.target]
@@ -223,7 +219,7 @@ class EventRows:
         # at one time: sets, pixels, then point rows (`build_events`)
         sets = ((o.time, 0, o) for o in out)
         pixels = ((f.time, 1, f) for f in features)
-        rows = heapq.merge(sets, pixels, ((m.time, 2, m) for m in points), key=_order)
+        rows = heapq.merge(sets, pixels, ((m.time, 2, m) for m in points), key=lambda e: e[:2])
         take = (self.events.observation, self.events.feature, self.events.point)
         for _, kind, row in rows:
             take[kind](row)
@@ -255,7 +251,7 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     sets = sorted((o.time, 2, i, o) for i, o in enumerate(run.observations))
     pixels = sorted((f.time, 3, i, f) for i, f in enumerate(run.features))
     points = sorted((m.time, 4, i, m) for i, m in enumerate(run.points))
-    take = (live.motion, live.scan, live.observation, live.feature, live.point)
+    take = (live.motion, live.links.scan, live.observation, live.feature, live.point)
     rows = heapq.merge(motions, scans, sets, pixels, points, key=lambda e: e[:3])
     for t, kind, _, row in rows:
         take[kind](row)
@@ -267,10 +263,6 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     live.graph.run = run
     _drop_unplaced(live.graph, {r.r for r in live.robots if r.seed is None})
     return live.graph
-
-
-def _order(entry: tuple) -> tuple:
-    return entry[:2]
 
 
 def _drop_unplaced(graph: TeamGraph, robots: set) -> None:

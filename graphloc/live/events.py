@@ -82,13 +82,7 @@ class EventGraph:
             run,
             config,
             self.clock.node_times,
-            {},
-            [],
-            [],
-            [],
-            {},
             [r.steps for r in self.robots],
-            skips=SkipReport(),
             precision=FINE_PRECISION if observers else np.nan,
         )
         self.graph.skips.merge(run.skips)
@@ -123,11 +117,6 @@ class EventGraph:
         robot.motions.append(m)
         robot.ends.append(m.t1)
         robot.span = max(robot.span, m.t1 - m.t0)
-
-    def scan(self, obs) -> None:
-        """A scan (`graphloc.run.ScanObservation`) for the inter-robot registration; its
-        KISS-ICP step comes in as a relative pose (`motion`)."""
-        self.links.scan(obs)
 
     def observation(self, o) -> None:
         """A candidate set (`graphloc.run.CandidateObservation`)."""

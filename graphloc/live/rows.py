@@ -159,22 +159,15 @@ def _value(raw, kind, limits) -> tuple:
     elif isinstance(raw, bool):
         return None, ("parse", f"{raw!r} is not a number")
     else:
-        value, problem = _converted(raw, conv)
-        if problem:
-            return None, problem
+        try:
+            value = conv(raw.strip() if isinstance(raw, str) else raw)
+        except (TypeError, ValueError, OverflowError):
+            return None, ("parse", f"cannot parse {shown(str(raw))} as {conv.__name__}")
     if conv is float and not math.isfinite(value):
         return None, ("non_finite", f"{cut(str(raw))} is not finite")
     lo, hi = limits or (-math.inf, math.inf)
     if not lo <= value <= hi:
         return None, ("implausible", f"{cut(str(raw))} is outside the plausible [{lo:g}, {hi:g}]")
-    return value, None
-
-
-def _converted(raw, conv) -> tuple:
-    try:
-        value = conv(raw.strip() if isinstance(raw, str) else raw)
-    except (TypeError, ValueError, OverflowError):
-        return None, ("parse", f"cannot parse {shown(str(raw))} as {conv.__name__}")
     return value, None
 
 

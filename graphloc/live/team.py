@@ -126,7 +126,11 @@ class LiveTeam:
         """One row of robot `robot`'s `table` (column -> text or number): checked (a refused
         row counted in `skips`, named by robot, table, its number among the rows pushed to the
         team and the field), put in time order, and every step it completes solved."""
-        self._check_open(robot, table)
+        if self.closed:
+            raise ValueError(
+                f"robot {robot!r}, table {table!r}: LiveTeam.push after finish(): the run is "
+                f"over (the row is not taken)"
+            )
         self.checker.refuse(robot, table, row)  # raises: the push is no row (not counted)
         self.rows += 1
         if self.pushed is not None:
@@ -231,13 +235,6 @@ class LiveTeam:
         self.closed = True
         self._release(self.window.flush(), np.inf)
         self._solve(self.builder.finish())
-
-    def _check_open(self, robot, table) -> None:
-        if self.closed:
-            raise ValueError(
-                f"robot {robot!r}, table {table!r}: LiveTeam.push after finish(): the run is "
-                f"over (the row is not taken)"
-            )
 
     def _raise_callback_error(self) -> None:
         """The first exception a subscriber raised during this call, raised again now that

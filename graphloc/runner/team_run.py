@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 import signal
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from graphloc.pipelines.team_graph.options import RunOptions
@@ -57,17 +57,15 @@ def run_team(
     reading the run to the last estimate."""
     from graphloc.datasets import open_run
     from graphloc.manifest import check_noise_params
-    from graphloc.pipelines.team_graph import default_lag, solve
+    from graphloc.pipelines.team_graph import solve
 
     opts = RunOptions() if options is None else options
     values = asdict(opts)
-    config = opts.graph_config()
     noise = opts.noise()
     check_noise_params(noise, "option (command line or --config)")
     cpu0 = time.process_time()
     run = open_run(source, duration=opts.duration, noise=noise, source=opts.source())
-    lag = opts.lag if opts.lag is not None else default_lag(run, config)
-    config = replace(config, lag=float(lag))
+    config = opts.graph_config(run)
     graph = team_graph(run, config)
     hooks = checkpoint(graph, values) if checkpoint is not None else {}
     if on_phase is not None:

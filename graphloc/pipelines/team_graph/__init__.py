@@ -1,5 +1,5 @@
 """One run, one graph: the team graph's sections (motion, points, camera, candidates,
-mixtures, formation, scans), its settings and its solve (`solve`: batch LM or online iSAM2);
+mixtures, formation), its settings and its solve (`solve`: batch LM or online iSAM2);
 the graph is built by `graphloc.live.builder.build_live` (docs/design_team_graph.md)."""
 
 import importlib

@@ -28,21 +28,13 @@ FEATURE_BASE = 200_000_000  # landmark_key(FEATURE_BASE + j): the point of the j
 
 @config_dataclass
 class GraphConfig:
-    """keyframe_dt [s]: pose grid of wheel-odometry robots; sync_tolerance [s]: how far from a
-    pose a measurement of an event-clocked robot may be; which measurements to use; robust
-    kernels by factor type (odometry, landmark, inter_robot, candidate); initial_sigma (rot
-    [rad], trans [m]) of initial-pose priors a robot does not state; static_sigma of static
-    robots' poses; surface_sigma [m]: distance of a climbing robot from its surface;
-    landmark_prior_floor [m]; unknown_motion_sigma (rot, trans) between frames of a robot with
-    no odometry; tracker: the HypothesisTracker deciding candidate sets; decision_threshold: a
-    set is decided -- its candidate enters the graph -- when the tracker has committed to a
-    track and that track's candidate in the set, with the candidates that are the same pose
-    within their covariances (`_same_pose`), has at least this posterior; guess_after_sets: a
-    marker-pixel stream none of whose first this many tracked sets was decided places its
-    observer at the last of them by the tracker's best guess there (the event route,
-    `live.events`; before it, the stream waits for a decision); marker_sigma [m]: how
-    far a moving target's marker may sit from its layout position (`camera.moving_marker_factors`);
-    session settings (iSAM2 thresholds None: set from the run's precision, `run_precision`)."""
+    """The team graph's settings: the wheel robots' pose grid (`keyframe_dt` [s]) and how far from a
+    pose another robot's measurement may be (`sync_tolerance` [s]); which measurements to use;
+    robust kernels by factor type; prior sigmas as (rot [rad], trans [m]); the candidate tracker and
+    its rule (a set is decided when the committed track's candidate, with those of the same pose,
+    has a posterior of at least `decision_threshold`; a marker-pixel stream undecided after
+    `guess_after_sets` sets places its observer by the tracker's guess); the session's settings
+    (iSAM2 thresholds None: from `run_precision`)."""
 
     keyframe_dt: float = setting(0.25, gt=0.0)
     sync_tolerance: float = setting(0.02, gt=0.0)
@@ -79,7 +71,7 @@ class GraphConfig:
     feature_depth: float = setting(2.6, gt=0.0)
     # [m] and its std (where the camera's params give none)
     feature_depth_sigma: float = setting(1.0, gt=0.0)
-    # inter-robot scan registration (`team_graph.scans`): graphloc.mapping.registration's
+    # inter-robot scan registration (`live.event_scans`): graphloc.mapping.registration's
     # RegistrationConfig / AcceptanceConfig, None = their defaults
     registration: object = None
     acceptance: object = None

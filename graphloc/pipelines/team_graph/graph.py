@@ -43,21 +43,21 @@ class TeamGraph:
     run: TeamRun
     config: GraphConfig
     node_times: list
-    initial: dict  # key -> Pose3 (initial guess)
-    steps: list
-    factor_types: list
-    decisions: list
-    anchored_from: dict  # robot -> first node time the online graph may hold it
-    step_rel: (
-        list  # per robot (relative Pose3 from node k-1, covariance) for k >= 1 (None: unknown)
-    )
+    # per robot (relative Pose3 from node k-1, covariance) for k >= 1 (None: unknown)
+    step_rel: list
+    initial: dict = field(default_factory=dict)  # key -> Pose3 (initial guess)
+    steps: list = field(default_factory=list)
+    factor_types: list = field(default_factory=list)
+    decisions: list = field(default_factory=list)
+    # robot -> first node time the online graph may hold it
+    anchored_from: dict = field(default_factory=dict)
     counts: dict = field(default_factory=dict)
     skips: SkipReport = field(default_factory=SkipReport)
     precision: float = COARSE_PRECISION  # run_precision(run)
     links: dict = field(default_factory=dict)  # observer pose key -> (target key, (K,4,4))
     # other initial values the batch solve starts from too (key -> value, over `initial`): one
-    # per candidate of a pixel stream's first set (`candidates.place_observers`) or of a
-    # resected robot's first sets (`formation.place_unplaced`)
+    # per candidate of a pixel stream's first set or of a resected robot's first sets
+    # (`live.event_placement.alternative_placements`)
     alternatives: list = field(default_factory=list)
     # those of robots placed by the tracker's guess (it never decided their stream): the online
     # solve starts from these too

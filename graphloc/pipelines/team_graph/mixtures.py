@@ -1,6 +1,6 @@
 """Candidate sets of a placed observer on an unplaced target (seed 003: a camera sees a
 teammate's circular base, two candidates): each set a max-mixture the solve chooses, set by set
-(`MixtureTracker`: the whole run's `mixture_stream` and the live builder, `live.event_camera`)."""
+(`MixtureTracker`, fed by `live.event_camera`)."""
 
 from __future__ import annotations
 

@@ -189,8 +189,12 @@ class RunOptions:
         """Sensor noise that replaces what the log's sensor params say."""
         return {k: getattr(self, k) for k in NOISE if getattr(self, k) is not None}
 
-    def graph_config(self) -> GraphConfig:
-        from graphloc.pipelines.team_graph.config import GraphConfig
+    def graph_config(self, run=None) -> GraphConfig:
+        """The `GraphConfig` of these options; with `run`, its online lag set (`lag`, else the
+        default policy, `config.default_lag`)."""
+        from dataclasses import replace
+
+        from graphloc.pipelines.team_graph.config import GraphConfig, default_lag
 
         kernel = Kernel.parse(self.kernel)
         kernels = KernelPolicy(
@@ -202,7 +206,7 @@ class RunOptions:
                 "odometry": Kernel.parse(self.odometry_kernel),
             }
         )
-        return GraphConfig(
+        config = GraphConfig(
             keyframe_dt=self.keyframe_dt,
             sync_tolerance=self.sync_tolerance,
             use_landmarks=self.landmarks,
@@ -210,3 +214,7 @@ class RunOptions:
             landmark_priors=not self.unknown_landmarks,
             kernels=kernels,
         )
+        if run is None:
+            return config
+        lag = self.lag if self.lag is not None else default_lag(run, config)
+        return replace(config, lag=float(lag))

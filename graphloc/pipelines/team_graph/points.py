@@ -26,13 +26,6 @@ from graphloc.pipelines.team_graph.graph import SectionFactors
 from graphloc.run import TeamRun
 
 
-def _landmark_key(lid: int, lm_prior: dict, config: GraphConfig, n_anchor: int):
-    prior = lm_prior.get(lid)
-    if prior is not None and config.anchor_known_landmarks:
-        return landmark_key(ANCHOR_BASE + n_anchor), prior
-    return landmark_key(lid), prior
-
-
 def _point_factor(m, key, lkey, direction, rng, kernel, E):
     if m.kind == "range_bearing":
         return landmark_factor_3d(
@@ -163,10 +156,9 @@ class PointBuilder:
                 factors.append((t_new, f, "landmark"))
                 return
         if is_lm:
-            lkey, prior = _landmark_key(m.landmark, lm_prior, config, self.n_anchor)
-            if lkey is None:
-                skips.add("unknown_landmark", f"landmark {m.landmark} is not in the landmark table")
-                return
+            prior = lm_prior.get(m.landmark)  # None: a landmark estimated (SLAM)
+            anchored = prior is not None and config.anchor_known_landmarks
+            lkey = landmark_key(ANCHOR_BASE + self.n_anchor if anchored else m.landmark)
             if lkey not in landmark_guess:
                 guess = prior[0] if prior is not None else None
                 if guess is None and np.isfinite(rng) and np.isfinite(direction).all():

@@ -53,13 +53,10 @@ class ConsistencyTest:
 
 
 def factor_statistics(res, types: np.ndarray, threshold: float, select=None) -> dict:
-    """Per factor type (graph order `types`; only the factors `select` (N,) bool holds, all by
-    default): its count, residual dimension, chi-square (the squared whitened residuals without
-    the robust kernel, `factors.robust.residuals`), robust factors and those the kernel
-    down-weights below `threshold` (the outliers it found) and their share, and over the others
-    (the inliers): whitened residual RMS (sqrt(chi2 / dim)) and normalized chi-square (chi2 /
-    dim: about 1 where the stated noise is right, below 1 by the share of the dimension the
-    variables absorb)."""
+    """Per factor type (graph order `types`; of the factors `select` holds, all by default): count,
+    residual dimension, chi-square without the robust kernel (`factors.robust.residuals`), robust
+    factors and those down-weighted below `threshold`, and over the others (the inliers) the
+    whitened residual RMS and normalized chi-square (chi2 / dim)."""
     out = {}
     muted = res.downweighted(threshold)
     chosen = np.ones(len(types), bool) if select is None else np.asarray(select, bool)
@@ -115,12 +112,10 @@ def judge(
     test: ConsistencyTest = ConsistencyTest(),
     robot_stats: dict | None = None,
 ) -> dict:
-    """The verdict: {"consistent", "test" (the thresholds), "failures" [...], "warnings"
-    [...]}. factor_stats: `factor_statistics`; robot_stats: `robot_statistics` (a robot's
-    factors of one type judged on their own when they hold at least MIN_DIM residual
-    dimensions: one robot's corrupted table is not diluted by the team's); streams:
-    `candidate_streams`; unplaced: names of robots with data that nothing placed; skips:
-    `SkipReport.as_dict()`."""
+    """The verdict {"consistent", "test", "failures", "warnings"} of `factor_statistics`,
+    `robot_statistics` (a robot's factors of one type judged alone from MIN_DIM residual
+    dimensions), `candidate_streams`, the names of robots left `unplaced` and the skips
+    (`SkipReport.as_dict()`)."""
     failures, warnings = [], []
     groups = [("", factor_stats)] + [
         (f"robot {name}: ", rows) for name, rows in (robot_stats or {}).items()
