@@ -167,14 +167,9 @@ class LiveGraph:
             initial[pose_key(r, k)] = initial[pose_key(r, k - 1)].compose(m.relative)
             f = between_factor(r, k - 1, k, m.relative, m.covariance, config)
             self.pending.add(robot.times.view[k], (0, r, k), f, "odometry", carry=True)
-        self._anchors(robot, k0)
-
-    def _anchors(self, robot: RobotState, k0: int) -> None:
-        """The prior on the robot's first pose and the surface factors of its poses from k0
-        on (`motion.robot_anchors`, in its order)."""
-        made = robot_anchors(robot.r, robot.robot, self.config, robot.times.view, k0)
-        for j, (t, f, kind) in enumerate(made):
-            self.pending.add(t, (1, robot.r, j), f, kind, carry=True)
+        anchors = robot_anchors(r, robot.robot, config, robot.times.view, k0)  # prior, surfaces
+        for j, (t, f, kind) in enumerate(anchors):
+            self.pending.add(t, (1, r, j), f, kind, carry=True)
 
     def _take_points(self, watermark: float) -> None:
         """Point measurements whose poses are known (`WaitingPoints.take`), in arrival order,

@@ -161,14 +161,10 @@ def log_row_topic(robot: str, table: str) -> str:
 
 
 class Ros2LogSource(_Readers):
-    """The tables of a log's manifest published line by line as `graphloc_msgs/msg/LogRow`
-    (`log_row_topic`): the rows of a source that has no ROS message type (MRCLAM's unicycle
-    velocities, planar range-bearing). A line is split into its table's columns here (a line
-    without the table's number of fields is a `field_count` skip naming robot, table and line;
-    blank and '#' lines are passed over, as the log reader does) and goes out as column -> text
-    with its `line` (the message's index on its topic + 2: line 1 is the header); its fields are
-    checked once, by the team it is pushed to (`graphloc.live.rows.RowChecker`: a bad field is
-    a skip naming robot, table and field; a row behind the release front a `late_row`)."""
+    """A log's tables (its manifest) published line by line as `graphloc_msgs/msg/LogRow`
+    (`log_row_topic`), for rows no ROS message holds (MRCLAM's): each line split into its table's
+    columns here (a wrong field count a `field_count` skip), its fields checked by the team it is
+    pushed to."""
 
     def __init__(self, root, dp=None):
         from graphloc.io import SkipReport, columns, is_tum, read_manifest

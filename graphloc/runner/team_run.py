@@ -46,15 +46,11 @@ def run_team(
     progress: bool = False,
     on_phase=None,
 ) -> TeamOutcome:
-    """Read `source` (a log directory, MRCLAM directory or bag, `open_run`), build its graph,
-    solve it (`mode` "batch" or "online"), evaluate and write every output into `out`.
-    options: `RunOptions` (defaults when None; the default lag when its `lag` is None).
-    stop(): True ends the solve early (`team_graph.solve`; the outputs so far are written,
-    `partial`), and leaves out figures not drawn yet. checkpoint(graph, option values) -> the
-    solve's on_step / on_stop hooks (`graphloc online --checkpoint`). on_phase(name): told
-    "solving" when the graph is built and "writing" when the solve is done (the command line's
-    Ctrl-C handling, `commands.smooth.StopFlag`). The realtime factor counts CPU time from
-    reading the run to the last estimate."""
+    """Read `source` (`open_run`), build its graph, solve it (`mode` "batch" or "online"; `options`:
+    `RunOptions`, None: the defaults), evaluate and write every output into `out`. stop(): True ends
+    the solve early (the outputs so far written, `partial`); checkpoint(graph, option values) -> the
+    solve's on_step / on_stop hooks; on_phase(name): told "solving" and "writing" (the command
+    line's Ctrl-C handling)."""
     from graphloc.datasets import open_run
     from graphloc.manifest import check_noise_params
     from graphloc.pipelines.team_graph import solve

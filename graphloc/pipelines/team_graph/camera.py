@@ -90,13 +90,10 @@ def marker_factors(
     E: gtsam.Pose3,
     known: dict,
 ) -> SectionFactors:
-    """The marker pixels of one candidate set (`CandidateObservation.pixels`) of a static
-    target as GenericProjectionFactorCal3_S2 on robot r's pose k (the sensor at body_T_sensor
-    E: its extrinsics after the robot's motion from pose k to the set's time) and
-    the target's marker points (robust kernel 'projection'). A marker point enters once: one
-    not in `known` (the marker points made before) is a new marker point (its world position,
-    its initial value) with a PriorFactorPoint3 whose covariance is the target's pose prior
-    (static_sigma) carried to the point, H P H^T with H = d(T m)/dT = [-R [m]x, R]."""
+    """The marker pixels of one candidate set of a static target as projection factors on robot r's
+    pose k (sensor at body_T_sensor E) and the target's marker points; a marker point not in `known`
+    enters once, with a prior of the target's pose prior carried to it (H P H^T, H = d(T m)/dT = [-R
+    [m]x, R])."""
     out = SectionFactors()
     ti = observation.target
     target = run.robots[ti]
@@ -129,13 +126,10 @@ def moving_marker_factors(
     time: float,
     observation,
 ) -> SectionFactors:
-    """The marker pixels of one candidate set of a moving target as factors on both poses (the
-    observer's pose k, the target's pose kt): each marker seen is one world point of that set
-    (`keys.frame_marker_key(index, marker)`), held on the target's pose by a
-    BearingRangeFactor3D to its layout position (std `config.marker_sigma`) and seen by a
-    GenericProjectionFactorCal3_S2 on the observer's pose (robust kernel 'projection'). The
-    points' initial values come once the target's poses have theirs: (key, target, kt,
-    position in the target's body frame at pose kt) in `frame_points`."""
+    """The marker pixels of one candidate set of a moving target: per marker one point of that set
+    (`keys.frame_marker_key`), held on the target's pose kt by a BearingRangeFactor3D to its layout
+    position (std `marker_sigma`) and projected into the observer's pose k; the points' initial
+    values come from the target's pose (`frame_points`)."""
     out = SectionFactors()
     ti = observation.target
     target = run.robots[ti]

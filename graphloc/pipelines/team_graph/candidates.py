@@ -33,12 +33,10 @@ from graphloc.seams import Decision, Odometry
 
 @dataclass(frozen=True)
 class TrackedSet:
-    """One set of a tracked stream as the tracker saw it: its index in `run.observations`, the
-    observation, the observer's and target's nodes k / kt, each candidate as target_T_sensor
-    (`seen`, with `measured_cov`, its own covariance) and as the observer's world_T_body
-    (`bodies`, with `covariance`, the target's pose uncertainty added), the tracker's update
-    and whether the update decided the set (committed, its same-pose cluster's posterior at
-    least `decision_threshold`)."""
+    """One set of a tracked stream as the tracker saw it: its index, observation, observer and
+    target nodes k / kt, each candidate as target_T_sensor (`seen`, `measured_cov`) and as the
+    observer's world_T_body (`bodies`, `covariance` with the target's uncertainty), the tracker's
+    update and whether it decided the set."""
 
     index: int
     observation: object
@@ -69,12 +67,10 @@ class StreamDecisions:
 
 
 class StreamTracker:
-    """One (observer r, placed target ti) stream's HypothesisTracker fed one set at a time
-    (`add`), causally: a set's decision uses the sets before it and the observer's steps up to
-    its pose only. `out` is the stream's `StreamDecisions` so far. A set with no (new) observer
-    pose or no target pose within the sync tolerance is a counted skip `no_pose_at_time`; an
-    inconsistent set (no candidate passed the pixel chi-square, `vision.marker_poses`) is never
-    decided: an outcome with status "inconsistent" and a counted skip `inconsistent_set`."""
+    """One (observer r, placed target ti) stream's HypothesisTracker fed one set at a time (`add`),
+    causally; `out`: its `StreamDecisions`. A set without a (new) pose is a counted
+    `no_pose_at_time`, an inconsistent one (no candidate passed the pixel chi-square) an
+    `inconsistent_set` never decided."""
 
     def __init__(self, run: TeamRun, config: GraphConfig, r: int, ti: int, pixel_route: bool):
         self.run, self.config, self.r, self.ti = run, config, r, ti

@@ -18,15 +18,10 @@ from graphloc.run import TeamRun
 
 
 class MixtureTracker:
-    """One (placed observer r, unplaced target ti) stream fed one set at a time (`add`), each
-    set on its own: a max-mixture (Olson & Agarwal; `factors.mixture.max_mixture_factor`) of
-    BetweenFactorPose3 observer -> target, one component per candidate with its covariance,
-    weights from the scores. The target's first usable sighting places it (the candidate whose
-    `body_axis` is nearest its surface normal, seen from the observer's dead-reckoned pose,
-    else the best-scored one); its own motion steps place the rest. Causal: a set's factor and
-    record use the observer's steps up to its pose only. `outcomes`: every set's; `made`: the
-    factors and skips; `placed`: where the first usable sighting places the target ({node:
-    (observer, its node, body_T_target)}; None: not yet)."""
+    """One (placed observer r, unplaced target ti) stream fed one set at a time (`add`): each set a
+    max-mixture (Olson & Agarwal) of between factors observer -> target, one per candidate; the
+    first usable sighting places the target (`placed`: {node: (observer, its node, body_T_target)},
+    the candidate nearest upright). `outcomes`: every set's; `made`: factors and skips."""
 
     def __init__(self, run: TeamRun, config: GraphConfig, r: int, ti: int):
         self.run, self.config, self.r, self.ti = run, config, r, ti

@@ -30,13 +30,10 @@ from graphloc.session import Session
 
 @dataclass(frozen=True)
 class TeamResult:
-    """estimate[r]: (K_r,7) x y z qx qy qz qw per pose (NaN where left out); causal[r]: the
-    online estimate of each pose right after its own step (NaN in batch); latencies (steps,);
-    step_log: one row per session step (step index in graph.steps, time, latency [s], CPU [s],
-    factors added, variables the solver holds); dropped: factors not added because they touch
-    a variable the fixed lag has marginalized, by type; partial: the solve stopped early
-    (`stop`) after `steps_done` of the graph's steps; decisions: the graph's, with the sets of
-    the max-mixture route chosen at the final estimate (`choose_mixtures`)."""
+    """What a solve gives: per robot the estimate (K,7 x y z qx qy qz qw, NaN where left out),
+    causal (online: each pose right after its step) and dead-reckoning rows; the step log
+    (STEP_LOG_COLUMNS); factors `dropped` by the fixed lag; `partial` after `steps_done` steps; the
+    decisions with max-mixtures chosen; the final values, chi-square and statistics."""
 
     mode: str
     node_times: list

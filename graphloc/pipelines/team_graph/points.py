@@ -51,12 +51,10 @@ def _robot_factor(m, key, tkey, direction, rng, kernel, E):
 
 
 class SensorPoses:
-    """The auxiliary sensor pose variables of offset bearings: `observer(m, k, t, factors)`
-    gives the key a bearing of measurement `m` at node k (time t) of its robot is measured
-    from, and the extrinsics left to apply -- the body pose and m's extrinsics where its sensor
-    sits at the body origin (the bearing rotated into the body frame by the factor), else the
-    sensor pose (identity), whose tie to the body pose is appended to `factors` the first time.
-    `poses`: sensor key -> (body pose key, body_T_sensor)."""
+    """The auxiliary sensor pose variables of offset bearings: `observer(m, k, t, factors)` gives
+    the key a bearing of `m` at robot node k is measured from and the extrinsics left to apply (the
+    body pose and m's where the sensor sits at the body origin, else the sensor pose, its tie
+    appended to `factors` once); `poses`: sensor key -> (body key, body_T_sensor)."""
 
     def __init__(self):
         self.poses: dict = {}
