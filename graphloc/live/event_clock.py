@@ -81,8 +81,9 @@ def motion_bound(robot: EventRobot, watermark: float) -> float:
 
 
 def inserted_times(robot: EventRobot, motions: list, measured: list, tol: float) -> list:
-    """`motion.inserted_times` of `measured` within `motions` (a step is consecutive when
-    no stamp of the robot's relative poses lies strictly inside it)."""
+    """The times of `measured` inside one of `motions`' consecutive steps (no stamp of the robot's
+    relative poses strictly inside it) and farther than `tol` from every stamp: poses there, the
+    step split at them."""
     stamps = robot.stamps
     spans = []
     for m in motions:
