@@ -148,7 +148,7 @@ def end_to_end(log: Path, out: Path, window: float, rate: float = 1.0) -> dict:
     from cyclonedds.topic import Topic
 
     from graphloc.io import read_manifest
-    from graphloc.live.publish import Publisher, log_messages
+    from benchmarks.live_publish import Publisher, log_messages
     from graphloc.live.ros2 import KEEP_POSES, POSE_TYPE, participant, qos
     from graphloc.live.ros2_types import dds_topic, idl_type
 

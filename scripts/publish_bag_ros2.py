@@ -17,9 +17,11 @@ import argparse
 import sys
 from pathlib import Path
 
-from graphloc.datasets.rosbag_topics import read_topics
-from graphloc.io import MANIFEST
-from graphloc.live.publish import Publisher, bag_messages, log_messages
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: benchmarks/
+
+from benchmarks.live_publish import Publisher, bag_messages, log_messages  # noqa: E402
+from graphloc.datasets.rosbag_topics import read_topics  # noqa: E402
+from graphloc.io import MANIFEST  # noqa: E402
 
 
 def main(argv=None) -> int:

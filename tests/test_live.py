@@ -109,13 +109,14 @@ def _fed_in_chunks(run, config, seed: int):
     """`LiveGraph` fed the run's rows in time order in random chunks (one row to a few dozen,
     odometry and measurements as they interleave), `advance` after each chunk; seed None: one
     row at a time."""
-    from graphloc.live.builder import LiveGraph, _without_rows
+    from graphloc.live.builder import LiveGraph
+    from graphloc.live.setup import empty_run
 
     rng = np.random.default_rng(seed)
     rows = [(row[0], 0, r, row) for r, v in enumerate(run.velocity) for row in v]
     rows += [(m.time, 1, i, m) for i, m in enumerate(run.points)]
     rows.sort(key=lambda e: (e[0], e[1], e[2]))
-    live = LiveGraph(_without_rows(run), config, run.start_time)
+    live = LiveGraph(empty_run(run), config, run.start_time)
     i = 0
     while i < len(rows):
         j = min(len(rows), i + (1 if seed is None else int(rng.choice([1, 1, 1, 2, 7, 40]))))

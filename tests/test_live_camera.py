@@ -17,7 +17,7 @@ from graphloc.datasets.scenarios import generate
 from graphloc.keys import pose_key
 from graphloc.live import LiveTeam, replay_live
 from graphloc.live.coverage import route, run_tables
-from graphloc.live.event_rows import _without_rows
+from graphloc.live.setup import empty_run
 from graphloc.live.events import EventGraph
 from graphloc.pipelines.team_graph import GraphConfig
 from graphloc.runner.team_run import team_graph
@@ -47,7 +47,7 @@ def _rows(run, until=np.inf):
 def _live(run, until=np.inf, finish=True, on_steps=lambda steps: None) -> EventGraph:
     stamped = {m.robot for m in run.motions}
     observers = {o.robot for o in run.observations}
-    live = EventGraph(_without_rows(run), GraphConfig(), run.start_time, stamped, observers, True)
+    live = EventGraph(empty_run(run), GraphConfig(), run.start_time, stamped, observers, True)
     for t, kind, row in _rows(run, until):
         (live.motion, live.observation, live.feature)[kind](row)
         on_steps(live.advance(t))

@@ -20,7 +20,8 @@ from graphloc.datasets.scenarios import generate
 from graphloc.live import LiveTeam, NotLiveError, replay_live
 from graphloc.live.builder import build_live
 from graphloc.live.coverage import route, run_tables
-from graphloc.live.event_rows import _without_rows, build_events
+from graphloc.live.event_rows import build_events
+from graphloc.live.setup import empty_run
 from graphloc.live.events import EventGraph
 from graphloc.keys import decode, pose_key
 from graphloc.pipelines.team_graph import GraphConfig, solve
@@ -53,7 +54,7 @@ def _rows(run):
 def _event_graph(run, config) -> EventGraph:
     """An empty `EventGraph` of the run's robots (its tables: relative poses, candidate sets)."""
     stamped, observers = {m.robot for m in run.motions}, {o.robot for o in run.observations}
-    return EventGraph(_without_rows(run), config, run.start_time, stamped, observers)
+    return EventGraph(empty_run(run), config, run.start_time, stamped, observers)
 
 
 def _live(run, config, on_steps=lambda steps: None) -> EventGraph:

@@ -21,7 +21,8 @@ from graphloc.keys import decode
 from graphloc.live import LiveTeam, replay_live
 from graphloc.live.builder import build_live
 from graphloc.live.coverage import route, run_tables
-from graphloc.live.event_rows import _without_rows, build_events
+from graphloc.live.event_rows import build_events
+from graphloc.live.setup import empty_run
 from graphloc.live.events import EventGraph
 from graphloc.pipelines.team_graph import GraphConfig, run_precision
 from graphloc.runner.team_run import team_graph
@@ -48,7 +49,7 @@ def _rows(run):
 
 
 def _feed(run, config, rows, emitted) -> EventGraph:
-    live = EventGraph(_without_rows(run), config, run.start_time, {0})
+    live = EventGraph(empty_run(run), config, run.start_time, {0})
     for t, kind, row in rows:
         (live.motion if kind == 0 else live.point)(row)
         emitted.append(live.advance(t))
@@ -104,7 +105,7 @@ def test_steps_up_to_the_placement_do_not_change_with_later_rows(runs):
     longer = _later(run, 1.0)
     rows = _rows(longer)
     fourth = next(i for i, (t, kind, _) in enumerate(rows) if kind == 1 and t > run.motions[-1].t1)
-    live = EventGraph(_without_rows(longer), config, longer.start_time, {0})
+    live = EventGraph(empty_run(longer), config, longer.start_time, {0})
     before = []
     for t, kind, row in rows[:fourth]:  # up to the fourth snapshot's first bearing
         (live.motion if kind == 0 else live.point)(row)

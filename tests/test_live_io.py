@@ -139,7 +139,7 @@ def test_ros2_topics_give_the_import_rows(bag, loopback, feng_log, tmp_path):
 
     from graphloc.datasets.rosbag import import_bag
     from graphloc.datasets.rosbag_topics import read_topics
-    from graphloc.live.publish import Publisher, bag_messages
+    from benchmarks.live_publish import Publisher, bag_messages
     from graphloc.live.ros2 import Ros2Source
 
     if bag == "husky":
@@ -289,7 +289,7 @@ def test_log_rows_over_ros2(loopback, feng_log, tmp_path):
     converted: the fields are checked by the team they are pushed to); a line of the wrong
     number of fields is a skip of the source naming robot, table and line, a bad field passes
     (the team's to count), and the lines after them still come."""
-    from graphloc.live.publish import Publisher, log_messages
+    from benchmarks.live_publish import Publisher, log_messages
     from graphloc.live.ros2 import Ros2LogSource
     from graphloc.records import TABLES
 
@@ -327,7 +327,7 @@ def test_log_rows_over_ros2_are_checked_once(loopback, planar_log, tmp_path):
     skip, the team's, naming robot, table and field (the source passes it on unchecked), and
     the team's estimates are those of the log replayed (whose reader skips that line)."""
     from graphloc.live import LiveTeam, replay_live
-    from graphloc.live.publish import Publisher, log_messages
+    from benchmarks.live_publish import Publisher, log_messages
     from graphloc.live.ros2 import Ros2LogSource
 
     log = tmp_path / "log"
@@ -432,7 +432,7 @@ def test_a_publisher_of_the_wrong_type_is_a_counted_skip(loopback, tmp_path):
     import yaml
 
     from graphloc.datasets.rosbag_topics import read_topics
-    from graphloc.live.publish import Publisher
+    from benchmarks.live_publish import Publisher
     from graphloc.live.ros2 import Ros2Source
     from graphloc.live.ros2_types import idl_type
 

@@ -25,7 +25,7 @@ from graphloc.datasets.formation_log import write_table_i_trial
 from graphloc.live.builder import build_live
 from graphloc.pipelines.team_graph import GraphConfig
 from graphloc.runner.team_run import team_graph
-from graphloc.pipelines.team_graph.side_by_side import judged_from
+from graphloc.pipelines.team_graph.side_by_side import start_times
 
 TRIAL = 5  # a Table I trial index (of the default TableIConfig's trials)
 
@@ -43,6 +43,17 @@ def _table_i_trial(index: int):
     tri = ground_triangle(pool.ground, config, np.random.default_rng([config.seed, 1]))
     row = np.flatnonzero(tri.visible)[: config.trials][[index]]
     return trial_rows(pool, row), trial_rows(tri, row), config, 3 * sim.step_mean
+
+
+def judged_from(graph, alternatives: list, times: list) -> list | None:
+    """Per start (the guess, then `alternatives` placed at node times `times`), the first of
+    `graph.steps` at which `SideBySide` may drop it: the step of its own node (0 for the guess);
+    None where `start_times` is."""
+    starts = start_times(alternatives, times)
+    if starts is None:
+        return None
+    step_times = np.array([t for t, _ in graph.steps])
+    return [0 if t is None else int(np.searchsorted(step_times, t - 1e-9)) for t in starts]
 
 
 def _judged(graph, alternatives: list, times: list) -> list:

@@ -463,7 +463,7 @@ def test_dual_robot_room_scans_through_smooth(tmp_path):
     assert m["tables"]["scans"] == 16 and m["tables"]["markers"] > 0
     assert m["counts"]["factors_odometry"] >= 7 and m["decisions"]["candidate_sets"] > 0
     assert m["per_robot"]["ground"]["batch"]["ate_rmse"] < 0.05
-    # the ceiling robot is placed by the inter-robot scan registration (team_graph.scans), the
+    # the ceiling robot is placed by the inter-robot scan registration (live.event_scans), the
     # P3P candidates' best guess as its hint: the ground -> ceiling transform at frame 0
     assert m["counts"]["factors_scan_match"] >= 1 and m["skipped"]["total"] == 0
     rot, trans = relative_error(tmp_path / "o", "ground", "ceiling", "batch", 0)

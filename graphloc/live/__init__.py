@@ -1,10 +1,6 @@
-"""Live use: a running team's rows pushed as they arrive, one iSAM2 update per completed time
-step (`LiveTeam`, `team`); the incremental team graph behind it (`builder.LiveGraph`); a
-recorded run replayed through it in time order (`replay_live`, `replay`). Sources and sinks of
-`graphloc live` (each imported on use; ROS 2 and the view need `graphloc[live]`): a log
-directory being written (`tail`), ROS 2 topics in and poses out over Cyclone DDS (`ros2`,
-`ros2_types`, `topics`, `publish`), a ROS 2 run recorded as a log (`record`), the Foxglove view
-(`view`), the status line (`status`) and the run loop (`pipeline`)."""
+"""Live use: a running team's rows pushed as they arrive (`LiveTeam`), a recorded run replayed
+through it (`replay_live`, `run_rows`), and the sources and sinks of `graphloc live` (each
+imported on use; ROS 2 and the view need `graphloc[live]`)."""
 
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.replay import replay, run_rows

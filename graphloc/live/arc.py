@@ -1,9 +1,6 @@
-"""`ArcIntegrator`: `factors.odometry.integrate_unicycle` carried forward stamp by stamp, as
-velocity rows arrive. Each call integrates the next stamps from the state the last one ended
-at -- the running sums continued (`np.cumsum` of the carried value and the new increments, the
-same sequence of additions the whole-run call makes), every interval's covariance summed over
-its own segments -- so the poses, steps and covariances are those of one call over the whole
-run, bit for bit (tests/test_live.py checks it)."""
+"""`ArcIntegrator`: `factors.odometry.integrate_unicycle` carried forward as velocity rows arrive
+(into a `GrowingArray`); the running sums continued, so poses, steps and covariances are those
+of one call over the whole run, bit for bit (tests/test_live.py)."""
 
 from __future__ import annotations
 
@@ -69,3 +66,23 @@ class ArcIntegrator:
         if not self.covariances:
             return poses, deltas, np.zeros((0, 3, 3))
         return poses, deltas, step_covariances(x, y, theta, mid, dt, kf_idx, self.noise)
+
+
+class GrowingArray:
+    """A growable float array (amortized appends) with its filled part as a view."""
+
+    def __init__(self, width: int = 0):
+        self.shape = (width,) if width else ()
+        self.data = np.zeros((64, *self.shape))
+        self.n = 0
+
+    def append(self, rows: np.ndarray) -> None:
+        rows = np.asarray(rows, dtype=float).reshape(-1, *self.shape)
+        while self.n + len(rows) > len(self.data):
+            self.data = np.concatenate([self.data, np.zeros_like(self.data)])
+        self.data[self.n : self.n + len(rows)] = rows
+        self.n += len(rows)
+
+    @property
+    def view(self) -> np.ndarray:
+        return self.data[: self.n]

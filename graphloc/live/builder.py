@@ -1,51 +1,23 @@
-"""`LiveGraph`: the team graph built as rows arrive -- wheel velocities and point measurements
-in time order in, each completed time step (time, factors with types) out, with the initial
-values of its new variables -- for the sections that are causal: `motion` (each wheel-odometry
-robot's pose grid and between factors, `ArcIntegrator`), the anchors (initial-pose priors,
-surfaces), `points` (range, bearing, range-bearing to robots and landmarks, known or SLAM,
-`team_graph.points.PointBuilder`). It grows a `TeamGraph` that `team_graph.passes.Pass` solves
-step by step (`graphloc.live.team.LiveTeam`). Robot state lives in `live.robot_state`, the
-measurements waiting for their poses in `live.waiting.WaitingPoints`.
-
-One path, whatever the batch. A call may bring one row (`graphloc live`) or a whole table
-(`build_live`: each robot's odometry in one call, every measurement, then `finish`): a robot's
-new grid steps are integrated in one `ArcIntegrator.advance`, and the waiting measurements are
-released as the longest ready run from the queue's front, found in NumPy, their range-bearing
-rows re-expressed per robot in one pass -- a row pushed live is the batch of one.
-
-Causality. A grid node start + k dt exists once its robot's odometry reaches it (the whole-run
-grid ends at the last odometry row: `motion.node_times`), and its step is integrated then (the
-rows before it are known). A measurement joins the nearest node (`motion.Timeline.nearest`)
-once its robot's odometry is past it and the grid's next node, should it come, would not be
-the answer (not within the tolerance or not nearer: a measurement just after a node joins it
-without waiting for the next), or the run is finished; a range-bearing whose own node (of
-`points.body_frame_points`: the later one at a tie) is the next waits for it. Measurements are
-taken in arrival order (the run's order, which fixes the landmark anchors and guesses). A step
-at time T is emitted once every robot's odometry has reached T and no measurement that could
-join a node at T (time <= T + dt/2) is still to come or waiting. So the steps, their factors
-in order and the initial values do not depend on how the rows are split into calls: one row at
-a time (`graphloc live`) or whole tables (`build_live`, what `graphloc smooth` / `online`
-solve; tests/test_live.py). A factor whose newest pose is older than the last emitted step
-(a measurement between two static robots, whose one pose is at the start) enters with the next
-step.
-"""
+"""`LiveGraph`: the team graph of wheel-odometry robots built as rows arrive (the pose grid,
+anchors and point measurements, each step emitted once no row can change it), and `build_live`,
+the graph of a loaded run on either route (docs/design_team_graph.md, "The wheel route")."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from itertools import islice
 
 import numpy as np
 
-from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.live.coverage import NotLiveError, route, run_tables, wheel_problems
-from graphloc.live.robot_state import RobotState
-from graphloc.live.waiting import WaitingPoints
+from graphloc.live.setup import empty_run
+from graphloc.live.waiting import RobotState, WaitingPoints
 from graphloc.pipelines.team_graph.config import GraphConfig, run_precision
-from graphloc.pipelines.team_graph.graph import TeamGraph
+from graphloc.pipelines.team_graph.graph import TeamGraph, count_graph, landmark_initial
 from graphloc.pipelines.team_graph.motion import between_factor, robot_anchors
 from graphloc.pipelines.team_graph.points import PointBuilder
-from graphloc.run import TeamRun, planar_covariance, pose_from_planar
+from graphloc.run import TeamRun
 
 
 class LiveGraph:
@@ -64,9 +36,6 @@ class LiveGraph:
         self.points = PointBuilder(run, config)
         self.waiting = WaitingPoints(config.keyframe_dt)  # those waiting for their poses
         self.arrived: list = []  # every point measurement, in arrival order (the run's points)
-        self.pending: dict = {}  # step time -> [(order key, factor, type)]
-        self.emitted = -np.inf  # time of the last emitted step
-        self.carried: list = []  # factors whose newest pose is before `emitted`: the next step
         self.horizon = max(config.keyframe_dt / 2, config.sync_tolerance) + 1e-6
         self.made = [0, 0, 0]  # point factors, landmark guesses, sensor poses taken so far
         self.first_seen = np.inf  # earliest row time (the start of a run without odometry)
@@ -74,17 +43,12 @@ class LiveGraph:
             run,
             config,
             [r.times.view for r in self.robots],
-            {},
-            [],
-            [],
-            [],
-            {},
             [[None] for _ in run.robots],
-            skips=SkipReport(),
             precision=run_precision(run),
             sensor_poses=self.points.sensors.poses,
         )
         self.graph.skips.merge(run.skips)
+        self.pending = StepQueue(self.graph)
         if self.start is not None:  # a static robot's one pose is at the start
             for robot in self.robots:
                 if robot.robot.static:
@@ -126,7 +90,7 @@ class LiveGraph:
         first = self.waiting.first_time()
         if first is not None:
             before = min(before, first - self.horizon)
-        return self._emit(lambda t: t <= end and t < before)
+        return self._emit(min(end, np.nextafter(before, -np.inf)))
 
     def finish(self) -> list:
         """Every row is in: the remaining steps."""
@@ -139,15 +103,15 @@ class LiveGraph:
             for robot in self.robots:
                 self._grow(robot)
         self._take_points(np.inf)
-        steps = self._emit(lambda t: True)
+        steps = self._emit(np.inf)
         graph = self.graph
-        for _, _, kind in self.carried:  # no step came after them
+        for _, _, kind in self.pending.carried:  # no step came after them
             graph.skips.add(
                 "after_last_step",
                 f"a {kind} factor on poses of steps already solved (a static robot's row) "
                 f"arrived after the last step: no step left to take it",
             )
-        self.carried = []
+        self.pending.carried = []
         graph.node_times = [robot.times.view.copy() for robot in self.robots]
         graph.anchored_from = {
             r: robot.times.view[0] for r, robot in enumerate(self.robots) if robot.times.n
@@ -158,8 +122,15 @@ class LiveGraph:
                     "unanchored_robot",
                     f"robot {robot.robot.name}: no odometry rows arrived, so it has no poses",
                 )
-        self._counts()
+        count_graph(self.graph, self.points, sum(robot.times.n for robot in self.robots))
+        self.graph.skips.merge(self.points.made.skips)
         return steps
+
+    def run_so_far(self) -> TeamRun:
+        """The run of the rows that arrived."""
+        start = float(self.start if self.start is not None else np.nan)
+        velocity = tuple(robot.velocity.view.copy() for robot in self.robots)
+        return replace(self.run, start_time=start, velocity=velocity, points=tuple(self.arrived))
 
     # ---- internals ----------------------------------------------------------------------------
 
@@ -177,44 +148,28 @@ class LiveGraph:
                 self._grow(robot)
 
     def _grow(self, robot: RobotState) -> None:
-        """New pose times of a robot (its grid up to its last odometry row; a static robot's
-        one pose), each step integrated, its factors and dead-reckoned initial value made."""
-        config, r = self.config, robot.r
+        """New pose times of a robot (its grid up to its last odometry row: `WheelSteps`; a
+        static robot's one pose), each step's factor and dead-reckoned initial value made."""
+        config, r, k0 = self.config, robot.r, robot.times.n
         if robot.robot.static:
-            n = 1
-        elif robot.velocity.n:
-            end = robot.velocity.view[-1, 0]
-            n = max(int(np.floor((end - self.start) / config.keyframe_dt + 1e-9)) + 1, 1)
+            steps, n = [], 1
         else:
-            return
-        k0 = robot.times.n
+            steps, n = robot.wheel.steps(self.start), robot.wheel.nodes
         if n <= k0:
             return
-        new = self.start + config.keyframe_dt * np.arange(k0, n)
-        robot.times.append(new)
+        robot.times.append(self.start + config.keyframe_dt * np.arange(k0, n))
         self.graph.node_times[r] = robot.times.view
-        initial, steps = self.graph.initial, self.graph.step_rel[r]
-        if robot.robot.static:
-            deltas, covs = np.zeros((0, 3)), np.zeros((0, 3, 3))
-        else:
-            _, deltas, covs = robot.steps.advance(new)
+        initial, step_rel = self.graph.initial, self.graph.step_rel[r]
         if k0 == 0:
             initial[pose_key(r, 0)] = robot.robot.initial_pose
-        for j, (d, c) in enumerate(zip(deltas, planar_covariance(covs))):
-            k = k0 + j + (k0 == 0)
-            rel = pose_from_planar(*d)
-            steps.append((rel, c))
-            initial[pose_key(r, k)] = initial[pose_key(r, k - 1)].compose(rel)
-            f = between_factor(r, k - 1, k, rel, c, config)
-            self._pending(robot.times.view[k], (0, r, k), f, "odometry")
-        self._anchors(robot, k0)
-
-    def _anchors(self, robot: RobotState, k0: int) -> None:
-        """The prior on the robot's first pose and the surface factors of its poses from k0
-        on (`motion.robot_anchors`, in its order)."""
-        made = robot_anchors(robot.r, robot.robot, self.config, robot.times.view, k0)
-        for j, (t, f, kind) in enumerate(made):
-            self._pending(t, (1, robot.r, j), f, kind)
+        for k, (_, m) in enumerate(steps, start=max(k0, 1)):
+            step_rel.append((m.relative, m.covariance))
+            initial[pose_key(r, k)] = initial[pose_key(r, k - 1)].compose(m.relative)
+            f = between_factor(r, k - 1, k, m.relative, m.covariance, config)
+            self.pending.add(robot.times.view[k], (0, r, k), f, "odometry", carry=True)
+        anchors = robot_anchors(r, robot.robot, config, robot.times.view, k0)  # prior, surfaces
+        for j, (t, f, kind) in enumerate(anchors):
+            self.pending.add(t, (1, r, j), f, kind, carry=True)
 
     def _take_points(self, watermark: float) -> None:
         """Point measurements whose poses are known (`WaitingPoints.take`), in arrival order,
@@ -232,75 +187,65 @@ class LiveGraph:
         points, initial, made = self.points, self.graph.initial, self.made
         for t, f, kind in points.made.factors[made[0] :]:
             made[0] += 1
-            self._pending(t, (2, 0, made[0]), f, kind)
+            self.pending.add(t, (2, 0, made[0]), f, kind, carry=True)
         guesses = points.landmark_guess  # dicts that only grow: the new items are the last
         for lkey, guess in islice(guesses.items(), made[1], None):
-            if lkey in initial:
-                continue
-            if isinstance(guess, tuple) and guess and guess[0] == "from":
-                _, r, k, direction, rng = guess
-                initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
-            else:
-                initial[lkey] = np.asarray(guess, dtype=float)
+            if lkey not in initial:
+                landmark_initial(initial, lkey, guess)
         made[1] = len(guesses)
         for key, (body, E) in islice(points.sensors.poses.items(), made[2], None):
             if key not in initial:
                 initial[key] = initial[body].compose(E)
         made[2] = len(points.sensors.poses)
 
-    def _pending(self, t: float, order: tuple, factor, kind: str) -> None:
-        if t <= self.emitted:  # on poses of steps already solved (static robots' rows pushed
-            self.carried.append((order, factor, kind))  # live): it joins the next step
-            return
-        self.pending.setdefault(float(t), []).append((order, factor, kind))
+    def _emit(self, bound: float) -> list:
+        return [self.pending.emit(t) for t in self.pending.due(bound)]
 
-    def _emit(self, complete) -> list:
-        """Steps of every pending time `complete(time)` is True for, in time order."""
-        due = sorted(t for t in self.pending if complete(t))
-        steps = []
-        for t in due:
-            if t <= self.emitted:  # `_pending` carries such factors to the next step
-                raise AssertionError(f"a factor at {t} after the step at {self.emitted}")
-            group = sorted(self.pending.pop(t), key=lambda item: item[0])
-            group, self.carried = self.carried + group, []
-            step = (t, [(f, kind) for _, f, kind in group])
-            self.graph.steps.append(step)
-            self.graph.factor_types += [kind for _, _, kind in group]
-            self.emitted = t
-            steps.append(step)
-        return steps
 
-    def _counts(self) -> None:
-        graph, points = self.graph, self.points
-        types = graph.factor_types
-        graph.counts = {
-            "robots": len(self.run.robots),
-            "poses": sum(robot.times.n for robot in self.robots),
-            "candidate_sets": 0,
-            "marker_points": 0,
-            "frame_marker_points": 0,
-            "sensor_poses": len(points.sensors.poses),
-            "committed_sets": 0,
-            "landmark_anchors": points.n_anchor,
-            "feature_tracks": 0,
-            "steps": len(graph.steps),
-            "excluded_by_option": points.excluded,
-            **{f"factors_{name}": types.count(name) for name in sorted(set(types))},
-        }
-        graph.skips.merge(points.made.skips)
+class StepQueue:
+    """Factors waiting for their step, the time of their newest pose (`add`), emitted into
+    `graph.steps` in time order (`emit`), a step's factors in the order of their order keys; a
+    factor on a step already emitted that may be `carry`-ed (a static robot's row, whose one
+    pose is at the start) joins the next step."""
+
+    def __init__(self, graph: TeamGraph):
+        self.graph = graph
+        self.steps: dict = {}  # step time -> [(order key, factor, type)]
+        self.carried: list = []
+        self.emitted = -np.inf  # time of the last emitted step
+
+    def add(self, t: float, order: tuple, factor, kind: str, carry: bool = False) -> None:
+        if carry and t <= self.emitted:
+            self.carried.append((order, factor, kind))
+        else:
+            self.steps.setdefault(float(t), []).append((order, factor, kind))
+
+    def due(self, bound: float) -> list:
+        """The waiting step times up to `bound`, in time order."""
+        return sorted(t for t in self.steps if t <= bound)
+
+    def emit(self, t: float) -> tuple:
+        """The step at time t (the carried factors first) into the graph."""
+        if t <= self.emitted:
+            raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
+        group = sorted(self.steps.pop(t), key=lambda item: item[0])
+        group, self.carried = self.carried + group, []
+        step = (t, [(f, kind) for _, f, kind in group])
+        self.graph.steps.append(step)
+        self.graph.factor_types += [kind for _, _, kind in group]
+        self.emitted = t
+        return step
 
 
 def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:
-    """A loaded run's graph built by `LiveGraph` (each robot's odometry at once, then the
-    point measurements in the run's order: the graph does not depend on how the rows are split
-    into calls) on the wheel route, an event-clocked run's by `live.event_rows.build_events`
-    (`coverage.route`): the graph `graphloc smooth` / `online` solve (`runner.team_run.team_graph`)
-    and the live API's; rows a live team could not take as they come are counted skips."""
+    """A loaded run's graph, built as the live team builds it (`coverage.route`): by `LiveGraph`
+    (each robot's odometry at once, then the point measurements in the run's order) or
+    `event_rows.build_events`; what `graphloc smooth` / `online` solve."""
     if route(run, run_tables(run)) == "event":  # event-clocked robots (`live.events`)
         from graphloc.live.event_rows import build_events
 
         return build_events(run, config)
-    live = LiveGraph(_without_rows(run), config, run.start_time)
+    live = LiveGraph(empty_run(run), config, run.start_time)
     for r, rows in enumerate(run.velocity):
         live.velocity(r, rows)
     for m in run.points:
@@ -308,9 +253,3 @@ def build_live(run: TeamRun, config: GraphConfig) -> TeamGraph:
     live.finish()
     live.graph.run = run
     return live.graph
-
-
-def _without_rows(run: TeamRun) -> TeamRun:
-    from dataclasses import replace
-
-    return replace(run, velocity=tuple(np.zeros((0, 3)) for _ in run.robots), points=())

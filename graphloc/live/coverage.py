@@ -1,15 +1,5 @@
-"""What the live builders cover: the tables they take rows of, and which of the two routes a
-run takes (`route`; `wheel_problems`: why a wheel-odometry run is not on the first). Two routes
-(`route`): wheel-odometry robots with point measurements (`graphloc.live.builder.LiveGraph`),
-and event-clocked robots -- relative poses, scans (KISS-ICP steps, `live.scan_feed`) or wheel
-odometry over the grid (`live.wheel_steps`) -- with point measurements, placed by the
-candidate sets they see of a target with a known pose, by the inter-robot scan registration
-those sets hint, by mutual bearings or by resection on their bearings of placed static robots,
-or, seen as circles or candidate sets by an observer with a known pose, by max-mixtures
-(`live.event_sets`), with the camera's feature tracks (`graphloc.live.events.EventGraph`,
-`live.event_scans`, `live.event_points`, `live.event_camera`). Every table of
-docs/log_format.md has a route, and every run is built live: what a route cannot use is a
-counted skip."""
+"""Which of the two live routes a run takes (`route`: the wheel route's `LiveGraph` or the
+event route's `EventGraph`) and the tables each takes rows of."""
 
 from __future__ import annotations
 
@@ -37,12 +27,8 @@ class NotLiveError(ValueError):
 
 
 def route(run: TeamRun, tables: dict) -> str:
-    """ "wheel" (`LiveGraph`) for a run of wheel-odometry robots with an initial pose and point
-    measurements that the wheel route takes whole (`wheel_problems` finds nothing: MRCLAM and
-    the logs converted from it), else "event" (`EventGraph`): relative poses, scans, candidate
-    sets or camera tables, with or without wheel-odometry robots (their grid steps as relative
-    poses, `live.wheel_steps`), and the wheel runs the wheel route does not take (robots
-    without an initial pose or an odometry table, static robots' measurements)."""
+    """ "wheel" (`LiveGraph`) for wheel-odometry robots with an initial pose and point measurements
+    that route takes whole (`wheel_problems` finds nothing: MRCLAM), else "event" (`EventGraph`)."""
     named = set().union(*map(set, tables.values())) if tables else set()
     if named & set(EVENT_ROWS) or wheel_problems(run, tables):
         return "event"
@@ -83,11 +69,8 @@ def wheel_problems(run: TeamRun, tables: dict) -> list[str]:
 
 
 def set_targets(run: TeamRun, tables: dict) -> set:
-    """The robots candidate sets see (`live.event_sets`: a target without an initial pose is
-    placed by max-mixtures through an observer with one, else its sets are counted
-    `target_unplaced` skips): a loaded run's targets; before any row (a live team opening),
-    robots with a marker layout when some robot has a markers table, and every robot when some
-    robot has a candidates table (its rows name their target as they arrive)."""
+    """The robots candidate sets see: a loaded run's targets; before any row, robots with a marker
+    layout when some robot has a markers table, every robot when one has a candidates table."""
     if run.observations:
         return {o.target for o in run.observations if o.candidates.source != "circle"}
     named = set().union(*map(set, tables.values())) if tables else set()
@@ -99,10 +82,8 @@ def set_targets(run: TeamRun, tables: dict) -> set:
 
 
 def max_mixtures_possible(run: TeamRun, tables: dict) -> bool:
-    """Whether candidate sets may become max-mixtures (`live.event_sets`): an observer of
-    candidate sets with an initial pose and a target of them without one. The graph is then a
-    camera graph (`TeamGraph.camera`: iSAM2's settings for max-mixtures), known before its
-    rows."""
+    """Whether candidate sets may become max-mixtures (an observer with an initial pose, a target
+    without one): the graph is then a camera graph (`TeamGraph.camera`), known before its rows."""
     observers = [
         robot for robot in run.robots if {"markers", "candidates"} & set(tables.get(robot.name, ()))
     ]

@@ -1,35 +1,7 @@
-"""The camera sections of `live.events.EventGraph` as rows arrive (seed 003: a camera on a
-crawler tracks KLT features and sees a teammate's circular base as an ellipse, two circle
-candidates, scale from the base's radius):
-
-- feature pixels (`EventFeatures`): each pixel, once its robot's poses around it are final, is a
-  projection factor on one landmark per track (`team_graph.camera.FeatureTracks`). Causal as it
-  stands: a track's landmark guess and its point prior come from the track's first pixel alone (on
-  the first ray at the camera's `feature_depth`, seed 003 III), so no pixel waits for later ones;
-  the prior enters with the first pixel's step, at the guess through that pose's initial value
-  (`priors`).
-- circle candidate sets of an unplaced target seen by a placed observer (`mixture_set`): each set a
-  max-mixture the solve chooses (`team_graph.mixtures.MixtureTracker`), made once the set's poses
-  are final; the target is placed at its first usable sighting (the observer's pose composed with
-  the upright candidate, `motion.place_robot`'s `placed_via`), its earlier poses carried back along
-  its own steps (`event_placement.seed_robot`); until then its factors are held by the online pass
-  (`anchored_from` infinite), as for an observer placed by a decided set.
-
-A camera without an initial pose: its pixels are factors as they come (the online pass holds
-them with the camera's other factors until it is placed), but a track's landmark guess and
-point prior need the pose of its first pixel, so they wait for the placement (by the camera's
-decided candidate sets, or any other causal rule of the route). Its circle sets wait for it
-too (the max-mixture route needs the observer's pose: `MixtureTracker` dead-reckons it from the
-pose the placement gives its first node, as from a known initial pose), then go through their
-stream in order before any later set; the target placed through it is held as long as it is.
-What waited joins the step the camera was placed at (`_placed_step`: not emitted yet when the
-placement comes), so the graph does not depend on when rows arrived. A camera nothing placed
-by the end leaves both as counted skips `unplaced_camera` naming robot and table
-(`camera_skips`).
-
-Order keys of the pending factors (`EventGraph.pending_factor`) order them within a step:
-projections (3, pixel) after the anchors, mixtures (4, stream, set) with the other candidate
-streams, point priors (9, track) last."""
+"""The camera sections of `live.events.EventGraph` (seed 003: KLT feature tracks, a teammate's
+base seen as two circle candidates): feature pixels as projection factors (`EventFeatures`),
+circle sets of an unplaced target as max-mixtures (`mixture_set`), a camera not placed yet
+holding both (docs/design_team_graph.md, "Camera tables")."""
 
 from __future__ import annotations
 
@@ -98,41 +70,37 @@ class EventFeatures:
             k = events.clock.nearest(f.robot, f.time)
             time = events.clock.node_times[f.robot][k] if k >= 0 else np.nan
             for t, factor, kind in self.tracks.add(f, k, time):
-                events.pending_factor(t, (3, self.taken), factor, kind)
+                events.pending.add(t, (3, self.taken), factor, kind)
                 self.pixels_of[f.robot] = self.pixels_of.get(f.robot, 0) + 1
             self.taken += 1
 
     def priors(self, events, t: float) -> None:
-        """The point priors of tracks whose first pixel's step is at or before t, once that
-        pose has its initial value (`initial_upto` ran to t): the landmark's guess on the first
-        ray is its initial value and the prior's mean (the track's point prior). A
-        prior whose camera was not placed at its step waits (`waiting`) and enters with the
-        step that placed it (`_placed_step`)."""
-        section, graph = self.tracks.section, events.graph
+        """The point priors of tracks whose first pixel's step is at or before t, at the landmark's
+        guess once that pose has its initial value; a prior whose camera was not placed then waits
+        for the step that places it (`_placed_step`)."""
+        tracks, graph = self.tracks, events.graph
         new = []
-        while self.priors_done < len(section.point_priors):
-            if section.point_priors[self.priors_done][2] > t:
+        while self.priors_done < len(tracks.point_priors):
+            if tracks.point_priors[self.priors_done][2] > t:
                 break
             new.append(self.priors_done)
             self.priors_done += 1
         waiting, self.waiting = self.waiting, []
         for i in waiting + new:
-            lkey, sigma, time = section.point_priors[i]
-            landmark_initial(graph.initial, lkey, section.landmark_guess[lkey])
+            lkey, sigma, time = tracks.point_priors[i]
+            landmark_initial(graph.initial, lkey, tracks.landmark_guess[lkey])
             if lkey not in graph.initial:
                 self.waiting.append(i)
                 continue
             noise = gtsam.noiseModel.Isotropic.Sigma(3, sigma)
             prior = gtsam.PriorFactorPoint3(lkey, graph.initial[lkey], noise)
-            at = _placed_step(graph, section.landmark_guess[lkey][1], time)
-            events.pending_factor(at, (9, i), prior, "feature_prior")
+            at = _placed_step(graph, tracks.landmark_guess[lkey][1], time)
+            events.pending.add(at, (9, i), prior, "feature_prior")
 
 
 def mixture_set(events, n: int, o) -> None:
-    """Candidate set n (`o`) of an observer on a target without an initial pose, through its
-    stream's `MixtureTracker` (module docstring); the target placed at its first usable
-    sighting. An observer not placed yet: the set waits (`events.held_circles`) until it is,
-    then the held sets go first (`release_circles`)."""
+    """Candidate set n (`o`) of an observer on a target without an initial pose through its stream's
+    `MixtureTracker`; an observer not placed yet holds it (`events.held_circles`) until it is."""
     if events.robots[o.robot].seed is None:
         events.held_circles.setdefault(o.robot, []).append((n, o))
         return
@@ -165,18 +133,18 @@ def _mixture_set(events, o) -> None:
         entry = [MixtureTracker(tracked, config, r, ti), len(events.streams) + len(events.mixtures)]
         events.mixtures[(r, ti)] = entry
     tracker, index = entry
-    before = tracker.out.placed
+    before = tracker.placed
     k, kt = events.clock.nearest(r, o.time), events.clock.nearest(ti, o.time)
     tracker.add(o, k, kt, observer.steps)
     at = -np.inf
     for t, factor, kind in tracker.factor_times(events.clock.node_times):
         at = _placed_step(graph, r, t)
-        events.pending_factor(at, (4, index, len(tracker.out.outcomes), 0), factor, kind)
-        d = tracker.out.outcomes[-1]
+        events.pending.add(at, (4, index, len(tracker.outcomes), 0), factor, kind)
+        d = tracker.outcomes[-1]
         if d.mixture is not None and d.relative is not None:
             graph.links[pose_key(r, k)] = (pose_key(ti, kt), d.relative)
-    if before is None and tracker.out.placed is not None:
-        ((k_target, (_, k_observer, rel)),) = tracker.out.placed.items()
+    if before is None and tracker.placed is not None:
+        ((k_target, (_, k_observer, rel)),) = tracker.placed.items()
         initial_upto(graph, config, [observer], float(observer.times[k_observer]))
         pose = graph.initial[pose_key(r, k_observer)].compose(rel)
         seed_robot(graph, config, events.robots[ti], k_target, pose)

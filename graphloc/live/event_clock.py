@@ -1,12 +1,9 @@
-"""The event clock of `live.events.EventGraph`: the pose times of event-clocked robots as rows
-arrive (`team_graph.motion.node_times`' rule: poses at relative-pose stamps, and at measurements
-inside a step) -- one robot's rows so far (`EventRobot`), the `motion.Timeline` interface over
-the final times (`EventClock`), and which times are final (`final_end`, `motion_bound`,
-`inserted_times`)."""
+"""The event clock of `live.events.EventGraph`: one robot's rows so far (`EventRobot`), the pose
+a measurement joins (`EventClock`), and which pose times are final (`final_end`,
+`motion_bound`; poses inside a step at measurements, `inserted_times`)."""
 
 from __future__ import annotations
 
-import gtsam
 import numpy as np
 
 from graphloc.pipelines.team_graph.config import GraphConfig
@@ -14,8 +11,8 @@ from graphloc.run import TeamRun
 
 
 class EventClock:
-    """The `motion.Timeline` interface (`node_times`, `nearest`, `offsets`) over the live pose
-    times (event-clocked robots: no offsets)."""
+    """The robots' final pose times (`node_times`) and the pose a measurement at time t joins
+    (`nearest`: within `sync_tolerance`, else -1)."""
 
     def __init__(self, run: TeamRun, config: GraphConfig, node_times: list):
         self.run, self.config, self.node_times = run, config, node_times
@@ -31,9 +28,6 @@ class EventClock:
         if i > 0 and abs(times[i - 1] - t) <= abs(times[i] - t):
             i -= 1
         return i if abs(times[i] - t) <= self.config.sync_tolerance else -1
-
-    def offsets(self, r: int, nodes, times) -> list:
-        return [gtsam.Pose3()] * len(times)
 
 
 class EventRobot:
@@ -87,8 +81,9 @@ def motion_bound(robot: EventRobot, watermark: float) -> float:
 
 
 def inserted_times(robot: EventRobot, motions: list, measured: list, tol: float) -> list:
-    """`motion.inserted_times` of `measured` within `motions` (a step is consecutive when
-    no stamp of the robot's relative poses lies strictly inside it)."""
+    """The times of `measured` inside one of `motions`' consecutive steps (no stamp of the robot's
+    relative poses strictly inside it) and farther than `tol` from every stamp: poses there, the
+    step split at them."""
     stamps = robot.stamps
     spans = []
     for m in motions:

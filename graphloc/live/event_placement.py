@@ -1,10 +1,6 @@
 """Where event-clocked robots start (`live.events.EventGraph`): a robot placed at a known or
-decided pose (`seed_robot`: `motion.place_robot`'s seeds, its earlier poses carried back along
-its steps; the pose a marker-pixel stream's placing set gives, `stream_placement`), the initial
-values of placed robots' later poses carried forward (`initial_upto`), and the alternative
-placements a solve starts from too (`alternative_placements`: the pixel streams', the
-candidates of their first set as `candidates.place_observers` makes them, and the resected
-robots', `live.event_points`, grown with their poses: `start_variants`)."""
+decided pose (`seed_robot`), initial values carried along its steps (`initial_upto`), and the
+alternative placements a solve starts from too (`start_variants`, `alternative_placements`)."""
 
 from __future__ import annotations
 
@@ -13,22 +9,14 @@ import numpy as np
 from graphloc.keys import pose_key
 from graphloc.live.event_clock import EventRobot
 from graphloc.pipelines.team_graph.config import GraphConfig
-from graphloc.pipelines.team_graph.graph import (
-    TeamGraph,
-    alternative_starts,
-    anchor_times,
-    with_sensors,
-)
+from graphloc.pipelines.team_graph.graph import TeamGraph, with_sensors
 from graphloc.pipelines.team_graph.motion import step_or_unknown
-from graphloc.run import TeamRun
 
 
 def seed_robot(graph: TeamGraph, config: GraphConfig, robot: EventRobot, k: int, pose) -> None:
-    """A known or decided pose of robot at node k (`motion.place_robot`'s seeds): the first
-    places the robot, its earlier poses carried back along its steps; a later one is the
-    initial value at k. A pose at a node before the placement (another stream's decision, or a
-    decision after a placement by bearings or registration, arriving later) comes after that
-    node's initial value was carried back and used: its factors stand, its pose is not a seed."""
+    """A known or decided pose of robot at node k: the first places the robot, its earlier poses
+    carried back along its steps; a later one is the initial value at k, one before the placement is
+    no seed."""
     if k in robot.placed or (robot.seed is not None and k < robot.seed):
         return
     robot.placed[k] = pose
@@ -73,12 +61,9 @@ def initial_upto(graph: TeamGraph, config: GraphConfig, robots: list, t: float) 
 
 
 def start_variants(graph: TeamGraph, config: GraphConfig, robot: EventRobot, starts: list) -> None:
-    """A robot placed by a guess (`event_points`: resection; a marker-pixel stream never
-    decided in its first `guess_after_sets` sets, `event_sets`): every start (node, world_T_body)
-    an alternative of its poses so far, carried along its steps as `graph.alternative_starts`
-    carries them, and grown with its poses (`initial_upto`); the online solve runs them as
-    hypotheses from when they are made (`graph.guessed_alternatives`), each judged from its
-    own node's time (`graph.guessed_alternative_times`)."""
+    """A robot placed by a guess (resection, or a pixel stream undecided after `guess_after_sets`
+    sets): every start (node, world_T_body) an alternative the online solve runs as a hypothesis,
+    carried along the robot's steps as its poses grow, judged from its own node's time."""
     r = robot.r
     robot.variant_starts += starts
     for k0, body in starts:
@@ -108,39 +93,46 @@ def extend_variants(robot: EventRobot, config: GraphConfig, n: int) -> None:
 
 
 def alternative_placements(
-    run: TeamRun,
-    config: GraphConfig,
-    clock,
-    graph: TeamGraph,
-    robots: list,
-    streams: list,
-    points,
+    graph: TeamGraph, config: GraphConfig, robots: list, streams: list, sensor_poses: dict
 ) -> None:
-    """The alternative placements a solve starts from too, carried along the steps as
-    `graph.alternative_starts` carries them: the pixel streams' (`candidates.place_observers`,
-    used by a batch solve) and the resected robots' (`event_points`: a guess, so the online
-    solve runs them as hypotheses too, `guessed_alternatives`), with the node time each was
-    placed at (`alternative_times`, `guessed_alternative_times`)."""
-    alternatives = {}
-    for s in streams:  # a decided placement: its stream's first set (a guess: `start_variants`)
+    """The alternative placements a solve starts from too: the pixel streams' (every candidate
+    of the stream's first set, carried along the observer's steps; batch only) and the guessed
+    robots' (`start_variants`: the online solve runs them as hypotheses too), with the node time
+    each was placed at (`alternative_times`, `guessed_alternative_times`)."""
+    firsts = {}  # robot -> the first set of its last pixel stream
+    for s in streams:
         if s.pixel_route and s.sets and not robots[s.robot].variants:
-            first = s.sets[0]
-            alternatives[s.robot] = ([(first.k, body) for body in first.bodies], False)
-    poses = {
-        robot.r: (
-            [graph.initial[pose_key(robot.r, k)] for k in range(len(robot.times))],
-            robot.seed,
-        )
-        for robot in robots
-        if robot.seed is not None
-    }
-    sensor_poses = points.builder.sensors.poses
-    variants, _ = alternative_starts(
-        run, config, clock, graph.step_rel, poses, alternatives, sensor_poses
-    )
+            firsts[s.robot] = s.sets[0]
+    variants, times = [], []
+    for r, first in firsts.items():
+        robot = robots[r]
+        if robot.seed is None:
+            continue
+        for body in first.bodies:
+            poses = _carried(robot, config, first.k, body)
+            variants.append(
+                with_sensors({pose_key(r, k): p for k, p in enumerate(poses)}, sensor_poses)
+            )
+            times.append(float(robot.times[first.k]))
     guessed = [with_sensors(v, sensor_poses) for robot in robots for _, v in robot.variants]
-    graph.alternatives, graph.guessed_alternatives = variants + guessed, guessed
     guessed_times = [t for robot in robots for t in _variant_times(robot, robot.variant_starts)]
-    times = anchor_times(alternatives, poses, clock.node_times)[0]
+    graph.alternatives, graph.guessed_alternatives = variants + guessed, guessed
     graph.alternative_times = times + guessed_times
     graph.guessed_alternative_times = guessed_times
+
+
+def _carried(robot: EventRobot, config: GraphConfig, k0: int, body) -> list:
+    """Robot's poses with node k0 at `body` (node 0 at its initial pose, where it has one),
+    carried along its steps."""
+    out: list = [None] * len(robot.times)
+    if robot.robot.initial_pose is not None:
+        out[0] = robot.robot.initial_pose
+    if out[k0] is None:
+        out[k0] = body
+    seed = 0 if out[0] is not None else k0
+    for k in range(seed + 1, len(out)):
+        if out[k] is None:
+            out[k] = out[k - 1].compose(step_or_unknown(robot.steps, k, config)[0])
+    for k in range(seed - 1, -1, -1):
+        out[k] = out[k + 1].compose(step_or_unknown(robot.steps, k + 1, config)[0].inverse())
+    return out

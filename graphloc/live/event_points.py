@@ -1,23 +1,6 @@
-"""Point measurements of an event-clocked team (`live.events.EventGraph`) and the robots their
-bearings place (seed 000, 000_05137a0a9c449be3.txt; `team_graph.formation`):
-
-- each range / bearing / range-bearing row joins its poses once their times are final (its
-  robot's and its target's, `event_clock.final_end`), in arrival order, through the whole
-  run's `points.PointBuilder` (the same factors, landmark guesses and sensor poses); a row
-  between static robots (their one pose at the start) or of a static robot and a landmark
-  enters with the step of its own time, so whenever the steps before it were emitted (live,
-  or a loaded run at once) it is in the same step;
-- a static robot without an initial pose is placed by mutual bearings (Sec. III-A,
-  `formation.place_by_mutual_bearings`) as soon as the rows taken so far place it -- the first
-  row of each pair, as the whole run takes it;
-- a robot without an initial pose that no candidate stream places is resected (Sec. IV,
-  `formation.resection_candidates`: P3P on its bearings of three placed static robots at one
-  time) once its first RESECTION_SETS such times are complete (every row at them taken), or
-  at the end of the run with fewer: the first candidate places it, every candidate of those
-  sets is an alternative start run as a hypothesis (the seed's pseudo solutions; the
-  placement is a guess, as the whole run's is). Until then its `anchored_from` is unknown and
-  no step from its first set's time on is emitted (`hold_from`), so the online pass meets its
-  factors with its placement known, as `graphloc online` does."""
+"""Point measurements of `live.events.EventGraph` as their poses become final, and the robots
+their bearings place (seed 000 Sec. III-A mutual bearings, Sec. IV resection;
+docs/design_team_graph.md, "Bearings")."""
 
 from __future__ import annotations
 

@@ -1,17 +1,7 @@
-"""`EventRows`: an event-clocked team's checked rows (`rows.RowChecker` with the event tables)
-into its `events.EventGraph`, with the interface `LiveTeam` drives (`velocity`, `point`,
-`advance`, `finish`, `graph`, `start`, `run_so_far`): relative poses and point measurements go
-in as they come, a scan as the relative pose KISS-ICP makes of it from the scanner's previous
-one (`scan_feed.ScanFeed`), a wheel-odometry robot's odometry as the relative pose of each grid
-step it completes (`wheel_steps.WheelSteps`; with no start in the manifest, the run's start is
-the loader's -- the latest first odometry row of the robots with an odometry table -- and the
-relative poses wait for it); `markers`, `candidates`, `ellipses` and `features` rows are held until
-the watermark passes their time (every row of their image or set has arrived), then made into
-candidate sets and feature pixels by the loader's own front ends
-(`log_observations.marker_observations`: the
-checks and P3P of a log's marker pixels, `candidate_observations`;
-`camera_tables.ellipse_observations`: seed 003's two circle candidates, `single_tracks` and
-`feature_observations`), in the loader's order, and go in."""
+"""`EventRows`: an event-clocked team's checked rows into its `events.EventGraph`, with the
+interface `LiveTeam` drives; marker, candidate, ellipse and feature rows held until the window
+passes their time, then made into sets and pixels by the loader's own front ends.
+`build_events`: a loaded run's graph on the event route."""
 
 from __future__ import annotations
 
@@ -31,6 +21,7 @@ from graphloc.keys import decode
 from graphloc.live.coverage import NotLiveError, max_mixtures_possible, run_tables
 from graphloc.live.events import EventGraph
 from graphloc.live.scan_feed import ScanFeed
+from graphloc.live.setup import empty_run
 from graphloc.live.wheel_steps import WheelSteps, skip_relative, wheel_motions
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
@@ -81,10 +72,6 @@ class EventRows:
         self.waiting: list = []  # point rows not in the graph yet, in arrival (time) order
         self.scans = ScanFeed(run, setup.manifest.root, skips, SkipReport())
 
-    @property
-    def start(self):
-        return self.events.start
-
     def velocity(self, r: int, rows) -> None:
         """Wheel-odometry rows (time, v, omega), one (3,) or many (N,3), of robot r: the grid
         steps they complete into the graph as relative poses."""
@@ -103,11 +90,9 @@ class EventRows:
                 self.events.motion(m)
 
     def _start(self, final: bool = False) -> float | None:
-        """The run's start once known: the manifest's, else (wheel robots) the latest first
-        odometry row of the robots with an odometry table (`graphloc_log.team_run`), once each
-        has one (`final`: of those that have one), else the event route's own (the first
-        relative pose's). The relative poses held until then go in, then every wheel robot's
-        steps so far."""
+        """The run's start once known: the manifest's, else the latest first odometry row of the
+        wheel robots once each has one (`final`: of those that have one), else the event route's
+        own; the held relative poses, then the wheel steps so far, go in."""
         events = self.events
         if events.start is not None or not self.wheels:
             return events.start
@@ -146,7 +131,7 @@ class EventRows:
                 scan, step = made
                 if step is not None:
                     self._motion(step, table)
-                self.events.scan(scan)
+                self.events.links.scan(scan)
         elif table == "markers":
             sensor = self.sensors[r].index(row.sensor)
             target = self.index[row.target]
@@ -199,11 +184,8 @@ class EventRows:
         return f"robot {self.robots[r].name!r}, table 'features', row {row.line}"
 
     def _sets(self, watermark: float) -> None:
-        """The images, logged sets and ellipses before `watermark` as candidate sets, in the
-        loader's order (marker sets, logged ones, circles; by time and observer), the feature
-        pixels before it (`camera_tables.single_tracks`, `feature_observations`) and the point
-        rows before it, into the graph in time order (a point row arrives before the sets of
-        an earlier image, made once the window passes it)."""
+        """The images, logged sets and ellipses before `watermark` as candidate sets in the loader's
+        order, the feature pixels and point rows before it: into the graph in time order."""
         manifest, noise = self.setup.manifest, self.setup.noise
         out: list = []
         done = [m for m in self.markers if m[0] < watermark]
@@ -237,28 +219,23 @@ class EventRows:
         # at one time: sets, pixels, then point rows (`build_events`)
         sets = ((o.time, 0, o) for o in out)
         pixels = ((f.time, 1, f) for f in features)
-        rows = heapq.merge(sets, pixels, ((m.time, 2, m) for m in points), key=_order)
+        rows = heapq.merge(sets, pixels, ((m.time, 2, m) for m in points), key=lambda e: e[:2])
         take = (self.events.observation, self.events.feature, self.events.point)
         for _, kind, row in rows:
             take[kind](row)
 
 
 def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
-    """A loaded run's graph built by `EventGraph` (its relative poses, wheel robots' grid
-    steps, candidate sets and point measurements merged in time order, a relative pose at its
-    end time, a grid step at the odometry row that completes it: `wheel_steps`): the graph
-    `graphloc online` solves for an event-clocked run (`coverage.route`). steps: None, or a
-    list that gets, after each row, the steps it completed (`advance` at the row's time: the
-    live order)."""
+    """A loaded run's graph built by `EventGraph`: its relative poses, wheel robots' grid steps,
+    scans, candidate sets, pixels and point measurements merged in time order. steps: None, or a
+    list that gets the steps each row completed (`advance` at its time: the live order)."""
     wheel = wheel_motions(run, config)
     stamped = {m.robot for m in run.motions} | {m.robot for _, m in wheel}
     observers = {o.robot for o in run.observations}
     camera = bool(run.features) or any(o.candidates.source == "circle" for o in run.observations)
     camera = camera or max_mixtures_possible(run, run_tables(run))
     wheels = {m.robot for _, m in wheel}
-    live = EventGraph(
-        _without_rows(run), config, run.start_time, stamped, observers, camera, wheels
-    )
+    live = EventGraph(empty_run(run), config, run.start_time, stamped, observers, camera, wheels)
     for m in run.motions:
         if m.robot in wheels:
             skip_relative(live.graph.skips, run.robots[m.robot])
@@ -274,7 +251,7 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     sets = sorted((o.time, 2, i, o) for i, o in enumerate(run.observations))
     pixels = sorted((f.time, 3, i, f) for i, f in enumerate(run.features))
     points = sorted((m.time, 4, i, m) for i, m in enumerate(run.points))
-    take = (live.motion, live.scan, live.observation, live.feature, live.point)
+    take = (live.motion, live.links.scan, live.observation, live.feature, live.point)
     rows = heapq.merge(motions, scans, sets, pixels, points, key=lambda e: e[:3])
     for t, kind, _, row in rows:
         take[kind](row)
@@ -286,10 +263,6 @@ def build_events(run: TeamRun, config: GraphConfig, steps=None) -> TeamGraph:
     live.graph.run = run
     _drop_unplaced(live.graph, {r.r for r in live.robots if r.seed is None})
     return live.graph
-
-
-def _order(entry: tuple) -> tuple:
-    return entry[:2]
 
 
 def _drop_unplaced(graph: TeamGraph, robots: set) -> None:
@@ -313,10 +286,3 @@ def _drop_unplaced(graph: TeamGraph, robots: set) -> None:
     counts = {k: v for k, v in graph.counts.items() if not k.startswith("factors_")}
     counts.update({f"factors_{name}": types.count(name) for name in sorted(set(types))})
     graph.counts = counts
-
-
-def _without_rows(run: TeamRun) -> TeamRun:
-    velocity = tuple(np.zeros((0, 3)) for _ in run.robots)
-    return replace(
-        run, velocity=velocity, motions=(), observations=(), features=(), scans=(), points=()
-    )

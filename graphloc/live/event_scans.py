@@ -1,45 +1,17 @@
-"""`ScanLinks`: the inter-robot scan registration of `live.events.EventGraph`, made causal
-(seed 004, ../shared/seeds/004_fa12d1d18dcbd0db.txt, Sec. II-C / III: P3P initializes ICP,
-which fuses the ground and ceiling robots' maps). Each registration is the whole-run one
-(`team_graph.scans.register_pair`: `robust_register` from a hint and its covariance, the
-acceptance checks, a BetweenFactorPose3 with the registration's calibrated covariance); what
-changes is when it runs.
-
-Rule. A scanning robot that nothing placed is registered at each set of its candidate stream
-that the tracker takes, until one registration is accepted: onto each placed scanning robot in
-turn, from the tracker's best guess after that set, then each candidate of the set by
-posterior (`candidates.StreamDecisions.tentative`), its arrived scan nearest the set's time
-onto the other's scan at that time (the set waits for both robots' steps past its time, so
-those scans are in). The accepted registration places the robot (`event_placement.seed_robot`)
-and is a `scan_match` factor. (The whole-run route waits for the stream's last set and starts
-from the guess after it.) Then every common scan time of two placed scanning robots is
-registered, hinted by the later robot's initial pose there (`GraphConfig.scan_hint_sigma`):
-the earlier times at the placement -- their factors enter with the placing step, before which
-the online pass holds the robot's factors anyway (`graph.anchored_from`), as `graphloc online`
-holds them --, each later one once the other robot's scans that could be nearest it have
-arrived. A robot no registration placed is counted (`scan_match_rejected`) at the end.
-
-Memory: scans are kept as `ScanObservation`s (time, robot, extrinsics, path); a registration
-reads and prepares its two scans and lets them go."""
+"""`ScanLinks`: the inter-robot scan registration of `live.events.EventGraph` (seed 004, Sec.
+II-C / III: P3P initializes ICP, which fuses the ground and ceiling robots' maps) as
+scan-matching factors, made causal; a rejected registration is counted, never guessed
+(docs/design_team_graph.md, "Scan registration")."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
+import gtsam
 import numpy as np
 
 from graphloc.keys import pose_key
 from graphloc.live.event_placement import initial_upto, seed_robot
-from graphloc.pipelines.team_graph.config import cov6
-from graphloc.pipelines.team_graph.scans import register_pair, scan_near
-
-
-@dataclass(frozen=True)
-class _Scans:
-    """What `register_pair` reads of a run: its robots and the scans arrived so far."""
-
-    robots: tuple
-    scans: tuple
+from graphloc.pipelines.team_graph.config import adjoint_cov, cov6
+from graphloc.pipelines.team_graph.motion import compose_steps
 
 
 class ScanLinks:
@@ -137,7 +109,7 @@ class ScanLinks:
             kb = clock.nearest(b, scan_b.time)
             if kb < 0:
                 continue
-            scan_a = scan_near(self._view(a, b), a, scan_b.time)
+            scan_a = _nearest_scan(self.mine[a], scan_b.time)
             if (scan_a.time, scan_b.time) in self.used:  # the pair placed b: a factor already
                 continue
             guess = (kb, scan_b.time, self._pose(b, kb), cov6(self.config.scan_hint_sigma))
@@ -151,27 +123,75 @@ class ScanLinks:
         self.done[(a, b)] = j
 
     def _register(self, a: int, b: int, guess, reasons: list, prepared: dict):
-        events = self.events
-        poses = {a: (_Initial(events, a), None)}
-        return register_pair(
-            self._view(a, b),
-            self.config,
-            events.clock,
-            events.graph.step_rel,
-            poses,
-            guess,
-            a,
-            b,
-            events.skips,
-            reasons,
-            prepared,
-        )
+        """Robot b's scan nearest its guess (node, time, body pose, 6x6 covariance) registered
+        onto robot a's scan at the same time (`mapping.robust_registration.robust_register` from
+        the hint and its covariance, with the acceptance checks): (factor time, a
+        BetweenFactorPose3 with the registration's covariance, {b's node: (a, a's node, rel)},
+        (scan times)), or None (a rejection in `reasons`, else counted). `prepared`: scan path
+        -> PreparedCloud, filled here."""
+        events, config, robots = self.events, self.config, self.run.robots
+        nearest, node_times = events.clock.nearest, events.clock.node_times
+        step_rel, skips = events.graph.step_rel, events.skips
+        k_tent, t_tent, X_tent, cov_tent = guess
+        scan_b = _nearest_scan(self.mine[b], t_tent)
+        scan_a = _nearest_scan(self.mine[a], scan_b.time)
+        name = f"robots {robots[a].name} / {robots[b].name}"
+        if abs(scan_a.time - scan_b.time) > self.tolerance:
+            skips.add("scan_match_rejected", f"{name}: no scans at a common time near {t_tent}")
+            return None
+        ka, kb = nearest(a, scan_a.time), nearest(b, scan_b.time)
+        if ka < 0 or kb < 0:
+            skips.add("no_pose_at_time", f"{name}: scans at {scan_b.time} have no poses")
+            return None
+        if kb >= k_tent:
+            step, step_cov = compose_steps(step_rel[b], k_tent, kb, config)
+        else:
+            back, step_cov = compose_steps(step_rel[b], kb, k_tent, config)
+            step = back.inverse()
+        X_b = X_tent.compose(step)
+        cov_b = adjoint_cov(step.inverse(), cov_tent) + step_cov
+        E_a, E_b = scan_a.body_T_sensor, scan_b.body_T_sensor
+        hint = self._pose(a, ka).compose(E_a).inverse().compose(X_b.compose(E_b))  # T_sa_sb
+        hint_cov = adjoint_cov(E_b.inverse(), cov_b)
+        # Open3D loads only for runs that register scans (`graphloc smooth` of other runs skips it)
+        from graphloc.mapping.io import read_scan
+        from graphloc.mapping.acceptance import AcceptanceConfig
+        from graphloc.mapping.registration import RegistrationConfig, prepare
+        from graphloc.mapping.robust_registration import robust_register
 
-    def _view(self, a: int, b: int) -> _Scans:
-        return _Scans(self.run.robots, tuple(self.mine.get(a, ())) + tuple(self.mine[b]))
+        cfg = config.registration or RegistrationConfig()
+        acceptance = config.acceptance or AcceptanceConfig()
+        try:
+            # the scans as the reader kept them (thinned to the point budget, read again quietly)
+            for scan in (scan_b, scan_a):
+                if scan.path not in prepared:
+                    prepared[scan.path] = prepare(read_scan(scan.path, warn=False)[0], cfg)
+            source, target = prepared[scan_b.path], prepared[scan_a.path]
+        except (OSError, ValueError) as exc:
+            raise ValueError(f"{name}: scan registration: {exc}") from None
+        decision = robust_register(
+            source, target, hint.matrix(), 0.5 * (hint_cov + hint_cov.T), cfg, acceptance
+        )
+        if not decision.accepted:
+            reasons.append(
+                f"{name}: scans at {scan_b.time}: registration not accepted "
+                f"({'; '.join(decision.reasons)})"
+            )
+            return None
+        T = gtsam.Pose3(decision.registration.transformation)  # T_sa_sb
+        rel = E_a.compose(T).compose(E_b.inverse())  # body_a_T_body_b
+        cov = adjoint_cov(E_b, decision.covariance)
+        noise = gtsam.noiseModel.Gaussian.Covariance(0.5 * (cov + cov.T))
+        factor = gtsam.BetweenFactorPose3(pose_key(a, ka), pose_key(b, kb), rel, noise)
+        t = max(node_times[a][ka], node_times[b][kb], t_tent)
+        return t, factor, {kb: (a, ka, rel)}, (scan_a.time, scan_b.time)
 
     def _pose(self, r: int, k: int):
-        return _Initial(self.events, r)[k]
+        """Robot r's initial pose at node k, carried along its steps up to it."""
+        robot = self.events.robots[r]
+        if robot.initial_done <= k:
+            initial_upto(self.events.graph, self.config, [robot], float(robot.times[k]))
+        return self.events.graph.initial[pose_key(r, k)]
 
     def _factor(self, t: float, a: int, b: int, factor) -> None:
         """A registration's factor, at its time or, made at a placement, with the placing step
@@ -179,19 +199,8 @@ class ScanLinks:
         anchored = self.events.graph.anchored_from
         t = max(t, anchored.get(a, -np.inf), anchored.get(b, -np.inf))
         self.count += 1
-        self.events.pending_factor(t, (5, self.count), factor, "scan_match")
+        self.events.pending.add(t, (5, self.count), factor, "scan_match")
 
 
-class _Initial:
-    """Robot r's initial poses as a list `register_pair` indexes: carried along its steps up
-    to the node asked for (`event_placement.initial_upto`)."""
-
-    def __init__(self, events, r: int):
-        self.events, self.r = events, r
-
-    def __getitem__(self, k: int):
-        events, r = self.events, self.r
-        robot = events.robots[r]
-        if robot.initial_done <= k:
-            initial_upto(events.graph, events.config, [robot], float(robot.times[k]))
-        return events.graph.initial[pose_key(r, k)]
+def _nearest_scan(scans: list, t: float):
+    return min(scans, key=lambda s: abs(s.time - t))

@@ -1,21 +1,5 @@
-"""A candidate set into `live.events.EventGraph` once its poses are final (`take_set`), by
-its (observer, target) stream -- one rule per stream, as `team_graph.candidates` has it:
-
-- a target with an initial pose: the stream's `candidates.StreamTracker` (the decision uses
-  the sets before it only) and the factors `candidates.stream_factors` makes of the set -- a
-  decided candidate's robust prior (static target) or between factor on the observer's and
-  the target's poses (moving target), or a pixel stream's projection factors on a static
-  target's marker points or, for a moving target, on per-set marker points held on the
-  target's pose (`camera.moving_marker_factors`; their initial values from the target's pose
-  once it has one) --, then the observer's placement (`_place`). An observer's sets of one
-  target with and without marker pixels are two streams (which kind a set is, is known when
-  it arrives), as are its sets of two targets: the first stream that places the observer
-  places it, the others' factors enter with that placement (held until then);
-- a target without an initial pose seen by an observer with one -- circles: by any camera,
-  held until it is placed --: each set a max-mixture (`live.event_camera.mixture_set`), the
-  target placed through the observer;
-- a target without an initial pose seen by an observer without one: nothing places either
-  through the other; each set a counted `target_unplaced` skip."""
+"""A candidate set into `live.events.EventGraph` once its poses are final (`take_set`): one
+rule per (observer, target) stream (docs/design_team_graph.md, "Candidate sets")."""
 
 from __future__ import annotations
 
@@ -23,9 +7,8 @@ from graphloc.keys import pose_key
 from graphloc.live.event_camera import mixture_set
 from graphloc.live.event_placement import seed_robot, start_variants, stream_placement
 from graphloc.pipelines.team_graph.candidates import (
-    StreamDecisions,
     StreamTracker,
-    stream_factors,
+    set_factors,
 )
 
 
@@ -36,7 +19,7 @@ def take_set(events, n: int, o) -> None:
         if run.robots[r].initial_pose is not None or o.candidates.source == "circle":
             # a placed observer (circles: a camera, held until it is placed): max-mixtures
             return mixture_set(events, n, o)  # (`live.event_camera`)
-        key = (r, ti)  # counted at the end, one skip per stream (`event_record`)
+        key = (r, ti)  # counted at the end, one skip per stream (`events.record_graph`)
         events.unplaced_sets[key] = events.unplaced_sets.get(key, 0) + 1
         return
     key = (r, ti, o.pixels is not None)
@@ -49,29 +32,23 @@ def take_set(events, n: int, o) -> None:
     tracked = tracker.add(n, o, clock.nearest(r, o.time), clock.nearest(ti, o.time), step_rel)
     if tracked is None:
         return
-    one = StreamDecisions(r, ti, tracker.out.pixel_route, [tracked])
-    made = stream_factors(run, events.config, clock, one, [(n, o)], events.marker_points)
+    pixels, config = tracker.out.pixel_route, events.config
+    made = set_factors(run, config, clock.node_times, tracked, pixels, events.marker_points)
     events.skips.merge(made.skips)
     events.marker_points.update(made.marker_points)
     events.graph.initial.update(made.marker_points)
     for point, target, kt, local in made.frame_points:
         events.graph.frame_points[point] = (pose_key(target, kt), local)
     for j, (t, f, kind) in enumerate(made.factors):
-        events.pending_factor(t, (4, index, len(obs), j), f, kind)
+        events.pending.add(t, (4, index, len(obs), j), f, kind)
     _place(events, tracker, tracked)
 
 
 def _place(events, tracker, tracked) -> None:
-    """The observer's placement by one tracked set (the one causal rule, `live.events`):
-    a decided set places it -- a stream without pixels at each decided set, a pixel stream
-    only while nothing placed it --; a scanning observer is registered from the stream's
-    hypotheses (`event_scans.ScanLinks.place`); a pixel stream none of whose first
-    `GraphConfig.guess_after_sets` sets was decided places an observer still unplaced by the
-    tracker's best guess at that set (a stream that ends before that many: at its last set,
-    when the run ends) (`event_placement.stream_placement`), every candidate of
-    that set an alternative placement the online solve runs as a hypothesis too
-    (`event_placement.start_variants`): the guess may be a wrong candidate, which the later
-    sets' pixels tell apart."""
+    """The observer's placement by one tracked set (docs/design_team_graph.md, "The event route:
+    causality and placement"): a decided set, a registration from the stream's hypotheses, or a
+    pixel stream's guess at its `guess_after_sets`-th set (at its last when the run ends sooner),
+    every candidate of that set a hypothesis."""
     r, pixels = tracked.observation.robot, tracker.out.pixel_route
     robot = events.robots[r]
     if tracked.decided and not (pixels and robot.placed):

@@ -1,45 +1,6 @@
-"""`EventGraph`: the team graph of event-clocked robots built as rows arrive -- robots without
-wheel odometry, whose poses are at their relative poses' stamps (KISS-ICP steps of scans among
-them, `live.scan_feed`) and their measurements' times (`team_graph.motion.node_times`), placed
-by the candidate sets they see of a target with a known pose (`team_graph.candidates`: one
-`StreamTracker` per stream, fed set by set, `live.event_sets`), by the inter-robot scan
-registration those sets hint (`live.event_scans`), by their bearings (`live.event_points`:
-point measurements, mutual bearings, resection), or, without an initial pose, by the circle
-sets a placed camera sees of them (max-mixtures), with the camera's feature tracks
-(`live.event_camera`, seed 003).
-
-Causality. A robot's pose times up to x are final once every row before x has arrived (the
-watermark passed x) and, for a robot with relative poses, x is no later than the last arrived
-step's end (a measurement inside a step is a pose of its own, `motion.inserted_times`, which
-only the step covering it tells). Each advance applies the whole-run rule to the rows that can
-shape times after the last final one (those within the longest step of it) and appends the new
-final times; rows that would change a final pose time or step (a step starting inside steps
-already built, rows out of time order) are refused as they arrive: counted skips naming them
-(`relative_pose_late`, `point_late`, `set_late`), as any late row of a live team. A relative
-pose becomes its between factors once its poses are final; a candidate set joins its poses
-once those near it and the steps into them are final, goes through its stream's tracker (the
-decision uses the sets before it only) and becomes the factors `candidates.stream_factors`
-makes of it.
-A step is emitted once every pose time up to it is final and no row that could add a factor to
-it is still to come.
-
-Placement, one causal rule. An observer with no initial pose is placed by the first of its
-streams (one per target, and per target with and without pixels, `live.event_sets`) that places
-it, in arrival order: a stream without pixels at each decided set (its decisions are its only
-factors); a marker-pixel stream once, at its first decided set, or -- when none of its first
-`GraphConfig.guess_after_sets` tracked sets was decided -- at that set by the tracker's best
-guess there (`event_placement.stream_placement`): when that set arrives, the sets before it
-decide where the observer goes, and no later set can change it. A scanning observer not placed
-by a decision is placed by the first accepted inter-robot scan registration from its stream's
-hypotheses (`event_scans.ScanLinks`, which also registers every later common scan time), tried
-at each set before the guess. Its earlier poses are carried back along its steps
-(`motion.place_robot`); until then its `anchored_from` is infinite, so the online pass (`Pass`:
-`hold_until` the largest `anchored_from`) holds its factors and they enter with the placement.
-The wait lets a stream that will decide be placed by its decision (feng-probabilistic); one
-that never decides (kaushik-p3p-error) is placed by a guess that has seen those sets, where the
-whole-run route (`candidates.place_observers`) guesses at the first set, knowing it will never
-decide. A robot nothing placed by the end is a counted `unanchored_robot` (`finish`); its
-factors stay held (`event_rows.build_events` leaves them out of the graph)."""
+"""`EventGraph`: the team graph of event-clocked robots (relative poses, scan steps, wheel grid
+steps) built as rows arrive, with their candidate sets, scan registrations, point measurements
+and camera tables; the causality and placement rules are in docs/design_team_graph.md."""
 
 from __future__ import annotations
 
@@ -51,11 +12,16 @@ from functools import partial
 import numpy as np
 
 from graphloc.io import SkipReport
+from graphloc.live.builder import StepQueue
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_camera import EventFeatures, camera_skips, release_circles
-from graphloc.live.event_placement import initial_upto, seed_robot, start_variants
+from graphloc.live.event_placement import (
+    alternative_placements,
+    initial_upto,
+    seed_robot,
+    start_variants,
+)
 from graphloc.live.event_points import EventPoints
-from graphloc.live.event_record import record_graph, unplaced_robots
 from graphloc.live.event_scans import ScanLinks
 from graphloc.live.event_sets import take_set
 from graphloc.live.event_clock import (
@@ -68,7 +34,7 @@ from graphloc.live.event_clock import (
     refused_motion,
 )
 from graphloc.pipelines.team_graph.config import FINE_PRECISION, GraphConfig, run_precision
-from graphloc.pipelines.team_graph.graph import TeamGraph
+from graphloc.pipelines.team_graph.graph import TeamGraph, count_graph
 from graphloc.pipelines.team_graph.motion import (
     between_factor,
     robot_anchors,
@@ -92,12 +58,10 @@ class EventGraph:
         camera=False,
         wheels=frozenset(),
     ):
-        """stamped: the robots with a relative-pose table (their pose times at its stamps);
-        observers: those with candidate sets (markers, candidates, ellipses); camera: the run
-        has feature or ellipse tables (`TeamGraph.camera`); wheels: the stamped robots whose
-        relative poses are wheel-odometry grid steps (`live.wheel_steps`). iSAM2's precision:
-        FINE_PRECISION with candidate sets, else `run_precision` of the relative poses (not the
-        wheel steps: a wheel run is COARSE, `run_precision`) before the first step."""
+        """stamped: robots whose pose times are at relative-pose stamps; observers: robots with
+        candidate sets; camera: `TeamGraph.camera`; wheels: the stamped robots whose relative poses
+        are wheel grid steps. iSAM2's precision: FINE_PRECISION with candidate sets, else
+        `run_precision` of the relative poses before the first step."""
         self.run, self.config, self.wheels = run, config, frozenset(wheels)
         self.points = EventPoints(run, config, set(observers))
         self.start = start_time
@@ -112,26 +76,18 @@ class EventGraph:
         self.queue: deque = deque()  # candidate sets waiting for their poses, in arrival order
         self.arrived: list = []  # every candidate set, in arrival order
         self.marker_points: dict = {}
-        self.pending: dict = {}
-        self.carried: list = []  # point factors on poses of steps already emitted
-        self.emitted = -np.inf
         self.first_seen = np.inf
         self.skips = SkipReport()
         self.graph = TeamGraph(
             run,
             config,
             self.clock.node_times,
-            {},
-            [],
-            [],
-            [],
-            {},
             [r.steps for r in self.robots],
-            skips=SkipReport(),
             precision=FINE_PRECISION if observers else np.nan,
         )
         self.graph.skips.merge(run.skips)
         self.graph.camera = camera
+        self.pending = StepQueue(self.graph)
         self.links = ScanLinks(self)  # the inter-robot scan registration
         for r, robot in enumerate(run.robots):  # held by the online pass until placed
             if robot.initial_pose is None:
@@ -161,11 +117,6 @@ class EventGraph:
         robot.motions.append(m)
         robot.ends.append(m.t1)
         robot.span = max(robot.span, m.t1 - m.t0)
-
-    def scan(self, obs) -> None:
-        """A scan (`graphloc.run.ScanObservation`) for the inter-robot registration; its
-        KISS-ICP step comes in as a relative pose (`motion`)."""
-        self.links.scan(obs)
 
     def observation(self, o) -> None:
         """A candidate set (`graphloc.run.CandidateObservation`)."""
@@ -206,7 +157,8 @@ class EventGraph:
             self._times(robot, watermark)
         self._take_motions(watermark)
         points, robots, tol = self.points, self.robots, self.config.sync_tolerance
-        points.take(self.clock, lambda r: final_end(robots[r], watermark), self.pending_factor)
+        carried = partial(self.pending.add, carry=True)  # a point row on a static robot's pose
+        points.take(self.clock, lambda r: final_end(robots[r], watermark), carried)
         self._take_sets(watermark)
         self.features.take(self, watermark)
         self.links.pairs(lambda r: final_end(self.robots[r], watermark))
@@ -225,11 +177,8 @@ class EventGraph:
         return self._emit(bound)
 
     def finish(self) -> list:
-        """Every row is in: the remaining steps, the graph's counts, decisions and
-        alternatives. A pixel stream that ended undecided before `guess_after_sets` sets places
-        its observer at its last set by the tracker's guess (`event_sets._place`). A robot
-        nothing placed (a stream without pixels never decided) is a counted skip
-        `unanchored_robot`: its factors stay held."""
+        """Every row is in: the remaining steps, the graph's counts, decisions and alternatives; a
+        robot nothing placed is a counted `unanchored_robot`, its factors held."""
         for robot in self.robots:
             robot.finished = True
         if self.start is None and np.isfinite(self.first_seen):
@@ -254,11 +203,9 @@ class EventGraph:
                 self._anchors(robot)
 
     def _times(self, robot: EventRobot, watermark: float) -> None:
-        """Robot's new final pose times: the whole-run rule (`motion.node_times`) over the rows
-        that can shape times after its last final one -- the relative poses ending within the
-        longest step before it and the measurements after it (a pose time t depends on the
-        stamps and steps around t only) --, cut at what is final. Rows that would change a
-        final time are refused as they arrive (`motion`, `observation`)."""
+        """Robot's new final pose times: poses at its relative-pose stamps and at measurements
+        inside a step (else at its measurements), over the rows that can shape times after its last
+        final one, cut at what is final."""
         if robot.robot.static:
             return
         end = final_end(robot, watermark)
@@ -287,7 +234,7 @@ class EventGraph:
         made = robot_anchors(robot.r, robot.robot, self.config, robot.times, robot.anchors_done)
         for t, f, kind in made:
             robot.anchor_count += 1
-            self.pending_factor(t, (1, robot.r, robot.anchor_count), f, kind)
+            self.pending.add(t, (1, robot.r, robot.anchor_count), f, kind)
         robot.anchors_done = len(robot.times)
 
     def _take_motions(self, watermark: float) -> None:
@@ -320,7 +267,7 @@ class EventGraph:
         nodes = range(k0, k1 + 1) if len(parts) > 1 else (k0, k1)
         for j, (x, y, (rel, cov)) in enumerate(zip(nodes[:-1], nodes[1:], parts)):
             f = between_factor(r, x, y, rel, cov, config)
-            self.pending_factor(times[max(x, y)], (0, r, index, j), f, "odometry")
+            self.pending.add(times[max(x, y)], (0, r, index, j), f, "odometry")
             if y == x + 1 and robot.steps[y] is None:
                 robot.steps[y] = (rel, cov)
 
@@ -339,14 +286,8 @@ class EventGraph:
             self.queue.popleft()
             take_set(self, n, o)
 
-    def pending_factor(self, t: float, order: tuple, factor, kind: str) -> None:
-        if order[0] == 2 and t <= self.emitted:  # a row between static robots, whose one pose
-            self.carried.append((order, factor, kind))  # is at the start: in the next step
-            return
-        self.pending.setdefault(float(t), []).append((order, factor, kind))
-
     def _emit(self, bound: float) -> list:
-        due = sorted(t for t in self.pending if t <= bound)
+        due = self.pending.due(bound)
         graph = self.graph
         if (due or bound == np.inf) and not np.isfinite(graph.precision):  # no candidate sets:
             motions = tuple(  # the steps so far
@@ -355,19 +296,11 @@ class EventGraph:
             graph.precision = run_precision(replace(self.run, motions=motions, observations=()))
         steps = []
         for t in due:
-            if t <= self.emitted:
-                raise NotLiveError(f"a factor at {t} after the step at {self.emitted}: not causal")
             initial_upto(graph, self.config, self.robots, t)
             self.points.initials(graph.initial, graph.guessed_alternatives)
             self.features.priors(self, t)
             self._frame_points()
-            group = sorted(self.pending.pop(t), key=lambda item: item[0])
-            group, self.carried = self.carried + group, []
-            step = (t, [(f, kind) for _, f, kind in group])
-            graph.steps.append(step)
-            graph.factor_types += [kind for _, _, kind in group]
-            self.emitted = t
-            steps.append(step)
+            steps.append(self.pending.emit(t))
         if bound == np.inf:
             initial_upto(graph, self.config, self.robots, np.inf)
             self.points.initials(graph.initial, graph.guessed_alternatives)
@@ -380,3 +313,62 @@ class EventGraph:
         for key, (pose, local) in self.graph.frame_points.items():
             if key not in initial and pose in initial:
                 initial[key] = initial[pose].transformFrom(local)
+
+
+def record_graph(events) -> None:
+    """Decisions, skips, alternatives and counts of `events` (an `EventGraph` whose rows are
+    all in) into its graph."""
+    graph = events.graph
+    tracked = list(events.streams.values())
+    ordered = sorted(
+        [(i, t.out.outcomes, t.out.skips) for t, _, i in tracked]
+        + [(i, t.outcomes, t.made.skips) for t, i in events.mixtures.values()],
+        key=lambda item: item[0],
+    )
+    graph.decisions = [d for _, outcomes, _ in ordered for d in outcomes]
+    for _, _, skips in ordered:
+        graph.skips.merge(skips)
+    robots = events.run.robots
+    for (r, ti), n in events.unplaced_sets.items():
+        graph.skips.add(
+            "target_unplaced",
+            f"robot {robots[r].name}: {n} candidate sets on robot {robots[ti].name}: neither "
+            f"has an initial pose (no max-mixture places one through the other)",
+            n,
+        )
+    graph.skips.merge(events.features.tracks.made.skips)
+    graph.skips.merge(events.skips)
+    points = events.points.builder
+    graph.skips.merge(points.made.skips)
+    streams = [tracker.out for tracker, _, _ in tracked]
+    alternative_placements(graph, events.config, events.robots, streams, points.sensors.poses)
+    count_graph(
+        graph,
+        points,
+        sum(len(r.times) for r in events.robots if r.seed is not None),
+        candidate_sets=len(events.arrived),
+        marker_points=len(events.marker_points),
+        committed_sets=sum(d.committed >= 0 for d in graph.decisions),
+        feature_tracks=len(events.features.tracks.tracks),
+    )
+
+
+def unplaced_robots(events) -> None:
+    """Robots nothing placed by the end of `events` (an `EventGraph` whose rows are all in):
+    each a counted skip `unanchored_robot` naming why (its factors stay held)."""
+    graph = events.graph
+    for robot in events.robots:
+        if robot.seed is not None:
+            continue
+        graph.anchored_from.pop(robot.r, None)
+        if not len(robot.times):  # no rows: no poses
+            continue
+        why = (
+            "nothing placed it (no decided candidate set, no marker-pixel set, no placement "
+            "by mutual bearings, resection or scan registration)"
+        )
+        events.skips.add(
+            "unanchored_robot",
+            f"robot {robot.robot.name}: {why}; its {len(robot.times)} poses are left out",
+            len(robot.times),
+        )

@@ -1,18 +1,7 @@
-"""One live run: rows from a source pushed into a `graphloc.LiveTeam` as they arrive, each
-update's poses out to the sinks (ROS 2 topics, the Foxglove view) and the status line, until a
-stop signal or `idle` seconds without a row; `graphloc live` is a thin verb over `LiveRun`.
-
-A source has `poll(timeout) -> [(receive time, robot, table, row)]` (`graphloc.live.ros2.
-Ros2Source`, `graphloc.live.tail.LogTail`) and `skips`. Ground-truth rows are recorded, not
-pushed (they are no measurement). An update happens while a row is pushed (the row whose time
-completes a step): its trigger. `updates` logs, per update and robot pose, the trigger (robot,
-table, its line: the log file's line, or for ROS 2 lines the message's index on its topic + 2)
-with the trigger's arrival, when the run loop took it from the source, when its push began,
-the time the update's poses were ready (before the sinks) and when the sinks were done
-(perf_counter, CLOCK_MONOTONIC: another process on the machine pairs them with its own), and
-the update's own span (`LiveUpdate.latency_s`: iSAM2 step and covariances) and CPU time;
-`latencies`: a trigger's arrival -> the poses it completed, out through every sink. The steps
-solved when the run ends (`LiveTeam.finish`) have no trigger (empty fields)."""
+"""`LiveRun`: one live run -- a source's rows pushed into a `graphloc.LiveTeam` as they arrive,
+each update's poses out to the sinks and the status line, until a stop or `idle` seconds
+without a row -- with its per-update log and latencies (docs/live.md); `graphloc live` is a
+thin verb over it."""
 
 from __future__ import annotations
 

@@ -1,10 +1,6 @@
-"""Rows of a live ROS 2 source written as a log directory as they arrive (`graphloc live --ros2
---out DIR`: DIR/log): the manifest of the topics file (`graphloc.datasets.rosbag.
-write_log_manifest`, the import's; every mapped (robot, table) listed, at the import's paths),
-then each row appended to its table (the log writer's cells, `graphloc.log_writer.cell`) and
-flushed, ground truth as TUM lines. The team is opened on this directory, and `graphloc online
-DIR/log` replays what arrived. An existing log of the same topics file is continued (a
-restarted `graphloc live` resuming from its checkpoint)."""
+"""`LogRecorder`: the rows of a live ROS 2 source written as a log directory as they arrive
+(`graphloc live --ros2 --out DIR`: the import's manifest, then each row appended and flushed),
+so that `graphloc online DIR/log` replays what arrived; an existing log is continued."""
 
 from __future__ import annotations
 

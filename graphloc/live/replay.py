@@ -8,7 +8,7 @@ import heapq
 from dataclasses import fields
 from pathlib import Path
 
-from graphloc.io import LANDMARK_PREFIX, MANIFEST, iter_records, read_manifest
+from graphloc.io import LANDMARK_PREFIX, MANIFEST, iter_records
 from graphloc.live.coverage import EVENT_TABLES, LIVE_TABLES
 from graphloc.live.team import LiveTeam
 from graphloc.pipelines.team_graph.options import RunOptions
@@ -38,18 +38,14 @@ def _log_rows(root: Path, duration):
         from graphloc.datasets import open_run
 
         end = open_run(root).start_time + duration
-    manifest = read_manifest(root)
+    table_of = {cls: name for name, cls in TABLES.items()}
     live = LIVE_TABLES + EVENT_TABLES
     tables = [t for t in TABLES if t in live and t != "groundtruth"]  # the log's order
     for rec in iter_records(root, tables=tables, on_error="skip"):
         if end is not None and rec.time > end:
             continue
         row = {f.name: getattr(rec, f.name) for f in fields(rec) if f.name not in ("robot", "line")}
-        yield rec.robot, _table_of(rec, manifest), row
-
-
-def _table_of(rec, manifest) -> str:
-    return next(name for name, cls in TABLES.items() if isinstance(rec, cls))
+        yield rec.robot, table_of[type(rec)], row
 
 
 def _mrclam_rows(root: Path, duration):
@@ -62,17 +58,8 @@ def _mrclam_rows(root: Path, duration):
 
     def odometry(r):
         for t, v, w in run.odometry[r]:
-            yield (
-                float(t),
-                names[r],
-                "odometry",
-                {
-                    "time": float(t),
-                    "sensor": "wheels",
-                    "v": float(v),
-                    "omega": float(w),
-                },
-            )
+            row = {"time": float(t), "sensor": "wheels", "v": float(v), "omega": float(w)}
+            yield names[r], "odometry", row
 
     def observations():
         for t, r, target, lm, rng, b in zip(
@@ -83,19 +70,9 @@ def _mrclam_rows(root: Path, duration):
             run.obs_range,
             run.obs_bearing,
         ):
-            yield (
-                float(t),
-                names[r],
-                "range_bearing",
-                {
-                    "time": float(t),
-                    "sensor": "camera",
-                    "target": names[target] if target >= 0 else f"{LANDMARK_PREFIX}{lm}",
-                    "range": float(rng),
-                    "bearing": float(b),
-                },
-            )
+            seen = names[target] if target >= 0 else f"{LANDMARK_PREFIX}{lm}"
+            row = {"time": float(t), "sensor": "camera", "target": seen}
+            yield names[r], "range_bearing", {**row, "range": float(rng), "bearing": float(b)}
 
     streams = [odometry(r) for r in range(len(names))] + [observations()]
-    for _, robot, table, row in heapq.merge(*streams, key=lambda e: e[0]):
-        yield robot, table, row
+    return heapq.merge(*streams, key=lambda e: e[2]["time"])

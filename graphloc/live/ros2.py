@@ -1,23 +1,7 @@
-"""ROS 2 topics in and poses out over Cyclone DDS (`pip install 'graphloc[live]'`), no ROS
-installation: the DDS names and types of rmw_cyclonedds (`graphloc.live.ros2_types`).
-
-- `Ros2Source(topics)`: subscribes to the topics file's topics (docs/rosbag.md). A topic's
-  message type is the one its publisher announces (DDS discovery, as `ros2 bag record` finds
-  it), so the topics file needs no types; a publisher of a type its table does not take is a
-  counted skip `wrong_type` (its topic is not read). `poll(timeout)` returns the (arrival
-  time, robot, table, row) of the messages received since, in arrival order
-  (`graphloc.live.topics.LiveTopics`).
-- `Ros2LogSource(log)`: a log's tables as lines (`graphloc_msgs/msg/LogRow` on
-  `/graphloc/log/ROBOT/TABLE`), for rows no ROS message holds as they are (MRCLAM's).
-- `Ros2Sink(robots)`: per robot `/<robot>/pose` (`geometry_msgs/PoseWithCovarianceStamped`),
-  `/<robot>/path` (`nav_msgs/Path`, the poses published so far, every `path_period` s from a
-  thread of its own, and at the end) and `/tf` (frame `map` -> the robot's name).
-
-Quality of service: rows in reliable, keep-all (nothing dropped between a publisher and
-graphloc on one machine; a best-effort ROS 2 publisher does not match a reliable reader);
-poses out reliable and transient-local (a reader that joins late gets the last KEEP_POSES).
-The domain is `ROS_DOMAIN_ID` (default 0); `CYCLONEDDS_URI` selects the network interfaces
-(the loopback test: `lo` only)."""
+"""ROS 2 topics in and poses out over Cyclone DDS without a ROS installation (`graphloc[live]`):
+`Ros2Source` (a topics file's topics), `Ros2LogSource` (a log's lines as
+`graphloc_msgs/msg/LogRow`), `Ros2Sink` (pose, path and tf per robot); quality of service and
+domain as docs/live.md says."""
 
 from __future__ import annotations
 
@@ -177,14 +161,10 @@ def log_row_topic(robot: str, table: str) -> str:
 
 
 class Ros2LogSource(_Readers):
-    """The tables of a log's manifest published line by line as `graphloc_msgs/msg/LogRow`
-    (`log_row_topic`): the rows of a source that has no ROS message type (MRCLAM's unicycle
-    velocities, planar range-bearing). A line is split into its table's columns here (a line
-    without the table's number of fields is a `field_count` skip naming robot, table and line;
-    blank and '#' lines are passed over, as the log reader does) and goes out as column -> text
-    with its `line` (the message's index on its topic + 2: line 1 is the header); its fields are
-    checked once, by the team it is pushed to (`graphloc.live.rows.RowChecker`: a bad field is
-    a skip naming robot, table and field; a row behind the release front a `late_row`)."""
+    """A log's tables (its manifest) published line by line as `graphloc_msgs/msg/LogRow`
+    (`log_row_topic`), for rows no ROS message holds (MRCLAM's): each line split into its table's
+    columns here (a wrong field count a `field_count` skip), its fields checked by the team it is
+    pushed to."""
 
     def __init__(self, root, dp=None):
         from graphloc.io import SkipReport, columns, is_tum, read_manifest

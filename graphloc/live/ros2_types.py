@@ -1,14 +1,7 @@
-"""ROS 2 message types on the wire without a ROS installation: Cyclone DDS IDL structs
-(`cyclonedds.idl.IdlStruct`) generated from rosbags' ROS 2 Humble type store, the one schema
-`graphloc import` reads bags with (plus vision_msgs 4, `datasets.rosbag_export.typestore`).
-ROS 2's DDS names (rmw_cyclonedds): topic `/a/b` -> `rt/a/b`, type `pkg/msg/T` ->
-`pkg::msg::dds_::T_`.
-
-`idl_type(msgtype)` is the struct of one ROS 2 type (its nested types generated on the way);
-`to_idl(msg, msgtype)` copies a rosbags message (ROS 1 or ROS 2, e.g. from a bag) into it by
-field name; `as_message(msgtype, sample)` is the one seam where a received sample is adapted to
-what `graphloc.datasets.rosbag_messages` reads from rosbags' messages (byte buffers as uint8
-arrays), so bags and live topics share one converter."""
+"""ROS 2 message types on the wire without a ROS installation: Cyclone DDS IDL structs generated
+from rosbags' ROS 2 type store, the one schema of `graphloc import` (`idl_type`), and received
+samples adapted to what the bag import's converter reads (`as_message`), so bags and live
+topics share one converter."""
 
 from __future__ import annotations
 
@@ -109,28 +102,6 @@ def idl_type(msgtype: str) -> type:
         lambda ns: ns.update({"__annotations__": ann, "__module__": __name__}),
     )
     return dataclasses.dataclass(cls)
-
-
-def _copy(value, node):
-    kind, spec = node
-    kind = int(kind)
-    if kind == 1:
-        return value.item() if isinstance(value, np.generic) else value
-    if kind == 2:
-        return to_idl(value, spec)
-    inner, _ = spec
-    if kind == 4 and int(inner[0]) == 1 and inner[1][0] in ("uint8", "byte", "char"):
-        return np.asarray(value, dtype=np.uint8).tobytes()
-    if int(inner[0]) == 1:
-        return np.asarray(value).tolist() if isinstance(value, np.ndarray) else list(value)
-    return [_copy(v, inner) for v in value]
-
-
-def to_idl(msg, msgtype: str):
-    """A rosbags message (either type store: a ROS 1 header's `seq` has no ROS 2 field and is
-    left out) as the DDS sample of ROS 2 type `msgtype`."""
-    fields = typestore().fielddefs[msgtype][1]
-    return idl_type(msgtype)(**{n: _copy(getattr(msg, n), node) for n, node in fields})
 
 
 # the message types whose byte buffer the converters read as an array (images, clouds)

@@ -1,9 +1,6 @@
-"""Rows pushed to a live team: each checked field by field as `graphloc.table_reader` checks a
-table's rows (parsing, finite, plausible range, known sensor of the table's type, known target)
-and then by its table's handler (`datasets.log_rows.TABLE_HANDLERS`), a refused row counted in
-a `SkipReport` naming robot, table, row and field (`RowChecker`); the accepted ones held in a
-time window and released in time order, a row older than what was released counted as a
-`late_row` skip (`TimeWindow`)."""
+"""Rows pushed to a live team: checked field by field as the log reader checks a table, then by
+the table's handler (`RowChecker`: a refused row a counted skip naming robot, table, row and
+field), and held in a time window, released in time order (`TimeWindow`: `late_row`)."""
 
 from __future__ import annotations
 
@@ -22,13 +19,9 @@ TABLE_RANK = {table: i for i, table in enumerate(TABLES)}  # the log reader's or
 
 
 class RowChecker:
-    """Checks rows of a team (`manifest`: the sensors and names rows refer to; `robots`: the
-    run's `TeamRobot`s; `noise`: the noise defaults the handlers take) into typed items:
-    `check(robot, table, row, n)` -> the handler's item, or None (the row counted in
-    `skips`). tables: the tables of the team's route (`coverage.tables_of`); a row of an event-
-    clocked team is (robot index, (time, table, what it becomes)): a `Motion`, a
-    `PointMeasurement`, a `candidates` row's (set key, record), a `markers` row's record
-    (`live.event_rows` forms the sets)."""
+    """Checks rows of a team against its `manifest`, `robots` and the handlers' `noise` defaults:
+    `check(robot, table, row, n)` -> the handler's item, or None (counted in `skips`); `tables`: the
+    route's (`coverage.tables_of`), an event route's item is (robot index, (time, table, item))."""
 
     def __init__(
         self,
@@ -166,22 +159,15 @@ def _value(raw, kind, limits) -> tuple:
     elif isinstance(raw, bool):
         return None, ("parse", f"{raw!r} is not a number")
     else:
-        value, problem = _converted(raw, conv)
-        if problem:
-            return None, problem
+        try:
+            value = conv(raw.strip() if isinstance(raw, str) else raw)
+        except (TypeError, ValueError, OverflowError):
+            return None, ("parse", f"cannot parse {shown(str(raw))} as {conv.__name__}")
     if conv is float and not math.isfinite(value):
         return None, ("non_finite", f"{cut(str(raw))} is not finite")
     lo, hi = limits or (-math.inf, math.inf)
     if not lo <= value <= hi:
         return None, ("implausible", f"{cut(str(raw))} is outside the plausible [{lo:g}, {hi:g}]")
-    return value, None
-
-
-def _converted(raw, conv) -> tuple:
-    try:
-        value = conv(raw.strip() if isinstance(raw, str) else raw)
-    except (TypeError, ValueError, OverflowError):
-        return None, ("parse", f"cannot parse {shown(str(raw))} as {conv.__name__}")
     return value, None
 
 

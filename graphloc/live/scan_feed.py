@@ -1,19 +1,6 @@
-"""`ScanFeed`: a live team's `scans` rows through KISS-ICP as they arrive (seed 004,
-../shared/seeds/004_fa12d1d18dcbd0db.txt, Sec. II-B: each robot builds its own map from its
-scan sequence), one `graphloc.mapping.odometry.ScanOdometry` -- KISS-ICP's own pipeline
-object -- per (robot, scanner): each scan read when its row is released
-(`graphloc.mapping.io.read_scan`, the loader's checks), registered onto the scans before it, and
-the step from the scanner's previous scan made into the relative pose the loader makes of it
-(`datasets.log_observations.scan_step`: the body frame through the extrinsics, `icp_sigmas`).
-The steps are those of the whole-run loader (`log_observations.scan_odometry` feeds the same
-object scan by scan), so a scan's step uses the scans before it only.
-
-Memory stays bounded by one scan: a row names its file (a path in the run directory), the file
-is read, registered and let go; what is kept is KISS-ICP's own voxel map (points within its
-`max_range` of the scanner) and each scan's `ScanObservation` (time, robot, extrinsics, path).
-A row whose file cannot be used (outside the run, unreadable, too few points, not in metres) is
-a counted skip naming robot, table, row and field; non-finite points of a scan used are counted
-(`scan_points_nonfinite`), a scan beyond the point budget thinned (`scan_thinned`, a note)."""
+"""`ScanFeed`: a live team's `scans` rows through KISS-ICP as they arrive (seed 004 Sec. II-B),
+one `mapping.odometry.ScanOdometry` per (robot, scanner), each step the relative pose the loader
+makes of it (`log_observations.scan_step`); a scan that cannot be used is a counted skip."""
 
 from __future__ import annotations
 

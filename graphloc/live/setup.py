@@ -11,18 +11,17 @@ import numpy as np
 
 from graphloc.io import MANIFEST, SkipReport, read_landmarks, read_manifest
 from graphloc.manifest import Manifest, Robot, Sensor, check_noise_params
-from graphloc.pipelines.team_graph.config import GraphConfig, default_lag
+from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.options import RunOptions
 from graphloc.run import NOISE_DEFAULTS, TeamRun
 
 
 @dataclass(frozen=True)
 class LiveSetup:
-    """run: the team's `TeamRun` with no rows yet (robots, landmarks, start time: NaN where
-    the rows will tell, `start_time` None); manifest: what rows are checked against; noise: the
-    handlers' defaults; landmark_ids: the known landmarks (None: SLAM, any id); config: the
-    graph's (the lag set); tables: each robot's tables by name (which builder takes the run:
-    `coverage.route`)."""
+    """What a live team knows before its first row: the `TeamRun` without rows, the manifest rows
+    are checked against, the handlers' noise defaults, the known landmark ids (None: SLAM), the
+    graph's config (the lag set), the start time (None: the rows tell) and each robot's tables
+    (`coverage.route`)."""
 
     run: TeamRun
     manifest: Manifest
@@ -49,10 +48,7 @@ def live_setup(source: Path, options: RunOptions | None = None) -> LiveSetup:
         raise FileNotFoundError(
             f"{source}: a live team opens a log directory ({MANIFEST}) or an MRCLAM directory"
         )
-    config = opts.graph_config()
-    lag = opts.lag if opts.lag is not None else default_lag(run, config)
-    config = replace(config, lag=float(lag))
-    return LiveSetup(run, manifest, defaults, ids, config, start, tables)
+    return LiveSetup(run, manifest, defaults, ids, opts.graph_config(run), start, tables)
 
 
 def empty_run(run: TeamRun) -> TeamRun:

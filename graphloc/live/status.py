@@ -1,8 +1,5 @@
-"""Progress and health of a live run on one terminal line (tqdm, refreshed at most every
-`every` s): rows per second per table over the last `window` s, the iSAM2 step latency (median
-and max of the last 100 updates), the largest 1-sigma position uncertainty of any robot (a
-diverging estimate shows as a growing sigma) and the rows skipped so far. `summary()` is the
-same as numbers for the run's end."""
+"""`StatusLine`: a live run's progress on one terminal line (rows per second per table, iSAM2 step
+latency, largest position sigma, rows skipped) and the same as numbers (`summary`)."""
 
 from __future__ import annotations
 

@@ -1,14 +1,6 @@
-"""A log directory that a logger is still writing (docs/log_format.md), tailed: its
-`manifest.json` first (waited for until it reads as a whole), then the new complete lines of
-each table it lists. A partial last line waits for its newline; a table file that appears later
-is picked up when it does. Every row passes the checks of the log reader
-(`graphloc.table_reader.LineChecker`: header, fields, plausible values, known sensors and
-targets, time non-decreasing within the table); a bad row is a counted skip naming file, line
-and field. Ground truth (`.tum`) is not a measurement and is not tailed.
-
-`LogTail(root).poll(timeout)` returns the (receive time, robot, table, row) of the lines
-completed since the last call, merged by time across tables (rows of one table in file order);
-with none, it waits `timeout` s first."""
+"""`LogTail`: a log directory a logger is still writing, tailed (its manifest, then each table's
+new complete lines, checked as the log reader checks them: `table_reader.LineChecker`, a bad
+row a counted skip naming file, line and field)."""
 
 from __future__ import annotations
 

@@ -1,16 +1,11 @@
 """`LiveTeam`: a running team's rows pushed as they arrive, one iSAM2 update per completed time
-step, each robot's latest pose (with its marginal covariance when asked) after every update.
+step, each robot's latest pose (with its marginal covariance when asked) after every update
+(docs/api.md, "Live").
 
     team = graphloc.LiveTeam.open("runs/team1", options=graphloc.RunOptions(), window=0.5)
-    team.subscribe(lambda update: print(update.time, update.poses))
     team.push("robot1", "odometry", {"time": 12.0, "sensor": "wheels", "v": 0.2, "omega": 0.0})
-    team.latest("robot1")  # RobotPose: time, gtsam.Pose3, 6x6 covariance (or None)
     result = team.finish()  # the TeamResult `solve(graph, mode="online")` gives
-
-Rows (docs/log_format.md columns, text or numbers) are checked (`rows.RowChecker`), held for
-`window` seconds and released in time order (`rows.TimeWindow`), built into the team graph
-(`builder.LiveGraph`) and solved step by step by the online pass of `graphloc online`
-(`team_graph.passes.Pass`)."""
+"""
 
 from __future__ import annotations
 
@@ -131,7 +126,11 @@ class LiveTeam:
         """One row of robot `robot`'s `table` (column -> text or number): checked (a refused
         row counted in `skips`, named by robot, table, its number among the rows pushed to the
         team and the field), put in time order, and every step it completes solved."""
-        self._check_open(robot, table)
+        if self.closed:
+            raise ValueError(
+                f"robot {robot!r}, table {table!r}: LiveTeam.push after finish(): the run is "
+                f"over (the row is not taken)"
+            )
         self.checker.refuse(robot, table, row)  # raises: the push is no row (not counted)
         self.rows += 1
         if self.pushed is not None:
@@ -144,11 +143,6 @@ class LiveTeam:
             if released:
                 self._release(released, self.window.front)
         self._raise_callback_error()
-
-    def push_many(self, robot: str, table: str, rows) -> None:
-        """Rows of one robot's table, in the order they arrived (`push` each)."""
-        for row in rows:
-            self.push(robot, table, row)
 
     # ---- out -------------------------------------------------------------------------------
 
@@ -166,15 +160,7 @@ class LiveTeam:
         if self.finished is not None:
             return self.finished
         self._close()
-        if isinstance(self.builder, LiveGraph):
-            self.graph.run = replace(
-                self.setup.run,
-                start_time=float(self.builder.start if self.builder.start is not None else np.nan),
-                velocity=tuple(robot.velocity.view.copy() for robot in self.builder.robots),
-                points=tuple(self.builder.arrived),
-            )
-        else:
-            self.graph.run = self.builder.run_so_far()
+        self.graph.run = self.builder.run_so_far()
         solver = self._solver()
         result = solver.result()
         if self.checkpoint_path is not None:
@@ -250,13 +236,6 @@ class LiveTeam:
         self._release(self.window.flush(), np.inf)
         self._solve(self.builder.finish())
 
-    def _check_open(self, robot, table) -> None:
-        if self.closed:
-            raise ValueError(
-                f"robot {robot!r}, table {table!r}: LiveTeam.push after finish(): the run is "
-                f"over (the row is not taken)"
-            )
-
     def _raise_callback_error(self) -> None:
         """The first exception a subscriber raised during this call, raised again now that
         every step of it is solved and every other subscriber called."""
@@ -274,10 +253,9 @@ class LiveTeam:
         self._solve(builder.advance(front))
 
     def _solve(self, steps: list) -> None:
-        """Solve every step the builder emitted and the pass has not solved yet (`steps`: the
-        new ones; the passes catch up on any step left behind). A robot placed by a guess adds
-        a pass per alternative start as the builder makes them (`SideBySide.add`), compared
-        after every step."""
+        """Solve every step the builder emitted that the passes have not (`steps`: the new ones); a
+        robot placed by a guess adds a pass per alternative start as the builder makes them
+        (`SideBySide.add`)."""
         while self.graph.steps and self._solver().done < len(self.graph.steps):
             t0, cpu0 = _time.perf_counter(), _time.process_time()
             solver = self.solver

@@ -1,11 +1,6 @@
-"""Messages of a topics file's topics, as they arrive, -> rows of the team's tables: the
-conversion of `graphloc import` (`graphloc.datasets.rosbag_messages`: `message_rows` for the
-tables whose rows stand alone, `PoseChain` for relative_pose3 increments), row by row instead of
-bag by bag. A row is a mapping column -> value (docs/log_format.md); a scans row names the PLY
-file its cloud was written to under `scans_dir` (as the import writes it).
-
-Bad messages are counted skips in `skips`, named by the topic and the message's index in its
-topic (arrival order) -- the import's reasons (docs/rosbag.md, "Skips")."""
+"""`LiveTopics`: messages of a topics file's topics, as they arrive, -> rows of the team's
+tables through `graphloc import`'s converter (`datasets.rosbag_messages`), row by row; bad
+messages are counted skips named by topic and index (docs/rosbag.md, "Skips")."""
 
 from __future__ import annotations
 

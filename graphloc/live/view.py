@@ -1,18 +1,6 @@
-"""The live view a person opens while the team runs: Foxglove's SDK WebSocket server
-(`pip install 'graphloc[live]'`; open Foxglove, "Open connection", ws://HOST:PORT). Per update,
-in frame `map` at the update's time:
-
-- `/graphloc/ROBOT/pose` (`PoseInFrame`): the robot's latest pose;
-- `/graphloc/ROBOT/path` (`PosesInFrame`): its latest poses so far (the causal path), at most
-  every `path_period` s of wall time;
-- `/tf` (`FrameTransforms`): `map` -> each robot;
-- `/graphloc/covariance` (`SceneUpdate`): per robot its 1-sigma position ellipsoid (the
-  covariance's position block rotated to `map`: axes its eigenvectors, diameters
-  2 sqrt(eigenvalue)) and a text of the largest position [cm] and rotation [deg] sigmas.
-
-`LiveView(port)` starts the server (`port` 0: a free port, `view.port`); `show(poses)` logs one
-update; `close()` stops it. The messages go to every sink of the view's `foxglove.Context` (an
-MCAP file opened on it records the same stream: `tests/test_live_io.py`)."""
+"""`LiveView`: the Foxglove live view of a running team (Foxglove SDK WebSocket server,
+`graphloc[live]`): per robot its pose, path, tf and 1-sigma position ellipsoid (docs/live.md,
+"--view")."""
 
 from __future__ import annotations
 

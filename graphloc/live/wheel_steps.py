@@ -1,22 +1,13 @@
-"""A wheel-odometry robot on the event route (`live.events.EventGraph`): its odometry rows
-(time, v, omega) integrated over the wheel route's pose grid (start + k keyframe_dt, up to its
-last row: `team_graph.motion.node_times`) into one relative pose per grid step
-(`graphloc.run.Motion`: the planar step and its covariance as SE(3), `run.planar_covariance`,
-as `live.builder.LiveGraph._grow` and the whole run's `motion._velocity_steps` make them), each
-made once the robot's odometry has reached the step's end (causal: node k exists once a row at
-or after its time has arrived). The steps come from `live.arc.ArcIntegrator` carried forward,
-so they are bit for bit those of one integration over the whole table, however the rows are
-split into calls. On the event route such a robot is stamped (its pose times at the grid and
-at its measurements inside a step, `event_clock`); relative poses of its own (a relative-pose
-table or scans beside its odometry) would be a second clock of its poses: each is a counted
-skip (`skip_relative`)."""
+"""A wheel-odometry robot's grid steps on both routes (`LiveGraph`'s pose grid, the event route's
+relative poses): its odometry integrated over the grid start + k keyframe_dt
+(`live.arc.ArcIntegrator`, bit for bit whatever the split), each step made once its odometry
+reaches the step's end."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from graphloc.live.arc import ArcIntegrator
-from graphloc.live.robot_state import GrowingArray
+from graphloc.live.arc import ArcIntegrator, GrowingArray
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.motion import velocity_noise
 from graphloc.run import Motion, TeamRun, planar_covariance, pose_from_planar
@@ -50,7 +41,7 @@ class WheelSteps:
         if not len(times):
             return []
         self.seen = self.rows.n
-        # nodes that exist once each row has arrived (`LiveGraph._grow`'s count)
+        # nodes that exist once each row has arrived
         made = np.maximum(np.floor((times - start) / self.dt + 1e-9).astype(int) + 1, 1)
         n = int(made[-1])
         k0 = self.nodes

@@ -1,20 +1,13 @@
-"""`run_team`: one team run from its source to its outputs -- read (`graphloc.datasets.open_run`),
-graph (`team_graph`: `live.builder.build_live`, the live API's incremental builder, in batch
-and online alike), solve (`team_graph.solve`, batch or online), judge (`report.evaluate`:
-metrics and the consistency verdict), write (`report.write_outputs`) --, the one route
-`graphloc smooth` / `online` (and so `graphloc.many_runs`) and the Python API take.
-
-    from graphloc import RunOptions, run_team
-    outcome = run_team("runs/team1", "out/team1", "batch", RunOptions(lag=30.0))
-    outcome.metrics["consistent"], outcome.result.estimate[0]
-"""
+"""`run_team`: one team run from its source to its outputs -- read (`datasets.open_run`), graph
+(`team_graph`), solve (`team_graph.solve`), judge and write (`pipelines.report`) -- the route of
+`graphloc smooth` / `online` and of the Python API (docs/api.md)."""
 
 from __future__ import annotations
 
 import json
 import signal
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from graphloc.pipelines.team_graph.options import RunOptions
@@ -53,28 +46,22 @@ def run_team(
     progress: bool = False,
     on_phase=None,
 ) -> TeamOutcome:
-    """Read `source` (a log directory, MRCLAM directory or bag, `open_run`), build its graph,
-    solve it (`mode` "batch" or "online"), evaluate and write every output into `out`.
-    options: `RunOptions` (defaults when None; the default lag when its `lag` is None).
-    stop(): True ends the solve early (`team_graph.solve`; the outputs so far are written,
-    `partial`), and leaves out figures not drawn yet. checkpoint(graph, option values) -> the
-    solve's on_step / on_stop hooks (`graphloc online --checkpoint`). on_phase(name): told
-    "solving" when the graph is built and "writing" when the solve is done (the command line's
-    Ctrl-C handling, `commands.smooth.StopFlag`). The realtime factor counts CPU time from
-    reading the run to the last estimate."""
+    """Read `source` (`open_run`), build its graph, solve it (`mode` "batch" or "online"; `options`:
+    `RunOptions`, None: the defaults), evaluate and write every output into `out`. stop(): True ends
+    the solve early (the outputs so far written, `partial`); checkpoint(graph, option values) -> the
+    solve's on_step / on_stop hooks; on_phase(name): told "solving" and "writing" (the command
+    line's Ctrl-C handling)."""
     from graphloc.datasets import open_run
     from graphloc.manifest import check_noise_params
-    from graphloc.pipelines.team_graph import default_lag, solve
+    from graphloc.pipelines.team_graph import solve
 
     opts = RunOptions() if options is None else options
     values = asdict(opts)
-    config = opts.graph_config()
     noise = opts.noise()
     check_noise_params(noise, "option (command line or --config)")
     cpu0 = time.process_time()
     run = open_run(source, duration=opts.duration, noise=noise, source=opts.source())
-    lag = opts.lag if opts.lag is not None else default_lag(run, config)
-    config = replace(config, lag=float(lag))
+    config = opts.graph_config(run)
     graph = team_graph(run, config)
     hooks = checkpoint(graph, values) if checkpoint is not None else {}
     if on_phase is not None:
@@ -88,13 +75,8 @@ def run_team(
 
 
 def team_graph(run, config):
-    """The graph `run_team` solves, batch and online alike: the live API's incremental builder
-    (`live.builder.build_live`) fed the run's whole tables -- the wheel route (`LiveGraph`:
-    wheel-odometry robots, MRCLAM) or the event route (`live.events.EventGraph`: relative poses,
-    scans, candidate sets, circle sets, feature tracks, bearings, with the wheel robots' odometry
-    as grid steps) --, so that `graphloc smooth`, `graphloc online` and `graphloc live` build one
-    graph from the same rows. What a live team cannot use is a counted skip, never the whole run
-    refused."""
+    """The graph `run_team` solves, batch and online alike: `live.builder.build_live`, the live
+    team's builder fed the run's whole tables."""
     from graphloc.live.builder import build_live
 
     return build_live(run, config)

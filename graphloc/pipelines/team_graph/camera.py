@@ -1,63 +1,42 @@
-"""Camera pixels as projection factors. Marker pixels of a static target (seed 000 Sec. III-B,
-seed 004 Sec. II-C): every marker of the target's layout is one world point of the graph, held by
-the target's pose prior, and each pixel a projection factor on the observer's pose -- the
-measurements the P3P candidates were solved from, with none of P3P's ambiguity once the
-observer's motion links the frames. Feature tracks (seed 003 II-B: KLT) as projection factors on
-landmark variables, one per
-track (seed 003 eq. 14), with the seed's weak prior on each point: on the first ray at the
-camera's `feature_depth` with std `feature_depth_sigma` (seed III: the EKF's KLT points start
-at the background distance with a large covariance). Explicit landmarks rather than
-SmartProjectionPose3Factor: a smart factor grows with its track, and `Session` (append-only
-`add`) cannot tell iSAM2 that an added factor changed; the prior keeps every landmark determined
-from its first pixel on (an undamped iSAM2 step can push a point behind a camera, where the
-projection gives no information)."""
+"""Camera pixels as projection factors: marker pixels of a static or moving target (seed 000
+Sec. III-B, seed 004 Sec. II-C) and feature tracks on one landmark per track with the seed's
+weak depth prior (seed 003 II-B, eq. 14; docs/design_team_graph.md, "Feature tracks")."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import gtsam
 import numpy as np
 
 from graphloc.factors.robust import robust_noise
+from graphloc.geometry.so3 import skew
 from graphloc.keys import frame_marker_key, landmark_key, marker_key, pose_key
 from graphloc.pipelines.team_graph.config import FEATURE_BASE, GraphConfig, cov6
-from graphloc.pipelines.team_graph.section import SectionFactors
+from graphloc.pipelines.team_graph.graph import SectionFactors
 from graphloc.run import TeamRun
-
-
-@dataclass
-class FeatureSection:
-    """The feature section's output: its factors and skips (`made`), each track's landmark
-    guess ('from' the first pose, on the first ray at the depth prior: key -> ('from', robot,
-    k, direction, range)), the tracks' point priors ((key, sigma, time) each: placed at the
-    guess once the poses' initial values exist) and the number of tracks."""
-
-    made: SectionFactors
-    landmark_guess: dict
-    point_priors: list
-    tracks: int
 
 
 class FeatureTracks:
     """Feature pixels fed one at a time (`add`), causally: a track's landmark, its guess and
-    its point prior come from the track's first pixel alone (module docstring); `section`: the
-    `FeatureSection` so far."""
+    its point prior come from the track's first pixel alone: `made` (factors, skips), each
+    track's landmark guess ('from' its first pose, on the first ray at the depth prior) and the
+    point priors ((key, sigma, time) each, placed at the guess once that pose has a value)."""
 
     def __init__(self, run: TeamRun, config: GraphConfig):
         self.run, self.config = run, config
         self.kernel = config.kernels.kernel("projection")
         self.tracks: dict = {}  # (robot, track) -> landmark key
         self.calibrations: dict = {}
-        self.section = FeatureSection(SectionFactors(), {}, [], 0)
+        self.made = SectionFactors()
+        self.landmark_guess: dict = {}
+        self.point_priors: list = []
 
     def add(self, f, k: int, time: float) -> list:
         """Pixel `f` at its robot's pose k (-1: none within the sync tolerance; a counted skip
         `no_pose_at_time`) at that pose's `time`: its projection factor ((time, factor,
         "projection"), returned too: [] when skipped), a new track's landmark guess and point
-        prior (`section`). A pixel that does not undistort is a counted skip `bad_pixel`."""
-        run, section = self.run, self.section
-        skips = section.made.skips
+        prior. A pixel that does not undistort is a counted skip `bad_pixel`."""
+        run, skips = self.run, self.made.skips
         if k < 0:
             skips.add(
                 "no_pose_at_time",
@@ -80,14 +59,13 @@ class FeatureTracks:
         if stream not in self.tracks:
             lkey = landmark_key(FEATURE_BASE + len(self.tracks))
             self.tracks[stream] = lkey
-            section.tracks = len(self.tracks)
             config = self.config
             depth, sigma = f.depth_prior or (config.feature_depth, config.feature_depth_sigma)
             ray = np.array([(ideal[0] - cam.cx) / cam.fx, (ideal[1] - cam.cy) / cam.fy, 1.0])
             p_body = f.body_T_sensor.transformFrom(ray * depth)
             rng = float(np.linalg.norm(p_body))
-            section.landmark_guess[lkey] = ("from", f.robot, k, p_body / rng, rng)
-            section.point_priors.append((lkey, sigma, time))
+            self.landmark_guess[lkey] = ("from", f.robot, k, p_body / rng, rng)
+            self.point_priors.append((lkey, sigma, time))
         noise = robust_noise(gtsam.noiseModel.Isotropic.Sigma(2, f.pixel_sigma), self.kernel)
         factor = gtsam.GenericProjectionFactorCal3_S2(
             gtsam.Point2(*ideal),
@@ -98,7 +76,7 @@ class FeatureTracks:
             f.body_T_sensor,
         )
         made = [(time, factor, "projection")]
-        section.made.factors += made
+        self.made.factors += made
         return made
 
 
@@ -112,13 +90,10 @@ def marker_factors(
     E: gtsam.Pose3,
     known: dict,
 ) -> SectionFactors:
-    """The marker pixels of one candidate set (`CandidateObservation.pixels`) of a static
-    target as GenericProjectionFactorCal3_S2 on robot r's pose k (the sensor at body_T_sensor
-    E: its extrinsics after the robot's motion from pose k to the set's time) and
-    the target's marker points (robust kernel 'projection'). A marker point enters once: one
-    not in `known` (the marker points made before) is a new marker point (its world position,
-    its initial value) with a PriorFactorPoint3 whose covariance is the target's pose prior
-    (static_sigma) carried to the point, H P H^T with H = d(T m)/dT = [-R [m]x, R]."""
+    """The marker pixels of one candidate set of a static target as projection factors on robot r's
+    pose k (sensor at body_T_sensor E) and the target's marker points; a marker point not in `known`
+    enters once, with a prior of the target's pose prior carried to it (H P H^T, H = d(T m)/dT = [-R
+    [m]x, R])."""
     out = SectionFactors()
     ti = observation.target
     target = run.robots[ti]
@@ -130,7 +105,7 @@ def marker_factors(
         keys.append(key)
         if key not in known and key not in out.marker_points:
             local = np.asarray(target.markers[int(m)], float)
-            H = np.hstack([-R @ _skew(local), R])
+            H = np.hstack([-R @ skew(local), R])
             cov = H @ cov6(config.static_sigma) @ H.T + np.eye(3) * 1e-12
             out.marker_points[key] = T.transformFrom(local)
             prior = gtsam.PriorFactorPoint3(
@@ -150,26 +125,18 @@ def moving_marker_factors(
     index: int,
     time: float,
     observation,
-    offsets: tuple,
 ) -> SectionFactors:
-    """The marker pixels of one candidate set of a moving target as factors on both poses (the
-    observer's pose k, the target's pose kt): each marker seen is one world point of that set
-    (`keys.frame_marker_key(index, marker)`), held on the target's pose by a
-    BearingRangeFactor3D to its layout position (std `config.marker_sigma`) and seen by a
-    GenericProjectionFactorCal3_S2 on the observer's pose (robust kernel 'projection').
-    offsets = (observer, target): each robot's body at the set's time in its body frame at its
-    pose (`Timeline.offsets`): the sensor is body_T_sensor after the observer's offset, a
-    marker is its layout position after the target's. The points' initial values come once
-    the target's poses have theirs: (key, target, kt, position in the target's body frame at
-    pose kt) in `frame_points`."""
+    """The marker pixels of one candidate set of a moving target: per marker one point of that set
+    (`keys.frame_marker_key`), held on the target's pose kt by a BearingRangeFactor3D to its layout
+    position (std `marker_sigma`) and projected into the observer's pose k; the points' initial
+    values come from the target's pose (`frame_points`)."""
     out = SectionFactors()
     ti = observation.target
     target = run.robots[ti]
-    observer_offset, target_offset = offsets
     keys = []
     for m in observation.pixels.markers:
         key = frame_marker_key(index, int(m))
-        local = target_offset.transformFrom(np.asarray(target.markers[int(m)], float))
+        local = np.asarray(target.markers[int(m)], float)
         distance = float(np.linalg.norm(local))
         sigma = config.marker_sigma
         noise = gtsam.noiseModel.Diagonal.Sigmas(
@@ -190,8 +157,7 @@ def moving_marker_factors(
         )
         out.frame_points.append((key, ti, kt, local))
         keys.append(key)
-    E = observer_offset.compose(observation.body_T_sensor)
-    out.merge(_projections(run, config, r, k, time, observation, E, keys))
+    out.merge(_projections(run, config, r, k, time, observation, observation.body_T_sensor, keys))
     return out
 
 
@@ -226,10 +192,6 @@ def _projections(run, config, r, k, time, observation, E, keys) -> SectionFactor
             )
         )
     return out
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _ideal_pixel(camera, pixel: np.ndarray):

@@ -1,20 +1,7 @@
-"""Candidate sets (P3P, seed 000 / 001 / 004) -> factors, in three steps with explicit inputs
-and outputs, one rule per (observer, target) stream:
-
-1. `decide_stream`: the target is placed (known initial pose): the observer is placed through
-   it and one HypothesisTracker decides the stream's sets causally -> `StreamDecisions`;
-2. `stream_factors`: the factors of those decisions -> `SectionFactors`. When the sets carry
-   their marker pixels, the pixels become projection factors (`camera.marker_factors` on a
-   static target's marker points, `camera.moving_marker_factors` on both poses of a moving
-   one; a decided candidate would count them twice); without pixels a decided candidate
-   becomes one robust prior (static target) or between factor (moving target);
-3. `place_observers`: the decided observer poses, each tracked observer's latest best guess
-   (the scan registration's hint) and a pixel stream's alternative placements.
-
-A stream whose target is not placed but whose observer is (seed 003: a camera sees a teammate's
-base, two circle candidates) is `mixtures.mixture_stream`'s: each set a max-mixture the solve
-chooses, the target placed through the observer. `candidate_section` runs them all.
-"""
+"""Candidate sets (P3P, seed 000 / 001 / 004) of a placed target -> factors: per (observer,
+target) stream one `HypothesisTracker` decides causally (`StreamTracker`, seed 000 Sec. V),
+and `set_factors` makes the decided sets robust priors / between factors, or a pixel
+stream's marker pixels projection factors."""
 
 from __future__ import annotations
 
@@ -38,20 +25,18 @@ from graphloc.pipelines.team_graph.decision import (
     rows_of,
     same_pose,
 )
-from graphloc.pipelines.team_graph.motion import Timeline, compose_steps, dead_reckoning
-from graphloc.pipelines.team_graph.section import SectionFactors
+from graphloc.pipelines.team_graph.motion import compose_steps, dead_reckoning
+from graphloc.pipelines.team_graph.graph import SectionFactors
 from graphloc.run import TeamRun
 from graphloc.seams import Decision, Odometry
 
 
 @dataclass(frozen=True)
 class TrackedSet:
-    """One set of a tracked stream as the tracker saw it: its index in `run.observations`, the
-    observation, the observer's and target's nodes k / kt, each candidate as target_T_sensor
-    (`seen`, with `measured_cov`, its own covariance) and as the observer's world_T_body
-    (`bodies`, with `covariance`, the target's pose uncertainty added), the tracker's update
-    and whether the update decided the set (committed, its same-pose cluster's posterior at
-    least `decision_threshold`)."""
+    """One set of a tracked stream as the tracker saw it: its index, observation, observer and
+    target nodes k / kt, each candidate as target_T_sensor (`seen`, `measured_cov`) and as the
+    observer's world_T_body (`bodies`, `covariance` with the target's uncertainty), the tracker's
+    update and whether it decided the set."""
 
     index: int
     observation: object
@@ -82,12 +67,10 @@ class StreamDecisions:
 
 
 class StreamTracker:
-    """One (observer r, placed target ti) stream's HypothesisTracker fed one set at a time
-    (`add`), causally: a set's decision uses the sets before it and the observer's steps up to
-    its pose only. `out` is the stream's `StreamDecisions` so far. A set with no (new) observer
-    pose or no target pose within the sync tolerance is a counted skip `no_pose_at_time`; an
-    inconsistent set (no candidate passed the pixel chi-square, `vision.marker_poses`) is never
-    decided: an outcome with status "inconsistent" and a counted skip `inconsistent_set`."""
+    """One (observer r, placed target ti) stream's HypothesisTracker fed one set at a time (`add`),
+    causally; `out`: its `StreamDecisions`. A set without a (new) pose is a counted
+    `no_pose_at_time`, an inconsistent one (no candidate passed the pixel chi-square) an
+    `inconsistent_set` never decided."""
 
     def __init__(self, run: TeamRun, config: GraphConfig, r: int, ti: int, pixel_route: bool):
         self.run, self.config, self.r, self.ti = run, config, r, ti
@@ -213,59 +196,43 @@ def homogeneous(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     return out
 
 
-def stream_factors(
+def set_factors(
     run: TeamRun,
     config: GraphConfig,
-    timeline: Timeline,
-    stream: StreamDecisions,
-    obs: list,
+    node_times: list,
+    s: TrackedSet,
+    pixel_route: bool,
     marker_points: dict,
 ) -> SectionFactors:
-    """The factors of one tracked stream's decisions (module docstring, step 2); `obs`: the
-    stream's every set, over which the pixel route integrates each robot's motion between its
-    pose and the set's time; `marker_points`: the static markers earlier streams made, so a
-    point enters once."""
+    """The factors of one tracked set: a pixel stream's marker pixels as projection factors,
+    else a decided set's robust prior (static target) or between factor (moving target);
+    `marker_points`: the static markers made before, so a point enters once."""
+    o, k, kt, E = s.observation, s.k, s.kt, s.observation.body_T_sensor
+    r, ti = o.robot, o.target
+    target = run.robots[ti]
+    t = max(node_times[r][k], node_times[ti][kt])
+    if pixel_route and target.static:
+        return marker_factors(run, config, r, k, t, o, E, marker_points)
+    if pixel_route:
+        return moving_marker_factors(run, config, r, k, kt, s.index, t, o)
     out = SectionFactors()
-    r, ti = stream.robot, stream.target
-    node_times, target = timeline.node_times, run.robots[ti]
-    offsets: dict = {}
-    if stream.pixel_route:  # each robot's motion between its pose and the set's time
-        nodes = [(timeline.nearest(r, o.time), timeline.nearest(ti, o.time)) for _, o in obs]
-        ok = [i for i, (k, kt) in enumerate(nodes) if k >= 0 and kt >= 0]
-        times = [obs[i][1].time for i in ok]
-        mine = timeline.offsets(r, [nodes[i][0] for i in ok], times)
-        theirs = timeline.offsets(ti, [nodes[i][1] for i in ok], times)
-        offsets = {obs[i][0]: pair for i, pair in zip(ok, zip(mine, theirs))}
+    if not s.decided:
+        return out
     kernel = config.kernels.kernel("candidate")
-    for s in stream.sets:
-        o, k, kt, E = s.observation, s.k, s.kt, s.observation.body_T_sensor
-        t = max(node_times[r][k], node_times[ti][kt])
-        if stream.pixel_route:
-            mine, theirs = offsets[s.index]
-            if target.static:
-                known = {**marker_points, **out.marker_points}
-                out.merge(marker_factors(run, config, r, k, t, o, mine.compose(E), known))
-            else:
-                out.merge(
-                    moving_marker_factors(run, config, r, k, kt, s.index, t, o, (mine, theirs))
-                )
-            continue
-        if not s.decided:
-            continue
-        j = s.update.committed
-        if target.static:  # the target's pose is known: a prior on the observer
-            noise = robust_noise(
-                gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(E, s.covariance[j])), kernel
-            )
-            factor = gtsam.PriorFactorPose3(pose_key(r, k), s.bodies[j], noise)
-        else:
-            # observer_T_target = E target_T_sensor^-1, covariance moved to the target's side
-            noise = robust_noise(
-                gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(s.seen[j], s.measured_cov[j])),
-                kernel,
-            )
-            factor = gtsam.BetweenFactorPose3(
-                pose_key(r, k), pose_key(ti, kt), E.compose(s.seen[j].inverse()), noise
-            )
-        out.factors.append((t, factor, "candidate"))
+    j = s.update.committed
+    if target.static:  # the target's pose is known: a prior on the observer
+        noise = robust_noise(
+            gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(E, s.covariance[j])), kernel
+        )
+        factor = gtsam.PriorFactorPose3(pose_key(r, k), s.bodies[j], noise)
+    else:
+        # observer_T_target = E target_T_sensor^-1, covariance moved to the target's side
+        noise = robust_noise(
+            gtsam.noiseModel.Gaussian.Covariance(adjoint_cov(s.seen[j], s.measured_cov[j])),
+            kernel,
+        )
+        factor = gtsam.BetweenFactorPose3(
+            pose_key(r, k), pose_key(ti, kt), E.compose(s.seen[j].inverse()), noise
+        )
+    out.factors.append((t, factor, "candidate"))
     return out

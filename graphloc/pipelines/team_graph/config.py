@@ -28,21 +28,13 @@ FEATURE_BASE = 200_000_000  # landmark_key(FEATURE_BASE + j): the point of the j
 
 @config_dataclass
 class GraphConfig:
-    """keyframe_dt [s]: pose grid of wheel-odometry robots; sync_tolerance [s]: how far from a
-    pose a measurement of an event-clocked robot may be; which measurements to use; robust
-    kernels by factor type (odometry, landmark, inter_robot, candidate); initial_sigma (rot
-    [rad], trans [m]) of initial-pose priors a robot does not state; static_sigma of static
-    robots' poses; surface_sigma [m]: distance of a climbing robot from its surface;
-    landmark_prior_floor [m]; unknown_motion_sigma (rot, trans) between frames of a robot with
-    no odometry; tracker: the HypothesisTracker deciding candidate sets; decision_threshold: a
-    set is decided -- its candidate enters the graph -- when the tracker has committed to a
-    track and that track's candidate in the set, with the candidates that are the same pose
-    within their covariances (`_same_pose`), has at least this posterior; guess_after_sets: a
-    marker-pixel stream none of whose first this many tracked sets was decided places its
-    observer at the last of them by the tracker's best guess there (the event route,
-    `live.events`; before it, the stream waits for a decision); marker_sigma [m]: how
-    far a moving target's marker may sit from its layout position (`camera.moving_marker_factors`);
-    session settings (iSAM2 thresholds None: set from the run's precision, `run_precision`)."""
+    """The team graph's settings: the wheel robots' pose grid (`keyframe_dt` [s]) and how far from a
+    pose another robot's measurement may be (`sync_tolerance` [s]); which measurements to use;
+    robust kernels by factor type; prior sigmas as (rot [rad], trans [m]); the candidate tracker and
+    its rule (a set is decided when the committed track's candidate, with those of the same pose,
+    has a posterior of at least `decision_threshold`; a marker-pixel stream undecided after
+    `guess_after_sets` sets places its observer by the tracker's guess); the session's settings
+    (iSAM2 thresholds None: from `run_precision`)."""
 
     keyframe_dt: float = setting(0.25, gt=0.0)
     sync_tolerance: float = setting(0.02, gt=0.0)
@@ -79,7 +71,7 @@ class GraphConfig:
     feature_depth: float = setting(2.6, gt=0.0)
     # [m] and its std (where the camera's params give none)
     feature_depth_sigma: float = setting(1.0, gt=0.0)
-    # inter-robot scan registration (`team_graph.scans`): graphloc.mapping.registration's
+    # inter-robot scan registration (`live.event_scans`): graphloc.mapping.registration's
     # RegistrationConfig / AcceptanceConfig, None = their defaults
     registration: object = None
     acceptance: object = None
@@ -101,19 +93,9 @@ class GraphConfig:
     def session_config(
         self, mode: str, precision: float = COARSE_PRECISION, camera_graph: bool = False
     ) -> SessionConfig:
-        """Session settings; iSAM2's settings, unless set, follow the run's `precision` (see
-        `run_precision`): relinearize when a variable's update exceeds half of it, stop the
-        back-substitution where the solution changes by less than a tenth of it, and on
-        camera-precise runs two extra iSAM2 iterations per step (robust candidate factors need
-        iterations to reweight; such runs have few steps). A graph with feature tracks or
-        max-mixtures (`camera_graph`) relinearizes at every update (a new track's point starts
-        at the depth prior, far from its estimate, and a max-mixture is re-chosen only when its
-        variables are relinearized) with the dog-leg step (the undamped Gauss-Newton step
-        can oscillate with period 2 on such stiff camera graphs). On a coarse run without them
-        translations and points relinearize at a fifth of the precision (2 cm on MRCLAM), the
-        rotations at half of it (0: one threshold): half of a decimetre is close to the error
-        of the estimate itself, and a fixed lag marginalizes states linearized that far off
-        (MRCLAM6, lag 30 s: scripts/bench_scale.py, "Relinearization")."""
+        """Session settings; iSAM2's thresholds, unless set, follow the run's `precision`
+        (`run_precision`); a graph with feature tracks or max-mixtures (`camera_graph`) relinearizes
+        at every update with the dog-leg step (docs/design_team_graph.md, "iSAM2 settings")."""
         relin = (
             self.relinearize_threshold
             if self.relinearize_threshold is not None
@@ -156,13 +138,9 @@ def adjoint_cov(T: gtsam.Pose3, cov: np.ndarray) -> np.ndarray:
 
 
 def run_precision(run: TeamRun) -> float:
-    """The scale [m, rad] of the run's estimates, for iSAM2's thresholds: FINE_PRECISION when
-    the run holds candidate sets (camera poses from pixels: the fused estimate is mm-precise even
-    where one P3P candidate is cm-precise along its depth); else the median translation std of
-    one relative-pose step (SE(3) odometry, scan matching) where the run has them, within
-    FINE_PRECISION and COARSE_PRECISION: an estimate relinearized more coarsely than its own
-    steps leaves their residuals beyond their noise; else COARSE_PRECISION (wheel odometry and
-    range-bearing, decimetre-level)."""
+    """The scale [m, rad] of the run's estimates that iSAM2's thresholds follow: FINE_PRECISION with
+    candidate sets, else the median translation std of one relative-pose step (within FINE and
+    COARSE), else COARSE_PRECISION."""
     if run.observations:
         return FINE_PRECISION
     steps = [np.sqrt(np.trace(m.covariance[3:, 3:]) / 3) for m in run.motions]
@@ -172,11 +150,9 @@ def run_precision(run: TeamRun) -> float:
 
 
 def default_lag(run, config: GraphConfig) -> float:
-    """The online lag when none is given: DEFAULT_LAG when every variable is only needed
-    near its own time -- no static robot (its one pose is observed all run long) and no
-    landmark estimated as one variable (SLAM) -- else 0 (full smoothing): the fixed-lag
-    smoother stamps a variable once (`graphloc.session.SessionConfig`), so a long-lived one
-    would leave the window and every later factor on it would be dropped."""
+    """The online lag when none is given: DEFAULT_LAG unless a variable must outlive the window -- a
+    static robot's one pose, a landmark estimated as one variable (SLAM) --, then 0 (full
+    smoothing)."""
     static = any(r.static for r in run.robots)
     slam = config.use_landmarks and not (
         config.landmark_priors and run.landmarks_known and config.anchor_known_landmarks

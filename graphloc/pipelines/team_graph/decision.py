@@ -1,12 +1,5 @@
-"""`SetOutcome`: what happened to one candidate set of the team graph (`candidates`,
-`mixtures`), and the helpers both routes share.
-
-Not `graphloc.seams.Decision`: that is one update of a candidate tracker (the posterior over a
-frame's candidates, the committed one, the track's pose), what `HypothesisTracker` and the
-seeds' baselines return; a `SetOutcome` is the team graph's record of a set, made from such an
-update (`candidates.decide_stream`) or from the solve's choice of a max-mixture, with the
-candidates' poses in the world and in the target's frame that `decisions.csv`, the judge and
-the recordings read."""
+"""`SetOutcome`: the team graph's record of one candidate set (not `seams.Decision`, one
+tracker update), and the helpers the tracked and max-mixture streams share."""
 
 from __future__ import annotations
 
@@ -18,17 +11,11 @@ import numpy as np
 
 @dataclass
 class SetOutcome:
-    """What happened to one candidate set: where each candidate puts the observer's body
-    (K,3 world), the committed candidate (-1: none), its posterior (else the largest one) and
-    the committed body pose (x, y, z, qx, qy, qz, qw; NaN if none); same_pose: the candidates
-    that are the committed one's pose within their covariances (`same_pose`), it included.
-    status: "decided", "undecided" or "inconsistent" (no candidate passed the pixel
-    chi-square, `vision.marker_poses`: never decided). measured (K,4,4) / measured_cov
-    (K,6,6): each candidate as the sensor's pose in the target's body frame (target_T_sensor)
-    with its own covariance, and body_T_sensor (4,4): what the truth judges a decision by
-    (`report.judge_decisions`).
-    Sets of the max-mixture route (`mixture_stream`) are chosen by the solve: `committed`
-    / `probability` are filled from the estimate (`solve.choose_mixtures`)."""
+    """What happened to one candidate set: where each candidate puts the observer's body, the
+    committed candidate (-1: none), its posterior (else the largest) and pose (x y z qx qy qz
+    qw), the candidates of the committed one's pose (`same_pose`); status "decided",
+    "undecided" or "inconsistent"; measured / measured_cov / body_T_sensor: what the truth
+    judges a decision by. A max-mixture set is chosen by the solve (`solve.choose_mixtures`)."""
 
     time: float
     robot: int

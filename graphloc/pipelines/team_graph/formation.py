@@ -1,19 +1,7 @@
 """Initial poses of robots nothing else places, from their bearings (seed 000,
-000_05137a0a9c449be3.txt):
-
-- mutual bearings (Sec. III-A): three static robots that see each other, one of them placed
-  (its `initial_pose`) and one range between two of them (the known |T_12|), are placed by
-  the three-robot algorithm (`graphloc.vision.mutual.localize_three_bearings`: interior angles,
-  law of sines, Procrustes), expressed in the placed robot's frame;
-- resection (Sec. IV): a robot that sees three placed static robots at one time is placed by
-  P3P on those bearings (`graphloc.geometry.p3p.solve_p3p`: up to 4 candidate poses); every
-  candidate of its first few such sets is an alternative start of the solve
-  (`TeamGraph.alternatives`, batch and online), since one snapshot cannot tell them apart
-  (the seed's pseudo solutions).
-
-Only initial values come from here: the bearings and the range themselves enter the graph as
-factors (`team_graph.points`), so the solve refines what these guesses start.
-"""
+000_05137a0a9c449be3.txt): three static robots by mutual bearings (Sec. III-A,
+`place_by_mutual_bearings`) and a robot resected by P3P on its bearings of three placed static
+robots (Sec. IV, `resection_candidates`). Initial values only: the bearings are factors."""
 
 from __future__ import annotations
 

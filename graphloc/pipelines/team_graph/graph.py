@@ -1,7 +1,6 @@
 """`TeamGraph`: a team run as one graph, its factors grouped in time steps with initial values
-(what the live builder, `graphloc.live.builder.build_live`, grows row by row and `solve` takes),
-and the helpers its builders share: alternative starts, sensor poses, factor keys, landmark
-initial values."""
+(what `graphloc.live.builder.build_live` grows row by row and `solve` takes); `SectionFactors`,
+what one section makes; and the helpers its builders share."""
 
 from __future__ import annotations
 
@@ -13,11 +12,27 @@ from graphloc.io import SkipReport
 from graphloc.keys import pose_key
 from graphloc.factors.mixture import MaxMixture
 from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig
-from graphloc.pipelines.team_graph.motion import (
-    Timeline,
-    place_robot,
-)
 from graphloc.run import TeamRun
+
+
+@dataclass
+class SectionFactors:
+    """What a section of the graph makes: factors (time of the newest pose, factor, type), the
+    skips it counted, a static target's new marker points (key -> world position: their
+    initial values) and a moving target's per-set points ((key, target, node, body-frame
+    position) each: their initial values come from the target's pose)."""
+
+    factors: list = field(default_factory=list)
+    skips: SkipReport = field(default_factory=SkipReport)
+    marker_points: dict = field(default_factory=dict)
+    frame_points: list = field(default_factory=list)
+
+    def merge(self, other: "SectionFactors") -> None:
+        """`other`'s factors, skips and points after these."""
+        self.factors += other.factors
+        self.skips.merge(other.skips)
+        self.marker_points.update(other.marker_points)
+        self.frame_points += other.frame_points
 
 
 @dataclass
@@ -28,21 +43,21 @@ class TeamGraph:
     run: TeamRun
     config: GraphConfig
     node_times: list
-    initial: dict  # key -> Pose3 (initial guess)
-    steps: list
-    factor_types: list
-    decisions: list
-    anchored_from: dict  # robot -> first node time the online graph may hold it
-    step_rel: (
-        list  # per robot (relative Pose3 from node k-1, covariance) for k >= 1 (None: unknown)
-    )
+    # per robot (relative Pose3 from node k-1, covariance) for k >= 1 (None: unknown)
+    step_rel: list
+    initial: dict = field(default_factory=dict)  # key -> Pose3 (initial guess)
+    steps: list = field(default_factory=list)
+    factor_types: list = field(default_factory=list)
+    decisions: list = field(default_factory=list)
+    # robot -> first node time the online graph may hold it
+    anchored_from: dict = field(default_factory=dict)
     counts: dict = field(default_factory=dict)
     skips: SkipReport = field(default_factory=SkipReport)
     precision: float = COARSE_PRECISION  # run_precision(run)
     links: dict = field(default_factory=dict)  # observer pose key -> (target key, (K,4,4))
     # other initial values the batch solve starts from too (key -> value, over `initial`): one
-    # per candidate of a pixel stream's first set (`candidates.place_observers`) or of a
-    # resected robot's first sets (`formation.place_unplaced`)
+    # per candidate of a pixel stream's first set or of a resected robot's first sets
+    # (`live.event_placement.alternative_placements`)
     alternatives: list = field(default_factory=list)
     # those of robots placed by the tracker's guess (it never decided their stream): the online
     # solve starts from these too
@@ -54,7 +69,7 @@ class TeamGraph:
     # body pose's composed with the extrinsics (`points.SensorPoses`)
     sensor_poses: dict = field(default_factory=dict)
     # the graph holds feature tracks or max-mixtures (iSAM2's settings for camera graphs,
-    # `passes.camera_graph`); a graph built live knows it from the run's tables before its rows
+    # `GraphConfig.session_config`), known from the run's tables before its rows
     camera: bool = False
     # the time of the node each alternative (each guessed alternative) was placed at: the
     # node of its own candidate set; the solve does not drop a hypothesis before that node's
@@ -62,47 +77,6 @@ class TeamGraph:
     # only carried along
     alternative_times: list = field(default_factory=list)
     guessed_alternative_times: list = field(default_factory=list)
-
-
-def alternative_starts(
-    run: TeamRun,
-    config: GraphConfig,
-    timeline: Timeline,
-    step_rel: list,
-    poses: dict,
-    alternatives: dict,
-    sensor_poses: dict,
-) -> tuple[list, list]:
-    """The other initial values the solve starts from (key -> value, over the initial values):
-    one per alternative placement of a placed robot, carried along its steps; and those of
-    robots placed by a guess (the online solve starts from these too)."""
-    variants, guessed_variants = [], []
-    for r, (starts, guessed) in alternatives.items():
-        if r not in poses:
-            continue
-        for k0, body in starts:
-            placed = place_robot(
-                run, r, timeline.node_times, step_rel, config, {r: {k0: body}}, {}, poses
-            )
-            variants.append({pose_key(r, k): p for k, p in enumerate(placed[0])})
-            with_sensors(variants[-1], sensor_poses)
-            if guessed:
-                guessed_variants.append(variants[-1])
-    return variants, guessed_variants
-
-
-def anchor_times(alternatives: dict, poses: dict, node_times: list) -> tuple[list, list]:
-    """The node time each of `alternative_starts`' variants (and guessed variants), in their
-    order, was placed at."""
-    times, guessed_times = [], []
-    for r, (starts, guessed) in alternatives.items():
-        if r not in poses:
-            continue
-        for k0, _ in starts:
-            times.append(float(node_times[r][k0]))
-            if guessed:
-                guessed_times.append(times[-1])
-    return times, guessed_times
 
 
 def with_sensors(values: dict, sensor_poses: dict) -> dict:
@@ -128,3 +102,26 @@ def landmark_initial(initial: dict, lkey: int, guess) -> None:
             initial[lkey] = initial[pose_key(r, k)].transformFrom(direction * rng)
     else:
         initial[lkey] = np.asarray(guess, dtype=float)
+
+
+def count_graph(graph: TeamGraph, points, poses: int, **sections) -> None:
+    """graph.counts (metrics.json): robots, `poses`, the point section's (`points`: a
+    `points.PointBuilder`), the steps and factors by type; `sections`: the candidate and camera
+    sections' counts (0 where not given)."""
+    types = graph.factor_types
+    counts = {
+        "robots": len(graph.run.robots),
+        "poses": poses,
+        "candidate_sets": 0,
+        "marker_points": 0,
+        "frame_marker_points": len(graph.frame_points),
+        "sensor_poses": len(points.sensors.poses),
+        "committed_sets": 0,
+        "landmark_anchors": points.n_anchor,
+        "feature_tracks": 0,
+        "steps": len(graph.steps),
+        "excluded_by_option": points.excluded,
+    }
+    counts.update(sections)
+    counts.update({f"factors_{name}": types.count(name) for name in sorted(set(types))})
+    graph.counts = counts

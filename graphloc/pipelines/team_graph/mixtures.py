@@ -1,10 +1,9 @@
 """Candidate sets of a placed observer on an unplaced target (seed 003: a camera sees a
 teammate's circular base, two candidates): each set a max-mixture the solve chooses, set by set
-(`MixtureTracker`: the whole run's `mixture_stream` and the live builder, `live.event_camera`)."""
+(`MixtureTracker`, fed by `live.event_camera`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
@@ -14,33 +13,21 @@ from graphloc.keys import pose_key
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov
 from graphloc.pipelines.team_graph.decision import SetOutcome, inconsistent, quats, rows_of
 from graphloc.pipelines.team_graph.motion import dead_reckoning
-from graphloc.pipelines.team_graph.section import SectionFactors
+from graphloc.pipelines.team_graph.graph import SectionFactors
 from graphloc.run import TeamRun
 
 
-@dataclass
-class MixtureStream:
-    """What a max-mixture stream makes: the outcome of every set, its factors and skips, and
-    where its first usable sighting places the target ({node: (observer, its node,
-    body_T_target)}; None: no set placed it)."""
-
-    outcomes: list = field(default_factory=list)
-    made: SectionFactors = field(default_factory=SectionFactors)
-    placed: dict | None = None
-
-
 class MixtureTracker:
-    """One (placed observer r, unplaced target ti) stream fed one set at a time (`add`), each
-    set on its own: a max-mixture (Olson & Agarwal; `factors.mixture.max_mixture_factor`) of
-    BetweenFactorPose3 observer -> target, one component per candidate with its covariance,
-    weights from the scores. The target's first usable sighting places it (the candidate whose
-    `body_axis` is nearest its surface normal, seen from the observer's dead-reckoned pose,
-    else the best-scored one); its own motion steps place the rest. Causal: a set's factor and
-    record use the observer's steps up to its pose only. `out`: the `MixtureStream` so far."""
+    """One (placed observer r, unplaced target ti) stream fed one set at a time (`add`): each set a
+    max-mixture (Olson & Agarwal) of between factors observer -> target, one per candidate; the
+    first usable sighting places the target (`placed`: {node: (observer, its node, body_T_target)},
+    the candidate nearest upright). `outcomes`: every set's; `made`: factors and skips."""
 
     def __init__(self, run: TeamRun, config: GraphConfig, r: int, ti: int):
         self.run, self.config, self.r, self.ti = run, config, r, ti
-        self.out = MixtureStream()
+        self.outcomes: list = []
+        self.made = SectionFactors()
+        self.placed: dict | None = None
         self.track: list = []  # the observer's dead reckoning, grown as sets need it
         self.pending: list = []  # factors made by the last `add`, their times not set yet
 
@@ -49,9 +36,9 @@ class MixtureTracker:
         step_rel, known up to k. Returns the set's graph item (a max-mixture, or a
         BetweenFactorPose3 for a single candidate; None: skipped), made into
         (time, factor, "candidate") by `factor_times`."""
-        run, config, r, ti, out = self.run, self.config, self.r, self.ti, self.out
+        run, config, r, ti = self.run, self.config, self.r, self.ti
         observer, target = run.robots[r], run.robots[ti]
-        skips = out.made.skips
+        skips = self.made.skips
         if len(o.candidates) == 0:
             skips.add(
                 "inconsistent_set",
@@ -59,7 +46,7 @@ class MixtureTracker:
                 f"pose of its layout passes the pixel chi-square",
                 rows_of(o),
             )
-            out.outcomes.append(inconsistent(o, r, ti))
+            self.outcomes.append(inconsistent(o, r, ti))
             return None
         if k < 0 or kt < 0:
             skips.add(
@@ -91,9 +78,9 @@ class MixtureTracker:
         if len(self.track) <= k:  # the observer's dead reckoning, grown up to k
             self.track = dead_reckoning(observer, steps[: k + 1], config, self.track)
         X = self.track[k][0]
-        if out.placed is None:
-            out.placed = {kt: (r, k, rel[_upright(target, X, rel, o.candidates)])}
-        out.outcomes.append(
+        if self.placed is None:
+            self.placed = {kt: (r, k, rel[_upright(target, X, rel, o.candidates)])}
+        self.outcomes.append(
             SetOutcome(
                 o.time,
                 r,
@@ -117,13 +104,13 @@ class MixtureTracker:
 
     def factor_times(self, node_times: list) -> list:
         """The factors of the sets added since the last call as (time, factor, "candidate"),
-        each at the newer of its two poses' times (appended to `out.made.factors` too)."""
+        each at the newer of its two poses' times (appended to `made.factors` too)."""
         made = [
             (max(node_times[self.r][k], node_times[self.ti][kt]), f, "candidate")
             for k, kt, f in self.pending
         ]
         self.pending = []
-        self.out.made.factors += made
+        self.made.factors += made
         return made
 
 

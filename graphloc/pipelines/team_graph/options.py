@@ -1,11 +1,6 @@
-"""`RunOptions`: the one option tree of `graphloc smooth`, `online` and `validate` -- the
-command-line options, the `--config FILE.toml` keys and the `metrics.json` "options" are its
-fields (`graphloc.config.add_config_arguments` / `config_from_args`), their rules pydantic
-field constraints (`graphloc.config.config_dataclass`). What it turns into: the
-loader's `duration`, source options (`source`: a bag's topics file, a scan directory's rate)
-and sensor-noise overrides (`noise`), the `GraphConfig` (`graph_config`), the online lag and
-the extra outputs. Light (no GTSAM): the command line's options derive from it, and the online
-lag's default (`DEFAULT_LAG`, the policy in `team_graph.config.default_lag`) is stated here."""
+"""`RunOptions`: the one option tree of `graphloc smooth`, `online` and `validate` (command-line
+options, `--config` keys and metrics.json's "options"), turned into the loader's options, the
+noise overrides and the `GraphConfig`. Light (no GTSAM), with the online lag's default."""
 
 from __future__ import annotations
 
@@ -194,8 +189,12 @@ class RunOptions:
         """Sensor noise that replaces what the log's sensor params say."""
         return {k: getattr(self, k) for k in NOISE if getattr(self, k) is not None}
 
-    def graph_config(self) -> GraphConfig:
-        from graphloc.pipelines.team_graph.config import GraphConfig
+    def graph_config(self, run=None) -> GraphConfig:
+        """The `GraphConfig` of these options; with `run`, its online lag set (`lag`, else the
+        default policy, `config.default_lag`)."""
+        from dataclasses import replace
+
+        from graphloc.pipelines.team_graph.config import GraphConfig, default_lag
 
         kernel = Kernel.parse(self.kernel)
         kernels = KernelPolicy(
@@ -207,7 +206,7 @@ class RunOptions:
                 "odometry": Kernel.parse(self.odometry_kernel),
             }
         )
-        return GraphConfig(
+        config = GraphConfig(
             keyframe_dt=self.keyframe_dt,
             sync_tolerance=self.sync_tolerance,
             use_landmarks=self.landmarks,
@@ -215,3 +214,7 @@ class RunOptions:
             landmark_priors=not self.unknown_landmarks,
             kernels=kernels,
         )
+        if run is None:
+            return config
+        lag = self.lag if self.lag is not None else default_lag(run, config)
+        return replace(config, lag=float(lag))

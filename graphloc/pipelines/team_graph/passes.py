@@ -16,7 +16,7 @@ from graphloc.factors.robust import GaussianChi2, residuals
 from graphloc.keys import decode, decode_many, pose_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
-from graphloc.pipelines.team_graph.predict import frame_point, predict, sensor_pose
+from graphloc.pipelines.team_graph.predict import on_body, predict
 from graphloc.pipelines.team_graph.rows import (
     grid_rows,
     grids_rows,
@@ -30,13 +30,10 @@ from graphloc.session import Session
 
 @dataclass(frozen=True)
 class TeamResult:
-    """estimate[r]: (K_r,7) x y z qx qy qz qw per pose (NaN where left out); causal[r]: the
-    online estimate of each pose right after its own step (NaN in batch); latencies (steps,);
-    step_log: one row per session step (step index in graph.steps, time, latency [s], CPU [s],
-    factors added, variables the solver holds); dropped: factors not added because they touch
-    a variable the fixed lag has marginalized, by type; partial: the solve stopped early
-    (`stop`) after `steps_done` of the graph's steps; decisions: the graph's, with the sets of
-    the max-mixture route chosen at the final estimate (`choose_mixtures`)."""
+    """What a solve gives: per robot the estimate (K,7 x y z qx qy qz qw, NaN where left out),
+    causal (online: each pose right after its step) and dead-reckoning rows; the step log
+    (STEP_LOG_COLUMNS); factors `dropped` by the fixed lag; `partial` after `steps_done` steps; the
+    decisions with max-mixtures chosen; the final values, chi-square and statistics."""
 
     mode: str
     node_times: list
@@ -81,7 +78,7 @@ class Pass:
         cfg = graph.config
         self.lag = float(cfg.lag or 0.0) if mode == "online" else 0.0
         self.session = Session(
-            replace(cfg.session_config(mode, graph.precision, camera_graph(graph)), lag=self.lag),
+            replace(cfg.session_config(mode, graph.precision, graph.camera), lag=self.lag),
             progress=progress and mode == "batch",
             stop=stop,
         )
@@ -140,10 +137,9 @@ class Pass:
             for key in keys:
                 if key not in self.added:
                     decoded = decode(key)
-                    if self.mode == "online" and key in graph.frame_points:
-                        value = frame_point(graph, key, values, session, self.added)
-                    elif self.mode == "online" and key in graph.sensor_poses:
-                        value = sensor_pose(graph, key, values, session, self.added)
+                    on_pose = key in graph.frame_points or key in graph.sensor_poses
+                    if self.mode == "online" and on_pose:
+                        value = on_body(graph, key, values, session, self.added)
                     else:
                         value = predict(graph, key, decoded, self.latest, self.initial)
                     values.insert(key, value)
@@ -271,12 +267,6 @@ def _fit(grid: np.ndarray, n: int) -> np.ndarray:
 def _held(graph: TeamGraph, key: int, t: float) -> bool:
     kind, r, _ = decode(key)
     return kind in ("x", "s") and graph.anchored_from.get(r, np.inf) > t
-
-
-def camera_graph(graph: TeamGraph) -> bool:
-    """The graph holds feature tracks or max-mixtures (`GraphConfig.session_config`;
-    `TeamGraph.camera`)."""
-    return graph.camera
 
 
 def choose_mixtures(decisions: list, estimate: gtsam.Values) -> list:

@@ -1,19 +1,9 @@
-"""Point measurements -- range, bearing and range-bearing to landmarks and to teammates --
-as factors. A known landmark (a position with a prior) is tied to each observation on its own
-(`GraphConfig.anchor_known_landmarks`): a range-bearing becomes one unary GTSAM
-KnownLandmarkFactorPose3 on the observing pose (the landmark variable and its prior
-marginalized at the measured point, `known_landmark_factor_3d`), a bearing or a range one
-prior-pinned anchor variable (a Point3, its prior, the measurement's factor): no variable is
-shared across the run, so every iSAM2 update stays local and a fixed lag never drops one.
-
-A bearing from an offset sensor (a translation in body_T_sensor) is GTSAM's built-in bearing
-factor on an auxiliary sensor pose variable (`keys.sensor_key`, one per robot, distinct
-extrinsics and time index, shared by every bearing of that sensor at that time), tied to the
-body pose by `sensor_tie_factor` (factor type "sensor_tie", judged on its own by the verdict)."""
+"""Range, bearing and range-bearing measurements to landmarks and teammates as factors
+(`PointBuilder`); a known landmark tied to each observation on its own, an offset bearing on an
+auxiliary sensor pose (docs/design_team_graph.md, "Point measurements")."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -32,15 +22,8 @@ from graphloc.factors.range_bearing import (
 from graphloc.factors.robust import robust_noise
 from graphloc.keys import landmark_key, pose_key, sensor_key
 from graphloc.pipelines.team_graph.config import ANCHOR_BASE, GraphConfig
-from graphloc.pipelines.team_graph.section import SectionFactors
+from graphloc.pipelines.team_graph.graph import SectionFactors
 from graphloc.run import TeamRun
-
-
-def _landmark_key(lid: int, lm_prior: dict, config: GraphConfig, n_anchor: int):
-    prior = lm_prior.get(lid)
-    if prior is not None and config.anchor_known_landmarks:
-        return landmark_key(ANCHOR_BASE + n_anchor), prior
-    return landmark_key(lid), prior
 
 
 def _point_factor(m, key, lkey, direction, rng, kernel, E):
@@ -68,12 +51,10 @@ def _robot_factor(m, key, tkey, direction, rng, kernel, E):
 
 
 class SensorPoses:
-    """The auxiliary sensor pose variables of offset bearings: `observer(m, k, t, factors)`
-    gives the key a bearing of measurement `m` at node k (time t) of its robot is measured
-    from, and the extrinsics left to apply -- the body pose and m's extrinsics where its sensor
-    sits at the body origin (the bearing rotated into the body frame by the factor), else the
-    sensor pose (identity), whose tie to the body pose is appended to `factors` the first time.
-    `poses`: sensor key -> (body pose key, body_T_sensor)."""
+    """The auxiliary sensor pose variables of offset bearings: `observer(m, k, t, factors)` gives
+    the key a bearing of `m` at robot node k is measured from and the extrinsics left to apply (the
+    body pose and m's where the sensor sits at the body origin, else the sensor pose, its tie
+    appended to `factors` once); `poses`: sensor key -> (body key, body_T_sensor)."""
 
     def __init__(self):
         self.poses: dict = {}
@@ -108,25 +89,11 @@ def body_frame_points(points: list, at_meas: np.ndarray, at_frame: np.ndarray) -
     return [(local[j] / rng[j], float(rng[j])) for j in range(len(points))]
 
 
-@dataclass
-class PointSection:
-    """The point section's output: its factors and skips (`made`), the landmarks' initial
-    guesses (key -> position or ('from', robot, k, direction, range)), the number of landmark
-    anchors, the number of measurements the options leave out, and the offset bearings'
-    sensor poses (sensor key -> (body pose key, body_T_sensor), `SensorPoses.poses`)."""
-
-    made: SectionFactors
-    landmark_guess: dict
-    n_anchor: int
-    excluded: int
-    sensor_poses: dict
-
-
 class PointBuilder:
     """The point section, one measurement at a time, in the run's order (`add`): its factors
     and skips (`made`), the landmarks' initial guesses, the anchors made, the measurements the
-    options leave out and the offset bearings' sensor poses. `point_factors` feeds it the whole
-    run; the live builder (`graphloc.live.builder`) each measurement once its poses exist."""
+    options leave out and the offset bearings' sensor poses; the live builders feed it each
+    measurement once its poses exist."""
 
     def __init__(self, run: TeamRun, config: GraphConfig):
         self.run, self.config = run, config
@@ -187,10 +154,9 @@ class PointBuilder:
                 factors.append((t_new, f, "landmark"))
                 return
         if is_lm:
-            lkey, prior = _landmark_key(m.landmark, lm_prior, config, self.n_anchor)
-            if lkey is None:
-                skips.add("unknown_landmark", f"landmark {m.landmark} is not in the landmark table")
-                return
+            prior = lm_prior.get(m.landmark)  # None: a landmark estimated (SLAM)
+            anchored = prior is not None and config.anchor_known_landmarks
+            lkey = landmark_key(ANCHOR_BASE + self.n_anchor if anchored else m.landmark)
             if lkey not in landmark_guess:
                 guess = prior[0] if prior is not None else None
                 if guess is None and np.isfinite(rng) and np.isfinite(direction).all():
@@ -231,8 +197,3 @@ class PointBuilder:
                     "inter_robot",
                 )
             )
-
-    def section(self) -> PointSection:
-        return PointSection(
-            self.made, self.landmark_guess, self.n_anchor, self.excluded, self.sensors.poses
-        )

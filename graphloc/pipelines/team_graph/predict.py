@@ -1,7 +1,7 @@
 """Online initial values of new variables (`solve.Pass`): a pose from its robot's latest
 estimate and odometry (or resected from a teammate seen through a max-mixture), a moving
 target's marker point from its pose's estimate, an offset sensor's pose from its body pose's
-(`sensor_pose`), the graph's guess otherwise."""
+(`on_body`), the graph's guess otherwise."""
 
 from __future__ import annotations
 
@@ -13,26 +13,19 @@ from graphloc.pipelines.team_graph.graph import TeamGraph
 from graphloc.pipelines.team_graph.motion import compose_steps
 
 
-def frame_point(graph: TeamGraph, key: int, values: gtsam.Values, session, added: set):
-    """Online initial value of a moving target's marker point of one set: its layout position
-    through the target pose's value of this step or its current estimate."""
-    pose_key_, local = graph.frame_points[key]
-    if values.exists(pose_key_):
-        return values.atPose3(pose_key_).transformFrom(local)
-    if pose_key_ in added:
-        return session.estimate([pose_key_]).atPose3(pose_key_).transformFrom(local)
-    return graph.initial[key]
-
-
-def sensor_pose(graph: TeamGraph, key: int, values: gtsam.Values, session, added: set):
-    """Online initial value of an offset sensor's pose: its body pose's value of this step or
-    its current estimate, composed with the extrinsics (`TeamGraph.sensor_poses`)."""
-    body, E = graph.sensor_poses[key]
+def on_body(graph: TeamGraph, key: int, values: gtsam.Values, session, added: set):
+    """Online initial value of a variable held on a pose -- a moving target's marker point of
+    one set (`TeamGraph.frame_points`) or an offset sensor's pose (`TeamGraph.sensor_poses`) --
+    from that pose's value in this step or its current estimate, else the graph's guess."""
+    point = key in graph.frame_points
+    body, offset = graph.frame_points[key] if point else graph.sensor_poses[key]
     if values.exists(body):
-        return values.atPose3(body).compose(E)
-    if body in added:
-        return session.estimate([body]).atPose3(body).compose(E)
-    return graph.initial[key]
+        pose = values.atPose3(body)
+    elif body in added:
+        pose = session.estimate([body]).atPose3(body)
+    else:
+        return graph.initial[key]
+    return pose.transformFrom(offset) if point else pose.compose(offset)
 
 
 def predict(graph: TeamGraph, key: int, decoded: tuple, latest: dict, initial: dict | None):

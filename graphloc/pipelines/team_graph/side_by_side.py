@@ -1,14 +1,6 @@
-"""`SideBySide`: online passes of one `TeamGraph` from several starts (alternative placements,
-`TeamGraph.guessed_alternatives`) stepped together, compared by chi-square and pruned as the
-evidence arrives (`team_graph.solve`'s docstring says why: a placement that explains its
-measurements by downweighting them does not win on the kernel's saturated error; a pass far
-from its minimum gets a few more iterations before it is judged). `solve.hypotheses` steps it
-over a whole graph; the live team (`graphloc.live.team.LiveTeam`) step by step as the graph
-grows, adding the starts of a robot placed by a guess when the builder places it (`add`).
-An alternative is judged (may be dropped) only from the step of the node it was placed at
-(`TeamGraph.alternative_times`): a resected robot's alternative from a later snapshot's P3P
-candidate starts its earlier poses at that snapshot's position (seed 000, Sec. IV: the climber
-moves between snapshots), so the steps before its own snapshot are no evidence against it."""
+"""`SideBySide`: online passes of one `TeamGraph` from several starts stepped together,
+compared by the chi-square of their factors without the robust kernels and pruned as the
+evidence arrives (docs/design_team_graph.md, "Hypotheses side by side")."""
 
 from __future__ import annotations
 
@@ -29,13 +21,10 @@ MAX_CHECKS = 200  # hypotheses are compared at most this many times over a run (
 
 
 class SideBySide:
-    """Passes of `graph` in `mode` from each of `starts` (key -> value over the graph's guess,
-    read as the graph grows; None: the guess). `step(i)` steps every live pass through graph
-    step i and compares them after the first EARLY_CHECKS steps, every `stride`-th one and
-    the `last`; `result()` the best surviving pass, each pose's causal estimate from the pass
-    best when it entered, the others' final values in `survivors`. times: per start, the
-    node time it was placed at (`start_times`; None, or a None entry: judged from the first
-    step): a pass is not dropped on a step before that time (`_prune`'s `unjudged`)."""
+    """Passes of `graph` in `mode` from each of `starts` (key -> value over the graph's guess; None:
+    the guess): `step(i)` steps them and compares them (the first EARLY_CHECKS steps, every
+    `stride`-th, the `last`), `result()` the best; times: per start the node time before which it is
+    not dropped (`start_times`)."""
 
     def __init__(
         self,
@@ -147,23 +136,10 @@ def start_times(alternatives: list, times: list) -> list | None:
     return [None, *times] if len(times) == len(alternatives) else None
 
 
-def judged_from(graph: TeamGraph, alternatives: list, times: list) -> list | None:
-    """Per start (the guess, then `alternatives` placed at node times `times`), the first of
-    `graph.steps` at which `SideBySide` may drop it: the step of its own node (0 for the guess);
-    None where `start_times` is."""
-    starts = start_times(alternatives, times)
-    if starts is None:
-        return None
-    step_times = np.array([t for t, _ in graph.steps])
-    return [0 if t is None else int(np.searchsorted(step_times, t - 1e-9)) for t in starts]
-
-
 def _prune(passes: list, alive: list, chi2: np.ndarray, unjudged: set = frozenset()) -> list:
-    """Hypotheses compared by chi-square (`solve`); one more than PRUNE_CHI2 behind the best is
-    first given up to SETTLE_UPDATES more iSAM2 iterations, as is the best (an update takes one
-    Gauss-Newton step, and a pass far from its minimum is no evidence against it), and dropped
-    if it is still behind; those in `unjudged` are kept whatever their chi-square. Updates
-    `chi2` of the passes compared."""
+    """Hypotheses compared by chi-square: one more than PRUNE_CHI2 behind the best gets up to
+    SETTLE_UPDATES more iSAM2 iterations, as does the best, and is dropped if still behind (those in
+    `unjudged` are kept); updates `chi2`."""
     for j in alive:
         chi2[j] = passes[j].current_chi2()[0]
     best = min(alive, key=lambda j: chi2[j])

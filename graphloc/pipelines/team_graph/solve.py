@@ -14,7 +14,7 @@ from graphloc.pipelines.team_graph.graph import TeamGraph
 from graphloc.pipelines.team_graph.passes import STEP_LOG_COLUMNS, Pass, TeamResult, start_only
 from graphloc.pipelines.team_graph.side_by_side import MAX_CHECKS, SideBySide, start_times
 
-__all__ = ["STEP_LOG_COLUMNS", "TeamResult", "hypotheses", "solve", "warm_start", "warm_starts"]
+__all__ = ["STEP_LOG_COLUMNS", "TeamResult", "hypotheses", "solve", "warm_starts"]
 
 
 def solve(
@@ -25,44 +25,13 @@ def solve(
     on_step=None,
     on_stop=None,
 ) -> TeamResult:
-    """Batch: every step added, one LM solve. Online: one iSAM2 update per step (with
-    `config.lag` > 0 a fixed-lag smoother, `Session`); a new pose is predicted from its robot's
-    latest estimate and odometry; robots enter at their first anchor; a factor touching a
-    marginalized variable is left out and counted (`TeamResult.dropped`). stop(): checked
-    before every online step and between LM iterations, True ends the solve there (the result
-    is marked partial: online, the estimate after the last finished step; batch, the LM
-    iterate).
-    on_step(i): called after graph step i was consumed; on_stop(steps_done): when stop()
-    ended the online loop.
-
-    Alternatives (`graph.alternatives`: the candidates of a marker pixel stream's first set,
-    or of a resected robot's first sets, `team_graph.formation`; the online solve runs those of
-    robots a guess placed, `graph.guessed_alternatives`) are hypotheses run side by side over
-    the same steps (`hypotheses`), each an online pass from its own start. They are compared
-    by their posterior: the chi-square of every factor so far without the robust kernels
-    (`factors.robust.residuals`) -- a placement that explains its measurements by down-
-    weighting them as outliers does not win on the kernel's saturated error --, and a
-    hypothesis whose chi-square exceeds the least by `PRUNE_CHI2` is dropped as the evidence
-    arrives (an alternative no earlier than the step of the node it was placed at,
-    `graph.alternative_times`: seed 000's climber placed by a later snapshot's P3P candidate
-    starts its earlier poses at that snapshot's position), so one pass carries the rest of the
-    run; an iSAM2 update is one Gauss-Newton step,
-    so before one is dropped both it and the best get a few more iterations (a pass far from its
-    minimum is no evidence against it), and hypotheses that converged to one estimate are one.
-    The online estimate
-    is the surviving hypothesis of least chi-square at the end; each pose's causal estimate
-    comes from the hypothesis of least chi-square when that pose entered (a choice made with
-    the data up to that step only).
-    A batch solve of a graph with robust kernels, max-mixtures or alternatives starts LM from
-    that incremental pass (full smoothing; from each surviving hypothesis, the least chi-square
-    kept), not from the graph's dead-reckoning guess: there, metres off, robust kernels give
-    up on measurements that are right (a Cauchy weight falls with the residual) and LM settles
-    in a minimum of higher error; a max-mixture is chosen at its linearization point, so a
-    camera without odometry can sit in the false candidate's basin. The incremental pass meets
-    each measurement near its own pose and chooses each set near its own frame, as the online
-    solve does. Where iSAM2 cannot solve that pass (an indeterminate step LM's damping gets
-    through), LM starts from the guess and from every alternative; `TeamResult.batch_start`
-    says which."""
+    """Batch: every step added, one LM solve; online: one iSAM2 update per step (a fixed lag when
+    `config.lag` > 0; a factor on a marginalized variable is left out, `TeamResult.dropped`).
+    Alternative placements run side by side as hypotheses (`hypotheses`); a batch solve with
+    robust kernels, max-mixtures or alternatives starts LM from that incremental pass
+    (docs/design_team_graph.md, "Solving"). stop(): checked before every online step and
+    between LM iterations, True ends the solve there (`partial`); on_step(i): after graph step
+    i; on_stop(steps_done): when stop() ended the online loop."""
     if mode == "online":
         starts = [None, *graph.guessed_alternatives]
         times = start_times(graph.guessed_alternatives, graph.guessed_alternative_times)
@@ -102,13 +71,9 @@ def hypotheses(
     on_stop=None,
     times: list | None = None,
 ) -> TeamResult:
-    """Online passes of `graph` from each of `starts` (key -> value over the graph's guess;
-    None: the guess) side by side, step by step, compared and pruned by chi-square (`solve`,
-    `side_by_side.SideBySide`: compared after each of the first steps, then MAX_CHECKS times
-    over the run and at its end; a start placed at node time `times[j]` not dropped before
-    that node's step, `side_by_side.start_times`). Returns the best surviving pass, its causal
-    estimates chosen per pose, and the others that survived in `TeamResult.survivors` (their
-    final values)."""
+    """Online passes of `graph` from each of `starts` side by side (`side_by_side.SideBySide`,
+    compared MAX_CHECKS times over the run): the best surviving pass, its causal estimates chosen
+    per pose, the others' final values in `TeamResult.survivors`."""
     n = len(graph.steps)
     passes = SideBySide(graph, mode, starts, stop, stride=max(1, n // MAX_CHECKS), times=times)
     start = _time.perf_counter()
@@ -163,8 +128,3 @@ def warm_starts(graph: TeamGraph, stop=None, progress: bool = False) -> list[dic
                 start[key] = values.atPose3(key) if pose else values.atPoint3(key)
         out.append(start)
     return out
-
-
-def warm_start(graph: TeamGraph, stop=None, progress: bool = False) -> dict:
-    """The best of `warm_starts`."""
-    return warm_starts(graph, stop, progress)[0]

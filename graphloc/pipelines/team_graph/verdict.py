@@ -1,23 +1,6 @@
-"""Is a solve to be trusted? The consistency verdict of every batch and online solve: the
-solution judged by its own measurement model, and what of the run it could not use.
-
-The test (`ConsistencyTest`), on the final estimate:
-- every factor type's normalized chi-square -- the squared whitened residuals without the
-  robust kernel over their dimension, of the factors the kernel keeps (its inliers,
-  `factor_statistics`) -- is at most `max_normalized_chi2`, over the team and over each
-  robot's factors of that type (`robot_statistics`) (about 1 where a type's stated noise is
-  right; above it, the residuals are larger than the noise the log states: a wrong noise
-  model, a wrong calibration, corrupted rows or a wrong solution);
-- every robust factor type has at most `max_downweighted_share` of its factors down-weighted
-  by the kernel (a solution that explains its measurements by calling many of them outliers);
-- every candidate stream (observer, target) has at most `max_inconsistent_share` of its sets
-  inconsistent (no pose of the target's layout passes the pixel chi-square,
-  `vision.marker_poses`).
-A run that fails is `consistent: false` with the failures named. Warnings (each one line naming
-the robot and the table) say what the solve could not use: a robot left unplaced, a candidate
-stream never decided, rows of a table skipped; they do not change `consistent`, and with
-`--strict` either makes the verb exit with `exitcodes.INCONSISTENT`.
-"""
+"""The consistency verdict of every solve (`judge`): per factor type and robot the normalized
+chi-square without the robust kernels and the share down-weighted, per candidate stream the
+share of inconsistent sets, and warnings for what the solve could not use (docs/outputs.md)."""
 
 from __future__ import annotations
 
@@ -70,13 +53,10 @@ class ConsistencyTest:
 
 
 def factor_statistics(res, types: np.ndarray, threshold: float, select=None) -> dict:
-    """Per factor type (graph order `types`; only the factors `select` (N,) bool holds, all by
-    default): its count, residual dimension, chi-square (the squared whitened residuals without
-    the robust kernel, `factors.robust.residuals`), robust factors and those the kernel
-    down-weights below `threshold` (the outliers it found) and their share, and over the others
-    (the inliers): whitened residual RMS (sqrt(chi2 / dim)) and normalized chi-square (chi2 /
-    dim: about 1 where the stated noise is right, below 1 by the share of the dimension the
-    variables absorb)."""
+    """Per factor type (graph order `types`; of the factors `select` holds, all by default): count,
+    residual dimension, chi-square without the robust kernel (`factors.robust.residuals`), robust
+    factors and those down-weighted below `threshold`, and over the others (the inliers) the
+    whitened residual RMS and normalized chi-square (chi2 / dim)."""
     out = {}
     muted = res.downweighted(threshold)
     chosen = np.ones(len(types), bool) if select is None else np.asarray(select, bool)
@@ -132,12 +112,10 @@ def judge(
     test: ConsistencyTest = ConsistencyTest(),
     robot_stats: dict | None = None,
 ) -> dict:
-    """The verdict: {"consistent", "test" (the thresholds), "failures" [...], "warnings"
-    [...]}. factor_stats: `factor_statistics`; robot_stats: `robot_statistics` (a robot's
-    factors of one type judged on their own when they hold at least MIN_DIM residual
-    dimensions: one robot's corrupted table is not diluted by the team's); streams:
-    `candidate_streams`; unplaced: names of robots with data that nothing placed; skips:
-    `SkipReport.as_dict()`."""
+    """The verdict {"consistent", "test", "failures", "warnings"} of `factor_statistics`,
+    `robot_statistics` (a robot's factors of one type judged alone from MIN_DIM residual
+    dimensions), `candidate_streams`, the names of robots left `unplaced` and the skips
+    (`SkipReport.as_dict()`)."""
     failures, warnings = [], []
     groups = [("", factor_stats)] + [
         (f"robot {name}: ", rows) for name, rows in (robot_stats or {}).items()

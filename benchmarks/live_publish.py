@@ -1,16 +1,18 @@
-"""A bag's messages published as ROS 2 topics over Cyclone DDS (`scripts/publish_bag_ros2.py`,
-the loopback test and the live benchmark): the topics a topics file maps, in bag order, at
-their recorded rate (`rate` 1.0), faster, or as fast as they go (`rate` None). Each message is
-copied into its ROS 2 DDS type by field name (`graphloc.live.ros2_types.to_idl`), so a ROS 1
-bag's messages go out as their ROS 2 types."""
+"""A bag's or a log's messages published as ROS 2 topics over Cyclone DDS, for
+`scripts/publish_bag_ros2.py`, the loopback test and the live benchmark: the topics a topics
+file maps, in bag order, at their recorded rate (`rate` 1.0), faster, or as fast as they go
+(`rate` None). Each message is copied into its ROS 2 DDS type by field name
+(`to_idl`), so a ROS 1 bag's messages go out as their ROS 2 types."""
 
 from __future__ import annotations
 
 import time
 from pathlib import Path
 
+import numpy as np
+
 from graphloc.live.ros2 import participant, qos
-from graphloc.live.ros2_types import dds_topic, idl_type, to_idl
+from graphloc.live.ros2_types import dds_topic, idl_type, typestore
 
 
 def bag_messages(bag, topics: set) -> list[tuple[float, str, str, object]]:
@@ -115,3 +117,25 @@ class Publisher:
 
         for w in self.writers.values():
             w.wait_for_acks(duration(seconds=timeout))
+
+
+def _copy(value, node):
+    kind, spec = node
+    kind = int(kind)
+    if kind == 1:
+        return value.item() if isinstance(value, np.generic) else value
+    if kind == 2:
+        return to_idl(value, spec)
+    inner, _ = spec
+    if kind == 4 and int(inner[0]) == 1 and inner[1][0] in ("uint8", "byte", "char"):
+        return np.asarray(value, dtype=np.uint8).tobytes()
+    if int(inner[0]) == 1:
+        return np.asarray(value).tolist() if isinstance(value, np.ndarray) else list(value)
+    return [_copy(v, inner) for v in value]
+
+
+def to_idl(msg, msgtype: str):
+    """A rosbags message (either type store: a ROS 1 header's `seq` has no ROS 2 field and is
+    left out) as the DDS sample of ROS 2 type `msgtype`."""
+    fields = typestore().fielddefs[msgtype][1]
+    return idl_type(msgtype)(**{n: _copy(getattr(msg, n), node) for n, node in fields})
