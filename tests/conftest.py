@@ -1,13 +1,16 @@
 """Fixtures shared by the test modules: small valid runs written once per session and copied
 for each test that breaks them, and the command line run in-process with the checks every
-bad-input test makes (no traceback, a documented exit code, no file written outside `--out`).
+bad-input test makes (no traceback, a documented exit code, no file written outside `--out`);
+the `loopback` fixture puts Cyclone DDS on the loopback interface for the ROS 2 tests.
 Plain functions the test modules share (writers of small inputs, hypothesis settings) are in
-tests/helpers.py.
+tests/helpers.py, the simulated bags in tests/helpers_bags.py and the live route's
+comparisons in tests/helpers_live.py.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,7 +56,7 @@ def bag_template(tmp_path_factory) -> Path:
     three beacons; receive times jitter, so bag order differs from the stamps' order) and its
     topics file `topics.yaml` (tests/test_rosbag.py)."""
     import yaml
-    from test_rosbag import TOPICS, simulate, write_bag
+    from helpers_bags import TOPICS, simulate, write_bag
 
     folder = tmp_path_factory.mktemp("bag") / "bag"
     folder.mkdir()
@@ -112,6 +115,23 @@ def bag_dir(bag_template, tmp_path) -> Path:
 @pytest.fixture
 def scans(scan_dirs_template, tmp_path) -> Path:
     return _copy(scan_dirs_template, tmp_path, "scans")
+
+
+# ---- ROS 2 over DDS, on this machine alone -----------------------------------------------
+@pytest.fixture
+def loopback(tmp_path, monkeypatch):
+    """Cyclone DDS on the loopback interface only, in a domain of this test alone."""
+    xml = tmp_path / "cyclonedds.xml"
+    xml.write_text(
+        "<CycloneDDS><Domain Id='any'><General><Interfaces><NetworkInterface name='lo'/>"
+        "</Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery>"
+        "<ParticipantIndex>auto</ParticipantIndex><Peers><Peer Address='127.0.0.1'/></Peers>"
+        "</Discovery></Domain></CycloneDDS>"
+    )
+    monkeypatch.setenv("CYCLONEDDS_URI", xml.as_uri())
+    domain = 100 + os.getpid() % 100  # another pytest process picks another domain
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+    return domain
 
 
 # ---- the command line, in-process -------------------------------------------------------------

@@ -13,6 +13,9 @@ from pathlib import Path
 import numpy as np
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
+from benchmarks.planar_factors import bearing_range_2d
+from graphloc.factors.odometry import integrate_unicycle
+from graphloc.io import columns, write_manifest
 
 # ---- hypothesis ---------------------------------------------------------------------------------
 # bounded for the default run; GRAPHLOC_FUZZ_EXAMPLES=2000 (random seeds) for a deeper search
@@ -203,3 +206,158 @@ def simulate_feng(**kw):
         for o in run.odometry
     ]
     return run, odo
+
+
+# ---- synthetic MRCLAM directory (tests/datasets/test_mrclam.py and the runs built on it) ---
+HEADER = "# synthetic MRCLAM-format file\n# Time [s] ...\n"
+LANDMARKS = {6: (3.0, 3.0), 7: (-3.0, 3.0), 8: (-3.0, -3.0), 9: (3.0, -3.0)}
+BARCODES = {1: 5, 2: 14, 3: 41, 6: 63, 7: 81, 8: 7, 9: 70}
+N_OUTLIERS = 5
+
+
+def write_synthetic_mrclam(root: Path, duration=60.0, seed=0) -> dict:
+    """Three robots driving smooth curves among four landmarks, odometry with a 5 % speed scale
+    error and a turn-rate bias, measurements at 4 Hz. Plus bad lines: returns how many of each."""
+    rng = np.random.default_rng(seed)
+    root.mkdir(parents=True, exist_ok=True)
+    t0 = 1000.0
+    bad = {"parse": 0, "non_finite": 0, "time_backwards": 0, "field_count": 0, "unknown_barcode": 0}
+    (root / "Barcodes.dat").write_text(HEADER + "".join(f"{s}\t{b}\n" for s, b in BARCODES.items()))
+    (root / "Landmark_Groundtruth.dat").write_text(
+        HEADER + "".join(f"{i}\t{x}\t{y}\t0.0001\t0.0001\n" for i, (x, y) in LANDMARKS.items())
+    )
+    t_odo = t0 + np.arange(0, duration, 0.02)
+    starts = [(0.0, -1.0, 0.3), (-1.0, 1.0, -0.5), (1.0, 1.0, 2.5)]
+    gts = []
+    for r, start in enumerate(starts):
+        v = 0.15 + 0.05 * np.sin(0.1 * (t_odo - t0) + r)
+        w = 0.25 * np.sin(0.07 * (t_odo - t0) + 2 * r)
+        gt = integrate_unicycle(t_odo, v, w, t_odo, start=start).poses
+        gts.append(gt)
+        odo = np.column_stack(
+            [t_odo, 1.05 * v + rng.normal(0, 0.005, v.size), w + 0.02 + rng.normal(0, 0.02, w.size)]
+        )
+        lines = [f"{t:.3f}\t{a:.4f}\t{b:.4f}\n" for t, a, b in odo]
+        lines.insert(100, "1000.5 0.1\n")
+        bad["field_count"] += 1
+        lines.insert(200, "1001.0 abc 0.1\n")
+        bad["parse"] += 1
+        lines.insert(300, f"{t_odo[299]:.3f} nan 0.1\n")
+        bad["non_finite"] += 1
+        lines.insert(400, f"{t_odo[10]:.3f} 0.1 0.1\n")  # time goes backwards
+        bad["time_backwards"] += 1
+        (root / f"Robot{r + 1}_Odometry.dat").write_text(HEADER + "".join(lines))
+        (root / f"Robot{r + 1}_Groundtruth.dat").write_text(
+            HEADER
+            + "".join(f"{t:.3f}\t{x:.6f}\t{y:.6f}\t{th:.6f}\n" for t, (x, y, th) in zip(t_odo, gt))
+        )
+    t_meas = t0 + 1.0 + np.arange(0, duration - 2.0, 0.25)
+    idx = np.searchsorted(t_odo, t_meas)
+    for r in range(3):
+        rows = []
+        pose = gts[r][idx]
+        targets = [(BARCODES[i], np.tile(xy, (idx.size, 1))) for i, xy in LANDMARKS.items()]
+        targets += [(BARCODES[j + 1], gts[j][idx, :2]) for j in range(3) if j != r]
+        for code, pts in targets:
+            b, d = bearing_range_2d(pose, pts)
+            b = b + rng.normal(0, 0.01, b.size)
+            d = d + rng.normal(0, 0.03, d.size)
+            rows += [(t, code, dd, bb) for t, dd, bb in zip(t_meas, d, b)]
+        rows.sort(key=lambda row: row[0])
+        if (
+            r == 0
+        ):  # gross range outliers on landmark measurements (what the robust kernel must mute)
+            for i in [i for i, row in enumerate(rows) if row[1] == BARCODES[6]][
+                10 : 10 + N_OUTLIERS
+            ]:
+                rows[i] = (rows[i][0], rows[i][1], rows[i][2] + 3.0, rows[i][3])
+        lines = [f"{t:.3f}\t{c}\t{d:.3f}\t{b:.3f}\n" for t, c, d, b in rows]
+        lines.insert(50, f"{rows[50][0]:.3f}\t99\t2.0\t0.1\n")  # misread barcode
+        bad["unknown_barcode"] += 1
+        lines.insert(60, f"{rows[60][0]:.3f}\t63\tinf\t0.1\n")
+        bad["non_finite"] += 1
+        (root / f"Robot{r + 1}_Measurement.dat").write_text(HEADER + "".join(lines))
+    return bad
+
+
+# ---- the tiny two-robot log of every table (tests/core/test_io.py) -----------------------
+def _csv(path: Path, table: str, rows: list[str]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(",".join(columns(table)) + "\n" + "".join(r + "\n" for r in rows))
+
+
+def make_log(root: Path, odo_a=None, rb_a=None) -> Path:
+    write_manifest(
+        {
+            "name": "tiny",
+            "start_time": 0.0,
+            "robots": [
+                {
+                    "name": "ground",
+                    "kind": "ground",
+                    "initial_pose": [0, 0, 0],
+                    "sensors": [
+                        {"name": "wheels", "type": "odometry"},
+                        {
+                            "name": "cam",
+                            "type": "range_bearing",
+                            "extrinsics": [0.1, 0.0, 1.5707963267948966],
+                        },
+                        {
+                            "name": "ceilcam",
+                            "type": "camera",
+                            "extrinsics": {"xyz": [0, 0, 0.2], "rpy": [0, 0, 0]},
+                        },
+                        {"name": "lidar", "type": "scanner"},
+                    ],
+                    "tables": {
+                        "odometry": "ground/odometry.csv",
+                        "range_bearing": "ground/range_bearing.csv",
+                        "markers": "ground/markers.csv",
+                        "candidates": "ground/candidates.csv",
+                        "scans": "ground/scans.csv",
+                        "groundtruth": "ground/groundtruth.csv",
+                    },
+                },
+                {
+                    "name": "climber",
+                    "kind": "wall",
+                    "initial_pose": [1, 0, 0],
+                    "sensors": [
+                        {"name": "wheels", "type": "odometry"},
+                        {"name": "eye", "type": "bearing"},
+                    ],
+                    "tables": {
+                        "odometry": "climber/odometry.csv",
+                        "bearing": "climber/bearing.csv",
+                    },
+                },
+            ],
+            "landmarks": {"file": "landmarks.csv"},
+        },
+        root,
+    )
+    (root / "landmarks.csv").write_text(
+        "id,x,y,z,sigma_x,sigma_y,sigma_z\n3,2.0,0.0,0,0.01,0.01,0\n"
+    )
+    _csv(
+        root / "ground/odometry.csv",
+        "odometry",
+        odo_a or ["0.0,wheels,0.1,0.0", "0.5,wheels,0.1,0.0", "1.0,wheels,0.1,0.0"],
+    )
+    _csv(
+        root / "ground/range_bearing.csv",
+        "range_bearing",
+        rb_a or ["0.25,cam,landmark:3,1.0,0.0", "0.75,cam,climber,2.0,-1.0"],
+    )
+    _csv(root / "ground/markers.csv", "markers", ["0.3,ceilcam,climber,0,320.5,240.25"])
+    _csv(
+        root / "ground/candidates.csv",
+        "candidates",
+        ["0.3,ceilcam,climber,0,0.9,1,0,0,0,0.5,0,1", "0.3,ceilcam,climber,1,0.1,0,1,0,0,0.4,0,1"],
+    )
+    _csv(root / "ground/scans.csv", "scans", ["0.6,lidar,scans/000001.pcd"])
+    _csv(root / "ground/groundtruth.csv", "groundtruth", ["0.0,0,0,0", "1.0,0.1,0,0"])
+    _csv(root / "climber/odometry.csv", "odometry", ["0.1,wheels,0.0,0.0", "0.9,wheels,0.0,0.1"])
+    _csv(root / "climber/bearing.csv", "bearing", ["0.2,eye,ground,0,1,0"])
+    return root

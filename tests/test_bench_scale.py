@@ -4,7 +4,7 @@ the PNG it writes, and the numbers it states against the targets of issue 15."""
 import json
 
 import pytest
-from test_mrclam import write_synthetic_mrclam
+from helpers import write_synthetic_mrclam
 
 from benchmarks.bench_scale import main
 

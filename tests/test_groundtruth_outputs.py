@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from evo.core import sync
 from evo.core.trajectory import PoseTrajectory3D
-from test_mrclam import write_synthetic_mrclam
+from helpers import write_synthetic_mrclam
 
 from graphloc.cli import main
 from graphloc.datasets import open_run

@@ -2,7 +2,6 @@
 naming file / line / field, counted skips, PlanarRun conversion with sensor extrinsics."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,94 +15,11 @@ from graphloc.io import (
     RangeBearing2D,
     ScanRef,
     SkipReport,
-    columns,
     iter_records,
     read_manifest,
-    write_manifest,
 )
 from graphloc.datasets.graphloc_log import read_team_run
-
-
-def _csv(path: Path, table: str, rows: list[str]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(",".join(columns(table)) + "\n" + "".join(r + "\n" for r in rows))
-
-
-def make_log(root: Path, odo_a=None, rb_a=None) -> Path:
-    write_manifest(
-        {
-            "name": "tiny",
-            "start_time": 0.0,
-            "robots": [
-                {
-                    "name": "ground",
-                    "kind": "ground",
-                    "initial_pose": [0, 0, 0],
-                    "sensors": [
-                        {"name": "wheels", "type": "odometry"},
-                        {
-                            "name": "cam",
-                            "type": "range_bearing",
-                            "extrinsics": [0.1, 0.0, 1.5707963267948966],
-                        },
-                        {
-                            "name": "ceilcam",
-                            "type": "camera",
-                            "extrinsics": {"xyz": [0, 0, 0.2], "rpy": [0, 0, 0]},
-                        },
-                        {"name": "lidar", "type": "scanner"},
-                    ],
-                    "tables": {
-                        "odometry": "ground/odometry.csv",
-                        "range_bearing": "ground/range_bearing.csv",
-                        "markers": "ground/markers.csv",
-                        "candidates": "ground/candidates.csv",
-                        "scans": "ground/scans.csv",
-                        "groundtruth": "ground/groundtruth.csv",
-                    },
-                },
-                {
-                    "name": "climber",
-                    "kind": "wall",
-                    "initial_pose": [1, 0, 0],
-                    "sensors": [
-                        {"name": "wheels", "type": "odometry"},
-                        {"name": "eye", "type": "bearing"},
-                    ],
-                    "tables": {
-                        "odometry": "climber/odometry.csv",
-                        "bearing": "climber/bearing.csv",
-                    },
-                },
-            ],
-            "landmarks": {"file": "landmarks.csv"},
-        },
-        root,
-    )
-    (root / "landmarks.csv").write_text(
-        "id,x,y,z,sigma_x,sigma_y,sigma_z\n3,2.0,0.0,0,0.01,0.01,0\n"
-    )
-    _csv(
-        root / "ground/odometry.csv",
-        "odometry",
-        odo_a or ["0.0,wheels,0.1,0.0", "0.5,wheels,0.1,0.0", "1.0,wheels,0.1,0.0"],
-    )
-    _csv(
-        root / "ground/range_bearing.csv",
-        "range_bearing",
-        rb_a or ["0.25,cam,landmark:3,1.0,0.0", "0.75,cam,climber,2.0,-1.0"],
-    )
-    _csv(root / "ground/markers.csv", "markers", ["0.3,ceilcam,climber,0,320.5,240.25"])
-    _csv(
-        root / "ground/candidates.csv",
-        "candidates",
-        ["0.3,ceilcam,climber,0,0.9,1,0,0,0,0.5,0,1", "0.3,ceilcam,climber,1,0.1,0,1,0,0,0.4,0,1"],
-    )
-    _csv(root / "ground/scans.csv", "scans", ["0.6,lidar,scans/000001.pcd"])
-    _csv(root / "ground/groundtruth.csv", "groundtruth", ["0.0,0,0,0", "1.0,0.1,0,0"])
-    _csv(root / "climber/odometry.csv", "odometry", ["0.1,wheels,0.0,0.0", "0.9,wheels,0.0,0.1"])
-    _csv(root / "climber/bearing.csv", "bearing", ["0.2,eye,ground,0,1,0"])
-    return root
+from helpers import make_log
 
 
 def test_streaming_merge_is_time_ordered_and_typed(tmp_path):

@@ -8,19 +8,17 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-import gtsam
 import numpy as np
 import pytest
 
 import graphloc
 from graphloc.datasets import open_run
-from graphloc.factors.mixture import MaxMixture
 from graphloc.factors.odometry import VelocityNoise, integrate_unicycle
 from graphloc.live import LiveTeam, NotLiveError, replay, replay_live, run_rows
 from graphloc.live.arc import ArcIntegrator
 from graphloc.live.builder import build_live
 from graphloc.pipelines.team_graph import GraphConfig
-from graphloc.pipelines.team_graph.graph import factor_keys
+from helpers_live import _fed_in_chunks, _same_estimates, _same_graph
 
 DATASET6 = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
 needs_dataset6 = pytest.mark.skipif(not DATASET6.is_dir(), reason="MRCLAM Dataset6 not present")
@@ -50,38 +48,6 @@ def test_arc_integrator_is_integrate_unicycle_bit_for_bit():
     assert np.array_equal(covs, ref.covariances)
 
 
-def _same_graph(ref, graph) -> None:
-    for a, b in zip(ref.node_times, graph.node_times):
-        assert np.array_equal(a, b)
-    assert [t for t, _ in ref.steps] == [t for t, _ in graph.steps]
-    assert ref.factor_types == graph.factor_types
-    for (_, fa), (_, fb) in zip(ref.steps, graph.steps):
-        assert [factor_keys(f) for f, _ in fa] == [factor_keys(f) for f, _ in fb]
-    assert ref.initial.keys() == graph.initial.keys()
-    values = gtsam.Values()
-    for key, value in ref.initial.items():
-        other = graph.initial[key]
-        if isinstance(value, gtsam.Pose3):
-            assert np.array_equal(value.matrix(), other.matrix())
-        else:
-            assert np.array_equal(np.asarray(value), np.asarray(other), equal_nan=True)
-        values.insert(key, value)
-    errors = [_item_error(f, values) for _, group in ref.steps for f, _ in group]
-    assert np.isfinite(errors).all()
-    assert errors == [_item_error(f, values) for _, group in graph.steps for f, _ in group]
-    assert ref.counts == graph.counts
-    assert ref.skips.counts == graph.skips.counts
-
-
-def _item_error(item, values) -> float:
-    """A graph item's error: a gtsam factor's, or a max-mixture's per component (a sum that
-    differs when any component does)."""
-    if isinstance(item, MaxMixture):
-        errors = item.component_errors(values)
-        return float(np.sum(errors * np.arange(1, len(errors) + 1)))
-    return item.error(values)
-
-
 @pytest.mark.parametrize(
     "config",
     [
@@ -105,29 +71,6 @@ def test_live_graph_of_whole_tables_is_the_graph_of_rows_one_by_one_on_dataset6(
     _same_graph(_fed_in_chunks(run, config, None), build_live(run, config))
 
 
-def _fed_in_chunks(run, config, seed: int):
-    """`LiveGraph` fed the run's rows in time order in random chunks (one row to a few dozen,
-    odometry and measurements as they interleave), `advance` after each chunk; seed None: one
-    row at a time."""
-    from graphloc.live.builder import LiveGraph
-    from graphloc.live.setup import empty_run
-
-    rng = np.random.default_rng(seed)
-    rows = [(row[0], 0, r, row) for r, v in enumerate(run.velocity) for row in v]
-    rows += [(m.time, 1, i, m) for i, m in enumerate(run.points)]
-    rows.sort(key=lambda e: (e[0], e[1], e[2]))
-    live = LiveGraph(empty_run(run), config, run.start_time)
-    i = 0
-    while i < len(rows):
-        j = min(len(rows), i + (1 if seed is None else int(rng.choice([1, 1, 1, 2, 7, 40]))))
-        for _, kind, r, item in rows[i:j]:
-            live.velocity(r, item) if kind == 0 else live.point(item)
-        live.advance(rows[j - 1][0])
-        i = j
-    live.finish()
-    return live.graph
-
-
 @pytest.mark.parametrize("seed", [0, 1])
 def test_the_graph_does_not_depend_on_how_rows_are_split(planar_log, seed):
     """Rows pushed in chunks give `build_live`'s whole-table feed's graph: the batched release
@@ -143,15 +86,6 @@ def test_the_graph_does_not_depend_on_how_rows_are_split_on_dataset6():
     run = open_run(DATASET6, duration=60.0)
     config = GraphConfig()
     _same_graph(build_live(run, config), _fed_in_chunks(run, config, 2))
-
-
-def _same_estimates(result, reference, tol: float = 1e-9) -> None:
-    assert len(result.estimate) == len(reference.estimate)
-    for name in ("estimate", "causal"):
-        for a, b in zip(getattr(result, name), getattr(reference, name)):
-            assert a.shape == b.shape
-            assert np.array_equal(np.isnan(a), np.isnan(b))
-            assert np.nanmax(np.abs(a - b), initial=0.0) <= tol
 
 
 def test_live_team_is_graphloc_online(planar_log, tmp_path):

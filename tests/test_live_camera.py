@@ -21,7 +21,7 @@ from graphloc.live.setup import empty_run
 from graphloc.live.events import EventGraph
 from graphloc.pipelines.team_graph import GraphConfig
 from graphloc.runner.team_run import team_graph
-from test_live import _item_error, _same_estimates, _same_graph
+from helpers_live import _item_error, _same_estimates, _same_graph
 
 SEEDS = (1, 2)
 

@@ -22,7 +22,7 @@ from graphloc.live.coverage import route, run_tables
 from graphloc.live.event_rows import build_events
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph import GraphConfig, solve
-from test_live import _same_estimates, _same_graph
+from helpers_live import _same_estimates, _same_graph
 
 
 @pytest.fixture(scope="module")

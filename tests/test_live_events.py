@@ -6,7 +6,6 @@ of `graphloc online`; a row that is not causal is a counted skip, named."""
 
 from __future__ import annotations
 
-import heapq
 import re
 from dataclasses import replace
 
@@ -21,15 +20,13 @@ from graphloc.live import LiveTeam, NotLiveError, replay_live
 from graphloc.live.builder import build_live
 from graphloc.live.coverage import route, run_tables
 from graphloc.live.event_rows import build_events
-from graphloc.live.setup import empty_run
-from graphloc.live.events import EventGraph
 from graphloc.keys import decode, pose_key
 from graphloc.pipelines.team_graph import GraphConfig, solve
 from graphloc.pipelines.team_graph.graph import factor_keys
 from graphloc.pipelines.team_graph.passes import Pass
 from graphloc.run import Motion
 from graphloc.runner.team_run import team_graph
-from test_live import _same_estimates, _same_graph
+from helpers_live import _event_graph, _live, _rows, _same_estimates, _same_graph
 
 CASES = [(name, seed) for name in ("breitenmoser-target", "feng-probabilistic") for seed in (1, 2)]
 
@@ -42,28 +39,6 @@ def runs(tmp_path_factory):
         generate(name, root / f"{name}-{seed}", seed)
         out[(name, seed)] = open_run(root / f"{name}-{seed}")
     return out
-
-
-def _rows(run):
-    """The run's relative poses (at their end time) and candidate sets, in time order."""
-    motions = ((max(m.t0, m.t1), 0, i, m) for i, m in enumerate(run.motions))
-    sets = ((o.time, 1, i, o) for i, o in enumerate(run.observations))
-    return [(t, kind, row) for t, kind, _, row in heapq.merge(motions, sets, key=lambda e: e[:3])]
-
-
-def _event_graph(run, config) -> EventGraph:
-    """An empty `EventGraph` of the run's robots (its tables: relative poses, candidate sets)."""
-    stamped, observers = {m.robot for m in run.motions}, {o.robot for o in run.observations}
-    return EventGraph(empty_run(run), config, run.start_time, stamped, observers)
-
-
-def _live(run, config, on_steps=lambda steps: None) -> EventGraph:
-    live = _event_graph(run, config)
-    for t, kind, row in _rows(run):
-        (live.motion if kind == 0 else live.observation)(row)
-        on_steps(live.advance(t))
-    on_steps(live.finish())
-    return live
 
 
 @pytest.mark.parametrize("name, seed", CASES)

@@ -344,7 +344,7 @@ def test_a_static_robot_without_rows_has_its_pose_in_every_route(tmp_path, start
     from graphloc.pipelines.team_graph import GraphConfig
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from test_live import _fed_in_chunks, _same_graph
+    from helpers_live import _fed_in_chunks, _same_graph
 
     log = generate(Scenario("corridor", robots=2, duration=5.0, seed=5))
     manifest = dict(log.manifest)

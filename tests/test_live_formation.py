@@ -28,7 +28,7 @@ from graphloc.pipelines.team_graph import GraphConfig, run_precision
 from graphloc.runner.team_run import team_graph
 from graphloc.pipelines.team_graph.graph import factor_keys
 from graphloc.run import Motion
-from test_live import _same_estimates, _same_graph
+from helpers_live import _same_estimates, _same_graph
 
 SEEDS = (1, 3)
 

@@ -5,19 +5,16 @@ give for the same data."""
 from __future__ import annotations
 
 import math
-import os
 import shutil
 import time
 from dataclasses import fields
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from graphloc.cli import main
 from graphloc.io import columns, iter_records, read_manifest
-
-REAL_BAG = Path(__file__).resolve().parent / "data/real_bag/husky_outdoor_120s.bag"
+from helpers_bags import REAL_BAG
 
 
 def _records(root) -> dict:
@@ -92,22 +89,6 @@ def test_tail_of_a_log_being_written(feng_log, tmp_path):
     want = _records(feng_log)
     assert _grouped(got) == want
     assert tail.rows_read == sum(map(len, want.values()))
-
-
-@pytest.fixture
-def loopback(tmp_path, monkeypatch):
-    """Cyclone DDS on the loopback interface only, in a domain of this test alone."""
-    xml = tmp_path / "cyclonedds.xml"
-    xml.write_text(
-        "<CycloneDDS><Domain Id='any'><General><Interfaces><NetworkInterface name='lo'/>"
-        "</Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery>"
-        "<ParticipantIndex>auto</ParticipantIndex><Peers><Peer Address='127.0.0.1'/></Peers>"
-        "</Discovery></Domain></CycloneDDS>"
-    )
-    monkeypatch.setenv("CYCLONEDDS_URI", xml.as_uri())
-    domain = 100 + os.getpid() % 100  # another pytest process picks another domain
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
-    return domain
 
 
 def _receive(source, expected: int, timeout: float = 30.0) -> list:

@@ -19,7 +19,7 @@ import yaml
 import graphloc
 from graphloc.cli import main
 
-from test_live_io import REAL_BAG, loopback  # noqa: F401 -- the loopback fixture
+from helpers_bags import REAL_BAG
 
 ROOT = Path(__file__).resolve().parents[1]
 ODOM = "/husky_velocity_controller/odom"

@@ -26,7 +26,7 @@ from graphloc.mapping.odometry import ScanOdometry, run_odometry
 from graphloc.pipelines.team_graph import GraphConfig
 from graphloc.runner.team_run import team_graph
 from graphloc.pipelines.team_graph.graph import factor_keys
-from test_live import _same_estimates, _same_graph
+from helpers_live import _same_estimates, _same_graph
 
 T_CAMERA = np.eye(4)
 T_CAMERA[:3, 3] = [0.1, 0.0, 0.3]

@@ -26,8 +26,7 @@ from graphloc.pipelines.team_graph import GraphConfig, solve
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph.graph import factor_keys
 from target_streams import CASES, write_moving_target, write_two_targets
-from test_live import _same_estimates, _same_graph
-from test_live_events import _live
+from helpers_live import _live, _same_estimates, _same_graph
 
 
 @pytest.fixture(scope="module")

@@ -30,7 +30,7 @@ from graphloc.pipelines.team_graph import GraphConfig, solve
 from graphloc.pipelines.team_graph.graph import factor_keys
 from graphloc.pipelines.team_graph.motion import velocity_noise
 from graphloc.runner.team_run import team_graph
-from test_live import _same_estimates, _same_graph
+from helpers_live import _same_estimates, _same_graph
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "foreign"))
 

@@ -91,7 +91,7 @@ def test_crafted_manifests_load_or_name_the_manifest(tmp_path_factory, data):
 def table_log(tmp):
     """test_io's log: odometry, range-bearing, markers, candidates, 2D ground truth, bearings
     (its scans table left out: it names a point cloud the log does not ship)."""
-    from test_io import make_log
+    from helpers import make_log
 
     root = make_log(tmp / "log")
     doc = json.loads((root / "manifest.json").read_text())

@@ -12,7 +12,7 @@ import gtsam
 import numpy as np
 import pytest
 from graphloc.datasets import open_run
-from test_mrclam import write_synthetic_mrclam
+from helpers import write_synthetic_mrclam
 
 from graphloc.cli import main
 from graphloc.commands import smooth

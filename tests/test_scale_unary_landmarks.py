@@ -7,7 +7,7 @@ import importlib
 import gtsam
 import numpy as np
 import pytest
-from test_mrclam import write_synthetic_mrclam
+from helpers import write_synthetic_mrclam
 
 from graphloc.datasets import open_run
 from graphloc.factors.range_bearing import known_landmark_factor_3d, landmark_factor_3d
