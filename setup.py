@@ -5,7 +5,7 @@ The packages are found, not listed: every folder with an `__init__.py` under a s
 and datasets/ are the source folders of graphloc.factors and graphloc.datasets, which
 pyproject's `[tool.setuptools.packages.find]` cannot express (it names a package after its
 folder, so it would find a top-level `factors` and `datasets`, and the PyPI `datasets` package
-collides); tests/test_packaging.py checks that the wheel holds every module of the source
+collides); tests/cli/test_packaging.py checks that the wheel holds every module of the source
 folders and nothing at the top level but graphloc."""
 
 import tomllib

@@ -3,7 +3,7 @@ registration covariance (its scale and degeneracy term,
 `graphloc.mapping.registration_covariance.calibrated_covariance`) by maximum likelihood on view
 pairs of both bundled real fragments, of other seeds than the benchmark's, and writes
 docs/results_fusion_calibration.json (RegistrationConfig's defaults are that fit;
-tests/test_fusion_real.py checks they agree):
+tests/mapping/test_fusion_real.py checks they agree):
 
     .venv/bin/python scripts/bench_fusion.py --real --calibrate --trials 40 --seed 1000
 """

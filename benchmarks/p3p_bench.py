@@ -2,7 +2,7 @@
 shared by every solver, and a timed comparison of the batched graphloc solvers against
 per-instance Python loops over cv2.solveP3P (P3P, AP3P) and poselib.p3p on the same instances.
 Run by scripts/bench_p3p.py (`main`, `make bench-p3p`); the instances and the criterion are
-used by tests/test_p3p.py."""
+used by tests/vision/test_p3p.py."""
 
 from __future__ import annotations
 

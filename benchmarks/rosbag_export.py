@@ -1,7 +1,8 @@
 """A graphloc log directory written as a ROS bag (ROS 1 `.bag`, ROS 2 sqlite3 or MCAP) with the
 topics file that reads it back (docs/rosbag.md): the inverse of `graphloc import` for the tables
 the scenarios write. Used to check that a run read through a bag gives the estimates of the run
-read directly (tests/test_rosbag.py, tests/test_rosbag_properties.py, tests/test_live_io.py)."""
+read directly (tests/datasets/test_rosbag.py, tests/datasets/test_rosbag_properties.py,
+tests/live/test_live_io.py)."""
 
 from __future__ import annotations
 

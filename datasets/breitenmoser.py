@@ -19,7 +19,7 @@ from graphloc.datasets.render import RenderConfig, render_markers
 from graphloc.vision.target import LARGE_TARGET
 
 # centroid noise of the logged marker pixels: rendered centroids at sensor sigma 2 are within
-# 0.10 px of the truth (tests/test_render_markers.py), so 0.1 px, not the optics blur width
+# 0.10 px of the truth (tests/datasets/test_render_markers.py), so 0.1 px, not the optics blur width
 CENTROID_SIGMA_PX = 0.1
 
 

@@ -1,7 +1,7 @@
 """Fixtures shared by the test modules: small valid runs written once per session and copied
 for each test that breaks them, and the command line run in-process with the checks every
-bad-input test makes (no traceback, a documented exit code, no file written outside `--out`);
-the `loopback` fixture puts Cyclone DDS on the loopback interface for the ROS 2 tests.
+bad-input test makes (no traceback, a documented exit code, no file written outside `--out`).
+Fixtures of one folder are in its own conftest.py (tests/live/: ROS 2 on the loopback).
 Plain functions the test modules share (writers of small inputs, hypothesis settings) are in
 tests/helpers.py, the simulated bags in tests/helpers_bags.py and the live route's
 comparisons in tests/helpers_live.py.
@@ -10,7 +10,6 @@ comparisons in tests/helpers_live.py.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,7 +53,7 @@ def camera_log_template(tmp_path_factory) -> Path:
 def bag_template(tmp_path_factory) -> Path:
     """A folder with a ROS 1 bag `run.bag` (a rover's odometry, ground truth and UWB ranges to
     three beacons; receive times jitter, so bag order differs from the stamps' order) and its
-    topics file `topics.yaml` (tests/test_rosbag.py)."""
+    topics file `topics.yaml` (tests/datasets/test_rosbag.py)."""
     import yaml
     from helpers_bags import TOPICS, simulate, write_bag
 
@@ -115,23 +114,6 @@ def bag_dir(bag_template, tmp_path) -> Path:
 @pytest.fixture
 def scans(scan_dirs_template, tmp_path) -> Path:
     return _copy(scan_dirs_template, tmp_path, "scans")
-
-
-# ---- ROS 2 over DDS, on this machine alone -----------------------------------------------
-@pytest.fixture
-def loopback(tmp_path, monkeypatch):
-    """Cyclone DDS on the loopback interface only, in a domain of this test alone."""
-    xml = tmp_path / "cyclonedds.xml"
-    xml.write_text(
-        "<CycloneDDS><Domain Id='any'><General><Interfaces><NetworkInterface name='lo'/>"
-        "</Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery>"
-        "<ParticipantIndex>auto</ParticipantIndex><Peers><Peer Address='127.0.0.1'/></Peers>"
-        "</Discovery></Domain></CycloneDDS>"
-    )
-    monkeypatch.setenv("CYCLONEDDS_URI", xml.as_uri())
-    domain = 100 + os.getpid() % 100  # another pytest process picks another domain
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
-    return domain
 
 
 # ---- the command line, in-process -------------------------------------------------------------

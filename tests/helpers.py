@@ -1,8 +1,10 @@
-"""Helpers the test modules share (imported as `from helpers import ...`; tests/ is on sys.path
-as pytest's rootdir-relative test folder): hypothesis settings and strategies of the bad-input
-property tests, small valid inputs written on demand (a tiny MRCLAM directory and the planar log
-made from it, two robots' room scans, a Feng simulation with its odometry), and edits of a
-log's manifest. Fixtures built on them are in conftest.py."""
+"""Helpers the test modules of every tests/ folder share (imported as `from helpers import ...`;
+pyproject.toml puts tests/ on pytest's pythonpath): hypothesis settings and strategies of the
+bad-input property tests, small valid inputs written on demand (a tiny MRCLAM directory and the
+planar log made from it, a synthetic three-robot MRCLAM directory with counted bad lines, a tiny
+two-robot log of every table, two robots' room scans, a Feng simulation with its odometry), and
+edits of a log's manifest. Fixtures built on them are in conftest.py; the simulated bags are in
+helpers_bags.py, the live route's comparisons in helpers_live.py."""
 
 from __future__ import annotations
 

@@ -3,7 +3,7 @@ here per doc family whose `context(...)` turns the JSON into the values and pand
 its Jinja2 template (templates/<renderer>.md.j2, the prose) prints. `DOCS` names every
 rendered doc with its renderer and the JSON files in docs/ it reads; the benchmarks call
 `render` on the result they have just written, `scripts/render_docs.py` re-renders a doc from
-its committed JSON without running anything (tests/test_results_docs.py: every doc as
+its committed JSON without running anything (tests/reproductions/test_results_docs.py: every doc as
 committed)."""
 
 from __future__ import annotations

@@ -17,8 +17,8 @@ error compared is the relative pose camera robot -> ground robot at every camera
 two robots' TUM estimates against the truth: its translation RMS [m] and rotation RMS [deg].
 
 ``python tests/foreign/moving_target.py --out DIR [--graphloc .venv/bin/graphloc] [--seeds 0 1
-2]`` writes ``DIR/moving_target.json`` and prints the table; ``tests/test_foreign_runs.py``
-holds the ratio.
+2]`` writes ``DIR/moving_target.json`` and prints the table;
+``tests/team_graph/test_foreign_runs.py`` holds the ratio.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 feature tracks and circle sets wait for the placement that its candidate sets give it, then
 enter (the tracks' landmark priors and the teammate's placement through its pose, at the step
 that placed it); a camera nothing places leaves its rows as counted skips naming robot and
-table (tests/test_live_camera.py)."""
+table (tests/live/test_live_camera.py)."""
 
 from __future__ import annotations
 

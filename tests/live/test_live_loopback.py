@@ -21,7 +21,7 @@ from graphloc.cli import main
 
 from helpers_bags import REAL_BAG
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ODOM = "/husky_velocity_controller/odom"
 TOPICS = {
     "name": "husky-outdoor",

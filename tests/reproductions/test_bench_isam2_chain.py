@@ -10,7 +10,7 @@ import pytest
 
 from benchmarks.render import render
 
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "bench_isam2_chain.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "bench_isam2_chain.py"
 
 
 @pytest.mark.slow

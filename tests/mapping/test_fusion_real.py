@@ -50,7 +50,7 @@ from graphloc.mapping.registration_starts import (
 from graphloc.mapping.robust_registration import robust_register
 
 ROT_OK, TRANS_OK = 1.0, 0.05
-DOCS = Path(__file__).resolve().parents[1] / "docs"
+DOCS = Path(__file__).resolve().parents[2] / "docs"
 
 
 @pytest.fixture(scope="module")

@@ -93,7 +93,7 @@ def test_mrclam_window_skips_are_counted_exactly(tmp_path):
     assert run.meta["window"]["end_set_by"] == "duration 1.0 s"
 
 
-DATASET6 = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
+DATASET6 = Path(__file__).resolve().parents[2].parent / "shared/data/mrclam/MRCLAM_Dataset6"
 
 
 def _raw_rows(root: Path) -> int:

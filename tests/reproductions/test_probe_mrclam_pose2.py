@@ -12,7 +12,7 @@ import pytest
 
 from factors.range_bearing import known_landmark_factor_3d, robot_factor_3d
 
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "probe_mrclam_pose2.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "probe_mrclam_pose2.py"
 
 
 @pytest.fixture(scope="module")

@@ -41,7 +41,7 @@ SHORT_FINE = RegistrationConfig(fine_iterations=30)
 # the covariance's degeneracy weight fitted before fine_iterations = 60 (4.10 since): its
 # weakest direction sends both weak-direction probes of seed 217 back to the slid pose
 OLD_FIT = RegistrationConfig(covariance_degeneracy=4.07)
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 REDWOOD = ROOT / "tests" / "data" / "real_room" / "redwood_livingroom.ply"
 
 

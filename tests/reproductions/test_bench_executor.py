@@ -15,7 +15,7 @@ import pytest
 
 from benchmarks.render import DOCS_DIR, render
 
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "bench_executor.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "bench_executor.py"
 
 
 def _script():

@@ -320,7 +320,7 @@ def test_exit_codes_are_distinct_and_documented():
     codes = [exitcodes.OK, exitcodes.FAILED, exitcodes.BAD_INPUT, exitcodes.INCOMPLETE]
     codes += [exitcodes.RUNS_FAILED, exitcodes.INCONSISTENT, exitcodes.INTERRUPTED]
     assert len(set(codes)) == len(codes) == len(exitcodes.CODES)
-    doc = (Path(__file__).resolve().parents[1] / "docs" / "outputs.md").read_text()
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "outputs.md").read_text()
     section = doc[doc.index("## Exit codes") :]
     for code in codes:
         assert re.search(rf"^\| {code} \|", section, re.M), code

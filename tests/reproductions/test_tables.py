@@ -156,7 +156,7 @@ def test_reproduce_script_quick(tmp_path, capsys):
 def test_make_results_quick_writes_every_table(tmp_path):
     """The reduced --quick reproduction that CI runs (issue: 'a reduced --quick mode runs in
     CI')."""
-    script = Path(__file__).resolve().parents[1] / "scripts" / "make_results.py"
+    script = Path(__file__).resolve().parents[2] / "scripts" / "make_results.py"
     results = tmp_path / "results.md"
     subprocess.run(
         [

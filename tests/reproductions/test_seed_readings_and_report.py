@@ -201,8 +201,8 @@ def test_only_quick_merges_seed001_and_seed003_into_the_previous_result(tmp_path
 
 def test_results_section_has_every_seed_table_at_both_settings():
     """From the committed JSON: seed 000 Tables I and III, seed 004 Table 1, seed 001 and seed
-    003, each at the stated and the reproducing reading (tests/test_results_docs.py: the
-    section as docs/results.md holds it)."""
+    003, each at the stated and the reproducing reading
+    (tests/reproductions/test_results_docs.py: the section as docs/results.md holds it)."""
     r = json.loads(report.DOC_JSON.read_text())
     text = render("seed_baselines_results", r)
     for label in ("Seed 000 Table I:", "Seed 000 Table III:", "Seed 004 Table 1", "| seed 001 "):

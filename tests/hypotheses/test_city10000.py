@@ -351,7 +351,7 @@ def test_api_doc_block_runs_as_written():
     import re
     from pathlib import Path
 
-    doc = Path(__file__).resolve().parents[1] / "docs" / "api.md"
+    doc = Path(__file__).resolve().parents[2] / "docs" / "api.md"
     blocks = re.findall(r"```python\n(.*?)```", doc.read_text(), flags=re.S)
     block = next(b for b in blocks if "PoseGraphHypotheses" in b)
     namespace = {}

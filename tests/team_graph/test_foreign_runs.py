@@ -17,7 +17,7 @@ import pytest
 from graphloc.cli import main
 from graphloc.exitcodes import INCONSISTENT, OK
 
-sys.path.insert(0, str(Path(__file__).resolve().parent / "foreign"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "foreign"))
 
 import score  # noqa: E402
 import team_generator as gen  # noqa: E402

@@ -32,7 +32,7 @@ from graphloc.pipelines.team_graph.motion import velocity_noise
 from graphloc.runner.team_run import team_graph
 from helpers_live import _same_estimates, _same_graph
 
-sys.path.insert(0, str(Path(__file__).resolve().parent / "foreign"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "foreign"))
 
 import score  # noqa: E402
 import team_generator as gen  # noqa: E402
@@ -229,9 +229,9 @@ def test_a_mixed_run_without_a_start_time_starts_where_the_reader_does(tmp_path)
 
 @pytest.mark.slow
 def test_the_foreign_mixed_team_live_is_graphloc_online(tmp_path):
-    """tests/test_foreign_runs.py's mixed-team log (wheel rovers, a relative-pose rover, two
-    climbers, the ceiling camera's marker sets of four targets): live, every row pushed in
-    time order, gives online's estimates and causal estimates."""
+    """tests/team_graph/test_foreign_runs.py's mixed-team log (wheel rovers, a relative-pose
+    rover, two climbers, the ceiling camera's marker sets of four targets): live, every row
+    pushed in time order, gives online's estimates and causal estimates."""
     config = gen.GeneratorConfig(
         layout="mixed-team", seed=0, duration_s=40.0, landmark_heights="sensor"
     )

@@ -20,7 +20,7 @@ from graphloc.live.builder import build_live
 from graphloc.pipelines.team_graph import GraphConfig
 from helpers_live import _fed_in_chunks, _same_estimates, _same_graph
 
-DATASET6 = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
+DATASET6 = Path(__file__).resolve().parents[2].parent / "shared/data/mrclam/MRCLAM_Dataset6"
 needs_dataset6 = pytest.mark.skipif(not DATASET6.is_dir(), reason="MRCLAM Dataset6 not present")
 
 
@@ -233,7 +233,7 @@ def test_live_options_replace_the_noise(mrclam_dir):
 
 
 def test_the_api_doc_block_runs(mrclam_dir, capsys):
-    text = (Path(__file__).resolve().parents[1] / "docs/api.md").read_text(encoding="utf-8")
+    text = (Path(__file__).resolve().parents[2] / "docs/api.md").read_text(encoding="utf-8")
     section = text.split("## Live: rows pushed as a team runs")[1].split("\n## ")[0]
     block = section.split("```python\n")[1].split("```")[0]
     scope = {"run_dir": mrclam_dir}

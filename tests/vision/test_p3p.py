@@ -274,7 +274,7 @@ def test_p3p_bench_script_small(tmp_path):
     import sys
     from pathlib import Path
 
-    script = Path(__file__).resolve().parents[1] / "scripts" / "bench_p3p.py"
+    script = Path(__file__).resolve().parents[2] / "scripts" / "bench_p3p.py"
     argv = [sys.executable, str(script), "--out", str(tmp_path), "--n", "300", "--no-progress"]
     done = subprocess.run(argv, capture_output=True, text=True, cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-3000:]

@@ -20,7 +20,7 @@ import graphloc
 from graphloc.checkpoint import read_checkpoint_file
 from graphloc.live import LiveTeam, NotLiveError, run_rows
 
-sys.path.insert(0, str(Path(__file__).resolve().parent / "foreign"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "foreign"))
 from live_generator import Scenario, generate, write_log  # noqa: E402
 
 SMALL = {
@@ -343,7 +343,7 @@ def test_a_static_robot_without_rows_has_its_pose_in_every_route(tmp_path, start
     from graphloc.live.builder import build_live
     from graphloc.pipelines.team_graph import GraphConfig
 
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from helpers_live import _fed_in_chunks, _same_graph
 
     log = generate(Scenario("corridor", robots=2, duration=5.0, seed=5))

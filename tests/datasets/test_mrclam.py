@@ -17,7 +17,7 @@ from graphloc.pipelines.team_graph import GraphConfig, solve
 from graphloc.runner.team_run import team_graph
 from helpers import LANDMARKS, N_OUTLIERS, write_synthetic_mrclam
 
-DATASET6 = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
+DATASET6 = Path(__file__).resolve().parents[2].parent / "shared/data/mrclam/MRCLAM_Dataset6"
 
 
 @pytest.fixture(scope="module")

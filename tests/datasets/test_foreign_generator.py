@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-sys.path.insert(0, str(Path(__file__).resolve().parent / "foreign"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "foreign"))
 
 import score  # noqa: E402
 import team_generator as gen  # noqa: E402
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "log_format.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "log_format.md"
 SHORT = {"ceiling-markers": 30.0, "wall-bearings": 30.0, "mixed-team": 30.0}
 
 

@@ -8,7 +8,7 @@ import numpy as np
 
 import graphloc
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "api.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "api.md"
 
 
 def test_public_names_resolve():

@@ -12,7 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 # source folder -> the package it is installed as (pyproject.toml's package-dir)
 SOURCES = {
     "graphloc": ROOT / "graphloc",
