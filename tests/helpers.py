@@ -143,7 +143,7 @@ def write_planar_log(tmp: Path) -> Path:
     """A valid graphloc log (two robots, odometry, range-bearing, ground truth, landmarks): the
     tiny MRCLAM run in tmp/mr through the MRCLAM reader, written to tmp/log."""
     from graphloc.datasets.mrclam import MRCLAM
-    from graphloc.io import write_planar_run
+    from graphloc.log_writer import write_planar_run
 
     write_tiny_mrclam(tmp / "mr")
     return write_planar_run(MRCLAM(tmp / "mr").load(), tmp / "log")

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from graphloc.io import (
+from graphloc.records import (
     Bearing3D,
     GroundTruth2D,
     MarkerPixel,
@@ -15,12 +15,11 @@ from graphloc.io import (
     PoseCandidate,
     RangeBearing2D,
     ScanRef,
-    SkipReport,
     columns,
-    iter_records,
-    read_manifest,
-    write_manifest,
 )
+from graphloc.textio import SkipReport
+from graphloc.io import iter_records
+from graphloc.manifest import read_manifest, write_manifest
 from graphloc.datasets.graphloc_log import read_team_run
 
 

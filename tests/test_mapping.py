@@ -20,7 +20,8 @@ from graphloc.datasets.dual_room import (
 )
 from graphloc.pipelines.map_fusion.inputs import parse_hint
 from graphloc.pipelines.map_fusion.fusion import fuse
-from graphloc.pipelines.map_fusion.types import CEILING, GROUND, FusionConfig, FusionInput
+from graphloc.pipelines.map_fusion.options import FusionConfig
+from graphloc.pipelines.map_fusion.types import CEILING, GROUND, FusionInput
 from graphloc.keys import pose_key
 from graphloc.pipelines.map_fusion.led_guess import led_candidates, p3p_factors
 from graphloc.mapping.io import (

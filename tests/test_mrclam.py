@@ -10,7 +10,7 @@ import pytest
 
 from graphloc.cli import main
 from graphloc.datasets.mrclam import MRCLAM, interpolate_pose, is_mrclam_dir
-from graphloc.io import write_planar_run
+from graphloc.log_writer import write_planar_run
 from graphloc.factors.odometry import integrate_unicycle
 from benchmarks.planar_factors import bearing_range_2d
 from graphloc.datasets import open_run

@@ -21,7 +21,8 @@ from rosbags.typesys import Stores, get_typestore
 from graphloc.cli import main
 from graphloc.datasets import open_run
 from graphloc.datasets.rosbag import import_bag, read_topics
-from graphloc.io import columns, write_manifest
+from graphloc.records import columns
+from graphloc.manifest import write_manifest
 
 T0, DT, N = 1700000000.0, 0.5, 30
 SIGMAS = np.array([0.004, 0.004, 0.01, 0.02, 0.02, 0.01])  # GTSAM tangent order
@@ -430,7 +431,7 @@ def test_topics_file_errors_name_file_and_field(tmp_path, capsys):
 
 
 def test_detection2d_array_becomes_marker_rows(tmp_path):
-    from graphloc.datasets.rosbag_export import typestore
+    from graphloc.datasets.rosbag import typestore
 
     ts = typestore("mcap")  # Humble + vision_msgs 4, which the bag then carries
     zero = np.zeros(36)

@@ -10,7 +10,8 @@ from graphloc.mapping.io import POINT_BUDGET, check_scan_units, read_scan_sequen
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.inputs import parse_hint, parse_hint_sigma, read_p3p_setup
 from graphloc.pipelines.map_fusion.report import write_outputs, write_rejection
-from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
+from graphloc.pipelines.map_fusion.options import FusionConfig
+from graphloc.pipelines.map_fusion.types import FusionInput, FusionRejected
 from graphloc.textio import SkipReport
 
 
