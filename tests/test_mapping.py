@@ -18,7 +18,7 @@ from graphloc.datasets.dual_room import (
     DualRoomScenario,
     variant_config,
 )
-from graphloc.pipelines.map_fusion.inputs import parse_hint
+from graphloc.pipelines.map_fusion.run import parse_hint
 from graphloc.pipelines.map_fusion.fusion import fuse
 from graphloc.pipelines.map_fusion.options import FusionConfig
 from graphloc.pipelines.map_fusion.types import CEILING, GROUND, FusionInput

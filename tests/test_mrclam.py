@@ -11,7 +11,7 @@ import pytest
 from graphloc.cli import main
 from graphloc.datasets.mrclam import MRCLAM, interpolate_pose, is_mrclam_dir
 from graphloc.log_writer import write_planar_run
-from graphloc.factors.odometry import integrate_unicycle
+from benchmarks.planar_factors import integrate_unicycle
 from benchmarks.planar_factors import bearing_range_2d
 from graphloc.datasets import open_run
 from graphloc.pipelines.report import evaluate
