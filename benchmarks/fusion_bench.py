@@ -49,7 +49,7 @@ def run_trial(job: tuple[str, int, int]) -> dict:
     """One placement: simulate, then the three methods on the same clouds."""
     from graphloc.datasets.dual_room import DualRoomScenario, variant_config
     from graphloc.pipelines.map_fusion.fusion import fuse
-    from graphloc.pipelines.map_fusion.types import FusionConfig
+    from graphloc.pipelines.map_fusion.options import FusionConfig
     from graphloc.mapping.odometry import OdometryConfig
     from graphloc.mapping.registration import (
         RegistrationConfig,

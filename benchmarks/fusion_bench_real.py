@@ -90,7 +90,8 @@ def run_real_trial(job: tuple[float, int, bool, str | None, float, float]) -> li
     from scipy.spatial.transform import Rotation
 
     from graphloc.pipelines.map_fusion.fusion import fuse
-    from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
+    from graphloc.pipelines.map_fusion.options import FusionConfig
+    from graphloc.pipelines.map_fusion.types import FusionInput, FusionRejected
     from benchmarks.real_views import load_fragment, make_view_pair, perturb
     from graphloc.mapping.registration import (
         RegistrationConfig,

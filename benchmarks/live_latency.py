@@ -1,5 +1,5 @@
 """Live latency (issue 50), on MRCLAM Dataset6 (`../shared/data/mrclam/MRCLAM_Dataset6`, its
-first `duration` seconds as a log: `graphloc.io.write_planar_run`):
+first `duration` seconds as a log: `graphloc.log_writer.write_planar_run`):
 
 - per-step latency against the team size: teams of 1, 2 and 5 of its robots and of 10 (its
   five and a renamed copy of them, observing the copies where the originals observe each
@@ -147,7 +147,7 @@ def end_to_end(log: Path, out: Path, window: float, rate: float = 1.0) -> dict:
     from cyclonedds.sub import DataReader, InvalidSample
     from cyclonedds.topic import Topic
 
-    from graphloc.io import read_manifest
+    from graphloc.manifest import read_manifest
     from benchmarks.live_publish import Publisher, log_messages
     from graphloc.live.ros2 import KEEP_POSES, POSE_TYPE, participant, qos
     from graphloc.live.ros2_types import dds_topic, idl_type
@@ -256,7 +256,7 @@ def end_to_end(log: Path, out: Path, window: float, rate: float = 1.0) -> dict:
 def run(duration: float, out: Path, rate: float, windows=(0.0, 0.5)) -> dict:
     """The benchmark (module docstring); its working files under `out`."""
     from graphloc.datasets.mrclam import MRCLAM
-    from graphloc.io import write_planar_run
+    from graphloc.log_writer import write_planar_run
 
     from benchmarks.host import commit, machine
 

@@ -20,12 +20,12 @@ def bag_messages(bag, topics: set) -> list[tuple[float, str, str, object]]:
     bag order; ValueError naming the bag when it cannot be read."""
     from rosbags.highlevel import AnyReader
 
-    from graphloc.datasets.rosbag import _default_typestore
+    from graphloc.datasets.rosbag import bag_typestore
 
     bag = Path(bag)
     out = []
     try:
-        with AnyReader([bag], default_typestore=_default_typestore(bag)) as reader:
+        with AnyReader([bag], default_typestore=bag_typestore(bag)) as reader:
             conns = [c for c in reader.connections if c.topic in topics]
             for conn, t_ns, raw in reader.messages(connections=conns):
                 msg = reader.deserialize(raw, conn.msgtype)
@@ -39,7 +39,9 @@ def log_messages(root) -> list[tuple[float, str, str, object]]:
     """(row time [s], topic, LOG_ROW, sample) of every data line of a log's measurement
     tables (ground truth, CSV or TUM, aside), merged by time (stable: robot, then table
     order), each line as its table's `graphloc_msgs/msg/LogRow` (`ros2.log_row_topic`)."""
-    from graphloc.io import columns, is_tum, read_manifest
+    from graphloc.records import columns
+    from graphloc.io import is_tum
+    from graphloc.manifest import read_manifest
     from graphloc.live.ros2 import LOG_ROW, log_row_topic, stamp_of
     from graphloc.table_reader import data_lines
 

@@ -12,8 +12,8 @@ from pathlib import Path
 import gtsam
 import numpy as np
 
-from graphloc.datasets.rosbag_export import typestore
-from graphloc.io import MANIFEST, read_manifest
+from graphloc.datasets.rosbag import typestore
+from graphloc.manifest import MANIFEST, read_manifest
 from graphloc.mapping.io import read_points
 from graphloc.structured import read_json
 

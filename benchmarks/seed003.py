@@ -75,7 +75,6 @@ from benchmarks.seed003_geometry import (
     genuine_candidates,
     with_teammate_from_geometry,
 )
-from graphloc.eval import axis_errors, scale_errors
 from benchmarks.seed003_measures import (
     AXES,
     EXACT_DISK_SIGMAS,
@@ -83,10 +82,12 @@ from benchmarks.seed003_measures import (
     GRAPH_RUNS,
     METHODS,
     TRACK_AGES,
+    axis_errors,
     crlb_errors,
     disk_information,
     front_end_errors,
     linearize_cost,
+    scale_errors,
     teammate_config,
     track_errors,
     unseen_displacement,

@@ -35,7 +35,7 @@ from benchmarks.baselines.ekf_seed003 import EkfConfig, run_ekf
 from graphloc.datasets import open_run
 from graphloc.datasets.crawler_pair import CrawlerPairConfig, CrawlerPairScenario
 from graphloc.datasets.crawler_pair_log import write_crawler_pair_log
-from graphloc.eval import axis_errors
+from benchmarks.seed003_measures import axis_errors
 from benchmarks.trials import TrialExecutor
 from benchmarks.markdown import write_report
 from benchmarks.render import render

@@ -31,7 +31,8 @@ from benchmarks.trials import TrialExecutor
 from benchmarks.markdown import write_report
 from benchmarks.render import render
 from graphloc.pipelines.map_fusion.fusion import fuse
-from graphloc.pipelines.map_fusion.types import FusionConfig, FusionRejected
+from graphloc.pipelines.map_fusion.options import FusionConfig
+from graphloc.pipelines.map_fusion.types import FusionRejected
 from graphloc.mapping.registration import pose_errors
 from graphloc.pipelines.team_graph import GraphConfig, default_lag, solve
 from graphloc.plots import plt

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import importlib
 
+from graphloc import lazy_api
+
 # scenario name -> (module inside graphloc.datasets, class name)
 SCENARIOS: dict[str, tuple[str, str]] = {
     "feng-probabilistic": ("feng", "FengProbabilisticScenario"),
@@ -19,15 +21,9 @@ SCENARIOS: dict[str, tuple[str, str]] = {
     "breitenmoser-target": ("breitenmoser", "BreitenmoserTargetScenario"),
 }
 
-
-def open_run(
-    path, duration: float | None = None, noise: dict | None = None, source: dict | None = None
-):
-    """The loader factory (`graphloc.datasets.loaders.open_run`): a graphloc log, an MRCLAM
-    directory, a ROS bag or a scan directory -> `graphloc.run.TeamRun`."""
-    from graphloc.datasets.loaders import open_run as _open_run
-
-    return _open_run(path, duration, noise, source)
+# the loader factory (`loaders.open_run`: a graphloc log, an MRCLAM directory, a ROS bag or a
+# scan directory -> `graphloc.run.TeamRun`), loaded on first use
+__getattr__, __dir__ = lazy_api(__name__, {"open_run": "graphloc.datasets.loaders"})
 
 
 def scenario_names() -> list[str]:

@@ -1,7 +1,7 @@
 """Camera tables of a graphloc log that need a camera model: a sensor's intrinsics from its
 params, `features` rows (KLT tracks, seed 003 II-B) -> `FeatureObservation`s and `ellipses`
 rows (a teammate's circular base, seed 003 II eqs. 1-4) -> circle candidate sets through
-`graphloc.vision.ellipse_poses.circle_candidates` (2 candidates each)."""
+`graphloc.vision.circle.circle_candidates` (2 candidates each)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,11 @@ import gtsam
 import numpy as np
 
 from graphloc.cameras import PinholeCamera
-from graphloc.io import MANIFEST, Sink
+from graphloc.manifest import MANIFEST
+from graphloc.textio import Sink
 from graphloc.records import EllipseObservation, FeaturePixel
 from graphloc.run import CandidateObservation, FeatureObservation
-from graphloc.vision.ellipse_poses import circle_candidates
+from graphloc.vision.circle import circle_candidates
 
 NORMAL_SIGMA = 0.03  # [rad] disk-normal noise of one circle candidate (sensor param normal_sigma)
 CIRCLE_YAW_SIGMA = 1.0  # [rad] rotation about the normal, unobservable (param circle_yaw_sigma)

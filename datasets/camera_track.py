@@ -11,7 +11,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from graphloc.eval import write_tum
-from graphloc.io import write_manifest, write_table
+from graphloc.manifest import write_manifest
+from graphloc.log_writer import write_table
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,8 @@ import numpy as np
 
 from graphloc.datasets.camera_track import stack_poses
 from graphloc.eval import write_tum
-from graphloc.io import write_manifest, write_table
+from graphloc.manifest import write_manifest
+from graphloc.log_writer import write_table
 from graphloc.seams import MotionNoise
 from graphloc.vision.circle import rotations_from_normals
 from graphloc.vision.teammate import TeammateConfig, pixel_sigmas

@@ -28,10 +28,11 @@ from graphloc.datasets.room_scene import (
 )
 from graphloc.datasets.camera_track import pose7, stack_poses
 from graphloc.eval import write_tum
-from graphloc.io import write_table
+from graphloc.log_writer import write_table
 from graphloc.log_writer import write_csv
 from graphloc.structured import dumps_json, read_json
-from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, LedObservations
+from graphloc.pipelines.map_fusion.options import FusionConfig
+from graphloc.pipelines.map_fusion.types import FusionInput, LedObservations
 from graphloc.mapping.io import read_led_pixels, read_points, read_tum
 
 ROBOTS = ("ground", "ceiling")

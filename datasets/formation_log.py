@@ -12,7 +12,8 @@ import numpy as np
 from graphloc.cameras import PinholeCamera, angular_sigma
 from graphloc.datasets.camera_track import pose7, relative_pose3_rows, stack_poses
 from graphloc.eval import write_tum
-from graphloc.io import write_manifest, write_table
+from graphloc.manifest import write_manifest
+from graphloc.log_writer import write_table
 
 GROUND = ("ground1", "ground2", "ground3")
 STRAIGHT_ROT_SIGMA = 0.01  # [rad] heading change allowed by "moves straight" (seed 000 Sec. IV)

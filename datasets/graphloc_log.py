@@ -21,7 +21,8 @@ from graphloc.datasets.log_observations import (
     scan_odometry,
 )
 from graphloc.datasets.log_rows import LogRows, read_log_rows
-from graphloc.io import MANIFEST, SkipReport
+from graphloc.manifest import MANIFEST
+from graphloc.textio import SkipReport
 from graphloc.run import TeamRun, pose_from_planar
 
 

@@ -11,7 +11,7 @@ from typing import Protocol
 from graphloc.datasets.mrclam import MRCLAM, is_mrclam_dir
 from graphloc.datasets.rosbag import RosBag
 from graphloc.datasets.scan_directory import ScanDirectory
-from graphloc.io import MANIFEST
+from graphloc.manifest import MANIFEST
 from graphloc.datasets.graphloc_log import read_team_run
 from graphloc.run import TeamRun, team_run_from_planar, truncate
 

@@ -12,7 +12,8 @@ from scipy.spatial.transform import Rotation
 
 from graphloc.candidates import CandidateSet
 from graphloc.datasets.camera_tables import camera_sensor, positive_param
-from graphloc.io import Sink, iter_table_chunks
+from graphloc.textio import Sink
+from graphloc.table_reader import iter_table_chunks
 from graphloc.textio import cut
 from graphloc.run import CandidateObservation, MarkerPixels, Motion, ScanObservation
 from graphloc.vision.marker_poses import p3p_candidate_sets
@@ -193,7 +194,9 @@ def scan_odometry(groups: dict, robots: tuple, manifest, report, notes=None) -> 
         check_scan_units({f"{robots[ri].name}/{s}": seq for (ri, s), seq in sequences.items()})
     for (ri, sensor), rows in groups.items():
         T_bs, params = robots[ri].sensors[sensor]
-        odometry = ScanOdometry()  # scan by scan, as the live team feeds it (`live.scan_feed`)
+        odometry = (
+            ScanOdometry()
+        )  # scan by scan, as the live team feeds it (`live.event_rows.ScanFeed`)
         steps = [odometry.add(points) for points in sequences[(ri, sensor)][0]]
         for a, b, step in zip(rows[:-1], rows[1:], steps[1:]):
             out.append(scan_step(ri, T_bs, params, a.time, b.time, step))

@@ -14,18 +14,10 @@ import numpy as np
 from graphloc.datasets.camera_tables import positive_param
 from graphloc.datasets.log_observations import marker_columns
 from graphloc.factors.surface import SurfacePlane
-from graphloc.io import (
-    LANDMARK_PREFIX,
-    TABLES,
-    Manifest,
-    SkipReport,
-    Sink,
-    is_tum,
-    iter_records,
-    read_landmarks,
-    read_manifest,
-)
-from graphloc.records import MAX_COORDINATE, MAX_TIME
+from graphloc.manifest import Manifest, read_manifest
+from graphloc.textio import SkipReport, Sink
+from graphloc.io import is_tum, iter_records, read_landmarks
+from graphloc.records import LANDMARK_PREFIX, MAX_COORDINATE, MAX_TIME, TABLES
 from graphloc.run import (
     NOISE_DEFAULTS,
     Motion,

@@ -1,6 +1,6 @@
 """UTIAS MRCLAM dataset loader (Leung et al., IJRR 2011): a MRCLAM_DatasetN directory
 (Barcodes.dat, Landmark_Groundtruth.dat, RobotN_Odometry / _Measurement / _Groundtruth.dat) ->
-`graphloc.io.PlanarRun`, every unused row a counted skip naming file and line
+`graphloc.log_writer.PlanarRun`, every unused row a counted skip naming file and line
 (docs/design_datasets.md, "MRCLAM")."""
 
 from __future__ import annotations
@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from graphloc.io import PlanarRun, SkipReport
+from graphloc.log_writer import PlanarRun
+from graphloc.textio import SkipReport
 from graphloc.textio import check_file, text_blocks
 
 _ROBOT_FILE = re.compile(r"^Robot(\d+)_Odometry\.dat$")

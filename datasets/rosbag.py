@@ -36,8 +36,9 @@ from graphloc.datasets.rosbag_topics import (
     read_topics,
 )
 from graphloc.eval import write_tum
-from graphloc.io import SkipReport, write_manifest, write_table
-from graphloc.log_writer import write_csv
+from graphloc.textio import SkipReport
+from graphloc.manifest import write_manifest
+from graphloc.log_writer import write_csv, write_table
 from graphloc.names import out_path
 from graphloc.run import TeamRun, truncate
 
@@ -67,7 +68,37 @@ class BagImport:
     notes: SkipReport = field(default_factory=SkipReport)
 
 
-def _default_typestore(bag: Path):
+# vision_msgs 4 (ROS 2 Humble); rosbags' type stores lack vision_msgs, so the bag carries them
+VISION_MSGS = {
+    "vision_msgs/msg/Point2D": "float64 x\nfloat64 y\n",
+    "vision_msgs/msg/Pose2D": "vision_msgs/Point2D position\nfloat64 theta\n",
+    "vision_msgs/msg/BoundingBox2D": "vision_msgs/Pose2D center\nfloat64 size_x\nfloat64 size_y\n",
+    "vision_msgs/msg/ObjectHypothesis": "string class_id\nfloat64 score\n",
+    "vision_msgs/msg/ObjectHypothesisWithPose": "vision_msgs/ObjectHypothesis hypothesis\n"
+    "geometry_msgs/PoseWithCovariance pose\n",
+    "vision_msgs/msg/Detection2D": "std_msgs/Header header\n"
+    "vision_msgs/ObjectHypothesisWithPose[] results\n"
+    "vision_msgs/BoundingBox2D bbox\nstring id\n",
+    "vision_msgs/msg/Detection2DArray": "std_msgs/Header header\n"
+    "vision_msgs/Detection2D[] detections\n",
+}
+
+
+def typestore(kind: str):
+    """rosbags' Noetic (ros1) or Humble type store with vision_msgs 4 registered: the one bags
+    are written with (`graphloc.live.ros2_types`, `benchmarks/rosbag_export.py`)."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    ts = get_typestore(Stores.ROS1_NOETIC if kind == "ros1" else Stores.ROS2_HUMBLE)
+    types = {}
+    for name, text in VISION_MSGS.items():
+        types.update(get_types_from_msg(text, name))
+    ts.register(types)
+    return ts
+
+
+def bag_typestore(bag: Path):
+    """The type store a bag is read with: rosbags' Noetic (a `.bag`) or Humble store."""
     from rosbags.typesys import Stores, get_typestore
 
     return get_typestore(Stores.ROS1_NOETIC if bag.suffix == ".bag" else Stores.ROS2_HUMBLE)
@@ -80,7 +111,7 @@ def _read_messages(bag: Path, wanted: set, skips: SkipReport, consume):
     skips."""
     from rosbags.highlevel import AnyReader
 
-    default = _default_typestore(bag)
+    default = bag_typestore(bag)
     per_topic: dict = {t: [] for t in wanted}
     try:
         reader = AnyReader([bag], default_typestore=default)

@@ -21,7 +21,7 @@ from graphloc.datasets.rosbag_topics import (
     VECTOR3,
     TopicMap,
 )
-from graphloc.io import SkipReport
+from graphloc.textio import SkipReport
 from graphloc.vision.markers import MarkerDetectorConfig, detect_markers
 
 # ROS pose covariance order (x, y, z, rot x, rot y, rot z) -> GTSAM Pose3 tangent (rx..tz)

@@ -12,7 +12,8 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from graphloc.io import LANDMARK_PREFIX, MANIFEST, SENSOR_TYPES, read_manifest, write_manifest
+from graphloc.records import LANDMARK_PREFIX, SENSOR_TYPES
+from graphloc.manifest import MANIFEST, read_manifest, write_manifest
 from graphloc.names import safe_name
 from graphloc.structured import dumps_json, read_yaml
 from graphloc.vision.markers import MarkerDetectorConfig
@@ -91,7 +92,7 @@ class TopicsFile:
 
 def read_topics(path) -> TopicsFile:
     """Parse and check a topics file (docs/rosbag.md). Every error names the file and field:
-    the robots are checked by the manifest reader (`graphloc.io.read_manifest`), each topic's
+    the robots are checked by the manifest reader (`graphloc.manifest.read_manifest`), each topic's
     robot, table, sensor (of the table's sensor type) and targets against them."""
     path = Path(path)
     if not path.exists() and not path.is_symlink():

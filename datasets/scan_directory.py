@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.datasets.graphloc_log import read_team_run
-from graphloc.io import write_manifest, write_table
+from graphloc.manifest import write_manifest
+from graphloc.log_writer import write_table
 from graphloc.names import out_path, safe_name
 from graphloc.run import TeamRun, truncate
 from graphloc.textio import check_file, text_lines

@@ -7,7 +7,6 @@ GTSAM's tangent order.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -68,79 +67,6 @@ class VelocityNoise:
     density_w: float = setting(0.08, gt=0.0)
     floor_xy: float = setting(0.002, gt=0.0)
     floor_theta: float = setting(0.002, gt=0.0)
-
-
-@dataclass(frozen=True)
-class UnicycleIntegration:
-    """poses: (K,3) dead-reckoned (x, y, theta) at the keyframe times, starting at `start`;
-    deltas: (K-1,3) relative poses keyframe k -> k+1 in frame k; covariances: (K-1,3,3)."""
-
-    poses: np.ndarray
-    deltas: np.ndarray
-    covariances: np.ndarray
-
-
-def integrate_unicycle(
-    times: np.ndarray,
-    v: np.ndarray,
-    w: np.ndarray,
-    keyframe_times: np.ndarray,
-    noise: VelocityNoise = VelocityNoise(),
-    start=(0.0, 0.0, 0.0),
-) -> UnicycleIntegration:
-    """Integrate velocity samples (zero-order hold: sample i holds from times[i] to times[i+1];
-    before times[0] the robot stands still, the last sample holds to the end) exactly along arcs,
-    to poses at `keyframe_times`, with first-order propagated covariance of each keyframe step.
-
-    Vectorized: headings are a cumulative sum, positions a cumulative sum of rotated arc chords,
-    covariances a segment-wise sum (np.add.reduceat) of G Q G^T with G the 3x2 Jacobian of the
-    end pose w.r.t. each segment's (distance, heading) increments.
-    """
-    times, v, w = (np.asarray(a, dtype=float) for a in (times, v, w))
-    kf = np.asarray(keyframe_times, dtype=float)
-    if times.ndim != 1 or v.shape != times.shape or w.shape != times.shape:
-        raise ValueError(
-            "integrate_unicycle: times, v, w must be equal-length 1-D arrays, "
-            f"got {times.shape}, {v.shape}, {w.shape}"
-        )
-    if kf.ndim != 1 or kf.size < 1:
-        raise ValueError("integrate_unicycle: need at least one keyframe time")
-    for name, arr in (("times", times), ("v", v), ("w", w), ("keyframe_times", kf)):
-        if not np.isfinite(arr).all():
-            raise ValueError(f"integrate_unicycle: {name} contains NaN/inf")
-    if np.any(np.diff(times) < 0) or np.any(np.diff(kf) <= 0):
-        raise ValueError(
-            "integrate_unicycle: times must be non-decreasing and keyframe_times increasing"
-        )
-
-    # breakpoints: keyframes plus every sample time strictly inside the keyframe span
-    inside = times[(times > kf[0]) & (times < kf[-1])]
-    bp = np.union1d(kf, inside)
-    dt = np.diff(bp)
-    sample = np.searchsorted(times, bp[:-1], side="right") - 1  # sample active on each segment
-    active = sample >= 0
-    seg_v = np.where(active, v[np.maximum(sample, 0)], 0.0)
-    seg_w = np.where(active, w[np.maximum(sample, 0)], 0.0)
-    ds = seg_v * dt
-    dth = seg_w * dt
-    # exact arc chord in the segment's start frame
-    half = 0.5 * dth
-    sinc_half = np.sinc(half / np.pi)  # sin(h)/h
-    chord = ds * sinc_half
-    theta = start[2] + np.concatenate([[0.0], np.cumsum(dth)])
-    mid = theta[:-1] + half
-    x = start[0] + np.concatenate([[0.0], np.cumsum(chord * np.cos(mid))])
-    y = start[1] + np.concatenate([[0.0], np.cumsum(chord * np.sin(mid))])
-
-    kf_idx = np.searchsorted(bp, kf)
-    poses = np.stack([x[kf_idx], y[kf_idx], _wrap(theta[kf_idx])], axis=1)
-    deltas = relative_poses(np.stack([x[kf_idx], y[kf_idx], theta[kf_idx]], axis=1))
-
-    # covariance: each segment j in keyframe interval k perturbs the end pose e=k+1 by
-    # G_j [d_s, d_theta]^T with G_j = [[cos th_j, -(y_e - y_j)], [sin th_j, x_e - x_j], [0, 1]]
-    if kf.size == 1:
-        return UnicycleIntegration(poses, deltas, np.zeros((0, 3, 3)))
-    return UnicycleIntegration(poses, deltas, step_covariances(x, y, theta, mid, dt, kf_idx, noise))
 
 
 def step_covariances(x, y, theta, mid, dt, kf_idx, noise) -> np.ndarray:

@@ -39,11 +39,19 @@ _API = {
 __all__ = ["__version__", *_API]
 
 
-def __getattr__(name: str):
-    if name in _API:
-        return getattr(importlib.import_module(_API[name]), name)
-    raise AttributeError(f"module 'graphloc' has no attribute {name!r}")
+def lazy_api(package: str, api: dict) -> tuple:
+    """The `__getattr__` and `__dir__` of a package whose public names (`api`: name -> module
+    that defines it) load on first use (PEP 562); graphloc's and its subpackages'."""
+
+    def __getattr__(name: str):
+        if name in api:
+            return getattr(importlib.import_module(api[name]), name)
+        raise AttributeError(f"module {package!r} has no attribute {name!r}")
+
+    def __dir__() -> list[str]:
+        return sorted(set(api) | set(vars(importlib.import_module(package))))
+
+    return __getattr__, __dir__
 
 
-def __dir__() -> list[str]:
-    return sorted(__all__)
+__getattr__, __dir__ = lazy_api(__name__, _API)

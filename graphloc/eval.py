@@ -276,37 +276,3 @@ def write_tum(path: str | Path, times: np.ndarray, poses: np.ndarray) -> Path:
 
 def read_tum(path: str | Path) -> PoseTrajectory3D:
     return file_interface.read_tum_trajectory_file(str(path))
-
-
-# ---- seed 003 (003_8db27855ce2d5f68.txt, Fig. 6): per-axis error and trajectory scale -----
-def axis_errors(estimated: np.ndarray, truth: np.ndarray) -> np.ndarray:
-    """(T,3) absolute translation error per axis (the seed's Fig. 6 quantity)."""
-    estimated, truth = np.asarray(estimated, float), np.asarray(truth, float)
-    if estimated.shape != truth.shape or estimated.ndim != 2 or estimated.shape[1] != 3:
-        raise ValueError(
-            f"axis_errors: shapes {estimated.shape} vs {truth.shape}, expected equal (T,3)"
-        )
-    return np.abs(estimated - truth)
-
-
-def trajectory_scale(estimated: np.ndarray, truth: np.ndarray) -> float:
-    """Least-squares scale s of the lengths of the estimated displacements from frame 0 against
-    the true ones, s = sum |p||q| / sum |q|^2 (lengths, so that a direction error is not
-    counted as a scale error; the gauge fixes frame 0); NaN when the camera has not moved."""
-    p = np.asarray(estimated, float) - np.asarray(estimated, float)[0]
-    q = np.asarray(truth, float) - np.asarray(truth, float)[0]
-    if p.shape != q.shape:
-        raise ValueError(f"trajectory_scale: shapes {p.shape} vs {q.shape}")
-    qq = float(np.sum(q * q))
-    return (
-        float(np.sum(np.linalg.norm(p, axis=1) * np.linalg.norm(q, axis=1)) / qq)
-        if qq > 0
-        else float("nan")
-    )
-
-
-def scale_errors(history, truth: np.ndarray) -> np.ndarray:
-    """(T,) |s_k - 1| where s_k = trajectory_scale of what was known at frame k (history[k]:
-    (k+1,3) positions of frames 0..k) against truth[:k+1]."""
-    truth = np.asarray(truth, float)
-    return np.array([abs(trajectory_scale(h, truth[: len(h)]) - 1.0) for h in history])

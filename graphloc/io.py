@@ -1,6 +1,7 @@
-"""The graphloc log format (docs/log_format.md): `read_manifest`, `iter_records` (typed records of
-every robot and table in time order, each bad row raised or counted naming file, line and
-field) and the writers of `graphloc.log_writer`."""
+"""Reading the graphloc log format (docs/log_format.md): `iter_records` (typed records of every
+robot and table in time order, each bad row raised or counted naming file, line and field) and
+`read_landmarks`. The manifest is `graphloc.manifest`, the record types `graphloc.records`, the
+writers `graphloc.log_writer`."""
 
 from __future__ import annotations
 
@@ -11,59 +12,10 @@ from typing import Iterator
 
 import numpy as np
 
-from graphloc.manifest import MANIFEST, Manifest, Robot, read_manifest, write_manifest
-from graphloc.records import (
-    LANDMARK_COLUMNS,
-    LANDMARK_PREFIX,
-    SENSOR_TYPES,
-    TABLES,
-    Bearing3D,
-    GroundTruth2D,
-    MarkerPixel,
-    Odometry2D,
-    PoseCandidate,
-    RangeBearing2D,
-    ScanRef,
-    columns,
-    plausible,
-)
-from graphloc.log_writer import PlanarRun, write_planar_run, write_table
+from graphloc.manifest import Manifest, Robot, read_manifest
+from graphloc.records import LANDMARK_COLUMNS, TABLES, plausible
 from graphloc.table_reader import chunk_rows, data_lines, iter_table_chunks
-from graphloc.textio import (
-    Sink,
-    SkipReport,
-    check_file,
-    csv_fields,
-    cut,
-    shown,
-)
-
-__all__ = [
-    "LANDMARK_PREFIX",
-    "MANIFEST",
-    "SENSOR_TYPES",
-    "TABLES",
-    "Bearing3D",
-    "GroundTruth2D",
-    "Manifest",
-    "MarkerPixel",
-    "Odometry2D",
-    "PlanarRun",
-    "PoseCandidate",
-    "RangeBearing2D",
-    "ScanRef",
-    "Sink",
-    "SkipReport",
-    "columns",
-    "is_tum",
-    "iter_records",
-    "iter_table",
-    "read_landmarks",
-    "read_manifest",
-    "write_manifest",
-    "write_planar_run",
-    "write_table",
-]
+from graphloc.textio import SkipReport, check_file, csv_fields, cut, shown
 
 
 # ---- streaming, validated reading ------------------------------------------------------------

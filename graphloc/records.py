@@ -1,7 +1,7 @@
 """The records of the graphloc log format (docs/log_format.md): one frozen dataclass per table,
 whose fields after `robot` are the table's CSV columns; `TABLES` maps table names to them and
 `SENSOR_TYPES` says which sensor type each table's `sensor` column must name. Read by
-`graphloc.io.iter_table`, written by `graphloc.io.write_table`.
+`graphloc.io.iter_table`, written by `graphloc.log_writer.write_table`.
 """
 
 from __future__ import annotations

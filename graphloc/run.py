@@ -12,7 +12,7 @@ import numpy as np
 
 from graphloc.candidates import CandidateSet
 from graphloc.factors.surface import SurfacePlane
-from graphloc.io import SkipReport
+from graphloc.textio import SkipReport
 
 NOISE_DEFAULTS = {
     "bearing_sigma": 0.02,
@@ -215,7 +215,7 @@ def planar_covariance(cov3: np.ndarray) -> np.ndarray:
 
 
 def team_run_from_planar(run, defaults: dict | None = None) -> TeamRun:
-    """A planar run in arrays (`graphloc.io.PlanarRun`, e.g. from the MRCLAM loader) as a
+    """A planar run in arrays (`graphloc.log_writer.PlanarRun`, e.g. from the MRCLAM loader) as a
     TeamRun: ground robots with wheel odometry and range-bearing to robots and landmarks
     (bearings already in the body frame), planar ground truth."""
     d = {**NOISE_DEFAULTS, **(defaults or {})}

@@ -39,7 +39,7 @@ class Odometry:
 @dataclass(frozen=True)
 class Decision:
     """Output of one update, shared by the tracker and the baselines (the team graph's record
-    of what became of a candidate set, made from it, is `team_graph.decision.SetOutcome`).
+    of what became of a candidate set, made from it, is `team_graph.candidates.SetOutcome`).
 
     probabilities (K,): posterior that candidate k of this frame is the genuine one (may sum
     to < 1: the rest is on "none of them", e.g. a coasting track). committed: index of the

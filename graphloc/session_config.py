@@ -1,14 +1,12 @@
 """The configuration of `graphloc.session.Session`: which solver (`MODES`), its GTSAM
-parameters (Levenberg-Marquardt, iSAM2) and the fixed lag (`graphloc.fixed_lag`), and the checked
-reading of a saved config (`config_from_dict`). Light: GTSAM loads where a threshold map is built
-(the command line's options derive from `SessionConfig`)."""
+parameters (Levenberg-Marquardt, iSAM2) and the fixed lag (`graphloc.fixed_lag`). Light: GTSAM
+loads where a threshold map is built (the command line's options derive from `SessionConfig`)."""
 
 from __future__ import annotations
 
 from typing import Literal
 
 from graphloc.config_schema import config_dataclass, setting
-from graphloc.datafile import BadData
 
 MODES = ("batch", "online")
 
@@ -70,14 +68,3 @@ def check_thresholded(config: SessionConfig, keys) -> None:
             f"Session.add: keys {bad[:5]} have no relinearize threshold (relinearize_translation "
             f"> 0 covers the symbols {sorted(THRESHOLD_SYMBOLS)} only)"
         )
-
-
-def config_from_dict(raw) -> SessionConfig:
-    """SessionConfig from its saved dict: every field known and of its type (strict, as any
-    config dataclass: `graphloc.config`)."""
-    if not isinstance(raw, dict):
-        raise BadData("'config' must be an object")
-    try:
-        return SessionConfig(**raw)
-    except ValueError as exc:
-        raise BadData(f"config: {exc}") from None

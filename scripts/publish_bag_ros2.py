@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout: be
 
 from benchmarks.live_publish import Publisher, bag_messages, log_messages  # noqa: E402
 from graphloc.datasets.rosbag_topics import read_topics  # noqa: E402
-from graphloc.io import MANIFEST  # noqa: E402
+from graphloc.manifest import MANIFEST  # noqa: E402
 
 
 def main(argv=None) -> int:

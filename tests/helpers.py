@@ -16,8 +16,9 @@ import numpy as np
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 from benchmarks.planar_factors import bearing_range_2d
-from graphloc.factors.odometry import integrate_unicycle
-from graphloc.io import columns, write_manifest
+from benchmarks.planar_factors import integrate_unicycle
+from graphloc.records import columns
+from graphloc.manifest import write_manifest
 
 # ---- hypothesis ---------------------------------------------------------------------------------
 # bounded for the default run; GRAPHLOC_FUZZ_EXAMPLES=2000 (random seeds) for a deeper search
@@ -148,7 +149,7 @@ def write_planar_log(tmp: Path) -> Path:
     """A valid graphloc log (two robots, odometry, range-bearing, ground truth, landmarks): the
     tiny MRCLAM run in tmp/mr through the MRCLAM reader, written to tmp/log."""
     from graphloc.datasets.mrclam import MRCLAM
-    from graphloc.io import write_planar_run
+    from graphloc.log_writer import write_planar_run
 
     write_tiny_mrclam(tmp / "mr")
     return write_planar_run(MRCLAM(tmp / "mr").load(), tmp / "log")

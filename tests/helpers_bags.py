@@ -14,7 +14,8 @@ from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_typestore
 
-from graphloc.io import columns, write_manifest
+from graphloc.records import columns
+from graphloc.manifest import write_manifest
 
 REAL_BAG = Path(__file__).resolve().parent / "data/real_bag/husky_outdoor_120s.bag"
 T0, DT, N = 1700000000.0, 0.5, 30

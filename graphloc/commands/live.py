@@ -95,9 +95,8 @@ def _source(args, opts: RunOptions):
 def run(args: argparse.Namespace) -> int:
     from graphloc.datasets import open_run
     from graphloc.live import LiveTeam
-    from graphloc.live.pipeline import UPDATE_COLUMNS, LiveRun
+    from graphloc.live.pipeline import UPDATE_COLUMNS, LiveRun, StatusLine
     from graphloc.log_writer import write_csv as write_table_rows
-    from graphloc.live.status import StatusLine
     from graphloc.runner.team_run import write_run
 
     if args.window < 0:

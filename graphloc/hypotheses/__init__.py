@@ -7,7 +7,7 @@ windows, in batched NumPy over se3.py's Pose3 maps).
 
 The names below load on first use (PEP 562), so importing `TrackerConfig` does not load GTSAM."""
 
-import importlib
+from graphloc import lazy_api
 
 # public name -> module that defines it
 _API = {
@@ -17,12 +17,4 @@ _API = {
 }
 __all__ = list(_API)
 
-
-def __getattr__(name: str):
-    if name in _API:
-        return getattr(importlib.import_module(_API[name]), name)
-    raise AttributeError(f"module 'graphloc.hypotheses' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(__all__)
+__getattr__, __dir__ = lazy_api(__name__, _API)

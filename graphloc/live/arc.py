@@ -1,5 +1,6 @@
-"""`ArcIntegrator`: `factors.odometry.integrate_unicycle` carried forward as velocity rows arrive
-(into a `GrowingArray`); the running sums continued, so poses, steps and covariances are those
+"""`ArcIntegrator`: the whole-run unicycle integration (the tests' reference:
+`benchmarks.planar_factors.integrate_unicycle`) carried forward as velocity rows arrive (into a
+`GrowingArray`); the running sums continued, so poses, steps and covariances are those
 of one call over the whole run, bit for bit (tests/live/test_live.py)."""
 
 from __future__ import annotations

@@ -1,13 +1,17 @@
 """`EventRows`: an event-clocked team's checked rows into its `events.EventGraph`, with the
 interface `LiveTeam` drives; marker, candidate, ellipse and feature rows held until the window
 passes their time, then made into sets and pixels by the loader's own front ends.
-`build_events`: a loaded run's graph on the event route."""
+`build_events`: a loaded run's graph on the event route. `ScanFeed`: the `scans` rows through
+KISS-ICP as they arrive (seed 004 Sec. II-B), one `mapping.odometry.ScanOdometry` per (robot,
+scanner), each step the relative pose the loader makes of it (`log_observations.scan_step`); a
+scan that cannot be used is a counted skip."""
 
 from __future__ import annotations
 
 import heapq
 from dataclasses import replace
 
+import gtsam
 import numpy as np
 
 from graphloc.datasets.camera_tables import (
@@ -15,17 +19,20 @@ from graphloc.datasets.camera_tables import (
     feature_observations,
     single_tracks,
 )
-from graphloc.datasets.log_observations import candidate_observations, marker_observations
-from graphloc.io import Sink, SkipReport
+from graphloc.datasets.log_observations import (
+    candidate_observations,
+    marker_observations,
+    scan_step,
+)
+from graphloc.textio import Sink, SkipReport, confined
 from graphloc.keys import decode
 from graphloc.live.coverage import NotLiveError, max_mixtures_possible, run_tables
 from graphloc.live.events import EventGraph
-from graphloc.live.scan_feed import ScanFeed
 from graphloc.live.setup import empty_run
 from graphloc.live.wheel_steps import WheelSteps, skip_relative, wheel_motions
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.graph import TeamGraph, factor_keys
-from graphloc.run import TeamRun
+from graphloc.run import ScanObservation, TeamRun
 
 RELATIVE = ("relative_pose", "relative_pose3")
 POINT_TABLES = ("range", "bearing", "range_bearing")
@@ -286,3 +293,50 @@ def _drop_unplaced(graph: TeamGraph, robots: set) -> None:
     counts = {k: v for k, v in graph.counts.items() if not k.startswith("factors_")}
     counts.update({f"factors_{name}": types.count(name) for name in sorted(set(types))})
     graph.counts = counts
+
+
+class ScanFeed:
+    """The scanners of a live team (`run`: its robots and their sensors; `root`: the run
+    directory the rows' paths are in); `add(r, key, row)` -> (the scan's `ScanObservation`, the
+    relative pose -- a `graphloc.run.Motion` -- it makes, None for a first scan), or None (a
+    counted skip)."""
+
+    def __init__(self, run, root, skips, notes):
+        self.run, self.root = run, root
+        self.skips, self.notes = skips, notes
+        self.odometry: dict = {}  # (robot, sensor) -> (ScanOdometry, time of its last scan)
+        self.scans: list = []  # ScanObservation of every scan used, in arrival order
+
+    def add(self, r: int, key: tuple, row):
+        """Robot r's released `scans` row (`key`: (robot, sensor), its handler's item)."""
+        from graphloc.mapping.io import read_scan
+        from graphloc.mapping.odometry import ScanOdometry
+
+        robot = self.run.robots[r]
+        where = f"robot {robot.name!r}, table 'scans', row {row.line}: field 'path'"
+        try:
+            path = self.root / confined(self.root, row.path, where)
+            points, dropped = read_scan(path, self.notes)
+        except ValueError as exc:
+            reason = "path_outside_run" if where in str(exc) else "bad_scan"
+            message = str(exc) if reason == "path_outside_run" else f"{where}: {exc}"
+            self.skips.add(reason, message)
+            return None
+        except OSError as exc:
+            self.skips.add("bad_scan", f"{where}: {row.path}: {exc.strerror or exc}")
+            return None
+        if dropped:
+            self.skips.add(
+                "scan_points_nonfinite", f"{where}: {dropped} non-finite points", dropped
+            )
+        T_bs, params = robot.sensors[row.sensor]
+        scan = ScanObservation(row.time, r, gtsam.Pose3(T_bs), path)
+        self.scans.append(scan)
+        if key not in self.odometry:
+            self.odometry[key] = (ScanOdometry(), None)
+        odometry, last = self.odometry[key]
+        step = odometry.add(points)
+        self.odometry[key] = (odometry, row.time)
+        if step is None:
+            return scan, None
+        return scan, scan_step(r, T_bs, params, last, row.time, step)

@@ -11,7 +11,7 @@ from functools import partial
 
 import numpy as np
 
-from graphloc.io import SkipReport
+from graphloc.textio import SkipReport
 from graphloc.live.builder import StepQueue
 from graphloc.live.coverage import NotLiveError
 from graphloc.live.event_camera import EventFeatures, camera_skips, release_circles

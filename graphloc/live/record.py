@@ -8,7 +8,8 @@ from pathlib import Path
 
 from graphloc.datasets.rosbag import table_path, write_log_manifest
 from graphloc.datasets.rosbag_topics import TopicsFile
-from graphloc.io import MANIFEST, columns, read_manifest
+from graphloc.manifest import MANIFEST, read_manifest
+from graphloc.records import columns
 from graphloc.live.topics import GROUNDTRUTH_COLUMNS
 from graphloc.log_writer import cell
 from graphloc.names import out_path

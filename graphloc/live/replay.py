@@ -8,7 +8,9 @@ import heapq
 from dataclasses import fields
 from pathlib import Path
 
-from graphloc.io import LANDMARK_PREFIX, MANIFEST, iter_records
+from graphloc.records import LANDMARK_PREFIX
+from graphloc.manifest import MANIFEST
+from graphloc.io import iter_records
 from graphloc.live.coverage import EVENT_TABLES, LIVE_TABLES
 from graphloc.live.team import LiveTeam
 from graphloc.pipelines.team_graph.options import RunOptions

@@ -167,7 +167,10 @@ class Ros2LogSource(_Readers):
     pushed to."""
 
     def __init__(self, root, dp=None):
-        from graphloc.io import SkipReport, columns, is_tum, read_manifest
+        from graphloc.textio import SkipReport
+        from graphloc.records import columns
+        from graphloc.io import is_tum
+        from graphloc.manifest import read_manifest
 
         super().__init__(dp)
         self.manifest = read_manifest(root)

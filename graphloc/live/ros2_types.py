@@ -44,9 +44,9 @@ def typestore():
     graphloc_msgs (GRAPHLOC_MSGS)."""
     from rosbags.typesys import get_types_from_msg
 
-    from graphloc.datasets.rosbag_export import typestore as bag_typestore
+    from graphloc.datasets.rosbag import typestore as writing_typestore
 
-    ts = bag_typestore("ros2")
+    ts = writing_typestore("ros2")
     for name, text in GRAPHLOC_MSGS.items():
         ts.register(get_types_from_msg(text, name))
     return ts

@@ -9,7 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from graphloc.io import MANIFEST, SkipReport, read_landmarks, read_manifest
+from graphloc.manifest import MANIFEST, read_manifest
+from graphloc.textio import SkipReport
+from graphloc.io import read_landmarks
 from graphloc.manifest import Manifest, Robot, Sensor, check_noise_params
 from graphloc.pipelines.team_graph.config import GraphConfig
 from graphloc.pipelines.team_graph.options import RunOptions

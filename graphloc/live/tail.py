@@ -9,7 +9,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from graphloc.io import MANIFEST, SkipReport, is_tum, read_landmarks, read_manifest
+from graphloc.manifest import MANIFEST, read_manifest
+from graphloc.textio import SkipReport
+from graphloc.io import is_tum, read_landmarks
 from graphloc.table_reader import LineChecker
 
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from graphloc.checkpoint import read_checkpoint, read_checkpoint_file, write_checkpoint
 from graphloc.exitcodes import SolverFailure
-from graphloc.io import SkipReport
+from graphloc.textio import SkipReport
 from graphloc.keys import pose_key
 from graphloc.live.builder import LiveGraph
 from graphloc.live.coverage import route, tables_of

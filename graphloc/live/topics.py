@@ -9,7 +9,8 @@ from pathlib import Path
 
 from graphloc.datasets.rosbag_messages import PoseChain, message_rows
 from graphloc.datasets.rosbag_topics import TopicsFile
-from graphloc.io import SkipReport, columns
+from graphloc.textio import SkipReport
+from graphloc.records import columns
 
 # the TUM columns of a groundtruth row (docs/log_format.md)
 GROUNDTRUTH_COLUMNS = ("time", "x", "y", "z", "qx", "qy", "qz", "qw")

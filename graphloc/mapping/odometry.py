@@ -43,7 +43,7 @@ class ScanOdometry:
     """KISS-ICP's own pipeline (`KissICP`) over one scanner's sequence, one scan at a time:
     `add(points)` registers a scan onto the map of the scans before it and returns the step
     T_{k-1,k} from the previous scan (None for the first). A scan's step uses the scans before
-    it only (causal), so the live team (`graphloc.live.scan_feed`) and the log reader
+    it only (causal), so the live team (`graphloc.live.event_rows.ScanFeed`) and the log reader
     (`datasets.log_observations.scan_odometry`) make the same steps."""
 
     def __init__(self, cfg: OdometryConfig = OdometryConfig()):

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from graphloc.io import MANIFEST
+from graphloc.manifest import MANIFEST
 from graphloc.mapping.io import read_labelled_cloud, read_scan, read_tum
 from graphloc.pipelines.groundtruth import groundtruth_rows
 from graphloc.pipelines.team_graph import TeamResult

@@ -1,8 +1,7 @@
 """Blob moments and outlier rejection of the seed-001 marker blob extraction
 (seeds/001_0f8f8dae37ce6b79.txt, section IV-B): connected components -> additive raw moments
 (merging two blobs is a row sum) -> first / second outlier rejection (size, eccentricity,
-non-convexity) and the window-cut rule. Used by `graphloc.vision.markers` and
-`graphloc.vision.blob_recovery`."""
+non-convexity) and the window-cut rule. Used by `graphloc.vision.markers`."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from graphloc.io import (
+from graphloc.records import (
     Bearing3D,
     GroundTruth2D,
     MarkerPixel,
@@ -14,10 +14,10 @@ from graphloc.io import (
     PoseCandidate,
     RangeBearing2D,
     ScanRef,
-    SkipReport,
-    iter_records,
-    read_manifest,
 )
+from graphloc.textio import SkipReport
+from graphloc.io import iter_records
+from graphloc.manifest import read_manifest
 from graphloc.datasets.graphloc_log import read_team_run
 from helpers import make_log
 

@@ -212,7 +212,8 @@ def test_scans_are_placed_by_the_estimate(tmp_path):
     from scipy.spatial import cKDTree
     from scipy.spatial.transform import Rotation
 
-    from graphloc.io import write_manifest, write_table
+    from graphloc.manifest import write_manifest
+    from graphloc.log_writer import write_table
 
     rng = np.random.default_rng(1)
     room = np.vstack(  # walls at x, y = +-4, floor 0, ceiling 3

@@ -8,9 +8,9 @@ import pytest
 from graphloc.factors.odometry import (
     VelocityNoise,
     between_factor,
-    integrate_unicycle,
     relative_poses,
 )
+from benchmarks.planar_factors import integrate_unicycle
 from graphloc.factors.range_bearing import landmark_factor_3d
 from graphloc.factors.robust import GaussianChi2, Kernel, KernelPolicy, residuals, robust_noise
 from graphloc.factors.bearing import (

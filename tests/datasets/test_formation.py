@@ -1,6 +1,6 @@
 """Seed 000 Sec. VI-A as a log of measurements through the front door: static ground robots
 placed by mutual bearings (one reference + the known |T_12|), the climber by P3P on its
-bearings of them, everything refined in one graph (`team_graph.formation`)."""
+bearings of them, everything refined in one graph (`live.event_points`)."""
 
 import json
 import shutil

@@ -10,7 +10,7 @@ import pytest
 
 from graphloc.cli import main
 from graphloc.datasets.mrclam import MRCLAM, interpolate_pose, is_mrclam_dir
-from graphloc.io import write_planar_run
+from graphloc.log_writer import write_planar_run
 from graphloc.datasets import open_run
 from graphloc.pipelines.report import evaluate
 from graphloc.pipelines.team_graph import GraphConfig, solve

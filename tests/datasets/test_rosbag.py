@@ -189,7 +189,7 @@ def test_topics_file_errors_name_file_and_field(tmp_path, capsys):
 
 
 def test_detection2d_array_becomes_marker_rows(tmp_path):
-    from graphloc.datasets.rosbag_export import typestore
+    from graphloc.datasets.rosbag import typestore
 
     ts = typestore("mcap")  # Humble + vision_msgs 4, which the bag then carries
     zero = np.zeros(36)

@@ -13,7 +13,8 @@ from graphloc.config import parse_overrides
 from graphloc.datasets import scenario_class, scenario_names
 from graphloc.datasets.kaushik import SIDE, KaushikConfig, led_triangle, simulate
 from graphloc.datasets.scenarios import generate
-from graphloc.io import iter_records, read_manifest
+from graphloc.io import iter_records
+from graphloc.manifest import read_manifest
 
 SMALL = {
     "feng-deterministic": {},

@@ -13,7 +13,8 @@ import pytest
 
 import graphloc
 from graphloc.datasets import open_run
-from graphloc.factors.odometry import VelocityNoise, integrate_unicycle
+from graphloc.factors.odometry import VelocityNoise
+from benchmarks.planar_factors import integrate_unicycle
 from graphloc.live import LiveTeam, NotLiveError, replay, replay_live, run_rows
 from graphloc.live.arc import ArcIntegrator
 from graphloc.live.builder import build_live

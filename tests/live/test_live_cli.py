@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from graphloc.cli import main
-from graphloc.io import MANIFEST, read_manifest
+from graphloc.manifest import MANIFEST, read_manifest
 
 
 def _write_slowly(src: Path, dst: Path, pause: float = 0.002) -> None:

@@ -13,13 +13,15 @@ import numpy as np
 import pytest
 
 from graphloc.cli import main
-from graphloc.io import columns, iter_records, read_manifest
+from graphloc.records import columns
+from graphloc.io import iter_records
+from graphloc.manifest import read_manifest
 from helpers_bags import REAL_BAG
 
 
 def _records(root) -> dict:
     """(robot, table) -> rows of the log (column -> value), as the log reader reads them."""
-    from graphloc.io import TABLES
+    from graphloc.records import TABLES
 
     table_of = {cls: t for t, cls in TABLES.items()}
     out: dict = {}

@@ -1,4 +1,4 @@
-"""The `scans` table live: each scan through KISS-ICP as its row arrives (`live.scan_feed`,
+"""The `scans` table live: each scan through KISS-ICP as its row arrives (`event_rows.ScanFeed`,
 one `mapping.odometry.ScanOdometry` per scanner), its step the loader's; the inter-robot
 registration when its inputs have arrived (`live.event_scans`). A run with one scanning robot
 placed by candidate sets, and dual-robot-room, are live; their live teams are `graphloc

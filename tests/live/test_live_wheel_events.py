@@ -21,7 +21,7 @@ import pytest
 
 import graphloc
 from graphloc.datasets import open_run
-from graphloc.factors.odometry import integrate_unicycle
+from benchmarks.planar_factors import integrate_unicycle
 from graphloc.live import replay_live
 from graphloc.live.coverage import route, run_tables
 from graphloc.live.event_rows import build_events

@@ -24,7 +24,8 @@ from graphloc.mapping.acceptance import (
     overlap_shortfall,
 )
 from graphloc.pipelines.map_fusion.fusion import fuse
-from graphloc.pipelines.map_fusion.types import FusionConfig, FusionInput, FusionRejected
+from graphloc.pipelines.map_fusion.options import FusionConfig
+from graphloc.pipelines.map_fusion.types import FusionInput, FusionRejected
 from benchmarks.fusion_bench_real import (
     PROTOCOL_KEEP,
     PROTOCOL_NOISE_M,

@@ -18,9 +18,10 @@ from graphloc.datasets.dual_room import (
     DualRoomScenario,
     variant_config,
 )
-from graphloc.pipelines.map_fusion.inputs import parse_hint
+from graphloc.pipelines.map_fusion.run import parse_hint
 from graphloc.pipelines.map_fusion.fusion import fuse
-from graphloc.pipelines.map_fusion.types import CEILING, GROUND, FusionConfig, FusionInput
+from graphloc.pipelines.map_fusion.options import FusionConfig
+from graphloc.pipelines.map_fusion.types import CEILING, GROUND, FusionInput
 from graphloc.keys import pose_key
 from graphloc.pipelines.map_fusion.led_guess import led_candidates, p3p_factors
 from graphloc.mapping.io import (

@@ -16,7 +16,7 @@ from benchmarks.seed003_geometry import (
     ideal_frames,
     with_teammate_from_geometry,
 )
-from graphloc.eval import axis_errors, scale_errors, trajectory_scale
+from benchmarks.seed003_measures import axis_errors, scale_errors, trajectory_scale
 from benchmarks.cooperative_sfm import (
     TEAMMATE_MODELS,
     CooperativeSfm,

@@ -11,7 +11,7 @@ from benchmarks.baselines.ekf_seed003 import (
     incremental_rotation,
     run_ekf,
 )
-from graphloc.eval import axis_errors
+from benchmarks.seed003_measures import axis_errors
 from graphloc.seams import FrameInput
 from graphloc.vision.features import FrameFeatures
 

@@ -12,8 +12,7 @@ from graphloc.cameras import PinholeCamera
 from graphloc.cli import main
 from graphloc.datasets import open_run
 from graphloc.datasets.graphloc_log import read_team_run
-from graphloc.vision.circle import circle_pose_from_rim
-from graphloc.vision.ellipse_poses import circle_candidates
+from graphloc.vision.circle import circle_candidates, circle_pose_from_rim
 
 
 def _rim(camera: PinholeCamera, centre, normal, radius: float, n: int = 180) -> np.ndarray:

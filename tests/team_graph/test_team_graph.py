@@ -12,7 +12,8 @@ from scipy.spatial.transform import Rotation
 
 from graphloc.cli import main
 from graphloc.datasets import open_run
-from graphloc.io import columns, write_manifest
+from graphloc.records import columns
+from graphloc.manifest import write_manifest
 from graphloc.pipelines.team_graph import GraphConfig, solve
 from graphloc.runner.team_run import team_graph
 from graphloc.pipelines.team_graph.rows import rows_of_matrices

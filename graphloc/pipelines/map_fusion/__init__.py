@@ -3,7 +3,7 @@ pipeline of `graphloc fuse-maps` and `graphloc demo` (its modules: docs/architec
 registration and scan algorithms it calls are the library `graphloc.mapping`.
 """
 
-import importlib
+from graphloc import lazy_api
 
 # public name -> module that defines it; loaded on first use (PEP 562), so that the verbs'
 # option tree (`map_fusion.options`, light) is read without Open3D, KISS-ICP or GTSAM
@@ -20,12 +20,4 @@ _API = {
 }
 __all__ = sorted(_API)
 
-
-def __getattr__(name: str):
-    if name in _API:
-        return getattr(importlib.import_module(_API[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(__all__) | set(globals()))
+__getattr__, __dir__ = lazy_api(__name__, _API)

@@ -16,11 +16,11 @@ import numpy as np
 
 from graphloc.factors.odometry import between_factor
 from graphloc.keys import pose_key
+from graphloc.pipelines.map_fusion.options import FusionConfig
 from graphloc.pipelines.map_fusion.types import (
     CEILING,
     GROUND,
     ROBOT_NAMES,
-    FusionConfig,
     FusionInput,
     FusionRejected,
     FusionResult,

@@ -23,10 +23,10 @@ from graphloc.factors.mixture import (
 from graphloc.hypotheses import HypothesisTracker, cap_covariances
 from graphloc.keys import pose_key
 from graphloc.mapping.odometry import OdometryResult
+from graphloc.pipelines.map_fusion.options import FusionConfig
 from graphloc.pipelines.map_fusion.types import (
     CEILING,
     GROUND,
-    FusionConfig,
     GuessResult,
     LedObservations,
 )

@@ -14,7 +14,6 @@ import numpy as np
 from graphloc.cameras import PinholeCamera
 from graphloc.mapping.acceptance import RegistrationDecision
 from graphloc.mapping.registration import Registration
-from graphloc.pipelines.map_fusion.options import FusionConfig  # noqa: F401 - re-exported
 
 GROUND, CEILING = 0, 1
 

@@ -1,10 +1,12 @@
 """One run, one graph: the team graph's sections (motion, points, camera, candidates,
-mixtures, formation), its settings and its solve (`solve`: batch LM or online iSAM2);
+mixtures), its settings and its solve (`solve`: batch LM or online iSAM2);
 the graph is built by `graphloc.live.builder.build_live` (docs/design_team_graph.md)."""
 
 import importlib
 import sys
 import types
+
+from graphloc import lazy_api
 
 # public name -> module that defines it; loaded on first use (PEP 562), so that the verbs'
 # option tree (`team_graph.options`, light) is read without GTSAM
@@ -14,7 +16,7 @@ _API = {
     "GraphConfig": "graphloc.pipelines.team_graph.config",
     "default_lag": "graphloc.pipelines.team_graph.config",
     "run_precision": "graphloc.pipelines.team_graph.config",
-    "SetOutcome": "graphloc.pipelines.team_graph.decision",
+    "SetOutcome": "graphloc.pipelines.team_graph.candidates",
     "TeamGraph": "graphloc.pipelines.team_graph.graph",
     "STEP_LOG_COLUMNS": "graphloc.pipelines.team_graph.passes",
     "TeamResult": "graphloc.pipelines.team_graph.passes",
@@ -23,15 +25,7 @@ _API = {
 }
 __all__ = sorted(_API)
 
-
-def __getattr__(name: str):
-    if name in _API:
-        return getattr(importlib.import_module(_API[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(__all__) | set(globals()))
+__getattr__, __dir__ = lazy_api(__name__, _API)
 
 
 class _Package(types.ModuleType):

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from graphloc.io import SkipReport
+from graphloc.textio import SkipReport
 from graphloc.keys import pose_key
 from graphloc.factors.mixture import MaxMixture
 from graphloc.pipelines.team_graph.config import COARSE_PRECISION, GraphConfig

@@ -11,7 +11,7 @@ import numpy as np
 from graphloc.factors.mixture import candidate_covariances, max_mixture_factor, mixture_weights
 from graphloc.keys import pose_key
 from graphloc.pipelines.team_graph.config import GraphConfig, adjoint_cov
-from graphloc.pipelines.team_graph.decision import SetOutcome, inconsistent, quats, rows_of
+from graphloc.pipelines.team_graph.candidates import SetOutcome, inconsistent, quats, rows_of
 from graphloc.pipelines.team_graph.motion import dead_reckoning
 from graphloc.pipelines.team_graph.graph import SectionFactors
 from graphloc.run import TeamRun
