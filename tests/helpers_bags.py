@@ -18,6 +18,28 @@ from graphloc.records import columns
 from graphloc.manifest import write_manifest
 
 REAL_BAG = Path(__file__).resolve().parent / "data/real_bag/husky_outdoor_120s.bag"
+# REAL_BAG's wheel odometry topic (nav_msgs/Odometry with covariance; tests/data/README.md)
+REAL_ODOM = "/husky_velocity_controller/odom"
+
+
+def real_bag_topics(first_pose) -> dict:
+    """The topics file of REAL_BAG: one ground robot, its odometry as relative_pose3 rows,
+    starting at `first_pose` (x, y, z, qx, qy, qz, qw)."""
+    return {
+        "name": "husky-outdoor",
+        "robots": [
+            {
+                "name": "husky",
+                "kind": "ground",
+                "planar": False,
+                "initial_pose": [float(v) for v in first_pose],
+                "sensors": [{"name": "wheels", "type": "odometry"}],
+            }
+        ],
+        "topics": {REAL_ODOM: {"robot": "husky", "table": "relative_pose3", "sensor": "wheels"}},
+    }
+
+
 T0, DT, N = 1700000000.0, 0.5, 30
 SIGMAS = np.array([0.004, 0.004, 0.01, 0.02, 0.02, 0.01])  # GTSAM tangent order
 BEACONS = {"b1": (4.0, 0.0, 2.0), "b2": (-3.0, 3.0, 2.5), "b3": (0.0, -4.0, 0.5)}

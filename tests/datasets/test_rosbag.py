@@ -22,6 +22,8 @@ from graphloc.datasets import open_run
 from graphloc.datasets.rosbag import import_bag, read_topics
 from helpers_bags import (
     REAL_BAG,
+    REAL_ODOM,
+    real_bag_topics,
     BEACONS,
     N,
     TOPICS,
@@ -503,24 +505,8 @@ def test_missing_camera_info_and_unconnected_frames_are_errors(tmp_path, capsys)
 # ---- a real public bag ------------------------------------------------------------------------
 # tests/data/real_bag/husky_outdoor_120s.bag: the first 120 s of robot_localization's
 # test/test1.bag (BSD-3-Clause; tests/data/README.md, scripts/make_real_bag.py): a Clearpath
-# Husky outdoors, wheel odometry (nav_msgs/Odometry with covariance), GPS fix and IMU.
-ODOM = "/husky_velocity_controller/odom"
-
-
-def _real_topics(first_pose) -> dict:
-    return {
-        "name": "husky-outdoor",
-        "robots": [
-            {
-                "name": "husky",
-                "kind": "ground",
-                "planar": False,
-                "initial_pose": [float(v) for v in first_pose],
-                "sensors": [{"name": "wheels", "type": "odometry"}],
-            }
-        ],
-        "topics": {ODOM: {"robot": "husky", "table": "relative_pose3", "sensor": "wheels"}},
-    }
+# Husky outdoors, wheel odometry (nav_msgs/Odometry with covariance), GPS fix and IMU:
+# REAL_BAG, REAL_ODOM and real_bag_topics in tests/helpers_bags.py.
 
 
 def _real_odometry() -> tuple[np.ndarray, np.ndarray]:
@@ -531,7 +517,7 @@ def _real_odometry() -> tuple[np.ndarray, np.ndarray]:
 
     odom = []
     with AnyReader([REAL_BAG]) as reader:
-        conns = [c for c in reader.connections if c.topic == ODOM]
+        conns = [c for c in reader.connections if c.topic == REAL_ODOM]
         for conn, _, raw in reader.messages(connections=conns):
             m = reader.deserialize(raw, conn.msgtype)
             p, o = m.pose.pose.position, m.pose.pose.orientation
@@ -550,7 +536,7 @@ def test_real_bag_is_read_and_smoothed(tmp_path, capsys):
     odom, cov = _real_odometry()
     assert len(odom) > 1000 and np.ptp(odom[:, 1:3], axis=0).max() > 5.0  # a real drive
     topics = tmp_path / "husky_topics.yaml"  # not beside the bag: only --topics names it
-    topics.write_text(yaml.safe_dump(_real_topics(odom[0, 1:])))
+    topics.write_text(yaml.safe_dump(real_bag_topics(odom[0, 1:])))
     run = tmp_path / "run"
     assert main(["import", str(REAL_BAG), "--topics", str(topics), "--out", str(run)]) == 0
     printed = json.loads(capsys.readouterr().out)
@@ -584,15 +570,15 @@ def test_topics_option(tmp_path, capsys):
     out = str(tmp_path / "out")
     assert main(["validate", str(bag)]) == 2
     assert "name one with --topics FILE" in capsys.readouterr().err
-    topics = _real_topics([0, 0, 0, 0, 0, 0, 1])
-    topics["topics"][ODOM]["robot"] = "huskyy"
+    topics = real_bag_topics([0, 0, 0, 0, 0, 0, 1])
+    topics["topics"][REAL_ODOM]["robot"] = "huskyy"
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump(topics))
     assert main(["smooth", str(bag), "--topics", str(bad), "--out", out, "--no-progress"]) == 2
     err = capsys.readouterr().err
-    assert str(bad) in err and f"topics['{ODOM}']: field 'robot'" in err, err
+    assert str(bad) in err and f"topics['{REAL_ODOM}']: field 'robot'" in err, err
     good = tmp_path / "good.yaml"
-    good.write_text(yaml.safe_dump(_real_topics([0, 0, 0, 0, 0, 0, 1])))
+    good.write_text(yaml.safe_dump(real_bag_topics([0, 0, 0, 0, 0, 0, 1])))
     config = tmp_path / "run.toml"
     config.write_text(f'topics = "{good}"\nduration = 10.0\n')
     assert main(["validate", str(bag), "--config", str(config)]) == 0

@@ -16,7 +16,7 @@ from graphloc.cli import main
 from graphloc.records import columns
 from graphloc.io import iter_records
 from graphloc.manifest import read_manifest
-from helpers_bags import REAL_BAG
+from helpers_bags import REAL_BAG, REAL_ODOM, real_bag_topics
 
 
 def _records(root) -> dict:
@@ -166,26 +166,13 @@ def test_ros2_topics_give_the_import_rows(bag, loopback, feng_log, tmp_path):
 def _husky_topics() -> dict:
     from rosbags.highlevel import AnyReader
 
-    odom = "/husky_velocity_controller/odom"
     with AnyReader([REAL_BAG]) as reader:
-        conn = next(c for c in reader.connections if c.topic == odom)
+        conn = next(c for c in reader.connections if c.topic == REAL_ODOM)
         _, _, raw = next(reader.messages(connections=[conn]))
         p = reader.deserialize(raw, conn.msgtype).pose.pose
     first = [p.position.x, p.position.y, p.position.z]
     first += [p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w]
-    return {
-        "name": "husky-outdoor",
-        "robots": [
-            {
-                "name": "husky",
-                "kind": "ground",
-                "planar": False,
-                "initial_pose": [float(v) for v in first],
-                "sensors": [{"name": "wheels", "type": "odometry"}],
-            }
-        ],
-        "topics": {odom: {"robot": "husky", "table": "relative_pose3", "sensor": "wheels"}},
-    }
+    return real_bag_topics(first)
 
 
 def test_received_poses_out(loopback):
@@ -349,16 +336,15 @@ def test_odometry_table_from_twists(tmp_path):
 
     from graphloc.datasets.rosbag import import_bag
 
-    odom = "/husky_velocity_controller/odom"
     topics = tmp_path / "topics.yaml"
     body = _husky_topics()
-    body["topics"] = {odom: {"robot": "husky", "table": "odometry", "sensor": "wheels"}}
+    body["topics"] = {REAL_ODOM: {"robot": "husky", "table": "odometry", "sensor": "wheels"}}
     topics.write_text(yaml.safe_dump(body))
     result = import_bag(REAL_BAG, topics, tmp_path / "log")
     assert result.rows == {"odometry": 1200} and result.skips.total == 0
     want = []
     with AnyReader([REAL_BAG]) as reader:
-        conns = [c for c in reader.connections if c.topic == odom]
+        conns = [c for c in reader.connections if c.topic == REAL_ODOM]
         for conn, _, raw in reader.messages(connections=conns):
             m = reader.deserialize(raw, conn.msgtype)
             t = m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
@@ -378,9 +364,8 @@ def test_recorder_writes_a_log_and_resumes_it(tmp_path):
     from graphloc.datasets.rosbag_topics import read_topics
     from graphloc.live.record import LogRecorder
 
-    odom = "/husky_velocity_controller/odom"
     body = _husky_topics()
-    body["topics"] = {odom: {"robot": "husky", "table": "odometry", "sensor": "wheels"}}
+    body["topics"] = {REAL_ODOM: {"robot": "husky", "table": "odometry", "sensor": "wheels"}}
     topics = tmp_path / "topics.yaml"
     topics.write_text(yaml.safe_dump(body))
     tf = read_topics(topics)
@@ -403,7 +388,7 @@ def test_recorder_writes_a_log_and_resumes_it(tmp_path):
     assert _grouped(
         [("husky", "odometry", r) for r in _records(tmp_path / "log")[("husky", "odometry")]]
     ) == _grouped(rows)
-    body["topics"][odom]["table"] = "relative_pose3"
+    body["topics"][REAL_ODOM]["table"] = "relative_pose3"
     topics.write_text(yaml.safe_dump(body))
     with pytest.raises(ValueError, match="a log of other topics"):
         LogRecorder(read_topics(topics), tmp_path / "log")
@@ -422,18 +407,17 @@ def test_a_publisher_of_the_wrong_type_is_a_counted_skip(loopback, tmp_path):
     topics = tmp_path / "topics.yaml"
     topics.write_text(yaml.safe_dump(_husky_topics()))
     source = Ros2Source(read_topics(topics))
-    odom = "/husky_velocity_controller/odom"
     head = idl_type("std_msgs/msg/Header")(
         stamp=idl_type("builtin_interfaces/msg/Time")(sec=1, nanosec=0), frame_id="uwb"
     )
     rng = idl_type("sensor_msgs/msg/Range")(
         header=head, radiation_type=0, field_of_view=0.1, min_range=0.1, max_range=9.0, range=2.0
     )
-    pub = Publisher([(0.0, odom, "sensor_msgs/msg/Range", rng)])
+    pub = Publisher([(0.0, REAL_ODOM, "sensor_msgs/msg/Range", rng)])
     end = time.monotonic() + 10
     while not source.skips.total and time.monotonic() < end:
         assert source.poll(0.05) == []
     assert source.skips.counts == {"wrong_type": 1}
-    assert f"topic '{odom}'" in source.skips.examples[0]
+    assert f"topic '{REAL_ODOM}'" in source.skips.examples[0]
     assert "sensor_msgs::msg::dds_::Range_" in source.skips.examples[0]
-    assert source.subscribed() == set() and pub.wait_for_subscribers(0.5) == {odom}
+    assert source.subscribed() == set() and pub.wait_for_subscribers(0.5) == {REAL_ODOM}
