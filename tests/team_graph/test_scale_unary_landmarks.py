@@ -16,7 +16,7 @@ from graphloc.pipelines.team_graph import GraphConfig, solve
 from graphloc.runner.team_run import team_graph
 
 # the module (the package's `solve` is the function of the same name)
-team_solve = importlib.import_module("graphloc.pipelines.team_graph.solve")
+team_solve = importlib.import_module("graphloc.pipelines.team_graph.solver")
 
 SIGMAS = (0.02, 0.02, 0.1)
 

@@ -1,7 +1,7 @@
 """Seed 000 Table I (000_05137a0a9c449be3.txt, Sec. VI-A) through the front door: a climber
 resected by P3P from three snapshots has alternatives from each snapshot's candidates
 (`live.event_points`), each carried to every pose of the climber. The hypotheses pass
-(`team_graph.solve.hypotheses`) must not drop an alternative of a later snapshot on the steps
+(`team_graph.solver.hypotheses`) must not drop an alternative of a later snapshot on the steps
 before its snapshot: there its start is that later snapshot's position, not evidence against
 it. Trial 5 of the table's config (seed 0) is one whose only genuine start is the third
 snapshot's candidate (the first snapshot's genuine candidate sits in a pseudo solution's

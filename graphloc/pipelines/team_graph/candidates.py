@@ -32,7 +32,7 @@ class SetOutcome:
     committed candidate (-1: none), its posterior (else the largest) and pose (x y z qx qy qz
     qw), the candidates of the committed one's pose (`same_pose`); status "decided",
     "undecided" or "inconsistent"; measured / measured_cov / body_T_sensor: what the truth
-    judges a decision by. A max-mixture set is chosen by the solve (`solve.choose_mixtures`)."""
+    judges a decision by. A max-mixture set is chosen by the solve (`passes.choose_mixtures`)."""
 
     time: float
     robot: int

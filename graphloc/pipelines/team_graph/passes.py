@@ -1,7 +1,7 @@
 """`Pass`: one solve of a `TeamGraph` through one `Session`, step by step -- batch
 (Levenberg-Marquardt over every step added) or online (one iSAM2 update per step, a fixed lag
 when `GraphConfig.lag` > 0) -- and what it gives, `TeamResult`. `solve` runs one pass, or
-several side by side (`solve.hypotheses`)."""
+several side by side (`solver.hypotheses`)."""
 
 from __future__ import annotations
 
