@@ -131,6 +131,48 @@ def kaushik_trial(focal_mm: float, noise: float, run_index: int, methods) -> dic
     return {**head, **run_methods(methods, track, track.odometry)}
 
 
+GROWTH_METHODS = ("tracker", "pose_graph_window1_partial")
+
+
+def growth_run(ceiling: str, max_time: float, method: str, seed: int = 7) -> dict:
+    """CPU per update along one long run (seed 000's setup on the "loop" curve, `max_time`
+    seconds): medians and 95th percentiles of the first and the last tenth of the updates (does
+    an update's cost grow with the run?), the run's total CPU and its lock statistics
+    (`benchmarks.hypotheses.lock_statistics` through `evaluate`'s rule)."""
+    sim = FengProbabilisticConfig(ceiling=ceiling, curve="loop", max_time=max_time, seed=seed)
+    run = FengProbabilisticScenario.simulate(sim)
+    engine, cpu = make_method(method, ceiling), []
+    timed = _Timed(engine, cpu)
+    result = evaluate(timed, run, odometry_steps(run, sim))
+    ms, tenth = 1e3 * np.asarray(cpu), max(1, len(cpu) // 10)
+    return {
+        "ceiling": ceiling,
+        "method": method,
+        "frames": len(run),
+        "first_tenth_p50_ms": float(np.median(ms[:tenth])),
+        "first_tenth_p95_ms": float(np.percentile(ms[:tenth], 95)),
+        "last_tenth_p50_ms": float(np.median(ms[-tenth:])),
+        "last_tenth_p95_ms": float(np.percentile(ms[-tenth:], 95)),
+        "cpu_s": float(ms.sum() / 1e3),
+        "correct_lock": result["correct_lock"],
+        "wrong_locked_frames": result["wrong_locked_frames"],
+        "locked_frames": result["locked_frames"],
+    }
+
+
+class _Timed:
+    """An engine whose updates' CPU times (`time.process_time`) are appended to `cpu`."""
+
+    def __init__(self, engine, cpu: list):
+        self.engine, self.cpu = engine, cpu
+
+    def update(self, candidates, odometry=None):
+        start = time.process_time()
+        decision = self.engine.update(candidates, odometry)
+        self.cpu.append(time.process_time() - start)
+        return decision
+
+
 def jobs(inputs, runs: int) -> list[tuple]:
     """(trial function, cell arguments, run index) of every run of every input."""
     cells = {"feng": (feng_trial, CELLS), "kaushik": (kaushik_trial, KAUSHIK_CELLS)}

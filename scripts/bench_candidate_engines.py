@@ -32,6 +32,9 @@ def main(argv=None) -> int:
     parser.add_argument("--runs", type=int, default=20, help="runs per cell")
     parser.add_argument("--quick", action="store_true", help="3 runs per cell, 4 methods")
     parser.add_argument("--inputs", nargs="+", default=["feng", "kaushik"])
+    parser.add_argument(
+        "--growth-time", type=float, default=60.0, help="[s] of the long runs (10 updates/s)"
+    )
     parser.add_argument("--out", type=Path, default=ROOT / "out" / "bench_candidate_engines")
     parser.add_argument("--doc", type=Path, default=ROOT / "docs" / "results_candidate_engines.md")
     parser.add_argument("--no-progress", action="store_true")
@@ -54,6 +57,13 @@ def main(argv=None) -> int:
     trials = []
     for trial, cell, index in tqdm(ce.jobs(args.inputs, runs), disable=args.no_progress):
         trials.append(trial(*cell, index, methods))
+    growth_time = 20.0 if args.quick else args.growth_time
+    report["growth_time_s"] = growth_time
+    report["growth"] = [
+        ce.growth_run(ceiling, growth_time, method)
+        for ceiling in ("level", "sloped")
+        for method in tqdm(ce.GROWTH_METHODS, desc=f"long {ceiling} run", disable=args.no_progress)
+    ]
     report["rows"] = ce.summarize(trials, methods)
     report["verdict"] = ce.verdict(report["rows"])
     path = args.out / "bench_candidate_engines.json"

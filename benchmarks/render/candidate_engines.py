@@ -51,8 +51,10 @@ def context(report: dict) -> dict:
         {"method": m, "settings": ", ".join(f"{k}={v}" for k, v in s.items()) or "defaults"}
         for m, s in report["methods"].items()
     ]
+    growth = pd.DataFrame(report.get("growth", []))
     return {
         "report": report,
+        "growth": significant(growth.astype(object).where(growth.notna(), "n/a"), 3),
         "rows": significant(rows.astype(object).where(rows.notna(), "n/a"), 3),
         "verdict": significant(verdict, 3),
         "counts": significant(pd.DataFrame(counts), 3),
