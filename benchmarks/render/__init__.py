@@ -31,6 +31,7 @@ class Doc:
 
 DOCS = {
     "gtsam_isam2_chain.md": Doc("isam2_chain", ("gtsam_isam2_chain.json",)),
+    "results_candidate_engines.md": Doc("candidate_engines", ("results_candidate_engines.json",)),
     "results_city10000.md": Doc("city10000", ("results_city10000.json",)),
     "results_executor.md": Doc("executor", ("results_executor.json",)),
     "results_fusion_envelope.md": Doc("fusion_envelope", ("results_fusion_envelope.json",)),

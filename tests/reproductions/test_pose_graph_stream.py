@@ -1,0 +1,75 @@
+"""benchmarks.pose_graph_stream: PoseGraphHypotheses behind the HypothesisTracker's interface
+(issue 51's side-by-side, scripts/bench_candidate_engines.py), on the first frames of seed 000
+Table III's first level- and sloped-ceiling line runs (benchmarks.hypotheses.trial's seeds 0
+and 1000)."""
+
+import gtsam
+import numpy as np
+import pytest
+
+from benchmarks.hypotheses import odometry_steps
+from benchmarks.pose_graph_stream import PoseGraphStream
+from graphloc.datasets.feng import FengProbabilisticConfig, FengProbabilisticScenario
+from graphloc.hypotheses.pose_graph import PoseGraphConfig
+
+FRAMES = 20
+
+
+def _simulate(ceiling: str, seed: int):
+    sim = FengProbabilisticConfig(ceiling=ceiling, curve="line", seed=seed)
+    simulated = FengProbabilisticScenario.simulate(sim)
+    return simulated, odometry_steps(simulated, sim)
+
+
+@pytest.fixture(scope="module")
+def run():
+    return _simulate("level", 0)
+
+
+def _feed(stream, run):
+    simulated, odometry = run
+    frames = zip(simulated.candidates[:FRAMES], odometry[:FRAMES])
+    return [stream.update(candidates, odo) for candidates, odo in frames]
+
+
+def test_it_locks_the_genuine_candidate_and_its_decisions_have_the_trackers_shapes(run):
+    simulated, _ = run
+    decisions = _feed(PoseGraphStream(PoseGraphConfig(window=1), null="partial"), run)
+    for k, d in enumerate(decisions):
+        candidates = simulated.candidates[k]
+        assert d.probabilities.shape == (len(candidates),)
+        assert d.probabilities.min() >= 0.0 and d.probabilities.sum() <= 1.0 + 1e-9
+        assert -1 <= d.committed < len(candidates) and isinstance(d.locked, bool)
+        assert isinstance(d.pose, gtsam.Pose3) and d.relocalized is False
+        if d.committed >= 0:
+            assert d.locked and d.probabilities[d.committed] == 1.0
+    locked = [k for k, d in enumerate(decisions) if d.locked]
+    assert locked and locked[0] <= 10
+    for k in locked:  # every locked frame on the genuine candidate, its pose near the truth
+        d = decisions[k]
+        assert d.committed in (-1, simulated.candidates[k].meta["genuine"])
+        assert np.linalg.norm(d.pose.translation() - simulated.t_wc[k]) < 0.1
+
+
+def test_a_set_every_frame_starves_the_engines_own_judgements_but_not_the_streams():
+    """The engine judges `window` steps after its last branching; a candidate set branches
+    every frame, so with the default window nothing is judged and, on the sloped ceiling where
+    the pseudo solutions follow the odometry (several branches survive), nothing is decided
+    (the stream's `judge_every` judges on its own schedule and decides)."""
+    sloped = _simulate("sloped", 1000)
+    engine_schedule = PoseGraphStream(PoseGraphConfig())
+    stream_schedule = PoseGraphStream(PoseGraphConfig(), judge_every=2)
+    engine_decisions = _feed(engine_schedule, sloped)
+    stream_decisions = _feed(stream_schedule, sloped)
+    assert engine_schedule.engine.stats["branchings"] == FRAMES - 1
+    assert engine_schedule.engine.stats["judgements"] == 0
+    assert not any(d.locked for d in engine_decisions)
+    assert stream_schedule.engine.stats["judgements"] > 0
+    assert any(d.locked for d in stream_decisions)
+
+
+def test_bad_options_are_refused():
+    with pytest.raises(ValueError, match="judge_every"):
+        PoseGraphStream(judge_every=0)
+    with pytest.raises(ValueError, match="null"):
+        PoseGraphStream(null="some")
