@@ -37,19 +37,15 @@ from graphloc.hypotheses.pose_graph import PoseGraphConfig
 from graphloc.seams import Odometry
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
-# method -> (PoseGraphConfig, judge_every, null) of a PoseGraphStream; "tracker" is the tracker
+# method -> (PoseGraphConfig, null) of a PoseGraphStream; "tracker" is the tracker
 ENGINES = {
-    "pose_graph_default": (PoseGraphConfig(), None, "all"),
-    "pose_graph_window1": (PoseGraphConfig(window=1), None, "all"),
-    "pose_graph_window1_partial": (PoseGraphConfig(window=1), None, "partial"),
-    "pose_graph_window1_none": (PoseGraphConfig(window=1), None, "none"),
-    "pose_graph_judge2_partial": (PoseGraphConfig(batch=1), 2, "partial"),
-    "pose_graph_judge5_partial": (PoseGraphConfig(batch=1), 5, "partial"),
-    "pose_graph_window1_partial_branches8": (
-        PoseGraphConfig(window=1, max_branches=8),
-        None,
-        "partial",
-    ),
+    "pose_graph_default": (PoseGraphConfig(), "all"),
+    "pose_graph_window1": (PoseGraphConfig(window=1), "all"),
+    "pose_graph_window1_partial": (PoseGraphConfig(window=1), "partial"),
+    "pose_graph_window1_none": (PoseGraphConfig(window=1), "none"),
+    "pose_graph_window2_partial": (PoseGraphConfig(window=2, batch=1), "partial"),
+    "pose_graph_window5_partial": (PoseGraphConfig(window=5, batch=1), "partial"),
+    "pose_graph_window1_partial_branches8": (PoseGraphConfig(window=1, max_branches=8), "partial"),
 }
 QUICK_ENGINES = ("pose_graph_default", "pose_graph_window1", "pose_graph_window1_partial")
 KAUSHIK_CELLS = [(16.0, 10.0), (36.0, 3.0)]  # (focal [mm], pixel noise variance [px^2])
@@ -60,19 +56,17 @@ def engine_settings(method: str) -> dict:
     """The settings of a method that differ from the engine's defaults (for the doc)."""
     if method == "tracker":
         return {"max_hypotheses": TableIIIConfig().max_hypotheses}
-    config, judge_every, null = ENGINES[method]
+    config, null = ENGINES[method]
     default = PoseGraphConfig()
     out = {k: v for k, v in vars(config).items() if v != getattr(default, k)}
-    if judge_every is not None:
-        out["judge_every"] = judge_every
     return {**out, "null": null}
 
 
 def make_method(method: str, ceiling: str = "level"):
     if method == "tracker":
         return make_engine("tracker", ceiling, TableIIIConfig(), 0)
-    config, judge_every, null = ENGINES[method]
-    return PoseGraphStream(replace(config), judge_every, null)
+    config, null = ENGINES[method]
+    return PoseGraphStream(replace(config), null)
 
 
 def run_methods(methods, run, odometry, ceiling: str = "level") -> dict:

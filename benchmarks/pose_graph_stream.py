@@ -29,11 +29,8 @@ The Decision of update k (causal: what the engine knows right after step k):
 - pose: the best branch's estimate of node k + 1 (`current`);
 - relocalized: always False: a decided measurement is final in the engine (no release).
 
-Judging: the engine judges its branches `window` steps after its last branching; a candidate set
-branches every frame, so a window above 1 is never reached and nothing is judged or decided
-(`max_window`'s bounded deferral included). `judge_every` (frames) lets the stream call
-`PoseGraphHypotheses.judge` itself on that schedule (forced once the oldest open measurement has
-waited `max_window` steps, as the engine's own rule); None: the engine's schedule alone.
+Judging: the engine's own schedule (`PoseGraphConfig.window`: `window` steps after the first
+branching since its last judgement; a candidate set branches every frame).
 """
 
 from __future__ import annotations
@@ -103,22 +100,17 @@ class PoseGraphStream:
     def __init__(
         self,
         config: PoseGraphConfig | None = None,
-        judge_every: int | None = None,
         null: str = "all",
         tracker_config: TrackerConfig = TrackerConfig(),
     ):
-        if judge_every is not None and judge_every < 1:
-            raise ValueError(f"PoseGraphStream: judge_every must be >= 1, got {judge_every}")
         if null not in NULLS:
             raise ValueError(f"PoseGraphStream: null must be one of {NULLS}, got {null!r}")
         self.null = null
         self.engine = PoseGraphHypotheses(3, config)
         self.engine.start(0)
-        self.judge_every = judge_every
         self.tracker_config = tracker_config
         self.frames = 0
         self._last_time: float | None = None
-        self._since_judgement = 0
         self._anchored = False  # a frame's set has been decided on a candidate
 
     @staticmethod
@@ -144,19 +136,7 @@ class PoseGraphStream:
         self.engine.step(step)
         self.frames += 1
         self._last_time = candidates.time
-        self._judge_on_schedule()
         return self._decision(k, len(candidates))
-
-    def _judge_on_schedule(self) -> None:
-        engine = self.engine
-        if self.judge_every is None or len(engine.branches) < 2:
-            self._since_judgement = 0
-            return
-        self._since_judgement += 1
-        if self._since_judgement >= self.judge_every:
-            oldest = min(engine.ambiguities[i].opened for i in engine.open)
-            engine.judge(force=engine.steps - oldest >= engine.config.max_window)
-            self._since_judgement = 0
 
     def _decision(self, k: int, size: int) -> Decision:
         engine = self.engine

@@ -41,7 +41,7 @@ class PoseGraphHypotheses:
         self.bridges: set[int] = set()  # indices of ambiguities no factor spans yet
         self.steps = 0
         self.gathered = 0  # steps not yet in the iSAM2s
-        self.last_branching = -1
+        self.window_start: int | None = None  # the step the running judgement window began
         counted = ("branchings", "rebuilds", "judgements", "forced", "bounded", "redecided")
         self.stats = dict.fromkeys(counted, 0)
         self.edge_cov: list = []  # by position: covariance of the edge from the previous pose
@@ -133,10 +133,14 @@ class PoseGraphHypotheses:
                 b.flush()
             self.gathered = 0
         if len(self.branches) == 1:
+            self.window_start = None
             self._decide()
-        elif (self.steps - self.last_branching) % self.config.window == 0:
+        else:  # judged `window` steps into the window (branchings inside it do not restart
+            # it) and at once when the oldest open measurement has waited `max_window` steps
             oldest = min(self.ambiguities[i].opened for i in self.open)
-            self.judge(force=self.steps - oldest >= self.config.max_window)
+            force = self.steps - oldest >= self.config.max_window
+            if force or self.steps - self.window_start >= self.config.window:
+                self.judge(force=force)
 
     # ---- branching -----------------------------------------------------------------------
     def _branch(self, opened, certain, new_poses, guesses) -> None:
@@ -182,7 +186,8 @@ class PoseGraphHypotheses:
                 isam = self._rebuild(choice, br.moved_values(values, self.order, moves, self.dim))
                 kept.append(Branch(isam, choice, chi2))
         self.branches = kept
-        self.last_branching = self.steps
+        if self.window_start is None:
+            self.window_start = self.steps
 
     def _children(self, parent, guess, bridges, loops, combos, certain) -> list:
         """[(the parent's score plus the predicted chi-square, parent, combination, tail moves,
@@ -292,6 +297,7 @@ class PoseGraphHypotheses:
         best = self.branches[0].score
         keep = 1 if force else c.max_branches
         self.branches = [b for b in self.branches if b.score <= best + c.margin][:keep]
+        self.window_start = self.steps if len(self.branches) > 1 else None
         self._decide()
 
     def _decide(self) -> None:

@@ -11,7 +11,7 @@ import gtsam
 
 @dataclass
 class PoseGraphConfig:
-    window: int = 10  # steps between judgements after a branching
+    window: int = 10  # steps from a branching (the first since a judgement) to the judgement
     max_window: int = 100  # steps a measurement may stay open before the best branch is taken
     margin: float = 20.0  # chi-square gap that prunes a branch
     max_branches: int = 4
