@@ -162,15 +162,3 @@ class PoseGraphStream:
                 if amb.factors[choice] is not None:
                     probabilities[choice] += w / total
         return Decision(probabilities, committed, locked, engine.current(k + 1), False)
-
-    def decided_choices(self) -> list[int | None]:
-        """Per frame: the decided component of its set (-1: the null), None while undecided
-        (frame 0's bridge until a later set spans it)."""
-        out = []
-        for k in range(self.frames):
-            amb = self.engine.ambiguities.get(self.set_index(k))
-            if amb is None or amb.state != "decided":
-                out.append(None)
-            else:
-                out.append(-1 if amb.factors[amb.choice] is None else amb.choice)
-        return out
