@@ -33,21 +33,26 @@ from graphloc.datasets.feng import (
     odometry_covariance,
 )
 from graphloc.datasets.kaushik import KaushikConfig, simulate
+from graphloc.hypotheses import TrackerConfig
 from graphloc.hypotheses.pose_graph import PoseGraphConfig
 from graphloc.seams import Odometry
 from graphloc.vision.marker_poses import p3p_candidate_sets
 
+DOF = TrackerConfig().student_dof  # the "_t" methods: the tracker's Student-t on candidates
+COMMIT_MARGIN = 6.0  # ~ 2 ln 19: the chi-square gap of the tracker's commit posterior 0.95
 # method -> (PoseGraphConfig, null) of a PoseGraphStream; "tracker" is the tracker
 ENGINES = {
     "pose_graph_default": (PoseGraphConfig(), "all"),
     "pose_graph_window1": (PoseGraphConfig(window=1), "all"),
     "pose_graph_window1_partial": (PoseGraphConfig(window=1), "partial"),
     "pose_graph_window1_none": (PoseGraphConfig(window=1), "none"),
-    "pose_graph_window2_partial": (PoseGraphConfig(window=2, batch=1), "partial"),
-    "pose_graph_window5_partial": (PoseGraphConfig(window=5, batch=1), "partial"),
-    "pose_graph_window1_partial_branches8": (PoseGraphConfig(window=1, max_branches=8), "partial"),
+    "pose_graph_window1_t": (PoseGraphConfig(window=1, candidate_dof=DOF), "all"),
+    "pose_graph_window1_t_margin6": (
+        PoseGraphConfig(window=1, candidate_dof=DOF, margin=COMMIT_MARGIN),
+        "all",
+    ),
 }
-QUICK_ENGINES = ("pose_graph_default", "pose_graph_window1", "pose_graph_window1_partial")
+QUICK_ENGINES = ("pose_graph_default", "pose_graph_window1_partial", "pose_graph_window1_t_margin6")
 KAUSHIK_CELLS = [(16.0, 10.0), (36.0, 3.0)]  # (focal [mm], pixel noise variance [px^2])
 KAUSHIK_FRAMES = 60
 
@@ -125,7 +130,7 @@ def kaushik_trial(focal_mm: float, noise: float, run_index: int, methods) -> dic
     return {**head, **run_methods(methods, track, track.odometry)}
 
 
-GROWTH_METHODS = ("tracker", "pose_graph_window1_partial")
+GROWTH_METHODS = ("tracker", "pose_graph_window1_t_margin6")
 
 
 def growth_run(ceiling: str, max_time: float, method: str, seed: int = 7) -> dict:

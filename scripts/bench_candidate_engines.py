@@ -33,6 +33,9 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="3 runs per cell, 4 methods")
     parser.add_argument("--inputs", nargs="+", default=["feng", "kaushik"])
     parser.add_argument(
+        "--methods", nargs="+", help="pose-graph methods beside the tracker (default: all)"
+    )
+    parser.add_argument(
         "--growth-time", type=float, default=60.0, help="[s] of the long runs (10 updates/s)"
     )
     parser.add_argument("--out", type=Path, default=ROOT / "out" / "bench_candidate_engines")
@@ -42,7 +45,10 @@ def main(argv=None) -> int:
     if args.runs < 1:
         parser.error("--runs must be >= 1")
     runs = 3 if args.quick else args.runs
-    methods = ["tracker", *(ce.QUICK_ENGINES if args.quick else ce.ENGINES)]
+    unknown = sorted(set(args.methods or ()) - set(ce.ENGINES))
+    if unknown:
+        parser.error(f"--methods: unknown {unknown}; known: {sorted(ce.ENGINES)}")
+    methods = ["tracker", *(args.methods or (ce.QUICK_ENGINES if args.quick else ce.ENGINES))]
     args.out.mkdir(parents=True, exist_ok=True)
     report = {
         "command": ".venv/bin/python scripts/bench_candidate_engines.py "

@@ -7,6 +7,7 @@ cloned). Bridge edges: docs/design_algorithms.md, "Branching"."""
 from __future__ import annotations
 
 import itertools
+import math
 
 import gtsam
 import numpy as np
@@ -27,15 +28,49 @@ def noise_of(information, sigmas, dim: int):
     return gtsam.noiseModel.Diagonal.Sigmas(np.asarray(sigmas, float))
 
 
-def candidate_factors(m, source: int, target: int, dim: int, sigmas) -> tuple[list, list]:
+def candidate_factors(
+    m, source: int, target: int, dim: int, sigmas, dof: float = math.inf
+) -> tuple[list, list]:
     """(candidate poses, one between factor per candidate) of a measurement with
-    `candidates` and `information` (graphloc.datasets.pose_graph_file.Measurement)."""
+    `candidates` and `information` (graphloc.datasets.pose_graph_file.Measurement); with a
+    finite `dof`, each factor's noise is heavy-tailed (`heavy_tailed`)."""
     poses = [pose_of(v, dim) for v in m.candidates]
     infos = m.information or [None] * len(poses)
-    factors = [
-        between(dim, source, target, p, noise_of(i, sigmas, dim)) for p, i in zip(poses, infos)
-    ]
+    noises = [heavy_tailed(noise_of(i, sigmas, dim), dof) for i in infos]
+    factors = [between(dim, source, target, p, n) for p, n in zip(poses, noises)]
     return poses, factors
+
+
+def heavy_tailed(noise, dof: float):
+    """`noise` (Gaussian) under GTSAM's Cauchy loss with k^2 = `dof` on its whitened residual
+    norm (`gtsam.noiseModel.Robust`), Gaussian for an infinite `dof`: twice the factor's error
+    is then dof * log(1 + m / dof) for a Mahalanobis^2 m, -2 log of a multivariate Student-t
+    with `dof` degrees of freedom up to the factor (dof + d) / dof, so it equals the Gaussian
+    chi-square m to first order near 0 and grows only logarithmically far out (a P3P
+    solution far outside its first-order covariance, seed 004 Sec. III)."""
+    if math.isinf(dof):
+        return noise
+    cauchy = gtsam.noiseModel.mEstimator.Cauchy.Create(math.sqrt(dof))
+    return gtsam.noiseModel.Robust.Create(cauchy, noise)
+
+
+def covariance_of(factor) -> np.ndarray:
+    """The covariance of a factor's Gaussian noise (under its robust loss, if any)."""
+    noise = factor.noiseModel()
+    if isinstance(noise, gtsam.noiseModel.Robust):
+        noise = noise.noise()
+    return noise.covariance()
+
+
+def robust_chi2(factor, chi2: float) -> float:
+    """A factor's chi-square contribution (twice its error) at Mahalanobis^2 `chi2`: `chi2`
+    itself for a Gaussian noise, its robust loss otherwise (monotone, so it maps a lower bound
+    of the Gaussian rise to a lower bound of the robust one: with the loss rho concave,
+    rho(0) = 0 and rho' <= 1, q + rho(m) >= rho(q + m) for any prior rise q >= 0)."""
+    noise = factor.noiseModel()
+    if not isinstance(noise, gtsam.noiseModel.Robust):
+        return chi2
+    return 2.0 * float(noise.loss(chi2))
 
 
 def between(dim: int, key_a: int, key_b: int, pose, noise):
@@ -139,8 +174,8 @@ def lower_bound_chi2(factor, values: gtsam.Values, chain: list, covariances: lis
     under its own covariance plus the chain's, r^T (C + Sigma_chain)^-1 r (the rise is r^T (C +
     Sigma_rel)^-1 r for the true relative covariance Sigma_rel <= Sigma_chain)."""
     r = np.asarray(factor.unwhitenedError(values), float)
-    cov = factor.noiseModel().covariance() + chain_covariance(chain, covariances)
-    return float(r @ np.linalg.solve(cov, r))
+    cov = covariance_of(factor) + chain_covariance(chain, covariances)
+    return robust_chi2(factor, float(r @ np.linalg.solve(cov, r)))
 
 
 def chain_poses_2d(pose, order: list, first: int, last: int, moves: list) -> np.ndarray:
@@ -187,8 +222,8 @@ def marginal_bound_chi2(factor, values: gtsam.Values, cov_a, cov_b) -> float:
     a, b = get(keys[0]), get(keys[1])
     ad = a.between(b).inverse().AdjointMap()
     r = np.asarray(factor.unwhitenedError(values), float)
-    cov = factor.noiseModel().covariance() + 2.0 * (ad @ cov_a @ ad.T + cov_b)
-    return float(r @ np.linalg.solve(cov, r))
+    cov = covariance_of(factor) + 2.0 * (ad @ cov_a @ ad.T + cov_b)
+    return robust_chi2(factor, float(r @ np.linalg.solve(cov, r)))
 
 
 def marginals(isam, estimate, pose, order: list, position: dict, edge_cov: list):

@@ -8,6 +8,7 @@ hypotheses"). Keys are `X(id)`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import gtsam
@@ -67,7 +68,10 @@ class PoseGraphHypotheses:
         self.step_start = len(self.order)  # positions from here on are this step's poses
         for index, m in measurements:
             source, target = X(m.source), X(m.target)
-            poses, factors = br.candidate_factors(m, source, target, self.dim, self.config.sigmas)
+            dof = self.config.candidate_dof if m.ambiguous else math.inf
+            poses, factors = br.candidate_factors(
+                m, source, target, self.dim, self.config.sigmas, dof
+            )
             known = (source in self.position, target in self.position)
             if known == (True, True):
                 spans.append((self.position[source], self.position[target]))
@@ -80,7 +84,9 @@ class PoseGraphHypotheses:
                     certain.append(factors[0])
             elif known == (True, False):
                 chain = self.position[source] == len(self.order) - 1
-                self._register(target, factors[0].noiseModel().covariance() if chain else None)
+                # a robust edge's information is not its Gaussian's: no chain bound through it
+                bounded = chain and math.isinf(dof)
+                self._register(target, br.covariance_of(factors[0]) if bounded else None)
                 if len(factors) > 1:
                     position = self.position[target]
                     amb = Ambiguity(index, factors, poses, (source, target), position, self.steps)
@@ -145,10 +151,10 @@ class PoseGraphHypotheses:
     # ---- branching -----------------------------------------------------------------------
     def _branch(self, opened, certain, new_poses, guesses) -> None:
         """Every branch times every combination of the opened measurements' candidates: the
-        best `max_branches` by the predicted chi-square of the step's factors, without those
-        whose lower bound (`branching.lower_bound_chi2`) exceeds their parent's best
-        prediction by more than `margin`."""
-        c = self.config
+        best `max_branches` by the predicted chi-square of the step's factors (a place kept
+        for a candidate of a measurement with a null, `_survivors`), without those whose lower
+        bound (`branching.lower_bound_chi2`) exceeds their parent's best prediction by more
+        than `margin`."""
         self.stats["branchings"] += 1
         for a in opened:
             a.state, a.opened = "open", self.steps
@@ -162,7 +168,7 @@ class PoseGraphHypotheses:
             children += self._children(parent, guess, bridges, loops, combos, certain)
         children.sort(key=lambda child: child[0])
         kept, reused = [], set()
-        for chi2, parent, combo, moves, estimate in children[: c.max_branches]:
+        for chi2, parent, combo, moves, estimate in self._survivors(children, bridges + loops, 2):
             choice = dict(parent.choice)
             choice.update({a.index: k for a, k in zip(bridges + loops, combo)})
             frontier = min(parent.first_pending(self.position), self.step_start)
@@ -188,6 +194,27 @@ class PoseGraphHypotheses:
         self.branches = kept
         if self.window_start is None:
             self.window_start = self.steps
+
+    def _survivors(self, ranked: list, opened: list, combo: int) -> list:
+        """The best `max_branches` of `ranked` (sorted; item[combo]: the combination of the
+        `opened` measurements' components), except that a measurement with a null component
+        whose candidates all rank behind its null keeps its best candidate, in place of the
+        worst survivor not kept so: a candidate is ranked by its predicted chi-square, the
+        whole residual charged to its factor (an upper bound of its cost), the null by its
+        exact cost, so the null children could fill every place before a judgement compares
+        the two on the optimized graph."""
+        kept = list(ranked[: self.config.max_branches])
+        reserved = 0
+        for slot, a in enumerate(opened):
+            null = len(a.factors) - 1
+            if a.factors[null] is not None or any(r[combo][slot] != null for r in kept):
+                continue
+            rest = ranked[self.config.max_branches :]
+            spare = next((r for r in rest if r[combo][slot] != null), None)
+            if spare is not None and reserved < len(kept) - 1:
+                reserved += 1
+                kept[len(kept) - reserved] = spare
+        return sorted(kept, key=lambda r: r[0])
 
     def _children(self, parent, guess, bridges, loops, combos, certain) -> list:
         """[(the parent's score plus the predicted chi-square, parent, combination, tail moves,
@@ -229,7 +256,7 @@ class PoseGraphHypotheses:
         marginal = br.marginals(
             parent.isam, estimate, pose, self.order, self.position, self.edge_cov
         )
-        for chi2, combo, moves, factors, penalty in ranked[: c.max_branches]:
+        for chi2, combo, moves, factors, penalty in self._survivors(ranked, bridges + loops, 1):
             margin = c.null_margin if penalty else c.margin  # a null's cost is exact
             if chi2 > best + margin:
                 need = best + margin - penalty

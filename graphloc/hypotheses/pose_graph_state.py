@@ -4,6 +4,7 @@ the factors and poses gathered for its next update)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import gtsam
@@ -25,6 +26,9 @@ class PoseGraphConfig:
     flush_to_branch: bool = True  # update the iSAM2s before a branching's predictions
     defer: int = 20  # steps a new bridge's tail stays out of the iSAM2s (a switch costs no copy)
     sigmas: tuple = (0.05, 0.05, 0.01)  # a measurement without information (Pose2 / Pose3 order)
+    # degrees of freedom of a Student-t on the candidates of a measurement with alternatives
+    # (inf: Gaussian); finite: `branching.heavy_tailed`, its branches scored by that loss
+    candidate_dof: float = math.inf
     prior_sigma: float = 1e-4
     relinearize_threshold: float = 0.1  # iSAM2's defaults
     relinearize_skip: int = 10

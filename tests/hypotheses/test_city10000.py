@@ -390,6 +390,63 @@ def test_decisions_with_a_null_are_taken_again_at_the_optimum():
     assert gap[1] < 0.2 * gap[0]  # the loop closes
 
 
+def _straight_run(loop_y: float, odometry_sigmas, ambiguous_at: int | None = None):
+    """Measurements of a 20 m straight run in 1 m steps (odometry (1, 0, 0), information from
+    `odometry_sigmas`), the edge into pose `ambiguous_at` with two near-equal candidates, and a
+    loop closure 0 -> 20 with a null component measuring pose 20 at (20, `loop_y`, 0) under
+    sigmas 5 cm / 1 deg: its predicted chi-square is (loop_y / 0.05)^2, the whole residual
+    charged to it."""
+    from graphloc.datasets.pose_graph_file import Measurement
+
+    info = np.diag(1.0 / np.asarray(odometry_sigmas, float) ** 2)
+    loop_info = np.diag(1.0 / np.array([0.05, 0.05, math.radians(1.0)]) ** 2)
+    out = []
+    for k in range(1, 21):
+        near = ((1.0, 0.0, 0.0), (1.0, 0.0, 1e-4)) if k == ambiguous_at else ((1.0, 0.0, 0.0),)
+        out.append(Measurement(k, k - 1, k, near, (info,) * len(near)))
+    out.append(Measurement(21, 0, 20, ((20.0, loop_y, 0.0),), (loop_info,), null=True))
+    return out
+
+
+def test_the_null_never_crowds_out_every_candidate_of_a_branching():
+    """Two branches (an ambiguous odometry edge, its candidates alike) meet a loop closure with
+    a null component whose residual against the drifted chain is 0.4 m: charged wholly to it
+    the candidate predicts chi-square 64, above the null's 16.27, so with room for two branches
+    the two null children took both places and the closure was decided null unseen; a loose
+    chain absorbs it (optimized rise < 1), which only a judgement on the optimized graph shows.
+    The best candidate child keeps a place: the closure is accepted."""
+    measurements = _straight_run(0.4, (0.1, 0.1, 0.05), ambiguous_at=10)
+    config = PoseGraphConfig(max_branches=2, margin=5.0, window=100)
+    engine, estimate = run_engine(measurements, config=config)
+    assert engine.stats["branchings"] == 1
+    assert engine.choices()[20] == 0  # the candidate, not the null (index 1)
+    assert abs(estimate.atPose2(X(20)).y() - 0.4) < 0.05
+
+
+@pytest.mark.parametrize("dof, accepted", [(math.inf, False), (6.0, True)])
+def test_heavy_tailed_candidates_cost_a_log_of_their_residual(dof, accepted):
+    """`candidate_dof`: a candidate's factor costs dof * log(1 + m / dof) (GTSAM's Cauchy loss,
+    `branching.heavy_tailed`) instead of its Mahalanobis^2 m. A stiff chain (the residual stays
+    on the closure) and a closure 0.35 m off: m = 49, above the null's 16.27 as a Gaussian, 6
+    log(1 + 49 / 6) = 13.3 below it under a Student-t with 6 dof."""
+    from graphloc.hypotheses import branching as br
+
+    gaussian = gtsam.noiseModel.Isotropic.Sigma(3, 0.5)
+    robust = br.heavy_tailed(gaussian, 6.0)
+    factor = gtsam.BetweenFactorPose2(X(0), X(1), gtsam.Pose2(), robust)
+    values = gtsam.Values()
+    values.insert(X(0), gtsam.Pose2())
+    values.insert(X(1), gtsam.Pose2(1.0, 0.0, 0.0))  # m = 4
+    assert 2 * factor.error(values) == pytest.approx(6 * math.log1p(4 / 6))
+    assert br.robust_chi2(factor, 4.0) == pytest.approx(6 * math.log1p(4 / 6))
+    assert np.allclose(br.covariance_of(factor), gaussian.covariance())
+    assert br.heavy_tailed(gaussian, math.inf) is gaussian
+
+    measurements = _straight_run(0.35, (1e-4, 1e-4, 1e-5))
+    engine, _ = run_engine(measurements, config=PoseGraphConfig(candidate_dof=dof))
+    assert (engine.choices()[20] == 0) == accepted
+
+
 I3 = "100 0 0 100 0 400"
 I6 = " ".join(["100", "0", "0", "0", "0", "0", "100", "0", "0", "0", "0", "100"]
               + ["0", "0", "0", "400", "0", "0", "400", "0", "400"])  # fmt: skip

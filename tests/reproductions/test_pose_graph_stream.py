@@ -32,9 +32,20 @@ def _feed(stream, run):
     return [stream.update(candidates, odo) for candidates, odo in frames]
 
 
-def test_it_locks_the_genuine_candidate_and_its_decisions_have_the_trackers_shapes(run):
+@pytest.mark.parametrize(
+    "config, null",
+    [
+        (PoseGraphConfig(window=1), "partial"),
+        # a null on every set (the null no longer crowds out the candidates), heavy tails
+        (PoseGraphConfig(window=1, candidate_dof=6.0, margin=6.0), "all"),
+    ],
+    ids=["gaussian-partial", "student-all"],
+)
+def test_it_locks_the_genuine_candidate_and_its_decisions_have_the_trackers_shapes(
+    run, config, null
+):
     simulated, _ = run
-    decisions = _feed(PoseGraphStream(PoseGraphConfig(window=1), null="partial"), run)
+    decisions = _feed(PoseGraphStream(config, null=null), run)
     for k, d in enumerate(decisions):
         candidates = simulated.candidates[k]
         assert d.probabilities.shape == (len(candidates),)
@@ -69,3 +80,17 @@ def test_a_set_every_frame_is_judged_on_the_engines_own_schedule():
 def test_bad_options_are_refused():
     with pytest.raises(ValueError, match="null"):
         PoseGraphStream(null="some")
+
+
+def test_the_benchmark_refuses_an_unknown_method(capsys):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "scripts" / "bench_candidate_engines.py"
+    spec = importlib.util.spec_from_file_location("bench_candidate_engines", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    with pytest.raises(SystemExit) as exit_info:
+        script.main(["--methods", "pose_graph_nope", "--out", "unused"])
+    assert exit_info.value.code == 2
+    assert "pose_graph_nope" in capsys.readouterr().err
