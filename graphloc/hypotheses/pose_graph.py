@@ -204,12 +204,12 @@ class PoseGraphHypotheses:
         exact cost, so the null children could fill every place before a judgement compares
         the two on the optimized graph."""
         kept = list(ranked[: self.config.max_branches])
+        rest = ranked[self.config.max_branches :]
         reserved = 0
         for slot, a in enumerate(opened):
             null = len(a.factors) - 1
             if a.factors[null] is not None or any(r[combo][slot] != null for r in kept):
                 continue
-            rest = ranked[self.config.max_branches :]
             spare = next((r for r in rest if r[combo][slot] != null), None)
             if spare is not None and reserved < len(kept) - 1:
                 reserved += 1

@@ -12,6 +12,7 @@ import pytest
 from gtsam.symbol_shorthand import X
 
 from graphloc.datasets.pose_graph_file import (
+    Measurement,
     group_steps,
     permute_candidates,
     read_pose_graph,
@@ -396,8 +397,6 @@ def _straight_run(loop_y: float, odometry_sigmas, ambiguous_at: int | None = Non
     loop closure 0 -> 20 with a null component measuring pose 20 at (20, `loop_y`, 0) under
     sigmas 5 cm / 1 deg: its predicted chi-square is (loop_y / 0.05)^2, the whole residual
     charged to it."""
-    from graphloc.datasets.pose_graph_file import Measurement
-
     info = np.diag(1.0 / np.asarray(odometry_sigmas, float) ** 2)
     loop_info = np.diag(1.0 / np.array([0.05, 0.05, math.radians(1.0)]) ** 2)
     out = []

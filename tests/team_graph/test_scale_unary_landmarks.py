@@ -15,8 +15,7 @@ from graphloc.factors.robust import Kernel, KernelPolicy
 from graphloc.pipelines.team_graph import GraphConfig, solve
 from graphloc.runner.team_run import team_graph
 
-# the module (the package's `solve` is the function of the same name)
-team_solve = importlib.import_module("graphloc.pipelines.team_graph.solver")
+team_solve = importlib.import_module("graphloc.pipelines.team_graph.solver")  # the module
 
 SIGMAS = (0.02, 0.02, 0.1)
 
